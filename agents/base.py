@@ -1,0 +1,29 @@
+"""The agent protocol shared by every baseline."""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class Agent(Protocol):
+    """Chooses actions from what an env returns; keeps no reference to the env itself."""
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start a new episode; ``seed`` makes any randomness of the agent reproducible."""
+
+    def act(self, observation: Any, info: dict) -> int:
+        """The action for this step, from the last observation and info."""
+
+
+def valid_actions(info: dict, n_actions: int) -> np.ndarray:
+    """Indices of the valid actions per ``info["action_mask"]`` (all of them if there is no mask)."""
+    mask = info.get("action_mask")
+    if mask is None:
+        return np.arange(n_actions)
+    mask = np.asarray(mask)
+    if mask.shape != (n_actions,):
+        raise ValueError(f'info["action_mask"] must have shape ({n_actions},), got {mask.shape}')
+    return np.flatnonzero(mask)

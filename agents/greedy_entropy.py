@@ -1,0 +1,26 @@
+"""The paper's selection rule: observe what brings the most information now."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class GreedyEntropyAgent:
+    """Argmax of ``info["action_information_gain"]`` over the valid actions (ties: lowest index).
+
+    Uses only ``info``, so it works through any wrapper that passes infos on.
+    When no action is valid it returns action 0 (a no-op in the infonav envs).
+    """
+
+    def reset(self, seed: int | None = None) -> None:
+        """Stateless and deterministic: nothing to reset."""
+
+    def act(self, observation, info: dict) -> int:
+        try:
+            gains = info["action_information_gain"]
+        except KeyError:
+            raise ValueError('GreedyEntropyAgent needs info["action_information_gain"] from the env') from None
+        mask = info.get("action_mask")
+        if mask is None:
+            return int(np.argmax(gains))
+        return int(np.argmax(np.where(mask, gains, -np.inf))) if np.any(mask) else 0

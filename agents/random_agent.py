@@ -1,0 +1,32 @@
+"""Uniformly random choice among the valid actions."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from agents.base import valid_actions
+
+
+class RandomAgent:
+    """Picks uniformly among the actions ``info["action_mask"]`` allows (any action if none is valid).
+
+    Args:
+        n_actions: size of the env's ``Discrete`` action space.
+        seed: seed of the agent's own generator; ``reset(seed)`` re-seeds it.
+    """
+
+    def __init__(self, n_actions: int, seed: int | None = None):
+        if n_actions < 1:
+            raise ValueError(f"n_actions must be >= 1, got {n_actions}")
+        self.n_actions = int(n_actions)
+        self.np_random = np.random.default_rng(seed)
+
+    def reset(self, seed: int | None = None) -> None:
+        if seed is not None:
+            self.np_random = np.random.default_rng(seed)
+
+    def act(self, observation, info: dict) -> int:
+        choices = valid_actions(info, self.n_actions)
+        if choices.size == 0:
+            return int(self.np_random.integers(self.n_actions))
+        return int(choices[self.np_random.integers(choices.size)])

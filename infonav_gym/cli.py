@@ -1,0 +1,118 @@
+"""The ``infonav`` command: demo, evaluate, benchmark."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from pathlib import Path
+
+import infonav_gym  # noqa: F401  (registers the envs)
+
+DEFAULT_ENV = "infonav/LandmarkSelection-v0"
+
+
+def _config_pair(text: str) -> tuple[str, object]:
+    """``key=value`` with the value read as JSON when it parses (numbers, true/false), else as a string."""
+    key, separator, value = text.partition("=")
+    if not separator or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value
+
+
+def _common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seed", type=int, default=0, help="first seed (default: 0)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of tables")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="infonav", description="Information-driven navigation environments.")
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    demo = commands.add_parser("demo", help="the paper's Fig. 2 story: which corridor landmark brings most information")
+    demo.add_argument("--steps", type=int, default=12, help="steps per agent (default: 12)")
+    demo.add_argument("--plot", type=Path, help="also write a Fig. 2-style plot to this PNG (needs matplotlib)")
+    _common(demo)
+
+    evaluate = commands.add_parser("evaluate", help="evaluate baseline agents with the same seeds; print a table")
+    evaluate.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
+    evaluate.add_argument("--agents", default="random,greedy", help="comma-separated: random, greedy")
+    evaluate.add_argument("--episodes", type=int, default=20, help="episodes per agent (default: 20)")
+    evaluate.add_argument(
+        "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
+    )
+    evaluate.add_argument("--output", type=Path, help="write OUTPUT.md, OUTPUT.csv and OUTPUT.json")
+    _common(evaluate)
+
+    benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
+    benchmark.add_argument("--rounds", type=int, default=5, help="alternating measurement rounds (default: 5)")
+    benchmark.add_argument("--seconds", type=float, default=1.0, help="seconds per env per round (default: 1)")
+    _common(benchmark)
+    return parser
+
+
+def _demo(args) -> dict:
+    from infonav_gym.demo import demo_table, plot_information_field, run_demo
+
+    result = run_demo(steps=args.steps, seed=args.seed)
+    if args.plot:
+        result["plot"] = str(plot_information_field(args.plot, seed=args.seed))
+    if not args.json:
+        print(demo_table(result))
+        if args.plot:
+            print(f"\nwrote {result['plot']}")
+    return result
+
+
+def _evaluate(args, argv) -> dict:
+    from infonav_gym.evaluation import evaluate, markdown_table, write_results
+
+    agent_names = [name.strip() for name in args.agents.split(",") if name.strip()]
+    results = evaluate(args.env, agent_names, args.episodes, args.seed, dict(args.config), progress=not args.json)
+    if args.output:
+        command = "infonav " + " ".join(shlex.quote(part) for part in argv)
+        results["files"] = [str(path) for path in write_results(results, args.output, command)]
+    if not args.json:
+        print(f"{args.env}, {args.episodes} episodes per agent, seeds {args.seed}..{args.seed + args.episodes - 1}")
+        print(markdown_table(results))
+    return results
+
+
+def _benchmark(args) -> dict:
+    from infonav_gym.benchmark import run_benchmark
+
+    result = run_benchmark(rounds=args.rounds, seconds_per_round=args.seconds, seed=args.seed, progress=not args.json)
+    if not args.json:
+        figures, goals, met = result["figures"], result["goals"], result["goals_met"]
+        for name, value in figures.items():
+            goal = ""
+            if name in goals:
+                goal = f"  (goal {'>=' if 'ratio' in name else '<='} {goals[name]}: {'met' if met[name] else 'NOT met'})"
+            print(f"{name:40s} {value:12.3f}{goal}")
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "demo":
+            result = _demo(args)
+        elif args.command == "evaluate":
+            result = _evaluate(args, argv)
+        else:
+            result = _benchmark(args)
+    except ValueError as error:
+        parser.exit(2, f"infonav {args.command}: error: {error}\n")
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,237 @@
+"""``infonav/LandmarkSelection-v0``: choose which landmark to observe (the paper's Section III)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from gymnasium import spaces
+
+from infonav_gym.config import check_choice, check_positive
+from infonav_gym.envs.base import InfoNavEnv
+from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
+from infonav_gym.estimation.models import range_bearing, wrap_angle
+from infonav_gym.information import _LOG_2PI_E, expected_information_gain, log_det_spd
+from infonav_gym.sensors.odometry import OdometrySensor
+from infonav_gym.sensors.range_bearing import RangeBearingSensor
+from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, SCENARIOS
+from infonav_gym.world.world import World
+
+POSE_FEATURES = 10
+CANDIDATE_FEATURES = 5
+_BIG = 1e4
+
+
+class LandmarkSelectionEnv(InfoNavEnv):
+    """A robot drives a fixed route; each step it observes one landmark, chosen for its information.
+
+    ## Description
+    The vehicle follows its route in a Pymunk world while a ``PoseEKF`` tracks its
+    pose from noisy odometry. Each step the agent picks one of ``n_candidates``
+    landmarks; the EKF updates with a noisy range-bearing measurement of it. A
+    greedy-entropy agent picks the landmark with the largest expected mutual
+    information; the paper's Fig. 1-2 corridor is ``scenario="corridor"``.
+
+    The agent decides at the predicted prior of the step at which the
+    measurement is taken, so ``info["action_information_gain"][a]`` is the exact
+    mutual information that action ``a`` will bring (the EKF's posterior
+    covariance does not depend on the measured value).
+
+    ## Action Space
+    ``Discrete(n_candidates)``: the index of the landmark to observe. An action
+    is valid when that landmark exists, lies within the sensor's range and field
+    of view, and no wall or obstacle blocks the line of sight
+    (``info["action_mask"]``). A masked action is a no-op with reward 0 by
+    default (``invalid_action="noop"``; RL algorithms and env checkers sample
+    actions blindly) or raises ``ValueError`` with ``invalid_action="raise"``.
+    An integer outside the space always raises ``ValueError``.
+
+    ## Observation Space
+    ``Box(float32, (10 + 5 * n_candidates,))``: estimated ``x, y`` [m], ``cos, sin``
+    of the estimated heading, standard deviations of ``x, y`` [m] and heading
+    [rad], the ``x-y`` correlation, the pose entropy [nats] and the elapsed
+    fraction of the horizon; then per candidate: valid flag, estimated range [m],
+    ``cos, sin`` of the estimated bearing, and the landmark's position standard
+    deviation [m] (0 for a known map). Missing candidates are all zeros.
+
+    ## Rewards
+    The realized mutual information of the update, ``0.5 ln(det P_prior / det P_post)``
+    [nats] (the paper's ``ic``, Eq. 3), over the pose, or over the whole state
+    (pose and landmarks) when ``mapping=True``.
+
+    ## Starting State
+    The robot at the scenario's start pose; the initial estimate is drawn from the
+    prior ``N(true pose, diag(initial_position_std_m^2, ..., initial_heading_std_rad^2))``.
+
+    ## Episode End
+    Truncated after ``horizon`` steps; never terminated.
+
+    ## Arguments
+    ``gym.make("infonav/LandmarkSelection-v0", render_mode=None, **config)`` with any
+    key of ``default_config()``; an unknown key raises ``ValueError`` naming it.
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    @classmethod
+    def default_config(cls) -> dict:
+        return {
+            **super().default_config(),
+            "scenario": "field",  # "field" (random) or "corridor" (the paper's Fig. 1)
+            "n_candidates": 8,  # K, size of the action space
+            "time_step_s": 0.5,  # [s]
+            "speed_mps": 1.0,  # cruise speed along the route [m/s]
+            "mapping": False,  # True: landmark positions are uncertain and estimated (EKF-SLAM)
+            "landmark_prior_std_m": 1.0,  # prior std of each landmark coordinate when mapping [m]
+            "range_std_m": 0.1,  # [m]
+            "range_std_per_m": 0.01,  # growth of the range std with distance [m/m]
+            "bearing_std_rad": math.radians(2.0),  # [rad]
+            "sensor_max_range_m": 15.0,  # [m]
+            "sensor_fov_rad": math.pi,  # full field of view around the heading [rad]
+            "odometry_speed_std_mps": 0.05,  # [m/s]
+            "odometry_turn_rate_std_rps": 0.02,  # [rad/s]
+            "initial_position_std_m": 0.1,  # [m]
+            "initial_heading_std_rad": 0.02,  # [rad]
+            "n_obstacles": 6,  # field scenario only
+            "field_size_m": 30.0,  # side of the square field [m]
+        }
+
+    def __init__(self, render_mode: str | None = None, **config):
+        super().__init__(render_mode=render_mode, **config)
+        cfg, owner = self.config, type(self).__name__
+        check_choice(cfg, "scenario", SCENARIOS, owner)
+        check_positive(cfg, ["n_candidates", "time_step_s", "speed_mps", "landmark_prior_std_m", "field_size_m"], owner)
+        check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
+        check_positive(cfg, ["n_obstacles"], owner, allow_zero=True)
+        if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
+            raise ValueError(f"the corridor scenario has {CORRIDOR_LANDMARK_COUNT} landmarks: n_candidates must be >= 4")
+        self.sensor = RangeBearingSensor(
+            cfg["range_std_m"], cfg["range_std_per_m"], cfg["bearing_std_rad"], cfg["sensor_max_range_m"], cfg["sensor_fov_rad"]
+        )
+        self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
+        self._odometry_covariance = self.odometry.noise_covariance()
+        self.world = World()
+        self.action_space = spaces.Discrete(cfg["n_candidates"])
+        low, high = self._observation_bounds(cfg["n_candidates"])
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+
+    @staticmethod
+    def _observation_bounds(n_candidates: int) -> tuple[np.ndarray, np.ndarray]:
+        pose_low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0]
+        pose_high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1]
+        candidate_low, candidate_high = [0, 0, -1, -1, 0], [1, _BIG, 1, 1, _BIG]
+        low = np.array(pose_low + candidate_low * n_candidates, dtype=np.float32)
+        high = np.array(pose_high + candidate_high * n_candidates, dtype=np.float32)
+        return low, high
+
+    def _reset_episode(self) -> None:
+        cfg = self.config
+        if cfg["scenario"] == "field":
+            params = {"n_landmarks": cfg["n_candidates"], "n_obstacles": cfg["n_obstacles"], "size_m": cfg["field_size_m"]}
+        else:
+            params = {}
+        self.world.reset(SCENARIOS[cfg["scenario"]](self.np_random, speed_mps=cfg["speed_mps"], **params))
+        self._odometry_rng, self._measurement_rng = self.np_random.spawn(2)
+        pose_std = np.array([cfg["initial_position_std_m"]] * 2 + [cfg["initial_heading_std_rad"]])
+        self._true_pose = self.world.pose
+        initial_pose = self._true_pose + pose_std * self.np_random.standard_normal(POSE_DIM)
+        landmarks = self.world.landmarks
+        if cfg["mapping"]:
+            prior_std = cfg["landmark_prior_std_m"]
+            estimates = landmarks + prior_std * self.np_random.standard_normal(landmarks.shape)
+            self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2), estimates, prior_std**2)
+        else:
+            self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2))
+        self._chosen_landmark = None
+        self._true_path = [self._true_pose[:2]]
+        self._estimated_path = [self.ekf.x[:2].copy()]
+
+    def _next_decision(self) -> tuple[np.ndarray, np.ndarray]:
+        landmarks, true_pose, P = self.world.landmarks, self._true_pose, self.ekf.P
+        candidates = np.flatnonzero(self.sensor.in_coverage(range_bearing(true_pose, landmarks)))
+        if candidates.size:
+            candidates = candidates[self.world.line_of_sight(true_pose, landmarks[candidates])]
+        self._predicted, self._H = self.ekf.landmark_measurement_model(None if self.config["mapping"] else landmarks)
+        mask = np.zeros(self.action_space.n, dtype=np.int8)
+        gains = np.zeros(self.action_space.n)
+        mask[candidates] = 1
+        if candidates.size:
+            R = self.sensor.noise_covariance(self._predicted[candidates, 0])
+            gains[candidates] = expected_information_gain(P, self._H[candidates], R, check_input=False)
+        self._prior_log_det = log_det_spd(P, check_input=False)
+        pose_log_det = log_det_spd(P[:POSE_DIM, :POSE_DIM], check_input=False) if self.config["mapping"] else self._prior_log_det
+        self._pose_entropy = 0.5 * (POSE_DIM * _LOG_2PI_E + pose_log_det)
+        return mask, gains
+
+    def _apply_action(self, action: int | None) -> dict:
+        self._chosen_landmark = action
+        if action is None:
+            return {"mutual_information": 0.0}
+        predicted = self._predicted[action]
+        measurement = self.sensor.measure(self._true_pose, self.world.landmarks[action], self._measurement_rng)
+        self.ekf.update_range_bearing(measurement, predicted, self._H[action], self.sensor.noise_covariance(predicted[0])[0])
+        return {"mutual_information": 0.5 * (self._prior_log_det - log_det_spd(self.ekf.P, check_input=False))}
+
+    def _advance(self) -> None:
+        dt = self.config["time_step_s"]
+        control = self.world.step(dt)
+        self._true_pose = self.world.pose
+        self.ekf.predict(self.odometry.measure(control, self._odometry_rng), dt, self._odometry_covariance)
+        self._true_path.append(self._true_pose[:2])
+        self._estimated_path.append(self.ekf.x[:2].copy())
+
+    def _observation(self) -> np.ndarray:
+        x, y, heading = self.ekf.x[:POSE_DIM].tolist()
+        P = self.ekf.P
+        var_x, var_y, var_heading = P[0, 0], P[1, 1], P[2, 2]
+        pose = [x, y, math.cos(heading), math.sin(heading), math.sqrt(var_x), math.sqrt(var_y), math.sqrt(var_heading)]
+        pose += [P[0, 1] / math.sqrt(var_x * var_y), self._pose_entropy, self._elapsed_steps / self.config["horizon"]]
+        observation = np.zeros(self.observation_space.shape, dtype=np.float32)
+        observation[:POSE_FEATURES] = pose
+        n_landmarks = len(self._predicted)
+        candidates = observation[POSE_FEATURES:].reshape(-1, CANDIDATE_FEATURES)[:n_landmarks]
+        candidates[:, 0] = self._action_mask[:n_landmarks]
+        candidates[:, 1] = self._predicted[:, 0]
+        candidates[:, 2] = np.cos(self._predicted[:, 1])
+        candidates[:, 3] = np.sin(self._predicted[:, 1])
+        if self.config["mapping"]:
+            candidates[:, 4] = np.sqrt(np.diagonal(P)[POSE_DIM:].reshape(-1, 2).mean(axis=1))
+        return np.clip(observation, self.observation_space.low, self.observation_space.high, out=observation)
+
+    def _extra_info(self) -> dict:
+        true_x, true_y, true_heading = self._true_pose.tolist()
+        x, y, heading = self.ekf.x[:POSE_DIM].tolist()
+        return {
+            "pose_entropy": self._pose_entropy,
+            "state_entropy": 0.5 * (self.ekf.dim_x * _LOG_2PI_E + self._prior_log_det),
+            "position_error_m": math.hypot(true_x - x, true_y - y),
+            "heading_error_rad": abs(wrap_angle(true_heading - heading)),
+            "true_pose": self._true_pose.copy(),
+            "estimated_pose": self.ekf.pose,
+            "time_s": self._elapsed_steps * self.config["time_step_s"],
+        }
+
+    def _scene_frame(self):
+        from infonav_gym.rendering import SceneFrame
+
+        scenario, mapping = self.world.scenario, self.config["mapping"]
+        n_landmarks = len(self.world.landmarks)
+        landmark_blocks = [self.ekf.P[3 + 2 * i : 5 + 2 * i, 3 + 2 * i : 5 + 2 * i] for i in range(n_landmarks)]
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            landmarks=self.world.landmarks,
+            landmark_visible=self._action_mask[:n_landmarks].astype(bool),
+            chosen_landmark=self._chosen_landmark,
+            true_pose=self._true_pose,
+            estimated_pose=self.ekf.pose,
+            pose_covariance=self.ekf.pose_covariance,
+            landmark_estimates=self.ekf.landmark_positions if mapping else None,
+            landmark_covariances=np.array(landmark_blocks) if mapping else None,
+            true_path=np.array(self._true_path),
+            estimated_path=np.array(self._estimated_path),
+            caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
+            f"pose entropy {self._pose_entropy:.2f} nats",
+        )

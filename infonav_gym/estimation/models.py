@@ -1,0 +1,88 @@
+"""Motion and measurement models with their Jacobians.
+
+Poses are ``[x, y, heading]`` in metres and radians; headings are wrapped to [-pi, pi).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def wrap_angle(angle):
+    """Map an angle (a float or an ndarray of them) to [-pi, pi) [rad]."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def unicycle_motion(pose, control, dt: float) -> np.ndarray:
+    """Pose after driving ``control = [speed, turn_rate]`` for ``dt`` seconds (Euler step)."""
+    x, y, heading = pose
+    speed, turn_rate = control
+    return np.array(
+        [
+            x + speed * dt * math.cos(heading),
+            y + speed * dt * math.sin(heading),
+            wrap_angle(heading + turn_rate * dt),
+        ]
+    )
+
+
+def unicycle_jacobians(pose, control, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of ``unicycle_motion`` w.r.t. the pose (3, 3) and the control (3, 2)."""
+    heading = pose[2]
+    speed = control[0]
+    cos_h, sin_h = math.cos(heading), math.sin(heading)
+    F = np.array([[1.0, 0.0, -speed * dt * sin_h], [0.0, 1.0, speed * dt * cos_h], [0.0, 0.0, 1.0]])
+    V = np.array([[dt * cos_h, 0.0], [dt * sin_h, 0.0], [0.0, dt]])
+    return F, V
+
+
+def unicycle_control(pose_before, pose_after, dt: float) -> np.ndarray:
+    """The ``[speed, turn_rate]`` that ``unicycle_motion`` turns ``pose_before`` into ``pose_after`` with.
+
+    Exact when the move had no sideways slip (the component across the heading is dropped).
+    """
+    heading = pose_before[2]
+    dx = pose_after[0] - pose_before[0]
+    dy = pose_after[1] - pose_before[1]
+    speed = (dx * math.cos(heading) + dy * math.sin(heading)) / dt
+    return np.array([speed, wrap_angle(pose_after[2] - heading) / dt])
+
+
+def range_bearing(pose, landmarks) -> np.ndarray:
+    """Range [m] and bearing [rad] from ``pose`` to each landmark: (N, 2) -> (N, 2)."""
+    landmarks = np.atleast_2d(landmarks)
+    dx = landmarks[:, 0] - pose[0]
+    dy = landmarks[:, 1] - pose[1]
+    return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - pose[2])], axis=-1)
+
+
+def range_bearing_linearized(pose, landmarks) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``range_bearing`` and its Jacobians w.r.t. the pose (N, 2, 3) and the landmark position (N, 2, 2).
+
+    Raises:
+        ValueError: if a landmark coincides with the sensor (the bearing is undefined there).
+    """
+    landmarks = np.atleast_2d(landmarks)
+    dx = landmarks[:, 0] - pose[0]
+    dy = landmarks[:, 1] - pose[1]
+    squared_range = dx * dx + dy * dy
+    if np.any(squared_range < 1e-18):
+        raise ValueError("a landmark coincides with the sensor position: its bearing is undefined")
+    distance = np.sqrt(squared_range)
+    predicted = np.stack([distance, wrap_angle(np.arctan2(dy, dx) - pose[2])], axis=-1)
+    H_pose = np.zeros((len(landmarks), 2, 3))
+    H_pose[:, 0, 0] = -dx / distance
+    H_pose[:, 0, 1] = -dy / distance
+    H_pose[:, 1, 0] = dy / squared_range
+    H_pose[:, 1, 1] = -dx / squared_range
+    H_pose[:, 1, 2] = -1.0
+    return predicted, H_pose, -H_pose[:, :, :2]
+
+
+def range_bearing_residual(measured, predicted) -> np.ndarray:
+    """Innovation ``measured - predicted`` of a range-bearing pair, bearing wrapped."""
+    residual = np.subtract(measured, predicted)
+    residual[1] = wrap_angle(residual[1])
+    return residual

@@ -1,0 +1,186 @@
+"""Entropy, information and mutual information, in nats (numpy only).
+
+The paper's Section III-A: a Gaussian with covariance ``P`` has entropy
+``h = 0.5 ln((2 pi e)^n det P)``; its information metric is ``im = -h``; the
+information contribution of an observation is ``ic = im_post - im_prior``
+(Eq. 3), the mutual information between state and observation. Section IV
+(Eqs. 4-5): the entropy of an image is the entropy of its gray-level histogram.
+
+Every function validates its input and raises ``ValueError`` naming the problem.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+_LOG_2PI_E = math.log(2.0 * math.pi * math.e)
+_SYMMETRY_RTOL = 1e-8
+
+
+def _finite_array(name: str, value) -> np.ndarray:
+    array = np.asarray(value, dtype=float)
+    if array.size == 0:
+        raise ValueError(f"{name} is empty (shape {array.shape})")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} contains NaN or infinite entries")
+    return array
+
+
+def _square_stack(name: str, value) -> np.ndarray:
+    matrix = _finite_array(name, value)
+    if matrix.ndim < 2 or matrix.shape[-1] != matrix.shape[-2]:
+        raise ValueError(f"{name} must be a square matrix (or a stack of them), got shape {matrix.shape}")
+    return matrix
+
+
+def log_det_spd(matrix, name: str = "matrix", check_input: bool = True) -> float | np.ndarray:
+    """``ln det`` of a symmetric positive-definite matrix (or stack), by Cholesky.
+
+    Args:
+        matrix: (n, n) or (..., n, n).
+        name: what the matrix is, for error messages.
+        check_input: check shape, finiteness and symmetry first; ``False`` is for
+            hot loops whose matrices are known good (positive definiteness is
+            always checked by the Cholesky factorization).
+
+    Raises:
+        ValueError: if the input is not square, not symmetric, not positive definite, or not finite.
+    """
+    if check_input:
+        matrix = _square_stack(name, matrix)
+        asymmetry = np.max(np.abs(matrix - np.swapaxes(matrix, -1, -2)))
+        scale = np.max(np.abs(matrix))
+        if asymmetry > _SYMMETRY_RTOL * scale:
+            raise ValueError(f"{name} is not symmetric (max |M - M^T| = {asymmetry:.3g}, max |M| = {scale:.3g})")
+    log_det = _cholesky_log_det(np.asarray(matrix, dtype=float), name)
+    return float(log_det) if np.ndim(log_det) == 0 else log_det
+
+
+def _cholesky_log_det(matrix: np.ndarray, name: str) -> float | np.ndarray:
+    """``ln det`` from the Cholesky factor; 2 x 2 stacks (every range-bearing innovation) in closed form."""
+    if matrix.shape[-1] == 2:
+        pivot = matrix[..., 0, 0]
+        schur_complement = matrix[..., 1, 1] - matrix[..., 1, 0] ** 2 / pivot
+        if (pivot > 0).all() and (schur_complement > 0).all():
+            return np.log(pivot * schur_complement)
+    else:
+        try:
+            cholesky = np.linalg.cholesky(matrix)
+        except np.linalg.LinAlgError:
+            cholesky = None
+        if cholesky is not None:
+            log_det = 2.0 * np.log(np.diagonal(cholesky, axis1=-2, axis2=-1)).sum(axis=-1)
+            if np.isfinite(log_det).all():
+                return log_det
+    if not np.all(np.isfinite(matrix)):
+        raise ValueError(f"{name} contains NaN or infinite entries")
+    smallest = np.min(np.linalg.eigvalsh(matrix))
+    raise ValueError(f"{name} is not positive definite (smallest eigenvalue {smallest:.3g})")
+
+
+def gaussian_entropy(P, check_input: bool = True) -> float:
+    """Differential entropy of N(., P): ``0.5 ln((2 pi e)^n det P)`` [nats]."""
+    log_det = log_det_spd(P, "covariance P", check_input)
+    if np.ndim(log_det) != 0:
+        raise ValueError(f"covariance P must be one matrix, got shape {np.shape(P)}")
+    n = np.shape(P)[-1]
+    return 0.5 * (n * _LOG_2PI_E + log_det)
+
+
+def information_metric(P) -> float:
+    """The paper's information metric ``im = -h``: higher for a more compact Gaussian [nats]."""
+    return -gaussian_entropy(P)
+
+
+def mutual_information(P_prior, P_post, check_input: bool = True) -> float:
+    """Information contribution ``ic = 0.5 ln(det P_prior / det P_post)`` of an update (Eq. 3) [nats]."""
+    if check_input:
+        P_prior = _square_stack("prior covariance", P_prior)
+        P_post = _square_stack("posterior covariance", P_post)
+        if P_prior.shape != P_post.shape or P_prior.ndim != 2:
+            raise ValueError(
+                "prior and posterior covariances must be matrices of the same shape, "
+                f"got {P_prior.shape} and {P_post.shape}"
+            )
+    return 0.5 * (
+        log_det_spd(P_prior, "prior covariance", check_input) - log_det_spd(P_post, "posterior covariance", check_input)
+    )
+
+
+def expected_information_gain(P, H, R, check_input: bool = True) -> float | np.ndarray:
+    """Mutual information an EKF update would bring, before measuring [nats].
+
+    ``0.5 * (ln det(H P H^T + R) - ln det R)``: with a linearized model the
+    posterior covariance does not depend on the measurement value, so this is
+    also the realized ``mutual_information`` of that update.
+
+    Args:
+        P: prior covariance, (n, n).
+        H: measurement Jacobian, (m, n) or a batch (..., m, n) over candidates.
+        R: measurement noise covariance, (m, m) or a batch (..., m, m).
+        check_input: validate shapes, finiteness, symmetry and ``P``; ``False``
+            for hot loops (only the Cholesky factorizations check definiteness).
+
+    Returns:
+        A float for one candidate, else an array of the broadcast batch shape.
+    """
+    if check_input:
+        P = _square_stack("prior covariance P", P)
+        if P.ndim != 2:
+            raise ValueError(f"prior covariance P must be one (n, n) matrix, got shape {P.shape}")
+        log_det_spd(P, "prior covariance P")
+        H = _finite_array("Jacobian H", H)
+        R = _square_stack("noise covariance R", R)
+        if H.ndim < 2 or H.shape[-1] != P.shape[0]:
+            raise ValueError(f"Jacobian H must have shape (..., m, {P.shape[0]}) to match P, got {H.shape}")
+        if R.shape[-1] != H.shape[-2]:
+            raise ValueError(f"noise covariance R must be ({H.shape[-2]}, {H.shape[-2]}) to match H, got {R.shape}")
+    innovation_covariance = H @ P @ np.swapaxes(H, -1, -2) + R
+    gain = 0.5 * (
+        log_det_spd(innovation_covariance, "innovation covariance H P H^T + R", check_input)
+        - log_det_spd(R, "noise covariance R", check_input)
+    )
+    return float(gain) if np.ndim(gain) == 0 else gain
+
+
+def histogram_entropy(image, bins: int = 256, value_range=None, base: float = math.e) -> float:
+    """Entropy of an image's gray-level histogram (the paper's Eqs. 4-5).
+
+    Args:
+        image: array of gray levels (any shape).
+        bins: number of histogram bins.
+        value_range: ``(low, high)`` of the histogram; default ``(0, 256)`` for
+            uint8 images (one bin per level) and ``(min, max)`` otherwise.
+        base: logarithm base (``math.e`` gives nats, 2 gives bits).
+
+    Returns:
+        ``-sum p_i log p_i`` over the non-empty bins.
+    """
+    pixels = np.asarray(image)
+    if pixels.size == 0:
+        raise ValueError(f"image is empty (shape {pixels.shape})")
+    if not (np.issubdtype(pixels.dtype, np.integer) or np.issubdtype(pixels.dtype, np.floating)):
+        raise ValueError(f"image must hold numbers, got dtype {pixels.dtype}")
+    if not np.all(np.isfinite(pixels)):
+        raise ValueError("image contains NaN or infinite pixels")
+    if int(bins) != bins or bins < 1:
+        raise ValueError(f"bins must be a positive integer, got {bins!r}")
+    if not base > 0 or base == 1:
+        raise ValueError(f"base must be positive and not 1, got {base!r}")
+    if pixels.dtype == np.uint8 and bins == 256 and value_range is None:
+        counts = np.bincount(pixels.ravel(), minlength=256)
+    else:
+        if value_range is None:
+            value_range = (0, 256) if pixels.dtype == np.uint8 else (float(pixels.min()), float(pixels.max()))
+        low, high = value_range
+        if not high >= low:
+            raise ValueError(f"value_range must be (low, high) with high >= low, got {value_range!r}")
+        if high == low:
+            return 0.0
+        counts, _ = np.histogram(pixels, bins=int(bins), range=(low, high))
+        if counts.sum() == 0:
+            raise ValueError(f"no pixel lies inside value_range {value_range!r}")
+    probabilities = counts[counts > 0] / counts.sum()
+    return float(-np.sum(probabilities * np.log(probabilities)) / math.log(base))

@@ -1,0 +1,191 @@
+"""Models, PoseEKF and consistency: finite differences, filterpy as the peer, Monte Carlo NEES."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from filterpy.kalman import ExtendedKalmanFilter
+from scipy import stats
+
+import infonav_gym  # noqa: F401  (registers the envs)
+from agents import RandomAgent
+from infonav_gym.estimation import PoseEKF, chi2_bounds, nees, nis, pose_error
+from infonav_gym.estimation.models import (
+    range_bearing,
+    range_bearing_linearized,
+    range_bearing_residual,
+    unicycle_control,
+    unicycle_jacobians,
+    unicycle_motion,
+    wrap_angle,
+)
+
+
+def numerical_jacobian(function, point, step=1e-7):
+    """Central differences of ``function`` (vector -> vector) at ``point``, bearings wrapped."""
+    point = np.asarray(point, dtype=float)
+    columns = []
+    for i in range(point.size):
+        offset = np.zeros_like(point)
+        offset[i] = step
+        difference = np.asarray(function(point + offset)) - np.asarray(function(point - offset))
+        columns.append(wrap_angle(difference) / (2 * step))
+    return np.stack(columns, axis=-1)
+
+
+POSES = [np.array([0.3, -1.2, 0.4]), np.array([5.0, 2.0, 3.1]), np.array([-2.0, 7.0, -2.9])]
+
+
+@pytest.mark.parametrize("pose", POSES)
+def test_unicycle_jacobians_match_finite_differences(pose):
+    control, dt = np.array([1.3, -0.4]), 0.5
+    F, V = unicycle_jacobians(pose, control, dt)
+    np.testing.assert_allclose(F, numerical_jacobian(lambda p: unicycle_motion(p, control, dt), pose), atol=1e-6)
+    np.testing.assert_allclose(V, numerical_jacobian(lambda u: unicycle_motion(pose, u, dt), control), atol=1e-6)
+
+
+@pytest.mark.parametrize("pose", POSES)
+def test_range_bearing_jacobians_match_finite_differences(pose):
+    landmarks = np.array([[4.0, 1.0], [-3.0, -2.5], [0.5, 9.0]])
+    predicted, H_pose, H_landmark = range_bearing_linearized(pose, landmarks)
+    np.testing.assert_allclose(predicted, range_bearing(pose, landmarks), rtol=1e-15)
+    for i, landmark in enumerate(landmarks):
+        numeric_pose = numerical_jacobian(lambda p, lm=landmark: range_bearing(p, lm)[0], pose)
+        numeric_landmark = numerical_jacobian(lambda lm, p=pose: range_bearing(p, lm)[0], landmark)
+        np.testing.assert_allclose(H_pose[i], numeric_pose, atol=1e-6)
+        np.testing.assert_allclose(H_landmark[i], numeric_landmark, atol=1e-6)
+
+
+def test_range_bearing_at_the_sensor_is_an_error():
+    with pytest.raises(ValueError, match="coincides"):
+        range_bearing_linearized(np.zeros(3), np.zeros((1, 2)))
+
+
+def test_unicycle_control_inverts_the_motion_model():
+    pose, control = np.array([1.0, 2.0, 3.0]), np.array([0.8, 0.6])
+    np.testing.assert_allclose(unicycle_control(pose, unicycle_motion(pose, control, 0.5), 0.5), control, rtol=1e-12)
+
+
+def test_wrap_angle_and_residual_cross_the_branch_cut():
+    np.testing.assert_allclose(wrap_angle(np.array([math.pi, -math.pi, 3 * math.pi, 0.1])), [-math.pi, -math.pi, -math.pi, 0.1])
+    residual = range_bearing_residual([2.0, math.pi - 0.01], [1.5, -math.pi + 0.01])
+    np.testing.assert_allclose(residual, [0.5, -0.02], atol=1e-12)
+
+
+def make_filters(mapped: bool):
+    """A PoseEKF and a plain filterpy EKF in the same state."""
+    pose, pose_covariance = np.array([1.0, 2.0, 3.0]), np.diag([0.3, 0.2, 0.05])
+    landmarks = np.array([[5.0, 4.0], [0.0, -3.0]]) if mapped else None
+    ekf = PoseEKF(pose, pose_covariance, landmarks, 0.5 if mapped else None)
+    reference = ExtendedKalmanFilter(dim_x=ekf.dim_x, dim_z=2)
+    reference.x, reference.P = ekf.x.copy(), ekf.P.copy()
+    return ekf, reference
+
+
+@pytest.mark.parametrize("mapped", [False, True])
+def test_range_bearing_update_equals_filterpys_update(mapped):
+    ekf, reference = make_filters(mapped)
+    known = None if mapped else np.array([[5.0, 4.0], [0.0, -3.0]])
+    predicted, H = ekf.landmark_measurement_model(known)
+    R = np.diag([0.04, 0.001])
+    measurement = predicted[1] + np.array([0.1, 0.05])
+    ekf.update_range_bearing(measurement, predicted[1], H[1], R)
+    reference.update(
+        measurement, lambda x: H[1], lambda x: predicted[1], R=R, residual=range_bearing_residual
+    )
+    reference.x[2] = wrap_angle(reference.x[2])
+    np.testing.assert_allclose(ekf.x, reference.x, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(ekf.P, reference.P, rtol=1e-10, atol=1e-14)
+    for name in ("y", "S", "K"):
+        np.testing.assert_allclose(getattr(ekf, name), getattr(reference, name), rtol=1e-10, atol=1e-14)
+    assert math.isclose(ekf.log_likelihood, reference.log_likelihood, rel_tol=1e-10)
+    np.testing.assert_array_equal(ekf.P, ekf.P.T)
+
+
+def test_mapped_measurement_jacobian_matches_finite_differences_on_the_whole_state():
+    ekf, _ = make_filters(mapped=True)
+    _, H = ekf.landmark_measurement_model()
+
+    def measure(state, index):
+        return range_bearing(state[:3], state[3 + 2 * index : 5 + 2 * index])[0]
+
+    for index in range(2):
+        np.testing.assert_allclose(H[index], numerical_jacobian(lambda s, i=index: measure(s, i), ekf.x), atol=1e-6)
+
+
+def test_predict_is_the_linearized_unicycle_propagation():
+    ekf, _ = make_filters(mapped=True)
+    prior_x, prior_P = ekf.x.copy(), ekf.P.copy()
+    control, dt, M = np.array([1.0, 0.2]), 0.5, np.diag([0.01, 0.004])
+    ekf.predict(control, dt, M)
+    F_pose, V = unicycle_jacobians(prior_x[:3], control, dt)
+    F = np.eye(7)
+    F[:3, :3] = F_pose
+    Q = np.zeros((7, 7))
+    Q[:3, :3] = V @ M @ V.T
+    np.testing.assert_allclose(ekf.x[:3], unicycle_motion(prior_x[:3], control, dt), rtol=1e-15)
+    np.testing.assert_array_equal(ekf.x[3:], prior_x[3:])
+    np.testing.assert_allclose(ekf.P, F @ prior_P @ F.T + Q, rtol=1e-14)
+    assert -math.pi <= ekf.x[2] < math.pi
+
+
+def test_heading_stays_wrapped_through_updates():
+    ekf = PoseEKF(np.array([0.0, 0.0, math.pi - 0.001]), np.diag([0.1, 0.1, 0.1]))
+    landmark = np.array([[-5.0, 0.0]])
+    predicted, H = ekf.landmark_measurement_model(landmark)
+    ekf.update_range_bearing([5.0, -0.05], predicted[0], H[0], np.diag([0.01, 0.0001]))
+    assert -math.pi <= ekf.x[2] < math.pi
+    assert abs(wrap_angle(ekf.x[2] - (math.pi + 0.05))) < 0.01
+
+
+@pytest.mark.parametrize(
+    "pose, covariance, problem",
+    [
+        (np.zeros(3), np.diag([1.0, -1.0, 1.0]), "positive definite"),
+        (np.zeros(3), np.ones((2, 2)), "square|shape"),
+        (np.array([0.0, np.nan, 0.0]), np.eye(3), "pose"),
+        (np.zeros(2), np.eye(3), "pose"),
+    ],
+)
+def test_bad_initial_state_raises(pose, covariance, problem):
+    with pytest.raises(ValueError, match=problem):
+        PoseEKF(pose, covariance)
+
+
+def test_mapping_needs_a_landmark_covariance():
+    with pytest.raises(ValueError, match="landmark_covariance"):
+        PoseEKF(np.zeros(3), np.eye(3), landmarks=np.ones((2, 2)))
+
+
+def test_chi2_bounds_and_statistics():
+    low, high = chi2_bounds(3, 50)
+    assert math.isclose(low, stats.chi2.ppf(0.025, 150) / 50) and math.isclose(high, stats.chi2.ppf(0.975, 150) / 50)
+    assert low < 3 < high
+    assert math.isclose(nis([1.0, 2.0], np.diag([1.0, 4.0])), 2.0)
+    assert math.isclose(nees([1.0, 1.0, math.pi - 0.1], [0.0, 1.0, -math.pi + 0.1], np.diag([1.0, 1.0, 0.04])), 2.0)
+    np.testing.assert_allclose(pose_error([0, 0, 3.1], [0, 0, -3.1]), [0, 0, 6.2 - 2 * math.pi])
+    with pytest.raises(ValueError):
+        chi2_bounds(0)
+    with pytest.raises(ValueError, match="covariance must be"):
+        nis([1.0, 2.0], np.eye(3))
+
+
+def test_pose_ekf_is_consistent_over_50_monte_carlo_runs_of_the_field():
+    """Average NEES over 50 runs stays inside the two-sided 95% chi-square bounds."""
+    env = gym.make("infonav/LandmarkSelection-v0").unwrapped
+    n_runs = 50
+    runs = []
+    for seed in range(n_runs):
+        observation, info = env.reset(seed=seed)
+        agent, errors = RandomAgent(env.action_space.n, seed=seed), []
+        truncated = False
+        while not truncated:
+            errors.append(nees(info["true_pose"], info["estimated_pose"], env.ekf.pose_covariance))
+            observation, _, _, truncated, info = env.step(agent.act(observation, info))
+        runs.append(errors)
+    average_nees = np.mean(runs, axis=0)
+    low, high = chi2_bounds(3, n_runs)
+    inside = (average_nees >= low) & (average_nees <= high)
+    assert low <= average_nees.mean() <= high
+    assert inside.mean() >= 0.9, f"only {inside.mean():.0%} of time steps inside [{low:.2f}, {high:.2f}]"
