@@ -59,8 +59,12 @@ def run_benchmark(rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0
     random_agent = RandomAgent(landmark.action_space.n, seed=seed)
     cartpole_rates, landmark_rates = [], []
     for _ in tqdm(range(rounds), desc="benchmark rounds", disable=not progress):
-        cartpole_rates.append(steps_per_second(cartpole, lambda info: cartpole.action_space.sample(), seconds_per_round, seed))
-        landmark_rates.append(steps_per_second(landmark, lambda info: random_agent.act(None, info), seconds_per_round, seed))
+        cartpole_rates.append(
+            steps_per_second(cartpole, lambda info: cartpole.action_space.sample(), seconds_per_round, seed)
+        )
+        landmark_rates.append(
+            steps_per_second(landmark, lambda info: random_agent.act(None, info), seconds_per_round, seed)
+        )
     ratios = [ours / reference for ours, reference in zip(landmark_rates, cartpole_rates)]
     figures = {
         "cartpole_steps_per_s": statistics.median(cartpole_rates),
@@ -73,4 +77,10 @@ def run_benchmark(rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0
         >= GOALS["landmark_selection_vs_cartpole_ratio"],
         "greedy_decision_us": figures["greedy_decision_us"] <= GOALS["greedy_decision_us"],
     }
-    return {"figures": figures, "goals": GOALS, "goals_met": met, "rounds": rounds, "seconds_per_round": seconds_per_round}
+    return {
+        "figures": figures,
+        "goals": GOALS,
+        "goals_met": met,
+        "rounds": rounds,
+        "seconds_per_round": seconds_per_round,
+    }

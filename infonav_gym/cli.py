@@ -91,7 +91,9 @@ def _benchmark(args) -> dict:
         for name, value in figures.items():
             goal = ""
             if name in goals:
-                goal = f"  (goal {'>=' if 'ratio' in name else '<='} {goals[name]}: {'met' if met[name] else 'NOT met'})"
+                goal = (
+                    f"  (goal {'>=' if 'ratio' in name else '<='} {goals[name]}: {'met' if met[name] else 'NOT met'})"
+                )
             print(f"{name:40s} {value:12.3f}{goal}")
     return result
 

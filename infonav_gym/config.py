@@ -5,6 +5,8 @@ from __future__ import annotations
 import difflib
 import numbers
 
+import numpy as np
+
 
 def merge_config(defaults: dict, overrides: dict, owner: str) -> dict:
     """Return ``defaults`` updated by ``overrides``.
@@ -25,7 +27,7 @@ def merge_config(defaults: dict, overrides: dict, owner: str) -> dict:
 
 def _typed_like(default, value, where: str):
     if isinstance(default, bool):
-        if isinstance(value, bool) or type(value).__name__ == "bool_":
+        if isinstance(value, (bool, np.bool_)):
             return bool(value)
     elif isinstance(default, int):
         if isinstance(value, numbers.Integral) and not isinstance(value, bool):

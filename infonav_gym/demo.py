@@ -27,8 +27,13 @@ def run_demo(steps: int = 12, seed: int = 0) -> dict:
             action = agent.act(observation, info)
             observation, reward, _, _, info = env.step(action)
             records.append(
-                {"step": step, "information_contribution": gains, "choice": action, "realized": reward,
-                 "pose_entropy": info["pose_entropy"]}
+                {
+                    "step": step,
+                    "information_contribution": gains,
+                    "choice": action,
+                    "realized": reward,
+                    "pose_entropy": info["pose_entropy"],
+                }
             )
         runs[name] = records
     env.close()
@@ -39,12 +44,16 @@ def demo_table(demo: dict) -> str:
     """Per agent, a text table of the landmarks' information contributions and the choice made."""
     blocks = []
     for name, records in demo["runs"].items():
-        lines = [f"{name} agent (landmarks numbered as in Fig. 1; ic in nats)",
-                 "step    ic #1   ic #2   ic #3   ic #4   choice  realized  pose entropy"]
+        lines = [
+            f"{name} agent (landmarks numbered as in Fig. 1; ic in nats)",
+            "step    ic #1   ic #2   ic #3   ic #4   choice  realized  pose entropy",
+        ]
         for record in records:
             ics = "".join(f"{value:8.3f}" for value in record["information_contribution"])
-            lines.append(f"{record['step']:4d}{ics}      #{record['choice'] + 1}  {record['realized']:8.3f}  "
-                         f"{record['pose_entropy']:12.3f}")
+            lines.append(
+                f"{record['step']:4d}{ics}      #{record['choice'] + 1}  {record['realized']:8.3f}  "
+                f"{record['pose_entropy']:12.3f}"
+            )
         total = sum(record["realized"] for record in records)
         lines.append(f"total information gathered: {total:.3f} nats")
         blocks.append("\n".join(lines))

@@ -36,48 +36,35 @@ def _square_stack(name: str, value) -> np.ndarray:
 
 
 def log_det_spd(matrix, name: str = "matrix", check_input: bool = True) -> float | np.ndarray:
-    """``ln det`` of a symmetric positive-definite matrix (or stack), by Cholesky.
+    """``ln det`` of a symmetric positive-definite matrix (or stack).
 
     Args:
         matrix: (n, n) or (..., n, n).
         name: what the matrix is, for error messages.
-        check_input: check shape, finiteness and symmetry first; ``False`` is for
-            hot loops whose matrices are known good (positive definiteness is
-            always checked by the Cholesky factorization).
+        check_input: check shape, finiteness and symmetry, and factor by Cholesky
+            (which proves positive definiteness); ``False`` is for hot loops whose
+            matrices are known good: ``slogdet``, rejecting only a non-positive determinant.
 
     Raises:
         ValueError: if the input is not square, not symmetric, not positive definite, or not finite.
     """
-    if check_input:
-        matrix = _square_stack(name, matrix)
-        asymmetry = np.max(np.abs(matrix - np.swapaxes(matrix, -1, -2)))
-        scale = np.max(np.abs(matrix))
-        if asymmetry > _SYMMETRY_RTOL * scale:
-            raise ValueError(f"{name} is not symmetric (max |M - M^T| = {asymmetry:.3g}, max |M| = {scale:.3g})")
-    log_det = _cholesky_log_det(np.asarray(matrix, dtype=float), name)
+    if not check_input:
+        sign, log_det = np.linalg.slogdet(matrix)
+        if not (sign > 0).all():
+            raise ValueError(f"{name} is not positive definite (determinant <= 0)")
+        return float(log_det) if np.ndim(log_det) == 0 else log_det
+    matrix = _square_stack(name, matrix)
+    asymmetry = np.max(np.abs(matrix - np.swapaxes(matrix, -1, -2)))
+    scale = np.max(np.abs(matrix))
+    if asymmetry > _SYMMETRY_RTOL * scale:
+        raise ValueError(f"{name} is not symmetric (max |M - M^T| = {asymmetry:.3g}, max |M| = {scale:.3g})")
+    try:
+        cholesky = np.linalg.cholesky(matrix)
+    except np.linalg.LinAlgError:
+        smallest = np.min(np.linalg.eigvalsh(matrix))
+        raise ValueError(f"{name} is not positive definite (smallest eigenvalue {smallest:.3g})") from None
+    log_det = 2.0 * np.sum(np.log(np.diagonal(cholesky, axis1=-2, axis2=-1)), axis=-1)
     return float(log_det) if np.ndim(log_det) == 0 else log_det
-
-
-def _cholesky_log_det(matrix: np.ndarray, name: str) -> float | np.ndarray:
-    """``ln det`` from the Cholesky factor; 2 x 2 stacks (every range-bearing innovation) in closed form."""
-    if matrix.shape[-1] == 2:
-        pivot = matrix[..., 0, 0]
-        schur_complement = matrix[..., 1, 1] - matrix[..., 1, 0] ** 2 / pivot
-        if (pivot > 0).all() and (schur_complement > 0).all():
-            return np.log(pivot * schur_complement)
-    else:
-        try:
-            cholesky = np.linalg.cholesky(matrix)
-        except np.linalg.LinAlgError:
-            cholesky = None
-        if cholesky is not None:
-            log_det = 2.0 * np.log(np.diagonal(cholesky, axis1=-2, axis2=-1)).sum(axis=-1)
-            if np.isfinite(log_det).all():
-                return log_det
-    if not np.all(np.isfinite(matrix)):
-        raise ValueError(f"{name} contains NaN or infinite entries")
-    smallest = np.min(np.linalg.eigvalsh(matrix))
-    raise ValueError(f"{name} is not positive definite (smallest eigenvalue {smallest:.3g})")
 
 
 def gaussian_entropy(P, check_input: bool = True) -> float:
@@ -85,8 +72,12 @@ def gaussian_entropy(P, check_input: bool = True) -> float:
     log_det = log_det_spd(P, "covariance P", check_input)
     if np.ndim(log_det) != 0:
         raise ValueError(f"covariance P must be one matrix, got shape {np.shape(P)}")
-    n = np.shape(P)[-1]
-    return 0.5 * (n * _LOG_2PI_E + log_det)
+    return gaussian_entropy_from_log_det(log_det, np.shape(P)[-1])
+
+
+def gaussian_entropy_from_log_det(log_det: float, dimension: int) -> float:
+    """``gaussian_entropy`` of an n-dimensional Gaussian whose ``ln det P`` is already known [nats]."""
+    return 0.5 * (dimension * _LOG_2PI_E + log_det)
 
 
 def information_metric(P) -> float:
@@ -121,7 +112,7 @@ def expected_information_gain(P, H, R, check_input: bool = True) -> float | np.n
         H: measurement Jacobian, (m, n) or a batch (..., m, n) over candidates.
         R: measurement noise covariance, (m, m) or a batch (..., m, m).
         check_input: validate shapes, finiteness, symmetry and ``P``; ``False``
-            for hot loops (only the Cholesky factorizations check definiteness).
+            for hot loops (see ``log_det_spd``).
 
     Returns:
         A float for one candidate, else an array of the broadcast batch shape.

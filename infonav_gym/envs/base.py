@@ -20,6 +20,7 @@ import numpy as np
 from infonav_gym.config import check_choice, merge_config
 
 INVALID_ACTION_MODES = ("noop", "raise")
+MIN_RENDER_SIZE_PX = 64
 
 
 class InfoNavEnv(gym.Env):
@@ -43,8 +44,9 @@ class InfoNavEnv(gym.Env):
         owner = type(self).__name__
         self.config = merge_config(self.default_config(), config, owner)
         check_choice(self.config, "invalid_action", INVALID_ACTION_MODES, owner)
-        if self.config["horizon"] < 1:
-            raise ValueError(f"config key 'horizon' of {owner} must be >= 1, got {self.config['horizon']}")
+        for key, smallest in (("horizon", 1), ("render_size_px", MIN_RENDER_SIZE_PX)):
+            if self.config[key] < smallest:
+                raise ValueError(f"config key {key!r} of {owner} must be >= {smallest}, got {self.config[key]}")
         self._renderer = None
         self._elapsed_steps = None
         self._action_mask = None

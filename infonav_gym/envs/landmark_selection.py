@@ -11,7 +11,7 @@ from infonav_gym.config import check_choice, check_positive
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, wrap_angle
-from infonav_gym.information import _LOG_2PI_E, expected_information_gain, log_det_spd
+from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, SCENARIOS
@@ -105,9 +105,15 @@ class LandmarkSelectionEnv(InfoNavEnv):
         check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
         check_positive(cfg, ["n_obstacles"], owner, allow_zero=True)
         if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
-            raise ValueError(f"the corridor scenario has {CORRIDOR_LANDMARK_COUNT} landmarks: n_candidates must be >= 4")
+            raise ValueError(
+                f"the corridor scenario has {CORRIDOR_LANDMARK_COUNT} landmarks: n_candidates must be >= 4"
+            )
         self.sensor = RangeBearingSensor(
-            cfg["range_std_m"], cfg["range_std_per_m"], cfg["bearing_std_rad"], cfg["sensor_max_range_m"], cfg["sensor_fov_rad"]
+            cfg["range_std_m"],
+            cfg["range_std_per_m"],
+            cfg["bearing_std_rad"],
+            cfg["sensor_max_range_m"],
+            cfg["sensor_fov_rad"],
         )
         self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
         self._odometry_covariance = self.odometry.noise_covariance()
@@ -128,7 +134,11 @@ class LandmarkSelectionEnv(InfoNavEnv):
     def _reset_episode(self) -> None:
         cfg = self.config
         if cfg["scenario"] == "field":
-            params = {"n_landmarks": cfg["n_candidates"], "n_obstacles": cfg["n_obstacles"], "size_m": cfg["field_size_m"]}
+            params = {
+                "n_landmarks": cfg["n_candidates"],
+                "n_obstacles": cfg["n_obstacles"],
+                "size_m": cfg["field_size_m"],
+            }
         else:
             params = {}
         self.world.reset(SCENARIOS[cfg["scenario"]](self.np_random, speed_mps=cfg["speed_mps"], **params))
@@ -160,8 +170,10 @@ class LandmarkSelectionEnv(InfoNavEnv):
             R = self.sensor.noise_covariance(self._predicted[candidates, 0])
             gains[candidates] = expected_information_gain(P, self._H[candidates], R, check_input=False)
         self._prior_log_det = log_det_spd(P, check_input=False)
-        pose_log_det = log_det_spd(P[:POSE_DIM, :POSE_DIM], check_input=False) if self.config["mapping"] else self._prior_log_det
-        self._pose_entropy = 0.5 * (POSE_DIM * _LOG_2PI_E + pose_log_det)
+        pose_log_det = self._prior_log_det
+        if self.config["mapping"]:
+            pose_log_det = log_det_spd(P[:POSE_DIM, :POSE_DIM], check_input=False)
+        self._pose_entropy = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
         return mask, gains
 
     def _apply_action(self, action: int | None) -> dict:
@@ -170,8 +182,10 @@ class LandmarkSelectionEnv(InfoNavEnv):
             return {"mutual_information": 0.0}
         predicted = self._predicted[action]
         measurement = self.sensor.measure(self._true_pose, self.world.landmarks[action], self._measurement_rng)
-        self.ekf.update_range_bearing(measurement, predicted, self._H[action], self.sensor.noise_covariance(predicted[0])[0])
-        return {"mutual_information": 0.5 * (self._prior_log_det - log_det_spd(self.ekf.P, check_input=False))}
+        R = self.sensor.noise_covariance(predicted[0])[0]
+        self.ekf.update_range_bearing(measurement, predicted, self._H[action], R)
+        posterior_log_det = log_det_spd(self.ekf.P, check_input=False)
+        return {"mutual_information": 0.5 * (self._prior_log_det - posterior_log_det)}  # Eq. 3
 
     def _advance(self) -> None:
         dt = self.config["time_step_s"]
@@ -204,7 +218,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
         x, y, heading = self.ekf.x[:POSE_DIM].tolist()
         return {
             "pose_entropy": self._pose_entropy,
-            "state_entropy": 0.5 * (self.ekf.dim_x * _LOG_2PI_E + self._prior_log_det),
+            "state_entropy": gaussian_entropy_from_log_det(self._prior_log_det, self.ekf.dim_x),
             "position_error_m": math.hypot(true_x - x, true_y - y),
             "heading_error_rad": abs(wrap_angle(true_heading - heading)),
             "true_pose": self._true_pose.copy(),

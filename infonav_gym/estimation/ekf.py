@@ -111,7 +111,7 @@ class PoseEKF(ExtendedKalmanFilter):
         return predicted, H
 
     def update_range_bearing(self, measurement, predicted, H, R) -> None:
-        """Joseph-form update with one range-bearing measurement, linearized at the prior.
+        """Update with one range-bearing measurement, linearized at the prior; covariance symmetrized.
 
         Gives what filterpy's generic ``update`` gives with a wrapped-bearing
         residual (tested against it) and fills the same attributes (``y``, ``S``,
@@ -133,8 +133,7 @@ class PoseEKF(ExtendedKalmanFilter):
         self.y = range_bearing_residual(self.z, predicted)
         self.x = self.x + K @ self.y
         self.x[2] = wrap_angle(self.x[2])
-        I_KH = self._I - K @ H
-        P = I_KH @ self.P @ I_KH.T + K @ R @ K.T
+        P = self.P - K @ PHT.T
         self.P = 0.5 * (P + P.T)
         self.S, self.SI, self.K = S, SI, K
         self.x_post, self.P_post = self.x.copy(), self.P.copy()

@@ -118,7 +118,9 @@ def field(
     landmarks = _rejection_sample(
         n_landmarks,
         lambda: np_random.uniform(1.0, size_m - 1.0, 2),
-        lambda p: _distance_to_route(p, route) > 1.0 and all(math.dist(p, o.center) > o.radius + 0.5 for o in obstacles),
+        lambda p: (
+            _distance_to_route(p, route) > 1.0 and all(math.dist(p, o.center) > o.radius + 0.5 for o in obstacles)
+        ),
         "landmarks outside obstacles",
     )
     heading = math.atan2(*(route[1] - route[0])[::-1])

@@ -28,7 +28,8 @@ class World:
         heading_gain: proportional gain of the heading controller [1/s].
         waypoint_tolerance_m: a waypoint closer than this counts as reached [m].
         wall_thickness_m: thickness of wall segments [m].
-        max_physics_step_s: longest Pymunk substep [s]; an env step is split into equal substeps.
+        max_physics_step_s: longest Pymunk substep [s] near obstacles; an env step is split into
+            equal substeps when a wall or obstacle is within reach, else taken in one step.
     """
 
     def __init__(
@@ -57,7 +58,8 @@ class World:
         self.space = pymunk.Space()
         self.space.collision_slop = 0.01  # allowed overlap [m]
         static_shapes = [
-            pymunk.Segment(self.space.static_body, start, end, self.wall_thickness_m / 2) for start, end in scenario.walls
+            pymunk.Segment(self.space.static_body, start, end, self.wall_thickness_m / 2)
+            for start, end in scenario.walls
         ]
         static_shapes += [
             pymunk.Circle(self.space.static_body, obstacle.radius, obstacle.center) for obstacle in scenario.obstacles
@@ -97,7 +99,7 @@ class World:
         speed, turn_rate = self._waypoint_control(x, y, heading)
         self.robot.velocity = (speed * math.cos(heading), speed * math.sin(heading))
         self.robot.angular_velocity = turn_rate
-        substeps = math.ceil(dt / self.max_physics_step_s - 1e-9)
+        substeps = math.ceil(dt / self.max_physics_step_s - 1e-9) if self._obstacle_within(speed * dt) else 1
         for _ in range(substeps):
             self.space.step(dt / substeps)
         return unicycle_control((x, y, heading), self._pose_tuple(), dt)
@@ -116,6 +118,12 @@ class World:
             if self.scenario.loop_route and self.route_finished:
                 self.waypoint_index = 0
         return 0.0, 0.0
+
+    def _obstacle_within(self, distance_m: float) -> bool:
+        """Whether a wall or obstacle lies within ``distance_m`` of the robot's disc (then physics substeps)."""
+        x, y = self.robot.position
+        reach = self.robot_radius_m + distance_m
+        return bool(self.space.bb_query(pymunk.BB(x - reach, y - reach, x + reach, y + reach), _OBSTACLES_ONLY))
 
     def line_of_sight(self, origin, targets) -> np.ndarray:
         """For each target point (N, 2), whether the straight line from ``origin`` misses every wall and obstacle."""
