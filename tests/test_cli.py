@@ -1,0 +1,100 @@
+"""The ``infonav`` command: demo, evaluate, benchmark."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from infonav_gym.cli import main
+from infonav_gym.evaluation import Summary
+
+
+def run_json(capsys, *argv) -> dict:
+    assert main([*argv, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_demo_tells_the_fig2_story(capsys):
+    demo = run_json(capsys, "demo", "--steps", "4")
+    greedy, random = demo["runs"]["greedy"], demo["runs"]["random"]
+    assert [record["choice"] for record in greedy] == [2, 2, 2, 2], "greedy observes landmark #3"
+    for record in greedy:
+        gains = record["information_contribution"]
+        assert len(gains) == 4 and record["realized"] == pytest.approx(max(gains), rel=1e-9)
+    assert sum(r["realized"] for r in greedy) > sum(r["realized"] for r in random)
+
+
+def test_demo_prints_a_table_and_writes_the_plot(capsys, tmp_path):
+    pytest.importorskip("matplotlib")
+    assert main(["demo", "--steps", "2", "--plot", str(tmp_path / "fig2.png")]) == 0
+    out = capsys.readouterr().out
+    assert "ic #3" in out and "greedy agent" in out and "random agent" in out
+    assert (tmp_path / "fig2.png").stat().st_size > 10_000
+
+
+def test_evaluate_is_reproducible_and_uses_the_same_seeds_for_every_agent(capsys):
+    argv = ["evaluate", "--episodes", "3", "--seed", "5", "--config", "horizon=30"]
+    first, second = run_json(capsys, *argv), run_json(capsys, *argv)
+    assert first == second
+    assert first["seeds"] == [5, 6, 7] and first["env_kwargs"] == {"horizon": 30}
+    assert set(first["agents"]) == {"random", "greedy"}
+    for result in first["agents"].values():
+        assert len(result["episodes"]) == 3
+        mean = result["summary"]["cumulative_mi"]["mean"]
+        assert mean == pytest.approx(np.mean([e["cumulative_mi"] for e in result["episodes"]]))
+
+
+def test_evaluate_writes_markdown_csv_and_json_with_the_command(capsys, tmp_path):
+    stem = tmp_path / "eval"
+    main(["evaluate", "--episodes", "2", "--config", "horizon=10", "--output", str(stem)])
+    table = capsys.readouterr().out
+    assert "| greedy |" in table and "cumulative MI" in table
+    markdown = (tmp_path / "eval.md").read_text()
+    assert "infonav evaluate --episodes 2 --config horizon=10 --output" in markdown
+    rows = (tmp_path / "eval.csv").read_text().strip().splitlines()
+    assert rows[0] == "agent,seed,cumulative_mi,final_pose_entropy,pose_rmse_m" and len(rows) == 1 + 2 * 2
+    assert json.loads((tmp_path / "eval.json").read_text())["command"].startswith("infonav evaluate")
+
+
+def test_confidence_interval_is_students_t():
+    values = [1.0, 2.5, 2.0, 4.0, 3.1]
+    low, high = stats.t.interval(0.95, len(values) - 1, loc=np.mean(values), scale=stats.sem(values))
+    summary = Summary.of(values)
+    assert math.isclose(summary.mean - summary.ci95, low) and math.isclose(summary.mean + summary.ci95, high)
+    assert math.isnan(Summary.of([1.0]).ci95)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["evaluate", "--agents", "random,oracle", "--episodes", "1"], "unknown agent 'oracle'"),
+        (["evaluate", "--config", "horizn=3", "--episodes", "1"], "Did you mean 'horizon'"),
+        (["evaluate", "--episodes", "0"], "episodes must be >= 1"),
+    ],
+)
+def test_bad_arguments_exit_2_with_a_message(capsys, argv, message):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_config_values_must_be_key_value_pairs(capsys):
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--config", "no-equals-sign"])
+    assert "KEY=VALUE" in capsys.readouterr().err
+
+
+def test_benchmark_reports_every_goal(capsys):
+    result = run_json(capsys, "benchmark", "--rounds", "1", "--seconds", "0.05")
+    figures = result["figures"]
+    assert figures["cartpole_steps_per_s"] > 0 and figures["landmark_selection_steps_per_s"] > 0
+    ratio = figures["landmark_selection_steps_per_s"] / figures["cartpole_steps_per_s"]
+    assert figures["landmark_selection_vs_cartpole_ratio"] == pytest.approx(ratio)
+    assert (
+        set(result["goals_met"])
+        == set(result["goals"])
+        == {"landmark_selection_vs_cartpole_ratio", "greedy_decision_us"}
+    )
