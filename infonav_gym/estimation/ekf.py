@@ -22,9 +22,11 @@ class PoseEKF(ExtendedKalmanFilter):
     """EKF over a planar pose ``[x, y, heading]``, optionally with mapped landmarks (EKF-SLAM).
 
     The state is ``[x, y, heading, l1x, l1y, l2x, ...]``: with ``landmarks`` given,
-    their positions are estimated alongside the pose. Headings and bearing
-    innovations are wrapped; filterpy's update is Joseph-form and the covariance
-    is symmetrized after every step.
+    their positions are estimated alongside the pose. Prediction runs through
+    filterpy's ``predict`` (with the unicycle model in ``predict_x``); range-bearing
+    updates are closed-form and equal filterpy's generic ``update``, which stays
+    available for other measurement models. Headings and bearing innovations are
+    wrapped, and the covariance is symmetrized after every update.
 
     Args:
         pose: initial pose estimate (3,).
