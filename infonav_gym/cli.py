@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
             result = _evaluate(args, argv)
         else:
             result = _benchmark(args)
-    except ValueError as error:
+    except (ValueError, ImportError) as error:
         parser.exit(2, f"infonav {args.command}: error: {error}\n")
     if args.json:
         print(json.dumps(result))

@@ -62,6 +62,9 @@ def demo_table(demo: dict) -> str:
 
 def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> Path:
     """Fig. 2 as a picture: the ic a landmark would bring, over where it could be, from the start pose."""
+    from infonav_gym.rendering import require_extra
+
+    require_extra("matplotlib", "the Fig. 2 plot")
     import matplotlib
 
     matplotlib.use("Agg")

@@ -14,6 +14,15 @@ from scipy.stats import chi2
 
 RENDER_MODES = ("rgb_array", "human")
 
+
+def require_extra(module: str, purpose: str) -> None:
+    """Import ``module`` or raise an ``ImportError`` that says how to install the ``[render]`` extra."""
+    try:
+        __import__(module)
+    except ImportError as error:
+        raise ImportError(f"{purpose} needs {module}: pip install 'infonav-gym[render]'") from error
+
+
 _WHITE = (255, 255, 255)
 _DARK_GREY = (70, 70, 70)
 _LIGHT_GREY = (205, 205, 205)
@@ -86,7 +95,7 @@ class Renderer:
             raise ValueError(f"size_px must exceed {2 * self.MARGIN_PX}, got {size_px}")
         if fps <= 0:
             raise ValueError(f"fps must be positive, got {fps}")
-        import pygame  # noqa: F401  (fail early if the optional extra is missing)
+        require_extra("pygame", "rendering")
 
         self.render_mode = render_mode
         self.size_px = int(size_px)

@@ -163,3 +163,20 @@ def test_invalid_mode_names_valid_modes():
 def test_degenerate_bounds_rejected():
     with pytest.raises(ValueError, match="bounds"):
         Renderer("rgb_array").draw(SceneFrame(bounds=(0.0, 0.0, 0.0, 5.0)))
+
+
+def test_a_missing_optional_extra_names_the_install_command(monkeypatch):
+    import builtins
+
+    from infonav_gym.rendering import require_extra
+
+    real_import = builtins.__import__
+
+    def without_pygame(name, *args, **kwargs):
+        if name == "pygame":
+            raise ImportError("No module named 'pygame'")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", without_pygame)
+    with pytest.raises(ImportError, match=r"rendering needs pygame: pip install 'infonav-gym\[render\]'"):
+        require_extra("pygame", "rendering")
