@@ -64,8 +64,8 @@ def covariance_ellipse(covariance_2x2, confidence: float = 0.95, n_points: int =
     multiple of 4 points hits both axis extremes.
 
     Raises:
-        ValueError: if the matrix is not a finite 2x2 one, ``confidence`` is not
-            in (0, 1) or ``n_points`` is below 3.
+        ValueError: for a non-finite or non-2x2 matrix, ``confidence`` outside
+            (0, 1) or fewer than 3 points.
     """
     covariance = np.asarray(covariance_2x2, dtype=float)
     if covariance.shape != (2, 2):
@@ -96,7 +96,6 @@ class Renderer:
         if fps <= 0:
             raise ValueError(f"fps must be positive, got {fps}")
         require_extra("pygame", "rendering")
-
         self.render_mode = render_mode
         self.size_px = int(size_px)
         self.fps = int(fps)
@@ -178,16 +177,15 @@ class Renderer:
         for start, end in frame.walls:
             pygame.draw.line(surface, _DARK_GREY, *screen([start, end]).tolist(), 3)
         for obstacle in frame.obstacles:
-            radius = max(1, round(obstacle.radius * scale))
-            pygame.draw.circle(surface, _DARK_GREY, screen(obstacle.center)[0].tolist(), radius)
+            center = screen(obstacle.center)[0].tolist()
+            pygame.draw.circle(surface, _DARK_GREY, center, max(1, round(obstacle.radius * scale)))
         for path, colour in ((frame.true_path, _PATH_GREY), (frame.estimated_path, _BLUE)):
             if path is not None and len(path) >= 2:
                 pygame.draw.lines(surface, colour, False, screen(path).tolist(), 1)
         if frame.landmark_estimates is not None:
-            for index, point in enumerate(screen(frame.landmark_estimates).tolist()):
-                col, row = point
-                pygame.draw.line(surface, _ORANGE, (col - 4, row - 4), (col + 4, row + 4), 2)
-                pygame.draw.line(surface, _ORANGE, (col - 4, row + 4), (col + 4, row - 4), 2)
+            for index, (col, row) in enumerate(screen(frame.landmark_estimates).tolist()):
+                for slope in (-4, 4):
+                    pygame.draw.line(surface, _ORANGE, (col - 4, row - slope), (col + 4, row + slope), 2)
                 if frame.landmark_covariances is not None:
                     ellipse(frame.landmark_estimates[index], frame.landmark_covariances[index], _ORANGE)
         landmarks = screen(frame.landmarks).tolist()
