@@ -51,15 +51,17 @@ class InfoNavEnv(gym.Env):
         self._elapsed_steps = None
         self._action_mask = None
         self._action_information_gain = None
+        self._chosen_action = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         if options:
             raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
         self._elapsed_steps = 0
+        self._chosen_action = None
         self._reset_episode()
         self._action_mask, self._action_information_gain = self._next_decision()
-        observation, info = self._observation(), self._info({}, chosen=None, invalid=False)
+        observation, info = self._observation(), self._info({}, invalid=False)
         if self.render_mode == "human":
             self.render()
         return observation, info
@@ -74,13 +76,14 @@ class InfoNavEnv(gym.Env):
                 f"action {action} is not valid now (action_mask {self._action_mask.tolist()}); "
                 'pick an action whose info["action_mask"] entry is 1, or set invalid_action="noop"'
             )
-        reward_terms = self._apply_action(action if valid else None)
+        self._chosen_action = action if valid else None
+        reward_terms = self._apply_action(self._chosen_action)
         self._elapsed_steps += 1
         self._advance()
         self._action_mask, self._action_information_gain = self._next_decision()
         terminated = self._is_terminated()
         truncated = not terminated and self._elapsed_steps >= self.config["horizon"]
-        info = self._info(reward_terms, chosen=action if valid else None, invalid=not valid)
+        info = self._info(reward_terms, invalid=not valid)
         if self.render_mode == "human":
             self.render()
         return self._observation(), float(sum(reward_terms.values())), terminated, truncated, info
@@ -100,12 +103,12 @@ class InfoNavEnv(gym.Env):
             f"expected an integer in [0, {self.action_space.n - 1}]"
         )
 
-    def _info(self, reward_terms: dict, chosen: int | None, invalid: bool) -> dict:
+    def _info(self, reward_terms: dict, invalid: bool) -> dict:
         return {
             "action_mask": self._action_mask.copy(),
             "action_information_gain": self._action_information_gain.copy(),
             "reward_terms": dict(reward_terms),
-            "chosen_action": -1 if chosen is None else chosen,
+            "chosen_action": -1 if self._chosen_action is None else self._chosen_action,
             "invalid_action": invalid,
             **self._extra_info(),
         }

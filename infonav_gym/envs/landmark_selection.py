@@ -153,7 +153,6 @@ class LandmarkSelectionEnv(InfoNavEnv):
             self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2), estimates, prior_std**2)
         else:
             self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2))
-        self._chosen_landmark = None
         self._true_path = [self._true_pose[:2]]
         self._estimated_path = [self.ekf.x[:2].copy()]
 
@@ -163,12 +162,14 @@ class LandmarkSelectionEnv(InfoNavEnv):
         if candidates.size:
             candidates = candidates[self.world.line_of_sight(true_pose, landmarks[candidates])]
         self._predicted, self._H = self.ekf.landmark_measurement_model(None if self.config["mapping"] else landmarks)
+        self._R = self.sensor.noise_covariance(self._predicted[:, 0])
         mask = np.zeros(self.action_space.n, dtype=np.int8)
         gains = np.zeros(self.action_space.n)
         mask[candidates] = 1
         if candidates.size:
-            R = self.sensor.noise_covariance(self._predicted[candidates, 0])
-            gains[candidates] = expected_information_gain(P, self._H[candidates], R, check_input=False)
+            gains[candidates] = expected_information_gain(
+                P, self._H[candidates], self._R[candidates], check_input=False
+            )
         self._prior_log_det = log_det_spd(P, check_input=False)
         pose_log_det = self._prior_log_det
         if self.config["mapping"]:
@@ -177,13 +178,11 @@ class LandmarkSelectionEnv(InfoNavEnv):
         return mask, gains
 
     def _apply_action(self, action: int | None) -> dict:
-        self._chosen_landmark = action
         if action is None:
             return {"mutual_information": 0.0}
         predicted = self._predicted[action]
         measurement = self.sensor.measure(self._true_pose, self.world.landmarks[action], self._measurement_rng)
-        R = self.sensor.noise_covariance(predicted[0])[0]
-        self.ekf.update_range_bearing(measurement, predicted, self._H[action], R)
+        self.ekf.update_range_bearing(measurement, predicted, self._H[action], self._R[action])
         posterior_log_det = log_det_spd(self.ekf.P, check_input=False)
         return {"mutual_information": 0.5 * (self._prior_log_det - posterior_log_det)}  # Eq. 3
 
@@ -238,7 +237,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
             obstacles=scenario.obstacles,
             landmarks=self.world.landmarks,
             landmark_visible=self._action_mask[:n_landmarks].astype(bool),
-            chosen_landmark=self._chosen_landmark,
+            chosen_landmark=self._chosen_action,
             true_pose=self._true_pose,
             estimated_pose=self.ekf.pose,
             pose_covariance=self.ekf.pose_covariance,
