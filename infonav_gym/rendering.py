@@ -32,14 +32,35 @@ _RED = (220, 30, 30)
 _BLACK = (0, 0, 0)
 _BLUE = (30, 90, 220)
 _ORANGE = (240, 140, 0)
+_CANOPY_GREEN = (222, 238, 214)
+ROBOT_COLOURS = (_BLUE, (200, 40, 160), (0, 150, 160), (140, 90, 30), (110, 60, 200))  # robot i: ROBOT_COLOURS[i % 5]
 _LANDMARK_PX = 5
 _ROBOT_PX = 7
 _TICK_PX = 14
+_LABEL_OFFSET_PX = (9, -18)
+
+
+@dataclass
+class RobotDrawing:
+    """One robot to draw: truth in black, its estimate in its own colour, positions in metres."""
+
+    true_pose: np.ndarray | None = None
+    estimated_pose: np.ndarray | None = None
+    pose_covariance: np.ndarray | None = None  # (3, 3) or (2, 2); the x-y block is drawn as a 95% ellipse
+    true_path: np.ndarray | None = None
+    estimated_path: np.ndarray | None = None
+    label: str = ""  # drawn next to the robot if fonts are available
 
 
 @dataclass
 class SceneFrame:
-    """Everything to draw for one frame; positions in metres, headings in radians."""
+    """Everything to draw for one frame; positions in metres, headings in radians.
+
+    ``observations`` are ``(observer, target)`` pairs of robot indices, drawn as a line
+    between their true positions; ``gps_denied_zones`` are circles (``center``,
+    ``radius``) filled lightly under everything else. The chosen landmark's line starts
+    at ``robots[0]``'s true pose.
+    """
 
     bounds: tuple[float, float, float, float]
     walls: Sequence[tuple[tuple[float, float], tuple[float, float]]] = ()
@@ -47,13 +68,11 @@ class SceneFrame:
     landmarks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     landmark_visible: np.ndarray | None = None
     chosen_landmark: int | None = None
-    true_pose: np.ndarray | None = None
-    estimated_pose: np.ndarray | None = None
-    pose_covariance: np.ndarray | None = None
+    robots: Sequence[RobotDrawing] = ()
     landmark_estimates: np.ndarray | None = None
     landmark_covariances: np.ndarray | None = None
-    true_path: np.ndarray | None = None
-    estimated_path: np.ndarray | None = None
+    observations: Sequence[tuple[int, int]] = ()
+    gps_denied_zones: Sequence = ()
     caption: str = ""
 
 
@@ -174,14 +193,22 @@ class Renderer:
             pygame.draw.circle(surface, colour, center.tolist(), _ROBOT_PX, 0 if filled else 2)
             pygame.draw.line(surface, colour, center.tolist(), np.rint(tip).tolist(), 2)
 
+        def disc(circle, colour):
+            pygame.draw.circle(surface, colour, screen(circle.center)[0].tolist(), max(1, round(circle.radius * scale)))
+
+        def robot_colour(index):
+            return ROBOT_COLOURS[index % len(ROBOT_COLOURS)]
+
+        for zone in frame.gps_denied_zones:
+            disc(zone, _CANOPY_GREEN)
         for start, end in frame.walls:
             pygame.draw.line(surface, _DARK_GREY, *screen([start, end]).tolist(), 3)
         for obstacle in frame.obstacles:
-            center = screen(obstacle.center)[0].tolist()
-            pygame.draw.circle(surface, _DARK_GREY, center, max(1, round(obstacle.radius * scale)))
-        for path, colour in ((frame.true_path, _PATH_GREY), (frame.estimated_path, _BLUE)):
-            if path is not None and len(path) >= 2:
-                pygame.draw.lines(surface, colour, False, screen(path).tolist(), 1)
+            disc(obstacle, _DARK_GREY)
+        for index, drawing in enumerate(frame.robots):
+            for path, colour in ((drawing.true_path, _PATH_GREY), (drawing.estimated_path, robot_colour(index))):
+                if path is not None and len(path) >= 2:
+                    pygame.draw.lines(surface, colour, False, screen(path).tolist(), 1)
         if frame.landmark_estimates is not None:
             for index, (col, row) in enumerate(screen(frame.landmark_estimates).tolist()):
                 for slope in (-4, 4):
@@ -194,19 +221,31 @@ class Renderer:
             pygame.draw.circle(surface, _GREEN if visible else _LIGHT_GREY, point, _LANDMARK_PX)
         if frame.chosen_landmark is not None:
             chosen = landmarks[frame.chosen_landmark]
-            if frame.true_pose is not None:
-                pygame.draw.line(surface, _RED, screen(frame.true_pose[:2])[0].tolist(), chosen, 2)
+            if frame.robots and frame.robots[0].true_pose is not None:
+                pygame.draw.line(surface, _RED, screen(frame.robots[0].true_pose[:2])[0].tolist(), chosen, 2)
             pygame.draw.circle(surface, _RED, chosen, _LANDMARK_PX + 2)
-        if frame.estimated_pose is not None:
-            if frame.pose_covariance is not None:
-                ellipse(frame.estimated_pose, frame.pose_covariance, _BLUE)
-            robot(frame.estimated_pose, _BLUE, filled=False)
-        if frame.true_pose is not None:
-            robot(frame.true_pose, _BLACK, filled=True)
+        for observer, target in frame.observations:
+            ends = [frame.robots[observer].true_pose, frame.robots[target].true_pose]
+            if ends[0] is not None and ends[1] is not None:
+                pygame.draw.line(surface, robot_colour(observer), *screen([end[:2] for end in ends]).tolist(), 1)
+        for index, drawing in enumerate(frame.robots):
+            if drawing.estimated_pose is not None:
+                if drawing.pose_covariance is not None:
+                    ellipse(drawing.estimated_pose, drawing.pose_covariance, robot_colour(index))
+                robot(drawing.estimated_pose, robot_colour(index), filled=False)
+        for drawing in frame.robots:
+            if drawing.true_pose is not None:
+                robot(drawing.true_pose, _BLACK, filled=True)
+        for index, drawing in enumerate(frame.robots):
+            anchor = drawing.true_pose if drawing.true_pose is not None else drawing.estimated_pose
+            if drawing.label and anchor is not None:
+                corner = screen(anchor[:2])[0] + _LABEL_OFFSET_PX
+                self._draw_text(pygame, surface, drawing.label, robot_colour(index), corner.tolist())
         if frame.caption:
-            self._draw_caption(pygame, surface, frame.caption)
+            self._draw_text(pygame, surface, frame.caption, _BLACK, (4, 2), background=_WHITE)
 
-    def _draw_caption(self, pygame, surface, caption: str) -> None:
+    def _draw_text(self, pygame, surface, text: str, colour, corner, background=None) -> None:
+        """Blit ``text`` with its top-left at pixel ``corner``; nothing if pygame has no fonts."""
         if self._font is None:
             try:
                 pygame.font.init()
@@ -214,4 +253,4 @@ class Renderer:
             except (ImportError, NotImplementedError, OSError, pygame.error):
                 self._font = False
         if self._font:
-            surface.blit(self._font.render(caption, True, _BLACK, _WHITE), (4, 2))
+            surface.blit(self._font.render(text, True, colour, background), corner)

@@ -14,6 +14,7 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
 import sys  # noqa: E402
 
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 
@@ -38,3 +39,37 @@ def spawned_reset_observation(seed: int = 3) -> tuple[bool, list[float]]:
 @pytest.fixture
 def spawned_reset():
     return spawned_reset_observation
+
+
+def numerical_jacobian(function, point, step=1e-7):
+    """Central differences of ``function`` (vector -> vector) at ``point``, angle differences wrapped.
+
+    (Wrapped here rather than with ``infonav_gym``'s ``wrap_angle``: this module must not import the package.)
+    """
+    point = np.asarray(point, dtype=float)
+    columns = []
+    for i in range(point.size):
+        offset = np.zeros_like(point)
+        offset[i] = step
+        difference = np.asarray(function(point + offset)) - np.asarray(function(point - offset))
+        wrapped = (difference + np.pi) % (2 * np.pi) - np.pi  # angles across the branch cut
+        columns.append(wrapped / (2 * step))
+    return np.stack(columns, axis=-1)
+
+
+def assert_identical(a, b, where: str = "value") -> None:
+    """Exact (bit-for-bit) equality of nested dicts / sequences / arrays / scalars, types included."""
+    assert type(a) is type(b), f"{where}: type {type(a).__name__} != {type(b).__name__}"
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), f"{where}: keys {sorted(a)} != {sorted(b)}"
+        for key in a:
+            assert_identical(a[key], b[key], f"{where}[{key!r}]")
+    elif isinstance(a, np.ndarray):
+        assert a.dtype == b.dtype and a.shape == b.shape, f"{where}: {a.dtype}{a.shape} != {b.dtype}{b.shape}"
+        assert np.array_equal(a, b), f"{where}: arrays differ\n{a}\n{b}"
+    elif isinstance(a, (list, tuple)):
+        assert len(a) == len(b), f"{where}: lengths {len(a)} != {len(b)}"
+        for index, (x, y) in enumerate(zip(a, b)):
+            assert_identical(x, y, f"{where}[{index}]")
+    else:
+        assert a == b, f"{where}: {a!r} != {b!r}"

@@ -17,6 +17,7 @@ import warnings  # noqa: E402
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from conftest import assert_identical  # noqa: E402
 from gymnasium.utils.env_checker import check_env as gymnasium_check_env  # noqa: E402
 from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
 
@@ -70,24 +71,6 @@ def choose_action(rng: np.random.Generator, info: dict, n_actions: int) -> int:
     """A random valid action per ``info["action_mask"]`` (any action when none is valid)."""
     valid = np.flatnonzero(info["action_mask"])
     return int(rng.choice(valid)) if valid.size else int(rng.integers(n_actions))
-
-
-def assert_identical(a, b, where: str = "value") -> None:
-    """Exact (bit-for-bit) equality of nested dicts / sequences / arrays / scalars, types included."""
-    assert type(a) is type(b), f"{where}: type {type(a).__name__} != {type(b).__name__}"
-    if isinstance(a, dict):
-        assert a.keys() == b.keys(), f"{where}: keys {sorted(a)} != {sorted(b)}"
-        for key in a:
-            assert_identical(a[key], b[key], f"{where}[{key!r}]")
-    elif isinstance(a, np.ndarray):
-        assert a.dtype == b.dtype and a.shape == b.shape, f"{where}: {a.dtype}{a.shape} != {b.dtype}{b.shape}"
-        assert np.array_equal(a, b), f"{where}: arrays differ\n{a}\n{b}"
-    elif isinstance(a, (list, tuple)):
-        assert len(a) == len(b), f"{where}: lengths {len(a)} != {len(b)}"
-        for index, (x, y) in enumerate(zip(a, b)):
-            assert_identical(x, y, f"{where}[{index}]")
-    else:
-        assert a == b, f"{where}: {a!r} != {b!r}"
 
 
 def step_in_lockstep(env_a, env_b, info_a: dict, n_steps: int, action_seed: int) -> int:

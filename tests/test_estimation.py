@@ -5,6 +5,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import numerical_jacobian
 from filterpy.kalman import ExtendedKalmanFilter
 from scipy import stats
 
@@ -20,19 +21,6 @@ from infonav_gym.estimation.models import (
     unicycle_motion,
     wrap_angle,
 )
-
-
-def numerical_jacobian(function, point, step=1e-7):
-    """Central differences of ``function`` (vector -> vector) at ``point``, bearings wrapped."""
-    point = np.asarray(point, dtype=float)
-    columns = []
-    for i in range(point.size):
-        offset = np.zeros_like(point)
-        offset[i] = step
-        difference = np.asarray(function(point + offset)) - np.asarray(function(point - offset))
-        columns.append(wrap_angle(difference) / (2 * step))
-    return np.stack(columns, axis=-1)
-
 
 POSES = [np.array([0.3, -1.2, 0.4]), np.array([5.0, 2.0, 3.1]), np.array([-2.0, 7.0, -2.9])]
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from infonav_gym.rendering import Renderer, SceneFrame, covariance_ellipse
+from infonav_gym.rendering import ROBOT_COLOURS, Renderer, RobotDrawing, SceneFrame, covariance_ellipse
 
 pytest.importorskip("pygame")
 
@@ -24,6 +24,18 @@ class Disc:
     radius: float
 
 
+def full_robot(**overrides) -> RobotDrawing:
+    fields = {
+        "true_pose": np.array([2.0, 8.0, 0.3]),
+        "estimated_pose": np.array([2.2, 7.9, 0.25]),
+        "pose_covariance": np.diag([0.2, 0.1, 0.01]),
+        "true_path": np.array([[1.0, 9.0], [1.5, 8.5], [2.0, 8.0]]),
+        "estimated_path": np.array([[1.1, 9.0], [1.6, 8.4], [2.2, 7.9]]),
+    }
+    fields.update(overrides)
+    return RobotDrawing(**fields)
+
+
 def full_frame(**overrides) -> SceneFrame:
     fields = {
         "bounds": (0.0, 0.0, 20.0, 10.0),
@@ -31,17 +43,18 @@ def full_frame(**overrides) -> SceneFrame:
         "obstacles": [Disc((5.0, 5.0), 1.0)],
         "landmarks": np.array([[15.0, 8.0], [3.0, 2.0], [10.0, 1.0]]),
         "landmark_visible": np.array([True, False, True]),
-        "true_pose": np.array([2.0, 8.0, 0.3]),
-        "estimated_pose": np.array([2.2, 7.9, 0.25]),
-        "pose_covariance": np.diag([0.2, 0.1, 0.01]),
+        "robots": [full_robot()],
         "landmark_estimates": np.array([[15.2, 7.9], [3.1, 2.2], [9.8, 1.1]]),
         "landmark_covariances": np.stack([np.eye(2) * 0.1] * 3),
-        "true_path": np.array([[1.0, 9.0], [1.5, 8.5], [2.0, 8.0]]),
-        "estimated_path": np.array([[1.1, 9.0], [1.6, 8.4], [2.2, 7.9]]),
         "caption": "step 3",
     }
     fields.update(overrides)
     return SceneFrame(**fields)
+
+
+def pixel(image, renderer, frame, point) -> tuple[int, int, int]:
+    col, row = renderer.world_to_screen(frame.bounds, point)
+    return tuple(int(channel) for channel in image[row, col])
 
 
 def test_ellipse_of_axis_aligned_covariance_has_closed_form_extremes():
@@ -124,12 +137,73 @@ def test_chosen_landmark_changes_pixels_and_is_red():
 
 def test_full_frame_draws_robot_in_black_and_invisible_landmark_in_grey():
     renderer = Renderer("rgb_array", 300)
-    frame = full_frame(estimated_pose=None, pose_covariance=None, landmark_estimates=None)
+    frame = full_frame(robots=[full_robot(estimated_pose=None, pose_covariance=None)], landmark_estimates=None)
     image = renderer.draw(frame)
-    col, row = renderer.world_to_screen(frame.bounds, frame.true_pose[:2])
+    col, row = renderer.world_to_screen(frame.bounds, frame.robots[0].true_pose[:2])
     assert np.all(image[row, col] == 0)
     col, row = renderer.world_to_screen(frame.bounds, frame.landmarks[1])
     assert np.all(image[row, col] > 180) and np.all(image[row, col] < 255)
+
+
+def test_chosen_landmark_line_starts_at_robot_0():
+    renderer = Renderer("rgb_array", 300)
+    robot_0 = full_robot(true_pose=np.array([3.0, 8.0, 0.0]), estimated_pose=None, true_path=None)
+    robot_1 = full_robot(true_pose=np.array([17.0, 2.0, 0.0]), estimated_pose=None, true_path=None)
+    frame = full_frame(robots=[robot_0, robot_1], chosen_landmark=0, landmark_estimates=None)
+    image = renderer.draw(frame)
+    assert pixel(image, renderer, frame, (9.0, 8.0)) == (220, 30, 30), "on the line from robot 0 to landmark 0"
+
+
+def test_several_robots_are_each_drawn_in_their_colour():
+    renderer = Renderer("rgb_array", 300)
+    positions = [(3.0, 5.0), (8.0, 5.0), (13.0, 5.0), (18.0, 5.0)]
+    robots = [RobotDrawing(estimated_pose=np.array([x, y, 0.5]), pose_covariance=np.eye(2) * 0.1) for x, y in positions]
+    robots.append(RobotDrawing(true_pose=np.array([10.0, 8.0, 0.0])))
+    frame = SceneFrame(bounds=(0.0, 0.0, 20.0, 10.0), robots=robots)
+    image = renderer.draw(frame)
+    for index, position in enumerate(positions):
+        assert pixel(image, renderer, frame, position) == ROBOT_COLOURS[index]
+    assert pixel(image, renderer, frame, (10.0, 8.0)) == (0, 0, 0), "truth is black whatever the robot"
+    assert len(set(ROBOT_COLOURS)) == len(ROBOT_COLOURS) and ROBOT_COLOURS[0] == (30, 90, 220)
+
+
+def test_an_observation_is_a_line_between_the_two_robots_true_positions():
+    renderer = Renderer("rgb_array", 300)
+    robots = [RobotDrawing(true_pose=np.array([3.0, 5.0, 0.0])), RobotDrawing(true_pose=np.array([17.0, 5.0, 0.0]))]
+    frame = SceneFrame(bounds=(0.0, 0.0, 20.0, 10.0), robots=robots)
+    observed = SceneFrame(bounds=frame.bounds, robots=robots, observations=[(1, 0)])
+    midpoint = (10.0, 5.0)
+    assert pixel(renderer.draw(frame), renderer, frame, midpoint) == (255, 255, 255)
+    assert pixel(renderer.draw(observed), renderer, frame, midpoint) == ROBOT_COLOURS[1], "in the observer's colour"
+
+
+def test_a_gps_denied_zone_is_filled_lightly_under_the_obstacles():
+    renderer = Renderer("rgb_array", 300)
+    frame = SceneFrame(
+        bounds=(0.0, 0.0, 20.0, 10.0), obstacles=[Disc((10.0, 5.0), 0.5)], gps_denied_zones=[Disc((10.0, 5.0), 3.0)]
+    )
+    image = renderer.draw(frame)
+    zone = pixel(image, renderer, frame, (12.0, 5.0))
+    assert zone != (255, 255, 255) and min(zone) > 200, "a light fill"
+    assert zone[1] >= max(zone[0], zone[2]), "green like a canopy"
+    assert pixel(image, renderer, frame, (10.0, 5.0)) == (70, 70, 70), "the obstacle is drawn over the zone"
+    assert pixel(image, renderer, frame, (14.0, 5.0)) == (255, 255, 255)
+
+
+def test_a_robot_label_is_drawn_next_to_it():
+    pygame = pytest.importorskip("pygame")
+    pygame.font.init()
+    if not pygame.font.get_init():
+        pytest.skip("pygame has no fonts here")
+    renderer = Renderer("rgb_array", 300)
+    robot = RobotDrawing(true_pose=np.array([10.0, 5.0, 0.0]))
+    plain = renderer.draw(SceneFrame(bounds=(0.0, 0.0, 20.0, 10.0), robots=[robot]))
+    labelled = renderer.draw(
+        SceneFrame(bounds=(0.0, 0.0, 20.0, 10.0), robots=[RobotDrawing(robot.true_pose, label="3")])
+    )
+    changed_rows, changed_cols = np.nonzero(np.any(plain != labelled, axis=2))
+    col, row = renderer.world_to_screen((0.0, 0.0, 20.0, 10.0), (10.0, 5.0))
+    assert changed_rows.size and np.all(changed_cols > col) and np.all(changed_rows < row)
 
 
 def test_caption_draws_text_in_top_left():

@@ -23,6 +23,19 @@ INVALID_ACTION_MODES = ("noop", "raise")
 MIN_RENDER_SIZE_PX = 64
 
 
+def discrete_action_index(action, space: gym.spaces.Discrete) -> int:
+    """The action as an int, or ``ValueError`` if it is not an element of the ``Discrete(n)`` space."""
+    value = action.reshape(()) if isinstance(action, np.ndarray) and action.size == 1 else action
+    if not isinstance(value, (bool, np.bool_)):
+        try:
+            index = operator.index(value)
+        except TypeError:
+            index = None
+        if index is not None and 0 <= index < space.n:
+            return index
+    raise ValueError(f"action {action!r} is not in the action space {space}: expected an integer in [0, {space.n - 1}]")
+
+
 class InfoNavEnv(gym.Env):
     """Base of the single-agent envs: config, action validation, horizon, info keys, rendering."""
 
@@ -69,7 +82,7 @@ class InfoNavEnv(gym.Env):
     def step(self, action):
         if self._elapsed_steps is None:
             raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
-        action = self._action_index(action)
+        action = discrete_action_index(action, self.action_space)
         valid = bool(self._action_mask[action])
         if not valid and self.config["invalid_action"] == "raise":
             raise ValueError(
@@ -87,21 +100,6 @@ class InfoNavEnv(gym.Env):
         if self.render_mode == "human":
             self.render()
         return self._observation(), float(sum(reward_terms.values())), terminated, truncated, info
-
-    def _action_index(self, action) -> int:
-        """The action as an int, or ``ValueError`` if it is not an element of the action space."""
-        value = action.reshape(()) if isinstance(action, np.ndarray) and action.size == 1 else action
-        if not isinstance(value, (bool, np.bool_)):
-            try:
-                index = operator.index(value)
-            except TypeError:
-                index = None
-            if index is not None and 0 <= index < self.action_space.n:
-                return index
-        raise ValueError(
-            f"action {action!r} is not in the action space {self.action_space}: "
-            f"expected an integer in [0, {self.action_space.n - 1}]"
-        )
 
     def _info(self, reward_terms: dict, invalid: bool) -> dict:
         return {

@@ -17,6 +17,7 @@ from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, SCENARIOS
 from infonav_gym.world.world import World
 
+SCENARIO_CHOICES = ("field", "corridor")  # the single-robot scenarios with landmarks
 POSE_FEATURES = 10
 CANDIDATE_FEATURES = 5
 _BIG = 1e4
@@ -100,7 +101,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
     def __init__(self, render_mode: str | None = None, **config):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
-        check_choice(cfg, "scenario", SCENARIOS, owner)
+        check_choice(cfg, "scenario", SCENARIO_CHOICES, owner)
         check_positive(cfg, ["n_candidates", "time_step_s", "speed_mps", "landmark_prior_std_m", "field_size_m"], owner)
         check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
         check_positive(cfg, ["n_obstacles"], owner, allow_zero=True)
@@ -188,7 +189,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
 
     def _advance(self) -> None:
         dt = self.config["time_step_s"]
-        control = self.world.step(dt)
+        control = self.world.step(dt)[0]
         self._true_pose = self.world.pose
         self.ekf.predict(self.odometry.measure(control, self._odometry_rng), dt, self._odometry_covariance)
         self._true_path.append(self._true_pose[:2])
@@ -226,7 +227,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
         }
 
     def _scene_frame(self):
-        from infonav_gym.rendering import SceneFrame
+        from infonav_gym.rendering import RobotDrawing, SceneFrame
 
         scenario, mapping = self.world.scenario, self.config["mapping"]
         n_landmarks = len(self.world.landmarks)
@@ -238,13 +239,17 @@ class LandmarkSelectionEnv(InfoNavEnv):
             landmarks=self.world.landmarks,
             landmark_visible=self._action_mask[:n_landmarks].astype(bool),
             chosen_landmark=self._chosen_action,
-            true_pose=self._true_pose,
-            estimated_pose=self.ekf.pose,
-            pose_covariance=self.ekf.pose_covariance,
+            robots=[
+                RobotDrawing(
+                    true_pose=self._true_pose,
+                    estimated_pose=self.ekf.pose,
+                    pose_covariance=self.ekf.pose_covariance,
+                    true_path=np.array(self._true_path),
+                    estimated_path=np.array(self._estimated_path),
+                )
+            ],
             landmark_estimates=self.ekf.landmark_positions if mapping else None,
             landmark_covariances=np.array(landmark_blocks) if mapping else None,
-            true_path=np.array(self._true_path),
-            estimated_path=np.array(self._estimated_path),
             caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
             f"pose entropy {self._pose_entropy:.2f} nats",
         )

@@ -7,8 +7,11 @@ from filterpy.kalman import ExtendedKalmanFilter
 from scipy.linalg import block_diag
 
 from infonav_gym.estimation.models import (
+    GPS_POSE_JACOBIAN,
+    angular_residual,
     range_bearing_linearized,
     range_bearing_residual,
+    relative_pose_linearized,
     unicycle_jacobians,
     unicycle_motion,
     wrap_angle,
@@ -126,17 +129,180 @@ class PoseEKF(ExtendedKalmanFilter):
             H: its Jacobian w.r.t. the state (2, dim_x).
             R: measurement noise covariance (2, 2).
         """
-        PHT = self.P @ H.T
-        S = H @ PHT + R
+        _kalman_update(self, measurement, range_bearing_residual(measurement, predicted), H, R, 2)
+
+
+def _inverse(S: np.ndarray) -> np.ndarray:
+    """Inverse of a small SPD matrix (closed form for 2x2, the common case in the hot loop)."""
+    if S.shape == (2, 2):
         (a, b), (_, d) = S.tolist()
-        SI = np.array([[d, -b], [-b, a]]) / (a * d - b * b)
-        K = PHT @ SI
-        self.z = np.array(measurement, dtype=float)
-        self.y = range_bearing_residual(self.z, predicted)
-        self.x = self.x + K @ self.y
-        self.x[2] = wrap_angle(self.x[2])
-        P = self.P - K @ PHT.T
-        self.P = 0.5 * (P + P.T)
-        self.S, self.SI, self.K = S, SI, K
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
-        self._log_likelihood = self._likelihood = self._mahalanobis = None
+        return np.array([[d, -b], [-b, a]]) / (a * d - b * b)
+    return np.linalg.inv(S)
+
+
+def _kalman_update(ekf: ExtendedKalmanFilter, measurement, residual, H, R, heading_indices) -> None:
+    """The EKF update linearized at the prior; fills filterpy's attributes; covariance symmetrized.
+
+    Args:
+        ekf: the filter to update in place.
+        measurement: the measured value (m,).
+        residual: ``measurement - predicted``, angles already wrapped (m,).
+        H: measurement Jacobian w.r.t. the whole state (m, dim_x).
+        R: measurement noise covariance (m, m).
+        heading_indices: state entries that are headings, wrapped after the update.
+    """
+    PHT = ekf.P @ H.T
+    S = H @ PHT + R
+    SI = _inverse(S)
+    K = PHT @ SI
+    ekf.z = np.array(measurement, dtype=float)
+    ekf.y = residual
+    ekf.x = ekf.x + K @ residual
+    ekf.x[heading_indices] = wrap_angle(ekf.x[heading_indices])
+    P = ekf.P - K @ PHT.T
+    ekf.P = 0.5 * (P + P.T)
+    ekf.S, ekf.SI, ekf.K = S, SI, K
+    ekf.x_post, ekf.P_post = ekf.x.copy(), ekf.P.copy()
+    ekf._log_likelihood = ekf._likelihood = ekf._mahalanobis = None
+
+
+class JointEKF(ExtendedKalmanFilter):
+    """EKF over the planar poses of N robots: state ``[x0, y0, h0, x1, y1, h1, ...]`` (3N).
+
+    A relative-pose measurement between two robots correlates their estimates;
+    this filter keeps those cross-covariances, so information is never counted
+    twice. With ``cross_covariances=False`` it drops them after every update
+    (each robot keeps only its own 3x3 block): the common shortcut that treats
+    teammates' estimates as independent, reuses the same information again and
+    again, and becomes overconfident. Prediction runs through filterpy's
+    ``predict``; updates are closed-form (see ``PoseEKF``).
+
+    Args:
+        poses: initial pose estimates (N, 3).
+        pose_covariances: their covariances (N, 3, 3) (the robots start uncorrelated).
+        cross_covariances: keep the cross-covariances (the correct joint filter).
+    """
+
+    def __init__(self, poses, pose_covariances, cross_covariances: bool = True):
+        poses = np.asarray(poses, dtype=float)
+        covariances = np.asarray(pose_covariances, dtype=float)
+        if poses.ndim != 2 or poses.shape[1] != POSE_DIM or len(poses) < 1 or not np.all(np.isfinite(poses)):
+            raise ValueError(f"poses must be finite with shape (N, 3), N >= 1, got shape {poses.shape}")
+        if covariances.shape != (len(poses), POSE_DIM, POSE_DIM):
+            raise ValueError(f"pose_covariances must have shape ({len(poses)}, 3, 3), got {covariances.shape}")
+        for robot, covariance in enumerate(covariances):
+            log_det_spd(covariance, f"initial pose covariance of robot {robot}")
+        n_robots = len(poses)
+        super().__init__(dim_x=POSE_DIM * n_robots, dim_z=POSE_DIM)
+        self.n_robots = n_robots
+        self.cross_covariances = bool(cross_covariances)
+        self.x = poses.ravel().copy()
+        self.P = block_diag(*covariances)
+        self.Q = np.zeros_like(self.P)
+        self._own_block = np.kron(np.eye(n_robots), np.ones((POSE_DIM, POSE_DIM)))
+        self._headings = np.arange(2, self.dim_x, POSE_DIM)
+        self._motion = None
+
+    @property
+    def poses(self) -> np.ndarray:
+        """Estimated poses (N, 3)."""
+        return self.x.reshape(-1, POSE_DIM).copy()
+
+    def pose_covariance(self, robot: int) -> np.ndarray:
+        """The (3, 3) covariance block of one robot's pose."""
+        block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
+        return self.P[block, block].copy()
+
+    def pose_covariances(self) -> np.ndarray:
+        """Every robot's own covariance block (N, 3, 3)."""
+        robots = np.arange(self.n_robots)
+        return self._blocks()[robots, robots]
+
+    def _blocks(self) -> np.ndarray:
+        """``P`` as (N, N, 3, 3) blocks: ``[i, j]`` is the covariance of robot i's pose with robot j's."""
+        n = self.n_robots
+        return self.P.reshape(n, POSE_DIM, n, POSE_DIM).transpose(0, 2, 1, 3)
+
+    def predict(self, controls, dt: float, control_covariances) -> None:
+        """Propagate every robot through the unicycle model with its noisy odometry ``[speed, turn_rate]``.
+
+        Args:
+            controls: odometry readings (N, 2).
+            dt: time step [s].
+            control_covariances: their noise covariances (N, 2, 2).
+        """
+        for robot in range(self.n_robots):
+            block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
+            F_pose, V = unicycle_jacobians(self.x[block], controls[robot], dt)
+            self.F[block, block] = F_pose
+            self.Q[block, block] = V @ control_covariances[robot] @ V.T
+        self._motion = (controls, dt)
+        super().predict()
+
+    def predict_x(self, u=0) -> None:
+        """filterpy hook: the nonlinear prediction of every pose."""
+        controls, dt = self._motion
+        poses = self.x.reshape(-1, POSE_DIM)
+        self.x = np.concatenate([unicycle_motion(pose, control, dt) for pose, control in zip(poses, controls)])
+
+    def gps_update(self, robots, fixes, noise_covariances) -> None:
+        """Update with position fixes ``[x, y]`` of some robots (one stacked linear update).
+
+        Args:
+            robots: indices of the robots with a fix (k,).
+            fixes: their measured positions (k, 2).
+            noise_covariances: the fixes' noise covariances (k, 2, 2).
+        """
+        robots = np.asarray(robots, dtype=int)
+        if robots.size == 0:
+            return
+        H = np.zeros((2 * robots.size, self.dim_x))
+        for row, robot in enumerate(robots):
+            H[2 * row : 2 * row + 2, POSE_DIM * robot : POSE_DIM * robot + POSE_DIM] = GPS_POSE_JACOBIAN
+        measurement = np.asarray(fixes, dtype=float).ravel()
+        R = block_diag(*noise_covariances)
+        _kalman_update(self, measurement, measurement - H @ self.x, H, R, self._headings)
+        self._drop_cross_covariances()
+
+    def relative_pose_model(self, observers, targets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predicted relative pose of each ``targets[k]`` seen from ``observers[k]``, with both Jacobians.
+
+        Returns:
+            ``(predicted (M, 3), H_observer (M, 3, 3), H_target (M, 3, 3))``.
+        """
+        poses = self.x.reshape(-1, POSE_DIM)
+        return relative_pose_linearized(poses[observers], poses[targets])
+
+    def relative_pose_update(self, observer: int, target: int, measurement, predicted, H_observer, H_target, R):
+        """Update with the measured ``[range, bearing, relative heading]`` of ``target`` seen from ``observer``.
+
+        ``predicted``, ``H_observer`` and ``H_target`` come from ``relative_pose_model`` at the current prior.
+        """
+        if observer == target:
+            raise ValueError(f"a robot cannot observe its own relative pose (robot {observer})")
+        H = np.zeros((POSE_DIM, self.dim_x))
+        H[:, POSE_DIM * observer : POSE_DIM * observer + POSE_DIM] = H_observer
+        H[:, POSE_DIM * target : POSE_DIM * target + POSE_DIM] = H_target
+        residual = angular_residual(measurement, predicted, [1, 2])
+        _kalman_update(self, measurement, residual, H, R, self._headings)
+        self._drop_cross_covariances()
+
+    def own_pose_information_gain(self, observers, targets, H_observer, H_target, R) -> np.ndarray:
+        """Expected MI on the *observer's own* pose of each candidate relative-pose update [nats].
+
+        ``0.5 ln(det P_oo / det P_oo_post)`` with ``P_oo_post = P_oo - A S^-1 A^T``, where
+        ``A`` is the observer's rows of ``P H^T`` and ``S = H P H^T + R``: batched over
+        the M candidates, each alone at the current prior.
+        """
+        blocks = self._blocks()
+        P_oo, P_ot = blocks[observers, observers], blocks[observers, targets]
+        P_to, P_tt = blocks[targets, observers], blocks[targets, targets]
+        H_observer_T, H_target_T = np.swapaxes(H_observer, 1, 2), np.swapaxes(H_target, 1, 2)
+        A = P_oo @ H_observer_T + P_ot @ H_target_T
+        S = H_observer @ A + H_target @ (P_to @ H_observer_T + P_tt @ H_target_T) + R
+        posterior = P_oo - A @ np.linalg.solve(S, np.swapaxes(A, 1, 2))
+        return 0.5 * (np.linalg.slogdet(P_oo)[1] - np.linalg.slogdet(posterior)[1])
+
+    def _drop_cross_covariances(self) -> None:
+        if not self.cross_covariances:
+            self.P = self.P * self._own_block

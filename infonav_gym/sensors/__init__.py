@@ -1,6 +1,8 @@
 """Sensor models: each draws its noise from the ``np_random`` it is handed."""
 
+from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
+from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, RelativePoseSensor
 
-__all__ = ["OdometrySensor", "RangeBearingSensor"]
+__all__ = ["RELATIVE_POSE_SENSORS", "GPSSensor", "OdometrySensor", "RangeBearingSensor", "RelativePoseSensor"]

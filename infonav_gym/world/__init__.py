@@ -1,6 +1,6 @@
 """The simulated 2D world (Pymunk) and its scenarios."""
 
-from infonav_gym.world.scenarios import SCENARIOS, CircleObstacle, Scenario
+from infonav_gym.world.scenarios import SCENARIOS, CircleObstacle, Route, Scenario
 from infonav_gym.world.world import World
 
-__all__ = ["SCENARIOS", "CircleObstacle", "Scenario", "World"]
+__all__ = ["SCENARIOS", "CircleObstacle", "Route", "Scenario", "World"]

@@ -17,30 +17,59 @@ class CircleObstacle:
 
 
 @dataclass(frozen=True)
+class Route:
+    """One robot's route.
+
+    Attributes:
+        start_pose: initial ``[x, y, heading]`` of the robot [m, m, rad].
+        waypoints: points the robot drives to in turn (W, 2) [m]; empty: the robot stays parked.
+        loop: after the last waypoint, go back to the first (else stop there).
+        speed_mps: cruise speed along the route [m/s].
+    """
+
+    start_pose: tuple[float, float, float]
+    waypoints: np.ndarray
+    loop: bool = False
+    speed_mps: float = 1.0
+
+    def __post_init__(self):
+        waypoints = np.array(self.waypoints, dtype=float)
+        if waypoints.size == 0:
+            waypoints = np.zeros((0, 2))
+        if waypoints.ndim != 2 or waypoints.shape[1] != 2 or not np.all(np.isfinite(waypoints)):
+            raise ValueError(f"route waypoints must be a finite (W, 2) array [m], got shape {waypoints.shape}")
+        if not self.speed_mps > 0:
+            raise ValueError(f"route speed_mps must be positive [m/s], got {self.speed_mps!r}")
+        waypoints.flags.writeable = False
+        object.__setattr__(self, "waypoints", waypoints)
+
+
+@dataclass(frozen=True)
 class Scenario:
     """Everything static about a world.
 
     Attributes:
         name: scenario name.
         bounds: ``(x_min, y_min, x_max, y_max)`` of the drawable area [m].
+        routes: one route per robot (at least one); robot ``i`` drives ``routes[i]``.
         walls: segments ``((x0, y0), (x1, y1))`` [m].
         obstacles: circular obstacles.
         landmarks: point landmark positions (L, 2) [m].
-        waypoints: route the robot follows (W, 2) [m].
-        start_pose: initial ``[x, y, heading]`` of the robot.
-        loop_route: after the last waypoint, go back to the first (else stop there).
-        speed_mps: cruise speed along the route [m/s].
+        gps_denied_zones: circles where satellite positioning is unavailable (e.g. under
+            canopy); not physical, robots drive through them.
     """
 
     name: str
     bounds: tuple[float, float, float, float]
+    routes: tuple[Route, ...]
     walls: tuple = ()
     obstacles: tuple = ()
     landmarks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    waypoints: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    start_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    loop_route: bool = False
-    speed_mps: float = 1.0
+    gps_denied_zones: tuple[CircleObstacle, ...] = ()
+
+    def __post_init__(self):
+        if not self.routes:
+            raise ValueError(f"scenario {self.name!r} needs at least one route (one per robot), got none")
 
 
 def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario:
@@ -63,10 +92,8 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
         name="corridor",
         bounds=(-3.0, -4.0, length + 1.0, 4.0),
         walls=walls,
+        routes=(Route((0.0, 0.0, 0.0), np.array([[length - 3.0, 0.0]]), speed_mps=speed_mps),),
         landmarks=landmarks,
-        waypoints=np.array([[length - 3.0, 0.0]]),
-        start_pose=(0.0, 0.0, 0.0),
-        speed_mps=speed_mps,
     )
 
 
@@ -92,6 +119,40 @@ def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: in
     return accepted
 
 
+def _polygon(center: np.ndarray, angles: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """The (W, 2) vertices at polar ``angles`` [rad] and ``radii`` [m] around ``center``."""
+    return center + radii[:, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+
+
+def _points_along(polygon: np.ndarray, per_edge: int = 8) -> np.ndarray:
+    """Points spaced evenly along each edge of the closed ``polygon`` (W * per_edge, 2)."""
+    fractions = np.arange(per_edge)[:, None, None] / per_edge
+    return (polygon + fractions * (np.roll(polygon, -1, axis=0) - polygon)).reshape(-1, 2)
+
+
+def _closed_route(polygon: np.ndarray, speed_mps: float) -> Route:
+    """A looping route around ``polygon``, starting at its first vertex and heading for the second."""
+    heading = math.atan2(*(polygon[1] - polygon[0])[::-1])
+    start_pose = (float(polygon[0, 0]), float(polygon[0, 1]), heading)
+    return Route(start_pose, np.roll(polygon, -1, axis=0), loop=True, speed_mps=speed_mps)
+
+
+def _box_walls(x_min: float, y_min: float, x_max: float, y_max: float) -> tuple:
+    """The four walls around the rectangle ``[x_min, x_max] x [y_min, y_max]``."""
+    corners = ((x_min, y_min), (x_max, y_min), (x_max, y_max), (x_min, y_max))
+    return tuple((corners[i], corners[(i + 1) % 4]) for i in range(4))
+
+
+def _obstacles_clear_of(polygons: list, count: int, size_m: float, np_random: np.random.Generator) -> list:
+    """``count`` round obstacles in the square field, each clear of every closed route by its radius + 2 m."""
+    return _rejection_sample(
+        count,
+        lambda: CircleObstacle(tuple(np_random.uniform(2.0, size_m - 2.0, 2)), float(np_random.uniform(0.5, 2.0))),
+        lambda o: all(_distance_to_route(np.array(o.center), polygon) > o.radius + 2.0 for polygon in polygons),
+        "obstacles clear of the routes",
+    )
+
+
 def field(
     np_random: np.random.Generator,
     n_landmarks: int = 8,
@@ -107,14 +168,8 @@ def field(
     """
     center = np.array([size_m / 2, size_m / 2])
     angles = 2 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
-    radii = size_m * np_random.uniform(0.22, 0.36, n_waypoints)
-    route = center + radii[:, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    obstacles = _rejection_sample(
-        n_obstacles,
-        lambda: CircleObstacle(tuple(np_random.uniform(2.0, size_m - 2.0, 2)), float(np_random.uniform(0.5, 2.0))),
-        lambda o: _distance_to_route(np.array(o.center), route) > o.radius + 2.0,
-        "obstacles clear of the route",
-    )
+    route = _polygon(center, angles, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
+    obstacles = _obstacles_clear_of([route], n_obstacles, size_m, np_random)
     landmarks = _rejection_sample(
         n_landmarks,
         lambda: np_random.uniform(1.0, size_m - 1.0, 2),
@@ -123,20 +178,170 @@ def field(
         ),
         "landmarks outside obstacles",
     )
-    heading = math.atan2(*(route[1] - route[0])[::-1])
-    corners = ((0.0, 0.0), (size_m, 0.0), (size_m, size_m), (0.0, size_m))
-    walls = tuple((corners[i], corners[(i + 1) % 4]) for i in range(4))
     return Scenario(
         name="field",
         bounds=(0.0, 0.0, size_m, size_m),
-        walls=walls,
+        routes=(_closed_route(route, speed_mps),),
+        walls=_box_walls(0.0, 0.0, size_m, size_m),
         obstacles=tuple(obstacles),
         landmarks=np.array(landmarks).reshape(-1, 2),
-        waypoints=np.roll(route, -1, axis=0),
-        start_pose=(float(route[0, 0]), float(route[0, 1]), heading),
-        loop_route=True,
-        speed_mps=speed_mps,
     )
 
 
-SCENARIOS = {"corridor": corridor, "field": field}
+TEAM_ROUTE_GAP_M = 2.0  # least distance between two robots' routes [m]
+MAX_CANOPY_COVER = 0.5  # largest fraction of a route's length one GPS-denied zone may cover
+_TEAM_ANGLE_JITTER = 0.1  # jitter of a waypoint's polar angle, as a fraction of the sector between waypoints
+
+
+def _radial_bands(
+    n_bands: int, inner_m: float, outer_m: float, gap_m: float, sector_rad: float, max_width_m: float
+) -> list[tuple[float, float]]:
+    """Vertex radius ranges [m], innermost first, for closed polygons that stay ``gap_m`` apart.
+
+    A polygon's farthest point from the centre is a vertex, and its edges, each spanning
+    at most ``sector_rad``, stay at least ``cos(sector_rad / 2)`` times its smallest vertex
+    radius from the centre. Bands are stacked inward from ``outer_m`` so that every
+    polygon stays beyond ``inner_m``; each is as wide as fits, up to ``max_width_m``.
+
+    Raises:
+        ValueError: when even zero-width bands do not fit between ``inner_m`` and ``outer_m``.
+    """
+    sag = math.cos(sector_rad / 2)
+
+    def bands(width_m: float) -> list[tuple[float, float]]:
+        stacked, high = [], outer_m
+        for _ in range(n_bands):
+            stacked.append((high - width_m, high))
+            high = (high - width_m) * sag - gap_m
+        return stacked[::-1]
+
+    def clearance(width_m: float) -> float:
+        return bands(width_m)[0][0] * sag - inner_m
+
+    if clearance(0.0) < 0.0:
+        raise ValueError(
+            f"cannot fit {n_bands} routes {gap_m} m apart between {inner_m:.1f} m and {outer_m:.1f} m "
+            "from the field centre: use fewer robots, a larger size_m or more n_waypoints"
+        )
+    width_m = min(max_width_m, clearance(0.0) / (clearance(0.0) - clearance(1.0)))  # clearance is affine in width
+    return bands(width_m)
+
+
+def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> list:
+    """``count`` GPS-denied zones (radius 4-8 m) centred on random points of the closed routes.
+
+    Each covers at most ``MAX_CANOPY_COVER`` of every route, so no robot stays under one for
+    good, and no route's start (its first vertex), so every robot starts with satellite positioning.
+    """
+
+    def draw() -> CircleObstacle:
+        polygon = polygons[np_random.integers(len(polygons))]
+        edge = np_random.integers(len(polygon))
+        point = polygon[edge] + np_random.uniform() * (polygon[(edge + 1) % len(polygon)] - polygon[edge])
+        return CircleObstacle((float(point[0]), float(point[1])), float(np_random.uniform(4.0, 8.0)))
+
+    def accept(zone: CircleObstacle) -> bool:
+        starts_open = all(math.dist(polygon[0], zone.center) >= zone.radius for polygon in polygons)
+        return starts_open and all(
+            np.mean(np.linalg.norm(points - zone.center, axis=1) < zone.radius) <= MAX_CANOPY_COVER
+            for points in route_points
+        )
+
+    route_points = [_points_along(polygon) for polygon in polygons]
+    return _rejection_sample(
+        count,
+        draw,
+        accept,
+        f"GPS-denied zones off the route starts covering at most {MAX_CANOPY_COVER:.0%} of any route",
+    )
+
+
+def team_field(
+    np_random: np.random.Generator,
+    n_robots: int = 4,
+    n_obstacles: int = 6,
+    n_canopies: int = 2,
+    size_m: float = 40.0,
+    speed_mps: float = 1.0,
+    n_waypoints: int = 6,
+) -> Scenario:
+    """An open square field for a team: each robot loops its own route around the centre.
+
+    The routes lie in separate radial bands at least ``TEAM_ROUTE_GAP_M`` apart, so robots
+    rarely meet, and the robots start at spread-out angles. Round obstacles keep clear of
+    every route; ``n_canopies`` GPS-denied zones (radius 4-8 m) are centred on route points,
+    so robots pass under them; each covers at most ``MAX_CANOPY_COVER`` of any route and no
+    robot's start, so no robot stays under one for good. There are no landmarks.
+
+    Raises:
+        ValueError: for a non-positive count, or when the routes, obstacles or canopies do not fit.
+    """
+    if n_robots < 1 or n_waypoints < 3 or n_obstacles < 0 or n_canopies < 0:
+        raise ValueError(
+            "team_field needs n_robots >= 1, n_waypoints >= 3 and non-negative n_obstacles and n_canopies, got "
+            f"n_robots={n_robots}, n_waypoints={n_waypoints}, n_obstacles={n_obstacles}, n_canopies={n_canopies}"
+        )
+    center = np.array([size_m / 2, size_m / 2])
+    bands = _radial_bands(
+        n_robots,
+        inner_m=2.0,  # the innermost route keeps its waypoints >= ~2 m apart
+        outer_m=size_m / 2 - 2.5,
+        gap_m=TEAM_ROUTE_GAP_M,
+        sector_rad=2 * math.pi * (1 + 2 * _TEAM_ANGLE_JITTER) / n_waypoints,
+        max_width_m=0.15 * size_m,
+    )
+    first_angle = np_random.uniform(0.0, 2 * math.pi)
+    polygons = []
+    for robot, (low_m, high_m) in enumerate(bands):
+        jitter = np_random.uniform(-_TEAM_ANGLE_JITTER, _TEAM_ANGLE_JITTER, n_waypoints)
+        angles = first_angle + 2 * math.pi * (robot / n_robots + (np.arange(n_waypoints) + jitter) / n_waypoints)
+        polygons.append(_polygon(center, angles, np_random.uniform(low_m, high_m, n_waypoints)))
+    obstacles = _obstacles_clear_of(polygons, n_obstacles, size_m, np_random)
+    canopies = _canopies_on(polygons, n_canopies, np_random)
+    return Scenario(
+        name="team_field",
+        bounds=(0.0, 0.0, size_m, size_m),
+        routes=tuple(_closed_route(polygon, speed_mps) for polygon in polygons),
+        walls=_box_walls(0.0, 0.0, size_m, size_m),
+        obstacles=tuple(obstacles),
+        gps_denied_zones=tuple(canopies),
+    )
+
+
+CONVOY_LANE_SPACING_M = 6.0
+CONVOY_LENGTH_M = 62.0
+# Openings [m along x] in the hedge between lanes h and h + 1; the first hedge's openings
+# come after the Fig. 3 DGPS loss at 21 s, and at x = 42-45 both hedges are open.
+CONVOY_OPENINGS = (((30.0, 33.0), (42.0, 45.0), (54.0, 57.0)), ((12.0, 15.0), (42.0, 45.0)))
+
+
+def _hedge(y: float, openings, x_start: float, x_end: float) -> tuple:
+    """Wall segments along ``y`` from ``x_start`` to ``x_end`` with gaps at the ``openings`` (x ranges)."""
+    edges = [x_start, *(x for opening in openings for x in opening), x_end]
+    return tuple(((edges[k], y), (edges[k + 1], y)) for k in range(0, len(edges), 2))
+
+
+def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float = 1.0) -> Scenario:
+    """The paper's Fig. 3 layout: robots drive side by side along +x in parallel lanes.
+
+    Robot ``k`` drives lane ``y = -6 k`` from ``x = 0`` to ``x = 62``. Hedges between
+    neighbouring lanes block line of sight except at a few openings
+    (``CONVOY_OPENINGS``; later hedges reuse the second pattern), so relative
+    observations come in bursts, as the paper's marked corrections do. The layout is
+    fixed; ``np_random`` is accepted for a uniform builder signature.
+    """
+    del np_random
+    if n_robots < 2:
+        raise ValueError(f"the convoy needs at least 2 robots, got {n_robots}")
+    lanes = [-CONVOY_LANE_SPACING_M * k for k in range(n_robots)]
+    half = CONVOY_LANE_SPACING_M / 2
+    x_min, x_max, y_min, y_max = -3.0, CONVOY_LENGTH_M + 3.0, lanes[-1] - half, half
+    walls = _box_walls(x_min, y_min, x_max, y_max)
+    for hedge in range(n_robots - 1):
+        openings = CONVOY_OPENINGS[min(hedge, len(CONVOY_OPENINGS) - 1)]
+        walls += _hedge(lanes[hedge] - half, openings, x_min, x_max)
+    routes = tuple(Route((0.0, y, 0.0), np.array([[CONVOY_LENGTH_M, y]]), speed_mps=speed_mps) for y in lanes)
+    return Scenario(name="convoy", bounds=(x_min - 1, y_min - 1, x_max + 1, y_max + 1), routes=routes, walls=walls)
+
+
+SCENARIOS = {"corridor": corridor, "field": field, "team_field": team_field, "convoy": convoy}

@@ -1,0 +1,85 @@
+"""A team's sensor suites and DGPS outage schedule, parsed from the env config with clear errors."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+KNOWN_SENSORS = ("odometry", "gps", "laser", "vision")
+RELATIVE_SENSORS = ("laser", "vision")
+# Robot k of the default team has suite k % 4: two DGPS robots with lasers, one with only
+# odometry and a laser, one with only odometry and a camera.
+DEFAULT_SUITES = (("gps", "laser"), ("gps", "laser"), ("laser",), ("vision",))
+# The Fig. 3 convoy: robot #1 keeps DGPS and carries no relative sensor, robot #2 (DGPS
+# lost at 21 s) localizes through its laser, robot #3 has only odometry and a laser.
+CONVOY_SUITES = (("gps",), ("gps", "laser"), ("laser",))
+DEFAULT_OUTAGE = (1, 21.0, 1e9)  # robot_1 loses DGPS at t = 21 s for the rest of the episode [s]
+
+
+@dataclass(frozen=True)
+class RobotSuite:
+    """What one robot carries besides odometry (which every robot has).
+
+    Attributes:
+        gps: a DGPS receiver.
+        relative_sensor: ``"laser"``, ``"vision"`` or None (it cannot observe teammates).
+    """
+
+    gps: bool
+    relative_sensor: str | None
+
+
+def parse_suites(spec, n_robots: int, scenario: str) -> tuple[RobotSuite, ...]:
+    """Turn ``robot_sensors`` into one ``RobotSuite`` per robot.
+
+    Args:
+        spec: None for the scenario's default team, else one entry per robot: a
+            sequence of sensor names or a string joining them with ``+`` (``"gps+laser"``).
+        n_robots: size of the team.
+        scenario: scenario name (the convoy has its own default team).
+
+    Raises:
+        ValueError: for a wrong number of entries, an unknown sensor (listing the
+            known ones) or two relative-pose sensors on one robot.
+    """
+    if spec is None:
+        defaults = CONVOY_SUITES if scenario == "convoy" else DEFAULT_SUITES
+        spec = [defaults[robot % len(defaults)] for robot in range(n_robots)]
+    if isinstance(spec, str) or not isinstance(spec, Sequence) or len(spec) != n_robots:
+        raise ValueError(f"robot_sensors must list one sensor suite per robot ({n_robots}), got {spec!r}")
+    return tuple(_parse_suite(entry, robot) for robot, entry in enumerate(spec))
+
+
+def _parse_suite(entry, robot: int) -> RobotSuite:
+    names = entry.split("+") if isinstance(entry, str) else list(entry)
+    unknown = [name for name in names if name not in KNOWN_SENSORS]
+    if unknown:
+        raise ValueError(
+            f"unknown sensor {unknown[0]!r} for robot_{robot} in robot_sensors; "
+            f"known sensors: {', '.join(KNOWN_SENSORS)}"
+        )
+    relative = [name for name in names if name in RELATIVE_SENSORS]
+    if len(relative) > 1:
+        raise ValueError(f"robot_{robot} can carry one relative-pose sensor (laser or vision), got {relative}")
+    return RobotSuite(gps="gps" in names, relative_sensor=relative[0] if relative else None)
+
+
+def parse_outages(spec, n_robots: int) -> tuple[tuple[tuple[float, float], ...], ...]:
+    """Per robot, its DGPS outage spans ``(start_s, end_s)`` from ``gps_outages`` triples ``(robot, start_s, end_s)``.
+
+    Raises:
+        ValueError: for a malformed triple, a robot index out of range or ``start_s >= end_s``.
+    """
+    spans = [[] for _ in range(n_robots)]
+    for triple in spec:
+        try:
+            robot, start_s, end_s = triple
+            robot, start_s, end_s = int(robot), float(start_s), float(end_s)
+        except (TypeError, ValueError):
+            raise ValueError(f"each gps_outages entry must be (robot, start_s, end_s), got {triple!r}") from None
+        if not 0 <= robot < n_robots:
+            raise ValueError(f"gps_outages names robot {robot}, but the team has robots 0..{n_robots - 1}")
+        if not start_s < end_s:
+            raise ValueError(f"a gps_outages span must have start_s < end_s, got {triple!r}")
+        spans[robot].append((start_s, end_s))
+    return tuple(tuple(robot_spans) for robot_spans in spans)

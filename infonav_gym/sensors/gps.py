@@ -1,0 +1,39 @@
+"""DGPS: an absolute position fix that drops out on a time schedule and inside GPS-denied zones."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class GPSSensor:
+    """Measures the position ``[x, y]`` with isotropic Gaussian noise, when satellites are available.
+
+    Attributes:
+        position_std_m: standard deviation of each coordinate of a fix [m] (DGPS: centimetres to decimetres).
+        outages: time spans ``(start_s, end_s)`` without a fix (``start_s <= t < end_s``) [s].
+    """
+
+    position_std_m: float = 0.1
+    outages: tuple[tuple[float, float], ...] = ()
+
+    def __post_init__(self):
+        if not self.position_std_m > 0:
+            raise ValueError(f"GPS position_std_m must be positive, got {self.position_std_m!r}")
+        for span in self.outages:
+            if len(span) != 2 or not span[0] < span[1]:
+                raise ValueError(f"a GPS outage must be a span (start_s, end_s) with start_s < end_s, got {span!r}")
+
+    def available(self, time_s: float, in_denied_zone: bool = False) -> bool:
+        """Whether a fix can be had at ``time_s`` (not in an outage span, not inside a GPS-denied zone)."""
+        return not in_denied_zone and not any(start <= time_s < end for start, end in self.outages)
+
+    def noise_covariance(self) -> np.ndarray:
+        """Covariance of a fix's noise (2, 2)."""
+        return np.eye(2) * self.position_std_m**2
+
+    def measure(self, position, np_random: np.random.Generator) -> np.ndarray:
+        """A noisy fix of the true ``position`` ``[x, y]``."""
+        return np.asarray(position[:2], dtype=float) + self.position_std_m * np_random.standard_normal(2)

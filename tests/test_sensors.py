@@ -1,0 +1,96 @@
+"""Sensor models: noise statistics against their stated covariances, coverage, availability, bad input."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from infonav_gym.estimation import relative_pose
+from infonav_gym.multi.team import KNOWN_SENSORS, RobotSuite, parse_outages, parse_suites
+from infonav_gym.sensors import RELATIVE_POSE_SENSORS, GPSSensor, RangeBearingSensor, RelativePoseSensor
+
+N_SAMPLES = 20000
+
+
+def assert_noise_matches(errors: np.ndarray, covariance: np.ndarray) -> None:
+    """Zero mean and the stated covariance: the NEES of the samples follows chi-square(dim)."""
+    dim = covariance.shape[0]
+    mean_nees = np.mean(np.einsum("ni,ij,nj->n", errors, np.linalg.inv(covariance), errors))
+    low = stats.chi2.ppf(0.0005, dim * len(errors)) / len(errors)
+    high = stats.chi2.ppf(0.9995, dim * len(errors)) / len(errors)
+    assert low <= mean_nees <= high, f"mean NEES {mean_nees:.4f} outside [{low:.4f}, {high:.4f}]"
+    standard_error = np.sqrt(np.diag(covariance) / len(errors))
+    assert np.all(np.abs(errors.mean(axis=0)) < 4 * standard_error)
+
+
+def test_gps_fix_noise_has_the_stated_covariance():
+    gps, rng = GPSSensor(position_std_m=0.3), np.random.default_rng(0)
+    errors = np.array([gps.measure([2.0, -1.0, 0.5], rng) for _ in range(N_SAMPLES)]) - [2.0, -1.0]
+    assert_noise_matches(errors, gps.noise_covariance())
+
+
+def test_gps_drops_out_on_its_schedule_and_in_denied_zones():
+    gps = GPSSensor(outages=((21.0, 30.0), (50.0, 1e9)))
+    assert gps.available(20.99) and not gps.available(21.0) and not gps.available(29.9) and gps.available(30.0)
+    assert not gps.available(60.0)
+    assert not GPSSensor().available(0.0, in_denied_zone=True)
+
+
+@pytest.mark.parametrize("bad", [{"position_std_m": 0.0}, {"outages": ((5.0, 5.0),)}, {"outages": ((1.0,),)}])
+def test_gps_rejects_bad_parameters(bad):
+    with pytest.raises(ValueError, match="GPS"):
+        GPSSensor(**bad)
+
+
+@pytest.mark.parametrize("name", sorted(RELATIVE_POSE_SENSORS))
+def test_relative_pose_noise_has_the_stated_covariance(name):
+    sensor, rng = RELATIVE_POSE_SENSORS[name], np.random.default_rng(1)
+    observer, target = np.array([1.0, 2.0, 0.3]), np.array([6.0, 3.0, -2.0])
+    truth = relative_pose(observer, target)[0]
+    samples = np.array([sensor.measure(observer, target, rng) for _ in range(N_SAMPLES)])
+    errors = samples - truth
+    errors[:, 1:] = (errors[:, 1:] + np.pi) % (2 * np.pi) - np.pi
+    assert_noise_matches(errors, sensor.noise_covariance(truth[0])[0])
+
+
+def test_vision_is_narrow_and_noisier_with_distance_laser_sees_all_around():
+    laser, vision = RELATIVE_POSE_SENSORS["laser"], RELATIVE_POSE_SENSORS["vision"]
+    geometry = np.array([[5.0, 0.0, 0.0], [5.0, math.radians(40), 0.0], [5.0, math.pi - 0.1, 0.0], [20.0, 0.0, 0.0]])
+    np.testing.assert_array_equal(vision.in_coverage(geometry), [True, False, False, False])
+    np.testing.assert_array_equal(laser.in_coverage(geometry), [True, True, True, True])
+    near, far = vision.noise_covariance([2.0, 10.0])
+    assert np.all(np.diag(far) >= np.diag(near)) and far[0, 0] > near[0, 0] and far[2, 2] > near[2, 2]
+    assert laser.max_range_m > vision.max_range_m
+
+
+def test_relative_pose_sensor_rejects_bad_heading_noise():
+    with pytest.raises(ValueError, match="relative-heading noise"):
+        RelativePoseSensor(RangeBearingSensor(), heading_std_rad=0.0)
+
+
+def test_team_suites_parse_names_strings_and_defaults():
+    assert parse_suites(["gps+laser", ("vision",), "odometry"], 3, "team_field") == (
+        RobotSuite(gps=True, relative_sensor="laser"),
+        RobotSuite(gps=False, relative_sensor="vision"),
+        RobotSuite(gps=False, relative_sensor=None),
+    )
+    default = parse_suites(None, 5, "team_field")
+    assert default[0] == default[4] == RobotSuite(True, "laser") and default[3] == RobotSuite(False, "vision")
+
+
+def test_team_suites_reject_unknown_sensors_listing_the_known_ones():
+    with pytest.raises(ValueError, match="unknown sensor 'sonar' for robot_1") as error:
+        parse_suites(["gps", "sonar"], 2, "team_field")
+    assert all(name in str(error.value) for name in KNOWN_SENSORS)
+    with pytest.raises(ValueError, match="one relative-pose sensor"):
+        parse_suites(["laser+vision", "gps"], 2, "team_field")
+    with pytest.raises(ValueError, match="one sensor suite per robot"):
+        parse_suites(["gps"], 2, "team_field")
+
+
+def test_gps_outages_parse_per_robot_and_reject_bad_triples():
+    assert parse_outages([(1, 21, 30), [1, 40.0, 50.0]], 3) == ((), ((21.0, 30.0), (40.0, 50.0)), ())
+    for bad, message in (([(3, 0, 1)],), "robots 0..2"), (([(0, 5, 1)],), "start_s < end_s"), (([(0, 5)],), "robot"):
+        with pytest.raises(ValueError, match=message):
+            parse_outages(bad[0], 3)
