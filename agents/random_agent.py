@@ -13,12 +13,18 @@ class RandomAgent:
     Args:
         n_actions: size of the env's ``Discrete`` action space.
         seed: seed of the agent's own generator; ``reset(seed)`` re-seeds it.
+        noop_action: an action that does nothing (e.g. "no relative observation" in
+            cooperative_localization_v0); if given, it is chosen only when nothing else
+            is valid, so the agent is a random *choice of what to observe*.
     """
 
-    def __init__(self, n_actions: int, seed: int | None = None):
+    def __init__(self, n_actions: int, seed: int | None = None, noop_action: int | None = None):
         if n_actions < 1:
             raise ValueError(f"n_actions must be >= 1, got {n_actions}")
+        if noop_action is not None and not 0 <= noop_action < n_actions:
+            raise ValueError(f"noop_action must be in [0, {n_actions - 1}] or None, got {noop_action}")
         self.n_actions = int(n_actions)
+        self.noop_action = noop_action
         self.np_random = np.random.default_rng(seed)
 
     def reset(self, seed: int | None = None) -> None:
@@ -27,6 +33,8 @@ class RandomAgent:
 
     def act(self, observation, info: dict) -> int:
         choices = valid_actions(info, self.n_actions)
+        if self.noop_action is not None and choices.size > 1:
+            choices = choices[choices != self.noop_action]
         if choices.size == 0:
             return int(self.np_random.integers(self.n_actions))
         return int(choices[self.np_random.integers(choices.size)])

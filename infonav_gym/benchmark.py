@@ -1,11 +1,11 @@
 """Speed goals, measured as ratios against a reference run in the same process.
 
-Env steps: LandmarkSelection-v0 (K = 8) against CartPole-v1, both made by
-``gym.make`` and driven by a uniformly random policy (CartPole:
-``action_space.sample()`` as in ``gymnasium.utils.performance.benchmark_step``;
-LandmarkSelection: uniform over the *valid* actions, so every step does a full
-EKF update). Rounds alternate between the two envs and the median ratio is
-reported, so a busy machine slows both alike.
+Env steps: LandmarkSelection-v0 (K = 8) and the 4-robot cooperative_localization_v0
+(parallel steps: every robot acts) against CartPole-v1. CartPole is driven by
+``action_space.sample()`` as in ``gymnasium.utils.performance.benchmark_step``; the
+infonav envs by agents uniform over the *valid* actions, so steps do full EKF
+updates. Rounds alternate between the envs and the median ratio is reported, so a
+busy machine slows them alike.
 """
 
 from __future__ import annotations
@@ -19,8 +19,13 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
+from infonav_gym.multi import cooperative_localization_v0
 
-GOALS = {"landmark_selection_vs_cartpole_ratio": 0.10, "greedy_decision_us": 100.0}
+GOALS = {
+    "landmark_selection_vs_cartpole_ratio": 0.10,
+    "cooperative_localization_vs_cartpole_ratio": 0.05,
+    "greedy_decision_us": 100.0,
+}
 
 
 def steps_per_second(env: gym.Env, policy, seconds: float, seed: int) -> float:
@@ -33,6 +38,22 @@ def steps_per_second(env: gym.Env, policy, seconds: float, seed: int) -> float:
             _, _, terminated, truncated, info = env.step(policy(info))
             if terminated or truncated:
                 _, info = env.reset()
+        steps += 100
+        now = time.perf_counter()
+        if now >= deadline:
+            return steps / (now - start)
+
+
+def parallel_steps_per_second(env, policies: dict, seconds: float, seed: int) -> float:
+    """Parallel (all-agent) steps per second of a PettingZoo ``env`` under per-agent ``policies[agent](info)``."""
+    _, infos = env.reset(seed=seed)
+    steps, start = 0, time.perf_counter()
+    deadline = start + seconds
+    while True:
+        for _ in range(100):
+            _, _, _, _, infos = env.step({agent: policies[agent](infos[agent]) for agent in env.agents})
+            if not env.agents:
+                _, infos = env.reset()
         steps += 100
         now = time.perf_counter()
         if now >= deadline:
@@ -57,25 +78,29 @@ def run_benchmark(rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0
     cartpole.action_space.seed(seed)
     landmark = gym.make("infonav/LandmarkSelection-v0", n_candidates=8)
     random_agent = RandomAgent(landmark.action_space.n, seed=seed)
-    cartpole_rates, landmark_rates = [], []
+    team = cooperative_localization_v0.parallel_env()
+    team_agents = {
+        name: RandomAgent(team.action_space(name).n, seed=seed + k) for k, name in enumerate(team.possible_agents)
+    }
+    team_policies = {name: (lambda info, agent=agent: agent.act(None, info)) for name, agent in team_agents.items()}
+    rates = {"cartpole": [], "landmark_selection": [], "cooperative_localization": []}
     for _ in tqdm(range(rounds), desc="benchmark rounds", disable=not progress):
-        cartpole_rates.append(
+        rates["cartpole"].append(
             steps_per_second(cartpole, lambda info: cartpole.action_space.sample(), seconds_per_round, seed)
         )
-        landmark_rates.append(
+        rates["landmark_selection"].append(
             steps_per_second(landmark, lambda info: random_agent.act(None, info), seconds_per_round, seed)
         )
-    ratios = [ours / reference for ours, reference in zip(landmark_rates, cartpole_rates)]
-    figures = {
-        "cartpole_steps_per_s": statistics.median(cartpole_rates),
-        "landmark_selection_steps_per_s": statistics.median(landmark_rates),
-        "landmark_selection_vs_cartpole_ratio": statistics.median(ratios),
-        "greedy_decision_us": greedy_decision_us(),
-    }
+        rates["cooperative_localization"].append(
+            parallel_steps_per_second(team, team_policies, seconds_per_round, seed)
+        )
+    figures = {f"{name}_steps_per_s": statistics.median(values) for name, values in rates.items()}
+    for name in ("landmark_selection", "cooperative_localization"):
+        ratios = [ours / reference for ours, reference in zip(rates[name], rates["cartpole"])]
+        figures[f"{name}_vs_cartpole_ratio"] = statistics.median(ratios)
+    figures["greedy_decision_us"] = greedy_decision_us()
     met = {
-        "landmark_selection_vs_cartpole_ratio": figures["landmark_selection_vs_cartpole_ratio"]
-        >= GOALS["landmark_selection_vs_cartpole_ratio"],
-        "greedy_decision_us": figures["greedy_decision_us"] <= GOALS["greedy_decision_us"],
+        name: figures[name] <= goal if name.endswith("_us") else figures[name] >= goal for name, goal in GOALS.items()
     }
     return {
         "figures": figures,

@@ -1,4 +1,4 @@
-"""The ``infonav`` command: demo, evaluate, benchmark."""
+"""The ``infonav`` command: demo, evaluate, benchmark, reproduce."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import infonav_gym  # noqa: F401  (registers the envs)
+from infonav_gym.reproduce import FIGURES
 
 DEFAULT_ENV = "infonav/LandmarkSelection-v0"
 
@@ -52,6 +53,14 @@ def build_parser() -> argparse.ArgumentParser:
     benchmark.add_argument("--rounds", type=int, default=5, help="alternating measurement rounds (default: 5)")
     benchmark.add_argument("--seconds", type=float, default=1.0, help="seconds per env per round (default: 1)")
     _common(benchmark)
+
+    reproduce = commands.add_parser("reproduce", help="regenerate a figure of the paper: PNG, JSON and a summary")
+    reproduce.add_argument("figure", choices=FIGURES, help="which figure")
+    reproduce.add_argument(
+        "--output-dir", type=Path, default=Path("results"), help="where to write FIGURE.png and FIGURE.json"
+    )
+    reproduce.add_argument("--seeds", type=int, default=20, help="seeds averaged from --seed on (default: 20)")
+    _common(reproduce)
     return parser
 
 
@@ -98,6 +107,18 @@ def _benchmark(args) -> dict:
     return result
 
 
+def _reproduce(args, argv) -> dict:
+    from infonav_gym.reproduce.fig3 import fig3_table, reproduce_fig3
+
+    command = "infonav " + shlex.join(argv)
+    result = reproduce_fig3(
+        args.output_dir, seed=args.seed, n_seeds=args.seeds, progress=not args.json, command=command
+    )
+    if not args.json:
+        print(fig3_table(result))
+    return result
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
@@ -107,6 +128,8 @@ def main(argv: list[str] | None = None) -> int:
             result = _demo(args)
         elif args.command == "evaluate":
             result = _evaluate(args, argv)
+        elif args.command == "reproduce":
+            result = _reproduce(args, argv)
         else:
             result = _benchmark(args)
     except (ValueError, ImportError) as error:

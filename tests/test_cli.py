@@ -1,4 +1,4 @@
-"""The ``infonav`` command: demo, evaluate, benchmark."""
+"""The ``infonav`` command: demo, evaluate, benchmark, reproduce."""
 
 import json
 import math
@@ -72,6 +72,8 @@ def test_confidence_interval_is_students_t():
         (["evaluate", "--agents", "random,oracle", "--episodes", "1"], "unknown agent 'oracle'"),
         (["evaluate", "--config", "horizn=3", "--episodes", "1"], "Did you mean 'horizon'"),
         (["evaluate", "--episodes", "0"], "episodes must be >= 1"),
+        (["reproduce", "fig4"], "invalid choice: 'fig4' (choose from 'fig3')"),
+        (["reproduce", "fig3", "--seeds", "0"], "n_seeds (how many seeds the outage RMSE averages) must be >= 1"),
     ],
 )
 def test_bad_arguments_exit_2_with_a_message(capsys, argv, message):
@@ -90,11 +92,38 @@ def test_config_values_must_be_key_value_pairs(capsys):
 def test_benchmark_reports_every_goal(capsys):
     result = run_json(capsys, "benchmark", "--rounds", "1", "--seconds", "0.05")
     figures = result["figures"]
-    assert figures["cartpole_steps_per_s"] > 0 and figures["landmark_selection_steps_per_s"] > 0
-    ratio = figures["landmark_selection_steps_per_s"] / figures["cartpole_steps_per_s"]
-    assert figures["landmark_selection_vs_cartpole_ratio"] == pytest.approx(ratio)
+    for env in ("landmark_selection", "cooperative_localization"):
+        assert figures[f"{env}_steps_per_s"] > 0 and figures["cartpole_steps_per_s"] > 0
+        ratio = figures[f"{env}_steps_per_s"] / figures["cartpole_steps_per_s"]
+        assert figures[f"{env}_vs_cartpole_ratio"] == pytest.approx(ratio)
     assert (
         set(result["goals_met"])
         == set(result["goals"])
-        == {"landmark_selection_vs_cartpole_ratio", "greedy_decision_us"}
+        == {"landmark_selection_vs_cartpole_ratio", "cooperative_localization_vs_cartpole_ratio", "greedy_decision_us"}
     )
+
+
+def test_reproduce_fig3_writes_the_plot_and_the_json_it_prints(capsys, tmp_path):
+    pytest.importorskip("matplotlib")
+    result = run_json(capsys, "reproduce", "fig3", "--output-dir", str(tmp_path), "--seeds", "2")
+    assert (tmp_path / "fig3.png").stat().st_size > 10_000
+    written = json.loads((tmp_path / "fig3.json").read_text())
+    assert written == result
+    assert written["command"] == f"infonav reproduce fig3 --output-dir {tmp_path} --seeds 2 --json"
+    assert written["files"] == [str(tmp_path / "fig3.png"), str(tmp_path / "fig3.json")]
+    fig3, rmse = written["fig3"], written["outage_rmse"]
+    assert fig3["seed"] == 0 and fig3["dgps_loss_s"] == 21.0 and len(fig3["steps"]) == 120
+    assert {"time_s", "pose_std", "pose_std_after_update", "gps_available", "gains_nats", "chosen"} == set(
+        fig3["steps"][0]
+    )
+    assert set(fig3["paths"]["greedy"]) == {"robot_0", "robot_1"} and fig3["corrections"]
+    assert rmse["seeds"] == [0, 1] and [record["seed"] for record in rmse["per_seed"]] == [0, 1]
+    assert rmse["mean_greedy_m"] < rmse["mean_dead_reckoning_m"]
+
+
+def test_reproduce_fig3_prints_the_summary_table(capsys, tmp_path):
+    pytest.importorskip("matplotlib")
+    assert main(["reproduce", "fig3", "--output-dir", str(tmp_path), "--seeds", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "last DGPS fix (t = 20.5 s)" in out and "peak during the outage" in out
+    assert "30.5-32.5        #1" in out and "ratio" in out and str(tmp_path / "fig3.json") in out

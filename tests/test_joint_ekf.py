@@ -28,11 +28,13 @@ def filterpy_twin(ekf: JointEKF) -> ExtendedKalmanFilter:
     return reference
 
 
+R_LASER = np.diag([0.05**2, math.radians(1) ** 2, math.radians(3) ** 2])
+
+
 def relative_update_args(ekf: JointEKF, observer: int, target: int, noise=(0.05, 0.02, -0.03)):
+    """``relative_pose_update`` arguments for one observation, linearized at the current prior."""
     predicted, H_observer, H_target = ekf.relative_pose_model([observer], [target])
-    R = np.diag([0.05**2, math.radians(1) ** 2, math.radians(3) ** 2])
-    measurement = predicted[0] + np.array(noise)
-    return measurement, predicted[0], H_observer[0], H_target[0], R
+    return [observer], [target], predicted + np.array(noise), predicted, H_observer, H_target, R_LASER[None]
 
 
 @pytest.mark.parametrize("index", range(len(OBSERVERS)))
@@ -59,18 +61,26 @@ def test_angular_residual_wraps_only_the_angle_rows():
 
 
 @pytest.mark.parametrize("cross_covariances", [True, False])
-def test_relative_pose_update_equals_filterpys_update_on_the_joint_state(cross_covariances):
+def test_stacked_relative_pose_update_equals_filterpys_update_on_the_joint_state(cross_covariances):
     ekf = make_joint()
-    ekf.relative_pose_update(0, 1, *relative_update_args(ekf, 0, 1))  # correlate robots 0 and 1 first
+    ekf.relative_pose_update(*relative_update_args(ekf, 0, 1))  # correlate robots 0 and 1 first
     ekf.cross_covariances = cross_covariances
     reference = filterpy_twin(ekf)
-    measurement, predicted, H_observer, H_target, R = relative_update_args(ekf, 2, 1)
-    H = np.zeros((3, ekf.dim_x))
-    H[:, 6:9], H[:, 3:6] = H_observer, H_target
-    ekf.relative_pose_update(2, 1, measurement, predicted, H_observer, H_target, R)
+    observers, targets = np.array([2, 0]), np.array([1, 2])
+    predicted, H_observer, H_target = ekf.relative_pose_model(observers, targets)
+    measurements = predicted + np.array([[0.05, 0.02, -0.03], [-0.1, 0.3, 0.01]])
+    R = np.array([R_LASER, 2 * R_LASER])
+    H = np.zeros((6, ekf.dim_x))
+    H[0:3, 6:9], H[0:3, 3:6], H[3:6, 0:3], H[3:6, 6:9] = H_observer[0], H_target[0], H_observer[1], H_target[1]
+    ekf.relative_pose_update(observers, targets, measurements, predicted, H_observer, H_target, R)
     reference.update(
-        measurement, lambda x: H, lambda x: predicted, R=R, residual=lambda a, b: angular_residual(a, b, [1, 2])
+        measurements.ravel(),
+        lambda x: H,
+        lambda x: predicted.ravel(),
+        R=np.kron(np.diag([1.0, 2.0]), R_LASER),
+        residual=lambda a, b: angular_residual(a, b, [1, 2, 4, 5]),
     )
+    reference.x[2::3] = wrap_angle(reference.x[2::3])
     np.testing.assert_allclose(ekf.x, reference.x, rtol=1e-12, atol=1e-14)
     if cross_covariances:
         np.testing.assert_allclose(ekf.P, reference.P, rtol=1e-10, atol=1e-14)
@@ -83,7 +93,7 @@ def test_relative_pose_update_equals_filterpys_update_on_the_joint_state(cross_c
 def test_relative_pose_update_correlates_the_two_robots_and_leaves_a_third_alone():
     ekf = make_joint()
     before = ekf.P.copy()
-    ekf.relative_pose_update(0, 1, *relative_update_args(ekf, 0, 1))
+    ekf.relative_pose_update(*relative_update_args(ekf, 0, 1))
     assert np.abs(ekf.P[0:3, 3:6]).max() > 1e-4
     np.testing.assert_array_equal(ekf.P[6:9, 6:9], before[6:9, 6:9])
     np.testing.assert_array_equal(ekf.P[0:6, 6:9], 0.0)
@@ -92,26 +102,28 @@ def test_relative_pose_update_correlates_the_two_robots_and_leaves_a_third_alone
 
 
 @pytest.mark.parametrize("cross_covariances", [True, False])
-def test_own_pose_information_gain_is_the_realized_mi_on_the_observers_pose(cross_covariances):
+def test_information_gains_are_the_realized_mi_on_the_observers_pose_and_on_the_joint_state(cross_covariances):
     ekf = make_joint(cross_covariances)
-    ekf.relative_pose_update(0, 1, *relative_update_args(ekf, 0, 1))
+    ekf.relative_pose_update(*relative_update_args(ekf, 0, 1))
     observers, targets = np.array([1, 1, 2, 0]), np.array([0, 2, 1, 2])
     _, H_observer, H_target = ekf.relative_pose_model(observers, targets)
-    R = np.repeat(relative_update_args(ekf, 0, 1)[-1][None], len(observers), axis=0)
-    gains = ekf.own_pose_information_gain(observers, targets, H_observer, H_target, R)
+    R = np.repeat(R_LASER[None], len(observers), axis=0)
+    own, joint = ekf.relative_pose_information_gains(observers, targets, H_observer, H_target, R)
     for k, (observer, target) in enumerate(zip(observers, targets)):
         trial = make_joint(cross_covariances)
-        trial.relative_pose_update(0, 1, *relative_update_args(trial, 0, 1))
-        prior = trial.pose_covariance(observer)
-        trial.relative_pose_update(observer, target, *relative_update_args(trial, observer, target))
-        realized = mutual_information(prior, trial.pose_covariance(observer))
-        assert math.isclose(gains[k], realized, rel_tol=1e-9), (observer, target)
-    assert gains[0] > gains[3] > 0  # robot 1 (uncertain) gains more from robot 0 (precise) than robot 0 from 2
+        trial.relative_pose_update(*relative_update_args(trial, 0, 1))
+        prior_own, prior_joint = trial.pose_covariance(observer), trial.P.copy()
+        trial.cross_covariances = True  # the realized joint MI of the update itself
+        trial.relative_pose_update(*relative_update_args(trial, observer, target))
+        assert math.isclose(own[k], mutual_information(prior_own, trial.pose_covariance(observer)), rel_tol=1e-9)
+        assert math.isclose(joint[k], mutual_information(prior_joint, trial.P), rel_tol=1e-9)
+    assert own[0] > own[3] > 0  # robot 1 (uncertain) gains more from robot 0 (precise) than robot 0 from robot 2
+    assert np.all(joint >= own)  # the joint state includes the observer's pose
 
 
 def test_gps_update_equals_filterpys_linear_update():
     ekf = make_joint()
-    ekf.relative_pose_update(0, 1, *relative_update_args(ekf, 0, 1))
+    ekf.relative_pose_update(*relative_update_args(ekf, 0, 1))
     reference = filterpy_twin(ekf)
     fixes, R = np.array([[0.1, -0.2], [5.5, 1.3]]), np.array([np.eye(2) * 0.01, np.eye(2) * 0.04])
     H = np.zeros((4, 9))
@@ -137,7 +149,7 @@ def test_joint_predict_equals_each_robots_pose_ekf_predict():
 
 def test_joint_predict_keeps_and_propagates_the_cross_covariances():
     ekf = make_joint()
-    ekf.relative_pose_update(0, 1, *relative_update_args(ekf, 0, 1))
+    ekf.relative_pose_update(*relative_update_args(ekf, 0, 1))
     before = ekf.P.copy()
     ekf.predict(np.array([[1.0, 0.2], [0.5, -0.4], [1.0, 0.0]]), 0.5, np.array([np.eye(2) * 1e-3] * 3))
     F0, F1 = ekf.F[0:3, 0:3], ekf.F[3:6, 3:6]
@@ -153,4 +165,4 @@ def test_bad_inputs_raise_clear_errors():
         JointEKF(np.zeros((2, 3)), np.array([np.eye(3), -np.eye(3)]))
     ekf = make_joint()
     with pytest.raises(ValueError, match="its own relative pose"):
-        ekf.relative_pose_update(1, 1, *relative_update_args(ekf, 0, 1))
+        ekf.relative_pose_update([1], [1], *relative_update_args(ekf, 0, 1)[2:])

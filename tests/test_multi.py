@@ -119,18 +119,23 @@ def test_a_lone_observation_brings_exactly_its_expected_gain_on_the_observers_po
     assert checked >= 20
 
 
-def test_team_reward_mixes_in_the_joint_mutual_information():
-    rewards_by_weight = {}
+def test_team_reward_mixes_the_joint_mutual_information_into_rewards_and_gains():
+    gains, outcomes, actions = {}, {}, None
     for weight in (0.0, 0.5, 1.0):
         env = cooperative_localization_v0.parallel_env(team_reward=weight)
         _, infos = env.reset(seed=6)
-        _, rewards, _, _, infos = env.step(greedy_actions(env, infos))
-        rewards_by_weight[weight] = rewards
-        terms = infos["robot_0"]["reward_terms"]
-    own, team = terms["own_mutual_information"], terms["team_mutual_information"]
-    assert math.isclose(rewards_by_weight[0.0]["robot_0"], own)
-    assert math.isclose(rewards_by_weight[1.0]["robot_0"], team)
-    assert math.isclose(rewards_by_weight[0.5]["robot_0"], 0.5 * (own + team))
+        actions = actions or greedy_actions(env, infos)
+        gains[weight] = np.array([infos[agent]["action_information_gain"] for agent in env.agents])
+        _, rewards, _, _, infos = env.step(actions)
+        outcomes[weight] = (rewards, infos)
+    np.testing.assert_allclose(gains[0.5], 0.5 * (gains[0.0] + gains[1.0]), rtol=1e-12)
+    assert not np.allclose(gains[0.0], gains[1.0])
+    for weight, (rewards, infos) in outcomes.items():
+        for agent, reward in rewards.items():
+            terms = infos[agent]["reward_terms"]
+            own, team = terms["own_mutual_information"], terms["team_mutual_information"]
+            assert math.isclose(reward, (1 - weight) * own + weight * team, rel_tol=1e-12)
+            assert own == outcomes[0.0][1][agent]["reward_terms"]["own_mutual_information"]
 
 
 def test_team_mutual_information_is_the_joint_states():

@@ -8,7 +8,6 @@ from scipy.linalg import block_diag
 
 from infonav_gym.estimation.models import (
     GPS_POSE_JACOBIAN,
-    angular_residual,
     range_bearing_linearized,
     range_bearing_residual,
     relative_pose_linearized,
@@ -140,6 +139,14 @@ def _inverse(S: np.ndarray) -> np.ndarray:
     return np.linalg.inv(S)
 
 
+def _block_diagonal(blocks) -> np.ndarray:
+    """The block-diagonal matrix of (k, m, m) ``blocks``."""
+    k, m, _ = np.shape(blocks)
+    matrix = np.zeros((k, m, k, m))
+    matrix[np.arange(k), :, np.arange(k), :] = blocks
+    return matrix.reshape(k * m, k * m)
+
+
 def _kalman_update(ekf: ExtendedKalmanFilter, measurement, residual, H, R, heading_indices) -> None:
     """The EKF update linearized at the prior; fills filterpy's attributes; covariance symmetrized.
 
@@ -197,7 +204,7 @@ class JointEKF(ExtendedKalmanFilter):
         self.n_robots = n_robots
         self.cross_covariances = bool(cross_covariances)
         self.x = poses.ravel().copy()
-        self.P = block_diag(*covariances)
+        self.P = _block_diagonal(covariances)
         self.Q = np.zeros_like(self.P)
         self._own_block = np.kron(np.eye(n_robots), np.ones((POSE_DIM, POSE_DIM)))
         self._headings = np.arange(2, self.dim_x, POSE_DIM)
@@ -256,12 +263,11 @@ class JointEKF(ExtendedKalmanFilter):
         robots = np.asarray(robots, dtype=int)
         if robots.size == 0:
             return
-        H = np.zeros((2 * robots.size, self.dim_x))
-        for row, robot in enumerate(robots):
-            H[2 * row : 2 * row + 2, POSE_DIM * robot : POSE_DIM * robot + POSE_DIM] = GPS_POSE_JACOBIAN
+        H = self._stacked_jacobian(robots, GPS_POSE_JACOBIAN[None])
         measurement = np.asarray(fixes, dtype=float).ravel()
-        R = block_diag(*noise_covariances)
-        _kalman_update(self, measurement, measurement - H @ self.x, H, R, self._headings)
+        _kalman_update(
+            self, measurement, measurement - H @ self.x, H, _block_diagonal(noise_covariances), self._headings
+        )
         self._drop_cross_covariances()
 
     def relative_pose_model(self, observers, targets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -273,26 +279,43 @@ class JointEKF(ExtendedKalmanFilter):
         poses = self.x.reshape(-1, POSE_DIM)
         return relative_pose_linearized(poses[observers], poses[targets])
 
-    def relative_pose_update(self, observer: int, target: int, measurement, predicted, H_observer, H_target, R):
-        """Update with the measured ``[range, bearing, relative heading]`` of ``target`` seen from ``observer``.
+    def relative_pose_update(self, observers, targets, measurements, predicted, H_observer, H_target, R) -> None:
+        """Update with relative-pose measurements taken at the same time (one stacked update).
 
-        ``predicted``, ``H_observer`` and ``H_target`` come from ``relative_pose_model`` at the current prior.
+        Measurement ``k`` is ``[range, bearing, relative heading]`` of robot ``targets[k]``
+        seen from robot ``observers[k]``; ``predicted``, ``H_observer`` and ``H_target``
+        come from ``relative_pose_model`` at the current prior.
+
+        Args:
+            observers, targets: robot indices (k,).
+            measurements, predicted: (k, 3).
+            H_observer, H_target: (k, 3, 3).
+            R: noise covariances (k, 3, 3), independent between measurements.
         """
-        if observer == target:
-            raise ValueError(f"a robot cannot observe its own relative pose (robot {observer})")
-        H = np.zeros((POSE_DIM, self.dim_x))
-        H[:, POSE_DIM * observer : POSE_DIM * observer + POSE_DIM] = H_observer
-        H[:, POSE_DIM * target : POSE_DIM * target + POSE_DIM] = H_target
-        residual = angular_residual(measurement, predicted, [1, 2])
-        _kalman_update(self, measurement, residual, H, R, self._headings)
+        observers, targets = np.atleast_1d(observers), np.atleast_1d(targets)
+        if np.any(observers == targets):
+            raise ValueError(f"a robot cannot observe its own relative pose (observers {observers}, targets {targets})")
+        H = self._stacked_jacobian(observers, H_observer) + self._stacked_jacobian(targets, H_target)
+        residual = np.subtract(measurements, predicted)
+        residual[:, 1:] = wrap_angle(residual[:, 1:])
+        _kalman_update(self, np.ravel(measurements), residual.ravel(), H, _block_diagonal(R), self._headings)
         self._drop_cross_covariances()
 
-    def own_pose_information_gain(self, observers, targets, H_observer, H_target, R) -> np.ndarray:
-        """Expected MI on the *observer's own* pose of each candidate relative-pose update [nats].
+    def _stacked_jacobian(self, robots: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+        """(k m, 3N) Jacobian whose k-th row block holds ``blocks[k]`` (m, 3) in robot ``robots[k]``'s columns."""
+        m = blocks.shape[1]
+        H = np.zeros((len(robots), m, self.n_robots, POSE_DIM))
+        H[np.arange(len(robots)), :, robots, :] = blocks
+        return H.reshape(len(robots) * m, self.dim_x)
 
-        ``0.5 ln(det P_oo / det P_oo_post)`` with ``P_oo_post = P_oo - A S^-1 A^T``, where
-        ``A`` is the observer's rows of ``P H^T`` and ``S = H P H^T + R``: batched over
-        the M candidates, each alone at the current prior.
+    def relative_pose_information_gains(self, observers, targets, H_observer, H_target, R):
+        """Expected MI of each candidate relative-pose update, alone at the current prior [nats].
+
+        Returns:
+            ``(own, joint)``, each (M,): the MI on the *observer's own* pose,
+            ``0.5 ln(det P_oo / det P_oo_post)`` with ``P_oo_post = P_oo - A S^-1 A^T``
+            (``A`` the observer's rows of ``P H^T``, ``S = H P H^T + R``), and the MI on
+            the joint state of all robots, ``0.5 ln(det S / det R)``.
         """
         blocks = self._blocks()
         P_oo, P_ot = blocks[observers, observers], blocks[observers, targets]
@@ -301,7 +324,8 @@ class JointEKF(ExtendedKalmanFilter):
         A = P_oo @ H_observer_T + P_ot @ H_target_T
         S = H_observer @ A + H_target @ (P_to @ H_observer_T + P_tt @ H_target_T) + R
         posterior = P_oo - A @ np.linalg.solve(S, np.swapaxes(A, 1, 2))
-        return 0.5 * (np.linalg.slogdet(P_oo)[1] - np.linalg.slogdet(posterior)[1])
+        log_dets = np.linalg.slogdet(np.concatenate([P_oo, posterior, S, R]))[1].reshape(4, -1)
+        return 0.5 * (log_dets[0] - log_dets[1]), 0.5 * (log_dets[2] - log_dets[3])
 
     def _drop_cross_covariances(self) -> None:
         if not self.cross_covariances:

@@ -17,7 +17,7 @@ from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor
-from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS
+from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
 from infonav_gym.world.scenarios import SCENARIOS
 from infonav_gym.world.world import World
 
@@ -68,10 +68,11 @@ class CooperativeLocalizationEnv(ParallelEnv):
     The realized mutual information on the robot's own pose of this step's
     relative-pose updates, ``0.5 ln(det P_ii,prior / det P_ii,post)`` [nats], mixed
     with the team's (the MI on the joint state) by ``team_reward`` in [0, 1]:
-    ``(1 - team_reward) * own + team_reward * team``. The updates of one step are
-    applied in robot order, so a robot's reward also counts what teammates'
-    observations of it brought; ``action_information_gain[a]`` is the MI action
-    ``a`` alone would bring to the robot's own pose at the step's prior.
+    ``(1 - team_reward) * own + team_reward * team``. The observations of one step
+    are taken at the same time and fused as one stacked EKF update, so a robot's
+    reward also counts what teammates' observations of it brought;
+    ``action_information_gain[a]`` is the MI action ``a`` alone would bring to the
+    robot's own pose at the step's prior.
 
     ## Starting State
     The robots at their routes' starts; initial estimates drawn from
@@ -158,10 +159,11 @@ class CooperativeLocalizationEnv(ParallelEnv):
         pairs = [(i, j) for i in range(n) for j in range(n) if i != j and self.relative_sensors[i] is not None]
         self._observers = np.array([i for i, _ in pairs], dtype=int)
         self._targets = np.array([j for _, j in pairs], dtype=int)
-        self._pair_groups = [
-            (RELATIVE_POSE_SENSORS[name], np.flatnonzero([self.suites[i].relative_sensor == name for i, _ in pairs]))
-            for name in RELATIVE_POSE_SENSORS
-        ]
+        self._pair_noise = np.array([self.relative_sensors[i].noise_parameters() for i, _ in pairs]).reshape(-1, 5)
+        self._pair_max_range = np.array([self.relative_sensors[i].max_range_m for i, _ in pairs])
+        self._pair_half_fov = np.array([0.5 * self.relative_sensors[i].range_bearing.fov_rad for i, _ in pairs])
+        self._sight_lines = sorted({(min(i, j), max(i, j)) for i, j in pairs})  # line of sight is symmetric
+        self._pair_sight_line = np.array([self._sight_lines.index((min(i, j), max(i, j))) for i, j in pairs], dtype=int)
         self.world = World()
         self.np_random = None
         self._renderer = None
@@ -230,7 +232,7 @@ class CooperativeLocalizationEnv(ParallelEnv):
             raise RuntimeError(f"{type(self).__name__}: call reset() before step() (and after the episode ends)")
         chosen, invalid = self._validated_actions(actions)
         self._chosen, self._invalid = chosen, invalid
-        own_before = self._pose_log_dets()
+        own_before = self._pose_log_det
         joint_before = np.linalg.slogdet(self.ekf.P)[1]
         self._observe(chosen)
         own_mi = 0.5 * (own_before - self._pose_log_dets())
@@ -277,22 +279,17 @@ class CooperativeLocalizationEnv(ParallelEnv):
         return chosen, invalid
 
     def _observe(self, chosen: np.ndarray) -> None:
-        """Apply the chosen relative-pose updates in robot order, each linearized at the current estimate."""
-        self._observed_pairs = []
-        for observer, action in enumerate(chosen.tolist()):
-            if action == NO_OBSERVATION:
-                continue
-            target = action - 1
-            sensor = self.relative_sensors[observer]
-            if self._observed_pairs:
-                predicted, H_observer, H_target = self.ekf.relative_pose_model([observer], [target])
-                R = sensor.noise_covariance(predicted[:, 0])
-            else:
-                row = self._candidate_row[observer, action]
-                predicted, H_observer, H_target, R = (part[row : row + 1] for part in self._candidates)
-            measurement = sensor.measure(self._true_poses[observer], self._true_poses[target], self._relative_rng)
-            self.ekf.relative_pose_update(observer, target, measurement, predicted[0], H_observer[0], H_target[0], R[0])
-            self._observed_pairs.append((observer, target))
+        """Apply the chosen relative-pose observations, taken at the same time, as one stacked update."""
+        observers = np.flatnonzero(chosen != NO_OBSERVATION)
+        targets = chosen[observers] - 1
+        self._observed_pairs = list(zip(observers.tolist(), targets.tolist()))
+        if observers.size == 0:
+            return
+        rows = self._candidate_row[observers, chosen[observers]]
+        predicted, H_observer, H_target, R = (part[rows] for part in self._candidates)
+        pairs = self._valid_pairs[rows]
+        measurements = noisy_relative_poses(self._geometry[pairs], self._pair_noise[pairs], self._relative_rng)
+        self.ekf.relative_pose_update(observers, targets, measurements, predicted, H_observer, H_target, R)
 
     def _advance(self) -> None:
         """Move every robot, predict with its noisy odometry, then fuse the DGPS fixes available."""
@@ -318,7 +315,7 @@ class CooperativeLocalizationEnv(ParallelEnv):
         )
         robots = np.flatnonzero(self._gps_available)
         if robots.size:
-            fixes = np.array([self.gps[k].measure(self._true_poses[k], self._gps_rng) for k in robots])
+            fixes = np.array([self.gps[k].measure(self._true_poses[k, :2], self._gps_rng) for k in robots])
             covariances = np.array([self.gps[k].noise_covariance() for k in robots])
             self.ekf.gps_update(robots, fixes, covariances)
 
@@ -329,15 +326,13 @@ class CooperativeLocalizationEnv(ParallelEnv):
         """Action masks (who can see whom) and expected gains on the observer's own pose, at the current prior."""
         n = len(self.possible_agents)
         truth = self._true_poses
-        covered = np.zeros(len(self._observers), dtype=bool)
-        if covered.size:
-            geometry = relative_pose(truth[self._observers], truth[self._targets])
-            for sensor, pairs in self._pair_groups:
-                covered[pairs] = sensor.in_coverage(geometry[pairs])
-        for observer in np.unique(self._observers[covered]):
-            pairs = np.flatnonzero(covered & (self._observers == observer))
-            covered[pairs] = self.world.line_of_sight(truth[observer], truth[self._targets[pairs], :2])
-        valid = np.flatnonzero(covered)
+        self._geometry = relative_pose(truth[self._observers], truth[self._targets])
+        covered = np.flatnonzero(
+            (self._geometry[:, 0] <= self._pair_max_range) & (np.abs(self._geometry[:, 1]) <= self._pair_half_fov)
+        )
+        lines = sorted(set(self._pair_sight_line[covered].tolist()))
+        clear = dict(zip(lines, self.world.robots_in_sight([self._sight_lines[line] for line in lines])))
+        valid = self._valid_pairs = covered[[clear[line] for line in self._pair_sight_line[covered].tolist()]]
         observers, targets = self._observers[valid], self._targets[valid]
         self._action_mask = np.zeros((n, n + 1), dtype=np.int8)
         self._action_mask[:, NO_OBSERVATION] = 1
@@ -347,12 +342,10 @@ class CooperativeLocalizationEnv(ParallelEnv):
         self._candidate_row[observers, targets + 1] = np.arange(valid.size)
         if valid.size:
             predicted, H_observer, H_target = self.ekf.relative_pose_model(observers, targets)
-            R = np.empty((valid.size, POSE_DIM, POSE_DIM))
-            for sensor, pairs in self._pair_groups:
-                rows = np.flatnonzero(np.isin(valid, pairs))
-                R[rows] = sensor.noise_covariance(predicted[rows, 0])
-            gains = self.ekf.own_pose_information_gain(observers, targets, H_observer, H_target, R)
-            self._action_information_gain[observers, targets + 1] = gains
+            R = noise_covariances(self._pair_noise[valid], predicted[:, 0])
+            own, joint = self.ekf.relative_pose_information_gains(observers, targets, H_observer, H_target, R)
+            weight = self.config["team_reward"]
+            self._action_information_gain[observers, targets + 1] = (1.0 - weight) * own + weight * joint
             self._candidates = (predicted, H_observer, H_target, R)
         self._pose_log_det = self._pose_log_dets()
 

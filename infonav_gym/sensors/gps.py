@@ -34,6 +34,7 @@ class GPSSensor:
         """Covariance of a fix's noise (2, 2)."""
         return np.eye(2) * self.position_std_m**2
 
-    def measure(self, position, np_random: np.random.Generator) -> np.ndarray:
-        """A noisy fix of the true ``position`` ``[x, y]``."""
-        return np.asarray(position[:2], dtype=float) + self.position_std_m * np_random.standard_normal(2)
+    def measure(self, positions, np_random: np.random.Generator) -> np.ndarray:
+        """Noisy fixes of true positions ``[x, y]``: (2,) -> (2,) or (k, 2) -> (k, 2)."""
+        positions = np.asarray(positions, dtype=float)
+        return positions + self.position_std_m * np_random.standard_normal(positions.shape)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from infonav_gym.estimation.models import wrap_angle
+from infonav_gym.estimation.models import relative_pose, wrap_angle
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 
 
@@ -37,13 +37,16 @@ class RelativePoseSensor:
     def max_range_m(self) -> float:
         return self.range_bearing.max_range_m
 
+    def noise_parameters(self) -> np.ndarray:
+        """``[range_std_m, range_std_per_m, bearing_std_rad, heading_std_rad, heading_std_per_m]`` (5,)."""
+        rb = self.range_bearing
+        return np.array(
+            [rb.range_std_m, rb.range_std_per_m, rb.bearing_std_rad, self.heading_std_rad, self.heading_std_per_m]
+        )
+
     def noise_covariance(self, ranges) -> np.ndarray:
         """Measurement noise covariance at each range: (M,) -> (M, 3, 3)."""
-        ranges = np.atleast_1d(ranges)
-        covariance = np.zeros((len(ranges), 3, 3))
-        covariance[:, :2, :2] = self.range_bearing.noise_covariance(ranges)
-        covariance[:, 2, 2] = (self.heading_std_rad + self.heading_std_per_m * ranges) ** 2
-        return covariance
+        return noise_covariances(self.noise_parameters(), np.atleast_1d(ranges))
 
     def in_coverage(self, measurements) -> np.ndarray:
         """Which noise-free ``[range, bearing, ...]`` rows fall inside the range and field of view."""
@@ -51,10 +54,43 @@ class RelativePoseSensor:
 
     def measure(self, observer_pose, target_pose, np_random: np.random.Generator) -> np.ndarray:
         """A noisy ``[range, bearing, relative heading]`` of ``target_pose`` seen from ``observer_pose``."""
-        range_bearing = self.range_bearing.measure(observer_pose, target_pose, np_random)
-        heading_std = self.heading_std_rad + self.heading_std_per_m * math.dist(observer_pose[:2], target_pose[:2])
-        relative_heading = wrap_angle(target_pose[2] - observer_pose[2] + heading_std * np_random.standard_normal())
-        return np.array([range_bearing[0], range_bearing[1], relative_heading])
+        truth = relative_pose(observer_pose, target_pose)
+        return noisy_relative_poses(truth, self.noise_parameters()[None], np_random)[0]
+
+
+def noise_standard_deviations(parameters, ranges) -> np.ndarray:
+    """Noise standard deviations ``[range, bearing, relative heading]`` (M, 3) at ``ranges`` (M,).
+
+    Args:
+        parameters: ``RelativePoseSensor.noise_parameters()`` rows, (5,) or one per range (M, 5).
+        ranges: true or predicted ranges [m] (M,).
+    """
+    parameters = np.broadcast_to(parameters, (len(ranges), 5))
+    std = np.empty((len(ranges), 3))
+    std[:, 0] = parameters[:, 0] + parameters[:, 1] * ranges
+    std[:, 1] = parameters[:, 2]
+    std[:, 2] = parameters[:, 3] + parameters[:, 4] * ranges
+    return std
+
+
+def noise_covariances(parameters, ranges) -> np.ndarray:
+    """Diagonal noise covariances (M, 3, 3) at ``ranges`` (see ``noise_standard_deviations``)."""
+    covariance = np.zeros((len(ranges), 3, 3))
+    covariance[:, _DIAGONAL, _DIAGONAL] = noise_standard_deviations(parameters, ranges) ** 2
+    return covariance
+
+
+def noisy_relative_poses(truth, parameters, np_random: np.random.Generator) -> np.ndarray:
+    """Noisy measurements of the true relative poses (M, 3), with per-row sensor ``parameters`` (M, 5).
+
+    Draws one (M, 3) block of standard normals from ``np_random``.
+    """
+    measured = truth + noise_standard_deviations(parameters, truth[:, 0]) * np_random.standard_normal(truth.shape)
+    measured[:, 1:] = wrap_angle(measured[:, 1:])
+    return measured
+
+
+_DIAGONAL = np.arange(3)
 
 
 RELATIVE_POSE_SENSORS = {
