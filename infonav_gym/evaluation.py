@@ -16,6 +16,7 @@ from tqdm.auto import tqdm
 from agents import GreedyEntropyAgent, RandomAgent
 
 AGENT_NAMES = ("random", "greedy")
+TEAM_ENV = "cooperative_localization_v0"  # the PettingZoo env; every robot plays its own copy of the agent
 METRICS = {
     "cumulative_mi": "cumulative MI [nats]",
     "final_pose_entropy": "final pose entropy [nats]",
@@ -23,10 +24,10 @@ METRICS = {
 }
 
 
-def make_agent(name: str, n_actions: int):
-    """A baseline agent by name."""
+def make_agent(name: str, n_actions: int, noop_action: int | None = None):
+    """A baseline agent by name (``noop_action``: see ``RandomAgent``)."""
     if name == "random":
-        return RandomAgent(n_actions)
+        return RandomAgent(n_actions, noop_action=noop_action)
     if name == "greedy":
         return GreedyEntropyAgent()
     raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
@@ -50,6 +51,30 @@ def run_episode(env: gym.Env, agent, seed: int) -> dict:
     }
 
 
+def run_team_episode(env, agent_name: str, seed: int) -> dict:
+    """One seeded episode of the PettingZoo team env, every robot with its own agent; team metrics.
+
+    ``cumulative_mi`` is the team's (joint-state) MI; entropy and RMSE are means over the robots.
+    """
+    observations, infos = env.reset(seed=seed)
+    n_actions = env.action_space(env.possible_agents[0]).n
+    agents = {name: make_agent(agent_name, n_actions, noop_action=0) for name in env.possible_agents}
+    for k, agent in enumerate(agents.values()):
+        agent.reset(seed=1000 * seed + k)
+    cumulative_mi, squared_errors, steps = 0.0, np.zeros(len(agents)), 0
+    while env.agents:
+        actions = {name: agents[name].act(observations[name], infos[name]) for name in env.agents}
+        observations, _, _, _, infos = env.step(actions)
+        cumulative_mi += next(iter(infos.values()))["reward_terms"]["team_mutual_information"]
+        squared_errors += [info["position_error_m"] ** 2 for info in infos.values()]
+        steps += 1
+    return {
+        "cumulative_mi": cumulative_mi,
+        "final_pose_entropy": float(np.mean([info["pose_entropy"] for info in infos.values()])),
+        "pose_rmse_m": float(np.mean(np.sqrt(squared_errors / steps))),
+    }
+
+
 @dataclass
 class Summary:
     mean: float
@@ -67,21 +92,36 @@ class Summary:
 def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs: dict | None = None, progress=True):
     """Run every agent for ``episodes`` episodes on seeds ``seed, seed + 1, ...``.
 
+    ``env_id`` is a Gymnasium id or ``"cooperative_localization_v0"`` (the team env; there
+    "random" is a random choice of teammate to observe and the metrics are the team's).
+
     Returns:
         ``{"env_id", "episodes", "seeds", "env_kwargs", "agents": {name: {"episodes": [...], "summary": {...}}}}``.
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    unknown = [name for name in agent_names if name not in AGENT_NAMES]
+    if unknown:
+        raise ValueError(f"unknown agent {unknown[0]!r}; choose from {', '.join(AGENT_NAMES)}")
     env_kwargs = dict(env_kwargs or {})
-    env = gym.make(env_id, **env_kwargs)
-    agents = {name: make_agent(name, env.action_space.n) for name in agent_names}
+    if env_id == TEAM_ENV:
+        from infonav_gym.multi import cooperative_localization_v0
+
+        env = cooperative_localization_v0.parallel_env(**env_kwargs)
+        agents = dict.fromkeys(agent_names)  # built per episode and robot by run_team_episode
+    else:
+        env = gym.make(env_id, **env_kwargs)
+        agents = {name: make_agent(name, env.action_space.n) for name in agent_names}
     seeds = list(range(seed, seed + episodes))
     results = {"env_id": env_id, "episodes": episodes, "seeds": seeds, "env_kwargs": env_kwargs, "agents": {}}
     bar = tqdm(total=len(agents) * episodes, desc=f"evaluating on {env_id}", disable=not progress, unit="episode")
     for name, agent in agents.items():
         per_episode = []
         for episode_seed in seeds:
-            per_episode.append(run_episode(env, agent, episode_seed))
+            if env_id == TEAM_ENV:
+                per_episode.append(run_team_episode(env, name, episode_seed))
+            else:
+                per_episode.append(run_episode(env, agent, episode_seed))
             bar.update()
         summary = {key: vars(Summary.of([e[key] for e in per_episode])) for key in METRICS}
         results["agents"][name] = {"episodes": per_episode, "summary": summary}

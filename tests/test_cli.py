@@ -46,6 +46,17 @@ def test_evaluate_is_reproducible_and_uses_the_same_seeds_for_every_agent(capsys
         assert mean == pytest.approx(np.mean([e["cumulative_mi"] for e in result["episodes"]]))
 
 
+def test_evaluate_runs_the_team_env_with_team_metrics_reproducibly(capsys):
+    argv = ["evaluate", "--env", "cooperative_localization_v0", "--episodes", "2", "--config", "max_cycles=20"]
+    first, second = run_json(capsys, *argv), run_json(capsys, *argv)
+    assert first == second and set(first["agents"]) == {"random", "greedy"}
+    for result in first["agents"].values():
+        assert all(episode["cumulative_mi"] > 0 and episode["pose_rmse_m"] > 0 for episode in result["episodes"])
+    with pytest.raises(SystemExit) as error:
+        main(["evaluate", "--env", "cooperative_localization_v0", "--agents", "greedy,oracle"])
+    assert error.value.code == 2 and "unknown agent 'oracle'" in capsys.readouterr().err
+
+
 def test_evaluate_writes_markdown_csv_and_json_with_the_command(capsys, tmp_path):
     stem = tmp_path / "eval"
     main(["evaluate", "--episodes", "2", "--config", "horizon=10", "--output", str(stem)])
