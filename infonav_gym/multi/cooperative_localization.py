@@ -43,7 +43,8 @@ class CooperativeLocalizationEnv(ParallelEnv):
     brings the most information on its own pose.
 
     ## Agents
-    ``robot_0 .. robot_{N-1}``. Each robot's sensor suite comes from
+    ``robot_0 .. robot_{N-1}`` (``team_field`` fits up to 4 robots in its default
+    40 m field; ``convoy`` any number). Each robot's sensor suite comes from
     ``robot_sensors`` (default: suite ``k % 4`` of ``gps+laser, gps+laser,
     laser, vision``; odometry always).
 
@@ -73,6 +74,14 @@ class CooperativeLocalizationEnv(ParallelEnv):
     reward also counts what teammates' observations of it brought;
     ``action_information_gain[a]`` is the MI action ``a`` alone would bring to the
     robot's own pose at the step's prior.
+
+    ## Info
+    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain`` (expected
+    reward of each action [nats], 0 where masked), ``reward_terms`` (own and team MI),
+    ``chosen_action``, ``invalid_action``, ``gps_available``, ``pose_std`` (x, y,
+    heading std at the step's prior), ``pose_std_after_update`` (right after the
+    step's relative updates), ``pose_entropy``, ``position_error_m``,
+    ``heading_error_rad``, ``true_pose``, ``estimated_pose``, ``time_s``.
 
     ## Starting State
     The robots at their routes' starts; initial estimates drawn from
