@@ -47,8 +47,9 @@ def test_joint_ekf_with_cross_covariances_is_consistent_through_a_dgps_dropout(a
 def test_independent_estimator_is_overconfident_in_the_same_scenario(average_nees):
     low, high = chi2_bounds(9, N_RUNS)
     independent = average_nees["independent"]
+    inside = (independent >= low) & (independent <= high)
     assert independent.mean() > high, f"grand mean NEES {independent.mean():.2f} not above {high:.2f}"
-    assert independent.max() > 2 * high
+    assert inside.mean() < 0.9, f"{inside.mean():.0%} of steps inside: the consistency test would pass"
 
 
 def team_episode(policy: str, seed: int) -> tuple[float, float]:
