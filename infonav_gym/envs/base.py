@@ -36,7 +36,41 @@ def discrete_action_index(action, space: gym.spaces.Discrete) -> int:
     raise ValueError(f"action {action!r} is not in the action space {space}: expected an integer in [0, {space.n - 1}]")
 
 
-class InfoNavEnv(gym.Env):
+class SceneRendering:
+    """``render``, ``close`` and pickling for envs that describe their frames with ``_scene_frame()``.
+
+    Used by the single-agent envs and the PettingZoo team env. The host sets
+    ``render_mode``, ``config["render_size_px"]``, ``metadata["render_fps"]``,
+    ``_renderer = None`` and ``_elapsed_steps`` (None until the first reset).
+    """
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn(
+                f"{type(self).__name__}.render() called without a render_mode; "
+                'construct the env with render_mode="rgb_array" or "human"'
+            )
+            return None
+        if self._elapsed_steps is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before render()")
+        if self._renderer is None:
+            from infonav_gym.rendering import Renderer
+
+            self._renderer = Renderer(self.render_mode, self.config["render_size_px"], self.metadata["render_fps"])
+        return self._renderer.draw(self._scene_frame())
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state["_renderer"] = None
+        return state
+
+
+class InfoNavEnv(SceneRendering, gym.Env):
     """Base of the single-agent envs: config, action validation, horizon, info keys, rendering."""
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -116,28 +150,3 @@ class InfoNavEnv(gym.Env):
 
     def _is_terminated(self) -> bool:
         return False
-
-    def render(self):
-        if self.render_mode is None:
-            gym.logger.warn(
-                f"{type(self).__name__}.render() called without a render_mode; "
-                'pass render_mode="rgb_array" or "human" to gym.make'
-            )
-            return None
-        if self._elapsed_steps is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before render()")
-        if self._renderer is None:
-            from infonav_gym.rendering import Renderer
-
-            self._renderer = Renderer(self.render_mode, self.config["render_size_px"], self.metadata["render_fps"])
-        return self._renderer.draw(self._scene_frame())
-
-    def close(self):
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state["_renderer"] = None
-        return state

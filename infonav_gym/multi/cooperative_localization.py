@@ -10,7 +10,7 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
 from infonav_gym.config import check_choice, check_positive, merge_config
-from infonav_gym.envs.base import INVALID_ACTION_MODES, MIN_RENDER_SIZE_PX, discrete_action_index
+from infonav_gym.envs.base import INVALID_ACTION_MODES, MIN_RENDER_SIZE_PX, SceneRendering, discrete_action_index
 from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
 from infonav_gym.estimation.models import relative_pose, wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
@@ -29,7 +29,7 @@ NO_OBSERVATION = 0
 _BIG = 1e4
 
 
-class CooperativeLocalizationEnv(ParallelEnv):
+class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
     """Robots without (or losing) DGPS localize through relative-pose observations of teammates.
 
     ## Description
@@ -176,7 +176,7 @@ class CooperativeLocalizationEnv(ParallelEnv):
         self.world = World()
         self.np_random = None
         self._renderer = None
-        self._cycles = None
+        self._elapsed_steps = None
 
     @staticmethod
     def _observation_bounds(n_robots: int) -> tuple[np.ndarray, np.ndarray]:
@@ -208,7 +208,7 @@ class CooperativeLocalizationEnv(ParallelEnv):
         covariances = np.repeat(np.diag(pose_std**2)[None], n, axis=0)
         self.ekf = JointEKF(initial, covariances, cross_covariances=cfg["estimator"] == "joint")
         self.agents = list(self.possible_agents)
-        self._cycles = 0
+        self._elapsed_steps = 0
         self._time_s = 0.0
         self._gps_fixes()
         self._observed_pairs = []
@@ -257,7 +257,7 @@ class CooperativeLocalizationEnv(ParallelEnv):
         self._advance()
         self._decide()
         observations, infos = self._observations(), self._infos()
-        truncated = self._cycles >= self.max_cycles
+        truncated = self._elapsed_steps >= self.max_cycles
         terminations = dict.fromkeys(self.agents, False)
         truncations = dict.fromkeys(self.agents, truncated)
         if truncated:
@@ -310,8 +310,8 @@ class CooperativeLocalizationEnv(ParallelEnv):
             self.odometry.turn_rate_std_rps,
         )
         self.ekf.predict(controls + noise, dt, self._odometry_covariances)
-        self._cycles += 1
-        self._time_s = self._cycles * dt
+        self._elapsed_steps += 1
+        self._time_s = self._elapsed_steps * dt
         self._gps_fixes()
         for robot, (true_pose, estimate) in enumerate(zip(self._true_poses, self.ekf.x.reshape(-1, POSE_DIM))):
             self._true_paths[robot].append(true_pose[:2])
@@ -372,7 +372,7 @@ class CooperativeLocalizationEnv(ParallelEnv):
         features[:, 4:7] = std
         features[:, 7] = gaussian_entropy_from_log_det(self._pose_log_det, POSE_DIM)
         features[:, 8] = self._gps_available
-        features[:, 9] = self._cycles / self.max_cycles
+        features[:, 9] = self._elapsed_steps / self.max_cycles
         teammates = features[:, OWN_FEATURES:].reshape(n, n, TEAMMATE_FEATURES)
         offsets = estimates[None, :, :2] - estimates[:, None, :2]
         bearings = np.arctan2(offsets[..., 1], offsets[..., 0]) - estimates[:, None, 2]
@@ -414,20 +414,6 @@ class CooperativeLocalizationEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ rendering
 
-    def render(self):
-        if self.render_mode is None:
-            from gymnasium import logger
-
-            logger.warn(f"{type(self).__name__}.render() called without a render_mode; pass render_mode='rgb_array'")
-            return None
-        if self._cycles is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before render()")
-        if self._renderer is None:
-            from infonav_gym.rendering import Renderer
-
-            self._renderer = Renderer(self.render_mode, self.config["render_size_px"], self.metadata["render_fps"])
-        return self._renderer.draw(self._scene_frame())
-
     def _scene_frame(self):
         from infonav_gym.rendering import RobotDrawing, SceneFrame
 
@@ -453,13 +439,3 @@ class CooperativeLocalizationEnv(ParallelEnv):
             gps_denied_zones=scenario.gps_denied_zones,
             caption=f"t = {self._time_s:.1f} s",
         )
-
-    def close(self):
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state["_renderer"] = None
-        return state
