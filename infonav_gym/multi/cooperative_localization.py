@@ -305,11 +305,7 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         dt = self.config["time_step_s"]
         controls = self.world.step(dt)
         self._true_poses = self.world.poses
-        noise = self._odometry_rng.standard_normal(controls.shape) * (
-            self.odometry.speed_std_mps,
-            self.odometry.turn_rate_std_rps,
-        )
-        self.ekf.predict(controls + noise, dt, self._odometry_covariances)
+        self.ekf.predict(self.odometry.measure(controls, self._odometry_rng), dt, self._odometry_covariances)
         self._elapsed_steps += 1
         self._time_s = self._elapsed_steps * dt
         self._gps_fixes()

@@ -28,8 +28,6 @@ class OdometrySensor:
         return np.diag([self.speed_std_mps**2, self.turn_rate_std_rps**2])
 
     def measure(self, control, np_random: np.random.Generator) -> np.ndarray:
-        """A noisy reading of the executed ``control``."""
-        return np.asarray(control, dtype=float) + np_random.standard_normal(2) * (
-            self.speed_std_mps,
-            self.turn_rate_std_rps,
-        )
+        """A noisy reading of the executed ``control``: (2,) -> (2,), or one per robot (N, 2) -> (N, 2)."""
+        control = np.asarray(control, dtype=float)
+        return control + np_random.standard_normal(control.shape) * (self.speed_std_mps, self.turn_rate_std_rps)
