@@ -1,6 +1,20 @@
 """The simulated 2D world (Pymunk) and its scenarios."""
 
 from infonav_gym.world.scenarios import SCENARIOS, CircleObstacle, Route, Scenario
+from infonav_gym.world.terrain import MATERIALS, Box, Cylinder, RayHits, Terrain, flat_terrain, make_terrain
 from infonav_gym.world.world import World
 
-__all__ = ["SCENARIOS", "CircleObstacle", "Route", "Scenario", "World"]
+__all__ = [
+    "MATERIALS",
+    "SCENARIOS",
+    "Box",
+    "CircleObstacle",
+    "Cylinder",
+    "RayHits",
+    "Route",
+    "Scenario",
+    "Terrain",
+    "World",
+    "flat_terrain",
+    "make_terrain",
+]

@@ -1,0 +1,185 @@
+"""Scanning LADAR on a pan-tilt platform: a range image of a 2.5D ``Terrain`` (the paper's Section IV).
+
+Pixel convention: row 0 is the top row (highest elevation), column 0 the leftmost (largest
+azimuth, azimuths counterclockwise). Pixel ``(r, c)`` looks along the centre of its angular
+cell: elevation ``vertical_fov/2 - (r + 1/2) * vertical_fov/rows - tilt`` above the horizontal
+and azimuth ``heading + pan + horizontal_fov/2 - (c + 1/2) * horizontal_fov/columns``. The tilt
+lowers every row's elevation by the same angle (a nodding scanner), so each column's rays stay in
+one vertical plane.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from infonav_gym.world.terrain import Terrain
+
+
+def _check_pose(vehicle_pose) -> np.ndarray:
+    pose = np.asarray(vehicle_pose, dtype=float)
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise ValueError(f"vehicle_pose must be finite [x, y, heading] [m, m, rad], got {vehicle_pose!r}")
+    return pose
+
+
+def _unit_directions(azimuth_rad: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
+    """World unit vectors (R, C, 3) for column azimuths (C,) and row elevations (R,)."""
+    cos_elevation = np.cos(elevation_rad)[:, None]
+    return np.stack(
+        np.broadcast_arrays(
+            cos_elevation * np.cos(azimuth_rad), cos_elevation * np.sin(azimuth_rad), np.sin(elevation_rad)[:, None]
+        ),
+        axis=-1,
+    )
+
+
+@dataclass(frozen=True)
+class LadarScan:
+    """One range image.
+
+    Attributes:
+        ranges_m: measured range per pixel (rows, columns), float32 [m]; ``max_range_m`` where no return.
+        no_return: True where nothing was hit within ``max_range_m`` (rows, columns).
+        azimuth_rad: azimuth of each column relative to the vehicle heading, pan included (columns,) [rad].
+        elevation_rad: elevation of each row above the horizontal, tilt included (rows,) [rad].
+        vehicle_pose: true ``[x, y, heading]`` of the vehicle when the scan was taken [m, m, rad].
+        sensor_position_m: ``(x, y, z)`` of the optical centre when the scan was taken [m].
+        max_range_m: the sensor's maximum range [m].
+    """
+
+    ranges_m: np.ndarray
+    no_return: np.ndarray
+    azimuth_rad: np.ndarray
+    elevation_rad: np.ndarray
+    vehicle_pose: np.ndarray
+    sensor_position_m: np.ndarray
+    max_range_m: float
+
+
+@dataclass(frozen=True)
+class Ladar:
+    """A LADAR producing a ``rows x columns`` range image (defaults: the XUV's 32 x 180, 20 x 80 degrees).
+
+    Attributes:
+        rows: image rows.
+        columns: image columns.
+        vertical_fov_rad: vertical field of view [rad], in (0, pi).
+        horizontal_fov_rad: horizontal field of view [rad], in (0, pi).
+        mount_height_m: optical centre above the ground under the vehicle [m].
+        max_range_m: farthest return [m].
+        range_std_m: standard deviation of the Gaussian range noise [m].
+        tilt_rad: depression of the optical axis, positive = looking down [rad].
+        pan_rad: azimuth of the optical axis from the vehicle heading, positive = left [rad].
+    """
+
+    rows: int = 32
+    columns: int = 180
+    vertical_fov_rad: float = math.radians(20.0)
+    horizontal_fov_rad: float = math.radians(80.0)
+    mount_height_m: float = 2.0
+    max_range_m: float = 60.0
+    range_std_m: float = 0.02
+    tilt_rad: float = math.radians(10.0)
+    pan_rad: float = 0.0
+
+    def __post_init__(self):
+        for key in ("rows", "columns"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or int(value) != value or value < 1:
+                raise ValueError(f"LADAR {key} must be a positive integer, got {value!r}")
+        for key in ("vertical_fov_rad", "horizontal_fov_rad"):
+            value = getattr(self, key)
+            if not 0 < value < math.pi:
+                raise ValueError(f"LADAR {key} must be in (0, pi) rad, i.e. (0, 180) degrees, got {value!r}")
+        for key in ("mount_height_m", "max_range_m"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"LADAR {key} must be positive and finite, got {value!r}")
+        if not (math.isfinite(self.range_std_m) and self.range_std_m >= 0):
+            raise ValueError(f"LADAR range_std_m must be finite and >= 0, got {self.range_std_m!r}")
+        self._check_pan_tilt(self.pan_rad, self.tilt_rad)
+
+    def _check_pan_tilt(self, pan_rad: float, tilt_rad: float) -> None:
+        if not math.isfinite(pan_rad):
+            raise ValueError(f"LADAR pan_rad must be finite, got {pan_rad!r}")
+        if not (math.isfinite(tilt_rad) and abs(tilt_rad) + self.vertical_fov_rad / 2 < math.pi / 2):
+            raise ValueError(
+                f"LADAR tilt_rad={tilt_rad!r} would tilt rows to or past vertical: |tilt_rad| + vertical_fov_rad / 2 "
+                f"must stay below pi/2 (vertical_fov_rad={self.vertical_fov_rad!r})"
+            )
+
+    def pixel_angles(
+        self, pan_rad: float | None = None, tilt_rad: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Column azimuths (columns,) relative to the vehicle heading and row elevations (rows,) [rad].
+
+        ``pan_rad`` / ``tilt_rad`` override the configured platform angles for this call.
+        """
+        pan_rad = self.pan_rad if pan_rad is None else float(pan_rad)
+        tilt_rad = self.tilt_rad if tilt_rad is None else float(tilt_rad)
+        self._check_pan_tilt(pan_rad, tilt_rad)
+        column_step = self.horizontal_fov_rad / self.columns
+        row_step = self.vertical_fov_rad / self.rows
+        azimuth = pan_rad + self.horizontal_fov_rad / 2 - (np.arange(self.columns) + 0.5) * column_step
+        elevation = self.vertical_fov_rad / 2 - (np.arange(self.rows) + 0.5) * row_step - tilt_rad
+        return azimuth, elevation
+
+    def ray_directions(self, vehicle_pose, pan_rad: float | None = None, tilt_rad: float | None = None) -> np.ndarray:
+        """World-frame unit directions (rows, columns, 3) of the pixels; see the module docstring for the order."""
+        pose = _check_pose(vehicle_pose)
+        azimuth, elevation = self.pixel_angles(pan_rad, tilt_rad)
+        return _unit_directions(pose[2] + azimuth, elevation)
+
+    def scan(
+        self,
+        terrain: Terrain,
+        vehicle_pose,
+        np_random: np.random.Generator,
+        pan_rad: float | None = None,
+        tilt_rad: float | None = None,
+    ) -> LadarScan:
+        """Range image of ``terrain`` seen from ``vehicle_pose`` ``[x, y, heading]`` [m, m, rad].
+
+        The optical centre is ``mount_height_m`` above the ground under the vehicle. Each
+        pixel's range is the first hit of its ray plus Gaussian noise from ``np_random``,
+        clipped to ``[0, max_range_m]``; pixels without a hit read ``max_range_m``.
+        """
+        pose = _check_pose(vehicle_pose)
+        azimuth, elevation = self.pixel_angles(pan_rad, tilt_rad)
+        ground_m = float(terrain.height_at(pose[:2]))
+        sensor_position = np.array([pose[0], pose[1], ground_m + self.mount_height_m])
+        hits = terrain.cast_rays(sensor_position, pose[2] + azimuth, elevation, self.max_range_m)
+        noise = self.range_std_m * np_random.standard_normal(hits.range_m.shape)
+        no_return = ~np.isfinite(hits.range_m)
+        noisy = np.clip(hits.range_m + noise, 0.0, self.max_range_m)
+        ranges = np.where(no_return, self.max_range_m, noisy).astype(np.float32)
+        return LadarScan(ranges, no_return, azimuth, elevation, pose, sensor_position, self.max_range_m)
+
+
+def to_display_image(scan: LadarScan) -> np.ndarray:
+    """The paper's display convention: uint8 (rows, columns), 0 at range 0 (dark = near) to 255 at max range.
+
+    Gray levels are linear in range; pixels without a return are 255.
+    """
+    levels = np.rint(255.0 * np.clip(scan.ranges_m / scan.max_range_m, 0.0, 1.0)).astype(np.uint8)
+    levels[scan.no_return] = 255
+    return levels
+
+
+def point_cloud(scan: LadarScan, vehicle_pose=None) -> np.ndarray:
+    """World points (N, 3) [m] of the pixels with a return, in row-major pixel order.
+
+    Args:
+        scan: the range image.
+        vehicle_pose: ``[x, y, heading]`` to place the points from (e.g. an estimate, for
+            registration); default: the true pose of the scan. The sensor's elevation is the
+            scan's in either case.
+    """
+    pose = scan.vehicle_pose if vehicle_pose is None else _check_pose(vehicle_pose)
+    origin = np.array([pose[0], pose[1], scan.sensor_position_m[2]])
+    directions = _unit_directions(pose[2] + scan.azimuth_rad, scan.elevation_rad)
+    returns = ~scan.no_return
+    return origin + directions[returns] * scan.ranges_m[returns, None].astype(float)

@@ -1,0 +1,447 @@
+"""A 2.5D scene for range and image sensors: a height map plus solid obstacles with heights.
+
+The scene is independent of Pymunk: the obstacles' footprints (circles, rectangles) are what
+a 2D ``World`` would collide with. Coordinates are world metres, ``z`` up.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.ndimage import gaussian_filter
+
+MATERIALS = ("ground", "vegetation", "rock", "building")
+NO_HIT = -1  # material index of a ray that hits nothing within range
+_PROFILE_SAMPLES_PER_CELL = 1  # ground samples per grid cell along a ray's horizontal track
+_REFINE_ITERATIONS = 4  # Illinois false-position steps refining a ground crossing on curved terrain
+_ANGLE_KEY_STRIDE = 4.0  # > pi: separates the columns' horizon-angle blocks in one sorted array [rad]
+_MAX_PLACEMENT_ATTEMPTS = 1000  # random draws per obstacle before the scene counts as too small
+_HILL_STD_M = 2.0  # height standard deviation of the smooth hills at roughness 1 [m]
+_HILL_CORRELATION_M = 8.0  # length scale of the hills [m]
+_BUMP_STD_M = 0.4  # height standard deviation of the small bumps at roughness 1 [m]
+_BUMP_CORRELATION_M = 1.0  # length scale of the bumps [m]
+
+
+def _finite_vector(value, length: int, name: str) -> tuple[float, ...]:
+    vector = np.asarray(value, dtype=float)
+    if vector.shape != (length,) or not np.all(np.isfinite(vector)):
+        raise ValueError(f"{name} must be {length} finite numbers, got {value!r}")
+    return tuple(float(v) for v in vector)
+
+
+def _check_material(material: str, owner: str) -> None:
+    if material not in MATERIALS[1:]:
+        raise ValueError(f"{owner} material must be one of {MATERIALS[1:]}, got {material!r}")
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A vertical solid cylinder: a tree trunk or canopy, a rock.
+
+    Attributes:
+        center_m: ``(x, y)`` of the axis [m].
+        radius_m: radius [m].
+        bottom_m: elevation of the base [m].
+        top_m: elevation of the top [m].
+        material: one of ``MATERIALS`` except ``"ground"``.
+    """
+
+    center_m: tuple[float, float]
+    radius_m: float
+    bottom_m: float
+    top_m: float
+    material: str = "vegetation"
+
+    def __post_init__(self):
+        object.__setattr__(self, "center_m", _finite_vector(self.center_m, 2, "cylinder center_m"))
+        if not (math.isfinite(self.radius_m) and self.radius_m > 0):
+            raise ValueError(f"cylinder radius_m must be positive and finite, got {self.radius_m!r}")
+        if not (math.isfinite(self.bottom_m) and math.isfinite(self.top_m) and self.bottom_m < self.top_m):
+            raise ValueError(f"cylinder needs finite bottom_m < top_m, got {self.bottom_m!r} and {self.top_m!r}")
+        _check_material(self.material, "cylinder")
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned solid box: a wall or a building.
+
+    Attributes:
+        min_corner_m: ``(x, y, z)`` of the lowest corner [m].
+        max_corner_m: ``(x, y, z)`` of the highest corner [m].
+        material: one of ``MATERIALS`` except ``"ground"``.
+    """
+
+    min_corner_m: tuple[float, float, float]
+    max_corner_m: tuple[float, float, float]
+    material: str = "building"
+
+    def __post_init__(self):
+        low = _finite_vector(self.min_corner_m, 3, "box min_corner_m")
+        high = _finite_vector(self.max_corner_m, 3, "box max_corner_m")
+        if not all(a < b for a, b in zip(low, high, strict=True)):
+            raise ValueError(f"box min_corner_m {low} must be below max_corner_m {high} on every axis")
+        object.__setattr__(self, "min_corner_m", low)
+        object.__setattr__(self, "max_corner_m", high)
+        _check_material(self.material, "box")
+
+
+@dataclass(frozen=True)
+class RayHits:
+    """Where a grid of rays first meets the scene.
+
+    Attributes:
+        range_m: distance along each ray to the first hit (R, C) [m]; ``inf`` for no hit within range.
+        material_index: index into ``MATERIALS`` of what each ray hit (R, C); ``NO_HIT`` for none.
+    """
+
+    range_m: np.ndarray
+    material_index: np.ndarray
+
+
+def _slab(origin, direction, low, high) -> tuple[np.ndarray, np.ndarray]:
+    """Parameters ``(enter, exit)`` where ``origin + t * direction`` lies in ``[low, high]`` (broadcast).
+
+    A zero direction gives the whole line when the origin is inside, else an empty interval.
+    """
+    direction = np.asarray(direction, dtype=float)
+    moving = direction != 0
+    safe_direction = np.where(moving, direction, 1.0)
+    t_low, t_high = (low - origin) / safe_direction, (high - origin) / safe_direction
+    inside = (low <= origin) & (origin <= high)
+    enter = np.where(moving, np.minimum(t_low, t_high), np.where(inside, -np.inf, np.inf))
+    exit_ = np.where(moving, np.maximum(t_low, t_high), np.where(inside, np.inf, -np.inf))
+    return enter, exit_
+
+
+@dataclass(frozen=True, eq=False)
+class Terrain:
+    """A height map on a regular grid plus solid obstacles.
+
+    ``heights_m[i, j]`` is the ground elevation at ``(x0 + j * cell_m, y0 + i * cell_m)``;
+    between grid points the ground is bilinear, beyond the grid the edge heights extend.
+
+    Attributes:
+        heights_m: ground elevations (H, W) with H, W >= 2 [m].
+        origin_m: ``(x0, y0)`` of grid point ``[0, 0]`` [m].
+        cell_m: grid spacing [m].
+        cylinders: vertical cylinders (trees, rocks).
+        boxes: axis-aligned boxes (walls, buildings).
+    """
+
+    heights_m: np.ndarray
+    origin_m: tuple[float, float] = (0.0, 0.0)
+    cell_m: float = 1.0
+    cylinders: tuple[Cylinder, ...] = ()
+    boxes: tuple[Box, ...] = ()
+    _obstacle_arrays: dict = field(init=False, repr=False)
+
+    def __post_init__(self):
+        heights = np.array(self.heights_m, dtype=float)
+        if heights.ndim != 2 or min(heights.shape) < 2:
+            raise ValueError(f"terrain heights_m must be a 2D grid of at least 2 x 2 points, got shape {heights.shape}")
+        if not np.all(np.isfinite(heights)):
+            raise ValueError("terrain heights_m contains NaN or infinite values")
+        if not (math.isfinite(self.cell_m) and self.cell_m > 0):
+            raise ValueError(f"terrain cell_m must be positive and finite, got {self.cell_m!r}")
+        heights.flags.writeable = False
+        object.__setattr__(self, "heights_m", heights)
+        object.__setattr__(self, "origin_m", _finite_vector(self.origin_m, 2, "terrain origin_m"))
+        object.__setattr__(self, "cylinders", tuple(self.cylinders))
+        object.__setattr__(self, "boxes", tuple(self.boxes))
+        for obstacle in self.cylinders + self.boxes:
+            if not isinstance(obstacle, (Cylinder, Box)):
+                raise ValueError(f"terrain obstacles must be Cylinder or Box, got {obstacle!r}")
+        object.__setattr__(self, "_obstacle_arrays", self._stack_obstacles())
+
+    def _stack_obstacles(self) -> dict:
+        """The obstacles' parameters as arrays, for vectorized intersection."""
+        cylinders, boxes = self.cylinders, self.boxes
+        return {
+            "cylinder_centers": np.array([c.center_m for c in cylinders]).reshape(-1, 2),
+            "cylinder_radii": np.array([c.radius_m for c in cylinders]),
+            "box_low": np.array([b.min_corner_m for b in boxes]).reshape(-1, 3),
+            "box_high": np.array([b.max_corner_m for b in boxes]).reshape(-1, 3),
+            "z_low": np.array([c.bottom_m for c in cylinders] + [b.min_corner_m[2] for b in boxes]),
+            "z_high": np.array([c.top_m for c in cylinders] + [b.max_corner_m[2] for b in boxes]),
+            "materials": np.array([MATERIALS.index(o.material) for o in cylinders + boxes], dtype=np.int8),
+        }
+
+    @property
+    def bounds_m(self) -> tuple[float, float, float, float]:
+        """``(x_min, y_min, x_max, y_max)`` covered by the height grid [m]."""
+        rows, columns = self.heights_m.shape
+        x0, y0 = self.origin_m
+        return x0, y0, x0 + (columns - 1) * self.cell_m, y0 + (rows - 1) * self.cell_m
+
+    def with_obstacles(self, cylinders=(), boxes=()) -> Terrain:
+        """A copy with ``cylinders`` and ``boxes`` added to the existing obstacles."""
+        return replace(self, cylinders=self.cylinders + tuple(cylinders), boxes=self.boxes + tuple(boxes))
+
+    def _cell_corners(self, xy) -> tuple[np.ndarray, ...]:
+        """Corner heights ``h00, h01, h10, h11`` of the cell under each point and the offsets ``tx, ty`` in it."""
+        points = np.asarray(xy, dtype=float)
+        if points.ndim < 1 or points.shape[-1] != 2 or not np.all(np.isfinite(points)):
+            raise ValueError(f"terrain query points must be finite (..., 2) [m], got shape {points.shape}")
+        rows, columns = self.heights_m.shape
+        fx = np.clip((points[..., 0] - self.origin_m[0]) / self.cell_m, 0, columns - 1)
+        fy = np.clip((points[..., 1] - self.origin_m[1]) / self.cell_m, 0, rows - 1)
+        j = np.minimum(fx.astype(np.intp), columns - 2)
+        i = np.minimum(fy.astype(np.intp), rows - 2)
+        flat_heights, corner = self.heights_m.ravel(), i * columns + j
+        lower_left, upper_left = flat_heights.take(corner), flat_heights.take(corner + columns)
+        lower_right, upper_right = flat_heights.take(corner + 1), flat_heights.take(corner + columns + 1)
+        return lower_left, lower_right, upper_left, upper_right, fx - j, fy - i
+
+    def height_at(self, xy) -> np.ndarray:
+        """Bilinear ground elevation [m] at points ``xy`` (..., 2) -> (...)."""
+        h00, h01, h10, h11, tx, ty = self._cell_corners(xy)
+        return (1 - ty) * ((1 - tx) * h00 + tx * h01) + ty * ((1 - tx) * h10 + tx * h11)
+
+    def surface_normal_at(self, xy) -> np.ndarray:
+        """Upward unit normals (..., 3) of the bilinear ground at points ``xy`` (..., 2); level beyond the grid."""
+        h00, h01, h10, h11, tx, ty = self._cell_corners(xy)
+        points, (x_min, y_min, x_max, y_max) = np.asarray(xy, dtype=float), self.bounds_m
+        outside_x = (points[..., 0] < x_min) | (points[..., 0] > x_max)
+        outside_y = (points[..., 1] < y_min) | (points[..., 1] > y_max)
+        slope_x = np.where(outside_x, 0.0, ((1 - ty) * (h01 - h00) + ty * (h11 - h10)) / self.cell_m)
+        slope_y = np.where(outside_y, 0.0, ((1 - tx) * (h10 - h00) + tx * (h11 - h01)) / self.cell_m)
+        normals = np.stack([-slope_x, -slope_y, np.ones_like(slope_x)], axis=-1)
+        return normals / np.linalg.norm(normals, axis=-1, keepdims=True)
+
+    def cast_rays(self, origin_m, azimuth_rad, elevation_rad, max_range_m: float) -> RayHits:
+        """First hits of a grid of rays whose columns share an azimuth (a scanner's or an upright camera's).
+
+        Ray ``(r, c)`` leaves ``origin_m`` towards azimuth ``azimuth_rad[c]`` (world frame,
+        counterclockwise from +x) at elevation ``elevation_rad[r]`` (or ``[r, c]``) above the
+        horizontal. Since a column's rays share one vertical plane, the ground is sampled once
+        per column; a ray meets it at the first sample whose elevation angle seen from the
+        origin reaches the ray's, refined by linear interpolation (exact on planar ground) and
+        false-position steps. Obstacles are intersected analytically; an origin inside one
+        gives range 0.
+
+        Args:
+            origin_m: ``(x, y, z)`` of the ray origin, above the ground [m].
+            azimuth_rad: (C,) world azimuth of each column [rad].
+            elevation_rad: (R,) or (R, C) elevation of each ray, inside (-pi/2, pi/2) [rad].
+            max_range_m: hits farther than this are dropped [m].
+
+        Returns:
+            The range and material of each ray's first hit, (R, C).
+        """
+        origin = np.array(_finite_vector(origin_m, 3, "ray origin_m"))
+        azimuth = np.asarray(azimuth_rad, dtype=float)
+        elevation = np.asarray(elevation_rad, dtype=float)
+        if azimuth.ndim != 1 or not np.all(np.isfinite(azimuth)):
+            raise ValueError(f"azimuth_rad must be a finite (C,) array, got shape {azimuth.shape}")
+        if elevation.ndim == 1:
+            elevation = elevation[:, None]
+        if elevation.ndim != 2 or elevation.shape[1] not in (1, azimuth.size):
+            raise ValueError(f"elevation_rad must be (R,) or (R, C={azimuth.size}), got shape {elevation.shape}")
+        if not np.all(np.abs(elevation) < math.pi / 2):
+            raise ValueError("elevation_rad must lie strictly inside (-pi/2, pi/2)")
+        if not (math.isfinite(max_range_m) and max_range_m > 0):
+            raise ValueError(f"max_range_m must be positive and finite, got {max_range_m!r}")
+        if not origin[2] > self.height_at(origin[:2]):
+            raise ValueError(f"ray origin_m {tuple(origin)} is not above the ground")
+        heading = np.stack([np.cos(azimuth), np.sin(azimuth)], axis=-1)  # (C, 2) horizontal unit vectors
+        slope = np.tan(elevation)  # dz per horizontal metre, (R, 1) or (R, C)
+        ground_s = self._ground_crossing(origin, heading, elevation, slope, max_range_m)
+        obstacle_s, obstacle_material = self._obstacle_crossing(origin, heading, slope)
+        nearest_s = np.minimum(ground_s, obstacle_s)
+        range_m = nearest_s / np.cos(elevation)
+        hit = range_m <= max_range_m
+        material = np.where(obstacle_s < ground_s, obstacle_material, np.int8(MATERIALS.index("ground")))
+        return RayHits(np.where(hit, range_m, np.inf), np.where(hit, material, np.int8(NO_HIT)).astype(np.int8))
+
+    def _ground_crossing(self, origin, heading, elevation, slope, max_range_m) -> np.ndarray:
+        """Horizontal distance (R, C) [m] at which each ray first goes below the ground; ``inf`` if never."""
+        step_m = self.cell_m / _PROFILE_SAMPLES_PER_CELL
+        sample_count = math.ceil(max_range_m / step_m) + 1
+        distances = np.arange(sample_count) * step_m
+        tracks = origin[:2] + distances[None, :, None] * heading[:, None, :]  # (C, K, 2)
+        ground = self.height_at(tracks)
+        angles = np.arctan2(ground - origin[2], distances)
+        angles[:, 0] = -math.pi / 2  # the origin is above the ground
+        horizon = np.maximum.accumulate(angles, axis=1)  # nondecreasing along each column
+        offsets = _ANGLE_KEY_STRIDE * np.arange(heading.shape[0])
+        keys = (horizon + offsets[:, None]).ravel()
+        sample = np.searchsorted(keys, elevation + offsets, side="left")
+        sample -= np.arange(heading.shape[0]) * sample_count  # index within the ray's own column
+        crossing = np.full(sample.shape, np.inf)
+        rows, columns = np.nonzero(sample < sample_count)
+        if rows.size == 0:
+            return crossing
+        k, ray_heading = sample[rows, columns], heading[columns]
+        ray_slope = np.broadcast_to(slope, sample.shape)[rows, columns]
+
+        def height_above_ground(s, ground_m):
+            return origin[2] + s * ray_slope - ground_m
+
+        low_s, high_s = distances[k - 1], distances[k]
+        low_f = height_above_ground(low_s, ground[columns, k - 1])
+        high_f = height_above_ground(high_s, ground[columns, k])
+        s = low_s + (high_s - low_s) * low_f / (low_f - high_f)
+        was_above = np.zeros(s.shape, dtype=np.int8)  # side of the previous step: 1 above, -1 below, 0 none
+        for _ in range(_REFINE_ITERATIONS):
+            f = height_above_ground(s, self.height_at(origin[:2] + s[:, None] * ray_heading))
+            above = f > 0
+            # Illinois rule: halve the end kept twice in a row, so the bracket shrinks from both sides
+            high_f = np.where(above & (was_above == 1), 0.5 * high_f, high_f)
+            low_f = np.where(~above & (was_above == -1), 0.5 * low_f, low_f)
+            low_s, low_f = np.where(above, s, low_s), np.where(above, f, low_f)
+            high_s, high_f = np.where(above, high_s, s), np.where(above, high_f, f)
+            was_above = np.where(above, 1, -1).astype(np.int8)
+            s = low_s + (high_s - low_s) * low_f / (low_f - high_f)
+        crossing[rows, columns] = s
+        return crossing
+
+    def _obstacle_crossing(self, origin, heading, slope) -> tuple[np.ndarray, np.ndarray]:
+        """Horizontal distance (R, C) [m] to the nearest obstacle along each ray and its material index.
+
+        Footprints are intersected per column (one vertical plane each); only the (column,
+        obstacle) pairs whose plane crosses the footprint ahead are checked against the heights.
+        """
+        arrays = self._obstacle_arrays
+        shape = (slope.shape[0], heading.shape[0])
+        distance, material = np.full(shape, np.inf), np.full(shape, NO_HIT, dtype=np.int8)
+        offset = origin[:2] - arrays["cylinder_centers"]  # (Mc, 2)
+        half_b = heading @ offset.T  # (C, Mc)
+        discriminant = half_b**2 - (np.sum(offset**2, axis=1) - arrays["cylinder_radii"] ** 2)
+        root = np.sqrt(np.maximum(discriminant, 0))
+        cylinder_enter = np.where(discriminant >= 0, -half_b - root, np.inf)
+        cylinder_exit = np.where(discriminant >= 0, -half_b + root, -np.inf)
+        x_enter, x_exit = _slab(origin[0], heading[:, :1], arrays["box_low"][:, 0], arrays["box_high"][:, 0])
+        y_enter, y_exit = _slab(origin[1], heading[:, 1:], arrays["box_low"][:, 1], arrays["box_high"][:, 1])
+        footprint_enter = np.concatenate([cylinder_enter, np.maximum(x_enter, y_enter)], axis=1)  # (C, M)
+        footprint_exit = np.concatenate([cylinder_exit, np.minimum(x_exit, y_exit)], axis=1)
+        columns, obstacles = np.nonzero((footprint_enter <= footprint_exit) & (footprint_exit >= 0))  # by column
+        if columns.size == 0:
+            return distance, material
+        pair_slope = np.broadcast_to(slope, shape)[:, columns]  # (R, P)
+        z_enter, z_exit = _slab(origin[2], pair_slope, arrays["z_low"][obstacles], arrays["z_high"][obstacles])
+        enter = np.maximum(np.maximum(footprint_enter[columns, obstacles], z_enter), 0.0)
+        exit_ = np.minimum(footprint_exit[columns, obstacles], z_exit)
+        enter = np.where(enter <= exit_, enter, np.inf)
+        seen_columns, first_pair, pair_count = np.unique(columns, return_index=True, return_counts=True)
+        nearest = np.minimum.reduceat(enter, first_pair, axis=1)  # (R, columns with candidates)
+        is_nearest = np.isfinite(enter) & (enter == np.repeat(nearest, pair_count, axis=1))
+        pair_material = np.where(is_nearest, arrays["materials"][obstacles], np.int8(NO_HIT))
+        distance[:, seen_columns] = nearest
+        material[:, seen_columns] = np.maximum.reduceat(pair_material, first_pair, axis=1)
+        return distance, material
+
+
+def flat_terrain(size_m: float = 100.0, cell_m: float = 1.0, center_m=(0.0, 0.0), height_m: float = 0.0) -> Terrain:
+    """Level ground at ``height_m`` over a ``size_m`` square centred on ``center_m``, no obstacles."""
+    points = _grid_points(size_m, cell_m)
+    center = _finite_vector(center_m, 2, "center_m")
+    origin = (center[0] - size_m / 2, center[1] - size_m / 2)
+    return Terrain(np.full((points, points), float(height_m)), origin, cell_m)
+
+
+def _grid_points(size_m: float, cell_m: float) -> int:
+    if not (math.isfinite(cell_m) and cell_m > 0):
+        raise ValueError(f"cell_m must be positive and finite, got {cell_m!r}")
+    if not (math.isfinite(size_m) and size_m >= cell_m):
+        raise ValueError(f"size_m must be finite and at least cell_m={cell_m}, got {size_m!r}")
+    return round(size_m / cell_m) + 1
+
+
+def _unit_field(np_random: np.random.Generator, points: int, correlation_cells: float) -> np.ndarray:
+    """Smooth Gaussian random field with zero mean and unit standard deviation."""
+    smooth = gaussian_filter(np_random.standard_normal((points, points)), correlation_cells, mode="wrap")
+    return (smooth - smooth.mean()) / smooth.std()
+
+
+def make_terrain(
+    np_random: np.random.Generator,
+    size_m: float = 60.0,
+    cell_m: float = 0.5,
+    roughness: float = 0.5,
+    n_trees: int = 15,
+    n_rocks: int = 5,
+    n_buildings: int = 2,
+    center_m=(0.0, 0.0),
+    clear_radius_m: float = 5.0,
+) -> Terrain:
+    """A random scene: hills and bumps scaled by ``roughness``, with trees, rocks and buildings.
+
+    Heights are smooth Gaussian random fields: hills (std ``2 m * roughness``, length scale
+    8 m) plus bumps (std ``0.4 m * roughness**2``, length scale 1 m), so ``roughness=0`` is
+    level ground at height 0, 0.5 gently rolling, 1 and more rugged. Obstacles stand on the
+    ground (their bases reach the lowest ground under their footprint) and keep out of the
+    disc of ``clear_radius_m`` around ``center_m``, where a vehicle can start. Obstacle layout
+    does not depend on ``roughness`` for a given generator state.
+
+    Args:
+        np_random: the only source of randomness.
+        size_m: side of the square scene [m].
+        cell_m: grid spacing [m].
+        roughness: dimensionless ground roughness, >= 0.
+        n_trees: trees (vegetation cylinders, radius 0.2-0.6 m, 4-12 m tall).
+        n_rocks: rocks (rock cylinders, radius 0.4-1.5 m, 0.3-1.5 m tall).
+        n_buildings: buildings (boxes, sides 3-10 m, 3-8 m tall).
+        center_m: ``(x, y)`` of the scene centre [m].
+        clear_radius_m: obstacle-free radius around the centre [m].
+    """
+    points = _grid_points(size_m, cell_m)
+    if not (math.isfinite(roughness) and roughness >= 0):
+        raise ValueError(f"roughness must be a finite number >= 0, got {roughness!r}")
+    for name, count in (("n_trees", n_trees), ("n_rocks", n_rocks), ("n_buildings", n_buildings)):
+        if int(count) != count or count < 0:
+            raise ValueError(f"{name} must be a non-negative integer, got {count!r}")
+    if not (math.isfinite(clear_radius_m) and 0 <= clear_radius_m < size_m / 2):
+        raise ValueError(f"clear_radius_m must be in [0, size_m / 2 = {size_m / 2}), got {clear_radius_m!r}")
+    hills = _unit_field(np_random, points, _HILL_CORRELATION_M / cell_m)
+    bumps = _unit_field(np_random, points, _BUMP_CORRELATION_M / cell_m)
+    heights = roughness * (_HILL_STD_M * hills + roughness * _BUMP_STD_M * bumps) + 0.0
+    center = np.array(_finite_vector(center_m, 2, "center_m"))
+    ground = Terrain(heights, tuple(center - size_m / 2), cell_m)
+
+    def place(count: int, footprint_radius_m: np.ndarray) -> np.ndarray:
+        """Centres (count, 2) inside the scene, their footprints clear of the central disc."""
+        half = size_m / 2 - footprint_radius_m
+        centers = np.empty((count, 2))
+        for index in range(count):
+            for _ in range(_MAX_PLACEMENT_ATTEMPTS):
+                offset = np_random.uniform(-half[index], half[index], size=2)
+                if half[index] > 0 and np.linalg.norm(offset) > clear_radius_m + footprint_radius_m[index]:
+                    break
+            else:
+                raise ValueError(
+                    f"could not place an obstacle of footprint radius {footprint_radius_m[index]:.2f} m in a "
+                    f"{size_m} m scene clear of the central disc of radius {clear_radius_m} m: enlarge size_m"
+                )
+            centers[index] = center + offset
+        return centers
+
+    def lowest_ground(center_xy, half_extent_m) -> float:
+        corners = center_xy + half_extent_m * np.array([[-1, -1], [-1, 1], [1, -1], [1, 1], [0, 0]])
+        return float(ground.height_at(corners).min())
+
+    def standing_cylinders(count, radius_range, height_range, material) -> list[Cylinder]:
+        radii = np_random.uniform(*radius_range, size=count)
+        tall = np_random.uniform(*height_range, size=count)
+        centers = place(count, radii)
+        return [
+            Cylinder(
+                tuple(xy), float(r), lowest_ground(xy, r), float(ground.height_at(xy)) + float(t), material=material
+            )
+            for xy, r, t in zip(centers, radii, tall, strict=True)
+        ]
+
+    trees = standing_cylinders(int(n_trees), (0.2, 0.6), (4.0, 12.0), "vegetation")
+    rocks = standing_cylinders(int(n_rocks), (0.4, 1.5), (0.3, 1.5), "rock")
+    sides = np_random.uniform(3.0, 10.0, size=(int(n_buildings), 2))
+    tall = np_random.uniform(3.0, 8.0, size=int(n_buildings))
+    centers = place(int(n_buildings), np.linalg.norm(sides, axis=1) / 2)
+    buildings = [
+        Box(
+            (*(xy - half), lowest_ground(xy, half)),
+            (*(xy + half), float(ground.height_at(xy)) + float(t)),
+        )
+        for xy, half, t in zip(centers, sides / 2, tall, strict=True)
+    ]
+    return ground.with_obstacles(cylinders=trees + rocks, boxes=buildings)
