@@ -15,25 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pan_tilt, check_pose, unit_directions
 from infonav_gym.world.terrain import Terrain
-
-
-def _check_pose(vehicle_pose) -> np.ndarray:
-    pose = np.asarray(vehicle_pose, dtype=float)
-    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-        raise ValueError(f"vehicle_pose must be finite [x, y, heading] [m, m, rad], got {vehicle_pose!r}")
-    return pose
-
-
-def _unit_directions(azimuth_rad: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
-    """World unit vectors (R, C, 3) for column azimuths (C,) and row elevations (R,)."""
-    cos_elevation = np.cos(elevation_rad)[:, None]
-    return np.stack(
-        np.broadcast_arrays(
-            cos_elevation * np.cos(azimuth_rad), cos_elevation * np.sin(azimuth_rad), np.sin(elevation_rad)[:, None]
-        ),
-        axis=-1,
-    )
 
 
 @dataclass(frozen=True)
@@ -60,7 +43,7 @@ class LadarScan:
 
 
 @dataclass(frozen=True)
-class Ladar:
+class Ladar(PanTiltGrid):
     """A LADAR producing a ``rows x columns`` range image (defaults: the XUV's 32 x 180, 20 x 80 degrees).
 
     Attributes:
@@ -74,6 +57,8 @@ class Ladar:
         tilt_rad: depression of the optical axis, positive = looking down [rad].
         pan_rad: azimuth of the optical axis from the vehicle heading, positive = left [rad].
     """
+
+    SENSOR_NAME = "LADAR"
 
     rows: int = 32
     columns: int = 180
@@ -100,38 +85,13 @@ class Ladar:
                 raise ValueError(f"LADAR {key} must be positive and finite, got {value!r}")
         if not (math.isfinite(self.range_std_m) and self.range_std_m >= 0):
             raise ValueError(f"LADAR range_std_m must be finite and >= 0, got {self.range_std_m!r}")
-        self._check_pan_tilt(self.pan_rad, self.tilt_rad)
-
-    def _check_pan_tilt(self, pan_rad: float, tilt_rad: float) -> None:
-        if not math.isfinite(pan_rad):
-            raise ValueError(f"LADAR pan_rad must be finite, got {pan_rad!r}")
-        if not (math.isfinite(tilt_rad) and abs(tilt_rad) + self.vertical_fov_rad / 2 < math.pi / 2):
-            raise ValueError(
-                f"LADAR tilt_rad={tilt_rad!r} would tilt rows to or past vertical: |tilt_rad| + vertical_fov_rad / 2 "
-                f"must stay below pi/2 (vertical_fov_rad={self.vertical_fov_rad!r})"
-            )
-
-    def pixel_angles(
-        self, pan_rad: float | None = None, tilt_rad: float | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Column azimuths (columns,) relative to the vehicle heading and row elevations (rows,) [rad].
-
-        ``pan_rad`` / ``tilt_rad`` override the configured platform angles for this call.
-        """
-        pan_rad = self.pan_rad if pan_rad is None else float(pan_rad)
-        tilt_rad = self.tilt_rad if tilt_rad is None else float(tilt_rad)
-        self._check_pan_tilt(pan_rad, tilt_rad)
-        column_step = self.horizontal_fov_rad / self.columns
-        row_step = self.vertical_fov_rad / self.rows
-        azimuth = pan_rad + self.horizontal_fov_rad / 2 - (np.arange(self.columns) + 0.5) * column_step
-        elevation = self.vertical_fov_rad / 2 - (np.arange(self.rows) + 0.5) * row_step - tilt_rad
-        return azimuth, elevation
+        check_pan_tilt("LADAR", self.pan_rad, self.tilt_rad, self.vertical_fov_rad)
 
     def ray_directions(self, vehicle_pose, pan_rad: float | None = None, tilt_rad: float | None = None) -> np.ndarray:
         """World-frame unit directions (rows, columns, 3) of the pixels; see the module docstring for the order."""
-        pose = _check_pose(vehicle_pose)
+        pose = check_pose(vehicle_pose)
         azimuth, elevation = self.pixel_angles(pan_rad, tilt_rad)
-        return _unit_directions(pose[2] + azimuth, elevation)
+        return unit_directions(pose[2] + azimuth, elevation)
 
     def scan(
         self,
@@ -147,7 +107,7 @@ class Ladar:
         pixel's range is the first hit of its ray plus Gaussian noise from ``np_random``,
         clipped to ``[0, max_range_m]``; pixels without a hit read ``max_range_m``.
         """
-        pose = _check_pose(vehicle_pose)
+        pose = check_pose(vehicle_pose)
         azimuth, elevation = self.pixel_angles(pan_rad, tilt_rad)
         ground_m = float(terrain.height_at(pose[:2]))
         sensor_position = np.array([pose[0], pose[1], ground_m + self.mount_height_m])
@@ -178,8 +138,8 @@ def point_cloud(scan: LadarScan, vehicle_pose=None) -> np.ndarray:
             registration); default: the true pose of the scan. The sensor's elevation is the
             scan's in either case.
     """
-    pose = scan.vehicle_pose if vehicle_pose is None else _check_pose(vehicle_pose)
+    pose = scan.vehicle_pose if vehicle_pose is None else check_pose(vehicle_pose)
     origin = np.array([pose[0], pose[1], scan.sensor_position_m[2]])
-    directions = _unit_directions(pose[2] + scan.azimuth_rad, scan.elevation_rad)
+    directions = unit_directions(pose[2] + scan.azimuth_rad, scan.elevation_rad)
     returns = ~scan.no_return
     return origin + directions[returns] * scan.ranges_m[returns, None].astype(float)

@@ -1,0 +1,246 @@
+"""Grayscale camera on a pan-tilt platform: a Lambertian-shaded uint8 image of a 2.5D ``Terrain``.
+
+Pixel model: the same equiangular grid as the ``Ladar`` (see ``infonav_gym.sensors.ladar``).
+Row 0 is the top row, column 0 the leftmost; pixel ``(r, c)`` looks at elevation
+``vertical_fov/2 - (r + 1/2) * vertical_fov/rows - tilt`` and azimuth
+``heading + pan + horizontal_fov/2 - (c + 1/2) * horizontal_fov/columns``. Each column is one
+vertical plane, so ``Terrain.cast_rays`` renders the whole image in one vectorized call. This
+approximates a pinhole camera: a pinhole's pixels are equally spaced on the image plane (angles
+``atan`` of linear offsets) and a tilted pinhole's columns lean off the vertical. At the default
+60 degree field of view the angular spacing differs by at most ~30 % between centre and edge, and
+the scene's radiometry (what the histogram entropy measures) is unaffected.
+
+Radiometry: a pixel whose ray hits nothing within ``max_range_m`` (a far plane, like haze) sees the
+sky, gray level ``exposure * sky_luminance``; a hit pixel reads
+``exposure * albedo(material, position) * (ambient + (1 - ambient) * max(0, n . sun))`` with ``n``
+the outward surface normal at the hit and ``sun`` the unit vector towards the sun. Gaussian sensor
+noise (in gray levels) from ``np_random`` is added, then levels are rounded and clipped to 0..255
+(saturation, never wrapping).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pan_tilt, check_pose, unit_directions
+from infonav_gym.world.terrain import MATERIALS, Cylinder, Terrain
+
+_GROUND = MATERIALS.index("ground")
+_TEXTURE_OCTAVES = ((0.5, 0.5), (2.0, 0.3), (8.0, 0.2))  # (cell [m], weight) of the ground value noise
+
+
+_TEXTURE_TABLE_SIZE = 256  # lattice values repeat every 256 cells (128 m at the finest octave)
+_TEXTURE_TABLE = np.random.default_rng(20240917).random((len(_TEXTURE_OCTAVES), _TEXTURE_TABLE_SIZE**2))  # fixed
+
+
+def ground_texture(xy) -> np.ndarray:
+    """Deterministic texture of world position ``xy`` (..., 2) [m] -> (...) in [-1, 1].
+
+    Smoothly interpolated value noise in three octaves (0.5 m, 2 m and 8 m cells), so the ground
+    looks like patchy soil and grass at any distance and two views of one spot agree.
+    """
+    points = np.asarray(xy, dtype=float)
+    total = np.zeros(points.shape[:-1])
+    for octave, (cell_m, weight) in enumerate(_TEXTURE_OCTAVES):
+        scaled = points / cell_m
+        corner = np.floor(scaled)
+        fraction = scaled - corner
+        smooth = fraction * fraction * (3 - 2 * fraction)
+        i = corner[..., 0].astype(np.int64) % _TEXTURE_TABLE_SIZE
+        j = corner[..., 1].astype(np.int64) % _TEXTURE_TABLE_SIZE
+        i_next, j_next = (i + 1) % _TEXTURE_TABLE_SIZE, (j + 1) % _TEXTURE_TABLE_SIZE
+        table = _TEXTURE_TABLE[octave]
+        v00, v10 = table.take(j * _TEXTURE_TABLE_SIZE + i), table.take(j * _TEXTURE_TABLE_SIZE + i_next)
+        v01, v11 = table.take(j_next * _TEXTURE_TABLE_SIZE + i), table.take(j_next * _TEXTURE_TABLE_SIZE + i_next)
+        sx, sy = smooth[..., 0], smooth[..., 1]
+        value = (1 - sy) * ((1 - sx) * v00 + sx * v10) + sy * ((1 - sx) * v01 + sx * v11)
+        total += weight * (2 * value - 1)
+    return total / sum(weight for _, weight in _TEXTURE_OCTAVES)
+
+
+def _obstacle_normals(terrain: Terrain, points: np.ndarray, material: np.ndarray) -> np.ndarray:
+    """Outward unit normals (N, 3) at obstacle hit points (N, 3) of known material index (N,).
+
+    ``cast_rays`` reports the material, not the obstacle, so each point is attributed to the
+    obstacle of that material whose surface is nearest (by the bound ``|max(per-face distance)|``,
+    0 on the surface); the normal is the cylinder's radial direction or its cap's, or the normal of
+    the box face nearest the point.
+    """
+    count, cylinder_count = points.shape[0], len(terrain.cylinders)
+    if count == 0:
+        return np.zeros((0, 3))
+    obstacles = terrain.cylinders + terrain.boxes
+    centers = np.array([o.center_m if isinstance(o, Cylinder) else (0.0, 0.0) for o in obstacles])
+    radii = np.array([o.radius_m if isinstance(o, Cylinder) else 0.0 for o in obstacles])
+    low = np.array([(0.0, 0.0, o.bottom_m) if isinstance(o, Cylinder) else o.min_corner_m for o in obstacles])
+    high = np.array([(0.0, 0.0, o.top_m) if isinstance(o, Cylinder) else o.max_corner_m for o in obstacles])
+    x, y, z = points[:, 0:1], points[:, 1:2], points[:, 2:3]
+    cap = np.maximum(z - high[:, 2], low[:, 2] - z)  # (N, M) signed distance to the top/bottom planes
+    cylinder_side = np.hypot(x - centers[:cylinder_count, 0], y - centers[:cylinder_count, 1]) - radii[:cylinder_count]
+    box_x = np.maximum(x - high[cylinder_count:, 0], low[cylinder_count:, 0] - x)
+    box_y = np.maximum(y - high[cylinder_count:, 1], low[cylinder_count:, 1] - y)
+    side = np.concatenate([cylinder_side, np.maximum(box_x, box_y)], axis=1)
+    materials = np.array([MATERIALS.index(o.material) for o in obstacles], dtype=material.dtype)
+    distance = np.where(material[:, None] == materials, np.abs(np.maximum(side, cap)), np.inf)
+    nearest = distance.argmin(axis=1)
+    rows = np.arange(count)
+    on_cap = cap[rows, nearest] > side[rows, nearest]
+    middle_z = 0.5 * (low[nearest, 2] + high[nearest, 2])
+    normals = np.zeros((count, 3))
+    normals[:, 2] = np.where(on_cap, np.where(points[:, 2] >= middle_z, 1.0, -1.0), 0.0)
+    is_cylinder = ~on_cap & (nearest < cylinder_count)
+    radial = points[is_cylinder, :2] - centers[nearest[is_cylinder]]
+    normals[is_cylinder, :2] = radial / np.linalg.norm(radial, axis=1, keepdims=True)
+    is_box = ~on_cap & (nearest >= cylinder_count)
+    box, box_index = points[is_box], nearest[is_box]
+    on_x = box_x[is_box, box_index - cylinder_count] >= box_y[is_box, box_index - cylinder_count]
+    box_middle = 0.5 * (low[box_index, :2] + high[box_index, :2])
+    normals[is_box, 0] = np.where(on_x, np.where(box[:, 0] >= box_middle[:, 0], 1.0, -1.0), 0.0)
+    normals[is_box, 1] = np.where(on_x, 0.0, np.where(box[:, 1] >= box_middle[:, 1], 1.0, -1.0))
+    return normals
+
+
+@dataclass(frozen=True)
+class Camera(PanTiltGrid):
+    """A grayscale camera producing a ``rows x columns`` uint8 image (default 120 x 160, 60 degrees wide).
+
+    Attributes:
+        rows: image rows.
+        columns: image columns.
+        horizontal_fov_rad: horizontal field of view [rad], in (0, pi).
+        vertical_fov_rad: vertical field of view [rad], in (0, pi); ``None`` derives it from the
+            aspect ratio as a pinhole with square pixels would: ``2 atan(tan(h/2) rows/columns)``.
+        mount_height_m: optical centre above the ground under the vehicle [m].
+        tilt_rad: depression of the optical axis, positive = looking down [rad].
+        pan_rad: azimuth of the optical axis from the vehicle heading, positive = left [rad].
+        max_range_m: far plane: nothing beyond it is rendered, those pixels show sky [m].
+        sun_azimuth_rad: world azimuth towards the sun, counterclockwise from +x [rad].
+        sun_elevation_rad: elevation of the sun above the horizon [rad], in (0, pi/2].
+        sky_luminance: sky brightness relative to a white (albedo 1) surface lit head-on, >= 0.
+        ground_albedo: mean reflectance of the ground, in [0, 1].
+        vegetation_albedo: reflectance of trees, in [0, 1].
+        rock_albedo: reflectance of rocks, in [0, 1].
+        building_albedo: reflectance of walls and buildings, in [0, 1].
+        ground_texture_contrast: relative amplitude of the ground texture, in [0, 1); the ground
+            albedo at ``xy`` is ``ground_albedo * (1 + contrast * ground_texture(xy))``; 0 is uniform.
+        ambient: fraction of the light that is diffuse (reaches surfaces facing away from the sun), in [0, 1].
+        exposure: gray level of a white surface lit head-on (gain), >= 0.
+        noise_std: standard deviation of the Gaussian sensor noise [gray levels], >= 0.
+    """
+
+    SENSOR_NAME = "camera"
+
+    rows: int = 120
+    columns: int = 160
+    horizontal_fov_rad: float = math.radians(60.0)
+    vertical_fov_rad: float | None = None
+    mount_height_m: float = 2.0
+    tilt_rad: float = math.radians(5.0)
+    pan_rad: float = 0.0
+    max_range_m: float = 100.0
+    sun_azimuth_rad: float = math.radians(135.0)
+    sun_elevation_rad: float = math.radians(45.0)
+    sky_luminance: float = 1.1
+    ground_albedo: float = 0.45
+    vegetation_albedo: float = 0.2
+    rock_albedo: float = 0.5
+    building_albedo: float = 0.75
+    ground_texture_contrast: float = 0.5
+    ambient: float = 0.3
+    exposure: float = 200.0
+    noise_std: float = 2.0
+
+    def __post_init__(self):
+        for key in ("rows", "columns"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"camera {key} must be a positive integer, got {value!r}")
+        if self.vertical_fov_rad is None and 0 < self.horizontal_fov_rad < math.pi:
+            derived = 2 * math.atan(math.tan(self.horizontal_fov_rad / 2) * self.rows / self.columns)
+            object.__setattr__(self, "vertical_fov_rad", derived)
+        for key in ("horizontal_fov_rad", "vertical_fov_rad"):
+            value = getattr(self, key)
+            if value is None or not 0 < value < math.pi:
+                raise ValueError(f"camera {key} must be in (0, pi) rad, i.e. (0, 180) degrees, got {value!r}")
+        for key in ("mount_height_m", "max_range_m"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"camera {key} must be positive and finite, got {value!r}")
+        if not math.isfinite(self.sun_azimuth_rad):
+            raise ValueError(f"camera sun_azimuth_rad must be finite, got {self.sun_azimuth_rad!r}")
+        if not 0 < self.sun_elevation_rad <= math.pi / 2:
+            raise ValueError(f"camera sun_elevation_rad must be in (0, pi/2] rad, got {self.sun_elevation_rad!r}")
+        for key in ("ground_albedo", "vegetation_albedo", "rock_albedo", "building_albedo", "ambient"):
+            value = getattr(self, key)
+            if not 0 <= value <= 1:
+                raise ValueError(f"camera {key} must be in [0, 1], got {value!r}")
+        if not 0 <= self.ground_texture_contrast < 1:
+            raise ValueError(f"camera ground_texture_contrast must be in [0, 1), got {self.ground_texture_contrast!r}")
+        for key in ("sky_luminance", "exposure", "noise_std"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"camera {key} must be finite and >= 0, got {value!r}")
+        check_pan_tilt("camera", self.pan_rad, self.tilt_rad, self.vertical_fov_rad)
+
+    @property
+    def sun_direction(self) -> np.ndarray:
+        """World unit vector (3,) towards the sun."""
+        return unit_directions(np.array([self.sun_azimuth_rad]), np.array([self.sun_elevation_rad]))[0, 0]
+
+    @property
+    def sky_level(self) -> float:
+        """Noise-free gray level of the sky, before saturation."""
+        return self.exposure * self.sky_luminance
+
+    def albedo(self, material_index: int) -> float:
+        """Mean reflectance of ``MATERIALS[material_index]``."""
+        return getattr(self, f"{MATERIALS[material_index]}_albedo")
+
+    def radiance(
+        self, terrain: Terrain, vehicle_pose, pan_rad: float | None = None, tilt_rad: float | None = None
+    ) -> np.ndarray:
+        """Noise-free, unclipped gray levels (rows, columns) float64 of ``terrain`` from ``vehicle_pose``."""
+        pose = check_pose(vehicle_pose)
+        azimuth, elevation = self.pixel_angles(pan_rad, tilt_rad)
+        ground_m = float(terrain.height_at(pose[:2]))
+        origin = np.array([pose[0], pose[1], ground_m + self.mount_height_m])
+        hits = terrain.cast_rays(origin, pose[2] + azimuth, elevation, self.max_range_m)
+        levels = np.full(hits.range_m.shape, self.sky_level)
+        hit = np.isfinite(hits.range_m)
+        if not hit.any():
+            return levels
+        directions = unit_directions(pose[2] + azimuth, elevation)[hit]
+        points = origin + directions * hits.range_m[hit][:, None]
+        material = hits.material_index[hit]
+        on_ground = material == _GROUND
+        normals = np.empty_like(points)
+        normals[on_ground] = terrain.surface_normal_at(points[on_ground, :2])
+        normals[~on_ground] = _obstacle_normals(terrain, points[~on_ground], material[~on_ground])
+        albedo = np.array([self.albedo(index) for index in range(len(MATERIALS))])[material]
+        if self.ground_texture_contrast > 0:
+            texture = ground_texture(points[on_ground, :2])
+            albedo[on_ground] *= 1 + self.ground_texture_contrast * texture
+        shading = self.ambient + (1 - self.ambient) * np.maximum(normals @ self.sun_direction, 0.0)
+        levels[hit] = self.exposure * albedo * shading
+        return levels
+
+    def capture(
+        self,
+        terrain: Terrain,
+        vehicle_pose,
+        np_random: np.random.Generator,
+        pan_rad: float | None = None,
+        tilt_rad: float | None = None,
+    ) -> np.ndarray:
+        """Grayscale uint8 image (rows, columns) of ``terrain`` from ``vehicle_pose`` ``[x, y, heading]``.
+
+        The optical centre is ``mount_height_m`` above the ground under the vehicle. Gaussian noise
+        of ``noise_std`` gray levels is drawn from ``np_random`` for every pixel (also when the std
+        is 0, so the generator advances the same way), then levels are rounded and clipped to 0..255.
+        """
+        levels = self.radiance(terrain, vehicle_pose, pan_rad, tilt_rad)
+        noisy = levels + self.noise_std * np_random.standard_normal(levels.shape)
+        return np.clip(np.rint(noisy), 0, 255).astype(np.uint8)

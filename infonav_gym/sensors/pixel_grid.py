@@ -1,0 +1,66 @@
+"""The equiangular pixel grid shared by the LADAR and the camera on a pan-tilt platform.
+
+Row 0 is the top row and column 0 the leftmost. Pixel ``(r, c)`` looks along the
+centre of its angular cell; azimuths are counterclockwise from the vehicle heading.
+Tilt lowers every row by the same angle, so each column's rays stay in one vertical
+plane (what ``Terrain.cast_rays`` needs).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def check_pose(vehicle_pose) -> np.ndarray:
+    """``vehicle_pose`` as a finite float array ``[x, y, heading]``, or ``ValueError``."""
+    pose = np.asarray(vehicle_pose, dtype=float)
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise ValueError(f"vehicle_pose must be finite [x, y, heading] [m, m, rad], got {vehicle_pose!r}")
+    return pose
+
+
+def unit_directions(azimuth_rad: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
+    """World unit vectors (R, C, 3) for column azimuths (C,) and row elevations (R,)."""
+    cos_elevation = np.cos(elevation_rad)[:, None]
+    return np.stack(
+        np.broadcast_arrays(
+            cos_elevation * np.cos(azimuth_rad), cos_elevation * np.sin(azimuth_rad), np.sin(elevation_rad)[:, None]
+        ),
+        axis=-1,
+    )
+
+
+def check_pan_tilt(sensor: str, pan_rad: float, tilt_rad: float, vertical_fov_rad: float) -> None:
+    """``ValueError`` (naming ``sensor``) unless the pan is finite and the tilt keeps every row short of vertical."""
+    if not math.isfinite(pan_rad):
+        raise ValueError(f"{sensor} pan_rad must be finite, got {pan_rad!r}")
+    if not (math.isfinite(tilt_rad) and abs(tilt_rad) + vertical_fov_rad / 2 < math.pi / 2):
+        raise ValueError(
+            f"{sensor} tilt_rad={tilt_rad!r} would tilt rows to or past vertical: |tilt_rad| + vertical_fov_rad / 2 "
+            f"must stay below pi/2 (vertical_fov_rad={vertical_fov_rad!r})"
+        )
+
+
+class PanTiltGrid:
+    """Pixel angles for a sensor dataclass with ``rows``, ``columns``, ``horizontal_fov_rad``,
+    ``vertical_fov_rad``, ``pan_rad`` and ``tilt_rad`` fields; ``SENSOR_NAME`` names it in errors."""
+
+    SENSOR_NAME = "sensor"
+
+    def pixel_angles(
+        self, pan_rad: float | None = None, tilt_rad: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Column azimuths (columns,) relative to the vehicle heading and row elevations (rows,) [rad].
+
+        ``pan_rad`` / ``tilt_rad`` override the configured platform angles for this call.
+        """
+        pan_rad = self.pan_rad if pan_rad is None else float(pan_rad)
+        tilt_rad = self.tilt_rad if tilt_rad is None else float(tilt_rad)
+        check_pan_tilt(self.SENSOR_NAME, pan_rad, tilt_rad, self.vertical_fov_rad)
+        column_step = self.horizontal_fov_rad / self.columns
+        row_step = self.vertical_fov_rad / self.rows
+        azimuth = pan_rad + self.horizontal_fov_rad / 2 - (np.arange(self.columns) + 0.5) * column_step
+        elevation = self.vertical_fov_rad / 2 - (np.arange(self.rows) + 0.5) * row_step - tilt_rad
+        return azimuth, elevation
