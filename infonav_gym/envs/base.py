@@ -37,12 +37,32 @@ def discrete_action_index(action, space: gym.spaces.Discrete) -> int:
 
 
 class SceneRendering:
-    """``render``, ``close`` and pickling for envs that describe their frames with ``_scene_frame()``.
+    """Config and render mode checks, ``render``, ``close`` and pickling, shared by every infonav env.
 
-    Used by the single-agent envs and the PettingZoo team env. The host sets
-    ``render_mode``, ``config["render_size_px"]``, ``metadata["render_fps"]``,
-    ``_renderer = None`` and ``_elapsed_steps`` (None until the first reset).
+    Used by the single-agent envs and the PettingZoo team env. The host has
+    ``metadata`` (``render_modes``, ``render_fps``), a ``default_config()`` with
+    ``invalid_action`` and ``render_size_px``, calls ``_configure`` in ``__init__``,
+    describes frames with ``_scene_frame()`` and counts ``_elapsed_steps`` from reset.
     """
+
+    def _configure(self, render_mode: str | None, config: dict) -> None:
+        """Set ``render_mode`` and ``config`` (``default_config()`` merged with ``config``), checking the shared keys.
+
+        Also starts the host's rendering state (no renderer, no episode yet).
+        """
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        self.render_mode = render_mode
+        owner = type(self).__name__
+        self.config = merge_config(self.default_config(), config, owner)
+        check_choice(self.config, "invalid_action", INVALID_ACTION_MODES, owner)
+        if self.config["render_size_px"] < MIN_RENDER_SIZE_PX:
+            raise ValueError(
+                f"config key 'render_size_px' of {owner} must be >= {MIN_RENDER_SIZE_PX}, "
+                f"got {self.config['render_size_px']}"
+            )
+        self._renderer = None
+        self._elapsed_steps = None
 
     def render(self):
         if self.render_mode is None:
@@ -85,17 +105,11 @@ class InfoNavEnv(SceneRendering, gym.Env):
         }
 
     def __init__(self, render_mode: str | None = None, **config):
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
-        self.render_mode = render_mode
-        owner = type(self).__name__
-        self.config = merge_config(self.default_config(), config, owner)
-        check_choice(self.config, "invalid_action", INVALID_ACTION_MODES, owner)
-        for key, smallest in (("horizon", 1), ("render_size_px", MIN_RENDER_SIZE_PX)):
-            if self.config[key] < smallest:
-                raise ValueError(f"config key {key!r} of {owner} must be >= {smallest}, got {self.config[key]}")
-        self._renderer = None
-        self._elapsed_steps = None
+        self._configure(render_mode, config)
+        if self.config["horizon"] < 1:
+            raise ValueError(
+                f"config key 'horizon' of {type(self).__name__} must be >= 1, got {self.config['horizon']}"
+            )
         self._action_mask = None
         self._action_information_gain = None
         self._chosen_action = None

@@ -9,8 +9,8 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
-from infonav_gym.config import check_choice, check_positive, merge_config
-from infonav_gym.envs.base import INVALID_ACTION_MODES, MIN_RENDER_SIZE_PX, SceneRendering, discrete_action_index
+from infonav_gym.config import check_choice, check_positive
+from infonav_gym.envs.base import SceneRendering, discrete_action_index
 from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
 from infonav_gym.estimation.models import relative_pose, wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
@@ -133,14 +133,10 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         }
 
     def __init__(self, render_mode: str | None = None, **config):
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
-        self.render_mode = render_mode
-        owner = type(self).__name__
-        cfg = self.config = merge_config(self.default_config(), config, owner)
+        self._configure(render_mode, config)
+        cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "scenario", TEAM_SCENARIOS, owner)
         check_choice(cfg, "estimator", ESTIMATORS, owner)
-        check_choice(cfg, "invalid_action", INVALID_ACTION_MODES, owner)
         check_positive(cfg, ["max_cycles", "time_step_s", "speed_mps", "gps_std_m", "field_size_m"], owner)
         check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
         check_positive(cfg, ["n_obstacles", "n_canopies"], owner, allow_zero=True)
@@ -148,8 +144,6 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
             raise ValueError(f"config key 'n_robots' of {owner} must be >= 2 (a team), got {cfg['n_robots']}")
         if not 0.0 <= cfg["team_reward"] <= 1.0:
             raise ValueError(f"config key 'team_reward' of {owner} must be in [0, 1], got {cfg['team_reward']}")
-        if cfg["render_size_px"] < MIN_RENDER_SIZE_PX:
-            raise ValueError(f"config key 'render_size_px' of {owner} must be >= {MIN_RENDER_SIZE_PX}")
         n = cfg["n_robots"]
         self.suites = parse_suites(cfg["robot_sensors"], n, cfg["scenario"])
         outages = parse_outages(cfg["gps_outages"], n)
@@ -175,8 +169,6 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         self._pair_sight_line = np.array([self._sight_lines.index((min(i, j), max(i, j))) for i, j in pairs], dtype=int)
         self.world = World()
         self.np_random = None
-        self._renderer = None
-        self._elapsed_steps = None
 
     @staticmethod
     def _observation_bounds(n_robots: int) -> tuple[np.ndarray, np.ndarray]:
