@@ -236,7 +236,8 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         own_before = self._pose_log_det
         joint_before = np.linalg.slogdet(self.ekf.P)[1]
         self._observe(chosen)
-        own_mi = 0.5 * (own_before - self._pose_log_dets())
+        own_log_dets, self._updated_pose_std = self._pose_uncertainty()
+        own_mi = 0.5 * (own_before - own_log_dets)
         team_mi = 0.5 * (joint_before - np.linalg.slogdet(self.ekf.P)[1])
         weight = self.config["team_reward"]
         self._reward_terms = [
@@ -245,7 +246,6 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         rewards = {
             agent: float((1.0 - weight) * own + weight * team_mi) for agent, own in zip(self.possible_agents, own_mi)
         }
-        self._updated_pose_std = np.sqrt(np.diagonal(self.ekf.pose_covariances(), axis1=1, axis2=2))
         self._advance()
         self._decide()
         observations, infos = self._observations(), self._infos()
@@ -316,8 +316,10 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
             covariances = np.array([self.gps[k].noise_covariance() for k in robots])
             self.ekf.gps_update(robots, fixes, covariances)
 
-    def _pose_log_dets(self) -> np.ndarray:
-        return np.linalg.slogdet(self.ekf.pose_covariances())[1]
+    def _pose_uncertainty(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per robot, ``ln det`` of its pose covariance (N,) and its x, y, heading standard deviations (N, 3)."""
+        covariances = self.ekf.pose_covariances()
+        return np.linalg.slogdet(covariances)[1], np.sqrt(np.diagonal(covariances, axis1=1, axis2=2))
 
     def _decide(self) -> None:
         """Action masks (who can see whom) and expected gains on the observer's own pose, at the current prior."""
@@ -344,15 +346,14 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
             weight = self.config["team_reward"]
             self._action_information_gain[observers, targets + 1] = (1.0 - weight) * own + weight * joint
             self._candidates = (predicted, H_observer, H_target, R)
-        self._pose_log_det = self._pose_log_dets()
+        self._pose_log_det, self._pose_std = self._pose_uncertainty()
 
     # ------------------------------------------------------------------ observations, infos
 
     def _observations(self) -> dict:
         n = len(self.possible_agents)
         estimates = self.ekf.x.reshape(-1, POSE_DIM)
-        covariances = self.ekf.pose_covariances()
-        std = np.sqrt(np.diagonal(covariances, axis1=1, axis2=2))
+        std = self._pose_std
         features = np.zeros((n, OWN_FEATURES + TEAMMATE_FEATURES * n), dtype=np.float32)
         features[:, 0:2] = estimates[:, :2]
         features[:, 2] = np.cos(estimates[:, 2])
@@ -376,7 +377,7 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
 
     def _infos(self) -> dict:
         estimates = self.ekf.x.reshape(-1, POSE_DIM)
-        std = np.sqrt(np.diagonal(self.ekf.pose_covariances(), axis1=1, axis2=2))
+        std = self._pose_std
         updated_std = std if self._updated_pose_std is None else self._updated_pose_std
         entropies = gaussian_entropy_from_log_det(self._pose_log_det, POSE_DIM)
         infos = {}

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pan_tilt, check_pose, unit_directions
+from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pose, unit_directions
 from infonav_gym.world.terrain import MATERIALS, Cylinder, Terrain
 
 _GROUND = MATERIALS.index("ground")
@@ -154,21 +154,11 @@ class Camera(PanTiltGrid):
     noise_std: float = 2.0
 
     def __post_init__(self):
-        for key in ("rows", "columns"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"camera {key} must be a positive integer, got {value!r}")
+        self._check_image_size()
         if self.vertical_fov_rad is None and 0 < self.horizontal_fov_rad < math.pi:
             derived = 2 * math.atan(math.tan(self.horizontal_fov_rad / 2) * self.rows / self.columns)
             object.__setattr__(self, "vertical_fov_rad", derived)
-        for key in ("horizontal_fov_rad", "vertical_fov_rad"):
-            value = getattr(self, key)
-            if value is None or not 0 < value < math.pi:
-                raise ValueError(f"camera {key} must be in (0, pi) rad, i.e. (0, 180) degrees, got {value!r}")
-        for key in ("mount_height_m", "max_range_m"):
-            value = getattr(self, key)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"camera {key} must be positive and finite, got {value!r}")
+        self._check_grid()
         if not math.isfinite(self.sun_azimuth_rad):
             raise ValueError(f"camera sun_azimuth_rad must be finite, got {self.sun_azimuth_rad!r}")
         if not 0 < self.sun_elevation_rad <= math.pi / 2:
@@ -183,7 +173,6 @@ class Camera(PanTiltGrid):
             value = getattr(self, key)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"camera {key} must be finite and >= 0, got {value!r}")
-        check_pan_tilt("camera", self.pan_rad, self.tilt_rad, self.vertical_fov_rad)
 
     @property
     def sun_direction(self) -> np.ndarray:

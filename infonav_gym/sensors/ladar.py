@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pan_tilt, check_pose, unit_directions
+from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pose, unit_directions
 from infonav_gym.world.terrain import Terrain
 
 
@@ -71,21 +71,9 @@ class Ladar(PanTiltGrid):
     pan_rad: float = 0.0
 
     def __post_init__(self):
-        for key in ("rows", "columns"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or int(value) != value or value < 1:
-                raise ValueError(f"LADAR {key} must be a positive integer, got {value!r}")
-        for key in ("vertical_fov_rad", "horizontal_fov_rad"):
-            value = getattr(self, key)
-            if not 0 < value < math.pi:
-                raise ValueError(f"LADAR {key} must be in (0, pi) rad, i.e. (0, 180) degrees, got {value!r}")
-        for key in ("mount_height_m", "max_range_m"):
-            value = getattr(self, key)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"LADAR {key} must be positive and finite, got {value!r}")
+        self._check_grid()
         if not (math.isfinite(self.range_std_m) and self.range_std_m >= 0):
             raise ValueError(f"LADAR range_std_m must be finite and >= 0, got {self.range_std_m!r}")
-        check_pan_tilt("LADAR", self.pan_rad, self.tilt_rad, self.vertical_fov_rad)
 
     def ray_directions(self, vehicle_pose, pan_rad: float | None = None, tilt_rad: float | None = None) -> np.ndarray:
         """World-frame unit directions (rows, columns, 3) of the pixels; see the module docstring for the order."""

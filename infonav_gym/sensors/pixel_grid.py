@@ -44,10 +44,35 @@ def check_pan_tilt(sensor: str, pan_rad: float, tilt_rad: float, vertical_fov_ra
 
 
 class PanTiltGrid:
-    """Pixel angles for a sensor dataclass with ``rows``, ``columns``, ``horizontal_fov_rad``,
-    ``vertical_fov_rad``, ``pan_rad`` and ``tilt_rad`` fields; ``SENSOR_NAME`` names it in errors."""
+    """Pixel angles and grid checks for a sensor dataclass on the pan-tilt platform.
+
+    The host has ``rows``, ``columns``, ``horizontal_fov_rad``, ``vertical_fov_rad``,
+    ``mount_height_m``, ``max_range_m``, ``pan_rad`` and ``tilt_rad`` fields;
+    ``SENSOR_NAME`` names it in errors.
+    """
 
     SENSOR_NAME = "sensor"
+
+    def _check_image_size(self) -> None:
+        """``ValueError`` naming the field unless ``rows`` and ``columns`` are positive integers."""
+        for key in ("rows", "columns"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"{self.SENSOR_NAME} {key} must be a positive integer, got {value!r}")
+
+    def _check_grid(self) -> None:
+        """``ValueError`` naming the field unless the grid, mount, range, pan and tilt are valid."""
+        name = self.SENSOR_NAME
+        self._check_image_size()
+        for key in ("horizontal_fov_rad", "vertical_fov_rad"):
+            value = getattr(self, key)
+            if value is None or not 0 < value < math.pi:
+                raise ValueError(f"{name} {key} must be in (0, pi) rad, i.e. (0, 180) degrees, got {value!r}")
+        for key in ("mount_height_m", "max_range_m"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} {key} must be positive and finite, got {value!r}")
+        check_pan_tilt(name, self.pan_rad, self.tilt_rad, self.vertical_fov_rad)
 
     def pixel_angles(
         self, pan_rad: float | None = None, tilt_rad: float | None = None
