@@ -7,12 +7,12 @@ import pytest
 
 from infonav_gym.estimation.models import unicycle_motion
 from infonav_gym.world import SCENARIOS, CircleObstacle, Scenario, World
+from infonav_gym.world.geometry import distance_to_loop
 from infonav_gym.world.scenarios import (
     CORRIDOR_LANDMARK_COUNT,
     MAX_CANOPY_COVER,
     TEAM_ROUTE_GAP_M,
     Route,
-    _distance_to_route,
     corridor,
     field,
     team_field,
@@ -212,7 +212,7 @@ def test_team_field_routes_lie_in_separate_bands_and_obstacles_and_canopies_fit_
     polygons = team_field_route_polygons(scenario)
     assert len(scenario.routes) == 4 and all(route.loop for route in scenario.routes)
     assert scenario.landmarks.shape == (0, 2)
-    nearest = [_distance_to_route(center, polygon) for polygon in polygons]  # a polygon's closest point to the centre
+    nearest = [distance_to_loop(center, polygon) for polygon in polygons]  # a polygon's closest point to the centre
     farthest = [np.max(np.linalg.norm(polygon - center, axis=1)) for polygon in polygons]
     order = np.argsort(nearest)
     for inner, outer in zip(order[:-1], order[1:]):
@@ -223,11 +223,11 @@ def test_team_field_routes_lie_in_separate_bands_and_obstacles_and_canopies_fit_
     assert np.all(np.array(farthest) < size_m / 2 - 2.0)
     assert len(scenario.obstacles) == 6
     for obstacle in scenario.obstacles:
-        assert all(_distance_to_route(np.array(obstacle.center), p) > obstacle.radius + 2.0 for p in polygons)
+        assert all(distance_to_loop(np.array(obstacle.center), p) > obstacle.radius + 2.0 for p in polygons)
     assert len(scenario.gps_denied_zones) == 3
     for canopy in scenario.gps_denied_zones:
         assert 4.0 <= canopy.radius <= 8.0
-        assert min(_distance_to_route(np.array(canopy.center), p) for p in polygons) < 1e-9
+        assert min(distance_to_loop(np.array(canopy.center), p) for p in polygons) < 1e-9
         assert np.all(np.linalg.norm(starts - canopy.center, axis=1) >= canopy.radius), "robots start in the open"
         for polygon in polygons:  # vertices and edge midpoints: no route lies (mostly) under one canopy
             points = np.concatenate([polygon, 0.5 * (polygon + np.roll(polygon, -1, axis=0))])

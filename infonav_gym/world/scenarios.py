@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from infonav_gym.world.geometry import distance_to_loop
+
 CORRIDOR_LANDMARK_COUNT = 4
 
 
@@ -97,14 +99,6 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
     )
 
 
-def _distance_to_route(point: np.ndarray, route: np.ndarray) -> float:
-    """Shortest distance from ``point`` to the closed polyline ``route``."""
-    starts, ends = route, np.roll(route, -1, axis=0)
-    direction = ends - starts
-    t = np.clip(np.einsum("ij,ij->i", point - starts, direction) / np.einsum("ij,ij->i", direction, direction), 0, 1)
-    return float(np.min(np.linalg.norm(starts + t[:, None] * direction - point, axis=1)))
-
-
 def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: int = 1000) -> list:
     """Draw until ``count`` samples pass ``accept``; a clear error if the layout is too crowded."""
     accepted = []
@@ -148,7 +142,7 @@ def _obstacles_clear_of(polygons: list, count: int, size_m: float, np_random: np
     return _rejection_sample(
         count,
         lambda: CircleObstacle(tuple(np_random.uniform(2.0, size_m - 2.0, 2)), float(np_random.uniform(0.5, 2.0))),
-        lambda o: all(_distance_to_route(np.array(o.center), polygon) > o.radius + 2.0 for polygon in polygons),
+        lambda o: all(distance_to_loop(np.array(o.center), polygon) > o.radius + 2.0 for polygon in polygons),
         "obstacles clear of the routes",
     )
 
@@ -174,7 +168,7 @@ def field(
         n_landmarks,
         lambda: np_random.uniform(1.0, size_m - 1.0, 2),
         lambda p: (
-            _distance_to_route(p, route) > 1.0 and all(math.dist(p, o.center) > o.radius + 0.5 for o in obstacles)
+            distance_to_loop(p, route) > 1.0 and all(math.dist(p, o.center) > o.radius + 0.5 for o in obstacles)
         ),
         "landmarks outside obstacles",
     )

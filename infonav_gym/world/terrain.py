@@ -12,6 +12,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
+from infonav_gym.world.geometry import distance_to_loop
+
 MATERIALS = ("ground", "vegetation", "rock", "building")
 NO_HIT = -1  # material index of a ray that hits nothing within range
 _PROFILE_SAMPLES_PER_CELL = 1  # ground samples per grid cell along a ray's horizontal track
@@ -365,6 +367,7 @@ def make_terrain(
     n_buildings: int = 2,
     center_m=(0.0, 0.0),
     clear_radius_m: float = 5.0,
+    clear_path_m=None,
 ) -> Terrain:
     """A random scene: hills and bumps scaled by ``roughness``, with trees, rocks and buildings.
 
@@ -384,7 +387,9 @@ def make_terrain(
         n_rocks: rocks (rock cylinders, radius 0.4-1.5 m, 0.3-1.5 m tall).
         n_buildings: buildings (boxes, sides 3-10 m, 3-8 m tall).
         center_m: ``(x, y)`` of the scene centre [m].
-        clear_radius_m: obstacle-free radius around the centre [m].
+        clear_radius_m: obstacle-free distance around ``clear_path_m`` [m].
+        clear_path_m: a closed polyline (W, 2) [m] the obstacles keep clear of, e.g. a vehicle's
+            route; default: the single point ``center_m``.
     """
     points = _grid_points(size_m, cell_m)
     if not (math.isfinite(roughness) and roughness >= 0):
@@ -398,21 +403,25 @@ def make_terrain(
     bumps = _unit_field(np_random, points, _BUMP_CORRELATION_M / cell_m)
     heights = roughness * (_HILL_STD_M * hills + roughness * _BUMP_STD_M * bumps) + 0.0
     center = np.array(_finite_vector(center_m, 2, "center_m"))
+    clear_path = center[None] if clear_path_m is None else np.asarray(clear_path_m, dtype=float)
+    if clear_path.ndim != 2 or clear_path.shape[1] != 2 or not np.all(np.isfinite(clear_path)):
+        raise ValueError(f"clear_path_m must be a finite (W, 2) polyline [m], got {clear_path_m!r}")
     ground = Terrain(heights, tuple(center - size_m / 2), cell_m)
 
     def place(count: int, footprint_radius_m: np.ndarray) -> np.ndarray:
-        """Centres (count, 2) inside the scene, their footprints clear of the central disc."""
+        """Centres (count, 2) inside the scene, their footprints ``clear_radius_m`` away from the clear path."""
         half = size_m / 2 - footprint_radius_m
         centers = np.empty((count, 2))
         for index in range(count):
             for _ in range(_MAX_PLACEMENT_ATTEMPTS):
                 offset = np_random.uniform(-half[index], half[index], size=2)
-                if half[index] > 0 and np.linalg.norm(offset) > clear_radius_m + footprint_radius_m[index]:
+                clearance = clear_radius_m + footprint_radius_m[index]
+                if half[index] > 0 and distance_to_loop(center + offset, clear_path) > clearance:
                     break
             else:
                 raise ValueError(
                     f"could not place an obstacle of footprint radius {footprint_radius_m[index]:.2f} m in a "
-                    f"{size_m} m scene clear of the central disc of radius {clear_radius_m} m: enlarge size_m"
+                    f"{size_m} m scene {clear_radius_m} m clear of the clear path: enlarge size_m or shorten the path"
                 )
             centers[index] = center + offset
         return centers
