@@ -167,9 +167,7 @@ def field(
     landmarks = _rejection_sample(
         n_landmarks,
         lambda: np_random.uniform(1.0, size_m - 1.0, 2),
-        lambda p: (
-            distance_to_loop(p, route) > 1.0 and all(math.dist(p, o.center) > o.radius + 0.5 for o in obstacles)
-        ),
+        lambda p: distance_to_loop(p, route) > 1.0 and all(math.dist(p, o.center) > o.radius + 0.5 for o in obstacles),
         "landmarks outside obstacles",
     )
     return Scenario(
