@@ -56,3 +56,11 @@ def check_positive(config: dict, keys, owner: str, allow_zero: bool = False) -> 
         if not (value >= 0 if allow_zero else value > 0):
             bound = "non-negative" if allow_zero else "positive"
             raise ValueError(f"config key {key!r} of {owner} must be {bound}, got {value!r}")
+
+
+def check_open_interval(config: dict, keys, low: float, high: float, owner: str, unit: str = "") -> None:
+    """Raise ``ValueError`` unless every ``config[key]`` lies strictly between ``low`` and ``high``."""
+    for key in keys:
+        value = config[key]
+        if not low < value < high:
+            raise ValueError(f"config key {key!r} of {owner} must be in ({low:g}, {high:g}){unit}, got {value!r}")

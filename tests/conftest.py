@@ -22,7 +22,7 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "render: needs infonav_gym.rendering (pygame)")
 
 
-def spawned_reset_observation(seed: int = 3) -> tuple[bool, list[float]]:
+def spawned_reset_observation(seed: int = 3, env_id: str = "infonav/LandmarkSelection-v0") -> tuple[bool, list[float]]:
     """In a fresh interpreter: make the env through the ``module:`` prefix, reset, return the observation.
 
     Also returns whether ``infonav_gym`` had already been imported before ``gym.make``.
@@ -30,7 +30,7 @@ def spawned_reset_observation(seed: int = 3) -> tuple[bool, list[float]]:
     imported_before = "infonav_gym" in sys.modules
     import gymnasium as gym
 
-    env = gym.make("infonav_gym:infonav/LandmarkSelection-v0")
+    env = gym.make(f"infonav_gym:{env_id}")
     observation, _ = env.reset(seed=seed)
     env.close()
     return imported_before, observation.tolist()

@@ -2,7 +2,8 @@
 
 Environments are discovered from ``infonav_gym.ENVIRONMENTS``, so a newly
 registered env is covered automatically; LandmarkSelection is additionally run
-in each scenario x mapping combination.
+in each scenario x mapping combination. Checks of the pose estimate apply to the
+localization envs (``LOCALIZATION_IDS``).
 """
 
 import os
@@ -24,23 +25,19 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env  # n
 import infonav_gym  # noqa: E402
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
+SENSOR_ID = "infonav/SensorSelection-v0"
+LOCALIZATION_IDS = {LANDMARK_ID}  # envs whose reward is the MI of a pose update
 ENV_IDS = sorted(infonav_gym.ENVIRONMENTS)
 LANDMARK_VARIANTS = [{"scenario": s, "mapping": m} for s in ("field", "corridor") for m in (False, True)]
 ENV_CASES = [(env_id, {}) for env_id in ENV_IDS] + [(LANDMARK_ID, kwargs) for kwargs in LANDMARK_VARIANTS]
+COMMON_INFO_KEYS = {"action_mask", "action_information_gain", "reward_terms", "chosen_action", "invalid_action"}
+COMMON_INFO_KEYS |= {"true_pose", "time_s"}
+LOCALIZATION_INFO_KEYS = {"pose_entropy", "state_entropy", "position_error_m", "heading_error_rad", "estimated_pose"}
 REQUIRED_INFO_KEYS = {
-    "action_mask",
-    "action_information_gain",
-    "reward_terms",
-    "pose_entropy",
-    "state_entropy",
-    "position_error_m",
-    "heading_error_rad",
-    "true_pose",
-    "estimated_pose",
-    "time_s",
-    "chosen_action",
-    "invalid_action",
+    LANDMARK_ID: COMMON_INFO_KEYS | LOCALIZATION_INFO_KEYS,
+    SENSOR_ID: COMMON_INFO_KEYS | {"sensor", "pan_rad", "image_entropy", "bandwidth_credit_bytes"},
 }
+ZERO_GAIN_ACTIONS = {SENSOR_ID: {0}}  # valid actions that never bring information (waiting)
 OUT_OF_SPACE_ACTIONS = [-1, "n", 2.5, "a", True, np.array([0, 1])]  # "n": the space size, resolved per env
 
 
@@ -51,6 +48,10 @@ def _case_id(case) -> str:
 
 
 cases = pytest.mark.parametrize("env_id, kwargs", ENV_CASES, ids=[_case_id(c) for c in ENV_CASES])
+LOCALIZATION_CASES = [case for case in ENV_CASES if case[0] in LOCALIZATION_IDS]
+localization_cases = pytest.mark.parametrize(
+    "env_id, kwargs", LOCALIZATION_CASES, ids=[_case_id(c) for c in LOCALIZATION_CASES]
+)
 env_ids = pytest.mark.parametrize("env_id", ENV_IDS)
 mappings = pytest.mark.parametrize("mapping", [False, True], ids=["known_map", "mapping"])
 
@@ -87,13 +88,16 @@ def step_in_lockstep(env_a, env_b, info_a: dict, n_steps: int, action_seed: int)
 
 
 def advance_to_mixed_mask(env, info: dict, max_steps: int = 200) -> dict:
-    """Step with valid actions until some action is valid and some is masked; return that step's info."""
-    rng = np.random.default_rng(0)
+    """Step with the last valid action until some action is valid and some is masked; return that step's info.
+
+    (The last valid action spends the most bandwidth in SensorSelection, so its mask soon mixes.)
+    """
     for _ in range(max_steps):
         mask = info["action_mask"]
         if mask.any() and not mask.all():
             return info
-        info = env.step(choose_action(rng, info, env.action_space.n))[4]
+        valid = np.flatnonzero(mask)
+        info = env.step(int(valid[-1]) if valid.size else 0)[4]
     pytest.skip(f"no step with both valid and masked actions within {max_steps} steps")
 
 
@@ -222,10 +226,11 @@ def test_pickled_env_continues_identically(env_id, kwargs):
 # ----------------------------------------------------------------------------- 4. spawned process
 
 
-def test_spawned_process_makes_env_via_module_prefix_and_reproduces_the_observation(spawned_reset):
-    parent_observation, _ = gym.make(LANDMARK_ID).reset(seed=3)
+@env_ids
+def test_spawned_process_makes_env_via_module_prefix_and_reproduces_the_observation(spawned_reset, env_id):
+    parent_observation, _ = gym.make(env_id).reset(seed=3)
     with multiprocessing.get_context("spawn").Pool(1) as pool:
-        imported_before, child_observation = pool.apply_async(spawned_reset, (3,)).get(timeout=120)
+        imported_before, child_observation = pool.apply_async(spawned_reset, (3, env_id)).get(timeout=120)
     assert not imported_before, "the child imported infonav_gym before gym.make: the test would prove nothing"
     assert child_observation == parent_observation.tolist()
     assert np.array_equal(np.array(child_observation, dtype=np.float32), parent_observation)
@@ -252,7 +257,8 @@ def test_misspelled_config_key_suggests_the_closest_key(env_id):
     + [(env_id, "horizon", 5.0) for env_id in ENV_IDS]
     + [(env_id, "invalid_action", 1) for env_id in ENV_IDS]
     + [(LANDMARK_ID, "mapping", 1.5), (LANDMARK_ID, "mapping", 1), (LANDMARK_ID, "n_candidates", True)]
-    + [(LANDMARK_ID, "scenario", 3), (LANDMARK_ID, "range_std_m", "0.1")],
+    + [(LANDMARK_ID, "scenario", 3), (LANDMARK_ID, "range_std_m", "0.1")]
+    + [(SENSOR_ID, "image_information", 1), (SENSOR_ID, "ladar_rows", 32.0), (SENSOR_ID, "camera_noise_std", "2")],
 )
 def test_wrongly_typed_config_value_raises_naming_the_key(env_id, key, value):
     with pytest.raises(ValueError, match=f"'{key}'"):
@@ -262,7 +268,8 @@ def test_wrongly_typed_config_value_raises_naming_the_key(env_id, key, value):
 @pytest.mark.parametrize(
     "env_id, key, value, options",
     [(env_id, "invalid_action", "explode", ("noop", "raise")) for env_id in ENV_IDS]
-    + [(LANDMARK_ID, "scenario", "moon", ("field", "corridor"))],
+    + [(LANDMARK_ID, "scenario", "moon", ("field", "corridor"))]
+    + [(SENSOR_ID, "image_information", "bits", ("entropy", "negentropy"))],
 )
 def test_invalid_choice_raises_listing_the_valid_options(env_id, key, value, options):
     with pytest.raises(ValueError, match=f"'{key}'") as error:
@@ -331,15 +338,19 @@ def test_masked_action_is_a_no_op_with_zero_reward(env_id, kwargs):
     assert after["invalid_action"] is True
     assert after["chosen_action"] == -1
     assert all(term == 0.0 for term in after["reward_terms"].values())
-    if env_id == LANDMARK_ID:
-        assert after["reward_terms"] == {"mutual_information": 0.0}
-    # No update, only the prediction: uncertainty cannot shrink.
-    assert after["state_entropy"] >= info["state_entropy"]
-    assert after["pose_entropy"] >= info["pose_entropy"]
     # Every masked action is the same no-op.
     assert_identical(transition, other_masked.step(int(masked[-1])), "masked no-op vs another masked no-op")
-    # A valid action does update: less uncertainty than after the no-op.
-    assert with_valid.step(int(valid[0]))[4]["state_entropy"] < after["state_entropy"]
+    if env_id in LOCALIZATION_IDS:
+        assert after["reward_terms"] == {"mutual_information": 0.0}
+        # No update, only the prediction: uncertainty cannot shrink.
+        assert after["state_entropy"] >= info["state_entropy"]
+        assert after["pose_entropy"] >= info["pose_entropy"]
+        # A valid action does update: less uncertainty than after the no-op.
+        assert with_valid.step(int(valid[0]))[4]["state_entropy"] < after["state_entropy"]
+    else:
+        # Nothing acquired, no bandwidth spent: the same as waiting.
+        assert after["sensor"] == "none" and after["bandwidth_credit_bytes"] >= info["bandwidth_credit_bytes"]
+        assert np.array_equal(transition[0], with_valid.step(0)[0])
 
 
 @cases
@@ -348,7 +359,7 @@ def test_masked_action_raises_in_raise_mode_and_loses_nothing(env_id, kwargs):
     _, info = env.reset(seed=2)
     info = advance_to_mixed_mask(env, info)
     masked = int(np.flatnonzero(info["action_mask"] == 0)[0])
-    valid = int(np.flatnonzero(info["action_mask"])[0])
+    valid = int(np.flatnonzero(info["action_mask"])[-1])
     clone = copy_env(env)
     with pytest.raises(ValueError, match="action_mask"):
         env.step(masked)
@@ -382,17 +393,23 @@ def test_observations_rewards_and_infos_follow_the_contract_for_a_whole_episode(
         where = f"step {step}"
         assert observation.dtype == np.float32, where
         assert env.observation_space.contains(observation), f"{where}: observation outside observation_space"
-        assert REQUIRED_INFO_KEYS <= info.keys(), f"{where}: missing {REQUIRED_INFO_KEYS - info.keys()}"
+        required = REQUIRED_INFO_KEYS[env_id]
+        assert required <= info.keys(), f"{where}: missing {required - info.keys()}"
         mask, gain = info["action_mask"], info["action_information_gain"]
         assert mask.dtype == np.int8 and mask.shape == (n,), where
         assert set(np.unique(mask).tolist()) <= {0, 1}, where
         assert gain.dtype == np.float64 and gain.shape == (n,), where
         assert np.all(gain[mask == 0] == 0.0), f"{where}: gain of a masked action is not 0: {gain} {mask}"
-        assert np.all(gain[mask == 1] > 0.0), f"{where}: gain of a valid action is not positive: {gain} {mask}"
-        for key in ("pose_entropy", "state_entropy", "position_error_m", "heading_error_rad", "time_s"):
-            assert type(info[key]) is float and math.isfinite(info[key]), f"{where}: info[{key!r}] = {info[key]!r}"
-        assert info["position_error_m"] >= 0 and 0 <= info["heading_error_rad"] <= math.pi, where
-        assert info["true_pose"].shape == (3,) and info["estimated_pose"].shape == (3,), where
+        informative = mask == 1
+        informative[list(ZERO_GAIN_ACTIONS.get(env_id, ()))] = False
+        assert np.all(gain[informative] > 0.0), f"{where}: gain of a valid action is not positive: {gain} {mask}"
+        assert np.all(gain[~informative] == 0.0), f"{where}: gain of a masked or idle action is not 0: {gain} {mask}"
+        assert type(info["time_s"]) is float and info["true_pose"].shape == (3,), where
+        if env_id in LOCALIZATION_IDS:
+            for key in ("pose_entropy", "state_entropy", "position_error_m", "heading_error_rad"):
+                assert type(info[key]) is float and math.isfinite(info[key]), f"{where}: info[{key!r}] = {info[key]!r}"
+            assert info["position_error_m"] >= 0 and 0 <= info["heading_error_rad"] <= math.pi, where
+            assert info["estimated_pose"].shape == (3,), where
         assert info["time_s"] > previous_time, where
         previous_time = info["time_s"]
         if step == horizon:
@@ -446,7 +463,7 @@ def test_reward_equals_the_gain_reported_before_acting_for_50_consecutive_steps(
     assert checked >= 25, f"only {checked} of 50 steps had a valid action"
 
 
-@cases
+@localization_cases
 def test_every_valid_actions_gain_equals_its_realized_reward(env_id, kwargs):
     env = make(env_id, kwargs).unwrapped
     _, info = env.reset(seed=6)

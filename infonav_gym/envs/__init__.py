@@ -2,5 +2,6 @@
 
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv
+from infonav_gym.envs.sensor_selection import SensorSelectionEnv
 
-__all__ = ["InfoNavEnv", "LandmarkSelectionEnv"]
+__all__ = ["InfoNavEnv", "LandmarkSelectionEnv", "SensorSelectionEnv"]

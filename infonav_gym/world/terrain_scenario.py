@@ -1,0 +1,72 @@
+"""A vehicle's loop through a 2.5D terrain: the ``Terrain`` the sensors see and the ``Scenario`` Pymunk drives.
+
+The obstacles are one set seen two ways: trees and rocks (``Cylinder``) are round
+obstacles of the 2D world, buildings (``Box``) are four walls, so what blocks the
+vehicle is what the LADAR and the camera see.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from infonav_gym.world.scenarios import CircleObstacle, Scenario, _box_walls, _closed_route, _polygon
+from infonav_gym.world.terrain import Terrain, make_terrain
+
+ROUTE_CLEARANCE_M = 3.0  # obstacles keep this far from the route [m]
+
+
+@dataclass(frozen=True)
+class TerrainScenario:
+    """The 2D scenario (route, obstacles, walls) and the 2.5D terrain of one scene."""
+
+    scenario: Scenario
+    terrain: Terrain
+
+
+def with_terrain_obstacles(scenario: Scenario, terrain: Terrain) -> Scenario:
+    """``scenario`` plus ``terrain``'s obstacles: each cylinder a disc, each box four walls."""
+    walls = []
+    for box in terrain.boxes:
+        (x_min, y_min, _), (x_max, y_max, _) = box.min_corner_m, box.max_corner_m
+        walls.extend(_box_walls(x_min, y_min, x_max, y_max))
+    discs = tuple(CircleObstacle(cylinder.center_m, cylinder.radius_m) for cylinder in terrain.cylinders)
+    return replace(scenario, walls=scenario.walls + tuple(walls), obstacles=scenario.obstacles + discs)
+
+
+def terrain_loop(
+    np_random: np.random.Generator,
+    size_m: float = 60.0,
+    roughness: float = 0.7,
+    n_trees: int = 25,
+    n_rocks: int = 8,
+    n_buildings: int = 3,
+    speed_mps: float = 2.0,
+    n_waypoints: int = 6,
+) -> TerrainScenario:
+    """A random scene (see ``make_terrain``) and a closed route through it that obstacles keep clear of.
+
+    The route is a jittered polygon around the scene centre at 22-36 % of ``size_m``; trees,
+    rocks and buildings stand anywhere else, so the views along the loop change from open
+    ground to woods to buildings.
+    """
+    if int(n_waypoints) != n_waypoints or n_waypoints < 3:
+        raise ValueError(f"n_waypoints must be an integer >= 3, got {n_waypoints!r}")
+    center = np.zeros(2)
+    sectors = np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)
+    route = _polygon(center, 2 * math.pi * sectors / n_waypoints, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
+    terrain = make_terrain(
+        np_random,
+        size_m=size_m,
+        roughness=roughness,
+        n_trees=n_trees,
+        n_rocks=n_rocks,
+        n_buildings=n_buildings,
+        center_m=center,
+        clear_radius_m=ROUTE_CLEARANCE_M,
+        clear_path_m=route,
+    )
+    drive = Scenario(name="terrain_loop", bounds=terrain.bounds_m, routes=(_closed_route(route, speed_mps),))
+    return TerrainScenario(with_terrain_obstacles(drive, terrain), terrain)
