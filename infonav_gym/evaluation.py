@@ -17,11 +17,22 @@ from agents import GreedyEntropyAgent, RandomAgent
 
 AGENT_NAMES = ("random", "greedy")
 TEAM_ENV = "cooperative_localization_v0"  # the PettingZoo env; every robot plays its own copy of the agent
+SENSOR_ENV = "infonav/SensorSelection-v0"  # rewards image information, not pose updates
 METRICS = {
     "cumulative_mi": "cumulative MI [nats]",
     "final_pose_entropy": "final pose entropy [nats]",
     "pose_rmse_m": "position RMSE [m]",
 }
+IMAGE_METRICS = {
+    "cumulative_information": "cumulative image information [nats]",
+    "frames": "frames acquired",
+    "mean_frame_entropy": "mean frame entropy [nats]",
+}
+
+
+def metrics_of(env_id: str) -> dict:
+    """The metrics reported for ``env_id``: ``{key: column title}``."""
+    return IMAGE_METRICS if env_id == SENSOR_ENV else METRICS
 
 
 def make_agent(name: str, n_actions: int, noop_action: int | None = None):
@@ -34,20 +45,25 @@ def make_agent(name: str, n_actions: int, noop_action: int | None = None):
 
 
 def run_episode(env: gym.Env, agent, seed: int) -> dict:
-    """One seeded episode; returns the per-episode metrics."""
+    """One seeded episode; returns the per-episode metrics (``metrics_of`` the env)."""
     observation, info = env.reset(seed=seed)
     agent.reset(seed=seed)
-    cumulative_mi, squared_errors = 0.0, []
-    done = False
+    infos, done = [], False
     while not done:
         observation, _, terminated, truncated, info = env.step(agent.act(observation, info))
-        cumulative_mi += info["reward_terms"].get("mutual_information", 0.0)
-        squared_errors.append(info["position_error_m"] ** 2)
+        infos.append(info)
         done = terminated or truncated
+    if env.spec is not None and env.spec.id == SENSOR_ENV:
+        entropies = [step["image_entropy"] for step in infos if step["sensor"] != "none"]
+        return {
+            "cumulative_information": math.fsum(step["reward_terms"]["image_information"] for step in infos),
+            "frames": len(entropies),
+            "mean_frame_entropy": float(np.mean(entropies)) if entropies else 0.0,
+        }
     return {
-        "cumulative_mi": cumulative_mi,
+        "cumulative_mi": math.fsum(step["reward_terms"].get("mutual_information", 0.0) for step in infos),
         "final_pose_entropy": info["pose_entropy"],
-        "pose_rmse_m": math.sqrt(float(np.mean(squared_errors))),
+        "pose_rmse_m": math.sqrt(float(np.mean([step["position_error_m"] ** 2 for step in infos]))),
     }
 
 
@@ -113,7 +129,9 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
         env = gym.make(env_id, **env_kwargs)
         agents = {name: make_agent(name, env.action_space.n) for name in agent_names}
     seeds = list(range(seed, seed + episodes))
-    results = {"env_id": env_id, "episodes": episodes, "seeds": seeds, "env_kwargs": env_kwargs, "agents": {}}
+    metrics = metrics_of(env_id)
+    results = {"env_id": env_id, "episodes": episodes, "seeds": seeds, "env_kwargs": env_kwargs, "metrics": metrics}
+    results["agents"] = {}
     bar = tqdm(total=len(agents) * episodes, desc=f"evaluating on {env_id}", disable=not progress, unit="episode")
     for name, agent in agents.items():
         per_episode = []
@@ -123,7 +141,7 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
             else:
                 per_episode.append(run_episode(env, agent, episode_seed))
             bar.update()
-        summary = {key: vars(Summary.of([e[key] for e in per_episode])) for key in METRICS}
+        summary = {key: vars(Summary.of([e[key] for e in per_episode])) for key in metrics}
         results["agents"][name] = {"episodes": per_episode, "summary": summary}
     bar.close()
     env.close()
@@ -132,10 +150,11 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
 
 def markdown_table(results: dict) -> str:
     """The summary as a Markdown table: mean +- 95% CI half-width per agent and metric."""
-    header = "| agent | " + " | ".join(METRICS.values()) + " |"
-    lines = [header, "|" + " --- |" * (len(METRICS) + 1)]
+    metrics = results["metrics"]
+    header = "| agent | " + " | ".join(metrics.values()) + " |"
+    lines = [header, "|" + " --- |" * (len(metrics) + 1)]
     for name, result in results["agents"].items():
-        cells = [f"{s['mean']:.3f} ± {s['ci95']:.3f}" for s in (result["summary"][key] for key in METRICS)]
+        cells = [f"{s['mean']:.3f} ± {s['ci95']:.3f}" for s in (result["summary"][key] for key in metrics)]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -151,9 +170,9 @@ def write_results(results: dict, stem: Path, command: str) -> list[Path]:
     )
     with csv_path.open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(["agent", "seed", *METRICS])
+        writer.writerow(["agent", "seed", *results["metrics"]])
         for name, result in results["agents"].items():
             for episode_seed, episode in zip(results["seeds"], result["episodes"]):
-                writer.writerow([name, episode_seed, *(episode[key] for key in METRICS)])
+                writer.writerow([name, episode_seed, *(episode[key] for key in results["metrics"])])
     json_path.write_text(json.dumps({**results, "command": command}, indent=2) + "\n")
     return [md, csv_path, json_path]

@@ -59,7 +59,10 @@ class SceneFrame:
     ``observations`` are ``(observer, target)`` pairs of robot indices, drawn as a line
     between their true positions; ``gps_denied_zones`` are circles (``center``,
     ``radius``) filled lightly under everything else. The chosen landmark's line starts
-    at ``robots[0]``'s true pose.
+    at ``robots[0]``'s true pose. ``sensor_wedge`` is a field of view from ``robots[0]``'s
+    true position: ``(world azimuth of its axis, full width [rad], length [m])``;
+    ``inset_image`` a gray uint8 image (e.g. the frame a sensor just acquired) drawn in the
+    bottom-left corner.
     """
 
     bounds: tuple[float, float, float, float]
@@ -73,6 +76,8 @@ class SceneFrame:
     landmark_covariances: np.ndarray | None = None
     observations: Sequence[tuple[int, int]] = ()
     gps_denied_zones: Sequence = ()
+    sensor_wedge: tuple[float, float, float] | None = None
+    inset_image: np.ndarray | None = None
     caption: str = ""
 
 
@@ -241,8 +246,27 @@ class Renderer:
             if drawing.label and anchor is not None:
                 corner = screen(anchor[:2])[0] + _LABEL_OFFSET_PX
                 self._draw_text(pygame, surface, drawing.label, robot_colour(index), corner.tolist())
+        if frame.sensor_wedge is not None and frame.robots and frame.robots[0].true_pose is not None:
+            axis, width, length = frame.sensor_wedge
+            angles = axis + np.linspace(-width / 2, width / 2, 16)
+            apex = np.asarray(frame.robots[0].true_pose[:2], dtype=float)
+            arc = apex + length * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+            pygame.draw.lines(surface, _RED, True, screen(np.vstack([apex, arc])).tolist(), 2)
+        if frame.inset_image is not None:
+            self._draw_inset(pygame, surface, frame.inset_image)
         if frame.caption:
             self._draw_text(pygame, surface, frame.caption, _BLACK, (4, 2), background=_WHITE)
+
+    def _draw_inset(self, pygame, surface, image: np.ndarray) -> None:
+        """Blit the gray uint8 ``image``, framed, in the bottom-left corner at a third of the surface width."""
+        rows, columns = image.shape
+        width = max(1, surface.get_width() // 3)
+        height = max(1, round(width * rows / columns))
+        rgb = np.repeat(np.asarray(image, dtype=np.uint8).T[:, :, None], 3, axis=2)
+        inset = pygame.transform.scale(pygame.surfarray.make_surface(rgb), (width, height))
+        corner = (self.MARGIN_PX, surface.get_height() - height - self.MARGIN_PX)
+        surface.blit(inset, corner)
+        pygame.draw.rect(surface, _BLACK, (*corner, width, height), 1)
 
     def _draw_text(self, pygame, surface, text: str, colour, corner, background=None) -> None:
         """Blit ``text`` with its top-left at pixel ``corner``; nothing if pygame has no fonts."""

@@ -21,6 +21,7 @@ IDLE_ACTION = 0
 MAX_IMAGE_ENTROPY = math.log(256)  # entropy of a uniform 256-level histogram [nats]
 OPTION_FEATURES = 3
 GLOBAL_FEATURES = 2 + len(SENSORS)
+_WEDGE_LENGTH_M = 12.0  # drawn length of the acquired field of view [m]
 _BYTES_PER_PIXEL = {"ladar": 2, "camera": 1}  # 16-bit ranges, 8-bit gray levels
 
 
@@ -97,7 +98,7 @@ class SensorSelectionEnv(InfoNavEnv):
             "image_information": "entropy",  # "entropy" (Section IV-A) or "negentropy" (Section II)
             "n_pan_sectors": 3,  # pan directions per sensor
             "pan_span_rad": math.radians(160.0),  # from the leftmost to the rightmost pan angle [rad]
-            "bandwidth_bytes_per_step": 16000,  # link capacity per step [bytes]
+            "bandwidth_bytes_per_step": 10000,  # link capacity per step [bytes]
             "bandwidth_buffer_bytes": 40000,  # most credit the link can save up [bytes]
             "scene_size_m": 60.0,  # side of the square scene [m]
             "roughness": 0.7,  # ground roughness, see make_terrain
@@ -172,6 +173,11 @@ class SensorSelectionEnv(InfoNavEnv):
         self._last_image = None
         self._last_entropy = None
 
+    @property
+    def last_image(self) -> np.ndarray | None:
+        """The uint8 image acquired by the last step (LADAR: its display image), ``None`` if it acquired none."""
+        return None if self._last_image is None else self._last_image.copy()
+
     def option(self, action: int) -> tuple[str, float]:
         """The ``(sensor name, pan angle [rad])`` that acquisition ``action`` (>= 1) uses."""
         sensor, sector = divmod(action - 1, len(self.pan_angles_rad))
@@ -196,6 +202,7 @@ class SensorSelectionEnv(InfoNavEnv):
         if action is None or action == IDLE_ACTION:
             return {"image_information": 0.0}
         sensor, pan_rad = self.option(action)
+        self._acquired_heading = float(self._true_pose[2])
         self._last_image = self.acquire(sensor, pan_rad)
         self._last_entropy = histogram_entropy(self._last_image)
         information = self._last_entropy
@@ -240,16 +247,20 @@ class SensorSelectionEnv(InfoNavEnv):
 
         scenario = self.world.scenario
         caption = f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
+        wedge = None
         if self._last_entropy is None:
             caption += "no frame acquired"
         else:
             sensor, pan_rad = self.option(self._chosen_action)
             caption += f"{sensor} at pan {math.degrees(pan_rad):+.0f} deg: H = {self._last_entropy:.2f} nats"
+            wedge = (self._acquired_heading + pan_rad, getattr(self, sensor).horizontal_fov_rad, _WEDGE_LENGTH_M)
         return SceneFrame(
             bounds=scenario.bounds,
             walls=scenario.walls,
             obstacles=scenario.obstacles,
             robots=[RobotDrawing(true_pose=self._true_pose, true_path=np.array(self._true_path))],
+            sensor_wedge=wedge,
+            inset_image=self._last_image,
             caption=caption,
         )
 
