@@ -108,14 +108,15 @@ def _benchmark(args) -> dict:
 
 
 def _reproduce(args, argv) -> dict:
-    from infonav_gym.reproduce.fig3 import fig3_table, reproduce_fig3
+    """Run ``reproduce_<figure>`` of ``infonav_gym.reproduce.<figure>``; print its ``<figure>_table`` unless --json."""
+    import importlib
 
+    module = importlib.import_module(f"infonav_gym.reproduce.{args.figure}")
+    reproduce, table = getattr(module, f"reproduce_{args.figure}"), getattr(module, f"{args.figure}_table")
     command = "infonav " + shlex.join(argv)
-    result = reproduce_fig3(
-        args.output_dir, seed=args.seed, n_seeds=args.seeds, progress=not args.json, command=command
-    )
+    result = reproduce(args.output_dir, seed=args.seed, n_seeds=args.seeds, progress=not args.json, command=command)
     if not args.json:
-        print(fig3_table(result))
+        print(table(result))
     return result
 
 

@@ -83,7 +83,7 @@ def test_confidence_interval_is_students_t():
         (["evaluate", "--agents", "random,oracle", "--episodes", "1"], "unknown agent 'oracle'"),
         (["evaluate", "--config", "horizn=3", "--episodes", "1"], "Did you mean 'horizon'"),
         (["evaluate", "--episodes", "0"], "episodes must be >= 1"),
-        (["reproduce", "fig4"], "invalid choice: 'fig4' (choose from 'fig3')"),
+        (["reproduce", "fig4"], "invalid choice: 'fig4' (choose from 'fig3', 'fig5')"),
         (["reproduce", "fig3", "--seeds", "0"], "n_seeds (how many seeds the outage RMSE averages) must be >= 1"),
     ],
 )

@@ -1,6 +1,6 @@
 """Regenerate the paper's figures from the environments (``infonav reproduce``)."""
 
-FIGURES = ("fig3",)
+FIGURES = ("fig3", "fig5")
 
 
 def paper_label(agent: str) -> str:
