@@ -92,7 +92,7 @@ def _evaluate(args, argv) -> dict:
 
 
 def _benchmark(args) -> dict:
-    from infonav_gym.benchmark import run_benchmark
+    from infonav_gym.benchmark import lower_is_better, run_benchmark
 
     result = run_benchmark(rounds=args.rounds, seconds_per_round=args.seconds, seed=args.seed, progress=not args.json)
     if not args.json:
@@ -100,9 +100,8 @@ def _benchmark(args) -> dict:
         for name, value in figures.items():
             goal = ""
             if name in goals:
-                goal = (
-                    f"  (goal {'>=' if 'ratio' in name else '<='} {goals[name]}: {'met' if met[name] else 'NOT met'})"
-                )
+                relation = "<=" if lower_is_better(name) else ">="
+                goal = f"  (goal {relation} {goals[name]}: {'met' if met[name] else 'NOT met'})"
             print(f"{name:40s} {value:12.3f}{goal}")
     return result
 

@@ -107,10 +107,21 @@ def test_benchmark_reports_every_goal(capsys):
         assert figures[f"{env}_steps_per_s"] > 0 and figures["cartpole_steps_per_s"] > 0
         ratio = figures[f"{env}_steps_per_s"] / figures["cartpole_steps_per_s"]
         assert figures[f"{env}_vs_cartpole_ratio"] == pytest.approx(ratio)
+    for sensor in ("ladar", "camera"):
+        frame_ms, pymunk_ms = figures[f"{sensor}_frame_ms"], figures[f"pymunk_{sensor}_rays_ms"]
+        assert frame_ms > 0 and pymunk_ms > 0
+        assert figures[f"{sensor}_vs_pymunk_ratio"] == pytest.approx(frame_ms / pymunk_ms)
+        assert result["goals_met"][f"{sensor}_frame_ms"] == (frame_ms <= result["goals"][f"{sensor}_frame_ms"])
     assert (
         set(result["goals_met"])
         == set(result["goals"])
-        == {"landmark_selection_vs_cartpole_ratio", "cooperative_localization_vs_cartpole_ratio", "greedy_decision_us"}
+        == {
+            "landmark_selection_vs_cartpole_ratio",
+            "cooperative_localization_vs_cartpole_ratio",
+            "greedy_decision_us",
+            "ladar_frame_ms",
+            "camera_frame_ms",
+        }
     )
 
 

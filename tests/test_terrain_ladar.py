@@ -3,10 +3,12 @@
 import math
 
 import numpy as np
+import pymunk
 import pytest
 from skimage.measure import shannon_entropy
 
 from infonav_gym.information import histogram_entropy
+from infonav_gym.sensor_timing import footprint_space
 from infonav_gym.sensors.ladar import Ladar, point_cloud, to_display_image
 from infonav_gym.world.terrain import MATERIALS, NO_HIT, Box, Cylinder, Terrain, flat_terrain, make_terrain
 
@@ -105,6 +107,23 @@ def test_tree_at_known_position_center_pixel_reads_distance_minus_radius():
     hits = terrain.cast_rays(scan.sensor_position_m, scan.azimuth_rad, scan.elevation_rad, 60.0)
     assert np.all(hits.material_index[sees_tree] == MATERIALS.index("vegetation"))
     assert np.all(hits.material_index[(elevation > 0) & ~sees_tree] == NO_HIT)
+
+
+def test_horizontal_rays_meet_the_obstacles_where_the_pymunk_benchmark_reference_does():
+    terrain = flat_terrain().with_obstacles(
+        cylinders=[Cylinder((8.0, 3.0), 1.0, bottom_m=-1.0, top_m=5.0)],
+        boxes=[Box((-9.0, -6.0, -1.0), (-5.0, 4.0, 5.0))],
+    )
+    origin, azimuth, max_range_m = np.array([0.3, -0.6, 1.0]), np.radians(np.arange(360.0)), 30.0
+    ranges = terrain.cast_rays(origin, azimuth, np.zeros(1), max_range_m).range_m[0]
+    space, start = footprint_space(terrain), tuple(origin[:2])
+    expected = []
+    for angle in azimuth:
+        end = (start[0] + max_range_m * math.cos(angle), start[1] + max_range_m * math.sin(angle))
+        query = space.segment_query_first(start, end, 0, pymunk.ShapeFilter())
+        expected.append(math.inf if query is None else max_range_m * query.alpha)
+    assert np.isfinite(ranges).sum() > 60  # both obstacles are seen
+    np.testing.assert_allclose(ranges, expected, **EXACT)
 
 
 @pytest.mark.parametrize(

@@ -23,11 +23,22 @@ def check_pose(vehicle_pose) -> np.ndarray:
 
 def unit_directions(azimuth_rad: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
     """World unit vectors (R, C, 3) for column azimuths (C,) and row elevations (R,)."""
-    cos_elevation = np.cos(elevation_rad)[:, None]
+    rows, columns = np.indices((np.size(elevation_rad), np.size(azimuth_rad)))
+    return pixel_directions(azimuth_rad, elevation_rad, rows, columns)
+
+
+def pixel_directions(azimuth_rad: np.ndarray, elevation_rad: np.ndarray, rows, columns) -> np.ndarray:
+    """World unit vectors (..., 3) of the pixels ``(rows, columns)`` (...) of column azimuths and row elevations.
+
+    Equals ``unit_directions(azimuth_rad, elevation_rad)[rows, columns]`` without building the whole grid.
+    """
+    cos_elevation = np.cos(elevation_rad)[rows]
     return np.stack(
-        np.broadcast_arrays(
-            cos_elevation * np.cos(azimuth_rad), cos_elevation * np.sin(azimuth_rad), np.sin(elevation_rad)[:, None]
-        ),
+        [
+            cos_elevation * np.cos(azimuth_rad)[columns],
+            cos_elevation * np.sin(azimuth_rad)[columns],
+            np.sin(elevation_rad)[rows],
+        ],
         axis=-1,
     )
 

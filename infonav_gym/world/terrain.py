@@ -19,6 +19,8 @@ NO_HIT = -1  # material index of a ray that hits nothing within range
 _PROFILE_SAMPLES_PER_CELL = 1  # ground samples per grid cell along a ray's horizontal track
 _REFINE_ITERATIONS = 4  # Illinois false-position steps refining a ground crossing on curved terrain
 _ANGLE_KEY_STRIDE = 4.0  # > pi: separates the columns' horizon-angle blocks in one sorted array [rad]
+_BLOCK_ELEMENTS = 12288  # rays or ground samples per block of columns: small temporaries stay in cache and reuse
+# freed heap memory instead of fresh pages (page faults dominated unblocked frames on a VM)
 _MAX_PLACEMENT_ATTEMPTS = 1000  # random draws per obstacle before the scene counts as too small
 _HILL_STD_M = 2.0  # height standard deviation of the smooth hills at roughness 1 [m]
 _HILL_CORRELATION_M = 8.0  # length scale of the hills [m]
@@ -117,6 +119,36 @@ def _slab(origin, direction, low, high) -> tuple[np.ndarray, np.ndarray]:
     return enter, exit_
 
 
+def blend_in_place(lower_left, lower_right, upper_left, upper_right, tx, ty) -> np.ndarray:
+    """Bilinear blend of corner values at cell offsets ``tx``, ``ty`` in [0, 1].
+
+    Rounds exactly like ``(1 - ty) * ((1 - tx) * lower_left + tx * lower_right) + ty * ((1 - tx) *
+    upper_left + tx * upper_right)`` but overwrites the corner arrays (the result is ``lower_left``)
+    instead of allocating temporaries.
+    """
+    weight = 1 - tx
+    lower_left *= weight
+    lower_right *= tx
+    lower_left += lower_right
+    upper_left *= weight
+    upper_right *= tx
+    upper_left += upper_right
+    np.subtract(1, ty, out=weight)
+    lower_left *= weight
+    upper_left *= ty
+    lower_left += upper_left
+    return lower_left
+
+
+def _false_position(low_s, low_f, high_s, high_f) -> np.ndarray:
+    """Secant root ``low_s + (high_s - low_s) * low_f / (low_f - high_f)`` of brackets with ``low_f > 0 >= high_f``."""
+    root = high_s - low_s
+    root *= low_f
+    root /= low_f - high_f
+    root += low_s
+    return root
+
+
 @dataclass(frozen=True, eq=False)
 class Terrain:
     """A height map on a regular grid plus solid obstacles.
@@ -182,35 +214,84 @@ class Terrain:
         return replace(self, cylinders=self.cylinders + tuple(cylinders), boxes=self.boxes + tuple(boxes))
 
     def _cell_corners(self, xy) -> tuple[np.ndarray, ...]:
-        """Corner heights ``h00, h01, h10, h11`` of the cell under each point and the offsets ``tx, ty`` in it."""
+        """Corner heights ``h00, h01, h10, h11`` of the cell under each point and the offsets ``tx, ty`` in it.
+
+        Checks ``xy`` (..., 2); the results are flat (N,).
+        """
         points = np.asarray(xy, dtype=float)
         if points.ndim < 1 or points.shape[-1] != 2 or not np.all(np.isfinite(points)):
             raise ValueError(f"terrain query points must be finite (..., 2) [m], got shape {points.shape}")
+        flat = points.reshape(-1, 2)
+        return self._corners(flat[:, 0], flat[:, 1])
+
+    def _corners(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``_cell_corners`` of finite points given as flat coordinate arrays ``x``, ``y`` (N,), unchecked.
+
+        Works in place on few temporaries: on this hot path, fresh memory costs more than arithmetic.
+        """
         rows, columns = self.heights_m.shape
-        fx = np.clip((points[..., 0] - self.origin_m[0]) / self.cell_m, 0, columns - 1)
-        fy = np.clip((points[..., 1] - self.origin_m[1]) / self.cell_m, 0, rows - 1)
-        j = np.minimum(fx.astype(np.intp), columns - 2)
-        i = np.minimum(fy.astype(np.intp), rows - 2)
-        flat_heights, corner = self.heights_m.ravel(), i * columns + j
-        lower_left, upper_left = flat_heights.take(corner), flat_heights.take(corner + columns)
-        lower_right, upper_right = flat_heights.take(corner + 1), flat_heights.take(corner + columns + 1)
-        return lower_left, lower_right, upper_left, upper_right, fx - j, fy - i
+        tx = np.subtract(x, self.origin_m[0])
+        tx /= self.cell_m
+        np.clip(tx, 0, columns - 1, out=tx)
+        ty = np.subtract(y, self.origin_m[1])
+        ty /= self.cell_m
+        np.clip(ty, 0, rows - 1, out=ty)
+        j = tx.astype(np.intp)
+        np.minimum(j, columns - 2, out=j)
+        corner = ty.astype(np.intp)
+        np.minimum(corner, rows - 2, out=corner)
+        tx -= j
+        ty -= corner
+        corner *= columns
+        corner += j
+        flat_heights = self.heights_m.ravel()
+        lower_left = flat_heights.take(corner)
+        corner += 1
+        lower_right = flat_heights.take(corner)
+        corner += columns
+        upper_right = flat_heights.take(corner)
+        corner -= 1
+        upper_left = flat_heights.take(corner)
+        return lower_left, lower_right, upper_left, upper_right, tx, ty
+
+    def _height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Bilinear ground elevation (N,) [m] at finite flat coordinates ``x``, ``y`` (N,), unchecked."""
+        return blend_in_place(*self._corners(x, y))
 
     def height_at(self, xy) -> np.ndarray:
         """Bilinear ground elevation [m] at points ``xy`` (..., 2) -> (...)."""
-        h00, h01, h10, h11, tx, ty = self._cell_corners(xy)
-        return (1 - ty) * ((1 - tx) * h00 + tx * h01) + ty * ((1 - tx) * h10 + tx * h11)
+        return blend_in_place(*self._cell_corners(xy)).reshape(np.shape(xy)[:-1])[()]
 
     def surface_normal_at(self, xy) -> np.ndarray:
         """Upward unit normals (..., 3) of the bilinear ground at points ``xy`` (..., 2); level beyond the grid."""
         h00, h01, h10, h11, tx, ty = self._cell_corners(xy)
-        points, (x_min, y_min, x_max, y_max) = np.asarray(xy, dtype=float), self.bounds_m
-        outside_x = (points[..., 0] < x_min) | (points[..., 0] > x_max)
-        outside_y = (points[..., 1] < y_min) | (points[..., 1] > y_max)
-        slope_x = np.where(outside_x, 0.0, ((1 - ty) * (h01 - h00) + ty * (h11 - h10)) / self.cell_m)
-        slope_y = np.where(outside_y, 0.0, ((1 - tx) * (h10 - h00) + tx * (h11 - h01)) / self.cell_m)
-        normals = np.stack([-slope_x, -slope_y, np.ones_like(slope_x)], axis=-1)
-        return normals / np.linalg.norm(normals, axis=-1, keepdims=True)
+        points, (x_min, y_min, x_max, y_max) = np.asarray(xy, dtype=float).reshape(-1, 2), self.bounds_m
+        # slope_x = ((1 - ty) * (h01 - h00) + ty * (h11 - h10)) / cell_m and its y twin, in place
+        slope_x, upper = h01 - h00, h11 - h10
+        weight = 1 - ty
+        slope_x *= weight
+        upper *= ty
+        slope_x += upper
+        slope_x /= self.cell_m
+        slope_y, right = np.subtract(h10, h00, out=h10), np.subtract(h11, h01, out=h11)
+        np.subtract(1, tx, out=weight)
+        slope_y *= weight
+        right *= tx
+        slope_y += right
+        slope_y /= self.cell_m
+        slope_x[(points[:, 0] < x_min) | (points[:, 0] > x_max)] = 0.0
+        slope_y[(points[:, 1] < y_min) | (points[:, 1] > y_max)] = 0.0
+        # the normal (-slope_x, -slope_y, 1) over its length sqrt(slope_x**2 + slope_y**2 + 1)
+        length = np.square(slope_x)
+        length += np.square(slope_y, out=weight)
+        length += 1
+        np.sqrt(length, out=length)
+        normals = np.empty((points.shape[0], 3))
+        np.divide(slope_x, length, out=normals[:, 0])
+        np.divide(slope_y, length, out=normals[:, 1])
+        np.negative(normals[:, :2], out=normals[:, :2])
+        np.divide(1.0, length, out=normals[:, 2])
+        return normals.reshape(*np.shape(xy)[:-1], 3)
 
     def cast_rays(self, origin_m, azimuth_rad, elevation_rad, max_range_m: float) -> RayHits:
         """First hits of a grid of rays whose columns share an azimuth (a scanner's or an upright camera's).
@@ -221,7 +302,8 @@ class Terrain:
         per column; a ray meets it at the first sample whose elevation angle seen from the
         origin reaches the ray's, refined by linear interpolation (exact on planar ground) and
         false-position steps. Obstacles are intersected analytically; an origin inside one
-        gives range 0.
+        gives range 0. Columns are cast in blocks of about ``_BLOCK_ELEMENTS`` rays or ground
+        samples, which keeps the temporaries small.
 
         Args:
             origin_m: ``(x, y, z)`` of the ray origin, above the ground [m].
@@ -249,53 +331,84 @@ class Terrain:
             raise ValueError(f"ray origin_m {tuple(origin)} is not above the ground")
         heading = np.stack([np.cos(azimuth), np.sin(azimuth)], axis=-1)  # (C, 2) horizontal unit vectors
         slope = np.tan(elevation)  # dz per horizontal metre, (R, 1) or (R, C)
-        ground_s = self._ground_crossing(origin, heading, elevation, slope, max_range_m)
+        step_m = self.cell_m / _PROFILE_SAMPLES_PER_CELL
+        distances = np.arange(math.ceil(max_range_m / step_m) + 1) * step_m  # ground samples along each column
+        key_offsets = _ANGLE_KEY_STRIDE * np.arange(azimuth.size)
+        shape = (elevation.shape[0], azimuth.size)
+        range_m, material = np.empty(shape), np.empty(shape, dtype=np.int8)
+        block_columns = max(1, _BLOCK_ELEMENTS // max(shape[0], distances.size))
+        for start in range(0, azimuth.size, block_columns):
+            block = slice(start, start + block_columns)
+            rays = slice(None) if elevation.shape[1] == 1 else block
+            range_m[:, block], material[:, block] = self._first_hits(
+                origin, heading[block], elevation[:, rays], slope[:, rays], distances, key_offsets[block], max_range_m
+            )
+        return RayHits(range_m, material)
+
+    def _first_hits(self, origin, heading, elevation, slope, distances, key_offsets, max_range_m) -> tuple:
+        """``cast_rays`` for a block of columns: range (R, C) [m] and material index (R, C) of the first hits."""
         obstacle_s, obstacle_material = self._obstacle_crossing(origin, heading, slope)
+        ground_s = self._ground_crossing(origin, heading, elevation, slope, distances, key_offsets, obstacle_s)
         nearest_s = np.minimum(ground_s, obstacle_s)
         range_m = nearest_s / np.cos(elevation)
         hit = range_m <= max_range_m
         material = np.where(obstacle_s < ground_s, obstacle_material, np.int8(MATERIALS.index("ground")))
-        return RayHits(np.where(hit, range_m, np.inf), np.where(hit, material, np.int8(NO_HIT)).astype(np.int8))
+        return np.where(hit, range_m, np.inf), np.where(hit, material, np.int8(NO_HIT))
 
-    def _ground_crossing(self, origin, heading, elevation, slope, max_range_m) -> np.ndarray:
-        """Horizontal distance (R, C) [m] at which each ray first goes below the ground; ``inf`` if never."""
-        step_m = self.cell_m / _PROFILE_SAMPLES_PER_CELL
-        sample_count = math.ceil(max_range_m / step_m) + 1
-        distances = np.arange(sample_count) * step_m
-        tracks = origin[:2] + distances[None, :, None] * heading[:, None, :]  # (C, K, 2)
-        ground = self.height_at(tracks)
-        angles = np.arctan2(ground - origin[2], distances)
+    def _ground_crossing(self, origin, heading, elevation, slope, distances, key_offsets, obstacle_s) -> np.ndarray:
+        """Horizontal distance (R, C) [m] at which each ray first goes below the ground; ``inf`` if never.
+
+        The ground is sampled at horizontal ``distances`` (K,) [m] along each column; ``key_offsets``
+        (C,) separate the columns' horizon angles in one sorted array. Rays that meet an obstacle
+        (at ``obstacle_s`` (R, C)) before the ground sample bracketing their crossing are not
+        refined and read ``inf`` too: the obstacle is nearer either way.
+        """
+        sample_count = distances.size
+        track_x = origin[0] + distances * heading[:, :1]  # (C, K) horizontal tracks
+        track_y = origin[1] + distances * heading[:, 1:]
+        ground = self._height(track_x.ravel(), track_y.ravel()).reshape(track_x.shape)
+        angles = np.subtract(ground, origin[2])
+        np.arctan2(angles, distances, out=angles)
         angles[:, 0] = -math.pi / 2  # the origin is above the ground
-        horizon = np.maximum.accumulate(angles, axis=1)  # nondecreasing along each column
-        offsets = _ANGLE_KEY_STRIDE * np.arange(heading.shape[0])
-        keys = (horizon + offsets[:, None]).ravel()
-        sample = np.searchsorted(keys, elevation + offsets, side="left")
+        np.maximum.accumulate(angles, axis=1, out=angles)  # horizon: nondecreasing along each column
+        angles += key_offsets[:, None]
+        sample = np.searchsorted(angles.ravel(), elevation + key_offsets, side="left")
         sample -= np.arange(heading.shape[0]) * sample_count  # index within the ray's own column
         crossing = np.full(sample.shape, np.inf)
         rows, columns = np.nonzero(sample < sample_count)
+        k = sample[rows, columns]
+        nearer = distances[k - 1] <= obstacle_s[rows, columns]
+        rows, columns, k = rows[nearer], columns[nearer], k[nearer]
         if rows.size == 0:
             return crossing
-        k, ray_heading = sample[rows, columns], heading[columns]
+        ray_heading = heading[columns]
         ray_slope = np.broadcast_to(slope, sample.shape)[rows, columns]
 
         def height_above_ground(s, ground_m):
-            return origin[2] + s * ray_slope - ground_m
+            """``origin[2] + s * ray_slope - ground_m``, overwriting ``ground_m``."""
+            ground_m -= origin[2] + s * ray_slope
+            return np.negative(ground_m, out=ground_m)
 
         low_s, high_s = distances[k - 1], distances[k]
         low_f = height_above_ground(low_s, ground[columns, k - 1])
         high_f = height_above_ground(high_s, ground[columns, k])
-        s = low_s + (high_s - low_s) * low_f / (low_f - high_f)
-        was_above = np.zeros(s.shape, dtype=np.int8)  # side of the previous step: 1 above, -1 below, 0 none
+        s, was_above = _false_position(low_s, low_f, high_s, high_f), None
         for _ in range(_REFINE_ITERATIONS):
-            f = height_above_ground(s, self.height_at(origin[:2] + s[:, None] * ray_heading))
+            track_x, track_y = s * ray_heading[:, 0], s * ray_heading[:, 1]
+            track_x += origin[0]
+            track_y += origin[1]
+            f = height_above_ground(s, self._height(track_x, track_y))
             above = f > 0
-            # Illinois rule: halve the end kept twice in a row, so the bracket shrinks from both sides
-            high_f = np.where(above & (was_above == 1), 0.5 * high_f, high_f)
-            low_f = np.where(~above & (was_above == -1), 0.5 * low_f, low_f)
-            low_s, low_f = np.where(above, s, low_s), np.where(above, f, low_f)
-            high_s, high_f = np.where(above, high_s, s), np.where(above, high_f, f)
-            was_above = np.where(above, 1, -1).astype(np.int8)
-            s = low_s + (high_s - low_s) * low_f / (low_f - high_f)
+            if was_above is not None:
+                # Illinois rule: halve the end kept twice in a row, so the bracket shrinks from both sides
+                np.multiply(high_f, 0.5, out=high_f, where=above & was_above)
+                np.multiply(low_f, 0.5, out=low_f, where=~(above | was_above))
+            np.copyto(low_s, s, where=above)
+            np.copyto(low_f, f, where=above)
+            np.copyto(high_s, s, where=~above)
+            np.copyto(high_f, f, where=~above)
+            was_above = above
+            s = _false_position(low_s, low_f, high_s, high_f)
         crossing[rows, columns] = s
         return crossing
 
