@@ -1,7 +1,8 @@
 """Speed goals, measured as ratios against a reference run in the same process.
 
-Env steps: LandmarkSelection-v0 (K = 8) and the 4-robot cooperative_localization_v0
-(parallel steps: every robot acts) against CartPole-v1. CartPole is driven by
+Env steps: LandmarkSelection-v0 (K = 8), the 4-robot cooperative_localization_v0
+(parallel steps: every robot acts) and SensorSelection-v0 (no goal: a step renders a
+LADAR or camera frame) against CartPole-v1. CartPole is driven by
 ``action_space.sample()`` as in ``gymnasium.utils.performance.benchmark_step``; the
 infonav envs by agents uniform over the *valid* actions, so steps do full EKF
 updates. Rounds alternate between the envs and the median ratio is reported, so a
@@ -97,7 +98,9 @@ def run_benchmark(rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0
         name: RandomAgent(team.action_space(name).n, seed=seed + k) for k, name in enumerate(team.possible_agents)
     }
     team_policies = {name: (lambda info, agent=agent: agent.act(None, info)) for name, agent in team_agents.items()}
-    rates = {"cartpole": [], "landmark_selection": [], "cooperative_localization": []}
+    sensor = gym.make("infonav/SensorSelection-v0")
+    sensor_agent = RandomAgent(sensor.action_space.n, seed=seed)
+    rates = {"cartpole": [], "landmark_selection": [], "cooperative_localization": [], "sensor_selection": []}
     for _ in tqdm(range(rounds), desc="benchmark rounds", disable=not progress):
         rates["cartpole"].append(
             steps_per_second(cartpole, lambda info: cartpole.action_space.sample(), seconds_per_round, seed)
@@ -108,8 +111,11 @@ def run_benchmark(rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0
         rates["cooperative_localization"].append(
             parallel_steps_per_second(team, team_policies, seconds_per_round, seed)
         )
+        rates["sensor_selection"].append(
+            steps_per_second(sensor, lambda info: sensor_agent.act(None, info), seconds_per_round, seed)
+        )
     figures = {f"{name}_steps_per_s": statistics.median(values) for name, values in rates.items()}
-    for name in ("landmark_selection", "cooperative_localization"):
+    for name in ("landmark_selection", "cooperative_localization", "sensor_selection"):
         ratios = [ours / reference for ours, reference in zip(rates[name], rates["cartpole"])]
         figures[f"{name}_vs_cartpole_ratio"] = statistics.median(ratios)
     figures["greedy_decision_us"] = greedy_decision_us()

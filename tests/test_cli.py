@@ -103,7 +103,7 @@ def test_config_values_must_be_key_value_pairs(capsys):
 def test_benchmark_reports_every_goal(capsys):
     result = run_json(capsys, "benchmark", "--rounds", "1", "--seconds", "0.05")
     figures = result["figures"]
-    for env in ("landmark_selection", "cooperative_localization"):
+    for env in ("landmark_selection", "cooperative_localization", "sensor_selection"):
         assert figures[f"{env}_steps_per_s"] > 0 and figures["cartpole_steps_per_s"] > 0
         ratio = figures[f"{env}_steps_per_s"] / figures["cartpole_steps_per_s"]
         assert figures[f"{env}_vs_cartpole_ratio"] == pytest.approx(ratio)
