@@ -1,0 +1,81 @@
+"""Consecutive LADAR frames of a vehicle pitching and rolling over terrain, with the true and odometry motion.
+
+A frame's points are expressed in its own body frame at the optical centre
+(``sensor_points``). Registering the current frame (source) onto the previous one
+(target) estimates ``previous_from_current``, the motion between the two frames.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from infonav_gym.sensors.ladar import Ladar, LadarScan
+from infonav_gym.world.attitude import invert_transform, rigid_transform, terrain_attitude, transform_error
+from infonav_gym.world.terrain import Terrain
+
+MOTION_AXES = ("x", "y", "z", "roll", "pitch", "yaw")  # order of motion vectors and covariances
+DEFAULT_ODOMETRY_STD = (0.1, 0.1, 0.05, math.radians(0.5), math.radians(0.5), math.radians(1.0))  # [m] x3, [rad] x3
+LEVER_ARM_M = 10.0  # a rotation error counts as the displacement it causes this far away [m]
+
+
+@dataclass(frozen=True)
+class FramePair:
+    """Two consecutive range images and the motion between them.
+
+    Attributes:
+        previous: the earlier frame (the registration target).
+        current: the later frame (the registration source).
+        true_motion: ``previous_from_current`` (4, 4), maps current-frame points into the previous frame.
+        odometry_motion: the dead-reckoning estimate of ``true_motion`` (4, 4), the ICP warm start.
+        motion_covariance: (6, 6) covariance of the odometry error over ``MOTION_AXES`` [m^2, rad^2].
+    """
+
+    previous: LadarScan
+    current: LadarScan
+    true_motion: np.ndarray
+    odometry_motion: np.ndarray
+    motion_covariance: np.ndarray
+
+
+def motion_between(previous: LadarScan, current: LadarScan) -> np.ndarray:
+    """``previous_from_current`` (4, 4): the true motion of the optical centre from one frame to the next."""
+    return invert_transform(previous.world_from_sensor) @ current.world_from_sensor
+
+
+def perturbed_motion(motion: np.ndarray, error: np.ndarray) -> np.ndarray:
+    """``motion`` followed by the small motion ``error`` = (x, y, z [m], rotation vector [rad]) in the later frame."""
+    return motion @ rigid_transform(Rotation.from_rotvec(error[3:]).as_matrix(), error[:3])
+
+
+def registration_error(estimate: np.ndarray, truth: np.ndarray, lever_arm_m: float = LEVER_ARM_M) -> float:
+    """One number for how wrong a motion estimate is [m]: ``sqrt(e_t^2 + (lever_arm_m * e_r)^2)``.
+
+    ``e_t`` is the translation error and ``e_r`` the rotation error angle; the second term is
+    how far the rotation error moves a point ``lever_arm_m`` away (a typical LADAR range).
+    """
+    translation, rotation = transform_error(estimate, truth)
+    return math.hypot(translation, lever_arm_m * rotation)
+
+
+def scan_on_terrain(ladar: Ladar, terrain: Terrain, vehicle_pose, np_random: np.random.Generator) -> LadarScan:
+    """A frame from ``vehicle_pose`` with the vehicle's roll and pitch taken from the ground under its wheels."""
+    return ladar.scan(terrain, vehicle_pose, np_random, attitude_rad=terrain_attitude(terrain, vehicle_pose))
+
+
+def frame_pair(
+    previous: LadarScan,
+    current: LadarScan,
+    np_random: np.random.Generator,
+    odometry_std=DEFAULT_ODOMETRY_STD,
+) -> FramePair:
+    """The pair with its true motion and an odometry estimate whose error is drawn from ``np_random``."""
+    std = np.asarray(odometry_std, dtype=float)
+    if std.shape != (6,) or not np.all(np.isfinite(std)) or np.any(std < 0):
+        raise ValueError(f"odometry_std must be 6 finite non-negative numbers {MOTION_AXES}, got {odometry_std!r}")
+    truth = motion_between(previous, current)
+    odometry = perturbed_motion(truth, std * np_random.standard_normal(6))
+    return FramePair(previous, current, truth, odometry, np.diag(std**2))
