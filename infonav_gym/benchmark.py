@@ -12,6 +12,9 @@ Sensors (``infonav_gym.sensor_timing``): median milliseconds of one default
 ``Ladar().scan`` (32 x 180) and ``Camera().capture`` (120 x 160) on a default
 ``make_terrain`` scene, with absolute goals, each against a pure-Pymunk
 ``segment_query_first`` loop over the same rays (ratio < 1: the sensor is faster).
+ICP (``infonav_gym.registration_timing``): median milliseconds of point-to-point ``icp`` on a
+32 x 180 LADAR frame pair from a warm start, and its errors against the true motion, beside
+Open3D's ``registration_icp`` on the same pair when Open3D imports.
 Figures named ``*_us`` or ``*_ms`` meet their goal at or below it, all others at or above.
 """
 
@@ -27,6 +30,7 @@ from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
 from infonav_gym.multi import cooperative_localization_v0
+from infonav_gym.registration_timing import icp_figures
 from infonav_gym.sensor_timing import sensor_figures
 
 GOALS = {
@@ -35,6 +39,7 @@ GOALS = {
     "greedy_decision_us": 100.0,
     "ladar_frame_ms": 5.0,
     "camera_frame_ms": 10.0,
+    "icp_frame_pair_ms": 20.0,
 }
 
 
@@ -120,6 +125,7 @@ def run_benchmark(rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0
         figures[f"{name}_vs_cartpole_ratio"] = statistics.median(ratios)
     figures["greedy_decision_us"] = greedy_decision_us()
     figures.update(sensor_figures(seconds_per_round, seed))
+    figures.update(icp_figures(seconds_per_round, seed))
     met = {
         name: figures[name] <= goal if lower_is_better(name) else figures[name] >= goal for name, goal in GOALS.items()
     }

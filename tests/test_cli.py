@@ -83,7 +83,7 @@ def test_confidence_interval_is_students_t():
         (["evaluate", "--agents", "random,oracle", "--episodes", "1"], "unknown agent 'oracle'"),
         (["evaluate", "--config", "horizn=3", "--episodes", "1"], "Did you mean 'horizon'"),
         (["evaluate", "--episodes", "0"], "episodes must be >= 1"),
-        (["reproduce", "fig4"], "invalid choice: 'fig4' (choose from 'fig3', 'fig5')"),
+        (["reproduce", "fig4"], "invalid choice: 'fig4' (choose from 'fig3', 'fig5', 'fig6')"),
         (["reproduce", "fig3", "--seeds", "0"], "n_seeds (how many seeds the outage RMSE averages) must be >= 1"),
     ],
 )
@@ -121,8 +121,12 @@ def test_benchmark_reports_every_goal(capsys):
             "greedy_decision_us",
             "ladar_frame_ms",
             "camera_frame_ms",
+            "icp_frame_pair_ms",
         }
     )
+    assert figures["icp_frame_pair_ms"] > 0
+    assert result["goals_met"]["icp_frame_pair_ms"] == (figures["icp_frame_pair_ms"] <= 20.0)
+    assert figures["icp_rotation_error_deg"] < 0.5 and figures["icp_translation_error_m"] < 0.05
 
 
 def test_reproduce_fig3_writes_the_plot_and_the_json_it_prints(capsys, tmp_path):

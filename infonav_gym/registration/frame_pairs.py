@@ -16,6 +16,8 @@ from scipy.spatial.transform import Rotation
 from infonav_gym.sensors.ladar import Ladar, LadarScan
 from infonav_gym.world.attitude import invert_transform, rigid_transform, terrain_attitude, transform_error
 from infonav_gym.world.terrain import Terrain
+from infonav_gym.world.terrain_scenario import terrain_loop
+from infonav_gym.world.world import World
 
 MOTION_AXES = ("x", "y", "z", "roll", "pitch", "yaw")  # order of motion vectors and covariances
 DEFAULT_ODOMETRY_STD = (0.1, 0.1, 0.05, math.radians(0.5), math.radians(0.5), math.radians(1.0))  # [m] x3, [rad] x3
@@ -79,3 +81,22 @@ def frame_pair(
     truth = motion_between(previous, current)
     odometry = perturbed_motion(truth, std * np_random.standard_normal(6))
     return FramePair(previous, current, truth, odometry, np.diag(std**2))
+
+
+def terrain_frame_pair(
+    np_random: np.random.Generator, roughness: float = 0.7, drive_steps: int = 4, time_step_s: float = 0.5
+) -> FramePair:
+    """A pair from a vehicle driving a random ``terrain_loop``: frames ``drive_steps`` and ``drive_steps + 1``.
+
+    The vehicle drives at the loop's 2 m/s, so consecutive frames are ``2 * time_step_s`` metres apart.
+    """
+    scene = terrain_loop(np_random, roughness=roughness)
+    world = World()
+    world.reset(scene.scenario)
+    for _ in range(drive_steps):
+        world.step(time_step_s)
+    ladar = Ladar()
+    previous = scan_on_terrain(ladar, scene.terrain, world.pose, np_random)
+    world.step(time_step_s)
+    current = scan_on_terrain(ladar, scene.terrain, world.pose, np_random)
+    return frame_pair(previous, current, np_random)

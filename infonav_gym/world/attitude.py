@@ -57,9 +57,9 @@ def transform_points(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def rotation_angle(rotation: np.ndarray) -> float:
-    """Angle [rad] of the rotation ``rotation`` (3, 3), in [0, pi]."""
-    cosine = (np.trace(rotation) - 1.0) / 2.0
-    return math.acos(min(1.0, max(-1.0, cosine)))
+    """Angle [rad] of a (3, 3) rotation matrix, in [0, pi]; accurate near 0 (unlike ``arccos`` of the trace)."""
+    axis = (rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0], rotation[1, 0] - rotation[0, 1])
+    return math.atan2(0.5 * math.hypot(*axis), 0.5 * (rotation[0, 0] + rotation[1, 1] + rotation[2, 2] - 1.0))
 
 
 def transform_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:

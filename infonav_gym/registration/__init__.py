@@ -1,0 +1,10 @@
+"""Registration of 3D point sets and range images (the paper's Section V)."""
+
+from infonav_gym.registration.icp import RegistrationResult, icp
+from infonav_gym.registration.points import range_image_to_points
+
+__all__ = [
+    "RegistrationResult",
+    "icp",
+    "range_image_to_points",
+]
