@@ -18,6 +18,7 @@ from agents import GreedyEntropyAgent, RandomAgent
 AGENT_NAMES = ("random", "greedy")
 TEAM_ENV = "cooperative_localization_v0"  # the PettingZoo env; every robot plays its own copy of the agent
 SENSOR_ENV = "infonav/SensorSelection-v0"  # rewards image information, not pose updates
+REGISTRATION_ENV = "infonav/RangeRegistration-v0"  # rewards registration error reduction
 METRICS = {
     "cumulative_mi": "cumulative MI [nats]",
     "final_pose_entropy": "final pose entropy [nats]",
@@ -30,9 +31,42 @@ IMAGE_METRICS = {
 }
 
 
+REGISTRATION_METRICS = {
+    "cumulative_reward": "cumulative reward [m]",
+    "mean_error_after_m": "registration error after ICP [m]",
+    "mean_control_points": "control points per frame pair",
+}
+
+
 def metrics_of(env_id: str) -> dict:
     """The metrics reported for ``env_id``: ``{key: column title}``."""
-    return IMAGE_METRICS if env_id == SENSOR_ENV else METRICS
+    return {SENSOR_ENV: IMAGE_METRICS, REGISTRATION_ENV: REGISTRATION_METRICS}.get(env_id, METRICS)
+
+
+def _localization_metrics(infos: list[dict]) -> dict:
+    return {
+        "cumulative_mi": math.fsum(step["reward_terms"].get("mutual_information", 0.0) for step in infos),
+        "final_pose_entropy": infos[-1]["pose_entropy"],
+        "pose_rmse_m": math.sqrt(float(np.mean([step["position_error_m"] ** 2 for step in infos]))),
+    }
+
+
+def _image_metrics(infos: list[dict]) -> dict:
+    entropies = [step["image_entropy"] for step in infos if step["sensor"] != "none"]
+    return {
+        "cumulative_information": math.fsum(step["reward_terms"]["image_information"] for step in infos),
+        "frames": len(entropies),
+        "mean_frame_entropy": float(np.mean(entropies)) if entropies else 0.0,
+    }
+
+
+def _registration_metrics(infos: list[dict]) -> dict:
+    registered = [step for step in infos if step["registered"]]
+    return {
+        "cumulative_reward": math.fsum(math.fsum(step["reward_terms"].values()) for step in infos),
+        "mean_error_after_m": float(np.mean([step["error_after_m"] for step in registered])) if registered else 0.0,
+        "mean_control_points": float(np.mean([step["n_control_points"] for step in registered])) if registered else 0.0,
+    }
 
 
 def make_agent(name: str, n_actions: int, noop_action: int | None = None):
@@ -53,18 +87,9 @@ def run_episode(env: gym.Env, agent, seed: int) -> dict:
         observation, _, terminated, truncated, info = env.step(agent.act(observation, info))
         infos.append(info)
         done = terminated or truncated
-    if env.spec is not None and env.spec.id == SENSOR_ENV:
-        entropies = [step["image_entropy"] for step in infos if step["sensor"] != "none"]
-        return {
-            "cumulative_information": math.fsum(step["reward_terms"]["image_information"] for step in infos),
-            "frames": len(entropies),
-            "mean_frame_entropy": float(np.mean(entropies)) if entropies else 0.0,
-        }
-    return {
-        "cumulative_mi": math.fsum(step["reward_terms"].get("mutual_information", 0.0) for step in infos),
-        "final_pose_entropy": info["pose_entropy"],
-        "pose_rmse_m": math.sqrt(float(np.mean([step["position_error_m"] ** 2 for step in infos]))),
-    }
+    env_id = env.spec.id if env.spec is not None else None
+    summarize = {SENSOR_ENV: _image_metrics, REGISTRATION_ENV: _registration_metrics}.get(env_id, _localization_metrics)
+    return summarize(infos)
 
 
 def run_team_episode(env, agent_name: str, seed: int) -> dict:

@@ -13,6 +13,7 @@ Synthetic clouds (noise std 1% of the cloud's extent, on the source only):
   needs 20,000 points for the same 0.1 degree floor that 2,000 give point-to-point.
 """
 
+import importlib
 import math
 
 import numpy as np
@@ -24,6 +25,7 @@ from infonav_gym.registration.icp import rotation_angle
 from infonav_gym.sensors import Ladar, point_cloud
 from infonav_gym.world.terrain import make_terrain
 
+ICP_MODULE = importlib.import_module("infonav_gym.registration.icp")  # the package attribute is the function
 EXTENT_M = 4.0
 NOISE_STD_M = 0.01 * EXTENT_M
 
@@ -88,11 +90,29 @@ def test_icp_recovers_a_known_motion_to_a_tenth_of_a_degree_and_5_mm(seed, make_
 @pytest.mark.parametrize("method", ["point_to_point", "point_to_plane"])
 def test_identical_clouds_give_the_identity_after_one_iteration(method):
     cloud = face_cloud(np.random.default_rng(0), 2000)
+    assert len(cloud) >= ICP_MODULE.COARSE_STRIDE * ICP_MODULE.COARSE_MIN_POINTS  # its coarse phase must not count
     result = icp(cloud, cloud, method=method)
     assert isinstance(result, RegistrationResult)
     assert result.iterations == 1 and result.converged
     np.testing.assert_allclose(result.transform, np.eye(4), rtol=0, atol=1e-12)
     assert result.rmse < 1e-12 and result.fitness == 1.0
+
+
+@pytest.mark.parametrize("method", ["point_to_point", "point_to_plane"])
+def test_coarse_phase_is_only_a_speed_up(method, monkeypatch):
+    """With and without the coarse phase: transforms far closer than the accuracy bar, fitness and rmse within 0.1%."""
+    rng = np.random.default_rng(8)
+    target = face_cloud(rng)
+    truth = random_motion(rng)
+    source = noisy_source(rng, target, truth)
+    coarse_to_fine = icp(source, target, method=method, max_correspondence_distance=0.5)
+    monkeypatch.setattr(ICP_MODULE, "COARSE_MIN_POINTS", len(source))
+    fine_only = icp(source, target, method=method, max_correspondence_distance=0.5)
+    assert coarse_to_fine.converged and fine_only.converged
+    rotation_difference_deg, translation_difference_m = errors(coarse_to_fine.transform, fine_only.transform)
+    assert rotation_difference_deg < 0.02 and translation_difference_m < 1e-3
+    assert coarse_to_fine.fitness == pytest.approx(fine_only.fitness, abs=1e-3)
+    assert coarse_to_fine.rmse == pytest.approx(fine_only.rmse, rel=1e-3)
 
 
 def test_transform_maps_source_onto_target():

@@ -1,6 +1,6 @@
 """Regenerate the paper's figures from the environments (``infonav reproduce``)."""
 
-FIGURES = ("fig3", "fig5")
+FIGURES = ("fig3", "fig5", "fig6")
 
 
 def paper_label(agent: str) -> str:
