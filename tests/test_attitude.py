@@ -1,14 +1,12 @@
 """Vehicle attitude on terrain, rigid transforms, pitched LADAR frames and frame pairs."""
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from infonav_gym.registration import frame_pairs
 from infonav_gym.sensors.ladar import Ladar, point_cloud, sensor_points
 from infonav_gym.world.attitude import (
     invert_transform,
@@ -20,18 +18,6 @@ from infonav_gym.world.attitude import (
     transform_points,
 )
 from infonav_gym.world.terrain import Terrain, make_terrain
-
-
-def _frame_pairs():
-    """``infonav_gym.registration.frame_pairs`` without importing the package's other modules."""
-    name = "infonav_gym.registration.frame_pairs"
-    if name not in sys.modules:
-        path = Path(__file__).parents[1] / "infonav_gym" / "registration" / "frame_pairs.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
 
 
 def plane(slope_x: float, slope_y: float, size_m: float = 400.0, cell_m: float = 2.0) -> Terrain:
@@ -111,7 +97,6 @@ def test_bad_attitude_raises(attitude):
 
 
 def test_frame_pair_true_motion_maps_current_points_onto_the_previous_frame():
-    frame_pairs = _frame_pairs()
     terrain = make_terrain(np.random.default_rng(4), roughness=0.7)
     ladar = Ladar(range_std_m=0.0)
     previous = frame_pairs.scan_on_terrain(ladar, terrain, [0.0, 0.0, 0.3], np.random.default_rng(1))
@@ -123,7 +108,6 @@ def test_frame_pair_true_motion_maps_current_points_onto_the_previous_frame():
 
 
 def test_odometry_errors_have_the_configured_spread_and_the_error_metric_weighs_rotation_by_the_lever_arm():
-    frame_pairs = _frame_pairs()
     std = np.array([0.1, 0.2, 0.05, 0.01, 0.02, 0.03])
     rng = np.random.default_rng(5)
     truth = rigid_transform(rotation_matrix(0.1, 0.0, 0.2), [1.0, 0.0, 0.1])
