@@ -12,7 +12,6 @@ from infonav_gym.information import expected_information_gain
 from infonav_gym.registration import icp, range_image_to_points
 from infonav_gym.registration.control_points import (
     CONTROL_POINT_STRATEGIES,
-    CURVATURE_CORRELATION,
     DEFAULT_POSE_COVARIANCE,
     ControlPointGeometry,
     control_point_geometry,
@@ -115,8 +114,7 @@ def test_mutual_information_matches_the_gaussian_update_closed_form():
         points_m=np.zeros((n, 3)),
         normals=np.zeros((n, 3)),
         jacobians=jacobians,
-        independent_var_m2=variance,
-        shared_std_m=np.zeros(n),
+        error_var_m2=variance,
         spread_m=np.zeros(n),
         structure_m=np.ones(n),
         patch=patch,
@@ -134,36 +132,19 @@ def test_mutual_information_matches_the_gaussian_update_closed_form():
     assert geometry.mutual_information(chosen) == pytest.approx(closed_form, rel=1e-10)
 
 
-def test_mutual_information_with_errors_shared_within_a_patch():
-    """Shared errors: the block covariance diag(a) + rho c c^T per patch, inverted in closed form."""
-    rng = np.random.default_rng(4)
-    n = 30
-    jacobians = rng.standard_normal((n, 6))
-    variance = rng.uniform(0.01, 0.05, n) ** 2
-    shared = rng.uniform(0.0, 0.2, n)
-    patch = np.repeat(np.arange(3), n // 3)
-    geometry = ControlPointGeometry(
-        np.zeros((n, 3)),
-        np.zeros((n, 3)),
-        jacobians,
-        variance,
-        shared,
-        np.zeros(n),
-        np.ones(n),
-        patch,
-        DEFAULT_POSE_COVARIANCE,
-    )
-    chosen = np.array([1, 2, 5, 9, 10, 14, 22, 23, 29])
-    noise = np.diag(variance[chosen])
-    same_patch = patch[chosen][:, None] == patch[chosen][None, :]
-    noise = noise + CURVATURE_CORRELATION * same_patch * np.outer(shared[chosen], shared[chosen])
-    expected = expected_information_gain(DEFAULT_POSE_COVARIANCE, jacobians[chosen], noise)
-    assert geometry.mutual_information(chosen) == pytest.approx(expected, rel=1e-9)
-    assert geometry.mutual_information(chosen) < ControlPointGeometry(
-        *(getattr(geometry, f) for f in ("points_m", "normals", "jacobians", "independent_var_m2")),
-        np.zeros(n),
-        *(getattr(geometry, f) for f in ("spread_m", "structure_m", "patch", "pose_covariance")),
-    ).mutual_information(chosen), "errors shared by neighbours carry less information than independent ones"
+def test_error_model_grows_with_the_footprint_and_the_spread(wall_scan):
+    """Far returns (bigger pixel footprint) and returns the prior motion uncertainty spreads past their surface."""
+    geometry = control_point_geometry(wall_scan)
+    ground = np.isfinite(geometry.error_var_m2) & (geometry.points_m[:, 2] < -1.9)
+    distance = np.linalg.norm(geometry.points_m, axis=1)
+    near, far = ground & (distance < 8.0), ground & (distance > 20.0)
+    assert np.median(geometry.error_std_m[far]) > 2 * np.median(geometry.error_std_m[near])
+    assert geometry.error_std_m[ground].min() >= math.sqrt(2) * 0.02, "at least the range noise of both frames"
+    wider = control_point_geometry(wall_scan, 100 * DEFAULT_POSE_COVARIANCE)
+    usable = np.isfinite(geometry.error_var_m2)
+    assert np.all(wider.error_std_m[usable] >= geometry.error_std_m[usable])
+    assert np.mean(wider.error_std_m[usable] > 1.5 * geometry.error_std_m[usable]) > 0.5
+    np.testing.assert_allclose(wider.spread_m, 10 * geometry.spread_m)
 
 
 def test_entropy_picks_the_wall_and_trunks_as_well_as_the_ground(wall_scan):
@@ -260,10 +241,12 @@ def test_entropy_registers_better_than_uniform_and_typically_better_than_random(
 
 
 @pytest.mark.xfail(
-    reason="not reached: a quarter of the points chosen by 'entropy' registers 7-35% worse in translation and "
-    "35-50% worse in rotation than all points (seed sets 0-79 and 0-23), beats random in mean translation on some "
-    "seed sets only and not in mean rotation: the errors are dominated by correspondence biases (target normals, "
-    "curvature between samples) that the selection can only partly predict from one frame",
+    reason="not reached on terrain_frame_pair pairs (fig6.seed_statistics, 25% of the returns, mean registration "
+    "error vs all returns): seeds 0-49 +15% (random +33%), 100-149 +56% (random +41%), 200-249 +1601% (random +25%; "
+    "one pair, seed 218, diverges to 12 m); medians are within 13% of all returns (0.0133, 0.0109, 0.0133 m vs "
+    "0.0118, 0.0117, 0.0123 m) but the means are carried by a few pairs where ICP on the chosen points slides off "
+    "(ground-only scenes, few returns), which the selection from one frame does not foresee; on these rugged pairs "
+    "too it is off in mean rotation",
     strict=True,  # a tripwire: passing would mean the claim now holds and this mark must go
 )
 def test_entropy_reaches_the_all_points_accuracy_and_beats_random_on_average(registration_errors):

@@ -10,36 +10,35 @@ information ``0.5 ln det(I + L^T J^T C^-1 J L)`` [nats] about the motion: Sectio
 ``ic = im_post - im_prior`` (Eq. 3) for a linear Gaussian update. With independent errors of
 standard deviation ``sigma`` this is ``0.5 ln det(I + P sum_i J_i^T J_i / sigma^2)``.
 
-Error model of a control point (all from its own range image, before any correspondence):
+Error model of a control point (all from its own range image, before any correspondence): independent
+errors of variance ``a_i = (2 RANGE_STD_M^2 + normal_i^2 + curvature_i^2 + footprint_i^2) * f_i``:
 
-- independent part, variance ``a_i = (2 RANGE_STD_M^2 + normal_i^2 + (1 - rho) curvature_i^2) * f_i``:
-  range noise in both frames; ``normal_i``, the error of the matched point's normal when the
-  ``NORMAL_SAMPLES`` nearest samples span one scan line (anisotropic sampling, e.g. grazing ground:
-  the normal's angle error ``sqrt(2) RANGE_STD_M / width`` times the offset to the matched sample);
-  the unshared part of the curvature error.
-- shared part: ``curvature_i * sqrt(f_i)``, fully correlated with weight ``rho = CURVATURE_CORRELATION``
-  among the points of one image patch (a bulging trunk or bump puts every one of its points off
-  the matched sample's tangent plane the same way, so they do not average out). ``curvature_i`` is
-  how far the point lies off the chords to its row and column neighbours, along its normal.
-- ``f_i = max(1, spread_i / structure_i)^2`` inflates both for ambiguous correspondences:
-  ``spread_i = sqrt(J_i P J_i^T)`` is how far the prior motion uncertainty moves the point along its
-  normal (a far point moves by ``|p| * angle``); ``structure_i`` is its distance to the nearest depth
-  edge (a range step above ``DEPTH_JUMP_RATIO`` of the range, a pixel without a return, or the image
-  border), ``(edge distance [pixel steps] + 1/2) * range * pixel angle``. A point whose spread
-  reaches past the edge of its surface may be matched with another surface or with nothing, so its
-  errors grow with the ratio; within its structure it is unaffected.
+- range noise in both frames;
+- ``normal_i``, the error of the matched point's normal when the ``NORMAL_SAMPLES`` nearest samples
+  span one scan line (anisotropic sampling, e.g. grazing ground: the normal's angle error
+  ``sqrt(2) RANGE_STD_M / width`` times the offset to the matched sample);
+- ``curvature_i``, how far the point lies off the chords to its row and column neighbours along its
+  normal (a bump or trunk between the target's samples puts the point off their tangent plane);
+- ``footprint_i = FOOTPRINT_BIAS * range * pixel angle``: the matched sample is up to a pixel
+  footprint away, and the target's surface and normal are only known at that resolution, so a far
+  point's residual is biased in proportion to its footprint (measured on simulator pairs, seeds
+  >= 1000: the point-to-plane residuals at the true motion grow from about 2 cm at 5-10 m to 5 cm at
+  20-30 m);
+- ``f_i = max(1, spread_i / structure_i)^2`` inflates all of it for ambiguous correspondences (the
+  spread rule): ``spread_i = sqrt(J_i P J_i^T)`` is how far the prior motion uncertainty moves the
+  point along its normal (a far point moves by ``|p| * angle``); ``structure_i`` is its distance to
+  the nearest depth edge (a range step above ``DEPTH_JUMP_RATIO`` of the range, a pixel without a
+  return, or the image border), ``(edge distance [pixel steps] + 1/2) * range * pixel angle``. A
+  point whose spread reaches past the edge of its surface may be matched with another surface or
+  with nothing, so its errors grow with the ratio; within its structure it is unaffected.
 - a point without all four neighbours (edges, image border) has no usable normal: no information.
-
-Within a patch the covariance is ``diag(a) + rho c c^T`` (``c`` the shared parts), so by
-Sherman-Morrison its information is ``S - rho u u^T / (1 + rho s)`` with ``S = sum J_i^T J_i / a_i``,
-``u = sum J_i^T c_i / a_i``, ``s = sum c_i^2 / a_i``: more points of one patch bring diminishing
-information, which spreads the control points over the image.
 
 The ``"entropy"`` strategy splits the image into ``PATCH_SHAPE`` patches, orders each patch's
 points by their error (most reliable first) in chunks of ``CHUNK_POINTS``, and adds chunks
 greedily by mutual-information gain per point, each gain conditioned on everything chosen so far
-(ground fixes z, roll and pitch; walls and trunks complement it with x, y and yaw). For speed at
-most ``MAX_GREEDY_ROUNDS`` rounds are run: a round takes the next chunk of each of the
+(ground fixes z, roll and pitch; walls and trunks complement it with x, y and yaw), so the control
+points spread over the patches that tell about different motions. For speed at most
+``MAX_GREEDY_ROUNDS`` rounds are run: a round takes the next chunk of each of the
 ``ceil(k / (CHUNK_POINTS * MAX_GREEDY_ROUNDS))`` patches with the best gains.
 """
 
@@ -63,7 +62,7 @@ RANGE_STD_M = 0.02  # range noise of the LADAR (Ladar.range_std_m) [m]
 NORMAL_WINDOW = 5  # side of the pixel box whose points are averaged before taking normals
 NORMAL_SAMPLES = 10  # nearest samples a registration uses for the normal of a matched point
 DEPTH_JUMP_RATIO = 0.2  # a range step above this fraction of the range separates two surfaces
-CURVATURE_CORRELATION = 0.5  # weight rho of the curvature error shared by a patch (chosen on validation pairs)
+FOOTPRINT_BIAS = 0.5  # residual bias per pixel footprint (range * pixel angle) [m/m] (fit on seeds >= 1000)
 DEFAULT_POSE_STD = (0.2, 0.2, 0.2, math.radians(2.0), math.radians(2.0), math.radians(2.0))  # [m] x3, [rad] x3
 DEFAULT_POSE_COVARIANCE = np.diag(np.square(DEFAULT_POSE_STD))  # over (x, y, z, rotation about x, y, z)
 
@@ -76,8 +75,7 @@ class ControlPointGeometry:
         points_m: the returns in the sensor frame (N, 3) [m].
         normals: unit surface normals facing the sensor (N, 3).
         jacobians: point-to-plane Jacobians ``[n^T, (p x n)^T]`` (N, 6).
-        independent_var_m2: variance ``a_i`` of the independent residual error (N,) [m^2]; ``inf`` if unusable.
-        shared_std_m: standard deviation ``c_i`` of the error shared within the patch (N,) [m].
+        error_var_m2: variance ``a_i`` of the residual error (N,) [m^2]; ``inf`` if unusable.
         spread_m: how far the prior motion uncertainty moves each point along its normal, ``sqrt(J P J^T)`` (N,) [m].
         structure_m: distance to the nearest depth edge, image border or missing return (N,) [m].
         patch: index of each point's patch (N,), row-major over the ``PATCH_SHAPE`` grid.
@@ -87,8 +85,7 @@ class ControlPointGeometry:
     points_m: np.ndarray
     normals: np.ndarray
     jacobians: np.ndarray
-    independent_var_m2: np.ndarray
-    shared_std_m: np.ndarray
+    error_var_m2: np.ndarray
     spread_m: np.ndarray
     structure_m: np.ndarray
     patch: np.ndarray
@@ -97,16 +94,15 @@ class ControlPointGeometry:
     @property
     def error_std_m(self) -> np.ndarray:
         """Total standard deviation of each point's residual error (N,) [m]."""
-        return np.sqrt(self.independent_var_m2 + CURVATURE_CORRELATION * self.shared_std_m**2)
+        return np.sqrt(self.error_var_m2)
 
     def mutual_information(self, indices) -> float:
         """Mutual information [nats] between the motion and the residuals of the returns ``indices``."""
-        chosen = np.zeros(len(self.points_m), dtype=bool)
-        chosen[np.asarray(indices, dtype=np.int64)] = True
-        sums = _patch_sums(self, chosen, int(self.patch.max()) + 1)
-        information = _patch_information(*sums).sum(axis=0)
+        chosen = np.asarray(indices, dtype=np.int64)
+        jacobians = self.jacobians[chosen] / np.sqrt(self.error_var_m2[chosen])[:, None]
         cholesky = np.linalg.cholesky(self.pose_covariance)
-        return 0.5 * float(np.linalg.slogdet(np.eye(6) + cholesky.T @ information @ cholesky)[1])
+        whitened = jacobians @ cholesky
+        return 0.5 * float(np.linalg.slogdet(np.eye(6) + whitened.T @ whitened)[1])
 
 
 def check_pose_covariance(pose_covariance) -> np.ndarray:
@@ -267,44 +263,20 @@ def _geometry(range_image: LadarScan, covariance: np.ndarray) -> ControlPointGeo
     spread = np.sqrt(np.einsum("ni,ni->n", jacobians @ covariance, jacobians))
     ambiguity = np.maximum(1.0, spread / structure) ** 2
     normal_error = np.where(usable, _normal_error(row_spacing, column_spacing), 0.0)
-    independent = (2.0 * RANGE_STD_M**2 + normal_error**2 + (1.0 - CURVATURE_CORRELATION) * curvature**2) * ambiguity
+    footprint = FOOTPRINT_BIAS * ranges[returns] * _pixel_angle(range_image)
+    variance = (2.0 * RANGE_STD_M**2 + normal_error**2 + curvature**2 + footprint**2) * ambiguity
     rows, columns = np.nonzero(returns)
     columns_of_patches = -(-ranges.shape[1] // PATCH_SHAPE[1])
     return ControlPointGeometry(
         points_m=points,
         normals=normals,
         jacobians=jacobians,
-        independent_var_m2=np.where(usable, independent, np.inf),
-        shared_std_m=curvature * np.sqrt(ambiguity),
+        error_var_m2=np.where(usable, variance, np.inf),
         spread_m=spread,
         structure_m=structure,
         patch=(rows // PATCH_SHAPE[0]) * columns_of_patches + columns // PATCH_SHAPE[1],
         pose_covariance=covariance,
     )
-
-
-def _patch_sums(geometry: ControlPointGeometry, chosen: np.ndarray, patches: int, cholesky=None) -> tuple:
-    """Per patch, ``S = sum J^T J / a``, ``u = sum J^T c / a`` and ``s = sum c^2 / a`` over the chosen points.
-
-    With ``cholesky`` (``L``, ``P = L L^T``) the Jacobians are whitened to ``J L`` first.
-    """
-    jacobians = geometry.jacobians if cholesky is None else geometry.jacobians @ cholesky
-    inverse_var = np.where(chosen, 1.0 / geometry.independent_var_m2, 0.0)
-    shared = geometry.shared_std_m
-    outer = (inverse_var[:, None, None] * jacobians[:, :, None] * jacobians[:, None, :]).reshape(-1, 36)
-    index = geometry.patch[:, None] * 36 + np.arange(36)
-    information = np.bincount(index.ravel(), outer.ravel(), minlength=patches * 36).reshape(patches, 6, 6)
-    index = geometry.patch[:, None] * 6 + np.arange(6)
-    weighted = (inverse_var * shared)[:, None] * jacobians
-    cross = np.bincount(index.ravel(), weighted.ravel(), minlength=patches * 6).reshape(patches, 6)
-    shared_sum = np.bincount(geometry.patch, inverse_var * shared**2, minlength=patches)
-    return information, cross, shared_sum
-
-
-def _patch_information(information: np.ndarray, cross: np.ndarray, shared_sum: np.ndarray) -> np.ndarray:
-    """``S - rho u u^T / (1 + rho s)``: the information of points with a shared, correlated error."""
-    factor = CURVATURE_CORRELATION / (1.0 + CURVATURE_CORRELATION * shared_sum)
-    return information - factor[..., None, None] * cross[..., :, None] * cross[..., None, :]
 
 
 def _check_k(k) -> int:
@@ -362,10 +334,9 @@ def select_control_points(
 
 def _most_informative(geometry: ControlPointGeometry, k: int) -> np.ndarray:
     """Greedy chunks of the most reliable points of each patch, by mutual-information gain per point."""
-    usable = np.isfinite(geometry.independent_var_m2)
-    inverse_std = np.where(usable, 1.0 / np.sqrt(geometry.independent_var_m2), 0.0)
+    usable = np.isfinite(geometry.error_var_m2)
     error = geometry.error_std_m
-    reliability = np.where(usable, error / (1.0 + np.where(usable, error, 0.0)), 1.0)
+    reliability = np.where(usable, error / (1.0 + np.where(usable, error, 0.0)), 1.0)  # in [0, 1)
     order = np.argsort(geometry.patch + reliability / 2)  # by patch, most reliable first
     patch_of = geometry.patch[order]
     patches = int(patch_of[-1]) + 1
@@ -375,42 +346,36 @@ def _most_informative(geometry: ControlPointGeometry, k: int) -> np.ndarray:
     chunks = -(-members // CHUNK_POINTS)
     slots = int(chunks.max())
 
-    # whitened Jacobians J L / sqrt(a) and shared errors c / sqrt(a), padded to (patch, chunk, point in chunk)
-    scale = inverse_std[order]
+    # whitened Jacobians J L / sqrt(a), padded to (patch, chunk, point in chunk)
     position = patch_of * (slots * CHUNK_POINTS) + rank
-    rows = np.zeros((patches * slots * CHUNK_POINTS, 7))
-    rows[position, :6] = geometry.jacobians[order] @ np.linalg.cholesky(geometry.pose_covariance)
-    rows[position, 6] = geometry.shared_std_m[order]
-    rows[position] *= scale[:, None]
-    rows = rows.reshape(patches, slots, CHUNK_POINTS, 7)
-    # running sums over a patch's chunks (taking its first j + 1 chunks) of [J L, c]^T [J L, c] / a
-    sums = np.cumsum(np.swapaxes(rows, -1, -2) @ rows, axis=1)
-    information, cross, shared_sum = sums[..., :6, :6], sums[..., :6, 6], sums[..., 6, 6]
+    rows = np.zeros((patches * slots * CHUNK_POINTS, 6))
+    whitened = geometry.jacobians @ np.linalg.cholesky(geometry.pose_covariance)
+    rows[position] = (whitened * np.where(usable, 1.0 / np.where(usable, error, 1.0), 0.0)[:, None])[order]
+    rows = rows.reshape(patches, slots, CHUNK_POINTS, 6)
+    # a patch's information when its first j + 1 chunks are taken: running sums of (J L)^T (J L) / a
+    information = np.cumsum(np.swapaxes(rows, -1, -2) @ rows, axis=1)
     size = np.cumsum(
         np.bincount(patch_of * slots + rank // CHUNK_POINTS, minlength=patches * slots).reshape(patches, slots), axis=1
     )
 
     batch = max(1, -(-k // (CHUNK_POINTS * MAX_GREEDY_ROUNDS)))
     taken_chunks = np.zeros(patches, dtype=np.int64)
-    current = np.zeros((patches, 6, 6))  # each patch's information so far
     total = np.eye(6)  # I + the whitened information chosen so far
     total_log_det = 0.0
     all_patches = np.arange(patches)
     taken = 0
     while taken < k:
         column = np.minimum(taken_chunks, slots - 1)
-        candidate = _patch_information(
-            information[all_patches, column], cross[all_patches, column], shared_sum[all_patches, column]
-        )
+        previous = np.where(taken_chunks[:, None, None] > 0, information[all_patches, column - 1], 0.0)
+        added_information = information[all_patches, column] - previous
         added = size[all_patches, column] - np.where(taken_chunks > 0, size[all_patches, column - 1], 0)
-        gain = (np.linalg.slogdet(total + candidate - current)[1] - total_log_det) / np.maximum(added, 1)
+        gain = (np.linalg.slogdet(total + added_information)[1] - total_log_det) / np.maximum(added, 1)
         gain[taken_chunks >= chunks] = -np.inf
         best = np.argsort(-gain, kind="stable")[:batch]
         best = best[gain[best] > -np.inf]
         best = best[taken + np.cumsum(added[best]) - added[best] < k]  # stop once k points are taken
         taken += int(added[best].sum())
-        total += (candidate[best] - current[best]).sum(axis=0)
-        current[best] = candidate[best]
+        total += added_information[best].sum(axis=0)
         taken_chunks[best] += 1
         last = best[-1]
         total_log_det = np.linalg.slogdet(total)[1]
