@@ -61,6 +61,22 @@ def build_parser() -> argparse.ArgumentParser:
     )
     reproduce.add_argument("--seeds", type=int, default=20, help="seeds averaged from --seed on (default: 20)")
     _common(reproduce)
+
+    replay = commands.add_parser("replay", help="replay measurement-selection policies on logged real robot data")
+    replay_sources = replay.add_subparsers(dest="source", required=True)
+    mrclam = replay_sources.add_parser("mrclam", help="a UTIAS MRCLAM dataset directory (Datasets 1-9)")
+    mrclam.add_argument("dataset_dir", type=Path, help="directory with Barcodes.dat, RobotN_Odometry.dat, ...")
+    mrclam.add_argument("--policy", default="all", help="comma-separated: all, greedy, random, nearest (default: all)")
+    mrclam.add_argument("--k", default="1", help="comma-separated budgets: observations per robot per window")
+    mrclam.add_argument("--window-s", default="1", help="comma-separated budget windows [s] (default: 1)")
+    mrclam.add_argument("--seeds", type=int, default=1, help="random-policy runs per budget from --seed on")
+    mrclam.add_argument("--cooperative", action="store_true", help="JointEKF with robot-to-robot observations")
+    mrclam.add_argument("--outage-robot", type=int, help="also run the outage experiment for this robot (subject #)")
+    mrclam.add_argument("--outage-start-s", type=float, default=0.0, help="outage start [s] (default: 0)")
+    mrclam.add_argument("--outage-end-s", type=float, default=float("inf"), help="outage end [s] (default: the end)")
+    mrclam.add_argument("--duration-s", type=float, help="replay only the first DURATION_S seconds")
+    mrclam.add_argument("--output", type=Path, help="write OUTPUT.md and OUTPUT.json")
+    _common(mrclam)
     return parser
 
 
@@ -119,6 +135,62 @@ def _reproduce(args, argv) -> dict:
     return result
 
 
+def _replay(args, argv) -> dict:
+    """Load an MRCLAM directory, replay the policies and budgets asked for; print the table unless --json."""
+    import warnings
+
+    from infonav_gym.datasets import mrclam
+    from infonav_gym.replay import POLICIES, ReplayConfig, markdown_table, run_experiments, write_results
+
+    policies = [name.strip() for name in args.policy.split(",") if name.strip()]
+    unknown = [name for name in policies if name not in POLICIES]
+    if unknown or not policies:
+        raise ValueError(f"unknown policy {unknown or args.policy!r}: expected one of {', '.join(POLICIES)}")
+    try:
+        ks = [int(value) for value in args.k.split(",")]
+        windows = [float(value) for value in args.window_s.split(",")]
+    except ValueError:
+        message = f"--k and --window-s take comma-separated numbers, got {args.k!r}, {args.window_s!r}"
+        raise ValueError(message) from None
+    if min(ks) < 1 or min(windows) <= 0 or args.seeds < 1:
+        raise ValueError(f"need k >= 1, window-s > 0 and seeds >= 1, got {ks}, {windows}, {args.seeds}")
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            dataset = mrclam.load(args.dataset_dir)
+    except FileNotFoundError as error:
+        raise ValueError(str(error)) from None
+    for warning in caught:
+        print(f"infonav replay: warning: {warning.message}", file=sys.stderr)
+    if not dataset.has_groundtruth:
+        print(
+            "infonav replay: no ground truth for robot(s) "
+            f"{[robot for robot in dataset.robots if robot not in dataset.groundtruth]}: "
+            "they start at the landmarks' centroid; their RMSE and NEES are n/a, see the NIS consistency columns",
+            file=sys.stderr,
+        )
+    outage = (args.outage_robot, args.outage_start_s, args.outage_end_s) if args.outage_robot is not None else None
+    if outage and args.outage_robot not in dataset.robots:
+        raise ValueError(f"--outage-robot {args.outage_robot} is not one of the robots {list(dataset.robots)}")
+    result = run_experiments(
+        dataset,
+        policies,
+        ks,
+        windows,
+        n_seeds=args.seeds,
+        seed=args.seed,
+        outage=outage,
+        config=ReplayConfig(cooperative=args.cooperative),
+        duration_s=args.duration_s,
+        progress=not args.json,
+    )
+    if args.output:
+        result["files"] = [str(path) for path in write_results(result, args.output, "infonav " + shlex.join(argv))]
+    if not args.json:
+        print(markdown_table(result))
+    return result
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
@@ -130,6 +202,8 @@ def main(argv: list[str] | None = None) -> int:
             result = _evaluate(args, argv)
         elif args.command == "reproduce":
             result = _reproduce(args, argv)
+        elif args.command == "replay":
+            result = _replay(args, argv)
         else:
             result = _benchmark(args)
     except (ValueError, ImportError) as error:

@@ -1,0 +1,227 @@
+"""Loader for the UTIAS MRCLAM directory format (Leung et al., IJRR 2011).
+
+A dataset directory holds ``Barcodes.dat`` (subject -> barcode), ``Landmark_Groundtruth.dat``
+and, per robot ``N``, ``RobotN_Odometry.dat``, ``RobotN_Measurement.dat`` and
+``RobotN_Groundtruth.dat``: whitespace-separated numbers with ``#`` header lines.
+Measurements name a *barcode*; ``load`` maps it to the observed subject and splits
+landmark from robot-to-robot observations. Times stay absolute [s] as logged;
+``MRCLAMDataset.start_time`` is the first odometry time, the origin of replay times.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+BARCODES_FILE = "Barcodes.dat"
+LANDMARKS_FILE = "Landmark_Groundtruth.dat"
+ODOMETRY_COLUMNS = 3  # time [s], forward velocity [m/s], angular velocity [rad/s]
+MEASUREMENT_COLUMNS = 4  # time [s], barcode #, range [m], bearing [rad]
+GROUNDTRUTH_COLUMNS = 4  # time [s], x [m], y [m], orientation [rad]
+LANDMARK_COLUMNS = 5  # subject #, x [m], y [m], x std-dev [m], y std-dev [m]
+_ROBOT_FILE = re.compile(r"Robot(\d+)_(Odometry|Measurement|Groundtruth)\.dat$")
+
+
+@dataclass
+class MRCLAMDataset:
+    """One MRCLAM dataset in numpy arrays; robots and landmarks are named by subject number.
+
+    Attributes:
+        path: the dataset directory.
+        robots: subject numbers of the robots with odometry, ascending.
+        barcodes: barcode # -> subject #.
+        landmark_ids: subject numbers of the mapped landmarks (L,).
+        landmarks: their positions ``[x, y]`` [m] (L, 2).
+        landmark_std: their ground-truth standard deviations ``[x, y]`` [m] (L, 2).
+        odometry: robot -> ``[time, speed, turn_rate]`` rows (n, 3), time-sorted.
+        landmark_measurements: robot -> ``[time, landmark subject, range, bearing]`` (m, 4).
+        robot_measurements: robot -> ``[time, observed robot subject, range, bearing]`` (m, 4).
+        groundtruth: robot -> ``[time, x, y, heading]`` (g, 4); robots without the file are absent.
+        unknown_barcodes: measurements skipped because their barcode (or its subject) is not in the
+            map of robots and landmarks.
+        unknown_barcode_values: the distinct skipped barcodes.
+        missing: human-readable notes on missing files (each also issued as a warning).
+    """
+
+    path: Path
+    robots: tuple[int, ...]
+    barcodes: dict[int, int]
+    landmark_ids: np.ndarray
+    landmarks: np.ndarray
+    landmark_std: np.ndarray
+    odometry: dict[int, np.ndarray]
+    landmark_measurements: dict[int, np.ndarray]
+    robot_measurements: dict[int, np.ndarray]
+    groundtruth: dict[int, np.ndarray]
+    unknown_barcodes: int = 0
+    unknown_barcode_values: tuple[int, ...] = ()
+    missing: list[str] = field(default_factory=list)
+
+    @property
+    def start_time(self) -> float:
+        """The first odometry time [s]: replay times count from here."""
+        return float(min(self.odometry[robot][0, 0] for robot in self.robots if len(self.odometry[robot])))
+
+    @property
+    def end_time(self) -> float:
+        """The last odometry time [s]."""
+        return float(max(self.odometry[robot][-1, 0] for robot in self.robots if len(self.odometry[robot])))
+
+    @property
+    def has_groundtruth(self) -> bool:
+        """Every robot has a ground-truth trajectory."""
+        return all(robot in self.groundtruth for robot in self.robots)
+
+    def landmark_index(self, subjects) -> np.ndarray:
+        """Row of each landmark subject number in ``landmarks``."""
+        lookup = {int(subject): row for row, subject in enumerate(self.landmark_ids)}
+        return np.array([lookup[int(subject)] for subject in np.atleast_1d(subjects)], dtype=int)
+
+
+def read_table(path: Path, columns: int) -> np.ndarray:
+    """A whitespace-separated numeric table with ``#`` comments, as (rows, ``columns``) float64.
+
+    Raises:
+        ValueError: naming the file and the 1-based line number of the first line that does not
+            hold exactly ``columns`` finite numbers.
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # numpy warns on an empty file
+        try:
+            table = np.loadtxt(path, comments="#", ndmin=2, dtype=float)
+        except ValueError:
+            table = None
+    if table is not None and table.size == 0:
+        return np.zeros((0, columns))
+    if table is None or table.shape[1] != columns or not np.all(np.isfinite(table)):
+        _raise_on_first_bad_line(path, columns)
+    return table
+
+
+def _raise_on_first_bad_line(path: Path, columns: int) -> None:
+    """The slow path of ``read_table``: find the malformed line and say where it is."""
+    with open(path, encoding="utf-8", errors="replace") as lines:
+        for number, line in enumerate(lines, start=1):
+            fields = line.split("#", 1)[0].split()
+            if not fields:
+                continue
+            problem = None
+            if len(fields) != columns:
+                problem = f"expected {columns} numbers, found {len(fields)}"
+            else:
+                try:
+                    values = [float(value) for value in fields]
+                except ValueError:
+                    problem = "not all fields are numbers"
+                else:
+                    if not all(np.isfinite(values)):
+                        problem = "a value is not finite"
+            if problem:
+                raise ValueError(f"{path}, line {number}: malformed line ({problem}): {line.strip()[:80]!r}")
+    raise ValueError(f"{path}: could not read it as a table of {columns} numbers per line")
+
+
+def _sorted_by_time(table: np.ndarray) -> np.ndarray:
+    if len(table) > 1 and np.any(np.diff(table[:, 0]) < 0):
+        table = table[np.argsort(table[:, 0], kind="stable")]
+    return table
+
+
+def _required(directory: Path, name: str) -> Path:
+    path = directory / name
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} is missing: {directory} is not an MRCLAM dataset directory")
+    return path
+
+
+def load(path) -> MRCLAMDataset:
+    """Read an MRCLAM dataset directory into numpy arrays.
+
+    Robots are the subjects of ``Barcodes.dat`` without a row in ``Landmark_Groundtruth.dat``
+    (subjects 1-5 in the published sets). A robot without an odometry file is left out, a
+    missing measurement file gives no measurements and a missing ground-truth file no ground
+    truth; each is noted in ``missing`` and warned about. Measurements whose barcode maps to
+    no robot or mapped landmark are skipped and counted (one warning with the count).
+
+    Raises:
+        FileNotFoundError: if the directory, ``Barcodes.dat``, ``Landmark_Groundtruth.dat`` or
+            every robot's odometry is missing.
+        ValueError: on a malformed line, naming the file and the line number.
+    """
+    directory = Path(path)
+    if not directory.is_dir():
+        raise FileNotFoundError(f"MRCLAM dataset directory {directory} does not exist")
+    barcode_rows = read_table(_required(directory, BARCODES_FILE), 2).astype(int)
+    landmark_rows = read_table(_required(directory, LANDMARKS_FILE), LANDMARK_COLUMNS)
+    barcodes = {int(barcode): int(subject) for subject, barcode in barcode_rows}
+    landmark_ids = landmark_rows[:, 0].astype(int)
+    candidate_robots = {int(subject) for subject in barcode_rows[:, 0]} - set(landmark_ids.tolist())
+    for robot_file in directory.iterdir():
+        match = _ROBOT_FILE.match(robot_file.name)
+        if match:
+            candidate_robots.add(int(match.group(1)))
+
+    missing: list[str] = []
+    odometry, landmark_measurements, robot_measurements, groundtruth = {}, {}, {}, {}
+    raw_measurements = {}
+    for robot in sorted(candidate_robots):
+        odometry_path = directory / f"Robot{robot}_Odometry.dat"
+        if not odometry_path.is_file():
+            missing.append(f"robot {robot}: {odometry_path.name} is missing, robot left out")
+            continue
+        odometry[robot] = _sorted_by_time(read_table(odometry_path, ODOMETRY_COLUMNS))
+        measurement_path = directory / f"Robot{robot}_Measurement.dat"
+        if measurement_path.is_file():
+            raw_measurements[robot] = _sorted_by_time(read_table(measurement_path, MEASUREMENT_COLUMNS))
+        else:
+            missing.append(f"robot {robot}: {measurement_path.name} is missing, no measurements")
+            raw_measurements[robot] = np.zeros((0, MEASUREMENT_COLUMNS))
+        groundtruth_path = directory / f"Robot{robot}_Groundtruth.dat"
+        if groundtruth_path.is_file():
+            groundtruth[robot] = _sorted_by_time(read_table(groundtruth_path, GROUNDTRUTH_COLUMNS))
+        else:
+            missing.append(f"robot {robot}: {groundtruth_path.name} is missing, no ground truth")
+    robots = tuple(sorted(odometry))
+    if not robots:
+        raise FileNotFoundError(f"no RobotN_Odometry.dat in {directory}: nothing to replay")
+
+    landmark_set, robot_set = set(landmark_ids.tolist()), set(robots)
+    unknown_values: set[int] = set()
+    unknown_count = 0
+    for robot, rows in raw_measurements.items():
+        subjects = np.array([barcodes.get(int(barcode), -1) for barcode in rows[:, 1]], dtype=int)
+        is_landmark = np.isin(subjects, list(landmark_set))
+        is_robot = np.isin(subjects, list(robot_set - {robot}))
+        unknown = ~(is_landmark | is_robot)
+        unknown_count += int(unknown.sum())
+        unknown_values.update(int(barcode) for barcode in rows[unknown, 1])
+        with_subjects = np.column_stack([rows[:, 0], subjects, rows[:, 2:]])
+        landmark_measurements[robot] = with_subjects[is_landmark]
+        robot_measurements[robot] = with_subjects[is_robot]
+    if unknown_count:
+        warnings.warn(
+            f"{directory}: skipped {unknown_count} measurements of barcodes that name no robot or mapped "
+            f"landmark: {sorted(unknown_values)}",
+            stacklevel=2,
+        )
+    for note in missing:
+        warnings.warn(f"{directory}: {note}", stacklevel=2)
+    return MRCLAMDataset(
+        path=directory,
+        robots=robots,
+        barcodes=barcodes,
+        landmark_ids=landmark_ids,
+        landmarks=landmark_rows[:, 1:3].copy(),
+        landmark_std=landmark_rows[:, 3:5].copy(),
+        odometry=odometry,
+        landmark_measurements=landmark_measurements,
+        robot_measurements=robot_measurements,
+        groundtruth=groundtruth,
+        unknown_barcodes=unknown_count,
+        unknown_barcode_values=tuple(sorted(unknown_values)),
+        missing=missing,
+    )

@@ -1,0 +1,15 @@
+"""Replay of information-driven measurement selection on logged real robot data (MRCLAM).
+
+``replay(dataset, ReplayConfig(...))`` runs one filter (PoseEKF per robot with the landmark
+map, or a cooperative JointEKF) through a dataset's odometry and measurements in time order,
+with chi-square innovation gating, under a selection policy; ``run_experiments`` sweeps
+policies and budgets and runs the absolute-sensing outage experiment.
+"""
+
+from infonav_gym.replay.filters import ReplayConfig
+from infonav_gym.replay.policies import POLICIES
+from infonav_gym.replay.report import markdown_table, run_experiments, write_results
+from infonav_gym.replay.run import replay
+from infonav_gym.replay.timeline import make_timeline
+
+__all__ = ["POLICIES", "ReplayConfig", "make_timeline", "markdown_table", "replay", "run_experiments", "write_results"]

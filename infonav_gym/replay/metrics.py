@@ -1,0 +1,72 @@
+"""Accuracy and consistency of a replay: RMSE against ground truth, NEES, NIS, posterior entropy."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from infonav_gym.estimation.consistency import pose_error
+from infonav_gym.estimation.models import wrap_angle
+from infonav_gym.information import gaussian_entropy_from_log_det
+
+MAX_GROUNDTRUTH_GAP_S = 0.5  # [s] no comparison across a longer motion-capture dropout
+
+
+def groundtruth_at(groundtruth: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ground-truth poses interpolated at absolute ``times`` and where that is valid.
+
+    Valid: inside the ground truth's time span and between two samples at most
+    ``MAX_GROUNDTRUTH_GAP_S`` apart. Headings are interpolated unwrapped.
+
+    Returns:
+        ``(poses (T, 3), valid (T,) bool)``.
+    """
+    gt_times = groundtruth[:, 0]
+    after = np.clip(np.searchsorted(gt_times, times), 1, len(gt_times) - 1)
+    gap = gt_times[after] - gt_times[after - 1]
+    valid = (times >= gt_times[0]) & (times <= gt_times[-1]) & (gap <= MAX_GROUNDTRUTH_GAP_S)
+    heading = np.unwrap(groundtruth[:, 3])
+    poses = np.stack(
+        [np.interp(times, gt_times, groundtruth[:, 1]), np.interp(times, gt_times, groundtruth[:, 2])]
+        + [wrap_angle(np.interp(times, gt_times, heading))],
+        axis=-1,
+    )
+    return poses, valid
+
+
+def pose_rmse(true_poses: np.ndarray, estimates: np.ndarray) -> tuple[float, float]:
+    """Position RMSE [m] and heading RMSE [rad] over matching (T, 3) pose stacks."""
+    error = pose_error(true_poses, estimates)
+    return (
+        float(np.sqrt(np.mean(np.sum(error[:, :2] ** 2, axis=1)))),
+        float(np.sqrt(np.mean(error[:, 2] ** 2))),
+    )
+
+
+def mean_nees(true_poses: np.ndarray, estimates: np.ndarray, covariances: np.ndarray) -> float:
+    """Mean normalized estimation error squared (3 dof: consistent filters average 3)."""
+    error = pose_error(true_poses, estimates)
+    return float(np.mean(np.einsum("ti,ti->t", error, np.linalg.solve(covariances, error[..., None])[..., 0])))
+
+
+def mean_entropy(covariances: np.ndarray) -> float:
+    """Mean Gaussian entropy of (T, 3, 3) pose covariances [nats]."""
+    return float(np.mean(gaussian_entropy_from_log_det(np.linalg.slogdet(covariances)[1], 3)))
+
+
+def nis_summary(nis: list[float], accepted: list[bool], dof: int = 2) -> dict:
+    """Mean NIS of the accepted updates and the share inside the two-sided 95 % chi-square interval."""
+    values = np.asarray(nis, dtype=float)[np.asarray(accepted, dtype=bool)]
+    if values.size == 0:
+        return {"mean_nis": None, "nis_inside_95": None}
+    low, high = stats.chi2.ppf([0.025, 0.975], dof)
+    return {"mean_nis": float(values.mean()), "nis_inside_95": float(np.mean((values >= low) & (values <= high)))}
+
+
+def mean_and_ci95(values) -> dict:
+    """Mean and the half-width of its Student-t 95 % confidence interval."""
+    values = np.asarray(values, dtype=float)
+    half_width = 0.0
+    if len(values) > 1:
+        half_width = float(stats.t.ppf(0.975, len(values) - 1) * values.std(ddof=1) / np.sqrt(len(values)))
+    return {"mean": float(values.mean()), "ci95": half_width, "n": len(values)}

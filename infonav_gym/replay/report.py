@@ -1,0 +1,200 @@
+"""Sweeps of replays over policies and budgets, the outage experiment, and their tables."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+from tqdm.auto import tqdm
+
+from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.replay.filters import ReplayConfig
+from infonav_gym.replay.metrics import mean_and_ci95
+from infonav_gym.replay.run import replay
+from infonav_gym.replay.timeline import make_timeline
+
+ROW_KEYS = ("position_rmse_m", "heading_rmse_rad", "mean_nees", "updates_used", "mean_entropy_nats", "mean_nis")
+
+
+def run_experiments(
+    dataset: MRCLAMDataset,
+    policies=("all",),
+    ks=(1,),
+    windows_s=(1.0,),
+    n_seeds: int = 1,
+    seed: int = 0,
+    outage: tuple[int, float, float] | None = None,
+    config: ReplayConfig | None = None,
+    dt: float = 0.02,
+    duration_s: float | None = None,
+    progress: bool = False,
+) -> dict:
+    """Replay every policy (budgeted ones at every ``(k, window)``), plus dead reckoning and an optional outage.
+
+    Args:
+        dataset: a loaded MRCLAM dataset.
+        policies: names from ``POLICIES``; ``all`` runs once, the others once per ``(k, window)``.
+        ks, windows_s: budgets: ``k`` observations per robot per window of ``window_s`` seconds.
+        n_seeds: runs of ``random`` per budget, seeds ``seed .. seed + n_seeds - 1`` (mean and 95 % CI).
+        seed: first seed.
+        outage: ``(robot, start_s, end_s)``: also run the outage experiment, a cooperative replay
+            (JointEKF, every landmark and robot-to-robot observation) in which ``robot`` gets no landmark
+            observations over the span, against the landmark-only replay in which it dead-reckons.
+        config: filter settings (noise, gate, cooperative) shared by every run.
+        dt: replay tick [s].
+        duration_s: replay only this long [s].
+        progress: show tqdm bars.
+
+    Returns:
+        A JSON-ready dict with ``rows`` (one per policy and budget), ``dead_reckoning``, ``runs`` and ``outage``.
+    """
+    base = config or ReplayConfig()
+    timeline = make_timeline(dataset, dt=dt, duration_s=duration_s)
+    plan = []
+    for policy in policies:
+        if policy == "all":
+            plan.append(("all", None, None, [seed]))
+            continue
+        seeds = list(range(seed, seed + n_seeds)) if policy == "random" else [seed]
+        plan.extend((policy, k, window, seeds) for k in ks for window in windows_s)
+    n_runs = sum(len(seeds) for *_, seeds in plan) + (1 if outage else 0)
+    bar = tqdm(total=n_runs, desc="replays", unit="run", disable=not progress or n_runs == 1)
+    rows, runs = [], []
+    for policy, k, window, seeds in plan:
+        settings = {"policy": policy} | ({"k": k, "window_s": window} if k is not None else {})
+        results = []
+        for run_seed in seeds:
+            run_config = dataclasses.replace(base, seed=run_seed, **settings)
+            results.append(replay(dataset, run_config, timeline=timeline, progress=progress and n_runs == 1))
+            bar.update()
+        runs.extend(results)
+        rows.append(_row(policy, k, window, results))
+    summary = {
+        "dataset": str(dataset.path),
+        "config": base.as_dict(),
+        "duration_s": timeline.n_ticks * timeline.dt,
+        "has_groundtruth": dataset.has_groundtruth,
+        "unknown_barcodes": dataset.unknown_barcodes,
+        "missing": list(dataset.missing),
+        "rows": rows,
+        "dead_reckoning": _dead_reckoning(runs[0]) if runs else None,
+        "runs": runs,
+    }
+    if outage:
+        robot, start_s, end_s = outage
+        outage_config = dataclasses.replace(
+            base, policy="all", cooperative=True, outage_robot=robot, outage_start_s=start_s, outage_end_s=end_s
+        )
+        outage_run = replay(dataset, outage_config, timeline=timeline, progress=progress and n_runs == 1)
+        bar.update()
+        summary["outage"] = outage_run["outage"] | {"cooperative_run": outage_run}
+    bar.close()
+    return summary
+
+
+def _row(policy, k, window, results) -> dict:
+    row = {"policy": policy, "k": k, "window_s": window, "n_runs": len(results)}
+    for key in ROW_KEYS:
+        values = [result["mean"][key] for result in results]
+        row[key] = None if any(value is None for value in values) else mean_and_ci95(values)
+    row["position_rmse_m_per_robot"] = {
+        robot: _mean([result["robots"][robot]["position_rmse_m"] for result in results])
+        for robot in results[0]["robots"]
+    }
+    return row
+
+
+def _mean(values):
+    return None if any(value is None for value in values) else sum(values) / len(values)
+
+
+def _dead_reckoning(result) -> dict:
+    return {
+        "position_rmse_m": result["mean"]["dead_reckoning_position_rmse_m"],
+        "heading_rmse_rad": result["mean"]["dead_reckoning_heading_rmse_rad"],
+        "position_rmse_m_per_robot": {
+            robot: metrics["dead_reckoning_position_rmse_m"] for robot, metrics in result["robots"].items()
+        },
+    }
+
+
+def _cell(value, digits=3) -> str:
+    if value is None:
+        return "n/a"
+    if isinstance(value, dict):
+        text = f"{value['mean']:.{digits}f}"
+        return text + (f" ± {value['ci95']:.{digits}f}" if value["n"] > 1 else "")
+    return f"{value:.{digits}f}"
+
+
+def markdown_table(summary: dict) -> str:
+    """The sweep as Markdown: one row per policy and budget, dead reckoning, per-robot RMSE, the outage."""
+    lines = []
+    if not summary["has_groundtruth"]:
+        lines.append("Ground truth is missing for some robots: their RMSE and NEES are n/a; see the NIS columns.\n")
+    lines += [
+        "| policy | k | window [s] | runs | position RMSE [m] | heading RMSE [rad] | mean NEES | updates used "
+        "| mean posterior entropy [nats] | mean NIS |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for row in summary["rows"]:
+        budget = ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
+        lines.append(
+            f"| {row['policy']} | {budget[0]} | {budget[1]} | {row['n_runs']} | {_cell(row['position_rmse_m'])} "
+            f"| {_cell(row['heading_rmse_rad'])} | {_cell(row['mean_nees'], 2)} | {_cell(row['updates_used'], 0)} "
+            f"| {_cell(row['mean_entropy_nats'])} | {_cell(row['mean_nis'])} |"
+        )
+    dead_reckoning = summary.get("dead_reckoning")
+    if dead_reckoning:
+        lines.append(
+            f"| dead reckoning | - | - | 1 | {_cell(dead_reckoning['position_rmse_m'])} "
+            f"| {_cell(dead_reckoning['heading_rmse_rad'])} | n/a | 0 | n/a | n/a |"
+        )
+        robots = list(dead_reckoning["position_rmse_m_per_robot"])
+        lines += [
+            "",
+            "Position RMSE per robot [m]:",
+            "",
+            "| policy | k | window [s] | " + " | ".join(f"robot {robot}" for robot in robots) + " |",
+            "| --- | --- | --- | " + " | ".join("---" for _ in robots) + " |",
+        ]
+        for row in summary["rows"]:
+            budget = ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
+            cells = " | ".join(_cell(row["position_rmse_m_per_robot"][robot]) for robot in robots)
+            lines.append(f"| {row['policy']} | {budget[0]} | {budget[1]} | {cells} |")
+        cells = " | ".join(_cell(dead_reckoning["position_rmse_m_per_robot"][robot]) for robot in robots)
+        lines.append(f"| dead reckoning | - | - | {cells} |")
+    outage = summary.get("outage")
+    if outage:
+        lines += [
+            "",
+            f"Outage: robot {outage['robot']} without landmark observations from {outage['start_s']:g} s "
+            f"to {outage['end_s']:g} s; its position RMSE over the span [m]:",
+            "",
+            "| cooperative (relative observations) | landmark-only (dead-reckons through the outage) "
+            "| dead reckoning from the start | ratio cooperative / landmark-only |",
+            "| --- | --- | --- | --- |",
+            f"| {_cell(outage['position_rmse_m'])} | {_cell(outage['without_relative_position_rmse_m'])} "
+            f"| {_cell(outage['dead_reckoning_from_start_position_rmse_m'])} | {_cell(outage['ratio'])} |",
+        ]
+    return "\n".join(lines)
+
+
+def write_results(summary: dict, output: Path, command: str) -> list[Path]:
+    """Write ``OUTPUT.md`` (table and command) and ``OUTPUT.json`` (everything but the per-run detail)."""
+    output = Path(output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    markdown = output.with_suffix(".md")
+    markdown.write_text(
+        f"# MRCLAM replay: {Path(summary['dataset']).name}\n\nCommand:\n\n```\n{command}\n```\n\n"
+        + markdown_table(summary)
+        + "\n"
+    )
+    compact = {key: value for key, value in summary.items() if key != "runs"} | {"command": command}
+    if "outage" in compact:
+        compact["outage"] = {key: value for key, value in compact["outage"].items() if key != "cooperative_run"}
+        compact["outage"]["cooperative_mean"] = summary["outage"]["cooperative_run"]["mean"]
+    path_json = output.with_suffix(".json")
+    path_json.write_text(json.dumps(compact, indent=1) + "\n")
+    return [markdown, path_json]

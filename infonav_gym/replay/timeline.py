@@ -1,0 +1,107 @@
+"""A dataset's asynchronous logs on one clock: fixed ticks, per-tick controls, measurement events."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.estimation.models import wrap_angle
+
+LANDMARK, ROBOT = 0, 1  # event kinds
+
+
+@dataclass
+class Timeline:
+    """Replay clock: boundaries ``b = 0..n_ticks`` at ``start_time + b * dt``.
+
+    Attributes:
+        start_time: absolute time of boundary 0 [s].
+        dt: tick length [s].
+        controls: mean ``[speed, turn_rate]`` of each robot over each tick (n_ticks, N, 2).
+        events: per robot, measurement rows ``[boundary, kind, target, range, bearing, time_s]``
+            sorted by boundary; ``kind`` is ``LANDMARK`` (target = row of ``dataset.landmarks``)
+            or ``ROBOT`` (target = index into ``dataset.robots``); ``time_s`` counts from ``start_time``.
+    """
+
+    start_time: float
+    dt: float
+    controls: np.ndarray
+    events: list[np.ndarray]
+
+    @property
+    def n_ticks(self) -> int:
+        return len(self.controls)
+
+    def boundary_times(self) -> np.ndarray:
+        """Replay times of the boundaries [s] (n_ticks + 1,)."""
+        return self.dt * np.arange(self.n_ticks + 1)
+
+
+def _tick_means(odometry: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Mean of the held (zero-order) odometry readings over each interval between ``edges``; 0 before the first."""
+    times = odometry[:, 0]
+    durations = np.diff(times, append=times[-1])
+    means = np.zeros((len(edges) - 1, 2))
+    for column in (1, 2):
+        knots = np.concatenate([[0.0], np.cumsum(odometry[:-1, column] * durations[:-1])])
+        integral = np.interp(edges, times, knots, left=0.0)
+        means[:, column - 1] = np.diff(integral) / np.diff(edges)
+    return means
+
+
+def make_timeline(dataset: MRCLAMDataset, dt: float = 0.02, duration_s: float | None = None) -> Timeline:
+    """Resample the logs of ``dataset`` onto ticks of ``dt`` seconds from its first odometry time.
+
+    Args:
+        dataset: a loaded MRCLAM dataset.
+        dt: tick length [s].
+        duration_s: replay only this long [s] (None: to the last odometry time).
+    """
+    if not dt > 0:
+        raise ValueError(f"dt must be positive, got {dt}")
+    start = dataset.start_time
+    span = dataset.end_time - start if duration_s is None else min(float(duration_s), dataset.end_time - start)
+    if not span > 0:
+        raise ValueError(f"nothing to replay: duration {span} s")
+    n_ticks = int(np.ceil(span / dt))
+    edges = start + dt * np.arange(n_ticks + 1)
+    controls = np.stack([_tick_means(dataset.odometry[robot], edges) for robot in dataset.robots], axis=1)
+    robot_index = {robot: index for index, robot in enumerate(dataset.robots)}
+    events = []
+    for robot in dataset.robots:
+        rows = []
+        landmark_rows = dataset.landmark_measurements[robot]
+        if len(landmark_rows):
+            rows.append(_events(landmark_rows, LANDMARK, dataset.landmark_index(landmark_rows[:, 1]), start, dt))
+        robot_rows = dataset.robot_measurements[robot]
+        if len(robot_rows):
+            targets = np.array([robot_index[int(subject)] for subject in robot_rows[:, 1]], dtype=int)
+            rows.append(_events(robot_rows, ROBOT, targets, start, dt))
+        table = np.concatenate(rows) if rows else np.zeros((0, 6))
+        table = table[(table[:, 0] >= 0) & (table[:, 0] <= n_ticks)]
+        events.append(table[np.argsort(table[:, 0], kind="stable")])
+    return Timeline(start_time=start, dt=dt, controls=controls, events=events)
+
+
+def _events(rows: np.ndarray, kind: int, targets: np.ndarray, start: float, dt: float) -> np.ndarray:
+    time_s = rows[:, 0] - start
+    boundaries = np.round(time_s / dt)
+    return np.column_stack([boundaries, np.full(len(rows), kind), targets, rows[:, 2], wrap_angle(rows[:, 3]), time_s])
+
+
+def dead_reckoning(initial_poses: np.ndarray, timeline: Timeline) -> np.ndarray:
+    """Odometry-only poses at every boundary (n_ticks + 1, N, 3), the filters' Euler steps without updates."""
+    speed, turn_rate = timeline.controls[..., 0], timeline.controls[..., 1]
+    headings = initial_poses[:, 2] + np.concatenate(
+        [np.zeros((1, len(initial_poses))), np.cumsum(turn_rate * timeline.dt, axis=0)]
+    )
+    steps = speed * timeline.dt
+    x = initial_poses[:, 0] + np.concatenate(
+        [np.zeros((1, len(initial_poses))), np.cumsum(steps * np.cos(headings[:-1]), 0)]
+    )
+    y = initial_poses[:, 1] + np.concatenate(
+        [np.zeros((1, len(initial_poses))), np.cumsum(steps * np.sin(headings[:-1]), 0)]
+    )
+    return np.stack([x, y, wrap_angle(headings)], axis=-1)

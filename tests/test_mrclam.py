@@ -1,0 +1,213 @@
+"""MRCLAM loader and the ``infonav replay mrclam`` command: synthetic directories, and Dataset 6 when present."""
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from infonav_gym.cli import main
+from infonav_gym.datasets import mrclam
+from infonav_gym.replay import ReplayConfig, replay, run_experiments
+
+DATASET6 = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "MRCLAM_Dataset6"
+needs_dataset6 = pytest.mark.skipif(
+    not DATASET6.is_dir(), reason=f"MRCLAM Dataset 6 is not at {DATASET6} (a fresh clone does not ship it)"
+)
+HEADER = "# synthetic MRCLAM-format file\n# columns as in the published datasets\n"
+LANDMARKS = {3: (2.0, 0.0), 4: (0.0, 2.0), 5: (-2.0, -1.0)}
+BARCODES = {1: 11, 2: 22, 3: 33, 4: 44, 5: 55}  # subject -> barcode
+UNKNOWN_BARCODE = 99
+SPEED, TURN_RATE, DURATION_S = 0.2, 0.2, 20.0  # [m/s], [rad/s], [s]
+
+
+def _write(path: Path, rows) -> None:
+    path.write_text(HEADER + "".join(" \t".join(f"{value:.6f}" for value in row) + "\n" for row in rows))
+
+
+def _true_pose(robot: int, t):
+    """Robot 1 circles from (0, -1) heading east; robot 2 the same circle half a turn later."""
+    phase = TURN_RATE * np.asarray(t) + (0.0 if robot == 1 else math.pi)
+    radius = SPEED / TURN_RATE
+    return np.stack([radius * np.sin(phase), -radius * np.cos(phase), phase], axis=-1)
+
+
+def write_dataset(directory: Path, groundtruth: bool = True) -> Path:
+    """A two-robot, three-landmark directory with exact odometry and measurements, 1e9 s epoch like the real sets."""
+    directory.mkdir(parents=True, exist_ok=True)
+    epoch = 1.0e9
+    _write(directory / "Barcodes.dat", [(subject, barcode) for subject, barcode in BARCODES.items()])
+    _write(directory / "Landmark_Groundtruth.dat", [(s, x, y, 1e-4, 1e-4) for s, (x, y) in LANDMARKS.items()])
+    odometry_times = np.arange(0.0, DURATION_S, 0.02)
+    for robot in (1, 2):
+        _write(directory / f"Robot{robot}_Odometry.dat", [(epoch + t, SPEED, TURN_RATE) for t in odometry_times])
+        rows = []
+        for t in np.arange(0.5, DURATION_S, 0.5):
+            x, y, heading = _true_pose(robot, t)
+            targets = [(BARCODES[s], p) for s, p in LANDMARKS.items()] + [
+                (BARCODES[3 - robot], _true_pose(3 - robot, t))
+            ]
+            for barcode, (tx, ty, *_) in targets:
+                bearing = math.remainder(math.atan2(ty - y, tx - x) - heading, 2 * math.pi)
+                rows.append((epoch + t, barcode, math.hypot(tx - x, ty - y), bearing))
+        rows.append((epoch + 1.0, UNKNOWN_BARCODE, 1.0, 0.0))
+        _write(directory / f"Robot{robot}_Measurement.dat", rows)
+        if groundtruth:
+            times = np.arange(0.0, DURATION_S, 0.01)
+            _write(
+                directory / f"Robot{robot}_Groundtruth.dat", np.column_stack([epoch + times, _true_pose(robot, times)])
+            )
+    return directory
+
+
+@pytest.fixture
+def dataset_dir(tmp_path) -> Path:
+    return write_dataset(tmp_path / "synthetic")
+
+
+def test_load_round_trips_the_files_maps_barcodes_and_counts_unknown_ones(dataset_dir):
+    with pytest.warns(UserWarning, match=r"skipped 2 measurements .*\[99\]"):
+        dataset = mrclam.load(dataset_dir)
+    assert dataset.robots == (1, 2) and dataset.barcodes == {barcode: s for s, barcode in BARCODES.items()}
+    assert dataset.unknown_barcodes == 2 and dataset.unknown_barcode_values == (UNKNOWN_BARCODE,)
+    np.testing.assert_array_equal(dataset.landmark_ids, [3, 4, 5])
+    np.testing.assert_allclose(dataset.landmarks, list(LANDMARKS.values()))
+    odometry = np.loadtxt(dataset_dir / "Robot1_Odometry.dat")
+    np.testing.assert_array_equal(dataset.odometry[1], odometry)
+    assert dataset.start_time == odometry[0, 0]
+    landmark_rows, robot_rows = dataset.landmark_measurements[1], dataset.robot_measurements[1]
+    assert len(landmark_rows) == 3 * len(robot_rows) and set(landmark_rows[:, 1]) == {3, 4, 5}
+    assert set(robot_rows[:, 1]) == {2}, "robot 1 sees robot 2, named by subject, not barcode"
+    t = robot_rows[0, 0] - dataset.start_time
+    expected_range = np.hypot(*(_true_pose(2, t)[:2] - _true_pose(1, t)[:2]))
+    assert robot_rows[0, 2] == pytest.approx(expected_range, abs=1e-6)
+    assert dataset.groundtruth[2].shape[1] == 4 and dataset.has_groundtruth
+
+
+@pytest.mark.parametrize(
+    ("line", "problem"), [("1000000000.5 0.2", "expected 3 numbers, found 2"), ("1000000000.5 0.2 abc", "not all")]
+)
+def test_a_malformed_line_raises_naming_the_file_and_the_line(dataset_dir, line, problem):
+    path = dataset_dir / "Robot2_Odometry.dat"
+    lines = path.read_text().splitlines()
+    lines.insert(6, line)  # becomes line 7 (two header lines, then data)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=rf"Robot2_Odometry\.dat, line 7: malformed line \({problem}"):
+        mrclam.load(dataset_dir)
+
+
+def test_missing_files_are_reported_not_fatal(dataset_dir):
+    (dataset_dir / "Robot2_Groundtruth.dat").unlink()
+    (dataset_dir / "Robot1_Measurement.dat").unlink()
+    with pytest.warns(UserWarning) as caught:
+        dataset = mrclam.load(dataset_dir)
+    messages = " ".join(str(w.message) for w in caught)
+    assert "Robot2_Groundtruth.dat is missing" in messages and "Robot1_Measurement.dat is missing" in messages
+    assert not dataset.has_groundtruth and len(dataset.landmark_measurements[1]) == 0
+    (dataset_dir / "Robot2_Odometry.dat").unlink()
+    with pytest.warns(UserWarning) as caught:
+        assert mrclam.load(dataset_dir).robots == (1,)
+    assert any("Robot2_Odometry.dat is missing, robot left out" in str(w.message) for w in caught)
+    with pytest.raises(FileNotFoundError, match="Barcodes.dat is missing"):
+        (dataset_dir / "Barcodes.dat").unlink()
+        mrclam.load(dataset_dir)
+
+
+def test_replay_of_exact_synthetic_logs_beats_dead_reckoning_and_uses_the_budget(dataset_dir):
+    with pytest.warns(UserWarning):
+        dataset = mrclam.load(dataset_dir)
+    full = replay(dataset)
+    for metrics in full["robots"].values():
+        assert metrics["position_rmse_m"] < 0.05 and metrics["updates_gated"] == 0
+        assert metrics["updates_used"] == 3 * 39 and metrics["relative_updates_used"] == 0
+    budget = replay(dataset, ReplayConfig(policy="greedy", k=1, window_s=1.0))
+    assert budget["robots"]["1"]["updates_used"] == 20, "one observation per 1 s window (39 scans, 20 windows)"
+    cooperative = replay(dataset, ReplayConfig(cooperative=True))
+    assert cooperative["robots"]["1"]["relative_updates_used"] == 39
+
+
+def test_cli_replays_a_directory_and_prints_json(dataset_dir, capsys):
+    argv = ["replay", "mrclam", str(dataset_dir), "--policy", "all,greedy,random,nearest", "--seeds", "2", "--json"]
+    assert main(argv) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert [row["policy"] for row in result["rows"]] == ["all", "greedy", "random", "nearest"]
+    assert result["rows"][2]["n_runs"] == 2 and result["unknown_barcodes"] == 2
+    assert result["dead_reckoning"]["position_rmse_m"] >= 0
+
+
+def test_cli_without_groundtruth_says_so_and_reports_nis(dataset_dir, capsys):
+    for robot in (1, 2):
+        (dataset_dir / f"Robot{robot}_Groundtruth.dat").unlink()
+    assert main(["replay", "mrclam", str(dataset_dir)]) == 0
+    captured = capsys.readouterr()
+    assert "no ground truth for robot(s) [1, 2]" in captured.err and "NIS" in captured.err
+    assert "| all | - | - | 1 | n/a |" in captured.out
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--policy", "oracle"], "unknown policy ['oracle']"),
+        (["--k", "0"], "need k >= 1"),
+        (["--outage-robot", "7"], "--outage-robot 7 is not one of the robots [1, 2]"),
+    ],
+)
+def test_cli_errors_are_one_line(dataset_dir, capsys, extra, message):
+    with pytest.raises(SystemExit) as error:
+        main(["replay", "mrclam", str(dataset_dir), *extra])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert error.value.code == 2 and err[-1].startswith("infonav replay: error:") and message in err[-1]
+
+
+def test_cli_errors_on_a_missing_or_malformed_directory(tmp_path, capsys):
+    with pytest.raises(SystemExit) as error:
+        main(["replay", "mrclam", str(tmp_path / "nowhere")])
+    assert error.value.code == 2 and "does not exist" in capsys.readouterr().err
+    directory = write_dataset(tmp_path / "bad")
+    with open(directory / "Robot1_Measurement.dat", "a") as file:
+        file.write("1000000030.0 33 1.0\n")
+    with pytest.raises(SystemExit):
+        main(["replay", "mrclam", str(directory)])
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "Robot1_Measurement.dat, line" in err and "expected 4 numbers, found 3" in err
+
+
+@pytest.fixture(scope="module")
+def dataset6():
+    with pytest.warns(UserWarning, match="skipped"):
+        return mrclam.load(DATASET6)
+
+
+@needs_dataset6
+def test_dataset6_loads_fast_and_counts_its_unknown_barcodes():
+    start = time.perf_counter()
+    with pytest.warns(UserWarning, match="skipped"):
+        dataset = mrclam.load(DATASET6)
+    assert time.perf_counter() - start < 2.0
+    assert dataset.robots == (1, 2, 3, 4, 5) and len(dataset.landmarks) == 15 and dataset.unknown_barcodes > 0
+
+
+@needs_dataset6
+def test_dataset6_all_landmarks_localize_within_20_cm(dataset6):
+    result = replay(dataset6)
+    assert result["mean"]["position_rmse_m"] <= 0.20
+    assert result["mean"]["dead_reckoning_position_rmse_m"] > 2.0, "dead reckoning drifts metres"
+
+
+@needs_dataset6
+def test_dataset6_greedy_has_the_lowest_posterior_entropy_of_the_budgeted_policies(dataset6):
+    summary = run_experiments(
+        dataset6, ("greedy", "random", "nearest"), ks=(1,), windows_s=(1.0,), n_seeds=3, duration_s=240.0
+    )
+    entropy = {row["policy"]: row["mean_entropy_nats"]["mean"] for row in summary["rows"]}
+    assert entropy["greedy"] < min(entropy["random"], entropy["nearest"])
+
+
+@needs_dataset6
+def test_dataset6_outage_relative_observations_halve_the_dead_reckoning_error(dataset6):
+    summary = run_experiments(dataset6, (), outage=(2, 60.0, math.inf), duration_s=240.0)
+    outage = summary["outage"]
+    assert outage["position_rmse_m"] <= 0.5 * outage["without_relative_position_rmse_m"]
+    assert outage["cooperative_run"]["robots"]["2"]["relative_updates_used"] > 0

@@ -1,0 +1,76 @@
+"""Replay building blocks: the replay clock, selection policies, the cooperative landmark model."""
+
+import numpy as np
+import pytest
+
+from infonav_gym.estimation.ekf import PoseEKF
+from infonav_gym.information import expected_information_gain
+from infonav_gym.replay.filters import ReplayConfig, _CooperativeFilter
+from infonav_gym.replay.policies import select_greedy, select_nearest, select_random
+from infonav_gym.replay.timeline import LANDMARK, ROBOT, Timeline, _tick_means, dead_reckoning
+
+
+def test_tick_means_integrate_held_odometry_exactly():
+    odometry = np.array([[10.0, 1.0, 0.5], [10.03, 2.0, -0.5], [10.05, 0.0, 0.0]])
+    means = _tick_means(odometry, np.array([9.98, 10.0, 10.02, 10.04, 10.06]))
+    np.testing.assert_allclose(means[:, 0], [0.0, 1.0, 1.5, 1.0], atol=1e-12)  # 0 before the first reading
+    np.testing.assert_allclose(means[:, 1], [0.0, 0.5, 0.0, -0.25], atol=1e-12)
+
+
+def test_dead_reckoning_matches_the_filter_prediction():
+    rng = np.random.default_rng(0)
+    controls = rng.uniform([0.0, -0.5], [0.3, 0.5], size=(50, 1, 2))
+    timeline = Timeline(start_time=0.0, dt=0.02, controls=controls, events=[np.zeros((0, 6))])
+    ekf = PoseEKF([1.0, 2.0, 3.0], np.eye(3) * 0.01)
+    for control in controls[:, 0]:
+        ekf.predict(control, 0.02, np.eye(2) * 1e-4)
+    np.testing.assert_allclose(dead_reckoning(np.array([[1.0, 2.0, 3.0]]), timeline)[-1, 0], ekf.x, atol=1e-12)
+
+
+def test_greedy_takes_the_largest_expected_gain_then_conditions_on_it():
+    P = np.diag([1.0, 1.0, 0.1])
+    R = np.diag([0.01, 0.01])
+    along_x = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    along_y = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    weak = np.array([[0.1, 0.0, 0.0], [0.0, 0.0, 0.1]])
+    H = np.array([weak, along_x, along_x, along_y])
+    first = select_greedy(P, H, R, 1)
+    assert first == [int(np.argmax(expected_information_gain(P, H, R)))] == [1]
+    assert select_greedy(P, H, R, 2) == [1, 3], "a repeat of the same information is worth less than y"
+
+
+def test_nearest_and_random():
+    assert select_nearest(np.array([3.0, 1.0, 2.0, 1.0]), 2) == [1, 3]
+    rng_a, rng_b = np.random.default_rng(5), np.random.default_rng(5)
+    chosen = select_random(10, 3, rng_a)
+    assert chosen == select_random(10, 3, rng_b) and len(set(chosen)) == 3
+    assert sorted(select_random(2, 3, rng_a)) == [0, 1]
+
+
+def test_config_rejects_unknown_policy_and_empty_outage():
+    with pytest.raises(ValueError, match="unknown policy 'oracle'"):
+        ReplayConfig(policy="oracle")
+    with pytest.raises(ValueError, match="outage must end after it starts"):
+        ReplayConfig(outage_start_s=5.0, outage_end_s=5.0)
+
+
+def test_cooperative_models_match_central_differences():
+    landmarks = np.array([[3.0, 1.0], [-1.0, 2.0]])
+    poses = np.array([[0.5, -0.2, 0.3], [1.5, 1.0, -2.0]])
+    backend = _CooperativeFilter(poses, np.repeat(np.eye(3)[None] * 0.1, 2, axis=0), landmarks)
+    for kind, target in ((LANDMARK, 0), (LANDMARK, 1), (ROBOT, 1)):
+        predicted, H = backend.model(0, kind, target)
+        numeric = np.zeros_like(H)
+        for column in range(6):
+            step = np.zeros(6)
+            step[column] = 1e-6
+            backend.ekf.x = poses.ravel() + step
+            plus = backend.model(0, kind, target)[0]
+            backend.ekf.x = poses.ravel() - step
+            minus = backend.model(0, kind, target)[0]
+            numeric[:, column] = (plus - minus) / 2e-6
+        backend.ekf.x = poses.ravel().copy()
+        np.testing.assert_allclose(H, numeric, atol=1e-6)
+        assert predicted[0] == pytest.approx(
+            np.hypot(*((landmarks[target] if kind == LANDMARK else poses[1, :2]) - poses[0, :2]))
+        )
