@@ -11,7 +11,7 @@ from tqdm.auto import tqdm
 from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.replay.filters import ReplayConfig
 from infonav_gym.replay.metrics import mean_and_ci95
-from infonav_gym.replay.run import replay
+from infonav_gym.replay.run import replay, replay_header
 from infonav_gym.replay.timeline import make_timeline
 
 ROW_KEYS = ("position_rmse_m", "heading_rmse_rad", "mean_nees", "updates_used", "mean_entropy_nats", "mean_nis")
@@ -71,11 +71,7 @@ def run_experiments(
         runs.extend(results)
         rows.append(_row(policy, k, window, results))
     summary = {
-        "dataset": str(dataset.path),
-        "config": base.as_dict(),
-        "duration_s": timeline.n_ticks * timeline.dt,
-        "has_groundtruth": dataset.has_groundtruth,
-        "unknown_barcodes": dataset.unknown_barcodes,
+        **replay_header(dataset, timeline, base),
         "missing": list(dataset.missing),
         "rows": rows,
         "dead_reckoning": _dead_reckoning(runs[0]) if runs else None,

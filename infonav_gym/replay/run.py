@@ -46,6 +46,17 @@ def initial_state(dataset: MRCLAMDataset, config: ReplayConfig) -> tuple[np.ndar
     return np.array(poses, dtype=float), np.array(covariances)
 
 
+def replay_header(dataset: MRCLAMDataset, timeline: Timeline, config: ReplayConfig) -> dict:
+    """What every replay result starts with: the dataset, the settings and the span replayed."""
+    return {
+        "dataset": str(dataset.path),
+        "config": config.as_dict(),
+        "duration_s": timeline.n_ticks * timeline.dt,
+        "has_groundtruth": dataset.has_groundtruth,
+        "unknown_barcodes": dataset.unknown_barcodes,
+    }
+
+
 def replay(
     dataset: MRCLAMDataset,
     config: ReplayConfig | None = None,
@@ -78,12 +89,8 @@ def replay(
     trace = replay_filter(dataset, timeline, poses, covariances, config, progress=progress)
     robots = _robot_metrics(dataset, timeline, trace)
     result = {
-        "dataset": str(dataset.path),
-        "config": config.as_dict(),
-        "duration_s": timeline.n_ticks * timeline.dt,
+        **replay_header(dataset, timeline, config),
         "dt_s": timeline.dt,
-        "has_groundtruth": dataset.has_groundtruth,
-        "unknown_barcodes": dataset.unknown_barcodes,
         "robots": robots,
         "mean": _mean_over_robots(robots),
     }
