@@ -18,7 +18,8 @@ import numpy as np
 import pymunk
 
 from infonav_gym.sensors import Camera, Ladar
-from infonav_gym.world.terrain import Terrain, make_terrain
+from infonav_gym.world.terrain import Terrain
+from infonav_gym.world.terrain_generation import make_terrain
 
 POSES = ((0.0, 0.0, 0.0), (1.0, -0.5, 2.1), (-0.5, 1.0, -2.1))  # vehicle [x, y, heading] [m, m, rad]
 FRAMES_PER_POSE_SECOND = 10  # timed frames per pose per second of benchmark round

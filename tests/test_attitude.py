@@ -17,7 +17,8 @@ from infonav_gym.world.attitude import (
     transform_error,
     transform_points,
 )
-from infonav_gym.world.terrain import Terrain, make_terrain
+from infonav_gym.world.terrain import Terrain
+from infonav_gym.world.terrain_generation import make_terrain
 
 
 def plane(slope_x: float, slope_y: float, size_m: float = 400.0, cell_m: float = 2.0) -> Terrain:

@@ -8,7 +8,8 @@ from skimage.measure import shannon_entropy
 
 from infonav_gym.information import histogram_entropy
 from infonav_gym.sensors import Camera, ground_texture
-from infonav_gym.world.terrain import Box, Cylinder, flat_terrain, make_terrain
+from infonav_gym.world.terrain import Box, Cylinder
+from infonav_gym.world.terrain_generation import flat_terrain, make_terrain
 
 CLEAN = {"noise_std": 0.0, "ground_texture_contrast": 0.0}  # noise-free, uniform ground
 

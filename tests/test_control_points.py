@@ -18,7 +18,8 @@ from infonav_gym.registration.control_points import (
     select_control_points,
 )
 from infonav_gym.sensors.ladar import Ladar, LadarScan, point_cloud
-from infonav_gym.world.terrain import Box, Cylinder, flat_terrain, make_terrain
+from infonav_gym.world.terrain import Box, Cylinder
+from infonav_gym.world.terrain_generation import flat_terrain, make_terrain
 
 
 def _rugged_scan(seed: int) -> LadarScan:

@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 from infonav_gym.registration import RegistrationResult, icp, range_image_to_points
 from infonav_gym.registration.icp import rotation_angle
 from infonav_gym.sensors import Ladar, point_cloud
-from infonav_gym.world.terrain import make_terrain
+from infonav_gym.world.terrain_generation import make_terrain
 
 ICP_MODULE = importlib.import_module("infonav_gym.registration.icp")  # the package attribute is the function
 EXTENT_M = 4.0

@@ -10,7 +10,8 @@ from skimage.measure import shannon_entropy
 from infonav_gym.information import histogram_entropy
 from infonav_gym.sensor_timing import footprint_space
 from infonav_gym.sensors.ladar import Ladar, point_cloud, to_display_image
-from infonav_gym.world.terrain import MATERIALS, NO_HIT, Box, Cylinder, Terrain, flat_terrain, make_terrain
+from infonav_gym.world.terrain import MATERIALS, NO_HIT, Box, Cylinder, Terrain
+from infonav_gym.world.terrain_generation import flat_terrain, make_terrain
 
 EXACT = {"rtol": 1e-6, "atol": 1e-9}
 

@@ -37,7 +37,8 @@ from infonav_gym.information import histogram_entropy
 from infonav_gym.reproduce.fig5_plot import plot_fig5
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
-from infonav_gym.world.terrain import Box, Terrain, make_terrain
+from infonav_gym.world.terrain import Box, Terrain
+from infonav_gym.world.terrain_generation import make_terrain
 
 PAPER_LIKE_TERRAIN = {
     "size_m": 120.0,

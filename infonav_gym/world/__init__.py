@@ -1,7 +1,8 @@
 """The simulated 2D world (Pymunk) and its scenarios."""
 
 from infonav_gym.world.scenarios import SCENARIOS, CircleObstacle, Route, Scenario
-from infonav_gym.world.terrain import MATERIALS, Box, Cylinder, RayHits, Terrain, flat_terrain, make_terrain
+from infonav_gym.world.terrain import MATERIALS, Box, Cylinder, RayHits, Terrain
+from infonav_gym.world.terrain_generation import flat_terrain, make_terrain
 from infonav_gym.world.world import World
 
 __all__ = [

@@ -13,7 +13,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from infonav_gym.world.scenarios import CircleObstacle, Scenario, _box_walls, _closed_route, _polygon
-from infonav_gym.world.terrain import Terrain, make_terrain
+from infonav_gym.world.terrain import Terrain
+from infonav_gym.world.terrain_generation import make_terrain
 
 ROUTE_CLEARANCE_M = 3.0  # obstacles keep this far from the route [m]
 

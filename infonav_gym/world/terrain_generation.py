@@ -1,0 +1,138 @@
+"""Random and level ``Terrain`` scenes: rolling or rugged height maps with trees, rocks and buildings."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.ndimage import gaussian_filter
+
+from infonav_gym.world.geometry import distance_to_loop
+from infonav_gym.world.terrain import Box, Cylinder, Terrain, finite_vector
+
+_MAX_PLACEMENT_ATTEMPTS = 1000  # random draws per obstacle before the scene counts as too small
+_HILL_STD_M = 2.0  # height standard deviation of the smooth hills at roughness 1 [m]
+_HILL_CORRELATION_M = 8.0  # length scale of the hills [m]
+_BUMP_STD_M = 0.4  # height standard deviation of the small bumps at roughness 1 [m]
+_BUMP_CORRELATION_M = 1.0  # length scale of the bumps [m]
+
+
+def flat_terrain(size_m: float = 100.0, cell_m: float = 1.0, center_m=(0.0, 0.0), height_m: float = 0.0) -> Terrain:
+    """Level ground at ``height_m`` over a ``size_m`` square centred on ``center_m``, no obstacles."""
+    points = _grid_points(size_m, cell_m)
+    center = finite_vector(center_m, 2, "center_m")
+    origin = (center[0] - size_m / 2, center[1] - size_m / 2)
+    return Terrain(np.full((points, points), float(height_m)), origin, cell_m)
+
+
+def _grid_points(size_m: float, cell_m: float) -> int:
+    if not (math.isfinite(cell_m) and cell_m > 0):
+        raise ValueError(f"cell_m must be positive and finite, got {cell_m!r}")
+    if not (math.isfinite(size_m) and size_m >= cell_m):
+        raise ValueError(f"size_m must be finite and at least cell_m={cell_m}, got {size_m!r}")
+    return round(size_m / cell_m) + 1
+
+
+def _unit_field(np_random: np.random.Generator, points: int, correlation_cells: float) -> np.ndarray:
+    """Smooth Gaussian random field with zero mean and unit standard deviation."""
+    smooth = gaussian_filter(np_random.standard_normal((points, points)), correlation_cells, mode="wrap")
+    return (smooth - smooth.mean()) / smooth.std()
+
+
+def make_terrain(
+    np_random: np.random.Generator,
+    size_m: float = 60.0,
+    cell_m: float = 0.5,
+    roughness: float = 0.5,
+    n_trees: int = 15,
+    n_rocks: int = 5,
+    n_buildings: int = 2,
+    center_m=(0.0, 0.0),
+    clear_radius_m: float = 5.0,
+    clear_path_m=None,
+) -> Terrain:
+    """A random scene: hills and bumps scaled by ``roughness``, with trees, rocks and buildings.
+
+    Heights are smooth Gaussian random fields: hills (std ``2 m * roughness``, length scale
+    8 m) plus bumps (std ``0.4 m * roughness**2``, length scale 1 m), so ``roughness=0`` is
+    level ground at height 0, 0.5 gently rolling, 1 and more rugged. Obstacles stand on the
+    ground (their bases reach the lowest ground under their footprint) and keep out of the
+    disc of ``clear_radius_m`` around ``center_m``, where a vehicle can start. Obstacle layout
+    does not depend on ``roughness`` for a given generator state.
+
+    Args:
+        np_random: the only source of randomness.
+        size_m: side of the square scene [m].
+        cell_m: grid spacing [m].
+        roughness: dimensionless ground roughness, >= 0.
+        n_trees: trees (vegetation cylinders, radius 0.2-0.6 m, 4-12 m tall).
+        n_rocks: rocks (rock cylinders, radius 0.4-1.5 m, 0.3-1.5 m tall).
+        n_buildings: buildings (boxes, sides 3-10 m, 3-8 m tall).
+        center_m: ``(x, y)`` of the scene centre [m].
+        clear_radius_m: obstacle-free distance around ``clear_path_m`` [m].
+        clear_path_m: a closed polyline (W, 2) [m] the obstacles keep clear of, e.g. a vehicle's
+            route; default: the single point ``center_m``.
+    """
+    points = _grid_points(size_m, cell_m)
+    if not (math.isfinite(roughness) and roughness >= 0):
+        raise ValueError(f"roughness must be a finite number >= 0, got {roughness!r}")
+    for name, count in (("n_trees", n_trees), ("n_rocks", n_rocks), ("n_buildings", n_buildings)):
+        if int(count) != count or count < 0:
+            raise ValueError(f"{name} must be a non-negative integer, got {count!r}")
+    if not (math.isfinite(clear_radius_m) and 0 <= clear_radius_m < size_m / 2):
+        raise ValueError(f"clear_radius_m must be in [0, size_m / 2 = {size_m / 2}), got {clear_radius_m!r}")
+    hills = _unit_field(np_random, points, _HILL_CORRELATION_M / cell_m)
+    bumps = _unit_field(np_random, points, _BUMP_CORRELATION_M / cell_m)
+    heights = roughness * (_HILL_STD_M * hills + roughness * _BUMP_STD_M * bumps) + 0.0
+    center = np.array(finite_vector(center_m, 2, "center_m"))
+    clear_path = center[None] if clear_path_m is None else np.asarray(clear_path_m, dtype=float)
+    if clear_path.ndim != 2 or clear_path.shape[1] != 2 or not np.all(np.isfinite(clear_path)):
+        raise ValueError(f"clear_path_m must be a finite (W, 2) polyline [m], got {clear_path_m!r}")
+    ground = Terrain(heights, tuple(center - size_m / 2), cell_m)
+
+    def place(count: int, footprint_radius_m: np.ndarray) -> np.ndarray:
+        """Centres (count, 2) inside the scene, their footprints ``clear_radius_m`` away from the clear path."""
+        half = size_m / 2 - footprint_radius_m
+        centers = np.empty((count, 2))
+        for index in range(count):
+            for _ in range(_MAX_PLACEMENT_ATTEMPTS):
+                offset = np_random.uniform(-half[index], half[index], size=2)
+                clearance = clear_radius_m + footprint_radius_m[index]
+                if half[index] > 0 and distance_to_loop(center + offset, clear_path) > clearance:
+                    break
+            else:
+                raise ValueError(
+                    f"could not place an obstacle of footprint radius {footprint_radius_m[index]:.2f} m in a "
+                    f"{size_m} m scene {clear_radius_m} m clear of the clear path: enlarge size_m or shorten the path"
+                )
+            centers[index] = center + offset
+        return centers
+
+    def lowest_ground(center_xy, half_extent_m) -> float:
+        corners = center_xy + half_extent_m * np.array([[-1, -1], [-1, 1], [1, -1], [1, 1], [0, 0]])
+        return float(ground.height_at(corners).min())
+
+    def standing_cylinders(count, radius_range, height_range, material) -> list[Cylinder]:
+        radii = np_random.uniform(*radius_range, size=count)
+        tall = np_random.uniform(*height_range, size=count)
+        centers = place(count, radii)
+        return [
+            Cylinder(
+                tuple(xy), float(r), lowest_ground(xy, r), float(ground.height_at(xy)) + float(t), material=material
+            )
+            for xy, r, t in zip(centers, radii, tall, strict=True)
+        ]
+
+    trees = standing_cylinders(int(n_trees), (0.2, 0.6), (4.0, 12.0), "vegetation")
+    rocks = standing_cylinders(int(n_rocks), (0.4, 1.5), (0.3, 1.5), "rock")
+    sides = np_random.uniform(3.0, 10.0, size=(int(n_buildings), 2))
+    tall = np_random.uniform(3.0, 8.0, size=int(n_buildings))
+    centers = place(int(n_buildings), np.linalg.norm(sides, axis=1) / 2)
+    buildings = [
+        Box(
+            (*(xy - half), lowest_ground(xy, half)),
+            (*(xy + half), float(ground.height_at(xy)) + float(t)),
+        )
+        for xy, half, t in zip(centers, sides / 2, tall, strict=True)
+    ]
+    return ground.with_obstacles(cylinders=trees + rocks, boxes=buildings)
