@@ -15,6 +15,8 @@ Sensors (``infonav_gym.sensor_timing``): median milliseconds of one default
 ICP (``infonav_gym.registration_timing``): median milliseconds of point-to-point ``icp`` on a
 32 x 180 LADAR frame pair from a warm start, and its errors against the true motion, beside
 Open3D's ``registration_icp`` on the same pair when Open3D imports.
+PPO (``infonav_gym.ppo_timing``): training timesteps per second of the same MaskablePPO
+settings on LandmarkSelection-v0 and on CartPole-v1, 8 envs each, alternating rounds in one run.
 Figures named ``*_us`` or ``*_ms`` meet their goal at or below it, all others at or above.
 """
 
@@ -40,7 +42,9 @@ GOALS = {
     "ladar_frame_ms": 5.0,
     "camera_frame_ms": 10.0,
     "icp_frame_pair_ms": 20.0,
+    "ppo_fps_ratio_vs_cartpole": 0.5,
 }
+PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
 
 
 def lower_is_better(name: str) -> bool:
@@ -92,6 +96,14 @@ def greedy_decision_us(n_candidates: int = 16, seed: int = 0, repeats: int = 200
     return best / repeats * 1e6
 
 
+def _ppo_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
+    """PPO fps figures; at most 3 rounds (each trains both envs), ``seconds_per_round`` sets their length."""
+    from infonav_gym.ppo_timing import ppo_fps_figures
+
+    timesteps = max(256, round(seconds_per_round * PPO_TIMESTEPS_PER_SECOND_OF_ROUND))
+    return ppo_fps_figures(timesteps_per_round=timesteps, rounds=min(rounds, 3), seed=seed)
+
+
 def run_benchmark(rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0, progress: bool = True) -> dict:
     """Measure every speed goal; returns a JSON-ready dict with the figures and whether each goal is met."""
     cartpole = gym.make("CartPole-v1")
@@ -126,6 +138,7 @@ def run_benchmark(rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0
     figures["greedy_decision_us"] = greedy_decision_us()
     figures.update(sensor_figures(seconds_per_round, seed))
     figures.update(icp_figures(seconds_per_round, seed))
+    figures.update(_ppo_figures(rounds, seconds_per_round, seed))
     met = {
         name: figures[name] <= goal if lower_is_better(name) else figures[name] >= goal for name, goal in GOALS.items()
     }

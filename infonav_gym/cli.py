@@ -1,4 +1,4 @@
-"""The ``infonav`` command: demo, evaluate, benchmark, reproduce."""
+"""The ``infonav`` command: demo, evaluate, train, benchmark, reproduce, replay."""
 
 from __future__ import annotations
 
@@ -41,13 +41,29 @@ def build_parser() -> argparse.ArgumentParser:
 
     evaluate = commands.add_parser("evaluate", help="evaluate baseline agents with the same seeds; print a table")
     evaluate.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
-    evaluate.add_argument("--agents", default="random,greedy", help="comma-separated: random, greedy")
+    evaluate.add_argument(
+        "--agents",
+        default="random,greedy",
+        help="comma-separated: random, greedy, planner, ppo:PATH (a model.zip from infonav train)",
+    )
     evaluate.add_argument("--episodes", type=int, default=20, help="episodes per agent (default: 20)")
     evaluate.add_argument(
         "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
     )
-    evaluate.add_argument("--output", type=Path, help="write OUTPUT.md, OUTPUT.csv and OUTPUT.json")
+    evaluate.add_argument("--output", type=Path, help="write OUTPUT.md, OUTPUT.csv, OUTPUT.json and OUTPUT.png")
     _common(evaluate)
+
+    train = commands.add_parser("train", help="train PPO (MaskablePPO with action masks); save model.zip")
+    train.add_argument("--env", required=True, help="env id, e.g. infonav/LandmarkSelection-v0")
+    train.add_argument("--timesteps", type=int, required=True, help="env steps to train for")
+    train.add_argument("--n-envs", type=int, default=8, help="vectorized env copies (default: 8)")
+    train.add_argument("--output", type=Path, help="output directory (default: models/ENV-NAME_seedS)")
+    train.add_argument("--subprocess", action="store_true", help="SubprocVecEnv: one process per env copy")
+    train.add_argument("--tensorboard", action="store_true", help="log to OUTPUT/tensorboard (needs tensorboard)")
+    train.add_argument(
+        "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
+    )
+    _common(train)
 
     benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
     benchmark.add_argument("--rounds", type=int, default=5, help="alternating measurement rounds (default: 5)")
@@ -105,6 +121,36 @@ def _evaluate(args, argv) -> dict:
         print(f"{args.env}, {args.episodes} episodes per agent, seeds {args.seed}..{args.seed + args.episodes - 1}")
         print(markdown_table(results))
     return results
+
+
+def _train(args) -> dict:
+    """Train PPO on ``args.env``; print where the model went unless --json."""
+    try:
+        from agents.ppo import train
+    except ImportError as error:
+        raise ValueError(f"training needs the rl extra (pip install 'infonav-gym[rl]'): {error}") from None
+    if args.timesteps < 1 or args.n_envs < 1:
+        raise ValueError(f"--timesteps and --n-envs must be >= 1, got {args.timesteps} and {args.n_envs}")
+    output = args.output or Path("models") / f"{args.env.rsplit('/', 1)[-1]}_seed{args.seed}"
+    model_path = train(
+        args.env,
+        args.timesteps,
+        seed=args.seed,
+        n_envs=args.n_envs,
+        output_dir=output,
+        progress=not args.json,
+        tensorboard=args.tensorboard,
+        subprocess=args.subprocess,
+        env_kwargs=dict(args.config),
+    )
+    record = json.loads((model_path.parent / "train.json").read_text())
+    if not args.json:
+        print(
+            f"trained {record['algorithm']} on {args.env} for {record['timesteps']} timesteps in "
+            f"{record['seconds']:.1f} s ({record['fps']:.0f} steps/s); model: {model_path}"
+        )
+        print(f"evaluate it: infonav evaluate --env {args.env} --agents random,greedy,ppo:{model_path}")
+    return record
 
 
 def _benchmark(args) -> dict:
@@ -200,6 +246,8 @@ def main(argv: list[str] | None = None) -> int:
             result = _demo(args)
         elif args.command == "evaluate":
             result = _evaluate(args, argv)
+        elif args.command == "train":
+            result = _train(args)
         elif args.command == "reproduce":
             result = _reproduce(args, argv)
         elif args.command == "replay":

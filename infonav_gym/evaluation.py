@@ -15,7 +15,8 @@ from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
 
-AGENT_NAMES = ("random", "greedy")
+AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH")
+PPO_PREFIX = "ppo:"
 TEAM_ENV = "cooperative_localization_v0"  # the PettingZoo env; every robot plays its own copy of the agent
 SENSOR_ENV = "infonav/SensorSelection-v0"  # rewards image information, not pose updates
 REGISTRATION_ENV = "infonav/RangeRegistration-v0"  # rewards registration error reduction
@@ -36,6 +37,9 @@ REGISTRATION_METRICS = {
     "mean_error_after_m": "registration error after ICP [m]",
     "mean_control_points": "control points per frame pair",
 }
+
+
+SUCCESS_METRIC = {"success_rate": "success rate"}  # when the env puts info["success"] (bool) in its final info
 
 
 def metrics_of(env_id: str) -> dict:
@@ -69,13 +73,50 @@ def _registration_metrics(infos: list[dict]) -> dict:
     }
 
 
-def make_agent(name: str, n_actions: int, noop_action: int | None = None):
-    """A baseline agent by name (``noop_action``: see ``RandomAgent``)."""
+def check_agent_name(name: str) -> None:
+    """Raise ``ValueError`` unless ``name`` is random, greedy, planner or ppo:PATH."""
+    if name in ("random", "greedy", "planner") or (name.startswith(PPO_PREFIX) and len(name) > len(PPO_PREFIX)):
+        return
+    raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
+
+
+def make_agent(name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None):
+    """A baseline agent by name (``noop_action``: see ``RandomAgent``).
+
+    ``planner`` (``agents.planner.PlannerAgent(env)``) and ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``)
+    need the ``env`` they will act in; both are imported only when asked for.
+    """
+    check_agent_name(name)
     if name == "random":
         return RandomAgent(n_actions, noop_action=noop_action)
     if name == "greedy":
         return GreedyEntropyAgent()
-    raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
+    if env is None:
+        raise ValueError(f"agent {name!r} needs a single-agent Gymnasium env, not the team env")
+    if name == "planner":
+        try:
+            from agents.planner import PlannerAgent
+        except ImportError as error:
+            raise ValueError(
+                f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
+            ) from None
+        return PlannerAgent(env)
+    try:
+        from agents.ppo import PPOAgent
+    except ImportError as error:
+        raise ValueError(f"agent {name!r} needs the rl extra (pip install 'infonav-gym[rl]'): {error}") from None
+    return PPOAgent(name[len(PPO_PREFIX) :], env)
+
+
+def make_env(env_id: str, env_kwargs: dict | None = None) -> gym.Env:
+    """``gym.make(env_id, **env_kwargs)``; an unknown id raises ``ValueError`` naming it and the infonav ids."""
+    try:
+        return gym.make(env_id, **(env_kwargs or {}))
+    except gym.error.Error as error:
+        infonav = sorted(name for name in gym.registry if name.startswith("infonav/"))
+        raise ValueError(
+            f"unknown env id {env_id!r} ({error}); choose from {', '.join([*infonav, TEAM_ENV])}"
+        ) from None
 
 
 def run_episode(env: gym.Env, agent, seed: int) -> dict:
@@ -89,7 +130,10 @@ def run_episode(env: gym.Env, agent, seed: int) -> dict:
         done = terminated or truncated
     env_id = env.spec.id if env.spec is not None else None
     summarize = {SENSOR_ENV: _image_metrics, REGISTRATION_ENV: _registration_metrics}.get(env_id, _localization_metrics)
-    return summarize(infos)
+    metrics = summarize(infos)
+    if "success" in info:
+        metrics["success_rate"] = float(bool(info["success"]))
+    return metrics
 
 
 def run_team_episode(env, agent_name: str, seed: int) -> dict:
@@ -135,26 +179,36 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
 
     ``env_id`` is a Gymnasium id or ``"cooperative_localization_v0"`` (the team env; there
     "random" is a random choice of teammate to observe and the metrics are the team's).
+    ``agent_names``: random, greedy, planner, ppo:PATH (a model written by ``infonav train``).
+    A ``success_rate`` metric is added when every episode's final info has ``"success"``.
 
     Returns:
         ``{"env_id", "episodes", "seeds", "env_kwargs", "agents": {name: {"episodes": [...], "summary": {...}}}}``.
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    unknown = [name for name in agent_names if name not in AGENT_NAMES]
-    if unknown:
-        raise ValueError(f"unknown agent {unknown[0]!r}; choose from {', '.join(AGENT_NAMES)}")
+    if not agent_names:
+        raise ValueError(f"no agents given; choose from {', '.join(AGENT_NAMES)}")
+    for name in agent_names:
+        check_agent_name(name)
     env_kwargs = dict(env_kwargs or {})
     if env_id == TEAM_ENV:
         from infonav_gym.multi import cooperative_localization_v0
 
+        unsupported = [name for name in agent_names if name not in ("random", "greedy")]
+        if unsupported:
+            raise ValueError(f"agent {unsupported[0]!r} is not available for {TEAM_ENV}: use random or greedy")
         env = cooperative_localization_v0.parallel_env(**env_kwargs)
         agents = dict.fromkeys(agent_names)  # built per episode and robot by run_team_episode
     else:
-        env = gym.make(env_id, **env_kwargs)
-        agents = {name: make_agent(name, env.action_space.n) for name in agent_names}
+        env = make_env(env_id, env_kwargs)
+        try:
+            agents = {name: make_agent(name, env.action_space.n, env=env) for name in agent_names}
+        except Exception:
+            env.close()
+            raise
     seeds = list(range(seed, seed + episodes))
-    metrics = metrics_of(env_id)
+    metrics = dict(metrics_of(env_id))
     results = {"env_id": env_id, "episodes": episodes, "seeds": seeds, "env_kwargs": env_kwargs, "metrics": metrics}
     results["agents"] = {}
     bar = tqdm(total=len(agents) * episodes, desc=f"evaluating on {env_id}", disable=not progress, unit="episode")
@@ -166,10 +220,14 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
             else:
                 per_episode.append(run_episode(env, agent, episode_seed))
             bar.update()
-        summary = {key: vars(Summary.of([e[key] for e in per_episode])) for key in metrics}
-        results["agents"][name] = {"episodes": per_episode, "summary": summary}
+        results["agents"][name] = {"episodes": per_episode}
     bar.close()
     env.close()
+    every_episode = [e for result in results["agents"].values() for e in result["episodes"]]
+    if all("success_rate" in e for e in every_episode):
+        metrics.update(SUCCESS_METRIC)
+    for result in results["agents"].values():
+        result["summary"] = {key: vars(Summary.of([e[key] for e in result["episodes"]])) for key in metrics}
     return results
 
 
@@ -184,8 +242,43 @@ def markdown_table(results: dict) -> str:
     return "\n".join(lines)
 
 
+def _plot_label(name: str) -> str:
+    """``ppo:runs/x/model.zip`` -> ``ppo:x/model.zip``: short enough for an axis."""
+    if not name.startswith(PPO_PREFIX):
+        return name
+    path = Path(name[len(PPO_PREFIX) :])
+    return PPO_PREFIX + "/".join(path.parts[-2:])
+
+
+def plot_results(results: dict, path: Path) -> Path:
+    """A box plot per metric of the per-episode values of every agent, with the mean and its 95% CI as a dot."""
+    from matplotlib.figure import Figure  # no pyplot: renders with Agg, leaves the caller's backend alone
+
+    metrics, names = results["metrics"], list(results["agents"])
+    figure = Figure(figsize=(3.2 * len(metrics) + 1, 3.6))
+    axes = figure.subplots(1, len(metrics), squeeze=False)
+    positions = np.arange(1, len(names) + 1)
+    for axis, (key, title) in zip(axes[0], metrics.items()):
+        values = [[e[key] for e in results["agents"][name]["episodes"]] for name in names]
+        axis.boxplot(values, positions=positions, widths=0.5, showfliers=True)
+        summaries = [results["agents"][name]["summary"][key] for name in names]
+        means = [s["mean"] for s in summaries]
+        errors = [0.0 if math.isnan(s["ci95"]) else s["ci95"] for s in summaries]
+        axis.errorbar(positions, means, yerr=errors, fmt="o", color="tab:red", capsize=4, label="mean ± 95% CI")
+        axis.set_xticks(positions, [_plot_label(name) for name in names], rotation=20, ha="right")
+        axis.set_title(title, fontsize=10)
+    axes[0][0].legend(fontsize=8)
+    figure.suptitle(f"{results['env_id']}: {results['episodes']} episodes per agent", fontsize=11)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    return path
+
+
 def write_results(results: dict, stem: Path, command: str) -> list[Path]:
-    """Write ``stem.md`` (table and command), ``stem.csv`` (per episode) and ``stem.json``."""
+    """Write ``stem.md`` (table and command), ``stem.csv`` (per episode), ``stem.json`` and ``stem.png``.
+
+    The plot needs matplotlib (the ``render`` extra); without it the other three are written.
+    """
     stem.parent.mkdir(parents=True, exist_ok=True)
     md, csv_path, json_path = stem.with_suffix(".md"), stem.with_suffix(".csv"), stem.with_suffix(".json")
     md.write_text(
@@ -200,4 +293,9 @@ def write_results(results: dict, stem: Path, command: str) -> list[Path]:
             for episode_seed, episode in zip(results["seeds"], result["episodes"]):
                 writer.writerow([name, episode_seed, *(episode[key] for key in results["metrics"])])
     json_path.write_text(json.dumps({**results, "command": command}, indent=2) + "\n")
-    return [md, csv_path, json_path]
+    written = [md, csv_path, json_path]
+    try:
+        written.append(plot_results(results, stem.with_suffix(".png")))
+    except ImportError:
+        pass  # matplotlib is optional
+    return written

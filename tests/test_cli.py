@@ -122,8 +122,13 @@ def test_benchmark_reports_every_goal(capsys):
             "ladar_frame_ms",
             "camera_frame_ms",
             "icp_frame_pair_ms",
+            "ppo_fps_ratio_vs_cartpole",
         }
     )
+    ppo_fps, cartpole_ppo_fps = figures["ppo_landmark_selection_fps"], figures["ppo_cartpole_fps"]
+    assert ppo_fps > 0 and cartpole_ppo_fps > 0 and figures["ppo_timesteps_per_round"] <= 512
+    assert figures["ppo_fps_ratio_vs_cartpole"] == pytest.approx(ppo_fps / cartpole_ppo_fps)  # one round: one ratio
+    assert result["goals_met"]["ppo_fps_ratio_vs_cartpole"] == (figures["ppo_fps_ratio_vs_cartpole"] >= 0.5)
     assert figures["icp_frame_pair_ms"] > 0
     assert result["goals_met"]["icp_frame_pair_ms"] == (figures["icp_frame_pair_ms"] <= 20.0)
     assert figures["icp_rotation_error_deg"] < 0.5 and figures["icp_translation_error_m"] < 0.05

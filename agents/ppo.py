@@ -1,0 +1,316 @@
+"""Stable-Baselines3 PPO for the infonav envs: train, save, load, act.
+
+Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib's
+``MaskablePPO``: ``InfoActionMask`` hands the last info's mask to it through the
+``action_masks()`` method it asks for. Other envs (CartPole, for the benchmark) train
+with plain ``PPO``. Hyperparameters come from ``scripts/hyperparams/ppo.yml``, one block
+per env id (rl-baselines3-zoo style). Needs the ``rl`` extra (stable-baselines3,
+sb3-contrib, torch, pyyaml).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import json
+import time
+import warnings
+import zipfile
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import torch
+from sb3_contrib import MaskablePPO
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+from tqdm.auto import tqdm
+
+import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
+
+HYPERPARAMETERS_FILE = Path(__file__).resolve().parent.parent / "scripts" / "hyperparams" / "ppo.yml"
+ACTIVATIONS = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
+MODEL_FILE = "model.zip"
+
+
+def default_num_threads() -> int:
+    """Torch threads for PPO's small MLPs: 1.
+
+    On a 2-core CPU a second thread gains nothing for 64 x 64 networks (measured: CartPole
+    PPO at 5600 vs 5450 steps/s) and, when another process holds the other core, makes
+    training about 20x slower (the threads spin-wait on each other).
+    """
+    return 1
+
+
+@contextlib.contextmanager
+def torch_threads(n_threads: int):
+    """Run the block with ``torch.set_num_threads(n_threads)``; restore the caller's setting after."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(n_threads)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+class InfoActionMask(gym.Wrapper):
+    """Exposes ``action_masks()`` (what ``MaskablePPO`` calls) from the last ``info["action_mask"]``.
+
+    When no action is valid, every action is allowed (the infonav envs treat a masked
+    action as a no-op), so the policy's distribution never degenerates.
+    """
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        self._mask = np.ones(env.action_space.n, dtype=bool)
+
+    def _remember(self, info: dict) -> None:
+        mask = np.asarray(info.get("action_mask", 1), dtype=bool)
+        self._mask = np.broadcast_to(mask, (self.action_space.n,)).copy() if mask.any() else np.ones_like(self._mask)
+
+    def reset(self, **kwargs):
+        observation, info = self.env.reset(**kwargs)
+        self._remember(info)
+        return observation, info
+
+    def step(self, action):
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        self._remember(info)
+        return observation, reward, terminated, truncated, info
+
+    def action_masks(self) -> np.ndarray:
+        return self._mask
+
+
+def make_env(env_id: str, env_kwargs: dict | None = None) -> gym.Env:
+    """``gym.make(env_id, **env_kwargs)``; an unknown id raises ``ValueError`` naming it."""
+    try:
+        return gym.make(env_id, **(env_kwargs or {}))
+    except gym.error.Error as error:
+        infonav = sorted(name for name in gym.registry if name.startswith("infonav/"))
+        raise ValueError(f"unknown env id {env_id!r} ({error}); infonav envs: {', '.join(infonav)}") from None
+
+
+def has_action_mask(env_id: str, env_kwargs: dict | None = None) -> bool:
+    """Whether ``env_id`` reports ``info["action_mask"]`` (then it trains with ``MaskablePPO``)."""
+    env = make_env(env_id, env_kwargs)
+    try:
+        return "action_mask" in env.reset(seed=0)[1]
+    finally:
+        env.close()
+
+
+def load_hyperparameters(env_id: str, path: Path | str = HYPERPARAMETERS_FILE) -> dict:
+    """The block of ``path`` (YAML) for ``env_id``, else its ``default`` block; a fresh dict.
+
+    Without the file (an installed wheel ships no ``scripts/``) the result is ``{}``, SB3's defaults.
+    """
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        warnings.warn(f"no hyperparameter file {path}: using Stable-Baselines3's PPO defaults", stacklevel=2)
+        return {}
+    try:
+        blocks = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as error:
+        raise ValueError(f"cannot read hyperparameters from {path}: {error}") from None
+    return copy.deepcopy(blocks.get(env_id, blocks.get("default", {})))
+
+
+def _constructor_kwargs(hyperparameters: dict) -> dict:
+    """Hyperparameters as PPO constructor keywords: drop ``n_envs`` / ``policy``, resolve the activation name."""
+    kwargs = {key: value for key, value in hyperparameters.items() if key not in ("n_envs", "policy", "n_timesteps")}
+    policy_kwargs = dict(kwargs.get("policy_kwargs") or {})
+    activation = policy_kwargs.get("activation_fn")
+    if isinstance(activation, str):
+        if activation not in ACTIVATIONS:
+            raise ValueError(f"policy_kwargs.activation_fn must be one of {', '.join(ACTIVATIONS)}, got {activation!r}")
+        policy_kwargs["activation_fn"] = ACTIVATIONS[activation]
+    if policy_kwargs:
+        kwargs["policy_kwargs"] = policy_kwargs
+    return kwargs
+
+
+def tensorboard_available() -> bool:
+    """Whether the ``tensorboard`` package (SB3's TensorBoard writer) imports."""
+    try:
+        import tensorboard  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class TqdmCallback(BaseCallback):
+    """A tqdm progress bar over training timesteps (SB3's own bar needs ``rich`` as well)."""
+
+    def __init__(self, total: int, disable: bool = False):
+        super().__init__()
+        self._total, self._disable, self._bar = total, disable, None
+
+    def _on_training_start(self) -> None:
+        self._bar = tqdm(total=self._total, desc="training PPO", unit="step", disable=self._disable)
+
+    def _on_step(self) -> bool:
+        self._bar.update(self.training_env.num_envs)
+        return True
+
+    def _on_training_end(self) -> None:
+        self._bar.close()
+
+
+def build_model(
+    env_id: str,
+    seed: int = 0,
+    n_envs: int | None = None,
+    hyperparameters: dict | None = None,
+    env_kwargs: dict | None = None,
+    subprocess: bool = False,
+    tensorboard_log: str | None = None,
+):
+    """A fresh ``MaskablePPO`` (env with action masks) or ``PPO`` on ``n_envs`` seeded copies of ``env_id``.
+
+    Args:
+        hyperparameters: ppo.yml-style keys; ``None`` loads the env's block of ppo.yml.
+        n_envs: overrides the hyperparameters' ``n_envs`` (default 8).
+        subprocess: ``SubprocVecEnv`` instead of ``DummyVecEnv`` (one process per env).
+    """
+    if hyperparameters is None:
+        hyperparameters = load_hyperparameters(env_id)
+    n_envs = int(n_envs or hyperparameters.get("n_envs", 8))
+    if n_envs < 1:
+        raise ValueError(f"n_envs must be >= 1, got {n_envs}")
+    masked = has_action_mask(env_id, env_kwargs)
+    vec_env = make_vec_env(
+        env_id,
+        n_envs=n_envs,
+        seed=seed,
+        env_kwargs=env_kwargs,
+        wrapper_class=InfoActionMask if masked else None,
+        vec_env_cls=SubprocVecEnv if subprocess else DummyVecEnv,
+    )
+    algorithm = MaskablePPO if masked else PPO
+    policy = hyperparameters.get("policy", "MlpPolicy")
+    kwargs = _constructor_kwargs(hyperparameters)
+    return algorithm(policy, vec_env, seed=seed, device="cpu", verbose=0, tensorboard_log=tensorboard_log, **kwargs)
+
+
+def train(
+    env_id: str,
+    timesteps: int,
+    seed: int = 0,
+    n_envs: int | None = 8,
+    output_dir: Path | str = Path("models"),
+    hyperparameters: dict | None = None,
+    progress: bool = True,
+    tensorboard: bool = False,
+    subprocess: bool = False,
+    env_kwargs: dict | None = None,
+    checkpoints: int = 4,
+) -> Path:
+    """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
+
+    Also writes ``output_dir/train.json`` (env, seed, hyperparameters, wall time, fps),
+    ``checkpoints`` intermediate models in ``output_dir/checkpoints/`` and, with
+    ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
+    (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
+    """
+    if timesteps < 1:
+        raise ValueError(f"timesteps must be >= 1, got {timesteps}")
+    if tensorboard and not tensorboard_available():
+        raise ValueError("TensorBoard logging needs the tensorboard package: pip install tensorboard")
+    output_dir = Path(output_dir)
+    if hyperparameters is None:
+        hyperparameters = load_hyperparameters(env_id)
+    hyperparameters = {**hyperparameters, "n_envs": int(n_envs or hyperparameters.get("n_envs", 8))}
+    tensorboard_log = str(output_dir / "tensorboard") if tensorboard else None
+    with torch_threads(default_num_threads()):
+        model = build_model(
+            env_id, seed, None, hyperparameters, env_kwargs, subprocess=subprocess, tensorboard_log=tensorboard_log
+        )
+        n_envs = model.n_envs
+        callbacks = [TqdmCallback(timesteps, disable=not progress)]
+        if checkpoints > 0:
+            every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
+            callbacks.append(CheckpointCallback(every, str(output_dir / "checkpoints"), name_prefix="ppo"))
+        start = time.perf_counter()
+        model.learn(timesteps, callback=callbacks, tb_log_name="ppo")
+        seconds = time.perf_counter() - start
+        model_path = output_dir / MODEL_FILE
+        model.save(model_path)
+        model.get_env().close()
+    record = {
+        "env_id": env_id,
+        "algorithm": type(model).__name__,
+        "timesteps": int(model.num_timesteps),
+        "seed": seed,
+        "n_envs": n_envs,
+        "env_kwargs": env_kwargs or {},
+        "hyperparameters": hyperparameters,
+        "seconds": seconds,
+        "fps": model.num_timesteps / seconds,
+        "torch_threads": default_num_threads(),
+        "model": str(model_path),
+    }
+    (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
+    return model_path
+
+
+def _algorithm_of(path: Path):
+    """``MaskablePPO`` or ``PPO``, from the policy class recorded in the SB3 zip's ``data``."""
+    with zipfile.ZipFile(path) as archive:
+        data = json.loads(archive.read("data"))
+    policy_class = data.get("policy_class")
+    module = policy_class.get("__module__", "") if isinstance(policy_class, dict) else ""
+    return MaskablePPO if module.startswith("sb3_contrib") else PPO
+
+
+def load_model(path: Path | str):
+    """A saved ``MaskablePPO`` / ``PPO`` model; a missing or unreadable file raises ``ValueError`` naming it."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"PPO model {str(path)!r} does not exist (train one with: infonav train --env ENV_ID)")
+    try:
+        return _algorithm_of(path).load(path, device="cpu")
+    except Exception as error:  # zipfile, pickle, torch and KeyError failures all mean "not a model"
+        message = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise ValueError(f"cannot load PPO model {str(path)!r}: {message}") from None
+
+
+class PPOAgent:
+    """A trained PPO policy as an agent: deterministic (the most probable action) among the valid ones.
+
+    Args:
+        model_path: a ``model.zip`` written by ``train`` (or any SB3 PPO / MaskablePPO zip).
+        env: the env it will act in; its spaces must match the model's.
+    """
+
+    def __init__(self, model_path: Path | str, env: gym.Env):
+        self.model = load_model(model_path)
+        self.model_path = Path(model_path)
+        model_obs, env_obs = self.model.observation_space, env.observation_space
+        if model_obs.shape != env_obs.shape or self.model.action_space != env.action_space:
+            raise ValueError(
+                f"PPO model {str(self.model_path)!r} was trained for observations {model_obs.shape} and actions "
+                f"{self.model.action_space}, but the env has {env_obs.shape} and {env.action_space}"
+            )
+        self.n_actions = int(env.action_space.n)
+
+    def reset(self, seed: int | None = None) -> None:
+        """Deterministic: nothing to reset."""
+
+    def _mask(self, info: dict) -> np.ndarray:
+        mask = np.asarray(info.get("action_mask", 1), dtype=bool)
+        mask = np.broadcast_to(mask, (self.n_actions,))
+        return mask if mask.any() else np.ones(self.n_actions, dtype=bool)
+
+    def act(self, observation, info: dict) -> int:
+        mask = self._mask(info)
+        with torch.no_grad():
+            obs_tensor, _ = self.model.policy.obs_to_tensor(np.asarray(observation))
+            distribution = self.model.policy.get_distribution(obs_tensor)
+            logits = distribution.distribution.logits[0].cpu().numpy()
+        return int(np.argmax(np.where(mask, logits, -np.inf)))

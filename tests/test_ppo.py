@@ -1,0 +1,145 @@
+"""PPO training, the PPO agent and ``infonav evaluate`` with it: smoke runs, reproducibility, errors for people."""
+
+import json
+import zipfile
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pytest.importorskip("sb3_contrib")
+
+import infonav_gym  # noqa: E402, F401  (registers the envs)
+from agents.ppo import InfoActionMask, PPOAgent, load_hyperparameters  # noqa: E402
+from infonav_gym.cli import main  # noqa: E402
+
+LANDMARK_ID = "infonav/LandmarkSelection-v0"
+
+
+def run_json(capsys, *argv) -> dict:
+    assert main([*argv, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory) -> dict:
+    """One ``infonav train`` run shared by the tests of this module (about 2 s)."""
+    output = tmp_path_factory.mktemp("ppo")
+    assert main(["train", "--env", LANDMARK_ID, "--timesteps", "2000", "--output", str(output), "--json"]) == 0
+    return json.loads((output / "train.json").read_text())
+
+
+def test_train_writes_a_maskable_model_checkpoints_and_a_record(trained):
+    model = trained["model"]
+    assert trained["algorithm"] == "MaskablePPO" and trained["env_id"] == LANDMARK_ID
+    assert trained["timesteps"] >= 2000 and trained["n_envs"] == 8 and trained["torch_threads"] == 1
+    assert trained["hyperparameters"] == {**load_hyperparameters(LANDMARK_ID), "n_envs": 8}
+    assert zipfile.is_zipfile(model)
+    assert len(list(Path(model).parent.glob("checkpoints/ppo_*_steps.zip"))) >= 3
+
+
+def test_ppo_agent_acts_deterministically_and_never_picks_a_masked_action(trained):
+    env = gym.make(LANDMARK_ID)
+    agent = PPOAgent(trained["model"], env)
+    observation, info = env.reset(seed=3)
+    for _ in range(40):
+        action = agent.act(observation, info)
+        assert info["action_mask"][action] or not info["action_mask"].any()
+        assert agent.act(observation, info) == action
+        observation, _, _, _, info = env.step(action)
+    only = np.zeros(env.action_space.n, dtype=np.int8)
+    only[5] = 1
+    assert agent.act(observation, {**info, "action_mask": only}) == 5
+
+
+def test_action_mask_wrapper_hands_the_last_info_mask_to_maskable_ppo():
+    env = InfoActionMask(gym.make(LANDMARK_ID))
+    _, info = env.reset(seed=0)
+    partial_masks = 0
+    for _ in range(60):
+        mask = info["action_mask"].astype(bool)
+        expected = mask if mask.any() else np.ones_like(mask)  # nothing visible: every action is a no-op
+        np.testing.assert_array_equal(env.action_masks(), expected)
+        partial_masks += 0 < mask.sum() < mask.size
+        _, _, _, _, info = env.step(int(np.flatnonzero(expected)[0]))
+    assert partial_masks > 0
+
+
+def test_evaluate_with_ppo_is_reproducible_and_writes_tables_and_a_plot(capsys, tmp_path, trained):
+    agents = f"random,greedy,ppo:{trained['model']}"
+    argv = ["evaluate", "--env", LANDMARK_ID, "--agents", agents, "--episodes", "3", "--config", "horizon=40"]
+    first, second = run_json(capsys, *argv), run_json(capsys, *argv)
+    assert first == second
+    assert list(first["agents"]) == ["random", "greedy", f"ppo:{trained['model']}"] and first["seeds"] == [0, 1, 2]
+    ppo = first["agents"][f"ppo:{trained['model']}"]
+    assert len(ppo["episodes"]) == 3 and all(episode["cumulative_mi"] > 0 for episode in ppo["episodes"])
+    written = run_json(capsys, *argv, "--output", str(tmp_path / "eval"))["files"]
+    assert [path.rsplit(".", 1)[-1] for path in written] == ["md", "csv", "json", "png"]
+    assert (tmp_path / "eval.png").stat().st_size > 10_000
+
+
+def test_success_rate_is_reported_when_the_env_says_success(monkeypatch, capsys):
+    from infonav_gym import evaluation
+
+    monkeypatch.setattr(evaluation, "run_episode", _run_episode_with_success(evaluation.run_episode))
+    result = run_json(capsys, "evaluate", "--episodes", "4", "--config", "horizon=5")
+    assert result["metrics"]["success_rate"] == "success rate"
+    for agent in result["agents"].values():
+        assert agent["summary"]["success_rate"]["mean"] == pytest.approx(0.5)
+
+
+def _run_episode_with_success(run_episode):
+    """``run_episode`` whose env reports ``info["success"]`` = seed is even, as ActiveLocalization-v0 will."""
+
+    def wrapped(env, agent, seed):
+        class Success(gym.Wrapper):
+            def step(self, action):
+                observation, reward, terminated, truncated, info = self.env.step(action)
+                return observation, reward, terminated, truncated, {**info, "success": seed % 2 == 0}
+
+        return run_episode(Success(env), agent, seed)
+
+    return wrapped
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["evaluate", "--env", "infonav/Nowhere-v0", "--episodes", "1"], "unknown env id 'infonav/Nowhere-v0'"),
+        (["evaluate", "--agents", "greedy,oracle", "--episodes", "1"], "unknown agent 'oracle'"),
+        (["evaluate", "--agents", "ppo:", "--episodes", "1"], "unknown agent 'ppo:'"),
+        (["evaluate", "--agents", "ppo:/no/such/model.zip", "--episodes", "1"], "'/no/such/model.zip' does not exist"),
+        (["train", "--env", "infonav/Nowhere-v0", "--timesteps", "10"], "unknown env id 'infonav/Nowhere-v0'"),
+        (["train", "--env", LANDMARK_ID, "--timesteps", "0"], "--timesteps and --n-envs must be >= 1"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line_naming_it(capsys, argv, message):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    error = capsys.readouterr().err
+    assert exit_info.value.code == 2 and message in error
+    assert error.count("\n") == 1 and "Traceback" not in error
+
+
+def test_a_corrupt_or_mismatched_model_is_an_error_not_a_traceback(capsys, tmp_path, trained):
+    corrupt = tmp_path / "corrupt.zip"
+    corrupt.write_bytes(b"not a zip file")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--agents", f"ppo:{corrupt}", "--episodes", "1"])
+    error = capsys.readouterr().err
+    assert exit_info.value.code == 2 and f"cannot load PPO model '{corrupt}'" in error and error.count("\n") == 1
+    with pytest.raises(SystemExit) as exit_info:  # trained with 8 candidates, evaluated with 4
+        main(["evaluate", "--agents", f"ppo:{trained['model']}", "--config", "n_candidates=4", "--episodes", "1"])
+    error = capsys.readouterr().err
+    assert exit_info.value.code == 2 and "was trained for observations (50,)" in error
+
+
+def test_planner_is_imported_lazily_and_named_in_the_error_when_missing(capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "agents.planner", None)  # makes ``import agents.planner`` fail
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--agents", "greedy,planner", "--episodes", "1"])
+    error = capsys.readouterr().err
+    assert exit_info.value.code == 2 and "agent 'planner' is not available" in error and error.count("\n") == 1
