@@ -2,6 +2,7 @@
 
 from agents.base import Agent, valid_actions
 from agents.greedy_entropy import GreedyEntropyAgent
+from agents.planner import PlannerAgent
 from agents.random_agent import RandomAgent
 
-__all__ = ["Agent", "GreedyEntropyAgent", "RandomAgent", "valid_actions"]
+__all__ = ["Agent", "GreedyEntropyAgent", "PlannerAgent", "RandomAgent", "valid_actions"]

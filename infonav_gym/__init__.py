@@ -9,6 +9,7 @@ __version__ = "0.1.0"
 
 ENVIRONMENTS = {
     "infonav/LandmarkSelection-v0": "infonav_gym.envs.landmark_selection:LandmarkSelectionEnv",
+    "infonav/ActiveLocalization-v0": "infonav_gym.envs.active_localization:ActiveLocalizationEnv",
     "infonav/SensorSelection-v0": "infonav_gym.envs.sensor_selection:SensorSelectionEnv",
     "infonav/RangeRegistration-v0": "infonav_gym.envs.range_registration:RangeRegistrationEnv",
 }

@@ -23,11 +23,14 @@ from gymnasium.utils.env_checker import check_env as gymnasium_check_env  # noqa
 from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
 
 import infonav_gym  # noqa: E402
+from infonav_gym.envs.active_localization import N_PRIMITIVES, REWARD_TERMS  # noqa: E402
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 SENSOR_ID = "infonav/SensorSelection-v0"
 REGISTRATION_ID = "infonav/RangeRegistration-v0"
-LOCALIZATION_IDS = {LANDMARK_ID}  # envs whose reward is the MI of a pose update
+ACTIVE_ID = "infonav/ActiveLocalization-v0"
+LOCALIZATION_IDS = {LANDMARK_ID, ACTIVE_ID}  # envs whose reward holds the MI of a pose update
+TERMINATING_IDS = {ACTIVE_ID}  # envs whose episodes may end before the horizon (goal reached or failed)
 REWARDED_EVERY_STEP_IDS = {LANDMARK_ID, SENSOR_ID}  # a valid informative action earns a positive reward at once
 WALL_CLOCK_INFO_KEYS = {"icp_time_s"}  # measured computing times: the only info that may differ between runs
 ENV_IDS = sorted(infonav_gym.ENVIRONMENTS)
@@ -38,11 +41,14 @@ COMMON_INFO_KEYS |= {"true_pose", "time_s"}
 LOCALIZATION_INFO_KEYS = {"pose_entropy", "state_entropy", "position_error_m", "heading_error_rad", "estimated_pose"}
 REQUIRED_INFO_KEYS = {
     LANDMARK_ID: COMMON_INFO_KEYS | LOCALIZATION_INFO_KEYS,
+    ACTIVE_ID: COMMON_INFO_KEYS
+    | LOCALIZATION_INFO_KEYS
+    | {"goal", "goal_reached", "failed", "observations_left", "distance_to_goal_m", "position_std_m"},
     SENSOR_ID: COMMON_INFO_KEYS | {"sensor", "pan_rad", "image_entropy", "bandwidth_credit_bytes"},
     REGISTRATION_ID: COMMON_INFO_KEYS
     | {"registered", "error_before_m", "error_after_m", "icp_iterations", "icp_time_s", "n_control_points"},
 }
-ZERO_GAIN_ACTIONS = {SENSOR_ID: {0}}  # valid actions that never bring information (waiting)
+ZERO_GAIN_ACTIONS = {SENSOR_ID: {0}, ACTIVE_ID: set(range(N_PRIMITIVES))}  # valid actions never informative
 MAY_BE_UNINFORMATIVE_IDS = {REGISTRATION_ID}  # a valid patch may hold no usable control point (gain 0)
 OUT_OF_SPACE_ACTIONS = [-1, "n", 2.5, "a", True, np.array([0, 1])]  # "n": the space size, resolved per env
 
@@ -362,12 +368,16 @@ def test_masked_action_is_a_no_op_with_zero_reward(env_id, kwargs):
     # Every masked action is the same no-op.
     assert_reproducible(transition, other_masked.step(int(masked[-1])), "masked no-op vs another masked no-op")
     if env_id in LOCALIZATION_IDS:
-        assert after["reward_terms"] == {"mutual_information": 0.0}
+        if env_id == LANDMARK_ID:
+            assert after["reward_terms"] == {"mutual_information": 0.0}
+        else:
+            assert after["reward_terms"]["mutual_information"] == 0.0
         # No update, only the prediction: uncertainty cannot shrink.
         assert after["state_entropy"] >= info["state_entropy"]
         assert after["pose_entropy"] >= info["pose_entropy"]
-        # A valid action does update: less uncertainty than after the no-op.
-        assert with_valid.step(int(valid[0]))[4]["state_entropy"] < after["state_entropy"]
+        # A valid observation does update: less uncertainty than after the no-op.
+        informative = valid[info["action_information_gain"][valid] > 0]
+        assert with_valid.step(int(informative[0]))[4]["state_entropy"] < after["state_entropy"]
     elif env_id == SENSOR_ID:
         # Nothing acquired, no bandwidth spent: the same as waiting.
         assert after["sensor"] == "none" and after["bandwidth_credit_bytes"] >= info["bandwidth_credit_bytes"]
@@ -448,14 +458,26 @@ def test_observations_rewards_and_infos_follow_the_contract_for_a_whole_episode(
         valid = bool(mask[action])
         observation, reward, terminated, truncated, info = env.step(action)
         assert type(reward) is float, f"{where}: reward is {type(reward).__name__}"
-        assert terminated is False and truncated is (step + 1 == horizon), where
-        assert reward == math.fsum(info["reward_terms"].values()), where
+        if terminated and env_id in TERMINATING_IDS:
+            assert truncated is False and info["goal_reached"] is not info["failed"], where
+        else:
+            assert terminated is False and truncated is (step + 1 == horizon), where
+        if env_id == ACTIVE_ID:  # six terms: base.step adds them in order, which may differ from fsum in the last bit
+            assert reward == sum(info["reward_terms"].values()), where
+            assert reward == pytest.approx(math.fsum(info["reward_terms"].values()), rel=1e-12, abs=1e-12), where
+        else:
+            assert reward == math.fsum(info["reward_terms"].values()), where
         if env_id == LANDMARK_ID:
             assert info["reward_terms"].keys() == {"mutual_information"}, where
             assert reward == info["reward_terms"]["mutual_information"], where
+        elif env_id == ACTIVE_ID:
+            assert tuple(info["reward_terms"]) == REWARD_TERMS, where
         assert info["invalid_action"] is (not valid), where
         assert info["chosen_action"] == (action if valid else -1), where
         assert type(info["chosen_action"]) is int, where
+        if terminated:
+            assert env.observation_space.contains(observation), f"{where}: final observation outside the space"
+            break
 
 
 @cases
@@ -503,9 +525,10 @@ def test_every_valid_actions_gain_equals_its_realized_reward(env_id, kwargs):
         valid = np.flatnonzero(info["action_mask"])
         if valid.size:
             for action in valid:
-                reward = copy_env(env).step(int(action))[1]
+                _, reward, _, _, after = copy_env(env).step(int(action))
+                realized = reward if env_id == LANDMARK_ID else after["reward_terms"]["mutual_information"]
                 expected = info["action_information_gain"][action]
-                assert reward == pytest.approx(expected, rel=1e-9, abs=0), f"action {action}"
+                assert realized == pytest.approx(expected, rel=1e-9, abs=0), f"action {action}"
             decisions += 1
             if decisions == 5:
                 break

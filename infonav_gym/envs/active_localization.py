@@ -1,0 +1,504 @@
+"""``infonav/ActiveLocalization-v0``: drive to a goal, choosing how to move and what to observe under a budget."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from gymnasium import spaces
+
+from infonav_gym.config import check_positive
+from infonav_gym.envs.base import InfoNavEnv
+from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
+from infonav_gym.estimation.models import range_bearing, range_bearing_linearized, wrap_angle
+from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
+from infonav_gym.sensors.odometry import OdometrySensor
+from infonav_gym.sensors.range_bearing import RangeBearingSensor
+from infonav_gym.world.active_scenarios import (
+    MIN_GOAL_FIELD_LANDMARKS,
+    MIN_GOAL_FIELD_SIZE_M,
+    CommandedWorld,
+    goal_field,
+)
+
+# Motion primitives: the heading to steer for, relative to the estimated bearing of the goal [rad].
+PRIMITIVE_OFFSETS_RAD = (0.0, math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)
+PRIMITIVE_NAMES = ("to_goal", "veer_left", "veer_right", "sidestep_left", "sidestep_right")
+N_PRIMITIVES = len(PRIMITIVE_OFFSETS_RAD)
+POSE_FEATURES = 10
+GOAL_FEATURES = 4
+LANDMARK_FEATURES = 4
+OBSTACLE_FEATURES = 4
+REWARD_TERMS = ("mutual_information", "sensing_cost", "motion_cost", "progress", "goal_bonus", "failure_penalty")
+_BIG = 1e4
+
+
+@dataclass(frozen=True)
+class Belief:
+    """A light copy of the estimator's state at a decision, batched over ``B`` hypothetical futures.
+
+    Attributes:
+        pose: estimated poses ``[x, y, heading]`` (B, 3) [m, m, rad].
+        covariance: their covariances (B, 3, 3).
+        observations_left: remaining sensing budget (B,).
+        visible: which landmarks can be observed from there (B, K).
+        done: whether the episode has ended (goal reached or uncertainty bound crossed) (B,).
+    """
+
+    pose: np.ndarray
+    covariance: np.ndarray
+    observations_left: np.ndarray
+    visible: np.ndarray
+    done: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.pose)
+
+    def take(self, indices) -> Belief:
+        """The beliefs at ``indices`` (a new batch, e.g. repeated once per action to try)."""
+        return Belief(*(np.take(getattr(self, name), indices, axis=0) for name in self.__dataclass_fields__))
+
+
+class ActiveLocalizationEnv(InfoNavEnv):
+    """Drive a robot to a goal, deciding each step how to move and which landmark (if any) to observe.
+
+    ## Description
+    A robot crosses a square field (``goal_field``) from a start on the left to a goal
+    on the right, tracking its pose with a ``PoseEKF`` from noisy odometry. Landmarks
+    light only parts of the way: two ahead of the start, one before the goal, and the
+    rest along one side of the middle, farther from the straight line than the sensor
+    reaches; round obstacles on the other side hide some of them. Each step the agent
+    observes one visible landmark (a range-bearing update) or nothing, then drives one
+    motion primitive. Observations are limited (``max_observations``) and cost
+    ``observation_cost_nats`` each. Drifting too far from certainty ends the episode, so
+    a myopic agent that spends its budget where landmarks are plentiful, or drives
+    straight through the dark middle, may be left blind: this is where planning ahead
+    pays.
+
+    The observation is taken at the start of the step, at the EKF's predicted prior, and
+    the motion follows. ``info["action_information_gain"][a]`` is therefore the exact
+    mutual information action ``a`` brings (the posterior covariance does not depend on
+    the measured value), and ``info["action_mask"]`` shows what is visible from the true
+    pose, as for ``LandmarkSelection-v0``.
+
+    ## Action Space
+    ``Discrete(5 * (1 + n_candidates))``; action ``a`` is observation slot ``a // 5``
+    (0: observe nothing, ``j + 1``: observe landmark ``j``) and primitive ``a % 5``.
+    The primitives steer, on the *estimated* pose, for a heading relative to the
+    estimated bearing of the goal: ``to_goal`` (0), ``veer_left`` / ``veer_right``
+    (+-45 deg) and ``sidestep_left`` / ``sidestep_right`` (+-90 deg); the turn rate is
+    limited to ``max_turn_rate_rps`` and the speed is ``speed_mps * max(cos(turn), 0)``
+    for the heading change still to make. Pymunk executes the motion. Observing
+    landmark ``j`` is valid while it lies within range and field of view, no obstacle
+    hides it, and budget is left; observing nothing is always valid. A masked action
+    is a no-op (stand still, observe nothing) by default (``invalid_action="noop"``) or
+    raises ``ValueError`` with ``invalid_action="raise"``.
+
+    ## Observation Space
+    ``Box(float32, (14 + 4 * n_candidates + 4 * n_obstacles,))``: the 10 pose features
+    of ``LandmarkSelection-v0`` (estimated ``x, y`` [m], ``cos, sin`` of the heading,
+    standard deviations of ``x, y`` [m] and heading [rad], ``x-y`` correlation, pose
+    entropy [nats], elapsed fraction of the horizon); the estimated distance to the goal
+    [m], ``cos, sin`` of its estimated bearing, and the fraction of the sensing budget
+    left; per landmark: visible flag, estimated range [m], ``cos, sin`` of the estimated
+    bearing; per obstacle: estimated range to its centre [m], ``cos, sin`` of its
+    bearing, radius [m] (the map is known).
+
+    ## Rewards
+    ``info["reward_terms"]``, summed: ``mutual_information`` of the update [nats];
+    ``sensing_cost`` ``-observation_cost_nats`` per observation; ``motion_cost``
+    ``-motion_cost_per_step`` per primitive executed (driving or turning); ``progress`` ``progress_reward_per_m``
+    per metre the true distance to the goal shrank; ``goal_bonus`` on reaching the goal;
+    ``failure_penalty`` ``-failure_penalty`` when the uncertainty bound is crossed. A
+    no-op earns 0 unless the uncertainty crosses the bound meanwhile.
+
+    ## Starting State
+    At the scenario's start, facing the goal; the estimate is drawn from
+    ``N(true pose, diag(initial_position_std_m^2, ..., initial_heading_std_rad^2))``.
+
+    ## Episode End
+    Terminated when the true position comes within ``goal_radius_m`` of the goal
+    (success, ``info["goal_reached"]``), or when the largest position standard deviation
+    of the estimate exceeds ``max_position_std_m`` (failure, ``info["failed"]``).
+    Truncated after ``horizon`` steps.
+
+    ## Planning model
+    ``belief()``, ``plan_decision(belief)`` and ``plan_step(belief, actions)`` expose the
+    env's own model for look-ahead agents (``agents.planner.PlannerAgent``): the EKF
+    covariance propagated under the linearization, with the motion predicted from the
+    estimated pose and visibility judged from it.
+
+    ## Arguments
+    ``gym.make("infonav/ActiveLocalization-v0", render_mode=None, **config)`` with any
+    key of ``default_config()``; an unknown key raises ``ValueError`` naming it.
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    @classmethod
+    def default_config(cls) -> dict:
+        return {
+            **super().default_config(),
+            "horizon": 100,  # [steps]
+            "n_candidates": 8,  # number of landmarks K (>= 4)
+            "n_obstacles": 4,
+            "field_size_m": 40.0,  # side of the square field [m]
+            "time_step_s": 1.0,  # [s]
+            "speed_mps": 1.0,  # cruise speed [m/s]
+            "max_turn_rate_rps": 1.0,  # [rad/s]
+            "goal_radius_m": 1.5,  # the goal is reached within this distance [m]
+            "max_observations": 12,  # sensing budget per episode
+            "observation_cost_nats": 0.1,  # cost of one observation [nats]
+            "motion_cost_per_step": 0.1,  # cost of executing a primitive for one step, driving or turning [nats]
+            "progress_reward_per_m": 0.1,  # reward per metre of progress toward the goal [nats/m]
+            "goal_bonus": 10.0,  # [nats]
+            "failure_penalty": 10.0,  # [nats], subtracted
+            "max_position_std_m": 1.0,  # failure bound on the largest position std [m]
+            "range_std_m": 0.1,  # [m]
+            "range_std_per_m": 0.01,  # [m/m]
+            "bearing_std_rad": math.radians(2.0),  # [rad]
+            "sensor_max_range_m": 6.0,  # [m]
+            "sensor_fov_rad": math.pi,  # [rad]
+            "odometry_speed_std_mps": 0.05,  # [m/s]
+            "odometry_turn_rate_std_rps": 0.02,  # [rad/s]
+            "initial_position_std_m": 0.1,  # [m]
+            "initial_heading_std_rad": 0.02,  # [rad]
+        }
+
+    def __init__(self, render_mode: str | None = None, **config):
+        super().__init__(render_mode=render_mode, **config)
+        cfg, owner = self.config, type(self).__name__
+        check_positive(cfg, ["n_candidates", "field_size_m", "time_step_s", "speed_mps", "max_turn_rate_rps"], owner)
+        check_positive(cfg, ["goal_radius_m", "max_position_std_m"], owner)
+        check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
+        non_negative = ["n_obstacles", "max_observations", "observation_cost_nats", "motion_cost_per_step"]
+        check_positive(cfg, non_negative + ["progress_reward_per_m", "goal_bonus", "failure_penalty"], owner, True)
+        if cfg["n_candidates"] < MIN_GOAL_FIELD_LANDMARKS:
+            raise ValueError(
+                f"config key 'n_candidates' of {owner} must be >= {MIN_GOAL_FIELD_LANDMARKS} "
+                f"(the goal field's landmarks), got {cfg['n_candidates']}"
+            )
+        if cfg["field_size_m"] < MIN_GOAL_FIELD_SIZE_M:
+            raise ValueError(
+                f"config key 'field_size_m' of {owner} must be >= {MIN_GOAL_FIELD_SIZE_M:g} m "
+                f"(the goal field's layout), got {cfg['field_size_m']}"
+            )
+        if cfg["max_position_std_m"] <= cfg["initial_position_std_m"]:
+            raise ValueError(
+                f"config key 'max_position_std_m' of {owner} must exceed initial_position_std_m "
+                f"({cfg['initial_position_std_m']}), got {cfg['max_position_std_m']}"
+            )
+        self.sensor = RangeBearingSensor(
+            cfg["range_std_m"],
+            cfg["range_std_per_m"],
+            cfg["bearing_std_rad"],
+            cfg["sensor_max_range_m"],
+            cfg["sensor_fov_rad"],
+        )
+        self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
+        self._odometry_covariance = self.odometry.noise_covariance()
+        self.world = CommandedWorld()
+        self.n_primitives = N_PRIMITIVES
+        self.n_slots = 1 + cfg["n_candidates"]
+        self.action_space = spaces.Discrete(N_PRIMITIVES * self.n_slots)
+        low, high = self._observation_bounds(cfg["n_candidates"], cfg["n_obstacles"])
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+
+    @staticmethod
+    def _observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[np.ndarray, np.ndarray]:
+        low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0] + [0, -1, -1, 0]
+        high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1] + [_BIG, 1, 1, 1]
+        low += [0, 0, -1, -1] * n_landmarks + [0, -1, -1, 0] * n_obstacles
+        high += [1, _BIG, 1, 1] * n_landmarks + [_BIG, 1, 1, _BIG] * n_obstacles
+        return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+
+    @staticmethod
+    def decode_action(action: int) -> tuple[int | None, int]:
+        """``(landmark or None, primitive)`` of an action index."""
+        slot, primitive = divmod(int(action), N_PRIMITIVES)
+        return (slot - 1 if slot else None), primitive
+
+    # ------------------------------------------------------------------ the episode
+
+    def _reset_episode(self) -> None:
+        cfg = self.config
+        scenario = goal_field(self.np_random, cfg["n_candidates"], cfg["n_obstacles"], cfg["field_size_m"])
+        self.world.reset(scenario)
+        self.goal = scenario.routes[0].waypoints[0].copy()
+        self._obstacle_centers = np.array([o.center for o in scenario.obstacles], dtype=float).reshape(-1, 2)
+        self._obstacle_radii = np.array([o.radius for o in scenario.obstacles], dtype=float)
+        self._odometry_rng, self._measurement_rng = self.np_random.spawn(2)
+        pose_std = np.array([cfg["initial_position_std_m"]] * 2 + [cfg["initial_heading_std_rad"]])
+        self._true_pose = self.world.pose
+        self.ekf = PoseEKF(self._true_pose + pose_std * self.np_random.standard_normal(POSE_DIM), np.diag(pose_std**2))
+        self.observations_left = cfg["max_observations"]
+        self.goal_reached = self.failed = False
+        self._true_path = [self._true_pose[:2]]
+        self._estimated_path = [self.ekf.x[:2].copy()]
+
+    def _next_decision(self) -> tuple[np.ndarray, np.ndarray]:
+        landmarks, true_pose, P = self.world.landmarks, self._true_pose, self.ekf.P
+        self._visible = np.zeros(len(landmarks), dtype=bool)
+        candidates = np.flatnonzero(self.sensor.in_coverage(range_bearing(true_pose, landmarks)))
+        if candidates.size:
+            self._visible[candidates[self.world.line_of_sight(true_pose, landmarks[candidates])]] = True
+        self._predicted, self._H, _ = range_bearing_linearized(self.ekf.x, landmarks)
+        self._R = self.sensor.noise_covariance(self._predicted[:, 0])
+        mask = np.zeros((self.n_slots, N_PRIMITIVES), dtype=np.int8)
+        gains = np.zeros((self.n_slots, N_PRIMITIVES))
+        mask[0] = 1
+        observable = np.flatnonzero(self._visible) if self.observations_left > 0 else np.zeros(0, dtype=int)
+        mask[1 + observable] = 1
+        if observable.size:
+            gains[1 + observable] = expected_information_gain(
+                P, self._H[observable], self._R[observable], check_input=False
+            )[:, None]
+        self._prior_log_det = log_det_spd(P, check_input=False)
+        self._pose_entropy = gaussian_entropy_from_log_det(self._prior_log_det, POSE_DIM)
+        return mask.ravel(), gains.ravel()
+
+    def _apply_action(self, action: int | None) -> dict:
+        """The whole transition: observe (at the prior), then drive; a no-op stands still observing nothing."""
+        cfg = self.config
+        terms = dict.fromkeys(REWARD_TERMS, 0.0)
+        landmark, primitive = (None, None) if action is None else self.decode_action(action)
+        if landmark is not None:
+            measurement = self.sensor.measure(self._true_pose, self.world.landmarks[landmark], self._measurement_rng)
+            self.ekf.update_range_bearing(measurement, self._predicted[landmark], self._H[landmark], self._R[landmark])
+            posterior_log_det = log_det_spd(self.ekf.P, check_input=False)
+            terms["mutual_information"] = 0.5 * (self._prior_log_det - posterior_log_det)  # Eq. 3
+            terms["sensing_cost"] = -cfg["observation_cost_nats"]
+            self.observations_left -= 1
+        speed, turn_rate = (0.0, 0.0) if primitive is None else self._commands(self.ekf.x[None], [primitive])[0]
+        distance_before = math.dist(self._true_pose[:2], self.goal)
+        self.world.command(speed, turn_rate)
+        dt = cfg["time_step_s"]
+        control = self.world.step(dt)[0]
+        self._true_pose = self.world.pose
+        self.ekf.predict(self.odometry.measure(control, self._odometry_rng), dt, self._odometry_covariance)
+        if primitive is not None:
+            terms["motion_cost"] = -cfg["motion_cost_per_step"]
+            terms["progress"] = cfg["progress_reward_per_m"] * (
+                distance_before - math.dist(self._true_pose[:2], self.goal)
+            )
+        self.goal_reached = bool(math.dist(self._true_pose[:2], self.goal) <= cfg["goal_radius_m"])
+        self.failed = (
+            not self.goal_reached and float(self.position_std(self.ekf.P[None])[0]) > cfg["max_position_std_m"]
+        )
+        terms["goal_bonus"] = cfg["goal_bonus"] if self.goal_reached else 0.0
+        terms["failure_penalty"] = -cfg["failure_penalty"] if self.failed else 0.0
+        return terms
+
+    def _advance(self) -> None:
+        self._true_path.append(self._true_pose[:2])
+        self._estimated_path.append(self.ekf.x[:2].copy())
+
+    def _is_terminated(self) -> bool:
+        return self.goal_reached or self.failed
+
+    @staticmethod
+    def position_std(covariances: np.ndarray) -> np.ndarray:
+        """Largest standard deviation of the position part of each (B, 3, 3) covariance [m]: (B,)."""
+        a, b, d = covariances[:, 0, 0], covariances[:, 0, 1], covariances[:, 1, 1]
+        return np.sqrt(0.5 * (a + d) + np.sqrt(0.25 * (a - d) ** 2 + b * b))
+
+    def _commands(self, poses: np.ndarray, primitives) -> np.ndarray:
+        """``[speed, turn rate]`` (B, 2) that each primitive commands from each estimated pose (B, 3)."""
+        cfg = self.config
+        goal_bearing = np.arctan2(self.goal[1] - poses[:, 1], self.goal[0] - poses[:, 0])
+        desired = goal_bearing + np.take(PRIMITIVE_OFFSETS_RAD, primitives)
+        turn = wrap_angle(desired - poses[:, 2])
+        max_turn = cfg["max_turn_rate_rps"] * cfg["time_step_s"]
+        executed_turn = np.clip(turn, -max_turn, max_turn)
+        speed = cfg["speed_mps"] * np.maximum(np.cos(turn), 0.0)
+        return np.stack([speed, executed_turn / cfg["time_step_s"]], axis=-1)
+
+    # ------------------------------------------------------------------ observation and info
+
+    def _observation(self) -> np.ndarray:
+        x, y, heading = self.ekf.x.tolist()
+        P = self.ekf.P
+        var_x, var_y, var_heading = P[0, 0], P[1, 1], P[2, 2]
+        goal_range, goal_bearing = range_bearing(self.ekf.x, self.goal)[0]
+        budget = self.config["max_observations"]
+        features = [x, y, math.cos(heading), math.sin(heading), math.sqrt(var_x), math.sqrt(var_y)]
+        features += [math.sqrt(var_heading), P[0, 1] / math.sqrt(var_x * var_y), self._pose_entropy]
+        features += [self._elapsed_steps / self.config["horizon"], goal_range, math.cos(goal_bearing)]
+        features += [math.sin(goal_bearing), self.observations_left / budget if budget else 0.0]
+        landmarks = np.column_stack(
+            [self._visible, self._predicted[:, 0], np.cos(self._predicted[:, 1]), np.sin(self._predicted[:, 1])]
+        )
+        obstacles = np.zeros((len(self._obstacle_radii), OBSTACLE_FEATURES))
+        if len(obstacles):
+            seen = range_bearing(self.ekf.x, self._obstacle_centers)
+            obstacles[:] = np.column_stack([seen[:, 0], np.cos(seen[:, 1]), np.sin(seen[:, 1]), self._obstacle_radii])
+        observation = np.concatenate([features, landmarks.ravel(), obstacles.ravel()]).astype(np.float32)
+        return np.clip(observation, self.observation_space.low, self.observation_space.high, out=observation)
+
+    def _extra_info(self) -> dict:
+        true_x, true_y, true_heading = self._true_pose.tolist()
+        x, y, heading = self.ekf.x.tolist()
+        return {
+            "pose_entropy": self._pose_entropy,
+            "state_entropy": self._pose_entropy,
+            "position_error_m": math.hypot(true_x - x, true_y - y),
+            "heading_error_rad": abs(wrap_angle(true_heading - heading)),
+            "position_std_m": float(self.position_std(self.ekf.P[None])[0]),
+            "true_pose": self._true_pose.copy(),
+            "estimated_pose": self.ekf.pose,
+            "goal": self.goal.copy(),
+            "distance_to_goal_m": math.dist(self._true_pose[:2], self.goal),
+            "observations_left": self.observations_left,
+            "goal_reached": self.goal_reached,
+            "failed": self.failed,
+            "time_s": self._elapsed_steps * self.config["time_step_s"],
+        }
+
+    def _scene_frame(self):
+        from infonav_gym.rendering import RobotDrawing, SceneFrame
+
+        scenario = self.world.scenario
+        landmark = None if self._chosen_action is None else self.decode_action(self._chosen_action)[0]
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            landmarks=self.world.landmarks,
+            landmark_visible=self._visible,
+            chosen_landmark=landmark,
+            robots=[
+                RobotDrawing(
+                    true_pose=self._true_pose,
+                    estimated_pose=self.ekf.pose,
+                    pose_covariance=self.ekf.pose_covariance,
+                    true_path=np.array(self._true_path),
+                    estimated_path=np.array(self._estimated_path),
+                )
+            ],
+            caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.0f} s   "
+            f"goal ({self.goal[0]:.0f}, {self.goal[1]:.0f}) m, {self.observations_left} observations left",
+        )
+
+    # ------------------------------------------------------------------ planning model
+
+    def belief(self) -> Belief:
+        """The estimator's state at the current decision as a batch of one (visibility: from the true pose)."""
+        if self._elapsed_steps is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before belief()")
+        return Belief(
+            pose=self.ekf.x[None].copy(),
+            covariance=self.ekf.P[None].copy(),
+            observations_left=np.array([self.observations_left]),
+            visible=self._visible[None].copy(),
+            done=np.array([self.goal_reached or self.failed]),
+        )
+
+    def plan_decision(self, belief: Belief) -> tuple[np.ndarray, np.ndarray]:
+        """``(action_mask (B, n), action_information_gain (B, n))`` at each belief, as ``info`` would give them.
+
+        Finished beliefs have only no-observation actions valid, all with gain 0.
+        """
+        B = len(belief)
+        H, R = self._model_jacobians(belief.pose)
+        gains = np.zeros((B, self.n_slots, N_PRIMITIVES))
+        observable = belief.visible & ((belief.observations_left > 0) & ~belief.done)[:, None]
+        rows, landmarks = np.nonzero(observable)
+        if rows.size:
+            gains[rows, 1 + landmarks] = expected_information_gain(
+                belief.covariance[rows], H[rows, landmarks], R[rows, landmarks], check_input=False
+            )[:, None]
+        mask = np.zeros((B, self.n_slots, N_PRIMITIVES), dtype=np.int8)
+        mask[:, 0] = 1
+        mask[:, 1:] = observable[:, :, None]
+        return mask.reshape(B, -1), gains.reshape(B, -1)
+
+    def plan_step(self, belief: Belief, actions) -> tuple[Belief, np.ndarray]:
+        """Predict one step of each belief under its action: ``(next beliefs, expected rewards (B,))``.
+
+        The model the env's own transition follows, with the unknowns replaced by their
+        expectation: the observation's MI is exact (it does not depend on the measured
+        value), the motion is the primitive's command from the estimated pose without
+        collisions or noise, progress and the goal are judged from the estimated
+        position, and visibility after the move from the predicted pose (range, field of
+        view and the round obstacles). An invalid action is the env's no-op; a finished
+        belief stays put and earns 0.
+        """
+        cfg = self.config
+        actions = np.asarray(actions, dtype=int)
+        slots, primitives = np.divmod(actions, N_PRIMITIVES)
+        done = belief.done
+        observe = (slots > 0) & ~done & (belief.observations_left > 0)
+        landmark = np.maximum(slots - 1, 0)
+        observe &= belief.visible[np.arange(len(belief)), landmark]
+        valid = ((slots == 0) | observe) & ~done
+        covariance = belief.covariance.copy()
+        rewards = np.zeros(len(belief))
+        rows = np.flatnonzero(observe)
+        if rows.size:
+            H, R = self._model_jacobians(belief.pose[rows], landmark[rows])
+            P = covariance[rows]
+            PHt = P @ np.swapaxes(H, 1, 2)
+            S = H @ PHt + R
+            posterior = P - PHt @ np.linalg.solve(S, np.swapaxes(PHt, 1, 2))
+            covariance[rows] = 0.5 * (posterior + np.swapaxes(posterior, 1, 2))
+            mutual_information = 0.5 * (np.linalg.slogdet(S)[1] - np.linalg.slogdet(R)[1])
+            rewards[rows] += mutual_information - cfg["observation_cost_nats"]
+        dt = cfg["time_step_s"]
+        commands = np.where(valid[:, None], self._commands(belief.pose, primitives), 0.0)
+        speed, turn_rate = commands[:, 0], commands[:, 1]
+        heading = belief.pose[:, 2]
+        cos_h, sin_h = np.cos(heading), np.sin(heading)
+        pose = belief.pose + np.stack([speed * dt * cos_h, speed * dt * sin_h, turn_rate * dt], axis=-1)
+        pose[:, 2] = wrap_angle(pose[:, 2])
+        F = np.broadcast_to(np.eye(POSE_DIM), (len(belief), POSE_DIM, POSE_DIM)).copy()
+        F[:, 0, 2], F[:, 1, 2] = -speed * dt * sin_h, speed * dt * cos_h
+        V = np.zeros((len(belief), POSE_DIM, 2))
+        V[:, 0, 0], V[:, 1, 0], V[:, 2, 1] = dt * cos_h, dt * sin_h, dt
+        predicted = F @ covariance @ np.swapaxes(F, 1, 2) + V @ self._odometry_covariance @ np.swapaxes(V, 1, 2)
+        covariance = np.where(done[:, None, None], covariance, predicted)
+        pose = np.where(done[:, None], belief.pose, pose)
+        distance_before = np.linalg.norm(belief.pose[:, :2] - self.goal, axis=1)
+        distance_after = np.linalg.norm(pose[:, :2] - self.goal, axis=1)
+        rewards += np.where(valid, cfg["progress_reward_per_m"] * (distance_before - distance_after), 0.0)
+        rewards -= np.where(valid, cfg["motion_cost_per_step"], 0.0)
+        reached = ~done & (distance_after <= cfg["goal_radius_m"])
+        failed = ~done & ~reached & (self.position_std(covariance) > cfg["max_position_std_m"])
+        rewards += cfg["goal_bonus"] * reached - cfg["failure_penalty"] * failed
+        following = Belief(
+            pose=pose,
+            covariance=covariance,
+            observations_left=belief.observations_left - observe,
+            visible=self._model_visibility(pose),
+            done=done | reached | failed,
+        )
+        return following, rewards
+
+    def _model_jacobians(self, poses: np.ndarray, landmarks=None) -> tuple[np.ndarray, np.ndarray]:
+        """Range-bearing Jacobians and noise at each pose: for every landmark (B, K, 2, ...) or one each (B, 2, ...)."""
+        positions = self.world.landmarks if landmarks is None else self.world.landmarks[landmarks]
+        per_pose = 1 if landmarks is not None else len(positions)
+        sensors = np.repeat(poses, per_pose, axis=0)
+        targets = positions if landmarks is not None else np.tile(positions, (len(poses), 1))
+        predicted, H, _ = range_bearing_linearized(sensors.T, targets)
+        R = self.sensor.noise_covariance(predicted[:, 0])
+        if landmarks is not None:
+            return H, R
+        return H.reshape(len(poses), per_pose, 2, POSE_DIM), R.reshape(len(poses), per_pose, 2, 2)
+
+    def _model_visibility(self, poses: np.ndarray) -> np.ndarray:
+        """Which landmarks each pose (B, 3) sees: in range and field of view, no round obstacle in the way (B, K)."""
+        landmarks = self.world.landmarks
+        offsets = landmarks[None] - poses[:, None, :2]  # (B, K, 2)
+        ranges = np.hypot(offsets[..., 0], offsets[..., 1])
+        bearings = wrap_angle(np.arctan2(offsets[..., 1], offsets[..., 0]) - poses[:, 2:3])
+        visible = (ranges <= self.sensor.max_range_m) & (np.abs(bearings) <= 0.5 * self.sensor.fov_rad)
+        if len(self._obstacle_radii):
+            to_center = self._obstacle_centers[None, None] - poses[:, None, None, :2]  # (B, 1, O, 2)
+            length_sq = np.maximum(ranges**2, 1e-12)[..., None]
+            along = np.clip(np.einsum("bkoi,bki->bko", to_center, offsets) / length_sq, 0.0, 1.0)
+            closest = along[..., None] * offsets[:, :, None, :] - to_center
+            blocked = np.einsum("bkoi,bkoi->bko", closest, closest) <= self._obstacle_radii**2
+            visible &= ~blocked.any(axis=2)
+        return visible

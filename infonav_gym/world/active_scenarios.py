@@ -1,0 +1,113 @@
+"""The world of ``ActiveLocalization-v0``: its goal-field scenario and a World driven by velocity commands."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from infonav_gym.world.scenarios import CircleObstacle, Route, Scenario, _box_walls, _rejection_sample
+from infonav_gym.world.world import World
+
+START_MARGIN_M = 2.5  # distance of the start and the goal from the left and right walls [m]
+START_CLUSTER_LANDMARKS = 2
+GOAL_CLUSTER_LANDMARKS = 1
+MIN_GOAL_FIELD_LANDMARKS = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS + 1
+LIT_OFFSET_M = (7.0, 11.0)  # distance of the lit-side landmarks from the straight line start-goal [m]
+MIN_GOAL_FIELD_SIZE_M = 3 * LIT_OFFSET_M[1]
+
+
+class CommandedWorld(World):
+    """A ``World`` whose robots follow velocity commands instead of waypoints.
+
+    ``command(speeds, turn_rates)`` sets what each robot drives during the next
+    ``step``; Pymunk still executes it (obstacles stop or deflect the robot) and
+    ``step`` returns the executed motion, as for ``World``.
+    """
+
+    def reset(self, scenario: Scenario) -> None:
+        super().reset(scenario)
+        self._commands = [(0.0, 0.0)] * self.n_robots
+
+    def command(self, speed_mps: float, turn_rate_rps: float, robot: int = 0) -> None:
+        """Drive robot ``robot`` at ``speed_mps`` [m/s] and ``turn_rate_rps`` [rad/s] until the next command."""
+        self._commands[robot] = (float(speed_mps), float(turn_rate_rps))
+
+    def _waypoint_control(self, robot: int, x: float, y: float, heading: float) -> tuple[float, float]:
+        return self._commands[robot]
+
+
+def goal_field(
+    np_random: np.random.Generator,
+    n_landmarks: int = 8,
+    n_obstacles: int = 4,
+    size_m: float = 40.0,
+    lit_offset_m: tuple[float, float] = LIT_OFFSET_M,
+) -> Scenario:
+    """A square field crossed from a start on the left to a goal on the right; landmarks light only parts of it.
+
+    Two landmarks lie ahead of the start and one before the goal, within a few metres
+    of the straight line between them; the others line the middle of the crossing on
+    one side only (the *lit* side, drawn at random), ``lit_offset_m`` away from the
+    straight line. With a sensor range shorter than that offset, the middle of the
+    straight line is dark: a robot keeps seeing landmarks there only by detouring to
+    the lit side. Round obstacles stand on the dark half, clear of the straight line
+    by their radius + 2 m, where they can hide the start and goal landmarks.
+
+    The route holds the start pose (facing the goal) and the goal as its one waypoint.
+
+    Raises:
+        ValueError: for fewer than ``MIN_GOAL_FIELD_LANDMARKS`` landmarks, a negative
+            obstacle count, or a field too small for the layout.
+    """
+    if n_landmarks < MIN_GOAL_FIELD_LANDMARKS or n_obstacles < 0:
+        raise ValueError(
+            f"goal_field needs n_landmarks >= {MIN_GOAL_FIELD_LANDMARKS} and n_obstacles >= 0, "
+            f"got n_landmarks={n_landmarks}, n_obstacles={n_obstacles}"
+        )
+    if size_m < 3 * max(lit_offset_m):
+        raise ValueError(f"goal_field needs size_m >= {3 * max(lit_offset_m):g} m for its layout, got {size_m!r}")
+    start = np.array([START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
+    goal = np.array([size_m - START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
+    along = (goal - start) / np.linalg.norm(goal - start)
+    normal = np.array([-along[1], along[0]])
+    length_m = float(np.linalg.norm(goal - start))
+    lit_side = 1.0 if np_random.random() < 0.5 else -1.0
+
+    def near_line(fraction_low: float, fraction_high: float, offset_low: float, offset_high: float) -> np.ndarray:
+        side = 1.0 if np_random.random() < 0.5 else -1.0
+        fraction = np_random.uniform(fraction_low, fraction_high)
+        return start + fraction * length_m * along + side * np_random.uniform(offset_low, offset_high) * normal
+
+    landmarks = [near_line(0.06, 0.22, 1.5, 4.0) for _ in range(START_CLUSTER_LANDMARKS)]
+    landmarks += [near_line(0.8, 0.9, 1.5, 4.0) for _ in range(GOAL_CLUSTER_LANDMARKS)]
+    n_lit = n_landmarks - len(landmarks)
+    for k in range(n_lit):
+        fraction = 0.3 + 0.45 * (k + np_random.uniform(0.2, 0.8)) / n_lit
+        offset = lit_side * np_random.uniform(*lit_offset_m)
+        landmarks.append(start + fraction * length_m * along + offset * normal)
+    landmarks = np.clip(np.array(landmarks), 1.0, size_m - 1.0)
+
+    def draw_obstacle() -> CircleObstacle:
+        radius = float(np_random.uniform(0.7, 1.5))
+        fraction, offset = np_random.uniform(0.1, 0.9), -lit_side * np_random.uniform(radius + 2.0, 8.0)
+        center = start + fraction * length_m * along + offset * normal
+        return CircleObstacle((float(center[0]), float(center[1])), radius)
+
+    def clear(obstacle: CircleObstacle) -> bool:
+        center = np.array(obstacle.center)
+        inside = np.all(center - obstacle.radius > 0.5) and np.all(center + obstacle.radius < size_m - 0.5)
+        gaps = np.linalg.norm(landmarks - center, axis=1) - obstacle.radius
+        return bool(inside and np.all(gaps > 0.5) and math.dist(center, goal) > obstacle.radius + 3.0)
+
+    obstacles = _rejection_sample(n_obstacles, draw_obstacle, clear, "obstacles on the dark side")
+    heading = math.atan2(along[1], along[0])
+    route = Route((float(start[0]), float(start[1]), heading), goal[None, :])
+    return Scenario(
+        name="goal_field",
+        bounds=(0.0, 0.0, size_m, size_m),
+        routes=(route,),
+        walls=_box_walls(0.0, 0.0, size_m, size_m),
+        obstacles=tuple(obstacles),
+        landmarks=landmarks,
+    )
