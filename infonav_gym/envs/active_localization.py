@@ -119,7 +119,7 @@ class ActiveLocalizationEnv(InfoNavEnv):
 
     ## Episode End
     Terminated when the true position comes within ``goal_radius_m`` of the goal
-    (success, ``info["goal_reached"]``), or when the largest position standard deviation
+    (success, ``info["goal_reached"]`` and ``info["success"]``), or when the largest position standard deviation
     of the estimate exceeds ``max_position_std_m`` (failure, ``info["failed"]``).
     Truncated after ``horizon`` steps.
 
@@ -352,6 +352,7 @@ class ActiveLocalizationEnv(InfoNavEnv):
             "distance_to_goal_m": math.dist(self._true_pose[:2], self.goal),
             "observations_left": self.observations_left,
             "goal_reached": self.goal_reached,
+            "success": self.goal_reached,  # the evaluation harness's success flag
             "failed": self.failed,
             "time_s": self._elapsed_steps * self.config["time_step_s"],
         }
