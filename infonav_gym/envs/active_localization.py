@@ -14,7 +14,7 @@ from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized, wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import OdometrySensor
-from infonav_gym.sensors.range_bearing import RangeBearingSensor
+from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.active_scenarios import (
     MIN_GOAL_FIELD_LANDMARKS,
     MIN_GOAL_FIELD_SIZE_M,
@@ -190,13 +190,7 @@ class ActiveLocalizationEnv(InfoNavEnv):
                 f"config key 'max_position_std_m' of {owner} must exceed initial_position_std_m "
                 f"({cfg['initial_position_std_m']}), got {cfg['max_position_std_m']}"
             )
-        self.sensor = RangeBearingSensor(
-            cfg["range_std_m"],
-            cfg["range_std_per_m"],
-            cfg["bearing_std_rad"],
-            cfg["sensor_max_range_m"],
-            cfg["sensor_fov_rad"],
-        )
+        self.sensor = range_bearing_sensor_from_config(cfg)
         self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
         self._odometry_covariance = self.odometry.noise_covariance()
         self.world = CommandedWorld()

@@ -13,7 +13,7 @@ from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import OdometrySensor
-from infonav_gym.sensors.range_bearing import RangeBearingSensor
+from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, SCENARIOS
 from infonav_gym.world.world import World
 
@@ -109,13 +109,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
             raise ValueError(
                 f"the corridor scenario has {CORRIDOR_LANDMARK_COUNT} landmarks: n_candidates must be >= 4"
             )
-        self.sensor = RangeBearingSensor(
-            cfg["range_std_m"],
-            cfg["range_std_per_m"],
-            cfg["bearing_std_rad"],
-            cfg["sensor_max_range_m"],
-            cfg["sensor_fov_rad"],
-        )
+        self.sensor = range_bearing_sensor_from_config(cfg)
         self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
         self._odometry_covariance = self.odometry.noise_covariance()
         self.world = World()

@@ -14,7 +14,7 @@ from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import frame_pair, registration_error, scan_on_terrain
 from infonav_gym.registration.icp import METHODS, icp
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
-from infonav_gym.world.terrain_scenario import terrain_loop
+from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
 from infonav_gym.world.world import World
 
 MIN_CONTROL_POINTS = 3  # fewer cannot fix a rigid motion
@@ -85,11 +85,7 @@ class RangeRegistrationEnv(InfoNavEnv):
             "point_cost": 1e-4,  # cost of one control point [m of registration error]
             "time_step_s": 0.5,  # between frames [s]
             "speed_mps": 2.0,  # [m/s]
-            "scene_size_m": 60.0,
-            "roughness": 0.7,  # ground roughness, see make_terrain
-            "n_trees": 25,
-            "n_rocks": 8,
-            "n_buildings": 3,
+            **SCENE_CONFIG,  # the terrain_loop scene
             "odometry_xy_std_m": 0.1,  # std of the odometry's motion error along x and y [m]
             "odometry_z_std_m": 0.05,  # ... along z [m]
             "odometry_tilt_std_rad": math.radians(0.5),  # ... about x and y (inclinometers) [rad]
@@ -105,8 +101,9 @@ class RangeRegistrationEnv(InfoNavEnv):
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "icp_method", METHODS, owner)
         check_positive(cfg, ["picks_per_pair", "patch_rows", "patch_columns", "time_step_s", "speed_mps"], owner)
-        check_positive(cfg, ["scene_size_m", "icp_max_iterations", "max_correspondence_distance_m"], owner)
-        check_positive(cfg, ["point_cost", "roughness", "n_trees", "n_rocks", "n_buildings"], owner, allow_zero=True)
+        check_scene_config(cfg, owner)
+        check_positive(cfg, ["icp_max_iterations", "max_correspondence_distance_m"], owner)
+        check_positive(cfg, ["point_cost"], owner, allow_zero=True)
         odometry_keys = ["odometry_xy_std_m", "odometry_z_std_m", "odometry_tilt_std_rad", "odometry_yaw_std_rad"]
         check_positive(cfg, odometry_keys, owner)
         check_positive(cfg, ["ladar_range_std_m"], owner, allow_zero=True)
@@ -128,15 +125,7 @@ class RangeRegistrationEnv(InfoNavEnv):
 
     def _reset_episode(self) -> None:
         cfg = self.config
-        scene = terrain_loop(
-            self.np_random,
-            size_m=cfg["scene_size_m"],
-            roughness=cfg["roughness"],
-            n_trees=cfg["n_trees"],
-            n_rocks=cfg["n_rocks"],
-            n_buildings=cfg["n_buildings"],
-            speed_mps=cfg["speed_mps"],
-        )
+        scene = terrain_loop_from_config(self.np_random, cfg)
         self.terrain = scene.terrain
         self.world.reset(scene.scenario)
         self._sensor_rng, self._odometry_rng = self.np_random.spawn(2)

@@ -12,7 +12,7 @@ from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.information import histogram_entropy
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
-from infonav_gym.world.terrain_scenario import terrain_loop
+from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
 from infonav_gym.world.world import World
 
 SENSORS = ("ladar", "camera")
@@ -100,11 +100,7 @@ class SensorSelectionEnv(InfoNavEnv):
             "pan_span_rad": math.radians(160.0),  # from the leftmost to the rightmost pan angle [rad]
             "bandwidth_bytes_per_step": 10000,  # link capacity per step [bytes]
             "bandwidth_buffer_bytes": 40000,  # most credit the link can save up [bytes]
-            "scene_size_m": 60.0,  # side of the square scene [m]
-            "roughness": 0.7,  # ground roughness, see make_terrain
-            "n_trees": 25,
-            "n_rocks": 8,
-            "n_buildings": 3,
+            **SCENE_CONFIG,  # the terrain_loop scene
             "ladar_rows": ladar.rows,
             "ladar_columns": ladar.columns,
             "ladar_vertical_fov_rad": ladar.vertical_fov_rad,
@@ -122,8 +118,8 @@ class SensorSelectionEnv(InfoNavEnv):
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "image_information", IMAGE_INFORMATION, owner)
         check_positive(cfg, ["time_step_s", "speed_mps", "n_pan_sectors", "bandwidth_bytes_per_step"], owner)
-        check_positive(cfg, ["scene_size_m"], owner)
-        check_positive(cfg, ["pan_span_rad", "roughness", "n_trees", "n_rocks", "n_buildings"], owner, allow_zero=True)
+        check_scene_config(cfg, owner)
+        check_positive(cfg, ["pan_span_rad"], owner, allow_zero=True)
         check_positive(cfg, ["ladar_rows", "ladar_columns", "camera_rows", "camera_columns"], owner)
         fov_keys = ["ladar_vertical_fov_rad", "ladar_horizontal_fov_rad", "camera_horizontal_fov_rad"]
         check_open_interval(cfg, fov_keys, 0.0, math.pi, owner, unit=" rad, i.e. (0, 180) degrees")
@@ -153,15 +149,7 @@ class SensorSelectionEnv(InfoNavEnv):
 
     def _reset_episode(self) -> None:
         cfg = self.config
-        scene = terrain_loop(
-            self.np_random,
-            size_m=cfg["scene_size_m"],
-            roughness=cfg["roughness"],
-            n_trees=cfg["n_trees"],
-            n_rocks=cfg["n_rocks"],
-            n_buildings=cfg["n_buildings"],
-            speed_mps=cfg["speed_mps"],
-        )
+        scene = terrain_loop_from_config(self.np_random, cfg)
         self.terrain = scene.terrain
         self.world.reset(scene.scenario)
         self._sensor_rng = self.np_random.spawn(1)[0]

@@ -57,3 +57,15 @@ class RangeBearingSensor:
                 wrap_angle(math.atan2(dy, dx) - pose[2] + self.bearing_std_rad * bearing_noise),
             ]
         )
+
+
+def range_bearing_sensor_from_config(config: dict) -> RangeBearingSensor:
+    """The sensor described by an env config's ``range_std_m``, ``range_std_per_m``, ``bearing_std_rad``,
+    ``sensor_max_range_m`` and ``sensor_fov_rad`` keys."""
+    return RangeBearingSensor(
+        config["range_std_m"],
+        config["range_std_per_m"],
+        config["bearing_std_rad"],
+        config["sensor_max_range_m"],
+        config["sensor_fov_rad"],
+    )

@@ -12,11 +12,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from infonav_gym.config import check_positive
 from infonav_gym.world.scenarios import CircleObstacle, Scenario, _box_walls, _closed_route, _polygon
 from infonav_gym.world.terrain import Terrain
 from infonav_gym.world.terrain_generation import make_terrain
 
 ROUTE_CLEARANCE_M = 3.0  # obstacles keep this far from the route [m]
+SCENE_CONFIG = {  # env config keys of a terrain_loop scene, with their defaults
+    "scene_size_m": 60.0,  # side of the square scene [m]
+    "roughness": 0.7,  # ground roughness, see make_terrain
+    "n_trees": 25,
+    "n_rocks": 8,
+    "n_buildings": 3,
+}
 
 
 @dataclass(frozen=True)
@@ -71,3 +79,22 @@ def terrain_loop(
     )
     drive = Scenario(name="terrain_loop", bounds=terrain.bounds_m, routes=(_closed_route(route, speed_mps),))
     return TerrainScenario(with_terrain_obstacles(drive, terrain), terrain)
+
+
+def check_scene_config(config: dict, owner: str) -> None:
+    """``ValueError`` naming the key unless the ``SCENE_CONFIG`` keys of an env's ``config`` are valid."""
+    check_positive(config, ["scene_size_m"], owner)
+    check_positive(config, ["roughness", "n_trees", "n_rocks", "n_buildings"], owner, allow_zero=True)
+
+
+def terrain_loop_from_config(np_random: np.random.Generator, config: dict) -> TerrainScenario:
+    """``terrain_loop`` with an env config's ``SCENE_CONFIG`` keys and its ``speed_mps``."""
+    return terrain_loop(
+        np_random,
+        size_m=config["scene_size_m"],
+        roughness=config["roughness"],
+        n_trees=config["n_trees"],
+        n_rocks=config["n_rocks"],
+        n_buildings=config["n_buildings"],
+        speed_mps=config["speed_mps"],
+    )
