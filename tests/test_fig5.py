@@ -107,7 +107,6 @@ def test_reproduce_fig5_prints_the_summary_table(capsys, tmp_path):
 @pytest.mark.parametrize(
     "argv, message",
     [
-        (["reproduce", "fig4"], "invalid choice: 'fig4' (choose from 'fig3', 'fig5', 'fig6')"),
         (["reproduce", "fig5", "--seeds", "0"], "n_seeds (how many random scenes the statistics count) must be >= 1"),
     ],
 )
