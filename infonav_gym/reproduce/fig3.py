@@ -9,7 +9,6 @@ random streams, so both runs see the same noise and differ only by the choices.
 from __future__ import annotations
 
 import itertools
-import json
 import math
 from pathlib import Path
 
@@ -20,7 +19,7 @@ from agents import GreedyEntropyAgent
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.cooperative_localization import NO_OBSERVATION
 from infonav_gym.multi.team import DEFAULT_OUTAGE
-from infonav_gym.reproduce import paper_label
+from infonav_gym.reproduce import figure_paths, paper_label, write_result
 from infonav_gym.reproduce.fig3_plot import plot_fig3
 
 FIG3_ENV_CONFIG = {"scenario": "convoy", "n_robots": 3, "max_cycles": 120}
@@ -198,20 +197,14 @@ def reproduce_fig3(
         progress: show a tqdm bar over the RMSE seeds.
         command: the command line that made the files, recorded in the JSON.
     """
-    if n_seeds < 1:
-        raise ValueError(f"n_seeds (how many seeds the outage RMSE averages) must be >= 1, got {n_seeds}")
-    output_dir = Path(output_dir)
-    output_dir.mkdir(parents=True, exist_ok=True)
+    png, json_path = figure_paths(output_dir, "fig3", n_seeds, "how many seeds the outage RMSE averages")
     result = {
         "command": command,
         "fig3": run_fig3(seed),
         "outage_rmse": outage_rmse(range(seed, seed + n_seeds), progress=progress),
     }
-    png, json_path = output_dir / "fig3.png", output_dir / "fig3.json"
     plot_fig3(result["fig3"], png)
-    result["files"] = [str(png), str(json_path)]
-    json_path.write_text(json.dumps(result, indent=1) + "\n")
-    return result
+    return write_result(result, png, json_path)
 
 
 def fig3_table(result: dict) -> str:

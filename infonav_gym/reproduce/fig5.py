@@ -26,7 +26,6 @@ can reverse it.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -34,6 +33,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from infonav_gym.information import histogram_entropy
+from infonav_gym.reproduce import figure_paths, write_result
 from infonav_gym.reproduce.fig5_plot import plot_fig5
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
@@ -211,10 +211,7 @@ def reproduce_fig5(
         progress: show a tqdm bar over the seeds.
         command: the command line that made the files, recorded in the JSON.
     """
-    if n_seeds < 1:
-        raise ValueError(f"n_seeds (how many random scenes the statistics count) must be >= 1, got {n_seeds}")
-    output_dir = Path(output_dir)
-    output_dir.mkdir(parents=True, exist_ok=True)
+    png, json_path = figure_paths(output_dir, "fig5", n_seeds, "how many random scenes the statistics count")
     fig5, images = run_fig5(seed)
     result = {
         "command": command,
@@ -238,11 +235,8 @@ def reproduce_fig5(
         "fig5": fig5,
         "seed_statistics": seed_statistics(range(seed, seed + n_seeds), progress=progress),
     }
-    png, json_path = output_dir / "fig5.png", output_dir / "fig5.json"
     plot_fig5(fig5, images, png)
-    result["files"] = [str(png), str(json_path)]
-    json_path.write_text(json.dumps(result, indent=1) + "\n")
-    return result
+    return write_result(result, png, json_path)
 
 
 def fig5_table(result: dict) -> str:

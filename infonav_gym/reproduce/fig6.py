@@ -12,7 +12,6 @@ displacement the rotation error causes 10 m away).
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -22,6 +21,7 @@ from tqdm.auto import tqdm
 from infonav_gym.registration import icp
 from infonav_gym.registration.control_points import select_control_points
 from infonav_gym.registration.frame_pairs import FramePair, registration_error, terrain_frame_pair
+from infonav_gym.reproduce import figure_paths, write_result
 from infonav_gym.reproduce.fig6_plot import plot_fig6
 from infonav_gym.sensors.ladar import sensor_points
 from infonav_gym.world.attitude import transform_error
@@ -91,13 +91,9 @@ def reproduce_fig6(
         progress: show a tqdm bar over the seeds.
         command: the command line that made the files, recorded in the JSON.
     """
-    if n_seeds < 1:
-        raise ValueError(f"n_seeds (how many frame pairs the statistics register) must be >= 1, got {n_seeds}")
-    output_dir = Path(output_dir)
-    output_dir.mkdir(parents=True, exist_ok=True)
+    png, json_path = figure_paths(output_dir, "fig6", n_seeds, "how many frame pairs the statistics register")
     pair = terrain_frame_pair(np.random.default_rng(seed))
     registration = register(pair)
-    png, json_path = output_dir / "fig6.png", output_dir / "fig6.json"
     plot_fig6(pair, registration["transform"], registration, png)
     plotted = {key: value for key, value in registration.items() if key != "transform"}
     result = {
@@ -116,9 +112,7 @@ def reproduce_fig6(
         },
         "seed_statistics": seed_statistics(range(seed, seed + n_seeds), progress=progress),
     }
-    result["files"] = [str(png), str(json_path)]
-    json_path.write_text(json.dumps(result, indent=1) + "\n")
-    return result
+    return write_result(result, png, json_path)
 
 
 def fig6_table(result: dict) -> str:
