@@ -3,9 +3,10 @@
 Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib's
 ``MaskablePPO``: ``InfoActionMask`` hands the last info's mask to it through the
 ``action_masks()`` method it asks for. Other envs (CartPole, for the benchmark) train
-with plain ``PPO``. Hyperparameters come from ``scripts/hyperparams/ppo.yml``, one block
-per env id (rl-baselines3-zoo style). Needs the ``rl`` extra (stable-baselines3,
-sb3-contrib, torch, pyyaml).
+with plain ``PPO``. The PettingZoo team env ``cooperative_localization_v0`` trains one
+``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
+Hyperparameters come from ``scripts/hyperparams/ppo.yml``, one block per env id
+(rl-baselines3-zoo style). Needs the ``rl`` extra (stable-baselines3, sb3-contrib, torch, pyyaml).
 """
 
 from __future__ import annotations
@@ -85,13 +86,22 @@ class InfoActionMask(gym.Wrapper):
         return self._mask
 
 
+def team_env_id() -> str:
+    """The id of the PettingZoo team env, which ``build_model`` runs through ``TeamVecEnv``."""
+    from infonav_gym.evaluation import TEAM_ENV  # not at the top: SubprocVecEnv workers need not import scipy
+
+    return TEAM_ENV
+
+
 def make_env(env_id: str, env_kwargs: dict | None = None) -> gym.Env:
     """``gym.make(env_id, **env_kwargs)``; an unknown id raises ``ValueError`` naming it."""
     try:
         return gym.make(env_id, **(env_kwargs or {}))
     except gym.error.Error as error:
         infonav = sorted(name for name in gym.registry if name.startswith("infonav/"))
-        raise ValueError(f"unknown env id {env_id!r} ({error}); infonav envs: {', '.join(infonav)}") from None
+        raise ValueError(
+            f"unknown env id {env_id!r} ({error}); infonav envs: {', '.join([*infonav, team_env_id()])}"
+        ) from None
 
 
 def has_action_mask(env_id: str, env_kwargs: dict | None = None) -> bool:
@@ -175,7 +185,8 @@ def build_model(
 
     Args:
         hyperparameters: ppo.yml-style keys; ``None`` loads the env's block of ppo.yml.
-        n_envs: overrides the hyperparameters' ``n_envs`` (default 8).
+        n_envs: overrides the hyperparameters' ``n_envs`` (default 8). For the team env, each
+            copy is ``n_robots`` slots of the vec env (``TeamVecEnv``), all run in this process.
         subprocess: ``SubprocVecEnv`` instead of ``DummyVecEnv`` (one process per env).
     """
     if hyperparameters is None:
@@ -183,15 +194,22 @@ def build_model(
     n_envs = int(n_envs or hyperparameters.get("n_envs", 8))
     if n_envs < 1:
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
-    masked = has_action_mask(env_id, env_kwargs)
-    vec_env = make_vec_env(
-        env_id,
-        n_envs=n_envs,
-        seed=seed,
-        env_kwargs=env_kwargs,
-        wrapper_class=InfoActionMask if masked else None,
-        vec_env_cls=SubprocVecEnv if subprocess else DummyVecEnv,
-    )
+    if env_id == team_env_id():
+        from agents.team_vec_env import make_team_vec_env
+
+        if subprocess:
+            raise ValueError(f"{env_id} runs its copies in one process (TeamVecEnv): train it without subprocess")
+        masked, vec_env = True, make_team_vec_env(n_envs, seed, env_kwargs)
+    else:
+        masked = has_action_mask(env_id, env_kwargs)
+        vec_env = make_vec_env(
+            env_id,
+            n_envs=n_envs,
+            seed=seed,
+            env_kwargs=env_kwargs,
+            wrapper_class=InfoActionMask if masked else None,
+            vec_env_cls=SubprocVecEnv if subprocess else DummyVecEnv,
+        )
     algorithm = MaskablePPO if masked else PPO
     policy = hyperparameters.get("policy", "MlpPolicy")
     kwargs = _constructor_kwargs(hyperparameters)
@@ -286,18 +304,22 @@ class PPOAgent:
     Args:
         model_path: a ``model.zip`` written by ``train`` (or any SB3 PPO / MaskablePPO zip).
         env: the env it will act in; its spaces must match the model's.
+        agent: in a PettingZoo env, the agent (robot) it acts for: the spaces checked are that agent's.
     """
 
-    def __init__(self, model_path: Path | str, env: gym.Env):
+    def __init__(self, model_path: Path | str, env, agent: str | None = None):
         self.model = load_model(model_path)
         self.model_path = Path(model_path)
-        model_obs, env_obs = self.model.observation_space, env.observation_space
-        if model_obs.shape != env_obs.shape or self.model.action_space != env.action_space:
+        env_obs = env.observation_space if agent is None else env.observation_space(agent)
+        env_actions = env.action_space if agent is None else env.action_space(agent)
+        model_obs = self.model.observation_space
+        if model_obs.shape != env_obs.shape or self.model.action_space != env_actions:
             raise ValueError(
                 f"PPO model {str(self.model_path)!r} was trained for observations {model_obs.shape} and actions "
-                f"{self.model.action_space}, but the env has {env_obs.shape} and {env.action_space}"
+                f"{self.model.action_space}, but the env{'' if agent is None else f' ({agent})'} has "
+                f"{env_obs.shape} and {env_actions}"
             )
-        self.n_actions = int(env.action_space.n)
+        self.n_actions = int(env_actions.n)
 
     def reset(self, seed: int | None = None) -> None:
         """Deterministic: nothing to reset."""

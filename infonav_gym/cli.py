@@ -54,9 +54,13 @@ def build_parser() -> argparse.ArgumentParser:
     _common(evaluate)
 
     train = commands.add_parser("train", help="train PPO (MaskablePPO with action masks); save model.zip")
-    train.add_argument("--env", required=True, help="env id, e.g. infonav/LandmarkSelection-v0")
-    train.add_argument("--timesteps", type=int, required=True, help="env steps to train for")
-    train.add_argument("--n-envs", type=int, default=8, help="vectorized env copies (default: 8)")
+    train.add_argument(
+        "--env", required=True, help="env id, e.g. infonav/LandmarkSelection-v0 or cooperative_localization_v0"
+    )
+    train.add_argument("--timesteps", type=int, required=True, help="env steps to train for (robot steps in a team)")
+    train.add_argument(
+        "--n-envs", type=int, default=8, help="vectorized env copies (default: 8); a team copy gives each robot a slot"
+    )
     train.add_argument("--output", type=Path, help="output directory (default: models/ENV-NAME_seedS)")
     train.add_argument("--subprocess", action="store_true", help="SubprocVecEnv: one process per env copy")
     train.add_argument("--tensorboard", action="store_true", help="log to OUTPUT/tensorboard (needs tensorboard)")

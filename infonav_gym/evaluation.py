@@ -80,11 +80,14 @@ def check_agent_name(name: str) -> None:
     raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
 
 
-def make_agent(name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None):
+def make_agent(
+    name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None, agent: str | None = None
+):
     """A baseline agent by name (``noop_action``: see ``RandomAgent``).
 
     ``planner`` (``agents.planner.PlannerAgent(env)``) and ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``)
-    need the ``env`` they will act in; both are imported only when asked for.
+    need the ``env`` they will act in; both are imported only when asked for. In the PettingZoo
+    team env ``agent`` names the robot a ``ppo:PATH`` agent acts for.
     """
     check_agent_name(name)
     if name == "random":
@@ -105,7 +108,22 @@ def make_agent(name: str, n_actions: int, noop_action: int | None = None, env: g
         from agents.ppo import PPOAgent
     except ImportError as error:
         raise ValueError(f"agent {name!r} needs the rl extra (pip install 'infonav-gym[rl]'): {error}") from None
-    return PPOAgent(name[len(PPO_PREFIX) :], env)
+    return PPOAgent(name[len(PPO_PREFIX) :], env, agent)
+
+
+def make_team_agents(name: str, env) -> dict:
+    """One agent per robot of the team env ``env`` (a PettingZoo parallel env): ``{robot: agent}``.
+
+    ``random`` picks a teammate to observe (``noop_action=0``); ``ppo:PATH`` is one policy shared by
+    every robot (``infonav train --env cooperative_localization_v0``), checked against each robot's spaces.
+    """
+    check_agent_name(name)
+    if name == "planner":
+        raise ValueError(f"agent 'planner' is not available for {TEAM_ENV}: use random, greedy or ppo:PATH")
+    return {
+        robot: make_agent(name, env.action_space(robot).n, noop_action=0, env=env, agent=robot)
+        for robot in env.possible_agents
+    }
 
 
 def make_env(env_id: str, env_kwargs: dict | None = None) -> gym.Env:
@@ -136,16 +154,15 @@ def run_episode(env: gym.Env, agent, seed: int) -> dict:
     return metrics
 
 
-def run_team_episode(env, agent_name: str, seed: int) -> dict:
-    """One seeded episode of the PettingZoo team env, every robot with its own agent; team metrics.
+def run_team_episode(env, agents: dict, seed: int) -> dict:
+    """One seeded episode of the PettingZoo team env, ``agents[robot]`` acting for each robot; team metrics.
 
-    ``cumulative_mi`` is the team's (joint-state) MI; entropy and RMSE are means over the robots.
+    ``agents`` comes from ``make_team_agents``. ``cumulative_mi`` is the team's (joint-state) MI;
+    entropy and RMSE are means over the robots.
     """
     observations, infos = env.reset(seed=seed)
-    n_actions = env.action_space(env.possible_agents[0]).n
-    agents = {name: make_agent(agent_name, n_actions, noop_action=0) for name in env.possible_agents}
-    for k, agent in enumerate(agents.values()):
-        agent.reset(seed=1000 * seed + k)
+    for k, robot in enumerate(env.possible_agents):
+        agents[robot].reset(seed=1000 * seed + k)
     cumulative_mi, squared_errors, steps = 0.0, np.zeros(len(agents)), 0
     while env.agents:
         actions = {name: agents[name].act(observations[name], infos[name]) for name in env.agents}
@@ -178,7 +195,8 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
     """Run every agent for ``episodes`` episodes on seeds ``seed, seed + 1, ...``.
 
     ``env_id`` is a Gymnasium id or ``"cooperative_localization_v0"`` (the team env; there
-    "random" is a random choice of teammate to observe and the metrics are the team's).
+    "random" is a random choice of teammate to observe, ``ppo:PATH`` one policy for every robot,
+    no planner, and the metrics are the team's).
     ``agent_names``: random, greedy, planner, ppo:PATH (a model written by ``infonav train``).
     A ``success_rate`` metric is added when every episode's final info has ``"success"``.
 
@@ -195,18 +213,17 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
     if env_id == TEAM_ENV:
         from infonav_gym.multi import cooperative_localization_v0
 
-        unsupported = [name for name in agent_names if name not in ("random", "greedy")]
-        if unsupported:
-            raise ValueError(f"agent {unsupported[0]!r} is not available for {TEAM_ENV}: use random or greedy")
         env = cooperative_localization_v0.parallel_env(**env_kwargs)
-        agents = dict.fromkeys(agent_names)  # built per episode and robot by run_team_episode
     else:
         env = make_env(env_id, env_kwargs)
-        try:
+    try:
+        if env_id == TEAM_ENV:
+            agents = {name: make_team_agents(name, env) for name in agent_names}  # {robot: agent} each
+        else:
             agents = {name: make_agent(name, env.action_space.n, env=env) for name in agent_names}
-        except Exception:
-            env.close()
-            raise
+    except Exception:
+        env.close()
+        raise
     seeds = list(range(seed, seed + episodes))
     metrics = dict(metrics_of(env_id))
     results = {"env_id": env_id, "episodes": episodes, "seeds": seeds, "env_kwargs": env_kwargs, "metrics": metrics}
@@ -216,7 +233,7 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
         per_episode = []
         for episode_seed in seeds:
             if env_id == TEAM_ENV:
-                per_episode.append(run_team_episode(env, name, episode_seed))
+                per_episode.append(run_team_episode(env, agent, episode_seed))
             else:
                 per_episode.append(run_episode(env, agent, episode_seed))
             bar.update()
