@@ -6,7 +6,9 @@ Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib
 with plain ``PPO``. The PettingZoo team env ``cooperative_localization_v0`` trains one
 ``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
 Hyperparameters come from ``scripts/hyperparams/ppo.yml``, one block per env id
-(rl-baselines3-zoo style). Needs the ``rl`` extra (stable-baselines3, sb3-contrib, torch, pyyaml).
+(rl-baselines3-zoo style); a block with ``normalize`` trains on observations normalized by
+SB3's ``VecNormalize``, whose statistics ``train`` saves beside the model (``vecnormalize.pkl``)
+and ``PPOAgent`` applies. Needs the ``rl`` extra (stable-baselines3, sb3-contrib, torch, pyyaml).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import json
+import pickle
 import time
 import warnings
 import zipfile
@@ -26,7 +29,7 @@ from sb3_contrib import MaskablePPO
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.env_util import make_vec_env
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
@@ -34,6 +37,7 @@ import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv wor
 HYPERPARAMETERS_FILE = Path(__file__).resolve().parent.parent / "scripts" / "hyperparams" / "ppo.yml"
 ACTIVATIONS = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
 MODEL_FILE = "model.zip"
+NORMALIZATION_FILE = "vecnormalize.pkl"  # VecNormalize statistics, beside MODEL_FILE, when trained with ``normalize``
 
 
 def default_num_threads() -> int:
@@ -132,8 +136,9 @@ def load_hyperparameters(env_id: str, path: Path | str = HYPERPARAMETERS_FILE) -
 
 
 def _constructor_kwargs(hyperparameters: dict) -> dict:
-    """Hyperparameters as PPO constructor keywords: drop ``n_envs`` / ``policy``, resolve the activation name."""
-    kwargs = {key: value for key, value in hyperparameters.items() if key not in ("n_envs", "policy", "n_timesteps")}
+    """Hyperparameters as PPO constructor keywords: drop the others (``not_constructor``), resolve the activation."""
+    not_constructor = ("n_envs", "policy", "n_timesteps", "normalize")
+    kwargs = {key: value for key, value in hyperparameters.items() if key not in not_constructor}
     policy_kwargs = dict(kwargs.get("policy_kwargs") or {})
     activation = policy_kwargs.get("activation_fn")
     if isinstance(activation, str):
@@ -170,6 +175,20 @@ class TqdmCallback(BaseCallback):
 
     def _on_training_end(self) -> None:
         self._bar.close()
+
+
+def _normalization_kwargs(hyperparameters: dict) -> dict | None:
+    """``VecNormalize`` keywords from ``normalize`` (rl-zoo style: true, false, or a dict such as
+    ``{norm_obs: true, norm_reward: false}``); ``None`` when off."""
+    normalize = hyperparameters.get("normalize", False)
+    if normalize is True:
+        return {}
+    if normalize is False or normalize is None:
+        return None
+    allowed = {"norm_obs", "norm_reward", "clip_obs", "clip_reward", "epsilon"}
+    if not isinstance(normalize, dict) or set(normalize) - allowed:
+        raise ValueError(f"normalize must be true, false or a dict with keys from {sorted(allowed)}, got {normalize!r}")
+    return dict(normalize)
 
 
 def build_model(
@@ -210,6 +229,9 @@ def build_model(
             wrapper_class=InfoActionMask if masked else None,
             vec_env_cls=SubprocVecEnv if subprocess else DummyVecEnv,
         )
+    normalize = _normalization_kwargs(hyperparameters)
+    if normalize is not None:
+        vec_env = VecNormalize(vec_env, gamma=hyperparameters.get("gamma", 0.99), **normalize)
     algorithm = MaskablePPO if masked else PPO
     policy = hyperparameters.get("policy", "MlpPolicy")
     kwargs = _constructor_kwargs(hyperparameters)
@@ -253,12 +275,16 @@ def train(
         callbacks = [TqdmCallback(timesteps, disable=not progress)]
         if checkpoints > 0:
             every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
-            callbacks.append(CheckpointCallback(every, str(output_dir / "checkpoints"), name_prefix="ppo"))
+            callbacks.append(
+                CheckpointCallback(every, str(output_dir / "checkpoints"), name_prefix="ppo", save_vecnormalize=True)
+            )
         start = time.perf_counter()
         model.learn(timesteps, callback=callbacks, tb_log_name="ppo")
         seconds = time.perf_counter() - start
         model_path = output_dir / MODEL_FILE
         model.save(model_path)
+        if isinstance(model.get_env(), VecNormalize):
+            model.get_env().save(str(output_dir / NORMALIZATION_FILE))
         model.get_env().close()
     record = {
         "env_id": env_id,
@@ -298,8 +324,32 @@ def load_model(path: Path | str):
         raise ValueError(f"cannot load PPO model {str(path)!r}: {message}") from None
 
 
+def load_normalization(model_path: Path) -> VecNormalize | None:
+    """The ``VecNormalize`` statistics saved beside ``model_path`` (``NORMALIZATION_FILE``); ``None`` if none.
+
+    Raises ``ValueError`` naming the file when it exists but is not SB3 ``VecNormalize`` statistics.
+    """
+    path = Path(model_path).parent / NORMALIZATION_FILE
+    if not path.is_file():
+        return None
+    try:
+        with path.open("rb") as file:
+            normalization = pickle.load(file)
+    except Exception as error:  # truncated or foreign pickles fail in many ways
+        raise ValueError(f"cannot load observation normalization {str(path)!r}: {error}") from None
+    if not isinstance(normalization, VecNormalize):
+        raise ValueError(
+            f"observation normalization {str(path)!r} holds a {type(normalization).__name__}, "
+            "not VecNormalize statistics"
+        )
+    return normalization
+
+
 class PPOAgent:
     """A trained PPO policy as an agent: deterministic (the most probable action) among the valid ones.
+
+    Observations are normalized first when the model was trained with ``normalize`` (the
+    statistics in ``vecnormalize.pkl`` beside the model).
 
     Args:
         model_path: a ``model.zip`` written by ``train`` (or any SB3 PPO / MaskablePPO zip).
@@ -320,6 +370,7 @@ class PPOAgent:
                 f"{env_obs.shape} and {env_actions}"
             )
         self.n_actions = int(env_actions.n)
+        self.normalization = load_normalization(self.model_path)
 
     def reset(self, seed: int | None = None) -> None:
         """Deterministic: nothing to reset."""
@@ -331,8 +382,11 @@ class PPOAgent:
 
     def act(self, observation, info: dict) -> int:
         mask = self._mask(info)
+        observation = np.asarray(observation)
+        if self.normalization is not None:
+            observation = self.normalization.normalize_obs(observation)
         with torch.no_grad():
-            obs_tensor, _ = self.model.policy.obs_to_tensor(np.asarray(observation))
+            obs_tensor, _ = self.model.policy.obs_to_tensor(observation)
             distribution = self.model.policy.get_distribution(obs_tensor)
             logits = distribution.distribution.logits[0].cpu().numpy()
         return int(np.argmax(np.where(mask, logits, -np.inf)))

@@ -143,3 +143,61 @@ def test_planner_is_imported_lazily_and_named_in_the_error_when_missing(capsys, 
         main(["evaluate", "--agents", "greedy,planner", "--episodes", "1"])
     error = capsys.readouterr().err
     assert exit_info.value.code == 2 and "agent 'planner' is not available" in error and error.count("\n") == 1
+
+
+# ---------------------------------------------------------------- observation normalization (VecNormalize)
+
+
+@pytest.fixture(scope="module")
+def normalized(tmp_path_factory) -> Path:
+    """A model trained with ``normalize`` (observations only): its ``model.zip`` path."""
+    from agents.ppo import train
+
+    hyperparameters = {**load_hyperparameters(LANDMARK_ID), "normalize": {"norm_obs": True, "norm_reward": False}}
+    hyperparameters.update(n_steps=64, batch_size=64)
+    output = tmp_path_factory.mktemp("ppo_normalized")
+    return train(LANDMARK_ID, 1024, n_envs=4, output_dir=output, hyperparameters=hyperparameters, progress=False)
+
+
+def test_normalized_training_saves_the_statistics_and_the_agent_applies_them(normalized):
+    import torch
+
+    from agents.ppo import NORMALIZATION_FILE
+
+    assert (normalized.parent / NORMALIZATION_FILE).is_file()
+    assert list(normalized.parent.glob("checkpoints/ppo_vecnormalize_*_steps.pkl"))
+    env = gym.make(LANDMARK_ID)
+    agent = PPOAgent(normalized, env)
+    statistics = agent.normalization.obs_rms
+    assert statistics.count > 1000 and not np.allclose(statistics.mean, 0.0)
+    observation, info = env.reset(seed=1)
+    scaled = np.clip((observation - statistics.mean) / np.sqrt(statistics.var + 1e-8), -10.0, 10.0)
+    with torch.no_grad():
+        tensor, _ = agent.model.policy.obs_to_tensor(scaled.astype(np.float32))
+        logits = agent.model.policy.get_distribution(tensor).distribution.logits[0].numpy()
+    assert agent.act(observation, info) == int(np.argmax(np.where(info["action_mask"], logits, -np.inf)))
+
+    class Replace:  # the policy must see what normalize_obs returns, whatever the raw observation
+        @staticmethod
+        def normalize_obs(_):
+            return np.full(env.observation_space.shape, 3.0, dtype=np.float32)
+
+    agent.normalization = Replace()
+    with torch.no_grad():
+        tensor, _ = agent.model.policy.obs_to_tensor(Replace.normalize_obs(None))
+        logits = agent.model.policy.get_distribution(tensor).distribution.logits[0].numpy()
+    every = {**info, "action_mask": np.ones(env.action_space.n, dtype=np.int8)}
+    assert agent.act(observation, every) == int(np.argmax(logits))
+    assert agent.act(np.zeros_like(observation), every) == int(np.argmax(logits))
+
+
+def test_corrupt_statistics_or_a_bad_normalize_setting_is_a_clear_error(tmp_path, normalized):
+    from agents.ppo import NORMALIZATION_FILE, build_model
+
+    model = tmp_path / "model.zip"
+    model.write_bytes(normalized.read_bytes())
+    (tmp_path / NORMALIZATION_FILE).write_bytes(b"not a pickle")
+    with pytest.raises(ValueError, match="cannot load observation normalization .*vecnormalize.pkl"):
+        PPOAgent(model, gym.make(LANDMARK_ID))
+    with pytest.raises(ValueError, match=r"normalize must be true, false or a dict with keys from \['clip_obs'"):
+        build_model(LANDMARK_ID, hyperparameters={"normalize": {"norm_observations": True}}, n_envs=1)
