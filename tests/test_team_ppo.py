@@ -10,7 +10,7 @@ pytest.importorskip("sb3_contrib")
 
 from sb3_contrib.common.maskable.utils import get_action_masks, is_masking_supported  # noqa: E402
 
-from agents.ppo import PPOAgent, load_hyperparameters, train  # noqa: E402
+from agents.ppo import PPOAgent, train  # noqa: E402
 from agents.team_vec_env import TeamVecEnv, make_team_vec_env  # noqa: E402
 from infonav_gym.evaluation import TEAM_ENV, evaluate  # noqa: E402
 from infonav_gym.multi import cooperative_localization_v0  # noqa: E402
@@ -111,11 +111,23 @@ def test_attributes_methods_and_masks_reach_the_right_copy_and_robot():
         TeamVecEnv(0)
 
 
+# explicit, not read from scripts/hyperparams/ppo.yml (an installed wheel ships no scripts/)
+TEAM_HYPERPARAMETERS = {"n_steps": 128, "batch_size": 256, "gamma": 0.9, "normalize": {"norm_obs": True}}
+
+
 @pytest.fixture(scope="module")
 def team_model(tmp_path_factory) -> dict:
     """One parameter-shared MaskablePPO trained ~1,000 robot steps (2 copies x 4 robots x 128), about 2 s."""
     output = tmp_path_factory.mktemp("team_ppo")
-    path = train(TEAM_ENV, 1000, n_envs=2, output_dir=output, env_kwargs={"max_cycles": 20}, progress=False)
+    path = train(
+        TEAM_ENV,
+        1000,
+        n_envs=2,
+        output_dir=output,
+        env_kwargs={"max_cycles": 20},
+        progress=False,
+        hyperparameters=TEAM_HYPERPARAMETERS,
+    )
     return {"path": str(path), "output": output}
 
 
@@ -125,8 +137,8 @@ def test_train_on_the_team_env_shares_one_maskable_policy_over_the_robots(team_m
     record = json.loads((team_model["output"] / "train.json").read_text())
     assert record["algorithm"] == "MaskablePPO" and record["env_id"] == TEAM_ENV
     assert record["n_envs"] == 2 * N_ROBOTS and record["timesteps"] == 2 * N_ROBOTS * 128
-    assert record["hyperparameters"] == {**load_hyperparameters(TEAM_ENV), "n_envs": 2}
-    assert record["hyperparameters"]["gamma"] == 0.9  # the team env's own block of ppo.yml, not the default
+    assert record["hyperparameters"] == {**TEAM_HYPERPARAMETERS, "n_envs": 2}
+    assert (team_model["output"] / "vecnormalize.pkl").is_file()
 
 
 def test_each_robot_acts_with_the_shared_policy_only_among_its_valid_actions(team_model):
