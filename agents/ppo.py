@@ -98,14 +98,10 @@ def team_env_id() -> str:
 
 
 def make_env(env_id: str, env_kwargs: dict | None = None) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs)``; an unknown id raises ``ValueError`` naming it."""
-    try:
-        return gym.make(env_id, **(env_kwargs or {}))
-    except gym.error.Error as error:
-        infonav = sorted(name for name in gym.registry if name.startswith("infonav/"))
-        raise ValueError(
-            f"unknown env id {env_id!r} ({error}); infonav envs: {', '.join([*infonav, team_env_id()])}"
-        ) from None
+    """``gym.make(env_id, **env_kwargs)``; an unknown id raises ``ValueError`` naming it (``evaluation.make_env``)."""
+    from infonav_gym.evaluation import make_env as make_named_env  # not at the top: see team_env_id
+
+    return make_named_env(env_id, env_kwargs)
 
 
 def has_action_mask(env_id: str, env_kwargs: dict | None = None) -> bool:
