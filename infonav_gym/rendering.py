@@ -51,6 +51,17 @@ class RobotDrawing:
     estimated_path: np.ndarray | None = None
     label: str = ""  # drawn next to the robot if fonts are available
 
+    @classmethod
+    def tracked(cls, true_pose, ekf, true_path, estimated_path) -> RobotDrawing:
+        """A robot tracked by a ``PoseEKF``: its truth, the filter's pose and covariance, and both paths (lists)."""
+        return cls(
+            true_pose=true_pose,
+            estimated_pose=ekf.pose,
+            pose_covariance=ekf.pose_covariance,
+            true_path=np.array(true_path),
+            estimated_path=np.array(estimated_path),
+        )
+
 
 @dataclass
 class SceneFrame:

@@ -337,15 +337,7 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
             landmarks=self.world.landmarks,
             landmark_visible=self._visible,
             chosen_landmark=landmark,
-            robots=[
-                RobotDrawing(
-                    true_pose=self._true_pose,
-                    estimated_pose=self.ekf.pose,
-                    pose_covariance=self.ekf.pose_covariance,
-                    true_path=np.array(self._true_path),
-                    estimated_path=np.array(self._estimated_path),
-                )
-            ],
+            robots=[RobotDrawing.tracked(self._true_pose, self.ekf, self._true_path, self._estimated_path)],
             caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.0f} s   "
             f"goal ({self.goal[0]:.0f}, {self.goal[1]:.0f}) m, {self.observations_left} observations left",
         )

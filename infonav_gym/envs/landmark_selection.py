@@ -233,15 +233,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
             landmarks=self.world.landmarks,
             landmark_visible=self._action_mask[:n_landmarks].astype(bool),
             chosen_landmark=self._chosen_action,
-            robots=[
-                RobotDrawing(
-                    true_pose=self._true_pose,
-                    estimated_pose=self.ekf.pose,
-                    pose_covariance=self.ekf.pose_covariance,
-                    true_path=np.array(self._true_path),
-                    estimated_path=np.array(self._estimated_path),
-                )
-            ],
+            robots=[RobotDrawing.tracked(self._true_pose, self.ekf, self._true_path, self._estimated_path)],
             landmark_estimates=self.ekf.landmark_positions if mapping else None,
             landmark_covariances=np.array(landmark_blocks) if mapping else None,
             caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
