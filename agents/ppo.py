@@ -92,14 +92,16 @@ class InfoActionMask(gym.Wrapper):
 
 def team_env_id() -> str:
     """The id of the PettingZoo team env, which ``build_model`` runs through ``TeamVecEnv``."""
-    from infonav_gym.evaluation import TEAM_ENV  # not at the top: SubprocVecEnv workers need not import scipy
+    from infonav_gym.experiments.evaluation import (
+        TEAM_ENV,  # not at the top: SubprocVecEnv workers need not import scipy
+    )
 
     return TEAM_ENV
 
 
 def make_env(env_id: str, env_kwargs: dict | None = None) -> gym.Env:
     """``gym.make(env_id, **env_kwargs)``; an unknown id raises ``ValueError`` naming it (``evaluation.make_env``)."""
-    from infonav_gym.evaluation import make_env as make_named_env  # not at the top: see team_env_id
+    from infonav_gym.experiments.evaluation import make_env as make_named_env  # not at the top: see team_env_id
 
     return make_named_env(env_id, env_kwargs)
 

@@ -2,7 +2,7 @@
 
 import sys
 
-from infonav_gym.cli import main
+from infonav_gym.experiments.cli import main
 
 if __name__ == "__main__":
     raise SystemExit(main(["benchmark", *sys.argv[1:]]))

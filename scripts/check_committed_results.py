@@ -15,7 +15,7 @@ import math
 import sys
 from pathlib import Path
 
-from infonav_gym.evaluation import evaluate
+from infonav_gym.experiments.evaluation import evaluate
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 
@@ -38,7 +38,9 @@ def differences(path: Path, episodes: int, rtol: float, save: Path | None = None
         for index, (old, new) in enumerate(zip(result["episodes"][:episodes], fresh["agents"][name]["episodes"])):
             for key, value in old.items():
                 if key not in new or not math.isclose(new[key], value, rel_tol=rtol, abs_tol=rtol):
-                    found.append(f"{path.name}: {name}, seed {seed + index}, {key}: committed {value}, now {new.get(key)}")
+                    found.append(
+                        f"{path.name}: {name}, seed {seed + index}, {key}: committed {value}, now {new.get(key)}"
+                    )
     return found
 
 

@@ -1,13 +1,13 @@
 """Regenerate the paper's figures: python scripts/reproduce_paper.py [FIGURE] [--output-dir DIR] [--seeds N] [--json].
 
-FIGURE is one of ``infonav_gym.reproduce.FIGURES``; without one, all of them are made in turn
+FIGURE is one of ``infonav_gym.experiments.reproduce.FIGURES``; without one, all of them are made in turn
 with the same options (with --json, one JSON object per line).
 """
 
 import sys
 
-from infonav_gym.cli import main
-from infonav_gym.reproduce import FIGURES
+from infonav_gym.experiments.cli import main
+from infonav_gym.experiments.reproduce import FIGURES
 
 
 def reproduce_all(argv: list[str]) -> int:

@@ -6,17 +6,17 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from infonav_gym.registration import frame_pairs
-from infonav_gym.sensors.ladar import Ladar, point_cloud, sensor_points
-from infonav_gym.world.attitude import (
+from infonav_gym.geometry import (
     invert_transform,
     rigid_transform,
     rotation_angle,
     rotation_matrix,
-    terrain_attitude,
     transform_error,
     transform_points,
 )
+from infonav_gym.registration import frame_pairs
+from infonav_gym.sensors.ladar import Ladar, point_cloud, sensor_points
+from infonav_gym.world.attitude import terrain_attitude
 from infonav_gym.world.terrain import Terrain
 from infonav_gym.world.terrain_generation import make_terrain
 

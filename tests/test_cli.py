@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from infonav_gym.cli import main
-from infonav_gym.evaluation import Summary
+from infonav_gym.experiments.cli import main
+from infonav_gym.experiments.evaluation import Summary
 
 
 def run_json(capsys, *argv) -> dict:

@@ -5,7 +5,7 @@ import pytest
 
 from agents import GreedyEntropyAgent, RandomAgent
 from infonav_gym.estimation import chi2_bounds
-from infonav_gym.estimation.models import wrap_angle
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.multi import cooperative_localization_v0
 
 N_RUNS = 50

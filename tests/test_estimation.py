@@ -19,8 +19,8 @@ from infonav_gym.estimation.models import (
     unicycle_control,
     unicycle_jacobians,
     unicycle_motion,
-    wrap_angle,
 )
+from infonav_gym.geometry import wrap_angle
 
 POSES = [np.array([0.3, -1.2, 0.4]), np.array([5.0, 2.0, 3.1]), np.array([-2.0, 7.0, -2.9])]
 

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from skimage.measure import shannon_entropy
 
-from infonav_gym.cli import main
-from infonav_gym.information import histogram_entropy
-from infonav_gym.reproduce.fig5 import (
+from infonav_gym.experiments.cli import main
+from infonav_gym.experiments.reproduce.fig5 import (
     SECOND_VIEW_ADVANCE_M,
     SECOND_VIEW_TURN_RAD,
     level_heading,
     run_fig5,
 )
+from infonav_gym.information import histogram_entropy
 from infonav_gym.world.terrain import Terrain
 
 

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from infonav_gym.cli import main
+from infonav_gym.experiments.cli import main
 
 
 def test_reproduce_fig6_writes_the_figure_and_json_whose_errors_say_icp_registered_the_frames(tmp_path, capsys):

@@ -8,7 +8,8 @@ from conftest import numerical_jacobian
 from filterpy.kalman import ExtendedKalmanFilter
 
 from infonav_gym.estimation import JointEKF, PoseEKF, relative_pose, relative_pose_linearized
-from infonav_gym.estimation.models import GPS_POSE_JACOBIAN, angular_residual, wrap_angle
+from infonav_gym.estimation.models import GPS_POSE_JACOBIAN, angular_residual
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import mutual_information
 
 OBSERVERS = np.array([[0.3, -1.2, 0.4], [5.0, 2.0, 3.1], [-2.0, 7.0, -2.9], [1.0, 1.0, -math.pi]])

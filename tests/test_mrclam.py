@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from infonav_gym.cli import main
 from infonav_gym.datasets import mrclam
-from infonav_gym.replay import ReplayConfig, replay, run_experiments
+from infonav_gym.experiments.cli import main
+from infonav_gym.experiments.replay import ReplayConfig, replay, run_experiments
 
 DATASET6 = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "MRCLAM_Dataset6"
 needs_dataset6 = pytest.mark.skipif(

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import infonav_gym  # noqa: F401
-from infonav_gym.reproduce.fig3 import outage_rmse, position_std_m, run_fig3
+from infonav_gym.experiments.reproduce.fig3 import outage_rmse, position_std_m, run_fig3
 
 LANDMARK_3 = 2
 ASSOCIATE_EACH_TWICE = [0, 1, 2, 3, 0, 1, 2, 3]

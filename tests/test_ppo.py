@@ -12,7 +12,7 @@ pytest.importorskip("sb3_contrib")
 
 import infonav_gym  # noqa: E402, F401  (registers the envs)
 from agents.ppo import InfoActionMask, PPOAgent, load_hyperparameters  # noqa: E402
-from infonav_gym.cli import main  # noqa: E402
+from infonav_gym.experiments.cli import main  # noqa: E402
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 
@@ -80,7 +80,7 @@ def test_evaluate_with_ppo_is_reproducible_and_writes_tables_and_a_plot(capsys, 
 
 
 def test_success_rate_is_reported_when_the_env_says_success(monkeypatch, capsys):
-    from infonav_gym import evaluation
+    from infonav_gym.experiments import evaluation
 
     monkeypatch.setattr(evaluation, "run_episode", _run_episode_with_success(evaluation.run_episode))
     result = run_json(capsys, "evaluate", "--episodes", "4", "--config", "horizon=5")

@@ -7,8 +7,8 @@ import pymunk
 import pytest
 from skimage.measure import shannon_entropy
 
+from infonav_gym.experiments.sensor_timing import footprint_space
 from infonav_gym.information import histogram_entropy
-from infonav_gym.sensor_timing import footprint_space
 from infonav_gym.sensors.ladar import Ladar, point_cloud, to_display_image
 from infonav_gym.world.terrain import MATERIALS, NO_HIT, Box, Cylinder, Terrain
 from infonav_gym.world.terrain_generation import flat_terrain, make_terrain

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from infonav_gym.estimation.models import unicycle_motion
+from infonav_gym.geometry import distance_to_loop
 from infonav_gym.world import SCENARIOS, CircleObstacle, Scenario, World
-from infonav_gym.world.geometry import distance_to_loop
 from infonav_gym.world.scenarios import (
     CORRIDOR_LANDMARK_COUNT,
     MAX_CANOPY_COVER,

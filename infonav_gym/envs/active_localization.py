@@ -15,7 +15,8 @@ from infonav_gym.envs.active_planning import (
 )
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
-from infonav_gym.estimation.models import range_bearing, range_bearing_linearized, wrap_angle
+from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config

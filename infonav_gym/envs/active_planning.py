@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from infonav_gym.estimation.ekf import POSE_DIM
-from infonav_gym.estimation.models import range_bearing_linearized, wrap_angle
+from infonav_gym.estimation.models import range_bearing_linearized
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain
 
 # Motion primitives: the heading to steer for, relative to the estimated bearing of the goal [rad].

@@ -10,7 +10,8 @@ from gymnasium import spaces
 from infonav_gym.config import check_choice, check_positive
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
-from infonav_gym.estimation.models import range_bearing, wrap_angle
+from infonav_gym.estimation.models import range_bearing
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config

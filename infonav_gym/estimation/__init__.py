@@ -9,8 +9,8 @@ from infonav_gym.estimation.models import (
     relative_pose_linearized,
     unicycle_jacobians,
     unicycle_motion,
-    wrap_angle,
 )
+from infonav_gym.geometry import wrap_angle
 
 __all__ = [
     "JointEKF",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from infonav_gym.estimation.models import wrap_angle
+from infonav_gym.geometry import wrap_angle
 
 
 def pose_error(true_pose, estimated_pose) -> np.ndarray:

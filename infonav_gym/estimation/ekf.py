@@ -13,8 +13,8 @@ from infonav_gym.estimation.models import (
     relative_pose_linearized,
     unicycle_jacobians,
     unicycle_motion,
-    wrap_angle,
 )
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import log_det_spd
 
 POSE_DIM = 3

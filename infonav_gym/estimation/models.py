@@ -9,10 +9,7 @@ import math
 
 import numpy as np
 
-
-def wrap_angle(angle):
-    """Map an angle (a float or an ndarray of them) to [-pi, pi) [rad]."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+from infonav_gym.geometry import wrap_angle  # re-exported: models.wrap_angle is public
 
 
 def unicycle_motion(pose, control, dt: float) -> np.ndarray:

@@ -12,7 +12,8 @@ from pettingzoo import ParallelEnv
 from infonav_gym.config import check_choice, check_positive
 from infonav_gym.envs.base import SceneRendering, discrete_action_index
 from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
-from infonav_gym.estimation.models import relative_pose, wrap_angle
+from infonav_gym.estimation.models import relative_pose
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
 from infonav_gym.sensors.gps import GPSSensor

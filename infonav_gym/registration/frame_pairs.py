@@ -13,8 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from infonav_gym.geometry import invert_transform, rigid_transform, transform_error
 from infonav_gym.sensors.ladar import Ladar, LadarScan
-from infonav_gym.world.attitude import invert_transform, rigid_transform, terrain_attitude, transform_error
+from infonav_gym.world.attitude import terrain_attitude
 from infonav_gym.world.terrain import Terrain
 from infonav_gym.world.terrain_scenario import terrain_loop
 from infonav_gym.world.world import World

@@ -55,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from infonav_gym.world.attitude import rotation_angle
+from infonav_gym.geometry import rotation_angle
 
 METHODS = ("point_to_point", "point_to_plane")
 ROBUST_K = 3.0  # robust scale multiples beyond the median pair distance that mark an outlier

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.geometry import rigid_transform, rotation_matrix
 from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pose, unit_directions
-from infonav_gym.world.attitude import rigid_transform, rotation_matrix
 from infonav_gym.world.terrain import Terrain
 
 

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from infonav_gym.estimation.models import relative_pose, wrap_angle
+from infonav_gym.estimation.models import relative_pose
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from infonav_gym.world.geometry import distance_to_loop
+from infonav_gym.geometry import distance_to_loop
 
 CORRIDOR_LANDMARK_COUNT = 4
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from infonav_gym.world.geometry import distance_to_loop
+from infonav_gym.geometry import distance_to_loop
 from infonav_gym.world.terrain import Box, Cylinder, Terrain, finite_vector
 
 _MAX_PLACEMENT_ATTEMPTS = 1000  # random draws per obstacle before the scene counts as too small

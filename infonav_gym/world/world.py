@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pymunk
 
-from infonav_gym.estimation.models import unicycle_control, wrap_angle
+from infonav_gym.estimation.models import unicycle_control
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.world.scenarios import Scenario
 
 OBSTACLE_CATEGORY = 0b01

@@ -6,7 +6,7 @@ import numpy as np
 from scipy import stats
 
 from infonav_gym.estimation.consistency import pose_error
-from infonav_gym.estimation.models import wrap_angle
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 
 MAX_GROUNDTRUTH_GAP_S = 0.5  # [s] no comparison across a longer motion-capture dropout

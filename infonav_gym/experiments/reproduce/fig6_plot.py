@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from infonav_gym.geometry import transform_points
 from infonav_gym.registration.frame_pairs import FramePair
 from infonav_gym.registration.icp import estimate_normals
 from infonav_gym.rendering import require_extra
 from infonav_gym.sensors.ladar import sensor_points
-from infonav_gym.world.attitude import transform_points
 
 _VIEWS = (("top view", 0, 1, "x [m]", "y [m]"), ("side view", 0, 2, "x [m]", "z [m]"))
 _POINT_SIZE = 1.5

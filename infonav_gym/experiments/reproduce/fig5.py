@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from infonav_gym.experiments.reproduce import figure_paths, write_result
+from infonav_gym.experiments.reproduce.fig5_plot import plot_fig5
 from infonav_gym.information import histogram_entropy
-from infonav_gym.reproduce import figure_paths, write_result
-from infonav_gym.reproduce.fig5_plot import plot_fig5
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain import Box, Terrain

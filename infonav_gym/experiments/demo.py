@@ -7,7 +7,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from infonav_gym.evaluation import make_agent
+from infonav_gym.experiments.evaluation import make_agent
 from infonav_gym.information import expected_information_gain
 
 DEMO_AGENTS = ("greedy", "random")

@@ -9,10 +9,10 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
-from infonav_gym.replay.filters import ReplayConfig
-from infonav_gym.replay.metrics import mean_and_ci95
-from infonav_gym.replay.run import replay, replay_header
-from infonav_gym.replay.timeline import make_timeline
+from infonav_gym.experiments.replay.filters import ReplayConfig
+from infonav_gym.experiments.replay.metrics import mean_and_ci95
+from infonav_gym.experiments.replay.run import replay, replay_header
+from infonav_gym.experiments.replay.timeline import make_timeline
 
 ROW_KEYS = ("position_rmse_m", "heading_rmse_rad", "mean_nees", "updates_used", "mean_entropy_nats", "mean_nis")
 

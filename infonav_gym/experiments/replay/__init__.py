@@ -6,10 +6,10 @@ with chi-square innovation gating, under a selection policy; ``run_experiments``
 policies and budgets and runs the absolute-sensing outage experiment.
 """
 
-from infonav_gym.replay.filters import ReplayConfig
-from infonav_gym.replay.policies import POLICIES
-from infonav_gym.replay.report import markdown_table, run_experiments, write_results
-from infonav_gym.replay.run import replay
-from infonav_gym.replay.timeline import make_timeline
+from infonav_gym.experiments.replay.filters import ReplayConfig
+from infonav_gym.experiments.replay.policies import POLICIES
+from infonav_gym.experiments.replay.report import markdown_table, run_experiments, write_results
+from infonav_gym.experiments.replay.run import replay
+from infonav_gym.experiments.replay.timeline import make_timeline
 
 __all__ = ["POLICIES", "ReplayConfig", "make_timeline", "markdown_table", "replay", "run_experiments", "write_results"]

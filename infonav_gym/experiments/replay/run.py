@@ -9,9 +9,9 @@ import warnings
 import numpy as np
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
-from infonav_gym.replay.filters import ReplayConfig, ReplayTrace, replay_filter
-from infonav_gym.replay.metrics import groundtruth_at, mean_entropy, mean_nees, nis_summary, pose_rmse
-from infonav_gym.replay.timeline import LANDMARK, ROBOT, Timeline, make_timeline
+from infonav_gym.experiments.replay.filters import ReplayConfig, ReplayTrace, replay_filter
+from infonav_gym.experiments.replay.metrics import groundtruth_at, mean_entropy, mean_nees, nis_summary, pose_rmse
+from infonav_gym.experiments.replay.timeline import LANDMARK, ROBOT, Timeline, make_timeline
 
 NO_GROUNDTRUTH_POSITION_STD_M = 3.0  # [m] initial uncertainty of a robot without ground truth
 SUMMARY_KEYS = (

@@ -18,13 +18,13 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from infonav_gym.experiments.reproduce import figure_paths, write_result
+from infonav_gym.experiments.reproduce.fig6_plot import plot_fig6
+from infonav_gym.geometry import transform_error
 from infonav_gym.registration import icp
 from infonav_gym.registration.control_points import select_control_points
 from infonav_gym.registration.frame_pairs import FramePair, registration_error, terrain_frame_pair
-from infonav_gym.reproduce import figure_paths, write_result
-from infonav_gym.reproduce.fig6_plot import plot_fig6
 from infonav_gym.sensors.ladar import sensor_points
-from infonav_gym.world.attitude import transform_error
 
 ICP_SETTINGS = {"max_correspondence_distance": 1.0, "method": "point_to_plane"}
 CONTROL_FRACTION = 0.25  # control points as a fraction of the returns

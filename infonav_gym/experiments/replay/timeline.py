@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
-from infonav_gym.estimation.models import wrap_angle
+from infonav_gym.geometry import wrap_angle
 
 LANDMARK, ROBOT = 0, 1  # event kinds
 

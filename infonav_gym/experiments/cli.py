@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 import infonav_gym  # noqa: F401  (registers the envs)
-from infonav_gym.reproduce import FIGURES
+from infonav_gym.experiments.reproduce import FIGURES
 
 DEFAULT_ENV = "infonav/LandmarkSelection-v0"
 
@@ -101,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _demo(args) -> dict:
-    from infonav_gym.demo import demo_table, plot_information_field, run_demo
+    from infonav_gym.experiments.demo import demo_table, plot_information_field, run_demo
 
     result = run_demo(steps=args.steps, seed=args.seed)
     if args.plot:
@@ -114,7 +114,7 @@ def _demo(args) -> dict:
 
 
 def _evaluate(args, argv) -> dict:
-    from infonav_gym.evaluation import evaluate, markdown_table, write_results
+    from infonav_gym.experiments.evaluation import evaluate, markdown_table, write_results
 
     agent_names = [name.strip() for name in args.agents.split(",") if name.strip()]
     results = evaluate(args.env, agent_names, args.episodes, args.seed, dict(args.config), progress=not args.json)
@@ -158,7 +158,7 @@ def _train(args) -> dict:
 
 
 def _benchmark(args) -> dict:
-    from infonav_gym.benchmark import lower_is_better, run_benchmark
+    from infonav_gym.experiments.benchmark import lower_is_better, run_benchmark
 
     result = run_benchmark(rounds=args.rounds, seconds_per_round=args.seconds, seed=args.seed, progress=not args.json)
     if not args.json:
@@ -173,10 +173,10 @@ def _benchmark(args) -> dict:
 
 
 def _reproduce(args, argv) -> dict:
-    """Run ``reproduce_<figure>`` of ``infonav_gym.reproduce.<figure>``; print its ``<figure>_table`` unless --json."""
+    """Run ``reproduce_<figure>`` of ``infonav_gym.experiments.reproduce.<figure>``; print its ``<figure>_table`` unless --json."""
     import importlib
 
-    module = importlib.import_module(f"infonav_gym.reproduce.{args.figure}")
+    module = importlib.import_module(f"infonav_gym.experiments.reproduce.{args.figure}")
     reproduce, table = getattr(module, f"reproduce_{args.figure}"), getattr(module, f"{args.figure}_table")
     command = "infonav " + shlex.join(argv)
     result = reproduce(args.output_dir, seed=args.seed, n_seeds=args.seeds, progress=not args.json, command=command)
@@ -190,7 +190,7 @@ def _replay(args, argv) -> dict:
     import warnings
 
     from infonav_gym.datasets import mrclam
-    from infonav_gym.replay import POLICIES, ReplayConfig, markdown_table, run_experiments, write_results
+    from infonav_gym.experiments.replay import POLICIES, ReplayConfig, markdown_table, run_experiments, write_results
 
     policies = [name.strip() for name in args.policy.split(",") if name.strip()]
     unknown = [name for name in policies if name not in POLICIES]

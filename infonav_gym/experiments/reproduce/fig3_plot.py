@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from infonav_gym.experiments.reproduce import paper_label
 from infonav_gym.rendering import require_extra
-from infonav_gym.reproduce import paper_label
 
 _PATH_STYLES = {"robot_0": (":", "tab:blue"), "robot_1": ("-", "tab:red")}  # the paper: #1 dotted, #2 solid
 _STD_CURVES = (

@@ -11,9 +11,10 @@ from tqdm.auto import tqdm
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.estimation.ekf import JointEKF, PoseEKF
-from infonav_gym.estimation.models import range_bearing_residual, wrap_angle
-from infonav_gym.replay.policies import POLICIES, select_greedy, select_nearest, select_random
-from infonav_gym.replay.timeline import LANDMARK, ROBOT, Timeline, dead_reckoning
+from infonav_gym.estimation.models import range_bearing_residual
+from infonav_gym.experiments.replay.policies import POLICIES, select_greedy, select_nearest, select_random
+from infonav_gym.experiments.replay.timeline import LANDMARK, ROBOT, Timeline, dead_reckoning
+from infonav_gym.geometry import wrap_angle
 
 
 @dataclass

@@ -17,10 +17,10 @@ import time
 
 import numpy as np
 
+from infonav_gym.geometry import transform_error
 from infonav_gym.registration import icp
 from infonav_gym.registration.frame_pairs import motion_between, perturbed_motion
 from infonav_gym.sensors.ladar import Ladar, sensor_points
-from infonav_gym.world.attitude import transform_error
 from infonav_gym.world.terrain_generation import make_terrain
 
 POSES = ((0.0, 0.0, 0.0), (1.0, 0.0, math.radians(2.0)))  # vehicle [x, y, heading] [m, m, rad]

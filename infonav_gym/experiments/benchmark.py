@@ -8,14 +8,14 @@ infonav envs by agents uniform over the *valid* actions, so steps do full EKF
 updates. Rounds alternate between the envs and the median ratio is reported, so a
 busy machine slows them alike.
 
-Sensors (``infonav_gym.sensor_timing``): median milliseconds of one default
+Sensors (``infonav_gym.experiments.sensor_timing``): median milliseconds of one default
 ``Ladar().scan`` (32 x 180) and ``Camera().capture`` (120 x 160) on a default
 ``make_terrain`` scene, with absolute goals, each against a pure-Pymunk
 ``segment_query_first`` loop over the same rays (ratio < 1: the sensor is faster).
-ICP (``infonav_gym.registration_timing``): median milliseconds of point-to-point ``icp`` on a
+ICP (``infonav_gym.experiments.registration_timing``): median milliseconds of point-to-point ``icp`` on a
 32 x 180 LADAR frame pair from a warm start, and its errors against the true motion, beside
 Open3D's ``registration_icp`` on the same pair when Open3D imports.
-PPO (``infonav_gym.ppo_timing``): training timesteps per second of the same MaskablePPO
+PPO (``infonav_gym.experiments.ppo_timing``): training timesteps per second of the same MaskablePPO
 settings on LandmarkSelection-v0 and on CartPole-v1, 8 envs each, alternating rounds in one run.
 Figures named ``*_us`` or ``*_ms`` meet their goal at or below it, all others at or above.
 """
@@ -31,9 +31,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
+from infonav_gym.experiments.registration_timing import icp_figures
+from infonav_gym.experiments.sensor_timing import sensor_figures
 from infonav_gym.multi import cooperative_localization_v0
-from infonav_gym.registration_timing import icp_figures
-from infonav_gym.sensor_timing import sensor_figures
 
 GOALS = {
     "landmark_selection_vs_cartpole_ratio": 0.10,
@@ -98,7 +98,7 @@ def greedy_decision_us(n_candidates: int = 16, seed: int = 0, repeats: int = 200
 
 def _ppo_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
     """PPO fps figures; at most 3 rounds (each trains both envs), ``seconds_per_round`` sets their length."""
-    from infonav_gym.ppo_timing import ppo_fps_figures
+    from infonav_gym.experiments.ppo_timing import ppo_fps_figures
 
     timesteps = max(256, round(seconds_per_round * PPO_TIMESTEPS_PER_SECOND_OF_ROUND))
     return ppo_fps_figures(timesteps_per_round=timesteps, rounds=min(rounds, 3), seed=seed)

@@ -16,11 +16,11 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent
+from infonav_gym.experiments.reproduce import figure_paths, paper_label, write_result
+from infonav_gym.experiments.reproduce.fig3_plot import plot_fig3
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.cooperative_localization import NO_OBSERVATION
 from infonav_gym.multi.team import DEFAULT_OUTAGE
-from infonav_gym.reproduce import figure_paths, paper_label, write_result
-from infonav_gym.reproduce.fig3_plot import plot_fig3
 
 FIG3_ENV_CONFIG = {"scenario": "convoy", "n_robots": 3, "max_cycles": 120}
 OBSERVER = "robot_1"  # the paper's robot #2, which loses DGPS
