@@ -68,7 +68,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     landmark ``j`` is valid while it lies within range and field of view, no obstacle
     hides it, and budget is left; observing nothing is always valid. A masked action
     is a no-op (stand still, observe nothing) by default (``invalid_action="noop"``) or
-    raises ``ValueError`` with ``invalid_action="raise"``.
+    raises ``ValueError`` with ``invalid_action="raise"``. ``action_masks()`` gives the mask as bool,
+    for ``MaskablePPO``.
 
     ## Observation Space
     ``Box(float32, (14 + 4 * n_candidates + 4 * n_obstacles,))``: the 10 pose features
@@ -99,10 +100,10 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     Truncated after ``horizon`` steps.
 
     ## Planning model
-    ``belief()``, ``plan_decision(belief)`` and ``plan_step(belief, actions)`` expose the
-    env's own model for look-ahead agents (``agents.planner.PlannerAgent``): the EKF
-    covariance propagated under the linearization, with the motion predicted from the
-    estimated pose and visibility judged from it.
+    ``planning_model()`` returns the env's own model for look-ahead agents
+    (``agents.planner.PlannerAgent``), with ``belief()``, ``plan_decision(belief)`` and
+    ``plan_step(belief, actions)``: the EKF covariance propagated under the linearization, with
+    the motion predicted from the estimated pose and visibility judged from it.
 
     ## Arguments
     ``gym.make("infonav/ActiveLocalization-v0", render_mode=None, **config)`` with any

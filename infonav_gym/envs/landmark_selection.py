@@ -46,7 +46,8 @@ class LandmarkSelectionEnv(InfoNavEnv):
     (``info["action_mask"]``). A masked action is a no-op with reward 0 by
     default (``invalid_action="noop"``; RL algorithms and env checkers sample
     actions blindly) or raises ``ValueError`` with ``invalid_action="raise"``.
-    An integer outside the space always raises ``ValueError``.
+    An integer outside the space always raises ``ValueError``. ``action_masks()`` gives the mask as
+    bool, for ``MaskablePPO`` (all ``True`` when no landmark is visible: every action is then the no-op).
 
     ## Observation Space
     ``Box(float32, (10 + 5 * n_candidates,))``: estimated ``x, y`` [m], ``cos, sin``

@@ -48,7 +48,8 @@ class RangeRegistrationEnv(InfoNavEnv):
     ``Discrete(patch_rows * patch_columns)``: the patch (row-major over the image) to add.
     Valid while it has returns and was not chosen for this pair (``info["action_mask"]``).
     A masked action is a no-op with reward 0 (``invalid_action="noop"``) or raises
-    ``ValueError`` (``invalid_action="raise"``).
+    ``ValueError`` (``invalid_action="raise"``). ``action_masks()`` gives the mask as bool, for
+    ``MaskablePPO`` (all ``True`` when no patch can be picked: every action is then the no-op).
 
     ## Observation Space
     ``Box(float32, (5 * patches + 2,))``: per patch: valid, chosen, fraction of its pixels

@@ -60,7 +60,8 @@ class SensorSelectionEnv(InfoNavEnv):
     spread evenly over ``pan_span_rad`` from left (``p = 0``) to right. An acquisition is
     valid when the bandwidth credit covers the frame (``info["action_mask"]``); waiting
     always is. A masked action is a no-op with reward 0 by default (``invalid_action="noop"``)
-    or raises ``ValueError`` with ``invalid_action="raise"``.
+    or raises ``ValueError`` with ``invalid_action="raise"``. ``action_masks()`` gives the mask as
+    bool, for ``MaskablePPO``.
 
     ## Observation Space
     ``Box(float32, (3 * 2 * n_pan_sectors + 4,))``: per (sensor, sector), in action order:
