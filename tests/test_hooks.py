@@ -66,10 +66,12 @@ def test_an_env_missing_a_hook_cannot_be_instantiated(missing):
         incomplete()
 
 
-def test_a_parallel_env_missing_a_hook_cannot_be_instantiated():
-    env_class = cooperative_localization_v0.CooperativeLocalizationEnv
-    incomplete = type("IncompleteTeam", (InfoNavParallelEnv,), {"__init__": env_class.__init__})
-    with pytest.raises(TypeError, match="abstract .*_apply_actions"):
+@pytest.mark.parametrize("missing", sorted(REQUIRED_PARALLEL_HOOKS))
+def test_a_parallel_env_missing_a_hook_cannot_be_instantiated(missing):
+    team = cooperative_localization_v0.CooperativeLocalizationEnv
+    hooks = {name: getattr(team, name) for name in REQUIRED_PARALLEL_HOOKS - {missing}}
+    incomplete = type("IncompleteTeam", (InfoNavParallelEnv,), {**hooks, "__init__": team.__init__})
+    with pytest.raises(TypeError, match=f"abstract .*{missing}"):
         incomplete()
 
 
