@@ -4,14 +4,40 @@ from __future__ import annotations
 
 import numpy as np
 
-PLANNING_METHODS = ("belief", "plan_decision", "plan_step")
+PLANNING_METHODS = ("belief", "plan_decision", "plan_step", "position_std")
+PLANNING_ATTRIBUTES = ("n_primitives", "max_position_std_m")
+
+
+def planning_model(env):
+    """The planning model of ``env`` (wrapped or not), from its ``planning_model()`` method.
+
+    Raises:
+        ValueError: if the env has no ``planning_model()``, or its model lacks one of
+            ``PLANNING_METHODS`` or ``PLANNING_ATTRIBUTES``.
+    """
+    needed = ", ".join(PLANNING_METHODS + PLANNING_ATTRIBUTES)
+    try:
+        model = env.get_wrapper_attr("planning_model")()
+    except AttributeError:
+        raise ValueError(
+            f"PlannerAgent needs an env with a planning_model() method (a model with {needed}), "
+            f"but {env} has none; use e.g. infonav/ActiveLocalization-v0"
+        ) from None
+    missing = [name for name in PLANNING_METHODS if not callable(getattr(model, name, None))]
+    missing += [name for name in PLANNING_ATTRIBUTES if not hasattr(model, name)]
+    if missing:
+        raise ValueError(
+            f"PlannerAgent needs a planning model with {needed}, but that of {env} lacks {', '.join(missing)}"
+        )
+    return model
 
 
 class PlannerAgent:
     """Searches action sequences ``depth`` steps ahead, scores them by expected return, executes the first action.
 
-    Uses the env's planning model (``belief()``, ``plan_decision(belief)``,
-    ``plan_step(belief, actions)``, as ``ActiveLocalizationEnv`` provides): the EKF
+    Uses the model that the env's ``planning_model()`` returns (``belief()``,
+    ``plan_decision(belief)``, ``plan_step(belief, actions)``, ``position_std``,
+    ``n_primitives``, ``max_position_std_m``, as ``ActiveLocalizationEnv`` provides): the EKF
     covariance propagates without measurement values (under the linearization the
     posterior covariance does not depend on them), so a sequence's expected reward
     (MI minus costs, progress, goal bonus, failure penalty) is computed without
@@ -30,7 +56,7 @@ class PlannerAgent:
     ``act``, so ``act`` must be called with that env's latest ``info``.
 
     Args:
-        env: the env (wrapped or not) to plan in; its ``unwrapped`` must have the planning model.
+        env: the env (wrapped or not) to plan in; it must have a ``planning_model()`` method.
         depth: number of steps searched exhaustively (>= 1). The default 1, followed by the
             rollouts, did best on ActiveLocalization-v0 (20 seeds: 85 % success against 70 % at
             depth 2) and is about 3.5 times faster.
@@ -52,13 +78,7 @@ class PlannerAgent:
         sensing_std_fraction: float = 0.5,
         discount: float = 1.0,
     ):
-        model = env.unwrapped
-        missing = [name for name in PLANNING_METHODS if not callable(getattr(model, name, None))]
-        if missing:
-            raise ValueError(
-                f"PlannerAgent needs an env with a planning model ({', '.join(PLANNING_METHODS)}), "
-                f"but {type(model).__name__} lacks {', '.join(missing)}; use e.g. infonav/ActiveLocalization-v0"
-            )
+        model = planning_model(env)
         if depth < 1 or observation_branching < 0 or rollout_steps < 0:
             raise ValueError(
                 "PlannerAgent needs depth >= 1, observation_branching >= 0 and rollout_steps >= 0, got "
@@ -71,7 +91,7 @@ class PlannerAgent:
             )
         self.model = model
         self.n_actions = int(env.action_space.n)
-        self.n_primitives = int(getattr(model, "n_primitives", 5))
+        self.n_primitives = int(model.n_primitives)
         self.depth = int(depth)
         self.observation_branching = int(observation_branching)
         self.rollout_steps = int(rollout_steps)
@@ -128,7 +148,7 @@ class PlannerAgent:
         batch = beliefs.take(np.tile(np.arange(B), len(policies)))
         detour_primitive = np.repeat([p for p, _ in policies], B)
         detour_length = np.repeat([k for _, k in policies], B)
-        threshold = self.sensing_std_fraction * self.model.config["max_position_std_m"]
+        threshold = self.sensing_std_fraction * self.model.max_position_std_m
         values = np.zeros(len(batch))
         for step in range(self.rollout_steps):
             primitives = np.where(step < detour_length, detour_primitive, 0)

@@ -142,7 +142,7 @@ def test_team_mutual_information_is_the_joint_states():
     env = cooperative_localization_v0.parallel_env()
     _, infos = env.reset(seed=8)
     prior = env.ekf.P.copy()
-    env._observe(np.array([greedy_actions(env, infos)[agent] for agent in env.agents]))
+    env._observe(np.array([greedy_actions(env, infos)[agent] for agent in env.agents]), env._decision.payload)
     expected = mutual_information(prior, env.ekf.P)
     env.reset(seed=8)
     _, _, _, _, infos = env.step(greedy_actions(env, infos))

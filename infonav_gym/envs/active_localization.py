@@ -13,11 +13,11 @@ from infonav_gym.envs.active_planning import (
     PRIMITIVE_OFFSETS_RAD,
     ActivePlanningModel,
 )
-from infonav_gym.envs.base import InfoNavEnv
+from infonav_gym.envs.base import Decision, InfoNavEnv
+from infonav_gym.envs.landmark_sight import LandmarkSight
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.active_scenarios import (
@@ -68,7 +68,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     landmark ``j`` is valid while it lies within range and field of view, no obstacle
     hides it, and budget is left; observing nothing is always valid. A masked action
     is a no-op (stand still, observe nothing) by default (``invalid_action="noop"``) or
-    raises ``ValueError`` with ``invalid_action="raise"``.
+    raises ``ValueError`` with ``invalid_action="raise"``. ``action_masks()`` gives the mask as bool,
+    for ``MaskablePPO``.
 
     ## Observation Space
     ``Box(float32, (14 + 4 * n_candidates + 4 * n_obstacles,))``: the 10 pose features
@@ -99,10 +100,10 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     Truncated after ``horizon`` steps.
 
     ## Planning model
-    ``belief()``, ``plan_decision(belief)`` and ``plan_step(belief, actions)`` expose the
-    env's own model for look-ahead agents (``agents.planner.PlannerAgent``): the EKF
-    covariance propagated under the linearization, with the motion predicted from the
-    estimated pose and visibility judged from it.
+    ``planning_model()`` returns the env's own model for look-ahead agents
+    (``agents.planner.PlannerAgent``), with ``belief()``, ``plan_decision(belief)`` and
+    ``plan_step(belief, actions)``: the EKF covariance propagated under the linearization, with
+    the motion predicted from the estimated pose and visibility judged from it.
 
     ## Arguments
     ``gym.make("infonav/ActiveLocalization-v0", render_mode=None, **config)`` with any
@@ -207,37 +208,40 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         self._true_path = [self._true_pose[:2]]
         self._estimated_path = [self.ekf.x[:2].copy()]
 
-    def _next_decision(self) -> tuple[np.ndarray, np.ndarray]:
-        landmarks, true_pose, P = self.world.landmarks, self._true_pose, self.ekf.P
-        self._visible = np.zeros(len(landmarks), dtype=bool)
-        candidates = np.flatnonzero(self.sensor.in_coverage(range_bearing(true_pose, landmarks)))
-        if candidates.size:
-            self._visible[candidates[self.world.line_of_sight(true_pose, landmarks[candidates])]] = True
-        self._predicted, self._H, _ = range_bearing_linearized(self.ekf.x, landmarks)
-        self._R = self.sensor.noise_covariance(self._predicted[:, 0])
+    def _next_decision(self) -> Decision:
+        """Every primitive with no observation or with a visible landmark while budget is left, gains at the prior.
+
+        The payload is the landmarks' ``LandmarkSight`` (its model linearized at the estimated pose).
+        """
+        predicted, H, _ = range_bearing_linearized(self.ekf.x, self.world.landmarks)
+        sight = LandmarkSight.at_prior(self.sensor, self.world, self._true_pose, self.ekf.P, predicted, H)
         mask = np.zeros((self.n_slots, N_PRIMITIVES), dtype=np.int8)
         gains = np.zeros((self.n_slots, N_PRIMITIVES))
         mask[0] = 1
-        observable = np.flatnonzero(self._visible) if self.observations_left > 0 else np.zeros(0, dtype=int)
+        observable = np.flatnonzero(sight.visible) if self.observations_left > 0 else np.zeros(0, dtype=int)
         mask[1 + observable] = 1
         if observable.size:
-            gains[1 + observable] = expected_information_gain(
-                P, self._H[observable], self._R[observable], check_input=False
-            )[:, None]
-        self._prior_log_det = log_det_spd(P, check_input=False)
-        self._pose_entropy = gaussian_entropy_from_log_det(self._prior_log_det, POSE_DIM)
-        return mask.ravel(), gains.ravel()
+            gains[1 + observable] = sight.information_gains(self.ekf.P, observable)[:, None]
+        return Decision(mask.ravel(), gains.ravel(), sight)
 
-    def _apply_action(self, action: int | None) -> dict:
+    @property
+    def _visible(self) -> np.ndarray:
+        """Which landmarks the sensor sees at the current decision (K,) bool."""
+        return self._decision.payload.visible
+
+    @property
+    def _pose_entropy(self) -> float:
+        """Entropy of the pose estimate at the current decision's prior [nats]."""
+        return self._decision.payload.pose_entropy
+
+    def _apply_action(self, action: int | None, decision: Decision) -> dict:
         """The whole transition: observe (at the prior), then drive; a no-op stands still observing nothing."""
         cfg = self.config
         terms = dict.fromkeys(REWARD_TERMS, 0.0)
         landmark, primitive = (None, None) if action is None else self.decode_action(action)
         if landmark is not None:
             measurement = self.sensor.measure(self._true_pose, self.world.landmarks[landmark], self._measurement_rng)
-            self.ekf.update_range_bearing(measurement, self._predicted[landmark], self._H[landmark], self._R[landmark])
-            posterior_log_det = log_det_spd(self.ekf.P, check_input=False)
-            terms["mutual_information"] = 0.5 * (self._prior_log_det - posterior_log_det)  # Eq. 3
+            terms["mutual_information"] = decision.payload.observe(self.ekf, landmark, measurement)
             terms["sensing_cost"] = -cfg["observation_cost_nats"]
             self.observations_left -= 1
         speed, turn_rate = (0.0, 0.0) if primitive is None else self._commands(self.ekf.x[None], [primitive])[0]
@@ -296,9 +300,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         features += [math.sqrt(var_heading), P[0, 1] / math.sqrt(var_x * var_y), self._pose_entropy]
         features += [self._elapsed_steps / self.config["horizon"], goal_range, math.cos(goal_bearing)]
         features += [math.sin(goal_bearing), self.observations_left / budget if budget else 0.0]
-        landmarks = np.column_stack(
-            [self._visible, self._predicted[:, 0], np.cos(self._predicted[:, 1]), np.sin(self._predicted[:, 1])]
-        )
+        predicted = self._decision.payload.predicted
+        landmarks = np.column_stack([self._visible, predicted[:, 0], np.cos(predicted[:, 1]), np.sin(predicted[:, 1])])
         obstacles = np.zeros((len(self._obstacle_radii), OBSTACLE_FEATURES))
         if len(obstacles):
             seen = range_bearing(self.ekf.x, self._obstacle_centers)

@@ -51,8 +51,24 @@ class Belief:
 
 
 class ActivePlanningModel:
-    """The planning methods of ``ActiveLocalizationEnv`` (a mixin: they read the env's config, world,
-    sensor, goal, odometry noise, obstacles, ``_commands`` and ``position_std``)."""
+    """The planning model of ``ActiveLocalizationEnv``, a mixin of it (it reads the env's config, world,
+    sensor, goal, odometry noise, obstacles, ``_commands`` and ``position_std``).
+
+    What a look-ahead agent uses: ``belief()``, ``plan_decision(belief)``, ``plan_step(belief, actions)``,
+    ``position_std(covariances)``, ``n_primitives`` and ``max_position_std_m``.
+    """
+
+    def planning_model(self) -> ActivePlanningModel:
+        """The env's planning model (the env itself, through the methods above), for ``PlannerAgent``.
+
+        Reachable through Gymnasium wrappers: ``env.get_wrapper_attr("planning_model")()``.
+        """
+        return self
+
+    @property
+    def max_position_std_m(self) -> float:
+        """The failure bound on the largest position standard deviation [m] (config ``max_position_std_m``)."""
+        return self.config["max_position_std_m"]
 
     def belief(self) -> Belief:
         """The estimator's state at the current decision as a batch of one (visibility: from the true pose)."""

@@ -1,18 +1,20 @@
-"""``InfoNavEnv``: the fixed reset/step cycle every single-agent infonav env shares.
+"""``InfoNavEnv``: the fixed reset/step cycle every single-agent infonav env shares, and the hooks it calls.
 
-Subclasses fill small hooks and never override ``reset`` or ``step``:
+Subclasses never override ``reset`` or ``step``; they implement the hooks declared
+(with their contracts) as abstract methods below: ``_reset_episode``, ``_next_decision``,
+``_apply_action``, ``_observation`` and ``_scene_frame``; ``_advance``, ``_extra_info``
+and ``_is_terminated`` have documented defaults. One step runs::
 
-- ``_reset_episode()``: build the world and the estimator from ``self.np_random``.
-- ``_apply_action(action)``: act on a valid action (or ``None`` for a no-op);
-  return the reward terms, a dict of floats summed into the reward.
-- ``_advance()``: move time forward by one step (world, odometry, prediction).
-- ``_next_decision()``: ``(action_mask, action_information_gain)`` for the next action.
-- ``_observation()``, ``_extra_info()``, ``_is_terminated()``, ``_scene_frame()``.
+    action -> validate (decision.action_mask) -> _apply_action(action, decision) -> _advance()
+    -> decision = _next_decision() -> _is_terminated(), _observation(), info (+ _extra_info())
 """
 
 from __future__ import annotations
 
+import abc
 import operator
+from dataclasses import dataclass
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -23,20 +25,89 @@ INVALID_ACTION_MODES = ("noop", "raise")
 MIN_RENDER_SIZE_PX = 64
 
 
-def discrete_action_index(action, space: gym.spaces.Discrete) -> int:
-    """The action as an int, or ``ValueError`` if it is not an element of the ``Discrete(n)`` space."""
-    value = action.reshape(()) if isinstance(action, np.ndarray) and action.size == 1 else action
-    if not isinstance(value, (bool, np.bool_)):
+@dataclass(frozen=True)
+class Decision:
+    """What an env offers at one decision, computed once at the prior by ``_next_decision``.
+
+    The arrays are made read-only: acting on a decision never changes it.
+
+    Attributes:
+        action_mask: int8, 1 = valid, per action (a team env: per agent and action).
+        action_information_gain: float64, expected mutual information of each action [nats], 0 where masked.
+        payload: what the env's ``_apply_action`` needs to act on this decision (e.g. the predicted
+            measurements, their Jacobians ``H`` and noise ``R``, the prior's log-determinant); env-specific.
+    """
+
+    action_mask: np.ndarray
+    action_information_gain: np.ndarray
+    payload: Any = None
+
+    def __post_init__(self):
+        self.action_mask.setflags(write=False)
+        self.action_information_gain.setflags(write=False)
+
+
+def discrete_action_index(action, space: gym.spaces.Discrete, agent: str | None = None) -> int:
+    """The action as an int, or ``ValueError`` if it is not one integer of the ``Discrete(n)`` space.
+
+    A Python or numpy integer and an integer array or list of one element (``[0]``, ``np.array([[0]])``)
+    are accepted alike; floats, bools, strings, several elements and values outside ``[0, n)`` are not.
+
+    Args:
+        action: what the agent passed to ``step``.
+        space: the action space.
+        agent: the agent whose action it is (team envs), named in the error.
+    """
+    value = action
+    if isinstance(value, (list, tuple)):
+        try:
+            value = np.asarray(value)
+        except ValueError:  # ragged nesting
+            value = None
+    if isinstance(value, np.ndarray):
+        value = value.reshape(()) if value.size == 1 and value.dtype.kind in "iu" else None
+    if value is not None and not isinstance(value, (bool, np.bool_)):
         try:
             index = operator.index(value)
         except TypeError:
             index = None
         if index is not None and 0 <= index < space.n:
             return index
-    raise ValueError(f"action {action!r} is not in the action space {space}: expected an integer in [0, {space.n - 1}]")
+    owner = "" if agent is None else f" of {agent}"
+    raise ValueError(
+        f"action {action!r}{owner} is not in the action space {space}: expected one integer in [0, {space.n - 1}] "
+        "(a Python or numpy integer, or an integer array of one element)"
+    )
 
 
-class SceneRendering:
+def accepts_action(action: int, mask: np.ndarray, invalid_action: str, mask_key: str, agent: str | None = None) -> bool:
+    """Whether ``action`` is valid per ``mask``; ``False`` means it becomes the env's no-op.
+
+    When no action is valid, every action is the same no-op and is accepted even with
+    ``invalid_action="raise"`` (there is nothing valid to choose instead).
+
+    Args:
+        action: an index of the action space.
+        mask: the current action mask (int8, 1 = valid).
+        invalid_action: the env's ``invalid_action`` config value, ``"noop"`` or ``"raise"``.
+        mask_key: where the agent reads ``mask`` (e.g. ``info["action_mask"]``), named in the error.
+        agent: the agent whose action it is (team envs), named in the error.
+
+    Raises:
+        ValueError: for a masked action with ``invalid_action="raise"`` while some action is valid.
+    """
+    if mask[action]:
+        return True
+    if invalid_action == "raise" and mask.any():
+        owner = "" if agent is None else f" of {agent}"
+        raise ValueError(
+            f"action {action}{owner} is not valid now (action_mask {mask.tolist()}); "
+            f'pick an action whose {mask_key} entry is 1, or set invalid_action="noop"'
+        )
+    return False
+
+
+class SceneRendering(abc.ABC):
     """Config and render mode checks, ``render``, ``close`` and pickling, shared by every infonav env.
 
     Used by the single-agent envs and the PettingZoo team env. The host has
@@ -84,6 +155,14 @@ class SceneRendering:
             self._renderer.close()
             self._renderer = None
 
+    @abc.abstractmethod
+    def _scene_frame(self):
+        """Hook: the ``infonav_gym.rendering.SceneFrame`` describing the current state, for ``render()``.
+
+        Called after ``reset`` or ``step`` has finished (the current decision is set); must not change the
+        env. Import ``infonav_gym.rendering`` inside it: rendering needs the ``render`` extra.
+        """
+
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_renderer"] = None
@@ -110,38 +189,39 @@ class InfoNavEnv(SceneRendering, gym.Env):
             raise ValueError(
                 f"config key 'horizon' of {type(self).__name__} must be >= 1, got {self.config['horizon']}"
             )
-        self._action_mask = None
-        self._action_information_gain = None
+        self._decision = None
         self._chosen_action = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode: seed ``np_random``, ``_reset_episode()``, then the first decision. Do not override."""
         super().reset(seed=seed)
         if options:
             raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
         self._elapsed_steps = 0
         self._chosen_action = None
         self._reset_episode()
-        self._action_mask, self._action_information_gain = self._next_decision()
+        self._decision = self._next_decision()
         observation, info = self._observation(), self._info({}, invalid=False)
         if self.render_mode == "human":
             self.render()
         return observation, info
 
     def step(self, action):
+        """Validate ``action``, act on the current decision, advance time, decide again. Do not override.
+
+        Raises:
+            ValueError: for an action outside the action space, or a masked one with ``invalid_action="raise"``.
+        """
         if self._elapsed_steps is None:
             raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
         action = discrete_action_index(action, self.action_space)
-        valid = bool(self._action_mask[action])
-        if not valid and self.config["invalid_action"] == "raise":
-            raise ValueError(
-                f"action {action} is not valid now (action_mask {self._action_mask.tolist()}); "
-                'pick an action whose info["action_mask"] entry is 1, or set invalid_action="noop"'
-            )
+        decision = self._decision
+        valid = accepts_action(action, decision.action_mask, self.config["invalid_action"], 'info["action_mask"]')
         self._chosen_action = action if valid else None
-        reward_terms = self._apply_action(self._chosen_action)
+        reward_terms = self._apply_action(self._chosen_action, decision)
         self._elapsed_steps += 1
         self._advance()
-        self._action_mask, self._action_information_gain = self._next_decision()
+        self._decision = self._next_decision()
         terminated = self._is_terminated()
         truncated = not terminated and self._elapsed_steps >= self.config["horizon"]
         info = self._info(reward_terms, invalid=not valid)
@@ -149,18 +229,82 @@ class InfoNavEnv(SceneRendering, gym.Env):
             self.render()
         return self._observation(), float(sum(reward_terms.values())), terminated, truncated, info
 
+    def action_masks(self) -> np.ndarray:
+        """The valid actions now, as bool (n,): what sb3-contrib's ``MaskablePPO`` asks for.
+
+        ``info["action_mask"]`` of the last ``reset`` or ``step``, except when no action is valid: then
+        every action is ``True``, since each is the same no-op (``MaskablePPO`` cannot sample from an
+        all-false mask, and ``step`` accepts any action then, even with ``invalid_action="raise"``).
+        Found through Gymnasium wrappers with ``env.get_wrapper_attr("action_masks")()``.
+        """
+        if self._decision is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
+        mask = self._decision.action_mask.astype(bool)
+        return mask if mask.any() else np.ones_like(mask)
+
+    @property
+    def _action_mask(self) -> np.ndarray:
+        """The current decision's action mask (int8, read-only)."""
+        return self._decision.action_mask
+
     def _info(self, reward_terms: dict, invalid: bool) -> dict:
         return {
-            "action_mask": self._action_mask.copy(),
-            "action_information_gain": self._action_information_gain.copy(),
+            "action_mask": self._decision.action_mask.copy(),
+            "action_information_gain": self._decision.action_information_gain.copy(),
             "reward_terms": dict(reward_terms),
             "chosen_action": -1 if self._chosen_action is None else self._chosen_action,
             "invalid_action": invalid,
             **self._extra_info(),
         }
 
+    # ------------------------------------------------------------------ the hooks
+
+    @abc.abstractmethod
+    def _reset_episode(self) -> None:
+        """Hook: start a new episode (world, sensors' generators, estimator), drawing only from ``self.np_random``.
+
+        Called by ``reset`` after seeding, with ``_elapsed_steps == 0``; ``_next_decision`` follows.
+        """
+
+    @abc.abstractmethod
+    def _next_decision(self) -> Decision:
+        """Hook: the ``Decision`` for the next action, at the current state (after ``_reset_episode`` or ``_advance``).
+
+        Must not change the env's state: what acting needs goes into ``Decision.payload``, which the
+        base hands to ``_apply_action``. Invalid actions must have gain 0.
+        """
+
+    @abc.abstractmethod
+    def _apply_action(self, action: int | None, decision: Decision) -> dict:
+        """Hook: act on ``decision`` with a valid ``action``, or do the env's no-op when ``action`` is ``None``.
+
+        Called by ``step`` with the decision the agent saw; may change the env's state (world,
+        estimator, budgets). ``_elapsed_steps`` still counts the steps before this one.
+
+        Returns:
+            The reward terms, a dict of floats whose sum is the reward (``info["reward_terms"]``).
+        """
+
+    def _advance(self) -> None:
+        """Hook: move time on by one step after ``_apply_action`` (``_elapsed_steps`` already counts it).
+
+        Default: nothing (an env whose ``_apply_action`` does the whole transition).
+        """
+
+    @abc.abstractmethod
+    def _observation(self) -> np.ndarray:
+        """Hook: the observation of the current state, an element of ``observation_space`` (a fresh array).
+
+        Called after the current decision is set (``self._decision``); must not change the env.
+        """
+
     def _extra_info(self) -> dict:
+        """Hook: env-specific ``info`` entries beside the common keys, read after the current decision is set.
+
+        Default: none.
+        """
         return {}
 
     def _is_terminated(self) -> bool:
+        """Hook: whether the episode has ended in a terminal state, after the step's decision. Default: never."""
         return False

@@ -8,11 +8,11 @@ import numpy as np
 from gymnasium import spaces
 
 from infonav_gym.config import check_choice, check_positive
-from infonav_gym.envs.base import InfoNavEnv
+from infonav_gym.envs.base import Decision, InfoNavEnv
+from infonav_gym.envs.landmark_sight import LandmarkSight
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
-from infonav_gym.estimation.models import range_bearing
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
+from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, SCENARIOS
@@ -46,7 +46,8 @@ class LandmarkSelectionEnv(InfoNavEnv):
     (``info["action_mask"]``). A masked action is a no-op with reward 0 by
     default (``invalid_action="noop"``; RL algorithms and env checkers sample
     actions blindly) or raises ``ValueError`` with ``invalid_action="raise"``.
-    An integer outside the space always raises ``ValueError``.
+    An integer outside the space always raises ``ValueError``. ``action_masks()`` gives the mask as
+    bool, for ``MaskablePPO`` (all ``True`` when no landmark is visible: every action is then the no-op).
 
     ## Observation Space
     ``Box(float32, (10 + 5 * n_candidates,))``: estimated ``x, y`` [m], ``cos, sin``
@@ -152,35 +153,31 @@ class LandmarkSelectionEnv(InfoNavEnv):
         self._true_path = [self._true_pose[:2]]
         self._estimated_path = [self.ekf.x[:2].copy()]
 
-    def _next_decision(self) -> tuple[np.ndarray, np.ndarray]:
-        landmarks, true_pose, P = self.world.landmarks, self._true_pose, self.ekf.P
-        candidates = np.flatnonzero(self.sensor.in_coverage(range_bearing(true_pose, landmarks)))
-        if candidates.size:
-            candidates = candidates[self.world.line_of_sight(true_pose, landmarks[candidates])]
-        self._predicted, self._H = self.ekf.landmark_measurement_model(None if self.config["mapping"] else landmarks)
-        self._R = self.sensor.noise_covariance(self._predicted[:, 0])
+    def _next_decision(self) -> Decision:
+        """Visible landmarks and their expected MI at the prior; the payload is their ``LandmarkSight``."""
+        landmarks = None if self.config["mapping"] else self.world.landmarks
+        sight = LandmarkSight.at_prior(
+            self.sensor, self.world, self._true_pose, self.ekf.P, *self.ekf.landmark_measurement_model(landmarks)
+        )
+        candidates = np.flatnonzero(sight.visible)
         mask = np.zeros(self.action_space.n, dtype=np.int8)
         gains = np.zeros(self.action_space.n)
         mask[candidates] = 1
         if candidates.size:
-            gains[candidates] = expected_information_gain(
-                P, self._H[candidates], self._R[candidates], check_input=False
-            )
-        self._prior_log_det = log_det_spd(P, check_input=False)
-        pose_log_det = self._prior_log_det
-        if self.config["mapping"]:
-            pose_log_det = log_det_spd(P[:POSE_DIM, :POSE_DIM], check_input=False)
-        self._pose_entropy = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
-        return mask, gains
+            gains[candidates] = sight.information_gains(self.ekf.P, candidates)
+        return Decision(mask, gains, sight)
 
-    def _apply_action(self, action: int | None) -> dict:
+    def _apply_action(self, action: int | None, decision: Decision) -> dict:
+        """Observe landmark ``action`` and update the EKF at the decision's prior; a no-op observes nothing."""
         if action is None:
             return {"mutual_information": 0.0}
-        predicted = self._predicted[action]
         measurement = self.sensor.measure(self._true_pose, self.world.landmarks[action], self._measurement_rng)
-        self.ekf.update_range_bearing(measurement, predicted, self._H[action], self._R[action])
-        posterior_log_det = log_det_spd(self.ekf.P, check_input=False)
-        return {"mutual_information": 0.5 * (self._prior_log_det - posterior_log_det)}  # Eq. 3
+        return {"mutual_information": decision.payload.observe(self.ekf, action, measurement)}
+
+    @property
+    def _pose_entropy(self) -> float:
+        """Entropy of the pose estimate at the current decision's prior [nats]."""
+        return self._decision.payload.pose_entropy
 
     def _advance(self) -> None:
         dt = self.config["time_step_s"]
@@ -198,12 +195,13 @@ class LandmarkSelectionEnv(InfoNavEnv):
         pose += [P[0, 1] / math.sqrt(var_x * var_y), self._pose_entropy, self._elapsed_steps / self.config["horizon"]]
         observation = np.zeros(self.observation_space.shape, dtype=np.float32)
         observation[:POSE_FEATURES] = pose
-        n_landmarks = len(self._predicted)
+        predicted = self._decision.payload.predicted
+        n_landmarks = len(predicted)
         candidates = observation[POSE_FEATURES:].reshape(-1, CANDIDATE_FEATURES)[:n_landmarks]
-        candidates[:, 0] = self._action_mask[:n_landmarks]
-        candidates[:, 1] = self._predicted[:, 0]
-        candidates[:, 2] = np.cos(self._predicted[:, 1])
-        candidates[:, 3] = np.sin(self._predicted[:, 1])
+        candidates[:, 0] = self._decision.action_mask[:n_landmarks]
+        candidates[:, 1] = predicted[:, 0]
+        candidates[:, 2] = np.cos(predicted[:, 1])
+        candidates[:, 3] = np.sin(predicted[:, 1])
         if self.config["mapping"]:
             candidates[:, 4] = np.sqrt(np.diagonal(P)[POSE_DIM:].reshape(-1, 2).mean(axis=1))
         return np.clip(observation, self.observation_space.low, self.observation_space.high, out=observation)
@@ -213,7 +211,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
         x, y, heading = self.ekf.x[:POSE_DIM].tolist()
         return {
             "pose_entropy": self._pose_entropy,
-            "state_entropy": gaussian_entropy_from_log_det(self._prior_log_det, self.ekf.dim_x),
+            "state_entropy": gaussian_entropy_from_log_det(self._decision.payload.prior_log_det, self.ekf.dim_x),
             "position_error_m": math.hypot(true_x - x, true_y - y),
             "heading_error_rad": abs(wrap_angle(true_heading - heading)),
             "true_pose": self._true_pose.copy(),

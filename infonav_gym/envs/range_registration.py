@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from infonav_gym.config import check_choice, check_positive
-from infonav_gym.envs.base import InfoNavEnv
+from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import frame_pair, registration_error, scan_on_terrain
 from infonav_gym.registration.icp import METHODS, icp
@@ -48,7 +48,8 @@ class RangeRegistrationEnv(InfoNavEnv):
     ``Discrete(patch_rows * patch_columns)``: the patch (row-major over the image) to add.
     Valid while it has returns and was not chosen for this pair (``info["action_mask"]``).
     A masked action is a no-op with reward 0 (``invalid_action="noop"``) or raises
-    ``ValueError`` (``invalid_action="raise"``).
+    ``ValueError`` (``invalid_action="raise"``). ``action_masks()`` gives the mask as bool, for
+    ``MaskablePPO`` (all ``True`` when no patch can be picked: every action is then the no-op).
 
     ## Observation Space
     ``Box(float32, (5 * patches + 2,))``: per patch: valid, chosen, fraction of its pixels
@@ -174,16 +175,16 @@ class RangeRegistrationEnv(InfoNavEnv):
         whitened = self._prior_root.T @ information @ self._prior_root
         return 0.5 * float(np.linalg.slogdet(np.eye(6) + whitened)[1])
 
-    def _next_decision(self) -> tuple[np.ndarray, np.ndarray]:
+    def _next_decision(self) -> Decision:
         mask = ((self._return_fraction > 0) & ~self._chosen).astype(np.int8)
         chosen_information = self._patch_information[self._chosen].sum(axis=0)
         base = self._mutual_information(chosen_information)
         gains = np.zeros(self.n_patches)
         for patch in np.flatnonzero(mask):
             gains[patch] = self._mutual_information(chosen_information + self._patch_information[patch]) - base
-        return mask, gains
+        return Decision(mask, gains)
 
-    def _apply_action(self, action: int | None) -> dict:
+    def _apply_action(self, action: int | None, decision: Decision) -> dict:
         self._registered_now = False
         if action is None:
             return {"error_reduction_m": 0.0, "point_cost": 0.0}

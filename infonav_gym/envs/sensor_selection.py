@@ -8,7 +8,7 @@ import numpy as np
 from gymnasium import spaces
 
 from infonav_gym.config import check_choice, check_open_interval, check_positive
-from infonav_gym.envs.base import InfoNavEnv
+from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.information import histogram_entropy
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
@@ -60,7 +60,8 @@ class SensorSelectionEnv(InfoNavEnv):
     spread evenly over ``pan_span_rad`` from left (``p = 0``) to right. An acquisition is
     valid when the bandwidth credit covers the frame (``info["action_mask"]``); waiting
     always is. A masked action is a no-op with reward 0 by default (``invalid_action="noop"``)
-    or raises ``ValueError`` with ``invalid_action="raise"``.
+    or raises ``ValueError`` with ``invalid_action="raise"``. ``action_masks()`` gives the mask as
+    bool, for ``MaskablePPO``.
 
     ## Observation Space
     ``Box(float32, (3 * 2 * n_pan_sectors + 4,))``: per (sensor, sector), in action order:
@@ -177,15 +178,15 @@ class SensorSelectionEnv(InfoNavEnv):
             return to_display_image(self.ladar.scan(self.terrain, self._true_pose, self._sensor_rng, pan_rad=pan_rad))
         return self.camera.capture(self.terrain, self._true_pose, self._sensor_rng, pan_rad=pan_rad)
 
-    def _next_decision(self) -> tuple[np.ndarray, np.ndarray]:
+    def _next_decision(self) -> Decision:
         affordable = self._option_costs <= self._credit_bytes
         mask = np.concatenate([[1], affordable]).astype(np.int8)
         known = self._last_acquired_step >= 0
         estimate = np.where(known, self._last_information, MAX_IMAGE_ENTROPY)
         gains = np.concatenate([[0.0], np.where(affordable, estimate, 0.0)])
-        return mask, gains
+        return Decision(mask, gains)
 
-    def _apply_action(self, action: int | None) -> dict:
+    def _apply_action(self, action: int | None, decision: Decision) -> dict:
         self._last_image = self._last_entropy = None
         if action is None or action == IDLE_ACTION:
             return {"image_information": 0.0}

@@ -3,18 +3,18 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from gymnasium import spaces
-from gymnasium.utils import seeding
-from pettingzoo import ParallelEnv
 
 from infonav_gym.config import check_choice, check_positive
-from infonav_gym.envs.base import SceneRendering, discrete_action_index
+from infonav_gym.envs.base import Decision
 from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
 from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
+from infonav_gym.multi.base import InfoNavParallelEnv
 from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor
@@ -30,7 +30,29 @@ NO_OBSERVATION = 0
 _BIG = 1e4
 
 
-class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
+@dataclass(frozen=True)
+class RelativeSight:
+    """The relative-pose observations possible at a decision, and what their stacked update needs.
+
+    Attributes:
+        geometry: true range, bearing and relative heading of every (observer, target) pair (P, 3).
+        valid_pairs: the pairs observable now (V,), indices into the env's pair arrays.
+        candidate_row: for each robot and action, its row among the valid pairs, -1 where masked (N, N + 1).
+        candidates: ``(predicted (V, 3), H_observer (V, 3, 3), H_target (V, 3, 3), R (V, 3, 3))`` at
+            the prior, ``None`` when no pair is observable.
+        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (N,).
+        pose_std: each robot's x, y, heading standard deviations at the prior (N, 3).
+    """
+
+    geometry: np.ndarray
+    valid_pairs: np.ndarray
+    candidate_row: np.ndarray
+    candidates: tuple | None
+    pose_log_det: np.ndarray
+    pose_std: np.ndarray
+
+
+class CooperativeLocalizationEnv(InfoNavParallelEnv):
     """Robots without (or losing) DGPS localize through relative-pose observations of teammates.
 
     ## Description
@@ -107,6 +129,7 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         "render_fps": 10,
         "is_parallelizable": True,
     }
+    noop_action = NO_OBSERVATION
 
     @classmethod
     def default_config(cls) -> dict:
@@ -185,12 +208,9 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
     def action_space(self, agent: str) -> spaces.Discrete:
         return self._action_spaces[agent]
 
-    # ------------------------------------------------------------------ reset / step
+    # ------------------------------------------------------------------ the episode
 
-    def reset(self, seed: int | None = None, options: dict | None = None):
-        """Start an episode; ``seed`` re-seeds ``np_random`` (else it continues); ``options`` are unused."""
-        if seed is not None or self.np_random is None:
-            self.np_random, _ = seeding.np_random(seed)
+    def _reset_episode(self) -> None:
         cfg = self.config
         self.world.reset(self._build_scenario())
         self._odometry_rng, self._gps_rng, self._relative_rng = self.np_random.spawn(3)
@@ -200,21 +220,13 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         initial = self._true_poses + pose_std * self.np_random.standard_normal((n, POSE_DIM))
         covariances = np.repeat(np.diag(pose_std**2)[None], n, axis=0)
         self.ekf = JointEKF(initial, covariances, cross_covariances=cfg["estimator"] == "joint")
-        self.agents = list(self.possible_agents)
-        self._elapsed_steps = 0
         self._time_s = 0.0
         self._gps_fixes()
         self._observed_pairs = []
-        self._chosen = np.zeros(n, dtype=int)
-        self._invalid = np.zeros(n, dtype=bool)
         self._reward_terms = [{"own_mutual_information": 0.0, "team_mutual_information": 0.0}] * n
         self._updated_pose_std = None
         self._true_paths = [[pose[:2]] for pose in self._true_poses]
         self._estimated_paths = [[pose[:2]] for pose in self.ekf.poses]
-        self._decide()
-        if self.render_mode == "human":
-            self.render()
-        return self._observations(), self._infos()
 
     def _build_scenario(self):
         cfg = self.config
@@ -229,68 +241,31 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
             speed_mps=cfg["speed_mps"],
         )
 
-    def step(self, actions: dict):
-        if not self.agents:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before step() (and after the episode ends)")
-        chosen, invalid = self._validated_actions(actions)
-        self._chosen, self._invalid = chosen, invalid
-        own_before = self._pose_log_det
+    def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
+        """Fuse the chosen observations; each robot's reward mixes its own and the team's MI by ``team_reward``."""
+        sight = decision.payload
         joint_before = np.linalg.slogdet(self.ekf.P)[1]
-        self._observe(chosen)
+        self._observe(actions, sight)
         own_log_dets, self._updated_pose_std = self._pose_uncertainty()
-        own_mi = 0.5 * (own_before - own_log_dets)
+        own_mi = 0.5 * (sight.pose_log_det - own_log_dets)
         team_mi = 0.5 * (joint_before - np.linalg.slogdet(self.ekf.P)[1])
         weight = self.config["team_reward"]
         self._reward_terms = [
             {"own_mutual_information": float(own), "team_mutual_information": float(team_mi)} for own in own_mi
         ]
-        rewards = {
-            agent: float((1.0 - weight) * own + weight * team_mi) for agent, own in zip(self.possible_agents, own_mi)
-        }
-        self._advance()
-        self._decide()
-        observations, infos = self._observations(), self._infos()
-        truncated = self._elapsed_steps >= self.max_cycles
-        terminations = dict.fromkeys(self.agents, False)
-        truncations = dict.fromkeys(self.agents, truncated)
-        if truncated:
-            self.agents = []
-        if self.render_mode == "human":
-            self.render()
-        return observations, rewards, terminations, truncations, infos
+        return (1.0 - weight) * own_mi + weight * team_mi
 
-    def _validated_actions(self, actions: dict) -> tuple[np.ndarray, np.ndarray]:
-        """Every live agent's action as an index (masked ones become no-ops), checked before anything changes."""
-        if not isinstance(actions, dict) or set(actions) != set(self.agents):
-            given = sorted(actions) if isinstance(actions, dict) else actions
-            raise ValueError(f"actions must be a dict with one action per live agent {self.agents}, got {given!r}")
-        chosen = np.zeros(len(self.possible_agents), dtype=int)
-        invalid = np.zeros(len(self.possible_agents), dtype=bool)
-        for robot, agent in enumerate(self.possible_agents):
-            action = discrete_action_index(actions[agent], self._action_spaces[agent])
-            if self._action_mask[robot, action]:
-                chosen[robot] = action
-                continue
-            if self.config["invalid_action"] == "raise":
-                raise ValueError(
-                    f"action {action} of {agent} is not valid now (action_mask "
-                    f"{self._action_mask[robot].tolist()}); pick an action whose infos[{agent!r}]['action_mask'] "
-                    'entry is 1, or set invalid_action="noop"'
-                )
-            invalid[robot] = True
-        return chosen, invalid
-
-    def _observe(self, chosen: np.ndarray) -> None:
+    def _observe(self, chosen: np.ndarray, sight: RelativeSight) -> None:
         """Apply the chosen relative-pose observations, taken at the same time, as one stacked update."""
         observers = np.flatnonzero(chosen != NO_OBSERVATION)
         targets = chosen[observers] - 1
         self._observed_pairs = list(zip(observers.tolist(), targets.tolist()))
         if observers.size == 0:
             return
-        rows = self._candidate_row[observers, chosen[observers]]
-        predicted, H_observer, H_target, R = (part[rows] for part in self._candidates)
-        pairs = self._valid_pairs[rows]
-        measurements = noisy_relative_poses(self._geometry[pairs], self._pair_noise[pairs], self._relative_rng)
+        rows = sight.candidate_row[observers, chosen[observers]]
+        predicted, H_observer, H_target, R = (part[rows] for part in sight.candidates)
+        pairs = sight.valid_pairs[rows]
+        measurements = noisy_relative_poses(sight.geometry[pairs], self._pair_noise[pairs], self._relative_rng)
         self.ekf.relative_pose_update(observers, targets, measurements, predicted, H_observer, H_target, R)
 
     def _advance(self) -> None:
@@ -299,7 +274,6 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         controls = self.world.step(dt)
         self._true_poses = self.world.poses
         self.ekf.predict(self.odometry.measure(controls, self._odometry_rng), dt, self._odometry_covariances)
-        self._elapsed_steps += 1
         self._time_s = self._elapsed_steps * dt
         self._gps_fixes()
         for robot, (true_pose, estimate) in enumerate(zip(self._true_poses, self.ekf.x.reshape(-1, POSE_DIM))):
@@ -322,51 +296,54 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         covariances = self.ekf.pose_covariances()
         return np.linalg.slogdet(covariances)[1], np.sqrt(np.diagonal(covariances, axis1=1, axis2=2))
 
-    def _decide(self) -> None:
+    def _next_decision(self) -> Decision:
         """Action masks (who can see whom) and expected gains on the observer's own pose, at the current prior."""
         n = len(self.possible_agents)
         truth = self._true_poses
-        self._geometry = relative_pose(truth[self._observers], truth[self._targets])
+        geometry = relative_pose(truth[self._observers], truth[self._targets])
         covered = np.flatnonzero(
-            (self._geometry[:, 0] <= self._pair_max_range) & (np.abs(self._geometry[:, 1]) <= self._pair_half_fov)
+            (geometry[:, 0] <= self._pair_max_range) & (np.abs(geometry[:, 1]) <= self._pair_half_fov)
         )
         lines = sorted(set(self._pair_sight_line[covered].tolist()))
         clear = dict(zip(lines, self.world.robots_in_sight([self._sight_lines[line] for line in lines])))
-        valid = self._valid_pairs = covered[[clear[line] for line in self._pair_sight_line[covered].tolist()]]
+        valid = covered[[clear[line] for line in self._pair_sight_line[covered].tolist()]]
         observers, targets = self._observers[valid], self._targets[valid]
-        self._action_mask = np.zeros((n, n + 1), dtype=np.int8)
-        self._action_mask[:, NO_OBSERVATION] = 1
-        self._action_mask[observers, targets + 1] = 1
-        self._action_information_gain = np.zeros((n, n + 1))
-        self._candidate_row = np.full((n, n + 1), -1)
-        self._candidate_row[observers, targets + 1] = np.arange(valid.size)
+        mask = np.zeros((n, n + 1), dtype=np.int8)
+        mask[:, NO_OBSERVATION] = 1
+        mask[observers, targets + 1] = 1
+        gains = np.zeros((n, n + 1))
+        candidate_row = np.full((n, n + 1), -1)
+        candidate_row[observers, targets + 1] = np.arange(valid.size)
+        candidates = None
         if valid.size:
             predicted, H_observer, H_target = self.ekf.relative_pose_model(observers, targets)
             R = noise_covariances(self._pair_noise[valid], predicted[:, 0])
             own, joint = self.ekf.relative_pose_information_gains(observers, targets, H_observer, H_target, R)
             weight = self.config["team_reward"]
-            self._action_information_gain[observers, targets + 1] = (1.0 - weight) * own + weight * joint
-            self._candidates = (predicted, H_observer, H_target, R)
-        self._pose_log_det, self._pose_std = self._pose_uncertainty()
+            gains[observers, targets + 1] = (1.0 - weight) * own + weight * joint
+            candidates = (predicted, H_observer, H_target, R)
+        pose_log_det, pose_std = self._pose_uncertainty()
+        return Decision(mask, gains, RelativeSight(geometry, valid, candidate_row, candidates, pose_log_det, pose_std))
 
     # ------------------------------------------------------------------ observations, infos
 
     def _observations(self) -> dict:
         n = len(self.possible_agents)
         estimates = self.ekf.x.reshape(-1, POSE_DIM)
-        std = self._pose_std
+        sight = self._decision.payload
+        std = sight.pose_std
         features = np.zeros((n, OWN_FEATURES + TEAMMATE_FEATURES * n), dtype=np.float32)
         features[:, 0:2] = estimates[:, :2]
         features[:, 2] = np.cos(estimates[:, 2])
         features[:, 3] = np.sin(estimates[:, 2])
         features[:, 4:7] = std
-        features[:, 7] = gaussian_entropy_from_log_det(self._pose_log_det, POSE_DIM)
+        features[:, 7] = gaussian_entropy_from_log_det(sight.pose_log_det, POSE_DIM)
         features[:, 8] = self._gps_available
         features[:, 9] = self._elapsed_steps / self.max_cycles
         teammates = features[:, OWN_FEATURES:].reshape(n, n, TEAMMATE_FEATURES)
         offsets = estimates[None, :, :2] - estimates[:, None, :2]
         bearings = np.arctan2(offsets[..., 1], offsets[..., 0]) - estimates[:, None, 2]
-        teammates[..., 0] = self._action_mask[:, 1:]
+        teammates[..., 0] = self._decision.action_mask[:, 1:]
         teammates[..., 1] = np.hypot(offsets[..., 0], offsets[..., 1])
         teammates[..., 2] = np.cos(bearings)
         teammates[..., 3] = np.sin(bearings)
@@ -378,15 +355,16 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
 
     def _infos(self) -> dict:
         estimates = self.ekf.x.reshape(-1, POSE_DIM)
-        std = self._pose_std
+        decision = self._decision
+        std = decision.payload.pose_std
         updated_std = std if self._updated_pose_std is None else self._updated_pose_std
-        entropies = gaussian_entropy_from_log_det(self._pose_log_det, POSE_DIM)
+        entropies = gaussian_entropy_from_log_det(decision.payload.pose_log_det, POSE_DIM)
         infos = {}
         for robot, agent in enumerate(self.agents):
             true_pose, estimate = self._true_poses[robot], estimates[robot]
             infos[agent] = {
-                "action_mask": self._action_mask[robot].copy(),
-                "action_information_gain": self._action_information_gain[robot].copy(),
+                "action_mask": decision.action_mask[robot].copy(),
+                "action_information_gain": decision.action_information_gain[robot].copy(),
                 "reward_terms": dict(self._reward_terms[robot]),
                 "chosen_action": int(self._chosen[robot]),
                 "invalid_action": bool(self._invalid[robot]),

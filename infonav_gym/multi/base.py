@@ -1,0 +1,134 @@
+"""``InfoNavParallelEnv``: the fixed reset/step cycle of the PettingZoo infonav envs, and the hooks it calls.
+
+The parallel counterpart of ``infonav_gym.envs.base.InfoNavEnv``, with the same ``Decision``,
+action checks (``discrete_action_index``, ``accepts_action``) and rendering. Robot ``k`` is agent
+``possible_agents[k]``; every live agent acts every step, and all are truncated together after
+``max_cycles`` steps. Subclasses never override ``reset`` or ``step``; they implement the declared
+hooks ``_reset_episode``, ``_next_decision``, ``_apply_actions``, ``_advance``, ``_observations``,
+``_infos`` and ``_scene_frame``, and set ``possible_agents``, ``max_cycles``, ``noop_action`` and
+one ``Discrete`` space per agent (``action_space(agent)``) in ``__init__``. One step runs::
+
+    actions -> validate (decision.action_mask) -> _apply_actions(actions, decision) -> _advance()
+    -> decision = _next_decision() -> _observations(), _infos()
+"""
+
+from __future__ import annotations
+
+import abc
+
+import numpy as np
+from gymnasium.utils import seeding
+from pettingzoo import ParallelEnv
+
+from infonav_gym.envs.base import Decision, SceneRendering, accepts_action, discrete_action_index
+
+
+class InfoNavParallelEnv(SceneRendering, ParallelEnv):
+    """Base of the multi-robot envs: seeding, action validation, truncation at ``max_cycles``, rendering.
+
+    Attributes set by the base: ``agents`` (live agents), ``_elapsed_steps``, ``_decision`` (the current
+    ``Decision``, arrays per robot and action), ``_chosen`` (each robot's executed action, ``noop_action``
+    for a masked one) and ``_invalid`` (whether each robot's action was masked).
+    """
+
+    noop_action: int  # the action that does nothing, always valid; a masked action becomes it
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        """Start an episode; ``seed`` re-seeds ``np_random`` (else it continues); ``options`` are unused.
+
+        Do not override: fill ``_reset_episode``.
+        """
+        if seed is not None or self.np_random is None:
+            self.np_random, _ = seeding.np_random(seed)
+        n = len(self.possible_agents)
+        self.agents = list(self.possible_agents)
+        self._elapsed_steps = 0
+        self._chosen = np.full(n, self.noop_action)
+        self._invalid = np.zeros(n, dtype=bool)
+        self._reset_episode()
+        self._decision = self._next_decision()
+        observations, infos = self._observations(), self._infos()
+        if self.render_mode == "human":
+            self.render()
+        return observations, infos
+
+    def step(self, actions: dict):
+        """Check every agent's action, act on the current decision, advance time, decide again. Do not override.
+
+        Raises:
+            ValueError: for a dict that does not name every live agent once, an action outside its
+                agent's space, or a masked one with ``invalid_action="raise"``; the env is left unchanged.
+        """
+        if not self.agents:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before step() (and after the episode ends)")
+        decision = self._decision
+        self._chosen, self._invalid = self._validated_actions(actions, decision.action_mask)
+        rewards = self._apply_actions(self._chosen, decision)
+        self._elapsed_steps += 1
+        self._advance()
+        self._decision = self._next_decision()
+        observations, infos = self._observations(), self._infos()
+        truncated = self._elapsed_steps >= self.max_cycles
+        terminations = dict.fromkeys(self.agents, False)
+        truncations = dict.fromkeys(self.agents, truncated)
+        if truncated:
+            self.agents = []
+        if self.render_mode == "human":
+            self.render()
+        return observations, dict(zip(self.possible_agents, map(float, rewards))), terminations, truncations, infos
+
+    def _validated_actions(self, actions: dict, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every agent's action as an index (masked ones become ``noop_action``) and which were masked."""
+        if not isinstance(actions, dict) or set(actions) != set(self.agents):
+            given = sorted(actions) if isinstance(actions, dict) else actions
+            raise ValueError(f"actions must be a dict with one action per live agent {self.agents}, got {given!r}")
+        chosen = np.full(len(self.possible_agents), self.noop_action)
+        invalid = np.zeros(len(self.possible_agents), dtype=bool)
+        mode = self.config["invalid_action"]
+        for robot, agent in enumerate(self.possible_agents):
+            action = discrete_action_index(actions[agent], self.action_space(agent), agent)
+            if accepts_action(action, mask[robot], mode, f"infos[{agent!r}]['action_mask']", agent):
+                chosen[robot] = action
+            else:
+                invalid[robot] = True
+        return chosen, invalid
+
+    # ------------------------------------------------------------------ the hooks
+
+    @abc.abstractmethod
+    def _reset_episode(self) -> None:
+        """Hook: start a new episode (world, generators, estimator), drawing only from ``self.np_random``.
+
+        Called by ``reset`` after seeding, with every agent live and ``_elapsed_steps == 0``.
+        """
+
+    @abc.abstractmethod
+    def _next_decision(self) -> Decision:
+        """Hook: the ``Decision`` for the next actions, ``(N, n)`` arrays, one row per robot.
+
+        Called after ``_reset_episode`` or ``_advance``; must not change the env's state (what acting
+        needs goes into ``Decision.payload``).
+        """
+
+    @abc.abstractmethod
+    def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
+        """Hook: act on ``decision`` with every robot's action (N,) (valid ones; masked ones are ``noop_action``).
+
+        May change the env's state; ``_elapsed_steps`` still counts the steps before this one.
+
+        Returns:
+            Each robot's reward (N,).
+        """
+
+    @abc.abstractmethod
+    def _advance(self) -> None:
+        """Hook: move time on by one step after ``_apply_actions`` (``_elapsed_steps`` already counts it)."""
+
+    @abc.abstractmethod
+    def _observations(self) -> dict:
+        """Hook: ``{agent: observation}`` of the live agents, after the decision is set; must not change the env."""
+
+    @abc.abstractmethod
+    def _infos(self) -> dict:
+        """Hook: ``{agent: info}`` of the live agents, with the keys ``action_mask``,
+        ``action_information_gain``, ``reward_terms``, ``chosen_action`` and ``invalid_action``; read-only."""
