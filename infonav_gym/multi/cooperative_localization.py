@@ -11,6 +11,8 @@ from pettingzoo import ParallelEnv
 
 from infonav_gym.config import check_choice, check_positive
 from infonav_gym.envs.base import SceneRendering, discrete_action_index
+from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
+from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
 from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
@@ -100,6 +102,17 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
     ## Version History
     * v0: initial version.
     """
+
+    episode_metrics = TEAM_LOCALIZATION_METRICS
+    traits = EnvTraits(
+        idle_actions=frozenset({0}),  # observe no teammate
+        reward_terms=("own_mutual_information", "team_mutual_information"),
+        info_keys=frozenset(
+            {"gps_available", "pose_std", "pose_std_after_update", "pose_entropy", "position_error_m"}
+            | {"heading_error_rad", "estimated_pose"}
+        ),
+        noop_action=0,
+    )
 
     metadata = {
         "name": "cooperative_localization_v0",
