@@ -302,10 +302,11 @@ def plot_results(results: dict, path: Path) -> Path:
         summaries = [results["agents"][name]["summary"][key] for name in names]
         means = [s["mean"] for s in summaries]
         errors = np.array([_error_bar(s) for s in summaries]).T
-        axis.errorbar(positions, means, yerr=errors, fmt="o", color="tab:red", capsize=4, label="mean, 95% CI")
+        label = f"mean, 95% CI ({'Wilson score' if summaries[0]['interval'] == WILSON else 'Student t'})"
+        axis.errorbar(positions, means, yerr=errors, fmt="o", color="tab:red", capsize=4, label=label)
+        axis.legend(fontsize=8)
         axis.set_xticks(positions, [_plot_label(name) for name in names], rotation=20, ha="right")
         axis.set_title(title, fontsize=10)
-    axes[0][0].legend(fontsize=8)
     figure.suptitle(f"{results['env_id']}: {results['episodes']} episodes per agent", fontsize=11)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
