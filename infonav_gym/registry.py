@@ -4,6 +4,16 @@ A Gymnasium entry is also registered with ``gymnasium.register``, so ``gym.make(
 ``gym.make("infonav_gym:" + id)`` (what a spawned ``SubprocVecEnv`` worker does) work. A
 PettingZoo parallel entry is made by ``make_env`` only. Entry points are strings
 (``"module:EnvClass"``), imported when an env is made, so registering imports no env module.
+
+Adding an env (its class declares ``episode_metrics`` and ``traits``, see ``infonav_gym.envs.traits``)::
+
+    import infonav_gym
+
+    infonav_gym.register("mylab/Beacon-v0", "mylab.beacon:BeaconEnv")
+    env = infonav_gym.make_env("mylab/Beacon-v0", horizon=50)  # gym.make("mylab/Beacon-v0") too
+
+Then ``infonav evaluate --env mylab/Beacon-v0`` and the benchmark's env timing run it
+(``tests/test_registry.py`` does this with a toy env).
 """
 
 from __future__ import annotations
