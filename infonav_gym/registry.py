@@ -12,8 +12,9 @@ Adding an env (its class declares ``episode_metrics`` and ``traits``, see ``info
     infonav_gym.register("mylab/Beacon-v0", "mylab.beacon:BeaconEnv")
     env = infonav_gym.make_env("mylab/Beacon-v0", horizon=50)  # gym.make("mylab/Beacon-v0") too
 
-Then ``infonav evaluate --env mylab/Beacon-v0`` and the benchmark's env timing run it
-(``tests/test_registry.py`` does this with a toy env).
+Then ``evaluate("mylab/Beacon-v0", ...)`` and the benchmark's env timing run it; from the command line,
+where only ``infonav_gym`` is imported, give the module that registers it on import:
+``infonav evaluate --env mylab.beacon:mylab/Beacon-v0`` (``tests/test_registry.py`` does this with a toy env).
 """
 
 from __future__ import annotations
@@ -96,20 +97,40 @@ def env_entry(env_id: str) -> EnvEntry:
         raise ValueError(f"unknown env id {env_id!r}; choose from {', '.join(_ENTRIES)}") from None
 
 
+def resolve_env_id(env_id: str) -> str:
+    """``"module:id"`` (Gymnasium's prefix): import ``module``, which registers its envs, and return ``id``.
+
+    An id without the prefix, or one registered as it is, is returned unchanged.
+
+    Raises:
+        ValueError: if the module does not import.
+    """
+    module, separator, name = env_id.partition(":")
+    if not separator or env_id in _ENTRIES:
+        return env_id
+    try:
+        importlib.import_module(module)
+    except ImportError as error:
+        raise ValueError(f"env id {env_id!r}: module {module!r} does not import ({error})") from None
+    return name
+
+
 def api_of(env_id: str) -> str:
     """The registry ``api`` of ``env_id``; ``GYMNASIUM`` for an id only Gymnasium knows (``CartPole-v1``)."""
-    entry = _ENTRIES.get(env_id)
+    entry = _ENTRIES.get(resolve_env_id(env_id))
     return GYMNASIUM if entry is None else entry.api
 
 
 def make_env(env_id: str, **config):
     """A new env: ``gym.make(env_id, **config)`` for a Gymnasium env, the parallel env itself for a PettingZoo one.
 
-    A Gymnasium id outside the registry (e.g. ``CartPole-v1``) is made by ``gym.make`` too.
+    ``env_id`` may carry Gymnasium's module prefix (``"mylab.beacon:mylab/Beacon-v0"``, see
+    ``resolve_env_id``). A Gymnasium id outside the registry (e.g. ``CartPole-v1``) is made by ``gym.make`` too.
 
     Raises:
         ValueError: for an id neither registry knows (listing the infonav ids), or a bad config.
     """
+    env_id = resolve_env_id(env_id)
     if api_of(env_id) == PARALLEL:
         return _ENTRIES[env_id].load()(**config)
     try:

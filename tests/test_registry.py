@@ -124,6 +124,11 @@ class BeaconEnv(gym.Env):
         }
 
 
+def run_cli(capsys, *argv) -> str:
+    assert main(list(argv)) == 0
+    return capsys.readouterr().out
+
+
 @pytest.fixture
 def toy():
     """``BeaconEnv`` registered as ``TOY_ID`` by its string entry point for the test, unregistered after it."""
@@ -231,8 +236,7 @@ def test_the_toy_env_passes_the_shared_env_checks(toy):
 
 def test_infonav_evaluate_runs_the_toy_env_with_its_declared_metrics(toy, capsys):
     argv = ["evaluate", "--env", toy, "--agents", "random,greedy", "--episodes", "6", "--config", "horizon=12"]
-    assert main([*argv, "--json"]) == 0
-    result = json.loads(capsys.readouterr().out)
+    result = json.loads(run_cli(capsys, *argv, "--json"))
     assert result["metrics"] == {metric.name: metric.title for metric in BeaconEnv.episode_metrics}
     assert result["env_config"] == {"horizon": 12, "invalid_action": "noop", "n_beacons": 4}
     env = make_env(toy, horizon=12)
@@ -251,10 +255,20 @@ def test_infonav_evaluate_runs_the_toy_env_with_its_declared_metrics(toy, capsys
         assert agent["summary"]["success_rate"]["interval"] == "wilson"
         assert agent["summary"]["success_rate"]["ci95_low"] == pytest.approx(low, abs=1e-12)
         assert agent["summary"]["success_rate"]["ci95_high"] == pytest.approx(high, abs=1e-12)
-    assert main(argv) == 0
-    printed = capsys.readouterr().out
+    printed = run_cli(capsys, *argv)
     assert "env config: horizon=12, invalid_action='noop', n_beacons=4" in printed
     assert "| greedy |" in printed and "final position std [m]" in printed and "Wilson score" in printed
+
+
+def test_the_module_prefix_imports_the_module_that_registers_the_env(toy, capsys):
+    result = json.loads(run_cli(capsys, "evaluate", "--env", f"{__name__}:{toy}", "--episodes", "1", "--json"))
+    assert result["env_id"] == f"{__name__}:{toy}" and set(result["metrics"]) == {
+        "cumulative_mi",
+        "final_position_std_m",
+        "success_rate",
+    }
+    with pytest.raises(ValueError, match="env id 'no_such_module:toy/X-v0': module 'no_such_module' does not import"):
+        make_env("no_such_module:toy/X-v0")
 
 
 def test_the_planner_is_refused_for_an_env_without_a_planning_model(toy):
