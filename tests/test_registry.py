@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 
 import env_checks
 import gymnasium as gym
@@ -149,6 +151,15 @@ def test_every_builtin_env_is_registered_once_and_register_envs_is_idempotent():
     for env_id, spec in gymnasium_entries.items():
         assert gym.registry[env_id] is spec and spec.entry_point == env_entry(env_id).entry_point
     assert [entry.id for entry in registered_envs(PARALLEL)] == [TEAM_ID] and TEAM_ID not in gym.registry
+
+
+def test_importing_the_package_registers_without_importing_any_env_module():
+    script = (
+        "import sys, infonav_gym; "
+        "print(sorted(m for m in sys.modules if m.startswith(('infonav_gym.envs', 'infonav_gym.multi', 'pettingzoo'))))"
+    )
+    loaded = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
+    assert loaded.strip() == "[]"
 
 
 @pytest.mark.parametrize("entry", registered_envs(), ids=lambda entry: entry.id)
