@@ -3,8 +3,8 @@
 Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib's
 ``MaskablePPO``: ``InfoActionMask`` hands the last info's mask to it through the
 ``action_masks()`` method it asks for. Other envs (CartPole, for the benchmark) train
-with plain ``PPO``. The PettingZoo team env ``cooperative_localization_v0`` trains one
-``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
+with plain ``PPO``. A PettingZoo parallel env (registry ``api``, e.g. ``cooperative_localization_v0``)
+trains one ``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
 Hyperparameters come from ``scripts/hyperparams/ppo.yml``, one block per env id
 (rl-baselines3-zoo style); a block with ``normalize`` trains on observations normalized by
 SB3's ``VecNormalize``, whose statistics ``train`` saves beside the model (``vecnormalize.pkl``)
@@ -33,6 +33,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNorm
 from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
+from infonav_gym.registry import PARALLEL, api_of, make_env
 
 HYPERPARAMETERS_FILE = Path(__file__).resolve().parent.parent / "scripts" / "hyperparams" / "ppo.yml"
 ACTIVATIONS = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
@@ -90,25 +91,9 @@ class InfoActionMask(gym.Wrapper):
         return self._mask
 
 
-def team_env_id() -> str:
-    """The id of the PettingZoo team env, which ``build_model`` runs through ``TeamVecEnv``."""
-    from infonav_gym.experiments.evaluation import (
-        TEAM_ENV,  # not at the top: SubprocVecEnv workers need not import scipy
-    )
-
-    return TEAM_ENV
-
-
-def make_env(env_id: str, env_kwargs: dict | None = None) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs)``; an unknown id raises ``ValueError`` naming it (``evaluation.make_env``)."""
-    from infonav_gym.experiments.evaluation import make_env as make_named_env  # not at the top: see team_env_id
-
-    return make_named_env(env_id, env_kwargs)
-
-
 def has_action_mask(env_id: str, env_kwargs: dict | None = None) -> bool:
     """Whether ``env_id`` reports ``info["action_mask"]`` (then it trains with ``MaskablePPO``)."""
-    env = make_env(env_id, env_kwargs)
+    env = make_env(env_id, **(env_kwargs or {}))
     try:
         return "action_mask" in env.reset(seed=0)[1]
     finally:
@@ -211,12 +196,12 @@ def build_model(
     n_envs = int(n_envs or hyperparameters.get("n_envs", 8))
     if n_envs < 1:
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
-    if env_id == team_env_id():
+    if api_of(env_id) == PARALLEL:
         from agents.team_vec_env import make_team_vec_env
 
         if subprocess:
             raise ValueError(f"{env_id} runs its copies in one process (TeamVecEnv): train it without subprocess")
-        masked, vec_env = True, make_team_vec_env(n_envs, seed, env_kwargs)
+        masked, vec_env = True, make_team_vec_env(n_envs, seed, env_kwargs, env_id)
     else:
         masked = has_action_mask(env_id, env_kwargs)
         vec_env = make_vec_env(

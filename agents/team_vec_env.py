@@ -1,4 +1,4 @@
-"""``TeamVecEnv``: every robot of copies of the PettingZoo team env as one slot of a Stable-Baselines3 ``VecEnv``.
+"""``TeamVecEnv``: every robot of copies of a PettingZoo parallel env as one slot of a Stable-Baselines3 ``VecEnv``.
 
 PPO on it learns one policy for all robots (parameter sharing): it sees ``n_envs * n_robots``
 single-robot envs with the same spaces, each with its robot's own reward and action mask.
@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
-from infonav_gym.multi import cooperative_localization_v0
+from infonav_gym.registry import PARALLEL, api_of, make_env
 
 
 class RobotSlot:
@@ -40,7 +40,7 @@ class RobotSlot:
 
 
 class TeamVecEnv(VecEnv):
-    """``n_envs`` copies of ``cooperative_localization_v0``; slot ``copy * n_robots + k`` is ``robot_k`` of ``copy``.
+    """``n_envs`` copies of a PettingZoo parallel env; slot ``copy * n_robots + k`` is robot ``k`` of ``copy``.
 
     Copy ``i`` is reset with seed ``seed + i`` the first time and continues its own generator on the
     automatic resets after that, so the seed fixes every rollout. All robots of a copy end their
@@ -52,12 +52,21 @@ class TeamVecEnv(VecEnv):
         n_envs: copies of the team env.
         seed: seed of copy 0 (copy ``i`` gets ``seed + i``); ``None``: unseeded.
         env_kwargs: the config of every copy (keys of ``CooperativeLocalizationEnv.default_config()``).
+        env_id: the registry id of the PettingZoo parallel env to copy.
     """
 
-    def __init__(self, n_envs: int, seed: int | None = 0, env_kwargs: dict | None = None):
+    def __init__(
+        self,
+        n_envs: int,
+        seed: int | None = 0,
+        env_kwargs: dict | None = None,
+        env_id: str = "cooperative_localization_v0",
+    ):
         if n_envs < 1:
             raise ValueError(f"n_envs must be >= 1, got {n_envs}")
-        self.envs = [cooperative_localization_v0.parallel_env(**(env_kwargs or {})) for _ in range(n_envs)]
+        if api_of(env_id) != PARALLEL:
+            raise ValueError(f"TeamVecEnv needs a registered PettingZoo parallel env, got {env_id!r}")
+        self.envs = [make_env(env_id, **(env_kwargs or {})) for _ in range(n_envs)]
         team = self.envs[0]
         self.possible_agents = list(team.possible_agents)
         self.n_robots = len(self.possible_agents)
@@ -182,6 +191,8 @@ class TeamVecEnv(VecEnv):
         return [False for _ in self._get_indices(indices)]
 
 
-def make_team_vec_env(n_envs: int, seed: int | None = 0, env_kwargs: dict | None = None) -> VecMonitor:
+def make_team_vec_env(
+    n_envs: int, seed: int | None = 0, env_kwargs: dict | None = None, env_id: str = "cooperative_localization_v0"
+) -> VecMonitor:
     """A ``TeamVecEnv`` under SB3's ``VecMonitor``, which records each robot's episode return and length (the logs)."""
-    return VecMonitor(TeamVecEnv(n_envs, seed, env_kwargs))
+    return VecMonitor(TeamVecEnv(n_envs, seed, env_kwargs, env_id))

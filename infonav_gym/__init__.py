@@ -1,25 +1,27 @@
 """infonav-gym: Gymnasium / PettingZoo environments for information-driven navigation.
 
-Importing the package registers its environments with Gymnasium.
+Importing the package registers its environments (``register_envs``) in ``infonav_gym.registry``,
+the Gymnasium ones with Gymnasium as well. ``make_env(env_id, **config)`` makes either kind.
 """
 
-import gymnasium as gym
+from infonav_gym.registry import GYMNASIUM, PARALLEL, make_env, register, registered_envs, unregister
 
 __version__ = "0.1.0"
+__all__ = ["make_env", "register", "register_envs", "registered_envs", "unregister"]
 
-ENVIRONMENTS = {
-    "infonav/LandmarkSelection-v0": "infonav_gym.envs.landmark_selection:LandmarkSelectionEnv",
-    "infonav/ActiveLocalization-v0": "infonav_gym.envs.active_localization:ActiveLocalizationEnv",
-    "infonav/SensorSelection-v0": "infonav_gym.envs.sensor_selection:SensorSelectionEnv",
-    "infonav/RangeRegistration-v0": "infonav_gym.envs.range_registration:RangeRegistrationEnv",
-}
+BUILTIN_ENVS = (
+    ("infonav/LandmarkSelection-v0", "infonav_gym.envs.landmark_selection:LandmarkSelectionEnv", GYMNASIUM),
+    ("infonav/ActiveLocalization-v0", "infonav_gym.envs.active_localization:ActiveLocalizationEnv", GYMNASIUM),
+    ("infonav/SensorSelection-v0", "infonav_gym.envs.sensor_selection:SensorSelectionEnv", GYMNASIUM),
+    ("infonav/RangeRegistration-v0", "infonav_gym.envs.range_registration:RangeRegistrationEnv", GYMNASIUM),
+    ("cooperative_localization_v0", "infonav_gym.multi.cooperative_localization:CooperativeLocalizationEnv", PARALLEL),
+)
 
 
 def register_envs() -> None:
-    """Register every infonav environment with Gymnasium; calling it again does nothing."""
-    for env_id, entry_point in ENVIRONMENTS.items():
-        if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=entry_point)
+    """Register every infonav environment (``BUILTIN_ENVS``); calling it again does nothing."""
+    for env_id, entry_point, api in BUILTIN_ENVS:
+        register(env_id, entry_point, api)
 
 
 register_envs()

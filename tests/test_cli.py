@@ -8,7 +8,7 @@ import pytest
 from scipy import stats
 
 from infonav_gym.experiments.cli import main
-from infonav_gym.experiments.evaluation import Summary
+from infonav_gym.experiments.evaluation import ProportionSummary, Summary, wilson_interval
 
 
 def run_json(capsys, *argv) -> dict:
@@ -57,6 +57,15 @@ def test_evaluate_runs_the_team_env_with_team_metrics_reproducibly(capsys):
     assert error.value.code == 2 and "unknown agent 'oracle'" in capsys.readouterr().err
 
 
+def test_evaluate_prints_the_env_config_it_ran_defaults_included(capsys):
+    argv = ["evaluate", "--env", "cooperative_localization_v0", "--episodes", "1", "--config", "max_cycles=5"]
+    assert run_json(capsys, *argv)["env_config"]["team_reward"] == 0.0  # the default reward choice, visible
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "env config: max_cycles=5, " in printed and "team_reward=0.0" in printed
+    assert "mean ± half-width of its 95% confidence interval (Student t)" in printed
+
+
 def test_evaluate_writes_markdown_csv_and_json_with_the_command(capsys, tmp_path):
     stem = tmp_path / "eval"
     main(["evaluate", "--episodes", "2", "--config", "horizon=10", "--output", str(stem)])
@@ -64,6 +73,7 @@ def test_evaluate_writes_markdown_csv_and_json_with_the_command(capsys, tmp_path
     assert "| greedy |" in table and "cumulative MI" in table
     markdown = (tmp_path / "eval.md").read_text()
     assert "infonav evaluate --episodes 2 --config horizon=10 --output" in markdown
+    assert "env config: horizon=10, " in markdown and "95% confidence interval (Student t)" in markdown
     rows = (tmp_path / "eval.csv").read_text().strip().splitlines()
     assert rows[0] == "agent,seed,cumulative_mi,final_pose_entropy,pose_rmse_m" and len(rows) == 1 + 2 * 2
     assert json.loads((tmp_path / "eval.json").read_text())["command"].startswith("infonav evaluate")
@@ -75,6 +85,14 @@ def test_confidence_interval_is_students_t():
     summary = Summary.of(values)
     assert math.isclose(summary.mean - summary.ci95, low) and math.isclose(summary.mean + summary.ci95, high)
     assert math.isnan(Summary.of([1.0]).ci95)
+
+
+def test_a_rate_is_summarized_by_its_wilson_interval_and_must_be_0_or_1():
+    summary = ProportionSummary.of([1.0, 0.0, 1.0, 1.0])
+    assert summary.mean == 0.75 and (summary.low, summary.high) == wilson_interval(3, 4)
+    assert summary.as_dict() == {"mean": 0.75, "ci95_low": summary.low, "ci95_high": summary.high, "interval": "wilson"}
+    with pytest.raises(ValueError, match=r"values 0 or 1 per episode, got \[1.0, 0.5\]"):
+        ProportionSummary.of([1.0, 0.5])
 
 
 @pytest.mark.parametrize(

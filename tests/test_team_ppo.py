@@ -12,9 +12,10 @@ from sb3_contrib.common.maskable.utils import get_action_masks, is_masking_suppo
 
 from agents.ppo import PPOAgent, train  # noqa: E402
 from agents.team_vec_env import TeamVecEnv, make_team_vec_env  # noqa: E402
-from infonav_gym.experiments.evaluation import TEAM_ENV, evaluate  # noqa: E402
+from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
 from infonav_gym.multi import cooperative_localization_v0  # noqa: E402
 
+TEAM_ENV = "cooperative_localization_v0"
 CONFIG = {"max_cycles": 6}
 N_ROBOTS = 4  # the default team
 

@@ -15,6 +15,8 @@ from infonav_gym.envs.active_planning import (
 )
 from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.envs.landmark_sight import LandmarkSight
+from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
+from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
@@ -112,6 +114,19 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     ## Version History
     * v0: initial version.
     """
+
+    episode_metrics = (*LOCALIZATION_METRICS, SUCCESS_RATE)
+    traits = EnvTraits(
+        estimates_pose=True,
+        has_planning_model=True,
+        reports_success=True,
+        may_terminate=True,
+        idle_actions=frozenset(range(N_PRIMITIVES)),  # the primitives without an observation
+        reward_terms=REWARD_TERMS,
+        info_keys=frozenset(
+            {"goal", "goal_reached", "failed", "success", "observations_left", "distance_to_goal_m", "position_std_m"}
+        ),
+    )
 
     @classmethod
     def default_config(cls) -> dict:

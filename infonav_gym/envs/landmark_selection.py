@@ -10,6 +10,8 @@ from gymnasium import spaces
 from infonav_gym.config import check_choice, check_positive
 from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.envs.landmark_sight import LandmarkSight
+from infonav_gym.envs.metrics import LOCALIZATION_METRICS
+from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
@@ -76,6 +78,9 @@ class LandmarkSelectionEnv(InfoNavEnv):
     ## Version History
     * v0: initial version.
     """
+
+    episode_metrics = LOCALIZATION_METRICS
+    traits = EnvTraits(estimates_pose=True, rewards_information_at_once=True, reward_terms=("mutual_information",))
 
     @classmethod
     def default_config(cls) -> dict:

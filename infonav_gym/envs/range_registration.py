@@ -10,6 +10,8 @@ from gymnasium import spaces
 
 from infonav_gym.config import check_choice, check_positive
 from infonav_gym.envs.base import Decision, InfoNavEnv
+from infonav_gym.envs.metrics import EpisodeMetric, mean_where, summed_reward
+from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import frame_pair, registration_error, scan_on_terrain
 from infonav_gym.registration.icp import METHODS, icp
@@ -74,6 +76,27 @@ class RangeRegistrationEnv(InfoNavEnv):
     ## Version History
     * v0: initial version.
     """
+
+    episode_metrics = (
+        EpisodeMetric("cumulative_reward", "cumulative reward [m]", summed_reward),
+        EpisodeMetric(
+            "mean_error_after_m",
+            "registration error after ICP [m]",
+            mean_where("error_after_m", lambda info: info["registered"]),
+        ),
+        EpisodeMetric(
+            "mean_control_points",
+            "control points per frame pair",
+            mean_where("n_control_points", lambda info: info["registered"]),
+        ),
+    )
+    traits = EnvTraits(
+        valid_gain_may_be_zero=True,  # a patch may hold no usable control point
+        reward_terms=("error_reduction_m", "point_cost"),
+        info_keys=frozenset(
+            {"registered", "error_before_m", "error_after_m", "icp_iterations", "icp_time_s", "n_control_points"}
+        ),
+    )
 
     @classmethod
     def default_config(cls) -> dict:

@@ -9,6 +9,8 @@ from gymnasium import spaces
 
 from infonav_gym.config import check_choice, check_open_interval, check_positive
 from infonav_gym.envs.base import Decision, InfoNavEnv
+from infonav_gym.envs.metrics import EpisodeMetric, count_where, mean_where, summed_reward_term
+from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.information import histogram_entropy
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
@@ -87,6 +89,24 @@ class SensorSelectionEnv(InfoNavEnv):
     ## Version History
     * v0: initial version.
     """
+
+    episode_metrics = (
+        EpisodeMetric(
+            "cumulative_information", "cumulative image information [nats]", summed_reward_term("image_information")
+        ),
+        EpisodeMetric("frames", "frames acquired", count_where(lambda info: info["sensor"] != "none")),
+        EpisodeMetric(
+            "mean_frame_entropy",
+            "mean frame entropy [nats]",
+            mean_where("image_entropy", lambda info: info["sensor"] != "none"),
+        ),
+    )
+    traits = EnvTraits(
+        rewards_information_at_once=True,
+        idle_actions=frozenset({IDLE_ACTION}),
+        reward_terms=("image_information",),
+        info_keys=frozenset({"sensor", "pan_rad", "image_entropy", "bandwidth_credit_bytes"}),
+    )
 
     @classmethod
     def default_config(cls) -> dict:

@@ -114,7 +114,7 @@ def _demo(args) -> dict:
 
 
 def _evaluate(args, argv) -> dict:
-    from infonav_gym.experiments.evaluation import evaluate, markdown_table, write_results
+    from infonav_gym.experiments.evaluation import config_line, evaluate, markdown_table, write_results
 
     agent_names = [name.strip() for name in args.agents.split(",") if name.strip()]
     results = evaluate(args.env, agent_names, args.episodes, args.seed, dict(args.config), progress=not args.json)
@@ -123,6 +123,7 @@ def _evaluate(args, argv) -> dict:
         results["files"] = [str(path) for path in write_results(results, args.output, command)]
     if not args.json:
         print(f"{args.env}, {args.episodes} episodes per agent, seeds {args.seed}..{args.seed + args.episodes - 1}")
+        print(config_line(results))
         print(markdown_table(results))
     return results
 

@@ -1,4 +1,9 @@
-"""Evaluate baseline agents on an env: same seeds for every agent, mean and 95% confidence intervals."""
+"""Evaluate baseline agents on an env: same seeds for every agent, means and 95% confidence intervals.
+
+What is reported comes from the env: its class's ``episode_metrics`` and ``traits``
+(``infonav_gym.envs.metrics``, ``infonav_gym.envs.traits``); whether every robot acts at once
+from the registry's ``api`` (``infonav_gym.registry``).
+"""
 
 from __future__ import annotations
 
@@ -14,63 +19,17 @@ from scipy import stats
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
+from infonav_gym.envs.traits import EnvTraits, episode_metrics_of, traits_of
+from infonav_gym.registry import PARALLEL, api_of, make_env, registered_envs
 
 AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH")
 PPO_PREFIX = "ppo:"
-TEAM_ENV = "cooperative_localization_v0"  # the PettingZoo env; every robot plays its own copy of the agent
-SENSOR_ENV = "infonav/SensorSelection-v0"  # rewards image information, not pose updates
-REGISTRATION_ENV = "infonav/RangeRegistration-v0"  # rewards registration error reduction
-METRICS = {
-    "cumulative_mi": "cumulative MI [nats]",
-    "final_pose_entropy": "final pose entropy [nats]",
-    "pose_rmse_m": "position RMSE [m]",
+STUDENT_T, WILSON = "student_t", "wilson"
+Z_95 = float(stats.norm.ppf(0.975))  # two-sided 95% quantile of the standard normal
+INTERVAL_NOTES = {
+    STUDENT_T: "mean ± half-width of its 95% confidence interval (Student t)",
+    WILSON: "rate [low, high]: its 95% confidence interval (Wilson score)",
 }
-IMAGE_METRICS = {
-    "cumulative_information": "cumulative image information [nats]",
-    "frames": "frames acquired",
-    "mean_frame_entropy": "mean frame entropy [nats]",
-}
-
-
-REGISTRATION_METRICS = {
-    "cumulative_reward": "cumulative reward [m]",
-    "mean_error_after_m": "registration error after ICP [m]",
-    "mean_control_points": "control points per frame pair",
-}
-
-
-SUCCESS_METRIC = {"success_rate": "success rate"}  # when the env puts info["success"] (bool) in its final info
-
-
-def metrics_of(env_id: str) -> dict:
-    """The metrics reported for ``env_id``: ``{key: column title}``."""
-    return {SENSOR_ENV: IMAGE_METRICS, REGISTRATION_ENV: REGISTRATION_METRICS}.get(env_id, METRICS)
-
-
-def _localization_metrics(infos: list[dict]) -> dict:
-    return {
-        "cumulative_mi": math.fsum(step["reward_terms"].get("mutual_information", 0.0) for step in infos),
-        "final_pose_entropy": infos[-1]["pose_entropy"],
-        "pose_rmse_m": math.sqrt(float(np.mean([step["position_error_m"] ** 2 for step in infos]))),
-    }
-
-
-def _image_metrics(infos: list[dict]) -> dict:
-    entropies = [step["image_entropy"] for step in infos if step["sensor"] != "none"]
-    return {
-        "cumulative_information": math.fsum(step["reward_terms"]["image_information"] for step in infos),
-        "frames": len(entropies),
-        "mean_frame_entropy": float(np.mean(entropies)) if entropies else 0.0,
-    }
-
-
-def _registration_metrics(infos: list[dict]) -> dict:
-    registered = [step for step in infos if step["registered"]]
-    return {
-        "cumulative_reward": math.fsum(math.fsum(step["reward_terms"].values()) for step in infos),
-        "mean_error_after_m": float(np.mean([step["error_after_m"] for step in registered])) if registered else 0.0,
-        "mean_control_points": float(np.mean([step["n_control_points"] for step in registered])) if registered else 0.0,
-    }
 
 
 def check_agent_name(name: str) -> None:
@@ -80,14 +39,26 @@ def check_agent_name(name: str) -> None:
     raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
 
 
+def _env_name(env) -> str:
+    """The env's registered id (Gymnasium) or ``metadata["name"]`` (PettingZoo), else its class name."""
+    spec = getattr(env, "spec", None)
+    return spec.id if spec is not None else env.metadata.get("name", type(env.unwrapped).__name__)
+
+
+def _planning_env_ids() -> list[str]:
+    """The registered envs whose class declares a planning model."""
+    return [entry.id for entry in registered_envs() if getattr(entry.load(), "traits", EnvTraits()).has_planning_model]
+
+
 def make_agent(
     name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None, agent: str | None = None
 ):
     """A baseline agent by name (``noop_action``: see ``RandomAgent``).
 
     ``planner`` (``agents.planner.PlannerAgent(env)``) and ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``)
-    need the ``env`` they will act in; both are imported only when asked for. In the PettingZoo
-    team env ``agent`` names the robot a ``ppo:PATH`` agent acts for.
+    need the ``env`` they will act in; both are imported only when asked for. ``planner`` is refused
+    unless the env's traits declare a planning model. In a PettingZoo env ``agent`` names the robot
+    a ``ppo:PATH`` agent acts for.
     """
     check_agent_name(name)
     if name == "random":
@@ -95,8 +66,14 @@ def make_agent(
     if name == "greedy":
         return GreedyEntropyAgent()
     if env is None:
-        raise ValueError(f"agent {name!r} needs a single-agent Gymnasium env, not the team env")
+        raise ValueError(f"agent {name!r} needs the env it will act in")
     if name == "planner":
+        if not traits_of(env).has_planning_model:
+            raise ValueError(
+                f"agent 'planner' is not available for {_env_name(env)}: it declares no planning model "
+                f"(EnvTraits.has_planning_model); use random, greedy or ppo:PATH, or the planner on "
+                f"{', '.join(_planning_env_ids())}"
+            )
         try:
             from agents.planner import PlannerAgent
         except ImportError as error:
@@ -112,33 +89,21 @@ def make_agent(
 
 
 def make_team_agents(name: str, env) -> dict:
-    """One agent per robot of the team env ``env`` (a PettingZoo parallel env): ``{robot: agent}``.
+    """One agent per robot of a PettingZoo parallel env ``env``: ``{robot: agent}``.
 
-    ``random`` picks a teammate to observe (``noop_action=0``); ``ppo:PATH`` is one policy shared by
-    every robot (``infonav train --env cooperative_localization_v0``), checked against each robot's spaces.
+    ``random`` is a random choice of what to observe (it takes the env's ``traits.noop_action`` only
+    when nothing else is valid); ``ppo:PATH`` is one policy shared by every robot
+    (``infonav train --env cooperative_localization_v0``), checked against each robot's spaces.
     """
-    check_agent_name(name)
-    if name == "planner":
-        raise ValueError(f"agent 'planner' is not available for {TEAM_ENV}: use random, greedy or ppo:PATH")
+    noop_action = traits_of(env).noop_action
     return {
-        robot: make_agent(name, env.action_space(robot).n, noop_action=0, env=env, agent=robot)
+        robot: make_agent(name, env.action_space(robot).n, noop_action=noop_action, env=env, agent=robot)
         for robot in env.possible_agents
     }
 
 
-def make_env(env_id: str, env_kwargs: dict | None = None) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs)``; an unknown id raises ``ValueError`` naming it and the infonav ids."""
-    try:
-        return gym.make(env_id, **(env_kwargs or {}))
-    except gym.error.Error as error:
-        infonav = sorted(name for name in gym.registry if name.startswith("infonav/"))
-        raise ValueError(
-            f"unknown env id {env_id!r} ({error}); choose from {', '.join([*infonav, TEAM_ENV])}"
-        ) from None
-
-
 def run_episode(env: gym.Env, agent, seed: int) -> dict:
-    """One seeded episode; returns the per-episode metrics (``metrics_of`` the env)."""
+    """One seeded episode; returns the env's declared ``episode_metrics`` of it, ``{name: value}``."""
     observation, info = env.reset(seed=seed)
     agent.reset(seed=seed)
     infos, done = [], False
@@ -146,41 +111,46 @@ def run_episode(env: gym.Env, agent, seed: int) -> dict:
         observation, _, terminated, truncated, info = env.step(agent.act(observation, info))
         infos.append(info)
         done = terminated or truncated
-    env_id = env.spec.id if env.spec is not None else None
-    summarize = {SENSOR_ENV: _image_metrics, REGISTRATION_ENV: _registration_metrics}.get(env_id, _localization_metrics)
-    metrics = summarize(infos)
-    if "success" in info:
-        metrics["success_rate"] = float(bool(info["success"]))
-    return metrics
+    return {metric.name: metric.compute(infos) for metric in episode_metrics_of(env)}
 
 
-def run_team_episode(env, agents: dict, seed: int) -> dict:
-    """One seeded episode of the PettingZoo team env, ``agents[robot]`` acting for each robot; team metrics.
+def run_parallel_episode(env, agents: dict, seed: int) -> dict:
+    """One seeded episode of a PettingZoo parallel env, ``agents[robot]`` acting for each robot; its metrics.
 
-    ``agents`` comes from ``make_team_agents``. ``cumulative_mi`` is the team's (joint-state) MI;
-    entropy and RMSE are means over the robots.
+    ``agents`` comes from ``make_team_agents``; robot ``k``'s agent is reset with seed ``1000 * seed + k``.
+    The metrics (the env's ``episode_metrics``) see the per-step dicts ``{robot: info}``.
     """
     observations, infos = env.reset(seed=seed)
     for k, robot in enumerate(env.possible_agents):
         agents[robot].reset(seed=1000 * seed + k)
-    cumulative_mi, squared_errors, steps = 0.0, np.zeros(len(agents)), 0
+    steps = []
     while env.agents:
         actions = {name: agents[name].act(observations[name], infos[name]) for name in env.agents}
         observations, _, _, _, infos = env.step(actions)
-        cumulative_mi += next(iter(infos.values()))["reward_terms"]["team_mutual_information"]
-        squared_errors += [info["position_error_m"] ** 2 for info in infos.values()]
-        steps += 1
-    return {
-        "cumulative_mi": cumulative_mi,
-        "final_pose_entropy": float(np.mean([info["pose_entropy"] for info in infos.values()])),
-        "pose_rmse_m": float(np.mean(np.sqrt(squared_errors / steps))),
-    }
+        steps.append(infos)
+    return {metric.name: metric.compute(steps) for metric in episode_metrics_of(env)}
 
 
-@dataclass
+def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float, float]:
+    """The Wilson score interval of a binomial proportion ``successes / trials``, inside [0, 1].
+
+    Raises:
+        ValueError: unless ``0 <= successes <= trials`` and ``trials >= 1``.
+    """
+    if trials < 1 or not 0 <= successes <= trials:
+        raise ValueError(f"a proportion needs 0 <= successes <= trials and trials >= 1, got {successes} of {trials}")
+    rate, z2 = successes / trials, z * z
+    center = (rate + z2 / (2 * trials)) / (1 + z2 / trials)
+    half_width = z / (1 + z2 / trials) * math.sqrt(rate * (1 - rate) / trials + z2 / (4 * trials * trials))
+    return max(0.0, center - half_width), min(1.0, center + half_width)
+
+
+@dataclass(frozen=True)
 class Summary:
+    """The mean of a metric over episodes and the half-width of its 95% confidence interval (Student t)."""
+
     mean: float
-    ci95: float  # half-width of the 95% confidence interval of the mean (Student t)
+    ci95: float  # nan for a single episode
 
     @classmethod
     def of(cls, values) -> Summary:
@@ -190,18 +160,41 @@ class Summary:
         half_width = stats.t.ppf(0.975, len(values) - 1) * values.std(ddof=1) / math.sqrt(len(values))
         return cls(float(values.mean()), float(half_width))
 
+    def as_dict(self) -> dict:
+        return {"mean": self.mean, "ci95": self.ci95, "interval": STUDENT_T}
+
+
+@dataclass(frozen=True)
+class ProportionSummary:
+    """The rate of a 0/1 metric over episodes and its 95% Wilson score interval ``[low, high]``."""
+
+    mean: float
+    low: float
+    high: float
+
+    @classmethod
+    def of(cls, values) -> ProportionSummary:
+        """Raises ``ValueError`` if a value is not 0 or 1."""
+        values = np.asarray(values, dtype=float)
+        if not np.isin(values, (0.0, 1.0)).all():
+            raise ValueError(f"a proportion metric takes values 0 or 1 per episode, got {values.tolist()}")
+        return cls(float(values.mean()), *wilson_interval(int(values.sum()), len(values)))
+
+    def as_dict(self) -> dict:
+        return {"mean": self.mean, "ci95_low": self.low, "ci95_high": self.high, "interval": WILSON}
+
 
 def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs: dict | None = None, progress=True):
     """Run every agent for ``episodes`` episodes on seeds ``seed, seed + 1, ...``.
 
-    ``env_id`` is a Gymnasium id or ``"cooperative_localization_v0"`` (the team env; there
-    "random" is a random choice of teammate to observe, ``ppo:PATH`` one policy for every robot,
-    no planner, and the metrics are the team's).
-    ``agent_names``: random, greedy, planner, ppo:PATH (a model written by ``infonav train``).
-    A ``success_rate`` metric is added when every episode's final info has ``"success"``.
+    ``env_id``: any registered env (``infonav_gym.registry``). In a PettingZoo parallel env (e.g.
+    ``cooperative_localization_v0``) every robot plays its own copy of the agent, ``ppo:PATH`` one policy
+    for every robot. ``agent_names``: random, greedy, planner (envs with a planning model), ppo:PATH (a model
+    written by ``infonav train``). The metrics are the env's ``episode_metrics``.
 
     Returns:
-        ``{"env_id", "episodes", "seeds", "env_kwargs", "agents": {name: {"episodes": [...], "summary": {...}}}}``.
+        ``{"env_id", "episodes", "seeds", "env_kwargs", "env_config", "metrics", "agents": {name: {"episodes":
+        [...], "summary": {...}}}}``; ``env_config`` is the config the env ran, defaults included.
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
@@ -210,53 +203,81 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
     for name in agent_names:
         check_agent_name(name)
     env_kwargs = dict(env_kwargs or {})
-    if env_id == TEAM_ENV:
-        from infonav_gym.multi import cooperative_localization_v0
-
-        env = cooperative_localization_v0.parallel_env(**env_kwargs)
-    else:
-        env = make_env(env_id, env_kwargs)
+    parallel = api_of(env_id) == PARALLEL
+    env = make_env(env_id, **env_kwargs)
     try:
-        if env_id == TEAM_ENV:
+        declared = episode_metrics_of(env)
+        if parallel:
             agents = {name: make_team_agents(name, env) for name in agent_names}  # {robot: agent} each
         else:
-            agents = {name: make_agent(name, env.action_space.n, env=env) for name in agent_names}
+            noop_action = traits_of(env).noop_action
+            agents = {name: make_agent(name, env.action_space.n, noop_action, env=env) for name in agent_names}
     except Exception:
         env.close()
         raise
     seeds = list(range(seed, seed + episodes))
-    metrics = dict(metrics_of(env_id))
-    results = {"env_id": env_id, "episodes": episodes, "seeds": seeds, "env_kwargs": env_kwargs, "metrics": metrics}
-    results["agents"] = {}
+    results = {
+        "env_id": env_id,
+        "episodes": episodes,
+        "seeds": seeds,
+        "env_kwargs": env_kwargs,
+        "env_config": dict(getattr(env.unwrapped, "config", {})),
+        "metrics": {metric.name: metric.title for metric in declared},
+        "agents": {},
+    }
+    run = run_parallel_episode if parallel else run_episode
     bar = tqdm(total=len(agents) * episodes, desc=f"evaluating on {env_id}", disable=not progress, unit="episode")
     for name, agent in agents.items():
         per_episode = []
         for episode_seed in seeds:
-            if env_id == TEAM_ENV:
-                per_episode.append(run_team_episode(env, agent, episode_seed))
-            else:
-                per_episode.append(run_episode(env, agent, episode_seed))
+            per_episode.append(run(env, agent, episode_seed))
             bar.update()
         results["agents"][name] = {"episodes": per_episode}
     bar.close()
     env.close()
-    every_episode = [e for result in results["agents"].values() for e in result["episodes"]]
-    if all("success_rate" in e for e in every_episode):
-        metrics.update(SUCCESS_METRIC)
     for result in results["agents"].values():
-        result["summary"] = {key: vars(Summary.of([e[key] for e in result["episodes"]])) for key in metrics}
+        result["summary"] = {
+            metric.name: (ProportionSummary if metric.proportion else Summary)
+            .of([e[metric.name] for e in result["episodes"]])
+            .as_dict()
+            for metric in declared
+        }
     return results
 
 
+def _cell(summary: dict) -> str:
+    if summary["interval"] == WILSON:
+        return f"{summary['mean']:.3f} [{summary['ci95_low']:.3f}, {summary['ci95_high']:.3f}]"
+    return f"{summary['mean']:.3f} ± {summary['ci95']:.3f}"
+
+
+def interval_note(results: dict) -> str:
+    """What the table's intervals are: one sentence per kind of interval it holds."""
+    kinds = {s["interval"] for result in results["agents"].values() for s in result["summary"].values()}
+    return "; ".join(note for kind, note in INTERVAL_NOTES.items() if kind in kinds) + "."
+
+
+def config_line(results: dict) -> str:
+    """The env config the evaluation ran, defaults included, as ``key=value`` pairs."""
+    return "env config: " + ", ".join(f"{key}={value!r}" for key, value in results["env_config"].items())
+
+
 def markdown_table(results: dict) -> str:
-    """The summary as a Markdown table: mean +- 95% CI half-width per agent and metric."""
+    """The summary as a Markdown table (a cell per agent and metric), and what its intervals are."""
     metrics = results["metrics"]
     header = "| agent | " + " | ".join(metrics.values()) + " |"
     lines = [header, "|" + " --- |" * (len(metrics) + 1)]
     for name, result in results["agents"].items():
-        cells = [f"{s['mean']:.3f} ± {s['ci95']:.3f}" for s in (result["summary"][key] for key in metrics)]
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        lines.append(f"| {name} | " + " | ".join(_cell(result["summary"][key]) for key in metrics) + " |")
+    return "\n".join(lines) + "\n\nEach cell: " + interval_note(results)
+
+
+def _error_bar(summary: dict) -> tuple[float, float]:
+    """The distances below and above the mean to the ends of its 95% interval (0 where undefined)."""
+    if summary["interval"] == WILSON:
+        return summary["mean"] - summary["ci95_low"], summary["ci95_high"] - summary["mean"]
+    half_width = 0.0 if math.isnan(summary["ci95"]) else summary["ci95"]
+    return half_width, half_width
 
 
 def _plot_label(name: str) -> str:
@@ -268,7 +289,7 @@ def _plot_label(name: str) -> str:
 
 
 def plot_results(results: dict, path: Path) -> Path:
-    """A box plot per metric of the per-episode values of every agent, with the mean and its 95% CI as a dot."""
+    """A box plot per metric of every agent's per-episode values, and the mean with its 95% CI (as in the table)."""
     from matplotlib.figure import Figure  # no pyplot: renders with Agg, leaves the caller's backend alone
 
     metrics, names = results["metrics"], list(results["agents"])
@@ -280,11 +301,12 @@ def plot_results(results: dict, path: Path) -> Path:
         axis.boxplot(values, positions=positions, widths=0.5, showfliers=True)
         summaries = [results["agents"][name]["summary"][key] for name in names]
         means = [s["mean"] for s in summaries]
-        errors = [0.0 if math.isnan(s["ci95"]) else s["ci95"] for s in summaries]
-        axis.errorbar(positions, means, yerr=errors, fmt="o", color="tab:red", capsize=4, label="mean ± 95% CI")
+        errors = np.array([_error_bar(s) for s in summaries]).T
+        label = f"mean, 95% CI ({'Wilson score' if summaries[0]['interval'] == WILSON else 'Student t'})"
+        axis.errorbar(positions, means, yerr=errors, fmt="o", color="tab:red", capsize=4, label=label)
+        axis.legend(fontsize=8)
         axis.set_xticks(positions, [_plot_label(name) for name in names], rotation=20, ha="right")
         axis.set_title(title, fontsize=10)
-    axes[0][0].legend(fontsize=8)
     figure.suptitle(f"{results['env_id']}: {results['episodes']} episodes per agent", fontsize=11)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
@@ -300,8 +322,8 @@ def write_results(results: dict, stem: Path, command: str) -> list[Path]:
     md, csv_path, json_path = stem.with_suffix(".md"), stem.with_suffix(".csv"), stem.with_suffix(".json")
     md.write_text(
         f"# {results['env_id']}: {results['episodes']} episodes per agent, seeds "
-        f"{results['seeds'][0]}..{results['seeds'][-1]}\n\n{markdown_table(results)}\n\n"
-        f"Mean ± half-width of the 95% confidence interval (Student t). Regenerate with:\n\n    {command}\n"
+        f"{results['seeds'][0]}..{results['seeds'][-1]}\n\n{config_line(results)}\n\n{markdown_table(results)}\n\n"
+        f"Regenerate with:\n\n    {command}\n"
     )
     with csv_path.open("w", newline="") as handle:
         writer = csv.writer(handle)

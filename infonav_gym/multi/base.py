@@ -5,7 +5,7 @@ action checks (``discrete_action_index``, ``accepts_action``) and rendering. Rob
 ``possible_agents[k]``; every live agent acts every step, and all are truncated together after
 ``max_cycles`` steps. Subclasses never override ``reset`` or ``step``; they implement the declared
 hooks ``_reset_episode``, ``_next_decision``, ``_apply_actions``, ``_advance``, ``_observations``,
-``_infos`` and ``_scene_frame``, and set ``possible_agents``, ``max_cycles``, ``noop_action`` and
+``_infos`` and ``_scene_frame``, and set ``possible_agents``, ``max_cycles``, ``traits`` (with its ``noop_action``) and
 one ``Discrete`` space per agent (``action_space(agent)``) in ``__init__``. One step runs::
 
     actions -> validate (decision.action_mask) -> _apply_actions(actions, decision) -> _advance()
@@ -21,6 +21,7 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
 from infonav_gym.envs.base import Decision, SceneRendering, accepts_action, discrete_action_index
+from infonav_gym.envs.traits import EnvTraits
 
 
 class InfoNavParallelEnv(SceneRendering, ParallelEnv):
@@ -31,7 +32,7 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
     for a masked one) and ``_invalid`` (whether each robot's action was masked).
     """
 
-    noop_action: int  # the action that does nothing, always valid; a masked action becomes it
+    traits: EnvTraits  # ``traits.noop_action``: the action that does nothing, always valid; a masked action becomes it
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         """Start an episode; ``seed`` re-seeds ``np_random`` (else it continues); ``options`` are unused.
@@ -43,7 +44,7 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
         n = len(self.possible_agents)
         self.agents = list(self.possible_agents)
         self._elapsed_steps = 0
-        self._chosen = np.full(n, self.noop_action)
+        self._chosen = np.full(n, self.traits.noop_action)
         self._invalid = np.zeros(n, dtype=bool)
         self._reset_episode()
         self._decision = self._next_decision()
@@ -82,7 +83,7 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
         if not isinstance(actions, dict) or set(actions) != set(self.agents):
             given = sorted(actions) if isinstance(actions, dict) else actions
             raise ValueError(f"actions must be a dict with one action per live agent {self.agents}, got {given!r}")
-        chosen = np.full(len(self.possible_agents), self.noop_action)
+        chosen = np.full(len(self.possible_agents), self.traits.noop_action)
         invalid = np.zeros(len(self.possible_agents), dtype=bool)
         mode = self.config["invalid_action"]
         for robot, agent in enumerate(self.possible_agents):

@@ -10,6 +10,8 @@ from gymnasium import spaces
 
 from infonav_gym.config import check_choice, check_positive
 from infonav_gym.envs.base import Decision
+from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
+from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
 from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
@@ -123,13 +125,23 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
     * v0: initial version.
     """
 
+    episode_metrics = TEAM_LOCALIZATION_METRICS
+    traits = EnvTraits(
+        idle_actions=frozenset({NO_OBSERVATION}),
+        reward_terms=("own_mutual_information", "team_mutual_information"),
+        info_keys=frozenset(
+            {"gps_available", "pose_std", "pose_std_after_update", "pose_entropy", "position_error_m"}
+            | {"heading_error_rad", "estimated_pose"}
+        ),
+        noop_action=NO_OBSERVATION,
+    )
+
     metadata = {
         "name": "cooperative_localization_v0",
         "render_modes": ["human", "rgb_array"],
         "render_fps": 10,
         "is_parallelizable": True,
     }
-    noop_action = NO_OBSERVATION
 
     @classmethod
     def default_config(cls) -> dict:

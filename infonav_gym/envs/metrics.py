@@ -1,0 +1,143 @@
+"""Episode metrics an env declares for the evaluation harness, and the metric functions they share.
+
+An env class lists its metrics in ``episode_metrics``. Each metric computes one number from
+an episode's infos: the per-step info dicts of a single-agent env (the reset info excluded),
+or, for a PettingZoo parallel env, the per-step dicts ``{agent: info}``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class EpisodeMetric:
+    """One number per episode, summarized over episodes by the harness.
+
+    Attributes:
+        name: the key in the results (``"cumulative_mi"``).
+        title: the column title, with the unit (``"cumulative MI [nats]"``).
+        compute: the value from the episode's infos (see the module docstring).
+        proportion: the values are 0 or 1 (a rate): summarized by a Wilson score interval, not Student t.
+    """
+
+    name: str
+    title: str
+    compute: Callable[[Sequence], float]
+    proportion: bool = False
+
+
+def summed_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
+    """The episode's sum (``math.fsum``) of ``info["reward_terms"][term]`` (0 in steps without it)."""
+
+    def compute(infos: Sequence[dict]) -> float:
+        return math.fsum(step["reward_terms"].get(term, 0.0) for step in infos)
+
+    return compute
+
+
+def summed_reward(infos: Sequence[dict]) -> float:
+    """The episode's return: every reward term of every step (``math.fsum`` per step, then over steps)."""
+    return math.fsum(math.fsum(step["reward_terms"].values()) for step in infos)
+
+
+def final_value(key: str) -> Callable[[Sequence[dict]], float]:
+    """``info[key]`` of the episode's last step."""
+
+    def compute(infos: Sequence[dict]) -> float:
+        return infos[-1][key]
+
+    return compute
+
+
+def final_flag(key: str) -> Callable[[Sequence[dict]], float]:
+    """1.0 if ``info[key]`` of the last step is true, else 0.0 (a ``proportion`` metric)."""
+
+    def compute(infos: Sequence[dict]) -> float:
+        return float(bool(infos[-1][key]))
+
+    return compute
+
+
+def root_mean_square(key: str) -> Callable[[Sequence[dict]], float]:
+    """The root mean square over the episode's steps of ``info[key]``."""
+
+    def compute(infos: Sequence[dict]) -> float:
+        return math.sqrt(float(np.mean([step[key] ** 2 for step in infos])))
+
+    return compute
+
+
+def mean_where(key: str, condition: Callable[[dict], bool]) -> Callable[[Sequence[dict]], float]:
+    """The mean of ``info[key]`` over the steps whose info meets ``condition`` (0.0 if none does)."""
+
+    def compute(infos: Sequence[dict]) -> float:
+        values = [step[key] for step in infos if condition(step)]
+        return float(np.mean(values)) if values else 0.0
+
+    return compute
+
+
+def count_where(condition: Callable[[dict], bool]) -> Callable[[Sequence[dict]], int]:
+    """How many steps' infos meet ``condition``."""
+
+    def compute(infos: Sequence[dict]) -> int:
+        return sum(1 for step in infos if condition(step))
+
+    return compute
+
+
+def team_summed_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
+    """A parallel env's sum over steps of the first agent's ``reward_terms[term]`` (a term every agent shares).
+
+    Added step by step in order, as the committed team results were.
+    """
+
+    def compute(steps: Sequence[dict]) -> float:
+        total = 0.0
+        for infos in steps:
+            total += next(iter(infos.values()))["reward_terms"][term]
+        return total
+
+    return compute
+
+
+def team_mean_final_value(key: str) -> Callable[[Sequence[dict]], float]:
+    """The mean over agents of ``info[key]`` at the last step of a parallel env."""
+
+    def compute(steps: Sequence[dict]) -> float:
+        return float(np.mean([info[key] for info in steps[-1].values()]))
+
+    return compute
+
+
+def team_mean_root_mean_square(key: str) -> Callable[[Sequence[dict]], float]:
+    """The mean over agents of each agent's root mean square over the steps of ``info[key]`` (parallel env)."""
+
+    def compute(steps: Sequence[dict]) -> float:
+        squares = np.zeros(len(steps[0]))
+        for infos in steps:
+            squares += [info[key] ** 2 for info in infos.values()]
+        return float(np.mean(np.sqrt(squares / len(steps))))
+
+    return compute
+
+
+CUMULATIVE_MI_TITLE = "cumulative MI [nats]"
+POSE_ENTROPY_TITLE = "final pose entropy [nats]"
+RMSE_TITLE = "position RMSE [m]"
+LOCALIZATION_METRICS = (
+    EpisodeMetric("cumulative_mi", CUMULATIVE_MI_TITLE, summed_reward_term("mutual_information")),
+    EpisodeMetric("final_pose_entropy", POSE_ENTROPY_TITLE, final_value("pose_entropy")),
+    EpisodeMetric("pose_rmse_m", RMSE_TITLE, root_mean_square("position_error_m")),
+)
+TEAM_LOCALIZATION_METRICS = (  # the team's (joint-state) MI; entropy and RMSE are means over the robots
+    EpisodeMetric("cumulative_mi", CUMULATIVE_MI_TITLE, team_summed_reward_term("team_mutual_information")),
+    EpisodeMetric("final_pose_entropy", POSE_ENTROPY_TITLE, team_mean_final_value("pose_entropy")),
+    EpisodeMetric("pose_rmse_m", RMSE_TITLE, team_mean_root_mean_square("position_error_m")),
+)
+SUCCESS_RATE = EpisodeMetric("success_rate", "success rate", final_flag("success"), proportion=True)

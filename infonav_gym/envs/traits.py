@@ -1,0 +1,76 @@
+"""What an env promises about itself (``EnvTraits``), and how the harness reads an env's declarations.
+
+Every infonav env class declares two class attributes near its top:
+
+- ``episode_metrics``: a tuple of ``infonav_gym.envs.metrics.EpisodeMetric``, what ``infonav evaluate`` reports;
+- ``traits``: an ``EnvTraits``, what agents, the harness and the shared env tests may rely on.
+
+Whether an env is single-agent (Gymnasium) or parallel (PettingZoo) is its registry ``api``
+(``infonav_gym.registry``), known before its module is imported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+COMMON_INFO_KEYS = frozenset(
+    {"action_mask", "action_information_gain", "reward_terms", "chosen_action", "invalid_action", "true_pose", "time_s"}
+)  # in every info of every single-agent infonav env
+POSE_INFO_KEYS = frozenset(
+    {"pose_entropy", "state_entropy", "position_error_m", "heading_error_rad", "estimated_pose"}
+)  # in every info of an env with ``estimates_pose``
+
+
+@dataclass(frozen=True)
+class EnvTraits:
+    """The properties of an env that code outside it may rely on, instead of knowing its id.
+
+    Attributes:
+        estimates_pose: an EKF tracks the robot's pose; infos hold ``POSE_INFO_KEYS`` and the reward
+            term ``"mutual_information"``, the realized MI of the pose update [nats].
+        has_planning_model: the env offers a planning model (``belief``, ``plan_decision``,
+            ``plan_step``) for ``agents.planner.PlannerAgent``.
+        reports_success: the last info of an episode holds a bool ``info["success"]``.
+        may_terminate: episodes may end before the horizon (``terminated``); otherwise only truncation.
+        rewards_information_at_once: a valid action with a positive expected gain earns a positive
+            reward in the same step.
+        idle_actions: valid actions whose expected information gain is always 0 (wait, move without observing).
+        valid_gain_may_be_zero: a valid action other than the idle ones may have gain 0 (e.g. a patch
+            without usable points); otherwise its gain is positive.
+        reward_terms: the keys of ``info["reward_terms"]`` after every step, in order (empty: not declared).
+        info_keys: info keys the env adds to ``COMMON_INFO_KEYS`` (and ``POSE_INFO_KEYS``).
+        noop_action: an action that observes nothing, which the random baseline takes only when nothing
+            else is valid (``RandomAgent(noop_action=...)``); ``None``: the random baseline picks among all
+            valid actions.
+    """
+
+    estimates_pose: bool = False
+    has_planning_model: bool = False
+    reports_success: bool = False
+    may_terminate: bool = False
+    rewards_information_at_once: bool = False
+    idle_actions: frozenset[int] = frozenset()
+    valid_gain_may_be_zero: bool = False
+    reward_terms: tuple[str, ...] = ()
+    info_keys: frozenset[str] = frozenset()
+    noop_action: int | None = None
+
+
+def traits_of(env) -> EnvTraits:
+    """The ``traits`` the env (wrapped or not) declares; ``EnvTraits()`` (no promises) if it declares none."""
+    return getattr(env.unwrapped, "traits", EnvTraits())
+
+
+def episode_metrics_of(env) -> tuple:
+    """The ``episode_metrics`` the env (wrapped or not) declares.
+
+    Raises:
+        ValueError: if it declares none, naming its class.
+    """
+    metrics = getattr(env.unwrapped, "episode_metrics", None)
+    if not metrics:
+        raise ValueError(
+            f"{type(env.unwrapped).__name__} declares no episode_metrics: give the class a tuple of "
+            "infonav_gym.envs.metrics.EpisodeMetric to evaluate it"
+        )
+    return tuple(metrics)
