@@ -19,10 +19,9 @@ from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
-from infonav_gym.world.scenarios import SCENARIOS
+from infonav_gym.world.scenarios import build_scenario, scenario_names
 from infonav_gym.world.world import World
 
-TEAM_SCENARIOS = ("team_field", "convoy")
 ESTIMATORS = ("joint", "independent")
 OWN_FEATURES = 10
 TEAMMATE_FEATURES = 5
@@ -136,7 +135,7 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
     def __init__(self, render_mode: str | None = None, **config):
         self._configure(render_mode, config)
         cfg, owner = self.config, type(self).__name__
-        check_choice(cfg, "scenario", TEAM_SCENARIOS, owner)
+        check_choice(cfg, "scenario", scenario_names(team=True), owner)
         check_choice(cfg, "estimator", ESTIMATORS, owner)
         check_positive(cfg, ["max_cycles", "time_step_s", "speed_mps", "gps_std_m", "field_size_m"], owner)
         check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
@@ -217,10 +216,10 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         return self._observations(), self._infos()
 
     def _build_scenario(self):
+        """The registered team scenario ``config["scenario"]``, given the parameters its builder names."""
         cfg = self.config
-        if cfg["scenario"] == "convoy":
-            return SCENARIOS["convoy"](self.np_random, n_robots=cfg["n_robots"], speed_mps=cfg["speed_mps"])
-        return SCENARIOS["team_field"](
+        scenario = build_scenario(
+            cfg["scenario"],
             self.np_random,
             n_robots=cfg["n_robots"],
             n_obstacles=cfg["n_obstacles"],
@@ -228,6 +227,12 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
             size_m=cfg["field_size_m"],
             speed_mps=cfg["speed_mps"],
         )
+        if len(scenario.routes) != cfg["n_robots"]:
+            raise ValueError(
+                f"scenario {cfg['scenario']!r} has {len(scenario.routes)} route(s): "
+                f"{type(self).__name__} needs one per robot, n_robots={cfg['n_robots']}"
+            )
+        return scenario
 
     def step(self, actions: dict):
         if not self.agents:
