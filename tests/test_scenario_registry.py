@@ -67,9 +67,10 @@ def test_unknown_or_mismatched_scenarios_are_clear_errors(registered, monkeypatc
     with pytest.raises(ValueError, match=r"unknown scenario 'moon'; registered: convoy, corridor, field, lanes, ring"):
         build_scenario("moon", np.random.default_rng(0))
     monkeypatch.setitem(SCENARIOS, "crowd", lambda np_random: ring(np_random, n_landmarks=6))
-    with pytest.raises(ValueError, match="scenario 'crowd' has 1 route.* and 6 landmarks: .* at most n_candidates=4"):
+    too_many = r"scenario 'crowd' has 1 route\(s\) and 6 landmarks: \w+ needs 1 route\(s\) and at most 4 landmarks"
+    with pytest.raises(ValueError, match=too_many):
         gym.make("infonav/LandmarkSelection-v0", scenario="crowd", n_candidates=4).reset(seed=0)
-    with pytest.raises(ValueError, match="scenario 'lanes' has 2 route.*: .* one per robot, n_robots=3"):
+    with pytest.raises(ValueError, match=r"scenario 'lanes' has 2 route\(s\) and 0 landmarks: \w+ needs 3 route\(s\)$"):
         monkeypatch.setitem(SCENARIOS, "lanes", lambda np_random: lanes(np_random, n_robots=2, speed_mps=1.0))
         cooperative_localization_v0.parallel_env(scenario="lanes", n_robots=3).reset(seed=0)
     with pytest.raises(ValueError, match="scenario 'field' is already registered"):

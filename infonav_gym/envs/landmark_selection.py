@@ -15,9 +15,15 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, build_scenario, scenario_names
+from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, scenario_from_config, scenario_names
 from infonav_gym.world.world import World
 
+SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
+    "speed_mps": "speed_mps",
+    "n_landmarks": "n_candidates",
+    "n_obstacles": "n_obstacles",
+    "size_m": "field_size_m",
+}
 POSE_FEATURES = 10
 CANDIDATE_FEATURES = 5
 _BIG = 1e4
@@ -144,22 +150,10 @@ class LandmarkSelectionEnv(InfoNavEnv):
         self._estimated_path = [self.ekf.x[:2].copy()]
 
     def _build_scenario(self):
-        """The registered scenario ``config["scenario"]``, given the parameters its builder names."""
+        """The registered scenario ``config["scenario"]``: one route, at most ``n_candidates`` landmarks."""
         cfg = self.config
-        scenario = build_scenario(
-            cfg["scenario"],
-            self.np_random,
-            speed_mps=cfg["speed_mps"],
-            n_landmarks=cfg["n_candidates"],
-            n_obstacles=cfg["n_obstacles"],
-            size_m=cfg["field_size_m"],
-        )
-        if len(scenario.routes) != 1 or len(scenario.landmarks) > cfg["n_candidates"]:
-            raise ValueError(
-                f"scenario {cfg['scenario']!r} has {len(scenario.routes)} route(s) and {len(scenario.landmarks)} "
-                f"landmarks: {type(self).__name__} needs 1 route and at most n_candidates={cfg['n_candidates']}"
-            )
-        return scenario
+        owner = type(self).__name__
+        return scenario_from_config(cfg, self.np_random, SCENARIO_KEYS, owner, 1, max_landmarks=cfg["n_candidates"])
 
     def _next_decision(self) -> tuple[np.ndarray, np.ndarray]:
         landmarks, true_pose, P = self.world.landmarks, self._true_pose, self.ekf.P

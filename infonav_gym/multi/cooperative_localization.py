@@ -19,10 +19,17 @@ from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
-from infonav_gym.world.scenarios import build_scenario, scenario_names
+from infonav_gym.world.scenarios import scenario_from_config, scenario_names
 from infonav_gym.world.world import World
 
 ESTIMATORS = ("joint", "independent")
+TEAM_SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
+    "n_robots": "n_robots",
+    "n_obstacles": "n_obstacles",
+    "n_canopies": "n_canopies",
+    "size_m": "field_size_m",
+    "speed_mps": "speed_mps",
+}
 OWN_FEATURES = 10
 TEAMMATE_FEATURES = 5
 NO_OBSERVATION = 0
@@ -216,23 +223,9 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         return self._observations(), self._infos()
 
     def _build_scenario(self):
-        """The registered team scenario ``config["scenario"]``, given the parameters its builder names."""
+        """The registered team scenario ``config["scenario"]``: one route per robot."""
         cfg = self.config
-        scenario = build_scenario(
-            cfg["scenario"],
-            self.np_random,
-            n_robots=cfg["n_robots"],
-            n_obstacles=cfg["n_obstacles"],
-            n_canopies=cfg["n_canopies"],
-            size_m=cfg["field_size_m"],
-            speed_mps=cfg["speed_mps"],
-        )
-        if len(scenario.routes) != cfg["n_robots"]:
-            raise ValueError(
-                f"scenario {cfg['scenario']!r} has {len(scenario.routes)} route(s): "
-                f"{type(self).__name__} needs one per robot, n_robots={cfg['n_robots']}"
-            )
-        return scenario
+        return scenario_from_config(cfg, self.np_random, TEAM_SCENARIO_KEYS, type(self).__name__, cfg["n_robots"])
 
     def step(self, actions: dict):
         if not self.agents:

@@ -402,3 +402,37 @@ def build_scenario(name: str, np_random: np.random.Generator, **parameters) -> S
     if not isinstance(scenario, Scenario):
         raise ValueError(f"the builder of scenario {name!r} returned a {type(scenario).__name__}, not a Scenario")
     return scenario
+
+
+def scenario_from_config(
+    config: dict,
+    np_random: np.random.Generator,
+    parameter_keys: dict[str, str],
+    owner: str,
+    n_routes: int,
+    max_landmarks: int | None = None,
+) -> Scenario:
+    """Build the registered scenario ``config["scenario"]`` for the env ``owner`` and check that it fits.
+
+    Args:
+        config: the env's config.
+        np_random: the env's generator.
+        parameter_keys: builder parameter -> the config key that gives its value.
+        owner: the env, for the error.
+        n_routes: how many routes the env drives (its robots).
+        max_landmarks: how many landmarks the env can tell apart (None: any number).
+
+    Raises:
+        ValueError: see ``build_scenario``; or, naming the scenario, when it has another number of
+            routes or more landmarks than the env can handle.
+    """
+    parameters = {name: config[key] for name, key in parameter_keys.items()}
+    scenario = build_scenario(config["scenario"], np_random, **parameters)
+    routes, landmarks = len(scenario.routes), len(scenario.landmarks)
+    if routes != n_routes or (max_landmarks is not None and landmarks > max_landmarks):
+        most = "" if max_landmarks is None else f" and at most {max_landmarks} landmarks"
+        raise ValueError(
+            f"scenario {config['scenario']!r} has {routes} route(s) and {landmarks} landmarks: "
+            f"{owner} needs {n_routes} route(s){most}"
+        )
+    return scenario
