@@ -334,7 +334,8 @@ def train(
             env_id, seed, None, hyperparameters, env_kwargs, subprocess=subprocess, tensorboard_log=tensorboard_log
         )
         n_envs = model.n_envs
-        callbacks = [TqdmCallback(timesteps, disable=not progress)]
+        rollout = model.n_steps * n_envs  # learn() collects whole rollouts: the bar's true total
+        callbacks = [TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)]
         if checkpoints > 0:
             every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
             callbacks.append(

@@ -7,11 +7,11 @@ from pathlib import Path
 
 
 class OutputWriteError(Exception):
-    """Writing the files failed after the work was done; ``result`` holds the work, ``files`` what was written."""
+    """Writing the files failed after the work was done; ``result`` holds the work (its ``files``: those written)."""
 
-    def __init__(self, message: str, result: dict, files: list[str] | None = None):
+    def __init__(self, message: str, result: dict):
         super().__init__(message)
-        self.result, self.files = result, list(files or [])
+        self.result = result
 
 
 def _nearest_existing(path: Path) -> Path:

@@ -47,7 +47,7 @@ def write_result(result: dict, png: Path, json_path: Path, plot: Callable[[Path]
         json_path.write_text(json.dumps(result, indent=1) + "\n")
     except OSError as error:
         result["files"] = result["files"][:1]
-        raise OutputWriteError(write_failure(f"{png.stem}'s files", error), result, result["files"]) from None
+        raise OutputWriteError(write_failure(f"{png.stem}'s files", error), result) from None
     return result
 
 
