@@ -123,3 +123,8 @@ def test_reproduce_help_says_where_it_writes_by_default(capsys):
     with pytest.raises(SystemExit):
         main(["reproduce", "--help"])
     assert "default: ./results" in " ".join(capsys.readouterr().out.split())
+
+
+def test_any_other_failed_write_is_one_line_exit_2(capsys, a_file):
+    _, error = one_line_error(capsys, ["demo", "--steps", "2", "--plot", str(a_file / "fig2.png")])
+    assert str(a_file) in error

@@ -316,8 +316,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.exit(2, f"infonav {args.command}: error: {failure}\n")
     except (ValueError, ImportError) as error:
         parser.exit(2, f"infonav {args.command}: error: {error}\n")
-    except OSError as error:  # a file that could not be written, e.g. demo --plot or train's model
-        parser.exit(2, f"infonav {args.command}: error: {write_failure('the output', error)}\n")
+    except OSError as error:  # a file that could not be read or written, e.g. demo --plot or train's model
+        parser.exit(2, f"infonav {args.command}: error: {error}\n")
     if args.json:
         print(json.dumps(result))
     return 0
