@@ -85,7 +85,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
     def default_config(cls) -> dict:
         return {
             **super().default_config(),
-            "scenario": "field",  # "field" (random), "corridor" (the paper's Fig. 1) or one of register_scenario
+            "scenario": "field",  # "field" (random), "corridor" (the paper's Fig. 1), or registered (register_scenario)
             "n_candidates": 8,  # K, size of the action space
             "time_step_s": 0.5,  # [s]
             "speed_mps": 1.0,  # cruise speed along the route [m/s]

@@ -119,7 +119,7 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         """A fresh dict of every config key with its default."""
         return {
             "max_cycles": 200,  # episode length [steps]; all agents are truncated after it
-            "scenario": "team_field",  # "team_field" (random loops, canopies) or "convoy" (the paper's Fig. 3)
+            "scenario": "team_field",  # "team_field" (random loops), "convoy" (the paper's Fig. 3), or registered
             "n_robots": 4,
             "robot_sensors": None,  # one suite per robot, e.g. ["gps+laser", "vision"]; None: the default team
             "gps_outages": (DEFAULT_OUTAGE,),  # (robot, start_s, end_s) spans without DGPS [s]
