@@ -5,8 +5,9 @@ Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib
 ``action_masks()`` method it asks for. Other envs (CartPole, for the benchmark) train
 with plain ``PPO``. A PettingZoo parallel env (registry ``api``, e.g. ``cooperative_localization_v0``)
 trains one ``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
-Hyperparameters come from ``scripts/hyperparams/ppo.yml``, one block per env id
-(rl-baselines3-zoo style); a block with ``normalize`` trains on observations normalized by
+Hyperparameters come from ``agents/hyperparams/ppo.yml`` (package data, so an installed copy
+has them too), one block per env id (rl-baselines3-zoo style), or from a file of the same format
+(``infonav train --hyperparams FILE``); a block with ``normalize`` trains on observations normalized by
 SB3's ``VecNormalize``, whose statistics ``train`` saves beside the model (``vecnormalize.pkl``)
 and ``PPOAgent`` applies. Needs the ``rl`` extra (stable-baselines3, sb3-contrib, torch, pyyaml).
 """
@@ -15,11 +16,12 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import inspect
 import json
 import pickle
 import time
-import warnings
 import zipfile
+from importlib import resources
 from pathlib import Path
 
 import gymnasium as gym
@@ -35,7 +37,7 @@ from tqdm.auto import tqdm
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
 from infonav_gym.registry import PARALLEL, api_of, make_env
 
-HYPERPARAMETERS_FILE = Path(__file__).resolve().parent.parent / "scripts" / "hyperparams" / "ppo.yml"
+HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
 ACTIVATIONS = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
 MODEL_FILE = "model.zip"
 NORMALIZATION_FILE = "vecnormalize.pkl"  # VecNormalize statistics, beside MODEL_FILE, when trained with ``normalize``
@@ -100,22 +102,42 @@ def has_action_mask(env_id: str, env_kwargs: dict | None = None) -> bool:
         env.close()
 
 
-def load_hyperparameters(env_id: str, path: Path | str = HYPERPARAMETERS_FILE) -> dict:
-    """The block of ``path`` (YAML) for ``env_id``, else its ``default`` block; a fresh dict.
+def load_hyperparameters(env_id: str, path: Path | str | None = None) -> dict:
+    """The block of a ppo.yml-style file for ``env_id``, else its ``default`` block; a fresh dict.
 
-    Without the file (an installed wheel ships no ``scripts/``) the result is ``{}``, SB3's defaults.
+    Args:
+        env_id: the env whose block to read.
+        path: a YAML file of blocks keyed by env id; ``None`` reads the tuned blocks shipped in the
+            package (``agents/hyperparams/ppo.yml``, through ``importlib.resources``).
+
+    Raises:
+        ValueError: naming the file when it is missing, not YAML, not a mapping of blocks, or has
+            neither a block for ``env_id`` nor a ``default`` one, or that block is not a mapping.
     """
     import yaml
 
-    path = Path(path)
-    if not path.is_file():
-        warnings.warn(f"no hyperparameter file {path}: using Stable-Baselines3's PPO defaults", stacklevel=2)
-        return {}
+    if path is None:
+        package, name = HYPERPARAMETERS_RESOURCE
+        source, text = f"{package}/{name} (package data)", resources.files(package).joinpath(name).read_text()
+    else:
+        source = str(path)
+        try:
+            text = Path(path).read_text()
+        except (OSError, UnicodeDecodeError) as error:
+            raise ValueError(f"cannot read hyperparameter file {source}: {error.strerror or error}") from None
     try:
-        blocks = yaml.safe_load(path.read_text()) or {}
+        blocks = yaml.safe_load(text)
     except yaml.YAMLError as error:
-        raise ValueError(f"cannot read hyperparameters from {path}: {error}") from None
-    return copy.deepcopy(blocks.get(env_id, blocks.get("default", {})))
+        message = " ".join(str(error).split())
+        raise ValueError(f"hyperparameter file {source} is not valid YAML: {message}") from None
+    if not isinstance(blocks, dict):
+        raise ValueError(f"hyperparameter file {source} must map env ids to blocks of PPO settings, got {blocks!r}")
+    key = env_id if env_id in blocks else "default"
+    if key not in blocks:
+        raise ValueError(f"hyperparameter file {source} has no block for {env_id!r} and no 'default' block")
+    if not isinstance(blocks[key], dict):
+        raise ValueError(f"block {key!r} of hyperparameter file {source} must be a mapping, got {blocks[key]!r}")
+    return copy.deepcopy(blocks[key])
 
 
 def _constructor_kwargs(hyperparameters: dict) -> dict:
@@ -131,6 +153,43 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
     if policy_kwargs:
         kwargs["policy_kwargs"] = policy_kwargs
     return kwargs
+
+
+def _constructor_arguments(hyperparameters: dict, seed: int, tensorboard_log: str | None) -> tuple[str, dict]:
+    """The policy and the keywords ``build_model`` hands the PPO / MaskablePPO constructor."""
+    fixed = {"seed": seed, "device": "cpu", "verbose": 0, "tensorboard_log": tensorboard_log}
+    kwargs = _constructor_kwargs(hyperparameters)
+    clash = sorted(set(fixed) & set(kwargs))
+    if clash:
+        raise ValueError(f"hyperparameter(s) {clash} are set by train's arguments (seed, tensorboard), not by a file")
+    return hyperparameters.get("policy", "MlpPolicy"), {**fixed, **kwargs}
+
+
+def _json_name(value) -> str:
+    """A class or function by its qualified name, anything else by ``repr``: for ``json.dumps(default=...)``."""
+    if inspect.isclass(value) or inspect.isfunction(value):
+        return f"{value.__module__}.{value.__qualname__}"
+    return repr(value)
+
+
+def constructor_values(algorithm, policy: str, kwargs: dict) -> dict:
+    """Every keyword of ``algorithm``'s constructor as called with ``policy`` and ``kwargs``, its defaults
+    included (what ``train.json`` records); classes by qualified name, JSON-ready.
+
+    Raises:
+        ValueError: for a keyword the constructor does not take, listing those it takes.
+    """
+    parameters = inspect.signature(algorithm.__init__).parameters
+    public = [name for name in parameters if name not in ("self", "env") and not name.startswith("_")]
+    unknown = sorted(set(kwargs) - set(public))
+    if unknown:
+        raise ValueError(
+            f"unknown PPO hyperparameter(s) {unknown}: {algorithm.__name__} takes {', '.join(public)} "
+            "(and n_envs, normalize)"
+        )
+    empty = inspect.Parameter.empty
+    values = {name: parameters[name].default for name in public if parameters[name].default is not empty}
+    return json.loads(json.dumps({**values, "policy": policy, **kwargs}, default=_json_name))
 
 
 def tensorboard_available() -> bool:
@@ -216,9 +275,13 @@ def build_model(
     if normalize is not None:
         vec_env = VecNormalize(vec_env, gamma=hyperparameters.get("gamma", 0.99), **normalize)
     algorithm = MaskablePPO if masked else PPO
-    policy = hyperparameters.get("policy", "MlpPolicy")
-    kwargs = _constructor_kwargs(hyperparameters)
-    return algorithm(policy, vec_env, seed=seed, device="cpu", verbose=0, tensorboard_log=tensorboard_log, **kwargs)
+    policy, kwargs = _constructor_arguments(hyperparameters, seed, tensorboard_log)
+    try:
+        constructor_values(algorithm, policy, kwargs)  # unknown keywords: a ValueError, not a TypeError
+    except ValueError:
+        vec_env.close()
+        raise
+    return algorithm(policy, vec_env, **kwargs)
 
 
 def train(
@@ -236,7 +299,8 @@ def train(
 ) -> Path:
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
 
-    Also writes ``output_dir/train.json`` (env, seed, hyperparameters, wall time, fps),
+    Also writes ``output_dir/train.json`` (env, seed, the hyperparameters asked for, every keyword the
+    PPO / MaskablePPO constructor got, SB3's defaults included, as ``constructor``, wall time, fps),
     ``checkpoints`` intermediate models in ``output_dir/checkpoints/`` and, with
     ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
     (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
@@ -255,7 +319,8 @@ def train(
             env_id, seed, None, hyperparameters, env_kwargs, subprocess=subprocess, tensorboard_log=tensorboard_log
         )
         n_envs = model.n_envs
-        callbacks = [TqdmCallback(timesteps, disable=not progress)]
+        rollout = model.n_steps * n_envs  # learn() collects whole rollouts: the bar's true total
+        callbacks = [TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)]
         if checkpoints > 0:
             every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
             callbacks.append(
@@ -277,6 +342,7 @@ def train(
         "n_envs": n_envs,
         "env_kwargs": env_kwargs or {},
         "hyperparameters": hyperparameters,
+        "constructor": constructor_values(type(model), *_constructor_arguments(hyperparameters, seed, tensorboard_log)),
         "seconds": seconds,
         "fps": model.num_timesteps / seconds,
         "torch_threads": default_num_threads(),
@@ -295,11 +361,28 @@ def _algorithm_of(path: Path):
     return MaskablePPO if module.startswith("sb3_contrib") else PPO
 
 
-def load_model(path: Path | str):
-    """A saved ``MaskablePPO`` / ``PPO`` model; a missing or unreadable file raises ``ValueError`` naming it."""
+def model_file(path: Path | str) -> Path:
+    """``path`` itself, or ``path/model.zip`` when ``path`` is a directory (the ``--output`` of ``infonav train``).
+
+    Raises:
+        ValueError: naming the path when it does not exist, or is a directory without ``model.zip``.
+    """
     path = Path(path)
+    if path.is_dir():
+        if not (path / MODEL_FILE).is_file():
+            raise ValueError(f"PPO model directory {str(path)!r} holds no {MODEL_FILE} (train one with: infonav train)")
+        return path / MODEL_FILE
     if not path.is_file():
         raise ValueError(f"PPO model {str(path)!r} does not exist (train one with: infonav train --env ENV_ID)")
+    return path
+
+
+def load_model(path: Path | str):
+    """A saved ``MaskablePPO`` / ``PPO`` model from a zip or the directory holding ``model.zip``.
+
+    A missing or unreadable file raises ``ValueError`` naming it.
+    """
+    path = model_file(path)
     try:
         return _algorithm_of(path).load(path, device="cpu")
     except Exception as error:  # zipfile, pickle, torch and KeyError failures all mean "not a model"
@@ -335,14 +418,15 @@ class PPOAgent:
     statistics in ``vecnormalize.pkl`` beside the model).
 
     Args:
-        model_path: a ``model.zip`` written by ``train`` (or any SB3 PPO / MaskablePPO zip).
+        model_path: a ``model.zip`` written by ``train`` (or any SB3 PPO / MaskablePPO zip), or the
+            directory that holds it.
         env: the env it will act in; its spaces must match the model's.
         agent: in a PettingZoo env, the agent (robot) it acts for: the spaces checked are that agent's.
     """
 
     def __init__(self, model_path: Path | str, env, agent: str | None = None):
-        self.model = load_model(model_path)
-        self.model_path = Path(model_path)
+        self.model_path = model_file(model_path)
+        self.model = load_model(self.model_path)
         env_obs = env.observation_space if agent is None else env.observation_space(agent)
         env_actions = env.action_space if agent is None else env.action_space(agent)
         model_obs = self.model.observation_space

@@ -2,7 +2,9 @@
 
 import json
 import math
+import os
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +14,8 @@ from infonav_gym.datasets import mrclam
 from infonav_gym.experiments.cli import main
 from infonav_gym.experiments.replay import ReplayConfig, replay, run_experiments
 
-DATASET6 = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "MRCLAM_Dataset6"
+DEFAULT_DATASET6 = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "MRCLAM_Dataset6"
+DATASET6 = Path(os.environ.get("INFONAV_MRCLAM_DATASET6", DEFAULT_DATASET6))  # e.g. in a git worktree
 needs_dataset6 = pytest.mark.skipif(
     not DATASET6.is_dir(), reason=f"MRCLAM Dataset 6 is not at {DATASET6} (a fresh clone does not ship it)"
 )
@@ -174,18 +177,79 @@ def test_cli_errors_on_a_missing_or_malformed_directory(tmp_path, capsys):
     assert "Robot1_Measurement.dat, line" in err and "expected 4 numbers, found 3" in err
 
 
+def _replay_error(capsys, directory: Path) -> str:
+    """``infonav replay mrclam DIRECTORY``'s one-line error (exit 2, no traceback)."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(["replay", "mrclam", str(directory)])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert lines[-1].startswith("infonav replay: error:") and not any("error" in line for line in lines[:-1])
+    return lines[-1]
+
+
+@pytest.mark.parametrize("name", ["Barcodes.dat", "Landmark_Groundtruth.dat"])
+@pytest.mark.parametrize("content", ["", HEADER])
+def test_an_empty_or_header_only_map_file_is_an_error_naming_it(dataset_dir, capsys, name, content):
+    (dataset_dir / name).write_text(content)
+    with pytest.raises(ValueError, match=rf"{name} holds no rows \(empty or only '#' comments\)"):
+        mrclam.load(dataset_dir)
+    assert f"{dataset_dir / name} holds no rows" in _replay_error(capsys, dataset_dir)
+
+
+def test_a_file_given_for_the_dataset_directory_says_so(dataset_dir, capsys):
+    file = dataset_dir / "Barcodes.dat"
+    with pytest.raises(NotADirectoryError, match="is a file: give the MRCLAM dataset directory"):
+        mrclam.load(file)
+    assert f"{file} is a file: give the MRCLAM dataset directory" in _replay_error(capsys, file)
+
+
+def test_a_robot_without_odometry_rows_is_an_error_naming_the_file(dataset_dir, capsys):
+    odometry = dataset_dir / "Robot2_Odometry.dat"
+    odometry.write_text(HEADER)
+    with pytest.raises(ValueError, match="Robot2_Odometry.dat holds no rows: robot 2 has no odometry to replay"):
+        mrclam.load(dataset_dir)
+    assert f"{odometry} holds no rows" in _replay_error(capsys, dataset_dir)
+
+
+def test_negative_or_repeated_timestamps_warn_naming_the_file_and_the_count(dataset_dir, capsys):
+    odometry = dataset_dir / "Robot1_Odometry.dat"
+    rows = np.loadtxt(odometry)
+    rows[10, 0] = rows[9, 0]
+    rows[20, 0] = rows[19, 0]
+    _write(odometry, np.vstack([[-1.0, 0.0, 0.0], rows]))
+    measurements = dataset_dir / "Robot2_Measurement.dat"  # several barcodes per time are normal there
+    with pytest.warns(UserWarning) as caught:
+        mrclam.load(dataset_dir)
+    messages = [str(warning.message) for warning in caught]
+    assert f"{odometry}: 1 row(s) with a negative timestamp" in messages
+    assert f"{odometry}: 2 row(s) repeat the timestamp of the row before" in messages
+    assert not any(str(measurements) in message for message in messages)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        main(["replay", "mrclam", str(dataset_dir), "--duration-s", "2", "--json"])
+    captured = capsys.readouterr()
+    assert f"infonav replay: warning: {odometry}: 2 row(s) repeat the timestamp" in captured.err
+    assert json.loads(captured.out)["rows"], "a warning does not stop the replay"
+
+
 @pytest.fixture(scope="module")
 def dataset6():
-    with pytest.warns(UserWarning, match="skipped"):
-        return mrclam.load(DATASET6)
+    with pytest.warns(UserWarning) as caught:
+        dataset = mrclam.load(DATASET6)
+    assert any("skipped" in str(warning.message) for warning in caught)
+    return dataset
 
 
 @needs_dataset6
 def test_dataset6_loads_fast_and_counts_its_unknown_barcodes():
     start = time.perf_counter()
-    with pytest.warns(UserWarning, match="skipped"):
+    with pytest.warns(UserWarning) as caught:
         dataset = mrclam.load(DATASET6)
     assert time.perf_counter() - start < 2.0
+    messages = [str(warning.message) for warning in caught]
+    assert any("skipped" in message for message in messages)
+    assert f"{DATASET6 / 'Robot4_Odometry.dat'}: 10 row(s) repeat the timestamp of the row before" in messages
     assert dataset.robots == (1, 2, 3, 4, 5) and len(dataset.landmarks) == 15 and dataset.unknown_barcodes > 0
 
 

@@ -125,17 +125,29 @@ def _raise_on_first_bad_line(path: Path, columns: int) -> None:
     raise ValueError(f"{path}: could not read it as a table of {columns} numbers per line")
 
 
-def _sorted_by_time(table: np.ndarray) -> np.ndarray:
+def _sorted_by_time(table: np.ndarray, path: Path, unique_times: bool = True) -> np.ndarray:
+    """``table`` sorted by its time column (stable); warn, naming ``path``, about negative times and,
+    when each row should have its own time (``unique_times``: odometry, ground truth), repeated ones."""
     if len(table) > 1 and np.any(np.diff(table[:, 0]) < 0):
         table = table[np.argsort(table[:, 0], kind="stable")]
+    negative = int(np.count_nonzero(table[:, 0] < 0))
+    if negative:
+        warnings.warn(f"{path}: {negative} row(s) with a negative timestamp", stacklevel=3)
+    repeated = int(np.count_nonzero(np.diff(table[:, 0]) == 0)) if unique_times else 0
+    if repeated:
+        warnings.warn(f"{path}: {repeated} row(s) repeat the timestamp of the row before", stacklevel=3)
     return table
 
 
-def _required(directory: Path, name: str) -> Path:
+def _required(directory: Path, name: str, columns: int, what: str) -> np.ndarray:
+    """The table of ``directory / name``, which must exist and hold at least one row (``what`` it lists)."""
     path = directory / name
     if not path.is_file():
         raise FileNotFoundError(f"{path} is missing: {directory} is not an MRCLAM dataset directory")
-    return path
+    table = read_table(path, columns)
+    if not len(table):
+        raise ValueError(f"{path} holds no rows (empty or only '#' comments): expected lines of {what}")
+    return table
 
 
 def load(path) -> MRCLAMDataset:
@@ -147,16 +159,25 @@ def load(path) -> MRCLAMDataset:
     truth; each is noted in ``missing`` and warned about. Measurements whose barcode maps to
     no robot or mapped landmark are skipped and counted (one warning with the count).
 
+    Negative timestamps, and repeated ones in odometry and ground truth, are warned about
+    (file and count); rows out of time order are sorted.
+
     Raises:
         FileNotFoundError: if the directory, ``Barcodes.dat``, ``Landmark_Groundtruth.dat`` or
             every robot's odometry is missing.
-        ValueError: on a malformed line, naming the file and the line number.
+        NotADirectoryError: if ``path`` is a file.
+        ValueError: on a malformed line, naming the file and the line number; on an empty (or
+            comments-only) ``Barcodes.dat``, ``Landmark_Groundtruth.dat`` or odometry file, naming it.
     """
     directory = Path(path)
+    if directory.is_file():
+        raise NotADirectoryError(
+            f"{directory} is a file: give the MRCLAM dataset directory that holds {BARCODES_FILE} and the robot files"
+        )
     if not directory.is_dir():
         raise FileNotFoundError(f"MRCLAM dataset directory {directory} does not exist")
-    barcode_rows = read_table(_required(directory, BARCODES_FILE), 2).astype(int)
-    landmark_rows = read_table(_required(directory, LANDMARKS_FILE), LANDMARK_COLUMNS)
+    barcode_rows = _required(directory, BARCODES_FILE, 2, "subject #, barcode #").astype(int)
+    landmark_rows = _required(directory, LANDMARKS_FILE, LANDMARK_COLUMNS, "subject #, x, y, x std, y std")
     barcodes = {int(barcode): int(subject) for subject, barcode in barcode_rows}
     landmark_ids = landmark_rows[:, 0].astype(int)
     candidate_robots = {int(subject) for subject in barcode_rows[:, 0]} - set(landmark_ids.tolist())
@@ -173,16 +194,19 @@ def load(path) -> MRCLAMDataset:
         if not odometry_path.is_file():
             missing.append(f"robot {robot}: {odometry_path.name} is missing, robot left out")
             continue
-        odometry[robot] = _sorted_by_time(read_table(odometry_path, ODOMETRY_COLUMNS))
+        odometry[robot] = _sorted_by_time(read_table(odometry_path, ODOMETRY_COLUMNS), odometry_path)
+        if not len(odometry[robot]):
+            raise ValueError(f"{odometry_path} holds no rows: robot {robot} has no odometry to replay")
         measurement_path = directory / f"Robot{robot}_Measurement.dat"
         if measurement_path.is_file():
-            raw_measurements[robot] = _sorted_by_time(read_table(measurement_path, MEASUREMENT_COLUMNS))
+            table = read_table(measurement_path, MEASUREMENT_COLUMNS)
+            raw_measurements[robot] = _sorted_by_time(table, measurement_path, unique_times=False)
         else:
             missing.append(f"robot {robot}: {measurement_path.name} is missing, no measurements")
             raw_measurements[robot] = np.zeros((0, MEASUREMENT_COLUMNS))
         groundtruth_path = directory / f"Robot{robot}_Groundtruth.dat"
         if groundtruth_path.is_file():
-            groundtruth[robot] = _sorted_by_time(read_table(groundtruth_path, GROUNDTRUTH_COLUMNS))
+            groundtruth[robot] = _sorted_by_time(read_table(groundtruth_path, GROUNDTRUTH_COLUMNS), groundtruth_path)
         else:
             missing.append(f"robot {robot}: {groundtruth_path.name} is missing, no ground truth")
     robots = tuple(sorted(odometry))

@@ -17,10 +17,15 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, SCENARIOS
+from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, scenario_from_config, scenario_names
 from infonav_gym.world.world import World
 
-SCENARIO_CHOICES = ("field", "corridor")  # the single-robot scenarios with landmarks
+SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
+    "speed_mps": "speed_mps",
+    "n_landmarks": "n_candidates",
+    "n_obstacles": "n_obstacles",
+    "size_m": "field_size_m",
+}
 POSE_FEATURES = 10
 CANDIDATE_FEATURES = 5
 _BIG = 1e4
@@ -86,7 +91,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
     def default_config(cls) -> dict:
         return {
             **super().default_config(),
-            "scenario": "field",  # "field" (random) or "corridor" (the paper's Fig. 1)
+            "scenario": "field",  # "field" (random), "corridor" (the paper's Fig. 1), or registered (register_scenario)
             "n_candidates": 8,  # K, size of the action space
             "time_step_s": 0.5,  # [s]
             "speed_mps": 1.0,  # cruise speed along the route [m/s]
@@ -108,7 +113,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
     def __init__(self, render_mode: str | None = None, **config):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
-        check_choice(cfg, "scenario", SCENARIO_CHOICES, owner)
+        check_choice(cfg, "scenario", scenario_names(team=False), owner)
         check_positive(cfg, ["n_candidates", "time_step_s", "speed_mps", "landmark_prior_std_m", "field_size_m"], owner)
         check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
         check_positive(cfg, ["n_obstacles"], owner, allow_zero=True)
@@ -135,15 +140,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
 
     def _reset_episode(self) -> None:
         cfg = self.config
-        if cfg["scenario"] == "field":
-            params = {
-                "n_landmarks": cfg["n_candidates"],
-                "n_obstacles": cfg["n_obstacles"],
-                "size_m": cfg["field_size_m"],
-            }
-        else:
-            params = {}
-        self.world.reset(SCENARIOS[cfg["scenario"]](self.np_random, speed_mps=cfg["speed_mps"], **params))
+        self.world.reset(self._build_scenario())
         self._odometry_rng, self._measurement_rng = self.np_random.spawn(2)
         pose_std = np.array([cfg["initial_position_std_m"]] * 2 + [cfg["initial_heading_std_rad"]])
         self._true_pose = self.world.pose
@@ -157,6 +154,12 @@ class LandmarkSelectionEnv(InfoNavEnv):
             self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2))
         self._true_path = [self._true_pose[:2]]
         self._estimated_path = [self.ekf.x[:2].copy()]
+
+    def _build_scenario(self):
+        """The registered scenario ``config["scenario"]``: one route, at most ``n_candidates`` landmarks."""
+        cfg = self.config
+        owner = type(self).__name__
+        return scenario_from_config(cfg, self.np_random, SCENARIO_KEYS, owner, 1, max_landmarks=cfg["n_candidates"])
 
     def _next_decision(self) -> Decision:
         """Visible landmarks and their expected MI at the prior; the payload is their ``LandmarkSight``."""

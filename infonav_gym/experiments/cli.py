@@ -8,10 +8,13 @@ import shlex
 import sys
 from pathlib import Path
 
-import infonav_gym  # noqa: F401  (registers the envs)
-from infonav_gym.experiments.reproduce import FIGURES
+import infonav_gym  # registers the envs
+from infonav_gym.experiments.paths import OutputWriteError, check_output_dir, check_output_stem, write_failure
+from infonav_gym.experiments.reproduce import DEFAULT_OUTPUT_DIR, FIGURES
 
 DEFAULT_ENV = "infonav/LandmarkSelection-v0"
+EVALUATION_SUFFIXES = (".md", ".csv", ".json", ".png")  # the files of ``evaluate --output STEM``
+REPLAY_SUFFIXES = (".md", ".json")  # the files of ``replay mrclam --output STEM``
 
 
 def _config_pair(text: str) -> tuple[str, object]:
@@ -32,6 +35,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="infonav", description="Information-driven navigation environments.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {infonav_gym.__version__}")
     commands = parser.add_subparsers(dest="command", required=True)
 
     demo = commands.add_parser("demo", help="the paper's Fig. 2 story: which corridor landmark brings most information")
@@ -44,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument(
         "--agents",
         default="random,greedy",
-        help="comma-separated: random, greedy, planner, ppo:PATH (a model.zip from infonav train)",
+        help="comma-separated: random, greedy, planner, ppo:PATH (a model.zip from infonav train, or its directory)",
     )
     evaluate.add_argument("--episodes", type=int, default=20, help="episodes per agent (default: 20)")
     evaluate.add_argument(
@@ -62,6 +66,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--n-envs", type=int, default=8, help="vectorized env copies (default: 8); a team copy gives each robot a slot"
     )
     train.add_argument("--output", type=Path, help="output directory (default: models/ENV-NAME_seedS)")
+    train.add_argument(
+        "--hyperparams",
+        type=Path,
+        metavar="FILE",
+        help="PPO hyperparameters: a YAML file of blocks keyed by env id, rl-zoo style "
+        "(default: the tuned blocks shipped in the package, agents/hyperparams/ppo.yml)",
+    )
     train.add_argument("--subprocess", action="store_true", help="SubprocVecEnv: one process per env copy")
     train.add_argument("--tensorboard", action="store_true", help="log to OUTPUT/tensorboard (needs tensorboard)")
     train.add_argument(
@@ -74,10 +85,18 @@ def build_parser() -> argparse.ArgumentParser:
     benchmark.add_argument("--seconds", type=float, default=1.0, help="seconds per env per round (default: 1)")
     _common(benchmark)
 
-    reproduce = commands.add_parser("reproduce", help="regenerate a figure of the paper: PNG, JSON and a summary")
+    reproduce = commands.add_parser(
+        "reproduce",
+        help="regenerate a figure of the paper: PNG, JSON and a summary",
+        description=f"Regenerate a figure of the paper; writes FIGURE.png and FIGURE.json into --output-dir "
+        f"(default: ./{DEFAULT_OUTPUT_DIR}, created if missing; existing files are overwritten).",
+    )
     reproduce.add_argument("figure", choices=FIGURES, help="which figure")
     reproduce.add_argument(
-        "--output-dir", type=Path, default=Path("results"), help="where to write FIGURE.png and FIGURE.json"
+        "--output-dir",
+        type=Path,
+        default=DEFAULT_OUTPUT_DIR,
+        help=f"where to write FIGURE.png and FIGURE.json (default: ./{DEFAULT_OUTPUT_DIR}, in the working directory)",
     )
     reproduce.add_argument("--seeds", type=int, default=20, help="seeds averaged from --seed on (default: 20)")
     _common(reproduce)
@@ -113,36 +132,57 @@ def _demo(args) -> dict:
     return result
 
 
+def _write_files(write, result: dict, where: str) -> str | None:
+    """Run ``write()`` (it returns the paths written) into ``result["files"]``; a failure's message, else None."""
+    try:
+        result["files"] = [str(path) for path in write()]
+    except OSError as error:
+        return write_failure(where, error)
+    return None
+
+
+def _raise_if_failed(failure: str | None, result: dict) -> None:
+    """After the table is printed: a failed write becomes ``OutputWriteError`` carrying ``result``."""
+    if failure:
+        raise OutputWriteError(failure, result)
+
+
 def _evaluate(args, argv) -> dict:
     from infonav_gym.experiments.evaluation import config_line, evaluate, markdown_table, write_results
 
+    stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
     agent_names = [name.strip() for name in args.agents.split(",") if name.strip()]
     results = evaluate(args.env, agent_names, args.episodes, args.seed, dict(args.config), progress=not args.json)
-    if args.output:
+    failure = None
+    if stem:
         command = "infonav " + " ".join(shlex.quote(part) for part in argv)
-        results["files"] = [str(path) for path in write_results(results, args.output, command)]
+        failure = _write_files(lambda: write_results(results, stem, command), results, f"--output {stem}")
     if not args.json:
         print(f"{args.env}, {args.episodes} episodes per agent, seeds {args.seed}..{args.seed + args.episodes - 1}")
         print(config_line(results))
         print(markdown_table(results))
+    _raise_if_failed(failure, results)
     return results
 
 
 def _train(args) -> dict:
     """Train PPO on ``args.env``; print where the model went unless --json."""
     try:
-        from agents.ppo import train
+        from agents.ppo import load_hyperparameters, train
     except ImportError as error:
         raise ValueError(f"training needs the rl extra (pip install 'infonav-gym[rl]'): {error}") from None
     if args.timesteps < 1 or args.n_envs < 1:
         raise ValueError(f"--timesteps and --n-envs must be >= 1, got {args.timesteps} and {args.n_envs}")
     output = args.output or Path("models") / f"{args.env.rsplit('/', 1)[-1]}_seed{args.seed}"
+    check_output_dir(output, "--output")
+    hyperparameters = load_hyperparameters(args.env, args.hyperparams) if args.hyperparams else None
     model_path = train(
         args.env,
         args.timesteps,
         seed=args.seed,
         n_envs=args.n_envs,
         output_dir=output,
+        hyperparameters=hyperparameters,
         progress=not args.json,
         tensorboard=args.tensorboard,
         subprocess=args.subprocess,
@@ -174,15 +214,23 @@ def _benchmark(args) -> dict:
 
 
 def _reproduce(args, argv) -> dict:
-    """Run ``reproduce_<figure>`` of ``infonav_gym.experiments.reproduce.<figure>``; print its ``<figure>_table`` unless --json."""
+    """Run ``reproduce_<figure>`` of ``infonav_gym.experiments.reproduce.<figure>``; print its table unless --json.
+
+    The table is printed even when writing the files fails (then ``OutputWriteError`` follows).
+    """
     import importlib
 
     module = importlib.import_module(f"infonav_gym.experiments.reproduce.{args.figure}")
     reproduce, table = getattr(module, f"reproduce_{args.figure}"), getattr(module, f"{args.figure}_table")
     command = "infonav " + shlex.join(argv)
-    result = reproduce(args.output_dir, seed=args.seed, n_seeds=args.seeds, progress=not args.json, command=command)
+    try:
+        result = reproduce(args.output_dir, seed=args.seed, n_seeds=args.seeds, progress=not args.json, command=command)
+        failure = None
+    except OutputWriteError as error:
+        result, failure = error.result, str(error)
     if not args.json:
         print(table(result))
+    _raise_if_failed(failure, result)
     return result
 
 
@@ -205,11 +253,12 @@ def _replay(args, argv) -> dict:
         raise ValueError(message) from None
     if min(ks) < 1 or min(windows) <= 0 or args.seeds < 1:
         raise ValueError(f"need k >= 1, window-s > 0 and seeds >= 1, got {ks}, {windows}, {args.seeds}")
+    stem = check_output_stem(args.output, REPLAY_SUFFIXES, "--output") if args.output else None
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             dataset = mrclam.load(args.dataset_dir)
-    except FileNotFoundError as error:
+    except OSError as error:  # a missing directory or file, a file where the directory belongs
         raise ValueError(str(error)) from None
     for warning in caught:
         print(f"infonav replay: warning: {warning.message}", file=sys.stderr)
@@ -235,10 +284,13 @@ def _replay(args, argv) -> dict:
         duration_s=args.duration_s,
         progress=not args.json,
     )
-    if args.output:
-        result["files"] = [str(path) for path in write_results(result, args.output, "infonav " + shlex.join(argv))]
+    failure = None
+    if stem:
+        command = "infonav " + shlex.join(argv)
+        failure = _write_files(lambda: write_results(result, stem, command), result, f"--output {stem}")
     if not args.json:
         print(markdown_table(result))
+    _raise_if_failed(failure, result)
     return result
 
 
@@ -259,7 +311,13 @@ def main(argv: list[str] | None = None) -> int:
             result = _replay(args, argv)
         else:
             result = _benchmark(args)
+    except OutputWriteError as failure:  # the table was printed; the JSON still is with --json
+        if args.json:
+            print(json.dumps(failure.result))
+        parser.exit(2, f"infonav {args.command}: error: {failure}\n")
     except (ValueError, ImportError) as error:
+        parser.exit(2, f"infonav {args.command}: error: {error}\n")
+    except OSError as error:  # a file that could not be read or written, e.g. demo --plot or train's model
         parser.exit(2, f"infonav {args.command}: error: {error}\n")
     if args.json:
         print(json.dumps(result))

@@ -1,7 +1,7 @@
 """PPO training speed on LandmarkSelection-v0 against CartPole-v1, same settings, same process.
 
 Both envs train with the same algorithm and hyperparameters (``MaskablePPO`` with the
-LandmarkSelection-v0 block of ``scripts/hyperparams/ppo.yml``; CartPole gets an all-valid
+LandmarkSelection-v0 block of ``agents/hyperparams/ppo.yml``; CartPole gets an all-valid
 mask through ``InfoActionMask``), ``n_envs`` ``DummyVecEnv`` copies and the same torch
 threads. Rounds alternate between the two and time only ``learn`` (rollouts and gradient
 updates), so model construction and a busy machine affect both alike; the median ratio

@@ -21,11 +21,17 @@ from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
-from infonav_gym.world.scenarios import SCENARIOS
+from infonav_gym.world.scenarios import scenario_from_config, scenario_names
 from infonav_gym.world.world import World
 
-TEAM_SCENARIOS = ("team_field", "convoy")
 ESTIMATORS = ("joint", "independent")
+TEAM_SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
+    "n_robots": "n_robots",
+    "n_obstacles": "n_obstacles",
+    "n_canopies": "n_canopies",
+    "size_m": "field_size_m",
+    "speed_mps": "speed_mps",
+}
 OWN_FEATURES = 10
 TEAMMATE_FEATURES = 5
 NO_OBSERVATION = 0
@@ -148,7 +154,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         """A fresh dict of every config key with its default."""
         return {
             "max_cycles": 200,  # episode length [steps]; all agents are truncated after it
-            "scenario": "team_field",  # "team_field" (random loops, canopies) or "convoy" (the paper's Fig. 3)
+            "scenario": "team_field",  # "team_field" (random loops), "convoy" (the paper's Fig. 3), or registered
             "n_robots": 4,
             "robot_sensors": None,  # one suite per robot, e.g. ["gps+laser", "vision"]; None: the default team
             "gps_outages": (DEFAULT_OUTAGE,),  # (robot, start_s, end_s) spans without DGPS [s]
@@ -171,7 +177,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
     def __init__(self, render_mode: str | None = None, **config):
         self._configure(render_mode, config)
         cfg, owner = self.config, type(self).__name__
-        check_choice(cfg, "scenario", TEAM_SCENARIOS, owner)
+        check_choice(cfg, "scenario", scenario_names(team=True), owner)
         check_choice(cfg, "estimator", ESTIMATORS, owner)
         check_positive(cfg, ["max_cycles", "time_step_s", "speed_mps", "gps_std_m", "field_size_m"], owner)
         check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
@@ -241,17 +247,9 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         self._estimated_paths = [[pose[:2]] for pose in self.ekf.poses]
 
     def _build_scenario(self):
+        """The registered team scenario ``config["scenario"]``: one route per robot."""
         cfg = self.config
-        if cfg["scenario"] == "convoy":
-            return SCENARIOS["convoy"](self.np_random, n_robots=cfg["n_robots"], speed_mps=cfg["speed_mps"])
-        return SCENARIOS["team_field"](
-            self.np_random,
-            n_robots=cfg["n_robots"],
-            n_obstacles=cfg["n_obstacles"],
-            n_canopies=cfg["n_canopies"],
-            size_m=cfg["field_size_m"],
-            speed_mps=cfg["speed_mps"],
-        )
+        return scenario_from_config(cfg, self.np_random, TEAM_SCENARIO_KEYS, type(self).__name__, cfg["n_robots"])
 
     def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
         """Fuse the chosen observations; each robot's reward mixes its own and the team's MI by ``team_reward``."""

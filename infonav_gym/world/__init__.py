@@ -1,6 +1,14 @@
 """The simulated 2D world (Pymunk) and its scenarios."""
 
-from infonav_gym.world.scenarios import SCENARIOS, CircleObstacle, Route, Scenario
+from infonav_gym.world.scenarios import (
+    SCENARIOS,
+    CircleObstacle,
+    Route,
+    Scenario,
+    build_scenario,
+    register_scenario,
+    scenario_names,
+)
 from infonav_gym.world.terrain import MATERIALS, Box, Cylinder, RayHits, Terrain
 from infonav_gym.world.terrain_generation import flat_terrain, make_terrain
 from infonav_gym.world.world import World
@@ -16,6 +24,9 @@ __all__ = [
     "Scenario",
     "Terrain",
     "World",
+    "build_scenario",
     "flat_terrain",
     "make_terrain",
+    "register_scenario",
+    "scenario_names",
 ]

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import inspect
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -336,4 +338,101 @@ def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float =
     return Scenario(name="convoy", bounds=(x_min - 1, y_min - 1, x_max + 1, y_max + 1), routes=routes, walls=walls)
 
 
-SCENARIOS = {"corridor": corridor, "field": field, "team_field": team_field, "convoy": convoy}
+ScenarioBuilder = Callable[..., Scenario]  # builder(np_random, **parameters) -> Scenario
+
+# The registry: every scenario by name (``register_scenario`` adds to it); TEAM_SCENARIOS: those for teams.
+SCENARIOS: dict[str, ScenarioBuilder] = {
+    "corridor": corridor,
+    "field": field,
+    "team_field": team_field,
+    "convoy": convoy,
+}
+TEAM_SCENARIOS: set[str] = {"team_field", "convoy"}
+
+
+def register_scenario(name: str, builder: ScenarioBuilder, *, team: bool = False) -> None:
+    """Make ``builder`` the scenario ``name``: ``gym.make(..., scenario=name)`` then builds its worlds.
+
+    On every reset the env calls ``builder(np_random, **parameters)`` with its ``np_random`` and
+    those of its parameters that the builder's signature names (see ``build_scenario``). Register
+    in a module every process imports (``SubprocVecEnv`` workers start fresh).
+
+    Args:
+        name: the value of the env's ``scenario`` config key.
+        builder: returns a ``Scenario``; all its randomness from ``np_random``.
+        team: for ``cooperative_localization_v0`` (one route per robot), else for
+            ``LandmarkSelection-v0`` (one route, at most ``n_candidates`` landmarks).
+
+    Raises:
+        ValueError: for a name that is taken or not a non-empty string, or a builder that is not callable.
+    """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"a scenario name must be a non-empty string, got {name!r}")
+    if name in SCENARIOS:
+        raise ValueError(f"scenario {name!r} is already registered (registered: {', '.join(sorted(SCENARIOS))})")
+    if not callable(builder):
+        raise ValueError(f"the builder of scenario {name!r} must be callable, got {builder!r}")
+    SCENARIOS[name] = builder
+    if team:
+        TEAM_SCENARIOS.add(name)
+
+
+def scenario_names(team: bool) -> tuple[str, ...]:
+    """The registered scenarios for teams (``team=True``) or for a single robot, sorted."""
+    return tuple(sorted(name for name in SCENARIOS if (name in TEAM_SCENARIOS) == team))
+
+
+def build_scenario(name: str, np_random: np.random.Generator, **parameters) -> Scenario:
+    """Build the registered scenario ``name`` with ``np_random`` and the ``parameters`` its builder names.
+
+    A builder that takes ``**kwargs`` gets every parameter; one that names a few gets those:
+    ``corridor(np_random, speed_mps)`` ignores the field's ``n_obstacles``.
+
+    Raises:
+        ValueError: for an unknown name (listing the registered ones), or a builder that returns no ``Scenario``.
+    """
+    if name not in SCENARIOS:
+        raise ValueError(f"unknown scenario {name!r}; registered: {', '.join(sorted(SCENARIOS))}")
+    builder = SCENARIOS[name]
+    signature = inspect.signature(builder).parameters.values()
+    if not any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in signature):
+        named = {parameter.name for parameter in signature}
+        parameters = {key: value for key, value in parameters.items() if key in named}
+    scenario = builder(np_random, **parameters)
+    if not isinstance(scenario, Scenario):
+        raise ValueError(f"the builder of scenario {name!r} returned a {type(scenario).__name__}, not a Scenario")
+    return scenario
+
+
+def scenario_from_config(
+    config: dict,
+    np_random: np.random.Generator,
+    parameter_keys: dict[str, str],
+    owner: str,
+    n_routes: int,
+    max_landmarks: int | None = None,
+) -> Scenario:
+    """Build the registered scenario ``config["scenario"]`` for the env ``owner`` and check that it fits.
+
+    Args:
+        config: the env's config.
+        np_random: the env's generator.
+        parameter_keys: builder parameter -> the config key that gives its value.
+        owner: the env, for the error.
+        n_routes: how many routes the env drives (its robots).
+        max_landmarks: how many landmarks the env can tell apart (None: any number).
+
+    Raises:
+        ValueError: see ``build_scenario``; or, naming the scenario, when it has another number of
+            routes or more landmarks than the env can handle.
+    """
+    parameters = {name: config[key] for name, key in parameter_keys.items()}
+    scenario = build_scenario(config["scenario"], np_random, **parameters)
+    routes, landmarks = len(scenario.routes), len(scenario.landmarks)
+    if routes != n_routes or (max_landmarks is not None and landmarks > max_landmarks):
+        most = "" if max_landmarks is None else f" and at most {max_landmarks} landmarks"
+        raise ValueError(
+            f"scenario {config['scenario']!r} has {routes} route(s) and {landmarks} landmarks: "
+            f"{owner} needs {n_routes} route(s){most}"
+        )
+    return scenario

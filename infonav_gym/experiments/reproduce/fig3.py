@@ -16,7 +16,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent
-from infonav_gym.experiments.reproduce import figure_paths, paper_label, write_result
+from infonav_gym.experiments.reproduce import figure_paths, files_line, paper_label, write_result
 from infonav_gym.experiments.reproduce.fig3_plot import plot_fig3
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.cooperative_localization import NO_OBSERVATION
@@ -203,8 +203,7 @@ def reproduce_fig3(
         "fig3": run_fig3(seed),
         "outage_rmse": outage_rmse(range(seed, seed + n_seeds), progress=progress),
     }
-    plot_fig3(result["fig3"], png)
-    return write_result(result, png, json_path)
+    return write_result(result, png, json_path, lambda path: plot_fig3(result["fig3"], path))
 
 
 def fig3_table(result: dict) -> str:
@@ -229,6 +228,6 @@ def fig3_table(result: dict) -> str:
         f"  team greedy      {rmse['mean_greedy_m']:.3f} m",
         f"  dead reckoning   {rmse['mean_dead_reckoning_m']:.3f} m",
         f"  ratio            {rmse['ratio']:.3f}",
-        f"wrote {', '.join(result['files'])}",
+        files_line(result),
     ]
     return "\n".join(lines)

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from infonav_gym.experiments.reproduce import figure_paths, write_result
+from infonav_gym.experiments.reproduce import figure_paths, files_line, write_result
 from infonav_gym.experiments.reproduce.fig5_plot import plot_fig5
 from infonav_gym.information import histogram_entropy
 from infonav_gym.sensors.camera import Camera
@@ -235,8 +235,7 @@ def reproduce_fig5(
         "fig5": fig5,
         "seed_statistics": seed_statistics(range(seed, seed + n_seeds), progress=progress),
     }
-    plot_fig5(fig5, images, png)
-    return write_result(result, png, json_path)
+    return write_result(result, png, json_path, lambda path: plot_fig5(fig5, images, path))
 
 
 def fig5_table(result: dict) -> str:
@@ -258,5 +257,5 @@ def fig5_table(result: dict) -> str:
             f"  {case:16s}{summary['expected']:16s} in {summary['fraction']:6.1%} of seeds"
             f"  (mean camera {summary['mean_camera_nats']:.3f}, LADAR {summary['mean_ladar_nats']:.3f})"
         )
-    lines.append(f"wrote {', '.join(result['files'])}")
+    lines.append(files_line(result))
     return "\n".join(lines)

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from infonav_gym.experiments.reproduce import figure_paths, write_result
+from infonav_gym.experiments.reproduce import figure_paths, files_line, write_result
 from infonav_gym.experiments.reproduce.fig6_plot import plot_fig6
 from infonav_gym.geometry import transform_error
 from infonav_gym.registration import icp
@@ -94,7 +94,6 @@ def reproduce_fig6(
     png, json_path = figure_paths(output_dir, "fig6", n_seeds, "how many frame pairs the statistics register")
     pair = terrain_frame_pair(np.random.default_rng(seed))
     registration = register(pair)
-    plot_fig6(pair, registration["transform"], registration, png)
     plotted = {key: value for key, value in registration.items() if key != "transform"}
     result = {
         "command": command,
@@ -112,7 +111,8 @@ def reproduce_fig6(
         },
         "seed_statistics": seed_statistics(range(seed, seed + n_seeds), progress=progress),
     }
-    return write_result(result, png, json_path)
+    icp_motion = registration["transform"]
+    return write_result(result, png, json_path, lambda path: plot_fig6(pair, icp_motion, registration, path))
 
 
 def fig6_table(result: dict) -> str:
@@ -131,5 +131,5 @@ def fig6_table(result: dict) -> str:
             f"  {name:16s}{summary['mean_points']:8.0f}{summary['mean_error_before_m']:9.3f}"
             f"{summary['mean_error_after_m']:9.3f}{summary['fraction_improved']:10.0%}"
         )
-    lines.append(f"wrote {', '.join(result['files'])}")
+    lines.append(files_line(result))
     return "\n".join(lines)

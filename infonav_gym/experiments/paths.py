@@ -1,0 +1,86 @@
+"""Output paths of the harness: checked before the work starts, and a write failure that keeps the work."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+
+class OutputWriteError(Exception):
+    """Writing the files failed after the work was done; ``result`` holds the work (its ``files``: those written)."""
+
+    def __init__(self, message: str, result: dict):
+        super().__init__(message)
+        self.result = result
+
+
+def _nearest_existing(path: Path) -> Path:
+    """``path`` or its closest ancestor that exists."""
+    for candidate in (path, *path.parents):
+        if candidate.exists():
+            return candidate
+    return Path(".")
+
+
+def _directory_problem(directory: Path) -> str | None:
+    """Why ``directory`` cannot be, or be created as, a writable directory; None if it can."""
+    existing = _nearest_existing(directory)
+    if not existing.is_dir():
+        return f"{existing} is a file, not a directory"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        action = f"write to {existing}" if existing == directory else f"create {directory} in {existing}"
+        return f"cannot {action} (permission denied)"
+    return None
+
+
+def check_output_dir(directory: Path | str, where: str) -> Path:
+    """Check that ``directory`` is, or can be created as, a writable directory; create nothing.
+
+    Args:
+        directory: where the files will go.
+        where: what named it, for the error (e.g. ``"--output-dir"``).
+
+    Raises:
+        ValueError: naming ``where`` and the path when it (or an ancestor) is a file, or when the
+            directory, or the ancestor it would be created in, is not writable.
+    """
+    directory = Path(directory)
+    problem = _directory_problem(directory)
+    if problem:
+        raise ValueError(f"{where} {directory}: {problem}")
+    return directory
+
+
+def check_output_stem(stem: Path | str, suffixes: tuple[str, ...], where: str) -> Path:
+    """Check that the files ``stem`` + each of ``suffixes`` can be written; create nothing.
+
+    Args:
+        stem: the files' common path without suffix, e.g. ``results/eval`` for ``results/eval.md``.
+        suffixes: the files' suffixes (``".md"``, ...).
+        where: what named it, for the error (e.g. ``"--output"``).
+
+    Raises:
+        ValueError: naming ``where`` and the path when ``stem`` is an existing directory (a file
+            stem is expected), when one of the files is a directory or not writable, or when the
+            parent directory cannot be created or written (see ``check_output_dir``).
+    """
+    stem = Path(stem)
+    if stem.is_dir():
+        raise ValueError(f"{where} {stem} is a directory: give a file stem, e.g. {stem / 'results'}")
+    problem = _directory_problem(stem.parent)
+    if problem:
+        raise ValueError(f"{where} {stem}: {problem}")
+    for suffix in suffixes:
+        path = stem.with_suffix(suffix)
+        if path.is_dir():
+            raise ValueError(f"{where} {stem}: {path} is a directory, not a file")
+        if path.exists() and not os.access(path, os.W_OK):
+            raise ValueError(f"{where} {stem}: cannot overwrite {path} (permission denied)")
+    return stem
+
+
+def write_failure(what: str, error: OSError) -> str:
+    """One line for a failed write: what could not be written and the OS's reason."""
+    reason = error.strerror or str(error)
+    name = f" {error.filename}" if error.filename else ""
+    return f"could not write {what}:{name} {reason}"

@@ -1,0 +1,118 @@
+"""PPO hyperparameters: shipped as package data, overridden by ``--hyperparams``, recorded in full; ``ppo:DIR``."""
+
+import json
+import shutil
+import subprocess
+import sys
+import zipfile
+from importlib import resources
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("sb3_contrib")
+
+from agents.ppo import load_hyperparameters  # noqa: E402
+from infonav_gym.experiments.cli import main  # noqa: E402
+
+LANDMARK_ID = "infonav/LandmarkSelection-v0"
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = "default:\n  n_steps: 16\n  batch_size: 16\n  n_epochs: 1\n  gamma: 0.5\n"  # one 2 x 16-step rollout
+
+
+def train_json(tmp_path, *extra) -> dict:
+    """``infonav train`` for 32 steps on 2 envs; its train.json."""
+    output = tmp_path / "model"
+    argv = ["train", "--env", LANDMARK_ID, "--timesteps", "32", "--n-envs", "2", "--output", str(output), *extra]
+    assert main([*argv, "--json"]) == 0
+    return json.loads((output / "train.json").read_text())
+
+
+def one_line_error(capsys, argv) -> str:
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    return err
+
+
+def test_the_tuned_blocks_are_package_data_read_through_importlib_resources():
+    shipped = resources.files("agents").joinpath("hyperparams/ppo.yml")
+    assert shipped.is_file()
+    assert load_hyperparameters(LANDMARK_ID)["gamma"] == 0.9
+    assert load_hyperparameters("cooperative_localization_v0")["n_envs"] == 4
+    assert load_hyperparameters("CartPole-v1") == load_hyperparameters("no block: the default one")
+
+
+def test_the_built_wheel_contains_the_hyperparameters(tmp_path):
+    pytest.importorskip("setuptools", reason="building without isolation needs setuptools in this environment")
+    source = tmp_path / "source"  # a copy: building in the tree would leave build/ behind
+    source.mkdir()
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy(ROOT / name, source / name)
+    for package in ("infonav_gym", "agents"):
+        shutil.copytree(ROOT / package, source / package, ignore=shutil.ignore_patterns("__pycache__"))
+    command = [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(tmp_path)]
+    subprocess.run([*command, str(source)], check=True, capture_output=True, timeout=120)
+    (wheel,) = tmp_path.glob("infonav_gym-*.whl")
+    assert "agents/hyperparams/ppo.yml" in zipfile.ZipFile(wheel).namelist()
+
+
+def test_train_json_records_every_constructor_value_sb3_defaults_included(tmp_path):
+    record = train_json(tmp_path)
+    assert record["hyperparameters"] == {**load_hyperparameters(LANDMARK_ID), "n_envs": 2}
+    constructor = record["constructor"]
+    assert constructor["gamma"] == 0.9 and constructor["n_steps"] == 256 and constructor["seed"] == 0
+    assert constructor["vf_coef"] == 0.5 and constructor["max_grad_norm"] == 0.5, "SB3's defaults, not in the file"
+    assert constructor["policy_kwargs"]["activation_fn"] == "torch.nn.modules.activation.Tanh"
+
+
+def test_hyperparams_file_overrides_the_tuned_blocks(tmp_path):
+    file = tmp_path / "small.yml"
+    file.write_text(SMALL)
+    record = train_json(tmp_path, "--hyperparams", str(file))
+    assert record["constructor"]["gamma"] == 0.5 and record["constructor"]["n_steps"] == 16
+    assert record["constructor"]["ent_coef"] == 0.0 and record["timesteps"] == 32
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (None, "cannot read hyperparameter file {file}: No such file or directory"),
+        ("default: [", "hyperparameter file {file} is not valid YAML"),
+        ("- 1\n- 2\n", "hyperparameter file {file} must map env ids to blocks"),
+        ("CartPole-v1: {}\n", "hyperparameter file {file} has no block for 'infonav/LandmarkSelection-v0'"),
+        ("default: 3\n", "block 'default' of hyperparameter file {file} must be a mapping"),
+        ("default: {gama: 0.9}\n", "unknown PPO hyperparameter(s) ['gama']: MaskablePPO takes policy, learning_rate"),
+        ("default: {seed: 3}\n", "hyperparameter(s) ['seed'] are set by train's arguments"),
+    ],
+)
+def test_a_bad_hyperparams_file_is_one_line_exit_2(capsys, tmp_path, content, message):
+    file = tmp_path / "ppo.yml"
+    if content is not None:
+        file.write_text(content)
+    argv = ["train", "--env", LANDMARK_ID, "--timesteps", "8", "--output", str(tmp_path / "out")]
+    assert message.format(file=file) in one_line_error(capsys, [*argv, "--hyperparams", str(file)])
+
+
+def test_ppo_agent_accepts_the_directory_that_holds_model_zip(capsys, tmp_path):
+    file = tmp_path / "small.yml"
+    file.write_text(SMALL)
+    train_json(tmp_path, "--hyperparams", str(file))
+    capsys.readouterr()
+    directory = tmp_path / "model"
+    argv = ["evaluate", "--episodes", "1", "--config", "horizon=10", "--json", "--agents"]
+    assert main([*argv, f"ppo:{directory}"]) == 0
+    by_directory = json.loads(capsys.readouterr().out)["agents"][f"ppo:{directory}"]
+    assert main([*argv, f"ppo:{directory / 'model.zip'}"]) == 0
+    assert json.loads(capsys.readouterr().out)["agents"][f"ppo:{directory / 'model.zip'}"] == by_directory
+    error = one_line_error(capsys, [*argv, f"ppo:{tmp_path}"])
+    assert f"PPO model directory '{tmp_path}' holds no model.zip" in error
+
+
+def test_version_prints_the_package_version(capsys):
+    import infonav_gym
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0 and capsys.readouterr().out == f"infonav {infonav_gym.__version__}\n"
