@@ -18,6 +18,7 @@ from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
+from infonav_gym.rendering import PathHistory
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.active_scenarios import (
@@ -204,8 +205,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         self.ekf = PoseEKF(self._true_pose + pose_std * self.np_random.standard_normal(POSE_DIM), np.diag(pose_std**2))
         self.observations_left = cfg["max_observations"]
         self.goal_reached = self.failed = False
-        self._true_path = [self._true_pose[:2]]
-        self._estimated_path = [self.ekf.x[:2].copy()]
+        self._true_path = PathHistory(self._true_pose[:2])
+        self._estimated_path = PathHistory(self.ekf.x[:2])
 
     def _next_decision(self) -> tuple[np.ndarray, np.ndarray]:
         landmarks, true_pose, P = self.world.landmarks, self._true_pose, self.ekf.P
@@ -339,6 +340,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
             landmark_visible=self._visible,
             chosen_landmark=landmark,
             robots=[RobotDrawing.tracked(self._true_pose, self.ekf, self._true_path, self._estimated_path)],
+            goal=tuple(self.goal),
+            goal_radius_m=self.config["goal_radius_m"],
             caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.0f} s   "
             f"goal ({self.goal[0]:.0f}, {self.goal[1]:.0f}) m, {self.observations_left} observations left",
         )

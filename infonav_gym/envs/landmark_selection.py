@@ -13,6 +13,7 @@ from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
+from infonav_gym.rendering import PathHistory
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, SCENARIOS
@@ -149,8 +150,8 @@ class LandmarkSelectionEnv(InfoNavEnv):
             self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2), estimates, prior_std**2)
         else:
             self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2))
-        self._true_path = [self._true_pose[:2]]
-        self._estimated_path = [self.ekf.x[:2].copy()]
+        self._true_path = PathHistory(self._true_pose[:2])
+        self._estimated_path = PathHistory(self.ekf.x[:2])
 
     def _next_decision(self) -> tuple[np.ndarray, np.ndarray]:
         landmarks, true_pose, P = self.world.landmarks, self._true_pose, self.ekf.P

@@ -10,6 +10,7 @@ from gymnasium import spaces
 from infonav_gym.config import check_choice, check_open_interval, check_positive
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.information import histogram_entropy
+from infonav_gym.rendering import PathHistory
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
@@ -21,7 +22,6 @@ IDLE_ACTION = 0
 MAX_IMAGE_ENTROPY = math.log(256)  # entropy of a uniform 256-level histogram [nats]
 OPTION_FEATURES = 3
 GLOBAL_FEATURES = 2 + len(SENSORS)
-_WEDGE_LENGTH_M = 12.0  # drawn length of the acquired field of view [m]
 _BYTES_PER_PIXEL = {"ladar": 2, "camera": 1}  # 16-bit ranges, 8-bit gray levels
 
 
@@ -154,7 +154,7 @@ class SensorSelectionEnv(InfoNavEnv):
         self.world.reset(scene.scenario)
         self._sensor_rng = self.np_random.spawn(1)[0]
         self._true_pose = self.world.pose
-        self._true_path = [self._true_pose[:2]]
+        self._true_path = PathHistory(self._true_pose[:2])
         self._credit_bytes = cfg["bandwidth_buffer_bytes"]
         self._last_information = np.zeros(self.n_options)
         self._last_acquired_step = np.full(self.n_options, -1)
@@ -231,7 +231,7 @@ class SensorSelectionEnv(InfoNavEnv):
         }
 
     def _scene_frame(self):
-        from infonav_gym.rendering import RobotDrawing, SceneFrame
+        from infonav_gym.rendering import SENSOR_WEDGE_LENGTH_M, RobotDrawing, SceneFrame
 
         scenario = self.world.scenario
         caption = f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
@@ -241,16 +241,25 @@ class SensorSelectionEnv(InfoNavEnv):
         else:
             sensor, pan_rad = self.option(self._chosen_action)
             caption += f"{sensor} at pan {math.degrees(pan_rad):+.0f} deg: H = {self._last_entropy:.2f} nats"
-            wedge = (self._acquired_heading + pan_rad, getattr(self, sensor).horizontal_fov_rad, _WEDGE_LENGTH_M)
+            wedge = (self._acquired_heading + pan_rad, getattr(self, sensor).horizontal_fov_rad, SENSOR_WEDGE_LENGTH_M)
         return SceneFrame(
             bounds=scenario.bounds,
             walls=scenario.walls,
             obstacles=scenario.obstacles,
-            robots=[RobotDrawing(true_pose=self._true_pose, true_path=np.array(self._true_path))],
+            robots=[RobotDrawing(true_pose=self._true_pose, true_path=self._true_path.points())],
             sensor_wedge=wedge,
             inset_image=self._last_image,
+            inset_title=self._inset_title(),
             caption=caption,
         )
+
+    def _inset_title(self) -> str:
+        """What the inset shows: the image acquired this step."""
+        if self._last_image is None:
+            return ""
+        sensor = self.option(self._chosen_action)[0]
+        legend = "LADAR range image (dark = near, white = no return)" if sensor == "ladar" else "camera image"
+        return f"{legend} acquired this step"
 
 
 def _prefixed(config: dict, prefix: str) -> dict:
