@@ -244,6 +244,7 @@ def legend_entries(frame: SceneFrame) -> list[LegendEntry]:
         (frame.chosen_landmark is not None, "disc", _RED, "landmark observed now"),
         (frame.landmark_estimates is not None, "cross", _ORANGE, f"landmark estimate, {N_SIGMA:g}\u03c3"),
         (bool(frame.observations), "line", _robot_colour(0), "relative observation (observer's colour)"),
+        (bool(frame.walls), "line", _DARK_GREY, "wall"),
         (bool(frame.obstacles), "disc", _DARK_GREY, "obstacle"),
         (bool(frame.gps_denied_zones), "zone", _CANOPY_GREEN, "GPS denied"),
         (frame.sensor_wedge is not None, "wedge", _RED, "sensor field of view"),

@@ -240,7 +240,7 @@ class SensorSelectionEnv(InfoNavEnv):
             caption += "no frame acquired"
         else:
             sensor, pan_rad = self.option(self._chosen_action)
-            caption += f"{sensor} at pan {math.degrees(pan_rad):+.0f} deg: H = {self._last_entropy:.2f} nats"
+            caption += f"{sensor} at pan {math.degrees(pan_rad):+.0f} deg: image entropy {self._last_entropy:.2f} nats"
             wedge = (self._acquired_heading + pan_rad, getattr(self, sensor).horizontal_fov_rad, SENSOR_WEDGE_LENGTH_M)
         return SceneFrame(
             bounds=scenario.bounds,
