@@ -8,6 +8,7 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
 import pickle
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -533,3 +534,22 @@ def test_the_team_env_keeps_every_robots_paths_bounded(monkeypatch):
     np.testing.assert_array_equal(env._true_paths[0].points()[-1], env._true_poses[0][:2])
     assert env.render().dtype == np.uint8
     env.close()
+
+
+def test_the_frames_script_writes_one_png_per_env(tmp_path):
+    from PIL import Image
+
+    script = Path(__file__).resolve().parents[1] / "scripts" / "render_frames.py"
+    environment = {**os.environ, "SDL_VIDEODRIVER": "dummy", "PYTHONPATH": os.pathsep.join(sys.path)}
+    result = subprocess.run(
+        [sys.executable, str(script), "--output-dir", str(tmp_path)], capture_output=True, text=True, env=environment
+    )
+    assert result.returncode == 0, result.stderr
+    names = ["ActiveLocalization", "LandmarkSelection", "RangeRegistration", "SensorSelection"]
+    assert sorted(path.name for path in tmp_path.iterdir()) == [f"{name}.png" for name in names] + [
+        "cooperative_localization_v0.png"
+    ]
+    with Image.open(tmp_path / "LandmarkSelection.png") as corridor:
+        assert corridor.size[0] == 900 and corridor.mode == "RGB"
+    with Image.open(tmp_path / "cooperative_localization_v0.png") as team:
+        assert max(team.size) == 600
