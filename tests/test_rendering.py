@@ -1,4 +1,4 @@
-"""Tests for infonav_gym.rendering."""
+"""Tests for infonav_gym.rendering and infonav_gym.scene (what a frame shows, the bounded paths)."""
 
 import os
 import subprocess
@@ -16,16 +16,12 @@ import pytest
 from infonav_gym.rendering import (
     LANDMARK_LABEL_COLOUR,
     MIN_ELLIPSE_RADIUS_PX,
-    N_SIGMA,
     ROBOT_COLOURS,
     LegendEntry,
-    PathHistory,
     Renderer,
-    RobotDrawing,
-    SceneFrame,
-    covariance_ellipse,
     legend_entries,
 )
+from infonav_gym.scene import N_SIGMA, PathHistory, RobotDrawing, SceneFrame, covariance_ellipse
 
 pytest.importorskip("pygame")
 
@@ -442,6 +438,7 @@ def test_pygame_is_imported_only_when_an_env_renders():
         "env.reset(seed=0)\n"
         "for _ in range(5): env.step(0)\n"
         "assert 'pygame' not in sys.modules, 'pygame imported before render'\n"
+        "assert 'infonav_gym.rendering' not in sys.modules\n"
         "env.render()\n"
         "assert 'pygame' in sys.modules\n"
     )

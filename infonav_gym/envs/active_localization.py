@@ -18,7 +18,7 @@ from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
-from infonav_gym.rendering import PathHistory
+from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.active_scenarios import (
@@ -328,8 +328,6 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         }
 
     def _scene_frame(self):
-        from infonav_gym.rendering import RobotDrawing, SceneFrame
-
         scenario = self.world.scenario
         landmark = None if self._chosen_action is None else self.decode_action(self._chosen_action)[0]
         return SceneFrame(

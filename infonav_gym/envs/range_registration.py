@@ -13,7 +13,7 @@ from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import frame_pair, registration_error, scan_on_terrain
 from infonav_gym.registration.icp import METHODS, icp
-from infonav_gym.rendering import PathHistory
+from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
 from infonav_gym.world.world import World
@@ -264,8 +264,6 @@ class RangeRegistrationEnv(InfoNavEnv):
         }
 
     def _scene_frame(self):
-        from infonav_gym.rendering import SENSOR_WEDGE_LENGTH_M, RobotDrawing, SceneFrame
-
         cfg, scenario, pose = self.config, self.world.scenario, self.world.pose
         caption = f"t = {self._elapsed_steps * cfg['time_step_s']:.1f} s   "
         caption += f"picked {int(self._chosen.sum())}/{cfg['picks_per_pair']} patches"

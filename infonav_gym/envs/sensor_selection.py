@@ -10,7 +10,7 @@ from gymnasium import spaces
 from infonav_gym.config import check_choice, check_open_interval, check_positive
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.information import histogram_entropy
-from infonav_gym.rendering import PathHistory
+from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
@@ -231,8 +231,6 @@ class SensorSelectionEnv(InfoNavEnv):
         }
 
     def _scene_frame(self):
-        from infonav_gym.rendering import SENSOR_WEDGE_LENGTH_M, RobotDrawing, SceneFrame
-
         scenario = self.world.scenario
         caption = f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
         wedge = None

@@ -16,7 +16,7 @@ from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
-from infonav_gym.rendering import PathHistory
+from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
@@ -406,8 +406,6 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
     # ------------------------------------------------------------------ rendering
 
     def _scene_frame(self):
-        from infonav_gym.rendering import RobotDrawing, SceneFrame
-
         scenario = self.world.scenario
         estimates = self.ekf.poses
         robots = [
