@@ -403,12 +403,36 @@ def test_the_caption_sits_in_its_own_band_above_the_scene_and_wraps():
 
 
 @pytest.mark.parametrize("bounds", [(0.0, 0.0, 20.0, 20.0), (-3.0, -4.0, 41.0, 4.0), (0.0, 0.0, 2.0, 30.0)])
-def test_a_frame_with_caption_and_legend_has_its_longer_side_at_size_px(bounds):
-    renderer = Renderer("rgb_array", 240)
-    image = renderer.draw(full_frame(bounds=bounds))
+@pytest.mark.parametrize("size_px", [64, 240])
+def test_a_frame_with_caption_and_legend_has_its_longer_side_at_size_px(bounds, size_px):
+    renderer = Renderer("rgb_array", size_px)
+    inset = np.zeros((32, 180), dtype=np.uint8)
+    image = renderer.draw(full_frame(bounds=bounds, inset_image=inset, inset_title="frame"))
     assert image.dtype == np.uint8 and image.shape[2] == 3
-    assert max(image.shape[:2]) == 240
-    assert image.shape[1] == 240, "a caption or legend spans the whole width"
+    assert max(image.shape[:2]) == size_px
+    assert image.shape[1] == size_px, "a caption or legend spans the whole width"
+
+
+def test_a_small_frame_leaves_out_the_legend_that_does_not_fit():
+    frame = full_frame(inset_image=np.zeros((32, 180), dtype=np.uint8))
+    assert Renderer("rgb_array", 600).layout(frame).legend_rows
+    small = Renderer("rgb_array", 64).layout(frame)
+    assert small.legend_rows == () and small.height <= 64
+
+
+def test_without_fonts_the_frame_keeps_its_layout_and_draws_no_text(monkeypatch):
+    pygame = pytest.importorskip("pygame")
+
+    def no_font(*args, **kwargs):
+        raise pygame.error("font not initialized")
+
+    monkeypatch.setattr(pygame.font, "Font", no_font)
+    renderer = Renderer("rgb_array", 300)
+    frame = full_frame(chosen_landmark=0)
+    image = renderer.draw(frame)
+    assert max(image.shape[:2]) == 300 and renderer.layout(frame).legend_rows
+    assert not np.any(np.all(image == LANDMARK_LABEL_COLOUR, axis=2)), "no landmark numbers without fonts"
+    assert pixel(image, renderer, frame, frame.landmarks[0]) == (220, 30, 30)
 
 
 def test_the_inset_is_under_the_scene_and_outlines_the_highlighted_cells_in_red():
