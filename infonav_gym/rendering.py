@@ -77,6 +77,7 @@ class FrameLayout:
     scene_clip: tuple[int, int, int, int]  # left, top, width, height: the scene and its margin
     caption_lines: tuple[str, ...]
     inset: tuple[int, int, int, int] | None  # left, top, width, height of the inset image
+    inset_title_lines: tuple[str, ...]  # drawn right above the inset image
     legend_rows: tuple[tuple[LegendEntry, ...], ...]
     legend_top: int
     line_px: int
@@ -166,15 +167,12 @@ class Renderer:
         budget = int(self.size_px * _MAX_PANEL_FRACTION)
         caption_lines = tuple(self._wrap(frame.caption, inner))[: max(0, (budget - _PAD_PX) // line)]
         caption_px = _PAD_PX + line * len(caption_lines) if caption_lines else 0
-        inset_block, inset_size = 0, None
+        inset_block, inset_size, title_lines = 0, None, ()
         if frame.inset_image is not None:
-            rows, columns = np.shape(frame.inset_image)
-            title_px = line if frame.inset_title else 0
-            available = budget - caption_px - title_px - _PAD_PX
-            image_px = min(round(inner * rows / columns), int(self.size_px * _MAX_INSET_FRACTION), available)
-            if image_px >= 1:
-                inset_size = (max(1, min(inner, round(image_px * columns / rows))), image_px)
-                inset_block = title_px + image_px + _PAD_PX
+            title_lines = tuple(self._wrap(frame.inset_title, inner))
+            available = budget - caption_px - line * len(title_lines) - _PAD_PX
+            inset_size = self._inset_size(np.shape(frame.inset_image), inner, available)
+            inset_block = line * len(title_lines) + inset_size[1] + _PAD_PX if inset_size else 0
         legend_rows = self._legend_rows(legend_entries(frame), inner)
         legend_px = len(legend_rows) * line + _PAD_PX if legend_rows else 0
         if caption_px + inset_block + legend_px > budget:
@@ -184,9 +182,7 @@ class Renderer:
         scene_w, scene_h = max(1, round((x_max - x_min) * scale)), max(1, round((y_max - y_min) * scale))
         content_w = max(scene_w, inner) if caption_px or inset_block or legend_px else scene_w
         panel_top = caption_px + scene_h + 2 * margin
-        inset = None
-        if inset_size is not None:
-            inset = (margin, panel_top + (line if frame.inset_title else 0), *inset_size)
+        inset = (margin, panel_top + line * len(title_lines), *inset_size) if inset_size else None
         return FrameLayout(
             scale=scale,
             width=content_w + 2 * margin,
@@ -195,10 +191,17 @@ class Renderer:
             scene_clip=(0, caption_px, content_w + 2 * margin, scene_h + 2 * margin),
             caption_lines=caption_lines,
             inset=inset,
+            inset_title_lines=title_lines if inset else (),
             legend_rows=legend_rows,
             legend_top=panel_top + inset_block,
             line_px=line,
         )
+
+    def _inset_size(self, image_shape, width_px: int, available_px: int) -> tuple[int, int] | None:
+        """The drawn (width, height) of an image at most ``width_px`` wide and ``available_px`` tall, aspect kept."""
+        rows, columns = image_shape
+        height = min(round(width_px * rows / columns), int(self.size_px * _MAX_INSET_FRACTION), available_px)
+        return (max(1, min(width_px, round(height * columns / rows))), height) if height >= 1 else None
 
     def world_to_screen(self, frame: SceneFrame, point) -> tuple[int, int]:
         """Return the (col, row) pixel of a world point of ``frame``; rows grow downwards."""
@@ -331,8 +334,9 @@ class Renderer:
     def _draw_inset(self, pygame, surface, frame: SceneFrame, layout: FrameLayout) -> None:
         """Blit the gray inset image, framed, with its title above it, its grid and its highlighted cells."""
         left, top, width, height = layout.inset
-        if frame.inset_title:
-            self._draw_text(pygame, surface, frame.inset_title, _BLACK, (left, top - layout.line_px))
+        for index, text in enumerate(layout.inset_title_lines):
+            title_top = top - (len(layout.inset_title_lines) - index) * layout.line_px
+            self._draw_text(pygame, surface, text, _BLACK, (left, title_top))
         image = np.asarray(frame.inset_image, dtype=np.uint8)
         rgb = np.repeat(image.T[:, :, None], 3, axis=2)
         surface.blit(pygame.transform.scale(pygame.surfarray.make_surface(rgb), (width, height)), (left, top))

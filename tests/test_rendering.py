@@ -455,6 +455,15 @@ def test_the_inset_is_under_the_scene_and_outlines_the_highlighted_cells_in_red(
     assert layout.legend_top >= top + height
 
 
+def test_a_long_inset_title_wraps_above_the_inset():
+    renderer = Renderer("rgb_array", 300)
+    title = "newest LADAR range image (dark = near, white = no return); red: patches picked for ICP"
+    frame = full_frame(inset_image=np.zeros((32, 180), dtype=np.uint8), inset_title=title)
+    layout = renderer.layout(frame)
+    assert len(layout.inset_title_lines) >= 2 and " ".join(layout.inset_title_lines) == title
+    assert layout.inset[1] - len(layout.inset_title_lines) * layout.line_px >= layout.scene_clip[1] + layout.scene_clip[3]
+
+
 def test_pygame_is_imported_only_when_an_env_renders():
     code = (
         "import sys, gymnasium as gym, infonav_gym\n"
