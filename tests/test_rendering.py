@@ -461,7 +461,8 @@ def test_a_long_inset_title_wraps_above_the_inset():
     frame = full_frame(inset_image=np.zeros((32, 180), dtype=np.uint8), inset_title=title)
     layout = renderer.layout(frame)
     assert len(layout.inset_title_lines) >= 2 and " ".join(layout.inset_title_lines) == title
-    assert layout.inset[1] - len(layout.inset_title_lines) * layout.line_px >= layout.scene_clip[1] + layout.scene_clip[3]
+    title_top = layout.inset[1] - len(layout.inset_title_lines) * layout.line_px
+    assert title_top >= layout.scene_clip[1] + layout.scene_clip[3], "below the scene"
 
 
 def test_pygame_is_imported_only_when_an_env_renders():
