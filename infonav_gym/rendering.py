@@ -1,18 +1,21 @@
-"""Pygame drawing of a 2D world for the ``rgb_array`` and ``human`` render modes.
+"""Pygame drawing of a :class:`~infonav_gym.scene.SceneFrame` for the ``rgb_array`` and ``human`` render modes.
 
-Envs describe what to draw in a :class:`SceneFrame`; :class:`Renderer` draws it.
-pygame is an optional extra, so it is imported only when a ``Renderer`` is built.
+:class:`Renderer` draws the caption on top, the scene, then a panel with the inset image and
+a legend of what the frame shows. Pose and landmark ellipses are drawn at ``N_SIGMA`` (3)
+standard deviations and never smaller than ``MIN_ELLIPSE_RADIUS_PX``. pygame is an optional
+extra, so it is imported only when a ``Renderer`` is built.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
+
+from infonav_gym.scene import N_SIGMA, SceneFrame, covariance_ellipse
 
 RENDER_MODES = ("rgb_array", "human")
+MIN_ELLIPSE_RADIUS_PX = 12  # no ellipse semi-axis is drawn shorter, so small covariances stay visible
 
 
 def require_extra(module: str, purpose: str) -> None:
@@ -34,92 +37,102 @@ _BLUE = (30, 90, 220)
 _ORANGE = (240, 140, 0)
 _CANOPY_GREEN = (222, 238, 214)
 ROBOT_COLOURS = (_BLUE, (200, 40, 160), (0, 150, 160), (140, 90, 30), (110, 60, 200))  # robot i: ROBOT_COLOURS[i % 5]
+LANDMARK_LABEL_COLOUR = (20, 90, 40)  # the "#k" next to landmark k (index k - 1), as in the paper's Fig. 1
 _LANDMARK_PX = 5
 _ROBOT_PX = 7
 _TICK_PX = 14
 _LABEL_OFFSET_PX = (9, -18)
+_FONT_SIZE = 20
+_FALLBACK_LINE_PX = 15  # text line height when pygame has no fonts
+_FALLBACK_CHAR_PX = 8  # ... and the width of one character
+_PAD_PX = 4
+_SYMBOL_PX = (24, 14)  # width, height of a legend symbol
+_ENTRY_GAP_PX = 14  # between legend entries
+_MAX_INSET_FRACTION = 0.25  # the inset image is at most this fraction of the frame's longer side tall
+_MAX_PANEL_FRACTION = 0.5  # caption, inset and legend together take at most this fraction of it
+LEGEND_SYMBOLS = ("disc", "ring", "ellipse", "line", "cross", "zone", "wedge", "target")
 
 
-@dataclass
-class RobotDrawing:
-    """One robot to draw: truth in black, its estimate in its own colour, positions in metres."""
+@dataclass(frozen=True)
+class LegendEntry:
+    """One legend item: a symbol (one of ``LEGEND_SYMBOLS``) in ``colour``, then ``text``."""
 
-    true_pose: np.ndarray | None = None
-    estimated_pose: np.ndarray | None = None
-    pose_covariance: np.ndarray | None = None  # (3, 3) or (2, 2); the x-y block is drawn as a 95% ellipse
-    true_path: np.ndarray | None = None
-    estimated_path: np.ndarray | None = None
-    label: str = ""  # drawn next to the robot if fonts are available
+    symbol: str
+    colour: tuple[int, int, int]
+    text: str
 
-    @classmethod
-    def tracked(cls, true_pose, ekf, true_path, estimated_path) -> RobotDrawing:
-        """A robot tracked by a ``PoseEKF``: its truth, the filter's pose and covariance, and both paths (lists)."""
-        return cls(
-            true_pose=true_pose,
-            estimated_pose=ekf.pose,
-            pose_covariance=ekf.pose_covariance,
-            true_path=np.array(true_path),
-            estimated_path=np.array(estimated_path),
-        )
+    def __post_init__(self):
+        if self.symbol not in LEGEND_SYMBOLS:
+            raise ValueError(f"legend symbol {self.symbol!r} is not one of {', '.join(LEGEND_SYMBOLS)}")
 
 
-@dataclass
-class SceneFrame:
-    """Everything to draw for one frame; positions in metres, headings in radians.
+@dataclass(frozen=True)
+class FrameLayout:
+    """Where the parts of a frame go, in pixels (column, row) from the top-left corner."""
 
-    ``observations`` are ``(observer, target)`` pairs of robot indices, drawn as a line
-    between their true positions; ``gps_denied_zones`` are circles (``center``,
-    ``radius``) filled lightly under everything else. The chosen landmark's line starts
-    at ``robots[0]``'s true pose. ``sensor_wedge`` is a field of view from ``robots[0]``'s
-    true position: ``(world azimuth of its axis, full width [rad], length [m])``;
-    ``inset_image`` a gray uint8 image (e.g. the frame a sensor just acquired) drawn in the
-    bottom-left corner.
-    """
-
-    bounds: tuple[float, float, float, float]
-    walls: Sequence[tuple[tuple[float, float], tuple[float, float]]] = ()
-    obstacles: Sequence = ()
-    landmarks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    landmark_visible: np.ndarray | None = None
-    chosen_landmark: int | None = None
-    robots: Sequence[RobotDrawing] = ()
-    landmark_estimates: np.ndarray | None = None
-    landmark_covariances: np.ndarray | None = None
-    observations: Sequence[tuple[int, int]] = ()
-    gps_denied_zones: Sequence = ()
-    sensor_wedge: tuple[float, float, float] | None = None
-    inset_image: np.ndarray | None = None
-    caption: str = ""
+    scale: float  # [px / m]
+    width: int
+    height: int
+    scene_corner: tuple[int, int]  # the pixel of the bounds' top-left corner (x_min, y_max)
+    scene_clip: tuple[int, int, int, int]  # left, top, width, height: the scene and its margin
+    caption_lines: tuple[str, ...]
+    inset: tuple[int, int, int, int] | None  # left, top, width, height of the inset image
+    inset_title_lines: tuple[str, ...]  # drawn right above the inset image
+    legend_rows: tuple[tuple[LegendEntry, ...], ...]
+    legend_top: int
+    line_px: int
 
 
-def covariance_ellipse(covariance_2x2, confidence: float = 0.95, n_points: int = 48) -> np.ndarray:
-    """Return the (n_points, 2) outline offsets of a covariance's confidence ellipse.
+def _robot_colour(index: int) -> tuple[int, int, int]:
+    return ROBOT_COLOURS[index % len(ROBOT_COLOURS)]
 
-    The first point lies along the smallest principal axis (angle 0), so a
-    multiple of 4 points hits both axis extremes.
 
-    Raises:
-        ValueError: for a non-finite or non-2x2 matrix, ``confidence`` outside
-            (0, 1) or fewer than 3 points.
-    """
-    covariance = np.asarray(covariance_2x2, dtype=float)
-    if covariance.shape != (2, 2):
-        raise ValueError(f"covariance must be 2x2, got shape {covariance.shape}")
-    if not np.all(np.isfinite(covariance)):
-        raise ValueError("covariance contains NaN or infinite entries")
-    if not 0.0 < confidence < 1.0:
-        raise ValueError(f"confidence must be in (0, 1), got {confidence}")
-    if n_points < 3:
-        raise ValueError(f"n_points must be at least 3, got {n_points}")
-    eigenvalues, eigenvectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
-    radii = np.sqrt(np.clip(eigenvalues, 0.0, None) * chi2.ppf(confidence, 2))
-    angles = np.linspace(0.0, 2.0 * np.pi, n_points, endpoint=False)
-    circle = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    return (circle * radii) @ eigenvectors.T
+def legend_entries(frame: SceneFrame) -> list[LegendEntry]:
+    """The legend of ``frame``: one entry per kind of thing it draws, in drawing order."""
+    robots = list(frame.robots)
+    estimated = [index for index, robot in enumerate(robots) if robot.estimated_pose is not None]
+    colour = _robot_colour(estimated[0] if estimated else 0)
+    per_robot = " (colour per robot)" if len(estimated) > 1 else ""
+    visible = np.ones(len(frame.landmarks), bool) if frame.landmark_visible is None else frame.landmark_visible
+    visible = np.asarray(visible, dtype=bool)
+    observer_colour = _robot_colour(frame.observations[0][0] if frame.observations else 0)
+    candidates = [
+        (any(robot.true_pose is not None for robot in robots), "disc", _BLACK, "true pose"),
+        (bool(estimated), "ring", colour, "estimated pose" + per_robot),
+        (
+            any(robots[index].pose_covariance is not None for index in estimated),
+            "ellipse",
+            colour,
+            f"{N_SIGMA:g}\u03c3 position ellipse (min {MIN_ELLIPSE_RADIUS_PX} px)",
+        ),
+        (any(_has_path(robot.true_path) for robot in robots), "line", _PATH_GREY, "true path"),
+        (any(_has_path(robot.estimated_path) for robot in robots), "line", colour, "estimated path"),
+        (bool(visible.any()), "disc", _GREEN, "landmark #k in sight"),
+        (not visible.all(), "disc", _LIGHT_GREY, "landmark out of sight"),
+        (frame.chosen_landmark is not None, "disc", _RED, "landmark observed now"),
+        (frame.landmark_estimates is not None, "cross", _ORANGE, f"landmark estimate, {N_SIGMA:g}\u03c3"),
+        (bool(frame.observations), "line", observer_colour, "relative observation (observer's colour)"),
+        (bool(frame.walls), "line", _DARK_GREY, "wall"),
+        (bool(frame.obstacles), "disc", _DARK_GREY, "obstacle"),
+        (bool(frame.gps_denied_zones), "zone", _CANOPY_GREEN, "GPS denied"),
+        (frame.sensor_wedge is not None, "wedge", _RED, "sensor field of view"),
+        (frame.goal is not None, "target", _BLACK, "goal"),
+    ]
+    return [LegendEntry(symbol, colour, text) for shown, symbol, colour, text in candidates if shown]
+
+
+def _has_path(path) -> bool:
+    return path is not None and len(path) >= 2
 
 
 class Renderer:
-    """Draws :class:`SceneFrame` objects to an RGB array or a pygame window."""
+    """Draws :class:`SceneFrame` objects to an RGB array or a pygame window.
+
+    A frame's longer side is ``size_px``. With a caption, an inset or a legend the frame is
+    ``size_px`` wide: the caption on top, the scene at one scale in metres, and under it the
+    inset and the legend, which together take at most half of ``size_px`` (a legend that
+    does not fit is left out).
+    """
 
     MARGIN_PX = 10
 
@@ -141,40 +154,87 @@ class Renderer:
     def __getstate__(self) -> dict:
         return {**self.__dict__, "_window": None, "_clock": None, "_font": None}
 
-    def _layout(self, bounds) -> tuple[float, int, int]:
-        x_min, y_min, x_max, y_max = (float(value) for value in bounds)
+    def layout(self, frame: SceneFrame) -> FrameLayout:
+        """Where ``frame``'s caption, scene, inset and legend go.
+
+        Raises:
+            ValueError: if ``frame.bounds`` are not finite with max > min.
+        """
+        x_min, y_min, x_max, y_max = (float(value) for value in frame.bounds)
         if not (np.isfinite([x_min, y_min, x_max, y_max]).all() and x_max > x_min and y_max > y_min):
-            raise ValueError(f"bounds must be finite (x_min, y_min, x_max, y_max) with max > min, got {bounds}")
-        scale = (self.size_px - 2 * self.MARGIN_PX) / max(x_max - x_min, y_max - y_min)
-        width = max(1, round((x_max - x_min) * scale)) + 2 * self.MARGIN_PX
-        height = max(1, round((y_max - y_min) * scale)) + 2 * self.MARGIN_PX
-        return scale, width, height
+            raise ValueError(f"bounds must be finite (x_min, y_min, x_max, y_max) with max > min, got {frame.bounds}")
+        margin, inner, line = self.MARGIN_PX, self.size_px - 2 * self.MARGIN_PX, self._line_px()
+        budget = int(self.size_px * _MAX_PANEL_FRACTION)
+        caption_lines = tuple(self._wrap(frame.caption, inner))[: max(0, (budget - _PAD_PX) // line)]
+        caption_px = _PAD_PX + line * len(caption_lines) if caption_lines else 0
+        inset_block, inset_size, title_lines = 0, None, ()
+        if frame.inset_image is not None:
+            title_lines = tuple(self._wrap(frame.inset_title, inner))
+            available = budget - caption_px - line * len(title_lines) - _PAD_PX
+            inset_size = self._inset_size(np.shape(frame.inset_image), inner, available)
+            inset_block = line * len(title_lines) + inset_size[1] + _PAD_PX if inset_size else 0
+        legend_rows = self._legend_rows(legend_entries(frame), inner)
+        legend_px = len(legend_rows) * line + _PAD_PX if legend_rows else 0
+        if caption_px + inset_block + legend_px > budget:
+            legend_rows, legend_px = (), 0
+        scene_height = self.size_px - 2 * margin - caption_px - inset_block - legend_px
+        scale = min(inner / (x_max - x_min), scene_height / (y_max - y_min))
+        scene_w, scene_h = max(1, round((x_max - x_min) * scale)), max(1, round((y_max - y_min) * scale))
+        content_w = max(scene_w, inner) if caption_px or inset_block or legend_px else scene_w
+        panel_top = caption_px + scene_h + 2 * margin
+        inset = (margin, panel_top + line * len(title_lines), *inset_size) if inset_size else None
+        return FrameLayout(
+            scale=scale,
+            width=content_w + 2 * margin,
+            height=panel_top + inset_block + legend_px,
+            scene_corner=(margin + (content_w - scene_w) // 2, caption_px + margin),
+            scene_clip=(0, caption_px, content_w + 2 * margin, scene_h + 2 * margin),
+            caption_lines=caption_lines,
+            inset=inset,
+            inset_title_lines=title_lines if inset else (),
+            legend_rows=legend_rows,
+            legend_top=panel_top + inset_block,
+            line_px=line,
+        )
 
-    def _to_screen(self, bounds, points) -> np.ndarray:
-        scale = self._layout(bounds)[0]
-        points = np.asarray(points, dtype=float).reshape(-1, 2)
-        cols = self.MARGIN_PX + (points[:, 0] - bounds[0]) * scale
-        rows = self.MARGIN_PX + (bounds[3] - points[:, 1]) * scale
-        return np.rint(np.stack([cols, rows], axis=1)).astype(int)
+    def _inset_size(self, image_shape, width_px: int, available_px: int) -> tuple[int, int] | None:
+        """The drawn (width, height) of an image at most ``width_px`` wide and ``available_px`` tall, aspect kept."""
+        rows, columns = image_shape
+        height = min(round(width_px * rows / columns), int(self.size_px * _MAX_INSET_FRACTION), available_px)
+        return (max(1, min(width_px, round(height * columns / rows))), height) if height >= 1 else None
 
-    def world_to_screen(self, frame_bounds, point) -> tuple[int, int]:
-        """Return the (col, row) pixel of a world point; rows grow downwards."""
-        col, row = self._to_screen(frame_bounds, point)[0]
+    def world_to_screen(self, frame: SceneFrame, point) -> tuple[int, int]:
+        """Return the (col, row) pixel of a world point of ``frame``; rows grow downwards."""
+        col, row = self._to_screen(self.layout(frame), frame.bounds, point)[0]
         return int(col), int(row)
+
+    @staticmethod
+    def _to_screen(layout: FrameLayout, bounds, points) -> np.ndarray:
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        cols = layout.scene_corner[0] + (points[:, 0] - bounds[0]) * layout.scale
+        rows = layout.scene_corner[1] + (bounds[3] - points[:, 1]) * layout.scale
+        return np.rint(np.stack([cols, rows], axis=1)).astype(int)
 
     def draw(self, frame: SceneFrame) -> np.ndarray | None:
         """Draw ``frame``; return an (H, W, 3) uint8 array in rgb_array mode, else None."""
         import pygame
 
-        scale, width, height = self._layout(frame.bounds)
-        surface = pygame.Surface((width, height))
+        layout = self.layout(frame)
+        surface = pygame.Surface((layout.width, layout.height))
         surface.fill(_WHITE)
-        self._draw_scene(pygame, surface, frame, scale)
+        surface.set_clip(pygame.Rect(layout.scene_clip))
+        self._draw_scene(pygame, surface, frame, layout)
+        surface.set_clip(None)
+        for index, text in enumerate(layout.caption_lines):
+            self._draw_text(pygame, surface, text, _BLACK, (self.MARGIN_PX, _PAD_PX + index * layout.line_px))
+        if layout.inset is not None:
+            self._draw_inset(pygame, surface, frame, layout)
+        self._draw_legend(pygame, surface, layout)
         if self.render_mode == "rgb_array":
             return np.ascontiguousarray(pygame.surfarray.array3d(surface).transpose(1, 0, 2))
-        if self._window is None or self._window.get_size() != (width, height):
+        if self._window is None or self._window.get_size() != (layout.width, layout.height):
             pygame.display.init()
-            self._window = pygame.display.set_mode((width, height))
+            self._window = pygame.display.set_mode((layout.width, layout.height))
             pygame.display.set_caption("infonav-gym")
             self._clock = pygame.time.Clock()
         self._window.blit(surface, (0, 0))
@@ -192,16 +252,16 @@ class Renderer:
         self._window = None
         self._clock = None
 
-    def _draw_scene(self, pygame, surface, frame: SceneFrame, scale: float) -> None:
+    def _draw_scene(self, pygame, surface, frame: SceneFrame, layout: FrameLayout) -> None:
+        scale = layout.scale
+
         def screen(points):
-            return self._to_screen(frame.bounds, points)
+            return self._to_screen(layout, frame.bounds, points)
 
         def ellipse(center, covariance, colour):
-            covariance = np.asarray(covariance, dtype=float)
-            if covariance.shape == (3, 3):
-                covariance = covariance[:2, :2]
-            outline = np.asarray(center, dtype=float)[:2] + covariance_ellipse(covariance)
-            pygame.draw.lines(surface, colour, True, screen(outline).tolist(), 1)
+            covariance = np.asarray(covariance, dtype=float)[:2, :2]
+            offsets = covariance_ellipse(covariance, N_SIGMA, min_radius=MIN_ELLIPSE_RADIUS_PX / scale)
+            pygame.draw.lines(surface, colour, True, screen(np.asarray(center, dtype=float)[:2] + offsets).tolist(), 2)
 
         def robot(pose, colour, filled):
             center = screen(pose[:2])[0]
@@ -209,11 +269,13 @@ class Renderer:
             pygame.draw.circle(surface, colour, center.tolist(), _ROBOT_PX, 0 if filled else 2)
             pygame.draw.line(surface, colour, center.tolist(), np.rint(tip).tolist(), 2)
 
+        def target(center, radius_px):
+            pygame.draw.circle(surface, _BLACK, center.tolist(), radius_px, 2)
+            for offset in ((radius_px, 0), (0, radius_px)):
+                pygame.draw.line(surface, _BLACK, (center - offset).tolist(), (center + offset).tolist(), 1)
+
         def disc(circle, colour):
             pygame.draw.circle(surface, colour, screen(circle.center)[0].tolist(), max(1, round(circle.radius * scale)))
-
-        def robot_colour(index):
-            return ROBOT_COLOURS[index % len(ROBOT_COLOURS)]
 
         for zone in frame.gps_denied_zones:
             disc(zone, _CANOPY_GREEN)
@@ -221,9 +283,11 @@ class Renderer:
             pygame.draw.line(surface, _DARK_GREY, *screen([start, end]).tolist(), 3)
         for obstacle in frame.obstacles:
             disc(obstacle, _DARK_GREY)
+        if frame.goal is not None:
+            target(screen(frame.goal)[0], max(_ROBOT_PX, round(frame.goal_radius_m * scale)))
         for index, drawing in enumerate(frame.robots):
-            for path, colour in ((drawing.true_path, _PATH_GREY), (drawing.estimated_path, robot_colour(index))):
-                if path is not None and len(path) >= 2:
+            for path, colour in ((drawing.true_path, _PATH_GREY), (drawing.estimated_path, _robot_colour(index))):
+                if _has_path(path):
                     pygame.draw.lines(surface, colour, False, screen(path).tolist(), 1)
         if frame.landmark_estimates is not None:
             for index, (col, row) in enumerate(screen(frame.landmark_estimates).tolist()):
@@ -240,15 +304,18 @@ class Renderer:
             if frame.robots and frame.robots[0].true_pose is not None:
                 pygame.draw.line(surface, _RED, screen(frame.robots[0].true_pose[:2])[0].tolist(), chosen, 2)
             pygame.draw.circle(surface, _RED, chosen, _LANDMARK_PX + 2)
+        for index, (col, row) in enumerate(landmarks):
+            label_corner = (col + _LANDMARK_PX + 3, row - layout.line_px // 2)
+            self._draw_text(pygame, surface, f"#{index + 1}", LANDMARK_LABEL_COLOUR, label_corner)
         for observer, target in frame.observations:
             ends = [frame.robots[observer].true_pose, frame.robots[target].true_pose]
             if ends[0] is not None and ends[1] is not None:
-                pygame.draw.line(surface, robot_colour(observer), *screen([end[:2] for end in ends]).tolist(), 1)
+                pygame.draw.line(surface, _robot_colour(observer), *screen([end[:2] for end in ends]).tolist(), 1)
         for index, drawing in enumerate(frame.robots):
             if drawing.estimated_pose is not None:
                 if drawing.pose_covariance is not None:
-                    ellipse(drawing.estimated_pose, drawing.pose_covariance, robot_colour(index))
-                robot(drawing.estimated_pose, robot_colour(index), filled=False)
+                    ellipse(drawing.estimated_pose, drawing.pose_covariance, _robot_colour(index))
+                robot(drawing.estimated_pose, _robot_colour(index), filled=False)
         for drawing in frame.robots:
             if drawing.true_pose is not None:
                 robot(drawing.true_pose, _BLACK, filled=True)
@@ -256,36 +323,119 @@ class Renderer:
             anchor = drawing.true_pose if drawing.true_pose is not None else drawing.estimated_pose
             if drawing.label and anchor is not None:
                 corner = screen(anchor[:2])[0] + _LABEL_OFFSET_PX
-                self._draw_text(pygame, surface, drawing.label, robot_colour(index), corner.tolist())
+                self._draw_text(pygame, surface, drawing.label, _robot_colour(index), corner.tolist())
         if frame.sensor_wedge is not None and frame.robots and frame.robots[0].true_pose is not None:
             axis, width, length = frame.sensor_wedge
             angles = axis + np.linspace(-width / 2, width / 2, 16)
             apex = np.asarray(frame.robots[0].true_pose[:2], dtype=float)
             arc = apex + length * np.stack([np.cos(angles), np.sin(angles)], axis=1)
             pygame.draw.lines(surface, _RED, True, screen(np.vstack([apex, arc])).tolist(), 2)
-        if frame.inset_image is not None:
-            self._draw_inset(pygame, surface, frame.inset_image)
-        if frame.caption:
-            self._draw_text(pygame, surface, frame.caption, _BLACK, (4, 2), background=_WHITE)
 
-    def _draw_inset(self, pygame, surface, image: np.ndarray) -> None:
-        """Blit the gray uint8 ``image``, framed, in the bottom-left corner at a third of the surface width."""
-        rows, columns = image.shape
-        width = max(1, surface.get_width() // 3)
-        height = max(1, round(width * rows / columns))
-        rgb = np.repeat(np.asarray(image, dtype=np.uint8).T[:, :, None], 3, axis=2)
-        inset = pygame.transform.scale(pygame.surfarray.make_surface(rgb), (width, height))
-        corner = (self.MARGIN_PX, surface.get_height() - height - self.MARGIN_PX)
-        surface.blit(inset, corner)
-        pygame.draw.rect(surface, _BLACK, (*corner, width, height), 1)
+    def _draw_inset(self, pygame, surface, frame: SceneFrame, layout: FrameLayout) -> None:
+        """Blit the gray inset image, framed, with its title above it, its grid and its highlighted cells."""
+        left, top, width, height = layout.inset
+        for index, text in enumerate(layout.inset_title_lines):
+            title_top = top - (len(layout.inset_title_lines) - index) * layout.line_px
+            self._draw_text(pygame, surface, text, _BLACK, (left, title_top))
+        image = np.asarray(frame.inset_image, dtype=np.uint8)
+        rgb = np.repeat(image.T[:, :, None], 3, axis=2)
+        surface.blit(pygame.transform.scale(pygame.surfarray.make_surface(rgb), (width, height)), (left, top))
+        if frame.inset_grid is not None:
+            rows, columns = frame.inset_grid
+            row_edges = top + np.rint(np.arange(rows + 1) * height / rows).astype(int)
+            col_edges = left + np.rint(np.arange(columns + 1) * width / columns).astype(int)
+            for row in row_edges[1:-1]:
+                pygame.draw.line(surface, _BLUE, (left, row), (left + width - 1, row), 1)
+            for col in col_edges[1:-1]:
+                pygame.draw.line(surface, _BLUE, (col, top), (col, top + height - 1), 1)
+            for cell in frame.inset_highlights:
+                row, col = divmod(int(cell), columns)
+                cell_rect = (col_edges[col], row_edges[row], col_edges[col + 1] - col_edges[col] + 1)
+                pygame.draw.rect(surface, _RED, (*cell_rect, row_edges[row + 1] - row_edges[row] + 1), 3)
+        pygame.draw.rect(surface, _BLACK, (left, top, width, height), 1)
+
+    def _draw_legend(self, pygame, surface, layout: FrameLayout) -> None:
+        symbol_w, symbol_h = _SYMBOL_PX
+        for row_index, entries in enumerate(layout.legend_rows):
+            top = layout.legend_top + row_index * layout.line_px
+            col = self.MARGIN_PX
+            for entry in entries:
+                box = pygame.Rect(col, top + (layout.line_px - symbol_h) // 2, symbol_w, symbol_h)
+                self._draw_symbol(pygame, surface, entry, box)
+                self._draw_text(pygame, surface, entry.text, _BLACK, (box.right + _PAD_PX, top))
+                col += self._entry_width(entry) + _ENTRY_GAP_PX
+
+    @staticmethod
+    def _draw_symbol(pygame, surface, entry: LegendEntry, box) -> None:
+        center, radius = box.center, box.height // 2 - 1
+        if entry.symbol == "disc":
+            pygame.draw.circle(surface, entry.colour, center, _LANDMARK_PX)
+        elif entry.symbol == "ring":
+            pygame.draw.circle(surface, entry.colour, center, radius, 2)
+        elif entry.symbol == "ellipse":
+            pygame.draw.ellipse(surface, entry.colour, box, 2)
+        elif entry.symbol == "line":
+            pygame.draw.line(surface, entry.colour, box.midleft, box.midright, 2)
+        elif entry.symbol == "cross":
+            pygame.draw.line(surface, entry.colour, (center[0] - 4, center[1] - 4), (center[0] + 4, center[1] + 4), 2)
+            pygame.draw.line(surface, entry.colour, (center[0] - 4, center[1] + 4), (center[0] + 4, center[1] - 4), 2)
+        elif entry.symbol == "zone":
+            pygame.draw.rect(surface, entry.colour, box)
+        elif entry.symbol == "wedge":
+            pygame.draw.polygon(surface, entry.colour, [box.midleft, box.topright, box.bottomright], 2)
+        else:
+            pygame.draw.circle(surface, entry.colour, center, radius, 2)
+            pygame.draw.line(surface, entry.colour, (center[0] - radius, center[1]), (center[0] + radius, center[1]), 1)
+            pygame.draw.line(surface, entry.colour, (center[0], center[1] - radius), (center[0], center[1] + radius), 1)
+
+    def _legend_rows(self, entries: list[LegendEntry], width_px: int) -> tuple[tuple[LegendEntry, ...], ...]:
+        """``entries`` flowed left to right into rows at most ``width_px`` wide."""
+        rows, row, used = [], [], 0
+        for entry in entries:
+            needed = self._entry_width(entry) + (_ENTRY_GAP_PX if row else 0)
+            if row and used + needed > width_px:
+                rows.append(tuple(row))
+                row, used, needed = [], 0, self._entry_width(entry)
+            row.append(entry)
+            used += needed
+        return tuple(rows + [tuple(row)]) if row else ()
+
+    def _entry_width(self, entry: LegendEntry) -> int:
+        return _SYMBOL_PX[0] + _PAD_PX + self._text_width(entry.text)
+
+    def _wrap(self, text: str, width_px: int) -> list[str]:
+        """``text`` broken at spaces into lines at most ``width_px`` wide (a longer word gets a line of its own)."""
+        lines = []
+        for word in text.split(" "):
+            candidate = f"{lines[-1]} {word}" if lines else word
+            if lines and self._text_width(candidate) <= width_px:
+                lines[-1] = candidate
+            else:
+                lines.append(word)
+        return [line.strip() for line in lines if line.strip()]
+
+    def _text_font(self):
+        """The pygame font, or ``None`` if pygame has no fonts here (text is then left out)."""
+        if self._font is None:
+            import pygame
+
+            try:
+                pygame.font.init()
+                self._font = pygame.font.Font(None, _FONT_SIZE)
+            except (ImportError, NotImplementedError, OSError, pygame.error):
+                self._font = False
+        return self._font or None
+
+    def _line_px(self) -> int:
+        font = self._text_font()
+        return font.get_linesize() if font else _FALLBACK_LINE_PX
+
+    def _text_width(self, text: str) -> int:
+        font = self._text_font()
+        return font.size(text)[0] if font else _FALLBACK_CHAR_PX * len(text)
 
     def _draw_text(self, pygame, surface, text: str, colour, corner, background=None) -> None:
         """Blit ``text`` with its top-left at pixel ``corner``; nothing if pygame has no fonts."""
-        if self._font is None:
-            try:
-                pygame.font.init()
-                self._font = pygame.font.Font(None, 18)
-            except (ImportError, NotImplementedError, OSError, pygame.error):
-                self._font = False
-        if self._font:
-            surface.blit(self._font.render(text, True, colour, background), corner)
+        font = self._text_font()
+        if font:
+            surface.blit(font.render(text, True, colour, background), corner)

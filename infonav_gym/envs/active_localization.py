@@ -20,6 +20,7 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
+from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.active_scenarios import (
@@ -220,8 +221,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         self.ekf = PoseEKF(self._true_pose + pose_std * self.np_random.standard_normal(POSE_DIM), np.diag(pose_std**2))
         self.observations_left = cfg["max_observations"]
         self.goal_reached = self.failed = False
-        self._true_path = [self._true_pose[:2]]
-        self._estimated_path = [self.ekf.x[:2].copy()]
+        self._true_path = PathHistory(self._true_pose[:2])
+        self._estimated_path = PathHistory(self.ekf.x[:2])
 
     def _next_decision(self) -> Decision:
         """Every primitive with no observation or with a visible landmark while budget is left, gains at the prior.
@@ -345,8 +346,6 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         }
 
     def _scene_frame(self):
-        from infonav_gym.rendering import RobotDrawing, SceneFrame
-
         scenario = self.world.scenario
         landmark = None if self._chosen_action is None else self.decode_action(self._chosen_action)[0]
         return SceneFrame(
@@ -357,6 +356,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
             landmark_visible=self._visible,
             chosen_landmark=landmark,
             robots=[RobotDrawing.tracked(self._true_pose, self.ekf, self._true_path, self._estimated_path)],
+            goal=tuple(self.goal),
+            goal_radius_m=self.config["goal_radius_m"],
             caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.0f} s   "
             f"goal ({self.goal[0]:.0f}, {self.goal[1]:.0f}) m, {self.observations_left} observations left",
         )

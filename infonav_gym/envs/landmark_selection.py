@@ -15,6 +15,7 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
+from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, scenario_from_config, scenario_names
@@ -152,8 +153,8 @@ class LandmarkSelectionEnv(InfoNavEnv):
             self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2), estimates, prior_std**2)
         else:
             self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2))
-        self._true_path = [self._true_pose[:2]]
-        self._estimated_path = [self.ekf.x[:2].copy()]
+        self._true_path = PathHistory(self._true_pose[:2])
+        self._estimated_path = PathHistory(self.ekf.x[:2])
 
     def _build_scenario(self):
         """The registered scenario ``config["scenario"]``: one route, at most ``n_candidates`` landmarks."""
@@ -228,8 +229,6 @@ class LandmarkSelectionEnv(InfoNavEnv):
         }
 
     def _scene_frame(self):
-        from infonav_gym.rendering import RobotDrawing, SceneFrame
-
         scenario, mapping = self.world.scenario, self.config["mapping"]
         n_landmarks = len(self.world.landmarks)
         landmark_blocks = [self.ekf.P[3 + 2 * i : 5 + 2 * i, 3 + 2 * i : 5 + 2 * i] for i in range(n_landmarks)]

@@ -15,6 +15,7 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import frame_pair, registration_error, scan_on_terrain
 from infonav_gym.registration.icp import METHODS, icp
+from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
 from infonav_gym.world.world import World
@@ -154,7 +155,7 @@ class RangeRegistrationEnv(InfoNavEnv):
         self.world.reset(scene.scenario)
         self._sensor_rng, self._odometry_rng = self.np_random.spawn(2)
         self._current_frame = self._scan()
-        self._true_path = [self.world.pose[:2]]
+        self._true_path = PathHistory(self.world.pose[:2])
         self.last_registration = None
         self._registered_now = False
         self._next_pair()
@@ -287,21 +288,21 @@ class RangeRegistrationEnv(InfoNavEnv):
         }
 
     def _scene_frame(self):
-        from infonav_gym.rendering import RobotDrawing, SceneFrame
-
-        scenario = self.world.scenario
-        image = to_display_image(self._current_frame)
-        shown = np.where(self._chosen[self._pixel_patch], image, image // 2 + 64).astype(np.uint8)
-        caption = f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
-        caption += f"picked {int(self._chosen.sum())}/{self.config['picks_per_pair']} patches"
+        cfg, scenario, pose = self.config, self.world.scenario, self.world.pose
+        caption = f"t = {self._elapsed_steps * cfg['time_step_s']:.1f} s   "
+        caption += f"picked {int(self._chosen.sum())}/{cfg['picks_per_pair']} patches"
         if self.last_registration is not None:
             last = self.last_registration
-            caption += f"   last ICP: {last['error_before_m']:.3f} -> {last['error_after_m']:.3f} m"
+            caption += f"   last ICP: error {last['error_before_m']:.3f} -> {last['error_after_m']:.3f} m"
         return SceneFrame(
             bounds=scenario.bounds,
             walls=scenario.walls,
             obstacles=scenario.obstacles,
-            robots=[RobotDrawing(true_pose=self.world.pose, true_path=np.array(self._true_path))],
-            inset_image=shown,
+            robots=[RobotDrawing(true_pose=pose, true_path=self._true_path.points())],
+            sensor_wedge=(float(pose[2]), self.ladar.horizontal_fov_rad, SENSOR_WEDGE_LENGTH_M),
+            inset_image=to_display_image(self._current_frame),
+            inset_title="newest LADAR range image (dark = near, white = no return); red: patches picked for ICP",
+            inset_grid=(cfg["patch_rows"], cfg["patch_columns"]),
+            inset_highlights=np.flatnonzero(self._chosen).tolist(),
             caption=caption,
         )

@@ -12,6 +12,7 @@ from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.envs.metrics import EpisodeMetric, count_where, mean_where, summed_reward_term
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.information import histogram_entropy
+from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
@@ -23,7 +24,6 @@ IDLE_ACTION = 0
 MAX_IMAGE_ENTROPY = math.log(256)  # entropy of a uniform 256-level histogram [nats]
 OPTION_FEATURES = 3
 GLOBAL_FEATURES = 2 + len(SENSORS)
-_WEDGE_LENGTH_M = 12.0  # drawn length of the acquired field of view [m]
 _BYTES_PER_PIXEL = {"ladar": 2, "camera": 1}  # 16-bit ranges, 8-bit gray levels
 
 
@@ -175,7 +175,7 @@ class SensorSelectionEnv(InfoNavEnv):
         self.world.reset(scene.scenario)
         self._sensor_rng = self.np_random.spawn(1)[0]
         self._true_pose = self.world.pose
-        self._true_path = [self._true_pose[:2]]
+        self._true_path = PathHistory(self._true_pose[:2])
         self._credit_bytes = cfg["bandwidth_buffer_bytes"]
         self._last_information = np.zeros(self.n_options)
         self._last_acquired_step = np.full(self.n_options, -1)
@@ -252,8 +252,6 @@ class SensorSelectionEnv(InfoNavEnv):
         }
 
     def _scene_frame(self):
-        from infonav_gym.rendering import RobotDrawing, SceneFrame
-
         scenario = self.world.scenario
         caption = f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
         wedge = None
@@ -261,17 +259,26 @@ class SensorSelectionEnv(InfoNavEnv):
             caption += "no frame acquired"
         else:
             sensor, pan_rad = self.option(self._chosen_action)
-            caption += f"{sensor} at pan {math.degrees(pan_rad):+.0f} deg: H = {self._last_entropy:.2f} nats"
-            wedge = (self._acquired_heading + pan_rad, getattr(self, sensor).horizontal_fov_rad, _WEDGE_LENGTH_M)
+            caption += f"{sensor} at pan {math.degrees(pan_rad):+.0f} deg: image entropy {self._last_entropy:.2f} nats"
+            wedge = (self._acquired_heading + pan_rad, getattr(self, sensor).horizontal_fov_rad, SENSOR_WEDGE_LENGTH_M)
         return SceneFrame(
             bounds=scenario.bounds,
             walls=scenario.walls,
             obstacles=scenario.obstacles,
-            robots=[RobotDrawing(true_pose=self._true_pose, true_path=np.array(self._true_path))],
+            robots=[RobotDrawing(true_pose=self._true_pose, true_path=self._true_path.points())],
             sensor_wedge=wedge,
             inset_image=self._last_image,
+            inset_title=self._inset_title(),
             caption=caption,
         )
+
+    def _inset_title(self) -> str:
+        """What the inset shows: the image acquired this step."""
+        if self._last_image is None:
+            return ""
+        sensor = self.option(self._chosen_action)[0]
+        legend = "LADAR range image (dark = near, white = no return)" if sensor == "ladar" else "camera image"
+        return f"{legend} acquired this step"
 
 
 def _prefixed(config: dict, prefix: str) -> dict:

@@ -18,6 +18,7 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.base import InfoNavParallelEnv
 from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
+from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
@@ -243,8 +244,8 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         self._observed_pairs = []
         self._reward_terms = [{"own_mutual_information": 0.0, "team_mutual_information": 0.0}] * n
         self._updated_pose_std = None
-        self._true_paths = [[pose[:2]] for pose in self._true_poses]
-        self._estimated_paths = [[pose[:2]] for pose in self.ekf.poses]
+        self._true_paths = [PathHistory(pose[:2]) for pose in self._true_poses]
+        self._estimated_paths = [PathHistory(pose[:2]) for pose in self.ekf.poses]
 
     def _build_scenario(self):
         """The registered team scenario ``config["scenario"]``: one route per robot."""
@@ -393,8 +394,6 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
     # ------------------------------------------------------------------ rendering
 
     def _scene_frame(self):
-        from infonav_gym.rendering import RobotDrawing, SceneFrame
-
         scenario = self.world.scenario
         estimates = self.ekf.poses
         robots = [
@@ -402,9 +401,9 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
                 true_pose=self._true_poses[k],
                 estimated_pose=estimates[k],
                 pose_covariance=self.ekf.pose_covariance(k),
-                true_path=np.array(self._true_paths[k]),
-                estimated_path=np.array(self._estimated_paths[k]),
-                label=f"{k}{'' if self._gps_available[k] else ' no GPS'}",
+                true_path=self._true_paths[k].points(),
+                estimated_path=self._estimated_paths[k].points(),
+                label=f"{self.possible_agents[k]}{'' if self._gps_available[k] else ', no GPS'}",
             )
             for k in range(len(self.possible_agents))
         ]
@@ -415,5 +414,5 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
             robots=robots,
             observations=list(self._observed_pairs),
             gps_denied_zones=scenario.gps_denied_zones,
-            caption=f"t = {self._time_s:.1f} s",
+            caption=f"t = {self._time_s:.1f} s   {len(self._observed_pairs)} relative observations this step",
         )

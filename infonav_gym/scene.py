@@ -1,0 +1,145 @@
+"""What a rendered frame shows, in metres and radians: :class:`SceneFrame` and what it holds.
+
+Envs describe a frame here and ``infonav_gym.rendering`` draws it. Numpy only, so an env
+keeps its :class:`PathHistory` on every step without importing pygame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+N_SIGMA = 3.0  # pose and landmark ellipses: semi-axes of N_SIGMA standard deviations
+SENSOR_WEDGE_LENGTH_M = 12.0  # drawn length of a sensor's field of view [m]
+
+
+class PathHistory:
+    """The points of a path in bounded memory: at most ``max_points`` evenly spaced ones, plus the latest.
+
+    Every point is kept until ``max_points`` are stored; then every other one is dropped and only
+    every second new one is kept, and so on (the stride doubles each time). The whole path keeps
+    its shape at a coarser step; the first and the latest point are always kept.
+    """
+
+    MAX_POINTS = 1024  # per path; an env's default horizon never reaches it
+
+    def __init__(self, first_point, max_points: int | None = None):
+        self.max_points = self.MAX_POINTS if max_points is None else max_points
+        if not isinstance(self.max_points, int) or self.max_points < 2:
+            raise ValueError(f"PathHistory max_points must be an int >= 2, got {self.max_points!r}")
+        self._kept = [np.array(first_point, dtype=float)]
+        self._stride = 1
+        self._appended = 0  # points appended after the first
+        self._latest = self._kept[0]
+
+    def append(self, point) -> None:
+        """Add the next point of the path (copied)."""
+        self._latest = np.array(point, dtype=float)
+        self._appended += 1
+        if self._appended % self._stride == 0:
+            self._kept.append(self._latest)
+            if len(self._kept) > self.max_points:
+                self._kept = self._kept[::2]
+                self._stride *= 2
+
+    def __len__(self) -> int:
+        return len(self._kept) + (self._appended % self._stride != 0)
+
+    def points(self) -> np.ndarray:
+        """The kept points in order, ending with the latest: shape ``(len(self), dimensions)``."""
+        if self._appended % self._stride == 0:
+            return np.array(self._kept)
+        return np.array([*self._kept, self._latest])
+
+
+@dataclass
+class RobotDrawing:
+    """One robot to draw: truth in black, its estimate in its own colour, positions in metres."""
+
+    true_pose: np.ndarray | None = None
+    estimated_pose: np.ndarray | None = None
+    pose_covariance: np.ndarray | None = None  # (3, 3) or (2, 2); the x-y block is drawn as an N_SIGMA ellipse
+    true_path: np.ndarray | None = None
+    estimated_path: np.ndarray | None = None
+    label: str = ""  # drawn next to the robot if fonts are available
+
+    @classmethod
+    def tracked(cls, true_pose, ekf, true_path: PathHistory, estimated_path: PathHistory) -> RobotDrawing:
+        """A robot tracked by a ``PoseEKF``: its truth, the filter's pose and covariance, and both paths."""
+        return cls(
+            true_pose=true_pose,
+            estimated_pose=ekf.pose,
+            pose_covariance=ekf.pose_covariance,
+            true_path=true_path.points(),
+            estimated_path=estimated_path.points(),
+        )
+
+
+@dataclass
+class SceneFrame:
+    """Everything to draw for one frame; positions in metres, headings in radians.
+
+    Landmark ``k`` (index ``k - 1``) is labelled ``#k``, the paper's Fig. 1 numbering.
+    ``observations`` are ``(observer, target)`` pairs of robot indices, drawn as a line
+    between their true positions; ``gps_denied_zones`` are circles (``center``,
+    ``radius``) filled lightly under everything else. The chosen landmark's line starts
+    at ``robots[0]``'s true pose. ``sensor_wedge`` is a field of view from ``robots[0]``'s
+    true position: ``(world azimuth of its axis, full width [rad], length [m])``; ``goal`` a
+    position drawn as a target circle of ``goal_radius_m`` (at least a robot's drawn size);
+    ``inset_image`` a gray uint8 image (e.g. the frame a sensor just acquired) drawn under
+    the scene with ``inset_title`` above it; ``inset_grid`` ``(rows, columns)`` divides it
+    into cells (e.g. patches) and the row-major cells in ``inset_highlights`` are outlined in red.
+    """
+
+    bounds: tuple[float, float, float, float]
+    walls: Sequence[tuple[tuple[float, float], tuple[float, float]]] = ()
+    obstacles: Sequence = ()
+    landmarks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    landmark_visible: np.ndarray | None = None
+    chosen_landmark: int | None = None
+    robots: Sequence[RobotDrawing] = ()
+    landmark_estimates: np.ndarray | None = None
+    landmark_covariances: np.ndarray | None = None
+    observations: Sequence[tuple[int, int]] = ()
+    gps_denied_zones: Sequence = ()
+    sensor_wedge: tuple[float, float, float] | None = None
+    goal: tuple[float, float] | None = None
+    goal_radius_m: float = 0.0
+    inset_image: np.ndarray | None = None
+    inset_title: str = ""
+    inset_grid: tuple[int, int] | None = None
+    inset_highlights: Sequence[int] = ()
+    caption: str = ""
+
+
+def covariance_ellipse(
+    covariance_2x2, n_sigma: float = N_SIGMA, n_points: int = 48, min_radius: float = 0.0
+) -> np.ndarray:
+    """Return the (n_points, 2) outline offsets of a covariance's ``n_sigma`` ellipse.
+
+    The semi-axes are ``n_sigma`` standard deviations along the principal axes, each at
+    least ``min_radius``. The first point lies along the smallest principal axis (angle 0),
+    so a multiple of 4 points hits both axis extremes.
+
+    Raises:
+        ValueError: for a non-finite or non-2x2 matrix, a non-positive or non-finite
+            ``n_sigma``, a negative ``min_radius`` or fewer than 3 points.
+    """
+    covariance = np.asarray(covariance_2x2, dtype=float)
+    if covariance.shape != (2, 2):
+        raise ValueError(f"covariance must be 2x2, got shape {covariance.shape}")
+    if not np.all(np.isfinite(covariance)):
+        raise ValueError("covariance contains NaN or infinite entries")
+    if not (np.isfinite(n_sigma) and n_sigma > 0.0):
+        raise ValueError(f"n_sigma must be positive and finite, got {n_sigma}")
+    if not min_radius >= 0.0:
+        raise ValueError(f"min_radius must be >= 0, got {min_radius}")
+    if n_points < 3:
+        raise ValueError(f"n_points must be at least 3, got {n_points}")
+    eigenvalues, eigenvectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
+    radii = np.maximum(n_sigma * np.sqrt(np.clip(eigenvalues, 0.0, None)), min_radius)
+    angles = np.linspace(0.0, 2.0 * np.pi, n_points, endpoint=False)
+    circle = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    return (circle * radii) @ eigenvectors.T
