@@ -65,7 +65,7 @@ def test_vision_is_narrow_and_noisier_with_distance_laser_sees_all_around():
 
 
 def test_relative_pose_sensor_rejects_bad_heading_noise():
-    with pytest.raises(ValueError, match="relative-heading noise"):
+    with pytest.raises(ValueError, match="heading_std_rad"):
         RelativePoseSensor(RangeBearingSensor(), heading_std_rad=0.0)
 
 

@@ -255,7 +255,7 @@ def test_team_field_robots_pass_under_the_canopies():
         ({"n_robots": 8}, "fewer robots, a larger size_m or more n_waypoints"),
         ({"n_robots": 3, "size_m": 20.0}, "fewer robots"),
         ({"n_robots": 1, "size_m": 10.0}, "too crowded"),
-        ({"n_robots": 0}, "n_robots >= 1"),
+        ({"n_robots": 0}, r"n_robots must be an integer in \[1, 32\], got 0"),
     ],
 )
 def test_team_field_that_cannot_be_built_is_a_clear_error(params, message):

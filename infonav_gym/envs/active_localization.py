@@ -7,25 +7,22 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_positive
+from infonav_gym.config import check_config_integers, check_config_numbers, config_keys
 from infonav_gym.envs.active_planning import (
     N_PRIMITIVES,
     PRIMITIVE_OFFSETS_RAD,
     ActivePlanningModel,
 )
-from infonav_gym.envs.base import InfoNavEnv
-from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
+from infonav_gym.envs.base import MAX_EPISODE_STEPS, InfoNavEnv
+from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF, check_initial_pose_std
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
-from infonav_gym.sensors.odometry import OdometrySensor
+from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.active_scenarios import (
-    MIN_GOAL_FIELD_LANDMARKS,
-    MIN_GOAL_FIELD_SIZE_M,
-    CommandedWorld,
-    goal_field,
-)
+from infonav_gym.world.active_scenarios import CommandedWorld, check_goal_field_parameters, goal_field
+from infonav_gym.world.scenarios import check_speed
+from infonav_gym.world.world import MAX_TIME_STEP_S
 
 POSE_FEATURES = 10
 GOAL_FEATURES = 4
@@ -33,6 +30,10 @@ LANDMARK_FEATURES = 4
 OBSTACLE_FEATURES = 4
 REWARD_TERMS = ("mutual_information", "sensing_cost", "motion_cost", "progress", "goal_bonus", "failure_penalty")
 _BIG = 1e4
+MAX_TURN_RATE_RPS = 10.0  # [rad/s]
+MAX_GOAL_RADIUS_M = 100.0  # [m]
+MAX_REWARD_WEIGHT = 1e6  # largest cost, reward or bonus weight [nats, or nats per unit]
+MAX_POSITION_STD_M = 1000.0  # largest failure bound [m]
 
 
 class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
@@ -145,28 +146,27 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     def __init__(self, render_mode: str | None = None, **config):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
-        check_positive(cfg, ["n_candidates", "field_size_m", "time_step_s", "speed_mps", "max_turn_rate_rps"], owner)
-        check_positive(cfg, ["goal_radius_m", "max_position_std_m"], owner)
-        check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
-        non_negative = ["n_obstacles", "max_observations", "observation_cost_nats", "motion_cost_per_step"]
-        check_positive(cfg, non_negative + ["progress_reward_per_m", "goal_bonus", "failure_penalty"], owner, True)
-        if cfg["n_candidates"] < MIN_GOAL_FIELD_LANDMARKS:
-            raise ValueError(
-                f"config key 'n_candidates' of {owner} must be >= {MIN_GOAL_FIELD_LANDMARKS} "
-                f"(the goal field's landmarks), got {cfg['n_candidates']}"
-            )
-        if cfg["field_size_m"] < MIN_GOAL_FIELD_SIZE_M:
-            raise ValueError(
-                f"config key 'field_size_m' of {owner} must be >= {MIN_GOAL_FIELD_SIZE_M:g} m "
-                f"(the goal field's layout), got {cfg['field_size_m']}"
-            )
+        with config_keys(
+            owner, {"n_landmarks": "n_candidates", "n_obstacles": "n_obstacles", "size_m": "field_size_m"}
+        ):
+            check_goal_field_parameters(cfg["n_candidates"], cfg["n_obstacles"], cfg["field_size_m"])
+        with config_keys(owner, {"speed_mps": "speed_mps"}):
+            check_speed(owner, cfg["speed_mps"])
+        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
+        check_config_numbers(cfg, ["max_turn_rate_rps"], 0.0, MAX_TURN_RATE_RPS, owner, open_low=True, unit="rad/s")
+        check_config_numbers(cfg, ["goal_radius_m"], 0.0, MAX_GOAL_RADIUS_M, owner, open_low=True, unit="m")
+        check_config_numbers(cfg, ["max_position_std_m"], 0.0, MAX_POSITION_STD_M, owner, open_low=True, unit="m")
+        check_initial_pose_std(cfg, owner)
+        check_config_integers(cfg, ["max_observations"], 0, MAX_EPISODE_STEPS, owner)
+        weights = ["observation_cost_nats", "motion_cost_per_step", "progress_reward_per_m", "goal_bonus"]
+        check_config_numbers(cfg, weights + ["failure_penalty"], 0.0, MAX_REWARD_WEIGHT, owner)
         if cfg["max_position_std_m"] <= cfg["initial_position_std_m"]:
             raise ValueError(
                 f"config key 'max_position_std_m' of {owner} must exceed initial_position_std_m "
                 f"({cfg['initial_position_std_m']}), got {cfg['max_position_std_m']}"
             )
-        self.sensor = range_bearing_sensor_from_config(cfg)
-        self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
+        self.sensor = range_bearing_sensor_from_config(cfg, owner)
+        self.odometry = odometry_sensor_from_config(cfg, owner)
         self._odometry_covariance = self.odometry.noise_covariance()
         self.world = CommandedWorld()
         self.n_primitives = N_PRIMITIVES

@@ -17,10 +17,12 @@ import operator
 import gymnasium as gym
 import numpy as np
 
-from infonav_gym.config import check_choice, merge_config
+from infonav_gym.config import check_choice, check_config_integers, merge_config
 
 INVALID_ACTION_MODES = ("noop", "raise")
 MIN_RENDER_SIZE_PX = 64
+MAX_RENDER_SIZE_PX = 4096
+MAX_EPISODE_STEPS = 10**7  # longest horizon (``horizon``, ``max_cycles``) [steps]
 
 
 def discrete_action_index(action, space: gym.spaces.Discrete) -> int:
@@ -56,11 +58,7 @@ class SceneRendering:
         owner = type(self).__name__
         self.config = merge_config(self.default_config(), config, owner)
         check_choice(self.config, "invalid_action", INVALID_ACTION_MODES, owner)
-        if self.config["render_size_px"] < MIN_RENDER_SIZE_PX:
-            raise ValueError(
-                f"config key 'render_size_px' of {owner} must be >= {MIN_RENDER_SIZE_PX}, "
-                f"got {self.config['render_size_px']}"
-            )
+        check_config_integers(self.config, ["render_size_px"], MIN_RENDER_SIZE_PX, MAX_RENDER_SIZE_PX, owner)
         self._renderer = None
         self._elapsed_steps = None
 
@@ -106,10 +104,7 @@ class InfoNavEnv(SceneRendering, gym.Env):
 
     def __init__(self, render_mode: str | None = None, **config):
         self._configure(render_mode, config)
-        if self.config["horizon"] < 1:
-            raise ValueError(
-                f"config key 'horizon' of {type(self).__name__} must be >= 1, got {self.config['horizon']}"
-            )
+        check_config_integers(self.config, ["horizon"], 1, MAX_EPISODE_STEPS, type(self).__name__)
         self._action_mask = None
         self._action_information_gain = None
         self._chosen_action = None

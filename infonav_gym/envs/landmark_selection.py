@@ -7,21 +7,22 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_positive
+from infonav_gym.config import check_choice, check_config_integers, check_config_numbers, config_keys
 from infonav_gym.envs.base import InfoNavEnv
-from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
+from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF, check_initial_pose_std
 from infonav_gym.estimation.models import range_bearing
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
-from infonav_gym.sensors.odometry import OdometrySensor
+from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, SCENARIOS
-from infonav_gym.world.world import World
+from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, MAX_LANDMARKS, SCENARIOS, check_field_parameters
+from infonav_gym.world.world import MAX_TIME_STEP_S, World
 
 SCENARIO_CHOICES = ("field", "corridor")  # the single-robot scenarios with landmarks
 POSE_FEATURES = 10
 CANDIDATE_FEATURES = 5
 _BIG = 1e4
+LANDMARK_PRIOR_STD_RANGE_M = (1e-4, 100.0)  # allowed prior std of a mapped landmark coordinate [m]
 
 
 class LandmarkSelectionEnv(InfoNavEnv):
@@ -103,15 +104,22 @@ class LandmarkSelectionEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "scenario", SCENARIO_CHOICES, owner)
-        check_positive(cfg, ["n_candidates", "time_step_s", "speed_mps", "landmark_prior_std_m", "field_size_m"], owner)
-        check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
-        check_positive(cfg, ["n_obstacles"], owner, allow_zero=True)
+        check_config_integers(cfg, ["n_candidates"], 1, MAX_LANDMARKS, owner)
+        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
+        check_config_numbers(cfg, ["landmark_prior_std_m"], *LANDMARK_PRIOR_STD_RANGE_M, owner, unit="m")
+        check_initial_pose_std(cfg, owner)
+        field_keys = {"n_obstacles": "n_obstacles", "size_m": "field_size_m", "speed_mps": "speed_mps"}
+        with config_keys(owner, field_keys):  # the corridor's speed is checked as the field's
+            check_field_parameters(
+                n_obstacles=cfg["n_obstacles"], size_m=cfg["field_size_m"], speed_mps=cfg["speed_mps"]
+            )
         if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
             raise ValueError(
-                f"the corridor scenario has {CORRIDOR_LANDMARK_COUNT} landmarks: n_candidates must be >= 4"
+                f"config key 'n_candidates' of {owner} must be >= {CORRIDOR_LANDMARK_COUNT} "
+                f"(the corridor's landmarks), got {cfg['n_candidates']}"
             )
-        self.sensor = range_bearing_sensor_from_config(cfg)
-        self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
+        self.sensor = range_bearing_sensor_from_config(cfg, owner)
+        self.odometry = odometry_sensor_from_config(cfg, owner)
         self._odometry_covariance = self.odometry.noise_covariance()
         self.world = World()
         self.action_space = spaces.Discrete(cfg["n_candidates"])

@@ -2,25 +2,41 @@
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_positive
+from infonav_gym.config import check_choice, check_config_integers, check_config_numbers, config_keys, from_config
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.registration.control_points import control_point_geometry
-from infonav_gym.registration.frame_pairs import frame_pair, registration_error, scan_on_terrain
+from infonav_gym.registration.frame_pairs import (
+    DEFAULT_ODOMETRY_STD,
+    check_odometry_std,
+    frame_pair,
+    registration_error,
+    scan_on_terrain,
+)
 from infonav_gym.registration.icp import METHODS, icp
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import World
+from infonav_gym.world.world import MAX_TIME_STEP_S, World
 
 MIN_CONTROL_POINTS = 3  # fewer cannot fix a rigid motion
 PATCH_FEATURES = 5
 GLOBAL_FEATURES = 2
 MAX_PATCH_INFORMATION = 50.0  # observation bound of a patch's information [nats]
+MAX_POINT_COST = 1e3  # [m of registration error per control point]
+MAX_ICP_ITERATIONS = 10**4
+MAX_CORRESPONDENCE_DISTANCE_M = 100.0  # [m]
+ODOMETRY_KEYS = {  # the config key of each axis of the odometry error (frame_pair's odometry_std)
+    "x": "odometry_xy_std_m",
+    "y": "odometry_xy_std_m",
+    "z": "odometry_z_std_m",
+    "roll": "odometry_tilt_std_rad",
+    "pitch": "odometry_tilt_std_rad",
+    "yaw": "odometry_yaw_std_rad",
+}
 
 
 class RangeRegistrationEnv(InfoNavEnv):
@@ -86,10 +102,10 @@ class RangeRegistrationEnv(InfoNavEnv):
             "time_step_s": 0.5,  # between frames [s]
             "speed_mps": 2.0,  # [m/s]
             **SCENE_CONFIG,  # the terrain_loop scene
-            "odometry_xy_std_m": 0.1,  # std of the odometry's motion error along x and y [m]
-            "odometry_z_std_m": 0.05,  # ... along z [m]
-            "odometry_tilt_std_rad": math.radians(0.5),  # ... about x and y (inclinometers) [rad]
-            "odometry_yaw_std_rad": math.radians(1.0),  # ... about z [rad]
+            "odometry_xy_std_m": DEFAULT_ODOMETRY_STD[0],  # std of the odometry's motion error along x and y [m]
+            "odometry_z_std_m": DEFAULT_ODOMETRY_STD[2],  # ... along z [m]
+            "odometry_tilt_std_rad": DEFAULT_ODOMETRY_STD[3],  # ... about x and y (inclinometers) [rad]
+            "odometry_yaw_std_rad": DEFAULT_ODOMETRY_STD[5],  # ... about z [rad]
             "icp_method": "point_to_plane",
             "icp_max_iterations": 30,
             "max_correspondence_distance_m": 1.0,
@@ -100,20 +116,21 @@ class RangeRegistrationEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "icp_method", METHODS, owner)
-        check_positive(cfg, ["picks_per_pair", "patch_rows", "patch_columns", "time_step_s", "speed_mps"], owner)
+        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
         check_scene_config(cfg, owner)
-        check_positive(cfg, ["icp_max_iterations", "max_correspondence_distance_m"], owner)
-        check_positive(cfg, ["point_cost"], owner, allow_zero=True)
-        odometry_keys = ["odometry_xy_std_m", "odometry_z_std_m", "odometry_tilt_std_rad", "odometry_yaw_std_rad"]
-        check_positive(cfg, odometry_keys, owner)
-        check_positive(cfg, ["ladar_range_std_m"], owner, allow_zero=True)
-        self.ladar = Ladar(range_std_m=cfg["ladar_range_std_m"])
-        for key, pixels in (("patch_rows", self.ladar.rows), ("patch_columns", self.ladar.columns)):
-            if cfg[key] > pixels:
-                raise ValueError(f"config key {key!r} of {owner} must be at most {pixels} (image size), got {cfg[key]}")
-        xy, z, tilt, yaw = (cfg[key] for key in odometry_keys)
-        self.odometry_std = np.array([xy, xy, z, tilt, tilt, yaw])
+        check_config_integers(cfg, ["icp_max_iterations"], 1, MAX_ICP_ITERATIONS, owner)
+        distance_limit = MAX_CORRESPONDENCE_DISTANCE_M
+        check_config_numbers(
+            cfg, ["max_correspondence_distance_m"], 0.0, distance_limit, owner, open_low=True, unit="m"
+        )
+        check_config_numbers(cfg, ["point_cost"], 0.0, MAX_POINT_COST, owner)
+        with config_keys(owner, ODOMETRY_KEYS):
+            self.odometry_std = check_odometry_std([cfg[key] for key in ODOMETRY_KEYS.values()])
+        self.ladar = from_config(Ladar, cfg, {"range_std_m": "ladar_range_std_m"}, owner)
+        check_config_integers(cfg, ["patch_rows"], 1, self.ladar.rows, owner)
+        check_config_integers(cfg, ["patch_columns"], 1, self.ladar.columns, owner)
         self.n_patches = cfg["patch_rows"] * cfg["patch_columns"]
+        check_config_integers(cfg, ["picks_per_pair"], 1, self.n_patches, owner)
         self.action_space = spaces.Discrete(self.n_patches)
         high = np.tile([1.0, 1.0, 1.0, 1.0, MAX_PATCH_INFORMATION], self.n_patches)
         high = np.append(high, [1.0, 1.0]).astype(np.float32)

@@ -7,13 +7,13 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_open_interval, check_positive
+from infonav_gym.config import check_choice, check_config_integers, check_config_numbers, from_config
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.information import histogram_entropy
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import World
+from infonav_gym.world.world import MAX_TIME_STEP_S, World
 
 SENSORS = ("ladar", "camera")
 IMAGE_INFORMATION = ("entropy", "negentropy")
@@ -23,6 +23,8 @@ OPTION_FEATURES = 3
 GLOBAL_FEATURES = 2 + len(SENSORS)
 _WEDGE_LENGTH_M = 12.0  # drawn length of the acquired field of view [m]
 _BYTES_PER_PIXEL = {"ladar": 2, "camera": 1}  # 16-bit ranges, 8-bit gray levels
+MAX_PAN_SECTORS = 64
+MAX_BANDWIDTH_BYTES = 10**10  # largest link capacity per step and credit buffer [bytes]
 
 
 class SensorSelectionEnv(InfoNavEnv):
@@ -117,16 +119,15 @@ class SensorSelectionEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "image_information", IMAGE_INFORMATION, owner)
-        check_positive(cfg, ["time_step_s", "speed_mps", "n_pan_sectors", "bandwidth_bytes_per_step"], owner)
+        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
         check_scene_config(cfg, owner)
-        check_positive(cfg, ["pan_span_rad"], owner, allow_zero=True)
-        check_positive(cfg, ["ladar_rows", "ladar_columns", "camera_rows", "camera_columns"], owner)
-        fov_keys = ["ladar_vertical_fov_rad", "ladar_horizontal_fov_rad", "camera_horizontal_fov_rad"]
-        check_open_interval(cfg, fov_keys, 0.0, math.pi, owner, unit=" rad, i.e. (0, 180) degrees")
-        check_positive(cfg, ["ladar_max_range_m"], owner)
-        check_positive(cfg, ["ladar_range_std_m", "camera_noise_std"], owner, allow_zero=True)
-        self.ladar = Ladar(**_prefixed(cfg, "ladar_"))
-        self.camera = Camera(**_prefixed(cfg, "camera_"))
+        check_config_integers(cfg, ["n_pan_sectors"], 1, MAX_PAN_SECTORS, owner)
+        check_config_numbers(cfg, ["pan_span_rad"], 0.0, 2 * math.pi, owner, unit="rad")
+        check_config_integers(
+            cfg, ["bandwidth_bytes_per_step", "bandwidth_buffer_bytes"], 1, MAX_BANDWIDTH_BYTES, owner
+        )
+        self.ladar = from_config(Ladar, cfg, _prefixed_keys(cfg, "ladar_"), owner)
+        self.camera = from_config(Camera, cfg, _prefixed_keys(cfg, "camera_"), owner)
         self.frame_bytes = {
             "ladar": _BYTES_PER_PIXEL["ladar"] * self.ladar.rows * self.ladar.columns,
             "camera": _BYTES_PER_PIXEL["camera"] * self.camera.rows * self.camera.columns,
@@ -253,6 +254,6 @@ class SensorSelectionEnv(InfoNavEnv):
         )
 
 
-def _prefixed(config: dict, prefix: str) -> dict:
-    """The entries of ``config`` whose key starts with ``prefix``, with the prefix removed."""
-    return {key.removeprefix(prefix): value for key, value in config.items() if key.startswith(prefix)}
+def _prefixed_keys(config: dict, prefix: str) -> dict[str, str]:
+    """The keys of ``config`` that start with ``prefix``, by their name without it (a sensor's field)."""
+    return {key.removeprefix(prefix): key for key in config if key.startswith(prefix)}

@@ -6,6 +6,7 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 from scipy.linalg import block_diag
 
+from infonav_gym.config import check_config_numbers
 from infonav_gym.estimation.models import (
     GPS_POSE_JACOBIAN,
     range_bearing_linearized,
@@ -18,6 +19,15 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import log_det_spd
 
 POSE_DIM = 3
+INITIAL_POSITION_STD_RANGE_M = (1e-4, 100.0)  # allowed prior std of a position coordinate [m]
+INITIAL_HEADING_STD_RANGE_RAD = (1e-5, np.pi)  # allowed prior std of a heading [rad]
+
+
+def check_initial_pose_std(config: dict, owner: str) -> None:
+    """``ValueError`` naming the key unless an env config's ``initial_position_std_m`` and
+    ``initial_heading_std_rad`` (the prior of its pose estimates) are in range."""
+    check_config_numbers(config, ["initial_position_std_m"], *INITIAL_POSITION_STD_RANGE_M, owner, unit="m")
+    check_config_numbers(config, ["initial_heading_std_rad"], *INITIAL_HEADING_STD_RANGE_RAD, owner, unit="rad")
 
 
 class PoseEKF(ExtendedKalmanFilter):

@@ -9,18 +9,23 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
-from infonav_gym.config import check_choice, check_positive
-from infonav_gym.envs.base import SceneRendering, discrete_action_index
-from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
+from infonav_gym.config import check_choice, check_config_integers, check_config_numbers, config_keys
+from infonav_gym.envs.base import MAX_EPISODE_STEPS, SceneRendering, discrete_action_index
+from infonav_gym.estimation.ekf import POSE_DIM, JointEKF, check_initial_pose_std
 from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
 from infonav_gym.sensors.gps import GPSSensor
-from infonav_gym.sensors.odometry import OdometrySensor
+from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
-from infonav_gym.world.scenarios import SCENARIOS
-from infonav_gym.world.world import World
+from infonav_gym.world.scenarios import (
+    MAX_ROBOTS,
+    SCENARIOS,
+    check_convoy_parameters,
+    check_team_field_parameters,
+)
+from infonav_gym.world.world import MAX_TIME_STEP_S, World
 
 TEAM_SCENARIOS = ("team_field", "convoy")
 ESTIMATORS = ("joint", "independent")
@@ -138,21 +143,27 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "scenario", TEAM_SCENARIOS, owner)
         check_choice(cfg, "estimator", ESTIMATORS, owner)
-        check_positive(cfg, ["max_cycles", "time_step_s", "speed_mps", "gps_std_m", "field_size_m"], owner)
-        check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
-        check_positive(cfg, ["n_obstacles", "n_canopies"], owner, allow_zero=True)
-        if cfg["n_robots"] < 2:
-            raise ValueError(f"config key 'n_robots' of {owner} must be >= 2 (a team), got {cfg['n_robots']}")
-        if not 0.0 <= cfg["team_reward"] <= 1.0:
-            raise ValueError(f"config key 'team_reward' of {owner} must be in [0, 1], got {cfg['team_reward']}")
+        check_config_integers(cfg, ["max_cycles"], 1, MAX_EPISODE_STEPS, owner)
+        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
+        check_config_numbers(cfg, ["team_reward"], 0.0, 1.0, owner)
+        check_initial_pose_std(cfg, owner)
+        check_config_integers(cfg, ["n_robots"], 2, MAX_ROBOTS, owner)
+        scenario_keys = {key: key for key in ("n_robots", "n_obstacles", "n_canopies", "speed_mps")}
+        with config_keys(owner, {**scenario_keys, "size_m": "field_size_m"}):
+            field_robots = cfg["n_robots"] if cfg["scenario"] == "team_field" else 1  # the convoy has no field
+            field = (cfg["n_obstacles"], cfg["n_canopies"], cfg["field_size_m"], cfg["speed_mps"])
+            check_team_field_parameters(field_robots, *field)
+            if cfg["scenario"] == "convoy":
+                check_convoy_parameters(cfg["n_robots"], cfg["speed_mps"])
         n = cfg["n_robots"]
         self.suites = parse_suites(cfg["robot_sensors"], n, cfg["scenario"])
         outages = parse_outages(cfg["gps_outages"], n)
-        self.gps = [
-            GPSSensor(cfg["gps_std_m"], spans) if suite.gps else None for suite, spans in zip(self.suites, outages)
-        ]
+        with config_keys(owner, {"position_std_m": "gps_std_m"}):
+            self.gps = [
+                GPSSensor(cfg["gps_std_m"], spans) if suite.gps else None for suite, spans in zip(self.suites, outages)
+            ]
         self.relative_sensors = [RELATIVE_POSE_SENSORS.get(suite.relative_sensor) for suite in self.suites]
-        self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
+        self.odometry = odometry_sensor_from_config(cfg, owner)
         self._odometry_covariances = np.repeat(self.odometry.noise_covariance()[None], n, axis=0)
         self.max_cycles = cfg["max_cycles"]
         self.possible_agents = [f"robot_{k}" for k in range(n)]

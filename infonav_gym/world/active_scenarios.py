@@ -6,7 +6,17 @@ import math
 
 import numpy as np
 
-from infonav_gym.world.scenarios import CircleObstacle, Route, Scenario, _box_walls, _rejection_sample
+from infonav_gym.config import check_integer, check_number
+from infonav_gym.world.scenarios import (
+    MAX_FIELD_SIZE_M,
+    MAX_LANDMARKS,
+    MAX_OBSTACLES,
+    CircleObstacle,
+    Route,
+    Scenario,
+    _box_walls,
+    _rejection_sample,
+)
 from infonav_gym.world.world import World
 
 START_MARGIN_M = 2.5  # distance of the start and the goal from the left and right walls [m]
@@ -37,6 +47,22 @@ class CommandedWorld(World):
         return self._commands[robot]
 
 
+def check_goal_field_parameters(
+    n_landmarks: int = 8, n_obstacles: int = 4, size_m: float = 40.0, lit_offset_m: tuple[float, float] = LIT_OFFSET_M
+) -> None:
+    """``ParameterError`` naming the argument of ``goal_field`` outside its range.
+
+    ``n_landmarks`` in [``MIN_GOAL_FIELD_LANDMARKS``, 100], ``n_obstacles`` in [0, 100], ``size_m``
+    from three times the largest lit offset (the layout) to 1000 m, ``lit_offset_m`` an increasing
+    positive pair.
+    """
+    if not (len(lit_offset_m) == 2 and 0 < lit_offset_m[0] <= lit_offset_m[1] < MAX_FIELD_SIZE_M):
+        raise ValueError(f"goal_field lit_offset_m must be (low, high) [m] with 0 < low <= high, got {lit_offset_m!r}")
+    check_integer("goal_field", "n_landmarks", n_landmarks, MIN_GOAL_FIELD_LANDMARKS, MAX_LANDMARKS)
+    check_integer("goal_field", "n_obstacles", n_obstacles, 0, MAX_OBSTACLES)
+    check_number("goal_field", "size_m", size_m, 3 * max(lit_offset_m), MAX_FIELD_SIZE_M, unit="m")
+
+
 def goal_field(
     np_random: np.random.Generator,
     n_landmarks: int = 8,
@@ -57,16 +83,10 @@ def goal_field(
     The route holds the start pose (facing the goal) and the goal as its one waypoint.
 
     Raises:
-        ValueError: for fewer than ``MIN_GOAL_FIELD_LANDMARKS`` landmarks, a negative
-            obstacle count, or a field too small for the layout.
+        ParameterError: (a ``ValueError``) for an argument outside its range (``check_goal_field_parameters``).
+        ValueError: when the obstacles do not fit.
     """
-    if n_landmarks < MIN_GOAL_FIELD_LANDMARKS or n_obstacles < 0:
-        raise ValueError(
-            f"goal_field needs n_landmarks >= {MIN_GOAL_FIELD_LANDMARKS} and n_obstacles >= 0, "
-            f"got n_landmarks={n_landmarks}, n_obstacles={n_obstacles}"
-        )
-    if size_m < 3 * max(lit_offset_m):
-        raise ValueError(f"goal_field needs size_m >= {3 * max(lit_offset_m):g} m for its layout, got {size_m!r}")
+    check_goal_field_parameters(n_landmarks, n_obstacles, size_m, lit_offset_m)
     start = np.array([START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
     goal = np.array([size_m - START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
     along = (goal - start) / np.linalg.norm(goal - start)

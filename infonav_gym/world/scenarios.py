@@ -7,9 +7,31 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from infonav_gym.config import ParameterError, check_integer, check_number
 from infonav_gym.geometry import distance_to_loop
 
 CORRIDOR_LANDMARK_COUNT = 4
+MAX_SPEED_MPS = 50.0  # fastest cruise speed of a route [m/s]
+MIN_FIELD_SIZE_M = 10.0  # smallest side of a square field [m]
+MAX_FIELD_SIZE_M = 1000.0  # largest side of a square field [m]
+MAX_LANDMARKS = 100  # most landmarks of a field
+MAX_OBSTACLES = 100  # most round obstacles of a field
+MAX_CANOPIES = 20  # most GPS-denied zones of a team field
+MAX_ROBOTS = 32  # largest team
+MAX_WAYPOINTS = 100  # most vertices of a random closed route
+
+
+def check_speed(owner: str, speed_mps) -> None:
+    """``ParameterError`` unless ``speed_mps`` is in (0, ``MAX_SPEED_MPS``] m/s."""
+    check_number(owner, "speed_mps", speed_mps, 0.0, MAX_SPEED_MPS, open_low=True, unit="m/s")
+
+
+def _check_field_layout(owner: str, size_m, speed_mps, n_waypoints, n_obstacles) -> None:
+    """The checks every square field shares: its side, route speed, route vertices and obstacle count."""
+    check_number(owner, "size_m", size_m, MIN_FIELD_SIZE_M, MAX_FIELD_SIZE_M, unit="m")
+    check_speed(owner, speed_mps)
+    check_integer(owner, "n_waypoints", n_waypoints, 3, MAX_WAYPOINTS)
+    check_integer(owner, "n_obstacles", n_obstacles, 0, MAX_OBSTACLES)
 
 
 @dataclass(frozen=True)
@@ -40,8 +62,7 @@ class Route:
             waypoints = np.zeros((0, 2))
         if waypoints.ndim != 2 or waypoints.shape[1] != 2 or not np.all(np.isfinite(waypoints)):
             raise ValueError(f"route waypoints must be a finite (W, 2) array [m], got shape {waypoints.shape}")
-        if not self.speed_mps > 0:
-            raise ValueError(f"route speed_mps must be positive [m/s], got {self.speed_mps!r}")
+        check_speed("route", self.speed_mps)
         waypoints.flags.writeable = False
         object.__setattr__(self, "waypoints", waypoints)
 
@@ -82,6 +103,7 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
     fixed; ``np_random`` is accepted for a uniform builder signature.
     """
     del np_random
+    check_corridor_parameters(speed_mps)
     half_width, length = 3.0, 40.0
     walls = (
         ((-2.0, half_width), (length, half_width)),
@@ -97,6 +119,11 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
         routes=(Route((0.0, 0.0, 0.0), np.array([[length - 3.0, 0.0]]), speed_mps=speed_mps),),
         landmarks=landmarks,
     )
+
+
+def check_corridor_parameters(speed_mps: float = 0.5) -> None:
+    """``ParameterError`` naming the argument of ``corridor`` outside its range."""
+    check_speed("corridor", speed_mps)
 
 
 def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: int = 1000) -> list:
@@ -147,6 +174,18 @@ def _obstacles_clear_of(polygons: list, count: int, size_m: float, np_random: np
     )
 
 
+def check_field_parameters(
+    n_landmarks: int = 8, n_obstacles: int = 6, size_m: float = 40.0, speed_mps: float = 1.0, n_waypoints: int = 6
+) -> None:
+    """``ParameterError`` naming the argument of ``field`` outside its range.
+
+    ``n_landmarks`` in [0, 100], ``n_obstacles`` in [0, 100], ``size_m`` in [10, 1000] m,
+    ``speed_mps`` in (0, 50] m/s, ``n_waypoints`` in [3, 100].
+    """
+    _check_field_layout("field", size_m, speed_mps, n_waypoints, n_obstacles)
+    check_integer("field", "n_landmarks", n_landmarks, 0, MAX_LANDMARKS)
+
+
 def field(
     np_random: np.random.Generator,
     n_landmarks: int = 8,
@@ -159,7 +198,12 @@ def field(
 
     Obstacles keep clear of the route and landmarks stay outside obstacles, so
     the robot never collides and every landmark can be seen from somewhere.
+
+    Raises:
+        ParameterError: (a ``ValueError``) for an argument outside its range (``check_field_parameters``).
+        ValueError: when the obstacles or landmarks do not fit.
     """
+    check_field_parameters(n_landmarks, n_obstacles, size_m, speed_mps, n_waypoints)
     center = np.array([size_m / 2, size_m / 2])
     angles = 2 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
     route = _polygon(center, angles, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
@@ -248,6 +292,36 @@ def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> 
     )
 
 
+def check_team_field_parameters(
+    n_robots: int = 4,
+    n_obstacles: int = 6,
+    n_canopies: int = 2,
+    size_m: float = 40.0,
+    speed_mps: float = 1.0,
+    n_waypoints: int = 6,
+) -> list[tuple[float, float]]:
+    """``ParameterError`` naming the argument of ``team_field`` outside its range; else the routes' radial bands.
+
+    ``n_robots`` in [1, 32] and no more than fit in the field, ``n_obstacles`` in [0, 100],
+    ``n_canopies`` in [0, 20], ``size_m`` in [10, 1000] m, ``speed_mps`` in (0, 50] m/s,
+    ``n_waypoints`` in [3, 100].
+    """
+    _check_field_layout("team_field", size_m, speed_mps, n_waypoints, n_obstacles)
+    check_integer("team_field", "n_robots", n_robots, 1, MAX_ROBOTS)
+    check_integer("team_field", "n_canopies", n_canopies, 0, MAX_CANOPIES)
+    try:
+        return _radial_bands(
+            n_robots,
+            inner_m=2.0,  # the innermost route keeps its waypoints >= ~2 m apart
+            outer_m=size_m / 2 - 2.5,
+            gap_m=TEAM_ROUTE_GAP_M,
+            sector_rad=2 * math.pi * (1 + 2 * _TEAM_ANGLE_JITTER) / n_waypoints,
+            max_width_m=0.15 * size_m,
+        )
+    except ValueError as error:
+        raise ParameterError("team_field", "n_robots", f"a team whose routes fit ({error})", n_robots) from None
+
+
 def team_field(
     np_random: np.random.Generator,
     n_robots: int = 4,
@@ -266,22 +340,12 @@ def team_field(
     robot's start, so no robot stays under one for good. There are no landmarks.
 
     Raises:
-        ValueError: for a non-positive count, or when the routes, obstacles or canopies do not fit.
+        ParameterError: (a ``ValueError``) for an argument outside its range or routes that do not
+            fit (``check_team_field_parameters``).
+        ValueError: when the obstacles or canopies do not fit.
     """
-    if n_robots < 1 or n_waypoints < 3 or n_obstacles < 0 or n_canopies < 0:
-        raise ValueError(
-            "team_field needs n_robots >= 1, n_waypoints >= 3 and non-negative n_obstacles and n_canopies, got "
-            f"n_robots={n_robots}, n_waypoints={n_waypoints}, n_obstacles={n_obstacles}, n_canopies={n_canopies}"
-        )
+    bands = check_team_field_parameters(n_robots, n_obstacles, n_canopies, size_m, speed_mps, n_waypoints)
     center = np.array([size_m / 2, size_m / 2])
-    bands = _radial_bands(
-        n_robots,
-        inner_m=2.0,  # the innermost route keeps its waypoints >= ~2 m apart
-        outer_m=size_m / 2 - 2.5,
-        gap_m=TEAM_ROUTE_GAP_M,
-        sector_rad=2 * math.pi * (1 + 2 * _TEAM_ANGLE_JITTER) / n_waypoints,
-        max_width_m=0.15 * size_m,
-    )
     first_angle = np_random.uniform(0.0, 2 * math.pi)
     polygons = []
     for robot, (low_m, high_m) in enumerate(bands):
@@ -313,6 +377,12 @@ def _hedge(y: float, openings, x_start: float, x_end: float) -> tuple:
     return tuple(((edges[k], y), (edges[k + 1], y)) for k in range(0, len(edges), 2))
 
 
+def check_convoy_parameters(n_robots: int = 3, speed_mps: float = 1.0) -> None:
+    """``ParameterError`` naming the argument of ``convoy`` outside its range (``n_robots`` in [2, 32])."""
+    check_integer("convoy", "n_robots", n_robots, 2, MAX_ROBOTS)
+    check_speed("convoy", speed_mps)
+
+
 def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float = 1.0) -> Scenario:
     """The paper's Fig. 3 layout: robots drive side by side along +x in parallel lanes.
 
@@ -323,8 +393,7 @@ def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float =
     fixed; ``np_random`` is accepted for a uniform builder signature.
     """
     del np_random
-    if n_robots < 2:
-        raise ValueError(f"the convoy needs at least 2 robots, got {n_robots}")
+    check_convoy_parameters(n_robots, speed_mps)
     lanes = [-CONVOY_LANE_SPACING_M * k for k in range(n_robots)]
     half = CONVOY_LANE_SPACING_M / 2
     x_min, x_max, y_min, y_max = -3.0, CONVOY_LENGTH_M + 3.0, lanes[-1] - half, half

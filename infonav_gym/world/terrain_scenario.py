@@ -12,10 +12,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from infonav_gym.config import check_positive
-from infonav_gym.world.scenarios import CircleObstacle, Scenario, _box_walls, _closed_route, _polygon
+from infonav_gym.config import check_integer, config_keys
+from infonav_gym.world.scenarios import (
+    MAX_WAYPOINTS,
+    CircleObstacle,
+    Scenario,
+    _box_walls,
+    _closed_route,
+    _polygon,
+    check_speed,
+)
 from infonav_gym.world.terrain import Terrain
-from infonav_gym.world.terrain_generation import make_terrain
+from infonav_gym.world.terrain_generation import check_terrain_parameters, make_terrain
 
 ROUTE_CLEARANCE_M = 3.0  # obstacles keep this far from the route [m]
 SCENE_CONFIG = {  # env config keys of a terrain_loop scene, with their defaults
@@ -45,6 +53,27 @@ def with_terrain_obstacles(scenario: Scenario, terrain: Terrain) -> Scenario:
     return replace(scenario, walls=scenario.walls + tuple(walls), obstacles=scenario.obstacles + discs)
 
 
+def check_terrain_loop_parameters(
+    size_m: float = 60.0,
+    roughness: float = 0.7,
+    n_trees: int = 25,
+    n_rocks: int = 8,
+    n_buildings: int = 3,
+    speed_mps: float = 2.0,
+    n_waypoints: int = 6,
+) -> None:
+    """``ParameterError`` naming the argument of ``terrain_loop`` outside its range.
+
+    The scene's as ``make_terrain`` checks them (``check_terrain_parameters``), ``speed_mps`` in
+    (0, 50] m/s, ``n_waypoints`` in [3, 100].
+    """
+    check_terrain_parameters(
+        size_m=size_m, roughness=roughness, n_trees=n_trees, n_rocks=n_rocks, n_buildings=n_buildings
+    )
+    check_speed("terrain_loop", speed_mps)
+    check_integer("terrain_loop", "n_waypoints", n_waypoints, 3, MAX_WAYPOINTS)
+
+
 def terrain_loop(
     np_random: np.random.Generator,
     size_m: float = 60.0,
@@ -60,9 +89,11 @@ def terrain_loop(
     The route is a jittered polygon around the scene centre at 22-36 % of ``size_m``; trees,
     rocks and buildings stand anywhere else, so the views along the loop change from open
     ground to woods to buildings.
+
+    Raises:
+        ParameterError: (a ``ValueError``) for an argument outside its range (``check_terrain_loop_parameters``).
     """
-    if int(n_waypoints) != n_waypoints or n_waypoints < 3:
-        raise ValueError(f"n_waypoints must be an integer >= 3, got {n_waypoints!r}")
+    check_terrain_loop_parameters(size_m, roughness, n_trees, n_rocks, n_buildings, speed_mps, n_waypoints)
     center = np.zeros(2)
     sectors = np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)
     route = _polygon(center, 2 * math.pi * sectors / n_waypoints, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
@@ -81,20 +112,26 @@ def terrain_loop(
     return TerrainScenario(with_terrain_obstacles(drive, terrain), terrain)
 
 
+_LOOP_CONFIG_KEYS = {  # the env config key of each terrain_loop argument
+    "size_m": "scene_size_m",
+    "roughness": "roughness",
+    "n_trees": "n_trees",
+    "n_rocks": "n_rocks",
+    "n_buildings": "n_buildings",
+    "speed_mps": "speed_mps",
+}
+
+
 def check_scene_config(config: dict, owner: str) -> None:
-    """``ValueError`` naming the key unless the ``SCENE_CONFIG`` keys of an env's ``config`` are valid."""
-    check_positive(config, ["scene_size_m"], owner)
-    check_positive(config, ["roughness", "n_trees", "n_rocks", "n_buildings"], owner, allow_zero=True)
+    """``ValueError`` naming the key unless an env config's ``SCENE_CONFIG`` keys and ``speed_mps`` are valid."""
+    with config_keys(owner, _LOOP_CONFIG_KEYS):
+        check_terrain_loop_parameters(**_loop_arguments(config))
 
 
 def terrain_loop_from_config(np_random: np.random.Generator, config: dict) -> TerrainScenario:
     """``terrain_loop`` with an env config's ``SCENE_CONFIG`` keys and its ``speed_mps``."""
-    return terrain_loop(
-        np_random,
-        size_m=config["scene_size_m"],
-        roughness=config["roughness"],
-        n_trees=config["n_trees"],
-        n_rocks=config["n_rocks"],
-        n_buildings=config["n_buildings"],
-        speed_mps=config["speed_mps"],
-    )
+    return terrain_loop(np_random, **_loop_arguments(config))
+
+
+def _loop_arguments(config: dict) -> dict:
+    return {argument: config[key] for argument, key in _LOOP_CONFIG_KEYS.items()}

@@ -17,6 +17,7 @@ _OBSTACLES_ONLY = pymunk.ShapeFilter(mask=OBSTACLE_CATEGORY)
 _ROBOT_MASS_KG = 10.0
 _CLEAR_BOX_MARGIN_M = 2.0  # a robot's remembered obstacle-free box extends this far beyond its reach [m]
 _EMPTY_BOX = (math.inf, math.inf, -math.inf, -math.inf)  # (left, bottom, right, top) that contains nothing
+MAX_TIME_STEP_S = 60.0  # longest ``step`` an env may configure [s]; near contacts it takes up to 600 substeps
 
 
 class World:
@@ -124,7 +125,7 @@ class World:
         return self.waypoint_indices[robot] >= len(self._waypoints[robot])
 
     def step(self, dt: float) -> np.ndarray:
-        """Drive every robot toward its current waypoint for ``dt`` seconds.
+        """Drive every robot toward its current waypoint for ``dt`` seconds, in (0, ``MAX_TIME_STEP_S``].
 
         Returns:
             The executed ``[speed, turn_rate]`` of every robot (N, 2) [m/s, rad/s].
