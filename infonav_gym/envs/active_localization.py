@@ -235,7 +235,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         landmark, primitive = (None, None) if action is None else self.decode_action(action)
         if landmark is not None:
             measurement = self.sensor.measure(self._true_pose, self.world.landmarks[landmark], self._measurement_rng)
-            self.ekf.update_range_bearing(measurement, self._predicted[landmark], self._H[landmark], self._R[landmark])
+            predicted, H, R = self._predicted[landmark], self._H[landmark], self._R[landmark]
+            self.ekf.update_range_bearing(measurement, predicted, H, R, check_input=False)
             posterior_log_det = log_det_spd(self.ekf.P, check_input=False)
             terms["mutual_information"] = 0.5 * (self._prior_log_det - posterior_log_det)  # Eq. 3
             terms["sensing_cost"] = -cfg["observation_cost_nats"]
@@ -246,7 +247,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         dt = cfg["time_step_s"]
         control = self.world.step(dt)[0]
         self._true_pose = self.world.pose
-        self.ekf.predict(self.odometry.measure(control, self._odometry_rng), dt, self._odometry_covariance)
+        odometry = self.odometry.measure(control, self._odometry_rng)
+        self.ekf.predict(odometry, dt, self._odometry_covariance, check_input=False)
         if primitive is not None:
             terms["motion_cost"] = -cfg["motion_cost_per_step"]
             terms["progress"] = cfg["progress_reward_per_m"] * (

@@ -186,7 +186,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
             return {"mutual_information": 0.0}
         predicted = self._predicted[action]
         measurement = self.sensor.measure(self._true_pose, self.world.landmarks[action], self._measurement_rng)
-        self.ekf.update_range_bearing(measurement, predicted, self._H[action], self._R[action])
+        self.ekf.update_range_bearing(measurement, predicted, self._H[action], self._R[action], check_input=False)
         posterior_log_det = log_det_spd(self.ekf.P, check_input=False)
         return {"mutual_information": 0.5 * (self._prior_log_det - posterior_log_det)}  # Eq. 3
 
@@ -194,7 +194,8 @@ class LandmarkSelectionEnv(InfoNavEnv):
         dt = self.config["time_step_s"]
         control = self.world.step(dt)[0]
         self._true_pose = self.world.pose
-        self.ekf.predict(self.odometry.measure(control, self._odometry_rng), dt, self._odometry_covariance)
+        odometry = self.odometry.measure(control, self._odometry_rng)
+        self.ekf.predict(odometry, dt, self._odometry_covariance, check_input=False)
         self._true_path.append(self._true_pose[:2])
         self._estimated_path.append(self.ekf.x[:2].copy())
 

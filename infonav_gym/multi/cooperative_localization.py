@@ -302,14 +302,17 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         predicted, H_observer, H_target, R = (part[rows] for part in self._candidates)
         pairs = self._valid_pairs[rows]
         measurements = noisy_relative_poses(self._geometry[pairs], self._pair_noise[pairs], self._relative_rng)
-        self.ekf.relative_pose_update(observers, targets, measurements, predicted, H_observer, H_target, R)
+        self.ekf.relative_pose_update(
+            observers, targets, measurements, predicted, H_observer, H_target, R, check_input=False
+        )
 
     def _advance(self) -> None:
         """Move every robot, predict with its noisy odometry, then fuse the DGPS fixes available."""
         dt = self.config["time_step_s"]
         controls = self.world.step(dt)
         self._true_poses = self.world.poses
-        self.ekf.predict(self.odometry.measure(controls, self._odometry_rng), dt, self._odometry_covariances)
+        odometry = self.odometry.measure(controls, self._odometry_rng)
+        self.ekf.predict(odometry, dt, self._odometry_covariances, check_input=False)
         self._elapsed_steps += 1
         self._time_s = self._elapsed_steps * dt
         self._gps_fixes()
@@ -326,7 +329,7 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         if robots.size:
             fixes = np.array([self.gps[k].measure(self._true_poses[k, :2], self._gps_rng) for k in robots])
             covariances = np.array([self.gps[k].noise_covariance() for k in robots])
-            self.ekf.gps_update(robots, fixes, covariances)
+            self.ekf.gps_update(robots, fixes, covariances, check_input=False)
 
     def _pose_uncertainty(self) -> tuple[np.ndarray, np.ndarray]:
         """Per robot, ``ln det`` of its pose covariance (N,) and its x, y, heading standard deviations (N, 3)."""
