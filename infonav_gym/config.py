@@ -5,6 +5,7 @@ from __future__ import annotations
 import difflib
 import numbers
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -93,6 +94,39 @@ def check_integer(owner: str, parameter: str, value, low: int, high: int) -> Non
         raise ParameterError(owner, parameter, f"an integer in [{low}, {high}]", value)
 
 
+@dataclass(frozen=True)
+class Interval:
+    """The allowed values of a number parameter, from ``low`` to ``high`` (finite bounds).
+
+    Attributes:
+        low, high: the bounds.
+        integer: only integers (not bools) are allowed; else any real number.
+        open_low, open_high: exclude the bound (real numbers only).
+        unit: shown after the interval in messages.
+    """
+
+    low: float
+    high: float
+    integer: bool = False
+    open_low: bool = False
+    open_high: bool = False
+    unit: str = ""
+
+    def check(self, owner: str, parameter: str, value) -> None:
+        """``ParameterError`` (naming ``owner`` and ``parameter``) unless ``value`` lies in the interval."""
+        if self.integer:
+            check_integer(owner, parameter, value, self.low, self.high)
+        else:
+            bounds = {"open_low": self.open_low, "open_high": self.open_high, "unit": self.unit}
+            check_number(owner, parameter, value, self.low, self.high, **bounds)
+
+
+def check_arguments(owner: str, intervals: dict[str, Interval], **arguments) -> None:
+    """``ParameterError`` for the first keyword argument outside its ``intervals`` entry (each must have one)."""
+    for name, value in arguments.items():
+        intervals[name].check(owner, name, value)
+
+
 @contextmanager
 def config_keys(owner: str, key_of_parameter: dict[str, str]):
     """Turn a ``ParameterError`` raised inside into a ``ValueError`` naming the config key that set the parameter.
@@ -118,6 +152,17 @@ def from_config(factory, config: dict, key_of_parameter: dict[str, str], owner: 
     """``factory(parameter=config[key], ...)`` over ``key_of_parameter``; a bad value's error names its config key."""
     with config_keys(owner, key_of_parameter):
         return factory(**{parameter: config[key] for parameter, key in key_of_parameter.items()})
+
+
+def check_config_arguments(
+    config: dict, owner: str, source: str, intervals: dict[str, Interval], key_of_argument: dict[str, str]
+) -> None:
+    """``check_arguments(source, intervals, argument=config[key], ...)`` over ``key_of_argument``; errors name the key.
+
+    For the arguments an env hands a builder (a scenario), checked at the env's construction.
+    """
+    with config_keys(owner, key_of_argument):
+        check_arguments(source, intervals, **{argument: config[key] for argument, key in key_of_argument.items()})
 
 
 def check_config_numbers(config: dict, keys, low: float, high: float, owner: str, **interval) -> None:

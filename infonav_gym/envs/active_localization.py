@@ -7,7 +7,7 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_config_integers, check_config_numbers, config_keys
+from infonav_gym.config import check_config_arguments, check_config_integers, check_config_numbers
 from infonav_gym.envs.active_planning import (
     N_PRIMITIVES,
     PRIMITIVE_OFFSETS_RAD,
@@ -20,8 +20,8 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.active_scenarios import CommandedWorld, check_goal_field_parameters, goal_field
-from infonav_gym.world.scenarios import check_speed
+from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS, CommandedWorld, goal_field
+from infonav_gym.world.scenarios import SPEED_MPS
 from infonav_gym.world.world import MAX_TIME_STEP_S
 
 POSE_FEATURES = 10
@@ -146,12 +146,9 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     def __init__(self, render_mode: str | None = None, **config):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
-        with config_keys(
-            owner, {"n_landmarks": "n_candidates", "n_obstacles": "n_obstacles", "size_m": "field_size_m"}
-        ):
-            check_goal_field_parameters(cfg["n_candidates"], cfg["n_obstacles"], cfg["field_size_m"])
-        with config_keys(owner, {"speed_mps": "speed_mps"}):
-            check_speed(owner, cfg["speed_mps"])
+        field_keys = {"n_landmarks": "n_candidates", "n_obstacles": "n_obstacles", "size_m": "field_size_m"}
+        check_config_arguments(cfg, owner, "goal_field", GOAL_FIELD_ARGUMENTS, field_keys)
+        check_config_arguments(cfg, owner, owner, {"speed_mps": SPEED_MPS}, {"speed_mps": "speed_mps"})
         check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
         check_config_numbers(cfg, ["max_turn_rate_rps"], 0.0, MAX_TURN_RATE_RPS, owner, open_low=True, unit="rad/s")
         check_config_numbers(cfg, ["goal_radius_m"], 0.0, MAX_GOAL_RADIUS_M, owner, open_low=True, unit="m")

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_config_integers, check_config_numbers, config_keys
+from infonav_gym.config import check_choice, check_config_arguments, check_config_integers, check_config_numbers
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF, check_initial_pose_std
 from infonav_gym.estimation.models import range_bearing
@@ -15,7 +15,7 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, MAX_LANDMARKS, SCENARIOS, check_field_parameters
+from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, FIELD_ARGUMENTS, MAX_LANDMARKS, SCENARIOS
 from infonav_gym.world.world import MAX_TIME_STEP_S, World
 
 SCENARIO_CHOICES = ("field", "corridor")  # the single-robot scenarios with landmarks
@@ -109,10 +109,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
         check_config_numbers(cfg, ["landmark_prior_std_m"], *LANDMARK_PRIOR_STD_RANGE_M, owner, unit="m")
         check_initial_pose_std(cfg, owner)
         field_keys = {"n_obstacles": "n_obstacles", "size_m": "field_size_m", "speed_mps": "speed_mps"}
-        with config_keys(owner, field_keys):  # the corridor's speed is checked as the field's
-            check_field_parameters(
-                n_obstacles=cfg["n_obstacles"], size_m=cfg["field_size_m"], speed_mps=cfg["speed_mps"]
-            )
+        check_config_arguments(cfg, owner, "field", FIELD_ARGUMENTS, field_keys)  # the corridor's speed too
         if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
             raise ValueError(
                 f"config key 'n_candidates' of {owner} must be >= {CORRIDOR_LANDMARK_COUNT} "

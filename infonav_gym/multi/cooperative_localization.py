@@ -9,7 +9,13 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
-from infonav_gym.config import check_choice, check_config_integers, check_config_numbers, config_keys
+from infonav_gym.config import (
+    check_choice,
+    check_config_arguments,
+    check_config_integers,
+    check_config_numbers,
+    config_keys,
+)
 from infonav_gym.envs.base import MAX_EPISODE_STEPS, SceneRendering, discrete_action_index
 from infonav_gym.estimation.ekf import POSE_DIM, JointEKF, check_initial_pose_std
 from infonav_gym.estimation.models import relative_pose
@@ -20,10 +26,11 @@ from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
 from infonav_gym.world.scenarios import (
+    DEFAULT_WAYPOINTS,
     MAX_ROBOTS,
     SCENARIOS,
-    check_convoy_parameters,
-    check_team_field_parameters,
+    TEAM_FIELD_ARGUMENTS,
+    team_route_bands,
 )
 from infonav_gym.world.world import MAX_TIME_STEP_S, World
 
@@ -148,13 +155,12 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         check_config_numbers(cfg, ["team_reward"], 0.0, 1.0, owner)
         check_initial_pose_std(cfg, owner)
         check_config_integers(cfg, ["n_robots"], 2, MAX_ROBOTS, owner)
-        scenario_keys = {key: key for key in ("n_robots", "n_obstacles", "n_canopies", "speed_mps")}
-        with config_keys(owner, {**scenario_keys, "size_m": "field_size_m"}):
-            field_robots = cfg["n_robots"] if cfg["scenario"] == "team_field" else 1  # the convoy has no field
-            field = (cfg["n_obstacles"], cfg["n_canopies"], cfg["field_size_m"], cfg["speed_mps"])
-            check_team_field_parameters(field_robots, *field)
-            if cfg["scenario"] == "convoy":
-                check_convoy_parameters(cfg["n_robots"], cfg["speed_mps"])
+        field_keys = {key: key for key in ("n_obstacles", "n_canopies", "speed_mps")}
+        field_keys["size_m"] = "field_size_m"
+        check_config_arguments(cfg, owner, "team_field", TEAM_FIELD_ARGUMENTS, field_keys)  # the convoy's speed too
+        if cfg["scenario"] == "team_field":
+            with config_keys(owner, {"n_robots": "n_robots"}):
+                team_route_bands(cfg["n_robots"], cfg["field_size_m"], DEFAULT_WAYPOINTS)
         n = cfg["n_robots"]
         self.suites = parse_suites(cfg["robot_sensors"], n, cfg["scenario"])
         outages = parse_outages(cfg["gps_outages"], n)

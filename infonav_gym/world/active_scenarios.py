@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 
-from infonav_gym.config import check_integer, check_number
+from infonav_gym.config import Interval, ParameterError, check_arguments
 from infonav_gym.world.scenarios import (
+    FIELD_ARGUMENTS,
     MAX_FIELD_SIZE_M,
     MAX_LANDMARKS,
-    MAX_OBSTACLES,
     CircleObstacle,
     Route,
     Scenario,
@@ -25,6 +25,11 @@ GOAL_CLUSTER_LANDMARKS = 1
 MIN_GOAL_FIELD_LANDMARKS = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS + 1
 LIT_OFFSET_M = (7.0, 11.0)  # distance of the lit-side landmarks from the straight line start-goal [m]
 MIN_GOAL_FIELD_SIZE_M = 3 * LIT_OFFSET_M[1]
+GOAL_FIELD_ARGUMENTS = {  # the allowed arguments of goal_field (a size of at least 3 lit offsets)
+    "n_landmarks": Interval(MIN_GOAL_FIELD_LANDMARKS, MAX_LANDMARKS, integer=True),
+    "n_obstacles": FIELD_ARGUMENTS["n_obstacles"],
+    "size_m": Interval(MIN_GOAL_FIELD_SIZE_M, MAX_FIELD_SIZE_M, unit="m"),
+}
 
 
 class CommandedWorld(World):
@@ -47,22 +52,6 @@ class CommandedWorld(World):
         return self._commands[robot]
 
 
-def check_goal_field_parameters(
-    n_landmarks: int = 8, n_obstacles: int = 4, size_m: float = 40.0, lit_offset_m: tuple[float, float] = LIT_OFFSET_M
-) -> None:
-    """``ParameterError`` naming the argument of ``goal_field`` outside its range.
-
-    ``n_landmarks`` in [``MIN_GOAL_FIELD_LANDMARKS``, 100], ``n_obstacles`` in [0, 100], ``size_m``
-    from three times the largest lit offset (the layout) to 1000 m, ``lit_offset_m`` an increasing
-    positive pair.
-    """
-    if not (len(lit_offset_m) == 2 and 0 < lit_offset_m[0] <= lit_offset_m[1] < MAX_FIELD_SIZE_M):
-        raise ValueError(f"goal_field lit_offset_m must be (low, high) [m] with 0 < low <= high, got {lit_offset_m!r}")
-    check_integer("goal_field", "n_landmarks", n_landmarks, MIN_GOAL_FIELD_LANDMARKS, MAX_LANDMARKS)
-    check_integer("goal_field", "n_obstacles", n_obstacles, 0, MAX_OBSTACLES)
-    check_number("goal_field", "size_m", size_m, 3 * max(lit_offset_m), MAX_FIELD_SIZE_M, unit="m")
-
-
 def goal_field(
     np_random: np.random.Generator,
     n_landmarks: int = 8,
@@ -83,10 +72,13 @@ def goal_field(
     The route holds the start pose (facing the goal) and the goal as its one waypoint.
 
     Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its range (``check_goal_field_parameters``).
+        ParameterError: (a ``ValueError``) for an argument outside its ``GOAL_FIELD_ARGUMENTS`` interval, or a
+            size below three times the largest lit offset.
         ValueError: when the obstacles do not fit.
     """
-    check_goal_field_parameters(n_landmarks, n_obstacles, size_m, lit_offset_m)
+    check_arguments("goal_field", GOAL_FIELD_ARGUMENTS, n_landmarks=n_landmarks, n_obstacles=n_obstacles, size_m=size_m)
+    if size_m < 3 * max(lit_offset_m):
+        raise ParameterError("goal_field", "size_m", f">= {3 * max(lit_offset_m):g} m for its layout", size_m)
     start = np.array([START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
     goal = np.array([size_m - START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
     along = (goal - start) / np.linalg.norm(goal - start)

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from infonav_gym.config import ParameterError, check_integer, check_number
+from infonav_gym.config import Interval, ParameterError, check_arguments
 from infonav_gym.geometry import distance_to_loop
 
 CORRIDOR_LANDMARK_COUNT = 4
@@ -19,19 +19,23 @@ MAX_OBSTACLES = 100  # most round obstacles of a field
 MAX_CANOPIES = 20  # most GPS-denied zones of a team field
 MAX_ROBOTS = 32  # largest team
 MAX_WAYPOINTS = 100  # most vertices of a random closed route
-
-
-def check_speed(owner: str, speed_mps) -> None:
-    """``ParameterError`` unless ``speed_mps`` is in (0, ``MAX_SPEED_MPS``] m/s."""
-    check_number(owner, "speed_mps", speed_mps, 0.0, MAX_SPEED_MPS, open_low=True, unit="m/s")
-
-
-def _check_field_layout(owner: str, size_m, speed_mps, n_waypoints, n_obstacles) -> None:
-    """The checks every square field shares: its side, route speed, route vertices and obstacle count."""
-    check_number(owner, "size_m", size_m, MIN_FIELD_SIZE_M, MAX_FIELD_SIZE_M, unit="m")
-    check_speed(owner, speed_mps)
-    check_integer(owner, "n_waypoints", n_waypoints, 3, MAX_WAYPOINTS)
-    check_integer(owner, "n_obstacles", n_obstacles, 0, MAX_OBSTACLES)
+DEFAULT_WAYPOINTS = 6  # vertices of a random closed route unless a builder is told otherwise
+SPEED_MPS = Interval(0.0, MAX_SPEED_MPS, open_low=True, unit="m/s")  # a route's cruise speed
+WAYPOINT_COUNT = Interval(3, MAX_WAYPOINTS, integer=True)  # vertices of a random closed route
+CORRIDOR_ARGUMENTS = {"speed_mps": SPEED_MPS}  # the allowed arguments of each builder
+FIELD_ARGUMENTS = {
+    "n_landmarks": Interval(0, MAX_LANDMARKS, integer=True),
+    "n_obstacles": Interval(0, MAX_OBSTACLES, integer=True),
+    "size_m": Interval(MIN_FIELD_SIZE_M, MAX_FIELD_SIZE_M, unit="m"),
+    "speed_mps": SPEED_MPS,
+    "n_waypoints": WAYPOINT_COUNT,
+}
+TEAM_FIELD_ARGUMENTS = {
+    **{name: FIELD_ARGUMENTS[name] for name in ("n_obstacles", "size_m", "speed_mps", "n_waypoints")},
+    "n_robots": Interval(1, MAX_ROBOTS, integer=True),  # and no more than fit: team_route_bands
+    "n_canopies": Interval(0, MAX_CANOPIES, integer=True),
+}
+CONVOY_ARGUMENTS = {"n_robots": Interval(2, MAX_ROBOTS, integer=True), "speed_mps": SPEED_MPS}
 
 
 @dataclass(frozen=True)
@@ -62,7 +66,7 @@ class Route:
             waypoints = np.zeros((0, 2))
         if waypoints.ndim != 2 or waypoints.shape[1] != 2 or not np.all(np.isfinite(waypoints)):
             raise ValueError(f"route waypoints must be a finite (W, 2) array [m], got shape {waypoints.shape}")
-        check_speed("route", self.speed_mps)
+        SPEED_MPS.check("route", "speed_mps", self.speed_mps)
         waypoints.flags.writeable = False
         object.__setattr__(self, "waypoints", waypoints)
 
@@ -103,7 +107,7 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
     fixed; ``np_random`` is accepted for a uniform builder signature.
     """
     del np_random
-    check_corridor_parameters(speed_mps)
+    check_arguments("corridor", CORRIDOR_ARGUMENTS, speed_mps=speed_mps)
     half_width, length = 3.0, 40.0
     walls = (
         ((-2.0, half_width), (length, half_width)),
@@ -119,11 +123,6 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
         routes=(Route((0.0, 0.0, 0.0), np.array([[length - 3.0, 0.0]]), speed_mps=speed_mps),),
         landmarks=landmarks,
     )
-
-
-def check_corridor_parameters(speed_mps: float = 0.5) -> None:
-    """``ParameterError`` naming the argument of ``corridor`` outside its range."""
-    check_speed("corridor", speed_mps)
 
 
 def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: int = 1000) -> list:
@@ -174,25 +173,13 @@ def _obstacles_clear_of(polygons: list, count: int, size_m: float, np_random: np
     )
 
 
-def check_field_parameters(
-    n_landmarks: int = 8, n_obstacles: int = 6, size_m: float = 40.0, speed_mps: float = 1.0, n_waypoints: int = 6
-) -> None:
-    """``ParameterError`` naming the argument of ``field`` outside its range.
-
-    ``n_landmarks`` in [0, 100], ``n_obstacles`` in [0, 100], ``size_m`` in [10, 1000] m,
-    ``speed_mps`` in (0, 50] m/s, ``n_waypoints`` in [3, 100].
-    """
-    _check_field_layout("field", size_m, speed_mps, n_waypoints, n_obstacles)
-    check_integer("field", "n_landmarks", n_landmarks, 0, MAX_LANDMARKS)
-
-
 def field(
     np_random: np.random.Generator,
     n_landmarks: int = 8,
     n_obstacles: int = 6,
     size_m: float = 40.0,
     speed_mps: float = 1.0,
-    n_waypoints: int = 6,
+    n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> Scenario:
     """An open square field: random landmarks and round obstacles around a random closed route.
 
@@ -200,10 +187,11 @@ def field(
     the robot never collides and every landmark can be seen from somewhere.
 
     Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its range (``check_field_parameters``).
+        ParameterError: (a ``ValueError``) for an argument outside its ``FIELD_ARGUMENTS`` interval.
         ValueError: when the obstacles or landmarks do not fit.
     """
-    check_field_parameters(n_landmarks, n_obstacles, size_m, speed_mps, n_waypoints)
+    arguments = {"n_landmarks": n_landmarks, "n_obstacles": n_obstacles, "size_m": size_m, "speed_mps": speed_mps}
+    check_arguments("field", FIELD_ARGUMENTS, **arguments, n_waypoints=n_waypoints)
     center = np.array([size_m / 2, size_m / 2])
     angles = 2 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
     route = _polygon(center, angles, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
@@ -292,23 +280,11 @@ def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> 
     )
 
 
-def check_team_field_parameters(
-    n_robots: int = 4,
-    n_obstacles: int = 6,
-    n_canopies: int = 2,
-    size_m: float = 40.0,
-    speed_mps: float = 1.0,
-    n_waypoints: int = 6,
-) -> list[tuple[float, float]]:
-    """``ParameterError`` naming the argument of ``team_field`` outside its range; else the routes' radial bands.
+def team_route_bands(n_robots: int, size_m: float, n_waypoints: int) -> list[tuple[float, float]]:
+    """The radial bands of ``team_field``'s routes, or ``ParameterError`` naming ``n_robots`` when they do not fit.
 
-    ``n_robots`` in [1, 32] and no more than fit in the field, ``n_obstacles`` in [0, 100],
-    ``n_canopies`` in [0, 20], ``size_m`` in [10, 1000] m, ``speed_mps`` in (0, 50] m/s,
-    ``n_waypoints`` in [3, 100].
+    Deterministic, so an env can check at construction that its team fits its field.
     """
-    _check_field_layout("team_field", size_m, speed_mps, n_waypoints, n_obstacles)
-    check_integer("team_field", "n_robots", n_robots, 1, MAX_ROBOTS)
-    check_integer("team_field", "n_canopies", n_canopies, 0, MAX_CANOPIES)
     try:
         return _radial_bands(
             n_robots,
@@ -329,7 +305,7 @@ def team_field(
     n_canopies: int = 2,
     size_m: float = 40.0,
     speed_mps: float = 1.0,
-    n_waypoints: int = 6,
+    n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> Scenario:
     """An open square field for a team: each robot loops its own route around the centre.
 
@@ -340,11 +316,13 @@ def team_field(
     robot's start, so no robot stays under one for good. There are no landmarks.
 
     Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its range or routes that do not
-            fit (``check_team_field_parameters``).
+        ParameterError: (a ``ValueError``) for an argument outside its ``TEAM_FIELD_ARGUMENTS`` interval
+            or routes that do not fit (``team_route_bands``).
         ValueError: when the obstacles or canopies do not fit.
     """
-    bands = check_team_field_parameters(n_robots, n_obstacles, n_canopies, size_m, speed_mps, n_waypoints)
+    counts = {"n_robots": n_robots, "n_obstacles": n_obstacles, "n_canopies": n_canopies, "n_waypoints": n_waypoints}
+    check_arguments("team_field", TEAM_FIELD_ARGUMENTS, **counts, size_m=size_m, speed_mps=speed_mps)
+    bands = team_route_bands(n_robots, size_m, n_waypoints)
     center = np.array([size_m / 2, size_m / 2])
     first_angle = np_random.uniform(0.0, 2 * math.pi)
     polygons = []
@@ -377,12 +355,6 @@ def _hedge(y: float, openings, x_start: float, x_end: float) -> tuple:
     return tuple(((edges[k], y), (edges[k + 1], y)) for k in range(0, len(edges), 2))
 
 
-def check_convoy_parameters(n_robots: int = 3, speed_mps: float = 1.0) -> None:
-    """``ParameterError`` naming the argument of ``convoy`` outside its range (``n_robots`` in [2, 32])."""
-    check_integer("convoy", "n_robots", n_robots, 2, MAX_ROBOTS)
-    check_speed("convoy", speed_mps)
-
-
 def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float = 1.0) -> Scenario:
     """The paper's Fig. 3 layout: robots drive side by side along +x in parallel lanes.
 
@@ -393,7 +365,7 @@ def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float =
     fixed; ``np_random`` is accepted for a uniform builder signature.
     """
     del np_random
-    check_convoy_parameters(n_robots, speed_mps)
+    check_arguments("convoy", CONVOY_ARGUMENTS, n_robots=n_robots, speed_mps=speed_mps)
     lanes = [-CONVOY_LANE_SPACING_M * k for k in range(n_robots)]
     half = CONVOY_LANE_SPACING_M / 2
     x_min, x_max, y_min, y_max = -3.0, CONVOY_LENGTH_M + 3.0, lanes[-1] - half, half

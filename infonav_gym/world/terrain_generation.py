@@ -7,7 +7,7 @@ import math
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from infonav_gym.config import ParameterError, check_integer, check_number
+from infonav_gym.config import Interval, ParameterError, check_arguments, check_number
 from infonav_gym.geometry import distance_to_loop
 from infonav_gym.world.terrain import Box, Cylinder, Terrain, finite_vector
 
@@ -20,6 +20,13 @@ DEFAULT_CELL_M = 0.5  # grid spacing of random scenes [m]
 MAX_GRID_POINTS = 2001  # most grid points along a side (a float64 height map of 32 MB)
 MAX_ROUGHNESS = 10.0
 MAX_TERRAIN_OBSTACLES = 500  # most trees, rocks or buildings each
+OBSTACLE_COUNT = Interval(0, MAX_TERRAIN_OBSTACLES, integer=True)
+TERRAIN_ARGUMENTS = {  # the allowed arguments of make_terrain (size_m: see _grid_points)
+    "roughness": Interval(0.0, MAX_ROUGHNESS),
+    "n_trees": OBSTACLE_COUNT,
+    "n_rocks": OBSTACLE_COUNT,
+    "n_buildings": OBSTACLE_COUNT,
+}
 
 
 def flat_terrain(size_m: float = 100.0, cell_m: float = 1.0, center_m=(0.0, 0.0), height_m: float = 0.0) -> Terrain:
@@ -36,24 +43,6 @@ def _grid_points(size_m: float, cell_m: float) -> int:
         raise ParameterError("terrain", "cell_m", "positive and finite [m]", cell_m)
     check_number("terrain", "size_m", size_m, cell_m, (MAX_GRID_POINTS - 1) * cell_m, unit=f"m (cell_m={cell_m:g} m)")
     return round(size_m / cell_m) + 1
-
-
-def check_terrain_parameters(
-    size_m: float = 60.0,
-    cell_m: float = DEFAULT_CELL_M,
-    roughness: float = 0.5,
-    n_trees: int = 15,
-    n_rocks: int = 5,
-    n_buildings: int = 2,
-) -> None:
-    """``ParameterError`` naming the argument of ``make_terrain`` outside its range.
-
-    ``size_m`` from ``cell_m`` to 2000 cells, ``roughness`` in [0, 10], each obstacle count in [0, 500].
-    """
-    _grid_points(size_m, cell_m)
-    check_number("make_terrain", "roughness", roughness, 0.0, MAX_ROUGHNESS)
-    for name, count in (("n_trees", n_trees), ("n_rocks", n_rocks), ("n_buildings", n_buildings)):
-        check_integer("make_terrain", name, count, 0, MAX_TERRAIN_OBSTACLES)
 
 
 def _unit_field(np_random: np.random.Generator, points: int, correlation_cells: float) -> np.ndarray:
@@ -97,11 +86,13 @@ def make_terrain(
             route; default: the single point ``center_m``.
 
     Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its range (``check_terrain_parameters``).
+        ParameterError: (a ``ValueError``) for a size outside [cell_m, 2000 cells] or another argument outside
+            its ``TERRAIN_ARGUMENTS`` interval.
         ValueError: for a bad clear path or when the obstacles do not fit.
     """
-    check_terrain_parameters(size_m, cell_m, roughness, n_trees, n_rocks, n_buildings)
     points = _grid_points(size_m, cell_m)
+    counts = {"n_trees": n_trees, "n_rocks": n_rocks, "n_buildings": n_buildings}
+    check_arguments("make_terrain", TERRAIN_ARGUMENTS, roughness=roughness, **counts)
     if not (math.isfinite(clear_radius_m) and 0 <= clear_radius_m < size_m / 2):
         raise ValueError(f"clear_radius_m must be in [0, size_m / 2 = {size_m / 2}), got {clear_radius_m!r}")
     hills = _unit_field(np_random, points, _HILL_CORRELATION_M / cell_m)

@@ -12,18 +12,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from infonav_gym.config import check_integer, config_keys
+from infonav_gym.config import Interval, check_arguments, check_config_arguments
 from infonav_gym.world.scenarios import (
-    MAX_WAYPOINTS,
+    DEFAULT_WAYPOINTS,
+    SPEED_MPS,
+    WAYPOINT_COUNT,
     CircleObstacle,
     Scenario,
     _box_walls,
     _closed_route,
     _polygon,
-    check_speed,
 )
 from infonav_gym.world.terrain import Terrain
-from infonav_gym.world.terrain_generation import check_terrain_parameters, make_terrain
+from infonav_gym.world.terrain_generation import DEFAULT_CELL_M, MAX_GRID_POINTS, TERRAIN_ARGUMENTS, make_terrain
 
 ROUTE_CLEARANCE_M = 3.0  # obstacles keep this far from the route [m]
 SCENE_CONFIG = {  # env config keys of a terrain_loop scene, with their defaults
@@ -32,6 +33,12 @@ SCENE_CONFIG = {  # env config keys of a terrain_loop scene, with their defaults
     "n_trees": 25,
     "n_rocks": 8,
     "n_buildings": 3,
+}
+TERRAIN_LOOP_ARGUMENTS = {  # the allowed arguments of terrain_loop
+    **TERRAIN_ARGUMENTS,
+    "size_m": Interval(DEFAULT_CELL_M, (MAX_GRID_POINTS - 1) * DEFAULT_CELL_M, unit="m"),
+    "speed_mps": SPEED_MPS,
+    "n_waypoints": WAYPOINT_COUNT,
 }
 
 
@@ -53,27 +60,6 @@ def with_terrain_obstacles(scenario: Scenario, terrain: Terrain) -> Scenario:
     return replace(scenario, walls=scenario.walls + tuple(walls), obstacles=scenario.obstacles + discs)
 
 
-def check_terrain_loop_parameters(
-    size_m: float = 60.0,
-    roughness: float = 0.7,
-    n_trees: int = 25,
-    n_rocks: int = 8,
-    n_buildings: int = 3,
-    speed_mps: float = 2.0,
-    n_waypoints: int = 6,
-) -> None:
-    """``ParameterError`` naming the argument of ``terrain_loop`` outside its range.
-
-    The scene's as ``make_terrain`` checks them (``check_terrain_parameters``), ``speed_mps`` in
-    (0, 50] m/s, ``n_waypoints`` in [3, 100].
-    """
-    check_terrain_parameters(
-        size_m=size_m, roughness=roughness, n_trees=n_trees, n_rocks=n_rocks, n_buildings=n_buildings
-    )
-    check_speed("terrain_loop", speed_mps)
-    check_integer("terrain_loop", "n_waypoints", n_waypoints, 3, MAX_WAYPOINTS)
-
-
 def terrain_loop(
     np_random: np.random.Generator,
     size_m: float = 60.0,
@@ -82,7 +68,7 @@ def terrain_loop(
     n_rocks: int = 8,
     n_buildings: int = 3,
     speed_mps: float = 2.0,
-    n_waypoints: int = 6,
+    n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> TerrainScenario:
     """A random scene (see ``make_terrain``) and a closed route through it that obstacles keep clear of.
 
@@ -91,9 +77,11 @@ def terrain_loop(
     ground to woods to buildings.
 
     Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its range (``check_terrain_loop_parameters``).
+        ParameterError: (a ``ValueError``) for an argument outside its ``TERRAIN_LOOP_ARGUMENTS`` interval.
     """
-    check_terrain_loop_parameters(size_m, roughness, n_trees, n_rocks, n_buildings, speed_mps, n_waypoints)
+    counts = {"n_trees": n_trees, "n_rocks": n_rocks, "n_buildings": n_buildings, "n_waypoints": n_waypoints}
+    check_arguments("terrain_loop", TERRAIN_LOOP_ARGUMENTS, size_m=size_m, roughness=roughness, **counts)
+    check_arguments("terrain_loop", TERRAIN_LOOP_ARGUMENTS, speed_mps=speed_mps)
     center = np.zeros(2)
     sectors = np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)
     route = _polygon(center, 2 * math.pi * sectors / n_waypoints, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
@@ -124,14 +112,9 @@ _LOOP_CONFIG_KEYS = {  # the env config key of each terrain_loop argument
 
 def check_scene_config(config: dict, owner: str) -> None:
     """``ValueError`` naming the key unless an env config's ``SCENE_CONFIG`` keys and ``speed_mps`` are valid."""
-    with config_keys(owner, _LOOP_CONFIG_KEYS):
-        check_terrain_loop_parameters(**_loop_arguments(config))
+    check_config_arguments(config, owner, "terrain_loop", TERRAIN_LOOP_ARGUMENTS, _LOOP_CONFIG_KEYS)
 
 
 def terrain_loop_from_config(np_random: np.random.Generator, config: dict) -> TerrainScenario:
     """``terrain_loop`` with an env config's ``SCENE_CONFIG`` keys and its ``speed_mps``."""
-    return terrain_loop(np_random, **_loop_arguments(config))
-
-
-def _loop_arguments(config: dict) -> dict:
-    return {argument: config[key] for argument, key in _LOOP_CONFIG_KEYS.items()}
+    return terrain_loop(np_random, **{argument: config[key] for argument, key in _LOOP_CONFIG_KEYS.items()})
