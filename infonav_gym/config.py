@@ -165,15 +165,6 @@ def check_config_arguments(
         check_arguments(source, intervals, **{argument: config[key] for argument, key in key_of_argument.items()})
 
 
-def check_config_numbers(config: dict, keys, low: float, high: float, owner: str, **interval) -> None:
-    """``check_number`` on each ``config[key]`` (``interval``: its keyword arguments), errors naming the key."""
-    with config_keys(owner, {key: key for key in keys}):
-        for key in keys:
-            check_number(owner, key, config[key], low, high, **interval)
-
-
-def check_config_integers(config: dict, keys, low: int, high: int, owner: str) -> None:
-    """``check_integer`` on each ``config[key]``, errors naming the key."""
-    with config_keys(owner, {key: key for key in keys}):
-        for key in keys:
-            check_integer(owner, key, config[key], low, high)
+def check_config(config: dict, owner: str, intervals: dict[str, Interval]) -> None:
+    """Each ``config[key]`` in its ``intervals[key]``, or ``ValueError`` naming the key and the interval."""
+    check_config_arguments(config, owner, owner, intervals, {key: key for key in intervals})

@@ -270,3 +270,11 @@ def test_bad_routes_and_a_scenario_without_robots_are_clear_errors():
         Route((0.0, 0.0, 0.0), np.zeros((1, 2)), speed_mps=0.0)
     with pytest.raises(ValueError, match="at least one route"):
         Scenario(name="empty", bounds=(0.0, 0.0, 1.0, 1.0), routes=())
+
+
+@pytest.mark.parametrize("dt", [math.inf, math.nan, 0.0, -0.5, 61.0])
+def test_world_step_refuses_a_time_step_outside_its_range(dt):
+    world = World()
+    world.reset(corridor(np.random.default_rng(0)))
+    with pytest.raises(ValueError, match=r"World.step dt must be in \(0, 60\] s"):
+        world.step(dt)

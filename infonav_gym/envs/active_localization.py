@@ -7,14 +7,14 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_config_arguments, check_config_integers, check_config_numbers
+from infonav_gym.config import Interval, check_config, check_config_arguments
 from infonav_gym.envs.active_planning import (
     N_PRIMITIVES,
     PRIMITIVE_OFFSETS_RAD,
     ActivePlanningModel,
 )
 from infonav_gym.envs.base import MAX_EPISODE_STEPS, InfoNavEnv
-from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF, check_initial_pose_std
+from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
@@ -22,7 +22,7 @@ from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS, CommandedWorld, goal_field
 from infonav_gym.world.scenarios import SPEED_MPS
-from infonav_gym.world.world import MAX_TIME_STEP_S
+from infonav_gym.world.world import TIME_STEP_S
 
 POSE_FEATURES = 10
 GOAL_FEATURES = 4
@@ -30,10 +30,24 @@ LANDMARK_FEATURES = 4
 OBSTACLE_FEATURES = 4
 REWARD_TERMS = ("mutual_information", "sensing_cost", "motion_cost", "progress", "goal_bonus", "failure_penalty")
 _BIG = 1e4
-MAX_TURN_RATE_RPS = 10.0  # [rad/s]
-MAX_GOAL_RADIUS_M = 100.0  # [m]
-MAX_REWARD_WEIGHT = 1e6  # largest cost, reward or bonus weight [nats, or nats per unit]
-MAX_POSITION_STD_M = 1000.0  # largest failure bound [m]
+REWARD_WEIGHT = Interval(0.0, 1e6)  # a cost, reward or bonus weight [nats, or nats per unit]
+REWARD_WEIGHT_KEYS = (
+    "observation_cost_nats",
+    "motion_cost_per_step",
+    "progress_reward_per_m",
+    "goal_bonus",
+    "failure_penalty",
+)
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
+    "time_step_s": TIME_STEP_S,
+    "speed_mps": SPEED_MPS,
+    "max_turn_rate_rps": Interval(0.0, 10.0, open_low=True, unit="rad/s"),
+    "goal_radius_m": Interval(0.0, 100.0, open_low=True, unit="m"),
+    "max_position_std_m": Interval(0.0, 1000.0, open_low=True, unit="m"),  # and above initial_position_std_m
+    "max_observations": Interval(0, MAX_EPISODE_STEPS, integer=True),
+    **INITIAL_POSE_STD,
+    **{key: REWARD_WEIGHT for key in REWARD_WEIGHT_KEYS},
+}
 
 
 class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
@@ -148,15 +162,7 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         cfg, owner = self.config, type(self).__name__
         field_keys = {"n_landmarks": "n_candidates", "n_obstacles": "n_obstacles", "size_m": "field_size_m"}
         check_config_arguments(cfg, owner, "goal_field", GOAL_FIELD_ARGUMENTS, field_keys)
-        check_config_arguments(cfg, owner, owner, {"speed_mps": SPEED_MPS}, {"speed_mps": "speed_mps"})
-        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
-        check_config_numbers(cfg, ["max_turn_rate_rps"], 0.0, MAX_TURN_RATE_RPS, owner, open_low=True, unit="rad/s")
-        check_config_numbers(cfg, ["goal_radius_m"], 0.0, MAX_GOAL_RADIUS_M, owner, open_low=True, unit="m")
-        check_config_numbers(cfg, ["max_position_std_m"], 0.0, MAX_POSITION_STD_M, owner, open_low=True, unit="m")
-        check_initial_pose_std(cfg, owner)
-        check_config_integers(cfg, ["max_observations"], 0, MAX_EPISODE_STEPS, owner)
-        weights = ["observation_cost_nats", "motion_cost_per_step", "progress_reward_per_m", "goal_bonus"]
-        check_config_numbers(cfg, weights + ["failure_penalty"], 0.0, MAX_REWARD_WEIGHT, owner)
+        check_config(cfg, owner, CONFIG_INTERVALS)
         if cfg["max_position_std_m"] <= cfg["initial_position_std_m"]:
             raise ValueError(
                 f"config key 'max_position_std_m' of {owner} must exceed initial_position_std_m "

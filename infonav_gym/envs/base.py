@@ -17,12 +17,13 @@ import operator
 import gymnasium as gym
 import numpy as np
 
-from infonav_gym.config import check_choice, check_config_integers, merge_config
+from infonav_gym.config import Interval, check_choice, check_config, merge_config
 
 INVALID_ACTION_MODES = ("noop", "raise")
 MIN_RENDER_SIZE_PX = 64
-MAX_RENDER_SIZE_PX = 4096
-MAX_EPISODE_STEPS = 10**7  # longest horizon (``horizon``, ``max_cycles``) [steps]
+RENDER_SIZE_PX = Interval(MIN_RENDER_SIZE_PX, 4096, integer=True)  # the allowed frame sizes [px]
+MAX_EPISODE_STEPS = 10**7
+EPISODE_STEPS = Interval(1, MAX_EPISODE_STEPS, integer=True)  # the allowed horizons (``horizon``, ``max_cycles``)
 
 
 def discrete_action_index(action, space: gym.spaces.Discrete) -> int:
@@ -58,7 +59,7 @@ class SceneRendering:
         owner = type(self).__name__
         self.config = merge_config(self.default_config(), config, owner)
         check_choice(self.config, "invalid_action", INVALID_ACTION_MODES, owner)
-        check_config_integers(self.config, ["render_size_px"], MIN_RENDER_SIZE_PX, MAX_RENDER_SIZE_PX, owner)
+        check_config(self.config, owner, {"render_size_px": RENDER_SIZE_PX})
         self._renderer = None
         self._elapsed_steps = None
 
@@ -104,7 +105,7 @@ class InfoNavEnv(SceneRendering, gym.Env):
 
     def __init__(self, render_mode: str | None = None, **config):
         self._configure(render_mode, config)
-        check_config_integers(self.config, ["horizon"], 1, MAX_EPISODE_STEPS, type(self).__name__)
+        check_config(self.config, type(self).__name__, {"horizon": EPISODE_STEPS})
         self._action_mask = None
         self._action_information_gain = None
         self._chosen_action = None

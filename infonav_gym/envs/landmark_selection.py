@@ -7,22 +7,27 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_config_arguments, check_config_integers, check_config_numbers
+from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments
 from infonav_gym.envs.base import InfoNavEnv
-from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF, check_initial_pose_std
+from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import expected_information_gain, gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, FIELD_ARGUMENTS, MAX_LANDMARKS, SCENARIOS
-from infonav_gym.world.world import MAX_TIME_STEP_S, World
+from infonav_gym.world.world import TIME_STEP_S, World
 
 SCENARIO_CHOICES = ("field", "corridor")  # the single-robot scenarios with landmarks
 POSE_FEATURES = 10
 CANDIDATE_FEATURES = 5
 _BIG = 1e4
-LANDMARK_PRIOR_STD_RANGE_M = (1e-4, 100.0)  # allowed prior std of a mapped landmark coordinate [m]
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
+    "n_candidates": Interval(1, MAX_LANDMARKS, integer=True),
+    "time_step_s": TIME_STEP_S,
+    "landmark_prior_std_m": Interval(1e-4, 100.0, unit="m"),
+    **INITIAL_POSE_STD,
+}
 
 
 class LandmarkSelectionEnv(InfoNavEnv):
@@ -104,10 +109,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "scenario", SCENARIO_CHOICES, owner)
-        check_config_integers(cfg, ["n_candidates"], 1, MAX_LANDMARKS, owner)
-        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
-        check_config_numbers(cfg, ["landmark_prior_std_m"], *LANDMARK_PRIOR_STD_RANGE_M, owner, unit="m")
-        check_initial_pose_std(cfg, owner)
+        check_config(cfg, owner, CONFIG_INTERVALS)
         field_keys = {"n_obstacles": "n_obstacles", "size_m": "field_size_m", "speed_mps": "speed_mps"}
         check_config_arguments(cfg, owner, "field", FIELD_ARGUMENTS, field_keys)  # the corridor's speed too
         if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:

@@ -7,7 +7,7 @@ import time
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_config_integers, check_config_numbers, config_keys, from_config
+from infonav_gym.config import Interval, check_choice, check_config, config_keys, from_config
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import (
@@ -20,15 +20,18 @@ from infonav_gym.registration.frame_pairs import (
 from infonav_gym.registration.icp import METHODS, icp
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import MAX_TIME_STEP_S, World
+from infonav_gym.world.world import TIME_STEP_S, World
 
 MIN_CONTROL_POINTS = 3  # fewer cannot fix a rigid motion
 PATCH_FEATURES = 5
 GLOBAL_FEATURES = 2
 MAX_PATCH_INFORMATION = 50.0  # observation bound of a patch's information [nats]
-MAX_POINT_COST = 1e3  # [m of registration error per control point]
-MAX_ICP_ITERATIONS = 10**4
-MAX_CORRESPONDENCE_DISTANCE_M = 100.0  # [m]
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses (patches: see __init__)
+    "time_step_s": TIME_STEP_S,
+    "point_cost": Interval(0.0, 1e3, unit="m per control point"),
+    "icp_max_iterations": Interval(1, 10**4, integer=True),
+    "max_correspondence_distance_m": Interval(0.0, 100.0, open_low=True, unit="m"),
+}
 ODOMETRY_KEYS = {  # the config key of each axis of the odometry error (frame_pair's odometry_std)
     "x": "odometry_xy_std_m",
     "y": "odometry_xy_std_m",
@@ -116,21 +119,15 @@ class RangeRegistrationEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "icp_method", METHODS, owner)
-        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
+        check_config(cfg, owner, CONFIG_INTERVALS)
         check_scene_config(cfg, owner)
-        check_config_integers(cfg, ["icp_max_iterations"], 1, MAX_ICP_ITERATIONS, owner)
-        distance_limit = MAX_CORRESPONDENCE_DISTANCE_M
-        check_config_numbers(
-            cfg, ["max_correspondence_distance_m"], 0.0, distance_limit, owner, open_low=True, unit="m"
-        )
-        check_config_numbers(cfg, ["point_cost"], 0.0, MAX_POINT_COST, owner)
         with config_keys(owner, ODOMETRY_KEYS):
             self.odometry_std = check_odometry_std([cfg[key] for key in ODOMETRY_KEYS.values()])
         self.ladar = from_config(Ladar, cfg, {"range_std_m": "ladar_range_std_m"}, owner)
-        check_config_integers(cfg, ["patch_rows"], 1, self.ladar.rows, owner)
-        check_config_integers(cfg, ["patch_columns"], 1, self.ladar.columns, owner)
+        patches = {"patch_rows": self.ladar.rows, "patch_columns": self.ladar.columns}  # at most the image's pixels
+        check_config(cfg, owner, {key: Interval(1, pixels, integer=True) for key, pixels in patches.items()})
         self.n_patches = cfg["patch_rows"] * cfg["patch_columns"]
-        check_config_integers(cfg, ["picks_per_pair"], 1, self.n_patches, owner)
+        check_config(cfg, owner, {"picks_per_pair": Interval(1, self.n_patches, integer=True)})
         self.action_space = spaces.Discrete(self.n_patches)
         high = np.tile([1.0, 1.0, 1.0, 1.0, MAX_PATCH_INFORMATION], self.n_patches)
         high = np.append(high, [1.0, 1.0]).astype(np.float32)

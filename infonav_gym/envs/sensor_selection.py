@@ -7,13 +7,13 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_config_integers, check_config_numbers, from_config
+from infonav_gym.config import Interval, check_choice, check_config, from_config
 from infonav_gym.envs.base import InfoNavEnv
 from infonav_gym.information import histogram_entropy
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import MAX_TIME_STEP_S, World
+from infonav_gym.world.world import TIME_STEP_S, World
 
 SENSORS = ("ladar", "camera")
 IMAGE_INFORMATION = ("entropy", "negentropy")
@@ -23,8 +23,14 @@ OPTION_FEATURES = 3
 GLOBAL_FEATURES = 2 + len(SENSORS)
 _WEDGE_LENGTH_M = 12.0  # drawn length of the acquired field of view [m]
 _BYTES_PER_PIXEL = {"ladar": 2, "camera": 1}  # 16-bit ranges, 8-bit gray levels
-MAX_PAN_SECTORS = 64
-MAX_BANDWIDTH_BYTES = 10**10  # largest link capacity per step and credit buffer [bytes]
+BANDWIDTH_BYTES = Interval(1, 10**10, integer=True, unit="bytes")  # link capacity per step, credit buffer
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
+    "time_step_s": TIME_STEP_S,
+    "n_pan_sectors": Interval(1, 64, integer=True),
+    "pan_span_rad": Interval(0.0, 2 * math.pi, unit="rad"),
+    "bandwidth_bytes_per_step": BANDWIDTH_BYTES,
+    "bandwidth_buffer_bytes": BANDWIDTH_BYTES,
+}
 
 
 class SensorSelectionEnv(InfoNavEnv):
@@ -119,13 +125,8 @@ class SensorSelectionEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "image_information", IMAGE_INFORMATION, owner)
-        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
+        check_config(cfg, owner, CONFIG_INTERVALS)
         check_scene_config(cfg, owner)
-        check_config_integers(cfg, ["n_pan_sectors"], 1, MAX_PAN_SECTORS, owner)
-        check_config_numbers(cfg, ["pan_span_rad"], 0.0, 2 * math.pi, owner, unit="rad")
-        check_config_integers(
-            cfg, ["bandwidth_bytes_per_step", "bandwidth_buffer_bytes"], 1, MAX_BANDWIDTH_BYTES, owner
-        )
         self.ladar = from_config(Ladar, cfg, _prefixed_keys(cfg, "ladar_"), owner)
         self.camera = from_config(Camera, cfg, _prefixed_keys(cfg, "camera_"), owner)
         self.frame_bytes = {

@@ -15,7 +15,7 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 from scipy.linalg import block_diag
 
-from infonav_gym.config import check_config_numbers
+from infonav_gym.config import Interval
 from infonav_gym.estimation.models import (
     GPS_POSE_JACOBIAN,
     range_bearing_linearized,
@@ -28,15 +28,10 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import log_det_spd
 
 POSE_DIM = 3
-INITIAL_POSITION_STD_RANGE_M = (1e-4, 100.0)  # allowed prior std of a position coordinate [m]
-INITIAL_HEADING_STD_RANGE_RAD = (1e-5, np.pi)  # allowed prior std of a heading [rad]
-
-
-def check_initial_pose_std(config: dict, owner: str) -> None:
-    """``ValueError`` naming the key unless an env config's ``initial_position_std_m`` and
-    ``initial_heading_std_rad`` (the prior of its pose estimates) are in range."""
-    check_config_numbers(config, ["initial_position_std_m"], *INITIAL_POSITION_STD_RANGE_M, owner, unit="m")
-    check_config_numbers(config, ["initial_heading_std_rad"], *INITIAL_HEADING_STD_RANGE_RAD, owner, unit="rad")
+INITIAL_POSE_STD = {  # the allowed prior standard deviations of a pose estimate, as env config keys
+    "initial_position_std_m": Interval(1e-4, 100.0, unit="m"),
+    "initial_heading_std_rad": Interval(1e-5, math.pi, unit="rad"),
+}
 
 
 def _finite(name: str, value, shape: tuple[int, ...]) -> np.ndarray:

@@ -9,15 +9,9 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
-from infonav_gym.config import (
-    check_choice,
-    check_config_arguments,
-    check_config_integers,
-    check_config_numbers,
-    config_keys,
-)
-from infonav_gym.envs.base import MAX_EPISODE_STEPS, SceneRendering, discrete_action_index
-from infonav_gym.estimation.ekf import POSE_DIM, JointEKF, check_initial_pose_std
+from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments, config_keys
+from infonav_gym.envs.base import EPISODE_STEPS, SceneRendering, discrete_action_index
+from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
 from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
@@ -32,7 +26,7 @@ from infonav_gym.world.scenarios import (
     TEAM_FIELD_ARGUMENTS,
     team_route_bands,
 )
-from infonav_gym.world.world import MAX_TIME_STEP_S, World
+from infonav_gym.world.world import TIME_STEP_S, World
 
 TEAM_SCENARIOS = ("team_field", "convoy")
 ESTIMATORS = ("joint", "independent")
@@ -40,6 +34,13 @@ OWN_FEATURES = 10
 TEAMMATE_FEATURES = 5
 NO_OBSERVATION = 0
 _BIG = 1e4
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
+    "max_cycles": EPISODE_STEPS,
+    "n_robots": Interval(2, MAX_ROBOTS, integer=True),  # a team; team_field: no more than fit in it
+    "team_reward": Interval(0.0, 1.0),
+    "time_step_s": TIME_STEP_S,
+    **INITIAL_POSE_STD,
+}
 
 
 class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
@@ -150,11 +151,7 @@ class CooperativeLocalizationEnv(SceneRendering, ParallelEnv):
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "scenario", TEAM_SCENARIOS, owner)
         check_choice(cfg, "estimator", ESTIMATORS, owner)
-        check_config_integers(cfg, ["max_cycles"], 1, MAX_EPISODE_STEPS, owner)
-        check_config_numbers(cfg, ["time_step_s"], 0.0, MAX_TIME_STEP_S, owner, open_low=True, unit="s")
-        check_config_numbers(cfg, ["team_reward"], 0.0, 1.0, owner)
-        check_initial_pose_std(cfg, owner)
-        check_config_integers(cfg, ["n_robots"], 2, MAX_ROBOTS, owner)
+        check_config(cfg, owner, CONFIG_INTERVALS)
         field_keys = {key: key for key in ("n_obstacles", "n_canopies", "speed_mps")}
         field_keys["size_m"] = "field_size_m"
         check_config_arguments(cfg, owner, "team_field", TEAM_FIELD_ARGUMENTS, field_keys)  # the convoy's speed too

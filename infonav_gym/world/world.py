@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pymunk
 
+from infonav_gym.config import Interval
 from infonav_gym.estimation.models import unicycle_control
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.world.scenarios import Scenario
@@ -17,7 +18,8 @@ _OBSTACLES_ONLY = pymunk.ShapeFilter(mask=OBSTACLE_CATEGORY)
 _ROBOT_MASS_KG = 10.0
 _CLEAR_BOX_MARGIN_M = 2.0  # a robot's remembered obstacle-free box extends this far beyond its reach [m]
 _EMPTY_BOX = (math.inf, math.inf, -math.inf, -math.inf)  # (left, bottom, right, top) that contains nothing
-MAX_TIME_STEP_S = 60.0  # longest ``step`` an env may configure [s]; near contacts it takes up to 600 substeps
+MAX_TIME_STEP_S = 60.0  # longest ``step`` [s]; near contacts it takes up to 600 Pymunk substeps
+TIME_STEP_S = Interval(0.0, MAX_TIME_STEP_S, open_low=True, unit="s")  # the allowed ``step`` durations
 
 
 class World:
@@ -125,11 +127,16 @@ class World:
         return self.waypoint_indices[robot] >= len(self._waypoints[robot])
 
     def step(self, dt: float) -> np.ndarray:
-        """Drive every robot toward its current waypoint for ``dt`` seconds, in (0, ``MAX_TIME_STEP_S``].
+        """Drive every robot toward its current waypoint for ``dt`` seconds.
 
         Returns:
             The executed ``[speed, turn_rate]`` of every robot (N, 2) [m/s, rad/s].
+
+        Raises:
+            ParameterError: (a ``ValueError``) unless ``dt`` is in ``TIME_STEP_S``, (0, 60] s.
         """
+        if not 0.0 < dt <= MAX_TIME_STEP_S:
+            TIME_STEP_S.check("World.step", "dt", dt)
         speeds = []
         for robot, (body, (x, y, heading)) in enumerate(zip(self.robot_bodies, self._poses)):
             speed, turn_rate = self._waypoint_control(robot, x, y, heading)
