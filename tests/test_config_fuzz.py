@@ -1,8 +1,10 @@
 """Config fuzz: every default key of every env, set in turn to a bad value, is refused or harmless.
 
-Each trial either raises a ``ValueError`` naming the key at construction, or the env runs
-reset and 10 steps with finite observations, rewards and infos. A trial that hangs (an alarm
-after ``TRIAL_TIMEOUT_S``) or needs more than ``TRIAL_MEMORY_BYTES`` of new address space fails.
+The bad values: 0, a negative, 1e12, 1e308, inf, NaN, a wrong type, and -1 and 10**12 for an
+int key. Each trial either raises a ``ValueError`` naming the key at construction, or the env
+runs reset and 10 steps with finite observations, rewards and infos. A trial that hangs (an
+alarm after ``TRIAL_TIMEOUT_S``) or needs more than ``TRIAL_MEMORY_BYTES`` of new address space
+fails.
 """
 
 from __future__ import annotations
@@ -44,8 +46,8 @@ CASES = [(env_id, key) for env_id in ENV_IDS for key in sorted(default_config(en
 
 
 def bad_values(default) -> list:
-    """0, a negative, 1e12, inf, NaN, a wrong type and, for an int default, 10**12."""
-    values = [0, -1.5, 1e12, math.inf, math.nan, "wrong" if not isinstance(default, str) else 3]
+    """0, a negative, 1e12, 1e308, inf, NaN, a wrong type and, for an int default, -1 and 10**12."""
+    values = [0, -1.5, 1e12, 1e308, math.inf, math.nan, "wrong" if not isinstance(default, str) else 3]
     if isinstance(default, int) and not isinstance(default, bool):
         values += [-1, 10**12]
     return values
