@@ -173,3 +173,15 @@ def test_unchecked_hot_path_equals_the_checked_call_bit_for_bit():
     np.testing.assert_array_equal(joint_checked.x, joint_unchecked.x)
     np.testing.assert_array_equal(joint_checked.P, joint_unchecked.P)
     assert np.all(np.isfinite(joint_checked.P))
+
+
+def test_joint_ekf_relative_update_without_the_heading_is_checked_too():
+    """Range and bearing only (m = 2), as the MRCLAM replay uses it."""
+    ekf = joint_ekf()
+    full = relative_args(ekf)
+    kwargs = {**full, "measurements": full["measurements"][:, :2], "predicted": full["predicted"][:, :2]}
+    kwargs.update(H_observer=full["H_observer"][:, :2], H_target=full["H_target"][:, :2], R=R_RELATIVE[None, :2, :2])
+    ekf.relative_pose_update(**kwargs)
+    assert np.all(np.isfinite(ekf.P))
+    bad = {**kwargs, "R": np.full((1, 2, 2), NAN)}
+    assert_refused_and_unchanged(ekf, "relative_pose_update", bad, "R must be finite")

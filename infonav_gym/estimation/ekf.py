@@ -362,14 +362,15 @@ class JointEKF(ExtendedKalmanFilter):
         """Update with relative-pose measurements taken at the same time (one stacked update).
 
         Measurement ``k`` is ``[range, bearing, relative heading]`` of robot ``targets[k]``
-        seen from robot ``observers[k]``; ``predicted``, ``H_observer`` and ``H_target``
-        come from ``relative_pose_model`` at the current prior.
+        seen from robot ``observers[k]`` (or ``[range, bearing]``, m = 2, without the heading);
+        ``predicted``, ``H_observer`` and ``H_target`` come from ``relative_pose_model`` at the
+        current prior (their first m rows).
 
         Args:
             observers, targets: robot indices (k,).
-            measurements, predicted: (k, 3).
-            H_observer, H_target: (k, 3, 3).
-            R: noise covariances (k, 3, 3), independent between measurements, symmetric positive definite.
+            measurements, predicted: (k, m), m = 3 or 2.
+            H_observer, H_target: (k, m, 3).
+            R: noise covariances (k, m, m), independent between measurements, symmetric positive definite.
             check_input: check shapes, finiteness, indices and ``R`` (``ValueError`` naming a bad argument);
                 ``False`` for known-good inputs.
         """
@@ -379,11 +380,12 @@ class JointEKF(ExtendedKalmanFilter):
             k = len(observers)
             if len(targets) != k:
                 raise ValueError(f"observers and targets must pair up, got {k} observers and {len(targets)} targets")
-            measurements = _finite("measurements", measurements, (k, 3))
-            predicted = _finite("predicted", predicted, (k, 3))
-            H_observer = _finite("H_observer", H_observer, (k, 3, 3))
-            H_target = _finite("H_target", H_target, (k, 3, 3))
-            R = _noise_covariance("R", R, (k, 3, 3))
+            m = np.shape(measurements)[-1] if np.ndim(measurements) == 2 and np.shape(measurements)[-1] == 2 else 3
+            measurements = _finite("measurements", measurements, (k, m))
+            predicted = _finite("predicted", predicted, (k, m))
+            H_observer = _finite("H_observer", H_observer, (k, m, POSE_DIM))
+            H_target = _finite("H_target", H_target, (k, m, POSE_DIM))
+            R = _noise_covariance("R", R, (k, m, m))
         observers, targets = np.atleast_1d(observers), np.atleast_1d(targets)
         if np.any(observers == targets):
             raise ValueError(f"a robot cannot observe its own relative pose (observers {observers}, targets {targets})")
