@@ -278,3 +278,17 @@ def test_world_step_refuses_a_time_step_outside_its_range(dt):
     world.reset(corridor(np.random.default_rng(0)))
     with pytest.raises(ValueError, match=r"World.step dt must be in \(0, 60\] s"):
         world.step(dt)
+
+
+@pytest.mark.parametrize(
+    ("argument", "value"),
+    [
+        ("robot_radius_m", 0.0),
+        ("max_turn_rate_rps", math.inf),
+        ("heading_gain", math.nan),
+        ("max_physics_step_s", 1e-9),
+    ],
+)
+def test_world_refuses_arguments_outside_their_range(argument, value):
+    with pytest.raises(ValueError, match=f"World {argument} must be in"):
+        World(**{argument: value})
