@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import difflib
 import numbers
+from contextlib import contextmanager
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -49,18 +51,120 @@ def check_choice(config: dict, key: str, choices, owner: str) -> None:
         raise ValueError(f"config key {key!r} of {owner} must be one of {sorted(choices)}, got {config[key]!r}")
 
 
-def check_positive(config: dict, keys, owner: str, allow_zero: bool = False) -> None:
-    """Raise ``ValueError`` unless every ``config[key]`` is positive (or non-negative)."""
-    for key in keys:
-        value = config[key]
-        if not (value >= 0 if allow_zero else value > 0):
-            bound = "non-negative" if allow_zero else "positive"
-            raise ValueError(f"config key {key!r} of {owner} must be {bound}, got {value!r}")
+class ParameterError(ValueError):
+    """A parameter value outside its allowed range; a config layer turns it into an error naming its key.
+
+    Attributes:
+        owner: what defines the parameter, e.g. ``"RangeBearingSensor"``.
+        parameter: its name there, e.g. ``"max_range_m"``.
+        requirement: what it must be, e.g. ``"in (0, 1000] m"``.
+        value: the value given.
+    """
+
+    def __init__(self, owner: str, parameter: str, requirement: str, value):
+        self.owner, self.parameter, self.requirement, self.value = owner, parameter, requirement, value
+        super().__init__(f"{owner} {parameter} must be {requirement}, got {value!r}")
 
 
-def check_open_interval(config: dict, keys, low: float, high: float, owner: str, unit: str = "") -> None:
-    """Raise ``ValueError`` unless every ``config[key]`` lies strictly between ``low`` and ``high``."""
-    for key in keys:
-        value = config[key]
-        if not low < value < high:
-            raise ValueError(f"config key {key!r} of {owner} must be in ({low:g}, {high:g}){unit}, got {value!r}")
+def check_number(
+    owner: str,
+    parameter: str,
+    value,
+    low: float,
+    high: float,
+    *,
+    open_low: bool = False,
+    open_high: bool = False,
+    unit: str = "",
+) -> None:
+    """Raise ``ParameterError`` unless ``value`` is a real number in the interval from ``low`` to ``high``.
+
+    NaN and infinities never are (the bounds are finite). ``open_low`` / ``open_high`` exclude
+    the bound; ``unit`` follows the interval in the message.
+    """
+    real = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+    if not (real and (low < value if open_low else low <= value) and (value < high if open_high else value <= high)):
+        interval = f"{'(' if open_low else '['}{low:g}, {high:g}{')' if open_high else ']'}"
+        raise ParameterError(owner, parameter, f"in {interval}{' ' + unit if unit else ''}", value)
+
+
+def check_integer(owner: str, parameter: str, value, low: int, high: int) -> None:
+    """Raise ``ParameterError`` unless ``value`` is an integer (not a bool) in ``[low, high]``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or not low <= value <= high:
+        raise ParameterError(owner, parameter, f"an integer in [{low}, {high}]", value)
+
+
+@dataclass(frozen=True)
+class Interval:
+    """The allowed values of a number parameter, from ``low`` to ``high`` (finite bounds).
+
+    Attributes:
+        low, high: the bounds.
+        integer: only integers (not bools) are allowed; else any real number.
+        open_low, open_high: exclude the bound (real numbers only).
+        unit: shown after the interval in messages.
+    """
+
+    low: float
+    high: float
+    integer: bool = False
+    open_low: bool = False
+    open_high: bool = False
+    unit: str = ""
+
+    def check(self, owner: str, parameter: str, value) -> None:
+        """``ParameterError`` (naming ``owner`` and ``parameter``) unless ``value`` lies in the interval."""
+        if self.integer:
+            check_integer(owner, parameter, value, self.low, self.high)
+        else:
+            bounds = {"open_low": self.open_low, "open_high": self.open_high, "unit": self.unit}
+            check_number(owner, parameter, value, self.low, self.high, **bounds)
+
+
+def check_arguments(owner: str, intervals: dict[str, Interval], **arguments) -> None:
+    """``ParameterError`` for the first keyword argument outside its ``intervals`` entry (each must have one)."""
+    for name, value in arguments.items():
+        intervals[name].check(owner, name, value)
+
+
+@contextmanager
+def config_keys(owner: str, key_of_parameter: dict[str, str]):
+    """Turn a ``ParameterError`` raised inside into a ``ValueError`` naming the config key that set the parameter.
+
+    Args:
+        owner: the config's owner (the env's class name).
+        key_of_parameter: the config key of each parameter name, e.g. ``{"max_range_m": "sensor_max_range_m"}``;
+            a ``ParameterError`` of another parameter passes through unchanged.
+    """
+    try:
+        yield
+    except ParameterError as error:
+        key = key_of_parameter.get(error.parameter)
+        if key is None:
+            raise
+        source = "" if error.owner == owner else f" (the {error.owner}'s {error.parameter})"
+        raise ValueError(
+            f"config key {key!r} of {owner} must be {error.requirement}, got {error.value!r}{source}"
+        ) from None
+
+
+def from_config(factory, config: dict, key_of_parameter: dict[str, str], owner: str):
+    """``factory(parameter=config[key], ...)`` over ``key_of_parameter``; a bad value's error names its config key."""
+    with config_keys(owner, key_of_parameter):
+        return factory(**{parameter: config[key] for parameter, key in key_of_parameter.items()})
+
+
+def check_config_arguments(
+    config: dict, owner: str, source: str, intervals: dict[str, Interval], key_of_argument: dict[str, str]
+) -> None:
+    """``check_arguments(source, intervals, argument=config[key], ...)`` over ``key_of_argument``; errors name the key.
+
+    For the arguments an env hands a builder (a scenario), checked at the env's construction.
+    """
+    with config_keys(owner, key_of_argument):
+        check_arguments(source, intervals, **{argument: config[key] for argument, key in key_of_argument.items()})
+
+
+def check_config(config: dict, owner: str, intervals: dict[str, Interval]) -> None:
+    """Each ``config[key]`` in its ``intervals[key]``, or ``ValueError`` naming the key and the interval."""
+    check_config_arguments(config, owner, owner, intervals, {key: key for key in intervals})

@@ -120,4 +120,4 @@ def test_odometry_errors_have_the_configured_spread_and_the_error_metric_weighs_
     estimate = rigid_transform(truth[:3, :3] @ rotation_matrix(0.0, 0.0, 0.004), truth[:3, 3] + [0.03, 0.0, 0.0])
     assert frame_pairs.registration_error(estimate, truth) == pytest.approx(math.hypot(0.03, 10 * 0.004))
     with pytest.raises(ValueError, match="odometry_std"):
-        frame_pairs.frame_pair(None, None, rng, odometry_std=(0.1, -0.1, 0, 0, 0, 0))
+        frame_pairs.frame_pair(None, None, rng, odometry_std=(0.1, -0.1, 0.1, 0.1, 0.1, 0.1))

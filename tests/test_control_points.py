@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -146,6 +147,17 @@ def test_error_model_grows_with_the_footprint_and_the_spread(wall_scan):
     assert np.all(wider.error_std_m[usable] >= geometry.error_std_m[usable])
     assert np.mean(wider.error_std_m[usable] > 1.5 * geometry.error_std_m[usable]) > 0.5
     np.testing.assert_allclose(wider.spread_m, 10 * geometry.spread_m)
+
+
+def test_error_model_takes_the_range_noise_of_the_scans_ladar(wall_scan):
+    """The scan carries its LADAR's range noise, so a noisier LADAR's control points are less reliable."""
+    assert wall_scan.range_std_m == Ladar().range_std_m
+    noisy = dataclasses.replace(wall_scan, range_std_m=0.1)
+    quiet, loud = control_point_geometry(wall_scan), control_point_geometry(noisy)
+    usable = np.isfinite(quiet.error_var_m2)
+    np.testing.assert_array_equal(np.isfinite(loud.error_var_m2), usable)
+    assert np.all(loud.error_var_m2[usable] > quiet.error_var_m2[usable])
+    assert loud.error_std_m[usable].min() >= math.sqrt(2) * 0.1, "at least the range noise of both frames"
 
 
 def test_entropy_picks_the_wall_and_trunks_as_well_as_the_ground(wall_scan):

@@ -12,7 +12,7 @@ import pytest
 import infonav_gym  # noqa: F401
 from agents import GreedyEntropyAgent, RandomAgent
 from infonav_gym.registration import icp
-from infonav_gym.registration.frame_pairs import registration_error, terrain_frame_pair
+from infonav_gym.registration.frame_pairs import DEFAULT_ODOMETRY_STD, registration_error, terrain_frame_pair
 from infonav_gym.sensors.ladar import sensor_points
 
 REGISTRATION_ID = "infonav/RangeRegistration-v0"
@@ -113,3 +113,14 @@ def test_gain_is_the_mutual_information_a_patch_adds_to_the_chosen_ones():
 def test_bad_config_raises_value_error_naming_the_key(key, value):
     with pytest.raises(ValueError, match=f"'{key}'"):
         gym.make(REGISTRATION_ID, **{key: value})
+
+
+def test_ladar_range_noise_and_odometry_defaults_come_from_one_source():
+    """``ladar_range_std_m`` reaches the scans (so the control-point errors); odometry defaults are frame_pair's."""
+    env = gym.make(REGISTRATION_ID, ladar_range_std_m=0.05).unwrapped
+    env.reset(seed=0)
+    assert env.pair.current.range_std_m == env.pair.previous.range_std_m == 0.05
+    default = gym.make(REGISTRATION_ID).unwrapped
+    np.testing.assert_array_equal(default.odometry_std, DEFAULT_ODOMETRY_STD)
+    default.reset(seed=0)
+    np.testing.assert_array_equal(default.pair.motion_covariance, np.diag(np.square(DEFAULT_ODOMETRY_STD)))

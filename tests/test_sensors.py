@@ -6,9 +6,18 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from infonav_gym.config import ParameterError
 from infonav_gym.estimation import relative_pose
 from infonav_gym.multi.team import KNOWN_SENSORS, RobotSuite, parse_outages, parse_suites
-from infonav_gym.sensors import RELATIVE_POSE_SENSORS, GPSSensor, RangeBearingSensor, RelativePoseSensor
+from infonav_gym.sensors import (
+    RELATIVE_POSE_SENSORS,
+    Camera,
+    GPSSensor,
+    Ladar,
+    OdometrySensor,
+    RangeBearingSensor,
+    RelativePoseSensor,
+)
 
 N_SAMPLES = 20000
 
@@ -65,7 +74,7 @@ def test_vision_is_narrow_and_noisier_with_distance_laser_sees_all_around():
 
 
 def test_relative_pose_sensor_rejects_bad_heading_noise():
-    with pytest.raises(ValueError, match="relative-heading noise"):
+    with pytest.raises(ValueError, match="heading_std_rad"):
         RelativePoseSensor(RangeBearingSensor(), heading_std_rad=0.0)
 
 
@@ -94,3 +103,41 @@ def test_gps_outages_parse_per_robot_and_reject_bad_triples():
     for bad, message in (([(3, 0, 1)],), "robots 0..2"), (([(0, 5, 1)],), "start_s < end_s"), (([(0, 5)],), "robot"):
         with pytest.raises(ValueError, match=message):
             parse_outages(bad[0], 3)
+
+
+@pytest.mark.parametrize(
+    ("sensor", "field", "value", "allowed"),
+    [
+        (RangeBearingSensor, "range_std_m", math.inf, "[0.0001, 100] m"),
+        (RangeBearingSensor, "range_std_m", 1e-9, "[0.0001, 100] m"),
+        (RangeBearingSensor, "range_std_per_m", math.nan, "[0, 1] m/m"),
+        (RangeBearingSensor, "bearing_std_rad", 0.0, "[1e-05, 3.14159] rad"),
+        (RangeBearingSensor, "max_range_m", 1e308, "(0, 1000] m"),
+        (RangeBearingSensor, "fov_rad", 7.0, "(0, 6.28319] rad"),
+        (OdometrySensor, "speed_std_mps", math.inf, "(0, 10] m/s"),
+        (OdometrySensor, "turn_rate_std_rps", 0.0, "(0, 10] rad/s"),
+        (GPSSensor, "position_std_m", 1e-12, "[0.001, 100] m"),
+        (Ladar, "range_std_m", math.inf, "[0, 10] m"),
+        (Ladar, "rows", 10**6, "an integer in [1, 1080]"),
+        (Ladar, "columns", 2.0, "an integer in [1, 1920]"),
+        (Ladar, "mount_height_m", 1e12, "(0, 100] m"),
+        (Camera, "noise_std", math.inf, "[0, 1000] gray levels"),
+        (Camera, "pan_rad", 1e12, "[-6.28319, 6.28319] rad"),
+    ],
+)
+def test_each_sensor_checks_its_own_parameters_naming_the_field_and_its_range(sensor, field, value, allowed):
+    with pytest.raises(ParameterError) as error:
+        sensor(**{field: value})
+    assert (error.value.parameter, error.value.value) == (field, value)
+    assert f"{field} must be in {allowed}" in str(error.value) or f"{field} must be {allowed}" in str(error.value)
+
+
+def test_relative_pose_sensor_checks_its_heading_noise_range():
+    with pytest.raises(ParameterError, match=r"heading_std_per_m must be in \[0, 0.1\] rad/m, got inf"):
+        RelativePoseSensor(RangeBearingSensor(), heading_std_rad=0.01, heading_std_per_m=math.inf)
+
+
+@pytest.mark.parametrize("spec", [0, "gps", 1.5, None])
+def test_gps_outages_must_be_a_sequence_of_triples(spec):
+    with pytest.raises(ValueError, match="gps_outages must be a sequence of"):
+        parse_outages(spec, 3)

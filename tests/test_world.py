@@ -255,7 +255,7 @@ def test_team_field_robots_pass_under_the_canopies():
         ({"n_robots": 8}, "fewer robots, a larger size_m or more n_waypoints"),
         ({"n_robots": 3, "size_m": 20.0}, "fewer robots"),
         ({"n_robots": 1, "size_m": 10.0}, "too crowded"),
-        ({"n_robots": 0}, "n_robots >= 1"),
+        ({"n_robots": 0}, r"n_robots must be an integer in \[1, 32\], got 0"),
     ],
 )
 def test_team_field_that_cannot_be_built_is_a_clear_error(params, message):
@@ -270,3 +270,25 @@ def test_bad_routes_and_a_scenario_without_robots_are_clear_errors():
         Route((0.0, 0.0, 0.0), np.zeros((1, 2)), speed_mps=0.0)
     with pytest.raises(ValueError, match="at least one route"):
         Scenario(name="empty", bounds=(0.0, 0.0, 1.0, 1.0), routes=())
+
+
+@pytest.mark.parametrize("dt", [math.inf, math.nan, 0.0, -0.5, 61.0])
+def test_world_step_refuses_a_time_step_outside_its_range(dt):
+    world = World()
+    world.reset(corridor(np.random.default_rng(0)))
+    with pytest.raises(ValueError, match=r"World.step dt must be in \(0, 60\] s"):
+        world.step(dt)
+
+
+@pytest.mark.parametrize(
+    ("argument", "value"),
+    [
+        ("robot_radius_m", 0.0),
+        ("max_turn_rate_rps", math.inf),
+        ("heading_gain", math.nan),
+        ("max_physics_step_s", 1e-9),
+    ],
+)
+def test_world_refuses_arguments_outside_their_range(argument, value):
+    with pytest.raises(ValueError, match=f"World {argument} must be in"):
+        World(**{argument: value})

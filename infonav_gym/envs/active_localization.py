@@ -7,28 +7,25 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_positive
+from infonav_gym.config import Interval, check_config, check_config_arguments
 from infonav_gym.envs.active_planning import (
     N_PRIMITIVES,
     PRIMITIVE_OFFSETS_RAD,
     ActivePlanningModel,
 )
-from infonav_gym.envs.base import Decision, InfoNavEnv
+from infonav_gym.envs.base import MAX_EPISODE_STEPS, Decision, InfoNavEnv
 from infonav_gym.envs.landmark_sight import LandmarkSight
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
+from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
-from infonav_gym.sensors.odometry import OdometrySensor
+from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.active_scenarios import (
-    MIN_GOAL_FIELD_LANDMARKS,
-    MIN_GOAL_FIELD_SIZE_M,
-    CommandedWorld,
-    goal_field,
-)
+from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS, CommandedWorld, goal_field
+from infonav_gym.world.scenarios import SPEED_MPS
+from infonav_gym.world.world import TIME_STEP_S
 
 POSE_FEATURES = 10
 GOAL_FEATURES = 4
@@ -36,6 +33,24 @@ LANDMARK_FEATURES = 4
 OBSTACLE_FEATURES = 4
 REWARD_TERMS = ("mutual_information", "sensing_cost", "motion_cost", "progress", "goal_bonus", "failure_penalty")
 _BIG = 1e4
+REWARD_WEIGHT = Interval(0.0, 1e6)  # a cost, reward or bonus weight [nats, or nats per unit]
+REWARD_WEIGHT_KEYS = (
+    "observation_cost_nats",
+    "motion_cost_per_step",
+    "progress_reward_per_m",
+    "goal_bonus",
+    "failure_penalty",
+)
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
+    "time_step_s": TIME_STEP_S,
+    "speed_mps": SPEED_MPS,
+    "max_turn_rate_rps": Interval(0.0, 10.0, open_low=True, unit="rad/s"),
+    "goal_radius_m": Interval(0.0, 100.0, open_low=True, unit="m"),
+    "max_position_std_m": Interval(0.0, 1000.0, open_low=True, unit="m"),  # and above initial_position_std_m
+    "max_observations": Interval(0, MAX_EPISODE_STEPS, integer=True),
+    **INITIAL_POSE_STD,
+    **{key: REWARD_WEIGHT for key in REWARD_WEIGHT_KEYS},
+}
 
 
 class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
@@ -162,28 +177,16 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     def __init__(self, render_mode: str | None = None, **config):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
-        check_positive(cfg, ["n_candidates", "field_size_m", "time_step_s", "speed_mps", "max_turn_rate_rps"], owner)
-        check_positive(cfg, ["goal_radius_m", "max_position_std_m"], owner)
-        check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
-        non_negative = ["n_obstacles", "max_observations", "observation_cost_nats", "motion_cost_per_step"]
-        check_positive(cfg, non_negative + ["progress_reward_per_m", "goal_bonus", "failure_penalty"], owner, True)
-        if cfg["n_candidates"] < MIN_GOAL_FIELD_LANDMARKS:
-            raise ValueError(
-                f"config key 'n_candidates' of {owner} must be >= {MIN_GOAL_FIELD_LANDMARKS} "
-                f"(the goal field's landmarks), got {cfg['n_candidates']}"
-            )
-        if cfg["field_size_m"] < MIN_GOAL_FIELD_SIZE_M:
-            raise ValueError(
-                f"config key 'field_size_m' of {owner} must be >= {MIN_GOAL_FIELD_SIZE_M:g} m "
-                f"(the goal field's layout), got {cfg['field_size_m']}"
-            )
+        field_keys = {"n_landmarks": "n_candidates", "n_obstacles": "n_obstacles", "size_m": "field_size_m"}
+        check_config_arguments(cfg, owner, "goal_field", GOAL_FIELD_ARGUMENTS, field_keys)
+        check_config(cfg, owner, CONFIG_INTERVALS)
         if cfg["max_position_std_m"] <= cfg["initial_position_std_m"]:
             raise ValueError(
                 f"config key 'max_position_std_m' of {owner} must exceed initial_position_std_m "
                 f"({cfg['initial_position_std_m']}), got {cfg['max_position_std_m']}"
             )
-        self.sensor = range_bearing_sensor_from_config(cfg)
-        self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
+        self.sensor = range_bearing_sensor_from_config(cfg, owner)
+        self.odometry = odometry_sensor_from_config(cfg, owner)
         self._odometry_covariance = self.odometry.noise_covariance()
         self.world = CommandedWorld()
         self.n_primitives = N_PRIMITIVES
@@ -266,7 +269,8 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         dt = cfg["time_step_s"]
         control = self.world.step(dt)[0]
         self._true_pose = self.world.pose
-        self.ekf.predict(self.odometry.measure(control, self._odometry_rng), dt, self._odometry_covariance)
+        odometry = self.odometry.measure(control, self._odometry_rng)
+        self.ekf.predict(odometry, dt, self._odometry_covariance, check_input=False)
         if primitive is not None:
             terms["motion_cost"] = -cfg["motion_cost_per_step"]
             terms["progress"] = cfg["progress_reward_per_m"] * (

@@ -19,10 +19,13 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from infonav_gym.config import check_choice, merge_config
+from infonav_gym.config import Interval, check_choice, check_config, merge_config
 
 INVALID_ACTION_MODES = ("noop", "raise")
 MIN_RENDER_SIZE_PX = 64
+RENDER_SIZE_PX = Interval(MIN_RENDER_SIZE_PX, 4096, integer=True)  # the allowed frame sizes [px]
+MAX_EPISODE_STEPS = 10**7
+EPISODE_STEPS = Interval(1, MAX_EPISODE_STEPS, integer=True)  # the allowed horizons (``horizon``, ``max_cycles``)
 
 
 @dataclass(frozen=True)
@@ -127,11 +130,7 @@ class SceneRendering(abc.ABC):
         owner = type(self).__name__
         self.config = merge_config(self.default_config(), config, owner)
         check_choice(self.config, "invalid_action", INVALID_ACTION_MODES, owner)
-        if self.config["render_size_px"] < MIN_RENDER_SIZE_PX:
-            raise ValueError(
-                f"config key 'render_size_px' of {owner} must be >= {MIN_RENDER_SIZE_PX}, "
-                f"got {self.config['render_size_px']}"
-            )
+        check_config(self.config, owner, {"render_size_px": RENDER_SIZE_PX})
         self._renderer = None
         self._elapsed_steps = None
 
@@ -185,10 +184,7 @@ class InfoNavEnv(SceneRendering, gym.Env):
 
     def __init__(self, render_mode: str | None = None, **config):
         self._configure(render_mode, config)
-        if self.config["horizon"] < 1:
-            raise ValueError(
-                f"config key 'horizon' of {type(self).__name__} must be >= 1, got {self.config['horizon']}"
-            )
+        check_config(self.config, type(self).__name__, {"horizon": EPISODE_STEPS})
         self._decision = None
         self._chosen_action = None
 

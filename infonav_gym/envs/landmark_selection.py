@@ -7,19 +7,25 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_positive
+from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments
 from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.envs.landmark_sight import LandmarkSight
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.estimation.ekf import POSE_DIM, PoseEKF
+from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, PoseEKF
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
-from infonav_gym.sensors.odometry import OdometrySensor
+from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.scenarios import CORRIDOR_LANDMARK_COUNT, scenario_from_config, scenario_names
-from infonav_gym.world.world import World
+from infonav_gym.world.scenarios import (
+    CORRIDOR_LANDMARK_COUNT,
+    FIELD_ARGUMENTS,
+    MAX_LANDMARKS,
+    scenario_from_config,
+    scenario_names,
+)
+from infonav_gym.world.world import TIME_STEP_S, World
 
 SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "speed_mps": "speed_mps",
@@ -30,6 +36,12 @@ SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
 POSE_FEATURES = 10
 CANDIDATE_FEATURES = 5
 _BIG = 1e4
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
+    "n_candidates": Interval(1, MAX_LANDMARKS, integer=True),
+    "time_step_s": TIME_STEP_S,
+    "landmark_prior_std_m": Interval(1e-4, 100.0, unit="m"),
+    **INITIAL_POSE_STD,
+}
 
 
 class LandmarkSelectionEnv(InfoNavEnv):
@@ -115,15 +127,16 @@ class LandmarkSelectionEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "scenario", scenario_names(team=False), owner)
-        check_positive(cfg, ["n_candidates", "time_step_s", "speed_mps", "landmark_prior_std_m", "field_size_m"], owner)
-        check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
-        check_positive(cfg, ["n_obstacles"], owner, allow_zero=True)
+        check_config(cfg, owner, CONFIG_INTERVALS)
+        field_keys = {"n_obstacles": "n_obstacles", "size_m": "field_size_m", "speed_mps": "speed_mps"}
+        check_config_arguments(cfg, owner, "field", FIELD_ARGUMENTS, field_keys)  # the corridor's speed too
         if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
             raise ValueError(
-                f"the corridor scenario has {CORRIDOR_LANDMARK_COUNT} landmarks: n_candidates must be >= 4"
+                f"config key 'n_candidates' of {owner} must be >= {CORRIDOR_LANDMARK_COUNT} "
+                f"(the corridor's landmarks), got {cfg['n_candidates']}"
             )
-        self.sensor = range_bearing_sensor_from_config(cfg)
-        self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
+        self.sensor = range_bearing_sensor_from_config(cfg, owner)
+        self.odometry = odometry_sensor_from_config(cfg, owner)
         self._odometry_covariance = self.odometry.noise_covariance()
         self.world = World()
         self.action_space = spaces.Discrete(cfg["n_candidates"])
@@ -192,7 +205,8 @@ class LandmarkSelectionEnv(InfoNavEnv):
         dt = self.config["time_step_s"]
         control = self.world.step(dt)[0]
         self._true_pose = self.world.pose
-        self.ekf.predict(self.odometry.measure(control, self._odometry_rng), dt, self._odometry_covariance)
+        odometry = self.odometry.measure(control, self._odometry_rng)
+        self.ekf.predict(odometry, dt, self._odometry_covariance, check_input=False)
         self._true_path.append(self._true_pose[:2])
         self._estimated_path.append(self.ekf.x[:2].copy())
 

@@ -2,28 +2,47 @@
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_positive
+from infonav_gym.config import Interval, check_choice, check_config, config_keys, from_config
 from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.envs.metrics import EpisodeMetric, mean_where, summed_reward
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.registration.control_points import control_point_geometry
-from infonav_gym.registration.frame_pairs import frame_pair, registration_error, scan_on_terrain
+from infonav_gym.registration.frame_pairs import (
+    DEFAULT_ODOMETRY_STD,
+    check_odometry_std,
+    frame_pair,
+    registration_error,
+    scan_on_terrain,
+)
 from infonav_gym.registration.icp import METHODS, icp
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import World
+from infonav_gym.world.world import TIME_STEP_S, World
 
 MIN_CONTROL_POINTS = 3  # fewer cannot fix a rigid motion
 PATCH_FEATURES = 5
 GLOBAL_FEATURES = 2
 MAX_PATCH_INFORMATION = 50.0  # observation bound of a patch's information [nats]
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses (patches: see __init__)
+    "time_step_s": TIME_STEP_S,
+    "point_cost": Interval(0.0, 1e3, unit="m per control point"),
+    "icp_max_iterations": Interval(1, 10**4, integer=True),
+    "max_correspondence_distance_m": Interval(0.0, 100.0, open_low=True, unit="m"),
+}
+ODOMETRY_KEYS = {  # the config key of each axis of the odometry error (frame_pair's odometry_std)
+    "x": "odometry_xy_std_m",
+    "y": "odometry_xy_std_m",
+    "z": "odometry_z_std_m",
+    "roll": "odometry_tilt_std_rad",
+    "pitch": "odometry_tilt_std_rad",
+    "yaw": "odometry_yaw_std_rad",
+}
 
 
 class RangeRegistrationEnv(InfoNavEnv):
@@ -111,10 +130,10 @@ class RangeRegistrationEnv(InfoNavEnv):
             "time_step_s": 0.5,  # between frames [s]
             "speed_mps": 2.0,  # [m/s]
             **SCENE_CONFIG,  # the terrain_loop scene
-            "odometry_xy_std_m": 0.1,  # std of the odometry's motion error along x and y [m]
-            "odometry_z_std_m": 0.05,  # ... along z [m]
-            "odometry_tilt_std_rad": math.radians(0.5),  # ... about x and y (inclinometers) [rad]
-            "odometry_yaw_std_rad": math.radians(1.0),  # ... about z [rad]
+            "odometry_xy_std_m": DEFAULT_ODOMETRY_STD[0],  # std of the odometry's motion error along x and y [m]
+            "odometry_z_std_m": DEFAULT_ODOMETRY_STD[2],  # ... along z [m]
+            "odometry_tilt_std_rad": DEFAULT_ODOMETRY_STD[3],  # ... about x and y (inclinometers) [rad]
+            "odometry_yaw_std_rad": DEFAULT_ODOMETRY_STD[5],  # ... about z [rad]
             "icp_method": "point_to_plane",
             "icp_max_iterations": 30,
             "max_correspondence_distance_m": 1.0,
@@ -125,20 +144,15 @@ class RangeRegistrationEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "icp_method", METHODS, owner)
-        check_positive(cfg, ["picks_per_pair", "patch_rows", "patch_columns", "time_step_s", "speed_mps"], owner)
+        check_config(cfg, owner, CONFIG_INTERVALS)
         check_scene_config(cfg, owner)
-        check_positive(cfg, ["icp_max_iterations", "max_correspondence_distance_m"], owner)
-        check_positive(cfg, ["point_cost"], owner, allow_zero=True)
-        odometry_keys = ["odometry_xy_std_m", "odometry_z_std_m", "odometry_tilt_std_rad", "odometry_yaw_std_rad"]
-        check_positive(cfg, odometry_keys, owner)
-        check_positive(cfg, ["ladar_range_std_m"], owner, allow_zero=True)
-        self.ladar = Ladar(range_std_m=cfg["ladar_range_std_m"])
-        for key, pixels in (("patch_rows", self.ladar.rows), ("patch_columns", self.ladar.columns)):
-            if cfg[key] > pixels:
-                raise ValueError(f"config key {key!r} of {owner} must be at most {pixels} (image size), got {cfg[key]}")
-        xy, z, tilt, yaw = (cfg[key] for key in odometry_keys)
-        self.odometry_std = np.array([xy, xy, z, tilt, tilt, yaw])
+        with config_keys(owner, ODOMETRY_KEYS):
+            self.odometry_std = check_odometry_std([cfg[key] for key in ODOMETRY_KEYS.values()])
+        self.ladar = from_config(Ladar, cfg, {"range_std_m": "ladar_range_std_m"}, owner)
+        patches = {"patch_rows": self.ladar.rows, "patch_columns": self.ladar.columns}  # at most the image's pixels
+        check_config(cfg, owner, {key: Interval(1, pixels, integer=True) for key, pixels in patches.items()})
         self.n_patches = cfg["patch_rows"] * cfg["patch_columns"]
+        check_config(cfg, owner, {"picks_per_pair": Interval(1, self.n_patches, integer=True)})
         self.action_space = spaces.Discrete(self.n_patches)
         high = np.tile([1.0, 1.0, 1.0, 1.0, MAX_PATCH_INFORMATION], self.n_patches)
         high = np.append(high, [1.0, 1.0]).astype(np.float32)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_open_interval, check_positive
+from infonav_gym.config import Interval, check_choice, check_config, from_config
 from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.envs.metrics import EpisodeMetric, count_where, mean_where, summed_reward_term
 from infonav_gym.envs.traits import EnvTraits
@@ -16,7 +16,7 @@ from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, 
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import World
+from infonav_gym.world.world import TIME_STEP_S, World
 
 SENSORS = ("ladar", "camera")
 IMAGE_INFORMATION = ("entropy", "negentropy")
@@ -25,6 +25,14 @@ MAX_IMAGE_ENTROPY = math.log(256)  # entropy of a uniform 256-level histogram [n
 OPTION_FEATURES = 3
 GLOBAL_FEATURES = 2 + len(SENSORS)
 _BYTES_PER_PIXEL = {"ladar": 2, "camera": 1}  # 16-bit ranges, 8-bit gray levels
+BANDWIDTH_BYTES = Interval(1, 10**10, integer=True, unit="bytes")  # link capacity per step, credit buffer
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
+    "time_step_s": TIME_STEP_S,
+    "n_pan_sectors": Interval(1, 64, integer=True),
+    "pan_span_rad": Interval(0.0, 2 * math.pi, unit="rad"),
+    "bandwidth_bytes_per_step": BANDWIDTH_BYTES,
+    "bandwidth_buffer_bytes": BANDWIDTH_BYTES,
+}
 
 
 class SensorSelectionEnv(InfoNavEnv):
@@ -138,16 +146,10 @@ class SensorSelectionEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "image_information", IMAGE_INFORMATION, owner)
-        check_positive(cfg, ["time_step_s", "speed_mps", "n_pan_sectors", "bandwidth_bytes_per_step"], owner)
+        check_config(cfg, owner, CONFIG_INTERVALS)
         check_scene_config(cfg, owner)
-        check_positive(cfg, ["pan_span_rad"], owner, allow_zero=True)
-        check_positive(cfg, ["ladar_rows", "ladar_columns", "camera_rows", "camera_columns"], owner)
-        fov_keys = ["ladar_vertical_fov_rad", "ladar_horizontal_fov_rad", "camera_horizontal_fov_rad"]
-        check_open_interval(cfg, fov_keys, 0.0, math.pi, owner, unit=" rad, i.e. (0, 180) degrees")
-        check_positive(cfg, ["ladar_max_range_m"], owner)
-        check_positive(cfg, ["ladar_range_std_m", "camera_noise_std"], owner, allow_zero=True)
-        self.ladar = Ladar(**_prefixed(cfg, "ladar_"))
-        self.camera = Camera(**_prefixed(cfg, "camera_"))
+        self.ladar = from_config(Ladar, cfg, _prefixed_keys(cfg, "ladar_"), owner)
+        self.camera = from_config(Camera, cfg, _prefixed_keys(cfg, "camera_"), owner)
         self.frame_bytes = {
             "ladar": _BYTES_PER_PIXEL["ladar"] * self.ladar.rows * self.ladar.columns,
             "camera": _BYTES_PER_PIXEL["camera"] * self.camera.rows * self.camera.columns,
@@ -281,6 +283,6 @@ class SensorSelectionEnv(InfoNavEnv):
         return f"{legend} acquired this step"
 
 
-def _prefixed(config: dict, prefix: str) -> dict:
-    """The entries of ``config`` whose key starts with ``prefix``, with the prefix removed."""
-    return {key.removeprefix(prefix): value for key, value in config.items() if key.startswith(prefix)}
+def _prefixed_keys(config: dict, prefix: str) -> dict[str, str]:
+    """The keys of ``config`` that start with ``prefix``, by their name without it (a sensor's field)."""
+    return {key.removeprefix(prefix): key for key in config if key.startswith(prefix)}

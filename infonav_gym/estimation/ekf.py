@@ -1,11 +1,21 @@
-"""Extended Kalman filters built on filterpy's ``ExtendedKalmanFilter``."""
+"""Extended Kalman filters built on filterpy's ``ExtendedKalmanFilter``.
+
+The public ``predict`` and update methods check what they are given (shapes, finiteness, a
+symmetric positive-definite noise covariance) and raise ``ValueError`` naming the argument, so a
+bad input never fills the state with NaN. ``check_input=False`` skips that for hot loops whose
+inputs are already known good (the envs: their sensors' parameters were checked at construction).
+"""
 
 from __future__ import annotations
+
+import math
+import numbers
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 from scipy.linalg import block_diag
 
+from infonav_gym.config import Interval
 from infonav_gym.estimation.models import (
     GPS_POSE_JACOBIAN,
     range_bearing_linearized,
@@ -18,6 +28,45 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import log_det_spd
 
 POSE_DIM = 3
+INITIAL_POSE_STD = {  # the allowed prior standard deviations of a pose estimate, as env config keys
+    "initial_position_std_m": Interval(1e-4, 100.0, unit="m"),
+    "initial_heading_std_rad": Interval(1e-5, math.pi, unit="rad"),
+}
+
+
+def _finite(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a float array of ``shape``, or ``ValueError`` naming it for another shape or a NaN / inf entry."""
+    array = np.asarray(value, dtype=float)
+    if array.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be finite, got {array.tolist()}")
+    return array
+
+
+def _noise_covariance(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
+    """``_finite``, and symmetric positive definite (each matrix of a stack), or ``ValueError`` naming it."""
+    covariance = _finite(name, value, shape)
+    if covariance.size:
+        log_det_spd(covariance, name)
+    return covariance
+
+
+def _time_step(dt) -> float:
+    """``dt`` as a float, or ``ValueError`` unless it is finite and >= 0 [s]."""
+    if not (isinstance(dt, numbers.Real) and math.isfinite(dt) and dt >= 0):
+        raise ValueError(f"dt must be a finite time step >= 0 [s], got {dt!r}")
+    return float(dt)
+
+
+def _robot_indices(name: str, value, n_robots: int) -> np.ndarray:
+    """``value`` as an int array (k,) of robot indices in [0, n_robots), or ``ValueError`` naming it."""
+    indices = np.atleast_1d(np.asarray(value))
+    if indices.ndim != 1 or (indices.size and indices.dtype.kind not in "iu"):
+        raise ValueError(f"{name} must be a sequence of robot indices, got {value!r}")
+    if np.any((indices < 0) | (indices >= n_robots)):
+        raise ValueError(f"{name} must be robot indices in [0, {n_robots - 1}], got {indices.tolist()}")
+    return indices.astype(int)
 
 
 class PoseEKF(ExtendedKalmanFilter):
@@ -39,6 +88,7 @@ class PoseEKF(ExtendedKalmanFilter):
 
     def __init__(self, pose, pose_covariance, landmarks=None, landmark_covariance=None):
         landmarks = np.zeros((0, 2)) if landmarks is None else np.asarray(landmarks, dtype=float).reshape(-1, 2)
+        _finite("landmarks", landmarks, landmarks.shape)
         super().__init__(dim_x=POSE_DIM + 2 * len(landmarks), dim_z=2)
         pose = np.asarray(pose, dtype=float)
         if pose.shape != (POSE_DIM,) or not np.all(np.isfinite(pose)):
@@ -76,11 +126,21 @@ class PoseEKF(ExtendedKalmanFilter):
         """Current estimates of the mapped landmarks (L, 2)."""
         return self.x[POSE_DIM:].reshape(-1, 2).copy()
 
-    def predict(self, control, dt: float, control_covariance) -> None:
+    def predict(self, control, dt: float, control_covariance, *, check_input: bool = True) -> None:
         """Propagate through the unicycle model with a noisy odometry ``control`` (speed, turn rate).
 
         ``F P F^T + Q`` keeps the covariance symmetric; the update symmetrizes it.
+
+        Args:
+            control: odometry ``[speed, turn_rate]`` [m/s, rad/s], finite.
+            dt: time step [s], finite and >= 0.
+            control_covariance: its noise covariance (2, 2), symmetric positive definite.
+            check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
         """
+        if check_input:
+            control = _finite("control", control, (2,))
+            dt = _time_step(dt)
+            control_covariance = _noise_covariance("control_covariance", control_covariance, (2, 2))
         F_pose, V = unicycle_jacobians(self.x, control, dt)
         self.F[:POSE_DIM, :POSE_DIM] = F_pose
         self.Q[:POSE_DIM, :POSE_DIM] = V @ control_covariance @ V.T
@@ -114,7 +174,7 @@ class PoseEKF(ExtendedKalmanFilter):
             H[rows[:, None, None], np.arange(2)[None, :, None], columns[:, None, :]] = H_landmark
         return predicted, H
 
-    def update_range_bearing(self, measurement, predicted, H, R) -> None:
+    def update_range_bearing(self, measurement, predicted, H, R, *, check_input: bool = True) -> None:
         """Update with one range-bearing measurement, linearized at the prior; covariance symmetrized.
 
         Gives what filterpy's generic ``update`` gives with a wrapped-bearing
@@ -126,8 +186,15 @@ class PoseEKF(ExtendedKalmanFilter):
             measurement: ``[range, bearing]``.
             predicted: the measurement predicted at the prior, ``[range, bearing]``.
             H: its Jacobian w.r.t. the state (2, dim_x).
-            R: measurement noise covariance (2, 2).
+            R: measurement noise covariance (2, 2), symmetric positive definite.
+            check_input: check shapes, finiteness and ``R`` (``ValueError`` naming a bad argument);
+                ``False`` for known-good inputs.
         """
+        if check_input:
+            measurement = _finite("measurement", measurement, (2,))
+            predicted = _finite("predicted", predicted, (2,))
+            H = _finite("H", H, (2, self.dim_x))
+            R = _noise_covariance("R", R, (2, 2))
         _kalman_update(self, measurement, range_bearing_residual(measurement, predicted), H, R, 2)
 
 
@@ -230,14 +297,19 @@ class JointEKF(ExtendedKalmanFilter):
         n = self.n_robots
         return self.P.reshape(n, POSE_DIM, n, POSE_DIM).transpose(0, 2, 1, 3)
 
-    def predict(self, controls, dt: float, control_covariances) -> None:
+    def predict(self, controls, dt: float, control_covariances, *, check_input: bool = True) -> None:
         """Propagate every robot through the unicycle model with its noisy odometry ``[speed, turn_rate]``.
 
         Args:
-            controls: odometry readings (N, 2).
-            dt: time step [s].
-            control_covariances: their noise covariances (N, 2, 2).
+            controls: odometry readings (N, 2), finite.
+            dt: time step [s], finite and >= 0.
+            control_covariances: their noise covariances (N, 2, 2), symmetric positive definite.
+            check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
         """
+        if check_input:
+            controls = _finite("controls", controls, (self.n_robots, 2))
+            dt = _time_step(dt)
+            control_covariances = _noise_covariance("control_covariances", control_covariances, (self.n_robots, 2, 2))
         for robot in range(self.n_robots):
             block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
             F_pose, V = unicycle_jacobians(self.x[block], controls[robot], dt)
@@ -252,14 +324,19 @@ class JointEKF(ExtendedKalmanFilter):
         poses = self.x.reshape(-1, POSE_DIM)
         self.x = np.concatenate([unicycle_motion(pose, control, dt) for pose, control in zip(poses, controls)])
 
-    def gps_update(self, robots, fixes, noise_covariances) -> None:
+    def gps_update(self, robots, fixes, noise_covariances, *, check_input: bool = True) -> None:
         """Update with position fixes ``[x, y]`` of some robots (one stacked linear update).
 
         Args:
             robots: indices of the robots with a fix (k,).
-            fixes: their measured positions (k, 2).
-            noise_covariances: the fixes' noise covariances (k, 2, 2).
+            fixes: their measured positions (k, 2), finite.
+            noise_covariances: the fixes' noise covariances (k, 2, 2), symmetric positive definite.
+            check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
         """
+        if check_input:
+            robots = _robot_indices("robots", robots, self.n_robots)
+            fixes = _finite("fixes", fixes, (len(robots), 2))
+            noise_covariances = _noise_covariance("noise_covariances", noise_covariances, (len(robots), 2, 2))
         robots = np.asarray(robots, dtype=int)
         if robots.size == 0:
             return
@@ -279,19 +356,36 @@ class JointEKF(ExtendedKalmanFilter):
         poses = self.x.reshape(-1, POSE_DIM)
         return relative_pose_linearized(poses[observers], poses[targets])
 
-    def relative_pose_update(self, observers, targets, measurements, predicted, H_observer, H_target, R) -> None:
+    def relative_pose_update(
+        self, observers, targets, measurements, predicted, H_observer, H_target, R, *, check_input: bool = True
+    ) -> None:
         """Update with relative-pose measurements taken at the same time (one stacked update).
 
         Measurement ``k`` is ``[range, bearing, relative heading]`` of robot ``targets[k]``
-        seen from robot ``observers[k]``; ``predicted``, ``H_observer`` and ``H_target``
-        come from ``relative_pose_model`` at the current prior.
+        seen from robot ``observers[k]`` (or ``[range, bearing]``, m = 2, without the heading);
+        ``predicted``, ``H_observer`` and ``H_target`` come from ``relative_pose_model`` at the
+        current prior (their first m rows).
 
         Args:
             observers, targets: robot indices (k,).
-            measurements, predicted: (k, 3).
-            H_observer, H_target: (k, 3, 3).
-            R: noise covariances (k, 3, 3), independent between measurements.
+            measurements, predicted: (k, m), m = 3 or 2.
+            H_observer, H_target: (k, m, 3).
+            R: noise covariances (k, m, m), independent between measurements, symmetric positive definite.
+            check_input: check shapes, finiteness, indices and ``R`` (``ValueError`` naming a bad argument);
+                ``False`` for known-good inputs.
         """
+        if check_input:
+            observers = _robot_indices("observers", observers, self.n_robots)
+            targets = _robot_indices("targets", targets, self.n_robots)
+            k = len(observers)
+            if len(targets) != k:
+                raise ValueError(f"observers and targets must pair up, got {k} observers and {len(targets)} targets")
+            m = np.shape(measurements)[-1] if np.ndim(measurements) == 2 and np.shape(measurements)[-1] == 2 else 3
+            measurements = _finite("measurements", measurements, (k, m))
+            predicted = _finite("predicted", predicted, (k, m))
+            H_observer = _finite("H_observer", H_observer, (k, m, POSE_DIM))
+            H_target = _finite("H_target", H_target, (k, m, POSE_DIM))
+            R = _noise_covariance("R", R, (k, m, m))
         observers, targets = np.atleast_1d(observers), np.atleast_1d(targets)
         if np.any(observers == targets):
             raise ValueError(f"a robot cannot observe its own relative pose (observers {observers}, targets {targets})")

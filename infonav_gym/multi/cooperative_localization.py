@@ -8,11 +8,11 @@ from dataclasses import dataclass
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.config import check_choice, check_positive
-from infonav_gym.envs.base import Decision
+from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments, config_keys
+from infonav_gym.envs.base import EPISODE_STEPS, Decision
 from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
+from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
 from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
@@ -20,10 +20,17 @@ from infonav_gym.multi.base import InfoNavParallelEnv
 from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
 from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.gps import GPSSensor
-from infonav_gym.sensors.odometry import OdometrySensor
+from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
-from infonav_gym.world.scenarios import scenario_from_config, scenario_names
-from infonav_gym.world.world import World
+from infonav_gym.world.scenarios import (
+    DEFAULT_WAYPOINTS,
+    MAX_ROBOTS,
+    TEAM_FIELD_ARGUMENTS,
+    scenario_from_config,
+    scenario_names,
+    team_route_bands,
+)
+from infonav_gym.world.world import TIME_STEP_S, World
 
 ESTIMATORS = ("joint", "independent")
 TEAM_SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
@@ -37,6 +44,13 @@ OWN_FEATURES = 10
 TEAMMATE_FEATURES = 5
 NO_OBSERVATION = 0
 _BIG = 1e4
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
+    "max_cycles": EPISODE_STEPS,
+    "n_robots": Interval(2, MAX_ROBOTS, integer=True),  # a team; team_field: no more than fit in it
+    "team_reward": Interval(0.0, 1.0),
+    "time_step_s": TIME_STEP_S,
+    **INITIAL_POSE_STD,
+}
 
 
 @dataclass(frozen=True)
@@ -180,21 +194,22 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "scenario", scenario_names(team=True), owner)
         check_choice(cfg, "estimator", ESTIMATORS, owner)
-        check_positive(cfg, ["max_cycles", "time_step_s", "speed_mps", "gps_std_m", "field_size_m"], owner)
-        check_positive(cfg, ["initial_position_std_m", "initial_heading_std_rad"], owner)
-        check_positive(cfg, ["n_obstacles", "n_canopies"], owner, allow_zero=True)
-        if cfg["n_robots"] < 2:
-            raise ValueError(f"config key 'n_robots' of {owner} must be >= 2 (a team), got {cfg['n_robots']}")
-        if not 0.0 <= cfg["team_reward"] <= 1.0:
-            raise ValueError(f"config key 'team_reward' of {owner} must be in [0, 1], got {cfg['team_reward']}")
+        check_config(cfg, owner, CONFIG_INTERVALS)
+        field_keys = {key: key for key in ("n_obstacles", "n_canopies", "speed_mps")}
+        field_keys["size_m"] = "field_size_m"
+        check_config_arguments(cfg, owner, "team_field", TEAM_FIELD_ARGUMENTS, field_keys)  # the convoy's speed too
+        if cfg["scenario"] == "team_field":
+            with config_keys(owner, {"n_robots": "n_robots"}):
+                team_route_bands(cfg["n_robots"], cfg["field_size_m"], DEFAULT_WAYPOINTS)
         n = cfg["n_robots"]
         self.suites = parse_suites(cfg["robot_sensors"], n, cfg["scenario"])
         outages = parse_outages(cfg["gps_outages"], n)
-        self.gps = [
-            GPSSensor(cfg["gps_std_m"], spans) if suite.gps else None for suite, spans in zip(self.suites, outages)
-        ]
+        with config_keys(owner, {"position_std_m": "gps_std_m"}):
+            self.gps = [
+                GPSSensor(cfg["gps_std_m"], spans) if suite.gps else None for suite, spans in zip(self.suites, outages)
+            ]
         self.relative_sensors = [RELATIVE_POSE_SENSORS.get(suite.relative_sensor) for suite in self.suites]
-        self.odometry = OdometrySensor(cfg["odometry_speed_std_mps"], cfg["odometry_turn_rate_std_rps"])
+        self.odometry = odometry_sensor_from_config(cfg, owner)
         self._odometry_covariances = np.repeat(self.odometry.noise_covariance()[None], n, axis=0)
         self.max_cycles = cfg["max_cycles"]
         self.possible_agents = [f"robot_{k}" for k in range(n)]
@@ -277,14 +292,18 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         predicted, H_observer, H_target, R = (part[rows] for part in sight.candidates)
         pairs = sight.valid_pairs[rows]
         measurements = noisy_relative_poses(sight.geometry[pairs], self._pair_noise[pairs], self._relative_rng)
-        self.ekf.relative_pose_update(observers, targets, measurements, predicted, H_observer, H_target, R)
+        self.ekf.relative_pose_update(
+            observers, targets, measurements, predicted, H_observer, H_target, R, check_input=False
+        )
 
     def _advance(self) -> None:
         """Move every robot, predict with its noisy odometry, then fuse the DGPS fixes available."""
         dt = self.config["time_step_s"]
         controls = self.world.step(dt)
         self._true_poses = self.world.poses
-        self.ekf.predict(self.odometry.measure(controls, self._odometry_rng), dt, self._odometry_covariances)
+        self.ekf.predict(
+            self.odometry.measure(controls, self._odometry_rng), dt, self._odometry_covariances, check_input=False
+        )
         self._time_s = self._elapsed_steps * dt
         self._gps_fixes()
         for robot, (true_pose, estimate) in enumerate(zip(self._true_poses, self.ekf.x.reshape(-1, POSE_DIM))):
@@ -300,7 +319,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         if robots.size:
             fixes = np.array([self.gps[k].measure(self._true_poses[k, :2], self._gps_rng) for k in robots])
             covariances = np.array([self.gps[k].noise_covariance() for k in robots])
-            self.ekf.gps_update(robots, fixes, covariances)
+            self.ekf.gps_update(robots, fixes, covariances, check_input=False)
 
     def _pose_uncertainty(self) -> tuple[np.ndarray, np.ndarray]:
         """Per robot, ``ln det`` of its pose covariance (N,) and its x, y, heading standard deviations (N, 3)."""

@@ -68,14 +68,17 @@ def parse_outages(spec, n_robots: int) -> tuple[tuple[tuple[float, float], ...],
     """Per robot, its DGPS outage spans ``(start_s, end_s)`` from ``gps_outages`` triples ``(robot, start_s, end_s)``.
 
     Raises:
-        ValueError: for a malformed triple, a robot index out of range or ``start_s >= end_s``.
+        ValueError: for a spec that is not a sequence of triples, a malformed triple, a robot index
+            out of range or ``start_s >= end_s`` (NaN never is below anything).
     """
+    if isinstance(spec, str) or not isinstance(spec, Sequence):
+        raise ValueError(f"gps_outages must be a sequence of (robot, start_s, end_s) triples, got {spec!r}")
     spans = [[] for _ in range(n_robots)]
     for triple in spec:
         try:
             robot, start_s, end_s = triple
             robot, start_s, end_s = int(robot), float(start_s), float(end_s)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ValueError(f"each gps_outages entry must be (robot, start_s, end_s), got {triple!r}") from None
         if not 0 <= robot < n_robots:
             raise ValueError(f"gps_outages names robot {robot}, but the team has robots 0..{n_robots - 1}")

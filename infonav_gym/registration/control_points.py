@@ -11,12 +11,12 @@ information ``0.5 ln det(I + L^T J^T C^-1 J L)`` [nats] about the motion: Sectio
 standard deviation ``sigma`` this is ``0.5 ln det(I + P sum_i J_i^T J_i / sigma^2)``.
 
 Error model of a control point (all from its own range image, before any correspondence): independent
-errors of variance ``a_i = (2 RANGE_STD_M^2 + normal_i^2 + curvature_i^2 + footprint_i^2) * f_i``:
+errors of variance ``a_i = (2 sigma_r^2 + normal_i^2 + curvature_i^2 + footprint_i^2) * f_i``:
 
-- range noise in both frames;
+- range noise in both frames, ``sigma_r`` the scan's ``range_std_m`` (its LADAR's);
 - ``normal_i``, the error of the matched point's normal when the ``NORMAL_SAMPLES`` nearest samples
   span one scan line (anisotropic sampling, e.g. grazing ground: the normal's angle error
-  ``sqrt(2) RANGE_STD_M / width`` times the offset to the matched sample);
+  ``sqrt(2) sigma_r / width`` times the offset to the matched sample);
 - ``curvature_i``, how far the point lies off the chords to its row and column neighbours along its
   normal (a bump or trunk between the target's samples puts the point off their tangent plane);
 - ``footprint_i = FOOTPRINT_BIAS * range * pixel angle``: the matched sample is up to a pixel
@@ -58,7 +58,6 @@ CONTROL_POINT_STRATEGIES = ("entropy", "random", "uniform", "all")
 PATCH_SHAPE = (8, 10)  # rows x columns of pixels per patch of the "entropy" strategy
 CHUNK_POINTS = 5  # points a patch contributes per greedy pick
 MAX_GREEDY_ROUNDS = 10  # greedy rounds; a round picks several patches' chunks when k needs more
-RANGE_STD_M = 0.02  # range noise of the LADAR (Ladar.range_std_m) [m]
 NORMAL_WINDOW = 5  # side of the pixel box whose points are averaged before taking normals
 NORMAL_SAMPLES = 10  # nearest samples a registration uses for the normal of a matched point
 DEPTH_JUMP_RATIO = 0.2  # a range step above this fraction of the range separates two surfaces
@@ -206,16 +205,18 @@ def _curvature(grid: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return curvature
 
 
-def _normal_error(row_spacing: np.ndarray, column_spacing: np.ndarray) -> np.ndarray:
+def _normal_error(row_spacing: np.ndarray, column_spacing: np.ndarray, range_std_m: float) -> np.ndarray:
     """Residual error [m] from a matched point's normal estimated from ``NORMAL_SAMPLES`` samples.
 
     The samples fill a disc of radius ``sqrt(NORMAL_SAMPLES * s_h * s_v / pi)``; narrower than the
     coarser spacing, they lie on one scan line and leave the normal undetermined (angle error 1 rad).
-    The angle error times the typical offset to the matched sample ``(s_h + s_v) / 4`` is the error.
+    The angle error times the typical offset to the matched sample ``(s_h + s_v) / 4`` is the error;
+    ``range_std_m`` is the range noise [m].
     """
     radius = np.sqrt(NORMAL_SAMPLES * row_spacing * column_spacing / math.pi)
-    width = np.where(radius >= np.fmax(row_spacing, column_spacing), radius, RANGE_STD_M)
-    angle = np.minimum(1.0, math.sqrt(2.0) * RANGE_STD_M / width)
+    determined = radius >= np.fmax(row_spacing, column_spacing)
+    width = np.where(determined, radius, 1.0)
+    angle = np.where(determined, np.minimum(1.0, math.sqrt(2.0) * range_std_m / width), 1.0)
     return angle * (row_spacing + column_spacing) / 4
 
 
@@ -233,7 +234,7 @@ def control_point_geometry(range_image: LadarScan, pose_covariance=None) -> Cont
     """Normals, Jacobians and the error model of every return (see the module docstring).
 
     Args:
-        range_image: the range image with its pixel angles.
+        range_image: the range image with its pixel angles and range noise.
         pose_covariance: prior covariance (6, 6) of the frame's motion over (x, y, z [m], rotation
             about x, y, z [rad]); default ``DEFAULT_POSE_COVARIANCE`` (0.2 m and 2 degrees on every axis).
     """
@@ -262,9 +263,10 @@ def _geometry(range_image: LadarScan, covariance: np.ndarray) -> ControlPointGeo
     jacobians = np.concatenate([normals, _cross(points, normals)], axis=1)
     spread = np.sqrt(np.einsum("ni,ni->n", jacobians @ covariance, jacobians))
     ambiguity = np.maximum(1.0, spread / structure) ** 2
-    normal_error = np.where(usable, _normal_error(row_spacing, column_spacing), 0.0)
+    range_std_m = range_image.range_std_m
+    normal_error = np.where(usable, _normal_error(row_spacing, column_spacing, range_std_m), 0.0)
     footprint = FOOTPRINT_BIAS * ranges[returns] * _pixel_angle(range_image)
-    variance = (2.0 * RANGE_STD_M**2 + normal_error**2 + curvature**2 + footprint**2) * ambiguity
+    variance = (2.0 * range_std_m**2 + normal_error**2 + curvature**2 + footprint**2) * ambiguity
     rows, columns = np.nonzero(returns)
     columns_of_patches = -(-ranges.shape[1] // PATCH_SHAPE[1])
     return ControlPointGeometry(

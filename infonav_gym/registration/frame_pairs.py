@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from infonav_gym.config import check_number
 from infonav_gym.geometry import invert_transform, rigid_transform, transform_error
 from infonav_gym.sensors.ladar import Ladar, LadarScan
 from infonav_gym.world.attitude import terrain_attitude
@@ -22,6 +23,8 @@ from infonav_gym.world.world import World
 
 MOTION_AXES = ("x", "y", "z", "roll", "pitch", "yaw")  # order of motion vectors and covariances
 DEFAULT_ODOMETRY_STD = (0.1, 0.1, 0.05, math.radians(0.5), math.radians(0.5), math.radians(1.0))  # [m] x3, [rad] x3
+MAX_ODOMETRY_STD = (10.0, 10.0, 10.0, math.pi / 4, math.pi / 4, math.pi / 4)  # [m] x3, [rad] x3
+ODOMETRY_STD_UNITS = ("m", "m", "m", "rad", "rad", "rad")
 LEVER_ARM_M = 10.0  # a rotation error counts as the displacement it causes this far away [m]
 
 
@@ -69,16 +72,28 @@ def scan_on_terrain(ladar: Ladar, terrain: Terrain, vehicle_pose, np_random: np.
     return ladar.scan(terrain, vehicle_pose, np_random, attitude_rad=terrain_attitude(terrain, vehicle_pose))
 
 
+def check_odometry_std(odometry_std) -> np.ndarray:
+    """``odometry_std`` as a float array (6,), or ``ValueError`` (a ``ParameterError`` naming the axis) unless
+    each entry is in (0, ``MAX_ODOMETRY_STD``] (10 m along x, y, z; pi/4 rad about them)."""
+    std = np.asarray(odometry_std, dtype=float)
+    if std.shape != (6,):
+        raise ValueError(f"odometry_std must be 6 numbers, one per axis {MOTION_AXES}, got {odometry_std!r}")
+    for axis, value, high, unit in zip(MOTION_AXES, std.tolist(), MAX_ODOMETRY_STD, ODOMETRY_STD_UNITS):
+        check_number("frame_pair odometry_std", axis, value, 0.0, high, open_low=True, unit=unit)
+    return std
+
+
 def frame_pair(
     previous: LadarScan,
     current: LadarScan,
     np_random: np.random.Generator,
     odometry_std=DEFAULT_ODOMETRY_STD,
 ) -> FramePair:
-    """The pair with its true motion and an odometry estimate whose error is drawn from ``np_random``."""
-    std = np.asarray(odometry_std, dtype=float)
-    if std.shape != (6,) or not np.all(np.isfinite(std)) or np.any(std < 0):
-        raise ValueError(f"odometry_std must be 6 finite non-negative numbers {MOTION_AXES}, got {odometry_std!r}")
+    """The pair with its true motion and an odometry estimate whose error is drawn from ``np_random``.
+
+    ``odometry_std``: the odometry error's standard deviation along each of ``MOTION_AXES`` (``check_odometry_std``).
+    """
+    std = check_odometry_std(odometry_std)
     truth = motion_between(previous, current)
     odometry = perturbed_motion(truth, std * np_random.standard_normal(6))
     return FramePair(previous, current, truth, odometry, np.diag(std**2))

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.config import check_number
 from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pose, pixel_directions, unit_directions
 from infonav_gym.world.terrain import MATERIALS, Cylinder, Terrain, blend_in_place
 
@@ -33,6 +34,9 @@ _TEXTURE_OCTAVES = ((0.5, 0.5), (2.0, 0.3), (8.0, 0.2))  # (cell [m], weight) of
 _SHADED_PIXELS_PER_BLOCK = 4096  # hit pixels shaded at once: temporaries stay small and cache-resident
 
 
+MAX_SKY_LUMINANCE = 100.0
+MAX_EXPOSURE = 1e6  # [gray levels]
+MAX_NOISE_STD = 1000.0  # [gray levels]
 _TEXTURE_TABLE_SIZE = 256  # lattice values repeat every 256 cells (128 m at the finest octave)
 _TEXTURE_TABLE = np.random.default_rng(20240917).random((len(_TEXTURE_OCTAVES), _TEXTURE_TABLE_SIZE**2))  # fixed
 
@@ -154,9 +158,9 @@ class Camera(PanTiltGrid):
         tilt_rad: depression of the optical axis, positive = looking down [rad].
         pan_rad: azimuth of the optical axis from the vehicle heading, positive = left [rad].
         max_range_m: far plane: nothing beyond it is rendered, those pixels show sky [m].
-        sun_azimuth_rad: world azimuth towards the sun, counterclockwise from +x [rad].
+        sun_azimuth_rad: world azimuth towards the sun, counterclockwise from +x [rad], in [-2 pi, 2 pi].
         sun_elevation_rad: elevation of the sun above the horizon [rad], in (0, pi/2].
-        sky_luminance: sky brightness relative to a white (albedo 1) surface lit head-on, >= 0.
+        sky_luminance: sky brightness relative to a white (albedo 1) surface lit head-on, in [0, 100].
         ground_albedo: mean reflectance of the ground, in [0, 1].
         vegetation_albedo: reflectance of trees, in [0, 1].
         rock_albedo: reflectance of rocks, in [0, 1].
@@ -164,8 +168,9 @@ class Camera(PanTiltGrid):
         ground_texture_contrast: relative amplitude of the ground texture, in [0, 1); the ground
             albedo at ``xy`` is ``ground_albedo * (1 + contrast * ground_texture(xy))``; 0 is uniform.
         ambient: fraction of the light that is diffuse (reaches surfaces facing away from the sun), in [0, 1].
-        exposure: gray level of a white surface lit head-on (gain), >= 0.
-        noise_std: standard deviation of the Gaussian sensor noise [gray levels], >= 0.
+        exposure: gray level of a white surface lit head-on (gain), in [0, 1e6].
+        noise_std: standard deviation of the Gaussian sensor noise [gray levels], in [0, 1000].
+        rows, columns, fields of view, mount height, range, pan and tilt: as checked by ``PanTiltGrid``.
     """
 
     SENSOR_NAME = "camera"
@@ -196,20 +201,15 @@ class Camera(PanTiltGrid):
             derived = 2 * math.atan(math.tan(self.horizontal_fov_rad / 2) * self.rows / self.columns)
             object.__setattr__(self, "vertical_fov_rad", derived)
         self._check_grid()
-        if not math.isfinite(self.sun_azimuth_rad):
-            raise ValueError(f"camera sun_azimuth_rad must be finite, got {self.sun_azimuth_rad!r}")
-        if not 0 < self.sun_elevation_rad <= math.pi / 2:
-            raise ValueError(f"camera sun_elevation_rad must be in (0, pi/2] rad, got {self.sun_elevation_rad!r}")
+        name = self.SENSOR_NAME
+        check_number(name, "sun_azimuth_rad", self.sun_azimuth_rad, -2 * math.pi, 2 * math.pi, unit="rad")
+        check_number(name, "sun_elevation_rad", self.sun_elevation_rad, 0.0, math.pi / 2, open_low=True, unit="rad")
         for key in ("ground_albedo", "vegetation_albedo", "rock_albedo", "building_albedo", "ambient"):
-            value = getattr(self, key)
-            if not 0 <= value <= 1:
-                raise ValueError(f"camera {key} must be in [0, 1], got {value!r}")
-        if not 0 <= self.ground_texture_contrast < 1:
-            raise ValueError(f"camera ground_texture_contrast must be in [0, 1), got {self.ground_texture_contrast!r}")
-        for key in ("sky_luminance", "exposure", "noise_std"):
-            value = getattr(self, key)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"camera {key} must be finite and >= 0, got {value!r}")
+            check_number(name, key, getattr(self, key), 0.0, 1.0)
+        check_number(name, "ground_texture_contrast", self.ground_texture_contrast, 0.0, 1.0, open_high=True)
+        check_number(name, "sky_luminance", self.sky_luminance, 0.0, MAX_SKY_LUMINANCE)
+        check_number(name, "exposure", self.exposure, 0.0, MAX_EXPOSURE)
+        check_number(name, "noise_std", self.noise_std, 0.0, MAX_NOISE_STD, unit="gray levels")
 
     @property
     def sun_direction(self) -> np.ndarray:

@@ -6,13 +6,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.config import check_number
+
+MIN_POSITION_STD_M = 1e-3  # finer fixes make the pose covariance numerically singular [m]
+MAX_POSITION_STD_M = 100.0  # [m]
+
 
 @dataclass(frozen=True)
 class GPSSensor:
     """Measures the position ``[x, y]`` with isotropic Gaussian noise, when satellites are available.
 
     Attributes:
-        position_std_m: standard deviation of each coordinate of a fix [m] (DGPS: centimetres to decimetres).
+        position_std_m: standard deviation of each coordinate of a fix [m] (DGPS: centimetres to decimetres),
+            in [1e-3, 100].
         outages: time spans ``(start_s, end_s)`` without a fix (``start_s <= t < end_s``) [s].
     """
 
@@ -20,8 +26,9 @@ class GPSSensor:
     outages: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self):
-        if not self.position_std_m > 0:
-            raise ValueError(f"GPS position_std_m must be positive, got {self.position_std_m!r}")
+        check_number(
+            type(self).__name__, "position_std_m", self.position_std_m, MIN_POSITION_STD_M, MAX_POSITION_STD_M, unit="m"
+        )
         for span in self.outages:
             if len(span) != 2 or not span[0] < span[1]:
                 raise ValueError(f"a GPS outage must be a span (start_s, end_s) with start_s < end_s, got {span!r}")

@@ -15,9 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.config import check_number
 from infonav_gym.geometry import rigid_transform, rotation_matrix
 from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pose, unit_directions
 from infonav_gym.world.terrain import Terrain
+
+DEFAULT_RANGE_STD_M = 0.02  # range noise of the XUV's LADAR [m]
+MAX_RANGE_STD_M = 10.0  # [m]
 
 
 @dataclass(frozen=True)
@@ -34,6 +38,7 @@ class LadarScan:
         max_range_m: the sensor's maximum range [m].
         attitude_rad: the vehicle's ``(roll, pitch)`` when the scan was taken [rad] (see
             ``infonav_gym.world.attitude``); azimuths and elevations are in its body frame.
+        range_std_m: standard deviation of the range noise the scan was taken with [m] (its ``Ladar``'s).
     """
 
     ranges_m: np.ndarray
@@ -44,6 +49,7 @@ class LadarScan:
     sensor_position_m: np.ndarray
     max_range_m: float
     attitude_rad: tuple[float, float] = (0.0, 0.0)
+    range_std_m: float = DEFAULT_RANGE_STD_M
 
     @property
     def world_from_sensor(self) -> np.ndarray:
@@ -63,7 +69,7 @@ class Ladar(PanTiltGrid):
         horizontal_fov_rad: horizontal field of view [rad], in (0, pi).
         mount_height_m: optical centre above the ground under the vehicle [m].
         max_range_m: farthest return [m].
-        range_std_m: standard deviation of the Gaussian range noise [m].
+        range_std_m: standard deviation of the Gaussian range noise [m], in [0, 10].
         tilt_rad: depression of the optical axis, positive = looking down [rad].
         pan_rad: azimuth of the optical axis from the vehicle heading, positive = left [rad].
     """
@@ -76,14 +82,13 @@ class Ladar(PanTiltGrid):
     horizontal_fov_rad: float = math.radians(80.0)
     mount_height_m: float = 2.0
     max_range_m: float = 60.0
-    range_std_m: float = 0.02
+    range_std_m: float = DEFAULT_RANGE_STD_M
     tilt_rad: float = math.radians(10.0)
     pan_rad: float = 0.0
 
     def __post_init__(self):
         self._check_grid()
-        if not (math.isfinite(self.range_std_m) and self.range_std_m >= 0):
-            raise ValueError(f"LADAR range_std_m must be finite and >= 0, got {self.range_std_m!r}")
+        check_number(self.SENSOR_NAME, "range_std_m", self.range_std_m, 0.0, MAX_RANGE_STD_M, unit="m")
 
     def ray_directions(self, vehicle_pose, pan_rad: float | None = None, tilt_rad: float | None = None) -> np.ndarray:
         """World-frame unit directions (rows, columns, 3) of the pixels; see the module docstring for the order."""
@@ -130,7 +135,17 @@ class Ladar(PanTiltGrid):
         no_return = ~np.isfinite(range_m)
         noisy = np.clip(range_m + noise, 0.0, self.max_range_m)
         ranges = np.where(no_return, self.max_range_m, noisy).astype(np.float32)
-        return LadarScan(ranges, no_return, azimuth, elevation, pose, sensor_position, self.max_range_m, (roll, pitch))
+        return LadarScan(
+            ranges,
+            no_return,
+            azimuth,
+            elevation,
+            pose,
+            sensor_position,
+            self.max_range_m,
+            (roll, pitch),
+            self.range_std_m,
+        )
 
 
 def to_display_image(scan: LadarScan) -> np.ndarray:

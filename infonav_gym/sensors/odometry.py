@@ -6,22 +6,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.config import check_number, from_config
+
+MAX_ODOMETRY_STD = 10.0  # largest speed [m/s] and turn-rate [rad/s] noise standard deviation
+
 
 @dataclass(frozen=True)
 class OdometrySensor:
     """Measures ``[speed, turn_rate]`` with independent Gaussian noise.
 
     Attributes:
-        speed_std_mps: standard deviation of the speed reading [m/s].
-        turn_rate_std_rps: standard deviation of the turn-rate reading [rad/s].
+        speed_std_mps: standard deviation of the speed reading [m/s], in (0, 10].
+        turn_rate_std_rps: standard deviation of the turn-rate reading [rad/s], in (0, 10].
+
+    Raises:
+        ParameterError: (a ``ValueError``) naming the first attribute outside its range.
     """
 
     speed_std_mps: float = 0.05
     turn_rate_std_rps: float = 0.02
 
     def __post_init__(self):
-        if not (self.speed_std_mps > 0 and self.turn_rate_std_rps > 0):
-            raise ValueError(f"odometry noise standard deviations must be positive, got {self}")
+        owner = type(self).__name__
+        check_number(owner, "speed_std_mps", self.speed_std_mps, 0.0, MAX_ODOMETRY_STD, open_low=True, unit="m/s")
+        check_number(
+            owner, "turn_rate_std_rps", self.turn_rate_std_rps, 0.0, MAX_ODOMETRY_STD, open_low=True, unit="rad/s"
+        )
 
     def noise_covariance(self) -> np.ndarray:
         """Covariance of the reading's noise (2, 2)."""
@@ -31,3 +41,11 @@ class OdometrySensor:
         """A noisy reading of the executed ``control``: (2,) -> (2,), or one per robot (N, 2) -> (N, 2)."""
         control = np.asarray(control, dtype=float)
         return control + np_random.standard_normal(control.shape) * (self.speed_std_mps, self.turn_rate_std_rps)
+
+
+CONFIG_KEYS = {"speed_std_mps": "odometry_speed_std_mps", "turn_rate_std_rps": "odometry_turn_rate_std_rps"}
+
+
+def odometry_sensor_from_config(config: dict, owner: str) -> OdometrySensor:
+    """The odometry described by an env config's ``CONFIG_KEYS``; a bad value's ``ValueError`` names its key."""
+    return from_config(OdometrySensor, config, CONFIG_KEYS, owner)

@@ -12,6 +12,13 @@ import math
 
 import numpy as np
 
+from infonav_gym.config import ParameterError, check_integer, check_number
+
+MAX_ROWS = 1080  # image rows at most (full HD)
+MAX_COLUMNS = 1920  # image columns at most (full HD)
+MAX_MOUNT_HEIGHT_M = 100.0  # [m]
+MAX_SENSOR_RANGE_M = 1000.0  # [m]
+
 
 def check_pose(vehicle_pose) -> np.ndarray:
     """``vehicle_pose`` as a finite float array ``[x, y, heading]``, or ``ValueError``."""
@@ -44,14 +51,14 @@ def pixel_directions(azimuth_rad: np.ndarray, elevation_rad: np.ndarray, rows, c
 
 
 def check_pan_tilt(sensor: str, pan_rad: float, tilt_rad: float, vertical_fov_rad: float) -> None:
-    """``ValueError`` (naming ``sensor``) unless the pan is finite and the tilt keeps every row short of vertical."""
-    if not math.isfinite(pan_rad):
-        raise ValueError(f"{sensor} pan_rad must be finite, got {pan_rad!r}")
+    """``ParameterError`` (naming ``sensor``) unless the pan is in [-2 pi, 2 pi], the tilt keeping rows off vertical."""
+    check_number(sensor, "pan_rad", pan_rad, -2 * math.pi, 2 * math.pi, unit="rad")
     if not (math.isfinite(tilt_rad) and abs(tilt_rad) + vertical_fov_rad / 2 < math.pi / 2):
-        raise ValueError(
-            f"{sensor} tilt_rad={tilt_rad!r} would tilt rows to or past vertical: |tilt_rad| + vertical_fov_rad / 2 "
-            f"must stay below pi/2 (vertical_fov_rad={vertical_fov_rad!r})"
+        requirement = (
+            f"such that |tilt_rad| + vertical_fov_rad / 2 stays below pi/2, the rows short of vertical "
+            f"(vertical_fov_rad={vertical_fov_rad!r})"
         )
+        raise ParameterError(sensor, "tilt_rad", requirement, tilt_rad)
 
 
 class PanTiltGrid:
@@ -65,24 +72,21 @@ class PanTiltGrid:
     SENSOR_NAME = "sensor"
 
     def _check_image_size(self) -> None:
-        """``ValueError`` naming the field unless ``rows`` and ``columns`` are positive integers."""
-        for key in ("rows", "columns"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"{self.SENSOR_NAME} {key} must be a positive integer, got {value!r}")
+        """``ParameterError`` naming the field unless ``rows`` is in [1, 1080] and ``columns`` in [1, 1920]."""
+        check_integer(self.SENSOR_NAME, "rows", self.rows, 1, MAX_ROWS)
+        check_integer(self.SENSOR_NAME, "columns", self.columns, 1, MAX_COLUMNS)
 
     def _check_grid(self) -> None:
-        """``ValueError`` naming the field unless the grid, mount, range, pan and tilt are valid."""
+        """``ParameterError`` naming the field unless the grid, mount, range, pan and tilt are valid.
+
+        Fields of view are in (0, pi) rad, the mount height in (0, 100] m, the range in (0, 1000] m.
+        """
         name = self.SENSOR_NAME
         self._check_image_size()
         for key in ("horizontal_fov_rad", "vertical_fov_rad"):
-            value = getattr(self, key)
-            if value is None or not 0 < value < math.pi:
-                raise ValueError(f"{name} {key} must be in (0, pi) rad, i.e. (0, 180) degrees, got {value!r}")
-        for key in ("mount_height_m", "max_range_m"):
-            value = getattr(self, key)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} {key} must be positive and finite, got {value!r}")
+            check_number(name, key, getattr(self, key), 0.0, math.pi, open_low=True, open_high=True, unit="rad")
+        check_number(name, "mount_height_m", self.mount_height_m, 0.0, MAX_MOUNT_HEIGHT_M, open_low=True, unit="m")
+        check_number(name, "max_range_m", self.max_range_m, 0.0, MAX_SENSOR_RANGE_M, open_low=True, unit="m")
         check_pan_tilt(name, self.pan_rad, self.tilt_rad, self.vertical_fov_rad)
 
     def pixel_angles(

@@ -7,7 +7,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.config import check_number, from_config
 from infonav_gym.geometry import wrap_angle
+
+MIN_RANGE_STD_M = 1e-4  # finer noise makes the covariance numerically singular [m]
+MAX_RANGE_STD_M = 100.0  # [m]
+MIN_BEARING_STD_RAD = 1e-5  # [rad]
+MAX_SENSOR_RANGE_M = 1000.0  # [m]
 
 
 @dataclass(frozen=True)
@@ -15,11 +21,14 @@ class RangeBearingSensor:
     """Range and bearing to point landmarks; range noise grows with distance.
 
     Attributes:
-        range_std_m: range noise standard deviation at zero range [m].
-        range_std_per_m: growth of that standard deviation per metre of range [m/m].
-        bearing_std_rad: bearing noise standard deviation [rad].
-        max_range_m: landmarks farther than this are not detected [m].
-        fov_rad: full field of view, centred on the heading [rad] (2 pi = all around).
+        range_std_m: range noise standard deviation at zero range [m], in [1e-4, 100].
+        range_std_per_m: growth of that standard deviation per metre of range [m/m], in [0, 1].
+        bearing_std_rad: bearing noise standard deviation [rad], in [1e-5, pi].
+        max_range_m: landmarks farther than this are not detected [m], in (0, 1000].
+        fov_rad: full field of view, centred on the heading [rad] (2 pi = all around), in (0, 2 pi].
+
+    Raises:
+        ParameterError: (a ``ValueError``) naming the first attribute outside its range.
     """
 
     range_std_m: float = 0.1
@@ -29,10 +38,12 @@ class RangeBearingSensor:
     fov_rad: float = math.pi
 
     def __post_init__(self):
-        if not (self.range_std_m > 0 and self.range_std_per_m >= 0 and self.bearing_std_rad > 0):
-            raise ValueError(f"range-bearing noise must be positive, got {self}")
-        if not (self.max_range_m > 0 and 0 < self.fov_rad <= 2 * math.pi):
-            raise ValueError(f"need max_range_m > 0 and 0 < fov_rad <= 2 pi, got {self}")
+        owner = type(self).__name__
+        check_number(owner, "range_std_m", self.range_std_m, MIN_RANGE_STD_M, MAX_RANGE_STD_M, unit="m")
+        check_number(owner, "range_std_per_m", self.range_std_per_m, 0.0, 1.0, unit="m/m")
+        check_number(owner, "bearing_std_rad", self.bearing_std_rad, MIN_BEARING_STD_RAD, math.pi, unit="rad")
+        check_number(owner, "max_range_m", self.max_range_m, 0.0, MAX_SENSOR_RANGE_M, open_low=True, unit="m")
+        check_number(owner, "fov_rad", self.fov_rad, 0.0, 2 * math.pi, open_low=True, unit="rad")
 
     def noise_covariance(self, ranges) -> np.ndarray:
         """Measurement noise covariance at each range: (N,) -> (N, 2, 2)."""
@@ -59,13 +70,15 @@ class RangeBearingSensor:
         )
 
 
-def range_bearing_sensor_from_config(config: dict) -> RangeBearingSensor:
-    """The sensor described by an env config's ``range_std_m``, ``range_std_per_m``, ``bearing_std_rad``,
-    ``sensor_max_range_m`` and ``sensor_fov_rad`` keys."""
-    return RangeBearingSensor(
-        config["range_std_m"],
-        config["range_std_per_m"],
-        config["bearing_std_rad"],
-        config["sensor_max_range_m"],
-        config["sensor_fov_rad"],
-    )
+CONFIG_KEYS = {  # the env config key of each attribute
+    "range_std_m": "range_std_m",
+    "range_std_per_m": "range_std_per_m",
+    "bearing_std_rad": "bearing_std_rad",
+    "max_range_m": "sensor_max_range_m",
+    "fov_rad": "sensor_fov_rad",
+}
+
+
+def range_bearing_sensor_from_config(config: dict, owner: str) -> RangeBearingSensor:
+    """The sensor described by an env config's ``CONFIG_KEYS``; a bad value's ``ValueError`` names its key."""
+    return from_config(RangeBearingSensor, config, CONFIG_KEYS, owner)

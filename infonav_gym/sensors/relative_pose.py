@@ -7,9 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.config import check_number
 from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.sensors.range_bearing import RangeBearingSensor
+from infonav_gym.sensors.range_bearing import MIN_BEARING_STD_RAD, RangeBearingSensor
 
 
 @dataclass(frozen=True)
@@ -22,8 +23,8 @@ class RelativePoseSensor:
 
     Attributes:
         range_bearing: the range-bearing part of the measurement.
-        heading_std_rad: relative-heading noise standard deviation at zero range [rad].
-        heading_std_per_m: its growth per metre of range [rad/m].
+        heading_std_rad: relative-heading noise standard deviation at zero range [rad], in [1e-5, pi].
+        heading_std_per_m: its growth per metre of range [rad/m], in [0, 0.1].
     """
 
     range_bearing: RangeBearingSensor
@@ -31,8 +32,9 @@ class RelativePoseSensor:
     heading_std_per_m: float = 0.0
 
     def __post_init__(self):
-        if not (self.heading_std_rad > 0 and self.heading_std_per_m >= 0):
-            raise ValueError(f"relative-heading noise must be positive, got {self}")
+        owner = type(self).__name__
+        check_number(owner, "heading_std_rad", self.heading_std_rad, MIN_BEARING_STD_RAD, math.pi, unit="rad")
+        check_number(owner, "heading_std_per_m", self.heading_std_per_m, 0.0, 0.1, unit="rad/m")
 
     @property
     def max_range_m(self) -> float:

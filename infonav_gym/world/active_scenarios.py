@@ -6,7 +6,17 @@ import math
 
 import numpy as np
 
-from infonav_gym.world.scenarios import CircleObstacle, Route, Scenario, _box_walls, _rejection_sample
+from infonav_gym.config import Interval, ParameterError, check_arguments
+from infonav_gym.world.scenarios import (
+    FIELD_ARGUMENTS,
+    MAX_FIELD_SIZE_M,
+    MAX_LANDMARKS,
+    CircleObstacle,
+    Route,
+    Scenario,
+    _box_walls,
+    _rejection_sample,
+)
 from infonav_gym.world.world import World
 
 START_MARGIN_M = 2.5  # distance of the start and the goal from the left and right walls [m]
@@ -15,6 +25,11 @@ GOAL_CLUSTER_LANDMARKS = 1
 MIN_GOAL_FIELD_LANDMARKS = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS + 1
 LIT_OFFSET_M = (7.0, 11.0)  # distance of the lit-side landmarks from the straight line start-goal [m]
 MIN_GOAL_FIELD_SIZE_M = 3 * LIT_OFFSET_M[1]
+GOAL_FIELD_ARGUMENTS = {  # the allowed arguments of goal_field (a size of at least 3 lit offsets)
+    "n_landmarks": Interval(MIN_GOAL_FIELD_LANDMARKS, MAX_LANDMARKS, integer=True),
+    "n_obstacles": FIELD_ARGUMENTS["n_obstacles"],
+    "size_m": Interval(MIN_GOAL_FIELD_SIZE_M, MAX_FIELD_SIZE_M, unit="m"),
+}
 
 
 class CommandedWorld(World):
@@ -57,16 +72,13 @@ def goal_field(
     The route holds the start pose (facing the goal) and the goal as its one waypoint.
 
     Raises:
-        ValueError: for fewer than ``MIN_GOAL_FIELD_LANDMARKS`` landmarks, a negative
-            obstacle count, or a field too small for the layout.
+        ParameterError: (a ``ValueError``) for an argument outside its ``GOAL_FIELD_ARGUMENTS`` interval, or a
+            size below three times the largest lit offset.
+        ValueError: when the obstacles do not fit.
     """
-    if n_landmarks < MIN_GOAL_FIELD_LANDMARKS or n_obstacles < 0:
-        raise ValueError(
-            f"goal_field needs n_landmarks >= {MIN_GOAL_FIELD_LANDMARKS} and n_obstacles >= 0, "
-            f"got n_landmarks={n_landmarks}, n_obstacles={n_obstacles}"
-        )
+    check_arguments("goal_field", GOAL_FIELD_ARGUMENTS, n_landmarks=n_landmarks, n_obstacles=n_obstacles, size_m=size_m)
     if size_m < 3 * max(lit_offset_m):
-        raise ValueError(f"goal_field needs size_m >= {3 * max(lit_offset_m):g} m for its layout, got {size_m!r}")
+        raise ParameterError("goal_field", "size_m", f">= {3 * max(lit_offset_m):g} m for its layout", size_m)
     start = np.array([START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
     goal = np.array([size_m - START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
     along = (goal - start) / np.linalg.norm(goal - start)

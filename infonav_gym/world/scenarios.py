@@ -9,9 +9,35 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from infonav_gym.config import Interval, ParameterError, check_arguments
 from infonav_gym.geometry import distance_to_loop
 
 CORRIDOR_LANDMARK_COUNT = 4
+MAX_SPEED_MPS = 50.0  # fastest cruise speed of a route [m/s]
+MIN_FIELD_SIZE_M = 10.0  # smallest side of a square field [m]
+MAX_FIELD_SIZE_M = 1000.0  # largest side of a square field [m]
+MAX_LANDMARKS = 100  # most landmarks of a field
+MAX_OBSTACLES = 100  # most round obstacles of a field
+MAX_CANOPIES = 20  # most GPS-denied zones of a team field
+MAX_ROBOTS = 32  # largest team
+MAX_WAYPOINTS = 100  # most vertices of a random closed route
+DEFAULT_WAYPOINTS = 6  # vertices of a random closed route unless a builder is told otherwise
+SPEED_MPS = Interval(0.0, MAX_SPEED_MPS, open_low=True, unit="m/s")  # a route's cruise speed
+WAYPOINT_COUNT = Interval(3, MAX_WAYPOINTS, integer=True)  # vertices of a random closed route
+CORRIDOR_ARGUMENTS = {"speed_mps": SPEED_MPS}  # the allowed arguments of each builder
+FIELD_ARGUMENTS = {
+    "n_landmarks": Interval(0, MAX_LANDMARKS, integer=True),
+    "n_obstacles": Interval(0, MAX_OBSTACLES, integer=True),
+    "size_m": Interval(MIN_FIELD_SIZE_M, MAX_FIELD_SIZE_M, unit="m"),
+    "speed_mps": SPEED_MPS,
+    "n_waypoints": WAYPOINT_COUNT,
+}
+TEAM_FIELD_ARGUMENTS = {
+    **{name: FIELD_ARGUMENTS[name] for name in ("n_obstacles", "size_m", "speed_mps", "n_waypoints")},
+    "n_robots": Interval(1, MAX_ROBOTS, integer=True),  # and no more than fit: team_route_bands
+    "n_canopies": Interval(0, MAX_CANOPIES, integer=True),
+}
+CONVOY_ARGUMENTS = {"n_robots": Interval(2, MAX_ROBOTS, integer=True), "speed_mps": SPEED_MPS}
 
 
 @dataclass(frozen=True)
@@ -42,8 +68,7 @@ class Route:
             waypoints = np.zeros((0, 2))
         if waypoints.ndim != 2 or waypoints.shape[1] != 2 or not np.all(np.isfinite(waypoints)):
             raise ValueError(f"route waypoints must be a finite (W, 2) array [m], got shape {waypoints.shape}")
-        if not self.speed_mps > 0:
-            raise ValueError(f"route speed_mps must be positive [m/s], got {self.speed_mps!r}")
+        SPEED_MPS.check("route", "speed_mps", self.speed_mps)
         waypoints.flags.writeable = False
         object.__setattr__(self, "waypoints", waypoints)
 
@@ -84,6 +109,7 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
     fixed; ``np_random`` is accepted for a uniform builder signature.
     """
     del np_random
+    check_arguments("corridor", CORRIDOR_ARGUMENTS, speed_mps=speed_mps)
     half_width, length = 3.0, 40.0
     walls = (
         ((-2.0, half_width), (length, half_width)),
@@ -155,13 +181,19 @@ def field(
     n_obstacles: int = 6,
     size_m: float = 40.0,
     speed_mps: float = 1.0,
-    n_waypoints: int = 6,
+    n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> Scenario:
     """An open square field: random landmarks and round obstacles around a random closed route.
 
     Obstacles keep clear of the route and landmarks stay outside obstacles, so
     the robot never collides and every landmark can be seen from somewhere.
+
+    Raises:
+        ParameterError: (a ``ValueError``) for an argument outside its ``FIELD_ARGUMENTS`` interval.
+        ValueError: when the obstacles or landmarks do not fit.
     """
+    arguments = {"n_landmarks": n_landmarks, "n_obstacles": n_obstacles, "size_m": size_m, "speed_mps": speed_mps}
+    check_arguments("field", FIELD_ARGUMENTS, **arguments, n_waypoints=n_waypoints)
     center = np.array([size_m / 2, size_m / 2])
     angles = 2 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
     route = _polygon(center, angles, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
@@ -250,6 +282,24 @@ def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> 
     )
 
 
+def team_route_bands(n_robots: int, size_m: float, n_waypoints: int) -> list[tuple[float, float]]:
+    """The radial bands of ``team_field``'s routes, or ``ParameterError`` naming ``n_robots`` when they do not fit.
+
+    Deterministic, so an env can check at construction that its team fits its field.
+    """
+    try:
+        return _radial_bands(
+            n_robots,
+            inner_m=2.0,  # the innermost route keeps its waypoints >= ~2 m apart
+            outer_m=size_m / 2 - 2.5,
+            gap_m=TEAM_ROUTE_GAP_M,
+            sector_rad=2 * math.pi * (1 + 2 * _TEAM_ANGLE_JITTER) / n_waypoints,
+            max_width_m=0.15 * size_m,
+        )
+    except ValueError as error:
+        raise ParameterError("team_field", "n_robots", f"a team whose routes fit ({error})", n_robots) from None
+
+
 def team_field(
     np_random: np.random.Generator,
     n_robots: int = 4,
@@ -257,7 +307,7 @@ def team_field(
     n_canopies: int = 2,
     size_m: float = 40.0,
     speed_mps: float = 1.0,
-    n_waypoints: int = 6,
+    n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> Scenario:
     """An open square field for a team: each robot loops its own route around the centre.
 
@@ -268,22 +318,14 @@ def team_field(
     robot's start, so no robot stays under one for good. There are no landmarks.
 
     Raises:
-        ValueError: for a non-positive count, or when the routes, obstacles or canopies do not fit.
+        ParameterError: (a ``ValueError``) for an argument outside its ``TEAM_FIELD_ARGUMENTS`` interval
+            or routes that do not fit (``team_route_bands``).
+        ValueError: when the obstacles or canopies do not fit.
     """
-    if n_robots < 1 or n_waypoints < 3 or n_obstacles < 0 or n_canopies < 0:
-        raise ValueError(
-            "team_field needs n_robots >= 1, n_waypoints >= 3 and non-negative n_obstacles and n_canopies, got "
-            f"n_robots={n_robots}, n_waypoints={n_waypoints}, n_obstacles={n_obstacles}, n_canopies={n_canopies}"
-        )
+    counts = {"n_robots": n_robots, "n_obstacles": n_obstacles, "n_canopies": n_canopies, "n_waypoints": n_waypoints}
+    check_arguments("team_field", TEAM_FIELD_ARGUMENTS, **counts, size_m=size_m, speed_mps=speed_mps)
+    bands = team_route_bands(n_robots, size_m, n_waypoints)
     center = np.array([size_m / 2, size_m / 2])
-    bands = _radial_bands(
-        n_robots,
-        inner_m=2.0,  # the innermost route keeps its waypoints >= ~2 m apart
-        outer_m=size_m / 2 - 2.5,
-        gap_m=TEAM_ROUTE_GAP_M,
-        sector_rad=2 * math.pi * (1 + 2 * _TEAM_ANGLE_JITTER) / n_waypoints,
-        max_width_m=0.15 * size_m,
-    )
     first_angle = np_random.uniform(0.0, 2 * math.pi)
     polygons = []
     for robot, (low_m, high_m) in enumerate(bands):
@@ -325,8 +367,7 @@ def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float =
     fixed; ``np_random`` is accepted for a uniform builder signature.
     """
     del np_random
-    if n_robots < 2:
-        raise ValueError(f"the convoy needs at least 2 robots, got {n_robots}")
+    check_arguments("convoy", CONVOY_ARGUMENTS, n_robots=n_robots, speed_mps=speed_mps)
     lanes = [-CONVOY_LANE_SPACING_M * k for k in range(n_robots)]
     half = CONVOY_LANE_SPACING_M / 2
     x_min, x_max, y_min, y_max = -3.0, CONVOY_LENGTH_M + 3.0, lanes[-1] - half, half

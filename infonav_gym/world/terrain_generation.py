@@ -7,6 +7,7 @@ import math
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
+from infonav_gym.config import Interval, ParameterError, check_arguments, check_number
 from infonav_gym.geometry import distance_to_loop
 from infonav_gym.world.terrain import Box, Cylinder, Terrain, finite_vector
 
@@ -15,6 +16,17 @@ _HILL_STD_M = 2.0  # height standard deviation of the smooth hills at roughness 
 _HILL_CORRELATION_M = 8.0  # length scale of the hills [m]
 _BUMP_STD_M = 0.4  # height standard deviation of the small bumps at roughness 1 [m]
 _BUMP_CORRELATION_M = 1.0  # length scale of the bumps [m]
+DEFAULT_CELL_M = 0.5  # grid spacing of random scenes [m]
+MAX_GRID_POINTS = 2001  # most grid points along a side (a float64 height map of 32 MB)
+MAX_ROUGHNESS = 10.0
+MAX_TERRAIN_OBSTACLES = 500  # most trees, rocks or buildings each
+OBSTACLE_COUNT = Interval(0, MAX_TERRAIN_OBSTACLES, integer=True)
+TERRAIN_ARGUMENTS = {  # the allowed arguments of make_terrain (size_m: see _grid_points)
+    "roughness": Interval(0.0, MAX_ROUGHNESS),
+    "n_trees": OBSTACLE_COUNT,
+    "n_rocks": OBSTACLE_COUNT,
+    "n_buildings": OBSTACLE_COUNT,
+}
 
 
 def flat_terrain(size_m: float = 100.0, cell_m: float = 1.0, center_m=(0.0, 0.0), height_m: float = 0.0) -> Terrain:
@@ -26,10 +38,10 @@ def flat_terrain(size_m: float = 100.0, cell_m: float = 1.0, center_m=(0.0, 0.0)
 
 
 def _grid_points(size_m: float, cell_m: float) -> int:
+    """Grid points along a side; ``ParameterError`` unless ``cell_m <= size_m <= (MAX_GRID_POINTS - 1) * cell_m``."""
     if not (math.isfinite(cell_m) and cell_m > 0):
-        raise ValueError(f"cell_m must be positive and finite, got {cell_m!r}")
-    if not (math.isfinite(size_m) and size_m >= cell_m):
-        raise ValueError(f"size_m must be finite and at least cell_m={cell_m}, got {size_m!r}")
+        raise ParameterError("terrain", "cell_m", "positive and finite [m]", cell_m)
+    check_number("terrain", "size_m", size_m, cell_m, (MAX_GRID_POINTS - 1) * cell_m, unit=f"m (cell_m={cell_m:g} m)")
     return round(size_m / cell_m) + 1
 
 
@@ -42,7 +54,7 @@ def _unit_field(np_random: np.random.Generator, points: int, correlation_cells: 
 def make_terrain(
     np_random: np.random.Generator,
     size_m: float = 60.0,
-    cell_m: float = 0.5,
+    cell_m: float = DEFAULT_CELL_M,
     roughness: float = 0.5,
     n_trees: int = 15,
     n_rocks: int = 5,
@@ -64,21 +76,23 @@ def make_terrain(
         np_random: the only source of randomness.
         size_m: side of the square scene [m].
         cell_m: grid spacing [m].
-        roughness: dimensionless ground roughness, >= 0.
-        n_trees: trees (vegetation cylinders, radius 0.2-0.6 m, 4-12 m tall).
+        roughness: dimensionless ground roughness, in [0, 10].
+        n_trees: trees (vegetation cylinders, radius 0.2-0.6 m, 4-12 m tall); each count in [0, 500].
         n_rocks: rocks (rock cylinders, radius 0.4-1.5 m, 0.3-1.5 m tall).
         n_buildings: buildings (boxes, sides 3-10 m, 3-8 m tall).
         center_m: ``(x, y)`` of the scene centre [m].
         clear_radius_m: obstacle-free distance around ``clear_path_m`` [m].
         clear_path_m: a closed polyline (W, 2) [m] the obstacles keep clear of, e.g. a vehicle's
             route; default: the single point ``center_m``.
+
+    Raises:
+        ParameterError: (a ``ValueError``) for a size outside [cell_m, 2000 cells] or another argument outside
+            its ``TERRAIN_ARGUMENTS`` interval.
+        ValueError: for a bad clear path or when the obstacles do not fit.
     """
     points = _grid_points(size_m, cell_m)
-    if not (math.isfinite(roughness) and roughness >= 0):
-        raise ValueError(f"roughness must be a finite number >= 0, got {roughness!r}")
-    for name, count in (("n_trees", n_trees), ("n_rocks", n_rocks), ("n_buildings", n_buildings)):
-        if int(count) != count or count < 0:
-            raise ValueError(f"{name} must be a non-negative integer, got {count!r}")
+    counts = {"n_trees": n_trees, "n_rocks": n_rocks, "n_buildings": n_buildings}
+    check_arguments("make_terrain", TERRAIN_ARGUMENTS, roughness=roughness, **counts)
     if not (math.isfinite(clear_radius_m) and 0 <= clear_radius_m < size_m / 2):
         raise ValueError(f"clear_radius_m must be in [0, size_m / 2 = {size_m / 2}), got {clear_radius_m!r}")
     hills = _unit_field(np_random, points, _HILL_CORRELATION_M / cell_m)

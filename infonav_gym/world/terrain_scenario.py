@@ -12,10 +12,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from infonav_gym.config import check_positive
-from infonav_gym.world.scenarios import CircleObstacle, Scenario, _box_walls, _closed_route, _polygon
+from infonav_gym.config import Interval, check_arguments, check_config_arguments
+from infonav_gym.world.scenarios import (
+    DEFAULT_WAYPOINTS,
+    SPEED_MPS,
+    WAYPOINT_COUNT,
+    CircleObstacle,
+    Scenario,
+    _box_walls,
+    _closed_route,
+    _polygon,
+)
 from infonav_gym.world.terrain import Terrain
-from infonav_gym.world.terrain_generation import make_terrain
+from infonav_gym.world.terrain_generation import DEFAULT_CELL_M, MAX_GRID_POINTS, TERRAIN_ARGUMENTS, make_terrain
 
 ROUTE_CLEARANCE_M = 3.0  # obstacles keep this far from the route [m]
 SCENE_CONFIG = {  # env config keys of a terrain_loop scene, with their defaults
@@ -24,6 +33,12 @@ SCENE_CONFIG = {  # env config keys of a terrain_loop scene, with their defaults
     "n_trees": 25,
     "n_rocks": 8,
     "n_buildings": 3,
+}
+TERRAIN_LOOP_ARGUMENTS = {  # the allowed arguments of terrain_loop
+    **TERRAIN_ARGUMENTS,
+    "size_m": Interval(DEFAULT_CELL_M, (MAX_GRID_POINTS - 1) * DEFAULT_CELL_M, unit="m"),
+    "speed_mps": SPEED_MPS,
+    "n_waypoints": WAYPOINT_COUNT,
 }
 
 
@@ -53,16 +68,20 @@ def terrain_loop(
     n_rocks: int = 8,
     n_buildings: int = 3,
     speed_mps: float = 2.0,
-    n_waypoints: int = 6,
+    n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> TerrainScenario:
     """A random scene (see ``make_terrain``) and a closed route through it that obstacles keep clear of.
 
     The route is a jittered polygon around the scene centre at 22-36 % of ``size_m``; trees,
     rocks and buildings stand anywhere else, so the views along the loop change from open
     ground to woods to buildings.
+
+    Raises:
+        ParameterError: (a ``ValueError``) for an argument outside its ``TERRAIN_LOOP_ARGUMENTS`` interval.
     """
-    if int(n_waypoints) != n_waypoints or n_waypoints < 3:
-        raise ValueError(f"n_waypoints must be an integer >= 3, got {n_waypoints!r}")
+    counts = {"n_trees": n_trees, "n_rocks": n_rocks, "n_buildings": n_buildings, "n_waypoints": n_waypoints}
+    check_arguments("terrain_loop", TERRAIN_LOOP_ARGUMENTS, size_m=size_m, roughness=roughness, **counts)
+    check_arguments("terrain_loop", TERRAIN_LOOP_ARGUMENTS, speed_mps=speed_mps)
     center = np.zeros(2)
     sectors = np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)
     route = _polygon(center, 2 * math.pi * sectors / n_waypoints, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
@@ -81,20 +100,21 @@ def terrain_loop(
     return TerrainScenario(with_terrain_obstacles(drive, terrain), terrain)
 
 
+_LOOP_CONFIG_KEYS = {  # the env config key of each terrain_loop argument
+    "size_m": "scene_size_m",
+    "roughness": "roughness",
+    "n_trees": "n_trees",
+    "n_rocks": "n_rocks",
+    "n_buildings": "n_buildings",
+    "speed_mps": "speed_mps",
+}
+
+
 def check_scene_config(config: dict, owner: str) -> None:
-    """``ValueError`` naming the key unless the ``SCENE_CONFIG`` keys of an env's ``config`` are valid."""
-    check_positive(config, ["scene_size_m"], owner)
-    check_positive(config, ["roughness", "n_trees", "n_rocks", "n_buildings"], owner, allow_zero=True)
+    """``ValueError`` naming the key unless an env config's ``SCENE_CONFIG`` keys and ``speed_mps`` are valid."""
+    check_config_arguments(config, owner, "terrain_loop", TERRAIN_LOOP_ARGUMENTS, _LOOP_CONFIG_KEYS)
 
 
 def terrain_loop_from_config(np_random: np.random.Generator, config: dict) -> TerrainScenario:
     """``terrain_loop`` with an env config's ``SCENE_CONFIG`` keys and its ``speed_mps``."""
-    return terrain_loop(
-        np_random,
-        size_m=config["scene_size_m"],
-        roughness=config["roughness"],
-        n_trees=config["n_trees"],
-        n_rocks=config["n_rocks"],
-        n_buildings=config["n_buildings"],
-        speed_mps=config["speed_mps"],
-    )
+    return terrain_loop(np_random, **{argument: config[key] for argument, key in _LOOP_CONFIG_KEYS.items()})

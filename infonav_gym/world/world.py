@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pymunk
 
+from infonav_gym.config import Interval
 from infonav_gym.estimation.models import unicycle_control
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.world.scenarios import Scenario
@@ -17,6 +18,16 @@ _OBSTACLES_ONLY = pymunk.ShapeFilter(mask=OBSTACLE_CATEGORY)
 _ROBOT_MASS_KG = 10.0
 _CLEAR_BOX_MARGIN_M = 2.0  # a robot's remembered obstacle-free box extends this far beyond its reach [m]
 _EMPTY_BOX = (math.inf, math.inf, -math.inf, -math.inf)  # (left, bottom, right, top) that contains nothing
+MAX_TIME_STEP_S = 60.0  # longest ``step`` [s]; near contacts it takes up to 600 Pymunk substeps
+TIME_STEP_S = Interval(0.0, MAX_TIME_STEP_S, open_low=True, unit="s")  # the allowed ``step`` durations
+WORLD_ARGUMENTS = {  # the allowed arguments of World
+    "robot_radius_m": Interval(0.0, 10.0, open_low=True, unit="m"),
+    "max_turn_rate_rps": Interval(0.0, 100.0, open_low=True, unit="rad/s"),
+    "heading_gain": Interval(0.0, 1000.0, open_low=True, unit="1/s"),
+    "waypoint_tolerance_m": Interval(0.0, 100.0, open_low=True, unit="m"),
+    "wall_thickness_m": Interval(0.0, 10.0, open_low=True, unit="m"),
+    "max_physics_step_s": Interval(1e-3, 1.0, unit="s"),  # at most 60000 substeps of a longest step
+}
 
 
 class World:
@@ -35,6 +46,9 @@ class World:
         max_physics_step_s: longest Pymunk substep [s] near contacts; an env step is split into
             equal substeps when a wall, obstacle or other robot is within reach of some robot,
             else taken in one step.
+
+    Raises:
+        ParameterError: (a ``ValueError``) for an argument outside its ``WORLD_ARGUMENTS`` interval.
     """
 
     def __init__(
@@ -52,6 +66,8 @@ class World:
         self.waypoint_tolerance_m = waypoint_tolerance_m
         self.wall_thickness_m = wall_thickness_m
         self.max_physics_step_s = max_physics_step_s
+        for name, interval in WORLD_ARGUMENTS.items():
+            interval.check("World", name, getattr(self, name))
         self.scenario: Scenario | None = None
         self.space: pymunk.Space | None = None
         self.robot_bodies: list[pymunk.Body] = []
@@ -128,7 +144,12 @@ class World:
 
         Returns:
             The executed ``[speed, turn_rate]`` of every robot (N, 2) [m/s, rad/s].
+
+        Raises:
+            ParameterError: (a ``ValueError``) unless ``dt`` is in ``TIME_STEP_S``, (0, 60] s.
         """
+        if not 0.0 < dt <= MAX_TIME_STEP_S:
+            TIME_STEP_S.check("World.step", "dt", dt)
         speeds = []
         for robot, (body, (x, y, heading)) in enumerate(zip(self.robot_bodies, self._poses)):
             speed, turn_rate = self._waypoint_control(robot, x, y, heading)
