@@ -252,7 +252,7 @@ def build_model(
     """
     if hyperparameters is None:
         hyperparameters = load_hyperparameters(env_id)
-    n_envs = int(n_envs or hyperparameters.get("n_envs", 8))
+    n_envs = int(hyperparameters.get("n_envs", 8) if n_envs is None else n_envs)
     if n_envs < 1:
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
     if api_of(env_id) == PARALLEL:
@@ -312,7 +312,7 @@ def train(
     output_dir = Path(output_dir)
     if hyperparameters is None:
         hyperparameters = load_hyperparameters(env_id)
-    hyperparameters = {**hyperparameters, "n_envs": int(n_envs or hyperparameters.get("n_envs", 8))}
+    hyperparameters = {**hyperparameters, "n_envs": int(hyperparameters.get("n_envs", 8) if n_envs is None else n_envs)}
     tensorboard_log = str(output_dir / "tensorboard") if tensorboard else None
     with torch_threads(default_num_threads()):
         model = build_model(

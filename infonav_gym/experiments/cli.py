@@ -171,8 +171,6 @@ def _train(args) -> dict:
         from agents.ppo import load_hyperparameters, train
     except ImportError as error:
         raise ValueError(f"training needs the rl extra (pip install 'infonav-gym[rl]'): {error}") from None
-    if args.timesteps < 1 or args.n_envs < 1:
-        raise ValueError(f"--timesteps and --n-envs must be >= 1, got {args.timesteps} and {args.n_envs}")
     output = args.output or Path("models") / f"{args.env.rsplit('/', 1)[-1]}_seed{args.seed}"
     check_output_dir(output, "--output")
     hyperparameters = load_hyperparameters(args.env, args.hyperparams) if args.hyperparams else None
@@ -239,20 +237,24 @@ def _replay(args, argv) -> dict:
     import warnings
 
     from infonav_gym.datasets import mrclam
-    from infonav_gym.experiments.replay import POLICIES, ReplayConfig, markdown_table, run_experiments, write_results
+    from infonav_gym.experiments.replay import (
+        ReplayConfig,
+        check_experiments,
+        markdown_table,
+        run_experiments,
+        write_results,
+    )
 
     policies = [name.strip() for name in args.policy.split(",") if name.strip()]
-    unknown = [name for name in policies if name not in POLICIES]
-    if unknown or not policies:
-        raise ValueError(f"unknown policy {unknown or args.policy!r}: expected one of {', '.join(POLICIES)}")
+    if not policies:
+        raise ValueError(f"--policy takes comma-separated policy names, got {args.policy!r}")
     try:
         ks = [int(value) for value in args.k.split(",")]
         windows = [float(value) for value in args.window_s.split(",")]
     except ValueError:
         message = f"--k and --window-s take comma-separated numbers, got {args.k!r}, {args.window_s!r}"
         raise ValueError(message) from None
-    if min(ks) < 1 or min(windows) <= 0 or args.seeds < 1:
-        raise ValueError(f"need k >= 1, window-s > 0 and seeds >= 1, got {ks}, {windows}, {args.seeds}")
+    check_experiments(policies, ks, windows, args.seeds)  # before the dataset loads
     stem = check_output_stem(args.output, REPLAY_SUFFIXES, "--output") if args.output else None
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -270,8 +272,6 @@ def _replay(args, argv) -> dict:
             file=sys.stderr,
         )
     outage = (args.outage_robot, args.outage_start_s, args.outage_end_s) if args.outage_robot is not None else None
-    if outage and args.outage_robot not in dataset.robots:
-        raise ValueError(f"--outage-robot {args.outage_robot} is not one of the robots {list(dataset.robots)}")
     result = run_experiments(
         dataset,
         policies,

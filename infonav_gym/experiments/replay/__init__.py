@@ -8,8 +8,17 @@ policies and budgets and runs the absolute-sensing outage experiment.
 
 from infonav_gym.experiments.replay.filters import ReplayConfig
 from infonav_gym.experiments.replay.policies import POLICIES
-from infonav_gym.experiments.replay.report import markdown_table, run_experiments, write_results
+from infonav_gym.experiments.replay.report import check_experiments, markdown_table, run_experiments, write_results
 from infonav_gym.experiments.replay.run import replay
 from infonav_gym.experiments.replay.timeline import make_timeline
 
-__all__ = ["POLICIES", "ReplayConfig", "make_timeline", "markdown_table", "replay", "run_experiments", "write_results"]
+__all__ = [
+    "POLICIES",
+    "ReplayConfig",
+    "check_experiments",
+    "make_timeline",
+    "markdown_table",
+    "replay",
+    "run_experiments",
+    "write_results",
+]

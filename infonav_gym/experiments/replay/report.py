@@ -11,10 +11,21 @@ from tqdm.auto import tqdm
 from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.experiments.replay.filters import ReplayConfig
 from infonav_gym.experiments.replay.metrics import mean_and_ci95
+from infonav_gym.experiments.replay.policies import POLICIES
 from infonav_gym.experiments.replay.run import replay, replay_header
 from infonav_gym.experiments.replay.timeline import make_timeline
 
 ROW_KEYS = ("position_rmse_m", "heading_rmse_rad", "mean_nees", "updates_used", "mean_entropy_nats", "mean_nis")
+
+
+def check_experiments(policies, ks, windows_s, n_seeds: int) -> None:
+    """Raise ``ValueError`` unless the policies are known and the budgets (``k >= 1``, ``window_s > 0``) and
+    ``n_seeds >= 1`` make sense; ``run_experiments`` calls it, a caller may too before loading a dataset."""
+    unknown = [name for name in policies if name not in POLICIES]
+    if unknown:
+        raise ValueError(f"unknown policy {unknown!r}: expected one of {', '.join(POLICIES)}")
+    if not ks or not windows_s or min(ks) < 1 or not min(windows_s) > 0 or n_seeds < 1:
+        raise ValueError(f"need k >= 1, window-s > 0 and seeds >= 1, got {list(ks)}, {list(windows_s)}, {n_seeds}")
 
 
 def run_experiments(
@@ -49,6 +60,9 @@ def run_experiments(
     Returns:
         A JSON-ready dict with ``rows`` (one per policy and budget), ``dead_reckoning``, ``runs`` and ``outage``.
     """
+    check_experiments(policies, ks, windows_s, n_seeds)
+    if outage and outage[0] not in dataset.robots:
+        raise ValueError(f"outage robot {outage[0]} is not one of the robots {list(dataset.robots)}")
     base = config or ReplayConfig()
     timeline = make_timeline(dataset, dt=dt, duration_s=duration_s)
     plan = []
