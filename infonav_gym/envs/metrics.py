@@ -136,7 +136,7 @@ LOCALIZATION_METRICS = (
     EpisodeMetric("pose_rmse_m", RMSE_TITLE, root_mean_square("position_error_m")),
 )
 TEAM_LOCALIZATION_METRICS = (  # the team's (joint-state) MI; entropy and RMSE are means over the robots
-    EpisodeMetric("cumulative_mi", CUMULATIVE_MI_TITLE, team_summed_reward_term("team_mutual_information")),
+    EpisodeMetric("cumulative_mi", "team " + CUMULATIVE_MI_TITLE, team_summed_reward_term("team_mutual_information")),
     EpisodeMetric("final_pose_entropy", POSE_ENTROPY_TITLE, team_mean_final_value("pose_entropy")),
     EpisodeMetric("pose_rmse_m", RMSE_TITLE, team_mean_root_mean_square("position_error_m")),
 )

@@ -39,6 +39,8 @@ class EnvTraits:
             without usable points); otherwise its gain is positive.
         reward_terms: the keys of ``info["reward_terms"]`` after every step, in order (empty: not declared).
         info_keys: info keys the env adds to ``COMMON_INFO_KEYS`` (and ``POSE_INFO_KEYS``).
+        reward_config_keys: config keys that decide what the reward means (e.g. ``team_reward``); every
+            evaluation names their values in its heading, so a default reward choice is visible.
         noop_action: an action that observes nothing, which the random baseline takes only when nothing
             else is valid (``RandomAgent(noop_action=...)``); ``None``: the random baseline picks among all
             valid actions.
@@ -53,6 +55,7 @@ class EnvTraits:
     valid_gain_may_be_zero: bool = False
     reward_terms: tuple[str, ...] = ()
     info_keys: frozenset[str] = frozenset()
+    reward_config_keys: tuple[str, ...] = ()
     noop_action: int | None = None
 
 

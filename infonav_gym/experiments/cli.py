@@ -148,7 +148,7 @@ def _raise_if_failed(failure: str | None, result: dict) -> None:
 
 
 def _evaluate(args, argv) -> dict:
-    from infonav_gym.experiments.evaluation import config_line, evaluate, markdown_table, write_results
+    from infonav_gym.experiments.evaluation import config_line, evaluate, heading, markdown_table, write_results
 
     stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
     agent_names = [name.strip() for name in args.agents.split(",") if name.strip()]
@@ -158,7 +158,7 @@ def _evaluate(args, argv) -> dict:
         command = "infonav " + " ".join(shlex.quote(part) for part in argv)
         failure = _write_files(lambda: write_results(results, stem, command), results, f"--output {stem}")
     if not args.json:
-        print(f"{args.env}, {args.episodes} episodes per agent, seeds {args.seed}..{args.seed + args.episodes - 1}")
+        print(heading(results))
         print(config_line(results))
         print(markdown_table(results))
     _raise_if_failed(failure, results)

@@ -222,6 +222,7 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
         "seeds": seeds,
         "env_kwargs": env_kwargs,
         "env_config": dict(getattr(env.unwrapped, "config", {})),
+        "reward_config_keys": list(traits_of(env).reward_config_keys),
         "metrics": {metric.name: metric.title for metric in declared},
         "agents": {},
     }
@@ -255,6 +256,16 @@ def interval_note(results: dict) -> str:
     """What the table's intervals are: one sentence per kind of interval it holds."""
     kinds = {s["interval"] for result in results["agents"].values() for s in result["summary"].values()}
     return "; ".join(note for kind, note in INTERVAL_NOTES.items() if kind in kinds) + "."
+
+
+def heading(results: dict) -> str:
+    """``env, N episodes per agent, seeds a..b``, and the config keys that decide the reward (env traits)."""
+    seeds = results["seeds"]
+    text = f"{results['env_id']}, {results['episodes']} episodes per agent, seeds {seeds[0]}..{seeds[-1]}"
+    reward_keys = results.get("reward_config_keys", [])
+    defaults = results["env_config"]
+    choices = [f"{key}={defaults[key]!r}{'' if key in results['env_kwargs'] else ' (default)'}" for key in reward_keys]
+    return text + (f"; reward set by {', '.join(choices)}" if choices else "")
 
 
 def config_line(results: dict) -> str:
@@ -321,8 +332,7 @@ def write_results(results: dict, stem: Path, command: str) -> list[Path]:
     stem.parent.mkdir(parents=True, exist_ok=True)
     md, csv_path, json_path = stem.with_suffix(".md"), stem.with_suffix(".csv"), stem.with_suffix(".json")
     md.write_text(
-        f"# {results['env_id']}: {results['episodes']} episodes per agent, seeds "
-        f"{results['seeds'][0]}..{results['seeds'][-1]}\n\n{config_line(results)}\n\n{markdown_table(results)}\n\n"
+        f"# {heading(results)}\n\n{config_line(results)}\n\n{markdown_table(results)}\n\n"
         f"Regenerate with:\n\n    {command}\n"
     )
     with csv_path.open("w", newline="") as handle:

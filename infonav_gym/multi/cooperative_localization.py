@@ -154,6 +154,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
             {"gps_available", "pose_std", "pose_std_after_update", "pose_entropy", "position_error_m"}
             | {"heading_error_rad", "estimated_pose"}
         ),
+        reward_config_keys=("team_reward",),
         noop_action=NO_OBSERVATION,
     )
 
