@@ -1,10 +1,10 @@
 """Stable-Baselines3 PPO for the infonav envs: train, save, load, act.
 
 Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib's
-``MaskablePPO``: ``InfoActionMask`` hands the last info's mask to it through the
-``action_masks()`` method it asks for. Other envs (CartPole, for the benchmark) train
-with plain ``PPO``. A PettingZoo parallel env (registry ``api``, e.g. ``cooperative_localization_v0``)
-trains one ``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
+``MaskablePPO``, which reads each env's public ``action_masks()`` through the wrappers. Other envs
+(CartPole, for the benchmark) train with plain ``PPO``, or with ``MaskablePPO`` through ``InfoActionMask``.
+A PettingZoo parallel env (registry ``api``, e.g. ``cooperative_localization_v0``) trains one
+``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
 Hyperparameters come from ``agents/hyperparams/ppo.yml`` (package data, so an installed copy
 has them too), one block per env id (rl-baselines3-zoo style), or from a file of the same format
 (``infonav train --hyperparams FILE``); a block with ``normalize`` trains on observations normalized by
@@ -65,10 +65,10 @@ def torch_threads(n_threads: int):
 
 
 class InfoActionMask(gym.Wrapper):
-    """Exposes ``action_masks()`` (what ``MaskablePPO`` calls) from the last ``info["action_mask"]``.
+    """Gives an env without ``action_masks()`` one (what ``MaskablePPO`` calls), from the last ``info["action_mask"]``.
 
-    When no action is valid, every action is allowed (the infonav envs treat a masked
-    action as a no-op), so the policy's distribution never degenerates.
+    An env without that key gets an all-valid mask (CartPole in ``ppo_timing``). When no action is
+    valid, every action is allowed, as the infonav envs' own ``action_masks()`` do.
     """
 
     def __init__(self, env: gym.Env):
@@ -93,11 +93,16 @@ class InfoActionMask(gym.Wrapper):
         return self._mask
 
 
-def has_action_mask(env_id: str, env_kwargs: dict | None = None) -> bool:
-    """Whether ``env_id`` reports ``info["action_mask"]`` (then it trains with ``MaskablePPO``)."""
+def mask_wrapper(env_id: str, env_kwargs: dict | None = None) -> tuple[bool, type | None]:
+    """``(masked, wrapper)``: whether ``env_id`` has action masks (then it trains with ``MaskablePPO``) and the
+    wrapper it needs for them: ``None`` with its own ``action_masks()`` (every infonav env), ``InfoActionMask``
+    when it only reports ``info["action_mask"]``."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
-        return "action_mask" in env.reset(seed=0)[1]
+        if callable(getattr(env.unwrapped, "action_masks", None)):
+            return True, None
+        masked = "action_mask" in env.reset(seed=0)[1]
+        return masked, InfoActionMask if masked else None
     finally:
         env.close()
 
@@ -262,13 +267,13 @@ def build_model(
             raise ValueError(f"{env_id} runs its copies in one process (TeamVecEnv): train it without subprocess")
         masked, vec_env = True, make_team_vec_env(n_envs, seed, env_kwargs, env_id)
     else:
-        masked = has_action_mask(env_id, env_kwargs)
+        masked, wrapper = mask_wrapper(env_id, env_kwargs)
         vec_env = make_vec_env(
             env_id,
             n_envs=n_envs,
             seed=seed,
             env_kwargs=env_kwargs,
-            wrapper_class=InfoActionMask if masked else None,
+            wrapper_class=wrapper,
             vec_env_cls=SubprocVecEnv if subprocess else DummyVecEnv,
         )
     normalize = _normalization_kwargs(hyperparameters)
