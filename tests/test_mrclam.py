@@ -147,6 +147,7 @@ def test_cli_without_groundtruth_says_so_and_reports_nis(dataset_dir, capsys):
     captured = capsys.readouterr()
     assert "no ground truth for robot(s) [1, 2]" in captured.err and "NIS" in captured.err
     assert "| all | - | - | 1 | n/a |" in captured.out
+    assert "mean ± half-width of its 95% confidence interval (Student t)" in captured.out
 
 
 @pytest.mark.parametrize(

@@ -129,6 +129,12 @@ def _dead_reckoning(result) -> dict:
     }
 
 
+INTERVAL_NOTE = (
+    "Cells of several runs: mean ± half-width of its 95% confidence interval (Student t) over the runs "
+    "(random: one run per seed); a single run has no interval."
+)
+
+
 def _cell(value, digits=3) -> str:
     if value is None:
         return "n/a"
@@ -161,6 +167,8 @@ def markdown_table(summary: dict) -> str:
             f"| dead reckoning | - | - | 1 | {_cell(dead_reckoning['position_rmse_m'])} "
             f"| {_cell(dead_reckoning['heading_rmse_rad'])} | n/a | 0 | n/a | n/a |"
         )
+    lines += ["", INTERVAL_NOTE]
+    if dead_reckoning:
         robots = list(dead_reckoning["position_rmse_m_per_robot"])
         lines += [
             "",
