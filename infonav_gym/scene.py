@@ -29,29 +29,37 @@ class PathHistory:
         self.max_points = self.MAX_POINTS if max_points is None else max_points
         if not isinstance(self.max_points, int) or self.max_points < 2:
             raise ValueError(f"PathHistory max_points must be an int >= 2, got {self.max_points!r}")
-        self._kept = [np.array(first_point, dtype=float)]
+        first = np.array(first_point, dtype=float)
+        self._kept = np.empty((self.max_points + 1, first.size))  # a fixed buffer: appending allocates nothing
+        self._kept[0] = first
+        self._n_kept = 1
+        self._latest = first.copy()
         self._stride = 1
         self._appended = 0  # points appended after the first
-        self._latest = self._kept[0]
 
     def append(self, point) -> None:
         """Add the next point of the path (copied)."""
-        self._latest = np.array(point, dtype=float)
         self._appended += 1
-        if self._appended % self._stride == 0:
-            self._kept.append(self._latest)
-            if len(self._kept) > self.max_points:
-                self._kept = self._kept[::2]
-                self._stride *= 2
+        if self._appended % self._stride:
+            self._latest[:] = point
+            return
+        self._kept[self._n_kept] = point
+        self._n_kept += 1
+        if self._n_kept > self.max_points:
+            halved = self._kept[: self._n_kept : 2].copy()
+            self._n_kept = len(halved)
+            self._kept[: self._n_kept] = halved
+            self._stride *= 2
 
     def __len__(self) -> int:
-        return len(self._kept) + (self._appended % self._stride != 0)
+        return self._n_kept + (self._appended % self._stride != 0)
 
     def points(self) -> np.ndarray:
         """The kept points in order, ending with the latest: shape ``(len(self), dimensions)``."""
+        kept = self._kept[: self._n_kept]
         if self._appended % self._stride == 0:
-            return np.array(self._kept)
-        return np.array([*self._kept, self._latest])
+            return kept.copy()
+        return np.vstack([kept, self._latest])
 
 
 @dataclass

@@ -1,6 +1,5 @@
 """The hooks of ``InfoNavEnv`` / ``InfoNavParallelEnv``: declared, called as their contracts say; the planning model."""
 
-import dataclasses
 import pickle
 
 import gymnasium as gym
@@ -96,7 +95,7 @@ def test_a_decision_is_frozen_and_its_arrays_read_only():
     env = AlternatingEnv()
     env.reset(seed=0)
     decision = env._decision
-    with pytest.raises(dataclasses.FrozenInstanceError):
+    with pytest.raises(AttributeError):
         decision.payload = 1
     with pytest.raises(ValueError, match="read-only"):
         decision.action_mask[0] = 0

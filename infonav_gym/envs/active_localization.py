@@ -237,7 +237,7 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         mask = np.zeros((self.n_slots, N_PRIMITIVES), dtype=np.int8)
         gains = np.zeros((self.n_slots, N_PRIMITIVES))
         mask[0] = 1
-        observable = np.flatnonzero(sight.visible) if self.observations_left > 0 else np.zeros(0, dtype=int)
+        observable = sight.visible_indices if self.observations_left > 0 else np.zeros(0, dtype=int)
         mask[1 + observable] = 1
         if observable.size:
             gains[1 + observable] = sight.information_gains(self.ekf.P, observable)[:, None]
@@ -286,7 +286,7 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
 
     def _advance(self) -> None:
         self._true_path.append(self._true_pose[:2])
-        self._estimated_path.append(self.ekf.x[:2].copy())
+        self._estimated_path.append(self.ekf.x[:2])  # PathHistory copies
 
     def _is_terminated(self) -> bool:
         return self.goal_reached or self.failed

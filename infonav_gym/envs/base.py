@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import abc
 import operator
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -28,11 +27,11 @@ MAX_EPISODE_STEPS = 10**7
 EPISODE_STEPS = Interval(1, MAX_EPISODE_STEPS, integer=True)  # the allowed horizons (``horizon``, ``max_cycles``)
 
 
-@dataclass(frozen=True)
-class Decision:
+class Decision(NamedTuple):
     """What an env offers at one decision, computed once at the prior by ``_next_decision``.
 
-    The arrays are made read-only: acting on a decision never changes it.
+    Immutable (a named tuple: cheap to build every step), and the base makes its arrays read-only
+    (``Decision.frozen``): acting on a decision never changes it.
 
     Attributes:
         action_mask: int8, 1 = valid, per action (a team env: per agent and action).
@@ -45,9 +44,11 @@ class Decision:
     action_information_gain: np.ndarray
     payload: Any = None
 
-    def __post_init__(self):
+    def frozen(self) -> Decision:
+        """This decision with its arrays made read-only (the bases call it on every new decision)."""
         self.action_mask.setflags(write=False)
         self.action_information_gain.setflags(write=False)
+        return self
 
 
 def discrete_action_index(action, space: gym.spaces.Discrete, agent: str | None = None) -> int:
@@ -61,6 +62,8 @@ def discrete_action_index(action, space: gym.spaces.Discrete, agent: str | None 
         space: the action space.
         agent: the agent whose action it is (team envs), named in the error.
     """
+    if type(action) is int and 0 <= action < space.n:  # the common case, first
+        return action
     value = action
     if isinstance(value, (list, tuple)):
         try:
@@ -196,7 +199,7 @@ class InfoNavEnv(SceneRendering, gym.Env):
         self._elapsed_steps = 0
         self._chosen_action = None
         self._reset_episode()
-        self._decision = self._next_decision()
+        self._decision = self._next_decision().frozen()
         observation, info = self._observation(), self._info({}, invalid=False)
         if self.render_mode == "human":
             self.render()
@@ -217,7 +220,7 @@ class InfoNavEnv(SceneRendering, gym.Env):
         reward_terms = self._apply_action(self._chosen_action, decision)
         self._elapsed_steps += 1
         self._advance()
-        self._decision = self._next_decision()
+        self._decision = self._next_decision().frozen()
         terminated = self._is_terminated()
         truncated = not terminated and self._elapsed_steps >= self.config["horizon"]
         info = self._info(reward_terms, invalid=not valid)

@@ -181,7 +181,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
         sight = LandmarkSight.at_prior(
             self.sensor, self.world, self._true_pose, self.ekf.P, *self.ekf.landmark_measurement_model(landmarks)
         )
-        candidates = np.flatnonzero(sight.visible)
+        candidates = sight.visible_indices
         mask = np.zeros(self.action_space.n, dtype=np.int8)
         gains = np.zeros(self.action_space.n)
         mask[candidates] = 1
@@ -208,7 +208,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
         odometry = self.odometry.measure(control, self._odometry_rng)
         self.ekf.predict(odometry, dt, self._odometry_covariance, check_input=False)
         self._true_path.append(self._true_pose[:2])
-        self._estimated_path.append(self.ekf.x[:2].copy())
+        self._estimated_path.append(self.ekf.x[:2])  # PathHistory copies
 
     def _observation(self) -> np.ndarray:
         x, y, heading = self.ekf.x[:POSE_DIM].tolist()

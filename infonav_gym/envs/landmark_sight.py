@@ -6,7 +6,7 @@ observe with a ``PoseEKF`` at the step's prior.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -17,13 +17,15 @@ from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.world import World
 
 
-@dataclass(frozen=True)
-class LandmarkSight:
+class LandmarkSight(NamedTuple):
     """The landmarks visible at a decision and their range-bearing measurement model at the EKF's prior.
+
+    Immutable (a named tuple: cheap to build every step).
 
     Attributes:
         visible: which landmarks are within range and field of view with a clear line of sight
             from the true pose (K,) bool.
+        visible_indices: the indices of those landmarks, ascending (V,).
         predicted: range [m] and bearing [rad] to each landmark as the prior predicts them (K, 2).
         jacobians: ``H`` of each prediction w.r.t. the EKF's state (K, 2, n).
         noise: measurement noise covariance ``R`` of each (K, 2, 2).
@@ -32,6 +34,7 @@ class LandmarkSight:
     """
 
     visible: np.ndarray
+    visible_indices: np.ndarray
     predicted: np.ndarray
     jacobians: np.ndarray
     noise: np.ndarray
@@ -54,15 +57,17 @@ class LandmarkSight:
         """
         landmarks = world.landmarks
         visible = np.zeros(len(landmarks), dtype=bool)
-        in_coverage = np.flatnonzero(sensor.in_coverage(range_bearing(true_pose, landmarks)))
-        if in_coverage.size:
-            visible[in_coverage[world.line_of_sight(true_pose, landmarks[in_coverage])]] = True
+        indices = np.flatnonzero(sensor.in_coverage(range_bearing(true_pose, landmarks)))
+        if indices.size:
+            indices = indices[world.line_of_sight(true_pose, landmarks[indices])]
+            visible[indices] = True
         prior_log_det = log_det_spd(P, check_input=False)
         pose_log_det = prior_log_det
         if len(P) > POSE_DIM:
             pose_log_det = log_det_spd(P[:POSE_DIM, :POSE_DIM], check_input=False)
         return cls(
             visible=visible,
+            visible_indices=indices,
             predicted=predicted,
             jacobians=jacobians,
             noise=sensor.noise_covariance(predicted[:, 0]),

@@ -47,7 +47,7 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
         self._chosen = np.full(n, self.traits.noop_action)
         self._invalid = np.zeros(n, dtype=bool)
         self._reset_episode()
-        self._decision = self._next_decision()
+        self._decision = self._next_decision().frozen()
         observations, infos = self._observations(), self._infos()
         if self.render_mode == "human":
             self.render()
@@ -67,7 +67,7 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
         rewards = self._apply_actions(self._chosen, decision)
         self._elapsed_steps += 1
         self._advance()
-        self._decision = self._next_decision()
+        self._decision = self._next_decision().frozen()
         observations, infos = self._observations(), self._infos()
         truncated = self._elapsed_steps >= self.max_cycles
         terminations = dict.fromkeys(self.agents, False)

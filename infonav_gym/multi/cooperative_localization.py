@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -53,9 +53,10 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 }
 
 
-@dataclass(frozen=True)
-class RelativeSight:
+class RelativeSight(NamedTuple):
     """The relative-pose observations possible at a decision, and what their stacked update needs.
+
+    Immutable (a named tuple: cheap to build every step).
 
     Attributes:
         geometry: true range, bearing and relative heading of every (observer, target) pair (P, 3).
@@ -309,7 +310,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         self._gps_fixes()
         for robot, (true_pose, estimate) in enumerate(zip(self._true_poses, self.ekf.x.reshape(-1, POSE_DIM))):
             self._true_paths[robot].append(true_pose[:2])
-            self._estimated_paths[robot].append(estimate[:2].copy())
+            self._estimated_paths[robot].append(estimate[:2])  # PathHistory copies
 
     def _gps_fixes(self) -> None:
         denied = self.world.gps_denied(self._true_poses[:, :2])
