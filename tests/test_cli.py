@@ -65,6 +65,7 @@ def test_evaluate_prints_the_env_config_it_ran_defaults_included(capsys):
     assert "env config: max_cycles=5, " in printed and "team_reward=0.0" in printed
     assert "mean ± half-width of its 95% confidence interval (Student t)" in printed
     assert printed.splitlines()[0].endswith("seeds 0..0; reward set by team_reward=0.0 (default)")
+    assert "± n/a" in printed and "nan" not in printed  # one episode: no interval
     assert main([*argv, "--config", "team_reward=1.0"]) == 0
     assert capsys.readouterr().out.splitlines()[0].endswith("; reward set by team_reward=1.0")
 

@@ -249,6 +249,8 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
 def _cell(summary: dict) -> str:
     if summary["interval"] == WILSON:
         return f"{summary['mean']:.3f} [{summary['ci95_low']:.3f}, {summary['ci95_high']:.3f}]"
+    if math.isnan(summary["ci95"]):  # one episode: no interval
+        return f"{summary['mean']:.3f} ± n/a"
     return f"{summary['mean']:.3f} ± {summary['ci95']:.3f}"
 
 
