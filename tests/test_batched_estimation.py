@@ -407,6 +407,95 @@ def test_batched_core_replays_landmark_selection_episodes(mapping):
     assert observed_steps > 100 and skipped_steps > 20  # both paths ran, many times
 
 
+class TeamRecorder:
+    """Records what the team env hands its ``JointEKF`` in one step: relative-pose update, odometry, GPS fixes."""
+
+    def __init__(self, ekf: JointEKF):
+        self.clear()
+        predict, relative_update, gps_update = ekf.predict, ekf.relative_pose_update, ekf.gps_update
+
+        def recorded_predict(controls, dt, control_covariances, **kwargs):
+            self.odometry = (np.array(controls), np.array(control_covariances))
+            predict(controls, dt, control_covariances, **kwargs)
+
+        def recorded_relative_update(observers, targets, measurements, predicted, H_observer, H_target, R, **kwargs):
+            self.relative = (np.array(observers), np.array(measurements), np.array(R))
+            relative_update(observers, targets, measurements, predicted, H_observer, H_target, R, **kwargs)
+
+        def recorded_gps_update(robots, fixes, noise_covariances, **kwargs):
+            self.gps = (np.array(robots), np.array(fixes), np.array(noise_covariances))
+            gps_update(robots, fixes, noise_covariances, **kwargs)
+
+        ekf.predict, ekf.relative_pose_update, ekf.gps_update = (
+            recorded_predict,
+            recorded_relative_update,
+            recorded_gps_update,
+        )
+
+    def clear(self) -> None:
+        self.odometry = self.relative = self.gps = None
+
+
+@pytest.mark.parametrize("estimator", ["joint", "independent"])
+def test_batched_core_replays_cooperative_localization_episodes(estimator):
+    """N team envs with random valid observations; relative-pose, odometry and GPS updates replayed in one batch."""
+    from infonav_gym.multi import cooperative_localization_v0
+
+    n_copies, seed, cross_covariances = 3, 40, estimator == "joint"
+    envs = [cooperative_localization_v0.parallel_env(estimator=estimator, team_reward=0.5) for _ in range(n_copies)]
+    infos = [env.reset(seed=seed + copy)[1] for copy, env in enumerate(envs)]
+    filters = [env.ekf for env in envs]
+    recorders = [TeamRecorder(ekf) for ekf in filters]
+    x, P = np.stack([ekf.x for ekf in filters]), np.stack([ekf.P for ekf in filters])
+    n_robots, dt = filters[0].n_robots, envs[0].config["time_step_s"]
+    observers = np.broadcast_to(np.arange(n_robots), (n_copies, n_robots))
+    rng = np.random.default_rng(seed)
+    counts = np.zeros(3, dtype=int)  # observed slots, skipped slots, GPS fixes
+    for _ in range(envs[0].max_cycles):
+        chosen = np.zeros((n_copies, n_robots), dtype=int)
+        for copy, info in enumerate(infos):
+            for robot, agent in enumerate(envs[copy].agents):
+                valid = np.flatnonzero(info[agent]["action_mask"])
+                chosen[copy, robot] = 0 if rng.random() < 0.2 else rng.choice(valid)
+        observed = chosen > 0
+        targets = np.where(observed, chosen - 1, (observers + 1) % n_robots)  # unobserved: any other robot
+        predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets)
+        measurements, R = np.zeros_like(predicted), np.broadcast_to(np.eye(3), (*observers.shape, 3, 3)).copy()
+        prior_log_det = log_det_spd(P)
+        results = [env.step(dict(zip(env.agents, actions.tolist()))) for env, actions in zip(envs, chosen)]
+        for copy, recorder in enumerate(recorders):
+            if recorder.relative is not None:
+                slots, measurements[copy, slots], R[copy, slots] = recorder.relative
+        own, joint = batched.relative_pose_information_gains(P, observers, targets, H_observer, H_target, R)
+        x, P = batched.relative_pose_update(
+            x, P, observers, targets, measurements, predicted, H_observer, H_target, R, observed,
+            cross_covariances=cross_covariances,
+        )  # fmt: skip
+        team_mi = 0.5 * (prior_log_det - log_det_spd(P))
+        for copy, (env, result) in enumerate(zip(envs, results)):
+            for robot, agent in enumerate(env.agents):
+                terms = result[4][agent]["reward_terms"]
+                assert terms["team_mutual_information"] == pytest.approx(team_mi[copy], abs=P_TOLERANCE)
+                if observed[copy, robot]:
+                    gain = infos[copy][agent]["action_information_gain"][chosen[copy, robot]]
+                    assert gain == pytest.approx(0.5 * own[copy, robot] + 0.5 * joint[copy, robot], abs=P_TOLERANCE)
+        controls, control_covariances = (np.stack(part) for part in zip(*(r.odometry for r in recorders)))
+        x, P = batched.predict_team(x, P, controls, dt, control_covariances)
+        fixes, has_fix = np.zeros((n_copies, n_robots, 2)), np.zeros((n_copies, n_robots), dtype=bool)
+        gps_noise = np.broadcast_to(np.eye(2), (n_copies, n_robots, 2, 2)).copy()
+        for copy, recorder in enumerate(recorders):
+            if recorder.gps is not None:
+                robots, fixes[copy, robots], gps_noise[copy, robots] = recorder.gps
+                has_fix[copy, robots] = True
+            recorder.clear()
+        x, P = batched.gps_update(x, P, fixes, gps_noise, has_fix, cross_covariances=cross_covariances)
+        assert_filters_equal(x, P, filters)
+        counts += [observed.sum(), (~observed).sum(), has_fix.sum()]
+        infos = [result[4] for result in results]
+    assert all(not env.agents for env in envs)  # the episodes ran to their end
+    assert np.all(counts > 50)  # observations, skipped slots and GPS fixes all happened, many times
+
+
 # ---------------------------------------------------------------------------------------------- bad input
 
 
