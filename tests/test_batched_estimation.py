@@ -216,6 +216,24 @@ def test_unchecked_fast_path_equals_the_checked_call():
         np.testing.assert_array_equal(checked, unchecked)
 
 
+def test_updates_and_predictions_leave_their_inputs_alone():
+    rng = np.random.default_rng(19)
+    x, P = random_states(rng, 4, 2), random_covariances(rng, 4, 6)
+    x_before, P_before = x.copy(), P.copy()
+    batched.predict_team(x, P, random_controls(rng, (4, 2)), 0.5, np.eye(2) * 0.01, check_input=False)
+    batched.gps_update(x, P, x.reshape(4, 2, 3)[..., :2] + 0.1, np.eye(2) * 0.01, np.ones((4, 2), dtype=bool))
+    observers, targets = np.array([[0, 1]] * 4), np.array([[1, 0]] * 4)
+    predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets)
+    R = np.broadcast_to(np.eye(3) * 0.01, (4, 2, 3, 3))
+    batched.relative_pose_update(x, P, observers, targets, predicted + 0.01, predicted, H_observer, H_target, R)
+    predicted, H = batched.landmark_measurement_model(x[:, :3], rng.uniform(-10, 10, (3, 2)))
+    batched.range_bearing_update(
+        x[:, :3], P[:, :3, :3], predicted[:, 0] + 0.01, predicted[:, 0], H[:, 0], R[:, 0, :2, :2]
+    )
+    np.testing.assert_array_equal(x, x_before)
+    np.testing.assert_array_equal(P, P_before)
+
+
 # ---------------------------------------------------------------------------------------------- JointEKF
 
 
