@@ -1,0 +1,665 @@
+"""The batched EKF core against its oracles ``PoseEKF`` / ``JointEKF``, update for update, and along whole episodes."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import infonav_gym  # noqa: F401  (registers the envs)
+from infonav_gym.estimation import JointEKF, PoseEKF, batched
+from infonav_gym.information import expected_information_gain, log_det_spd
+
+X_TOLERANCE = 1e-12
+P_TOLERANCE = 1e-10
+COPIES = (1, 4, 9)
+
+
+def random_states(rng, n_copies: int, n_robots: int = 1, n_landmarks: int = 0) -> np.ndarray:
+    """Poses in a 20 m square with any heading, then landmark estimates in the same square (N, 3R + 2L)."""
+    poses = np.concatenate(
+        [rng.uniform(-10, 10, (n_copies, n_robots, 2)), rng.uniform(-math.pi, math.pi, (n_copies, n_robots, 1))], -1
+    )
+    landmarks = rng.uniform(-10, 10, (n_copies, 2 * n_landmarks))
+    return np.concatenate([poses.reshape(n_copies, -1), landmarks], axis=1)
+
+
+def random_covariances(rng, n_copies: int, n: int, scale: float = 0.1) -> np.ndarray:
+    """Random symmetric positive-definite (N, n, n), fully correlated."""
+    A = rng.standard_normal((n_copies, n, n))
+    return scale * (A @ np.swapaxes(A, 1, 2) / n + 0.05 * np.eye(n))
+
+
+def block_diagonal_covariances(rng, n_copies: int, n_robots: int) -> np.ndarray:
+    """Random joint covariances with no cross-covariances (N, 3R, 3R)."""
+    P = np.zeros((n_copies, 3 * n_robots, 3 * n_robots))
+    for robot in range(n_robots):
+        block = slice(3 * robot, 3 * robot + 3)
+        P[:, block, block] = random_covariances(rng, n_copies, 3)
+    return P
+
+
+def pose_filters(x, P) -> list[PoseEKF]:
+    """One ``PoseEKF`` per copy, holding that copy's state and covariance."""
+    filters = []
+    for state, covariance in zip(x, P):
+        n_landmarks = (len(state) - 3) // 2
+        ekf = (
+            PoseEKF(state[:3], np.eye(3), np.zeros((n_landmarks, 2)), 1.0)
+            if n_landmarks
+            else PoseEKF(state[:3], np.eye(3))
+        )
+        ekf.x, ekf.P = state.copy(), covariance.copy()
+        filters.append(ekf)
+    return filters
+
+
+def joint_filters(x, P, cross_covariances: bool) -> list[JointEKF]:
+    """One ``JointEKF`` per copy, holding that copy's joint state and covariance."""
+    filters = []
+    for state, covariance in zip(x, P):
+        poses = state.reshape(-1, 3)
+        ekf = JointEKF(poses, np.repeat(np.eye(3)[None], len(poses), axis=0), cross_covariances)
+        ekf.x, ekf.P = state.copy(), covariance.copy()
+        filters.append(ekf)
+    return filters
+
+
+def assert_filters_equal(x, P, filters) -> None:
+    np.testing.assert_allclose(x, np.stack([ekf.x for ekf in filters]), rtol=0, atol=X_TOLERANCE)
+    np.testing.assert_allclose(P, np.stack([ekf.P for ekf in filters]), rtol=0, atol=P_TOLERANCE)
+
+
+def random_controls(rng, shape) -> np.ndarray:
+    return np.stack([rng.uniform(-1, 2, shape), rng.uniform(-1, 1, shape)], axis=-1)
+
+
+def random_mask(rng, shape) -> np.ndarray:
+    """Random bools, with at least one False and one True when there is room for both."""
+    mask = rng.random(shape) < 0.6
+    mask.flat[0] = False
+    if mask.size > 1:
+        mask.flat[-1] = True
+    return mask
+
+
+def landmark_noise(predicted: np.ndarray) -> np.ndarray:
+    """Range-bearing noise growing with the range, as the env's sensor: (..., 2) -> (..., 2, 2)."""
+    R = np.zeros((*predicted.shape[:-1], 2, 2))
+    R[..., 0, 0] = (0.1 + 0.01 * predicted[..., 0]) ** 2
+    R[..., 1, 1] = math.radians(2.0) ** 2
+    return R
+
+
+# ---------------------------------------------------------------------------------------------- PoseEKF
+
+
+@pytest.mark.parametrize("n_copies", COPIES)
+@pytest.mark.parametrize("n_landmarks", [0, 4])
+@pytest.mark.parametrize("per_copy_noise", [False, True])
+def test_pose_prediction_equals_pose_ekf(n_copies, n_landmarks, per_copy_noise):
+    rng = np.random.default_rng(n_copies + 10 * n_landmarks)
+    n = 3 + 2 * n_landmarks
+    x, P = random_states(rng, n_copies, n_landmarks=n_landmarks), random_covariances(rng, n_copies, n)
+    controls = random_controls(rng, n_copies)
+    noise = random_covariances(rng, n_copies, 2, 0.01) if per_copy_noise else np.diag([0.05**2, 0.02**2])
+    filters = pose_filters(x, P)
+    x_new, P_new = batched.predict_pose(x, P, controls, 0.5, noise)
+    for copy, ekf in enumerate(filters):
+        ekf.predict(controls[copy], 0.5, noise[copy] if per_copy_noise else noise)
+    assert_filters_equal(x_new, P_new, filters)
+    np.testing.assert_array_equal(x_new[:, 3:], x[:, 3:])  # landmarks are static
+
+
+def landmark_case(seed: int, n_copies: int, mapping: bool, n_landmarks: int):
+    """Random states and covariances, the landmarks (None: in the state), and the batched model at that prior."""
+    rng = np.random.default_rng(seed)
+    x = random_states(rng, n_copies, n_landmarks=n_landmarks if mapping else 0)
+    P = random_covariances(rng, n_copies, x.shape[1])
+    landmarks = None if mapping else rng.uniform(-10, 10, (n_copies, n_landmarks, 2))
+    predicted, H = batched.landmark_measurement_model(x, landmarks)
+    return rng, x, P, landmarks, predicted, H, landmark_noise(predicted)
+
+
+@pytest.mark.parametrize("n_copies", COPIES)
+@pytest.mark.parametrize("mapping", [False, True])
+def test_landmark_model_and_gains_equal_pose_ekf(n_copies, mapping):
+    _, x, P, landmarks, predicted, H, R = landmark_case(n_copies + 100 * mapping, n_copies, mapping, 5)
+    gains = batched.landmark_information_gains(P, H, R)
+    for copy, ekf in enumerate(pose_filters(x, P)):
+        expected_predicted, expected_H = ekf.landmark_measurement_model(None if mapping else landmarks[copy])
+        np.testing.assert_allclose(predicted[copy], expected_predicted, rtol=0, atol=X_TOLERANCE)
+        np.testing.assert_allclose(H[copy], expected_H, rtol=0, atol=X_TOLERANCE)
+        np.testing.assert_allclose(
+            gains[copy], expected_information_gain(ekf.P, expected_H, R[copy]), rtol=0, atol=P_TOLERANCE
+        )
+
+
+def test_landmark_model_takes_one_known_map_for_every_copy():
+    rng = np.random.default_rng(5)
+    x, landmarks = random_states(rng, 3), rng.uniform(-10, 10, (4, 2))
+    predicted, H = batched.landmark_measurement_model(x, landmarks)
+    for copy, ekf in enumerate(pose_filters(x, random_covariances(rng, 3, 3))):
+        expected_predicted, expected_H = ekf.landmark_measurement_model(landmarks)
+        np.testing.assert_allclose(predicted[copy], expected_predicted, rtol=0, atol=X_TOLERANCE)
+        np.testing.assert_allclose(H[copy], expected_H, rtol=0, atol=X_TOLERANCE)
+
+
+@pytest.mark.parametrize("n_copies", COPIES)
+@pytest.mark.parametrize("mapping", [False, True])
+def test_range_bearing_update_equals_pose_ekf_and_skips_unobserved_copies(n_copies, mapping):
+    n_landmarks = 6
+    rng, x, P, landmarks, predicted, H, R = landmark_case(7 * n_copies + mapping, n_copies, mapping, n_landmarks)
+    chosen = np.where(random_mask(rng, n_copies), rng.integers(0, n_landmarks, n_copies), -1)
+    observed, chosen_predicted, chosen_H, chosen_R = batched.select_candidates(chosen, predicted, H, R)
+    measurements = chosen_predicted + rng.normal(0, [0.2, 0.1], (n_copies, 2))
+    measurements[:, 1] = (measurements[:, 1] + math.pi) % (2 * math.pi) - math.pi
+    x_new, P_new = batched.range_bearing_update(x, P, measurements, chosen_predicted, chosen_H, chosen_R, observed)
+    filters = pose_filters(x, P)
+    for copy, ekf in enumerate(filters):
+        if chosen[copy] >= 0:
+            expected_predicted, expected_H = ekf.landmark_measurement_model(None if mapping else landmarks[copy])
+            landmark = chosen[copy]
+            ekf.update_range_bearing(
+                measurements[copy], expected_predicted[landmark], expected_H[landmark], R[copy, landmark]
+            )
+    assert_filters_equal(x_new, P_new, filters)
+    np.testing.assert_array_equal(x_new[~observed], x[~observed])
+    np.testing.assert_array_equal(P_new[~observed], P[~observed])
+    if observed.any():  # the realized MI of each update is its expected gain at the prior
+        realized = 0.5 * (log_det_spd(P[observed]) - log_det_spd(P_new[observed]))
+        prior_gains = batched.landmark_information_gains(P, H, R)[observed, chosen[observed]]
+        np.testing.assert_allclose(realized, prior_gains, rtol=0, atol=P_TOLERANCE)
+
+
+def test_innovations_are_wrapped_across_the_branch_cut():
+    """A bearing (and a relative heading) measured just past +-pi from its prediction is a small innovation."""
+    rng = np.random.default_rng(13)
+    x, P = random_states(rng, 2), random_covariances(rng, 2, 3)
+    predicted = np.array([[5.0, math.pi - 0.01], [4.0, -math.pi + 0.02]])
+    measurements = np.array([[5.1, -math.pi + 0.01], [4.1, math.pi - 0.02]])
+    H, R = rng.standard_normal((2, 2, 3)), landmark_noise(predicted)
+    x_new, P_new = batched.range_bearing_update(x, P, measurements, predicted, H, R)
+    filters = pose_filters(x, P)
+    for copy, ekf in enumerate(filters):
+        ekf.update_range_bearing(measurements[copy], predicted[copy], H[copy], R[copy])
+    assert_filters_equal(x_new, P_new, filters)
+    assert np.all(np.abs(x_new - x)[:, 2] < 0.1)  # no 2 pi jump reached the heading
+    _, xj, Pj, joint = joint_case(17, 1, 2, True)
+    relative_predicted = np.array([[[3.0, math.pi - 0.01, -math.pi + 0.01]]])
+    relative_measured = np.array([[[3.1, -math.pi + 0.02, math.pi - 0.02]]])
+    H_observer, H_target = rng.standard_normal((2, 1, 1, 3, 3))
+    R_relative = np.diag([0.01, 0.001, 0.001])[None, None]
+    arguments = ([[0]], [[1]], relative_measured, relative_predicted, H_observer, H_target, R_relative)
+    xj_new, Pj_new = batched.relative_pose_update(xj, Pj, *arguments)
+    joint[0].relative_pose_update(*(np.asarray(argument)[0] for argument in arguments))
+    assert_filters_equal(xj_new, Pj_new, joint)
+
+
+def test_unchecked_fast_path_equals_the_checked_call():
+    rng = np.random.default_rng(11)
+    x, P = random_states(rng, 5, n_landmarks=3), random_covariances(rng, 5, 9)
+    controls, noise = random_controls(rng, 5), np.diag([0.05**2, 0.02**2])
+    for checked, unchecked in zip(
+        batched.predict_pose(x, P, controls, 0.5, noise),
+        batched.predict_pose(x, P, controls, 0.5, noise, check_input=False),
+    ):
+        np.testing.assert_array_equal(checked, unchecked)
+    predicted, H = batched.landmark_measurement_model(x)
+    observed, rows, jacobians, R = batched.select_candidates(
+        np.array([0, -1, 2, 1, -1]), predicted, H, landmark_noise(predicted)
+    )
+    arguments = (x, P, rows + 0.01, rows, jacobians, R, observed)
+    for checked, unchecked in zip(
+        batched.range_bearing_update(*arguments), batched.range_bearing_update(*arguments, check_input=False)
+    ):
+        np.testing.assert_array_equal(checked, unchecked)
+
+
+def test_updates_and_predictions_leave_their_inputs_alone():
+    rng = np.random.default_rng(19)
+    x, P = random_states(rng, 4, 2), random_covariances(rng, 4, 6)
+    x_before, P_before = x.copy(), P.copy()
+    batched.predict_team(x, P, random_controls(rng, (4, 2)), 0.5, np.eye(2) * 0.01, check_input=False)
+    batched.gps_update(x, P, x.reshape(4, 2, 3)[..., :2] + 0.1, np.eye(2) * 0.01, np.ones((4, 2), dtype=bool))
+    observers, targets = np.array([[0, 1]] * 4), np.array([[1, 0]] * 4)
+    predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets)
+    R = np.broadcast_to(np.eye(3) * 0.01, (4, 2, 3, 3))
+    batched.relative_pose_update(x, P, observers, targets, predicted + 0.01, predicted, H_observer, H_target, R)
+    predicted, H = batched.landmark_measurement_model(x[:, :3], rng.uniform(-10, 10, (3, 2)))
+    batched.range_bearing_update(
+        x[:, :3], P[:, :3, :3], predicted[:, 0] + 0.01, predicted[:, 0], H[:, 0], R[:, 0, :2, :2]
+    )
+    np.testing.assert_array_equal(x, x_before)
+    np.testing.assert_array_equal(P, P_before)
+
+
+# ---------------------------------------------------------------------------------------------- JointEKF
+
+
+def joint_case(seed: int, n_copies: int, n_robots: int, cross_covariances: bool):
+    rng = np.random.default_rng(seed)
+    x = random_states(rng, n_copies, n_robots)
+    n = 3 * n_robots
+    P = (
+        random_covariances(rng, n_copies, n)
+        if cross_covariances
+        else block_diagonal_covariances(rng, n_copies, n_robots)
+    )
+    return rng, x, P, joint_filters(x, P, cross_covariances)
+
+
+@pytest.mark.parametrize("n_copies", COPIES)
+@pytest.mark.parametrize("n_robots", [2, 4])
+@pytest.mark.parametrize("cross_covariances", [True, False])
+def test_team_prediction_equals_joint_ekf(n_copies, n_robots, cross_covariances):
+    rng, x, P, filters = joint_case(n_copies * n_robots, n_copies, n_robots, cross_covariances)
+    controls = random_controls(rng, (n_copies, n_robots))
+    noise = random_covariances(rng, n_copies * n_robots, 2, 0.01).reshape(n_copies, n_robots, 2, 2)
+    x_new, P_new = batched.predict_team(x, P, controls, 0.25, noise)
+    for copy, ekf in enumerate(filters):
+        ekf.predict(controls[copy], 0.25, noise[copy])
+    assert_filters_equal(x_new, P_new, filters)
+
+
+@pytest.mark.parametrize("n_copies", COPIES)
+@pytest.mark.parametrize("n_robots", [2, 4])
+@pytest.mark.parametrize("cross_covariances", [True, False])
+def test_gps_update_equals_joint_ekf(n_copies, n_robots, cross_covariances):
+    rng, x, P, filters = joint_case(3 + n_copies * n_robots, n_copies, n_robots, cross_covariances)
+    has_fix = random_mask(rng, (n_copies, n_robots))
+    has_fix[0] = False  # a copy without any fix
+    fixes = x.reshape(n_copies, n_robots, 3)[..., :2] + rng.normal(0, 0.3, (n_copies, n_robots, 2))
+    noise = random_covariances(rng, n_robots, 2, 0.05)
+    x_new, P_new = batched.gps_update(x, P, fixes, noise, has_fix, cross_covariances=cross_covariances)
+    for copy, ekf in enumerate(filters):
+        robots = np.flatnonzero(has_fix[copy])
+        ekf.gps_update(robots, fixes[copy, robots], noise[robots])
+    assert_filters_equal(x_new, P_new, filters)
+    np.testing.assert_array_equal(P_new[0], P[0])
+
+
+def team_pairs(rng, n_copies: int, n_robots: int) -> tuple[np.ndarray, np.ndarray]:
+    """Slot r: robot r observes a random teammate (N, R)."""
+    observers = np.broadcast_to(np.arange(n_robots), (n_copies, n_robots)).copy()
+    targets = (observers + rng.integers(1, n_robots, (n_copies, n_robots))) % n_robots
+    return observers, targets
+
+
+@pytest.mark.parametrize("n_copies", COPIES)
+@pytest.mark.parametrize("n_robots", [2, 4])
+@pytest.mark.parametrize("cross_covariances", [True, False])
+@pytest.mark.parametrize("m", [3, 2])
+def test_relative_pose_update_equals_joint_ekf(n_copies, n_robots, cross_covariances, m):
+    rng, x, P, filters = joint_case(7 + n_copies * n_robots + m, n_copies, n_robots, cross_covariances)
+    observers, targets = team_pairs(rng, n_copies, n_robots)
+    observed = random_mask(rng, (n_copies, n_robots))
+    predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets)
+    predicted, H_observer, H_target = predicted[..., :m], H_observer[..., :m, :], H_target[..., :m, :]
+    R = random_covariances(rng, n_copies * n_robots, m, 0.01).reshape(n_copies, n_robots, m, m)
+    measurements = predicted + rng.normal(0, 0.05, predicted.shape)
+    x_new, P_new = batched.relative_pose_update(
+        x, P, observers, targets, measurements, predicted, H_observer, H_target, R, observed,
+        cross_covariances=cross_covariances,
+    )  # fmt: skip
+    for copy, ekf in enumerate(filters):
+        slots = np.flatnonzero(observed[copy])
+        if slots.size == 0:
+            continue
+        expected = ekf.relative_pose_model(observers[copy, slots], targets[copy, slots])
+        np.testing.assert_allclose(predicted[copy, slots], expected[0][:, :m], rtol=0, atol=X_TOLERANCE)
+        ekf.relative_pose_update(
+            observers[copy, slots], targets[copy, slots], measurements[copy, slots], expected[0][:, :m],
+            expected[1][:, :m], expected[2][:, :m], R[copy, slots],
+        )  # fmt: skip
+    assert_filters_equal(x_new, P_new, filters)
+    untouched = ~observed.any(axis=1)
+    np.testing.assert_array_equal(P_new[untouched], P[untouched])
+
+
+@pytest.mark.parametrize("n_copies", COPIES)
+@pytest.mark.parametrize("cross_covariances", [True, False])
+def test_relative_pose_gains_and_pose_log_dets_equal_joint_ekf(n_copies, cross_covariances):
+    n_robots = 4
+    rng, x, P, filters = joint_case(n_copies, n_copies, n_robots, cross_covariances)
+    observers, targets = team_pairs(rng, n_copies, n_robots)
+    predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets)
+    R = random_covariances(rng, n_copies * n_robots, 3, 0.01).reshape(n_copies, n_robots, 3, 3)
+    own, joint = batched.relative_pose_information_gains(P, observers, targets, H_observer, H_target, R)
+    log_dets = batched.pose_log_dets(P, n_robots)
+    for copy, ekf in enumerate(filters):
+        expected = ekf.relative_pose_model(observers[copy], targets[copy])
+        for actual, oracle in zip((predicted, H_observer, H_target), expected):
+            np.testing.assert_allclose(actual[copy], oracle, rtol=0, atol=X_TOLERANCE)
+        expected_own, expected_joint = ekf.relative_pose_information_gains(
+            observers[copy], targets[copy], expected[1], expected[2], R[copy]
+        )
+        np.testing.assert_allclose(own[copy], expected_own, rtol=0, atol=P_TOLERANCE)
+        np.testing.assert_allclose(joint[copy], expected_joint, rtol=0, atol=P_TOLERANCE)
+        np.testing.assert_allclose(log_dets[copy], np.linalg.slogdet(ekf.pose_covariances())[1], atol=P_TOLERANCE)
+
+
+def test_joint_gain_is_the_expected_information_gain_of_the_stacked_jacobian():
+    rng, x, P, _ = joint_case(3, 2, 3, True)
+    observers, targets = np.array([[0, 2], [1, 0]]), np.array([[1, 0], [2, 2]])
+    _, H_observer, H_target = batched.relative_pose_model(x, observers, targets)
+    R = np.broadcast_to(np.diag([0.01, 0.001, 0.002]), (2, 2, 3, 3))
+    _, joint = batched.relative_pose_information_gains(P, observers, targets, H_observer, H_target, R)
+    H = np.zeros((2, 2, 3, 9))
+    for copy in range(2):
+        for slot in range(2):
+            o, t = observers[copy, slot], targets[copy, slot]
+            H[copy, slot, :, 3 * o : 3 * o + 3] = H_observer[copy, slot]
+            H[copy, slot, :, 3 * t : 3 * t + 3] = H_target[copy, slot]
+    np.testing.assert_allclose(joint, batched.landmark_information_gains(P, H, R), rtol=0, atol=P_TOLERANCE)
+
+
+# ---------------------------------------------------------------------------------------------- whole episodes
+
+
+class Recorder:
+    """Records the odometry and measurements an env hands its ``PoseEKF``, then lets the filter run them."""
+
+    def __init__(self, ekf: PoseEKF):
+        self.odometry = self.measurement = None
+        predict, update = ekf.predict, ekf.update_range_bearing
+
+        def recorded_predict(control, dt, control_covariance, **kwargs):
+            self.odometry = np.array(control, dtype=float)
+            predict(control, dt, control_covariance, **kwargs)
+
+        def recorded_update(measurement, *args, **kwargs):
+            self.measurement = np.array(measurement, dtype=float)
+            update(measurement, *args, **kwargs)
+
+        ekf.predict, ekf.update_range_bearing = recorded_predict, recorded_update
+
+
+@pytest.mark.parametrize("mapping", [False, True])
+def test_batched_core_replays_landmark_selection_episodes(mapping):
+    """N copies of the env, each with its own seed and random valid actions; the batched core follows them."""
+    n_copies, seed = 3, 20
+    envs = [gym.make("infonav/LandmarkSelection-v0", mapping=mapping) for _ in range(n_copies)]
+    infos = [env.reset(seed=seed + copy)[1] for copy, env in enumerate(envs)]
+    filters = [env.unwrapped.ekf for env in envs]
+    recorders = [Recorder(ekf) for ekf in filters]
+    x, P = np.stack([ekf.x for ekf in filters]), np.stack([ekf.P for ekf in filters])
+    landmarks = None if mapping else np.stack([env.unwrapped.world.landmarks for env in envs])
+    sensor, dt = envs[0].unwrapped.sensor, envs[0].unwrapped.config["time_step_s"]
+    odometry_noise = envs[0].unwrapped.odometry.noise_covariance()
+    rng = np.random.default_rng(seed)
+    truncated, steps, observed_steps, skipped_steps = False, 0, 0, 0
+    while not truncated:
+        predicted, H = batched.landmark_measurement_model(x, landmarks)
+        R = sensor.noise_covariance(predicted[..., 0].ravel()).reshape(*predicted.shape, 2)
+        gains = batched.landmark_information_gains(P, H, R)
+        prior_log_det = log_det_spd(P)
+        actions = []
+        for copy, info in enumerate(infos):
+            visible = info["action_mask"].astype(bool)
+            np.testing.assert_allclose(gains[copy, visible], info["action_information_gain"][visible], atol=P_TOLERANCE)
+            sight = envs[copy].unwrapped._decision.payload
+            np.testing.assert_allclose(predicted[copy], sight.predicted, rtol=0, atol=X_TOLERANCE)
+            skip = rng.random() < 0.2 or not visible.any()  # no observation: a masked action is a no-op
+            actions.append(int(rng.integers(8)) if skip else int(rng.choice(np.flatnonzero(visible))))
+        results = [env.step(action) for env, action in zip(envs, actions)]
+        infos = [result[4] for result in results]
+        chosen = np.array([info["chosen_action"] for info in infos])
+        observed, rows, jacobians, noise = batched.select_candidates(chosen, predicted, H, R)
+        measurements = np.stack([r.measurement if o else np.zeros(2) for r, o in zip(recorders, observed)])
+        x, P = batched.range_bearing_update(x, P, measurements, rows, jacobians, noise, observed)
+        rewards = 0.5 * (prior_log_det - log_det_spd(P))
+        np.testing.assert_allclose(rewards, [result[1] for result in results], rtol=0, atol=P_TOLERANCE)
+        odometry = np.stack([recorder.odometry for recorder in recorders])
+        x, P = batched.predict_pose(x, P, odometry, dt, odometry_noise)
+        assert_filters_equal(x, P, filters)
+        for recorder in recorders:
+            recorder.measurement = None
+        truncated = all(result[3] for result in results)
+        steps, observed_steps, skipped_steps = (
+            steps + 1,
+            observed_steps + observed.sum(),
+            skipped_steps + (~observed).sum(),
+        )
+    assert steps == envs[0].unwrapped.config["horizon"]
+    assert observed_steps > 100 and skipped_steps > 20  # both paths ran, many times
+
+
+class TeamRecorder:
+    """Records what the team env hands its ``JointEKF`` in one step: relative-pose update, odometry, GPS fixes."""
+
+    def __init__(self, ekf: JointEKF):
+        self.clear()
+        predict, relative_update, gps_update = ekf.predict, ekf.relative_pose_update, ekf.gps_update
+
+        def recorded_predict(controls, dt, control_covariances, **kwargs):
+            self.odometry = (np.array(controls), np.array(control_covariances))
+            predict(controls, dt, control_covariances, **kwargs)
+
+        def recorded_relative_update(observers, targets, measurements, predicted, H_observer, H_target, R, **kwargs):
+            self.relative = (np.array(observers), np.array(measurements), np.array(R))
+            relative_update(observers, targets, measurements, predicted, H_observer, H_target, R, **kwargs)
+
+        def recorded_gps_update(robots, fixes, noise_covariances, **kwargs):
+            self.gps = (np.array(robots), np.array(fixes), np.array(noise_covariances))
+            gps_update(robots, fixes, noise_covariances, **kwargs)
+
+        ekf.predict, ekf.relative_pose_update, ekf.gps_update = (
+            recorded_predict,
+            recorded_relative_update,
+            recorded_gps_update,
+        )
+
+    def clear(self) -> None:
+        self.odometry = self.relative = self.gps = None
+
+
+@pytest.mark.parametrize("estimator", ["joint", "independent"])
+def test_batched_core_replays_cooperative_localization_episodes(estimator):
+    """N team envs with random valid observations; relative-pose, odometry and GPS updates replayed in one batch."""
+    from infonav_gym.multi import cooperative_localization_v0
+
+    n_copies, seed, cross_covariances = 3, 40, estimator == "joint"
+    envs = [cooperative_localization_v0.parallel_env(estimator=estimator, team_reward=0.5) for _ in range(n_copies)]
+    infos = [env.reset(seed=seed + copy)[1] for copy, env in enumerate(envs)]
+    filters = [env.ekf for env in envs]
+    recorders = [TeamRecorder(ekf) for ekf in filters]
+    x, P = np.stack([ekf.x for ekf in filters]), np.stack([ekf.P for ekf in filters])
+    n_robots, dt = filters[0].n_robots, envs[0].config["time_step_s"]
+    observers = np.broadcast_to(np.arange(n_robots), (n_copies, n_robots))
+    rng = np.random.default_rng(seed)
+    counts = np.zeros(3, dtype=int)  # observed slots, skipped slots, GPS fixes
+    for _ in range(envs[0].max_cycles):
+        chosen = np.zeros((n_copies, n_robots), dtype=int)
+        for copy, info in enumerate(infos):
+            for robot, agent in enumerate(envs[copy].agents):
+                valid = np.flatnonzero(info[agent]["action_mask"])
+                chosen[copy, robot] = 0 if rng.random() < 0.2 else rng.choice(valid)
+        observed = chosen > 0
+        targets = np.where(observed, chosen - 1, (observers + 1) % n_robots)  # unobserved: any other robot
+        predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets)
+        measurements, R = np.zeros_like(predicted), np.broadcast_to(np.eye(3), (*observers.shape, 3, 3)).copy()
+        prior_log_det = log_det_spd(P)
+        results = [env.step(dict(zip(env.agents, actions.tolist()))) for env, actions in zip(envs, chosen)]
+        for copy, recorder in enumerate(recorders):
+            if recorder.relative is not None:
+                slots, measurements[copy, slots], R[copy, slots] = recorder.relative
+        own, joint = batched.relative_pose_information_gains(P, observers, targets, H_observer, H_target, R)
+        x, P = batched.relative_pose_update(
+            x, P, observers, targets, measurements, predicted, H_observer, H_target, R, observed,
+            cross_covariances=cross_covariances,
+        )  # fmt: skip
+        team_mi = 0.5 * (prior_log_det - log_det_spd(P))
+        for copy, (env, result) in enumerate(zip(envs, results)):
+            for robot, agent in enumerate(env.agents):
+                terms = result[4][agent]["reward_terms"]
+                assert terms["team_mutual_information"] == pytest.approx(team_mi[copy], abs=P_TOLERANCE)
+                if observed[copy, robot]:
+                    gain = infos[copy][agent]["action_information_gain"][chosen[copy, robot]]
+                    assert gain == pytest.approx(0.5 * own[copy, robot] + 0.5 * joint[copy, robot], abs=P_TOLERANCE)
+        controls, control_covariances = (np.stack(part) for part in zip(*(r.odometry for r in recorders)))
+        x, P = batched.predict_team(x, P, controls, dt, control_covariances)
+        fixes, has_fix = np.zeros((n_copies, n_robots, 2)), np.zeros((n_copies, n_robots), dtype=bool)
+        gps_noise = np.broadcast_to(np.eye(2), (n_copies, n_robots, 2, 2)).copy()
+        for copy, recorder in enumerate(recorders):
+            if recorder.gps is not None:
+                robots, fixes[copy, robots], gps_noise[copy, robots] = recorder.gps
+                has_fix[copy, robots] = True
+            recorder.clear()
+        x, P = batched.gps_update(x, P, fixes, gps_noise, has_fix, cross_covariances=cross_covariances)
+        assert_filters_equal(x, P, filters)
+        counts += [observed.sum(), (~observed).sum(), has_fix.sum()]
+        infos = [result[4] for result in results]
+    assert all(not env.agents for env in envs)  # the episodes ran to their end
+    assert np.all(counts > 50)  # observations, skipped slots and GPS fixes all happened, many times
+
+
+# ---------------------------------------------------------------------------------------------- bad input
+
+
+def _pose_case():
+    rng = np.random.default_rng(0)
+    x, P = random_states(rng, 2, n_landmarks=1), random_covariances(rng, 2, 5)
+    return x, P
+
+
+def _team_case():
+    rng = np.random.default_rng(1)
+    x, P = random_states(rng, 2, 3), random_covariances(rng, 2, 9)
+    return x, P
+
+
+X, P = _pose_case()
+XJ, PJ = _team_case()
+ODOMETRY = np.diag([0.05**2, 0.02**2])
+NAN_STATE = np.where(np.arange(5) == 1, np.nan, X)
+NOT_SPD = -np.eye(2)
+RB_ARGS = {
+    "measurements": np.ones((2, 2)),
+    "predicted": np.ones((2, 2)),
+    "H": np.ones((2, 2, 5)),
+    "R": np.broadcast_to(np.eye(2) * 0.01, (2, 2, 2)),
+    "observed": np.array([True, False]),
+}
+OBSERVERS, TARGETS = np.array([[0, 1], [2, 0]]), np.array([[1, 2], [1, 2]])
+REL_ARGS = {
+    "observers": OBSERVERS,
+    "targets": TARGETS,
+    "measurements": np.ones((2, 2, 3)),
+    "predicted": np.ones((2, 2, 3)),
+    "H_observer": np.ones((2, 2, 3, 3)),
+    "H_target": np.ones((2, 2, 3, 3)),
+    "R": np.broadcast_to(np.eye(3) * 0.01, (2, 2, 3, 3)),
+    "observed": np.ones((2, 2), dtype=bool),
+}
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (
+            lambda: batched.predict_pose(X[0], P, np.zeros((2, 2)), 0.5, ODOMETRY),
+            r"x must be a stack of states \(N, n\)",
+        ),
+        (lambda: batched.predict_pose(NAN_STATE, P, np.zeros((2, 2)), 0.5, ODOMETRY), "x must be finite"),
+        (
+            lambda: batched.predict_pose(X, P[:, :3, :3], np.zeros((2, 2)), 0.5, ODOMETRY),
+            r"P must have shape \(2, 5, 5\)",
+        ),
+        (lambda: batched.predict_pose(X, -P, np.zeros((2, 2)), 0.5, ODOMETRY), "P is not positive definite"),
+        (lambda: batched.predict_pose(X, P, np.zeros((3, 2)), 0.5, ODOMETRY), r"controls must have shape \(2, 2\)"),
+        (lambda: batched.predict_pose(X, P, np.full((2, 2), np.inf), 0.5, ODOMETRY), "controls must be finite"),
+        (lambda: batched.predict_pose(X, P, np.zeros((2, 2)), -0.5, ODOMETRY), "dt must be a finite time step >= 0"),
+        (lambda: batched.predict_pose(X, P, np.zeros((2, 2)), 0.5, NOT_SPD), "control_covariance is not positive"),
+        (
+            lambda: batched.predict_pose(X, P, np.zeros((2, 2)), 0.5, np.eye(3)),
+            r"control_covariance must have shape \(2, 2, 2\) \(or broadcast to it\), got \(3, 3\)",
+        ),
+        (
+            lambda: batched.predict_team(X, P, np.zeros((2, 1, 2)), 0.5, ODOMETRY),
+            "joint states must hold only robot poses",
+        ),
+        (
+            lambda: batched.predict_team(XJ, PJ, np.zeros((2, 2, 2)), 0.5, ODOMETRY),
+            r"controls must have shape \(2, 3, 2\)",
+        ),
+        (lambda: batched.landmark_measurement_model(X[:, :4]), r"x must be \[pose, l1x, l1y, ...\]"),
+        (
+            lambda: batched.landmark_measurement_model(X, np.zeros((3, 4, 2))),
+            r"landmarks must have shape \(K, 2\) or \(2, K, 2\), got \(3, 4, 2\)",
+        ),
+        (lambda: batched.landmark_measurement_model(X, [[np.nan, 0.0]]), "landmarks must be finite"),
+        (lambda: batched.landmark_measurement_model(X, X[:, None, :2]), "a target coincides with the sensor position"),
+        (
+            lambda: batched.landmark_information_gains(P, np.ones((2, 3, 2, 4)), np.ones((2, 3, 2, 2))),
+            r"H must have shape \(2, K, m, 5\)",
+        ),
+        (
+            lambda: batched.landmark_information_gains(
+                P, np.ones((2, 3, 2, 5)), np.broadcast_to(NOT_SPD, (2, 3, 2, 2))
+            ),
+            "R is not positive definite",
+        ),
+        (lambda: batched.pose_log_dets(PJ, 4), r"n_robots must be an int in \[1, 3\]"),
+        (lambda: batched.pose_log_dets(PJ[0], 1), r"P must be a stack of covariances \(N, n, n\)"),
+        (lambda: batched.relative_pose_model(XJ, OBSERVERS, OBSERVERS), r"observers\[0, 0\] = targets\[0, 0\] = 0"),
+        (lambda: batched.relative_pose_model(XJ, OBSERVERS, TARGETS + 1), r"targets must hold indices in \[0, 2\]"),
+        (lambda: batched.relative_pose_model(XJ, OBSERVERS[0], TARGETS[0]), r"observers must have shape \(2, M\)"),
+        (lambda: batched.relative_pose_model(XJ, OBSERVERS * 1.0, TARGETS), "observers must be an int array"),
+        (
+            lambda: batched.gps_update(XJ, PJ, np.zeros((2, 3, 2)), np.eye(2), np.ones((2, 3))),
+            r"has_fix must be a bool array of shape \(2, 3\), got float64",
+        ),
+        (
+            lambda: batched.gps_update(XJ, PJ, np.zeros((2, 2, 2)), np.eye(2), np.ones((2, 3), dtype=bool)),
+            r"fixes must have shape \(2, 3, 2\)",
+        ),
+        (
+            lambda: batched.gps_update(XJ, PJ, np.zeros((2, 3, 2)), NOT_SPD, np.ones((2, 3), dtype=bool)),
+            "noise_covariances is not positive definite",
+        ),
+    ],
+)
+def test_bad_inputs_raise_value_errors_naming_them(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()
+
+
+@pytest.mark.parametrize(
+    "key, value, message",
+    [
+        ("observed", np.array([1, 0]), r"observed must be a bool array of shape \(2,\), got int64"),
+        ("measurements", np.ones((2, 3)), r"measurements must have shape \(2, 2\)"),
+        ("predicted", np.full((2, 2), np.nan), "predicted must be finite"),
+        ("H", np.ones((2, 2, 3)), r"H must have shape \(2, 2, 5\)"),
+        ("R", np.broadcast_to(NOT_SPD, (2, 2, 2)), "R is not positive definite"),
+    ],
+)
+def test_range_bearing_update_refuses_bad_inputs(key, value, message):
+    with pytest.raises(ValueError, match=message):
+        batched.range_bearing_update(X, P, **{**RB_ARGS, key: value})
+
+
+@pytest.mark.parametrize(
+    "key, value, message",
+    [
+        ("targets", OBSERVERS, r"observers\[0, 0\] = targets\[0, 0\] = 0"),
+        ("observers", np.array([[0, 3], [2, 0]]), r"observers must hold indices in \[0, 2\]"),
+        ("observed", np.ones((2, 3), dtype=bool), r"observed must be a bool array of shape \(2, 2\)"),
+        ("measurements", np.ones((2, 2, 4)), r"measurements must have shape \(2, 2, 3\)"),
+        ("H_target", np.ones((2, 2, 2, 3)), r"H_target must have shape \(2, 2, 3, 3\)"),
+        ("R", np.broadcast_to(-np.eye(3), (2, 2, 3, 3)), "R is not positive definite"),
+    ],
+)
+def test_relative_pose_update_refuses_bad_inputs(key, value, message):
+    with pytest.raises(ValueError, match=message):
+        batched.relative_pose_update(XJ, PJ, **{**REL_ARGS, key: value})
+
+
+def test_an_unobserved_slot_may_pair_a_robot_with_itself():
+    """Placeholder pairs of slots that take no measurement are not checked as pairs (nor used)."""
+    observed = np.array([[True, False], [False, False]])
+    arguments = {**REL_ARGS, "targets": np.array([[1, 1], [2, 2]]), "observed": observed}
+    x_new, P_new = batched.relative_pose_update(XJ, PJ, **arguments)
+    np.testing.assert_array_equal(P_new[1], PJ[1])
+    assert not np.allclose(P_new[0], PJ[0])
