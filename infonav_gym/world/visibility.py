@@ -156,21 +156,17 @@ def _queries(function: str, origins, targets) -> tuple[np.ndarray, np.ndarray]:
     return origins, targets
 
 
-def _shapes(function: str, n_copies: int, points, radii, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Checked shape points (N, M, 2) [m] and radii (N, M) [m] >= 0 of ``function``."""
-    points = _finite_array(points, (n_copies, None, 2), f"{function}: {what} [m] (one row per origin)")
+def _checked(function: str, origins, targets, points, radii, culled, what: str) -> tuple:
+    """Checked queries (see ``_queries``), shape points (N, M, 2) [m], radii (N, M) [m] >= 0 and culling (N,) bool."""
+    origins, targets = _queries(function, origins, targets)
+    points = _finite_array(points, (len(origins), None, 2), f"{function}: {what} [m] (one row per origin)")
     radii = _finite_array(radii, points.shape[:2], f"{function}: radii [m] of the {what}")
     if np.any(radii < 0.0):
         raise ValueError(f"{function}: radii [m] of the {what} must be >= 0, got {radii[radii < 0.0][0]}")
-    return points, radii
-
-
-def _culling(function: str, culled, n_copies: int) -> np.ndarray:
-    """``culled`` (a bool, or one per copy) as an (N,) bool array."""
-    array = np.asarray(culled)
-    if array.dtype != bool or array.shape not in ((), (n_copies,)):
-        raise ValueError(f"{function}: culled must be a bool or an ({n_copies},) bool array, got {culled!r}")
-    return np.broadcast_to(array, (n_copies,))
+    culling = np.asarray(culled)
+    if culling.dtype != bool or culling.shape not in ((), (len(origins),)):
+        raise ValueError(f"{function}: culled must be a bool or an ({len(origins)},) bool array, got {culled!r}")
+    return origins, targets, points, radii, np.broadcast_to(culling, (len(origins),))
 
 
 def _enters_box(left, bottom, right, top, origin_x, origin_y, delta_x, delta_y) -> np.ndarray:
@@ -236,7 +232,7 @@ def _hits_discs(origin_x, origin_y, target_x, target_y, center_x, center_y, r) -
     return inside | _hits_circles(center_x, center_y, r, origin_x, origin_y, target_x, target_y)
 
 
-def _hits(origins, targets, shapes, radii, boxes, culled, exact_test) -> np.ndarray:
+def _hits(origins, targets, shapes, radii, boxes, culled, exact_test, queried=True) -> np.ndarray:
     """(N, K, M) bool: ``exact_test`` of each query against each shape, where Chipmunk's tree would run it.
 
     The tree runs it where the query enters the shape's box (or a one-leaf tree is not culled); that
@@ -245,12 +241,13 @@ def _hits(origins, targets, shapes, radii, boxes, culled, exact_test) -> np.ndar
     Args:
         origins: (N, 2); targets: (N, K, 2); shapes: the shapes' points (N, M, P) [m]; radii: (N, M) [m];
         boxes: the shapes' bounding boxes (N, M, 4) ``(left, bottom, right, top)`` [m];
-        culled: (N,) bool; exact_test: ``_hits_walls`` or ``_hits_discs``.
+        culled: (N,) bool; exact_test: ``_hits_walls`` or ``_hits_discs``;
+        queried: the queries to run (N, K) bool (True: all); the others give False.
     """
     low, high = np.minimum(origins[:, None, :], targets), np.maximum(origins[:, None, :], targets)
     touching = (low[:, :, None, 0] <= boxes[:, None, :, 2]) & (boxes[:, None, :, 0] <= high[:, :, None, 0])
     touching &= (low[:, :, None, 1] <= boxes[:, None, :, 3]) & (boxes[:, None, :, 1] <= high[:, :, None, 1])
-    copy, query, shape = np.nonzero(touching | ~culled[:, None, None])
+    copy, query, shape = np.nonzero((touching | ~culled[:, None, None]) & np.expand_dims(queried, -1))
     origin_x, origin_y = origins[copy].T
     target_x, target_y = targets[copy, query].T
     hits = np.zeros(touching.shape, dtype=bool)
@@ -284,13 +281,13 @@ def _disc_boxes(centers, radii) -> np.ndarray:
     )
 
 
-def _segment_hits_segments(origins, targets, starts, ends, radii, culled) -> np.ndarray:
+def _segment_hits_segments(origins, targets, starts, ends, radii, culled, queried=True) -> np.ndarray:
     walls = np.concatenate([starts, ends], axis=-1)
-    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, _hits_walls)
+    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, _hits_walls, queried)
 
 
-def _segment_hits_discs(origins, targets, centers, radii, culled) -> np.ndarray:
-    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, _hits_discs)
+def _segment_hits_discs(origins, targets, centers, radii, culled, queried=True) -> np.ndarray:
+    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, _hits_discs, queried)
 
 
 def segment_hits_segments(origins, targets, starts, ends, radii, culled=True) -> np.ndarray:
@@ -313,35 +310,19 @@ def segment_hits_segments(origins, targets, starts, ends, radii, culled=True) ->
     Raises:
         ValueError: naming the argument, for a wrong shape, a non-finite value or a negative radius.
     """
-    origins, targets = _queries("segment_hits_segments", origins, targets)
-    starts, radii = _shapes("segment_hits_segments", len(origins), starts, radii, "wall starts")
+    checked = _checked("segment_hits_segments", origins, targets, starts, radii, culled, "wall starts")
+    origins, targets, starts, radii, culled = checked
     ends = _finite_array(ends, starts.shape, "segment_hits_segments: wall ends [m] (one per wall start)")
-    culled = _culling("segment_hits_segments", culled, len(origins))
     return _segment_hits_segments(origins, targets, starts, ends, radii, culled)
 
 
 def segment_hits_discs(origins, targets, centers, radii, culled=True) -> np.ndarray:
-    """Whether the segment from each origin to each of its targets hits each disc before the target.
+    """``segment_hits_segments`` for discs (Pymunk ``Circle``): centres (N, D, 2) [m], radii (N, D) [m] >= 0.
 
-    The test is the one of Pymunk's ``segment_query_first`` at radius 0 against a ``Circle`` (see the module).
-
-    Args:
-        origins: query starts (N, 2) [m].
-        targets: query ends (N, K, 2) [m].
-        centers: disc centres (N, D, 2) [m].
-        radii: disc radii (N, D) [m], >= 0.
-        culled: as for ``segment_hits_segments``.
-
-    Returns:
-        (N, K, D) bool.
-
-    Raises:
-        ValueError: naming the argument, for a wrong shape, a non-finite value or a negative radius.
+    Returns (N, K, D) bool; raises as ``segment_hits_segments``.
     """
-    origins, targets = _queries("segment_hits_discs", origins, targets)
-    centers, radii = _shapes("segment_hits_discs", len(origins), centers, radii, "disc centres")
-    culled = _culling("segment_hits_discs", culled, len(origins))
-    return _segment_hits_discs(origins, targets, centers, radii, culled)
+    checked = _checked("segment_hits_discs", origins, targets, centers, radii, culled, "disc centres")
+    return _segment_hits_discs(*checked)
 
 
 def _check_copies(function: str, geometry: StaticGeometry, count: int, what: str) -> None:
@@ -369,11 +350,14 @@ def line_of_sight(geometry: StaticGeometry, origins, targets) -> np.ndarray:
     """
     origins, targets = _queries("line_of_sight", origins, targets)
     _check_copies("line_of_sight", geometry, len(origins), "origins")
-    culled = geometry.culled
-    walls = _segment_hits_segments(
-        origins, targets, geometry.wall_starts, geometry.wall_ends, geometry.wall_radii, culled
-    )
-    discs = _segment_hits_discs(origins, targets, geometry.disc_centers, geometry.disc_radii, culled)
+    return _line_of_sight(geometry, origins, targets)
+
+
+def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=True) -> np.ndarray:
+    """``line_of_sight`` of checked arguments, run only for the ``queried`` targets (N, K) bool (others: True)."""
+    starts, ends, culled = geometry.wall_starts, geometry.wall_ends, geometry.culled
+    walls = _segment_hits_segments(origins, targets, starts, ends, geometry.wall_radii, culled, queried)
+    discs = _segment_hits_discs(origins, targets, geometry.disc_centers, geometry.disc_radii, culled, queried)
     blocked = np.any(walls & geometry.wall_valid[:, None, :], axis=2)
     return ~(blocked | np.any(discs & geometry.disc_valid[:, None, :], axis=2))
 
@@ -410,4 +394,6 @@ def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets
         ValueError: as ``in_coverage`` and ``line_of_sight``.
     """
     covered = in_coverage(sensor, poses, targets)
-    return covered & line_of_sight(geometry, np.asarray(poses, dtype=float)[:, :2], targets)
+    origins = np.asarray(poses, dtype=float)[:, :2]
+    _check_copies("visible", geometry, len(origins), "poses")
+    return covered & _line_of_sight(geometry, origins, np.asarray(targets, dtype=float), covered)
