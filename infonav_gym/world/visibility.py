@@ -119,10 +119,16 @@ class StaticGeometry:
         walls = max(geometry.wall_radii.shape[1] for geometry in geometries)
         discs = max(geometry.disc_radii.shape[1] for geometry in geometries)
 
+        copies = sum(geometry.n_copies for geometry in geometries)
+
         def padded(name: str, count: int) -> np.ndarray:
-            arrays = [getattr(geometry, name) for geometry in geometries]
-            widths = [[(0, 0), (0, count - array.shape[1])] + [(0, 0)] * (array.ndim - 2) for array in arrays]
-            return _read_only(np.concatenate([np.pad(a, width) for a, width in zip(arrays, widths)]))
+            first = getattr(geometries[0], name)
+            stacked, copy = np.zeros((copies, count, *first.shape[2:]), dtype=first.dtype), 0
+            for geometry in geometries:
+                array = getattr(geometry, name)
+                stacked[copy : copy + len(array), : array.shape[1]] = array
+                copy += len(array)
+            return _read_only(stacked)
 
         return cls(
             **{name: padded(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
