@@ -11,6 +11,7 @@ from infonav_gym.world.scenarios import (
 )
 from infonav_gym.world.terrain import MATERIALS, Box, Cylinder, RayHits, Terrain
 from infonav_gym.world.terrain_generation import flat_terrain, make_terrain
+from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world import World
 
 __all__ = [
@@ -22,6 +23,7 @@ __all__ = [
     "RayHits",
     "Route",
     "Scenario",
+    "StaticGeometry",
     "Terrain",
     "World",
     "build_scenario",

@@ -1,0 +1,405 @@
+"""Batched visibility: which of K targets each of N robots sees, on stacked arrays (numpy only).
+
+``line_of_sight`` decides as ``World.line_of_sight`` does with Pymunk's ``segment_query_first`` (radius 0,
+static walls and discs only: robots never block): the same floating-point operations of Chipmunk's
+segment queries in the same order, so the answers agree bit for bit. There is no tolerance to tune;
+the degenerate cases follow Chipmunk's rules:
+
+- a query whose origin lies inside or on a wall or disc (distance <= 0) is blocked;
+- a hit counts only before the target (fraction along the query < 1): a target exactly on a surface is visible;
+- a zero-length query (target = origin) is blocked only from inside a shape;
+- a tangent line is blocked where the rounded discriminant of its circle test is >= 0;
+- a wall of zero length tests its end discs, except for a query line exactly through its point (never a hit);
+- a shape counts only where the query also enters its bounding box (Chipmunk's tree culls the others),
+  unless the world has a single static shape (a tree of one leaf, never culled).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from infonav_gym.geometry import wrap_angle
+from infonav_gym.world.scenarios import Scenario
+from infonav_gym.world.world import WORLD_ARGUMENTS
+
+if TYPE_CHECKING:
+    from infonav_gym.sensors.range_bearing import RangeBearingSensor
+    from infonav_gym.world.world import World
+
+_SMALLEST_NORMAL = np.finfo(float).tiny  # Chipmunk's CPFLOAT_MIN, added to a length before dividing by it
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
+
+
+@dataclass(frozen=True)
+class StaticGeometry:
+    """The static walls (segments with a radius) and discs of N worlds, padded to the largest counts.
+
+    Attributes:
+        wall_starts: first end of each wall (N, S, 2) [m].
+        wall_ends: second end of each wall (N, S, 2) [m].
+        wall_radii: half of each wall's thickness (N, S) [m].
+        wall_valid: which walls are real, not padding (N, S) bool.
+        disc_centers: centre of each disc (N, D, 2) [m].
+        disc_radii: radius of each disc (N, D) [m].
+        disc_valid: which discs are real, not padding (N, D) bool.
+    """
+
+    wall_starts: np.ndarray
+    wall_ends: np.ndarray
+    wall_radii: np.ndarray
+    wall_valid: np.ndarray
+    disc_centers: np.ndarray
+    disc_radii: np.ndarray
+    disc_valid: np.ndarray
+
+    @classmethod
+    def from_scenario(cls, scenario: Scenario, wall_thickness_m: float) -> StaticGeometry:
+        """The geometry (one copy) of the static shapes ``World.reset(scenario)`` builds with ``wall_thickness_m``.
+
+        Raises:
+            ParameterError: (a ``ValueError``) for a ``wall_thickness_m`` outside World's interval.
+            ValueError: naming the scenario, for a wall that is not two finite points or a disc without
+                a finite centre and a finite radius >= 0.
+        """
+        WORLD_ARGUMENTS["wall_thickness_m"].check("StaticGeometry.from_scenario", "wall_thickness_m", wall_thickness_m)
+        try:
+            walls = np.array(scenario.walls, dtype=float).reshape(-1, 2, 2)
+        except (TypeError, ValueError):
+            walls = np.full((1, 2, 2), np.nan)
+        if not np.all(np.isfinite(walls)):
+            raise ValueError(
+                f"scenario {scenario.name!r}: walls must be pairs ((x0, y0), (x1, y1)) of finite numbers [m], "
+                f"got {scenario.walls!r}"
+            )
+        centers = np.array([obstacle.center for obstacle in scenario.obstacles], dtype=float).reshape(-1, 2)
+        radii = np.array([obstacle.radius for obstacle in scenario.obstacles], dtype=float)
+        if not (np.all(np.isfinite(centers)) and np.all(np.isfinite(radii)) and np.all(radii >= 0.0)):
+            raise ValueError(
+                f"scenario {scenario.name!r}: obstacles need a finite centre [m] and a finite radius >= 0 [m], "
+                f"got {scenario.obstacles!r}"
+            )
+        return cls(
+            wall_starts=_read_only(walls[None, :, 0]),
+            wall_ends=_read_only(walls[None, :, 1]),
+            wall_radii=_read_only(np.full((1, len(walls)), wall_thickness_m / 2)),
+            wall_valid=_read_only(np.ones((1, len(walls)), dtype=bool)),
+            disc_centers=_read_only(centers[None]),
+            disc_radii=_read_only(radii[None]),
+            disc_valid=_read_only(np.ones((1, len(radii)), dtype=bool)),
+        )
+
+    @classmethod
+    def from_world(cls, world: World) -> StaticGeometry:
+        """The geometry (one copy) of ``world``'s static shapes as of its last reset.
+
+        Raises:
+            ValueError: if ``world`` has not been reset (it has no scenario yet).
+        """
+        if world.scenario is None:
+            raise ValueError("StaticGeometry.from_world: the world has no scenario yet; call world.reset(scenario)")
+        return cls.from_scenario(world.scenario, world.wall_thickness_m)
+
+    @classmethod
+    def stack(cls, geometries) -> StaticGeometry:
+        """The copies of all ``geometries`` one after the other, walls and discs padded to the largest counts.
+
+        Raises:
+            ValueError: for an empty sequence or an item that is not a ``StaticGeometry``.
+        """
+        geometries = list(geometries)
+        if not geometries or not all(isinstance(geometry, StaticGeometry) for geometry in geometries):
+            raise ValueError(f"StaticGeometry.stack needs one or more StaticGeometry, got {geometries!r}")
+        walls = max(geometry.wall_radii.shape[1] for geometry in geometries)
+        discs = max(geometry.disc_radii.shape[1] for geometry in geometries)
+
+        copies = sum(geometry.n_copies for geometry in geometries)
+
+        def padded(name: str, count: int) -> np.ndarray:
+            first = getattr(geometries[0], name)
+            stacked, copy = np.zeros((copies, count, *first.shape[2:]), dtype=first.dtype), 0
+            for geometry in geometries:
+                array = getattr(geometry, name)
+                stacked[copy : copy + len(array), : array.shape[1]] = array
+                copy += len(array)
+            return _read_only(stacked)
+
+        return cls(
+            **{name: padded(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
+            **{name: padded(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
+        )
+
+    @property
+    def n_copies(self) -> int:
+        return len(self.wall_radii)
+
+    @property
+    def culled(self) -> np.ndarray:
+        """Whether Chipmunk culls each copy's shapes by bounding box: it has more than one static shape (N,) bool."""
+        return self.wall_valid.sum(axis=1) + self.disc_valid.sum(axis=1) > 1
+
+
+def _finite_array(value, shape: tuple, what: str) -> np.ndarray:
+    """``value`` as a finite float array of ``shape`` (None: any size there), else a ``ValueError`` naming ``what``."""
+    array = np.asarray(value, dtype=float)
+    fits = array.ndim == len(shape) and all(size is None or size == n for size, n in zip(shape, array.shape))
+    if not fits or not np.all(np.isfinite(array)):
+        expected = "(" + ", ".join("any" if size is None else str(size) for size in shape) + ")"
+        raise ValueError(f"{what} must be a finite array of shape {expected}, got shape {array.shape}")
+    return array
+
+
+def _queries(function: str, origins, targets) -> tuple[np.ndarray, np.ndarray]:
+    """Checked query origins (N, 2) and targets (N, K, 2) [m] of ``function``."""
+    origins = _finite_array(origins, (None, 2), f"{function}: origins [m]")
+    targets = _finite_array(targets, (len(origins), None, 2), f"{function}: targets [m] (one row per origin)")
+    return origins, targets
+
+
+def _checked(function: str, origins, targets, points, radii, culled, what: str) -> tuple:
+    """Checked queries (see ``_queries``), shape points (N, M, 2) [m], radii (N, M) [m] >= 0 and culling (N,) bool."""
+    origins, targets = _queries(function, origins, targets)
+    points = _finite_array(points, (len(origins), None, 2), f"{function}: {what} [m] (one row per origin)")
+    radii = _finite_array(radii, points.shape[:2], f"{function}: radii [m] of the {what}")
+    if np.any(radii < 0.0):
+        raise ValueError(f"{function}: radii [m] of the {what} must be >= 0, got {radii[radii < 0.0][0]}")
+    culling = np.asarray(culled)
+    if culling.dtype != bool or culling.shape not in ((), (len(origins),)):
+        raise ValueError(f"{function}: culled must be a bool or an ({len(origins)},) bool array, got {culled!r}")
+    return origins, targets, points, radii, np.broadcast_to(culling, (len(origins),))
+
+
+def _enters_box(left, bottom, right, top, origin_x, origin_y, delta_x, delta_y) -> np.ndarray:
+    """Whether each query enters each box before its end (Chipmunk's ``cpBBSegmentQuery`` < 1)."""
+    entering, leaving, passes = [], [], True
+    for low, high, start, delta in ((left, right, origin_x, delta_x), (bottom, top, origin_y, delta_y)):
+        moving = delta != 0.0
+        t_low, t_high = (low - start) / delta, (high - start) / delta
+        entering.append(np.where(moving, np.where(t_low < t_high, t_low, t_high), -np.inf))
+        leaving.append(np.where(moving, np.where(t_low > t_high, t_low, t_high), np.inf))
+        passes = passes & (moving | ~((start < low) | (high < start)))
+    t_min, t_max = np.maximum(*entering), np.minimum(*leaving)
+    return passes & (t_min <= t_max) & (0.0 <= t_max) & (t_min < 1.0)
+
+
+def _hits_circles(center_x, center_y, radius, origin_x, origin_y, target_x, target_y) -> np.ndarray:
+    """Whether each query enters each circle before its target (Chipmunk's ``CircleSegmentQuery``, alpha < 1)."""
+    da_x, da_y, db_x, db_y = origin_x - center_x, origin_y - center_y, target_x - center_x, target_y - center_y
+    da_da, da_db, db_db = da_x * da_x + da_y * da_y, da_x * db_x + da_y * db_y, db_x * db_x + db_y * db_y
+    qa = da_da - 2.0 * da_db + db_db
+    qb = da_db - da_da
+    rsum = radius + 0.0
+    det = qb * qb - qa * (da_da - rsum * rsum)
+    t = (-qb - np.sqrt(det)) / qa
+    return (det >= 0.0) & (0.0 <= t) & (t < 1.0)
+
+
+def _hits_walls(origin_x, origin_y, target_x, target_y, a_x, a_y, b_x, b_y, r) -> np.ndarray:
+    """Whether each query hits its wall (capsule ``a``-``b`` of radius ``r``) before its target, all arrays (M,)."""
+    # the point query at the origin (cpSegmentShapePointQuery): inside or on the wall blocks at once
+    along_x, along_y = a_x - b_x, a_y - b_y
+    fraction = (along_x * (origin_x - b_x) + along_y * (origin_y - b_y)) / (along_x * along_x + along_y * along_y)
+    fraction = np.where(fraction < 1.0, fraction, 1.0)
+    fraction = np.where(0.0 > fraction, 0.0, fraction)
+    offset_x, offset_y = origin_x - (b_x + along_x * fraction), origin_y - (b_y + along_y * fraction)
+    inside = np.sqrt(offset_x * offset_x + offset_y * offset_y) - r <= 0.0
+    # the segment query (cpSegmentShapeSegmentQuery): through the near face, else into an end disc
+    wall_x, wall_y = b_x - a_x, b_y - a_y
+    inverse_length = 1.0 / (np.sqrt(wall_x * wall_x + wall_y * wall_y) + _SMALLEST_NORMAL)
+    normal_x, normal_y = wall_y * inverse_length, -(wall_x * inverse_length)
+    d = (a_x - origin_x) * normal_x + (a_y - origin_y) * normal_y
+    r_query = r + 0.0
+    beyond = d > 0.0
+    face_x = np.where(beyond, -normal_x, normal_x) * r_query - origin_x
+    face_y = np.where(beyond, -normal_y, normal_y) * r_query - origin_y
+    delta_x, delta_y = target_x - origin_x, target_y - origin_y
+    cross_a = delta_x * (a_y + face_y) - delta_y * (a_x + face_x)
+    cross_b = delta_x * (b_y + face_y) - delta_y * (b_x + face_x)
+    through_face = cross_a * cross_b <= 0.0
+    d_offset = d + np.where(beyond, -r_query, r_query)
+    ad = -d_offset
+    bd = (delta_x * normal_x + delta_y * normal_y) - d_offset
+    face_hit = through_face & (ad * bd < 0.0) & (ad / (ad - bd) < 1.0)
+    ends = (r, origin_x, origin_y, target_x, target_y)
+    ends_hit = _hits_circles(a_x, a_y, *ends) | _hits_circles(b_x, b_y, *ends)
+    return inside | face_hit | (~through_face & (r_query != 0.0) & ends_hit)
+
+
+def _hits_discs(origin_x, origin_y, target_x, target_y, center_x, center_y, r) -> np.ndarray:
+    """Whether each query hits its disc before its target, all arrays (M,)."""
+    offset_x, offset_y = origin_x - center_x, origin_y - center_y
+    inside = np.sqrt(offset_x * offset_x + offset_y * offset_y) - r <= 0.0  # cpCircleShapePointQuery
+    return inside | _hits_circles(center_x, center_y, r, origin_x, origin_y, target_x, target_y)
+
+
+def _hits(origins, targets, shapes, radii, boxes, culled, exact_test, queried=True) -> np.ndarray:
+    """(N, K, M) bool: ``exact_test`` of each query against each shape, where Chipmunk's tree would run it.
+
+    The tree runs it where the query enters the shape's box (or a one-leaf tree is not culled); that
+    needs the query's own box to touch the shape's, a cheap first filter.
+
+    Args:
+        origins: (N, 2); targets: (N, K, 2); shapes: the shapes' points (N, M, P) [m]; radii: (N, M) [m];
+        boxes: the shapes' bounding boxes (N, M, 4) ``(left, bottom, right, top)`` [m];
+        culled: (N,) bool; exact_test: ``_hits_walls`` or ``_hits_discs``;
+        queried: the queries to run (N, K) bool (True: all); the others give False.
+    """
+    low, high = np.minimum(origins[:, None, :], targets), np.maximum(origins[:, None, :], targets)
+    touching = (low[:, :, None, 0] <= boxes[:, None, :, 2]) & (boxes[:, None, :, 0] <= high[:, :, None, 0])
+    touching &= (low[:, :, None, 1] <= boxes[:, None, :, 3]) & (boxes[:, None, :, 1] <= high[:, :, None, 1])
+    copy, query, shape = np.nonzero((touching | ~culled[:, None, None]) & np.expand_dims(queried, -1))
+    origin_x, origin_y = origins[copy].T
+    target_x, target_y = targets[copy, query].T
+    hits = np.zeros(touching.shape, dtype=bool)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        box = boxes[copy, shape].T
+        tested = _enters_box(*box, origin_x, origin_y, target_x - origin_x, target_y - origin_y) | ~culled[copy]
+        copy, query, shape = copy[tested], query[tested], shape[tested]
+        hits[copy, query, shape] = exact_test(
+            origin_x[tested],
+            origin_y[tested],
+            target_x[tested],
+            target_y[tested],
+            *shapes[copy, shape].T,
+            radii[copy, shape],
+        )
+    return hits
+
+
+def _wall_boxes(starts, ends, radii) -> np.ndarray:
+    """Chipmunk's bounding box of each wall (cpSegmentShapeCacheData) (N, S, 4)."""
+    a_x, a_y, b_x, b_y = starts[..., 0], starts[..., 1], ends[..., 0], ends[..., 1]
+    left, right = np.where(a_x < b_x, a_x, b_x) - radii, np.where(a_x < b_x, b_x, a_x) + radii
+    bottom, top = np.where(a_y < b_y, a_y, b_y) - radii, np.where(a_y < b_y, b_y, a_y) + radii
+    return np.stack([left, bottom, right, top], axis=-1)
+
+
+def _disc_boxes(centers, radii) -> np.ndarray:
+    """Chipmunk's bounding box of each disc (cpBBNewForCircle) (N, D, 4)."""
+    return np.stack(
+        [centers[..., 0] - radii, centers[..., 1] - radii, centers[..., 0] + radii, centers[..., 1] + radii], -1
+    )
+
+
+def _segment_hits_segments(origins, targets, starts, ends, radii, culled, queried=True) -> np.ndarray:
+    walls = np.concatenate([starts, ends], axis=-1)
+    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, _hits_walls, queried)
+
+
+def _segment_hits_discs(origins, targets, centers, radii, culled, queried=True) -> np.ndarray:
+    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, _hits_discs, queried)
+
+
+def segment_hits_segments(origins, targets, starts, ends, radii, culled=True) -> np.ndarray:
+    """Whether the segment from each origin to each of its targets hits each wall before the target.
+
+    A wall is the segment from ``starts`` to ``ends`` thickened by ``radii`` (a capsule), as a Pymunk
+    ``Segment``; the test is the one of Pymunk's ``segment_query_first`` at radius 0 (see the module).
+
+    Args:
+        origins: query starts (N, 2) [m].
+        targets: query ends (N, K, 2) [m].
+        starts, ends: wall ends (N, S, 2) [m].
+        radii: wall radii (N, S) [m], >= 0.
+        culled: whether Chipmunk's bounding-box culling applies (a bool, or one per origin (N,)): it does
+            unless the space holds a single static shape (``StaticGeometry.culled``).
+
+    Returns:
+        (N, K, S) bool.
+
+    Raises:
+        ValueError: naming the argument, for a wrong shape, a non-finite value or a negative radius.
+    """
+    checked = _checked("segment_hits_segments", origins, targets, starts, radii, culled, "wall starts")
+    origins, targets, starts, radii, culled = checked
+    ends = _finite_array(ends, starts.shape, "segment_hits_segments: wall ends [m] (one per wall start)")
+    return _segment_hits_segments(origins, targets, starts, ends, radii, culled)
+
+
+def segment_hits_discs(origins, targets, centers, radii, culled=True) -> np.ndarray:
+    """``segment_hits_segments`` for discs (Pymunk ``Circle``): centres (N, D, 2) [m], radii (N, D) [m] >= 0.
+
+    Returns (N, K, D) bool; raises as ``segment_hits_segments``.
+    """
+    checked = _checked("segment_hits_discs", origins, targets, centers, radii, culled, "disc centres")
+    return _segment_hits_discs(*checked)
+
+
+def _check_copies(function: str, geometry: StaticGeometry, count: int, what: str) -> None:
+    if not isinstance(geometry, StaticGeometry):
+        raise ValueError(f"{function}: geometry must be a StaticGeometry, got {type(geometry).__name__}")
+    if count != geometry.n_copies:
+        raise ValueError(f"{function}: {count} {what} for a geometry of {geometry.n_copies} copies (one each)")
+
+
+def line_of_sight(geometry: StaticGeometry, origins, targets) -> np.ndarray:
+    """Whether the straight line from each copy's origin to each of its targets misses every wall and disc.
+
+    Equal to ``World.line_of_sight(origins[i], targets[i])`` of each copy's world (see the module).
+
+    Args:
+        geometry: the static shapes of N copies.
+        origins: one origin per copy (N, 2) [m].
+        targets: K targets per copy (N, K, 2) [m].
+
+    Returns:
+        (N, K) bool.
+
+    Raises:
+        ValueError: for a wrong shape, a non-finite value, or another number of copies than ``geometry``'s.
+    """
+    origins, targets = _queries("line_of_sight", origins, targets)
+    _check_copies("line_of_sight", geometry, len(origins), "origins")
+    return _line_of_sight(geometry, origins, targets)
+
+
+def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=True) -> np.ndarray:
+    """``line_of_sight`` of checked arguments, run only for the ``queried`` targets (N, K) bool (others: True)."""
+    starts, ends, culled = geometry.wall_starts, geometry.wall_ends, geometry.culled
+    walls = _segment_hits_segments(origins, targets, starts, ends, geometry.wall_radii, culled, queried)
+    discs = _segment_hits_discs(origins, targets, geometry.disc_centers, geometry.disc_radii, culled, queried)
+    blocked = np.any(walls & geometry.wall_valid[:, None, :], axis=2)
+    return ~(blocked | np.any(discs & geometry.disc_valid[:, None, :], axis=2))
+
+
+def in_coverage(sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
+    """Whether each target lies within ``sensor``'s range and field of view from each copy's pose.
+
+    Equal to ``sensor.in_coverage(range_bearing(poses[i], targets[i]))`` of each copy.
+
+    Args:
+        sensor: the range-bearing sensor.
+        poses: one true pose ``[x, y, heading]`` per copy (N, 3) [m, m, rad].
+        targets: K targets per copy (N, K, 2) [m].
+
+    Returns:
+        (N, K) bool.
+
+    Raises:
+        ValueError: for a wrong shape or a non-finite value.
+    """
+    poses = _finite_array(poses, (None, 3), "in_coverage: poses [m, m, rad]")
+    targets = _finite_array(targets, (len(poses), None, 2), "in_coverage: targets [m] (one row per pose)")
+    dx, dy = targets[:, :, 0] - poses[:, None, 0], targets[:, :, 1] - poses[:, None, 1]
+    measurements = np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - poses[:, None, 2])], axis=-1)
+    return sensor.in_coverage(measurements.reshape(-1, 2)).reshape(dx.shape)
+
+
+def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
+    """Which targets each copy's robot sees: in ``sensor``'s coverage and in line of sight (N, K) bool.
+
+    Equal to ``LandmarkSight``'s ``visible`` of each copy (``in_coverage`` and ``line_of_sight``).
+
+    Raises:
+        ValueError: as ``in_coverage`` and ``line_of_sight``.
+    """
+    covered = in_coverage(sensor, poses, targets)
+    origins = np.asarray(poses, dtype=float)[:, :2]
+    _check_copies("visible", geometry, len(origins), "poses")
+    return covered & _line_of_sight(geometry, origins, np.asarray(targets, dtype=float), covered)
