@@ -128,7 +128,7 @@ def test_same_seed_same_trajectory_bit_for_bit():
 
 def test_seed_list_seeds_each_sub_env_and_none_keeps_its_generator():
     env = LandmarkSelectionVectorEnv(num_envs=3)
-    observations, _ = env.reset(seed=[7, None, 2])
+    observations, _ = env.reset(seed=[7, None, np.int64(2)])
     single = gym.make(ENV_ID)
     np.testing.assert_array_equal(observations[0], single.reset(seed=7)[0])
     np.testing.assert_array_equal(observations[2], single.reset(seed=2)[0])
@@ -257,7 +257,9 @@ def test_bad_arguments_raise(arguments, match):
 @pytest.mark.parametrize(
     ("reset_arguments", "match"),
     [
-        ({"seed": [1, 2]}, "list of 3 ints or None"),
+        ({"seed": [1, 2]}, r"None, an int >= 0 or a list of 3 such seeds \(one per sub-env\), got \[1, 2\]"),
+        ({"seed": -1}, "int >= 0"),
+        ({"seed": [0, np.int64(3), -2]}, "int >= 0"),
         ({"seed": 1.5}, "seed"),
         ({"seed": [1, True, 2]}, "seed"),
         ({"options": {"reset_mask": [True] * 3}}, "takes no options"),

@@ -66,7 +66,7 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         self._odometry_rngs: list[np.random.Generator | None] = [None] * num_envs
         self._measurement_rngs: list[np.random.Generator | None] = [None] * num_envs
         self._geometries: list[StaticGeometry | None] = [None] * num_envs
-        self._x = self._P = self._decision = None
+        self._x = self._P = self._decision = self._geometry = None
         self._elapsed = np.zeros(num_envs, dtype=int)
         self._true_poses = np.zeros((num_envs, 3))
         n_candidates = self.config["n_candidates"]
@@ -96,15 +96,15 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         return self._outputs(np.zeros(self.num_envs, dtype=bool), np.full(self.num_envs, -1), nothing)
 
     def _copy_seeds(self, seed) -> list[int | None]:
-        if seed is None or (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)):
+        if _is_seed(seed):
             return [None if seed is None else int(seed) + copy for copy in range(self.num_envs)]
-        seeds = list(seed) if isinstance(seed, (list, tuple)) else None
-        if seeds is None or len(seeds) != self.num_envs or not all(_is_seed(item) for item in seeds):
+        seeds = list(seed) if isinstance(seed, (list, tuple)) else []
+        if len(seeds) != self.num_envs or not all(_is_seed(item) for item in seeds):
             raise ValueError(
-                f"seed of LandmarkSelectionVectorEnv.reset must be None, an int or a list of {self.num_envs} "
-                f"ints or None (one per sub-env), got {seed!r}"
+                f"seed of LandmarkSelectionVectorEnv.reset must be None, an int >= 0 or a list of {self.num_envs} "
+                f"such seeds (one per sub-env), got {seed!r}"
             )
-        return seeds
+        return [None if item is None else int(item) for item in seeds]
 
     def _reset_copies(self, copies: np.ndarray) -> None:
         """Start a new episode in each of ``copies`` from its own generator, as the single env's reset does."""
@@ -252,4 +252,5 @@ class LandmarkSelectionVectorEnv(VectorEnv):
 
 
 def _is_seed(value) -> bool:
-    return value is None or (isinstance(value, (int, np.integer)) and not isinstance(value, bool))
+    """Whether ``value`` is a seed of one sub-env: None, or an int >= 0 (not a bool)."""
+    return value is None or (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0)
