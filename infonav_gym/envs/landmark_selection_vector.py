@@ -61,6 +61,8 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         self.single_action_space = self._single.action_space
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
+        self._sensor, self._odometry = self._single.sensor, self._single.odometry
+        self._odometry_covariance = self._odometry.noise_covariance()
         self._worlds = [World() for _ in range(num_envs)]
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
         self._odometry_rngs: list[np.random.Generator | None] = [None] * num_envs
@@ -187,7 +189,7 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         decision = self._decision
         observed, predicted, H, R = batched.select_candidates(chosen, decision.predicted, decision.H, decision.R)
         measurements = np.zeros((self.num_envs, 2))
-        sensor = self._single.sensor
+        sensor = self._sensor
         for copy in np.flatnonzero(observed).tolist():
             landmark = self._landmarks[copy, chosen[copy]]
             measurements[copy] = sensor.measure(self._true_poses[copy], landmark, self._measurement_rngs[copy])
@@ -204,21 +206,20 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         """Step the worlds of ``copies`` and predict their EKFs from noisy odometry."""
         if not copies.size:
             return
-        dt, odometry = self.config["time_step_s"], self._single.odometry
+        dt, odometry = self.config["time_step_s"], self._odometry
         readings = np.zeros((len(copies), 2))
         for row, copy in enumerate(copies.tolist()):
             control = self._worlds[copy].step(dt)[0]
             self._true_poses[copy] = self._worlds[copy].pose
             readings[row] = odometry.measure(control, self._odometry_rngs[copy])
-        covariance = self._single._odometry_covariance
         self._x[copies], self._P[copies] = batched.predict_pose(
-            self._x[copies], self._P[copies], readings, dt, covariance, check_input=False
+            self._x[copies], self._P[copies], readings, dt, self._odometry_covariance, check_input=False
         )
 
     def _outputs(self, stepped: np.ndarray, chosen: np.ndarray, rewards: np.ndarray) -> tuple[np.ndarray, dict]:
         """Decide again at every copy's prior; the observations and infos of this reset or step."""
         self._decision = BatchedDecision.at_prior(
-            self._single.sensor,
+            self._sensor,
             self._geometry,
             self._true_poses,
             self._x,
