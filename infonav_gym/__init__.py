@@ -10,7 +10,12 @@ __version__ = "0.1.0"
 __all__ = ["make_env", "register", "register_envs", "registered_envs", "unregister"]
 
 BUILTIN_ENVS = (
-    ("infonav/LandmarkSelection-v0", "infonav_gym.envs.landmark_selection:LandmarkSelectionEnv", GYMNASIUM),
+    (
+        "infonav/LandmarkSelection-v0",
+        "infonav_gym.envs.landmark_selection:LandmarkSelectionEnv",
+        GYMNASIUM,
+        "infonav_gym.envs.landmark_selection_vector:LandmarkSelectionVectorEnv",
+    ),
     ("infonav/ActiveLocalization-v0", "infonav_gym.envs.active_localization:ActiveLocalizationEnv", GYMNASIUM),
     ("infonav/SensorSelection-v0", "infonav_gym.envs.sensor_selection:SensorSelectionEnv", GYMNASIUM),
     ("infonav/RangeRegistration-v0", "infonav_gym.envs.range_registration:RangeRegistrationEnv", GYMNASIUM),
@@ -19,9 +24,9 @@ BUILTIN_ENVS = (
 
 
 def register_envs() -> None:
-    """Register every infonav environment (``BUILTIN_ENVS``); calling it again does nothing."""
-    for env_id, entry_point, api in BUILTIN_ENVS:
-        register(env_id, entry_point, api)
+    """Register every infonav environment (``BUILTIN_ENVS``, with a native vector env where one follows the API)."""
+    for env_id, entry_point, api, *vector_entry_point in BUILTIN_ENVS:
+        register(env_id, entry_point, api, *vector_entry_point)
 
 
 register_envs()

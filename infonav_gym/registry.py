@@ -38,11 +38,14 @@ class EnvEntry:
         id: the env id, e.g. ``"infonav/LandmarkSelection-v0"``.
         entry_point: ``"module:EnvClass"`` (or the class itself); called with the config as keywords.
         api: ``GYMNASIUM`` or ``PARALLEL``.
+        vector_entry_point: ``"module:VectorEnvClass"`` of a native ``gymnasium.vector.VectorEnv``, called with
+            ``num_envs`` and the config by ``gym.make_vec``; None for none (a Gymnasium entry only).
     """
 
     id: str
     entry_point: str | Callable
     api: str
+    vector_entry_point: str | Callable | None = None
 
     def load(self) -> Callable:
         """The env class (or factory) the entry point names, imported now."""
@@ -55,7 +58,9 @@ class EnvEntry:
 _ENTRIES: dict[str, EnvEntry] = {}
 
 
-def register(env_id: str, entry_point: str | Callable, api: str = GYMNASIUM) -> EnvEntry:
+def register(
+    env_id: str, entry_point: str | Callable, api: str = GYMNASIUM, vector_entry_point: str | Callable | None = None
+) -> EnvEntry:
     """Add an env to the registry (and to Gymnasium's for ``api=GYMNASIUM``); the same entry again does nothing.
 
     Raises:
@@ -66,13 +71,17 @@ def register(env_id: str, entry_point: str | Callable, api: str = GYMNASIUM) -> 
         raise ValueError(f"api of env {env_id!r} must be one of {', '.join(APIS)}, got {api!r}")
     if isinstance(entry_point, str) and entry_point.count(":") != 1:
         raise ValueError(f"entry_point of env {env_id!r} must be 'module:attribute', got {entry_point!r}")
-    entry = EnvEntry(env_id, entry_point, api)
+    if vector_entry_point is not None and api != GYMNASIUM:
+        raise ValueError(f"vector_entry_point of env {env_id!r} needs api={GYMNASIUM!r}, got api={api!r}")
+    if isinstance(vector_entry_point, str) and vector_entry_point.count(":") != 1:
+        raise ValueError(f"vector_entry_point of env {env_id!r} must be 'module:attribute', got {vector_entry_point!r}")
+    entry = EnvEntry(env_id, entry_point, api, vector_entry_point)
     known = _ENTRIES.get(env_id)
     if known is not None and known != entry:
         raise ValueError(f"env id {env_id!r} is already registered as {known}; unregister it first")
     _ENTRIES[env_id] = entry
     if api == GYMNASIUM and env_id not in gym.registry:
-        gym.register(id=env_id, entry_point=entry_point)
+        gym.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point)
     return entry
 
 

@@ -144,7 +144,7 @@ def toy():
 
 def test_every_builtin_env_is_registered_once_and_register_envs_is_idempotent():
     ids = [entry.id for entry in registered_envs()]
-    assert ids == [env_id for env_id, _, _ in infonav_gym.BUILTIN_ENVS] and TEAM_ID in ids
+    assert ids == [entry[0] for entry in infonav_gym.BUILTIN_ENVS] and TEAM_ID in ids
     gymnasium_entries = {env_id: gym.registry[env_id] for env_id in [e.id for e in registered_envs(GYMNASIUM)]}
     infonav_gym.register_envs()
     assert [entry.id for entry in registered_envs()] == ids

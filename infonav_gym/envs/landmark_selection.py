@@ -153,27 +153,13 @@ class LandmarkSelectionEnv(InfoNavEnv):
         return low, high
 
     def _reset_episode(self) -> None:
-        cfg = self.config
-        self.world.reset(self._build_scenario())
-        self._odometry_rng, self._measurement_rng = self.np_random.spawn(2)
-        pose_std = np.array([cfg["initial_position_std_m"]] * 2 + [cfg["initial_heading_std_rad"]])
+        owner = type(self).__name__
+        self.ekf, self._odometry_rng, self._measurement_rng = start_episode(
+            self.config, self.world, self.np_random, owner
+        )
         self._true_pose = self.world.pose
-        initial_pose = self._true_pose + pose_std * self.np_random.standard_normal(POSE_DIM)
-        landmarks = self.world.landmarks
-        if cfg["mapping"]:
-            prior_std = cfg["landmark_prior_std_m"]
-            estimates = landmarks + prior_std * self.np_random.standard_normal(landmarks.shape)
-            self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2), estimates, prior_std**2)
-        else:
-            self.ekf = PoseEKF(initial_pose, np.diag(pose_std**2))
         self._true_path = PathHistory(self._true_pose[:2])
         self._estimated_path = PathHistory(self.ekf.x[:2])
-
-    def _build_scenario(self):
-        """The registered scenario ``config["scenario"]``: one route, at most ``n_candidates`` landmarks."""
-        cfg = self.config
-        owner = type(self).__name__
-        return scenario_from_config(cfg, self.np_random, SCENARIO_KEYS, owner, 1, max_landmarks=cfg["n_candidates"])
 
     def _next_decision(self) -> Decision:
         """Visible landmarks and their expected MI at the prior; the payload is their ``LandmarkSight``."""
@@ -259,3 +245,29 @@ class LandmarkSelectionEnv(InfoNavEnv):
             caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
             f"pose entropy {self._pose_entropy:.2f} nats",
         )
+
+
+def start_episode(config: dict, world: World, np_random: np.random.Generator, owner: str):
+    """Start an episode of ``LandmarkSelection-v0``: reset ``world`` and draw the estimator's prior from ``np_random``.
+
+    Draws in a fixed order (the scenario, the sensors' generators, the initial estimate, the mapped landmarks'
+    estimates), so the single and the vector env give the same episode for the same generator.
+
+    Args:
+        config: a checked ``LandmarkSelectionEnv`` config.
+        world: the world to reset to the scenario ``config["scenario"]`` (one route, <= ``n_candidates`` landmarks).
+        np_random: the episode's generator.
+        owner: the env named in config errors.
+
+    Returns:
+        ``(ekf, odometry_rng, measurement_rng)``: the ``PoseEKF`` at the prior and the sensors' generators.
+    """
+    world.reset(scenario_from_config(config, np_random, SCENARIO_KEYS, owner, 1, max_landmarks=config["n_candidates"]))
+    odometry_rng, measurement_rng = np_random.spawn(2)
+    pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
+    initial_pose = world.pose + pose_std * np_random.standard_normal(POSE_DIM)
+    if not config["mapping"]:
+        return PoseEKF(initial_pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
+    landmarks, prior_std = world.landmarks, config["landmark_prior_std_m"]
+    estimates = landmarks + prior_std * np_random.standard_normal(landmarks.shape)
+    return PoseEKF(initial_pose, np.diag(pose_std**2), estimates, prior_std**2), odometry_rng, measurement_rng

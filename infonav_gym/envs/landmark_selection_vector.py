@@ -1,0 +1,257 @@
+"""``LandmarkSelectionVectorEnv``: N copies of ``infonav/LandmarkSelection-v0`` stepped at once on stacked arrays.
+
+``gym.make_vec("infonav/LandmarkSelection-v0", num_envs=N, **config)`` returns it. The estimation (EKF
+prediction, range-bearing updates, expected gains, log-determinants) and the visibility run batched over
+the copies (``estimation.batched``, ``world.visibility``); the physics keeps one Pymunk ``World`` per copy
+and the sensor noise one generator per copy, drawn in the single env's order. So sub-env ``i`` after
+``reset(seed=s)`` gives the numbers of ``gym.make("infonav/LandmarkSelection-v0")`` after ``reset(seed=s + i)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from infonav_gym.envs.base import accepts_action
+from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv, start_episode
+from infonav_gym.envs.landmark_selection_batch import BatchedDecision, batched_info, batched_observation
+from infonav_gym.estimation import batched
+from infonav_gym.world.visibility import StaticGeometry
+from infonav_gym.world.world import World
+
+
+class LandmarkSelectionVectorEnv(VectorEnv):
+    """N copies of ``LandmarkSelectionEnv`` (see it for the spaces, rewards and config keys), batched.
+
+    ## Vector API
+    ``single_observation_space`` / ``single_action_space`` are the single env's; ``step`` takes one
+    action per sub-env (N,) and returns observations (N, 10 + 5K), rewards, ``terminated`` and
+    ``truncated`` (N,). Infos hold the single env's keys as arrays with a leading N dimension, each with
+    Gymnasium's ``_key`` mask; ``info["action_mask"]`` is (N, K). ``action_masks()`` gives the (N, K)
+    bool masks for ``MaskablePPO``.
+
+    ## Autoreset
+    ``NEXT_STEP`` (``metadata["autoreset_mode"]``), as Gymnasium's ``CartPoleVectorEnv``: the step after a
+    sub-env's episode ended resets it (its action is ignored), with reward 0, not terminated nor truncated,
+    and its reset info (``reward_terms`` masked out). A sub-env reset this way continues its own generator,
+    as the single env's ``reset()`` without a seed does.
+
+    ## Arguments
+    ``num_envs`` (N >= 1) and any key of ``LandmarkSelectionEnv.default_config()``, checked as the single
+    env checks them. With ``mapping=True`` every copy's scenario must have the same number of landmarks
+    (the stacked states share their size). Rendering is not implemented yet.
+    """
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, render_mode: str | None = None, **config):
+        if type(num_envs) is not int or num_envs < 1:
+            raise ValueError(f"num_envs of LandmarkSelectionVectorEnv must be an int >= 1, got {num_envs!r}")
+        if render_mode is not None:
+            raise ValueError(
+                f"LandmarkSelectionVectorEnv does not render yet: render_mode must be None, got {render_mode!r}"
+            )
+        self._single = LandmarkSelectionEnv(**config)  # checks the config as the single env does
+        self.config = self._single.config
+        self.num_envs = num_envs
+        self.render_mode = None
+        self.single_observation_space = self._single.observation_space
+        self.single_action_space = self._single.action_space
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._sensor, self._odometry = self._single.sensor, self._single.odometry
+        self._odometry_covariance = self._odometry.noise_covariance()
+        self._worlds = [World() for _ in range(num_envs)]
+        self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
+        self._odometry_rngs: list[np.random.Generator | None] = [None] * num_envs
+        self._measurement_rngs: list[np.random.Generator | None] = [None] * num_envs
+        self._geometries: list[StaticGeometry | None] = [None] * num_envs
+        self._x = self._P = self._decision = self._geometry = None
+        self._elapsed = np.zeros(num_envs, dtype=int)
+        self._true_poses = np.zeros((num_envs, 3))
+        n_candidates = self.config["n_candidates"]
+        self._landmarks = np.zeros((num_envs, n_candidates, 2))
+        self._exists = np.zeros((num_envs, n_candidates), dtype=bool)
+        self._prev_done = np.zeros(num_envs, dtype=bool)
+
+    @property
+    def np_randoms(self) -> list[np.random.Generator | None]:
+        """Each sub-env's generator (the single env's ``np_random``), None before its first reset."""
+        return list(self._np_randoms)
+
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        """Reset every sub-env: seed ``s`` gives sub-env ``i`` the seed ``s + i``; a list gives one seed (or None) each.
+
+        Raises:
+            ValueError: for a seed that is not None, an int or a list of N ints / None, or any options.
+        """
+        if options:
+            raise ValueError(f"LandmarkSelectionVectorEnv.reset takes no options, got {sorted(options)}")
+        for copy, copy_seed in enumerate(self._copy_seeds(seed)):
+            if copy_seed is not None or self._np_randoms[copy] is None:
+                self._np_randoms[copy] = seeding.np_random(copy_seed)[0]
+        self._reset_copies(np.arange(self.num_envs))
+        self._prev_done[:] = False
+        nothing = np.zeros(self.num_envs)
+        return self._outputs(np.zeros(self.num_envs, dtype=bool), np.full(self.num_envs, -1), nothing)
+
+    def _copy_seeds(self, seed) -> list[int | None]:
+        if _is_seed(seed):
+            return [None if seed is None else int(seed) + copy for copy in range(self.num_envs)]
+        seeds = list(seed) if isinstance(seed, (list, tuple)) else []
+        if len(seeds) != self.num_envs or not all(_is_seed(item) for item in seeds):
+            raise ValueError(
+                f"seed of LandmarkSelectionVectorEnv.reset must be None, an int >= 0 or a list of {self.num_envs} "
+                f"such seeds (one per sub-env), got {seed!r}"
+            )
+        return [None if item is None else int(item) for item in seeds]
+
+    def _reset_copies(self, copies: np.ndarray) -> None:
+        """Start a new episode in each of ``copies`` from its own generator, as the single env's reset does."""
+        owner = type(self._single).__name__
+        for copy in copies.tolist():
+            world = self._worlds[copy]
+            ekf, self._odometry_rngs[copy], self._measurement_rngs[copy] = start_episode(
+                self.config, world, self._np_randoms[copy], owner
+            )
+            if self._x is None or len(copies) == self.num_envs and copy == 0:
+                self._x, self._P = np.zeros((self.num_envs, ekf.dim_x)), np.zeros((self.num_envs, ekf.dim_x, ekf.dim_x))
+            if ekf.dim_x != self._x.shape[1]:
+                raise ValueError(
+                    f"sub-env {copy} of LandmarkSelectionVectorEnv: with mapping=True every copy needs the same number "
+                    f"of landmarks; scenario {world.scenario.name!r} has {ekf.n_landmarks}, the other copies "
+                    f"{(self._x.shape[1] - 3) // 2}"
+                )
+            self._x[copy], self._P[copy] = ekf.x, ekf.P
+            n_landmarks = len(world.landmarks)
+            self._landmarks[copy] = 0.0
+            self._landmarks[copy, :n_landmarks] = world.landmarks
+            self._exists[copy] = np.arange(self.config["n_candidates"]) < n_landmarks
+            self._true_poses[copy] = world.pose
+            self._geometries[copy] = StaticGeometry.from_world(world)
+        self._elapsed[copies] = 0
+        self._geometry = StaticGeometry.stack(self._geometries)
+
+    def step(self, actions):
+        """Act in every sub-env (reset those whose episode ended at the last step, see the class).
+
+        Raises:
+            ValueError: for actions that are not N integers of the action space, or, with
+                ``invalid_action="raise"``, a masked action (each naming its sub-env).
+        """
+        if self._decision is None:
+            raise RuntimeError("LandmarkSelectionVectorEnv: call reset() before step()")
+        actions = self._checked_actions(actions)
+        resetting = self._prev_done.copy()
+        chosen = self._chosen_actions(actions, ~resetting)
+        rewards = self._observe(chosen)
+        acting = np.flatnonzero(~resetting)
+        self._elapsed[acting] += 1
+        self._advance(acting)
+        if resetting.any():
+            self._reset_copies(np.flatnonzero(resetting))
+        truncated = ~resetting & (self._elapsed >= self.config["horizon"])
+        observation, info = self._outputs(~resetting, chosen, rewards)
+        self._prev_done = truncated.copy()
+        return observation, rewards, np.zeros(self.num_envs, dtype=bool), truncated, info
+
+    def _checked_actions(self, actions) -> np.ndarray:
+        array = np.asarray(actions)
+        n_candidates = self.config["n_candidates"]
+        if array.shape != (self.num_envs,) or array.dtype.kind not in "iu":
+            raise ValueError(
+                f"actions of LandmarkSelectionVectorEnv must be an integer array of shape ({self.num_envs},), one "
+                f"per sub-env, in [0, {n_candidates - 1}]; got {array.dtype} of shape {array.shape}"
+            )
+        outside = np.flatnonzero((array < 0) | (array >= n_candidates))
+        if outside.size:
+            copy = int(outside[0])
+            raise ValueError(
+                f"action {array[copy]} of sub-env {copy} is not in the action space {self.single_action_space}: "
+                f"expected an integer in [0, {n_candidates - 1}]"
+            )
+        return array.astype(int)
+
+    def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> np.ndarray:
+        """The landmark each acting sub-env observes, -1 for a no-op (``invalid_action`` per sub-env)."""
+        mask = self._decision.action_mask
+        valid = acting & mask[np.arange(self.num_envs), actions].astype(bool)
+        for copy in np.flatnonzero(acting & ~valid).tolist():
+            accepts_action(
+                int(actions[copy]), mask[copy], self.config["invalid_action"], 'info["action_mask"]', f"sub-env {copy}"
+            )
+        return np.where(valid, actions, -1)
+
+    def _observe(self, chosen: np.ndarray) -> np.ndarray:
+        """Update each observing copy's EKF with a noisy measurement of its chosen landmark; the realized MI (N,)."""
+        decision = self._decision
+        observed, predicted, H, R = batched.select_candidates(chosen, decision.predicted, decision.H, decision.R)
+        measurements = np.zeros((self.num_envs, 2))
+        sensor = self._sensor
+        for copy in np.flatnonzero(observed).tolist():
+            landmark = self._landmarks[copy, chosen[copy]]
+            measurements[copy] = sensor.measure(self._true_poses[copy], landmark, self._measurement_rngs[copy])
+        rewards = np.zeros(self.num_envs)
+        if observed.any():
+            self._x, self._P = batched.range_bearing_update(
+                self._x, self._P, measurements, predicted, H, R, observed, check_input=False
+            )
+            posterior_log_dets = np.linalg.slogdet(self._P[observed])[1]
+            rewards[observed] = 0.5 * (decision.prior_log_det[observed] - posterior_log_dets)
+        return rewards
+
+    def _advance(self, copies: np.ndarray) -> None:
+        """Step the worlds of ``copies`` and predict their EKFs from noisy odometry."""
+        if not copies.size:
+            return
+        dt, odometry = self.config["time_step_s"], self._odometry
+        readings = np.zeros((len(copies), 2))
+        for row, copy in enumerate(copies.tolist()):
+            control = self._worlds[copy].step(dt)[0]
+            self._true_poses[copy] = self._worlds[copy].pose
+            readings[row] = odometry.measure(control, self._odometry_rngs[copy])
+        self._x[copies], self._P[copies] = batched.predict_pose(
+            self._x[copies], self._P[copies], readings, dt, self._odometry_covariance, check_input=False
+        )
+
+    def _outputs(self, stepped: np.ndarray, chosen: np.ndarray, rewards: np.ndarray) -> tuple[np.ndarray, dict]:
+        """Decide again at every copy's prior; the observations and infos of this reset or step."""
+        self._decision = BatchedDecision.at_prior(
+            self._sensor,
+            self._geometry,
+            self._true_poses,
+            self._x,
+            self._P,
+            self._landmarks,
+            self._exists,
+            self.config["mapping"],
+        )
+        observation = batched_observation(
+            self._decision, self._x, self._P, self._elapsed, self._exists, self.config, self.single_observation_space
+        )
+        info = batched_info(
+            self._decision, self._x, self._true_poses, self._elapsed, stepped, chosen, rewards, self.config
+        )
+        return observation, info
+
+    def action_masks(self) -> np.ndarray:
+        """The valid actions of each sub-env as bool (N, K); all ``True`` where none is valid (each is the no-op)."""
+        if self._decision is None:
+            raise RuntimeError("LandmarkSelectionVectorEnv: call reset() before action_masks()")
+        mask = self._decision.action_mask.astype(bool)
+        mask[~mask.any(axis=1)] = True
+        return mask
+
+    def render(self):
+        raise NotImplementedError("LandmarkSelectionVectorEnv.render() is not implemented yet; render a single env")
+
+    def close_extras(self, **kwargs) -> None:
+        self._worlds = []
+        self._decision = None
+
+
+def _is_seed(value) -> bool:
+    """Whether ``value`` is a seed of one sub-env: None, or an int >= 0 (not a bool)."""
+    return value is None or (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0)
