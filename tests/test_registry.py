@@ -23,7 +23,7 @@ import infonav_gym
 from infonav_gym.config import check_choice, merge_config
 from infonav_gym.envs.base import discrete_action_index
 from infonav_gym.envs.metrics import SUCCESS_RATE, EpisodeMetric, final_value, summed_reward_term
-from infonav_gym.envs.traits import COMMON_INFO_KEYS, EnvTraits
+from infonav_gym.envs.traits import COMMON_INFO_KEYS, EnvTraits, has_planning_model
 from infonav_gym.experiments.benchmark import benchmarked_env_ids, env_step_figures
 from infonav_gym.experiments.cli import main
 from infonav_gym.experiments.evaluation import evaluate, make_agent, wilson_interval
@@ -175,10 +175,10 @@ def test_each_registered_env_is_of_its_api_and_declares_metrics_and_traits(entry
 
 
 @pytest.mark.parametrize("entry", registered_envs(), ids=lambda entry: entry.id)
-def test_the_planner_is_made_exactly_for_the_envs_whose_traits_declare_a_planning_model(entry):
+def test_the_planner_is_made_exactly_for_the_envs_that_offer_a_planning_model(entry):
     env = make_env(entry.id)
     n_actions = env.action_space.n if entry.api == GYMNASIUM else env.action_space(env.possible_agents[0]).n
-    if env.unwrapped.traits.has_planning_model:
+    if has_planning_model(env):
         assert type(make_agent("planner", n_actions, env=env)).__name__ == "PlannerAgent"
     else:
         with pytest.raises(ValueError, match=f"agent 'planner' is not available for {entry.id}"):

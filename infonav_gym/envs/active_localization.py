@@ -134,7 +134,6 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     episode_metrics = (*LOCALIZATION_METRICS, SUCCESS_RATE)
     traits = EnvTraits(
         estimates_pose=True,
-        has_planning_model=True,
         reports_success=True,
         may_terminate=True,
         idle_actions=frozenset(range(N_PRIMITIVES)),  # the primitives without an observation

@@ -128,8 +128,7 @@ class LandmarkSelectionEnv(InfoNavEnv):
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "scenario", scenario_names(team=False), owner)
         check_config(cfg, owner, CONFIG_INTERVALS)
-        field_keys = {"n_obstacles": "n_obstacles", "size_m": "field_size_m", "speed_mps": "speed_mps"}
-        check_config_arguments(cfg, owner, "field", FIELD_ARGUMENTS, field_keys)  # the corridor's speed too
+        check_config_arguments(cfg, owner, "field", FIELD_ARGUMENTS, SCENARIO_KEYS)  # the corridor's speed too
         if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
             raise ValueError(
                 f"config key 'n_candidates' of {owner} must be >= {CORRIDOR_LANDMARK_COUNT} "

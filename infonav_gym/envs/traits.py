@@ -28,8 +28,6 @@ class EnvTraits:
     Attributes:
         estimates_pose: an EKF tracks the robot's pose; infos hold ``POSE_INFO_KEYS`` and the reward
             term ``"mutual_information"``, the realized MI of the pose update [nats].
-        has_planning_model: the env offers a planning model (``belief``, ``plan_decision``,
-            ``plan_step``) for ``agents.planner.PlannerAgent``.
         reports_success: the last info of an episode holds a bool ``info["success"]``.
         may_terminate: episodes may end before the horizon (``terminated``); otherwise only truncation.
         rewards_information_at_once: a valid action with a positive expected gain earns a positive
@@ -47,7 +45,6 @@ class EnvTraits:
     """
 
     estimates_pose: bool = False
-    has_planning_model: bool = False
     reports_success: bool = False
     may_terminate: bool = False
     rewards_information_at_once: bool = False
@@ -57,6 +54,13 @@ class EnvTraits:
     info_keys: frozenset[str] = frozenset()
     reward_config_keys: tuple[str, ...] = ()
     noop_action: int | None = None
+
+
+def has_planning_model(env_or_class) -> bool:
+    """Whether the env (wrapped or not) or env class offers a planning model: a ``planning_model()`` method
+    returning what ``agents.planner.PlannerAgent`` searches (``belief``, ``plan_decision``, ``plan_step``)."""
+    owner = env_or_class if isinstance(env_or_class, type) else env_or_class.unwrapped
+    return callable(getattr(owner, "planning_model", None))
 
 
 def traits_of(env) -> EnvTraits:

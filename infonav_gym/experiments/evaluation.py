@@ -18,8 +18,8 @@ import numpy as np
 from scipy import stats
 from tqdm.auto import tqdm
 
-from agents import GreedyEntropyAgent, RandomAgent
-from infonav_gym.envs.traits import EnvTraits, episode_metrics_of, traits_of
+from agents import GreedyEntropyAgent, PlannerAgent, RandomAgent
+from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, traits_of
 from infonav_gym.registry import PARALLEL, api_of, make_env, registered_envs
 
 AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH")
@@ -47,7 +47,7 @@ def _env_name(env) -> str:
 
 def _planning_env_ids() -> list[str]:
     """The registered envs whose class declares a planning model."""
-    return [entry.id for entry in registered_envs() if getattr(entry.load(), "traits", EnvTraits()).has_planning_model]
+    return [entry.id for entry in registered_envs() if has_planning_model(entry.load())]
 
 
 def make_agent(
@@ -56,9 +56,9 @@ def make_agent(
     """A baseline agent by name (``noop_action``: see ``RandomAgent``).
 
     ``planner`` (``agents.planner.PlannerAgent(env)``) and ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``)
-    need the ``env`` they will act in; both are imported only when asked for. ``planner`` is refused
-    unless the env's traits declare a planning model. In a PettingZoo env ``agent`` names the robot
-    a ``ppo:PATH`` agent acts for.
+    need the ``env`` they will act in; ``ppo:PATH`` imports the rl extra only when asked for. ``planner`` is
+    refused unless the env offers a planning model (``envs.traits.has_planning_model``). In a PettingZoo
+    env ``agent`` names the robot a ``ppo:PATH`` agent acts for.
     """
     check_agent_name(name)
     if name == "random":
@@ -68,18 +68,12 @@ def make_agent(
     if env is None:
         raise ValueError(f"agent {name!r} needs the env it will act in")
     if name == "planner":
-        if not traits_of(env).has_planning_model:
+        if not has_planning_model(env):
             raise ValueError(
                 f"agent 'planner' is not available for {_env_name(env)}: it declares no planning model "
-                f"(EnvTraits.has_planning_model); use random, greedy or ppo:PATH, or the planner on "
+                f"(no planning_model() method); use random, greedy or ppo:PATH, or the planner on "
                 f"{', '.join(_planning_env_ids())}"
             )
-        try:
-            from agents.planner import PlannerAgent
-        except ImportError as error:
-            raise ValueError(
-                f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
-            ) from None
         return PlannerAgent(env)
     try:
         from agents.ppo import PPOAgent

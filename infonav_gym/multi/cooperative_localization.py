@@ -197,9 +197,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         check_choice(cfg, "scenario", scenario_names(team=True), owner)
         check_choice(cfg, "estimator", ESTIMATORS, owner)
         check_config(cfg, owner, CONFIG_INTERVALS)
-        field_keys = {key: key for key in ("n_obstacles", "n_canopies", "speed_mps")}
-        field_keys["size_m"] = "field_size_m"
-        check_config_arguments(cfg, owner, "team_field", TEAM_FIELD_ARGUMENTS, field_keys)  # the convoy's speed too
+        check_config_arguments(cfg, owner, "team_field", TEAM_FIELD_ARGUMENTS, TEAM_SCENARIO_KEYS)  # the convoy's too
         if cfg["scenario"] == "team_field":
             with config_keys(owner, {"n_robots": "n_robots"}):
                 team_route_bands(cfg["n_robots"], cfg["field_size_m"], DEFAULT_WAYPOINTS)
