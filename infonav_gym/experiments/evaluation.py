@@ -18,7 +18,7 @@ import numpy as np
 from scipy import stats
 from tqdm.auto import tqdm
 
-from agents import GreedyEntropyAgent, PlannerAgent, RandomAgent
+from agents import GreedyEntropyAgent, RandomAgent
 from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, traits_of
 from infonav_gym.registry import PARALLEL, api_of, make_env, registered_envs
 
@@ -56,7 +56,7 @@ def make_agent(
     """A baseline agent by name (``noop_action``: see ``RandomAgent``).
 
     ``planner`` (``agents.planner.PlannerAgent(env)``) and ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``)
-    need the ``env`` they will act in; ``ppo:PATH`` imports the rl extra only when asked for. ``planner`` is
+    need the ``env`` they will act in; both are imported only when asked for. ``planner`` is
     refused unless the env offers a planning model (``envs.traits.has_planning_model``). In a PettingZoo
     env ``agent`` names the robot a ``ppo:PATH`` agent acts for.
     """
@@ -74,6 +74,12 @@ def make_agent(
                 f"(no planning_model() method); use random, greedy or ppo:PATH, or the planner on "
                 f"{', '.join(_planning_env_ids())}"
             )
+        try:
+            from agents.planner import PlannerAgent
+        except ImportError as error:
+            raise ValueError(
+                f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
+            ) from None
         return PlannerAgent(env)
     try:
         from agents.ppo import PPOAgent
