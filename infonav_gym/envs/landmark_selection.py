@@ -26,7 +26,7 @@ from infonav_gym.world.scenarios import (
     scenario_from_config,
     scenario_names,
 )
-from infonav_gym.world.world import TIME_STEP_S, World
+from infonav_gym.world.world import TIME_STEP_S, World, start_poses
 
 SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "speed_mps": "speed_mps",
@@ -292,8 +292,7 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
     scenario = scenario_from_config(config, np_random, SCENARIO_KEYS, owner, 1, max_landmarks=config["n_candidates"])
     odometry_rng, measurement_rng = np_random.spawn(2)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    x, y, heading = scenario.routes[0].start_pose
-    initial_pose = np.array([x, y, wrap_angle(heading)]) + pose_std * np_random.standard_normal(POSE_DIM)
+    initial_pose = np.array(start_poses(scenario)[0]) + pose_std * np_random.standard_normal(POSE_DIM)
     prior = Prior(initial_pose, np.diag(pose_std**2))
     if config["mapping"]:
         landmarks, prior_std = scenario.landmarks, config["landmark_prior_std_m"]
