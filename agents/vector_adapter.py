@@ -166,7 +166,7 @@ class VectorEnvAdapter(VecEnv):
         """
         own = getattr(self._base, MASKS_METHOD, None)
         if callable(own):
-            return self._checked_masks(np.asarray(own(), dtype=bool), f"{type(self._base).__name__}.action_masks()")
+            return self._checked_masks(np.asarray(own(), dtype=bool), "action_masks()")
         if not isinstance(self.action_space, gym.spaces.Discrete):
             raise ValueError(
                 f"VectorEnvAdapter makes masks from info['action_mask'] for a Discrete action space only; "
