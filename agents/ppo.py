@@ -41,7 +41,7 @@ from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
 from agents.vector_adapter import VectorEnvAdapter
-from infonav_gym.registry import PARALLEL, api_of, make_env, resolve_env_id
+from infonav_gym.registry import PARALLEL, api_of, env_entry, make_env, resolve_env_id
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
 ACTIVATIONS = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
@@ -247,10 +247,14 @@ def _normalization_kwargs(hyperparameters: dict) -> dict | None:
 
 
 def has_native_vector_env(env_id: str) -> bool:
-    """Whether ``env_id``'s Gymnasium spec has a ``vector_entry_point``: ``gym.make_vec`` builds its own VectorEnv."""
+    """Whether ``env_id`` is in ``infonav_gym.registry`` with a ``vector_entry_point``.
+
+    Such a native vector env takes ``autoreset_mode=AutoresetMode.SAME_STEP`` (what ``native_vec_env`` asks
+    for); a vector entry point outside the registry need not (Gymnasium's ``CartPoleVectorEnv`` does not).
+    """
     try:
-        return gym.spec(resolve_env_id(env_id)).vector_entry_point is not None
-    except gym.error.Error:  # not a Gymnasium id: a PettingZoo env, or unknown (make_env names it)
+        return env_entry(resolve_env_id(env_id)).vector_entry_point is not None
+    except ValueError:  # not an infonav id: a Gymnasium one, or unknown (make_env names it)
         return False
 
 
@@ -276,7 +280,7 @@ def checked_vectorization(env_id: str, vectorization: str | None) -> str:
     if vectorization not in VECTORIZATIONS:
         raise ValueError(f"vectorization must be one of {', '.join(VECTORIZATIONS)}, got {vectorization!r}")
     if vectorization not in available:
-        why = "no native vector env (vector_entry_point)" if vectorization == NATIVE else "its copies share one process"
+        why = "no native vector env in the registry" if vectorization == NATIVE else "its copies share one process"
         raise ValueError(
             f"env {env_id!r} cannot train with vectorization {vectorization!r} ({why}); it has: {', '.join(available)}"
         )
