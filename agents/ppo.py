@@ -40,7 +40,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMoni
 from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
-from agents.vector_adapter import VectorEnvAdapter
+from agents.vector_adapter import monitored_vec_env
 from infonav_gym.registry import PARALLEL, api_of, env_entry, make_env, resolve_env_id
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
@@ -290,8 +290,7 @@ def checked_vectorization(env_id: str, vectorization: str | None) -> str:
 def native_vec_env(env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None) -> VecMonitor:
     """``env_id``'s own vector env of ``n_envs`` copies, resetting in the step an episode ends, as an SB3 ``VecEnv``.
 
-    Sub-env ``i`` gets the seed ``seed + i`` at the first reset, as with ``make_vec_env``; ``VecMonitor``
-    records the episodes as ``make_vec_env``'s ``Monitor`` does.
+    Sub-env ``i`` gets the seed ``seed + i`` at the first reset (``monitored_vec_env``).
     """
     vector_env = gym.make_vec(
         resolve_env_id(env_id),
@@ -300,9 +299,7 @@ def native_vec_env(env_id: str, n_envs: int, seed: int, env_kwargs: dict | None 
         autoreset_mode=AutoresetMode.SAME_STEP,
         **(env_kwargs or {}),
     )
-    adapter = VectorEnvAdapter(vector_env)
-    adapter.seed(seed)
-    return VecMonitor(adapter)
+    return monitored_vec_env(vector_env, seed)
 
 
 def build_model(

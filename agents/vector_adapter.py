@@ -17,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from stable_baselines3.common.env_util import is_wrapped
-from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 MASKS_METHOD = "action_masks"  # what sb3-contrib's get_action_masks / is_masking_supported look for
 SAME_STEP_HINT = (
@@ -272,3 +272,14 @@ class VectorEnvAdapter(VecEnv):
                 f"{type(self._base).__name__}.render() gave {count} frames, expected one per sub-env ({self.num_envs})"
             )
         return list(frames)
+
+
+def monitored_vec_env(vector_env: VectorEnv, seed: int | None, info_keywords: Sequence[str] = ()) -> VecMonitor:
+    """``vector_env`` as an SB3 ``VecEnv`` that records episodes (``VecMonitor``, as ``make_vec_env``'s ``Monitor``).
+
+    Sub-env ``i`` gets the seed ``seed + i`` at the first reset, as with ``make_vec_env``; ``None``: unseeded.
+    """
+    adapter = VectorEnvAdapter(vector_env, info_keywords)
+    if seed is not None:
+        adapter.seed(seed)
+    return VecMonitor(adapter, info_keywords=tuple(info_keywords))

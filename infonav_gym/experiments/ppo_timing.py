@@ -77,8 +77,13 @@ def _masked_model(vec_env, hyperparameters: dict, seed: int):
     return MaskablePPO(hyperparameters.get("policy", "MlpPolicy"), vec_env, seed=seed, device="cpu", **kwargs)
 
 
-def _alternating_rates(make_vec_envs: dict, hyperparameters: dict, seed: int, timesteps: int, rounds: int) -> dict:
-    """Training timesteps per second of each round, per name of ``make_vec_envs`` (name -> VecEnv factory)."""
+def _fps_figures(infix: str, make_vec_envs: dict, hyperparameters: dict, seed: int, timesteps: int, rounds: int):
+    """Median training timesteps per second on ``LANDMARK_ID`` and ``CARTPOLE_ID`` and their median ratio.
+
+    Args:
+        infix: in the figure names (``ppo_landmark_selection_{infix}fps``, ...).
+        make_vec_envs: ``LANDMARK_ID`` and ``CARTPOLE_ID`` -> a function making that env's SB3 ``VecEnv``.
+    """
     from agents.ppo import default_num_threads, torch_threads
 
     rates = {name: [] for name in make_vec_envs}
@@ -91,11 +96,13 @@ def _alternating_rates(make_vec_envs: dict, hyperparameters: dict, seed: int, ti
                 rates[name].append((model.num_timesteps - before) / (time.perf_counter() - start))
         for model in models.values():
             model.get_env().close()
-    return rates
-
-
-def _median_ratio(ours: list[float], reference: list[float]) -> float:
-    return statistics.median(mine / theirs for mine, theirs in zip(ours, reference))
+    ratios = [ours / reference for ours, reference in zip(rates[LANDMARK_ID], rates[CARTPOLE_ID])]
+    return {
+        f"ppo_landmark_selection_{infix}fps": statistics.median(rates[LANDMARK_ID]),
+        f"ppo_cartpole_{infix}fps": statistics.median(rates[CARTPOLE_ID]),
+        f"ppo_{infix}fps_ratio_vs_cartpole": statistics.median(ratios),
+        f"ppo_{infix}timesteps_per_round": timesteps,
+    }
 
 
 def ppo_fps_figures(timesteps_per_round: int = 2048, rounds: int = 3, seed: int = 0, n_envs: int = 8) -> dict:
@@ -105,22 +112,11 @@ def ppo_fps_figures(timesteps_per_round: int = 2048, rounds: int = 3, seed: int 
     from agents.ppo import InfoActionMask
 
     hyperparameters, timesteps = _round_settings(timesteps_per_round, n_envs, SINGLE_ENV_N_STEPS)
-    rates = _alternating_rates(
-        {
-            env_id: lambda env_id=env_id: make_vec_env(env_id, n_envs=n_envs, seed=seed, wrapper_class=InfoActionMask)
-            for env_id in (LANDMARK_ID, CARTPOLE_ID)
-        },
-        hyperparameters,
-        seed,
-        timesteps,
-        rounds,
-    )
-    return {
-        "ppo_landmark_selection_fps": statistics.median(rates[LANDMARK_ID]),
-        "ppo_cartpole_fps": statistics.median(rates[CARTPOLE_ID]),
-        "ppo_fps_ratio_vs_cartpole": _median_ratio(rates[LANDMARK_ID], rates[CARTPOLE_ID]),
-        "ppo_timesteps_per_round": timesteps,
+    make_vec_envs = {
+        env_id: lambda env_id=env_id: make_vec_env(env_id, n_envs=n_envs, seed=seed, wrapper_class=InfoActionMask)
+        for env_id in (LANDMARK_ID, CARTPOLE_ID)
     }
+    return _fps_figures("", make_vec_envs, hyperparameters, seed, timesteps, rounds)
 
 
 def landmark_vector_vec_env(n_envs: int, seed: int, vectorization: str = "native"):
@@ -130,32 +126,18 @@ def landmark_vector_vec_env(n_envs: int, seed: int, vectorization: str = "native
     of single envs in SAME_STEP mode, through the same adapter.
     """
     import gymnasium as gym
-    from stable_baselines3.common.vec_env import VecMonitor
 
     from agents.ppo import NATIVE, SYNC, native_vec_env
-    from agents.vector_adapter import VectorEnvAdapter
+    from agents.vector_adapter import monitored_vec_env
 
     if vectorization == NATIVE:
         return native_vec_env(LANDMARK_ID, n_envs, seed)
     if vectorization != SYNC:
         raise ValueError(f"vectorization of the PPO vector benchmark must be native or sync, got {vectorization!r}")
-    vector_env = gym.make_vec(
-        LANDMARK_ID, n_envs, vectorization_mode="sync", vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP}
+    vector_kwargs = {"autoreset_mode": AutoresetMode.SAME_STEP}
+    return monitored_vec_env(
+        gym.make_vec(LANDMARK_ID, n_envs, vectorization_mode="sync", vector_kwargs=vector_kwargs), seed
     )
-    adapter = VectorEnvAdapter(vector_env)
-    adapter.seed(seed)
-    return VecMonitor(adapter)
-
-
-def cartpole_vector_vec_env(n_envs: int, seed: int):
-    """``n_envs`` copies of ``SameStepCartPoleVectorEnv`` as an SB3 ``VecEnv`` (seeded ``seed`` at the first reset)."""
-    from stable_baselines3.common.vec_env import VecMonitor
-
-    from agents.vector_adapter import VectorEnvAdapter
-
-    adapter = VectorEnvAdapter(SameStepCartPoleVectorEnv(num_envs=n_envs))
-    adapter.seed(seed)
-    return VecMonitor(adapter)
 
 
 def ppo_vector_fps_figures(
@@ -166,21 +148,14 @@ def ppo_vector_fps_figures(
     Args:
         vectorization: how the LandmarkSelection copies run (``landmark_vector_vec_env``).
     """
+    from agents.vector_adapter import monitored_vec_env
+
     hyperparameters, timesteps = _round_settings(timesteps_per_round, n_envs)
-    rates = _alternating_rates(
-        {
-            LANDMARK_ID: lambda: landmark_vector_vec_env(n_envs, seed, vectorization),
-            CARTPOLE_ID: lambda: cartpole_vector_vec_env(n_envs, seed),
-        },
-        hyperparameters,
-        seed,
-        timesteps,
-        rounds,
-    )
+    make_vec_envs = {
+        LANDMARK_ID: lambda: landmark_vector_vec_env(n_envs, seed, vectorization),
+        CARTPOLE_ID: lambda: monitored_vec_env(SameStepCartPoleVectorEnv(num_envs=n_envs), seed),
+    }
     return {
-        "ppo_landmark_selection_vector_fps": statistics.median(rates[LANDMARK_ID]),
-        "ppo_cartpole_vector_fps": statistics.median(rates[CARTPOLE_ID]),
-        "ppo_vector_fps_ratio_vs_cartpole": _median_ratio(rates[LANDMARK_ID], rates[CARTPOLE_ID]),
-        "ppo_vector_timesteps_per_round": timesteps,
+        **_fps_figures("vector_", make_vec_envs, hyperparameters, seed, timesteps, rounds),
         "ppo_vector_n_envs": n_envs,
     }
