@@ -24,11 +24,22 @@ from infonav_gym.experiments.ppo_timing import SameStepCartPoleVectorEnv  # noqa
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 SAME_STEP = {"autoreset_mode": AutoresetMode.SAME_STEP}
 DISABLED = {"autoreset_mode": AutoresetMode.DISABLED}
-CASES = [("CartPole-v1", {}), (LANDMARK_ID, {"horizon": 15}), (LANDMARK_ID, {"horizon": 12, "mapping": True})]
+CASES = [  # (env id, config, vectorization mode of gym.make_vec)
+    ("CartPole-v1", {}, "sync"),
+    (LANDMARK_ID, {"horizon": 15}, "sync"),
+    (LANDMARK_ID, {"horizon": 12, "mapping": True}, "sync"),
+    (LANDMARK_ID, {"horizon": 15}, "vector_entry_point"),
+    (LANDMARK_ID, {"horizon": 12, "mapping": True}, "vector_entry_point"),
+]
+CASE_IDS = ["cartpole", "landmarks", "landmarks-mapping", "native-landmarks", "native-landmarks-mapping"]
 
 
-def sync_adapter(env_id: str, n_envs: int, config: dict, **adapter_kwargs) -> VectorEnvAdapter:
-    vector_env = gym.make_vec(env_id, n_envs, vectorization_mode="sync", vector_kwargs=SAME_STEP, **config)
+def make_adapter(env_id: str, n_envs: int, config: dict, mode: str = "sync", **adapter_kwargs) -> VectorEnvAdapter:
+    """An adapter over ``gym.make_vec`` in SAME_STEP autoreset, through Gymnasium's sync env or the native one."""
+    if mode == "sync":
+        vector_env = gym.make_vec(env_id, n_envs, vectorization_mode=mode, vector_kwargs=SAME_STEP, **config)
+    else:
+        vector_env = gym.make_vec(env_id, n_envs, vectorization_mode=mode, **SAME_STEP, **config)
     return VectorEnvAdapter(vector_env, **adapter_kwargs)
 
 
@@ -40,14 +51,15 @@ def valid_actions(masks: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 # ---------------------------------------------------------------- the same transitions as DummyVecEnv
 
 
-@pytest.mark.parametrize("env_id, config", CASES, ids=["cartpole", "landmarks", "landmarks-mapping"])
+@pytest.mark.parametrize("env_id, config, mode", CASES, ids=CASE_IDS)
 @pytest.mark.parametrize("seed", [0, 7])
-def test_transitions_and_masks_equal_dummy_vec_env_over_the_single_envs(env_id, config, seed):
-    n_envs = 3
-    adapter = sync_adapter(env_id, n_envs, config, info_keywords=("position_error_m",) if config else ())
+def test_transitions_and_masks_equal_dummy_vec_env_over_the_single_envs(env_id, config, mode, seed):
+    """Bit for bit through Gymnasium's sync env; to float32 rounding through the native one (batched math)."""
+    n_envs, close = 3, {"rtol": 1e-6, "atol": 1e-9}
+    adapter = make_adapter(env_id, n_envs, config, mode, info_keywords=("position_error_m",) if config else ())
     reference = make_vec_env(env_id, n_envs=n_envs, seed=seed, env_kwargs=config)
     assert adapter.seed(seed) == [seed, seed + 1, seed + 2]
-    np.testing.assert_array_equal(adapter.reset(), reference.reset())
+    np.testing.assert_allclose(adapter.reset(), reference.reset(), **close)
     rng, ends, truncations = np.random.default_rng(seed), 0, 0
     for step in range(100):
         masks = adapter.action_masks()
@@ -55,8 +67,11 @@ def test_transitions_and_masks_equal_dummy_vec_env_over_the_single_envs(env_id, 
         actions = valid_actions(masks, rng)
         observations, rewards, dones, infos = adapter.step(actions)
         expected_observations, expected_rewards, expected_dones, expected_infos = reference.step(actions)
-        np.testing.assert_array_equal(observations, expected_observations, err_msg=f"step {step}")
-        np.testing.assert_array_equal(rewards, expected_rewards)
+        if mode == "sync":
+            np.testing.assert_array_equal(observations, expected_observations, err_msg=f"step {step}")
+            np.testing.assert_array_equal(rewards, expected_rewards)
+        np.testing.assert_allclose(observations, expected_observations, **close, err_msg=f"step {step}")
+        np.testing.assert_allclose(rewards, expected_rewards, **close)
         assert rewards.dtype == np.float32 and dones.dtype == bool and len(infos) == n_envs
         np.testing.assert_array_equal(dones, expected_dones)
         for index in range(n_envs):
@@ -66,17 +81,17 @@ def test_transitions_and_masks_equal_dummy_vec_env_over_the_single_envs(env_id, 
             ends += 1
             truncations += infos[index]["TimeLimit.truncated"]
             expected = expected_infos[index]
-            np.testing.assert_array_equal(infos[index]["terminal_observation"], expected["terminal_observation"])
+            np.testing.assert_allclose(infos[index]["terminal_observation"], expected["terminal_observation"], **close)
             assert infos[index]["TimeLimit.truncated"] == expected["TimeLimit.truncated"]
             if config:
-                assert infos[index]["position_error_m"] == expected["position_error_m"]
+                assert infos[index]["position_error_m"] == pytest.approx(expected["position_error_m"], abs=1e-9)
     assert ends >= n_envs
     assert truncations == (ends if config else 0)  # LandmarkSelection only truncates, CartPole falls first
     adapter.close()
 
 
 def test_seed_is_used_once_and_a_reset_without_it_continues_each_generator_as_dummy_vec_env():
-    adapter = sync_adapter("CartPole-v1", 2, {})
+    adapter = make_adapter("CartPole-v1", 2, {})
     reference = make_vec_env("CartPole-v1", n_envs=2, seed=None)
     for vec_env in (adapter, reference):
         vec_env.seed(5)
@@ -102,7 +117,7 @@ def test_options_reach_every_sub_env_once_and_different_options_are_refused():
 
 
 def test_the_vec_env_contract_spaces_shapes_dtypes_and_determinism():
-    adapter = VecMonitor(sync_adapter(LANDMARK_ID, 4, {"horizon": 10}))
+    adapter = VecMonitor(make_adapter(LANDMARK_ID, 4, {"horizon": 10}))
     assert isinstance(adapter, VecEnv) and adapter.num_envs == 4
     assert adapter.observation_space == gym.make(LANDMARK_ID).observation_space
     assert adapter.action_space == gym.make(LANDMARK_ID).action_space
@@ -165,7 +180,7 @@ def test_masks_come_from_the_vector_envs_own_action_masks_in_one_call():
 
 
 def test_info_masks_with_nothing_valid_or_absent_allow_every_action():
-    adapter = sync_adapter(LANDMARK_ID, 2, {"horizon": 10})
+    adapter = make_adapter(LANDMARK_ID, 2, {"horizon": 10})
     adapter.reset()
     info_mask = adapter._info["action_mask"].astype(bool)
     adapter._info["action_mask"][0] = 0  # sub-env 0 sees no landmark
@@ -178,7 +193,7 @@ def test_info_masks_with_nothing_valid_or_absent_allow_every_action():
 
 def test_maskable_ppo_learns_on_it_never_choosing_a_masked_action_with_vec_normalize_on_top():
     config = {"horizon": 20, "invalid_action": "raise"}  # a masked action would raise in its sub-env
-    vec_env = VecNormalize(VecMonitor(sync_adapter(LANDMARK_ID, 4, config)), norm_reward=False)
+    vec_env = VecNormalize(VecMonitor(make_adapter(LANDMARK_ID, 4, config)), norm_reward=False)
     vec_env.seed(0)
     model = MaskablePPO("MlpPolicy", vec_env, n_steps=32, batch_size=64, n_epochs=1, seed=0, device="cpu")
     model.learn(256)
@@ -191,7 +206,7 @@ def test_maskable_ppo_learns_on_it_never_choosing_a_masked_action_with_vec_norma
 
 
 def test_sync_sub_envs_are_reached_through_gymnasiums_get_attr_set_attr_and_call():
-    adapter = sync_adapter("CartPole-v1", 3, {}, info_keywords=())
+    adapter = make_adapter("CartPole-v1", 3, {}, info_keywords=())
     assert adapter.get_attr("render_mode") == [None] * 3
     assert adapter.get_attr("spec", indices=[2])[0].id == "CartPole-v1"
     adapter.set_attr("marker", 4.5)
@@ -291,7 +306,7 @@ def test_a_vector_env_breaking_same_step_or_the_mask_shape_is_named():
 
 
 def test_an_info_keyword_missing_from_the_final_info_is_named():
-    adapter = sync_adapter(LANDMARK_ID, 2, {"horizon": 3}, info_keywords=("success",))
+    adapter = make_adapter(LANDMARK_ID, 2, {"horizon": 3}, info_keywords=("success",))
     adapter.reset()
     adapter.step(np.zeros(2, dtype=np.int64))
     adapter.step(np.zeros(2, dtype=np.int64))
