@@ -5,7 +5,7 @@ Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib
 (CartPole, for the benchmark) train with plain ``PPO``, or with ``MaskablePPO`` through ``InfoActionMask``.
 A PettingZoo parallel env (registry ``api``, e.g. ``cooperative_localization_v0``) trains one
 ``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
-``vectorization`` picks how the copies run: ``native`` (the default where the env id has a
+``vectorization`` picks how the copies run: ``native`` (the default where the env's registry entry has a
 ``vector_entry_point``) steps them at once in the env's own ``gymnasium.vector.VectorEnv``, seen by SB3
 through ``agents.vector_adapter.VectorEnvAdapter``; ``sync`` in a ``DummyVecEnv``, ``subprocess`` in a
 ``SubprocVecEnv`` (one process per copy).
