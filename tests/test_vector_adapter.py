@@ -194,9 +194,10 @@ def test_info_masks_with_nothing_valid_or_absent_allow_every_action():
     np.testing.assert_array_equal(adapter.action_masks(), [[True, True], [False, True], [True, True]])
 
 
-def test_maskable_ppo_learns_on_it_never_choosing_a_masked_action_with_vec_normalize_on_top():
+@pytest.mark.parametrize("mode", ["sync", "vector_entry_point"])
+def test_maskable_ppo_learns_on_it_never_choosing_a_masked_action_with_vec_normalize_on_top(mode):
     config = {"horizon": 20, "invalid_action": "raise"}  # a masked action would raise in its sub-env
-    vec_env = VecNormalize(VecMonitor(make_adapter(LANDMARK_ID, 4, config)), norm_reward=False)
+    vec_env = VecNormalize(VecMonitor(make_adapter(LANDMARK_ID, 4, config, mode)), norm_reward=False)
     vec_env.seed(0)
     model = MaskablePPO("MlpPolicy", vec_env, n_steps=32, batch_size=64, n_epochs=1, seed=0, device="cpu")
     model.learn(256)
