@@ -42,7 +42,7 @@ class VectorEnvAdapter(VecEnv):
     ``TimeLimit.truncated`` (truncated and not terminated) and each key of ``info_keywords`` from that
     final step's info (``info["final_info"]``), where ``VecMonitor(info_keywords=...)`` reads them.
     ``TimeLimit.truncated`` is absent, not ``False``, on the other steps: SB3 reads it with
-    ``.get("TimeLimit.truncated", False)``.
+    ``.get("TimeLimit.truncated", False)``. ``reset_infos`` stay empty dicts (SB3 itself does not read them).
 
     ## Action masks
     ``action_masks()`` (N, n) bool for ``MaskablePPO``: the vector env's own ``action_masks()`` when it
