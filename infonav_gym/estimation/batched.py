@@ -513,7 +513,24 @@ def landmark_information_gains(P, H, R, *, check_input: bool = True) -> np.ndarr
         R = _noise_covariance("R", R, (*H.shape[:3], H.shape[2]))
     n_copies, n_candidates, m, n = H.shape
     HP = np.matmul(H.reshape(n_copies, n_candidates * m, n), P).reshape(H.shape)  # one product per copy: fast
-    return information_gain_of_innovation(HP @ np.swapaxes(H, -1, -2) + R, R, check_input=False)
+    return information_gain_of_innovation(_sandwich(HP, H) + R, R, check_input=False)
+
+
+def _sandwich(HP: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """``H P H^T`` (..., m, m) from stacks of small ``HP`` and ``H`` (..., m, n) with P symmetric, entry by entry.
+
+    The upper triangle is computed and mirrored; for thousands of 2 x 3 products this is several times
+    faster than ``matmul``'s per-matrix loop.
+    """
+    m, n = H.shape[-2:]
+    product = np.empty((*H.shape[:-2], m, m))
+    for i in range(m):
+        for j in range(i, m):
+            entry = HP[..., i, 0] * H[..., j, 0]
+            for k in range(1, n):
+                entry += HP[..., i, k] * H[..., j, k]
+            product[..., i, j] = product[..., j, i] = entry
+    return product
 
 
 def relative_pose_information_gains(P, observers, targets, H_observer, H_target, R, *, check_input: bool = True):

@@ -194,10 +194,10 @@ def _box_walls(x_min: float, y_min: float, x_max: float, y_max: float) -> tuple:
 
 def _obstacles_clear_of(polygons: list, count: int, size_m: float, np_random: np.random.Generator) -> list:
     """``count`` round obstacles in the square field, each clear of every closed route by its radius + 2 m."""
-    loops = [ClosedLoop(polygon) for polygon in polygons]
+    routes = ClosedLoop(*polygons)
 
     def clear(rows: np.ndarray) -> np.ndarray:
-        return np.all([loop.distances(rows[:, :2]) > rows[:, 2] + 2.0 for loop in loops], axis=0)
+        return routes.distances(rows[:, :2]) > rows[:, 2] + 2.0
 
     rows = _uniform_until_accepted(
         np_random, count, (2.0, 2.0, 0.5), (size_m - 2.0, size_m - 2.0, 2.0), clear, "obstacles clear of the routes"
@@ -308,12 +308,10 @@ def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> 
 
     def accept(zone: CircleObstacle) -> bool:
         starts_open = all(math.dist(polygon[0], zone.center) >= zone.radius for polygon in polygons)
-        return starts_open and all(
-            np.mean(np.linalg.norm(points - zone.center, axis=1) < zone.radius) <= MAX_CANOPY_COVER
-            for points in route_points
-        )
+        covered = np.mean(np.linalg.norm(route_points - zone.center, axis=-1) < zone.radius, axis=1)
+        return starts_open and bool(np.all(covered <= MAX_CANOPY_COVER))
 
-    route_points = [_points_along(polygon) for polygon in polygons]
+    route_points = np.array([_points_along(polygon) for polygon in polygons])  # (R, P, 2): routes of equal size
     return _rejection_sample(
         count,
         draw,
