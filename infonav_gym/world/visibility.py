@@ -299,6 +299,8 @@ def _pair_hits(copy, origins, targets, shapes, radii, boxes, usable, culled, exa
     touching = (low[:, None, 0] <= query_boxes[..., 2]) & (query_boxes[..., 0] <= high[:, None, 0])
     touching &= (low[:, None, 1] <= query_boxes[..., 3]) & (query_boxes[..., 1] <= high[:, None, 1])
     query, shape = np.nonzero((touching | ~culled[copy, None]) & usable[copy])
+    if not query.size:
+        return query, shape
     origin_x, origin_y = origins[query].T
     target_x, target_y = targets[query].T
     query_copy = copy[query]
