@@ -10,9 +10,7 @@ copy and the sensor noise one generator per copy, drawn in the single env's orde
 from __future__ import annotations
 
 import numpy as np
-from gymnasium.utils import seeding
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
+from gymnasium.vector import AutoresetMode
 
 from infonav_gym.envs.active_localization import (
     REWARD_TERMS,
@@ -25,12 +23,7 @@ from infonav_gym.envs.active_localization import (
 from infonav_gym.envs.active_localization_batch import ActiveDecision, batched_info, batched_observation
 from infonav_gym.envs.active_planning import N_PRIMITIVES
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision
-from infonav_gym.envs.vector_common import (
-    accepted_actions,
-    checked_discrete_actions,
-    masks_for_maskable_ppo,
-    sub_env_seeds,
-)
+from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.information import log_det_spd
@@ -38,7 +31,7 @@ from infonav_gym.world.active_scenarios import CommandedWorld
 from infonav_gym.world.visibility import StaticGeometry
 
 
-class ActiveLocalizationVectorEnv(VectorEnv):
+class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
     """N copies of ``ActiveLocalizationEnv`` (see it for the spaces, rewards and config keys), batched.
 
     ## Vector API
@@ -60,30 +53,18 @@ class ActiveLocalizationVectorEnv(VectorEnv):
     single env checks them. Rendering is not implemented yet; the planning model is the single env's.
     """
 
-    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata = {**InfoNavVectorEnv.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int = 1, render_mode: str | None = None, **config):
-        owner = type(self).__name__
-        if type(num_envs) is not int or num_envs < 1:
-            raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
-        if render_mode is not None:
-            raise ValueError(f"{owner} does not render yet: render_mode must be None, got {render_mode!r}")
         single = ActiveLocalizationEnv(**config)  # checks the config as the single env does
-        self.config = single.config
-        self.num_envs = num_envs
-        self.render_mode = None
-        self.single_observation_space = single.observation_space
-        self.single_action_space = single.action_space
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._configure(num_envs, render_mode, single)
         self._sensor, self._odometry = single.sensor, single.odometry
         self._odometry_covariance = self._odometry.noise_covariance()
         self._worlds = [CommandedWorld() for _ in range(num_envs)]
-        self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
         self._odometry_rngs: list[np.random.Generator | None] = [None] * num_envs
         self._measurement_rngs: list[np.random.Generator | None] = [None] * num_envs
         self._geometries: list[StaticGeometry | None] = [None] * num_envs
-        self._decision = self._geometry = None
+        self._geometry = None
         n_landmarks, n_obstacles = self.config["n_candidates"], self.config["n_obstacles"]
         self._state = {
             "x": np.zeros((num_envs, POSE_DIM)),
@@ -99,28 +80,17 @@ class ActiveLocalizationVectorEnv(VectorEnv):
         self._obstacles = (np.zeros((num_envs, n_obstacles, 2)), np.zeros((num_envs, n_obstacles)))
         self._prev_done = np.zeros(num_envs, dtype=bool)
 
-    @property
-    def np_randoms(self) -> list[np.random.Generator | None]:
-        """Each sub-env's generator (the single env's ``np_random``), None before its first reset."""
-        return list(self._np_randoms)
-
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         """Reset every sub-env: seed ``s`` gives sub-env ``i`` the seed ``s + i``; a list gives one seed (or None) each.
 
         Raises:
             ValueError: for a seed that is not None, an int >= 0 or a list of N ints / None, or any options.
         """
-        owner = type(self).__name__
-        if options:
-            raise ValueError(f"{owner}.reset takes no options, got {sorted(options)}")
-        for copy, copy_seed in enumerate(sub_env_seeds(seed, self.num_envs, owner)):
-            if copy_seed is not None or self._np_randoms[copy] is None:
-                self._np_randoms[copy] = seeding.np_random(copy_seed)[0]
+        self._seed_sub_envs(seed, options)
         self._reset_copies(np.arange(self.num_envs))
         self._prev_done[:] = False
-        nothing = np.zeros(self.num_envs, dtype=bool)
         terms = {key: np.zeros(self.num_envs) for key in REWARD_TERMS}
-        return self._outputs(nothing, np.full(self.num_envs, -1), terms)
+        return self._outputs(np.zeros(self.num_envs, dtype=bool), np.full(self.num_envs, -1), terms)
 
     def _reset_copies(self, copies: np.ndarray) -> None:
         """Start a new episode in each of ``copies`` from its own generator, as the single env's reset does."""
@@ -149,13 +119,10 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             ValueError: for actions that are not N integers of the action space, or, with
                 ``invalid_action="raise"``, a masked action (each naming its sub-env).
         """
-        owner = type(self).__name__
-        if self._decision is None:
-            raise RuntimeError(f"{owner}: call reset() before step()")
-        actions = checked_discrete_actions(actions, self.num_envs, self.single_action_space, owner)
+        actions = self._checked_actions(actions)
         resetting = self._prev_done.copy()
         acting = ~resetting
-        chosen = accepted_actions(actions, acting, self._decision.action_mask, self.config["invalid_action"])
+        chosen = self._accepted_actions(actions, acting)
         terms = self._act(np.flatnonzero(acting), chosen)
         if resetting.any():
             self._reset_copies(np.flatnonzero(resetting))
@@ -270,15 +237,6 @@ class ActiveLocalizationVectorEnv(VectorEnv):
             self.single_observation_space,
         )
         return observation, batched_info(self._decision, state, stepped, chosen, terms, self.config)
-
-    def action_masks(self) -> np.ndarray:
-        """The valid actions of each sub-env as bool (N, A) (every action has one: observing nothing is valid)."""
-        if self._decision is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
-        return masks_for_maskable_ppo(self._decision.action_mask)
-
-    def render(self):
-        raise NotImplementedError(f"{type(self).__name__}.render() is not implemented yet; render a single env")
 
     def close_extras(self, **kwargs) -> None:
         self._worlds = []
