@@ -9,6 +9,8 @@ copy and the sensor noise one generator per copy, drawn in the single env's orde
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
@@ -63,7 +65,6 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
         self._worlds = [CommandedWorld() for _ in range(num_envs)]
         self._odometry_rngs: list[np.random.Generator | None] = [None] * num_envs
         self._measurement_rngs: list[np.random.Generator | None] = [None] * num_envs
-        self._geometries: list[StaticGeometry | None] = [None] * num_envs
         self._geometry = None
         n_landmarks, n_obstacles = self.config["n_candidates"], self.config["n_obstacles"]
         self._state = {
@@ -106,11 +107,25 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
             state["goals"][copy] = episode_goal(world.scenario)
             centers[copy], radii[copy] = obstacle_discs(world.scenario)
             self._landmarks[copy] = world.landmarks
-            self._geometries[copy] = StaticGeometry.from_world(world)
         state["elapsed"][copies] = 0
         state["observations_left"][copies] = self.config["max_observations"]
         state["goal_reached"][copies] = state["failed"][copies] = False
-        self._geometry = StaticGeometry.stack(self._geometries)
+        self._restack_geometry(copies)
+
+    def _restack_geometry(self, copies: np.ndarray) -> None:
+        """Put the static shapes of the worlds of ``copies`` (just reset) into the stacked geometry.
+
+        Every goal field has the same walls and obstacle count, so only those copies' rows change.
+        """
+        fresh = StaticGeometry.stack([StaticGeometry.from_world(self._worlds[copy]) for copy in copies.tolist()])
+        if len(copies) == self.num_envs:
+            self._geometry = fresh
+            return
+        rows = {}
+        for field in dataclasses.fields(StaticGeometry):
+            rows[field.name] = getattr(self._geometry, field.name).copy()
+            rows[field.name][copies] = getattr(fresh, field.name)
+        self._geometry = StaticGeometry(**rows)
 
     def step(self, actions):
         """Act in every sub-env (reset those whose episode ended at the last step, see the class).
