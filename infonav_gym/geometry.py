@@ -69,10 +69,31 @@ def transform_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, flo
 
 def distance_to_loop(point, loop) -> float:
     """Shortest distance [m] from ``point`` (2,) to the closed polyline ``loop`` (W, 2); one vertex is a point."""
-    starts = np.asarray(loop, dtype=float).reshape(-1, 2)
-    point = np.asarray(point, dtype=float)
-    direction = np.roll(starts, -1, axis=0) - starts
-    length_sq = np.einsum("ij,ij->i", direction, direction)
-    along = np.einsum("ij,ij->i", point - starts, direction)
-    t = np.clip(np.divide(along, length_sq, out=np.zeros_like(along), where=length_sq > 0), 0, 1)
-    return float(np.min(np.linalg.norm(starts + t[:, None] * direction - point, axis=1)))
+    return ClosedLoop(loop).distance(point)
+
+
+class ClosedLoop:
+    """A closed polyline (W, 2) [m] whose edges are prepared once, for many ``distance`` queries.
+
+    Plain Python floats: a scenario's rejection sampling asks a few dozen distances to a loop of a few
+    vertices, where numpy's per-call overhead is most of the time.
+    """
+
+    def __init__(self, loop):
+        starts = np.asarray(loop, dtype=float).reshape(-1, 2)
+        directions = np.roll(starts, -1, axis=0) - starts
+        length_sq = np.einsum("ij,ij->i", directions, directions)
+        self._edges = list(zip(*starts.T.tolist(), *directions.T.tolist(), length_sq.tolist()))
+
+    def distance(self, point) -> float:
+        """Shortest distance [m] from ``point`` (2,) to the loop."""
+        point_x, point_y = float(point[0]), float(point[1])
+        nearest_sq = math.inf
+        for start_x, start_y, direction_x, direction_y, length_sq in self._edges:
+            t = 0.0
+            if length_sq > 0:
+                t = ((point_x - start_x) * direction_x + (point_y - start_y) * direction_y) / length_sq
+                t = min(max(t, 0.0), 1.0)
+            gap_x, gap_y = start_x + t * direction_x - point_x, start_y + t * direction_y - point_y
+            nearest_sq = min(nearest_sq, gap_x * gap_x + gap_y * gap_y)
+        return math.sqrt(nearest_sq)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 from collections.abc import Callable
@@ -10,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from infonav_gym.config import Interval, ParameterError, check_arguments
-from infonav_gym.geometry import distance_to_loop
+from infonav_gym.geometry import ClosedLoop
 
 CORRIDOR_LANDMARK_COUNT = 4
 MAX_SPEED_MPS = 50.0  # fastest cruise speed of a route [m/s]
@@ -167,10 +168,11 @@ def _box_walls(x_min: float, y_min: float, x_max: float, y_max: float) -> tuple:
 
 def _obstacles_clear_of(polygons: list, count: int, size_m: float, np_random: np.random.Generator) -> list:
     """``count`` round obstacles in the square field, each clear of every closed route by its radius + 2 m."""
+    loops = [ClosedLoop(polygon) for polygon in polygons]
     return _rejection_sample(
         count,
         lambda: CircleObstacle(tuple(np_random.uniform(2.0, size_m - 2.0, 2)), float(np_random.uniform(0.5, 2.0))),
-        lambda o: all(distance_to_loop(np.array(o.center), polygon) > o.radius + 2.0 for polygon in polygons),
+        lambda o: all(loop.distance(o.center) > o.radius + 2.0 for loop in loops),
         "obstacles clear of the routes",
     )
 
@@ -198,10 +200,11 @@ def field(
     angles = 2 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
     route = _polygon(center, angles, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
     obstacles = _obstacles_clear_of([route], n_obstacles, size_m, np_random)
+    route_loop = ClosedLoop(route)
     landmarks = _rejection_sample(
         n_landmarks,
         lambda: np_random.uniform(1.0, size_m - 1.0, 2),
-        lambda p: distance_to_loop(p, route) > 1.0 and all(math.dist(p, o.center) > o.radius + 0.5 for o in obstacles),
+        lambda p: route_loop.distance(p) > 1.0 and all(math.dist(p, o.center) > o.radius + 0.5 for o in obstacles),
         "landmarks outside obstacles",
     )
     return Scenario(
@@ -435,14 +438,22 @@ def build_scenario(name: str, np_random: np.random.Generator, **parameters) -> S
     if name not in SCENARIOS:
         raise ValueError(f"unknown scenario {name!r}; registered: {', '.join(sorted(SCENARIOS))}")
     builder = SCENARIOS[name]
-    signature = inspect.signature(builder).parameters.values()
-    if not any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in signature):
-        named = {parameter.name for parameter in signature}
+    named = _named_parameters(builder)
+    if named is not None:
         parameters = {key: value for key, value in parameters.items() if key in named}
     scenario = builder(np_random, **parameters)
     if not isinstance(scenario, Scenario):
         raise ValueError(f"the builder of scenario {name!r} returned a {type(scenario).__name__}, not a Scenario")
     return scenario
+
+
+@functools.cache
+def _named_parameters(builder: ScenarioBuilder) -> frozenset[str] | None:
+    """The parameter names ``builder`` takes, None when it takes any keyword (``**kwargs``)."""
+    signature = inspect.signature(builder).parameters.values()
+    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in signature):
+        return None
+    return frozenset(parameter.name for parameter in signature)
 
 
 def scenario_from_config(

@@ -16,6 +16,7 @@ the degenerate cases follow Chipmunk's rules:
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -135,11 +136,54 @@ class StaticGeometry:
             **{name: padded(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
         )
 
+    def with_copies(self, copies, replacement: StaticGeometry) -> StaticGeometry:
+        """This geometry with copies ``copies`` (n,) replaced by the n copies of ``replacement``, padded to fit.
+
+        Raises:
+            ValueError: unless ``replacement`` holds one copy per index of ``copies``.
+        """
+        copies = np.asarray(copies, dtype=int)
+        if replacement.n_copies != len(copies):
+            raise ValueError(
+                f"StaticGeometry.with_copies: {len(copies)} copies to replace, but the replacement holds "
+                f"{replacement.n_copies}"
+            )
+        walls = max(self.wall_radii.shape[1], replacement.wall_radii.shape[1])
+        discs = max(self.disc_radii.shape[1], replacement.disc_radii.shape[1])
+
+        def merged(name: str, count: int) -> np.ndarray:
+            array, new = getattr(self, name), getattr(replacement, name)
+            result = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
+            result[:, : array.shape[1]] = array
+            result[copies] = 0
+            result[copies, : new.shape[1]] = new
+            return _read_only(result)
+
+        return StaticGeometry(
+            **{name: merged(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
+            **{name: merged(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
+        )
+
     @property
     def n_copies(self) -> int:
         return len(self.wall_radii)
 
-    @property
+    @functools.cached_property
+    def wall_boxes(self) -> np.ndarray:
+        """Chipmunk's bounding box of each wall (cpSegmentShapeCacheData) (N, S, 4) ``(left, bottom, right, top)``."""
+        return _read_only(_wall_boxes(self.wall_starts, self.wall_ends, self.wall_radii))
+
+    @functools.cached_property
+    def wall_points(self) -> np.ndarray:
+        """Each wall's ends side by side (N, S, 4) ``(x0, y0, x1, y1)`` [m]."""
+        return _read_only(np.concatenate([self.wall_starts, self.wall_ends], axis=-1))
+
+    @functools.cached_property
+    def disc_boxes(self) -> np.ndarray:
+        """Chipmunk's bounding box of each disc (cpBBNewForCircle) (N, D, 4)."""
+        return _read_only(_disc_boxes(self.disc_centers, self.disc_radii))
+
+    @functools.cached_property
     def culled(self) -> np.ndarray:
         """Whether Chipmunk culls each copy's shapes by bounding box: it has more than one static shape (N,) bool."""
         return self.wall_valid.sum(axis=1) + self.disc_valid.sum(axis=1) > 1
@@ -287,13 +331,13 @@ def _disc_boxes(centers, radii) -> np.ndarray:
     )
 
 
-def _segment_hits_segments(origins, targets, starts, ends, radii, culled, queried=True) -> np.ndarray:
+def _segment_hits_segments(origins, targets, starts, ends, radii, culled) -> np.ndarray:
     walls = np.concatenate([starts, ends], axis=-1)
-    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, _hits_walls, queried)
+    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, _hits_walls)
 
 
-def _segment_hits_discs(origins, targets, centers, radii, culled, queried=True) -> np.ndarray:
-    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, _hits_discs, queried)
+def _segment_hits_discs(origins, targets, centers, radii, culled) -> np.ndarray:
+    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, _hits_discs)
 
 
 def segment_hits_segments(origins, targets, starts, ends, radii, culled=True) -> np.ndarray:
@@ -361,9 +405,13 @@ def line_of_sight(geometry: StaticGeometry, origins, targets) -> np.ndarray:
 
 def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=True) -> np.ndarray:
     """``line_of_sight`` of checked arguments, run only for the ``queried`` targets (N, K) bool (others: True)."""
-    starts, ends, culled = geometry.wall_starts, geometry.wall_ends, geometry.culled
-    walls = _segment_hits_segments(origins, targets, starts, ends, geometry.wall_radii, culled, queried)
-    discs = _segment_hits_discs(origins, targets, geometry.disc_centers, geometry.disc_radii, culled, queried)
+    culled = geometry.culled
+    walls = _hits(
+        origins, targets, geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, culled, _hits_walls, queried
+    )
+    discs = _hits(
+        origins, targets, geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, culled, _hits_discs, queried
+    )
     blocked = np.any(walls & geometry.wall_valid[:, None, :], axis=2)
     return ~(blocked | np.any(discs & geometry.disc_valid[:, None, :], axis=2))
 
