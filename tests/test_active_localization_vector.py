@@ -130,21 +130,79 @@ def test_whole_greedy_episodes_equal_the_single_env():
         endings += int(done.sum())
 
 
-def test_the_native_env_equals_gymnasiums_sync_vectorization():
-    native = gym.make_vec(ENV_ID, num_envs=3, horizon=15)
-    sync = gym.make_vec(ENV_ID, num_envs=3, horizon=15, vectorization_mode="sync")
+def _assert_infos_match(native: dict, sync: dict, where: str) -> None:
+    """The native info holds every entry of Gymnasium's ``SyncVectorEnv`` info; its other entries are masked out."""
+    for key, value in sync.items():
+        if isinstance(value, dict):
+            _assert_infos_match(native[key], value, f"{where}: {key}")
+        elif key == "final_obs":
+            assert [row is None for row in native[key]] == [row is None for row in value], where
+            for native_row, sync_row in zip(native[key], value):
+                if sync_row is not None:
+                    np.testing.assert_allclose(native_row, sync_row, rtol=0, atol=TOLERANCE, err_msg=where)
+        else:
+            np.testing.assert_allclose(native[key], value, rtol=0, atol=TOLERANCE, err_msg=f"{where}: {key}")
+    for key in set(native) - set(sync):  # reward terms of sub-envs that did not step (a reset info has none)
+        assert not native[f"_{key.lstrip('_')}"].any(), f"{where}: {key}"
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_the_native_env_equals_gymnasiums_sync_vectorization(mode):
+    native = gym.make_vec(ENV_ID, num_envs=3, horizon=15, autoreset_mode=mode)
+    sync = gym.make_vec(
+        ENV_ID, num_envs=3, horizon=15, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}
+    )
+    assert native.metadata["autoreset_mode"] == sync.metadata["autoreset_mode"] == mode
     native_outputs, sync_outputs = native.reset(seed=8), sync.reset(seed=8)
-    rng = np.random.default_rng(8)
-    for _ in range(40):
+    rng, endings = np.random.default_rng(8), 0
+    for step in range(45):
         for native_item, sync_item in zip(native_outputs[:-1], sync_outputs[:-1]):
-            np.testing.assert_allclose(native_item, sync_item, rtol=0, atol=TOLERANCE)
-        native_info, sync_info = native_outputs[-1], sync_outputs[-1]
-        for key in set(sync_info) - {"reward_terms"}:
-            np.testing.assert_allclose(native_info[key], sync_info[key], rtol=0, atol=TOLERANCE, err_msg=key)
-        for key, value in sync_info["reward_terms"].items():  # a term the sync env lacks is masked out here
-            np.testing.assert_allclose(native_info["reward_terms"][key], value, rtol=0, atol=TOLERANCE, err_msg=key)
-        actions = _greedy_or_blind(rng, native_info)
+            np.testing.assert_allclose(native_item, sync_item, rtol=0, atol=TOLERANCE, err_msg=f"step {step}")
+        _assert_infos_match(native_outputs[-1], sync_outputs[-1], f"step {step}")
+        actions = _greedy_or_blind(rng, native_outputs[-1])
         native_outputs, sync_outputs = native.step(actions), sync.step(actions)
+        endings += int(np.sum(native_outputs[2] | native_outputs[3]))
+    assert endings >= 6
+
+
+def test_same_step_autoreset_gives_the_single_envs_last_and_reset_outputs():
+    n_envs, seed, config = 3, 6, {"horizon": 9, "goal_radius_m": 29.0}  # episodes end both ways
+    vector = gym.make_vec(ENV_ID, num_envs=n_envs, autoreset_mode="same_step", **config)
+    singles = [gym.make(ENV_ID, **config) for _ in range(n_envs)]
+    _, info = vector.reset(seed=seed)
+    for copy, single in enumerate(singles):
+        single.reset(seed=seed + copy)
+    rng, ended = np.random.default_rng(0), np.zeros(2, dtype=int)
+    for step in range(1, 30):
+        actions = _greedy_or_blind(rng, info)
+        observations, rewards, terminations, truncations, info = vector.step(actions)
+        assert ("_final_obs" in info) == (terminations | truncations).any()  # as SyncVectorEnv
+        for copy, single in enumerate(singles):
+            where = f"sub-env {copy}, step {step}"
+            single_observation, reward, terminated, truncated, single_info = single.step(actions[copy])
+            assert abs(rewards[copy] - reward) <= TOLERANCE, where
+            assert (terminations[copy], truncations[copy]) == (terminated, truncated), where
+            if terminated or truncated:
+                ended += [terminated, truncated]
+                np.testing.assert_allclose(info["final_obs"][copy], single_observation, atol=TOLERANCE, err_msg=where)
+                _assert_info_matches(info["final_info"], copy, single_info, where)
+                single_observation, single_info = single.reset()
+            elif "_final_obs" in info:
+                assert info["final_obs"][copy] is None and not info["_final_info"][copy], where
+            np.testing.assert_allclose(observations[copy], single_observation, rtol=0, atol=TOLERANCE, err_msg=where)
+            _assert_info_matches(_without_final(info), copy, single_info, where)
+    assert ended.min() >= 1 and ended.sum() >= 2 * n_envs
+
+
+def _without_final(info: dict) -> dict:
+    return {key: value for key, value in info.items() if not key.lstrip("_").startswith("final_")}
+
+
+def test_an_unknown_autoreset_mode_is_a_clear_error():
+    with pytest.raises(
+        ValueError, match="autoreset_mode of ActiveLocalizationVectorEnv must be one of 'next_step', 'same_step'"
+    ):
+        ActiveLocalizationVectorEnv(num_envs=2, autoreset_mode="disabled")
 
 
 def _trajectory(env: gym.vector.VectorEnv, seed, n_steps: int = 30) -> list:

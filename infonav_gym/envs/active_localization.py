@@ -211,9 +211,10 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     # ------------------------------------------------------------------ the episode
 
     def _reset_episode(self) -> None:
-        self.ekf, self._odometry_rng, self._measurement_rng = start_episode(self.config, self.world, self.np_random)
-        self.goal = episode_goal(self.world.scenario)
-        self._obstacle_centers, self._obstacle_radii = obstacle_discs(self.world.scenario)
+        scenario, self.ekf, self._odometry_rng, self._measurement_rng = start_episode(self.config, self.np_random)
+        self.world.reset(scenario)
+        self.goal = episode_goal(scenario)
+        self._obstacle_centers, self._obstacle_radii = obstacle_discs(scenario)
         self._true_pose = self.world.pose
         self.observations_left = self.config["max_observations"]
         self.goal_reached = self.failed = False
@@ -353,25 +354,26 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         )
 
 
-def start_episode(config: dict, world: CommandedWorld, np_random: np.random.Generator):
-    """Start an episode of ``ActiveLocalization-v0``: reset ``world`` to a new goal field, draw the estimator's prior.
+def start_episode(config: dict, np_random: np.random.Generator):
+    """Start an episode of ``ActiveLocalization-v0``: draw its goal field and the estimator's prior from ``np_random``.
 
-    Draws from ``np_random`` in a fixed order (the field, the sensors' generators, the initial estimate), so the
-    single and the vector env give the same episode for the same generator.
+    Draws in a fixed order (the field, the sensors' generators, the initial estimate), so the single and the
+    vector env give the same episode for the same generator.
 
     Args:
         config: a checked ``ActiveLocalizationEnv`` config.
-        world: the world to reset.
         np_random: the episode's generator.
 
     Returns:
-        ``(ekf, odometry_rng, measurement_rng)``: the ``PoseEKF`` at the prior and the sensors' generators.
+        ``(scenario, ekf, odometry_rng, measurement_rng)``: the goal field, the ``PoseEKF`` at the prior and the
+        sensors' generators.
     """
-    world.reset(goal_field(np_random, config["n_candidates"], config["n_obstacles"], config["field_size_m"]))
+    scenario = goal_field(np_random, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
     odometry_rng, measurement_rng = np_random.spawn(2)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    ekf = PoseEKF(world.pose + pose_std * np_random.standard_normal(POSE_DIM), np.diag(pose_std**2))
-    return ekf, odometry_rng, measurement_rng
+    x, y, heading = scenario.routes[0].start_pose  # the true start pose, as World.reset puts the robot there
+    initial_pose = np.array([x, y, wrap_angle(heading)]) + pose_std * np_random.standard_normal(POSE_DIM)
+    return scenario, PoseEKF(initial_pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
 
 
 def episode_goal(scenario: Scenario) -> np.ndarray:

@@ -1,7 +1,8 @@
 """``InfoNavVectorEnv``: what the native vector envs share (seeds per sub-env, action checks, masks, the API).
 
 A subclass builds its single env (which checks the config) and calls ``_configure``; it keeps the current
-decision in ``self._decision`` (with an ``action_mask`` (N, A)) and implements ``reset`` and ``step``.
+decision in ``self._decision`` (with an ``action_mask`` (N, A)) and implements ``reset`` and ``step``, with the
+resets of its ``autoreset_mode``.
 """
 
 from __future__ import annotations
@@ -9,10 +10,11 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
-from gymnasium.vector import VectorEnv
+from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from infonav_gym.envs.base import accepts_action
+from infonav_gym.envs.vector_infos import autoreset_mode_of
 
 
 def is_seed(value) -> bool:
@@ -38,21 +40,28 @@ def sub_env_seeds(seed, num_envs: int, owner: str) -> list[int | None]:
 
 
 class InfoNavVectorEnv(VectorEnv):
-    """Base of the native vector envs: N sub-envs of one single env, each with its own generator."""
+    """Base of the native vector envs: N sub-envs of one single env, each with its own generator.
 
-    metadata = {"render_modes": []}
+    ``autoreset_mode`` is ``NEXT_STEP`` or ``SAME_STEP`` per instance (``metadata["autoreset_mode"]``).
+    """
 
-    def _configure(self, num_envs: int, render_mode: str | None, single: gym.Env) -> None:
-        """Check ``num_envs`` and ``render_mode``; take the config and spaces of ``single`` (the checked single env).
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+
+    def _configure(self, num_envs: int, render_mode: str | None, autoreset_mode, single: gym.Env) -> None:
+        """Check the vector arguments; take the config and spaces of ``single`` (the checked single env).
 
         Raises:
-            ValueError: for ``num_envs`` that is not an int >= 1, or a render mode (none is implemented yet).
+            ValueError: for ``num_envs`` that is not an int >= 1, a render mode (none is implemented yet), or
+                an autoreset mode other than ``AUTORESET_MODES``.
         """
         owner = type(self).__name__
         if type(num_envs) is not int or num_envs < 1:
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
         if render_mode is not None:
             raise ValueError(f"{owner} does not render yet: render_mode must be None, got {render_mode!r}")
+        self.autoreset_mode = autoreset_mode_of(autoreset_mode, self.AUTORESET_MODES, owner)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.config = single.config
         self.num_envs = num_envs
         self.render_mode = None
