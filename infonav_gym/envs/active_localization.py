@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -211,10 +212,12 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     # ------------------------------------------------------------------ the episode
 
     def _reset_episode(self) -> None:
-        scenario, self.ekf, self._odometry_rng, self._measurement_rng = start_episode(self.config, self.np_random)
-        self.world.reset(scenario)
-        self.goal = episode_goal(scenario)
-        self._obstacle_centers, self._obstacle_radii = obstacle_discs(scenario)
+        start = start_episode(self.config, self.np_random)
+        self.world.reset(start.scenario)
+        self.ekf = PoseEKF(start.pose, start.pose_covariance)
+        self._odometry_rng, self._measurement_rng = start.odometry_rng, start.measurement_rng
+        self.goal = episode_goal(start.scenario)
+        self._obstacle_centers, self._obstacle_radii = obstacle_discs(start.scenario)
         self._true_pose = self.world.pose
         self.observations_left = self.config["max_observations"]
         self.goal_reached = self.failed = False
@@ -354,7 +357,24 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         )
 
 
-def start_episode(config: dict, np_random: np.random.Generator):
+class EpisodeStart(NamedTuple):
+    """What an episode of ``ActiveLocalization-v0`` starts from (``start_episode``).
+
+    Attributes:
+        scenario: the goal field, to reset the world to.
+        pose: the estimator's initial pose ``[x, y, heading]``, drawn around the true start pose.
+        pose_covariance: its covariance (3, 3).
+        odometry_rng, measurement_rng: the sensors' generators.
+    """
+
+    scenario: Scenario
+    pose: np.ndarray
+    pose_covariance: np.ndarray
+    odometry_rng: np.random.Generator
+    measurement_rng: np.random.Generator
+
+
+def start_episode(config: dict, np_random: np.random.Generator) -> EpisodeStart:
     """Start an episode of ``ActiveLocalization-v0``: draw its goal field and the estimator's prior from ``np_random``.
 
     Draws in a fixed order (the field, the sensors' generators, the initial estimate), so the single and the
@@ -363,17 +383,13 @@ def start_episode(config: dict, np_random: np.random.Generator):
     Args:
         config: a checked ``ActiveLocalizationEnv`` config.
         np_random: the episode's generator.
-
-    Returns:
-        ``(scenario, ekf, odometry_rng, measurement_rng)``: the goal field, the ``PoseEKF`` at the prior and the
-        sensors' generators.
     """
     scenario = goal_field(np_random, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
     odometry_rng, measurement_rng = np_random.spawn(2)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
     x, y, heading = scenario.routes[0].start_pose  # the true start pose, as World.reset puts the robot there
-    initial_pose = np.array([x, y, wrap_angle(heading)]) + pose_std * np_random.standard_normal(POSE_DIM)
-    return scenario, PoseEKF(initial_pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
+    pose = np.array([x, y, wrap_angle(heading)]) + pose_std * np_random.standard_normal(POSE_DIM)
+    return EpisodeStart(scenario, pose, np.diag(pose_std**2), odometry_rng, measurement_rng)
 
 
 def episode_goal(scenario: Scenario) -> np.ndarray:

@@ -105,11 +105,12 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
         """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
         state, geometries = self._state, []
         for copy in copies.tolist():
-            scenario, ekf, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy])
+            start = start_episode(self.config, self._np_randoms[copy])
+            scenario = start.scenario
             self._worlds.reset_copy(copy, scenario)
-            self._odometry_noise.restart(copy, odometry_rng)
-            self._measurement_noise.restart(copy, measurement_rng)
-            state["x"][copy], state["P"][copy] = ekf.x, ekf.P
+            self._odometry_noise.restart(copy, start.odometry_rng)
+            self._measurement_noise.restart(copy, start.measurement_rng)
+            state["x"][copy], state["P"][copy] = start.pose, start.pose_covariance  # PoseEKF's x and P
             state["goals"][copy] = episode_goal(scenario)
             self._obstacle_centers[copy], self._obstacle_radii[copy] = obstacle_discs(scenario)
             self._landmarks[copy] = scenario.landmarks
