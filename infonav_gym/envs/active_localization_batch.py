@@ -45,7 +45,7 @@ class ActiveDecision(NamedTuple):
         return cls(sight, mask.reshape(n_copies, -1), gains.reshape(n_copies, -1))
 
 
-def offsets_seen(x: np.ndarray, targets: np.ndarray) -> np.ndarray:
+def ranges_and_bearings(x: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Range [m] and bearing [rad] of targets (N, T, 2) from each pose (N, 3): (N, T, 2), as ``range_bearing``."""
     dx, dy = targets[..., 0] - x[:, None, 0], targets[..., 1] - x[:, None, 1]
     return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - x[:, None, 2])], axis=-1)
@@ -68,7 +68,7 @@ def batched_observation(
     n_copies = len(x)
     sight = decision.sight
     variances = np.diagonal(P, axis1=1, axis2=2)
-    goal = offsets_seen(x, goals[:, None])[:, 0]
+    goal = ranges_and_bearings(x, goals[:, None])[:, 0]
     budget = config["max_observations"]
     budget_left = observations_left / budget if budget else np.zeros(n_copies)
     pose = [x[:, 0], x[:, 1], np.cos(x[:, 2]), np.sin(x[:, 2]), *np.sqrt(variances).T]
@@ -77,7 +77,7 @@ def batched_observation(
     predicted = sight.predicted
     landmarks = [sight.action_mask, predicted[..., 0], np.cos(predicted[..., 1]), np.sin(predicted[..., 1])]
     centers, radii = obstacles
-    seen = offsets_seen(x, centers)
+    seen = ranges_and_bearings(x, centers)
     obstacle_rows = [seen[..., 0], np.cos(seen[..., 1]), np.sin(seen[..., 1]), radii]
     observation = np.concatenate(
         [np.stack(pose, axis=1), np.stack(landmarks, axis=2).reshape(n_copies, -1)]
