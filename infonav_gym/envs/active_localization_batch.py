@@ -12,7 +12,13 @@ from typing import NamedTuple
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.envs.active_localization import ActiveLocalizationEnv
+from infonav_gym.envs.active_localization import (
+    GOAL_FEATURES,
+    LANDMARK_FEATURES,
+    OBSTACLE_FEATURES,
+    POSE_FEATURES,
+    ActiveLocalizationEnv,
+)
 from infonav_gym.envs.active_planning import N_PRIMITIVES
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision
 from infonav_gym.estimation.ekf import POSE_DIM
@@ -65,25 +71,30 @@ def batched_observation(
         obstacles: ``(centers (N, O, 2), radii (N, O))`` [m].
         config: the env config; ``space`` the single observation space.
     """
-    n_copies = len(x)
-    sight = decision.sight
+    n_copies, n_landmarks = decision.sight.action_mask.shape
+    sight, (centers, radii) = decision.sight, obstacles
+    observation = np.zeros((n_copies, *space.shape), dtype=np.float32)
+    pose_end, landmarks_end = (
+        POSE_FEATURES + GOAL_FEATURES,
+        POSE_FEATURES + GOAL_FEATURES + LANDMARK_FEATURES * n_landmarks,
+    )
     variances = np.diagonal(P, axis1=1, axis2=2)
+    observation[:, :2] = x[:, :2]
+    observation[:, 2], observation[:, 3] = np.cos(x[:, 2]), np.sin(x[:, 2])
+    observation[:, 4:7] = np.sqrt(variances)
+    observation[:, 7] = P[:, 0, 1] / np.sqrt(variances[:, 0] * variances[:, 1])
+    observation[:, 8], observation[:, 9] = sight.pose_entropy, elapsed / config["horizon"]
     goal = ranges_and_bearings(x, goals[:, None])[:, 0]
+    observation[:, 10], observation[:, 11], observation[:, 12] = goal[:, 0], np.cos(goal[:, 1]), np.sin(goal[:, 1])
     budget = config["max_observations"]
-    budget_left = observations_left / budget if budget else np.zeros(n_copies)
-    pose = [x[:, 0], x[:, 1], np.cos(x[:, 2]), np.sin(x[:, 2]), *np.sqrt(variances).T]
-    pose += [P[:, 0, 1] / np.sqrt(variances[:, 0] * variances[:, 1]), sight.pose_entropy, elapsed / config["horizon"]]
-    pose += [goal[:, 0], np.cos(goal[:, 1]), np.sin(goal[:, 1]), budget_left]
-    predicted = sight.predicted
-    landmarks = [sight.action_mask, predicted[..., 0], np.cos(predicted[..., 1]), np.sin(predicted[..., 1])]
-    centers, radii = obstacles
+    observation[:, 13] = observations_left / budget if budget else 0.0
+    landmarks = observation[:, pose_end:landmarks_end].reshape(n_copies, n_landmarks, LANDMARK_FEATURES)
+    landmarks[..., 0], landmarks[..., 1] = sight.action_mask, sight.predicted[..., 0]
+    landmarks[..., 2], landmarks[..., 3] = np.cos(sight.predicted[..., 1]), np.sin(sight.predicted[..., 1])
     seen = ranges_and_bearings(x, centers)
-    obstacle_rows = [seen[..., 0], np.cos(seen[..., 1]), np.sin(seen[..., 1]), radii]
-    observation = np.concatenate(
-        [np.stack(pose, axis=1), np.stack(landmarks, axis=2).reshape(n_copies, -1)]
-        + [np.stack(obstacle_rows, axis=2).reshape(n_copies, -1)],
-        axis=1,
-    ).astype(np.float32)
+    obstacle_rows = observation[:, landmarks_end:].reshape(n_copies, -1, OBSTACLE_FEATURES)
+    obstacle_rows[..., 0], obstacle_rows[..., 1] = seen[..., 0], np.cos(seen[..., 1])
+    obstacle_rows[..., 2], obstacle_rows[..., 3] = np.sin(seen[..., 1]), radii
     return np.clip(observation, space.low, space.high, out=observation)
 
 
