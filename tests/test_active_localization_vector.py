@@ -1,4 +1,7 @@
-"""``ActiveLocalizationVectorEnv``: the single env's numbers in each sub-env, autoreset, seeding, API, bad input."""
+"""``ActiveLocalizationVectorEnv``: the single env's numbers in each sub-env, through terminations and truncations.
+
+The checks every native vector env passes (seeding, API, bad input, SyncVectorEnv) run in ``test_vector_envs.py``.
+"""
 
 from __future__ import annotations
 
@@ -136,28 +139,5 @@ def test_bad_config_raises_as_in_the_single_env(arguments, match):
         ActiveLocalizationVectorEnv(**{"num_envs": 2, **arguments})
 
 
-@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
-def test_the_native_env_equals_gymnasiums_sync_vectorization(mode):
-    assert vector_env_checks.check_matches_sync_vectorization(ENV_ID, mode, n_steps=45, horizon=15) >= 6
-
-
-@pytest.mark.parametrize(
-    "check",
-    [
-        vector_env_checks.check_seeding,
-        vector_env_checks.check_vector_api,
-        vector_env_checks.check_other_vectorizations,
-        vector_env_checks.check_step_before_reset_raises,
-        vector_env_checks.check_bad_actions_raise_naming_the_sub_env,
-        vector_env_checks.check_bad_reset_arguments_raise,
-        vector_env_checks.check_bad_vector_arguments_raise,
-    ],
-    ids=lambda check: check.__name__.removeprefix("check_"),
-)
-def test_the_vector_env_checks(check):
-    check(ENV_ID)
-
-
-def test_gymnasium_vector_wrappers_read_its_infos():
-    vector_env_checks.check_episode_statistics(ENV_ID, horizon=10)  # truncated
+def test_gymnasium_vector_wrappers_read_its_infos_at_terminations():
     vector_env_checks.check_episode_statistics(ENV_ID, horizon=10, goal_radius_m=31.0)  # terminated at the goal

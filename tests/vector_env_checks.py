@@ -15,6 +15,8 @@ from gymnasium.utils.env_checker import data_equivalence
 from gymnasium.vector import AutoresetMode
 from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 
+import infonav_gym  # noqa: F401  (registers the envs)
+
 TOLERANCE = 1e-9
 
 
