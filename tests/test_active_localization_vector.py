@@ -99,31 +99,18 @@ def test_autoreset_is_next_step_after_termination_and_truncation():
     assert not env.step(np.zeros(2, dtype=int))[3].any()
 
 
-def _masked_actions(info: dict) -> tuple[np.ndarray, int]:
-    """Observing a hidden landmark in one sub-env (driving to the goal), valid observations elsewhere."""
-    mask = info["action_mask"]
-    observable = mask[:, N_PRIMITIVES:].any(axis=1)
-    copy = int(np.flatnonzero(observable)[0])
-    actions = mask[:, N_PRIMITIVES:].argmax(axis=1) + N_PRIMITIVES  # the first observable (or masked) landmark
-    actions[copy] = int(np.flatnonzero(mask[copy] == 0)[0])
-    return actions, copy
-
-
-def test_masked_action_follows_invalid_action_per_sub_env():
-    env = ActiveLocalizationVectorEnv(num_envs=4, invalid_action="raise")
+def test_a_no_op_keeps_the_budget_and_an_observation_spends_it():
+    env = ActiveLocalizationVectorEnv(num_envs=3, max_observations=5)
     _, info = env.reset(seed=1)
-    actions, copy = _masked_actions(info)
-    with pytest.raises(ValueError, match=f"action {actions[copy]} of sub-env {copy} is not valid now"):
-        env.step(actions)
-    noop = ActiveLocalizationVectorEnv(num_envs=4)
-    _, info = noop.reset(seed=1)
-    _, rewards, _, _, info = noop.step(actions)
-    assert info["invalid_action"][copy] and rewards[copy] == 0.0 and info["chosen_action"][copy] == -1
-    np.testing.assert_array_equal(info["observations_left"][copy], 12)  # a no-op observes nothing
-    valid = np.arange(4) != copy
-    observed = info["observations_left"][valid] == 11
-    assert not info["invalid_action"][valid].any() and (info["reward_terms"]["mutual_information"][valid] > 0).all()
-    assert observed.all()
+    observing = N_PRIMITIVES + info["action_mask"][:, N_PRIMITIVES:].argmax(axis=1)  # the first visible landmark
+    assert info["action_mask"][np.arange(3), observing].all()  # each sub-env sees one at the start
+    hidden = int(np.flatnonzero(info["action_mask"][0] == 0)[0])
+    actions = np.array([hidden, observing[1], 1])  # masked, observe a landmark, veer left
+    _, rewards, _, _, info = env.step(actions)
+    np.testing.assert_array_equal(info["observations_left"], [5, 4, 5])
+    np.testing.assert_array_equal(info["reward_terms"]["sensing_cost"], [0.0, -0.1, 0.0])
+    np.testing.assert_array_equal(info["reward_terms"]["motion_cost"], [0.0, -0.1, -0.1])  # a no-op stands still
+    assert info["reward_terms"]["mutual_information"][1] > 0 and rewards[0] == 0.0
 
 
 @pytest.mark.parametrize(

@@ -19,6 +19,7 @@ CHECKS = [
     vector_env_checks.check_other_vectorizations,
     vector_env_checks.check_step_before_reset_raises,
     vector_env_checks.check_bad_actions_raise_naming_the_sub_env,
+    vector_env_checks.check_masked_actions_follow_invalid_action,
     vector_env_checks.check_bad_reset_arguments_raise,
     vector_env_checks.check_bad_vector_arguments_raise,
 ]

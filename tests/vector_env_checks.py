@@ -260,6 +260,33 @@ def check_bad_actions_raise_naming_the_sub_env(env_id: str) -> None:
             env.step(actions)
 
 
+def check_masked_actions_follow_invalid_action(env_id: str) -> None:
+    """A masked action raises naming its sub-env with ``invalid_action="raise"``, else it is that sub-env's no-op.
+
+    The other sub-envs' valid actions are taken as given (their ``chosen_action``), in both modes alike.
+    """
+    envs = {mode: gym.make_vec(env_id, num_envs=4, invalid_action=mode) for mode in ("raise", "noop")}
+    infos = {mode: env.reset(seed=1)[1] for mode, env in envs.items()}
+    rng = np.random.default_rng(1)
+    for _ in range(50):  # until some sub-env has both a valid and a masked action
+        mask = infos["noop"]["action_mask"]
+        mixed = np.flatnonzero(mask.any(axis=1) & ~mask.all(axis=1))
+        if mixed.size:
+            break
+        valid = np.array([rng.choice(np.flatnonzero(row)) if row.any() else 0 for row in mask])
+        infos = {mode: env.step(valid)[-1] for mode, env in envs.items()}
+    else:
+        pytest.fail("no sub-env had a masked action beside a valid one within 50 steps")
+    copy = int(mixed[0])
+    actions = np.array([np.flatnonzero(row)[-1] if row.any() else 0 for row in mask])
+    actions[copy] = int(np.flatnonzero(mask[copy] == 0)[0])
+    with pytest.raises(ValueError, match=f"action {actions[copy]} of sub-env {copy} is not valid now"):
+        envs["raise"].step(actions)
+    info = envs["noop"].step(actions)[-1]
+    np.testing.assert_array_equal(info["invalid_action"], np.arange(4) == copy)
+    np.testing.assert_array_equal(info["chosen_action"], np.where(np.arange(4) == copy, -1, actions))
+
+
 BAD_RESET_ARGUMENTS = [
     ({"seed": [1, 2]}, r"None, an int >= 0 or a list of 3 such seeds \(one per sub-env\), got \[1, 2\]"),
     ({"seed": -1}, "int >= 0"),
