@@ -69,31 +69,26 @@ def transform_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, flo
 
 def distance_to_loop(point, loop) -> float:
     """Shortest distance [m] from ``point`` (2,) to the closed polyline ``loop`` (W, 2); one vertex is a point."""
-    return ClosedLoop(loop).distance(point)
+    return float(ClosedLoop(loop).distances(np.asarray(point, dtype=float)[None])[0])
 
 
 class ClosedLoop:
-    """A closed polyline (W, 2) [m] whose edges are prepared once, for many ``distance`` queries.
+    """Closed polylines (each (W, 2) [m]) whose edges are prepared once, for the distances of many points."""
 
-    Plain Python floats: a scenario's rejection sampling asks a few dozen distances to a loop of a few
-    vertices, where numpy's per-call overhead is most of the time.
-    """
+    def __init__(self, *loops):
+        starts = [np.asarray(loop, dtype=float).reshape(-1, 2) for loop in loops]
+        self._starts = np.concatenate(starts)
+        self._directions = np.concatenate([np.roll(start, -1, axis=0) - start for start in starts])
+        direction_x, direction_y = self._directions.T
+        self._length_sq = direction_x * direction_x + direction_y * direction_y
 
-    def __init__(self, loop):
-        starts = np.asarray(loop, dtype=float).reshape(-1, 2)
-        directions = np.roll(starts, -1, axis=0) - starts
-        length_sq = np.einsum("ij,ij->i", directions, directions)
-        self._edges = list(zip(*starts.T.tolist(), *directions.T.tolist(), length_sq.tolist()))
-
-    def distance(self, point) -> float:
-        """Shortest distance [m] from ``point`` (2,) to the loop."""
-        point_x, point_y = float(point[0]), float(point[1])
-        nearest_sq = math.inf
-        for start_x, start_y, direction_x, direction_y, length_sq in self._edges:
-            t = 0.0
-            if length_sq > 0:
-                t = ((point_x - start_x) * direction_x + (point_y - start_y) * direction_y) / length_sq
-                t = min(max(t, 0.0), 1.0)
-            gap_x, gap_y = start_x + t * direction_x - point_x, start_y + t * direction_y - point_y
-            nearest_sq = min(nearest_sq, gap_x * gap_x + gap_y * gap_y)
-        return math.sqrt(nearest_sq)
+    def distances(self, points) -> np.ndarray:
+        """Shortest distance [m] from each of ``points`` (M, 2) to the nearest loop (M,)."""
+        points = np.asarray(points, dtype=float)
+        (start_x, start_y), (direction_x, direction_y) = self._starts.T, self._directions.T
+        along = (points[:, None, 0] - start_x) * direction_x + (points[:, None, 1] - start_y) * direction_y
+        degenerate = self._length_sq <= 0
+        t = np.where(degenerate, 0.0, np.clip(along / np.where(degenerate, 1.0, self._length_sq), 0.0, 1.0))
+        gap_x = start_x + t * direction_x - points[:, None, 0]
+        gap_y = start_y + t * direction_y - points[:, None, 1]
+        return np.sqrt(np.min(gap_x * gap_x + gap_y * gap_y, axis=1))

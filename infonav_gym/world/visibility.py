@@ -282,38 +282,54 @@ def _hits_discs(origin_x, origin_y, target_x, target_y, center_x, center_y, r) -
     return inside | _hits_circles(center_x, center_y, r, origin_x, origin_y, target_x, target_y)
 
 
-def _hits(origins, targets, shapes, radii, boxes, culled, exact_test, queried=True) -> np.ndarray:
-    """(N, K, M) bool: ``exact_test`` of each query against each shape, where Chipmunk's tree would run it.
+def _pair_hits(copy, origins, targets, shapes, radii, boxes, usable, culled, exact_test):
+    """Which shapes M queries hit, where Chipmunk's tree would test them: ``(query index, shape index)`` of each hit.
 
-    The tree runs it where the query enters the shape's box (or a one-leaf tree is not culled); that
+    The tree tests a shape where the query enters its box (or a one-leaf tree is not culled); that
     needs the query's own box to touch the shape's, a cheap first filter.
 
     Args:
-        origins: (N, 2); targets: (N, K, 2); shapes: the shapes' points (N, M, P) [m]; radii: (N, M) [m];
-        boxes: the shapes' bounding boxes (N, M, 4) ``(left, bottom, right, top)`` [m];
-        culled: (N,) bool; exact_test: ``_hits_walls`` or ``_hits_discs``;
-        queried: the queries to run (N, K) bool (True: all); the others give False.
+        copy: each query's copy (M,); origins, targets: the queries' ends (M, 2) [m];
+        shapes: the shapes' points (N, S, P) [m]; radii: (N, S) [m]; boxes: their bounding boxes (N, S, 4)
+        ``(left, bottom, right, top)`` [m]; usable: the real (not padding) shapes (N, S) bool;
+        culled: (N,) bool; exact_test: ``_hits_walls`` or ``_hits_discs``.
     """
-    low, high = np.minimum(origins[:, None, :], targets), np.maximum(origins[:, None, :], targets)
-    touching = (low[:, :, None, 0] <= boxes[:, None, :, 2]) & (boxes[:, None, :, 0] <= high[:, :, None, 0])
-    touching &= (low[:, :, None, 1] <= boxes[:, None, :, 3]) & (boxes[:, None, :, 1] <= high[:, :, None, 1])
-    copy, query, shape = np.nonzero((touching | ~culled[:, None, None]) & np.expand_dims(queried, -1))
-    origin_x, origin_y = origins[copy].T
-    target_x, target_y = targets[copy, query].T
-    hits = np.zeros(touching.shape, dtype=bool)
+    low, high = np.minimum(origins, targets), np.maximum(origins, targets)
+    query_boxes = boxes[copy]  # (M, S, 4)
+    touching = (low[:, None, 0] <= query_boxes[..., 2]) & (query_boxes[..., 0] <= high[:, None, 0])
+    touching &= (low[:, None, 1] <= query_boxes[..., 3]) & (query_boxes[..., 1] <= high[:, None, 1])
+    query, shape = np.nonzero((touching | ~culled[copy, None]) & usable[copy])
+    if not query.size:
+        return query, shape
+    origin_x, origin_y = origins[query].T
+    target_x, target_y = targets[query].T
+    query_copy = copy[query]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        box = boxes[copy, shape].T
-        tested = _enters_box(*box, origin_x, origin_y, target_x - origin_x, target_y - origin_y) | ~culled[copy]
-        copy, query, shape = copy[tested], query[tested], shape[tested]
-        hits[copy, query, shape] = exact_test(
+        box = query_boxes[query, shape].T
+        tested = _enters_box(*box, origin_x, origin_y, target_x - origin_x, target_y - origin_y) | ~culled[query_copy]
+        query, shape, query_copy = query[tested], shape[tested], query_copy[tested]
+        hit = exact_test(
             origin_x[tested],
             origin_y[tested],
             target_x[tested],
             target_y[tested],
-            *shapes[copy, shape].T,
-            radii[copy, shape],
+            *shapes[query_copy, shape].T,
+            radii[query_copy, shape],
         )
-    return hits
+    return query[hit], shape[hit]
+
+
+def _hits(origins, targets, shapes, radii, boxes, culled, exact_test) -> np.ndarray:
+    """(N, K, S) bool: ``exact_test`` of each query against each shape, where Chipmunk's tree would run it."""
+    n_copies, n_targets = targets.shape[:2]
+    copy = np.repeat(np.arange(n_copies), n_targets)
+    usable = np.ones(radii.shape, dtype=bool)
+    query, shape = _pair_hits(
+        copy, origins[copy], targets.reshape(-1, 2), shapes, radii, boxes, usable, culled, exact_test
+    )
+    hits = np.zeros((n_copies * n_targets, radii.shape[1]), dtype=bool)
+    hits[query, shape] = True
+    return hits.reshape(n_copies, n_targets, -1)
 
 
 def _wall_boxes(starts, ends, radii) -> np.ndarray:
@@ -403,17 +419,23 @@ def line_of_sight(geometry: StaticGeometry, origins, targets) -> np.ndarray:
     return _line_of_sight(geometry, origins, targets)
 
 
-def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=True) -> np.ndarray:
+def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=None) -> np.ndarray:
     """``line_of_sight`` of checked arguments, run only for the ``queried`` targets (N, K) bool (others: True)."""
-    culled = geometry.culled
-    walls = _hits(
-        origins, targets, geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, culled, _hits_walls, queried
+    copy, target = np.nonzero(np.ones(targets.shape[:2], dtype=bool) if queried is None else queried)
+    query_origins, query_targets = origins[copy], targets[copy, target]
+    blocked = np.zeros(len(copy), dtype=bool)
+    shapes = (
+        (geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, geometry.wall_valid, _hits_walls),
+        (geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, geometry.disc_valid, _hits_discs),
     )
-    discs = _hits(
-        origins, targets, geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, culled, _hits_discs, queried
-    )
-    blocked = np.any(walls & geometry.wall_valid[:, None, :], axis=2)
-    return ~(blocked | np.any(discs & geometry.disc_valid[:, None, :], axis=2))
+    for points, radii, boxes, usable, exact_test in shapes:
+        hit_queries, _ = _pair_hits(
+            copy, query_origins, query_targets, points, radii, boxes, usable, geometry.culled, exact_test
+        )
+        blocked[hit_queries] = True
+    clear = np.ones(targets.shape[:2], dtype=bool)
+    clear[copy, target] = ~blocked
+    return clear
 
 
 def in_coverage(sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
@@ -434,20 +456,27 @@ def in_coverage(sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
     """
     poses = _finite_array(poses, (None, 3), "in_coverage: poses [m, m, rad]")
     targets = _finite_array(targets, (len(poses), None, 2), "in_coverage: targets [m] (one row per pose)")
+    return _in_coverage(sensor, poses, targets)
+
+
+def _in_coverage(sensor: RangeBearingSensor, poses: np.ndarray, targets: np.ndarray) -> np.ndarray:
     dx, dy = targets[:, :, 0] - poses[:, None, 0], targets[:, :, 1] - poses[:, None, 1]
     measurements = np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - poses[:, None, 2])], axis=-1)
     return sensor.in_coverage(measurements.reshape(-1, 2)).reshape(dx.shape)
 
 
-def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
+def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets, *, check_input: bool = True):
     """Which targets each copy's robot sees: in ``sensor``'s coverage and in line of sight (N, K) bool.
 
     Equal to ``LandmarkSight``'s ``visible`` of each copy (``in_coverage`` and ``line_of_sight``).
+    ``check_input=False`` skips the checks, for known-good float arrays in hot loops.
 
     Raises:
         ValueError: as ``in_coverage`` and ``line_of_sight``.
     """
-    covered = in_coverage(sensor, poses, targets)
-    origins = np.asarray(poses, dtype=float)[:, :2]
-    _check_copies("visible", geometry, len(origins), "poses")
-    return covered & _line_of_sight(geometry, origins, np.asarray(targets, dtype=float), covered)
+    if check_input:
+        poses = _finite_array(poses, (None, 3), "in_coverage: poses [m, m, rad]")
+        targets = _finite_array(targets, (len(poses), None, 2), "in_coverage: targets [m] (one row per pose)")
+        _check_copies("visible", geometry, len(poses), "poses")
+    covered = _in_coverage(sensor, poses, targets)
+    return covered & _line_of_sight(geometry, poses[:, :2], targets, covered)
