@@ -44,3 +44,10 @@ def test_equal_to_gymnasiums_sync_vectorization(env_id, mode):
 @pytest.mark.parametrize("env_id", VECTOR_ENV_IDS)
 def test_gymnasium_vector_wrappers_read_the_infos(env_id):
     vector_env_checks.check_episode_statistics(env_id, horizon=10)
+
+
+@pytest.mark.parametrize("env_id", VECTOR_ENV_IDS)
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_render_draws_sub_env_0(env_id, mode):
+    pytest.importorskip("pygame")
+    vector_env_checks.check_render_draws_sub_env_0(env_id, mode, n_steps=12, horizon=4)

@@ -178,7 +178,7 @@ def check_seeding(env_id: str, **config) -> None:
 
 
 def check_vector_api(env_id: str, n_steps: int = 30, **config) -> None:
-    """Spaces, dtypes and shapes of the outputs, ``_key`` masks, ``action_masks()``, ``render()`` and ``close()``."""
+    """Spaces, dtypes and shapes of the outputs, ``_key`` masks, ``action_masks()``, ``render()`` with no mode."""
     env, single = gym.make_vec(env_id, num_envs=5, **config), gym.make(env_id, **config)
     n_actions = single.action_space.n
     assert env.single_observation_space == single.observation_space and env.single_action_space == single.action_space
@@ -196,10 +196,36 @@ def check_vector_api(env_id: str, n_steps: int = 30, **config) -> None:
         assert rewards.shape == (5,) and rewards.dtype == np.float64
         assert terminated.dtype == truncated.dtype == bool and terminated.shape == truncated.shape == (5,)
         assert all(info[f"_{key}"].shape == (5,) and info[f"_{key}"].all() for key in info if key[0] != "_")
-    with pytest.raises(NotImplementedError, match="render"):
-        env.render()
+    with pytest.warns(UserWarning, match="without a render_mode"):
+        assert env.render() is None
     env.close()
     assert env.closed
+
+
+def check_render_draws_sub_env_0(env_id: str, mode: AutoresetMode, n_steps: int, horizon: int) -> None:
+    """``render()`` of ``render_mode="rgb_array"`` is sub-env 0's single env's frame, through its autoresets."""
+    size = {"render_size_px": 96, "horizon": horizon}
+    vector = gym.make_vec(env_id, num_envs=3, render_mode="rgb_array", autoreset_mode=mode, **size)
+    single = gym.make(env_id, render_mode="rgb_array", **size)
+    _, info = vector.reset(seed=21)
+    single.reset(seed=21)
+    rng, resetting, endings = np.random.default_rng(0), False, 0
+    for step in range(n_steps):
+        frame = vector.render()
+        assert frame.shape == (96, 96, 3)
+        np.testing.assert_array_equal(frame, single.render(), err_msg=f"step {step}")
+        actions = some_actions(rng, info)
+        _, _, terminated, truncated, info = vector.step(actions)
+        ended = bool(terminated[0] or truncated[0])
+        if resetting:  # NEXT_STEP: this step reset sub-env 0
+            single.reset()
+        else:
+            single.step(actions[0])
+            if ended and mode == AutoresetMode.SAME_STEP:
+                single.reset()
+        resetting, endings = ended and mode == AutoresetMode.NEXT_STEP, endings + ended
+    assert endings >= 1
+    vector.close()
 
 
 def check_episode_statistics(env_id: str, horizon: int, **config) -> None:
@@ -305,12 +331,12 @@ def check_bad_reset_arguments_raise(env_id: str) -> None:
 
 
 def check_bad_vector_arguments_raise(env_id: str) -> None:
-    """``num_envs``, ``render_mode`` and ``autoreset_mode`` errors name the env class and the value."""
+    """``num_envs``, ``render_mode`` and ``autoreset_mode`` errors name the value (and the env class)."""
     owner = type(gym.make_vec(env_id, num_envs=1).unwrapped).__name__
     for arguments, match in [
         ({"num_envs": 0}, f"num_envs of {owner} must be an int >= 1, got 0"),
         ({"num_envs": 2.0}, "num_envs .* got 2.0"),
-        ({"render_mode": "rgb_array"}, "render_mode must be None, got 'rgb_array'"),
+        ({"render_mode": "rgb"}, r"render_mode must be None or one of \['human', 'rgb_array'\], got 'rgb'"),
         ({"autoreset_mode": "disabled"}, f"autoreset_mode of {owner} must be one of 'next_step', 'same_step'"),
     ]:
         with pytest.raises(ValueError, match=match):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -15,6 +14,7 @@ from infonav_gym.envs.active_planning import (
     ActivePlanningModel,
 )
 from infonav_gym.envs.base import MAX_EPISODE_STEPS, Decision, InfoNavEnv
+from infonav_gym.envs.landmark_selection import Prior
 from infonav_gym.envs.landmark_sight import LandmarkSight
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
 from infonav_gym.envs.traits import EnvTraits
@@ -26,7 +26,7 @@ from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS, CommandedWorld, goal_field
 from infonav_gym.world.scenarios import SPEED_MPS, Scenario
-from infonav_gym.world.world import TIME_STEP_S
+from infonav_gym.world.world import TIME_STEP_S, start_poses
 
 POSE_FEATURES = 10
 GOAL_FEATURES = 4
@@ -212,12 +212,11 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     # ------------------------------------------------------------------ the episode
 
     def _reset_episode(self) -> None:
-        start = start_episode(self.config, self.np_random)
-        self.world.reset(start.scenario)
-        self.ekf = PoseEKF(start.pose, start.pose_covariance)
-        self._odometry_rng, self._measurement_rng = start.odometry_rng, start.measurement_rng
-        self.goal = episode_goal(start.scenario)
-        self._obstacle_centers, self._obstacle_radii = obstacle_discs(start.scenario)
+        scenario, prior, self._odometry_rng, self._measurement_rng = start_episode(self.config, self.np_random)
+        self.world.reset(scenario)
+        self.ekf = PoseEKF(*prior)
+        self.goal = episode_goal(scenario)
+        self._obstacle_centers, self._obstacle_radii = obstacle_discs(scenario)
         self._true_pose = self.world.pose
         self.observations_left = self.config["max_observations"]
         self.goal_reached = self.failed = False
@@ -357,24 +356,7 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
         )
 
 
-class EpisodeStart(NamedTuple):
-    """What an episode of ``ActiveLocalization-v0`` starts from (``start_episode``).
-
-    Attributes:
-        scenario: the goal field, to reset the world to.
-        pose: the estimator's initial pose ``[x, y, heading]``, drawn around the true start pose.
-        pose_covariance: its covariance (3, 3).
-        odometry_rng, measurement_rng: the sensors' generators.
-    """
-
-    scenario: Scenario
-    pose: np.ndarray
-    pose_covariance: np.ndarray
-    odometry_rng: np.random.Generator
-    measurement_rng: np.random.Generator
-
-
-def start_episode(config: dict, np_random: np.random.Generator) -> EpisodeStart:
+def start_episode(config: dict, np_random: np.random.Generator):
     """Start an episode of ``ActiveLocalization-v0``: draw its goal field and the estimator's prior from ``np_random``.
 
     Draws in a fixed order (the field, the sensors' generators, the initial estimate), so the single and the
@@ -383,13 +365,16 @@ def start_episode(config: dict, np_random: np.random.Generator) -> EpisodeStart:
     Args:
         config: a checked ``ActiveLocalizationEnv`` config.
         np_random: the episode's generator.
+
+    Returns:
+        ``(scenario, prior, odometry_rng, measurement_rng)``: the goal field, the estimator's ``Prior`` and the
+        sensors' generators.
     """
     scenario = goal_field(np_random, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
     odometry_rng, measurement_rng = np_random.spawn(2)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    x, y, heading = scenario.routes[0].start_pose  # the true start pose, as World.reset puts the robot there
-    pose = np.array([x, y, wrap_angle(heading)]) + pose_std * np_random.standard_normal(POSE_DIM)
-    return EpisodeStart(scenario, pose, np.diag(pose_std**2), odometry_rng, measurement_rng)
+    pose = np.array(start_poses(scenario)[0]) + pose_std * np_random.standard_normal(POSE_DIM)
+    return scenario, Prior(pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
 
 
 def episode_goal(scenario: Scenario) -> np.ndarray:

@@ -57,8 +57,15 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
     ## Arguments
     ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode`` or its value, ``"NextStep"`` /
     ``"SameStep"``) and any key of ``ActiveLocalizationEnv.default_config()``, checked as the single env
-    checks them. Rendering is not implemented yet; the planning model is the single env's.
+    checks them. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws sub-env 0, as its single
+    env would (``FirstCopyView``). The planning model is the single env's.
     """
+
+    metadata = {
+        **InfoNavVectorEnv.metadata,
+        "render_modes": ActiveLocalizationEnv.metadata["render_modes"],
+        "render_fps": ActiveLocalizationEnv.metadata["render_fps"],
+    }
 
     def __init__(
         self,
@@ -67,8 +74,7 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **config,
     ):
-        single = ActiveLocalizationEnv(**config)  # checks the config as the single env does
-        self._configure(num_envs, render_mode, autoreset_mode, single)
+        single = self._configure(num_envs, render_mode, autoreset_mode, ActiveLocalizationEnv, config)
         self._sensor, self._odometry = single.sensor, single.odometry
         self._odometry_covariance = self._odometry.noise_covariance()
         self._worlds = WorldBatch(num_envs)
@@ -104,13 +110,13 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
     def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
         """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
         state, geometries = self._state, []
+        self._view_restarts(copies)
         for copy in copies.tolist():
-            start = start_episode(self.config, self._np_randoms[copy])
-            scenario = start.scenario
+            scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy])
             self._worlds.reset_copy(copy, scenario)
-            self._odometry_noise.restart(copy, start.odometry_rng)
-            self._measurement_noise.restart(copy, start.measurement_rng)
-            state["x"][copy], state["P"][copy] = start.pose, start.pose_covariance  # PoseEKF's x and P
+            self._odometry_noise.restart(copy, odometry_rng)
+            self._measurement_noise.restart(copy, measurement_rng)
+            state["x"][copy], state["P"][copy] = prior.state()
             state["goals"][copy] = episode_goal(scenario)
             self._obstacle_centers[copy], self._obstacle_radii[copy] = obstacle_discs(scenario)
             self._landmarks[copy] = scenario.landmarks
@@ -130,6 +136,7 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
         actions = self._checked_actions(actions)
         acting = ~self._prev_done
         chosen = self._accepted_actions(actions, acting)
+        self._view_steps(actions, acting)
         terms = self._act(np.flatnonzero(acting), chosen)
         state = self._state
         terminated = acting & (state["goal_reached"] | state["failed"])
@@ -270,6 +277,3 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
         )
         state["true_poses"] = true_poses
         return observation, batched_info(decision, state, stepped, chosen, terms, self.config)
-
-    def close_extras(self, **kwargs) -> None:
-        self._decision = None

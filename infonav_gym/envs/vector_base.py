@@ -15,6 +15,7 @@ from gymnasium.vector.utils import batch_space
 
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.vector_infos import autoreset_mode_of
+from infonav_gym.envs.vector_view import FirstCopyView
 
 
 def is_seed(value) -> bool:
@@ -42,35 +43,51 @@ def sub_env_seeds(seed, num_envs: int, owner: str) -> list[int | None]:
 class InfoNavVectorEnv(VectorEnv):
     """Base of the native vector envs: N sub-envs of one single env, each with its own generator.
 
-    ``autoreset_mode`` is ``NEXT_STEP`` or ``SAME_STEP`` per instance (``metadata["autoreset_mode"]``).
+    ``autoreset_mode`` is ``NEXT_STEP`` or ``SAME_STEP`` per instance (``metadata["autoreset_mode"]``). With a
+    ``render_mode``, ``render()`` draws sub-env 0 as its single env does (``FirstCopyView``): the subclass calls
+    ``_view_restarts`` when sub-env 0 starts an episode and ``_view_steps`` when it acts.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
     AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
-    def _configure(self, num_envs: int, render_mode: str | None, autoreset_mode, single: gym.Env) -> None:
-        """Check the vector arguments; take the config and spaces of ``single`` (the checked single env).
+    def _configure(self, num_envs: int, render_mode: str | None, autoreset_mode, single_env, config: dict) -> gym.Env:
+        """Check the vector arguments; take the config and spaces of the single env ``single_env(**config)``.
+
+        Returns:
+            That single env (it checked the config as it always does).
 
         Raises:
-            ValueError: for ``num_envs`` that is not an int >= 1, a render mode (none is implemented yet), or
-                an autoreset mode other than ``AUTORESET_MODES``.
+            ValueError: for ``num_envs`` that is not an int >= 1, a render mode the single env does not have,
+                an autoreset mode other than ``AUTORESET_MODES``, or a config the single env rejects.
         """
         owner = type(self).__name__
         if type(num_envs) is not int or num_envs < 1:
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
-        if render_mode is not None:
-            raise ValueError(f"{owner} does not render yet: render_mode must be None, got {render_mode!r}")
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, self.AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
+        single = single_env(**config)
+        self._view = None if render_mode is None else FirstCopyView(single_env(render_mode, **config))
         self.config = single.config
         self.num_envs = num_envs
-        self.render_mode = None
+        self.render_mode = render_mode
         self.single_observation_space = single.observation_space
         self.single_action_space = single.action_space
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
         self._decision = None
+        return single
+
+    def _view_restarts(self, copies) -> None:
+        """Copies ``copies`` start an episode (before drawing from their generators): sub-env 0's view follows."""
+        if self._view is not None and 0 in copies:
+            self._view.restart(self._np_randoms[0])
+
+    def _view_steps(self, actions: np.ndarray, acting: np.ndarray) -> None:
+        """The sub-envs ``acting`` take ``actions``: sub-env 0's view replays its action."""
+        if self._view is not None and acting[0]:
+            self._view.step(int(actions[0]))
 
     @property
     def np_randoms(self) -> list[np.random.Generator | None]:
@@ -138,4 +155,16 @@ class InfoNavVectorEnv(VectorEnv):
         return mask
 
     def render(self):
-        raise NotImplementedError(f"{type(self).__name__}.render() is not implemented yet; render a single env")
+        """Sub-env 0's frame as its single env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
+        owner = type(self).__name__
+        if self._view is None:
+            gym.logger.warn(f'{owner}.render() called without a render_mode; use render_mode="rgb_array"')
+            return None
+        if self._decision is None:
+            raise RuntimeError(f"{owner}: call reset() before render()")
+        return self._view.render()
+
+    def close_extras(self, **kwargs) -> None:
+        self._decision = None
+        if self._view is not None:
+            self._view.close()
