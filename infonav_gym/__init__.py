@@ -16,7 +16,12 @@ BUILTIN_ENVS = (
         GYMNASIUM,
         "infonav_gym.envs.landmark_selection_vector:LandmarkSelectionVectorEnv",
     ),
-    ("infonav/ActiveLocalization-v0", "infonav_gym.envs.active_localization:ActiveLocalizationEnv", GYMNASIUM),
+    (
+        "infonav/ActiveLocalization-v0",
+        "infonav_gym.envs.active_localization:ActiveLocalizationEnv",
+        GYMNASIUM,
+        "infonav_gym.envs.active_localization_vector:ActiveLocalizationVectorEnv",
+    ),
     ("infonav/SensorSelection-v0", "infonav_gym.envs.sensor_selection:SensorSelectionEnv", GYMNASIUM),
     ("infonav/RangeRegistration-v0", "infonav_gym.envs.range_registration:RangeRegistrationEnv", GYMNASIUM),
     ("cooperative_localization_v0", "infonav_gym.multi.cooperative_localization:CooperativeLocalizationEnv", PARALLEL),
