@@ -26,7 +26,7 @@ from infonav_gym.envs.active_planning import N_PRIMITIVES
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
-from infonav_gym.envs.vector_infos import final_step_infos, set_rows
+from infonav_gym.envs.vector_infos import set_rows
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.information import log_det_spd
@@ -79,7 +79,6 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
         self._odometry_covariance = self._odometry.noise_covariance()
         self._worlds = WorldBatch(num_envs)
         self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
-        self._geometry = None
         n_landmarks, n_obstacles = self.config["n_candidates"], self.config["n_obstacles"]
         self._state = {  # what batched_info reads, per copy
             "x": np.zeros((num_envs, POSE_DIM)),
@@ -93,19 +92,6 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
         self._landmarks = np.zeros((num_envs, n_landmarks, 2))
         self._obstacle_centers = np.zeros((num_envs, n_obstacles, 2))
         self._obstacle_radii = np.zeros((num_envs, n_obstacles))
-        self._prev_done = np.zeros(num_envs, dtype=bool)
-
-    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
-        """Reset every sub-env: seed ``s`` gives sub-env ``i`` the seed ``s + i``; a list gives one seed (or None) each.
-
-        Raises:
-            ValueError: for a seed that is not None, an int >= 0 or a list of N ints / None, or any options.
-        """
-        self._seed_sub_envs(seed, options)
-        everyone = np.arange(self.num_envs)
-        self._geometry = self._reset_copies(everyone)
-        self._prev_done[:] = False
-        return self._reset_outputs(everyone, self._geometry)
 
     def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
         """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
@@ -127,16 +113,8 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
         return StaticGeometry.stack(geometries)
 
     def step(self, actions):
-        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class).
-
-        Raises:
-            ValueError: for actions that are not N integers of the action space, or, with
-                ``invalid_action="raise"``, a masked action (each naming its sub-env).
-        """
-        actions = self._checked_actions(actions)
-        acting = ~self._prev_done
-        chosen = self._accepted_actions(actions, acting)
-        self._view_steps(actions, acting)
+        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
+        acting, chosen = self._begin_step(actions)
         terms = self._act(np.flatnonzero(acting), chosen)
         state = self._state
         terminated = acting & (state["goal_reached"] | state["failed"])
@@ -144,24 +122,9 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
         rewards = np.zeros(self.num_envs)
         for key in REWARD_TERMS:
             rewards += terms[key]
-        everyone, ended = np.arange(self.num_envs), terminated | truncated
-        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
-            resetting = np.flatnonzero(self._prev_done)
-            if resetting.size:
-                self._geometry = self._geometry.with_copies(resetting, self._reset_copies(resetting))
-            self._prev_done = ended
-            observation, info = self._outputs(everyone, self._geometry, acting, chosen, terms)
-            return observation, rewards, terminated, truncated, info
-        observation, info = self._outputs(everyone, self._geometry, acting, chosen, terms)
-        if ended.any():
-            final_infos = final_step_infos(observation, info, ended)
-            copies = np.flatnonzero(ended)
-            geometry = self._reset_copies(copies)
-            self._geometry = self._geometry.with_copies(copies, geometry)
-            reset_observation, reset_info = self._reset_outputs(copies, geometry)
-            observation[copies] = reset_observation
-            set_rows(info, copies, reset_info)
-            info.update(final_infos)
+        observation, info = self._finish_step(
+            terminated | truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, terms)
+        )
         return observation, rewards, terminated, truncated, info
 
     def _act(self, copies: np.ndarray, chosen: np.ndarray) -> dict:

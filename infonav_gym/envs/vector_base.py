@@ -1,8 +1,9 @@
 """``InfoNavVectorEnv``: what the native vector envs share (seeds per sub-env, action checks, masks, the API).
 
 A subclass builds its single env (which checks the config) and calls ``_configure``; it keeps the current
-decision in ``self._decision`` (with an ``action_mask`` (N, A)) and implements ``reset`` and ``step``, with the
-resets of its ``autoreset_mode``.
+decision in ``self._decision`` (with an ``action_mask`` (N, A)), starts episodes in ``_reset_copies`` (returning
+their static geometry) with their first outputs from ``_reset_outputs``, and ends its ``step`` with
+``_finish_step``, which makes the resets of its ``autoreset_mode``.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from infonav_gym.envs.base import accepts_action
-from infonav_gym.envs.vector_infos import autoreset_mode_of
+from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
 from infonav_gym.envs.vector_view import FirstCopyView
 
 
@@ -76,8 +77,62 @@ class InfoNavVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
-        self._decision = None
+        self._decision = self._geometry = None
+        self._prev_done = np.zeros(num_envs, dtype=bool)
         return single
+
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        """Reset every sub-env: seed ``s`` gives sub-env ``i`` the seed ``s + i``; a list gives one seed (or None) each.
+
+        Raises:
+            ValueError: for a seed that is not None, an int >= 0 or a list of N ints / None, or any options.
+        """
+        self._seed_sub_envs(seed, options)
+        everyone = np.arange(self.num_envs)
+        self._geometry = self._reset_copies(everyone)
+        self._prev_done[:] = False
+        return self._reset_outputs(everyone, self._geometry)
+
+    def _begin_step(self, actions) -> tuple[np.ndarray, np.ndarray]:
+        """``(acting, chosen)``: which sub-envs act in this step (with ``NEXT_STEP``, not those starting again) and
+        the action each takes, -1 for a no-op (a masked action, per ``invalid_action``).
+
+        Raises:
+            RuntimeError: before the first ``reset``.
+            ValueError: for actions that are not N integers of the action space, or, with
+                ``invalid_action="raise"``, a masked action (each naming its sub-env).
+        """
+        actions = self._checked_actions(actions)
+        acting = ~self._prev_done
+        chosen = self._accepted_actions(actions, acting)
+        self._view_steps(actions, acting)
+        return acting, chosen
+
+    def _finish_step(self, ended: np.ndarray, step_outputs) -> tuple[np.ndarray, dict]:
+        """The observations and infos of a step in which the sub-envs ``ended`` (N,) bool ended their episodes.
+
+        ``step_outputs(copies, geometry)`` gives the observations and infos of ``copies`` at their new decisions.
+        ``NEXT_STEP``: the sub-envs that ended at the last step start again now, then all decide. ``SAME_STEP``: all
+        decide, then those that ended start again, their last observation and info in ``final_obs`` / ``final_info``.
+        """
+        everyone = np.arange(self.num_envs)
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            resetting = np.flatnonzero(self._prev_done)
+            if resetting.size:
+                self._geometry = self._geometry.with_copies(resetting, self._reset_copies(resetting))
+            self._prev_done = ended
+            return step_outputs(everyone, self._geometry)
+        observation, info = step_outputs(everyone, self._geometry)
+        copies = np.flatnonzero(ended)
+        if copies.size:
+            final_infos = final_step_infos(observation, info, ended)
+            geometry = self._reset_copies(copies)
+            self._geometry = self._geometry.with_copies(copies, geometry)
+            reset_observation, reset_info = self._reset_outputs(copies, geometry)
+            observation[copies] = reset_observation
+            set_rows(info, copies, reset_info)
+            info.update(final_infos)
+        return observation, info
 
     def _view_restarts(self, copies) -> None:
         """Copies ``copies`` start an episode (before drawing from their generators): sub-env 0's view follows."""
