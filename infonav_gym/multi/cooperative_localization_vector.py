@@ -1,0 +1,393 @@
+"""``CooperativeLocalizationVectorEnv``: N copies of ``cooperative_localization_v0`` stepped at once on stacked arrays.
+
+``make_vector_env("cooperative_localization_v0", num_envs=N, **config)`` returns it. The joint estimation
+(prediction, DGPS and relative-pose updates, expected gains, log-determinants) and the robot-robot line of sight
+run batched over the copies (``estimation.batched``, ``world.visibility``); the physics keeps one Pymunk
+``World`` per copy and the sensor noise one generator per copy and sensor, drawn in the parallel env's order.
+So copy ``i`` after ``reset(seed=s)`` gives the numbers of ``parallel_env()`` after ``reset(seed=s + i)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+
+from infonav_gym.envs.base import accepts_action
+from infonav_gym.estimation import batched
+from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.multi.cooperative_localization import (
+    NO_OBSERVATION,
+    CooperativeLocalizationEnv,
+    start_episode,
+    team_observations,
+)
+from infonav_gym.multi.cooperative_localization_batch import TeamDecision, TeamSightLines, TeamStep, team_info
+from infonav_gym.sensors.gps import GPSSensor
+from infonav_gym.sensors.relative_pose import noisy_relative_poses
+from infonav_gym.world.visibility import StaticGeometry
+from infonav_gym.world.world import World
+
+MASK_KEY = 'info["action_mask"]'
+AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+
+
+class CooperativeLocalizationVectorEnv(VectorEnv):
+    """N copies of ``CooperativeLocalizationEnv`` (see it for the spaces, rewards and config keys), batched.
+
+    ## Vector API
+    ``agents`` are the team's robots R; ``single_observation_space`` / ``single_action_space`` one robot's.
+    ``step`` takes one action per copy and robot (N, R) and returns observations (N, R, 10 + 5R), rewards,
+    ``terminated`` and ``truncated`` (N, R). Infos hold the parallel env's per-agent keys as arrays with
+    leading (N, R) (``time_s``: (N,)), each with Gymnasium's ``_key`` mask (N,); ``info["action_mask"]`` is
+    (N, R, R + 1). ``action_masks()`` gives the (N, R, R + 1) bool masks for ``MaskablePPO``.
+
+    ## Autoreset
+    ``metadata["autoreset_mode"]``, chosen by ``autoreset_mode``. ``NEXT_STEP`` (the default, as Gymnasium's
+    ``CartPoleVectorEnv``): the step after a copy's episode ended resets it (its actions are ignored), with
+    rewards 0, not terminated nor truncated, and its reset info (``reward_terms`` masked out). ``SAME_STEP``:
+    the step that ends an episode resets the copy at once and returns its reset observation; the last
+    observation is ``info["final_obs"]`` (N, R, 10 + 5R) and the last info ``info["final_info"]``, both masked
+    by ``info["_final_obs"]`` / ``info["_final_info"]`` (N,). A copy reset this way continues its own
+    generator, as the parallel env's ``reset()`` without a seed does.
+
+    ## Arguments
+    ``num_envs`` (N >= 1), ``autoreset_mode`` (``"next_step"`` or ``"same_step"``, or an ``AutoresetMode``) and
+    any key of ``CooperativeLocalizationEnv.default_config()``, checked as the parallel env checks them.
+    Rendering is not implemented yet.
+    """
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, render_mode: str | None = None, autoreset_mode="next_step", **config):
+        owner = type(self).__name__
+        if type(num_envs) is not int or num_envs < 1:
+            raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
+        if render_mode is not None:
+            raise ValueError(f"{owner} does not render yet: render_mode must be None, got {render_mode!r}")
+        self.metadata = {**self.metadata, "autoreset_mode": _autoreset_mode(autoreset_mode, owner)}
+        self._single = CooperativeLocalizationEnv(**config)  # checks the config as the parallel env does
+        self.config = self._single.config
+        self.num_envs = num_envs
+        self.render_mode = None
+        self.agents = list(self._single.possible_agents)
+        n_robots = len(self.agents)
+        self.max_cycles = self.config["max_cycles"]
+        self.single_observation_space = self._single.observation_space(self.agents[0])
+        self.single_action_space = self._single.action_space(self.agents[0])
+        low, high = self.single_observation_space.low, self.single_observation_space.high
+        shape = (num_envs, n_robots, *low.shape)
+        self.observation_space = spaces.Box(np.broadcast_to(low, shape), np.broadcast_to(high, shape), dtype=np.float32)
+        self.action_space = spaces.MultiDiscrete(np.full((num_envs, n_robots), n_robots + 1))
+        self._pairs = self._single.pairs
+        self._pair_index = np.full((n_robots, n_robots + 1), -1)
+        self._pair_index[self._pairs.observers, self._pairs.targets + 1] = np.arange(len(self._pairs.observers))
+        self._has_gps, self._outages = self._gps_schedule()
+        self._gps = GPSSensor(self.config["gps_std_m"])  # every receiver's noise; the schedules are _outages
+        self._odometry = self._single.odometry
+        self._odometry_covariances = np.repeat(self._odometry.noise_covariance()[None], n_robots, axis=0)
+        self._worlds = [World() for _ in range(num_envs)]
+        self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
+        self._rngs: list[tuple[np.random.Generator, ...] | None] = [None] * num_envs  # odometry, DGPS, relative
+        self._geometries: list[StaticGeometry | None] = [None] * num_envs
+        self._sight = self._decision = None
+        dim = POSE_DIM * n_robots
+        self._x, self._P = np.zeros((num_envs, dim)), np.zeros((num_envs, dim, dim))
+        self._true_poses = np.zeros((num_envs, n_robots, POSE_DIM))
+        self._gps_available = np.zeros((num_envs, n_robots), dtype=bool)
+        self._zone_centers, self._zone_radii_sq = np.zeros((num_envs, 0, 2)), np.zeros((num_envs, 0))
+        self._elapsed = np.zeros(num_envs, dtype=int)
+        self._prev_done = np.zeros(num_envs, dtype=bool)
+
+    def _gps_schedule(self) -> tuple[np.ndarray, np.ndarray]:
+        """Which robots carry DGPS (R,) and each robot's outage spans (R, S, 2) [s], padded with (inf, inf)."""
+        receivers = self._single.gps
+        spans = [gps.outages if gps is not None else () for gps in receivers]
+        outages = np.full((len(receivers), max(map(len, spans), default=0), 2), np.inf)
+        for robot, robot_spans in enumerate(spans):
+            outages[robot, : len(robot_spans)] = np.reshape(robot_spans, (-1, 2))
+        return np.array([gps is not None for gps in receivers]), outages
+
+    @property
+    def np_randoms(self) -> list[np.random.Generator | None]:
+        """Each copy's generator (the parallel env's ``np_random``), None before its first reset."""
+        return list(self._np_randoms)
+
+    # ------------------------------------------------------------------ reset
+
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        """Reset every copy: seed ``s`` gives copy ``i`` the seed ``s + i``; a list gives one seed (or None) each.
+
+        Raises:
+            ValueError: for a seed that is not None, an int >= 0 or a list of N such seeds, or any options.
+        """
+        if options:
+            raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
+        for copy, copy_seed in enumerate(copy_seeds(seed, self.num_envs, type(self).__name__)):
+            if copy_seed is not None or self._np_randoms[copy] is None:
+                self._np_randoms[copy] = seeding.np_random(copy_seed)[0]
+        everyone = np.arange(self.num_envs)
+        self._reset_copies(everyone)
+        self._prev_done[:] = False
+        self._decide()
+        return self._outputs(TeamStep.of_reset(*self._gps_available.shape))
+
+    def _reset_copies(self, copies: np.ndarray) -> None:
+        """Start a new episode in each of ``copies`` from its own generator, as the parallel env's reset does."""
+        owner = type(self._single).__name__
+        for copy in copies.tolist():
+            world = self._worlds[copy]
+            ekf, *self._rngs[copy] = start_episode(self.config, world, self._np_randoms[copy], owner)
+            self._x[copy], self._P[copy] = ekf.x, ekf.P
+            self._true_poses[copy] = world.poses
+            self._geometries[copy] = StaticGeometry.from_world(world)
+        self._elapsed[copies] = 0
+        self._zone_centers, self._zone_radii_sq = self._gps_denied_zones()
+        if len(self._pairs.observers):
+            self._sight = TeamSightLines.of_copies(self._geometries, self._pairs)
+        self._gps_fixes(copies)
+
+    def _gps_denied_zones(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every copy's GPS-denied zones: centres (N, Z, 2) [m] and squared radii (N, Z) [m^2] (-1: padding)."""
+        zones = [world.scenario.gps_denied_zones for world in self._worlds]
+        centers = np.zeros((self.num_envs, max(map(len, zones)), 2))
+        radii_sq = np.full(centers.shape[:2], -1.0)
+        for copy, copy_zones in enumerate(zones):
+            for slot, zone in enumerate(copy_zones):
+                centers[copy, slot], radii_sq[copy, slot] = zone.center, zone.radius**2
+        return centers, radii_sq
+
+    # ------------------------------------------------------------------ step
+
+    def step(self, actions):
+        """Act in every copy (reset those whose episode ended at the last step, with ``NEXT_STEP``; see the class).
+
+        Raises:
+            ValueError: for actions that are not (N, R) integers of the action space, or, with
+                ``invalid_action="raise"``, a masked action (each naming its copy and robot).
+        """
+        if self._decision is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
+        actions = self._checked_actions(actions)
+        resetting = self._prev_done.copy()
+        chosen, invalid = self._chosen_actions(actions, ~resetting)
+        own_mi, team_mi, updated_std = self._observe(chosen)
+        acting = np.flatnonzero(~resetting)
+        self._elapsed[acting] += 1
+        self._advance(acting)
+        if resetting.any():
+            self._reset_copies(np.flatnonzero(resetting))
+        self._decide()
+        last = TeamStep(~resetting, chosen, invalid, own_mi, team_mi, updated_std)
+        weight = self.config["team_reward"]
+        rewards = np.where(last.stepped[:, None], (1.0 - weight) * own_mi + weight * team_mi, 0.0)
+        ended = last.stepped & (self._elapsed >= self.max_cycles)
+        observations, info = self._outputs(last)
+        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and ended.any():
+            final_observations, final_info = observations, info
+            self._reset_copies(np.flatnonzero(ended))
+            self._decide()
+            observations, info = self._outputs(_restarted(last, ended))
+            info.update(final_obs=final_observations, _final_obs=ended, final_info=final_info, _final_info=ended)
+        else:
+            self._prev_done = ended
+        truncated = np.repeat(ended[:, None], len(self.agents), axis=1)
+        return observations, rewards, np.zeros_like(truncated), truncated, info
+
+    def _checked_actions(self, actions) -> np.ndarray:
+        array = np.asarray(actions)
+        n_robots = len(self.agents)
+        if array.shape != (self.num_envs, n_robots) or array.dtype.kind not in "iu":
+            raise ValueError(
+                f"actions of {type(self).__name__} must be an integer array of shape ({self.num_envs}, {n_robots}), "
+                f"one per copy and robot, in [0, {n_robots}]; got {array.dtype} of shape {array.shape}"
+            )
+        outside = np.argwhere((array < 0) | (array > n_robots))
+        if outside.size:
+            copy, robot = outside[0].tolist()
+            raise ValueError(
+                f"action {array[copy, robot]} of {self.agents[robot]} in sub-env {copy} is not in the action space "
+                f"{self.single_action_space}: expected an integer in [0, {n_robots}]"
+            )
+        return array.astype(int)
+
+    def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each robot's executed action (the no-op for a masked one and in a resetting copy), and which were masked."""
+        mask = self._decision.action_mask
+        copies, robots = np.ogrid[: self.num_envs, : len(self.agents)]
+        valid = mask[copies, robots, actions].astype(bool)
+        invalid = acting[:, None] & ~valid
+        for copy, robot in np.argwhere(invalid).tolist():
+            where = f"{self.agents[robot]} in sub-env {copy}"
+            accepts_action(int(actions[copy, robot]), mask[copy, robot], self.config["invalid_action"], MASK_KEY, where)
+        return np.where(acting[:, None] & valid, actions, NO_OBSERVATION), invalid
+
+    def _observe(self, chosen: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Fuse each copy's chosen observations as one stacked update; the own and team MI (N, R) and the new std."""
+        decision, n_robots = self._decision, len(self.agents)
+        team_mi = np.zeros(self.num_envs)
+        observed = chosen != NO_OBSERVATION
+        measured = np.flatnonzero(observed.any(axis=1))
+        if measured.size:
+            observed = observed[measured]
+            pair = self._pair_index[np.arange(n_robots), chosen[measured]]  # -1 (unused) where not observed
+            rows = measured[:, None], pair
+            joint_before = np.linalg.slogdet(self._P[measured])[1]
+            self._x[measured], self._P[measured] = batched.relative_pose_update(
+                self._x[measured],
+                self._P[measured],
+                np.broadcast_to(np.arange(n_robots), observed.shape),
+                self._pairs.targets[pair],
+                self._relative_measurements(measured, decision.geometry[rows], pair, observed),
+                decision.predicted[rows],
+                decision.H_observer[rows],
+                decision.H_target[rows],
+                decision.R[rows],
+                observed,
+                cross_covariances=self.config["estimator"] == "joint",
+                check_input=False,
+            )
+            team_mi[measured] = 0.5 * (joint_before - np.linalg.slogdet(self._P[measured])[1])
+        own_mi = 0.5 * (decision.pose_log_det - batched.pose_log_dets(self._P, n_robots, check_input=False))
+        updated_std = np.sqrt(np.diagonal(self._P, axis1=1, axis2=2)).reshape(self.num_envs, n_robots, POSE_DIM)
+        return own_mi, np.repeat(team_mi[:, None], n_robots, axis=1), updated_std
+
+    def _relative_measurements(self, copies, geometry, pair, observed) -> np.ndarray:
+        """Noisy relative poses (n, R, 3) of the observed slots (n, R) of ``copies``, from each copy's generator."""
+        measurements = np.zeros(geometry.shape)
+        for row, copy in enumerate(copies.tolist()):
+            slots = observed[row]
+            noise = self._pairs.noise[pair[row, slots]]
+            measurements[row, slots] = noisy_relative_poses(geometry[row, slots], noise, self._rngs[copy][2])
+        return measurements
+
+    def _advance(self, copies: np.ndarray) -> None:
+        """Move the robots of ``copies``, predict with their noisy odometry, then fuse the DGPS fixes available."""
+        if not copies.size:
+            return
+        dt = self.config["time_step_s"]
+        controls = self._step_worlds(copies, dt)
+        odometry = self._odometry
+        readings = np.stack([odometry.measure(control, self._rngs[copy][0]) for control, copy in zip(controls, copies)])
+        self._x[copies], self._P[copies] = batched.predict_team(
+            self._x[copies], self._P[copies], readings, dt, self._odometry_covariances, check_input=False
+        )
+        self._gps_fixes(copies)
+
+    def _step_worlds(self, copies: np.ndarray, dt: float) -> np.ndarray:
+        """Step the worlds of ``copies`` by ``dt``; their executed ``[speed, turn_rate]`` (n, R, 2)."""
+        controls = np.stack([self._worlds[copy].step(dt) for copy in copies.tolist()])
+        self._true_poses[copies] = np.stack([self._worlds[copy].poses for copy in copies.tolist()])
+        return controls
+
+    def _gps_fixes(self, copies: np.ndarray) -> None:
+        """Which robots of ``copies`` have a DGPS fix now (schedule, zones), and their update."""
+        time_s = self._elapsed[copies] * self.config["time_step_s"]
+        offsets = self._true_poses[copies, :, None, :2] - self._zone_centers[copies, None]
+        denied = np.any(np.einsum("crzi,crzi->crz", offsets, offsets) <= self._zone_radii_sq[copies, None], axis=2)
+        spans = self._outages
+        in_outage = np.any((spans[..., 0] <= time_s[:, None, None]) & (time_s[:, None, None] < spans[..., 1]), axis=2)
+        available = self._has_gps & ~denied & ~in_outage
+        self._gps_available[copies] = available
+        fixing = np.flatnonzero(available.any(axis=1))
+        if not fixing.size:
+            return
+        rows = copies[fixing]
+        fixes = np.zeros((len(rows), len(self.agents), 2))
+        for row, copy in enumerate(rows.tolist()):
+            robots = available[fixing[row]]
+            fixes[row, robots] = self._gps.measure(self._true_poses[copy, robots, :2], self._rngs[copy][1])
+        self._x[rows], self._P[rows] = batched.gps_update(
+            self._x[rows],
+            self._P[rows],
+            fixes,
+            self._gps.noise_covariance(),
+            available[fixing],
+            cross_covariances=self.config["estimator"] == "joint",
+            check_input=False,
+        )
+
+    # ------------------------------------------------------------------ outputs
+
+    def _decide(self) -> None:
+        self._decision = TeamDecision.at_prior(
+            self._pairs, self._sight, self._true_poses, self._x, self._P, self.config["team_reward"]
+        )
+
+    def _outputs(self, last: TeamStep) -> tuple[np.ndarray, dict]:
+        """The observations and infos of every copy at the current decision, after ``last``."""
+        decision = self._decision
+        if last.pose_std_after_update is None:
+            last = last._replace(pose_std_after_update=decision.pose_std)
+        else:
+            std = np.where(last.stepped[:, None, None], last.pose_std_after_update, decision.pose_std)
+            last = last._replace(pose_std_after_update=std)
+        observations = team_observations(
+            self._x.reshape(self._true_poses.shape),
+            decision.pose_std,
+            decision.pose_log_det,
+            self._gps_available,
+            self._elapsed / self.max_cycles,
+            decision.action_mask[..., 1:],
+            self.single_observation_space,
+        )
+        time_s = self._elapsed * self.config["time_step_s"]
+        return observations, team_info(decision, last, self._x, self._true_poses, self._gps_available, time_s)
+
+    def action_masks(self) -> np.ndarray:
+        """The valid actions of each copy and robot as bool (N, R, R + 1) (the no-op, 0, is always valid)."""
+        if self._decision is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
+        return self._decision.action_mask.astype(bool)
+
+    def render(self):
+        raise NotImplementedError(f"{type(self).__name__}.render() is not implemented yet; render a parallel env")
+
+    def close_extras(self, **kwargs) -> None:
+        self._worlds = []
+        self._decision = None
+
+
+def _restarted(last: TeamStep, copies: np.ndarray) -> TeamStep:
+    """``last`` with the (N,) bool ``copies`` reset since: no action, no MI, not stepped."""
+    rows = copies[:, None]
+    return last._replace(
+        stepped=last.stepped & ~copies,
+        chosen=np.where(rows, NO_OBSERVATION, last.chosen),
+        invalid=last.invalid & ~rows,
+        own_mi=np.where(rows, 0.0, last.own_mi),
+        team_mi=np.where(rows, 0.0, last.team_mi),
+    )
+
+
+def _autoreset_mode(value, owner: str) -> AutoresetMode:
+    """``AutoresetMode.NEXT_STEP`` or ``SAME_STEP`` from itself or its name ``"next_step"`` / ``"same_step"``."""
+    modes = {mode.name.lower(): mode for mode in AUTORESET_MODES}
+    mode = value if value in AUTORESET_MODES else modes.get(value) if isinstance(value, str) else None
+    if mode is None:
+        raise ValueError(
+            f"autoreset_mode of {owner} must be one of {sorted(modes)} (or an AutoresetMode), got {value!r}"
+        )
+    return mode
+
+
+def copy_seeds(seed, num_envs: int, owner: str) -> list[int | None]:
+    """One seed per copy: ``seed + i`` for an int seed, None for None, or the list given.
+
+    Raises:
+        ValueError: for a seed that is not None, an int >= 0 (not a bool) or a list of ``num_envs`` such seeds.
+    """
+
+    def is_seed(value) -> bool:
+        return value is None or (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0)
+
+    if is_seed(seed):
+        return [None if seed is None else int(seed) + copy for copy in range(num_envs)]
+    seeds = list(seed) if isinstance(seed, (list, tuple)) else []
+    if len(seeds) != num_envs or not all(is_seed(item) for item in seeds):
+        raise ValueError(
+            f"seed of {owner}.reset must be None, an int >= 0 or a list of {num_envs} such seeds (one per copy), "
+            f"got {seed!r}"
+        )
+    return [None if item is None else int(item) for item in seeds]
