@@ -485,7 +485,7 @@ def team_observations(
         pose_std: x, y, heading standard deviations of each robot at the prior (L..., R, 3).
         pose_log_det: ``ln det`` of each robot's pose covariance at the prior (L..., R).
         gps_available: whether each robot has a DGPS fix now (L..., R).
-        elapsed_fraction: elapsed fraction of ``max_cycles`` (L...).
+        elapsed_fraction: elapsed fraction of ``max_cycles``, broadcastable to (L..., R) (a number, or (L..., 1)).
         teammate_valid: whether each robot may observe each robot now (L..., R, R).
         space: one robot's observation space.
 
@@ -500,7 +500,7 @@ def team_observations(
     features[..., 4:7] = pose_std
     features[..., 7] = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
     features[..., 8] = gps_available
-    features[..., 9] = np.expand_dims(elapsed_fraction, -1)
+    features[..., 9] = elapsed_fraction
     teammates = features[..., OWN_FEATURES:].reshape(*lead, n, n, TEAMMATE_FEATURES)
     offsets = estimates[..., None, :, :2] - estimates[..., :, None, :2]
     bearings = np.arctan2(offsets[..., 1], offsets[..., 0]) - estimates[..., :, None, 2]

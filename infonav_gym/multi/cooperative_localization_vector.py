@@ -328,7 +328,7 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
             decision.pose_std,
             decision.pose_log_det,
             self._gps_available,
-            self._elapsed / self.max_cycles,
+            (self._elapsed / self.max_cycles)[:, None],
             decision.action_mask[..., 1:],
             self.single_observation_space,
         )
