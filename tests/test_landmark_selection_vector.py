@@ -110,6 +110,44 @@ def test_sub_envs_equal_the_single_env_in_other_configs(config):
     assert _run_in_lockstep(3, 5, n_steps=35, horizon=15, **config) == 6
 
 
+@pytest.mark.parametrize("config", [{}, {"mapping": True}], ids=["known-map", "mapping"])
+def test_same_step_autoreset_gives_the_single_envs_last_and_reset_outputs(config):
+    n_envs, seed = 3, 4
+    vector = gym.make_vec(ENV_ID, num_envs=n_envs, autoreset_mode="same_step", horizon=7, **config)
+    assert vector.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    singles = [gym.make(ENV_ID, horizon=7, **config) for _ in range(n_envs)]
+    vector.reset(seed=seed)
+    for copy, single in enumerate(singles):
+        single.reset(seed=seed + copy)
+    rng, endings = np.random.default_rng(0), 0
+    for step in range(1, 20):
+        actions = rng.integers(0, 8, n_envs)
+        observations, rewards, terminations, truncations, info = vector.step(actions)
+        for copy, single in enumerate(singles):
+            where = f"sub-env {copy}, step {step}"
+            single_observation, reward, terminated, truncated, single_info = single.step(actions[copy])
+            assert abs(rewards[copy] - reward) <= TOLERANCE and truncations[copy] == truncated, where
+            assert not terminations[copy] and ("_final_obs" in info) == truncations.any(), where  # as SyncVectorEnv
+            if truncated:
+                endings += 1
+                np.testing.assert_allclose(info["final_obs"][copy], single_observation, atol=TOLERANCE, err_msg=where)
+                _assert_sub_env_matches(info["final_info"], copy, single_info, where)
+                single_observation, single_info = single.reset()
+                single_info = {**single_info, "reward_terms": {}}
+            elif truncations.any():
+                assert info["final_obs"][copy] is None and not info["_final_info"][copy], where
+            np.testing.assert_allclose(observations[copy], single_observation, rtol=0, atol=TOLERANCE, err_msg=where)
+            _assert_sub_env_matches(info, copy, single_info, where)
+    assert endings == 2 * n_envs
+
+
+def test_an_unknown_autoreset_mode_is_a_clear_error():
+    with pytest.raises(
+        ValueError, match="autoreset_mode of LandmarkSelectionVectorEnv must be one of 'next_step', 'same_step'"
+    ):
+        LandmarkSelectionVectorEnv(num_envs=2, autoreset_mode="disabled")
+
+
 def _trajectory(env: gym.vector.VectorEnv, seed, n_steps: int = 30) -> list:
     steps = [env.reset(seed=seed)]
     rng = np.random.default_rng(1)
@@ -175,8 +213,6 @@ def test_vector_api():
     some = info["action_mask"].any(axis=1)
     np.testing.assert_array_equal(masks[some], info["action_mask"][some].astype(bool))
     assert masks[~some].all()  # no landmark visible: every action is the no-op
-    with pytest.raises(NotImplementedError, match="render"):
-        env.render()
     env.close()
     assert env.closed
 
@@ -243,7 +279,7 @@ def test_masked_action_follows_invalid_action_per_sub_env():
     [
         ({"num_envs": 0}, "num_envs of LandmarkSelectionVectorEnv must be an int >= 1, got 0"),
         ({"num_envs": 2.0}, "num_envs"),
-        ({"render_mode": "rgb_array"}, "render_mode must be None"),
+        ({"render_mode": "rgb"}, r"render_mode must be None or one of \['human', 'rgb_array'\], got 'rgb'"),
         ({"n_candidate": 3}, "n_candidate"),
         ({"n_candidates": 0}, "n_candidates"),
         ({"scenario": "maze"}, "scenario"),
@@ -293,3 +329,30 @@ def test_mapping_needs_the_same_landmark_count_in_every_sub_env(uneven_scenario)
     env = LandmarkSelectionVectorEnv(num_envs=8, scenario="uneven", mapping=True)
     with pytest.raises(ValueError, match=r"sub-env \d of LandmarkSelectionVectorEnv: with mapping=True every copy"):
         env.reset(seed=0)
+
+
+def test_render_draws_sub_env_0_as_its_single_env_through_an_autoreset():
+    vector = gym.make_vec(ENV_ID, num_envs=3, render_mode="rgb_array", horizon=4, render_size_px=96)
+    single = gym.make(ENV_ID, render_mode="rgb_array", horizon=4, render_size_px=96)
+    vector.reset(seed=21)
+    single.reset(seed=21)
+    rng = np.random.default_rng(0)
+    for step in range(10):
+        frame = vector.render()
+        assert frame.shape == (96, 96, 3)
+        np.testing.assert_array_equal(frame, single.render(), err_msg=f"step {step}")
+        actions = rng.integers(0, 8, 3)
+        truncated = vector.step(actions)[3]
+        if step % 5 == 4:  # the NEXT_STEP autoreset of sub-env 0
+            single.reset()
+        else:
+            single.step(actions[0])
+        assert truncated[0] == (step % 5 == 3)
+    vector.close()
+
+
+def test_render_without_a_render_mode_warns_and_returns_none():
+    env = LandmarkSelectionVectorEnv(num_envs=2)
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match="without a render_mode"):
+        assert env.render() is None
