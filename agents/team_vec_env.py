@@ -94,7 +94,7 @@ class TeamVecEnv(VecEnv):
         for slot in np.flatnonzero(dones).tolist():
             copy, robot = divmod(slot, self.n_robots)
             slot_infos[slot] = {
-                "terminal_observation": info["final_obs"][copy, robot],
+                "terminal_observation": info["final_obs"][copy][robot],
                 "TimeLimit.truncated": bool(truncations[copy, robot] and not terminations[copy, robot]),
             }
         return observations.reshape(self.num_envs, -1), rewards.astype(np.float32).ravel(), dones, slot_infos

@@ -279,9 +279,10 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
     # ------------------------------------------------------------------ the episode
 
     def _reset_episode(self) -> None:
-        self.ekf, self._odometry_rng, self._gps_rng, self._relative_rng = start_episode(
-            self.config, self.world, self.np_random, type(self).__name__
+        scenario, self.ekf, self._odometry_rng, self._gps_rng, self._relative_rng = start_episode(
+            self.config, self.np_random, type(self).__name__
         )
+        self.world.reset(scenario)
         self._true_poses = self.world.poses
         n = len(self.possible_agents)
         self._time_s = 0.0
@@ -448,29 +449,30 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         )
 
 
-def start_episode(config: dict, world: World, np_random: np.random.Generator, owner: str):
-    """Start an episode of the team env: reset ``world`` and draw the joint estimator's prior from ``np_random``.
+def start_episode(config: dict, np_random: np.random.Generator, owner: str):
+    """Start an episode of the team env: draw its scenario and the joint estimator's prior from ``np_random``.
 
     Draws in a fixed order (the scenario, the sensors' generators, the initial estimates), so the
     parallel and the vector env give the same episode for the same generator.
 
     Args:
         config: a checked ``CooperativeLocalizationEnv`` config.
-        world: the world to reset to the team scenario ``config["scenario"]`` (one route per robot).
         np_random: the episode's generator.
         owner: the env named in config errors.
 
     Returns:
-        ``(ekf, odometry_rng, gps_rng, relative_rng)``: the ``JointEKF`` at the prior and the sensors' generators.
+        ``(scenario, ekf, odometry_rng, gps_rng, relative_rng)``: the team scenario ``config["scenario"]`` (one
+        route per robot), the ``JointEKF`` at the prior and the sensors' generators.
     """
     n = config["n_robots"]
-    world.reset(scenario_from_config(config, np_random, TEAM_SCENARIO_KEYS, owner, n))
+    scenario = scenario_from_config(config, np_random, TEAM_SCENARIO_KEYS, owner, n)
     odometry_rng, gps_rng, relative_rng = np_random.spawn(3)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    initial = world.poses + pose_std * np_random.standard_normal((n, POSE_DIM))
+    starts = np.array([(x, y, wrap_angle(heading)) for x, y, heading in (r.start_pose for r in scenario.routes)])
+    initial = starts + pose_std * np_random.standard_normal((n, POSE_DIM))
     covariances = np.repeat(np.diag(pose_std**2)[None], n, axis=0)
     ekf = JointEKF(initial, covariances, cross_covariances=config["estimator"] == "joint")
-    return ekf, odometry_rng, gps_rng, relative_rng
+    return scenario, ekf, odometry_rng, gps_rng, relative_rng
 
 
 def team_observations(

@@ -2,8 +2,9 @@
 
 ``make_vector_env("cooperative_localization_v0", num_envs=N, **config)`` returns it. The joint estimation
 (prediction, DGPS and relative-pose updates, expected gains, log-determinants) and the robot-robot line of sight
-run batched over the copies (``estimation.batched``, ``world.visibility``); the physics keeps one Pymunk
-``World`` per copy and the sensor noise one generator per copy and sensor, drawn in the parallel env's order.
+run batched over the copies (``estimation.batched``, ``world.visibility``), the physics in a ``WorldBatch`` (numpy
+free motion, a copy's own Pymunk space for its contact steps) and the sensor noise from one stream per copy and
+sensor (``NoiseStreams``: the parallel env's generators, drawn ahead, handed out in its order).
 So copy ``i`` after ``reset(seed=s)`` gives the numbers of ``parallel_env()`` after ``reset(seed=s + i)``.
 """
 
@@ -15,6 +16,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from infonav_gym.envs.base import accepts_action
+from infonav_gym.envs.noise_streams import NoiseStreams
+from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.multi.cooperative_localization import (
@@ -25,9 +28,9 @@ from infonav_gym.multi.cooperative_localization import (
 )
 from infonav_gym.multi.cooperative_localization_batch import TeamDecision, TeamSightLines, TeamStep, team_info
 from infonav_gym.sensors.gps import GPSSensor
-from infonav_gym.sensors.relative_pose import noisy_relative_poses
+from infonav_gym.sensors.relative_pose import relative_poses_with_noise
 from infonav_gym.world.visibility import StaticGeometry
-from infonav_gym.world.world import World
+from infonav_gym.world.world_batch import WorldBatch
 
 MASK_KEY = 'info["action_mask"]'
 AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
@@ -48,25 +51,32 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
     ``CartPoleVectorEnv``): the step after a copy's episode ended resets it (its actions are ignored), with
     rewards 0, not terminated nor truncated, and its reset info (``reward_terms`` masked out). ``SAME_STEP``:
     the step that ends an episode resets the copy at once and returns its reset observation; the last
-    observation is ``info["final_obs"]`` (N, R, 10 + 5R) and the last info ``info["final_info"]``, both masked
-    by ``info["_final_obs"]`` / ``info["_final_info"]`` (N,). A copy reset this way continues its own
-    generator, as the parallel env's ``reset()`` without a seed does.
+    observation is ``info["final_obs"]`` (an object array (N,) of (R, 10 + 5R) arrays, None for the others) and
+    the last info ``info["final_info"]``, masked by ``info["_final_obs"]`` / ``info["_final_info"]`` (N,).
+    A copy reset this way continues its own generator, as the parallel env's ``reset()`` without a seed does.
 
     ## Arguments
-    ``num_envs`` (N >= 1), ``autoreset_mode`` (``"next_step"`` or ``"same_step"``, or an ``AutoresetMode``) and
+    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name ``"same_step"``) and
     any key of ``CooperativeLocalizationEnv.default_config()``, checked as the parallel env checks them.
     Rendering is not implemented yet.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, render_mode: str | None = None, autoreset_mode="next_step", **config):
+    def __init__(
+        self,
+        num_envs: int = 1,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **config,
+    ):
         owner = type(self).__name__
         if type(num_envs) is not int or num_envs < 1:
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
         if render_mode is not None:
             raise ValueError(f"{owner} does not render yet: render_mode must be None, got {render_mode!r}")
-        self.metadata = {**self.metadata, "autoreset_mode": _autoreset_mode(autoreset_mode, owner)}
+        self.autoreset_mode = autoreset_mode_of(autoreset_mode, AUTORESET_MODES, owner)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self._single = CooperativeLocalizationEnv(**config)  # checks the config as the parallel env does
         self.config = self._single.config
         self.num_envs = num_envs
@@ -87,14 +97,13 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         self._gps = GPSSensor(self.config["gps_std_m"])  # every receiver's noise; the schedules are _outages
         self._odometry = self._single.odometry
         self._odometry_covariances = np.repeat(self._odometry.noise_covariance()[None], n_robots, axis=0)
-        self._worlds = [World() for _ in range(num_envs)]
+        self._worlds = WorldBatch(num_envs)
+        self._noise = (NoiseStreams(num_envs, 2 * n_robots), NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 3))
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
-        self._rngs: list[tuple[np.random.Generator, ...] | None] = [None] * num_envs  # odometry, DGPS, relative
         self._geometries: list[StaticGeometry | None] = [None] * num_envs
         self._sight = self._decision = None
         dim = POSE_DIM * n_robots
         self._x, self._P = np.zeros((num_envs, dim)), np.zeros((num_envs, dim, dim))
-        self._true_poses = np.zeros((num_envs, n_robots, POSE_DIM))
         self._gps_available = np.zeros((num_envs, n_robots), dtype=bool)
         self._zone_centers, self._zone_radii_sq = np.zeros((num_envs, 0, 2)), np.zeros((num_envs, 0))
         self._elapsed = np.zeros(num_envs, dtype=int)
@@ -137,11 +146,12 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         """Start a new episode in each of ``copies`` from its own generator, as the parallel env's reset does."""
         owner = type(self._single).__name__
         for copy in copies.tolist():
-            world = self._worlds[copy]
-            ekf, *self._rngs[copy] = start_episode(self.config, world, self._np_randoms[copy], owner)
+            scenario, ekf, *generators = start_episode(self.config, self._np_randoms[copy], owner)
+            self._worlds.reset_copy(copy, scenario)
+            for streams, generator in zip(self._noise, generators):  # odometry, DGPS, relative poses
+                streams.restart(copy, generator)
             self._x[copy], self._P[copy] = ekf.x, ekf.P
-            self._true_poses[copy] = world.poses
-            self._geometries[copy] = StaticGeometry.from_world(world)
+            self._geometries[copy] = StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m)
         self._elapsed[copies] = 0
         self._zone_centers, self._zone_radii_sq = self._gps_denied_zones()
         if len(self._pairs.observers):
@@ -150,7 +160,7 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
 
     def _gps_denied_zones(self) -> tuple[np.ndarray, np.ndarray]:
         """Every copy's GPS-denied zones: centres (N, Z, 2) [m] and squared radii (N, Z) [m^2] (-1: padding)."""
-        zones = [world.scenario.gps_denied_zones for world in self._worlds]
+        zones = [self._worlds.scenario(copy).gps_denied_zones for copy in range(self.num_envs)]
         centers = np.zeros((self.num_envs, max(map(len, zones)), 2))
         radii_sq = np.full(centers.shape[:2], -1.0)
         for copy, copy_zones in enumerate(zones):
@@ -184,12 +194,12 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         rewards = np.where(last.stepped[:, None], (1.0 - weight) * own_mi + weight * team_mi, 0.0)
         ended = last.stepped & (self._elapsed >= self.max_cycles)
         observations, info = self._outputs(last)
-        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and ended.any():
-            final_observations, final_info = observations, info
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and ended.any():
+            final_infos = final_step_infos(observations, info, ended)
             self._reset_copies(np.flatnonzero(ended))
             self._decide()
             observations, info = self._outputs(_restarted(last, ended))
-            info.update(final_obs=final_observations, _final_obs=ended, final_info=final_info, _final_info=ended)
+            info.update(final_infos)
         else:
             self._prev_done = ended
         truncated = np.repeat(ended[:, None], len(self.agents), axis=1)
@@ -254,37 +264,31 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         return own_mi, np.repeat(team_mi[:, None], n_robots, axis=1), updated_std
 
     def _relative_measurements(self, copies, geometry, pair, observed) -> np.ndarray:
-        """Noisy relative poses (n, R, 3) of the observed slots (n, R) of ``copies``, from each copy's generator."""
-        measurements = np.zeros(geometry.shape)
-        for row, copy in enumerate(copies.tolist()):
-            slots = observed[row]
-            noise = self._pairs.noise[pair[row, slots]]
-            measurements[row, slots] = noisy_relative_poses(geometry[row, slots], noise, self._rngs[copy][2])
-        return measurements
+        """Noisy relative poses (n, R, 3) of the observed slots (n, R) of ``copies``, in the parallel env's order."""
+        noise = _draws_in_slot_order(self._noise[2], copies, observed, POSE_DIM)
+        parameters = self._pairs.noise[pair]
+        measured = relative_poses_with_noise(
+            geometry.reshape(-1, POSE_DIM), parameters.reshape(-1, 5), noise.reshape(-1, 3)
+        )
+        return measured.reshape(geometry.shape)
 
     def _advance(self, copies: np.ndarray) -> None:
         """Move the robots of ``copies``, predict with their noisy odometry, then fuse the DGPS fixes available."""
         if not copies.size:
             return
         dt = self.config["time_step_s"]
-        controls = self._step_worlds(copies, dt)
-        odometry = self._odometry
-        readings = np.stack([odometry.measure(control, self._rngs[copy][0]) for control, copy in zip(controls, copies)])
+        controls = self._worlds.step(dt, copies)
+        readings = self._odometry.measure_with_noise(controls, self._noise[0].take(copies).reshape(controls.shape))
         self._x[copies], self._P[copies] = batched.predict_team(
             self._x[copies], self._P[copies], readings, dt, self._odometry_covariances, check_input=False
         )
         self._gps_fixes(copies)
 
-    def _step_worlds(self, copies: np.ndarray, dt: float) -> np.ndarray:
-        """Step the worlds of ``copies`` by ``dt``; their executed ``[speed, turn_rate]`` (n, R, 2)."""
-        controls = np.stack([self._worlds[copy].step(dt) for copy in copies.tolist()])
-        self._true_poses[copies] = np.stack([self._worlds[copy].poses for copy in copies.tolist()])
-        return controls
-
     def _gps_fixes(self, copies: np.ndarray) -> None:
         """Which robots of ``copies`` have a DGPS fix now (schedule, zones), and their update."""
         time_s = self._elapsed[copies] * self.config["time_step_s"]
-        offsets = self._true_poses[copies, :, None, :2] - self._zone_centers[copies, None]
+        positions = self._worlds.poses[copies, :, :2]
+        offsets = positions[:, :, None] - self._zone_centers[copies, None]
         denied = np.any(np.einsum("crzi,crzi->crz", offsets, offsets) <= self._zone_radii_sq[copies, None], axis=2)
         spans = self._outages
         in_outage = np.any((spans[..., 0] <= time_s[:, None, None]) & (time_s[:, None, None] < spans[..., 1]), axis=2)
@@ -293,17 +297,16 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         fixing = np.flatnonzero(available.any(axis=1))
         if not fixing.size:
             return
-        rows = copies[fixing]
-        fixes = np.zeros((len(rows), len(self.agents), 2))
-        for row, copy in enumerate(rows.tolist()):
-            robots = available[fixing[row]]
-            fixes[row, robots] = self._gps.measure(self._true_poses[copy, robots, :2], self._rngs[copy][1])
+        rows, available = copies[fixing], available[fixing]
+        fixes = self._gps.measure_with_noise(
+            positions[fixing], _draws_in_slot_order(self._noise[1], rows, available, 2)
+        )
         self._x[rows], self._P[rows] = batched.gps_update(
             self._x[rows],
             self._P[rows],
             fixes,
             self._gps.noise_covariance(),
-            available[fixing],
+            available,
             cross_covariances=self.config["estimator"] == "joint",
             check_input=False,
         )
@@ -312,7 +315,7 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
 
     def _decide(self) -> None:
         self._decision = TeamDecision.at_prior(
-            self._pairs, self._sight, self._true_poses, self._x, self._P, self.config["team_reward"]
+            self._pairs, self._sight, self._worlds.poses, self._x, self._P, self.config["team_reward"]
         )
 
     def _outputs(self, last: TeamStep) -> tuple[np.ndarray, dict]:
@@ -324,7 +327,7 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
             std = np.where(last.stepped[:, None, None], last.pose_std_after_update, decision.pose_std)
             last = last._replace(pose_std_after_update=std)
         observations = team_observations(
-            self._x.reshape(self._true_poses.shape),
+            self._x.reshape(self._worlds.poses.shape),
             decision.pose_std,
             decision.pose_log_det,
             self._gps_available,
@@ -333,7 +336,7 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
             self.single_observation_space,
         )
         time_s = self._elapsed * self.config["time_step_s"]
-        return observations, team_info(decision, last, self._x, self._true_poses, self._gps_available, time_s)
+        return observations, team_info(decision, last, self._x, self._worlds.poses, self._gps_available, time_s)
 
     def action_masks(self) -> np.ndarray:
         """The valid actions of each copy and robot as bool (N, R, R + 1) (the no-op, 0, is always valid)."""
@@ -361,15 +364,20 @@ def _restarted(last: TeamStep, copies: np.ndarray) -> TeamStep:
     )
 
 
-def _autoreset_mode(value, owner: str) -> AutoresetMode:
-    """``AutoresetMode.NEXT_STEP`` or ``SAME_STEP`` from itself or its name ``"next_step"`` / ``"same_step"``."""
-    modes = {mode.name.lower(): mode for mode in AUTORESET_MODES}
-    mode = value if value in AUTORESET_MODES else modes.get(value) if isinstance(value, str) else None
-    if mode is None:
-        raise ValueError(
-            f"autoreset_mode of {owner} must be one of {sorted(modes)} (or an AutoresetMode), got {value!r}"
-        )
-    return mode
+def _draws_in_slot_order(streams: NoiseStreams, copies: np.ndarray, used: np.ndarray, width: int) -> np.ndarray:
+    """One draw of ``width`` numbers for each used slot of ``copies`` (n, R, width), zeros elsewhere.
+
+    A copy's used slots take its stream's next draws in slot order: what its parallel env draws in one
+    ``standard_normal((k, width))`` call for its k used slots.
+    """
+    draws = np.zeros((*used.shape, width))
+    turn_of = np.cumsum(used, axis=1) - 1  # each used slot's place among its copy's used slots
+    counts = used.sum(axis=1)
+    for turn in range(int(counts.max(initial=0))):
+        rows = np.flatnonzero(counts > turn)
+        slots = np.argmax(used[rows] & (turn_of[rows] == turn), axis=1)
+        draws[rows, slots] = streams.take(copies[rows])
+    return draws
 
 
 def copy_seeds(seed, num_envs: int, owner: str) -> list[int | None]:
