@@ -9,6 +9,8 @@ import infonav_gym
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.cooperative_localization_vector import CooperativeLocalizationVectorEnv
 from infonav_gym.registry import PARALLEL, env_entry, make_vector_env, register, unregister
+from infonav_gym.sensors.gps import GPSSensor
+from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noisy_relative_poses, relative_poses_with_noise
 
 TOLERANCE = 1e-9
 TEAM_ID = "cooperative_localization_v0"
@@ -218,7 +220,7 @@ def test_a_masked_action_raises_naming_copy_and_robot_or_is_a_no_op_and_leaves_t
     [
         ({"num_envs": 0}, r"num_envs of CooperativeLocalizationVectorEnv must be an int >= 1, got 0"),
         ({"num_envs": 2.0}, r"must be an int >= 1, got 2.0"),
-        ({"render_mode": "human"}, r"does not render yet: render_mode must be None, got 'human'"),
+        ({"render_mode": "ascii"}, r"render_mode"),
         ({"autoreset_mode": "partial"}, r"autoreset_mode .* must be one of 'next_step', 'same_step' .*'partial'"),
         ({"n_robots": 9}, r"n_robots"),
         ({"estimator": "kalman"}, r"estimator"),
@@ -237,6 +239,36 @@ def test_step_before_reset_and_options_are_refused():
         env.action_masks()
     with pytest.raises(ValueError, match=r"reset takes no options, got \['x'\]"):
         env.reset(options={"x": 1})
+
+
+# ----------------------------------------------------------------------------- rendering
+
+
+def test_render_draws_copy_0_as_its_parallel_env_through_an_autoreset():
+    config = {"max_cycles": 3, "render_size_px": 96}
+    vector = CooperativeLocalizationVectorEnv(2, render_mode="rgb_array", **config)
+    team = cooperative_localization_v0.parallel_env(render_mode="rgb_array", **config)
+    vector.reset(seed=4)
+    team.reset(seed=4)
+    rng = np.random.default_rng(0)
+    for step in range(8):
+        frame = vector.render()
+        assert frame.shape[2] == 3 and max(frame.shape[:2]) == 96
+        np.testing.assert_array_equal(frame, team.render(), err_msg=f"step {step}")
+        actions = random_valid(vector.action_masks(), rng)
+        vector.step(actions)
+        if team.agents:
+            team.step(dict(zip(team.possible_agents, actions[0].tolist())))
+        else:  # the NEXT_STEP autoreset of copy 0
+            team.reset()
+    vector.close()
+
+
+def test_render_without_a_render_mode_warns_and_returns_none():
+    vector = CooperativeLocalizationVectorEnv(2)
+    vector.reset(seed=0)
+    with pytest.warns(UserWarning, match="without a render_mode"):
+        assert vector.render() is None
 
 
 # ----------------------------------------------------------------------------- the vector API and the registry
@@ -279,3 +311,19 @@ def test_a_parallel_env_may_register_a_vector_entry_point_that_make_vector_env_c
         assert made == [(3, {"max_cycles": 2})]
     finally:
         unregister("toy/Team-v0")
+
+
+def test_the_sensors_given_their_standard_normals_measure_what_they_draw():
+    """What the vector env's noise streams feed: the same numbers as the parallel env's sensors draw."""
+    positions = np.array([[1.0, 2.0], [-3.0, 0.5]])
+    gps = GPSSensor(0.3)
+    expected = gps.measure(positions, np.random.default_rng(1))
+    np.testing.assert_array_equal(
+        gps.measure_with_noise(positions, np.random.default_rng(1).standard_normal((2, 2))), expected
+    )
+    truth = np.array([[4.0, 0.3, -0.2], [12.0, -3.1, 3.1]])
+    parameters = np.stack([RELATIVE_POSE_SENSORS[name].noise_parameters() for name in ("laser", "vision")])
+    expected = noisy_relative_poses(truth, parameters, np.random.default_rng(2))
+    noise = np.random.default_rng(2).standard_normal((2, 3))
+    np.testing.assert_array_equal(relative_poses_with_noise(truth, parameters, noise), expected)
+    assert not np.allclose(expected, truth) and np.all(np.abs(expected[:, 1:]) <= np.pi)

@@ -10,6 +10,7 @@ So copy ``i`` after ``reset(seed=s)`` gives the numbers of ``parallel_env()`` af
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
@@ -18,6 +19,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos
+from infonav_gym.envs.vector_view import FirstCopyView
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.multi.cooperative_localization import (
@@ -58,10 +60,15 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
     ## Arguments
     ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name ``"same_step"``) and
     any key of ``CooperativeLocalizationEnv.default_config()``, checked as the parallel env checks them.
-    Rendering is not implemented yet.
+    ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0, as its parallel env would
+    (``FirstCopyView``: a parallel env kept in step with copy 0, one parallel step per vector step).
     """
 
-    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata = {
+        "render_modes": CooperativeLocalizationEnv.metadata["render_modes"],
+        "render_fps": CooperativeLocalizationEnv.metadata["render_fps"],
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
 
     def __init__(
         self,
@@ -73,14 +80,13 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         owner = type(self).__name__
         if type(num_envs) is not int or num_envs < 1:
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
-        if render_mode is not None:
-            raise ValueError(f"{owner} does not render yet: render_mode must be None, got {render_mode!r}")
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self._single = CooperativeLocalizationEnv(**config)  # checks the config as the parallel env does
         self.config = self._single.config
         self.num_envs = num_envs
-        self.render_mode = None
+        self.render_mode = render_mode
+        self._view = None if render_mode is None else FirstCopyView(CooperativeLocalizationEnv(render_mode, **config))
         self.agents = list(self._single.possible_agents)
         n_robots = len(self.agents)
         self.max_cycles = self.config["max_cycles"]
@@ -146,6 +152,8 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         """Start a new episode in each of ``copies`` from its own generator, as the parallel env's reset does."""
         owner = type(self._single).__name__
         for copy in copies.tolist():
+            if copy == 0 and self._view is not None:
+                self._view.restart(self._np_randoms[0])
             scenario, ekf, *generators = start_episode(self.config, self._np_randoms[copy], owner)
             self._worlds.reset_copy(copy, scenario)
             for streams, generator in zip(self._noise, generators):  # odometry, DGPS, relative poses
@@ -182,6 +190,8 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         actions = self._checked_actions(actions)
         resetting = self._prev_done.copy()
         chosen, invalid = self._chosen_actions(actions, ~resetting)
+        if self._view is not None and not resetting[0]:
+            self._view.step(dict(zip(self.agents, actions[0].tolist())))
         own_mi, team_mi, updated_std = self._observe(chosen)
         acting = np.flatnonzero(~resetting)
         self._elapsed[acting] += 1
@@ -345,11 +355,18 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         return self._decision.action_mask.astype(bool)
 
     def render(self):
-        raise NotImplementedError(f"{type(self).__name__}.render() is not implemented yet; render a parallel env")
+        """Copy 0's frame as its parallel env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
+        if self._view is None:
+            gym.logger.warn(f'{type(self).__name__}.render() called without a render_mode; use render_mode="rgb_array"')
+            return None
+        if self._decision is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before render()")
+        return self._view.render()
 
     def close_extras(self, **kwargs) -> None:
-        self._worlds = []
         self._decision = None
+        if self._view is not None:
+            self._view.close()
 
 
 def _restarted(last: TeamStep, copies: np.ndarray) -> TeamStep:
