@@ -10,7 +10,6 @@ the single env's generators drawn ahead). So sub-env ``i`` after ``reset(seed=s)
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -21,7 +20,7 @@ from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv, start_epis
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision, batched_info, batched_observation
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
-from infonav_gym.envs.vector_view import FirstCopyView
+from infonav_gym.envs.vector_view import FirstCopyView, render_first_copy
 from infonav_gym.estimation import batched
 from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world_batch import WorldBatch
@@ -284,12 +283,7 @@ class LandmarkSelectionVectorEnv(VectorEnv):
 
     def render(self):
         """Sub-env 0's frame as its single env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
-        if self._view is None:
-            gym.logger.warn(f'{type(self).__name__}.render() called without a render_mode; use render_mode="rgb_array"')
-            return None
-        if self._decision is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before render()")
-        return self._view.render()
+        return render_first_copy(self._view, self._decision is not None, type(self).__name__)
 
     def close_extras(self, **kwargs) -> None:
         self._decision = None

@@ -10,7 +10,6 @@ So copy ``i`` after ``reset(seed=s)`` gives the numbers of ``parallel_env()`` af
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
@@ -19,7 +18,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos
-from infonav_gym.envs.vector_view import FirstCopyView
+from infonav_gym.envs.vector_view import FirstCopyView, render_first_copy
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.multi.cooperative_localization import (
@@ -356,12 +355,7 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
 
     def render(self):
         """Copy 0's frame as its parallel env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
-        if self._view is None:
-            gym.logger.warn(f'{type(self).__name__}.render() called without a render_mode; use render_mode="rgb_array"')
-            return None
-        if self._decision is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before render()")
-        return self._view.render()
+        return render_first_copy(self._view, self._decision is not None, type(self).__name__)
 
     def close_extras(self, **kwargs) -> None:
         self._decision = None
