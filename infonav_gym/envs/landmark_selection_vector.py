@@ -11,7 +11,6 @@ the single env's generators drawn ahead). So sub-env ``i`` after ``reset(seed=s)
 from __future__ import annotations
 
 import numpy as np
-from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -19,7 +18,7 @@ from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv, start_episode
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision, batched_info, batched_observation
 from infonav_gym.envs.noise_streams import NoiseStreams
-from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
+from infonav_gym.envs.vector_infos import autoreset_mode_of, checked_num_envs, final_step_infos, reseeded, set_rows
 from infonav_gym.envs.vector_view import FirstCopyView, render_first_copy
 from infonav_gym.estimation import batched
 from infonav_gym.world.visibility import StaticGeometry
@@ -68,8 +67,7 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         **config,
     ):
         owner = type(self).__name__
-        if type(num_envs) is not int or num_envs < 1:
-            raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
+        checked_num_envs(num_envs, owner)
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, self._AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self._single = LandmarkSelectionEnv(**config)  # checks the config as the single env does
@@ -106,9 +104,7 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         """
         if options:
             raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
-        for copy, copy_seed in enumerate(self._copy_seeds(seed)):
-            if copy_seed is not None or self._np_randoms[copy] is None:
-                self._np_randoms[copy] = seeding.np_random(copy_seed)[0]
+        self._np_randoms = reseeded(self._np_randoms, seed, type(self).__name__)
         everyone = np.arange(self.num_envs)
         self._geometry = self._reset_copies(everyone)
         self._prev_done[:] = False
@@ -116,17 +112,6 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         return self._outputs(
             everyone, self._geometry, np.zeros(self.num_envs, dtype=bool), np.full(self.num_envs, -1), nothing
         )
-
-    def _copy_seeds(self, seed) -> list[int | None]:
-        if _is_seed(seed):
-            return [None if seed is None else int(seed) + copy for copy in range(self.num_envs)]
-        seeds = list(seed) if isinstance(seed, (list, tuple)) else []
-        if len(seeds) != self.num_envs or not all(_is_seed(item) for item in seeds):
-            raise ValueError(
-                f"seed of {type(self).__name__}.reset must be None, an int >= 0 or a list of {self.num_envs} "
-                f"such seeds (one per sub-env), got {seed!r}"
-            )
-        return [None if item is None else int(item) for item in seeds]
 
     def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
         """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
@@ -289,8 +274,3 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         self._decision = None
         if self._view is not None:
             self._view.close()
-
-
-def _is_seed(value) -> bool:
-    """Whether ``value`` is a seed of one sub-env: None, or an int >= 0 (not a bool)."""
-    return value is None or (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0)

@@ -1,4 +1,4 @@
-"""What every native vector env shares: its autoreset mode argument, and infos as dicts of arrays.
+"""What every native vector env shares: its arguments (num_envs, autoreset mode, seeds), and infos as dicts of arrays.
 
 Infos follow Gymnasium's vector layout: each key holds an array with a leading sub-env dimension and a
 ``_key`` bool mask of the sub-envs that have it; nested dicts (``reward_terms``) the same, recursively.
@@ -7,7 +7,45 @@ Infos follow Gymnasium's vector layout: each key holds an array with a leading s
 from __future__ import annotations
 
 import numpy as np
+from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
+
+
+def checked_num_envs(num_envs, owner: str) -> int:
+    """``num_envs`` if it is an int >= 1 (not a bool), else a ``ValueError`` naming ``owner``."""
+    if type(num_envs) is not int or num_envs < 1:
+        raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
+    return num_envs
+
+
+def reseeded(generators: list, seed, owner: str) -> list[np.random.Generator]:
+    """The sub-envs' generators after ``reset(seed=seed)``, as each single env's ``reset`` leaves its ``np_random``.
+
+    An int ``s`` seeds sub-env ``i`` with ``s + i``; a list gives one seed (or None) per sub-env; None (or a
+    None entry) keeps a sub-env's generator going, or makes a fresh one where it has none yet.
+
+    Raises:
+        ValueError: naming ``owner``, for a seed that is not None, an int >= 0 (not a bool) or a list of one
+            such seed per sub-env.
+    """
+    if _is_seed(seed):
+        seeds = [None if seed is None else int(seed) + copy for copy in range(len(generators))]
+    else:
+        seeds = list(seed) if isinstance(seed, (list, tuple)) else []
+        if len(seeds) != len(generators) or not all(_is_seed(item) for item in seeds):
+            raise ValueError(
+                f"seed of {owner}.reset must be None, an int >= 0 or a list of {len(generators)} such seeds "
+                f"(one per sub-env), got {seed!r}"
+            )
+    return [
+        generator if copy_seed is None and generator is not None else seeding.np_random(copy_seed)[0]
+        for generator, copy_seed in zip(generators, seeds)
+    ]
+
+
+def _is_seed(value) -> bool:
+    """Whether ``value`` is a seed of one sub-env: None, or an int >= 0 (not a bool)."""
+    return value is None or (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0)
 
 
 def autoreset_mode_of(value, allowed: tuple[AutoresetMode, ...], owner: str) -> AutoresetMode:

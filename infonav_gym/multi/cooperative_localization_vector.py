@@ -12,12 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 from gymnasium import spaces
-from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.noise_streams import NoiseStreams
-from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos
+from infonav_gym.envs.vector_infos import autoreset_mode_of, checked_num_envs, final_step_infos, reseeded
 from infonav_gym.envs.vector_view import FirstCopyView, render_first_copy
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
@@ -72,13 +71,13 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
     def __init__(
         self,
         num_envs: int = 1,
+        *,
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **config,
     ):
         owner = type(self).__name__
-        if type(num_envs) is not int or num_envs < 1:
-            raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
+        checked_num_envs(num_envs, owner)
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self._single = CooperativeLocalizationEnv(**config)  # checks the config as the parallel env does
@@ -138,9 +137,7 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         """
         if options:
             raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
-        for copy, copy_seed in enumerate(copy_seeds(seed, self.num_envs, type(self).__name__)):
-            if copy_seed is not None or self._np_randoms[copy] is None:
-                self._np_randoms[copy] = seeding.np_random(copy_seed)[0]
+        self._np_randoms = reseeded(self._np_randoms, seed, type(self).__name__)
         everyone = np.arange(self.num_envs)
         self._reset_copies(everyone)
         self._prev_done[:] = False
@@ -389,24 +386,3 @@ def _draws_in_slot_order(streams: NoiseStreams, copies: np.ndarray, used: np.nda
         slots = np.argmax(used[rows] & (turn_of[rows] == turn), axis=1)
         draws[rows, slots] = streams.take(copies[rows])
     return draws
-
-
-def copy_seeds(seed, num_envs: int, owner: str) -> list[int | None]:
-    """One seed per copy: ``seed + i`` for an int seed, None for None, or the list given.
-
-    Raises:
-        ValueError: for a seed that is not None, an int >= 0 (not a bool) or a list of ``num_envs`` such seeds.
-    """
-
-    def is_seed(value) -> bool:
-        return value is None or (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0)
-
-    if is_seed(seed):
-        return [None if seed is None else int(seed) + copy for copy in range(num_envs)]
-    seeds = list(seed) if isinstance(seed, (list, tuple)) else []
-    if len(seeds) != num_envs or not all(is_seed(item) for item in seeds):
-        raise ValueError(
-            f"seed of {owner}.reset must be None, an int >= 0 or a list of {num_envs} such seeds (one per copy), "
-            f"got {seed!r}"
-        )
-    return [None if item is None else int(item) for item in seeds]
