@@ -119,18 +119,20 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         for copy in copies.tolist():
             if copy == 0 and self._view is not None:
                 self._view.restart(self._np_randoms[0])
-            scenario, ekf, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy], owner)
+            scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy], owner)
+            x, P = prior.state()
             if self._x is None or len(copies) == self.num_envs and copy == 0:
-                self._x, self._P = np.zeros((self.num_envs, ekf.dim_x)), np.zeros((self.num_envs, ekf.dim_x, ekf.dim_x))
-            if ekf.dim_x != self._x.shape[1]:
+                self._x, self._P = np.zeros((self.num_envs, len(x))), np.zeros((self.num_envs, len(x), len(x)))
+            if len(x) != self._x.shape[1]:
                 raise ValueError(
                     f"sub-env {copy} of {owner}: with mapping=True every copy needs the same number of landmarks; "
-                    f"scenario {scenario.name!r} has {ekf.n_landmarks}, the other copies {(self._x.shape[1] - 3) // 2}"
+                    f"scenario {scenario.name!r} has {len(scenario.landmarks)}, the other copies "
+                    f"{(self._x.shape[1] - 3) // 2}"
                 )
             self._worlds.reset_copy(copy, scenario)
             self._odometry_noise.restart(copy, odometry_rng)
             self._measurement_noise.restart(copy, measurement_rng)
-            self._x[copy], self._P[copy] = ekf.x, ekf.P
+            self._x[copy], self._P[copy] = x, P
             n_landmarks = len(scenario.landmarks)
             self._landmarks[copy] = 0.0
             self._landmarks[copy, :n_landmarks] = scenario.landmarks
