@@ -37,6 +37,7 @@ def reseeded(generators: list, seed, owner: str) -> list[np.random.Generator]:
                 f"seed of {owner}.reset must be None, an int >= 0 or a list of {len(generators)} such seeds "
                 f"(one per sub-env), got {seed!r}"
             )
+        seeds = [None if item is None else int(item) for item in seeds]
     return [
         generator if copy_seed is None and generator is not None else seeding.np_random(copy_seed)[0]
         for generator, copy_seed in zip(generators, seeds)
