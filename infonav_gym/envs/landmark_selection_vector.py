@@ -11,21 +11,21 @@ the single env's generators drawn ahead). So sub-env ``i`` after ``reset(seed=s)
 from __future__ import annotations
 
 import numpy as np
-from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv, start_episode
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision, batched_info, batched_observation
+from infonav_gym.envs.native_vector import NativeVectorEnv
 from infonav_gym.envs.noise_streams import NoiseStreams
-from infonav_gym.envs.vector_infos import autoreset_mode_of, checked_num_envs, final_step_infos, reseeded, set_rows
-from infonav_gym.envs.vector_view import FirstCopyView, render_first_copy
+from infonav_gym.envs.vector_infos import final_step_infos, set_rows
 from infonav_gym.estimation import batched
 from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world_batch import WorldBatch
 
 
-class LandmarkSelectionVectorEnv(VectorEnv):
+class LandmarkSelectionVectorEnv(NativeVectorEnv, single_env=LandmarkSelectionEnv):
     """N copies of ``LandmarkSelectionEnv`` (see it for the spaces, rewards and config keys), batched.
 
     ## Vector API
@@ -52,29 +52,7 @@ class LandmarkSelectionVectorEnv(VectorEnv):
     draws sub-env 0, as its single env would (``FirstCopyView``).
     """
 
-    metadata = {
-        "render_modes": LandmarkSelectionEnv.metadata["render_modes"],
-        "render_fps": LandmarkSelectionEnv.metadata["render_fps"],
-        "autoreset_mode": AutoresetMode.NEXT_STEP,
-    }
-    _AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
-
-    def __init__(
-        self,
-        num_envs: int = 1,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        **config,
-    ):
-        owner = type(self).__name__
-        checked_num_envs(num_envs, owner)
-        self.autoreset_mode = autoreset_mode_of(autoreset_mode, self._AUTORESET_MODES, owner)
-        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
-        self._single = LandmarkSelectionEnv(**config)  # checks the config as the single env does
-        self.config = self._single.config
-        self.num_envs = num_envs
-        self.render_mode = render_mode
-        self._view = None if render_mode is None else FirstCopyView(LandmarkSelectionEnv(render_mode, **config))
+    def _allocate(self, num_envs: int) -> None:
         self.single_observation_space = self._single.observation_space
         self.single_action_space = self._single.action_space
         self.observation_space = batch_space(self.single_observation_space, num_envs)
@@ -83,7 +61,6 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         self._odometry_covariance = self._odometry.noise_covariance()
         self._worlds = WorldBatch(num_envs)
         self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
-        self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
         self._x = self._P = self._decision = self._geometry = None
         self._elapsed = np.zeros(num_envs, dtype=int)
         n_candidates = self.config["n_candidates"]
@@ -91,20 +68,13 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         self._exists = np.zeros((num_envs, n_candidates), dtype=bool)
         self._prev_done = np.zeros(num_envs, dtype=bool)
 
-    @property
-    def np_randoms(self) -> list[np.random.Generator | None]:
-        """Each sub-env's generator (the single env's ``np_random``), None before its first reset."""
-        return list(self._np_randoms)
-
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         """Reset every sub-env: seed ``s`` gives sub-env ``i`` the seed ``s + i``; a list gives one seed (or None) each.
 
         Raises:
             ValueError: for a seed that is not None, an int or a list of N ints / None, or any options.
         """
-        if options:
-            raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
-        self._np_randoms = reseeded(self._np_randoms, seed, type(self).__name__)
+        self._reseed(seed, options)
         everyone = np.arange(self.num_envs)
         self._geometry = self._reset_copies(everyone)
         self._prev_done[:] = False
@@ -267,12 +237,3 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         mask = self._decision.action_mask.astype(bool)
         mask[~mask.any(axis=1)] = True
         return mask
-
-    def render(self):
-        """Sub-env 0's frame as its single env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
-        return render_first_copy(self._view, self._decision is not None, type(self).__name__)
-
-    def close_extras(self, **kwargs) -> None:
-        self._decision = None
-        if self._view is not None:
-            self._view.close()

@@ -39,17 +39,3 @@ class FirstCopyView:
 
     def close(self) -> None:
         self._single.close()
-
-
-def render_first_copy(view: FirstCopyView | None, started: bool, owner: str):
-    """A vector env's ``render()``: sub-env 0's frame from its ``view``; without one (no render mode) a warning, None.
-
-    Raises:
-        RuntimeError: naming ``owner`` when the env has not been ``started`` (reset) yet.
-    """
-    if view is None:
-        gym.logger.warn(f'{owner}.render() called without a render_mode; use render_mode="rgb_array"')
-        return None
-    if not started:
-        raise RuntimeError(f"{owner}: call reset() before render()")
-    return view.render()

@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 from gymnasium import spaces
-from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector import AutoresetMode
 
 from infonav_gym.envs.base import accepts_action
+from infonav_gym.envs.native_vector import NativeVectorEnv
 from infonav_gym.envs.noise_streams import NoiseStreams
-from infonav_gym.envs.vector_infos import autoreset_mode_of, checked_num_envs, final_step_infos, reseeded
-from infonav_gym.envs.vector_view import FirstCopyView, render_first_copy
+from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.multi.cooperative_localization import (
@@ -33,10 +33,9 @@ from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world_batch import WorldBatch
 
 MASK_KEY = 'info["action_mask"]'
-AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
 
-class CooperativeLocalizationVectorEnv(VectorEnv):
+class CooperativeLocalizationVectorEnv(NativeVectorEnv, single_env=CooperativeLocalizationEnv):
     """N copies of ``CooperativeLocalizationEnv`` (see it for the spaces, rewards and config keys), batched.
 
     ## Vector API
@@ -62,29 +61,7 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
     (``FirstCopyView``: a parallel env kept in step with copy 0, one parallel step per vector step).
     """
 
-    metadata = {
-        "render_modes": CooperativeLocalizationEnv.metadata["render_modes"],
-        "render_fps": CooperativeLocalizationEnv.metadata["render_fps"],
-        "autoreset_mode": AutoresetMode.NEXT_STEP,
-    }
-
-    def __init__(
-        self,
-        num_envs: int = 1,
-        *,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        **config,
-    ):
-        owner = type(self).__name__
-        checked_num_envs(num_envs, owner)
-        self.autoreset_mode = autoreset_mode_of(autoreset_mode, AUTORESET_MODES, owner)
-        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
-        self._single = CooperativeLocalizationEnv(**config)  # checks the config as the parallel env does
-        self.config = self._single.config
-        self.num_envs = num_envs
-        self.render_mode = render_mode
-        self._view = None if render_mode is None else FirstCopyView(CooperativeLocalizationEnv(render_mode, **config))
+    def _allocate(self, num_envs: int) -> None:
         self.agents = list(self._single.possible_agents)
         n_robots = len(self.agents)
         self.max_cycles = self.config["max_cycles"]
@@ -103,9 +80,8 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         self._odometry_covariances = np.repeat(self._odometry.noise_covariance()[None], n_robots, axis=0)
         self._worlds = WorldBatch(num_envs)
         self._noise = (NoiseStreams(num_envs, 2 * n_robots), NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 3))
-        self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
         self._geometries: list[StaticGeometry | None] = [None] * num_envs
-        self._sight = self._decision = None
+        self._sight = None
         dim = POSE_DIM * n_robots
         self._x, self._P = np.zeros((num_envs, dim)), np.zeros((num_envs, dim, dim))
         self._gps_available = np.zeros((num_envs, n_robots), dtype=bool)
@@ -122,11 +98,6 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
             outages[robot, : len(robot_spans)] = np.reshape(robot_spans, (-1, 2))
         return np.array([gps is not None for gps in receivers]), outages
 
-    @property
-    def np_randoms(self) -> list[np.random.Generator | None]:
-        """Each copy's generator (the parallel env's ``np_random``), None before its first reset."""
-        return list(self._np_randoms)
-
     # ------------------------------------------------------------------ reset
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
@@ -135,9 +106,7 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         Raises:
             ValueError: for a seed that is not None, an int >= 0 or a list of N such seeds, or any options.
         """
-        if options:
-            raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
-        self._np_randoms = reseeded(self._np_randoms, seed, type(self).__name__)
+        self._reseed(seed, options)
         everyone = np.arange(self.num_envs)
         self._reset_copies(everyone)
         self._prev_done[:] = False
@@ -349,15 +318,6 @@ class CooperativeLocalizationVectorEnv(VectorEnv):
         if self._decision is None:
             raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
         return self._decision.action_mask.astype(bool)
-
-    def render(self):
-        """Copy 0's frame as its parallel env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
-        return render_first_copy(self._view, self._decision is not None, type(self).__name__)
-
-    def close_extras(self, **kwargs) -> None:
-        self._decision = None
-        if self._view is not None:
-            self._view.close()
 
 
 def _restarted(last: TeamStep, copies: np.ndarray) -> TeamStep:
