@@ -291,6 +291,11 @@ def test_spaces_agents_and_registration():
     assert infonav_gym.make_vector_env is make_vector_env
 
 
+def test_make_vector_env_makes_a_gymnasium_envs_native_vector_env_too():
+    env = make_vector_env("infonav/LandmarkSelection-v0", 2, horizon=5)
+    assert type(env).__name__ == "LandmarkSelectionVectorEnv" and env.num_envs == 2 and env.config["horizon"] == 5
+
+
 def test_make_vector_env_refuses_an_env_without_a_native_vector_env():
     with pytest.raises(ValueError, match=r"env 'infonav/SensorSelection-v0' has no native vector env"):
         make_vector_env("infonav/SensorSelection-v0", 2)
