@@ -2,35 +2,114 @@
 
 PPO on it learns one policy for all robots (parameter sharing): it sees ``n_envs * n_robots``
 single-robot envs with the same spaces, each with its robot's own reward and action mask. The copies
-run as one native vector env of the team env (``make_vector_env``, e.g. ``CooperativeLocalizationVectorEnv``),
-stepped at once on stacked arrays; this view only reshapes its (N, R, ...) arrays to (N R, ...).
+run as one native vector env of the team env (``make_vector_env``, e.g. ``CooperativeLocalizationVectorEnv``)
+in ``SAME_STEP`` autoreset, stepped at once on stacked arrays; ``RobotSlots`` sees its (N, R, ...) arrays as
+N R single-robot sub-envs, and ``VectorEnvAdapter`` (SB3's view of every vector env) does the rest.
 """
 
 from __future__ import annotations
 
-import functools
-import warnings
 from typing import Any
 
 import numpy as np
-from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from stable_baselines3.common.vec_env import VecMonitor
 
+from agents.vector_adapter import MASKS_METHOD, VectorEnvAdapter
 from infonav_gym.registry import PARALLEL, api_of, make_vector_env
 
-MASKS_METHOD = "action_masks"  # what MaskablePPO asks every slot for; answered per robot
+
+class RobotSlots(VectorEnv):
+    """A team vector env's robots as sub-envs: slot ``copy * R + k`` is robot ``k`` of copy ``copy``.
+
+    Observations, rewards, terminations, truncations and masks are the team env's arrays reshaped to
+    (N R, ...); the info holds only ``final_obs`` per slot (``SAME_STEP``: what the SB3 adapter reads);
+    the team env's whole info of the last reset or step is ``team_info``.
+
+    Args:
+        team: a team vector env in ``SAME_STEP`` autoreset, with ``agents`` and ``action_masks()`` (N, R, A).
+    """
+
+    def __init__(self, team: VectorEnv):
+        self.team = team
+        self.n_copies, self.n_robots = team.num_envs, len(team.agents)
+        self.num_envs = self.n_copies * self.n_robots
+        self.single_observation_space = team.single_observation_space
+        self.single_action_space = team.single_action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.metadata = team.metadata
+        self.render_mode = team.render_mode
+        self.team_info: dict = {}
+
+    def reset(self, *, seed=None, options=None):
+        """Reset every copy; a list seeds each slot, and the robots of a copy share their copy's seed.
+
+        Raises:
+            ValueError: for a seed list whose length is not the number of slots, or that seeds a copy's
+                robots differently.
+        """
+        observations, self.team_info = self.team.reset(seed=self._copy_seeds(seed), options=options)
+        return observations.reshape(self.num_envs, -1), {}
+
+    def _copy_seeds(self, seed):
+        if not isinstance(seed, (list, tuple)):
+            return seed  # None, or an int: copy i gets seed + i
+        by_copy = [list(seed[copy * self.n_robots : (copy + 1) * self.n_robots]) for copy in range(self.n_copies)]
+        if len(seed) != self.num_envs or any(seeds != seeds[:1] * self.n_robots for seeds in by_copy):
+            raise ValueError(
+                f"RobotSlots: one seed per slot ({self.num_envs}), the same for the {self.n_robots} robots of a "
+                f"copy, got {seed!r}"
+            )
+        return [seeds[0] for seeds in by_copy]
+
+    def step(self, actions):
+        """Step every copy with the slots' actions (N R,); the arrays of ``CooperativeLocalizationVectorEnv.step``.
+
+        Raises:
+            ValueError: for actions that are not one per slot (the team env checks the values).
+        """
+        actions = np.asarray(actions)
+        if actions.shape != (self.num_envs,):
+            raise ValueError(f"expected one action per slot, shape ({self.num_envs},), got shape {actions.shape}")
+        step = self.team.step(actions.reshape(self.n_copies, self.n_robots))
+        observations, rewards, terminations, truncations, self.team_info = step
+        info = {}
+        if "final_obs" in self.team_info:
+            ended = self.team_info["_final_obs"]
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for copy in np.flatnonzero(ended).tolist():
+                final_obs[copy * self.n_robots : (copy + 1) * self.n_robots] = list(self.team_info["final_obs"][copy])
+            info = {"final_obs": final_obs, "_final_obs": np.repeat(ended, self.n_robots)}
+        slots = (self.num_envs,)
+        return (
+            observations.reshape(self.num_envs, -1),
+            rewards.reshape(slots),
+            terminations.reshape(slots),
+            truncations.reshape(slots),
+            info,
+        )
+
+    def action_masks(self) -> np.ndarray:
+        """Every slot's valid actions (N R, A) bool."""
+        return self.team.action_masks().reshape(self.num_envs, -1)
+
+    def close_extras(self, **kwargs) -> None:
+        self.team.close()
 
 
-class TeamVecEnv(VecEnv):
+class TeamVecEnv(VectorEnvAdapter):
     """``n_envs`` copies of a PettingZoo parallel env, batched; slot ``copy * n_robots + k`` is robot ``k`` of ``copy``.
 
     Copy ``i`` is reset with seed ``seed + i`` the first time and continues its own generator on the
     automatic resets after that, so the seed fixes every rollout. All robots of a copy end their
-    episode together (truncation at ``max_cycles``): the step that ends it resets the copy at once
-    (the vector env's ``SAME_STEP`` autoreset) and each of its slots gets ``info["terminal_observation"]``
-    and ``info["TimeLimit.truncated"]``, as SB3's ``DummyVecEnv`` does. The other slots' infos are empty:
-    the vector env's whole info of the last reset or step is ``batched_infos`` (arrays (N, R, ...)).
-    ``action_masks()`` gives every slot's valid actions to ``MaskablePPO``.
+    episode together (truncation at ``max_cycles``): the step that ends it resets the copy at once and
+    each of its slots gets ``info["terminal_observation"]`` and ``info["TimeLimit.truncated"]``, as SB3's
+    ``DummyVecEnv`` does; the other slots' infos are empty (``VectorEnvAdapter``). The team env's whole info
+    of the last reset or step is ``batched_infos`` (arrays (N, R, ...)). ``action_masks()`` gives every
+    slot's valid actions to ``MaskablePPO``. ``get_attr`` gives each slot its robot's ``agent`` name and
+    the team env's other attributes; ``set_attr`` and ``env_method`` act on the team env, which every slot shares.
 
     Args:
         n_envs: copies of the team env.
@@ -53,14 +132,22 @@ class TeamVecEnv(VecEnv):
             raise ValueError(f"n_envs must be >= 1, got {n_envs}")
         if api_of(env_id) != PARALLEL:
             raise ValueError(f"TeamVecEnv needs a registered PettingZoo parallel env, got {env_id!r}")
-        self.team = make_vector_env(env_id, n_envs, autoreset_mode=AutoresetMode.SAME_STEP, **(env_kwargs or {}))
-        self.possible_agents = list(self.team.agents)
-        self.n_envs, self.n_robots = n_envs, len(self.possible_agents)
-        super().__init__(n_envs * self.n_robots, self.team.single_observation_space, self.team.single_action_space)
-        self.batched_infos: dict | None = None
-        self._actions = None
+        team = make_vector_env(env_id, n_envs, autoreset_mode=AutoresetMode.SAME_STEP, **(env_kwargs or {}))
+        self.possible_agents = list(team.agents)
+        self.n_robots = len(self.possible_agents)
+        super().__init__(RobotSlots(team))
         if seed is not None:
             self.seed(seed)
+
+    @property
+    def team(self) -> VectorEnv:
+        """The team vector env every slot belongs to."""
+        return self.vector_env.team
+
+    @property
+    def batched_infos(self) -> dict:
+        """The team env's info of the last reset or step (arrays (N, R, ...), ``final_info`` at an episode end)."""
+        return self.vector_env.team_info
 
     def seed(self, seed: int | None = None) -> list[int]:
         """Seed copy ``i`` with ``seed + i`` at the next ``reset()`` (``None``: a random ``seed``); each slot's seed."""
@@ -69,88 +156,29 @@ class TeamVecEnv(VecEnv):
         self._seeds = [seed + slot // self.n_robots for slot in range(self.num_envs)]
         return list(self._seeds)
 
-    def reset(self) -> np.ndarray:
-        """Reset every copy (with the seeds set by ``seed``, then with none); the observations (N R, obs)."""
-        options = next((options for options in self._options if options), None)
-        observations, self.batched_infos = self.team.reset(seed=self._seeds[:: self.n_robots], options=options)
-        self._reset_seeds()
-        self._reset_options()
-        return observations.reshape(self.num_envs, -1)
-
-    def step_async(self, actions: np.ndarray) -> None:
-        actions = np.asarray(actions)
-        if actions.shape != (self.num_envs,):
-            raise ValueError(f"expected one action per slot, shape ({self.num_envs},), got shape {actions.shape}")
-        self._actions = actions
-
-    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
-        if self._actions is None:
-            raise RuntimeError("TeamVecEnv: call step_async(actions) before step_wait()")
-        actions, self._actions = self._actions.reshape(self.n_envs, self.n_robots), None
-        observations, rewards, terminations, truncations, info = self.team.step(actions)
-        self.batched_infos = info
-        dones = (terminations | truncations).ravel()
-        slot_infos = [{} for _ in range(self.num_envs)]
-        for slot in np.flatnonzero(dones).tolist():
-            copy, robot = divmod(slot, self.n_robots)
-            slot_infos[slot] = {
-                "terminal_observation": info["final_obs"][copy][robot],
-                "TimeLimit.truncated": bool(truncations[copy, robot] and not terminations[copy, robot]),
-            }
-        return observations.reshape(self.num_envs, -1), rewards.astype(np.float32).ravel(), dones, slot_infos
-
-    def action_masks(self) -> np.ndarray:
-        """The valid actions of every slot, ``(num_envs, n_actions)`` bool: each robot's ``action_mask`` now."""
-        return self.team.action_masks().reshape(self.num_envs, -1)
-
-    def close(self) -> None:
-        self.team.close()
-
-    def get_images(self) -> list[np.ndarray | None]:
-        """No frames: the batched team env does not render (render a parallel env)."""
-        warnings.warn("TeamVecEnv: the batched team env does not render; render a parallel env", stacklevel=2)
-        return [None for _ in range(self.n_envs)]
-
-    def _slot_masks(self, slot: int) -> np.ndarray:
-        return self.action_masks()[slot]
-
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        """Each slot's ``attr_name``: ``action_masks`` and ``agent`` (its robot's name) are its robot's, anything else
-        the batched env's (one for all)."""
-        slots = self._get_indices(indices)
-        if attr_name == MASKS_METHOD:
-            return [functools.partial(self._slot_masks, slot) for slot in slots]
+        """Each slot's ``attr_name``: ``agent`` is its robot's name, anything else the team env's (one for all)."""
+        slots = self._rows(indices)
         if attr_name == "agent":
             return [self.possible_agents[slot % self.n_robots] for slot in slots]
         value = getattr(self.team, attr_name)
         return [value for _ in slots]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        """Set ``attr_name`` of the batched env, which every slot shares: ``indices`` must be None or every slot.
+        """Set ``attr_name`` of the team env, which every slot shares: ``indices`` must be None or every slot.
 
         Raises:
             ValueError: for indices that leave some slot out (one copy cannot differ from the others).
         """
-        slots = list(self._get_indices(indices))
-        if sorted(slots) != list(range(self.num_envs)):
-            raise ValueError(
-                f"TeamVecEnv.set_attr({attr_name!r}): all {self.num_envs} slots share one batched env, so set it for "
-                f"every slot (indices=None), got indices {slots}"
-            )
+        self._all_rows(indices, f"set_attr({attr_name!r})")
         setattr(self.team, attr_name, value)
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
-        """Per slot: ``action_masks`` is the robot's; another method of the batched env runs once, and every slot
-        gets its result."""
-        slots = list(self._get_indices(indices))
+        """``action_masks``: the slots' rows; another method of the team env runs once, every slot gets its result."""
         if method_name == MASKS_METHOD:
-            return list(self.action_masks()[slots])
+            return super().env_method(method_name, indices=indices)
         result = getattr(self.team, method_name)(*method_args, **method_kwargs)
-        return [result for _ in slots]
-
-    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
-        """Always ``False``: the slots are robots of a batched env, which Gymnasium wrappers do not wrap."""
-        return [False for _ in self._get_indices(indices)]
+        return [result for _ in self._rows(indices)]
 
 
 def make_team_vec_env(
