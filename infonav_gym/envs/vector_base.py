@@ -53,7 +53,7 @@ class InfoNavVectorEnv(VectorEnv):
     AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
     def _configure(self, num_envs: int, render_mode: str | None, autoreset_mode, single_env, config: dict) -> gym.Env:
-        """Check the vector arguments; take the config and spaces of the single env ``single_env(**config)``.
+        """Check the vector arguments; take the config (and a ``gym.Env``'s spaces) of ``single_env(**config)``.
 
         Returns:
             That single env (it checked the config as it always does).
@@ -72,10 +72,11 @@ class InfoNavVectorEnv(VectorEnv):
         self.config = single.config
         self.num_envs = num_envs
         self.render_mode = render_mode
-        self.single_observation_space = single.observation_space
-        self.single_action_space = single.action_space
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self.action_space = batch_space(self.single_action_space, num_envs)
+        if isinstance(single, gym.Env):  # a parallel env's subclass sets its own (N, R, ...) spaces
+            self.single_observation_space = single.observation_space
+            self.single_action_space = single.action_space
+            self.observation_space = batch_space(self.single_observation_space, num_envs)
+            self.action_space = batch_space(self.single_action_space, num_envs)
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
         self._decision = self._geometry = None
         self._prev_done = np.zeros(num_envs, dtype=bool)
