@@ -528,6 +528,54 @@ def landmark_information_gains(P, H, R, *, check_input: bool = True) -> np.ndarr
     return information_gain_of_innovation(_sandwich(HP, H) + R, R, check_input=False)
 
 
+def _product(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``X @ Y`` of small matrices stored components first, (m, k, ...) @ (k, n, ...) -> (m, n, ...).
+
+    Each entry is a contiguous array over the stack, so thousands of 3 x 3 products take a few dozen
+    array operations: several times faster than ``matmul``'s per-matrix loop.
+    """
+    product = np.empty((X.shape[0], Y.shape[1], *np.broadcast_shapes(X.shape[2:], Y.shape[2:])))
+    for i in range(X.shape[0]):
+        for j in range(Y.shape[1]):
+            entry = X[i, 0] * Y[0, j]  # a new array: += below is in place
+            for k in range(1, X.shape[1]):
+                entry += X[i, k] * Y[k, j]
+            product[i, j] = entry
+    return product
+
+
+def _determinant_entries(M: np.ndarray) -> np.ndarray:
+    """Determinants of matrices stored components first (m, m, ...), m <= 3, by cofactors."""
+    if len(M) == 1:
+        return M[0, 0]
+    if len(M) == 2:
+        return M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    return (
+        M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1])
+        - M[0, 1] * (M[1, 0] * M[2, 2] - M[1, 2] * M[2, 0])
+        + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0])
+    )
+
+
+def _inverse_entries(M: np.ndarray) -> np.ndarray:
+    """Inverses of matrices stored components first (m, m, ...): the adjugate over the determinant, m <= 3."""
+    m = len(M)
+    if m == 1:
+        return 1.0 / M
+    if m == 2:
+        adjugate = np.array([[M[1, 1], -M[0, 1]], [-M[1, 0], M[0, 0]]])
+    else:
+        adjugate = np.empty_like(M)
+        for i in range(3):
+            for j in range(3):
+                rows, columns = [r for r in range(3) if r != j], [c for c in range(3) if c != i]
+                minor = (
+                    M[rows[0], columns[0]] * M[rows[1], columns[1]] - M[rows[0], columns[1]] * M[rows[1], columns[0]]
+                )
+                adjugate[i, j] = minor if (i + j) % 2 == 0 else -minor
+    return adjugate / _determinant_entries(M)
+
+
 def _sandwich(HP: np.ndarray, H: np.ndarray) -> np.ndarray:
     """``H P H^T`` (..., m, m) from stacks of small ``HP`` and ``H`` (..., m, n) with P symmetric, entry by entry.
 
@@ -566,15 +614,26 @@ def relative_pose_information_gains(P, observers, targets, H_observer, H_target,
         H_observer = _finite("H_observer", H_observer, (*observers.shape, m, POSE_DIM))
         H_target = _finite("H_target", H_target, (*observers.shape, m, POSE_DIM))
         R = _noise_covariance("R", R, (*observers.shape, m, m))
-    blocks = pose_blocks(P)
-    copies = np.arange(n_copies)[:, None]
-    P_oo, P_ot = blocks[copies, observers, observers], blocks[copies, observers, targets]
-    P_to, P_tt = blocks[copies, targets, observers], blocks[copies, targets, targets]
-    H_observer_T, H_target_T = np.swapaxes(H_observer, -1, -2), np.swapaxes(H_target, -1, -2)
-    A = P_oo @ H_observer_T + P_ot @ H_target_T
-    S = H_observer @ A + H_target @ (P_to @ H_observer_T + P_tt @ H_target_T) + R
-    posterior = P_oo - A @ _inverse(S) @ np.swapaxes(A, -1, -2)
-    log_dets = log_det_spd(np.stack([P_oo, posterior, S, R]), check_input=False)
+    # matrices as components first: (rows, columns, N, M), each entry a contiguous (N, M) array
+    n_robots = P.shape[1] // POSE_DIM
+    blocks = np.moveaxis(P.reshape(n_copies, n_robots, POSE_DIM, n_robots, POSE_DIM), (2, 4), (0, 1))
+    blocks = blocks.reshape(POSE_DIM * POSE_DIM, -1)  # (9, N R R): the pose blocks' entries, block [c, i, j] last
+    first_block = (np.arange(n_copies) * n_robots * n_robots)[:, None]
+
+    def block_entries(rows, columns):
+        return blocks.take(first_block + rows * n_robots + columns, axis=1).reshape(POSE_DIM, POSE_DIM, *rows.shape)
+
+    P_oo, P_ot = block_entries(observers, observers), block_entries(observers, targets)
+    P_to, P_tt = block_entries(targets, observers), block_entries(targets, targets)
+    H_observer, H_target, R = (
+        np.ascontiguousarray(np.moveaxis(M, (-2, -1), (0, 1))) for M in (H_observer, H_target, R)
+    )
+    H_observer_T, H_target_T = H_observer.swapaxes(0, 1), H_target.swapaxes(0, 1)
+    A = _product(P_oo, H_observer_T) + _product(P_ot, H_target_T)  # the observer's rows of P H^T
+    B = _product(P_to, H_observer_T) + _product(P_tt, H_target_T)  # the target's
+    S = _product(H_observer, A) + _product(H_target, B) + R
+    posterior = P_oo - _product(_product(A, _inverse_entries(S)), A.swapaxes(0, 1))
+    log_dets = [np.log(_determinant_entries(M)) for M in (P_oo, posterior, S, R)]
     return 0.5 * (log_dets[0] - log_dets[1]), 0.5 * (log_dets[2] - log_dets[3])
 
 

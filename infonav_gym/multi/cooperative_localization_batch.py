@@ -100,14 +100,12 @@ class TeamDecision(NamedTuple):
         mask[..., NO_OBSERVATION] = 1
         mask[:, pairs.observers, pairs.targets + 1] = valid
         gains = np.zeros(mask.shape)
-        copies, columns = np.nonzero(valid)  # only the observable pairs: each (copy, pair) as one copy of one pair
-        if copies.size:
-            observer, target = pairs.observers[columns, None], pairs.targets[columns, None]
-            rows = copies[:, None], columns[:, None]
+        if n_pairs:  # every pair of every copy at once (its own P), the unobservable ones masked out after
             own, joint = batched.relative_pose_information_gains(
-                P[copies], observer, target, H_observer[rows], H_target[rows], R[rows], check_input=False
+                P, observers, targets, H_observer, H_target, R, check_input=False
             )
-            gains[copies, observer[:, 0], target[:, 0] + 1] = ((1.0 - team_reward) * own + team_reward * joint)[:, 0]
+            pair_gains = np.where(valid, (1.0 - team_reward) * own + team_reward * joint, 0.0)
+            gains[:, pairs.observers, pairs.targets + 1] = pair_gains
         pose_log_det = batched.pose_log_dets(P, n_robots, check_input=False)
         pose_std = np.sqrt(np.diagonal(P, axis1=1, axis2=2)).reshape(n_copies, n_robots, POSE_DIM)
         return cls(mask, gains, geometry, valid, predicted, H_observer, H_target, R, pose_log_det, pose_std)
