@@ -40,7 +40,7 @@ def test_the_tuned_blocks_are_package_data_read_through_importlib_resources():
     shipped = resources.files("agents").joinpath("hyperparams/ppo.yml")
     assert shipped.is_file()
     assert load_hyperparameters(LANDMARK_ID)["gamma"] == 0.9
-    assert load_hyperparameters("cooperative_localization_v0")["n_envs"] == 4
+    assert load_hyperparameters("cooperative_localization_v0")["n_envs"] == 64
     assert load_hyperparameters("CartPole-v1") == load_hyperparameters("no block: the default one")
 
 
