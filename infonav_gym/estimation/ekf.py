@@ -206,7 +206,7 @@ def _inverse(S: np.ndarray) -> np.ndarray:
     return np.linalg.inv(S)
 
 
-def _block_diagonal(blocks) -> np.ndarray:
+def block_diagonal(blocks) -> np.ndarray:
     """The block-diagonal matrix of (k, m, m) ``blocks``."""
     k, m, _ = np.shape(blocks)
     matrix = np.zeros((k, m, k, m))
@@ -271,7 +271,7 @@ class JointEKF(ExtendedKalmanFilter):
         self.n_robots = n_robots
         self.cross_covariances = bool(cross_covariances)
         self.x = poses.ravel().copy()
-        self.P = _block_diagonal(covariances)
+        self.P = block_diagonal(covariances)
         self.Q = np.zeros_like(self.P)
         self._own_block = np.kron(np.eye(n_robots), np.ones((POSE_DIM, POSE_DIM)))
         self._headings = np.arange(2, self.dim_x, POSE_DIM)
@@ -343,7 +343,7 @@ class JointEKF(ExtendedKalmanFilter):
         H = self._stacked_jacobian(robots, GPS_POSE_JACOBIAN[None])
         measurement = np.asarray(fixes, dtype=float).ravel()
         _kalman_update(
-            self, measurement, measurement - H @ self.x, H, _block_diagonal(noise_covariances), self._headings
+            self, measurement, measurement - H @ self.x, H, block_diagonal(noise_covariances), self._headings
         )
         self._drop_cross_covariances()
 
@@ -392,7 +392,7 @@ class JointEKF(ExtendedKalmanFilter):
         H = self._stacked_jacobian(observers, H_observer) + self._stacked_jacobian(targets, H_target)
         residual = np.subtract(measurements, predicted)
         residual[:, 1:] = wrap_angle(residual[:, 1:])
-        _kalman_update(self, np.ravel(measurements), residual.ravel(), H, _block_diagonal(R), self._headings)
+        _kalman_update(self, np.ravel(measurements), residual.ravel(), H, block_diagonal(R), self._headings)
         self._drop_cross_covariances()
 
     def _stacked_jacobian(self, robots: np.ndarray, blocks: np.ndarray) -> np.ndarray:

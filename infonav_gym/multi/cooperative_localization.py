@@ -30,7 +30,7 @@ from infonav_gym.world.scenarios import (
     scenario_names,
     team_route_bands,
 )
-from infonav_gym.world.world import TIME_STEP_S, World
+from infonav_gym.world.world import TIME_STEP_S, World, start_poses
 
 ESTIMATORS = ("joint", "independent")
 TEAM_SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
@@ -279,9 +279,9 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
     # ------------------------------------------------------------------ the episode
 
     def _reset_episode(self) -> None:
-        scenario, self.ekf, self._odometry_rng, self._gps_rng, self._relative_rng = start_episode(
-            self.config, self.np_random, type(self).__name__
-        )
+        scenario, poses, covariances, *generators = start_episode(self.config, self.np_random, type(self).__name__)
+        self._odometry_rng, self._gps_rng, self._relative_rng = generators
+        self.ekf = JointEKF(poses, covariances, cross_covariances=self.config["estimator"] == "joint")
         self.world.reset(scenario)
         self._true_poses = self.world.poses
         n = len(self.possible_agents)
@@ -461,18 +461,17 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
         owner: the env named in config errors.
 
     Returns:
-        ``(scenario, ekf, odometry_rng, gps_rng, relative_rng)``: the team scenario ``config["scenario"]`` (one
-        route per robot), the ``JointEKF`` at the prior and the sensors' generators.
+        ``(scenario, poses, covariances, odometry_rng, gps_rng, relative_rng)``: the team scenario
+        ``config["scenario"]`` (one route per robot), the robots' initial estimates (R, 3) and their
+        covariances (R, 3, 3) (the ``JointEKF`` prior, no cross-covariance) and the sensors' generators.
     """
     n = config["n_robots"]
     scenario = scenario_from_config(config, np_random, TEAM_SCENARIO_KEYS, owner, n)
     odometry_rng, gps_rng, relative_rng = np_random.spawn(3)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    starts = np.array([(x, y, wrap_angle(heading)) for x, y, heading in (r.start_pose for r in scenario.routes)])
-    initial = starts + pose_std * np_random.standard_normal((n, POSE_DIM))
+    initial = np.array(start_poses(scenario)) + pose_std * np_random.standard_normal((n, POSE_DIM))
     covariances = np.repeat(np.diag(pose_std**2)[None], n, axis=0)
-    ekf = JointEKF(initial, covariances, cross_covariances=config["estimator"] == "joint")
-    return scenario, ekf, odometry_rng, gps_rng, relative_rng
+    return scenario, initial, covariances, odometry_rng, gps_rng, relative_rng
 
 
 def team_observations(

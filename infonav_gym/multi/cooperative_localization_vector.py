@@ -19,7 +19,7 @@ from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.ekf import POSE_DIM, block_diagonal
 from infonav_gym.multi.cooperative_localization import (
     NO_OBSERVATION,
     CooperativeLocalizationEnv,
@@ -131,11 +131,11 @@ class CooperativeLocalizationVectorEnv(InfoNavVectorEnv):
         owner = type(self._single).__name__
         self._view_restarts(copies)
         for copy in copies.tolist():
-            scenario, ekf, *generators = start_episode(self.config, self._np_randoms[copy], owner)
+            scenario, poses, covariances, *generators = start_episode(self.config, self._np_randoms[copy], owner)
             self._worlds.reset_copy(copy, scenario)
             for streams, generator in zip(self._noise, generators):  # odometry, DGPS, relative poses
                 streams.restart(copy, generator)
-            self._x[copy], self._P[copy] = ekf.x, ekf.P
+            self._x[copy], self._P[copy] = poses.ravel(), block_diagonal(covariances)
             self._geometries[copy] = StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m)
         self._elapsed[copies] = 0
         self._zone_centers, self._zone_radii_sq = self._gps_denied_zones()
