@@ -38,7 +38,7 @@ class World:
     body (position += velocity x dt, angle += angular velocity x dt). Any other step is Pymunk's: the robots' discs
     are put at their poses with their velocities and the space is stepped in substeps, so walls, obstacles and the
     other robots stop or push them for real; the executed motion is read back, not assumed. The space is built at
-    the first contact step or line-of-sight query after a ``reset``.
+    the first contact step or line-of-sight query after a ``reset`` or after a run of contact steps ends.
 
     Args:
         robot_radius_m: radius of every robot's disc [m].
@@ -72,6 +72,7 @@ class World:
         self.scenario: Scenario | None = None
         self._space: pymunk.Space | None = None
         self._robot_bodies: list[pymunk.Body] = []
+        self._in_contact = False  # the last step was a Pymunk contact step
         self.waypoint_indices: list[int] = []
         self._poses: list[tuple[float, float, float]] = []  # true poses as of the last reset or step
         self._waypoints: list[list[list[float]]] = []
@@ -83,8 +84,7 @@ class World:
     def reset(self, scenario: Scenario) -> None:
         """Put one robot at the start of each of ``scenario``'s routes (a fresh space is built when first needed)."""
         self.scenario = scenario
-        self._space = None
-        self._robot_bodies = []
+        self._space, self._robot_bodies, self._in_contact = None, [], False
         self._poses = start_poses(scenario)
         self._waypoints = [route.waypoints.tolist() for route in scenario.routes]
         self.waypoint_indices = [0] * len(scenario.routes)
@@ -161,6 +161,7 @@ class World:
         if self._contact_within([speed for speed, _ in controls], dt):
             self.drive_in_contact(controls, dt)
         else:
+            self.end_contacts()
             self._poses = [
                 (
                     x + speed * math.cos(heading) * dt,
@@ -186,6 +187,16 @@ class World:
         for _ in range(substeps):
             space.step(dt / substeps)
         self._poses = [(*body.position, wrap_angle(body.angle)) for body in self._robot_bodies]
+        self._in_contact = True
+
+    def end_contacts(self) -> None:
+        """A free step ends a run of contact steps: drop the space, so the next run starts from a fresh one.
+
+        Pymunk remembers recent contacts to warm-start its solver; a fresh space per run makes every run start
+        alike, whatever came before, and frees the space's memory (a few hundred kB) while the robots roam.
+        """
+        if self._in_contact:
+            self._space, self._robot_bodies, self._in_contact = None, [], False
 
     def set_poses(self, poses) -> None:
         """Put the robots at ``poses`` (R, 3) [m, m, rad] (a batched world stepping this one's free motion)."""

@@ -35,6 +35,7 @@ class WorldBatch:
         self._worlds = [World(**world_args) for _ in range(n_copies)]  # reset when a copy first needs Pymunk
         self._scenarios: list[Scenario | None] = [None] * n_copies
         self._world_is_stale = np.ones(n_copies, dtype=bool)
+        self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
         reference = self._worlds[0]
         self._radius_m = reference.robot_radius_m
         self._tolerance_m = reference.waypoint_tolerance_m
@@ -73,6 +74,7 @@ class WorldBatch:
             )
         self._scenarios[copy] = scenario
         self._world_is_stale[copy] = True
+        self._in_contact[copy] = False
         self.poses[copy] = start_poses(scenario)
         longest = max(len(route.waypoints) for route in routes)
         if longest > self._waypoints.shape[2]:
@@ -133,7 +135,11 @@ class WorldBatch:
             ],
             axis=-1,
         )
-        for row in np.flatnonzero(self._contact_within(copies, before, speeds, dt)).tolist():
+        contact = self._contact_within(copies, before, speeds, dt)
+        for copy in copies[self._in_contact[copies] & ~contact].tolist():
+            self._worlds[copy].end_contacts()  # as the single World does on a free step
+        self._in_contact[copies] = contact
+        for row in np.flatnonzero(contact).tolist():
             copy = int(copies[row])
             world = self._worlds[copy]
             if self._world_is_stale[copy]:
