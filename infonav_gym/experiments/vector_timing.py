@@ -135,11 +135,12 @@ def vmas_navigation_run(num_envs: int, seed: int) -> VectorRun:
         "navigation", num_envs=num_envs, device="cpu", n_agents=VMAS_AGENTS, max_steps=VMAS_MAX_STEPS, seed=seed
     )
     rng = np.random.default_rng(seed)
-    shapes = [(num_envs, *env.action_space[agent].shape) for agent in range(VMAS_AGENTS)]
+    spaces = [env.action_space[agent] for agent in range(VMAS_AGENTS)]
 
     def step() -> None:
         with _one_torch_thread(torch):
-            actions = [torch.from_numpy(rng.uniform(-1.0, 1.0, shape).astype(np.float32)) for shape in shapes]
+            forces = [rng.uniform(space.low, space.high, (num_envs, *space.shape)) for space in spaces]
+            actions = [torch.from_numpy(force.astype(np.float32)) for force in forces]
             dones = env.step(actions)[2]
             for index in torch.nonzero(dones).flatten().tolist():
                 env.reset_at(index, return_observations=False)
@@ -181,6 +182,9 @@ def peak_rss_growth_kb_per_env(env_id: str, num_envs: int, steps: int, seed: int
 
 def kb_per_env(env_id: str, num_envs: int, steps: int = MEMORY_STEPS, seed: int = 0) -> float:
     """Memory per sub-env [kB] of ``env_id``'s vector env: ``peak_rss_growth_kb_per_env`` in a fresh subprocess.
+
+    The subprocess imports ``infonav_gym`` only, so ``env_id`` must be registered by that import (or carry
+    Gymnasium's ``module:`` prefix naming the module that registers it).
 
     Raises:
         RuntimeError: when the subprocess fails (its error output is in the message).
