@@ -69,10 +69,25 @@ def transform_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, flo
 
 def distance_to_loop(point, loop) -> float:
     """Shortest distance [m] from ``point`` (2,) to the closed polyline ``loop`` (W, 2); one vertex is a point."""
-    starts = np.asarray(loop, dtype=float).reshape(-1, 2)
-    point = np.asarray(point, dtype=float)
-    direction = np.roll(starts, -1, axis=0) - starts
-    length_sq = np.einsum("ij,ij->i", direction, direction)
-    along = np.einsum("ij,ij->i", point - starts, direction)
-    t = np.clip(np.divide(along, length_sq, out=np.zeros_like(along), where=length_sq > 0), 0, 1)
-    return float(np.min(np.linalg.norm(starts + t[:, None] * direction - point, axis=1)))
+    return float(ClosedLoop(loop).distances(np.asarray(point, dtype=float)[None])[0])
+
+
+class ClosedLoop:
+    """A closed polyline (W, 2) [m] whose edges are prepared once, for the distances of many points."""
+
+    def __init__(self, loop):
+        self._starts = np.asarray(loop, dtype=float).reshape(-1, 2)
+        self._directions = np.roll(self._starts, -1, axis=0) - self._starts
+        direction_x, direction_y = self._directions.T
+        self._length_sq = direction_x * direction_x + direction_y * direction_y
+
+    def distances(self, points) -> np.ndarray:
+        """Shortest distance [m] from each of ``points`` (M, 2) to the loop (M,)."""
+        points = np.asarray(points, dtype=float)
+        (start_x, start_y), (direction_x, direction_y) = self._starts.T, self._directions.T
+        along = (points[:, None, 0] - start_x) * direction_x + (points[:, None, 1] - start_y) * direction_y
+        degenerate = self._length_sq <= 0
+        t = np.where(degenerate, 0.0, np.clip(along / np.where(degenerate, 1.0, self._length_sq), 0.0, 1.0))
+        gap_x = start_x + t * direction_x - points[:, None, 0]
+        gap_y = start_y + t * direction_y - points[:, None, 1]
+        return np.sqrt(np.min(gap_x * gap_x + gap_y * gap_y, axis=1))

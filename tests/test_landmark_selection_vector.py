@@ -110,6 +110,44 @@ def test_sub_envs_equal_the_single_env_in_other_configs(config):
     assert _run_in_lockstep(3, 5, n_steps=35, horizon=15, **config) == 6
 
 
+@pytest.mark.parametrize("config", [{}, {"mapping": True}], ids=["known-map", "mapping"])
+def test_same_step_autoreset_gives_the_single_envs_last_and_reset_outputs(config):
+    n_envs, seed = 3, 4
+    vector = gym.make_vec(ENV_ID, num_envs=n_envs, autoreset_mode="same_step", horizon=7, **config)
+    assert vector.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    singles = [gym.make(ENV_ID, horizon=7, **config) for _ in range(n_envs)]
+    vector.reset(seed=seed)
+    for copy, single in enumerate(singles):
+        single.reset(seed=seed + copy)
+    rng, endings = np.random.default_rng(0), 0
+    for step in range(1, 20):
+        actions = rng.integers(0, 8, n_envs)
+        observations, rewards, terminations, truncations, info = vector.step(actions)
+        for copy, single in enumerate(singles):
+            where = f"sub-env {copy}, step {step}"
+            single_observation, reward, terminated, truncated, single_info = single.step(actions[copy])
+            assert abs(rewards[copy] - reward) <= TOLERANCE and truncations[copy] == truncated, where
+            assert not terminations[copy] and ("_final_obs" in info) == truncations.any(), where  # as SyncVectorEnv
+            if truncated:
+                endings += 1
+                np.testing.assert_allclose(info["final_obs"][copy], single_observation, atol=TOLERANCE, err_msg=where)
+                _assert_sub_env_matches(info["final_info"], copy, single_info, where)
+                single_observation, single_info = single.reset()
+                single_info = {**single_info, "reward_terms": {}}
+            elif truncations.any():
+                assert info["final_obs"][copy] is None and not info["_final_info"][copy], where
+            np.testing.assert_allclose(observations[copy], single_observation, rtol=0, atol=TOLERANCE, err_msg=where)
+            _assert_sub_env_matches(info, copy, single_info, where)
+    assert endings == 2 * n_envs
+
+
+def test_an_unknown_autoreset_mode_is_a_clear_error():
+    with pytest.raises(
+        ValueError, match="autoreset_mode of LandmarkSelectionVectorEnv must be one of 'next_step', 'same_step'"
+    ):
+        LandmarkSelectionVectorEnv(num_envs=2, autoreset_mode="disabled")
+
+
 def _trajectory(env: gym.vector.VectorEnv, seed, n_steps: int = 30) -> list:
     steps = [env.reset(seed=seed)]
     rng = np.random.default_rng(1)

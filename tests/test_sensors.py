@@ -141,3 +141,17 @@ def test_relative_pose_sensor_checks_its_heading_noise_range():
 def test_gps_outages_must_be_a_sequence_of_triples(spec):
     with pytest.raises(ValueError, match="gps_outages must be a sequence of"):
         parse_outages(spec, 3)
+
+
+def test_batched_measurements_given_the_noise_equal_the_single_draws():
+    rng = np.random.default_rng(3)
+    sensor, odometry = RangeBearingSensor(range_std_per_m=0.05), OdometrySensor()
+    poses = np.column_stack([rng.uniform(-10, 10, (50, 2)), rng.uniform(-math.pi, math.pi, 50)])
+    landmarks, controls = rng.uniform(-10, 10, (50, 2)), rng.uniform(-1, 1, (50, 2))
+    noise = np.random.default_rng(9).standard_normal((50, 2))
+    draws = np.random.default_rng(9)
+    single = [sensor.measure(pose, landmark, draws) for pose, landmark in zip(poses, landmarks)]
+    np.testing.assert_allclose(sensor.measure_with_noise(poses, landmarks, noise), single, rtol=0, atol=1e-12)
+    draws = np.random.default_rng(9)
+    single = [odometry.measure(control, draws) for control in controls]
+    np.testing.assert_array_equal(odometry.measure_with_noise(controls, noise), single)

@@ -245,6 +245,20 @@ def test_stack_pads_with_invalid_shapes():
     assert not stacked.disc_centers.flags.writeable
 
 
+def test_with_copies_equals_stacking_the_replaced_list_up_to_padding():
+    rng = np.random.default_rng(4)
+    geometries = [StaticGeometry.from_scenario(build_scenario("field", rng, n_obstacles=n), 0.3) for n in (2, 4, 3)]
+    corridor = StaticGeometry.from_scenario(build_scenario("corridor", rng), 0.3)
+    bigger = StaticGeometry.from_scenario(build_scenario("field", rng, n_obstacles=6), 0.3)
+    replaced = StaticGeometry.stack(geometries).with_copies([2, 0], StaticGeometry.stack([bigger, corridor]))
+    expected = StaticGeometry.stack([corridor, geometries[1], bigger])
+    for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid", "disc_centers", "disc_radii", "disc_valid"):
+        np.testing.assert_array_equal(getattr(replaced, name), getattr(expected, name), err_msg=name)
+    assert not replaced.disc_valid.flags.writeable
+    with pytest.raises(ValueError, match="2 copies to replace, but the replacement holds 1"):
+        replaced.with_copies([0, 1], corridor)
+
+
 CORRIDOR = build_scenario("corridor", np.random.default_rng(0))
 GEOMETRY = StaticGeometry.from_scenario(CORRIDOR, 0.3)
 ORIGIN, TARGETS, CENTERS, RADII = np.zeros((1, 2)), np.ones((1, 1, 2)), np.zeros((1, 1, 2)), np.ones((1, 1))

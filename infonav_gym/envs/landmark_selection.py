@@ -152,10 +152,10 @@ class LandmarkSelectionEnv(InfoNavEnv):
         return low, high
 
     def _reset_episode(self) -> None:
-        owner = type(self).__name__
-        self.ekf, self._odometry_rng, self._measurement_rng = start_episode(
-            self.config, self.world, self.np_random, owner
+        scenario, self.ekf, self._odometry_rng, self._measurement_rng = start_episode(
+            self.config, self.np_random, type(self).__name__
         )
+        self.world.reset(scenario)
         self._true_pose = self.world.pose
         self._true_path = PathHistory(self._true_pose[:2])
         self._estimated_path = PathHistory(self.ekf.x[:2])
@@ -246,27 +246,29 @@ class LandmarkSelectionEnv(InfoNavEnv):
         )
 
 
-def start_episode(config: dict, world: World, np_random: np.random.Generator, owner: str):
-    """Start an episode of ``LandmarkSelection-v0``: reset ``world`` and draw the estimator's prior from ``np_random``.
+def start_episode(config: dict, np_random: np.random.Generator, owner: str):
+    """Start an episode of ``LandmarkSelection-v0``: draw its scenario and the estimator's prior from ``np_random``.
 
     Draws in a fixed order (the scenario, the sensors' generators, the initial estimate, the mapped landmarks'
     estimates), so the single and the vector env give the same episode for the same generator.
 
     Args:
         config: a checked ``LandmarkSelectionEnv`` config.
-        world: the world to reset to the scenario ``config["scenario"]`` (one route, <= ``n_candidates`` landmarks).
         np_random: the episode's generator.
         owner: the env named in config errors.
 
     Returns:
-        ``(ekf, odometry_rng, measurement_rng)``: the ``PoseEKF`` at the prior and the sensors' generators.
+        ``(scenario, ekf, odometry_rng, measurement_rng)``: the scenario ``config["scenario"]`` (one route,
+        <= ``n_candidates`` landmarks), the ``PoseEKF`` at the prior and the sensors' generators.
     """
-    world.reset(scenario_from_config(config, np_random, SCENARIO_KEYS, owner, 1, max_landmarks=config["n_candidates"]))
+    scenario = scenario_from_config(config, np_random, SCENARIO_KEYS, owner, 1, max_landmarks=config["n_candidates"])
     odometry_rng, measurement_rng = np_random.spawn(2)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    initial_pose = world.pose + pose_std * np_random.standard_normal(POSE_DIM)
+    x, y, heading = scenario.routes[0].start_pose
+    initial_pose = np.array([x, y, wrap_angle(heading)]) + pose_std * np_random.standard_normal(POSE_DIM)
     if not config["mapping"]:
-        return PoseEKF(initial_pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
-    landmarks, prior_std = world.landmarks, config["landmark_prior_std_m"]
+        return scenario, PoseEKF(initial_pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
+    landmarks, prior_std = scenario.landmarks, config["landmark_prior_std_m"]
     estimates = landmarks + prior_std * np_random.standard_normal(landmarks.shape)
-    return PoseEKF(initial_pose, np.diag(pose_std**2), estimates, prior_std**2), odometry_rng, measurement_rng
+    ekf = PoseEKF(initial_pose, np.diag(pose_std**2), estimates, prior_std**2)
+    return scenario, ekf, odometry_rng, measurement_rng

@@ -2,9 +2,10 @@
 
 ``gym.make_vec("infonav/LandmarkSelection-v0", num_envs=N, **config)`` returns it. The estimation (EKF
 prediction, range-bearing updates, expected gains, log-determinants) and the visibility run batched over
-the copies (``estimation.batched``, ``world.visibility``); the physics keeps one Pymunk ``World`` per copy
-and the sensor noise one generator per copy, drawn in the single env's order. So sub-env ``i`` after
-``reset(seed=s)`` gives the numbers of ``gym.make("infonav/LandmarkSelection-v0")`` after ``reset(seed=s + i)``.
+the copies (``estimation.batched``, ``world.visibility``), the physics in a ``WorldBatch`` (numpy free motion, a
+copy's own Pymunk space for its contact steps) and the sensor noise from one stream per copy (``NoiseStreams``,
+the single env's generators drawn ahead). So sub-env ``i`` after ``reset(seed=s)`` gives the numbers of
+``gym.make("infonav/LandmarkSelection-v0")`` after ``reset(seed=s + i)``.
 """
 
 from __future__ import annotations
@@ -17,9 +18,11 @@ from gymnasium.vector.utils import batch_space
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv, start_episode
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision, batched_info, batched_observation
+from infonav_gym.envs.noise_streams import NoiseStreams
+from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
 from infonav_gym.estimation import batched
 from infonav_gym.world.visibility import StaticGeometry
-from infonav_gym.world.world import World
+from infonav_gym.world.world_batch import WorldBatch
 
 
 class LandmarkSelectionVectorEnv(VectorEnv):
@@ -33,26 +36,38 @@ class LandmarkSelectionVectorEnv(VectorEnv):
     bool masks for ``MaskablePPO``.
 
     ## Autoreset
-    ``NEXT_STEP`` (``metadata["autoreset_mode"]``), as Gymnasium's ``CartPoleVectorEnv``: the step after a
-    sub-env's episode ended resets it (its action is ignored), with reward 0, not terminated nor truncated,
-    and its reset info (``reward_terms`` masked out). A sub-env reset this way continues its own generator,
-    as the single env's ``reset()`` without a seed does.
+    ``autoreset_mode`` (``metadata["autoreset_mode"]``) is Gymnasium's ``NEXT_STEP`` by default, as its
+    ``CartPoleVectorEnv``: the step after a sub-env's episode ended resets it (its action is ignored), with
+    reward 0, not terminated nor truncated, and its reset info (``reward_terms`` masked out). With
+    ``SAME_STEP`` (what SB3-style training wants) the step that ends an episode returns the reset
+    observation and info, with the last observation and info in ``info["final_obs"]`` (an object array,
+    ``None`` for the others) and ``info["final_info"]``, masked by ``info["_final_obs"]`` / ``"_final_info"``.
+    A sub-env reset this way continues its own generator, as the single env's ``reset()`` without a seed does.
 
     ## Arguments
-    ``num_envs`` (N >= 1) and any key of ``LandmarkSelectionEnv.default_config()``, checked as the single
-    env checks them. With ``mapping=True`` every copy's scenario must have the same number of landmarks
+    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode`` or its value, ``"NextStep"`` /
+    ``"SameStep"``) and any key of ``LandmarkSelectionEnv.default_config()``, checked as the single env
+    checks them. With ``mapping=True`` every copy's scenario must have the same number of landmarks
     (the stacked states share their size). Rendering is not implemented yet.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    _AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
-    def __init__(self, num_envs: int = 1, render_mode: str | None = None, **config):
+    def __init__(
+        self,
+        num_envs: int = 1,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **config,
+    ):
+        owner = type(self).__name__
         if type(num_envs) is not int or num_envs < 1:
-            raise ValueError(f"num_envs of LandmarkSelectionVectorEnv must be an int >= 1, got {num_envs!r}")
+            raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
         if render_mode is not None:
-            raise ValueError(
-                f"LandmarkSelectionVectorEnv does not render yet: render_mode must be None, got {render_mode!r}"
-            )
+            raise ValueError(f"{owner} does not render yet: render_mode must be None, got {render_mode!r}")
+        self.autoreset_mode = autoreset_mode_of(autoreset_mode, self._AUTORESET_MODES, owner)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self._single = LandmarkSelectionEnv(**config)  # checks the config as the single env does
         self.config = self._single.config
         self.num_envs = num_envs
@@ -63,14 +78,11 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._sensor, self._odometry = self._single.sensor, self._single.odometry
         self._odometry_covariance = self._odometry.noise_covariance()
-        self._worlds = [World() for _ in range(num_envs)]
+        self._worlds = WorldBatch(num_envs)
+        self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
-        self._odometry_rngs: list[np.random.Generator | None] = [None] * num_envs
-        self._measurement_rngs: list[np.random.Generator | None] = [None] * num_envs
-        self._geometries: list[StaticGeometry | None] = [None] * num_envs
         self._x = self._P = self._decision = self._geometry = None
         self._elapsed = np.zeros(num_envs, dtype=int)
-        self._true_poses = np.zeros((num_envs, 3))
         n_candidates = self.config["n_candidates"]
         self._landmarks = np.zeros((num_envs, n_candidates, 2))
         self._exists = np.zeros((num_envs, n_candidates), dtype=bool)
@@ -88,14 +100,17 @@ class LandmarkSelectionVectorEnv(VectorEnv):
             ValueError: for a seed that is not None, an int or a list of N ints / None, or any options.
         """
         if options:
-            raise ValueError(f"LandmarkSelectionVectorEnv.reset takes no options, got {sorted(options)}")
+            raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
         for copy, copy_seed in enumerate(self._copy_seeds(seed)):
             if copy_seed is not None or self._np_randoms[copy] is None:
                 self._np_randoms[copy] = seeding.np_random(copy_seed)[0]
-        self._reset_copies(np.arange(self.num_envs))
+        everyone = np.arange(self.num_envs)
+        self._geometry = self._reset_copies(everyone)
         self._prev_done[:] = False
         nothing = np.zeros(self.num_envs)
-        return self._outputs(np.zeros(self.num_envs, dtype=bool), np.full(self.num_envs, -1), nothing)
+        return self._outputs(
+            everyone, self._geometry, np.zeros(self.num_envs, dtype=bool), np.full(self.num_envs, -1), nothing
+        )
 
     def _copy_seeds(self, seed) -> list[int | None]:
         if _is_seed(seed):
@@ -103,66 +118,83 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         seeds = list(seed) if isinstance(seed, (list, tuple)) else []
         if len(seeds) != self.num_envs or not all(_is_seed(item) for item in seeds):
             raise ValueError(
-                f"seed of LandmarkSelectionVectorEnv.reset must be None, an int >= 0 or a list of {self.num_envs} "
+                f"seed of {type(self).__name__}.reset must be None, an int >= 0 or a list of {self.num_envs} "
                 f"such seeds (one per sub-env), got {seed!r}"
             )
         return [None if item is None else int(item) for item in seeds]
 
-    def _reset_copies(self, copies: np.ndarray) -> None:
-        """Start a new episode in each of ``copies`` from its own generator, as the single env's reset does."""
-        owner = type(self._single).__name__
+    def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
+        """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
+        owner, geometries = type(self).__name__, []
         for copy in copies.tolist():
-            world = self._worlds[copy]
-            ekf, self._odometry_rngs[copy], self._measurement_rngs[copy] = start_episode(
-                self.config, world, self._np_randoms[copy], owner
-            )
+            scenario, ekf, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy], owner)
             if self._x is None or len(copies) == self.num_envs and copy == 0:
                 self._x, self._P = np.zeros((self.num_envs, ekf.dim_x)), np.zeros((self.num_envs, ekf.dim_x, ekf.dim_x))
             if ekf.dim_x != self._x.shape[1]:
                 raise ValueError(
-                    f"sub-env {copy} of LandmarkSelectionVectorEnv: with mapping=True every copy needs the same number "
-                    f"of landmarks; scenario {world.scenario.name!r} has {ekf.n_landmarks}, the other copies "
-                    f"{(self._x.shape[1] - 3) // 2}"
+                    f"sub-env {copy} of {owner}: with mapping=True every copy needs the same number of landmarks; "
+                    f"scenario {scenario.name!r} has {ekf.n_landmarks}, the other copies {(self._x.shape[1] - 3) // 2}"
                 )
+            self._worlds.reset_copy(copy, scenario)
+            self._odometry_noise.restart(copy, odometry_rng)
+            self._measurement_noise.restart(copy, measurement_rng)
             self._x[copy], self._P[copy] = ekf.x, ekf.P
-            n_landmarks = len(world.landmarks)
+            n_landmarks = len(scenario.landmarks)
             self._landmarks[copy] = 0.0
-            self._landmarks[copy, :n_landmarks] = world.landmarks
+            self._landmarks[copy, :n_landmarks] = scenario.landmarks
             self._exists[copy] = np.arange(self.config["n_candidates"]) < n_landmarks
-            self._true_poses[copy] = world.pose
-            self._geometries[copy] = StaticGeometry.from_world(world)
+            geometries.append(StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m))
         self._elapsed[copies] = 0
-        self._geometry = StaticGeometry.stack(self._geometries)
+        return StaticGeometry.stack(geometries)
 
     def step(self, actions):
-        """Act in every sub-env (reset those whose episode ended at the last step, see the class).
+        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class).
 
         Raises:
             ValueError: for actions that are not N integers of the action space, or, with
                 ``invalid_action="raise"``, a masked action (each naming its sub-env).
         """
         if self._decision is None:
-            raise RuntimeError("LandmarkSelectionVectorEnv: call reset() before step()")
+            raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
         actions = self._checked_actions(actions)
         resetting = self._prev_done.copy()
-        chosen = self._chosen_actions(actions, ~resetting)
+        acting = ~resetting
+        chosen = self._chosen_actions(actions, acting)
         rewards = self._observe(chosen)
-        acting = np.flatnonzero(~resetting)
-        self._elapsed[acting] += 1
-        self._advance(acting)
-        if resetting.any():
-            self._reset_copies(np.flatnonzero(resetting))
-        truncated = ~resetting & (self._elapsed >= self.config["horizon"])
-        observation, info = self._outputs(~resetting, chosen, rewards)
-        self._prev_done = truncated.copy()
-        return observation, rewards, np.zeros(self.num_envs, dtype=bool), truncated, info
+        stepped = np.flatnonzero(acting)
+        self._elapsed[stepped] += 1
+        self._advance(stepped)
+        truncated = acting & (self._elapsed >= self.config["horizon"])
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            if resetting.any():
+                self._geometry = self._geometry.with_copies(
+                    np.flatnonzero(resetting), self._reset_copies(np.flatnonzero(resetting))
+                )
+            observation, info = self._outputs(np.arange(self.num_envs), self._geometry, acting, chosen, rewards)
+            self._prev_done = truncated
+            return observation, rewards, terminated, truncated, info
+        everyone = np.arange(self.num_envs)
+        observation, info = self._outputs(everyone, self._geometry, acting, chosen, rewards)
+        ended = np.flatnonzero(truncated)
+        if ended.size:
+            final_infos = final_step_infos(observation, info, truncated)
+            geometry = self._reset_copies(ended)
+            self._geometry = self._geometry.with_copies(ended, geometry)
+            reset_observation, reset_info = self._outputs(
+                ended, geometry, np.zeros(ended.size, dtype=bool), np.full(ended.size, -1), np.zeros(ended.size)
+            )
+            observation[ended] = reset_observation
+            set_rows(info, ended, reset_info)
+            info.update(final_infos)
+        return observation, rewards, terminated, truncated, info
 
     def _checked_actions(self, actions) -> np.ndarray:
         array = np.asarray(actions)
         n_candidates = self.config["n_candidates"]
         if array.shape != (self.num_envs,) or array.dtype.kind not in "iu":
             raise ValueError(
-                f"actions of LandmarkSelectionVectorEnv must be an integer array of shape ({self.num_envs},), one "
+                f"actions of {type(self).__name__} must be an integer array of shape ({self.num_envs},), one "
                 f"per sub-env, in [0, {n_candidates - 1}]; got {array.dtype} of shape {array.shape}"
             )
         outside = np.flatnonzero((array < 0) | (array >= n_candidates))
@@ -188,67 +220,62 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         """Update each observing copy's EKF with a noisy measurement of its chosen landmark; the realized MI (N,)."""
         decision = self._decision
         observed, predicted, H, R = batched.select_candidates(chosen, decision.predicted, decision.H, decision.R)
-        measurements = np.zeros((self.num_envs, 2))
-        sensor = self._sensor
-        for copy in np.flatnonzero(observed).tolist():
-            landmark = self._landmarks[copy, chosen[copy]]
-            measurements[copy] = sensor.measure(self._true_poses[copy], landmark, self._measurement_rngs[copy])
         rewards = np.zeros(self.num_envs)
-        if observed.any():
-            self._x, self._P = batched.range_bearing_update(
-                self._x, self._P, measurements, predicted, H, R, observed, check_input=False
-            )
-            posterior_log_dets = np.linalg.slogdet(self._P[observed])[1]
-            rewards[observed] = 0.5 * (decision.prior_log_det[observed] - posterior_log_dets)
+        observers = np.flatnonzero(observed)
+        if not observers.size:
+            return rewards
+        measurements = np.zeros((self.num_envs, 2))
+        landmarks = self._landmarks[observers, chosen[observers]]
+        noise = self._measurement_noise.take(observers)
+        measurements[observers] = self._sensor.measure_with_noise(self._worlds.poses[observers, 0], landmarks, noise)
+        self._x, self._P = batched.range_bearing_update(
+            self._x, self._P, measurements, predicted, H, R, observed, check_input=False
+        )
+        posterior_log_dets = np.linalg.slogdet(self._P[observers])[1]
+        rewards[observers] = 0.5 * (decision.prior_log_det[observers] - posterior_log_dets)
         return rewards
 
     def _advance(self, copies: np.ndarray) -> None:
         """Step the worlds of ``copies`` and predict their EKFs from noisy odometry."""
         if not copies.size:
             return
-        dt, odometry = self.config["time_step_s"], self._odometry
-        readings = np.zeros((len(copies), 2))
-        for row, copy in enumerate(copies.tolist()):
-            control = self._worlds[copy].step(dt)[0]
-            self._true_poses[copy] = self._worlds[copy].pose
-            readings[row] = odometry.measure(control, self._odometry_rngs[copy])
+        dt = self.config["time_step_s"]
+        controls = self._worlds.step(dt, copies)[:, 0]
+        readings = self._odometry.measure_with_noise(controls, self._odometry_noise.take(copies))
         self._x[copies], self._P[copies] = batched.predict_pose(
             self._x[copies], self._P[copies], readings, dt, self._odometry_covariance, check_input=False
         )
 
-    def _outputs(self, stepped: np.ndarray, chosen: np.ndarray, rewards: np.ndarray) -> tuple[np.ndarray, dict]:
-        """Decide again at every copy's prior; the observations and infos of this reset or step."""
-        self._decision = BatchedDecision.at_prior(
-            self._sensor,
-            self._geometry,
-            self._true_poses,
-            self._x,
-            self._P,
-            self._landmarks,
-            self._exists,
-            self.config["mapping"],
+    def _outputs(self, copies, geometry, stepped, chosen, rewards) -> tuple[np.ndarray, dict]:
+        """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos."""
+        true_poses, x, P = self._worlds.poses[copies, 0], self._x[copies], self._P[copies]
+        exists = self._exists[copies]
+        decision = BatchedDecision.at_prior(
+            self._sensor, geometry, true_poses, x, P, self._landmarks[copies], exists, self.config["mapping"]
         )
-        observation = batched_observation(
-            self._decision, self._x, self._P, self._elapsed, self._exists, self.config, self.single_observation_space
-        )
-        info = batched_info(
-            self._decision, self._x, self._true_poses, self._elapsed, stepped, chosen, rewards, self.config
-        )
+        if len(copies) == self.num_envs:
+            self._decision = decision
+        else:
+            self._decision = BatchedDecision(
+                *(set_rows(full, copies, part) for full, part in zip(self._decision, decision))
+            )
+        elapsed = self._elapsed[copies]
+        observation = batched_observation(decision, x, P, elapsed, exists, self.config, self.single_observation_space)
+        info = batched_info(decision, x, true_poses, elapsed, stepped, chosen, rewards, self.config)
         return observation, info
 
     def action_masks(self) -> np.ndarray:
         """The valid actions of each sub-env as bool (N, K); all ``True`` where none is valid (each is the no-op)."""
         if self._decision is None:
-            raise RuntimeError("LandmarkSelectionVectorEnv: call reset() before action_masks()")
+            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
         mask = self._decision.action_mask.astype(bool)
         mask[~mask.any(axis=1)] = True
         return mask
 
     def render(self):
-        raise NotImplementedError("LandmarkSelectionVectorEnv.render() is not implemented yet; render a single env")
+        raise NotImplementedError(f"{type(self).__name__}.render() is not implemented yet; render a single env")
 
     def close_extras(self, **kwargs) -> None:
-        self._worlds = []
         self._decision = None
 
 

@@ -40,7 +40,11 @@ class OdometrySensor:
     def measure(self, control, np_random: np.random.Generator) -> np.ndarray:
         """A noisy reading of the executed ``control``: (2,) -> (2,), or one per robot (N, 2) -> (N, 2)."""
         control = np.asarray(control, dtype=float)
-        return control + np_random.standard_normal(control.shape) * (self.speed_std_mps, self.turn_rate_std_rps)
+        return self.measure_with_noise(control, np_random.standard_normal(control.shape))
+
+    def measure_with_noise(self, controls, noise) -> np.ndarray:
+        """``measure`` given its standard normals ``noise`` (the shape of ``controls``, (..., 2))."""
+        return controls + noise * (self.speed_std_mps, self.turn_rate_std_rps)
 
 
 CONFIG_KEYS = {"speed_std_mps": "odometry_speed_std_mps", "turn_rate_std_rps": "odometry_turn_rate_std_rps"}

@@ -69,6 +69,17 @@ class RangeBearingSensor:
             ]
         )
 
+    def measure_with_noise(self, poses, landmarks, noise) -> np.ndarray:
+        """``measure`` of N pose-landmark pairs at once, given its standard normals: (N, 3), (N, 2), (N, 2) -> (N, 2).
+
+        ``noise[i]`` are the two numbers ``measure`` draws (``np_random.standard_normal(2)``).
+        """
+        dx, dy = landmarks[:, 0] - poses[:, 0], landmarks[:, 1] - poses[:, 1]
+        distances = np.hypot(dx, dy)
+        ranges = distances + (self.range_std_m + self.range_std_per_m * distances) * noise[:, 0]
+        bearings = wrap_angle(np.arctan2(dy, dx) - poses[:, 2] + self.bearing_std_rad * noise[:, 1])
+        return np.stack([ranges, bearings], axis=-1)
+
 
 CONFIG_KEYS = {  # the env config key of each attribute
     "range_std_m": "range_std_m",

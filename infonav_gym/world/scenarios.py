@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 from collections.abc import Callable
@@ -10,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from infonav_gym.config import Interval, ParameterError, check_arguments
-from infonav_gym.geometry import distance_to_loop
+from infonav_gym.geometry import ClosedLoop
 
 CORRIDOR_LANDMARK_COUNT = 4
 MAX_SPEED_MPS = 50.0  # fastest cruise speed of a route [m/s]
@@ -141,6 +142,32 @@ def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: in
     return accepted
 
 
+def _uniform_until_accepted(np_random, count: int, low, high, accept, what: str, max_attempts_each: int = 1000):
+    """Draw rows ``np_random.uniform(low, high)`` one attempt at a time until ``count`` pass ``accept``; those rows.
+
+    ``_rejection_sample`` for tests that take a batch of rows (M, width) -> (M,) bool and do not depend on the
+    rows accepted before: attempts are drawn ahead in batches and the generator is rewound, so it ends exactly
+    after the last attempt, as with one draw per attempt, with the same numbers.
+
+    Raises:
+        ValueError: naming ``what``, when ``count`` rows do not pass within ``max_attempts_each`` attempts each.
+    """
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    accepted, attempts_left, batch = [], max_attempts_each * max(count, 1), max(4 * count, 16)
+    while len(accepted) < count and attempts_left > 0:
+        state, size = np_random.bit_generator.state, min(batch, attempts_left)
+        rows = low + (high - low) * np_random.random((size, len(low)))  # Generator.uniform's arithmetic
+        passed = np.flatnonzero(accept(rows))[: count - len(accepted)]
+        if len(accepted) + len(passed) == count:
+            np_random.bit_generator.state = state
+            np_random.random((passed[-1] + 1, len(low)))  # consume exactly the attempts made
+        accepted.extend(rows[passed])
+        attempts_left -= size
+    if len(accepted) < count:
+        raise ValueError(f"could not place {count} {what} after many attempts: the field is too crowded")
+    return np.array(accepted).reshape(-1, len(low))
+
+
 def _polygon(center: np.ndarray, angles: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """The (W, 2) vertices at polar ``angles`` [rad] and ``radii`` [m] around ``center``."""
     return center + radii[:, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1)
@@ -167,12 +194,15 @@ def _box_walls(x_min: float, y_min: float, x_max: float, y_max: float) -> tuple:
 
 def _obstacles_clear_of(polygons: list, count: int, size_m: float, np_random: np.random.Generator) -> list:
     """``count`` round obstacles in the square field, each clear of every closed route by its radius + 2 m."""
-    return _rejection_sample(
-        count,
-        lambda: CircleObstacle(tuple(np_random.uniform(2.0, size_m - 2.0, 2)), float(np_random.uniform(0.5, 2.0))),
-        lambda o: all(distance_to_loop(np.array(o.center), polygon) > o.radius + 2.0 for polygon in polygons),
-        "obstacles clear of the routes",
+    loops = [ClosedLoop(polygon) for polygon in polygons]
+
+    def clear(rows: np.ndarray) -> np.ndarray:
+        return np.all([loop.distances(rows[:, :2]) > rows[:, 2] + 2.0 for loop in loops], axis=0)
+
+    rows = _uniform_until_accepted(
+        np_random, count, (2.0, 2.0, 0.5), (size_m - 2.0, size_m - 2.0, 2.0), clear, "obstacles clear of the routes"
     )
+    return [CircleObstacle((x, y), radius) for x, y, radius in rows.tolist()]
 
 
 def field(
@@ -198,10 +228,20 @@ def field(
     angles = 2 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
     route = _polygon(center, angles, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
     obstacles = _obstacles_clear_of([route], n_obstacles, size_m, np_random)
-    landmarks = _rejection_sample(
+    route_loop = ClosedLoop(route)
+    centers = np.array([o.center for o in obstacles], dtype=float).reshape(-1, 2)
+    clearances = np.array([o.radius + 0.5 for o in obstacles], dtype=float)
+
+    def outside_obstacles(points: np.ndarray) -> np.ndarray:
+        gaps = np.hypot(points[:, None, 0] - centers[:, 0], points[:, None, 1] - centers[:, 1])
+        return (route_loop.distances(points) > 1.0) & np.all(gaps > clearances, axis=1)
+
+    landmarks = _uniform_until_accepted(
+        np_random,
         n_landmarks,
-        lambda: np_random.uniform(1.0, size_m - 1.0, 2),
-        lambda p: distance_to_loop(p, route) > 1.0 and all(math.dist(p, o.center) > o.radius + 0.5 for o in obstacles),
+        (1.0, 1.0),
+        (size_m - 1.0, size_m - 1.0),
+        outside_obstacles,
         "landmarks outside obstacles",
     )
     return Scenario(
@@ -435,14 +475,22 @@ def build_scenario(name: str, np_random: np.random.Generator, **parameters) -> S
     if name not in SCENARIOS:
         raise ValueError(f"unknown scenario {name!r}; registered: {', '.join(sorted(SCENARIOS))}")
     builder = SCENARIOS[name]
-    signature = inspect.signature(builder).parameters.values()
-    if not any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in signature):
-        named = {parameter.name for parameter in signature}
+    named = _named_parameters(builder)
+    if named is not None:
         parameters = {key: value for key, value in parameters.items() if key in named}
     scenario = builder(np_random, **parameters)
     if not isinstance(scenario, Scenario):
         raise ValueError(f"the builder of scenario {name!r} returned a {type(scenario).__name__}, not a Scenario")
     return scenario
+
+
+@functools.cache
+def _named_parameters(builder: ScenarioBuilder) -> frozenset[str] | None:
+    """The parameter names ``builder`` takes, None when it takes any keyword (``**kwargs``)."""
+    signature = inspect.signature(builder).parameters.values()
+    if any(parameter.kind is inspect.Parameter.VAR_KEYWORD for parameter in signature):
+        return None
+    return frozenset(parameter.name for parameter in signature)
 
 
 def scenario_from_config(

@@ -16,6 +16,7 @@ the degenerate cases follow Chipmunk's rules:
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -135,11 +136,54 @@ class StaticGeometry:
             **{name: padded(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
         )
 
+    def with_copies(self, copies, replacement: StaticGeometry) -> StaticGeometry:
+        """This geometry with copies ``copies`` (n,) replaced by the n copies of ``replacement``, padded to fit.
+
+        Raises:
+            ValueError: unless ``replacement`` holds one copy per index of ``copies``.
+        """
+        copies = np.asarray(copies, dtype=int)
+        if replacement.n_copies != len(copies):
+            raise ValueError(
+                f"StaticGeometry.with_copies: {len(copies)} copies to replace, but the replacement holds "
+                f"{replacement.n_copies}"
+            )
+        walls = max(self.wall_radii.shape[1], replacement.wall_radii.shape[1])
+        discs = max(self.disc_radii.shape[1], replacement.disc_radii.shape[1])
+
+        def merged(name: str, count: int) -> np.ndarray:
+            array, new = getattr(self, name), getattr(replacement, name)
+            result = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
+            result[:, : array.shape[1]] = array
+            result[copies] = 0
+            result[copies, : new.shape[1]] = new
+            return _read_only(result)
+
+        return StaticGeometry(
+            **{name: merged(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
+            **{name: merged(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
+        )
+
     @property
     def n_copies(self) -> int:
         return len(self.wall_radii)
 
-    @property
+    @functools.cached_property
+    def wall_boxes(self) -> np.ndarray:
+        """Chipmunk's bounding box of each wall (cpSegmentShapeCacheData) (N, S, 4) ``(left, bottom, right, top)``."""
+        return _read_only(_wall_boxes(self.wall_starts, self.wall_ends, self.wall_radii))
+
+    @functools.cached_property
+    def wall_points(self) -> np.ndarray:
+        """Each wall's ends side by side (N, S, 4) ``(x0, y0, x1, y1)`` [m]."""
+        return _read_only(np.concatenate([self.wall_starts, self.wall_ends], axis=-1))
+
+    @functools.cached_property
+    def disc_boxes(self) -> np.ndarray:
+        """Chipmunk's bounding box of each disc (cpBBNewForCircle) (N, D, 4)."""
+        return _read_only(_disc_boxes(self.disc_centers, self.disc_radii))
+
+    @functools.cached_property
     def culled(self) -> np.ndarray:
         """Whether Chipmunk culls each copy's shapes by bounding box: it has more than one static shape (N,) bool."""
         return self.wall_valid.sum(axis=1) + self.disc_valid.sum(axis=1) > 1
@@ -238,38 +282,52 @@ def _hits_discs(origin_x, origin_y, target_x, target_y, center_x, center_y, r) -
     return inside | _hits_circles(center_x, center_y, r, origin_x, origin_y, target_x, target_y)
 
 
-def _hits(origins, targets, shapes, radii, boxes, culled, exact_test, queried=True) -> np.ndarray:
-    """(N, K, M) bool: ``exact_test`` of each query against each shape, where Chipmunk's tree would run it.
+def _pair_hits(copy, origins, targets, shapes, radii, boxes, usable, culled, exact_test):
+    """Which shapes M queries hit, where Chipmunk's tree would test them: ``(query index, shape index)`` of each hit.
 
-    The tree runs it where the query enters the shape's box (or a one-leaf tree is not culled); that
+    The tree tests a shape where the query enters its box (or a one-leaf tree is not culled); that
     needs the query's own box to touch the shape's, a cheap first filter.
 
     Args:
-        origins: (N, 2); targets: (N, K, 2); shapes: the shapes' points (N, M, P) [m]; radii: (N, M) [m];
-        boxes: the shapes' bounding boxes (N, M, 4) ``(left, bottom, right, top)`` [m];
-        culled: (N,) bool; exact_test: ``_hits_walls`` or ``_hits_discs``;
-        queried: the queries to run (N, K) bool (True: all); the others give False.
+        copy: each query's copy (M,); origins, targets: the queries' ends (M, 2) [m];
+        shapes: the shapes' points (N, S, P) [m]; radii: (N, S) [m]; boxes: their bounding boxes (N, S, 4)
+        ``(left, bottom, right, top)`` [m]; usable: the real (not padding) shapes (N, S) bool;
+        culled: (N,) bool; exact_test: ``_hits_walls`` or ``_hits_discs``.
     """
-    low, high = np.minimum(origins[:, None, :], targets), np.maximum(origins[:, None, :], targets)
-    touching = (low[:, :, None, 0] <= boxes[:, None, :, 2]) & (boxes[:, None, :, 0] <= high[:, :, None, 0])
-    touching &= (low[:, :, None, 1] <= boxes[:, None, :, 3]) & (boxes[:, None, :, 1] <= high[:, :, None, 1])
-    copy, query, shape = np.nonzero((touching | ~culled[:, None, None]) & np.expand_dims(queried, -1))
-    origin_x, origin_y = origins[copy].T
-    target_x, target_y = targets[copy, query].T
-    hits = np.zeros(touching.shape, dtype=bool)
+    low, high = np.minimum(origins, targets), np.maximum(origins, targets)
+    query_boxes = boxes[copy]  # (M, S, 4)
+    touching = (low[:, None, 0] <= query_boxes[..., 2]) & (query_boxes[..., 0] <= high[:, None, 0])
+    touching &= (low[:, None, 1] <= query_boxes[..., 3]) & (query_boxes[..., 1] <= high[:, None, 1])
+    query, shape = np.nonzero((touching | ~culled[copy, None]) & usable[copy])
+    origin_x, origin_y = origins[query].T
+    target_x, target_y = targets[query].T
+    query_copy = copy[query]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        box = boxes[copy, shape].T
-        tested = _enters_box(*box, origin_x, origin_y, target_x - origin_x, target_y - origin_y) | ~culled[copy]
-        copy, query, shape = copy[tested], query[tested], shape[tested]
-        hits[copy, query, shape] = exact_test(
+        box = query_boxes[query, shape].T
+        tested = _enters_box(*box, origin_x, origin_y, target_x - origin_x, target_y - origin_y) | ~culled[query_copy]
+        query, shape, query_copy = query[tested], shape[tested], query_copy[tested]
+        hit = exact_test(
             origin_x[tested],
             origin_y[tested],
             target_x[tested],
             target_y[tested],
-            *shapes[copy, shape].T,
-            radii[copy, shape],
+            *shapes[query_copy, shape].T,
+            radii[query_copy, shape],
         )
-    return hits
+    return query[hit], shape[hit]
+
+
+def _hits(origins, targets, shapes, radii, boxes, culled, exact_test) -> np.ndarray:
+    """(N, K, S) bool: ``exact_test`` of each query against each shape, where Chipmunk's tree would run it."""
+    n_copies, n_targets = targets.shape[:2]
+    copy = np.repeat(np.arange(n_copies), n_targets)
+    usable = np.ones(radii.shape, dtype=bool)
+    query, shape = _pair_hits(
+        copy, origins[copy], targets.reshape(-1, 2), shapes, radii, boxes, usable, culled, exact_test
+    )
+    hits = np.zeros((n_copies * n_targets, radii.shape[1]), dtype=bool)
+    hits[query, shape] = True
+    return hits.reshape(n_copies, n_targets, -1)
 
 
 def _wall_boxes(starts, ends, radii) -> np.ndarray:
@@ -287,13 +345,13 @@ def _disc_boxes(centers, radii) -> np.ndarray:
     )
 
 
-def _segment_hits_segments(origins, targets, starts, ends, radii, culled, queried=True) -> np.ndarray:
+def _segment_hits_segments(origins, targets, starts, ends, radii, culled) -> np.ndarray:
     walls = np.concatenate([starts, ends], axis=-1)
-    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, _hits_walls, queried)
+    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, _hits_walls)
 
 
-def _segment_hits_discs(origins, targets, centers, radii, culled, queried=True) -> np.ndarray:
-    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, _hits_discs, queried)
+def _segment_hits_discs(origins, targets, centers, radii, culled) -> np.ndarray:
+    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, _hits_discs)
 
 
 def segment_hits_segments(origins, targets, starts, ends, radii, culled=True) -> np.ndarray:
@@ -359,13 +417,23 @@ def line_of_sight(geometry: StaticGeometry, origins, targets) -> np.ndarray:
     return _line_of_sight(geometry, origins, targets)
 
 
-def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=True) -> np.ndarray:
+def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=None) -> np.ndarray:
     """``line_of_sight`` of checked arguments, run only for the ``queried`` targets (N, K) bool (others: True)."""
-    starts, ends, culled = geometry.wall_starts, geometry.wall_ends, geometry.culled
-    walls = _segment_hits_segments(origins, targets, starts, ends, geometry.wall_radii, culled, queried)
-    discs = _segment_hits_discs(origins, targets, geometry.disc_centers, geometry.disc_radii, culled, queried)
-    blocked = np.any(walls & geometry.wall_valid[:, None, :], axis=2)
-    return ~(blocked | np.any(discs & geometry.disc_valid[:, None, :], axis=2))
+    copy, target = np.nonzero(np.ones(targets.shape[:2], dtype=bool) if queried is None else queried)
+    query_origins, query_targets = origins[copy], targets[copy, target]
+    blocked = np.zeros(len(copy), dtype=bool)
+    shapes = (
+        (geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, geometry.wall_valid, _hits_walls),
+        (geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, geometry.disc_valid, _hits_discs),
+    )
+    for points, radii, boxes, usable, exact_test in shapes:
+        hit_queries, _ = _pair_hits(
+            copy, query_origins, query_targets, points, radii, boxes, usable, geometry.culled, exact_test
+        )
+        blocked[hit_queries] = True
+    clear = np.ones(targets.shape[:2], dtype=bool)
+    clear[copy, target] = ~blocked
+    return clear
 
 
 def in_coverage(sensor: RangeBearingSensor, poses, targets) -> np.ndarray:

@@ -31,11 +31,14 @@ WORLD_ARGUMENTS = {  # the allowed arguments of World
 
 
 class World:
-    """Owns the ``pymunk.Space`` (rebuilt on every ``reset``) and the robots driving in it.
+    """The robots of a scenario driving in a Pymunk world of walls and round obstacles.
 
-    Each robot is a dynamic disc whose velocity a waypoint controller sets before
-    every physics step, so walls, obstacles and the other robots stop or push it
-    for real. Its executed motion is read back from Pymunk, not assumed.
+    Each robot is a dynamic disc driven by a waypoint controller. Its pose is kept here; a step in which no wall,
+    obstacle or other robot comes within reach of any robot is free motion, integrated as Pymunk integrates a free
+    body (position += velocity x dt, angle += angular velocity x dt). Any other step is Pymunk's: the robots' discs
+    are put at their poses with their velocities and the space is stepped in substeps, so walls, obstacles and the
+    other robots stop or push them for real; the executed motion is read back, not assumed. The space is built at
+    the first contact step or line-of-sight query after a ``reset``.
 
     Args:
         robot_radius_m: radius of every robot's disc [m].
@@ -43,9 +46,7 @@ class World:
         heading_gain: proportional gain of the heading controller [1/s].
         waypoint_tolerance_m: a waypoint closer than this counts as reached [m].
         wall_thickness_m: thickness of wall segments [m].
-        max_physics_step_s: longest Pymunk substep [s] near contacts; an env step is split into
-            equal substeps when a wall, obstacle or other robot is within reach of some robot,
-            else taken in one step.
+        max_physics_step_s: longest Pymunk substep [s] of a contact step, split into equal substeps.
 
     Raises:
         ParameterError: (a ``ValueError``) for an argument outside its ``WORLD_ARGUMENTS`` interval.
@@ -69,48 +70,58 @@ class World:
         for name, interval in WORLD_ARGUMENTS.items():
             interval.check("World", name, getattr(self, name))
         self.scenario: Scenario | None = None
-        self.space: pymunk.Space | None = None
-        self.robot_bodies: list[pymunk.Body] = []
+        self._space: pymunk.Space | None = None
+        self._robot_bodies: list[pymunk.Body] = []
         self.waypoint_indices: list[int] = []
         self._poses: list[tuple[float, float, float]] = []  # true poses as of the last reset or step
         self._waypoints: list[list[list[float]]] = []
-        self._static_boxes: dict[pymunk.Shape, tuple[float, float, float, float]] = {}
+        self._static_boxes: list[tuple[float, float, float, float]] = []
         self._clear_boxes: list[tuple[float, float, float, float]] = []
         self._zone_centers = np.zeros((0, 2))
         self._zone_radii_sq = np.zeros(0)
 
     def reset(self, scenario: Scenario) -> None:
-        """Build a fresh space for ``scenario`` and put one robot at the start of each of its routes."""
+        """Put one robot at the start of each of ``scenario``'s routes (a fresh space is built when first needed)."""
         self.scenario = scenario
-        self.space = pymunk.Space()
-        self.space.collision_slop = 0.01  # allowed overlap [m]
-        static_shapes = [
-            pymunk.Segment(self.space.static_body, start, end, self.wall_thickness_m / 2)
-            for start, end in scenario.walls
-        ]
-        static_shapes += [
-            pymunk.Circle(self.space.static_body, obstacle.radius, obstacle.center) for obstacle in scenario.obstacles
-        ]
-        for shape in static_shapes:
-            shape.filter = pymunk.ShapeFilter(categories=OBSTACLE_CATEGORY)
-        self.space.add(*static_shapes)
-        self.robot_bodies = []
-        for route in scenario.routes:
-            body = pymunk.Body(_ROBOT_MASS_KG, pymunk.moment_for_circle(_ROBOT_MASS_KG, 0, self.robot_radius_m))
-            body.position = route.start_pose[:2]
-            body.angle = route.start_pose[2]
-            shape = pymunk.Circle(body, self.robot_radius_m)
-            shape.filter = pymunk.ShapeFilter(categories=ROBOT_CATEGORY)
-            self.space.add(body, shape)
-            self.robot_bodies.append(body)
-        self._poses = [self._read_pose(body) for body in self.robot_bodies]
+        self._space = None
+        self._robot_bodies = []
+        self._poses = [(*route.start_pose[:2], wrap_angle(route.start_pose[2])) for route in scenario.routes]
         self._waypoints = [route.waypoints.tolist() for route in scenario.routes]
         self.waypoint_indices = [0] * len(scenario.routes)
-        self._static_boxes = {shape: tuple(shape.bb) for shape in static_shapes}
+        self._static_boxes = [tuple(box) for box in static_boxes(scenario, self.wall_thickness_m).tolist()]
         self._clear_boxes = [_EMPTY_BOX] * len(scenario.routes)
         zones = scenario.gps_denied_zones
         self._zone_centers = np.array([zone.center for zone in zones], dtype=float).reshape(-1, 2)
         self._zone_radii_sq = np.array([zone.radius for zone in zones], dtype=float) ** 2
+
+    @property
+    def space(self) -> pymunk.Space:
+        """The Pymunk space of the scenario's walls, obstacles and robot discs (built on first use)."""
+        if self._space is None:
+            self._space, self._robot_bodies = self._build_space()
+        return self._space
+
+    def _build_space(self) -> tuple[pymunk.Space, list[pymunk.Body]]:
+        space = pymunk.Space()
+        space.collision_slop = 0.01  # allowed overlap [m]
+        scenario = self.scenario
+        static_shapes = [
+            pymunk.Segment(space.static_body, start, end, self.wall_thickness_m / 2) for start, end in scenario.walls
+        ]
+        static_shapes += [
+            pymunk.Circle(space.static_body, obstacle.radius, obstacle.center) for obstacle in scenario.obstacles
+        ]
+        for shape in static_shapes:
+            shape.filter = pymunk.ShapeFilter(categories=OBSTACLE_CATEGORY)
+        space.add(*static_shapes)
+        bodies = []
+        for _ in scenario.routes:
+            body = pymunk.Body(_ROBOT_MASS_KG, pymunk.moment_for_circle(_ROBOT_MASS_KG, 0, self.robot_radius_m))
+            shape = pymunk.Circle(body, self.robot_radius_m)
+            shape.filter = pymunk.ShapeFilter(categories=ROBOT_CATEGORY)
+            space.add(body, shape)
+            bodies.append(body)
+        return space, bodies
 
     @property
     def landmarks(self) -> np.ndarray:
@@ -118,7 +129,7 @@ class World:
 
     @property
     def n_robots(self) -> int:
-        return len(self.robot_bodies)
+        return len(self._poses)
 
     @property
     def poses(self) -> np.ndarray:
@@ -129,11 +140,6 @@ class World:
     def pose(self) -> np.ndarray:
         """True pose ``[x, y, heading]`` of robot 0 (the only robot of single-robot scenarios)."""
         return np.array(self._poses[0])
-
-    @staticmethod
-    def _read_pose(body: pymunk.Body) -> tuple[float, float, float]:
-        x, y = body.position
-        return x, y, wrap_angle(body.angle)
 
     def route_finished(self, robot: int = 0) -> bool:
         """True once robot ``robot``'s non-looping route has had its last waypoint reached."""
@@ -150,20 +156,40 @@ class World:
         """
         if not 0.0 < dt <= MAX_TIME_STEP_S:
             TIME_STEP_S.check("World.step", "dt", dt)
-        speeds = []
-        for robot, (body, (x, y, heading)) in enumerate(zip(self.robot_bodies, self._poses)):
-            speed, turn_rate = self._waypoint_control(robot, x, y, heading)
+        controls = [self._waypoint_control(robot, *pose) for robot, pose in enumerate(self._poses)]
+        poses_before = self._poses
+        if self._contact_within([speed for speed, _ in controls], dt):
+            self.drive_in_contact(controls, dt)
+        else:
+            self._poses = [
+                (
+                    x + speed * math.cos(heading) * dt,
+                    y + speed * math.sin(heading) * dt,
+                    wrap_angle(heading + turn * dt),
+                )
+                for (x, y, heading), (speed, turn) in zip(poses_before, controls)
+            ]
+        executed = np.empty((len(controls), 2))
+        for robot, (before, after) in enumerate(zip(poses_before, self._poses)):
+            executed[robot] = unicycle_control(before, after, dt)
+        return executed
+
+    def drive_in_contact(self, controls, dt: float) -> None:
+        """Step the Pymunk space for ``dt`` in substeps with each robot driving its ``[speed, turn_rate]`` (R, 2)."""
+        space = self.space
+        for body, (x, y, heading), (speed, turn_rate) in zip(self._robot_bodies, self._poses, controls):
+            body.position = x, y
+            body.angle = heading
             body.velocity = (speed * math.cos(heading), speed * math.sin(heading))
             body.angular_velocity = turn_rate
-            speeds.append(speed)
-        substeps = math.ceil(dt / self.max_physics_step_s - 1e-9) if self._contact_within(speeds, dt) else 1
+        substeps = math.ceil(dt / self.max_physics_step_s - 1e-9)
         for _ in range(substeps):
-            self.space.step(dt / substeps)
-        poses_before, self._poses = self._poses, [self._read_pose(body) for body in self.robot_bodies]
-        controls = np.empty((len(speeds), 2))
-        for robot, (before, after) in enumerate(zip(poses_before, self._poses)):
-            controls[robot] = unicycle_control(before, after, dt)
-        return controls
+            space.step(dt / substeps)
+        self._poses = [(*body.position, wrap_angle(body.angle)) for body in self._robot_bodies]
+
+    def set_poses(self, poses) -> None:
+        """Put the robots at ``poses`` (R, 3) [m, m, rad] (a batched world stepping this one's free motion)."""
+        self._poses = [tuple(pose) for pose in np.asarray(poses, dtype=float).tolist()]
 
     def _waypoint_control(self, robot: int, x: float, y: float, heading: float) -> tuple[float, float]:
         waypoints, route = self._waypoints[robot], self.scenario.routes[robot]
@@ -181,7 +207,7 @@ class World:
         return 0.0, 0.0
 
     def _contact_within(self, speeds: list[float], dt: float) -> bool:
-        """Whether some robot may touch a wall, an obstacle or another robot within ``dt`` (then physics substeps)."""
+        """Whether some robot may touch a wall, an obstacle or another robot within ``dt`` (then Pymunk steps)."""
         poses, contact_m = self._poses, 2 * self.robot_radius_m
         for i, (x_i, y_i, _) in enumerate(poses):
             for j in range(i + 1, len(poses)):
@@ -195,7 +221,7 @@ class World:
     def _static_shape_within(self, robot: int, reach: float) -> bool:
         """Whether a wall or obstacle's bounding box comes within ``reach`` [m] of the robot's centre.
 
-        A box around the robot found empty is remembered, so the Pymunk query runs only
+        A box around the robot found empty is remembered, so the boxes are searched only
         once the robot's reach leaves it, or near walls and obstacles.
         """
         x, y, _ = self._poses[robot]
@@ -203,17 +229,13 @@ class World:
         clear_left, clear_bottom, clear_right, clear_top = self._clear_boxes[robot]
         if clear_left <= left and clear_bottom <= bottom and right <= clear_right and top <= clear_top:
             return False
+        if any(_overlap(box, (left, bottom, right, top)) for box in self._static_boxes):
+            return True
         margin = reach + _CLEAR_BOX_MARGIN_M
         clear_box = (x - margin, y - margin, x + margin, y + margin)
-        nearby = self.space.bb_query(pymunk.BB(*clear_box), _OBSTACLES_ONLY)
-        if not nearby:
+        if not any(_overlap(box, clear_box) for box in self._static_boxes):
             self._clear_boxes[robot] = clear_box
-            return False
-        boxes = (self._static_boxes[shape] for shape in nearby)
-        return any(  # the overlap test of bb_query
-            box_left <= right and left <= box_right and box_bottom <= top and bottom <= box_top
-            for box_left, box_bottom, box_right, box_top in boxes
-        )
+        return False
 
     def line_of_sight(self, origin, targets) -> np.ndarray:
         """For each target point (N, 2), whether the straight line from ``origin`` misses every wall and obstacle.
@@ -239,3 +261,26 @@ class World:
             raise ValueError(f"positions must be an (N, 2) array of x, y [m], got shape {positions.shape}")
         offsets = positions[:, None, :] - self._zone_centers
         return np.any(np.einsum("nzi,nzi->nz", offsets, offsets) <= self._zone_radii_sq, axis=1)
+
+
+def static_boxes(scenario: Scenario, wall_thickness_m: float) -> np.ndarray:
+    """Bounding boxes ``(left, bottom, right, top)`` of the scenario's walls, then obstacles (S, 4) [m], as Pymunk's."""
+    boxes = [
+        (
+            min(a[0], b[0]) - wall_thickness_m / 2,
+            min(a[1], b[1]) - wall_thickness_m / 2,
+            max(a[0], b[0]) + wall_thickness_m / 2,
+            max(a[1], b[1]) + wall_thickness_m / 2,
+        )
+        for a, b in scenario.walls
+    ]
+    boxes += [
+        (o.center[0] - o.radius, o.center[1] - o.radius, o.center[0] + o.radius, o.center[1] + o.radius)
+        for o in scenario.obstacles
+    ]
+    return np.array(boxes, dtype=float).reshape(-1, 4)
+
+
+def _overlap(box, other) -> bool:
+    """Whether two boxes ``(left, bottom, right, top)`` overlap or touch (the test of Pymunk's ``bb_query``)."""
+    return box[0] <= other[2] and other[0] <= box[2] and box[1] <= other[3] and other[1] <= box[3]

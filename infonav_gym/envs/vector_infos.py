@@ -1,0 +1,62 @@
+"""What every native vector env shares: its autoreset mode argument, and infos as dicts of arrays.
+
+Infos follow Gymnasium's vector layout: each key holds an array with a leading sub-env dimension and a
+``_key`` bool mask of the sub-envs that have it; nested dicts (``reward_terms``) the same, recursively.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.vector import AutoresetMode
+
+
+def autoreset_mode_of(value, allowed: tuple[AutoresetMode, ...], owner: str) -> AutoresetMode:
+    """``value`` as an ``AutoresetMode``: the enum, its value (``"SameStep"``) or its name (``"same_step"``).
+
+    Raises:
+        ValueError: naming ``owner`` and the modes it allows, for anything else.
+    """
+    for mode in allowed:
+        if value is mode or (isinstance(value, str) and value.lower() in (mode.value.lower(), mode.name.lower())):
+            return mode
+    names = ", ".join(f"{mode.name.lower()!r}" for mode in allowed)
+    raise ValueError(f"autoreset_mode of {owner} must be one of {names} (or the AutoresetMode), got {value!r}")
+
+
+def set_rows(full, rows: np.ndarray, part):
+    """Write ``part``'s rows into ``full`` at ``rows`` (arrays, or dicts of them, recursively); returns ``full``."""
+    if isinstance(full, dict):
+        for key, value in full.items():
+            set_rows(value, rows, part[key])
+        return full
+    full[rows] = part
+    return full
+
+
+def final_step_infos(observation: np.ndarray, info: dict, ended: np.ndarray) -> dict:
+    """Gymnasium's ``SAME_STEP`` keys for the sub-envs ``ended`` (N,) bool: their last observation and info.
+
+    ``final_obs`` is an object array of the ended sub-envs' observations (``None`` elsewhere); ``final_info`` a
+    copy of ``info`` whose masks hold only for them; ``_final_obs`` and ``_final_info`` are ``ended``.
+    """
+    final_obs = np.full(len(ended), None, dtype=object)
+    for row in np.flatnonzero(ended).tolist():
+        final_obs[row] = observation[row].copy()
+    return {
+        "final_obs": final_obs,
+        "_final_obs": ended.copy(),
+        "final_info": _masked_copy(info, ended),
+        "_final_info": ended.copy(),
+    }
+
+
+def _masked_copy(info: dict, rows: np.ndarray) -> dict:
+    copied = {}
+    for key, value in info.items():
+        if isinstance(value, dict):
+            copied[key] = _masked_copy(value, rows)
+        elif key.startswith("_"):
+            copied[key] = value & rows
+        else:
+            copied[key] = value.copy()
+    return copied

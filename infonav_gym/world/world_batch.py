@@ -1,0 +1,189 @@
+"""``WorldBatch``: N copies of a ``World`` stepped at once on stacked arrays, for the native vector envs.
+
+Each copy is a ``World`` (R robots) whose free motion, waypoint controller and contact test run batched in
+numpy with the single ``World``'s formulas. A copy in which a wall, obstacle or other robot comes within reach of
+a robot takes the step in its own Pymunk space (``World.drive_in_contact``), as the single ``World`` does; so
+every copy moves exactly as a single ``World`` would. Per-copy Pymunk spaces (built only when a copy first needs
+one) rather than one space of tiled worlds: contact steps are rare (none in 4,000 steps of the default field),
+so the Pymunk work per step is almost nil, while a tiled space would step every copy's bodies every time.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from infonav_gym.geometry import wrap_angle
+from infonav_gym.world.scenarios import Scenario
+from infonav_gym.world.world import MAX_TIME_STEP_S, TIME_STEP_S, World, static_boxes
+
+_EMPTY_BOX = (np.inf, np.inf, -np.inf, -np.inf)  # a padding box that overlaps nothing
+
+
+class WorldBatch:
+    """N copies of a ``World``, each holding the same number R of robots.
+
+    Attributes:
+        wall_thickness_m: the copies' wall thickness [m] (their static geometry is ``StaticGeometry.from_scenario``'s).
+        poses: true poses ``[x, y, heading]`` of every copy's robots (N, R, 3), after ``reset_copy``.
+
+    Args:
+        n_copies: N >= 1.
+        **world_args: the ``World`` arguments every copy shares (``WORLD_ARGUMENTS``).
+    """
+
+    def __init__(self, n_copies: int, **world_args):
+        self._worlds = [World(**world_args) for _ in range(n_copies)]
+        reference = self._worlds[0]
+        self._radius_m = reference.robot_radius_m
+        self._tolerance_m = reference.waypoint_tolerance_m
+        self._gain = reference.heading_gain
+        self._max_turn_rate = reference.max_turn_rate_rps
+        self.wall_thickness_m = reference.wall_thickness_m
+        self.poses = np.zeros((n_copies, 0, 3))
+        self._waypoints = np.zeros((n_copies, 0, 0, 2))
+        self._n_waypoints = np.zeros((n_copies, 0), dtype=int)
+        self._waypoint_index = np.zeros((n_copies, 0), dtype=int)
+        self._route_speeds = np.zeros((n_copies, 0))
+        self._loops = np.zeros((n_copies, 0), dtype=bool)
+        self._boxes = np.full((n_copies, 0, 4), _EMPTY_BOX)
+
+    @property
+    def n_copies(self) -> int:
+        return len(self._worlds)
+
+    def scenario(self, copy: int) -> Scenario:
+        """The scenario copy ``copy`` was last reset to."""
+        return self._worlds[copy].scenario
+
+    def reset_copy(self, copy: int, scenario: Scenario) -> None:
+        """Put copy ``copy``'s robots at the starts of ``scenario``'s routes (it must have R routes, as the others).
+
+        Raises:
+            ValueError: when ``scenario`` has another number of routes than the copies reset before.
+        """
+        routes = scenario.routes
+        if copy == 0 or self.poses.shape[1] == 0:
+            self._resize_robots(len(routes))
+        if len(routes) != self.poses.shape[1]:
+            raise ValueError(
+                f"WorldBatch copy {copy}: scenario {scenario.name!r} has {len(routes)} robots, the other copies "
+                f"{self.poses.shape[1]}; every copy needs the same number"
+            )
+        world = self._worlds[copy]
+        world.reset(scenario)
+        self.poses[copy] = world.poses
+        longest = max(len(route.waypoints) for route in routes)
+        if longest > self._waypoints.shape[2]:
+            grown = np.zeros((*self._waypoints.shape[:2], longest, 2))
+            grown[:, :, : self._waypoints.shape[2]] = self._waypoints
+            self._waypoints = grown
+        for robot, route in enumerate(routes):
+            self._waypoints[copy, robot, : len(route.waypoints)] = route.waypoints
+        self._n_waypoints[copy] = [len(route.waypoints) for route in routes]
+        self._waypoint_index[copy] = 0
+        self._route_speeds[copy] = [route.speed_mps for route in routes]
+        self._loops[copy] = [route.loop for route in routes]
+        boxes = static_boxes(scenario, self.wall_thickness_m)
+        if len(boxes) > self._boxes.shape[1]:
+            grown = np.full((self.n_copies, len(boxes), 4), _EMPTY_BOX)
+            grown[:, : self._boxes.shape[1]] = self._boxes
+            self._boxes = grown
+        self._boxes[copy] = _EMPTY_BOX
+        self._boxes[copy, : len(boxes)] = boxes
+
+    def _resize_robots(self, n_robots: int) -> None:
+        if n_robots == self.poses.shape[1]:
+            return
+        n = self.n_copies
+        self.poses = np.zeros((n, n_robots, 3))
+        self._waypoints = np.zeros((n, n_robots, self._waypoints.shape[2], 2))
+        self._n_waypoints = np.zeros((n, n_robots), dtype=int)
+        self._waypoint_index = np.zeros((n, n_robots), dtype=int)
+        self._route_speeds = np.zeros((n, n_robots))
+        self._loops = np.zeros((n, n_robots), dtype=bool)
+
+    def step(self, dt: float, copies: np.ndarray, commands: np.ndarray | None = None) -> np.ndarray:
+        """Drive the robots of ``copies`` for ``dt`` seconds, by their waypoint controllers or by ``commands``.
+
+        Args:
+            dt: the step (0, 60] s.
+            copies: indices of the copies to step (n,).
+            commands: ``[speed, turn_rate]`` of every robot of those copies (n, R, 2), as ``CommandedWorld.command``
+                sets them; None: each robot's waypoint controller.
+
+        Returns:
+            The executed ``[speed, turn_rate]`` of every robot of ``copies`` (n, R, 2) [m/s, rad/s].
+
+        Raises:
+            ParameterError: (a ``ValueError``) unless ``dt`` is in ``TIME_STEP_S``.
+        """
+        if not 0.0 < dt <= MAX_TIME_STEP_S:
+            TIME_STEP_S.check("WorldBatch.step", "dt", dt)
+        before = self.poses[copies]
+        controls = self._waypoint_controls(copies, before) if commands is None else np.asarray(commands, dtype=float)
+        speeds, turn_rates = controls[..., 0], controls[..., 1]
+        x, y, heading = before[..., 0], before[..., 1], before[..., 2]
+        after = np.stack(
+            [
+                x + speeds * np.cos(heading) * dt,
+                y + speeds * np.sin(heading) * dt,
+                wrap_angle(heading + turn_rates * dt),
+            ],
+            axis=-1,
+        )
+        for row in np.flatnonzero(self._contact_within(copies, before, speeds, dt)).tolist():
+            world = self._worlds[int(copies[row])]
+            world.set_poses(before[row])
+            world.drive_in_contact(controls[row].tolist(), dt)
+            after[row] = world.poses
+        self.poses[copies] = after
+        heading = before[..., 2]
+        dx, dy = after[..., 0] - before[..., 0], after[..., 1] - before[..., 1]
+        executed_speeds = (dx * np.cos(heading) + dy * np.sin(heading)) / dt
+        return np.stack([executed_speeds, wrap_angle(after[..., 2] - heading) / dt], axis=-1)
+
+    def _waypoint_controls(self, copies: np.ndarray, poses: np.ndarray) -> np.ndarray:
+        """``World._waypoint_control`` of every robot of ``copies`` (n, R, 2); advances their waypoints alike."""
+        index = self._waypoint_index[copies]
+        n_waypoints, loops, waypoints = self._n_waypoints[copies], self._loops[copies], self._waypoints[copies]
+        rows, robots = np.indices(index.shape)
+        controls = np.zeros((*index.shape, 2))
+        undecided = np.ones(index.shape, dtype=bool)
+        for attempt in range(waypoints.shape[2] + 1):
+            undecided &= (attempt <= n_waypoints) & (index < n_waypoints)  # past the end, or looped all round: stop
+            if not undecided.any():
+                break
+            target = waypoints[rows, robots, np.minimum(index, waypoints.shape[2] - 1)]
+            offset_x, offset_y = target[..., 0] - poses[..., 0], target[..., 1] - poses[..., 1]
+            driving = undecided & (np.hypot(offset_x, offset_y) > self._tolerance_m)
+            heading_error = wrap_angle(np.arctan2(offset_y, offset_x) - poses[..., 2])
+            turn_rates = np.clip(self._gain * heading_error, -self._max_turn_rate, self._max_turn_rate)
+            speeds = self._route_speeds[copies] * np.maximum(np.cos(heading_error), 0.0)
+            controls = np.where(driving[..., None], np.stack([speeds, turn_rates], axis=-1), controls)
+            reached = undecided & ~driving
+            index = np.where(reached, index + 1, index)
+            index = np.where(reached & loops & (index >= n_waypoints), 0, index)
+            undecided = reached
+        self._waypoint_index[copies] = index
+        return controls
+
+    def _contact_within(self, copies: np.ndarray, poses: np.ndarray, speeds: np.ndarray, dt: float) -> np.ndarray:
+        """Which of ``copies`` have a wall, obstacle or two robots within reach in ``dt`` (as ``World`` tests it)."""
+        positions = poses[..., :2]
+        reach = self._radius_m + speeds * dt  # (n, R)
+        low, high = positions - reach[..., None], positions + reach[..., None]
+        boxes = self._boxes[copies][:, None]  # (n, 1, S, 4)
+        near_static = (
+            (boxes[..., 0] <= high[..., None, 0])
+            & (low[..., None, 0] <= boxes[..., 2])
+            & (boxes[..., 1] <= high[..., None, 1])
+            & (low[..., None, 1] <= boxes[..., 3])
+        )
+        contact = near_static.any(axis=(1, 2))
+        n_robots = positions.shape[1]
+        if n_robots > 1:
+            first, second = np.triu_indices(n_robots, k=1)
+            offsets = positions[:, second] - positions[:, first]
+            pair_reach = 2 * self._radius_m + (speeds[:, first] + speeds[:, second]) * dt
+            contact |= (offsets[..., 0] ** 2 + offsets[..., 1] ** 2 < pair_reach * pair_reach).any(axis=1)
+        return contact

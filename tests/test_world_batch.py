@@ -1,0 +1,98 @@
+"""``WorldBatch`` moves every copy exactly as a single ``World`` (and ``CommandedWorld``) moves."""
+
+import numpy as np
+import pytest
+
+from infonav_gym.world import World
+from infonav_gym.world.active_scenarios import CommandedWorld, goal_field
+from infonav_gym.world.scenarios import Route, Scenario, build_scenario
+from infonav_gym.world.world_batch import WorldBatch
+
+TIME_STEP_S = 0.5
+
+
+def scenarios(name: str, seed: int, n_copies: int, **parameters) -> list[Scenario]:
+    rng = np.random.default_rng(seed)
+    return [build_scenario(name, rng, **parameters) for _ in range(n_copies)]
+
+
+def crashing_scenario(offset: float) -> Scenario:
+    """Two robots driving head-on into each other, then robot 0 into a wall: many Pymunk contact steps."""
+    routes = (
+        Route((offset, 0.0, 0.0), np.array([[20.0, 0.0]]), speed_mps=1.5),
+        Route((10.0, 0.3, np.pi), np.array([[offset - 5.0, 0.0]]), speed_mps=1.0),
+    )
+    walls = (((13.0, -5.0), (13.0, 5.0)), ((-8.0, -5.0), (-8.0, 5.0)))
+    return Scenario(name="crash", bounds=(-10.0, -10.0, 15.0, 10.0), routes=routes, walls=walls)
+
+
+def assert_batch_follows_single_worlds(scenario_list: list[Scenario], n_steps: int, steps_of=None) -> None:
+    """Step a batch and one World per scenario side by side; poses and executed controls equal to 1e-12."""
+    batch = WorldBatch(len(scenario_list))
+    singles = [World() for _ in scenario_list]
+    for copy, (scenario, single) in enumerate(zip(scenario_list, singles)):
+        batch.reset_copy(copy, scenario)
+        single.reset(scenario)
+    np.testing.assert_array_equal(batch.poses, [single.poses for single in singles])
+    for step in range(n_steps):
+        copies = np.arange(len(singles)) if steps_of is None else steps_of(step)
+        executed = batch.step(TIME_STEP_S, copies)
+        expected = np.reshape([singles[copy].step(TIME_STEP_S) for copy in copies.tolist()], executed.shape)
+        np.testing.assert_allclose(executed, expected, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(batch.poses, [single.poses for single in singles], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "name, parameters",
+    [("field", {}), ("corridor", {}), ("team_field", {"n_robots": 4}), ("convoy", {"n_robots": 3})],
+)
+def test_every_copy_moves_as_a_single_world_on_the_builtin_scenarios(name, parameters):
+    assert_batch_follows_single_worlds(scenarios(name, 3, 5, **parameters), n_steps=150)
+
+
+def test_copies_in_contact_take_pymunk_steps_that_equal_the_single_worlds():
+    batch_scenarios = [crashing_scenario(offset) for offset in (-6.0, -4.0, -2.0)]
+    assert_batch_follows_single_worlds(batch_scenarios, n_steps=40)
+    single = World()
+    single.reset(batch_scenarios[0])
+    for _ in range(40):
+        single.step(TIME_STEP_S)
+    assert single.poses[0, 0] < 13.0  # Pymunk stopped robot 0 at the wall before its waypoint (20, 0)
+
+
+def test_stepping_some_copies_leaves_the_others_where_they_are():
+    rng = np.random.default_rng(0)
+    assert_batch_follows_single_worlds(
+        scenarios("field", 1, 6), n_steps=60, steps_of=lambda step: np.flatnonzero(rng.random(6) < 0.5)
+    )
+
+
+def test_commanded_copies_move_as_a_commanded_world():
+    rng = np.random.default_rng(7)
+    layouts = [goal_field(rng) for _ in range(4)]
+    batch, singles = WorldBatch(4), [CommandedWorld() for _ in layouts]
+    for copy, (layout, single) in enumerate(zip(layouts, singles)):
+        batch.reset_copy(copy, layout)
+        single.reset(layout)
+    for _ in range(120):
+        commands = np.stack([rng.uniform(0.0, 2.0, 4), rng.uniform(-1.0, 1.0, 4)], axis=1)[:, None]
+        executed = batch.step(TIME_STEP_S, np.arange(4), commands)
+        for copy, single in enumerate(singles):
+            single.command(*commands[copy, 0])
+            np.testing.assert_allclose(executed[copy], single.step(TIME_STEP_S), rtol=0, atol=1e-12)
+            np.testing.assert_allclose(batch.poses[copy], single.poses, rtol=0, atol=1e-12)
+
+
+def test_a_copy_with_another_number_of_robots_is_a_clear_error():
+    batch = WorldBatch(2)
+    batch.reset_copy(0, scenarios("team_field", 0, 1, n_robots=3)[0])
+    with pytest.raises(ValueError, match="copy 1: scenario 'team_field' has 4 robots, the other copies 3"):
+        batch.reset_copy(1, scenarios("team_field", 0, 1, n_robots=4)[0])
+
+
+@pytest.mark.parametrize("dt", [0.0, -1.0, 61.0])
+def test_a_time_step_outside_its_range_is_a_clear_error(dt):
+    batch = WorldBatch(1)
+    batch.reset_copy(0, scenarios("field", 0, 1)[0])
+    with pytest.raises(ValueError, match="dt"):
+        batch.step(dt, np.arange(1))
