@@ -19,6 +19,7 @@ from infonav_gym.experiments.benchmark import env_step_figures, lower_is_better,
 from infonav_gym.experiments.cli import main
 from infonav_gym.experiments.throughput_plot import plot_throughput, throughput_curves
 from infonav_gym.experiments.vector_timing import (
+    VectorRun,
     check_vector_sizes,
     parse_vector_sizes,
     random_valid_actions,
@@ -69,6 +70,16 @@ def test_random_valid_actions_drive_the_landmark_vector_env_without_a_masked_act
     rng = np.random.default_rng(0)
     for _ in range(250):  # through the 200-step horizon's autoreset
         env.step(random_valid_actions(env.action_masks(), rng))
+
+
+def test_a_vector_env_is_reset_once_and_its_rounds_go_on_through_autoresets():
+    calls = {"start": 0, "step": 0}
+    run = VectorRun(
+        8, start=lambda: calls.update(start=calls["start"] + 1), step=lambda: calls.update(step=calls["step"] + 1)
+    )
+    measure = benchmark._vector_stepper(run, seconds=0.001)
+    rates = [measure() for _ in range(3)]
+    assert calls["start"] == 1 and calls["step"] >= 3 and min(rates) > 0
 
 
 def test_vector_figures_have_the_right_keys_and_are_positive(no_vmas):

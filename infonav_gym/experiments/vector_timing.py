@@ -29,7 +29,7 @@ from infonav_gym.registry import registered_envs
 DEFAULT_VECTOR_SIZES = (1, 16, 64, 256, 1024)
 MEMORY_STEPS = 250  # vector steps inside the measured peak: past the first autoreset of a 200-step episode
 VMAS_AGENTS = 4
-VMAS_MAX_STEPS = 100  # VMAS navigation episode length [steps]; its episodes rarely end otherwise
+VMAS_MAX_STEPS = 100  # VMAS navigation episode length [steps] (BenchMARL's); without it episodes rarely end
 PROC_STATUS = Path("/proc/self/status")  # Linux: the current (VmRSS) and the peak (VmHWM) resident set size
 PROC_CLEAR_REFS = Path("/proc/self/clear_refs")  # Linux: writing "5" resets the peak to the current size
 
