@@ -60,16 +60,21 @@ def test_random_valid_actions_are_uniform_over_each_rows_valid_actions():
     for row in (0, 2):
         counts = np.bincount(draws[:, row], minlength=4)[masks[row]]
         assert stats.chisquare(counts).pvalue > 1e-3
-    team_masks = np.ones((5, 3, 4), dtype=bool)  # a team env's (N, R, K): one action per robot
-    assert random_valid_actions(team_masks, rng).shape == (5, 3)
+    team_masks = rng.random((5, 3, 4)) < 0.5  # a team env's (N, R, K): one action per robot
+    team_masks[..., 0] = True  # its no-op is always valid
+    team_actions = random_valid_actions(team_masks, rng)
+    assert team_actions.shape == (5, 3)
+    assert np.take_along_axis(team_masks, team_actions[..., None], axis=-1).all()
 
 
 def test_random_valid_actions_drive_the_landmark_vector_env_without_a_masked_action():
     env = gym.make_vec(LANDMARKS, num_envs=6, vectorization_mode="vector_entry_point", invalid_action="raise")
     env.reset(seed=3)
     rng = np.random.default_rng(0)
-    for _ in range(250):  # through the 200-step horizon's autoreset
-        env.step(random_valid_actions(env.action_masks(), rng))
+    information = 0.0
+    for _ in range(250):  # through the 200-step horizon's autoreset; a masked action would raise ValueError
+        information += env.step(random_valid_actions(env.action_masks(), rng))[1].sum()
+    assert information > 0  # the steps observed landmarks, they were not no-ops
 
 
 def test_a_vector_env_is_reset_once_and_its_rounds_go_on_through_autoresets():
