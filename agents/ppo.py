@@ -5,6 +5,10 @@ Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib
 (CartPole, for the benchmark) train with plain ``PPO``, or with ``MaskablePPO`` through ``InfoActionMask``.
 A PettingZoo parallel env (registry ``api``, e.g. ``cooperative_localization_v0``) trains one
 ``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
+``vectorization`` picks how the copies run: ``native`` (the default where the env's registry entry has a
+``vector_entry_point``) steps them at once in the env's own ``gymnasium.vector.VectorEnv``, seen by SB3
+through ``agents.vector_adapter.VectorEnvAdapter``; ``sync`` in a ``DummyVecEnv``, ``subprocess`` in a
+``SubprocVecEnv`` (one process per copy).
 Hyperparameters come from ``agents/hyperparams/ppo.yml`` (package data, so an installed copy
 has them too), one block per env id (rl-baselines3-zoo style), or from a file of the same format
 (``infonav train --hyperparams FILE``); a block with ``normalize`` trains on observations normalized by
@@ -27,20 +31,24 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import torch
+from gymnasium.vector import AutoresetMode
 from sb3_contrib import MaskablePPO
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.env_util import make_vec_env
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
-from infonav_gym.registry import PARALLEL, api_of, make_env
+from agents.vector_adapter import monitored_vec_env
+from infonav_gym.registry import PARALLEL, api_of, env_entry, make_env, resolve_env_id
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
 ACTIVATIONS = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
 MODEL_FILE = "model.zip"
 NORMALIZATION_FILE = "vecnormalize.pkl"  # VecNormalize statistics, beside MODEL_FILE, when trained with ``normalize``
+NATIVE, SYNC, SUBPROCESS = "native", "sync", "subprocess"
+VECTORIZATIONS = (NATIVE, SYNC, SUBPROCESS)  # the env's own VectorEnv, DummyVecEnv, SubprocVecEnv
 
 
 def default_num_threads() -> int:
@@ -238,13 +246,69 @@ def _normalization_kwargs(hyperparameters: dict) -> dict | None:
     return dict(normalize)
 
 
+def has_native_vector_env(env_id: str) -> bool:
+    """Whether ``env_id`` is in ``infonav_gym.registry`` with a ``vector_entry_point``.
+
+    Such a native vector env takes ``autoreset_mode=AutoresetMode.SAME_STEP`` (what ``native_vec_env`` asks
+    for); a vector entry point outside the registry need not (Gymnasium's ``CartPoleVectorEnv`` does not).
+    """
+    try:
+        return env_entry(resolve_env_id(env_id)).vector_entry_point is not None
+    except ValueError:  # not an infonav id: a Gymnasium one, or unknown (make_env names it)
+        return False
+
+
+def vectorizations(env_id: str) -> tuple[str, ...]:
+    """The vectorizations ``env_id`` trains with, its default first (``native`` where it has a native vector env).
+
+    A PettingZoo env trains on ``TeamVecEnv``, every copy in this process: ``sync`` only.
+    """
+    if api_of(env_id) == PARALLEL:
+        return (SYNC,)
+    return (NATIVE, SYNC, SUBPROCESS) if has_native_vector_env(env_id) else (SYNC, SUBPROCESS)
+
+
+def checked_vectorization(env_id: str, vectorization: str | None) -> str:
+    """``vectorization`` if ``env_id`` has it, ``None``: its default.
+
+    Raises:
+        ValueError: for a mode outside ``VECTORIZATIONS`` or one the env lacks, naming the env and its modes.
+    """
+    available = vectorizations(env_id)
+    if vectorization is None:
+        return available[0]
+    if vectorization not in VECTORIZATIONS:
+        raise ValueError(f"vectorization must be one of {', '.join(VECTORIZATIONS)}, got {vectorization!r}")
+    if vectorization not in available:
+        why = "no native vector env in the registry" if vectorization == NATIVE else "its copies share one process"
+        raise ValueError(
+            f"env {env_id!r} cannot train with vectorization {vectorization!r} ({why}); it has: {', '.join(available)}"
+        )
+    return vectorization
+
+
+def native_vec_env(env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None) -> VecMonitor:
+    """``env_id``'s own vector env of ``n_envs`` copies, resetting in the step an episode ends, as an SB3 ``VecEnv``.
+
+    Sub-env ``i`` gets the seed ``seed + i`` at the first reset (``monitored_vec_env``).
+    """
+    vector_env = gym.make_vec(
+        resolve_env_id(env_id),
+        num_envs=n_envs,
+        vectorization_mode="vector_entry_point",
+        autoreset_mode=AutoresetMode.SAME_STEP,
+        **(env_kwargs or {}),
+    )
+    return monitored_vec_env(vector_env, seed)
+
+
 def build_model(
     env_id: str,
     seed: int = 0,
     n_envs: int | None = None,
     hyperparameters: dict | None = None,
     env_kwargs: dict | None = None,
-    subprocess: bool = False,
+    vectorization: str | None = None,
     tensorboard_log: str | None = None,
 ):
     """A fresh ``MaskablePPO`` (env with action masks) or ``PPO`` on ``n_envs`` seeded copies of ``env_id``.
@@ -253,29 +317,32 @@ def build_model(
         hyperparameters: ppo.yml-style keys; ``None`` loads the env's block of ppo.yml.
         n_envs: overrides the hyperparameters' ``n_envs`` (default 8). For the team env, each
             copy is ``n_robots`` slots of the vec env (``TeamVecEnv``), all run in this process.
-        subprocess: ``SubprocVecEnv`` instead of ``DummyVecEnv`` (one process per env).
+        vectorization: ``native``, ``sync`` or ``subprocess`` (see the module); ``None``: the env's
+            default (``checked_vectorization``).
     """
     if hyperparameters is None:
         hyperparameters = load_hyperparameters(env_id)
     n_envs = int(hyperparameters.get("n_envs", 8) if n_envs is None else n_envs)
     if n_envs < 1:
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
+    vectorization = checked_vectorization(env_id, vectorization)
     if api_of(env_id) == PARALLEL:
         from agents.team_vec_env import make_team_vec_env
 
-        if subprocess:
-            raise ValueError(f"{env_id} runs its copies in one process (TeamVecEnv): train it without subprocess")
         masked, vec_env = True, make_team_vec_env(n_envs, seed, env_kwargs, env_id)
     else:
         masked, wrapper = mask_wrapper(env_id, env_kwargs)
-        vec_env = make_vec_env(
-            env_id,
-            n_envs=n_envs,
-            seed=seed,
-            env_kwargs=env_kwargs,
-            wrapper_class=wrapper,
-            vec_env_cls=SubprocVecEnv if subprocess else DummyVecEnv,
-        )
+        if vectorization == NATIVE:
+            vec_env = native_vec_env(env_id, n_envs, seed, env_kwargs)
+        else:
+            vec_env = make_vec_env(
+                env_id,
+                n_envs=n_envs,
+                seed=seed,
+                env_kwargs=env_kwargs,
+                wrapper_class=wrapper,
+                vec_env_cls=SubprocVecEnv if vectorization == SUBPROCESS else DummyVecEnv,
+            )
     normalize = _normalization_kwargs(hyperparameters)
     if normalize is not None:
         vec_env = VecNormalize(vec_env, gamma=hyperparameters.get("gamma", 0.99), **normalize)
@@ -293,19 +360,21 @@ def train(
     env_id: str,
     timesteps: int,
     seed: int = 0,
-    n_envs: int | None = 8,
+    n_envs: int | None = None,
     output_dir: Path | str = Path("models"),
     hyperparameters: dict | None = None,
     progress: bool = True,
     tensorboard: bool = False,
-    subprocess: bool = False,
+    vectorization: str | None = None,
     env_kwargs: dict | None = None,
     checkpoints: int = 4,
 ) -> Path:
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
 
-    Also writes ``output_dir/train.json`` (env, seed, the hyperparameters asked for, every keyword the
-    PPO / MaskablePPO constructor got, SB3's defaults included, as ``constructor``, wall time, fps),
+    ``n_envs`` ``None`` takes the hyperparameters' ``n_envs``; ``vectorization`` ``None`` the env's default
+    (``native`` where it has a native vector env, see ``build_model``).
+    Also writes ``output_dir/train.json`` (env, seed, vectorization, the hyperparameters asked for, every keyword
+    the PPO / MaskablePPO constructor got, SB3's defaults included, as ``constructor``, wall time, fps),
     ``checkpoints`` intermediate models in ``output_dir/checkpoints/`` and, with
     ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
     (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
@@ -319,10 +388,9 @@ def train(
         hyperparameters = load_hyperparameters(env_id)
     hyperparameters = {**hyperparameters, "n_envs": int(hyperparameters.get("n_envs", 8) if n_envs is None else n_envs)}
     tensorboard_log = str(output_dir / "tensorboard") if tensorboard else None
+    vectorization = checked_vectorization(env_id, vectorization)
     with torch_threads(default_num_threads()):
-        model = build_model(
-            env_id, seed, None, hyperparameters, env_kwargs, subprocess=subprocess, tensorboard_log=tensorboard_log
-        )
+        model = build_model(env_id, seed, None, hyperparameters, env_kwargs, vectorization, tensorboard_log)
         n_envs = model.n_envs
         rollout = model.n_steps * n_envs  # learn() collects whole rollouts: the bar's true total
         callbacks = [TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)]
@@ -345,6 +413,7 @@ def train(
         "timesteps": int(model.num_timesteps),
         "seed": seed,
         "n_envs": n_envs,
+        "vectorization": vectorization,
         "env_kwargs": env_kwargs or {},
         "hyperparameters": hyperparameters,
         "constructor": constructor_values(type(model), *_constructor_arguments(hyperparameters, seed, tensorboard_log)),

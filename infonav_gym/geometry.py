@@ -73,16 +73,17 @@ def distance_to_loop(point, loop) -> float:
 
 
 class ClosedLoop:
-    """A closed polyline (W, 2) [m] whose edges are prepared once, for the distances of many points."""
+    """Closed polylines (each (W, 2) [m]) whose edges are prepared once, for the distances of many points."""
 
-    def __init__(self, loop):
-        self._starts = np.asarray(loop, dtype=float).reshape(-1, 2)
-        self._directions = np.roll(self._starts, -1, axis=0) - self._starts
+    def __init__(self, *loops):
+        starts = [np.asarray(loop, dtype=float).reshape(-1, 2) for loop in loops]
+        self._starts = np.concatenate(starts)
+        self._directions = np.concatenate([np.roll(start, -1, axis=0) - start for start in starts])
         direction_x, direction_y = self._directions.T
         self._length_sq = direction_x * direction_x + direction_y * direction_y
 
     def distances(self, points) -> np.ndarray:
-        """Shortest distance [m] from each of ``points`` (M, 2) to the loop (M,)."""
+        """Shortest distance [m] from each of ``points`` (M, 2) to the nearest loop (M,)."""
         points = np.asarray(points, dtype=float)
         (start_x, start_y), (direction_x, direction_y) = self._starts.T, self._directions.T
         along = (points[:, None, 0] - start_x) * direction_x + (points[:, None, 1] - start_y) * direction_y

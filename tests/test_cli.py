@@ -145,6 +145,7 @@ def test_benchmark_reports_every_goal(capsys):
             "camera_frame_ms",
             "icp_frame_pair_ms",
             "ppo_fps_ratio_vs_cartpole",
+            "ppo_vector_fps_ratio_vs_cartpole",
             "landmark_selection_vector_256_vs_cartpole_ratio",
             "active_localization_vector_256_vs_cartpole_ratio",
             "cooperative_localization_vector_256_vs_vmas_ratio",
@@ -157,6 +158,11 @@ def test_benchmark_reports_every_goal(capsys):
     assert ppo_fps > 0 and cartpole_ppo_fps > 0 and figures["ppo_timesteps_per_round"] <= 512
     assert figures["ppo_fps_ratio_vs_cartpole"] == pytest.approx(ppo_fps / cartpole_ppo_fps)  # one round: one ratio
     assert result["goals_met"]["ppo_fps_ratio_vs_cartpole"] == (figures["ppo_fps_ratio_vs_cartpole"] >= 0.5)
+    vector_fps, cartpole_vector_fps = figures["ppo_landmark_selection_vector_fps"], figures["ppo_cartpole_vector_fps"]
+    assert figures["ppo_vector_n_envs"] == 64 and figures["ppo_vector_timesteps_per_round"] == 1024  # 64 x 16 steps
+    vector_ratio = figures["ppo_vector_fps_ratio_vs_cartpole"]
+    assert vector_ratio == pytest.approx(vector_fps / cartpole_vector_fps)
+    assert result["goals_met"]["ppo_vector_fps_ratio_vs_cartpole"] == (vector_ratio >= 0.8)
     assert figures["icp_frame_pair_ms"] > 0
     assert result["goals_met"]["icp_frame_pair_ms"] == (figures["icp_frame_pair_ms"] <= 20.0)
     assert figures["icp_rotation_error_deg"] < 0.5 and figures["icp_translation_error_m"] < 0.05

@@ -12,6 +12,7 @@ from infonav_gym.information import (
     expected_information_gain,
     gaussian_entropy,
     histogram_entropy,
+    information_gain_of_information,
     information_metric,
     log_det_spd,
     mutual_information,
@@ -173,3 +174,15 @@ def test_histogram_entropy_of_float_images_bins_the_value_range():
 def test_histogram_entropy_bad_input(kwargs, problem):
     with pytest.raises(ValueError, match=problem):
         histogram_entropy(**kwargs)
+
+
+def test_information_gain_of_information_is_the_entropy_drop_of_the_linear_gaussian_update():
+    rng = np.random.default_rng(2)
+    A_root = rng.standard_normal((6, 6))
+    P = A_root @ A_root.T + 0.1 * np.eye(6)
+    J = rng.standard_normal((20, 6))
+    R = np.diag(rng.uniform(0.5, 2.0, 20))
+    posterior = np.linalg.inv(np.linalg.inv(P) + J.T @ np.linalg.inv(R) @ J)
+    expected = 0.5 * (np.linalg.slogdet(P)[1] - np.linalg.slogdet(posterior)[1])
+    information = J.T @ np.linalg.inv(R) @ J
+    assert information_gain_of_information(np.linalg.cholesky(P), information) == pytest.approx(expected, rel=1e-10)

@@ -213,8 +213,6 @@ def test_vector_api():
     some = info["action_mask"].any(axis=1)
     np.testing.assert_array_equal(masks[some], info["action_mask"][some].astype(bool))
     assert masks[~some].all()  # no landmark visible: every action is the no-op
-    with pytest.raises(NotImplementedError, match="render"):
-        env.render()
     env.close()
     assert env.closed
 
@@ -281,7 +279,7 @@ def test_masked_action_follows_invalid_action_per_sub_env():
     [
         ({"num_envs": 0}, "num_envs of LandmarkSelectionVectorEnv must be an int >= 1, got 0"),
         ({"num_envs": 2.0}, "num_envs"),
-        ({"render_mode": "rgb_array"}, "render_mode must be None"),
+        ({"render_mode": "rgb"}, r"render_mode must be None or one of \['human', 'rgb_array'\], got 'rgb'"),
         ({"n_candidate": 3}, "n_candidate"),
         ({"n_candidates": 0}, "n_candidates"),
         ({"scenario": "maze"}, "scenario"),
@@ -333,3 +331,30 @@ def test_mapping_needs_the_same_landmark_count_in_every_sub_env(uneven_scenario)
     env = LandmarkSelectionVectorEnv(num_envs=8, scenario="uneven", mapping=True)
     with pytest.raises(ValueError, match=r"sub-env \d of LandmarkSelectionVectorEnv: with mapping=True every copy"):
         env.reset(seed=0)
+
+
+def test_render_draws_sub_env_0_as_its_single_env_through_an_autoreset():
+    vector = gym.make_vec(ENV_ID, num_envs=3, render_mode="rgb_array", horizon=4, render_size_px=96)
+    single = gym.make(ENV_ID, render_mode="rgb_array", horizon=4, render_size_px=96)
+    vector.reset(seed=21)
+    single.reset(seed=21)
+    rng = np.random.default_rng(0)
+    for step in range(10):
+        frame = vector.render()
+        assert frame.shape == (96, 96, 3)
+        np.testing.assert_array_equal(frame, single.render(), err_msg=f"step {step}")
+        actions = rng.integers(0, 8, 3)
+        truncated = vector.step(actions)[3]
+        if step % 5 == 4:  # the NEXT_STEP autoreset of sub-env 0
+            single.reset()
+        else:
+            single.step(actions[0])
+        assert truncated[0] == (step % 5 == 3)
+    vector.close()
+
+
+def test_render_without_a_render_mode_warns_and_returns_none():
+    env = LandmarkSelectionVectorEnv(num_envs=2)
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match="without a render_mode"):
+        assert env.render() is None

@@ -33,8 +33,9 @@ def trained(tmp_path_factory) -> dict:
 def test_train_writes_a_maskable_model_checkpoints_and_a_record(trained):
     model = trained["model"]
     assert trained["algorithm"] == "MaskablePPO" and trained["env_id"] == LANDMARK_ID
-    assert trained["timesteps"] >= 2000 and trained["n_envs"] == 8 and trained["torch_threads"] == 1
-    assert trained["hyperparameters"] == {**load_hyperparameters(LANDMARK_ID), "n_envs": 8}
+    assert trained["timesteps"] >= 2000 and trained["n_envs"] == 64 and trained["torch_threads"] == 1
+    assert trained["vectorization"] == "native", "the default where the env has a native vector env"
+    assert trained["hyperparameters"] == {**load_hyperparameters(LANDMARK_ID), "n_envs": 64}
     assert zipfile.is_zipfile(model)
     assert len(list(Path(model).parent.glob("checkpoints/ppo_*_steps.zip"))) >= 3
 
@@ -97,6 +98,72 @@ def test_bad_input_exits_2_with_one_line_naming_it(capsys, argv, message):
     error = capsys.readouterr().err
     assert exit_info.value.code == 2 and message in error
     assert error.count("\n") == 1 and "Traceback" not in error
+
+
+@pytest.mark.parametrize(
+    "env_id, vectorization, why, available",
+    [
+        ("infonav/ActiveLocalization-v0", "native", "no native vector env in the registry", "sync, subprocess"),
+        ("CartPole-v1", "native", "no native vector env in the registry", "sync, subprocess"),
+        ("cooperative_localization_v0", "native", "no native vector env in the registry", "sync"),
+        ("cooperative_localization_v0", "subprocess", "its copies share one process", "sync"),
+    ],
+)
+def test_a_vectorization_the_env_lacks_is_one_line_naming_the_env_and_its_modes(
+    capsys, tmp_path, env_id, vectorization, why, available
+):
+    argv = ["train", "--env", env_id, "--timesteps", "8", "--vectorization", vectorization]
+    with pytest.raises(SystemExit) as exit_info:
+        main([*argv, "--output", str(tmp_path / "out")])
+    error = capsys.readouterr().err
+    expected = f"env {env_id!r} cannot train with vectorization {vectorization!r} ({why}); it has: {available}"
+    assert exit_info.value.code == 2 and expected in error and error.count("\n") == 1
+
+
+def test_the_default_vectorization_is_native_where_the_registry_has_a_native_vector_env():
+    from agents.ppo import checked_vectorization, vectorizations
+
+    assert vectorizations(LANDMARK_ID) == ("native", "sync", "subprocess")
+    assert checked_vectorization(LANDMARK_ID, None) == "native"
+    for env_id in ("infonav/ActiveLocalization-v0", "CartPole-v1", "cooperative_localization_v0"):
+        assert checked_vectorization(env_id, None) == "sync"
+    with pytest.raises(ValueError, match="vectorization must be one of native, sync, subprocess, got 'threads'"):
+        checked_vectorization(LANDMARK_ID, "threads")
+
+
+@pytest.mark.parametrize("vectorization", ["native", "sync"])
+def test_each_vectorization_seeds_sub_env_i_with_seed_plus_i_and_records_its_mode(tmp_path, vectorization):
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from agents.ppo import build_model, train
+    from agents.vector_adapter import VectorEnvAdapter
+    from infonav_gym.envs.landmark_selection_vector import LandmarkSelectionVectorEnv
+
+    small = {**load_hyperparameters(LANDMARK_ID), "n_steps": 16, "batch_size": 32, "n_epochs": 1}
+    model = build_model(LANDMARK_ID, seed=4, n_envs=3, hyperparameters=small, vectorization=vectorization)
+    vec_env = model.get_env()
+    if vectorization == "native":
+        assert isinstance(vec_env.venv, VectorEnvAdapter)
+        assert isinstance(vec_env.venv.vector_env.unwrapped, LandmarkSelectionVectorEnv)
+        seeds = vec_env.venv._seeds
+    else:
+        assert isinstance(vec_env, DummyVecEnv)
+        seeds = vec_env._seeds
+    assert seeds == [4, 5, 6]
+    vec_env.close()
+    path = train(
+        LANDMARK_ID,
+        48,
+        seed=4,
+        n_envs=3,
+        output_dir=tmp_path,
+        hyperparameters=small,
+        progress=False,
+        vectorization=vectorization,
+        checkpoints=0,
+    )
+    record = json.loads((path.parent / "train.json").read_text())
+    assert record["vectorization"] == vectorization and record["n_envs"] == 3 and record["timesteps"] == 48
 
 
 def test_a_corrupt_or_mismatched_model_is_an_error_not_a_traceback(capsys, tmp_path, trained):

@@ -62,7 +62,7 @@ def test_train_json_records_every_constructor_value_sb3_defaults_included(tmp_pa
     record = train_json(tmp_path)
     assert record["hyperparameters"] == {**load_hyperparameters(LANDMARK_ID), "n_envs": 2}
     constructor = record["constructor"]
-    assert constructor["gamma"] == 0.9 and constructor["n_steps"] == 256 and constructor["seed"] == 0
+    assert constructor["gamma"] == 0.9 and constructor["n_steps"] == 64 and constructor["seed"] == 0
     assert constructor["vf_coef"] == 0.5 and constructor["max_grad_norm"] == 0.5, "SB3's defaults, not in the file"
     assert constructor["policy_kwargs"]["activation_fn"] == "torch.nn.modules.activation.Tanh"
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.estimation.models import range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
@@ -123,27 +124,19 @@ class ActivePlanningModel:
         covariance = belief.covariance.copy()
         rewards = np.zeros(len(belief))
         rows = np.flatnonzero(observe)
-        if rows.size:
+        if rows.size:  # the expected update: the measurement as predicted (a zero residual)
             H, R = self._model_jacobians(belief.pose[rows], landmark[rows])
-            P = covariance[rows]
-            PHt = P @ np.swapaxes(H, 1, 2)
-            S = H @ PHt + R
-            posterior = P - PHt @ np.linalg.solve(S, np.swapaxes(PHt, 1, 2))
-            covariance[rows] = 0.5 * (posterior + np.swapaxes(posterior, 1, 2))
-            mutual_information = 0.5 * (np.linalg.slogdet(S)[1] - np.linalg.slogdet(R)[1])
-            rewards[rows] += mutual_information - cfg["observation_cost_nats"]
+            gains = batched.landmark_information_gains(covariance[rows], H[:, None], R[:, None], check_input=False)
+            rewards[rows] += gains[:, 0] - cfg["observation_cost_nats"]
+            no_residual = np.zeros((rows.size, 2))
+            covariance[rows] = batched.range_bearing_update(
+                belief.pose[rows], covariance[rows], no_residual, no_residual, H, R, check_input=False
+            )[1]
         dt = cfg["time_step_s"]
         commands = np.where(valid[:, None], self._commands(belief.pose, primitives), 0.0)
-        speed, turn_rate = commands[:, 0], commands[:, 1]
-        heading = belief.pose[:, 2]
-        cos_h, sin_h = np.cos(heading), np.sin(heading)
-        pose = belief.pose + np.stack([speed * dt * cos_h, speed * dt * sin_h, turn_rate * dt], axis=-1)
-        pose[:, 2] = wrap_angle(pose[:, 2])
-        F = np.broadcast_to(np.eye(POSE_DIM), (len(belief), POSE_DIM, POSE_DIM)).copy()
-        F[:, 0, 2], F[:, 1, 2] = -speed * dt * sin_h, speed * dt * cos_h
-        V = np.zeros((len(belief), POSE_DIM, 2))
-        V[:, 0, 0], V[:, 1, 0], V[:, 2, 1] = dt * cos_h, dt * sin_h, dt
-        predicted = F @ covariance @ np.swapaxes(F, 1, 2) + V @ self._odometry_covariance @ np.swapaxes(V, 1, 2)
+        pose, predicted = batched.predict_pose(
+            belief.pose, covariance, commands, dt, self._odometry_covariance, check_input=False
+        )
         covariance = np.where(done[:, None, None], covariance, predicted)
         pose = np.where(done[:, None], belief.pose, pose)
         distance_before = np.linalg.norm(belief.pose[:, :2] - self.goal, axis=1)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -25,7 +26,7 @@ from infonav_gym.world.scenarios import (
     scenario_from_config,
     scenario_names,
 )
-from infonav_gym.world.world import TIME_STEP_S, World
+from infonav_gym.world.world import TIME_STEP_S, World, start_poses
 
 SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "speed_mps": "speed_mps",
@@ -152,9 +153,10 @@ class LandmarkSelectionEnv(InfoNavEnv):
         return low, high
 
     def _reset_episode(self) -> None:
-        scenario, self.ekf, self._odometry_rng, self._measurement_rng = start_episode(
+        scenario, prior, self._odometry_rng, self._measurement_rng = start_episode(
             self.config, self.np_random, type(self).__name__
         )
+        self.ekf = PoseEKF(*prior)
         self.world.reset(scenario)
         self._true_pose = self.world.pose
         self._true_path = PathHistory(self._true_pose[:2])
@@ -246,6 +248,32 @@ class LandmarkSelectionEnv(InfoNavEnv):
         )
 
 
+class Prior(NamedTuple):
+    """The estimator's prior at an episode's start: ``PoseEKF(*prior)``, diagonal covariances.
+
+    Attributes:
+        pose: the initial pose estimate (3,).
+        pose_covariance: its covariance (3, 3), diagonal.
+        landmarks: the mapped landmarks' estimates (L, 2), None without mapping.
+        landmark_variance: the variance of each of their coordinates [m^2], None without mapping.
+    """
+
+    pose: np.ndarray
+    pose_covariance: np.ndarray
+    landmarks: np.ndarray | None = None
+    landmark_variance: float | None = None
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(x, P)`` of ``PoseEKF(*prior)``: the pose then the landmarks, block-diagonal covariance."""
+        if self.landmarks is None:
+            return self.pose.copy(), self.pose_covariance.copy()
+        x = np.concatenate([self.pose, self.landmarks.ravel()])
+        variances = np.concatenate(
+            [np.diagonal(self.pose_covariance), np.full(self.landmarks.size, self.landmark_variance)]
+        )
+        return x, np.diag(variances)
+
+
 def start_episode(config: dict, np_random: np.random.Generator, owner: str):
     """Start an episode of ``LandmarkSelection-v0``: draw its scenario and the estimator's prior from ``np_random``.
 
@@ -258,17 +286,16 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
         owner: the env named in config errors.
 
     Returns:
-        ``(scenario, ekf, odometry_rng, measurement_rng)``: the scenario ``config["scenario"]`` (one route,
-        <= ``n_candidates`` landmarks), the ``PoseEKF`` at the prior and the sensors' generators.
+        ``(scenario, prior, odometry_rng, measurement_rng)``: the scenario ``config["scenario"]`` (one route,
+        <= ``n_candidates`` landmarks), the estimator's ``Prior`` and the sensors' generators.
     """
     scenario = scenario_from_config(config, np_random, SCENARIO_KEYS, owner, 1, max_landmarks=config["n_candidates"])
     odometry_rng, measurement_rng = np_random.spawn(2)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    x, y, heading = scenario.routes[0].start_pose
-    initial_pose = np.array([x, y, wrap_angle(heading)]) + pose_std * np_random.standard_normal(POSE_DIM)
-    if not config["mapping"]:
-        return scenario, PoseEKF(initial_pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
-    landmarks, prior_std = scenario.landmarks, config["landmark_prior_std_m"]
-    estimates = landmarks + prior_std * np_random.standard_normal(landmarks.shape)
-    ekf = PoseEKF(initial_pose, np.diag(pose_std**2), estimates, prior_std**2)
-    return scenario, ekf, odometry_rng, measurement_rng
+    initial_pose = np.array(start_poses(scenario)[0]) + pose_std * np_random.standard_normal(POSE_DIM)
+    prior = Prior(initial_pose, np.diag(pose_std**2))
+    if config["mapping"]:
+        landmarks, prior_std = scenario.landmarks, config["landmark_prior_std_m"]
+        estimates = landmarks + prior_std * np_random.standard_normal(landmarks.shape)
+        prior = prior._replace(landmarks=estimates, landmark_variance=prior_std**2)
+    return scenario, prior, odometry_rng, measurement_rng

@@ -65,7 +65,7 @@ class BatchedDecision(NamedTuple):
             known = np.where(exists[..., None], landmarks, x[:, None, :2] + 1.0)
             predicted, H = batched.landmark_measurement_model(x, known, check_input=False)
         R = sensor.noise_covariance(predicted[..., 0].ravel()).reshape(n_copies, n_candidates, 2, 2)
-        seen = exists & visible(geometry, sensor, true_poses, landmarks)
+        seen = exists & visible(geometry, sensor, true_poses, landmarks, check_input=False)
         gains = np.where(seen, batched.landmark_information_gains(P, H, R, check_input=False), 0.0)
         prior_log_det = log_det_spd(P, check_input=False)
         pose_log_det = prior_log_det

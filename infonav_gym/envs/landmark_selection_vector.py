@@ -10,6 +10,7 @@ the single env's generators drawn ahead). So sub-env ``i`` after ``reset(seed=s)
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -20,6 +21,7 @@ from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv, start_epis
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision, batched_info, batched_observation
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
+from infonav_gym.envs.vector_view import FirstCopyView
 from infonav_gym.estimation import batched
 from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world_batch import WorldBatch
@@ -48,10 +50,15 @@ class LandmarkSelectionVectorEnv(VectorEnv):
     ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode`` or its value, ``"NextStep"`` /
     ``"SameStep"``) and any key of ``LandmarkSelectionEnv.default_config()``, checked as the single env
     checks them. With ``mapping=True`` every copy's scenario must have the same number of landmarks
-    (the stacked states share their size). Rendering is not implemented yet.
+    (the stacked states share their size). ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()``
+    draws sub-env 0, as its single env would (``FirstCopyView``).
     """
 
-    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata = {
+        "render_modes": LandmarkSelectionEnv.metadata["render_modes"],
+        "render_fps": LandmarkSelectionEnv.metadata["render_fps"],
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
     _AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
     def __init__(
@@ -64,14 +71,13 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         owner = type(self).__name__
         if type(num_envs) is not int or num_envs < 1:
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
-        if render_mode is not None:
-            raise ValueError(f"{owner} does not render yet: render_mode must be None, got {render_mode!r}")
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, self._AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self._single = LandmarkSelectionEnv(**config)  # checks the config as the single env does
         self.config = self._single.config
         self.num_envs = num_envs
-        self.render_mode = None
+        self.render_mode = render_mode
+        self._view = None if render_mode is None else FirstCopyView(LandmarkSelectionEnv(render_mode, **config))
         self.single_observation_space = self._single.observation_space
         self.single_action_space = self._single.action_space
         self.observation_space = batch_space(self.single_observation_space, num_envs)
@@ -127,18 +133,22 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
         owner, geometries = type(self).__name__, []
         for copy in copies.tolist():
-            scenario, ekf, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy], owner)
+            if copy == 0 and self._view is not None:
+                self._view.restart(self._np_randoms[0])
+            scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy], owner)
+            x, P = prior.state()
             if self._x is None or len(copies) == self.num_envs and copy == 0:
-                self._x, self._P = np.zeros((self.num_envs, ekf.dim_x)), np.zeros((self.num_envs, ekf.dim_x, ekf.dim_x))
-            if ekf.dim_x != self._x.shape[1]:
+                self._x, self._P = np.zeros((self.num_envs, len(x))), np.zeros((self.num_envs, len(x), len(x)))
+            if len(x) != self._x.shape[1]:
                 raise ValueError(
                     f"sub-env {copy} of {owner}: with mapping=True every copy needs the same number of landmarks; "
-                    f"scenario {scenario.name!r} has {ekf.n_landmarks}, the other copies {(self._x.shape[1] - 3) // 2}"
+                    f"scenario {scenario.name!r} has {len(scenario.landmarks)}, the other copies "
+                    f"{(self._x.shape[1] - 3) // 2}"
                 )
             self._worlds.reset_copy(copy, scenario)
             self._odometry_noise.restart(copy, odometry_rng)
             self._measurement_noise.restart(copy, measurement_rng)
-            self._x[copy], self._P[copy] = ekf.x, ekf.P
+            self._x[copy], self._P[copy] = x, P
             n_landmarks = len(scenario.landmarks)
             self._landmarks[copy] = 0.0
             self._landmarks[copy, :n_landmarks] = scenario.landmarks
@@ -159,6 +169,8 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         actions = self._checked_actions(actions)
         resetting = self._prev_done.copy()
         acting = ~resetting
+        if self._view is not None and acting[0]:
+            self._view.step(int(actions[0]))
         chosen = self._chosen_actions(actions, acting)
         rewards = self._observe(chosen)
         stepped = np.flatnonzero(acting)
@@ -273,10 +285,18 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         return mask
 
     def render(self):
-        raise NotImplementedError(f"{type(self).__name__}.render() is not implemented yet; render a single env")
+        """Sub-env 0's frame as its single env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
+        if self._view is None:
+            gym.logger.warn(f'{type(self).__name__}.render() called without a render_mode; use render_mode="rgb_array"')
+            return None
+        if self._decision is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before render()")
+        return self._view.render()
 
     def close_extras(self, **kwargs) -> None:
         self._decision = None
+        if self._view is not None:
+            self._view.close()
 
 
 def _is_seed(value) -> bool:

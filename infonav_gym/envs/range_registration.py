@@ -11,6 +11,7 @@ from infonav_gym.config import Interval, check_choice, check_config, config_keys
 from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.envs.metrics import EpisodeMetric, mean_where, summed_reward
 from infonav_gym.envs.traits import EnvTraits
+from infonav_gym.information import information_gain_of_information
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import (
     DEFAULT_ODOMETRY_STD,
@@ -210,8 +211,7 @@ class RangeRegistrationEnv(InfoNavEnv):
 
     def _mutual_information(self, information: np.ndarray) -> float:
         """``0.5 ln det(I + P A)`` [nats] of information ``A`` about the motion, with the pair's prior ``P``."""
-        whitened = self._prior_root.T @ information @ self._prior_root
-        return 0.5 * float(np.linalg.slogdet(np.eye(6) + whitened)[1])
+        return information_gain_of_information(self._prior_root, information)
 
     def _next_decision(self) -> Decision:
         mask = ((self._return_fraction > 0) & ~self._chosen).astype(np.int8)

@@ -21,7 +21,8 @@ ICP (``infonav_gym.experiments.registration_timing``): median milliseconds of po
 32 x 180 LADAR frame pair from a warm start, and its errors against the true motion, beside
 Open3D's ``registration_icp`` on the same pair when Open3D imports.
 PPO (``infonav_gym.experiments.ppo_timing``): training timesteps per second of the same MaskablePPO
-settings on LandmarkSelection-v0 and on CartPole-v1, 8 envs each, alternating rounds in one run.
+settings on LandmarkSelection-v0 and on CartPole-v1, 8 envs each, and on their vector envs (the native
+LandmarkSelection one, Gymnasium's CartPoleVectorEnv), 64 copies each, alternating rounds in one run.
 Figures named ``*_us``, ``*_ms`` or ``*_kb_per_env`` meet their goal at or below it, all others at or above;
 a goal whose figure was not measured (its env or VMAS absent) is met ``None``.
 """
@@ -63,6 +64,7 @@ GOALS = {
     "camera_frame_ms": 10.0,
     "icp_frame_pair_ms": 20.0,
     "ppo_fps_ratio_vs_cartpole": 0.5,
+    "ppo_vector_fps_ratio_vs_cartpole": 0.8,
     "landmark_selection_vector_256_vs_cartpole_ratio": 1.0,
     "active_localization_vector_256_vs_cartpole_ratio": 0.5,
     "cooperative_localization_vector_256_vs_vmas_ratio": 1.5,
@@ -71,6 +73,7 @@ GOALS = {
     "cooperative_localization_vector_1024_kb_per_env": 200.0,
 }
 PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
+PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND = 8192  # the same for the 64-copy vector envs: two 4096-step rollouts
 MAX_STEPS_BETWEEN_CLOCK_READS = 100  # reached by doubling from 1, so a slow env's round ends near its deadline
 
 
@@ -245,10 +248,15 @@ def greedy_decision_us(n_candidates: int = 16, seed: int = 0, repeats: int = 200
 
 def _ppo_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
     """PPO fps figures; at most 3 rounds (each trains both envs), ``seconds_per_round`` sets their length."""
-    from infonav_gym.experiments.ppo_timing import ppo_fps_figures
+    from infonav_gym.experiments.ppo_timing import ppo_fps_figures, ppo_vector_fps_figures
 
     timesteps = max(256, round(seconds_per_round * PPO_TIMESTEPS_PER_SECOND_OF_ROUND))
-    return ppo_fps_figures(timesteps_per_round=timesteps, rounds=min(rounds, 3), seed=seed)
+    vector_timesteps = max(1024, round(seconds_per_round * PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND))
+    rounds = min(rounds, 3)
+    return {
+        **ppo_fps_figures(timesteps_per_round=timesteps, rounds=rounds, seed=seed),
+        **ppo_vector_fps_figures(timesteps_per_round=vector_timesteps, rounds=rounds, seed=seed),
+    }
 
 
 def run_benchmark(

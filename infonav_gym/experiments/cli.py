@@ -73,7 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument("--timesteps", type=int, required=True, help="env steps to train for (robot steps in a team)")
     train.add_argument(
-        "--n-envs", type=int, default=8, help="vectorized env copies (default: 8); a team copy gives each robot a slot"
+        "--n-envs",
+        type=int,
+        help="vectorized env copies (default: the hyperparameters' n_envs); a team copy gives each robot a slot",
     )
     train.add_argument("--output", type=Path, help="output directory (default: models/ENV-NAME_seedS)")
     train.add_argument(
@@ -83,7 +85,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="PPO hyperparameters: a YAML file of blocks keyed by env id, rl-zoo style "
         "(default: the tuned blocks shipped in the package, agents/hyperparams/ppo.yml)",
     )
-    train.add_argument("--subprocess", action="store_true", help="SubprocVecEnv: one process per env copy")
+    train.add_argument(
+        "--vectorization",
+        choices=("native", "sync", "subprocess"),
+        help="native: the env's own vector env, all copies stepped at once (the default where the env has one); "
+        "sync: one process, copy after copy (DummyVecEnv; the default otherwise); subprocess: one process per copy",
+    )
     train.add_argument("--tensorboard", action="store_true", help="log to OUTPUT/tensorboard (needs tensorboard)")
     train.add_argument(
         "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
@@ -200,14 +207,15 @@ def _train(args) -> dict:
         hyperparameters=hyperparameters,
         progress=not args.json,
         tensorboard=args.tensorboard,
-        subprocess=args.subprocess,
+        vectorization=args.vectorization,
         env_kwargs=dict(args.config),
     )
     record = json.loads((model_path.parent / "train.json").read_text())
     if not args.json:
         print(
-            f"trained {record['algorithm']} on {args.env} for {record['timesteps']} timesteps in "
-            f"{record['seconds']:.1f} s ({record['fps']:.0f} steps/s); model: {model_path}"
+            f"trained {record['algorithm']} on {args.env} ({record['n_envs']} envs, {record['vectorization']}) for "
+            f"{record['timesteps']} timesteps in {record['seconds']:.1f} s ({record['fps']:.0f} steps/s); "
+            f"model: {model_path}"
         )
         print(f"evaluate it: infonav evaluate --env {args.env} --agents random,greedy,ppo:{model_path}")
     return record

@@ -1,11 +1,16 @@
-"""PPO training speed on LandmarkSelection-v0 against CartPole-v1, same settings, same process.
+"""PPO training speed on LandmarkSelection-v0 against CartPole, same settings, same process.
 
-Both envs train with the same algorithm and hyperparameters (``MaskablePPO`` with the
-LandmarkSelection-v0 block of ``agents/hyperparams/ppo.yml``; CartPole gets an all-valid
-mask through ``InfoActionMask``), ``n_envs`` ``DummyVecEnv`` copies and the same torch
-threads. Rounds alternate between the two and time only ``learn`` (rollouts and gradient
-updates), so model construction and a busy machine affect both alike; the median ratio
-is reported.
+Two comparisons, each with ``MaskablePPO`` and the LandmarkSelection-v0 block of
+``agents/hyperparams/ppo.yml`` on both envs (CartPole gets all-valid masks) and the same torch threads:
+
+- ``ppo_fps_figures``: the single envs, ``n_envs`` (8) ``DummyVecEnv`` copies each (CartPole-v1 through
+  ``InfoActionMask``);
+- ``ppo_vector_fps_figures``: vector envs of ``n_envs`` (64) copies stepped at once, both through
+  ``agents.vector_adapter.VectorEnvAdapter``: LandmarkSelection's native vector env against Gymnasium's
+  ``CartPoleVectorEnv`` (as ``SameStepCartPoleVectorEnv``: SB3 needs the reset in the step an episode ends).
+
+Rounds alternate between the two envs and time only ``learn`` (rollouts and gradient updates), so model
+construction and a busy machine affect both alike; the median ratio is reported.
 """
 
 from __future__ import annotations
@@ -13,48 +18,144 @@ from __future__ import annotations
 import statistics
 import time
 
+import numpy as np
+from gymnasium.envs.classic_control.cartpole import CartPoleVectorEnv
+from gymnasium.vector import AutoresetMode
+
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 CARTPOLE_ID = "CartPole-v1"
+SINGLE_ENV_N_STEPS = 256  # per env of ppo_fps_figures: 8 x 256 = 2048 transitions per rollout, as the figure began
 
 
-def _masked_model(env_id: str, hyperparameters: dict, seed: int, n_envs: int):
+class SameStepCartPoleVectorEnv(CartPoleVectorEnv):
+    """Gymnasium's ``CartPoleVectorEnv`` resetting a sub-env in the step its episode ends (``AutoresetMode.SAME_STEP``).
+
+    Gymnasium's resets it at the next step (``NEXT_STEP``); this one draws the same reset states from
+    ``np_random`` one step earlier and returns the last observation in ``info["final_obs"]`` (and an empty
+    ``info["final_info"]``), each with its ``_`` mask. The dynamics are Gymnasium's.
+    """
+
+    metadata = {**CartPoleVectorEnv.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
+
+    def step(self, action):
+        observations, rewards, terminated, truncated, info = super().step(action)
+        ended = self.prev_done.copy()  # what Gymnasium would reset at the next step
+        if not ended.any():
+            return observations, rewards, terminated, truncated, info
+        final_observations = np.full(self.num_envs, None, dtype=object)
+        for index in np.flatnonzero(ended).tolist():
+            final_observations[index] = observations[index]
+        self.state[:, ended] = self.np_random.uniform(low=self.low, high=self.high, size=(4, int(ended.sum())))
+        self.steps[ended] = 0
+        self.prev_done[:] = False
+        info = {"final_obs": final_observations, "_final_obs": ended, "final_info": {}, "_final_info": ended.copy()}
+        return self.state.T.astype(np.float32), rewards, terminated, truncated, info
+
+
+def _round_settings(timesteps_per_round: int, n_envs: int, n_steps: int | None = None) -> tuple[dict, int]:
+    """The LandmarkSelection-v0 hyperparameters for rounds of about ``timesteps_per_round``; the round's timesteps.
+
+    ``n_steps`` (per env; ``None``: the block's) shrinks when a round is shorter than one rollout, so a
+    quick run (a few hundred timesteps) still does full rollout + update cycles.
+    """
+    from agents.ppo import load_hyperparameters
+
+    hyperparameters = load_hyperparameters(LANDMARK_ID)
+    n_steps = int(hyperparameters.get("n_steps", 2048)) if n_steps is None else n_steps
+    n_steps = max(1, min(n_steps, timesteps_per_round // n_envs))
+    rollout = n_steps * n_envs
+    hyperparameters.update(n_steps=n_steps, batch_size=min(int(hyperparameters.get("batch_size", 64)), rollout))
+    return hyperparameters, max(rollout, timesteps_per_round // rollout * rollout)
+
+
+def _masked_model(vec_env, hyperparameters: dict, seed: int):
     from sb3_contrib import MaskablePPO
-    from stable_baselines3.common.env_util import make_vec_env
 
-    from agents.ppo import InfoActionMask, _constructor_kwargs
+    from agents.ppo import _constructor_kwargs
 
-    vec_env = make_vec_env(env_id, n_envs=n_envs, seed=seed, wrapper_class=InfoActionMask)
     kwargs = _constructor_kwargs(hyperparameters)
     return MaskablePPO(hyperparameters.get("policy", "MlpPolicy"), vec_env, seed=seed, device="cpu", **kwargs)
 
 
-def ppo_fps_figures(timesteps_per_round: int = 2048, rounds: int = 3, seed: int = 0, n_envs: int = 8) -> dict:
-    """Median PPO training timesteps per second on both envs and their ratio (LandmarkSelection / CartPole).
+def _fps_figures(infix: str, make_vec_envs: dict, hyperparameters: dict, seed: int, timesteps: int, rounds: int):
+    """Median training timesteps per second on ``LANDMARK_ID`` and ``CARTPOLE_ID`` and their median ratio.
 
-    ``n_steps`` (per env) shrinks when a round is shorter than one rollout, so a quick
-    run (a few hundred timesteps) still does full rollout + update cycles.
+    Args:
+        infix: in the figure names (``ppo_landmark_selection_{infix}fps``, ...).
+        make_vec_envs: ``LANDMARK_ID`` and ``CARTPOLE_ID`` -> a function making that env's SB3 ``VecEnv``.
     """
-    from agents.ppo import default_num_threads, load_hyperparameters, torch_threads
+    from agents.ppo import default_num_threads, torch_threads
 
-    hyperparameters = load_hyperparameters(LANDMARK_ID)
-    n_steps = max(1, min(int(hyperparameters.get("n_steps", 2048)), timesteps_per_round // n_envs))
-    rollout = n_steps * n_envs
-    hyperparameters.update(n_steps=n_steps, batch_size=min(int(hyperparameters.get("batch_size", 64)), rollout))
-    timesteps = max(rollout, timesteps_per_round // rollout * rollout)
-    rates = {LANDMARK_ID: [], CARTPOLE_ID: []}
+    rates = {name: [] for name in make_vec_envs}
     with torch_threads(default_num_threads()):
-        models = {env_id: _masked_model(env_id, hyperparameters, seed, n_envs) for env_id in rates}
+        models = {name: _masked_model(make(), hyperparameters, seed) for name, make in make_vec_envs.items()}
         for _ in range(rounds):
-            for env_id, model in models.items():
+            for name, model in models.items():
                 before, start = model.num_timesteps, time.perf_counter()
                 model.learn(timesteps, reset_num_timesteps=False)
-                rates[env_id].append((model.num_timesteps - before) / (time.perf_counter() - start))
+                rates[name].append((model.num_timesteps - before) / (time.perf_counter() - start))
         for model in models.values():
             model.get_env().close()
     ratios = [ours / reference for ours, reference in zip(rates[LANDMARK_ID], rates[CARTPOLE_ID])]
     return {
-        "ppo_landmark_selection_fps": statistics.median(rates[LANDMARK_ID]),
-        "ppo_cartpole_fps": statistics.median(rates[CARTPOLE_ID]),
-        "ppo_fps_ratio_vs_cartpole": statistics.median(ratios),
-        "ppo_timesteps_per_round": timesteps,
+        f"ppo_landmark_selection_{infix}fps": statistics.median(rates[LANDMARK_ID]),
+        f"ppo_cartpole_{infix}fps": statistics.median(rates[CARTPOLE_ID]),
+        f"ppo_{infix}fps_ratio_vs_cartpole": statistics.median(ratios),
+        f"ppo_{infix}timesteps_per_round": timesteps,
+    }
+
+
+def ppo_fps_figures(timesteps_per_round: int = 2048, rounds: int = 3, seed: int = 0, n_envs: int = 8) -> dict:
+    """Median PPO training timesteps per second on both single envs and their ratio (LandmarkSelection / CartPole)."""
+    from stable_baselines3.common.env_util import make_vec_env
+
+    from agents.ppo import InfoActionMask
+
+    hyperparameters, timesteps = _round_settings(timesteps_per_round, n_envs, SINGLE_ENV_N_STEPS)
+    make_vec_envs = {
+        env_id: lambda env_id=env_id: make_vec_env(env_id, n_envs=n_envs, seed=seed, wrapper_class=InfoActionMask)
+        for env_id in (LANDMARK_ID, CARTPOLE_ID)
+    }
+    return _fps_figures("", make_vec_envs, hyperparameters, seed, timesteps, rounds)
+
+
+def landmark_vector_vec_env(n_envs: int, seed: int, vectorization: str = "native"):
+    """The LandmarkSelection copies of ``ppo_vector_fps_figures``, an SB3 ``VecEnv`` (sub-env ``i``: ``seed + i``).
+
+    ``native``: its own vector env (``agents.ppo.native_vec_env``); ``sync``: Gymnasium's ``SyncVectorEnv``
+    of single envs in SAME_STEP mode, through the same adapter.
+    """
+    import gymnasium as gym
+
+    from agents.ppo import NATIVE, SYNC, native_vec_env
+    from agents.vector_adapter import monitored_vec_env
+
+    if vectorization == NATIVE:
+        return native_vec_env(LANDMARK_ID, n_envs, seed)
+    if vectorization != SYNC:
+        raise ValueError(f"vectorization of the PPO vector benchmark must be native or sync, got {vectorization!r}")
+    vector_kwargs = {"autoreset_mode": AutoresetMode.SAME_STEP}
+    return monitored_vec_env(
+        gym.make_vec(LANDMARK_ID, n_envs, vectorization_mode="sync", vector_kwargs=vector_kwargs), seed
+    )
+
+
+def ppo_vector_fps_figures(
+    timesteps_per_round: int = 8192, rounds: int = 3, seed: int = 0, n_envs: int = 64, vectorization: str = "native"
+) -> dict:
+    """Median PPO training timesteps per second on the LandmarkSelection and CartPole vector envs and their ratio.
+
+    Args:
+        vectorization: how the LandmarkSelection copies run (``landmark_vector_vec_env``).
+    """
+    from agents.vector_adapter import monitored_vec_env
+
+    hyperparameters, timesteps = _round_settings(timesteps_per_round, n_envs)
+    make_vec_envs = {
+        LANDMARK_ID: lambda: landmark_vector_vec_env(n_envs, seed, vectorization),
+        CARTPOLE_ID: lambda: monitored_vec_env(SameStepCartPoleVectorEnv(num_envs=n_envs), seed),
+    }
+    return {
+        **_fps_figures("vector_", make_vec_envs, hyperparameters, seed, timesteps, rounds),
+        "ppo_vector_n_envs": n_envs,
     }

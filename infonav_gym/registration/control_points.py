@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import distance_transform_cdt, uniform_filter
 
-from infonav_gym.information import log_det_spd
+from infonav_gym.information import information_gain_of_information, log_det_spd
 from infonav_gym.sensors.ladar import LadarScan
 from infonav_gym.sensors.pixel_grid import unit_directions
 
@@ -99,9 +99,7 @@ class ControlPointGeometry:
         """Mutual information [nats] between the motion and the residuals of the returns ``indices``."""
         chosen = np.asarray(indices, dtype=np.int64)
         jacobians = self.jacobians[chosen] / np.sqrt(self.error_var_m2[chosen])[:, None]
-        cholesky = np.linalg.cholesky(self.pose_covariance)
-        whitened = jacobians @ cholesky
-        return 0.5 * float(np.linalg.slogdet(np.eye(6) + whitened.T @ whitened)[1])
+        return information_gain_of_information(np.linalg.cholesky(self.pose_covariance), jacobians.T @ jacobians)
 
 
 def check_pose_covariance(pose_covariance) -> np.ndarray:

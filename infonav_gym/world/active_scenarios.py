@@ -15,7 +15,8 @@ from infonav_gym.world.scenarios import (
     Route,
     Scenario,
     _box_walls,
-    _rejection_sample,
+    _uniform,
+    _uniform_until_accepted,
 )
 from infonav_gym.world.world import World
 
@@ -100,19 +101,23 @@ def goal_field(
         landmarks.append(start + fraction * length_m * along + offset * normal)
     landmarks = np.clip(np.array(landmarks), 1.0, size_m - 1.0)
 
-    def draw_obstacle() -> CircleObstacle:
-        radius = float(np_random.uniform(0.7, 1.5))
-        fraction, offset = np_random.uniform(0.1, 0.9), -lit_side * np_random.uniform(radius + 2.0, 8.0)
-        center = start + fraction * length_m * along + offset * normal
-        return CircleObstacle((float(center[0]), float(center[1])), radius)
+    def obstacle_discs(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Centres (M, 2) and radii (M,) of the obstacles drawn as ``u`` (M, 3): radius, place along, offset."""
+        radii = _uniform(u[:, 0], 0.7, 1.5)
+        fractions, offsets = _uniform(u[:, 1], 0.1, 0.9), -lit_side * _uniform(u[:, 2], radii + 2.0, 8.0)
+        return start + fractions[:, None] * length_m * along + offsets[:, None] * normal, radii
 
-    def clear(obstacle: CircleObstacle) -> bool:
-        center = np.array(obstacle.center)
-        inside = np.all(center - obstacle.radius > 0.5) and np.all(center + obstacle.radius < size_m - 0.5)
-        gaps = np.linalg.norm(landmarks - center, axis=1) - obstacle.radius
-        return bool(inside and np.all(gaps > 0.5) and math.dist(center, goal) > obstacle.radius + 3.0)
+    def clear(u: np.ndarray) -> np.ndarray:
+        centers, radii = obstacle_discs(u)
+        inside = np.all(centers - radii[:, None] > 0.5, axis=1) & np.all(
+            centers + radii[:, None] < size_m - 0.5, axis=1
+        )
+        gaps = np.linalg.norm(landmarks - centers[:, None], axis=-1) - radii[:, None]
+        return inside & np.all(gaps > 0.5, axis=1) & (np.linalg.norm(centers - goal, axis=1) > radii + 3.0)
 
-    obstacles = _rejection_sample(n_obstacles, draw_obstacle, clear, "obstacles on the dark side")
+    u = _uniform_until_accepted(np_random, n_obstacles, 3, clear, "obstacles on the dark side")
+    centers, radii = obstacle_discs(u)
+    obstacles = [CircleObstacle((x, y), radius) for (x, y), radius in zip(centers.tolist(), radii.tolist())]
     heading = math.atan2(along[1], along[0])
     route = Route((float(start[0]), float(start[1]), heading), goal[None, :])
     return Scenario(

@@ -142,30 +142,35 @@ def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: in
     return accepted
 
 
-def _uniform_until_accepted(np_random, count: int, low, high, accept, what: str, max_attempts_each: int = 1000):
-    """Draw rows ``np_random.uniform(low, high)`` one attempt at a time until ``count`` pass ``accept``; those rows.
+def _uniform_until_accepted(np_random, count: int, width: int, accept, what: str, max_attempts_each: int = 1000):
+    """Attempts of ``width`` uniform [0, 1) numbers, drawn until ``count`` pass ``accept``; the accepted rows.
 
-    ``_rejection_sample`` for tests that take a batch of rows (M, width) -> (M,) bool and do not depend on the
-    rows accepted before: attempts are drawn ahead in batches and the generator is rewound, so it ends exactly
-    after the last attempt, as with one draw per attempt, with the same numbers.
+    ``_rejection_sample`` for samples made of ``width`` calls of ``np_random.uniform`` (``_uniform`` of each
+    number: ``Generator.uniform``'s arithmetic) whose test takes a batch of rows (M, width) -> (M,) bool and does
+    not depend on the rows accepted before. Attempts are drawn ahead in batches and the generator is rewound,
+    so it ends exactly after the last attempt, as with one draw per attempt: the same numbers.
 
     Raises:
         ValueError: naming ``what``, when ``count`` rows do not pass within ``max_attempts_each`` attempts each.
     """
-    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
     accepted, attempts_left, batch = [], max_attempts_each * max(count, 1), max(4 * count, 16)
     while len(accepted) < count and attempts_left > 0:
         state, size = np_random.bit_generator.state, min(batch, attempts_left)
-        rows = low + (high - low) * np_random.random((size, len(low)))  # Generator.uniform's arithmetic
+        rows = np_random.random((size, width))
         passed = np.flatnonzero(accept(rows))[: count - len(accepted)]
         if len(accepted) + len(passed) == count:
             np_random.bit_generator.state = state
-            np_random.random((passed[-1] + 1, len(low)))  # consume exactly the attempts made
+            np_random.random((passed[-1] + 1, width))  # consume exactly the attempts made
         accepted.extend(rows[passed])
         attempts_left -= size
     if len(accepted) < count:
         raise ValueError(f"could not place {count} {what} after many attempts: the field is too crowded")
-    return np.array(accepted).reshape(-1, len(low))
+    return np.array(accepted).reshape(-1, width)
+
+
+def _uniform(u: np.ndarray, low, high) -> np.ndarray:
+    """``Generator.uniform(low, high)`` of drawn uniform [0, 1) numbers ``u``."""
+    return low + (high - low) * u
 
 
 def _polygon(center: np.ndarray, angles: np.ndarray, radii: np.ndarray) -> np.ndarray:
@@ -194,14 +199,15 @@ def _box_walls(x_min: float, y_min: float, x_max: float, y_max: float) -> tuple:
 
 def _obstacles_clear_of(polygons: list, count: int, size_m: float, np_random: np.random.Generator) -> list:
     """``count`` round obstacles in the square field, each clear of every closed route by its radius + 2 m."""
-    loops = [ClosedLoop(polygon) for polygon in polygons]
+    routes = ClosedLoop(*polygons)
 
-    def clear(rows: np.ndarray) -> np.ndarray:
-        return np.all([loop.distances(rows[:, :2]) > rows[:, 2] + 2.0 for loop in loops], axis=0)
+    low, high = np.array([2.0, 2.0, 0.5]), np.array([size_m - 2.0, size_m - 2.0, 2.0])
 
-    rows = _uniform_until_accepted(
-        np_random, count, (2.0, 2.0, 0.5), (size_m - 2.0, size_m - 2.0, 2.0), clear, "obstacles clear of the routes"
-    )
+    def clear(u: np.ndarray) -> np.ndarray:
+        rows = _uniform(u, low, high)
+        return routes.distances(rows[:, :2]) > rows[:, 2] + 2.0
+
+    rows = _uniform(_uniform_until_accepted(np_random, count, 3, clear, "obstacles clear of the routes"), low, high)
     return [CircleObstacle((x, y), radius) for x, y, radius in rows.tolist()]
 
 
@@ -232,18 +238,13 @@ def field(
     centers = np.array([o.center for o in obstacles], dtype=float).reshape(-1, 2)
     clearances = np.array([o.radius + 0.5 for o in obstacles], dtype=float)
 
-    def outside_obstacles(points: np.ndarray) -> np.ndarray:
+    def outside_obstacles(u: np.ndarray) -> np.ndarray:
+        points = _uniform(u, 1.0, size_m - 1.0)
         gaps = np.hypot(points[:, None, 0] - centers[:, 0], points[:, None, 1] - centers[:, 1])
         return (route_loop.distances(points) > 1.0) & np.all(gaps > clearances, axis=1)
 
-    landmarks = _uniform_until_accepted(
-        np_random,
-        n_landmarks,
-        (1.0, 1.0),
-        (size_m - 1.0, size_m - 1.0),
-        outside_obstacles,
-        "landmarks outside obstacles",
-    )
+    u = _uniform_until_accepted(np_random, n_landmarks, 2, outside_obstacles, "landmarks outside obstacles")
+    landmarks = _uniform(u, 1.0, size_m - 1.0)
     return Scenario(
         name="field",
         bounds=(0.0, 0.0, size_m, size_m),
@@ -308,12 +309,10 @@ def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> 
 
     def accept(zone: CircleObstacle) -> bool:
         starts_open = all(math.dist(polygon[0], zone.center) >= zone.radius for polygon in polygons)
-        return starts_open and all(
-            np.mean(np.linalg.norm(points - zone.center, axis=1) < zone.radius) <= MAX_CANOPY_COVER
-            for points in route_points
-        )
+        covered = np.mean(np.linalg.norm(route_points - zone.center, axis=-1) < zone.radius, axis=1)
+        return starts_open and bool(np.all(covered <= MAX_CANOPY_COVER))
 
-    route_points = [_points_along(polygon) for polygon in polygons]
+    route_points = np.array([_points_along(polygon) for polygon in polygons])  # (R, P, 2): routes of equal size
     return _rejection_sample(
         count,
         draw,

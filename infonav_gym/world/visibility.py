@@ -299,6 +299,8 @@ def _pair_hits(copy, origins, targets, shapes, radii, boxes, usable, culled, exa
     touching = (low[:, None, 0] <= query_boxes[..., 2]) & (query_boxes[..., 0] <= high[:, None, 0])
     touching &= (low[:, None, 1] <= query_boxes[..., 3]) & (query_boxes[..., 1] <= high[:, None, 1])
     query, shape = np.nonzero((touching | ~culled[copy, None]) & usable[copy])
+    if not query.size:
+        return query, shape
     origin_x, origin_y = origins[query].T
     target_x, target_y = targets[query].T
     query_copy = copy[query]
@@ -454,20 +456,27 @@ def in_coverage(sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
     """
     poses = _finite_array(poses, (None, 3), "in_coverage: poses [m, m, rad]")
     targets = _finite_array(targets, (len(poses), None, 2), "in_coverage: targets [m] (one row per pose)")
+    return _in_coverage(sensor, poses, targets)
+
+
+def _in_coverage(sensor: RangeBearingSensor, poses: np.ndarray, targets: np.ndarray) -> np.ndarray:
     dx, dy = targets[:, :, 0] - poses[:, None, 0], targets[:, :, 1] - poses[:, None, 1]
     measurements = np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - poses[:, None, 2])], axis=-1)
     return sensor.in_coverage(measurements.reshape(-1, 2)).reshape(dx.shape)
 
 
-def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
+def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets, *, check_input: bool = True):
     """Which targets each copy's robot sees: in ``sensor``'s coverage and in line of sight (N, K) bool.
 
     Equal to ``LandmarkSight``'s ``visible`` of each copy (``in_coverage`` and ``line_of_sight``).
+    ``check_input=False`` skips the checks, for known-good float arrays in hot loops.
 
     Raises:
         ValueError: as ``in_coverage`` and ``line_of_sight``.
     """
-    covered = in_coverage(sensor, poses, targets)
-    origins = np.asarray(poses, dtype=float)[:, :2]
-    _check_copies("visible", geometry, len(origins), "poses")
-    return covered & _line_of_sight(geometry, origins, np.asarray(targets, dtype=float), covered)
+    if check_input:
+        poses = _finite_array(poses, (None, 3), "in_coverage: poses [m, m, rad]")
+        targets = _finite_array(targets, (len(poses), None, 2), "in_coverage: targets [m] (one row per pose)")
+        _check_copies("visible", geometry, len(poses), "poses")
+    covered = _in_coverage(sensor, poses, targets)
+    return covered & _line_of_sight(geometry, poses[:, :2], targets, covered)

@@ -85,7 +85,7 @@ class World:
         self.scenario = scenario
         self._space = None
         self._robot_bodies = []
-        self._poses = [(*route.start_pose[:2], wrap_angle(route.start_pose[2])) for route in scenario.routes]
+        self._poses = start_poses(scenario)
         self._waypoints = [route.waypoints.tolist() for route in scenario.routes]
         self.waypoint_indices = [0] * len(scenario.routes)
         self._static_boxes = [tuple(box) for box in static_boxes(scenario, self.wall_thickness_m).tolist()]
@@ -261,6 +261,11 @@ class World:
             raise ValueError(f"positions must be an (N, 2) array of x, y [m], got shape {positions.shape}")
         offsets = positions[:, None, :] - self._zone_centers
         return np.any(np.einsum("nzi,nzi->nz", offsets, offsets) <= self._zone_radii_sq, axis=1)
+
+
+def start_poses(scenario: Scenario) -> list[tuple[float, float, float]]:
+    """Each robot's pose ``(x, y, heading)`` at the start of its route, heading wrapped to [-pi, pi)."""
+    return [(*route.start_pose[:2], wrap_angle(route.start_pose[2])) for route in scenario.routes]
 
 
 def static_boxes(scenario: Scenario, wall_thickness_m: float) -> np.ndarray:

@@ -14,7 +14,7 @@ import numpy as np
 
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.world.scenarios import Scenario
-from infonav_gym.world.world import MAX_TIME_STEP_S, TIME_STEP_S, World, static_boxes
+from infonav_gym.world.world import MAX_TIME_STEP_S, TIME_STEP_S, World, start_poses, static_boxes
 
 _EMPTY_BOX = (np.inf, np.inf, -np.inf, -np.inf)  # a padding box that overlaps nothing
 
@@ -32,7 +32,9 @@ class WorldBatch:
     """
 
     def __init__(self, n_copies: int, **world_args):
-        self._worlds = [World(**world_args) for _ in range(n_copies)]
+        self._worlds = [World(**world_args) for _ in range(n_copies)]  # reset when a copy first needs Pymunk
+        self._scenarios: list[Scenario | None] = [None] * n_copies
+        self._world_is_stale = np.ones(n_copies, dtype=bool)
         reference = self._worlds[0]
         self._radius_m = reference.robot_radius_m
         self._tolerance_m = reference.waypoint_tolerance_m
@@ -53,7 +55,7 @@ class WorldBatch:
 
     def scenario(self, copy: int) -> Scenario:
         """The scenario copy ``copy`` was last reset to."""
-        return self._worlds[copy].scenario
+        return self._scenarios[copy]
 
     def reset_copy(self, copy: int, scenario: Scenario) -> None:
         """Put copy ``copy``'s robots at the starts of ``scenario``'s routes (it must have R routes, as the others).
@@ -69,9 +71,9 @@ class WorldBatch:
                 f"WorldBatch copy {copy}: scenario {scenario.name!r} has {len(routes)} robots, the other copies "
                 f"{self.poses.shape[1]}; every copy needs the same number"
             )
-        world = self._worlds[copy]
-        world.reset(scenario)
-        self.poses[copy] = world.poses
+        self._scenarios[copy] = scenario
+        self._world_is_stale[copy] = True
+        self.poses[copy] = start_poses(scenario)
         longest = max(len(route.waypoints) for route in routes)
         if longest > self._waypoints.shape[2]:
             grown = np.zeros((*self._waypoints.shape[:2], longest, 2))
@@ -132,7 +134,11 @@ class WorldBatch:
             axis=-1,
         )
         for row in np.flatnonzero(self._contact_within(copies, before, speeds, dt)).tolist():
-            world = self._worlds[int(copies[row])]
+            copy = int(copies[row])
+            world = self._worlds[copy]
+            if self._world_is_stale[copy]:
+                world.reset(self._scenarios[copy])
+                self._world_is_stale[copy] = False
             world.set_poses(before[row])
             world.drive_in_contact(controls[row].tolist(), dt)
             after[row] = world.poses
