@@ -4,7 +4,8 @@ Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib
 ``MaskablePPO``, which reads each env's public ``action_masks()`` through the wrappers. Other envs
 (CartPole, for the benchmark) train with plain ``PPO``, or with ``MaskablePPO`` through ``InfoActionMask``.
 A PettingZoo parallel env (registry ``api``, e.g. ``cooperative_localization_v0``) trains one
-``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv``.
+``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv`` (one slot per
+robot of its batched vector env, ``CooperativeLocalizationVectorEnv``).
 ``vectorization`` picks how the copies run: ``native`` (the default where the env's registry entry has a
 ``vector_entry_point``) steps them at once in the env's own ``gymnasium.vector.VectorEnv``, seen by SB3
 through ``agents.vector_adapter.VectorEnvAdapter``; ``sync`` in a ``DummyVecEnv``, ``subprocess`` in a
@@ -261,10 +262,10 @@ def has_native_vector_env(env_id: str) -> bool:
 def vectorizations(env_id: str) -> tuple[str, ...]:
     """The vectorizations ``env_id`` trains with, its default first (``native`` where it has a native vector env).
 
-    A PettingZoo env trains on ``TeamVecEnv``, every copy in this process: ``sync`` only.
+    A PettingZoo env trains on ``TeamVecEnv``, a slot per robot of its batched vector env: ``native`` only.
     """
     if api_of(env_id) == PARALLEL:
-        return (SYNC,)
+        return (NATIVE,)
     return (NATIVE, SYNC, SUBPROCESS) if has_native_vector_env(env_id) else (SYNC, SUBPROCESS)
 
 
@@ -280,7 +281,9 @@ def checked_vectorization(env_id: str, vectorization: str | None) -> str:
     if vectorization not in VECTORIZATIONS:
         raise ValueError(f"vectorization must be one of {', '.join(VECTORIZATIONS)}, got {vectorization!r}")
     if vectorization not in available:
-        why = "no native vector env in the registry" if vectorization == NATIVE else "its copies share one process"
+        why = "no native vector env in the registry"
+        if api_of(env_id) == PARALLEL:
+            why = "a team trains on its robots' slots of its batched vector env"
         raise ValueError(
             f"env {env_id!r} cannot train with vectorization {vectorization!r} ({why}); it has: {', '.join(available)}"
         )

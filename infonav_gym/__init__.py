@@ -4,10 +4,10 @@ Importing the package registers its environments (``register_envs``) in ``infona
 the Gymnasium ones with Gymnasium as well. ``make_env(env_id, **config)`` makes either kind.
 """
 
-from infonav_gym.registry import GYMNASIUM, PARALLEL, make_env, register, registered_envs, unregister
+from infonav_gym.registry import GYMNASIUM, PARALLEL, make_env, make_vector_env, register, registered_envs, unregister
 
 __version__ = "0.1.0"
-__all__ = ["make_env", "register", "register_envs", "registered_envs", "unregister"]
+__all__ = ["make_env", "make_vector_env", "register", "register_envs", "registered_envs", "unregister"]
 
 BUILTIN_ENVS = (
     (
@@ -16,10 +16,20 @@ BUILTIN_ENVS = (
         GYMNASIUM,
         "infonav_gym.envs.landmark_selection_vector:LandmarkSelectionVectorEnv",
     ),
-    ("infonav/ActiveLocalization-v0", "infonav_gym.envs.active_localization:ActiveLocalizationEnv", GYMNASIUM),
+    (
+        "infonav/ActiveLocalization-v0",
+        "infonav_gym.envs.active_localization:ActiveLocalizationEnv",
+        GYMNASIUM,
+        "infonav_gym.envs.active_localization_vector:ActiveLocalizationVectorEnv",
+    ),
     ("infonav/SensorSelection-v0", "infonav_gym.envs.sensor_selection:SensorSelectionEnv", GYMNASIUM),
     ("infonav/RangeRegistration-v0", "infonav_gym.envs.range_registration:RangeRegistrationEnv", GYMNASIUM),
-    ("cooperative_localization_v0", "infonav_gym.multi.cooperative_localization:CooperativeLocalizationEnv", PARALLEL),
+    (
+        "cooperative_localization_v0",
+        "infonav_gym.multi.cooperative_localization:CooperativeLocalizationEnv",
+        PARALLEL,
+        "infonav_gym.multi.cooperative_localization_vector:CooperativeLocalizationVectorEnv",
+    ),
 )
 
 

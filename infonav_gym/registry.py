@@ -39,7 +39,8 @@ class EnvEntry:
         entry_point: ``"module:EnvClass"`` (or the class itself); called with the config as keywords.
         api: ``GYMNASIUM`` or ``PARALLEL``.
         vector_entry_point: ``"module:VectorEnvClass"`` of a native ``gymnasium.vector.VectorEnv``, called with
-            ``num_envs`` and the config by ``gym.make_vec``; None for none (a Gymnasium entry only).
+            ``num_envs`` and the config by ``make_vector_env`` (and ``gym.make_vec`` for a Gymnasium entry); None
+            for none. A parallel env's vector env steps N copies of the whole team: arrays (N, R, ...).
     """
 
     id: str
@@ -49,10 +50,24 @@ class EnvEntry:
 
     def load(self) -> Callable:
         """The env class (or factory) the entry point names, imported now."""
-        if not isinstance(self.entry_point, str):
-            return self.entry_point
-        module, _, attribute = self.entry_point.partition(":")
-        return getattr(importlib.import_module(module), attribute)
+        return _loaded(self.entry_point)
+
+    def load_vector(self) -> Callable:
+        """The native vector env class (or factory) ``vector_entry_point`` names, imported now.
+
+        Raises:
+            ValueError: if the env has none.
+        """
+        if self.vector_entry_point is None:
+            raise ValueError(f"env {self.id!r} has no native vector env (no vector_entry_point is registered)")
+        return _loaded(self.vector_entry_point)
+
+
+def _loaded(entry_point: str | Callable) -> Callable:
+    if not isinstance(entry_point, str):
+        return entry_point
+    module, _, attribute = entry_point.partition(":")
+    return getattr(importlib.import_module(module), attribute)
 
 
 _ENTRIES: dict[str, EnvEntry] = {}
@@ -71,8 +86,6 @@ def register(
         raise ValueError(f"api of env {env_id!r} must be one of {', '.join(APIS)}, got {api!r}")
     if isinstance(entry_point, str) and entry_point.count(":") != 1:
         raise ValueError(f"entry_point of env {env_id!r} must be 'module:attribute', got {entry_point!r}")
-    if vector_entry_point is not None and api != GYMNASIUM:
-        raise ValueError(f"vector_entry_point of env {env_id!r} needs api={GYMNASIUM!r}, got api={api!r}")
     if isinstance(vector_entry_point, str) and vector_entry_point.count(":") != 1:
         raise ValueError(f"vector_entry_point of env {env_id!r} must be 'module:attribute', got {vector_entry_point!r}")
     entry = EnvEntry(env_id, entry_point, api, vector_entry_point)
@@ -146,3 +159,15 @@ def make_env(env_id: str, **config):
         return gym.make(env_id, **config)
     except gym.error.Error as error:
         raise ValueError(f"unknown env id {env_id!r} ({error}); choose from {', '.join(_ENTRIES)}") from None
+
+
+def make_vector_env(env_id: str, num_envs: int, **config):
+    """The native vector env of ``env_id`` with ``num_envs`` copies: ``vector_entry_point(num_envs=..., **config)``.
+
+    For a Gymnasium env that is what ``gym.make_vec(env_id, num_envs)`` returns; for a PettingZoo parallel env
+    (not known to Gymnasium) it steps N copies of the whole team. ``env_id`` may carry the module prefix.
+
+    Raises:
+        ValueError: for an unknown id, an env without a native vector env, or a bad config.
+    """
+    return env_entry(resolve_env_id(env_id)).load_vector()(num_envs=num_envs, **config)

@@ -103,10 +103,20 @@ def test_bad_input_exits_2_with_one_line_naming_it(capsys, argv, message):
 @pytest.mark.parametrize(
     "env_id, vectorization, why, available",
     [
-        ("infonav/ActiveLocalization-v0", "native", "no native vector env in the registry", "sync, subprocess"),
+        ("infonav/SensorSelection-v0", "native", "no native vector env in the registry", "sync, subprocess"),
         ("CartPole-v1", "native", "no native vector env in the registry", "sync, subprocess"),
-        ("cooperative_localization_v0", "native", "no native vector env in the registry", "sync"),
-        ("cooperative_localization_v0", "subprocess", "its copies share one process", "sync"),
+        (
+            "cooperative_localization_v0",
+            "sync",
+            "a team trains on its robots' slots of its batched vector env",
+            "native",
+        ),
+        (
+            "cooperative_localization_v0",
+            "subprocess",
+            "a team trains on its robots' slots of its batched vector env",
+            "native",
+        ),
     ],
 )
 def test_a_vectorization_the_env_lacks_is_one_line_naming_the_env_and_its_modes(
@@ -125,7 +135,9 @@ def test_the_default_vectorization_is_native_where_the_registry_has_a_native_vec
 
     assert vectorizations(LANDMARK_ID) == ("native", "sync", "subprocess")
     assert checked_vectorization(LANDMARK_ID, None) == "native"
-    for env_id in ("infonav/ActiveLocalization-v0", "CartPole-v1", "cooperative_localization_v0"):
+    assert checked_vectorization("infonav/ActiveLocalization-v0", None) == "native"
+    assert vectorizations("cooperative_localization_v0") == ("native",)  # its robots' slots of the batched env
+    for env_id in ("infonav/SensorSelection-v0", "CartPole-v1"):
         assert checked_vectorization(env_id, None) == "sync"
     with pytest.raises(ValueError, match="vectorization must be one of native, sync, subprocess, got 'threads'"):
         checked_vectorization(LANDMARK_ID, "threads")

@@ -11,9 +11,10 @@ pytest.importorskip("sb3_contrib")
 from sb3_contrib.common.maskable.utils import get_action_masks, is_masking_supported  # noqa: E402
 
 from agents.ppo import PPOAgent, train  # noqa: E402
-from agents.team_vec_env import TeamVecEnv, make_team_vec_env  # noqa: E402
+from agents.team_vec_env import RobotSlots, TeamVecEnv, make_team_vec_env  # noqa: E402
 from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
 from infonav_gym.multi import cooperative_localization_v0  # noqa: E402
+from infonav_gym.registry import make_vector_env  # noqa: E402
 
 TEAM_ENV = "cooperative_localization_v0"
 CONFIG = {"max_cycles": 6}
@@ -62,12 +63,13 @@ def test_slots_replay_copies_seeded_seed_plus_i_with_masks_rewards_and_automatic
                 slot = copy * N_ROBOTS + k
                 assert rewards[slot] == np.float32(reference_rewards[agent])
                 assert dones[slot] == truncations[agent] == (step + 1 == max_cycles)
-                assert infos[slot]["TimeLimit.truncated"] == dones[slot]
-                assert infos[slot]["chosen_action"] == actions[slot]
+                step_info = vec_env.batched_infos["final_info"] if dones[slot] else vec_env.batched_infos
+                assert step_info["chosen_action"][copy, k] == actions[slot]
                 if dones[slot]:
+                    assert infos[slot]["TimeLimit.truncated"]
                     np.testing.assert_array_equal(infos[slot]["terminal_observation"], reference_observations[agent])
                 else:
-                    assert "terminal_observation" not in infos[slot]
+                    assert infos[slot] == {}  # SB3 needs nothing more of a slot that goes on
             if not env.agents:
                 episode_ends += 1
                 reference_observations, reference_infos = env.reset()  # unseeded: continues its generator
@@ -100,16 +102,30 @@ def test_attributes_methods_and_masks_reach_the_right_copy_and_robot():
     masks = vec_env.unwrapped.action_masks()
     np.testing.assert_array_equal(np.stack(vec_env.env_method("action_masks", indices=[3, 6])), masks[[3, 6]])
     assert vec_env.env_is_wrapped(gym.Wrapper) == [False] * 2 * N_ROBOTS
-    vec_env.set_attr("max_cycles", 2, indices=[N_ROBOTS])  # a slot of copy 1: sets that copy's env
-    assert vec_env.get_attr("max_cycles") == [CONFIG["max_cycles"]] * N_ROBOTS + [2] * N_ROBOTS
+    assert vec_env.get_attr("max_cycles") == [CONFIG["max_cycles"]] * 2 * N_ROBOTS
+    with pytest.raises(
+        ValueError, match=r"set_attr\('max_cycles'\) .* acts on every sub-env: pass indices=None, got \[4\]"
+    ):
+        vec_env.set_attr("max_cycles", 2, indices=[N_ROBOTS])
+    vec_env.set_attr("max_cycles", 2)  # the batched env's, for every copy
     for _ in range(2):
         _, _, dones, infos = vec_env.step(np.zeros(2 * N_ROBOTS, dtype=int))
-    assert dones.tolist() == [False] * N_ROBOTS + [True] * N_ROBOTS
-    assert all(info["episode"]["l"] == 2 for info in infos[N_ROBOTS:])  # VecMonitor's per-robot episode record
+    assert dones.tolist() == [True] * 2 * N_ROBOTS
+    assert all(info["episode"]["l"] == 2 for info in infos)  # VecMonitor's per-robot episode record
     with pytest.raises(ValueError, match=r"one action per slot, shape \(8,\), got shape \(3,\)"):
         vec_env.step(np.zeros(3, dtype=int))
     with pytest.raises(ValueError, match="n_envs must be >= 1, got 0"):
         TeamVecEnv(0)
+
+
+def test_robot_slots_seed_each_copy_once_for_all_its_robots():
+    slots = RobotSlots(make_vector_env(TEAM_ENV, 2, autoreset_mode="same_step", **CONFIG))
+    observations, _ = slots.reset(seed=[3] * N_ROBOTS + [4] * N_ROBOTS)
+    np.testing.assert_array_equal(observations, TeamVecEnv(2, seed=3, env_kwargs=CONFIG).reset())
+    with pytest.raises(ValueError, match=r"one seed per slot \(8\), the same for the 4 robots of a copy"):
+        slots.reset(seed=[3, 3, 3, 4, 4, 4, 4, 4])
+    with pytest.raises(ValueError, match=r"one action per slot, shape \(8,\), got shape \(2, 4\)"):
+        slots.step(np.zeros((2, N_ROBOTS), dtype=int))
 
 
 # small, explicit hyperparameters: the tuned block of agents/hyperparams/ppo.yml trains for minutes

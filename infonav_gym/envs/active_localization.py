@@ -14,6 +14,7 @@ from infonav_gym.envs.active_planning import (
     ActivePlanningModel,
 )
 from infonav_gym.envs.base import MAX_EPISODE_STEPS, Decision, InfoNavEnv
+from infonav_gym.envs.landmark_selection import Prior
 from infonav_gym.envs.landmark_sight import LandmarkSight
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
 from infonav_gym.envs.traits import EnvTraits
@@ -24,8 +25,8 @@ from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS, CommandedWorld, goal_field
-from infonav_gym.world.scenarios import SPEED_MPS
-from infonav_gym.world.world import TIME_STEP_S
+from infonav_gym.world.scenarios import SPEED_MPS, Scenario
+from infonav_gym.world.world import TIME_STEP_S, start_poses
 
 POSE_FEATURES = 10
 GOAL_FEATURES = 4
@@ -211,17 +212,13 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     # ------------------------------------------------------------------ the episode
 
     def _reset_episode(self) -> None:
-        cfg = self.config
-        scenario = goal_field(self.np_random, cfg["n_candidates"], cfg["n_obstacles"], cfg["field_size_m"])
+        scenario, prior, self._odometry_rng, self._measurement_rng = start_episode(self.config, self.np_random)
         self.world.reset(scenario)
-        self.goal = scenario.routes[0].waypoints[0].copy()
-        self._obstacle_centers = np.array([o.center for o in scenario.obstacles], dtype=float).reshape(-1, 2)
-        self._obstacle_radii = np.array([o.radius for o in scenario.obstacles], dtype=float)
-        self._odometry_rng, self._measurement_rng = self.np_random.spawn(2)
-        pose_std = np.array([cfg["initial_position_std_m"]] * 2 + [cfg["initial_heading_std_rad"]])
+        self.ekf = PoseEKF(*prior)
+        self.goal = episode_goal(scenario)
+        self._obstacle_centers, self._obstacle_radii = obstacle_discs(scenario)
         self._true_pose = self.world.pose
-        self.ekf = PoseEKF(self._true_pose + pose_std * self.np_random.standard_normal(POSE_DIM), np.diag(pose_std**2))
-        self.observations_left = cfg["max_observations"]
+        self.observations_left = self.config["max_observations"]
         self.goal_reached = self.failed = False
         self._true_path = PathHistory(self._true_pose[:2])
         self._estimated_path = PathHistory(self.ekf.x[:2])
@@ -298,14 +295,7 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
 
     def _commands(self, poses: np.ndarray, primitives) -> np.ndarray:
         """``[speed, turn rate]`` (B, 2) that each primitive commands from each estimated pose (B, 3)."""
-        cfg = self.config
-        goal_bearing = np.arctan2(self.goal[1] - poses[:, 1], self.goal[0] - poses[:, 0])
-        desired = goal_bearing + np.take(PRIMITIVE_OFFSETS_RAD, primitives)
-        turn = wrap_angle(desired - poses[:, 2])
-        max_turn = cfg["max_turn_rate_rps"] * cfg["time_step_s"]
-        executed_turn = np.clip(turn, -max_turn, max_turn)
-        speed = cfg["speed_mps"] * np.maximum(np.cos(turn), 0.0)
-        return np.stack([speed, executed_turn / cfg["time_step_s"]], axis=-1)
+        return primitive_commands(self.config, self.goal, poses, primitives)
 
     # ------------------------------------------------------------------ observation and info
 
@@ -364,3 +354,54 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
             caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.0f} s   "
             f"goal ({self.goal[0]:.0f}, {self.goal[1]:.0f}) m, {self.observations_left} observations left",
         )
+
+
+def start_episode(config: dict, np_random: np.random.Generator):
+    """Start an episode of ``ActiveLocalization-v0``: draw its goal field and the estimator's prior from ``np_random``.
+
+    Draws in a fixed order (the field, the sensors' generators, the initial estimate), so the single and the
+    vector env give the same episode for the same generator.
+
+    Args:
+        config: a checked ``ActiveLocalizationEnv`` config.
+        np_random: the episode's generator.
+
+    Returns:
+        ``(scenario, prior, odometry_rng, measurement_rng)``: the goal field, the estimator's ``Prior`` and the
+        sensors' generators.
+    """
+    scenario = goal_field(np_random, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
+    odometry_rng, measurement_rng = np_random.spawn(2)
+    pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
+    pose = np.array(start_poses(scenario)[0]) + pose_std * np_random.standard_normal(POSE_DIM)
+    return scenario, Prior(pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
+
+
+def episode_goal(scenario: Scenario) -> np.ndarray:
+    """The goal position [m] of a goal field (its route's one waypoint), a fresh (2,) array."""
+    return scenario.routes[0].waypoints[0].copy()
+
+
+def obstacle_discs(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """The centres (O, 2) [m] and radii (O,) [m] of a scenario's round obstacles (the map the agent knows)."""
+    centers = np.array([obstacle.center for obstacle in scenario.obstacles], dtype=float).reshape(-1, 2)
+    return centers, np.array([obstacle.radius for obstacle in scenario.obstacles], dtype=float)
+
+
+def primitive_commands(config: dict, goals: np.ndarray, poses: np.ndarray, primitives) -> np.ndarray:
+    """``[speed, turn rate]`` (B, 2) that each motion primitive commands from each estimated pose.
+
+    Args:
+        config: a checked ``ActiveLocalizationEnv`` config.
+        goals: the goal position [m], one (2,) for all poses or one per pose (B, 2).
+        poses: estimated poses ``[x, y, heading]`` (B, 3).
+        primitives: the primitive of each pose (B,), indices of ``PRIMITIVE_OFFSETS_RAD``.
+    """
+    goals = np.asarray(goals)
+    goal_bearing = np.arctan2(goals[..., 1] - poses[:, 1], goals[..., 0] - poses[:, 0])
+    desired = goal_bearing + np.take(PRIMITIVE_OFFSETS_RAD, primitives)
+    turn = wrap_angle(desired - poses[:, 2])
+    max_turn = config["max_turn_rate_rps"] * config["time_step_s"]
+    executed_turn = np.clip(turn, -max_turn, max_turn)
+    speed = config["speed_mps"] * np.maximum(np.cos(turn), 0.0)
+    return np.stack([speed, executed_turn / config["time_step_s"]], axis=-1)

@@ -10,24 +10,20 @@ the single env's generators drawn ahead). So sub-env ``i`` after ``reset(seed=s)
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
-from gymnasium.utils import seeding
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
+from gymnasium.vector import AutoresetMode
 
-from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv, start_episode
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision, batched_info, batched_observation
 from infonav_gym.envs.noise_streams import NoiseStreams
-from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
-from infonav_gym.envs.vector_view import FirstCopyView
+from infonav_gym.envs.vector_base import InfoNavVectorEnv
+from infonav_gym.envs.vector_infos import set_rows
 from infonav_gym.estimation import batched
 from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world_batch import WorldBatch
 
 
-class LandmarkSelectionVectorEnv(VectorEnv):
+class LandmarkSelectionVectorEnv(InfoNavVectorEnv):
     """N copies of ``LandmarkSelectionEnv`` (see it for the spaces, rewards and config keys), batched.
 
     ## Vector API
@@ -55,9 +51,9 @@ class LandmarkSelectionVectorEnv(VectorEnv):
     """
 
     metadata = {
+        **InfoNavVectorEnv.metadata,
         "render_modes": LandmarkSelectionEnv.metadata["render_modes"],
         "render_fps": LandmarkSelectionEnv.metadata["render_fps"],
-        "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
     _AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
@@ -68,73 +64,22 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **config,
     ):
-        owner = type(self).__name__
-        if type(num_envs) is not int or num_envs < 1:
-            raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
-        self.autoreset_mode = autoreset_mode_of(autoreset_mode, self._AUTORESET_MODES, owner)
-        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
-        self._single = LandmarkSelectionEnv(**config)  # checks the config as the single env does
-        self.config = self._single.config
-        self.num_envs = num_envs
-        self.render_mode = render_mode
-        self._view = None if render_mode is None else FirstCopyView(LandmarkSelectionEnv(render_mode, **config))
-        self.single_observation_space = self._single.observation_space
-        self.single_action_space = self._single.action_space
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self.action_space = batch_space(self.single_action_space, num_envs)
-        self._sensor, self._odometry = self._single.sensor, self._single.odometry
+        single = self._configure(num_envs, render_mode, autoreset_mode, LandmarkSelectionEnv, config)
+        self._sensor, self._odometry = single.sensor, single.odometry
         self._odometry_covariance = self._odometry.noise_covariance()
         self._worlds = WorldBatch(num_envs)
         self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
-        self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
-        self._x = self._P = self._decision = self._geometry = None
+        self._x = self._P = None
         self._elapsed = np.zeros(num_envs, dtype=int)
         n_candidates = self.config["n_candidates"]
         self._landmarks = np.zeros((num_envs, n_candidates, 2))
         self._exists = np.zeros((num_envs, n_candidates), dtype=bool)
-        self._prev_done = np.zeros(num_envs, dtype=bool)
-
-    @property
-    def np_randoms(self) -> list[np.random.Generator | None]:
-        """Each sub-env's generator (the single env's ``np_random``), None before its first reset."""
-        return list(self._np_randoms)
-
-    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
-        """Reset every sub-env: seed ``s`` gives sub-env ``i`` the seed ``s + i``; a list gives one seed (or None) each.
-
-        Raises:
-            ValueError: for a seed that is not None, an int or a list of N ints / None, or any options.
-        """
-        if options:
-            raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
-        for copy, copy_seed in enumerate(self._copy_seeds(seed)):
-            if copy_seed is not None or self._np_randoms[copy] is None:
-                self._np_randoms[copy] = seeding.np_random(copy_seed)[0]
-        everyone = np.arange(self.num_envs)
-        self._geometry = self._reset_copies(everyone)
-        self._prev_done[:] = False
-        nothing = np.zeros(self.num_envs)
-        return self._outputs(
-            everyone, self._geometry, np.zeros(self.num_envs, dtype=bool), np.full(self.num_envs, -1), nothing
-        )
-
-    def _copy_seeds(self, seed) -> list[int | None]:
-        if _is_seed(seed):
-            return [None if seed is None else int(seed) + copy for copy in range(self.num_envs)]
-        seeds = list(seed) if isinstance(seed, (list, tuple)) else []
-        if len(seeds) != self.num_envs or not all(_is_seed(item) for item in seeds):
-            raise ValueError(
-                f"seed of {type(self).__name__}.reset must be None, an int >= 0 or a list of {self.num_envs} "
-                f"such seeds (one per sub-env), got {seed!r}"
-            )
-        return [None if item is None else int(item) for item in seeds]
 
     def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
         """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
         owner, geometries = type(self).__name__, []
+        self._view_restarts(copies)
         for copy in copies.tolist():
-            if copy == 0 and self._view is not None:
-                self._view.restart(self._np_randoms[0])
             scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy], owner)
             x, P = prior.state()
             if self._x is None or len(copies) == self.num_envs and copy == 0:
@@ -158,75 +103,17 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         return StaticGeometry.stack(geometries)
 
     def step(self, actions):
-        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class).
-
-        Raises:
-            ValueError: for actions that are not N integers of the action space, or, with
-                ``invalid_action="raise"``, a masked action (each naming its sub-env).
-        """
-        if self._decision is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
-        actions = self._checked_actions(actions)
-        resetting = self._prev_done.copy()
-        acting = ~resetting
-        if self._view is not None and acting[0]:
-            self._view.step(int(actions[0]))
-        chosen = self._chosen_actions(actions, acting)
+        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
+        acting, chosen = self._begin_step(actions)
         rewards = self._observe(chosen)
         stepped = np.flatnonzero(acting)
         self._elapsed[stepped] += 1
         self._advance(stepped)
         truncated = acting & (self._elapsed >= self.config["horizon"])
-        terminated = np.zeros(self.num_envs, dtype=bool)
-        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
-            if resetting.any():
-                self._geometry = self._geometry.with_copies(
-                    np.flatnonzero(resetting), self._reset_copies(np.flatnonzero(resetting))
-                )
-            observation, info = self._outputs(np.arange(self.num_envs), self._geometry, acting, chosen, rewards)
-            self._prev_done = truncated
-            return observation, rewards, terminated, truncated, info
-        everyone = np.arange(self.num_envs)
-        observation, info = self._outputs(everyone, self._geometry, acting, chosen, rewards)
-        ended = np.flatnonzero(truncated)
-        if ended.size:
-            final_infos = final_step_infos(observation, info, truncated)
-            geometry = self._reset_copies(ended)
-            self._geometry = self._geometry.with_copies(ended, geometry)
-            reset_observation, reset_info = self._outputs(
-                ended, geometry, np.zeros(ended.size, dtype=bool), np.full(ended.size, -1), np.zeros(ended.size)
-            )
-            observation[ended] = reset_observation
-            set_rows(info, ended, reset_info)
-            info.update(final_infos)
-        return observation, rewards, terminated, truncated, info
-
-    def _checked_actions(self, actions) -> np.ndarray:
-        array = np.asarray(actions)
-        n_candidates = self.config["n_candidates"]
-        if array.shape != (self.num_envs,) or array.dtype.kind not in "iu":
-            raise ValueError(
-                f"actions of {type(self).__name__} must be an integer array of shape ({self.num_envs},), one "
-                f"per sub-env, in [0, {n_candidates - 1}]; got {array.dtype} of shape {array.shape}"
-            )
-        outside = np.flatnonzero((array < 0) | (array >= n_candidates))
-        if outside.size:
-            copy = int(outside[0])
-            raise ValueError(
-                f"action {array[copy]} of sub-env {copy} is not in the action space {self.single_action_space}: "
-                f"expected an integer in [0, {n_candidates - 1}]"
-            )
-        return array.astype(int)
-
-    def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> np.ndarray:
-        """The landmark each acting sub-env observes, -1 for a no-op (``invalid_action`` per sub-env)."""
-        mask = self._decision.action_mask
-        valid = acting & mask[np.arange(self.num_envs), actions].astype(bool)
-        for copy in np.flatnonzero(acting & ~valid).tolist():
-            accepts_action(
-                int(actions[copy]), mask[copy], self.config["invalid_action"], 'info["action_mask"]', f"sub-env {copy}"
-            )
-        return np.where(valid, actions, -1)
+        observation, info = self._finish_step(
+            truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, rewards)
+        )
+        return observation, rewards, np.zeros(self.num_envs, dtype=bool), truncated, info
 
     def _observe(self, chosen: np.ndarray) -> np.ndarray:
         """Update each observing copy's EKF with a noisy measurement of its chosen landmark; the realized MI (N,)."""
@@ -258,6 +145,12 @@ class LandmarkSelectionVectorEnv(VectorEnv):
             self._x[copies], self._P[copies], readings, dt, self._odometry_covariance, check_input=False
         )
 
+    def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
+        """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""
+        return self._outputs(
+            copies, geometry, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), np.zeros(len(copies))
+        )
+
     def _outputs(self, copies, geometry, stepped, chosen, rewards) -> tuple[np.ndarray, dict]:
         """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos."""
         true_poses, x, P = self._worlds.poses[copies, 0], self._x[copies], self._P[copies]
@@ -275,30 +168,3 @@ class LandmarkSelectionVectorEnv(VectorEnv):
         observation = batched_observation(decision, x, P, elapsed, exists, self.config, self.single_observation_space)
         info = batched_info(decision, x, true_poses, elapsed, stepped, chosen, rewards, self.config)
         return observation, info
-
-    def action_masks(self) -> np.ndarray:
-        """The valid actions of each sub-env as bool (N, K); all ``True`` where none is valid (each is the no-op)."""
-        if self._decision is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
-        mask = self._decision.action_mask.astype(bool)
-        mask[~mask.any(axis=1)] = True
-        return mask
-
-    def render(self):
-        """Sub-env 0's frame as its single env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
-        if self._view is None:
-            gym.logger.warn(f'{type(self).__name__}.render() called without a render_mode; use render_mode="rgb_array"')
-            return None
-        if self._decision is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before render()")
-        return self._view.render()
-
-    def close_extras(self, **kwargs) -> None:
-        self._decision = None
-        if self._view is not None:
-            self._view.close()
-
-
-def _is_seed(value) -> bool:
-    """Whether ``value`` is a seed of one sub-env: None, or an int >= 0 (not a bool)."""
-    return value is None or (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0)

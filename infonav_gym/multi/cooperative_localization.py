@@ -76,6 +76,47 @@ class RelativeSight(NamedTuple):
     pose_std: np.ndarray
 
 
+class SensingPairs(NamedTuple):
+    """The (observer, target) robot pairs P of a team whose observer carries a relative-pose sensor.
+
+    Attributes:
+        observers, targets: robot indices of each pair (P,).
+        noise: the observer's ``RelativePoseSensor.noise_parameters()`` per pair (P, 5).
+        max_range_m: the observer's sensor range per pair (P,) [m].
+        half_fov_rad: half its field of view per pair (P,) [rad].
+        sight_lines: the robot pairs ``(i, j)``, ``i < j``, whose line of sight some pair needs (symmetric).
+        sight_line: each pair's index into ``sight_lines`` (P,).
+    """
+
+    observers: np.ndarray
+    targets: np.ndarray
+    noise: np.ndarray
+    max_range_m: np.ndarray
+    half_fov_rad: np.ndarray
+    sight_lines: list[tuple[int, int]]
+    sight_line: np.ndarray
+
+    @classmethod
+    def of_team(cls, relative_sensors) -> SensingPairs:
+        """The pairs of a team whose robot ``k`` carries ``relative_sensors[k]`` (a ``RelativePoseSensor`` or None)."""
+        n = len(relative_sensors)
+        pairs = [(i, j) for i in range(n) for j in range(n) if i != j and relative_sensors[i] is not None]
+        sight_lines = sorted({(min(i, j), max(i, j)) for i, j in pairs})
+        return cls(
+            observers=np.array([i for i, _ in pairs], dtype=int),
+            targets=np.array([j for _, j in pairs], dtype=int),
+            noise=np.array([relative_sensors[i].noise_parameters() for i, _ in pairs]).reshape(-1, 5),
+            max_range_m=np.array([relative_sensors[i].max_range_m for i, _ in pairs]),
+            half_fov_rad=np.array([0.5 * relative_sensors[i].range_bearing.fov_rad for i, _ in pairs]),
+            sight_lines=sight_lines,
+            sight_line=np.array([sight_lines.index((min(i, j), max(i, j))) for i, j in pairs], dtype=int),
+        )
+
+    def covered(self, geometry: np.ndarray) -> np.ndarray:
+        """Which pairs' true ``[range, bearing, ...]`` (..., P, 3) lie in the observer's range and field of view."""
+        return (geometry[..., 0] <= self.max_range_m) & (np.abs(geometry[..., 1]) <= self.half_fov_rad)
+
+
 class CooperativeLocalizationEnv(InfoNavParallelEnv):
     """Robots without (or losing) DGPS localize through relative-pose observations of teammates.
 
@@ -217,14 +258,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         self._action_spaces = {agent: spaces.Discrete(n + 1) for agent in self.possible_agents}
         low, high = self._observation_bounds(n)
         self._observation_spaces = {agent: spaces.Box(low, high, dtype=np.float32) for agent in self.possible_agents}
-        pairs = [(i, j) for i in range(n) for j in range(n) if i != j and self.relative_sensors[i] is not None]
-        self._observers = np.array([i for i, _ in pairs], dtype=int)
-        self._targets = np.array([j for _, j in pairs], dtype=int)
-        self._pair_noise = np.array([self.relative_sensors[i].noise_parameters() for i, _ in pairs]).reshape(-1, 5)
-        self._pair_max_range = np.array([self.relative_sensors[i].max_range_m for i, _ in pairs])
-        self._pair_half_fov = np.array([0.5 * self.relative_sensors[i].range_bearing.fov_rad for i, _ in pairs])
-        self._sight_lines = sorted({(min(i, j), max(i, j)) for i, j in pairs})  # line of sight is symmetric
-        self._pair_sight_line = np.array([self._sight_lines.index((min(i, j), max(i, j))) for i, j in pairs], dtype=int)
+        self.pairs = SensingPairs.of_team(self.relative_sensors)
         self.world = World()
         self.np_random = None
 
@@ -245,15 +279,12 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
     # ------------------------------------------------------------------ the episode
 
     def _reset_episode(self) -> None:
-        cfg = self.config
-        self.world.reset(self._build_scenario())
-        self._odometry_rng, self._gps_rng, self._relative_rng = self.np_random.spawn(3)
-        n = cfg["n_robots"]
-        pose_std = np.array([cfg["initial_position_std_m"]] * 2 + [cfg["initial_heading_std_rad"]])
+        scenario, self.ekf, self._odometry_rng, self._gps_rng, self._relative_rng = start_episode(
+            self.config, self.np_random, type(self).__name__
+        )
+        self.world.reset(scenario)
         self._true_poses = self.world.poses
-        initial = self._true_poses + pose_std * self.np_random.standard_normal((n, POSE_DIM))
-        covariances = np.repeat(np.diag(pose_std**2)[None], n, axis=0)
-        self.ekf = JointEKF(initial, covariances, cross_covariances=cfg["estimator"] == "joint")
+        n = len(self.possible_agents)
         self._time_s = 0.0
         self._gps_fixes()
         self._observed_pairs = []
@@ -261,11 +292,6 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         self._updated_pose_std = None
         self._true_paths = [PathHistory(pose[:2]) for pose in self._true_poses]
         self._estimated_paths = [PathHistory(pose[:2]) for pose in self.ekf.poses]
-
-    def _build_scenario(self):
-        """The registered team scenario ``config["scenario"]``: one route per robot."""
-        cfg = self.config
-        return scenario_from_config(cfg, self.np_random, TEAM_SCENARIO_KEYS, type(self).__name__, cfg["n_robots"])
 
     def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
         """Fuse the chosen observations; each robot's reward mixes its own and the team's MI by ``team_reward``."""
@@ -291,7 +317,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         rows = sight.candidate_row[observers, chosen[observers]]
         predicted, H_observer, H_target, R = (part[rows] for part in sight.candidates)
         pairs = sight.valid_pairs[rows]
-        measurements = noisy_relative_poses(sight.geometry[pairs], self._pair_noise[pairs], self._relative_rng)
+        measurements = noisy_relative_poses(sight.geometry[pairs], self.pairs.noise[pairs], self._relative_rng)
         self.ekf.relative_pose_update(
             observers, targets, measurements, predicted, H_observer, H_target, R, check_input=False
         )
@@ -330,14 +356,13 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         """Action masks (who can see whom) and expected gains on the observer's own pose, at the current prior."""
         n = len(self.possible_agents)
         truth = self._true_poses
-        geometry = relative_pose(truth[self._observers], truth[self._targets])
-        covered = np.flatnonzero(
-            (geometry[:, 0] <= self._pair_max_range) & (np.abs(geometry[:, 1]) <= self._pair_half_fov)
-        )
-        lines = sorted(set(self._pair_sight_line[covered].tolist()))
-        clear = dict(zip(lines, self.world.robots_in_sight([self._sight_lines[line] for line in lines])))
-        valid = covered[[clear[line] for line in self._pair_sight_line[covered].tolist()]]
-        observers, targets = self._observers[valid], self._targets[valid]
+        pairs = self.pairs
+        geometry = relative_pose(truth[pairs.observers], truth[pairs.targets])
+        covered = np.flatnonzero(pairs.covered(geometry))
+        lines = sorted(set(pairs.sight_line[covered].tolist()))
+        clear = dict(zip(lines, self.world.robots_in_sight([pairs.sight_lines[line] for line in lines])))
+        valid = covered[[clear[line] for line in pairs.sight_line[covered].tolist()]]
+        observers, targets = pairs.observers[valid], pairs.targets[valid]
         mask = np.zeros((n, n + 1), dtype=np.int8)
         mask[:, NO_OBSERVATION] = 1
         mask[observers, targets + 1] = 1
@@ -347,7 +372,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         candidates = None
         if valid.size:
             predicted, H_observer, H_target = self.ekf.relative_pose_model(observers, targets)
-            R = noise_covariances(self._pair_noise[valid], predicted[:, 0])
+            R = noise_covariances(pairs.noise[valid], predicted[:, 0])
             own, joint = self.ekf.relative_pose_information_gains(observers, targets, H_observer, H_target, R)
             weight = self.config["team_reward"]
             gains[observers, targets + 1] = (1.0 - weight) * own + weight * joint
@@ -358,29 +383,16 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
     # ------------------------------------------------------------------ observations, infos
 
     def _observations(self) -> dict:
-        n = len(self.possible_agents)
-        estimates = self.ekf.x.reshape(-1, POSE_DIM)
         sight = self._decision.payload
-        std = sight.pose_std
-        features = np.zeros((n, OWN_FEATURES + TEAMMATE_FEATURES * n), dtype=np.float32)
-        features[:, 0:2] = estimates[:, :2]
-        features[:, 2] = np.cos(estimates[:, 2])
-        features[:, 3] = np.sin(estimates[:, 2])
-        features[:, 4:7] = std
-        features[:, 7] = gaussian_entropy_from_log_det(sight.pose_log_det, POSE_DIM)
-        features[:, 8] = self._gps_available
-        features[:, 9] = self._elapsed_steps / self.max_cycles
-        teammates = features[:, OWN_FEATURES:].reshape(n, n, TEAMMATE_FEATURES)
-        offsets = estimates[None, :, :2] - estimates[:, None, :2]
-        bearings = np.arctan2(offsets[..., 1], offsets[..., 0]) - estimates[:, None, 2]
-        teammates[..., 0] = self._decision.action_mask[:, 1:]
-        teammates[..., 1] = np.hypot(offsets[..., 0], offsets[..., 1])
-        teammates[..., 2] = np.cos(bearings)
-        teammates[..., 3] = np.sin(bearings)
-        teammates[..., 4] = np.hypot(std[:, 0], std[:, 1])[None, :]
-        teammates[np.arange(n), np.arange(n)] = 0.0
-        space = self._observation_spaces[self.possible_agents[0]]
-        np.clip(features, space.low, space.high, out=features)
+        features = team_observations(
+            self.ekf.x.reshape(-1, POSE_DIM),
+            sight.pose_std,
+            sight.pose_log_det,
+            self._gps_available,
+            self._elapsed_steps / self.max_cycles,
+            self._decision.action_mask[:, 1:],
+            self._observation_spaces[self.possible_agents[0]],
+        )
         return {agent: features[robot] for robot, agent in enumerate(self.agents)}
 
     def _infos(self) -> dict:
@@ -435,3 +447,70 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
             gps_denied_zones=scenario.gps_denied_zones,
             caption=f"t = {self._time_s:.1f} s   {len(self._observed_pairs)} relative observations this step",
         )
+
+
+def start_episode(config: dict, np_random: np.random.Generator, owner: str):
+    """Start an episode of the team env: draw its scenario and the joint estimator's prior from ``np_random``.
+
+    Draws in a fixed order (the scenario, the sensors' generators, the initial estimates), so the
+    parallel and the vector env give the same episode for the same generator.
+
+    Args:
+        config: a checked ``CooperativeLocalizationEnv`` config.
+        np_random: the episode's generator.
+        owner: the env named in config errors.
+
+    Returns:
+        ``(scenario, ekf, odometry_rng, gps_rng, relative_rng)``: the team scenario ``config["scenario"]`` (one
+        route per robot), the ``JointEKF`` at the prior and the sensors' generators.
+    """
+    n = config["n_robots"]
+    scenario = scenario_from_config(config, np_random, TEAM_SCENARIO_KEYS, owner, n)
+    odometry_rng, gps_rng, relative_rng = np_random.spawn(3)
+    pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
+    starts = np.array([(x, y, wrap_angle(heading)) for x, y, heading in (r.start_pose for r in scenario.routes)])
+    initial = starts + pose_std * np_random.standard_normal((n, POSE_DIM))
+    covariances = np.repeat(np.diag(pose_std**2)[None], n, axis=0)
+    ekf = JointEKF(initial, covariances, cross_covariances=config["estimator"] == "joint")
+    return scenario, ekf, odometry_rng, gps_rng, relative_rng
+
+
+def team_observations(
+    estimates, pose_std, pose_log_det, gps_available, elapsed_fraction, teammate_valid, space: spaces.Box
+) -> np.ndarray:
+    """Every robot's observation (see ``CooperativeLocalizationEnv``), float32 clipped to ``space``, for R robots.
+
+    Any leading dimensions (L...) are batch dimensions (the vector env's copies).
+
+    Args:
+        estimates: estimated poses (L..., R, 3).
+        pose_std: x, y, heading standard deviations of each robot at the prior (L..., R, 3).
+        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (L..., R).
+        gps_available: whether each robot has a DGPS fix now (L..., R).
+        elapsed_fraction: elapsed fraction of ``max_cycles``, broadcastable to (L..., R) (a number, or (L..., 1)).
+        teammate_valid: whether each robot may observe each robot now (L..., R, R).
+        space: one robot's observation space.
+
+    Returns:
+        (L..., R, 10 + 5 R).
+    """
+    lead, n = estimates.shape[:-2], estimates.shape[-2]
+    features = np.zeros((*lead, n, OWN_FEATURES + TEAMMATE_FEATURES * n), dtype=np.float32)
+    features[..., 0:2] = estimates[..., :2]
+    features[..., 2] = np.cos(estimates[..., 2])
+    features[..., 3] = np.sin(estimates[..., 2])
+    features[..., 4:7] = pose_std
+    features[..., 7] = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
+    features[..., 8] = gps_available
+    features[..., 9] = elapsed_fraction
+    teammates = features[..., OWN_FEATURES:].reshape(*lead, n, n, TEAMMATE_FEATURES)
+    offsets = estimates[..., None, :, :2] - estimates[..., :, None, :2]
+    bearings = np.arctan2(offsets[..., 1], offsets[..., 0]) - estimates[..., :, None, 2]
+    teammates[..., 0] = teammate_valid
+    teammates[..., 1] = np.hypot(offsets[..., 0], offsets[..., 1])
+    teammates[..., 2] = np.cos(bearings)
+    teammates[..., 3] = np.sin(bearings)
+    teammates[..., 4] = np.hypot(pose_std[..., 0], pose_std[..., 1])[..., None, :]
+    robots = np.arange(n)
+    teammates[..., robots, robots, :] = 0.0
+    return np.clip(features, space.low, space.high, out=features)

@@ -44,4 +44,8 @@ class GPSSensor:
     def measure(self, positions, np_random: np.random.Generator) -> np.ndarray:
         """Noisy fixes of true positions ``[x, y]``: (2,) -> (2,) or (k, 2) -> (k, 2)."""
         positions = np.asarray(positions, dtype=float)
-        return positions + self.position_std_m * np_random.standard_normal(positions.shape)
+        return self.measure_with_noise(positions, np_random.standard_normal(positions.shape))
+
+    def measure_with_noise(self, positions, noise) -> np.ndarray:
+        """``measure`` given its standard normals ``noise`` (the shape of ``positions``, (..., 2))."""
+        return positions + self.position_std_m * noise

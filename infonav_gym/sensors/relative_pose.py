@@ -88,7 +88,12 @@ def noisy_relative_poses(truth, parameters, np_random: np.random.Generator) -> n
 
     Draws one (M, 3) block of standard normals from ``np_random``.
     """
-    measured = truth + noise_standard_deviations(parameters, truth[:, 0]) * np_random.standard_normal(truth.shape)
+    return relative_poses_with_noise(truth, parameters, np_random.standard_normal(truth.shape))
+
+
+def relative_poses_with_noise(truth, parameters, noise) -> np.ndarray:
+    """``noisy_relative_poses`` given its standard normals ``noise`` (M, 3)."""
+    measured = truth + noise_standard_deviations(parameters, truth[:, 0]) * noise
     measured[:, 1:] = wrap_angle(measured[:, 1:])
     return measured
 

@@ -1,0 +1,182 @@
+"""The batched decision and info of ``CooperativeLocalizationVectorEnv``: the team env's, on (N, R, ...) arrays.
+
+N copies of a team of R robots; every copy has the same P (observer, target) pairs (``SensingPairs``), so the
+candidates of all copies stack as (N, P, ...). A pair that is not observable now is masked out.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from infonav_gym.estimation import batched
+from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.models import relative_pose
+from infonav_gym.geometry import wrap_angle
+from infonav_gym.information import gaussian_entropy_from_log_det
+from infonav_gym.multi.cooperative_localization import NO_OBSERVATION, SensingPairs
+from infonav_gym.sensors.relative_pose import noise_covariances
+from infonav_gym.world.visibility import StaticGeometry, line_of_sight
+
+
+class TeamSightLines(NamedTuple):
+    """The static shapes of N copies, repeated once per sight line L, to test all N x L robot-robot lines at once.
+
+    Attributes:
+        geometry: copy ``c``'s shapes at rows ``c L .. c L + L - 1`` (N L copies).
+        lines: the robot pairs ``(i, j)`` of the L sight lines (L, 2).
+    """
+
+    geometry: StaticGeometry
+    lines: np.ndarray
+
+    @classmethod
+    def of_copies(cls, geometries: list[StaticGeometry], pairs: SensingPairs) -> TeamSightLines:
+        """The sight lines of ``pairs`` in each copy's ``geometries``."""
+        lines = np.array(pairs.sight_lines, dtype=int).reshape(-1, 2)
+        return cls(StaticGeometry.stack([geometry for geometry in geometries for _ in lines]), lines)
+
+    def clear(self, true_poses: np.ndarray) -> np.ndarray:
+        """Whether walls and obstacles leave each copy's sight lines clear (N, L), at the true poses (N, R, 3)."""
+        n_copies, n_lines = len(true_poses), len(self.lines)
+        origins = true_poses[:, self.lines[:, 0], :2].reshape(n_copies * n_lines, 2)
+        targets = true_poses[:, self.lines[:, 1], :2].reshape(n_copies * n_lines, 1, 2)
+        return line_of_sight(self.geometry, origins, targets).reshape(n_copies, n_lines)
+
+
+class TeamDecision(NamedTuple):
+    """Every copy's decision at its joint EKF's prior (the team env's ``Decision`` and ``RelativeSight``, stacked).
+
+    Attributes:
+        action_mask: int8 (N, R, R + 1): action 0 always, ``1 + j`` where robot ``j`` is observable.
+        action_information_gain: expected reward of each action (N, R, R + 1) [nats], 0 where masked.
+        geometry: true range, bearing and relative heading of every pair (N, P, 3).
+        valid: which pairs are observable now (N, P).
+        predicted: the prior's prediction of every pair's measurement (N, P, 3).
+        H_observer, H_target: its Jacobians (N, P, 3, 3).
+        R: its noise covariances at the predicted range (N, P, 3, 3).
+        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (N, R).
+        pose_std: each robot's x, y, heading standard deviations at the prior (N, R, 3).
+    """
+
+    action_mask: np.ndarray
+    action_information_gain: np.ndarray
+    geometry: np.ndarray
+    valid: np.ndarray
+    predicted: np.ndarray
+    H_observer: np.ndarray
+    H_target: np.ndarray
+    R: np.ndarray
+    pose_log_det: np.ndarray
+    pose_std: np.ndarray
+
+    @classmethod
+    def at_prior(
+        cls, pairs: SensingPairs, sight: TeamSightLines | None, true_poses, x, P, team_reward: float
+    ) -> TeamDecision:
+        """The decisions of N copies: true poses (N, R, 3), priors ``x`` (N, 3R), ``P`` (N, 3R, 3R).
+
+        Args:
+            pairs: the team's (observer, target) pairs.
+            sight: the copies' sight lines; None when the team has no pair.
+            true_poses, x, P: as above.
+            team_reward: the weight of the team's MI in each robot's reward, in [0, 1].
+        """
+        n_copies, n_robots = true_poses.shape[:2]
+        n_pairs = len(pairs.observers)
+        observers = np.broadcast_to(pairs.observers, (n_copies, n_pairs))
+        targets = np.broadcast_to(pairs.targets, (n_copies, n_pairs))
+        geometry = relative_pose(
+            true_poses[:, pairs.observers].reshape(-1, POSE_DIM), true_poses[:, pairs.targets].reshape(-1, POSE_DIM)
+        ).reshape(n_copies, n_pairs, POSE_DIM)
+        valid = pairs.covered(geometry)
+        if sight is not None:
+            valid &= sight.clear(true_poses)[:, pairs.sight_line]
+        predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets, check_input=False)
+        noise = np.broadcast_to(pairs.noise, (n_copies, n_pairs, 5)).reshape(-1, 5)
+        R = noise_covariances(noise, predicted[..., 0].ravel()).reshape(n_copies, n_pairs, POSE_DIM, POSE_DIM)
+        mask = np.zeros((n_copies, n_robots, n_robots + 1), dtype=np.int8)
+        mask[..., NO_OBSERVATION] = 1
+        mask[:, pairs.observers, pairs.targets + 1] = valid
+        gains = np.zeros(mask.shape)
+        copies, columns = np.nonzero(valid)  # only the observable pairs: each (copy, pair) as one copy of one pair
+        if copies.size:
+            observer, target = pairs.observers[columns, None], pairs.targets[columns, None]
+            rows = copies[:, None], columns[:, None]
+            own, joint = batched.relative_pose_information_gains(
+                P[copies], observer, target, H_observer[rows], H_target[rows], R[rows], check_input=False
+            )
+            gains[copies, observer[:, 0], target[:, 0] + 1] = ((1.0 - team_reward) * own + team_reward * joint)[:, 0]
+        pose_log_det = batched.pose_log_dets(P, n_robots, check_input=False)
+        pose_std = np.sqrt(np.diagonal(P, axis1=1, axis2=2)).reshape(n_copies, n_robots, POSE_DIM)
+        return cls(mask, gains, geometry, valid, predicted, H_observer, H_target, R, pose_log_det, pose_std)
+
+
+class TeamStep(NamedTuple):
+    """What the last reset or step did in each copy, for its info.
+
+    Attributes:
+        stepped: which copies acted (N,) bool; the others were reset and give the reset info.
+        chosen: each robot's executed action (N, R), ``NO_OBSERVATION`` for a masked one and at a reset.
+        invalid: whether each robot's action was masked (N, R) bool.
+        own_mi, team_mi: the MI on each robot's own pose and on the joint state (N, R) [nats].
+        pose_std_after_update: each robot's x, y, heading standard deviations right after the relative
+            updates (N, R, 3); None for the prior's (a reset).
+    """
+
+    stepped: np.ndarray
+    chosen: np.ndarray
+    invalid: np.ndarray
+    own_mi: np.ndarray
+    team_mi: np.ndarray
+    pose_std_after_update: np.ndarray | None
+
+    @classmethod
+    def of_reset(cls, n_copies: int, n_robots: int) -> TeamStep:
+        """A reset of every copy: nothing stepped, no action, no MI (``pose_std_after_update`` None: the prior's)."""
+        shape = (n_copies, n_robots)
+        nothing = np.zeros(shape)
+        return cls(
+            np.zeros(n_copies, bool), np.full(shape, NO_OBSERVATION), np.zeros(shape, bool), nothing, nothing, None
+        )
+
+
+def team_info(decision: TeamDecision, last: TeamStep, x, true_poses, gps_available, time_s) -> dict:
+    """The team env's ``infos[agent]`` of every copy and robot as arrays (N, R, ...), each with its ``_key`` mask (N,).
+
+    ``reward_terms`` are masked out (``_own_mutual_information`` False) for the copies that were reset.
+
+    Args:
+        decision: the new decisions.
+        last: what the reset or step did.
+        x: the joint EKF states (N, 3R).
+        true_poses: the true poses (N, R, 3).
+        gps_available: which robots have a DGPS fix now (N, R).
+        time_s: each copy's time (N,) [s].
+    """
+    estimates = x.reshape(true_poses.shape)
+    errors = true_poses - estimates
+    everyone = np.ones(len(x), dtype=bool)
+    stepped = last.stepped[:, None]
+    terms = {
+        "own_mutual_information": np.where(stepped, last.own_mi, 0.0),
+        "team_mutual_information": np.where(stepped, last.team_mi, 0.0),
+    }
+    info = {
+        "action_mask": decision.action_mask.copy(),
+        "action_information_gain": decision.action_information_gain.copy(),
+        "reward_terms": {**terms, **{f"_{key}": last.stepped.copy() for key in terms}},
+        "chosen_action": last.chosen.copy(),
+        "invalid_action": last.invalid.copy(),
+        "gps_available": gps_available.copy(),
+        "position_error_m": np.hypot(errors[..., 0], errors[..., 1]),
+        "heading_error_rad": np.abs(wrap_angle(errors[..., 2])),
+        "pose_entropy": gaussian_entropy_from_log_det(decision.pose_log_det, POSE_DIM),
+        "pose_std": decision.pose_std.copy(),
+        "pose_std_after_update": last.pose_std_after_update.copy(),
+        "true_pose": true_poses.copy(),
+        "estimated_pose": estimates.copy(),
+        "time_s": np.asarray(time_s, dtype=float).copy(),
+    }
+    return {**info, **{f"_{key}": everyone for key in info}}

@@ -1,0 +1,53 @@
+"""The checks every native vector env passes (``vector_env_checks``), on each id registered with a vector entry point.
+
+A new native vector env gets them by being registered; its own test file adds the same-numbers runs against
+its single env in the configs that matter to it.
+"""
+
+from __future__ import annotations
+
+import pytest
+import vector_env_checks
+from gymnasium.vector import AutoresetMode
+
+from infonav_gym.registry import GYMNASIUM, registered_envs
+
+VECTOR_ENV_IDS = [entry.id for entry in registered_envs(GYMNASIUM) if entry.vector_entry_point is not None]
+CHECKS = [
+    vector_env_checks.check_seeding,
+    vector_env_checks.check_vector_api,
+    vector_env_checks.check_other_vectorizations,
+    vector_env_checks.check_step_before_reset_raises,
+    vector_env_checks.check_bad_actions_raise_naming_the_sub_env,
+    vector_env_checks.check_masked_actions_follow_invalid_action,
+    vector_env_checks.check_bad_reset_arguments_raise,
+    vector_env_checks.check_bad_vector_arguments_raise,
+]
+
+
+def test_the_native_vector_envs_are_found():
+    assert {"infonav/LandmarkSelection-v0", "infonav/ActiveLocalization-v0"} <= set(VECTOR_ENV_IDS)
+
+
+@pytest.mark.parametrize("env_id", VECTOR_ENV_IDS)
+@pytest.mark.parametrize("check", CHECKS, ids=lambda check: check.__name__.removeprefix("check_"))
+def test_vector_env_check(env_id, check):
+    check(env_id)
+
+
+@pytest.mark.parametrize("env_id", VECTOR_ENV_IDS)
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_equal_to_gymnasiums_sync_vectorization(env_id, mode):
+    assert vector_env_checks.check_matches_sync_vectorization(env_id, mode, n_steps=40, horizon=12) >= 6
+
+
+@pytest.mark.parametrize("env_id", VECTOR_ENV_IDS)
+def test_gymnasium_vector_wrappers_read_the_infos(env_id):
+    vector_env_checks.check_episode_statistics(env_id, horizon=10)
+
+
+@pytest.mark.parametrize("env_id", VECTOR_ENV_IDS)
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_render_draws_sub_env_0(env_id, mode):
+    pytest.importorskip("pygame")
+    vector_env_checks.check_render_draws_sub_env_0(env_id, mode, n_steps=12, horizon=4)
