@@ -1,7 +1,7 @@
 """What the benchmark steps at each vector size N: native vector envs, CartPoleVectorEnv, VMAS; memory per sub-env.
 
 Every registered env with a native vector env (``vector_entry_point``) is found through
-``infonav_gym.registry`` and made by ``gym.make_vec``; it is driven by uniform random *valid*
+``infonav_gym.registry`` and made by its ``make_vector_env``; it is driven by uniform random *valid*
 actions drawn at once for all copies from its ``action_masks()`` with a seeded generator.
 Gymnasium's ``CartPoleVectorEnv`` is driven by its seeded ``action_space.sample()``; VMAS's
 ``navigation`` scenario (4 agents, CPU, one torch thread) by uniform random forces from a seeded
@@ -20,11 +20,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 from gymnasium.envs.classic_control.cartpole import CartPoleVectorEnv
 
-from infonav_gym.registry import registered_envs
+from infonav_gym.registry import make_vector_env, registered_envs
 
 DEFAULT_VECTOR_SIZES = (1, 16, 64, 256, 1024)
 MEMORY_STEPS = 250  # vector steps inside the measured peak: past the first autoreset of a 200-step episode
@@ -88,7 +87,7 @@ def random_valid_actions(masks: np.ndarray, rng: np.random.Generator) -> np.ndar
 
 def vector_env_run(env_id: str, num_envs: int, seed: int) -> VectorRun:
     """``env_id``'s native vector env with ``num_envs`` copies under random valid actions."""
-    env = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point")
+    env = make_vector_env(env_id, num_envs)
     rng = np.random.default_rng(seed)
     return VectorRun(
         num_envs,
