@@ -26,7 +26,7 @@ from gymnasium.envs.classic_control.cartpole import CartPoleVectorEnv
 from infonav_gym.registry import make_vector_env, registered_envs
 
 DEFAULT_VECTOR_SIZES = (1, 16, 64, 256, 1024)
-MEMORY_STEPS = 250  # vector steps inside the measured peak: past the first autoreset of a 200-step episode
+MEMORY_STEPS = 1000  # vector steps inside the measured peak: episodes enough for what copies build up as they go
 VMAS_AGENTS = 4
 VMAS_MAX_STEPS = 100  # VMAS navigation episode length [steps] (BenchMARL's); without it episodes rarely end
 PROC_STATUS = Path("/proc/self/status")  # Linux: the current (VmRSS) and the peak (VmHWM) resident set size
