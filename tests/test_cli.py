@@ -123,7 +123,7 @@ def test_config_values_must_be_key_value_pairs(capsys):
 
 
 def test_benchmark_reports_every_goal(capsys):
-    result = run_json(capsys, "benchmark", "--rounds", "1", "--seconds", "0.05")
+    result = run_json(capsys, "benchmark", "--rounds", "1", "--seconds", "0.05", "--vector-sizes", "1,4")
     figures = result["figures"]
     for env in ("landmark_selection", "cooperative_localization", "sensor_selection"):
         assert figures[f"{env}_steps_per_s"] > 0 and figures["cartpole_steps_per_s"] > 0
@@ -146,6 +146,12 @@ def test_benchmark_reports_every_goal(capsys):
             "icp_frame_pair_ms",
             "ppo_fps_ratio_vs_cartpole",
             "ppo_vector_fps_ratio_vs_cartpole",
+            "landmark_selection_vector_256_vs_cartpole_ratio",
+            "active_localization_vector_256_vs_cartpole_ratio",
+            "cooperative_localization_vector_256_vs_vmas_ratio",
+            "landmark_selection_vector_1024_kb_per_env",
+            "active_localization_vector_1024_kb_per_env",
+            "cooperative_localization_vector_1024_kb_per_env",
         }
     )
     ppo_fps, cartpole_ppo_fps = figures["ppo_landmark_selection_fps"], figures["ppo_cartpole_fps"]

@@ -7,6 +7,12 @@ cooperative_localization_v0. CartPole is driven by ``action_space.sample()`` as 
 *valid* actions, so steps do full EKF updates. Rounds alternate between the envs and the median
 ratio is reported, so a busy machine slows them alike.
 
+Vector envs (``infonav_gym.experiments.vector_timing``), in the same rounds, at each vector size N
+(``DEFAULT_VECTOR_SIZES``): env-steps per second (vector steps per second x N) of every registered
+native vector env, of Gymnasium's ``CartPoleVectorEnv`` and of VMAS ``navigation`` (4 agents, when
+``vmas`` imports), each also as a ratio against CartPole-v1, and our vector envs against VMAS at the
+same N. Memory per sub-env at the largest N (``*_kb_per_env``): peak RSS growth in a fresh subprocess.
+
 Sensors (``infonav_gym.experiments.sensor_timing``): median milliseconds of one default
 ``Ladar().scan`` (32 x 180) and ``Camera().capture`` (120 x 160) on a default
 ``make_terrain`` scene, with absolute goals, each against a pure-Pymunk
@@ -17,7 +23,8 @@ Open3D's ``registration_icp`` on the same pair when Open3D imports.
 PPO (``infonav_gym.experiments.ppo_timing``): training timesteps per second of the same MaskablePPO
 settings on LandmarkSelection-v0 and on CartPole-v1, 8 envs each, and on their vector envs (the native
 LandmarkSelection one, Gymnasium's CartPoleVectorEnv), 64 copies each, alternating rounds in one run.
-Figures named ``*_us`` or ``*_ms`` meet their goal at or below it, all others at or above.
+Figures named ``*_us``, ``*_ms`` or ``*_kb_per_env`` meet their goal at or below it, all others at or above;
+a goal whose figure was not measured (its env or VMAS absent) is met ``None``.
 """
 
 from __future__ import annotations
@@ -34,6 +41,19 @@ from tqdm.auto import tqdm
 from agents import GreedyEntropyAgent, RandomAgent
 from infonav_gym.experiments.registration_timing import icp_figures
 from infonav_gym.experiments.sensor_timing import sensor_figures
+from infonav_gym.experiments.vector_timing import (
+    DEFAULT_VECTOR_SIZES,
+    MEMORY_STEPS,
+    VectorRun,
+    cartpole_vector_run,
+    check_vector_sizes,
+    kb_per_env,
+    memory_missing,
+    vector_env_ids,
+    vector_env_run,
+    vmas_missing,
+    vmas_navigation_run,
+)
 from infonav_gym.registry import PARALLEL, api_of, make_env, registered_envs
 
 GOALS = {
@@ -45,6 +65,12 @@ GOALS = {
     "icp_frame_pair_ms": 20.0,
     "ppo_fps_ratio_vs_cartpole": 0.5,
     "ppo_vector_fps_ratio_vs_cartpole": 0.8,
+    "landmark_selection_vector_256_vs_cartpole_ratio": 1.0,
+    "active_localization_vector_256_vs_cartpole_ratio": 0.5,
+    "cooperative_localization_vector_256_vs_vmas_ratio": 1.5,
+    "landmark_selection_vector_1024_kb_per_env": 200.0,
+    "active_localization_vector_1024_kb_per_env": 200.0,
+    "cooperative_localization_vector_1024_kb_per_env": 200.0,
 }
 PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
 PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND = 8192  # the same for the 64-copy vector envs: two 4096-step rollouts
@@ -52,8 +78,8 @@ MAX_STEPS_BETWEEN_CLOCK_READS = 100  # reached by doubling from 1, so a slow env
 
 
 def lower_is_better(name: str) -> bool:
-    """Whether figure ``name`` meets its goal at or below it: times (``*_us``, ``*_ms``) do, rates and ratios don't."""
-    return name.endswith(("_us", "_ms"))
+    """Whether figure ``name`` meets its goal at or below it: times and memory do, rates and ratios don't."""
+    return name.endswith(("_us", "_ms", "_kb_per_env"))
 
 
 def _timed_steps(step, seconds: float) -> float:
@@ -120,14 +146,56 @@ def _random_stepper(env_id: str, seconds: float, seed: int):
     return lambda: steps_per_second(env, lambda info: agent.act(None, info), seconds, seed)
 
 
+def _vector_stepper(run: VectorRun, seconds: float):
+    """A function measuring ``run``'s env-steps per second (vector steps per second x N).
+
+    ``run`` is reset once, here: each round goes on where the last one stopped, so the rounds time the
+    autoresets too, even at large N where one round is shorter than an episode.
+    """
+    run.start()
+    return lambda: _timed_steps(run.step, seconds) * run.num_envs
+
+
+def vector_runs(env_ids: list[str], vector_sizes, seed: int) -> dict[str, VectorRun]:
+    """The vector envs timed at each size N: ``cartpole_vector_N``, ``vmas_navigation_N`` (when vmas imports) and
+    ``NAME_vector_N`` for each of ``env_ids`` with a native vector env (``vector_sizes``: checked integers >= 1).
+    """
+    vector_ids = [env_id for env_id in vector_env_ids() if env_id in env_ids]
+    runs = {}
+    for size in vector_sizes:
+        runs[f"cartpole_vector_{size}"] = cartpole_vector_run(size, seed)
+        if vmas_missing() is None:
+            runs[f"vmas_navigation_{size}"] = vmas_navigation_run(size, seed)
+        for env_id in vector_ids:
+            runs[f"{figure_name(env_id)}_vector_{size}"] = vector_env_run(env_id, size, seed)
+    return runs
+
+
+def _median_ratio(rates: dict[str, list[float]], name: str, reference: str) -> float:
+    """The median over rounds of ``name``'s rate over ``reference``'s in the same round."""
+    return statistics.median(ours / theirs for ours, theirs in zip(rates[name], rates[reference]))
+
+
 def env_step_figures(
-    env_ids: list[str] | None = None, rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0, progress=True
+    env_ids: list[str] | None = None,
+    rounds: int = 5,
+    seconds_per_round: float = 1.0,
+    seed: int = 0,
+    progress=True,
+    vector_sizes=DEFAULT_VECTOR_SIZES,
 ) -> dict:
-    """Median steps per second of each env (default ``benchmarked_env_ids()``) and of CartPole-v1, and their ratios.
+    """Median steps per second of each env (default ``benchmarked_env_ids()``), of CartPole-v1 and of the vector envs.
 
     Returns:
-        ``{"cartpole_steps_per_s", NAME + "_steps_per_s", NAME + "_vs_cartpole_ratio"}`` for each env's ``figure_name``.
+        ``{"cartpole_steps_per_s", NAME + "_steps_per_s", NAME + "_vs_cartpole_ratio"}`` for each env's
+        ``figure_name`` and each of ``vector_runs`` (as ``NAME_vector_N``), and ``NAME_vector_N_vs_vmas_ratio``
+        for our vector envs when VMAS is timed.
+
+    Raises:
+        ValueError: for ``vector_sizes`` that are not integers >= 1.
     """
+    vector_sizes = check_vector_sizes(vector_sizes)
+    env_ids = benchmarked_env_ids() if env_ids is None else env_ids
     cartpole = gym.make("CartPole-v1")
     cartpole.action_space.seed(seed)
     steppers = {
@@ -135,17 +203,35 @@ def env_step_figures(
             cartpole, lambda info: cartpole.action_space.sample(), seconds_per_round, seed
         )
     }
-    for env_id in benchmarked_env_ids() if env_ids is None else env_ids:
+    for env_id in env_ids:
         steppers[figure_name(env_id)] = _random_stepper(env_id, seconds_per_round, seed)
+    for name, run in vector_runs(env_ids, vector_sizes, seed).items():
+        steppers[name] = _vector_stepper(run, seconds_per_round)
     rates = {name: [] for name in steppers}
     for _ in tqdm(range(rounds), desc="benchmark rounds", disable=not progress):
         for name, stepper in steppers.items():
             rates[name].append(stepper())
     figures = {f"{name}_steps_per_s": statistics.median(values) for name, values in rates.items()}
     for name in list(steppers)[1:]:
-        ratios = [ours / reference for ours, reference in zip(rates[name], rates["cartpole"])]
-        figures[f"{name}_vs_cartpole_ratio"] = statistics.median(ratios)
+        figures[f"{name}_vs_cartpole_ratio"] = _median_ratio(rates, name, "cartpole")
+    for env_id in env_ids:
+        for size in vector_sizes:
+            name, vmas = f"{figure_name(env_id)}_vector_{size}", f"vmas_navigation_{size}"
+            if name in rates and vmas in rates:
+                figures[f"{name}_vs_vmas_ratio"] = _median_ratio(rates, name, vmas)
     return figures
+
+
+def memory_figures(num_envs: int, env_ids: list[str] | None = None, seed: int = 0, steps: int = MEMORY_STEPS) -> dict:
+    """``NAME_vector_N_kb_per_env`` (``vector_timing.kb_per_env`` over ``steps`` vector steps) at N = ``num_envs``
+    of each of ``env_ids`` (default: all) with a native vector env; none where ``memory_missing`` says so."""
+    if memory_missing():
+        return {}
+    vector_ids = [env_id for env_id in vector_env_ids() if env_ids is None or env_id in env_ids]
+    return {
+        f"{figure_name(env_id)}_vector_{num_envs}_kb_per_env": kb_per_env(env_id, num_envs, steps, seed)
+        for env_id in vector_ids
+    }
 
 
 def greedy_decision_us(n_candidates: int = 16, seed: int = 0, repeats: int = 20000) -> float:
@@ -173,20 +259,41 @@ def _ppo_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
     }
 
 
-def run_benchmark(rounds: int = 5, seconds_per_round: float = 1.0, seed: int = 0, progress: bool = True) -> dict:
-    """Measure every speed goal; returns a JSON-ready dict with the figures and whether each goal is met."""
-    figures = env_step_figures(None, rounds, seconds_per_round, seed, progress)
+def run_benchmark(
+    rounds: int = 5,
+    seconds_per_round: float = 1.0,
+    seed: int = 0,
+    progress: bool = True,
+    vector_sizes=DEFAULT_VECTOR_SIZES,
+) -> dict:
+    """Measure every speed goal; returns a JSON-ready dict with the figures and whether each goal is met.
+
+    ``notes`` says which figures are absent and why (no vmas, no memory measurement).
+
+    Raises:
+        ValueError: for ``vector_sizes`` that are not integers >= 1.
+    """
+    vector_sizes = check_vector_sizes(vector_sizes)
+    figures = env_step_figures(None, rounds, seconds_per_round, seed, progress, vector_sizes)
+    figures.update(memory_figures(max(vector_sizes), seed=seed))
     figures["greedy_decision_us"] = greedy_decision_us()
     figures.update(sensor_figures(seconds_per_round, seed))
     figures.update(icp_figures(seconds_per_round, seed))
     figures.update(_ppo_figures(rounds, seconds_per_round, seed))
-    met = {
-        name: figures[name] <= goal if lower_is_better(name) else figures[name] >= goal for name, goal in GOALS.items()
-    }
+    met = {name: _goal_met(name, figures.get(name), goal) for name, goal in GOALS.items()}
     return {
         "figures": figures,
         "goals": GOALS,
         "goals_met": met,
+        "notes": [note for note in (vmas_missing(), memory_missing()) if note],
         "rounds": rounds,
         "seconds_per_round": seconds_per_round,
+        "vector_sizes": list(vector_sizes),
     }
+
+
+def _goal_met(name: str, value: float | None, goal: float) -> bool | None:
+    """Whether figure ``name`` of ``value`` meets ``goal``; None when it was not measured."""
+    if value is None:
+        return None
+    return value <= goal if lower_is_better(name) else value >= goal

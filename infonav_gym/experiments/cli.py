@@ -11,10 +11,12 @@ from pathlib import Path
 import infonav_gym  # registers the envs
 from infonav_gym.experiments.paths import OutputWriteError, check_output_dir, check_output_stem, write_failure
 from infonav_gym.experiments.reproduce import DEFAULT_OUTPUT_DIR, FIGURES
+from infonav_gym.experiments.vector_timing import DEFAULT_VECTOR_SIZES, parse_vector_sizes
 
 DEFAULT_ENV = "infonav/LandmarkSelection-v0"
 EVALUATION_SUFFIXES = (".md", ".csv", ".json", ".png")  # the files of ``evaluate --output STEM``
 REPLAY_SUFFIXES = (".md", ".json")  # the files of ``replay mrclam --output STEM``
+DEFAULT_VECTOR_SIZES_TEXT = ",".join(map(str, DEFAULT_VECTOR_SIZES))
 
 
 def _config_pair(text: str) -> tuple[str, object]:
@@ -26,6 +28,14 @@ def _config_pair(text: str) -> tuple[str, object]:
         return key, json.loads(value)
     except json.JSONDecodeError:
         return key, value
+
+
+def _vector_sizes(text: str) -> tuple[int, ...]:
+    """``--vector-sizes``: argparse reports ``parse_vector_sizes``'s message."""
+    try:
+        return parse_vector_sizes(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
@@ -90,6 +100,13 @@ def build_parser() -> argparse.ArgumentParser:
     benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
     benchmark.add_argument("--rounds", type=int, default=5, help="alternating measurement rounds (default: 5)")
     benchmark.add_argument("--seconds", type=float, default=1.0, help="seconds per env per round (default: 1)")
+    benchmark.add_argument(
+        "--vector-sizes",
+        type=_vector_sizes,
+        default=DEFAULT_VECTOR_SIZES,
+        help=f"comma-separated sub-env counts N of the vector envs (default: {DEFAULT_VECTOR_SIZES_TEXT})",
+    )
+    benchmark.add_argument("--plot", type=Path, help="also write the steps/s-against-N curves to this PNG")
     _common(benchmark)
 
     reproduce = commands.add_parser(
@@ -206,8 +223,22 @@ def _train(args) -> dict:
 
 def _benchmark(args) -> dict:
     from infonav_gym.experiments.benchmark import lower_is_better, run_benchmark
+    from infonav_gym.experiments.throughput_plot import plot_throughput
+    from infonav_gym.rendering import require_extra
 
-    result = run_benchmark(rounds=args.rounds, seconds_per_round=args.seconds, seed=args.seed, progress=not args.json)
+    plot = check_output_stem(args.plot, (args.plot.suffix,), "--plot") if args.plot else None
+    if plot:
+        require_extra("matplotlib", "benchmark --plot")  # before the run, not after it
+    result = run_benchmark(
+        rounds=args.rounds,
+        seconds_per_round=args.seconds,
+        seed=args.seed,
+        progress=not args.json,
+        vector_sizes=args.vector_sizes,
+    )
+    failure = (
+        _write_files(lambda: [plot_throughput(result["figures"], plot)], result, f"--plot {plot}") if plot else None
+    )
     if not args.json:
         figures, goals, met = result["figures"], result["goals"], result["goals_met"]
         for name, value in figures.items():
@@ -216,6 +247,11 @@ def _benchmark(args) -> dict:
                 relation = "<=" if lower_is_better(name) else ">="
                 goal = f"  (goal {relation} {goals[name]}: {'met' if met[name] else 'NOT met'})"
             print(f"{name:40s} {value:12.3f}{goal}")
+        for note in result["notes"]:
+            print(note)
+        for path in result.get("files", []):
+            print(f"wrote {path}")
+    _raise_if_failed(failure, result)
     return result
 
 

@@ -1,0 +1,205 @@
+"""What the benchmark steps at each vector size N: native vector envs, CartPoleVectorEnv, VMAS; memory per sub-env.
+
+Every registered env with a native vector env (``vector_entry_point``) is found through
+``infonav_gym.registry`` and made by its ``make_vector_env``; it is driven by uniform random *valid*
+actions drawn at once for all copies from its ``action_masks()`` with a seeded generator.
+Gymnasium's ``CartPoleVectorEnv`` is driven by its seeded ``action_space.sample()``; VMAS's
+``navigation`` scenario (4 agents, CPU, one torch thread) by uniform random forces from a seeded
+generator, when ``vmas`` imports. One vector step counts as N env-steps (for a team env, one
+env-step is one step of every robot of one copy; for VMAS, of all 4 agents of one env).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import os
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from gymnasium.envs.classic_control.cartpole import CartPoleVectorEnv
+
+from infonav_gym.registry import make_vector_env, registered_envs
+
+DEFAULT_VECTOR_SIZES = (1, 16, 64, 256, 1024)
+MEMORY_STEPS = 1000  # vector steps inside the measured peak: episodes enough for what copies build up as they go
+VMAS_AGENTS = 4
+VMAS_MAX_STEPS = 100  # VMAS navigation episode length [steps] (BenchMARL's); without it episodes rarely end
+PROC_STATUS = Path("/proc/self/status")  # Linux: the current (VmRSS) and the peak (VmHWM) resident set size
+PROC_CLEAR_REFS = Path("/proc/self/clear_refs")  # Linux: writing "5" resets the peak to the current size
+
+
+@dataclass(frozen=True)
+class VectorRun:
+    """A vector env ready to time: ``start()`` resets it, each ``step()`` steps all ``num_envs`` copies once."""
+
+    num_envs: int
+    start: Callable[[], None]
+    step: Callable[[], None]
+
+
+def check_vector_sizes(sizes, where: str = "vector sizes") -> tuple[int, ...]:
+    """``sizes`` as a tuple of ints after checking it is a non-empty sequence of integers >= 1.
+
+    Raises:
+        ValueError: naming ``where`` and the offending value.
+    """
+    sizes = tuple(sizes)
+    if not sizes:
+        raise ValueError(f"{where}: expected at least one number of sub-envs, got none")
+    for size in sizes:
+        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+            raise ValueError(f"{where}: each number of sub-envs must be an integer >= 1, got {size!r} in {sizes}")
+    return tuple(int(size) for size in sizes)
+
+
+def parse_vector_sizes(text: str, where: str = "--vector-sizes") -> tuple[int, ...]:
+    """Comma-separated numbers of sub-envs, e.g. ``"1,16,256"`` -> ``(1, 16, 256)``.
+
+    Raises:
+        ValueError: naming ``where`` and the part that is not an integer >= 1.
+    """
+    sizes = []
+    for part in text.split(","):
+        try:
+            sizes.append(int(part))
+        except ValueError:
+            raise ValueError(
+                f"{where}: expected comma-separated integers >= 1 such as '1,16,256', got {part.strip()!r} in {text!r}"
+            ) from None
+    return check_vector_sizes(sizes, where)
+
+
+def vector_env_ids() -> list[str]:
+    """Every registered env with a native vector env, in registration order."""
+    return [entry.id for entry in registered_envs() if entry.vector_entry_point is not None]
+
+
+def random_valid_actions(masks: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One action per row of ``masks`` (..., K), uniform over its ``True`` entries (each row needs one)."""
+    scores = np.where(masks, rng.random(masks.shape), -1.0)
+    return scores.argmax(axis=-1)
+
+
+def vector_env_run(env_id: str, num_envs: int, seed: int) -> VectorRun:
+    """``env_id``'s native vector env with ``num_envs`` copies under random valid actions."""
+    env = make_vector_env(env_id, num_envs)
+    rng = np.random.default_rng(seed)
+    return VectorRun(
+        num_envs,
+        start=lambda: env.reset(seed=seed),
+        step=lambda: env.step(random_valid_actions(env.action_masks(), rng)),
+    )
+
+
+def cartpole_vector_run(num_envs: int, seed: int) -> VectorRun:
+    """Gymnasium's ``CartPoleVectorEnv`` with ``num_envs`` copies under its seeded ``action_space.sample()``."""
+    env = CartPoleVectorEnv(num_envs=num_envs)
+    env.action_space.seed(seed)
+    return VectorRun(num_envs, start=lambda: env.reset(seed=seed), step=lambda: env.step(env.action_space.sample()))
+
+
+def vmas_missing() -> str | None:
+    """Why the VMAS figures are absent (``vmas`` does not import), or None when it imports."""
+    try:
+        importlib.import_module("vmas")
+    except ImportError as error:
+        return f"VMAS figures absent: vmas does not import ({error}); pip install 'infonav-gym[bench]'"
+    return None
+
+
+@contextlib.contextmanager
+def _one_torch_thread(torch):
+    """Run the block with one torch thread (VMAS's CPU setting here), restoring the caller's setting after."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+def vmas_navigation_run(num_envs: int, seed: int) -> VectorRun:
+    """VMAS ``navigation`` (``VMAS_AGENTS`` agents, CPU, one torch thread) under uniform random forces.
+
+    Raises:
+        ImportError: when ``vmas`` does not import (see ``vmas_missing``).
+    """
+    vmas, torch = importlib.import_module("vmas"), importlib.import_module("torch")
+    env = vmas.make_env(
+        "navigation", num_envs=num_envs, device="cpu", n_agents=VMAS_AGENTS, max_steps=VMAS_MAX_STEPS, seed=seed
+    )
+    rng = np.random.default_rng(seed)
+    spaces = [env.action_space[agent] for agent in range(VMAS_AGENTS)]
+
+    def step() -> None:
+        with _one_torch_thread(torch):
+            forces = [rng.uniform(space.low, space.high, (num_envs, *space.shape)) for space in spaces]
+            actions = [torch.from_numpy(force.astype(np.float32)) for force in forces]
+            dones = env.step(actions)[2]
+            for index in torch.nonzero(dones).flatten().tolist():
+                env.reset_at(index, return_observations=False)
+
+    def start() -> None:
+        with _one_torch_thread(torch):
+            env.reset(seed=seed, return_observations=False)
+
+    return VectorRun(num_envs, start, step)
+
+
+def _status_kb(field: str) -> int:
+    """A memory figure [kB] of this process from ``/proc/self/status`` (Linux): ``VmRSS`` now, ``VmHWM`` its peak."""
+    for line in PROC_STATUS.read_text().splitlines():
+        if line.startswith(f"{field}:"):
+            return int(line.split()[1])
+    raise ValueError(f"{PROC_STATUS} has no {field} line")
+
+
+def peak_rss_growth_kb_per_env(env_id: str, num_envs: int, steps: int, seed: int) -> float:
+    """In this process: peak RSS growth [kB] per copy while building ``env_id``'s vector env and stepping it.
+
+    A 1-copy vector env is built and stepped ``steps`` times first (imports, caches); then the peak RSS
+    is reset to the current one (``/proc/self/clear_refs``) and the growth of the peak (``VmHWM``) over
+    building ``num_envs`` copies, resetting them and stepping them ``steps`` times is divided by ``num_envs``.
+    """
+    warm_up = vector_env_run(env_id, 1, seed)
+    warm_up.start()
+    for _ in range(steps):
+        warm_up.step()
+    PROC_CLEAR_REFS.write_text("5")  # Linux: "5" resets the peak RSS to the current RSS
+    before = _status_kb("VmRSS")
+    run = vector_env_run(env_id, num_envs, seed)
+    run.start()
+    for _ in range(steps):
+        run.step()
+    return (_status_kb("VmHWM") - before) / num_envs
+
+
+def kb_per_env(env_id: str, num_envs: int, steps: int = MEMORY_STEPS, seed: int = 0) -> float:
+    """Memory per sub-env [kB] of ``env_id``'s vector env: ``peak_rss_growth_kb_per_env`` in a fresh subprocess.
+
+    The subprocess imports ``infonav_gym`` only, so ``env_id`` must be registered by that import (or carry
+    Gymnasium's ``module:`` prefix naming the module that registers it).
+
+    Raises:
+        RuntimeError: when the subprocess fails (its error output is in the message).
+    """
+    code = (
+        "from infonav_gym.experiments.vector_timing import peak_rss_growth_kb_per_env; "
+        f"print(peak_rss_growth_kb_per_env({env_id!r}, {num_envs}, {steps}, {seed}))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    if done.returncode:
+        raise RuntimeError(f"memory of {env_id} at N={num_envs}: the measuring subprocess failed:\n{done.stderr}")
+    return float(done.stdout.split()[-1])
+
+
+def memory_missing() -> str | None:
+    """Why the memory figures are absent (not Linux: no writable ``/proc/self/clear_refs``), or None if they can be."""
+    if PROC_STATUS.exists() and os.access(PROC_CLEAR_REFS, os.W_OK):
+        return None
+    return f"memory figures absent: they need Linux's {PROC_STATUS} and a writable {PROC_CLEAR_REFS}"
