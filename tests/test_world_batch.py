@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from infonav_gym.world import World
+from infonav_gym.world import CircleObstacle, World, world_batch
 from infonav_gym.world.active_scenarios import CommandedWorld, goal_field
 from infonav_gym.world.scenarios import Route, Scenario, build_scenario
 from infonav_gym.world.world_batch import WorldBatch
@@ -58,6 +58,32 @@ def test_copies_in_contact_take_pymunk_steps_that_equal_the_single_worlds():
     for _ in range(40):
         single.step(TIME_STEP_S)
     assert single.poses[0, 0] < 13.0  # Pymunk stopped robot 0 at the wall before its waypoint (20, 0)
+
+
+def lapping_scenario(offset: float) -> Scenario:
+    """A robot lapping a square whose edges graze a wall and cross an obstacle: a run of contact steps each lap."""
+    square = np.array([[8.0, 0.0], [8.0, 8.0], [0.0, 8.0], [0.0, offset]])
+    routes = (Route((0.0, offset, 0.0), square, loop=True, speed_mps=1.2),)
+    walls = (((-5.0, -0.6), (12.0, -0.6)),)
+    obstacles = (CircleObstacle((4.0, 8.2), 0.5),)
+    return Scenario(name="laps", bounds=(-10.0, -10.0, 15.0, 15.0), routes=routes, walls=walls, obstacles=obstacles)
+
+
+@pytest.mark.parametrize("max_idle_spaces", [0, 64])
+def test_runs_of_contact_steps_start_alike_in_a_kept_or_a_rebuilt_space(monkeypatch, max_idle_spaces):
+    monkeypatch.setattr(world_batch, "MAX_IDLE_SPACES", max_idle_spaces)  # 0: every idle copy's space is dropped
+    layouts = [lapping_scenario(offset) for offset in (0.0, -0.1, 0.1)]
+    assert_batch_follows_single_worlds(layouts, n_steps=200)
+    single, calls, in_contact = World(), [], []
+    single.reset(layouts[0])
+    drive = single.drive_in_contact
+    monkeypatch.setattr(single, "drive_in_contact", lambda *args: calls.append(args) or drive(*args))
+    for _ in range(200):
+        before = len(calls)
+        single.step(TIME_STEP_S)
+        in_contact.append(len(calls) > before)
+    runs = sum(1 for k, now in enumerate(in_contact) if now and (k == 0 or not in_contact[k - 1]))
+    assert runs >= 4  # several separate runs, each after free steps
 
 
 def test_stepping_some_copies_leaves_the_others_where_they_are():

@@ -38,7 +38,7 @@ class World:
     body (position += velocity x dt, angle += angular velocity x dt). Any other step is Pymunk's: the robots' discs
     are put at their poses with their velocities and the space is stepped in substeps, so walls, obstacles and the
     other robots stop or push them for real; the executed motion is read back, not assumed. The space is built at
-    the first contact step or line-of-sight query after a ``reset`` or after a run of contact steps ends.
+    the first contact step or line-of-sight query after a ``reset``.
 
     Args:
         robot_radius_m: radius of every robot's disc [m].
@@ -190,13 +190,23 @@ class World:
         self._in_contact = True
 
     def end_contacts(self) -> None:
-        """A free step ends a run of contact steps: drop the space, so the next run starts from a fresh one.
+        """A free step ends a run of contact steps: Pymunk forgets the run's contacts (the robots leave and re-enter).
 
-        Pymunk remembers recent contacts to warm-start its solver; a fresh space per run makes every run start
-        alike, whatever came before, and frees the space's memory (a few hundred kB) while the robots roam.
+        Pymunk remembers recent contacts to warm-start its solver; forgetting them when a run ends makes every run
+        start as in a fresh space, whatever came before, so a batched world may drop an idle copy's space to save
+        its memory (a few hundred kB) and build it again for the next run, with the same numbers.
         """
-        if self._in_contact:
-            self._space, self._robot_bodies, self._in_contact = None, [], False
+        if not self._in_contact:
+            return
+        self._in_contact = False
+        for body in self._robot_bodies:
+            self._space.remove(body, *body.shapes)
+        for body in self._robot_bodies:
+            self._space.add(body, *body.shapes)
+
+    def drop_space(self) -> None:
+        """Free the Pymunk space (built again when next needed): only between runs of contact steps."""
+        self._space, self._robot_bodies, self._in_contact = None, [], False
 
     def set_poses(self, poses) -> None:
         """Put the robots at ``poses`` (R, 3) [m, m, rad] (a batched world stepping this one's free motion)."""

@@ -17,6 +17,7 @@ from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.world import MAX_TIME_STEP_S, TIME_STEP_S, World, start_poses, static_boxes
 
 _EMPTY_BOX = (np.inf, np.inf, -np.inf, -np.inf)  # a padding box that overlaps nothing
+MAX_IDLE_SPACES = 64  # Pymunk spaces kept for copies between runs of contact steps (a few hundred kB each)
 
 
 class WorldBatch:
@@ -36,6 +37,7 @@ class WorldBatch:
         self._scenarios: list[Scenario | None] = [None] * n_copies
         self._world_is_stale = np.ones(n_copies, dtype=bool)
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
+        self._has_space = np.zeros(n_copies, dtype=bool)  # the copy's World holds a Pymunk space
         reference = self._worlds[0]
         self._radius_m = reference.robot_radius_m
         self._tolerance_m = reference.waypoint_tolerance_m
@@ -74,7 +76,8 @@ class WorldBatch:
             )
         self._scenarios[copy] = scenario
         self._world_is_stale[copy] = True
-        self._in_contact[copy] = False
+        self._in_contact[copy] = self._has_space[copy] = False
+        self._worlds[copy].drop_space()
         self.poses[copy] = start_poses(scenario)
         longest = max(len(route.waypoints) for route in routes)
         if longest > self._waypoints.shape[2]:
@@ -136,8 +139,12 @@ class WorldBatch:
             axis=-1,
         )
         contact = self._contact_within(copies, before, speeds, dt)
-        for copy in copies[self._in_contact[copies] & ~contact].tolist():
-            self._worlds[copy].end_contacts()  # as the single World does on a free step
+        for copy in copies[self._in_contact[copies] & ~contact].tolist():  # their runs of contact steps end
+            world = self._worlds[copy]
+            world.end_contacts()  # as the single World does on a free step
+            if np.count_nonzero(self._has_space & ~self._in_contact) > MAX_IDLE_SPACES:
+                world.drop_space()  # built again, alike, at its next contact step
+                self._has_space[copy] = False
         self._in_contact[copies] = contact
         for row in np.flatnonzero(contact).tolist():
             copy = int(copies[row])
@@ -145,6 +152,7 @@ class WorldBatch:
             if self._world_is_stale[copy]:
                 world.reset(self._scenarios[copy])
                 self._world_is_stale[copy] = False
+            self._has_space[copy] = True
             world.set_poses(before[row])
             world.drive_in_contact(controls[row].tolist(), dt)
             after[row] = world.poses
