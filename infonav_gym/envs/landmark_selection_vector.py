@@ -19,6 +19,7 @@ from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import set_rows
 from infonav_gym.estimation import batched
+from infonav_gym.information import log_det_spd
 from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world_batch import WorldBatch
 
@@ -130,7 +131,7 @@ class LandmarkSelectionVectorEnv(InfoNavVectorEnv):
         self._x, self._P = batched.range_bearing_update(
             self._x, self._P, measurements, predicted, H, R, observed, check_input=False
         )
-        posterior_log_dets = np.linalg.slogdet(self._P[observers])[1]
+        posterior_log_dets = log_det_spd(self._P[observers], check_input=False)  # as the single env's
         rewards[observers] = 0.5 * (decision.prior_log_det[observers] - posterior_log_dets)
         return rewards
 
