@@ -11,7 +11,6 @@ from one stream per copy (``NoiseStreams``, the single env's generators drawn ah
 from __future__ import annotations
 
 import numpy as np
-from gymnasium.vector import AutoresetMode
 
 from infonav_gym.envs.active_localization import (
     REWARD_TERMS,
@@ -24,17 +23,15 @@ from infonav_gym.envs.active_localization import (
 from infonav_gym.envs.active_localization_batch import ActiveDecision, batched_info, batched_observation
 from infonav_gym.envs.active_planning import N_PRIMITIVES
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision
-from infonav_gym.envs.noise_streams import NoiseStreams
-from infonav_gym.envs.vector_base import InfoNavVectorEnv
+from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
 from infonav_gym.envs.vector_infos import set_rows
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.information import log_det_spd
 from infonav_gym.world.visibility import StaticGeometry
-from infonav_gym.world.world_batch import WorldBatch
 
 
-class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
+class ActiveLocalizationVectorEnv(OneRobotVectorEnv, single_env=ActiveLocalizationEnv):
     """N copies of ``ActiveLocalizationEnv`` (see it for the spaces, rewards and config keys), batched.
 
     ## Vector API
@@ -61,24 +58,8 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
     env would (``FirstCopyView``). The planning model is the single env's.
     """
 
-    metadata = {
-        **InfoNavVectorEnv.metadata,
-        "render_modes": ActiveLocalizationEnv.metadata["render_modes"],
-        "render_fps": ActiveLocalizationEnv.metadata["render_fps"],
-    }
-
-    def __init__(
-        self,
-        num_envs: int = 1,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        **config,
-    ):
-        single = self._configure(num_envs, render_mode, autoreset_mode, ActiveLocalizationEnv, config)
-        self._sensor, self._odometry = single.sensor, single.odometry
-        self._odometry_covariance = self._odometry.noise_covariance()
-        self._worlds = WorldBatch(num_envs)
-        self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
+    def _allocate(self) -> None:
+        num_envs = self.num_envs
         n_landmarks, n_obstacles = self.config["n_candidates"], self.config["n_obstacles"]
         self._state = {  # what batched_info reads, per copy
             "x": np.zeros((num_envs, POSE_DIM)),
@@ -190,12 +171,8 @@ class ActiveLocalizationVectorEnv(InfoNavVectorEnv):
 
     def _drive(self, copies: np.ndarray, commands: np.ndarray) -> None:
         """Drive the worlds of ``copies`` by their ``[speed, turn rate]`` commands (n, 2); predict their EKFs."""
-        dt, state = self.config["time_step_s"], self._state
-        controls = self._worlds.step(dt, copies, commands[:, None])[:, 0]
-        readings = self._odometry.measure_with_noise(controls, self._odometry_noise.take(copies))
-        state["x"][copies], state["P"][copies] = batched.predict_pose(
-            state["x"][copies], state["P"][copies], readings, dt, self._odometry_covariance, check_input=False
-        )
+        state = self._state
+        state["x"][copies], state["P"][copies] = self._moved(copies, state["x"][copies], state["P"][copies], commands)
 
     def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
         """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""

@@ -11,20 +11,17 @@ the single env's generators drawn ahead). So sub-env ``i`` after ``reset(seed=s)
 from __future__ import annotations
 
 import numpy as np
-from gymnasium.vector import AutoresetMode
 
 from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv, start_episode
 from infonav_gym.envs.landmark_selection_batch import BatchedDecision, batched_info, batched_observation
-from infonav_gym.envs.noise_streams import NoiseStreams
-from infonav_gym.envs.vector_base import InfoNavVectorEnv
+from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
 from infonav_gym.envs.vector_infos import set_rows
 from infonav_gym.estimation import batched
 from infonav_gym.information import log_det_spd
 from infonav_gym.world.visibility import StaticGeometry
-from infonav_gym.world.world_batch import WorldBatch
 
 
-class LandmarkSelectionVectorEnv(InfoNavVectorEnv):
+class LandmarkSelectionVectorEnv(OneRobotVectorEnv, single_env=LandmarkSelectionEnv):
     """N copies of ``LandmarkSelectionEnv`` (see it for the spaces, rewards and config keys), batched.
 
     ## Vector API
@@ -51,25 +48,8 @@ class LandmarkSelectionVectorEnv(InfoNavVectorEnv):
     draws sub-env 0, as its single env would (``FirstCopyView``).
     """
 
-    metadata = {
-        **InfoNavVectorEnv.metadata,
-        "render_modes": LandmarkSelectionEnv.metadata["render_modes"],
-        "render_fps": LandmarkSelectionEnv.metadata["render_fps"],
-    }
-    _AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
-
-    def __init__(
-        self,
-        num_envs: int = 1,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        **config,
-    ):
-        single = self._configure(num_envs, render_mode, autoreset_mode, LandmarkSelectionEnv, config)
-        self._sensor, self._odometry = single.sensor, single.odometry
-        self._odometry_covariance = self._odometry.noise_covariance()
-        self._worlds = WorldBatch(num_envs)
-        self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
+    def _allocate(self) -> None:
+        num_envs = self.num_envs
         self._x = self._P = None
         self._elapsed = np.zeros(num_envs, dtype=int)
         n_candidates = self.config["n_candidates"]
@@ -137,14 +117,8 @@ class LandmarkSelectionVectorEnv(InfoNavVectorEnv):
 
     def _advance(self, copies: np.ndarray) -> None:
         """Step the worlds of ``copies`` and predict their EKFs from noisy odometry."""
-        if not copies.size:
-            return
-        dt = self.config["time_step_s"]
-        controls = self._worlds.step(dt, copies)[:, 0]
-        readings = self._odometry.measure_with_noise(controls, self._odometry_noise.take(copies))
-        self._x[copies], self._P[copies] = batched.predict_pose(
-            self._x[copies], self._P[copies], readings, dt, self._odometry_covariance, check_input=False
-        )
+        if copies.size:
+            self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
 
     def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
         """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""

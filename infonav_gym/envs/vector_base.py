@@ -51,8 +51,18 @@ class InfoNavVectorEnv(VectorEnv):
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
     AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+    single_env: type  # the env class a subclass batches: ``class MyVectorEnv(InfoNavVectorEnv, single_env=MyEnv)``
 
-    def _configure(self, num_envs: int, render_mode: str | None, autoreset_mode, single_env, config: dict) -> gym.Env:
+    def __init_subclass__(cls, single_env: type | None = None, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if single_env is not None:  # its render modes and fps, NEXT_STEP autoreset by default
+            cls.single_env = single_env
+            cls.metadata = {
+                **InfoNavVectorEnv.metadata,
+                **{key: single_env.metadata[key] for key in ("render_modes", "render_fps")},
+            }
+
+    def _configure(self, num_envs: int, render_mode: str | None, autoreset_mode, config: dict) -> gym.Env:
         """Check the vector arguments; take the config (and a ``gym.Env``'s spaces) of ``single_env(**config)``.
 
         Returns:
@@ -67,6 +77,7 @@ class InfoNavVectorEnv(VectorEnv):
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, self.AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
+        single_env = type(self).single_env
         single = single_env(**config)
         self._view = None if render_mode is None else FirstCopyView(single_env(render_mode, **config))
         self.config = single.config

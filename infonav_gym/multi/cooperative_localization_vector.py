@@ -35,7 +35,7 @@ from infonav_gym.world.world_batch import WorldBatch
 MASK_KEY = 'info["action_mask"]'
 
 
-class CooperativeLocalizationVectorEnv(InfoNavVectorEnv):
+class CooperativeLocalizationVectorEnv(InfoNavVectorEnv, single_env=CooperativeLocalizationEnv):
     """N copies of ``CooperativeLocalizationEnv`` (see it for the spaces, rewards and config keys), batched.
 
     ## Vector API
@@ -61,12 +61,6 @@ class CooperativeLocalizationVectorEnv(InfoNavVectorEnv):
     (``FirstCopyView``: a parallel env kept in step with copy 0, one parallel step per vector step).
     """
 
-    metadata = {
-        **InfoNavVectorEnv.metadata,
-        "render_modes": CooperativeLocalizationEnv.metadata["render_modes"],
-        "render_fps": CooperativeLocalizationEnv.metadata["render_fps"],
-    }
-
     def __init__(
         self,
         num_envs: int = 1,
@@ -74,7 +68,7 @@ class CooperativeLocalizationVectorEnv(InfoNavVectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **config,
     ):
-        self._single = self._configure(num_envs, render_mode, autoreset_mode, CooperativeLocalizationEnv, config)
+        self._single = self._configure(num_envs, render_mode, autoreset_mode, config)
         self.agents = list(self._single.possible_agents)
         n_robots = len(self.agents)
         self.max_cycles = self.config["max_cycles"]
