@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from infonav_gym.experiments.cli import main
+from infonav_gym.experiments.cli import _config_pair, main
 from infonav_gym.experiments.evaluation import ProportionSummary, Summary, wilson_interval
 
 
@@ -192,3 +192,14 @@ def test_reproduce_fig3_prints_the_summary_table(capsys, tmp_path):
     out = capsys.readouterr().out
     assert "last DGPS fix (t = 20.5 s)" in out and "peak during the outage" in out
     assert "30.5-32.5        #1" in out and "ratio" in out and str(tmp_path / "fig3.json") in out
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [("mapping=true", True), ("mapping=True", True), ("mapping=False", False), ("robot_sensors=None", None)]
+    + [("horizon=30", 30), ("team_reward=0.5", 0.5), ("scenario=corridor", "corridor")],
+)
+def test_config_values_are_json_or_python_constants_else_strings(text, expected):
+    key, value = _config_pair(text)
+    assert key == text.partition("=")[0]
+    assert value == expected and type(value) is type(expected)

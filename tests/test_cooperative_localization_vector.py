@@ -81,10 +81,11 @@ def test_copies_equal_the_parallel_env_seeded_seed_plus_i_through_autoresets(est
     "config",
     [
         {"max_cycles": 30, "team_reward": 0.5},
+        {"max_cycles": 30, "team_reward": 1.0, "observe_gains": True},
         {"max_cycles": 30, "scenario": "convoy", "n_robots": 3},
         {"max_cycles": 30, "n_robots": 3, "robot_sensors": ["gps", "vision", "laser"], "estimator": "independent"},
     ],
-    ids=["team_reward", "convoy", "vision"],
+    ids=["team_reward", "observe_gains", "convoy", "vision"],
 )
 def test_greedy_copies_equal_the_parallel_env_on_other_teams_and_rewards(config):
     assert run_against_parallel_envs(config, 2, 5, "greedy", 31) == 2

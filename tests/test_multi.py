@@ -253,3 +253,22 @@ def test_rgb_array_frames_show_the_team_and_relative_observations():
     assert not np.array_equal(first, second)
     env.close()
     env.close()
+
+
+def test_observe_gains_appends_each_actions_expected_reward_to_the_observation():
+    plain = cooperative_localization_v0.parallel_env(team_reward=1.0)
+    with_gains = cooperative_localization_v0.parallel_env(team_reward=1.0, observe_gains=True)
+    n = len(plain.possible_agents)
+    assert with_gains.observation_space("robot_0").shape == (plain.observation_space("robot_0").shape[0] + n + 1,)
+    observations, infos = with_gains.reset(seed=3)
+    plain_observations, _ = plain.reset(seed=3)
+    for _ in range(30):
+        for agent, observation in observations.items():
+            gains = infos[agent]["action_information_gain"]
+            np.testing.assert_array_equal(observation[: -(n + 1)], plain_observations[agent])
+            np.testing.assert_allclose(observation[-(n + 1) :], gains, rtol=1e-6)
+            assert with_gains.observation_space(agent).contains(observation)
+        actions = {agent: int(np.argmax(infos[agent]["action_information_gain"])) for agent in observations}
+        observations, _, _, _, infos = with_gains.step(actions)
+        plain_observations, *_ = plain.step(actions)
+    assert any(np.any(info["action_information_gain"] > 0) for info in infos.values())

@@ -16,14 +16,18 @@ from infonav_gym.experiments.vector_timing import DEFAULT_VECTOR_SIZES, parse_ve
 DEFAULT_ENV = "infonav/LandmarkSelection-v0"
 EVALUATION_SUFFIXES = (".md", ".csv", ".json", ".png")  # the files of ``evaluate --output STEM``
 REPLAY_SUFFIXES = (".md", ".json")  # the files of ``replay mrclam --output STEM``
+PYTHON_CONSTANTS = {"True": True, "False": False, "None": None}  # --config values written as in Python
 DEFAULT_VECTOR_SIZES_TEXT = ",".join(map(str, DEFAULT_VECTOR_SIZES))
 
 
 def _config_pair(text: str) -> tuple[str, object]:
-    """``key=value`` with the value read as JSON when it parses (numbers, true/false), else as a string."""
+    """``key=value`` with the value read as JSON when it parses (numbers, true/false; Python's True, False and
+    None too), else as a string."""
     key, separator, value = text.partition("=")
     if not separator or not key:
         raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    if value in PYTHON_CONSTANTS:
+        return key, PYTHON_CONSTANTS[value]
     try:
         return key, json.loads(value)
     except json.JSONDecodeError:

@@ -151,7 +151,9 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
     heading [rad], its pose entropy [nats], whether it has a DGPS fix now, and the
     elapsed fraction of ``max_cycles``; then per robot ``j``: whether observing it
     is valid, its estimated range [m], ``cos, sin`` of its estimated bearing and its
-    position standard deviation [m] (zeros for the robot itself).
+    position standard deviation [m] (zeros for the robot itself). With
+    ``observe_gains=True``, ``N + 1`` more: ``action_information_gain`` of each
+    action (what a greedy agent ranks by [nats]), so ``Box(float32, (11 + 6 N,))``.
 
     ## Rewards
     The realized mutual information on the robot's own pose of this step's
@@ -218,6 +220,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
             "gps_outages": (DEFAULT_OUTAGE,),  # (robot, start_s, end_s) spans without DGPS [s]
             "estimator": "joint",  # "joint" (cross-covariances) or "independent" (drops them)
             "team_reward": 0.0,  # weight of the team's MI in each robot's reward, in [0, 1]
+            "observe_gains": False,  # True: each observation ends with the expected reward of each action
             "invalid_action": "noop",  # a masked action: "noop" or "raise" (ValueError)
             "time_step_s": 0.5,  # [s]
             "speed_mps": 1.0,  # cruise speed along the routes [m/s]
@@ -256,18 +259,19 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         self.possible_agents = [f"robot_{k}" for k in range(n)]
         self.agents = []
         self._action_spaces = {agent: spaces.Discrete(n + 1) for agent in self.possible_agents}
-        low, high = self._observation_bounds(n)
+        low, high = self._observation_bounds(n, cfg["observe_gains"])
         self._observation_spaces = {agent: spaces.Box(low, high, dtype=np.float32) for agent in self.possible_agents}
         self.pairs = SensingPairs.of_team(self.relative_sensors)
         self.world = World()
         self.np_random = None
 
     @staticmethod
-    def _observation_bounds(n_robots: int) -> tuple[np.ndarray, np.ndarray]:
+    def _observation_bounds(n_robots: int, observe_gains: bool) -> tuple[np.ndarray, np.ndarray]:
         own_low, own_high = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -100, 0, 0], [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 100, 1, 1]
         teammate_low, teammate_high = [0, 0, -1, -1, 0], [1, _BIG, 1, 1, _BIG]
-        low = np.array(own_low + teammate_low * n_robots, dtype=np.float32)
-        high = np.array(own_high + teammate_high * n_robots, dtype=np.float32)
+        gain_low, gain_high = ([0] * (n_robots + 1), [_BIG] * (n_robots + 1)) if observe_gains else ([], [])
+        low = np.array(own_low + teammate_low * n_robots + gain_low, dtype=np.float32)
+        high = np.array(own_high + teammate_high * n_robots + gain_high, dtype=np.float32)
         return low, high
 
     def observation_space(self, agent: str) -> spaces.Box:
@@ -392,6 +396,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
             self._elapsed_steps / self.max_cycles,
             self._decision.action_mask[:, 1:],
             self._observation_spaces[self.possible_agents[0]],
+            self._decision.action_information_gain if self.config["observe_gains"] else None,
         )
         return {agent: features[robot] for robot, agent in enumerate(self.agents)}
 
@@ -475,7 +480,7 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
 
 
 def team_observations(
-    estimates, pose_std, pose_log_det, gps_available, elapsed_fraction, teammate_valid, space: spaces.Box
+    estimates, pose_std, pose_log_det, gps_available, elapsed_fraction, teammate_valid, space: spaces.Box, gains=None
 ) -> np.ndarray:
     """Every robot's observation (see ``CooperativeLocalizationEnv``), float32 clipped to ``space``, for R robots.
 
@@ -489,12 +494,13 @@ def team_observations(
         elapsed_fraction: elapsed fraction of ``max_cycles``, broadcastable to (L..., R) (a number, or (L..., 1)).
         teammate_valid: whether each robot may observe each robot now (L..., R, R).
         space: one robot's observation space.
+        gains: each robot's ``action_information_gain`` (L..., R, R + 1) to append (``observe_gains``), or None.
 
     Returns:
-        (L..., R, 10 + 5 R).
+        (L..., R, 10 + 5 R), or (L..., R, 11 + 6 R) with ``gains``.
     """
     lead, n = estimates.shape[:-2], estimates.shape[-2]
-    features = np.zeros((*lead, n, OWN_FEATURES + TEAMMATE_FEATURES * n), dtype=np.float32)
+    features = np.zeros((*lead, n, space.shape[0]), dtype=np.float32)
     features[..., 0:2] = estimates[..., :2]
     features[..., 2] = np.cos(estimates[..., 2])
     features[..., 3] = np.sin(estimates[..., 2])
@@ -502,7 +508,8 @@ def team_observations(
     features[..., 7] = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
     features[..., 8] = gps_available
     features[..., 9] = elapsed_fraction
-    teammates = features[..., OWN_FEATURES:].reshape(*lead, n, n, TEAMMATE_FEATURES)
+    teammates_end = OWN_FEATURES + TEAMMATE_FEATURES * n
+    teammates = features[..., OWN_FEATURES:teammates_end].reshape(*lead, n, n, TEAMMATE_FEATURES)
     offsets = estimates[..., None, :, :2] - estimates[..., :, None, :2]
     bearings = np.arctan2(offsets[..., 1], offsets[..., 0]) - estimates[..., :, None, 2]
     teammates[..., 0] = teammate_valid
@@ -512,4 +519,6 @@ def team_observations(
     teammates[..., 4] = np.hypot(pose_std[..., 0], pose_std[..., 1])[..., None, :]
     robots = np.arange(n)
     teammates[..., robots, robots, :] = 0.0
+    if gains is not None:
+        features[..., teammates_end:] = gains
     return np.clip(features, space.low, space.high, out=features)

@@ -315,6 +315,7 @@ class CooperativeLocalizationVectorEnv(InfoNavVectorEnv, single_env=CooperativeL
             (self._elapsed / self.max_cycles)[:, None],
             decision.action_mask[..., 1:],
             self.single_observation_space,
+            decision.action_information_gain if self.config["observe_gains"] else None,
         )
         time_s = self._elapsed * self.config["time_step_s"]
         return observations, team_info(decision, last, self._x, self._worlds.poses, self._gps_available, time_s)
