@@ -27,3 +27,19 @@ def valid_actions(info: dict, n_actions: int) -> np.ndarray:
     if mask.shape != (n_actions,):
         raise ValueError(f'info["action_mask"] must have shape ({n_actions},), got {mask.shape}')
     return np.flatnonzero(mask)
+
+
+def checked_action_count(policy: str, observation_shape: tuple, action_space, env, agent: str | None = None) -> int:
+    """The env's number of actions, once a trained ``policy``'s spaces are seen to match the env's (or robot's).
+
+    Raises:
+        ValueError: naming both when the observation shapes or the action spaces differ.
+    """
+    env_obs = env.observation_space if agent is None else env.observation_space(agent)
+    env_actions = env.action_space if agent is None else env.action_space(agent)
+    if tuple(observation_shape) != env_obs.shape or action_space != env_actions:
+        raise ValueError(
+            f"{policy} was trained for observations {tuple(observation_shape)} and actions {action_space}, but the "
+            f"env{'' if agent is None else f' ({agent})'} has {env_obs.shape} and {env_actions}"
+        )
+    return int(env_actions.n)

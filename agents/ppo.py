@@ -41,6 +41,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMoni
 from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
+from agents.base import checked_action_count
 from agents.vector_adapter import monitored_vec_env
 from infonav_gym.registry import PARALLEL, api_of, env_entry, make_env, resolve_env_id
 
@@ -504,16 +505,13 @@ class PPOAgent:
     def __init__(self, model_path: Path | str, env, agent: str | None = None):
         self.model_path = model_file(model_path)
         self.model = load_model(self.model_path)
-        env_obs = env.observation_space if agent is None else env.observation_space(agent)
-        env_actions = env.action_space if agent is None else env.action_space(agent)
-        model_obs = self.model.observation_space
-        if model_obs.shape != env_obs.shape or self.model.action_space != env_actions:
-            raise ValueError(
-                f"PPO model {str(self.model_path)!r} was trained for observations {model_obs.shape} and actions "
-                f"{self.model.action_space}, but the env{'' if agent is None else f' ({agent})'} has "
-                f"{env_obs.shape} and {env_actions}"
-            )
-        self.n_actions = int(env_actions.n)
+        self.n_actions = checked_action_count(
+            f"PPO model {str(self.model_path)!r}",
+            self.model.observation_space.shape,
+            self.model.action_space,
+            env,
+            agent,
+        )
         self.normalization = load_normalization(self.model_path)
 
     def reset(self, seed: int | None = None) -> None:

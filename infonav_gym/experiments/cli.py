@@ -69,6 +69,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
     )
     evaluate.add_argument("--output", type=Path, help="write OUTPUT.md, OUTPUT.csv, OUTPUT.json and OUTPUT.png")
+    evaluate.add_argument(
+        "--workers", type=int, default=1, help="episodes played at once, each in its own process (default: 1)"
+    )
+    evaluate.add_argument("--ray", action="store_true", help="play them as Ray tasks (the distributed extra)")
+    evaluate.add_argument("--address", help="with --ray: an existing Ray cluster (default: a local Ray)")
     _common(evaluate)
 
     train = commands.add_parser("train", help="train PPO (MaskablePPO with action masks); save model.zip")
@@ -96,6 +101,21 @@ def build_parser() -> argparse.ArgumentParser:
         "sync: one process, copy after copy (DummyVecEnv; the default otherwise); subprocess: one process per copy",
     )
     train.add_argument("--tensorboard", action="store_true", help="log to OUTPUT/tensorboard (needs tensorboard)")
+    train.add_argument(
+        "--backend",
+        choices=("sb3", "rllib"),
+        default="sb3",
+        help="sb3: Stable-Baselines3 MaskablePPO (default); rllib: Ray RLlib PPO (the distributed extra)",
+    )
+    train.add_argument("--num-env-runners", type=int, default=1, help="rllib: env runner processes (default: 1)")
+    train.add_argument("--envs-per-runner", type=int, default=1, help="rllib: env copies per runner (default: 1)")
+    train.add_argument(
+        "--policies",
+        choices=("shared", "per_robot"),
+        default="shared",
+        help="rllib, team env: one policy shared by every robot (default) or one per robot",
+    )
+    train.add_argument("--address", help="rllib: an existing Ray cluster (default: a local Ray)")
     train.add_argument(
         "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
     )
@@ -180,7 +200,19 @@ def _evaluate(args, argv) -> dict:
 
     stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
     agent_names = [name.strip() for name in args.agents.split(",") if name.strip()]
-    results = evaluate(args.env, agent_names, args.episodes, args.seed, dict(args.config), progress=not args.json)
+    if args.address and not args.ray:
+        raise ValueError("--address is the Ray cluster of --ray; add --ray or drop --address")
+    results = evaluate(
+        args.env,
+        agent_names,
+        args.episodes,
+        args.seed,
+        dict(args.config),
+        progress=not args.json,
+        workers=args.workers,
+        use_ray=args.ray,
+        address=args.address,
+    )
     failure = None
     if stem:
         command = "infonav " + " ".join(shlex.quote(part) for part in argv)
@@ -195,6 +227,8 @@ def _evaluate(args, argv) -> dict:
 
 def _train(args) -> dict:
     """Train PPO on ``args.env``; print where the model went unless --json."""
+    if args.backend == "rllib":
+        return _train_rllib(args)
     try:
         from agents.ppo import load_hyperparameters, train
     except ImportError as error:
@@ -221,7 +255,47 @@ def _train(args) -> dict:
             f"{record['timesteps']} timesteps in {record['seconds']:.1f} s ({record['fps']:.0f} steps/s); "
             f"model: {model_path}"
         )
-        print(f"evaluate it: infonav evaluate --env {args.env} --agents random,greedy,ppo:{model_path}")
+        agents = f"random,greedy,ppo:{model_path}"
+        print(f"evaluate it: infonav evaluate --env {args.env}{_config_flags(args)} --agents {agents}")
+    return record
+
+
+def _config_flags(args) -> str:
+    """The ``--config`` flags of ``args``, as typed back."""
+    return "".join(f" --config {shlex.quote(f'{key}={json.dumps(value)}')}" for key, value in args.config)
+
+
+def _train_rllib(args) -> dict:
+    """Train RLlib PPO on ``args.env``; print where the checkpoint went unless --json."""
+    from infonav_gym.experiments.ray_support import import_ray
+
+    import_ray()  # a missing extra is a one-line error before anything starts
+    from agents.ppo import load_hyperparameters
+    from agents.rllib_train import train_rllib
+
+    output = args.output or Path("models") / f"{args.env.rsplit('/', 1)[-1]}_rllib_seed{args.seed}"
+    check_output_dir(output, "--output")
+    record = train_rllib(
+        args.env,
+        args.timesteps,
+        output,
+        seed=args.seed,
+        env_kwargs=dict(args.config),
+        hyperparameters=load_hyperparameters(args.env, args.hyperparams),
+        num_env_runners=args.num_env_runners,
+        envs_per_runner=args.envs_per_runner,
+        policies=args.policies,
+        address=args.address,
+        progress=not args.json,
+    )
+    if not args.json:
+        print(
+            f"trained {record['algorithm']} on {args.env} ({args.num_env_runners} env runners x "
+            f"{args.envs_per_runner} envs) for {record['timesteps']} env steps in {record['seconds']:.1f} s "
+            f"({record['fps']:.0f} steps/s); checkpoint: {record['checkpoint']}"
+        )
+        agents = f"random,greedy,rllib:{output}"
+        print(f"evaluate it: infonav evaluate --env {args.env}{_config_flags(args)} --agents {agents}")
     return record
 
 

@@ -20,10 +20,13 @@ from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
 from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, traits_of
-from infonav_gym.registry import PARALLEL, api_of, make_env, registered_envs
+from infonav_gym.experiments.episode_pool import EpisodeRunner, check_workers, played
+from infonav_gym.experiments.ray_support import DISTRIBUTED_HINT, import_ray
+from infonav_gym.registry import registered_envs
 
-AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH")
+AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH", "rllib:DIR")
 PPO_PREFIX = "ppo:"
+RLLIB_PREFIX = "rllib:"
 STUDENT_T, WILSON = "student_t", "wilson"
 Z_95 = float(stats.norm.ppf(0.975))  # two-sided 95% quantile of the standard normal
 INTERVAL_NOTES = {
@@ -33,8 +36,10 @@ INTERVAL_NOTES = {
 
 
 def check_agent_name(name: str) -> None:
-    """Raise ``ValueError`` unless ``name`` is random, greedy, planner or ppo:PATH."""
-    if name in ("random", "greedy", "planner") or (name.startswith(PPO_PREFIX) and len(name) > len(PPO_PREFIX)):
+    """Raise ``ValueError`` unless ``name`` is random, greedy, planner, ppo:PATH or rllib:DIR."""
+    if name in ("random", "greedy", "planner"):
+        return
+    if any(name.startswith(prefix) and len(name) > len(prefix) for prefix in (PPO_PREFIX, RLLIB_PREFIX)):
         return
     raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
 
@@ -55,8 +60,9 @@ def make_agent(
 ):
     """A baseline agent by name (``noop_action``: see ``RandomAgent``).
 
-    ``planner`` (``agents.planner.PlannerAgent(env)``) and ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``)
-    need the ``env`` they will act in; both are imported only when asked for. ``planner`` is
+    ``planner`` (``agents.planner.PlannerAgent(env)``), ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``) and
+    ``rllib:DIR`` (``agents.rllib_agent.RLlibAgent(DIR, env)``, the ``distributed`` extra) need the ``env`` they
+    will act in; each is imported only when asked for. ``planner`` is
     refused unless the env offers a planning model (``envs.traits.has_planning_model``). In a PettingZoo
     env ``agent`` names the robot a ``ppo:PATH`` agent acts for.
     """
@@ -81,6 +87,12 @@ def make_agent(
                 f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
             ) from None
         return PlannerAgent(env)
+    if name.startswith(RLLIB_PREFIX):
+        try:
+            from agents.rllib_agent import RLlibAgent
+        except ImportError as error:
+            raise ValueError(f"agent {name!r} needs Ray: {DISTRIBUTED_HINT} ({error})") from None
+        return RLlibAgent(name[len(RLLIB_PREFIX) :], env, agent)
     try:
         from agents.ppo import PPOAgent
     except ImportError as error:
@@ -184,13 +196,25 @@ class ProportionSummary:
         return {"mean": self.mean, "ci95_low": self.low, "ci95_high": self.high, "interval": WILSON}
 
 
-def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs: dict | None = None, progress=True):
+def evaluate(
+    env_id: str,
+    agent_names,
+    episodes: int,
+    seed: int = 0,
+    env_kwargs: dict | None = None,
+    progress=True,
+    workers: int = 1,
+    use_ray: bool = False,
+    address: str | None = None,
+):
     """Run every agent for ``episodes`` episodes on seeds ``seed, seed + 1, ...``.
 
     ``env_id``: any registered env (``infonav_gym.registry``). In a PettingZoo parallel env (e.g.
     ``cooperative_localization_v0``) every robot plays its own copy of the agent, ``ppo:PATH`` one policy
     for every robot. ``agent_names``: random, greedy, planner (envs with a planning model), ppo:PATH (a model
-    written by ``infonav train``). The metrics are the env's ``episode_metrics``.
+    written by ``infonav train``). The metrics are the env's ``episode_metrics``. ``workers`` processes play
+    the episodes at once (``use_ray``: as Ray tasks, on the cluster at ``address`` or a local Ray), with the
+    same results as one (``episode_pool``).
 
     Returns:
         ``{"env_id", "episodes", "seeds", "env_kwargs", "env_config", "metrics", "agents": {name: {"episodes":
@@ -202,19 +226,13 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
         raise ValueError(f"no agents given; choose from {', '.join(AGENT_NAMES)}")
     for name in agent_names:
         check_agent_name(name)
+    check_workers(workers)
+    if use_ray:
+        import_ray()  # before any episode: a missing extra is a one-line error
     env_kwargs = dict(env_kwargs or {})
-    parallel = api_of(env_id) == PARALLEL
-    env = make_env(env_id, **env_kwargs)
-    try:
-        declared = episode_metrics_of(env)
-        if parallel:
-            agents = {name: make_team_agents(name, env) for name in agent_names}  # {robot: agent} each
-        else:
-            noop_action = traits_of(env).noop_action
-            agents = {name: make_agent(name, env.action_space.n, noop_action, env=env) for name in agent_names}
-    except Exception:
-        env.close()
-        raise
+    runner = EpisodeRunner(env_id, env_kwargs, agent_names)
+    env = runner.env
+    declared = episode_metrics_of(env)
     seeds = list(range(seed, seed + episodes))
     results = {
         "env_id": env_id,
@@ -224,18 +242,17 @@ def evaluate(env_id: str, agent_names, episodes: int, seed: int = 0, env_kwargs:
         "env_config": dict(getattr(env.unwrapped, "config", {})),
         "reward_config_keys": list(traits_of(env).reward_config_keys),
         "metrics": {metric.name: metric.title for metric in declared},
-        "agents": {},
+        "agents": {name: {"episodes": []} for name in runner.agents},
     }
-    run = run_parallel_episode if parallel else run_episode
-    bar = tqdm(total=len(agents) * episodes, desc=f"evaluating on {env_id}", disable=not progress, unit="episode")
-    for name, agent in agents.items():
-        per_episode = []
-        for episode_seed in seeds:
-            per_episode.append(run(env, agent, episode_seed))
+    tasks = [(name, episode_seed) for name in runner.agents for episode_seed in seeds]
+    bar = tqdm(total=len(tasks), desc=f"evaluating on {env_id}", disable=not progress, unit="episode")
+    try:
+        for (name, _), metrics in zip(tasks, played(runner, tasks, workers, use_ray, address)):
+            results["agents"][name]["episodes"].append(metrics)
             bar.update()
-        results["agents"][name] = {"episodes": per_episode}
-    bar.close()
-    env.close()
+    finally:
+        bar.close()
+        runner.close()
     for result in results["agents"].values():
         result["summary"] = {
             metric.name: (ProportionSummary if metric.proportion else Summary)

@@ -1,0 +1,73 @@
+"""``RLlibAgent``: a policy trained by ``infonav train --backend rllib`` acting greedily among the valid actions."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from agents.base import checked_action_count
+from agents.rllib_masking import ACTION_MASK, OBSERVATION, valid_actions
+from agents.rllib_train import CHECKPOINT_DIR, SHARED_POLICY
+
+SINGLE_AGENT_POLICY = "default_policy"  # RLlib's module id of a single-agent algorithm
+MODULES_PATH = ("learner_group", "learner", "rl_module")  # where an algorithm checkpoint keeps its modules
+
+
+def module_id(record: dict, agent: str | None) -> str:
+    """The module a robot (``agent``) or a single-agent env acts with, from a ``train.json`` record."""
+    if agent is None:
+        return SINGLE_AGENT_POLICY
+    return SHARED_POLICY if record.get("policies") == "shared" else agent
+
+
+class RLlibAgent:
+    """The policy of an RLlib training directory (``train.json`` + ``checkpoint/``) as a deterministic agent.
+
+    Args:
+        directory: the ``--output`` directory of ``infonav train --backend rllib``.
+        env: the env it will act in; its spaces must match the module's.
+        agent: in a PettingZoo env, the robot it acts for.
+
+    Raises:
+        ValueError: for a directory without ``train.json`` or checkpoint, or spaces that do not match.
+    """
+
+    def __init__(self, directory: Path | str, env, agent: str | None = None):
+        from ray.rllib.core.rl_module.rl_module import RLModule
+
+        directory = Path(directory)
+        record_path = directory / "train.json"
+        if not record_path.is_file() or not (directory / CHECKPOINT_DIR).is_dir():
+            raise ValueError(
+                f"{str(directory)!r} is not an RLlib training directory (no train.json and {CHECKPOINT_DIR}/): "
+                "write one with infonav train --backend rllib --output DIR"
+            )
+        record = json.loads(record_path.read_text())
+        policy = module_id(record, agent)
+        self.module = RLModule.from_checkpoint(directory.joinpath(CHECKPOINT_DIR, *MODULES_PATH, policy))
+        self.module.eval()
+        self.n_actions = checked_action_count(
+            f"RLlib policy {policy!r} in {str(directory)!r}",
+            self.module.observation_space[OBSERVATION].shape,
+            self.module.action_space,
+            env,
+            agent,
+        )
+
+    def reset(self, seed: int | None = None) -> None:
+        """Deterministic: nothing to reset."""
+
+    def act(self, observation, info: dict) -> int:
+        mask = valid_actions(info.get(ACTION_MASK), self.n_actions)
+        batch = {
+            "obs": {
+                OBSERVATION: torch.as_tensor(np.asarray(observation, dtype=np.float32))[None],
+                ACTION_MASK: torch.as_tensor(mask)[None],
+            }
+        }
+        with torch.no_grad():
+            logits = self.module.forward_inference(batch)["action_dist_inputs"][0].numpy()
+        return int(np.argmax(np.where(mask > 0, logits, -np.inf)))

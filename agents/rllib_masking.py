@@ -1,0 +1,86 @@
+"""Action masks for RLlib: observations that carry them (the module that applies them: ``agents.rllib_module``).
+
+RLlib's new API stack reads nothing from ``info``, so the envs' masks travel in the observation:
+``MaskedObservations`` (a Gymnasium env) and ``MaskedParallelEnv`` (a PettingZoo parallel env) turn each
+observation into ``{"observation": the env's observation, "action_mask": float32 (n,)}``, the mask being the
+env's ``action_masks()`` (all ones when nothing is valid, as ``MaskablePPO`` takes it) or its
+``info["action_mask"]``. Needs no Ray.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from pettingzoo.utils.wrappers import BaseParallelWrapper
+
+OBSERVATION, ACTION_MASK = "observation", "action_mask"
+
+
+def masked_space(observation_space: spaces.Box, n_actions: int) -> spaces.Dict:
+    """The observation space of a masked env: its own observation and an ``n_actions`` float32 mask."""
+    mask_space = spaces.Box(0.0, 1.0, (n_actions,), dtype=np.float32)
+    return spaces.Dict({OBSERVATION: observation_space, ACTION_MASK: mask_space})
+
+
+def valid_actions(mask, n_actions: int) -> np.ndarray:
+    """``mask`` as a float32 (n_actions,) array of 0 / 1; all ones where no action is valid (or no mask)."""
+    if mask is None:
+        return np.ones(n_actions, dtype=np.float32)
+    valid = np.asarray(mask, dtype=np.float32).reshape(n_actions)
+    return valid if valid.any() else np.ones(n_actions, dtype=np.float32)
+
+
+class MaskedObservations(gym.Wrapper):
+    """A Gymnasium env with a Discrete action space whose observations carry its action mask (see the module)."""
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        if not isinstance(env.action_space, spaces.Discrete):
+            raise ValueError(f"MaskedObservations needs a Discrete action space, got {env.action_space}")
+        self.n_actions = int(env.action_space.n)
+        self.observation_space = masked_space(env.observation_space, self.n_actions)
+
+    def reset(self, **kwargs):
+        observation, info = self.env.reset(**kwargs)
+        return self._masked(observation, info), info
+
+    def step(self, action):
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        return self._masked(observation, info), reward, terminated, truncated, info
+
+    def _masked(self, observation, info: dict) -> dict:
+        own = getattr(self.env.unwrapped, "action_masks", None)
+        mask = own() if callable(own) else info.get(ACTION_MASK)
+        return {OBSERVATION: observation, ACTION_MASK: valid_actions(mask, self.n_actions)}
+
+
+class MaskedParallelEnv(BaseParallelWrapper):
+    """A PettingZoo parallel env whose robots' observations carry their ``infos[robot]["action_mask"]``."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        self._spaces = {
+            agent: masked_space(env.observation_space(agent), int(env.action_space(agent).n))
+            for agent in env.possible_agents
+        }
+
+    def observation_space(self, agent: str) -> spaces.Dict:
+        return self._spaces[agent]
+
+    def reset(self, seed=None, options=None):
+        observations, infos = self.env.reset(seed=seed, options=options)
+        return self._masked(observations, infos), infos
+
+    def step(self, actions):
+        observations, rewards, terminations, truncations, infos = self.env.step(actions)
+        return self._masked(observations, infos), rewards, terminations, truncations, infos
+
+    def _masked(self, observations: dict, infos: dict) -> dict:
+        return {
+            agent: {
+                OBSERVATION: observation,
+                ACTION_MASK: valid_actions(infos[agent].get(ACTION_MASK), self._spaces[agent][ACTION_MASK].shape[0]),
+            }
+            for agent, observation in observations.items()
+        }

@@ -1,0 +1,203 @@
+"""RLlib PPO for the infonav envs (``infonav train --backend rllib``): train, checkpoint, record.
+
+Single-agent envs train one policy on ``MaskedObservations`` copies (``envs_per_runner`` per env runner,
+Gymnasium's sync vectorization); a PettingZoo parallel env (``cooperative_localization_v0``) trains
+multi-agent PPO through RLlib's ``ParallelPettingZooEnv`` on ``MaskedParallelEnv``: one policy shared by
+every robot (``policies="shared"``, parameter sharing) or one per robot (``"per_robot"``). Every policy is a
+``MaskedPPOTorchRLModule``. The PPO settings come from the env's block of ``agents/hyperparams/ppo.yml``,
+translated (``rllib_training_settings``). ``OUTPUT/checkpoint`` is RLlib's algorithm checkpoint,
+``OUTPUT/train.json`` the record (as the SB3 backend's). Needs the ``distributed`` extra.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from tqdm.auto import tqdm
+
+from agents.rllib_masking import MaskedObservations, MaskedParallelEnv
+from infonav_gym.registry import PARALLEL, api_of, make_env
+
+CHECKPOINT_DIR = "checkpoint"
+RLLIB_ENV_PREFIX = "infonav-rllib:"  # + env id: the name the env creator is registered under in Ray's registry
+SHARED_POLICY = "shared_policy"
+POLICY_LAYOUTS = ("shared", "per_robot")
+
+
+class SingleEnvCreator:
+    """RLlib's env creator of a single-agent env: the masked env ``env_id`` with ``env_config``."""
+
+    def __init__(self, env_id: str):
+        self.env_id = env_id
+
+    def __call__(self, env_config: dict):
+        import infonav_gym  # noqa: F401  (registers the envs in an env runner's process)
+
+        return MaskedObservations(make_env(self.env_id, **dict(env_config)))
+
+
+class TeamEnvCreator(SingleEnvCreator):
+    """RLlib's env creator of a PettingZoo parallel env, as an RLlib ``MultiAgentEnv``."""
+
+    def __call__(self, env_config: dict):
+        from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+
+        import infonav_gym  # noqa: F401
+
+        return ParallelPettingZooEnv(MaskedParallelEnv(make_env(self.env_id, **dict(env_config))))
+
+
+def rllib_training_settings(hyperparameters: dict) -> dict:
+    """The PPO settings of an ``agents/hyperparams/ppo.yml`` block in RLlib's names (``PPOConfig.training``).
+
+    The block's rollout, ``n_steps`` per env times ``n_envs`` (env steps, whatever the runners), is RLlib's
+    train batch; ``batch_size`` its minibatch.
+    """
+    policy_kwargs = hyperparameters.get("policy_kwargs", {})
+    rollout = int(hyperparameters.get("n_steps", 2048)) * int(hyperparameters.get("n_envs", 1))
+    return {
+        "train_batch_size_per_learner": rollout,
+        "minibatch_size": int(hyperparameters.get("batch_size", 64)),
+        "num_epochs": int(hyperparameters.get("n_epochs", 10)),
+        "gamma": float(hyperparameters.get("gamma", 0.99)),
+        "lambda_": float(hyperparameters.get("gae_lambda", 0.95)),
+        "lr": float(hyperparameters.get("learning_rate", 3e-4)),
+        "entropy_coeff": float(hyperparameters.get("ent_coef", 0.0)),
+        "clip_param": float(hyperparameters.get("clip_range", 0.2)),
+        "model": {
+            "fcnet_hiddens": list(policy_kwargs.get("net_arch", [64, 64])),
+            "fcnet_activation": policy_kwargs.get("activation_fn", "tanh"),
+        },
+    }
+
+
+def check_policies(policies: str) -> str:
+    if policies not in POLICY_LAYOUTS:
+        raise ValueError(f"policies must be one of {', '.join(POLICY_LAYOUTS)}, got {policies!r}")
+    return policies
+
+
+def build_config(
+    env_id: str,
+    env_kwargs: dict,
+    seed: int,
+    hyperparameters: dict,
+    num_env_runners: int = 1,
+    envs_per_runner: int = 1,
+    policies: str = "shared",
+):
+    """The ``PPOConfig`` of ``env_id`` (see the module); its train batch covers every runner's envs."""
+    from ray.rllib.algorithms.ppo import PPOConfig
+    from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
+    from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+
+    from agents.rllib_module import MaskedPPOTorchRLModule
+
+    check_policies(policies)
+    team = api_of(env_id) == PARALLEL
+    settings = rllib_training_settings(hyperparameters)
+    model_config = settings.pop("model")
+    module = RLModuleSpec(module_class=MaskedPPOTorchRLModule, model_config=model_config)
+    from ray.tune.registry import register_env
+
+    register_env(RLLIB_ENV_PREFIX + env_id, (TeamEnvCreator if team else SingleEnvCreator)(env_id))
+    config = (
+        PPOConfig()
+        .environment(RLLIB_ENV_PREFIX + env_id, env_config=dict(env_kwargs))
+        .env_runners(num_env_runners=num_env_runners, num_envs_per_env_runner=1 if team else envs_per_runner)
+        .training(**settings)
+        .debugging(seed=seed, log_level="ERROR")
+        .reporting(metrics_num_episodes_for_smoothing=20)
+    )
+    if not team:
+        return config.rl_module(rl_module_spec=module)
+    robots = make_env(env_id, **env_kwargs).possible_agents
+    policy_ids = {robot: SHARED_POLICY if policies == "shared" else robot for robot in robots}
+    config = config.multi_agent(
+        policies=set(policy_ids.values()), policy_mapping_fn=PolicyMapping(policy_ids)
+    ).rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={policy: module for policy in policy_ids.values()}))
+    return config
+
+
+class PolicyMapping:
+    """RLlib's ``policy_mapping_fn``: each robot's policy id (picklable, unlike a lambda)."""
+
+    def __init__(self, policy_ids: dict):
+        self.policy_ids = dict(policy_ids)
+
+    def __call__(self, agent_id, episode=None, **kwargs) -> str:
+        return self.policy_ids[agent_id]
+
+
+def sampled_steps(result: dict) -> int:
+    """Env steps sampled so far (every robot's step counts once per team step: RLlib's env steps)."""
+    return int(result.get("env_runners", {}).get("num_env_steps_sampled_lifetime", 0))
+
+
+def train_rllib(
+    env_id: str,
+    timesteps: int,
+    output_dir: Path | str,
+    seed: int = 0,
+    env_kwargs: dict | None = None,
+    hyperparameters: dict | None = None,
+    num_env_runners: int = 1,
+    envs_per_runner: int = 1,
+    policies: str = "shared",
+    address: str | None = None,
+    progress: bool = True,
+) -> dict:
+    """Train RLlib PPO on ``env_id`` for at least ``timesteps`` env steps; checkpoint and record it.
+
+    Runs on the Ray cluster at ``address`` or a local Ray started and stopped here.
+
+    Returns:
+        The ``train.json`` record (also written to ``output_dir``).
+    """
+    from agents.ppo import load_hyperparameters
+    from infonav_gym.experiments.ray_support import local_or_cluster_ray
+
+    if timesteps < 1:
+        raise ValueError(f"timesteps must be >= 1, got {timesteps}")
+    if num_env_runners < 0 or envs_per_runner < 1:
+        raise ValueError(
+            f"--num-env-runners must be >= 0 and --envs-per-runner >= 1, got {num_env_runners}, {envs_per_runner}"
+        )
+    check_policies(policies)
+    env_kwargs = dict(env_kwargs or {})
+    hyperparameters = load_hyperparameters(env_id) if hyperparameters is None else hyperparameters
+    output_dir = Path(output_dir)
+    with local_or_cluster_ray(address):
+        config = build_config(env_id, env_kwargs, seed, hyperparameters, num_env_runners, envs_per_runner, policies)
+        algorithm = config.build_algo()
+        try:
+            steps, start = 0, time.perf_counter()
+            with tqdm(total=timesteps, desc="training PPO (RLlib)", unit="step", disable=not progress) as bar:
+                while steps < timesteps:
+                    now = sampled_steps(algorithm.train())
+                    bar.update(min(now, timesteps) - min(steps, timesteps))
+                    steps = now
+            seconds = time.perf_counter() - start
+            checkpoint = algorithm.save_to_path(str((output_dir / CHECKPOINT_DIR).resolve()))
+        finally:
+            algorithm.stop()
+    record = {
+        "env_id": env_id,
+        "algorithm": "PPO (RLlib)",
+        "backend": "rllib",
+        "timesteps": steps,
+        "seed": seed,
+        "num_env_runners": num_env_runners,
+        "envs_per_runner": envs_per_runner,
+        "policies": policies if api_of(env_id) == PARALLEL else "single",
+        "env_kwargs": env_kwargs,
+        "hyperparameters": hyperparameters,
+        "rllib_training": rllib_training_settings(hyperparameters),
+        "seconds": seconds,
+        "fps": steps / seconds,
+        "checkpoint": str(checkpoint),
+    }
+    (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
+    return record

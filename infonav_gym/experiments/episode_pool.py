@@ -1,0 +1,115 @@
+"""Evaluation episodes played by one process, a pool of worker processes, or Ray tasks.
+
+An episode's metrics are a function of the env id, its config, the agent's name and the seed alone
+(``run_episode`` resets the env and the agent with the seed), so each worker builds its own env and
+agents once (``EpisodeRunner``) and plays the ``(agent, seed)`` tasks it is given: results equal a single
+process's, seed for seed, whatever the number of workers. Results come back in task order.
+
+Worker processes are forked on platforms that have ``fork`` while torch is not yet imported (a fork after
+torch has started its thread pool can hang), else spawned (each re-imports the package: about a second).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import sys
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+
+_worker_runner = None  # a pool worker's EpisodeRunner, built once by _start_worker
+
+
+class EpisodeRunner:
+    """An env and one agent (or one per robot) per agent name, playing seeded episodes.
+
+    Args:
+        env_id: a registered env id.
+        env_kwargs: its config overrides.
+        agent_names: names ``evaluation.make_agent`` takes (random, greedy, planner, ppo:PATH).
+    """
+
+    def __init__(self, env_id: str, env_kwargs: dict, agent_names: Sequence[str]):
+        from infonav_gym.envs.traits import traits_of
+        from infonav_gym.experiments.evaluation import make_agent, make_team_agents
+        from infonav_gym.registry import PARALLEL, api_of, make_env
+
+        self.setup = (env_id, dict(env_kwargs), list(agent_names))  # what a worker builds its own runner from
+        self.parallel = api_of(env_id) == PARALLEL
+        self.env = make_env(env_id, **env_kwargs)
+        try:
+            if self.parallel:
+                self.agents = {name: make_team_agents(name, self.env) for name in agent_names}  # {robot: agent}
+            else:
+                noop_action = traits_of(self.env).noop_action
+                self.agents = {
+                    name: make_agent(name, self.env.action_space.n, noop_action, env=self.env) for name in agent_names
+                }
+        except Exception:
+            self.env.close()
+            raise
+
+    def play(self, task: tuple[str, int]) -> dict:
+        """The metrics of agent ``task[0]``'s episode on seed ``task[1]``."""
+        from infonav_gym.experiments.evaluation import run_episode, run_parallel_episode
+
+        name, seed = task
+        run = run_parallel_episode if self.parallel else run_episode
+        return run(self.env, self.agents[name], seed)
+
+    def close(self) -> None:
+        self.env.close()
+
+
+def check_workers(workers: int) -> int:
+    """``workers`` as an int >= 1, else ``ValueError``."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    return workers
+
+
+def played(
+    runner: EpisodeRunner,
+    tasks: Sequence[tuple[str, int]],
+    workers: int = 1,
+    use_ray: bool = False,
+    address: str | None = None,
+) -> Iterator[dict]:
+    """The metrics of every ``(agent, seed)`` task, in task order, as they are played.
+
+    Args:
+        runner: plays the tasks itself when ``workers == 1`` (and gives its env id, config and agents to the
+            workers otherwise).
+        tasks: ``(agent name, seed)`` pairs.
+        workers: processes playing at once.
+        use_ray: play them as Ray tasks (``workers`` of them at once) on a local Ray, or the cluster at
+            ``address``; needs the ``distributed`` extra.
+
+    Raises:
+        ValueError: for ``workers < 1``, or ``use_ray`` without Ray installed (saying how to install it).
+    """
+    check_workers(workers)
+    if use_ray:
+        from infonav_gym.experiments.ray_episodes import played_on_ray
+
+        yield from played_on_ray(runner.setup, tasks, workers, address)
+        return
+    if workers == 1:
+        yield from map(runner.play, tasks)
+        return
+    context = multiprocessing.get_context(_start_method())
+    with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=runner.setup) as pool:
+        yield from pool.map(_play, tasks, chunksize=max(1, len(tasks) // (4 * workers)))
+
+
+def _start_method() -> str:
+    """``fork`` where it exists and torch is not imported yet, else ``spawn``."""
+    return "fork" if "fork" in multiprocessing.get_all_start_methods() and "torch" not in sys.modules else "spawn"
+
+
+def _start_worker(env_id: str, env_kwargs: dict, agent_names: Sequence[str]) -> None:
+    global _worker_runner
+    _worker_runner = EpisodeRunner(env_id, env_kwargs, agent_names)
+
+
+def _play(task: tuple[str, int]) -> dict:
+    return _worker_runner.play(task)
