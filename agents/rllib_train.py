@@ -157,7 +157,7 @@ def train_rllib(
         The ``train.json`` record (also written to ``output_dir``).
     """
     from agents.ppo import load_hyperparameters
-    from infonav_gym.experiments.ray_support import local_or_cluster_ray
+    from agents.ray_support import local_or_cluster_ray
 
     if timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")

@@ -5,10 +5,10 @@ import socket
 
 import pytest
 
+from agents.ray_support import check_reachable
 from infonav_gym.experiments.cli import main
 from infonav_gym.experiments.episode_pool import _start_method
 from infonav_gym.experiments.evaluation import evaluate
-from infonav_gym.experiments.ray_support import check_reachable
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 RAY_INSTALLED = importlib.util.find_spec("ray") is not None

@@ -267,7 +267,7 @@ def _config_flags(args) -> str:
 
 def _train_rllib(args) -> dict:
     """Train RLlib PPO on ``args.env``; print where the checkpoint went unless --json."""
-    from infonav_gym.experiments.ray_support import import_ray
+    from agents.ray_support import import_ray
 
     import_ray()  # a missing extra is a one-line error before anything starts
     from agents.ppo import load_hyperparameters

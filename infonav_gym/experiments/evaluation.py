@@ -19,9 +19,9 @@ from scipy import stats
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
+from agents.ray_support import DISTRIBUTED_HINT, import_ray
 from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, traits_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_workers, played
-from infonav_gym.experiments.ray_support import DISTRIBUTED_HINT, import_ray
 from infonav_gym.registry import registered_envs
 
 AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH", "rllib:DIR")

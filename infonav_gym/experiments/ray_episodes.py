@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 
+from agents.ray_support import local_or_cluster_ray
 from infonav_gym.experiments.episode_pool import EpisodeRunner
-from infonav_gym.experiments.ray_support import local_or_cluster_ray
 
 
 def played_on_ray(setup: tuple, tasks: Sequence[tuple[str, int]], workers: int, address: str | None) -> Iterator[dict]:

@@ -1,4 +1,4 @@
-"""Ray for the harness: importing it with a one-line hint, and a local Ray or a reachable cluster.
+"""Ray for RLlib training and parallel evaluation: importing it with a one-line hint, a local Ray or a cluster.
 
 ``local_or_cluster_ray(address)`` starts a local Ray (and stops it afterwards) when ``address`` is None, else
 connects to the cluster at ``address`` (``HOST:PORT`` of ``ray start --head``, or ``ray://HOST:PORT``) after
@@ -45,14 +45,15 @@ def check_reachable(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
 def local_or_cluster_ray(address: str | None = None) -> Iterator:
     """Ray connected to the cluster at ``address``, or a local Ray started (and stopped) here; yields ``ray``.
 
-    Inside an already initialized Ray (a caller's), that one is used and left running.
+    Inside an already initialized Ray (a caller's), that one is used and left running (``address`` is still
+    checked: a wrong one is an error, not ignored).
     """
     ray = import_ray()
+    if address is not None:
+        check_reachable(address)
     if ray.is_initialized():
         yield ray
         return
-    if address is not None:
-        check_reachable(address)
     ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False)
     try:
         yield ray

@@ -1,0 +1,167 @@
+"""RLlib PPO on the infonav envs (the ``distributed`` extra): masking, train + evaluate by the CLI, restoring.
+
+One local Ray (2 CPUs) serves the whole module; the trainings are a few thousand env steps with small
+batches (``SMALL_BLOCKS``), enough to exercise every path, not to learn.
+"""
+
+import json
+import socket
+
+import gymnasium as gym
+import pytest
+
+ray = pytest.importorskip("ray", reason="the distributed extra (ray[rllib]) is not installed")
+
+import torch  # noqa: E402
+from ray.rllib.core.rl_module.rl_module import RLModule, RLModuleSpec  # noqa: E402
+
+from agents.rllib_agent import MODULES_PATH, RLlibAgent  # noqa: E402
+from agents.rllib_masking import ACTION_MASK, MaskedObservations  # noqa: E402
+from agents.rllib_module import MaskedPPOTorchRLModule  # noqa: E402
+from agents.rllib_train import CHECKPOINT_DIR, SHARED_POLICY, build_config  # noqa: E402
+from infonav_gym.experiments.cli import main  # noqa: E402
+from infonav_gym.multi import cooperative_localization_v0  # noqa: E402
+
+LANDMARK_ID, TEAM_ID = "infonav/LandmarkSelection-v0", "cooperative_localization_v0"
+SMALL_BLOCK = {"n_envs": 1, "n_steps": 500, "batch_size": 128, "n_epochs": 2, "policy_kwargs": {"net_arch": [32, 32]}}
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    yield ray
+    ray.shutdown()
+
+
+@pytest.fixture(scope="module")
+def small_blocks(tmp_path_factory):
+    import yaml
+
+    path = tmp_path_factory.mktemp("hyperparams") / "ppo.yml"
+    path.write_text(yaml.safe_dump({LANDMARK_ID: SMALL_BLOCK, TEAM_ID: SMALL_BLOCK}))
+    return path
+
+
+def _trained(tmp_path_factory, small_blocks, env_id, *config) -> tuple:
+    output = tmp_path_factory.mktemp("rllib")
+    argv = ["train", "--backend", "rllib", "--env", env_id, "--timesteps", "1000", "--hyperparams", str(small_blocks)]
+    assert main([*argv, *config, "--output", str(output), "--json"]) == 0
+    return output, json.loads((output / "train.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def landmark_run(local_ray, tmp_path_factory, small_blocks):
+    return _trained(tmp_path_factory, small_blocks, LANDMARK_ID, "--config", "horizon=40")
+
+
+@pytest.fixture(scope="module")
+def team_run(local_ray, tmp_path_factory, small_blocks):
+    return _trained(tmp_path_factory, small_blocks, TEAM_ID, "--config", "max_cycles=30")
+
+
+def test_the_masked_module_never_samples_a_masked_action_in_1000_steps():
+    env = MaskedObservations(gym.make(LANDMARK_ID, horizon=100))
+    module = RLModuleSpec(
+        module_class=MaskedPPOTorchRLModule,
+        observation_space=env.observation_space,
+        action_space=env.action_space,
+        model_config={"fcnet_hiddens": [16]},
+    ).build()
+    observation, _ = env.reset(seed=0)
+    partial, generator = 0, torch.Generator().manual_seed(0)
+    for _ in range(1000):
+        batch = {"obs": {key: torch.as_tensor(value)[None] for key, value in observation.items()}}
+        logits = module.forward_exploration(batch)["action_dist_inputs"][0]
+        action = int(torch.multinomial(torch.softmax(logits, dim=0), 1, generator=generator))
+        assert observation[ACTION_MASK][action] == 1.0
+        partial += observation[ACTION_MASK].sum() < observation[ACTION_MASK].size
+        observation, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            observation, _ = env.reset()
+    assert partial > 100  # most steps had masked actions to avoid
+
+
+def test_the_module_refuses_observations_without_a_mask():
+    with pytest.raises(ValueError, match="MaskedPPOTorchRLModule needs observations"):
+        RLModuleSpec(
+            module_class=MaskedPPOTorchRLModule,
+            observation_space=gym.spaces.Box(-1, 1, (3,)),
+            action_space=gym.spaces.Discrete(2),
+        ).build()
+
+
+def test_train_writes_a_checkpoint_and_a_record_and_evaluate_plays_it(landmark_run, capsys):
+    output, record = landmark_run
+    assert record["backend"] == "rllib" and record["env_id"] == LANDMARK_ID and record["timesteps"] >= 1000
+    assert record["rllib_training"]["train_batch_size_per_learner"] == 500 and record["num_env_runners"] == 1
+    agents = f"greedy,rllib:{output}"
+    argv = ["evaluate", "--env", LANDMARK_ID, "--agents", agents, "--episodes", "2", "--config", "horizon=40"]
+    assert main([*argv, "--json"]) == 0
+    first = json.loads(capsys.readouterr().out)
+    assert main([*argv, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == first
+    assert all(episode["cumulative_mi"] > 0 for episode in first["agents"][f"rllib:{output}"]["episodes"])
+
+
+def test_the_team_trains_one_shared_policy_whose_agents_take_only_valid_actions(team_run):
+    output, record = team_run
+    assert record["policies"] == "shared"
+    modules = output.joinpath(CHECKPOINT_DIR, *MODULES_PATH)
+    assert (modules / SHARED_POLICY).is_dir() and not (modules / "robot_0").exists()
+    env = cooperative_localization_v0.parallel_env(max_cycles=30)
+    robots = {robot: RLlibAgent(output, env, robot) for robot in env.possible_agents}
+    observations, infos = env.reset(seed=1)
+    while env.agents:
+        actions = {robot: robots[robot].act(observations[robot], infos[robot]) for robot in env.agents}
+        assert all(infos[robot]["action_mask"][action] for robot, action in actions.items())
+        observations, _, _, _, infos = env.step(actions)
+
+
+def test_a_restored_module_gives_the_trained_modules_actions(local_ray, tmp_path, small_blocks):
+    from agents.ppo import load_hyperparameters
+
+    config = build_config(LANDMARK_ID, {"horizon": 40}, 0, load_hyperparameters(LANDMARK_ID, small_blocks))
+    algorithm = config.build_algo()
+    try:
+        algorithm.train()
+        algorithm.save_to_path(str(tmp_path / CHECKPOINT_DIR))
+        trained = algorithm.get_module()
+        restored = RLModule.from_checkpoint(tmp_path.joinpath(CHECKPOINT_DIR, *MODULES_PATH, "default_policy"))
+        env = MaskedObservations(gym.make(LANDMARK_ID, horizon=40))
+        observation, _ = env.reset(seed=3)
+        for _ in range(40):
+            batch = {"obs": {key: torch.as_tensor(value)[None] for key, value in observation.items()}}
+            with torch.no_grad():
+                expected = trained.forward_inference(batch)["action_dist_inputs"]
+                actual = restored.forward_inference(batch)["action_dist_inputs"]
+            torch.testing.assert_close(actual, expected, rtol=0, atol=0)
+            observation, *_ = env.step(int(torch.argmax(actual)))
+    finally:
+        algorithm.stop()
+
+
+def test_an_agent_refuses_a_directory_without_a_checkpoint_or_another_env(landmark_run, tmp_path):
+    output, _ = landmark_run
+    with pytest.raises(ValueError, match="is not an RLlib training directory"):
+        RLlibAgent(tmp_path, gym.make(LANDMARK_ID))
+    with pytest.raises(ValueError, match=r"was trained for observations \(50,\).*has \(20,\)"):
+        RLlibAgent(output, gym.make(LANDMARK_ID, n_candidates=2))
+
+
+def test_bad_rllib_arguments_are_one_line_errors(local_ray, capsys, small_blocks):
+    argv = ["train", "--backend", "rllib", "--env", LANDMARK_ID, "--timesteps", "10"]
+    for extra, message in [
+        (["--num-env-runners", "-1"], "--num-env-runners must be >= 0"),
+        (["--envs-per-runner", "0"], "--envs-per-runner >= 1"),
+        (["--address", _unused_address()], "cannot reach a Ray cluster at"),
+    ]:
+        with pytest.raises(SystemExit) as exit_info:
+            main([*argv, *extra])
+        error = capsys.readouterr().err.strip()
+        assert exit_info.value.code == 2 and message in error and len(error.splitlines()) == 1
+
+
+def _unused_address() -> str:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return f"127.0.0.1:{probe.getsockname()[1]}"
