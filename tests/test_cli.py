@@ -1,5 +1,6 @@
 """The ``infonav`` command: demo, evaluate, benchmark, reproduce."""
 
+import importlib.util
 import json
 import math
 
@@ -149,6 +150,8 @@ def test_benchmark_reports_every_goal(capsys):
             "landmark_selection_vector_256_vs_cartpole_ratio",
             "active_localization_vector_256_vs_cartpole_ratio",
             "cooperative_localization_vector_256_vs_vmas_ratio",
+            "evaluation_2_workers_time_ratio",
+            "rllib_team_2_runners_vs_1_ratio",
             "landmark_selection_vector_1024_kb_per_env",
             "active_localization_vector_1024_kb_per_env",
             "cooperative_localization_vector_1024_kb_per_env",
@@ -166,6 +169,17 @@ def test_benchmark_reports_every_goal(capsys):
     assert figures["icp_frame_pair_ms"] > 0
     assert result["goals_met"]["icp_frame_pair_ms"] == (figures["icp_frame_pair_ms"] <= 20.0)
     assert figures["icp_rotation_error_deg"] < 0.5 and figures["icp_translation_error_m"] < 0.05
+    evaluation_ratio = figures["evaluation_2_workers_time_ratio"]
+    assert figures["evaluation_episodes_per_agent"] == 2 and evaluation_ratio > 0
+    assert result["goals_met"]["evaluation_2_workers_time_ratio"] == (evaluation_ratio <= 0.65)
+    two_over_one = figures["evaluation_2_workers_s"] / figures["evaluation_1_worker_s"]
+    assert evaluation_ratio == pytest.approx(two_over_one)  # one round: one ratio
+    if importlib.util.find_spec("ray") is None:
+        assert result["goals_met"]["rllib_team_2_runners_vs_1_ratio"] is None
+        assert any("RLlib figures absent" in note for note in result["notes"])
+    else:
+        one, two = figures["rllib_team_1_runner_steps_per_s"], figures["rllib_team_2_runners_steps_per_s"]
+        assert one > 0 and figures["rllib_team_2_runners_vs_1_ratio"] == pytest.approx(two / one)
 
 
 def test_reproduce_fig3_writes_the_plot_and_the_json_it_prints(capsys, tmp_path):

@@ -23,8 +23,11 @@ Open3D's ``registration_icp`` on the same pair when Open3D imports.
 PPO (``infonav_gym.experiments.ppo_timing``): training timesteps per second of the same MaskablePPO
 settings on LandmarkSelection-v0 and on CartPole-v1, 8 envs each, and on their vector envs (the native
 LandmarkSelection one, Gymnasium's CartPoleVectorEnv), 64 copies each, alternating rounds in one run.
-Figures named ``*_us``, ``*_ms`` or ``*_kb_per_env`` meet their goal at or below it, all others at or above;
-a goal whose figure was not measured (its env or VMAS absent) is met ``None``.
+Parallel evaluation and RLlib (``infonav_gym.experiments.distributed_timing``): the wall time of 20
+LandmarkSelection-v0 episodes per default agent with ``--workers 2`` against 1, and the env-steps/s RLlib's
+env runners sample on the team env with 2 runners against 1 (when Ray imports).
+Figures named ``*_us``, ``*_ms``, ``*_kb_per_env`` or ``*_time_ratio`` meet their goal at or below it, all
+others at or above; a goal whose figure was not measured (its env, VMAS or Ray absent) is met ``None``.
 """
 
 from __future__ import annotations
@@ -39,6 +42,13 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
+from infonav_gym.experiments.distributed_timing import (
+    EVALUATION_EPISODES,
+    RLLIB_SAMPLE_STEPS,
+    evaluation_workers_figures,
+    rllib_missing,
+    rllib_runner_figures,
+)
 from infonav_gym.experiments.registration_timing import icp_figures
 from infonav_gym.experiments.sensor_timing import sensor_figures
 from infonav_gym.experiments.vector_timing import (
@@ -71,6 +81,8 @@ GOALS = {
     "landmark_selection_vector_1024_kb_per_env": 200.0,
     "active_localization_vector_1024_kb_per_env": 200.0,
     "cooperative_localization_vector_1024_kb_per_env": 200.0,
+    "evaluation_2_workers_time_ratio": 0.65,
+    "rllib_team_2_runners_vs_1_ratio": 1.5,
 }
 PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
 PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND = 8192  # the same for the 64-copy vector envs: two 4096-step rollouts
@@ -78,8 +90,8 @@ MAX_STEPS_BETWEEN_CLOCK_READS = 100  # reached by doubling from 1, so a slow env
 
 
 def lower_is_better(name: str) -> bool:
-    """Whether figure ``name`` meets its goal at or below it: times and memory do, rates and ratios don't."""
-    return name.endswith(("_us", "_ms", "_kb_per_env"))
+    """Whether figure ``name`` meets its goal at or below it: times, time ratios and memory do, rates don't."""
+    return name.endswith(("_us", "_ms", "_kb_per_env", "_time_ratio"))
 
 
 def _timed_steps(step, seconds: float) -> float:
@@ -280,12 +292,15 @@ def run_benchmark(
     figures.update(sensor_figures(seconds_per_round, seed))
     figures.update(icp_figures(seconds_per_round, seed))
     figures.update(_ppo_figures(rounds, seconds_per_round, seed))
+    scale = min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens these too
+    figures.update(evaluation_workers_figures(min(rounds, 3), seed, max(2, round(EVALUATION_EPISODES * scale))))
+    figures.update(rllib_runner_figures(seed, max(100, round(RLLIB_SAMPLE_STEPS * scale))))
     met = {name: _goal_met(name, figures.get(name), goal) for name, goal in GOALS.items()}
     return {
         "figures": figures,
         "goals": GOALS,
         "goals_met": met,
-        "notes": [note for note in (vmas_missing(), memory_missing()) if note],
+        "notes": [note for note in (vmas_missing(), memory_missing(), rllib_missing()) if note],
         "rounds": rounds,
         "seconds_per_round": seconds_per_round,
         "vector_sizes": list(vector_sizes),

@@ -1,0 +1,84 @@
+"""What the benchmark measures of parallel evaluation and of RLlib's env runners.
+
+- ``evaluation_workers_figures``: the wall time of ``evaluate`` (LandmarkSelection-v0, the CLI's default agents,
+  20 episodes each) with 2 worker processes over its time with 1, alternating rounds, median ratio;
+- ``rllib_runner_figures`` (when Ray imports): env-steps/s RLlib's env runners sample on the team env
+  (``cooperative_localization_v0``, the RLlib backend's masked multi-agent env, random-initialized shared
+  policy), with 2 runners against 1, each run on the same local Ray.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import statistics
+import time
+
+from infonav_gym.experiments.evaluation import evaluate
+
+EVALUATION_ENV_ID, EVALUATION_AGENTS, EVALUATION_EPISODES = "infonav/LandmarkSelection-v0", ("random", "greedy"), 20
+TEAM_ID = "cooperative_localization_v0"
+RLLIB_SAMPLE_STEPS = 2000  # env steps each runner samples per measurement (at --seconds 1)
+
+
+def _evaluation_seconds(workers: int, episodes: int, seed: int) -> float:
+    start = time.perf_counter()
+    evaluate(EVALUATION_ENV_ID, list(EVALUATION_AGENTS), episodes, seed, progress=False, workers=workers)
+    return time.perf_counter() - start
+
+
+def evaluation_workers_figures(rounds: int = 3, seed: int = 0, episodes: int = EVALUATION_EPISODES) -> dict:
+    """Median wall times of the evaluation with 1 and 2 workers and their median ratio (2 / 1)."""
+    times = {1: [], 2: []}
+    for _ in range(rounds):
+        for workers in times:
+            times[workers].append(_evaluation_seconds(workers, episodes, seed))
+    ratios = [two / one for one, two in zip(times[1], times[2])]
+    return {
+        "evaluation_1_worker_s": statistics.median(times[1]),
+        "evaluation_2_workers_s": statistics.median(times[2]),
+        "evaluation_2_workers_time_ratio": statistics.median(ratios),
+        "evaluation_episodes_per_agent": episodes,
+    }
+
+
+def rllib_missing() -> str | None:
+    """Why the RLlib figures are absent (Ray does not import), or None."""
+    if importlib.util.find_spec("ray") is None:
+        return 'RLlib figures absent: ray is not installed; pip install "infonav-gym[distributed]"'
+    return None
+
+
+def _sampled_steps_per_second(num_env_runners: int, seed: int, steps: int) -> float:
+    """Env steps/s the ``num_env_runners`` runners of a fresh team-env PPO sample at once."""
+    from agents.ppo import load_hyperparameters
+    from agents.rllib_train import build_config
+
+    config = build_config(TEAM_ID, {}, seed, load_hyperparameters(TEAM_ID), num_env_runners=num_env_runners)
+    algorithm = config.build_algo()
+    try:
+        group = algorithm.env_runner_group
+
+        def sample(runner):
+            return sum(len(episode) for episode in runner.sample(num_timesteps=steps))
+
+        group.foreach_env_runner(sample, local_env_runner=False)  # warm-up: modules, envs, first episodes
+        start = time.perf_counter()
+        steps = sum(group.foreach_env_runner(sample, local_env_runner=False))
+        return steps / (time.perf_counter() - start)
+    finally:
+        algorithm.stop()
+
+
+def rllib_runner_figures(seed: int = 0, steps: int = RLLIB_SAMPLE_STEPS) -> dict:
+    """Sampled env-steps/s on the team env with 1 and 2 env runners (``steps`` each), their ratio; {} without Ray."""
+    if rllib_missing():
+        return {}
+    from agents.ray_support import local_or_cluster_ray
+
+    with local_or_cluster_ray():
+        one, two = _sampled_steps_per_second(1, seed, steps), _sampled_steps_per_second(2, seed, steps)
+    return {
+        "rllib_team_1_runner_steps_per_s": one,
+        "rllib_team_2_runners_steps_per_s": two,
+        "rllib_team_2_runners_vs_1_ratio": two / one,
+    }
