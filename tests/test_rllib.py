@@ -117,6 +117,20 @@ def test_the_team_trains_one_shared_policy_whose_agents_take_only_valid_actions(
         observations, _, _, _, infos = env.step(actions)
 
 
+def test_one_policy_per_robot_trains_a_module_for_each(local_ray, tmp_path_factory, small_blocks):
+    output, record = _trained(
+        tmp_path_factory, small_blocks, TEAM_ID, "--config", "max_cycles=20", "--policies", "per_robot"
+    )
+    modules = output.joinpath(CHECKPOINT_DIR, *MODULES_PATH)
+    robots = cooperative_localization_v0.parallel_env().possible_agents
+    assert record["policies"] == "per_robot" and all((modules / robot).is_dir() for robot in robots)
+    assert not (modules / SHARED_POLICY).exists()
+    env = cooperative_localization_v0.parallel_env(max_cycles=20)
+    observations, infos = env.reset(seed=0)
+    actions = {robot: RLlibAgent(output, env, robot).act(observations[robot], infos[robot]) for robot in robots}
+    assert all(infos[robot]["action_mask"][action] for robot, action in actions.items())
+
+
 def test_a_restored_module_gives_the_trained_modules_actions(local_ray, tmp_path, small_blocks):
     from agents.ppo import load_hyperparameters
 
