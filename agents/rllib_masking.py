@@ -1,7 +1,8 @@
 """Action masks for RLlib: observations that carry them (the module that applies them: ``agents.rllib_module``).
 
 RLlib's new API stack reads nothing from ``info``, so the envs' masks travel in the observation:
-``MaskedObservations`` (a Gymnasium env) and ``MaskedParallelEnv`` (a PettingZoo parallel env) turn each
+``MaskedObservations`` (a Gymnasium env), ``MaskedVectorObservations`` (an infonav native vector env) and
+``MaskedParallelEnv`` (a PettingZoo parallel env) turn each
 observation into ``{"observation": the env's observation, "action_mask": float32 (n,)}``, the mask being the
 env's ``action_masks()`` (all ones when nothing is valid, as ``MaskablePPO`` takes it) or its
 ``info["action_mask"]``. Needs no Ray.
@@ -12,6 +13,8 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import VectorWrapper
+from gymnasium.vector.utils import batch_space
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 
 OBSERVATION, ACTION_MASK = "observation", "action_mask"
@@ -53,6 +56,29 @@ class MaskedObservations(gym.Wrapper):
         own = getattr(self.env.unwrapped, "action_masks", None)
         mask = own() if callable(own) else info.get(ACTION_MASK)
         return {OBSERVATION: observation, ACTION_MASK: valid_actions(mask, self.n_actions)}
+
+
+class MaskedVectorObservations(VectorWrapper):
+    """A native vector env whose observations carry its ``action_masks()`` (N, K), for RLlib's env runners."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.n_actions = int(env.single_action_space.n)
+        self.single_observation_space = masked_space(env.single_observation_space, self.n_actions)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+
+    def reset(self, **kwargs):
+        observations, info = self.env.reset(**kwargs)
+        return self._masked(observations), info
+
+    def step(self, actions):
+        observations, rewards, terminated, truncated, info = self.env.step(actions)
+        return self._masked(observations), rewards, terminated, truncated, info
+
+    def _masked(self, observations) -> dict:
+        masks = np.asarray(self.env.unwrapped.action_masks(), dtype=np.float32)
+        masks[~masks.any(axis=1)] = 1.0
+        return {OBSERVATION: observations, ACTION_MASK: masks}
 
 
 class MaskedParallelEnv(BaseParallelWrapper):

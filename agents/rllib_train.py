@@ -1,7 +1,8 @@
 """RLlib PPO for the infonav envs (``infonav train --backend rllib``): train, checkpoint, record.
 
-Single-agent envs train one policy on ``MaskedObservations`` copies (``envs_per_runner`` per env runner,
-Gymnasium's sync vectorization); a PettingZoo parallel env (``cooperative_localization_v0``) trains
+Single-agent envs train one policy on ``envs_per_runner`` copies per env runner: the env's native vector env
+where it has one (``MaskedVectorObservations``, RLlib's ``VECTOR_ENTRY_POINT`` mode), else Gymnasium's sync
+vectorization of ``MaskedObservations`` copies; a PettingZoo parallel env (``cooperative_localization_v0``) trains
 multi-agent PPO through RLlib's ``ParallelPettingZooEnv`` on ``MaskedParallelEnv``: one policy shared by
 every robot (``policies="shared"``, parameter sharing) or one per robot (``"per_robot"``). Every policy is a
 ``MaskedPPOTorchRLModule``. The PPO settings come from the env's block of ``agents/hyperparams/ppo.yml``,
@@ -15,10 +16,11 @@ import json
 import time
 from pathlib import Path
 
+import gymnasium as gym
 from tqdm.auto import tqdm
 
-from agents.rllib_masking import MaskedObservations, MaskedParallelEnv
-from infonav_gym.registry import PARALLEL, api_of, make_env
+from agents.rllib_masking import MaskedObservations, MaskedParallelEnv, MaskedVectorObservations
+from infonav_gym.registry import PARALLEL, api_of, env_entry, make_env, make_vector_env, resolve_env_id
 
 CHECKPOINT_DIR = "checkpoint"
 RLLIB_ENV_PREFIX = "infonav-rllib:"  # + env id: the name the env creator is registered under in Ray's registry
@@ -27,7 +29,11 @@ POLICY_LAYOUTS = ("shared", "per_robot")
 
 
 class SingleEnvCreator:
-    """RLlib's env creator of a single-agent env: the masked env ``env_id`` with ``env_config``."""
+    """RLlib's env creator of a single-agent env: the masked env ``env_id`` with ``env_config``.
+
+    Asked for ``num_envs`` copies (RLlib's ``VECTOR_ENTRY_POINT`` mode, taken where the env has a native vector
+    env), it returns that native vector env, masked (``MaskedVectorObservations``).
+    """
 
     def __init__(self, env_id: str):
         self.env_id = env_id
@@ -35,7 +41,10 @@ class SingleEnvCreator:
     def __call__(self, env_config: dict):
         import infonav_gym  # noqa: F401  (registers the envs in an env runner's process)
 
-        return MaskedObservations(make_env(self.env_id, **dict(env_config)))
+        config = dict(env_config)
+        if "num_envs" in config:
+            return MaskedVectorObservations(make_vector_env(self.env_id, **config))
+        return MaskedObservations(make_env(self.env_id, **config))
 
 
 class TeamEnvCreator(SingleEnvCreator):
@@ -112,6 +121,8 @@ def build_config(
         .reporting(metrics_num_episodes_for_smoothing=20)
     )
     if not team:
+        if native_vectorization(env_id):
+            config = config.env_runners(gym_env_vectorize_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT)
         return config.rl_module(rl_module_spec=module)
     robots = make_env(env_id, **env_kwargs).possible_agents
     policy_ids = {robot: SHARED_POLICY if policies == "shared" else robot for robot in robots}
@@ -119,6 +130,11 @@ def build_config(
         policies=set(policy_ids.values()), policy_mapping_fn=PolicyMapping(policy_ids)
     ).rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={policy: module for policy in policy_ids.values()}))
     return config
+
+
+def native_vectorization(env_id: str) -> bool:
+    """Whether RLlib steps ``env_id``'s copies in its native vector env (single-agent envs that have one)."""
+    return api_of(env_id) != PARALLEL and env_entry(resolve_env_id(env_id)).vector_entry_point is not None
 
 
 class PolicyMapping:
@@ -192,6 +208,7 @@ def train_rllib(
         "num_env_runners": num_env_runners,
         "envs_per_runner": envs_per_runner,
         "policies": policies if api_of(env_id) == PARALLEL else "single",
+        "vectorization": "native" if native_vectorization(env_id) else "sync",
         "env_kwargs": env_kwargs,
         "hyperparameters": hyperparameters,
         "rllib_training": rllib_training_settings(hyperparameters),

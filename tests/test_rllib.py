@@ -94,6 +94,7 @@ def test_train_writes_a_checkpoint_and_a_record_and_evaluate_plays_it(landmark_r
     output, record = landmark_run
     assert record["backend"] == "rllib" and record["env_id"] == LANDMARK_ID and record["timesteps"] >= 1000
     assert record["rllib_training"]["train_batch_size_per_learner"] == 500 and record["num_env_runners"] == 1
+    assert record["vectorization"] == "native"  # RLlib steps the native vector env (VECTOR_ENTRY_POINT)
     agents = f"greedy,rllib:{output}"
     argv = ["evaluate", "--env", LANDMARK_ID, "--agents", agents, "--episodes", "2", "--config", "horizon=40"]
     assert main([*argv, "--json"]) == 0

@@ -4,7 +4,14 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.rllib_masking import ACTION_MASK, OBSERVATION, MaskedObservations, MaskedParallelEnv, valid_actions
+from agents.rllib_masking import (
+    ACTION_MASK,
+    OBSERVATION,
+    MaskedObservations,
+    MaskedParallelEnv,
+    MaskedVectorObservations,
+    valid_actions,
+)
 from infonav_gym.multi import cooperative_localization_v0
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
@@ -46,3 +53,19 @@ def test_no_valid_action_or_no_mask_means_every_action_as_maskable_ppo_takes_it(
 def test_a_continuous_action_space_is_refused():
     with pytest.raises(ValueError, match="MaskedObservations needs a Discrete action space"):
         MaskedObservations(gym.make("Pendulum-v1"))
+
+
+def test_a_masked_native_vector_env_equals_its_masked_single_envs_copy_for_copy():
+    vector = MaskedVectorObservations(gym.make_vec(LANDMARK_ID, 3, horizon=20))
+    singles = [MaskedObservations(gym.make(LANDMARK_ID, horizon=20)) for _ in range(3)]
+    observations, _ = vector.reset(seed=7)
+    single_observations = [env.reset(seed=7 + i)[0] for i, env in enumerate(singles)]
+    assert vector.single_observation_space == singles[0].observation_space
+    for _ in range(20):
+        assert vector.observation_space.contains(observations)
+        for i, single in enumerate(single_observations):
+            for key in (OBSERVATION, ACTION_MASK):
+                np.testing.assert_allclose(observations[key][i], single[key], rtol=0, atol=1e-9)
+        actions = np.array([int(np.flatnonzero(mask)[0]) for mask in observations[ACTION_MASK]])
+        observations, *_ = vector.step(actions)
+        single_observations = [env.step(int(action))[0] for env, action in zip(singles, actions)]
