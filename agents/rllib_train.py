@@ -172,7 +172,7 @@ def train_rllib(
     Returns:
         The ``train.json`` record (also written to ``output_dir``).
     """
-    from agents.ppo import load_hyperparameters
+    from agents.ppo import default_num_threads, load_hyperparameters, torch_threads
     from agents.ray_support import local_or_cluster_ray
 
     if timesteps < 1:
@@ -185,7 +185,7 @@ def train_rllib(
     env_kwargs = dict(env_kwargs or {})
     hyperparameters = load_hyperparameters(env_id) if hyperparameters is None else hyperparameters
     output_dir = Path(output_dir)
-    with local_or_cluster_ray(address):
+    with local_or_cluster_ray(address), torch_threads(default_num_threads()):  # the learner runs here
         config = build_config(env_id, env_kwargs, seed, hyperparameters, num_env_runners, envs_per_runner, policies)
         algorithm = config.build_algo()
         try:
