@@ -192,8 +192,10 @@ def train_rllib(
             steps, start = 0, time.perf_counter()
             with tqdm(total=timesteps, desc="training PPO (RLlib)", unit="step", disable=not progress) as bar:
                 while steps < timesteps:
-                    now = sampled_steps(algorithm.train())
+                    result = algorithm.train()
+                    now = sampled_steps(result)
                     bar.update(min(now, timesteps) - min(steps, timesteps))
+                    bar.set_postfix(episode_return=result.get("env_runners", {}).get("episode_return_mean"))
                     steps = now
             seconds = time.perf_counter() - start
             checkpoint = algorithm.save_to_path(str((output_dir / CHECKPOINT_DIR).resolve()))
