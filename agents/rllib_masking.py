@@ -18,6 +18,7 @@ from gymnasium.vector.utils import batch_space
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 
 OBSERVATION, ACTION_MASK = "observation", "action_mask"
+NORMALIZE_OBSERVATIONS = "normalize_observations"  # the model_config key of agents.rllib_module's normalization
 
 
 def masked_space(observation_space: spaces.Box, n_actions: int) -> spaces.Dict:

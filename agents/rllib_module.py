@@ -3,6 +3,12 @@
 It builds RLlib's default PPO networks on the ``"observation"`` part of the observations of
 ``agents.rllib_masking`` and adds ``log(mask)`` (clamped to RLlib's ``FLOAT_MIN``) to the action logits
 in every forward pass, so sampling, the greedy action, the PPO loss and its entropy all see masked logits.
+
+With ``model_config["normalize_observations"]`` (the RLlib backend sets it from a ``ppo.yml`` block's
+``normalize: {norm_obs: true}``) the module also normalizes that part, as SB3's ``VecNormalize`` does: by a
+running mean and variance (clipped to +-``NORMALIZED_CLIP``) kept in the module's buffers, updated from each
+training batch on the learner and sent with the weights to the env runners, so a checkpoint acts alike.
+(RLlib's ``MeanStdFilter`` connector would normalize the mask too, and lives outside the module.)
 """
 
 from __future__ import annotations
@@ -13,7 +19,10 @@ from ray.rllib.algorithms.ppo.torch.default_ppo_torch_rl_module import DefaultPP
 from ray.rllib.core.columns import Columns
 from ray.rllib.utils.torch_utils import FLOAT_MIN
 
-from agents.rllib_masking import ACTION_MASK, OBSERVATION
+from agents.rllib_masking import ACTION_MASK, NORMALIZE_OBSERVATIONS, OBSERVATION
+
+NORMALIZED_CLIP = 10.0  # as VecNormalize's clip_obs
+VARIANCE_EPSILON = 1e-8
 
 
 class MaskedPPOTorchRLModule(DefaultPPOTorchRLModule):
@@ -31,12 +40,37 @@ class MaskedPPOTorchRLModule(DefaultPPOTorchRLModule):
             )
         super().__init__(observation_space=observation_space[OBSERVATION], **kwargs)  # the networks: on the Box
         self.observation_space = observation_space  # what a checkpoint rebuilds the module from
+        self.normalizes = bool((self.model_config or {}).get(NORMALIZE_OBSERVATIONS, False))
+        if self.normalizes:
+            size = observation_space[OBSERVATION].shape[0]
+            self.register_buffer("observation_mean", torch.zeros(size, dtype=torch.float64))
+            self.register_buffer("observation_var", torch.ones(size, dtype=torch.float64))
+            self.register_buffer("observation_count", torch.tensor(VARIANCE_EPSILON, dtype=torch.float64))
 
-    @staticmethod
-    def _split(batch: dict) -> tuple[dict, torch.Tensor]:
-        """The batch with the plain observations, and the masks."""
+    def _split(self, batch: dict) -> tuple[dict, torch.Tensor]:
+        """The batch with the plain (normalized) observations, and the masks."""
         observations = batch[Columns.OBS]
-        return {**batch, Columns.OBS: observations[OBSERVATION]}, observations[ACTION_MASK]
+        plain = observations[OBSERVATION]
+        if self.normalizes:
+            scaled = (plain.double() - self.observation_mean) / torch.sqrt(self.observation_var + VARIANCE_EPSILON)
+            plain = torch.clamp(scaled, -NORMALIZED_CLIP, NORMALIZED_CLIP).to(plain.dtype)
+        return {**batch, Columns.OBS: plain}, observations[ACTION_MASK]
+
+    @torch.no_grad()
+    def update_normalization(self, observations: torch.Tensor) -> None:
+        """Merge a batch of plain observations (B, n) into the running mean and variance (Chan et al.'s update)."""
+        batch = observations.reshape(-1, observations.shape[-1]).double()
+        count = batch.shape[0]
+        if not self.normalizes or count == 0:
+            return
+        mean, var = batch.mean(dim=0), batch.var(dim=0, unbiased=False)
+        total = self.observation_count + count
+        delta = mean - self.observation_mean
+        previous = self.observation_count
+        m2 = self.observation_var * previous + var * count + delta**2 * previous * count / total
+        self.observation_mean += delta * count / total
+        self.observation_var.copy_(m2 / total)
+        self.observation_count.copy_(total)
 
     @staticmethod
     def _masked(outputs: dict, mask: torch.Tensor) -> dict:
@@ -49,6 +83,7 @@ class MaskedPPOTorchRLModule(DefaultPPOTorchRLModule):
         return self._masked(super()._forward(plain, **kwargs), mask)
 
     def _forward_train(self, batch, **kwargs):
+        self.update_normalization(batch[Columns.OBS][OBSERVATION])
         plain, mask = self._split(batch)
         return self._masked(super()._forward_train(plain, **kwargs), mask)
 

@@ -19,7 +19,12 @@ from pathlib import Path
 import gymnasium as gym
 from tqdm.auto import tqdm
 
-from agents.rllib_masking import MaskedObservations, MaskedParallelEnv, MaskedVectorObservations
+from agents.rllib_masking import (
+    NORMALIZE_OBSERVATIONS,
+    MaskedObservations,
+    MaskedParallelEnv,
+    MaskedVectorObservations,
+)
 from infonav_gym.registry import PARALLEL, api_of, env_entry, make_env, make_vector_env, resolve_env_id
 
 CHECKPOINT_DIR = "checkpoint"
@@ -78,6 +83,7 @@ def rllib_training_settings(hyperparameters: dict) -> dict:
         "model": {
             "fcnet_hiddens": list(policy_kwargs.get("net_arch", [64, 64])),
             "fcnet_activation": policy_kwargs.get("activation_fn", "tanh"),
+            NORMALIZE_OBSERVATIONS: bool((hyperparameters.get("normalize") or {}).get("norm_obs", False)),
         },
     }
 

@@ -8,6 +8,7 @@ import json
 import socket
 
 import gymnasium as gym
+import numpy as np
 import pytest
 
 ray = pytest.importorskip("ray", reason="the distributed extra (ray[rllib]) is not installed")
@@ -180,3 +181,25 @@ def _unused_address() -> str:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         return f"127.0.0.1:{probe.getsockname()[1]}"
+
+
+def test_normalization_keeps_the_running_mean_and_variance_of_the_training_batches():
+    env = MaskedObservations(gym.make(LANDMARK_ID, horizon=30))
+    module = RLModuleSpec(
+        module_class=MaskedPPOTorchRLModule,
+        observation_space=env.observation_space,
+        action_space=env.action_space,
+        model_config={"fcnet_hiddens": [16], "normalize_observations": True},
+    ).build()
+    batches = [np.random.default_rng(seed).normal(seed, 1.0 + seed, (40, 50)).astype(np.float32) for seed in range(3)]
+    for batch in batches:
+        module.update_normalization(torch.as_tensor(batch))
+    every = np.concatenate(batches).astype(np.float64)
+    np.testing.assert_allclose(module.observation_mean.numpy(), every.mean(axis=0), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(module.observation_var.numpy(), every.var(axis=0), rtol=1e-6)
+    state = module.get_state(inference_only=True)  # what the env runners and checkpoints get
+    assert {"observation_mean", "observation_var", "observation_count"} <= set(state)
+    observation, _ = env.reset(seed=0)
+    plain, mask = module._split({"obs": {key: torch.as_tensor(value)[None] for key, value in observation.items()}})
+    expected = (observation["observation"] - every.mean(axis=0)) / np.sqrt(every.var(axis=0) + 1e-8)
+    np.testing.assert_allclose(plain["obs"][0].numpy(), np.clip(expected, -10, 10), rtol=1e-5, atol=1e-5)
