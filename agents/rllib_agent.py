@@ -9,6 +9,7 @@ import numpy as np
 import torch
 
 from agents.base import checked_action_count
+from agents.ray_support import import_ray
 from agents.rllib_masking import ACTION_MASK, OBSERVATION, valid_actions
 from agents.rllib_train import CHECKPOINT_DIR, SHARED_POLICY
 
@@ -32,10 +33,11 @@ class RLlibAgent:
         agent: in a PettingZoo env, the robot it acts for.
 
     Raises:
-        ValueError: for a directory without ``train.json`` or checkpoint, or spaces that do not match.
+        ValueError: without Ray, for a directory without ``train.json`` or checkpoint, or spaces that do not match.
     """
 
     def __init__(self, directory: Path | str, env, agent: str | None = None):
+        import_ray()  # a missing extra: a one-line ValueError saying what to install
         from ray.rllib.core.rl_module.rl_module import RLModule
 
         directory = Path(directory)

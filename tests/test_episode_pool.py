@@ -44,9 +44,18 @@ def test_the_cli_takes_workers_and_refuses_bad_ones(capsys):
 
 
 @pytest.mark.skipif(RAY_INSTALLED, reason="Ray is installed: the missing-extra message cannot show")
-def test_ray_without_the_extra_is_a_one_line_error_saying_what_to_install(capsys):
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["evaluate", "--episodes", "1", "--config", "horizon=5", "--ray"],
+        ["evaluate", "--episodes", "1", "--agents", "rllib:models/none"],
+        ["train", "--backend", "rllib", "--env", LANDMARK_ID, "--timesteps", "100"],
+    ],
+    ids=["evaluate --ray", "rllib agent", "train --backend rllib"],
+)
+def test_ray_without_the_extra_is_a_one_line_error_saying_what_to_install(capsys, tmp_path, argv):
     with pytest.raises(SystemExit) as exit_info:
-        main(["evaluate", "--episodes", "1", "--config", "horizon=5", "--ray"])
+        main([*argv, "--output", str(tmp_path / "out")] if argv[0] == "train" else argv)
     assert exit_info.value.code == 2
     error = capsys.readouterr().err.strip()
     assert 'pip install "infonav-gym[distributed]"' in error and len(error.splitlines()) == 1

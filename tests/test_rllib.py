@@ -45,7 +45,7 @@ def small_blocks(tmp_path_factory):
 
 def _trained(tmp_path_factory, small_blocks, env_id, *config) -> tuple:
     output = tmp_path_factory.mktemp("rllib")
-    argv = ["train", "--backend", "rllib", "--env", env_id, "--timesteps", "1000", "--hyperparams", str(small_blocks)]
+    argv = ["train", "--backend", "rllib", "--env", env_id, "--timesteps", "2000", "--hyperparams", str(small_blocks)]
     assert main([*argv, *config, "--output", str(output), "--json"]) == 0
     return output, json.loads((output / "train.json").read_text())
 
@@ -93,7 +93,7 @@ def test_the_module_refuses_observations_without_a_mask():
 
 def test_train_writes_a_checkpoint_and_a_record_and_evaluate_plays_it(landmark_run, capsys):
     output, record = landmark_run
-    assert record["backend"] == "rllib" and record["env_id"] == LANDMARK_ID and record["timesteps"] >= 1000
+    assert record["backend"] == "rllib" and record["env_id"] == LANDMARK_ID and record["timesteps"] >= 2000
     assert record["rllib_training"]["train_batch_size_per_learner"] == 500 and record["num_env_runners"] == 1
     assert record["vectorization"] == "native"  # RLlib steps the native vector env (VECTOR_ENTRY_POINT)
     agents = f"greedy,rllib:{output}"
