@@ -101,8 +101,15 @@ def test_vector_figures_have_the_right_keys_and_are_positive(no_vmas):
 
 def test_without_vmas_its_rows_are_absent_with_a_note(no_vmas, monkeypatch):
     assert "pip install 'infonav-gym[bench]'" in vmas_missing()
-    for heavy in ("sensor_figures", "icp_figures", "_ppo_figures"):
+    for heavy in (
+        "sensor_figures",
+        "icp_figures",
+        "_ppo_figures",
+        "evaluation_workers_figures",
+        "rllib_runner_figures",
+    ):
         monkeypatch.setattr(benchmark, heavy, lambda *args: {})
+    monkeypatch.setattr(benchmark, "rllib_missing", lambda: None)  # this test is about VMAS's note alone
     monkeypatch.setattr(benchmark, "greedy_decision_us", lambda: 1.0)
     monkeypatch.setattr(benchmark, "kb_per_env", lambda env_id, num_envs, steps, seed: 50.0)
     monkeypatch.setattr(benchmark, "benchmarked_env_ids", lambda: [LANDMARKS])
