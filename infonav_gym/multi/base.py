@@ -2,11 +2,12 @@
 
 The parallel counterpart of ``infonav_gym.envs.base.InfoNavEnv``, with the same ``Decision``,
 action checks (``discrete_action_index``, ``accepts_action``) and rendering. Robot ``k`` is agent
-``possible_agents[k]``; every live agent acts every step, and all are truncated together after
-``max_cycles`` steps. Subclasses never override ``reset`` or ``step``; they implement the declared
-hooks ``_reset_episode``, ``_next_decision``, ``_apply_actions``, ``_advance``, ``_observations``,
-``_infos`` and ``_scene_frame``, and set ``possible_agents``, ``max_cycles``, ``traits`` (with its ``noop_action``) and
-one ``Discrete`` space per agent (``action_space(agent)``) in ``__init__``. One step runs::
+``possible_agents[k]``; every live agent acts every step, and all end together: terminated when the
+optional hook ``_is_terminated`` says so, else truncated after ``max_cycles`` steps. Subclasses never
+override ``reset`` or ``step``; they implement the declared hooks ``_reset_episode``, ``_next_decision``,
+``_apply_actions``, ``_advance``, ``_observations``, ``_infos`` and ``_scene_frame``, and set
+``possible_agents``, ``max_cycles``, ``traits`` (with its ``noop_action``) and one ``Discrete`` space
+per agent (``action_space(agent)``) in ``__init__``. One step runs::
 
     actions -> validate (decision.action_mask) -> _apply_actions(actions, decision) -> _advance()
     -> decision = _next_decision() -> _observations(), _infos()
@@ -69,10 +70,11 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
         self._advance()
         self._decision = self._next_decision().frozen()
         observations, infos = self._observations(), self._infos()
-        truncated = self._elapsed_steps >= self.max_cycles
-        terminations = dict.fromkeys(self.agents, False)
+        terminated = self._is_terminated()
+        truncated = not terminated and self._elapsed_steps >= self.max_cycles
+        terminations = dict.fromkeys(self.agents, terminated)
         truncations = dict.fromkeys(self.agents, truncated)
-        if truncated:
+        if terminated or truncated:
             self.agents = []
         if self.render_mode == "human":
             self.render()
@@ -124,6 +126,13 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
     @abc.abstractmethod
     def _advance(self) -> None:
         """Hook: move time on by one step after ``_apply_actions`` (``_elapsed_steps`` already counts it)."""
+
+    def _is_terminated(self) -> bool:
+        """Optional hook: whether the episode has ended for the whole team (after ``_next_decision``); read-only.
+
+        The default never ends it: all agents are truncated after ``max_cycles`` steps.
+        """
+        return False
 
     @abc.abstractmethod
     def _observations(self) -> dict:
