@@ -14,10 +14,11 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
-from infonav_gym.multi.base import InfoNavParallelEnv
+from infonav_gym.multi.base import InfoNavParallelEnv, team_metadata
 from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
+from infonav_gym.multi.team_paths import TeamPaths
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, RelativeSight, SensingPairs, TeamSensing, team_prior
-from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
+from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances
@@ -51,7 +52,7 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 }
 
 
-class CooperativeLocalizationEnv(TeamSensing, InfoNavParallelEnv):
+class CooperativeLocalizationEnv(TeamSensing, TeamPaths, InfoNavParallelEnv):
     """Robots without (or losing) DGPS localize through relative-pose observations of teammates.
 
     ## Description
@@ -136,12 +137,7 @@ class CooperativeLocalizationEnv(TeamSensing, InfoNavParallelEnv):
         noop_action=NO_OBSERVATION,
     )
 
-    metadata = {
-        "name": "cooperative_localization_v0",
-        "render_modes": ["human", "rgb_array"],
-        "render_fps": 10,
-        "is_parallelizable": True,
-    }
+    metadata = team_metadata("cooperative_localization_v0")
 
     @classmethod
     def default_config(cls) -> dict:
@@ -228,8 +224,7 @@ class CooperativeLocalizationEnv(TeamSensing, InfoNavParallelEnv):
         self._observed_pairs = []
         self._reward_terms = [{"own_mutual_information": 0.0, "team_mutual_information": 0.0}] * n
         self._updated_pose_std = None
-        self._true_paths = [PathHistory(pose[:2]) for pose in self._true_poses]
-        self._estimated_paths = [PathHistory(pose[:2]) for pose in self.ekf.poses]
+        self._start_paths()
 
     def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
         """Fuse the chosen observations; each robot's reward mixes its own and the team's MI by ``team_reward``."""
@@ -255,9 +250,7 @@ class CooperativeLocalizationEnv(TeamSensing, InfoNavParallelEnv):
         )
         self._time_s = self._elapsed_steps * dt
         self._gps_fixes()
-        for robot, (true_pose, estimate) in enumerate(zip(self._true_poses, self.ekf.x.reshape(-1, POSE_DIM))):
-            self._true_paths[robot].append(true_pose[:2])
-            self._estimated_paths[robot].append(estimate[:2])  # PathHistory copies
+        self._extend_paths()
 
     def _next_decision(self) -> Decision:
         """Action masks (who can see whom) and expected gains on the observer's own pose, at the current prior."""
@@ -308,12 +301,7 @@ class CooperativeLocalizationEnv(TeamSensing, InfoNavParallelEnv):
         for robot, agent in enumerate(self.agents):
             true_pose, estimate = self._true_poses[robot], estimates[robot]
             infos[agent] = {
-                "action_mask": decision.action_mask[robot].copy(),
-                "action_information_gain": decision.action_information_gain[robot].copy(),
-                "reward_terms": dict(self._reward_terms[robot]),
-                "chosen_action": int(self._chosen[robot]),
-                "invalid_action": bool(self._invalid[robot]),
-                "gps_available": bool(self._gps_available[robot]),
+                **self._decision_info(robot),
                 "position_error_m": math.dist(true_pose[:2], estimate[:2]),
                 "heading_error_rad": abs(wrap_angle(float(true_pose[2] - estimate[2]))),
                 "pose_entropy": float(entropies[robot]),
@@ -329,23 +317,11 @@ class CooperativeLocalizationEnv(TeamSensing, InfoNavParallelEnv):
 
     def _scene_frame(self):
         scenario = self.world.scenario
-        estimates = self.ekf.poses
-        robots = [
-            RobotDrawing(
-                true_pose=self._true_poses[k],
-                estimated_pose=estimates[k],
-                pose_covariance=self.ekf.pose_covariance(k),
-                true_path=self._true_paths[k].points(),
-                estimated_path=self._estimated_paths[k].points(),
-                label=f"{self.possible_agents[k]}{'' if self._gps_available[k] else ', no GPS'}",
-            )
-            for k in range(len(self.possible_agents))
-        ]
         return SceneFrame(
             bounds=scenario.bounds,
             walls=scenario.walls,
             obstacles=scenario.obstacles,
-            robots=robots,
+            robots=self._robot_drawings(),
             observations=list(self._observed_pairs),
             gps_denied_zones=scenario.gps_denied_zones,
             caption=f"t = {self._time_s:.1f} s   {len(self._observed_pairs)} relative observations this step",

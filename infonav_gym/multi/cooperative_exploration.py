@@ -1,0 +1,448 @@
+"""``CooperativeExplorationEnv``: a team maps a field, each robot choosing where to go and what to see (PettingZoo)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from gymnasium import spaces
+
+from infonav_gym.config import Interval, check_config, check_config_arguments, config_keys
+from infonav_gym.envs.active_localization import REWARD_WEIGHT, ActiveLocalizationEnv
+from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS, Decision
+from infonav_gym.envs.traits import EnvTraits
+from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
+from infonav_gym.estimation.models import range_bearing
+from infonav_gym.multi.base import InfoNavParallelEnv, team_metadata
+from infonav_gym.multi.cooperative_localization import CooperativeLocalizationEnv
+from infonav_gym.multi.exploration_views import (
+    EXPLORATION_INFO_KEYS,
+    EXPLORATION_METRICS,
+    ExplorationSight,
+    ExplorationViews,
+)
+from infonav_gym.multi.team import parse_outages, parse_speeds, parse_suites
+from infonav_gym.multi.team_sensing import NO_OBSERVATION, RelativeSight, SensingPairs, TeamSensing, team_prior
+from infonav_gym.multi.terrain_map import TerrainMapModel
+from infonav_gym.sensors.gps import GPSSensor
+from infonav_gym.sensors.odometry import odometry_sensor_from_config
+from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances
+from infonav_gym.world.active_scenarios import CommandedWorld, steering_commands
+from infonav_gym.world.exploration_scenarios import EXPLORATION_FIELD_ARGUMENTS, exploration_field
+from infonav_gym.world.scenarios import MAX_ROBOTS, MAX_SPEED_MPS
+from infonav_gym.world.world import TIME_STEP_S, start_poses
+
+MOTION_NAMES = ("stay", "east", "north", "west", "south")
+MOTION_HEADINGS_RAD = np.array([0.0, 0.0, math.pi / 2, math.pi, -math.pi / 2])  # "stay" does not drive
+STAY = 0
+N_MOTIONS = len(MOTION_NAMES)
+NOOP_ACTION = 0  # stay and observe nothing: slot 0, motion STAY
+DEFAULT_SPEEDS_MPS = (0.8, 0.8, 1.2, 1.2)  # robot k of the default team: the DGPS robots are the slower ones
+RANGE_KEYS = {"laser": "laser_range_m", "vision": "vision_range_m"}  # the config key of each sensor's range
+REWARD_TERMS = ("own_pose_information", "team_map_information", "sensing_cost", "motion_cost", "lost_penalty")
+SCENARIO_KEYS = {  # exploration_field parameter: the config key that gives it
+    "n_robots": "n_robots",
+    "n_obstacles": "n_obstacles",
+    "n_canopies": "n_canopies",
+    "n_landmarks": "n_landmarks",
+    "size_m": "field_size_m",
+}
+CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
+    "max_cycles": EPISODE_STEPS,
+    "n_robots": Interval(2, MAX_ROBOTS, integer=True),
+    "team_reward": Interval(0.0, 1.0),
+    "time_step_s": TIME_STEP_S,
+    "max_turn_rate_rps": Interval(0.0, 10.0, open_low=True, unit="rad/s"),
+    "map_cells_per_side": Interval(2, 100, integer=True),
+    "map_prior_std_m": Interval(0.0, 100.0, open_low=True, unit="m"),  # and above covered_std_m
+    "scan_radius_m": Interval(0.0, 1000.0, open_low=True, unit="m"),
+    "scan_std_m": Interval(1e-3, 100.0, unit="m"),
+    "terrain_slope": Interval(0.0, 10.0, unit="m/m"),
+    "covered_std_m": Interval(0.0, 100.0, open_low=True, unit="m"),
+    "coverage_target": Interval(0.0, 1.0, open_low=True),
+    "max_position_std_m": Interval(0.0, 1000.0, open_low=True, unit="m"),  # and above initial_position_std_m
+    "max_observations": Interval(0, MAX_EPISODE_STEPS, integer=True),
+    **INITIAL_POSE_STD,
+    **{key: REWARD_WEIGHT for key in ("observation_cost_nats", "motion_cost_per_step", "lost_penalty")},
+}
+
+
+class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEnv):
+    """A heterogeneous team maps a field; each robot chooses where to drive and what to observe, together.
+
+    ## Description
+    The paper's Section III-C, distributed heterogeneous multirobot exploration. The team
+    starts at a base in one corner of a square Pymunk field (``exploration_field``) with
+    round obstacles, GPS-denied canopy zones and a few landmarks, and must map the terrain:
+    a grid of cells whose heights are Gaussian estimates (``terrain_map``). A robot that
+    drives scans the cells around it; a position error ``sigma`` puts heights at the wrong
+    place, so a scan's height noise grows as ``scan_std_m^2 + (terrain_slope * sigma)^2``:
+    a badly localized robot maps poorly. A ``JointEKF`` over all poses fuses odometry, DGPS
+    fixes (robots with DGPS, outside the canopies) and the observations the agents choose:
+    a known landmark (range-bearing) or a teammate (relative pose, which correlates the two).
+
+    Why a myopic agent fails: the robots without DGPS drift on odometry alone and stay
+    localized only while a landmark or a well-localized teammate is within their sensor's
+    short range. The unmapped cells lie far from both, so the action with the most immediate
+    information (drive to fresh cells, observe whatever is in sight) leads the GPS-less
+    robots away from every reference; their position std then crosses
+    ``max_position_std_m`` and the team fails. Succeeding needs plans over several steps:
+    scouts that cover far cells while returning near a teammate or a landmark in time, DGPS
+    robots that escort them and leave the canopies, and a budget kept for when it matters.
+
+    ## Agents
+    ``robot_0 .. robot_{N-1}`` (default 4). Suites from ``robot_sensors`` (default: suite
+    ``k % 4`` of ``gps+laser, gps+laser, laser, vision``; odometry always), speeds from
+    ``robot_speeds_mps`` (default ``0.8, 0.8, 1.2, 1.2`` m/s: the DGPS robots are slower).
+    The laser sees all around up to ``laser_range_m``, the camera a 60 deg field of view up
+    to ``vision_range_m``; a robot observes landmarks and teammates with its one sensor.
+
+    ## Action Space
+    ``Discrete(5 * (1 + L + N))`` per agent, ``L = n_landmarks``: action ``a`` is slot
+    ``a // 5`` and motion ``a % 5``. Slots: 0 observe nothing, ``1 + j`` landmark ``j``,
+    ``1 + L + j`` ``robot_j``. Motions steer the *estimated* heading for a compass heading
+    (``stay``, ``east``, ``north``, ``west``, ``south``) at the robot's speed, turn rate
+    limited by ``max_turn_rate_rps``; Pymunk executes them. An observation is valid while the
+    target is in range and field of view with a clear line of sight and the robot has budget
+    left (``max_observations``); action 0 (stay, observe nothing) is always valid. A masked
+    action is action 0 (``invalid_action="noop"``) or raises ``ValueError`` (``"raise"``).
+
+    ## Observation Space
+    ``Box(float32, (10 + 5 N + 4 L + 3 + G,))``, ``G = map_cells_per_side^2``: the 10 own and
+    5 per-robot features of ``cooperative_localization_v0``; per landmark: whether observing
+    it is valid, its estimated range [m], ``cos, sin`` of its estimated bearing; the robot's
+    speed [m/s], its budget left (fraction), the team's coverage; per cell (row-major from the
+    lower left corner) the height std left, as a fraction of ``map_prior_std_m``.
+
+    ## Rewards
+    ``(1 - team_reward) * own_pose_information + team_reward * team_map_information`` plus
+    the costs, with ``info["reward_terms"]``: ``own_pose_information``, the realized MI of
+    the step's observations on the robot's own pose [nats]; ``team_map_information``, the map
+    entropy reduction of every robot's scans this step [nats]; ``sensing_cost``
+    ``-observation_cost_nats`` per observation; ``motion_cost`` ``-motion_cost_per_step`` per
+    step driven; ``lost_penalty`` ``-lost_penalty`` for every robot when one is lost.
+    ``info["action_information_gain"][a]`` is the immediate expected information of ``a``:
+    ``(1 - team_reward)`` times the MI its observation alone brings to the robot's pose at the
+    prior, plus ``team_reward`` times the map information its scan alone would bring, from the
+    position the motion predicts, at the robot's current position std (0 where masked).
+    A scan is taken only after driving forward: standing or turning in place sees the same
+    view again, with the same errors, so it brings nothing new (action 0 has gain 0).
+
+    ## Info
+    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain``, ``reward_terms``,
+    ``chosen_action``, ``invalid_action``, ``gps_available``, ``pose_std``, ``position_std_m``
+    (largest, at the decision), ``pose_entropy``, ``position_error_m``, ``heading_error_rad``,
+    ``true_pose``, ``estimated_pose``, ``time_s``, ``observations_left``, ``coverage``
+    (team), ``lost`` (this robot), ``failed`` and ``success`` (the team).
+
+    ## Starting State
+    Parked at the base, facing the field's centre; estimates drawn from
+    ``N(true pose, diag(initial_position_std_m^2, ..., initial_heading_std_rad^2))``; the map
+    at its prior (std ``map_prior_std_m`` in every cell).
+
+    ## Episode End
+    Terminated for all agents when a robot's largest position std exceeds
+    ``max_position_std_m`` (it is lost: ``failed``), or when the coverage reaches
+    ``coverage_target`` (``success``); truncated after ``max_cycles`` steps (no success).
+
+    ## Arguments
+    ``parallel_env(render_mode=None, **config)`` with any key of ``default_config()``; an
+    unknown key or a bad value raises ``ValueError`` naming it.
+
+    ## Version History
+    * v0: initial version (issue 18, first part: no batched version or planning model yet).
+    """
+
+    episode_metrics = EXPLORATION_METRICS
+    traits = EnvTraits(
+        reports_success=True,
+        may_terminate=True,
+        noop_action=NOOP_ACTION,
+        idle_actions=frozenset({NOOP_ACTION}),  # stay, observe nothing
+        reward_config_keys=("team_reward",),
+        reward_terms=REWARD_TERMS,
+        info_keys=EXPLORATION_INFO_KEYS,
+    )
+
+    metadata = team_metadata("cooperative_exploration_v0")
+
+    @classmethod
+    def default_config(cls) -> dict:
+        """A fresh dict of every config key with its default."""
+        return {
+            "max_cycles": 200,  # episode length [steps]
+            "n_robots": 4,
+            "robot_sensors": None,  # one suite per robot, e.g. ["gps+laser", "vision"]; None: the default team
+            "robot_speeds_mps": None,  # one cruise speed per robot [m/s]; None: DEFAULT_SPEEDS_MPS
+            "gps_outages": (),  # (robot, start_s, end_s) spans without DGPS [s], besides the canopies
+            "team_reward": 0.5,  # weight of the team's map information against the own pose MI, in [0, 1]
+            "invalid_action": "noop",  # a masked action: "noop" or "raise" (ValueError)
+            "time_step_s": 1.0,  # [s]
+            "max_turn_rate_rps": 1.0,  # [rad/s]
+            "laser_range_m": 10.0,  # range of the lasers, on landmarks and teammates [m]
+            "vision_range_m": 8.0,  # range of the cameras [m]
+            "gps_std_m": 0.1,  # DGPS position noise per coordinate [m]
+            "odometry_speed_std_mps": 0.05,  # [m/s]
+            "odometry_turn_rate_std_rps": 0.02,  # [rad/s]
+            "initial_position_std_m": 0.1,  # [m]
+            "initial_heading_std_rad": 0.02,  # [rad]
+            "max_position_std_m": 1.5,  # a robot whose largest position std exceeds this is lost [m]
+            "max_observations": 100,  # sensing budget of each robot per episode
+            "observation_cost_nats": 0.05,  # [nats] per observation
+            "motion_cost_per_step": 0.01,  # [nats] per step driven
+            "lost_penalty": 10.0,  # [nats], subtracted from every robot's reward when one is lost
+            "map_cells_per_side": 20,  # the coverage map is a grid of this many cells squared (2 m cells)
+            "map_prior_std_m": 1.0,  # terrain height std of an unscanned cell [m]
+            "scan_radius_m": 4.0,  # a scan sees the cells whose centre lies this close [m]
+            "scan_std_m": 0.1,  # height noise of a scan from a known position [m]
+            "terrain_slope": 0.5,  # height error per metre of position error [m/m]
+            "covered_std_m": 0.3,  # a cell is covered once its height std is at most this [m]
+            "coverage_target": 0.6,  # success: this fraction of the cells covered, no robot lost
+            "n_obstacles": 6,
+            "n_canopies": 3,  # GPS-denied zones
+            "n_landmarks": 4,
+            "field_size_m": 40.0,  # side of the square field [m]
+            "render_size_px": 600,  # longer side of rendered frames [px]
+        }
+
+    def __init__(self, render_mode: str | None = None, **config):
+        self._configure(render_mode, config)
+        cfg, owner = self.config, type(self).__name__
+        check_config(cfg, owner, CONFIG_INTERVALS)
+        check_config_arguments(cfg, owner, "exploration_field", EXPLORATION_FIELD_ARGUMENTS, SCENARIO_KEYS)
+        for key, floor in (("max_position_std_m", "initial_position_std_m"), ("map_prior_std_m", "covered_std_m")):
+            if cfg[key] <= cfg[floor]:
+                raise ValueError(f"config key {key!r} of {owner} must exceed {floor} ({cfg[floor]}), got {cfg[key]}")
+        n, n_landmarks = cfg["n_robots"], cfg["n_landmarks"]
+        self.suites = parse_suites(cfg["robot_sensors"], n, "exploration_field")
+        self.speeds_mps = np.array(parse_speeds(cfg["robot_speeds_mps"], DEFAULT_SPEEDS_MPS, n, MAX_SPEED_MPS))
+        outages = parse_outages(cfg["gps_outages"], n)
+        with config_keys(owner, {"position_std_m": "gps_std_m"}):
+            self.gps = [GPSSensor(cfg["gps_std_m"], spans) if s.gps else None for s, spans in zip(self.suites, outages)]
+        self.relative_sensors = [self._ranged_sensor(suite.relative_sensor) for suite in self.suites]
+        self.odometry = odometry_sensor_from_config(cfg, owner)
+        self._odometry_covariances = np.repeat(self.odometry.noise_covariance()[None], n, axis=0)
+        map_parameters = ("prior_std_m", "scan_radius_m", "scan_std_m", "terrain_slope", "covered_std_m")
+        self.map_model = TerrainMapModel.square(
+            cfg["field_size_m"],
+            cfg["map_cells_per_side"],
+            **{name: cfg[name if name != "prior_std_m" else "map_prior_std_m"] for name in map_parameters},
+        )
+        self.max_cycles = cfg["max_cycles"]
+        self.possible_agents = [f"robot_{k}" for k in range(n)]
+        self.agents = []
+        self.n_slots = 1 + n_landmarks + n
+        self._action_spaces = {agent: spaces.Discrete(N_MOTIONS * self.n_slots) for agent in self.possible_agents}
+        team_low, team_high = CooperativeLocalizationEnv._observation_bounds(n, False)
+        self._team_space = spaces.Box(team_low, team_high, dtype=np.float32)
+        low, high = self._observation_bounds(team_low, team_high, n_landmarks, self.map_model.n_cells)
+        self._observation_spaces = {agent: spaces.Box(low, high, dtype=np.float32) for agent in self.possible_agents}
+        self.pairs = SensingPairs.of_team(self.relative_sensors)
+        self.world = CommandedWorld()
+        self.np_random = None
+
+    def _ranged_sensor(self, name: str | None):
+        """The relative-pose sensor ``name`` with this env's range for it (None for no sensor)."""
+        if name is None:
+            return None
+        sensor, key = RELATIVE_POSE_SENSORS[name], RANGE_KEYS[name]
+        with config_keys(type(self).__name__, {"max_range_m": key}):
+            return replace(sensor, range_bearing=replace(sensor.range_bearing, max_range_m=self.config[key]))
+
+    def observation_space(self, agent: str) -> spaces.Box:
+        return self._observation_spaces[agent]
+
+    def action_space(self, agent: str) -> spaces.Discrete:
+        return self._action_spaces[agent]
+
+    def decode_action(self, action: int) -> tuple[int, int]:
+        """``(slot, motion)`` of an action index: slot 0 nothing, ``1 + j`` landmark j, ``1 + L + j`` robot j."""
+        return divmod(int(action), N_MOTIONS)
+
+    # ------------------------------------------------------------------ the episode
+
+    def _reset_episode(self) -> None:
+        cfg = self.config
+        scenario = exploration_field(self.np_random, **{name: cfg[key] for name, key in SCENARIO_KEYS.items()})
+        self._odometry_rng, self._gps_rng, self._relative_rng, self._landmark_rng = self.np_random.spawn(4)
+        self.world.reset(scenario)
+        self._true_poses = self.world.poses
+        self.ekf = JointEKF(*team_prior(cfg, np.array(start_poses(scenario)), self.np_random))
+        n = len(self.possible_agents)
+        self._time_s = 0.0
+        self._gps_fixes()
+        self.map_variances = self.map_model.prior_variances()
+        self.coverage = 0.0
+        self.observations_left = np.full(n, cfg["max_observations"])
+        self.lost = np.zeros(n, dtype=bool)
+        self.success = False
+        self._observed_pairs, self._observed_landmarks = [], []
+        self._reward_terms = [dict.fromkeys(REWARD_TERMS, 0.0)] * n
+        self._start_paths()
+
+    def _is_terminated(self) -> bool:
+        return bool(self.lost.any()) or self.success
+
+    def _next_decision(self) -> Decision:
+        """Masks and immediate expected gains of every (observation, motion) pair, at the current prior."""
+        n, n_landmarks = len(self.possible_agents), self.config["n_landmarks"]
+        slot_valid = np.zeros((n, self.n_slots), dtype=bool)
+        slot_valid[:, 0] = True
+        observation_gain = np.zeros((n, self.n_slots))
+        budget_left = self.observations_left > 0
+        geometry, valid = self._observable_pairs()
+        valid = valid[budget_left[self.pairs.observers[valid]]]
+        observers, targets = self.pairs.observers[valid], self.pairs.targets[valid]
+        candidate_row = np.full((n, n + 1), -1)
+        candidate_row[observers, targets + 1] = np.arange(valid.size)
+        candidates = None
+        if valid.size:
+            predicted, H_observer, H_target = self.ekf.relative_pose_model(observers, targets)
+            R = noise_covariances(self.pairs.noise[valid], predicted[:, 0])
+            own, _ = self.ekf.relative_pose_information_gains(observers, targets, H_observer, H_target, R)
+            slot_valid[observers, 1 + n_landmarks + targets] = True
+            observation_gain[observers, 1 + n_landmarks + targets] = own
+            candidates = (predicted, H_observer, H_target, R)
+        landmark_visible = self._visible_landmarks() & budget_left[:, None]
+        robots, landmarks = np.nonzero(landmark_visible)
+        if robots.size:
+            _, H_pose, R = self._landmark_models(robots, landmarks)
+            slot_valid[robots, 1 + landmarks] = True
+            observation_gain[robots, 1 + landmarks] = self.ekf.landmark_information_gains(robots, H_pose, R)
+        covariances = self.ekf.pose_covariances()
+        pose_log_det = np.linalg.slogdet(covariances)[1]
+        pose_std = np.sqrt(np.diagonal(covariances, axis1=1, axis2=2))
+        position_std = ActiveLocalizationEnv.position_std(covariances)
+        weight = self.config["team_reward"]
+        gains = (1.0 - weight) * observation_gain[:, :, None] + weight * self._scan_gains(position_std)[:, None, :]
+        mask = np.repeat(slot_valid[:, :, None], N_MOTIONS, axis=2)
+        gains = np.where(mask, gains, 0.0).reshape(n, -1)
+        relative = RelativeSight(geometry, valid, candidate_row, candidates, pose_log_det, pose_std)
+        return Decision(
+            mask.reshape(n, -1).astype(np.int8), gains, ExplorationSight(relative, slot_valid, position_std)
+        )
+
+    def _visible_landmarks(self) -> np.ndarray:
+        """Which landmarks each robot's sensor sees from its true pose: range, field of view, line of sight (R, L)."""
+        landmarks = self.world.landmarks
+        visible = np.zeros((len(self.possible_agents), len(landmarks)), dtype=bool)
+        for robot, sensor in enumerate(self.relative_sensors):
+            if sensor is None or not len(landmarks):
+                continue
+            covered = sensor.range_bearing.in_coverage(range_bearing(self._true_poses[robot], landmarks))
+            if covered.any():
+                visible[robot, covered] = self.world.line_of_sight(self._true_poses[robot, :2], landmarks[covered])
+        return visible
+
+    def _landmark_models(self, robots: np.ndarray, landmarks: np.ndarray):
+        """``(predicted (M, 2), H_pose (M, 2, 3), R (M, 2, 2))`` of robot ``robots[k]`` observing ``landmarks[k]``."""
+        predicted, H_pose = self.ekf.landmark_model(robots, self.world.landmarks[landmarks])
+        R = np.empty((len(robots), 2, 2))
+        for k, robot in enumerate(robots.tolist()):
+            R[k] = self.relative_sensors[robot].range_bearing.noise_covariance(predicted[k, 0])[0]
+        return predicted, H_pose, R
+
+    def _motion_commands(self, motions: np.ndarray) -> np.ndarray:
+        """``[speed, turn rate]`` (R, 2) of each robot's motion, steered from its estimated pose; ``stay`` is 0."""
+        cfg = self.config
+        poses = self.ekf.x.reshape(-1, POSE_DIM)
+        commands = steering_commands(
+            poses, MOTION_HEADINGS_RAD[motions], self.speeds_mps, cfg["max_turn_rate_rps"], cfg["time_step_s"]
+        )
+        return np.where((motions == STAY)[:, None], 0.0, commands)
+
+    def _scan_gains(self, position_std: np.ndarray) -> np.ndarray:
+        """Map information [nats] each robot's scan would bring alone after each motion (R, 5).
+
+        0 for a motion that does not drive forward (``stay``, or a turn of more than 90 deg): it scans nothing new.
+        """
+        n, dt = len(self.possible_agents), self.config["time_step_s"]
+        poses = self.ekf.x.reshape(-1, POSE_DIM)
+        speeds = np.stack([self._motion_commands(np.full(n, motion))[:, 0] for motion in range(N_MOTIONS)], axis=1)
+        heading = np.stack([np.cos(poses[:, 2]), np.sin(poses[:, 2])], axis=-1)
+        positions = poses[:, None, :2] + dt * speeds[..., None] * heading[:, None, :]
+        footprints = self.map_model.footprints(positions)
+        noise = self.map_model.scan_noise_variances(position_std)[:, None]
+        return np.where(speeds > 0.0, self.map_model.scan_gains(self.map_variances, footprints, noise), 0.0)
+
+    def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
+        """Observe at the prior, drive, predict, fuse DGPS, then scan; each robot's reward (see the class)."""
+        cfg = self.config
+        n_landmarks = cfg["n_landmarks"]
+        relative = decision.payload.relative
+        slots, motions = np.divmod(actions, N_MOTIONS)
+        observes_teammate = slots > n_landmarks
+        teammate_choice = np.where(observes_teammate, slots - n_landmarks, NO_OBSERVATION)
+        self._observe(teammate_choice, relative)
+        self._observe_landmarks(np.flatnonzero((slots > 0) & ~observes_teammate), slots)
+        observed = slots > 0
+        self.observations_left = self.observations_left - observed
+        own_information = 0.5 * (relative.pose_log_det - np.linalg.slogdet(self.ekf.pose_covariances())[1])
+        commands = self._motion_commands(motions)
+        controls = self._drive(commands)
+        self.ekf.predict(
+            self.odometry.measure(controls, self._odometry_rng),
+            cfg["time_step_s"],
+            self._odometry_covariances,
+            check_input=False,
+        )
+        self._time_s = (self._elapsed_steps + 1) * cfg["time_step_s"]
+        self._gps_fixes()
+        position_std = ActiveLocalizationEnv.position_std(self.ekf.pose_covariances())
+        map_information = self._scan(commands[:, 0] > 0.0, position_std)
+        self.lost = position_std > cfg["max_position_std_m"]
+        self.success = bool(self.coverage >= cfg["coverage_target"] and not self.lost.any())
+        weight = cfg["team_reward"]
+        lost_penalty = -cfg["lost_penalty"] if self.lost.any() else 0.0
+        self._reward_terms = [
+            {
+                "own_pose_information": float(own_information[robot]),
+                "team_map_information": map_information,
+                "sensing_cost": -cfg["observation_cost_nats"] * float(observed[robot]),
+                "motion_cost": -cfg["motion_cost_per_step"] * float(motions[robot] != STAY),
+                "lost_penalty": lost_penalty,
+            }
+            for robot in range(len(self.possible_agents))
+        ]
+        costs = np.array([terms["sensing_cost"] + terms["motion_cost"] + lost_penalty for terms in self._reward_terms])
+        return (1.0 - weight) * own_information + weight * map_information + costs
+
+    def _observe_landmarks(self, robots: np.ndarray, slots: np.ndarray) -> None:
+        """Fuse the landmark observations of ``robots`` (slot ``1 + j``: landmark j), linearized at the estimate."""
+        landmarks = slots[robots] - 1
+        self._observed_landmarks = list(zip(robots.tolist(), landmarks.tolist()))
+        if robots.size == 0:
+            return
+        predicted, H_pose, R = self._landmark_models(robots, landmarks)
+        positions = self.world.landmarks[landmarks]
+        measurements = np.array(
+            [
+                self.relative_sensors[robot].range_bearing.measure(
+                    self._true_poses[robot], position, self._landmark_rng
+                )
+                for robot, position in zip(robots.tolist(), positions)
+            ]
+        ).reshape(-1, 2)
+        self.ekf.landmark_update(robots, measurements, predicted, H_pose, R, check_input=False)
+
+    def _drive(self, commands: np.ndarray) -> np.ndarray:
+        """Drive every robot by its command for one step (Pymunk); the executed ``[speed, turn rate]`` (R, 2)."""
+        for robot, (speed, turn_rate) in enumerate(commands.tolist()):
+            self.world.command(speed, turn_rate, robot)
+        controls = self.world.step(self.config["time_step_s"])
+        self._true_poses = self.world.poses
+        return controls
+
+    def _scan(self, scanning: np.ndarray, position_std: np.ndarray) -> float:
+        """Fuse the scans of the ``scanning`` robots from their true positions; the map information [nats]."""
+        if not scanning.any():
+            return 0.0
+        model, before = self.map_model, self.map_variances
+        footprints = model.footprints(self._true_poses[scanning, :2])
+        self.map_variances = model.fused(before, footprints, model.scan_noise_variances(position_std[scanning]))
+        self.coverage = float(model.coverage(self.map_variances))
+        return 0.5 * math.fsum(np.log(before / self.map_variances))
+
+    def _advance(self) -> None:
+        self._extend_paths()
