@@ -9,7 +9,7 @@ import pickle  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-from conftest import assert_identical  # noqa: E402
+from conftest import assert_identical, greedy_actions, random_valid_actions  # noqa: E402
 from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test  # noqa: E402
 
 from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
@@ -19,17 +19,6 @@ from infonav_gym.multi.terrain_map import TerrainMapModel  # noqa: E402
 from infonav_gym.world.exploration_scenarios import BASE_CLEARANCE_M, exploration_field  # noqa: E402
 
 ID = "cooperative_exploration_v0"
-
-
-def random_valid_actions(env, infos: dict, rng: np.random.Generator) -> dict:
-    return {agent: int(rng.choice(np.flatnonzero(infos[agent]["action_mask"]))) for agent in env.agents}
-
-
-def greedy_actions(env, infos: dict) -> dict:
-    return {
-        agent: int(np.argmax(np.where(infos[agent]["action_mask"], infos[agent]["action_information_gain"], -1)))
-        for agent in env.agents
-    }
 
 
 def test_pettingzoo_parallel_and_aec_api_tests_pass():
@@ -61,16 +50,6 @@ def test_same_seed_gives_bit_identical_episodes_and_other_seeds_other_worlds():
     replay, _ = envs[1].reset(seed=7)
     assert not np.array_equal(other["robot_0"], first[0][0]["robot_0"])
     assert_identical(replay, first[0][0])
-
-
-def test_pickled_env_continues_identically():
-    env = cooperative_exploration_v0.parallel_env()
-    _, infos = env.reset(seed=4)
-    for _ in range(5):
-        _, _, _, _, infos = env.step(greedy_actions(env, infos))
-    twin = pickle.loads(pickle.dumps(env))
-    actions = greedy_actions(env, infos)
-    assert_identical(env.step(actions), twin.step(actions))
 
 
 def test_masks_and_gains_follow_the_action_layout():

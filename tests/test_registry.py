@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import pickle
 import subprocess
 import sys
 
@@ -15,6 +16,7 @@ import env_checks
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import assert_identical, greedy_actions
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from scipy import stats
@@ -200,6 +202,17 @@ def test_a_parallel_envs_infos_hold_the_declared_keys_and_reward_terms(entry):
         infos = env.step(actions)[4]
         assert all(tuple(info["reward_terms"]) == declared.reward_terms for info in infos.values())
         assert all(info["action_information_gain"][list(declared.idle_actions)].max() == 0.0 for info in infos.values())
+
+
+@pytest.mark.parametrize("entry", registered_envs(PARALLEL), ids=lambda entry: entry.id)
+def test_a_pickled_parallel_env_continues_identically(entry):
+    env = make_env(entry.id)
+    _, infos = env.reset(seed=4)
+    for _ in range(5):
+        _, _, _, _, infos = env.step(greedy_actions(env, infos))
+    twin = pickle.loads(pickle.dumps(env))
+    actions = greedy_actions(env, infos)
+    assert_identical(env.step(actions), twin.step(actions))
 
 
 def test_make_env_builds_the_parallel_env_by_its_id_with_config():
