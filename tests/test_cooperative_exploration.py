@@ -167,6 +167,7 @@ def test_masked_actions_are_noops_by_default_and_errors_on_request():
         ({"robot_sensors": ["gps", "sonar", "laser", "laser"]}, "unknown sensor 'sonar'"),
         ({"gps_outages": [(7, 0.0, 1.0)]}, "robots 0..3"),
         ({"gps_std_m": 0.0}, "'gps_std_m'"),
+        ({"turn_time_s": 1.0}, "'time_step_s'.*turn_time_s"),
     ],
 )
 def test_bad_config_raises_a_clear_error(config, message):

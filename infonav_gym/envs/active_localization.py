@@ -24,7 +24,7 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS, CommandedWorld, goal_field, steering_commands
+from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS, CommandedWorld, goal_field
 from infonav_gym.world.scenarios import SPEED_MPS, Scenario
 from infonav_gym.world.world import TIME_STEP_S, start_poses
 
@@ -400,4 +400,8 @@ def primitive_commands(config: dict, goals: np.ndarray, poses: np.ndarray, primi
     goals = np.asarray(goals)
     goal_bearing = np.arctan2(goals[..., 1] - poses[:, 1], goals[..., 0] - poses[:, 0])
     desired = goal_bearing + np.take(PRIMITIVE_OFFSETS_RAD, primitives)
-    return steering_commands(poses, desired, config["speed_mps"], config["max_turn_rate_rps"], config["time_step_s"])
+    turn = wrap_angle(desired - poses[:, 2])
+    max_turn = config["max_turn_rate_rps"] * config["time_step_s"]
+    executed_turn = np.clip(turn, -max_turn, max_turn)
+    speed = config["speed_mps"] * np.maximum(np.cos(turn), 0.0)
+    return np.stack([speed, executed_turn / config["time_step_s"]], axis=-1)

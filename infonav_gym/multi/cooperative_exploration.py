@@ -14,6 +14,7 @@ from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS, Decision
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
 from infonav_gym.estimation.models import range_bearing
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.multi.base import InfoNavParallelEnv, team_metadata
 from infonav_gym.multi.cooperative_localization import CooperativeLocalizationEnv
 from infonav_gym.multi.exploration_views import (
@@ -28,7 +29,7 @@ from infonav_gym.multi.terrain_map import TerrainMapModel
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances
-from infonav_gym.world.active_scenarios import CommandedWorld, steering_commands
+from infonav_gym.world.active_scenarios import CommandedWorld
 from infonav_gym.world.exploration_scenarios import EXPLORATION_FIELD_ARGUMENTS, exploration_field
 from infonav_gym.world.scenarios import MAX_ROBOTS, MAX_SPEED_MPS
 from infonav_gym.world.world import TIME_STEP_S, start_poses
@@ -53,7 +54,7 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
     "n_robots": Interval(2, MAX_ROBOTS, integer=True),
     "team_reward": Interval(0.0, 1.0),
     "time_step_s": TIME_STEP_S,
-    "max_turn_rate_rps": Interval(0.0, 10.0, open_low=True, unit="rad/s"),
+    "turn_time_s": TIME_STEP_S,  # and below time_step_s
     "map_cells_per_side": Interval(2, 100, integer=True),
     "map_prior_std_m": Interval(0.0, 100.0, open_low=True, unit="m"),  # and above covered_std_m
     "scan_radius_m": Interval(0.0, 1000.0, open_low=True, unit="m"),
@@ -101,9 +102,10 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
     ## Action Space
     ``Discrete(5 * (1 + L + N))`` per agent, ``L = n_landmarks``: action ``a`` is slot
     ``a // 5`` and motion ``a % 5``. Slots: 0 observe nothing, ``1 + j`` landmark ``j``,
-    ``1 + L + j`` ``robot_j``. Motions steer the *estimated* heading for a compass heading
-    (``stay``, ``east``, ``north``, ``west``, ``south``) at the robot's speed, turn rate
-    limited by ``max_turn_rate_rps``; Pymunk executes them. An observation is valid while the
+    ``1 + L + j`` ``robot_j``. A motion (``stay``, ``east``, ``north``, ``west``, ``south``)
+    turns the robot on the spot for ``turn_time_s`` until its *estimated* heading is the compass
+    heading, then drives it straight at its speed for the rest of the step (``stay`` does neither);
+    Pymunk executes both phases, and both are exact unicycle motions for the EKF. An observation is valid while the
     target is in range and field of view with a clear line of sight and the robot has budget
     left (``max_observations``); action 0 (stay, observe nothing) is always valid. A masked
     action is action 0 (``invalid_action="noop"``) or raises ``ValueError`` (``"raise"``).
@@ -179,7 +181,7 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
             "team_reward": 0.5,  # weight of the team's map information against the own pose MI, in [0, 1]
             "invalid_action": "noop",  # a masked action: "noop" or "raise" (ValueError)
             "time_step_s": 1.0,  # [s]
-            "max_turn_rate_rps": 1.0,  # [rad/s]
+            "turn_time_s": 0.25,  # the turn phase of a step: a robot turns on the spot, then drives straight [s]
             "laser_range_m": 10.0,  # range of the lasers, on landmarks and teammates [m]
             "vision_range_m": 8.0,  # range of the cameras [m]
             "gps_std_m": 0.1,  # DGPS position noise per coordinate [m]
@@ -211,7 +213,8 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
         cfg, owner = self.config, type(self).__name__
         check_config(cfg, owner, CONFIG_INTERVALS)
         check_config_arguments(cfg, owner, "exploration_field", EXPLORATION_FIELD_ARGUMENTS, SCENARIO_KEYS)
-        for key, floor in (("max_position_std_m", "initial_position_std_m"), ("map_prior_std_m", "covered_std_m")):
+        floors = (("max_position_std_m", "initial_position_std_m"), ("map_prior_std_m", "covered_std_m"))
+        for key, floor in (*floors, ("time_step_s", "turn_time_s")):
             if cfg[key] <= cfg[floor]:
                 raise ValueError(f"config key {key!r} of {owner} must exceed {floor} ({cfg[floor]}), got {cfg[key]}")
         n, n_landmarks = cfg["n_robots"], cfg["n_landmarks"]
@@ -343,28 +346,32 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
             R[k] = self.relative_sensors[robot].range_bearing.noise_covariance(predicted[k, 0])[0]
         return predicted, H_pose, R
 
-    def _motion_commands(self, motions: np.ndarray) -> np.ndarray:
-        """``[speed, turn rate]`` (R, 2) of each robot's motion, steered from its estimated pose; ``stay`` is 0."""
-        cfg = self.config
-        poses = self.ekf.x.reshape(-1, POSE_DIM)
-        commands = steering_commands(
-            poses, MOTION_HEADINGS_RAD[motions], self.speeds_mps, cfg["max_turn_rate_rps"], cfg["time_step_s"]
-        )
-        return np.where((motions == STAY)[:, None], 0.0, commands)
+    def _motion_plan(self, motions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
+
+        A motion turns the *estimated* heading to its compass heading on the spot, then drives straight;
+        ``stay`` does neither. Turning on the spot and driving straight are both exact unicycle motions.
+        """
+        drives = motions != STAY
+        headings = self.ekf.x[2::POSE_DIM]
+        turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
+        return turns, np.where(drives, self.speeds_mps, 0.0)
 
     def _scan_gains(self, position_std: np.ndarray) -> np.ndarray:
-        """Map information [nats] each robot's scan would bring alone after each motion (R, 5).
+        """Map information [nats] each robot's scan would bring alone after each motion (R, 5); 0 for ``stay``.
 
-        0 for a motion that does not drive forward (``stay``, or a turn of more than 90 deg): it scans nothing new.
+        From the position the motion predicts (estimated position, compass heading, drive phase), with the
+        scan noise of the robot's current position std.
         """
-        n, dt = len(self.possible_agents), self.config["time_step_s"]
-        poses = self.ekf.x.reshape(-1, POSE_DIM)
-        speeds = np.stack([self._motion_commands(np.full(n, motion))[:, 0] for motion in range(N_MOTIONS)], axis=1)
-        heading = np.stack([np.cos(poses[:, 2]), np.sin(poses[:, 2])], axis=-1)
-        positions = poses[:, None, :2] + dt * speeds[..., None] * heading[:, None, :]
-        footprints = self.map_model.footprints(positions)
+        cfg = self.config
+        drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
+        reach = drive_s * self.speeds_mps[:, None] * (np.arange(N_MOTIONS) != STAY)  # (R, 5) [m]
+        directions = np.stack([np.cos(MOTION_HEADINGS_RAD), np.sin(MOTION_HEADINGS_RAD)], axis=-1)
+        positions = self.ekf.x.reshape(-1, POSE_DIM)[:, None, :2] + reach[..., None] * directions
         noise = self.map_model.scan_noise_variances(position_std)[:, None]
-        return np.where(speeds > 0.0, self.map_model.scan_gains(self.map_variances, footprints, noise), 0.0)
+        gains = self.map_model.scan_gains(self.map_variances, self.map_model.footprints(positions), noise)
+        gains[:, STAY] = 0.0
+        return gains
 
     def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
         """Observe at the prior, drive, predict, fuse DGPS, then scan; each robot's reward (see the class)."""
@@ -379,18 +386,11 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
         observed = slots > 0
         self.observations_left = self.observations_left - observed
         own_information = 0.5 * (relative.pose_log_det - np.linalg.slogdet(self.ekf.pose_covariances())[1])
-        commands = self._motion_commands(motions)
-        controls = self._drive(commands)
-        self.ekf.predict(
-            self.odometry.measure(controls, self._odometry_rng),
-            cfg["time_step_s"],
-            self._odometry_covariances,
-            check_input=False,
-        )
+        self._drive(*self._motion_plan(motions))
         self._time_s = (self._elapsed_steps + 1) * cfg["time_step_s"]
         self._gps_fixes()
         position_std = ActiveLocalizationEnv.position_std(self.ekf.pose_covariances())
-        map_information = self._scan(commands[:, 0] > 0.0, position_std)
+        map_information = self._scan(motions != STAY, position_std)
         self.lost = position_std > cfg["max_position_std_m"]
         self.success = bool(self.coverage >= cfg["coverage_target"] and not self.lost.any())
         weight = cfg["team_reward"]
@@ -426,13 +426,19 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
         ).reshape(-1, 2)
         self.ekf.landmark_update(robots, measurements, predicted, H_pose, R, check_input=False)
 
-    def _drive(self, commands: np.ndarray) -> np.ndarray:
-        """Drive every robot by its command for one step (Pymunk); the executed ``[speed, turn rate]`` (R, 2)."""
-        for robot, (speed, turn_rate) in enumerate(commands.tolist()):
-            self.world.command(speed, turn_rate, robot)
-        controls = self.world.step(self.config["time_step_s"])
+    def _drive(self, turns: np.ndarray, speeds: np.ndarray) -> None:
+        """Turn every robot on the spot, then drive it straight (Pymunk executes both); predict with odometry."""
+        cfg = self.config
+        turn_s = cfg["turn_time_s"]
+        turning = np.column_stack([np.zeros_like(speeds), turns / turn_s])
+        driving = np.column_stack([speeds, np.zeros_like(turns)])
+        for phase_s, commands in ((turn_s, turning), (cfg["time_step_s"] - turn_s, driving)):
+            for robot, (speed, turn_rate) in enumerate(commands.tolist()):
+                self.world.command(speed, turn_rate, robot)
+            controls = self.world.step(phase_s)
+            odometry = self.odometry.measure(controls, self._odometry_rng)
+            self.ekf.predict(odometry, phase_s, self._odometry_covariances, check_input=False)
         self._true_poses = self.world.poses
-        return controls
 
     def _scan(self, scanning: np.ndarray, position_std: np.ndarray) -> float:
         """Fuse the scans of the ``scanning`` robots from their true positions; the map information [nats]."""

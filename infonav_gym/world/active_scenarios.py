@@ -7,7 +7,6 @@ import math
 import numpy as np
 
 from infonav_gym.config import Interval, ParameterError, check_arguments
-from infonav_gym.geometry import wrap_angle
 from infonav_gym.world.scenarios import (
     FIELD_ARGUMENTS,
     MAX_FIELD_SIZE_M,
@@ -52,19 +51,6 @@ class CommandedWorld(World):
 
     def _waypoint_control(self, robot: int, x: float, y: float, heading: float) -> tuple[float, float]:
         return self._commands[robot]
-
-
-def steering_commands(poses: np.ndarray, desired_headings, speed_mps, max_turn_rate_rps: float, time_step_s: float):
-    """``[speed, turn rate]`` (B, 2) that steers each pose (B, 3) for its desired heading (B,) [rad] over one step.
-
-    The heading change is limited to ``max_turn_rate_rps * time_step_s``; the speed is
-    ``speed_mps * max(cos(turn), 0)`` for the whole heading change still to make (``speed_mps`` a number or (B,)).
-    """
-    turn = wrap_angle(desired_headings - poses[:, 2])
-    max_turn = max_turn_rate_rps * time_step_s
-    executed_turn = np.clip(turn, -max_turn, max_turn)
-    speed = speed_mps * np.maximum(np.cos(turn), 0.0)
-    return np.stack([speed, executed_turn / time_step_s], axis=-1)
 
 
 def goal_field(
