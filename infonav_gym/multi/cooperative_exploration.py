@@ -13,7 +13,6 @@ from infonav_gym.envs.active_localization import REWARD_WEIGHT, ActiveLocalizati
 from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS, Decision
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
-from infonav_gym.estimation.models import range_bearing
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.multi.base import InfoNavParallelEnv, team_metadata
 from infonav_gym.multi.cooperative_localization import CooperativeLocalizationEnv
@@ -23,6 +22,7 @@ from infonav_gym.multi.exploration_views import (
     ExplorationSight,
     ExplorationViews,
 )
+from infonav_gym.multi.landmark_sensing import LandmarkSensing
 from infonav_gym.multi.team import parse_outages, parse_speeds, parse_suites
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, RelativeSight, SensingPairs, TeamSensing, team_prior
 from infonav_gym.multi.terrain_map import TerrainMapModel
@@ -69,7 +69,7 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 }
 
 
-class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEnv):
+class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, InfoNavParallelEnv):
     """A heterogeneous team maps a field; each robot chooses where to drive and what to observe, together.
 
     ## Description
@@ -259,10 +259,6 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
     def action_space(self, agent: str) -> spaces.Discrete:
         return self._action_spaces[agent]
 
-    def decode_action(self, action: int) -> tuple[int, int]:
-        """``(slot, motion)`` of an action index: slot 0 nothing, ``1 + j`` landmark j, ``1 + L + j`` robot j."""
-        return divmod(int(action), N_MOTIONS)
-
     # ------------------------------------------------------------------ the episode
 
     def _reset_episode(self) -> None:
@@ -326,26 +322,6 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
             mask.reshape(n, -1).astype(np.int8), gains, ExplorationSight(relative, slot_valid, position_std)
         )
 
-    def _visible_landmarks(self) -> np.ndarray:
-        """Which landmarks each robot's sensor sees from its true pose: range, field of view, line of sight (R, L)."""
-        landmarks = self.world.landmarks
-        visible = np.zeros((len(self.possible_agents), len(landmarks)), dtype=bool)
-        for robot, sensor in enumerate(self.relative_sensors):
-            if sensor is None or not len(landmarks):
-                continue
-            covered = sensor.range_bearing.in_coverage(range_bearing(self._true_poses[robot], landmarks))
-            if covered.any():
-                visible[robot, covered] = self.world.line_of_sight(self._true_poses[robot, :2], landmarks[covered])
-        return visible
-
-    def _landmark_models(self, robots: np.ndarray, landmarks: np.ndarray):
-        """``(predicted (M, 2), H_pose (M, 2, 3), R (M, 2, 2))`` of robot ``robots[k]`` observing ``landmarks[k]``."""
-        predicted, H_pose = self.ekf.landmark_model(robots, self.world.landmarks[landmarks])
-        R = np.empty((len(robots), 2, 2))
-        for k, robot in enumerate(robots.tolist()):
-            R[k] = self.relative_sensors[robot].range_bearing.noise_covariance(predicted[k, 0])[0]
-        return predicted, H_pose, R
-
     def _motion_plan(self, motions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
 
@@ -382,7 +358,8 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
         observes_teammate = slots > n_landmarks
         teammate_choice = np.where(observes_teammate, slots - n_landmarks, NO_OBSERVATION)
         self._observe(teammate_choice, relative)
-        self._observe_landmarks(np.flatnonzero((slots > 0) & ~observes_teammate), slots)
+        landmark_observers = np.flatnonzero((slots > 0) & ~observes_teammate)
+        self._observe_landmarks(landmark_observers, slots[landmark_observers] - 1)
         observed = slots > 0
         self.observations_left = self.observations_left - observed
         own_information = 0.5 * (relative.pose_log_det - np.linalg.slogdet(self.ekf.pose_covariances())[1])
@@ -407,24 +384,6 @@ class CooperativeExplorationEnv(ExplorationViews, TeamSensing, InfoNavParallelEn
         ]
         costs = np.array([terms["sensing_cost"] + terms["motion_cost"] + lost_penalty for terms in self._reward_terms])
         return (1.0 - weight) * own_information + weight * map_information + costs
-
-    def _observe_landmarks(self, robots: np.ndarray, slots: np.ndarray) -> None:
-        """Fuse the landmark observations of ``robots`` (slot ``1 + j``: landmark j), linearized at the estimate."""
-        landmarks = slots[robots] - 1
-        self._observed_landmarks = list(zip(robots.tolist(), landmarks.tolist()))
-        if robots.size == 0:
-            return
-        predicted, H_pose, R = self._landmark_models(robots, landmarks)
-        positions = self.world.landmarks[landmarks]
-        measurements = np.array(
-            [
-                self.relative_sensors[robot].range_bearing.measure(
-                    self._true_poses[robot], position, self._landmark_rng
-                )
-                for robot, position in zip(robots.tolist(), positions)
-            ]
-        ).reshape(-1, 2)
-        self.ekf.landmark_update(robots, measurements, predicted, H_pose, R, check_input=False)
 
     def _drive(self, turns: np.ndarray, speeds: np.ndarray) -> None:
         """Turn every robot on the spot, then drive it straight (Pymunk executes both); predict with odometry."""
