@@ -73,3 +73,16 @@ def assert_identical(a, b, where: str = "value") -> None:
             assert_identical(x, y, f"{where}[{index}]")
     else:
         assert a == b, f"{where}: {a!r} != {b!r}"
+
+
+def random_valid_actions(env, infos: dict, rng: np.random.Generator) -> dict:
+    """A uniformly drawn valid action for every live agent of a team env."""
+    return {agent: int(rng.choice(np.flatnonzero(infos[agent]["action_mask"]))) for agent in env.agents}
+
+
+def greedy_actions(env, infos: dict) -> dict:
+    """Every live agent's valid action with the largest ``action_information_gain`` (lowest index on ties)."""
+    return {
+        agent: int(np.argmax(np.where(infos[agent]["action_mask"], infos[agent]["action_information_gain"], -1)))
+        for agent in env.agents
+    }

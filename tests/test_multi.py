@@ -9,7 +9,7 @@ import pickle  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-from conftest import assert_identical  # noqa: E402
+from conftest import assert_identical, greedy_actions, random_valid_actions  # noqa: E402
 from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test  # noqa: E402
 
 from infonav_gym.information import mutual_information  # noqa: E402
@@ -18,17 +18,6 @@ from infonav_gym.multi.team import KNOWN_SENSORS  # noqa: E402
 
 SCENARIO_CASES = [{}, {"scenario": "convoy", "n_robots": 3}]
 scenarios = pytest.mark.parametrize("config", SCENARIO_CASES, ids=["team_field", "convoy"])
-
-
-def random_valid_actions(env, infos: dict, rng: np.random.Generator) -> dict:
-    return {agent: int(rng.choice(np.flatnonzero(infos[agent]["action_mask"]))) for agent in env.agents}
-
-
-def greedy_actions(env, infos: dict) -> dict:
-    return {
-        agent: int(np.argmax(np.where(infos[agent]["action_mask"], infos[agent]["action_information_gain"], -1)))
-        for agent in env.agents
-    }
 
 
 @scenarios
@@ -73,16 +62,6 @@ def test_different_seeds_give_different_worlds_and_reset_replays_an_episode():
     assert not np.array_equal(a["robot_0"], b["robot_0"])
     replay, _ = env.reset(seed=1)
     assert_identical(a, replay)
-
-
-def test_pickled_env_continues_identically():
-    env = cooperative_localization_v0.parallel_env()
-    _, infos = env.reset(seed=4)
-    for _ in range(5):
-        _, _, _, _, infos = env.step(greedy_actions(env, infos))
-    twin = pickle.loads(pickle.dumps(env))
-    actions = greedy_actions(env, infos)
-    assert_identical(env.step(actions), twin.step(actions))
 
 
 def test_infos_carry_masks_gains_gps_errors_and_entropies():

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import pickle
 import subprocess
 import sys
 
@@ -15,6 +16,7 @@ import env_checks
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import assert_identical, greedy_actions
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 from scipy import stats
@@ -150,7 +152,8 @@ def test_every_builtin_env_is_registered_once_and_register_envs_is_idempotent():
     assert [entry.id for entry in registered_envs()] == ids
     for env_id, spec in gymnasium_entries.items():
         assert gym.registry[env_id] is spec and spec.entry_point == env_entry(env_id).entry_point
-    assert [entry.id for entry in registered_envs(PARALLEL)] == [TEAM_ID] and TEAM_ID not in gym.registry
+    assert [entry.id for entry in registered_envs(PARALLEL)] == [TEAM_ID, "cooperative_exploration_v0"]
+    assert TEAM_ID not in gym.registry and "cooperative_exploration_v0" not in gym.registry
 
 
 def test_importing_the_package_registers_without_importing_any_env_module():
@@ -199,6 +202,17 @@ def test_a_parallel_envs_infos_hold_the_declared_keys_and_reward_terms(entry):
         infos = env.step(actions)[4]
         assert all(tuple(info["reward_terms"]) == declared.reward_terms for info in infos.values())
         assert all(info["action_information_gain"][list(declared.idle_actions)].max() == 0.0 for info in infos.values())
+
+
+@pytest.mark.parametrize("entry", registered_envs(PARALLEL), ids=lambda entry: entry.id)
+def test_a_pickled_parallel_env_continues_identically(entry):
+    env = make_env(entry.id)
+    _, infos = env.reset(seed=4)
+    for _ in range(5):
+        _, _, _, _, infos = env.step(greedy_actions(env, infos))
+    twin = pickle.loads(pickle.dumps(env))
+    actions = greedy_actions(env, infos)
+    assert_identical(env.step(actions), twin.step(actions))
 
 
 def test_make_env_builds_the_parallel_env_by_its_id_with_config():

@@ -127,6 +127,24 @@ def team_mean_root_mean_square(key: str) -> Callable[[Sequence[dict]], float]:
     return compute
 
 
+def team_total_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
+    """A parallel env's sum over steps and agents of ``reward_terms[term]`` (a term of each robot's own)."""
+
+    def compute(steps: Sequence[dict]) -> float:
+        return math.fsum(info["reward_terms"][term] for infos in steps for info in infos.values())
+
+    return compute
+
+
+def team_final_flag(key: str) -> Callable[[Sequence[dict]], float]:
+    """1.0 if the first agent's ``info[key]`` (a flag every agent shares) is true at a parallel env's last step."""
+
+    def compute(steps: Sequence[dict]) -> float:
+        return float(bool(next(iter(steps[-1].values()))[key]))
+
+    return compute
+
+
 CUMULATIVE_MI_TITLE = "cumulative MI [nats]"
 POSE_ENTROPY_TITLE = "final pose entropy [nats]"
 RMSE_TITLE = "position RMSE [m]"

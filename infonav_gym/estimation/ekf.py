@@ -421,6 +421,62 @@ class JointEKF(ExtendedKalmanFilter):
         log_dets = np.linalg.slogdet(np.concatenate([P_oo, posterior, S, R]))[1].reshape(4, -1)
         return 0.5 * (log_dets[0] - log_dets[1]), 0.5 * (log_dets[2] - log_dets[3])
 
+    def landmark_model(self, robots, landmarks) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted range-bearing of known landmark ``landmarks[k]`` from robot ``robots[k]``, with its Jacobian.
+
+        Args:
+            robots: robot indices (M,).
+            landmarks: known landmark positions (M, 2) [m].
+
+        Returns:
+            ``(predicted (M, 2), H_pose (M, 2, 3))``: ``[range, bearing]`` and its Jacobian w.r.t. the robot's pose.
+        """
+        poses = self.x.reshape(-1, POSE_DIM)[np.atleast_1d(robots)]
+        predicted, H_pose, _ = range_bearing_linearized(poses.T, landmarks)
+        return predicted, H_pose
+
+    def landmark_update(self, robots, measurements, predicted, H_pose, R, *, check_input: bool = True) -> None:
+        """Update with range-bearing measurements of known landmarks taken at the same time (one stacked update).
+
+        Measurement ``k`` is ``[range, bearing]`` of a landmark seen by robot ``robots[k]``; ``predicted`` and
+        ``H_pose`` come from ``landmark_model`` at the current prior. Through the cross-covariances the update
+        also corrects the teammates correlated with the observers.
+
+        Args:
+            robots: robot indices (k,).
+            measurements, predicted: (k, 2).
+            H_pose: (k, 2, 3).
+            R: noise covariances (k, 2, 2), independent between measurements, symmetric positive definite.
+            check_input: check shapes, finiteness, indices and ``R`` (``ValueError`` naming a bad argument);
+                ``False`` for known-good inputs.
+        """
+        if check_input:
+            robots = _robot_indices("robots", robots, self.n_robots)
+            k = len(robots)
+            measurements = _finite("measurements", measurements, (k, 2))
+            predicted = _finite("predicted", predicted, (k, 2))
+            H_pose = _finite("H_pose", H_pose, (k, 2, POSE_DIM))
+            R = _noise_covariance("R", R, (k, 2, 2))
+        robots = np.atleast_1d(robots)
+        if robots.size == 0:
+            return
+        H = self._stacked_jacobian(robots, H_pose)
+        residual = np.subtract(measurements, predicted)
+        residual[:, 1] = wrap_angle(residual[:, 1])
+        _kalman_update(self, np.ravel(measurements), residual.ravel(), H, block_diagonal(R), self._headings)
+        self._drop_cross_covariances()
+
+    def landmark_information_gains(self, robots, H_pose, R) -> np.ndarray:
+        """Expected MI of each candidate landmark update, alone at the current prior [nats] (M,).
+
+        The measurement depends on the observer's pose only, so its MI on the joint state equals its MI on
+        the observer's own pose: ``0.5 ln(det S / det R)``, ``S = H P_oo H^T + R``.
+        """
+        robots = np.atleast_1d(robots)
+        P_oo = self._blocks()[robots, robots]
+        S = H_pose @ P_oo @ np.swapaxes(H_pose, 1, 2) + R
+        return 0.5 * (np.linalg.slogdet(S)[1] - np.linalg.slogdet(R)[1])
+
     def _drop_cross_covariances(self) -> None:
         if not self.cross_covariances:
             self.P = self.P * self._own_block

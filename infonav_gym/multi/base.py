@@ -2,11 +2,12 @@
 
 The parallel counterpart of ``infonav_gym.envs.base.InfoNavEnv``, with the same ``Decision``,
 action checks (``discrete_action_index``, ``accepts_action``) and rendering. Robot ``k`` is agent
-``possible_agents[k]``; every live agent acts every step, and all are truncated together after
-``max_cycles`` steps. Subclasses never override ``reset`` or ``step``; they implement the declared
-hooks ``_reset_episode``, ``_next_decision``, ``_apply_actions``, ``_advance``, ``_observations``,
-``_infos`` and ``_scene_frame``, and set ``possible_agents``, ``max_cycles``, ``traits`` (with its ``noop_action``) and
-one ``Discrete`` space per agent (``action_space(agent)``) in ``__init__``. One step runs::
+``possible_agents[k]``; every live agent acts every step, and all end together: terminated when the
+optional hook ``_is_terminated`` says so, else truncated after ``max_cycles`` steps. Subclasses never
+override ``reset`` or ``step``; they implement the declared hooks ``_reset_episode``, ``_next_decision``,
+``_apply_actions``, ``_advance``, ``_observations``, ``_infos`` and ``_scene_frame``, and set
+``possible_agents``, ``max_cycles``, ``traits`` (with its ``noop_action``) and one ``Discrete`` space
+per agent (``action_space(agent)``) in ``__init__``. One step runs::
 
     actions -> validate (decision.action_mask) -> _apply_actions(actions, decision) -> _advance()
     -> decision = _next_decision() -> _observations(), _infos()
@@ -19,9 +20,38 @@ import abc
 import numpy as np
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
+from pettingzoo.utils.conversions import parallel_to_aec_wrapper
+from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from infonav_gym.envs.base import Decision, SceneRendering, accepts_action, discrete_action_index
 from infonav_gym.envs.traits import EnvTraits
+
+
+def team_metadata(name: str) -> dict:
+    """A fresh ``metadata`` dict of a team env named ``name`` (its versioned module's name)."""
+    return {"name": name, "render_modes": ["human", "rgb_array"], "render_fps": 10, "is_parallelizable": True}
+
+
+def pettingzoo_entry_points(env_class) -> tuple:
+    """The versioned module's ``(parallel_env, raw_env, env)`` of a team env class, as PettingZoo's envs have them.
+
+    ``parallel_env(render_mode=None, **config)`` is the env itself; ``raw_env`` its AEC conversion; ``env``
+    the AEC env with PettingZoo's order-enforcing wrapper (the one to use for turn-based code).
+    """
+
+    def parallel_env(render_mode: str | None = None, **config):
+        """The parallel env: every robot acts at every step."""
+        return env_class(render_mode=render_mode, **config)
+
+    def raw_env(render_mode: str | None = None, **config) -> parallel_to_aec_wrapper:
+        """The AEC (agent-by-agent) conversion of ``parallel_env``, without wrappers."""
+        return parallel_to_aec_wrapper(parallel_env(render_mode=render_mode, **config))
+
+    def env(render_mode: str | None = None, **config) -> OrderEnforcingWrapper:
+        """The AEC env, wrapped to enforce PettingZoo's call order."""
+        return OrderEnforcingWrapper(raw_env(render_mode=render_mode, **config))
+
+    return parallel_env, raw_env, env
 
 
 class InfoNavParallelEnv(SceneRendering, ParallelEnv):
@@ -69,10 +99,11 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
         self._advance()
         self._decision = self._next_decision().frozen()
         observations, infos = self._observations(), self._infos()
-        truncated = self._elapsed_steps >= self.max_cycles
-        terminations = dict.fromkeys(self.agents, False)
+        terminated = self._is_terminated()
+        truncated = not terminated and self._elapsed_steps >= self.max_cycles
+        terminations = dict.fromkeys(self.agents, terminated)
         truncations = dict.fromkeys(self.agents, truncated)
-        if truncated:
+        if terminated or truncated:
             self.agents = []
         if self.render_mode == "human":
             self.render()
@@ -93,6 +124,18 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
             else:
                 invalid[robot] = True
         return chosen, invalid
+
+    def _decision_info(self, robot: int) -> dict:
+        """The info keys every team env gives robot ``robot``: its mask, gains, reward terms and executed action."""
+        decision = self._decision
+        return {
+            "action_mask": decision.action_mask[robot].copy(),
+            "action_information_gain": decision.action_information_gain[robot].copy(),
+            "reward_terms": dict(self._reward_terms[robot]),
+            "chosen_action": int(self._chosen[robot]),
+            "invalid_action": bool(self._invalid[robot]),
+            "gps_available": bool(self._gps_available[robot]),
+        }
 
     # ------------------------------------------------------------------ the hooks
 
@@ -124,6 +167,13 @@ class InfoNavParallelEnv(SceneRendering, ParallelEnv):
     @abc.abstractmethod
     def _advance(self) -> None:
         """Hook: move time on by one step after ``_apply_actions`` (``_elapsed_steps`` already counts it)."""
+
+    def _is_terminated(self) -> bool:
+        """Optional hook: whether the episode has ended for the whole team (after ``_next_decision``); read-only.
+
+        The default never ends it: all agents are truncated after ``max_cycles`` steps.
+        """
+        return False
 
     @abc.abstractmethod
     def _observations(self) -> dict:

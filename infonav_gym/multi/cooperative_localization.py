@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -13,15 +12,16 @@ from infonav_gym.envs.base import EPISODE_STEPS, Decision
 from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
-from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
-from infonav_gym.multi.base import InfoNavParallelEnv
+from infonav_gym.multi.base import InfoNavParallelEnv, team_metadata
 from infonav_gym.multi.team import DEFAULT_OUTAGE, parse_outages, parse_suites
-from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
+from infonav_gym.multi.team_paths import TeamPaths
+from infonav_gym.multi.team_sensing import NO_OBSERVATION, RelativeSight, SensingPairs, TeamSensing, team_prior
+from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
-from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances, noisy_relative_poses
+from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances
 from infonav_gym.world.scenarios import (
     DEFAULT_WAYPOINTS,
     MAX_ROBOTS,
@@ -42,7 +42,6 @@ TEAM_SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives 
 }
 OWN_FEATURES = 10
 TEAMMATE_FEATURES = 5
-NO_OBSERVATION = 0
 _BIG = 1e4
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
     "max_cycles": EPISODE_STEPS,
@@ -53,71 +52,7 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 }
 
 
-class RelativeSight(NamedTuple):
-    """The relative-pose observations possible at a decision, and what their stacked update needs.
-
-    Immutable (a named tuple: cheap to build every step).
-
-    Attributes:
-        geometry: true range, bearing and relative heading of every (observer, target) pair (P, 3).
-        valid_pairs: the pairs observable now (V,), indices into the env's pair arrays.
-        candidate_row: for each robot and action, its row among the valid pairs, -1 where masked (N, N + 1).
-        candidates: ``(predicted (V, 3), H_observer (V, 3, 3), H_target (V, 3, 3), R (V, 3, 3))`` at
-            the prior, ``None`` when no pair is observable.
-        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (N,).
-        pose_std: each robot's x, y, heading standard deviations at the prior (N, 3).
-    """
-
-    geometry: np.ndarray
-    valid_pairs: np.ndarray
-    candidate_row: np.ndarray
-    candidates: tuple | None
-    pose_log_det: np.ndarray
-    pose_std: np.ndarray
-
-
-class SensingPairs(NamedTuple):
-    """The (observer, target) robot pairs P of a team whose observer carries a relative-pose sensor.
-
-    Attributes:
-        observers, targets: robot indices of each pair (P,).
-        noise: the observer's ``RelativePoseSensor.noise_parameters()`` per pair (P, 5).
-        max_range_m: the observer's sensor range per pair (P,) [m].
-        half_fov_rad: half its field of view per pair (P,) [rad].
-        sight_lines: the robot pairs ``(i, j)``, ``i < j``, whose line of sight some pair needs (symmetric).
-        sight_line: each pair's index into ``sight_lines`` (P,).
-    """
-
-    observers: np.ndarray
-    targets: np.ndarray
-    noise: np.ndarray
-    max_range_m: np.ndarray
-    half_fov_rad: np.ndarray
-    sight_lines: list[tuple[int, int]]
-    sight_line: np.ndarray
-
-    @classmethod
-    def of_team(cls, relative_sensors) -> SensingPairs:
-        """The pairs of a team whose robot ``k`` carries ``relative_sensors[k]`` (a ``RelativePoseSensor`` or None)."""
-        n = len(relative_sensors)
-        pairs = [(i, j) for i in range(n) for j in range(n) if i != j and relative_sensors[i] is not None]
-        sight_lines = sorted({(min(i, j), max(i, j)) for i, j in pairs})
-        return cls(
-            observers=np.array([i for i, _ in pairs], dtype=int),
-            targets=np.array([j for _, j in pairs], dtype=int),
-            noise=np.array([relative_sensors[i].noise_parameters() for i, _ in pairs]).reshape(-1, 5),
-            max_range_m=np.array([relative_sensors[i].max_range_m for i, _ in pairs]),
-            half_fov_rad=np.array([0.5 * relative_sensors[i].range_bearing.fov_rad for i, _ in pairs]),
-            sight_lines=sight_lines,
-            sight_line=np.array([sight_lines.index((min(i, j), max(i, j))) for i, j in pairs], dtype=int),
-        )
-
-    def covered(self, geometry: np.ndarray) -> np.ndarray:
-        """Which pairs' true ``[range, bearing, ...]`` (..., P, 3) lie in the observer's range and field of view."""
-        return (geometry[..., 0] <= self.max_range_m) & (np.abs(geometry[..., 1]) <= self.half_fov_rad)
-
-
-class CooperativeLocalizationEnv(InfoNavParallelEnv):
+class CooperativeLocalizationEnv(TeamSensing, TeamPaths, InfoNavParallelEnv):
     """Robots without (or losing) DGPS localize through relative-pose observations of teammates.
 
     ## Description
@@ -202,12 +137,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         noop_action=NO_OBSERVATION,
     )
 
-    metadata = {
-        "name": "cooperative_localization_v0",
-        "render_modes": ["human", "rgb_array"],
-        "render_fps": 10,
-        "is_parallelizable": True,
-    }
+    metadata = team_metadata("cooperative_localization_v0")
 
     @classmethod
     def default_config(cls) -> dict:
@@ -294,8 +224,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         self._observed_pairs = []
         self._reward_terms = [{"own_mutual_information": 0.0, "team_mutual_information": 0.0}] * n
         self._updated_pose_std = None
-        self._true_paths = [PathHistory(pose[:2]) for pose in self._true_poses]
-        self._estimated_paths = [PathHistory(pose[:2]) for pose in self.ekf.poses]
+        self._start_paths()
 
     def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
         """Fuse the chosen observations; each robot's reward mixes its own and the team's MI by ``team_reward``."""
@@ -311,21 +240,6 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         ]
         return (1.0 - weight) * own_mi + weight * team_mi
 
-    def _observe(self, chosen: np.ndarray, sight: RelativeSight) -> None:
-        """Apply the chosen relative-pose observations, taken at the same time, as one stacked update."""
-        observers = np.flatnonzero(chosen != NO_OBSERVATION)
-        targets = chosen[observers] - 1
-        self._observed_pairs = list(zip(observers.tolist(), targets.tolist()))
-        if observers.size == 0:
-            return
-        rows = sight.candidate_row[observers, chosen[observers]]
-        predicted, H_observer, H_target, R = (part[rows] for part in sight.candidates)
-        pairs = sight.valid_pairs[rows]
-        measurements = noisy_relative_poses(sight.geometry[pairs], self.pairs.noise[pairs], self._relative_rng)
-        self.ekf.relative_pose_update(
-            observers, targets, measurements, predicted, H_observer, H_target, R, check_input=False
-        )
-
     def _advance(self) -> None:
         """Move every robot, predict with its noisy odometry, then fuse the DGPS fixes available."""
         dt = self.config["time_step_s"]
@@ -336,36 +250,13 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         )
         self._time_s = self._elapsed_steps * dt
         self._gps_fixes()
-        for robot, (true_pose, estimate) in enumerate(zip(self._true_poses, self.ekf.x.reshape(-1, POSE_DIM))):
-            self._true_paths[robot].append(true_pose[:2])
-            self._estimated_paths[robot].append(estimate[:2])  # PathHistory copies
-
-    def _gps_fixes(self) -> None:
-        denied = self.world.gps_denied(self._true_poses[:, :2])
-        self._gps_available = np.array(
-            [gps is not None and gps.available(self._time_s, bool(denied[k])) for k, gps in enumerate(self.gps)]
-        )
-        robots = np.flatnonzero(self._gps_available)
-        if robots.size:
-            fixes = np.array([self.gps[k].measure(self._true_poses[k, :2], self._gps_rng) for k in robots])
-            covariances = np.array([self.gps[k].noise_covariance() for k in robots])
-            self.ekf.gps_update(robots, fixes, covariances, check_input=False)
-
-    def _pose_uncertainty(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per robot, ``ln det`` of its pose covariance (N,) and its x, y, heading standard deviations (N, 3)."""
-        covariances = self.ekf.pose_covariances()
-        return np.linalg.slogdet(covariances)[1], np.sqrt(np.diagonal(covariances, axis1=1, axis2=2))
+        self._extend_paths()
 
     def _next_decision(self) -> Decision:
         """Action masks (who can see whom) and expected gains on the observer's own pose, at the current prior."""
         n = len(self.possible_agents)
-        truth = self._true_poses
         pairs = self.pairs
-        geometry = relative_pose(truth[pairs.observers], truth[pairs.targets])
-        covered = np.flatnonzero(pairs.covered(geometry))
-        lines = sorted(set(pairs.sight_line[covered].tolist()))
-        clear = dict(zip(lines, self.world.robots_in_sight([pairs.sight_lines[line] for line in lines])))
-        valid = covered[[clear[line] for line in pairs.sight_line[covered].tolist()]]
+        geometry, valid = self._observable_pairs()
         observers, targets = pairs.observers[valid], pairs.targets[valid]
         mask = np.zeros((n, n + 1), dtype=np.int8)
         mask[:, NO_OBSERVATION] = 1
@@ -410,12 +301,7 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
         for robot, agent in enumerate(self.agents):
             true_pose, estimate = self._true_poses[robot], estimates[robot]
             infos[agent] = {
-                "action_mask": decision.action_mask[robot].copy(),
-                "action_information_gain": decision.action_information_gain[robot].copy(),
-                "reward_terms": dict(self._reward_terms[robot]),
-                "chosen_action": int(self._chosen[robot]),
-                "invalid_action": bool(self._invalid[robot]),
-                "gps_available": bool(self._gps_available[robot]),
+                **self._decision_info(robot),
                 "position_error_m": math.dist(true_pose[:2], estimate[:2]),
                 "heading_error_rad": abs(wrap_angle(float(true_pose[2] - estimate[2]))),
                 "pose_entropy": float(entropies[robot]),
@@ -431,23 +317,11 @@ class CooperativeLocalizationEnv(InfoNavParallelEnv):
 
     def _scene_frame(self):
         scenario = self.world.scenario
-        estimates = self.ekf.poses
-        robots = [
-            RobotDrawing(
-                true_pose=self._true_poses[k],
-                estimated_pose=estimates[k],
-                pose_covariance=self.ekf.pose_covariance(k),
-                true_path=self._true_paths[k].points(),
-                estimated_path=self._estimated_paths[k].points(),
-                label=f"{self.possible_agents[k]}{'' if self._gps_available[k] else ', no GPS'}",
-            )
-            for k in range(len(self.possible_agents))
-        ]
         return SceneFrame(
             bounds=scenario.bounds,
             walls=scenario.walls,
             obstacles=scenario.obstacles,
-            robots=robots,
+            robots=self._robot_drawings(),
             observations=list(self._observed_pairs),
             gps_denied_zones=scenario.gps_denied_zones,
             caption=f"t = {self._time_s:.1f} s   {len(self._observed_pairs)} relative observations this step",
@@ -473,9 +347,7 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
     n = config["n_robots"]
     scenario = scenario_from_config(config, np_random, TEAM_SCENARIO_KEYS, owner, n)
     odometry_rng, gps_rng, relative_rng = np_random.spawn(3)
-    pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    initial = np.array(start_poses(scenario)) + pose_std * np_random.standard_normal((n, POSE_DIM))
-    covariances = np.repeat(np.diag(pose_std**2)[None], n, axis=0)
+    initial, covariances = team_prior(config, np.array(start_poses(scenario)), np_random)
     return scenario, initial, covariances, odometry_rng, gps_rng, relative_rng
 
 

@@ -1,7 +1,9 @@
-"""A team's sensor suites and DGPS outage schedule, parsed from the env config with clear errors."""
+"""A team's sensor suites, DGPS outage schedule and speeds, parsed from the env config with clear errors."""
 
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -86,3 +88,22 @@ def parse_outages(spec, n_robots: int) -> tuple[tuple[tuple[float, float], ...],
             raise ValueError(f"a gps_outages span must have start_s < end_s, got {triple!r}")
         spans[robot].append((start_s, end_s))
     return tuple(tuple(robot_spans) for robot_spans in spans)
+
+
+def parse_speeds(spec, defaults: Sequence[float], n_robots: int, high_mps: float) -> tuple[float, ...]:
+    """Each robot's cruise speed [m/s] from ``robot_speeds_mps``: None for ``defaults[k % len(defaults)]``.
+
+    Raises:
+        ValueError: naming ``robot_speeds_mps``, for a spec that is not one number per robot, or a speed
+            outside (0, ``high_mps``].
+    """
+    if spec is None:
+        return tuple(float(defaults[robot % len(defaults)]) for robot in range(n_robots))
+    if isinstance(spec, str) or not isinstance(spec, Sequence) or len(spec) != n_robots:
+        raise ValueError(f"robot_speeds_mps must list one speed [m/s] per robot ({n_robots}), got {spec!r}")
+    for speed in spec:
+        if not (isinstance(speed, numbers.Real) and not isinstance(speed, bool) and math.isfinite(speed)):
+            raise ValueError(f"robot_speeds_mps must hold numbers [m/s], got {speed!r} in {spec!r}")
+        if not 0.0 < speed <= high_mps:
+            raise ValueError(f"each of robot_speeds_mps must be in (0, {high_mps:g}] m/s, got {speed!r}")
+    return tuple(float(speed) for speed in spec)

@@ -1,0 +1,77 @@
+"""The coverage map of ``cooperative_exploration_v0``: a grid of terrain heights, each a Gaussian, mapped by scans.
+
+Cell ``c`` holds the variance ``v_c`` of its terrain height estimate [m^2], ``prior_std_m^2`` before any scan.
+A robot's scan measures the height of every cell whose centre lies within ``scan_radius_m`` of it, with noise
+variance ``r = scan_std_m^2 + (terrain_slope * sigma)^2``: a position error ``sigma`` [m] puts the height at the
+wrong place, and on terrain of slope ``terrain_slope`` [m/m] that is a height error. Scans of one step fuse in
+information form, ``1 / v_c' = 1 / v_c + sum_k 1 / r_k``, and the map information they bring is the entropy
+reduction ``0.5 sum_c ln(v_c / v_c')`` [nats], exact before the measured heights are known. A cell is covered
+once its std is at most ``covered_std_m``. Pure numpy on arrays with any leading batch dimensions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class TerrainMapModel:
+    """The static part of the coverage map; its state is the cell variances, an array the env keeps.
+
+    Attributes:
+        centers: cell centres (G, 2) [m], row-major from the field's lower left corner.
+        prior_std_m: height std of an unscanned cell [m].
+        scan_radius_m: a scan sees the cells whose centre lies this close [m].
+        scan_std_m: height noise std of a scan from a perfectly known position [m].
+        terrain_slope: height error per metre of position error [m/m].
+        covered_std_m: a cell is covered once its height std is at most this [m].
+    """
+
+    centers: np.ndarray
+    prior_std_m: float
+    scan_radius_m: float
+    scan_std_m: float
+    terrain_slope: float
+    covered_std_m: float
+
+    @classmethod
+    def square(cls, size_m: float, cells_per_side: int, **parameters) -> TerrainMapModel:
+        """The model of a square field of side ``size_m`` [m] cut into ``cells_per_side`` x ``cells_per_side`` cells."""
+        ticks = (np.arange(cells_per_side) + 0.5) * size_m / cells_per_side
+        x, y = np.meshgrid(ticks, ticks)
+        return cls(np.column_stack([x.ravel(), y.ravel()]), **parameters)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.centers)
+
+    def prior_variances(self) -> np.ndarray:
+        """A fresh map: every cell at the prior variance (G,) [m^2]."""
+        return np.full(self.n_cells, self.prior_std_m**2)
+
+    def footprints(self, positions: np.ndarray) -> np.ndarray:
+        """Which cells a scan from each position (..., 2) [m] sees (..., G) bool."""
+        offsets = positions[..., None, :] - self.centers
+        return np.einsum("...gi,...gi->...g", offsets, offsets) <= self.scan_radius_m**2
+
+    def scan_noise_variances(self, position_std_m) -> np.ndarray:
+        """Height noise variance [m^2] of a scan from a position known to ``position_std_m`` [m] (any shape)."""
+        return self.scan_std_m**2 + (self.terrain_slope * np.asarray(position_std_m)) ** 2
+
+    def scan_gains(self, variances: np.ndarray, footprints: np.ndarray, noise_variances) -> np.ndarray:
+        """Map information [nats] each scan (..., G footprint, ... noise variance) would bring alone.
+
+        ``0.5 sum_c ln(1 + v_c / r)`` over the cells the scan sees.
+        """
+        return 0.5 * np.sum(footprints * np.log1p(variances / np.asarray(noise_variances)[..., None]), axis=-1)
+
+    def fused(self, variances: np.ndarray, footprints: np.ndarray, noise_variances) -> np.ndarray:
+        """The cell variances (G,) after the scans (S, G footprints, (S,) noise variances) of one step."""
+        information = np.sum(footprints / np.asarray(noise_variances)[:, None], axis=0)
+        return 1.0 / (1.0 / variances + information)
+
+    def coverage(self, variances: np.ndarray) -> np.ndarray:
+        """The fraction of cells covered (height std at most ``covered_std_m``) (...)."""
+        return np.mean(variances <= self.covered_std_m**2, axis=-1)
