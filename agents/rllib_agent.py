@@ -40,7 +40,7 @@ class RLlibAgent:
         import_ray()  # a missing extra: a one-line ValueError saying what to install
         from ray.rllib.core.rl_module.rl_module import RLModule
 
-        directory = Path(directory)
+        directory = Path(directory).resolve()  # RLlib opens checkpoints by absolute URI
         record_path = directory / "train.json"
         if not record_path.is_file() or not (directory / CHECKPOINT_DIR).is_dir():
             raise ValueError(

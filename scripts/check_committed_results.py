@@ -4,12 +4,14 @@ Usage: ``python scripts/check_committed_results.py [--episodes 5] [--rtol 1e-9] 
 Exits 1 and names the file, agent, seed and metric when a number differs by more than ``rtol``
 (``--rtol 0``: bit for bit; the committed files were written on other machines, whose BLAS may
 round the last digit differently). ``--save DIR`` writes the fresh evaluations there, to compare
-a later run against them bit for bit (``--rtol 0 DIR/*.json``).
+a later run against them bit for bit (``--rtol 0 DIR/*.json``). A file whose agents need an extra that
+is not installed (``rllib:`` without Ray) is skipped, saying so.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import math
 import sys
@@ -23,6 +25,14 @@ RESULTS = Path(__file__).resolve().parent.parent / "results"
 def evaluations(paths: list[Path]) -> list[Path]:
     """The given files, or every ``results/*.json`` written by ``infonav evaluate``."""
     return paths or [path for path in sorted(RESULTS.glob("*.json")) if "agents" in json.loads(path.read_text())]
+
+
+def missing_extra(path: Path) -> str | None:
+    """Why ``path``'s agents cannot run here (an ``rllib:`` agent without Ray), or None."""
+    agents = json.loads(path.read_text())["agents"]
+    if any(name.startswith("rllib:") for name in agents) and importlib.util.find_spec("ray") is None:
+        return 'its rllib: agent needs Ray (pip install "infonav-gym[distributed]")'
+    return None
 
 
 def differences(path: Path, episodes: int, rtol: float, save: Path | None = None) -> list[str]:
@@ -53,6 +63,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     failures = []
     for path in evaluations(args.files):
+        if reason := missing_extra(path):
+            print(f"{path.name}: skipped, {reason}", flush=True)
+            continue
         found = differences(path, args.episodes, args.rtol, args.save)
         print(f"{path.name}: {'reproduced' if not found else f'{len(found)} differences'}", flush=True)
         failures += found

@@ -156,6 +156,15 @@ def test_a_restored_module_gives_the_trained_modules_actions(local_ray, tmp_path
         algorithm.stop()
 
 
+def test_an_agent_takes_a_relative_directory(landmark_run, monkeypatch):
+    output, _ = landmark_run
+    monkeypatch.chdir(output.parent)
+    env = gym.make(LANDMARK_ID, horizon=40)
+    _, info = env.reset(seed=0)
+    action = RLlibAgent(output.name, env).act(env.observation_space.sample() * 0, info)
+    assert info["action_mask"][action] or not info["action_mask"].any()
+
+
 def test_an_agent_refuses_a_directory_without_a_checkpoint_or_another_env(landmark_run, tmp_path):
     output, _ = landmark_run
     with pytest.raises(ValueError, match="is not an RLlib training directory"):
