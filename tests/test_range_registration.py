@@ -107,6 +107,9 @@ def test_gain_is_the_mutual_information_a_patch_adds_to_the_chosen_ones():
         ("point_cost", -1.0),
         ("odometry_xy_std_m", 0.0),
         ("icp_method", "magic"),
+        ("icp_robust_kernel", None),
+        ("icp_robust_kernel", "welsch"),
+        ("icp_kernel_scale_m", 0.0),
         ("max_correspondence_distance_m", 0.0),
     ],
 )

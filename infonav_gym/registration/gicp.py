@@ -50,7 +50,7 @@ def neighbour_covariances(points: np.ndarray, neighbours: int, tree: cKDTree | N
     _, index = tree.query(points, k=neighbours, workers=QUERY_WORKERS)
     patches = points[index]
     patches -= patches.mean(axis=1, keepdims=True)
-    return np.einsum("nki,nkj->nij", patches, patches) / (neighbours - 1)
+    return np.swapaxes(patches, 1, 2) @ patches / (neighbours - 1)
 
 
 def plane_covariances(covariances: np.ndarray) -> np.ndarray:
@@ -65,6 +65,28 @@ def gicp_covariances(points, neighbours: int = GICP_NEIGHBOURS, tree: cKDTree | 
     return plane_covariances(neighbour_covariances(np.asarray(points, dtype=float), neighbours, tree))
 
 
+def symmetric_inverse(matrices: np.ndarray) -> np.ndarray:
+    """Inverses (K, 3, 3) of symmetric (K, 3, 3) ``matrices`` by the adjugate (faster than ``np.linalg.inv``)."""
+    a, b, c = matrices[:, 0, 0], matrices[:, 0, 1], matrices[:, 0, 2]
+    d, e, f = matrices[:, 1, 1], matrices[:, 1, 2], matrices[:, 2, 2]
+    cofactors = [d * f - e * e, c * e - b * f, b * e - c * d, a * f - c * c, b * c - a * e, a * d - b * b]
+    scale = 1.0 / (a * cofactors[0] + b * cofactors[1] + c * cofactors[2])
+    first, second, third, fourth, fifth, sixth = (cofactor * scale for cofactor in cofactors)
+    return np.stack([first, second, third, second, fourth, fifth, third, fifth, sixth], axis=1).reshape(-1, 3, 3)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` along the last axis of broadcastable (..., 3) arrays, without ``np.cross``'s overhead."""
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+
+
 def gicp_step(
     moved: np.ndarray,
     matched: np.ndarray,
@@ -74,22 +96,24 @@ def gicp_step(
 ) -> np.ndarray:
     """The Gauss-Newton step ``(w, v)`` (6,) for the pairs ``moved`` -> ``matched`` (K, 3).
 
-    ``combined`` (K, 3, 3) holds ``C_q + R C_p R^T`` per pair; the step's rotation ``w`` [rad] is about
-    the centroid of ``moved``, its translation ``v`` moves that centroid.
+    ``combined`` (K, 3, 3) holds ``C_q + R C_p R^T`` per pair (symmetric); the step's rotation ``w``
+    [rad] is about the centroid of ``moved``, its translation ``v`` moves that centroid. With
+    ``d = matched - moved`` and the arm ``a`` from the centroid, ``d(d)/d(w, v) = J = [[a]_x, -I]``;
+    the normal equations ``sum J^T M J step = -sum J^T M d`` are summed in blocks by cross products.
     """
-    information = np.linalg.inv(combined)
+    information = symmetric_inverse(combined)
     difference = matched - moved
+    pulled = np.einsum("nij,nj->ni", information, difference)  # M d
     if robust_kernel is not None:
-        squared = np.einsum("ni,nij,nj->n", difference, information, difference)
-        weights = robust_weights(np.sqrt(2.0 * PLANE_EPSILON * np.maximum(squared, 0.0)), robust_kernel, kernel_scale)
-        information = information * weights[:, None, None]
-    arm = moved - np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved
-    jacobian = np.zeros((moved.shape[0], 3, 6))  # d(difference) / d(w, v) = [[arm]_x, -I]
-    jacobian[:, 0, 1], jacobian[:, 0, 2] = -arm[:, 2], arm[:, 1]
-    jacobian[:, 1, 0], jacobian[:, 1, 2] = arm[:, 2], -arm[:, 0]
-    jacobian[:, 2, 0], jacobian[:, 2, 1] = -arm[:, 1], arm[:, 0]
-    jacobian[:, :, 3:] = -np.eye(3)
-    weighted = np.einsum("nki,nkl->nil", jacobian, information)
-    hessian = np.einsum("nil,nlj->ij", weighted, jacobian)
-    gradient = np.einsum("nil,nl->i", weighted, difference)
+        squared = np.maximum(np.einsum("ni,ni->n", difference, pulled), 0.0)
+        weights = robust_weights(np.sqrt(2.0 * PLANE_EPSILON * squared), robust_kernel, kernel_scale)
+        information, pulled = information * weights[:, None, None], pulled * weights[:, None]
+    arm = (moved - np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved)[:, None, :]
+    arm_information = _cross(arm, information)  # -M [a]_x per pair: its rows are a x M_j
+    hessian = np.empty((6, 6))
+    hessian[:3, :3] = _cross(arm, np.swapaxes(arm_information, 1, 2)).sum(axis=0).T  # [a]_x^T M [a]_x
+    hessian[3:, :3] = arm_information.sum(axis=0)  # -M [a]_x
+    hessian[:3, 3:] = hessian[3:, :3].T
+    hessian[3:, 3:] = information.sum(axis=0)
+    gradient = np.concatenate([_cross(pulled, arm[:, 0]).sum(axis=0), -pulled.sum(axis=0)])
     return np.linalg.lstsq(hessian, -gradient, rcond=None)[0]

@@ -378,7 +378,7 @@ def icp(
             return _point_to_point(moved, matched)
         if method == "point_to_plane":
             return _point_to_plane(moved, matched, normals[matched_index], robust_kernel, kernel_scale)
-        rotated = np.einsum("ij,njk,lk->nil", rotation, source_covariances[rows][inliers], rotation)
+        rotated = rotation @ source_covariances[rows][inliers] @ rotation.T
         combined = target_covariances[matched_index] + rotated
         centre = np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved
         return _step_about(centre, gicp_step(moved, matched, combined, robust_kernel, kernel_scale))

@@ -3,11 +3,14 @@
 Frames come from a vehicle pitching and rolling over rugged terrain
 (``terrain_frame_pair``: a ``terrain_loop`` scene of roughness 0.7, frames 1 m apart). The
 newer frame is placed in the older one's frame by the odometry estimate ("before") and by
-ICP started from it ("after"; point-to-plane, 1 m correspondence distance). The seed
+ICP started from it ("after"; ``FRAME_PAIR_ICP``: GICP with a Tukey kernel, 1 m correspondence
+distance). The seed
 statistics register many such pairs with every return, and with a quarter of the returns
 chosen by each control-point strategy (``select_control_points``), and report the
 registration errors (``registration_error``: translation error combined with the
-displacement the rotation error causes 10 m away).
+displacement the rotation error causes 10 m away): recall (the fraction of pairs within
+``RECALL_THRESHOLDS_M``), median and mean. GICP's covariances are those of the whole frames
+(a control point's from its neighbours among all returns), computed once per pair.
 """
 
 from __future__ import annotations
@@ -23,23 +26,50 @@ from infonav_gym.experiments.reproduce.fig6_plot import plot_fig6
 from infonav_gym.geometry import transform_error
 from infonav_gym.registration import icp
 from infonav_gym.registration.control_points import select_control_points
-from infonav_gym.registration.frame_pairs import FramePair, registration_error, terrain_frame_pair
+from infonav_gym.registration.frame_pairs import FRAME_PAIR_ICP, FramePair, registration_error, terrain_frame_pair
+from infonav_gym.registration.gicp import gicp_covariances
 from infonav_gym.sensors.ladar import sensor_points
 
-ICP_SETTINGS = {"max_correspondence_distance": 1.0, "method": "point_to_plane"}
 CONTROL_FRACTION = 0.25  # control points as a fraction of the returns
 STRATEGIES = ("entropy", "uniform", "random")
+RECALL_THRESHOLDS_M = (0.05, 0.10)  # a pair is registered when its registration error is below the threshold
 
 
-def register(pair: FramePair, control_points=None) -> dict:
+class PairRegistration:
+    """ICP of a pair's newer frame (all returns or control points) onto the older, with ``settings`` (``icp`` keywords).
+
+    For GICP the frames' covariances are computed on first use and kept for every registration of the pair.
+    """
+
+    def __init__(self, pair: FramePair, settings: dict = FRAME_PAIR_ICP):
+        self.pair, self.settings = pair, settings
+        self.source, self.target = sensor_points(pair.current), sensor_points(pair.previous)
+        self._covariances = None
+
+    def __call__(self, control_points=None) -> dict:
+        """Errors before and after ICP of the ``control_points`` rows of the newer frame (default all)."""
+        rows = slice(None) if control_points is None else control_points
+        pair, covariances = self.pair, {}
+        if self.settings.get("method") == "gicp":
+            if self._covariances is None:
+                self._covariances = gicp_covariances(self.source), gicp_covariances(self.target)
+            covariances = {"source_covariances": self._covariances[0][rows], "target_covariances": self._covariances[1]}
+        return _errors(
+            pair,
+            len(self.source[rows]),
+            icp(self.source[rows], self.target, pair.odometry_motion, **self.settings, **covariances),
+        )
+
+
+def register(pair: FramePair, control_points=None, settings: dict = FRAME_PAIR_ICP) -> dict:
     """ICP of the newer frame (its ``control_points`` rows, default all) onto the older; errors before and after."""
-    source = sensor_points(pair.current)
-    if control_points is not None:
-        source = source[control_points]
-    result = icp(source, sensor_points(pair.previous), pair.odometry_motion, **ICP_SETTINGS)
+    return PairRegistration(pair, settings)(control_points)
+
+
+def _errors(pair: FramePair, points: int, result) -> dict:
     translation, rotation = transform_error(result.transform, pair.true_motion)
     return {
-        "points": len(source),
+        "points": points,
         "error_before_m": registration_error(pair.odometry_motion, pair.true_motion),
         "error_after_m": registration_error(result.transform, pair.true_motion),
         "translation_error_m": translation,
@@ -50,25 +80,27 @@ def register(pair: FramePair, control_points=None) -> dict:
     }
 
 
-def seed_statistics(seeds, progress: bool = False) -> dict:
-    """Register each seed's pair with all returns and with each strategy's quarter; mean errors per method."""
+def seed_statistics(seeds, progress: bool = False, settings: dict = FRAME_PAIR_ICP) -> dict:
+    """Register each seed's pair with all returns and with each strategy's quarter; recall, median, mean per method."""
     records = {name: [] for name in ("all", *STRATEGIES)}
     for seed in tqdm(seeds, desc="Fig. 6 frame pairs", unit="pair", disable=not progress):
         rng = np.random.default_rng(seed)
         pair = terrain_frame_pair(rng)
-        records["all"].append(register(pair))
-        k = max(3, round(CONTROL_FRACTION * len(sensor_points(pair.current))))
+        registration = PairRegistration(pair, settings)
+        records["all"].append(registration())
+        k = max(3, round(CONTROL_FRACTION * len(registration.source)))
         for strategy in STRATEGIES:
             chosen = select_control_points(
                 pair.current, k, strategy, pose_covariance=pair.motion_covariance, np_random=rng
             )
-            records[strategy].append(register(pair, chosen))
+            records[strategy].append(registration(chosen))
     summary = {}
     for name, runs in records.items():
         before = np.array([run["error_before_m"] for run in runs])
         after = np.array([run["error_after_m"] for run in runs])
         summary[name] = {
             "mean_points": float(np.mean([run["points"] for run in runs])),
+            **{f"recall_{round(100 * limit)}cm": float(np.mean(after < limit)) for limit in RECALL_THRESHOLDS_M},
             "mean_error_before_m": float(before.mean()),
             "mean_error_after_m": float(after.mean()),
             "median_error_after_m": float(np.median(after)),
@@ -97,7 +129,7 @@ def reproduce_fig6(
     plotted = {key: value for key, value in registration.items() if key != "transform"}
     result = {
         "command": command,
-        "icp": dict(ICP_SETTINGS),
+        "icp": dict(FRAME_PAIR_ICP),
         "fig6": {
             "seed": seed,
             "attitude_deg": {
