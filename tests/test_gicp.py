@@ -15,8 +15,10 @@ from infonav_gym.registration import icp
 from infonav_gym.registration.gicp import (
     PLANE_EPSILON,
     gicp_covariances,
+    gicp_step,
     neighbour_covariances,
     plane_covariances,
+    symmetric_inverse,
 )
 from infonav_gym.registration.robust_kernels import ROBUST_KERNELS, robust_weights
 
@@ -43,6 +45,24 @@ def test_plane_covariances_keep_the_axes_and_set_the_eigenvalues():
     np.testing.assert_allclose(values, np.tile([PLANE_EPSILON, 1.0, 1.0], (200, 1)), atol=1e-12)
     normals = np.linalg.eigh(covariances)[1][:, :, 0]
     np.testing.assert_allclose(np.abs(np.einsum("ni,ni->n", axes[:, :, 0], normals)), 1.0, atol=1e-9)
+
+
+def test_gicp_step_solves_the_normal_equations_of_the_stacked_jacobians():
+    """Against ``sum J^T M J x = -sum J^T M d`` with ``J = [[a]_x, -I]`` stacked per pair and ``np.linalg.inv``."""
+    rng = np.random.default_rng(6)
+    moved = rng.standard_normal((40, 3))
+    matched = moved + 0.1 * rng.standard_normal((40, 3))
+    roots = rng.standard_normal((40, 3, 3))
+    combined = roots @ np.swapaxes(roots, 1, 2) + 0.1 * np.eye(3)
+    information = np.linalg.inv(combined)
+    np.testing.assert_allclose(symmetric_inverse(combined), information, rtol=1e-9, atol=1e-12)
+    arm = moved - moved.mean(axis=0)
+    jacobian = np.concatenate([np.cross(arm[:, :, None], np.eye(3)[None], axis=1), np.tile(-np.eye(3), (40, 1, 1))], 2)
+    np.testing.assert_allclose(jacobian[:, :, :3] @ [0.1, 0.2, 0.3], np.cross(arm, [0.1, 0.2, 0.3]))  # [a]_x w = a x w
+    hessian = np.einsum("nki,nkl,nlj->ij", jacobian, information, jacobian)
+    gradient = np.einsum("nki,nkl,nl->i", jacobian, information, matched - moved)
+    expected = np.linalg.solve(hessian, -gradient)
+    np.testing.assert_allclose(gicp_step(moved, matched, combined), expected, rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.parametrize(

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from infonav_gym.geometry import cross
 from infonav_gym.registration.robust_kernels import robust_weights
 
 GICP_NEIGHBOURS = 20  # points per covariance
@@ -75,18 +76,6 @@ def symmetric_inverse(matrices: np.ndarray) -> np.ndarray:
     return np.stack([first, second, third, second, fourth, fifth, third, fifth, sixth], axis=1).reshape(-1, 3, 3)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a x b`` along the last axis of broadcastable (..., 3) arrays, without ``np.cross``'s overhead."""
-    return np.stack(
-        [
-            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
-        ],
-        axis=-1,
-    )
-
-
 def gicp_step(
     moved: np.ndarray,
     matched: np.ndarray,
@@ -109,11 +98,11 @@ def gicp_step(
         weights = robust_weights(np.sqrt(2.0 * PLANE_EPSILON * squared), robust_kernel, kernel_scale)
         information, pulled = information * weights[:, None, None], pulled * weights[:, None]
     arm = (moved - np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved)[:, None, :]
-    arm_information = _cross(arm, information)  # -M [a]_x per pair: its rows are a x M_j
+    arm_information = cross(arm, information)  # -M [a]_x per pair: its rows are a x M_j
     hessian = np.empty((6, 6))
-    hessian[:3, :3] = _cross(arm, np.swapaxes(arm_information, 1, 2)).sum(axis=0).T  # [a]_x^T M [a]_x
+    hessian[:3, :3] = cross(arm, np.swapaxes(arm_information, 1, 2)).sum(axis=0).T  # [a]_x^T M [a]_x
     hessian[3:, :3] = arm_information.sum(axis=0)  # -M [a]_x
     hessian[:3, 3:] = hessian[3:, :3].T
     hessian[3:, 3:] = information.sum(axis=0)
-    gradient = np.concatenate([_cross(pulled, arm[:, 0]).sum(axis=0), -pulled.sum(axis=0)])
+    gradient = np.concatenate([cross(pulled, arm[:, 0]).sum(axis=0), -pulled.sum(axis=0)])
     return np.linalg.lstsq(hessian, -gradient, rcond=None)[0]
