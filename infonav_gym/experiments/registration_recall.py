@@ -1,7 +1,7 @@
 """Registration recall on ``terrain_frame_pair`` pairs: which registration frame pairs use, and control points by it.
 
 Registration benchmarks judge a method by its *recall* (the fraction of pairs registered within a
-threshold, here ``RECALL_THRESHOLDS_M`` of ``registration_error``) and its median error, which a
+threshold, here ``fig6.RECALL_THRESHOLDS_M`` of ``registration_error``) and its median error, which a
 diverged pair cannot dominate as it does a mean (kept beside them). Two tables, on ``SEED_SETS``:
 
 - every candidate registration (point-to-plane and GICP, without and with each robust kernel at its
@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from tqdm.auto import tqdm
 
-from infonav_gym.experiments.reproduce.fig6 import RECALL_THRESHOLDS_M, register, seed_statistics
+from infonav_gym.experiments.reproduce.fig6 import recall_summary, register, seed_statistics
 from infonav_gym.registration.frame_pairs import FRAME_PAIR_ICP, terrain_frame_pair
 from infonav_gym.sensors.ladar import Ladar
 
@@ -37,19 +37,8 @@ def candidates() -> dict[str, dict]:
     return table
 
 
-def summary(errors_m) -> dict:
-    """Recall at each of ``RECALL_THRESHOLDS_M``, median, mean and largest of registration errors [m]."""
-    errors_m = np.asarray(errors_m, dtype=float)
-    return {
-        **{f"recall_{round(100 * limit)}cm": float(np.mean(errors_m < limit)) for limit in RECALL_THRESHOLDS_M},
-        "median_error_after_m": float(np.median(errors_m)),
-        "mean_error_after_m": float(errors_m.mean()),
-        "max_error_after_m": float(errors_m.max()),
-    }
-
-
 def candidate_table(seed_sets=SEED_SETS, progress: bool = False) -> dict[str, list[dict]]:
-    """Name -> per seed set, the ``summary`` of each candidate registration with all returns."""
+    """Name -> per seed set, the ``recall_summary`` of each candidate registration with all returns."""
     settings = candidates()
     errors = {name: [[] for _ in seed_sets] for name in settings}
     total = sum(len(seeds) for seeds in seed_sets)
@@ -60,7 +49,7 @@ def candidate_table(seed_sets=SEED_SETS, progress: bool = False) -> dict[str, li
                 for name, keywords in settings.items():
                     errors[name][index].append(register(pair, settings=keywords)["error_after_m"])
                 bar.update()
-    return {name: [summary(values) for values in per_set] for name, per_set in errors.items()}
+    return {name: [recall_summary(values) for values in per_set] for name, per_set in errors.items()}
 
 
 def best_candidate(table: dict[str, list[dict]]) -> str:
