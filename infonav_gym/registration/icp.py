@@ -16,7 +16,11 @@ The increment is solved in closed form on the inliers: ``point_to_point`` by the
 cross-covariance (Kabsch / Umeyama without scale, with the reflection fix); ``point_to_plane``
 by the small-angle linearisation ``n . (p + w x p + v - q)`` in least squares, on target
 normals estimated once per call by PCA of each target point's ``NORMAL_NEIGHBOURS`` nearest
-neighbours (their sign does not matter), the angle ``w`` then applied as an exact rotation.
+neighbours (their sign does not matter), the angle ``w`` then applied as an exact rotation;
+``gicp`` by one Gauss-Newton step of generalized ICP (``gicp`` module) on per-point covariances of both
+clouds, computed once per call (or passed in, computed once per cloud). For ``point_to_plane`` and
+``gicp`` a ``robust_kernel`` (``robust_kernels`` module) reweights the inlier pairs by their residuals
+in every step (iteratively reweighted least squares).
 
 Acceleration (after Besl & McKay, 1992): point-to-point ICP creeps along a steady direction,
 each step a fraction ``rho`` of the last. When a step continues the previous one (their 6-vectors,
@@ -336,7 +340,7 @@ def icp(
             for ``"point_to_plane"`` and ``"gicp"``.
         kernel_scale: the robust kernel's scale ``c`` [length unit], > 0.
         covariance_neighbours: points per GICP covariance (``gicp_covariances``), >= 3.
-        source_covariances, target_covariances: (N, 3, 3) and (M, 3, 3) GICP covariances computed before
+        source_covariances, target_covariances: (N, 3, 3) and (M, 3, 3) symmetric GICP covariances computed before
             (``gicp_covariances``, e.g. of a whole frame whose control points are ``source``); default:
             computed here from each cloud's ``covariance_neighbours`` nearest points.
 
@@ -373,9 +377,9 @@ def icp(
         return np.take(moved, inliers, axis=0), matched, distance[inliers], inliers
 
     def increment(moved, matched, inliers, rows) -> tuple[np.ndarray, np.ndarray]:
-        matched_index = closest.index[rows][inliers]
         if method == "point_to_point":
             return _point_to_point(moved, matched)
+        matched_index = closest.index[rows][inliers]
         if method == "point_to_plane":
             return _point_to_plane(moved, matched, normals[matched_index], robust_kernel, kernel_scale)
         rotated = rotation @ source_covariances[rows][inliers] @ rotation.T
