@@ -145,6 +145,8 @@ def test_benchmark_reports_every_goal(capsys):
             "ladar_frame_ms",
             "camera_frame_ms",
             "icp_frame_pair_ms",
+            "icp_vs_open3d_icp_scan_40k_time_ratio",
+            "gicp_vs_small_gicp_scan_40k_time_ratio",
             "ppo_fps_ratio_vs_cartpole",
             "ppo_vector_fps_ratio_vs_cartpole",
             "landmark_selection_vector_256_vs_cartpole_ratio",
@@ -168,7 +170,10 @@ def test_benchmark_reports_every_goal(capsys):
     assert result["goals_met"]["ppo_vector_fps_ratio_vs_cartpole"] == (vector_ratio >= 0.8)
     assert figures["icp_frame_pair_ms"] > 0
     assert result["goals_met"]["icp_frame_pair_ms"] == (figures["icp_frame_pair_ms"] <= 20.0)
-    assert figures["icp_rotation_error_deg"] < 0.5 and figures["icp_translation_error_m"] < 0.05
+    for registration in ("icp", "gicp"):
+        for pair in ("frame_pair", "scan_40k"):
+            assert figures[f"{registration}_{pair}_rotation_error_deg"] < 0.5
+            assert figures[f"{registration}_{pair}_translation_error_m"] < 0.05
     evaluation_ratio = figures["evaluation_2_workers_time_ratio"]
     assert figures["evaluation_episodes_per_agent"] == 2 and evaluation_ratio > 0
     assert result["goals_met"]["evaluation_2_workers_time_ratio"] == (evaluation_ratio <= 0.65)

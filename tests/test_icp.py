@@ -87,7 +87,7 @@ def test_icp_recovers_a_known_motion_to_a_tenth_of_a_degree_and_5_mm(seed, make_
     assert rotation_error_deg < 0.1 and translation_error_m < 5e-3
 
 
-@pytest.mark.parametrize("method", ["point_to_point", "point_to_plane"])
+@pytest.mark.parametrize("method", ["point_to_point", "point_to_plane", "gicp"])
 def test_identical_clouds_give_the_identity_after_one_iteration(method):
     cloud = face_cloud(np.random.default_rng(0), 2000)
     assert len(cloud) >= ICP_MODULE.COARSE_STRIDE * ICP_MODULE.COARSE_MIN_POINTS  # its coarse phase must not count
@@ -98,7 +98,7 @@ def test_identical_clouds_give_the_identity_after_one_iteration(method):
     assert result.rmse < 1e-12 and result.fitness == 1.0
 
 
-@pytest.mark.parametrize("method", ["point_to_point", "point_to_plane"])
+@pytest.mark.parametrize("method", ["point_to_point", "point_to_plane", "gicp"])
 def test_coarse_phase_is_only_a_speed_up(method, monkeypatch):
     """With and without the coarse phase: transforms far closer than the accuracy bar, fitness and rmse within 0.1%."""
     rng = np.random.default_rng(8)

@@ -12,7 +12,13 @@ import pytest
 import infonav_gym  # noqa: F401
 from agents import GreedyEntropyAgent, RandomAgent
 from infonav_gym.registration import icp
-from infonav_gym.registration.frame_pairs import DEFAULT_ODOMETRY_STD, registration_error, terrain_frame_pair
+from infonav_gym.registration.frame_pairs import (
+    DEFAULT_ODOMETRY_STD,
+    FRAME_PAIR_ICP,
+    registration_error,
+    terrain_frame_pair,
+)
+from infonav_gym.registration.gicp import gicp_covariances
 from infonav_gym.sensors.ladar import sensor_points
 
 REGISTRATION_ID = "infonav/RangeRegistration-v0"
@@ -97,6 +103,30 @@ def test_gain_is_the_mutual_information_a_patch_adds_to_the_chosen_ones():
     assert expected < alone[second] + 1e-12, "information is submodular: a gain shrinks as the set grows"
 
 
+def test_gicp_registers_the_chosen_points_with_whole_frame_covariances_kept_for_the_next_pair():
+    """Two pairs: each registration equals ``icp`` with ``FRAME_PAIR_ICP`` and both whole frames' covariances."""
+    env = gym.make(REGISTRATION_ID).unwrapped
+    _, info = env.reset(seed=3)
+    for _ in range(2):
+        pair, source, target, patches = env.pair, env._source_points, env._target_points, env._patch_of_return
+        chosen = []
+        while len(chosen) < env.config["picks_per_pair"]:
+            chosen.append(int(np.argmax(info["action_information_gain"])))
+            _, _, _, _, info = env.step(chosen[-1])
+        assert info["registered"]
+        rows = np.isin(patches, chosen)
+        expected = icp(
+            source[rows],
+            target,
+            pair.odometry_motion,
+            max_iterations=env.config["icp_max_iterations"],
+            **FRAME_PAIR_ICP,
+            source_covariances=gicp_covariances(source)[rows],
+            target_covariances=gicp_covariances(target),
+        )
+        np.testing.assert_array_equal(env.last_registration["transform"], expected.transform)
+
+
 @pytest.mark.parametrize(
     "key, value",
     [
@@ -107,6 +137,9 @@ def test_gain_is_the_mutual_information_a_patch_adds_to_the_chosen_ones():
         ("point_cost", -1.0),
         ("odometry_xy_std_m", 0.0),
         ("icp_method", "magic"),
+        ("icp_robust_kernel", None),
+        ("icp_robust_kernel", "welsch"),
+        ("icp_kernel_scale_m", 0.0),
         ("max_correspondence_distance_m", 0.0),
     ],
 )

@@ -111,6 +111,7 @@ def test_without_vmas_its_rows_are_absent_with_a_note(no_vmas, monkeypatch):
         monkeypatch.setattr(benchmark, heavy, lambda *args: {})
     monkeypatch.setattr(benchmark, "rllib_missing", lambda: None)  # this test is about VMAS's note alone
     monkeypatch.setattr(benchmark, "greedy_decision_us", lambda: 1.0)
+    monkeypatch.setattr(benchmark, "registration_peers_missing", lambda: None)
     monkeypatch.setattr(benchmark, "kb_per_env", lambda env_id, num_envs, steps, seed: 50.0)
     monkeypatch.setattr(benchmark, "benchmarked_env_ids", lambda: [LANDMARKS])
     result = benchmark.run_benchmark(rounds=1, seconds_per_round=0.01, progress=False, vector_sizes=(2, 256))

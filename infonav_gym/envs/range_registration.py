@@ -15,12 +15,15 @@ from infonav_gym.information import information_gain_of_information
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import (
     DEFAULT_ODOMETRY_STD,
+    FRAME_PAIR_ICP,
     check_odometry_std,
     frame_pair,
     registration_error,
     scan_on_terrain,
 )
+from infonav_gym.registration.gicp import gicp_covariances
 from infonav_gym.registration.icp import METHODS, icp
+from infonav_gym.registration.robust_kernels import ROBUST_KERNELS
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
@@ -35,6 +38,7 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
     "point_cost": Interval(0.0, 1e3, unit="m per control point"),
     "icp_max_iterations": Interval(1, 10**4, integer=True),
     "max_correspondence_distance_m": Interval(0.0, 100.0, open_low=True, unit="m"),
+    "icp_kernel_scale_m": Interval(0.0, 100.0, open_low=True, unit="m"),
 }
 ODOMETRY_KEYS = {  # the config key of each axis of the odometry error (frame_pair's odometry_std)
     "x": "odometry_xy_std_m",
@@ -135,9 +139,11 @@ class RangeRegistrationEnv(InfoNavEnv):
             "odometry_z_std_m": DEFAULT_ODOMETRY_STD[2],  # ... along z [m]
             "odometry_tilt_std_rad": DEFAULT_ODOMETRY_STD[3],  # ... about x and y (inclinometers) [rad]
             "odometry_yaw_std_rad": DEFAULT_ODOMETRY_STD[5],  # ... about z [rad]
-            "icp_method": "point_to_plane",
+            "icp_method": FRAME_PAIR_ICP["method"],
+            "icp_robust_kernel": FRAME_PAIR_ICP["robust_kernel"] or "none",  # "none" or one of ROBUST_KERNELS
+            "icp_kernel_scale_m": FRAME_PAIR_ICP["kernel_scale"],  # [m]
             "icp_max_iterations": 30,
-            "max_correspondence_distance_m": 1.0,
+            "max_correspondence_distance_m": FRAME_PAIR_ICP["max_correspondence_distance"],
             "ladar_range_std_m": Ladar().range_std_m,
         }
 
@@ -145,6 +151,7 @@ class RangeRegistrationEnv(InfoNavEnv):
         super().__init__(render_mode=render_mode, **config)
         cfg, owner = self.config, type(self).__name__
         check_choice(cfg, "icp_method", METHODS, owner)
+        check_choice(cfg, "icp_robust_kernel", ("none", *ROBUST_KERNELS), owner)
         check_config(cfg, owner, CONFIG_INTERVALS)
         check_scene_config(cfg, owner)
         with config_keys(owner, ODOMETRY_KEYS):
@@ -173,6 +180,7 @@ class RangeRegistrationEnv(InfoNavEnv):
         self._true_path = PathHistory(self.world.pose[:2])
         self.last_registration = None
         self._registered_now = False
+        self._covariances = {}
         self._next_pair()
 
     def _scan(self):
@@ -190,6 +198,7 @@ class RangeRegistrationEnv(InfoNavEnv):
         patch_of_return = self._pixel_patch[returns]
         self._source_points = sensor_points(self._current_frame)
         self._target_points = sensor_points(previous)
+        self._covariances = {"target": self._covariances.get("source")}  # GICP's, by frame (_gicp_covariances)
         self._patch_of_return = patch_of_return
         error_std = geometry.error_std_m
         informative = np.isfinite(error_std)
@@ -241,6 +250,7 @@ class RangeRegistrationEnv(InfoNavEnv):
         before = registration_error(pair.odometry_motion, pair.true_motion)
         start = time.perf_counter()
         if len(source) >= MIN_CONTROL_POINTS:
+            kernel = None if cfg["icp_robust_kernel"] == "none" else cfg["icp_robust_kernel"]
             result = icp(
                 source,
                 self._target_points,
@@ -248,6 +258,9 @@ class RangeRegistrationEnv(InfoNavEnv):
                 max_iterations=cfg["icp_max_iterations"],
                 max_correspondence_distance=cfg["max_correspondence_distance_m"],
                 method=cfg["icp_method"],
+                robust_kernel=kernel,
+                kernel_scale=cfg["icp_kernel_scale_m"],
+                **self._gicp_covariances(),
             )
             transform, iterations, converged = result.transform, result.iterations, result.converged
         else:  # too few points to register: keep the odometry estimate
@@ -265,6 +278,22 @@ class RangeRegistrationEnv(InfoNavEnv):
         }
         self._pair_done = self._registered_now = True
         return {"error_reduction_m": before - after, "point_cost": -cfg["point_cost"] * len(source)}
+
+    def _gicp_covariances(self) -> dict:
+        """For GICP, the covariances of the chosen returns (from the whole frame) and of the previous frame.
+
+        Each frame's are computed once: as the current frame's, then kept for the next pair, whose target it is.
+        """
+        if self.config["icp_method"] != "gicp":
+            return {}
+        for name, points in (("source", self._source_points), ("target", self._target_points)):
+            if self._covariances.get(name) is None:
+                self._covariances[name] = gicp_covariances(points)
+        chosen = self._chosen[self._patch_of_return]
+        return {
+            "source_covariances": self._covariances["source"][chosen],
+            "target_covariances": self._covariances["target"],
+        }
 
     def _advance(self) -> None:
         if self._pair_done:

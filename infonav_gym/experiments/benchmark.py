@@ -17,9 +17,10 @@ Sensors (``infonav_gym.experiments.sensor_timing``): median milliseconds of one 
 ``Ladar().scan`` (32 x 180) and ``Camera().capture`` (120 x 160) on a default
 ``make_terrain`` scene, with absolute goals, each against a pure-Pymunk
 ``segment_query_first`` loop over the same rays (ratio < 1: the sensor is faster).
-ICP (``infonav_gym.experiments.registration_timing``): median milliseconds of point-to-point ``icp`` on a
-32 x 180 LADAR frame pair from a warm start, and its errors against the true motion, beside
-Open3D's ``registration_icp`` on the same pair when Open3D imports.
+ICP (``infonav_gym.experiments.registration_timing``): median milliseconds of point-to-point and GICP
+``icp`` on a 32 x 180 LADAR frame pair and a 40k-point scan pair from a warm start, and their errors
+against the true motion, beside Open3D's ``registration_icp`` and small_gicp's GICP (one thread) on the
+same pairs when they import (the ``bench`` extra), with the time ratios.
 PPO (``infonav_gym.experiments.ppo_timing``): training timesteps per second of the same MaskablePPO
 settings on LandmarkSelection-v0 and on CartPole-v1, 8 envs each, and on their vector envs (the native
 LandmarkSelection one, Gymnasium's CartPoleVectorEnv), 64 copies each, alternating rounds in one run.
@@ -27,7 +28,7 @@ Parallel evaluation and RLlib (``infonav_gym.experiments.distributed_timing``): 
 LandmarkSelection-v0 episodes per default agent with ``--workers 2`` against 1, and the env-steps/s RLlib's
 env runners sample on the team env with 2 runners against 1 (when Ray imports).
 Figures named ``*_us``, ``*_ms``, ``*_kb_per_env`` or ``*_time_ratio`` meet their goal at or below it, all
-others at or above; a goal whose figure was not measured (its env, VMAS or Ray absent) is met ``None``.
+others at or above; a goal whose figure was not measured (its env, a peer or Ray absent) is met ``None``.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ from infonav_gym.experiments.distributed_timing import (
     rllib_missing,
     rllib_runner_figures,
 )
-from infonav_gym.experiments.registration_timing import icp_figures
+from infonav_gym.experiments.registration_timing import icp_figures, registration_peers_missing
 from infonav_gym.experiments.sensor_timing import sensor_figures
 from infonav_gym.experiments.vector_timing import (
     DEFAULT_VECTOR_SIZES,
@@ -73,6 +74,8 @@ GOALS = {
     "ladar_frame_ms": 5.0,
     "camera_frame_ms": 10.0,
     "icp_frame_pair_ms": 20.0,
+    "icp_vs_open3d_icp_scan_40k_time_ratio": 1.0,
+    "gicp_vs_small_gicp_scan_40k_time_ratio": 1.0,
     "ppo_fps_ratio_vs_cartpole": 0.5,
     "ppo_vector_fps_ratio_vs_cartpole": 0.8,
     "landmark_selection_vector_256_vs_cartpole_ratio": 1.0,
@@ -280,7 +283,7 @@ def run_benchmark(
 ) -> dict:
     """Measure every speed goal; returns a JSON-ready dict with the figures and whether each goal is met.
 
-    ``notes`` says which figures are absent and why (no vmas, no memory measurement).
+    ``notes`` says which figures are absent and why (no vmas, no ICP peers, no memory measurement).
 
     Raises:
         ValueError: for ``vector_sizes`` that are not integers >= 1.
@@ -300,7 +303,9 @@ def run_benchmark(
         "figures": figures,
         "goals": GOALS,
         "goals_met": met,
-        "notes": [note for note in (vmas_missing(), memory_missing(), rllib_missing()) if note],
+        "notes": [
+            note for note in (vmas_missing(), registration_peers_missing(), memory_missing(), rllib_missing()) if note
+        ],
         "rounds": rounds,
         "seconds_per_round": seconds_per_round,
         "vector_sizes": list(vector_sizes),

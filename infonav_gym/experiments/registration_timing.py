@@ -1,25 +1,36 @@
-"""ICP time and accuracy on a LADAR frame pair, ours against Open3D's ``registration_icp`` when it imports.
+"""ICP time and accuracy on LADAR frame pairs, ours against Open3D's and small_gicp's when they import.
 
-The pair: two default ``Ladar().scan`` (32 x 180) frames of ``make_terrain(default_rng(seed),
-roughness=1.0)``, from the vehicle pose ``[0, 0, 0]`` and from 1 m ahead turned 2 degrees left.
-Each frame's points are kept in its own sensor frame (``sensor_points``), so the true motion
-mapping the second frame onto the first is known exactly (``motion_between``). Both ICPs
-register the second frame onto the first, point-to-point, from the same warm start (the true
-motion perturbed by ``WARM_START_ERROR_M`` and ``WARM_START_ERROR_DEG`` about random
-directions), with the same correspondence distance and iteration cap.
+A pair: two ``scan``s of ``make_terrain(default_rng(seed), roughness=1.0)`` by one LADAR, from the
+vehicle pose ``[0, 0, 0]`` and from 1 m ahead turned 2 degrees left; ``PAIR_LADARS`` names the
+default 32 x 180 frame (``frame_pair``, about 5k points) and a 128 x 360 scan (``scan_40k``, about
+40k points). Each frame's points are kept in its own sensor frame (``sensor_points``), so the true
+motion mapping the second frame onto the first is known exactly (``motion_between``). Every
+registration maps the second frame onto the first from the same warm start (the true motion
+perturbed by ``WARM_START_ERROR_M`` and ``WARM_START_ERROR_DEG`` about random directions), with the
+same correspondence distance and iteration cap:
+
+- point-to-point ``icp`` against Open3D's ``registration_icp`` (``TransformationEstimationPointToPoint``);
+- ``icp(method="gicp")`` against small_gicp's GICP on one thread, its preprocessing timed as ours is:
+  k-d trees and ``GICP_NEIGHBOURS``-neighbour covariances of both clouds (``estimate_covariances``),
+  no downsampling, and its convergence thresholds set to our ``tolerance``.
+
+``*_time_ratio`` figures are our median time over the peer's (below 1: ours is faster).
 """
 
 from __future__ import annotations
 
+import importlib
 import math
 import statistics
 import time
+from functools import partial
 
 import numpy as np
 
 from infonav_gym.geometry import transform_error
 from infonav_gym.registration import icp
 from infonav_gym.registration.frame_pairs import motion_between, perturbed_motion
+from infonav_gym.registration.gicp import GICP_NEIGHBOURS
 from infonav_gym.sensors.ladar import Ladar, sensor_points
 from infonav_gym.world.terrain_generation import make_terrain
 
@@ -28,15 +39,20 @@ WARM_START_ERROR_M = 0.05
 WARM_START_ERROR_DEG = 0.5
 MAX_CORRESPONDENCE_DISTANCE_M = 1.0
 MAX_ITERATIONS = 30
-REPEATS_PER_SECOND = 40  # timed registrations per second of benchmark round, at least MIN_REPEATS
-MIN_REPEATS = 3
+TOLERANCE = 1e-6  # icp's default convergence threshold [rad] and [m], also given to small_gicp
+REPEATS_PER_SECOND = 40  # timed registrations of a frame pair per second of benchmark round, at least MIN_REPEATS
+MIN_REPEATS = 3  # also the timed registrations of the 40k-point pair
+PAIR_LADARS = {"frame_pair": Ladar(), "scan_40k": Ladar(rows=128, columns=360)}
+PEERS = ("open3d", "small_gicp")
+PEER_OF = {"open3d_icp": "icp", "small_gicp": "gicp"}  # a peer's registration -> ours it is timed against
 
 
-def frame_pair(seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(source, target, true_motion, warm_start)``: the second frame, the first, and (4, 4) transforms."""
+def frame_pair(seed: int = 0, ladar: Ladar | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(source, target, true_motion, warm_start)`` by ``ladar`` (default ``Ladar()``): the second frame, the
+    first, and (4, 4) transforms."""
+    ladar = Ladar() if ladar is None else ladar
     rng = np.random.default_rng(seed)
     terrain = make_terrain(np.random.default_rng(seed), roughness=1.0)
-    ladar = Ladar()
     previous, current = (ladar.scan(terrain, pose, rng) for pose in POSES)
     truth = motion_between(previous, current)
     axis, direction = (vector / np.linalg.norm(vector) for vector in rng.standard_normal((2, 3)))
@@ -61,42 +77,105 @@ def _median_ms(register, repeats: int) -> tuple[float, np.ndarray]:
     return statistics.median(times), transform
 
 
-def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
-    """ICP figures on the frame pair: ``icp_frame_pair_ms``, ``icp_rotation_error_deg``, ``icp_translation_error_m``.
+def registration_peers_missing() -> str | None:
+    """Why peer rows are absent (Open3D or small_gicp does not import), or None when both import."""
+    missing = []
+    for name in PEERS:
+        try:
+            importlib.import_module(name)
+        except ImportError as error:
+            missing.append(f"{name} ({error})")
+    if not missing:
+        return None
+    return f"ICP peer figures absent: {', '.join(missing)} does not import; pip install 'infonav-gym[bench]'"
 
-    With Open3D importable, also ``open3d_icp_frame_pair_ms``, ``open3d_rotation_error_deg`` and
-    ``open3d_translation_error_m``; ``seconds_per_round`` scales the number of timed registrations.
-    """
-    source, target, truth, warm_start = frame_pair(seed)
-    repeats = max(MIN_REPEATS, round(REPEATS_PER_SECOND * seconds_per_round))
 
-    def ours() -> np.ndarray:
+def _ours(source, target, truth, warm_start, method: str):
+    def register() -> np.ndarray:
         return icp(
             source,
             target,
             warm_start,
             max_iterations=MAX_ITERATIONS,
+            tolerance=TOLERANCE,
             max_correspondence_distance=MAX_CORRESPONDENCE_DISTANCE_M,
+            method=method,
         ).transform
 
-    figures = {"icp_points": float(source.shape[0])}
-    figures["icp_frame_pair_ms"], transform = _median_ms(ours, repeats)
-    figures["icp_rotation_error_deg"], figures["icp_translation_error_m"] = motion_errors(transform, truth)
-    try:
-        import open3d as o3d
-    except ImportError:
-        return figures
+    return register
+
+
+def _open3d(source, target, truth, warm_start):
+    o3d = importlib.import_module("open3d")
     clouds = [o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)) for points in (source, target)]
     criteria = o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=MAX_ITERATIONS)
     estimation = o3d.pipelines.registration.TransformationEstimationPointToPoint()
 
-    def theirs() -> np.ndarray:
+    def register() -> np.ndarray:
         return np.asarray(
             o3d.pipelines.registration.registration_icp(
                 *clouds, MAX_CORRESPONDENCE_DISTANCE_M, warm_start, estimation, criteria
             ).transformation
         )
 
-    figures["open3d_icp_frame_pair_ms"], transform = _median_ms(theirs, repeats)
-    figures["open3d_rotation_error_deg"], figures["open3d_translation_error_m"] = motion_errors(transform, truth)
+    return register
+
+
+def _small_gicp(source, target, truth, warm_start):
+    small_gicp = importlib.import_module("small_gicp")
+
+    def register() -> np.ndarray:
+        clouds = [small_gicp.PointCloud(points) for points in (source, target)]
+        trees = [small_gicp.KdTree(cloud, num_threads=1) for cloud in clouds]
+        for cloud, tree in zip(clouds, trees):
+            small_gicp.estimate_covariances(cloud, tree, num_neighbors=GICP_NEIGHBOURS, num_threads=1)
+        result = small_gicp.align(
+            clouds[1],
+            clouds[0],
+            trees[1],
+            warm_start,
+            registration_type="GICP",
+            max_correspondence_distance=MAX_CORRESPONDENCE_DISTANCE_M,
+            num_threads=1,
+            max_iterations=MAX_ITERATIONS,
+            rotation_epsilon=TOLERANCE,
+            translation_epsilon=TOLERANCE,
+        )
+        return result.T_target_source
+
+    return register
+
+
+def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
+    """ICP figures on each pair of ``PAIR_LADARS`` (module docstring), named by pair and registration.
+
+    ``icp_<pair>_ms`` and ``gicp_<pair>_ms`` (median milliseconds), their ``*_rotation_error_deg`` and
+    ``*_translation_error_m``, ``icp_<pair>_points``; with a peer importable its ``open3d_icp_<pair>_*``
+    or ``small_gicp_<pair>_*`` figures and the ``*_time_ratio``. ``seconds_per_round`` scales the number
+    of timed registrations of the frame pair.
+    """
+    figures = {}
+    for pair, ladar in PAIR_LADARS.items():
+        clouds = frame_pair(seed, ladar)
+        source, _, truth, _ = clouds
+        repeats = max(MIN_REPEATS, round(REPEATS_PER_SECOND * seconds_per_round)) if pair == "frame_pair" else 3
+        figures[f"icp_{pair}_points"] = float(source.shape[0])
+        registrations = {
+            "icp": partial(_ours, method="point_to_point"),
+            "gicp": partial(_ours, method="gicp"),
+            "open3d_icp": _open3d,
+            "small_gicp": _small_gicp,
+        }
+        for name, make in registrations.items():
+            try:
+                register = make(*clouds)
+            except ImportError:
+                continue
+            figures[f"{name}_{pair}_ms"], transform = _median_ms(register, repeats)
+            rotation, translation = motion_errors(transform, truth)
+            figures[f"{name}_{pair}_rotation_error_deg"] = rotation
+            figures[f"{name}_{pair}_translation_error_m"] = translation
+            if name in PEER_OF:
+                ours = figures[f"{PEER_OF[name]}_{pair}_ms"]
+                figures[f"{PEER_OF[name]}_vs_{name}_{pair}_time_ratio"] = ours / figures[f"{name}_{pair}_ms"]
     return figures

@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import distance_transform_cdt, uniform_filter
 
+from infonav_gym.geometry import cross
 from infonav_gym.information import information_gain_of_information, log_det_spd
 from infonav_gym.sensors.ladar import LadarScan
 from infonav_gym.sensors.pixel_grid import unit_directions
@@ -168,23 +169,11 @@ def _smoothed_normals(grid: np.ndarray, returns: np.ndarray) -> np.ndarray:
     along_row[:, 1:-1] = smooth[:, 2:] - smooth[:, :-2]
     along_column = np.zeros_like(smooth)
     along_column[1:-1] = smooth[2:] - smooth[:-2]
-    normals = _cross(along_row, along_column)
+    normals = cross(along_row, along_column)
     length = np.sqrt(np.einsum("...i,...i->...", normals, normals))
     facing_away = np.einsum("...i,...i->...", normals, grid) > 0
     scale = np.where(facing_away, -1.0, 1.0) / np.where(length > 0, length, np.inf)  # NaN where no normal
     return normals * scale[..., None]
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.cross`` of (..., 3) arrays without its overhead."""
-    return np.stack(
-        [
-            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
-        ],
-        axis=-1,
-    )
 
 
 def _curvature(grid: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -258,7 +247,7 @@ def _geometry(range_image: LadarScan, covariance: np.ndarray) -> ControlPointGeo
     usable = np.isfinite(curvature) & np.isfinite(normals[:, 0]) & (np.abs(normals).sum(axis=1) > 0.5)
     curvature = np.where(usable, curvature, 0.0)
     normals = np.where(usable[:, None], normals, 0.0)
-    jacobians = np.concatenate([normals, _cross(points, normals)], axis=1)
+    jacobians = np.concatenate([normals, cross(points, normals)], axis=1)
     spread = np.sqrt(np.einsum("ni,ni->n", jacobians @ covariance, jacobians))
     ambiguity = np.maximum(1.0, spread / structure) ** 2
     range_std_m = range_image.range_std_m

@@ -26,6 +26,13 @@ DEFAULT_ODOMETRY_STD = (0.1, 0.1, 0.05, math.radians(0.5), math.radians(0.5), ma
 MAX_ODOMETRY_STD = (10.0, 10.0, 10.0, math.pi / 4, math.pi / 4, math.pi / 4)  # [m] x3, [rad] x3
 ODOMETRY_STD_UNITS = ("m", "m", "m", "rad", "rad", "rad")
 LEVER_ARM_M = 10.0  # a rotation error counts as the displacement it causes this far away [m]
+# the registration of frame pairs (RangeRegistration-v0, Fig. 6), by recall first: results/registration_recall.md
+FRAME_PAIR_ICP = {
+    "method": "gicp",
+    "robust_kernel": "tukey",
+    "kernel_scale": 0.094,  # [m]: 4.685 (Tukey's 95%-efficiency constant) times the LADAR's 0.02 m range noise
+    "max_correspondence_distance": 1.0,  # [m]
+}
 
 
 @dataclass(frozen=True)

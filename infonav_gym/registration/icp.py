@@ -16,7 +16,11 @@ The increment is solved in closed form on the inliers: ``point_to_point`` by the
 cross-covariance (Kabsch / Umeyama without scale, with the reflection fix); ``point_to_plane``
 by the small-angle linearisation ``n . (p + w x p + v - q)`` in least squares, on target
 normals estimated once per call by PCA of each target point's ``NORMAL_NEIGHBOURS`` nearest
-neighbours (their sign does not matter), the angle ``w`` then applied as an exact rotation.
+neighbours (their sign does not matter), the angle ``w`` then applied as an exact rotation;
+``gicp`` by one Gauss-Newton step of generalized ICP (``gicp`` module) on per-point covariances of both
+clouds, computed once per call (or passed in, computed once per cloud). For ``point_to_plane`` and
+``gicp`` a ``robust_kernel`` (``robust_kernels`` module) reweights the inlier pairs by their residuals
+in every step (iteratively reweighted least squares).
 
 Acceleration (after Besl & McKay, 1992): point-to-point ICP creeps along a steady direction,
 each step a fraction ``rho`` of the last. When a step continues the previous one (their 6-vectors,
@@ -56,8 +60,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from infonav_gym.geometry import rotation_angle
+from infonav_gym.registration.gicp import GICP_NEIGHBOURS, check_neighbours, gicp_covariances, gicp_step
+from infonav_gym.registration.robust_kernels import check_robust_kernel, robust_weights
 
-METHODS = ("point_to_point", "point_to_plane")
+METHODS = ("point_to_point", "point_to_plane", "gicp")
+DEFAULT_KERNEL_SCALE = 0.1  # robust kernel scale [length unit]
 ROBUST_K = 3.0  # robust scale multiples beyond the median pair distance that mark an outlier
 MAD_TO_STD = 1.4826  # standard deviation of a Gaussian per unit median absolute deviation
 NORMAL_NEIGHBOURS = 10  # target points per PCA normal
@@ -159,6 +166,19 @@ def estimate_normals(points: np.ndarray, tree: cKDTree, neighbours: int = NORMAL
     return axes[:, :, 0]
 
 
+def _covariances(points: np.ndarray, given, neighbours, name: str, tree: cKDTree | None = None) -> np.ndarray:
+    """The GICP covariances of ``points``: ``given`` checked to be (N, 3, 3) and finite, else computed."""
+    if given is None:
+        return gicp_covariances(points, check_neighbours(neighbours, points.shape[0], name), tree)
+    covariances = np.asarray(given, dtype=float)
+    if covariances.shape != (points.shape[0], 3, 3) or not np.all(np.isfinite(covariances)):
+        raise ValueError(
+            f"{name}_covariances must be finite, one (3, 3) covariance per {name} point: shape "
+            f"{(points.shape[0], 3, 3)}, got {covariances.shape}"
+        )
+    return covariances
+
+
 class _ClosestPoints:
     """Closest target point of each moved source point, re-queried only where it may have changed.
 
@@ -242,16 +262,27 @@ def _point_to_point(moved: np.ndarray, matched: np.ndarray) -> tuple[np.ndarray,
     return rotation, matched_mean - rotation @ moved_mean
 
 
-def _point_to_plane(moved: np.ndarray, matched: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation and translation minimising ``sum (n . (R p + t - q))^2``, linearised in the rotation.
+def _point_to_plane(
+    moved: np.ndarray, matched: np.ndarray, normals: np.ndarray, robust_kernel=None, kernel_scale=1.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation and translation minimising ``sum rho(n . (R p + t - q))``, linearised in the rotation.
 
-    The rotation is about the centroid of ``moved`` (better conditioned than about the origin).
+    ``rho`` is the square, or ``robust_kernel`` by one IRLS step. The rotation is about the centroid of
+    ``moved`` (better conditioned than about the origin).
     """
     centre = np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved  # faster than mean(axis=0)
     arm = moved - centre
     residual = np.einsum("ij,ij->i", moved - matched, normals)
     jacobian = np.hstack([np.cross(arm, normals), normals])
-    solution = np.linalg.lstsq(jacobian.T @ jacobian, -(jacobian.T @ residual), rcond=None)[0]
+    weighted = jacobian
+    if robust_kernel is not None:
+        weighted = jacobian * robust_weights(residual, robust_kernel, kernel_scale)[:, None]
+    solution = np.linalg.lstsq(weighted.T @ jacobian, -(weighted.T @ residual), rcond=None)[0]
+    return _step_about(centre, solution)
+
+
+def _step_about(centre: np.ndarray, solution: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation and translation of the small motion ``solution`` (rotation vector [rad], shift) about ``centre``."""
     rotation = rotation_from_vector(solution[:3])
     return rotation, centre + solution[3:] - rotation @ centre
 
@@ -287,6 +318,11 @@ def icp(
     tolerance: float = 1e-6,
     max_correspondence_distance: float | None = None,
     method: str = "point_to_point",
+    robust_kernel: str | None = None,
+    kernel_scale: float = DEFAULT_KERNEL_SCALE,
+    covariance_neighbours: int = GICP_NEIGHBOURS,
+    source_covariances=None,
+    target_covariances=None,
 ) -> RegistrationResult:
     """Rigid transform that maps ``source`` onto ``target`` by iterative closest point; see the module docstring.
 
@@ -299,22 +335,36 @@ def icp(
             ends the iteration as converged; > 0.
         max_correspondence_distance: pairs at least this far apart are not correspondences; ``None``
             for no limit. Also bounds the k-d tree search, which makes it faster.
-        method: ``"point_to_point"`` or ``"point_to_plane"``.
+        method: ``"point_to_point"``, ``"point_to_plane"`` or ``"gicp"`` (generalized ICP, ``gicp`` module).
+        robust_kernel: ``None`` (least squares) or one of ``ROBUST_KERNELS`` (``robust_kernels`` module),
+            for ``"point_to_plane"`` and ``"gicp"``.
+        kernel_scale: the robust kernel's scale ``c`` [length unit], > 0.
+        covariance_neighbours: points per GICP covariance (``gicp_covariances``), >= 3.
+        source_covariances, target_covariances: (N, 3, 3) and (M, 3, 3) symmetric GICP covariances computed before
+            (``gicp_covariances``, e.g. of a whole frame whose control points are ``source``); default:
+            computed here from each cloud's ``covariance_neighbours`` nearest points.
 
     Returns:
         A ``RegistrationResult``; ``rmse`` and ``fitness`` are evaluated under the final transform.
 
     Raises:
         ValueError: for points not (K, 3) with K >= 3, NaN / inf, a non-rigid ``init``, an unknown
-            ``method`` or a non-positive setting.
+            ``method`` or ``robust_kernel``, a kernel with ``"point_to_point"``, a non-positive setting,
+            fewer points than ``covariance_neighbours`` or covariances of the wrong shape (``"gicp"``).
     """
     source = check_points(source, "source")
     target = check_points(target, "target")
     transform = np.eye(4) if init is None else check_rigid_transform(init, "init").copy()
     limit = _check_settings(max_iterations, tolerance, max_correspondence_distance, method)
+    check_robust_kernel(robust_kernel, kernel_scale)
+    if robust_kernel is not None and method == "point_to_point":
+        raise ValueError(f"robust_kernel {robust_kernel!r} applies to method point_to_plane or gicp, not {method}")
 
     tree = cKDTree(target)
     normals = estimate_normals(target, tree) if method == "point_to_plane" else None
+    if method == "gicp":
+        source_covariances = _covariances(source, source_covariances, covariance_neighbours, "source")
+        target_covariances = _covariances(target, target_covariances, covariance_neighbours, "target", tree)
     rotation, translation = transform[:3, :3].copy(), transform[:3, 3].copy()
     closest = _ClosestPoints(tree, source.shape[0], limit)
 
@@ -327,9 +377,15 @@ def icp(
         return np.take(moved, inliers, axis=0), matched, distance[inliers], inliers
 
     def increment(moved, matched, inliers, rows) -> tuple[np.ndarray, np.ndarray]:
-        if normals is None:
+        if method == "point_to_point":
             return _point_to_point(moved, matched)
-        return _point_to_plane(moved, matched, normals[closest.index[rows][inliers]])
+        matched_index = closest.index[rows][inliers]
+        if method == "point_to_plane":
+            return _point_to_plane(moved, matched, normals[matched_index], robust_kernel, kernel_scale)
+        rotated = rotation @ source_covariances[rows][inliers] @ rotation.T
+        combined = target_covariances[matched_index] + rotated
+        centre = np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved
+        return _step_about(centre, gicp_step(moved, matched, combined, robust_kernel, kernel_scale))
 
     def smaller_than(threshold: float, step_rotation: np.ndarray, step_translation: np.ndarray) -> bool:
         return rotation_angle(step_rotation) < threshold and float(np.linalg.norm(step_translation)) < threshold
