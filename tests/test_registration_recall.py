@@ -74,10 +74,14 @@ def _measured(control_points) -> str:
     return "; ".join(rows)
 
 
-@pytest.mark.xfail(
-    reason="not reached: entropy 5 cm recall 0.96, 0.96, 0.92, 0.96, 1.00 against all points' 1.00, 0.98, 0.98, "
-    "0.98, 1.00 (4 and 6 points short on sets 0-49 and 200-249, 10 cm recall 0.94 vs 1.00 there); " + TRIED,
-    strict=True,  # a tripwire: passing would mean the criterion now holds and this mark must go
+def _not_reached(measured: str):
+    """A strict xfail (a tripwire: passing would mean the criterion now holds and the mark must go)."""
+    return pytest.mark.xfail(reason=f"not reached: {measured}; {TRIED}", strict=True)
+
+
+@_not_reached(
+    "entropy 5 cm recall 0.96, 0.96, 0.92, 0.96, 1.00 against all points' 1.00, 0.98, 0.98, "
+    "0.98, 1.00 (4 and 6 points short on sets 0-49 and 200-249, 10 cm recall 0.94 vs 1.00 there)"
 )
 def test_entropy_recall_is_within_3_points_of_all_points_on_every_set(control_points):
     for methods in control_points:
@@ -85,20 +89,18 @@ def test_entropy_recall_is_within_3_points_of_all_points_on_every_set(control_po
             assert methods["entropy"][limit] >= methods["all"][limit] - RECALL_POINTS - 1e-12, _measured(control_points)
 
 
-@pytest.mark.xfail(
-    reason="not reached: entropy / all-points medians 1.35, 1.78, 1.95, 1.92, 1.51 (7.9-9.2 mm against 4.5-6.1 mm; "
-    "random's 1.64-1.91); with GICP the quarter chosen from one frame does no better than random; " + TRIED,
-    strict=True,  # a tripwire: passing would mean the criterion now holds and this mark must go
+@_not_reached(
+    "entropy / all-points medians 1.35, 1.78, 1.95, 1.92, 1.51 (7.9-9.2 mm against 4.5-6.1 mm; "
+    "random's 1.64-1.91); with GICP the quarter chosen from one frame does no better than random"
 )
 def test_entropy_median_is_within_20_percent_of_all_points_on_every_set(control_points):
     ratios = [m["entropy"]["median_error_after_m"] / m["all"]["median_error_after_m"] for m in control_points]
     assert max(ratios) <= MEDIAN_RATIO, f"entropy / all medians {np.round(ratios, 2).tolist()}"
 
 
-@pytest.mark.xfail(
-    reason="not reached: entropy 5 cm recall below random's on sets 0-349 (0.96, 0.96, 0.92, 0.96 vs 1.00, 0.98, "
-    "0.98, 0.98), median above random's on sets 200-449 (9.2, 8.7, 9.1 vs 7.6, 7.3, 8.8 mm); " + TRIED,
-    strict=True,  # a tripwire: passing would mean the criterion now holds and this mark must go
+@_not_reached(
+    "entropy 5 cm recall below random's on sets 0-349 (0.96, 0.96, 0.92, 0.96 vs 1.00, 0.98, "
+    "0.98, 0.98), median above random's on sets 200-449 (9.2, 8.7, 9.1 vs 7.6, 7.3, 8.8 mm)"
 )
 def test_entropy_recall_and_median_are_at_least_randoms_on_every_set(control_points):
     for methods in control_points:
