@@ -1,5 +1,7 @@
 """Replay building blocks: the replay clock, selection policies, the cooperative landmark model."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -57,7 +59,8 @@ def test_config_rejects_unknown_policy_and_empty_outage():
 def test_cooperative_models_match_central_differences():
     landmarks = np.array([[3.0, 1.0], [-1.0, 2.0]])
     poses = np.array([[0.5, -0.2, 0.3], [1.5, 1.0, -2.0]])
-    backend = _CooperativeFilter(poses, np.repeat(np.eye(3)[None] * 0.1, 2, axis=0), landmarks)
+    dataset = SimpleNamespace(landmarks=landmarks, robots=(1, 2))
+    backend = _CooperativeFilter(poses, np.repeat(np.eye(3)[None] * 0.1, 2, axis=0), dataset, ReplayConfig())
     for kind, target in ((LANDMARK, 0), (LANDMARK, 1), (ROBOT, 1)):
         predicted, H = backend.model(0, kind, target)
         numeric = np.zeros_like(H)

@@ -74,12 +74,14 @@ def test_without_biases_the_target_bias_filter_is_the_pose_filter():
 
 def test_unobserved_biases_keep_their_stationary_variance_and_decay():
     bias_std = np.array([[0.1, 0.01], [0.2, 0.02]])
-    ekf = TargetBiasPoseEKF(POSE, P, bias_std, [10.0, 5.0])
+    ekf = TargetBiasPoseEKF(POSE, P, bias_std, [1.0, 0.5])
     ekf.x[3:] = [0.1, 0.01, -0.2, 0.02]
-    for _ in range(50):
-        ekf.predict(np.zeros(2), 0.02, np.eye(2) * 1e-6)
+    for _ in range(50):  # 50 steps of 0.02 s at -0.1 m/s: 0.1 m driven
+        ekf.predict(np.array([-0.1, 0.3]), 0.02, np.eye(2) * 1e-6)
     np.testing.assert_allclose(np.diag(ekf.P)[3:], bias_std.ravel() ** 2, rtol=1e-12)
-    np.testing.assert_allclose(ekf.x[3:], [0.1, 0.01, -0.2, 0.02] * np.exp(-1.0 / np.array([10, 5, 10, 5])))
+    np.testing.assert_allclose(ekf.x[3:], [0.1, 0.01, -0.2, 0.02] * np.exp(-0.1 / np.array([1, 0.5, 1, 0.5])))
+    ekf.predict(np.array([0.0, 0.3]), 0.02, np.eye(2) * 1e-6)  # turning in place: no decay
+    np.testing.assert_allclose(ekf.x[3:], [0.1, 0.01, -0.2, 0.02] * np.exp(-0.1 / np.array([1, 0.5, 1, 0.5])))
 
 
 def test_a_measurement_moves_only_its_targets_biases():
@@ -93,5 +95,5 @@ def test_a_measurement_moves_only_its_targets_biases():
 def test_target_bias_filter_rejects_bad_parameters():
     with pytest.raises(ValueError, match="bias_std"):
         TargetBiasPoseEKF(POSE, P, [[-0.1, 0.0]], [1.0, 1.0])
-    with pytest.raises(ValueError, match="correlation_time_s"):
+    with pytest.raises(ValueError, match="correlation_distance_m"):
         TargetBiasPoseEKF(POSE, P, [[0.1, 0.0]], [0.0, 1.0])

@@ -6,8 +6,9 @@ counts one error many times and grows overconfident. The standard remedy for col
 noise is to augment the state with it (Gelb 1974, "Applied Optimal Estimation", Sec. 4.5;
 Bar-Shalom, Li and Kirubarajan 2001, "Estimation with Applications to Tracking and Navigation",
 Sec. 8.3): each target ``j`` gets a range bias and a bearing bias, each a first-order Gauss-Markov
-process ``b(t + dt) = a b(t) + w``, ``a = exp(-dt / tau)``, stationary variance ``sigma_b^2``; a
-measurement is ``h(pose, target) + b_j + white noise``.
+process, stationary variance ``sigma_b^2``; a measurement is ``h(pose, target) + b_j + white noise``.
+The errors change with the viewing geometry, not with time (a parked robot keeps its error), so the
+process runs in the distance the robot travels: ``b(s + ds) = a b(s) + w``, ``a = exp(-ds / l)``.
 """
 
 from __future__ import annotations
@@ -32,16 +33,18 @@ class TargetBiasPoseEKF(ExtendedKalmanFilter):
         pose: initial pose estimate (3,).
         pose_covariance: its covariance (3, 3).
         bias_std: stationary standard deviations ``[range [m], bearing [rad]]`` of each target's biases (T, 2).
-        correlation_time_s: the biases' correlation times ``[range, bearing]`` [s], positive.
+        correlation_distance_m: the biases' correlation lengths ``[range, bearing]`` in travelled distance [m].
     """
 
-    def __init__(self, pose, pose_covariance, bias_std, correlation_time_s):
+    def __init__(self, pose, pose_covariance, bias_std, correlation_distance_m):
         bias_std = np.asarray(bias_std, dtype=float).reshape(-1, 2)
-        correlation_time_s = np.asarray(correlation_time_s, dtype=float)
+        correlation_distance_m = np.asarray(correlation_distance_m, dtype=float)
         if np.any(bias_std < 0) or not np.all(np.isfinite(bias_std)):
             raise ValueError(f"bias_std must be finite and >= 0, got {bias_std.tolist()}")
-        if correlation_time_s.shape != (2,) or not np.all(correlation_time_s > 0):
-            raise ValueError(f"correlation_time_s must be 2 positive times [s], got {correlation_time_s.tolist()}")
+        if correlation_distance_m.shape != (2,) or not np.all(correlation_distance_m > 0):
+            raise ValueError(
+                f"correlation_distance_m must be 2 positive lengths [m], got {correlation_distance_m.tolist()}"
+            )
         super().__init__(dim_x=POSE_DIM + bias_std.size, dim_z=2)
         log_det_spd(np.asarray(pose_covariance, dtype=float), "pose_covariance")
         self.x = np.concatenate([np.asarray(pose, dtype=float), np.zeros(bias_std.size)])
@@ -49,8 +52,7 @@ class TargetBiasPoseEKF(ExtendedKalmanFilter):
         self.P = np.diag(np.concatenate([np.zeros(POSE_DIM), self._bias_variance]))
         self.P[:POSE_DIM, :POSE_DIM] = pose_covariance
         self.Q = np.zeros_like(self.P)
-        self._correlation_time_s = np.tile(correlation_time_s, len(bias_std))
-        self._decay_dt = None
+        self._correlation_distance_m = np.tile(correlation_distance_m, len(bias_std))
         self._motion = None
 
     @property
@@ -58,12 +60,12 @@ class TargetBiasPoseEKF(ExtendedKalmanFilter):
         return (self.dim_x - POSE_DIM) // 2
 
     def predict(self, control, dt: float, control_covariance) -> None:
-        """Unicycle step with odometry ``control`` ``[speed, turn_rate]`` and its covariance (2, 2); biases decay."""
-        if dt != self._decay_dt:
-            decay = np.exp(-dt / self._correlation_time_s)
-            self.F[POSE_DIM:, POSE_DIM:] = np.diag(decay)
-            self.Q[POSE_DIM:, POSE_DIM:] = np.diag((1.0 - decay**2) * self._bias_variance)
-            self._decay_dt = dt
+        """Unicycle step with odometry ``control`` ``[speed, turn_rate]`` and its covariance (2, 2); biases decay
+        over the distance driven."""
+        decay = np.exp(-abs(control[0]) * dt / self._correlation_distance_m)
+        biases = np.arange(POSE_DIM, self.dim_x)
+        self.F[biases, biases] = decay
+        self.Q[biases, biases] = (1.0 - decay**2) * self._bias_variance
         F_pose, V = unicycle_jacobians(self.x, control, dt)
         self.F[:POSE_DIM, :POSE_DIM] = F_pose
         self.Q[:POSE_DIM, :POSE_DIM] = V @ control_covariance @ V.T

@@ -15,7 +15,7 @@ def select_greedy(P: np.ndarray, H: np.ndarray, R: np.ndarray, k: int) -> list[i
     Args:
         P: prior covariance of the filter's state (n, n).
         H: candidate Jacobians (m, 2, n).
-        R: measurement noise covariance (2, 2), shared by the candidates.
+        R: measurement noise covariance (2, 2), shared by the candidates, or each one's (m, 2, 2).
         k: how many to pick.
 
     Returns:
@@ -24,13 +24,14 @@ def select_greedy(P: np.ndarray, H: np.ndarray, R: np.ndarray, k: int) -> list[i
     chosen: list[int] = []
     available = np.ones(len(H), dtype=bool)
     P = P.copy()
+    R = np.broadcast_to(R, (len(H), *np.shape(R)[-2:]))
     for _ in range(min(k, len(H))):
         gains = np.where(available, expected_information_gain(P, H, R, check_input=False), -np.inf)
         best = int(np.argmax(gains))
         chosen.append(best)
         available[best] = False
         PHT = P @ H[best].T
-        P = P - PHT @ np.linalg.solve(H[best] @ PHT + R, PHT.T)
+        P = P - PHT @ np.linalg.solve(H[best] @ PHT + R[best], PHT.T)
         P = 0.5 * (P + P.T)
     return chosen
 
