@@ -2,9 +2,9 @@
 
 For each robot (and pooled over the robots):
 
-- **Clock offsets.** The odometry log's offset is the shift that makes its 1 s turn rates agree best
-  with the ground truth's (least robust spread of the error); the measurement log's, the shift that
-  makes the landmark bearings agree best. Searched on a 10 ms grid over +-0.5 s.
+- **Clock offsets.** The odometry log's offset is the shift that makes its 1 s heading changes agree
+  best with the ground truth's (least spread of the error, trimmed at 4 robust std); the measurement
+  log's, the shift that makes the landmark bearings agree best (least robust spread). Searched on a 10 ms grid over +-0.5 s.
 - **Odometry.** Scale of speed and turn rate (least squares through the origin over 1 s windows), then
   noise densities from the growth of the integrated error's variance with the window length ``T``
   (``var(T) = q^2 T`` for white noise, fitted over T = 1, 2, 4, 8 s). The plain variance, not a robust
@@ -39,6 +39,7 @@ from infonav_gym.geometry import wrap_angle
 OFFSET_GRID_S = np.round(np.arange(-0.5, 0.5001, 0.01), 2)  # [s] candidate clock offsets
 ODOMETRY_GRID_S = 0.1  # [s] resolution of the integrated odometry errors
 NOISE_WINDOWS_S = (1.0, 2.0, 4.0, 8.0)  # [s] windows whose error growth gives the noise densities
+WINDOW_STEP_S = 0.5  # [s] windows start this far apart (longer ones overlap: more samples of their variance)
 SHORT_LAG_S = 0.5  # [s] consecutive looks closer than this share their bias
 TRAVEL_EDGES_M = (0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # [m] bins of the bias covariance fit
 NO_DECAY_LENGTH_M = 1000.0  # [m] correlation length when the covariance does not decay: a constant bias
@@ -55,7 +56,7 @@ def robust_std(values) -> float:
 
 
 def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, scales=(1.0, 1.0)) -> np.ndarray:
-    """Integrated odometry errors over consecutive windows: ``[forward distance, heading]`` (W, 2) with
+    """Integrated odometry errors over windows starting every ``WINDOW_STEP_S``: ``[forward distance, heading]`` (W, 2) with
     the true forward progress and heading change (W, 2) beside them, as ``(errors, truth)``.
 
     Odometry times are shifted by ``offset_s`` and its speed and turn rate divided by ``scales``.
@@ -78,16 +79,22 @@ def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, sca
     )
     stride = int(round(window_s / ODOMETRY_GRID_S))
     invalid_before = np.concatenate([[0], np.cumsum(~valid)])
-    starts = np.arange(0, len(grid) - stride, stride)
+    starts = np.arange(0, len(grid) - stride, int(round(WINDOW_STEP_S / ODOMETRY_GRID_S)))
     ok = invalid_before[starts + stride + 1] == invalid_before[starts]
     truth = (true_cumulative[starts + stride] - true_cumulative[starts])[ok]
     measured = (odometry_cumulative[starts + stride] - odometry_cumulative[starts])[ok]
     return measured - truth, truth
 
 
+def trimmed_std(values) -> float:
+    """The standard deviation of ``values`` within ``OUTLIER_Z`` robust std of their median."""
+    values = np.asarray(values, dtype=float)
+    return float(np.std(values[np.abs(values - np.median(values)) < OUTLIER_Z * robust_std(values)]))
+
+
 def fit_odometry_offset(odometry, groundtruth) -> float:
-    """The odometry clock offset [s] with the least robust spread of the 1 s heading-change error."""
-    spreads = [robust_std(odometry_errors(odometry, groundtruth, offset, 1.0)[0][:, 1]) for offset in OFFSET_GRID_S]
+    """The odometry clock offset [s] with the least trimmed spread of the 1 s heading-change error."""
+    spreads = [trimmed_std(odometry_errors(odometry, groundtruth, offset, 1.0)[0][:, 1]) for offset in OFFSET_GRID_S]
     return float(OFFSET_GRID_S[int(np.argmin(spreads))])
 
 
@@ -118,9 +125,10 @@ def fit_odometry(samples: list[tuple[np.ndarray, np.ndarray]], windows_s=NOISE_W
 
 
 def travelled(odometry: np.ndarray, times) -> np.ndarray:
-    """Distance driven by odometry (|speed| integrated, zero-order hold) [m] up to each of ``times``."""
+    """Forward progress by odometry (speed integrated, zero-order hold) [m] up to each of ``times``; the
+    distance driven between two times is the difference (the robots drive forward), its noise averaged."""
     durations = np.diff(odometry[:, 0])
-    knots = np.concatenate([[0.0], np.cumsum(np.abs(odometry[:-1, 1]) * durations)])
+    knots = np.concatenate([[0.0], np.cumsum(odometry[:-1, 1] * durations)])
     return np.interp(times, odometry[:, 0], knots)
 
 
@@ -212,7 +220,7 @@ def fit_channel(error, design, range_m, time_s, travelled_m, pairs, range_depend
     white = intercept + slope * range_m
     inlier = np.abs(centred) < OUTLIER_Z * np.sqrt(white**2 + robust_std(centred) ** 2)
     both = inlier[first] & inlier[second]
-    driven = travelled_m[second] - travelled_m[first]
+    driven = np.abs(travelled_m[second] - travelled_m[first])
     travel_bins = []
     for low, high in zip(TRAVEL_EDGES_M[:-1], TRAVEL_EDGES_M[1:]):
         chosen = both & (driven >= low) & (driven < high)
