@@ -4,7 +4,8 @@ For each robot (and pooled over the robots):
 
 - **Clock offsets.** The odometry log's offset is the shift that makes its 1 s heading changes agree
   best with the ground truth's (least spread of the error, trimmed at 4 robust std); the measurement
-  log's, the shift that makes the landmark bearings agree best (least robust spread). Searched on a 10 ms grid over +-0.5 s.
+  log's, the shift that makes the landmark bearings agree best (least robust spread). Searched on a
+  10 ms grid over +-0.5 s.
 - **Odometry.** Scale of speed and turn rate (least squares through the origin over 1 s windows), then
   noise densities from the growth of the integrated error's variance with the window length ``T``
   (``var(T) = q^2 T`` for white noise, fitted over T = 1, 2, 4, 8 s). The plain variance, not a robust
@@ -56,8 +57,8 @@ def robust_std(values) -> float:
 
 
 def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, scales=(1.0, 1.0)) -> np.ndarray:
-    """Integrated odometry errors over windows starting every ``WINDOW_STEP_S``: ``[forward distance, heading]`` (W, 2) with
-    the true forward progress and heading change (W, 2) beside them, as ``(errors, truth)``.
+    """Integrated odometry errors ``[forward distance, heading]`` (W, 2) over windows starting every
+    ``WINDOW_STEP_S``, with the true forward progress and heading change (W, 2), as ``(errors, truth)``.
 
     Odometry times are shifted by ``offset_s`` and its speed and turn rate divided by ``scales``.
     """
