@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
-from infonav_gym.estimation.ekf import POSE_DIM, _kalman_update
-from infonav_gym.estimation.models import range_bearing_linearized, unicycle_jacobians, unicycle_motion
+from infonav_gym.estimation.ekf import POSE_DIM, _kalman_update, set_pose_motion
+from infonav_gym.estimation.models import range_bearing_linearized, unicycle_motion
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import log_det_spd
 
@@ -66,10 +66,7 @@ class TargetBiasPoseEKF(ExtendedKalmanFilter):
         biases = np.arange(POSE_DIM, self.dim_x)
         self.F[biases, biases] = decay
         self.Q[biases, biases] = (1.0 - decay**2) * self._bias_variance
-        F_pose, V = unicycle_jacobians(self.x, control, dt)
-        self.F[:POSE_DIM, :POSE_DIM] = F_pose
-        self.Q[:POSE_DIM, :POSE_DIM] = V @ control_covariance @ V.T
-        self._motion = (control, dt)
+        set_pose_motion(self, control, dt, control_covariance)
         super().predict()
 
     def predict_x(self, u=0) -> None:

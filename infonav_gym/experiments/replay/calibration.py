@@ -47,6 +47,25 @@ NO_DECAY_LENGTH_M = 1000.0  # [m] correlation length when the covariance does no
 OUTLIER_Z = 4.0  # errors beyond this many model std count as outliers
 RANGE_BINS = 5  # range quantile bins of the white range std
 MIN_BIN = 20  # fewest samples a bin needs to enter a fit
+SYSTEMATIC_FIELDS = {  # the RobotNoise fields of each channel's systematic coefficients, in design order
+    "range": ("range_bias_m", "range_bias_per_rad", "range_bias_per_rad2", "range_bias_per_m"),
+    "bearing": ("bearing_bias_rad", "bearing_bias_per_rad", "bearing_bias_per_rad2", "bearing_bias_per_rad3"),
+}
+CHANNEL_FIELDS = {  # fit_channel's results -> RobotNoise fields
+    "range": {
+        "white_std": "range_white_std_m",
+        "white_std_per_m": "range_white_std_per_m",
+        "bias_std": "range_bias_std_m",
+        "correlation_distance_m": "range_correlation_distance_m",
+        "outlier_fraction": "range_outlier_fraction",
+    },
+    "bearing": {
+        "white_std": "bearing_white_std_rad",
+        "bias_std": "bearing_bias_std_rad",
+        "correlation_distance_m": "bearing_correlation_distance_m",
+        "outlier_fraction": "bearing_outlier_fraction",
+    },
+}
 PAIR_STEPS = (1, 2, 4, 8, 16, 32, 64, 128, 256)  # looks apart of the pairs whose covariance gives the bias
 
 
@@ -294,36 +313,15 @@ def fit_robot(
         )
         for channel in ("range", "bearing")
     }
-    r, b = channels["range"], channels["bearing"]
-    noise = RobotNoise(
-        odometry_time_offset_s=offsets[0],
-        measurement_time_offset_s=offsets[1],
-        speed_scale=odometry["speed_scale"],
-        turn_rate_scale=odometry["turn_rate_scale"],
-        speed_std=odometry["speed_std"],
-        turn_rate_std=odometry["turn_rate_std"],
-        range_bias_m=r["systematic"][0],
-        range_bias_per_rad=r["systematic"][1],
-        range_bias_per_rad2=r["systematic"][2],
-        range_bias_per_m=r["systematic"][3],
-        range_white_std_m=r["white_std"],
-        range_white_std_per_m=r["white_std_per_m"],
-        range_bias_std_m=r["bias_std"],
-        range_correlation_distance_m=r["correlation_distance_m"],
-        range_outlier_fraction=r["outlier_fraction"],
-        bearing_bias_rad=b["systematic"][0],
-        bearing_bias_per_rad=b["systematic"][1],
-        bearing_bias_per_rad2=b["systematic"][2],
-        bearing_bias_per_rad3=b["systematic"][3],
-        bearing_white_std_rad=b["white_std"],
-        bearing_bias_std_rad=b["bias_std"],
-        bearing_correlation_distance_m=b["correlation_distance_m"],
-        bearing_outlier_fraction=b["outlier_fraction"],
-    )
+    values = {key: odometry[key] for key in ("speed_scale", "turn_rate_scale", "speed_std", "turn_rate_std")}
+    for channel, fit in channels.items():
+        values.update(zip(SYSTEMATIC_FIELDS[channel], fit["systematic"]))
+        values.update({field: fit[key] for key, field in CHANNEL_FIELDS[channel].items()})
+    noise = RobotNoise(odometry_time_offset_s=offsets[0], measurement_time_offset_s=offsets[1], **values)
     diagnostics = {
         "odometry_variance_by_window": odometry["variance_by_window"],
-        "range": r["diagnostics"],
-        "bearing": b["diagnostics"],
+        "range": channels["range"]["diagnostics"],
+        "bearing": channels["bearing"]["diagnostics"],
     }
     return noise, diagnostics
 

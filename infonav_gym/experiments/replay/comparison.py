@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from infonav_gym.experiments.replay.report import budget_cells
+
 COMPARED_KEYS = ("position_rmse_m", "mean_nees", "nees_fraction_inside_95", "mean_nis", "nis_inside_95")
 
 
@@ -83,7 +85,7 @@ def comparison_markdown(comparison: dict) -> str:
         "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for row in comparison["rows"]:
-        budget = ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
+        budget = budget_cells(row)
         lines.append(
             f"| {row['policy']} | {budget[0]} | {budget[1]} | {_pair(row['position_rmse_m'], 3)} "
             f"| {_pair(row['mean_nees'], 2)} | {_pair(row['nees_fraction_inside_95'], 3)} "

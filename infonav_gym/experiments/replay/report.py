@@ -150,6 +150,11 @@ NEES_NOTE = (
 )
 
 
+def budget_cells(row: dict) -> tuple[str, str]:
+    """The ``k`` and ``window [s]`` cells of a row (``-`` for the unbudgeted all-landmark policy)."""
+    return ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
+
+
 def _cell(value, digits=3) -> str:
     if value is None:
         return "n/a"
@@ -170,7 +175,7 @@ def markdown_table(summary: dict) -> str:
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for row in summary["rows"]:
-        budget = ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
+        budget = budget_cells(row)
         lines.append(
             f"| {row['policy']} | {budget[0]} | {budget[1]} | {row['n_runs']} | {_cell(row['position_rmse_m'])} "
             f"| {_cell(row['heading_rmse_rad'])} | {_cell(row['mean_nees'], 2)} "
@@ -194,7 +199,7 @@ def markdown_table(summary: dict) -> str:
             "| --- | --- | --- | " + " | ".join("---" for _ in robots) + " |",
         ]
         for row in summary["rows"]:
-            budget = ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
+            budget = budget_cells(row)
             cells = " | ".join(_cell(row["position_rmse_m_per_robot"][robot]) for robot in robots)
             lines.append(f"| {row['policy']} | {budget[0]} | {budget[1]} | {cells} |")
         cells = " | ".join(_cell(dead_reckoning["position_rmse_m_per_robot"][robot]) for robot in robots)
