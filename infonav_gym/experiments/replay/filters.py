@@ -6,7 +6,8 @@ calibrated model each robot's filter is a ``TargetBiasPoseEKF`` (the slow per-la
 bearing biases in its state, white noise growing with range in R), the cooperative JointEKF takes the
 whole error as white, and every update is Huber-weighted (``estimation.robust``: the standard update
 for innovations inside ``huber_threshold_nis``, inflated noise beyond) after the gate. The expected
-information gains of the greedy policy use the same covariance, Jacobians and noise.
+information gains of the greedy policy use the same covariance, Jacobians and noise, and count the
+information on the pose only (the biases are nuisance parameters).
 """
 
 from __future__ import annotations
@@ -88,6 +89,9 @@ class ReplayTrace:
     choices: list[list[tuple[int, int]]] = field(default_factory=list)  # per robot, (window, target) picked
 
 
+POSE_ENTRIES = np.arange(3)
+
+
 class _IndependentFilters:
     """One PoseEKF per robot with the known landmark map; robot-to-robot measurements are not used."""
 
@@ -109,6 +113,10 @@ class _IndependentFilters:
 
     def noise(self, robot, kind, predicted):
         return self.R
+
+    def information_of(self, robot):
+        """The state entries whose information greedy counts: the robot's pose (None: the whole state)."""
+        return None
 
     def update(self, robot, kind, target, z, predicted, H, R):
         self.filters[robot].update_range_bearing(z, predicted, H, R)
@@ -141,6 +149,9 @@ class _CalibratedFilters(_IndependentFilters):
 
     def noise(self, robot, kind, predicted):
         return self.models[robot].white_noise(predicted[0])
+
+    def information_of(self, robot):
+        return POSE_ENTRIES  # the biases are nuisance: information about them does not localize
 
     def update(self, robot, kind, target, z, predicted, H, R):
         self.filters[robot].update_range_bearing(z, range_bearing_residual(z, predicted), H, R)
@@ -179,6 +190,9 @@ class _CooperativeFilter:
 
     def noise(self, robot, kind, predicted):
         return self.models[robot].total_noise(predicted[0]) if self.models else self.R
+
+    def information_of(self, robot):
+        return None
 
     def update(self, robot, kind, target, z, predicted, H, R):
         if kind == ROBOT:
@@ -298,7 +312,7 @@ def _select_window(backend, robot, rows, selected, pointer, window_end, config, 
             R = np.array(
                 [backend.noise(robot, kind, predicted) for (kind, _), (predicted, _) in zip(kinds_targets, models)]
             )
-            chosen = select_greedy(backend.covariance(robot), H, R, config.k)
+            chosen = select_greedy(backend.covariance(robot), H, R, config.k, backend.information_of(robot))
         else:
             chosen = select_nearest(np.array([predicted[0] for predicted, _ in models]), config.k)
     chosen = np.asarray(chosen, dtype=int)
