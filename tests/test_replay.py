@@ -1,5 +1,7 @@
 """Replay building blocks: the replay clock, selection policies, the cooperative landmark model."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -57,7 +59,8 @@ def test_config_rejects_unknown_policy_and_empty_outage():
 def test_cooperative_models_match_central_differences():
     landmarks = np.array([[3.0, 1.0], [-1.0, 2.0]])
     poses = np.array([[0.5, -0.2, 0.3], [1.5, 1.0, -2.0]])
-    backend = _CooperativeFilter(poses, np.repeat(np.eye(3)[None] * 0.1, 2, axis=0), landmarks)
+    dataset = SimpleNamespace(landmarks=landmarks, robots=(1, 2))
+    backend = _CooperativeFilter(poses, np.repeat(np.eye(3)[None] * 0.1, 2, axis=0), dataset, ReplayConfig())
     for kind, target in ((LANDMARK, 0), (LANDMARK, 1), (ROBOT, 1)):
         predicted, H = backend.model(0, kind, target)
         numeric = np.zeros_like(H)
@@ -74,3 +77,21 @@ def test_cooperative_models_match_central_differences():
         assert predicted[0] == pytest.approx(
             np.hypot(*((landmarks[target] if kind == LANDMARK else poses[1, :2]) - poses[0, :2]))
         )
+
+
+def test_greedy_on_the_pose_marginal_ignores_nuisance_information():
+    """With a nuisance state (a bias) beside the pose, the marginal gain counts only the pose's information."""
+    P = np.diag([0.04, 0.04, 0.01, 1.0])  # pose and a very uncertain bias of candidate 0
+    about_bias = np.array([[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.0]])  # informs only the bias
+    about_x = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]])
+    H = np.array([about_bias, about_x])
+    R = np.diag([0.01, 0.01])
+    assert select_greedy(P, H, R, 1) == [0], "the whole-state gain prefers the bias"
+    assert select_greedy(P, H, R, 1, of=np.arange(3)) == [1]
+    pose_prior = P[:3, :3]
+    K = P @ about_x.T @ np.linalg.inv(about_x @ P @ about_x.T + R)
+    posterior = (P - K @ about_x @ P)[:3, :3]
+    expected = 0.5 * np.log(np.linalg.det(pose_prior) / np.linalg.det(posterior))
+    from infonav_gym.experiments.replay.policies import _marginal_gains
+
+    np.testing.assert_allclose(_marginal_gains(P, H, np.broadcast_to(R, (2, 2, 2)), np.arange(3)), [0.0, expected])

@@ -141,10 +141,7 @@ class PoseEKF(ExtendedKalmanFilter):
             control = _finite("control", control, (2,))
             dt = _time_step(dt)
             control_covariance = _noise_covariance("control_covariance", control_covariance, (2, 2))
-        F_pose, V = unicycle_jacobians(self.x, control, dt)
-        self.F[:POSE_DIM, :POSE_DIM] = F_pose
-        self.Q[:POSE_DIM, :POSE_DIM] = V @ control_covariance @ V.T
-        self._motion = (control, dt)
+        set_pose_motion(self, control, dt, control_covariance)
         super().predict()
 
     def predict_x(self, u=0) -> None:
@@ -196,6 +193,15 @@ class PoseEKF(ExtendedKalmanFilter):
             H = _finite("H", H, (2, self.dim_x))
             R = _noise_covariance("R", R, (2, 2))
         _kalman_update(self, measurement, range_bearing_residual(measurement, predicted), H, R, 2)
+
+
+def set_pose_motion(ekf: ExtendedKalmanFilter, control, dt: float, control_covariance) -> None:
+    """Fill the pose block (the first 3 states) of ``ekf.F`` and ``ekf.Q`` for a unicycle step, and keep the
+    step in ``ekf._motion`` for ``predict_x``."""
+    F_pose, V = unicycle_jacobians(ekf.x, control, dt)
+    ekf.F[:POSE_DIM, :POSE_DIM] = F_pose
+    ekf.Q[:POSE_DIM, :POSE_DIM] = V @ control_covariance @ V.T
+    ekf._motion = (control, dt)
 
 
 def _inverse(S: np.ndarray) -> np.ndarray:

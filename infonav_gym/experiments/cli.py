@@ -162,7 +162,22 @@ def build_parser() -> argparse.ArgumentParser:
     mrclam.add_argument("--outage-start-s", type=float, default=0.0, help="outage start [s] (default: 0)")
     mrclam.add_argument("--outage-end-s", type=float, default=float("inf"), help="outage end [s] (default: the end)")
     mrclam.add_argument("--duration-s", type=float, help="replay only the first DURATION_S seconds")
-    mrclam.add_argument("--output", type=Path, help="write OUTPUT.md and OUTPUT.json")
+    mrclam.add_argument("--output", type=Path, help="write OUTPUT.md, OUTPUT.json and OUTPUT_nees.png")
+    mrclam.add_argument(
+        "--noise",
+        default="shipped",
+        help="noise model: a calibration JSON file, 'shipped' (fitted on Dataset 6, the default) or 'picked' "
+        "(the hand-picked stds of the dataset README, independent errors)",
+    )
+    mrclam.add_argument(
+        "--compare-noise", help="also run every experiment with this noise model (as --noise) and report both"
+    )
+    mrclam.add_argument(
+        "--calibrate",
+        type=Path,
+        metavar="OUTPUT.json",
+        help="fit the noise model to DATASET_DIR's ground truth, write OUTPUT.json and OUTPUT.png, replay nothing",
+    )
     _common(mrclam)
     return parser
 
@@ -354,11 +369,67 @@ def _reproduce(args, argv) -> dict:
     return result
 
 
-def _replay(args, argv) -> dict:
-    """Load an MRCLAM directory, replay the policies and budgets asked for; print the table unless --json."""
+def _noise_model(value: str | None):
+    """``--noise`` / ``--compare-noise``: 'picked' -> None, 'shipped' -> the shipped model, else a file."""
+    from infonav_gym.experiments.replay.noise_model import load_noise_model, shipped_noise_model
+
+    if value == "picked":
+        return None
+    return shipped_noise_model() if value == "shipped" else load_noise_model(value)
+
+
+def _load_mrclam(directory):
+    """Load an MRCLAM directory; print its warnings; missing paths become ``ValueError``."""
     import warnings
 
     from infonav_gym.datasets import mrclam
+
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            dataset = mrclam.load(directory)
+    except OSError as error:  # a missing directory or file, a file where the directory belongs
+        raise ValueError(str(error)) from None
+    for warning in caught:
+        print(f"infonav replay: warning: {warning.message}", file=sys.stderr)
+    return dataset
+
+
+def _calibrate(args, argv) -> dict:
+    """Fit the noise model of ``args.dataset_dir``; write the JSON and the residual plot."""
+    from infonav_gym.experiments.replay.calibration import calibrate
+    from infonav_gym.experiments.replay.plots import plot_calibration
+
+    stem = check_output_stem(args.calibrate.with_suffix(""), (".json", ".png"), "--calibrate")
+    dataset = _load_mrclam(args.dataset_dir)
+    model, errors = calibrate(dataset, command="infonav " + shlex.join(argv), progress=not args.json)
+    result = model.to_json()
+
+    def write():
+        stem.parent.mkdir(parents=True, exist_ok=True)
+        return [model.save(stem.with_suffix(".json")), plot_calibration(model, errors, stem.with_suffix(".png"))]
+
+    failure = _write_files(write, result, f"--calibrate {args.calibrate}")
+    if not args.json:
+        print(calibration_table(model))
+    _raise_if_failed(failure, result)
+    return result
+
+
+def calibration_table(model) -> str:
+    """The fitted parameters as Markdown, one column per robot and pooled."""
+    import dataclasses
+
+    columns = {f"robot {subject}": noise for subject, noise in sorted(model.robots.items())} | {"pooled": model.pooled}
+    lines = ["| parameter | " + " | ".join(columns) + " |", "| --- |" + " --- |" * len(columns)]
+    for field in dataclasses.fields(model.pooled):
+        cells = " | ".join(f"{getattr(noise, field.name):.4g}" for noise in columns.values())
+        lines.append(f"| {field.name} | {cells} |")
+    return "\n".join(lines)
+
+
+def _replay(args, argv) -> dict:
+    """Load an MRCLAM directory, replay the policies and budgets asked for; print the table unless --json."""
     from infonav_gym.experiments.replay import (
         ReplayConfig,
         check_experiments,
@@ -366,7 +437,10 @@ def _replay(args, argv) -> dict:
         run_experiments,
         write_results,
     )
+    from infonav_gym.experiments.replay.comparison import compare, comparison_markdown
 
+    if args.calibrate:
+        return _calibrate(args, argv)
     policies = [name.strip() for name in args.policy.split(",") if name.strip()]
     if not policies:
         raise ValueError(f"--policy takes comma-separated policy names, got {args.policy!r}")
@@ -378,14 +452,9 @@ def _replay(args, argv) -> dict:
         raise ValueError(message) from None
     check_experiments(policies, ks, windows, args.seeds)  # before the dataset loads
     stem = check_output_stem(args.output, REPLAY_SUFFIXES, "--output") if args.output else None
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            dataset = mrclam.load(args.dataset_dir)
-    except OSError as error:  # a missing directory or file, a file where the directory belongs
-        raise ValueError(str(error)) from None
-    for warning in caught:
-        print(f"infonav replay: warning: {warning.message}", file=sys.stderr)
+    noise = _noise_model(args.noise)
+    compared = _noise_model(args.compare_noise) if args.compare_noise else None
+    dataset = _load_mrclam(args.dataset_dir)
     if not dataset.has_groundtruth:
         print(
             "infonav replay: no ground truth for robot(s) "
@@ -394,24 +463,34 @@ def _replay(args, argv) -> dict:
             file=sys.stderr,
         )
     outage = (args.outage_robot, args.outage_start_s, args.outage_end_s) if args.outage_robot is not None else None
-    result = run_experiments(
-        dataset,
-        policies,
-        ks,
-        windows,
-        n_seeds=args.seeds,
-        seed=args.seed,
-        outage=outage,
-        config=ReplayConfig(cooperative=args.cooperative),
-        duration_s=args.duration_s,
-        progress=not args.json,
-    )
+
+    def sweep(noise_model):
+        return run_experiments(
+            dataset,
+            policies,
+            ks,
+            windows,
+            n_seeds=args.seeds,
+            seed=args.seed,
+            outage=outage,
+            config=ReplayConfig(cooperative=args.cooperative, noise=noise_model),
+            duration_s=args.duration_s,
+            progress=not args.json,
+        )
+
+    result = sweep(noise)
+    if args.compare_noise:
+        before = sweep(compared)
+        result["comparison"] = compare(result, before)
+        result["compared_rows"] = before["rows"]
     failure = None
     if stem:
         command = "infonav " + shlex.join(argv)
         failure = _write_files(lambda: write_results(result, stem, command), result, f"--output {stem}")
     if not args.json:
         print(markdown_table(result))
+        if args.compare_noise:
+            print("\n" + comparison_markdown(result["comparison"]))
     _raise_if_failed(failure, result)
     return result
 

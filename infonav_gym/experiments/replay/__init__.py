@@ -3,10 +3,14 @@
 ``replay(dataset, ReplayConfig(...))`` runs one filter (PoseEKF per robot with the landmark
 map, or a cooperative JointEKF) through a dataset's odometry and measurements in time order,
 with chi-square innovation gating, under a selection policy; ``run_experiments`` sweeps
-policies and budgets and runs the absolute-sensing outage experiment.
+policies and budgets and runs the absolute-sensing outage experiment. ``calibrate`` fits a
+``NoiseModel`` to a dataset's ground truth; ``ReplayConfig(noise=...)`` replays with it
+(``shipped_noise_model()``: the one fitted on Dataset 6; ``noise=None``: the hand-picked stds).
 """
 
+from infonav_gym.experiments.replay.calibration import calibrate
 from infonav_gym.experiments.replay.filters import ReplayConfig
+from infonav_gym.experiments.replay.noise_model import NoiseModel, load_noise_model, shipped_noise_model
 from infonav_gym.experiments.replay.policies import POLICIES
 from infonav_gym.experiments.replay.report import check_experiments, markdown_table, run_experiments, write_results
 from infonav_gym.experiments.replay.run import replay
@@ -14,11 +18,15 @@ from infonav_gym.experiments.replay.timeline import make_timeline
 
 __all__ = [
     "POLICIES",
+    "NoiseModel",
     "ReplayConfig",
+    "calibrate",
     "check_experiments",
+    "load_noise_model",
     "make_timeline",
     "markdown_table",
     "replay",
     "run_experiments",
+    "shipped_noise_model",
     "write_results",
 ]

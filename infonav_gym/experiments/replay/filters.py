@@ -1,4 +1,14 @@
-"""Time-ordered replay of a dataset through PoseEKF (per robot, landmark map) or JointEKF (cooperative)."""
+"""Time-ordered replay of a dataset through PoseEKF (per robot, landmark map) or JointEKF (cooperative).
+
+Two noise models: the hand-picked one of the dataset README (``ReplayConfig.noise = None``: fixed range
+and bearing std, independent errors, a chi-square gate), or a calibrated ``NoiseModel``. With a
+calibrated model each robot's filter is a ``TargetBiasPoseEKF`` (the slow per-landmark range and
+bearing biases in its state, white noise growing with range in R), the cooperative JointEKF takes the
+whole error as white, and every update is Huber-weighted (``estimation.robust``: the standard update
+for innovations inside ``huber_threshold_nis``, inflated noise beyond) after the gate. The expected
+information gains of the greedy policy use the same covariance, Jacobians and noise, and count the
+information on the pose only (the biases are nuisance parameters).
+"""
 
 from __future__ import annotations
 
@@ -10,8 +20,11 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.estimation.bias_ekf import TargetBiasPoseEKF
 from infonav_gym.estimation.ekf import JointEKF, PoseEKF
 from infonav_gym.estimation.models import range_bearing_residual
+from infonav_gym.estimation.robust import huber_noise
+from infonav_gym.experiments.replay.noise_model import NoiseModel
 from infonav_gym.experiments.replay.policies import POLICIES, select_greedy, select_nearest, select_random
 from infonav_gym.experiments.replay.timeline import LANDMARK, ROBOT, Timeline, dead_reckoning
 from infonav_gym.geometry import wrap_angle
@@ -29,6 +42,8 @@ class ReplayConfig:
     speed_std: float = 0.01  # [m/s]
     turn_rate_std: float = 0.02  # [rad/s]
     gate_nis: float = 25.0  # reject updates with normalized innovation squared above this (chi-square, 2 dof)
+    noise: NoiseModel | None = None  # a calibrated model (None: the hand-picked stds above)
+    huber_threshold_nis: float = 5.99  # calibrated filters: Huber weights beyond this NIS (chi-square 2 dof, 95 %)
     initial_position_std_m: float = 0.05  # [m] around the ground-truth start
     initial_heading_std_rad: float = 0.05  # [rad]
     policy: str = "all"
@@ -50,7 +65,8 @@ class ReplayConfig:
 
     def as_dict(self) -> dict:
         """The settings as JSON-ready values (an open-ended outage ends at None, not infinity)."""
-        settings = dataclasses.asdict(self)
+        settings = dataclasses.asdict(dataclasses.replace(self, noise=None))
+        settings["noise"] = self.noise.source if self.noise else "picked"
         if math.isinf(settings["outage_end_s"]):
             settings["outage_end_s"] = None
         return settings
@@ -70,18 +86,23 @@ class ReplayTrace:
     nis: list[list[float]] = field(default_factory=list)  # per robot, of every update tried
     accepted: list[list[bool]] = field(default_factory=list)
     kinds: list[list[int]] = field(default_factory=list)
+    choices: list[list[tuple[int, int]]] = field(default_factory=list)  # per robot, (window, target) picked
+
+
+POSE_ENTRIES = np.arange(3)
 
 
 class _IndependentFilters:
     """One PoseEKF per robot with the known landmark map; robot-to-robot measurements are not used."""
 
-    def __init__(self, poses, covariances, landmarks):
+    def __init__(self, poses, covariances, dataset, config):
         self.filters = [PoseEKF(pose, covariance) for pose, covariance in zip(poses, covariances)]
-        self.landmarks = landmarks
+        self.landmarks = dataset.landmarks
+        self.R = config.R
 
-    def predict(self, controls, dt, control_covariance):
-        for ekf, control in zip(self.filters, controls):
-            ekf.predict(control, dt, control_covariance)
+    def predict(self, controls, dt, control_covariances):
+        for ekf, control, covariance in zip(self.filters, controls, control_covariances):
+            ekf.predict(control, dt, covariance)
 
     def covariance(self, robot):
         return self.filters[robot].P
@@ -90,26 +111,64 @@ class _IndependentFilters:
         predicted, H = self.filters[robot].landmark_measurement_model(self.landmarks[target][None])
         return predicted[0], H[0]
 
+    def noise(self, robot, kind, predicted):
+        return self.R
+
+    def information_of(self, robot):
+        """The state entries whose information greedy counts: the robot's pose (None: the whole state)."""
+        return None
+
     def update(self, robot, kind, target, z, predicted, H, R):
         self.filters[robot].update_range_bearing(z, predicted, H, R)
 
     def poses(self):
-        return np.array([ekf.x for ekf in self.filters])
+        return np.array([ekf.x[:3] for ekf in self.filters])
 
     def covariances(self):
-        return np.array([ekf.P for ekf in self.filters])
+        return np.array([ekf.P[:3, :3] for ekf in self.filters])
+
+
+class _CalibratedFilters(_IndependentFilters):
+    """One TargetBiasPoseEKF per robot: the landmark map plus each landmark's slow range and bearing biases."""
+
+    def __init__(self, poses, covariances, dataset, config):
+        landmarks = self.landmarks = dataset.landmarks
+        self.models = [config.noise.for_robot(robot) for robot in dataset.robots]
+        self.filters = [
+            TargetBiasPoseEKF(
+                pose,
+                covariance,
+                np.tile([model.range_bias_std_m, model.bearing_bias_std_rad], (len(landmarks), 1)),
+                [model.range_correlation_distance_m, model.bearing_correlation_distance_m],
+            )
+            for pose, covariance, model in zip(poses, covariances, self.models)
+        ]
+
+    def model(self, robot, kind, target):
+        return self.filters[robot].measurement_model(target, self.landmarks[target])
+
+    def noise(self, robot, kind, predicted):
+        return self.models[robot].white_noise(predicted[0])
+
+    def information_of(self, robot):
+        return POSE_ENTRIES  # the biases are nuisance: information about them does not localize
+
+    def update(self, robot, kind, target, z, predicted, H, R):
+        self.filters[robot].update_range_bearing(z, range_bearing_residual(z, predicted), H, R)
 
 
 class _CooperativeFilter:
     """One JointEKF over all robots: landmark and robot-to-robot range-bearing updates."""
 
-    def __init__(self, poses, covariances, landmarks):
+    def __init__(self, poses, covariances, dataset, config):
         self.ekf = JointEKF(poses, covariances)
-        self.landmarks = landmarks
+        self.landmarks = dataset.landmarks
         self.n = len(poses)
+        self.R = config.R
+        self.models = [config.noise.for_robot(robot) for robot in dataset.robots] if config.noise else None
 
-    def predict(self, controls, dt, control_covariance):
-        self.ekf.predict(controls, dt, np.broadcast_to(control_covariance, (self.n, 2, 2)))
+    def predict(self, controls, dt, control_covariances):
+        self.ekf.predict(controls, dt, control_covariances)
 
     def covariance(self, robot):
         return self.ekf.P
@@ -128,6 +187,12 @@ class _CooperativeFilter:
         H[:, own] = H_observer[0, :2]
         H[:, 3 * target : 3 * target + 3] = H_target[0, :2]
         return predicted[0, :2], H
+
+    def noise(self, robot, kind, predicted):
+        return self.models[robot].total_noise(predicted[0]) if self.models else self.R
+
+    def information_of(self, robot):
+        return None
 
     def update(self, robot, kind, target, z, predicted, H, R):
         if kind == ROBOT:
@@ -177,10 +242,19 @@ def replay_filter(
         progress: show a tqdm bar.
     """
     n_robots = len(dataset.robots)
-    backend_class = _CooperativeFilter if config.cooperative else _IndependentFilters
-    backend = backend_class(initial_poses, initial_covariances, dataset.landmarks)
-    control_covariance = np.diag([config.speed_std**2, config.turn_rate_std**2]) / timeline.dt
-    R = config.R
+    if config.cooperative:
+        backend_class = _CooperativeFilter
+    else:
+        backend_class = _CalibratedFilters if config.noise else _IndependentFilters
+    backend = backend_class(initial_poses, initial_covariances, dataset, config)
+    control_covariances = np.array(
+        [
+            config.noise.for_robot(robot).control_covariance(timeline.dt)
+            if config.noise
+            else np.diag([config.speed_std**2, config.turn_rate_std**2]) / timeline.dt
+            for robot in dataset.robots
+        ]
+    )
     events = usable_events(dataset, timeline, config)
     selected = [np.full(len(rows), config.policy == "all") for rows in events]
     pointers = [0] * n_robots
@@ -193,58 +267,72 @@ def replay_filter(
         nis=[[] for _ in range(n_robots)],
         accepted=[[] for _ in range(n_robots)],
         kinds=[[] for _ in range(n_robots)],
+        choices=[[] for _ in range(n_robots)],
     )
     boundaries = range(timeline.n_ticks + 1)
     for b in tqdm(boundaries, desc=f"replay {config.policy}", unit="tick", disable=not progress, leave=False):
         if config.policy != "all" and b % window_ticks == 0:
             for robot in range(n_robots):
-                _select_window(
-                    backend, robot, events[robot], selected[robot], pointers[robot], b + window_ticks, config, R, rng
+                chosen = _select_window(
+                    backend, robot, events[robot], selected[robot], pointers[robot], b + window_ticks, config, rng
                 )
+                trace.choices[robot].extend((b // window_ticks, int(target)) for target in chosen)
         for robot in range(n_robots):
             rows, pointer = events[robot], pointers[robot]
             while pointer < len(rows) and rows[pointer, 0] <= b:
                 if selected[robot][pointer]:
-                    _gated_update(backend, robot, rows[pointer], R, config.gate_nis, trace)
+                    _gated_update(backend, robot, rows[pointer], config, trace)
                 pointer += 1
             pointers[robot] = pointer
         trace.poses[b] = backend.poses()
         trace.covariances[b] = backend.covariances()
         if b < timeline.n_ticks:
-            backend.predict(timeline.controls[b], timeline.dt, control_covariance)
+            backend.predict(timeline.controls[b], timeline.dt, control_covariances)
     return trace
 
 
-def _select_window(backend, robot, rows, selected, pointer, window_end, config, R, rng) -> None:
-    """Mark the measurements of ``robot`` to use among those of the window starting now."""
+def _select_window(backend, robot, rows, selected, pointer, window_end, config, rng) -> np.ndarray:
+    """Mark the measurements of ``robot`` to use among those of the window starting now; return their targets."""
     end = pointer
     while end < len(rows) and rows[end, 0] < window_end:
         end += 1
     if end == pointer:
-        return
+        return rows[:0, 2]
     candidates = rows[pointer:end]
     if len(candidates) <= config.k:
         selected[pointer:end] = True
-        return
+        return candidates[:, 2]
     if config.policy == "random":
         chosen = select_random(len(candidates), config.k, rng)
     else:
-        models = [backend.model(robot, int(kind), int(target)) for kind, target in candidates[:, 1:3]]
+        kinds_targets = candidates[:, 1:3].astype(int)
+        models = [backend.model(robot, kind, target) for kind, target in kinds_targets]
         if config.policy == "greedy":
-            chosen = select_greedy(backend.covariance(robot), np.array([H for _, H in models]), R, config.k)
+            H = np.array([H for _, H in models])
+            R = np.array(
+                [backend.noise(robot, kind, predicted) for (kind, _), (predicted, _) in zip(kinds_targets, models)]
+            )
+            chosen = select_greedy(backend.covariance(robot), H, R, config.k, backend.information_of(robot))
         else:
             chosen = select_nearest(np.array([predicted[0] for predicted, _ in models]), config.k)
-    selected[pointer + np.asarray(chosen, dtype=int)] = True
+    chosen = np.asarray(chosen, dtype=int)
+    selected[pointer + chosen] = True
+    return candidates[chosen, 2]
 
 
-def _gated_update(backend, robot, row, R, gate_nis, trace) -> None:
+def _gated_update(backend, robot, row, config, trace) -> None:
+    """Gate the measurement on its NIS; update (Huber-weighted with a calibrated model) if it passes."""
     kind, target = int(row[1]), int(row[2])
     z = row[3:5].copy()
     predicted, H = backend.model(robot, kind, target)
+    R = backend.noise(robot, kind, predicted)
     residual = range_bearing_residual(z, predicted)
-    S = H @ backend.covariance(robot) @ H.T + R
-    nis = float(residual @ np.linalg.solve(S, residual))
-    accepted = nis <= gate_nis
+    P = backend.covariance(robot)
+    if config.noise:
+        R, _, nis = huber_noise(residual, H, P, R, config.huber_threshold_nis)
+    else:
+        nis = float(residual @ np.linalg.solve(H @ P @ H.T + R, residual))
+    accepted = nis <= config.gate_nis
     trace.nis[robot].append(nis)
     trace.accepted[robot].append(accepted)
     trace.kinds[robot].append(kind)

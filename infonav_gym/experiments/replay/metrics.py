@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from infonav_gym.estimation.consistency import pose_error
+from infonav_gym.estimation.consistency import chi2_bounds, pose_error
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 
@@ -43,10 +43,22 @@ def pose_rmse(true_poses: np.ndarray, estimates: np.ndarray) -> tuple[float, flo
     )
 
 
+def nees_series(true_poses: np.ndarray, estimates: np.ndarray, covariances: np.ndarray) -> np.ndarray:
+    """Normalized estimation error squared of each pose (T,) (chi-square, 3 dof, if consistent)."""
+    error = pose_error(true_poses, estimates)
+    return np.einsum("ti,ti->t", error, np.linalg.solve(covariances, error[..., None])[..., 0])
+
+
 def mean_nees(true_poses: np.ndarray, estimates: np.ndarray, covariances: np.ndarray) -> float:
     """Mean normalized estimation error squared (3 dof: consistent filters average 3)."""
-    error = pose_error(true_poses, estimates)
-    return float(np.mean(np.einsum("ti,ti->t", error, np.linalg.solve(covariances, error[..., None])[..., 0])))
+    return float(np.mean(nees_series(true_poses, estimates, covariances)))
+
+
+def fraction_inside_95(values, dof: int) -> float:
+    """Share of ``values`` inside the two-sided 95 % chi-square(``dof``) interval."""
+    low, high = chi2_bounds(dof)
+    values = np.asarray(values, dtype=float)
+    return float(np.mean((values >= low) & (values <= high)))
 
 
 def mean_entropy(covariances: np.ndarray) -> float:
@@ -59,8 +71,7 @@ def nis_summary(nis: list[float], accepted: list[bool], dof: int = 2) -> dict:
     values = np.asarray(nis, dtype=float)[np.asarray(accepted, dtype=bool)]
     if values.size == 0:
         return {"mean_nis": None, "nis_inside_95": None}
-    low, high = stats.chi2.ppf([0.025, 0.975], dof)
-    return {"mean_nis": float(values.mean()), "nis_inside_95": float(np.mean((values >= low) & (values <= high)))}
+    return {"mean_nis": float(values.mean()), "nis_inside_95": fraction_inside_95(values, dof)}
 
 
 def mean_and_ci95(values) -> dict:

@@ -9,14 +9,17 @@ from infonav_gym.information import expected_information_gain
 POLICIES = ("all", "greedy", "random", "nearest")
 
 
-def select_greedy(P: np.ndarray, H: np.ndarray, R: np.ndarray, k: int) -> list[int]:
+def select_greedy(P: np.ndarray, H: np.ndarray, R: np.ndarray, k: int, of: np.ndarray | None = None) -> list[int]:
     """Greedy max expected mutual information: pick the best candidate, condition ``P`` on it, repeat.
 
     Args:
         P: prior covariance of the filter's state (n, n).
         H: candidate Jacobians (m, 2, n).
-        R: measurement noise covariance (2, 2), shared by the candidates.
+        R: measurement noise covariance (2, 2), shared by the candidates, or each one's (m, 2, 2).
         k: how many to pick.
+        of: the state entries whose information counts (e.g. the pose of a state that also holds nuisance
+            biases): the gain is ``0.5 ln(det P_oo / det P_oo_post)``; None: the whole state,
+            ``expected_information_gain``.
 
     Returns:
         Indices of the chosen candidates in the order picked.
@@ -24,15 +27,26 @@ def select_greedy(P: np.ndarray, H: np.ndarray, R: np.ndarray, k: int) -> list[i
     chosen: list[int] = []
     available = np.ones(len(H), dtype=bool)
     P = P.copy()
+    R = np.broadcast_to(R, (len(H), *np.shape(R)[-2:]))
     for _ in range(min(k, len(H))):
-        gains = np.where(available, expected_information_gain(P, H, R, check_input=False), -np.inf)
-        best = int(np.argmax(gains))
+        gains = expected_information_gain(P, H, R, check_input=False) if of is None else _marginal_gains(P, H, R, of)
+        best = int(np.argmax(np.where(available, gains, -np.inf)))
         chosen.append(best)
         available[best] = False
         PHT = P @ H[best].T
-        P = P - PHT @ np.linalg.solve(H[best] @ PHT + R, PHT.T)
+        P = P - PHT @ np.linalg.solve(H[best] @ PHT + R[best], PHT.T)
         P = 0.5 * (P + P.T)
     return chosen
+
+
+def _marginal_gains(P, H, R, of) -> np.ndarray:
+    """Expected MI of each candidate update on the state entries ``of`` alone [nats] (m,)."""
+    PHT = P @ np.swapaxes(H, 1, 2)  # (m, n, 2)
+    S = H @ PHT + R
+    A = PHT[:, of]
+    prior = P[np.ix_(of, of)]
+    posterior = prior - A @ np.linalg.solve(S, np.swapaxes(A, 1, 2))
+    return 0.5 * (np.linalg.slogdet(prior)[1] - np.linalg.slogdet(posterior)[1])
 
 
 def select_nearest(predicted_ranges: np.ndarray, k: int) -> list[int]:

@@ -12,10 +12,19 @@ from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.experiments.replay.filters import ReplayConfig
 from infonav_gym.experiments.replay.metrics import mean_and_ci95
 from infonav_gym.experiments.replay.policies import POLICIES
-from infonav_gym.experiments.replay.run import replay, replay_header
+from infonav_gym.experiments.replay.run import replay, replay_dataset, replay_header
 from infonav_gym.experiments.replay.timeline import make_timeline
 
-ROW_KEYS = ("position_rmse_m", "heading_rmse_rad", "mean_nees", "updates_used", "mean_entropy_nats", "mean_nis")
+ROW_KEYS = (
+    "position_rmse_m",
+    "heading_rmse_rad",
+    "mean_nees",
+    "nees_fraction_inside_95",
+    "updates_used",
+    "mean_entropy_nats",
+    "mean_nis",
+    "nis_inside_95",
+)
 
 
 def check_experiments(policies, ks, windows_s, n_seeds: int) -> None:
@@ -64,7 +73,7 @@ def run_experiments(
     if outage and outage[0] not in dataset.robots:
         raise ValueError(f"outage robot {outage[0]} is not one of the robots {list(dataset.robots)}")
     base = config or ReplayConfig()
-    timeline = make_timeline(dataset, dt=dt, duration_s=duration_s)
+    timeline = make_timeline(replay_dataset(dataset, base), dt=dt, duration_s=duration_s)
     plan = []
     for policy in policies:
         if policy == "all":
@@ -135,6 +144,17 @@ INTERVAL_NOTE = (
 )
 
 
+NEES_NOTE = (
+    "NEES / NIS inside 95%: the share of time steps (NEES, 3 dof) or accepted updates (NIS, 2 dof) inside the "
+    "two-sided 95% chi-square interval; a consistent filter has mean NEES 3, mean NIS 2 and about 95% inside."
+)
+
+
+def budget_cells(row: dict) -> tuple[str, str]:
+    """The ``k`` and ``window [s]`` cells of a row (``-`` for the unbudgeted all-landmark policy)."""
+    return ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
+
+
 def _cell(value, digits=3) -> str:
     if value is None:
         return "n/a"
@@ -150,24 +170,25 @@ def markdown_table(summary: dict) -> str:
     if not summary["has_groundtruth"]:
         lines.append("Ground truth is missing for some robots: their RMSE and NEES are n/a; see the NIS columns.\n")
     lines += [
-        "| policy | k | window [s] | runs | position RMSE [m] | heading RMSE [rad] | mean NEES | updates used "
-        "| mean posterior entropy [nats] | mean NIS |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| policy | k | window [s] | runs | position RMSE [m] | heading RMSE [rad] | mean NEES | NEES inside 95% "
+        "| updates used | mean posterior entropy [nats] | mean NIS | NIS inside 95% |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for row in summary["rows"]:
-        budget = ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
+        budget = budget_cells(row)
         lines.append(
             f"| {row['policy']} | {budget[0]} | {budget[1]} | {row['n_runs']} | {_cell(row['position_rmse_m'])} "
-            f"| {_cell(row['heading_rmse_rad'])} | {_cell(row['mean_nees'], 2)} | {_cell(row['updates_used'], 0)} "
-            f"| {_cell(row['mean_entropy_nats'])} | {_cell(row['mean_nis'])} |"
+            f"| {_cell(row['heading_rmse_rad'])} | {_cell(row['mean_nees'], 2)} "
+            f"| {_cell(row['nees_fraction_inside_95'])} | {_cell(row['updates_used'], 0)} "
+            f"| {_cell(row['mean_entropy_nats'])} | {_cell(row['mean_nis'])} | {_cell(row['nis_inside_95'])} |"
         )
     dead_reckoning = summary.get("dead_reckoning")
     if dead_reckoning:
         lines.append(
             f"| dead reckoning | - | - | 1 | {_cell(dead_reckoning['position_rmse_m'])} "
-            f"| {_cell(dead_reckoning['heading_rmse_rad'])} | n/a | 0 | n/a | n/a |"
+            f"| {_cell(dead_reckoning['heading_rmse_rad'])} | n/a | n/a | 0 | n/a | n/a | n/a |"
         )
-    lines += ["", INTERVAL_NOTE]
+    lines += ["", INTERVAL_NOTE, "", NEES_NOTE]
     if dead_reckoning:
         robots = list(dead_reckoning["position_rmse_m_per_robot"])
         lines += [
@@ -178,7 +199,7 @@ def markdown_table(summary: dict) -> str:
             "| --- | --- | --- | " + " | ".join("---" for _ in robots) + " |",
         ]
         for row in summary["rows"]:
-            budget = ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
+            budget = budget_cells(row)
             cells = " | ".join(_cell(row["position_rmse_m_per_robot"][robot]) for robot in robots)
             lines.append(f"| {row['policy']} | {budget[0]} | {budget[1]} | {cells} |")
         cells = " | ".join(_cell(dead_reckoning["position_rmse_m_per_robot"][robot]) for robot in robots)
@@ -199,14 +220,26 @@ def markdown_table(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def nees_plot_path(output: Path) -> Path:
+    """``OUTPUT_nees.png``: the NEES-over-time figure of the all-landmark run."""
+    return output.with_name(output.name + "_nees.png")
+
+
 def write_results(summary: dict, output: Path, command: str) -> list[Path]:
-    """Write ``OUTPUT.md`` (table and command) and ``OUTPUT.json`` (everything but the per-run detail)."""
+    """Write ``OUTPUT.md`` (table and command), ``OUTPUT.json`` (everything but the per-run detail) and, with an
+    all-landmark run, ``OUTPUT_nees.png`` (its NEES over time)."""
+    from infonav_gym.experiments.replay.comparison import comparison_markdown
+    from infonav_gym.experiments.replay.plots import plot_nees_over_time
+
     output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)
     markdown = output.with_suffix(".md")
+    comparison = summary.get("comparison")
     markdown.write_text(
         f"# MRCLAM replay: {Path(summary['dataset']).name}\n\nCommand:\n\n```\n{command}\n```\n\n"
+        f"Noise model: {summary['config']['noise']}\n\n"
         + markdown_table(summary)
+        + ("\n\n## Before and after calibration\n\n" + comparison_markdown(comparison) if comparison else "")
         + "\n"
     )
     compact = {key: value for key, value in summary.items() if key != "runs"} | {"command": command}
@@ -215,4 +248,9 @@ def write_results(summary: dict, output: Path, command: str) -> list[Path]:
         compact["outage"]["cooperative_mean"] = summary["outage"]["cooperative_run"]["mean"]
     path_json = output.with_suffix(".json")
     path_json.write_text(json.dumps(compact, indent=1) + "\n")
-    return [markdown, path_json]
+    written = [markdown, path_json]
+    all_landmarks = [run for run in summary["runs"] if run["config"]["policy"] == "all"]
+    if all_landmarks and any("nees_over_time" in metrics for metrics in all_landmarks[0]["robots"].values()):
+        title = f"{Path(summary['dataset']).name}, all landmarks, noise: {summary['config']['noise']}"
+        written.append(plot_nees_over_time(all_landmarks[0], nees_plot_path(output), title))
+    return written

@@ -10,7 +10,15 @@ import numpy as np
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.experiments.replay.filters import ReplayConfig, ReplayTrace, replay_filter
-from infonav_gym.experiments.replay.metrics import groundtruth_at, mean_entropy, mean_nees, nis_summary, pose_rmse
+from infonav_gym.experiments.replay.metrics import (
+    fraction_inside_95,
+    groundtruth_at,
+    mean_entropy,
+    nees_series,
+    nis_summary,
+    pose_rmse,
+)
+from infonav_gym.experiments.replay.noise_model import corrected_logs
 from infonav_gym.experiments.replay.timeline import LANDMARK, ROBOT, Timeline, make_timeline
 
 NO_GROUNDTRUTH_POSITION_STD_M = 3.0  # [m] initial uncertainty of a robot without ground truth
@@ -18,6 +26,7 @@ SUMMARY_KEYS = (
     "position_rmse_m",
     "heading_rmse_rad",
     "mean_nees",
+    "nees_fraction_inside_95",
     "dead_reckoning_position_rmse_m",
     "dead_reckoning_heading_rmse_rad",
     "updates_used",
@@ -25,7 +34,9 @@ SUMMARY_KEYS = (
     "updates_gated",
     "mean_entropy_nats",
     "mean_nis",
+    "nis_inside_95",
 )
+NEES_PLOT_STEP_S = 1.0  # [s] spacing of the NEES-over-time samples an all-landmark replay keeps
 
 
 def initial_state(dataset: MRCLAMDataset, config: ReplayConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -57,6 +68,11 @@ def replay_header(dataset: MRCLAMDataset, timeline: Timeline, config: ReplayConf
     }
 
 
+def replay_dataset(dataset: MRCLAMDataset, config: ReplayConfig) -> MRCLAMDataset:
+    """The logs a replay runs on: with a calibrated noise model, on the ground-truth clock and corrected."""
+    return corrected_logs(dataset, config.noise) if config.noise else dataset
+
+
 def replay(
     dataset: MRCLAMDataset,
     config: ReplayConfig | None = None,
@@ -73,7 +89,7 @@ def replay(
         config: filter, policy, budget and outage settings (default: all landmarks, PoseEKF per robot).
         dt: tick length of the replay clock [s].
         duration_s: replay only the first ``duration_s`` seconds (None: all).
-        timeline: a precomputed ``make_timeline(dataset, dt, duration_s)`` to reuse across runs.
+        timeline: a precomputed ``make_timeline(replay_dataset(dataset, config), dt, duration_s)`` to reuse.
         progress: show a tqdm bar.
 
     Returns:
@@ -84,10 +100,11 @@ def replay(
     config = config or ReplayConfig()
     if config.outage_robot is not None and config.outage_robot not in dataset.robots:
         raise ValueError(f"outage robot {config.outage_robot} is not one of the robots {list(dataset.robots)}")
+    dataset = replay_dataset(dataset, config)
     timeline = timeline or make_timeline(dataset, dt=dt, duration_s=duration_s)
     poses, covariances = initial_state(dataset, config)
     trace = replay_filter(dataset, timeline, poses, covariances, config, progress=progress)
-    robots = _robot_metrics(dataset, timeline, trace)
+    robots = _robot_metrics(dataset, timeline, trace, keep_nees=config.policy == "all")
     result = {
         **replay_header(dataset, timeline, config),
         "dt_s": timeline.dt,
@@ -105,7 +122,8 @@ def replay(
     return result
 
 
-def _robot_metrics(dataset: MRCLAMDataset, timeline: Timeline, trace: ReplayTrace) -> dict:
+def _robot_metrics(dataset: MRCLAMDataset, timeline: Timeline, trace: ReplayTrace, keep_nees: bool) -> dict:
+    """Per robot: updates, entropy, NIS and, against ground truth, RMSE and NEES (its series if ``keep_nees``)."""
     times = timeline.start_time + timeline.boundary_times()
     robots = {}
     for index, robot in enumerate(dataset.robots):
@@ -117,23 +135,32 @@ def _robot_metrics(dataset: MRCLAMDataset, timeline: Timeline, trace: ReplayTrac
             "updates_gated": int(np.sum(~accepted)),
             "mean_entropy_nats": mean_entropy(trace.covariances[:, index]),
             **nis_summary(trace.nis[index], trace.accepted[index]),
+            "choices": trace.choices[index],
         }
-        metrics.update(dict.fromkeys(SUMMARY_KEYS[:5]))
+        metrics.update(dict.fromkeys(SUMMARY_KEYS[:6]))
         metrics["evaluated_s"] = 0.0
         if robot in dataset.groundtruth:
             truth, valid = groundtruth_at(dataset.groundtruth[robot], times)
             if valid.any():
                 estimates = trace.poses[valid, index]
                 position, heading = pose_rmse(truth[valid], estimates)
+                nees = nees_series(truth[valid], estimates, trace.covariances[valid, index])
                 dr_position, dr_heading = pose_rmse(truth[valid], trace.dead_reckoning[valid, index])
                 metrics.update(
                     position_rmse_m=position,
                     heading_rmse_rad=heading,
-                    mean_nees=mean_nees(truth[valid], estimates, trace.covariances[valid, index]),
+                    mean_nees=float(nees.mean()),
+                    nees_fraction_inside_95=fraction_inside_95(nees, 3),
                     dead_reckoning_position_rmse_m=dr_position,
                     dead_reckoning_heading_rmse_rad=dr_heading,
                     evaluated_s=float(valid.sum() * timeline.dt),
                 )
+                if keep_nees:
+                    step = max(1, round(NEES_PLOT_STEP_S / timeline.dt))
+                    metrics["nees_over_time"] = {
+                        "time_s": timeline.boundary_times()[valid][::step].tolist(),
+                        "nees": nees[::step].tolist(),
+                    }
         robots[str(robot)] = metrics
     return robots
 

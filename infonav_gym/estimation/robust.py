@@ -1,0 +1,54 @@
+"""Huber-weighted Kalman update: heavy-tailed measurement noise without discarding data.
+
+A Kalman update is the least-squares fit of the prior and the measurement; one outlier pulls it
+as hard as its squared residual. The Huber M-estimator (Huber 1964, "Robust estimation of a location
+parameter") keeps the quadratic loss for a normalized innovation ``d = sqrt(NIS)`` up to a threshold
+``c`` and grows linearly beyond it. Solved by iteratively reweighted least squares it is a Kalman
+update with the noise covariance inflated by ``1 / w``, ``w = min(1, c / d)``, ``d`` evaluated with the
+inflated covariance (Karlgaard and Schaub 2007, "Huber-based divided difference filtering", J. Guidance
+Control and Dynamics 30(3); Zoubir et al. 2012, "Robust estimation in signal processing", IEEE SPM).
+Inside the threshold ``w = 1`` and the update is the standard EKF update, exactly.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import optimize
+
+
+def huber_weight(nis: float, threshold_nis: float) -> float:
+    """The Huber weight ``min(1, c / d)`` of a normalized innovation squared ``d^2``, with ``c^2 = threshold_nis``."""
+    return 1.0 if nis <= threshold_nis else math.sqrt(threshold_nis / nis)
+
+
+def huber_noise(residual, H, P, R, threshold_nis: float) -> tuple[np.ndarray, float, float]:
+    """The inflated noise covariance of a Huber-weighted update and its weight.
+
+    The weight is the fixed point of ``w = huber_weight(r^T (H P H^T + R / w)^-1 r)``: ``w - c / d(w)``
+    increases with ``w``, so the root is unique; it lies in ``[c / d(1), 1]`` and is found by Brent's method.
+    The update with ``R / w`` is the Huber M-estimate.
+
+    Args:
+        residual: innovation ``z - h(x)`` (m,), angles wrapped.
+        H: measurement Jacobian (m, n).
+        P: prior covariance (n, n).
+        R: nominal measurement noise covariance (m, m).
+        threshold_nis: ``c^2``: innovations with NIS up to it get the standard update.
+
+    Returns:
+        ``(R / w, w, nis)`` with ``nis`` the normalized innovation squared under the nominal ``R``.
+    """
+    if not threshold_nis > 0:
+        raise ValueError(f"threshold_nis must be positive, got {threshold_nis}")
+    HPH = H @ P @ H.T
+    nis = float(residual @ np.linalg.solve(HPH + R, residual))
+    if nis <= threshold_nis:
+        return R, 1.0, nis
+
+    def excess(weight: float) -> float:
+        return weight - math.sqrt(threshold_nis / float(residual @ np.linalg.solve(HPH + R / weight, residual)))
+
+    weight = float(optimize.brentq(excess, math.sqrt(threshold_nis / nis), 1.0, xtol=1e-12))
+    return R / weight, weight, nis

@@ -1,0 +1,378 @@
+"""Noise identification from motion-capture ground truth: the measurement and odometry errors actually seen.
+
+For each robot (and pooled over the robots):
+
+- **Clock offsets.** The odometry log's offset is the shift that makes its 1 s heading changes agree
+  best with the ground truth's (least spread of the error, trimmed at 4 robust std); the measurement
+  log's, the shift that makes the landmark bearings agree best (least robust spread). Searched on a
+  10 ms grid over +-0.5 s.
+- **Odometry.** Scale of speed and turn rate (least squares through the origin over 1 s windows), then
+  noise densities from the growth of the integrated error's variance with the window length ``T``
+  (``var(T) = q^2 T`` for white noise, fitted over T = 1, 2, 4, 8 s). The plain variance, not a robust
+  one: odometry cannot be gated, so its noise must carry its heavy tails (wheel slip).
+- **Range and bearing to landmarks.** The error against the ground-truth geometry is split into a
+  systematic part (a polynomial in the measured bearing, the target's place in the camera image: range
+  quadratic in it plus linear in range, bearing cubic; robust least squares), a slow bias per target
+  and white noise. The white std comes from the differences of
+  consecutive looks at the same target under 0.5 s apart (the bias cancels), against range in range
+  bins; the bias's variance and correlation length from the covariance of pairs of looks at the same
+  target (1 to 256 looks apart) against the distance the robot drove between them (odometry),
+  ``c(s) = sigma_b^2 exp(-s / l)`` (least squares over log-spaced distance bins: the errors follow the
+  viewing geometry, not the clock); the outlier
+  fraction is the share of errors beyond 4 std of that Gaussian model. A Student-t fit of the
+  standardized errors (scipy) is kept as a diagnostic of the tails.
+
+Robust spreads are ``1.4826 MAD``. Only the ground truth is used, never the filter's RMSE.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import optimize, stats
+
+from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.experiments.replay.metrics import groundtruth_at
+from infonav_gym.experiments.replay.noise_model import NoiseModel, RobotNoise
+from infonav_gym.geometry import wrap_angle
+
+OFFSET_GRID_S = np.round(np.arange(-0.5, 0.5001, 0.01), 2)  # [s] candidate clock offsets
+ODOMETRY_GRID_S = 0.1  # [s] resolution of the integrated odometry errors
+NOISE_WINDOWS_S = (1.0, 2.0, 4.0, 8.0)  # [s] windows whose error growth gives the noise densities
+WINDOW_STEP_S = 0.5  # [s] windows start this far apart (longer ones overlap: more samples of their variance)
+SHORT_LAG_S = 0.5  # [s] consecutive looks closer than this share their bias
+TRAVEL_EDGES_M = (0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # [m] bins of the bias covariance fit
+NO_DECAY_LENGTH_M = 1000.0  # [m] correlation length when the covariance does not decay: a constant bias
+OUTLIER_Z = 4.0  # errors beyond this many model std count as outliers
+RANGE_BINS = 5  # range quantile bins of the white range std
+MIN_BIN = 20  # fewest samples a bin needs to enter a fit
+SYSTEMATIC_FIELDS = {  # the RobotNoise fields of each channel's systematic coefficients, in design order
+    "range": ("range_bias_m", "range_bias_per_rad", "range_bias_per_rad2", "range_bias_per_m"),
+    "bearing": ("bearing_bias_rad", "bearing_bias_per_rad", "bearing_bias_per_rad2", "bearing_bias_per_rad3"),
+}
+CHANNEL_FIELDS = {  # fit_channel's results -> RobotNoise fields
+    "range": {
+        "white_std": "range_white_std_m",
+        "white_std_per_m": "range_white_std_per_m",
+        "bias_std": "range_bias_std_m",
+        "correlation_distance_m": "range_correlation_distance_m",
+        "outlier_fraction": "range_outlier_fraction",
+    },
+    "bearing": {
+        "white_std": "bearing_white_std_rad",
+        "bias_std": "bearing_bias_std_rad",
+        "correlation_distance_m": "bearing_correlation_distance_m",
+        "outlier_fraction": "bearing_outlier_fraction",
+    },
+}
+PAIR_STEPS = (1, 2, 4, 8, 16, 32, 64, 128, 256)  # looks apart of the pairs whose covariance gives the bias
+
+
+def robust_std(values) -> float:
+    """``1.4826 * MAD``: the std of a normal sample, insensitive to outliers."""
+    values = np.asarray(values, dtype=float)
+    return float(1.4826 * np.median(np.abs(values - np.median(values))))
+
+
+def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, scales=(1.0, 1.0)) -> np.ndarray:
+    """Integrated odometry errors ``[forward distance, heading]`` (W, 2) over windows starting every
+    ``WINDOW_STEP_S``, with the true forward progress and heading change (W, 2), as ``(errors, truth)``.
+
+    Odometry times are shifted by ``offset_s`` and its speed and turn rate divided by ``scales``.
+    """
+    times = odometry[:, 0] + offset_s
+    start, end = max(times[0], groundtruth[0, 0]), min(times[-1], groundtruth[-1, 0])
+    grid = np.arange(start, end, ODOMETRY_GRID_S)
+    poses, valid = groundtruth_at(groundtruth, grid)
+    heading = np.unwrap(poses[:, 2])
+    middle = heading[:-1] + 0.5 * np.diff(heading)
+    forward = np.einsum("ti,ti->t", np.diff(poses[:, :2], axis=0), np.stack([np.cos(middle), np.sin(middle)], -1))
+    true_cumulative = np.column_stack([np.concatenate([[0.0], np.cumsum(forward)]), heading - heading[0]])
+    durations = np.diff(times, append=times[-1])
+    odometry_cumulative = np.column_stack(
+        [
+            np.interp(grid, times, np.concatenate([[0.0], np.cumsum(odometry[:-1, column] * durations[:-1])]))
+            / scales[column - 1]
+            for column in (1, 2)
+        ]
+    )
+    stride = int(round(window_s / ODOMETRY_GRID_S))
+    invalid_before = np.concatenate([[0], np.cumsum(~valid)])
+    starts = np.arange(0, len(grid) - stride, int(round(WINDOW_STEP_S / ODOMETRY_GRID_S)))
+    ok = invalid_before[starts + stride + 1] == invalid_before[starts]
+    truth = (true_cumulative[starts + stride] - true_cumulative[starts])[ok]
+    measured = (odometry_cumulative[starts + stride] - odometry_cumulative[starts])[ok]
+    return measured - truth, truth
+
+
+def trimmed_std(values) -> float:
+    """The standard deviation of ``values`` within ``OUTLIER_Z`` robust std of their median."""
+    values = np.asarray(values, dtype=float)
+    return float(np.std(values[np.abs(values - np.median(values)) < OUTLIER_Z * robust_std(values)]))
+
+
+def fit_odometry_offset(odometry, groundtruth) -> float:
+    """The odometry clock offset [s] with the least trimmed spread of the 1 s heading-change error."""
+    spreads = [trimmed_std(odometry_errors(odometry, groundtruth, offset, 1.0)[0][:, 1]) for offset in OFFSET_GRID_S]
+    return float(OFFSET_GRID_S[int(np.argmin(spreads))])
+
+
+def fit_odometry(samples: list[tuple[np.ndarray, np.ndarray]], windows_s=NOISE_WINDOWS_S) -> dict:
+    """Scales and noise densities from per-window samples.
+
+    Args:
+        samples: per window length in ``windows_s``, ``(measured, truth)`` increments (W, 2) of forward
+            distance and heading change.
+        windows_s: the window lengths [s].
+    """
+    measured, truth = samples[0]
+    scales = []
+    for column in (0, 1):
+        error = measured[:, column] - truth[:, column]
+        inlier = np.abs(error - np.median(error)) < 5 * robust_std(error)
+        scales.append(float(measured[inlier, column] @ truth[inlier, column] / (truth[inlier, column] ** 2).sum()))
+    variances = np.array([[np.var(m[:, c] / scales[c] - t[:, c]) for c in (0, 1)] for m, t in samples])  # (windows, 2)
+    windows = np.asarray(windows_s, dtype=float)
+    densities = np.sqrt(windows @ variances / (windows @ windows))
+    return {
+        "speed_scale": scales[0],
+        "turn_rate_scale": scales[1],
+        "speed_std": float(densities[0]),
+        "turn_rate_std": float(densities[1]),
+        "variance_by_window": {f"{w:g}": variances[i].tolist() for i, w in enumerate(windows_s)},
+    }
+
+
+def travelled(odometry: np.ndarray, times) -> np.ndarray:
+    """Forward progress by odometry (speed integrated, zero-order hold) [m] up to each of ``times``; the
+    distance driven between two times is the difference (the robots drive forward), its noise averaged."""
+    durations = np.diff(odometry[:, 0])
+    knots = np.concatenate([[0.0], np.cumsum(odometry[:-1, 1] * durations)])
+    return np.interp(times, odometry[:, 0], knots)
+
+
+def landmark_errors(dataset: MRCLAMDataset, robot: int, offset_s: float = 0.0, odometry_offset_s: float = 0.0) -> dict:
+    """Errors of ``robot``'s landmark measurements against the ground-truth geometry.
+
+    Returns:
+        Arrays over the measurements with valid ground truth: ``time`` [s] (shifted by ``offset_s``),
+        ``target`` (landmark subject), ``range`` and ``bearing`` (measured) [m, rad], ``range_error`` [m],
+        ``bearing_error`` [rad],
+        ``travelled`` [m] (odometry shifted by ``odometry_offset_s``).
+    """
+    rows = dataset.landmark_measurements[robot]
+    poses, valid = groundtruth_at(dataset.groundtruth[robot], rows[:, 0] + offset_s)
+    offsets = dataset.landmarks[dataset.landmark_index(rows[:, 1])] - poses[:, :2]
+    true_range = np.hypot(offsets[:, 0], offsets[:, 1])
+    true_bearing = np.arctan2(offsets[:, 1], offsets[:, 0]) - poses[:, 2]
+    return {
+        "time": (rows[:, 0] + offset_s)[valid],
+        "target": rows[valid, 1].astype(int),
+        "range": rows[valid, 2],
+        "bearing": rows[valid, 3],
+        "range_error": (rows[:, 2] - true_range)[valid],
+        "bearing_error": wrap_angle(rows[:, 3] - true_bearing)[valid],
+        "travelled": travelled(dataset.odometry[robot] + [odometry_offset_s, 0, 0], (rows[:, 0] + offset_s)[valid]),
+    }
+
+
+def fit_measurement_offset(dataset: MRCLAMDataset, robot: int) -> float:
+    """The measurement clock offset [s] with the least robust spread of the bearing error."""
+    spreads = [robust_std(landmark_errors(dataset, robot, offset)["bearing_error"]) for offset in OFFSET_GRID_S]
+    return float(OFFSET_GRID_S[int(np.argmin(spreads))])
+
+
+def look_pairs(errors: dict, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
+    """Indices ``(first, second)`` of looks at the same target ``k`` looks apart, for each ``k`` in ``steps``
+    (time order within each target): pairs from consecutive looks to far-apart ones."""
+    order = np.lexsort((errors["time"], errors["target"]))
+    targets = errors["target"][order]
+    firsts, seconds = [], []
+    for step in steps:
+        same = targets[step:] == targets[:-step]
+        firsts.append(order[:-step][same])
+        seconds.append(order[step:][same])
+    return np.concatenate(firsts), np.concatenate(seconds)
+
+
+def systematic_design(channel: str, range_m, bearing_rad) -> np.ndarray:
+    """Columns of the systematic error model: range ``1, b, b^2, r``; bearing ``1, b, b^2, b^3``."""
+    b = np.asarray(bearing_rad, dtype=float)
+    last = np.asarray(range_m, dtype=float) if channel == "range" else b**3
+    return np.column_stack([np.ones_like(b), b, b**2, last])
+
+
+def fit_systematic(error, design) -> np.ndarray:
+    """Least-squares coefficients of ``error ~ design``, refitted once without the errors beyond 4 robust std."""
+    coefficients = np.linalg.lstsq(design, error, rcond=None)[0]
+    for _ in range(2):
+        residual = error - design @ coefficients
+        inlier = np.abs(residual - np.median(residual)) < OUTLIER_Z * robust_std(residual)
+        coefficients = np.linalg.lstsq(design[inlier], error[inlier], rcond=None)[0]
+    return coefficients
+
+
+def fit_channel(error, design, range_m, time_s, travelled_m, pairs, range_dependent: bool) -> dict:
+    """Systematic coefficients, white std (linear in range if ``range_dependent``), bias std and correlation
+    length, outlier fraction, and diagnostics of one error channel (range or bearing)."""
+    coefficients = fit_systematic(error, design)
+    centred = error - design @ coefficients
+    first, second = pairs
+    lag = time_s[second] - time_s[first]
+    short = lag < SHORT_LAG_S
+    differences, pair_range = (centred[second] - centred[first])[short], 0.5 * (range_m[first] + range_m[second])[short]
+    if range_dependent:
+        edges = np.quantile(pair_range, np.linspace(0, 1, RANGE_BINS + 1))
+        bin_of = np.clip(np.searchsorted(edges, pair_range, side="right") - 1, 0, RANGE_BINS - 1)
+        bins = [bin_of == b for b in range(RANGE_BINS) if np.sum(bin_of == b) >= MIN_BIN]
+        centres = np.array([pair_range[b].mean() for b in bins])
+        stds = np.array([robust_std(differences[b]) / math.sqrt(2) for b in bins])
+        weights = np.array([b.sum() for b in bins], dtype=float)
+        slope, intercept = np.polyfit(centres, stds, 1, w=np.sqrt(weights))
+        if slope < 0:
+            slope, intercept = 0.0, float(np.average(stds, weights=weights))
+        elif intercept < 0:  # the line through the origin, by weighted least squares
+            slope, intercept = float(np.sum(weights * centres * stds) / np.sum(weights * centres**2)), 0.0
+        range_bins = {"range_m": centres.tolist(), "white_std": stds.tolist(), "n": weights.astype(int).tolist()}
+    else:
+        slope, intercept, range_bins = 0.0, robust_std(differences) / math.sqrt(2), None
+    white = intercept + slope * range_m
+    inlier = np.abs(centred) < OUTLIER_Z * np.sqrt(white**2 + robust_std(centred) ** 2)
+    both = inlier[first] & inlier[second]
+    driven = np.abs(travelled_m[second] - travelled_m[first])
+    travel_bins = []
+    for low, high in zip(TRAVEL_EDGES_M[:-1], TRAVEL_EDGES_M[1:]):
+        chosen = both & (driven >= low) & (driven < high)
+        if chosen.sum() >= MIN_BIN:
+            covariance = float(np.mean(centred[first[chosen]] * centred[second[chosen]]))
+            travel_bins.append((float(driven[chosen].mean()), covariance, int(chosen.sum())))
+    bias_variance, correlation_length = _fit_exponential(travel_bins)
+    model_std = np.sqrt(white**2 + bias_variance)
+    standardized = centred / model_std
+    dof, _, t_scale = stats.t.fit(standardized[np.isfinite(standardized)], floc=0.0)
+    return {
+        "systematic": coefficients.tolist(),
+        "white_std": float(intercept),
+        "white_std_per_m": float(slope),
+        "bias_std": math.sqrt(bias_variance),
+        "correlation_distance_m": float(correlation_length),
+        "outlier_fraction": float(np.mean(np.abs(standardized) > OUTLIER_Z)),
+        "diagnostics": {
+            "n": int(len(error)),
+            "n_short_lag_pairs": int(short.sum()),
+            "robust_std_before_systematic": robust_std(error),
+            "robust_std": robust_std(centred),
+            "std": float(np.std(centred)),
+            "student_t_dof": float(dof),
+            "student_t_scale": float(t_scale),
+            "white_std_by_range": range_bins,
+            "covariance_by_travel": [{"travelled_m": s, "covariance": c, "n": n} for s, c, n in travel_bins],
+        },
+    }
+
+
+def _fit_exponential(bins) -> tuple[float, float]:
+    """``(sigma^2, l)`` of ``c(s) = sigma^2 exp(-s / l)`` fitted to ``(s, c, n)`` bins by least squares (each bin
+    alike: they are log-spaced); ``(mean c, NO_DECAY_LENGTH_M)`` when the covariance does not decay."""
+    if len(bins) < 2:
+        return max(bins[0][1], 0.0) if bins else 0.0, NO_DECAY_LENGTH_M
+    distances, covariances, _ = (np.array(column, dtype=float) for column in zip(*bins))
+    start = (max(covariances[0], 1e-12), max(distances.mean(), 1e-3))
+    try:
+        (variance, length), _ = optimize.curve_fit(
+            lambda s, v, ell: v * np.exp(-s / ell), distances, covariances, p0=start, bounds=(0, np.inf)
+        )
+    except RuntimeError:  # no convergence: no decay to speak of
+        return float(max(covariances.mean(), 0.0)), NO_DECAY_LENGTH_M
+    return float(variance), float(min(length, NO_DECAY_LENGTH_M))
+
+
+def fit_robot(
+    odometry_samples, measurement_errors: list[dict], offsets: tuple[float, float]
+) -> tuple[RobotNoise, dict]:
+    """``RobotNoise`` (and its diagnostics) from odometry window samples and landmark errors of one robot
+    or several (pooled: pairs are formed within each robot's errors)."""
+    odometry = fit_odometry(odometry_samples)
+    pairs, offset = [], 0
+    for errors in measurement_errors:
+        first, second = look_pairs(errors)
+        pairs.append((first + offset, second + offset))
+        offset += len(errors["time"])
+    merged = {key: np.concatenate([errors[key] for errors in measurement_errors]) for key in measurement_errors[0]}
+    pairs = (np.concatenate([p[0] for p in pairs]), np.concatenate([p[1] for p in pairs]))
+    channels = {
+        channel: fit_channel(
+            merged[f"{channel}_error"],
+            systematic_design(channel, merged["range"], merged["bearing"]),
+            merged["range"],
+            merged["time"],
+            merged["travelled"],
+            pairs,
+            channel == "range",
+        )
+        for channel in ("range", "bearing")
+    }
+    values = {key: odometry[key] for key in ("speed_scale", "turn_rate_scale", "speed_std", "turn_rate_std")}
+    for channel, fit in channels.items():
+        values.update(zip(SYSTEMATIC_FIELDS[channel], fit["systematic"]))
+        values.update({field: fit[key] for key, field in CHANNEL_FIELDS[channel].items()})
+    noise = RobotNoise(odometry_time_offset_s=offsets[0], measurement_time_offset_s=offsets[1], **values)
+    diagnostics = {
+        "odometry_variance_by_window": odometry["variance_by_window"],
+        "range": channels["range"]["diagnostics"],
+        "bearing": channels["bearing"]["diagnostics"],
+    }
+    return noise, diagnostics
+
+
+def _odometry_samples(odometry, groundtruth, offset_s: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(measured, truth)`` increments over each window of ``NOISE_WINDOWS_S``."""
+    samples = []
+    for window in NOISE_WINDOWS_S:
+        errors, truth = odometry_errors(odometry, groundtruth, offset_s, window)
+        samples.append((errors + truth, truth))
+    return samples
+
+
+def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False) -> tuple[NoiseModel, dict]:
+    """Fit the noise model of every robot with ground truth, and the pooled model.
+
+    Args:
+        dataset: a loaded MRCLAM dataset with ground truth.
+        command: the command line that ran this, recorded in the model.
+        progress: show a tqdm bar.
+
+    Returns:
+        ``(model, errors)``: the model (its ``diagnostics`` hold the fits' evidence) and, per robot
+        subject, the landmark errors at the fitted clock offset (for the residual plot).
+
+    Raises:
+        ValueError: if no robot has ground truth and landmark measurements.
+    """
+    from tqdm.auto import tqdm
+
+    robots = [r for r in dataset.robots if r in dataset.groundtruth and len(dataset.landmark_measurements[r])]
+    if not robots:
+        raise ValueError(f"{dataset.path}: no robot has both ground truth and landmark measurements to calibrate on")
+    models, diagnostics, errors, samples, offsets = {}, {}, {}, [], []
+    for robot in tqdm(robots, desc="calibrate", unit="robot", disable=not progress):
+        odometry, groundtruth = dataset.odometry[robot], dataset.groundtruth[robot]
+        robot_offsets = (fit_odometry_offset(odometry, groundtruth), fit_measurement_offset(dataset, robot))
+        robot_samples = _odometry_samples(odometry, groundtruth, robot_offsets[0])
+        errors[robot] = landmark_errors(dataset, robot, robot_offsets[1], robot_offsets[0])
+        models[robot], diagnostics[str(robot)] = fit_robot(robot_samples, [errors[robot]], robot_offsets)
+        samples.append(robot_samples)
+        offsets.append(robot_offsets)
+    pooled_samples = [tuple(np.concatenate([s[w][i] for s in samples]) for i in (0, 1)) for w in range(len(samples[0]))]
+    pooled_offsets = tuple(float(np.median([o[i] for o in offsets])) for i in (0, 1))
+    pooled, diagnostics["pooled"] = fit_robot(pooled_samples, [errors[r] for r in robots], pooled_offsets)
+    model = NoiseModel(
+        robots=models,
+        pooled=pooled,
+        source=str(dataset.path),
+        description=f"MRCLAM noise model fitted on {dataset.path.name} against its motion-capture ground truth",
+        command=command,
+        diagnostics=diagnostics,
+    )
+    return model, errors

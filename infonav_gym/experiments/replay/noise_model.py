@@ -1,0 +1,239 @@
+"""The calibrated noise model of the MRCLAM robots: JSON schema, checks, and the shipped calibration.
+
+A model holds, per robot subject (and ``pooled`` for robots it does not name), what
+``calibration.calibrate`` estimated from motion-capture ground truth: clock offsets of the
+odometry and measurement logs, odometry scale and noise densities, and range / bearing errors as a
+mean offset plus a slow per-target bias (Gauss-Markov in distance driven: stationary std, correlation
+length) plus white
+noise (range std growing linearly with range) with a share of gross outliers.
+
+The shipped model (``data/mrclam_dataset6_noise.json``, package data) was fitted on Dataset 6 by
+(from the repository root; it writes the fit and its residual plot ``results/mrclam_dataset6_noise.png``)::
+
+    infonav replay mrclam ../shared/datasets/MRCLAM_Dataset6 --calibrate results/mrclam_dataset6_noise.json
+    cp results/mrclam_dataset6_noise.json infonav_gym/experiments/replay/data/
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+SCHEMA_VERSION = 1
+SHIPPED_MODEL = "data/mrclam_dataset6_noise.json"  # inside this package
+
+
+@dataclass(frozen=True)
+class RobotNoise:
+    """One robot's calibrated errors (units in the names; ``*_std`` of odometry per second of travel)."""
+
+    odometry_time_offset_s: float  # [s] add to odometry times to put them on the ground-truth clock
+    measurement_time_offset_s: float  # [s] the same for measurement times
+    speed_scale: float  # odometry speed / true speed
+    turn_rate_scale: float  # odometry turn rate / true turn rate
+    speed_std: float  # [m/s] noise density of the corrected speed: its 1 s average errs by this
+    turn_rate_std: float  # [rad/s] the same for the turn rate
+    range_bias_m: float  # [m] systematic range error: this ...
+    range_bias_per_rad: float  # [m/rad] ... plus this times the measured bearing ...
+    range_bias_per_rad2: float  # [m/rad^2] ... plus this times its square (the camera's image position) ...
+    range_bias_per_m: float  # [m/m] ... plus this times the measured range
+    range_white_std_m: float  # [m] white range noise at 0 m ...
+    range_white_std_per_m: float  # ... growing by this per metre of range
+    range_bias_std_m: float  # [m] stationary std of a target's slow range bias
+    range_correlation_distance_m: float  # [m] its correlation length in distance driven
+    range_outlier_fraction: float  # share of range errors beyond 4 std of the Gaussian model
+    bearing_bias_rad: float  # [rad] systematic bearing error: a cubic in the measured bearing b ...
+    bearing_bias_per_rad: float  # [rad/rad] ... this times b ...
+    bearing_bias_per_rad2: float  # ... this times b^2 ...
+    bearing_bias_per_rad3: float  # ... this times b^3
+    bearing_white_std_rad: float  # [rad]
+    bearing_bias_std_rad: float  # [rad]
+    bearing_correlation_distance_m: float  # [m]
+    bearing_outlier_fraction: float
+
+    def range_white_std(self, range_m):
+        """White range noise std [m] at ``range_m``."""
+        return self.range_white_std_m + self.range_white_std_per_m * np.asarray(range_m, dtype=float)
+
+    def white_noise(self, range_m: float) -> np.ndarray:
+        """Covariance (2, 2) of the white part of a range-bearing error at ``range_m``."""
+        return np.diag([float(self.range_white_std(range_m)) ** 2, self.bearing_white_std_rad**2])
+
+    def total_noise(self, range_m: float) -> np.ndarray:
+        """Covariance (2, 2) of the whole error (white plus bias), for a filter without bias states."""
+        return self.white_noise(range_m) + np.diag([self.range_bias_std_m**2, self.bearing_bias_std_rad**2])
+
+    def control_covariance(self, dt: float) -> np.ndarray:
+        """Covariance (2, 2) of the corrected odometry averaged over ``dt`` seconds."""
+        return np.diag([self.speed_std**2, self.turn_rate_std**2]) / dt
+
+    def correct_odometry(self, odometry: np.ndarray) -> np.ndarray:
+        """``[time, speed, turn_rate]`` rows on the ground-truth clock with the scale errors removed."""
+        shift = [self.odometry_time_offset_s, 0.0, 0.0]
+        return (odometry + shift) / [1.0, self.speed_scale, self.turn_rate_scale]
+
+    def range_bias(self, range_m, bearing_rad):
+        """Systematic range error [m] of a measurement of ``range_m`` at ``bearing_rad``."""
+        b = np.asarray(bearing_rad, dtype=float)
+        return (
+            self.range_bias_m
+            + self.range_bias_per_rad * b
+            + self.range_bias_per_rad2 * b**2
+            + self.range_bias_per_m * np.asarray(range_m, dtype=float)
+        )
+
+    def bearing_bias(self, bearing_rad):
+        """Systematic bearing error [rad] of a measurement at ``bearing_rad``."""
+        b = np.asarray(bearing_rad, dtype=float)
+        return (
+            self.bearing_bias_rad
+            + self.bearing_bias_per_rad * b
+            + self.bearing_bias_per_rad2 * b**2
+            + self.bearing_bias_per_rad3 * b**3
+        )
+
+    def correct_measurements(self, measurements: np.ndarray) -> np.ndarray:
+        """``[time, subject, range, bearing]`` rows on the ground-truth clock with the systematic errors removed."""
+        corrected = np.array(measurements, dtype=float)
+        corrected[:, 0] += self.measurement_time_offset_s
+        corrected[:, 2] -= self.range_bias(measurements[:, 2], measurements[:, 3])
+        corrected[:, 3] -= self.bearing_bias(measurements[:, 3])
+        return corrected
+
+
+FIELDS = {field.name for field in dataclasses.fields(RobotNoise)}
+OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s"} | {  # any sign
+    field.name for field in dataclasses.fields(RobotNoise) if "_bias_" in field.name and "_bias_std" not in field.name
+}
+FRACTIONS = {"range_outlier_fraction", "bearing_outlier_fraction"}  # in [0, 1)
+NONNEGATIVE = {"range_white_std_m", "range_white_std_per_m", "range_bias_std_m", "bearing_bias_std_rad"}
+TOP_LEVEL = {"schema_version", "description", "command", "robots", "pooled", "diagnostics"}
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Per-robot noise (subject number -> ``RobotNoise``), ``pooled`` for the others, and where it came from."""
+
+    robots: dict[int, RobotNoise]
+    pooled: RobotNoise
+    source: str
+    description: str = ""
+    command: str = ""
+    diagnostics: dict = dataclasses.field(default_factory=dict, compare=False)
+
+    def for_robot(self, subject: int) -> RobotNoise:
+        """The robot's own calibration, or the pooled one for a robot the calibration did not see."""
+        return self.robots.get(int(subject), self.pooled)
+
+    def to_json(self) -> dict:
+        """The model in the JSON schema ``load_noise_model`` reads."""
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "description": self.description,
+            "command": self.command,
+            "robots": {str(subject): dataclasses.asdict(noise) for subject, noise in sorted(self.robots.items())},
+            "pooled": dataclasses.asdict(self.pooled),
+            "diagnostics": self.diagnostics,
+        }
+
+    def save(self, path) -> Path:
+        path = Path(path)
+        path.write_text(json.dumps(self.to_json(), indent=1) + "\n")
+        return path
+
+
+def _robot_noise(values, where: str) -> RobotNoise:
+    """``values`` (a JSON object) as ``RobotNoise``, or ``ValueError`` naming ``where`` and the key at fault."""
+    if not isinstance(values, dict):
+        raise ValueError(f"{where}: expected an object of noise parameters, got {type(values).__name__}")
+    missing, unknown = sorted(FIELDS - values.keys()), sorted(values.keys() - FIELDS)
+    if missing:
+        raise ValueError(f"{where}: missing key {missing[0]!r}")
+    if unknown:
+        raise ValueError(f"{where}: unknown key {unknown[0]!r}")
+    for key, value in values.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ValueError(f"{where}.{key}: expected a finite number, got {value!r}")
+        if key in FRACTIONS and not 0 <= value < 1:
+            raise ValueError(f"{where}.{key}: expected a fraction in [0, 1), got {value}")
+        if key not in OFFSETS | FRACTIONS and (value < 0 or (value == 0 and key not in NONNEGATIVE)):
+            kind = "non-negative" if key in NONNEGATIVE else "positive"
+            raise ValueError(f"{where}.{key}: a std, scale or time must be {kind}, got {value}")
+    return RobotNoise(**{key: float(value) for key, value in values.items()})
+
+
+def parse_noise_model(document, source: str) -> NoiseModel:
+    """Check a decoded JSON document against the schema; ``ValueError`` names ``source`` and the key."""
+    if not isinstance(document, dict):
+        raise ValueError(f"{source}: expected a JSON object, got {type(document).__name__}")
+    for key in ("schema_version", "robots", "pooled"):
+        if key not in document:
+            raise ValueError(f"{source}: missing key {key!r}")
+    unknown = sorted(document.keys() - TOP_LEVEL)
+    if unknown:
+        raise ValueError(f"{source}: unknown key {unknown[0]!r}")
+    if document["schema_version"] != SCHEMA_VERSION:
+        raise ValueError(
+            f"{source}: schema_version {document['schema_version']!r} is not supported (expected {SCHEMA_VERSION})"
+        )
+    if not isinstance(document["robots"], dict):
+        raise ValueError(f"{source}: robots: expected an object keyed by robot subject number")
+    robots = {}
+    for subject, values in document["robots"].items():
+        if not str(subject).isdigit():
+            raise ValueError(f"{source}: robots: key {subject!r} is not a robot subject number")
+        robots[int(subject)] = _robot_noise(values, f"{source}: robots.{subject}")
+    return NoiseModel(
+        robots=robots,
+        pooled=_robot_noise(document["pooled"], f"{source}: pooled"),
+        source=source,
+        description=str(document.get("description", "")),
+        command=str(document.get("command", "")),
+        diagnostics=document.get("diagnostics", {}),
+    )
+
+
+def load_noise_model(path) -> NoiseModel:
+    """Read a calibration JSON file.
+
+    Raises:
+        FileNotFoundError: if ``path`` is not a file.
+        ValueError: if it is not JSON, or misses a key, has an unknown one, a negative std or another
+            schema version (the message names the file and the key).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"noise model file {path} does not exist")
+    try:
+        document = json.loads(path.read_text())
+    except json.JSONDecodeError as error:
+        raise ValueError(f"{path}: not valid JSON ({error})") from None
+    return parse_noise_model(document, str(path))
+
+
+def shipped_noise_model() -> NoiseModel:
+    """The model calibrated on MRCLAM Dataset 6 (package data)."""
+    text = resources.files(__package__).joinpath(SHIPPED_MODEL).read_text()
+    return parse_noise_model(json.loads(text), f"{__package__}/{SHIPPED_MODEL} (package data)")
+
+
+def corrected_logs(dataset, model: NoiseModel):
+    """``dataset`` with each robot's odometry and measurements on the ground-truth clock, odometry scales
+    and mean range / bearing errors removed (``RobotNoise.correct_odometry`` / ``correct_measurements``)."""
+    noise = {robot: model.for_robot(robot) for robot in dataset.robots}
+    return dataclasses.replace(
+        dataset,
+        odometry={robot: noise[robot].correct_odometry(rows) for robot, rows in dataset.odometry.items()},
+        landmark_measurements={
+            robot: noise[robot].correct_measurements(rows) for robot, rows in dataset.landmark_measurements.items()
+        },
+        robot_measurements={
+            robot: noise[robot].correct_measurements(rows) for robot, rows in dataset.robot_measurements.items()
+        },
+    )

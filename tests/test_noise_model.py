@@ -1,0 +1,93 @@
+"""The noise model's JSON schema: round trip, the shipped model, and errors that name the file and key."""
+
+import dataclasses
+import json
+import re
+
+import numpy as np
+import pytest
+from mrclam_synthetic import MODEL
+
+from infonav_gym.experiments.replay.noise_model import (
+    NoiseModel,
+    corrected_logs,
+    load_noise_model,
+    parse_noise_model,
+    shipped_noise_model,
+)
+
+
+def _document():
+    return NoiseModel(robots={1: MODEL}, pooled=MODEL, source="test").to_json()
+
+
+def test_save_and_load_round_trip(tmp_path):
+    model = NoiseModel(robots={1: MODEL, 3: dataclasses.replace(MODEL, speed_std=0.5)}, pooled=MODEL, source="x")
+    loaded = load_noise_model(model.save(tmp_path / "noise.json"))
+    assert loaded.robots == model.robots and loaded.pooled == model.pooled
+    assert loaded.for_robot(3).speed_std == 0.5 and loaded.for_robot(9) == MODEL  # unknown robot: pooled
+
+
+def test_the_shipped_model_is_package_data_fitted_on_dataset6():
+    model = shipped_noise_model()
+    assert sorted(model.robots) == [1, 2, 3, 4, 5]
+    assert "MRCLAM_Dataset6" in model.command and "--calibrate" in model.command
+    assert all(noise.range_bias_std_m > 0 and noise.speed_std > 0 for noise in model.robots.values())
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d.pop("pooled"), "test: missing key 'pooled'"),
+        (lambda d: d["robots"]["1"].pop("turn_rate_std"), "test: robots.1: missing key 'turn_rate_std'"),
+        (lambda d: d["robots"]["1"].update(range_std=0.1), "test: robots.1: unknown key 'range_std'"),
+        (lambda d: d.update(extra=1), "test: unknown key 'extra'"),
+        (lambda d: d["pooled"].update(bearing_white_std_rad=-0.01), "pooled.bearing_white_std_rad: a std"),
+        (lambda d: d["pooled"].update(speed_scale=0.0), "pooled.speed_scale: a std, scale or time must be positive"),
+        (
+            lambda d: d["pooled"].update(range_outlier_fraction=1.5),
+            "pooled.range_outlier_fraction: expected a fraction",
+        ),
+        (lambda d: d["pooled"].update(speed_std="fast"), "pooled.speed_std: expected a finite number"),
+        (lambda d: d.update(schema_version=0), "schema_version 0 is not supported (expected 1)"),
+        (lambda d: d["robots"].update(robotA=d["pooled"]), "robots: key 'robotA' is not a robot subject number"),
+    ],
+)
+def test_bad_documents_raise_naming_the_key(edit, message):
+    document = _document()
+    edit(document)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        parse_noise_model(document, "test")
+
+
+def test_bad_files(tmp_path):
+    with pytest.raises(FileNotFoundError, match="missing.json does not exist"):
+        load_noise_model(tmp_path / "missing.json")
+    (tmp_path / "broken.json").write_text("{not json")
+    with pytest.raises(ValueError, match="broken.json: not valid JSON"):
+        load_noise_model(tmp_path / "broken.json")
+    (tmp_path / "list.json").write_text(json.dumps([1, 2]))
+    with pytest.raises(ValueError, match="list.json: expected a JSON object"):
+        load_noise_model(tmp_path / "list.json")
+
+
+def test_corrections_shift_clocks_and_remove_the_systematic_errors():
+    odometry = np.array([[10.0, 0.104, 0.0309]])
+    np.testing.assert_allclose(MODEL.correct_odometry(odometry), [[10.2, 0.1, 0.03]])
+    measurement = np.array([[10.0, 7.0, 3.0, 0.2]])
+    expected_range = 3.0 - (0.15 - 1.5 * 0.04 - 0.01 * 3.0)
+    expected_bearing = 0.2 - (0.005 - 0.05 * 0.04)
+    np.testing.assert_allclose(MODEL.correct_measurements(measurement), [[9.9, 7.0, expected_range, expected_bearing]])
+    total = MODEL.total_noise(2.0)
+    np.testing.assert_allclose(np.diag(total), [0.025**2 + 0.04**2, 0.005**2 + 0.004**2])
+
+
+def test_corrected_logs_leave_ground_truth_and_map_alone(tmp_path):
+    from mrclam_synthetic import write_synthetic_dataset
+
+    from infonav_gym.datasets import mrclam
+
+    dataset = mrclam.load(write_synthetic_dataset(tmp_path / "d", np.random.default_rng(0), duration_s=20.0))
+    corrected = corrected_logs(dataset, NoiseModel(robots={}, pooled=MODEL, source="test"))
+    assert corrected.groundtruth is dataset.groundtruth and corrected.landmarks is dataset.landmarks
+    np.testing.assert_allclose(corrected.odometry[1][:, 0], dataset.odometry[1][:, 0] + 0.2)
