@@ -71,10 +71,18 @@ def test_an_unreachable_ray_address_fails_fast_naming_it():
         check_reachable("localhost:port")
 
 
-def test_workers_are_forked_until_torch_is_imported(monkeypatch):
+def test_workers_are_forked_until_torch_is_imported_then_come_from_a_fork_server(monkeypatch):
     import sys
 
     monkeypatch.delitem(sys.modules, "torch", raising=False)
     assert _start_method() == "fork"
     monkeypatch.setitem(sys.modules, "torch", object())
-    assert _start_method() == "spawn"
+    assert _start_method() == "forkserver"
+
+
+def test_a_fork_server_gives_the_numbers_of_one_worker_too(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "torch", sys.modules.get("torch", object()))
+    kwargs = {"env_kwargs": {"horizon": 15}, "progress": False}
+    assert evaluate(LANDMARK_ID, ["random"], 3, workers=2, **kwargs) == evaluate(LANDMARK_ID, ["random"], 3, **kwargs)

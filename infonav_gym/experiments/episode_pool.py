@@ -5,8 +5,10 @@ An episode's metrics are a function of the env id, its config, the agent's name 
 agents once (``EpisodeRunner``) and plays the ``(agent, seed)`` tasks it is given: results equal a single
 process's, seed for seed, whatever the number of workers. Results come back in task order.
 
-Worker processes are forked on platforms that have ``fork`` while torch is not yet imported (a fork after
-torch has started its thread pool can hang), else spawned (each re-imports the package: about a second).
+Worker processes are forked on platforms that have ``fork`` while torch is not yet imported. Once it is (a
+fork after torch has started its thread pool can hang) they come from a fork server that has imported the
+harness and the envs once (``forkserver``, started on first use and kept for the process's later pools),
+else they are spawned (each re-imports the package: about a second).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import sys
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 
+FORKSERVER_PRELOAD = ["infonav_gym.experiments.evaluation", "infonav_gym.envs"]  # the harness, the single envs
 _worker_runner = None  # a pool worker's EpisodeRunner, built once by _start_worker
 
 
@@ -97,13 +100,18 @@ def played(
         yield from map(runner.play, tasks)
         return
     context = multiprocessing.get_context(_start_method())
+    if context.get_start_method() == "forkserver":
+        context.set_forkserver_preload(FORKSERVER_PRELOAD)  # imported once by the server, its workers fork from it
     with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=runner.setup) as pool:
         yield from pool.map(_play, tasks, chunksize=max(1, len(tasks) // (4 * workers)))
 
 
 def _start_method() -> str:
-    """``fork`` where it exists and torch is not imported yet, else ``spawn``."""
-    return "fork" if "fork" in multiprocessing.get_all_start_methods() and "torch" not in sys.modules else "spawn"
+    """``fork`` where it exists and torch is not imported yet, else ``forkserver`` where it exists, else ``spawn``."""
+    methods = multiprocessing.get_all_start_methods()
+    if "fork" in methods and "torch" not in sys.modules:
+        return "fork"
+    return "forkserver" if "forkserver" in methods else "spawn"
 
 
 def _start_worker(env_id: str, env_kwargs: dict, agent_names: Sequence[str]) -> None:
