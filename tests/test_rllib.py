@@ -212,3 +212,24 @@ def test_normalization_keeps_the_running_mean_and_variance_of_the_training_batch
     plain, mask = module._split({"obs": {key: torch.as_tensor(value)[None] for key, value in observation.items()}})
     expected = (observation["observation"] - every.mean(axis=0)) / np.sqrt(every.var(axis=0) + 1e-8)
     np.testing.assert_allclose(plain["obs"][0].numpy(), np.clip(expected, -10, 10), rtol=1e-5, atol=1e-5)
+
+
+def test_ray_tasks_give_the_numbers_of_one_process(local_ray):
+    from infonav_gym.experiments.evaluation import evaluate
+
+    kwargs = {"env_kwargs": {"horizon": 20}, "progress": False, "seed": 2}
+    one = evaluate(LANDMARK_ID, ["random", "greedy"], 3, **kwargs)
+    assert evaluate(LANDMARK_ID, ["random", "greedy"], 3, workers=2, use_ray=True, **kwargs) == one
+
+
+def test_an_env_without_a_native_vector_env_trains_on_gymnasiums_sync_copies(local_ray, tmp_path_factory, small_blocks):
+    import yaml
+
+    sensor_id = "infonav/SensorSelection-v0"
+    path = tmp_path_factory.mktemp("sensor") / "ppo.yml"
+    path.write_text(yaml.safe_dump({sensor_id: {**SMALL_BLOCK, "n_steps": 64, "batch_size": 32}}))
+    output, record = _trained(tmp_path_factory, path, sensor_id, "--envs-per-runner", "2", "--config", "horizon=20")
+    assert record["vectorization"] == "sync" and record["timesteps"] >= 2000
+    env = gym.make(sensor_id, horizon=20)
+    observation, info = env.reset(seed=0)
+    assert env.action_space.contains(RLlibAgent(output, env).act(observation, info))
