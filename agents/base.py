@@ -29,6 +29,15 @@ def valid_actions(info: dict, n_actions: int) -> np.ndarray:
     return np.flatnonzero(mask)
 
 
+def usable_mask(mask, n_actions: int) -> np.ndarray:
+    """``mask`` (a robot's or env's action mask, or None) as (n_actions,) bool; all True when none is valid,
+    as ``MaskablePPO`` takes it (every action is then the env's no-op)."""
+    if mask is None:
+        return np.ones(n_actions, dtype=bool)
+    valid = np.broadcast_to(np.asarray(mask, dtype=bool), (n_actions,))
+    return valid if valid.any() else np.ones(n_actions, dtype=bool)
+
+
 def checked_action_count(policy: str, observation_shape: tuple, action_space, env, agent: str | None = None) -> int:
     """The env's number of actions, once a trained ``policy``'s spaces are seen to match the env's (or robot's).
 

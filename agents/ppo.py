@@ -41,9 +41,9 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMoni
 from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
-from agents.base import checked_action_count
+from agents.base import checked_action_count, usable_mask
 from agents.vector_adapter import monitored_vec_env
-from infonav_gym.registry import PARALLEL, api_of, env_entry, make_env, resolve_env_id
+from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, resolve_env_id
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
 ACTIVATIONS = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
@@ -246,18 +246,6 @@ def _normalization_kwargs(hyperparameters: dict) -> dict | None:
     if not isinstance(normalize, dict) or set(normalize) - allowed:
         raise ValueError(f"normalize must be true, false or a dict with keys from {sorted(allowed)}, got {normalize!r}")
     return dict(normalize)
-
-
-def has_native_vector_env(env_id: str) -> bool:
-    """Whether ``env_id`` is in ``infonav_gym.registry`` with a ``vector_entry_point``.
-
-    Such a native vector env takes ``autoreset_mode=AutoresetMode.SAME_STEP`` (what ``native_vec_env`` asks
-    for); a vector entry point outside the registry need not (Gymnasium's ``CartPoleVectorEnv`` does not).
-    """
-    try:
-        return env_entry(resolve_env_id(env_id)).vector_entry_point is not None
-    except ValueError:  # not an infonav id: a Gymnasium one, or unknown (make_env names it)
-        return False
 
 
 def vectorizations(env_id: str) -> tuple[str, ...]:
@@ -517,13 +505,8 @@ class PPOAgent:
     def reset(self, seed: int | None = None) -> None:
         """Deterministic: nothing to reset."""
 
-    def _mask(self, info: dict) -> np.ndarray:
-        mask = np.asarray(info.get("action_mask", 1), dtype=bool)
-        mask = np.broadcast_to(mask, (self.n_actions,))
-        return mask if mask.any() else np.ones(self.n_actions, dtype=bool)
-
     def act(self, observation, info: dict) -> int:
-        mask = self._mask(info)
+        mask = usable_mask(info.get("action_mask"), self.n_actions)
         observation = np.asarray(observation)
         if self.normalization is not None:
             observation = self.normalization.normalize_obs(observation)

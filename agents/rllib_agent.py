@@ -10,7 +10,7 @@ import torch
 
 from agents.base import checked_action_count
 from agents.ray_support import import_ray
-from agents.rllib_masking import ACTION_MASK, OBSERVATION, valid_actions
+from agents.rllib_masking import ACTION_MASK, OBSERVATION, mask_observation
 from agents.rllib_train import CHECKPOINT_DIR, SHARED_POLICY
 
 SINGLE_AGENT_POLICY = "default_policy"  # RLlib's module id of a single-agent algorithm
@@ -63,7 +63,7 @@ class RLlibAgent:
         """Deterministic: nothing to reset."""
 
     def act(self, observation, info: dict) -> int:
-        mask = valid_actions(info.get(ACTION_MASK), self.n_actions)
+        mask = mask_observation(info.get(ACTION_MASK), self.n_actions)
         batch = {
             "obs": {
                 OBSERVATION: torch.as_tensor(np.asarray(observation, dtype=np.float32))[None],

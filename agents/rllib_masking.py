@@ -17,6 +17,8 @@ from gymnasium.vector import VectorWrapper
 from gymnasium.vector.utils import batch_space
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 
+from agents.base import usable_mask
+
 OBSERVATION, ACTION_MASK = "observation", "action_mask"
 NORMALIZE_OBSERVATIONS = "normalize_observations"  # the model_config key of agents.rllib_module's normalization
 
@@ -27,12 +29,9 @@ def masked_space(observation_space: spaces.Box, n_actions: int) -> spaces.Dict:
     return spaces.Dict({OBSERVATION: observation_space, ACTION_MASK: mask_space})
 
 
-def valid_actions(mask, n_actions: int) -> np.ndarray:
-    """``mask`` as a float32 (n_actions,) array of 0 / 1; all ones where no action is valid (or no mask)."""
-    if mask is None:
-        return np.ones(n_actions, dtype=np.float32)
-    valid = np.asarray(mask, dtype=np.float32).reshape(n_actions)
-    return valid if valid.any() else np.ones(n_actions, dtype=np.float32)
+def mask_observation(mask, n_actions: int) -> np.ndarray:
+    """The ``"action_mask"`` part: ``mask`` as float32 0 / 1 (``usable_mask``: all ones when none is valid)."""
+    return usable_mask(mask, n_actions).astype(np.float32)
 
 
 class MaskedObservations(gym.Wrapper):
@@ -56,7 +55,7 @@ class MaskedObservations(gym.Wrapper):
     def _masked(self, observation, info: dict) -> dict:
         own = getattr(self.env.unwrapped, "action_masks", None)
         mask = own() if callable(own) else info.get(ACTION_MASK)
-        return {OBSERVATION: observation, ACTION_MASK: valid_actions(mask, self.n_actions)}
+        return {OBSERVATION: observation, ACTION_MASK: mask_observation(mask, self.n_actions)}
 
 
 class MaskedVectorObservations(VectorWrapper):
@@ -107,7 +106,7 @@ class MaskedParallelEnv(BaseParallelWrapper):
         return {
             agent: {
                 OBSERVATION: observation,
-                ACTION_MASK: valid_actions(infos[agent].get(ACTION_MASK), self._spaces[agent][ACTION_MASK].shape[0]),
+                ACTION_MASK: mask_observation(infos[agent].get(ACTION_MASK), self._spaces[agent][ACTION_MASK].shape[0]),
             }
             for agent, observation in observations.items()
         }

@@ -25,7 +25,7 @@ from agents.rllib_masking import (
     MaskedParallelEnv,
     MaskedVectorObservations,
 )
-from infonav_gym.registry import PARALLEL, api_of, env_entry, make_env, make_vector_env, resolve_env_id
+from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, make_vector_env
 
 CHECKPOINT_DIR = "checkpoint"
 RLLIB_ENV_PREFIX = "infonav-rllib:"  # + env id: the name the env creator is registered under in Ray's registry
@@ -140,7 +140,7 @@ def build_config(
 
 def native_vectorization(env_id: str) -> bool:
     """Whether RLlib steps ``env_id``'s copies in its native vector env (single-agent envs that have one)."""
-    return api_of(env_id) != PARALLEL and env_entry(resolve_env_id(env_id)).vector_entry_point is not None
+    return api_of(env_id) != PARALLEL and has_native_vector_env(env_id)
 
 
 class PolicyMapping:

@@ -143,6 +143,19 @@ def api_of(env_id: str) -> str:
     return GYMNASIUM if entry is None else entry.api
 
 
+def has_native_vector_env(env_id: str) -> bool:
+    """Whether ``env_id`` is in this registry with a ``vector_entry_point``.
+
+    Such a native vector env takes ``autoreset_mode=AutoresetMode.SAME_STEP``; a vector entry point outside
+    the registry need not (Gymnasium's ``CartPoleVectorEnv`` does not).
+    """
+    try:
+        entry = _ENTRIES.get(resolve_env_id(env_id))
+    except ValueError:  # a module that does not import: make_env names it
+        return False
+    return entry is not None and entry.vector_entry_point is not None
+
+
 def make_env(env_id: str, **config):
     """A new env: ``gym.make(env_id, **config)`` for a Gymnasium env, the parallel env itself for a PettingZoo one.
 

@@ -8,7 +8,9 @@
   ``gym.make("infonav_gym:...")`` imports and registers the package by itself.
 """
 
+import contextlib
 import os
+import socket
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
@@ -86,3 +88,11 @@ def greedy_actions(env, infos: dict) -> dict:
         agent: int(np.argmax(np.where(infos[agent]["action_mask"], infos[agent]["action_information_gain"], -1)))
         for agent in env.agents
     }
+
+
+@contextlib.contextmanager
+def unused_address():
+    """``127.0.0.1:PORT`` of a port bound here but never listening (a connection to it is refused)."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        yield f"127.0.0.1:{probe.getsockname()[1]}"

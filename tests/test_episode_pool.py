@@ -1,9 +1,9 @@
 """Evaluation episodes played by worker processes (``episode_pool``) equal one process's, seed for seed."""
 
 import importlib.util
-import socket
 
 import pytest
+from conftest import unused_address
 
 from agents.ray_support import check_reachable
 from infonav_gym.experiments.cli import main
@@ -62,9 +62,7 @@ def test_ray_without_the_extra_is_a_one_line_error_saying_what_to_install(capsys
 
 
 def test_an_unreachable_ray_address_fails_fast_naming_it():
-    with socket.socket() as probe:  # a port nobody listens on: bound here, never listening
-        probe.bind(("127.0.0.1", 0))
-        address = f"127.0.0.1:{probe.getsockname()[1]}"
+    with unused_address() as address:
         with pytest.raises(ValueError, match=f"cannot reach a Ray cluster at '{address}'"):
             check_reachable(address, timeout_s=2.0)
     with pytest.raises(ValueError, match="is not HOST:PORT"):

@@ -5,11 +5,11 @@ batches (``SMALL_BLOCKS``), enough to exercise every path, not to learn.
 """
 
 import json
-import socket
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import unused_address
 
 ray = pytest.importorskip("ray", reason="the distributed extra (ray[rllib]) is not installed")
 
@@ -60,14 +60,19 @@ def team_run(local_ray, tmp_path_factory, small_blocks):
     return _trained(tmp_path_factory, small_blocks, TEAM_ID, "--config", "max_cycles=30")
 
 
-def test_the_masked_module_never_samples_a_masked_action_in_1000_steps():
-    env = MaskedObservations(gym.make(LANDMARK_ID, horizon=100))
-    module = RLModuleSpec(
+def _masked_module(env, **model_config) -> MaskedPPOTorchRLModule:
+    """A fresh masked module for ``env`` (a ``MaskedObservations``), one hidden layer of 16."""
+    return RLModuleSpec(
         module_class=MaskedPPOTorchRLModule,
         observation_space=env.observation_space,
         action_space=env.action_space,
-        model_config={"fcnet_hiddens": [16]},
+        model_config={"fcnet_hiddens": [16], **model_config},
     ).build()
+
+
+def test_the_masked_module_never_samples_a_masked_action_in_1000_steps():
+    env = MaskedObservations(gym.make(LANDMARK_ID, horizon=100))
+    module = _masked_module(env)
     observation, _ = env.reset(seed=0)
     partial, generator = 0, torch.Generator().manual_seed(0)
     for _ in range(1000):
@@ -175,31 +180,21 @@ def test_an_agent_refuses_a_directory_without_a_checkpoint_or_another_env(landma
 
 def test_bad_rllib_arguments_are_one_line_errors(local_ray, capsys, small_blocks):
     argv = ["train", "--backend", "rllib", "--env", LANDMARK_ID, "--timesteps", "10"]
-    for extra, message in [
-        (["--num-env-runners", "-1"], "--num-env-runners must be >= 0"),
-        (["--envs-per-runner", "0"], "--envs-per-runner >= 1"),
-        (["--address", _unused_address()], "cannot reach a Ray cluster at"),
-    ]:
-        with pytest.raises(SystemExit) as exit_info:
-            main([*argv, *extra])
-        error = capsys.readouterr().err.strip()
-        assert exit_info.value.code == 2 and message in error and len(error.splitlines()) == 1
-
-
-def _unused_address() -> str:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return f"127.0.0.1:{probe.getsockname()[1]}"
+    with unused_address() as address:
+        for extra, message in [
+            (["--num-env-runners", "-1"], "--num-env-runners must be >= 0"),
+            (["--envs-per-runner", "0"], "--envs-per-runner >= 1"),
+            (["--address", address], "cannot reach a Ray cluster at"),
+        ]:
+            with pytest.raises(SystemExit) as exit_info:
+                main([*argv, *extra])
+            error = capsys.readouterr().err.strip()
+            assert exit_info.value.code == 2 and message in error and len(error.splitlines()) == 1
 
 
 def test_normalization_keeps_the_running_mean_and_variance_of_the_training_batches():
     env = MaskedObservations(gym.make(LANDMARK_ID, horizon=30))
-    module = RLModuleSpec(
-        module_class=MaskedPPOTorchRLModule,
-        observation_space=env.observation_space,
-        action_space=env.action_space,
-        model_config={"fcnet_hiddens": [16], "normalize_observations": True},
-    ).build()
+    module = _masked_module(env, normalize_observations=True)
     batches = [np.random.default_rng(seed).normal(seed, 1.0 + seed, (40, 50)).astype(np.float32) for seed in range(3)]
     for batch in batches:
         module.update_normalization(torch.as_tensor(batch))

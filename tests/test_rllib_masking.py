@@ -10,7 +10,7 @@ from agents.rllib_masking import (
     MaskedObservations,
     MaskedParallelEnv,
     MaskedVectorObservations,
-    valid_actions,
+    mask_observation,
 )
 from infonav_gym.multi import cooperative_localization_v0
 
@@ -45,9 +45,9 @@ def test_a_masked_team_env_observes_each_robots_info_mask():
 
 
 def test_no_valid_action_or_no_mask_means_every_action_as_maskable_ppo_takes_it():
-    np.testing.assert_array_equal(valid_actions(np.zeros(4, dtype=np.int8), 4), np.ones(4))
-    np.testing.assert_array_equal(valid_actions(None, 3), np.ones(3))
-    np.testing.assert_array_equal(valid_actions([0, 1, 1], 3), [0.0, 1.0, 1.0])
+    np.testing.assert_array_equal(mask_observation(np.zeros(4, dtype=np.int8), 4), np.ones(4))
+    np.testing.assert_array_equal(mask_observation(None, 3), np.ones(3))
+    np.testing.assert_array_equal(mask_observation([0, 1, 1], 3), [0.0, 1.0, 1.0])
 
 
 def test_a_continuous_action_space_is_refused():

@@ -265,19 +265,19 @@ def _train(args) -> dict:
     )
     record = json.loads((model_path.parent / "train.json").read_text())
     if not args.json:
-        print(
-            f"trained {record['algorithm']} on {args.env} ({record['n_envs']} envs, {record['vectorization']}) for "
-            f"{record['timesteps']} timesteps in {record['seconds']:.1f} s ({record['fps']:.0f} steps/s); "
-            f"model: {model_path}"
-        )
-        agents = f"random,greedy,ppo:{model_path}"
-        print(f"evaluate it: infonav evaluate --env {args.env}{_config_flags(args)} --agents {agents}")
+        copies = f"{record['n_envs']} envs, {record['vectorization']}"
+        _print_trained(args, record, copies, f"model: {model_path}", f"ppo:{model_path}")
     return record
 
 
-def _config_flags(args) -> str:
-    """The ``--config`` flags of ``args``, as typed back."""
-    return "".join(f" --config {shlex.quote(f'{key}={json.dumps(value)}')}" for key, value in args.config)
+def _print_trained(args, record: dict, copies: str, written: str, agent: str) -> None:
+    """What ``infonav train`` did (``record``: its train.json) and the command that evaluates ``agent``."""
+    print(
+        f"trained {record['algorithm']} on {args.env} ({copies}) for {record['timesteps']} env steps in "
+        f"{record['seconds']:.1f} s ({record['fps']:.0f} steps/s); {written}"
+    )
+    config_flags = "".join(f" --config {shlex.quote(f'{key}={json.dumps(value)}')}" for key, value in args.config)
+    print(f"evaluate it: infonav evaluate --env {args.env}{config_flags} --agents random,greedy,{agent}")
 
 
 def _train_rllib(args) -> dict:
@@ -304,13 +304,8 @@ def _train_rllib(args) -> dict:
         progress=not args.json,
     )
     if not args.json:
-        print(
-            f"trained {record['algorithm']} on {args.env} ({args.num_env_runners} env runners x "
-            f"{args.envs_per_runner} envs) for {record['timesteps']} env steps in {record['seconds']:.1f} s "
-            f"({record['fps']:.0f} steps/s); checkpoint: {record['checkpoint']}"
-        )
-        agents = f"random,greedy,rllib:{output}"
-        print(f"evaluate it: infonav evaluate --env {args.env}{_config_flags(args)} --agents {agents}")
+        copies = f"{args.num_env_runners} env runners x {args.envs_per_runner} envs"
+        _print_trained(args, record, copies, f"checkpoint: {record['checkpoint']}", f"rllib:{output}")
     return record
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from infonav_gym.experiments.replay.report import budget_cells
+from infonav_gym.experiments.replay.report import budget_cells, table_lines
 
 COMPARED_KEYS = ("position_rmse_m", "mean_nees", "nees_fraction_inside_95", "mean_nis", "nis_inside_95")
 
@@ -78,19 +78,14 @@ def _pair(value: dict, digits: int) -> str:
 
 def comparison_markdown(comparison: dict) -> str:
     """The comparison as Markdown: one row per policy and budget, ``before → after`` in each cell."""
-    lines = [
-        f"Before ({comparison['before_noise']}) → after ({comparison['after_noise']}):",
-        "",
-        "| policy | k | window [s] | position RMSE [m] | mean NEES | NEES inside 95% | mean NIS | NIS inside 95% |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    header = ["policy", "k", "window [s]", "position RMSE [m]", "mean NEES", "NEES inside 95%", "mean NIS"]
+    rows = [
+        [row["policy"], *budget_cells(row), _pair(row["position_rmse_m"], 3), _pair(row["mean_nees"], 2)]
+        + [_pair(row["nees_fraction_inside_95"], 3), _pair(row["mean_nis"], 2), _pair(row["nis_inside_95"], 3)]
+        for row in comparison["rows"]
     ]
-    for row in comparison["rows"]:
-        budget = budget_cells(row)
-        lines.append(
-            f"| {row['policy']} | {budget[0]} | {budget[1]} | {_pair(row['position_rmse_m'], 3)} "
-            f"| {_pair(row['mean_nees'], 2)} | {_pair(row['nees_fraction_inside_95'], 3)} "
-            f"| {_pair(row['mean_nis'], 2)} | {_pair(row['nis_inside_95'], 3)} |"
-        )
+    lines = [f"Before ({comparison['before_noise']}) → after ({comparison['after_noise']}):", ""]
+    lines += table_lines([*header, "NIS inside 95%"], rows)
     if "outage_ratio" in comparison:
         lines += ["", f"Outage ratio cooperative / landmark-only: {_pair(comparison['outage_ratio'], 3)}."]
     changed = comparison["greedy_choices_changed"]

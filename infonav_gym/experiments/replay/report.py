@@ -155,6 +155,11 @@ def budget_cells(row: dict) -> tuple[str, str]:
     return ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
 
 
+def table_lines(header, rows) -> list[str]:
+    """A Markdown table's lines: the ``header`` cells, the rule under them, one line per row of cells."""
+    return ["| " + " | ".join(cells) + " |" for cells in (header, ["---"] * len(header), *rows)]
+
+
 def _cell(value, digits=3) -> str:
     if value is None:
         return "n/a"
@@ -169,41 +174,31 @@ def markdown_table(summary: dict) -> str:
     lines = []
     if not summary["has_groundtruth"]:
         lines.append("Ground truth is missing for some robots: their RMSE and NEES are n/a; see the NIS columns.\n")
-    lines += [
-        "| policy | k | window [s] | runs | position RMSE [m] | heading RMSE [rad] | mean NEES | NEES inside 95% "
-        "| updates used | mean posterior entropy [nats] | mean NIS | NIS inside 95% |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    header = ["policy", "k", "window [s]", "runs", "position RMSE [m]", "heading RMSE [rad]", "mean NEES"]
+    header += ["NEES inside 95%", "updates used", "mean posterior entropy [nats]", "mean NIS", "NIS inside 95%"]
+    rows = [
+        [row["policy"], *budget_cells(row), str(row["n_runs"]), _cell(row["position_rmse_m"])]
+        + [_cell(row["heading_rmse_rad"]), _cell(row["mean_nees"], 2), _cell(row["nees_fraction_inside_95"])]
+        + [_cell(row["updates_used"], 0), _cell(row["mean_entropy_nats"]), _cell(row["mean_nis"])]
+        + [_cell(row["nis_inside_95"])]
+        for row in summary["rows"]
     ]
-    for row in summary["rows"]:
-        budget = budget_cells(row)
-        lines.append(
-            f"| {row['policy']} | {budget[0]} | {budget[1]} | {row['n_runs']} | {_cell(row['position_rmse_m'])} "
-            f"| {_cell(row['heading_rmse_rad'])} | {_cell(row['mean_nees'], 2)} "
-            f"| {_cell(row['nees_fraction_inside_95'])} | {_cell(row['updates_used'], 0)} "
-            f"| {_cell(row['mean_entropy_nats'])} | {_cell(row['mean_nis'])} | {_cell(row['nis_inside_95'])} |"
-        )
     dead_reckoning = summary.get("dead_reckoning")
     if dead_reckoning:
-        lines.append(
-            f"| dead reckoning | - | - | 1 | {_cell(dead_reckoning['position_rmse_m'])} "
-            f"| {_cell(dead_reckoning['heading_rmse_rad'])} | n/a | n/a | 0 | n/a | n/a | n/a |"
-        )
+        errors = [_cell(dead_reckoning["position_rmse_m"]), _cell(dead_reckoning["heading_rmse_rad"])]
+        rows.append(["dead reckoning", "-", "-", "1", *errors, "n/a", "n/a", "0", "n/a", "n/a", "n/a"])
+    lines += table_lines(header, rows)
     lines += ["", INTERVAL_NOTE, "", NEES_NOTE]
     if dead_reckoning:
         robots = list(dead_reckoning["position_rmse_m_per_robot"])
-        lines += [
-            "",
-            "Position RMSE per robot [m]:",
-            "",
-            "| policy | k | window [s] | " + " | ".join(f"robot {robot}" for robot in robots) + " |",
-            "| --- | --- | --- | " + " | ".join("---" for _ in robots) + " |",
+        lines += ["", "Position RMSE per robot [m]:", ""]
+        per_robot = [
+            [row["policy"], *budget_cells(row), *(_cell(row["position_rmse_m_per_robot"][robot]) for robot in robots)]
+            for row in summary["rows"]
         ]
-        for row in summary["rows"]:
-            budget = budget_cells(row)
-            cells = " | ".join(_cell(row["position_rmse_m_per_robot"][robot]) for robot in robots)
-            lines.append(f"| {row['policy']} | {budget[0]} | {budget[1]} | {cells} |")
-        cells = " | ".join(_cell(dead_reckoning["position_rmse_m_per_robot"][robot]) for robot in robots)
-        lines.append(f"| dead reckoning | - | - | {cells} |")
+        dead_cells = [_cell(dead_reckoning["position_rmse_m_per_robot"][robot]) for robot in robots]
+        per_robot.append(["dead reckoning", "-", "-", *dead_cells])
+        lines += table_lines(["policy", "k", "window [s]", *(f"robot {robot}" for robot in robots)], per_robot)
     outage = summary.get("outage")
     if outage:
         lines += [
