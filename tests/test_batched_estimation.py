@@ -318,6 +318,38 @@ def test_relative_pose_update_equals_joint_ekf(n_copies, n_robots, cross_covaria
 
 
 @pytest.mark.parametrize("n_copies", COPIES)
+@pytest.mark.parametrize("n_robots", [2, 4])
+@pytest.mark.parametrize("cross_covariances", [True, False])
+def test_team_landmark_update_equals_joint_ekf(n_copies, n_robots, cross_covariances):
+    """Slot r: robot r observes a landmark of its own; the observed slots of a copy fuse as one stacked update."""
+    rng, x, P, filters = joint_case(11 + n_copies * n_robots, n_copies, n_robots, cross_covariances)
+    robots = np.broadcast_to(np.arange(n_robots), (n_copies, n_robots))
+    observed = random_mask(rng, (n_copies, n_robots))
+    landmarks = rng.uniform(-10, 10, (n_copies * n_robots, 1, 2))
+    predicted, H = batched.landmark_measurement_model(x.reshape(-1, 3), landmarks)
+    predicted, H_pose = predicted.reshape(n_copies, n_robots, 2), H.reshape(n_copies, n_robots, 2, 3)
+    R = landmark_noise(predicted)
+    measurements = predicted + rng.normal(0, 0.05, predicted.shape)
+    own_blocks = batched.pose_blocks(P)[:, np.arange(n_robots), np.arange(n_robots)].reshape(-1, 3, 3)
+    gains = batched.landmark_information_gains(own_blocks, H, R.reshape(-1, 1, 2, 2))
+    for copy, ekf in enumerate(filters):  # each robot's gain is its own pose block's, as the joint filter has it
+        expected = ekf.landmark_information_gains(robots[copy], H_pose[copy], R[copy])
+        np.testing.assert_allclose(gains.reshape(n_copies, n_robots)[copy], expected, rtol=0, atol=P_TOLERANCE)
+    x_new, P_new = batched.team_landmark_update(
+        x, P, robots, measurements, predicted, H_pose, R, observed, cross_covariances=cross_covariances
+    )
+    for copy, ekf in enumerate(filters):
+        slots = np.flatnonzero(observed[copy])
+        expected = ekf.landmark_model(slots, landmarks.reshape(n_copies, n_robots, 2)[copy, slots])
+        np.testing.assert_allclose(predicted[copy, slots], expected[0], rtol=0, atol=X_TOLERANCE)
+        np.testing.assert_allclose(H_pose[copy, slots], expected[1], rtol=0, atol=X_TOLERANCE)
+        ekf.landmark_update(slots, measurements[copy, slots], *expected, R[copy, slots])
+    assert_filters_equal(x_new, P_new, filters)
+    untouched = ~observed.any(axis=1)
+    np.testing.assert_array_equal(P_new[untouched], P[untouched])
+
+
+@pytest.mark.parametrize("n_copies", COPIES)
 @pytest.mark.parametrize("cross_covariances", [True, False])
 def test_relative_pose_gains_and_pose_log_dets_equal_joint_ekf(n_copies, cross_covariances):
     n_robots = 4
@@ -654,6 +686,32 @@ def test_range_bearing_update_refuses_bad_inputs(key, value, message):
 def test_relative_pose_update_refuses_bad_inputs(key, value, message):
     with pytest.raises(ValueError, match=message):
         batched.relative_pose_update(XJ, PJ, **{**REL_ARGS, key: value})
+
+
+LANDMARK_ARGS = {
+    "robots": OBSERVERS,
+    "measurements": np.ones((2, 2, 2)),
+    "predicted": np.ones((2, 2, 2)),
+    "H_pose": np.ones((2, 2, 2, 3)),
+    "R": np.broadcast_to(np.eye(2) * 0.01, (2, 2, 2, 2)),
+    "observed": np.array([[True, True], [False, True]]),
+}
+
+
+@pytest.mark.parametrize(
+    "key, value, message",
+    [
+        ("robots", np.array([0, 1]), r"robots must have shape \(2, M\), got \(2,\)"),
+        ("robots", np.array([[0, 3], [2, 0]]), r"robots must hold indices in \[0, 2\]"),
+        ("observed", np.ones((2, 2)), r"observed must be a bool array of shape \(2, 2\), got float64"),
+        ("measurements", np.ones((2, 2, 3)), r"measurements must have shape \(2, 2, 2\)"),
+        ("H_pose", np.full((2, 2, 2, 3), np.nan), "H_pose must be finite"),
+        ("R", np.broadcast_to(NOT_SPD, (2, 2, 2, 2)), "R is not positive definite"),
+    ],
+)
+def test_team_landmark_update_refuses_bad_inputs(key, value, message):
+    with pytest.raises(ValueError, match=message):
+        batched.team_landmark_update(XJ, PJ, **{**LANDMARK_ARGS, key: value})
 
 
 def test_an_unobserved_slot_may_pair_a_robot_with_itself():

@@ -18,6 +18,7 @@ from infonav_gym.world.visibility import (
     line_of_sight,
     segment_hits_discs,
     segment_hits_segments,
+    segments_clear,
     visible,
 )
 
@@ -109,6 +110,20 @@ def test_line_of_sight_equals_pymunk_over_copies_of_different_worlds(name):
             np.testing.assert_array_equal(got[copy], expected, err_msg=f"{name} copy {copy} origin {column}")
             checked, blocked = checked + expected.size, blocked + np.sum(~expected)
     assert 0.05 * checked < blocked < 0.95 * checked  # both answers occur often
+
+
+def test_segments_clear_equals_pymunk_for_lines_of_any_copies_in_any_order():
+    """Lines of copies in a shuffled order, each from its own start (as a team's robots see their own targets)."""
+    rng = np.random.default_rng(3)
+    worlds = [random_world("team_field", seed) for seed in range(6)]
+    geometry = StaticGeometry.stack([StaticGeometry.from_world(world) for world in worlds])
+    copies = rng.integers(len(worlds), size=600)
+    starts, ends = rng.uniform(-1.0, 41.0, (600, 2)), rng.uniform(-1.0, 41.0, (600, 2))
+    got = segments_clear(geometry, copies, starts, ends)
+    expected = [worlds[copy].line_of_sight(start, end[None])[0] for copy, start, end in zip(copies, starts, ends)]
+    np.testing.assert_array_equal(got, expected)
+    assert 0.05 < np.mean(got) < 0.95
+    assert segments_clear(geometry, np.zeros(0, dtype=int), np.zeros((0, 2)), np.zeros((0, 2))).shape == (0,)
 
 
 @pytest.mark.parametrize("name", ["field", "team_field", "corridor"])
@@ -268,6 +283,9 @@ BAD_CALLS = {  # what is wrong: (the call, words its message must contain)
     "a NaN target": (lambda: line_of_sight(GEOMETRY, ORIGIN, np.full((1, 1, 2), np.nan)), "finite"),
     "more origins than copies": (lambda: line_of_sight(GEOMETRY, np.zeros((2, 2)), np.ones((2, 1, 2))), "2 origins"),
     "not a geometry": (lambda: line_of_sight("walls", ORIGIN, TARGETS), "StaticGeometry"),
+    "lines without a copy each": (lambda: segments_clear(GEOMETRY, [0, 0], ORIGIN, ORIGIN), "copies must be 1 ints"),
+    "a line of no copy": (lambda: segments_clear(GEOMETRY, [1], ORIGIN, ORIGIN), r"copies must be in \[0, 0\]"),
+    "line ends of another shape": (lambda: segments_clear(GEOMETRY, [0], ORIGIN, np.ones((2, 2))), "ends"),
     "poses not (N, 3)": (lambda: in_coverage(RangeBearingSensor(), ORIGIN, TARGETS), "poses"),
     "a negative disc radius": (lambda: segment_hits_discs(ORIGIN, TARGETS, CENTERS, -RADII), ">= 0"),
     "radii of another shape": (lambda: segment_hits_discs(ORIGIN, TARGETS, np.zeros((1, 2, 2)), RADII), "radii"),

@@ -416,6 +416,53 @@ def relative_pose_update(
     return _grouped_update(x, P, observed, update, cross_covariances)
 
 
+def team_landmark_update(
+    x, P, robots, measurements, predicted, H_pose, R, observed=None, *, cross_covariances=True, check_input=True
+):
+    """``JointEKF.landmark_update`` on every copy: its robots' range-bearing measurements of known landmarks.
+
+    Slot ``k`` of copy ``c`` is ``[range, bearing]`` of a landmark seen by robot ``robots[c, k]``; the observed
+    slots of a copy are fused together in slot order, as one stacked update.
+
+    Args:
+        x: joint states (N, 3R).
+        P: their covariances (N, 3R, 3R).
+        robots: the observers' indices (N, M).
+        measurements, predicted: (N, M, 2); ``predicted`` from ``landmark_measurement_model`` at the prior.
+        H_pose: its Jacobian w.r.t. the observer's pose (N, M, 2, 3).
+        R: noise covariances (N, M, 2, 2), symmetric positive definite.
+        observed: which slots are measured (N, M) bool; None for all.
+        cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
+        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
+
+    Returns:
+        The updated ``(x, P)``; copies without any observed slot unchanged.
+    """
+    if check_input:
+        x, P = _state(x, P)
+        robots = np.asarray(robots)
+        if robots.ndim != 2 or len(robots) != len(x):
+            raise ValueError(f"robots must have shape ({len(x)}, M), got {robots.shape}")
+        robots = _indices("robots", robots, robots.shape, _team_size(x.shape[1]))
+        if observed is not None:
+            observed = _mask("observed", observed, robots.shape)
+        measurements = _finite("measurements", measurements, (*robots.shape, 2))
+        predicted = _finite("predicted", predicted, (*robots.shape, 2))
+        H_pose = _finite("H_pose", H_pose, (*robots.shape, 2, POSE_DIM))
+        R = _noise_covariance("R", R, (*robots.shape, 2, 2))
+    if observed is None:
+        observed = np.ones(np.shape(robots), dtype=bool)
+    residual = np.subtract(measurements, predicted)
+    residual[..., 1] = wrap_angle(residual[..., 1])
+
+    def update(x_group, P_group, slot_of):
+        H = _stacked_jacobian(slot_of(robots), slot_of(H_pose), x.shape[1])
+        flat_residual = slot_of(residual).reshape(len(x_group), -1)
+        return _kalman_update(x_group, P_group, flat_residual, H, _block_diagonal(slot_of(R)), _headings(x))
+
+    return _grouped_update(x, P, observed, update, cross_covariances)
+
+
 def _headings(x: np.ndarray) -> np.ndarray:
     """The heading entries of joint states (N, 3R)."""
     return np.arange(2, x.shape[1], POSE_DIM)

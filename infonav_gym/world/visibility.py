@@ -422,20 +422,50 @@ def line_of_sight(geometry: StaticGeometry, origins, targets) -> np.ndarray:
 def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=None) -> np.ndarray:
     """``line_of_sight`` of checked arguments, run only for the ``queried`` targets (N, K) bool (others: True)."""
     copy, target = np.nonzero(np.ones(targets.shape[:2], dtype=bool) if queried is None else queried)
-    query_origins, query_targets = origins[copy], targets[copy, target]
-    blocked = np.zeros(len(copy), dtype=bool)
+    clear = np.ones(targets.shape[:2], dtype=bool)
+    clear[copy, target] = _segments_clear(geometry, copy, origins[copy], targets[copy, target])
+    return clear
+
+
+def segments_clear(geometry: StaticGeometry, copies, starts, ends) -> np.ndarray:
+    """Whether each straight line ``starts[m]`` -> ``ends[m]`` in copy ``copies[m]`` misses every wall and disc.
+
+    Equal to ``World.line_of_sight(starts[m], ends[m:m + 1])`` of that copy's world (see the module): lines of
+    any copies in one call, e.g. from each of a copy's robots to its own targets.
+
+    Args:
+        geometry: the static shapes of N copies.
+        copies: each line's copy (M,) int in [0, N).
+        starts, ends: the lines' ends (M, 2) [m].
+
+    Returns:
+        (M,) bool.
+
+    Raises:
+        ValueError: for a wrong shape, a non-finite value, or a copy index outside the geometry's.
+    """
+    if not isinstance(geometry, StaticGeometry):
+        raise ValueError(f"segments_clear: geometry must be a StaticGeometry, got {type(geometry).__name__}")
+    starts = _finite_array(starts, (None, 2), "segments_clear: starts [m]")
+    ends = _finite_array(ends, (len(starts), 2), "segments_clear: ends [m] (one per start)")
+    copies = np.asarray(copies)
+    if copies.shape != (len(starts),) or (copies.size and copies.dtype.kind not in "iu"):
+        raise ValueError(f"segments_clear: copies must be {len(starts)} ints (one per line), got {copies!r}")
+    if np.any((copies < 0) | (copies >= geometry.n_copies)):
+        raise ValueError(f"segments_clear: copies must be in [0, {geometry.n_copies - 1}], got {copies.tolist()}")
+    return _segments_clear(geometry, copies, starts, ends)
+
+
+def _segments_clear(geometry: StaticGeometry, copies, starts, ends) -> np.ndarray:
+    blocked = np.zeros(len(copies), dtype=bool)
     shapes = (
         (geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, geometry.wall_valid, _hits_walls),
         (geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, geometry.disc_valid, _hits_discs),
     )
     for points, radii, boxes, usable, exact_test in shapes:
-        hit_queries, _ = _pair_hits(
-            copy, query_origins, query_targets, points, radii, boxes, usable, geometry.culled, exact_test
-        )
+        hit_queries, _ = _pair_hits(copies, starts, ends, points, radii, boxes, usable, geometry.culled, exact_test)
         blocked[hit_queries] = True
-    clear = np.ones(targets.shape[:2], dtype=bool)
-    clear[copy, target] = ~blocked
-    return clear
+    return ~blocked
 
 
 def in_coverage(sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
