@@ -36,6 +36,7 @@ from infonav_gym.world.world import TIME_STEP_S, start_poses
 
 MOTION_NAMES = ("stay", "east", "north", "west", "south")
 MOTION_HEADINGS_RAD = np.array([0.0, 0.0, math.pi / 2, math.pi, -math.pi / 2])  # "stay" does not drive
+MOTION_DIRECTIONS = np.stack([np.cos(MOTION_HEADINGS_RAD), np.sin(MOTION_HEADINGS_RAD)], axis=-1)  # (5, 2)
 STAY = 0
 N_MOTIONS = len(MOTION_NAMES)
 NOOP_ACTION = 0  # stay and observe nothing: slot 0, motion STAY
@@ -263,11 +264,11 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
 
     def _reset_episode(self) -> None:
         cfg = self.config
-        scenario = exploration_field(self.np_random, **{name: cfg[key] for name, key in SCENARIO_KEYS.items()})
-        self._odometry_rng, self._gps_rng, self._relative_rng, self._landmark_rng = self.np_random.spawn(4)
+        scenario, poses, covariances, *generators = start_episode(cfg, self.np_random)
+        self._odometry_rng, self._gps_rng, self._relative_rng, self._landmark_rng = generators
         self.world.reset(scenario)
         self._true_poses = self.world.poses
-        self.ekf = JointEKF(*team_prior(cfg, np.array(start_poses(scenario)), self.np_random))
+        self.ekf = JointEKF(poses, covariances)
         n = len(self.possible_agents)
         self._time_s = 0.0
         self._gps_fixes()
@@ -322,32 +323,12 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
             mask.reshape(n, -1).astype(np.int8), gains, ExplorationSight(relative, slot_valid, position_std)
         )
 
-    def _motion_plan(self, motions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
-
-        A motion turns the *estimated* heading to its compass heading on the spot, then drives straight;
-        ``stay`` does neither. Turning on the spot and driving straight are both exact unicycle motions.
-        """
-        drives = motions != STAY
-        headings = self.ekf.x[2::POSE_DIM]
-        turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
-        return turns, np.where(drives, self.speeds_mps, 0.0)
-
     def _scan_gains(self, position_std: np.ndarray) -> np.ndarray:
-        """Map information [nats] each robot's scan would bring alone after each motion (R, 5); 0 for ``stay``.
-
-        From the position the motion predicts (estimated position, compass heading, drive phase), with the
-        scan noise of the robot's current position std.
-        """
+        """Map information [nats] each robot's scan would bring alone after each motion (R, 5) (``scan_gains``)."""
         cfg = self.config
+        positions = self.ekf.x.reshape(-1, POSE_DIM)[:, :2]
         drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
-        reach = drive_s * self.speeds_mps[:, None] * (np.arange(N_MOTIONS) != STAY)  # (R, 5) [m]
-        directions = np.stack([np.cos(MOTION_HEADINGS_RAD), np.sin(MOTION_HEADINGS_RAD)], axis=-1)
-        positions = self.ekf.x.reshape(-1, POSE_DIM)[:, None, :2] + reach[..., None] * directions
-        noise = self.map_model.scan_noise_variances(position_std)[:, None]
-        gains = self.map_model.scan_gains(self.map_variances, self.map_model.footprints(positions), noise)
-        gains[:, STAY] = 0.0
-        return gains
+        return scan_gains(self.map_model, self.map_variances, positions, position_std, self.speeds_mps, drive_s)
 
     def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
         """Observe at the prior, drive, predict, fuse DGPS, then scan; each robot's reward (see the class)."""
@@ -363,7 +344,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         observed = slots > 0
         self.observations_left = self.observations_left - observed
         own_information = 0.5 * (relative.pose_log_det - np.linalg.slogdet(self.ekf.pose_covariances())[1])
-        self._drive(*self._motion_plan(motions))
+        self._drive(*motion_plan(motions, self.ekf.x[2::POSE_DIM], self.speeds_mps))
         self._time_s = (self._elapsed_steps + 1) * cfg["time_step_s"]
         self._gps_fixes()
         position_std = ActiveLocalizationEnv.position_std(self.ekf.pose_covariances())
@@ -411,3 +392,43 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
 
     def _advance(self) -> None:
         self._extend_paths()
+
+
+def start_episode(config: dict, np_random: np.random.Generator):
+    """Start an episode: draw its field and the ``JointEKF`` prior from ``np_random``, in a fixed order.
+
+    Returns:
+        ``(scenario, poses (R, 3), covariances (R, 3, 3), odometry_rng, gps_rng, relative_rng, landmark_rng)``, so
+        the parallel and the vector env draw the same episode from the same generator.
+    """
+    scenario = exploration_field(np_random, **{name: config[key] for name, key in SCENARIO_KEYS.items()})
+    generators = np_random.spawn(4)
+    poses, covariances = team_prior(config, np.array(start_poses(scenario)), np_random)
+    return scenario, poses, covariances, *generators
+
+
+def motion_plan(motions: np.ndarray, headings: np.ndarray, speeds_mps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
+
+    A motion turns the *estimated* heading to its compass heading on the spot, then drives straight; ``stay``
+    does neither. Turning on the spot and driving straight are both exact unicycle motions. Any leading
+    dimensions: motions and estimated headings (..., R), speeds (R,).
+    """
+    drives = motions != STAY
+    turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
+    return turns, np.where(drives, speeds_mps, 0.0)
+
+
+def scan_gains(map_model: TerrainMapModel, variances, positions, position_std, speeds_mps, drive_s: float):
+    """Map information [nats] each robot's scan would bring alone after each motion (..., R, 5); 0 for ``stay``.
+
+    From the position the motion predicts (estimated position (..., R, 2), compass heading, ``drive_s`` [s] at the
+    robot's speed (R,) [m/s]), with the scan noise of its current position std (..., R) [m], on the map's cell
+    variances (..., G).
+    """
+    reach = drive_s * speeds_mps[:, None] * (np.arange(N_MOTIONS) != STAY)  # (R, 5) [m]
+    ends = positions[..., None, :] + reach[..., None] * MOTION_DIRECTIONS
+    noise = map_model.scan_noise_variances(position_std)[..., None]
+    gains = map_model.scan_gains(np.asarray(variances)[..., None, None, :], map_model.footprints(ends), noise)
+    gains[..., STAY] = 0.0
+    return gains

@@ -72,27 +72,20 @@ class TeamDecision(NamedTuple):
     pose_std: np.ndarray
 
     @classmethod
-    def at_prior(
-        cls, pairs: SensingPairs, sight: TeamSightLines | None, true_poses, x, P, team_reward: float
-    ) -> TeamDecision:
-        """The decisions of N copies: true poses (N, R, 3), priors ``x`` (N, 3R), ``P`` (N, 3R, 3R).
+    def at_prior(cls, pairs: SensingPairs, geometry, valid, x, P, team_reward: float) -> TeamDecision:
+        """The decisions of N copies at their priors ``x`` (N, 3R), ``P`` (N, 3R, 3R).
 
         Args:
             pairs: the team's (observer, target) pairs.
-            sight: the copies' sight lines; None when the team has no pair.
-            true_poses, x, P: as above.
+            geometry: every pair's true range, bearing and relative heading (N, P, 3) (``observable_pairs``).
+            valid: which pairs are observable now (N, P).
+            x, P: as above.
             team_reward: the weight of the team's MI in each robot's reward, in [0, 1].
         """
-        n_copies, n_robots = true_poses.shape[:2]
+        n_copies, n_robots = x.shape[0], x.shape[1] // POSE_DIM
         n_pairs = len(pairs.observers)
         observers = np.broadcast_to(pairs.observers, (n_copies, n_pairs))
         targets = np.broadcast_to(pairs.targets, (n_copies, n_pairs))
-        geometry = relative_pose(
-            true_poses[:, pairs.observers].reshape(-1, POSE_DIM), true_poses[:, pairs.targets].reshape(-1, POSE_DIM)
-        ).reshape(n_copies, n_pairs, POSE_DIM)
-        valid = pairs.covered(geometry)
-        if sight is not None:
-            valid &= sight.clear(true_poses)[:, pairs.sight_line]
         predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets, check_input=False)
         noise = np.broadcast_to(pairs.noise, (n_copies, n_pairs, 5)).reshape(-1, 5)
         R = noise_covariances(noise, predicted[..., 0].ravel()).reshape(n_copies, n_pairs, POSE_DIM, POSE_DIM)
@@ -109,6 +102,26 @@ class TeamDecision(NamedTuple):
         pose_log_det = batched.pose_log_dets(P, n_robots, check_input=False)
         pose_std = np.sqrt(np.diagonal(P, axis1=1, axis2=2)).reshape(n_copies, n_robots, POSE_DIM)
         return cls(mask, gains, geometry, valid, predicted, H_observer, H_target, R, pose_log_det, pose_std)
+
+
+def observable_pairs(pairs: SensingPairs, sight: TeamSightLines | None, true_poses) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair's true range, bearing and relative heading (N, P, 3) and which are observable now (N, P) bool.
+
+    Observable: the target lies in the observer's range and field of view, with a clear line of sight.
+
+    Args:
+        pairs: the team's (observer, target) pairs.
+        sight: the copies' sight lines; None when the team has no pair.
+        true_poses: every copy's true poses (N, R, 3).
+    """
+    n_copies, n_pairs = len(true_poses), len(pairs.observers)
+    geometry = relative_pose(
+        true_poses[:, pairs.observers].reshape(-1, POSE_DIM), true_poses[:, pairs.targets].reshape(-1, POSE_DIM)
+    ).reshape(n_copies, n_pairs, POSE_DIM)
+    valid = pairs.covered(geometry)
+    if sight is not None:
+        valid &= sight.clear(true_poses)[:, pairs.sight_line]
+    return geometry, valid
 
 
 class TeamStep(NamedTuple):

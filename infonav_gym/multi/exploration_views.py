@@ -79,22 +79,20 @@ class ExplorationViews(TeamPaths):
             sight.slot_valid[:, 1 + n_landmarks :],
             self._team_space,
         )
-        landmarks = np.zeros((n, n_landmarks, LANDMARK_FEATURES))
+        seen = np.zeros((n, n_landmarks, 2))
         if n_landmarks:
             seen = np.array([range_bearing(estimate, self.world.landmarks) for estimate in estimates])
-            landmarks[..., 0] = sight.slot_valid[:, 1 : 1 + n_landmarks]
-            landmarks[..., 1] = seen[..., 0]
-            landmarks[..., 2], landmarks[..., 3] = np.cos(seen[..., 1]), np.sin(seen[..., 1])
         budget = cfg["max_observations"]
-        extras = np.column_stack(
-            [self.speeds_mps, self.observations_left / budget if budget else np.zeros(n), np.full(n, self.coverage)]
+        features = exploration_observations(
+            team,
+            sight.slot_valid[:, 1 : 1 + n_landmarks],
+            seen,
+            self.speeds_mps,
+            self.observations_left / budget if budget else np.zeros(n),
+            self.coverage,
+            np.sqrt(self.map_variances) / self.map_model.prior_std_m,
+            self._observation_spaces[self.possible_agents[0]],
         )
-        cells = np.sqrt(self.map_variances) / self.map_model.prior_std_m
-        features = np.concatenate(
-            [team, landmarks.reshape(n, -1), extras, np.repeat(cells[None], n, axis=0)], axis=1
-        ).astype(np.float32)
-        space = self._observation_spaces[self.possible_agents[0]]
-        np.clip(features, space.low, space.high, out=features)
         return {agent: features[robot] for robot, agent in enumerate(self.agents)}
 
     def _infos(self) -> dict:
@@ -143,3 +141,33 @@ class ExplorationViews(TeamPaths):
             caption=f"t = {self._time_s:.0f} s   {len(self._observed_pairs)} teammate and "
             f"{len(self._observed_landmarks)} landmark observations this step",
         )
+
+
+def exploration_observations(
+    team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, space
+) -> np.ndarray:
+    """Every robot's observation (see ``CooperativeExplorationEnv``), float32 clipped to ``space``, for R robots.
+
+    Any leading dimensions (B...) are batch dimensions (the vector env's copies).
+
+    Args:
+        team: the ``team_observations`` part (B..., R, 10 + 5 R).
+        landmark_valid: whether observing each landmark is valid now (B..., R, L).
+        landmarks_seen: each landmark's range [m] and bearing [rad] from each robot's estimate (B..., R, L, 2).
+        speeds_mps: each robot's speed (R,) [m/s].
+        budget_left: each robot's sensing budget left, a fraction (B..., R).
+        coverage: the team's coverage (B...) (a number for one team).
+        cell_std: each cell's height std left, a fraction of the prior's (B..., G).
+        space: one robot's observation space.
+    """
+    lead, n = np.shape(team)[:-2], np.shape(team)[-2]
+    landmarks = np.zeros((*lead, n, np.shape(landmark_valid)[-1], LANDMARK_FEATURES))
+    landmarks[..., 0] = landmark_valid
+    landmarks[..., 1] = landmarks_seen[..., 0]
+    landmarks[..., 2], landmarks[..., 3] = np.cos(landmarks_seen[..., 1]), np.sin(landmarks_seen[..., 1])
+    extras = np.stack(
+        np.broadcast_arrays(speeds_mps, budget_left, np.asarray(coverage, dtype=float)[..., None]), axis=-1
+    )
+    cells = np.broadcast_to(np.asarray(cell_std)[..., None, :], (*lead, n, np.shape(cell_std)[-1]))
+    features = np.concatenate([team, landmarks.reshape(*lead, n, -1), extras, cells], axis=-1).astype(np.float32)
+    return np.clip(features, space.low, space.high, out=features)

@@ -1,0 +1,312 @@
+"""``TeamVectorEnv``: what the native vector envs of the team envs share (the step cycle, DGPS, relative poses).
+
+A team vector env batches N copies of a PettingZoo team env of R robots on stacked arrays: observations
+(N, R, ...), one action per copy and robot (N, R), joint EKF states ``x`` (N, 3R) and covariances ``P``. A
+subclass calls ``_configure_team`` and fills the hooks ``_reset_copies``, ``_reset_record``, ``_act``, ``_decide``,
+``_outputs`` and ``_restarted``; the cycle of ``reset`` and ``step`` (with both autoreset modes), the action
+checks, the DGPS fixes and the stacked relative-pose update are here, with the parallel env's numbers.
+"""
+
+from __future__ import annotations
+
+import abc
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+
+from infonav_gym.envs.base import accepts_action
+from infonav_gym.envs.noise_streams import NoiseStreams
+from infonav_gym.envs.vector_base import InfoNavVectorEnv
+from infonav_gym.envs.vector_infos import final_step_infos
+from infonav_gym.estimation import batched
+from infonav_gym.estimation.ekf import POSE_DIM, block_diagonal
+from infonav_gym.sensors.gps import GPSSensor
+from infonav_gym.sensors.relative_pose import relative_poses_with_noise
+from infonav_gym.world.world_batch import WorldBatch
+
+MASK_KEY = 'info["action_mask"]'
+ODOMETRY_NOISE, GPS_NOISE, RELATIVE_NOISE = 0, 1, 2  # ``_noise`` index of each sensor's streams (more may follow)
+
+
+class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
+    """Base of the native vector envs of the PettingZoo team envs (``CooperativeLocalizationVectorEnv``, ...).
+
+    Attributes set by ``_configure_team``: ``agents`` (the team's robots R), ``max_cycles``, the spaces, the
+    single env's ``_pairs`` (``SensingPairs``), ``_worlds`` (a ``WorldBatch``), ``_noise`` (one ``NoiseStreams``
+    per sensor generator of the single env, in the order it spawns them), ``_x``, ``_P``, ``_gps_available``
+    (N, R) and ``_elapsed`` (N,).
+    """
+
+    def _configure_team(self, num_envs, render_mode, autoreset_mode, config: dict, more_noise_widths=()) -> None:
+        """Check the arguments (``_configure``) and set up the copies' arrays.
+
+        Args:
+            num_envs, render_mode, autoreset_mode, config: as ``InfoNavVectorEnv._configure`` takes them.
+            more_noise_widths: the draw widths of the single env's generators after odometry, DGPS and relative poses.
+        """
+        self._single = single = self._configure(num_envs, render_mode, autoreset_mode, config)
+        self.agents = list(single.possible_agents)
+        n_robots = len(self.agents)
+        self.max_cycles = self.config["max_cycles"]
+        self.single_observation_space = single.observation_space(self.agents[0])
+        self.single_action_space = single.action_space(self.agents[0])
+        low, high = self.single_observation_space.low, self.single_observation_space.high
+        shape = (num_envs, n_robots, *low.shape)
+        self.observation_space = spaces.Box(np.broadcast_to(low, shape), np.broadcast_to(high, shape), dtype=np.float32)
+        self.action_space = spaces.MultiDiscrete(np.full((num_envs, n_robots), self.single_action_space.n))
+        self._pairs = single.pairs
+        self._pair_index = np.full((n_robots, n_robots + 1), -1)  # robot, teammate choice -> its pair
+        self._pair_index[self._pairs.observers, self._pairs.targets + 1] = np.arange(len(self._pairs.observers))
+        self._has_gps, self._outages = self._gps_schedule()
+        self._gps = GPSSensor(self.config["gps_std_m"])  # every receiver's noise; the schedules are _outages
+        self._cross_covariances = self.config.get("estimator", "joint") == "joint"  # a team env may drop them
+        self._odometry = single.odometry
+        self._odometry_covariances = np.repeat(self._odometry.noise_covariance()[None], n_robots, axis=0)
+        self._worlds = WorldBatch(num_envs)
+        widths = (2 * n_robots, 2, POSE_DIM, *more_noise_widths)
+        self._noise = tuple(NoiseStreams(num_envs, width) for width in widths)
+        dim = POSE_DIM * n_robots
+        self._x, self._P = np.zeros((num_envs, dim)), np.zeros((num_envs, dim, dim))
+        self._gps_available = np.zeros((num_envs, n_robots), dtype=bool)
+        self._zone_centers, self._zone_radii_sq = np.zeros((num_envs, 0, 2)), np.zeros((num_envs, 0))
+        self._elapsed = np.zeros(num_envs, dtype=int)
+
+    def _gps_schedule(self) -> tuple[np.ndarray, np.ndarray]:
+        """Which robots carry DGPS (R,) and each robot's outage spans (R, S, 2) [s], padded with (inf, inf)."""
+        receivers = self._single.gps
+        spans = [gps.outages if gps is not None else () for gps in receivers]
+        outages = np.full((len(receivers), max(map(len, spans), default=0), 2), np.inf)
+        for robot, robot_spans in enumerate(spans):
+            outages[robot, : len(robot_spans)] = np.reshape(robot_spans, (-1, 2))
+        return np.array([gps is not None for gps in receivers]), outages
+
+    # ------------------------------------------------------------------ reset
+
+    def reset(self, *, seed: int | list | None = None, options: dict | None = None):
+        """Reset every copy: seed ``s`` gives copy ``i`` the seed ``s + i``; a list gives one seed (or None) each.
+
+        Raises:
+            ValueError: for a seed that is not None, an int >= 0 or a list of N such seeds, or any options.
+        """
+        self._seed_sub_envs(seed, options)
+        self._reset_copies(np.arange(self.num_envs))
+        self._prev_done[:] = False
+        self._decide()
+        return self._outputs(self._reset_record())
+
+    def _start_copy(self, copy: int, scenario, poses, covariances, generators) -> None:
+        """Copy ``copy`` starts an episode of ``scenario``: its world, sensor streams and joint EKF prior."""
+        self._worlds.reset_copy(copy, scenario)
+        for streams, generator in zip(self._noise, generators):
+            streams.restart(copy, generator)
+        self._x[copy], self._P[copy] = poses.ravel(), block_diagonal(covariances)
+
+    def _started(self, copies: np.ndarray) -> None:
+        """``copies`` have started their episodes (``_start_copy``): time 0, their DGPS zones and first fixes."""
+        self._elapsed[copies] = 0
+        self._zone_centers, self._zone_radii_sq = self._gps_denied_zones()
+        self._gps_fixes(copies)
+
+    def _gps_denied_zones(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every copy's GPS-denied zones: centres (N, Z, 2) [m] and squared radii (N, Z) [m^2] (-1: padding)."""
+        zones = [self._worlds.scenario(copy).gps_denied_zones for copy in range(self.num_envs)]
+        centers = np.zeros((self.num_envs, max(map(len, zones)), 2))
+        radii_sq = np.full(centers.shape[:2], -1.0)
+        for copy, copy_zones in enumerate(zones):
+            for slot, zone in enumerate(copy_zones):
+                centers[copy, slot], radii_sq[copy, slot] = zone.center, zone.radius**2
+        return centers, radii_sq
+
+    # ------------------------------------------------------------------ step
+
+    def step(self, actions):
+        """Act in every copy (reset those whose episode ended at the last step, with ``NEXT_STEP``; see the class).
+
+        Raises:
+            ValueError: for actions that are not (N, R) integers of the action space, or, with
+                ``invalid_action="raise"``, a masked action (each naming its copy and robot).
+        """
+        if self._decision is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
+        actions = self._checked_actions(actions)
+        resetting = self._prev_done.copy()
+        chosen, invalid = self._chosen_actions(actions, ~resetting)
+        if self._view is not None and not resetting[0]:
+            self._view.step(dict(zip(self.agents, actions[0].tolist())))
+        last, rewards, terminated = self._act(chosen, invalid, ~resetting)
+        if resetting.any():
+            self._reset_copies(np.flatnonzero(resetting))
+        self._decide()
+        truncated = ~resetting & ~terminated & (self._elapsed >= self.max_cycles)
+        ended = terminated | truncated
+        observations, info = self._outputs(last)
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and ended.any():
+            final_infos = final_step_infos(observations, info, ended)
+            self._reset_copies(np.flatnonzero(ended))
+            self._decide()
+            observations, info = self._outputs(self._restarted(last, ended))
+            info.update(final_infos)
+        else:
+            self._prev_done = ended
+        n_robots = len(self.agents)
+        return (
+            observations,
+            rewards,
+            np.repeat(terminated[:, None], n_robots, axis=1),
+            np.repeat(truncated[:, None], n_robots, axis=1),
+            info,
+        )
+
+    def _checked_actions(self, actions) -> np.ndarray:
+        array = np.asarray(actions)
+        n_robots, top = len(self.agents), self.single_action_space.n - 1
+        if array.shape != (self.num_envs, n_robots) or array.dtype.kind not in "iu":
+            raise ValueError(
+                f"actions of {type(self).__name__} must be an integer array of shape ({self.num_envs}, {n_robots}), "
+                f"one per copy and robot, in [0, {top}]; got {array.dtype} of shape {array.shape}"
+            )
+        outside = np.argwhere((array < 0) | (array > top))
+        if outside.size:
+            copy, robot = outside[0].tolist()
+            raise ValueError(
+                f"action {array[copy, robot]} of {self.agents[robot]} in sub-env {copy} is not in the action space "
+                f"{self.single_action_space}: expected an integer in [0, {top}]"
+            )
+        return array.astype(int)
+
+    def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each robot's executed action (the no-op for a masked one and in a resetting copy), and which were masked."""
+        mask, noop = self._decision.action_mask, self._single.traits.noop_action
+        copies, robots = np.ogrid[: self.num_envs, : len(self.agents)]
+        valid = mask[copies, robots, actions].astype(bool)
+        invalid = acting[:, None] & ~valid
+        for copy, robot in np.argwhere(invalid).tolist():
+            where = f"{self.agents[robot]} in sub-env {copy}"
+            accepts_action(int(actions[copy, robot]), mask[copy, robot], self.config["invalid_action"], MASK_KEY, where)
+        return np.where(acting[:, None] & valid, actions, noop), invalid
+
+    def _relative_update(self, copies: np.ndarray, chosen: np.ndarray, decision) -> None:
+        """Fuse the teammate observations ``chosen`` (n, R) of ``copies`` as one stacked update per copy.
+
+        Args:
+            copies: the copies that observe a teammate (n,).
+            chosen: each of their robots' teammate choice: ``NO_OBSERVATION`` (0) or ``1 + j`` for robot j.
+            decision: the decision's relative-pose candidates (``TeamDecision``: geometry, predicted, H, R per pair).
+        """
+        n_robots = len(self.agents)
+        observed = chosen != 0
+        pair = self._pair_index[np.arange(n_robots), chosen]  # -1 (unused) where not observed
+        rows = copies[:, None], pair
+        self._x[copies], self._P[copies] = batched.relative_pose_update(
+            self._x[copies],
+            self._P[copies],
+            np.broadcast_to(np.arange(n_robots), observed.shape),
+            self._pairs.targets[pair],
+            self._relative_measurements(copies, decision.geometry[rows], pair, observed),
+            decision.predicted[rows],
+            decision.H_observer[rows],
+            decision.H_target[rows],
+            decision.R[rows],
+            observed,
+            cross_covariances=self._cross_covariances,
+            check_input=False,
+        )
+
+    def _relative_measurements(self, copies, geometry, pair, observed) -> np.ndarray:
+        """Noisy relative poses (n, R, 3) of the observed slots (n, R) of ``copies``, in the parallel env's order."""
+        noise = draws_in_slot_order(self._noise[RELATIVE_NOISE], copies, observed, POSE_DIM)
+        parameters = self._pairs.noise[pair]
+        measured = relative_poses_with_noise(
+            geometry.reshape(-1, POSE_DIM), parameters.reshape(-1, 5), noise.reshape(-1, 3)
+        )
+        return measured.reshape(geometry.shape)
+
+    def _predict(self, copies: np.ndarray, controls: np.ndarray, dt: float) -> None:
+        """Predict the EKFs of ``copies`` with noisy odometry of the executed ``controls`` (n, R, 2) over ``dt`` [s]."""
+        noise = self._noise[ODOMETRY_NOISE].take(copies).reshape(controls.shape)
+        readings = self._odometry.measure_with_noise(controls, noise)
+        self._x[copies], self._P[copies] = batched.predict_team(
+            self._x[copies], self._P[copies], readings, dt, self._odometry_covariances, check_input=False
+        )
+
+    def _gps_fixes(self, copies: np.ndarray) -> None:
+        """Which robots of ``copies`` have a DGPS fix now (schedule, zones), and their update."""
+        time_s = self._elapsed[copies] * self.config["time_step_s"]
+        positions = self._worlds.poses[copies, :, :2]
+        offsets = positions[:, :, None] - self._zone_centers[copies, None]
+        denied = np.any(np.einsum("crzi,crzi->crz", offsets, offsets) <= self._zone_radii_sq[copies, None], axis=2)
+        spans = self._outages
+        in_outage = np.any((spans[..., 0] <= time_s[:, None, None]) & (time_s[:, None, None] < spans[..., 1]), axis=2)
+        available = self._has_gps & ~denied & ~in_outage
+        self._gps_available[copies] = available
+        fixing = np.flatnonzero(available.any(axis=1))
+        if not fixing.size:
+            return
+        rows, available = copies[fixing], available[fixing]
+        fixes = self._gps.measure_with_noise(
+            positions[fixing], draws_in_slot_order(self._noise[GPS_NOISE], rows, available, 2)
+        )
+        self._x[rows], self._P[rows] = batched.gps_update(
+            self._x[rows],
+            self._P[rows],
+            fixes,
+            self._gps.noise_covariance(),
+            available,
+            cross_covariances=self._cross_covariances,
+            check_input=False,
+        )
+
+    def action_masks(self) -> np.ndarray:
+        """The valid actions of each copy and robot as bool (N, R, A) (the no-op is always valid)."""
+        if self._decision is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
+        return self._decision.action_mask.astype(bool)
+
+    # ------------------------------------------------------------------ the hooks
+
+    @abc.abstractmethod
+    def _reset_copies(self, copies: np.ndarray) -> None:
+        """Hook: start a new episode in each of ``copies`` from its own generator, as the parallel env's reset does
+        (``_view_restarts``, ``_start_copy`` for each, then ``_started``)."""
+
+    @abc.abstractmethod
+    def _reset_record(self):
+        """Hook: the step record (what ``_outputs`` reads) of a reset of every copy."""
+
+    @abc.abstractmethod
+    def _act(self, chosen: np.ndarray, invalid: np.ndarray, acting: np.ndarray) -> tuple:
+        """Hook: the ``acting`` copies (N,) bool take the ``chosen`` actions (N, R) (``invalid`` ones are no-ops).
+
+        Returns:
+            ``(record, rewards (N, R), terminated (N,) bool)``: the step record for ``_outputs``, 0 and False for
+            the copies not acting; ``_elapsed`` counts the step.
+        """
+
+    @abc.abstractmethod
+    def _decide(self) -> None:
+        """Hook: set ``_decision`` (with ``action_mask`` (N, R, A)) at every copy's prior."""
+
+    @abc.abstractmethod
+    def _outputs(self, record) -> tuple[np.ndarray, dict]:
+        """Hook: the observations (N, R, ...) and infos of every copy at the current decision, after ``record``."""
+
+    @abc.abstractmethod
+    def _restarted(self, record, copies: np.ndarray):
+        """Hook: ``record`` with the (N,) bool ``copies`` reset since (their reset info: no action, no reward)."""
+
+
+def draws_in_slot_order(streams: NoiseStreams, copies: np.ndarray, used: np.ndarray, width: int) -> np.ndarray:
+    """One draw of ``width`` numbers for each used slot of ``copies`` (n, R, width), zeros elsewhere.
+
+    A copy's used slots take its stream's next draws in slot order: what its parallel env draws in one
+    ``standard_normal((k, width))`` call for its k used slots, or in k calls of ``width`` in slot order.
+    """
+    draws = np.zeros((*used.shape, width))
+    turn_of = np.cumsum(used, axis=1) - 1  # each used slot's place among its copy's used slots
+    counts = used.sum(axis=1)
+    for turn in range(int(counts.max(initial=0))):
+        rows = np.flatnonzero(counts > turn)
+        slots = np.argmax(used[rows] & (turn_of[rows] == turn), axis=1)
+        draws[rows, slots] = streams.take(copies[rows])
+    return draws
