@@ -30,7 +30,12 @@ BUILTIN_ENVS = (
         PARALLEL,
         "infonav_gym.multi.cooperative_localization_vector:CooperativeLocalizationVectorEnv",
     ),
-    ("cooperative_exploration_v0", "infonav_gym.multi.cooperative_exploration:CooperativeExplorationEnv", PARALLEL),
+    (
+        "cooperative_exploration_v0",
+        "infonav_gym.multi.cooperative_exploration:CooperativeExplorationEnv",
+        PARALLEL,
+        "infonav_gym.multi.cooperative_exploration_vector:CooperativeExplorationVectorEnv",
+    ),
 )
 
 

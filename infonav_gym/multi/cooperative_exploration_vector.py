@@ -1,0 +1,291 @@
+"""``CooperativeExplorationVectorEnv``: N copies of ``cooperative_exploration_v0`` stepped at once on stacked arrays.
+
+``make_vector_env("cooperative_exploration_v0", num_envs=N, **config)`` returns it. The joint estimation
+(prediction, DGPS, relative-pose and landmark updates, expected gains, log-determinants), the line of sight,
+the terrain maps and the scan gains run batched over the copies (``estimation.batched``, ``world.visibility``,
+``TerrainMapModel``), the physics in a ``WorldBatch`` driven by the motions' turn and drive commands, and the
+sensor noise from one stream per copy and sensor (``NoiseStreams``: the parallel env's generators, drawn ahead).
+So copy ``i`` after ``reset(seed=s)`` gives the numbers of ``parallel_env()`` after ``reset(seed=s + i)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.vector import AutoresetMode
+
+from infonav_gym.envs.active_localization import ActiveLocalizationEnv
+from infonav_gym.envs.active_localization_batch import ranges_and_bearings
+from infonav_gym.estimation import batched
+from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.multi.cooperative_exploration import (
+    N_MOTIONS,
+    REWARD_TERMS,
+    STAY,
+    CooperativeExplorationEnv,
+    motion_plan,
+    scan_gains,
+    start_episode,
+)
+from infonav_gym.multi.cooperative_localization import team_observations
+from infonav_gym.multi.cooperative_localization_batch import TeamDecision
+from infonav_gym.multi.exploration_batch import (
+    ExplorationDecision,
+    ExplorationStep,
+    TeamSight,
+    exploration_info,
+    landmark_gains,
+)
+from infonav_gym.multi.exploration_views import exploration_observations
+from infonav_gym.multi.team_vector import TeamVectorEnv, draws_in_slot_order
+from infonav_gym.world.visibility import StaticGeometry
+
+LANDMARK_NOISE = 3  # ``_noise`` index of the landmark measurements' streams (after odometry, DGPS, relative poses)
+
+
+class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplorationEnv):
+    """N copies of ``CooperativeExplorationEnv`` (see it for the spaces, rewards and config keys), batched.
+
+    ## Vector API
+    ``agents`` are the team's robots R; ``single_observation_space`` / ``single_action_space`` one robot's.
+    ``step`` takes one action per copy and robot (N, R) and returns observations (N, R, 10 + 5R + 4L + 3 + G),
+    rewards, ``terminated`` (a robot lost, or the coverage target reached) and ``truncated`` (``max_cycles``)
+    (N, R). Infos hold the parallel env's per-agent keys as arrays with leading (N, R), but the team's
+    ``time_s``, ``coverage``, ``failed`` and ``success``: (N,); each with Gymnasium's ``_key`` mask (N,).
+    ``info["action_mask"]`` and ``action_masks()`` (bool, for ``MaskablePPO``) are (N, R, 5 (1 + L + R)).
+
+    ## Autoreset
+    As ``CooperativeLocalizationVectorEnv``: ``NEXT_STEP`` (the default) resets a copy at the step after its
+    episode ended (its actions ignored, rewards 0, its reset info with ``reward_terms`` masked out);
+    ``SAME_STEP`` at once, the last observation and info in ``info["final_obs"]`` and ``info["final_info"]``.
+
+    ## Arguments
+    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name ``"same_step"``) and
+    any key of ``CooperativeExplorationEnv.default_config()``, checked as the parallel env checks them.
+    ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0, as its parallel env would.
+    """
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **config,
+    ):
+        self._configure_team(num_envs, render_mode, autoreset_mode, config, more_noise_widths=(2,))
+        single, n_robots = self._single, len(self.agents)
+        self._sight = TeamSight.of_team(single.relative_sensors, self._pairs)
+        self._map = single.map_model
+        self._speeds_mps = single.speeds_mps
+        self._landmarks = np.zeros((num_envs, self.config["n_landmarks"], 2))
+        self._map_variances = np.zeros((num_envs, self._map.n_cells))
+        self._coverage = np.zeros(num_envs)
+        self._observations_left = np.zeros((num_envs, n_robots), dtype=int)
+        self._lost = np.zeros((num_envs, n_robots), dtype=bool)
+        self._success = np.zeros(num_envs, dtype=bool)
+
+    # ------------------------------------------------------------------ reset
+
+    def _reset_copies(self, copies: np.ndarray) -> None:
+        """Start a new episode in each of ``copies`` from its own generator, as the parallel env's reset does."""
+        self._view_restarts(copies)
+        geometries = []
+        for copy in copies.tolist():
+            scenario, poses, covariances, *generators = start_episode(self.config, self._np_randoms[copy])
+            self._start_copy(copy, scenario, poses, covariances, generators)
+            self._landmarks[copy] = scenario.landmarks
+            geometries.append(StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m))
+        geometry = StaticGeometry.stack(geometries)
+        self._geometry = geometry if len(copies) == self.num_envs else self._geometry.with_copies(copies, geometry)
+        self._map_variances[copies] = self._map.prior_variances()
+        self._coverage[copies] = 0.0
+        self._observations_left[copies] = self.config["max_observations"]
+        self._lost[copies] = self._success[copies] = False
+        self._started(copies)
+
+    def _reset_record(self) -> ExplorationStep:
+        return ExplorationStep.nothing(self.num_envs, len(self.agents), REWARD_TERMS)
+
+    def _restarted(self, record: ExplorationStep, copies: np.ndarray) -> ExplorationStep:
+        return record.restarted(copies)
+
+    # ------------------------------------------------------------------ step
+
+    def _act(self, chosen: np.ndarray, invalid: np.ndarray, acting: np.ndarray) -> tuple:
+        """Observe at the prior, drive, predict, fuse DGPS, then scan, in the ``acting`` copies (see the single env)."""
+        cfg, decision = self.config, self._decision
+        record = ExplorationStep.nothing(self.num_envs, len(self.agents), REWARD_TERMS)._replace(
+            stepped=acting, chosen=chosen, invalid=invalid
+        )
+        copies = np.flatnonzero(acting)
+        if not copies.size:
+            return record, np.zeros(chosen.shape), np.zeros(self.num_envs, dtype=bool)
+        n_landmarks = cfg["n_landmarks"]
+        slots, motions = np.divmod(chosen[copies], N_MOTIONS)
+        observes_teammate = slots > n_landmarks
+        teammates = np.where(observes_teammate, slots - n_landmarks, 0)
+        measured = np.flatnonzero(observes_teammate.any(axis=1))
+        if measured.size:
+            self._relative_update(copies[measured], teammates[measured], decision.team)
+        self._observe_landmarks(copies, np.where((slots > 0) & ~observes_teammate, slots - 1, -1))
+        observed = slots > 0
+        self._observations_left[copies] -= observed
+        n_robots = len(self.agents)
+        own_information = 0.5 * (
+            decision.team.pose_log_det[copies] - batched.pose_log_dets(self._P[copies], n_robots, check_input=False)
+        )
+        self._drive(copies, motions)
+        self._elapsed[copies] += 1
+        self._gps_fixes(copies)
+        position_std = self._position_std(copies)
+        map_information = self._scan(copies, motions != STAY, position_std)
+        lost = position_std > cfg["max_position_std_m"]
+        self._lost[copies] = lost
+        self._success[copies] = (self._coverage[copies] >= cfg["coverage_target"]) & ~lost.any(axis=1)
+        lost_penalty = np.where(lost.any(axis=1, keepdims=True), -cfg["lost_penalty"], 0.0)
+        terms = {
+            "own_pose_information": own_information,
+            "team_map_information": np.repeat(map_information[:, None], n_robots, axis=1),
+            "sensing_cost": -cfg["observation_cost_nats"] * observed,
+            "motion_cost": -cfg["motion_cost_per_step"] * (motions != STAY),
+            "lost_penalty": np.broadcast_to(lost_penalty, lost.shape),
+        }
+        for key, value in terms.items():
+            record.terms[key][copies] = value
+        weight = cfg["team_reward"]
+        costs = terms["sensing_cost"] + terms["motion_cost"] + terms["lost_penalty"]
+        rewards = np.zeros(chosen.shape)
+        rewards[copies] = (1.0 - weight) * own_information + weight * terms["team_map_information"] + costs
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        terminated[copies] = lost.any(axis=1) | self._success[copies]
+        return record, rewards, terminated
+
+    def _observe_landmarks(self, copies: np.ndarray, landmarks: np.ndarray) -> None:
+        """Fuse the observations of landmark ``landmarks[c, k]`` (-1: none) by robot k of ``copies[c]``, linearized at
+        the estimate, as one stacked update per copy."""
+        observed = landmarks >= 0
+        rows = np.flatnonzero(observed.any(axis=1))
+        if not rows.size:
+            return
+        observers, observed, choice = copies[rows], observed[rows], np.maximum(landmarks[rows], 0)
+        positions = self._landmarks[observers[:, None], choice]  # (n, R, 2)
+        poses = self._x[observers].reshape(-1, POSE_DIM)
+        predicted, H = batched.landmark_measurement_model(poses, positions.reshape(-1, 1, 2), check_input=False)
+        predicted = predicted.reshape(*observed.shape, 2)
+        R = self._sight.landmark_noise(predicted[..., None, :])[..., 0, :, :]
+        noise = draws_in_slot_order(self._noise[LANDMARK_NOISE], observers, observed, 2)
+        measurements = self._sight.landmark_measurements(self._worlds.poses[observers], positions, noise)
+        robots = np.broadcast_to(np.arange(observed.shape[1]), observed.shape)
+        self._x[observers], self._P[observers] = batched.team_landmark_update(
+            self._x[observers],
+            self._P[observers],
+            robots,
+            measurements,
+            predicted,
+            H.reshape(*observed.shape, 2, POSE_DIM),
+            R,
+            observed,
+            check_input=False,
+        )
+
+    def _drive(self, copies: np.ndarray, motions: np.ndarray) -> None:
+        """Turn every robot of ``copies`` on the spot, then drive it straight (both in the ``WorldBatch``); predict."""
+        cfg = self.config
+        turn_s = cfg["turn_time_s"]
+        headings = self._x[copies, 2::POSE_DIM]
+        turns, speeds = motion_plan(motions, headings, self._speeds_mps)
+        turning = np.stack([np.zeros_like(turns), turns / turn_s], axis=-1)
+        driving = np.stack([speeds, np.zeros_like(turns)], axis=-1)
+        for phase_s, commands in ((turn_s, turning), (cfg["time_step_s"] - turn_s, driving)):
+            self._predict(copies, self._worlds.step(phase_s, copies, commands), phase_s)
+
+    def _position_std(self, copies) -> np.ndarray:
+        """Each robot's largest position std of ``copies`` (n, R) [m]."""
+        n_robots = len(self.agents)
+        own = batched.pose_blocks(self._P[copies])[:, np.arange(n_robots), np.arange(n_robots)]
+        return ActiveLocalizationEnv.position_std(own.reshape(-1, POSE_DIM, POSE_DIM)).reshape(len(copies), n_robots)
+
+    def _scan(self, copies: np.ndarray, scanning: np.ndarray, position_std: np.ndarray) -> np.ndarray:
+        """Fuse the scans of the ``scanning`` robots (n, R) of ``copies`` from their true positions; the map
+        information of each copy (n,) [nats]."""
+        information = np.zeros(len(copies))
+        rows = np.flatnonzero(scanning.any(axis=1))
+        if not rows.size:
+            return information
+        model, mapped = self._map, copies[rows]
+        before = self._map_variances[mapped]
+        footprints = model.footprints(self._worlds.poses[mapped, :, :2]) & scanning[rows, :, None]
+        noise = model.scan_noise_variances(position_std[rows])
+        after = 1.0 / (1.0 / before + np.sum(footprints / noise[..., None], axis=1))
+        self._map_variances[mapped] = after
+        self._coverage[mapped] = model.coverage(after)
+        information[rows] = 0.5 * np.sum(np.log(before / after), axis=-1)
+        return information
+
+    # ------------------------------------------------------------------ decision and outputs
+
+    def _decide(self) -> None:
+        """Masks and immediate expected gains of every (observation, motion) pair of every copy, at its prior."""
+        cfg, sight = self.config, self._sight
+        true_poses, x, P = self._worlds.poses, self._x, self._P
+        n_copies, n_robots = true_poses.shape[:2]
+        budget_left = self._observations_left > 0
+        pair_geometry, valid = sight.observable_pairs(self._geometry, true_poses)
+        valid &= budget_left[:, self._pairs.observers]
+        team = TeamDecision.at_prior(self._pairs, pair_geometry, valid, x, P, 0.0)  # the gains: own-pose MI
+        landmark_valid = sight.visible_landmarks(self._geometry, true_poses, self._landmarks) & budget_left[..., None]
+        gains_of_landmarks = landmark_gains(x, P, self._landmarks, sight.landmark_noise)
+        slot_valid = np.concatenate(
+            [np.ones((n_copies, n_robots, 1), dtype=bool), landmark_valid, team.action_mask[..., 1:].astype(bool)],
+            axis=-1,
+        )
+        observation_gain = np.concatenate(
+            [np.zeros((n_copies, n_robots, 1)), gains_of_landmarks, team.action_information_gain[..., 1:]], axis=-1
+        )
+        position_std = self._position_std(np.arange(n_copies))
+        drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
+        positions = x.reshape(n_copies, n_robots, POSE_DIM)[..., :2]
+        scan = scan_gains(self._map, self._map_variances, positions, position_std, self._speeds_mps, drive_s)
+        weight = cfg["team_reward"]
+        gains = (1.0 - weight) * observation_gain[..., None] + weight * scan[:, :, None, :]
+        mask = np.broadcast_to(slot_valid[..., None], gains.shape)
+        gains = np.where(mask, gains, 0.0).reshape(n_copies, n_robots, -1)
+        mask = mask.reshape(n_copies, n_robots, -1).astype(np.int8)
+        self._decision = ExplorationDecision(mask, gains, team, slot_valid, position_std)
+
+    def _outputs(self, last: ExplorationStep) -> tuple[np.ndarray, dict]:
+        """The observations and infos of every copy at the current decision, after ``last``."""
+        decision, cfg = self._decision, self.config
+        n_copies, n_robots = self._gps_available.shape
+        n_landmarks, budget = cfg["n_landmarks"], cfg["max_observations"]
+        estimates = self._x.reshape(n_copies, n_robots, POSE_DIM)
+        team = team_observations(
+            estimates,
+            decision.team.pose_std,
+            decision.team.pose_log_det,
+            self._gps_available,
+            (self._elapsed / self.max_cycles)[:, None],
+            decision.slot_valid[..., 1 + n_landmarks :],
+            self._single._team_space,
+        )
+        seen = ranges_and_bearings(estimates.reshape(-1, POSE_DIM), np.repeat(self._landmarks, n_robots, axis=0))
+        observations = exploration_observations(
+            team,
+            decision.slot_valid[..., 1 : 1 + n_landmarks],
+            seen.reshape(n_copies, n_robots, n_landmarks, 2),
+            self._speeds_mps,
+            self._observations_left / budget if budget else np.zeros((n_copies, n_robots)),
+            self._coverage,
+            np.sqrt(self._map_variances) / self._map.prior_std_m,
+            self.single_observation_space,
+        )
+        state = {
+            "x": self._x,
+            "true_poses": self._worlds.poses,
+            "gps_available": self._gps_available,
+            "observations_left": self._observations_left,
+            "lost": self._lost,
+            "coverage": self._coverage,
+            "success": self._success,
+            "time_s": self._elapsed * cfg["time_step_s"],
+        }
+        return observations, exploration_info(decision, last, state)
