@@ -27,6 +27,8 @@ class TerrainMapModel:
         scan_std_m: height noise std of a scan from a perfectly known position [m].
         terrain_slope: height error per metre of position error [m/m].
         covered_std_m: a cell is covered once its height std is at most this [m].
+        ticks: the centres' coordinates along each axis when the cells are a square grid (``centers`` is then
+            every ``(ticks[i], ticks[j])``, row j of them after row j - 1), else None [m].
     """
 
     centers: np.ndarray
@@ -35,13 +37,14 @@ class TerrainMapModel:
     scan_std_m: float
     terrain_slope: float
     covered_std_m: float
+    ticks: np.ndarray | None = None
 
     @classmethod
     def square(cls, size_m: float, cells_per_side: int, **parameters) -> TerrainMapModel:
         """The model of a square field of side ``size_m`` [m] cut into ``cells_per_side`` x ``cells_per_side`` cells."""
         ticks = (np.arange(cells_per_side) + 0.5) * size_m / cells_per_side
         x, y = np.meshgrid(ticks, ticks)
-        return cls(np.column_stack([x.ravel(), y.ravel()]), **parameters)
+        return cls(np.column_stack([x.ravel(), y.ravel()]), **parameters, ticks=ticks)
 
     @property
     def n_cells(self) -> int:
@@ -52,9 +55,17 @@ class TerrainMapModel:
         return np.full(self.n_cells, self.prior_std_m**2)
 
     def footprints(self, positions: np.ndarray) -> np.ndarray:
-        """Which cells a scan from each position (..., 2) [m] sees (..., G) bool."""
-        offsets = positions[..., None, :] - self.centers
-        return np.einsum("...gi,...gi->...g", offsets, offsets) <= self.scan_radius_m**2
+        """Which cells a scan from each position (..., 2) [m] sees (..., G) bool.
+
+        On a square grid the squared distances are the sums of the axes' squared offsets, the same numbers
+        for a twentieth of the work.
+        """
+        if self.ticks is None:
+            offsets = positions[..., None, :] - self.centers
+            return np.einsum("...gi,...gi->...g", offsets, offsets) <= self.scan_radius_m**2
+        along_x, along_y = positions[..., 0, None] - self.ticks, positions[..., 1, None] - self.ticks
+        squared = (along_y * along_y)[..., :, None] + (along_x * along_x)[..., None, :]
+        return (squared <= self.scan_radius_m**2).reshape(*positions.shape[:-1], -1)
 
     def scan_noise_variances(self, position_std_m) -> np.ndarray:
         """Height noise variance [m^2] of a scan from a position known to ``position_std_m`` [m] (any shape)."""
