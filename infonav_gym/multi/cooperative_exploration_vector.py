@@ -64,6 +64,8 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
     ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0, as its parallel env would.
     """
 
+    team_info_keys = frozenset({"time_s", "coverage", "failed", "success"})
+
     def __init__(
         self,
         num_envs: int = 1,

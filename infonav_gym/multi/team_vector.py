@@ -35,8 +35,11 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     Attributes set by ``_configure_team``: ``agents`` (the team's robots R), ``max_cycles``, the spaces, the
     single env's ``_pairs`` (``SensingPairs``), ``_worlds`` (a ``WorldBatch``), ``_noise`` (one ``NoiseStreams``
     per sensor generator of the single env, in the order it spawns them), ``_x``, ``_P``, ``_gps_available``
-    (N, R) and ``_elapsed`` (N,).
+    (N, R) and ``_elapsed`` (N,). ``team_info_keys`` are the info keys of the whole team, (N,) arrays; every
+    other key of the parallel env's ``infos[agent]`` is (N, R, ...).
     """
+
+    team_info_keys = frozenset({"time_s"})
 
     def _configure_team(self, num_envs, render_mode, autoreset_mode, config: dict, more_noise_widths=()) -> None:
         """Check the arguments (``_configure``) and set up the copies' arrays.

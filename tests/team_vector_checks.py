@@ -1,0 +1,97 @@
+"""The shared checks of a team env's native vector env: copy i equals the parallel env seeded seed + i.
+
+What a check expects comes from the vector env (``agents``, ``team_info_keys``, ``action_masks()``) and the
+parallel env's outputs, never from the env's id.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from infonav_gym.registry import env_entry
+
+TOLERANCE = 1e-9
+
+
+def team_envs(env_id: str) -> tuple:
+    """The parallel env class and the native vector env class of the registered team env ``env_id``."""
+    entry = env_entry(env_id)
+    return entry.load(), entry.load_vector()
+
+
+def assert_copy_equals(observations, info, copy: int, reference: tuple, team_keys, stepped: bool = True) -> None:
+    """Copy ``copy`` of the vector env's observations and info equal the parallel env's ``(observations, infos)``.
+
+    ``team_keys`` are the info keys the vector env gives per copy (N,), not per copy and robot.
+    """
+    reference_observations, reference_infos = reference
+    for robot, agent in enumerate(reference_infos):
+        np.testing.assert_allclose(observations[copy][robot], reference_observations[agent], rtol=0, atol=1e-6)
+        for key, expected in reference_infos[agent].items():
+            assert info[f"_{key}"][copy], key
+            if key == "reward_terms":
+                for term, value in expected.items():
+                    assert info[key][f"_{term}"][copy] == stepped, term
+                    assert info[key][term][copy, robot] == pytest.approx(value, abs=TOLERANCE), term
+                continue
+            got = info[key][copy] if key in team_keys else info[key][copy, robot]
+            np.testing.assert_allclose(got, expected, rtol=0, atol=TOLERANCE, err_msg=f"{key} of {agent}, copy {copy}")
+
+
+def random_valid(masks: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    return np.array([[rng.choice(np.flatnonzero(robot)) for robot in copy] for copy in masks])
+
+
+def greedy(masks: np.ndarray, info: dict) -> np.ndarray:
+    return np.argmax(np.where(masks, info["action_information_gain"], -1.0), axis=-1)
+
+
+def run_against_parallel_envs(env_id: str, config: dict, n_copies: int, seed: int, policy, steps: int) -> dict:
+    """Step the vector env and one parallel env per copy alike (NEXT_STEP) for ``steps``; every number must agree.
+
+    Args:
+        env_id: a registered team env with a native vector env.
+        config: its config.
+        n_copies: N.
+        seed: the vector env's reset seed (copy i: the parallel env's ``reset(seed=seed + i)``).
+        policy: ``"random"`` (valid actions), ``"greedy"`` (best ``action_information_gain``), or ``"mixed"``
+            (greedy, random every third step).
+        steps: vector steps after the reset.
+
+    Returns:
+        How many episodes ended ``{"terminated": ..., "truncated": ...}``.
+    """
+    parallel_class, vector_class = team_envs(env_id)
+    vector = vector_class(n_copies, **config)
+    references = [parallel_class(**config) for _ in range(n_copies)]
+    observations, info = vector.reset(seed=seed)
+    team_keys = vector.team_info_keys
+    for copy, env in enumerate(references):
+        assert_copy_equals(observations, info, copy, env.reset(seed=seed + copy), team_keys, stepped=False)
+    rng, ended = np.random.default_rng(seed), {"terminated": 0, "truncated": 0}
+    for step in range(steps):
+        masks = vector.action_masks()
+        np.testing.assert_array_equal(masks, info["action_mask"].astype(bool))
+        randomly = policy == "random" or (policy == "mixed" and step % 3 == 0)
+        actions = random_valid(masks, rng) if randomly else greedy(masks, info)
+        observations, rewards, terminations, truncations, info = vector.step(actions)
+        for copy, env in enumerate(references):
+            if not env.agents:  # the copy resets in this step (NEXT_STEP): its actions are ignored
+                assert_copy_equals(observations, info, copy, env.reset(), team_keys, stepped=False)
+                assert not rewards[copy].any() and not truncations[copy].any() and not terminations[copy].any()
+                continue
+            step_outputs = env.step(
+                {agent: int(actions[copy, robot]) for robot, agent in enumerate(env.possible_agents)}
+            )
+            reference_observations, reference_rewards, reference_terminations, reference_truncations, infos = (
+                step_outputs
+            )
+            assert_copy_equals(observations, info, copy, (reference_observations, infos), team_keys)
+            for robot, agent in enumerate(env.possible_agents):
+                assert rewards[copy, robot] == pytest.approx(reference_rewards[agent], abs=TOLERANCE)
+                assert terminations[copy, robot] == reference_terminations[agent]
+                assert truncations[copy, robot] == reference_truncations[agent]
+            ended["terminated"] += bool(terminations[copy, 0])
+            ended["truncated"] += bool(truncations[copy, 0])
+    return ended
