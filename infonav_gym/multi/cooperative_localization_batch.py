@@ -166,15 +166,28 @@ def team_info(decision: TeamDecision, last: TeamStep, x, true_poses, gps_availab
         gps_available: which robots have a DGPS fix now (N, R).
         time_s: each copy's time (N,) [s].
     """
+    terms = {"own_mutual_information": last.own_mi, "team_mutual_information": last.team_mi}
+    info = {
+        **team_step_info(decision, last, terms, x, true_poses, gps_available, time_s),
+        "pose_std_after_update": last.pose_std_after_update.copy(),
+    }
+    return with_masks(info)
+
+
+def team_step_info(decision, last, terms: dict, x, true_poses, gps_available, time_s) -> dict:
+    """The info keys every team vector env gives, as arrays (N, R, ...) (``time_s``: (N,)), without ``_key`` masks.
+
+    Args:
+        decision: the new decisions, with ``action_mask``, ``action_information_gain`` (N, R, A),
+            ``pose_log_det`` (N, R) and ``pose_std`` (N, R, 3) at the prior.
+        last: what the reset or step did (``stepped`` (N,), ``chosen`` and ``invalid`` (N, R)).
+        terms: each reward term (N, R) [nats], taken where ``last.stepped`` (0 and masked out elsewhere).
+        x, true_poses, gps_available, time_s: as ``team_info`` takes them.
+    """
     estimates = x.reshape(true_poses.shape)
     errors = true_poses - estimates
-    everyone = np.ones(len(x), dtype=bool)
-    stepped = last.stepped[:, None]
-    terms = {
-        "own_mutual_information": np.where(stepped, last.own_mi, 0.0),
-        "team_mutual_information": np.where(stepped, last.team_mi, 0.0),
-    }
-    info = {
+    terms = {key: np.where(last.stepped[:, None], value, 0.0) for key, value in terms.items()}
+    return {
         "action_mask": decision.action_mask.copy(),
         "action_information_gain": decision.action_information_gain.copy(),
         "reward_terms": {**terms, **{f"_{key}": last.stepped.copy() for key in terms}},
@@ -185,9 +198,13 @@ def team_info(decision: TeamDecision, last: TeamStep, x, true_poses, gps_availab
         "heading_error_rad": np.abs(wrap_angle(errors[..., 2])),
         "pose_entropy": gaussian_entropy_from_log_det(decision.pose_log_det, POSE_DIM),
         "pose_std": decision.pose_std.copy(),
-        "pose_std_after_update": last.pose_std_after_update.copy(),
         "true_pose": true_poses.copy(),
         "estimated_pose": estimates.copy(),
         "time_s": np.asarray(time_s, dtype=float).copy(),
     }
+
+
+def with_masks(info: dict) -> dict:
+    """``info`` with Gymnasium's ``_key`` mask (N,), all True, beside each key (its arrays lead with N)."""
+    everyone = np.ones(len(info["action_mask"]), dtype=bool)
     return {**info, **{f"_{key}": everyone for key in info}}

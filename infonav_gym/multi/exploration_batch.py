@@ -14,9 +14,12 @@ import numpy as np
 from infonav_gym.envs.active_localization_batch import ranges_and_bearings
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
-from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import gaussian_entropy_from_log_det
-from infonav_gym.multi.cooperative_localization_batch import TeamDecision, observable_pairs
+from infonav_gym.multi.cooperative_localization_batch import (
+    TeamDecision,
+    observable_pairs,
+    team_step_info,
+    with_masks,
+)
 from infonav_gym.multi.team_sensing import SensingPairs
 from infonav_gym.world.visibility import StaticGeometry, segments_clear
 
@@ -180,32 +183,20 @@ def exploration_info(decision: ExplorationDecision, last: ExplorationStep, state
         state: the copies' ``x`` (N, 3R), ``true_poses`` (N, R, 3), ``gps_available``, ``observations_left`` and
             ``lost`` (N, R), ``coverage``, ``success`` and ``time_s`` (N,).
     """
-    true_poses = state["true_poses"]
-    estimates = state["x"].reshape(true_poses.shape)
-    errors = true_poses - estimates
-    stepped = last.stepped[:, None]
-    terms = {key: np.where(stepped, value, 0.0) for key, value in last.terms.items()}
-    lost = state["lost"]
-    info = {
-        "action_mask": decision.action_mask.copy(),
-        "action_information_gain": decision.action_information_gain.copy(),
-        "reward_terms": {**terms, **{f"_{key}": last.stepped.copy() for key in terms}},
-        "chosen_action": last.chosen.copy(),
-        "invalid_action": last.invalid.copy(),
-        "gps_available": state["gps_available"].copy(),
-        "pose_std": decision.team.pose_std.copy(),
-        "position_std_m": decision.position_std.copy(),
-        "pose_entropy": gaussian_entropy_from_log_det(decision.team.pose_log_det, POSE_DIM),
-        "position_error_m": np.hypot(errors[..., 0], errors[..., 1]),
-        "heading_error_rad": np.abs(wrap_angle(errors[..., 2])),
-        "true_pose": true_poses.copy(),
-        "estimated_pose": estimates.copy(),
-        "time_s": np.asarray(state["time_s"], dtype=float).copy(),
-        "observations_left": state["observations_left"].copy(),
-        "coverage": state["coverage"].copy(),
-        "lost": lost.copy(),
-        "failed": lost.any(axis=1),
-        "success": state["success"].copy(),
-    }
-    everyone = np.ones(len(true_poses), dtype=bool)
-    return {**info, **{f"_{key}": everyone for key in info}}
+    prior = decision.team._replace(
+        action_mask=decision.action_mask, action_information_gain=decision.action_information_gain
+    )
+    info = team_step_info(
+        prior, last, last.terms, state["x"], state["true_poses"], state["gps_available"], state["time_s"]
+    )
+    return with_masks(
+        {
+            **info,
+            "position_std_m": decision.position_std.copy(),
+            "observations_left": state["observations_left"].copy(),
+            "coverage": state["coverage"].copy(),
+            "lost": state["lost"].copy(),
+            "failed": state["lost"].any(axis=1),
+            "success": state["success"].copy(),
+        }
+    )
