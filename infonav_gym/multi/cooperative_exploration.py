@@ -30,8 +30,10 @@ from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances
 from infonav_gym.world.active_scenarios import CommandedWorld
+from infonav_gym.world.clearance import clear_moves
 from infonav_gym.world.exploration_scenarios import EXPLORATION_FIELD_ARGUMENTS, exploration_field
 from infonav_gym.world.scenarios import MAX_ROBOTS, MAX_SPEED_MPS
+from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world import TIME_STEP_S, start_poses
 
 MOTION_NAMES = ("stay", "east", "north", "west", "south")
@@ -103,11 +105,14 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
     ``Discrete(5 * (1 + L + N))`` per agent, ``L = n_landmarks``: action ``a`` is slot
     ``a // 5`` and motion ``a % 5``. Slots: 0 observe nothing, ``1 + j`` landmark ``j``,
     ``1 + L + j`` ``robot_j``. A motion (``stay``, ``east``, ``north``, ``west``, ``south``)
-    turns the robot on the spot for ``turn_time_s`` until its *estimated* heading is the compass
-    heading, then drives it straight at its speed for the rest of the step (``stay`` does neither);
-    Pymunk executes both phases, and both are exact unicycle motions for the EKF. An observation is valid while the
+    turns the robot on the spot for ``turn_time_s`` until its heading *estimated at the decision* is the
+    compass heading, then drives it straight at its speed for the rest of the step (``stay`` does neither);
+    Pymunk executes both phases, and both are exact unicycle motions for the EKF. A motion is valid while its
+    true path keeps ``clearance.CLEARANCE_M`` (5 cm) from walls, obstacles and wherever a teammate's motions can take it
+    (``world.clearance``): no contact ever pushes a robot unseen by its odometry. An observation is valid while the
     target is in range and field of view with a clear line of sight and the robot has budget
-    left (``max_observations``); action 0 (stay, observe nothing) is always valid. A masked
+    left (``max_observations``); every observation goes with every valid motion, and action 0 (stay,
+    observe nothing) is always valid. A masked
     action is action 0 (``invalid_action="noop"``) or raises ``ValueError`` (``"raise"``).
 
     ## Observation Space
@@ -266,6 +271,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         scenario = exploration_field(self.np_random, **{name: cfg[key] for name, key in SCENARIO_KEYS.items()})
         self._odometry_rng, self._gps_rng, self._relative_rng, self._landmark_rng = self.np_random.spawn(4)
         self.world.reset(scenario)
+        self._static_geometry = StaticGeometry.from_world(self.world)
         self._true_poses = self.world.poses
         self.ekf = JointEKF(*team_prior(cfg, np.array(start_poses(scenario)), self.np_random))
         n = len(self.possible_agents)
@@ -315,7 +321,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         position_std = ActiveLocalizationEnv.position_std(covariances)
         weight = self.config["team_reward"]
         gains = (1.0 - weight) * observation_gain[:, :, None] + weight * self._scan_gains(position_std)[:, None, :]
-        mask = np.repeat(slot_valid[:, :, None], N_MOTIONS, axis=2)
+        mask = slot_valid[:, :, None] & self._clear_motions()[:, None, :]
         gains = np.where(mask, gains, 0.0).reshape(n, -1)
         relative = RelativeSight(geometry, valid, candidate_row, candidates, pose_log_det, pose_std)
         return Decision(
@@ -325,13 +331,29 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
     def _motion_plan(self, motions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
 
-        A motion turns the *estimated* heading to its compass heading on the spot, then drives straight;
-        ``stay`` does neither. Turning on the spot and driving straight are both exact unicycle motions.
+        A motion turns the *estimated* heading (the decision's: before this step's observations) to its compass
+        heading on the spot, then drives straight; ``stay`` does neither. Both are exact unicycle motions.
         """
-        drives = motions != STAY
-        headings = self.ekf.x[2::POSE_DIM]
+        drives, per_robot = motions != STAY, (-1,) + (1,) * (np.ndim(motions) - 1)  # motions (R,) or (R, M)
+        headings = self.ekf.x[2::POSE_DIM].reshape(per_robot)
         turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
-        return turns, np.where(drives, self.speeds_mps, 0.0)
+        return turns, np.where(drives, self.speeds_mps.reshape(per_robot), 0.0)
+
+    def _clear_motions(self) -> np.ndarray:
+        """Which motions each robot may take (R, 5): those whose true path keeps clear of every contact.
+
+        From the true poses, as the observations' masks: after the turn on the spot the robot drives straight
+        along its true heading plus the turn, so its path is known exactly (``world.clearance.clear_moves``:
+        ``CLEARANCE_M`` from walls, obstacles and wherever a teammate's motions take it). No contact ever
+        pushes a robot where its odometry does not see it, so the EKF's motion model stays exact.
+        """
+        cfg = self.config
+        turns, speeds = self._motion_plan(np.broadcast_to(np.arange(N_MOTIONS), (len(self.possible_agents), N_MOTIONS)))
+        headings = self._true_poses[:, 2:3] + turns
+        reach = (cfg["time_step_s"] - cfg["turn_time_s"]) * speeds
+        displacements = reach[..., None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
+        positions = self._true_poses[None, :, :2]
+        return clear_moves(self._static_geometry, positions, displacements[None], self.world.robot_radius_m)[0]
 
     def _scan_gains(self, position_std: np.ndarray) -> np.ndarray:
         """Map information [nats] each robot's scan would bring alone after each motion (R, 5); 0 for ``stay``.
@@ -355,6 +377,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         n_landmarks = cfg["n_landmarks"]
         relative = decision.payload.relative
         slots, motions = np.divmod(actions, N_MOTIONS)
+        plan = self._motion_plan(motions)  # at the decision's estimate, as the motion mask saw it
         observes_teammate = slots > n_landmarks
         teammate_choice = np.where(observes_teammate, slots - n_landmarks, NO_OBSERVATION)
         self._observe(teammate_choice, relative)
@@ -363,7 +386,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         observed = slots > 0
         self.observations_left = self.observations_left - observed
         own_information = 0.5 * (relative.pose_log_det - np.linalg.slogdet(self.ekf.pose_covariances())[1])
-        self._drive(*self._motion_plan(motions))
+        self._drive(*plan)
         self._time_s = (self._elapsed_steps + 1) * cfg["time_step_s"]
         self._gps_fixes()
         position_std = ActiveLocalizationEnv.position_std(self.ekf.pose_covariances())
