@@ -60,7 +60,7 @@ def test_masks_and_gains_follow_the_action_layout():
         mask = info["action_mask"].reshape(1 + n_landmarks + n, N_MOTIONS)
         gains = info["action_information_gain"].reshape(mask.shape)
         assert info["action_mask"].dtype == np.int8 and mask[0].all() and gains[0, 0] == 0.0
-        assert np.all(mask == mask[:, :1]), "every motion goes with every valid observation"
+        assert np.all(mask == mask[:, :1] * mask[:1]), "every valid observation goes with every valid motion"
         assert not mask[1 + n_landmarks + robot].any(), "a robot never observes itself"
         assert np.all(gains[mask == 0] == 0.0) and np.all(gains[1:][mask[1:] == 1] > 0.0)
         assert info["coverage"] == 0.0 and not info["lost"] and info["observations_left"] == 100

@@ -30,8 +30,10 @@ from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances
 from infonav_gym.world.active_scenarios import CommandedWorld
+from infonav_gym.world.clearance import clear_moves
 from infonav_gym.world.exploration_scenarios import EXPLORATION_FIELD_ARGUMENTS, exploration_field
 from infonav_gym.world.scenarios import MAX_ROBOTS, MAX_SPEED_MPS
+from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world import TIME_STEP_S, start_poses
 
 MOTION_NAMES = ("stay", "east", "north", "west", "south")
@@ -104,11 +106,14 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
     ``Discrete(5 * (1 + L + N))`` per agent, ``L = n_landmarks``: action ``a`` is slot
     ``a // 5`` and motion ``a % 5``. Slots: 0 observe nothing, ``1 + j`` landmark ``j``,
     ``1 + L + j`` ``robot_j``. A motion (``stay``, ``east``, ``north``, ``west``, ``south``)
-    turns the robot on the spot for ``turn_time_s`` until its *estimated* heading is the compass
-    heading, then drives it straight at its speed for the rest of the step (``stay`` does neither);
-    Pymunk executes both phases, and both are exact unicycle motions for the EKF. An observation is valid while the
+    turns the robot on the spot for ``turn_time_s`` until its heading *estimated at the decision* is the
+    compass heading, then drives it straight at its speed for the rest of the step (``stay`` does neither);
+    Pymunk executes both phases, and both are exact unicycle motions for the EKF. A motion is valid while its
+    true path keeps ``clearance.CLEARANCE_M`` (5 cm) from walls, obstacles and wherever a teammate's motions can take it
+    (``world.clearance``): no contact ever pushes a robot unseen by its odometry. An observation is valid while the
     target is in range and field of view with a clear line of sight and the robot has budget
-    left (``max_observations``); action 0 (stay, observe nothing) is always valid. A masked
+    left (``max_observations``); every observation goes with every valid motion, and action 0 (stay,
+    observe nothing) is always valid. A masked
     action is action 0 (``invalid_action="noop"``) or raises ``ValueError`` (``"raise"``).
 
     ## Observation Space
@@ -267,6 +272,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         scenario, poses, covariances, *generators = start_episode(cfg, self.np_random)
         self._odometry_rng, self._gps_rng, self._relative_rng, self._landmark_rng = generators
         self.world.reset(scenario)
+        self._static_geometry = StaticGeometry.from_world(self.world)
         self._true_poses = self.world.poses
         self.ekf = JointEKF(poses, covariances)
         n = len(self.possible_agents)
@@ -316,12 +322,23 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         position_std = ActiveLocalizationEnv.position_std(covariances)
         weight = self.config["team_reward"]
         gains = (1.0 - weight) * observation_gain[:, :, None] + weight * self._scan_gains(position_std)[:, None, :]
-        mask = np.repeat(slot_valid[:, :, None], N_MOTIONS, axis=2)
+        mask = slot_valid[:, :, None] & self._clear_motions()[:, None, :]
         gains = np.where(mask, gains, 0.0).reshape(n, -1)
         relative = RelativeSight(geometry, valid, candidate_row, candidates, pose_log_det, pose_std)
         return Decision(
             mask.reshape(n, -1).astype(np.int8), gains, ExplorationSight(relative, slot_valid, position_std)
         )
+
+    def _clear_motions(self) -> np.ndarray:
+        """Which motions each robot may take (R, 5): those whose true path keeps clear of every contact
+        (``clear_motions``)."""
+        cfg = self.config
+        drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
+        headings = self.ekf.x[None, 2::POSE_DIM]
+        radius_m = self.world.robot_radius_m
+        return clear_motions(
+            self._static_geometry, self._true_poses[None], headings, self.speeds_mps, drive_s, radius_m
+        )[0]
 
     def _scan_gains(self, position_std: np.ndarray) -> np.ndarray:
         """Map information [nats] each robot's scan would bring alone after each motion (R, 5) (``scan_gains``)."""
@@ -336,6 +353,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         n_landmarks = cfg["n_landmarks"]
         relative = decision.payload.relative
         slots, motions = np.divmod(actions, N_MOTIONS)
+        plan = motion_plan(motions, self.ekf.x[2::POSE_DIM], self.speeds_mps)  # the decision's, as the mask saw it
         observes_teammate = slots > n_landmarks
         teammate_choice = np.where(observes_teammate, slots - n_landmarks, NO_OBSERVATION)
         self._observe(teammate_choice, relative)
@@ -344,7 +362,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         observed = slots > 0
         self.observations_left = self.observations_left - observed
         own_information = 0.5 * (relative.pose_log_det - np.linalg.slogdet(self.ekf.pose_covariances())[1])
-        self._drive(*motion_plan(motions, self.ekf.x[2::POSE_DIM], self.speeds_mps))
+        self._drive(*plan)
         self._time_s = (self._elapsed_steps + 1) * cfg["time_step_s"]
         self._gps_fixes()
         position_std = ActiveLocalizationEnv.position_std(self.ekf.pose_covariances())
@@ -407,16 +425,32 @@ def start_episode(config: dict, np_random: np.random.Generator):
     return scenario, poses, covariances, *generators
 
 
-def motion_plan(motions: np.ndarray, headings: np.ndarray, speeds_mps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def motion_plan(motions, headings, speeds_mps) -> tuple[np.ndarray, np.ndarray]:
     """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
 
-    A motion turns the *estimated* heading to its compass heading on the spot, then drives straight; ``stay``
-    does neither. Turning on the spot and driving straight are both exact unicycle motions. Any leading
-    dimensions: motions and estimated headings (..., R), speeds (R,).
+    A motion turns the *estimated* heading (the decision's: before this step's observations) to its compass
+    heading on the spot, then drives straight; ``stay`` does neither. Both are exact unicycle motions. The
+    motions, the estimated headings and the robots' speeds broadcast together (e.g. (..., R), (..., R), (R,)).
     """
     drives = motions != STAY
     turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
     return turns, np.where(drives, speeds_mps, 0.0)
+
+
+def clear_motions(geometry, true_poses, headings, speeds_mps, drive_s: float, robot_radius_m: float) -> np.ndarray:
+    """Which motions each robot may take (N, R, 5): those whose true path keeps clear of every contact.
+
+    From the true poses (N, R, 3), as the observations' masks: after the turn on the spot (planned at the
+    estimated headings (N, R)) the robot drives straight along its true heading plus the turn for ``drive_s`` [s]
+    at its speed (R,) [m/s], so its path is known exactly (``world.clearance.clear_moves``: ``CLEARANCE_M`` from
+    the walls and obstacles of ``geometry`` (N copies) and wherever a teammate's motions take it). No contact
+    ever pushes a robot where its odometry does not see it, so the EKF's motion model stays exact.
+    """
+    turns, speeds = motion_plan(np.arange(N_MOTIONS), headings[..., None], speeds_mps[:, None])
+    true_headings = true_poses[..., 2:3] + turns
+    reach = drive_s * speeds
+    displacements = reach[..., None] * np.stack([np.cos(true_headings), np.sin(true_headings)], axis=-1)
+    return clear_moves(geometry, true_poses[..., :2], displacements, robot_radius_m)
 
 
 def scan_gains(map_model: TerrainMapModel, variances, positions, position_std, speeds_mps, drive_s: float):

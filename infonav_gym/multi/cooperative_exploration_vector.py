@@ -22,6 +22,7 @@ from infonav_gym.multi.cooperative_exploration import (
     REWARD_TERMS,
     STAY,
     CooperativeExplorationEnv,
+    clear_motions,
     motion_plan,
     scan_gains,
     start_episode,
@@ -123,6 +124,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
             return record, np.zeros(chosen.shape), np.zeros(self.num_envs, dtype=bool)
         n_landmarks = cfg["n_landmarks"]
         slots, motions = np.divmod(chosen[copies], N_MOTIONS)
+        plan = motion_plan(motions, self._x[copies, 2::POSE_DIM], self._speeds_mps)  # the decision's, as masked
         observes_teammate = slots > n_landmarks
         teammates = np.where(observes_teammate, slots - n_landmarks, 0)
         measured = np.flatnonzero(observes_teammate.any(axis=1))
@@ -135,7 +137,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
         own_information = 0.5 * (
             decision.team.pose_log_det[copies] - batched.pose_log_dets(self._P[copies], n_robots, check_input=False)
         )
-        self._drive(copies, motions)
+        self._drive(copies, *plan)
         self._elapsed[copies] += 1
         self._gps_fixes(copies)
         position_std = self._position_std(copies)
@@ -189,12 +191,11 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
             check_input=False,
         )
 
-    def _drive(self, copies: np.ndarray, motions: np.ndarray) -> None:
-        """Turn every robot of ``copies`` on the spot, then drive it straight (both in the ``WorldBatch``); predict."""
+    def _drive(self, copies: np.ndarray, turns: np.ndarray, speeds: np.ndarray) -> None:
+        """Turn every robot of ``copies`` on the spot by ``turns`` (n, R) [rad], then drive it straight at ``speeds``
+        (n, R) [m/s] (both in the ``WorldBatch``); predict with the odometry of each phase."""
         cfg = self.config
         turn_s = cfg["turn_time_s"]
-        headings = self._x[copies, 2::POSE_DIM]
-        turns, speeds = motion_plan(motions, headings, self._speeds_mps)
         turning = np.stack([np.zeros_like(turns), turns / turn_s], axis=-1)
         driving = np.stack([speeds, np.zeros_like(turns)], axis=-1)
         for phase_s, commands in ((turn_s, turning), (cfg["time_step_s"] - turn_s, driving)):
@@ -249,7 +250,9 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
         scan = scan_gains(self._map, self._map_variances, positions, position_std, self._speeds_mps, drive_s)
         weight = cfg["team_reward"]
         gains = (1.0 - weight) * observation_gain[..., None] + weight * scan[:, :, None, :]
-        mask = np.broadcast_to(slot_valid[..., None], gains.shape)
+        headings, radius_m = x[:, 2::POSE_DIM], self._single.world.robot_radius_m
+        clear = clear_motions(self._geometry, true_poses, headings, self._speeds_mps, drive_s, radius_m)
+        mask = slot_valid[..., None] & clear[:, :, None, :]
         gains = np.where(mask, gains, 0.0).reshape(n_copies, n_robots, -1)
         mask = mask.reshape(n_copies, n_robots, -1).astype(np.int8)
         self._decision = ExplorationDecision(mask, gains, team, slot_valid, position_std)

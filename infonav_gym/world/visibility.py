@@ -17,7 +17,7 @@ the degenerate cases follow Chipmunk's rules:
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -162,6 +162,17 @@ class StaticGeometry:
         return StaticGeometry(
             **{name: merged(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
             **{name: merged(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
+        )
+
+    def grown(self, margin_m: float) -> StaticGeometry:
+        """These shapes grown by ``margin_m`` [m] >= 0 (each one's Minkowski sum with a disc of that radius).
+
+        A disc of radius ``margin_m`` swept along a line touches a shape exactly where the line hits the grown one.
+        """
+        if not margin_m >= 0.0:
+            raise ValueError(f"StaticGeometry.grown: margin_m must be >= 0 [m], got {margin_m}")
+        return replace(
+            self, wall_radii=_read_only(self.wall_radii + margin_m), disc_radii=_read_only(self.disc_radii + margin_m)
         )
 
     @property
@@ -423,7 +434,7 @@ def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=None) -> 
     """``line_of_sight`` of checked arguments, run only for the ``queried`` targets (N, K) bool (others: True)."""
     copy, target = np.nonzero(np.ones(targets.shape[:2], dtype=bool) if queried is None else queried)
     clear = np.ones(targets.shape[:2], dtype=bool)
-    clear[copy, target] = _segments_clear(geometry, copy, origins[copy], targets[copy, target])
+    clear[copy, target] = ~_blocked(geometry, copy, origins[copy], targets[copy, target])
     return clear
 
 
@@ -453,19 +464,45 @@ def segments_clear(geometry: StaticGeometry, copies, starts, ends) -> np.ndarray
         raise ValueError(f"segments_clear: copies must be {len(starts)} ints (one per line), got {copies!r}")
     if np.any((copies < 0) | (copies >= geometry.n_copies)):
         raise ValueError(f"segments_clear: copies must be in [0, {geometry.n_copies - 1}], got {copies.tolist()}")
-    return _segments_clear(geometry, copies, starts, ends)
+    return ~_blocked(geometry, copies, starts, ends)
 
 
-def _segments_clear(geometry: StaticGeometry, copies, starts, ends) -> np.ndarray:
-    blocked = np.zeros(len(copies), dtype=bool)
+def _blocked(geometry: StaticGeometry, copy, origins, targets) -> np.ndarray:
+    """Whether each of M segments ``origins`` -> ``targets`` (M, 2) of copy ``copy`` (M,) hits a wall or disc (M,)."""
+    blocked = np.zeros(len(copy), dtype=bool)
     shapes = (
         (geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, geometry.wall_valid, _hits_walls),
         (geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, geometry.disc_valid, _hits_discs),
     )
     for points, radii, boxes, usable, exact_test in shapes:
-        hit_queries, _ = _pair_hits(copies, starts, ends, points, radii, boxes, usable, geometry.culled, exact_test)
+        hit_queries, _ = _pair_hits(copy, origins, targets, points, radii, boxes, usable, geometry.culled, exact_test)
         blocked[hit_queries] = True
-    return ~blocked
+    return blocked
+
+
+def swept_discs_clear(geometry: StaticGeometry, starts, ends, radius_m: float) -> np.ndarray:
+    """Whether a disc of ``radius_m`` [m] moved straight from each start to its end touches no wall or disc.
+
+    The line of sight of the shapes grown by ``radius_m`` (``StaticGeometry.grown``); a disc that starts
+    touching a shape is not clear, one that ends just touching it is.
+
+    Args:
+        geometry: the static shapes of N copies.
+        starts, ends: K moves per copy (N, K, 2) [m].
+        radius_m: the disc's radius [m] >= 0.
+
+    Returns:
+        (N, K) bool.
+
+    Raises:
+        ValueError: for a wrong shape, a non-finite value, a negative radius or another number of copies.
+    """
+    starts = _finite_array(starts, (None, None, 2), "swept_discs_clear: starts [m]")
+    ends = _finite_array(ends, starts.shape, "swept_discs_clear: ends [m] (one per start)")
+    _check_copies("swept_discs_clear", geometry, len(starts), "rows of starts")
+    copy = np.repeat(np.arange(len(starts)), starts.shape[1])
+    blocked = _blocked(geometry.grown(radius_m), copy, starts.reshape(-1, 2), ends.reshape(-1, 2))
+    return ~blocked.reshape(starts.shape[:2])
 
 
 def in_coverage(sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
