@@ -111,6 +111,38 @@ def test_commanded_copies_move_as_a_commanded_world():
             np.testing.assert_allclose(batch.poses[copy], single.poses, rtol=0, atol=1e-12)
 
 
+def test_a_team_driving_side_by_side_moves_as_commanded_worlds_through_near_misses_and_bumps(monkeypatch):
+    """Four robots 2 m apart in a walled box, driven at random: robots within reach that stay apart take Pymunk's
+    contact-free substeps in numpy, the others real contact steps (robots and walls), all alike."""
+    rng = np.random.default_rng(3)
+    routes = tuple(Route((7.0 + 2.0 * k, 10.0, rng.uniform(-3, 3)), np.zeros((0, 2))) for k in range(4))
+    corners = [(0.0, 0.0), (24.0, 0.0), (24.0, 20.0), (0.0, 20.0)]
+    walls = tuple(zip(corners, corners[1:] + corners[:1]))
+    layout = Scenario(name="side by side", bounds=(0.0, 0.0, 24.0, 20.0), routes=routes, walls=walls)
+    batch, singles = WorldBatch(3), [CommandedWorld() for _ in range(3)]
+    for copy, single in enumerate(singles):
+        batch.reset_copy(copy, layout)
+        single.reset(layout)
+    pymunk_steps, drive = [], World.drive_in_contact
+    monkeypatch.setattr(
+        World, "drive_in_contact", lambda world, *args: pymunk_steps.append(world) or drive(world, *args)
+    )
+    batch_steps = numpy_steps = 0  # the batch's Pymunk steps, and the singles' Pymunk steps it took in numpy
+    for _ in range(300):
+        commands = np.stack([rng.uniform(0.0, 1.0, (3, 4)), rng.uniform(-2.0, 2.0, (3, 4))], axis=-1)
+        before = len(pymunk_steps)
+        executed = batch.step(1.0, np.arange(3), commands)
+        stepped = len(pymunk_steps) - before
+        for copy, single in enumerate(singles):
+            for robot in range(4):
+                single.command(*commands[copy, robot], robot)
+            np.testing.assert_allclose(executed[copy], single.step(1.0), rtol=0, atol=1e-12)
+            np.testing.assert_allclose(batch.poses[copy], single.poses, rtol=0, atol=1e-12)
+        batch_steps += stepped
+        numpy_steps += len(pymunk_steps) - before - 2 * stepped
+    assert numpy_steps > 20 and batch_steps > 20  # both kinds, many times
+
+
 def test_a_copy_with_another_number_of_robots_is_a_clear_error():
     batch = WorldBatch(2)
     batch.reset_copy(0, scenarios("team_field", 0, 1, n_robots=3)[0])

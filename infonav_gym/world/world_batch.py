@@ -6,17 +6,26 @@ a robot takes the step in its own Pymunk space (``World.drive_in_contact``), as 
 every copy moves exactly as a single ``World`` would. Per-copy Pymunk spaces (built only when a copy first needs
 one) rather than one space of tiled worlds: contact steps are rare (none in 4,000 steps of the default field),
 so the Pymunk work per step is almost nil, while a tiled space would step every copy's bodies every time.
+A step whose straight paths keep ``CONTACT_GAP_M`` beyond touching from the other robots, walls and obstacles
+is one in which Pymunk finds no contact: its substeps then run here in numpy, the same numbers as Pymunk's (a
+team driving side by side, or a robot passing close to a wall, takes such steps all the time). Not inside a run
+of contact steps, whose contacts Pymunk keeps.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from infonav_gym.geometry import wrap_angle
+from infonav_gym.world.clearance import teammate_conflicts
 from infonav_gym.world.scenarios import Scenario
+from infonav_gym.world.visibility import StaticGeometry, segments_clear
 from infonav_gym.world.world import MAX_TIME_STEP_S, TIME_STEP_S, World, start_poses, static_boxes
 
 _EMPTY_BOX = (np.inf, np.inf, -np.inf, -np.inf)  # a padding box that overlaps nothing
+CONTACT_GAP_M = 1e-3  # paths this far beyond touching anything take Pymunk's contact-free substeps here [m]
 MAX_IDLE_SPACES = 64  # Pymunk spaces kept for copies between runs of contact steps by default (~200 kB each)
 
 
@@ -39,6 +48,7 @@ class WorldBatch:
         self._worlds = [World(**world_args) for _ in range(n_copies)]  # reset when a copy first needs Pymunk
         self._max_idle_spaces = MAX_IDLE_SPACES if max_idle_spaces is None else max_idle_spaces
         self._scenarios: list[Scenario | None] = [None] * n_copies
+        self._geometries: list[StaticGeometry | None] = [None] * n_copies
         self._world_is_stale = np.ones(n_copies, dtype=bool)
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
         self._has_space = np.zeros(n_copies, dtype=bool)  # the copy's World holds a Pymunk space
@@ -47,6 +57,7 @@ class WorldBatch:
         self._tolerance_m = reference.waypoint_tolerance_m
         self._gain = reference.heading_gain
         self._max_turn_rate = reference.max_turn_rate_rps
+        self._max_physics_step_s = reference.max_physics_step_s
         self.wall_thickness_m = reference.wall_thickness_m
         self.poses = np.zeros((n_copies, 0, 3))
         self._waypoints = np.zeros((n_copies, 0, 0, 2))
@@ -79,6 +90,7 @@ class WorldBatch:
                 f"{self.poses.shape[1]}; every copy needs the same number"
             )
         self._scenarios[copy] = scenario
+        self._geometries[copy] = StaticGeometry.from_scenario(scenario, self.wall_thickness_m)
         self._world_is_stale[copy] = True
         self._in_contact[copy] = self._has_space[copy] = False
         self._worlds[copy].drop_space()
@@ -142,7 +154,12 @@ class WorldBatch:
             ],
             axis=-1,
         )
-        contact = self._contact_within(copies, before, speeds, dt)
+        near_static, near_robots = self._contact_within(copies, before, speeds, dt)
+        contact = near_static | near_robots
+        free = np.flatnonzero(contact & ~self._in_contact[copies])
+        free = free[self._contact_free(copies[free], before[free], controls[free], near_static[free], dt)]
+        after[free] = self._free_substeps(before[free], controls[free], dt)
+        contact[free] = False
         for copy in copies[self._in_contact[copies] & ~contact].tolist():  # their runs of contact steps end
             world = self._worlds[copy]
             world.end_contacts()  # as the single World does on a free step
@@ -191,8 +208,9 @@ class WorldBatch:
         self._waypoint_index[copies] = index
         return controls
 
-    def _contact_within(self, copies: np.ndarray, poses: np.ndarray, speeds: np.ndarray, dt: float) -> np.ndarray:
-        """Which of ``copies`` have a wall, obstacle or two robots within reach in ``dt`` (as ``World`` tests it)."""
+    def _contact_within(self, copies: np.ndarray, poses: np.ndarray, speeds: np.ndarray, dt: float) -> tuple:
+        """Which of ``copies`` have a wall or obstacle (n,) and which two robots (n,) within reach in ``dt``, as
+        ``World`` tests it (either: contact)."""
         positions = poses[..., :2]
         reach = self._radius_m + speeds * dt  # (n, R)
         low, high = positions - reach[..., None], positions + reach[..., None]
@@ -203,11 +221,49 @@ class WorldBatch:
             & (boxes[..., 1] <= high[..., None, 1])
             & (low[..., None, 1] <= boxes[..., 3])
         )
-        contact = near_static.any(axis=(1, 2))
+        near_robots = np.zeros(len(copies), dtype=bool)
         n_robots = positions.shape[1]
         if n_robots > 1:
             first, second = np.triu_indices(n_robots, k=1)
             offsets = positions[:, second] - positions[:, first]
             pair_reach = 2 * self._radius_m + (speeds[:, first] + speeds[:, second]) * dt
-            contact |= (offsets[..., 0] ** 2 + offsets[..., 1] ** 2 < pair_reach * pair_reach).any(axis=1)
-        return contact
+            near_robots = (offsets[..., 0] ** 2 + offsets[..., 1] ** 2 < pair_reach * pair_reach).any(axis=1)
+        return near_static.any(axis=(1, 2)), near_robots
+
+    def _contact_free(self, copies, poses: np.ndarray, controls: np.ndarray, near_static, dt: float) -> np.ndarray:
+        """Whether each of ``copies`` (n,) keeps ``CONTACT_GAP_M`` beyond touching all through the step: every two
+        robots, and each robot from the walls and obstacles where they are within reach (``near_static`` (n,)).
+
+        In a Pymunk step a robot's velocity is set once and no force acts without a contact, so each moves along
+        the straight line of its heading at the start: the robots' relative paths (``teammate_conflicts``) and
+        each disc's sweep, a line past the shapes grown by its radius (``segments_clear``), decide it.
+        """
+        heading = poses[..., 2]
+        reach = controls[..., 0] * dt
+        displacements = reach[..., None] * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
+        conflicts = teammate_conflicts(poses[..., :2], displacements[:, :, None], 2 * self._radius_m + CONTACT_GAP_M)
+        free = ~conflicts.any(axis=(1, 2, 3, 4))
+        rows = np.flatnonzero(free & near_static)
+        if rows.size:
+            geometry = StaticGeometry.stack([self._geometries[copy] for copy in copies[rows].tolist()])
+            grown = geometry.grown(self._radius_m + CONTACT_GAP_M)
+            starts = poses[rows, :, :2]
+            queries = np.repeat(np.arange(len(rows)), starts.shape[1])
+            clear = segments_clear(grown, queries, starts.reshape(-1, 2), (starts + displacements[rows]).reshape(-1, 2))
+            free[rows] = clear.reshape(starts.shape[:2]).all(axis=1)
+        return free
+
+    def _free_substeps(self, poses: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
+        """The poses (n, R, 3) after ``World.drive_in_contact`` of a step without contact: Pymunk's substeps.
+
+        Each substep adds velocity x substep to the position and angular velocity x substep to the angle, as
+        Chipmunk integrates a free body, so the numbers are Pymunk's.
+        """
+        substeps = math.ceil(dt / self._max_physics_step_s - 1e-9)
+        step_s = dt / substeps
+        x, y, angle = poses[..., 0], poses[..., 1], poses[..., 2]
+        speeds, turn_rates = controls[..., 0], controls[..., 1]
+        velocity_x, velocity_y = speeds * np.cos(angle), speeds * np.sin(angle)
+        for _ in range(substeps):
+            x, y, angle = x + velocity_x * step_s, y + velocity_y * step_s, angle + turn_rates * step_s
+        return np.stack([x, y, wrap_angle(angle)], axis=-1)
