@@ -1,6 +1,7 @@
 """Synthetic MRCLAM-format logs drawn from a known noise model (``RobotNoise``), for calibration tests.
 
-Robots drive weaving circles among 16 landmarks. Odometry and measurement times are written on their
+Robots drive weaving circles among 16 landmarks, in a direction the model's travel offset away from the
+heading their ground truth (and camera) gives. Odometry and measurement times are written on their
 own clocks (true time minus the model's offsets); odometry carries its scale and white noise of the
 model's densities; each measurement carries the model's systematic error (polynomial in the true
 bearing), a per-landmark and a shared Gauss-Markov bias in distance driven, white noise growing with the
@@ -27,6 +28,7 @@ MODEL = RobotNoise(
     measurement_time_offset_s=-0.1,
     speed_scale=1.04,
     turn_rate_scale=1.03,
+    travel_heading_offset_rad=0.012,
     speed_std=0.02,
     turn_rate_std=0.03,
     speed_bias_std=0.0,
@@ -114,6 +116,7 @@ def write_synthetic_dataset(directory: Path, rng: np.random.Generator, duration_
     for robot, phase in ((1, 0.0), (2, math.pi)):
         times = np.arange(0.0, duration_s, GROUNDTRUTH_DT)
         pose, *_ = true_motion(times, phase)
+        pose[:, 2] = _marker_heading(pose[:, 2], model)
         _write(directory / f"Robot{robot}_Groundtruth.dat", np.column_stack([EPOCH + times, pose]))
         times = np.arange(0.0, duration_s, ODOMETRY_DT)
         _, speed, turn_rate = true_motion(times, phase)
@@ -129,9 +132,15 @@ def write_synthetic_dataset(directory: Path, rng: np.random.Generator, duration_
     return directory
 
 
+def _marker_heading(heading, model):
+    """The motion-capture (and camera) heading of a robot driving along ``heading``."""
+    return np.remainder(heading - model.travel_heading_offset_rad + math.pi, 2 * math.pi) - math.pi
+
+
 def _measurements(rng, model, positions, phase, duration_s) -> np.ndarray:
     times = np.arange(0.5, duration_s, MEASUREMENT_DT)
     pose, speed, _ = true_motion(times, phase)
+    pose[:, 2] = _marker_heading(pose[:, 2], model)
     driven = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * MEASUREMENT_DT)])
     range_bias = _gauss_markov(rng, driven, model.range_bias_std_m, model.range_correlation_distance_m, len(positions))
     bearing_bias = _gauss_markov(

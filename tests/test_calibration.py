@@ -19,6 +19,7 @@ WITHIN_10_PERCENT = (  # the parameters the estimators identify to 10 % on 2 x 2
     "measurement_time_offset_s",
     "speed_scale",
     "turn_rate_scale",
+    "travel_heading_offset_rad",
     "speed_std",
     "turn_rate_std",
     "range_bias_per_rad2",
@@ -50,7 +51,7 @@ def test_calibration_recovers_the_generating_model(synthetic, robot):
         assert fitted[key] < 0.2 * truth[key.replace("bias_", "")], key
     # what the estimators get only roughly (the report says so): the outlier fractions (25 %), the
     # correlation lengths (range 30 %, bearing within a factor 2.5: its bias is small beside the white
-    # noise), the shared bearing bias (30 %; the shared range bias, 1 cm beside 4 cm per target, is not
+    # noise), the shared bearing bias (35 %; the shared range bias, 1 cm beside 4 cm per target, is not
     # identified), and the white range std (short-lag differences still hold some of the biases): 35 % at 3 m
     for key in ("range_outlier_fraction", "bearing_outlier_fraction"):
         assert fitted[key] == pytest.approx(truth[key], rel=0.25), key
@@ -58,7 +59,7 @@ def test_calibration_recovers_the_generating_model(synthetic, robot):
     assert 0.4 <= fitted["bearing_correlation_distance_m"] / truth["bearing_correlation_distance_m"] <= 2.5
     noise = synthetic[2].for_robot(robot)
     assert noise.range_white_std(3.0) == pytest.approx(MODEL.range_white_std(3.0), rel=0.35)
-    assert fitted["bearing_shared_std_rad"] == pytest.approx(truth["bearing_shared_std_rad"], rel=0.3)
+    assert fitted["bearing_shared_std_rad"] == pytest.approx(truth["bearing_shared_std_rad"], rel=0.35)
     # the constant and the range slope of the systematic range error trade off (and share the slow
     # per-landmark bias), so it is their sum that is pinned down: at 3 m, across the image, to the
     # per-target bias std (4 cm)

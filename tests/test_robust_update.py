@@ -107,6 +107,17 @@ def test_the_shared_bias_adds_to_every_targets_prediction():
         np.testing.assert_array_equal(H[:, 3:5], np.eye(2))
 
 
+def test_the_robot_drives_along_its_heading_plus_the_travel_offset():
+    offset, pose = 0.05, np.array([1.0, 2.0, 0.3])
+    ekf = TargetBiasPoseEKF(pose, P, np.zeros((1, 2)), [1.0, 1.0], travel_heading_offset_rad=offset)
+    plain = PoseEKF(pose + [0.0, 0.0, offset], P)
+    control, covariance = np.array([0.5, 0.2]), np.diag([0.01, 0.02])
+    ekf.predict(control, 0.1, covariance)
+    plain.predict(control, 0.1, covariance)
+    np.testing.assert_allclose(ekf.x[:3], plain.x - [0.0, 0.0, offset], atol=1e-15)
+    np.testing.assert_allclose(ekf.P[:3, :3], plain.P, atol=1e-15)  # the same step, in a frame turned by the offset
+
+
 def test_target_bias_filter_rejects_bad_parameters():
     with pytest.raises(ValueError, match="bias_std"):
         TargetBiasPoseEKF(POSE, P, [[-0.1, 0.0]], [1.0, 1.0])

@@ -6,6 +6,9 @@ For each robot (and pooled over the robots):
   best with the ground truth's (least spread of the error, trimmed at 4 robust std); the measurement
   log's, the shift that makes the landmark bearings agree best (least robust spread). Searched on a
   10 ms grid over +-0.5 s.
+- **Direction of travel.** The angle between the ground truth's heading and the way the robot moves
+  (a marker frame mounted a little askew): the least-squares slope of sideways on forward motion over
+  0.2 s steps of the ground truth, beside a term in the heading change.
 - **Odometry.** Scale of speed and turn rate (least squares through the origin over 1 s windows), then
   white noise densities and a slow Gauss-Markov bias from the growth of the integrated error's variance
   with the window length ``T`` (``var(T) = q^2 T + 2 sigma^2 tau^2 (T / tau - 1 + exp(-T / tau))``,
@@ -42,6 +45,7 @@ from infonav_gym.geometry import wrap_angle
 
 OFFSET_GRID_S = np.round(np.arange(-0.5, 0.5001, 0.01), 2)  # [s] candidate clock offsets
 ODOMETRY_GRID_S = 0.1  # [s] resolution of the integrated odometry errors
+TRAVEL_STEP_S = 0.2  # [s] ground-truth steps whose sideways motion gives the direction of travel
 NOISE_WINDOWS_S = (
     1.0,
     2.0,
@@ -135,6 +139,23 @@ def trimmed_std(values) -> float:
     """The standard deviation of ``values`` within ``OUTLIER_Z`` robust std of their median."""
     values = np.asarray(values, dtype=float)
     return float(np.std(values[np.abs(values - np.median(values)) < OUTLIER_Z * robust_std(values)]))
+
+
+def fit_travel_heading_offset(groundtruth, step_s: float = TRAVEL_STEP_S) -> float:
+    """The angle [rad] between the ground truth's heading and the direction the robot moves in: the slope
+    of the sideways displacement on the forward one over steps of ``step_s``, least squares beside a term in
+    the heading change (a marker off the wheel axis moves sideways as the robot turns)."""
+    times = np.arange(groundtruth[0, 0], groundtruth[-1, 0], step_s)
+    poses, valid = groundtruth_at(groundtruth, times)
+    heading = np.unwrap(poses[:, 2])
+    turned = np.diff(heading)
+    middle = heading[:-1] + 0.5 * turned
+    step = np.diff(poses[:, :2], axis=0)
+    forward = step[:, 0] * np.cos(middle) + step[:, 1] * np.sin(middle)
+    sideways = step[:, 1] * np.cos(middle) - step[:, 0] * np.sin(middle)
+    usable = valid[1:] & valid[:-1]
+    design = np.column_stack([forward, turned])[usable]
+    return float(np.linalg.lstsq(design, sideways[usable], rcond=None)[0][0])
 
 
 def fit_odometry_offset(odometry, groundtruth) -> float:
@@ -382,10 +403,11 @@ def _fit_exponential(bins) -> tuple[float, float]:
 
 
 def fit_robot(
-    odometry_samples, measurement_errors: list[dict], offsets: tuple[float, float]
+    odometry_samples, measurement_errors: list[dict], offsets: tuple[float, float, float]
 ) -> tuple[RobotNoise, dict]:
     """``RobotNoise`` (and its diagnostics) from odometry window samples and landmark errors of one robot
-    or several (pooled: pairs are formed within each robot's errors)."""
+    or several (pooled: pairs are formed within each robot's errors); ``offsets``: odometry and measurement
+    clock offsets [s] and the travel heading offset [rad]."""
     odometry = fit_odometry(odometry_samples)
     merged = {key: np.concatenate([errors[key] for errors in measurement_errors]) for key in measurement_errors[0]}
     pairs, cross_pairs = (
@@ -409,7 +431,12 @@ def fit_robot(
     for channel, fit in channels.items():
         values.update(zip(SYSTEMATIC_FIELDS[channel], fit["systematic"]))
         values.update({field: fit[key] for key, field in CHANNEL_FIELDS[channel].items()})
-    noise = RobotNoise(odometry_time_offset_s=offsets[0], measurement_time_offset_s=offsets[1], **values)
+    noise = RobotNoise(
+        odometry_time_offset_s=offsets[0],
+        measurement_time_offset_s=offsets[1],
+        travel_heading_offset_rad=offsets[2],
+        **values,
+    )
     diagnostics = {
         "odometry_variance_by_window": odometry["variance_by_window"],
         "range": channels["range"]["diagnostics"],
@@ -461,14 +488,18 @@ def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False)
     models, diagnostics, errors, samples, offsets = {}, {}, {}, [], []
     for robot in tqdm(robots, desc="calibrate", unit="robot", disable=not progress):
         odometry, groundtruth = dataset.odometry[robot], dataset.groundtruth[robot]
-        robot_offsets = (fit_odometry_offset(odometry, groundtruth), fit_measurement_offset(dataset, robot))
+        robot_offsets = (
+            fit_odometry_offset(odometry, groundtruth),
+            fit_measurement_offset(dataset, robot),
+            fit_travel_heading_offset(groundtruth),
+        )
         robot_samples = _odometry_samples(odometry, groundtruth, robot_offsets[0])
         errors[robot] = landmark_errors(dataset, robot, robot_offsets[1], robot_offsets[0])
         models[robot], diagnostics[str(robot)] = fit_robot(robot_samples, [errors[robot]], robot_offsets)
         samples.append(robot_samples)
         offsets.append(robot_offsets)
     pooled_samples = [tuple(np.concatenate([s[w][i] for s in samples]) for i in (0, 1)) for w in range(len(samples[0]))]
-    pooled_offsets = tuple(float(np.median([o[i] for o in offsets])) for i in (0, 1))
+    pooled_offsets = tuple(float(np.median(column)) for column in zip(*offsets))
     pooled, diagnostics["pooled"] = fit_robot(pooled_samples, [errors[r] for r in robots], pooled_offsets)
     model = NoiseModel(
         robots=models,

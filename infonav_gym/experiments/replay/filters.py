@@ -143,6 +143,7 @@ class _CalibratedFilters(_IndependentFilters):
                 [model.range_correlation_distance_m, model.bearing_correlation_distance_m],
                 [model.range_shared_std_m, model.bearing_shared_std_rad],
                 [model.range_shared_correlation_distance_m, model.bearing_shared_correlation_distance_m],
+                model.travel_heading_offset_rad,
             )
             for pose, covariance, model in zip(poses, covariances, self.models)
         ]

@@ -2,7 +2,8 @@
 
 A model holds, per robot subject (and ``pooled`` for robots it does not name), what
 ``calibration.calibrate`` estimated from motion-capture ground truth: clock offsets of the
-odometry and measurement logs, odometry scale and noise densities, and range / bearing errors as a
+odometry and measurement logs, the direction of travel against the ground-truth heading, odometry
+scale, noise densities and slow biases, and range / bearing errors as a
 mean offset plus a slow per-target bias and a slow bias all targets share (each Gauss-Markov in
 distance driven: stationary std, correlation length) plus white
 noise (range std growing with the square of the range) with a share of gross outliers.
@@ -46,6 +47,7 @@ class RobotNoise:
     measurement_time_offset_s: float  # [s] the same for measurement times
     speed_scale: float  # odometry speed / true speed
     turn_rate_scale: float  # odometry turn rate / true turn rate
+    travel_heading_offset_rad: float  # [rad] the robot drives this far from its ground-truth heading (marker frame)
     speed_std: float  # [m/s] noise density of the corrected speed: its 1 s average errs by this
     turn_rate_std: float  # [rad/s] the same for the turn rate
     speed_bias_std: float  # [m/s] stationary std of the speed's slow (Gauss-Markov) error ...
@@ -144,7 +146,7 @@ class RobotNoise:
 
 
 FIELDS = {field.name for field in dataclasses.fields(RobotNoise)}
-OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s"} | {  # any sign
+OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s", "travel_heading_offset_rad"} | {  # any sign
     field.name for field in dataclasses.fields(RobotNoise) if "_bias_" in field.name and "_bias_std" not in field.name
 }
 FRACTIONS = {"range_outlier_fraction", "bearing_outlier_fraction"}  # in [0, 1)
