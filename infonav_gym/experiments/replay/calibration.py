@@ -46,15 +46,8 @@ from infonav_gym.geometry import wrap_angle
 OFFSET_GRID_S = np.round(np.arange(-0.5, 0.5001, 0.01), 2)  # [s] candidate clock offsets
 ODOMETRY_GRID_S = 0.1  # [s] resolution of the integrated odometry errors
 TRAVEL_STEP_S = 0.2  # [s] ground-truth steps whose sideways motion gives the direction of travel
-NOISE_WINDOWS_S = (
-    1.0,
-    2.0,
-    4.0,
-    8.0,
-    16.0,
-    32.0,
-    ODOMETRY_HORIZON_S,
-)  # [s] windows whose error growth gives the noise densities
+# [s] windows whose error growth gives the odometry noise, up to the horizon the filter's density matches
+NOISE_WINDOWS_S = (1.0, 2.0, 4.0, 8.0, 16.0, 32.0, ODOMETRY_HORIZON_S)
 WINDOW_STEP_S = 0.5  # [s] windows start this far apart (longer ones overlap: more samples of their variance)
 SHORT_LAG_S = 0.5  # [s] consecutive looks closer than this share their bias
 # A parked robot repeats one error (on Dataset 6 robot 1's 136 parked look pairs hold 32 distinct looks, with a
