@@ -1,9 +1,11 @@
 """Synthetic MRCLAM-format logs drawn from a known noise model (``RobotNoise``), for calibration tests.
 
-Robots drive weaving circles among 16 landmarks. Odometry and measurement times are written on their
+Robots drive weaving circles among 16 landmarks, in a direction the model's travel offset away from the
+heading their ground truth (and camera) gives. Odometry and measurement times are written on their
 own clocks (true time minus the model's offsets); odometry carries its scale and white noise of the
 model's densities; each measurement carries the model's systematic error (polynomial in the true
-bearing), a per-landmark Gauss-Markov bias in distance driven, white noise growing with range, and,
+bearing), a per-landmark and a shared Gauss-Markov bias in distance driven, white noise growing with the
+squared range, and,
 with the model's outlier fractions, gross errors of 5 to 30 model std.
 """
 
@@ -26,16 +28,25 @@ MODEL = RobotNoise(
     measurement_time_offset_s=-0.1,
     speed_scale=1.04,
     turn_rate_scale=1.03,
+    travel_heading_offset_rad=0.012,
     speed_std=0.02,
     turn_rate_std=0.03,
+    speed_bias_std=0.0,
+    speed_correlation_time_s=10.0,
+    turn_rate_bias_std=0.0,
+    turn_rate_correlation_time_s=10.0,
     range_bias_m=0.15,
     range_bias_per_rad=0.0,
     range_bias_per_rad2=-1.5,
     range_bias_per_m=-0.01,
+    range_bias_per_m_rad=0.0,
+    range_bias_per_m_rad2=-0.3,
     range_white_std_m=0.005,
-    range_white_std_per_m=0.01,
+    range_white_std_per_m2=0.0033,
     range_bias_std_m=0.04,
     range_correlation_distance_m=0.5,
+    range_shared_std_m=0.01,
+    range_shared_correlation_distance_m=2.0,
     range_outlier_fraction=0.02,
     bearing_bias_rad=0.005,
     bearing_bias_per_rad=0.0,
@@ -44,6 +55,8 @@ MODEL = RobotNoise(
     bearing_white_std_rad=0.005,
     bearing_bias_std_rad=0.004,
     bearing_correlation_distance_m=1.0,
+    bearing_shared_std_rad=0.003,
+    bearing_shared_correlation_distance_m=2.0,
     bearing_outlier_fraction=0.02,
 )
 
@@ -103,6 +116,7 @@ def write_synthetic_dataset(directory: Path, rng: np.random.Generator, duration_
     for robot, phase in ((1, 0.0), (2, math.pi)):
         times = np.arange(0.0, duration_s, GROUNDTRUTH_DT)
         pose, *_ = true_motion(times, phase)
+        pose[:, 2] = _marker_heading(pose[:, 2], model)
         _write(directory / f"Robot{robot}_Groundtruth.dat", np.column_stack([EPOCH + times, pose]))
         times = np.arange(0.0, duration_s, ODOMETRY_DT)
         _, speed, turn_rate = true_motion(times, phase)
@@ -118,13 +132,23 @@ def write_synthetic_dataset(directory: Path, rng: np.random.Generator, duration_
     return directory
 
 
+def _marker_heading(heading, model):
+    """The motion-capture (and camera) heading of a robot driving along ``heading``."""
+    return np.remainder(heading - model.travel_heading_offset_rad + math.pi, 2 * math.pi) - math.pi
+
+
 def _measurements(rng, model, positions, phase, duration_s) -> np.ndarray:
     times = np.arange(0.5, duration_s, MEASUREMENT_DT)
     pose, speed, _ = true_motion(times, phase)
+    pose[:, 2] = _marker_heading(pose[:, 2], model)
     driven = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * MEASUREMENT_DT)])
     range_bias = _gauss_markov(rng, driven, model.range_bias_std_m, model.range_correlation_distance_m, len(positions))
     bearing_bias = _gauss_markov(
         rng, driven, model.bearing_bias_std_rad, model.bearing_correlation_distance_m, len(positions)
+    )
+    range_bias += _gauss_markov(rng, driven, model.range_shared_std_m, model.range_shared_correlation_distance_m, 1)
+    bearing_bias += _gauss_markov(
+        rng, driven, model.bearing_shared_std_rad, model.bearing_shared_correlation_distance_m, 1
     )
     offsets = positions[None] - pose[:, None, :2]
     true_range = np.hypot(offsets[..., 0], offsets[..., 1])

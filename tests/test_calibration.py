@@ -19,10 +19,10 @@ WITHIN_10_PERCENT = (  # the parameters the estimators identify to 10 % on 2 x 2
     "measurement_time_offset_s",
     "speed_scale",
     "turn_rate_scale",
+    "travel_heading_offset_rad",
     "speed_std",
     "turn_rate_std",
     "range_bias_per_rad2",
-    "range_white_std_per_m",
     "range_bias_std_m",
     "bearing_bias_rad",
     "bearing_bias_per_rad2",
@@ -46,20 +46,25 @@ def test_calibration_recovers_the_generating_model(synthetic, robot):
     for key in WITHIN_10_PERCENT:
         assert fitted[key] == pytest.approx(truth[key], rel=0.1), key
     for key in ("range_bias_per_rad", "bearing_bias_per_rad", "bearing_bias_per_rad3"):  # truly 0
-        assert abs(fitted[key]) < 0.02, key
-    # what the estimators get only roughly (the report says so): the outlier fractions (15 %), the
+        assert abs(fitted[key]) < 0.04, key  # (the range one trades off with the range x bearing term)
+    for key in ("speed_bias_std", "turn_rate_bias_std"):  # the odometry is white: no slow error found
+        assert fitted[key] < 0.2 * truth[key.replace("bias_", "")], key
+    # what the estimators get only roughly (the report says so): the outlier fractions (25 %), the
     # correlation lengths (range 30 %, bearing within a factor 2.5: its bias is small beside the white
-    # noise), and the white range std (short-lag differences still hold a little of the bias): 20 % at 3 m
+    # noise), the shared bearing bias (35 %; the shared range bias, 1 cm beside 4 cm per target, is not
+    # identified), and the white range std (short-lag differences still hold some of the biases): 35 % at 3 m
     for key in ("range_outlier_fraction", "bearing_outlier_fraction"):
-        assert fitted[key] == pytest.approx(truth[key], rel=0.15), key
+        assert fitted[key] == pytest.approx(truth[key], rel=0.25), key
     assert fitted["range_correlation_distance_m"] == pytest.approx(truth["range_correlation_distance_m"], rel=0.3)
     assert 0.4 <= fitted["bearing_correlation_distance_m"] / truth["bearing_correlation_distance_m"] <= 2.5
     noise = synthetic[2].for_robot(robot)
-    assert noise.range_white_std(3.0) == pytest.approx(MODEL.range_white_std(3.0), rel=0.2)
+    assert noise.range_white_std(3.0) == pytest.approx(MODEL.range_white_std(3.0), rel=0.35)
+    assert fitted["bearing_shared_std_rad"] == pytest.approx(truth["bearing_shared_std_rad"], rel=0.35)
     # the constant and the range slope of the systematic range error trade off (and share the slow
-    # per-landmark bias), so it is their sum that is pinned down: at 3 m, across the image
+    # per-landmark bias), so it is their sum that is pinned down: at 3 m, across the image, to the
+    # per-target bias std (4 cm)
     for bearing in (-0.4, 0.0, 0.4):
-        assert noise.range_bias(3.0, bearing) == pytest.approx(MODEL.range_bias(3.0, bearing), rel=0.1)
+        assert noise.range_bias(3.0, bearing) == pytest.approx(MODEL.range_bias(3.0, bearing), abs=0.04)
 
 
 def test_the_calibrated_filter_is_consistent_on_synthetic_logs(synthetic):
@@ -77,7 +82,7 @@ def test_systematic_fit_is_least_squares_and_ignores_gross_errors():
     rng = np.random.default_rng(3)
     bearing, range_m = rng.uniform(-0.5, 0.5, 2000), rng.uniform(1, 5, 2000)
     design = systematic_design("range", range_m, bearing)
-    truth = np.array([0.1, 0.02, -1.2, -0.01])
+    truth = np.array([0.1, 0.02, -1.2, -0.01, 0.003, -0.3])
     error = design @ truth + rng.normal(0, 0.01, 2000)
     np.testing.assert_allclose(fit_systematic(error, design), np.linalg.lstsq(design, error, rcond=None)[0], atol=2e-4)
     clean = np.linalg.lstsq(design[40:], error[40:], rcond=None)[0]
@@ -122,7 +127,7 @@ def test_cli_replays_with_a_noise_file_and_compares(synthetic, tmp_path, capsys)
     [
         (lambda d: d["robots"]["1"].pop("speed_std"), "robots.1: missing key 'speed_std'"),
         (lambda d: d["pooled"].update(range_bias_std_m=-0.1), "pooled.range_bias_std_m: a std"),
-        (lambda d: d.update(schema_version=2), "schema_version 2 is not supported"),
+        (lambda d: d.update(schema_version=1), "schema_version 1 is not supported"),
     ],
 )
 def test_cli_reports_a_bad_noise_file_in_one_line(synthetic, tmp_path, capsys, edit, message):
@@ -141,4 +146,4 @@ def test_huber_threshold_default_is_the_chi_square_95_percent_quantile():
     from scipy import stats
 
     assert ReplayConfig().huber_threshold_nis == pytest.approx(stats.chi2.ppf(0.95, 2), abs=0.01)
-    assert math.isclose(MODEL.range_white_std(2.0), 0.025)
+    assert math.isclose(MODEL.range_white_std(2.0), 0.005 + 0.0033 * 4.0)

@@ -2,15 +2,18 @@
 
 import dataclasses
 import json
+import math
 import re
 
 import numpy as np
 import pytest
 from mrclam_synthetic import MODEL
+from scipy import integrate
 
 from infonav_gym.experiments.replay.noise_model import (
     NoiseModel,
     corrected_logs,
+    integrated_variance,
     load_noise_model,
     parse_noise_model,
     shipped_noise_model,
@@ -49,7 +52,7 @@ def test_the_shipped_model_is_package_data_fitted_on_dataset6():
             "pooled.range_outlier_fraction: expected a fraction",
         ),
         (lambda d: d["pooled"].update(speed_std="fast"), "pooled.speed_std: expected a finite number"),
-        (lambda d: d.update(schema_version=0), "schema_version 0 is not supported (expected 1)"),
+        (lambda d: d.update(schema_version=0), "schema_version 0 is not supported (expected 2)"),
         (lambda d: d["robots"].update(robotA=d["pooled"]), "robots: key 'robotA' is not a robot subject number"),
     ],
 )
@@ -75,11 +78,32 @@ def test_corrections_shift_clocks_and_remove_the_systematic_errors():
     odometry = np.array([[10.0, 0.104, 0.0309]])
     np.testing.assert_allclose(MODEL.correct_odometry(odometry), [[10.2, 0.1, 0.03]])
     measurement = np.array([[10.0, 7.0, 3.0, 0.2]])
-    expected_range = 3.0 - (0.15 - 1.5 * 0.04 - 0.01 * 3.0)
+    expected_range = 3.0 - (0.15 - 1.5 * 0.04 + 3.0 * (-0.01 - 0.3 * 0.04))
     expected_bearing = 0.2 - (0.005 - 0.05 * 0.04)
     np.testing.assert_allclose(MODEL.correct_measurements(measurement), [[9.9, 7.0, expected_range, expected_bearing]])
     total = MODEL.total_noise(2.0)
-    np.testing.assert_allclose(np.diag(total), [0.025**2 + 0.04**2, 0.005**2 + 0.004**2])
+    np.testing.assert_allclose(
+        np.diag(total), [(0.005 + 0.0033 * 4.0) ** 2 + 0.04**2 + 0.01**2, 0.005**2 + 0.004**2 + 0.003**2]
+    )
+
+
+def test_integrated_variance_is_the_double_integral_of_the_noise_autocovariance():
+    q, sigma, tau = 0.02, 0.01, 7.0
+    for window in (0.5, 5.0, 60.0):
+        numeric, _ = integrate.dblquad(
+            lambda t, s: sigma**2 * math.exp(-abs(t - s) / tau), 0, window, 0, window, epsabs=1e-14, epsrel=1e-10
+        )
+        assert integrated_variance(window, q, sigma, tau) == pytest.approx(q**2 * window + numeric, rel=1e-6)
+
+
+def test_the_odometry_density_matches_the_fitted_variance_over_the_horizon():
+    white = dataclasses.replace(MODEL, speed_bias_std=0.0, turn_rate_bias_std=0.0)
+    np.testing.assert_allclose(white.odometry_density(), [MODEL.speed_std, MODEL.turn_rate_std])
+    slow = dataclasses.replace(MODEL, turn_rate_bias_std=0.01, turn_rate_correlation_time_s=20.0)
+    density = slow.odometry_density(64.0)[1]
+    assert density**2 * 64.0 == pytest.approx(integrated_variance(64.0, MODEL.turn_rate_std, 0.01, 20.0))
+    assert density > MODEL.turn_rate_std
+    np.testing.assert_allclose(np.diag(slow.control_covariance(0.5)), slow.odometry_density() ** 2 / 0.5)
 
 
 def test_corrected_logs_leave_ground_truth_and_map_alone(tmp_path):

@@ -74,22 +74,48 @@ def test_without_biases_the_target_bias_filter_is_the_pose_filter():
 
 def test_unobserved_biases_keep_their_stationary_variance_and_decay():
     bias_std = np.array([[0.1, 0.01], [0.2, 0.02]])
-    ekf = TargetBiasPoseEKF(POSE, P, bias_std, [1.0, 0.5])
-    ekf.x[3:] = [0.1, 0.01, -0.2, 0.02]
+    ekf = TargetBiasPoseEKF(
+        POSE, P, bias_std, [1.0, 0.5], shared_std=[0.05, 0.005], shared_correlation_distance_m=[2, 4]
+    )
+    start = np.array([0.03, 0.003, 0.1, 0.01, -0.2, 0.02])
+    ekf.x[3:] = start
+    decayed = start * np.exp(-0.1 / np.array([2, 4, 1, 0.5, 1, 0.5]))
     for _ in range(50):  # 50 steps of 0.02 s at -0.1 m/s: 0.1 m driven
         ekf.predict(np.array([-0.1, 0.3]), 0.02, np.eye(2) * 1e-6)
-    np.testing.assert_allclose(np.diag(ekf.P)[3:], bias_std.ravel() ** 2, rtol=1e-12)
-    np.testing.assert_allclose(ekf.x[3:], [0.1, 0.01, -0.2, 0.02] * np.exp(-0.1 / np.array([1, 0.5, 1, 0.5])))
+    np.testing.assert_allclose(np.diag(ekf.P)[3:], np.r_[0.05**2, 0.005**2, bias_std.ravel() ** 2], rtol=1e-12)
+    np.testing.assert_allclose(ekf.x[3:], decayed)
     ekf.predict(np.array([0.0, 0.3]), 0.02, np.eye(2) * 1e-6)  # turning in place: no decay
-    np.testing.assert_allclose(ekf.x[3:], [0.1, 0.01, -0.2, 0.02] * np.exp(-0.1 / np.array([1, 0.5, 1, 0.5])))
+    np.testing.assert_allclose(ekf.x[3:], decayed)
 
 
 def test_a_measurement_moves_only_its_targets_biases():
-    ekf = TargetBiasPoseEKF(POSE, P, np.array([[0.1, 0.01], [0.1, 0.01]]), [60.0, 60.0])
+    ekf = TargetBiasPoseEKF(POSE, P, np.array([[0.1, 0.01], [0.1, 0.01]]), [60.0, 60.0], shared_std=[0.05, 0.0])
     predicted, H = ekf.measurement_model(0, LANDMARK)
     z = predicted + [0.2, 0.0]
     ekf.update_range_bearing(z, range_bearing_residual(z, predicted), H, R)
-    assert ekf.x[3] > 0 and ekf.x[5:].tolist() == [0.0, 0.0]
+    assert ekf.x[3] > 0 and ekf.x[5] > ekf.x[3] and ekf.x[7:].tolist() == [0.0, 0.0]  # shared, target 0, not 1
+    assert ekf.n_targets == 2
+
+
+def test_the_shared_bias_adds_to_every_targets_prediction():
+    ekf = TargetBiasPoseEKF(POSE, P, np.full((2, 2), 0.01), [1.0, 1.0], shared_std=[0.05, 0.005])
+    ekf.x[3:] = [0.03, 0.002, 0.1, 0.01, -0.2, 0.02]
+    plain = TargetBiasPoseEKF(POSE, P, np.zeros((2, 2)), [1.0, 1.0])
+    for target, own in ((0, [0.1, 0.01]), (1, [-0.2, 0.02])):
+        predicted, H = ekf.measurement_model(target, LANDMARK)
+        np.testing.assert_allclose(predicted - plain.measurement_model(target, LANDMARK)[0], np.add(own, [0.03, 0.002]))
+        np.testing.assert_array_equal(H[:, 3:5], np.eye(2))
+
+
+def test_the_robot_drives_along_its_heading_plus_the_travel_offset():
+    offset, pose = 0.05, np.array([1.0, 2.0, 0.3])
+    ekf = TargetBiasPoseEKF(pose, P, np.zeros((1, 2)), [1.0, 1.0], travel_heading_offset_rad=offset)
+    plain = PoseEKF(pose + [0.0, 0.0, offset], P)
+    control, covariance = np.array([0.5, 0.2]), np.diag([0.01, 0.02])
+    ekf.predict(control, 0.1, covariance)
+    plain.predict(control, 0.1, covariance)
+    np.testing.assert_allclose(ekf.x[:3], plain.x - [0.0, 0.0, offset], atol=1e-15)
+    np.testing.assert_allclose(ekf.P[:3, :3], plain.P, atol=1e-15)  # the same step, in a frame turned by the offset
 
 
 def test_target_bias_filter_rejects_bad_parameters():

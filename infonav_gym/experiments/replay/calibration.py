@@ -6,13 +6,19 @@ For each robot (and pooled over the robots):
   best with the ground truth's (least spread of the error, trimmed at 4 robust std); the measurement
   log's, the shift that makes the landmark bearings agree best (least robust spread). Searched on a
   10 ms grid over +-0.5 s.
+- **Direction of travel.** The angle between the ground truth's heading and the way the robot moves
+  (a marker frame mounted a little askew): the least-squares slope of sideways on forward motion over
+  0.2 s steps of the ground truth, beside a term in the heading change.
 - **Odometry.** Scale of speed and turn rate (least squares through the origin over 1 s windows), then
-  noise densities from the growth of the integrated error's variance with the window length ``T``
-  (``var(T) = q^2 T`` for white noise, fitted over T = 1, 2, 4, 8 s). The plain variance, not a robust
-  one: odometry cannot be gated, so its noise must carry its heavy tails (wheel slip).
+  white noise densities and a slow Gauss-Markov bias from the growth of the integrated error's variance
+  with the window length ``T`` (``var(T) = q^2 T + 2 sigma^2 tau^2 (T / tau - 1 + exp(-T / tau))``,
+  fitted over T = 1 to 64 s). The plain variance, not a robust one: odometry cannot be gated, so its
+  noise must carry its heavy tails (wheel slip).
 - **Range and bearing to landmarks.** The error against the ground-truth geometry is split into a
   systematic part (a polynomial in the measured bearing, the target's place in the camera image: range
-  quadratic in it plus linear in range, bearing cubic; robust least squares), a slow bias per target
+  quadratic in it, plus the range times another quadratic in it, since a range read from the target's
+  size in the image errs in proportion to the range; bearing cubic; robust least squares; on Dataset 6
+  the range term cuts the robust spread of the range residuals from 4-5.5 cm to 1.5-2 cm), a slow bias per target
   and white noise. The white std comes from the differences of
   consecutive looks at the same target under 0.5 s apart (the bias cancels), against range in range
   bins; the bias's variance and correlation length from the covariance of pairs of looks at the same
@@ -34,39 +40,55 @@ from scipy import optimize, stats
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.experiments.replay.metrics import groundtruth_at
-from infonav_gym.experiments.replay.noise_model import NoiseModel, RobotNoise
+from infonav_gym.experiments.replay.noise_model import ODOMETRY_HORIZON_S, NoiseModel, RobotNoise, integrated_variance
 from infonav_gym.geometry import wrap_angle
 
 OFFSET_GRID_S = np.round(np.arange(-0.5, 0.5001, 0.01), 2)  # [s] candidate clock offsets
 ODOMETRY_GRID_S = 0.1  # [s] resolution of the integrated odometry errors
-NOISE_WINDOWS_S = (1.0, 2.0, 4.0, 8.0)  # [s] windows whose error growth gives the noise densities
+TRAVEL_STEP_S = 0.2  # [s] ground-truth steps whose sideways motion gives the direction of travel
+# [s] windows whose error growth gives the odometry noise, up to the horizon the filter's density matches
+NOISE_WINDOWS_S = (1.0, 2.0, 4.0, 8.0, 16.0, 32.0, ODOMETRY_HORIZON_S)
 WINDOW_STEP_S = 0.5  # [s] windows start this far apart (longer ones overlap: more samples of their variance)
 SHORT_LAG_S = 0.5  # [s] consecutive looks closer than this share their bias
-TRAVEL_EDGES_M = (0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # [m] bins of the bias covariance fit
+# A parked robot repeats one error (on Dataset 6 robot 1's 136 parked look pairs hold 32 distinct looks, with a
+# covariance 40 times the moving ones'): the bias process is fitted from pairs at least 1 cm of driving apart.
+TRAVEL_EDGES_M = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # [m] bins of the bias covariance fit
 NO_DECAY_LENGTH_M = 1000.0  # [m] correlation length when the covariance does not decay: a constant bias
 OUTLIER_Z = 4.0  # errors beyond this many model std count as outliers
 RANGE_BINS = 5  # range quantile bins of the white range std
 MIN_BIN = 20  # fewest samples a bin needs to enter a fit
 SYSTEMATIC_FIELDS = {  # the RobotNoise fields of each channel's systematic coefficients, in design order
-    "range": ("range_bias_m", "range_bias_per_rad", "range_bias_per_rad2", "range_bias_per_m"),
+    "range": (
+        "range_bias_m",
+        "range_bias_per_rad",
+        "range_bias_per_rad2",
+        "range_bias_per_m",
+        "range_bias_per_m_rad",
+        "range_bias_per_m_rad2",
+    ),
     "bearing": ("bearing_bias_rad", "bearing_bias_per_rad", "bearing_bias_per_rad2", "bearing_bias_per_rad3"),
 }
 CHANNEL_FIELDS = {  # fit_channel's results -> RobotNoise fields
     "range": {
         "white_std": "range_white_std_m",
-        "white_std_per_m": "range_white_std_per_m",
+        "white_std_per_m2": "range_white_std_per_m2",
         "bias_std": "range_bias_std_m",
         "correlation_distance_m": "range_correlation_distance_m",
+        "shared_std": "range_shared_std_m",
+        "shared_correlation_distance_m": "range_shared_correlation_distance_m",
         "outlier_fraction": "range_outlier_fraction",
     },
     "bearing": {
         "white_std": "bearing_white_std_rad",
         "bias_std": "bearing_bias_std_rad",
         "correlation_distance_m": "bearing_correlation_distance_m",
+        "shared_std": "bearing_shared_std_rad",
+        "shared_correlation_distance_m": "bearing_shared_correlation_distance_m",
         "outlier_fraction": "bearing_outlier_fraction",
     },
 }
 PAIR_STEPS = (1, 2, 4, 8, 16, 32, 64, 128, 256)  # looks apart of the pairs whose covariance gives the bias
+INDEPENDENT_CELL_M = 0.05  # [m] looks at a target within this much travel count as one sample of its bias
 
 
 def robust_std(values) -> float:
@@ -112,6 +134,23 @@ def trimmed_std(values) -> float:
     return float(np.std(values[np.abs(values - np.median(values)) < OUTLIER_Z * robust_std(values)]))
 
 
+def fit_travel_heading_offset(groundtruth, step_s: float = TRAVEL_STEP_S) -> float:
+    """The angle [rad] between the ground truth's heading and the direction the robot moves in: the slope
+    of the sideways displacement on the forward one over steps of ``step_s``, least squares beside a term in
+    the heading change (a marker off the wheel axis moves sideways as the robot turns)."""
+    times = np.arange(groundtruth[0, 0], groundtruth[-1, 0], step_s)
+    poses, valid = groundtruth_at(groundtruth, times)
+    heading = np.unwrap(poses[:, 2])
+    turned = np.diff(heading)
+    middle = heading[:-1] + 0.5 * turned
+    step = np.diff(poses[:, :2], axis=0)
+    forward = step[:, 0] * np.cos(middle) + step[:, 1] * np.sin(middle)
+    sideways = step[:, 1] * np.cos(middle) - step[:, 0] * np.sin(middle)
+    usable = valid[1:] & valid[:-1]
+    design = np.column_stack([forward, turned])[usable]
+    return float(np.linalg.lstsq(design, sideways[usable], rcond=None)[0][0])
+
+
 def fit_odometry_offset(odometry, groundtruth) -> float:
     """The odometry clock offset [s] with the least trimmed spread of the 1 s heading-change error."""
     spreads = [trimmed_std(odometry_errors(odometry, groundtruth, offset, 1.0)[0][:, 1]) for offset in OFFSET_GRID_S]
@@ -134,14 +173,35 @@ def fit_odometry(samples: list[tuple[np.ndarray, np.ndarray]], windows_s=NOISE_W
         scales.append(float(measured[inlier, column] @ truth[inlier, column] / (truth[inlier, column] ** 2).sum()))
     variances = np.array([[np.var(m[:, c] / scales[c] - t[:, c]) for c in (0, 1)] for m, t in samples])  # (windows, 2)
     windows = np.asarray(windows_s, dtype=float)
-    densities = np.sqrt(windows @ variances / (windows @ windows))
+    independent = np.array([len(m) for m, _ in samples]) * WINDOW_STEP_S / windows  # non-overlapping windows
+    speed, turn_rate = (fit_integrated_variance(windows, variances[:, c], independent) for c in (0, 1))
     return {
         "speed_scale": scales[0],
         "turn_rate_scale": scales[1],
-        "speed_std": float(densities[0]),
-        "turn_rate_std": float(densities[1]),
+        "speed_std": speed[0],
+        "turn_rate_std": turn_rate[0],
+        "speed_bias_std": speed[1],
+        "speed_correlation_time_s": speed[2],
+        "turn_rate_bias_std": turn_rate[1],
+        "turn_rate_correlation_time_s": turn_rate[2],
         "variance_by_window": {f"{w:g}": variances[i].tolist() for i, w in enumerate(windows_s)},
     }
+
+
+def fit_integrated_variance(windows_s, variances, independent) -> tuple[float, float, float]:
+    """``(q, sigma, tau)`` of ``integrated_variance`` fitted to the variances over windows; each window's
+    relative residual weighted by the square root of its ``independent`` samples (a variance estimate's
+    relative error shrinks so); tau between the shortest window and 4 times the longest."""
+    windows_s, variances = np.asarray(windows_s, dtype=float), np.asarray(variances, dtype=float)
+    weights = np.sqrt(independent)
+
+    def residual(parameters):
+        return weights * (integrated_variance(windows_s, *parameters) / variances - 1.0)
+
+    bounds = ([0.0, 0.0, windows_s[0]], [np.inf, np.inf, 4 * windows_s[-1]])
+    start = [math.sqrt(variances[0] / windows_s[0]), math.sqrt(variances[-1]) / windows_s[-1], windows_s[-1]]
+    q, sigma, tau = optimize.least_squares(residual, start, bounds=bounds).x
+    return float(q), float(sigma), float(tau)
 
 
 def travelled(odometry: np.ndarray, times) -> np.ndarray:
@@ -187,20 +247,32 @@ def look_pairs(errors: dict, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
     """Indices ``(first, second)`` of looks at the same target ``k`` looks apart, for each ``k`` in ``steps``
     (time order within each target): pairs from consecutive looks to far-apart ones."""
     order = np.lexsort((errors["time"], errors["target"]))
-    targets = errors["target"][order]
+    return _pairs(order, errors["target"][order], steps, same=True)
+
+
+def cross_target_pairs(errors: dict, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
+    """Indices ``(first, second)`` of looks ``k`` apart in time order, for each ``k`` in ``steps``, at different
+    targets: their covariance is the error the targets share."""
+    order = np.argsort(errors["time"], kind="stable")
+    return _pairs(order, errors["target"][order], steps, same=False)
+
+
+def _pairs(order, targets, steps, same: bool) -> tuple[np.ndarray, np.ndarray]:
     firsts, seconds = [], []
     for step in steps:
-        same = targets[step:] == targets[:-step]
-        firsts.append(order[:-step][same])
-        seconds.append(order[step:][same])
+        keep = (targets[step:] == targets[:-step]) == same
+        firsts.append(order[:-step][keep])
+        seconds.append(order[step:][keep])
     return np.concatenate(firsts), np.concatenate(seconds)
 
 
 def systematic_design(channel: str, range_m, bearing_rad) -> np.ndarray:
-    """Columns of the systematic error model: range ``1, b, b^2, r``; bearing ``1, b, b^2, b^3``."""
+    """Columns of the systematic error model: range ``1, b, b^2, r, r b, r b^2``; bearing ``1, b, b^2, b^3``."""
     b = np.asarray(bearing_rad, dtype=float)
-    last = np.asarray(range_m, dtype=float) if channel == "range" else b**3
-    return np.column_stack([np.ones_like(b), b, b**2, last])
+    image = np.column_stack([np.ones_like(b), b, b**2])
+    if channel == "range":
+        return np.column_stack([image, np.asarray(range_m, dtype=float)[:, None] * image])
+    return np.column_stack([image, b**3])
 
 
 def fit_systematic(error, design) -> np.ndarray:
@@ -213,9 +285,13 @@ def fit_systematic(error, design) -> np.ndarray:
     return coefficients
 
 
-def fit_channel(error, design, range_m, time_s, travelled_m, pairs, range_dependent: bool) -> dict:
-    """Systematic coefficients, white std (linear in range if ``range_dependent``), bias std and correlation
-    length, outlier fraction, and diagnostics of one error channel (range or bearing)."""
+def fit_channel(
+    error, design, range_m, time_s, travelled_m, targets, pairs, cross_pairs, range_dependent: bool
+) -> dict:
+    """Systematic coefficients, white std (``a + c r^2`` in range ``r`` if ``range_dependent``: a range read from
+    the target's apparent size errs by ``r^2 / (f H)`` times its pixel error), the per-target and the
+    shared bias's std and correlation length, outlier fraction, and diagnostics of one error channel (range
+    or bearing); ``pairs`` are looks at the same target, ``cross_pairs`` at different ones."""
     coefficients = fit_systematic(error, design)
     centred = error - design @ coefficients
     first, second = pairs
@@ -229,34 +305,35 @@ def fit_channel(error, design, range_m, time_s, travelled_m, pairs, range_depend
         centres = np.array([pair_range[b].mean() for b in bins])
         stds = np.array([robust_std(differences[b]) / math.sqrt(2) for b in bins])
         weights = np.array([b.sum() for b in bins], dtype=float)
-        slope, intercept = np.polyfit(centres, stds, 1, w=np.sqrt(weights))
+        squares = centres**2
+        slope, intercept = np.polyfit(squares, stds, 1, w=np.sqrt(weights))
         if slope < 0:
             slope, intercept = 0.0, float(np.average(stds, weights=weights))
         elif intercept < 0:  # the line through the origin, by weighted least squares
-            slope, intercept = float(np.sum(weights * centres * stds) / np.sum(weights * centres**2)), 0.0
+            slope, intercept = float(np.sum(weights * squares * stds) / np.sum(weights * squares**2)), 0.0
         range_bins = {"range_m": centres.tolist(), "white_std": stds.tolist(), "n": weights.astype(int).tolist()}
     else:
         slope, intercept, range_bins = 0.0, robust_std(differences) / math.sqrt(2), None
-    white = intercept + slope * range_m
+    white = intercept + slope * range_m**2
     inlier = np.abs(centred) < OUTLIER_Z * np.sqrt(white**2 + robust_std(centred) ** 2)
-    both = inlier[first] & inlier[second]
-    driven = np.abs(travelled_m[second] - travelled_m[first])
-    travel_bins = []
-    for low, high in zip(TRAVEL_EDGES_M[:-1], TRAVEL_EDGES_M[1:]):
-        chosen = both & (driven >= low) & (driven < high)
-        if chosen.sum() >= MIN_BIN:
-            covariance = float(np.mean(centred[first[chosen]] * centred[second[chosen]]))
-            travel_bins.append((float(driven[chosen].mean()), covariance, int(chosen.sum())))
-    bias_variance, correlation_length = _fit_exponential(travel_bins)
-    model_std = np.sqrt(white**2 + bias_variance)
+    travel_bins = covariance_by_travel(centred, pairs, inlier, travelled_m, targets)
+    shared_bins = covariance_by_travel(centred, cross_pairs, inlier, travelled_m, targets)
+    shared_variance, shared_length = _fit_exponential(shared_bins)
+    own_bins = [  # a look pair at one target shares its bias and the shared one: take the shared part out
+        (s, c - shared_variance * math.exp(-s / shared_length), n, m) for s, c, n, m in travel_bins
+    ]
+    bias_variance, correlation_length = _fit_exponential(own_bins)
+    model_std = np.sqrt(white**2 + bias_variance + shared_variance)
     standardized = centred / model_std
     dof, _, t_scale = stats.t.fit(standardized[np.isfinite(standardized)], floc=0.0)
     return {
         "systematic": coefficients.tolist(),
         "white_std": float(intercept),
-        "white_std_per_m": float(slope),
+        "white_std_per_m2": float(slope),
         "bias_std": math.sqrt(bias_variance),
         "correlation_distance_m": float(correlation_length),
+        "shared_std": math.sqrt(shared_variance),
+        "shared_correlation_distance_m": float(shared_length),
         "outlier_fraction": float(np.mean(np.abs(standardized) > OUTLIER_Z)),
         "diagnostics": {
             "n": int(len(error)),
@@ -267,21 +344,51 @@ def fit_channel(error, design, range_m, time_s, travelled_m, pairs, range_depend
             "student_t_dof": float(dof),
             "student_t_scale": float(t_scale),
             "white_std_by_range": range_bins,
-            "covariance_by_travel": [{"travelled_m": s, "covariance": c, "n": n} for s, c, n in travel_bins],
+            "covariance_by_travel": _bin_records(travel_bins),
+            "shared_covariance_by_travel": _bin_records(shared_bins),
         },
     }
 
 
+def covariance_by_travel(centred, pairs, inlier, travelled_m, targets) -> list[tuple[float, float, int, int]]:
+    """The mean product of the errors of look pairs (both inliers) in bins of the distance driven between
+    them (``TRAVEL_EDGES_M``): ``(mean distance, covariance, pairs, independent looks)`` per bin with
+    ``MIN_BIN`` pairs. Looks at one target within ``INDEPENDENT_CELL_M`` of travel count once (a parked
+    robot repeats one error: its many pairs are one sample)."""
+    first, second = pairs
+    both = inlier[first] & inlier[second]
+    driven = np.abs(travelled_m[second] - travelled_m[first])
+    cells = targets[first] * 1_000_000 + np.floor(travelled_m[first] / INDEPENDENT_CELL_M).astype(int)
+    bins = []
+    for low, high in zip(TRAVEL_EDGES_M[:-1], TRAVEL_EDGES_M[1:]):
+        chosen = both & (driven >= low) & (driven < high)
+        if chosen.sum() >= MIN_BIN:
+            covariance = float(np.mean(centred[first[chosen]] * centred[second[chosen]]))
+            bins.append((float(driven[chosen].mean()), covariance, int(chosen.sum()), len(np.unique(cells[chosen]))))
+    return bins
+
+
+def _bin_records(bins) -> list[dict]:
+    keys = ("travelled_m", "covariance", "n", "independent_looks")
+    return [dict(zip(keys, values)) for values in bins]
+
+
 def _fit_exponential(bins) -> tuple[float, float]:
-    """``(sigma^2, l)`` of ``c(s) = sigma^2 exp(-s / l)`` fitted to ``(s, c, n)`` bins by least squares (each bin
-    alike: they are log-spaced); ``(mean c, NO_DECAY_LENGTH_M)`` when the covariance does not decay."""
+    """``(sigma^2, l)`` of ``c(s) = sigma^2 exp(-s / l)`` fitted to ``(s, c, n, m)`` bins by least squares,
+    each bin weighted by its ``m`` independent looks; ``(mean c, NO_DECAY_LENGTH_M)`` when the covariance
+    does not decay."""
     if len(bins) < 2:
         return max(bins[0][1], 0.0) if bins else 0.0, NO_DECAY_LENGTH_M
-    distances, covariances, _ = (np.array(column, dtype=float) for column in zip(*bins))
+    distances, covariances, _, counts = (np.array(column, dtype=float) for column in zip(*bins))
     start = (max(covariances[0], 1e-12), max(distances.mean(), 1e-3))
     try:
         (variance, length), _ = optimize.curve_fit(
-            lambda s, v, ell: v * np.exp(-s / ell), distances, covariances, p0=start, bounds=(0, np.inf)
+            lambda s, v, ell: v * np.exp(-s / ell),
+            distances,
+            covariances,
+            p0=start,
+            sigma=1.0 / np.sqrt(counts),
+            bounds=(0, np.inf),
         )
     except RuntimeError:  # no convergence: no decay to speak of
         return float(max(covariances.mean(), 0.0)), NO_DECAY_LENGTH_M
@@ -289,18 +396,16 @@ def _fit_exponential(bins) -> tuple[float, float]:
 
 
 def fit_robot(
-    odometry_samples, measurement_errors: list[dict], offsets: tuple[float, float]
+    odometry_samples, measurement_errors: list[dict], offsets: tuple[float, float, float]
 ) -> tuple[RobotNoise, dict]:
     """``RobotNoise`` (and its diagnostics) from odometry window samples and landmark errors of one robot
-    or several (pooled: pairs are formed within each robot's errors)."""
+    or several (pooled: pairs are formed within each robot's errors); ``offsets``: odometry and measurement
+    clock offsets [s] and the travel heading offset [rad]."""
     odometry = fit_odometry(odometry_samples)
-    pairs, offset = [], 0
-    for errors in measurement_errors:
-        first, second = look_pairs(errors)
-        pairs.append((first + offset, second + offset))
-        offset += len(errors["time"])
     merged = {key: np.concatenate([errors[key] for errors in measurement_errors]) for key in measurement_errors[0]}
-    pairs = (np.concatenate([p[0] for p in pairs]), np.concatenate([p[1] for p in pairs]))
+    pairs, cross_pairs = (
+        _pairs_within_each(measurement_errors, pairing) for pairing in (look_pairs, cross_target_pairs)
+    )
     channels = {
         channel: fit_channel(
             merged[f"{channel}_error"],
@@ -308,22 +413,40 @@ def fit_robot(
             merged["range"],
             merged["time"],
             merged["travelled"],
+            merged["target"],
             pairs,
+            cross_pairs,
             channel == "range",
         )
         for channel in ("range", "bearing")
     }
-    values = {key: odometry[key] for key in ("speed_scale", "turn_rate_scale", "speed_std", "turn_rate_std")}
+    values = {key: value for key, value in odometry.items() if key != "variance_by_window"}
     for channel, fit in channels.items():
         values.update(zip(SYSTEMATIC_FIELDS[channel], fit["systematic"]))
         values.update({field: fit[key] for key, field in CHANNEL_FIELDS[channel].items()})
-    noise = RobotNoise(odometry_time_offset_s=offsets[0], measurement_time_offset_s=offsets[1], **values)
+    noise = RobotNoise(
+        odometry_time_offset_s=offsets[0],
+        measurement_time_offset_s=offsets[1],
+        travel_heading_offset_rad=offsets[2],
+        **values,
+    )
     diagnostics = {
         "odometry_variance_by_window": odometry["variance_by_window"],
         "range": channels["range"]["diagnostics"],
         "bearing": channels["bearing"]["diagnostics"],
     }
     return noise, diagnostics
+
+
+def _pairs_within_each(measurement_errors: list[dict], pairing) -> tuple[np.ndarray, np.ndarray]:
+    """``pairing``'s look pairs within each robot's errors, indexed into their concatenation."""
+    firsts, seconds, offset = [], [], 0
+    for errors in measurement_errors:
+        first, second = pairing(errors)
+        firsts.append(first + offset)
+        seconds.append(second + offset)
+        offset += len(errors["time"])
+    return np.concatenate(firsts), np.concatenate(seconds)
 
 
 def _odometry_samples(odometry, groundtruth, offset_s: float) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -358,14 +481,18 @@ def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False)
     models, diagnostics, errors, samples, offsets = {}, {}, {}, [], []
     for robot in tqdm(robots, desc="calibrate", unit="robot", disable=not progress):
         odometry, groundtruth = dataset.odometry[robot], dataset.groundtruth[robot]
-        robot_offsets = (fit_odometry_offset(odometry, groundtruth), fit_measurement_offset(dataset, robot))
+        robot_offsets = (
+            fit_odometry_offset(odometry, groundtruth),
+            fit_measurement_offset(dataset, robot),
+            fit_travel_heading_offset(groundtruth),
+        )
         robot_samples = _odometry_samples(odometry, groundtruth, robot_offsets[0])
         errors[robot] = landmark_errors(dataset, robot, robot_offsets[1], robot_offsets[0])
         models[robot], diagnostics[str(robot)] = fit_robot(robot_samples, [errors[robot]], robot_offsets)
         samples.append(robot_samples)
         offsets.append(robot_offsets)
     pooled_samples = [tuple(np.concatenate([s[w][i] for s in samples]) for i in (0, 1)) for w in range(len(samples[0]))]
-    pooled_offsets = tuple(float(np.median([o[i] for o in offsets])) for i in (0, 1))
+    pooled_offsets = tuple(float(np.median(column)) for column in zip(*offsets))
     pooled, diagnostics["pooled"] = fit_robot(pooled_samples, [errors[r] for r in robots], pooled_offsets)
     model = NoiseModel(
         robots=models,

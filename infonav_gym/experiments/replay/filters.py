@@ -129,7 +129,8 @@ class _IndependentFilters:
 
 
 class _CalibratedFilters(_IndependentFilters):
-    """One TargetBiasPoseEKF per robot: the landmark map plus each landmark's slow range and bearing biases."""
+    """One TargetBiasPoseEKF per robot: the landmark map plus each landmark's slow range and bearing biases
+    and the robot's own, shared by every landmark."""
 
     def __init__(self, poses, covariances, dataset, config):
         landmarks = self.landmarks = dataset.landmarks
@@ -140,6 +141,9 @@ class _CalibratedFilters(_IndependentFilters):
                 covariance,
                 np.tile([model.range_bias_std_m, model.bearing_bias_std_rad], (len(landmarks), 1)),
                 [model.range_correlation_distance_m, model.bearing_correlation_distance_m],
+                [model.range_shared_std_m, model.bearing_shared_std_rad],
+                [model.range_shared_correlation_distance_m, model.bearing_shared_correlation_distance_m],
+                model.travel_heading_offset_rad,
             )
             for pose, covariance, model in zip(poses, covariances, self.models)
         ]

@@ -2,10 +2,11 @@
 
 A model holds, per robot subject (and ``pooled`` for robots it does not name), what
 ``calibration.calibrate`` estimated from motion-capture ground truth: clock offsets of the
-odometry and measurement logs, odometry scale and noise densities, and range / bearing errors as a
-mean offset plus a slow per-target bias (Gauss-Markov in distance driven: stationary std, correlation
-length) plus white
-noise (range std growing linearly with range) with a share of gross outliers.
+odometry and measurement logs, the direction of travel against the ground-truth heading, odometry
+scale, noise densities and slow biases, and range / bearing errors as a
+mean offset plus a slow per-target bias and a slow bias all targets share (each Gauss-Markov in
+distance driven: stationary std, correlation length) plus white
+noise (range std growing with the square of the range) with a share of gross outliers.
 
 The shipped model (``data/mrclam_dataset6_noise.json``, package data) was fitted on Dataset 6 by
 (from the repository root; it writes the fit and its residual plot ``results/mrclam_dataset6_noise.png``)::
@@ -25,8 +26,17 @@ from pathlib import Path
 
 import numpy as np
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: range slope varying across the image, white range std quadratic, shared and odometry biases
 SHIPPED_MODEL = "data/mrclam_dataset6_noise.json"  # inside this package
+ODOMETRY_HORIZON_S = 64.0  # [s] the longest odometry window calibrated: the gap between fixes a filter bridges
+
+
+def integrated_variance(window_s, white_density, bias_std, correlation_time_s):
+    """Variance of the integral over ``window_s`` of white noise (density ``white_density``) plus a first-order
+    Gauss-Markov bias (stationary std ``bias_std``, correlation time ``tau``):
+    ``q^2 T + 2 sigma^2 tau^2 (T / tau - 1 + exp(-T / tau))`` (Gelb 1974, Table 3.8-1)."""
+    T, tau = np.asarray(window_s, dtype=float), correlation_time_s
+    return white_density**2 * T + 2 * bias_std**2 * tau**2 * (T / tau - 1 + np.exp(-T / tau))
 
 
 @dataclass(frozen=True)
@@ -37,16 +47,26 @@ class RobotNoise:
     measurement_time_offset_s: float  # [s] the same for measurement times
     speed_scale: float  # odometry speed / true speed
     turn_rate_scale: float  # odometry turn rate / true turn rate
+    travel_heading_offset_rad: float  # [rad] the robot drives this far from its ground-truth heading (marker frame)
     speed_std: float  # [m/s] noise density of the corrected speed: its 1 s average errs by this
     turn_rate_std: float  # [rad/s] the same for the turn rate
+    speed_bias_std: float  # [m/s] stationary std of the speed's slow (Gauss-Markov) error ...
+    speed_correlation_time_s: float  # [s] ... and its correlation time
+    turn_rate_bias_std: float  # [rad/s] the same for the turn rate
+    turn_rate_correlation_time_s: float  # [s]
     range_bias_m: float  # [m] systematic range error: this ...
     range_bias_per_rad: float  # [m/rad] ... plus this times the measured bearing ...
     range_bias_per_rad2: float  # [m/rad^2] ... plus this times its square (the camera's image position) ...
-    range_bias_per_m: float  # [m/m] ... plus this times the measured range
+    range_bias_per_m: float  # [m/m] ... plus the measured range times this ...
+    range_bias_per_m_rad: float  # [1/rad] ... plus this times the bearing ...
+    range_bias_per_m_rad2: float  # [1/rad^2] ... plus this times its square (a range read from the target's size
+    # in the image errs in proportion to the range, by a factor that varies across the image)
     range_white_std_m: float  # [m] white range noise at 0 m ...
-    range_white_std_per_m: float  # ... growing by this per metre of range
+    range_white_std_per_m2: float  # [1/m] ... plus this times the squared range
     range_bias_std_m: float  # [m] stationary std of a target's slow range bias
     range_correlation_distance_m: float  # [m] its correlation length in distance driven
+    range_shared_std_m: float  # [m] stationary std of the slow range bias every target shares
+    range_shared_correlation_distance_m: float  # [m]
     range_outlier_fraction: float  # share of range errors beyond 4 std of the Gaussian model
     bearing_bias_rad: float  # [rad] systematic bearing error: a cubic in the measured bearing b ...
     bearing_bias_per_rad: float  # [rad/rad] ... this times b ...
@@ -55,11 +75,13 @@ class RobotNoise:
     bearing_white_std_rad: float  # [rad]
     bearing_bias_std_rad: float  # [rad]
     bearing_correlation_distance_m: float  # [m]
+    bearing_shared_std_rad: float  # [rad]
+    bearing_shared_correlation_distance_m: float  # [m]
     bearing_outlier_fraction: float
 
     def range_white_std(self, range_m):
         """White range noise std [m] at ``range_m``."""
-        return self.range_white_std_m + self.range_white_std_per_m * np.asarray(range_m, dtype=float)
+        return self.range_white_std_m + self.range_white_std_per_m2 * np.asarray(range_m, dtype=float) ** 2
 
     def white_noise(self, range_m: float) -> np.ndarray:
         """Covariance (2, 2) of the white part of a range-bearing error at ``range_m``."""
@@ -67,11 +89,26 @@ class RobotNoise:
 
     def total_noise(self, range_m: float) -> np.ndarray:
         """Covariance (2, 2) of the whole error (white plus bias), for a filter without bias states."""
-        return self.white_noise(range_m) + np.diag([self.range_bias_std_m**2, self.bearing_bias_std_rad**2])
+        bias_variance = np.square([self.range_bias_std_m, self.bearing_bias_std_rad])
+        shared_variance = np.square([self.range_shared_std_m, self.bearing_shared_std_rad])
+        return self.white_noise(range_m) + np.diag(bias_variance + shared_variance)
+
+    def odometry_density(self, horizon_s: float = ODOMETRY_HORIZON_S) -> np.ndarray:
+        """``[speed, turn rate]`` densities of the white noise whose integral over ``horizon_s`` has the variance
+        of the fitted odometry error's (white plus slow bias): a filter without bias states that takes the
+        odometry error as white stays consistent over gaps between fixes up to that long, and is conservative
+        over shorter ones (Maybeck 1979, "Stochastic Models, Estimation and Control", Sec. 4.11)."""
+        variances = [
+            integrated_variance(horizon_s, self.speed_std, self.speed_bias_std, self.speed_correlation_time_s),
+            integrated_variance(
+                horizon_s, self.turn_rate_std, self.turn_rate_bias_std, self.turn_rate_correlation_time_s
+            ),
+        ]
+        return np.sqrt(np.array(variances, dtype=float) / horizon_s)
 
     def control_covariance(self, dt: float) -> np.ndarray:
-        """Covariance (2, 2) of the corrected odometry averaged over ``dt`` seconds."""
-        return np.diag([self.speed_std**2, self.turn_rate_std**2]) / dt
+        """Covariance (2, 2) of the corrected odometry averaged over ``dt`` seconds (``odometry_density``)."""
+        return np.diag(self.odometry_density() ** 2) / dt
 
     def correct_odometry(self, odometry: np.ndarray) -> np.ndarray:
         """``[time, speed, turn_rate]`` rows on the ground-truth clock with the scale errors removed."""
@@ -85,7 +122,8 @@ class RobotNoise:
             self.range_bias_m
             + self.range_bias_per_rad * b
             + self.range_bias_per_rad2 * b**2
-            + self.range_bias_per_m * np.asarray(range_m, dtype=float)
+            + np.asarray(range_m, dtype=float)
+            * (self.range_bias_per_m + self.range_bias_per_m_rad * b + self.range_bias_per_m_rad2 * b**2)
         )
 
     def bearing_bias(self, bearing_rad):
@@ -108,11 +146,20 @@ class RobotNoise:
 
 
 FIELDS = {field.name for field in dataclasses.fields(RobotNoise)}
-OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s"} | {  # any sign
+OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s", "travel_heading_offset_rad"} | {  # any sign
     field.name for field in dataclasses.fields(RobotNoise) if "_bias_" in field.name and "_bias_std" not in field.name
 }
 FRACTIONS = {"range_outlier_fraction", "bearing_outlier_fraction"}  # in [0, 1)
-NONNEGATIVE = {"range_white_std_m", "range_white_std_per_m", "range_bias_std_m", "bearing_bias_std_rad"}
+NONNEGATIVE = {
+    "range_white_std_m",
+    "range_white_std_per_m2",
+    "range_bias_std_m",
+    "bearing_bias_std_rad",
+    "range_shared_std_m",
+    "bearing_shared_std_rad",
+    "speed_bias_std",
+    "turn_rate_bias_std",
+}
 TOP_LEVEL = {"schema_version", "description", "command", "robots", "pooled", "diagnostics"}
 
 
