@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from infonav_gym.world import CircleObstacle, World
+from infonav_gym.world import CircleObstacle, World, world_batch
 from infonav_gym.world.active_scenarios import CommandedWorld, goal_field
 from infonav_gym.world.scenarios import Route, Scenario, build_scenario
 from infonav_gym.world.world_batch import WorldBatch
@@ -26,11 +26,9 @@ def crashing_scenario(offset: float) -> Scenario:
     return Scenario(name="crash", bounds=(-10.0, -10.0, 15.0, 10.0), routes=routes, walls=walls)
 
 
-def assert_batch_follows_single_worlds(
-    scenario_list: list[Scenario], n_steps: int, steps_of=None, max_idle_spaces=None
-) -> None:
+def assert_batch_follows_single_worlds(scenario_list: list[Scenario], n_steps: int, steps_of=None) -> None:
     """Step a batch and one World per scenario side by side; poses and executed controls equal to 1e-12."""
-    batch = WorldBatch(len(scenario_list), max_idle_spaces)
+    batch = WorldBatch(len(scenario_list))
     singles = [World() for _ in scenario_list]
     for copy, (scenario, single) in enumerate(zip(scenario_list, singles)):
         batch.reset_copy(copy, scenario)
@@ -71,11 +69,11 @@ def lapping_scenario(offset: float) -> Scenario:
     return Scenario(name="laps", bounds=(-10.0, -10.0, 15.0, 15.0), routes=routes, walls=walls, obstacles=obstacles)
 
 
-@pytest.mark.parametrize("max_idle_spaces", [0, 1, None])
+@pytest.mark.parametrize("max_idle_spaces", [0, 64])
 def test_runs_of_contact_steps_start_alike_in_a_kept_or_a_rebuilt_space(monkeypatch, max_idle_spaces):
-    """0: every idle copy's space is dropped; 1: one kept; None: ``MAX_IDLE_SPACES``, all three kept."""
+    monkeypatch.setattr(world_batch, "MAX_IDLE_SPACES", max_idle_spaces)  # 0: every idle copy's space is dropped
     layouts = [lapping_scenario(offset) for offset in (0.0, -0.1, 0.1)]
-    assert_batch_follows_single_worlds(layouts, n_steps=200, max_idle_spaces=max_idle_spaces)
+    assert_batch_follows_single_worlds(layouts, n_steps=200)
     single, calls, in_contact = World(), [], []
     single.reset(layouts[0])
     drive = single.drive_in_contact

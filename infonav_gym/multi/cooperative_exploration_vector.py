@@ -74,8 +74,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **config,
     ):
-        # the robots start side by side at the base: most copies take runs of contact steps, so each keeps its space
-        self._configure_team(num_envs, render_mode, autoreset_mode, config, (2,), max_idle_spaces=num_envs)
+        self._configure_team(num_envs, render_mode, autoreset_mode, config, more_noise_widths=(2,))
         single, n_robots = self._single, len(self.agents)
         self._sight = TeamSight.of_team(single.relative_sensors, self._pairs)
         self._map = single.map_model

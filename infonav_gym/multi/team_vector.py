@@ -41,15 +41,12 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
 
     team_info_keys = frozenset({"time_s"})
 
-    def _configure_team(
-        self, num_envs, render_mode, autoreset_mode, config: dict, more_noise_widths=(), max_idle_spaces=None
-    ) -> None:
+    def _configure_team(self, num_envs, render_mode, autoreset_mode, config: dict, more_noise_widths=()) -> None:
         """Check the arguments (``_configure``) and set up the copies' arrays.
 
         Args:
             num_envs, render_mode, autoreset_mode, config: as ``InfoNavVectorEnv._configure`` takes them.
             more_noise_widths: the draw widths of the single env's generators after odometry, DGPS and relative poses.
-            max_idle_spaces: the ``WorldBatch``'s (None: its default).
         """
         self._single = single = self._configure(num_envs, render_mode, autoreset_mode, config)
         self.agents = list(single.possible_agents)
@@ -69,7 +66,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._cross_covariances = self.config.get("estimator", "joint") == "joint"  # a team env may drop them
         self._odometry = single.odometry
         self._odometry_covariances = np.repeat(self._odometry.noise_covariance()[None], n_robots, axis=0)
-        self._worlds = WorldBatch(num_envs, max_idle_spaces)
+        self._worlds = WorldBatch(num_envs)
         widths = (2 * n_robots, 2, POSE_DIM, *more_noise_widths)
         self._noise = tuple(NoiseStreams(num_envs, width) for width in widths)
         dim = POSE_DIM * n_robots

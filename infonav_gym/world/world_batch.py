@@ -26,7 +26,7 @@ from infonav_gym.world.world import MAX_TIME_STEP_S, TIME_STEP_S, World, start_p
 
 _EMPTY_BOX = (np.inf, np.inf, -np.inf, -np.inf)  # a padding box that overlaps nothing
 CONTACT_GAP_M = 1e-3  # paths this far beyond touching anything take Pymunk's contact-free substeps here [m]
-MAX_IDLE_SPACES = 64  # Pymunk spaces kept for copies between runs of contact steps by default (~200 kB each)
+MAX_IDLE_SPACES = 64  # Pymunk spaces kept for copies between runs of contact steps (a few hundred kB each)
 
 
 class WorldBatch:
@@ -38,15 +38,11 @@ class WorldBatch:
 
     Args:
         n_copies: N >= 1.
-        max_idle_spaces: how many copies between runs of contact steps keep their Pymunk space; the others drop
-            it and build it again at their next run (memory against time: a team that starts side by side takes
-            runs of contact steps so often that it keeps one per copy).
         **world_args: the ``World`` arguments every copy shares (``WORLD_ARGUMENTS``).
     """
 
-    def __init__(self, n_copies: int, max_idle_spaces: int | None = None, **world_args):
+    def __init__(self, n_copies: int, **world_args):
         self._worlds = [World(**world_args) for _ in range(n_copies)]  # reset when a copy first needs Pymunk
-        self._max_idle_spaces = MAX_IDLE_SPACES if max_idle_spaces is None else max_idle_spaces
         self._scenarios: list[Scenario | None] = [None] * n_copies
         self._geometries: list[StaticGeometry | None] = [None] * n_copies
         self._world_is_stale = np.ones(n_copies, dtype=bool)
@@ -163,7 +159,7 @@ class WorldBatch:
         for copy in copies[self._in_contact[copies] & ~contact].tolist():  # their runs of contact steps end
             world = self._worlds[copy]
             world.end_contacts()  # as the single World does on a free step
-            if np.count_nonzero(self._has_space & ~self._in_contact) > self._max_idle_spaces:
+            if np.count_nonzero(self._has_space & ~self._in_contact) > MAX_IDLE_SPACES:
                 world.drop_space()  # built again, alike, at its next contact step
                 self._has_space[copy] = False
         self._in_contact[copies] = contact
