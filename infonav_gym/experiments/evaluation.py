@@ -86,7 +86,7 @@ def make_agent(
             raise ValueError(
                 f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
             ) from None
-        return PlannerAgent(env)
+        return PlannerAgent(env, agent)
     if name.startswith(RLLIB_PREFIX):
         try:
             from agents.rllib_agent import RLlibAgent

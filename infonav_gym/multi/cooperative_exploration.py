@@ -13,9 +13,14 @@ from infonav_gym.envs.active_localization import REWARD_WEIGHT, ActiveLocalizati
 from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS, Decision
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
-from infonav_gym.geometry import wrap_angle
 from infonav_gym.multi.base import InfoNavParallelEnv, team_metadata
 from infonav_gym.multi.cooperative_localization import CooperativeLocalizationEnv
+from infonav_gym.multi.exploration_planning import (
+    N_MOTIONS,
+    NOOP_ACTION,
+    STAY,
+    ExplorationPlanningModel,
+)
 from infonav_gym.multi.exploration_views import (
     EXPLORATION_INFO_KEYS,
     EXPLORATION_METRICS,
@@ -24,7 +29,14 @@ from infonav_gym.multi.exploration_views import (
 )
 from infonav_gym.multi.landmark_sensing import LandmarkSensing
 from infonav_gym.multi.team import parse_outages, parse_speeds, parse_suites
-from infonav_gym.multi.team_sensing import NO_OBSERVATION, RelativeSight, SensingPairs, TeamSensing, team_prior
+from infonav_gym.multi.team_sensing import (
+    NO_OBSERVATION,
+    RelativeSight,
+    SensingPairs,
+    TeamSensing,
+    gps_schedule,
+    team_prior,
+)
 from infonav_gym.multi.terrain_map import TerrainMapModel
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
@@ -36,11 +48,6 @@ from infonav_gym.world.scenarios import MAX_ROBOTS, MAX_SPEED_MPS
 from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world import TIME_STEP_S, start_poses
 
-MOTION_NAMES = ("stay", "east", "north", "west", "south")
-MOTION_HEADINGS_RAD = np.array([0.0, 0.0, math.pi / 2, math.pi, -math.pi / 2])  # "stay" does not drive
-STAY = 0
-N_MOTIONS = len(MOTION_NAMES)
-NOOP_ACTION = 0  # stay and observe nothing: slot 0, motion STAY
 DEFAULT_SPEEDS_MPS = (0.8, 0.8, 1.2, 1.2)  # robot k of the default team: the DGPS robots are the slower ones
 RANGE_KEYS = {"laser": "laser_range_m", "vision": "vision_range_m"}  # the config key of each sensor's range
 REWARD_TERMS = ("own_pose_information", "team_map_information", "sensing_cost", "motion_cost", "lost_penalty")
@@ -71,7 +78,9 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 }
 
 
-class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, InfoNavParallelEnv):
+class CooperativeExplorationEnv(
+    ExplorationPlanningModel, ExplorationViews, LandmarkSensing, TeamSensing, InfoNavParallelEnv
+):
     """A heterogeneous team maps a field; each robot chooses where to drive and what to observe, together.
 
     ## Description
@@ -247,6 +256,10 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         low, high = self._observation_bounds(team_low, team_high, n_landmarks, self.map_model.n_cells)
         self._observation_spaces = {agent: spaces.Box(low, high, dtype=np.float32) for agent in self.possible_agents}
         self.pairs = SensingPairs.of_team(self.relative_sensors)
+        self._pair_lookup = np.full((n, n), -1)  # the pair index of (observer, target), -1 for none
+        self._pair_lookup[self.pairs.observers, self.pairs.targets] = np.arange(len(self.pairs.observers))
+        self._gps_schedule = gps_schedule(self.gps)
+        self._gps_noise = np.array([np.eye(2) if gps is None else gps.noise_covariance() for gps in self.gps])
         self.world = CommandedWorld()
         self.np_random = None
 
@@ -272,6 +285,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         self._odometry_rng, self._gps_rng, self._relative_rng, self._landmark_rng = self.np_random.spawn(4)
         self.world.reset(scenario)
         self._static_geometry = StaticGeometry.from_world(self.world)
+        self._tiled_geometries = {}  # the planning model's copies of it, by count
         self._true_poses = self.world.poses
         self.ekf = JointEKF(*team_prior(cfg, np.array(start_poses(scenario)), self.np_random))
         n = len(self.possible_agents)
@@ -319,25 +333,13 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         pose_log_det = np.linalg.slogdet(covariances)[1]
         pose_std = np.sqrt(np.diagonal(covariances, axis1=1, axis2=2))
         position_std = ActiveLocalizationEnv.position_std(covariances)
-        weight = self.config["team_reward"]
-        gains = (1.0 - weight) * observation_gain[:, :, None] + weight * self._scan_gains(position_std)[:, None, :]
+        scan = self._scan_gains(self.ekf.x.reshape(-1, POSE_DIM), position_std, self.map_variances)
         mask = slot_valid[:, :, None] & self._clear_motions()[:, None, :]
-        gains = np.where(mask, gains, 0.0).reshape(n, -1)
+        gains = self._action_gains(observation_gain, scan, mask).reshape(n, -1)
         relative = RelativeSight(geometry, valid, candidate_row, candidates, pose_log_det, pose_std)
         return Decision(
             mask.reshape(n, -1).astype(np.int8), gains, ExplorationSight(relative, slot_valid, position_std)
         )
-
-    def _motion_plan(self, motions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
-
-        A motion turns the *estimated* heading (the decision's: before this step's observations) to its compass
-        heading on the spot, then drives straight; ``stay`` does neither. Both are exact unicycle motions.
-        """
-        drives, per_robot = motions != STAY, (-1,) + (1,) * (np.ndim(motions) - 1)  # motions (R,) or (R, M)
-        headings = self.ekf.x[2::POSE_DIM].reshape(per_robot)
-        turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
-        return turns, np.where(drives, self.speeds_mps.reshape(per_robot), 0.0)
 
     def _clear_motions(self) -> np.ndarray:
         """Which motions each robot may take (R, 5): those whose true path keeps clear of every contact.
@@ -347,29 +349,11 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         ``CLEARANCE_M`` from walls, obstacles and wherever a teammate's motions take it). No contact ever
         pushes a robot where its odometry does not see it, so the EKF's motion model stays exact.
         """
-        cfg = self.config
-        turns, speeds = self._motion_plan(np.broadcast_to(np.arange(N_MOTIONS), (len(self.possible_agents), N_MOTIONS)))
-        headings = self._true_poses[:, 2:3] + turns
-        reach = (cfg["time_step_s"] - cfg["turn_time_s"]) * speeds
-        displacements = reach[..., None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
+        motions = np.broadcast_to(np.arange(N_MOTIONS), (len(self.possible_agents), N_MOTIONS))
+        turns, speeds = self._motion_plan(self.ekf.x[2::POSE_DIM], motions)
+        displacements = self._displacements(self._true_poses[:, 2:3] + turns, speeds)
         positions = self._true_poses[None, :, :2]
         return clear_moves(self._static_geometry, positions, displacements[None], self.world.robot_radius_m)[0]
-
-    def _scan_gains(self, position_std: np.ndarray) -> np.ndarray:
-        """Map information [nats] each robot's scan would bring alone after each motion (R, 5); 0 for ``stay``.
-
-        From the position the motion predicts (estimated position, compass heading, drive phase), with the
-        scan noise of the robot's current position std.
-        """
-        cfg = self.config
-        drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
-        reach = drive_s * self.speeds_mps[:, None] * (np.arange(N_MOTIONS) != STAY)  # (R, 5) [m]
-        directions = np.stack([np.cos(MOTION_HEADINGS_RAD), np.sin(MOTION_HEADINGS_RAD)], axis=-1)
-        positions = self.ekf.x.reshape(-1, POSE_DIM)[:, None, :2] + reach[..., None] * directions
-        noise = self.map_model.scan_noise_variances(position_std)[:, None]
-        gains = self.map_model.scan_gains(self.map_variances, self.map_model.footprints(positions), noise)
-        gains[:, STAY] = 0.0
-        return gains
 
     def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
         """Observe at the prior, drive, predict, fuse DGPS, then scan; each robot's reward (see the class)."""
@@ -377,7 +361,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         n_landmarks = cfg["n_landmarks"]
         relative = decision.payload.relative
         slots, motions = np.divmod(actions, N_MOTIONS)
-        plan = self._motion_plan(motions)  # at the decision's estimate, as the motion mask saw it
+        plan = [part[:, 0] for part in self._motion_plan(self.ekf.x[2::POSE_DIM], motions[:, None])]  # as masked
         observes_teammate = slots > n_landmarks
         teammate_choice = np.where(observes_teammate, slots - n_landmarks, NO_OBSERVATION)
         self._observe(teammate_choice, relative)
@@ -393,20 +377,9 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         map_information = self._scan(motions != STAY, position_std)
         self.lost = position_std > cfg["max_position_std_m"]
         self.success = bool(self.coverage >= cfg["coverage_target"] and not self.lost.any())
-        weight = cfg["team_reward"]
-        lost_penalty = -cfg["lost_penalty"] if self.lost.any() else 0.0
-        self._reward_terms = [
-            {
-                "own_pose_information": float(own_information[robot]),
-                "team_map_information": map_information,
-                "sensing_cost": -cfg["observation_cost_nats"] * float(observed[robot]),
-                "motion_cost": -cfg["motion_cost_per_step"] * float(motions[robot] != STAY),
-                "lost_penalty": lost_penalty,
-            }
-            for robot in range(len(self.possible_agents))
-        ]
-        costs = np.array([terms["sensing_cost"] + terms["motion_cost"] + lost_penalty for terms in self._reward_terms])
-        return (1.0 - weight) * own_information + weight * map_information + costs
+        terms = self._reward_arrays(own_information, map_information, observed, motions != STAY, self.lost.any())
+        self._reward_terms = [{key: float(value[robot]) for key, value in terms.items()} for robot in range(len(slots))]
+        return self._total_reward(terms)
 
     def _drive(self, turns: np.ndarray, speeds: np.ndarray) -> None:
         """Turn every robot on the spot, then drive it straight (Pymunk executes both); predict with odometry."""

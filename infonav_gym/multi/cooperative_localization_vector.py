@@ -27,6 +27,7 @@ from infonav_gym.multi.cooperative_localization import (
     team_observations,
 )
 from infonav_gym.multi.cooperative_localization_batch import TeamDecision, TeamSightLines, TeamStep, team_info
+from infonav_gym.multi.team_sensing import gps_available, gps_schedule
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.relative_pose import relative_poses_with_noise
 from infonav_gym.world.visibility import StaticGeometry
@@ -81,7 +82,7 @@ class CooperativeLocalizationVectorEnv(InfoNavVectorEnv, single_env=CooperativeL
         self._pairs = self._single.pairs
         self._pair_index = np.full((n_robots, n_robots + 1), -1)
         self._pair_index[self._pairs.observers, self._pairs.targets + 1] = np.arange(len(self._pairs.observers))
-        self._has_gps, self._outages = self._gps_schedule()
+        self._has_gps, self._outages = gps_schedule(self._single.gps)
         self._gps = GPSSensor(self.config["gps_std_m"])  # every receiver's noise; the schedules are _outages
         self._odometry = self._single.odometry
         self._odometry_covariances = np.repeat(self._odometry.noise_covariance()[None], n_robots, axis=0)
@@ -95,15 +96,6 @@ class CooperativeLocalizationVectorEnv(InfoNavVectorEnv, single_env=CooperativeL
         self._zone_centers, self._zone_radii_sq = np.zeros((num_envs, 0, 2)), np.zeros((num_envs, 0))
         self._elapsed = np.zeros(num_envs, dtype=int)
         self._prev_done = np.zeros(num_envs, dtype=bool)
-
-    def _gps_schedule(self) -> tuple[np.ndarray, np.ndarray]:
-        """Which robots carry DGPS (R,) and each robot's outage spans (R, S, 2) [s], padded with (inf, inf)."""
-        receivers = self._single.gps
-        spans = [gps.outages if gps is not None else () for gps in receivers]
-        outages = np.full((len(receivers), max(map(len, spans), default=0), 2), np.inf)
-        for robot, robot_spans in enumerate(spans):
-            outages[robot, : len(robot_spans)] = np.reshape(robot_spans, (-1, 2))
-        return np.array([gps is not None for gps in receivers]), outages
 
     # ------------------------------------------------------------------ reset
 
@@ -271,9 +263,7 @@ class CooperativeLocalizationVectorEnv(InfoNavVectorEnv, single_env=CooperativeL
         positions = self._worlds.poses[copies, :, :2]
         offsets = positions[:, :, None] - self._zone_centers[copies, None]
         denied = np.any(np.einsum("crzi,crzi->crz", offsets, offsets) <= self._zone_radii_sq[copies, None], axis=2)
-        spans = self._outages
-        in_outage = np.any((spans[..., 0] <= time_s[:, None, None]) & (time_s[:, None, None] < spans[..., 1]), axis=2)
-        available = self._has_gps & ~denied & ~in_outage
+        available = gps_available(self._has_gps, self._outages, denied, time_s)
         self._gps_available[copies] = available
         fixing = np.flatnonzero(available.any(axis=1))
         if not fixing.size:
