@@ -9,6 +9,16 @@ from infonav_gym.envs.traits import traits_of
 
 PLANNING_METHODS = ("belief", "plan_decision", "plan_step", "position_std")
 PLANNING_ATTRIBUTES = ("n_primitives", "max_position_std_m", "idle_primitive")
+SETTINGS = {  # PlannerAgent keywords per env id, as agents/hyperparams/ppo.yml for PPO; other envs: the defaults
+    # 4 robots plan each step on the team model: 20-step rollouts of the two base policies without detour
+    # (greedy driving, and greedy driving that stops at half the std bound) keep an episode near a minute
+    "cooperative_exploration_v0": {"rollout_steps": 20, "detour_steps": (0,)},
+}
+
+
+def planner_settings(env_id: str) -> dict:
+    """The ``PlannerAgent`` keywords tuned for ``env_id`` (``SETTINGS``; none for another env), a fresh dict."""
+    return dict(SETTINGS.get(env_id, {}))
 
 
 def planning_model(env):
