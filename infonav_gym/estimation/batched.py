@@ -498,6 +498,14 @@ def _gain_and_posterior(P, H, R) -> tuple[np.ndarray, np.ndarray]:
     return K, 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
 
 
+def _jacobians(H, P: np.ndarray, inner: tuple[str, ...]) -> np.ndarray:
+    """``H`` as a finite float array (N, *inner, n) for the covariances ``P`` (N, n, n), else ``ValueError``."""
+    H = np.asarray(H, dtype=float)
+    if H.ndim != 2 + len(inner) or H.shape[0] != len(P) or H.shape[-1] != P.shape[1]:
+        raise ValueError(f"H must have shape ({len(P)}, {', '.join(inner)}, {P.shape[1]}), got {H.shape}")
+    return _finite("H", H, H.shape)
+
+
 def posterior_covariance(P, H, R, *, check_input: bool = True) -> np.ndarray:
     """The covariance after an EKF update of each copy (N, n, n): it does not depend on the measured value.
 
@@ -512,10 +520,7 @@ def posterior_covariance(P, H, R, *, check_input: bool = True) -> np.ndarray:
     """
     if check_input:
         P = _covariances(P)
-        H = np.asarray(H, dtype=float)
-        if H.ndim != 3 or H.shape[0] != len(P) or H.shape[2] != P.shape[1]:
-            raise ValueError(f"H must have shape ({len(P)}, m, {P.shape[1]}), got {H.shape}")
-        H = _finite("H", H, H.shape)
+        H = _jacobians(H, P, ("m",))
         R = _noise_covariance("R", R, (len(P), H.shape[1], H.shape[1]))
     return _gain_and_posterior(P, H, R)[1]
 
@@ -537,10 +542,7 @@ def landmark_information_gains(P, H, R, *, check_input: bool = True) -> np.ndarr
     """
     if check_input:
         P = _covariances(P)
-        H = np.asarray(H, dtype=float)
-        if H.ndim != 4 or H.shape[0] != len(P) or H.shape[3] != P.shape[1]:
-            raise ValueError(f"H must have shape ({len(P)}, K, m, {P.shape[1]}), got {H.shape}")
-        H = _finite("H", H, H.shape)
+        H = _jacobians(H, P, ("K", "m"))
         R = _noise_covariance("R", R, (*H.shape[:3], H.shape[2]))
     n_copies, n_candidates, m, n = H.shape
     HP = np.matmul(H.reshape(n_copies, n_candidates * m, n), P).reshape(H.shape)  # one product per copy: fast
