@@ -162,12 +162,19 @@ class CooperativeExplorationEnv(
     ``max_position_std_m`` (it is lost: ``failed``), or when the coverage reaches
     ``coverage_target`` (``success``); truncated after ``max_cycles`` steps (no success).
 
+    ## Planning model
+    ``planning_model()`` returns the env itself as the model look-ahead agents search
+    (``multi.exploration_planning``): ``belief()`` copies the joint EKF, the map and the budgets,
+    ``plan_decision(belief, robot)`` and ``plan_step(belief, team_actions)`` step copies of it under the
+    expected measurements, never reading the true state (``agents.planner.PlannerAgent(env, robot)``).
+
     ## Arguments
     ``parallel_env(render_mode=None, **config)`` with any key of ``default_config()``; an
     unknown key or a bad value raises ``ValueError`` naming it.
 
     ## Version History
-    * v0: initial version (issue 18, first part: no batched version or planning model yet).
+    * v0: initial version (issue 18; no batched version yet). Motions masked clear of contacts, and the
+      planning model, added before any results were committed.
     """
 
     episode_metrics = EXPLORATION_METRICS
