@@ -67,12 +67,15 @@ class RobotPlanningView:
         self.idle_primitive = model.idle_primitive
 
     def belief(self):
+        """The team's belief at the current decision (the model's)."""
         return self.model.belief()
 
     def plan_decision(self, belief):
+        """The robot's ``(action_mask, action_information_gain)`` (B, A) at each belief."""
         return self.model.plan_decision(belief, self.robot)
 
     def plan_step(self, belief, actions):
+        """One team step: the robot's ``actions`` (B,), its teammates' planned ones; its rewards (B,)."""
         team = self.plans.actions_at(self.model.step_index, belief.steps, self.noop_action)
         team[:, self.robot] = actions
         following, rewards = self.model.plan_step(belief, team)
@@ -87,4 +90,5 @@ class RobotPlanningView:
         self.plans.publish(self.robot, self.model.step_index, actions)
 
     def clear(self) -> None:
+        """Forget the robot's published plans (a new episode)."""
         self.plans.clear(self.robot)
