@@ -4,8 +4,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from agents.team_planning import RobotPlanningView, TeamPlans
+from infonav_gym.envs.traits import traits_of
+
 PLANNING_METHODS = ("belief", "plan_decision", "plan_step", "position_std")
-PLANNING_ATTRIBUTES = ("n_primitives", "max_position_std_m")
+PLANNING_ATTRIBUTES = ("n_primitives", "max_position_std_m", "idle_primitive")
+SETTINGS = {  # PlannerAgent keywords per env id, as agents/hyperparams/ppo.yml for PPO; other envs: the defaults
+    # 4 robots plan each step on the team model: 20-step rollouts of the two base policies without detour
+    # (greedy driving, and greedy driving that stops at half the std bound) keep an episode near a minute
+    "cooperative_exploration_v0": {"rollout_steps": 20, "detour_steps": (0,)},
+}
+
+
+def planner_settings(env_id: str) -> dict:
+    """The ``PlannerAgent`` keywords tuned for ``env_id`` (``SETTINGS``; none for another env), a fresh dict."""
+    return dict(SETTINGS.get(env_id, {}))
 
 
 def planning_model(env):
@@ -16,8 +29,8 @@ def planning_model(env):
             ``PLANNING_METHODS`` or ``PLANNING_ATTRIBUTES``.
     """
     needed = ", ".join(PLANNING_METHODS + PLANNING_ATTRIBUTES)
-    try:
-        model = env.get_wrapper_attr("planning_model")()
+    try:  # a Gymnasium env through its wrappers, or a PettingZoo env itself
+        model = (env.get_wrapper_attr("planning_model") if hasattr(env, "get_wrapper_attr") else env.planning_model)()
     except AttributeError:
         raise ValueError(
             f"PlannerAgent needs an env with a planning_model() method (a model with {needed}), "
@@ -37,19 +50,27 @@ class PlannerAgent:
 
     Uses the model that the env's ``planning_model()`` returns (``belief()``,
     ``plan_decision(belief)``, ``plan_step(belief, actions)``, ``position_std``,
-    ``n_primitives``, ``max_position_std_m``, as ``ActiveLocalizationEnv`` provides): the EKF
-    covariance propagates without measurement values (under the linearization the
-    posterior covariance does not depend on them), so a sequence's expected reward
-    (MI minus costs, progress, goal bonus, failure penalty) is computed without
-    sampling. The search is exhaustive over a pruned branching: every motion
+    ``n_primitives``, ``max_position_std_m``, ``idle_primitive``, as ``ActiveLocalizationEnv``
+    provides): the EKF covariance propagates without measurement values (under the
+    linearization the posterior covariance does not depend on them), so a sequence's
+    expected reward (MI minus costs, progress, goal bonus, failure penalty) is computed
+    without sampling. The search is exhaustive over a pruned branching: every motion
     primitive, each without an observation or with one of the
     ``observation_branching`` most informative valid observations. Each leaf is
     valued by rolling out base policies for ``rollout_steps`` steps and keeping the
-    best: steer with one primitive for ``detour_steps`` steps (or none) and then head
-    for the goal, observing the most informative visible landmark only once the
-    position standard deviation has reached ``sensing_std_fraction`` of the failure
-    bound, so the budget is kept for when it is needed. Every candidate sequence of
-    every leaf is evaluated in one numpy batch per step.
+    best: steer with one primitive for ``detour_steps`` steps (or none), then take the
+    valid primitive whose no-observation gain is largest (the lowest on ties: heading for
+    the goal in ActiveLocalization-v0, driving to the most unmapped cells in
+    cooperative_exploration_v0), observing the most informative visible target only once
+    the position standard deviation has reached ``sensing_std_fraction`` of the failure
+    bound, so the budget is kept for when it is needed. A model with an ``idle_primitive``
+    (one that stands still) also gets each of these policies stopping there once the std
+    reaches one of ``stop_std_fractions`` of the bound. Every candidate sequence of every
+    leaf is evaluated in one numpy batch per step.
+
+    In a PettingZoo team env (``agent`` names the robot) the robot plans alone on the env's team model
+    (``agents.team_planning.RobotPlanningView``): its teammates follow the plans they published at the
+    last step, and it publishes its own (the best sequence found: the first action, then its rollout).
 
     The first step always uses the env's current ``info["action_mask"]`` and gains, so
     the chosen action is valid. The agent reads the env it was built with at each
@@ -57,6 +78,7 @@ class PlannerAgent:
 
     Args:
         env: the env (wrapped or not) to plan in; it must have a ``planning_model()`` method.
+        agent: the robot this agent acts for, in a PettingZoo team env (None for a Gymnasium env).
         depth: number of steps searched exhaustively (>= 1). The default 1, followed by the
             rollouts, did best on ActiveLocalization-v0 (20 seeds: 85 % success against 70 % at
             depth 2) and is about 3.5 times faster.
@@ -65,17 +87,21 @@ class PlannerAgent:
         detour_steps: lengths of the initial detours of the base policies (0 for none).
         sensing_std_fraction: the base policies observe once the largest position std
             reaches this fraction of the env's ``max_position_std_m``.
+        stop_std_fractions: the fractions of ``max_position_std_m`` at which the stopping base
+            policies stand still (a model without an ``idle_primitive`` ignores them).
         discount: discount of later rewards in the expected return (0, 1].
     """
 
     def __init__(
         self,
         env,
+        agent: str | None = None,
         depth: int = 1,
         observation_branching: int = 1,
         rollout_steps: int = 40,
         detour_steps: tuple[int, ...] = (0, 6),
         sensing_std_fraction: float = 0.5,
+        stop_std_fractions: tuple[float, ...] = (0.5,),
         discount: float = 1.0,
     ):
         model = planning_model(env)
@@ -84,23 +110,42 @@ class PlannerAgent:
                 "PlannerAgent needs depth >= 1, observation_branching >= 0 and rollout_steps >= 0, got "
                 f"depth={depth}, observation_branching={observation_branching}, rollout_steps={rollout_steps}"
             )
-        if not 0 < discount <= 1 or not sensing_std_fraction > 0 or any(k < 0 for k in detour_steps):
+        fractions = (sensing_std_fraction, *stop_std_fractions)
+        if not 0 < discount <= 1 or not all(f > 0 for f in fractions) or any(k < 0 for k in detour_steps):
             raise ValueError(
-                "PlannerAgent needs 0 < discount <= 1, sensing_std_fraction > 0 and non-negative detour_steps, got "
-                f"discount={discount}, sensing_std_fraction={sensing_std_fraction}, detour_steps={detour_steps}"
+                "PlannerAgent needs 0 < discount <= 1, positive sensing_std_fraction and stop_std_fractions and "
+                f"non-negative detour_steps, got discount={discount}, sensing_std_fraction={sensing_std_fraction}, "
+                f"stop_std_fractions={stop_std_fractions}, detour_steps={detour_steps}"
             )
+        self.n_actions = self._action_count(env, agent)
+        if agent is not None:
+            robot = list(env.possible_agents).index(agent)
+            model = RobotPlanningView(model, robot, TeamPlans.of(env), traits_of(env).noop_action)
         self.model = model
-        self.n_actions = int(env.action_space.n)
         self.n_primitives = int(model.n_primitives)
         self.depth = int(depth)
         self.observation_branching = int(observation_branching)
         self.rollout_steps = int(rollout_steps)
         self.detour_steps = tuple(sorted({int(k) for k in detour_steps}))
         self.sensing_std_fraction = float(sensing_std_fraction)
+        self.stop_std_fractions = () if model.idle_primitive is None else tuple(map(float, stop_std_fractions))
         self.discount = float(discount)
 
+    @staticmethod
+    def _action_count(env, agent: str | None) -> int:
+        """The size of the ``Discrete`` action space the agent acts in (its robot's, in a team env)."""
+        if agent is None:
+            if callable(env.action_space):
+                raise ValueError(f"PlannerAgent in a team env needs agent=ROBOT, one of {env.possible_agents}")
+            return int(env.action_space.n)
+        if agent not in env.possible_agents:
+            raise ValueError(f"PlannerAgent: unknown agent {agent!r}; the env's agents are {env.possible_agents}")
+        return int(env.action_space(agent).n)
+
     def reset(self, seed: int | None = None) -> None:
-        """Deterministic and stateless between steps: nothing to reset."""
+        """Deterministic; in a team env it forgets the plans it published."""
+        if isinstance(self.model, RobotPlanningView):
+            self.model.clear()
 
     def act(self, observation, info: dict) -> int:
         """The first action of the best sequence found (ties: lowest action index)."""
@@ -108,8 +153,9 @@ class PlannerAgent:
         gains = np.asarray(info["action_information_gain"])[None]
         if not mask.any():
             return 0
+        valid_first = mask[0] > 0
         beliefs = self.model.belief()
-        first_actions = returns = None
+        paths = returns = None
         for level in range(self.depth):
             if level:
                 mask, gains = self.model.plan_decision(beliefs)
@@ -117,12 +163,19 @@ class PlannerAgent:
             parents = np.repeat(np.arange(len(beliefs)), candidates.shape[1])
             actions = candidates.ravel()
             beliefs, rewards = self.model.plan_step(beliefs.take(parents), actions)
-            first_actions = actions if level == 0 else first_actions[parents]
+            paths = actions[:, None] if level == 0 else np.column_stack([paths[parents], actions])
             returns = rewards if level == 0 else returns[parents] + self.discount**level * rewards
-        totals = returns + self.discount**self.depth * self._rollout_value(beliefs)
+        values, rollouts = self._rollout_value(beliefs)
+        totals = returns + self.discount**self.depth * values
+        first_actions = paths[:, 0]
         best = np.full(self.n_actions, -np.inf)
         np.maximum.at(best, first_actions, totals)
-        return int(np.argmax(best))
+        action = int(np.argmax(np.where(valid_first, best, -np.inf)))
+        if isinstance(self.model, RobotPlanningView):
+            chosen = np.flatnonzero(first_actions == action)
+            leaf = chosen[np.argmax(totals[chosen])]
+            self.model.publish(np.concatenate([paths[leaf], rollouts[leaf]]))
+        return action
 
     def _candidates(self, mask: np.ndarray, gains: np.ndarray) -> np.ndarray:
         """Actions to try at each belief (B, C): every primitive alone and with the best few valid observations.
@@ -139,26 +192,40 @@ class PlannerAgent:
         primitives = np.arange(n_primitives)
         return (options[:, :, None] * n_primitives + primitives).reshape(B, -1)
 
-    def _rollout_value(self, beliefs) -> np.ndarray:
-        """Best expected return over the base policies from each belief (B,)."""
-        if self.rollout_steps == 0:
-            return np.zeros(len(beliefs))
-        policies = [(0, 0)] + [(p, k) for k in self.detour_steps if k for p in range(1, self.n_primitives)]
+    def _policies(self) -> list[tuple[int, int, float]]:
+        """The base policies ``(detour primitive, detour length, stop std fraction)`` (inf: never stops)."""
+        detours = [(0, 0)] + [(p, k) for k in self.detour_steps if k for p in range(1, self.n_primitives)]
+        return [(p, k, stop) for stop in (np.inf, *self.stop_std_fractions) for p, k in detours]
+
+    def _rollout_value(self, beliefs) -> tuple[np.ndarray, np.ndarray]:
+        """Best expected return over the base policies from each belief (B,), and that policy's actions (B, T)."""
         B = len(beliefs)
+        if self.rollout_steps == 0:
+            return np.zeros(B), np.zeros((B, 0), dtype=int)
+        policies = np.array(self._policies())
         batch = beliefs.take(np.tile(np.arange(B), len(policies)))
-        detour_primitive = np.repeat([p for p, _ in policies], B)
-        detour_length = np.repeat([k for _, k in policies], B)
-        threshold = self.sensing_std_fraction * self.model.max_position_std_m
-        values = np.zeros(len(batch))
+        detour_primitive, detour_length, stop_fraction = (np.repeat(column, B) for column in policies.T)
+        bound = self.model.max_position_std_m
+        rows = np.arange(len(batch))
+        values, taken = np.zeros(len(batch)), []
         for step in range(self.rollout_steps):
-            primitives = np.where(step < detour_length, detour_primitive, 0)
-            _, gains = self.model.plan_decision(batch)
-            slot_gains = gains.reshape(len(batch), -1, self.n_primitives)[:, :, 0]
+            mask, gains = self.model.plan_decision(batch)
+            mask = mask.reshape(len(batch), -1, self.n_primitives) > 0
+            gains = gains.reshape(mask.shape)
+            greedy_primitive = np.argmax(np.where(mask[:, 0], gains[:, 0], -np.inf), axis=1)
+            position_std = self.model.position_std(batch.covariance)
+            stopped = (step >= detour_length) & (position_std >= stop_fraction * bound)
+            primitives = np.where(step < detour_length, detour_primitive, greedy_primitive)
+            primitives = np.where(stopped, self.model.idle_primitive or 0, primitives).astype(int)
+            slot_gains = gains[:, :, 0]
             best_slot = np.argmax(slot_gains, axis=1)
-            needed = self.model.position_std(batch.covariance) >= threshold
-            slots = np.where(needed & (slot_gains[np.arange(len(batch)), best_slot] > 0), best_slot, 0)
-            batch, rewards = self.model.plan_step(batch, slots * self.n_primitives + primitives)
+            needed = position_std >= self.sensing_std_fraction * bound
+            slots = np.where(needed & (slot_gains[rows, best_slot] > 0), best_slot, 0)
+            taken.append(slots * self.n_primitives + primitives)
+            batch, rewards = self.model.plan_step(batch, taken[-1])
             values += self.discount**step * rewards
             if batch.done.all():
                 break
-        return values.reshape(len(policies), B).max(axis=0)
+        best = np.argmax(values.reshape(len(policies), B), axis=0)
+        chosen = best * B + np.arange(B)
+        return values.reshape(len(policies), B)[best, np.arange(B)], np.stack(taken, axis=1)[chosen]

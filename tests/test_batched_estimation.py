@@ -721,3 +721,24 @@ def test_an_unobserved_slot_may_pair_a_robot_with_itself():
     x_new, P_new = batched.relative_pose_update(XJ, PJ, **arguments)
     np.testing.assert_array_equal(P_new[1], PJ[1])
     assert not np.allclose(P_new[0], PJ[0])
+
+
+def test_posterior_covariance_is_filterpys_and_a_zero_row_with_unit_noise_is_no_measurement():
+    from filterpy.kalman import ExtendedKalmanFilter
+
+    rng = np.random.default_rng(11)
+    P = random_covariances(rng, 4, 6)
+    H = rng.normal(0.0, 1.0, (4, 3, 6))
+    R = random_covariances(rng, 4, 3)
+    posterior = batched.posterior_covariance(P, H, R)
+    for copy in range(4):
+        ekf = ExtendedKalmanFilter(dim_x=6, dim_z=3)
+        ekf.x, ekf.P = np.zeros((6, 1)), P[copy].copy()
+        ekf.update(np.zeros((3, 1)), lambda x, H=H[copy]: H, lambda x, H=H[copy]: H @ x, R=R[copy])
+        np.testing.assert_allclose(posterior[copy], ekf.P, rtol=0, atol=P_TOLERANCE)
+    padded_H = np.concatenate([H, np.zeros((4, 2, 6))], axis=1)
+    padded_R = np.zeros((4, 5, 5))
+    padded_R[:, :3, :3], padded_R[:, 3:, 3:] = R, np.eye(2)
+    np.testing.assert_allclose(batched.posterior_covariance(P, padded_H, padded_R), posterior, rtol=0, atol=1e-15)
+    with pytest.raises(ValueError, match=r"H must have shape \(4, m, 6\)"):
+        batched.posterior_covariance(P, H[:, :, :5], R)

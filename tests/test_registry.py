@@ -180,12 +180,13 @@ def test_each_registered_env_is_of_its_api_and_declares_metrics_and_traits(entry
 @pytest.mark.parametrize("entry", registered_envs(), ids=lambda entry: entry.id)
 def test_the_planner_is_made_exactly_for_the_envs_that_offer_a_planning_model(entry):
     env = make_env(entry.id)
-    n_actions = env.action_space.n if entry.api == GYMNASIUM else env.action_space(env.possible_agents[0]).n
+    robot = None if entry.api == GYMNASIUM else env.possible_agents[0]
+    n_actions = env.action_space.n if robot is None else env.action_space(robot).n
     if has_planning_model(env):
-        assert type(make_agent("planner", n_actions, env=env)).__name__ == "PlannerAgent"
+        assert type(make_agent("planner", n_actions, env=env, agent=robot)).__name__ == "PlannerAgent"
     else:
         with pytest.raises(ValueError, match=f"agent 'planner' is not available for {entry.id}"):
-            make_agent("planner", n_actions, env=env)
+            make_agent("planner", n_actions, env=env, agent=robot)
     env.close()
 
 

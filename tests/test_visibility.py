@@ -338,3 +338,16 @@ def test_segment_hits_segments_of_radius_zero_equal_pymunk():
     got = segment_hits_segments(origins, targets[:, None], starts[:, None], ends[:, None], radii, culled=False)
     np.testing.assert_array_equal(got[:, 0, 0], expected)
     assert 0 < np.sum(expected) < count
+
+
+def test_tiled_copies_answer_as_stacked_ones_and_grown_shapes_are_swept_discs():
+    world = random_world("field", 5)
+    geometry = StaticGeometry.from_world(world)
+    rng = np.random.default_rng(5)
+    origins, targets = rng.uniform(0.0, 40.0, (6, 2)), rng.uniform(0.0, 40.0, (6, 9, 2))
+    stacked = StaticGeometry.stack([geometry] * 6)
+    np.testing.assert_array_equal(
+        line_of_sight(geometry.tiled(6), origins, targets), line_of_sight(stacked, origins, targets)
+    )
+    np.testing.assert_array_equal(geometry.grown(0.3).disc_radii, geometry.disc_radii + 0.3)
+    np.testing.assert_array_equal(geometry.grown(0.0).wall_radii, geometry.wall_radii)

@@ -25,8 +25,19 @@ PRIMITIVE_NAMES = ("to_goal", "veer_left", "veer_right", "sidestep_left", "sides
 N_PRIMITIVES = len(PRIMITIVE_OFFSETS_RAD)
 
 
+class BeliefBatch:
+    """The batch behaviour of a planning model's belief: a frozen dataclass of arrays, each of leading size B."""
+
+    def __len__(self) -> int:
+        return len(getattr(self, next(iter(self.__dataclass_fields__))))
+
+    def take(self, indices):
+        """The beliefs at ``indices`` (a new batch, e.g. repeated once per action to try)."""
+        return type(self)(*(np.take(getattr(self, name), indices, axis=0) for name in self.__dataclass_fields__))
+
+
 @dataclass(frozen=True)
-class Belief:
+class Belief(BeliefBatch):
     """A light copy of the estimator's state at a decision, batched over ``B`` hypothetical futures.
 
     Attributes:
@@ -43,21 +54,16 @@ class Belief:
     visible: np.ndarray
     done: np.ndarray
 
-    def __len__(self) -> int:
-        return len(self.pose)
-
-    def take(self, indices) -> Belief:
-        """The beliefs at ``indices`` (a new batch, e.g. repeated once per action to try)."""
-        return Belief(*(np.take(getattr(self, name), indices, axis=0) for name in self.__dataclass_fields__))
-
 
 class ActivePlanningModel:
     """The planning model of ``ActiveLocalizationEnv``, a mixin of it (it reads the env's config, world,
     sensor, goal, odometry noise, obstacles, ``_commands`` and ``position_std``).
 
     What a look-ahead agent uses: ``belief()``, ``plan_decision(belief)``, ``plan_step(belief, actions)``,
-    ``position_std(covariances)``, ``n_primitives`` and ``max_position_std_m``.
+    ``position_std(covariances)``, ``n_primitives``, ``max_position_std_m`` and ``idle_primitive``.
     """
+
+    idle_primitive = None  # no primitive stands still: every one drives
 
     def planning_model(self) -> ActivePlanningModel:
         """The env's planning model (the env itself, through the methods above), for ``PlannerAgent``.

@@ -530,13 +530,46 @@ def _kalman_update(x, P, residual, H, R, heading_indices):
 
     ``K = P H^T S^-1`` with ``S = H P H^T + R``; ``x + K y`` with headings wrapped; ``P - K (P H^T)^T``.
     """
+    K, P_new = _gain_and_posterior(P, H, R)
+    x_new = x + (K @ residual[:, :, None])[:, :, 0]
+    x_new[:, heading_indices] = wrap_angle(x_new[:, heading_indices])
+    return x_new, P_new
+
+
+def _gain_and_posterior(P, H, R) -> tuple[np.ndarray, np.ndarray]:
+    """The Kalman gain ``K`` (G, n, m) and posterior covariance (G, n, n), symmetrized, of an update."""
     PHT = P @ np.swapaxes(H, 1, 2)
     S = H @ PHT + R
     K = PHT @ _inverse(S)
-    x_new = x + (K @ residual[:, :, None])[:, :, 0]
-    x_new[:, heading_indices] = wrap_angle(x_new[:, heading_indices])
     P_new = P - K @ np.swapaxes(PHT, 1, 2)
-    return x_new, 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
+    return K, 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
+
+
+def _jacobians(H, P: np.ndarray, inner: tuple[str, ...]) -> np.ndarray:
+    """``H`` as a finite float array (N, *inner, n) for the covariances ``P`` (N, n, n), else ``ValueError``."""
+    H = np.asarray(H, dtype=float)
+    if H.ndim != 2 + len(inner) or H.shape[0] != len(P) or H.shape[-1] != P.shape[1]:
+        raise ValueError(f"H must have shape ({len(P)}, {', '.join(inner)}, {P.shape[1]}), got {H.shape}")
+    return _finite("H", H, H.shape)
+
+
+def posterior_covariance(P, H, R, *, check_input: bool = True) -> np.ndarray:
+    """The covariance after an EKF update of each copy (N, n, n): it does not depend on the measured value.
+
+    ``P - K H P`` as ``range_bearing_update`` and the team updates compute it. A zero row of ``H`` with
+    its own unit noise (no correlation with the other rows) is no measurement: it leaves ``P`` unchanged.
+
+    Args:
+        P: prior covariances (N, n, n).
+        H: stacked measurement Jacobians (N, m, n).
+        R: their noise covariances (N, m, m), symmetric positive definite.
+        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
+    """
+    if check_input:
+        P = _covariances(P)
+        H = _jacobians(H, P, ("m",))
+        R = _noise_covariance("R", R, (len(P), H.shape[1], H.shape[1]))
+    return _gain_and_posterior(P, H, R)[1]
 
 
 # ---------------------------------------------------------------------------------------------- information
@@ -556,10 +589,7 @@ def landmark_information_gains(P, H, R, *, check_input: bool = True) -> np.ndarr
     """
     if check_input:
         P = _covariances(P)
-        H = np.asarray(H, dtype=float)
-        if H.ndim != 4 or H.shape[0] != len(P) or H.shape[3] != P.shape[1]:
-            raise ValueError(f"H must have shape ({len(P)}, K, m, {P.shape[1]}), got {H.shape}")
-        H = _finite("H", H, H.shape)
+        H = _jacobians(H, P, ("K", "m"))
         R = _noise_covariance("R", R, (*H.shape[:3], H.shape[2]))
     n_copies, n_candidates, m, n = H.shape
     HP = np.matmul(H.reshape(n_copies, n_candidates * m, n), P).reshape(H.shape)  # one product per copy: fast

@@ -60,11 +60,11 @@ def make_agent(
 ):
     """A baseline agent by name (``noop_action``: see ``RandomAgent``).
 
-    ``planner`` (``agents.planner.PlannerAgent(env)``), ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``) and
-    ``rllib:DIR`` (``agents.rllib_agent.RLlibAgent(DIR, env)``, the ``distributed`` extra) need the ``env`` they
-    will act in; each is imported only when asked for. ``planner`` is
-    refused unless the env offers a planning model (``envs.traits.has_planning_model``). In a PettingZoo
-    env ``agent`` names the robot a ``ppo:PATH`` agent acts for.
+    ``planner`` (``agents.planner.PlannerAgent(env, agent)`` with the env's ``planner_settings``),
+    ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``) and ``rllib:DIR`` (``agents.rllib_agent.RLlibAgent(DIR,
+    env)``, the ``distributed`` extra) need the ``env`` they will act in; each is imported only when asked for.
+    ``planner`` is refused unless the env offers a planning model (``envs.traits.has_planning_model``). In a
+    PettingZoo env ``agent`` names the robot a ``planner`` or ``ppo:PATH`` agent acts for.
     """
     check_agent_name(name)
     if name == "random":
@@ -81,12 +81,12 @@ def make_agent(
                 f"{', '.join(_planning_env_ids())}"
             )
         try:
-            from agents.planner import PlannerAgent
+            from agents.planner import PlannerAgent, planner_settings
         except ImportError as error:
             raise ValueError(
                 f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
             ) from None
-        return PlannerAgent(env)
+        return PlannerAgent(env, agent, **planner_settings(_env_name(env)))
     if name.startswith(RLLIB_PREFIX):
         try:
             from agents.rllib_agent import RLlibAgent
@@ -104,7 +104,8 @@ def make_team_agents(name: str, env) -> dict:
     """One agent per robot of a PettingZoo parallel env ``env``: ``{robot: agent}``.
 
     ``random`` is a random choice of what to observe (it takes the env's ``traits.noop_action`` only
-    when nothing else is valid); ``ppo:PATH`` is one policy shared by every robot
+    when nothing else is valid); ``planner`` plans for its robot, its teammates following the plans they
+    published (``agents.team_planning``); ``ppo:PATH`` is one policy shared by every robot
     (``infonav train --env cooperative_localization_v0``), checked against each robot's spaces.
     """
     noop_action = traits_of(env).noop_action

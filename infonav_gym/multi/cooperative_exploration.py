@@ -13,9 +13,16 @@ from infonav_gym.envs.active_localization import REWARD_WEIGHT, ActiveLocalizati
 from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS, Decision
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
-from infonav_gym.geometry import wrap_angle
 from infonav_gym.multi.base import InfoNavParallelEnv, team_metadata
 from infonav_gym.multi.cooperative_localization import CooperativeLocalizationEnv
+from infonav_gym.multi.exploration_planning import (
+    N_MOTIONS,
+    NOOP_ACTION,
+    STAY,
+    ExplorationPlanningModel,
+    clear_motions,
+    motion_plan,
+)
 from infonav_gym.multi.exploration_views import (
     EXPLORATION_INFO_KEYS,
     EXPLORATION_METRICS,
@@ -24,24 +31,24 @@ from infonav_gym.multi.exploration_views import (
 )
 from infonav_gym.multi.landmark_sensing import LandmarkSensing
 from infonav_gym.multi.team import parse_outages, parse_speeds, parse_suites
-from infonav_gym.multi.team_sensing import NO_OBSERVATION, RelativeSight, SensingPairs, TeamSensing, team_prior
+from infonav_gym.multi.team_sensing import (
+    NO_OBSERVATION,
+    RelativeSight,
+    SensingPairs,
+    TeamSensing,
+    gps_schedule,
+    team_prior,
+)
 from infonav_gym.multi.terrain_map import TerrainMapModel
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noise_covariances
 from infonav_gym.world.active_scenarios import CommandedWorld
-from infonav_gym.world.clearance import clear_moves
 from infonav_gym.world.exploration_scenarios import EXPLORATION_FIELD_ARGUMENTS, exploration_field
 from infonav_gym.world.scenarios import MAX_ROBOTS, MAX_SPEED_MPS
 from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world import TIME_STEP_S, start_poses
 
-MOTION_NAMES = ("stay", "east", "north", "west", "south")
-MOTION_HEADINGS_RAD = np.array([0.0, 0.0, math.pi / 2, math.pi, -math.pi / 2])  # "stay" does not drive
-MOTION_DIRECTIONS = np.stack([np.cos(MOTION_HEADINGS_RAD), np.sin(MOTION_HEADINGS_RAD)], axis=-1)  # (5, 2)
-STAY = 0
-N_MOTIONS = len(MOTION_NAMES)
-NOOP_ACTION = 0  # stay and observe nothing: slot 0, motion STAY
 DEFAULT_SPEEDS_MPS = (0.8, 0.8, 1.2, 1.2)  # robot k of the default team: the DGPS robots are the slower ones
 RANGE_KEYS = {"laser": "laser_range_m", "vision": "vision_range_m"}  # the config key of each sensor's range
 REWARD_TERMS = ("own_pose_information", "team_map_information", "sensing_cost", "motion_cost", "lost_penalty")
@@ -72,7 +79,9 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 }
 
 
-class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, InfoNavParallelEnv):
+class CooperativeExplorationEnv(
+    ExplorationPlanningModel, ExplorationViews, LandmarkSensing, TeamSensing, InfoNavParallelEnv
+):
     """A heterogeneous team maps a field; each robot chooses where to drive and what to observe, together.
 
     ## Description
@@ -154,12 +163,19 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
     ``max_position_std_m`` (it is lost: ``failed``), or when the coverage reaches
     ``coverage_target`` (``success``); truncated after ``max_cycles`` steps (no success).
 
+    ## Planning model
+    ``planning_model()`` returns the env itself as the model look-ahead agents search
+    (``multi.exploration_planning``): ``belief()`` copies the joint EKF, the map and the budgets,
+    ``plan_decision(belief, robot)`` and ``plan_step(belief, team_actions)`` step copies of it under the
+    expected measurements, never reading the true state (``agents.planner.PlannerAgent(env, robot)``).
+
     ## Arguments
     ``parallel_env(render_mode=None, **config)`` with any key of ``default_config()``; an
     unknown key or a bad value raises ``ValueError`` naming it.
 
     ## Version History
-    * v0: initial version (issue 18, first part: no batched version or planning model yet).
+    * v0: initial version (issue 18; no batched version yet). Motions masked clear of contacts, and the
+      planning model, added before any results were committed.
     """
 
     episode_metrics = EXPLORATION_METRICS
@@ -248,6 +264,10 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         low, high = self._observation_bounds(team_low, team_high, n_landmarks, self.map_model.n_cells)
         self._observation_spaces = {agent: spaces.Box(low, high, dtype=np.float32) for agent in self.possible_agents}
         self.pairs = SensingPairs.of_team(self.relative_sensors)
+        self._pair_lookup = np.full((n, n), -1)  # the pair index of (observer, target), -1 for none
+        self._pair_lookup[self.pairs.observers, self.pairs.targets] = np.arange(len(self.pairs.observers))
+        self._gps_schedule = gps_schedule(self.gps)
+        self._gps_noise = np.array([np.eye(2) if gps is None else gps.noise_covariance() for gps in self.gps])
         self.world = CommandedWorld()
         self.np_random = None
 
@@ -273,6 +293,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         self._odometry_rng, self._gps_rng, self._relative_rng, self._landmark_rng = generators
         self.world.reset(scenario)
         self._static_geometry = StaticGeometry.from_world(self.world)
+        self._tiled_geometries = {}  # the planning model's copies of it, by count
         self._true_poses = self.world.poses
         self.ekf = JointEKF(poses, covariances)
         n = len(self.possible_agents)
@@ -320,10 +341,9 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         pose_log_det = np.linalg.slogdet(covariances)[1]
         pose_std = np.sqrt(np.diagonal(covariances, axis1=1, axis2=2))
         position_std = ActiveLocalizationEnv.position_std(covariances)
-        weight = self.config["team_reward"]
-        gains = (1.0 - weight) * observation_gain[:, :, None] + weight * self._scan_gains(position_std)[:, None, :]
+        scan = self._scan_gains(self.ekf.x.reshape(-1, POSE_DIM), position_std, self.map_variances)
         mask = slot_valid[:, :, None] & self._clear_motions()[:, None, :]
-        gains = np.where(mask, gains, 0.0).reshape(n, -1)
+        gains = self._action_gains(observation_gain, scan, mask).reshape(n, -1)
         relative = RelativeSight(geometry, valid, candidate_row, candidates, pose_log_det, pose_std)
         return Decision(
             mask.reshape(n, -1).astype(np.int8), gains, ExplorationSight(relative, slot_valid, position_std)
@@ -331,21 +351,12 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
 
     def _clear_motions(self) -> np.ndarray:
         """Which motions each robot may take (R, 5): those whose true path keeps clear of every contact
-        (``clear_motions``)."""
-        cfg = self.config
-        drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
+        (``clear_motions`` from the true poses, as the observations' masks)."""
         headings = self.ekf.x[None, 2::POSE_DIM]
         radius_m = self.world.robot_radius_m
         return clear_motions(
-            self._static_geometry, self._true_poses[None], headings, self.speeds_mps, drive_s, radius_m
+            self._static_geometry, self._true_poses[None], headings, self.speeds_mps, self._drive_s, radius_m
         )[0]
-
-    def _scan_gains(self, position_std: np.ndarray) -> np.ndarray:
-        """Map information [nats] each robot's scan would bring alone after each motion (R, 5) (``scan_gains``)."""
-        cfg = self.config
-        positions = self.ekf.x.reshape(-1, POSE_DIM)[:, :2]
-        drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
-        return scan_gains(self.map_model, self.map_variances, positions, position_std, self.speeds_mps, drive_s)
 
     def _apply_actions(self, actions: np.ndarray, decision: Decision) -> np.ndarray:
         """Observe at the prior, drive, predict, fuse DGPS, then scan; each robot's reward (see the class)."""
@@ -353,7 +364,7 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         n_landmarks = cfg["n_landmarks"]
         relative = decision.payload.relative
         slots, motions = np.divmod(actions, N_MOTIONS)
-        plan = motion_plan(motions, self.ekf.x[2::POSE_DIM], self.speeds_mps)  # the decision's, as the mask saw it
+        plan = motion_plan(motions, self.ekf.x[2::POSE_DIM], self.speeds_mps)  # the decision's, as masked
         observes_teammate = slots > n_landmarks
         teammate_choice = np.where(observes_teammate, slots - n_landmarks, NO_OBSERVATION)
         self._observe(teammate_choice, relative)
@@ -369,20 +380,9 @@ class CooperativeExplorationEnv(ExplorationViews, LandmarkSensing, TeamSensing, 
         map_information = self._scan(motions != STAY, position_std)
         self.lost = position_std > cfg["max_position_std_m"]
         self.success = bool(self.coverage >= cfg["coverage_target"] and not self.lost.any())
-        weight = cfg["team_reward"]
-        lost_penalty = -cfg["lost_penalty"] if self.lost.any() else 0.0
-        self._reward_terms = [
-            {
-                "own_pose_information": float(own_information[robot]),
-                "team_map_information": map_information,
-                "sensing_cost": -cfg["observation_cost_nats"] * float(observed[robot]),
-                "motion_cost": -cfg["motion_cost_per_step"] * float(motions[robot] != STAY),
-                "lost_penalty": lost_penalty,
-            }
-            for robot in range(len(self.possible_agents))
-        ]
-        costs = np.array([terms["sensing_cost"] + terms["motion_cost"] + lost_penalty for terms in self._reward_terms])
-        return (1.0 - weight) * own_information + weight * map_information + costs
+        terms = self._reward_arrays(own_information, map_information, observed, motions != STAY, self.lost.any())
+        self._reward_terms = [{key: float(value[robot]) for key, value in terms.items()} for robot in range(len(slots))]
+        return self._total_reward(terms)
 
     def _drive(self, turns: np.ndarray, speeds: np.ndarray) -> None:
         """Turn every robot on the spot, then drive it straight (Pymunk executes both); predict with odometry."""
@@ -423,46 +423,3 @@ def start_episode(config: dict, np_random: np.random.Generator):
     generators = np_random.spawn(4)
     poses, covariances = team_prior(config, np.array(start_poses(scenario)), np_random)
     return scenario, poses, covariances, *generators
-
-
-def motion_plan(motions, headings, speeds_mps) -> tuple[np.ndarray, np.ndarray]:
-    """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
-
-    A motion turns the *estimated* heading (the decision's: before this step's observations) to its compass
-    heading on the spot, then drives straight; ``stay`` does neither. Both are exact unicycle motions. The
-    motions, the estimated headings and the robots' speeds broadcast together (e.g. (..., R), (..., R), (R,)).
-    """
-    drives = motions != STAY
-    turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
-    return turns, np.where(drives, speeds_mps, 0.0)
-
-
-def clear_motions(geometry, true_poses, headings, speeds_mps, drive_s: float, robot_radius_m: float) -> np.ndarray:
-    """Which motions each robot may take (N, R, 5): those whose true path keeps clear of every contact.
-
-    From the true poses (N, R, 3), as the observations' masks: after the turn on the spot (planned at the
-    estimated headings (N, R)) the robot drives straight along its true heading plus the turn for ``drive_s`` [s]
-    at its speed (R,) [m/s], so its path is known exactly (``world.clearance.clear_moves``: ``CLEARANCE_M`` from
-    the walls and obstacles of ``geometry`` (N copies) and wherever a teammate's motions take it). No contact
-    ever pushes a robot where its odometry does not see it, so the EKF's motion model stays exact.
-    """
-    turns, speeds = motion_plan(np.arange(N_MOTIONS), headings[..., None], speeds_mps[:, None])
-    true_headings = true_poses[..., 2:3] + turns
-    reach = drive_s * speeds
-    displacements = reach[..., None] * np.stack([np.cos(true_headings), np.sin(true_headings)], axis=-1)
-    return clear_moves(geometry, true_poses[..., :2], displacements, robot_radius_m)
-
-
-def scan_gains(map_model: TerrainMapModel, variances, positions, position_std, speeds_mps, drive_s: float):
-    """Map information [nats] each robot's scan would bring alone after each motion (..., R, 5); 0 for ``stay``.
-
-    From the position the motion predicts (estimated position (..., R, 2), compass heading, ``drive_s`` [s] at the
-    robot's speed (R,) [m/s]), with the scan noise of its current position std (..., R) [m], on the map's cell
-    variances (..., G).
-    """
-    reach = drive_s * speeds_mps[:, None] * (np.arange(N_MOTIONS) != STAY)  # (R, 5) [m]
-    ends = positions[..., None, :] + reach[..., None] * MOTION_DIRECTIONS
-    noise = map_model.scan_noise_variances(position_std)[..., None]
-    gains = map_model.scan_gains(np.asarray(variances)[..., None, None, :], map_model.footprints(ends), noise)
-    gains[..., STAY] = 0.0
-    return gains

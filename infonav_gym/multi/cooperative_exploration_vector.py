@@ -17,16 +17,7 @@ from infonav_gym.envs.active_localization import ActiveLocalizationEnv
 from infonav_gym.envs.active_localization_batch import ranges_and_bearings
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
-from infonav_gym.multi.cooperative_exploration import (
-    N_MOTIONS,
-    REWARD_TERMS,
-    STAY,
-    CooperativeExplorationEnv,
-    clear_motions,
-    motion_plan,
-    scan_gains,
-    start_episode,
-)
+from infonav_gym.multi.cooperative_exploration import REWARD_TERMS, CooperativeExplorationEnv, start_episode
 from infonav_gym.multi.cooperative_localization import team_observations
 from infonav_gym.multi.cooperative_localization_batch import TeamDecision
 from infonav_gym.multi.exploration_batch import (
@@ -36,6 +27,7 @@ from infonav_gym.multi.exploration_batch import (
     exploration_info,
     landmark_gains,
 )
+from infonav_gym.multi.exploration_planning import N_MOTIONS, STAY, clear_motions, motion_plan, scan_gains
 from infonav_gym.multi.exploration_views import exploration_observations
 from infonav_gym.multi.team_vector import TeamVectorEnv, draws_in_slot_order
 from infonav_gym.world.visibility import StaticGeometry

@@ -146,3 +146,24 @@ def team_prior(config: dict, true_poses: np.ndarray, np_random: np.random.Genera
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
     initial = true_poses + pose_std * np_random.standard_normal((n, POSE_DIM))
     return initial, np.repeat(np.diag(pose_std**2)[None], n, axis=0)
+
+
+def gps_schedule(receivers) -> tuple[np.ndarray, np.ndarray]:
+    """Which robots carry DGPS (R,) and each robot's outage spans (R, S, 2) [s], padded with (inf, inf).
+
+    Args:
+        receivers: one ``GPSSensor`` or None per robot.
+    """
+    spans = [gps.outages if gps is not None else () for gps in receivers]
+    outages = np.full((len(receivers), max(map(len, spans), default=0), 2), np.inf)
+    for robot, robot_spans in enumerate(spans):
+        outages[robot, : len(robot_spans)] = np.reshape(robot_spans, (-1, 2))
+    return np.array([gps is not None for gps in receivers]), outages
+
+
+def gps_available(has_gps: np.ndarray, outages: np.ndarray, denied: np.ndarray, time_s) -> np.ndarray:
+    """Which robots have a DGPS fix (N, R): they carry DGPS, are in no GPS-denied zone (``denied`` (N, R)) and in
+    no outage span (``gps_schedule``) at each copy's ``time_s`` (N,) [s]."""
+    time_s = np.asarray(time_s, dtype=float)[:, None, None]
+    in_outage = np.any((outages[..., 0] <= time_s) & (time_s < outages[..., 1]), axis=2)
+    return has_gps & ~denied & ~in_outage

@@ -21,6 +21,7 @@ from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM, block_diagonal
+from infonav_gym.multi.team_sensing import gps_available, gps_schedule
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.relative_pose import relative_poses_with_noise
 from infonav_gym.world.world_batch import WorldBatch
@@ -61,7 +62,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._pairs = single.pairs
         self._pair_index = np.full((n_robots, n_robots + 1), -1)  # robot, teammate choice -> its pair
         self._pair_index[self._pairs.observers, self._pairs.targets + 1] = np.arange(len(self._pairs.observers))
-        self._has_gps, self._outages = self._gps_schedule()
+        self._has_gps, self._outages = gps_schedule(single.gps)
         self._gps = GPSSensor(self.config["gps_std_m"])  # every receiver's noise; the schedules are _outages
         self._cross_covariances = self.config.get("estimator", "joint") == "joint"  # a team env may drop them
         self._odometry = single.odometry
@@ -74,15 +75,6 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._gps_available = np.zeros((num_envs, n_robots), dtype=bool)
         self._zone_centers, self._zone_radii_sq = np.zeros((num_envs, 0, 2)), np.zeros((num_envs, 0))
         self._elapsed = np.zeros(num_envs, dtype=int)
-
-    def _gps_schedule(self) -> tuple[np.ndarray, np.ndarray]:
-        """Which robots carry DGPS (R,) and each robot's outage spans (R, S, 2) [s], padded with (inf, inf)."""
-        receivers = self._single.gps
-        spans = [gps.outages if gps is not None else () for gps in receivers]
-        outages = np.full((len(receivers), max(map(len, spans), default=0), 2), np.inf)
-        for robot, robot_spans in enumerate(spans):
-            outages[robot, : len(robot_spans)] = np.reshape(robot_spans, (-1, 2))
-        return np.array([gps is not None for gps in receivers]), outages
 
     # ------------------------------------------------------------------ reset
 
@@ -239,9 +231,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         positions = self._worlds.poses[copies, :, :2]
         offsets = positions[:, :, None] - self._zone_centers[copies, None]
         denied = np.any(np.einsum("crzi,crzi->crz", offsets, offsets) <= self._zone_radii_sq[copies, None], axis=2)
-        spans = self._outages
-        in_outage = np.any((spans[..., 0] <= time_s[:, None, None]) & (time_s[:, None, None] < spans[..., 1]), axis=2)
-        available = self._has_gps & ~denied & ~in_outage
+        available = gps_available(self._has_gps, self._outages, denied, time_s)
         self._gps_available[copies] = available
         fixing = np.flatnonzero(available.any(axis=1))
         if not fixing.size:

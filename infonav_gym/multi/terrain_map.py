@@ -21,51 +21,46 @@ class TerrainMapModel:
     """The static part of the coverage map; its state is the cell variances, an array the env keeps.
 
     Attributes:
-        centers: cell centres (G, 2) [m], row-major from the field's lower left corner.
+        ticks: the coordinate of the cell centres along each axis of the square grid (K,) [m]; the G = K^2
+            cells are row-major from the field's lower left corner.
         prior_std_m: height std of an unscanned cell [m].
         scan_radius_m: a scan sees the cells whose centre lies this close [m].
         scan_std_m: height noise std of a scan from a perfectly known position [m].
         terrain_slope: height error per metre of position error [m/m].
         covered_std_m: a cell is covered once its height std is at most this [m].
-        ticks: the centres' coordinates along each axis when the cells are a square grid (``centers`` is then
-            every ``(ticks[i], ticks[j])``, row j of them after row j - 1), else None [m].
     """
 
-    centers: np.ndarray
+    ticks: np.ndarray
     prior_std_m: float
     scan_radius_m: float
     scan_std_m: float
     terrain_slope: float
     covered_std_m: float
-    ticks: np.ndarray | None = None
 
     @classmethod
     def square(cls, size_m: float, cells_per_side: int, **parameters) -> TerrainMapModel:
         """The model of a square field of side ``size_m`` [m] cut into ``cells_per_side`` x ``cells_per_side`` cells."""
-        ticks = (np.arange(cells_per_side) + 0.5) * size_m / cells_per_side
-        x, y = np.meshgrid(ticks, ticks)
-        return cls(np.column_stack([x.ravel(), y.ravel()]), **parameters, ticks=ticks)
+        return cls((np.arange(cells_per_side) + 0.5) * size_m / cells_per_side, **parameters)
+
+    @property
+    def centers(self) -> np.ndarray:
+        """The cell centres (G, 2) [m], row-major from the lower left corner."""
+        x, y = np.meshgrid(self.ticks, self.ticks)
+        return np.column_stack([x.ravel(), y.ravel()])
 
     @property
     def n_cells(self) -> int:
-        return len(self.centers)
+        return len(self.ticks) ** 2
 
     def prior_variances(self) -> np.ndarray:
         """A fresh map: every cell at the prior variance (G,) [m^2]."""
         return np.full(self.n_cells, self.prior_std_m**2)
 
     def footprints(self, positions: np.ndarray) -> np.ndarray:
-        """Which cells a scan from each position (..., 2) [m] sees (..., G) bool.
-
-        On a square grid the squared distances are the sums of the axes' squared offsets, the same numbers
-        for a twentieth of the work.
-        """
-        if self.ticks is None:
-            offsets = positions[..., None, :] - self.centers
-            return np.einsum("...gi,...gi->...g", offsets, offsets) <= self.scan_radius_m**2
-        along_x, along_y = positions[..., 0, None] - self.ticks, positions[..., 1, None] - self.ticks
-        squared = (along_y * along_y)[..., :, None] + (along_x * along_x)[..., None, :]
-        return (squared <= self.scan_radius_m**2).reshape(*positions.shape[:-1], -1)
+        """Which cells a scan from each position (..., 2) [m] sees (..., G) bool."""
+        dx, dy = positions[..., 0, None] - self.ticks, positions[..., 1, None] - self.ticks  # (..., K) [m]
+        squared = dx[..., None, :] * dx[..., None, :] + dy[..., :, None] * dy[..., :, None]  # (..., K rows, K)
+        return squared.reshape(*squared.shape[:-2], -1) <= self.scan_radius_m**2
 
     def scan_noise_variances(self, position_std_m) -> np.ndarray:
         """Height noise variance [m^2] of a scan from a position known to ``position_std_m`` [m] (any shape)."""
@@ -79,8 +74,8 @@ class TerrainMapModel:
         return 0.5 * np.sum(footprints * np.log1p(variances / np.asarray(noise_variances)[..., None]), axis=-1)
 
     def fused(self, variances: np.ndarray, footprints: np.ndarray, noise_variances) -> np.ndarray:
-        """The cell variances (G,) after the scans (S, G footprints, (S,) noise variances) of one step."""
-        information = np.sum(footprints / np.asarray(noise_variances)[:, None], axis=0)
+        """The cell variances (..., G) after the scans (..., S, G footprints, (..., S) noise variances) of one step."""
+        information = np.sum(footprints / np.asarray(noise_variances)[..., None], axis=-2)
         return 1.0 / (1.0 / variances + information)
 
     def coverage(self, variances: np.ndarray) -> np.ndarray:

@@ -29,15 +29,21 @@ def teammate_conflicts(positions: np.ndarray, displacements: np.ndarray, contact
         displacements: each robot's M possible displacements (N, R, M, 2) [m].
         contact_m: the distance between centres below which two robots touch [m].
     """
-    offsets = positions[:, None, None, :, None, :] - positions[:, :, None, None, None, :]  # (N, R, 1, R, 1, 2)
-    relative = displacements[:, None, None] - displacements[:, :, :, None, None]  # (N, R, M, R, M, 2)
-    length_sq = np.einsum("...i,...i->...", relative, relative)
-    along = -np.einsum("...i,...i->...", offsets, relative)
+    n_copies, n_robots, n_moves = displacements.shape[:3]
+    conflicts = np.zeros((n_copies, n_robots, n_moves, n_robots, n_moves), dtype=bool)
+    reach = np.sqrt(np.max(np.sum(displacements * displacements, axis=-1), axis=-1))  # (N, R) [m]
+    gaps = np.linalg.norm(positions[:, None] - positions[:, :, None], axis=-1)  # (N, R, R) [m]
+    near = (gaps < contact_m + reach[:, :, None] + reach[:, None, :]) & ~np.eye(n_robots, dtype=bool)
+    copy, i, j = np.nonzero(near)  # the pairs farther apart can never meet in the step
+    offset_x = (positions[copy, j, 0] - positions[copy, i, 0])[:, None, None]  # (K, 1, 1) [m]
+    offset_y = (positions[copy, j, 1] - positions[copy, i, 1])[:, None, None]
+    relative_x = displacements[copy, j, None, :, 0] - displacements[copy, i, :, None, 0]  # (K, M, M) [m]
+    relative_y = displacements[copy, j, None, :, 1] - displacements[copy, i, :, None, 1]
+    length_sq = relative_x * relative_x + relative_y * relative_y
+    along = -(offset_x * relative_x + offset_y * relative_y)
     t = np.clip(along / np.where(length_sq > 0.0, length_sq, 1.0), 0.0, 1.0)
-    closest = offsets + t[..., None] * relative
-    conflicts = np.einsum("...i,...i->...", closest, closest) < contact_m * contact_m
-    robots = np.arange(positions.shape[1])
-    conflicts[:, robots, :, robots, :] = False
+    closest_x, closest_y = offset_x + t * relative_x, offset_y + t * relative_y
+    conflicts[copy, i, :, j, :] = closest_x * closest_x + closest_y * closest_y < contact_m * contact_m
     return conflicts
 
 

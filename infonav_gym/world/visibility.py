@@ -164,6 +164,15 @@ class StaticGeometry:
             **{name: merged(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
         )
 
+    def tiled(self, n_copies: int) -> StaticGeometry:
+        """Copy 0 of this geometry ``n_copies`` times (read-only views: nothing is copied)."""
+        return StaticGeometry(
+            **{
+                name: np.broadcast_to(getattr(self, name)[:1], (n_copies, *getattr(self, name).shape[1:]))
+                for name in self.__dataclass_fields__
+            }
+        )
+
     def grown(self, margin_m: float) -> StaticGeometry:
         """These shapes grown by ``margin_m`` [m] >= 0 (each one's Minkowski sum with a disc of that radius).
 

@@ -1,0 +1,410 @@
+"""The planning model of ``cooperative_exploration_v0``: one step of the team, on beliefs batched over futures.
+
+What ``agents.planner.PlannerAgent`` searches (the team counterpart of ``envs.active_planning``). Under the
+EKF's linearization a covariance after an update does not depend on the measured value, so a step's expected
+reward follows from the belief alone, without sampling and without the true state: ``belief()`` copies the
+joint EKF, the map and the budgets; ``plan_decision(belief, robot)`` gives one robot's mask and gains;
+``plan_step(belief, actions)`` predicts one step of the whole team. The helpers of one step (motion plans,
+scan gains, rewards) are the env's own: it computes its masks, gains and rewards with them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from infonav_gym.envs.active_localization import ActiveLocalizationEnv
+from infonav_gym.envs.active_planning import BeliefBatch
+from infonav_gym.estimation import batched
+from infonav_gym.estimation.ekf import POSE_DIM, block_diagonal
+from infonav_gym.estimation.models import relative_pose
+from infonav_gym.geometry import wrap_angle
+from infonav_gym.multi.cooperative_localization_batch import TeamSightLines
+from infonav_gym.multi.team_sensing import gps_available
+from infonav_gym.sensors.relative_pose import noise_covariances
+from infonav_gym.world.clearance import clear_moves
+from infonav_gym.world.visibility import visible
+
+MOTION_NAMES = ("stay", "east", "north", "west", "south")
+MOTION_HEADINGS_RAD = np.array([0.0, 0.0, math.pi / 2, math.pi, -math.pi / 2])  # "stay" does not drive
+STAY = 0
+N_MOTIONS = len(MOTION_NAMES)
+NOOP_ACTION = 0  # stay and observe nothing: slot 0, motion STAY
+MOTION_DIRECTIONS = np.stack([np.cos(MOTION_HEADINGS_RAD), np.sin(MOTION_HEADINGS_RAD)], axis=-1)  # (5, 2)
+
+
+def motion_plan(motions, headings, speeds_mps) -> tuple[np.ndarray, np.ndarray]:
+    """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
+
+    A motion turns the *estimated* heading (the decision's: before this step's observations) to its compass
+    heading on the spot, then drives straight; ``stay`` does neither. Both are exact unicycle motions. The
+    motions, the estimated headings and the robots' speeds broadcast together (e.g. (..., R), (..., R), (R,)).
+    """
+    drives = motions != STAY
+    turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
+    return turns, np.where(drives, speeds_mps, 0.0)
+
+
+def drive_displacements(headings, speeds, drive_s: float) -> np.ndarray:
+    """Where a drive phase of ``drive_s`` [s] at ``speeds`` [m/s] along ``headings`` [rad] takes a robot (..., 2)."""
+    reach = drive_s * speeds
+    return reach[..., None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
+
+
+def clear_motions(geometry, poses, headings, speeds_mps, drive_s: float, robot_radius_m: float) -> np.ndarray:
+    """Which motions each robot may take (N, R, 5): those whose path from ``poses`` (N, R, 3) keeps clear of every
+    contact.
+
+    After the turn on the spot (planned at the estimated headings (N, R)) the robot drives straight along its
+    pose's heading plus the turn for ``drive_s`` [s] at its speed (R,) [m/s] (``world.clearance.clear_moves``:
+    ``CLEARANCE_M`` from the walls and obstacles of ``geometry`` (N copies) and wherever a teammate's motions take
+    it). From the true poses (the env's masks) no contact ever pushes a robot where its odometry does not see it,
+    so the EKF's motion model stays exact; from the estimates (the planning model's) it is the belief's guess.
+    """
+    turns, speeds = motion_plan(np.arange(N_MOTIONS), headings[..., None], speeds_mps[:, None])
+    displacements = drive_displacements(poses[..., 2:3] + turns, speeds, drive_s)
+    return clear_moves(geometry, poses[..., :2], displacements, robot_radius_m)
+
+
+def scan_gains(map_model, variances, positions, position_std, speeds_mps, drive_s: float) -> np.ndarray:
+    """Map information [nats] each robot's scan would bring alone after each motion (..., R, 5); 0 for ``stay``.
+
+    From the position the motion predicts (estimated position (..., R, 2), compass heading, ``drive_s`` [s] at the
+    robot's speed (R,) [m/s]), with the scan noise of its current position std (..., R) [m], on the map's cell
+    variances (..., G) (a ``TerrainMapModel``'s).
+    """
+    reach = drive_s * speeds_mps[:, None] * (np.arange(N_MOTIONS) != STAY)  # (R, 5) [m]
+    ends = positions[..., None, :] + reach[..., None] * MOTION_DIRECTIONS
+    noise = map_model.scan_noise_variances(position_std)[..., None]
+    gains = map_model.scan_gains(np.asarray(variances)[..., None, None, :], map_model.footprints(ends), noise)
+    gains[..., STAY] = 0.0
+    return gains
+
+
+@dataclass(frozen=True)
+class TeamBelief(BeliefBatch):
+    """The team's estimator state at a decision, batched over ``B`` hypothetical futures (estimates only).
+
+    Attributes:
+        x: estimated poses of the R robots (B, 3R) [m, m, rad].
+        covariance: their joint covariance (B, 3R, 3R).
+        map_variances: the terrain map's cell variances (B, G) [m^2].
+        observations_left: each robot's sensing budget (B, R).
+        steps: steps since the env's current decision (B,).
+        done: whether the episode has ended (a robot lost, coverage reached, or out of time) (B,).
+        landmark_visible: which landmarks each robot's sensor would see from its estimate (B, R, L).
+        pair_visible: which (observer, target) pairs of ``SensingPairs`` are observable between estimates (B, P).
+        motion_clear: which motions keep each robot clear of contacts, judged from the estimates (B, R, 5).
+    """
+
+    x: np.ndarray
+    covariance: np.ndarray
+    map_variances: np.ndarray
+    observations_left: np.ndarray
+    steps: np.ndarray
+    done: np.ndarray
+    landmark_visible: np.ndarray
+    pair_visible: np.ndarray
+    motion_clear: np.ndarray
+
+
+class ExplorationPlanningModel:
+    """The step model and planning model of ``CooperativeExplorationEnv``, a mixin of it.
+
+    It reads the env's config, world, sensors, map model, ``pairs``, ``_pair_lookup``, ``speeds_mps``,
+    ``_static_geometry`` (and its copies ``_tiled_geometries``), ``_gps_schedule``, ``_gps_noise``,
+    ``_odometry_covariances`` and, for ``belief()``, its EKF, map, budgets and clock. A look-ahead agent uses
+    ``belief()``, ``plan_decision(belief, robot)``, ``plan_step(belief, actions)``, ``position_std(covariances)``,
+    ``n_primitives``, ``max_position_std_m``, ``idle_primitive`` and ``step_index``.
+    """
+
+    n_primitives = N_MOTIONS
+    idle_primitive = STAY  # the motion that stands still
+
+    # ------------------------------------------------------------------ one step: the env's own helpers
+
+    @property
+    def _drive_s(self) -> float:
+        """The drive phase of a step [s]."""
+        return self.config["time_step_s"] - self.config["turn_time_s"]
+
+    def _motion_plan(self, headings: np.ndarray, motions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``motion_plan`` of M motions of each robot (..., R, M) at its estimated heading (..., R)."""
+        return motion_plan(motions, headings[..., None], self.speeds_mps[:, None])
+
+    def _scan_gains(self, poses, position_std, map_variances, robots=slice(None)) -> np.ndarray:
+        """``scan_gains`` from the estimated ``poses`` (..., R, 3); ``robots`` says which robots of the team the R
+        are (default: all)."""
+        speeds = self.speeds_mps[robots]
+        return scan_gains(self.map_model, map_variances, poses[..., :2], position_std, speeds, self._drive_s)
+
+    def _action_gains(self, observation_gain: np.ndarray, scan_gains: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """Each (observation, motion)'s immediate expected information (..., R, S, 5) [nats], 0 where ``mask`` is not.
+
+        ``(1 - team_reward)`` times the observation's gain (..., R, S), plus ``team_reward`` times the scan's
+        (..., R, 5).
+        """
+        weight = self.config["team_reward"]
+        gains = (1.0 - weight) * observation_gain[..., None] + weight * scan_gains[..., None, :]
+        return np.where(mask, gains, 0.0)
+
+    def _reward_arrays(self, own, map_information, observed, driving, lost) -> dict[str, np.ndarray]:
+        """Every robot's reward terms (..., R) (see the env) from its own pose MI ``own`` (..., R) [nats], the
+        team's ``map_information`` (...) [nats], whether it ``observed`` and drove (``driving``) (..., R), and
+        whether a robot of the team is ``lost`` (...)."""
+        cfg, shape = self.config, np.shape(own)
+        return {
+            "own_pose_information": own,
+            "team_map_information": np.broadcast_to(np.asarray(map_information, dtype=float)[..., None], shape),
+            "sensing_cost": -cfg["observation_cost_nats"] * np.asarray(observed),
+            "motion_cost": -cfg["motion_cost_per_step"] * np.asarray(driving),
+            "lost_penalty": np.broadcast_to(np.where(lost, -cfg["lost_penalty"], 0.0)[..., None], shape),
+        }
+
+    def _total_reward(self, terms: dict) -> np.ndarray:
+        """The rewards (..., R) of the reward terms of ``_reward_arrays``."""
+        weight = self.config["team_reward"]
+        costs = terms["sensing_cost"] + terms["motion_cost"] + terms["lost_penalty"]
+        return (1.0 - weight) * terms["own_pose_information"] + weight * terms["team_map_information"] + costs
+
+    # ------------------------------------------------------------------ the planning model
+
+    def planning_model(self) -> ExplorationPlanningModel:
+        """The env's planning model (the env itself, through the methods above), for ``PlannerAgent``."""
+        return self
+
+    @property
+    def max_position_std_m(self) -> float:
+        """The bound on a robot's largest position standard deviation [m] (config ``max_position_std_m``)."""
+        return self.config["max_position_std_m"]
+
+    @property
+    def step_index(self) -> int:
+        """The index of the current decision: steps since the reset."""
+        return self._elapsed_steps
+
+    @staticmethod
+    def position_std(covariances: np.ndarray) -> np.ndarray:
+        """Each robot's largest position standard deviation (B, R) [m] in joint covariances (B, 3R, 3R)."""
+        robots = np.arange(np.shape(covariances)[1] // POSE_DIM)
+        blocks = batched.pose_blocks(covariances)[:, robots, robots]
+        return ActiveLocalizationEnv.position_std(blocks.reshape(-1, POSE_DIM, POSE_DIM)).reshape(blocks.shape[:2])
+
+    def belief(self) -> TeamBelief:
+        """The team's estimator state at the current decision, as a batch of one."""
+        if getattr(self, "_elapsed_steps", None) is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before belief()")
+        done = bool(self.lost.any()) or self.success or self._elapsed_steps >= self.max_cycles
+        return self._belief(
+            self.ekf.x[None].copy(),
+            self.ekf.P[None].copy(),
+            self.map_variances[None].copy(),
+            self.observations_left[None].copy(),
+            np.zeros(1, dtype=int),
+            np.array([done]),
+        )
+
+    def plan_decision(self, belief: TeamBelief, robot: int) -> tuple[np.ndarray, np.ndarray]:
+        """Robot ``robot``'s ``(action_mask (B, A), action_information_gain (B, A))`` at each belief.
+
+        As ``infos`` give them, with what the robot would see judged from the estimates. A finished belief
+        has only action 0 valid, with gain 0.
+        """
+        n_landmarks, B = self.config["n_landmarks"], len(belief)
+        poses = belief.x.reshape(B, -1, POSE_DIM)
+        observable = (belief.observations_left[:, robot] > 0) & ~belief.done
+        slot_valid = np.zeros((B, self.n_slots), dtype=bool)
+        slot_valid[:, 0] = True
+        slot_valid[:, 1 : 1 + n_landmarks] = belief.landmark_visible[:, robot] & observable[:, None]
+        observation_gain = np.zeros((B, self.n_slots))
+        if n_landmarks and self.relative_sensors[robot] is not None:
+            block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
+            landmarks = np.broadcast_to(self.world.landmarks, (B, n_landmarks, 2))
+            _, H, R = self._plan_landmark_models(poses[:, robot], landmarks, robot)
+            observation_gain[:, 1 : 1 + n_landmarks] = batched.landmark_information_gains(
+                belief.covariance[:, block, block], H, R, check_input=False
+            )
+        own_pairs = np.flatnonzero(self.pairs.observers == robot)
+        if own_pairs.size:
+            slots = 1 + n_landmarks + self.pairs.targets[own_pairs]
+            slot_valid[:, slots] = belief.pair_visible[:, own_pairs] & observable[:, None]
+            pairs = np.broadcast_to(own_pairs, (B, own_pairs.size))
+            observers, targets = self.pairs.observers[pairs], self.pairs.targets[pairs]
+            predicted, H_observer, H_target = batched.relative_pose_model(
+                belief.x, observers, targets, check_input=False
+            )
+            R = self._pair_noise(pairs, predicted[..., 0])
+            observation_gain[:, slots] = batched.relative_pose_information_gains(
+                belief.covariance, observers, targets, H_observer, H_target, R, check_input=False
+            )[0]
+        own = slice(robot, robot + 1)
+        position_std = self.position_std(belief.covariance)[:, own]
+        scan = self._scan_gains(poses[:, own], position_std, belief.map_variances, own)[:, 0]
+        mask = slot_valid[:, :, None] & belief.motion_clear[:, robot, None, :]
+        mask[belief.done] = False
+        mask[belief.done, 0, STAY] = True
+        return mask.reshape(B, -1).astype(np.int8), self._action_gains(observation_gain, scan, mask).reshape(B, -1)
+
+    def plan_step(self, belief: TeamBelief, actions) -> tuple[TeamBelief, np.ndarray]:
+        """Predict one step of every belief under the team's actions (B, R): ``(next beliefs, rewards (B, R))``.
+
+        The env's transition with the unknowns replaced by their expectation: each observation is an EKF
+        update with the measurement as predicted (its MI is exact), each motion the commanded one from the
+        estimate, DGPS fixes where the estimate lies outside the canopies, each scan from the estimated
+        position. What a robot's action asks for and its belief does not allow is dropped (an observation
+        out of sight or budget: none; a motion that is not clear: stay). A finished belief stays put, earns 0.
+        """
+        cfg = self.config
+        B, n_robots, n_landmarks = len(belief), len(self.possible_agents), cfg["n_landmarks"]
+        live = ~belief.done
+        slots, motions = np.divmod(np.asarray(actions, dtype=int).reshape(B, n_robots), N_MOTIONS)
+        budget = (belief.observations_left > 0) & live[:, None]
+        copies, robots = np.arange(B)[:, None], np.arange(n_robots)
+        landmarks = np.clip(slots - 1, 0, max(n_landmarks - 1, 0))
+        sees_landmark = (slots >= 1) & (slots <= n_landmarks) & budget
+        if n_landmarks:
+            sees_landmark &= belief.landmark_visible[copies, robots, landmarks]
+        pairs = self._pair_lookup[robots, np.clip(slots - 1 - n_landmarks, 0, n_robots - 1)]
+        sees_teammate = (slots > n_landmarks) & budget & (pairs >= 0)
+        sees_teammate &= belief.pair_visible[copies, np.maximum(pairs, 0)]
+        driving = (motions != STAY) & live[:, None] & belief.motion_clear[copies, robots, motions]
+        observed = sees_landmark | sees_teammate
+        P = self._expected_observations(belief, sees_landmark, landmarks, sees_teammate, pairs)
+        log_dets = [batched.pose_log_dets(M, n_robots, check_input=False) for M in (belief.covariance, P)]
+        own = 0.5 * (log_dets[0] - log_dets[1])
+        x, P = self._expected_motion(belief.x, P, motions, driving)
+        positions = x.reshape(B, n_robots, POSE_DIM)[..., :2]
+        time_s = self._time_s + (belief.steps + 1) * cfg["time_step_s"]
+        denied = self.world.gps_denied(positions.reshape(-1, 2)).reshape(B, n_robots)
+        has_fix = gps_available(*self._gps_schedule, denied, time_s) & live[:, None]
+        if has_fix.any():
+            x, P = batched.gps_update(x, P, positions, self._gps_noise, has_fix, check_input=False)
+        position_std = self.position_std(P)
+        footprints = self.map_model.footprints(positions) & driving[..., None]
+        noise = self.map_model.scan_noise_variances(position_std)
+        map_variances = self.map_model.fused(belief.map_variances, footprints, noise)
+        map_information = 0.5 * np.sum(np.log(belief.map_variances / map_variances), axis=-1)
+        lost = (position_std > cfg["max_position_std_m"]).any(axis=1) & live
+        success = (self.map_model.coverage(map_variances) >= cfg["coverage_target"]) & ~lost & live
+        out_of_time = self._elapsed_steps + belief.steps + 1 >= self.max_cycles
+        rewards = self._total_reward(self._reward_arrays(own, map_information, observed, driving, lost))
+        following = self._belief(
+            np.where(live[:, None], x, belief.x),
+            np.where(live[:, None, None], P, belief.covariance),
+            np.where(live[:, None], map_variances, belief.map_variances),
+            belief.observations_left - observed,
+            belief.steps + live,
+            belief.done | lost | success | out_of_time,
+        )
+        return following, np.where(live[:, None], rewards, 0.0)
+
+    # ------------------------------------------------------------------ the model's parts
+
+    def _belief(self, x, covariance, map_variances, observations_left, steps, done) -> TeamBelief:
+        """A ``TeamBelief`` with what each robot would see judged from the estimates ``x`` (B, 3R)."""
+        B, n_landmarks = len(x), self.config["n_landmarks"]
+        poses = x.reshape(B, -1, POSE_DIM)
+        n_robots = poses.shape[1]
+        landmark_visible = np.zeros((B, n_robots, n_landmarks), dtype=bool)
+        sensors = [None if sensor is None else sensor.range_bearing for sensor in self.relative_sensors]
+        for sensor in {sensor for sensor in sensors if sensor is not None} if n_landmarks else ():
+            robots = [robot for robot, other in enumerate(sensors) if other == sensor]  # one query per sensor
+            seen = poses[:, robots].reshape(-1, POSE_DIM)
+            landmarks = np.broadcast_to(self.world.landmarks, (len(seen), n_landmarks, 2))
+            seen_landmarks = visible(self._tiled_geometry(len(seen)), sensor, seen, landmarks, check_input=False)
+            landmark_visible[:, robots] = seen_landmarks.reshape(B, len(robots), n_landmarks)
+        pairs = self.pairs
+        between = relative_pose(
+            poses[:, pairs.observers].reshape(-1, POSE_DIM), poses[:, pairs.targets].reshape(-1, POSE_DIM)
+        )
+        pair_visible = pairs.covered(between.reshape(B, -1, POSE_DIM))
+        if len(pairs.observers):
+            lines = np.array(pairs.sight_lines, dtype=int).reshape(-1, 2)
+            sight = TeamSightLines(self._tiled_geometry(B * len(lines)), lines)
+            pair_visible &= sight.clear(poses)[:, pairs.sight_line]
+        radius_m = self.world.robot_radius_m
+        motion_clear = clear_motions(
+            self._tiled_geometry(B), poses, poses[..., 2], self.speeds_mps, self._drive_s, radius_m
+        )
+        return TeamBelief(
+            x, covariance, map_variances, observations_left, steps, done, landmark_visible, pair_visible, motion_clear
+        )
+
+    def _tiled_geometry(self, n_copies: int):
+        """The world's static shapes as ``n_copies`` copies (``StaticGeometry.tiled``), kept for the episode."""
+        tiled = self._tiled_geometries.get(n_copies)
+        if tiled is None:
+            tiled = self._tiled_geometries[n_copies] = self._static_geometry.tiled(n_copies)
+        return tiled
+
+    def _plan_landmark_models(self, poses, landmarks, robots):
+        """``(predicted (M, K, 2), H (M, K, 2, 3), R (M, K, 2, 2))`` of ``robots[m]`` (or one robot) at the
+        estimated ``poses[m]`` (M, 3) seeing each of ``landmarks[m]`` (M, K, 2)."""
+        predicted, H = batched.landmark_measurement_model(poses, landmarks, check_input=False)
+        R = np.empty((*predicted.shape, 2))
+        robots = np.broadcast_to(robots, len(poses))
+        for robot in np.unique(robots).tolist():
+            rows = robots == robot
+            ranges = predicted[rows, :, 0]
+            noise = self.relative_sensors[robot].range_bearing.noise_covariance(ranges.ravel())
+            R[rows] = noise.reshape(*ranges.shape, 2, 2)
+        return predicted, H, R
+
+    def _pair_noise(self, pairs: np.ndarray, ranges: np.ndarray) -> np.ndarray:
+        """Noise covariances (..., 3, 3) of the relative poses of ``pairs`` (``SensingPairs`` rows) at ``ranges``."""
+        return noise_covariances(self.pairs.noise[pairs].reshape(-1, 5), ranges.ravel()).reshape(*np.shape(pairs), 3, 3)
+
+    def _expected_observations(self, belief, sees_landmark, landmarks, sees_teammate, pairs) -> np.ndarray:
+        """The joint covariance (B, 3R, 3R) after every robot's observation of the step, as one stacked update.
+
+        Robot r's observation fills rows ``3r .. 3r + 2`` of the stacked Jacobian (a landmark's range-bearing
+        leaves the third row zero, with unit noise: no measurement), at the estimates (the prior's).
+        """
+        B, n = belief.covariance.shape[:2]
+        n_robots = n // POSE_DIM
+        H = np.zeros((B, n_robots, POSE_DIM, n))
+        R = np.broadcast_to(np.eye(POSE_DIM), (B, n_robots, POSE_DIM, POSE_DIM)).copy()
+        poses = belief.x.reshape(B, n_robots, POSE_DIM)
+        pose_columns = np.arange(POSE_DIM)[None, None, :]
+        copies, robots = np.nonzero(sees_landmark)
+        if copies.size:
+            seen = self.world.landmarks[landmarks[copies, robots]][:, None]
+            _, H_pose, R_pose = self._plan_landmark_models(poses[copies, robots], seen, robots)
+            rows = (copies[:, None, None], robots[:, None, None], np.arange(2)[None, :, None])
+            H[(*rows, POSE_DIM * robots[:, None, None] + pose_columns)] = H_pose[:, 0]
+            R[copies, robots, :2, :2] = R_pose[:, 0]
+        copies, robots = np.nonzero(sees_teammate)
+        if copies.size:
+            chosen = pairs[copies, robots]
+            targets = self.pairs.targets[chosen]
+            predicted, H_observer, H_target = batched.relative_pose_model(
+                belief.x[copies], robots[:, None], targets[:, None], check_input=False
+            )
+            rows = (copies[:, None, None], robots[:, None, None], np.arange(POSE_DIM)[None, :, None])
+            H[(*rows, POSE_DIM * robots[:, None, None] + pose_columns)] = H_observer[:, 0]
+            H[(*rows, POSE_DIM * targets[:, None, None] + pose_columns)] = H_target[:, 0]
+            R[copies, robots] = self._pair_noise(chosen, predicted[:, 0, 0])
+        observing = np.flatnonzero((sees_landmark | sees_teammate).any(axis=1))
+        P = belief.covariance.copy()
+        if observing.size:
+            stacked_R = np.array([block_diagonal(blocks) for blocks in R[observing]])
+            P[observing] = batched.posterior_covariance(
+                P[observing], H[observing].reshape(observing.size, n, n), stacked_R, check_input=False
+            )
+        return P
+
+    def _expected_motion(self, x, P, motions, driving) -> tuple[np.ndarray, np.ndarray]:
+        """The prediction ``(x, P)`` of the step's commanded turns and drives (the ``driving`` robots' motions)."""
+        cfg = self.config
+        turns, speeds = self._motion_plan(x[:, 2::POSE_DIM], motions[..., None])
+        turns, speeds = np.where(driving, turns[..., 0], 0.0), np.where(driving, speeds[..., 0], 0.0)
+        turn_s = cfg["turn_time_s"]
+        phases = (
+            (turn_s, np.stack([np.zeros_like(turns), turns / turn_s], axis=-1)),
+            (cfg["time_step_s"] - turn_s, np.stack([speeds, np.zeros_like(speeds)], axis=-1)),
+        )
+        for phase_s, controls in phases:
+            x, P = batched.predict_team(x, P, controls, phase_s, self._odometry_covariances, check_input=False)
+        return x, P
