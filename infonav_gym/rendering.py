@@ -95,7 +95,6 @@ def legend_entries(frame: SceneFrame) -> list[LegendEntry]:
     per_robot = " (colour per robot)" if len(estimated) > 1 else ""
     visible = np.ones(len(frame.landmarks), bool) if frame.landmark_visible is None else frame.landmark_visible
     visible = np.asarray(visible, dtype=bool)
-    observer_colour = _robot_colour(frame.observations[0][0] if frame.observations else 0)
     candidates = [
         (any(robot.true_pose is not None for robot in robots), "disc", _BLACK, "true pose"),
         (bool(estimated), "ring", colour, "estimated pose" + per_robot),
@@ -109,9 +108,20 @@ def legend_entries(frame: SceneFrame) -> list[LegendEntry]:
         (any(_has_path(robot.estimated_path) for robot in robots), "line", colour, "estimated path"),
         (bool(visible.any()), "disc", _GREEN, "landmark #k in sight"),
         (not visible.all(), "disc", _LIGHT_GREY, "landmark out of sight"),
-        (frame.chosen_landmark is not None, "disc", _RED, "landmark observed now"),
+        (frame.chosen_landmark is not None or bool(frame.landmark_observations), "disc", _RED, "landmark observed now"),
         (frame.landmark_estimates is not None, "cross", _ORANGE, f"landmark estimate, {N_SIGMA:g}\u03c3"),
-        (bool(frame.observations), "line", observer_colour, "relative observation (observer's colour)"),
+        (
+            bool(frame.observations),
+            "line",
+            _first_observer_colour(frame.observations),
+            "relative observation (observer's colour)",
+        ),
+        (
+            bool(frame.landmark_observations),
+            "line",
+            _first_observer_colour(frame.landmark_observations),
+            "landmark observation (observer's colour)",
+        ),
         (bool(frame.walls), "line", _DARK_GREY, "wall"),
         (bool(frame.obstacles), "disc", _DARK_GREY, "obstacle"),
         (bool(frame.gps_denied_zones), "zone", _CANOPY_GREEN, "GPS denied"),
@@ -119,6 +129,11 @@ def legend_entries(frame: SceneFrame) -> list[LegendEntry]:
         (frame.goal is not None, "target", _BLACK, "goal"),
     ]
     return [LegendEntry(symbol, colour, text) for shown, symbol, colour, text in candidates if shown]
+
+
+def _first_observer_colour(pairs) -> tuple[int, int, int]:
+    """The colour of the first ``(observer, ...)`` pair's observer (robot 0's if there is none)."""
+    return _robot_colour(pairs[0][0] if pairs else 0)
 
 
 def _has_path(path) -> bool:
@@ -304,6 +319,12 @@ class Renderer:
             if frame.robots and frame.robots[0].true_pose is not None:
                 pygame.draw.line(surface, _RED, screen(frame.robots[0].true_pose[:2])[0].tolist(), chosen, 2)
             pygame.draw.circle(surface, _RED, chosen, _LANDMARK_PX + 2)
+        for observer, landmark in frame.landmark_observations:
+            observer_pose = frame.robots[observer].true_pose
+            if observer_pose is not None:
+                start = screen(observer_pose[:2])[0].tolist()
+                pygame.draw.line(surface, _robot_colour(observer), start, landmarks[landmark], 1)
+            pygame.draw.circle(surface, _RED, landmarks[landmark], _LANDMARK_PX + 2)
         for index, (col, row) in enumerate(landmarks):
             label_corner = (col + _LANDMARK_PX + 3, row - layout.line_px // 2)
             self._draw_text(pygame, surface, f"#{index + 1}", LANDMARK_LABEL_COLOUR, label_corner)

@@ -91,8 +91,9 @@ class SceneFrame:
 
     Landmark ``k`` (index ``k - 1``) is labelled ``#k``, the paper's Fig. 1 numbering.
     ``observations`` are ``(observer, target)`` pairs of robot indices, drawn as a line
-    between their true positions; ``gps_denied_zones`` are circles (``center``,
-    ``radius``) filled lightly under everything else. The chosen landmark's line starts
+    between their true positions; ``landmark_observations`` ``(observer, landmark index)`` pairs,
+    a line from the observer's true position to the landmark, marked observed; ``gps_denied_zones``
+    are circles (``center``, ``radius``) filled lightly under everything else. The chosen landmark's line starts
     at ``robots[0]``'s true pose. ``sensor_wedge`` is a field of view from ``robots[0]``'s
     true position: ``(world azimuth of its axis, full width [rad], length [m])``; ``goal`` a
     position drawn as a target circle of ``goal_radius_m`` (at least a robot's drawn size);
@@ -111,6 +112,7 @@ class SceneFrame:
     landmark_estimates: np.ndarray | None = None
     landmark_covariances: np.ndarray | None = None
     observations: Sequence[tuple[int, int]] = ()
+    landmark_observations: Sequence[tuple[int, int]] = ()
     gps_denied_zones: Sequence = ()
     sensor_wedge: tuple[float, float, float] | None = None
     goal: tuple[float, float] | None = None

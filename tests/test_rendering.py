@@ -198,6 +198,21 @@ def test_an_observation_is_a_line_between_the_two_robots_true_positions():
     assert pixel(renderer.draw(observed), renderer, frame, midpoint) == ROBOT_COLOURS[1], "in the observer's colour"
 
 
+def test_a_landmark_observation_is_a_line_from_the_observer_to_the_landmark_marked_red():
+    renderer = Renderer("rgb_array", 300)
+    robots = [RobotDrawing(true_pose=np.array([3.0, 5.0, 0.0])), RobotDrawing(true_pose=np.array([3.0, 2.0, 0.0]))]
+    landmarks = np.array([[17.0, 5.0]])
+    frame = SceneFrame(bounds=(0.0, 0.0, 20.0, 10.0), robots=robots, landmarks=landmarks)
+    observed = SceneFrame(bounds=frame.bounds, robots=robots, landmarks=landmarks, landmark_observations=[(1, 0)])
+    midpoint = (10.0, 3.5)
+    assert pixel(renderer.draw(frame), renderer, frame, midpoint) == (255, 255, 255)
+    image = renderer.draw(observed)
+    assert pixel(image, renderer, frame, midpoint) == ROBOT_COLOURS[1], "in the observer's colour"
+    assert pixel(image, renderer, frame, (17.0, 5.0)) == (220, 30, 30), "the observed landmark is red"
+    texts = [entry.text for entry in legend_entries(observed)]
+    assert "landmark observation (observer's colour)" in texts and "landmark observed now" in texts
+
+
 def test_a_gps_denied_zone_is_filled_lightly_under_the_obstacles():
     renderer = Renderer("rgb_array", 300)
     frame = SceneFrame(

@@ -135,6 +135,7 @@ class ExplorationViews(TeamPaths):
             landmarks=self.world.landmarks,
             robots=self._robot_drawings(),
             observations=list(self._observed_pairs),
+            landmark_observations=list(self._observed_landmarks),
             gps_denied_zones=scenario.gps_denied_zones,
             inset_image=np.round(255 * image).astype(np.uint8),
             inset_title=f"terrain map (white: known), coverage {self.coverage:.0%}",
