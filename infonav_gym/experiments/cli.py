@@ -1,4 +1,4 @@
-"""The ``infonav`` command: demo, evaluate, train, benchmark, reproduce, replay."""
+"""The ``infonav`` command: demo, evaluate, render, train, benchmark, reproduce, replay."""
 
 from __future__ import annotations
 
@@ -75,6 +75,17 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--ray", action="store_true", help="play them as Ray tasks (the distributed extra)")
     evaluate.add_argument("--address", help="with --ray: an existing Ray cluster (default: a local Ray)")
     _common(evaluate)
+
+    render = commands.add_parser("render", help="render one episode of an agent: PREFIX.gif (animated), PREFIX.png")
+    render.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
+    render.add_argument("--agents", default="greedy", help="one agent: random, greedy (default), planner, ppo:PATH")
+    render.add_argument("--output", type=Path, required=True, metavar="PREFIX", help="write PREFIX.gif and PREFIX.png")
+    render.add_argument(
+        "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
+    )
+    render.add_argument("--every", type=int, default=1, help="keep every K-th step's frame (default: 1)")
+    render.add_argument("--max-steps", type=int, help="stop after N steps (default: when the episode ends)")
+    _common(render)
 
     train = commands.add_parser("train", help="train PPO (MaskablePPO with action masks); save model.zip")
     train.add_argument(
@@ -238,6 +249,36 @@ def _evaluate(args, argv) -> dict:
         print(markdown_table(results))
     _raise_if_failed(failure, results)
     return results
+
+
+def _render(args) -> dict:
+    """Render one episode into ``args.output`` .gif and .png; print what was written unless --json."""
+    from infonav_gym.experiments.render_episode import RENDER_SUFFIXES, render_episode, write_gif, write_strip
+    from infonav_gym.rendering import require_extra
+
+    if "," in args.agents:
+        raise ValueError(f"--agents takes one agent to render, got {args.agents!r}")
+    stem = check_output_stem(args.output, RENDER_SUFFIXES, "--output")
+    require_extra("PIL", "infonav render's GIF")  # before the episode, not after it
+    require_extra("matplotlib", "infonav render's PNG")
+    episode = render_episode(
+        args.env, args.agents, args.seed, dict(args.config), args.every, args.max_steps, progress=not args.json
+    )
+    steps = episode.steps[-1]
+    result = {"env_id": args.env, "agent": args.agents, "seed": args.seed, "steps": steps, "frames": len(episode.steps)}
+    title = f"{args.env}, {args.agents}, seed {args.seed}"
+
+    def write():
+        stem.parent.mkdir(parents=True, exist_ok=True)
+        return [write_gif(episode, stem.with_suffix(".gif")), write_strip(episode, stem.with_suffix(".png"), title)]
+
+    failure = _write_files(write, result, f"--output {stem}")
+    if not args.json:
+        print(f"{title}: {steps} steps, {len(episode.steps)} frames (every {args.every})")
+        for path in result.get("files", []):
+            print(f"wrote {path} ({Path(path).stat().st_size / 1e6:.2f} MB)")
+    _raise_if_failed(failure, result)
+    return result
 
 
 def _train(args) -> dict:
@@ -499,6 +540,8 @@ def main(argv: list[str] | None = None) -> int:
             result = _demo(args)
         elif args.command == "evaluate":
             result = _evaluate(args, argv)
+        elif args.command == "render":
+            result = _render(args)
         elif args.command == "train":
             result = _train(args)
         elif args.command == "reproduce":

@@ -59,6 +59,13 @@ class EpisodeRunner:
         run = run_parallel_episode if self.parallel else run_episode
         return run(self.env, self.agents[name], seed)
 
+    def infos(self, task: tuple[str, int]):
+        """The infos of agent ``task[0]``'s episode on seed ``task[1]``: the reset's, then each step's, as played."""
+        from infonav_gym.experiments.evaluation import episode_infos, parallel_episode_infos
+
+        name, seed = task
+        return (parallel_episode_infos if self.parallel else episode_infos)(self.env, self.agents[name], seed)
+
     def close(self) -> None:
         self.env.close()
 

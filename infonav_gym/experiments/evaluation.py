@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -115,32 +116,42 @@ def make_team_agents(name: str, env) -> dict:
     }
 
 
-def run_episode(env: gym.Env, agent, seed: int) -> dict:
-    """One seeded episode; returns the env's declared ``episode_metrics`` of it, ``{name: value}``."""
+def episode_infos(env: gym.Env, agent, seed: int) -> Iterator[dict]:
+    """The info of one seeded episode's reset, then of each of its steps, as they are played."""
     observation, info = env.reset(seed=seed)
     agent.reset(seed=seed)
-    infos, done = [], False
+    yield info
+    done = False
     while not done:
         observation, _, terminated, truncated, info = env.step(agent.act(observation, info))
-        infos.append(info)
+        yield info
         done = terminated or truncated
+
+
+def run_episode(env: gym.Env, agent, seed: int) -> dict:
+    """One seeded episode; returns the env's declared ``episode_metrics`` of it, ``{name: value}``."""
+    infos = list(episode_infos(env, agent, seed))[1:]
     return {metric.name: metric.compute(infos) for metric in episode_metrics_of(env)}
 
 
-def run_parallel_episode(env, agents: dict, seed: int) -> dict:
-    """One seeded episode of a PettingZoo parallel env, ``agents[robot]`` acting for each robot; its metrics.
-
-    ``agents`` comes from ``make_team_agents``; robot ``k``'s agent is reset with seed ``1000 * seed + k``.
-    The metrics (the env's ``episode_metrics``) see the per-step dicts ``{robot: info}``.
-    """
+def parallel_episode_infos(env, agents: dict, seed: int) -> Iterator[dict]:
+    """The per-robot infos ``{robot: info}`` of one seeded episode of a PettingZoo parallel env's reset, then
+    of each of its steps, as they are played; ``agents[robot]`` (reset with seed ``1000 * seed + k`` for robot
+    ``k``) acts for each robot."""
     observations, infos = env.reset(seed=seed)
     for k, robot in enumerate(env.possible_agents):
         agents[robot].reset(seed=1000 * seed + k)
-    steps = []
+    yield infos
     while env.agents:
         actions = {name: agents[name].act(observations[name], infos[name]) for name in env.agents}
         observations, _, _, _, infos = env.step(actions)
-        steps.append(infos)
+        yield infos
+
+
+def run_parallel_episode(env, agents: dict, seed: int) -> dict:
+    """One seeded episode of a PettingZoo parallel env (``parallel_episode_infos``, ``agents`` from
+    ``make_team_agents``); its metrics, the env's ``episode_metrics`` of the per-step dicts ``{robot: info}``."""
+    steps = list(parallel_episode_infos(env, agents, seed))[1:]
     return {metric.name: metric.compute(steps) for metric in episode_metrics_of(env)}
 
 

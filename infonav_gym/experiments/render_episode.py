@@ -1,0 +1,127 @@
+"""One seeded episode of an env and an agent, rendered: an animated GIF and a strip of frames (``infonav render``).
+
+The agent is built as ``infonav evaluate`` builds it (``EpisodeRunner``: one per robot in a team env), and the
+episode is the one ``evaluate`` plays on the same seed; the env draws every frame (``render_mode="rgb_array"``).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from infonav_gym.experiments.episode_pool import EpisodeRunner
+from infonav_gym.rendering import require_extra
+
+RENDER_SUFFIXES = (".gif", ".png")  # the files of ``render --output PREFIX``
+STRIP_FRAMES = 6  # frames in PREFIX.png
+STRIP_COLUMNS = 3
+
+
+def check_positive(value, name: str) -> int:
+    """``value`` as an int >= 1, else ``ValueError`` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class RenderedEpisode:
+    """The kept frames of an episode, (H, W, 3) uint8, the step each shows (0: after the reset), the env's fps."""
+
+    frames: list
+    steps: list
+    fps: float
+
+
+def render_episode(
+    env_id: str,
+    agent_name: str,
+    seed: int,
+    env_kwargs: dict | None = None,
+    every: int = 1,
+    max_steps: int | None = None,
+    progress: bool = True,
+) -> RenderedEpisode:
+    """Play one episode and keep the frame after the reset, after every ``every``-th step and after the last.
+
+    Args:
+        env_id: a registered env id.
+        agent_name: random, greedy, planner, ppo:PATH or rllib:DIR (``evaluation.make_agent``).
+        seed: the episode's seed.
+        env_kwargs: config overrides.
+        every: keep every ``every``-th step's frame.
+        max_steps: stop after this many steps (default: when the episode ends).
+        progress: show a progress bar over the steps.
+
+    Raises:
+        ValueError: for ``every`` or ``max_steps`` not an integer >= 1, an unknown env, agent or config key.
+    """
+    check_positive(every, "--every")
+    if max_steps is not None:
+        check_positive(max_steps, "--max-steps")
+    runner = EpisodeRunner(env_id, {**(env_kwargs or {}), "render_mode": "rgb_array"}, [agent_name])
+    frames, steps = [], []
+    bar = tqdm(total=max_steps or _horizon(runner.env), desc=f"rendering {env_id}", disable=not progress, unit="step")
+    try:
+        stop = None if max_steps is None else max_steps + 1  # the reset, then max_steps steps
+        for step, _ in enumerate(itertools.islice(runner.infos((agent_name, seed)), stop)):
+            if step % every == 0:
+                frames.append(runner.env.render())
+                steps.append(step)
+            bar.update(int(step > 0))
+        if steps[-1] != step:
+            frames.append(runner.env.render())
+            steps.append(step)
+    finally:
+        bar.close()
+        runner.close()
+    return RenderedEpisode(frames, steps, float(runner.env.metadata["render_fps"]))
+
+
+def _horizon(env) -> int | None:
+    """The most steps an episode of ``env`` lasts: its Gymnasium time limit, or a team env's ``max_cycles``."""
+    spec = getattr(env, "spec", None)
+    return spec.max_episode_steps if spec is not None else getattr(env, "max_cycles", None)
+
+
+def write_gif(episode: RenderedEpisode, path: Path) -> Path:
+    """The episode's frames as an animated GIF looping forever, at the env's fps (needs Pillow)."""
+    require_extra("PIL", "infonav render's GIF")
+    from PIL import Image
+
+    images = [Image.fromarray(frame) for frame in episode.frames]
+    frame_ms = round(1000 / episode.fps)
+    images[0].save(path, save_all=True, append_images=images[1:], duration=frame_ms, loop=0, optimize=True)
+    return path
+
+
+def strip_indices(n_frames: int, n_shown: int = STRIP_FRAMES) -> list[int]:
+    """``n_shown`` (at most ``n_frames``) evenly spaced frame indices, the first and the last included."""
+    return sorted(set(np.rint(np.linspace(0, n_frames - 1, min(n_shown, n_frames))).astype(int).tolist()))
+
+
+def write_strip(episode: RenderedEpisode, path: Path, title: str) -> Path:
+    """A grid of ``STRIP_FRAMES`` evenly spaced frames of the episode, each titled with its step (needs matplotlib)."""
+    require_extra("matplotlib", "infonav render's PNG")
+    from matplotlib.figure import Figure  # no pyplot: renders with Agg, leaves the caller's backend alone
+
+    frames, steps = episode.frames, episode.steps
+    shown = strip_indices(len(frames))
+    columns = min(STRIP_COLUMNS, len(shown))
+    rows = -(-len(shown) // columns)
+    height, width = frames[0].shape[:2]
+    figure = Figure(figsize=(columns * 3.2, rows * 3.2 * height / width + 0.5))
+    axes = figure.subplots(rows, columns, squeeze=False).ravel()
+    for axis in axes:
+        axis.set_axis_off()
+    for axis, index in zip(axes, shown):
+        axis.imshow(frames[index])
+        axis.set_title(f"step {steps[index]}", fontsize=9)
+    figure.suptitle(title, fontsize=10)
+    figure.tight_layout()
+    figure.savefig(path, dpi=150)
+    return path
