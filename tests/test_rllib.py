@@ -146,7 +146,7 @@ def test_one_policy_per_robot_trains_a_module_for_each(local_ray, tmp_path_facto
 
 
 def _play(env_id: str, env_kwargs: dict, act, steps: int) -> None:
-    """``steps`` steps of the masked ``env_id`` from seed 3, each robot (or the agent) acting by ``act(observation)``."""
+    """``steps`` steps of the masked ``env_id`` from seed 3, each robot (or the agent) acting by ``act(obs)``."""
     team = api_of(env_id) == PARALLEL
     env = (MaskedParallelEnv if team else MaskedObservations)(make_env(env_id, **env_kwargs))
     observation, _ = env.reset(seed=3)
@@ -211,6 +211,8 @@ def test_the_exploration_team_trains_and_evaluates_and_its_policy_never_gives_a_
                 masked_steps += int(not mask.all())
             observations, _, _, _, infos = env.step(actions)
     assert masked_steps > 0
+
+
 def test_an_agent_takes_a_relative_directory(landmark_run, monkeypatch):
     output, _ = landmark_run
     monkeypatch.chdir(output.parent)
