@@ -2,7 +2,7 @@
 
 Single-agent envs train one policy on ``envs_per_runner`` copies per env runner: the env's native vector env
 where it has one (``MaskedVectorObservations``, RLlib's ``VECTOR_ENTRY_POINT`` mode), else Gymnasium's sync
-vectorization of ``MaskedObservations`` copies; a PettingZoo parallel env (``cooperative_localization_v0``) trains
+vectorization of ``MaskedObservations`` copies; a PettingZoo parallel env (the team envs) trains
 multi-agent PPO through RLlib's ``ParallelPettingZooEnv`` on ``MaskedParallelEnv``: one policy shared by
 every robot (``policies="shared"``, parameter sharing) or one per robot (``"per_robot"``). Every policy is a
 ``MaskedPPOTorchRLModule``. The PPO settings come from the env's block of ``agents/hyperparams/ppo.yml``,

@@ -17,13 +17,15 @@ import torch  # noqa: E402
 from ray.rllib.core.rl_module.rl_module import RLModule, RLModuleSpec  # noqa: E402
 
 from agents.rllib_agent import MODULES_PATH, RLlibAgent  # noqa: E402
-from agents.rllib_masking import ACTION_MASK, MaskedObservations  # noqa: E402
+from agents.rllib_masking import ACTION_MASK, MaskedObservations, MaskedParallelEnv, mask_observation  # noqa: E402
 from agents.rllib_module import MaskedPPOTorchRLModule  # noqa: E402
 from agents.rllib_train import CHECKPOINT_DIR, SHARED_POLICY, build_config  # noqa: E402
 from infonav_gym.experiments.cli import main  # noqa: E402
-from infonav_gym.multi import cooperative_localization_v0  # noqa: E402
+from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0  # noqa: E402
+from infonav_gym.registry import PARALLEL, api_of, make_env  # noqa: E402
 
 LANDMARK_ID, TEAM_ID = "infonav/LandmarkSelection-v0", "cooperative_localization_v0"
+EXPLORATION_ID, EXPLORATION_CYCLES = "cooperative_exploration_v0", 40
 SMALL_BLOCK = {"n_envs": 1, "n_steps": 500, "batch_size": 128, "n_epochs": 2, "policy_kwargs": {"net_arch": [32, 32]}}
 
 
@@ -39,7 +41,7 @@ def small_blocks(tmp_path_factory):
     import yaml
 
     path = tmp_path_factory.mktemp("hyperparams") / "ppo.yml"
-    path.write_text(yaml.safe_dump({LANDMARK_ID: SMALL_BLOCK, TEAM_ID: SMALL_BLOCK}))
+    path.write_text(yaml.safe_dump({env_id: SMALL_BLOCK for env_id in (LANDMARK_ID, TEAM_ID, EXPLORATION_ID)}))
     return path
 
 
@@ -58,6 +60,11 @@ def landmark_run(local_ray, tmp_path_factory, small_blocks):
 @pytest.fixture(scope="module")
 def team_run(local_ray, tmp_path_factory, small_blocks):
     return _trained(tmp_path_factory, small_blocks, TEAM_ID, "--config", "max_cycles=30")
+
+
+@pytest.fixture(scope="module")
+def exploration_run(local_ray, tmp_path_factory, small_blocks):
+    return _trained(tmp_path_factory, small_blocks, EXPLORATION_ID, "--config", f"max_cycles={EXPLORATION_CYCLES}")
 
 
 def _masked_module(env, **model_config) -> MaskedPPOTorchRLModule:
@@ -138,27 +145,72 @@ def test_one_policy_per_robot_trains_a_module_for_each(local_ray, tmp_path_facto
     assert all(infos[robot]["action_mask"][action] for robot, action in actions.items())
 
 
-def test_a_restored_module_gives_the_trained_modules_actions(local_ray, tmp_path, small_blocks):
+def _play(env_id: str, env_kwargs: dict, act, steps: int) -> None:
+    """``steps`` steps of the masked ``env_id`` from seed 3, each robot (or the agent) acting by ``act(obs)``."""
+    team = api_of(env_id) == PARALLEL
+    env = (MaskedParallelEnv if team else MaskedObservations)(make_env(env_id, **env_kwargs))
+    observation, _ = env.reset(seed=3)
+    for _ in range(steps):
+        if team and not env.agents:
+            return
+        action = {robot: act(observation[robot]) for robot in env.agents} if team else act(observation)
+        observation, *_ = env.step(action)
+
+
+@pytest.mark.parametrize(
+    ("env_id", "env_kwargs"), [(LANDMARK_ID, {"horizon": 40}), (EXPLORATION_ID, {"max_cycles": EXPLORATION_CYCLES})]
+)
+def test_a_restored_module_gives_the_trained_modules_actions(local_ray, tmp_path, small_blocks, env_id, env_kwargs):
     from agents.ppo import load_hyperparameters
 
-    config = build_config(LANDMARK_ID, {"horizon": 40}, 0, load_hyperparameters(LANDMARK_ID, small_blocks))
+    config = build_config(env_id, env_kwargs, 0, load_hyperparameters(env_id, small_blocks))
+    policy = SHARED_POLICY if api_of(env_id) == PARALLEL else "default_policy"
     algorithm = config.build_algo()
     try:
         algorithm.train()
         algorithm.save_to_path(str(tmp_path / CHECKPOINT_DIR))
-        trained = algorithm.get_module()
-        restored = RLModule.from_checkpoint(tmp_path.joinpath(CHECKPOINT_DIR, *MODULES_PATH, "default_policy"))
-        env = MaskedObservations(gym.make(LANDMARK_ID, horizon=40))
-        observation, _ = env.reset(seed=3)
-        for _ in range(40):
+        trained = algorithm.get_module(policy)
+        restored = RLModule.from_checkpoint(tmp_path.joinpath(CHECKPOINT_DIR, *MODULES_PATH, policy))
+
+        def act(observation: dict) -> int:
             batch = {"obs": {key: torch.as_tensor(value)[None] for key, value in observation.items()}}
             with torch.no_grad():
                 expected = trained.forward_inference(batch)["action_dist_inputs"]
                 actual = restored.forward_inference(batch)["action_dist_inputs"]
             torch.testing.assert_close(actual, expected, rtol=0, atol=0)
-            observation, *_ = env.step(int(torch.argmax(actual)))
+            return int(torch.argmax(actual))
+
+        _play(env_id, env_kwargs, act, 40)
     finally:
         algorithm.stop()
+
+
+def test_the_exploration_team_trains_and_evaluates_and_its_policy_never_gives_a_masked_action_weight(
+    exploration_run, capsys
+):
+    output, record = exploration_run
+    assert record["env_id"] == EXPLORATION_ID and record["policies"] == "shared" and record["timesteps"] >= 2000
+    argv = ["evaluate", "--env", EXPLORATION_ID, "--agents", f"rllib:{output}", "--episodes", "2"]
+    assert main([*argv, "--config", f"max_cycles={EXPLORATION_CYCLES}", "--json"]) == 0
+    episodes = json.loads(capsys.readouterr().out)["agents"][f"rllib:{output}"]["episodes"]
+    assert len(episodes) == 2 and all(0 < episode["episode_steps"] <= EXPLORATION_CYCLES for episode in episodes)
+    env = cooperative_exploration_v0.parallel_env(max_cycles=EXPLORATION_CYCLES)
+    robots = {robot: RLlibAgent(output, env, robot) for robot in env.possible_agents}
+    masked_steps = 0
+    for seed in range(2):  # the evaluation's seeds
+        observations, infos = env.reset(seed=seed)
+        while env.agents:
+            actions = {robot: robots[robot].act(observations[robot], infos[robot]) for robot in env.agents}
+            for robot, action in actions.items():
+                mask = mask_observation(infos[robot]["action_mask"], len(infos[robot]["action_mask"]))
+                batch = {"obs": {"observation": torch.as_tensor(observations[robot])[None]}}
+                batch["obs"][ACTION_MASK] = torch.as_tensor(mask)[None]
+                with torch.no_grad():
+                    logits = robots[robot].module.forward_inference(batch)["action_dist_inputs"][0]
+                assert mask[action] == 1 and float(torch.softmax(logits, 0)[mask == 0].sum()) == 0.0
+                masked_steps += int(not mask.all())
+            observations, _, _, _, infos = env.step(actions)
+    assert masked_steps > 0
 
 
 def test_an_agent_takes_a_relative_directory(landmark_run, monkeypatch):

@@ -2,8 +2,8 @@
 
 - ``evaluation_workers_figures``: the wall time of ``evaluate`` (LandmarkSelection-v0, the CLI's default agents,
   20 episodes each) with 2 worker processes over its time with 1, alternating rounds, median ratio;
-- ``rllib_runner_figures`` (when Ray imports): env-steps/s RLlib's env runners sample on the team env
-  (``cooperative_localization_v0``, the RLlib backend's masked multi-agent env, random-initialized shared
+- ``rllib_runner_figures`` (when Ray imports): env-steps/s RLlib's env runners sample on a team env
+  (default ``cooperative_localization_v0``, the RLlib backend's masked multi-agent env, random-initialized shared
   policy), with 2 runners against 1, each run on the same local Ray.
 """
 
@@ -48,12 +48,12 @@ def rllib_missing() -> str | None:
     return None
 
 
-def _sampled_steps_per_second(num_env_runners: int, seed: int, steps: int) -> float:
-    """Env steps/s the ``num_env_runners`` runners of a fresh team-env PPO sample at once."""
+def _sampled_steps_per_second(num_env_runners: int, seed: int, steps: int, env_id: str) -> float:
+    """Env steps/s the ``num_env_runners`` runners of a fresh PPO on ``env_id`` sample at once."""
     from agents.ppo import load_hyperparameters
     from agents.rllib_train import build_config
 
-    config = build_config(TEAM_ID, {}, seed, load_hyperparameters(TEAM_ID), num_env_runners=num_env_runners)
+    config = build_config(env_id, {}, seed, load_hyperparameters(env_id), num_env_runners=num_env_runners)
     algorithm = config.build_algo()
     try:
         group = algorithm.env_runner_group
@@ -69,14 +69,14 @@ def _sampled_steps_per_second(num_env_runners: int, seed: int, steps: int) -> fl
         algorithm.stop()
 
 
-def rllib_runner_figures(seed: int = 0, steps: int = RLLIB_SAMPLE_STEPS) -> dict:
-    """Sampled env-steps/s on the team env with 1 and 2 env runners (``steps`` each), their ratio; {} without Ray."""
+def rllib_runner_figures(seed: int = 0, steps: int = RLLIB_SAMPLE_STEPS, env_id: str = TEAM_ID) -> dict:
+    """Sampled env-steps/s on ``env_id`` with 1 and 2 env runners (``steps`` each), their ratio; {} without Ray."""
     if rllib_missing():
         return {}
     from agents.ray_support import local_or_cluster_ray
 
     with local_or_cluster_ray():
-        one, two = _sampled_steps_per_second(1, seed, steps), _sampled_steps_per_second(2, seed, steps)
+        one, two = (_sampled_steps_per_second(runners, seed, steps, env_id) for runners in (1, 2))
     return {
         "rllib_team_1_runner_steps_per_s": one,
         "rllib_team_2_runners_steps_per_s": two,
