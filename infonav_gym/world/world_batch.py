@@ -44,7 +44,7 @@ class WorldBatch:
     def __init__(self, n_copies: int, **world_args):
         self._worlds = [World(**world_args) for _ in range(n_copies)]  # reset when a copy first needs Pymunk
         self._scenarios: list[Scenario | None] = [None] * n_copies
-        self._geometries: list[StaticGeometry | None] = [None] * n_copies
+        self._geometries: list[StaticGeometry | None] = [None] * n_copies  # built when a free step first needs it
         self._world_is_stale = np.ones(n_copies, dtype=bool)
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
         self._has_space = np.zeros(n_copies, dtype=bool)  # the copy's World holds a Pymunk space
@@ -86,7 +86,7 @@ class WorldBatch:
                 f"{self.poses.shape[1]}; every copy needs the same number"
             )
         self._scenarios[copy] = scenario
-        self._geometries[copy] = StaticGeometry.from_scenario(scenario, self.wall_thickness_m)
+        self._geometries[copy] = None
         self._world_is_stale[copy] = True
         self._in_contact[copy] = self._has_space[copy] = False
         self._worlds[copy].drop_space()
@@ -153,9 +153,10 @@ class WorldBatch:
         near_static, near_robots = self._contact_within(copies, before, speeds, dt)
         contact = near_static | near_robots
         free = np.flatnonzero(contact & ~self._in_contact[copies])
-        free = free[self._contact_free(copies[free], before[free], controls[free], near_static[free], dt)]
-        after[free] = self._free_substeps(before[free], controls[free], dt)
-        contact[free] = False
+        if free.size:
+            free = free[self._contact_free(copies[free], before[free], controls[free], near_static[free], dt)]
+            after[free] = self._free_substeps(before[free], controls[free], dt)
+            contact[free] = False
         for copy in copies[self._in_contact[copies] & ~contact].tolist():  # their runs of contact steps end
             world = self._worlds[copy]
             world.end_contacts()  # as the single World does on a free step
@@ -226,6 +227,12 @@ class WorldBatch:
             near_robots = (offsets[..., 0] ** 2 + offsets[..., 1] ** 2 < pair_reach * pair_reach).any(axis=1)
         return near_static.any(axis=(1, 2)), near_robots
 
+    def _geometry(self, copy: int) -> StaticGeometry:
+        """The walls and obstacles of ``copy``'s scenario (built once per scenario)."""
+        if self._geometries[copy] is None:
+            self._geometries[copy] = StaticGeometry.from_scenario(self._scenarios[copy], self.wall_thickness_m)
+        return self._geometries[copy]
+
     def _contact_free(self, copies, poses: np.ndarray, controls: np.ndarray, near_static, dt: float) -> np.ndarray:
         """Whether each of ``copies`` (n,) keeps ``CONTACT_GAP_M`` beyond touching all through the step: every two
         robots, and each robot from the walls and obstacles where they are within reach (``near_static`` (n,)).
@@ -241,7 +248,7 @@ class WorldBatch:
         free = ~conflicts.any(axis=(1, 2, 3, 4))
         rows = np.flatnonzero(free & near_static)
         if rows.size:
-            geometry = StaticGeometry.stack([self._geometries[copy] for copy in copies[rows].tolist()])
+            geometry = StaticGeometry.stack([self._geometry(copy) for copy in copies[rows].tolist()])
             grown = geometry.grown(self._radius_m + CONTACT_GAP_M)
             starts = poses[rows, :, :2]
             queries = np.repeat(np.arange(len(rows)), starts.shape[1])
