@@ -20,8 +20,11 @@ from infonav_gym.multi.exploration_planning import (
     NOOP_ACTION,
     STAY,
     ExplorationPlanningModel,
+    action_gains,
     clear_motions,
     motion_plan,
+    reward_terms,
+    total_reward,
 )
 from infonav_gym.multi.exploration_views import (
     EXPLORATION_INFO_KEYS,
@@ -343,7 +346,7 @@ class CooperativeExplorationEnv(
         position_std = ActiveLocalizationEnv.position_std(covariances)
         scan = self._scan_gains(self.ekf.x.reshape(-1, POSE_DIM), position_std, self.map_variances)
         mask = slot_valid[:, :, None] & self._clear_motions()[:, None, :]
-        gains = self._action_gains(observation_gain, scan, mask).reshape(n, -1)
+        gains = action_gains(self.config["team_reward"], observation_gain, scan, mask).reshape(n, -1)
         relative = RelativeSight(geometry, valid, candidate_row, candidates, pose_log_det, pose_std)
         return Decision(
             mask.reshape(n, -1).astype(np.int8), gains, ExplorationSight(relative, slot_valid, position_std)
@@ -380,9 +383,9 @@ class CooperativeExplorationEnv(
         map_information = self._scan(motions != STAY, position_std)
         self.lost = position_std > cfg["max_position_std_m"]
         self.success = bool(self.coverage >= cfg["coverage_target"] and not self.lost.any())
-        terms = self._reward_arrays(own_information, map_information, observed, motions != STAY, self.lost.any())
+        terms = reward_terms(self.config, own_information, map_information, observed, motions != STAY, self.lost.any())
         self._reward_terms = [{key: float(value[robot]) for key, value in terms.items()} for robot in range(len(slots))]
-        return self._total_reward(terms)
+        return total_reward(self.config["team_reward"], terms)
 
     def _drive(self, turns: np.ndarray, speeds: np.ndarray) -> None:
         """Turn every robot on the spot, then drive it straight (Pymunk executes both); predict with odometry."""

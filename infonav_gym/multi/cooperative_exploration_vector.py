@@ -27,7 +27,16 @@ from infonav_gym.multi.exploration_batch import (
     exploration_info,
     landmark_gains,
 )
-from infonav_gym.multi.exploration_planning import N_MOTIONS, STAY, clear_motions, motion_plan, scan_gains
+from infonav_gym.multi.exploration_planning import (
+    N_MOTIONS,
+    STAY,
+    action_gains,
+    clear_motions,
+    motion_plan,
+    reward_terms,
+    scan_gains,
+    total_reward,
+)
 from infonav_gym.multi.exploration_views import exploration_observations
 from infonav_gym.multi.team_vector import TeamVectorEnv, draws_in_slot_order
 from infonav_gym.world.visibility import StaticGeometry
@@ -137,20 +146,11 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
         lost = position_std > cfg["max_position_std_m"]
         self._lost[copies] = lost
         self._success[copies] = (self._coverage[copies] >= cfg["coverage_target"]) & ~lost.any(axis=1)
-        lost_penalty = np.where(lost.any(axis=1, keepdims=True), -cfg["lost_penalty"], 0.0)
-        terms = {
-            "own_pose_information": own_information,
-            "team_map_information": np.repeat(map_information[:, None], n_robots, axis=1),
-            "sensing_cost": -cfg["observation_cost_nats"] * observed,
-            "motion_cost": -cfg["motion_cost_per_step"] * (motions != STAY),
-            "lost_penalty": np.broadcast_to(lost_penalty, lost.shape),
-        }
+        terms = reward_terms(cfg, own_information, map_information, observed, motions != STAY, lost.any(axis=1))
         for key, value in terms.items():
             record.terms[key][copies] = value
-        weight = cfg["team_reward"]
-        costs = terms["sensing_cost"] + terms["motion_cost"] + terms["lost_penalty"]
         rewards = np.zeros(chosen.shape)
-        rewards[copies] = (1.0 - weight) * own_information + weight * terms["team_map_information"] + costs
+        rewards[copies] = total_reward(cfg["team_reward"], terms)
         terminated = np.zeros(self.num_envs, dtype=bool)
         terminated[copies] = lost.any(axis=1) | self._success[copies]
         return record, rewards, terminated
@@ -240,12 +240,10 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
         drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
         positions = x.reshape(n_copies, n_robots, POSE_DIM)[..., :2]
         scan = scan_gains(self._map, self._map_variances, positions, position_std, self._speeds_mps, drive_s)
-        weight = cfg["team_reward"]
-        gains = (1.0 - weight) * observation_gain[..., None] + weight * scan[:, :, None, :]
         headings, radius_m = x[:, 2::POSE_DIM], self._single.world.robot_radius_m
         clear = clear_motions(self._geometry, true_poses, headings, self._speeds_mps, drive_s, radius_m)
         mask = slot_valid[..., None] & clear[:, :, None, :]
-        gains = np.where(mask, gains, 0.0).reshape(n_copies, n_robots, -1)
+        gains = action_gains(cfg["team_reward"], observation_gain, scan, mask).reshape(n_copies, n_robots, -1)
         mask = mask.reshape(n_copies, n_robots, -1).astype(np.int8)
         self._decision = ExplorationDecision(mask, gains, team, slot_valid, position_std)
 

@@ -83,6 +83,33 @@ def scan_gains(map_model, variances, positions, position_std, speeds_mps, drive_
     return gains
 
 
+def action_gains(team_reward: float, observation_gain, scan, mask) -> np.ndarray:
+    """Each (observation, motion)'s immediate expected information (..., R, S, 5) [nats], 0 where ``mask`` is not:
+    ``(1 - team_reward)`` times the observation's gain (..., R, S) plus ``team_reward`` times the scan's (..., R, 5)."""
+    gains = (1.0 - team_reward) * observation_gain[..., None] + team_reward * scan[..., None, :]
+    return np.where(mask, gains, 0.0)
+
+
+def reward_terms(config: dict, own, map_information, observed, driving, lost) -> dict[str, np.ndarray]:
+    """Every robot's reward terms (..., R) (see the env) from its own pose MI ``own`` (..., R) [nats], the team's
+    ``map_information`` (...) [nats], whether it ``observed`` and drove (``driving``) (..., R), and whether a robot
+    of the team is ``lost`` (...)."""
+    shape = np.shape(own)
+    return {
+        "own_pose_information": own,
+        "team_map_information": np.broadcast_to(np.asarray(map_information, dtype=float)[..., None], shape),
+        "sensing_cost": -config["observation_cost_nats"] * np.asarray(observed),
+        "motion_cost": -config["motion_cost_per_step"] * np.asarray(driving),
+        "lost_penalty": np.broadcast_to(np.where(lost, -config["lost_penalty"], 0.0)[..., None], shape),
+    }
+
+
+def total_reward(team_reward: float, terms: dict) -> np.ndarray:
+    """The rewards (..., R) of the terms of ``reward_terms``."""
+    costs = terms["sensing_cost"] + terms["motion_cost"] + terms["lost_penalty"]
+    return (1.0 - team_reward) * terms["own_pose_information"] + team_reward * terms["team_map_information"] + costs
+
+
 @dataclass(frozen=True)
 class TeamBelief(BeliefBatch):
     """The team's estimator state at a decision, batched over ``B`` hypothetical futures (estimates only).
@@ -139,35 +166,6 @@ class ExplorationPlanningModel:
         are (default: all)."""
         speeds = self.speeds_mps[robots]
         return scan_gains(self.map_model, map_variances, poses[..., :2], position_std, speeds, self._drive_s)
-
-    def _action_gains(self, observation_gain: np.ndarray, scan_gains: np.ndarray, mask: np.ndarray) -> np.ndarray:
-        """Each (observation, motion)'s immediate expected information (..., R, S, 5) [nats], 0 where ``mask`` is not.
-
-        ``(1 - team_reward)`` times the observation's gain (..., R, S), plus ``team_reward`` times the scan's
-        (..., R, 5).
-        """
-        weight = self.config["team_reward"]
-        gains = (1.0 - weight) * observation_gain[..., None] + weight * scan_gains[..., None, :]
-        return np.where(mask, gains, 0.0)
-
-    def _reward_arrays(self, own, map_information, observed, driving, lost) -> dict[str, np.ndarray]:
-        """Every robot's reward terms (..., R) (see the env) from its own pose MI ``own`` (..., R) [nats], the
-        team's ``map_information`` (...) [nats], whether it ``observed`` and drove (``driving``) (..., R), and
-        whether a robot of the team is ``lost`` (...)."""
-        cfg, shape = self.config, np.shape(own)
-        return {
-            "own_pose_information": own,
-            "team_map_information": np.broadcast_to(np.asarray(map_information, dtype=float)[..., None], shape),
-            "sensing_cost": -cfg["observation_cost_nats"] * np.asarray(observed),
-            "motion_cost": -cfg["motion_cost_per_step"] * np.asarray(driving),
-            "lost_penalty": np.broadcast_to(np.where(lost, -cfg["lost_penalty"], 0.0)[..., None], shape),
-        }
-
-    def _total_reward(self, terms: dict) -> np.ndarray:
-        """The rewards (..., R) of the reward terms of ``_reward_arrays``."""
-        weight = self.config["team_reward"]
-        costs = terms["sensing_cost"] + terms["motion_cost"] + terms["lost_penalty"]
-        return (1.0 - weight) * terms["own_pose_information"] + weight * terms["team_map_information"] + costs
 
     # ------------------------------------------------------------------ the planning model
 
@@ -245,7 +243,8 @@ class ExplorationPlanningModel:
         mask = slot_valid[:, :, None] & belief.motion_clear[:, robot, None, :]
         mask[belief.done] = False
         mask[belief.done, 0, STAY] = True
-        return mask.reshape(B, -1).astype(np.int8), self._action_gains(observation_gain, scan, mask).reshape(B, -1)
+        gains = action_gains(self.config["team_reward"], observation_gain, scan, mask)
+        return mask.reshape(B, -1).astype(np.int8), gains.reshape(B, -1)
 
     def plan_step(self, belief: TeamBelief, actions) -> tuple[TeamBelief, np.ndarray]:
         """Predict one step of every belief under the team's actions (B, R): ``(next beliefs, rewards (B, R))``.
@@ -289,7 +288,8 @@ class ExplorationPlanningModel:
         lost = (position_std > cfg["max_position_std_m"]).any(axis=1) & live
         success = (self.map_model.coverage(map_variances) >= cfg["coverage_target"]) & ~lost & live
         out_of_time = self._elapsed_steps + belief.steps + 1 >= self.max_cycles
-        rewards = self._total_reward(self._reward_arrays(own, map_information, observed, driving, lost))
+        terms = reward_terms(self.config, own, map_information, observed, driving, lost)
+        rewards = total_reward(self.config["team_reward"], terms)
         following = self._belief(
             np.where(live[:, None], x, belief.x),
             np.where(live[:, None, None], P, belief.covariance),
