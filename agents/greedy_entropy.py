@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from infonav_gym.decisions import argmax_tied
+
 
 class GreedyEntropyAgent:
-    """Argmax of ``info["action_information_gain"]`` over the valid actions (ties: lowest index).
+    """Argmax of ``info["action_information_gain"]`` over the valid actions (near-ties: lowest index).
 
     Uses only ``info``, so it works through any wrapper that passes infos on.
     When no action is valid it returns action 0 (a no-op in the infonav envs).
@@ -22,5 +24,5 @@ class GreedyEntropyAgent:
             raise ValueError('GreedyEntropyAgent needs info["action_information_gain"] from the env') from None
         mask = info.get("action_mask")
         if mask is None:
-            return int(np.argmax(gains))
-        return int(np.argmax(np.where(mask, gains, -np.inf))) if np.any(mask) else 0
+            return argmax_tied(gains)
+        return argmax_tied(np.where(mask, gains, -np.inf)) if np.any(mask) else 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from agents.team_planning import RobotPlanningView, TeamPlans
+from infonav_gym.decisions import argmax_tied, is_positive, top_k_tied
 from infonav_gym.envs.traits import traits_of
 
 PLANNING_METHODS = ("belief", "plan_decision", "plan_step", "position_std")
@@ -59,7 +60,7 @@ class PlannerAgent:
     ``observation_branching`` most informative valid observations. Each leaf is
     valued by rolling out base policies for ``rollout_steps`` steps and keeping the
     best: steer with one primitive for ``detour_steps`` steps (or none), then take the
-    valid primitive whose no-observation gain is largest (the lowest on ties: heading for
+    valid primitive whose no-observation gain is largest (the lowest on near-ties: heading for
     the goal in ActiveLocalization-v0, driving to the most unmapped cells in
     cooperative_exploration_v0), observing the most informative visible target only once
     the position standard deviation has reached ``sensing_std_fraction`` of the failure
@@ -148,7 +149,7 @@ class PlannerAgent:
             self.model.clear()
 
     def act(self, observation, info: dict) -> int:
-        """The first action of the best sequence found (ties: lowest action index)."""
+        """The first action of the best sequence found (near-ties, ``infonav_gym.decisions``: lowest action index)."""
         mask = np.asarray(info["action_mask"])[None]
         gains = np.asarray(info["action_information_gain"])[None]
         if not mask.any():
@@ -170,10 +171,10 @@ class PlannerAgent:
         first_actions = paths[:, 0]
         best = np.full(self.n_actions, -np.inf)
         np.maximum.at(best, first_actions, totals)
-        action = int(np.argmax(np.where(valid_first, best, -np.inf)))
+        action = argmax_tied(np.where(valid_first, best, -np.inf))
         if isinstance(self.model, RobotPlanningView):
             chosen = np.flatnonzero(first_actions == action)
-            leaf = chosen[np.argmax(totals[chosen])]
+            leaf = chosen[argmax_tied(totals[chosen])]
             self.model.publish(np.concatenate([paths[leaf], rollouts[leaf]]))
         return action
 
@@ -186,7 +187,7 @@ class PlannerAgent:
         slot_gains = np.where(mask > 0, gains, -np.inf).reshape(B, -1, n_primitives)[:, 1:, 0]  # (B, K)
         options = np.zeros((B, 1 + self.observation_branching), dtype=int)
         if self.observation_branching:
-            order = np.argsort(-slot_gains, axis=1, kind="stable")[:, : self.observation_branching]
+            order = top_k_tied(slot_gains, self.observation_branching, axis=1)
             valid = np.take_along_axis(slot_gains, order, axis=1) > -np.inf
             options[:, 1:] = np.where(valid, order + 1, 0)
         primitives = np.arange(n_primitives)
@@ -212,20 +213,20 @@ class PlannerAgent:
             mask, gains = self.model.plan_decision(batch)
             mask = mask.reshape(len(batch), -1, self.n_primitives) > 0
             gains = gains.reshape(mask.shape)
-            greedy_primitive = np.argmax(np.where(mask[:, 0], gains[:, 0], -np.inf), axis=1)
+            greedy_primitive = argmax_tied(np.where(mask[:, 0], gains[:, 0], -np.inf), axis=1)
             position_std = self.model.position_std(batch.covariance)
             stopped = (step >= detour_length) & (position_std >= stop_fraction * bound)
             primitives = np.where(step < detour_length, detour_primitive, greedy_primitive)
             primitives = np.where(stopped, self.model.idle_primitive or 0, primitives).astype(int)
             slot_gains = gains[:, :, 0]
-            best_slot = np.argmax(slot_gains, axis=1)
+            best_slot = argmax_tied(slot_gains, axis=1)
             needed = position_std >= self.sensing_std_fraction * bound
-            slots = np.where(needed & (slot_gains[rows, best_slot] > 0), best_slot, 0)
+            slots = np.where(needed & is_positive(slot_gains[rows, best_slot]), best_slot, 0)
             taken.append(slots * self.n_primitives + primitives)
             batch, rewards = self.model.plan_step(batch, taken[-1])
             values += self.discount**step * rewards
             if batch.done.all():
                 break
-        best = np.argmax(values.reshape(len(policies), B), axis=0)
+        best = argmax_tied(values.reshape(len(policies), B), axis=0)
         chosen = best * B + np.arange(B)
         return values.reshape(len(policies), B)[best, np.arange(B)], np.stack(taken, axis=1)[chosen]

@@ -10,6 +10,7 @@ from scipy.stats import chisquare
 
 import agents
 import infonav_gym  # noqa: F401  (registers the envs)
+from infonav_gym.decisions import DECISION_ATOL, DECISION_RTOL
 from agents import GreedyEntropyAgent, RandomAgent
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
@@ -69,7 +70,7 @@ def test_greedy_returns_a_python_int_and_accepts_list_and_bool_masks():
         st.tuples(st.floats(0.0, 10.0, allow_nan=False, allow_subnormal=False), st.booleans()), min_size=1, max_size=12
     )
 )
-def test_greedy_choice_is_the_lowest_index_maximizer_over_valid_actions(pairs):
+def test_greedy_choice_is_the_lowest_index_near_maximizer_over_valid_actions(pairs):
     gains = [gain for gain, _ in pairs]
     mask = [int(valid) for _, valid in pairs]
     action = GreedyEntropyAgent().act(None, greedy_info(gains, mask))
@@ -78,7 +79,8 @@ def test_greedy_choice_is_the_lowest_index_maximizer_over_valid_actions(pairs):
         assert action == 0
     else:
         best = max(gains[i] for i in valid)
-        assert action == min(i for i in valid if gains[i] == best)
+        band = DECISION_RTOL * best + DECISION_ATOL  # the gains are >= 0
+        assert action == min(i for i in valid if gains[i] >= best - band)
 
 
 # ----------------------------------------------------------------------------- RandomAgent

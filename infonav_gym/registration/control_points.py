@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import distance_transform_cdt, uniform_filter
 
+from infonav_gym.decisions import top_k_tied
 from infonav_gym.geometry import cross
 from infonav_gym.information import information_gain_of_information, log_det_spd
 from infonav_gym.sensors.ladar import LadarScan
@@ -326,7 +327,7 @@ def _most_informative(geometry: ControlPointGeometry, k: int) -> np.ndarray:
     usable = np.isfinite(geometry.error_var_m2)
     error = geometry.error_std_m
     reliability = np.where(usable, error / (1.0 + np.where(usable, error, 0.0)), 1.0)  # in [0, 1)
-    order = np.argsort(geometry.patch + reliability / 2)  # by patch, most reliable first
+    order = np.argsort(geometry.patch + reliability / 2, kind="stable")  # by patch, most reliable first
     patch_of = geometry.patch[order]
     patches = int(patch_of[-1]) + 1
     members = np.bincount(patch_of, minlength=patches)
@@ -360,7 +361,7 @@ def _most_informative(geometry: ControlPointGeometry, k: int) -> np.ndarray:
         added = size[all_patches, column] - np.where(taken_chunks > 0, size[all_patches, column - 1], 0)
         gain = (np.linalg.slogdet(total + added_information)[1] - total_log_det) / np.maximum(added, 1)
         gain[taken_chunks >= chunks] = -np.inf
-        best = np.argsort(-gain, kind="stable")[:batch]
+        best = top_k_tied(gain, batch)
         best = best[gain[best] > -np.inf]
         best = best[taken + np.cumsum(added[best]) - added[best] < k]  # stop once k points are taken
         taken += int(added[best].sum())

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from infonav_gym.decisions import argmax_tied, top_k_tied
 from infonav_gym.information import expected_information_gain
 
 POLICIES = ("all", "greedy", "random", "nearest")
@@ -30,7 +31,7 @@ def select_greedy(P: np.ndarray, H: np.ndarray, R: np.ndarray, k: int, of: np.nd
     R = np.broadcast_to(R, (len(H), *np.shape(R)[-2:]))
     for _ in range(min(k, len(H))):
         gains = expected_information_gain(P, H, R, check_input=False) if of is None else _marginal_gains(P, H, R, of)
-        best = int(np.argmax(np.where(available, gains, -np.inf)))
+        best = argmax_tied(np.where(available, gains, -np.inf))
         chosen.append(best)
         available[best] = False
         PHT = P @ H[best].T
@@ -50,8 +51,8 @@ def _marginal_gains(P, H, R, of) -> np.ndarray:
 
 
 def select_nearest(predicted_ranges: np.ndarray, k: int) -> list[int]:
-    """The ``k`` candidates whose targets are predicted closest (ties: earliest first)."""
-    return np.argsort(predicted_ranges, kind="stable")[:k].tolist()
+    """The ``k`` candidates whose targets are predicted closest (near-ties: earliest first)."""
+    return top_k_tied(-np.asarray(predicted_ranges, dtype=float), k).tolist()
 
 
 def select_random(n_candidates: int, k: int, rng: np.random.Generator) -> list[int]:
