@@ -14,6 +14,10 @@ from agents import GreedyEntropyAgent, PlannerAgent
 from infonav_gym.decisions import DECISION_ATOL, DECISION_RTOL, argmax_tied, is_positive, top_k_tied
 from infonav_gym.experiments.replay.policies import select_greedy, select_nearest
 from infonav_gym.multi import cooperative_exploration_v0
+from infonav_gym.registration.control_points import DEFAULT_POSE_COVARIANCE, select_control_points
+from infonav_gym.sensors.ladar import Ladar
+from infonav_gym.world.terrain import Box
+from infonav_gym.world.terrain_generation import flat_terrain, make_terrain
 
 PERTURBATION = 1e-13  # relative: far above a step's rounding (~1e-15), far below the tie band (1e-9)
 TEAM_CONFIG = {"max_cycles": 20}  # a short whole episode of the four-robot team planner
@@ -174,3 +178,17 @@ def test_the_replay_policies_pick_the_same_measurements_from_perturbed_inputs(se
     for _ in range(3):
         again = select_greedy(nudged_symmetric(P, perturbed), nudged(H, perturbed), R, 4)
         assert (again, select_nearest(nudged(ranges, perturbed), 4)) == picks
+
+
+def test_the_control_point_picks_are_the_same_under_a_perturbed_pose_prior():
+    """The greedy chunk picks of ``"entropy"`` on level ground with a wall (many patches equal in exact
+    arithmetic) and on rugged terrain, with the motion prior nudged."""
+    flat = flat_terrain(size_m=120.0, cell_m=1.0).with_obstacles(boxes=[Box((12.0, -3.0, 0.0), (14.0, 3.0, 6.0))])
+    rugged = make_terrain(np.random.default_rng(3), roughness=1.0, n_trees=25, n_rocks=8)
+    rng = np.random.default_rng(0)
+    for terrain in (flat, rugged):
+        scan = Ladar().scan(terrain, [0.0, 0.0, 0.3], np.random.default_rng(0))
+        for k in (50, 400):
+            reference = select_control_points(scan, k, pose_covariance=DEFAULT_POSE_COVARIANCE)
+            again = select_control_points(scan, k, pose_covariance=nudged_symmetric(DEFAULT_POSE_COVARIANCE, rng))
+            np.testing.assert_array_equal(again, reference)
