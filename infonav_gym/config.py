@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import difflib
+import math
 import numbers
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -27,7 +28,11 @@ def merge_config(defaults: dict, overrides: dict, owner: str) -> dict:
     return merged
 
 
+KINDS = {bool: "a bool (true or false)", int: "a finite integer", float: "a finite number", str: "a string"}
+
+
 def _typed_like(default, value, where: str):
+    """``value`` as the type of ``default``; ``ValueError`` naming ``where`` unless it is one (floats: finite ones)."""
     if isinstance(default, bool):
         if isinstance(value, (bool, np.bool_)):
             return bool(value)
@@ -35,14 +40,15 @@ def _typed_like(default, value, where: str):
         if isinstance(value, numbers.Integral) and not isinstance(value, bool):
             return int(value)
     elif isinstance(default, float):
-        if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        if isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value):
             return float(value)
     elif isinstance(default, str):
         if isinstance(value, str):
             return value
     else:
         return value
-    raise ValueError(f"{where} must be a {type(default).__name__} (like the default {default!r}), got {value!r}")
+    kind = next(kind for kind_type, kind in KINDS.items() if isinstance(default, kind_type))
+    raise ValueError(f"{where} must be {kind} (like the default {default!r}), got {value!r}")
 
 
 def check_choice(config: dict, key: str, choices, owner: str) -> None:
