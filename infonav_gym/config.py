@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import difflib
-import math
 import numbers
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -28,11 +27,12 @@ def merge_config(defaults: dict, overrides: dict, owner: str) -> dict:
     return merged
 
 
-KINDS = {bool: "a bool (true or false)", int: "a finite integer", float: "a finite number", str: "a string"}
+KINDS = {bool: "a bool (true or false)", int: "a finite integer", float: "a number", str: "a string"}
 
 
 def _typed_like(default, value, where: str):
-    """``value`` as the type of ``default``; ``ValueError`` naming ``where`` unless it is one (floats: finite ones)."""
+    """``value`` as the type of ``default``; ``ValueError`` naming ``where`` unless it is one (an int for a float
+    is one; NaN and infinities are left to the key's range check)."""
     if isinstance(default, bool):
         if isinstance(value, (bool, np.bool_)):
             return bool(value)
@@ -40,7 +40,7 @@ def _typed_like(default, value, where: str):
         if isinstance(value, numbers.Integral) and not isinstance(value, bool):
             return int(value)
     elif isinstance(default, float):
-        if isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value):
+        if isinstance(value, numbers.Real) and not isinstance(value, bool):
             return float(value)
     elif isinstance(default, str):
         if isinstance(value, str):
