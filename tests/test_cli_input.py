@@ -8,7 +8,7 @@ import pytest
 
 import infonav_gym.experiments.evaluation as evaluation
 from infonav_gym.experiments.arguments import SEED_LIMIT, seed
-from infonav_gym.experiments.cli import main
+from infonav_gym.experiments.cli import build_parser, main
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 TINY_EVALUATE = ["evaluate", "--episodes", "1", "--agents", "random", "--config", "horizon=5"]
@@ -75,7 +75,7 @@ def test_the_seed_limit_is_numpys_legacy_one_that_stable_baselines_seeds_with():
         (["render", "--output", "{tmp}/e", "--max-steps", "-1"], "argument --max-steps: must be an integer >= 1"),
         (["train", "--env", LANDMARK_ID, "--timesteps", "0"], "argument --timesteps: must be an integer >= 1"),
         (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--n-envs", "0"], "argument --n-envs: must be"),
-        (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--num-env-runners", "0"], "--num-env-runners: must"),
+        (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--num-env-runners", "-1"], "must be an integer >= 0"),
         (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--envs-per-runner", "0"], "--envs-per-runner: must"),
         (["benchmark", "--seconds", "-1"], "argument --seconds: must be a finite number > 0, got '-1'"),
         (["benchmark", "--seconds", "inf"], "argument --seconds: must be a finite number > 0, got 'inf'"),
@@ -94,6 +94,11 @@ def test_the_seed_limit_is_numpys_legacy_one_that_stable_baselines_seeds_with():
 )
 def test_a_nonsense_number_or_list_is_refused_in_one_line(capsys, tmp_path, no_work, argv, message):
     assert message in refused(capsys, tmp_path, argv)
+
+
+def test_zero_env_runners_is_rllibs_sampling_in_the_driver_and_accepted():
+    argv = ["train", "--backend", "rllib", "--env", LANDMARK_ID, "--timesteps", "8", "--num-env-runners", "0"]
+    assert build_parser().parse_args(argv).num_env_runners == 0
 
 
 @pytest.mark.parametrize(

@@ -25,6 +25,11 @@ def positive_int(text: str) -> int:
     return _checked(text, int, "an integer >= 1", lambda value: value >= 1)
 
 
+def non_negative_int(text: str) -> int:
+    """An integer >= 0 (a count that may be none)."""
+    return _checked(text, int, "an integer >= 0", lambda value: value >= 0)
+
+
 def seed(text: str) -> int:
     """A seed: an integer in ``[0, SEED_LIMIT)``."""
     return _checked(text, int, f"an integer from 0 to {SEED_LIMIT - 1} (2**32 - 1)", lambda value: 0 <= value < SEED_LIMIT)

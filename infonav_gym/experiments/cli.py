@@ -14,6 +14,7 @@ from infonav_gym.experiments.arguments import (
     end_time,
     names,
     non_negative_float,
+    non_negative_int,
     positive_float,
     positive_int,
     seed,
@@ -168,7 +169,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="sb3: Stable-Baselines3 MaskablePPO (default); rllib: Ray RLlib PPO (the distributed extra)",
     )
     train.add_argument(
-        "--num-env-runners", type=positive_int, default=1, help="rllib: env runner processes (default: 1)"
+        "--num-env-runners",
+        type=non_negative_int,
+        default=1,
+        help="rllib: env runner processes; 0 samples in the driver process (default: 1)",
     )
     train.add_argument(
         "--envs-per-runner", type=positive_int, default=1, help="rllib: env copies per runner (default: 1)"
