@@ -32,7 +32,8 @@ def non_negative_int(text: str) -> int:
 
 def seed(text: str) -> int:
     """A seed: an integer in ``[0, SEED_LIMIT)``."""
-    return _checked(text, int, f"an integer from 0 to {SEED_LIMIT - 1} (2**32 - 1)", lambda value: 0 <= value < SEED_LIMIT)
+    requirement = f"an integer from 0 to {SEED_LIMIT - 1} (2**32 - 1)"
+    return _checked(text, int, requirement, lambda value: 0 <= value < SEED_LIMIT)
 
 
 def positive_float(text: str) -> float:
