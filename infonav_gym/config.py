@@ -27,7 +27,12 @@ def merge_config(defaults: dict, overrides: dict, owner: str) -> dict:
     return merged
 
 
+KINDS = {bool: "a bool (true or false)", int: "a finite integer", float: "a number", str: "a string"}
+
+
 def _typed_like(default, value, where: str):
+    """``value`` as the type of ``default``; ``ValueError`` naming ``where`` unless it is one (an int for a float
+    is one; NaN and infinities are left to the key's range check)."""
     if isinstance(default, bool):
         if isinstance(value, (bool, np.bool_)):
             return bool(value)
@@ -42,7 +47,8 @@ def _typed_like(default, value, where: str):
             return value
     else:
         return value
-    raise ValueError(f"{where} must be a {type(default).__name__} (like the default {default!r}), got {value!r}")
+    kind = next(kind for kind_type, kind in KINDS.items() if isinstance(default, kind_type))
+    raise ValueError(f"{where} must be {kind} (like the default {default!r}), got {value!r}")
 
 
 def check_choice(config: dict, key: str, choices, owner: str) -> None:

@@ -99,27 +99,27 @@ def test_robust_std_is_the_normal_std():
 
 def test_cli_calibrate_writes_the_model_and_its_plot(synthetic, tmp_path, capsys):
     directory = synthetic[0]
-    assert main(["replay", "mrclam", str(directory), "--calibrate", str(tmp_path / "fit" / "noise.json")]) == 0
+    assert main(["replay", "mrclam", str(directory), "--calibrate", str(tmp_path / "fit" / "noise.v2.json")]) == 0
     assert "range_bias_std_m" in capsys.readouterr().out
-    model = load_noise_model(tmp_path / "fit" / "noise.json")
+    model = load_noise_model(tmp_path / "fit" / "noise.v2.json")
     assert model == dataclasses.replace(
-        synthetic[2], source=str(tmp_path / "fit" / "noise.json"), command=model.command
+        synthetic[2], source=str(tmp_path / "fit" / "noise.v2.json"), command=model.command
     )
     assert model.command.startswith("infonav replay mrclam")
-    assert (tmp_path / "fit" / "noise.png").stat().st_size > 10_000
+    assert (tmp_path / "fit" / "noise.v2.png").stat().st_size > 10_000, "the whole stem kept"
 
 
 def test_cli_replays_with_a_noise_file_and_compares(synthetic, tmp_path, capsys):
     directory = synthetic[0]
     noise = synthetic[2].save(tmp_path / "noise.json")
     argv = ["replay", "mrclam", str(directory), "--noise", str(noise), "--compare-noise", "picked"]
-    assert main([*argv, "--duration-s", "60", "--output", str(tmp_path / "out")]) == 0
-    text = (tmp_path / "out.md").read_text()
+    assert main([*argv, "--duration-s", "60", "--output", str(tmp_path / "out.v2")]) == 0
+    text = (tmp_path / "out.v2.md").read_text()
     assert "Before (picked) → after" in text and "NEES inside 95%" in text
-    summary = json.loads((tmp_path / "out.json").read_text())
+    summary = json.loads((tmp_path / "out.v2.json").read_text())
     assert summary["config"]["noise"] == str(noise)
     assert 0 <= summary["rows"][0]["nees_fraction_inside_95"]["mean"] <= 1
-    assert (tmp_path / "out_nees.png").is_file()
+    assert (tmp_path / "out.v2_nees.png").is_file()
 
 
 @pytest.mark.parametrize(

@@ -105,9 +105,7 @@ def test_a_rate_is_summarized_by_its_wilson_interval_and_must_be_0_or_1():
     [
         (["evaluate", "--agents", "random,oracle", "--episodes", "1"], "unknown agent 'oracle'"),
         (["evaluate", "--config", "horizn=3", "--episodes", "1"], "Did you mean 'horizon'"),
-        (["evaluate", "--episodes", "0"], "episodes must be >= 1"),
         (["reproduce", "fig4"], "invalid choice: 'fig4' (choose from 'fig3', 'fig5', 'fig6')"),
-        (["reproduce", "fig3", "--seeds", "0"], "n_seeds (how many seeds the outage RMSE averages) must be >= 1"),
     ],
 )
 def test_bad_arguments_exit_2_with_a_message(capsys, argv, message):
@@ -216,7 +214,7 @@ def test_reproduce_fig3_prints_the_summary_table(capsys, tmp_path):
 @pytest.mark.parametrize(
     "text, expected",
     [("mapping=true", True), ("mapping=True", True), ("mapping=False", False), ("robot_sensors=None", None)]
-    + [("horizon=30", 30), ("team_reward=0.5", 0.5), ("scenario=corridor", "corridor")],
+    + [("horizon=30", 30), ("team_reward=0.5", 0.5), ("scenario=corridor", "corridor"), ("time_step_s=inf", math.inf)],
 )
 def test_config_values_are_json_or_python_constants_else_strings(text, expected):
     key, value = _config_pair(text)

@@ -102,16 +102,3 @@ def test_reproduce_fig5_prints_the_summary_table(capsys, tmp_path):
     out = capsys.readouterr().out
     assert "paper-like scene 1" in out and "building ahead" in out and "camera more informative" in out
     assert "LADAR > camera   in 100.0% of seeds" in out and str(tmp_path / "fig5.png") in out
-
-
-@pytest.mark.parametrize(
-    "argv, message",
-    [
-        (["reproduce", "fig5", "--seeds", "0"], "n_seeds (how many random scenes the statistics count) must be >= 1"),
-    ],
-)
-def test_bad_reproduce_arguments_exit_2_with_a_message(capsys, argv, message):
-    with pytest.raises(SystemExit) as exit_info:
-        main(argv)
-    assert exit_info.value.code == 2
-    assert message in capsys.readouterr().err

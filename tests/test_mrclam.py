@@ -154,7 +154,6 @@ def test_cli_without_groundtruth_says_so_and_reports_nis(dataset_dir, capsys):
     ("extra", "message"),
     [
         (["--policy", "oracle"], "unknown policy ['oracle']"),
-        (["--k", "0"], "need k >= 1"),
         (["--outage-robot", "7"], "outage robot 7 is not one of the robots [1, 2]"),
     ],
 )

@@ -10,7 +10,7 @@ from test_mrclam import write_dataset  # tests/ is on sys.path (pytest rootdir-r
 import infonav_gym.experiments.evaluation as evaluation
 import infonav_gym.experiments.replay as replay_package
 from infonav_gym.experiments.cli import main
-from infonav_gym.experiments.paths import check_output_dir, check_output_stem
+from infonav_gym.experiments.paths import check_output_dir, check_output_stem, output_file
 from infonav_gym.experiments.reproduce import fig6
 
 EVALUATE = ["evaluate", "--episodes", "1", "--agents", "greedy"]
@@ -51,6 +51,9 @@ def no_work(monkeypatch):
 def test_check_output_dir_accepts_a_directory_to_be_created_and_creates_nothing(tmp_path, a_file):
     assert check_output_dir(tmp_path / "new" / "deeper", "--output-dir") == tmp_path / "new" / "deeper"
     assert not (tmp_path / "new").exists()
+    assert check_output_stem(tmp_path / "eval.v2", (".md", ".json"), "--output") == tmp_path / "eval.v2"
+    assert check_output_stem(tmp_path / "eval.v2.md", (".md", ".json"), "--output") == tmp_path / "eval.v2"
+    assert output_file(tmp_path / "eval.v2", ".md") == tmp_path / "eval.v2.md"
     with pytest.raises(ValueError, match=f"--output-dir {a_file}/sub: {a_file} is a file, not a directory"):
         check_output_dir(a_file / "sub", "--output-dir")
     (tmp_path / "stem.md").mkdir()

@@ -88,8 +88,6 @@ def test_evaluate_with_ppo_is_reproducible_and_writes_tables_and_a_plot(capsys, 
         (["evaluate", "--agents", "ppo:", "--episodes", "1"], "unknown agent 'ppo:'"),
         (["evaluate", "--agents", "ppo:/no/such/model.zip", "--episodes", "1"], "'/no/such/model.zip' does not exist"),
         (["train", "--env", "infonav/Nowhere-v0", "--timesteps", "10"], "unknown env id 'infonav/Nowhere-v0'"),
-        (["train", "--env", LANDMARK_ID, "--timesteps", "0"], "timesteps must be >= 1"),
-        (["train", "--env", LANDMARK_ID, "--timesteps", "10", "--n-envs", "0"], "n_envs must be >= 1"),
     ],
 )
 def test_bad_input_exits_2_with_one_line_naming_it(capsys, argv, message):

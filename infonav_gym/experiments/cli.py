@@ -9,20 +9,38 @@ import sys
 from pathlib import Path
 
 import infonav_gym  # registers the envs
-from infonav_gym.experiments.paths import OutputWriteError, check_output_dir, check_output_stem, write_failure
+from infonav_gym.experiments.arguments import (
+    comma_separated,
+    end_time,
+    names,
+    non_negative_float,
+    non_negative_int,
+    positive_float,
+    positive_int,
+    seed,
+)
+from infonav_gym.experiments.paths import (
+    OutputWriteError,
+    check_output_dir,
+    check_output_stem,
+    output_file,
+    write_failure,
+)
 from infonav_gym.experiments.reproduce import DEFAULT_OUTPUT_DIR, FIGURES
 from infonav_gym.experiments.vector_timing import DEFAULT_VECTOR_SIZES, parse_vector_sizes
 
 DEFAULT_ENV = "infonav/LandmarkSelection-v0"
 EVALUATION_SUFFIXES = (".md", ".csv", ".json", ".png")  # the files of ``evaluate --output STEM``
 REPLAY_SUFFIXES = (".md", ".json")  # the files of ``replay mrclam --output STEM``
+RENDER_SUFFIXES = (".gif", ".png")  # the files of ``render --output PREFIX``
+CALIBRATION_SUFFIXES = (".json", ".png")  # the files of ``replay mrclam --calibrate OUTPUT.json``
 PYTHON_CONSTANTS = {"True": True, "False": False, "None": None}  # --config values written as in Python
 DEFAULT_VECTOR_SIZES_TEXT = ",".join(map(str, DEFAULT_VECTOR_SIZES))
 
 
 def _config_pair(text: str) -> tuple[str, object]:
     """``key=value`` with the value read as JSON when it parses (numbers, true/false; Python's True, False and
-    None too), else as a string."""
+    None too), else as a Python float when it is one (nan, inf), else as a string."""
     key, separator, value = text.partition("=")
     if not separator or not key:
         raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
@@ -31,6 +49,10 @@ def _config_pair(text: str) -> tuple[str, object]:
     try:
         return key, json.loads(value)
     except json.JSONDecodeError:
+        pass
+    try:
+        return key, float(value)
+    except ValueError:
         return key, value
 
 
@@ -42,18 +64,35 @@ def _vector_sizes(text: str) -> tuple[int, ...]:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+def _stem_help(suffixes: tuple[str, ...], files: str) -> str:
+    """The help of an ``--output`` stem option writing ``files``."""
+    first = suffixes[0]
+    return (
+        f"write {files}; the name is kept whole (out/a.v2 writes out/a.v2{first}) "
+        f"but for a trailing {' or '.join(suffixes)} (out/a{first} is out/a)"
+    )
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line on stderr, ``infonav COMMAND: error: MESSAGE`` (as ``main``'s
+    are; ``replay mrclam``'s are ``infonav replay``'s), exit 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{' '.join(self.prog.split()[:2])}: error: {message}\n")
+
+
 def _common(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--seed", type=int, default=0, help="first seed (default: 0)")
+    parser.add_argument("--seed", type=seed, default=0, help="first seed, from 0 to 2**32 - 1 (default: 0)")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of tables")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="infonav", description="Information-driven navigation environments.")
+    parser = _Parser(prog="infonav", description="Information-driven navigation environments.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {infonav_gym.__version__}")
     commands = parser.add_subparsers(dest="command", required=True)
 
     demo = commands.add_parser("demo", help="the paper's Fig. 2 story: which corridor landmark brings most information")
-    demo.add_argument("--steps", type=int, default=12, help="steps per agent (default: 12)")
+    demo.add_argument("--steps", type=positive_int, default=12, help="steps per agent (default: 12)")
     demo.add_argument("--plot", type=Path, help="also write a Fig. 2-style plot to this PNG (needs matplotlib)")
     _common(demo)
 
@@ -61,16 +100,19 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
     evaluate.add_argument(
         "--agents",
+        type=names,
         default="random,greedy",
         help="comma-separated: random, greedy, planner, ppo:PATH (a model.zip from infonav train, or its directory)",
     )
-    evaluate.add_argument("--episodes", type=int, default=20, help="episodes per agent (default: 20)")
+    evaluate.add_argument("--episodes", type=positive_int, default=20, help="episodes per agent (default: 20)")
     evaluate.add_argument(
         "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
     )
-    evaluate.add_argument("--output", type=Path, help="write OUTPUT.md, OUTPUT.csv, OUTPUT.json and OUTPUT.png")
     evaluate.add_argument(
-        "--workers", type=int, default=1, help="episodes played at once, each in its own process (default: 1)"
+        "--output", type=Path, help=_stem_help(EVALUATION_SUFFIXES, "OUTPUT.md, OUTPUT.csv, OUTPUT.json and OUTPUT.png")
+    )
+    evaluate.add_argument(
+        "--workers", type=positive_int, default=1, help="episodes played at once, each in its own process (default: 1)"
     )
     evaluate.add_argument("--ray", action="store_true", help="play them as Ray tasks (the distributed extra)")
     evaluate.add_argument("--address", help="with --ray: an existing Ray cluster (default: a local Ray)")
@@ -79,22 +121,30 @@ def build_parser() -> argparse.ArgumentParser:
     render = commands.add_parser("render", help="render one episode of an agent: PREFIX.gif (animated), PREFIX.png")
     render.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
     render.add_argument("--agents", default="greedy", help="one agent: random, greedy (default), planner, ppo:PATH")
-    render.add_argument("--output", type=Path, required=True, metavar="PREFIX", help="write PREFIX.gif and PREFIX.png")
+    render.add_argument(
+        "--output",
+        type=Path,
+        required=True,
+        metavar="PREFIX",
+        help=_stem_help(RENDER_SUFFIXES, "PREFIX.gif and PREFIX.png"),
+    )
     render.add_argument(
         "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
     )
-    render.add_argument("--every", type=int, default=1, help="keep every K-th step's frame (default: 1)")
-    render.add_argument("--max-steps", type=int, help="stop after N steps (default: when the episode ends)")
+    render.add_argument("--every", type=positive_int, default=1, help="keep every K-th step's frame (default: 1)")
+    render.add_argument("--max-steps", type=positive_int, help="stop after N steps (default: when the episode ends)")
     _common(render)
 
     train = commands.add_parser("train", help="train PPO (MaskablePPO with action masks); save model.zip")
     train.add_argument(
         "--env", required=True, help="env id, e.g. infonav/LandmarkSelection-v0 or cooperative_localization_v0"
     )
-    train.add_argument("--timesteps", type=int, required=True, help="env steps to train for (robot steps in a team)")
+    train.add_argument(
+        "--timesteps", type=positive_int, required=True, help="env steps to train for (robot steps in a team)"
+    )
     train.add_argument(
         "--n-envs",
-        type=int,
+        type=positive_int,
         help="vectorized env copies (default: the hyperparameters' n_envs); a team copy gives each robot a slot",
     )
     train.add_argument("--output", type=Path, help="output directory (default: models/ENV-NAME_seedS)")
@@ -118,8 +168,15 @@ def build_parser() -> argparse.ArgumentParser:
         default="sb3",
         help="sb3: Stable-Baselines3 MaskablePPO (default); rllib: Ray RLlib PPO (the distributed extra)",
     )
-    train.add_argument("--num-env-runners", type=int, default=1, help="rllib: env runner processes (default: 1)")
-    train.add_argument("--envs-per-runner", type=int, default=1, help="rllib: env copies per runner (default: 1)")
+    train.add_argument(
+        "--num-env-runners",
+        type=non_negative_int,
+        default=1,
+        help="rllib: env runner processes; 0 samples in the driver process (default: 1)",
+    )
+    train.add_argument(
+        "--envs-per-runner", type=positive_int, default=1, help="rllib: env copies per runner (default: 1)"
+    )
     train.add_argument(
         "--policies",
         choices=("shared", "per_robot"),
@@ -133,8 +190,8 @@ def build_parser() -> argparse.ArgumentParser:
     _common(train)
 
     benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
-    benchmark.add_argument("--rounds", type=int, default=5, help="alternating measurement rounds (default: 5)")
-    benchmark.add_argument("--seconds", type=float, default=1.0, help="seconds per env per round (default: 1)")
+    benchmark.add_argument("--rounds", type=positive_int, default=5, help="alternating measurement rounds (default: 5)")
+    benchmark.add_argument("--seconds", type=positive_float, default=1.0, help="seconds per env per round (default: 1)")
     benchmark.add_argument(
         "--vector-sizes",
         type=_vector_sizes,
@@ -157,23 +214,41 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULT_OUTPUT_DIR,
         help=f"where to write FIGURE.png and FIGURE.json (default: ./{DEFAULT_OUTPUT_DIR}, in the working directory)",
     )
-    reproduce.add_argument("--seeds", type=int, default=20, help="seeds averaged from --seed on (default: 20)")
+    reproduce.add_argument("--seeds", type=positive_int, default=20, help="seeds averaged from --seed on (default: 20)")
     _common(reproduce)
 
     replay = commands.add_parser("replay", help="replay measurement-selection policies on logged real robot data")
     replay_sources = replay.add_subparsers(dest="source", required=True)
     mrclam = replay_sources.add_parser("mrclam", help="a UTIAS MRCLAM dataset directory (Datasets 1-9)")
     mrclam.add_argument("dataset_dir", type=Path, help="directory with Barcodes.dat, RobotN_Odometry.dat, ...")
-    mrclam.add_argument("--policy", default="all", help="comma-separated: all, greedy, random, nearest (default: all)")
-    mrclam.add_argument("--k", default="1", help="comma-separated budgets: observations per robot per window")
-    mrclam.add_argument("--window-s", default="1", help="comma-separated budget windows [s] (default: 1)")
-    mrclam.add_argument("--seeds", type=int, default=1, help="random-policy runs per budget from --seed on")
+    mrclam.add_argument(
+        "--policy", type=names, default="all", help="comma-separated: all, greedy, random, nearest (default: all)"
+    )
+    mrclam.add_argument(
+        "--k",
+        type=comma_separated(positive_int),
+        default="1",
+        help="comma-separated budgets: observations per robot per window (default: 1)",
+    )
+    mrclam.add_argument(
+        "--window-s",
+        type=comma_separated(positive_float),
+        default="1",
+        help="comma-separated budget windows [s] (default: 1)",
+    )
+    mrclam.add_argument("--seeds", type=positive_int, default=1, help="random-policy runs per budget from --seed on")
     mrclam.add_argument("--cooperative", action="store_true", help="JointEKF with robot-to-robot observations")
-    mrclam.add_argument("--outage-robot", type=int, help="also run the outage experiment for this robot (subject #)")
-    mrclam.add_argument("--outage-start-s", type=float, default=0.0, help="outage start [s] (default: 0)")
-    mrclam.add_argument("--outage-end-s", type=float, default=float("inf"), help="outage end [s] (default: the end)")
-    mrclam.add_argument("--duration-s", type=float, help="replay only the first DURATION_S seconds")
-    mrclam.add_argument("--output", type=Path, help="write OUTPUT.md, OUTPUT.json and OUTPUT_nees.png")
+    mrclam.add_argument(
+        "--outage-robot", type=positive_int, help="also run the outage experiment for this robot (subject #)"
+    )
+    mrclam.add_argument("--outage-start-s", type=non_negative_float, default=0.0, help="outage start [s] (default: 0)")
+    mrclam.add_argument("--outage-end-s", type=end_time, default=float("inf"), help="outage end [s] (default: the end)")
+    mrclam.add_argument("--duration-s", type=positive_float, help="replay only the first DURATION_S seconds")
+    mrclam.add_argument(
+        "--output",
+        type=Path,
+        help=_stem_help(REPLAY_SUFFIXES, "OUTPUT.md, OUTPUT.json and, when --policy includes all, OUTPUT_nees.png"),
+    )
     mrclam.add_argument(
         "--noise",
         default="shipped",
@@ -187,7 +262,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--calibrate",
         type=Path,
         metavar="OUTPUT.json",
-        help="fit the noise model to DATASET_DIR's ground truth, write OUTPUT.json and OUTPUT.png, replay nothing",
+        help="fit the noise model to DATASET_DIR's ground truth, write OUTPUT.json and OUTPUT.png, replay nothing "
+        "(the options of a replay are refused with it)",
     )
     _common(mrclam)
     return parser
@@ -225,12 +301,11 @@ def _evaluate(args, argv) -> dict:
     from infonav_gym.experiments.evaluation import config_line, evaluate, heading, markdown_table, write_results
 
     stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
-    agent_names = [name.strip() for name in args.agents.split(",") if name.strip()]
     if args.address and not args.ray:
         raise ValueError("--address is the Ray cluster of --ray; add --ray or drop --address")
     results = evaluate(
         args.env,
-        agent_names,
+        args.agents,
         args.episodes,
         args.seed,
         dict(args.config),
@@ -253,7 +328,7 @@ def _evaluate(args, argv) -> dict:
 
 def _render(args) -> dict:
     """Render one episode into ``args.output`` .gif and .png; print what was written unless --json."""
-    from infonav_gym.experiments.render_episode import RENDER_SUFFIXES, render_episode, write_gif, write_strip
+    from infonav_gym.experiments.render_episode import render_episode, write_gif, write_strip
     from infonav_gym.rendering import require_extra
 
     if "," in args.agents:
@@ -270,7 +345,8 @@ def _render(args) -> dict:
 
     def write():
         stem.parent.mkdir(parents=True, exist_ok=True)
-        return [write_gif(episode, stem.with_suffix(".gif")), write_strip(episode, stem.with_suffix(".png"), title)]
+        gif, png = (output_file(stem, suffix) for suffix in RENDER_SUFFIXES)
+        return [write_gif(episode, gif), write_strip(episode, png, title)]
 
     failure = _write_files(write, result, f"--output {stem}")
     if not args.json:
@@ -355,7 +431,7 @@ def _benchmark(args) -> dict:
     from infonav_gym.experiments.throughput_plot import plot_throughput
     from infonav_gym.rendering import require_extra
 
-    plot = check_output_stem(args.plot, (args.plot.suffix,), "--plot") if args.plot else None
+    plot = check_output_stem(args.plot, ("",), "--plot") if args.plot else None  # the file itself
     if plot:
         require_extra("matplotlib", "benchmark --plot")  # before the run, not after it
     result = run_benchmark(
@@ -431,19 +507,32 @@ def _load_mrclam(directory):
     return dataset
 
 
+def _replay_options_given(args) -> list[str]:
+    """The options of ``replay mrclam`` that ``args`` sets to other than their defaults, e.g. ``["--policy"]``."""
+    defaults = vars(build_parser().parse_args(["replay", "mrclam", str(args.dataset_dir)]))
+    shared = ("command", "source", "dataset_dir", "calibrate", "json")
+    given = [key for key, value in vars(args).items() if key not in shared and value != defaults[key]]
+    return ["--" + key.replace("_", "-") for key in given]
+
+
 def _calibrate(args, argv) -> dict:
     """Fit the noise model of ``args.dataset_dir``; write the JSON and the residual plot."""
     from infonav_gym.experiments.replay.calibration import calibrate
     from infonav_gym.experiments.replay.plots import plot_calibration
 
-    stem = check_output_stem(args.calibrate.with_suffix(""), (".json", ".png"), "--calibrate")
+    ignored = _replay_options_given(args)
+    if ignored:
+        them = "it" if len(ignored) == 1 else "them"
+        raise ValueError(f"--calibrate only fits the noise model: {', '.join(ignored)} would be ignored; drop {them}")
+    stem = check_output_stem(args.calibrate, CALIBRATION_SUFFIXES, "--calibrate")
     dataset = _load_mrclam(args.dataset_dir)
     model, errors = calibrate(dataset, command="infonav " + shlex.join(argv), progress=not args.json)
     result = model.to_json()
 
     def write():
         stem.parent.mkdir(parents=True, exist_ok=True)
-        return [model.save(stem.with_suffix(".json")), plot_calibration(model, errors, stem.with_suffix(".png"))]
+        path_json, png = (output_file(stem, suffix) for suffix in CALIBRATION_SUFFIXES)
+        return [model.save(path_json), plot_calibration(model, errors, png)]
 
     failure = _write_files(write, result, f"--calibrate {args.calibrate}")
     if not args.json:
@@ -477,16 +566,8 @@ def _replay(args, argv) -> dict:
 
     if args.calibrate:
         return _calibrate(args, argv)
-    policies = [name.strip() for name in args.policy.split(",") if name.strip()]
-    if not policies:
-        raise ValueError(f"--policy takes comma-separated policy names, got {args.policy!r}")
-    try:
-        ks = [int(value) for value in args.k.split(",")]
-        windows = [float(value) for value in args.window_s.split(",")]
-    except ValueError:
-        message = f"--k and --window-s take comma-separated numbers, got {args.k!r}, {args.window_s!r}"
-        raise ValueError(message) from None
-    check_experiments(policies, ks, windows, args.seeds)  # before the dataset loads
+    check_experiments(args.policy, args.k, args.window_s, args.seeds)  # before the dataset loads
+    ReplayConfig(outage_start_s=args.outage_start_s, outage_end_s=args.outage_end_s)  # its outage span check, too
     stem = check_output_stem(args.output, REPLAY_SUFFIXES, "--output") if args.output else None
     noise = _noise_model(args.noise)
     compared = _noise_model(args.compare_noise) if args.compare_noise else None
@@ -503,9 +584,9 @@ def _replay(args, argv) -> dict:
     def sweep(noise_model):
         return run_experiments(
             dataset,
-            policies,
-            ks,
-            windows,
+            args.policy,
+            args.k,
+            args.window_s,
             n_seeds=args.seeds,
             seed=args.seed,
             outage=outage,

@@ -23,6 +23,7 @@ from agents import GreedyEntropyAgent, RandomAgent
 from agents.ray_support import DISTRIBUTED_HINT, import_ray
 from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, traits_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_workers, played
+from infonav_gym.experiments.paths import output_file
 from infonav_gym.registry import registered_envs
 
 AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH", "rllib:DIR")
@@ -361,7 +362,7 @@ def write_results(results: dict, stem: Path, command: str) -> list[Path]:
     The plot needs matplotlib (the ``render`` extra); without it the other three are written.
     """
     stem.parent.mkdir(parents=True, exist_ok=True)
-    md, csv_path, json_path = stem.with_suffix(".md"), stem.with_suffix(".csv"), stem.with_suffix(".json")
+    md, csv_path, json_path = (output_file(stem, suffix) for suffix in (".md", ".csv", ".json"))
     md.write_text(
         f"# {heading(results)}\n\n{config_line(results)}\n\n{markdown_table(results)}\n\n"
         f"Regenerate with:\n\n    {command}\n"
@@ -375,7 +376,7 @@ def write_results(results: dict, stem: Path, command: str) -> list[Path]:
     json_path.write_text(json.dumps({**results, "command": command}, indent=2) + "\n")
     written = [md, csv_path, json_path]
     try:
-        written.append(plot_results(results, stem.with_suffix(".png")))
+        written.append(plot_results(results, output_file(stem, ".png")))
     except ImportError:
         pass  # matplotlib is optional
     return written

@@ -51,13 +51,23 @@ def check_output_dir(directory: Path | str, where: str) -> Path:
     return directory
 
 
+def output_file(stem: Path, suffix: str) -> Path:
+    """``stem`` + ``suffix``, the whole stem kept: ``out/eval.v2`` -> ``out/eval.v2.md`` (``with_suffix`` would cut
+    ``.v2``)."""
+    return stem.with_name(stem.name + suffix)
+
+
 def check_output_stem(stem: Path | str, suffixes: tuple[str, ...], where: str) -> Path:
     """Check that the files ``stem`` + each of ``suffixes`` can be written; create nothing.
 
     Args:
-        stem: the files' common path without suffix, e.g. ``results/eval`` for ``results/eval.md``.
+        stem: the files' common path, e.g. ``results/eval`` for ``results/eval.md``; one of ``suffixes``
+            ending it is dropped (``results/eval.md`` -> ``results/eval``), any other suffix is kept.
         suffixes: the files' suffixes (``".md"``, ...).
         where: what named it, for the error (e.g. ``"--output"``).
+
+    Returns:
+        The stem, to which ``output_file`` adds each suffix.
 
     Raises:
         ValueError: naming ``where`` and the path when ``stem`` is an existing directory (a file
@@ -65,13 +75,15 @@ def check_output_stem(stem: Path | str, suffixes: tuple[str, ...], where: str) -
             parent directory cannot be created or written (see ``check_output_dir``).
     """
     stem = Path(stem)
+    if stem.suffix and stem.suffix in suffixes:
+        stem = stem.with_suffix("")
     if stem.is_dir():
         raise ValueError(f"{where} {stem} is a directory: give a file stem, e.g. {stem / 'results'}")
     problem = _directory_problem(stem.parent)
     if problem:
         raise ValueError(f"{where} {stem}: {problem}")
     for suffix in suffixes:
-        path = stem.with_suffix(suffix)
+        path = output_file(stem, suffix)
         if path.is_dir():
             raise ValueError(f"{where} {stem}: {path} is a directory, not a file")
         if path.exists() and not os.access(path, os.W_OK):

@@ -16,7 +16,6 @@ from tqdm.auto import tqdm
 from infonav_gym.experiments.episode_pool import EpisodeRunner
 from infonav_gym.rendering import require_extra
 
-RENDER_SUFFIXES = (".gif", ".png")  # the files of ``render --output PREFIX``
 STRIP_FRAMES = 6  # frames in PREFIX.png
 STRIP_COLUMNS = 3
 

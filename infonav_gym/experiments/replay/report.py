@@ -9,6 +9,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.experiments.paths import output_file
 from infonav_gym.experiments.replay.filters import ReplayConfig
 from infonav_gym.experiments.replay.metrics import mean_and_ci95
 from infonav_gym.experiments.replay.policies import POLICIES
@@ -217,7 +218,7 @@ def markdown_table(summary: dict) -> str:
 
 def nees_plot_path(output: Path) -> Path:
     """``OUTPUT_nees.png``: the NEES-over-time figure of the all-landmark run."""
-    return output.with_name(output.name + "_nees.png")
+    return output_file(output, "_nees.png")
 
 
 def write_results(summary: dict, output: Path, command: str) -> list[Path]:
@@ -228,7 +229,7 @@ def write_results(summary: dict, output: Path, command: str) -> list[Path]:
 
     output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)
-    markdown = output.with_suffix(".md")
+    markdown = output_file(output, ".md")
     comparison = summary.get("comparison")
     markdown.write_text(
         f"# MRCLAM replay: {Path(summary['dataset']).name}\n\nCommand:\n\n```\n{command}\n```\n\n"
@@ -241,7 +242,7 @@ def write_results(summary: dict, output: Path, command: str) -> list[Path]:
     if "outage" in compact:
         compact["outage"] = {key: value for key, value in compact["outage"].items() if key != "cooperative_run"}
         compact["outage"]["cooperative_mean"] = summary["outage"]["cooperative_run"]["mean"]
-    path_json = output.with_suffix(".json")
+    path_json = output_file(output, ".json")
     path_json.write_text(json.dumps(compact, indent=1) + "\n")
     written = [markdown, path_json]
     all_landmarks = [run for run in summary["runs"] if run["config"]["policy"] == "all"]
