@@ -90,6 +90,7 @@ def test_the_seed_limit_is_numpys_legacy_one_that_stable_baselines_seeds_with():
         ([*REPLAY, "--outage-start-s", "-1"], "argument --outage-start-s: must be a finite number >= 0"),
         ([*REPLAY, "--outage-end-s", "nan"], "argument --outage-end-s: must be a number > 0 (inf: the end)"),
         ([*REPLAY, "--outage-start-s", "5", "--outage-end-s", "2"], "outage must end after it starts, got 5.0..2.0"),
+        ([*REPLAY, "--outage-start-s", "5"], "--outage-start-s set the outage of --outage-robot ROBOT: add it"),
     ],
 )
 def test_a_nonsense_number_or_list_is_refused_in_one_line(capsys, tmp_path, no_work, argv, message):

@@ -568,6 +568,9 @@ def _replay(args, argv) -> dict:
         return _calibrate(args, argv)
     check_experiments(args.policy, args.k, args.window_s, args.seeds)  # before the dataset loads
     ReplayConfig(outage_start_s=args.outage_start_s, outage_end_s=args.outage_end_s)  # its outage span check, too
+    outage_span = [name for name in ("--outage-start-s", "--outage-end-s") if name in _replay_options_given(args)]
+    if outage_span and args.outage_robot is None:
+        raise ValueError(f"{' and '.join(outage_span)} set the outage of --outage-robot ROBOT: add it, or drop them")
     stem = check_output_stem(args.output, REPLAY_SUFFIXES, "--output") if args.output else None
     noise = _noise_model(args.noise)
     compared = _noise_model(args.compare_noise) if args.compare_noise else None
