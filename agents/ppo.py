@@ -234,7 +234,7 @@ class TqdmCallback(BaseCallback):
         self._bar.close()
 
 
-def _normalization_kwargs(hyperparameters: dict) -> dict | None:
+def normalization_kwargs(hyperparameters: dict) -> dict | None:
     """``VecNormalize`` keywords from ``normalize`` (rl-zoo style: true, false, or a dict such as
     ``{norm_obs: true, norm_reward: false}``); ``None`` when off."""
     normalize = hyperparameters.get("normalize", False)
@@ -335,7 +335,7 @@ def build_model(
                 wrapper_class=wrapper,
                 vec_env_cls=SubprocVecEnv if vectorization == SUBPROCESS else DummyVecEnv,
             )
-    normalize = _normalization_kwargs(hyperparameters)
+    normalize = normalization_kwargs(hyperparameters)
     if normalize is not None:
         vec_env = VecNormalize(vec_env, gamma=hyperparameters.get("gamma", 0.99), **normalize)
     algorithm = MaskablePPO if masked else PPO

@@ -325,7 +325,7 @@ def _train_rllib(args) -> dict:
     """Train RLlib PPO on ``args.env``; print where the checkpoint went unless --json."""
     from agents.ray_support import import_ray
 
-    import_ray()  # a missing extra is a one-line error before anything starts
+    import_ray(args.address)  # a missing extra or a wrong address: a one-line error before the slow imports below
     from agents.ppo import load_hyperparameters
     from agents.rllib_train import train_rllib
 

@@ -240,7 +240,7 @@ def evaluate(
         check_agent_name(name)
     check_workers(workers)
     if use_ray:
-        import_ray()  # before any episode: a missing extra is a one-line error
+        import_ray(address)  # before any episode: a missing extra or a wrong address is a one-line error
     env_kwargs = dict(env_kwargs or {})
     runner = EpisodeRunner(env_id, env_kwargs, agent_names)
     env = runner.env
