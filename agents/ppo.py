@@ -43,6 +43,7 @@ from tqdm.auto import tqdm
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
 from agents.base import checked_action_count, usable_mask
 from agents.vector_adapter import monitored_vec_env
+from infonav_gym.experiments.paths import Interrupted
 from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, resolve_env_id
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
@@ -231,7 +232,12 @@ class TqdmCallback(BaseCallback):
         return True
 
     def _on_training_end(self) -> None:
-        self._bar.close()
+        self.close()
+
+    def close(self) -> None:
+        """End the bar's line (also when training stops early)."""
+        if self._bar is not None:
+            self._bar.close()
 
 
 def normalization_kwargs(hyperparameters: dict) -> dict | None:
@@ -370,6 +376,10 @@ def train(
     ``checkpoints`` intermediate models in ``output_dir/checkpoints/`` and, with
     ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
     (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
+
+    Raises:
+        Interrupted: on Ctrl-C, once the model trained so far is saved as above (train.json: ``"interrupted":
+            true``, ``timesteps`` those reached).
     """
     if timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")
@@ -385,14 +395,19 @@ def train(
         model = build_model(env_id, seed, None, hyperparameters, env_kwargs, vectorization, tensorboard_log)
         n_envs = model.n_envs
         rollout = model.n_steps * n_envs  # learn() collects whole rollouts: the bar's true total
-        callbacks = [TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)]
+        progress_bar = TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)
+        callbacks = [progress_bar]
         if checkpoints > 0:
             every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
             callbacks.append(
                 CheckpointCallback(every, str(output_dir / "checkpoints"), name_prefix="ppo", save_vecnormalize=True)
             )
-        start = time.perf_counter()
-        model.learn(timesteps, callback=callbacks, tb_log_name="ppo")
+        start, interrupted = time.perf_counter(), False
+        try:
+            model.learn(timesteps, callback=callbacks, tb_log_name="ppo")
+        except KeyboardInterrupt:
+            interrupted = True
+            progress_bar.close()
         seconds = time.perf_counter() - start
         model_path = output_dir / MODEL_FILE
         model.save(model_path)
@@ -413,8 +428,12 @@ def train(
         "fps": model.num_timesteps / seconds,
         "torch_threads": default_num_threads(),
         "model": str(model_path),
+        "interrupted": interrupted,
     }
     (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
+    if interrupted:
+        message = f"interrupted after {model.num_timesteps} of {timesteps} env steps; saved {model_path} and train.json"
+        raise Interrupted(message, record)
     return model_path
 
 

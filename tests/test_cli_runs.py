@@ -2,11 +2,16 @@
 interruption (exit 130) keeps the work finished so far."""
 
 import contextlib
+import csv
+import json
 import os
+import re
+import signal
 import socket
 import subprocess
 import sys
 import time
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -14,16 +19,49 @@ import yaml
 from conftest import unused_address
 
 from infonav_gym.experiments.cli import main
+from infonav_gym.experiments.episode_pool import EpisodeRunner
+from infonav_gym.experiments.evaluation import evaluate
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 
 
-def _infonav(*argv: str, **popen) -> subprocess.Popen:
-    """``infonav ARGV`` in a fresh interpreter of this checkout, stdout and stderr piped."""
+def _own_process_group_taking_ctrl_c() -> None:
+    """In the child before exec: a process group of its own (as a terminal's foreground job) and Ctrl-C's default
+    handling, which a parent started in the background has set to ignored."""
+    os.setsid()
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _infonav(*argv: str, stderr=subprocess.PIPE) -> subprocess.Popen:
+    """``infonav ARGV`` in a fresh interpreter of this checkout (a process group of its own), stdout piped."""
     env = {**os.environ, "PYTHONPATH": str(REPOSITORY)}
     command = [sys.executable, "-m", "infonav_gym.experiments.cli", *argv]
-    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, **popen)
+    return subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=stderr,
+        text=True,
+        env=env,
+        preexec_fn=_own_process_group_taking_ctrl_c,
+    )
+
+
+def _ctrl_c_once_progressing(argv: list[str], tmp_path) -> tuple[int, str, str]:
+    """Run ``infonav ARGV``, press Ctrl-C (SIGINT to its process group) once its progress bar has counted one
+    (an episode, a step); its exit code, stdout and the lines of stderr that are not the bar's."""
+    log = tmp_path / "stderr.txt"
+    with log.open("w") as stderr:
+        run = _infonav(*argv, stderr=stderr)
+        deadline = time.monotonic() + 30
+        while not re.search(r"\| *[1-9]\d*/", log.read_text()) and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        os.killpg(run.pid, signal.SIGINT)
+        stdout, _ = run.communicate(timeout=30)
+    text = log.read_text()
+    assert "Traceback" not in text, text
+    bar = re.compile(r"^(evaluating on|training PPO)")
+    return run.returncode, stdout, "\n".join(line for line in text.splitlines() if line and not bar.match(line))
 
 
 def _one_line_error(stderr: str, command: str, message: str) -> None:
@@ -87,3 +125,59 @@ def test_rllib_training_checks_its_arguments_before_ray_starts(extra, message, t
         main([*argv, "--output", str(tmp_path / "model")])
     assert exit_info.value.code == 2
     _one_line_error(capsys.readouterr().err, "train", message)
+
+
+def test_an_interrupted_evaluation_writes_the_episodes_it_finished(tmp_path, capsys, monkeypatch):
+    play, played = EpisodeRunner.play, []
+
+    def ctrl_c_after_3(runner, task):
+        if len(played) == 3:
+            raise KeyboardInterrupt
+        played.append(task)
+        return play(runner, task)
+
+    monkeypatch.setattr(EpisodeRunner, "play", ctrl_c_after_3)
+    stem = tmp_path / "out"
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--agents", "random,greedy", "--episodes", "5", "--output", str(stem), "--json"])
+    captured = capsys.readouterr()
+    assert exit_info.value.code == 130 and played == [("random", 0), ("greedy", 0), ("random", 1)]
+    files = ", ".join(f"{stem}{suffix}" for suffix in (".md", ".csv", ".json", ".png"))
+    assert captured.err == f"infonav evaluate: interrupted after 3 of 10 episodes; wrote {files}\n"
+    result = json.loads(captured.out)
+    assert json.loads(stem.with_suffix(".json").read_text())["interrupted"] is result["interrupted"] is True
+    monkeypatch.setattr(EpisodeRunner, "play", play)
+    whole = evaluate(LANDMARK_ID, ["random", "greedy"], 2, progress=False)  # the same episodes, uninterrupted
+    assert result["seeds"] == [0, 1] and result["agents"]["random"] == whole["agents"]["random"]
+    assert result["agents"]["greedy"]["episodes"] == whole["agents"]["greedy"]["episodes"][:1]
+    rows = list(csv.DictReader(stem.with_suffix(".csv").open()))
+    assert [(row["agent"], row["seed"]) for row in rows] == [("random", "0"), ("random", "1"), ("greedy", "0")]
+    assert "interrupted after 2 of 5 episodes per agent, seeds 0..1" in stem.with_suffix(".md").read_text()
+
+
+def test_ctrl_c_in_an_evaluation_on_two_workers_keeps_what_they_finished(tmp_path):
+    stem = tmp_path / "out"
+    argv = ["evaluate", "--agents", "random,greedy", "--episodes", "1000", "--workers", "2", "--output", str(stem)]
+    code, _, message = _ctrl_c_once_progressing(argv, tmp_path)
+    finished = re.fullmatch(r"infonav evaluate: interrupted after (\d+) of 2000 episodes; wrote .*out\.png", message)
+    assert code == 130 and finished, message
+    result = json.loads(stem.with_suffix(".json").read_text())
+    kept = sum(len(agent["episodes"]) for agent in result["agents"].values())
+    assert result["interrupted"] and kept == int(finished[1]) >= 1
+    assert len(stem.with_suffix(".csv").read_text().splitlines()) == 1 + kept
+
+
+def test_ctrl_c_in_training_saves_the_model_trained_so_far(tmp_path):
+    blocks = _hyperparameters(tmp_path, {"n_envs": 2, "n_steps": 16, "batch_size": 32, "n_epochs": 1})
+    output = tmp_path / "model"
+    argv = ["train", "--env", LANDMARK_ID, "--timesteps", "1000000", *blocks, "--output", str(output)]
+    code, _, message = _ctrl_c_once_progressing(argv, tmp_path)
+    record = json.loads((output / "train.json").read_text())
+    assert code == 130 and record["interrupted"] and 0 < record["timesteps"] < 1_000_000
+    assert message == (
+        f"infonav train: interrupted after {record['timesteps']} of 1000000 env steps; saved {output}/model.zip "
+        "and train.json"
+    )
+    with zipfile.ZipFile(output / "model.zip") as model:  # SB3's format: the policy's weights and the run's data
+        data = json.loads(model.read("data"))
+    assert "policy.pth" in model.namelist() and data["num_timesteps"] == record["timesteps"]

@@ -9,7 +9,13 @@ import sys
 from pathlib import Path
 
 import infonav_gym  # registers the envs
-from infonav_gym.experiments.paths import OutputWriteError, check_output_dir, check_output_stem, write_failure
+from infonav_gym.experiments.paths import (
+    Interrupted,
+    OutputWriteError,
+    check_output_dir,
+    check_output_stem,
+    write_failure,
+)
 from infonav_gym.experiments.reproduce import DEFAULT_OUTPUT_DIR, FIGURES
 from infonav_gym.experiments.vector_timing import DEFAULT_VECTOR_SIZES, parse_vector_sizes
 
@@ -228,17 +234,23 @@ def _evaluate(args, argv) -> dict:
     agent_names = [name.strip() for name in args.agents.split(",") if name.strip()]
     if args.address and not args.ray:
         raise ValueError("--address is the Ray cluster of --ray; add --ray or drop --address")
-    results = evaluate(
-        args.env,
-        agent_names,
-        args.episodes,
-        args.seed,
-        dict(args.config),
-        progress=not args.json,
-        workers=args.workers,
-        use_ray=args.ray,
-        address=args.address,
-    )
+    try:
+        results = evaluate(
+            args.env,
+            agent_names,
+            args.episodes,
+            args.seed,
+            dict(args.config),
+            progress=not args.json,
+            workers=args.workers,
+            use_ray=args.ray,
+            address=args.address,
+        )
+        interruption = None
+    except Interrupted as error:  # the episodes finished so far are written and printed as a whole evaluation's
+        results, interruption = error.result, error
+        if not results["agents"]:
+            raise Interrupted("interrupted before an episode finished: nothing to write", results) from None
     failure = None
     if stem:
         command = "infonav " + " ".join(shlex.quote(part) for part in argv)
@@ -248,6 +260,9 @@ def _evaluate(args, argv) -> dict:
         print(config_line(results))
         print(markdown_table(results))
     _raise_if_failed(failure, results)
+    if interruption:
+        kept = f"wrote {', '.join(results['files'])}" if stem else "the tables above hold them"
+        raise Interrupted(f"{interruption}; {kept}", results)
     return results
 
 
@@ -554,6 +569,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.json:
             print(json.dumps(failure.result))
         parser.exit(2, f"infonav {args.command}: error: {failure}\n")
+    except Interrupted as interruption:  # the work finished so far was kept; the JSON too with --json
+        if args.json:
+            print(json.dumps(interruption.result))
+        parser.exit(130, f"infonav {args.command}: {interruption}\n")
+    except KeyboardInterrupt:
+        parser.exit(130, f"infonav {args.command}: interrupted\n")
     except (ValueError, ImportError) as error:
         parser.exit(2, f"infonav {args.command}: error: {error}\n")
     except OSError as error:  # a file that could not be read or written, e.g. demo --plot or train's model
