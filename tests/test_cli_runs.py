@@ -181,3 +181,39 @@ def test_ctrl_c_in_training_saves_the_model_trained_so_far(tmp_path):
     with zipfile.ZipFile(output / "model.zip") as model:  # SB3's format: the policy's weights and the run's data
         data = json.loads(model.read("data"))
     assert "policy.pth" in model.namelist() and data["num_timesteps"] == record["timesteps"]
+
+
+@pytest.mark.parametrize(
+    "trained_on, policies, module, evaluated_on, message",
+    [
+        (
+            "cooperative_localization_v0",
+            "shared",
+            "shared_policy",
+            LANDMARK_ID,
+            "was trained for env 'cooperative_localization_v0' (policies: shared_policy), but the env has id "
+            f"'{LANDMARK_ID}' (policy 'default_policy')",
+        ),
+        (
+            LANDMARK_ID,
+            "single",
+            "default_policy",
+            "cooperative_localization_v0",
+            f"was trained for env '{LANDMARK_ID}' (policies: default_policy), but the env (robot_0) has id "
+            "'cooperative_localization_v0' (policy 'robot_0')",
+        ),
+    ],
+)
+def test_an_rllib_policy_of_another_env_names_the_env_it_was_trained_for(
+    trained_on, policies, module, evaluated_on, message, tmp_path, capsys
+):
+    pytest.importorskip("ray")
+    from agents.rllib_agent import MODULES_PATH
+    from agents.rllib_train import CHECKPOINT_DIR
+
+    tmp_path.joinpath(CHECKPOINT_DIR, *MODULES_PATH, module).mkdir(parents=True)  # what Ray would load: not reached
+    tmp_path.joinpath("train.json").write_text(json.dumps({"env_id": trained_on, "policies": policies}))
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--env", evaluated_on, "--agents", f"random,rllib:{tmp_path}", "--episodes", "1"])
+    assert exit_info.value.code == 2
+    _one_line_error(capsys.readouterr().err, "evaluate", f"RLlib training directory '{tmp_path}' {message}")

@@ -20,6 +20,7 @@ from scipy import stats
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
+from agents.base import env_name
 from agents.ray_support import DISTRIBUTED_HINT, import_ray
 from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, traits_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_workers, played
@@ -44,12 +45,6 @@ def check_agent_name(name: str) -> None:
     if any(name.startswith(prefix) and len(name) > len(prefix) for prefix in (PPO_PREFIX, RLLIB_PREFIX)):
         return
     raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
-
-
-def _env_name(env) -> str:
-    """The env's registered id (Gymnasium) or ``metadata["name"]`` (PettingZoo), else its class name."""
-    spec = getattr(env, "spec", None)
-    return spec.id if spec is not None else env.metadata.get("name", type(env.unwrapped).__name__)
 
 
 def _planning_env_ids() -> list[str]:
@@ -78,7 +73,7 @@ def make_agent(
     if name == "planner":
         if not has_planning_model(env):
             raise ValueError(
-                f"agent 'planner' is not available for {_env_name(env)}: it declares no planning model "
+                f"agent 'planner' is not available for {env_name(env)}: it declares no planning model "
                 f"(no planning_model() method); use random, greedy or ppo:PATH, or the planner on "
                 f"{', '.join(_planning_env_ids())}"
             )
@@ -88,7 +83,7 @@ def make_agent(
             raise ValueError(
                 f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
             ) from None
-        return PlannerAgent(env, agent, **planner_settings(_env_name(env)))
+        return PlannerAgent(env, agent, **planner_settings(env_name(env)))
     if name.startswith(RLLIB_PREFIX):
         try:
             from agents.rllib_agent import RLlibAgent
