@@ -43,7 +43,6 @@ from tqdm.auto import tqdm
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
 from agents.base import checked_action_count, usable_mask
 from agents.vector_adapter import monitored_vec_env
-from infonav_gym.experiments.paths import Interrupted
 from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, resolve_env_id
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
@@ -377,9 +376,8 @@ def train(
     ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
     (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
 
-    Raises:
-        Interrupted: on Ctrl-C, once the model trained so far is saved as above (train.json: ``"interrupted":
-            true``, ``timesteps`` those reached).
+    Ctrl-C ends the training early: the model trained so far is saved as above, its train.json with
+    ``"interrupted": true`` and the ``timesteps`` reached.
     """
     if timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")
@@ -431,9 +429,6 @@ def train(
         "interrupted": interrupted,
     }
     (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
-    if interrupted:
-        message = f"interrupted after {model.num_timesteps} of {timesteps} env steps; saved {model_path} and train.json"
-        raise Interrupted(message, record)
     return model_path
 
 

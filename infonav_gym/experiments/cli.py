@@ -320,6 +320,9 @@ def _train(args) -> dict:
         env_kwargs=dict(args.config),
     )
     record = json.loads((model_path.parent / "train.json").read_text())
+    if record["interrupted"]:
+        message = f"interrupted after {record['timesteps']} of {args.timesteps} env steps; saved {model_path}"
+        raise Interrupted(f"{message} and train.json", record)
     if not args.json:
         copies = f"{record['n_envs']} envs, {record['vectorization']}"
         _print_trained(args, record, copies, f"model: {model_path}", f"ppo:{model_path}")
