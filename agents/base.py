@@ -38,6 +38,18 @@ def usable_mask(mask, n_actions: int) -> np.ndarray:
     return valid if valid.any() else np.ones(n_actions, dtype=bool)
 
 
+def env_name(env) -> str:
+    """The env's registered id (Gymnasium) or ``metadata["name"]`` (PettingZoo), else its class name."""
+    spec = getattr(env, "spec", None)
+    return spec.id if spec is not None else env.metadata.get("name", type(env.unwrapped).__name__)
+
+
+def trained_elsewhere(policy: str, trained_for: str, env_has: str, agent: str | None = None) -> ValueError:
+    """The error of a trained ``policy`` used in an env (robot ``agent``'s part of it) it does not fit."""
+    robot = "" if agent is None else f" ({agent})"
+    return ValueError(f"{policy} was trained for {trained_for}, but the env{robot} has {env_has}")
+
+
 def checked_action_count(policy: str, observation_shape: tuple, action_space, env, agent: str | None = None) -> int:
     """The env's number of actions, once a trained ``policy``'s spaces are seen to match the env's (or robot's).
 
@@ -47,8 +59,6 @@ def checked_action_count(policy: str, observation_shape: tuple, action_space, en
     env_obs = env.observation_space if agent is None else env.observation_space(agent)
     env_actions = env.action_space if agent is None else env.action_space(agent)
     if tuple(observation_shape) != env_obs.shape or action_space != env_actions:
-        raise ValueError(
-            f"{policy} was trained for observations {tuple(observation_shape)} and actions {action_space}, but the "
-            f"env{'' if agent is None else f' ({agent})'} has {env_obs.shape} and {env_actions}"
-        )
+        trained_for = f"observations {tuple(observation_shape)} and actions {action_space}"
+        raise trained_elsewhere(policy, trained_for, f"{env_obs.shape} and {env_actions}", agent)
     return int(env_actions.n)

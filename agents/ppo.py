@@ -231,10 +231,15 @@ class TqdmCallback(BaseCallback):
         return True
 
     def _on_training_end(self) -> None:
-        self._bar.close()
+        self.close()
+
+    def close(self) -> None:
+        """End the bar's line (also when training stops early)."""
+        if self._bar is not None:
+            self._bar.close()
 
 
-def _normalization_kwargs(hyperparameters: dict) -> dict | None:
+def normalization_kwargs(hyperparameters: dict) -> dict | None:
     """``VecNormalize`` keywords from ``normalize`` (rl-zoo style: true, false, or a dict such as
     ``{norm_obs: true, norm_reward: false}``); ``None`` when off."""
     normalize = hyperparameters.get("normalize", False)
@@ -335,7 +340,7 @@ def build_model(
                 wrapper_class=wrapper,
                 vec_env_cls=SubprocVecEnv if vectorization == SUBPROCESS else DummyVecEnv,
             )
-    normalize = _normalization_kwargs(hyperparameters)
+    normalize = normalization_kwargs(hyperparameters)
     if normalize is not None:
         vec_env = VecNormalize(vec_env, gamma=hyperparameters.get("gamma", 0.99), **normalize)
     algorithm = MaskablePPO if masked else PPO
@@ -370,6 +375,9 @@ def train(
     ``checkpoints`` intermediate models in ``output_dir/checkpoints/`` and, with
     ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
     (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
+
+    Ctrl-C ends the training early: the model trained so far is saved as above, its train.json with
+    ``"interrupted": true`` and the ``timesteps`` reached.
     """
     if timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")
@@ -385,14 +393,19 @@ def train(
         model = build_model(env_id, seed, None, hyperparameters, env_kwargs, vectorization, tensorboard_log)
         n_envs = model.n_envs
         rollout = model.n_steps * n_envs  # learn() collects whole rollouts: the bar's true total
-        callbacks = [TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)]
+        progress_bar = TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)
+        callbacks = [progress_bar]
         if checkpoints > 0:
             every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
             callbacks.append(
                 CheckpointCallback(every, str(output_dir / "checkpoints"), name_prefix="ppo", save_vecnormalize=True)
             )
-        start = time.perf_counter()
-        model.learn(timesteps, callback=callbacks, tb_log_name="ppo")
+        start, interrupted = time.perf_counter(), False
+        try:
+            model.learn(timesteps, callback=callbacks, tb_log_name="ppo")
+        except KeyboardInterrupt:
+            interrupted = True
+            progress_bar.close()
         seconds = time.perf_counter() - start
         model_path = output_dir / MODEL_FILE
         model.save(model_path)
@@ -413,6 +426,7 @@ def train(
         "fps": model.num_timesteps / seconds,
         "torch_threads": default_num_threads(),
         "model": str(model_path),
+        "interrupted": interrupted,
     }
     (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
     return model_path

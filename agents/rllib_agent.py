@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from agents.base import checked_action_count
+from agents.base import checked_action_count, env_name, trained_elsewhere
 from agents.ray_support import import_ray
 from agents.rllib_masking import ACTION_MASK, OBSERVATION, mask_observation
 from agents.rllib_train import CHECKPOINT_DIR, SHARED_POLICY
@@ -33,13 +33,12 @@ class RLlibAgent:
         agent: in a PettingZoo env, the robot it acts for.
 
     Raises:
-        ValueError: without Ray, for a directory without ``train.json`` or checkpoint, or spaces that do not match.
+        ValueError: without Ray, for a directory without ``train.json`` or checkpoint, trained on an env whose
+            policies do not fit this one (naming that env), or spaces that do not match.
     """
 
     def __init__(self, directory: Path | str, env, agent: str | None = None):
         import_ray()  # a missing extra: a one-line ValueError saying what to install
-        from ray.rllib.core.rl_module.rl_module import RLModule
-
         directory = Path(directory).resolve()  # RLlib opens checkpoints by absolute URI
         record_path = directory / "train.json"
         if not record_path.is_file() or not (directory / CHECKPOINT_DIR).is_dir():
@@ -49,10 +48,22 @@ class RLlibAgent:
             )
         record = json.loads(record_path.read_text())
         policy = module_id(record, agent)
-        self.module = RLModule.from_checkpoint(directory.joinpath(CHECKPOINT_DIR, *MODULES_PATH, policy))
+        modules = directory.joinpath(CHECKPOINT_DIR, *MODULES_PATH)
+        trained_on = f"env {record.get('env_id')!r}"
+        if not (modules / policy).is_dir():  # a team's policies in a single-agent env, or the reverse
+            found = ", ".join(sorted(path.name for path in modules.iterdir())) if modules.is_dir() else "none"
+            raise trained_elsewhere(
+                f"RLlib training directory {str(directory)!r}",
+                f"{trained_on} (policies: {found})",
+                f"id {env_name(env)!r} (policy {policy!r})",
+                agent,
+            )
+        from ray.rllib.core.rl_module.rl_module import RLModule
+
+        self.module = RLModule.from_checkpoint(modules / policy)
         self.module.eval()
         self.n_actions = checked_action_count(
-            f"RLlib policy {policy!r} in {str(directory)!r}",
+            f"RLlib policy {policy!r} in {str(directory)!r} ({trained_on})",
             self.module.observation_space[OBSERVATION].shape,
             self.module.action_space,
             env,

@@ -13,6 +13,7 @@ translated (``rllib_training_settings``). ``OUTPUT/checkpoint`` is RLlib's algor
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 
@@ -63,29 +64,91 @@ class TeamEnvCreator(SingleEnvCreator):
         return ParallelPettingZooEnv(MaskedParallelEnv(make_env(self.env_id, **dict(env_config))))
 
 
+TRAINING_NAMES = {  # ppo.yml key: (its name in RLlib's PPOConfig.training, type, SB3's default)
+    "batch_size": ("minibatch_size", int, 64),
+    "n_epochs": ("num_epochs", int, 10),
+    "gamma": ("gamma", float, 0.99),
+    "gae_lambda": ("lambda_", float, 0.95),
+    "learning_rate": ("lr", float, 3e-4),
+    "ent_coef": ("entropy_coeff", float, 0.0),
+    "clip_range": ("clip_param", float, 0.2),
+}
+ROLLOUT_KEYS = {"n_steps": 2048, "n_envs": 1}  # their product is the train batch (SB3's defaults)
+MODEL_KEYS = ("policy", "policy_kwargs", "normalize")  # policy: MlpPolicy, the only one RLlib's module mirrors
+POLICY_KWARGS = ("net_arch", "activation_fn")
+
+
+def _setting(hyperparameters: dict, key: str, kind: type, default):
+    """``hyperparameters[key]`` (else ``default``) as ``kind``: an int >= 1 or a finite float >= 0; else ``ValueError``
+    naming the key."""
+    value = hyperparameters.get(key, default)
+    try:
+        number = kind(value)
+        usable = not isinstance(value, bool) and number == float(value) and math.isfinite(number)
+    except (TypeError, ValueError):
+        usable = False
+    if not usable or number < (1 if kind is int else 0):
+        expected = "an integer >= 1" if kind is int else "a finite number >= 0"
+        raise ValueError(f"hyperparameter {key} must be {expected}, got {value!r}")
+    return number
+
+
+def _model_settings(hyperparameters: dict) -> dict:
+    """The module's settings from ``policy``, ``policy_kwargs`` and ``normalize``; ``ValueError`` for others."""
+    from agents.ppo import ACTIVATIONS, normalization_kwargs
+
+    policy = hyperparameters.get("policy", "MlpPolicy")
+    policy_kwargs = hyperparameters.get("policy_kwargs") or {}
+    if policy != "MlpPolicy" or not isinstance(policy_kwargs, dict) or set(policy_kwargs) - set(POLICY_KWARGS):
+        raise ValueError(
+            f"the rllib backend trains an MLP: policy MlpPolicy, policy_kwargs with {' and '.join(POLICY_KWARGS)}; "
+            f"got policy {policy!r}, policy_kwargs {policy_kwargs!r}"
+        )
+    hidden = policy_kwargs.get("net_arch", [64, 64])
+    activation = policy_kwargs.get("activation_fn", "tanh")
+    if not isinstance(hidden, list) or not all(type(width) is int and width >= 1 for width in hidden):
+        raise ValueError(f"policy_kwargs.net_arch must be a list of layer widths >= 1, got {hidden!r}")
+    if activation not in ACTIVATIONS:
+        raise ValueError(f"policy_kwargs.activation_fn must be one of {', '.join(ACTIVATIONS)}, got {activation!r}")
+    normalize = normalization_kwargs(hyperparameters)
+    return {
+        "fcnet_hiddens": list(hidden),
+        "fcnet_activation": activation,
+        NORMALIZE_OBSERVATIONS: normalize is not None and bool(normalize.get("norm_obs", True)),
+    }
+
+
 def rllib_training_settings(hyperparameters: dict) -> dict:
     """The PPO settings of an ``agents/hyperparams/ppo.yml`` block in RLlib's names (``PPOConfig.training``).
 
     The block's rollout, ``n_steps`` per env times ``n_envs`` (env steps, whatever the runners), is RLlib's
     train batch; ``batch_size`` its minibatch.
+
+    Raises:
+        ValueError: for a key without an RLlib translation, or a value it cannot take (naming the key).
     """
-    policy_kwargs = hyperparameters.get("policy_kwargs", {})
-    rollout = int(hyperparameters.get("n_steps", 2048)) * int(hyperparameters.get("n_envs", 1))
-    return {
-        "train_batch_size_per_learner": rollout,
-        "minibatch_size": int(hyperparameters.get("batch_size", 64)),
-        "num_epochs": int(hyperparameters.get("n_epochs", 10)),
-        "gamma": float(hyperparameters.get("gamma", 0.99)),
-        "lambda_": float(hyperparameters.get("gae_lambda", 0.95)),
-        "lr": float(hyperparameters.get("learning_rate", 3e-4)),
-        "entropy_coeff": float(hyperparameters.get("ent_coef", 0.0)),
-        "clip_param": float(hyperparameters.get("clip_range", 0.2)),
-        "model": {
-            "fcnet_hiddens": list(policy_kwargs.get("net_arch", [64, 64])),
-            "fcnet_activation": policy_kwargs.get("activation_fn", "tanh"),
-            NORMALIZE_OBSERVATIONS: bool((hyperparameters.get("normalize") or {}).get("norm_obs", False)),
-        },
+    unknown = sorted(set(hyperparameters) - set(TRAINING_NAMES) - set(ROLLOUT_KEYS) - set(MODEL_KEYS))
+    if unknown:
+        known = ", ".join([*TRAINING_NAMES, *ROLLOUT_KEYS, *MODEL_KEYS])
+        raise ValueError(f"hyperparameter(s) {unknown} have no RLlib translation; the rllib backend takes {known}")
+    rollout = math.prod(_setting(hyperparameters, key, int, default) for key, default in ROLLOUT_KEYS.items())
+    training = {
+        name: _setting(hyperparameters, key, kind, default) for key, (name, kind, default) in TRAINING_NAMES.items()
     }
+    return {"train_batch_size_per_learner": rollout, **training, "model": _model_settings(hyperparameters)}
+
+
+def check_arguments(env_id: str, env_kwargs: dict, hyperparameters: dict, policies: str) -> None:
+    """``ValueError`` for an env id, config, hyperparameter or policy layout that training would fail on, before Ray
+    starts (which takes a minute)."""
+    check_policies(policies)
+    env = make_env(env_id, **env_kwargs)  # an unknown id or config key: the message ``infonav evaluate`` gives
+    env.close()
+    if policies != "shared" and api_of(env_id) != PARALLEL:
+        raise ValueError(
+            f"policies {policies!r} is for a team env (a PettingZoo parallel env); {env_id!r} has one robot"
+        )
+    rllib_training_settings(hyperparameters)
 
 
 def check_policies(policies: str) -> str:
@@ -187,9 +250,9 @@ def train_rllib(
         raise ValueError(
             f"--num-env-runners must be >= 0 and --envs-per-runner >= 1, got {num_env_runners}, {envs_per_runner}"
         )
-    check_policies(policies)
     env_kwargs = dict(env_kwargs or {})
     hyperparameters = load_hyperparameters(env_id) if hyperparameters is None else hyperparameters
+    check_arguments(env_id, env_kwargs, hyperparameters, policies)
     output_dir = Path(output_dir)
     with local_or_cluster_ray(address), torch_threads(default_num_threads()):  # the learner runs here
         config = build_config(env_id, env_kwargs, seed, hyperparameters, num_env_runners, envs_per_runner, policies)

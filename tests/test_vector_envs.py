@@ -6,13 +6,18 @@ its single env in the configs that matter to it.
 
 from __future__ import annotations
 
+import gc
+import sys
+
+import gymnasium as gym
 import pytest
 import vector_env_checks
 from gymnasium.vector import AutoresetMode
 
-from infonav_gym.registry import GYMNASIUM, registered_envs
+from infonav_gym.registry import GYMNASIUM, make_vector_env, registered_envs
 
 VECTOR_ENV_IDS = [entry.id for entry in registered_envs(GYMNASIUM) if entry.vector_entry_point is not None]
+NATIVE_ENTRIES = [entry for entry in registered_envs() if entry.vector_entry_point is not None]  # team envs too
 CHECKS = [
     vector_env_checks.check_seeding,
     vector_env_checks.check_vector_api,
@@ -51,3 +56,16 @@ def test_gymnasium_vector_wrappers_read_the_infos(env_id):
 def test_render_draws_sub_env_0(env_id, mode):
     pytest.importorskip("pygame")
     vector_env_checks.check_render_draws_sub_env_0(env_id, mode, n_steps=12, horizon=4)
+
+
+@pytest.mark.parametrize("entry", NATIVE_ENTRIES, ids=lambda entry: entry.id)
+@pytest.mark.parametrize("num_envs", [0, -1])
+def test_no_copies_is_a_value_error_that_leaves_nothing_to_report_when_collected(entry, num_envs, monkeypatch):
+    unraisable = []  # what VectorEnv.__del__ would print on stderr
+    monkeypatch.setattr(sys, "unraisablehook", unraisable.append)
+    makers = [make_vector_env] + ([gym.make_vec] if entry.api == GYMNASIUM else [])
+    for make in makers:
+        with pytest.raises(ValueError, match=rf"num_envs of \w+ must be an int >= 1, got {num_envs}"):
+            make(entry.id, num_envs=num_envs)
+        gc.collect()
+    assert [hook.exc_value for hook in unraisable] == []

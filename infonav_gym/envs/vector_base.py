@@ -52,6 +52,7 @@ class InfoNavVectorEnv(VectorEnv):
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
     AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
     single_env: type  # the env class a subclass batches: ``class MyVectorEnv(InfoNavVectorEnv, single_env=MyEnv)``
+    _view: FirstCopyView | None = None  # set by ``_configure``; None before, so a half-built env closes cleanly
 
     def __init_subclass__(cls, single_env: type | None = None, **kwargs):
         super().__init_subclass__(**kwargs)

@@ -20,6 +20,7 @@ from infonav_gym.experiments.arguments import (
     seed,
 )
 from infonav_gym.experiments.paths import (
+    Interrupted,
     OutputWriteError,
     check_output_dir,
     check_output_stem,
@@ -303,17 +304,23 @@ def _evaluate(args, argv) -> dict:
     stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
     if args.address and not args.ray:
         raise ValueError("--address is the Ray cluster of --ray; add --ray or drop --address")
-    results = evaluate(
-        args.env,
-        args.agents,
-        args.episodes,
-        args.seed,
-        dict(args.config),
-        progress=not args.json,
-        workers=args.workers,
-        use_ray=args.ray,
-        address=args.address,
-    )
+    try:
+        results = evaluate(
+            args.env,
+            args.agents,
+            args.episodes,
+            args.seed,
+            dict(args.config),
+            progress=not args.json,
+            workers=args.workers,
+            use_ray=args.ray,
+            address=args.address,
+        )
+        interruption = None
+    except Interrupted as error:  # the episodes finished so far are written and printed as a whole evaluation's
+        results, interruption = error.result, error
+        if not results["agents"]:
+            raise Interrupted("interrupted before an episode finished: nothing to write", results) from None
     failure = None
     if stem:
         command = "infonav " + " ".join(shlex.quote(part) for part in argv)
@@ -323,6 +330,9 @@ def _evaluate(args, argv) -> dict:
         print(config_line(results))
         print(markdown_table(results))
     _raise_if_failed(failure, results)
+    if interruption:
+        kept = f"wrote {', '.join(results['files'])}" if stem else "the tables above hold them"
+        raise Interrupted(f"{interruption}; {kept}", results)
     return results
 
 
@@ -381,6 +391,9 @@ def _train(args) -> dict:
         env_kwargs=dict(args.config),
     )
     record = json.loads((model_path.parent / "train.json").read_text())
+    if record["interrupted"]:
+        message = f"interrupted after {record['timesteps']} of {args.timesteps} env steps; saved {model_path}"
+        raise Interrupted(f"{message} and train.json", record)
     if not args.json:
         copies = f"{record['n_envs']} envs, {record['vectorization']}"
         _print_trained(args, record, copies, f"model: {model_path}", f"ppo:{model_path}")
@@ -401,7 +414,7 @@ def _train_rllib(args) -> dict:
     """Train RLlib PPO on ``args.env``; print where the checkpoint went unless --json."""
     from agents.ray_support import import_ray
 
-    import_ray()  # a missing extra is a one-line error before anything starts
+    import_ray(args.address)  # a missing extra or a wrong address: a one-line error before the slow imports below
     from agents.ppo import load_hyperparameters
     from agents.rllib_train import train_rllib
 
@@ -638,6 +651,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.json:
             print(json.dumps(failure.result))
         parser.exit(2, f"infonav {args.command}: error: {failure}\n")
+    except Interrupted as interruption:  # the work finished so far was kept; the JSON too with --json
+        if args.json:
+            print(json.dumps(interruption.result))
+        parser.exit(130, f"infonav {args.command}: {interruption}\n")
+    except KeyboardInterrupt:
+        parser.exit(130, f"infonav {args.command}: interrupted\n")
     except (ValueError, ImportError) as error:
         parser.exit(2, f"infonav {args.command}: error: {error}\n")
     except OSError as error:  # a file that could not be read or written, e.g. demo --plot or train's model

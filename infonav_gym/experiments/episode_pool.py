@@ -8,12 +8,14 @@ process's, seed for seed, whatever the number of workers. Results come back in t
 Worker processes are forked on platforms that have ``fork`` while torch is not yet imported. Once it is (a
 fork after torch has started its thread pool can hang) they come from a fork server that has imported the
 harness and the envs once (``forkserver``, started on first use and kept for the process's later pools),
-else they are spawned (each re-imports the package: about a second).
+else they are spawned (each re-imports the package: about a second). Workers ignore Ctrl-C (it reaches the whole
+process group): the parent stops handing out episodes and keeps the results it has.
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import signal
 import sys
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -110,7 +112,7 @@ def played(
     if context.get_start_method() == "forkserver":
         context.set_forkserver_preload(FORKSERVER_PRELOAD)  # imported once by the server, its workers fork from it
     with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=runner.setup) as pool:
-        yield from pool.map(_play, tasks, chunksize=max(1, len(tasks) // (4 * workers)))
+        yield from pool.map(_play, tasks)  # one task at a time: on Ctrl-C only the episodes being played are waited for
 
 
 def _start_method() -> str:
@@ -123,6 +125,7 @@ def _start_method() -> str:
 
 def _start_worker(env_id: str, env_kwargs: dict, agent_names: Sequence[str]) -> None:
     global _worker_runner
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the parent handles it
     _worker_runner = EpisodeRunner(env_id, env_kwargs, agent_names)
 
 

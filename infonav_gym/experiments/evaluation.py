@@ -20,10 +20,11 @@ from scipy import stats
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent, RandomAgent
+from agents.base import env_name
 from agents.ray_support import DISTRIBUTED_HINT, import_ray
 from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, traits_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_workers, played
-from infonav_gym.experiments.paths import output_file
+from infonav_gym.experiments.paths import Interrupted, output_file
 from infonav_gym.registry import registered_envs
 
 AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH", "rllib:DIR")
@@ -44,12 +45,6 @@ def check_agent_name(name: str) -> None:
     if any(name.startswith(prefix) and len(name) > len(prefix) for prefix in (PPO_PREFIX, RLLIB_PREFIX)):
         return
     raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
-
-
-def _env_name(env) -> str:
-    """The env's registered id (Gymnasium) or ``metadata["name"]`` (PettingZoo), else its class name."""
-    spec = getattr(env, "spec", None)
-    return spec.id if spec is not None else env.metadata.get("name", type(env.unwrapped).__name__)
 
 
 def _planning_env_ids() -> list[str]:
@@ -78,7 +73,7 @@ def make_agent(
     if name == "planner":
         if not has_planning_model(env):
             raise ValueError(
-                f"agent 'planner' is not available for {_env_name(env)}: it declares no planning model "
+                f"agent 'planner' is not available for {env_name(env)}: it declares no planning model "
                 f"(no planning_model() method); use random, greedy or ppo:PATH, or the planner on "
                 f"{', '.join(_planning_env_ids())}"
             )
@@ -88,7 +83,7 @@ def make_agent(
             raise ValueError(
                 f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
             ) from None
-        return PlannerAgent(env, agent, **planner_settings(_env_name(env)))
+        return PlannerAgent(env, agent, **planner_settings(env_name(env)))
     if name.startswith(RLLIB_PREFIX):
         try:
             from agents.rllib_agent import RLlibAgent
@@ -232,6 +227,10 @@ def evaluate(
     Returns:
         ``{"env_id", "episodes", "seeds", "env_kwargs", "env_config", "metrics", "agents": {name: {"episodes":
         [...], "summary": {...}}}}``; ``env_config`` is the config the env ran, defaults included.
+
+    Raises:
+        Interrupted: on Ctrl-C, with the evaluation of the episodes finished (``"interrupted": True``; only the
+            seeds and agents that finished one). The episodes are played seed by seed, every agent on each seed.
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
@@ -241,7 +240,7 @@ def evaluate(
         check_agent_name(name)
     check_workers(workers)
     if use_ray:
-        import_ray()  # before any episode: a missing extra is a one-line error
+        import_ray(address)  # before any episode: a missing extra or a wrong address is a one-line error
     env_kwargs = dict(env_kwargs or {})
     runner = EpisodeRunner(env_id, env_kwargs, agent_names)
     env = runner.env
@@ -257,12 +256,18 @@ def evaluate(
         "metrics": {metric.name: metric.title for metric in declared},
         "agents": {name: {"episodes": []} for name in runner.agents},
     }
-    tasks = [(name, episode_seed) for name in runner.agents for episode_seed in seeds]
+    tasks = [(name, episode_seed) for episode_seed in seeds for name in runner.agents]
     bar = tqdm(total=len(tasks), desc=f"evaluating on {env_id}", disable=not progress, unit="episode")
+    finished = 0
     try:
         for (name, _), metrics in zip(tasks, played(runner, tasks, workers, use_ray, address)):
             results["agents"][name]["episodes"].append(metrics)
+            finished += 1
             bar.update()
+    except KeyboardInterrupt:
+        played_agents = {name: result for name, result in results["agents"].items() if result["episodes"]}
+        seeds_played = max(map(len, (result["episodes"] for result in played_agents.values())), default=0)
+        results.update(interrupted=True, agents=played_agents, seeds=seeds[:seeds_played])
     finally:
         bar.close()
         runner.close()
@@ -273,6 +278,8 @@ def evaluate(
             .as_dict()
             for metric in declared
         }
+    if results.get("interrupted"):
+        raise Interrupted(f"interrupted after {finished} of {len(tasks)} episodes", results)
     return results
 
 
@@ -292,8 +299,10 @@ def interval_note(results: dict) -> str:
 
 def heading(results: dict) -> str:
     """``env, N episodes per agent, seeds a..b``, and the config keys that decide the reward (env traits)."""
-    seeds = results["seeds"]
-    text = f"{results['env_id']}, {results['episodes']} episodes per agent, seeds {seeds[0]}..{seeds[-1]}"
+    seeds, episodes = results["seeds"], f"{results['episodes']} episodes per agent"
+    if results.get("interrupted"):
+        episodes = f"interrupted after {len(seeds)} of {episodes}"
+    text = f"{results['env_id']}, {episodes}, seeds {seeds[0]}..{seeds[-1]}"
     reward_keys = results.get("reward_config_keys", [])
     defaults = results["env_config"]
     choices = [f"{key}={defaults[key]!r}{'' if key in results['env_kwargs'] else ' (default)'}" for key in reward_keys]

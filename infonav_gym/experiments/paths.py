@@ -1,4 +1,5 @@
-"""Output paths of the harness: checked before the work starts, and a write failure that keeps the work."""
+"""Output paths of the harness: checked before the work starts; a write failure and an interruption that keep the
+work."""
 
 from __future__ import annotations
 
@@ -6,12 +7,21 @@ import os
 from pathlib import Path
 
 
-class OutputWriteError(Exception):
-    """Writing the files failed after the work was done; ``result`` holds the work (its ``files``: those written)."""
+class KeptWork:
+    """An exception carrying the work done: ``result``."""
 
     def __init__(self, message: str, result: dict):
         super().__init__(message)
         self.result = result
+
+
+class OutputWriteError(KeptWork, Exception):
+    """Writing the files failed after the work was done; ``result`` holds the work (its ``files``: those written)."""
+
+
+class Interrupted(KeptWork, KeyboardInterrupt):
+    """Ctrl-C stopped the work; ``result`` holds what was finished (marked ``"interrupted": True``), the message how
+    much of it."""
 
 
 def _nearest_existing(path: Path) -> Path:
