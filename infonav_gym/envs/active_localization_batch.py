@@ -20,7 +20,7 @@ from infonav_gym.envs.active_localization import (
     ActiveLocalizationEnv,
 )
 from infonav_gym.envs.active_planning import N_PRIMITIVES
-from infonav_gym.envs.landmark_selection_batch import BatchedDecision
+from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.geometry import wrap_angle
 
@@ -35,12 +35,12 @@ class ActiveDecision(NamedTuple):
         action_information_gain: expected MI of each action (N, A) [nats], 0 where masked.
     """
 
-    sight: BatchedDecision
+    sight: LandmarkDecision
     action_mask: np.ndarray
     action_information_gain: np.ndarray
 
     @classmethod
-    def from_sight(cls, sight: BatchedDecision, observations_left: np.ndarray) -> ActiveDecision:
+    def from_sight(cls, sight: LandmarkDecision, observations_left: np.ndarray) -> ActiveDecision:
         """The decisions of copies whose landmarks are ``sight`` and sensing budgets ``observations_left`` (N,)."""
         n_copies, n_landmarks = sight.action_mask.shape
         observable = sight.action_mask.astype(bool) & (observations_left > 0)[:, None]

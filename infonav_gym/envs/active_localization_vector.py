@@ -22,7 +22,7 @@ from infonav_gym.envs.active_localization import (
 )
 from infonav_gym.envs.active_localization_batch import ActiveDecision, batched_info, batched_observation
 from infonav_gym.envs.active_planning import N_PRIMITIVES
-from infonav_gym.envs.landmark_selection_batch import BatchedDecision
+from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
 from infonav_gym.envs.vector_infos import set_rows
 from infonav_gym.estimation import batched
@@ -193,7 +193,7 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv, single_env=ActiveLocalizati
         state = {key: value[copies] for key, value in self._state.items()}
         true_poses, x, P = self._worlds.poses[copies, 0], state["x"], state["P"]
         everywhere = np.ones((len(copies), self._landmarks.shape[1]), dtype=bool)
-        sight = BatchedDecision.at_prior(
+        sight = LandmarkDecision.at_prior(
             self._sensor, geometry, true_poses, x, P, self._landmarks[copies], everywhere, mapping=False
         )
         decision = ActiveDecision.from_sight(sight, state["observations_left"])
