@@ -22,7 +22,12 @@ BUILTIN_ENVS = (
         GYMNASIUM,
         "infonav_gym.envs.active_localization_vector:ActiveLocalizationVectorEnv",
     ),
-    ("infonav/SensorSelection-v0", "infonav_gym.envs.sensor_selection:SensorSelectionEnv", GYMNASIUM),
+    (
+        "infonav/SensorSelection-v0",
+        "infonav_gym.envs.sensor_selection:SensorSelectionEnv",
+        GYMNASIUM,
+        "infonav_gym.envs.sensor_selection:SensorSelectionVectorEnv",
+    ),
     ("infonav/RangeRegistration-v0", "infonav_gym.envs.range_registration:RangeRegistrationEnv", GYMNASIUM),
     (
         "cooperative_localization_v0",

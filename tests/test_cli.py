@@ -128,6 +128,9 @@ def test_benchmark_reports_every_goal(capsys):
         assert figures[f"{env}_steps_per_s"] > 0 and figures["cartpole_steps_per_s"] > 0
         ratio = figures[f"{env}_steps_per_s"] / figures["cartpole_steps_per_s"]
         assert figures[f"{env}_vs_cartpole_ratio"] == pytest.approx(ratio)
+    vector_ratio = figures["sensor_selection_vector_4_steps_per_s"] / figures["cartpole_steps_per_s"]
+    assert figures["sensor_selection_vector_4_vs_cartpole_ratio"] == pytest.approx(vector_ratio)
+    assert result["goals_met"]["sensor_selection_vector_256_vs_cartpole_ratio"] is None  # N = 256 was not timed
     for sensor in ("ladar", "camera"):
         frame_ms, pymunk_ms = figures[f"{sensor}_frame_ms"], figures[f"pymunk_{sensor}_rays_ms"]
         assert frame_ms > 0 and pymunk_ms > 0
@@ -150,6 +153,7 @@ def test_benchmark_reports_every_goal(capsys):
             "ppo_vector_fps_ratio_vs_cartpole",
             "landmark_selection_vector_256_vs_cartpole_ratio",
             "active_localization_vector_256_vs_cartpole_ratio",
+            "sensor_selection_vector_256_vs_cartpole_ratio",
             "cooperative_localization_vector_256_vs_vmas_ratio",
             "cooperative_exploration_vector_256_vs_vmas_ratio",
             "evaluation_2_workers_time_ratio",

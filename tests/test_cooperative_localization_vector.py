@@ -89,8 +89,8 @@ def test_make_vector_env_makes_a_gymnasium_envs_native_vector_env_too():
 
 
 def test_make_vector_env_refuses_an_env_without_a_native_vector_env():
-    with pytest.raises(ValueError, match=r"env 'infonav/SensorSelection-v0' has no native vector env"):
-        make_vector_env("infonav/SensorSelection-v0", 2)
+    with pytest.raises(ValueError, match=r"env 'infonav/RangeRegistration-v0' has no native vector env"):
+        make_vector_env("infonav/RangeRegistration-v0", 2)
     with pytest.raises(ValueError, match="unknown env id 'nowhere'"):
         make_vector_env("nowhere", 2)
 

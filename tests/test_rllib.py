@@ -272,11 +272,11 @@ def test_ray_tasks_give_the_numbers_of_one_process(local_ray):
 def test_an_env_without_a_native_vector_env_trains_on_gymnasiums_sync_copies(local_ray, tmp_path_factory, small_blocks):
     import yaml
 
-    sensor_id = "infonav/SensorSelection-v0"
-    path = tmp_path_factory.mktemp("sensor") / "ppo.yml"
-    path.write_text(yaml.safe_dump({sensor_id: {**SMALL_BLOCK, "n_steps": 64, "batch_size": 32}}))
-    output, record = _trained(tmp_path_factory, path, sensor_id, "--envs-per-runner", "2", "--config", "horizon=20")
+    env_id = "infonav/RangeRegistration-v0"
+    path = tmp_path_factory.mktemp("registration") / "ppo.yml"
+    path.write_text(yaml.safe_dump({env_id: {**SMALL_BLOCK, "n_steps": 64, "batch_size": 32}}))
+    output, record = _trained(tmp_path_factory, path, env_id, "--envs-per-runner", "2", "--config", "horizon=20")
     assert record["vectorization"] == "sync" and record["timesteps"] >= 2000
-    env = gym.make(sensor_id, horizon=20)
+    env = gym.make(env_id, horizon=20)
     observation, info = env.reset(seed=0)
     assert env.action_space.contains(RLlibAgent(output, env).act(observation, info))

@@ -47,7 +47,11 @@ def test_reward_is_the_histogram_entropy_of_the_acquired_image_as_scikit_image_c
     for action in range(1, env.action_space.n):
         _, reward, _, _, info = env.step(action)
         image = env.last_image
-        expected_shape = (env.ladar.rows, env.ladar.columns) if info["sensor"] == "ladar" else (120, 160)
+        expected_shape = (
+            (env.vector.sensors.ladar.rows, env.vector.sensors.ladar.columns)
+            if info["sensor"] == "ladar"
+            else (120, 160)
+        )
         assert image.dtype == np.uint8 and image.shape == expected_shape
         entropy = shannon_entropy(image, base=np.e)
         assert info["image_entropy"] == pytest.approx(entropy, abs=1e-12)
@@ -79,7 +83,7 @@ def test_the_gain_is_the_last_value_measured_and_ln_256_for_options_never_acquir
 
 def test_bandwidth_credit_pays_for_frames_by_size_and_masks_what_it_cannot_cover():
     env = make(bandwidth_bytes_per_step=5000, bandwidth_buffer_bytes=40000, n_pan_sectors=2)
-    assert env.frame_bytes == {"ladar": 2 * 32 * 180, "camera": 120 * 160}
+    assert env.vector.sensors.frame_bytes == {"ladar": 2 * 32 * 180, "camera": 120 * 160}
     ladar_actions, camera_actions = [1, 2], [3, 4]
     _, info = env.reset(seed=0)
     credit, affordable_sets = 40000, set()
@@ -100,7 +104,7 @@ def test_bandwidth_credit_pays_for_frames_by_size_and_masks_what_it_cannot_cover
 
 def test_frame_sizes_follow_the_image_config():
     env = make(ladar_rows=16, ladar_columns=90, camera_rows=60, camera_columns=80)
-    assert env.frame_bytes == {"ladar": 2 * 16 * 90, "camera": 60 * 80}
+    assert env.vector.sensors.frame_bytes == {"ladar": 2 * 16 * 90, "camera": 60 * 80}
     env.reset(seed=1)
     env.step(1)
     assert env.last_image.shape == (16, 90)
@@ -112,8 +116,9 @@ def test_frame_sizes_follow_the_image_config():
 def test_pan_sectors_spread_evenly_from_left_to_right(n_pan_sectors, span_deg):
     env = make(n_pan_sectors=n_pan_sectors, pan_span_rad=math.radians(span_deg))
     assert env.action_space.n == 1 + 2 * n_pan_sectors
-    pans = [env.option(a)[1] for a in range(1, 1 + n_pan_sectors)]
-    assert [env.option(a)[0] for a in range(1, env.action_space.n)] == ["ladar"] * n_pan_sectors + [
+    sensors = env.vector.sensors
+    pans = [sensors.option(a)[1] for a in range(1, 1 + n_pan_sectors)]
+    assert [sensors.option(a)[0] for a in range(1, env.action_space.n)] == ["ladar"] * n_pan_sectors + [
         "camera"
     ] * n_pan_sectors
     expected = [0.0] if n_pan_sectors == 1 else np.linspace(span_deg / 2, -span_deg / 2, n_pan_sectors)
@@ -123,12 +128,10 @@ def test_pan_sectors_spread_evenly_from_left_to_right(n_pan_sectors, span_deg):
 def test_pan_turns_the_view_the_left_image_is_the_image_seen_from_a_heading_turned_left():
     env = make()
     env.reset(seed=2)
-    pan = env.pan_angles_rad[0]
-    rng_state = env._sensor_rng.bit_generator.state
-    panned = env.acquire("camera", pan)
-    env._sensor_rng.bit_generator.state = rng_state
-    turned_pose = env._true_pose + [0.0, 0.0, pan]
-    turned = env.camera.capture(env.terrain, turned_pose, env._sensor_rng)
+    vector, sensors = env.vector, env.vector.sensors
+    pan, pose, terrain = sensors.pan_angles_rad[0], vector.true_poses[0], vector.terrain(0)
+    panned = sensors.acquire(terrain, pose, np.random.default_rng(7), "camera", pan)
+    turned = sensors.camera.capture(terrain, pose + [0.0, 0.0, pan], np.random.default_rng(7))
     assert np.array_equal(panned, turned)
 
 

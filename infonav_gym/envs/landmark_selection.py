@@ -15,7 +15,7 @@ from infonav_gym.envs.metrics import LOCALIZATION_METRICS
 from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import set_rows
+from infonav_gym.envs.vector_infos import decision_info, in_every_copy
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.geometry import wrap_angle
@@ -219,12 +219,7 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
         decision = LandmarkDecision.at_prior(
             self._sensor, geometry, true_poses, x, P, self._landmarks[copies], exists, self.config["mapping"]
         )
-        if len(copies) == self.num_envs:
-            self._decision = decision
-        else:
-            self._decision = LandmarkDecision(
-                *(set_rows(full, copies, part) for full, part in zip(self._decision, decision))
-            )
+        self._set_decision(copies, decision)
         self._chosen[copies] = np.where(stepped, chosen, -1)
         self._track_first_copy(copies, stepped)
         elapsed = self._elapsed[copies]
@@ -268,16 +263,8 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
             rewards: each one's realized MI (n,) [nats].
         """
         errors = true_poses - x[:, :POSE_DIM]
-        everyone = np.ones(len(x), dtype=bool)
         info = {
-            "action_mask": decision.action_mask.copy(),
-            "action_information_gain": decision.action_information_gain.copy(),
-            "reward_terms": {
-                "mutual_information": np.where(stepped, rewards, 0.0),
-                "_mutual_information": stepped.copy(),
-            },
-            "chosen_action": np.where(stepped, chosen, -1),
-            "invalid_action": stepped & (chosen < 0),
+            **decision_info(decision, stepped, chosen, "mutual_information", rewards),
             "pose_entropy": decision.pose_entropy.copy(),
             "state_entropy": gaussian_entropy_from_log_det(decision.prior_log_det, x.shape[1]),
             "position_error_m": np.hypot(errors[:, 0], errors[:, 1]),
@@ -286,7 +273,7 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
             "estimated_pose": x[:, :POSE_DIM].copy(),
             "time_s": elapsed * self.config["time_step_s"],
         }
-        return {**info, **{f"_{key}": everyone for key in info}}
+        return in_every_copy(info, len(x))
 
     def _scene_frame(self):
         """Sub-env 0 drawn: its scenario, landmarks (seen ones marked, the chosen one linked), the robot."""

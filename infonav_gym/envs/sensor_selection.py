@@ -3,28 +3,37 @@
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
 
-from infonav_gym.config import Interval, check_choice, check_config, from_config
-from infonav_gym.envs.base import Decision, InfoNavEnv
+from infonav_gym.config import Interval, check_choice, check_config
+from infonav_gym.envs.image_acquisition import (
+    IDLE_ACTION,
+    MAX_IMAGE_ENTROPY,
+    SENSORS,
+    ImageSensors,
+    TerrainStack,
+    acquire_frames,
+    sensor_config,
+)
 from infonav_gym.envs.metrics import EpisodeMetric, count_where, mean_where, summed_reward_term
+from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.information import histogram_entropy
+from infonav_gym.envs.vector_base import InfoNavVectorEnv
+from infonav_gym.envs.vector_infos import decision_info, in_every_copy
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
-from infonav_gym.sensors.camera import Camera
-from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import TIME_STEP_S, World
+from infonav_gym.world.world import TIME_STEP_S
+from infonav_gym.world.world_batch import WorldBatch
 
-SENSORS = ("ladar", "camera")
+__all__ = ["IDLE_ACTION", "MAX_IMAGE_ENTROPY", "SENSORS", "SensorSelectionEnv", "SensorSelectionVectorEnv"]
+
 IMAGE_INFORMATION = ("entropy", "negentropy")
-IDLE_ACTION = 0
-MAX_IMAGE_ENTROPY = math.log(256)  # entropy of a uniform 256-level histogram [nats]
 OPTION_FEATURES = 3
 GLOBAL_FEATURES = 2 + len(SENSORS)
-_BYTES_PER_PIXEL = {"ladar": 2, "camera": 1}  # 16-bit ranges, 8-bit gray levels
 BANDWIDTH_BYTES = Interval(1, 10**10, integer=True, unit="bytes")  # link capacity per step, credit buffer
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
     "time_step_s": TIME_STEP_S,
@@ -35,7 +44,280 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 }
 
 
-class SensorSelectionEnv(InfoNavEnv):
+class ImageDecision(NamedTuple):
+    """Every copy's decision: which acquisitions the credit covers and their greedy estimates.
+
+    Attributes:
+        action_mask: int8 (N, A), 1 = valid: waiting always, an acquisition when the credit covers its frame.
+        action_information_gain: (N, A) [nats]: the last value measured of each (sensor, direction), ``ln 256``
+            for one never acquired; 0 for waiting and where masked.
+    """
+
+    action_mask: np.ndarray
+    action_information_gain: np.ndarray
+
+
+class SensorSelectionVectorEnv(InfoNavVectorEnv):
+    """N copies of ``infonav/SensorSelection-v0`` on stacked arrays: the env's one implementation.
+
+    See ``SensorSelectionEnv`` (its N = 1 view) for the spaces, rewards and config keys.
+    ``gym.make_vec("infonav/SensorSelection-v0", num_envs=N, **config)`` returns it. Each copy drives its own
+    terrain loop (the vehicles in a ``WorldBatch``); credits, last values and ages are (N, ...) arrays; the frames
+    of the copies that acquire one are rendered one by one (``acquire_frames``), each with noise from its copy's
+    own generator, so sub-env ``i`` after ``reset(seed=s)`` gives the numbers of
+    ``gym.make("infonav/SensorSelection-v0")`` after ``reset(seed=s + i)``.
+
+    ## Vector API
+    ``step`` takes one action per sub-env (N,) and returns observations (N, 6 * n_pan_sectors + 4), rewards,
+    ``terminated`` and ``truncated`` (N,). Infos hold the single env's keys as arrays with a leading N dimension,
+    each with Gymnasium's ``_key`` mask (``info["sensor"]`` a str array); ``action_masks()`` gives the (N, A) bool
+    masks for ``MaskablePPO``.
+
+    ## Autoreset
+    ``autoreset_mode`` is ``NEXT_STEP`` by default, or ``SAME_STEP`` (``final_obs`` / ``final_info``) or
+    ``DISABLED``, as ``LandmarkSelectionVectorEnv`` describes. ``render_mode`` (``"rgb_array"`` or ``"human"``):
+    ``render()`` draws sub-env 0, with the image it acquired in an inset.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
+    episode_metrics = (
+        EpisodeMetric(
+            "cumulative_information", "cumulative image information [nats]", summed_reward_term("image_information")
+        ),
+        EpisodeMetric("frames", "frames acquired", count_where(lambda info: info["sensor"] != "none")),
+        EpisodeMetric(
+            "mean_frame_entropy",
+            "mean frame entropy [nats]",
+            mean_where("image_entropy", lambda info: info["sensor"] != "none"),
+        ),
+    )
+    traits = EnvTraits(
+        rewards_information_at_once=True,
+        idle_actions=frozenset({IDLE_ACTION}),
+        reward_terms=("image_information",),
+        info_keys=frozenset({"sensor", "pan_rad", "image_entropy", "bandwidth_credit_bytes"}),
+    )
+
+    @classmethod
+    def default_config(cls) -> dict:
+        return {
+            **InfoNavVectorEnv.default_config(),
+            "horizon": 100,
+            "time_step_s": 0.5,  # [s]
+            "speed_mps": 2.0,  # cruise speed along the route [m/s]
+            "image_information": "entropy",  # "entropy" (Section IV-A) or "negentropy" (Section II)
+            "n_pan_sectors": 3,  # pan directions per sensor
+            "pan_span_rad": math.radians(160.0),  # from the leftmost to the rightmost pan angle [rad]
+            "bandwidth_bytes_per_step": 10000,  # link capacity per step [bytes]
+            "bandwidth_buffer_bytes": 40000,  # most credit the link can save up [bytes]
+            **SCENE_CONFIG,  # the terrain_loop scene
+            **sensor_config(),
+        }
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **config,
+    ):
+        self._setup(num_envs, render_mode, autoreset_mode, config)
+        cfg, owner = self.config, self.owner_name
+        check_choice(cfg, "image_information", IMAGE_INFORMATION, owner)
+        check_config(cfg, owner, CONFIG_INTERVALS)
+        check_scene_config(cfg, owner)
+        self.sensors = ImageSensors(cfg, owner)
+        n_options = self.sensors.n_options
+        n_features = OPTION_FEATURES * n_options + GLOBAL_FEATURES
+        high = np.full(n_features, 1.0, dtype=np.float32)
+        high[1 : OPTION_FEATURES * n_options : OPTION_FEATURES] = MAX_IMAGE_ENTROPY
+        observation_space = spaces.Box(np.zeros(n_features, dtype=np.float32), high, dtype=np.float32)
+        self._set_spaces(observation_space, spaces.Discrete(1 + n_options))
+        self._worlds = WorldBatch(num_envs)
+        self._sensor_rngs: list[np.random.Generator | None] = [None] * num_envs
+        self._elapsed = np.zeros(num_envs, dtype=int)
+        self._credit_bytes = np.zeros(num_envs, dtype=np.int64)
+        self._last_information = np.zeros((num_envs, n_options))
+        self._last_acquired_step = np.full((num_envs, n_options), -1)
+        self._chosen = np.full(num_envs, -1)
+        self._first_image = self._first_entropy = self._first_heading = None  # copy 0's last frame
+        self._true_path = None  # copy 0's, when drawing
+
+    @property
+    def last_image(self) -> np.ndarray | None:
+        """The uint8 image sub-env 0 acquired in the last step (LADAR: its display image), None if it acquired none."""
+        return None if self._first_image is None else self._first_image.copy()
+
+    @property
+    def true_poses(self) -> np.ndarray:
+        """Every sub-env's true vehicle pose ``[x, y, heading]`` now (N, 3)."""
+        return self._worlds.poses[:, 0].copy()
+
+    def terrain(self, copy: int = 0):
+        """The ``Terrain`` sub-env ``copy`` drives through in its current episode."""
+        return self._geometry[copy]
+
+    def _reset_copies(self, copies: np.ndarray) -> TerrainStack:
+        """Start a new episode in each of ``copies`` from its own generator; their terrains."""
+        terrains = []
+        for copy in copies.tolist():
+            np_random = self._np_randoms[copy]
+            scene = terrain_loop_from_config(np_random, self.config)
+            self._worlds.reset_copy(copy, scene.scenario)
+            self._sensor_rngs[copy] = np_random.spawn(1)[0]
+            terrains.append(scene.terrain)
+        self._elapsed[copies] = 0
+        self._credit_bytes[copies] = self.config["bandwidth_buffer_bytes"]
+        self._last_information[copies] = 0.0
+        self._last_acquired_step[copies] = -1
+        if copies[0] == 0:
+            self._first_image = None
+        return TerrainStack(tuple(terrains))
+
+    def step(self, actions):
+        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
+        acting, chosen = self._begin_step(actions)
+        rewards, entropies = self._acquire(chosen)
+        stepped = np.flatnonzero(acting)
+        self._elapsed[stepped] += 1
+        cfg = self.config
+        if stepped.size:
+            self._worlds.step(cfg["time_step_s"], stepped)
+            credit = self._credit_bytes[stepped] + cfg["bandwidth_bytes_per_step"]
+            self._credit_bytes[stepped] = np.minimum(credit, cfg["bandwidth_buffer_bytes"])
+        truncated = acting & (self._elapsed >= cfg["horizon"])
+        observation, info = self._finish_step(
+            truncated, lambda copies, _: self._outputs(copies, acting, chosen, rewards, entropies)
+        )
+        return observation, rewards, np.zeros(self.num_envs, dtype=bool), truncated, info
+
+    def _acquire(self, chosen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each copy acquires the frame of its chosen action (none for -1 and the idle action), paying its bytes.
+
+        Returns:
+            ``(rewards, entropies)`` (N,): the information of each copy's frame [nats] and its entropy, 0 without.
+        """
+        rewards, entropies = np.zeros(self.num_envs), np.zeros(self.num_envs)
+        self._first_image = None
+        copies = np.flatnonzero(chosen > IDLE_ACTION)
+        if not copies.size:
+            return rewards, entropies
+        options = chosen[copies] - 1
+        poses = self._worlds.poses[copies, 0]
+        images, entropies[copies] = acquire_frames(
+            self.sensors, self._geometry, poses, self._sensor_rngs, copies, chosen[copies]
+        )
+        information = entropies[copies]
+        if self.config["image_information"] == "negentropy":
+            information = MAX_IMAGE_ENTROPY - information
+        rewards[copies] = information
+        self._credit_bytes[copies] -= self.sensors.option_costs[options]
+        self._last_information[copies, options] = information
+        self._last_acquired_step[copies, options] = self._elapsed[copies]
+        if copies[0] == 0:
+            self._first_image, self._first_entropy, self._first_heading = images[0], entropies[0], poses[0, 2]
+        return rewards, entropies
+
+    def _reset_outputs(self, copies: np.ndarray, terrains: TerrainStack) -> tuple[np.ndarray, dict]:
+        """The observations and reset infos of ``copies``, just reset."""
+        none = np.zeros(len(copies))
+        return self._outputs(copies, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), none, none)
+
+    def _outputs(self, copies, stepped, chosen, rewards, entropies) -> tuple[np.ndarray, dict]:
+        """Decide again in ``copies``; their observations and infos (the others' as ``_info`` describes)."""
+        decision = self._decision_of(copies)
+        self._set_decision(copies, decision)
+        self._chosen[copies] = np.where(stepped, chosen, -1)
+        self._track_first_copy(copies, stepped)
+        return self._observation(copies), self._info(copies, decision, stepped, chosen, rewards, entropies)
+
+    def _decision_of(self, copies: np.ndarray) -> ImageDecision:
+        """The decisions of ``copies`` at their credit and last values."""
+        affordable = self.sensors.option_costs <= self._credit_bytes[copies, None]
+        known = self._last_acquired_step[copies] >= 0
+        estimate = np.where(known, self._last_information[copies], MAX_IMAGE_ENTROPY)
+        mask = np.ones((len(copies), 1 + self.sensors.n_options), dtype=np.int8)
+        mask[:, 1:] = affordable
+        gains = np.zeros(mask.shape)
+        gains[:, 1:] = np.where(affordable, estimate, 0.0)
+        return ImageDecision(mask, gains)
+
+    def _observation(self, copies: np.ndarray) -> np.ndarray:
+        """The observations of ``copies`` (n, 3 * options + 4), float32 (see the single env)."""
+        horizon, frame_bytes = self.config["horizon"], self.sensors.frame_bytes
+        elapsed, last_step = self._elapsed[copies], self._last_acquired_step[copies]
+        known = last_step >= 0
+        age = np.where(known, (elapsed[:, None] - last_step) / horizon, 1.0)
+        features = np.zeros((len(copies), *self.single_observation_space.shape))
+        options = features[:, :-GLOBAL_FEATURES].reshape(len(copies), -1, OPTION_FEATURES)
+        options[..., 0], options[..., 1], options[..., 2] = known, self._last_information[copies], np.minimum(age, 1)
+        credit = self._credit_bytes[copies]
+        features[:, -4] = credit / self.config["bandwidth_buffer_bytes"]
+        for column, name in enumerate(SENSORS):
+            features[:, -3 + column] = frame_bytes[name] <= credit
+        features[:, -1] = elapsed / horizon
+        return features.astype(np.float32)
+
+    def _info(self, copies, decision: ImageDecision, stepped, chosen, rewards, entropies) -> dict:
+        """The infos of ``copies`` as arrays (n, ...), each with its ``_key`` mask.
+
+        Args:
+            copies: their indices (n,).
+            decision: their new decisions.
+            stepped: which acted in this step (n,) bool; the others were reset and give the reset info.
+            chosen: the action each took (n,), -1 for the no-op.
+            rewards: each one's image information (n,) [nats].
+            entropies: each one's frame entropy (n,) [nats], 0 without a frame.
+        """
+        info = decision_info(decision, stepped, chosen, "image_information", rewards)
+        acted = info["chosen_action"]
+        sensor, pan_rad = self.sensors.options(acted)
+        info.update(
+            sensor=sensor,
+            pan_rad=pan_rad,
+            image_entropy=np.where(acted > IDLE_ACTION, entropies, 0.0),
+            bandwidth_credit_bytes=self._credit_bytes[copies].copy(),
+            true_pose=self._worlds.poses[copies, 0].copy(),
+            time_s=self._elapsed[copies] * self.config["time_step_s"],
+        )
+        return in_every_copy(info, len(copies))
+
+    def _track_first_copy(self, copies: np.ndarray, stepped: np.ndarray) -> None:
+        """When drawing: extend copy 0's path if it is among ``copies`` and stepped, else start it anew."""
+        if self.render_mode is None or copies[0] != 0:
+            return
+        position = self._worlds.poses[0, 0, :2]
+        if stepped[0] and self._true_path is not None:
+            self._true_path.append(position)
+        else:
+            self._true_path = PathHistory(position)
+
+    def _scene_frame(self):
+        """Sub-env 0 drawn: its scene, the vehicle and its path, the wedge and inset of the frame it acquired."""
+        scenario, time_s = self._worlds.scenario(0), self._elapsed[0] * self.config["time_step_s"]
+        caption, wedge, title = f"t = {time_s:.1f} s   ", None, ""
+        if self._first_image is None:
+            caption += "no frame acquired"
+        else:
+            sensor, pan_rad = self.sensors.option(int(self._chosen[0]))
+            caption += f"{sensor} at pan {math.degrees(pan_rad):+.0f} deg: image entropy {self._first_entropy:.2f} nats"
+            fov_rad = self.sensors.sensor(sensor).horizontal_fov_rad
+            wedge = (self._first_heading + pan_rad, fov_rad, SENSOR_WEDGE_LENGTH_M)
+            legend = "LADAR range image (dark = near, white = no return)" if sensor == "ladar" else "camera image"
+            title = f"{legend} acquired this step"
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            robots=[RobotDrawing(true_pose=self._worlds.poses[0, 0].copy(), true_path=self._true_path.points())],
+            sensor_wedge=wedge,
+            inset_image=self._first_image,
+            inset_title=title,
+            caption=caption,
+        )
+
+
+class SensorSelectionEnv(SingleEnvView, vector_env=SensorSelectionVectorEnv):
     """A vehicle drives a loop through rugged terrain; each step it may acquire one image, chosen for its information.
 
     ## Description
@@ -98,191 +380,7 @@ class SensorSelectionEnv(InfoNavEnv):
     * v0: initial version.
     """
 
-    episode_metrics = (
-        EpisodeMetric(
-            "cumulative_information", "cumulative image information [nats]", summed_reward_term("image_information")
-        ),
-        EpisodeMetric("frames", "frames acquired", count_where(lambda info: info["sensor"] != "none")),
-        EpisodeMetric(
-            "mean_frame_entropy",
-            "mean frame entropy [nats]",
-            mean_where("image_entropy", lambda info: info["sensor"] != "none"),
-        ),
-    )
-    traits = EnvTraits(
-        rewards_information_at_once=True,
-        idle_actions=frozenset({IDLE_ACTION}),
-        reward_terms=("image_information",),
-        info_keys=frozenset({"sensor", "pan_rad", "image_entropy", "bandwidth_credit_bytes"}),
-    )
-
-    @classmethod
-    def default_config(cls) -> dict:
-        ladar, camera = Ladar(), Camera()
-        return {
-            **super().default_config(),
-            "horizon": 100,
-            "time_step_s": 0.5,  # [s]
-            "speed_mps": 2.0,  # cruise speed along the route [m/s]
-            "image_information": "entropy",  # "entropy" (Section IV-A) or "negentropy" (Section II)
-            "n_pan_sectors": 3,  # pan directions per sensor
-            "pan_span_rad": math.radians(160.0),  # from the leftmost to the rightmost pan angle [rad]
-            "bandwidth_bytes_per_step": 10000,  # link capacity per step [bytes]
-            "bandwidth_buffer_bytes": 40000,  # most credit the link can save up [bytes]
-            **SCENE_CONFIG,  # the terrain_loop scene
-            "ladar_rows": ladar.rows,
-            "ladar_columns": ladar.columns,
-            "ladar_vertical_fov_rad": ladar.vertical_fov_rad,
-            "ladar_horizontal_fov_rad": ladar.horizontal_fov_rad,
-            "ladar_range_std_m": ladar.range_std_m,
-            "ladar_max_range_m": ladar.max_range_m,
-            "camera_rows": camera.rows,
-            "camera_columns": camera.columns,
-            "camera_horizontal_fov_rad": camera.horizontal_fov_rad,
-            "camera_noise_std": camera.noise_std,  # [gray levels]
-        }
-
-    def __init__(self, render_mode: str | None = None, **config):
-        super().__init__(render_mode=render_mode, **config)
-        cfg, owner = self.config, type(self).__name__
-        check_choice(cfg, "image_information", IMAGE_INFORMATION, owner)
-        check_config(cfg, owner, CONFIG_INTERVALS)
-        check_scene_config(cfg, owner)
-        self.ladar = from_config(Ladar, cfg, _prefixed_keys(cfg, "ladar_"), owner)
-        self.camera = from_config(Camera, cfg, _prefixed_keys(cfg, "camera_"), owner)
-        self.frame_bytes = {
-            "ladar": _BYTES_PER_PIXEL["ladar"] * self.ladar.rows * self.ladar.columns,
-            "camera": _BYTES_PER_PIXEL["camera"] * self.camera.rows * self.camera.columns,
-        }
-        if cfg["bandwidth_buffer_bytes"] < min(self.frame_bytes.values()):
-            raise ValueError(
-                f"config key 'bandwidth_buffer_bytes' of {owner} must hold at least one frame "
-                f"({min(self.frame_bytes.values())} bytes), got {cfg['bandwidth_buffer_bytes']}"
-            )
-        n_pan = cfg["n_pan_sectors"]
-        self.pan_angles_rad = np.linspace(0.5, -0.5, n_pan) * cfg["pan_span_rad"] if n_pan > 1 else np.zeros(1)
-        self.n_options = len(SENSORS) * n_pan
-        self.action_space = spaces.Discrete(1 + self.n_options)
-        n_features = OPTION_FEATURES * self.n_options + GLOBAL_FEATURES
-        high = np.full(n_features, 1.0, dtype=np.float32)
-        high[1 : OPTION_FEATURES * self.n_options : OPTION_FEATURES] = MAX_IMAGE_ENTROPY
-        self.observation_space = spaces.Box(np.zeros(n_features, dtype=np.float32), high, dtype=np.float32)
-        self.world = World()
-        self._option_costs = np.repeat([self.frame_bytes[name] for name in SENSORS], n_pan)
-
-    def _reset_episode(self) -> None:
-        cfg = self.config
-        scene = terrain_loop_from_config(self.np_random, cfg)
-        self.terrain = scene.terrain
-        self.world.reset(scene.scenario)
-        self._sensor_rng = self.np_random.spawn(1)[0]
-        self._true_pose = self.world.pose
-        self._true_path = PathHistory(self._true_pose[:2])
-        self._credit_bytes = cfg["bandwidth_buffer_bytes"]
-        self._last_information = np.zeros(self.n_options)
-        self._last_acquired_step = np.full(self.n_options, -1)
-        self._last_image = None
-        self._last_entropy = None
-
     @property
     def last_image(self) -> np.ndarray | None:
         """The uint8 image acquired by the last step (LADAR: its display image), ``None`` if it acquired none."""
-        return None if self._last_image is None else self._last_image.copy()
-
-    def option(self, action: int) -> tuple[str, float]:
-        """The ``(sensor name, pan angle [rad])`` that acquisition ``action`` (>= 1) uses."""
-        sensor, sector = divmod(action - 1, len(self.pan_angles_rad))
-        return SENSORS[sensor], float(self.pan_angles_rad[sector])
-
-    def acquire(self, sensor: str, pan_rad: float) -> np.ndarray:
-        """A uint8 image from ``sensor`` panned by ``pan_rad`` at the current true pose (LADAR: the display image)."""
-        if sensor == "ladar":
-            return to_display_image(self.ladar.scan(self.terrain, self._true_pose, self._sensor_rng, pan_rad=pan_rad))
-        return self.camera.capture(self.terrain, self._true_pose, self._sensor_rng, pan_rad=pan_rad)
-
-    def _next_decision(self) -> Decision:
-        affordable = self._option_costs <= self._credit_bytes
-        mask = np.concatenate([[1], affordable]).astype(np.int8)
-        known = self._last_acquired_step >= 0
-        estimate = np.where(known, self._last_information, MAX_IMAGE_ENTROPY)
-        gains = np.concatenate([[0.0], np.where(affordable, estimate, 0.0)])
-        return Decision(mask, gains)
-
-    def _apply_action(self, action: int | None, decision: Decision) -> dict:
-        self._last_image = self._last_entropy = None
-        if action is None or action == IDLE_ACTION:
-            return {"image_information": 0.0}
-        sensor, pan_rad = self.option(action)
-        self._acquired_heading = float(self._true_pose[2])
-        self._last_image = self.acquire(sensor, pan_rad)
-        self._last_entropy = histogram_entropy(self._last_image)
-        information = self._last_entropy
-        if self.config["image_information"] == "negentropy":
-            information = MAX_IMAGE_ENTROPY - self._last_entropy
-        self._credit_bytes -= self.frame_bytes[sensor]
-        self._last_information[action - 1] = information
-        self._last_acquired_step[action - 1] = self._elapsed_steps
-        return {"image_information": information}
-
-    def _advance(self) -> None:
-        cfg = self.config
-        self.world.step(cfg["time_step_s"])
-        self._true_pose = self.world.pose
-        self._true_path.append(self._true_pose[:2])
-        self._credit_bytes = min(self._credit_bytes + cfg["bandwidth_bytes_per_step"], cfg["bandwidth_buffer_bytes"])
-
-    def _observation(self) -> np.ndarray:
-        horizon = self.config["horizon"]
-        known = self._last_acquired_step >= 0
-        age = np.where(known, (self._elapsed_steps - self._last_acquired_step) / horizon, 1.0)
-        options = np.stack([known, self._last_information, np.minimum(age, 1.0)], axis=1)
-        affordable = [self.frame_bytes[name] <= self._credit_bytes for name in SENSORS]
-        credit = self._credit_bytes / self.config["bandwidth_buffer_bytes"]
-        features = np.concatenate([options.ravel(), [credit], affordable, [self._elapsed_steps / horizon]])
-        return features.astype(np.float32)
-
-    def _extra_info(self) -> dict:
-        acquired = self._chosen_action not in (None, IDLE_ACTION)
-        sensor, pan_rad = self.option(self._chosen_action) if acquired else ("none", 0.0)
-        return {
-            "sensor": sensor,
-            "pan_rad": pan_rad,
-            "image_entropy": self._last_entropy if acquired else 0.0,
-            "bandwidth_credit_bytes": self._credit_bytes,
-            "true_pose": self._true_pose.copy(),
-            "time_s": self._elapsed_steps * self.config["time_step_s"],
-        }
-
-    def _scene_frame(self):
-        scenario = self.world.scenario
-        caption = f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
-        wedge = None
-        if self._last_entropy is None:
-            caption += "no frame acquired"
-        else:
-            sensor, pan_rad = self.option(self._chosen_action)
-            caption += f"{sensor} at pan {math.degrees(pan_rad):+.0f} deg: image entropy {self._last_entropy:.2f} nats"
-            wedge = (self._acquired_heading + pan_rad, getattr(self, sensor).horizontal_fov_rad, SENSOR_WEDGE_LENGTH_M)
-        return SceneFrame(
-            bounds=scenario.bounds,
-            walls=scenario.walls,
-            obstacles=scenario.obstacles,
-            robots=[RobotDrawing(true_pose=self._true_pose, true_path=self._true_path.points())],
-            sensor_wedge=wedge,
-            inset_image=self._last_image,
-            inset_title=self._inset_title(),
-            caption=caption,
-        )
-
-    def _inset_title(self) -> str:
-        """What the inset shows: the image acquired this step."""
-        if self._last_image is None:
-            return ""
-        sensor = self.option(self._chosen_action)[0]
-        legend = "LADAR range image (dark = near, white = no return)" if sensor == "ladar" else "camera image"
-        return f"{legend} acquired this step"
-
-
-def _prefixed_keys(config: dict, prefix: str) -> dict[str, str]:
-    """The keys of ``config`` that start with ``prefix``, by their name without it (a sensor's field)."""
-    return {key.removeprefix(prefix): key for key in config if key.startswith(prefix)}
+        return self.vector.last_image

@@ -203,6 +203,14 @@ class InfoNavVectorEnv(VectorEnv):
             info.update(final_infos)
         return self._rendered((observation, info))
 
+    def _set_decision(self, copies: np.ndarray, decision) -> None:
+        """Keep ``decision`` (a named tuple of arrays (n, ...)) as the decision of ``copies`` (n,), the others' kept."""
+        if len(copies) == self.num_envs:
+            self._decision = decision
+        else:
+            rows = (set_rows(full, copies, part) for full, part in zip(self._decision, decision))
+            self._decision = type(decision)(*rows)
+
     def _rendered(self, outputs: tuple) -> tuple:
         """``outputs`` of a reset or step, after drawing sub-env 0 in ``"human"`` mode (an env written once)."""
         if self.render_mode == "human" and self._view is None:

@@ -23,6 +23,33 @@ def autoreset_mode_of(value, allowed: tuple[AutoresetMode, ...], owner: str) -> 
     raise ValueError(f"autoreset_mode of {owner} must be one of {names} (or the AutoresetMode), got {value!r}")
 
 
+def decision_info(decision, stepped: np.ndarray, chosen: np.ndarray, reward_term: str, rewards: np.ndarray) -> dict:
+    """The info keys of n copies that every single-agent env has first: their decision's mask and gains, their one
+    reward term (masked out where a copy was reset), the action each took (-1: none or the no-op) and whether it
+    was invalid.
+
+    Args:
+        decision: the copies' new decisions, with ``action_mask`` and ``action_information_gain`` (n, A).
+        stepped: which acted in this step (n,) bool; the others were reset.
+        chosen: the action each acting copy took (n,), -1 for the no-op of a masked action.
+        reward_term: the name of the reward term.
+        rewards: each one's reward (n,).
+    """
+    return {
+        "action_mask": decision.action_mask.copy(),
+        "action_information_gain": decision.action_information_gain.copy(),
+        "reward_terms": {reward_term: np.where(stepped, rewards, 0.0), f"_{reward_term}": stepped.copy()},
+        "chosen_action": np.where(stepped, chosen, -1),
+        "invalid_action": stepped & (chosen < 0),
+    }
+
+
+def in_every_copy(info: dict, n_copies: int) -> dict:
+    """``info`` with a ``_key`` mask holding for all ``n_copies`` beside each of its keys."""
+    everyone = np.ones(n_copies, dtype=bool)
+    return {**info, **{f"_{key}": everyone for key in info}}
+
+
 def set_rows(full, rows: np.ndarray, part):
     """Write ``part``'s rows into ``full`` at ``rows`` (arrays, or dicts of them, recursively); returns ``full``."""
     if isinstance(full, dict):

@@ -11,7 +11,9 @@ Vector envs (``infonav_gym.experiments.vector_timing``), in the same rounds, at 
 (``DEFAULT_VECTOR_SIZES``): env-steps per second (vector steps per second x N) of every registered
 native vector env, of Gymnasium's ``CartPoleVectorEnv`` and of VMAS ``navigation`` (4 agents, when
 ``vmas`` imports), each also as a ratio against CartPole-v1, and our vector envs against VMAS at the
-same N. Memory per sub-env at the largest N (``*_kb_per_env``): peak RSS growth in a fresh subprocess.
+same N (SensorSelection-v0's goal at N = 256 is 0.05 of CartPole: each of its steps renders a LADAR or camera
+frame, ~10-30 ms). Memory per sub-env at the largest N (``*_kb_per_env``): peak RSS growth in a fresh subprocess,
+over ``MEMORY_STEPS`` vector steps or ``MEMORY_SECONDS`` of them (scaled down with ``--seconds`` below 1).
 
 Sensors (``infonav_gym.experiments.sensor_timing``): median milliseconds of one default
 ``Ladar().scan`` (32 x 180) and ``Camera().capture`` (120 x 160) on a default
@@ -57,6 +59,7 @@ from infonav_gym.experiments.sensor_timing import sensor_figures
 from infonav_gym.experiments.startup_timing import startup_figures
 from infonav_gym.experiments.vector_timing import (
     DEFAULT_VECTOR_SIZES,
+    MEMORY_SECONDS,
     MEMORY_STEPS,
     VectorRun,
     cartpole_vector_run,
@@ -84,6 +87,7 @@ GOALS = {
     "ppo_vector_fps_ratio_vs_cartpole": 0.85,
     "landmark_selection_vector_256_vs_cartpole_ratio": 2.0,
     "active_localization_vector_256_vs_cartpole_ratio": 1.0,
+    "sensor_selection_vector_256_vs_cartpole_ratio": 0.05,
     "cooperative_localization_vector_256_vs_vmas_ratio": 2.0,
     "cooperative_exploration_vector_256_vs_vmas_ratio": 1.0,
     "landmark_selection_vector_1024_kb_per_env": 200.0,
@@ -245,14 +249,21 @@ def env_step_figures(
     return figures
 
 
-def memory_figures(num_envs: int, env_ids: list[str] | None = None, seed: int = 0, steps: int = MEMORY_STEPS) -> dict:
-    """``NAME_vector_N_kb_per_env`` (``vector_timing.kb_per_env`` over ``steps`` vector steps) at N = ``num_envs``
-    of each of ``env_ids`` (default: all) with a native vector env; none where ``memory_missing`` says so."""
+def memory_figures(
+    num_envs: int,
+    env_ids: list[str] | None = None,
+    seed: int = 0,
+    steps: int = MEMORY_STEPS,
+    seconds: float = MEMORY_SECONDS,
+) -> dict:
+    """``NAME_vector_N_kb_per_env`` (``vector_timing.kb_per_env`` over ``steps`` vector steps, or ``seconds`` of
+    them) at N = ``num_envs`` of each of ``env_ids`` (default: all) with a native vector env; none where
+    ``memory_missing`` says so."""
     if memory_missing():
         return {}
     vector_ids = [env_id for env_id in vector_env_ids() if env_ids is None or env_id in env_ids]
     return {
-        f"{figure_name(env_id)}_vector_{num_envs}_kb_per_env": kb_per_env(env_id, num_envs, steps, seed)
+        f"{figure_name(env_id)}_vector_{num_envs}_kb_per_env": kb_per_env(env_id, num_envs, steps, seed, seconds)
         for env_id in vector_ids
     }
 
@@ -298,7 +309,8 @@ def run_benchmark(
     """
     vector_sizes = check_vector_sizes(vector_sizes)
     figures = env_step_figures(None, rounds, seconds_per_round, seed, progress, vector_sizes)
-    figures.update(memory_figures(max(vector_sizes), seed=seed))
+    memory_seconds = MEMORY_SECONDS * min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens them
+    figures.update(memory_figures(max(vector_sizes), seed=seed, seconds=memory_seconds))
     figures["greedy_decision_us"] = greedy_decision_us()
     figures.update(sensor_figures(seconds_per_round, seed))
     figures.update(icp_figures(seconds_per_round, seed))

@@ -16,6 +16,7 @@ import importlib
 import os
 import subprocess
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +28,7 @@ from infonav_gym.registry import make_vector_env, registered_envs
 
 DEFAULT_VECTOR_SIZES = (1, 16, 64, 256, 1024)
 MEMORY_STEPS = 1000  # vector steps inside the measured peak: episodes enough for what copies build up as they go
+MEMORY_SECONDS = 60.0  # ... or fewer: a memory run stops stepping after this (one step at least) [s]
 VMAS_AGENTS = 4
 VMAS_MAX_STEPS = 100  # VMAS navigation episode length [steps] (BenchMARL's); without it episodes rarely end
 PROC_STATUS = Path("/proc/self/status")  # Linux: the current (VmRSS) and the peak (VmHWM) resident set size
@@ -159,27 +161,39 @@ def _status_kb(field: str) -> int:
     raise ValueError(f"{PROC_STATUS} has no {field} line")
 
 
-def peak_rss_growth_kb_per_env(env_id: str, num_envs: int, steps: int, seed: int) -> float:
+def _step_for(run: VectorRun, steps: int, seconds: float) -> None:
+    """Step ``run`` ``steps`` times, or fewer (one at least) once ``seconds`` have passed."""
+    deadline = time.perf_counter() + seconds
+    for _ in range(steps):
+        run.step()
+        if time.perf_counter() >= deadline:
+            return
+
+
+def peak_rss_growth_kb_per_env(
+    env_id: str, num_envs: int, steps: int, seed: int, seconds: float = MEMORY_SECONDS
+) -> float:
     """In this process: peak RSS growth [kB] per copy while building ``env_id``'s vector env and stepping it.
 
     A 1-copy vector env is built and stepped ``steps`` times first (imports, caches); then the peak RSS
     is reset to the current one (``/proc/self/clear_refs``) and the growth of the peak (``VmHWM``) over
     building ``num_envs`` copies, resetting them and stepping them ``steps`` times is divided by ``num_envs``.
+    Either stepping stops after ``seconds`` (an env whose steps render images takes seconds a step at N = 1024).
     """
     warm_up = vector_env_run(env_id, 1, seed)
     warm_up.start()
-    for _ in range(steps):
-        warm_up.step()
+    _step_for(warm_up, steps, seconds)
     PROC_CLEAR_REFS.write_text("5")  # Linux: "5" resets the peak RSS to the current RSS
     before = _status_kb("VmRSS")
     run = vector_env_run(env_id, num_envs, seed)
     run.start()
-    for _ in range(steps):
-        run.step()
+    _step_for(run, steps, seconds)
     return (_status_kb("VmHWM") - before) / num_envs
 
 
-def kb_per_env(env_id: str, num_envs: int, steps: int = MEMORY_STEPS, seed: int = 0) -> float:
+def kb_per_env(
+    env_id: str, num_envs: int, steps: int = MEMORY_STEPS, seed: int = 0, seconds: float = MEMORY_SECONDS
+) -> float:
     """Memory per sub-env [kB] of ``env_id``'s vector env: ``peak_rss_growth_kb_per_env`` in a fresh subprocess.
 
     The subprocess imports ``infonav_gym`` only, so ``env_id`` must be registered by that import (or carry
@@ -190,7 +204,7 @@ def kb_per_env(env_id: str, num_envs: int, steps: int = MEMORY_STEPS, seed: int 
     """
     code = (
         "from infonav_gym.experiments.vector_timing import peak_rss_growth_kb_per_env; "
-        f"print(peak_rss_growth_kb_per_env({env_id!r}, {num_envs}, {steps}, {seed}))"
+        f"print(peak_rss_growth_kb_per_env({env_id!r}, {num_envs}, {steps}, {seed}, {seconds!r}))"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     if done.returncode:
