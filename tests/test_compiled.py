@@ -122,7 +122,8 @@ def test_a_long_first_compile_is_announced_once(monkeypatch, caplog):
     monkeypatch.setattr(compiled.compile_notice, "said", False)
 
     def announcements() -> list[str]:
-        return [record.getMessage() for record in caplog.records if "compiling the numba kernels" in record.getMessage()]
+        messages = [record.getMessage() for record in caplog.records]
+        return [message for message in messages if "compiling the numba kernels" in message]
 
     with caplog.at_level(logging.WARNING, logger=compiled.__name__):
         monkeypatch.setattr(compiled, "COMPILE_NOTICE_AFTER_S", 60.0)
