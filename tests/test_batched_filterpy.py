@@ -249,7 +249,7 @@ def _block_diagonal(blocks) -> np.ndarray:
 
 @pytest.mark.parametrize("cross_covariances", [True, False])
 def test_relative_pose_gains_equal_the_mi_of_filterpys_update(cross_covariances):
-    """``joint``: the MI of the update on the whole state, ``own``: on the observer's pose, as filterpy realizes them."""
+    """``joint``: the MI of the update on the whole state, ``own``: on the observer's pose, as filterpy has them."""
     rng = np.random.default_rng(11)
     n_copies, n_robots = 4, 4
     n = 3 * n_robots

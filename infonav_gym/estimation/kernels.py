@@ -155,6 +155,34 @@ def invert(S, r, inverse):
 
 
 @kernel
+def times_inverse(X, S, r, S_inverse, product):
+    """``X S^-1`` with the leading (r, r) block of ``S`` into ``product[:, :r]`` (``S_inverse``: scratch, its inverse)."""
+    invert(S, r, S_inverse)
+    for i in range(X.shape[0]):
+        for j in range(r):
+            total = 0.0
+            for t in range(r):
+                total += X[i, t] * S_inverse[t, j]
+            product[i, j] = total
+
+
+@kernel
+def nonzero_columns(rows, columns) -> int:
+    """How many columns of ``rows`` (r, n) hold a non-zero entry; their indices into ``columns[:count]``.
+
+    A measurement depends on a few state entries (a pose, a landmark): products with H skip the others.
+    """
+    count = 0
+    for column in range(rows.shape[1]):
+        for i in range(rows.shape[0]):
+            if rows[i, column] != 0.0:
+                columns[count] = column
+                count += 1
+                break
+    return count
+
+
+@kernel
 def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
     """The EKF update of every copy with its used measurement slots, stacked in slot order; the others unchanged.
 
@@ -176,7 +204,7 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
     x_new, P_new = x.copy(), P.copy()
     rows, y = np.empty((most, n)), np.empty(most)
     PHT, S, S_inverse, K = np.empty((n, most)), np.empty((most, most)), np.empty((most, most)), np.empty((n, most))
-    columns = np.empty(n, dtype=np.int64)  # the state entries some row of H depends on: the others add nothing
+    columns = np.empty(n, dtype=np.int64)
     for c in range(n_copies):
         r = 0
         for slot in range(n_slots):
@@ -186,13 +214,7 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
                 r += m
         if r == 0:
             continue
-        n_columns = 0
-        for column in range(n):
-            for i in range(r):
-                if rows[i, column] != 0.0:
-                    columns[n_columns] = column
-                    n_columns += 1
-                    break
+        n_columns = nonzero_columns(rows[:r], columns)
         for i in range(n):
             for j in range(r):
                 total = 0.0
@@ -210,13 +232,7 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
             if used[c, slot]:
                 S[offset : offset + m, offset : offset + m] += R[c, slot]
                 offset += m
-        invert(S, r, S_inverse)
-        for i in range(n):
-            for j in range(r):
-                total = 0.0
-                for t in range(r):
-                    total += PHT[i, t] * S_inverse[t, j]
-                K[i, j] = total
+        times_inverse(PHT, S, r, S_inverse, K)
         for i in range(n):
             total = 0.0
             for j in range(r):
@@ -250,13 +266,7 @@ def landmark_gains(P, H, R):
     for c in range(n_copies):
         for k in range(n_candidates):
             J = H[c, k]
-            n_columns = 0
-            for column in range(n):
-                for i in range(m):
-                    if J[i, column] != 0.0:
-                        columns[n_columns] = column
-                        n_columns += 1
-                        break
+            n_columns = nonzero_columns(J, columns)
             for i in range(m):
                 for t in range(n_columns):
                     total = 0.0
@@ -305,13 +315,7 @@ def relative_pose_gains(P, observers, targets, H_observer, H_target, R):
                         from_observer += H_o[i, s] * A[s, j]
                         from_target += H_t[i, s] * B[s, j]
                     S[i, j] = from_observer + from_target + R[c, k, i, j]
-            invert(S, m, S_inverse)
-            for i in range(POSE_DIM):
-                for j in range(m):
-                    total = 0.0
-                    for s in range(m):
-                        total += A[i, s] * S_inverse[s, j]
-                    A_S_inverse[i, j] = total
+            times_inverse(A, S, m, S_inverse, A_S_inverse)
             for i in range(POSE_DIM):
                 for j in range(POSE_DIM):
                     total = 0.0
