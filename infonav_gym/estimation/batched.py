@@ -18,9 +18,11 @@ import numpy as np
 
 from infonav_gym.estimation import kernels
 from infonav_gym.estimation.ekf import POSE_DIM, _finite, _noise_covariance, _time_step
-from infonav_gym.estimation.models import GPS_POSE_JACOBIAN, relative_pose_linearized
+from infonav_gym.estimation.models import GPS_POSE_JACOBIAN
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import log_det_spd
+
+COINCIDENT = "a target coincides with the sensor position: its bearing is undefined"
 
 # ---------------------------------------------------------------------------------------------- input checks
 
@@ -206,7 +208,7 @@ def landmark_measurement_model(x, landmarks=None, *, check_input: bool = True):
         positions = np.broadcast_to(positions, (n_copies, *positions.shape[-2:]))
     predicted, H, coincident = kernels.range_bearing_models(_floats(x), _floats(positions), mapped)
     if coincident:
-        raise ValueError("a target coincides with the sensor position: its bearing is undefined")
+        raise ValueError(COINCIDENT)
     return predicted, H
 
 
@@ -224,15 +226,11 @@ def relative_pose_model(x, observers, targets, *, check_input: bool = True):
     if check_input:
         x = _states(x)
         observers, targets = _pairs(observers, targets, len(x), _team_size(x.shape[1]))
-    n_copies = len(x)
-    poses = x.reshape(n_copies, -1, POSE_DIM)
-    copies = np.arange(n_copies)[:, None]
-    n_pairs = np.shape(observers)[1]
-    predicted, H_observer, H_target = relative_pose_linearized(
-        poses[copies, observers].reshape(-1, POSE_DIM), poses[copies, targets].reshape(-1, POSE_DIM)
-    )
-    shape = (n_copies, n_pairs, POSE_DIM)
-    return predicted.reshape(shape), H_observer.reshape(*shape, POSE_DIM), H_target.reshape(*shape, POSE_DIM)
+    observers, targets = _floats(observers, np.int64), _floats(targets, np.int64)
+    *models, coincident = kernels.relative_pose_models(_floats(x), observers, targets)
+    if coincident:
+        raise ValueError(COINCIDENT)
+    return tuple(models)
 
 
 def select_candidates(chosen, *candidates) -> tuple[np.ndarray, ...]:

@@ -91,21 +91,55 @@ def range_bearing_models(x, positions, mapped):
     for c in range(n_copies):
         for k in range(n_landmarks):
             dx, dy = positions[c, k, 0] - x[c, 0], positions[c, k, 1] - x[c, 1]
-            squared_range = dx * dx + dy * dy
-            if squared_range < COINCIDENT_SQUARED_RANGE:
-                coincident = True
-                continue
-            distance = math.sqrt(squared_range)
-            predicted[c, k, 0] = distance
-            predicted[c, k, 1] = wrap(math.atan2(dy, dx) - x[c, 2])
             J = H[c, k]
-            J[0, 0], J[0, 1] = -dx / distance, -dy / distance
-            J[1, 0], J[1, 1], J[1, 2] = dy / squared_range, -dx / squared_range, -1.0
-            if mapped:
+            if not range_bearing_of_offset(dx, dy, x[c, 2], predicted[c, k], J):
+                coincident = True
+            elif mapped:
                 column = POSE_DIM + 2 * k
                 J[0, column], J[0, column + 1] = -J[0, 0], -J[0, 1]
                 J[1, column], J[1, column + 1] = -J[1, 0], -J[1, 1]
     return predicted, H, coincident
+
+
+@kernel
+def range_bearing_of_offset(dx, dy, heading, predicted, J) -> bool:
+    """Range-bearing of a target at ``(dx, dy)`` from a sensor at ``heading`` into ``predicted[:2]``, its Jacobian
+    w.r.t. the sensor's pose into ``J[:2, :3]``; False (and nothing written) if the target is on the sensor."""
+    squared_range = dx * dx + dy * dy
+    if squared_range < COINCIDENT_SQUARED_RANGE:
+        return False
+    distance = math.sqrt(squared_range)
+    predicted[0], predicted[1] = distance, wrap(math.atan2(dy, dx) - heading)
+    J[0, 0], J[0, 1] = -dx / distance, -dy / distance
+    J[1, 0], J[1, 1], J[1, 2] = dy / squared_range, -dx / squared_range, -1.0
+    return True
+
+
+@kernel
+def relative_pose_models(x, observers, targets):
+    """Range, bearing and relative heading of robot ``targets[c, k]`` seen from robot ``observers[c, k]``.
+
+    Returns:
+        ``(predicted (N, M, 3), H_observer (N, M, 3, 3), H_target (N, M, 3, 3), coincident)``: the Jacobians
+        w.r.t. the two poses; ``coincident``: some target lies on its observer.
+    """
+    n_copies, n_pairs = observers.shape
+    predicted = np.empty((n_copies, n_pairs, POSE_DIM))
+    H_observer = np.zeros((n_copies, n_pairs, POSE_DIM, POSE_DIM))
+    H_target = np.zeros((n_copies, n_pairs, POSE_DIM, POSE_DIM))
+    coincident = False
+    for c in range(n_copies):
+        for k in range(n_pairs):
+            o, t = POSE_DIM * observers[c, k], POSE_DIM * targets[c, k]
+            J_o, J_t = H_observer[c, k], H_target[c, k]
+            dx, dy = x[c, t] - x[c, o], x[c, t + 1] - x[c, o + 1]
+            if not range_bearing_of_offset(dx, dy, x[c, o + 2], predicted[c, k], J_o):
+                coincident = True
+                continue
+            predicted[c, k, 2] = wrap(x[c, t + 2] - x[c, o + 2])
+            J_o[2, 2], J_t[2, 2] = -1.0, 1.0
+            J_t[0, 0], J_t[0, 1], J_t[1, 0], J_t[1, 1] = -J_o[0, 0], -J_o[0, 1], -J_o[1, 0], -J_o[1, 1]
+    return predicted, H_observer, H_target, coincident
 
 
 @kernel
@@ -156,7 +190,7 @@ def invert(S, r, inverse):
 
 @kernel
 def times_inverse(X, S, r, S_inverse, product):
-    """``X S^-1`` with the leading (r, r) block of ``S`` into ``product[:, :r]`` (``S_inverse``: scratch, its inverse)."""
+    """``X S^-1`` with the leading (r, r) block of ``S`` into ``product[:, :r]``; ``S_inverse``: scratch."""
     invert(S, r, S_inverse)
     for i in range(X.shape[0]):
         for j in range(r):
