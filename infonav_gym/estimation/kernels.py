@@ -16,7 +16,7 @@ from infonav_gym.compiled import kernel
 from infonav_gym.information import log_det_of
 
 POSE_DIM = 3
-COINCIDENT_SQUARED_RANGE = 1e-18  # [m^2] a landmark this close to the sensor has no defined bearing
+COINCIDENT_SQUARED_RANGE = 1e-18  # [m^2] a target this close to the sensor has no defined bearing
 
 
 @kernel
