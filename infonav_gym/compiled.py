@@ -49,6 +49,13 @@ def kernel(function):
     return dispatcher
 
 
+def contiguous(array):
+    """An ndarray as the one array layout the kernels are compiled for: itself if C-contiguous and writeable, else a
+    copy (a read-only or strided view, e.g. from ``np.broadcast_to``, would be another numba type: another compile)."""
+    flags = array.flags
+    return array if flags.c_contiguous and flags.writeable else array.copy()
+
+
 class _CompileNotice(event.Listener):
     """Says once that kernels are being compiled when a compile of one of ours runs past the threshold.
 

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import kernel
+from infonav_gym.compiled import contiguous, kernel
 
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
 _SYMMETRY_RTOL = 1e-8
@@ -53,7 +53,7 @@ def log_det_spd(matrix, name: str = "matrix", check_input: bool = True) -> float
     """
     if not check_input:
         matrix = np.asarray(matrix, dtype=float)
-        log_det = stacked_log_dets(np.require(matrix.reshape(-1, *matrix.shape[-2:]), requirements="CW"))
+        log_det = stacked_log_dets(contiguous(matrix.reshape(-1, *matrix.shape[-2:])))
         if np.isnan(log_det).any():
             raise ValueError(f"{name} is not positive definite (determinant <= 0)")
         log_det = log_det.reshape(matrix.shape[:-2])

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from infonav_gym.compiled import contiguous
 from infonav_gym.estimation import kernels
 from infonav_gym.estimation.ekf import POSE_DIM, _finite, _noise_covariance, _time_step
 from infonav_gym.estimation.models import GPS_POSE_JACOBIAN
@@ -166,11 +167,8 @@ def _predict(x, P, controls, dt, control_covariances):
 
 
 def _floats(array, dtype=float) -> np.ndarray:
-    """``array`` as a C-contiguous writeable float64 (or ``dtype``) array: the one type the kernels are compiled for.
-
-    (A read-only view, e.g. from ``np.broadcast_to``, would be another numba type and another compile.)
-    """
-    return np.require(array, dtype=dtype, requirements="CW")
+    """``array`` as float64 (or ``dtype``) in the layout the kernels are compiled for (``compiled.contiguous``)."""
+    return contiguous(np.asarray(array, dtype=dtype))
 
 
 # ---------------------------------------------------------------------------------------------- measurement models
