@@ -243,8 +243,10 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
         r = 0
         for slot in range(n_slots):
             if used[c, slot]:
-                rows[r : r + m] = H[c, slot]
-                y[r : r + m] = residuals[c, slot]
+                for i in range(m):
+                    y[r + i] = residuals[c, slot, i]
+                    for j in range(n):
+                        rows[r + i, j] = H[c, slot, i, j]
                 r += m
         if r == 0:
             continue
@@ -264,7 +266,9 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
         offset = 0
         for slot in range(n_slots):
             if used[c, slot]:
-                S[offset : offset + m, offset : offset + m] += R[c, slot]
+                for i in range(m):
+                    for j in range(m):
+                        S[offset + i, offset + j] += R[c, slot, i, j]
                 offset += m
         times_inverse(PHT, S, r, S_inverse, K)
         for i in range(n):
