@@ -1,4 +1,4 @@
-"""Entropy, information and mutual information, in nats (numpy only).
+"""Entropy, information and mutual information, in nats.
 
 The paper's Section III-A: a Gaussian with covariance ``P`` has entropy
 ``h = 0.5 ln((2 pi e)^n det P)``; its information metric is ``im = -h``; the
@@ -14,6 +14,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from infonav_gym.compiled import contiguous, kernel
 
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
 _SYMMETRY_RTOL = 1e-8
@@ -43,21 +45,18 @@ def log_det_spd(matrix, name: str = "matrix", check_input: bool = True) -> float
         name: what the matrix is, for error messages.
         check_input: check shape, finiteness and symmetry, and factor by Cholesky
             (which proves positive definiteness); ``False`` is for hot loops whose
-            matrices are known good: the determinant (in closed form up to 3 x 3, else
-            ``slogdet``), rejecting only a non-positive one.
+            matrices are known good: the determinant (a compiled kernel, ``log_det_of``:
+            cofactors up to 3 x 3, else an LU factorization), rejecting only a non-positive one.
 
     Raises:
         ValueError: if the input is not square, not symmetric, not positive definite, or not finite.
     """
     if not check_input:
-        matrix = np.asarray(matrix)
-        if matrix.shape[-1] <= 3:
-            determinant = _small_determinant(matrix)
-            sign, log_det = np.sign(determinant), np.log(np.abs(determinant))
-        else:
-            sign, log_det = np.linalg.slogdet(matrix)
-        if not (sign > 0).all():
+        matrix = np.asarray(matrix, dtype=float)
+        log_det = stacked_log_dets(contiguous(matrix.reshape(-1, *matrix.shape[-2:])))
+        if np.isnan(log_det).any():
             raise ValueError(f"{name} is not positive definite (determinant <= 0)")
+        log_det = log_det.reshape(matrix.shape[:-2])
         return float(log_det) if np.ndim(log_det) == 0 else log_det
     matrix = _square_stack(name, matrix)
     asymmetry = np.max(np.abs(matrix - np.swapaxes(matrix, -1, -2)))
@@ -73,15 +72,57 @@ def log_det_spd(matrix, name: str = "matrix", check_input: bool = True) -> float
     return float(log_det) if np.ndim(log_det) == 0 else log_det
 
 
-def _small_determinant(matrix: np.ndarray) -> np.ndarray:
-    """Determinants of (..., n, n) matrices with n <= 3 by cofactors: far faster than LAPACK on stacks of them."""
-    n = matrix.shape[-1]
-    if n == 1:
-        return matrix[..., 0, 0]
-    if n == 2:
-        return matrix[..., 0, 0] * matrix[..., 1, 1] - matrix[..., 0, 1] * matrix[..., 1, 0]
-    a, b, c, d, e, f, g, h, i = matrix.reshape(*matrix.shape[:-2], 9).T
-    return (a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)).T
+@kernel
+def log_det_of(M) -> float:
+    """``ln det`` of a square matrix (n, n), NaN unless its determinant is > 0.
+
+    Cofactors up to 3 x 3; above, Gaussian elimination with partial pivoting (``slogdet``'s LU).
+    """
+    n = M.shape[0]
+    if n <= 3:
+        if n == 0:
+            determinant = 1.0
+        elif n == 1:
+            determinant = M[0, 0]
+        elif n == 2:
+            determinant = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+        else:
+            determinant = (
+                M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1])
+                - M[0, 1] * (M[1, 0] * M[2, 2] - M[1, 2] * M[2, 0])
+                + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0])
+            )
+        return math.log(determinant) if determinant > 0.0 else math.nan
+    A = M.copy()
+    sign, log_det = 1.0, 0.0
+    for j in range(n):
+        pivot = j
+        for i in range(j + 1, n):
+            if abs(A[i, j]) > abs(A[pivot, j]):
+                pivot = i
+        if not abs(A[pivot, j]) > 0.0:  # zero or NaN
+            return math.nan
+        if pivot != j:
+            for k in range(n):
+                A[j, k], A[pivot, k] = A[pivot, k], A[j, k]
+            sign = -sign
+        if A[j, j] < 0.0:
+            sign = -sign
+        log_det += math.log(abs(A[j, j]))
+        for i in range(j + 1, n):
+            factor = A[i, j] / A[j, j]
+            for k in range(j + 1, n):
+                A[i, k] -= factor * A[j, k]
+    return log_det if sign > 0.0 else math.nan
+
+
+@kernel
+def stacked_log_dets(M):
+    """``log_det_of`` each matrix of a stack (N, n, n): (N,), NaN where the determinant is not > 0."""
+    log_dets = np.empty(len(M))
+    for index in range(len(M)):
+        log_dets[index] = log_det_of(M[index])
+    return log_dets
 
 
 def largest_position_std(covariances: np.ndarray) -> np.ndarray:

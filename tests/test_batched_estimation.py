@@ -567,6 +567,10 @@ REL_ARGS = {
         (lambda: batched.pose_log_dets(PJ[0], 1), r"P must be a stack of covariances \(N, n, n\)"),
         (lambda: batched.relative_pose_model(XJ, OBSERVERS, OBSERVERS), r"observers\[0, 0\] = targets\[0, 0\] = 0"),
         (lambda: batched.relative_pose_model(XJ, OBSERVERS, TARGETS + 1), r"targets must hold indices in \[0, 2\]"),
+        (
+            lambda: batched.relative_pose_model(np.zeros((1, 6)), np.array([[0]]), np.array([[1]])),
+            "a target coincides with the sensor position",
+        ),
         (lambda: batched.relative_pose_model(XJ, OBSERVERS[0], TARGETS[0]), r"observers must have shape \(2, M\)"),
         (lambda: batched.relative_pose_model(XJ, OBSERVERS * 1.0, TARGETS), "observers must be an int array"),
         (

@@ -98,6 +98,28 @@ def test_unchecked_fast_path_agrees_and_rejects_non_positive_determinants():
         log_det_spd(two_negative_eigenvalues)
 
 
+
+@pytest.mark.parametrize("n", range(1, 9))
+def test_unchecked_log_det_is_slogdets_for_every_size_and_stack_shape(n):
+    """The compiled fast path (cofactors up to 3 x 3, an LU above) against LAPACK's ``slogdet``."""
+    rng = np.random.default_rng(n)
+    stack = np.stack([random_spd(rng, n) for _ in range(6)]).reshape(2, 3, n, n)
+    expected = np.linalg.slogdet(stack)[1]
+    np.testing.assert_allclose(log_det_spd(stack, check_input=False), expected, rtol=1e-12, atol=1e-12)
+    assert log_det_spd(stack[0, 0], check_input=False) == pytest.approx(expected[0, 0], rel=1e-12, abs=1e-12)
+    assert isinstance(log_det_spd(stack[0, 0], check_input=False), float)
+    swapped = stack[0, 0][::-1]  # rows reversed: the LU must pivot; det changes sign with an odd permutation
+    sign, magnitude = np.linalg.slogdet(swapped)
+    if sign > 0:
+        assert log_det_spd(swapped, check_input=False) == pytest.approx(magnitude, rel=1e-12, abs=1e-12)
+    else:
+        with pytest.raises(ValueError, match="not positive definite"):
+            log_det_spd(swapped, check_input=False)
+    one_negative = np.diag([-1.0, *np.ones(n - 1)])
+    for bad in (one_negative, np.zeros((n, n)), np.full((n, n), np.nan)):
+        with pytest.raises(ValueError, match=r"P is not positive definite \(determinant <= 0\)"):
+            log_det_spd(np.stack([stack[0, 0], bad]), "P", check_input=False)
+
 NOT_SQUARE = np.ones((2, 3))
 NOT_SYMMETRIC = np.array([[2.0, 1.0], [0.0, 2.0]])
 INDEFINITE = np.array([[1.0, 2.0], [2.0, 1.0]])

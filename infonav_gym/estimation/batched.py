@@ -1,9 +1,10 @@
 """The batched EKF core: N filter copies on stacked arrays, states ``x (N, n)``, covariances ``P (N, n, n)``.
 
 The same models and the same floating-point steps as ``PoseEKF`` and ``JointEKF`` (the scalar API and
-the tested oracle), one leading batch dimension over env copies. A state starts with the poses of its
-R robots ``[x, y, heading]`` (R = 1 for a ``PoseEKF``), followed by any static entries (mapped landmarks
-``[lx, ly]``). Functions return new arrays; copies that take no measurement come back unchanged.
+the tested oracle), one leading batch dimension over env copies; the loops over the copies run in the
+compiled ``kernels``. A state starts with the poses of its R robots ``[x, y, heading]`` (R = 1 for a
+``PoseEKF``), followed by any static entries (mapped landmarks ``[lx, ly]``). Functions return new
+arrays; copies that take no measurement come back unchanged.
 
 Every public function checks its inputs (shapes, finiteness, symmetric positive-definite noise, indices)
 and raises ``ValueError`` naming the argument; ``check_input=False`` skips that for hot loops whose
@@ -15,10 +16,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from infonav_gym.compiled import contiguous
+from infonav_gym.estimation import kernels
 from infonav_gym.estimation.ekf import POSE_DIM, _finite, _noise_covariance, _time_step
-from infonav_gym.estimation.models import GPS_POSE_JACOBIAN, _range_bearing_geometry, relative_pose_linearized
+from infonav_gym.estimation.models import GPS_POSE_JACOBIAN
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import information_gain_of_innovation, log_det_spd
+from infonav_gym.information import log_det_spd
+
+COINCIDENT = "a target coincides with the sensor position: its bearing is undefined"
 
 # ---------------------------------------------------------------------------------------------- input checks
 
@@ -156,37 +161,14 @@ def predict_team(x, P, controls, dt: float, control_covariances, *, check_input:
 
 
 def _predict(x, P, controls, dt, control_covariances):
-    """Unicycle prediction of the first R poses; ``F P F^T + Q`` with the block-diagonal pose Jacobian F."""
-    n_copies, n_robots = controls.shape[:2]
-    pose_end = POSE_DIM * n_robots
-    poses = x[:, :pose_end].reshape(n_copies, n_robots, POSE_DIM)
-    heading, speed, turn_rate = poses[..., 2], controls[..., 0], controls[..., 1]
-    cos_h, sin_h = np.cos(heading), np.sin(heading)
-    x_new = x.copy()
-    predicted = x_new[:, :pose_end].reshape(n_copies, n_robots, POSE_DIM)
-    predicted[..., 0] = poses[..., 0] + speed * dt * cos_h
-    predicted[..., 1] = poses[..., 1] + speed * dt * sin_h
-    predicted[..., 2] = wrap_angle(heading + turn_rate * dt)
-    # F is the identity but for F[0, 2] and F[1, 2]: F X adds multiples of row 2 to rows 0 and 1 (exact zeros and
-    # ones need no products), and X F^T the same with columns
-    x_from_heading, y_from_heading = -speed * dt * sin_h, speed * dt * cos_h
-    V = np.zeros((n_copies, n_robots, POSE_DIM, 2))
-    V[..., 0, 0] = dt * cos_h
-    V[..., 1, 0] = dt * sin_h
-    V[..., 2, 1] = dt
-    Q = V @ control_covariances @ np.swapaxes(V, -1, -2)
-    n = x.shape[1]
-    P_new = P.copy()
-    rows = P_new[:, :pose_end].reshape(n_copies, n_robots, POSE_DIM, n)
-    rows[..., 0, :] += x_from_heading[..., None] * rows[..., 2, :]
-    rows[..., 1, :] += y_from_heading[..., None] * rows[..., 2, :]
-    columns = P_new[:, :, :pose_end].reshape(n_copies, n, n_robots, POSE_DIM)
-    columns[..., 0] += x_from_heading[:, None] * columns[..., 2]
-    columns[..., 1] += y_from_heading[:, None] * columns[..., 2]
-    robots = np.arange(n_robots)
-    blocks = P_new[:, :pose_end, :pose_end].reshape(n_copies, n_robots, POSE_DIM, n_robots, POSE_DIM)
-    blocks[:, robots, :, robots, :] += np.swapaxes(Q, 0, 1)
-    return x_new, P_new
+    """Unicycle prediction of the first R poses (``kernels.predict_poses``); noise (N, R, 2, 2) or broadcasting."""
+    control_covariances = np.broadcast_to(control_covariances, (*np.shape(controls), 2))
+    return kernels.predict_poses(_floats(x), _floats(P), _floats(controls), float(dt), _floats(control_covariances))
+
+
+def _floats(array, dtype=float) -> np.ndarray:
+    """``array`` as float64 (or ``dtype``) in the layout the kernels are compiled for (``compiled.contiguous``)."""
+    return contiguous(np.asarray(array, dtype=dtype))
 
 
 # ---------------------------------------------------------------------------------------------- measurement models
@@ -211,9 +193,9 @@ def landmark_measurement_model(x, landmarks=None, *, check_input: bool = True):
         x = _states(x)
         if mapped and (x.shape[1] - POSE_DIM) % 2:
             raise ValueError(f"x must be [pose, l1x, l1y, ...], an odd number of entries, got {x.shape[1]}")
-    n_copies, n = x.shape
+    n_copies = len(x)
     if mapped:
-        positions = x[:, POSE_DIM:].reshape(n_copies, -1, 2)
+        positions = np.asarray(x)[:, POSE_DIM:].reshape(n_copies, -1, 2)
     else:
         positions = np.asarray(landmarks, dtype=float)
         if check_input:
@@ -222,17 +204,9 @@ def landmark_measurement_model(x, landmarks=None, *, check_input: bool = True):
                 raise ValueError(f"landmarks must have shape (K, 2) or ({n_copies}, K, 2), got {positions.shape}")
             positions = _finite("landmarks", positions, positions.shape)
         positions = np.broadcast_to(positions, (n_copies, *positions.shape[-2:]))
-    n_landmarks = positions.shape[1]
-    dx = positions[..., 0] - x[:, None, 0]
-    dy = positions[..., 1] - x[:, None, 1]
-    flat_predicted, flat_H_pose = _range_bearing_geometry(dx.ravel(), dy.ravel(), np.repeat(x[:, 2], n_landmarks))
-    predicted = flat_predicted.reshape(n_copies, n_landmarks, 2)
-    H = np.zeros((n_copies, n_landmarks, 2, n))
-    H[..., :POSE_DIM] = flat_H_pose.reshape(n_copies, n_landmarks, 2, POSE_DIM)
-    if mapped:
-        landmark_columns = H[..., POSE_DIM:].reshape(n_copies, n_landmarks, 2, n_landmarks, 2)
-        own = np.arange(n_landmarks)
-        landmark_columns[:, own, :, own, :] = -np.swapaxes(H[..., :2], 0, 1)
+    predicted, H, coincident = kernels.range_bearing_models(_floats(x), _floats(positions), mapped)
+    if coincident:
+        raise ValueError(COINCIDENT)
     return predicted, H
 
 
@@ -250,15 +224,11 @@ def relative_pose_model(x, observers, targets, *, check_input: bool = True):
     if check_input:
         x = _states(x)
         observers, targets = _pairs(observers, targets, len(x), _team_size(x.shape[1]))
-    n_copies = len(x)
-    poses = x.reshape(n_copies, -1, POSE_DIM)
-    copies = np.arange(n_copies)[:, None]
-    n_pairs = np.shape(observers)[1]
-    predicted, H_observer, H_target = relative_pose_linearized(
-        poses[copies, observers].reshape(-1, POSE_DIM), poses[copies, targets].reshape(-1, POSE_DIM)
-    )
-    shape = (n_copies, n_pairs, POSE_DIM)
-    return predicted.reshape(shape), H_observer.reshape(*shape, POSE_DIM), H_target.reshape(*shape, POSE_DIM)
+    observers, targets = _floats(observers, np.int64), _floats(targets, np.int64)
+    *models, coincident = kernels.relative_pose_models(_floats(x), observers, targets)
+    if coincident:
+        raise ValueError(COINCIDENT)
+    return tuple(models)
 
 
 def select_candidates(chosen, *candidates) -> tuple[np.ndarray, ...]:
@@ -310,13 +280,7 @@ def range_bearing_update(x, P, measurements, predicted, H, R, observed=None, *, 
         R = _noise_covariance("R", R, (n_copies, 2, 2))
     residual = np.subtract(measurements, predicted)
     residual[:, 1] = wrap_angle(residual[:, 1])
-    if observed.all():
-        return _kalman_update(x, P, residual, H, R, [2])
-    x_new, P_new = np.array(x, dtype=float), np.array(P, dtype=float)
-    copies = np.flatnonzero(observed)
-    if copies.size:
-        x_new[copies], P_new[copies] = _kalman_update(x[copies], P[copies], residual[copies], H[copies], R[copies], [2])
-    return x_new, P_new
+    return _update(x, P, residual[:, None], np.asarray(H)[:, None], np.asarray(R)[:, None], observed[:, None], 1)
 
 
 def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bool = True, check_input: bool = True):
@@ -340,17 +304,12 @@ def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bo
         has_fix = _mask("has_fix", has_fix, (len(x), n_robots))
         fixes = _finite("fixes", fixes, (len(x), n_robots, 2))
         noise_covariances = _noise_stack("noise_covariances", noise_covariances, (len(x), n_robots, 2, 2))
+    n_copies, n = np.shape(x)
+    robots = np.broadcast_to(np.arange(n // POSE_DIM), np.shape(has_fix))
+    H = _slot_jacobians(robots, np.broadcast_to(GPS_POSE_JACOBIAN, (*np.shape(fixes), POSE_DIM)), n)
+    residual = fixes - np.reshape(x, (n_copies, -1, POSE_DIM))[..., :2]  # the fix minus H x, the robot's position
     noise_covariances = np.broadcast_to(noise_covariances, (*np.shape(fixes), 2))
-    jacobians = np.broadcast_to(GPS_POSE_JACOBIAN, (*np.shape(fixes), POSE_DIM))
-
-    def update(x_group, P_group, slot_of):
-        robots = slot_of(np.broadcast_to(np.arange(x.shape[1] // POSE_DIM), has_fix.shape))
-        H = _stacked_jacobian(robots, slot_of(jacobians), x.shape[1])
-        measurement = slot_of(np.asarray(fixes, dtype=float)).reshape(len(x_group), -1)
-        residual = measurement - (H @ x_group[:, :, None])[:, :, 0]
-        return _kalman_update(x_group, P_group, residual, H, _block_diagonal(slot_of(noise_covariances)), _headings(x))
-
-    return _grouped_update(x, P, has_fix, update, cross_covariances)
+    return _update(x, P, residual, H, noise_covariances, has_fix, n // POSE_DIM, cross_covariances)
 
 
 def relative_pose_update(
@@ -403,17 +362,11 @@ def relative_pose_update(
         H_observer = _finite("H_observer", H_observer, (*observers.shape, m, POSE_DIM))
         H_target = _finite("H_target", H_target, (*observers.shape, m, POSE_DIM))
         R = _noise_covariance("R", R, (*observers.shape, m, m))
-    n = x.shape[1]
+    n = np.shape(x)[1]
     residual = np.subtract(measurements, predicted)
     residual[..., 1:] = wrap_angle(residual[..., 1:])
-
-    def update(x_group, P_group, slot_of):
-        H = _stacked_jacobian(slot_of(observers), slot_of(H_observer), n)
-        H = H + _stacked_jacobian(slot_of(targets), slot_of(H_target), n)
-        flat_residual = slot_of(residual).reshape(len(x_group), -1)
-        return _kalman_update(x_group, P_group, flat_residual, H, _block_diagonal(slot_of(R)), _headings(x))
-
-    return _grouped_update(x, P, observed, update, cross_covariances)
+    H = _slot_jacobians(observers, H_observer, n) + _slot_jacobians(targets, H_target, n)
+    return _update(x, P, residual, H, R, observed, n // POSE_DIM, cross_covariances)
 
 
 def team_landmark_update(
@@ -452,97 +405,37 @@ def team_landmark_update(
         R = _noise_covariance("R", R, (*robots.shape, 2, 2))
     if observed is None:
         observed = np.ones(np.shape(robots), dtype=bool)
+    n = np.shape(x)[1]
     residual = np.subtract(measurements, predicted)
     residual[..., 1] = wrap_angle(residual[..., 1])
-
-    def update(x_group, P_group, slot_of):
-        H = _stacked_jacobian(slot_of(robots), slot_of(H_pose), x.shape[1])
-        flat_residual = slot_of(residual).reshape(len(x_group), -1)
-        return _kalman_update(x_group, P_group, flat_residual, H, _block_diagonal(slot_of(R)), _headings(x))
-
-    return _grouped_update(x, P, observed, update, cross_covariances)
+    H = _slot_jacobians(robots, H_pose, n)
+    return _update(x, P, residual, H, R, observed, n // POSE_DIM, cross_covariances)
 
 
-def _headings(x: np.ndarray) -> np.ndarray:
-    """The heading entries of joint states (N, 3R)."""
-    return np.arange(2, x.shape[1], POSE_DIM)
+def _update(x, P, residuals, H, R, used, n_headings: int, cross_covariances: bool = True):
+    """``kernels.kalman_updates``: each copy's used slots (N, M) fused in slot order, the others unchanged.
 
-
-def _grouped_update(x, P, used: np.ndarray, update, cross_covariances: bool):
-    """Run ``update`` on the copies grouped by how many slots they use, so each group stacks alike.
-
-    Args:
-        x, P: the joint states and covariances (N, 3R), (N, 3R, 3R).
-        used: which slots of each copy carry a measurement (N, M) bool.
-        update: ``(x_group, P_group, slot_of) -> (x, P)``; ``slot_of(a)`` picks the group's used slots of an
-            (N, M, ...) array, in slot order, as (G, k, ...).
-        cross_covariances: False zeroes the cross-robot blocks of the updated copies.
+    ``residuals`` (N, M, m), ``H`` (N, M, m, n), ``R`` (N, M, m, m); the headings of the first ``n_headings``
+    poses are wrapped; without ``cross_covariances`` updated copies keep only each robot's own blocks.
     """
-    x_new, P_new = np.array(x, dtype=float), np.array(P, dtype=float)
-    counts = used.sum(axis=1)
-    for count in np.unique(counts[counts > 0]):
-        copies = np.flatnonzero(counts == count)
-        slots = np.nonzero(used[copies])[1].reshape(len(copies), count)
-
-        def slot_of(array, copies=copies, slots=slots):
-            return np.asarray(array)[copies[:, None], slots]
-
-        x_group, P_group = update(x[copies], P[copies], slot_of)
-        if not cross_covariances:
-            P_group = P_group * _own_blocks(x.shape[1] // POSE_DIM)
-        x_new[copies], P_new[copies] = x_group, P_group
-    return x_new, P_new
+    return kernels.kalman_updates(
+        _floats(x),
+        _floats(P),
+        _floats(residuals),
+        _floats(H),
+        _floats(R),
+        _floats(used, bool),
+        int(n_headings),
+        bool(cross_covariances),
+    )
 
 
-def _own_blocks(n_robots: int) -> np.ndarray:
-    """(3R, 3R) ones on each robot's own 3x3 block, zeros elsewhere."""
-    return np.kron(np.eye(n_robots), np.ones((POSE_DIM, POSE_DIM)))
-
-
-def _stacked_jacobian(robots: np.ndarray, blocks: np.ndarray, n: int) -> np.ndarray:
-    """(G, k m, n) Jacobians whose k-th row block holds ``blocks[:, k]`` (m, 3) in robot ``robots[:, k]``'s columns."""
-    n_copies, k, m, _ = blocks.shape
-    H = np.zeros((n_copies, k, m, n // POSE_DIM, POSE_DIM))
-    H[np.arange(n_copies)[:, None], np.arange(k), :, robots, :] = blocks
-    return H.reshape(n_copies, k * m, n)
-
-
-def _block_diagonal(blocks: np.ndarray) -> np.ndarray:
-    """(G, k m, k m) block-diagonal matrices of (G, k, m, m) ``blocks``."""
-    n_copies, k, m, _ = blocks.shape
-    matrix = np.zeros((n_copies, k, m, k, m))
-    matrix[:, np.arange(k), :, np.arange(k), :] = np.swapaxes(blocks, 0, 1)
-    return matrix.reshape(n_copies, k * m, k * m)
-
-
-def _inverse(S: np.ndarray) -> np.ndarray:
-    """Inverses of small SPD matrices (..., m, m): by cofactors up to 3 x 3 (``_inverse_entries``), else LAPACK.
-
-    On stacks of thousands of them the cofactors are far faster than LAPACK's per-matrix calls.
-    """
-    if S.shape[-1] > 3:
-        return np.linalg.inv(S)
-    return np.moveaxis(_inverse_entries(np.moveaxis(S, (-2, -1), (0, 1))), (0, 1), (-2, -1))
-
-
-def _kalman_update(x, P, residual, H, R, heading_indices):
-    """The EKF update of ``PoseEKF`` / ``JointEKF`` on (G,) copies, step for step; covariance symmetrized.
-
-    ``K = P H^T S^-1`` with ``S = H P H^T + R``; ``x + K y`` with headings wrapped; ``P - K (P H^T)^T``.
-    """
-    K, P_new = _gain_and_posterior(P, H, R)
-    x_new = x + (K @ residual[:, :, None])[:, :, 0]
-    x_new[:, heading_indices] = wrap_angle(x_new[:, heading_indices])
-    return x_new, P_new
-
-
-def _gain_and_posterior(P, H, R) -> tuple[np.ndarray, np.ndarray]:
-    """The Kalman gain ``K`` (G, n, m) and posterior covariance (G, n, n), symmetrized, of an update."""
-    PHT = P @ np.swapaxes(H, 1, 2)
-    S = H @ PHT + R
-    K = PHT @ _inverse(S)
-    P_new = P - K @ np.swapaxes(PHT, 1, 2)
-    return K, 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
+def _slot_jacobians(robots, blocks, n: int) -> np.ndarray:
+    """(N, M, m, n) Jacobians: slot ``[c, k]`` holds ``blocks[c, k]`` (m, 3) in robot ``robots[c, k]``'s columns."""
+    n_copies, n_slots, m, _ = np.shape(blocks)
+    H = np.zeros((n_copies, n_slots, m, n // POSE_DIM, POSE_DIM))
+    H[np.arange(n_copies)[:, None], np.arange(n_slots), :, robots, :] = blocks
+    return H.reshape(n_copies, n_slots, m, n)
 
 
 def _jacobians(H, P: np.ndarray, inner: tuple[str, ...]) -> np.ndarray:
@@ -569,7 +462,10 @@ def posterior_covariance(P, H, R, *, check_input: bool = True) -> np.ndarray:
         P = _covariances(P)
         H = _jacobians(H, P, ("m",))
         R = _noise_covariance("R", R, (len(P), H.shape[1], H.shape[1]))
-    return _gain_and_posterior(P, H, R)[1]
+    n_copies, m, n = np.shape(H)
+    no_state, no_residual = np.zeros((n_copies, n)), np.zeros((n_copies, 1, m))
+    every_copy = np.ones((n_copies, 1), dtype=bool)
+    return _update(no_state, P, no_residual, np.asarray(H)[:, None], np.asarray(R)[:, None], every_copy, 0)[1]
 
 
 # ---------------------------------------------------------------------------------------------- information
@@ -591,46 +487,16 @@ def landmark_information_gains(P, H, R, *, check_input: bool = True) -> np.ndarr
         P = _covariances(P)
         H = _jacobians(H, P, ("K", "m"))
         R = _noise_covariance("R", R, (*H.shape[:3], H.shape[2]))
-    n_copies, n_candidates, m, n = H.shape
-    HP = np.matmul(H.reshape(n_copies, n_candidates * m, n), P).reshape(H.shape)  # one product per copy: fast
-    HPHT = _product(np.moveaxis(HP, (-2, -1), (0, 1)), np.moveaxis(H, (-2, -1), (1, 0)))  # entries first
-    return information_gain_of_innovation(np.moveaxis(HPHT, (0, 1), (-2, -1)) + R, R, check_input=False)
+    gains = kernels.landmark_gains(_floats(P), _floats(H), _floats(R))
+    return _checked_gains(gains, R)
 
 
-def _product(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
-    """``X @ Y`` of small matrices stored components first, (m, k, ...) @ (k, n, ...) -> (m, n, ...).
-
-    Each entry is a contiguous array over the stack, so thousands of 3 x 3 products take a few dozen
-    array operations: several times faster than ``matmul``'s per-matrix loop.
-    """
-    product = np.empty((X.shape[0], Y.shape[1], *np.broadcast_shapes(X.shape[2:], Y.shape[2:])))
-    for i in range(X.shape[0]):
-        for j in range(Y.shape[1]):
-            entry = X[i, 0] * Y[0, j]  # a new array: += below is in place
-            for k in range(1, X.shape[1]):
-                entry += X[i, k] * Y[k, j]
-            product[i, j] = entry
-    return product
-
-
-def _inverse_entries(M: np.ndarray) -> np.ndarray:
-    """Inverses of matrices stored entries first (m, m, ...): the adjugate over the determinant, m <= 3."""
-    m = len(M)
-    if m == 1:
-        return 1.0 / M
-    if m == 2:
-        adjugate = np.array([[M[1, 1], -M[0, 1]], [-M[1, 0], M[0, 0]]])
-    else:
-        adjugate = np.empty_like(M)
-        for i in range(3):
-            for j in range(3):
-                rows, columns = [r for r in range(3) if r != j], [c for c in range(3) if c != i]
-                minor = (
-                    M[rows[0], columns[0]] * M[rows[1], columns[1]] - M[rows[0], columns[1]] * M[rows[1], columns[0]]
-                )
-                adjugate[i, j] = minor if (i + j) % 2 == 0 else -minor
-    determinant = sum(M[0, j] * adjugate[j, 0] for j in range(m))  # the first row of M adjugate
-    return adjugate / determinant
+def _checked_gains(gains: np.ndarray, R) -> np.ndarray:
+    """``gains``, or ``ValueError`` naming the matrix whose determinant was not > 0 where a gain is NaN."""
+    if np.isnan(gains).any():
+        log_det_spd(R, "noise covariance R", check_input=False)
+        raise ValueError("innovation covariance H P H^T + R is not positive definite (determinant <= 0)")
+    return gains
 
 
 def relative_pose_information_gains(P, observers, targets, H_observer, H_target, R, *, check_input: bool = True):
@@ -654,27 +520,12 @@ def relative_pose_information_gains(P, observers, targets, H_observer, H_target,
         H_observer = _finite("H_observer", H_observer, (*observers.shape, m, POSE_DIM))
         H_target = _finite("H_target", H_target, (*observers.shape, m, POSE_DIM))
         R = _noise_covariance("R", R, (*observers.shape, m, m))
-    # matrices as components first: (rows, columns, N, M), each entry a contiguous (N, M) array
-    n_robots = P.shape[1] // POSE_DIM
-    blocks = np.moveaxis(P.reshape(n_copies, n_robots, POSE_DIM, n_robots, POSE_DIM), (2, 4), (0, 1))
-    blocks = blocks.reshape(POSE_DIM * POSE_DIM, -1)  # (9, N R R): the pose blocks' entries, block [c, i, j] last
-    first_block = (np.arange(n_copies) * n_robots * n_robots)[:, None]
-
-    def block_entries(rows, columns):
-        return blocks.take(first_block + rows * n_robots + columns, axis=1).reshape(POSE_DIM, POSE_DIM, *rows.shape)
-
-    P_oo, P_ot = block_entries(observers, observers), block_entries(observers, targets)
-    P_to, P_tt = block_entries(targets, observers), block_entries(targets, targets)
-    H_observer, H_target, R = (
-        np.ascontiguousarray(np.moveaxis(M, (-2, -1), (0, 1))) for M in (H_observer, H_target, R)
-    )
-    H_observer_T, H_target_T = H_observer.swapaxes(0, 1), H_target.swapaxes(0, 1)
-    A = _product(P_oo, H_observer_T) + _product(P_ot, H_target_T)  # the observer's rows of P H^T
-    B = _product(P_to, H_observer_T) + _product(P_tt, H_target_T)  # the target's
-    S = _product(H_observer, A) + _product(H_target, B) + R
-    posterior = P_oo - _product(_product(A, _inverse_entries(S)), A.swapaxes(0, 1))
-    log_dets = [log_det_spd(np.moveaxis(M, (0, 1), (-2, -1)), check_input=False) for M in (P_oo, posterior, S, R)]
-    return 0.5 * (log_dets[0] - log_dets[1]), 0.5 * (log_dets[2] - log_dets[3])
+    observers, targets = _floats(observers, np.int64), _floats(targets, np.int64)
+    H_observer, H_target = _floats(H_observer), _floats(H_target)
+    own, joint = kernels.relative_pose_gains(_floats(P), observers, targets, H_observer, H_target, _floats(R))
+    if np.isnan(own).any():
+        raise ValueError("an observer's pose covariance, or its posterior, is not positive definite (determinant <= 0)")
+    return own, _checked_gains(joint, R)
 
 
 def pose_blocks(P) -> np.ndarray:
@@ -695,7 +546,7 @@ def pose_log_dets(P, n_robots: int = 1, *, check_input: bool = True) -> np.ndarr
     if check_input:
         P = _covariances(P)
         n_robots = _robot_count(P.shape[1], n_robots)
-    pose_end = POSE_DIM * n_robots
-    robots = np.arange(n_robots)
-    own = pose_blocks(np.asarray(P)[:, :pose_end, :pose_end])[:, robots, robots]
-    return log_det_spd(own, "pose covariance", check_input=False)
+    log_dets = kernels.pose_block_log_dets(_floats(P), int(n_robots))
+    if np.isnan(log_dets).any():
+        raise ValueError("pose covariance is not positive definite (determinant <= 0)")
+    return log_dets

@@ -1,0 +1,92 @@
+"""The one place that makes a compiled kernel: numba's ``njit`` with an on-disk cache and IEEE arithmetic.
+
+``@kernel`` compiles a function on its first call for each new set of argument types and caches the
+machine code on disk (``cache=True``), next to the source or, in a read-only install, in numba's
+user-wide cache directory (or ``NUMBA_CACHE_DIR``). Where no cache location is writable the kernels
+run uncached, after one warning line. ``fastmath`` stays off (the EKF's numbers are IEEE's) and
+nothing runs in parallel. Compiling the kernels takes seconds on a first use: when it takes longer
+than ``COMPILE_NOTICE_AFTER_S``, one line says what is happening.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import weakref
+
+import numba
+from numba.core import event
+
+COMPILE_NOTICE_AFTER_S = 1.0  # [s] a compile that takes longer is announced (once per process)
+KERNEL_OPTIONS = {"cache": True, "fastmath": False, "parallel": False, "error_model": "numpy"}  # IEEE: x / 0 is inf
+
+logger = logging.getLogger(__name__)
+_kernels: weakref.WeakSet = weakref.WeakSet()  # the dispatchers made here: only their compiles are announced
+_uncached_warned = False
+
+
+def kernel(function):
+    """``function`` compiled by numba in nopython mode, cached on disk where a writable cache location exists.
+
+    Where numba finds none (it raises ``RuntimeError`` "no locator available" at decoration), the kernel
+    is compiled on every process start instead, and one warning line (once per process) says so.
+    """
+    global _uncached_warned
+    try:
+        dispatcher = numba.njit(**KERNEL_OPTIONS)(function)
+    except RuntimeError as error:
+        if "no locator available" not in str(error):
+            raise
+        if not _uncached_warned:
+            _uncached_warned = True
+            logger.warning(
+                "infonav_gym: no writable numba cache location (set NUMBA_CACHE_DIR to a writable directory); "
+                "kernels are compiled on every start: %s",
+                error,
+            )
+        dispatcher = numba.njit(**{**KERNEL_OPTIONS, "cache": False})(function)
+    _kernels.add(dispatcher)
+    return dispatcher
+
+
+def contiguous(array):
+    """An ndarray as the one array layout the kernels are compiled for: itself if C-contiguous and writeable, else a
+    copy (a read-only or strided view, e.g. from ``np.broadcast_to``, would be another numba type: another compile)."""
+    flags = array.flags
+    return array if flags.c_contiguous and flags.writeable else array.copy()
+
+
+class _CompileNotice(event.Listener):
+    """Says once that kernels are being compiled when a compile of one of ours runs past the threshold.
+
+    A timer starts with the outermost compile (a kernel compiles the kernels it calls inside its own
+    compile) and is cancelled when it ends; numba holds its compiler lock meanwhile, so compiles nest
+    but never overlap.
+    """
+
+    def __init__(self):
+        self.depth = 0
+        self.timer = None
+        self.said = False
+
+    def on_start(self, event_):
+        if self.depth == 0 and not self.said and event_.data["dispatcher"] in _kernels:
+            self.timer = threading.Timer(COMPILE_NOTICE_AFTER_S, self.say)
+            self.timer.daemon = True
+            self.timer.start()
+        self.depth += 1
+
+    def on_end(self, event_):
+        self.depth -= 1
+        if self.depth == 0 and self.timer is not None:
+            self.timer.cancel()
+            self.timer = None
+
+    def say(self):
+        if not self.said:
+            self.said = True
+            logger.warning("infonav_gym: compiling the numba kernels (first use; cached for later runs) ...")
+
+
+compile_notice = _CompileNotice()
+event.register("numba:compile", compile_notice)

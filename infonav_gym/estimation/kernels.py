@@ -1,0 +1,378 @@
+"""Compiled kernels of the batched EKF core (``batched``): loops over the copies, the small matrix algebra written out.
+
+Each kernel takes C-contiguous float64 stacks (bool and int64 for masks and indices), copies first,
+and returns new arrays. Kernels do not check their inputs (``batched`` does); an undefined result
+(a non-positive determinant, a landmark on the sensor) comes back as NaN or a flag for the caller to
+raise on. States start with R robot poses ``[x, y, heading]``; covariances are symmetric.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from infonav_gym.compiled import kernel
+from infonav_gym.information import log_det_of
+
+POSE_DIM = 3
+COINCIDENT_SQUARED_RANGE = 1e-18  # [m^2] a target this close to the sensor has no defined bearing
+
+
+@kernel
+def wrap(angle: float) -> float:
+    """``geometry.wrap_angle`` of one angle: to [-pi, pi) [rad]."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@kernel
+def predict_poses(x, P, controls, dt, control_covariances):
+    """Unicycle prediction of the first R poses of every copy: ``x`` (N, n), ``P`` (N, n, n).
+
+    ``controls`` (N, R, 2) are ``[speed, turn_rate]``, ``control_covariances`` (N, R, 2, 2) their noise,
+    ``dt`` [s]. The covariance becomes ``F P F^T + V C V^T`` with F the identity but for each pose's
+    ``F[0, 2]`` and ``F[1, 2]``: F P adds multiples of the heading row to the x and y rows, P F^T the same
+    with columns, and V C V^T lands on each robot's own 3 x 3 block.
+    """
+    n_copies, n = x.shape
+    n_robots = controls.shape[1]
+    x_new, P_new = x.copy(), P.copy()
+    x_from_heading, y_from_heading = np.empty(n_robots), np.empty(n_robots)
+    for c in range(n_copies):
+        for robot in range(n_robots):
+            i = POSE_DIM * robot
+            heading, speed, turn_rate = x[c, i + 2], controls[c, robot, 0], controls[c, robot, 1]
+            cos_h, sin_h = math.cos(heading), math.sin(heading)
+            x_new[c, i] = x[c, i] + speed * dt * cos_h
+            x_new[c, i + 1] = x[c, i + 1] + speed * dt * sin_h
+            x_new[c, i + 2] = wrap(heading + turn_rate * dt)
+            x_from_heading[robot], y_from_heading[robot] = -speed * dt * sin_h, speed * dt * cos_h
+            for j in range(n):
+                P_new[c, i, j] += x_from_heading[robot] * P_new[c, i + 2, j]
+                P_new[c, i + 1, j] += y_from_heading[robot] * P_new[c, i + 2, j]
+        for robot in range(n_robots):
+            i = POSE_DIM * robot
+            for j in range(n):
+                P_new[c, j, i] += x_from_heading[robot] * P_new[c, j, i + 2]
+                P_new[c, j, i + 1] += y_from_heading[robot] * P_new[c, j, i + 2]
+        for robot in range(n_robots):
+            i = POSE_DIM * robot
+            cos_h, sin_h = math.cos(x[c, i + 2]), math.sin(x[c, i + 2])
+            C = control_covariances[c, robot]
+            v_x, v_y = dt * cos_h, dt * sin_h  # V = [[v_x, 0], [v_y, 0], [0, dt]]
+            P_new[c, i, i] += v_x * C[0, 0] * v_x
+            P_new[c, i, i + 1] += v_x * C[0, 0] * v_y
+            P_new[c, i, i + 2] += v_x * C[0, 1] * dt
+            P_new[c, i + 1, i] += v_y * C[0, 0] * v_x
+            P_new[c, i + 1, i + 1] += v_y * C[0, 0] * v_y
+            P_new[c, i + 1, i + 2] += v_y * C[0, 1] * dt
+            P_new[c, i + 2, i] += dt * C[1, 0] * v_x
+            P_new[c, i + 2, i + 1] += dt * C[1, 0] * v_y
+            P_new[c, i + 2, i + 2] += dt * C[1, 1] * dt
+    return x_new, P_new
+
+
+@kernel
+def range_bearing_models(x, positions, mapped):
+    """Range-bearing from each copy's pose to each landmark, and its Jacobian w.r.t. the state.
+
+    Args:
+        x: states (N, n), the pose first.
+        positions: landmark positions (N, K, 2); with ``mapped`` they are the state's entries ``3 + 2k``.
+        mapped: give ``H`` the landmark columns too (minus the position columns of the pose).
+
+    Returns:
+        ``(predicted (N, K, 2), H (N, K, 2, n), coincident)``; ``coincident``: some landmark lies on its sensor.
+    """
+    n_copies, n = x.shape
+    n_landmarks = positions.shape[1]
+    predicted, H = np.empty((n_copies, n_landmarks, 2)), np.zeros((n_copies, n_landmarks, 2, n))
+    coincident = False
+    for c in range(n_copies):
+        for k in range(n_landmarks):
+            dx, dy = positions[c, k, 0] - x[c, 0], positions[c, k, 1] - x[c, 1]
+            J = H[c, k]
+            if not range_bearing_of_offset(dx, dy, x[c, 2], predicted[c, k], J):
+                coincident = True
+            elif mapped:
+                column = POSE_DIM + 2 * k
+                J[0, column], J[0, column + 1] = -J[0, 0], -J[0, 1]
+                J[1, column], J[1, column + 1] = -J[1, 0], -J[1, 1]
+    return predicted, H, coincident
+
+
+@kernel
+def range_bearing_of_offset(dx, dy, heading, predicted, J) -> bool:
+    """Range-bearing of a target at ``(dx, dy)`` from a sensor at ``heading`` into ``predicted[:2]``, its Jacobian
+    w.r.t. the sensor's pose into ``J[:2, :3]``; False (and nothing written) if the target is on the sensor."""
+    squared_range = dx * dx + dy * dy
+    if squared_range < COINCIDENT_SQUARED_RANGE:
+        return False
+    distance = math.sqrt(squared_range)
+    predicted[0], predicted[1] = distance, wrap(math.atan2(dy, dx) - heading)
+    J[0, 0], J[0, 1] = -dx / distance, -dy / distance
+    J[1, 0], J[1, 1], J[1, 2] = dy / squared_range, -dx / squared_range, -1.0
+    return True
+
+
+@kernel
+def relative_pose_models(x, observers, targets):
+    """Range, bearing and relative heading of robot ``targets[c, k]`` seen from robot ``observers[c, k]``.
+
+    Returns:
+        ``(predicted (N, M, 3), H_observer (N, M, 3, 3), H_target (N, M, 3, 3), coincident)``: the Jacobians
+        w.r.t. the two poses; ``coincident``: some target lies on its observer.
+    """
+    n_copies, n_pairs = observers.shape
+    predicted = np.empty((n_copies, n_pairs, POSE_DIM))
+    H_observer = np.zeros((n_copies, n_pairs, POSE_DIM, POSE_DIM))
+    H_target = np.zeros((n_copies, n_pairs, POSE_DIM, POSE_DIM))
+    coincident = False
+    for c in range(n_copies):
+        for k in range(n_pairs):
+            o, t = POSE_DIM * observers[c, k], POSE_DIM * targets[c, k]
+            J_o, J_t = H_observer[c, k], H_target[c, k]
+            dx, dy = x[c, t] - x[c, o], x[c, t + 1] - x[c, o + 1]
+            if not range_bearing_of_offset(dx, dy, x[c, o + 2], predicted[c, k], J_o):
+                coincident = True
+                continue
+            predicted[c, k, 2] = wrap(x[c, t + 2] - x[c, o + 2])
+            J_o[2, 2], J_t[2, 2] = -1.0, 1.0
+            J_t[0, 0], J_t[0, 1], J_t[1, 0], J_t[1, 1] = -J_o[0, 0], -J_o[0, 1], -J_o[1, 0], -J_o[1, 1]
+    return predicted, H_observer, H_target, coincident
+
+
+@kernel
+def invert(S, r, inverse):
+    """The inverse of the leading (r, r) block of ``S`` into ``inverse``: the adjugate over the determinant up to
+    3 x 3, else Gauss-Jordan elimination with partial pivoting."""
+    if r == 1:
+        inverse[0, 0] = 1.0 / S[0, 0]
+    elif r == 2:
+        determinant = S[0, 0] * S[1, 1] + S[0, 1] * -S[1, 0]
+        inverse[0, 0], inverse[0, 1] = S[1, 1] / determinant, -S[0, 1] / determinant
+        inverse[1, 0], inverse[1, 1] = -S[1, 0] / determinant, S[0, 0] / determinant
+    elif r == 3:
+        for i in range(3):
+            for j in range(3):  # the cofactor of S[j, i]: the minor without row j and column i, signed
+                r0, r1 = (1, 2) if j == 0 else ((0, 2) if j == 1 else (0, 1))
+                c0, c1 = (1, 2) if i == 0 else ((0, 2) if i == 1 else (0, 1))
+                minor = S[r0, c0] * S[r1, c1] - S[r0, c1] * S[r1, c0]
+                inverse[i, j] = minor if (i + j) % 2 == 0 else -minor
+        determinant = S[0, 0] * inverse[0, 0] + S[0, 1] * inverse[1, 0] + S[0, 2] * inverse[2, 0]
+        for i in range(3):
+            for j in range(3):
+                inverse[i, j] /= determinant
+    else:
+        A = S[:r, :r].copy()
+        for i in range(r):
+            for j in range(r):
+                inverse[i, j] = 1.0 if i == j else 0.0
+        for j in range(r):
+            pivot = j
+            for i in range(j + 1, r):
+                if abs(A[i, j]) > abs(A[pivot, j]):
+                    pivot = i
+            for k in range(r):
+                A[j, k], A[pivot, k] = A[pivot, k], A[j, k]
+                inverse[j, k], inverse[pivot, k] = inverse[pivot, k], inverse[j, k]
+            scale = 1.0 / A[j, j]
+            for k in range(r):
+                A[j, k] *= scale
+                inverse[j, k] *= scale
+            for i in range(r):
+                if i != j and A[i, j] != 0.0:
+                    factor = A[i, j]
+                    for k in range(r):
+                        A[i, k] -= factor * A[j, k]
+                        inverse[i, k] -= factor * inverse[j, k]
+
+
+@kernel
+def times_inverse(X, S, r, S_inverse, product):
+    """``X S^-1`` with the leading (r, r) block of ``S`` into ``product[:, :r]``; ``S_inverse``: scratch."""
+    invert(S, r, S_inverse)
+    for i in range(X.shape[0]):
+        for j in range(r):
+            total = 0.0
+            for t in range(r):
+                total += X[i, t] * S_inverse[t, j]
+            product[i, j] = total
+
+
+@kernel
+def nonzero_columns(rows, columns) -> int:
+    """How many columns of ``rows`` (r, n) hold a non-zero entry; their indices into ``columns[:count]``.
+
+    A measurement depends on a few state entries (a pose, a landmark): products with H skip the others.
+    """
+    count = 0
+    for column in range(rows.shape[1]):
+        for i in range(rows.shape[0]):
+            if rows[i, column] != 0.0:
+                columns[count] = column
+                count += 1
+                break
+    return count
+
+
+@kernel
+def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
+    """The EKF update of every copy with its used measurement slots, stacked in slot order; the others unchanged.
+
+    ``K = P H^T S^-1`` with ``S = H P H^T + R`` (``R`` block diagonal over the slots); ``x + K y`` with the
+    headings of the first ``n_headings`` poses wrapped; ``P - K (P H^T)^T``, symmetrized. Without
+    ``cross_covariances`` an updated copy keeps only each robot's own 3 x 3 blocks (``JointEKF``'s option).
+
+    Args:
+        x, P: states (N, n) and covariances (N, n, n).
+        residuals: ``measured - predicted`` of each slot (N, M, m), angles wrapped.
+        H: each slot's Jacobian w.r.t. the state (N, M, m, n).
+        R: each slot's noise covariance (N, M, m, m).
+        used: which slots carry a measurement (N, M) bool.
+        n_headings: how many poses lead the state (their headings are wrapped).
+        cross_covariances: keep the cross-robot blocks of ``P``.
+    """
+    n_copies, n_slots, m, n = H.shape
+    most = n_slots * m
+    x_new, P_new = x.copy(), P.copy()
+    rows, y = np.empty((most, n)), np.empty(most)
+    PHT, S, S_inverse, K = np.empty((n, most)), np.empty((most, most)), np.empty((most, most)), np.empty((n, most))
+    columns = np.empty(n, dtype=np.int64)
+    for c in range(n_copies):
+        r = 0
+        for slot in range(n_slots):
+            if used[c, slot]:
+                for i in range(m):
+                    y[r + i] = residuals[c, slot, i]
+                    for j in range(n):
+                        rows[r + i, j] = H[c, slot, i, j]
+                r += m
+        if r == 0:
+            continue
+        n_columns = nonzero_columns(rows[:r], columns)
+        for i in range(n):
+            for j in range(r):
+                total = 0.0
+                for t in range(n_columns):
+                    total += P[c, i, columns[t]] * rows[j, columns[t]]
+                PHT[i, j] = total
+        for i in range(r):
+            for j in range(r):
+                total = 0.0
+                for t in range(n_columns):
+                    total += rows[i, columns[t]] * PHT[columns[t], j]
+                S[i, j] = total
+        offset = 0
+        for slot in range(n_slots):
+            if used[c, slot]:
+                for i in range(m):
+                    for j in range(m):
+                        S[offset + i, offset + j] += R[c, slot, i, j]
+                offset += m
+        times_inverse(PHT, S, r, S_inverse, K)
+        for i in range(n):
+            total = 0.0
+            for j in range(r):
+                total += K[i, j] * y[j]
+            x_new[c, i] = x[c, i] + total
+        for robot in range(n_headings):
+            x_new[c, POSE_DIM * robot + 2] = wrap(x_new[c, POSE_DIM * robot + 2])
+        for i in range(n):
+            for j in range(n):
+                total = 0.0
+                for t in range(r):
+                    total += K[i, t] * PHT[j, t]
+                P_new[c, i, j] = P[c, i, j] - total
+        for i in range(n):
+            for j in range(i + 1, n):
+                if not cross_covariances and i // POSE_DIM != j // POSE_DIM:
+                    P_new[c, i, j] = P_new[c, j, i] = 0.0
+                else:
+                    P_new[c, i, j] = P_new[c, j, i] = 0.5 * (P_new[c, i, j] + P_new[c, j, i])
+    return x_new, P_new
+
+
+@kernel
+def landmark_gains(P, H, R):
+    """``0.5 ln(det S / det R)``, ``S = H P H^T + R``, of each candidate (N, K) [nats]; NaN where a determinant
+    is not > 0. ``P`` (N, n, n), ``H`` (N, K, m, n), ``R`` (N, K, m, m)."""
+    n_copies, n_candidates, m, n = H.shape
+    gains = np.empty((n_copies, n_candidates))
+    HP, S = np.empty((m, n)), np.empty((m, m))
+    columns = np.empty(n, dtype=np.int64)
+    for c in range(n_copies):
+        for k in range(n_candidates):
+            J = H[c, k]
+            n_columns = nonzero_columns(J, columns)
+            for i in range(m):
+                for t in range(n_columns):
+                    total = 0.0
+                    for s in range(n_columns):
+                        total += J[i, columns[s]] * P[c, columns[s], columns[t]]
+                    HP[i, columns[t]] = total
+            for i in range(m):
+                for j in range(m):
+                    total = 0.0
+                    for t in range(n_columns):
+                        total += HP[i, columns[t]] * J[j, columns[t]]
+                    S[i, j] = total + R[c, k, i, j]
+            gains[c, k] = 0.5 * (log_det_of(S) - log_det_of(R[c, k]))
+    return gains
+
+
+@kernel
+def relative_pose_gains(P, observers, targets, H_observer, H_target, R):
+    """``JointEKF.relative_pose_information_gains`` of each candidate pair: ``(own, joint)``, each (N, M) [nats].
+
+    ``own = 0.5 ln(det P_oo / det (P_oo - A S^-1 A^T))`` with ``A`` the observer's rows of ``P H^T`` and
+    ``joint = 0.5 ln(det S / det R)``; NaN where a determinant is not > 0.
+    """
+    n_copies, n_pairs, m, _ = H_observer.shape
+    own, joint = np.empty((n_copies, n_pairs)), np.empty((n_copies, n_pairs))
+    A, B = np.empty((POSE_DIM, m)), np.empty((POSE_DIM, m))
+    S, S_inverse, A_S_inverse = np.empty((m, m)), np.empty((m, m)), np.empty((POSE_DIM, m))
+    posterior = np.empty((POSE_DIM, POSE_DIM))
+    for c in range(n_copies):
+        for k in range(n_pairs):
+            o, t = POSE_DIM * observers[c, k], POSE_DIM * targets[c, k]
+            H_o, H_t = H_observer[c, k], H_target[c, k]
+            for i in range(POSE_DIM):  # A = P_oo H_o^T + P_ot H_t^T, B = P_to H_o^T + P_tt H_t^T
+                for j in range(m):
+                    a_o = a_t = b_o = b_t = 0.0
+                    for s in range(POSE_DIM):
+                        a_o += P[c, o + i, o + s] * H_o[j, s]
+                        a_t += P[c, o + i, t + s] * H_t[j, s]
+                        b_o += P[c, t + i, o + s] * H_o[j, s]
+                        b_t += P[c, t + i, t + s] * H_t[j, s]
+                    A[i, j], B[i, j] = a_o + a_t, b_o + b_t
+            for i in range(m):
+                for j in range(m):
+                    from_observer = from_target = 0.0
+                    for s in range(POSE_DIM):
+                        from_observer += H_o[i, s] * A[s, j]
+                        from_target += H_t[i, s] * B[s, j]
+                    S[i, j] = from_observer + from_target + R[c, k, i, j]
+            times_inverse(A, S, m, S_inverse, A_S_inverse)
+            for i in range(POSE_DIM):
+                for j in range(POSE_DIM):
+                    total = 0.0
+                    for s in range(m):
+                        total += A_S_inverse[i, s] * A[j, s]
+                    posterior[i, j] = P[c, o + i, o + j] - total
+            P_oo = P[c, o : o + POSE_DIM, o : o + POSE_DIM]
+            own[c, k] = 0.5 * (log_det_of(P_oo) - log_det_of(posterior))
+            joint[c, k] = 0.5 * (log_det_of(S) - log_det_of(R[c, k]))
+    return own, joint
+
+
+@kernel
+def pose_block_log_dets(P, n_robots):
+    """``ln det`` of each of the first ``n_robots`` poses' own 3 x 3 blocks of ``P`` (N, n, n): (N, R), NaN where the
+    determinant is not > 0."""
+    log_dets = np.empty((len(P), n_robots))
+    for c in range(len(P)):
+        for robot in range(n_robots):
+            i = POSE_DIM * robot
+            log_dets[c, robot] = log_det_of(P[c, i : i + POSE_DIM, i : i + POSE_DIM])
+    return log_dets

@@ -1,0 +1,147 @@
+"""``infonav_gym.compiled``: kernels cached on disk where any location is writable (a read-only install uses
+``NUMBA_CACHE_DIR`` or numba's user-wide cache), uncached after one warning line where none is, IEEE
+arithmetic, and one notice when a first compile takes long."""
+
+import logging
+import os
+import shutil
+import stat
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+import pytest
+
+from infonav_gym import compiled
+from infonav_gym.estimation import kernels
+from infonav_gym.information import log_det_spd
+
+PACKAGE = Path(compiled.__file__).resolve().parent
+UNCACHED_WARNING = "no writable numba cache location"
+
+# Run in a read-only copy of the package: one kernel (information's log det) on a 2 x 2 and a 4 x 4 stack;
+# prints the log dets and how many of that kernel's signatures came from the disk cache.
+PROBE = textwrap.dedent(
+    """
+    import sys
+    import numpy as np
+    from infonav_gym import information
+    assert information.__file__.startswith(sys.argv[1]), information.__file__
+    print(information.log_det_spd(np.stack([np.diag([2.0, 3.0]), np.eye(2)]), check_input=False).tolist())
+    print(information.log_det_spd(np.eye(4)[None] * 2.0, check_input=False).tolist())
+    print(sum(information.stacked_log_dets.stats.cache_hits.values()))
+    """
+)
+
+
+def read_only_install(root: Path) -> Path:
+    """A copy of the package under ``root`` that nothing can be written into (as root too: every ``__pycache__``
+    is a plain file, so no directory can be made there); the directory to put on ``PYTHONPATH``."""
+    site = root / "site"
+    shutil.copytree(PACKAGE, site / "infonav_gym", ignore=shutil.ignore_patterns("__pycache__"))
+    for directory in [site, *(path for path in site.rglob("*") if path.is_dir())]:
+        (directory / "__pycache__").write_text("not a directory")
+    for path in [site, *site.rglob("*")]:
+        path.chmod(path.stat().st_mode & ~(stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
+    return site
+
+
+def unwritable(root: Path) -> Path:
+    """A path no one can make a directory at: it lies under a plain file."""
+    blocker = root / "plain_file"
+    blocker.write_text("")
+    return blocker / "cache"
+
+
+def run_probe(site: Path, **environment) -> subprocess.CompletedProcess:
+    env = {key: value for key, value in os.environ.items() if not key.startswith(("NUMBA_", "XDG_"))}
+    env.update(PYTHONPATH=str(site), PYTHONDONTWRITEBYTECODE="1", **environment)
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE, str(site)], capture_output=True, text=True, env=env, cwd=site, timeout=300
+    )
+    assert done.returncode == 0, done.stderr
+    return done
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory):
+    root = tmp_path_factory.mktemp("install")
+    yield read_only_install(root)
+    for path in [root, *root.rglob("*")]:  # let pytest clean it up
+        path.chmod(path.stat().st_mode | stat.S_IWUSR)
+
+
+def expected_lines() -> list[str]:
+    return [str([float(np.log(6.0)), 0.0]), str([float(4 * np.log(2.0))])]
+
+
+def test_a_read_only_install_caches_its_kernels_in_numba_cache_dir(site, tmp_path):
+    cache = tmp_path / "numba_cache"
+    first = run_probe(site, NUMBA_CACHE_DIR=str(cache), XDG_CACHE_HOME=str(unwritable(tmp_path)))
+    assert first.stdout.split("\n")[:3] == [*expected_lines(), "0"]
+    assert list(cache.rglob("*.nbi")), "no cache index written to NUMBA_CACHE_DIR"
+    second = run_probe(site, NUMBA_CACHE_DIR=str(cache), XDG_CACHE_HOME=str(unwritable(tmp_path)))
+    assert second.stdout.split("\n")[:3] == [*expected_lines(), "1"]  # loaded from the cache, not compiled
+    assert UNCACHED_WARNING not in first.stderr + second.stderr
+
+
+def test_a_read_only_install_falls_back_to_numbas_user_wide_cache(site, tmp_path):
+    user_cache = tmp_path / "user_cache"
+    run_probe(site, XDG_CACHE_HOME=str(user_cache))
+    again = run_probe(site, XDG_CACHE_HOME=str(user_cache))
+    assert again.stdout.split("\n")[:3] == [*expected_lines(), "1"]
+    assert list((user_cache / "numba").rglob("*.nbi"))
+
+
+def test_without_any_writable_cache_location_kernels_run_uncached_after_one_warning_line(site, tmp_path):
+    blocked = unwritable(tmp_path)
+    done = run_probe(site, NUMBA_CACHE_DIR=str(blocked), XDG_CACHE_HOME=str(blocked))
+    assert done.stdout.split("\n")[:3] == [*expected_lines(), "0"]
+    warnings = [line for line in done.stderr.splitlines() if UNCACHED_WARNING in line]
+    assert len(warnings) == 1, done.stderr
+    assert "NUMBA_CACHE_DIR" in warnings[0]
+
+
+def test_the_uncached_fallback_warns_once_for_many_kernels(monkeypatch, caplog):
+    """numba's "no locator available" at decoration (here: no locator at all) makes uncached kernels, one warning."""
+    monkeypatch.setattr(numba.core.caching.CacheImpl, "_locator_classes", [])
+    monkeypatch.setattr(compiled, "_uncached_warned", False)
+    with caplog.at_level(logging.WARNING, logger=compiled.__name__):
+        twice = compiled.kernel(lambda value: 2.0 * value)
+        thrice = compiled.kernel(lambda value: 3.0 * value)
+    assert (twice(1.5), thrice(1.5)) == (3.0, 4.5)
+    assert [record.getMessage().count(UNCACHED_WARNING) for record in caplog.records] == [1]
+
+
+def test_a_long_first_compile_is_announced_once(monkeypatch, caplog):
+    monkeypatch.setitem(compiled.KERNEL_OPTIONS, "cache", False)  # a real compile every run, not a cache load
+    monkeypatch.setattr(compiled.compile_notice, "said", False)
+
+    def announcements() -> list[str]:
+        messages = [record.getMessage() for record in caplog.records]
+        return [message for message in messages if "compiling the numba kernels" in message]
+
+    with caplog.at_level(logging.WARNING, logger=compiled.__name__):
+        monkeypatch.setattr(compiled, "COMPILE_NOTICE_AFTER_S", 60.0)
+        assert compiled.kernel(lambda value: value + 1.0)(1.0) == 2.0  # well under a minute: no word
+        assert announcements() == []
+        monkeypatch.setattr(compiled, "COMPILE_NOTICE_AFTER_S", 0.0)
+        assert compiled.kernel(lambda value: value + 2.0)(1.0) == 3.0
+        deadline = time.monotonic() + 5.0
+        while not announcements() and time.monotonic() < deadline:  # the notice comes from a timer thread
+            time.sleep(0.01)
+        assert compiled.kernel(lambda value: value + 3.0)(1.0) == 4.0
+    assert len(announcements()) == 1
+
+
+def test_the_packages_kernels_are_cached_on_disk_with_ieee_arithmetic():
+    for dispatcher in (kernels.kalman_updates, kernels.predict_poses, kernels.landmark_gains):
+        assert type(dispatcher._cache).__name__ == "FunctionCache"  # numba's on-disk cache, not its NullCache
+        assert dispatcher.targetoptions["fastmath"] is False and not dispatcher.targetoptions["parallel"]
+    assert kernels.wrap(np.inf) != kernels.wrap(np.inf)  # NaN, as numpy's remainder gives: no exception
+    with pytest.raises(ValueError, match="not positive definite"):
+        log_det_spd(np.array([[[1.0, 2.0], [2.0, 1.0]]]), check_input=False)
