@@ -14,7 +14,7 @@ BUILTIN_ENVS = (
         "infonav/LandmarkSelection-v0",
         "infonav_gym.envs.landmark_selection:LandmarkSelectionEnv",
         GYMNASIUM,
-        "infonav_gym.envs.landmark_selection_vector:LandmarkSelectionVectorEnv",
+        "infonav_gym.envs.landmark_selection:LandmarkSelectionVectorEnv",
     ),
     (
         "infonav/ActiveLocalization-v0",

@@ -125,6 +125,15 @@ def stacked_log_dets(M):
     return log_dets
 
 
+def largest_position_std(covariances: np.ndarray) -> np.ndarray:
+    """Largest standard deviation of the position part of each (B, >=2, >=2) pose covariance [m]: (B,).
+
+    The square root of the largest eigenvalue of the 2 x 2 position block, in closed form.
+    """
+    a, b, d = covariances[:, 0, 0], covariances[:, 0, 1], covariances[:, 1, 1]
+    return np.sqrt(0.5 * (a + d) + np.sqrt(0.25 * (a - d) ** 2 + b * b))
+
+
 def gaussian_entropy(P, check_input: bool = True) -> float:
     """Differential entropy of N(., P): ``0.5 ln((2 pi e)^n det P)`` [nats]."""
     log_det = log_det_spd(P, "covariance P", check_input)

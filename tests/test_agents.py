@@ -10,8 +10,8 @@ from scipy.stats import chisquare
 
 import agents
 import infonav_gym  # noqa: F401  (registers the envs)
-from infonav_gym.decisions import DECISION_ATOL, DECISION_RTOL
 from agents import GreedyEntropyAgent, RandomAgent
+from infonav_gym.decisions import DECISION_ATOL, DECISION_RTOL
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 

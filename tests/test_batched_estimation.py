@@ -2,7 +2,6 @@
 
 import math
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -387,74 +386,6 @@ def test_joint_gain_is_the_expected_information_gain_of_the_stacked_jacobian():
 
 
 # ---------------------------------------------------------------------------------------------- whole episodes
-
-
-class Recorder:
-    """Records the odometry and measurements an env hands its ``PoseEKF``, then lets the filter run them."""
-
-    def __init__(self, ekf: PoseEKF):
-        self.odometry = self.measurement = None
-        predict, update = ekf.predict, ekf.update_range_bearing
-
-        def recorded_predict(control, dt, control_covariance, **kwargs):
-            self.odometry = np.array(control, dtype=float)
-            predict(control, dt, control_covariance, **kwargs)
-
-        def recorded_update(measurement, *args, **kwargs):
-            self.measurement = np.array(measurement, dtype=float)
-            update(measurement, *args, **kwargs)
-
-        ekf.predict, ekf.update_range_bearing = recorded_predict, recorded_update
-
-
-@pytest.mark.parametrize("mapping", [False, True])
-def test_batched_core_replays_landmark_selection_episodes(mapping):
-    """N copies of the env, each with its own seed and random valid actions; the batched core follows them."""
-    n_copies, seed = 3, 20
-    envs = [gym.make("infonav/LandmarkSelection-v0", mapping=mapping) for _ in range(n_copies)]
-    infos = [env.reset(seed=seed + copy)[1] for copy, env in enumerate(envs)]
-    filters = [env.unwrapped.ekf for env in envs]
-    recorders = [Recorder(ekf) for ekf in filters]
-    x, P = np.stack([ekf.x for ekf in filters]), np.stack([ekf.P for ekf in filters])
-    landmarks = None if mapping else np.stack([env.unwrapped.world.landmarks for env in envs])
-    sensor, dt = envs[0].unwrapped.sensor, envs[0].unwrapped.config["time_step_s"]
-    odometry_noise = envs[0].unwrapped.odometry.noise_covariance()
-    rng = np.random.default_rng(seed)
-    truncated, steps, observed_steps, skipped_steps = False, 0, 0, 0
-    while not truncated:
-        predicted, H = batched.landmark_measurement_model(x, landmarks)
-        R = sensor.noise_covariance(predicted[..., 0].ravel()).reshape(*predicted.shape, 2)
-        gains = batched.landmark_information_gains(P, H, R)
-        prior_log_det = log_det_spd(P)
-        actions = []
-        for copy, info in enumerate(infos):
-            visible = info["action_mask"].astype(bool)
-            np.testing.assert_allclose(gains[copy, visible], info["action_information_gain"][visible], atol=P_TOLERANCE)
-            sight = envs[copy].unwrapped._decision.payload
-            np.testing.assert_allclose(predicted[copy], sight.predicted, rtol=0, atol=X_TOLERANCE)
-            skip = rng.random() < 0.2 or not visible.any()  # no observation: a masked action is a no-op
-            actions.append(int(rng.integers(8)) if skip else int(rng.choice(np.flatnonzero(visible))))
-        results = [env.step(action) for env, action in zip(envs, actions)]
-        infos = [result[4] for result in results]
-        chosen = np.array([info["chosen_action"] for info in infos])
-        observed, rows, jacobians, noise = batched.select_candidates(chosen, predicted, H, R)
-        measurements = np.stack([r.measurement if o else np.zeros(2) for r, o in zip(recorders, observed)])
-        x, P = batched.range_bearing_update(x, P, measurements, rows, jacobians, noise, observed)
-        rewards = 0.5 * (prior_log_det - log_det_spd(P))
-        np.testing.assert_allclose(rewards, [result[1] for result in results], rtol=0, atol=P_TOLERANCE)
-        odometry = np.stack([recorder.odometry for recorder in recorders])
-        x, P = batched.predict_pose(x, P, odometry, dt, odometry_noise)
-        assert_filters_equal(x, P, filters)
-        for recorder in recorders:
-            recorder.measurement = None
-        truncated = all(result[3] for result in results)
-        steps, observed_steps, skipped_steps = (
-            steps + 1,
-            observed_steps + observed.sum(),
-            skipped_steps + (~observed).sum(),
-        )
-    assert steps == envs[0].unwrapped.config["horizon"]
-    assert observed_steps > 100 and skipped_steps > 20  # both paths ran, many times
 
 
 class TeamRecorder:

@@ -139,6 +139,7 @@ def test_benchmark_reports_every_goal(capsys):
         == {
             "landmark_selection_vs_cartpole_ratio",
             "cooperative_localization_vs_cartpole_ratio",
+            "sensor_selection_vs_cartpole_ratio",
             "greedy_decision_us",
             "ladar_frame_ms",
             "camera_frame_ms",
@@ -150,13 +151,18 @@ def test_benchmark_reports_every_goal(capsys):
             "landmark_selection_vector_256_vs_cartpole_ratio",
             "active_localization_vector_256_vs_cartpole_ratio",
             "cooperative_localization_vector_256_vs_vmas_ratio",
+            "cooperative_exploration_vector_256_vs_vmas_ratio",
             "evaluation_2_workers_time_ratio",
             "rllib_team_2_runners_vs_1_ratio",
             "landmark_selection_vector_1024_kb_per_env",
             "active_localization_vector_1024_kb_per_env",
             "cooperative_localization_vector_1024_kb_per_env",
+            "cold_start_s",
+            "warm_start_s",
         }
     )
+    for start in ("cold_start_s", "warm_start_s"):
+        assert figures[start] > 0 and result["goals_met"][start] == (figures[start] <= result["goals"][start])
     ppo_fps, cartpole_ppo_fps = figures["ppo_landmark_selection_fps"], figures["ppo_cartpole_fps"]
     assert ppo_fps > 0 and cartpole_ppo_fps > 0 and figures["ppo_timesteps_per_round"] <= 512
     assert figures["ppo_fps_ratio_vs_cartpole"] == pytest.approx(ppo_fps / cartpole_ppo_fps)  # one round: one ratio
@@ -165,7 +171,7 @@ def test_benchmark_reports_every_goal(capsys):
     assert figures["ppo_vector_n_envs"] == 64 and figures["ppo_vector_timesteps_per_round"] == 1024  # 64 x 16 steps
     vector_ratio = figures["ppo_vector_fps_ratio_vs_cartpole"]
     assert vector_ratio == pytest.approx(vector_fps / cartpole_vector_fps)
-    assert result["goals_met"]["ppo_vector_fps_ratio_vs_cartpole"] == (vector_ratio >= 0.8)
+    assert result["goals_met"]["ppo_vector_fps_ratio_vs_cartpole"] == (vector_ratio >= 0.85)
     assert figures["icp_frame_pair_ms"] > 0
     assert result["goals_met"]["icp_frame_pair_ms"] == (figures["icp_frame_pair_ms"] <= 20.0)
     for registration in ("icp", "gicp"):

@@ -107,7 +107,9 @@ def team_episode_actions(seed: int, rng: np.random.Generator | None) -> list[dic
     observations, infos = env.reset(seed=seed)
     chosen = []
     while env.agents:
-        actions = {robot: planners[robot].act(observations[robot], nudged_info(infos[robot], rng)) for robot in env.agents}
+        actions = {
+            robot: planners[robot].act(observations[robot], nudged_info(infos[robot], rng)) for robot in env.agents
+        }
         chosen.append(actions)
         observations, _, _, _, infos = env.step(actions)
     env.close()

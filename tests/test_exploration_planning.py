@@ -8,8 +8,8 @@ import pytest
 
 from agents import PlannerAgent
 from agents.team_planning import TeamPlans
-from infonav_gym.envs.active_localization import ActiveLocalizationEnv
 from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.information import largest_position_std
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0
 from infonav_gym.multi.exploration_planning import MOTION_HEADINGS_RAD, N_MOTIONS, STAY
 from infonav_gym.sensors.relative_pose import noise_covariances
@@ -44,7 +44,7 @@ def expected_step_by_hand(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndar
     ekf.predict(np.column_stack([speeds, np.zeros_like(speeds)]), drive_s, covariances)
     fixed = np.array([gps is not None for gps in env.gps])
     ekf.gps_update(np.flatnonzero(fixed), ekf.poses[fixed, :2], env._gps_noise[fixed])
-    position_std = ActiveLocalizationEnv.position_std(ekf.pose_covariances())
+    position_std = largest_position_std(ekf.pose_covariances())
     footprints = env.map_model.footprints(ekf.poses[drives, :2])
     after = env.map_model.fused(env.map_variances, footprints, env.map_model.scan_noise_variances(position_std[drives]))
     map_information = 0.5 * np.sum(np.log(env.map_variances / after))

@@ -113,6 +113,8 @@ def _without_wall_clock(transition):
 @pytest.mark.parametrize("env_id", SINGLE_AGENT_IDS)
 def test_next_decision_changes_nothing(env_id):
     env = gym.make(env_id).unwrapped
+    if not hasattr(env, "_next_decision"):
+        pytest.skip(f"{env_id} is written once on batched arrays: its decision is no hook of a single env")
     _, info = env.reset(seed=3)
     twin = pickle.loads(pickle.dumps(env))
     again = env._next_decision()

@@ -14,6 +14,7 @@ from infonav_gym.information import (
     histogram_entropy,
     information_gain_of_information,
     information_metric,
+    largest_position_std,
     log_det_spd,
     mutual_information,
 )
@@ -208,3 +209,11 @@ def test_information_gain_of_information_is_the_entropy_drop_of_the_linear_gauss
     expected = 0.5 * (np.linalg.slogdet(P)[1] - np.linalg.slogdet(posterior)[1])
     information = J.T @ np.linalg.inv(R) @ J
     assert information_gain_of_information(np.linalg.cholesky(P), information) == pytest.approx(expected, rel=1e-10)
+
+
+def test_largest_position_std_is_the_root_of_the_position_blocks_largest_eigenvalue():
+    rng = np.random.default_rng(0)
+    roots = rng.normal(size=(20, 3, 3))
+    covariances = roots @ roots.transpose(0, 2, 1) + 1e-3 * np.eye(3)
+    expected = np.sqrt(np.linalg.eigvalsh(covariances[:, :2, :2])[:, -1])
+    np.testing.assert_allclose(largest_position_std(covariances), expected, rtol=1e-12)

@@ -147,7 +147,7 @@ def test_each_vectorization_seeds_sub_env_i_with_seed_plus_i_and_records_its_mod
 
     from agents.ppo import build_model, train
     from agents.vector_adapter import VectorEnvAdapter
-    from infonav_gym.envs.landmark_selection_vector import LandmarkSelectionVectorEnv
+    from infonav_gym.envs.landmark_selection import LandmarkSelectionVectorEnv
 
     small = {**load_hyperparameters(LANDMARK_ID), "n_steps": 16, "batch_size": 32, "n_epochs": 1}
     model = build_model(LANDMARK_ID, seed=4, n_envs=3, hyperparameters=small, vectorization=vectorization)

@@ -549,13 +549,14 @@ def test_an_env_keeps_its_drawn_paths_bounded_over_many_more_steps_than_the_boun
     import infonav_gym  # noqa: F401
 
     monkeypatch.setattr(PathHistory, "MAX_POINTS", 4)
-    env = gym.make(env_id, horizon=40, render_mode="rgb_array").unwrapped
-    _, info = env.reset(seed=0)
+    single = gym.make(env_id, horizon=40, render_mode="rgb_array").unwrapped
+    env = getattr(single, "vector", single)  # an env written once keeps its paths in its one copy
+    _, info = single.reset(seed=0)
     start = env._true_path.points()[0].copy()
     steps = 0
     for _ in range(40):
         action = int(np.argmax(info["action_mask"]))  # the first valid action, else 0 (a no-op)
-        _, _, terminated, truncated, info = env.step(action)
+        _, _, terminated, truncated, info = single.step(action)
         steps += 1
         paths = [env._true_path] + ([env._estimated_path] if hasattr(env, "_estimated_path") else [])
         assert all(len(path) <= 5 for path in paths)
@@ -563,9 +564,9 @@ def test_an_env_keeps_its_drawn_paths_bounded_over_many_more_steps_than_the_boun
             break
     assert steps > 10, "many more steps than the bound"
     np.testing.assert_array_equal(env._true_path.points()[0], start)
-    frame = env.render()
+    frame = single.render()
     assert frame.dtype == np.uint8
-    env.close()
+    single.close()
 
 
 def test_the_team_env_keeps_every_robots_paths_bounded(monkeypatch):

@@ -43,10 +43,10 @@ def test_a_registered_builder_gets_the_parameters_it_names_and_the_env_runs_on_i
     assert "ring" in scenario_names(team=False) and "ring" not in scenario_names(team=True)
     env = gym.make("infonav/LandmarkSelection-v0", scenario="ring", n_candidates=5, speed_mps=2.0)
     _, info = env.reset(seed=4)
-    world = env.unwrapped.world
-    assert len(world.landmarks) == 5, "n_landmarks comes from n_candidates"
-    assert world.scenario.routes[0].speed_mps == 2.0
-    np.testing.assert_array_equal(world.landmarks, ring(np.random.default_rng(4), 5).landmarks)
+    scenario = env.unwrapped.vector.scenario(0)
+    assert len(scenario.landmarks) == 5, "n_landmarks comes from n_candidates"
+    assert scenario.routes[0].speed_mps == 2.0
+    np.testing.assert_array_equal(scenario.landmarks, ring(np.random.default_rng(4), 5).landmarks)
     total = 0.0
     for _ in range(10):
         _, reward, _, _, info = env.step(int(np.argmax(info["action_information_gain"])))

@@ -21,6 +21,7 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, PoseEKF
 from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
 from infonav_gym.geometry import wrap_angle
+from infonav_gym.information import largest_position_std
 from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
@@ -287,11 +288,7 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     def _is_terminated(self) -> bool:
         return self.goal_reached or self.failed
 
-    @staticmethod
-    def position_std(covariances: np.ndarray) -> np.ndarray:
-        """Largest standard deviation of the position part of each (B, 3, 3) covariance [m]: (B,)."""
-        a, b, d = covariances[:, 0, 0], covariances[:, 0, 1], covariances[:, 1, 1]
-        return np.sqrt(0.5 * (a + d) + np.sqrt(0.25 * (a - d) ** 2 + b * b))
+    position_std = staticmethod(largest_position_std)  # the planning model's, on (B, 3, 3) covariances
 
     def _commands(self, poses: np.ndarray, primitives) -> np.ndarray:
         """``[speed, turn rate]`` (B, 2) that each primitive commands from each estimated pose (B, 3)."""

@@ -17,12 +17,12 @@ from infonav_gym.envs.active_localization import (
     LANDMARK_FEATURES,
     OBSTACLE_FEATURES,
     POSE_FEATURES,
-    ActiveLocalizationEnv,
 )
 from infonav_gym.envs.active_planning import N_PRIMITIVES
-from infonav_gym.envs.landmark_selection_batch import BatchedDecision
+from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.geometry import wrap_angle
+from infonav_gym.information import largest_position_std
 
 
 class ActiveDecision(NamedTuple):
@@ -35,12 +35,12 @@ class ActiveDecision(NamedTuple):
         action_information_gain: expected MI of each action (N, A) [nats], 0 where masked.
     """
 
-    sight: BatchedDecision
+    sight: LandmarkDecision
     action_mask: np.ndarray
     action_information_gain: np.ndarray
 
     @classmethod
-    def from_sight(cls, sight: BatchedDecision, observations_left: np.ndarray) -> ActiveDecision:
+    def from_sight(cls, sight: LandmarkDecision, observations_left: np.ndarray) -> ActiveDecision:
         """The decisions of copies whose landmarks are ``sight`` and sensing budgets ``observations_left`` (N,)."""
         n_copies, n_landmarks = sight.action_mask.shape
         observable = sight.action_mask.astype(bool) & (observations_left > 0)[:, None]
@@ -125,7 +125,7 @@ def batched_info(decision: ActiveDecision, state: dict, stepped, chosen, reward_
         "state_entropy": pose_entropy.copy(),
         "position_error_m": np.hypot(errors[:, 0], errors[:, 1]),
         "heading_error_rad": np.abs(wrap_angle(errors[:, 2])),
-        "position_std_m": ActiveLocalizationEnv.position_std(state["P"]),
+        "position_std_m": largest_position_std(state["P"]),
         "true_pose": true_poses.copy(),
         "estimated_pose": x[:, :POSE_DIM].copy(),
         "goal": goals.copy(),

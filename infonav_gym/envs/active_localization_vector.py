@@ -22,12 +22,12 @@ from infonav_gym.envs.active_localization import (
 )
 from infonav_gym.envs.active_localization_batch import ActiveDecision, batched_info, batched_observation
 from infonav_gym.envs.active_planning import N_PRIMITIVES
-from infonav_gym.envs.landmark_selection_batch import BatchedDecision
+from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
 from infonav_gym.envs.vector_infos import set_rows
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
-from infonav_gym.information import log_det_spd
+from infonav_gym.information import largest_position_std, log_det_spd
 from infonav_gym.world.visibility import StaticGeometry
 
 
@@ -132,7 +132,7 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv, single_env=ActiveLocalizati
         progress = cfg["progress_reward_per_m"] * (distance_before - distance_after)
         terms["progress"][copies] = np.where(driving, progress, 0.0)
         reached = distance_after <= cfg["goal_radius_m"]
-        failed = ~reached & (ActiveLocalizationEnv.position_std(state["P"][copies]) > cfg["max_position_std_m"])
+        failed = ~reached & (largest_position_std(state["P"][copies]) > cfg["max_position_std_m"])
         state["goal_reached"][copies], state["failed"][copies] = reached, failed
         terms["goal_bonus"][copies] = np.where(reached, cfg["goal_bonus"], 0.0)
         terms["failure_penalty"][copies] = np.where(failed, -cfg["failure_penalty"], 0.0)
@@ -193,7 +193,7 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv, single_env=ActiveLocalizati
         state = {key: value[copies] for key, value in self._state.items()}
         true_poses, x, P = self._worlds.poses[copies, 0], state["x"], state["P"]
         everywhere = np.ones((len(copies), self._landmarks.shape[1]), dtype=bool)
-        sight = BatchedDecision.at_prior(
+        sight = LandmarkDecision.at_prior(
             self._sensor, geometry, true_poses, x, P, self._landmarks[copies], everywhere, mapping=False
         )
         decision = ActiveDecision.from_sight(sight, state["observations_left"])

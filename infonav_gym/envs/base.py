@@ -27,6 +27,15 @@ MAX_EPISODE_STEPS = 10**7
 EPISODE_STEPS = Interval(1, MAX_EPISODE_STEPS, integer=True)  # the allowed horizons (``horizon``, ``max_cycles``)
 
 
+def shared_config() -> dict:
+    """A fresh dict of the config keys every single-agent env has, with their defaults."""
+    return {
+        "horizon": 200,  # episode length [steps]; the episode is truncated after it
+        "invalid_action": "noop",  # a masked action: "noop" (reward 0) or "raise" (ValueError)
+        "render_size_px": 600,  # longer side of rendered frames [px]
+    }
+
+
 class Decision(NamedTuple):
     """What an env offers at one decision, computed once at the prior by ``_next_decision``.
 
@@ -179,11 +188,7 @@ class InfoNavEnv(SceneRendering, gym.Env):
     @classmethod
     def default_config(cls) -> dict:
         """A fresh dict of every config key with its default; ``gym.make`` kwargs override it."""
-        return {
-            "horizon": 200,  # episode length [steps]; the episode is truncated after it
-            "invalid_action": "noop",  # a masked action: "noop" (reward 0) or "raise" (ValueError)
-            "render_size_px": 600,  # longer side of rendered frames [px]
-        }
+        return shared_config()
 
     def __init__(self, render_mode: str | None = None, **config):
         self._configure(render_mode, config)

@@ -7,16 +7,20 @@ from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
 
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments
-from infonav_gym.envs.base import Decision, InfoNavEnv
-from infonav_gym.envs.landmark_sight import LandmarkSight
+from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS
+from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
+from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, PoseEKF
+from infonav_gym.envs.vector_infos import set_rows
+from infonav_gym.estimation import batched
+from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import gaussian_entropy_from_log_det
-from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
+from infonav_gym.information import gaussian_entropy_from_log_det, log_det_spd
+from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.scenarios import (
@@ -26,7 +30,8 @@ from infonav_gym.world.scenarios import (
     scenario_from_config,
     scenario_names,
 )
-from infonav_gym.world.world import TIME_STEP_S, World, start_poses
+from infonav_gym.world.visibility import StaticGeometry
+from infonav_gym.world.world import TIME_STEP_S, start_poses
 
 SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "speed_mps": "speed_mps",
@@ -45,7 +50,266 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 }
 
 
-class LandmarkSelectionEnv(InfoNavEnv):
+class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
+    """N copies of ``infonav/LandmarkSelection-v0`` on stacked arrays: the env's one implementation.
+
+    See ``LandmarkSelectionEnv`` (its N = 1 view) for the spaces, rewards and config keys.
+    ``gym.make_vec("infonav/LandmarkSelection-v0", num_envs=N, **config)`` returns it. The estimation runs on the
+    batched EKF core (``estimation.batched``), the visibility on ``world.visibility``, the physics in a
+    ``WorldBatch`` and each copy's sensor noise from its own streams (``NoiseStreams``), so sub-env ``i`` after
+    ``reset(seed=s)`` gives the numbers of ``gym.make("infonav/LandmarkSelection-v0")`` after ``reset(seed=s + i)``.
+
+    ## Vector API
+    ``single_observation_space`` / ``single_action_space`` are the single env's; ``step`` takes one
+    action per sub-env (N,) and returns observations (N, 10 + 5K), rewards, ``terminated`` and
+    ``truncated`` (N,). Infos hold the single env's keys as arrays with a leading N dimension, each with
+    Gymnasium's ``_key`` mask; ``info["action_mask"]`` is (N, K). ``action_masks()`` gives the (N, K)
+    bool masks for ``MaskablePPO``.
+
+    ## Autoreset
+    ``autoreset_mode`` (``metadata["autoreset_mode"]``) is Gymnasium's ``NEXT_STEP`` by default, as its
+    ``CartPoleVectorEnv``: the step after a sub-env's episode ended resets it (its action is ignored), with
+    reward 0, not terminated nor truncated, and its reset info (``reward_terms`` masked out). With
+    ``SAME_STEP`` (what SB3-style training wants) the step that ends an episode returns the reset
+    observation and info, with the last observation and info in ``info["final_obs"]`` (an object array,
+    ``None`` for the others) and ``info["final_info"]``, masked by ``info["_final_obs"]`` / ``"_final_info"``.
+    A sub-env reset this way continues its own generator, as the single env's ``reset()`` without a seed does.
+    With ``DISABLED`` no sub-env restarts until ``reset()``.
+
+    ## Arguments
+    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode`` or its value, ``"NextStep"`` /
+    ``"SameStep"`` / ``"Disabled"``) and any key of ``default_config()``. With ``mapping=True`` every copy's
+    scenario must have the same number of landmarks (the stacked states share their size). ``render_mode``
+    (``"rgb_array"`` or ``"human"``): ``render()`` draws sub-env 0.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
+    episode_metrics = LOCALIZATION_METRICS
+    traits = EnvTraits(estimates_pose=True, rewards_information_at_once=True, reward_terms=("mutual_information",))
+
+    @classmethod
+    def default_config(cls) -> dict:
+        return {
+            **OneRobotVectorEnv.default_config(),
+            "scenario": "field",  # "field" (random), "corridor" (the paper's Fig. 1), or registered (register_scenario)
+            "n_candidates": 8,  # K, size of the action space
+            "time_step_s": 0.5,  # [s]
+            "speed_mps": 1.0,  # cruise speed along the route [m/s]
+            "mapping": False,  # True: landmark positions are uncertain and estimated (EKF-SLAM)
+            "landmark_prior_std_m": 1.0,  # prior std of each landmark coordinate when mapping [m]
+            "range_std_m": 0.1,  # [m]
+            "range_std_per_m": 0.01,  # growth of the range std with distance [m/m]
+            "bearing_std_rad": math.radians(2.0),  # [rad]
+            "sensor_max_range_m": 15.0,  # [m]
+            "sensor_fov_rad": math.pi,  # full field of view around the heading [rad]
+            "odometry_speed_std_mps": 0.05,  # [m/s]
+            "odometry_turn_rate_std_rps": 0.02,  # [rad/s]
+            "initial_position_std_m": 0.1,  # [m]
+            "initial_heading_std_rad": 0.02,  # [rad]
+            "n_obstacles": 6,  # field scenario only
+            "field_size_m": 30.0,  # side of the square field [m]
+        }
+
+    def _parts(self):
+        """Check the env's own config keys and set the spaces; its range-bearing sensor and odometry."""
+        cfg, owner = self.config, self.owner_name
+        check_choice(cfg, "scenario", scenario_names(team=False), owner)
+        check_config(cfg, owner, CONFIG_INTERVALS)
+        check_config_arguments(cfg, owner, "field", FIELD_ARGUMENTS, SCENARIO_KEYS)  # the corridor's speed too
+        if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
+            raise ValueError(
+                f"config key 'n_candidates' of {owner} must be >= {CORRIDOR_LANDMARK_COUNT} "
+                f"(the corridor's landmarks), got {cfg['n_candidates']}"
+            )
+        low, high = self._observation_bounds(cfg["n_candidates"])
+        self._set_spaces(spaces.Box(low, high, dtype=np.float32), spaces.Discrete(cfg["n_candidates"]))
+        return range_bearing_sensor_from_config(cfg, owner), odometry_sensor_from_config(cfg, owner)
+
+    @staticmethod
+    def _observation_bounds(n_candidates: int) -> tuple[np.ndarray, np.ndarray]:
+        pose_low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0]
+        pose_high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1]
+        candidate_low, candidate_high = [0, 0, -1, -1, 0], [1, _BIG, 1, 1, _BIG]
+        low = np.array(pose_low + candidate_low * n_candidates, dtype=np.float32)
+        high = np.array(pose_high + candidate_high * n_candidates, dtype=np.float32)
+        return low, high
+
+    def _allocate(self) -> None:
+        num_envs = self.num_envs
+        self._x = self._P = None
+        self._elapsed = np.zeros(num_envs, dtype=int)
+        n_candidates = self.config["n_candidates"]
+        self._landmarks = np.zeros((num_envs, n_candidates, 2))
+        self._exists = np.zeros((num_envs, n_candidates), dtype=bool)
+        self._chosen = np.full(num_envs, -1)
+
+    def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
+        """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
+        owner, geometries = self.owner_name, []
+        for copy in copies.tolist():
+            scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy], owner)
+            x, P = prior.state()
+            if self._x is None or len(copies) == self.num_envs and copy == 0:
+                self._x, self._P = np.zeros((self.num_envs, len(x))), np.zeros((self.num_envs, len(x), len(x)))
+            if len(x) != self._x.shape[1]:
+                raise ValueError(
+                    f"sub-env {copy} of {owner}: with mapping=True every copy needs the same number of landmarks; "
+                    f"scenario {scenario.name!r} has {len(scenario.landmarks)}, the other copies "
+                    f"{(self._x.shape[1] - 3) // 2}"
+                )
+            self._worlds.reset_copy(copy, scenario)
+            self._odometry_noise.restart(copy, odometry_rng)
+            self._measurement_noise.restart(copy, measurement_rng)
+            self._x[copy], self._P[copy] = x, P
+            n_landmarks = len(scenario.landmarks)
+            self._landmarks[copy] = 0.0
+            self._landmarks[copy, :n_landmarks] = scenario.landmarks
+            self._exists[copy] = np.arange(self.config["n_candidates"]) < n_landmarks
+            geometries.append(StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m))
+        self._elapsed[copies] = 0
+        return StaticGeometry.stack(geometries)
+
+    def step(self, actions):
+        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
+        acting, chosen = self._begin_step(actions)
+        rewards = self._observe(chosen)
+        stepped = np.flatnonzero(acting)
+        self._elapsed[stepped] += 1
+        self._advance(stepped)
+        truncated = acting & (self._elapsed >= self.config["horizon"])
+        observation, info = self._finish_step(
+            truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, rewards)
+        )
+        return observation, rewards, np.zeros(self.num_envs, dtype=bool), truncated, info
+
+    def _observe(self, chosen: np.ndarray) -> np.ndarray:
+        """Update each observing copy's EKF with a noisy measurement of its chosen landmark; the realized MI (N,)."""
+        decision = self._decision
+        observed, predicted, H, R = batched.select_candidates(chosen, decision.predicted, decision.H, decision.R)
+        rewards = np.zeros(self.num_envs)
+        observers = np.flatnonzero(observed)
+        if not observers.size:
+            return rewards
+        measurements = np.zeros((self.num_envs, 2))
+        landmarks = self._landmarks[observers, chosen[observers]]
+        noise = self._measurement_noise.take(observers)
+        measurements[observers] = self._sensor.measure_with_noise(self._worlds.poses[observers, 0], landmarks, noise)
+        self._x, self._P = batched.range_bearing_update(
+            self._x, self._P, measurements, predicted, H, R, observed, check_input=False
+        )
+        posterior_log_dets = log_det_spd(self._P[observers], check_input=False)
+        rewards[observers] = 0.5 * (decision.prior_log_det[observers] - posterior_log_dets)
+        return rewards
+
+    def _advance(self, copies: np.ndarray) -> None:
+        """Step the worlds of ``copies`` and predict their EKFs from noisy odometry."""
+        if copies.size:
+            self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
+
+    def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
+        """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""
+        return self._outputs(
+            copies, geometry, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), np.zeros(len(copies))
+        )
+
+    def _outputs(self, copies, geometry, stepped, chosen, rewards) -> tuple[np.ndarray, dict]:
+        """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos."""
+        true_poses, x, P = self._worlds.poses[copies, 0], self._x[copies], self._P[copies]
+        exists = self._exists[copies]
+        decision = LandmarkDecision.at_prior(
+            self._sensor, geometry, true_poses, x, P, self._landmarks[copies], exists, self.config["mapping"]
+        )
+        if len(copies) == self.num_envs:
+            self._decision = decision
+        else:
+            self._decision = LandmarkDecision(
+                *(set_rows(full, copies, part) for full, part in zip(self._decision, decision))
+            )
+        self._chosen[copies] = np.where(stepped, chosen, -1)
+        self._track_first_copy(copies, stepped)
+        elapsed = self._elapsed[copies]
+        observation = self._observation(decision, x, P, elapsed, exists)
+        info = self._info(decision, x, true_poses, elapsed, stepped, chosen, rewards)
+        return observation, info
+
+    def _observation(self, decision: LandmarkDecision, x, P, elapsed, exists) -> np.ndarray:
+        """The observations of some copies (n, 10 + 5K), float32, clipped to the space (see the single env)."""
+        n_copies, n_candidates = exists.shape
+        space = self.single_observation_space
+        observation = np.zeros((n_copies, *space.shape), dtype=np.float32)
+        variances = np.diagonal(P[:, :POSE_DIM, :POSE_DIM], axis1=1, axis2=2)
+        observation[:, :2] = x[:, :2]
+        observation[:, 2], observation[:, 3] = np.cos(x[:, 2]), np.sin(x[:, 2])
+        observation[:, 4:7] = np.sqrt(variances)
+        observation[:, 7] = P[:, 0, 1] / np.sqrt(variances[:, 0] * variances[:, 1])
+        observation[:, 8] = decision.pose_entropy
+        observation[:, 9] = elapsed / self.config["horizon"]
+        candidates = observation[:, POSE_FEATURES:].reshape(n_copies, n_candidates, CANDIDATE_FEATURES)
+        candidates[..., 0] = decision.action_mask
+        ranges, bearings = decision.predicted[..., 0], decision.predicted[..., 1]
+        candidates[..., 1] = np.where(exists, ranges, 0.0)
+        candidates[..., 2] = np.where(exists, np.cos(bearings), 0.0)
+        candidates[..., 3] = np.where(exists, np.sin(bearings), 0.0)
+        if self.config["mapping"]:
+            landmark_variances = np.diagonal(P, axis1=1, axis2=2)[:, POSE_DIM:].reshape(n_copies, -1, 2)
+            candidates[:, : landmark_variances.shape[1], 4] = np.sqrt(landmark_variances.mean(axis=2))
+        return np.clip(observation, space.low, space.high, out=observation)
+
+    def _info(self, decision: LandmarkDecision, x, true_poses, elapsed, stepped, chosen, rewards) -> dict:
+        """The infos of some copies as arrays (n, ...), each with its ``_key`` mask.
+
+        Args:
+            decision: their new decisions.
+            x: their EKF states (n, dim).
+            true_poses: their true poses (n, 3).
+            elapsed: steps since each one's reset (n,).
+            stepped: which acted in this step (n,) bool; the others were reset and give the reset info.
+            chosen: the landmark each observed (n,), -1 for none.
+            rewards: each one's realized MI (n,) [nats].
+        """
+        errors = true_poses - x[:, :POSE_DIM]
+        everyone = np.ones(len(x), dtype=bool)
+        info = {
+            "action_mask": decision.action_mask.copy(),
+            "action_information_gain": decision.action_information_gain.copy(),
+            "reward_terms": {
+                "mutual_information": np.where(stepped, rewards, 0.0),
+                "_mutual_information": stepped.copy(),
+            },
+            "chosen_action": np.where(stepped, chosen, -1),
+            "invalid_action": stepped & (chosen < 0),
+            "pose_entropy": decision.pose_entropy.copy(),
+            "state_entropy": gaussian_entropy_from_log_det(decision.prior_log_det, x.shape[1]),
+            "position_error_m": np.hypot(errors[:, 0], errors[:, 1]),
+            "heading_error_rad": np.abs(wrap_angle(errors[:, 2])),
+            "true_pose": true_poses.copy(),
+            "estimated_pose": x[:, :POSE_DIM].copy(),
+            "time_s": elapsed * self.config["time_step_s"],
+        }
+        return {**info, **{f"_{key}": everyone for key in info}}
+
+    def _scene_frame(self):
+        """Sub-env 0 drawn: its scenario, landmarks (seen ones marked, the chosen one linked), the robot."""
+        scenario, n_landmarks = self._worlds.scenario(0), int(self._exists[0].sum())
+        mapped = self._x[0, POSE_DIM:].reshape(-1, 2) if self.config["mapping"] else None
+        blocks = [self._P[0, 3 + 2 * i : 5 + 2 * i, 3 + 2 * i : 5 + 2 * i] for i in range(n_landmarks)]
+        pose_entropy = self._decision.pose_entropy[0]
+        chosen = int(self._chosen[0])
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            landmarks=scenario.landmarks,
+            landmark_visible=self._decision.action_mask[0, :n_landmarks].astype(bool),
+            chosen_landmark=None if chosen < 0 else chosen,
+            robots=[self._first_robot_drawing()],
+            landmark_estimates=mapped,
+            landmark_covariances=np.array(blocks) if mapped is not None else None,
+            caption=f"t = {self._elapsed[0] * self.config['time_step_s']:.1f} s   pose entropy {pose_entropy:.2f} nats",
+        )
+
+
+class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv):
     """A robot drives a fixed route; each step it observes one landmark, chosen for its information.
 
     ## Description
@@ -97,155 +361,6 @@ class LandmarkSelectionEnv(InfoNavEnv):
     ## Version History
     * v0: initial version.
     """
-
-    episode_metrics = LOCALIZATION_METRICS
-    traits = EnvTraits(estimates_pose=True, rewards_information_at_once=True, reward_terms=("mutual_information",))
-
-    @classmethod
-    def default_config(cls) -> dict:
-        return {
-            **super().default_config(),
-            "scenario": "field",  # "field" (random), "corridor" (the paper's Fig. 1), or registered (register_scenario)
-            "n_candidates": 8,  # K, size of the action space
-            "time_step_s": 0.5,  # [s]
-            "speed_mps": 1.0,  # cruise speed along the route [m/s]
-            "mapping": False,  # True: landmark positions are uncertain and estimated (EKF-SLAM)
-            "landmark_prior_std_m": 1.0,  # prior std of each landmark coordinate when mapping [m]
-            "range_std_m": 0.1,  # [m]
-            "range_std_per_m": 0.01,  # growth of the range std with distance [m/m]
-            "bearing_std_rad": math.radians(2.0),  # [rad]
-            "sensor_max_range_m": 15.0,  # [m]
-            "sensor_fov_rad": math.pi,  # full field of view around the heading [rad]
-            "odometry_speed_std_mps": 0.05,  # [m/s]
-            "odometry_turn_rate_std_rps": 0.02,  # [rad/s]
-            "initial_position_std_m": 0.1,  # [m]
-            "initial_heading_std_rad": 0.02,  # [rad]
-            "n_obstacles": 6,  # field scenario only
-            "field_size_m": 30.0,  # side of the square field [m]
-        }
-
-    def __init__(self, render_mode: str | None = None, **config):
-        super().__init__(render_mode=render_mode, **config)
-        cfg, owner = self.config, type(self).__name__
-        check_choice(cfg, "scenario", scenario_names(team=False), owner)
-        check_config(cfg, owner, CONFIG_INTERVALS)
-        check_config_arguments(cfg, owner, "field", FIELD_ARGUMENTS, SCENARIO_KEYS)  # the corridor's speed too
-        if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
-            raise ValueError(
-                f"config key 'n_candidates' of {owner} must be >= {CORRIDOR_LANDMARK_COUNT} "
-                f"(the corridor's landmarks), got {cfg['n_candidates']}"
-            )
-        self.sensor = range_bearing_sensor_from_config(cfg, owner)
-        self.odometry = odometry_sensor_from_config(cfg, owner)
-        self._odometry_covariance = self.odometry.noise_covariance()
-        self.world = World()
-        self.action_space = spaces.Discrete(cfg["n_candidates"])
-        low, high = self._observation_bounds(cfg["n_candidates"])
-        self.observation_space = spaces.Box(low, high, dtype=np.float32)
-
-    @staticmethod
-    def _observation_bounds(n_candidates: int) -> tuple[np.ndarray, np.ndarray]:
-        pose_low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0]
-        pose_high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1]
-        candidate_low, candidate_high = [0, 0, -1, -1, 0], [1, _BIG, 1, 1, _BIG]
-        low = np.array(pose_low + candidate_low * n_candidates, dtype=np.float32)
-        high = np.array(pose_high + candidate_high * n_candidates, dtype=np.float32)
-        return low, high
-
-    def _reset_episode(self) -> None:
-        scenario, prior, self._odometry_rng, self._measurement_rng = start_episode(
-            self.config, self.np_random, type(self).__name__
-        )
-        self.ekf = PoseEKF(*prior)
-        self.world.reset(scenario)
-        self._true_pose = self.world.pose
-        self._true_path = PathHistory(self._true_pose[:2])
-        self._estimated_path = PathHistory(self.ekf.x[:2])
-
-    def _next_decision(self) -> Decision:
-        """Visible landmarks and their expected MI at the prior; the payload is their ``LandmarkSight``."""
-        landmarks = None if self.config["mapping"] else self.world.landmarks
-        sight = LandmarkSight.at_prior(
-            self.sensor, self.world, self._true_pose, self.ekf.P, *self.ekf.landmark_measurement_model(landmarks)
-        )
-        candidates = sight.visible_indices
-        mask = np.zeros(self.action_space.n, dtype=np.int8)
-        gains = np.zeros(self.action_space.n)
-        mask[candidates] = 1
-        if candidates.size:
-            gains[candidates] = sight.information_gains(self.ekf.P, candidates)
-        return Decision(mask, gains, sight)
-
-    def _apply_action(self, action: int | None, decision: Decision) -> dict:
-        """Observe landmark ``action`` and update the EKF at the decision's prior; a no-op observes nothing."""
-        if action is None:
-            return {"mutual_information": 0.0}
-        measurement = self.sensor.measure(self._true_pose, self.world.landmarks[action], self._measurement_rng)
-        return {"mutual_information": decision.payload.observe(self.ekf, action, measurement)}
-
-    @property
-    def _pose_entropy(self) -> float:
-        """Entropy of the pose estimate at the current decision's prior [nats]."""
-        return self._decision.payload.pose_entropy
-
-    def _advance(self) -> None:
-        dt = self.config["time_step_s"]
-        control = self.world.step(dt)[0]
-        self._true_pose = self.world.pose
-        odometry = self.odometry.measure(control, self._odometry_rng)
-        self.ekf.predict(odometry, dt, self._odometry_covariance, check_input=False)
-        self._true_path.append(self._true_pose[:2])
-        self._estimated_path.append(self.ekf.x[:2])  # PathHistory copies
-
-    def _observation(self) -> np.ndarray:
-        x, y, heading = self.ekf.x[:POSE_DIM].tolist()
-        P = self.ekf.P
-        var_x, var_y, var_heading = P[0, 0], P[1, 1], P[2, 2]
-        pose = [x, y, math.cos(heading), math.sin(heading), math.sqrt(var_x), math.sqrt(var_y), math.sqrt(var_heading)]
-        pose += [P[0, 1] / math.sqrt(var_x * var_y), self._pose_entropy, self._elapsed_steps / self.config["horizon"]]
-        observation = np.zeros(self.observation_space.shape, dtype=np.float32)
-        observation[:POSE_FEATURES] = pose
-        predicted = self._decision.payload.predicted
-        n_landmarks = len(predicted)
-        candidates = observation[POSE_FEATURES:].reshape(-1, CANDIDATE_FEATURES)[:n_landmarks]
-        candidates[:, 0] = self._decision.action_mask[:n_landmarks]
-        candidates[:, 1] = predicted[:, 0]
-        candidates[:, 2] = np.cos(predicted[:, 1])
-        candidates[:, 3] = np.sin(predicted[:, 1])
-        if self.config["mapping"]:
-            candidates[:, 4] = np.sqrt(np.diagonal(P)[POSE_DIM:].reshape(-1, 2).mean(axis=1))
-        return np.clip(observation, self.observation_space.low, self.observation_space.high, out=observation)
-
-    def _extra_info(self) -> dict:
-        true_x, true_y, true_heading = self._true_pose.tolist()
-        x, y, heading = self.ekf.x[:POSE_DIM].tolist()
-        return {
-            "pose_entropy": self._pose_entropy,
-            "state_entropy": gaussian_entropy_from_log_det(self._decision.payload.prior_log_det, self.ekf.dim_x),
-            "position_error_m": math.hypot(true_x - x, true_y - y),
-            "heading_error_rad": abs(wrap_angle(true_heading - heading)),
-            "true_pose": self._true_pose.copy(),
-            "estimated_pose": self.ekf.pose,
-            "time_s": self._elapsed_steps * self.config["time_step_s"],
-        }
-
-    def _scene_frame(self):
-        scenario, mapping = self.world.scenario, self.config["mapping"]
-        n_landmarks = len(self.world.landmarks)
-        landmark_blocks = [self.ekf.P[3 + 2 * i : 5 + 2 * i, 3 + 2 * i : 5 + 2 * i] for i in range(n_landmarks)]
-        return SceneFrame(
-            bounds=scenario.bounds,
-            walls=scenario.walls,
-            obstacles=scenario.obstacles,
-            landmarks=self.world.landmarks,
-            landmark_visible=self._action_mask[:n_landmarks].astype(bool),
-            chosen_landmark=self._chosen_action,
-            robots=[RobotDrawing.tracked(self._true_pose, self.ekf, self._true_path, self._estimated_path)],
-            landmark_estimates=self.ekf.landmark_positions if mapping else None,
-            landmark_covariances=np.array(landmark_blocks) if mapping else None,
-            caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.1f} s   "
-            f"pose entropy {self._pose_entropy:.2f} nats",
-        )
 
 
 class Prior(NamedTuple):

@@ -13,12 +13,17 @@ from gymnasium.vector import AutoresetMode
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.estimation import batched
+from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.scene import PathHistory, RobotDrawing
+from infonav_gym.sensors.range_bearing import RangeBearingSensor
+from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.world_batch import WorldBatch
 
 
 class OneRobotVectorEnv(InfoNavVectorEnv):
-    """Base of ``LandmarkSelectionVectorEnv`` and ``ActiveLocalizationVectorEnv``; a subclass sets up its own
-    stacked state in ``_allocate()`` (see ``InfoNavVectorEnv`` for the rest)."""
+    """Base of ``LandmarkSelectionVectorEnv`` and ``ActiveLocalizationVectorEnv``: a subclass written once gives its
+    sensors from ``_parts()`` (an env written twice takes its single env's), sets up its own stacked state in
+    ``_allocate()`` and draws its copy 0's robot with ``_first_robot_drawing`` (see ``InfoNavVectorEnv``)."""
 
     def __init__(
         self,
@@ -27,16 +32,39 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **config,
     ):
-        single = self._configure(num_envs, render_mode, autoreset_mode, config)
-        self._sensor, self._odometry = single.sensor, single.odometry
+        if self.single_env is None:
+            self._setup(num_envs, render_mode, autoreset_mode, config)
+            self._sensor, self._odometry = self._parts()
+        else:
+            single = self._configure(num_envs, render_mode, autoreset_mode, config)
+            self._sensor, self._odometry = single.sensor, single.odometry
         self._odometry_covariance = self._odometry.noise_covariance()
         self._worlds = WorldBatch(num_envs)
         self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
+        self._true_path = self._estimated_path = None  # copy 0's, when drawing
         self._allocate()
+
+    def _parts(self):
+        """Hook of an env written once: check its own config keys, set its spaces (``_set_spaces``); return its
+        ``(RangeBearingSensor, OdometrySensor)``."""
+        raise NotImplementedError(f"{type(self).__name__} must implement _parts()")
 
     def _allocate(self) -> None:
         """Hook: the subclass's stacked arrays of ``num_envs`` copies."""
         raise NotImplementedError(f"{type(self).__name__} must implement _allocate()")
+
+    @property
+    def sensor(self) -> RangeBearingSensor:
+        """The range-bearing sensor every copy carries (coverage and noise)."""
+        return self._sensor
+
+    def estimate(self, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Sub-env ``copy``'s EKF state and covariance now, ``(x (n,), P (n, n))`` (copies)."""
+        return self._x[copy].copy(), self._P[copy].copy()
+
+    def scenario(self, copy: int = 0) -> Scenario:
+        """The scenario sub-env ``copy`` runs in its current episode (its landmarks, routes, walls)."""
+        return self._worlds.scenario(copy)
 
     def _moved(self, copies: np.ndarray, x: np.ndarray, P: np.ndarray, commands=None):
         """Drive the robots of ``copies`` one step (``commands`` (n, 2) or their routes); their predicted ``(x, P)``."""
@@ -44,3 +72,25 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
         controls = self._worlds.step(dt, copies, None if commands is None else commands[:, None])[:, 0]
         readings = self._odometry.measure_with_noise(controls, self._odometry_noise.take(copies))
         return batched.predict_pose(x, P, readings, dt, self._odometry_covariance, check_input=False)
+
+    def _track_first_copy(self, copies: np.ndarray, stepped: np.ndarray) -> None:
+        """When drawing: extend copy 0's true and estimated paths if it is among ``copies`` and stepped, else start
+        them anew (it was reset). ``copies`` ascending, ``stepped`` per copy."""
+        if self.render_mode is None or copies[0] != 0:
+            return
+        true_position, estimated_position = self._worlds.poses[0, 0, :2], self._x[0, :2]
+        if stepped[0] and self._true_path is not None:
+            self._true_path.append(true_position)
+            self._estimated_path.append(estimated_position)
+        else:
+            self._true_path, self._estimated_path = PathHistory(true_position), PathHistory(estimated_position)
+
+    def _first_robot_drawing(self) -> RobotDrawing:
+        """Copy 0's robot: its true pose, the EKF's pose and covariance, and both paths."""
+        return RobotDrawing(
+            true_pose=self._worlds.poses[0, 0].copy(),
+            estimated_pose=self._x[0, :POSE_DIM].copy(),
+            pose_covariance=self._P[0, :POSE_DIM, :POSE_DIM].copy(),
+            true_path=self._true_path.points(),
+            estimated_path=self._estimated_path.points(),
+        )

@@ -1,8 +1,11 @@
 """``InfoNavVectorEnv``: what the native vector envs share (seeds per sub-env, action checks, masks, the API).
 
-A subclass builds its single env (which checks the config) and calls ``_configure``; it keeps the current
-decision in ``self._decision`` (with an ``action_mask`` (N, A)), starts episodes in ``_reset_copies`` (returning
-their static geometry) with their first outputs from ``_reset_outputs``, and ends its ``step`` with
+An env written once on batched arrays declares ``default_config()`` and calls ``_setup`` (then sets its spaces
+with ``_set_spaces``); its single env is the N = 1 view (``envs.single_view``) and ``render()`` draws its copy 0
+from ``_scene_frame()``. An env still written twice names its single env (``single_env=``) and calls
+``_configure``, which builds that env to check the config and replays copy 0 in it to render. Either keeps the
+current decision in ``self._decision`` (with an ``action_mask`` (N, A)), starts episodes in ``_reset_copies``
+(returning their static geometry) with their first outputs from ``_reset_outputs``, and ends its ``step`` with
 ``_finish_step``, which makes the resets of its ``autoreset_mode``.
 """
 
@@ -14,7 +17,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from infonav_gym.envs.base import accepts_action
+from infonav_gym.config import check_choice, check_config, merge_config
+from infonav_gym.envs.base import EPISODE_STEPS, INVALID_ACTION_MODES, RENDER_SIZE_PX, accepts_action, shared_config
 from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
 from infonav_gym.envs.vector_view import FirstCopyView
 
@@ -50,9 +54,16 @@ class InfoNavVectorEnv(VectorEnv):
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
-    AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
-    single_env: type  # the env class a subclass batches: ``class MyVectorEnv(InfoNavVectorEnv, single_env=MyEnv)``
+    AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP, AutoresetMode.DISABLED)
+    single_env: type | None = None  # an env written twice: ``class MyVectorEnv(InfoNavVectorEnv, single_env=MyEnv)``
     _view: FirstCopyView | None = None  # set by ``_configure``; None before, so a half-built env closes cleanly
+    _renderer = None  # an env written once: made by the first ``render()``
+    _owner: str | None = None  # the single env's name, in the errors of its copy (``one_copy``)
+
+    @classmethod
+    def default_config(cls) -> dict:
+        """A fresh dict of every config key with its default; the constructor's keywords override it."""
+        return shared_config()
 
     def __init_subclass__(cls, single_env: type | None = None, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -63,8 +74,50 @@ class InfoNavVectorEnv(VectorEnv):
                 **{key: single_env.metadata[key] for key in ("render_modes", "render_fps")},
             }
 
+    @classmethod
+    def one_copy(cls, owner: str, render_mode: str | None, config: dict) -> InfoNavVectorEnv:
+        """One copy that never restarts by itself, its errors naming ``owner``: what ``SingleEnvView`` steps."""
+        env = cls.__new__(cls)
+        env._owner = owner
+        env.__init__(num_envs=1, render_mode=render_mode, autoreset_mode=AutoresetMode.DISABLED, **config)
+        return env
+
+    @property
+    def owner_name(self) -> str:
+        """The env named in errors: the class, or the single env of a copy made by ``one_copy``."""
+        return self._owner or type(self).__name__
+
+    def use_generator(self, copy: int, generator: np.random.Generator) -> None:
+        """Sub-env ``copy`` draws its next episodes from ``generator`` (``reset()`` without a seed keeps it)."""
+        self._np_randoms[copy] = generator
+
+    def _setup(self, num_envs: int, render_mode: str | None, autoreset_mode, config: dict) -> None:
+        """Check the vector arguments and the config (``default_config()`` merged with ``config``).
+
+        Sets ``config``; the env checks its own keys after, then calls ``_set_spaces``.
+
+        Raises:
+            ValueError: for ``num_envs`` that is not an int >= 1, a render mode outside ``metadata``, an autoreset
+                mode other than ``AUTORESET_MODES``, an unknown config key, or a bad shared key.
+        """
+        owner = self.owner_name
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        self.config = merge_config(self.default_config(), config, owner)
+        check_choice(self.config, "invalid_action", INVALID_ACTION_MODES, owner)
+        check_config(self.config, owner, {"render_size_px": RENDER_SIZE_PX, "horizon": EPISODE_STEPS})
+        self._start_copies(num_envs, render_mode, autoreset_mode)
+
+    def _set_spaces(self, single_observation_space: gym.Space, single_action_space: gym.Space) -> None:
+        """Set the spaces of one sub-env and their batched versions."""
+        self.single_observation_space = single_observation_space
+        self.single_action_space = single_action_space
+        self.observation_space = batch_space(single_observation_space, self.num_envs)
+        self.action_space = batch_space(single_action_space, self.num_envs)
+
     def _configure(self, num_envs: int, render_mode: str | None, autoreset_mode, config: dict) -> gym.Env:
-        """Check the vector arguments; take the config (and a ``gym.Env``'s spaces) of ``single_env(**config)``.
+        """An env written twice: check the vector arguments; take the config (and a ``gym.Env``'s spaces) of
+        ``single_env(**config)``.
 
         Returns:
             That single env (it checked the config as it always does).
@@ -73,26 +126,26 @@ class InfoNavVectorEnv(VectorEnv):
             ValueError: for ``num_envs`` that is not an int >= 1, a render mode the single env does not have,
                 an autoreset mode other than ``AUTORESET_MODES``, or a config the single env rejects.
         """
-        owner = type(self).__name__
+        single_env = type(self).single_env
+        single = single_env(**config)
+        self._start_copies(num_envs, render_mode, autoreset_mode)
+        self._view = None if render_mode is None else FirstCopyView(single_env(render_mode, **config))
+        self.config = single.config
+        if isinstance(single, gym.Env):  # a parallel env's subclass sets its own (N, R, ...) spaces
+            self._set_spaces(single.observation_space, single.action_space)
+        return single
+
+    def _start_copies(self, num_envs: int, render_mode: str | None, autoreset_mode) -> None:
+        owner = self.owner_name
         if type(num_envs) is not int or num_envs < 1:
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, self.AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
-        single_env = type(self).single_env
-        single = single_env(**config)
-        self._view = None if render_mode is None else FirstCopyView(single_env(render_mode, **config))
-        self.config = single.config
         self.num_envs = num_envs
         self.render_mode = render_mode
-        if isinstance(single, gym.Env):  # a parallel env's subclass sets its own (N, R, ...) spaces
-            self.single_observation_space = single.observation_space
-            self.single_action_space = single.action_space
-            self.observation_space = batch_space(self.single_observation_space, num_envs)
-            self.action_space = batch_space(self.single_action_space, num_envs)
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
         self._decision = self._geometry = None
         self._prev_done = np.zeros(num_envs, dtype=bool)
-        return single
 
     def reset(self, *, seed: int | list | None = None, options: dict | None = None):
         """Reset every sub-env: seed ``s`` gives sub-env ``i`` the seed ``s + i``; a list gives one seed (or None) each.
@@ -104,7 +157,7 @@ class InfoNavVectorEnv(VectorEnv):
         everyone = np.arange(self.num_envs)
         self._geometry = self._reset_copies(everyone)
         self._prev_done[:] = False
-        return self._reset_outputs(everyone, self._geometry)
+        return self._rendered(self._reset_outputs(everyone, self._geometry))
 
     def _begin_step(self, actions) -> tuple[np.ndarray, np.ndarray]:
         """``(acting, chosen)``: which sub-envs act in this step (with ``NEXT_STEP``, not those starting again) and
@@ -129,12 +182,15 @@ class InfoNavVectorEnv(VectorEnv):
         decide, then those that ended start again, their last observation and info in ``final_obs`` / ``final_info``.
         """
         everyone = np.arange(self.num_envs)
+        if self.autoreset_mode == AutoresetMode.DISABLED:
+            # a sub-env that ended goes on stepping (no autoreset) until reset() is called
+            return self._rendered(step_outputs(everyone, self._geometry))
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:
             resetting = np.flatnonzero(self._prev_done)
             if resetting.size:
                 self._geometry = self._geometry.with_copies(resetting, self._reset_copies(resetting))
             self._prev_done = ended
-            return step_outputs(everyone, self._geometry)
+            return self._rendered(step_outputs(everyone, self._geometry))
         observation, info = step_outputs(everyone, self._geometry)
         copies = np.flatnonzero(ended)
         if copies.size:
@@ -145,7 +201,13 @@ class InfoNavVectorEnv(VectorEnv):
             observation[copies] = reset_observation
             set_rows(info, copies, reset_info)
             info.update(final_infos)
-        return observation, info
+        return self._rendered((observation, info))
+
+    def _rendered(self, outputs: tuple) -> tuple:
+        """``outputs`` of a reset or step, after drawing sub-env 0 in ``"human"`` mode (an env written once)."""
+        if self.render_mode == "human" and self._view is None:
+            self.render()
+        return outputs
 
     def _view_restarts(self, copies) -> None:
         """Copies ``copies`` start an episode (before drawing from their generators): sub-env 0's view follows."""
@@ -168,7 +230,7 @@ class InfoNavVectorEnv(VectorEnv):
         Raises:
             ValueError: for a bad seed (see ``sub_env_seeds``) or any options.
         """
-        owner = type(self).__name__
+        owner = self.owner_name
         if options:
             raise ValueError(f"{owner}.reset takes no options, got {sorted(options)}")
         for copy, copy_seed in enumerate(sub_env_seeds(seed, self.num_envs, owner)):
@@ -182,7 +244,7 @@ class InfoNavVectorEnv(VectorEnv):
             RuntimeError: before the first ``reset``.
             ValueError: for another shape, a non-integer dtype, or an action outside the space (naming its sub-env).
         """
-        owner, space = type(self).__name__, self.single_action_space
+        owner, space = self.owner_name, self.single_action_space
         if self._decision is None:
             raise RuntimeError(f"{owner}: call reset() before step()")
         array, top = np.asarray(actions), space.n - 1
@@ -210,29 +272,52 @@ class InfoNavVectorEnv(VectorEnv):
         valid = acting & mask[np.arange(self.num_envs), actions].astype(bool)
         for copy in np.flatnonzero(acting & ~valid).tolist():
             accepts_action(
-                int(actions[copy]), mask[copy], self.config["invalid_action"], 'info["action_mask"]', f"sub-env {copy}"
+                int(actions[copy]),
+                mask[copy],
+                self.config["invalid_action"],
+                'info["action_mask"]',
+                None if self._owner else f"sub-env {copy}",  # a single env has no sub-envs to name
             )
         return np.where(valid, actions, -1)
 
     def action_masks(self) -> np.ndarray:
         """The valid actions of each sub-env as bool (N, A); all ``True`` where none is valid (each is the no-op)."""
         if self._decision is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
+            raise RuntimeError(f"{self.owner_name}: call reset() before action_masks()")
         mask = self._decision.action_mask.astype(bool)
         mask[~mask.any(axis=1)] = True
         return mask
 
     def render(self):
         """Sub-env 0's frame as its single env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
-        owner = type(self).__name__
-        if self._view is None:
+        owner = self.owner_name
+        if self.render_mode is None:
             gym.logger.warn(f'{owner}.render() called without a render_mode; use render_mode="rgb_array"')
             return None
         if self._decision is None:
             raise RuntimeError(f"{owner}: call reset() before render()")
-        return self._view.render()
+        if self._view is not None:
+            return self._view.render()
+        if self._renderer is None:
+            from infonav_gym.rendering import Renderer  # pygame only when drawing
+
+            self._renderer = Renderer(self.render_mode, self.config["render_size_px"], self.metadata["render_fps"])
+        return self._renderer.draw(self._scene_frame())
+
+    def _scene_frame(self):
+        """Hook of an env written once: the ``infonav_gym.scene.SceneFrame`` of sub-env 0 now (it must not change
+        the env)."""
+        raise NotImplementedError(f"{self.owner_name} must implement _scene_frame() to render")
 
     def close_extras(self, **kwargs) -> None:
         self._decision = None
         if self._view is not None:
             self._view.close()
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_renderer", None)  # a pygame window or surface does not pickle; the copy draws anew
+        return state

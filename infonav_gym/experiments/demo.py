@@ -7,6 +7,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from infonav_gym.estimation import batched
 from infonav_gym.experiments.evaluation import make_agent
 from infonav_gym.information import expected_information_gain
 
@@ -72,15 +73,18 @@ def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> P
 
     env = gym.make("infonav/LandmarkSelection-v0", scenario="corridor", n_candidates=4).unwrapped
     _, info = env.reset(seed=seed)
-    reach_m = env.sensor.max_range_m
-    xs, ys = np.meshgrid(np.linspace(2.0, reach_m + 1.0, resolution), np.linspace(-2.7, 2.7, resolution // 4))
+    model, sensor = env.vector, env.vector.sensor
+    x, P = model.estimate(0)
+    xs, ys = np.meshgrid(
+        np.linspace(2.0, sensor.max_range_m + 1.0, resolution), np.linspace(-2.7, 2.7, resolution // 4)
+    )
     positions = np.stack([xs.ravel(), ys.ravel()], axis=1)
-    predicted, H = env.ekf.landmark_measurement_model(positions)
-    field = expected_information_gain(env.ekf.P, H, env.sensor.noise_covariance(predicted[:, 0])).reshape(xs.shape)
+    predicted, H = batched.landmark_measurement_model(x[None], positions[None])
+    field = expected_information_gain(P, H[0], sensor.noise_covariance(predicted[0, :, 0])).reshape(xs.shape)
     figure = plt.figure(figsize=(9, 4.5))
     axes = figure.add_subplot(projection="3d")
     axes.plot_surface(xs, ys, field, cmap="viridis", alpha=0.35, linewidth=0.2, edgecolor="grey")
-    landmarks = env.world.landmarks
+    landmarks = model.scenario(0).landmarks
     for index, (landmark, ic) in enumerate(zip(landmarks, info["action_information_gain"])):
         axes.plot([landmark[0]] * 2, [landmark[1]] * 2, [0.0, ic], color="red", linewidth=1.5)
         axes.scatter(*landmark, ic, color="red", marker="D", s=40, depthshade=False)

@@ -9,10 +9,11 @@ import numpy as np
 from gymnasium import spaces
 
 from infonav_gym.config import Interval, check_config, check_config_arguments, config_keys
-from infonav_gym.envs.active_localization import REWARD_WEIGHT, ActiveLocalizationEnv
+from infonav_gym.envs.active_localization import REWARD_WEIGHT
 from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS, Decision
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
+from infonav_gym.information import largest_position_std
 from infonav_gym.multi.base import InfoNavParallelEnv, team_metadata
 from infonav_gym.multi.cooperative_localization import CooperativeLocalizationEnv
 from infonav_gym.multi.exploration_planning import (
@@ -343,7 +344,7 @@ class CooperativeExplorationEnv(
         covariances = self.ekf.pose_covariances()
         pose_log_det = np.linalg.slogdet(covariances)[1]
         pose_std = np.sqrt(np.diagonal(covariances, axis1=1, axis2=2))
-        position_std = ActiveLocalizationEnv.position_std(covariances)
+        position_std = largest_position_std(covariances)
         scan = self._scan_gains(self.ekf.x.reshape(-1, POSE_DIM), position_std, self.map_variances)
         mask = slot_valid[:, :, None] & self._clear_motions()[:, None, :]
         gains = action_gains(self.config["team_reward"], observation_gain, scan, mask).reshape(n, -1)
@@ -379,7 +380,7 @@ class CooperativeExplorationEnv(
         self._drive(*plan)
         self._time_s = (self._elapsed_steps + 1) * cfg["time_step_s"]
         self._gps_fixes()
-        position_std = ActiveLocalizationEnv.position_std(self.ekf.pose_covariances())
+        position_std = largest_position_std(self.ekf.pose_covariances())
         map_information = self._scan(motions != STAY, position_std)
         self.lost = position_std > cfg["max_position_std_m"]
         self.success = bool(self.coverage >= cfg["coverage_target"] and not self.lost.any())

@@ -13,10 +13,10 @@ from __future__ import annotations
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from infonav_gym.envs.active_localization import ActiveLocalizationEnv
 from infonav_gym.envs.active_localization_batch import ranges_and_bearings
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.information import largest_position_std
 from infonav_gym.multi.cooperative_exploration import REWARD_TERMS, CooperativeExplorationEnv, start_episode
 from infonav_gym.multi.cooperative_localization import team_observations
 from infonav_gym.multi.cooperative_localization_batch import TeamDecision
@@ -197,7 +197,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
         """Each robot's largest position std of ``copies`` (n, R) [m]."""
         n_robots = len(self.agents)
         own = batched.pose_blocks(self._P[copies])[:, np.arange(n_robots), np.arange(n_robots)]
-        return ActiveLocalizationEnv.position_std(own.reshape(-1, POSE_DIM, POSE_DIM)).reshape(len(copies), n_robots)
+        return largest_position_std(own.reshape(-1, POSE_DIM, POSE_DIM)).reshape(len(copies), n_robots)
 
     def _scan(self, copies: np.ndarray, scanning: np.ndarray, position_std: np.ndarray) -> np.ndarray:
         """Fuse the scans of the ``scanning`` robots (n, R) of ``copies`` from their true positions; the map

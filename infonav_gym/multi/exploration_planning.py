@@ -15,12 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from infonav_gym.envs.active_localization import ActiveLocalizationEnv
 from infonav_gym.envs.active_planning import BeliefBatch
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM, block_diagonal
 from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
+from infonav_gym.information import largest_position_std
 from infonav_gym.multi.cooperative_localization_batch import TeamSightLines
 from infonav_gym.multi.team_sensing import gps_available
 from infonav_gym.sensors.relative_pose import noise_covariances
@@ -188,7 +188,7 @@ class ExplorationPlanningModel:
         """Each robot's largest position standard deviation (B, R) [m] in joint covariances (B, 3R, 3R)."""
         robots = np.arange(np.shape(covariances)[1] // POSE_DIM)
         blocks = batched.pose_blocks(covariances)[:, robots, robots]
-        return ActiveLocalizationEnv.position_std(blocks.reshape(-1, POSE_DIM, POSE_DIM)).reshape(blocks.shape[:2])
+        return largest_position_std(blocks.reshape(-1, POSE_DIM, POSE_DIM)).reshape(blocks.shape[:2])
 
     def belief(self) -> TeamBelief:
         """The team's estimator state at the current decision, as a batch of one."""

@@ -41,6 +41,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     """
 
     team_info_keys = frozenset({"time_s"})
+    AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
     def _configure_team(self, num_envs, render_mode, autoreset_mode, config: dict, more_noise_widths=()) -> None:
         """Check the arguments (``_configure``) and set up the copies' arrays.

@@ -1,0 +1,105 @@
+"""``SingleEnvView``: the Gymnasium ``Env`` of an env written once on batched arrays, as its N = 1 view.
+
+An env's logic lives in its native vector env (``InfoNavVectorEnv``); its single env is that code with one copy,
+without autoreset: ``class MyEnv(SingleEnvView, vector_env=MyVectorEnv)``. The view takes one action, hands it on as
+a batch of one, and returns row 0 of every output, its info as the single env's dict (masked keys left out). So
+``gym.make(id)`` after ``reset(seed=s)`` gives exactly the numbers of sub-env ``i`` of ``gym.make_vec(id, N)`` after
+``reset(seed=s - i)``: there is nothing else to keep equal.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+
+from infonav_gym.envs.base import discrete_action_index
+from infonav_gym.envs.vector_base import InfoNavVectorEnv
+
+
+def first_row(info: dict) -> dict:
+    """Sub-env 0's info from a vector info: each key's row 0 where its ``_key`` mask holds, 0-d values as Python
+    scalars, nested dicts alike."""
+    row = {}
+    for key, value in info.items():
+        if key.startswith("_") or not info.get(f"_{key}", np.ones(1, dtype=bool))[0]:
+            continue
+        if isinstance(value, dict):
+            row[key] = first_row(value)
+        else:
+            item = value[0]
+            row[key] = item.item() if isinstance(item, np.generic) else item
+    return row
+
+
+class SingleEnvView(gym.Env):
+    """One copy of ``vector_env``: its config keys, spaces, metrics, traits and rendering; the step of a single env.
+
+    Stepping on after an episode ended goes on from the last state (no autoreset), as any Gymnasium env; call
+    ``reset()`` to start again. ``vector`` is the underlying vector env of one copy.
+    """
+
+    vector_env: type[InfoNavVectorEnv]
+
+    def __init_subclass__(cls, vector_env: type[InfoNavVectorEnv] | None = None, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if vector_env is not None:
+            cls.vector_env = vector_env
+            cls.metadata = {key: vector_env.metadata[key] for key in ("render_modes", "render_fps")}
+            cls.episode_metrics = vector_env.episode_metrics
+            cls.traits = vector_env.traits
+
+    @classmethod
+    def default_config(cls) -> dict:
+        """A fresh dict of every config key with its default; ``gym.make`` kwargs override it."""
+        return cls.vector_env.default_config()
+
+    def __init__(self, render_mode: str | None = None, **config):
+        self.vector = self.vector_env.one_copy(type(self).__name__, render_mode, config)
+        self.config = self.vector.config
+        self.render_mode = render_mode
+        self.observation_space = self.vector.single_observation_space
+        self.action_space = self.vector.single_action_space
+        self._started = False
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode: seed ``np_random`` (Gymnasium's rule), then the copy's episode from it.
+
+        Raises:
+            ValueError: for any options.
+        """
+        if options:
+            raise ValueError(f"{type(self).__name__}.reset takes no options, got {sorted(options)}")
+        super().reset(seed=seed)
+        self.vector.use_generator(0, self.np_random)
+        observations, info = self.vector.reset()
+        self._started = True
+        return observations[0], first_row(info)
+
+    def step(self, action):
+        """Act with ``action`` (one integer of the action space).
+
+        Raises:
+            RuntimeError: before the first ``reset``.
+            ValueError: for an action outside the action space, or a masked one with ``invalid_action="raise"``.
+        """
+        if not self._started:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
+        actions = np.array([discrete_action_index(action, self.action_space)])
+        observations, rewards, terminated, truncated, info = self.vector.step(actions)
+        return observations[0], float(rewards[0]), bool(terminated[0]), bool(truncated[0]), first_row(info)
+
+    def action_masks(self) -> np.ndarray:
+        """The valid actions now, as bool (n,), for ``MaskablePPO``: all ``True`` when none is (each is the no-op).
+
+        Found through Gymnasium wrappers with ``env.get_wrapper_attr("action_masks")()``.
+        """
+        if not self._started:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
+        return self.vector.action_masks()[0]
+
+    def render(self):
+        """The copy's frame (see the vector env's ``render``); a warning and None without a render mode."""
+        return self.vector.render()
+
+    def close(self):
+        self.vector.close()
