@@ -170,6 +170,8 @@ def _floats(array, dtype=float) -> np.ndarray:
 
     (A read-only view, e.g. from ``np.broadcast_to``, would be another numba type and another compile.)
     """
+    if type(array) is np.ndarray and array.dtype == dtype and array.flags.c_contiguous and array.flags.writeable:
+        return array  # the common case, without np.require's cost
     return np.require(array, dtype=dtype, requirements="CW")
 
 
