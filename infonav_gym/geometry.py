@@ -11,10 +11,15 @@ import math
 
 import numpy as np
 
+from infonav_gym.compiled import kernel
+
 
 def wrap_angle(angle):
     """Map an angle (a float or an ndarray of them) to [-pi, pi) [rad]."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+wrap_angle_kernel = kernel(wrap_angle)  # the same formula compiled, for one float inside other kernels
 
 
 def rotation_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:

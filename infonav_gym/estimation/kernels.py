@@ -13,16 +13,11 @@ import math
 import numpy as np
 
 from infonav_gym.compiled import kernel
+from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import log_det_of
 
 POSE_DIM = 3
 COINCIDENT_SQUARED_RANGE = 1e-18  # [m^2] a target this close to the sensor has no defined bearing
-
-
-@kernel
-def wrap(angle: float) -> float:
-    """``geometry.wrap_angle`` of one angle: to [-pi, pi) [rad]."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @kernel

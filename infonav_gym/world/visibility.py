@@ -1,4 +1,5 @@
-"""Batched visibility: which of K targets each of N robots sees, on stacked arrays (numpy only).
+"""Batched visibility: which of K targets each of N robots sees, on stacked arrays (the queries compiled:
+``visibility_kernels``).
 
 ``line_of_sight`` decides as ``World.line_of_sight`` does with Pymunk's ``segment_query_first`` (radius 0,
 static walls and discs only: robots never block): the same floating-point operations of Chipmunk's
@@ -24,13 +25,12 @@ import numpy as np
 
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.world.scenarios import Scenario
+from infonav_gym.world.visibility_kernels import DISC, WALL, shape_hits
 from infonav_gym.world.world import WORLD_ARGUMENTS
 
 if TYPE_CHECKING:
     from infonav_gym.sensors.range_bearing import RangeBearingSensor
     from infonav_gym.world.world import World
-
-_SMALLEST_NORMAL = np.finfo(float).tiny  # Chipmunk's CPFLOAT_MIN, added to a length before dividing by it
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:
@@ -239,116 +239,12 @@ def _checked(function: str, origins, targets, points, radii, culled, what: str) 
     return origins, targets, points, radii, np.broadcast_to(culling, (len(origins),))
 
 
-def _enters_box(left, bottom, right, top, origin_x, origin_y, delta_x, delta_y) -> np.ndarray:
-    """Whether each query enters each box before its end (Chipmunk's ``cpBBSegmentQuery`` < 1)."""
-    entering, leaving, passes = [], [], True
-    for low, high, start, delta in ((left, right, origin_x, delta_x), (bottom, top, origin_y, delta_y)):
-        moving = delta != 0.0
-        t_low, t_high = (low - start) / delta, (high - start) / delta
-        entering.append(np.where(moving, np.where(t_low < t_high, t_low, t_high), -np.inf))
-        leaving.append(np.where(moving, np.where(t_low > t_high, t_low, t_high), np.inf))
-        passes = passes & (moving | ~((start < low) | (high < start)))
-    t_min, t_max = np.maximum(*entering), np.minimum(*leaving)
-    return passes & (t_min <= t_max) & (0.0 <= t_max) & (t_min < 1.0)
-
-
-def _hits_circles(center_x, center_y, radius, origin_x, origin_y, target_x, target_y) -> np.ndarray:
-    """Whether each query enters each circle before its target (Chipmunk's ``CircleSegmentQuery``, alpha < 1)."""
-    da_x, da_y, db_x, db_y = origin_x - center_x, origin_y - center_y, target_x - center_x, target_y - center_y
-    da_da, da_db, db_db = da_x * da_x + da_y * da_y, da_x * db_x + da_y * db_y, db_x * db_x + db_y * db_y
-    qa = da_da - 2.0 * da_db + db_db
-    qb = da_db - da_da
-    rsum = radius + 0.0
-    det = qb * qb - qa * (da_da - rsum * rsum)
-    t = (-qb - np.sqrt(det)) / qa
-    return (det >= 0.0) & (0.0 <= t) & (t < 1.0)
-
-
-def _hits_walls(origin_x, origin_y, target_x, target_y, a_x, a_y, b_x, b_y, r) -> np.ndarray:
-    """Whether each query hits its wall (capsule ``a``-``b`` of radius ``r``) before its target, all arrays (M,)."""
-    # the point query at the origin (cpSegmentShapePointQuery): inside or on the wall blocks at once
-    along_x, along_y = a_x - b_x, a_y - b_y
-    fraction = (along_x * (origin_x - b_x) + along_y * (origin_y - b_y)) / (along_x * along_x + along_y * along_y)
-    fraction = np.where(fraction < 1.0, fraction, 1.0)
-    fraction = np.where(0.0 > fraction, 0.0, fraction)
-    offset_x, offset_y = origin_x - (b_x + along_x * fraction), origin_y - (b_y + along_y * fraction)
-    inside = np.sqrt(offset_x * offset_x + offset_y * offset_y) - r <= 0.0
-    # the segment query (cpSegmentShapeSegmentQuery): through the near face, else into an end disc
-    wall_x, wall_y = b_x - a_x, b_y - a_y
-    inverse_length = 1.0 / (np.sqrt(wall_x * wall_x + wall_y * wall_y) + _SMALLEST_NORMAL)
-    normal_x, normal_y = wall_y * inverse_length, -(wall_x * inverse_length)
-    d = (a_x - origin_x) * normal_x + (a_y - origin_y) * normal_y
-    r_query = r + 0.0
-    beyond = d > 0.0
-    face_x = np.where(beyond, -normal_x, normal_x) * r_query - origin_x
-    face_y = np.where(beyond, -normal_y, normal_y) * r_query - origin_y
-    delta_x, delta_y = target_x - origin_x, target_y - origin_y
-    cross_a = delta_x * (a_y + face_y) - delta_y * (a_x + face_x)
-    cross_b = delta_x * (b_y + face_y) - delta_y * (b_x + face_x)
-    through_face = cross_a * cross_b <= 0.0
-    d_offset = d + np.where(beyond, -r_query, r_query)
-    ad = -d_offset
-    bd = (delta_x * normal_x + delta_y * normal_y) - d_offset
-    face_hit = through_face & (ad * bd < 0.0) & (ad / (ad - bd) < 1.0)
-    ends = (r, origin_x, origin_y, target_x, target_y)
-    ends_hit = _hits_circles(a_x, a_y, *ends) | _hits_circles(b_x, b_y, *ends)
-    return inside | face_hit | (~through_face & (r_query != 0.0) & ends_hit)
-
-
-def _hits_discs(origin_x, origin_y, target_x, target_y, center_x, center_y, r) -> np.ndarray:
-    """Whether each query hits its disc before its target, all arrays (M,)."""
-    offset_x, offset_y = origin_x - center_x, origin_y - center_y
-    inside = np.sqrt(offset_x * offset_x + offset_y * offset_y) - r <= 0.0  # cpCircleShapePointQuery
-    return inside | _hits_circles(center_x, center_y, r, origin_x, origin_y, target_x, target_y)
-
-
-def _pair_hits(copy, origins, targets, shapes, radii, boxes, usable, culled, exact_test):
-    """Which shapes M queries hit, where Chipmunk's tree would test them: ``(query index, shape index)`` of each hit.
-
-    The tree tests a shape where the query enters its box (or a one-leaf tree is not culled); that
-    needs the query's own box to touch the shape's, a cheap first filter.
-
-    Args:
-        copy: each query's copy (M,); origins, targets: the queries' ends (M, 2) [m];
-        shapes: the shapes' points (N, S, P) [m]; radii: (N, S) [m]; boxes: their bounding boxes (N, S, 4)
-        ``(left, bottom, right, top)`` [m]; usable: the real (not padding) shapes (N, S) bool;
-        culled: (N,) bool; exact_test: ``_hits_walls`` or ``_hits_discs``.
-    """
-    low, high = np.minimum(origins, targets), np.maximum(origins, targets)
-    query_boxes = boxes[copy]  # (M, S, 4)
-    touching = (low[:, None, 0] <= query_boxes[..., 2]) & (query_boxes[..., 0] <= high[:, None, 0])
-    touching &= (low[:, None, 1] <= query_boxes[..., 3]) & (query_boxes[..., 1] <= high[:, None, 1])
-    query, shape = np.nonzero((touching | ~culled[copy, None]) & usable[copy])
-    if not query.size:
-        return query, shape
-    origin_x, origin_y = origins[query].T
-    target_x, target_y = targets[query].T
-    query_copy = copy[query]
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        box = query_boxes[query, shape].T
-        tested = _enters_box(*box, origin_x, origin_y, target_x - origin_x, target_y - origin_y) | ~culled[query_copy]
-        query, shape, query_copy = query[tested], shape[tested], query_copy[tested]
-        hit = exact_test(
-            origin_x[tested],
-            origin_y[tested],
-            target_x[tested],
-            target_y[tested],
-            *shapes[query_copy, shape].T,
-            radii[query_copy, shape],
-        )
-    return query[hit], shape[hit]
-
-
-def _hits(origins, targets, shapes, radii, boxes, culled, exact_test) -> np.ndarray:
-    """(N, K, S) bool: ``exact_test`` of each query against each shape, where Chipmunk's tree would run it."""
+def _hits(origins, targets, shapes, radii, boxes, culled, kind) -> np.ndarray:
+    """(N, K, S) bool: the exact test of each query against each shape of ``kind``, where Chipmunk's tree runs it."""
     n_copies, n_targets = targets.shape[:2]
     copy = np.repeat(np.arange(n_copies), n_targets)
     usable = np.ones(radii.shape, dtype=bool)
-    query, shape = _pair_hits(
-        copy, origins[copy], targets.reshape(-1, 2), shapes, radii, boxes, usable, culled, exact_test
-    )
-    hits = np.zeros((n_copies * n_targets, radii.shape[1]), dtype=bool)
-    hits[query, shape] = True
+    hits = shape_hits(copy, origins[copy], targets.reshape(-1, 2), shapes, radii, boxes, usable, culled, kind)
     return hits.reshape(n_copies, n_targets, -1)
 
 
@@ -369,11 +265,11 @@ def _disc_boxes(centers, radii) -> np.ndarray:
 
 def _segment_hits_segments(origins, targets, starts, ends, radii, culled) -> np.ndarray:
     walls = np.concatenate([starts, ends], axis=-1)
-    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, _hits_walls)
+    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, WALL)
 
 
 def _segment_hits_discs(origins, targets, centers, radii, culled) -> np.ndarray:
-    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, _hits_discs)
+    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, DISC)
 
 
 def segment_hits_segments(origins, targets, starts, ends, radii, culled=True) -> np.ndarray:
@@ -480,12 +376,11 @@ def _blocked(geometry: StaticGeometry, copy, origins, targets) -> np.ndarray:
     """Whether each of M segments ``origins`` -> ``targets`` (M, 2) of copy ``copy`` (M,) hits a wall or disc (M,)."""
     blocked = np.zeros(len(copy), dtype=bool)
     shapes = (
-        (geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, geometry.wall_valid, _hits_walls),
-        (geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, geometry.disc_valid, _hits_discs),
+        (geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, geometry.wall_valid, WALL),
+        (geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, geometry.disc_valid, DISC),
     )
-    for points, radii, boxes, usable, exact_test in shapes:
-        hit_queries, _ = _pair_hits(copy, origins, targets, points, radii, boxes, usable, geometry.culled, exact_test)
-        blocked[hit_queries] = True
+    for points, radii, boxes, usable, kind in shapes:
+        blocked |= shape_hits(copy, origins, targets, points, radii, boxes, usable, geometry.culled, kind).any(axis=1)
     return blocked
 
 

@@ -18,8 +18,14 @@ import math
 
 import numpy as np
 
-from infonav_gym.geometry import wrap_angle
 from infonav_gym.world.clearance import teammate_conflicts
+from infonav_gym.world.motion_kernels import (
+    contact_within,
+    executed_controls,
+    free_substeps,
+    unicycle_moves,
+    waypoint_controls,
+)
 from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.visibility import StaticGeometry, segments_clear
 from infonav_gym.world.world import MAX_TIME_STEP_S, TIME_STEP_S, World, start_poses, static_boxes
@@ -140,17 +146,9 @@ class WorldBatch:
             TIME_STEP_S.check("WorldBatch.step", "dt", dt)
         before = self.poses[copies]
         controls = self._waypoint_controls(copies, before) if commands is None else np.asarray(commands, dtype=float)
-        speeds, turn_rates = controls[..., 0], controls[..., 1]
-        x, y, heading = before[..., 0], before[..., 1], before[..., 2]
-        after = np.stack(
-            [
-                x + speeds * np.cos(heading) * dt,
-                y + speeds * np.sin(heading) * dt,
-                wrap_angle(heading + turn_rates * dt),
-            ],
-            axis=-1,
-        )
-        near_static, near_robots = self._contact_within(copies, before, speeds, dt)
+        speeds = controls[..., 0]
+        after = unicycle_moves(before, controls, dt)
+        near_static, near_robots = contact_within(copies, before, speeds, dt, self._boxes, self._radius_m)
         contact = near_static | near_robots
         free = np.flatnonzero(contact & ~self._in_contact[copies])
         if free.size:
@@ -175,57 +173,22 @@ class WorldBatch:
             world.drive_in_contact(controls[row].tolist(), dt)
             after[row] = world.poses
         self.poses[copies] = after
-        heading = before[..., 2]
-        dx, dy = after[..., 0] - before[..., 0], after[..., 1] - before[..., 1]
-        executed_speeds = (dx * np.cos(heading) + dy * np.sin(heading)) / dt
-        return np.stack([executed_speeds, wrap_angle(after[..., 2] - heading) / dt], axis=-1)
+        return executed_controls(before, after, dt)
 
     def _waypoint_controls(self, copies: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """``World._waypoint_control`` of every robot of ``copies`` (n, R, 2); advances their waypoints alike."""
-        index = self._waypoint_index[copies]
-        n_waypoints, loops, waypoints = self._n_waypoints[copies], self._loops[copies], self._waypoints[copies]
-        rows, robots = np.indices(index.shape)
-        controls = np.zeros((*index.shape, 2))
-        undecided = np.ones(index.shape, dtype=bool)
-        for attempt in range(waypoints.shape[2] + 1):
-            undecided &= (attempt <= n_waypoints) & (index < n_waypoints)  # past the end, or looped all round: stop
-            if not undecided.any():
-                break
-            target = waypoints[rows, robots, np.minimum(index, waypoints.shape[2] - 1)]
-            offset_x, offset_y = target[..., 0] - poses[..., 0], target[..., 1] - poses[..., 1]
-            driving = undecided & (np.hypot(offset_x, offset_y) > self._tolerance_m)
-            heading_error = wrap_angle(np.arctan2(offset_y, offset_x) - poses[..., 2])
-            turn_rates = np.clip(self._gain * heading_error, -self._max_turn_rate, self._max_turn_rate)
-            speeds = self._route_speeds[copies] * np.maximum(np.cos(heading_error), 0.0)
-            controls = np.where(driving[..., None], np.stack([speeds, turn_rates], axis=-1), controls)
-            reached = undecided & ~driving
-            index = np.where(reached, index + 1, index)
-            index = np.where(reached & loops & (index >= n_waypoints), 0, index)
-            undecided = reached
-        self._waypoint_index[copies] = index
-        return controls
-
-    def _contact_within(self, copies: np.ndarray, poses: np.ndarray, speeds: np.ndarray, dt: float) -> tuple:
-        """Which of ``copies`` have a wall or obstacle (n,) and which two robots (n,) within reach in ``dt``, as
-        ``World`` tests it (either: contact)."""
-        positions = poses[..., :2]
-        reach = self._radius_m + speeds * dt  # (n, R)
-        low, high = positions - reach[..., None], positions + reach[..., None]
-        boxes = self._boxes[copies][:, None]  # (n, 1, S, 4)
-        near_static = (
-            (boxes[..., 0] <= high[..., None, 0])
-            & (low[..., None, 0] <= boxes[..., 2])
-            & (boxes[..., 1] <= high[..., None, 1])
-            & (low[..., None, 1] <= boxes[..., 3])
+        return waypoint_controls(
+            copies,
+            poses,
+            self._waypoint_index,
+            self._n_waypoints,
+            self._loops,
+            self._waypoints,
+            self._route_speeds,
+            self._tolerance_m,
+            self._gain,
+            self._max_turn_rate,
         )
-        near_robots = np.zeros(len(copies), dtype=bool)
-        n_robots = positions.shape[1]
-        if n_robots > 1:
-            first, second = np.triu_indices(n_robots, k=1)
-            offsets = positions[:, second] - positions[:, first]
-            pair_reach = 2 * self._radius_m + (speeds[:, first] + speeds[:, second]) * dt
-            near_robots = (offsets[..., 0] ** 2 + offsets[..., 1] ** 2 < pair_reach * pair_reach).any(axis=1)
-        return near_static.any(axis=(1, 2)), near_robots
 
     def _geometry(self, copy: int) -> StaticGeometry:
         """The walls and obstacles of ``copy``'s scenario (built once per scenario)."""
@@ -263,10 +226,4 @@ class WorldBatch:
         Chipmunk integrates a free body, so the numbers are Pymunk's.
         """
         substeps = math.ceil(dt / self._max_physics_step_s - 1e-9)
-        step_s = dt / substeps
-        x, y, angle = poses[..., 0], poses[..., 1], poses[..., 2]
-        speeds, turn_rates = controls[..., 0], controls[..., 1]
-        velocity_x, velocity_y = speeds * np.cos(angle), speeds * np.sin(angle)
-        for _ in range(substeps):
-            x, y, angle = x + velocity_x * step_s, y + velocity_y * step_s, angle + turn_rates * step_s
-        return np.stack([x, y, wrap_angle(angle)], axis=-1)
+        return free_substeps(poses, controls, dt, substeps)

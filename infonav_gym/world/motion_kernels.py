@@ -1,0 +1,122 @@
+"""Compiled robot motion of ``WorldBatch``: the single ``World``'s formulas, one robot of one copy at a time.
+
+Poses are ``[x, y, heading]`` [m, m, rad], controls ``[speed, turn_rate]`` [m/s, rad/s]; arrays carry the copies
+first and the robots second. The operations are those of ``World`` (and of Chipmunk's free-body integration for
+``free_substeps``) in the same order, so the numbers are its numbers.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from infonav_gym.compiled import kernel
+from infonav_gym.geometry import wrap_angle_kernel as wrap
+
+
+@kernel
+def waypoint_controls(copies, poses, index, n_waypoints, loops, waypoints, route_speeds, tolerance_m, gain, max_turn):
+    """``World._waypoint_control`` of every robot of ``copies``: the controls (n, R, 2); advances ``index`` in place.
+
+    Args:
+        copies: the copies stepped (n,); poses: their robots' poses (n, R, 3).
+        index: every copy's current waypoint per robot (N, R), updated; n_waypoints: route lengths (N, R);
+        loops: whether each route loops (N, R); waypoints: (N, R, W, 2) [m]; route_speeds: (N, R) [m/s].
+        tolerance_m: a waypoint this near is reached [m]; gain: heading gain [1/s]; max_turn: [rad/s].
+    """
+    n_rows, n_robots = poses.shape[0], poses.shape[1]
+    last = waypoints.shape[2] - 1
+    controls = np.zeros((n_rows, n_robots, 2))
+    for row in range(n_rows):
+        copy = copies[row]
+        for robot in range(n_robots):
+            current, count = index[copy, robot], n_waypoints[copy, robot]
+            x, y, heading = poses[row, robot, 0], poses[row, robot, 1], poses[row, robot, 2]
+            for attempt in range(last + 2):
+                if attempt > count or current >= count:  # past the end, or looped all round: stop
+                    break
+                target = waypoints[copy, robot, min(current, last)]
+                offset_x, offset_y = target[0] - x, target[1] - y
+                if math.hypot(offset_x, offset_y) > tolerance_m:
+                    heading_error = wrap(math.atan2(offset_y, offset_x) - heading)
+                    controls[row, robot, 1] = min(max(gain * heading_error, -max_turn), max_turn)
+                    controls[row, robot, 0] = route_speeds[copy, robot] * max(math.cos(heading_error), 0.0)
+                    break
+                current += 1
+                if loops[copy, robot] and current >= count:
+                    current = 0
+            index[copy, robot] = current
+    return controls
+
+
+@kernel
+def unicycle_moves(poses, controls, dt):
+    """Each robot driven straight along its heading for ``dt`` [s], heading turned at its rate: (n, R, 3)."""
+    after = np.empty_like(poses)
+    for row in range(poses.shape[0]):
+        for robot in range(poses.shape[1]):
+            x, y, heading = poses[row, robot, 0], poses[row, robot, 1], poses[row, robot, 2]
+            speed, turn_rate = controls[row, robot, 0], controls[row, robot, 1]
+            after[row, robot, 0] = x + speed * math.cos(heading) * dt
+            after[row, robot, 1] = y + speed * math.sin(heading) * dt
+            after[row, robot, 2] = wrap(heading + turn_rate * dt)
+    return after
+
+
+@kernel
+def executed_controls(before, after, dt):
+    """The ``[speed, turn_rate]`` that took each robot from ``before`` to ``after`` in ``dt`` [s]: (n, R, 2)."""
+    controls = np.empty((before.shape[0], before.shape[1], 2))
+    for row in range(before.shape[0]):
+        for robot in range(before.shape[1]):
+            heading = before[row, robot, 2]
+            dx, dy = after[row, robot, 0] - before[row, robot, 0], after[row, robot, 1] - before[row, robot, 1]
+            controls[row, robot, 0] = (dx * math.cos(heading) + dy * math.sin(heading)) / dt
+            controls[row, robot, 1] = wrap(after[row, robot, 2] - heading) / dt
+    return controls
+
+
+@kernel
+def free_substeps(poses, controls, dt, substeps):
+    """The poses (n, R, 3) after ``substeps`` of Chipmunk's free-body integration over ``dt`` [s] (no contact)."""
+    step_s = dt / substeps
+    after = np.empty_like(poses)
+    for row in range(poses.shape[0]):
+        for robot in range(poses.shape[1]):
+            x, y, angle = poses[row, robot, 0], poses[row, robot, 1], poses[row, robot, 2]
+            speed, turn_rate = controls[row, robot, 0], controls[row, robot, 1]
+            velocity_x, velocity_y = speed * math.cos(angle), speed * math.sin(angle)
+            for _ in range(substeps):
+                x, y, angle = x + velocity_x * step_s, y + velocity_y * step_s, angle + turn_rate * step_s
+            after[row, robot, 0], after[row, robot, 1], after[row, robot, 2] = x, y, wrap(angle)
+    return after
+
+
+@kernel
+def contact_within(copies, poses, speeds, dt, boxes, radius_m):
+    """Which of ``copies`` have a wall or obstacle box (n,) and which two robots (n,) within reach in ``dt``.
+
+    A robot reaches ``radius_m + speed * dt`` around its position; ``boxes`` (N, S, 4) are every copy's static
+    shapes' ``(left, bottom, right, top)`` [m] (padding boxes overlap nothing).
+    """
+    n_rows, n_robots = poses.shape[0], poses.shape[1]
+    near_static, near_robots = np.zeros(n_rows, dtype=np.bool_), np.zeros(n_rows, dtype=np.bool_)
+    for row in range(n_rows):
+        copy = copies[row]
+        for robot in range(n_robots):
+            reach = radius_m + speeds[row, robot] * dt
+            x, y = poses[row, robot, 0], poses[row, robot, 1]
+            low_x, low_y, high_x, high_y = x - reach, y - reach, x + reach, y + reach
+            for shape in range(boxes.shape[1]):
+                box = boxes[copy, shape]
+                if box[0] <= high_x and low_x <= box[2] and box[1] <= high_y and low_y <= box[3]:
+                    near_static[row] = True
+                    break
+            for other in range(robot + 1, n_robots):
+                offset_x = poses[row, other, 0] - x
+                offset_y = poses[row, other, 1] - y
+                pair_reach = 2 * radius_m + (speeds[row, robot] + speeds[row, other]) * dt
+                if offset_x**2 + offset_y**2 < pair_reach * pair_reach:
+                    near_robots[row] = True
+    return near_static, near_robots
