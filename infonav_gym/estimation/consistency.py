@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
 
 from infonav_gym.geometry import wrap_angle
 
@@ -41,6 +40,8 @@ def chi2_bounds(dof: int, n_runs: int = 1, confidence: float = 0.95) -> tuple[fl
     """
     if dof < 1 or n_runs < 1 or not 0 < confidence < 1:
         raise ValueError(f"need dof >= 1, n_runs >= 1 and 0 < confidence < 1, got {dof}, {n_runs}, {confidence}")
+    from scipy import stats  # about 1 s to import: only when bounds are asked for, not with every env
+
     tail = (1.0 - confidence) / 2.0
     total_dof = dof * n_runs
     return (
