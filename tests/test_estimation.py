@@ -169,7 +169,7 @@ def test_pose_ekf_is_consistent_over_50_monte_carlo_runs_of_the_field():
         agent, errors = RandomAgent(env.action_space.n, seed=seed), []
         truncated = False
         while not truncated:
-            errors.append(nees(info["true_pose"], info["estimated_pose"], env.ekf.pose_covariance))
+            errors.append(nees(info["true_pose"], info["estimated_pose"], env.vector.estimate(0)[1][:3, :3]))
             observation, _, _, truncated, info = env.step(agent.act(observation, info))
         runs.append(errors)
     average_nees = np.mean(runs, axis=0)
