@@ -141,7 +141,7 @@ def test_a_masked_action_raises_naming_copy_and_robot_or_is_a_no_op_and_leaves_t
     for env in (raising, reference, noop):
         env.reset(seed=0)
     copy, robot, action = (int(index) for index in np.argwhere(~raising.action_masks())[0])
-    no_ops = np.full((3, len(raising.agents)), raising._single.traits.noop_action)
+    no_ops = np.full((3, len(raising.agents)), raising.traits.noop_action)
     masked = no_ops.copy()
     masked[copy, robot] = action
     with pytest.raises(ValueError, match=rf"action {action} of robot_{robot} in sub-env {copy} is not valid now"):
@@ -162,7 +162,10 @@ def test_a_masked_action_raises_naming_copy_and_robot_or_is_a_no_op_and_leaves_t
         ({"num_envs": 0}, r"num_envs of {name} must be an int >= 1, got 0"),
         ({"num_envs": 2.0}, r"must be an int >= 1, got 2.0"),
         ({"render_mode": "ascii"}, r"render_mode"),
-        ({"autoreset_mode": "partial"}, r"autoreset_mode .* must be one of 'next_step', 'same_step' .*'partial'"),
+        (
+            {"autoreset_mode": "partial"},
+            r"autoreset_mode .* must be one of 'next_step', 'same_step', 'disabled' .*'partial'",
+        ),
         ({"max_cyclez": 9}, r"max_cyclez"),
     ],
 )
