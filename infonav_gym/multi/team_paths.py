@@ -9,7 +9,8 @@ from infonav_gym.scene import PathHistory, RobotDrawing
 
 
 class TeamPaths:
-    """The true and estimated paths of a team env's robots, and their drawings; a mixin.
+    """The true and estimated paths of a team env's robots, and their drawings; a mixin (of a team env still
+    written twice: one written once keeps its copy 0's in a ``FirstCopyPaths``).
 
     The host has ``ekf`` (a ``JointEKF``), ``_true_poses`` (R, 3), ``_gps_available`` (R,) and ``possible_agents``.
     """
