@@ -22,20 +22,26 @@ from infonav_gym.multi.team_vector import TeamVectorEnv
 def first_copy_infos(info: dict, agents: list[str], team_keys) -> dict:
     """Copy 0's ``{agent: info}`` from a team vector env's info: row ``(0, robot)`` of each key (``team_keys``: row
     0), one-number values as Python scalars, nested dicts alike; ``_key`` masks left out."""
-    return {agent: _first_copy_row(info, robot, team_keys) for robot, agent in enumerate(agents)}
+    return dict(zip(agents, _per_robot(_first_copy_columns(info, len(agents), team_keys), len(agents))))
 
 
-def _first_copy_row(info: dict, robot: int, team_keys) -> dict:
-    row = {}
+def _first_copy_columns(info: dict, n_robots: int, team_keys) -> dict[str, list]:
+    """Each key's values of copy 0, one per robot."""
+    columns = {}
     for key, value in info.items():
         if key.startswith("_"):
             continue
         if isinstance(value, dict):
-            row[key] = _first_copy_row(value, robot, ())
-            continue
-        item = value[0] if key in team_keys else value[0, robot]
-        row[key] = item.item() if isinstance(item, np.generic) else item
-    return row
+            columns[key] = _per_robot(_first_copy_columns(value, n_robots, ()), n_robots)
+        elif key in team_keys:
+            columns[key] = [value[0].item() if isinstance(value[0], np.generic) else value[0]] * n_robots
+        else:  # (N, R) numbers become Python scalars; (N, R, ...) arrays one row per robot
+            columns[key] = value[0].tolist() if value.ndim == 2 else list(value[0])
+    return columns
+
+
+def _per_robot(columns: dict[str, list], n_robots: int) -> list[dict]:
+    return [{key: column[robot] for key, column in columns.items()} for robot in range(n_robots)]
 
 
 class ParallelEnvView(OneCopyView, ParallelEnv):
