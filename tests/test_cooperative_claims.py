@@ -20,9 +20,10 @@ def joint_nees_per_step(estimator: str, seed: int) -> list[float]:
     agent, values = GreedyEntropyAgent(), []
     while env.agents:
         truth = np.concatenate([infos[name]["true_pose"] for name in env.agents])
-        error = env.ekf.x - truth
+        x, P = (part[0] for part in env.vector.joint_state())
+        error = x - truth
         error[2::3] = wrap_angle(error[2::3])
-        values.append(float(error @ np.linalg.solve(env.ekf.P, error)))
+        values.append(float(error @ np.linalg.solve(P, error)))
         actions = {name: agent.act(observations[name], infos[name]) for name in env.agents}
         observations, _, _, _, infos = env.step(actions)
     return values

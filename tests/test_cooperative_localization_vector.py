@@ -9,11 +9,18 @@ from gymnasium import spaces
 from team_vector_checks import run_against_parallel_envs
 
 import infonav_gym
-from infonav_gym.multi import cooperative_localization_v0
+from infonav_gym.estimation.ekf import JointEKF
+from infonav_gym.information import mutual_information
+from infonav_gym.multi import cooperative_localization_v0, cooperative_localization_vector, team_vector
 from infonav_gym.multi.cooperative_localization_vector import CooperativeLocalizationVectorEnv
 from infonav_gym.registry import PARALLEL, env_entry, make_vector_env, register, unregister
 from infonav_gym.sensors.gps import GPSSensor
-from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, noisy_relative_poses, relative_poses_with_noise
+from infonav_gym.sensors.relative_pose import (
+    RELATIVE_POSE_SENSORS,
+    noise_covariances,
+    noisy_relative_poses,
+    relative_poses_with_noise,
+)
 
 TEAM_ID = "cooperative_localization_v0"
 
@@ -124,3 +131,74 @@ def test_the_sensors_given_their_standard_normals_measure_what_they_draw():
     noise = np.random.default_rng(2).standard_normal((2, 3))
     np.testing.assert_array_equal(relative_poses_with_noise(truth, parameters, noise), expected)
     assert not np.allclose(expected, truth) and np.all(np.abs(expected[:, 1:]) <= np.pi)
+
+
+# ----------------------------------------------------------------------------- the filter against filterpy's
+
+
+@pytest.mark.parametrize("estimator", ["joint", "independent"])
+def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monkeypatch):
+    """Along a whole episode (DGPS on schedule, lost by robot_1 at 21 s and under canopies, relative-pose updates)
+    the env's EKF equals ``JointEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10), and each reward its MI."""
+    priors, readings, fixes, measurements = [], [], [], []
+    start_episode = cooperative_localization_vector.start_episode
+
+    def recorded(function, sink):
+        return lambda *args: sink.append(function(*args)) or sink[-1]
+
+    monkeypatch.setattr(cooperative_localization_vector, "start_episode", recorded(start_episode, priors))
+    monkeypatch.setattr(team_vector, "relative_poses_with_noise", recorded(relative_poses_with_noise, measurements))
+    env = cooperative_localization_v0.parallel_env(estimator=estimator, team_reward=0.5, max_cycles=80)
+    vector = env.vector
+    for sensor, sink in ((vector._odometry, readings), (vector._gps, fixes)):
+        measure = sensor.measure_with_noise
+        monkeypatch.setattr(
+            type(sensor), "measure_with_noise", lambda _, *args, m=measure, s=sink: recorded(m, s)(*args)
+        )
+    _, infos = env.reset(seed=3)
+    ekf = JointEKF(*priors[-1][1:3], cross_covariances=estimator == "joint")
+    n_robots, dt = len(env.possible_agents), env.config["time_step_s"]
+    odometry_covariances = np.repeat(vector._odometry.noise_covariance()[None], n_robots, axis=0)
+    gps_covariances = np.repeat(vector._gps.noise_covariance()[None], n_robots, axis=0)
+
+    def fuse_gps(infos):
+        robots = np.flatnonzero([infos[agent]["gps_available"] for agent in env.possible_agents])
+        if robots.size:
+            ekf.gps_update(robots, fixes[-1][0][robots], gps_covariances[robots])
+        return robots.size
+
+    counts = np.array([0, fuse_gps(infos)])  # relative observations, DGPS fixes
+    rng = np.random.default_rng(3)
+    while env.agents:
+        actions = {}
+        for agent in env.agents:
+            valid = np.flatnonzero(infos[agent]["action_mask"])
+            actions[agent] = int(rng.choice(valid)) if rng.random() < 0.8 else int(rng.integers(n_robots + 1))
+        prior_P = ekf.P.copy()
+        _, rewards, _, _, infos = env.step(actions)
+        chosen = np.array([infos[agent]["chosen_action"] for agent in env.possible_agents])
+        observers = np.flatnonzero(chosen)
+        if observers.size:
+            targets = chosen[observers] - 1
+            predicted, H_observer, H_target = ekf.relative_pose_model(observers, targets)
+            pairs = vector._pair_index[observers, chosen[observers]]
+            R = noise_covariances(vector._pairs.noise[pairs], predicted[:, 0])
+            ekf.relative_pose_update(
+                observers, targets, measurements[-1][observers], predicted, H_observer, H_target, R
+            )
+        own = 0.5 * (np.linalg.slogdet(pose_blocks(prior_P))[1] - np.linalg.slogdet(pose_blocks(ekf.P))[1])
+        team = mutual_information(prior_P, ekf.P) if observers.size else 0.0
+        for robot, agent in enumerate(env.possible_agents):
+            assert rewards[agent] == pytest.approx(0.5 * own[robot] + 0.5 * team, abs=1e-10)
+        ekf.predict(readings[-1][0], dt, odometry_covariances)
+        counts += [observers.size, fuse_gps(infos)]
+        x, P = vector.joint_state()
+        np.testing.assert_allclose(x[0], ekf.x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(P[0], ekf.P, rtol=0, atol=1e-10)
+    assert len(readings) == 80 and np.all(counts > 60)
+    assert not infos["robot_1"]["gps_available"]  # its DGPS was lost at 21 s
+
+
+def pose_blocks(P: np.ndarray) -> np.ndarray:
+    """Each robot's (3, 3) pose block of a joint covariance (R, 3, 3)."""
+    return np.array([P[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] for k in range(len(P) // 3)])

@@ -57,8 +57,8 @@ def test_a_registered_builder_gets_the_parameters_it_names_and_the_env_runs_on_i
 def test_a_registered_team_scenario_builds_one_route_per_robot(registered):
     env = cooperative_localization_v0.parallel_env(scenario="lanes", n_robots=3, max_cycles=5)
     observations, _ = env.reset(seed=0)
-    assert len(observations) == 3 and env.unwrapped.world.scenario.name == "lanes"
-    assert [route.start_pose[1] for route in env.unwrapped.world.scenario.routes] == [0.0, -4.0, -8.0]
+    assert len(observations) == 3 and env.vector.scenario(0).name == "lanes"
+    assert [route.start_pose[1] for route in env.vector.scenario(0).routes] == [0.0, -4.0, -8.0]
 
 
 def test_unknown_or_mismatched_scenarios_are_clear_errors(registered, monkeypatch):

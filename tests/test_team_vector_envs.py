@@ -64,6 +64,22 @@ def test_same_step_autoreset_returns_the_reset_and_the_final_observation_and_inf
 
 
 @pytest.mark.parametrize("env_id", TEAM_VECTOR_IDS)
+def test_without_autoreset_a_copy_goes_on_from_its_last_state_until_reset(env_id):
+    """``DISABLED``: what the PettingZoo view steps; no copy starts again by itself."""
+    _, vector_class = team_envs(env_id)
+    vector = vector_class(2, max_cycles=3, autoreset_mode="disabled")
+    assert vector.metadata["autoreset_mode"] == AutoresetMode.DISABLED
+    _, info = vector.reset(seed=1)
+    noops = np.full((2, len(vector.agents)), vector.traits.noop_action)
+    for step in range(1, 6):
+        _, _, terminated, truncated, info = vector.step(noops)
+        assert not terminated.any() and truncated.all() == (step >= 3) and "final_obs" not in info
+        np.testing.assert_allclose(info["time_s"], step * vector.config["time_step_s"])
+    _, info = vector.reset(seed=1)
+    assert not info["time_s"].any()
+
+
+@pytest.mark.parametrize("env_id", TEAM_VECTOR_IDS)
 def test_a_seed_list_seeds_each_copy_and_no_seed_continues_each_copys_generator(env_id):
     parallel_class, vector_class = team_envs(env_id)
     vector = vector_class(3, max_cycles=5)
@@ -141,7 +157,7 @@ def test_a_masked_action_raises_naming_copy_and_robot_or_is_a_no_op_and_leaves_t
     for env in (raising, reference, noop):
         env.reset(seed=0)
     copy, robot, action = (int(index) for index in np.argwhere(~raising.action_masks())[0])
-    no_ops = np.full((3, len(raising.agents)), raising._single.traits.noop_action)
+    no_ops = np.full((3, len(raising.agents)), raising.traits.noop_action)
     masked = no_ops.copy()
     masked[copy, robot] = action
     with pytest.raises(ValueError, match=rf"action {action} of robot_{robot} in sub-env {copy} is not valid now"):
@@ -162,7 +178,10 @@ def test_a_masked_action_raises_naming_copy_and_robot_or_is_a_no_op_and_leaves_t
         ({"num_envs": 0}, r"num_envs of {name} must be an int >= 1, got 0"),
         ({"num_envs": 2.0}, r"must be an int >= 1, got 2.0"),
         ({"render_mode": "ascii"}, r"render_mode"),
-        ({"autoreset_mode": "partial"}, r"autoreset_mode .* must be one of 'next_step', 'same_step' .*'partial'"),
+        (
+            {"autoreset_mode": "partial"},
+            r"autoreset_mode .* must be one of 'next_step', 'same_step', 'disabled' .*'partial'",
+        ),
         ({"max_cyclez": 9}, r"max_cyclez"),
     ],
 )

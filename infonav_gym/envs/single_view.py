@@ -13,6 +13,7 @@ import gymnasium as gym
 import numpy as np
 
 from infonav_gym.envs.base import discrete_action_index
+from infonav_gym.envs.copy_view import OneCopyView
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 
 
@@ -34,7 +35,7 @@ def first_row(info: dict) -> dict:
     return row
 
 
-class SingleEnvView(gym.Env):
+class SingleEnvView(OneCopyView, gym.Env):
     """One copy of ``vector_env``: its config keys, spaces, metrics, traits and rendering; the step of a single env.
 
     Stepping on after an episode ended goes on from the last state (no autoreset), as any Gymnasium env; call
@@ -43,23 +44,8 @@ class SingleEnvView(gym.Env):
 
     vector_env: type[InfoNavVectorEnv]
 
-    def __init_subclass__(cls, vector_env: type[InfoNavVectorEnv] | None = None, **kwargs):
-        super().__init_subclass__(**kwargs)
-        if vector_env is not None:
-            cls.vector_env = vector_env
-            cls.metadata = {key: vector_env.metadata[key] for key in ("render_modes", "render_fps")}
-            cls.episode_metrics = vector_env.episode_metrics
-            cls.traits = vector_env.traits
-
-    @classmethod
-    def default_config(cls) -> dict:
-        """A fresh dict of every config key with its default; ``gym.make`` kwargs override it."""
-        return cls.vector_env.default_config()
-
     def __init__(self, render_mode: str | None = None, **config):
-        self.vector = self.vector_env.one_copy(type(self).__name__, render_mode, config)
-        self.config = self.vector.config
-        self.render_mode = render_mode
+        self._view_one_copy(render_mode, config)
         self.observation_space = self.vector.single_observation_space
         self.action_space = self.vector.single_action_space
         self._started = False

@@ -105,7 +105,8 @@ class InfoNavVectorEnv(VectorEnv):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.config = merge_config(self.default_config(), config, owner)
         check_choice(self.config, "invalid_action", INVALID_ACTION_MODES, owner)
-        check_config(self.config, owner, {"render_size_px": RENDER_SIZE_PX, "horizon": EPISODE_STEPS})
+        shared = {"render_size_px": RENDER_SIZE_PX, "horizon": EPISODE_STEPS}  # a team env counts "max_cycles"
+        check_config(self.config, owner, {key: interval for key, interval in shared.items() if key in self.config})
         self._start_copies(num_envs, render_mode, autoreset_mode)
 
     def _set_spaces(self, single_observation_space: gym.Space, single_action_space: gym.Space) -> None:

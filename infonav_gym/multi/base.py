@@ -1,4 +1,7 @@
-"""``InfoNavParallelEnv``: the fixed reset/step cycle of the PettingZoo infonav envs, and the hooks it calls.
+"""``InfoNavParallelEnv``: the fixed reset/step cycle of a PettingZoo team env still written twice, and its hooks.
+
+A team env written once (``cooperative_localization_v0``) has no such class: its PettingZoo env is the N = 1 view
+of its vector env (``multi.parallel_view``). ``cooperative_exploration_v0`` is still on this base.
 
 The parallel counterpart of ``infonav_gym.envs.base.InfoNavEnv``, with the same ``Decision``,
 action checks (``discrete_action_index``, ``accepts_action``) and rendering. Robot ``k`` is agent

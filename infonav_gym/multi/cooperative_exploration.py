@@ -15,7 +15,6 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, JointEKF
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi.base import InfoNavParallelEnv, team_metadata
-from infonav_gym.multi.cooperative_localization import CooperativeLocalizationEnv
 from infonav_gym.multi.exploration_planning import (
     N_MOTIONS,
     NOOP_ACTION,
@@ -35,6 +34,7 @@ from infonav_gym.multi.exploration_views import (
 )
 from infonav_gym.multi.landmark_sensing import LandmarkSensing
 from infonav_gym.multi.team import parse_outages, parse_speeds, parse_suites
+from infonav_gym.multi.team_localization import team_observation_bounds
 from infonav_gym.multi.team_sensing import (
     NO_OBSERVATION,
     RelativeSight,
@@ -263,7 +263,7 @@ class CooperativeExplorationEnv(
         self.agents = []
         self.n_slots = 1 + n_landmarks + n
         self._action_spaces = {agent: spaces.Discrete(N_MOTIONS * self.n_slots) for agent in self.possible_agents}
-        team_low, team_high = CooperativeLocalizationEnv._observation_bounds(n, False)
+        team_low, team_high = team_observation_bounds(n, False)
         self._team_space = spaces.Box(team_low, team_high, dtype=np.float32)
         low, high = self._observation_bounds(team_low, team_high, n_landmarks, self.map_model.n_cells)
         self._observation_spaces = {agent: spaces.Box(low, high, dtype=np.float32) for agent in self.possible_agents}

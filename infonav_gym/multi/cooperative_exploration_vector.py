@@ -18,7 +18,6 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi.cooperative_exploration import REWARD_TERMS, CooperativeExplorationEnv, start_episode
-from infonav_gym.multi.cooperative_localization import team_observations
 from infonav_gym.multi.cooperative_localization_batch import TeamDecision
 from infonav_gym.multi.exploration_batch import (
     ExplorationDecision,
@@ -38,6 +37,7 @@ from infonav_gym.multi.exploration_planning import (
     total_reward,
 )
 from infonav_gym.multi.exploration_views import exploration_observations
+from infonav_gym.multi.team_localization import team_observations
 from infonav_gym.multi.team_vector import TeamVectorEnv, draws_in_slot_order
 from infonav_gym.world.visibility import StaticGeometry
 

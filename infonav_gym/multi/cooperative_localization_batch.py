@@ -15,7 +15,7 @@ from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.estimation.models import relative_pose
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
-from infonav_gym.multi.cooperative_localization import NO_OBSERVATION, SensingPairs
+from infonav_gym.multi.team_sensing import NO_OBSERVATION, SensingPairs
 from infonav_gym.sensors.relative_pose import noise_covariances
 from infonav_gym.world.visibility import StaticGeometry, line_of_sight
 

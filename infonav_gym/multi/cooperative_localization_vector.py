@@ -1,26 +1,25 @@
-"""``CooperativeLocalizationVectorEnv``: N copies of ``cooperative_localization_v0`` stepped at once on stacked arrays.
+"""``CooperativeLocalizationVectorEnv``: ``cooperative_localization_v0`` written once, N copies on stacked arrays.
 
-``make_vector_env("cooperative_localization_v0", num_envs=N, **config)`` returns it. The joint estimation
-(prediction, DGPS and relative-pose updates, expected gains, log-determinants) and the robot-robot line of sight
-run batched over the copies (``estimation.batched``, ``world.visibility``), the physics in a ``WorldBatch`` (numpy
-free motion, a copy's own Pymunk space for its contact steps) and the sensor noise from one stream per copy and
-sensor (``NoiseStreams``: the parallel env's generators, drawn ahead, handed out in its order).
-So copy ``i`` after ``reset(seed=s)`` gives the numbers of ``parallel_env()`` after ``reset(seed=s + i)``.
+``make_vector_env("cooperative_localization_v0", num_envs=N, **config)`` returns it; its PettingZoo env
+(``CooperativeLocalizationEnv``, ``cooperative_localization_v0.parallel_env``) is its N = 1 view without autoreset
+(``multi.parallel_view``). The joint estimation (prediction, DGPS and relative-pose updates, expected gains,
+log-determinants) runs on the batched EKF core (``estimation.batched``), the robot-robot line of sight on
+``world.visibility``, the physics in a ``WorldBatch`` (numpy free motion, a copy's own Pymunk space for its contact
+steps) and the sensor noise from one stream per copy and sensor (``NoiseStreams``), so copy ``i`` after
+``reset(seed=s)`` gives the numbers of ``parallel_env()`` after ``reset(seed=s + i)``.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
+from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
+from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.ekf import POSE_DIM
-from infonav_gym.multi.cooperative_localization import (
-    NO_OBSERVATION,
-    CooperativeLocalizationEnv,
-    start_episode,
-    team_observations,
-)
+from infonav_gym.multi.base import team_metadata
 from infonav_gym.multi.cooperative_localization_batch import (
     TeamDecision,
     TeamSightLines,
@@ -28,12 +27,24 @@ from infonav_gym.multi.cooperative_localization_batch import (
     observable_pairs,
     team_info,
 )
+from infonav_gym.multi.team_localization import (
+    TeamParts,
+    start_episode,
+    team_localization_config,
+    team_observation_bounds,
+    team_observations,
+)
+from infonav_gym.multi.team_paths import FirstCopyPaths
+from infonav_gym.multi.team_sensing import NO_OBSERVATION
 from infonav_gym.multi.team_vector import TeamVectorEnv
+from infonav_gym.scene import SceneFrame
 from infonav_gym.world.visibility import StaticGeometry
 
 
-class CooperativeLocalizationVectorEnv(TeamVectorEnv, single_env=CooperativeLocalizationEnv):
-    """N copies of ``CooperativeLocalizationEnv`` (see it for the spaces, rewards and config keys), batched.
+class CooperativeLocalizationVectorEnv(TeamVectorEnv):
+    """N copies of ``cooperative_localization_v0`` on stacked arrays: the env's one implementation.
+
+    See ``CooperativeLocalizationEnv`` (its N = 1 PettingZoo view) for the spaces, rewards and config keys.
 
     ## Vector API
     ``agents`` are the team's robots R; ``single_observation_space`` / ``single_action_space`` one robot's.
@@ -50,13 +61,31 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv, single_env=CooperativeLoca
     observation is ``info["final_obs"]`` (an object array (N,) of (R, 10 + 5R) arrays, None for the others) and
     the last info ``info["final_info"]``, masked by ``info["_final_obs"]`` / ``info["_final_info"]`` (N,).
     A copy reset this way continues its own generator, as the parallel env's ``reset()`` without a seed does.
+    ``DISABLED``: a copy goes on from its last state until ``reset()`` (what the PettingZoo view steps).
 
     ## Arguments
     ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name ``"same_step"``) and
-    any key of ``CooperativeLocalizationEnv.default_config()``, checked as the parallel env checks them.
-    ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0, as its parallel env would
-    (``FirstCopyView``: a parallel env kept in step with copy 0, one parallel step per vector step).
+    any key of ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0:
+    the scenario, each robot's truth, estimate, covariance and paths, and this step's relative observations.
     """
+
+    metadata = {**team_metadata("cooperative_localization_v0"), "autoreset_mode": AutoresetMode.NEXT_STEP}
+    episode_metrics = TEAM_LOCALIZATION_METRICS
+    traits = EnvTraits(
+        idle_actions=frozenset({NO_OBSERVATION}),
+        reward_terms=("own_mutual_information", "team_mutual_information"),
+        info_keys=frozenset(
+            {"gps_available", "pose_std", "pose_std_after_update", "pose_entropy", "position_error_m"}
+            | {"heading_error_rad", "estimated_pose"}
+        ),
+        reward_config_keys=("team_reward",),
+        noop_action=NO_OBSERVATION,
+    )
+
+    @classmethod
+    def default_config(cls) -> dict:
+        """A fresh dict of every config key with its default."""
+        return team_localization_config()
 
     def __init__(
         self,
@@ -65,23 +94,54 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv, single_env=CooperativeLoca
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **config,
     ):
-        self._configure_team(num_envs, render_mode, autoreset_mode, config)
+        self._setup(num_envs, render_mode, autoreset_mode, config)
+        cfg = self.config
+        parts = TeamParts.of_config(cfg, self.owner_name)
+        n_robots = len(parts.suites)
+        low, high = team_observation_bounds(n_robots, cfg["observe_gains"])
+        observation_space = spaces.Box(low, high, dtype=np.float32)
+        self._setup_team(observation_space, spaces.Discrete(n_robots + 1), parts.pairs, parts.gps, parts.odometry)
         self._geometries: list[StaticGeometry | None] = [None] * num_envs
         self._sight = None
+        self._paths: FirstCopyPaths | None = None  # copy 0's paths, kept to draw them
+        self._observed_pairs: list[tuple[int, int]] = []  # copy 0's relative observations of the last step
+
+    # ------------------------------------------------------------------ the state, for harnesses and tests
+
+    def scenario(self, copy: int = 0):
+        """The ``Scenario`` of copy ``copy``'s episode."""
+        return self._worlds.scenario(copy)
+
+    @property
+    def true_poses(self) -> np.ndarray:
+        """Every copy's true robot poses (N, R, 3) [m, m, rad] (a copy)."""
+        return self._worlds.poses.copy()
+
+    def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every copy's joint EKF state ``x`` (N, 3R) and covariance ``P`` (N, 3R, 3R) (copies)."""
+        return self._x.copy(), self._P.copy()
+
+    @property
+    def decision(self) -> TeamDecision:
+        """The current decision of every copy (masks, expected gains, the candidates' models at the prior)."""
+        return self._decision
 
     # ------------------------------------------------------------------ reset and step
 
     def _reset_copies(self, copies: np.ndarray) -> None:
-        """Start a new episode in each of ``copies`` from its own generator, as the parallel env's reset does."""
-        owner = type(self._single).__name__
-        self._view_restarts(copies)
+        """Start a new episode in each of ``copies`` from its own generator."""
         for copy in copies.tolist():
-            scenario, poses, covariances, *generators = start_episode(self.config, self._np_randoms[copy], owner)
+            scenario, poses, covariances, *generators = start_episode(
+                self.config, self._np_randoms[copy], self.owner_name
+            )
             self._start_copy(copy, scenario, poses, covariances, generators)
             self._geometries[copy] = StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m)
         if len(self._pairs.observers):
             self._sight = TeamSightLines.of_copies(self._geometries, self._pairs)
         self._started(copies)
+        if copies[0] == 0 and self.render_mode is not None:
+            self._paths = FirstCopyPaths(self._worlds.poses[0], self._x[0].reshape(-1, POSE_DIM))
+            self._observed_pairs = []
 
     def _reset_record(self) -> TeamStep:
         return TeamStep.of_reset(*self._gps_available.shape)
@@ -90,6 +150,9 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv, single_env=CooperativeLoca
         """Observe, then move the ``acting`` copies; each robot's reward mixes its own and the team's MI."""
         own_mi, team_mi, updated_std = self._observe(chosen)
         copies = np.flatnonzero(acting)
+        if acting[0]:
+            observers = np.flatnonzero(chosen[0] != NO_OBSERVATION)
+            self._observed_pairs = list(zip(observers.tolist(), (chosen[0, observers] - 1).tolist()))
         self._elapsed[copies] += 1
         self._advance(copies)
         weight = self.config["team_reward"]
@@ -127,6 +190,8 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv, single_env=CooperativeLoca
         dt = self.config["time_step_s"]
         self._predict(copies, self._worlds.step(dt, copies), dt)
         self._gps_fixes(copies)
+        if copies[0] == 0 and self._paths is not None:
+            self._paths.extend(self._worlds.poses[0], self._x[0].reshape(-1, POSE_DIM))
 
     # ------------------------------------------------------------------ outputs
 
@@ -155,3 +220,22 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv, single_env=CooperativeLoca
         )
         time_s = self._elapsed * self.config["time_step_s"]
         return observations, team_info(decision, last, self._x, self._worlds.poses, self._gps_available, time_s)
+
+    # ------------------------------------------------------------------ rendering
+
+    def _scene_frame(self) -> SceneFrame:
+        """Copy 0 drawn: its scenario, every robot (truth, estimate, covariance, paths) and this step's observations."""
+        scenario = self._worlds.scenario(0)
+        labels = [
+            f"{agent}{'' if available else ', no GPS'}" for agent, available in zip(self.agents, self._gps_available[0])
+        ]
+        time_s = self._elapsed[0] * self.config["time_step_s"]
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            robots=self._paths.drawings(self._worlds.poses[0], self._x[0], self._P[0], labels),
+            observations=list(self._observed_pairs),
+            gps_denied_zones=scenario.gps_denied_zones,
+            caption=f"t = {time_s:.1f} s   {len(self._observed_pairs)} relative observations this step",
+        )

@@ -18,7 +18,7 @@ from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.estimation.models import range_bearing
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
-from infonav_gym.multi.cooperative_localization import team_observations
+from infonav_gym.multi.team_localization import team_observations
 from infonav_gym.multi.team_paths import TeamPaths
 from infonav_gym.multi.team_sensing import RelativeSight
 from infonav_gym.scene import SceneFrame

@@ -78,7 +78,7 @@ class SensingPairs(NamedTuple):
 
 
 class TeamSensing:
-    """The sensing steps of a team env on a ``JointEKF``, a mixin of it.
+    """The sensing steps of a team env on a ``JointEKF``, a mixin of it (of a team env still written twice).
 
     The host has ``ekf`` (a ``JointEKF``), ``world`` (a ``World``), ``pairs`` (its ``SensingPairs``), ``gps``
     (one ``GPSSensor`` or None per robot), ``_true_poses`` (R, 3), ``_time_s`` and the generators

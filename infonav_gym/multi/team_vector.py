@@ -1,10 +1,13 @@
 """``TeamVectorEnv``: what the native vector envs of the team envs share (the step cycle, DGPS, relative poses).
 
 A team vector env batches N copies of a PettingZoo team env of R robots on stacked arrays: observations
-(N, R, ...), one action per copy and robot (N, R), joint EKF states ``x`` (N, 3R) and covariances ``P``. A
-subclass calls ``_configure_team`` and fills the hooks ``_reset_copies``, ``_reset_record``, ``_act``, ``_decide``,
-``_outputs`` and ``_restarted``; the cycle of ``reset`` and ``step`` (with both autoreset modes), the action
-checks, the DGPS fixes and the stacked relative-pose update are here, with the parallel env's numbers.
+(N, R, ...), one action per copy and robot (N, R), joint EKF states ``x`` (N, 3R) and covariances ``P``. An env
+written once calls ``_setup`` (the config), checks its own keys, then ``_setup_team`` with its spaces and sensors;
+its PettingZoo env is the N = 1 view (``multi.parallel_view``) and ``render()`` draws its copy 0 from
+``_scene_frame()``. An env still written twice calls ``_configure_team`` (its parallel env checks the config).
+Either fills the hooks ``_reset_copies``, ``_reset_record``, ``_act``, ``_decide``, ``_outputs`` and
+``_restarted``; the cycle of ``reset`` and ``step`` (with the autoreset modes), the action checks, the DGPS fixes
+and the stacked relative-pose update are here.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from gymnasium.vector import AutoresetMode
 
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.noise_streams import NoiseStreams
+from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
@@ -41,33 +45,60 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     """
 
     team_info_keys = frozenset({"time_s"})
-    AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+    AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP, AutoresetMode.DISABLED)
+    traits: EnvTraits  # ``traits.noop_action``: the action that does nothing, always valid; a masked one becomes it
+
+    def __init_subclass__(cls, single_env: type | None = None, **kwargs):
+        super().__init_subclass__(single_env=single_env, **kwargs)
+        if single_env is not None:  # an env written twice: what its parallel env declares
+            cls.metadata = {**cls.metadata, "name": single_env.metadata["name"]}
+            cls.traits, cls.episode_metrics = single_env.traits, single_env.episode_metrics
 
     def _configure_team(self, num_envs, render_mode, autoreset_mode, config: dict, more_noise_widths=()) -> None:
-        """Check the arguments (``_configure``) and set up the copies' arrays.
+        """An env written twice: check the arguments (``_configure``) and set up the copies' arrays.
 
         Args:
             num_envs, render_mode, autoreset_mode, config: as ``InfoNavVectorEnv._configure`` takes them.
             more_noise_widths: the draw widths of the single env's generators after odometry, DGPS and relative poses.
         """
         self._single = single = self._configure(num_envs, render_mode, autoreset_mode, config)
-        self.agents = list(single.possible_agents)
-        n_robots = len(self.agents)
+        agents = single.possible_agents
+        self._setup_team(
+            single.observation_space(agents[0]),
+            single.action_space(agents[0]),
+            single.pairs,
+            single.gps,
+            single.odometry,
+            more_noise_widths,
+        )
+
+    def _setup_team(self, observation_space, action_space, pairs, gps, odometry, more_noise_widths=()) -> None:
+        """Set the spaces and the copies' arrays of a team of ``len(gps)`` robots (after ``_setup``).
+
+        Args:
+            observation_space: one robot's ``Box``.
+            action_space: one robot's ``Discrete``.
+            pairs: the team's (observer, target) pairs (``SensingPairs``).
+            gps: each robot's ``GPSSensor`` (with its outage spans), or None without DGPS.
+            odometry: every robot's odometry sensor.
+            more_noise_widths: the draw widths of the episode's generators after odometry, DGPS and relative poses.
+        """
+        n_robots, num_envs = len(gps), self.num_envs
+        self.agents = [f"robot_{k}" for k in range(n_robots)]
         self.max_cycles = self.config["max_cycles"]
-        self.single_observation_space = single.observation_space(self.agents[0])
-        self.single_action_space = single.action_space(self.agents[0])
-        low, high = self.single_observation_space.low, self.single_observation_space.high
+        self.single_observation_space, self.single_action_space = observation_space, action_space
+        low, high = observation_space.low, observation_space.high
         shape = (num_envs, n_robots, *low.shape)
         self.observation_space = spaces.Box(np.broadcast_to(low, shape), np.broadcast_to(high, shape), dtype=np.float32)
-        self.action_space = spaces.MultiDiscrete(np.full((num_envs, n_robots), self.single_action_space.n))
-        self._pairs = single.pairs
+        self.action_space = spaces.MultiDiscrete(np.full((num_envs, n_robots), action_space.n))
+        self._pairs = pairs
         self._pair_index = np.full((n_robots, n_robots + 1), -1)  # robot, teammate choice -> its pair
-        self._pair_index[self._pairs.observers, self._pairs.targets + 1] = np.arange(len(self._pairs.observers))
-        self._has_gps, self._outages = gps_schedule(single.gps)
+        self._pair_index[pairs.observers, pairs.targets + 1] = np.arange(len(pairs.observers))
+        self._has_gps, self._outages = gps_schedule(gps)
         self._gps = GPSSensor(self.config["gps_std_m"])  # every receiver's noise; the schedules are _outages
         self._cross_covariances = self.config.get("estimator", "joint") == "joint"  # a team env may drop them
-        self._odometry = single.odometry
-        self._odometry_covariances = np.repeat(self._odometry.noise_covariance()[None], n_robots, axis=0)
+        self._odometry = odometry
+        self._odometry_covariances = np.repeat(odometry.noise_covariance()[None], n_robots, axis=0)
         self._worlds = WorldBatch(num_envs)
         widths = (2 * n_robots, 2, POSE_DIM, *more_noise_widths)
         self._noise = tuple(NoiseStreams(num_envs, width) for width in widths)
@@ -89,7 +120,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._reset_copies(np.arange(self.num_envs))
         self._prev_done[:] = False
         self._decide()
-        return self._outputs(self._reset_record())
+        return self._rendered(self._outputs(self._reset_record()))
 
     def _start_copy(self, copy: int, scenario, poses, covariances, generators) -> None:
         """Copy ``copy`` starts an episode of ``scenario``: its world, sensor streams and joint EKF prior."""
@@ -124,7 +155,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
                 ``invalid_action="raise"``, a masked action (each naming its copy and robot).
         """
         if self._decision is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
+            raise RuntimeError(f"{self.owner_name}: call reset() before step()")
         actions = self._checked_actions(actions)
         resetting = self._prev_done.copy()
         chosen, invalid = self._chosen_actions(actions, ~resetting)
@@ -143,8 +174,10 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
             self._decide()
             observations, info = self._outputs(self._restarted(last, ended))
             info.update(final_infos)
-        else:
+        elif self.autoreset_mode == AutoresetMode.NEXT_STEP:
             self._prev_done = ended
+        # DISABLED: a copy whose episode ended goes on stepping until reset() (its view refuses to)
+        self._rendered((observations, info))
         n_robots = len(self.agents)
         return (
             observations,
@@ -159,7 +192,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         n_robots, top = len(self.agents), self.single_action_space.n - 1
         if array.shape != (self.num_envs, n_robots) or array.dtype.kind not in "iu":
             raise ValueError(
-                f"actions of {type(self).__name__} must be an integer array of shape ({self.num_envs}, {n_robots}), "
+                f"actions of {self.owner_name} must be an integer array of shape ({self.num_envs}, {n_robots}), "
                 f"one per copy and robot, in [0, {top}]; got {array.dtype} of shape {array.shape}"
             )
         outside = np.argwhere((array < 0) | (array > top))
@@ -173,13 +206,17 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
 
     def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each robot's executed action (the no-op for a masked one and in a resetting copy), and which were masked."""
-        mask, noop = self._decision.action_mask, self._single.traits.noop_action
+        mask, noop = self._decision.action_mask, self.traits.noop_action
         copies, robots = np.ogrid[: self.num_envs, : len(self.agents)]
         valid = mask[copies, robots, actions].astype(bool)
         invalid = acting[:, None] & ~valid
         for copy, robot in np.argwhere(invalid).tolist():
-            where = f"{self.agents[robot]} in sub-env {copy}"
-            accepts_action(int(actions[copy, robot]), mask[copy, robot], self.config["invalid_action"], MASK_KEY, where)
+            agent = self.agents[robot]
+            # a PettingZoo view (one copy, ``_owner``) names the agent and where its infos give its mask
+            key, where = (
+                (f"infos[{agent!r}]['action_mask']", agent) if self._owner else (MASK_KEY, f"{agent} in sub-env {copy}")
+            )
+            accepts_action(int(actions[copy, robot]), mask[copy, robot], self.config["invalid_action"], key, where)
         return np.where(acting[:, None] & valid, actions, noop), invalid
 
     def _relative_update(self, copies: np.ndarray, chosen: np.ndarray, decision) -> None:
@@ -254,7 +291,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     def action_masks(self) -> np.ndarray:
         """The valid actions of each copy and robot as bool (N, R, A) (the no-op is always valid)."""
         if self._decision is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
+            raise RuntimeError(f"{self.owner_name}: call reset() before action_masks()")
         return self._decision.action_mask.astype(bool)
 
     # ------------------------------------------------------------------ the hooks

@@ -19,8 +19,8 @@ from agents import GreedyEntropyAgent
 from infonav_gym.experiments.reproduce import figure_paths, files_line, paper_label, write_result
 from infonav_gym.experiments.reproduce.fig3_plot import plot_fig3
 from infonav_gym.multi import cooperative_localization_v0
-from infonav_gym.multi.cooperative_localization import NO_OBSERVATION
 from infonav_gym.multi.team import DEFAULT_OUTAGE
+from infonav_gym.multi.team_sensing import NO_OBSERVATION
 
 FIG3_ENV_CONFIG = {"scenario": "convoy", "n_robots": 3, "max_cycles": 120}
 OBSERVER = "robot_1"  # the paper's robot #2, which loses DGPS
@@ -127,7 +127,7 @@ def run_fig3(seed: int = 0) -> dict:
     env = cooperative_localization_v0.parallel_env(**FIG3_ENV_CONFIG)
     greedy = _run_episode(env, _greedy_team, seed)
     dead_reckoning = _run_episode(env, _dead_reckoning, seed)
-    walls = [[list(point) for point in wall] for wall in env.world.scenario.walls]
+    walls = [[list(point) for point in wall] for wall in env.vector.scenario(0).walls]
     env.close()
     steps = [_step_record(before[OBSERVER], after[OBSERVER]) for before, after in itertools.pairwise(greedy)]
     return {

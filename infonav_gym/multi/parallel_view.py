@@ -1,0 +1,117 @@
+"""``ParallelEnvView``: the PettingZoo ``ParallelEnv`` of a team env written once on batched arrays, as its N = 1 view.
+
+A team env's logic lives in its native vector env (``TeamVectorEnv``); its PettingZoo env is that code with one
+copy, without autoreset: ``class MyTeamEnv(ParallelEnvView, vector_env=MyTeamVectorEnv)``. The view takes one
+action per live agent, hands them on as a batch of one, and returns row 0 of every output as dicts per agent (the
+infos' numbers as Python scalars where they are one number). All agents end together and leave ``agents`` then
+(PettingZoo's semantics); ``reset()`` starts again. So ``parallel_env()`` after ``reset(seed=s)`` gives exactly the
+numbers of copy ``i`` of the vector env after ``reset(seed=s - i)``: there is nothing else to keep equal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.utils import seeding
+from pettingzoo import ParallelEnv
+
+from infonav_gym.envs.base import discrete_action_index
+from infonav_gym.envs.copy_view import OneCopyView
+from infonav_gym.multi.team_vector import TeamVectorEnv
+
+
+def first_copy_infos(info: dict, agents: list[str], team_keys) -> dict:
+    """Copy 0's ``{agent: info}`` from a team vector env's info: row ``(0, robot)`` of each key (``team_keys``: row
+    0), one-number values as Python scalars, nested dicts alike; ``_key`` masks left out."""
+    return dict(zip(agents, _per_robot(_first_copy_columns(info, len(agents), team_keys), len(agents))))
+
+
+def _first_copy_columns(info: dict, n_robots: int, team_keys) -> dict[str, list]:
+    """Each key's values of copy 0, one per robot."""
+    columns = {}
+    for key, value in info.items():
+        if key.startswith("_"):
+            continue
+        if isinstance(value, dict):
+            columns[key] = _per_robot(_first_copy_columns(value, n_robots, ()), n_robots)
+        elif key in team_keys:
+            columns[key] = [value[0].item() if isinstance(value[0], np.generic) else value[0]] * n_robots
+        else:  # (N, R) numbers become Python scalars; (N, R, ...) arrays one row per robot
+            columns[key] = value[0].tolist() if value.ndim == 2 else list(value[0])
+    return columns
+
+
+def _per_robot(columns: dict[str, list], n_robots: int) -> list[dict]:
+    return [{key: column[robot] for key, column in columns.items()} for robot in range(n_robots)]
+
+
+class ParallelEnvView(OneCopyView, ParallelEnv):
+    """One copy of ``vector_env`` as a PettingZoo ``ParallelEnv``: its config keys, spaces, metrics, traits and
+    rendering; every live agent acts at every step.
+
+    ``vector`` is the underlying vector env of one copy (its state: ``vector.scenario(0)``, ``vector.true_poses``...).
+    """
+
+    vector_env: type[TeamVectorEnv]
+    metadata_keys = ("name", "render_modes", "render_fps", "is_parallelizable")
+
+    def __init__(self, render_mode: str | None = None, **config):
+        self._view_one_copy(render_mode, config)
+        vector = self.vector
+        self.max_cycles = vector.max_cycles
+        self.possible_agents = list(vector.agents)
+        self.agents = []
+        self._observation_spaces = dict.fromkeys(self.possible_agents, vector.single_observation_space)
+        self._action_spaces = dict.fromkeys(self.possible_agents, vector.single_action_space)
+        self.np_random = None
+
+    def observation_space(self, agent: str):
+        return self._observation_spaces[agent]
+
+    def action_space(self, agent: str):
+        return self._action_spaces[agent]
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        """Start an episode; ``seed`` re-seeds ``np_random`` (else it continues); ``options`` are unused."""
+        if seed is not None or self.np_random is None:
+            self.np_random, _ = seeding.np_random(seed)
+        self.vector.use_generator(0, self.np_random)
+        self.agents = list(self.possible_agents)
+        observations, info = self.vector.reset()
+        return self._per_agent(observations), first_copy_infos(info, self.agents, self.vector.team_info_keys)
+
+    def step(self, actions: dict):
+        """Every live agent acts; all are removed from ``agents`` when the episode ends.
+
+        Raises:
+            RuntimeError: before ``reset()`` or after the episode ended.
+            ValueError: for a dict that does not name every live agent once, an action outside its agent's space,
+                or a masked one with ``invalid_action="raise"``; the env is left unchanged.
+        """
+        if not self.agents:
+            raise RuntimeError(f"{type(self).__name__}: call reset() before step() (and after the episode ends)")
+        if not isinstance(actions, dict) or set(actions) != set(self.agents):
+            given = sorted(actions) if isinstance(actions, dict) else actions
+            raise ValueError(f"actions must be a dict with one action per live agent {self.agents}, got {given!r}")
+        chosen = [discrete_action_index(actions[agent], self.action_space(agent), agent) for agent in self.agents]
+        observations, rewards, terminated, truncated, info = self.vector.step(np.array([chosen]))
+        agents = self.agents
+        outputs = (
+            self._per_agent(observations),
+            {agent: float(rewards[0, robot]) for robot, agent in enumerate(agents)},
+            dict.fromkeys(agents, bool(terminated[0, 0])),
+            dict.fromkeys(agents, bool(truncated[0, 0])),
+            first_copy_infos(info, agents, self.vector.team_info_keys),
+        )
+        if terminated[0, 0] or truncated[0, 0]:
+            self.agents = []
+        return outputs
+
+    def _per_agent(self, observations: np.ndarray) -> dict:
+        return {agent: observations[0, robot] for robot, agent in enumerate(self.agents)}
+
+    def render(self):
+        """The copy's frame (see the vector env's ``render``); a warning and None without a render mode."""
+        return self.vector.render()
+
+    def close(self):
+        self.vector.close()
