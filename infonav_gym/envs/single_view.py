@@ -21,7 +21,10 @@ def first_row(info: dict) -> dict:
     scalars, nested dicts alike."""
     row = {}
     for key, value in info.items():
-        if key.startswith("_") or not info.get(f"_{key}", np.ones(1, dtype=bool))[0]:
+        if key.startswith("_"):
+            continue
+        mask = info.get(f"_{key}")
+        if mask is not None and not mask[0]:
             continue
         if isinstance(value, dict):
             row[key] = first_row(value)
