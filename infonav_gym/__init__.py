@@ -20,7 +20,7 @@ BUILTIN_ENVS = (
         "infonav/ActiveLocalization-v0",
         "infonav_gym.envs.active_localization:ActiveLocalizationEnv",
         GYMNASIUM,
-        "infonav_gym.envs.active_localization_vector:ActiveLocalizationVectorEnv",
+        "infonav_gym.envs.active_localization:ActiveLocalizationVectorEnv",
     ),
     (
         "infonav/SensorSelection-v0",

@@ -82,7 +82,8 @@ def test_the_sensing_budget_is_enforced_through_the_mask():
     assert info["observations_left"] == 0
     assert not info["action_mask"][N_PRIMITIVES:].any(), "observations stay valid once the budget is spent"
     assert info["action_mask"][:N_PRIMITIVES].all()
-    assert env.plan_decision(env.belief())[0][0, N_PRIMITIVES:].sum() == 0
+    model = env.planning_model()
+    assert model.plan_decision(model.belief())[0][0, N_PRIMITIVES:].sum() == 0
     # A visible landmark with no budget left is a masked no-op: no update, no cost, the robot stays put.
     _, reward, _, _, after = env.step(observe(0))
     assert after["invalid_action"] is True and after["observations_left"] == 0
@@ -108,18 +109,19 @@ def test_costs_appear_in_the_reward_terms():
 
 def test_each_valid_observations_gain_equals_its_realized_mi_and_the_models_gain():
     env = gym.make(ENV_ID).unwrapped
+    model = env.planning_model()
     _, info = env.reset(seed=3)
     checked = 0
     for _ in range(40):
         valid = np.flatnonzero(info["action_mask"])
-        model_mask, model_gain = env.plan_decision(env.belief())
+        model_mask, model_gain = model.plan_decision(model.belief())
         assert np.array_equal(model_mask[0], info["action_mask"])
         np.testing.assert_allclose(model_gain[0], info["action_information_gain"], rtol=1e-12, atol=0)
         for action in valid[valid >= N_PRIMITIVES]:
             realized = pickle.loads(pickle.dumps(env)).step(int(action))[4]["reward_terms"]["mutual_information"]
             assert realized == pytest.approx(info["action_information_gain"][action], rel=1e-9, abs=0)
-            _, predicted_reward = env.plan_step(env.belief(), [action])
-            _, predicted_idle = env.plan_step(env.belief(), [action % N_PRIMITIVES])
+            _, predicted_reward = model.plan_step(model.belief(), [action])
+            _, predicted_idle = model.plan_step(model.belief(), [action % N_PRIMITIVES])
             model_mi = predicted_reward[0] - predicted_idle[0] + env.config["observation_cost_nats"]
             assert model_mi == pytest.approx(realized, rel=1e-6), "the model's MI differs from the env's"
             checked += 1

@@ -1,4 +1,5 @@
-"""``ActiveLocalizationVectorEnv``: the single env's numbers in each sub-env, through terminations and truncations.
+"""``ActiveLocalizationVectorEnv``: sub-env ``i`` is the N = 1 env seeded ``s + i`` through terminations and
+truncations (the seeding and autoreset contract), and its filter is filterpy's ``PoseEKF`` update for update.
 
 The checks every native vector env passes (seeding, API, bad input, SyncVectorEnv) run in ``test_vector_envs.py``.
 """
@@ -12,8 +13,8 @@ import vector_env_checks
 from gymnasium.vector import AutoresetMode
 
 from agents import GreedyEntropyAgent
-from infonav_gym.envs.active_localization import N_PRIMITIVES, REWARD_TERMS
-from infonav_gym.envs.active_localization_vector import ActiveLocalizationVectorEnv
+from infonav_gym.envs import active_localization
+from infonav_gym.envs.active_localization import N_PRIMITIVES, REWARD_TERMS, ActiveLocalizationVectorEnv
 
 ENV_ID = "infonav/ActiveLocalization-v0"
 TOLERANCE = 1e-9
@@ -128,3 +129,24 @@ def test_bad_config_raises_as_in_the_single_env(arguments, match):
 
 def test_gymnasium_vector_wrappers_read_its_infos_at_terminations():
     vector_env_checks.check_episode_statistics(ENV_ID, horizon=10, goal_radius_m=31.0)  # terminated at the goal
+
+
+def test_with_autoreset_disabled_sub_envs_step_on_past_their_end_until_reset():
+    vector_env_checks.check_autoreset_disabled(ENV_ID)
+
+
+@pytest.mark.parametrize("seed", [2, 7])
+def test_the_filter_equals_filterpys_pose_ekf_update_for_update(seed, monkeypatch):
+    """Along a whole episode the env's EKF equals ``PoseEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10);
+    each observation's ``mutual_information`` term is the MI of filterpy's update."""
+    n_observed = vector_env_checks.check_filter_equals_pose_ekf(
+        ENV_ID,
+        active_localization,
+        lambda chosen: chosen // N_PRIMITIVES - 1 if chosen >= 0 else -1,
+        monkeypatch,
+        seed=seed,
+        n_steps=100,
+        max_observations=60,
+        max_position_std_m=50.0,
+    )
+    assert n_observed >= 10

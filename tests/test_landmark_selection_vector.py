@@ -5,13 +5,12 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+import vector_env_checks
 from gymnasium.vector import AutoresetMode
 
 import infonav_gym
 from infonav_gym.envs import landmark_selection
 from infonav_gym.envs.landmark_selection import LandmarkSelectionVectorEnv
-from infonav_gym.estimation.ekf import PoseEKF
-from infonav_gym.information import mutual_information
 from infonav_gym.world.scenarios import SCENARIOS, field
 
 ENV_ID = "infonav/LandmarkSelection-v0"
@@ -152,14 +151,7 @@ def test_an_unknown_autoreset_mode_is_a_clear_error():
 
 
 def test_with_autoreset_disabled_sub_envs_step_on_past_their_end_until_reset():
-    env = gym.make_vec(ENV_ID, num_envs=2, horizon=3, autoreset_mode="disabled")
-    env.reset(seed=0)
-    for step in range(1, 6):
-        _, _, _, truncated, info = env.step(np.zeros(2, dtype=int))
-        assert truncated.all() == (step >= 3)
-        np.testing.assert_allclose(info["time_s"], step * env.unwrapped.config["time_step_s"])
-    _, info = env.reset()
-    np.testing.assert_array_equal(info["time_s"], 0.0)
+    vector_env_checks.check_autoreset_disabled(ENV_ID)
 
 
 def test_autoreset_is_next_step():
@@ -229,41 +221,7 @@ def test_render_without_a_render_mode_warns_and_returns_none():
 @pytest.mark.parametrize("mapping", [False, True])
 def test_the_filter_equals_filterpys_pose_ekf_update_for_update(mapping, monkeypatch):
     """Along a whole episode the env's EKF equals ``PoseEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10)."""
-    priors, readings, measurements = [], [], []
-    start_episode = landmark_selection.start_episode
-
-    def recorded_start(*args):
-        episode = start_episode(*args)
-        priors.append(episode[1])
-        return episode
-
-    monkeypatch.setattr(landmark_selection, "start_episode", recorded_start)
-    env = gym.make(ENV_ID, mapping=mapping, horizon=120).unwrapped
-    vector = env.vector
-    sensor, odometry = vector._sensor, vector._odometry
-    for recorder, sink in ((sensor, measurements), (odometry, readings)):
-        measure = recorder.measure_with_noise
-        monkeypatch.setattr(
-            type(recorder), "measure_with_noise", lambda *args, m=measure, s=sink: s.append(m(*args[1:])) or s[-1]
-        )
-    _, info = env.reset(seed=5)
-    ekf, rng, dt = PoseEKF(*priors[-1]), np.random.default_rng(5), env.config["time_step_s"]
-    landmarks = None if mapping else vector.scenario(0).landmarks
-    n_observed = 0
-    for _ in range(120):
-        visible = np.flatnonzero(info["action_mask"])
-        blind = rng.random() < 0.2 or not visible.size
-        action = int(rng.integers(env.action_space.n)) if blind else int(rng.choice(visible))
-        prior_P = ekf.P.copy()
-        _, reward, _, _, info = env.step(action)
-        chosen = info["chosen_action"]
-        if chosen >= 0:
-            predicted, H = ekf.landmark_measurement_model(landmarks)
-            R = sensor.noise_covariance(predicted[chosen : chosen + 1, 0])[0]
-            ekf.update_range_bearing(measurements[-1][0], predicted[chosen], H[chosen], R)
-            assert reward == pytest.approx(mutual_information(prior_P, ekf.P), abs=1e-10)
-            n_observed += 1
-        ekf.predict(readings[-1][0], dt, odometry.noise_covariance())
-        np.testing.assert_allclose(vector._x[0], ekf.x, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(vector._P[0], ekf.P, rtol=0, atol=1e-10)
-    assert n_observed > 60 and len(readings) == 120
+    n_observed = vector_env_checks.check_filter_equals_pose_ekf(
+        ENV_ID, landmark_selection, lambda chosen: chosen, monkeypatch, seed=5, n_steps=120, mapping=mapping
+    )
+    assert n_observed > 60

@@ -8,7 +8,6 @@ import numpy as np
 import pymunk
 import pytest
 
-from infonav_gym.envs.landmark_sight import LandmarkSight
 from infonav_gym.estimation.models import range_bearing
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world import CircleObstacle, Route, Scenario, StaticGeometry, World
@@ -226,7 +225,8 @@ def test_slanted_walls_equal_pymunk_on_near_faces_and_tangents():
 
 
 def test_in_coverage_and_visible_equal_the_single_env_rule():
-    """``in_coverage`` equals ``sensor.in_coverage(range_bearing(...))``; ``visible`` equals ``LandmarkSight``'s."""
+    """``in_coverage`` equals ``sensor.in_coverage(range_bearing(...))``; ``visible`` equals that coverage and
+    Pymunk's segment queries (``World.line_of_sight``) from each copy's pose."""
     rng = np.random.default_rng(5)
     sensor = RangeBearingSensor(max_range_m=12.0, fov_rad=2.0)
     copies = 16
@@ -244,8 +244,10 @@ def test_in_coverage_and_visible_equal_the_single_env_rule():
     for copy, world in enumerate(worlds):
         expected = sensor.in_coverage(range_bearing(poses[copy], landmarks[copy]))
         np.testing.assert_array_equal(covered[copy], expected)
-        sight = LandmarkSight.at_prior(sensor, world, poses[copy], np.eye(3), np.ones((60, 2)), np.zeros((60, 2, 3)))
-        np.testing.assert_array_equal(seen[copy], sight.visible)
+        expected_seen = np.zeros(60, dtype=bool)
+        indices = np.flatnonzero(expected)
+        expected_seen[indices] = world.line_of_sight(poses[copy], landmarks[copy, indices])
+        np.testing.assert_array_equal(seen[copy], expected_seen)
     assert 0 < np.sum(seen) < np.sum(covered) < covered.size
 
 

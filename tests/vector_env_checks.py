@@ -16,6 +16,8 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 
 import infonav_gym  # noqa: F401  (registers the envs)
+from infonav_gym.estimation.ekf import PoseEKF
+from infonav_gym.information import mutual_information
 
 TOLERANCE = 1e-9
 
@@ -350,3 +352,73 @@ def check_bad_vector_arguments_raise(env_id: str) -> None:
     ]:
         with pytest.raises(ValueError, match=match):
             gym.make_vec(env_id, **{"num_envs": 2, **arguments})
+
+
+def check_autoreset_disabled(env_id: str, horizon: int = 3, **config) -> None:
+    """With ``autoreset_mode="disabled"`` sub-envs step on past their end (observing nothing) until ``reset()``."""
+    env = gym.make_vec(env_id, num_envs=2, horizon=horizon, autoreset_mode="disabled", **config)
+    env.reset(seed=0)
+    for step in range(1, horizon + 3):
+        _, _, _, truncated, info = env.step(np.zeros(2, dtype=int))
+        assert truncated.all() == (step >= horizon)
+        np.testing.assert_allclose(info["time_s"], step * env.unwrapped.config["time_step_s"])
+    _, info = env.reset()
+    np.testing.assert_array_equal(info["time_s"], 0.0)
+
+
+def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, seed: int, n_steps: int, **config):
+    """Along a whole episode of ``gym.make(env_id)`` (written once: its ``vector`` copy), its EKF equals filterpy's
+    ``PoseEKF`` fed the same prior, odometry readings and measurements (x within 1e-12, P within 1e-10), and each
+    update's ``reward_terms["mutual_information"]`` is that update's MI.
+
+    Args:
+        env_id: the registered id; its episodes start with ``env_module.start_episode`` (recorded here).
+        env_module: the env's module.
+        landmark_of: the landmark an action observes (-1: none).
+        monkeypatch: pytest's fixture.
+        seed, n_steps: the episode's seed and length (mostly valid actions, some blind).
+        config: the env config (``mapping`` estimates the landmarks in the state).
+
+    Returns:
+        How many updates the episode had.
+    """
+    priors, readings, measurements = [], [], []
+    start_episode = env_module.start_episode
+
+    def recorded_start(*args):
+        episode = start_episode(*args)
+        priors.append(episode[1])
+        return episode
+
+    monkeypatch.setattr(env_module, "start_episode", recorded_start)
+    env = gym.make(env_id, horizon=n_steps, **config).unwrapped
+    vector = env.vector
+    sensor, odometry = vector.sensor, vector._odometry
+    for recorder, sink in ((sensor, measurements), (odometry, readings)):
+        measure = recorder.measure_with_noise
+        monkeypatch.setattr(
+            type(recorder), "measure_with_noise", lambda *args, m=measure, s=sink: s.append(m(*args[1:])) or s[-1]
+        )
+    _, info = env.reset(seed=seed)
+    ekf, rng, dt = PoseEKF(*priors[-1]), np.random.default_rng(seed), env.config["time_step_s"]
+    landmarks = None if config.get("mapping") else vector.scenario(0).landmarks
+    n_observed = 0
+    for _ in range(n_steps):
+        valid = np.flatnonzero(info["action_mask"])
+        blind = rng.random() < 0.2 or not valid.size
+        action = int(rng.integers(env.action_space.n)) if blind else int(rng.choice(valid))
+        prior_P = ekf.P.copy()
+        info = env.step(action)[4]
+        landmark = landmark_of(info["chosen_action"])
+        if landmark >= 0:
+            predicted, H = ekf.landmark_measurement_model(landmarks)
+            R = sensor.noise_covariance(predicted[landmark : landmark + 1, 0])[0]
+            ekf.update_range_bearing(measurements[-1][0], predicted[landmark], H[landmark], R)
+            realized = info["reward_terms"]["mutual_information"]
+            assert realized == pytest.approx(mutual_information(prior_P, ekf.P), abs=1e-10)
+            n_observed += 1
+        ekf.predict(readings[-1][0], dt, odometry.noise_covariance())
+        np.testing.assert_allclose(vector._x[0], ekf.x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(vector._P[0], ekf.P, rtol=0, atol=1e-10)
+    assert len(readings) == n_steps
+    return n_observed

@@ -1,4 +1,9 @@
-"""``infonav/ActiveLocalization-v0``: drive to a goal, choosing how to move and what to observe under a budget."""
+"""``infonav/ActiveLocalization-v0``: drive to a goal, choosing how to move and what to observe under a budget.
+
+Written once, on (N, ...) arrays: ``ActiveLocalizationVectorEnv`` is the env (``gym.make_vec``), its one step in
+``envs.active_transition`` (shared with its planning model, ``envs.active_planning``); ``ActiveLocalizationEnv``
+is its N = 1 view (``gym.make``).
+"""
 
 from __future__ import annotations
 
@@ -6,35 +11,60 @@ import math
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
 
 from infonav_gym.config import Interval, check_config, check_config_arguments
-from infonav_gym.envs.active_planning import (
+from infonav_gym.envs.active_planning import ActivePlanningModel, Belief
+from infonav_gym.envs.active_transition import (
     N_PRIMITIVES,
+    PRIMITIVE_NAMES,
     PRIMITIVE_OFFSETS_RAD,
-    ActivePlanningModel,
+    REWARD_TERMS,
+    ActiveDecision,
+    CopiesState,
+    decode_actions,
+    distances,
+    episode_goal,
+    infos,
+    observation_bounds,
+    observations,
+    obstacle_discs,
+    primitive_commands,
+    reward_terms,
+    start_episode,
+    step_outcome,
+    total_reward,
 )
-from infonav_gym.envs.base import MAX_EPISODE_STEPS, Decision, InfoNavEnv
-from infonav_gym.envs.landmark_selection import Prior
-from infonav_gym.envs.landmark_sight import LandmarkSight
+from infonav_gym.envs.base import MAX_EPISODE_STEPS
+from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
+from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
+from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM, PoseEKF
-from infonav_gym.estimation.models import range_bearing, range_bearing_linearized
-from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import largest_position_std
-from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
+from infonav_gym.envs.vector_infos import set_rows
+from infonav_gym.estimation import batched
+from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM
+from infonav_gym.information import log_det_spd
+from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
-from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS, CommandedWorld, goal_field
-from infonav_gym.world.scenarios import SPEED_MPS, Scenario
-from infonav_gym.world.world import TIME_STEP_S, start_poses
+from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS
+from infonav_gym.world.scenarios import SPEED_MPS
+from infonav_gym.world.visibility import StaticGeometry
+from infonav_gym.world.world import TIME_STEP_S
 
-POSE_FEATURES = 10
-GOAL_FEATURES = 4
-LANDMARK_FEATURES = 4
-OBSTACLE_FEATURES = 4
-REWARD_TERMS = ("mutual_information", "sensing_cost", "motion_cost", "progress", "goal_bonus", "failure_penalty")
-_BIG = 1e4
+__all__ = [
+    "N_PRIMITIVES",
+    "PRIMITIVE_NAMES",
+    "PRIMITIVE_OFFSETS_RAD",
+    "REWARD_TERMS",
+    "REWARD_WEIGHT",
+    "ActiveLocalizationEnv",
+    "ActiveLocalizationVectorEnv",
+    "primitive_commands",
+    "start_episode",
+]
+
 REWARD_WEIGHT = Interval(0.0, 1e6)  # a cost, reward or bonus weight [nats, or nats per unit]
 REWARD_WEIGHT_KEYS = (
     "observation_cost_nats",
@@ -53,9 +83,297 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
     **INITIAL_POSE_STD,
     **{key: REWARD_WEIGHT for key in REWARD_WEIGHT_KEYS},
 }
+FIELD_KEYS = {"n_landmarks": "n_candidates", "n_obstacles": "n_obstacles", "size_m": "field_size_m"}
 
 
-class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
+class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
+    """N copies of ``infonav/ActiveLocalization-v0`` on stacked arrays: the env's one implementation.
+
+    See ``ActiveLocalizationEnv`` (its N = 1 view) for the spaces, rewards and config keys.
+    ``gym.make_vec("infonav/ActiveLocalization-v0", num_envs=N, **config)`` returns it. The estimation runs on
+    the batched EKF core (``estimation.batched``), the visibility on ``world.visibility``, the physics in a
+    ``WorldBatch`` driven by the primitives' commands and each copy's sensor noise from its own streams
+    (``NoiseStreams``), so sub-env ``i`` after ``reset(seed=s)`` gives the numbers of
+    ``gym.make("infonav/ActiveLocalization-v0")`` after ``reset(seed=s + i)``.
+
+    ## Vector API
+    ``step`` takes one action per sub-env (N,) and returns observations (N, 14 + 4K + 4O), rewards,
+    ``terminated`` (goal reached or uncertainty bound crossed) and ``truncated`` (horizon) (N,). Infos hold the
+    single env's keys as arrays with a leading N dimension, each with Gymnasium's ``_key`` mask
+    (``reward_terms`` is a dict of such arrays, all six terms); ``info["action_mask"]`` is (N, 5 (1 + K)).
+    ``action_masks()`` gives the bool masks for ``MaskablePPO``; ``planning_model(copy)`` the planning model of
+    sub-env ``copy``.
+
+    ## Autoreset
+    As ``LandmarkSelectionVectorEnv``: ``NEXT_STEP`` by default (``metadata["autoreset_mode"]``), ``SAME_STEP``
+    (the last outputs in ``info["final_obs"]`` / ``info["final_info"]``) or ``DISABLED``; an episode ends
+    terminated or truncated.
+
+    ## Arguments
+    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode`` or its value) and any key of
+    ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws sub-env 0.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
+    episode_metrics = (*LOCALIZATION_METRICS, SUCCESS_RATE)
+    traits = EnvTraits(
+        estimates_pose=True,
+        reports_success=True,
+        may_terminate=True,
+        idle_actions=frozenset(range(N_PRIMITIVES)),  # the primitives without an observation
+        reward_terms=REWARD_TERMS,
+        info_keys=frozenset(
+            {"goal", "goal_reached", "failed", "success", "observations_left", "distance_to_goal_m", "position_std_m"}
+        ),
+    )
+    n_primitives = N_PRIMITIVES
+
+    @classmethod
+    def default_config(cls) -> dict:
+        return {
+            **OneRobotVectorEnv.default_config(),
+            "horizon": 100,  # [steps]
+            "n_candidates": 8,  # number of landmarks K (>= 4)
+            "n_obstacles": 4,
+            "field_size_m": 40.0,  # side of the square field [m]
+            "time_step_s": 1.0,  # [s]
+            "speed_mps": 1.0,  # cruise speed [m/s]
+            "max_turn_rate_rps": 1.0,  # [rad/s]
+            "goal_radius_m": 1.5,  # the goal is reached within this distance [m]
+            "max_observations": 12,  # sensing budget per episode
+            "observation_cost_nats": 0.1,  # cost of one observation [nats]
+            "motion_cost_per_step": 0.1,  # cost of executing a primitive for one step, driving or turning [nats]
+            "progress_reward_per_m": 0.1,  # reward per metre of progress toward the goal [nats/m]
+            "goal_bonus": 10.0,  # [nats]
+            "failure_penalty": 10.0,  # [nats], subtracted
+            "max_position_std_m": 1.0,  # failure bound on the largest position std [m]
+            "range_std_m": 0.1,  # [m]
+            "range_std_per_m": 0.01,  # [m/m]
+            "bearing_std_rad": math.radians(2.0),  # [rad]
+            "sensor_max_range_m": 6.0,  # [m]
+            "sensor_fov_rad": math.pi,  # [rad]
+            "odometry_speed_std_mps": 0.05,  # [m/s]
+            "odometry_turn_rate_std_rps": 0.02,  # [rad/s]
+            "initial_position_std_m": 0.1,  # [m]
+            "initial_heading_std_rad": 0.02,  # [rad]
+        }
+
+    def _parts(self):
+        """Check the env's own config keys and set the spaces; its range-bearing sensor and odometry."""
+        cfg, owner = self.config, self.owner_name
+        check_config_arguments(cfg, owner, "goal_field", GOAL_FIELD_ARGUMENTS, FIELD_KEYS)
+        check_config(cfg, owner, CONFIG_INTERVALS)
+        if cfg["max_position_std_m"] <= cfg["initial_position_std_m"]:
+            raise ValueError(
+                f"config key 'max_position_std_m' of {owner} must exceed initial_position_std_m "
+                f"({cfg['initial_position_std_m']}), got {cfg['max_position_std_m']}"
+            )
+        self.n_slots = 1 + cfg["n_candidates"]
+        low, high = observation_bounds(cfg["n_candidates"], cfg["n_obstacles"])
+        self._set_spaces(spaces.Box(low, high, dtype=np.float32), spaces.Discrete(N_PRIMITIVES * self.n_slots))
+        return range_bearing_sensor_from_config(cfg, owner), odometry_sensor_from_config(cfg, owner)
+
+    def _allocate(self) -> None:
+        num_envs, cfg = self.num_envs, self.config
+        self._x, self._P = np.zeros((num_envs, POSE_DIM)), np.zeros((num_envs, POSE_DIM, POSE_DIM))
+        self._goals = np.zeros((num_envs, 2))
+        self._elapsed = np.zeros(num_envs, dtype=int)
+        self._observations_left = np.zeros(num_envs, dtype=int)
+        self._goal_reached = np.zeros(num_envs, dtype=bool)
+        self._failed = np.zeros(num_envs, dtype=bool)
+        self._chosen = np.full(num_envs, -1)  # the last action of each copy, -1 after a reset or a no-op
+        self._landmarks = np.zeros((num_envs, cfg["n_candidates"], 2))
+        self._obstacle_centers = np.zeros((num_envs, cfg["n_obstacles"], 2))
+        self._obstacle_radii = np.zeros((num_envs, cfg["n_obstacles"]))
+        self._planning_models: dict[int, ActivePlanningModel] = {}
+
+    # ------------------------------------------------------------------ the episode and the step
+
+    def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
+        """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
+        geometries = []
+        for copy in copies.tolist():
+            scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy])
+            self._worlds.reset_copy(copy, scenario)
+            self._odometry_noise.restart(copy, odometry_rng)
+            self._measurement_noise.restart(copy, measurement_rng)
+            self._x[copy], self._P[copy] = prior.state()
+            self._goals[copy] = episode_goal(scenario)
+            self._obstacle_centers[copy], self._obstacle_radii[copy] = obstacle_discs(scenario)
+            self._landmarks[copy] = scenario.landmarks
+            geometries.append(StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m))
+        self._elapsed[copies] = 0
+        self._observations_left[copies] = self.config["max_observations"]
+        self._goal_reached[copies] = self._failed[copies] = False
+        return StaticGeometry.stack(geometries)
+
+    def step(self, actions):
+        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
+        acting, chosen = self._begin_step(actions)
+        terms = self._act(np.flatnonzero(acting), chosen)
+        terminated = acting & (self._goal_reached | self._failed)
+        truncated = acting & ~terminated & (self._elapsed >= self.config["horizon"])
+        observation, info = self._finish_step(
+            terminated | truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, terms)
+        )
+        return observation, total_reward(terms), terminated, truncated, info
+
+    def _act(self, copies: np.ndarray, chosen: np.ndarray) -> dict:
+        """The whole transition of the acting ``copies`` (observe at the prior, then drive); their reward terms
+        (N,) each, 0 for the others. A no-op (``chosen`` -1) stands still observing nothing."""
+        cfg, n = self.config, self.num_envs
+        landmarks, primitives = decode_actions(chosen)
+        observed, mutual_information = self._observe(np.where(chosen >= 0, landmarks, -1))
+        self._observations_left -= observed
+        driving, progress = np.zeros(n, dtype=bool), np.zeros(n)
+        reached, failed = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        if copies.size:
+            driving[copies] = chosen[copies] >= 0
+            commands = primitive_commands(cfg, self._goals[copies], self._x[copies], primitives[copies])
+            commands[~driving[copies]] = 0.0
+            distance_before = self._distances_to_goal(copies)
+            self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies], commands)
+            distance_after = self._distances_to_goal(copies)
+            progress[copies] = distance_before - distance_after
+            reached[copies], failed[copies] = step_outcome(cfg, distance_after, self._P[copies])
+            self._goal_reached[copies], self._failed[copies] = reached[copies], failed[copies]
+            self._elapsed[copies] += 1
+        return reward_terms(cfg, mutual_information, observed, driving, progress, reached, failed)
+
+    def _distances_to_goal(self, copies: np.ndarray) -> np.ndarray:
+        """The true distance of each of ``copies`` to its goal [m] (n,)."""
+        return distances(self._worlds.poses[copies, 0, :2], self._goals[copies])
+
+    def _observe(self, landmarks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Update each observing copy's EKF with a noisy measurement of its landmark (-1: none).
+
+        Returns:
+            ``(observed (N,) bool, realized MI (N,) [nats])``.
+        """
+        sight = self._decision.sight
+        observed, predicted, H, R = batched.select_candidates(landmarks, sight.predicted, sight.H, sight.R)
+        mutual_information = np.zeros(self.num_envs)
+        observers = np.flatnonzero(observed)
+        if not observers.size:
+            return observed, mutual_information
+        measurements = np.zeros((self.num_envs, 2))
+        measurements[observers] = self._sensor.measure_with_noise(
+            self._worlds.poses[observers, 0],
+            self._landmarks[observers, landmarks[observers]],
+            self._measurement_noise.take(observers),
+        )
+        self._x, self._P = batched.range_bearing_update(
+            self._x, self._P, measurements, predicted, H, R, observed, check_input=False
+        )
+        posterior_log_dets = log_det_spd(self._P[observers], check_input=False)
+        mutual_information[observers] = 0.5 * (sight.prior_log_det[observers] - posterior_log_dets)
+        return observed, mutual_information
+
+    # ------------------------------------------------------------------ decision, observation and info
+
+    def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
+        """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""
+        nothing = np.zeros(len(copies))
+        terms = dict.fromkeys(REWARD_TERMS, nothing)
+        return self._outputs(copies, geometry, nothing.astype(bool), np.full(len(copies), -1), terms)
+
+    def _outputs(self, copies, geometry, stepped, chosen, terms) -> tuple[np.ndarray, dict]:
+        """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos.
+
+        Args:
+            copies: the copies (n,).
+            geometry: their static geometry (n copies).
+            stepped: which of them acted in this step (n,) bool; the others give their reset info.
+            chosen: the action each took (n,), -1 for a no-op.
+            terms: their reward terms, each (n,) [nats].
+        """
+        state = CopiesState(
+            x=self._x[copies],
+            P=self._P[copies],
+            true_poses=self._worlds.poses[copies, 0],
+            goals=self._goals[copies],
+            elapsed=self._elapsed[copies],
+            observations_left=self._observations_left[copies],
+            goal_reached=self._goal_reached[copies],
+            failed=self._failed[copies],
+        )
+        everywhere = np.ones((len(copies), self._landmarks.shape[1]), dtype=bool)
+        sight = LandmarkDecision.at_prior(
+            self._sensor, geometry, state.true_poses, state.x, state.P, self._landmarks[copies], everywhere, False
+        )
+        decision = ActiveDecision.from_sight(sight, state.observations_left)
+        if len(copies) == self.num_envs:
+            self._decision = decision
+        else:
+            self._decision.action_mask[copies] = decision.action_mask
+            self._decision.action_information_gain[copies] = decision.action_information_gain
+            set_rows(self._decision.sight._asdict(), copies, sight._asdict())
+        self._chosen[copies] = np.where(stepped, chosen, -1)
+        self._track_first_copy(copies, stepped)
+        obstacles = (self._obstacle_centers[copies], self._obstacle_radii[copies])
+        observation = observations(decision, state, obstacles, self.config, self.single_observation_space)
+        return observation, infos(decision, state, stepped, chosen, terms, self.config)
+
+    # ------------------------------------------------------------------ the planning model and drawing
+
+    def planning_model(self, copy: int = 0) -> ActivePlanningModel:
+        """The planning model of sub-env ``copy`` (the same object on every call), for look-ahead agents
+        (``agents.planner.PlannerAgent``)."""
+        if copy not in self._planning_models:
+            self._planning_models[copy] = ActivePlanningModel(self, copy)
+        return self._planning_models[copy]
+
+    @property
+    def odometry_covariance(self) -> np.ndarray:
+        """The covariance of the odometry's ``[speed, turn rate]`` readings (2, 2)."""
+        return self._odometry_covariance
+
+    def episode_goal(self, copy: int = 0) -> np.ndarray:
+        """Sub-env ``copy``'s goal position [m] (2,), a view."""
+        return self._goals[copy]
+
+    def episode_landmarks(self, copy: int = 0) -> np.ndarray:
+        """Sub-env ``copy``'s landmark positions [m] (K, 2), a view."""
+        return self._landmarks[copy]
+
+    def episode_obstacles(self, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Sub-env ``copy``'s round obstacles: centres (O, 2) [m] and radii (O,) [m] (the map the agent knows)."""
+        return self._obstacle_centers[copy], self._obstacle_radii[copy]
+
+    def belief(self, copy: int = 0) -> Belief:
+        """Sub-env ``copy``'s estimator state at its current decision as a batch of one (visibility: from the true
+        pose, as ``info["action_mask"]``)."""
+        if self._decision is None:
+            raise RuntimeError(f"{self.owner_name}: call reset() before belief()")
+        rows = slice(copy, copy + 1)
+        return Belief(
+            pose=self._x[rows].copy(),
+            covariance=self._P[rows].copy(),
+            observations_left=self._observations_left[rows].copy(),
+            visible=self._decision.sight.action_mask[rows].astype(bool),
+            done=self._goal_reached[rows] | self._failed[rows],
+        )
+
+    def _scene_frame(self):
+        """Sub-env 0 drawn: its field, landmarks (visible ones marked, the observed one linked), goal and robot."""
+        scenario, goal = self._worlds.scenario(0), self._goals[0]
+        landmark = int(decode_actions(self._chosen[:1])[0][0]) if self._chosen[0] >= 0 else -1
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            landmarks=self._landmarks[0].copy(),
+            landmark_visible=self._decision.sight.action_mask[0].astype(bool),
+            chosen_landmark=None if landmark < 0 else landmark,
+            robots=[self._first_robot_drawing()],
+            goal=tuple(goal),
+            goal_radius_m=self.config["goal_radius_m"],
+            caption=f"t = {self._elapsed[0] * self.config['time_step_s']:.0f} s   "
+            f"goal ({goal[0]:.0f}, {goal[1]:.0f}) m, {self._observations_left[0]} observations left",
+        )
+
+
+class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEnv):
     """Drive a robot to a goal, deciding each step how to move and which landmark (if any) to observe.
 
     ## Description
@@ -121,9 +439,11 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
 
     ## Planning model
     ``planning_model()`` returns the env's own model for look-ahead agents
-    (``agents.planner.PlannerAgent``), with ``belief()``, ``plan_decision(belief)`` and
-    ``plan_step(belief, actions)``: the EKF covariance propagated under the linearization, with
-    the motion predicted from the estimated pose and visibility judged from it.
+    (``agents.planner.PlannerAgent``, through wrappers with
+    ``env.get_wrapper_attr("planning_model")()``), with ``belief()``, ``plan_decision(belief)``
+    and ``plan_step(belief, actions)``: the env's batched step (``envs.active_transition``) on a
+    batch of beliefs, the EKF covariance propagated under the linearization, with the motion
+    predicted from the estimated pose and visibility judged from it.
 
     ## Arguments
     ``gym.make("infonav/ActiveLocalization-v0", render_mode=None, **config)`` with any
@@ -133,272 +453,9 @@ class ActiveLocalizationEnv(ActivePlanningModel, InfoNavEnv):
     * v0: initial version.
     """
 
-    episode_metrics = (*LOCALIZATION_METRICS, SUCCESS_RATE)
-    traits = EnvTraits(
-        estimates_pose=True,
-        reports_success=True,
-        may_terminate=True,
-        idle_actions=frozenset(range(N_PRIMITIVES)),  # the primitives without an observation
-        reward_terms=REWARD_TERMS,
-        info_keys=frozenset(
-            {"goal", "goal_reached", "failed", "success", "observations_left", "distance_to_goal_m", "position_std_m"}
-        ),
-    )
+    def planning_model(self) -> ActivePlanningModel:
+        """The env's planning model (``ActivePlanningModel`` of its one copy), for ``PlannerAgent``.
 
-    @classmethod
-    def default_config(cls) -> dict:
-        return {
-            **super().default_config(),
-            "horizon": 100,  # [steps]
-            "n_candidates": 8,  # number of landmarks K (>= 4)
-            "n_obstacles": 4,
-            "field_size_m": 40.0,  # side of the square field [m]
-            "time_step_s": 1.0,  # [s]
-            "speed_mps": 1.0,  # cruise speed [m/s]
-            "max_turn_rate_rps": 1.0,  # [rad/s]
-            "goal_radius_m": 1.5,  # the goal is reached within this distance [m]
-            "max_observations": 12,  # sensing budget per episode
-            "observation_cost_nats": 0.1,  # cost of one observation [nats]
-            "motion_cost_per_step": 0.1,  # cost of executing a primitive for one step, driving or turning [nats]
-            "progress_reward_per_m": 0.1,  # reward per metre of progress toward the goal [nats/m]
-            "goal_bonus": 10.0,  # [nats]
-            "failure_penalty": 10.0,  # [nats], subtracted
-            "max_position_std_m": 1.0,  # failure bound on the largest position std [m]
-            "range_std_m": 0.1,  # [m]
-            "range_std_per_m": 0.01,  # [m/m]
-            "bearing_std_rad": math.radians(2.0),  # [rad]
-            "sensor_max_range_m": 6.0,  # [m]
-            "sensor_fov_rad": math.pi,  # [rad]
-            "odometry_speed_std_mps": 0.05,  # [m/s]
-            "odometry_turn_rate_std_rps": 0.02,  # [rad/s]
-            "initial_position_std_m": 0.1,  # [m]
-            "initial_heading_std_rad": 0.02,  # [rad]
-        }
-
-    def __init__(self, render_mode: str | None = None, **config):
-        super().__init__(render_mode=render_mode, **config)
-        cfg, owner = self.config, type(self).__name__
-        field_keys = {"n_landmarks": "n_candidates", "n_obstacles": "n_obstacles", "size_m": "field_size_m"}
-        check_config_arguments(cfg, owner, "goal_field", GOAL_FIELD_ARGUMENTS, field_keys)
-        check_config(cfg, owner, CONFIG_INTERVALS)
-        if cfg["max_position_std_m"] <= cfg["initial_position_std_m"]:
-            raise ValueError(
-                f"config key 'max_position_std_m' of {owner} must exceed initial_position_std_m "
-                f"({cfg['initial_position_std_m']}), got {cfg['max_position_std_m']}"
-            )
-        self.sensor = range_bearing_sensor_from_config(cfg, owner)
-        self.odometry = odometry_sensor_from_config(cfg, owner)
-        self._odometry_covariance = self.odometry.noise_covariance()
-        self.world = CommandedWorld()
-        self.n_primitives = N_PRIMITIVES
-        self.n_slots = 1 + cfg["n_candidates"]
-        self.action_space = spaces.Discrete(N_PRIMITIVES * self.n_slots)
-        low, high = self._observation_bounds(cfg["n_candidates"], cfg["n_obstacles"])
-        self.observation_space = spaces.Box(low, high, dtype=np.float32)
-
-    @staticmethod
-    def _observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[np.ndarray, np.ndarray]:
-        low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0] + [0, -1, -1, 0]
-        high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1] + [_BIG, 1, 1, 1]
-        low += [0, 0, -1, -1] * n_landmarks + [0, -1, -1, 0] * n_obstacles
-        high += [1, _BIG, 1, 1] * n_landmarks + [_BIG, 1, 1, _BIG] * n_obstacles
-        return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
-
-    @staticmethod
-    def decode_action(action: int) -> tuple[int | None, int]:
-        """``(landmark or None, primitive)`` of an action index."""
-        slot, primitive = divmod(int(action), N_PRIMITIVES)
-        return (slot - 1 if slot else None), primitive
-
-    # ------------------------------------------------------------------ the episode
-
-    def _reset_episode(self) -> None:
-        scenario, prior, self._odometry_rng, self._measurement_rng = start_episode(self.config, self.np_random)
-        self.world.reset(scenario)
-        self.ekf = PoseEKF(*prior)
-        self.goal = episode_goal(scenario)
-        self._obstacle_centers, self._obstacle_radii = obstacle_discs(scenario)
-        self._true_pose = self.world.pose
-        self.observations_left = self.config["max_observations"]
-        self.goal_reached = self.failed = False
-        self._true_path = PathHistory(self._true_pose[:2])
-        self._estimated_path = PathHistory(self.ekf.x[:2])
-
-    def _next_decision(self) -> Decision:
-        """Every primitive with no observation or with a visible landmark while budget is left, gains at the prior.
-
-        The payload is the landmarks' ``LandmarkSight`` (its model linearized at the estimated pose).
+        Reachable through Gymnasium wrappers: ``env.get_wrapper_attr("planning_model")()``.
         """
-        predicted, H, _ = range_bearing_linearized(self.ekf.x, self.world.landmarks)
-        sight = LandmarkSight.at_prior(self.sensor, self.world, self._true_pose, self.ekf.P, predicted, H)
-        mask = np.zeros((self.n_slots, N_PRIMITIVES), dtype=np.int8)
-        gains = np.zeros((self.n_slots, N_PRIMITIVES))
-        mask[0] = 1
-        observable = sight.visible_indices if self.observations_left > 0 else np.zeros(0, dtype=int)
-        mask[1 + observable] = 1
-        if observable.size:
-            gains[1 + observable] = sight.information_gains(self.ekf.P, observable)[:, None]
-        return Decision(mask.ravel(), gains.ravel(), sight)
-
-    @property
-    def _visible(self) -> np.ndarray:
-        """Which landmarks the sensor sees at the current decision (K,) bool."""
-        return self._decision.payload.visible
-
-    @property
-    def _pose_entropy(self) -> float:
-        """Entropy of the pose estimate at the current decision's prior [nats]."""
-        return self._decision.payload.pose_entropy
-
-    def _apply_action(self, action: int | None, decision: Decision) -> dict:
-        """The whole transition: observe (at the prior), then drive; a no-op stands still observing nothing."""
-        cfg = self.config
-        terms = dict.fromkeys(REWARD_TERMS, 0.0)
-        landmark, primitive = (None, None) if action is None else self.decode_action(action)
-        if landmark is not None:
-            measurement = self.sensor.measure(self._true_pose, self.world.landmarks[landmark], self._measurement_rng)
-            terms["mutual_information"] = decision.payload.observe(self.ekf, landmark, measurement)
-            terms["sensing_cost"] = -cfg["observation_cost_nats"]
-            self.observations_left -= 1
-        speed, turn_rate = (0.0, 0.0) if primitive is None else self._commands(self.ekf.x[None], [primitive])[0]
-        distance_before = math.dist(self._true_pose[:2], self.goal)
-        self.world.command(speed, turn_rate)
-        dt = cfg["time_step_s"]
-        control = self.world.step(dt)[0]
-        self._true_pose = self.world.pose
-        odometry = self.odometry.measure(control, self._odometry_rng)
-        self.ekf.predict(odometry, dt, self._odometry_covariance, check_input=False)
-        if primitive is not None:
-            terms["motion_cost"] = -cfg["motion_cost_per_step"]
-            terms["progress"] = cfg["progress_reward_per_m"] * (
-                distance_before - math.dist(self._true_pose[:2], self.goal)
-            )
-        self.goal_reached = bool(math.dist(self._true_pose[:2], self.goal) <= cfg["goal_radius_m"])
-        self.failed = (
-            not self.goal_reached and float(self.position_std(self.ekf.P[None])[0]) > cfg["max_position_std_m"]
-        )
-        terms["goal_bonus"] = cfg["goal_bonus"] if self.goal_reached else 0.0
-        terms["failure_penalty"] = -cfg["failure_penalty"] if self.failed else 0.0
-        return terms
-
-    def _advance(self) -> None:
-        self._true_path.append(self._true_pose[:2])
-        self._estimated_path.append(self.ekf.x[:2])  # PathHistory copies
-
-    def _is_terminated(self) -> bool:
-        return self.goal_reached or self.failed
-
-    position_std = staticmethod(largest_position_std)  # the planning model's, on (B, 3, 3) covariances
-
-    def _commands(self, poses: np.ndarray, primitives) -> np.ndarray:
-        """``[speed, turn rate]`` (B, 2) that each primitive commands from each estimated pose (B, 3)."""
-        return primitive_commands(self.config, self.goal, poses, primitives)
-
-    # ------------------------------------------------------------------ observation and info
-
-    def _observation(self) -> np.ndarray:
-        x, y, heading = self.ekf.x.tolist()
-        P = self.ekf.P
-        var_x, var_y, var_heading = P[0, 0], P[1, 1], P[2, 2]
-        goal_range, goal_bearing = range_bearing(self.ekf.x, self.goal)[0]
-        budget = self.config["max_observations"]
-        features = [x, y, math.cos(heading), math.sin(heading), math.sqrt(var_x), math.sqrt(var_y)]
-        features += [math.sqrt(var_heading), P[0, 1] / math.sqrt(var_x * var_y), self._pose_entropy]
-        features += [self._elapsed_steps / self.config["horizon"], goal_range, math.cos(goal_bearing)]
-        features += [math.sin(goal_bearing), self.observations_left / budget if budget else 0.0]
-        predicted = self._decision.payload.predicted
-        landmarks = np.column_stack([self._visible, predicted[:, 0], np.cos(predicted[:, 1]), np.sin(predicted[:, 1])])
-        obstacles = np.zeros((len(self._obstacle_radii), OBSTACLE_FEATURES))
-        if len(obstacles):
-            seen = range_bearing(self.ekf.x, self._obstacle_centers)
-            obstacles[:] = np.column_stack([seen[:, 0], np.cos(seen[:, 1]), np.sin(seen[:, 1]), self._obstacle_radii])
-        observation = np.concatenate([features, landmarks.ravel(), obstacles.ravel()]).astype(np.float32)
-        return np.clip(observation, self.observation_space.low, self.observation_space.high, out=observation)
-
-    def _extra_info(self) -> dict:
-        true_x, true_y, true_heading = self._true_pose.tolist()
-        x, y, heading = self.ekf.x.tolist()
-        return {
-            "pose_entropy": self._pose_entropy,
-            "state_entropy": self._pose_entropy,
-            "position_error_m": math.hypot(true_x - x, true_y - y),
-            "heading_error_rad": abs(wrap_angle(true_heading - heading)),
-            "position_std_m": float(self.position_std(self.ekf.P[None])[0]),
-            "true_pose": self._true_pose.copy(),
-            "estimated_pose": self.ekf.pose,
-            "goal": self.goal.copy(),
-            "distance_to_goal_m": math.dist(self._true_pose[:2], self.goal),
-            "observations_left": self.observations_left,
-            "goal_reached": self.goal_reached,
-            "success": self.goal_reached,  # the evaluation harness's success flag
-            "failed": self.failed,
-            "time_s": self._elapsed_steps * self.config["time_step_s"],
-        }
-
-    def _scene_frame(self):
-        scenario = self.world.scenario
-        landmark = None if self._chosen_action is None else self.decode_action(self._chosen_action)[0]
-        return SceneFrame(
-            bounds=scenario.bounds,
-            walls=scenario.walls,
-            obstacles=scenario.obstacles,
-            landmarks=self.world.landmarks,
-            landmark_visible=self._visible,
-            chosen_landmark=landmark,
-            robots=[RobotDrawing.tracked(self._true_pose, self.ekf, self._true_path, self._estimated_path)],
-            goal=tuple(self.goal),
-            goal_radius_m=self.config["goal_radius_m"],
-            caption=f"t = {self._elapsed_steps * self.config['time_step_s']:.0f} s   "
-            f"goal ({self.goal[0]:.0f}, {self.goal[1]:.0f}) m, {self.observations_left} observations left",
-        )
-
-
-def start_episode(config: dict, np_random: np.random.Generator):
-    """Start an episode of ``ActiveLocalization-v0``: draw its goal field and the estimator's prior from ``np_random``.
-
-    Draws in a fixed order (the field, the sensors' generators, the initial estimate), so the single and the
-    vector env give the same episode for the same generator.
-
-    Args:
-        config: a checked ``ActiveLocalizationEnv`` config.
-        np_random: the episode's generator.
-
-    Returns:
-        ``(scenario, prior, odometry_rng, measurement_rng)``: the goal field, the estimator's ``Prior`` and the
-        sensors' generators.
-    """
-    scenario = goal_field(np_random, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
-    odometry_rng, measurement_rng = np_random.spawn(2)
-    pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    pose = np.array(start_poses(scenario)[0]) + pose_std * np_random.standard_normal(POSE_DIM)
-    return scenario, Prior(pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
-
-
-def episode_goal(scenario: Scenario) -> np.ndarray:
-    """The goal position [m] of a goal field (its route's one waypoint), a fresh (2,) array."""
-    return scenario.routes[0].waypoints[0].copy()
-
-
-def obstacle_discs(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """The centres (O, 2) [m] and radii (O,) [m] of a scenario's round obstacles (the map the agent knows)."""
-    centers = np.array([obstacle.center for obstacle in scenario.obstacles], dtype=float).reshape(-1, 2)
-    return centers, np.array([obstacle.radius for obstacle in scenario.obstacles], dtype=float)
-
-
-def primitive_commands(config: dict, goals: np.ndarray, poses: np.ndarray, primitives) -> np.ndarray:
-    """``[speed, turn rate]`` (B, 2) that each motion primitive commands from each estimated pose.
-
-    Args:
-        config: a checked ``ActiveLocalizationEnv`` config.
-        goals: the goal position [m], one (2,) for all poses or one per pose (B, 2).
-        poses: estimated poses ``[x, y, heading]`` (B, 3).
-        primitives: the primitive of each pose (B,), indices of ``PRIMITIVE_OFFSETS_RAD``.
-    """
-    goals = np.asarray(goals)
-    goal_bearing = np.arctan2(goals[..., 1] - poses[:, 1], goals[..., 0] - poses[:, 0])
-    desired = goal_bearing + np.take(PRIMITIVE_OFFSETS_RAD, primitives)
-    turn = wrap_angle(desired - poses[:, 2])
-    max_turn = config["max_turn_rate_rps"] * config["time_step_s"]
-    executed_turn = np.clip(turn, -max_turn, max_turn)
-    speed = config["speed_mps"] * np.maximum(np.cos(turn), 0.0)
-    return np.stack([speed, executed_turn / config["time_step_s"]], axis=-1)
+        return self.vector.planning_model(0)
