@@ -98,7 +98,6 @@ def test_unchecked_fast_path_agrees_and_rejects_non_positive_determinants():
         log_det_spd(two_negative_eigenvalues)
 
 
-
 @pytest.mark.parametrize("n", range(1, 9))
 def test_unchecked_log_det_is_slogdets_for_every_size_and_stack_shape(n):
     """The compiled fast path (cofactors up to 3 x 3, an LU above) against LAPACK's ``slogdet``."""
@@ -119,6 +118,7 @@ def test_unchecked_log_det_is_slogdets_for_every_size_and_stack_shape(n):
     for bad in (one_negative, np.zeros((n, n)), np.full((n, n), np.nan)):
         with pytest.raises(ValueError, match=r"P is not positive definite \(determinant <= 0\)"):
             log_det_spd(np.stack([stack[0, 0], bad]), "P", check_input=False)
+
 
 NOT_SQUARE = np.ones((2, 3))
 NOT_SYMMETRIC = np.array([[2.0, 1.0], [0.0, 2.0]])

@@ -43,7 +43,7 @@ from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import set_rows
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM
+from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.information import log_det_spd
 from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config

@@ -19,7 +19,7 @@ from gymnasium import spaces
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.landmark_selection import Prior
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std
 from infonav_gym.sensors.range_bearing import RangeBearingSensor

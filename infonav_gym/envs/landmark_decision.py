@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.visibility import StaticGeometry, visible

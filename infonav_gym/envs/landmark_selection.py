@@ -17,7 +17,7 @@ from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info, in_every_copy
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM
+from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det, log_det_spd
 from infonav_gym.scene import SceneFrame

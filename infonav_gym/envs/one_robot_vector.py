@@ -13,7 +13,7 @@ from gymnasium.vector import AutoresetMode
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.scene import PathHistory, RobotDrawing
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.scenarios import Scenario

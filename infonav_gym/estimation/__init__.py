@@ -1,7 +1,12 @@
-"""State estimation: motion / measurement models, Kalman filters, consistency checks."""
+"""State estimation: motion / measurement models, Kalman filters, consistency checks.
+
+``PoseEKF`` and ``JointEKF`` (on filterpy, about a second to import) are imported when first asked for, so the
+envs, which run the batched core, start without them.
+"""
+
+import importlib
 
 from infonav_gym.estimation.consistency import chi2_bounds, nees, nis, pose_error
-from infonav_gym.estimation.ekf import JointEKF, PoseEKF
 from infonav_gym.estimation.models import (
     range_bearing,
     range_bearing_linearized,
@@ -27,3 +32,9 @@ __all__ = [
     "unicycle_motion",
     "wrap_angle",
 ]
+
+
+def __getattr__(name: str):
+    if name in ("JointEKF", "PoseEKF"):
+        return getattr(importlib.import_module("infonav_gym.estimation.ekf"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

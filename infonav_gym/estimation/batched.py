@@ -18,8 +18,8 @@ import numpy as np
 
 from infonav_gym.compiled import contiguous
 from infonav_gym.estimation import kernels
-from infonav_gym.estimation.ekf import POSE_DIM, _finite, _noise_covariance, _time_step
 from infonav_gym.estimation.models import GPS_POSE_JACOBIAN
+from infonav_gym.estimation.state import POSE_DIM, _finite, _noise_covariance, _time_step
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import log_det_spd
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from infonav_gym.envs.active_localization_batch import ranges_and_bearings
+from infonav_gym.envs.active_transition import ranges_and_bearings
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi.cooperative_exploration import REWARD_TERMS, CooperativeExplorationEnv, start_episode
 from infonav_gym.multi.cooperative_localization_batch import TeamDecision

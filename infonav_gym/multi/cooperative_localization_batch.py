@@ -11,8 +11,8 @@ from typing import NamedTuple
 import numpy as np
 
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.estimation.models import relative_pose
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, SensingPairs

@@ -18,7 +18,7 @@ from gymnasium.vector import AutoresetMode
 from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.multi.base import team_metadata
 from infonav_gym.multi.cooperative_localization_batch import (
     TeamDecision,

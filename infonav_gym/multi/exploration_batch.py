@@ -11,9 +11,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from infonav_gym.envs.active_localization_batch import ranges_and_bearings
+from infonav_gym.envs.active_transition import ranges_and_bearings
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.multi.cooperative_localization_batch import (
     TeamDecision,
     observable_pairs,

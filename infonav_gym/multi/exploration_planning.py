@@ -17,8 +17,8 @@ import numpy as np
 
 from infonav_gym.envs.active_planning import BeliefBatch
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM, block_diagonal
 from infonav_gym.estimation.models import relative_pose
+from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi.cooperative_localization_batch import TeamSightLines

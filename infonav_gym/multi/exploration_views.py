@@ -14,8 +14,8 @@ from infonav_gym.envs.metrics import (
     team_summed_reward_term,
     team_total_reward_term,
 )
-from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.estimation.models import range_bearing
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team_localization import team_observations

@@ -13,7 +13,7 @@ from gymnasium import spaces
 
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments, config_keys
 from infonav_gym.envs.base import EPISODE_STEPS
-from infonav_gym.estimation.ekf import INITIAL_POSE_STD, POSE_DIM
+from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team import DEFAULT_OUTAGE, RobotSuite, parse_outages, parse_suites
 from infonav_gym.multi.team_sensing import SensingPairs, team_prior

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.scene import PathHistory, RobotDrawing
 
 

@@ -6,8 +6,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from infonav_gym.estimation.ekf import POSE_DIM
 from infonav_gym.estimation.models import relative_pose
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.sensors.relative_pose import noisy_relative_poses
 
 NO_OBSERVATION = 0  # a team env's teammate choice ``1 + j`` observes robot j; this observes no teammate

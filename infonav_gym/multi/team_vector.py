@@ -24,7 +24,7 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.ekf import POSE_DIM, block_diagonal
+from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.multi.team_sensing import gps_available, gps_schedule
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.relative_pose import relative_poses_with_noise

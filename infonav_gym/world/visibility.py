@@ -439,7 +439,7 @@ def _in_coverage(sensor: RangeBearingSensor, poses: np.ndarray, targets: np.ndar
 def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets, *, check_input: bool = True):
     """Which targets each copy's robot sees: in ``sensor``'s coverage and in line of sight (N, K) bool.
 
-    Equal to ``LandmarkSight``'s ``visible`` of each copy (``in_coverage`` and ``line_of_sight``).
+    Equal to ``sensor.in_coverage`` of each copy's measurements and ``World.line_of_sight`` (Pymunk's segment queries).
     ``check_input=False`` skips the checks, for known-good float arrays in hot loops.
 
     Raises:
