@@ -75,6 +75,23 @@ class LandmarkDecision(NamedTuple):
         *decision, pose_log_det = decision
         return cls(*decision, gaussian_entropy_from_log_det(pose_log_det, POSE_DIM))
 
+    def observe(self, x, P, chosen: np.ndarray, measure) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Update each copy's EKF prior ``(x, P)`` with a measurement of its chosen landmark ``chosen`` (N,), -1: none.
+
+        ``measure(observers)`` gives the noisy ``[range, bearing]`` of the observing copies (n, 2).
+
+        Returns:
+            ``(x, P, realized MI (N,) [nats])``, 0 for a copy without a measurement.
+        """
+        observers = np.flatnonzero(chosen >= 0)
+        if not observers.size:
+            return x, P, np.zeros(len(chosen))
+        measurements = np.zeros((len(chosen), 2))
+        measurements[observers] = measure(observers)
+        return batched.chosen_landmark_updates(
+            x, P, measurements, chosen, self.predicted, self.H, self.R, self.prior_log_det
+        )
+
 
 @kernel
 def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, coverage, walls, discs, culled):
