@@ -196,7 +196,9 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
 
     def _advance(self, copies: np.ndarray) -> None:
         """Step the worlds of ``copies`` and predict their EKFs from noisy odometry."""
-        if copies.size:
+        if copies.size == self.num_envs:  # all of them (the usual step): the predicted arrays are new ones
+            self._x, self._P = self._moved(copies, self._x, self._P)
+        elif copies.size:
             self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
 
     def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:

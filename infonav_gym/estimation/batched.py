@@ -134,7 +134,7 @@ def predict_pose(x, P, controls, dt: float, control_covariance, *, check_input: 
     control_covariance = np.asarray(control_covariance)
     if control_covariance.ndim == 3:
         control_covariance = control_covariance[:, None]
-    return _predict(x, P, controls[:, None], dt, np.broadcast_to(control_covariance, (len(x), 1, 2, 2)))
+    return _predict(x, P, controls[:, None], dt, control_covariance)  # broadcast there to (N, 1, 2, 2)
 
 
 def predict_team(x, P, controls, dt: float, control_covariances, *, check_input: bool = True):
