@@ -42,9 +42,7 @@ from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import set_rows
-from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
-from infonav_gym.information import log_det_spd
 from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
@@ -250,24 +248,16 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         Returns:
             ``(observed (N,) bool, realized MI (N,) [nats])``.
         """
-        sight = self._decision.sight
-        observed, predicted, H, R = batched.select_candidates(landmarks, sight.predicted, sight.H, sight.R)
-        mutual_information = np.zeros(self.num_envs)
-        observers = np.flatnonzero(observed)
-        if not observers.size:
-            return observed, mutual_information
-        measurements = np.zeros((self.num_envs, 2))
-        measurements[observers] = self._sensor.measure_with_noise(
-            self._worlds.poses[observers, 0],
-            self._landmarks[observers, landmarks[observers]],
-            self._measurement_noise.take(observers),
-        )
-        self._x, self._P = batched.range_bearing_update(
-            self._x, self._P, measurements, predicted, H, R, observed, check_input=False
-        )
-        posterior_log_dets = log_det_spd(self._P[observers], check_input=False)
-        mutual_information[observers] = 0.5 * (sight.prior_log_det[observers] - posterior_log_dets)
-        return observed, mutual_information
+
+        def measure(observers):
+            return self._sensor.measure_with_noise(
+                self._worlds.poses[observers, 0],
+                self._landmarks[observers, landmarks[observers]],
+                self._measurement_noise.take(observers),
+            )
+
+        self._x, self._P, mutual_information = self._decision.sight.observe(self._x, self._P, landmarks, measure)
+        return landmarks >= 0, mutual_information
 
     # ------------------------------------------------------------------ decision, observation and info
 

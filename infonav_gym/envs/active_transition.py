@@ -16,11 +16,14 @@ from typing import NamedTuple
 import numpy as np
 from gymnasium import spaces
 
+from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.landmark_selection import Prior
+from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle
+from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import largest_position_std
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.active_scenarios import goal_field
@@ -31,7 +34,6 @@ from infonav_gym.world.world import start_poses
 PRIMITIVE_OFFSETS_RAD = (0.0, math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)
 PRIMITIVE_NAMES = ("to_goal", "veer_left", "veer_right", "sidestep_left", "sidestep_right")
 N_PRIMITIVES = len(PRIMITIVE_OFFSETS_RAD)
-POSE_FEATURES = 10
 GOAL_FEATURES = 4
 LANDMARK_FEATURES = 4
 OBSTACLE_FEATURES = 4
@@ -226,29 +228,46 @@ def observations(decision: ActiveDecision, state: CopiesState, obstacles, config
         obstacles: their ``(centers (n, O, 2), radii (n, O))`` [m].
         config: the env config; ``space`` the single observation space.
     """
-    x, P, (centers, radii) = state.x, state.P, obstacles
-    sight, (n_copies, n_landmarks) = decision.sight, decision.sight.action_mask.shape
-    observation = np.zeros((n_copies, *space.shape), dtype=np.float32)
+    budget, sight = config["max_observations"], decision.sight
+    left = state.observations_left / budget if budget else np.zeros(len(state.x))
+    fractions = (sight.pose_entropy, state.elapsed / config["horizon"], left)
+    arrays = (state.x, state.P, *fractions, state.goals, sight.action_mask, sight.predicted, *obstacles)
+    return active_observations(
+        *(contiguous(np.asarray(array, dtype=float)) for array in arrays),
+        space.low.astype(float),
+        space.high.astype(float),
+    )
+
+
+@kernel
+def active_observations(
+    x, P, pose_entropy, elapsed_fraction, left, goals, action_mask, predicted, centers, radii, low, high
+):
+    """``observations`` of n copies from their arrays: (n, 14 + 4K + 4O) float32, clipped to ``[low, high]``."""
+    n_copies, n_landmarks = action_mask.shape
+    observation = np.empty((n_copies, len(low)), dtype=np.float32)
+    values = np.zeros(len(low))
     landmarks_start = POSE_FEATURES + GOAL_FEATURES
-    landmarks_end = landmarks_start + LANDMARK_FEATURES * n_landmarks
-    variances = np.diagonal(P, axis1=1, axis2=2)
-    observation[:, :2] = x[:, :2]
-    observation[:, 2], observation[:, 3] = np.cos(x[:, 2]), np.sin(x[:, 2])
-    observation[:, 4:7] = np.sqrt(variances)
-    observation[:, 7] = P[:, 0, 1] / np.sqrt(variances[:, 0] * variances[:, 1])
-    observation[:, 8], observation[:, 9] = sight.pose_entropy, state.elapsed / config["horizon"]
-    goal = ranges_and_bearings(x, state.goals[:, None])[:, 0]
-    observation[:, 10], observation[:, 11], observation[:, 12] = goal[:, 0], np.cos(goal[:, 1]), np.sin(goal[:, 1])
-    budget = config["max_observations"]
-    observation[:, 13] = state.observations_left / budget if budget else 0.0
-    landmarks = observation[:, landmarks_start:landmarks_end].reshape(n_copies, n_landmarks, LANDMARK_FEATURES)
-    landmarks[..., 0], landmarks[..., 1] = sight.action_mask, sight.predicted[..., 0]
-    landmarks[..., 2], landmarks[..., 3] = np.cos(sight.predicted[..., 1]), np.sin(sight.predicted[..., 1])
-    seen = ranges_and_bearings(x, centers)
-    obstacle_rows = observation[:, landmarks_end:].reshape(n_copies, -1, OBSTACLE_FEATURES)
-    obstacle_rows[..., 0], obstacle_rows[..., 1] = seen[..., 0], np.cos(seen[..., 1])
-    obstacle_rows[..., 2], obstacle_rows[..., 3] = np.sin(seen[..., 1]), radii
-    return np.clip(observation, space.low, space.high, out=observation)
+    obstacles_start = landmarks_start + LANDMARK_FEATURES * n_landmarks
+    for c in range(n_copies):
+        values[:] = 0.0
+        pose_features(values, x[c], P[c], pose_entropy[c], elapsed_fraction[c])
+        dx, dy = goals[c, 0] - x[c, 0], goals[c, 1] - x[c, 1]
+        bearing = wrap(math.atan2(dy, dx) - x[c, 2])
+        range_bearing_features(values[POSE_FEATURES : POSE_FEATURES + 3], math.hypot(dx, dy), bearing)
+        values[POSE_FEATURES + 3] = left[c]
+        for k in range(n_landmarks):
+            row = landmarks_start + LANDMARK_FEATURES * k
+            values[row] = action_mask[c, k]
+            range_bearing_features(values[row + 1 : row + 4], predicted[c, k, 0], predicted[c, k, 1])
+        for o in range(radii.shape[1]):
+            row = obstacles_start + OBSTACLE_FEATURES * o
+            dx, dy = centers[c, o, 0] - x[c, 0], centers[c, o, 1] - x[c, 1]
+            bearing = wrap(math.atan2(dy, dx) - x[c, 2])
+            range_bearing_features(values[row : row + 3], math.hypot(dx, dy), bearing)
+            values[row + 3] = radii[c, o]
+        clip_into(observation[c], values, low, high)
+    return observation
 
 
 def infos(decision: ActiveDecision, state: CopiesState, stepped, chosen, terms: dict, config: dict) -> dict:

@@ -10,11 +10,14 @@ from typing import NamedTuple
 
 import numpy as np
 
+from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.estimation import batched
+from infonav_gym.estimation.kernels import landmark_gains, pose_block_log_dets, range_bearing_models
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.information import gaussian_entropy_from_log_det, log_det_spd
-from infonav_gym.sensors.range_bearing import RangeBearingSensor
-from infonav_gym.world.visibility import StaticGeometry, visible
+from infonav_gym.information import gaussian_entropy_from_log_det, stacked_log_dets
+from infonav_gym.sensors.range_bearing import RangeBearingSensor, noise_covariances
+from infonav_gym.world.visibility import StaticGeometry, shape_arrays
+from infonav_gym.world.visibility_kernels import blocked, covered
 
 
 class LandmarkDecision(NamedTuple):
@@ -50,23 +53,101 @@ class LandmarkDecision(NamedTuple):
         exists: np.ndarray,
         mapping: bool,
     ) -> LandmarkDecision:
-        """The decisions of N copies: true poses (N, 3), priors ``x`` (N, n), ``P`` (N, n, n), landmarks (N, K, 2)."""
-        n_copies, n_candidates = exists.shape
-        if mapping:  # every copy maps its L <= K landmarks in its state
-            mapped_predicted, mapped_H = batched.landmark_measurement_model(x, check_input=False)
-            n_mapped = mapped_predicted.shape[1]
-            predicted = np.zeros((n_copies, n_candidates, 2))
-            H = np.zeros((n_copies, n_candidates, 2, x.shape[1]))
-            predicted[:, :n_mapped], H[:, :n_mapped] = mapped_predicted, mapped_H
-        else:  # a missing landmark is put 1 m off the estimate, where its (unused) model is defined
-            known = np.where(exists[..., None], landmarks, x[:, None, :2] + 1.0)
-            predicted, H = batched.landmark_measurement_model(x, known, check_input=False)
-        R = sensor.noise_covariance(predicted[..., 0].ravel()).reshape(n_copies, n_candidates, 2, 2)
-        seen = exists & visible(geometry, sensor, true_poses, landmarks, check_input=False)
-        gains = np.where(seen, batched.landmark_information_gains(P, H, R, check_input=False), 0.0)
-        prior_log_det = log_det_spd(P, check_input=False)
-        pose_log_det = prior_log_det
-        if x.shape[1] > POSE_DIM:
-            pose_log_det = log_det_spd(P[:, :POSE_DIM, :POSE_DIM], check_input=False)
-        pose_entropy = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
-        return cls(seen.astype(np.int8), gains, predicted, H, R, prior_log_det, pose_entropy)
+        """The decisions of N copies: true poses (N, 3), priors ``x`` (N, n), ``P`` (N, n, n), landmarks (N, K, 2).
+
+        One compiled kernel (``landmark_decisions``). Raises ``ValueError`` if a landmark coincides with a copy's
+        estimated position or a prior is not positive definite.
+        """
+        floats = [contiguous(np.asarray(array, dtype=float)) for array in (x, P, landmarks, true_poses)]
+        coverage = float(sensor.max_range_m), float(sensor.fov_rad)
+        *decision, coincident = landmark_decisions(
+            *floats,
+            contiguous(np.asarray(exists, dtype=bool)),
+            bool(mapping),
+            sensor.noise_stds,
+            coverage,
+            *shape_arrays(geometry),
+        )
+        if coincident:
+            raise ValueError(batched.COINCIDENT)
+        if np.isnan(decision[-2].sum() + decision[-1].sum()):  # a NaN log det (the sums of finite ones are finite)
+            raise ValueError("P is not positive definite (determinant <= 0)")
+        *decision, pose_log_det = decision
+        return cls(*decision, gaussian_entropy_from_log_det(pose_log_det, POSE_DIM))
+
+    def observe(self, x, P, chosen: np.ndarray, measure) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Update each copy's EKF prior ``(x, P)`` with a measurement of its chosen landmark ``chosen`` (N,), -1: none.
+
+        ``measure(observers)`` gives the noisy ``[range, bearing]`` of the observing copies (n, 2).
+
+        Returns:
+            ``(x, P, realized MI (N,) [nats])``, 0 for a copy without a measurement.
+        """
+        observers = np.flatnonzero(chosen >= 0)
+        if not observers.size:
+            return x, P, np.zeros(len(chosen))
+        measurements = np.zeros((len(chosen), 2))
+        measurements[observers] = measure(observers)
+        return batched.chosen_landmark_updates(
+            x, P, measurements, chosen, self.predicted, self.H, self.R, self.prior_log_det
+        )
+
+
+@kernel
+def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, coverage, walls, discs, culled):
+    """``LandmarkDecision.at_prior`` of N copies, but for the pose entropy: its fields, then the pose's ``ln det``
+    (N,) and whether a landmark coincides with its copy's estimate.
+
+    ``noise_stds``: the sensor's ``noise_stds``; ``coverage``: its ``(max_range_m, fov_rad)``; ``walls``, ``discs``,
+    ``culled``: the static geometry's ``shape_arrays``. Without ``mapped`` a missing landmark is put 1 m off the
+    estimate, where its (unused) model is defined; with it, the L <= K landmarks of the state are modelled.
+    """
+    n_copies, n = x.shape
+    n_candidates = exists.shape[1]
+    predicted, H = np.zeros((n_copies, n_candidates, 2)), np.zeros((n_copies, n_candidates, 2, n))
+    n_modelled = (n - POSE_DIM) // 2 if mapped else n_candidates
+    positions = np.empty((n_copies, n_modelled, 2))
+    for c in range(n_copies):
+        for k in range(n_modelled):
+            if mapped:
+                positions[c, k, 0], positions[c, k, 1] = x[c, POSE_DIM + 2 * k], x[c, POSE_DIM + 2 * k + 1]
+            elif exists[c, k]:
+                positions[c, k, 0], positions[c, k, 1] = landmarks[c, k, 0], landmarks[c, k, 1]
+            else:
+                positions[c, k, 0], positions[c, k, 1] = x[c, 0] + 1.0, x[c, 1] + 1.0
+    modelled, modelled_H, coincident = range_bearing_models(x, positions, mapped)
+    predicted[:, :n_modelled], H[:, :n_modelled] = modelled, modelled_H
+    ranges = np.empty(n_copies * n_candidates)
+    for c in range(n_copies):
+        for k in range(n_candidates):
+            ranges[c * n_candidates + k] = predicted[c, k, 0]
+    R = noise_covariances(ranges, noise_stds[0], noise_stds[1], noise_stds[2]).reshape(n_copies, n_candidates, 2, 2)
+    seen = covered(true_poses, landmarks, coverage[0], coverage[1])
+    n_queries = 0
+    for c in range(n_copies):
+        for k in range(n_candidates):
+            seen[c, k] = seen[c, k] and exists[c, k]
+            n_queries += seen[c, k]
+    copy, origins, targets = np.empty(n_queries, dtype=np.int64), np.empty((n_queries, 2)), np.empty((n_queries, 2))
+    query = 0
+    for c in range(n_copies):
+        for k in range(n_candidates):
+            if seen[c, k]:
+                copy[query] = c
+                origins[query, 0], origins[query, 1] = true_poses[c, 0], true_poses[c, 1]
+                targets[query, 0], targets[query, 1] = landmarks[c, k, 0], landmarks[c, k, 1]
+                query += 1
+    hit = blocked(copy, origins, targets, walls, discs, culled)
+    gains = landmark_gains(P, H, R)
+    action_mask = np.zeros((n_copies, n_candidates), dtype=np.int8)
+    query = 0
+    for c in range(n_copies):
+        for k in range(n_candidates):
+            if seen[c, k]:
+                action_mask[c, k] = not hit[query]
+                query += 1
+            if not action_mask[c, k]:
+                gains[c, k] = 0.0
+    prior_log_det = stacked_log_dets(P)
+    pose_log_det = pose_block_log_dets(P, 1)[:, 0] if n > POSE_DIM else prior_log_det.copy()
+    return action_mask, gains, predicted, H, R, prior_log_det, pose_log_det, coincident

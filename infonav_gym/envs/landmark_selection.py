@@ -9,17 +9,18 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
+from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS
+from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info, in_every_copy
-from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import gaussian_entropy_from_log_det, log_det_spd
+from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
@@ -39,7 +40,6 @@ SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "n_obstacles": "n_obstacles",
     "size_m": "field_size_m",
 }
-POSE_FEATURES = 10
 CANDIDATE_FEATURES = 5
 _BIG = 1e4
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
@@ -122,6 +122,7 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
                 f"(the corridor's landmarks), got {cfg['n_candidates']}"
             )
         low, high = self._observation_bounds(cfg["n_candidates"])
+        self._bounds = low.astype(float), high.astype(float)  # the space's float32 bounds, for ``observations``
         self._set_spaces(spaces.Box(low, high, dtype=np.float32), spaces.Discrete(cfg["n_candidates"]))
         return range_bearing_sensor_from_config(cfg, owner), odometry_sensor_from_config(cfg, owner)
 
@@ -184,26 +185,20 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
 
     def _observe(self, chosen: np.ndarray) -> np.ndarray:
         """Update each observing copy's EKF with a noisy measurement of its chosen landmark; the realized MI (N,)."""
-        decision = self._decision
-        observed, predicted, H, R = batched.select_candidates(chosen, decision.predicted, decision.H, decision.R)
-        rewards = np.zeros(self.num_envs)
-        observers = np.flatnonzero(observed)
-        if not observers.size:
-            return rewards
-        measurements = np.zeros((self.num_envs, 2))
-        landmarks = self._landmarks[observers, chosen[observers]]
-        noise = self._measurement_noise.take(observers)
-        measurements[observers] = self._sensor.measure_with_noise(self._worlds.poses[observers, 0], landmarks, noise)
-        self._x, self._P = batched.range_bearing_update(
-            self._x, self._P, measurements, predicted, H, R, observed, check_input=False
-        )
-        posterior_log_dets = log_det_spd(self._P[observers], check_input=False)
-        rewards[observers] = 0.5 * (decision.prior_log_det[observers] - posterior_log_dets)
+
+        def measure(observers):
+            landmarks = self._landmarks[observers, chosen[observers]]
+            noise = self._measurement_noise.take(observers)
+            return self._sensor.measure_with_noise(self._worlds.poses[observers, 0], landmarks, noise)
+
+        self._x, self._P, rewards = self._decision.observe(self._x, self._P, chosen, measure)
         return rewards
 
     def _advance(self, copies: np.ndarray) -> None:
         """Step the worlds of ``copies`` and predict their EKFs from noisy odometry."""
-        if copies.size:
+        if copies.size == self.num_envs:  # all of them (the usual step): the predicted arrays are new ones
+            self._x, self._P = self._moved(copies, self._x, self._P)
+        elif copies.size:
             self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
 
     def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
@@ -229,26 +224,10 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
 
     def _observation(self, decision: LandmarkDecision, x, P, elapsed, exists) -> np.ndarray:
         """The observations of some copies (n, 10 + 5K), float32, clipped to the space (see the single env)."""
-        n_copies, n_candidates = exists.shape
-        space = self.single_observation_space
-        observation = np.zeros((n_copies, *space.shape), dtype=np.float32)
-        variances = np.diagonal(P[:, :POSE_DIM, :POSE_DIM], axis1=1, axis2=2)
-        observation[:, :2] = x[:, :2]
-        observation[:, 2], observation[:, 3] = np.cos(x[:, 2]), np.sin(x[:, 2])
-        observation[:, 4:7] = np.sqrt(variances)
-        observation[:, 7] = P[:, 0, 1] / np.sqrt(variances[:, 0] * variances[:, 1])
-        observation[:, 8] = decision.pose_entropy
-        observation[:, 9] = elapsed / self.config["horizon"]
-        candidates = observation[:, POSE_FEATURES:].reshape(n_copies, n_candidates, CANDIDATE_FEATURES)
-        candidates[..., 0] = decision.action_mask
-        ranges, bearings = decision.predicted[..., 0], decision.predicted[..., 1]
-        candidates[..., 1] = np.where(exists, ranges, 0.0)
-        candidates[..., 2] = np.where(exists, np.cos(bearings), 0.0)
-        candidates[..., 3] = np.where(exists, np.sin(bearings), 0.0)
-        if self.config["mapping"]:
-            landmark_variances = np.diagonal(P, axis1=1, axis2=2)[:, POSE_DIM:].reshape(n_copies, -1, 2)
-            candidates[:, : landmark_variances.shape[1], 4] = np.sqrt(landmark_variances.mean(axis=2))
-        return np.clip(observation, space.low, space.high, out=observation)
+        fraction = elapsed / self.config["horizon"]
+        arrays = (contiguous(np.asarray(array, dtype=float)) for array in (x, P, decision.pose_entropy, fraction))
+        mask, predicted = contiguous(decision.action_mask), contiguous(decision.predicted)
+        return observations(*arrays, mask, predicted, contiguous(exists), self.config["mapping"], *self._bounds)
 
     def _info(self, decision: LandmarkDecision, x, true_poses, elapsed, stepped, chosen, rewards) -> dict:
         """The infos of some copies as arrays (n, ...), each with its ``_key`` mask.
@@ -401,3 +380,30 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
         estimates = landmarks + prior_std * np_random.standard_normal(landmarks.shape)
         prior = prior._replace(landmarks=estimates, landmark_variance=prior_std**2)
     return scenario, prior, odometry_rng, measurement_rng
+
+
+@kernel
+def observations(x, P, pose_entropy, elapsed_fraction, action_mask, predicted, exists, mapping, low, high):
+    """``LandmarkSelectionVectorEnv._observation`` of n copies: (n, 10 + 5K) float32, clipped to ``[low, high]``.
+
+    ``x`` (n, dim), ``P`` (n, dim, dim), ``pose_entropy`` and ``elapsed_fraction`` (n,), then the decision's
+    ``action_mask`` (n, K), ``predicted`` (n, K, 2) and the ``exists`` mask (n, K); ``mapping``: fill the landmarks'
+    position std (the root of the mean of their two variances). Values are computed in float64, clipped, then rounded.
+    """
+    n_copies, n_candidates = exists.shape
+    observation = np.empty((n_copies, len(low)), dtype=np.float32)
+    values = np.zeros(len(low))
+    n_mapped = (x.shape[1] - POSE_DIM) // 2 if mapping else 0
+    for c in range(n_copies):
+        values[:] = 0.0
+        pose_features(values, x[c], P[c], pose_entropy[c], elapsed_fraction[c])
+        for k in range(n_candidates):
+            row = POSE_FEATURES + CANDIDATE_FEATURES * k
+            values[row] = action_mask[c, k]
+            if exists[c, k]:
+                range_bearing_features(values[row + 1 : row + 4], predicted[c, k, 0], predicted[c, k, 1])
+            if k < n_mapped:
+                i = POSE_DIM + 2 * k
+                values[row + 4] = math.sqrt((P[c, i, i] + P[c, i + 1, i + 1]) / 2)
+        clip_into(observation[c], values, low, high)
+    return observation

@@ -39,12 +39,15 @@ class NoiseStreams:
             RuntimeError: for a copy that has no stream yet (``restart`` it first).
         """
         block_draws, width = self._blocks.shape[1:]
-        for copy in copies[self._next[copies] >= block_draws].tolist():
-            generator = self._generators[copy]
-            if generator is None:
-                raise RuntimeError(f"NoiseStreams: copy {copy} has no generator yet; restart() it first")
-            self._blocks[copy] = generator.standard_normal((block_draws, width))
-            self._next[copy] = 0
-        draws = self._blocks[copies, self._next[copies]]
-        self._next[copies] += 1
-        return draws
+        positions = self._next[copies]
+        exhausted = positions >= block_draws
+        if exhausted.any():
+            for copy in copies[exhausted].tolist():
+                generator = self._generators[copy]
+                if generator is None:
+                    raise RuntimeError(f"NoiseStreams: copy {copy} has no generator yet; restart() it first")
+                self._blocks[copy] = generator.standard_normal((block_draws, width))
+                self._next[copy] = 0
+            positions = self._next[copies]
+        self._next[copies] = positions + 1
+        return self._blocks[copies, positions]

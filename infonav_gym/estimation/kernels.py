@@ -289,6 +289,41 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
 
 
 @kernel
+def chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det):
+    """The EKF update of each copy with its range-bearing measurement of its chosen candidate; the others unchanged.
+
+    Args:
+        x, P: states (N, n), the pose first, and covariances (N, n, n).
+        measurements: each copy's measured ``[range, bearing]`` (N, 2).
+        chosen: each copy's candidate (N,) int, -1 for none.
+        predicted, H, R: the candidates' predicted measurements (N, K, 2), Jacobians (N, K, 2, n) and noise
+            (N, K, 2, 2).
+        prior_log_det: ``ln det P`` of each prior (N,).
+
+    Returns:
+        ``(x, P, realized MI (N,))``: ``0.5 (ln det P_prior - ln det P_post)`` [nats], 0 for a copy without a
+        measurement, NaN where a posterior determinant is not > 0.
+    """
+    n_copies, n = x.shape
+    residuals, rows = np.zeros((n_copies, 1, 2)), np.zeros((n_copies, 1, 2, n))
+    noise, used = np.zeros((n_copies, 1, 2, 2)), np.zeros((n_copies, 1), dtype=np.bool_)
+    for c in range(n_copies):
+        k = chosen[c]
+        if k < 0:
+            continue
+        used[c, 0] = True
+        residuals[c, 0, 0] = measurements[c, 0] - predicted[c, k, 0]
+        residuals[c, 0, 1] = wrap(measurements[c, 1] - predicted[c, k, 1])
+        rows[c, 0], noise[c, 0] = H[c, k], R[c, k]
+    x_new, P_new = kalman_updates(x, P, residuals, rows, noise, used, 1, True)
+    realized = np.zeros(n_copies)
+    for c in range(n_copies):
+        if used[c, 0]:
+            realized[c] = 0.5 * (prior_log_det[c] - log_det_of(P_new[c]))
+    return x_new, P_new, realized
+
+
+@kernel
 def landmark_gains(P, H, R):
     """``0.5 ln(det S / det R)``, ``S = H P H^T + R``, of each candidate (N, K) [nats]; NaN where a determinant
     is not > 0. ``P`` (N, n, n), ``H`` (N, K, m, n), ``R`` (N, K, m, m)."""

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.config import check_number, from_config
 from infonav_gym.geometry import wrap_angle
 
@@ -47,11 +48,13 @@ class RangeBearingSensor:
 
     def noise_covariance(self, ranges) -> np.ndarray:
         """Measurement noise covariance at each range: (N,) -> (N, 2, 2)."""
-        ranges = np.atleast_1d(ranges)
-        covariance = np.zeros((len(ranges), 2, 2))
-        covariance[:, 0, 0] = (self.range_std_m + self.range_std_per_m * ranges) ** 2
-        covariance[:, 1, 1] = self.bearing_std_rad**2
-        return covariance
+        ranges = contiguous(np.atleast_1d(np.asarray(ranges, dtype=float)))
+        return noise_covariances(ranges, *self.noise_stds)
+
+    @property
+    def noise_stds(self) -> tuple[float, float, float]:
+        """``(range_std_m, range_std_per_m, bearing_std_rad)`` as floats, the arguments of ``noise_covariances``."""
+        return float(self.range_std_m), float(self.range_std_per_m), float(self.bearing_std_rad)
 
     def in_coverage(self, measurements) -> np.ndarray:
         """Which noise-free ``[range, bearing]`` rows fall inside the range and field of view."""
@@ -93,3 +96,14 @@ CONFIG_KEYS = {  # the env config key of each attribute
 def range_bearing_sensor_from_config(config: dict, owner: str) -> RangeBearingSensor:
     """The sensor described by an env config's ``CONFIG_KEYS``; a bad value's ``ValueError`` names its key."""
     return from_config(RangeBearingSensor, config, CONFIG_KEYS, owner)
+
+
+@kernel
+def noise_covariances(ranges, range_std_m, range_std_per_m, bearing_std_rad):
+    """``RangeBearingSensor.noise_covariance`` at each range (M,): (M, 2, 2), the range std growing with the range."""
+    covariance = np.zeros((len(ranges), 2, 2))
+    for index in range(len(ranges)):
+        range_std = range_std_m + range_std_per_m * ranges[index]
+        covariance[index, 0, 0] = range_std * range_std
+        covariance[index, 1, 1] = bearing_std_rad * bearing_std_rad
+    return covariance

@@ -23,9 +23,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from infonav_gym.geometry import wrap_angle
+from infonav_gym.compiled import contiguous
 from infonav_gym.world.scenarios import Scenario
-from infonav_gym.world.visibility_kernels import DISC, WALL, shape_hits
+from infonav_gym.world.visibility_kernels import DISC, WALL, blocked, covered, shape_hits
 from infonav_gym.world.world import WORLD_ARGUMENTS
 
 if TYPE_CHECKING:
@@ -374,14 +374,19 @@ def segments_clear(geometry: StaticGeometry, copies, starts, ends) -> np.ndarray
 
 def _blocked(geometry: StaticGeometry, copy, origins, targets) -> np.ndarray:
     """Whether each of M segments ``origins`` -> ``targets`` (M, 2) of copy ``copy`` (M,) hits a wall or disc (M,)."""
-    blocked = np.zeros(len(copy), dtype=bool)
-    shapes = (
-        (geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, geometry.wall_valid, WALL),
-        (geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, geometry.disc_valid, DISC),
+    return blocked(
+        contiguous(np.asarray(copy, dtype=np.int64)),
+        contiguous(np.asarray(origins, dtype=float)),
+        contiguous(np.asarray(targets, dtype=float)),
+        *shape_arrays(geometry),
     )
-    for points, radii, boxes, usable, kind in shapes:
-        blocked |= shape_hits(copy, origins, targets, points, radii, boxes, usable, geometry.culled, kind).any(axis=1)
-    return blocked
+
+
+def shape_arrays(geometry: StaticGeometry) -> tuple:
+    """``geometry``'s shapes as the kernels (``visibility_kernels.blocked``) take them: ``(walls, discs, culled)``."""
+    walls = (geometry.wall_points, geometry.wall_radii, geometry.wall_boxes, geometry.wall_valid)
+    discs = (geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes, geometry.disc_valid)
+    return walls, discs, geometry.culled
 
 
 def swept_discs_clear(geometry: StaticGeometry, starts, ends, radius_m: float) -> np.ndarray:
@@ -431,9 +436,8 @@ def in_coverage(sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
 
 
 def _in_coverage(sensor: RangeBearingSensor, poses: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    dx, dy = targets[:, :, 0] - poses[:, None, 0], targets[:, :, 1] - poses[:, None, 1]
-    measurements = np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - poses[:, None, 2])], axis=-1)
-    return sensor.in_coverage(measurements.reshape(-1, 2)).reshape(dx.shape)
+    poses, targets = contiguous(np.asarray(poses, dtype=float)), contiguous(np.asarray(targets, dtype=float))
+    return covered(poses, targets, float(sensor.max_range_m), float(sensor.fov_rad))
 
 
 def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets, *, check_input: bool = True):

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from infonav_gym.compiled import kernel
+from infonav_gym.geometry import wrap_angle_kernel as wrap
 
 SMALLEST_NORMAL = np.finfo(float).tiny  # Chipmunk's CPFLOAT_MIN, added to a length before dividing by it
 WALL, DISC = 0, 1  # the shape kinds of ``shape_hits``
@@ -135,3 +136,31 @@ def shape_hits(copy, origins, targets, points, radii, boxes, usable, culled, kin
                 hit = hits_disc(origin_x, origin_y, target_x, target_y, p[0], p[1], radii[c, shape])
             hits[query, shape] = hit
     return hits
+
+
+@kernel
+def blocked(copy, origins, targets, walls, discs, culled):
+    """Whether each of M queries ``origins`` -> ``targets`` (M, 2) of copy ``copy`` (M,) hits a wall or disc (M,) bool.
+
+    ``walls`` and ``discs``: each shape kind's ``(points, radii, boxes, usable)`` (see ``shape_hits``).
+    """
+    wall_hits = shape_hits(copy, origins, targets, walls[0], walls[1], walls[2], walls[3], culled, WALL)
+    disc_hits = shape_hits(copy, origins, targets, discs[0], discs[1], discs[2], discs[3], culled, DISC)
+    hit = np.zeros(len(copy), dtype=np.bool_)
+    for query in range(len(copy)):
+        hit[query] = wall_hits[query].any() or disc_hits[query].any()
+    return hit
+
+
+@kernel
+def covered(poses, targets, max_range_m, fov_rad):
+    """Whether each target (N, K, 2) [m] lies within ``max_range_m`` and the field of view ``fov_rad`` around the
+    heading of its copy's pose (N, 3): (N, K) bool (``RangeBearingSensor.in_coverage`` of the noise-free reading)."""
+    n_copies, n_targets = targets.shape[0], targets.shape[1]
+    inside = np.zeros((n_copies, n_targets), dtype=np.bool_)
+    for c in range(n_copies):
+        for k in range(n_targets):
+            dx, dy = targets[c, k, 0] - poses[c, 0], targets[c, k, 1] - poses[c, 1]
+            bearing = wrap(math.atan2(dy, dx) - poses[c, 2])
+            inside[c, k] = math.hypot(dx, dy) <= max_range_m and abs(bearing) <= 0.5 * fov_rad
+    return inside
