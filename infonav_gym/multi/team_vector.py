@@ -334,10 +334,5 @@ def draws_in_slot_order(streams: NoiseStreams, copies: np.ndarray, used: np.ndar
     ``standard_normal((k, width))`` call for its k used slots, or in k calls of ``width`` in slot order.
     """
     draws = np.zeros((*used.shape, width))
-    turn_of = np.cumsum(used, axis=1) - 1  # each used slot's place among its copy's used slots
-    counts = used.sum(axis=1)
-    for turn in range(int(counts.max(initial=0))):
-        rows = np.flatnonzero(counts > turn)
-        slots = np.argmax(used[rows] & (turn_of[rows] == turn), axis=1)
-        draws[rows, slots] = streams.take(copies[rows])
+    draws[used] = streams.take_many(copies, used.sum(axis=1))
     return draws
