@@ -84,10 +84,10 @@ class TeamDecision(NamedTuple):
         """
         n_copies, n_robots = x.shape[0], x.shape[1] // POSE_DIM
         n_pairs = len(pairs.observers)
-        observers = np.broadcast_to(pairs.observers, (n_copies, n_pairs))
-        targets = np.broadcast_to(pairs.targets, (n_copies, n_pairs))
+        observers = np.repeat(pairs.observers[None], n_copies, axis=0)
+        targets = np.repeat(pairs.targets[None], n_copies, axis=0)
         predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets, check_input=False)
-        noise = np.broadcast_to(pairs.noise, (n_copies, n_pairs, 5)).reshape(-1, 5)
+        noise = np.repeat(pairs.noise[None], n_copies, axis=0).reshape(-1, 5)
         R = noise_covariances(noise, predicted[..., 0].ravel()).reshape(n_copies, n_pairs, POSE_DIM, POSE_DIM)
         mask = np.zeros((n_copies, n_robots, n_robots + 1), dtype=np.int8)
         mask[..., NO_OBSERVATION] = 1

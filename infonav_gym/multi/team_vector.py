@@ -234,7 +234,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._x[copies], self._P[copies] = batched.relative_pose_update(
             self._x[copies],
             self._P[copies],
-            np.broadcast_to(np.arange(n_robots), observed.shape),
+            np.repeat(np.arange(n_robots)[None], len(copies), axis=0),
             self._pairs.targets[pair],
             self._relative_measurements(copies, decision.geometry[rows], pair, observed),
             decision.predicted[rows],
@@ -268,7 +268,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         time_s = self._elapsed[copies] * self.config["time_step_s"]
         positions = self._worlds.poses[copies, :, :2]
         offsets = positions[:, :, None] - self._zone_centers[copies, None]
-        denied = np.any(np.einsum("crzi,crzi->crz", offsets, offsets) <= self._zone_radii_sq[copies, None], axis=2)
+        denied = ((offsets[..., 0] ** 2 + offsets[..., 1] ** 2) <= self._zone_radii_sq[copies, None]).any(axis=2)
         available = gps_available(self._has_gps, self._outages, denied, time_s)
         self._gps_available[copies] = available
         fixing = np.flatnonzero(available.any(axis=1))
