@@ -176,9 +176,10 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
         team_mi = np.zeros(self.num_envs)
         measured = np.flatnonzero((chosen != NO_OBSERVATION).any(axis=1))
         if measured.size:
-            joint_before = np.linalg.slogdet(self._P[measured])[1]
-            self._relative_update(measured, chosen[measured], decision)
-            team_mi[measured] = 0.5 * (joint_before - np.linalg.slogdet(self._P[measured])[1])
+            rows = self._rows(measured)
+            joint_before = np.linalg.slogdet(self._P[rows])[1]
+            self._relative_update(measured, chosen[rows], decision)
+            team_mi[rows] = 0.5 * (joint_before - np.linalg.slogdet(self._P[rows])[1])
         own_mi = 0.5 * (decision.pose_log_det - batched.pose_log_dets(self._P, n_robots, check_input=False))
         updated_std = np.sqrt(np.diagonal(self._P, axis1=1, axis2=2)).reshape(self.num_envs, n_robots, POSE_DIM)
         return own_mi, np.repeat(team_mi[:, None], n_robots, axis=1), updated_std

@@ -207,8 +207,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each robot's executed action (the no-op for a masked one and in a resetting copy), and which were masked."""
         mask, noop = self._decision.action_mask, self.traits.noop_action
-        copies, robots = np.ogrid[: self.num_envs, : len(self.agents)]
-        valid = mask[copies, robots, actions].astype(bool)
+        valid = np.take_along_axis(mask, actions[..., None], axis=2)[..., 0].astype(bool)
         invalid = acting[:, None] & ~valid
         for copy, robot in np.argwhere(invalid).tolist():
             agent = self.agents[robot]
@@ -231,9 +230,10 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         observed = chosen != 0
         pair = self._pair_index[np.arange(n_robots), chosen]  # -1 (unused) where not observed
         rows = copies[:, None], pair
-        self._x[copies], self._P[copies] = batched.relative_pose_update(
-            self._x[copies],
-            self._P[copies],
+        state_rows = self._rows(copies)
+        self._x[state_rows], self._P[state_rows] = batched.relative_pose_update(
+            self._x[state_rows],
+            self._P[state_rows],
             np.repeat(np.arange(n_robots)[None], len(copies), axis=0),
             self._pairs.targets[pair],
             self._relative_measurements(copies, decision.geometry[rows], pair, observed),
@@ -259,24 +259,28 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         """Predict the EKFs of ``copies`` with noisy odometry of the executed ``controls`` (n, R, 2) over ``dt`` [s]."""
         noise = self._noise[ODOMETRY_NOISE].take(copies).reshape(controls.shape)
         readings = self._odometry.measure_with_noise(controls, noise)
-        self._x[copies], self._P[copies] = batched.predict_team(
-            self._x[copies], self._P[copies], readings, dt, self._odometry_covariances, check_input=False
+        rows = self._rows(copies)
+        self._x[rows], self._P[rows] = batched.predict_team(
+            self._x[rows], self._P[rows], readings, dt, self._odometry_covariances, check_input=False
         )
 
     def _gps_fixes(self, copies: np.ndarray) -> None:
         """Which robots of ``copies`` have a DGPS fix now (schedule, zones), and their update."""
-        time_s = self._elapsed[copies] * self.config["time_step_s"]
-        positions = self._worlds.poses[copies, :, :2]
-        offsets = positions[:, :, None] - self._zone_centers[copies, None]
-        denied = ((offsets[..., 0] ** 2 + offsets[..., 1] ** 2) <= self._zone_radii_sq[copies, None]).any(axis=2)
+        within = self._rows(copies)
+        time_s = self._elapsed[within] * self.config["time_step_s"]
+        positions = self._worlds.poses[within, :, :2]
+        offsets = positions[:, :, None] - self._zone_centers[within, None]
+        denied = ((offsets[..., 0] ** 2 + offsets[..., 1] ** 2) <= self._zone_radii_sq[within, None]).any(axis=2)
         available = gps_available(self._has_gps, self._outages, denied, time_s)
-        self._gps_available[copies] = available
+        self._gps_available[within] = available
         fixing = np.flatnonzero(available.any(axis=1))
         if not fixing.size:
             return
-        rows, available = copies[fixing], available[fixing]
+        if len(fixing) < len(copies):
+            copies, positions, available = copies[fixing], positions[fixing], available[fixing]
+        rows = self._rows(copies)
         fixes = self._gps.measure_with_noise(
-            positions[fixing], draws_in_slot_order(self._noise[GPS_NOISE], rows, available, 2)
+            positions, draws_in_slot_order(self._noise[GPS_NOISE], copies, available, 2)
         )
         self._x[rows], self._P[rows] = batched.gps_update(
             self._x[rows],
@@ -287,6 +291,10 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
             cross_covariances=self._cross_covariances,
             check_input=False,
         )
+
+    def _rows(self, copies: np.ndarray):
+        """An index of the rows of ``copies`` (sorted, distinct): a slice of all when they are all (a view, no copy)."""
+        return slice(None) if len(copies) == self.num_envs else copies
 
     def action_masks(self) -> np.ndarray:
         """The valid actions of each copy and robot as bool (N, R, A) (the no-op is always valid)."""
