@@ -19,6 +19,7 @@ from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
+from infonav_gym.information import log_det_spd
 from infonav_gym.multi.base import team_metadata
 from infonav_gym.multi.cooperative_localization_batch import (
     TeamDecision,
@@ -177,9 +178,9 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
         measured = np.flatnonzero((chosen != NO_OBSERVATION).any(axis=1))
         if measured.size:
             rows = self._rows(measured)
-            joint_before = np.linalg.slogdet(self._P[rows])[1]
+            joint_before = log_det_spd(self._P[rows], check_input=False)
             self._relative_update(measured, chosen[rows], decision)
-            team_mi[rows] = 0.5 * (joint_before - np.linalg.slogdet(self._P[rows])[1])
+            team_mi[rows] = 0.5 * (joint_before - log_det_spd(self._P[rows], "the posterior P", check_input=False))
         own_mi = 0.5 * (decision.pose_log_det - batched.pose_log_dets(self._P, n_robots, check_input=False))
         updated_std = np.sqrt(np.diagonal(self._P, axis1=1, axis2=2)).reshape(self.num_envs, n_robots, POSE_DIM)
         return own_mi, np.repeat(team_mi[:, None], n_robots, axis=1), updated_std
