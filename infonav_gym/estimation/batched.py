@@ -18,7 +18,7 @@ import functools
 
 import numpy as np
 
-from infonav_gym.compiled import contiguous
+from infonav_gym.compiled import contiguous, stacked
 from infonav_gym.estimation import kernels
 from infonav_gym.estimation.models import GPS_POSE_JACOBIAN
 from infonav_gym.estimation.state import POSE_DIM, _finite, _noise_covariance, _time_step
@@ -159,20 +159,13 @@ def predict_team(x, P, controls, dt: float, control_covariances, *, check_input:
         controls = _finite("controls", controls, (len(x), n_robots, 2))
         dt = _time_step(dt)
         control_covariances = _noise_stack("control_covariances", control_covariances, (len(x), n_robots, 2, 2))
-    return _predict(x, P, controls, dt, _stacked(control_covariances, (*np.shape(controls), 2)))
+    return _predict(x, P, controls, dt, stacked(control_covariances, (*np.shape(controls), 2)))
 
 
 def _predict(x, P, controls, dt, control_covariances):
     """Unicycle prediction of the first R poses (``kernels.predict_poses``); noise (N, R, 2, 2) or broadcasting."""
     control_covariances = np.broadcast_to(control_covariances, (*np.shape(controls), 2))
     return kernels.predict_poses(_floats(x), _floats(P), _floats(controls), float(dt), _floats(control_covariances))
-
-
-def _stacked(value, shape: tuple[int, ...]) -> np.ndarray:
-    """A new C-contiguous float array of ``shape`` holding ``value`` broadcast (what the kernels take, in one copy)."""
-    stacked = np.empty(shape)
-    stacked[...] = value
-    return stacked
 
 
 def _floats(array, dtype=float) -> np.ndarray:
@@ -316,7 +309,7 @@ def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bo
     n_copies, n = np.shape(x)
     H = np.repeat(_gps_jacobians(n // POSE_DIM)[None], n_copies, axis=0)
     residual = fixes - np.reshape(x, (n_copies, -1, POSE_DIM))[..., :2]  # the fix minus H x, the robot's position
-    R = _stacked(noise_covariances, (*np.shape(fixes), 2))
+    R = stacked(noise_covariances, (*np.shape(fixes), 2))
     return _update(x, P, residual, H, R, has_fix, n // POSE_DIM, cross_covariances)
 
 
