@@ -151,7 +151,7 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
         """Observe, then move the ``acting`` copies; each robot's reward mixes its own and the team's MI."""
         own_mi, team_mi, updated_std = self._observe(chosen)
         copies = np.flatnonzero(acting)
-        if acting[0]:
+        if acting[0] and self.render_mode is not None:  # drawn by render()
             observers = np.flatnonzero(chosen[0] != NO_OBSERVATION)
             self._observed_pairs = list(zip(observers.tolist(), (chosen[0, observers] - 1).tolist()))
         self._elapsed[copies] += 1

@@ -107,6 +107,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._gps_available = np.zeros((num_envs, n_robots), dtype=bool)
         self._zone_centers, self._zone_radii_sq = np.zeros((num_envs, 0, 2)), np.zeros((num_envs, 0))
         self._elapsed = np.zeros(num_envs, dtype=int)
+        self._slots = (np.arange(num_envs)[:, None], np.arange(n_robots))  # index of every (copy, robot)
 
     # ------------------------------------------------------------------ reset
 
@@ -207,7 +208,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each robot's executed action (the no-op for a masked one and in a resetting copy), and which were masked."""
         mask, noop = self._decision.action_mask, self.traits.noop_action
-        valid = np.take_along_axis(mask, actions[..., None], axis=2)[..., 0].astype(bool)
+        valid = mask[self._slots + (actions,)].astype(bool)
         invalid = acting[:, None] & ~valid
         for copy, robot in np.argwhere(invalid).tolist():
             agent = self.agents[robot]
