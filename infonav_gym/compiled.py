@@ -15,6 +15,7 @@ import threading
 import weakref
 
 import numba
+import numpy as np
 from numba.core import event
 
 COMPILE_NOTICE_AFTER_S = 1.0  # [s] a compile that takes longer is announced (once per process)
@@ -54,6 +55,14 @@ def contiguous(array):
     copy (a read-only or strided view, e.g. from ``np.broadcast_to``, would be another numba type: another compile)."""
     flags = array.flags
     return array if flags.c_contiguous and flags.writeable else array.copy()
+
+
+def stacked(value, shape: tuple[int, ...]) -> np.ndarray:
+    """A new C-contiguous float64 array of ``shape`` holding ``value`` broadcast: what the kernels take, in one copy
+    (not ``np.broadcast_to``, a read-only view, then a copy)."""
+    array = np.empty(shape)
+    array[...] = value
+    return array
 
 
 class _CompileNotice(event.Listener):

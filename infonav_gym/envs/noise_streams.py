@@ -38,16 +38,35 @@ class NoiseStreams:
         Raises:
             RuntimeError: for a copy that has no stream yet (``restart`` it first).
         """
+        self._refill(copies[self._next[copies] >= self._blocks.shape[1]])
+        draws = self._blocks[copies, self._next[copies]]
+        self._next[copies] += 1
+        return draws
+
+    def take_many(self, copies: np.ndarray, counts: np.ndarray) -> np.ndarray:
+        """The next ``counts[k]`` draws of each of ``copies`` (distinct), in copy order: (sum(counts), width).
+
+        What ``counts[k]`` calls of ``take`` give copy ``copies[k]``, in one indexing (``counts`` <= the block).
+
+        Raises:
+            RuntimeError: for a copy that has no stream yet (``restart`` it first).
+        """
+        self._refill(copies[self._next[copies] + counts > self._blocks.shape[1]])
+        starts = self._next[copies]
+        ends = np.cumsum(counts)
+        rows = np.repeat(starts - (ends - counts), counts) + np.arange(ends[-1] if len(ends) else 0)
+        draws = self._blocks[np.repeat(copies, counts), rows]
+        self._next[copies] += counts
+        return draws
+
+    def _refill(self, copies: np.ndarray) -> None:
+        """Move each copy's unused draws to the front of its block and fill the rest from its generator."""
         block_draws, width = self._blocks.shape[1:]
-        positions = self._next[copies]
-        exhausted = positions >= block_draws
-        if exhausted.any():
-            for copy in copies[exhausted].tolist():
-                generator = self._generators[copy]
-                if generator is None:
-                    raise RuntimeError(f"NoiseStreams: copy {copy} has no generator yet; restart() it first")
-                self._blocks[copy] = generator.standard_normal((block_draws, width))
-                self._next[copy] = 0
-            positions = self._next[copies]
-        self._next[copies] = positions + 1
-        return self._blocks[copies, positions]
+        for copy in copies.tolist():
+            generator = self._generators[copy]
+            if generator is None:
+                raise RuntimeError(f"NoiseStreams: copy {copy} has no generator yet; restart() it first")
+            unused = block_draws - min(self._next[copy], block_draws)
+            self._blocks[copy, :unused] = self._blocks[copy, block_draws - unused :].copy()
+            self._blocks[copy, unused:] = generator.standard_normal((block_draws - unused, width))
+            self._next[copy] = 0

@@ -14,9 +14,11 @@ whole stack of covariances (N,); ``pose_log_dets`` those of the robots' pose blo
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
-from infonav_gym.compiled import contiguous
+from infonav_gym.compiled import contiguous, stacked
 from infonav_gym.estimation import kernels
 from infonav_gym.estimation.models import GPS_POSE_JACOBIAN
 from infonav_gym.estimation.state import POSE_DIM, _finite, _noise_covariance, _time_step
@@ -157,7 +159,7 @@ def predict_team(x, P, controls, dt: float, control_covariances, *, check_input:
         controls = _finite("controls", controls, (len(x), n_robots, 2))
         dt = _time_step(dt)
         control_covariances = _noise_stack("control_covariances", control_covariances, (len(x), n_robots, 2, 2))
-    return _predict(x, P, controls, dt, np.broadcast_to(control_covariances, (*np.shape(controls), 2)))
+    return _predict(x, P, controls, dt, stacked(control_covariances, (*np.shape(controls), 2)))
 
 
 def _predict(x, P, controls, dt, control_covariances):
@@ -323,11 +325,19 @@ def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bo
         fixes = _finite("fixes", fixes, (len(x), n_robots, 2))
         noise_covariances = _noise_stack("noise_covariances", noise_covariances, (len(x), n_robots, 2, 2))
     n_copies, n = np.shape(x)
-    robots = np.broadcast_to(np.arange(n // POSE_DIM), np.shape(has_fix))
-    H = _slot_jacobians(robots, np.broadcast_to(GPS_POSE_JACOBIAN, (*np.shape(fixes), POSE_DIM)), n)
+    H = np.repeat(_gps_jacobians(n // POSE_DIM)[None], n_copies, axis=0)
     residual = fixes - np.reshape(x, (n_copies, -1, POSE_DIM))[..., :2]  # the fix minus H x, the robot's position
-    noise_covariances = np.broadcast_to(noise_covariances, (*np.shape(fixes), 2))
-    return _update(x, P, residual, H, noise_covariances, has_fix, n // POSE_DIM, cross_covariances)
+    R = stacked(noise_covariances, (*np.shape(fixes), 2))
+    return _update(x, P, residual, H, R, has_fix, n // POSE_DIM, cross_covariances)
+
+
+@functools.cache
+def _gps_jacobians(n_robots: int) -> np.ndarray:
+    """Each robot's position fix's Jacobian in the joint state (R, 2, 3R) (read only: shared)."""
+    blocks = np.broadcast_to(GPS_POSE_JACOBIAN, (1, n_robots, 2, POSE_DIM))
+    H = _slot_jacobians(np.arange(n_robots)[None], blocks, POSE_DIM * n_robots)[0]
+    H.flags.writeable = False
+    return H
 
 
 def relative_pose_update(

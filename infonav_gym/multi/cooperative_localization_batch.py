@@ -17,14 +17,14 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, SensingPairs
 from infonav_gym.sensors.relative_pose import noise_covariances
-from infonav_gym.world.visibility import StaticGeometry, line_of_sight
+from infonav_gym.world.visibility import StaticGeometry, segments_clear
 
 
 class TeamSightLines(NamedTuple):
-    """The static shapes of N copies, repeated once per sight line L, to test all N x L robot-robot lines at once.
+    """The static shapes of N copies and the robot pairs whose line of sight the team's relative sensors need.
 
     Attributes:
-        geometry: copy ``c``'s shapes at rows ``c L .. c L + L - 1`` (N L copies).
+        geometry: the copies' shapes (N copies).
         lines: the robot pairs ``(i, j)`` of the L sight lines (L, 2).
     """
 
@@ -34,15 +34,17 @@ class TeamSightLines(NamedTuple):
     @classmethod
     def of_copies(cls, geometries: list[StaticGeometry], pairs: SensingPairs) -> TeamSightLines:
         """The sight lines of ``pairs`` in each copy's ``geometries``."""
-        lines = np.array(pairs.sight_lines, dtype=int).reshape(-1, 2)
-        return cls(StaticGeometry.stack([geometry for geometry in geometries for _ in lines]), lines)
+        return cls(StaticGeometry.stack(geometries), np.array(pairs.sight_lines, dtype=int).reshape(-1, 2))
 
-    def clear(self, true_poses: np.ndarray) -> np.ndarray:
-        """Whether walls and obstacles leave each copy's sight lines clear (N, L), at the true poses (N, R, 3)."""
-        n_copies, n_lines = len(true_poses), len(self.lines)
-        origins = true_poses[:, self.lines[:, 0], :2].reshape(n_copies * n_lines, 2)
-        targets = true_poses[:, self.lines[:, 1], :2].reshape(n_copies * n_lines, 1, 2)
-        return line_of_sight(self.geometry, origins, targets).reshape(n_copies, n_lines)
+    def clear(self, true_poses: np.ndarray, copies: np.ndarray, lines: np.ndarray) -> np.ndarray:
+        """Whether walls and obstacles leave sight line ``lines[m]`` of copy ``copies[m]`` clear (M,) bool, at the
+        true poses (N, R, 3); only these lines are tested."""
+        if not copies.size:
+            return np.ones(0, dtype=bool)
+        ends = self.lines[lines]
+        return segments_clear(
+            self.geometry, copies, true_poses[copies, ends[:, 0], :2], true_poses[copies, ends[:, 1], :2]
+        )
 
 
 class TeamDecision(NamedTuple):
@@ -84,10 +86,10 @@ class TeamDecision(NamedTuple):
         """
         n_copies, n_robots = x.shape[0], x.shape[1] // POSE_DIM
         n_pairs = len(pairs.observers)
-        observers = np.broadcast_to(pairs.observers, (n_copies, n_pairs))
-        targets = np.broadcast_to(pairs.targets, (n_copies, n_pairs))
+        observers = np.repeat(pairs.observers[None], n_copies, axis=0)
+        targets = np.repeat(pairs.targets[None], n_copies, axis=0)
         predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets, check_input=False)
-        noise = np.broadcast_to(pairs.noise, (n_copies, n_pairs, 5)).reshape(-1, 5)
+        noise = np.repeat(pairs.noise[None], n_copies, axis=0).reshape(-1, 5)
         R = noise_covariances(noise, predicted[..., 0].ravel()).reshape(n_copies, n_pairs, POSE_DIM, POSE_DIM)
         mask = np.zeros((n_copies, n_robots, n_robots + 1), dtype=np.int8)
         mask[..., NO_OBSERVATION] = 1
@@ -119,8 +121,9 @@ def observable_pairs(pairs: SensingPairs, sight: TeamSightLines | None, true_pos
         true_poses[:, pairs.observers].reshape(-1, POSE_DIM), true_poses[:, pairs.targets].reshape(-1, POSE_DIM)
     ).reshape(n_copies, n_pairs, POSE_DIM)
     valid = pairs.covered(geometry)
-    if sight is not None:
-        valid &= sight.clear(true_poses)[:, pairs.sight_line]
+    if sight is not None:  # the line of sight of the covered pairs only
+        copies, covered = np.nonzero(valid)
+        valid[copies, covered] = sight.clear(true_poses, copies, pairs.sight_line[covered])
     return geometry, valid
 
 

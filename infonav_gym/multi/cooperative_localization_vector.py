@@ -19,6 +19,7 @@ from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
+from infonav_gym.information import log_det_spd
 from infonav_gym.multi.base import team_metadata
 from infonav_gym.multi.cooperative_localization_batch import (
     TeamDecision,
@@ -150,7 +151,7 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
         """Observe, then move the ``acting`` copies; each robot's reward mixes its own and the team's MI."""
         own_mi, team_mi, updated_std = self._observe(chosen)
         copies = np.flatnonzero(acting)
-        if acting[0]:
+        if acting[0] and self.render_mode is not None:  # drawn by render()
             observers = np.flatnonzero(chosen[0] != NO_OBSERVATION)
             self._observed_pairs = list(zip(observers.tolist(), (chosen[0, observers] - 1).tolist()))
         self._elapsed[copies] += 1
@@ -176,9 +177,10 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
         team_mi = np.zeros(self.num_envs)
         measured = np.flatnonzero((chosen != NO_OBSERVATION).any(axis=1))
         if measured.size:
-            joint_before = np.linalg.slogdet(self._P[measured])[1]
-            self._relative_update(measured, chosen[measured], decision)
-            team_mi[measured] = 0.5 * (joint_before - np.linalg.slogdet(self._P[measured])[1])
+            rows = self._rows(measured)
+            joint_before = log_det_spd(self._P[rows], check_input=False)
+            self._relative_update(measured, chosen[rows], decision)
+            team_mi[rows] = 0.5 * (joint_before - log_det_spd(self._P[rows], "the posterior P", check_input=False))
         own_mi = 0.5 * (decision.pose_log_det - batched.pose_log_dets(self._P, n_robots, check_input=False))
         updated_std = np.sqrt(np.diagonal(self._P, axis1=1, axis2=2)).reshape(self.num_envs, n_robots, POSE_DIM)
         return own_mi, np.repeat(team_mi[:, None], n_robots, axis=1), updated_std

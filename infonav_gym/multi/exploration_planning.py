@@ -17,11 +17,10 @@ import numpy as np
 
 from infonav_gym.envs.active_planning import BeliefBatch
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.models import relative_pose
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std
-from infonav_gym.multi.cooperative_localization_batch import TeamSightLines
+from infonav_gym.multi.cooperative_localization_batch import TeamSightLines, observable_pairs
 from infonav_gym.multi.team_sensing import gps_available
 from infonav_gym.sensors.relative_pose import noise_covariances
 from infonav_gym.world.clearance import clear_moves
@@ -316,14 +315,9 @@ class ExplorationPlanningModel:
             seen_landmarks = visible(self._tiled_geometry(len(seen)), sensor, seen, landmarks, check_input=False)
             landmark_visible[:, robots] = seen_landmarks.reshape(B, len(robots), n_landmarks)
         pairs = self.pairs
-        between = relative_pose(
-            poses[:, pairs.observers].reshape(-1, POSE_DIM), poses[:, pairs.targets].reshape(-1, POSE_DIM)
-        )
-        pair_visible = pairs.covered(between.reshape(B, -1, POSE_DIM))
-        if len(pairs.observers):
-            lines = np.array(pairs.sight_lines, dtype=int).reshape(-1, 2)
-            sight = TeamSightLines(self._tiled_geometry(B * len(lines)), lines)
-            pair_visible &= sight.clear(poses)[:, pairs.sight_line]
+        lines = np.array(pairs.sight_lines, dtype=int).reshape(-1, 2)
+        sight = TeamSightLines(self._tiled_geometry(B), lines) if len(pairs.observers) else None
+        pair_visible = observable_pairs(pairs, sight, poses)[1]
         radius_m = self.world.robot_radius_m
         motion_clear = clear_motions(
             self._tiled_geometry(B), poses, poses[..., 2], self.speeds_mps, self._drive_s, radius_m

@@ -97,7 +97,7 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
         agents = self.agents
         outputs = (
             self._per_agent(observations),
-            {agent: float(rewards[0, robot]) for robot, agent in enumerate(agents)},
+            dict(zip(agents, rewards[0].tolist())),
             dict.fromkeys(agents, bool(terminated[0, 0])),
             dict.fromkeys(agents, bool(truncated[0, 0])),
             first_copy_infos(info, agents, self.vector.team_info_keys),

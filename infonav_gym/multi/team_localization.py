@@ -11,6 +11,7 @@ from typing import NamedTuple
 import numpy as np
 from gymnasium import spaces
 
+from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments, config_keys
 from infonav_gym.envs.base import EPISODE_STEPS
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
@@ -174,25 +175,61 @@ def team_observations(
         (L..., R, 10 + 5 R), or (L..., R, 11 + 6 R) with ``gains``.
     """
     lead, n = estimates.shape[:-2], estimates.shape[-2]
-    features = np.zeros((*lead, n, space.shape[0]), dtype=np.float32)
-    features[..., 0:2] = estimates[..., :2]
-    features[..., 2] = np.cos(estimates[..., 2])
-    features[..., 3] = np.sin(estimates[..., 2])
-    features[..., 4:7] = pose_std
-    features[..., 7] = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
-    features[..., 8] = gps_available
-    features[..., 9] = elapsed_fraction
-    teammates_end = OWN_FEATURES + TEAMMATE_FEATURES * n
-    teammates = features[..., OWN_FEATURES:teammates_end].reshape(*lead, n, n, TEAMMATE_FEATURES)
-    offsets = estimates[..., None, :, :2] - estimates[..., :, None, :2]
-    bearings = np.arctan2(offsets[..., 1], offsets[..., 0]) - estimates[..., :, None, 2]
-    teammates[..., 0] = teammate_valid
-    teammates[..., 1] = np.hypot(offsets[..., 0], offsets[..., 1])
-    teammates[..., 2] = np.cos(bearings)
-    teammates[..., 3] = np.sin(bearings)
-    teammates[..., 4] = np.hypot(pose_std[..., 0], pose_std[..., 1])[..., None, :]
-    robots = np.arange(n)
-    teammates[..., robots, robots, :] = 0.0
-    if gains is not None:
-        features[..., teammates_end:] = gains
-    return np.clip(features, space.low, space.high, out=features)
+    batch = (int(np.prod(lead)), n)
+
+    def rows(array, width=()):
+        return stacked(array, (*lead, n, *width)).reshape(*batch, *width)
+
+    width = space.shape[0]
+    gains = np.zeros((*lead, n, 0)) if gains is None else gains
+    features = np.zeros((*lead, n, width), dtype=np.float32)
+    team_features(
+        rows(estimates, (POSE_DIM,)),
+        rows(pose_std, (POSE_DIM,)),
+        rows(gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)),
+        rows(gps_available),
+        rows(elapsed_fraction),
+        rows(teammate_valid, (n,)),
+        rows(gains, (np.shape(gains)[-1],)),
+        contiguous(space.low),
+        contiguous(space.high),
+        features.reshape(*batch, width),
+    )
+    return features
+
+
+@kernel
+def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, low, high, out):
+    """``team_observations`` of B teams of R robots into ``out`` (B, R, F) float32 (zeros), clipped to [low, high].
+
+    Robot ``i``'s row: its estimate (x, y, cos, sin of the heading), standard deviations, entropy, DGPS flag and
+    elapsed fraction; then per robot ``j`` (zeros for ``j = i``): may observe, range, cos and sin of the bearing
+    from ``i``'s estimate, ``j``'s position std (hypot of its x, y std); then ``gains`` (B, R, G).
+    """
+    n_teams, n_robots = estimates.shape[0], estimates.shape[1]
+    teammates_end = OWN_FEATURES + TEAMMATE_FEATURES * n_robots
+    for team in range(n_teams):
+        for i in range(n_robots):
+            row = out[team, i]
+            x, y, heading = estimates[team, i, 0], estimates[team, i, 1], estimates[team, i, 2]
+            row[0], row[1], row[2], row[3] = x, y, np.cos(heading), np.sin(heading)
+            for k in range(POSE_DIM):
+                row[4 + k] = pose_std[team, i, k]
+            row[7], row[8], row[9] = entropy[team, i], gps_available[team, i], elapsed_fraction[team, i]
+            for j in range(n_robots):
+                if j == i:
+                    continue
+                start = OWN_FEATURES + TEAMMATE_FEATURES * j
+                dx, dy = estimates[team, j, 0] - x, estimates[team, j, 1] - y
+                bearing = np.arctan2(dy, dx) - heading
+                row[start] = teammate_valid[team, i, j]
+                row[start + 1] = np.hypot(dx, dy)
+                row[start + 2], row[start + 3] = np.cos(bearing), np.sin(bearing)
+                row[start + 4] = np.hypot(pose_std[team, j, 0], pose_std[team, j, 1])
+            for k in range(gains.shape[2]):
+                row[teammates_end + k] = gains[team, i, k]
+            for k in range(row.shape[0]):  # as np.clip: NaN stays NaN
+                if row[k] < low[k]:
+                    row[k] = low[k]
+                elif row[k] > high[k]:
+                    row[k] = high[k]

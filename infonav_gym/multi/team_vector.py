@@ -107,6 +107,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._gps_available = np.zeros((num_envs, n_robots), dtype=bool)
         self._zone_centers, self._zone_radii_sq = np.zeros((num_envs, 0, 2)), np.zeros((num_envs, 0))
         self._elapsed = np.zeros(num_envs, dtype=int)
+        self._slots = (np.arange(num_envs)[:, None], np.arange(n_robots))  # index of every (copy, robot)
 
     # ------------------------------------------------------------------ reset
 
@@ -207,8 +208,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each robot's executed action (the no-op for a masked one and in a resetting copy), and which were masked."""
         mask, noop = self._decision.action_mask, self.traits.noop_action
-        copies, robots = np.ogrid[: self.num_envs, : len(self.agents)]
-        valid = mask[copies, robots, actions].astype(bool)
+        valid = mask[self._slots + (actions,)].astype(bool)
         invalid = acting[:, None] & ~valid
         for copy, robot in np.argwhere(invalid).tolist():
             agent = self.agents[robot]
@@ -231,10 +231,11 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         observed = chosen != 0
         pair = self._pair_index[np.arange(n_robots), chosen]  # -1 (unused) where not observed
         rows = copies[:, None], pair
-        self._x[copies], self._P[copies] = batched.relative_pose_update(
-            self._x[copies],
-            self._P[copies],
-            np.broadcast_to(np.arange(n_robots), observed.shape),
+        state_rows = self._rows(copies)
+        self._x[state_rows], self._P[state_rows] = batched.relative_pose_update(
+            self._x[state_rows],
+            self._P[state_rows],
+            np.repeat(np.arange(n_robots)[None], len(copies), axis=0),
             self._pairs.targets[pair],
             self._relative_measurements(copies, decision.geometry[rows], pair, observed),
             decision.predicted[rows],
@@ -259,24 +260,28 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         """Predict the EKFs of ``copies`` with noisy odometry of the executed ``controls`` (n, R, 2) over ``dt`` [s]."""
         noise = self._noise[ODOMETRY_NOISE].take(copies).reshape(controls.shape)
         readings = self._odometry.measure_with_noise(controls, noise)
-        self._x[copies], self._P[copies] = batched.predict_team(
-            self._x[copies], self._P[copies], readings, dt, self._odometry_covariances, check_input=False
+        rows = self._rows(copies)
+        self._x[rows], self._P[rows] = batched.predict_team(
+            self._x[rows], self._P[rows], readings, dt, self._odometry_covariances, check_input=False
         )
 
     def _gps_fixes(self, copies: np.ndarray) -> None:
         """Which robots of ``copies`` have a DGPS fix now (schedule, zones), and their update."""
-        time_s = self._elapsed[copies] * self.config["time_step_s"]
-        positions = self._worlds.poses[copies, :, :2]
-        offsets = positions[:, :, None] - self._zone_centers[copies, None]
-        denied = np.any(np.einsum("crzi,crzi->crz", offsets, offsets) <= self._zone_radii_sq[copies, None], axis=2)
+        within = self._rows(copies)
+        time_s = self._elapsed[within] * self.config["time_step_s"]
+        positions = self._worlds.poses[within, :, :2]
+        offsets = positions[:, :, None] - self._zone_centers[within, None]
+        denied = ((offsets[..., 0] ** 2 + offsets[..., 1] ** 2) <= self._zone_radii_sq[within, None]).any(axis=2)
         available = gps_available(self._has_gps, self._outages, denied, time_s)
-        self._gps_available[copies] = available
+        self._gps_available[within] = available
         fixing = np.flatnonzero(available.any(axis=1))
         if not fixing.size:
             return
-        rows, available = copies[fixing], available[fixing]
+        if len(fixing) < len(copies):
+            copies, positions, available = copies[fixing], positions[fixing], available[fixing]
+        rows = self._rows(copies)
         fixes = self._gps.measure_with_noise(
-            positions[fixing], draws_in_slot_order(self._noise[GPS_NOISE], rows, available, 2)
+            positions, draws_in_slot_order(self._noise[GPS_NOISE], copies, available, 2)
         )
         self._x[rows], self._P[rows] = batched.gps_update(
             self._x[rows],
@@ -287,6 +292,10 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
             cross_covariances=self._cross_covariances,
             check_input=False,
         )
+
+    def _rows(self, copies: np.ndarray):
+        """An index of the rows of ``copies`` (sorted, distinct): a slice of all when they are all (a view, no copy)."""
+        return slice(None) if len(copies) == self.num_envs else copies
 
     def action_masks(self) -> np.ndarray:
         """The valid actions of each copy and robot as bool (N, R, A) (the no-op is always valid)."""
@@ -334,10 +343,5 @@ def draws_in_slot_order(streams: NoiseStreams, copies: np.ndarray, used: np.ndar
     ``standard_normal((k, width))`` call for its k used slots, or in k calls of ``width`` in slot order.
     """
     draws = np.zeros((*used.shape, width))
-    turn_of = np.cumsum(used, axis=1) - 1  # each used slot's place among its copy's used slots
-    counts = used.sum(axis=1)
-    for turn in range(int(counts.max(initial=0))):
-        rows = np.flatnonzero(counts > turn)
-        slots = np.argmax(used[rows] & (turn_of[rows] == turn), axis=1)
-        draws[rows, slots] = streams.take(copies[rows])
+    draws[used] = streams.take_many(copies, used.sum(axis=1))
     return draws

@@ -68,7 +68,7 @@ def noise_standard_deviations(parameters, ranges) -> np.ndarray:
         parameters: ``RelativePoseSensor.noise_parameters()`` rows, (5,) or one per range (M, 5).
         ranges: true or predicted ranges [m] (M,).
     """
-    parameters = np.broadcast_to(parameters, (len(ranges), 5))
+    parameters = np.reshape(parameters, (-1, 5))  # one row for all ranges, or one per range
     std = np.empty((len(ranges), 3))
     std[:, 0] = parameters[:, 0] + parameters[:, 1] * ranges
     std[:, 1] = parameters[:, 2]
