@@ -8,7 +8,6 @@ odometry on the batched core, as ``PoseEKF.predict`` does.
 from __future__ import annotations
 
 import numpy as np
-from gymnasium.vector import AutoresetMode
 
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
@@ -21,23 +20,13 @@ from infonav_gym.world.world_batch import WorldBatch
 
 
 class OneRobotVectorEnv(InfoNavVectorEnv):
-    """Base of ``LandmarkSelectionVectorEnv`` and ``ActiveLocalizationVectorEnv``: a subclass written once gives its
-    sensors from ``_parts()`` (an env written twice takes its single env's), sets up its own stacked state in
+    """Base of ``LandmarkSelectionVectorEnv`` and ``ActiveLocalizationVectorEnv``: a subclass gives its sensors from
+    ``_parts()``, sets up its own stacked state in
     ``_allocate()`` and draws its copy 0's robot with ``_first_robot_drawing`` (see ``InfoNavVectorEnv``)."""
 
-    def __init__(
-        self,
-        num_envs: int = 1,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        **config,
-    ):
-        if self.single_env is None:
-            self._setup(num_envs, render_mode, autoreset_mode, config)
-            self._sensor, self._odometry = self._parts()
-        else:
-            single = self._configure(num_envs, render_mode, autoreset_mode, config)
-            self._sensor, self._odometry = single.sensor, single.odometry
+    def _build(self) -> None:
+        num_envs = self.num_envs
+        self._sensor, self._odometry = self._parts()
         self._odometry_covariance = self._odometry.noise_covariance()
         self._worlds = WorldBatch(num_envs)
         self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
@@ -45,7 +34,7 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
         self._allocate()
 
     def _parts(self):
-        """Hook of an env written once: check its own config keys, set its spaces (``_set_spaces``); return its
+        """Hook: check its own config keys, set its spaces (``_set_spaces``); return its
         ``(RangeBearingSensor, OdometrySensor)``."""
         raise NotImplementedError(f"{type(self).__name__} must implement _parts()")
 

@@ -114,14 +114,8 @@ class SensorSelectionVectorEnv(InfoNavVectorEnv):
             **sensor_config(),
         }
 
-    def __init__(
-        self,
-        num_envs: int = 1,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        **config,
-    ):
-        self._setup(num_envs, render_mode, autoreset_mode, config)
+    def _build(self) -> None:
+        num_envs = self.num_envs
         cfg, owner = self.config, self.owner_name
         check_choice(cfg, "image_information", IMAGE_INFORMATION, owner)
         check_config(cfg, owner, CONFIG_INTERVALS)

@@ -74,6 +74,25 @@ class InfoNavVectorEnv(VectorEnv):
                 **{key: single_env.metadata[key] for key in ("render_modes", "render_fps")},
             }
 
+    def __init__(
+        self,
+        num_envs: int = 1,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **config,
+    ):
+        """An env written once: the shared arguments and keys checked (``_setup``), then the env's own (``_build``).
+
+        An env written twice defines its own ``__init__`` around ``_configure``.
+        """
+        self._setup(num_envs, render_mode, autoreset_mode, config)
+        self._build()
+
+    def _build(self) -> None:
+        """Hook of an env written once: check its own config keys, set its spaces (``_set_spaces``), build its parts
+        and allocate its stacked state for ``num_envs`` copies."""
+        raise NotImplementedError(f"{type(self).__name__} must implement _build()")
+
     @classmethod
     def one_copy(cls, owner: str, render_mode: str | None, config: dict) -> InfoNavVectorEnv:
         """One copy that never restarts by itself, its errors naming ``owner``: what ``SingleEnvView`` steps."""

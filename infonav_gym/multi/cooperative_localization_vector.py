@@ -88,14 +88,8 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
         """A fresh dict of every config key with its default."""
         return team_localization_config()
 
-    def __init__(
-        self,
-        num_envs: int = 1,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        **config,
-    ):
-        self._setup(num_envs, render_mode, autoreset_mode, config)
+    def _build(self) -> None:
+        num_envs = self.num_envs
         cfg = self.config
         parts = TeamParts.of_config(cfg, self.owner_name)
         n_robots = len(parts.suites)
