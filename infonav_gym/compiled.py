@@ -1,11 +1,12 @@
-"""The one place that makes a compiled kernel: numba's ``njit`` with an on-disk cache and IEEE arithmetic.
+"""The one place that makes a compiled kernel: numba's nopython dispatcher with an on-disk cache and IEEE arithmetic.
 
-``@kernel`` compiles a function on its first call for each new set of argument types and caches the
-machine code on disk (``cache=True``), next to the source or, in a read-only install, in numba's
-user-wide cache directory (or ``NUMBA_CACHE_DIR``). Where no cache location is writable the kernels
-run uncached, after one warning line. ``fastmath`` stays off (the EKF's numbers are IEEE's) and
-nothing runs in parallel. Compiling the kernels takes seconds on a first use: when it takes longer
-than ``COMPILE_NOTICE_AFTER_S``, one line says what is happening.
+``@kernel`` compiles a function on its first call for each new set of argument types (their literal
+values dropped: one specialization per set of types) and caches the machine code on disk
+(``cache=True``), next to the source or, in a read-only install, in numba's user-wide cache directory
+(or ``NUMBA_CACHE_DIR``). Where no cache location is writable the kernels run uncached, after one
+warning line. ``fastmath`` stays off (the EKF's numbers are IEEE's) and nothing runs in parallel.
+Compiling the kernels takes seconds on a first use: when it takes longer than
+``COMPILE_NOTICE_AFTER_S``, one line says what is happening.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ import weakref
 
 import numba
 import numpy as np
-from numba.core import event
+from numba.core import event, sigutils, types
+from numba.core.registry import CPUDispatcher
 
 COMPILE_NOTICE_AFTER_S = 1.0  # [s] a compile that takes longer is announced (once per process)
 KERNEL_OPTIONS = {"cache": True, "fastmath": False, "parallel": False, "error_model": "numpy"}  # IEEE: x / 0 is inf
@@ -26,26 +28,43 @@ _kernels: weakref.WeakSet = weakref.WeakSet()  # the dispatchers made here: only
 _uncached_warned = False
 
 
+class Kernel(CPUDispatcher):
+    """numba's CPU dispatcher compiling for the argument types without their literal values.
+
+    A kernel calling another with a constant (``1``, ``True``, a module constant), or with a counter that numba's
+    type inference still holds at its initial constant, would otherwise compile the callee once more per value.
+    """
+
+    def compile(self, sig):
+        args, return_type = sigutils.normalize_signature(sig)
+        args = tuple(types.unliteral(arg) for arg in args)
+        return super().compile(args if return_type is None else return_type(*args))
+
+
 def kernel(function):
     """``function`` compiled by numba in nopython mode, cached on disk where a writable cache location exists.
 
-    Where numba finds none (it raises ``RuntimeError`` "no locator available" at decoration), the kernel
-    is compiled on every process start instead, and one warning line (once per process) says so.
+    Where numba finds none (it raises ``RuntimeError`` "no locator available" when caching is enabled), the
+    kernel is compiled on every process start instead, and one warning line (once per process) says so.
     """
     global _uncached_warned
-    try:
-        dispatcher = numba.njit(**KERNEL_OPTIONS)(function)
-    except RuntimeError as error:
-        if "no locator available" not in str(error):
-            raise
-        if not _uncached_warned:
-            _uncached_warned = True
-            logger.warning(
-                "infonav_gym: no writable numba cache location (set NUMBA_CACHE_DIR to a writable directory); "
-                "kernels are compiled on every start: %s",
-                error,
-            )
-        dispatcher = numba.njit(**{**KERNEL_OPTIONS, "cache": False})(function)
+    if numba.config.DISABLE_JIT:
+        return function
+    options = {key: value for key, value in KERNEL_OPTIONS.items() if key != "cache"}
+    dispatcher = Kernel(py_func=function, locals={}, targetoptions={**options, "nopython": True, "boundscheck": None})
+    if KERNEL_OPTIONS["cache"]:
+        try:
+            dispatcher.enable_caching()
+        except RuntimeError as error:
+            if "no locator available" not in str(error):
+                raise
+            if not _uncached_warned:
+                _uncached_warned = True
+                logger.warning(
+                    "infonav_gym: no writable numba cache location (set NUMBA_CACHE_DIR to a writable directory); "
+                    "kernels are compiled on every start: %s",
+                    error,
+                )
     _kernels.add(dispatcher)
     return dispatcher
 

@@ -116,7 +116,12 @@ def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, 
             else:
                 positions[c, k, 0], positions[c, k, 1] = x[c, 0] + 1.0, x[c, 1] + 1.0
     modelled, modelled_H, coincident = range_bearing_models(x, positions, mapped)
-    predicted[:, :n_modelled], H[:, :n_modelled] = modelled, modelled_H
+    for c in range(n_copies):  # element by element: a slice assignment compiles numba's shape-error formatting
+        for k in range(n_modelled):
+            for i in range(2):
+                predicted[c, k, i] = modelled[c, k, i]
+                for j in range(n):
+                    H[c, k, i, j] = modelled_H[c, k, i, j]
     ranges = np.empty(n_copies * n_candidates)
     for c in range(n_copies):
         for k in range(n_candidates):

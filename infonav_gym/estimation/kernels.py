@@ -314,7 +314,11 @@ def chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_l
         used[c, 0] = True
         residuals[c, 0, 0] = measurements[c, 0] - predicted[c, k, 0]
         residuals[c, 0, 1] = wrap(measurements[c, 1] - predicted[c, k, 1])
-        rows[c, 0], noise[c, 0] = H[c, k], R[c, k]
+        for i in range(2):  # element by element: a slice assignment compiles numba's shape-error formatting
+            for j in range(2):
+                noise[c, 0, i, j] = R[c, k, i, j]
+            for j in range(n):
+                rows[c, 0, i, j] = H[c, k, i, j]
     x_new, P_new = kalman_updates(x, P, residuals, rows, noise, used, 1, True)
     realized = np.zeros(n_copies)
     for c in range(n_copies):
@@ -362,7 +366,7 @@ def relative_pose_gains(P, observers, targets, H_observer, H_target, R):
     own, joint = np.empty((n_copies, n_pairs)), np.empty((n_copies, n_pairs))
     A, B = np.empty((POSE_DIM, m)), np.empty((POSE_DIM, m))
     S, S_inverse, A_S_inverse = np.empty((m, m)), np.empty((m, m)), np.empty((POSE_DIM, m))
-    posterior = np.empty((POSE_DIM, POSE_DIM))
+    prior, posterior = np.empty((POSE_DIM, POSE_DIM)), np.empty((POSE_DIM, POSE_DIM))
     for c in range(n_copies):
         for k in range(n_pairs):
             o, t = POSE_DIM * observers[c, k], POSE_DIM * targets[c, k]
@@ -390,8 +394,7 @@ def relative_pose_gains(P, observers, targets, H_observer, H_target, R):
                     for s in range(m):
                         total += A_S_inverse[i, s] * A[j, s]
                     posterior[i, j] = P[c, o + i, o + j] - total
-            P_oo = P[c, o : o + POSE_DIM, o : o + POSE_DIM]
-            own[c, k] = 0.5 * (log_det_of(P_oo) - log_det_of(posterior))
+            own[c, k] = 0.5 * (pose_block_log_det(P[c], o, prior) - log_det_of(posterior))
             joint[c, k] = 0.5 * (log_det_of(S) - log_det_of(R[c, k]))
     return own, joint
 
@@ -401,8 +404,18 @@ def pose_block_log_dets(P, n_robots):
     """``ln det`` of each of the first ``n_robots`` poses' own 3 x 3 blocks of ``P`` (N, n, n): (N, R), NaN where the
     determinant is not > 0."""
     log_dets = np.empty((len(P), n_robots))
+    block = np.empty((POSE_DIM, POSE_DIM))
     for c in range(len(P)):
         for robot in range(n_robots):
-            i = POSE_DIM * robot
-            log_dets[c, robot] = log_det_of(P[c, i : i + POSE_DIM, i : i + POSE_DIM])
+            log_dets[c, robot] = pose_block_log_det(P[c], POSE_DIM * robot, block)
     return log_dets
+
+
+@kernel
+def pose_block_log_det(P, i, block):
+    """``ln det`` of the 3 x 3 block of ``P`` (n, n) at row and column ``i``, copied into ``block`` (3, 3) first: a
+    slice would be another array layout, so another compile of ``log_det_of``."""
+    for row in range(POSE_DIM):
+        for column in range(POSE_DIM):
+            block[row, column] = P[i + row, i + column]
+    return log_det_of(block)

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from infonav_gym.compiled import contiguous
 from infonav_gym.world.clearance import teammate_conflicts
 from infonav_gym.world.motion_kernels import (
     contact_within,
@@ -146,7 +147,7 @@ class WorldBatch:
             TIME_STEP_S.check("WorldBatch.step", "dt", dt)
         before = self.poses[copies]
         controls = self._waypoint_controls(copies, before) if commands is None else np.asarray(commands, dtype=float)
-        speeds = controls[..., 0]
+        speeds = contiguous(controls[..., 0])
         after = unicycle_moves(before, controls, dt)
         near_static, near_robots = contact_within(copies, before, speeds, dt, self._boxes, self._radius_m)
         contact = near_static | near_robots
