@@ -1,7 +1,12 @@
-"""Single-agent environments."""
+"""Single-agent environments; each name is imported from its module when first asked for."""
 
-from infonav_gym.envs.base import InfoNavEnv
-from infonav_gym.envs.landmark_selection import LandmarkSelectionEnv
-from infonav_gym.envs.sensor_selection import SensorSelectionEnv
+from infonav_gym.lazy import lazy_exports
 
-__all__ = ["InfoNavEnv", "LandmarkSelectionEnv", "SensorSelectionEnv"]
+__all__, __getattr__ = lazy_exports(
+    __name__,
+    {
+        "base": ("InfoNavEnv",),
+        "landmark_selection": ("LandmarkSelectionEnv",),
+        "sensor_selection": ("SensorSelectionEnv",),
+    },
+)
