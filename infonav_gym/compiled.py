@@ -41,17 +41,27 @@ class Kernel(CPUDispatcher):
         return super().compile(args if return_type is None else return_type(*args))
 
 
-def kernel(function):
+class InnerKernel(Kernel):
+    """A ``Kernel`` compiled without numba's Python and C entry wrappers: only other kernels call it."""
+
+    def __call__(self, *args, **kwargs):
+        raise TypeError(f"{self.py_func.__qualname__} is an inner kernel: only other kernels can call it")
+
+
+def kernel(function, dispatcher_class=Kernel, **options):
     """``function`` compiled by numba in nopython mode, cached on disk where a writable cache location exists.
 
     Where numba finds none (it raises ``RuntimeError`` "no locator available" when caching is enabled), the
     kernel is compiled on every process start instead, and one warning line (once per process) says so.
+    ``dispatcher_class`` and ``options`` (more numba target options): ``inner_kernel``'s.
     """
     global _uncached_warned
     if numba.config.DISABLE_JIT:
         return function
-    options = {key: value for key, value in KERNEL_OPTIONS.items() if key != "cache"}
-    dispatcher = Kernel(py_func=function, locals={}, targetoptions={**options, "nopython": True, "boundscheck": None})
+    options = {key: value for key, value in {**KERNEL_OPTIONS, **options}.items() if key != "cache"}
+    dispatcher = dispatcher_class(
+        py_func=function, locals={}, targetoptions={**options, "nopython": True, "boundscheck": None}
+    )
     if KERNEL_OPTIONS["cache"]:
         try:
             dispatcher.enable_caching()
@@ -67,6 +77,12 @@ def kernel(function):
                 )
     _kernels.add(dispatcher)
     return dispatcher
+
+
+def inner_kernel(function):
+    """A ``kernel`` that only other kernels call: numba's Python and C entry wrappers, which a kernel-to-kernel call
+    does not use, are not compiled (less to compile on a first use); a call from Python raises ``TypeError``."""
+    return kernel(function, InnerKernel, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 def contiguous(array):

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import kernel
+from infonav_gym.compiled import inner_kernel
 
 
 def wrap_angle(angle):
@@ -19,7 +19,7 @@ def wrap_angle(angle):
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
-wrap_angle_kernel = kernel(wrap_angle)  # the same formula compiled, for one float inside other kernels
+wrap_angle_kernel = inner_kernel(wrap_angle)  # the same formula compiled, for one float inside other kernels
 
 
 def rotation_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:

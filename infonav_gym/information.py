@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.compiled import contiguous, inner_kernel, kernel
 
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
 _SYMMETRY_RTOL = 1e-8
@@ -72,7 +72,7 @@ def log_det_spd(matrix, name: str = "matrix", check_input: bool = True) -> float
     return float(log_det) if np.ndim(log_det) == 0 else log_det
 
 
-@kernel
+@inner_kernel
 def log_det_of(M) -> float:
     """``ln det`` of a square matrix (n, n), NaN unless its determinant is > 0.
 

@@ -142,7 +142,8 @@ def test_the_packages_kernels_are_cached_on_disk_with_ieee_arithmetic():
     for dispatcher in (kernels.kalman_updates, kernels.predict_poses, kernels.landmark_gains):
         assert type(dispatcher._cache).__name__ == "FunctionCache"  # numba's on-disk cache, not its NullCache
         assert dispatcher.targetoptions["fastmath"] is False and not dispatcher.targetoptions["parallel"]
-    assert kernels.wrap(np.inf) != kernels.wrap(np.inf)  # NaN, as numpy's remainder gives: no exception
+    predicted, _, _ = kernels.range_bearing_models(np.array([[0.0, 0.0, np.inf]]), np.array([[[1.0, 0.0]]]), False)
+    assert np.isnan(predicted[0, 0, 1])  # the bearing wrapped from an infinite heading: NaN, as numpy's remainder gives
     with pytest.raises(ValueError, match="not positive definite"):
         log_det_spd(np.array([[[1.0, 2.0], [2.0, 1.0]]]), check_input=False)
 
@@ -161,3 +162,10 @@ def test_a_kernel_compiles_once_whatever_constants_it_is_called_with():
 
     assert (caller(1.5), scaled(1.5, 4, True)) == (1.5, 6.0)
     assert scaled.signatures == [(numba.float64, numba.int64, numba.boolean)]
+
+
+def test_an_inner_kernel_runs_inside_kernels_and_refuses_a_call_from_python():
+    halved = compiled.inner_kernel(lambda value: 0.5 * value)
+    assert compiled.kernel(lambda value: halved(value) + 1.0)(3.0) == 2.5
+    with pytest.raises(TypeError, match="is an inner kernel: only other kernels can call it"):
+        halved(3.0)

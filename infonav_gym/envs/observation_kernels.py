@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import math
 
-from infonav_gym.compiled import kernel
+from infonav_gym.compiled import inner_kernel
 
 POSE_FEATURES = 10  # x, y, cos, sin of the heading, the pose's three stds, the x-y correlation, entropy, elapsed
 
 
-@kernel
+@inner_kernel
 def pose_features(values, x, P, pose_entropy, elapsed_fraction):
     """One copy's leading features into ``values[:10]``: the estimated ``x, y`` [m], ``cos, sin`` of the heading, the
     standard deviations of ``x, y, heading``, the ``x-y`` correlation, the pose entropy [nats] and the elapsed fraction
@@ -26,13 +26,13 @@ def pose_features(values, x, P, pose_entropy, elapsed_fraction):
     values[8], values[9] = pose_entropy, elapsed_fraction
 
 
-@kernel
+@inner_kernel
 def range_bearing_features(values, range_m, bearing_rad):
     """``range, cos(bearing), sin(bearing)`` into ``values[:3]``."""
     values[0], values[1], values[2] = range_m, math.cos(bearing_rad), math.sin(bearing_rad)
 
 
-@kernel
+@inner_kernel
 def clip_into(row, values, low, high):
     """``values`` (float64) clipped to ``[low, high]`` into the float32 ``row``; NaN stays NaN."""
     for j in range(len(values)):

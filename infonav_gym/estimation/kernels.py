@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import kernel
+from infonav_gym.compiled import inner_kernel, kernel
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import log_det_of
 
@@ -96,7 +96,7 @@ def range_bearing_models(x, positions, mapped):
     return predicted, H, coincident
 
 
-@kernel
+@inner_kernel
 def range_bearing_of_offset(dx, dy, heading, predicted, J) -> bool:
     """Range-bearing of a target at ``(dx, dy)`` from a sensor at ``heading`` into ``predicted[:2]``, its Jacobian
     w.r.t. the sensor's pose into ``J[:2, :3]``; False (and nothing written) if the target is on the sensor."""
@@ -137,7 +137,7 @@ def relative_pose_models(x, observers, targets):
     return predicted, H_observer, H_target, coincident
 
 
-@kernel
+@inner_kernel
 def invert(S, r, inverse):
     """The inverse of the leading (r, r) block of ``S`` into ``inverse``: the adjugate over the determinant up to
     3 x 3, else Gauss-Jordan elimination with partial pivoting."""
@@ -183,7 +183,7 @@ def invert(S, r, inverse):
                         inverse[i, k] -= factor * inverse[j, k]
 
 
-@kernel
+@inner_kernel
 def times_inverse(X, S, r, S_inverse, product):
     """``X S^-1`` with the leading (r, r) block of ``S`` into ``product[:, :r]``; ``S_inverse``: scratch."""
     invert(S, r, S_inverse)
@@ -195,7 +195,7 @@ def times_inverse(X, S, r, S_inverse, product):
             product[i, j] = total
 
 
-@kernel
+@inner_kernel
 def nonzero_columns(rows, columns) -> int:
     """How many columns of ``rows`` (r, n) hold a non-zero entry; their indices into ``columns[:count]``.
 
@@ -411,7 +411,7 @@ def pose_block_log_dets(P, n_robots):
     return log_dets
 
 
-@kernel
+@inner_kernel
 def pose_block_log_det(P, i, block):
     """``ln det`` of the 3 x 3 block of ``P`` (n, n) at row and column ``i``, copied into ``block`` (3, 3) first: a
     slice would be another array layout, so another compile of ``log_det_of``."""

@@ -12,14 +12,14 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import kernel
+from infonav_gym.compiled import inner_kernel, kernel
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 
 SMALLEST_NORMAL = np.finfo(float).tiny  # Chipmunk's CPFLOAT_MIN, added to a length before dividing by it
 WALL, DISC = 0, 1  # the shape kinds of ``shape_hits``
 
 
-@kernel
+@inner_kernel
 def enters_box(left, bottom, right, top, origin_x, origin_y, delta_x, delta_y) -> bool:
     """Whether a query enters the box before its end (Chipmunk's ``cpBBSegmentQuery`` < 1)."""
     t_min, t_max = -np.inf, np.inf
@@ -36,7 +36,7 @@ def enters_box(left, bottom, right, top, origin_x, origin_y, delta_x, delta_y) -
     return t_min <= t_max and 0.0 <= t_max and t_min < 1.0
 
 
-@kernel
+@inner_kernel
 def hits_circle(center_x, center_y, radius, origin_x, origin_y, target_x, target_y) -> bool:
     """Whether a query enters the circle before its target (Chipmunk's ``CircleSegmentQuery``, alpha < 1)."""
     da_x, da_y, db_x, db_y = origin_x - center_x, origin_y - center_y, target_x - center_x, target_y - center_y
@@ -51,7 +51,7 @@ def hits_circle(center_x, center_y, radius, origin_x, origin_y, target_x, target
     return 0.0 <= t and t < 1.0
 
 
-@kernel
+@inner_kernel
 def hits_wall(origin_x, origin_y, target_x, target_y, a_x, a_y, b_x, b_y, r) -> bool:
     """Whether a query hits the wall (capsule ``a``-``b`` of radius ``r``) before its target."""
     # the point query at the origin (cpSegmentShapePointQuery): inside or on the wall blocks at once
@@ -86,7 +86,7 @@ def hits_wall(origin_x, origin_y, target_x, target_y, a_x, a_y, b_x, b_y, r) -> 
     )
 
 
-@kernel
+@inner_kernel
 def hits_disc(origin_x, origin_y, target_x, target_y, center_x, center_y, r) -> bool:
     """Whether a query hits the disc before its target (inside or on it: at once, cpCircleShapePointQuery)."""
     offset_x, offset_y = origin_x - center_x, origin_y - center_y
@@ -147,8 +147,11 @@ def blocked(copy, origins, targets, walls, discs, culled):
     wall_hits = shape_hits(copy, origins, targets, walls[0], walls[1], walls[2], walls[3], culled, WALL)
     disc_hits = shape_hits(copy, origins, targets, discs[0], discs[1], discs[2], discs[3], culled, DISC)
     hit = np.zeros(len(copy), dtype=np.bool_)
-    for query in range(len(copy)):
-        hit[query] = wall_hits[query].any() or disc_hits[query].any()
+    for query in range(len(copy)):  # a loop, not ndarray.any (one more numba function to compile)
+        for shape in range(wall_hits.shape[1]):
+            hit[query] |= wall_hits[query, shape]
+        for shape in range(disc_hits.shape[1]):
+            hit[query] |= disc_hits[query, shape]
     return hit
 
 
