@@ -1,5 +1,6 @@
-"""CooperativeExplorationVectorEnv: copy i equals the parallel env seeded seed + i, step for step, through the
-episodes' ends (a robot lost, the coverage target reached, the horizon) and the autoresets after them.
+"""CooperativeExplorationVectorEnv: copy i equals its PettingZoo view (N = 1, no autoreset) seeded seed + i, step for
+step, through the episodes' ends (a robot lost, the coverage target reached, the horizon) and the autoresets after
+them.
 
 Autoreset modes, seeding, bad input and rendering: ``test_team_vector_envs.py``, for every team vector env.
 """
