@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from team_vector_checks import exploration_observation_updates
 
 from agents import PlannerAgent
 from agents.team_planning import TeamPlans
@@ -11,7 +12,6 @@ from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0
 from infonav_gym.multi.exploration_planning import MOTION_HEADINGS_RAD, N_MOTIONS, STAY
-from infonav_gym.sensors.relative_pose import noise_covariances
 
 FAST = {"rollout_steps": 4, "detour_steps": (0,)}  # short rollouts: the tests check behaviour, not quality
 
@@ -28,26 +28,11 @@ def expected_step_by_hand(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndar
     """filterpy's ``JointEKF`` at the env's state stepped through ``actions`` (R,) with every measurement as
     predicted and the commanded odometry: ``(P after the step, each robot's reward)``, the DGPS robots all outside
     canopies."""
-    cfg, ekf, n_landmarks, parts = env.config, filterpy_joint_ekf(env), env.config["n_landmarks"], env.vector.parts
+    cfg, ekf, parts = env.config, filterpy_joint_ekf(env), env.vector.parts
     map_variances = env.vector.map_variances[0]
     slots, motions = np.divmod(actions, N_MOTIONS)
     prior_log_dets = np.linalg.slogdet(ekf.pose_covariances())[1]
-    observers = np.flatnonzero(slots > n_landmarks)
-    if observers.size:
-        targets = slots[observers] - 1 - n_landmarks
-        predicted, H_observer, H_target = ekf.relative_pose_model(observers, targets)
-        pairs = [
-            np.flatnonzero((parts.pairs.observers == i) & (parts.pairs.targets == j))[0]
-            for i, j in zip(observers, targets)
-        ]
-        R = noise_covariances(parts.pairs.noise[pairs], predicted[:, 0])
-        ekf.relative_pose_update(observers, targets, predicted, predicted, H_observer, H_target, R)
-    robots = np.flatnonzero((slots > 0) & (slots <= n_landmarks))
-    if robots.size:
-        predicted, H_pose = ekf.landmark_model(robots, env.vector.scenario(0).landmarks[slots[robots] - 1])
-        sensors = [parts.relative_sensors[robot].range_bearing for robot in robots]
-        R = np.array([sensor.noise_covariance(predicted[k, 0])[0] for k, sensor in enumerate(sensors)])
-        ekf.landmark_update(robots, predicted, predicted, H_pose, R)
+    exploration_observation_updates(ekf, env, slots)
     own = 0.5 * (prior_log_dets - np.linalg.slogdet(ekf.pose_covariances())[1])
     drives = motions != STAY
     headings = env.vector.joint_state()[0][0, 2::POSE_DIM]  # the decision's
