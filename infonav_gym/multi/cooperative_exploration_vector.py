@@ -180,7 +180,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
             RuntimeError: before the first ``reset()``.
         """
         if self._decision is None:
-            raise RuntimeError(f"{self.owner_name}: call reset() before asking for a copy's state (belief())")
+            raise RuntimeError(f"{self.owner_name}: call reset() before copy_state() (a planning model's belief())")
         done = self._lost[copy].any() or self._success[copy] or self._elapsed[copy] >= self.max_cycles
         return CopyState(
             self._x[copy].copy(),

@@ -236,7 +236,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         )
 
     def _relative_measurements(self, copies, geometry, pair, observed) -> np.ndarray:
-        """Noisy relative poses (n, R, 3) of the observed slots (n, R) of ``copies``, in the parallel env's order."""
+        """Noisy relative poses (n, R, 3) of the observed slots (n, R) of ``copies``, drawn in slot order."""
         noise = draws_in_slot_order(self._noise[RELATIVE_NOISE], copies, observed, POSE_DIM)
         parameters = self._pairs.noise[pair]
         measured = relative_poses_with_noise(
