@@ -5,7 +5,8 @@ copy, without autoreset: ``class MyTeamEnv(ParallelEnvView, vector_env=MyTeamVec
 action per live agent, hands them on as a batch of one, and returns row 0 of every output as dicts per agent (the
 infos' numbers as Python scalars where they are one number). All agents end together and leave ``agents`` then
 (PettingZoo's semantics); ``reset()`` starts again. So ``parallel_env()`` after ``reset(seed=s)`` gives exactly the
-numbers of copy ``i`` of the vector env after ``reset(seed=s - i)``: there is nothing else to keep equal.
+numbers of copy ``i`` of the vector env after ``reset(seed=s - i)``: there is nothing else to keep equal. A team
+env's ``metadata`` comes from ``team_metadata``, its versioned module's entry points from ``pettingzoo_entry_points``.
 """
 
 from __future__ import annotations
