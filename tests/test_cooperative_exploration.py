@@ -121,10 +121,11 @@ def test_a_robot_beyond_the_position_bound_is_lost_and_the_team_fails():
 def test_an_action_outside_the_space_raises_and_changes_nothing(bad_action):
     env = cooperative_exploration_v0.parallel_env()
     _, infos = env.reset(seed=0)
-    before = (env.ekf.x.copy(), env.ekf.P.copy(), env.world.poses, env.map_variances.copy())
+    vector = env.vector
+    before = (*vector.joint_state(), vector.true_poses, vector.map_variances)
     with pytest.raises(ValueError, match="not in the action space"):
         env.step({**greedy_actions(env, infos), "robot_2": bad_action})
-    assert_identical(before, (env.ekf.x, env.ekf.P, env.world.poses, env.map_variances))
+    assert_identical(before, (*vector.joint_state(), vector.true_poses, vector.map_variances))
 
 
 def test_masked_actions_are_noops_by_default_and_errors_on_request():
@@ -141,11 +142,11 @@ def test_masked_actions_are_noops_by_default_and_errors_on_request():
         np.testing.assert_array_equal(masked[0][agent], noop[0][agent])
     strict = cooperative_exploration_v0.parallel_env(invalid_action="raise")
     strict.reset(seed=0)
-    before = (strict.ekf.P.copy(), strict.world.poses)
+    before = (*strict.vector.joint_state(), strict.vector.true_poses)
     action = own_slot["robot_0"]
     with pytest.raises(ValueError, match=f"action {action} of robot_0 is not valid now"):
         strict.step({**dict.fromkeys(strict.agents, NOOP_ACTION), "robot_0": action})
-    assert_identical(before, (strict.ekf.P, strict.world.poses))
+    assert_identical(before, (*strict.vector.joint_state(), strict.vector.true_poses))
 
 
 @pytest.mark.parametrize(

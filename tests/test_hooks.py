@@ -1,4 +1,4 @@
-"""The hooks of ``InfoNavEnv`` / ``InfoNavParallelEnv``: declared, called as their contracts say; the planning model."""
+"""The hooks of ``InfoNavEnv``: declared, called as their contracts say; the planning model."""
 
 import pickle
 
@@ -12,11 +12,8 @@ import infonav_gym  # noqa: F401  (registers the envs)
 from agents.planner import PlannerAgent, planning_model
 from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0
-from infonav_gym.multi.base import InfoNavParallelEnv
 
 REQUIRED_HOOKS = {"_reset_episode", "_next_decision", "_apply_action", "_observation", "_scene_frame"}
-REQUIRED_PARALLEL_HOOKS = {"_reset_episode", "_next_decision", "_apply_actions", "_advance", "_observations"}
-REQUIRED_PARALLEL_HOOKS |= {"_infos", "_scene_frame"}
 SINGLE_AGENT_IDS = sorted(
     env_id
     for env_id, spec in gym.registry.items()
@@ -54,22 +51,12 @@ class AlternatingEnv(InfoNavEnv):
 
 def test_the_required_hooks_are_abstract():
     assert InfoNavEnv.__abstractmethods__ == REQUIRED_HOOKS
-    assert InfoNavParallelEnv.__abstractmethods__ == REQUIRED_PARALLEL_HOOKS
 
 
 @pytest.mark.parametrize("missing", sorted(REQUIRED_HOOKS))
 def test_an_env_missing_a_hook_cannot_be_instantiated(missing):
     hooks = {name: getattr(AlternatingEnv, name) for name in REQUIRED_HOOKS - {missing}}
     incomplete = type("IncompleteEnv", (InfoNavEnv,), hooks)
-    with pytest.raises(TypeError, match=f"abstract .*{missing}"):
-        incomplete()
-
-
-@pytest.mark.parametrize("missing", sorted(REQUIRED_PARALLEL_HOOKS))
-def test_a_parallel_env_missing_a_hook_cannot_be_instantiated(missing):
-    team = cooperative_exploration_v0.CooperativeExplorationEnv  # the team env still written twice
-    hooks = {name: getattr(team, name) for name in REQUIRED_PARALLEL_HOOKS - {missing}}
-    incomplete = type("IncompleteTeam", (InfoNavParallelEnv,), {**hooks, "__init__": team.__init__})
     with pytest.raises(TypeError, match=f"abstract .*{missing}"):
         incomplete()
 
@@ -139,6 +126,12 @@ def test_the_planner_finds_the_planning_model_through_wrappers():
     env = gym.make("infonav/ActiveLocalization-v0")  # TimeLimit, OrderEnforcing, PassiveEnvChecker
     assert planning_model(env) is env.unwrapped.planning_model()
     assert PlannerAgent(env).model is planning_model(env)
+
+
+def test_a_team_view_has_its_copys_planning_model_when_its_vector_env_has_one():
+    env = cooperative_exploration_v0.parallel_env()
+    assert planning_model(env) is env.vector.planning_model(0) is env.planning_model()
+    assert not hasattr(cooperative_localization_v0.parallel_env(), "planning_model")
 
 
 def test_an_env_without_a_planning_model_is_a_clear_error():

@@ -48,7 +48,7 @@ class TeamSightLines(NamedTuple):
 
 
 class TeamDecision(NamedTuple):
-    """Every copy's decision at its joint EKF's prior (the team env's ``Decision`` and ``RelativeSight``, stacked).
+    """Every copy's decision at its joint EKF's prior.
 
     Attributes:
         action_mask: int8 (N, R, R + 1): action 0 always, ``1 + j`` where robot ``j`` is observable.
