@@ -293,10 +293,6 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
             check_input=False,
         )
 
-    def _rows(self, copies: np.ndarray):
-        """An index of the rows of ``copies`` (sorted, distinct): a slice of all when they are all (a view, no copy)."""
-        return slice(None) if len(copies) == self.num_envs else copies
-
     def action_masks(self) -> np.ndarray:
         """The valid actions of each copy and robot as bool (N, R, A) (the no-op is always valid)."""
         if self._decision is None:
