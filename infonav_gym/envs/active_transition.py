@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.landmark_selection import Prior
 from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
@@ -97,14 +97,30 @@ def primitive_commands(config: dict, goals: np.ndarray, poses: np.ndarray, primi
         poses: estimated poses ``[x, y, heading]`` (n, 3).
         primitives: the primitive of each pose (n,), indices of ``PRIMITIVE_OFFSETS_RAD``.
     """
-    goals = np.asarray(goals)
-    goal_bearing = np.arctan2(goals[..., 1] - poses[:, 1], goals[..., 0] - poses[:, 0])
-    desired = goal_bearing + np.take(PRIMITIVE_OFFSETS_RAD, primitives)
-    turn = wrap_angle(desired - poses[:, 2])
-    max_turn = config["max_turn_rate_rps"] * config["time_step_s"]
-    executed_turn = np.clip(turn, -max_turn, max_turn)
-    speed = config["speed_mps"] * np.maximum(np.cos(turn), 0.0)
-    return np.stack([speed, executed_turn / config["time_step_s"]], axis=-1)
+    poses = contiguous(np.asarray(poses, dtype=float))
+    dt = config["time_step_s"]
+    return commands_of_primitives(
+        stacked(goals, (len(poses), 2)),
+        poses,
+        contiguous(np.asarray(primitives, dtype=np.int64)),
+        config["speed_mps"],
+        config["max_turn_rate_rps"] * dt,
+        dt,
+    )
+
+
+@kernel
+def commands_of_primitives(goals, poses, primitives, speed_mps, max_turn_rad, dt):
+    """``primitive_commands`` of n poses (n, 3) with their goals (n, 2): steer for the goal's estimated bearing plus
+    the primitive's offset, the turn clipped to ``max_turn_rad`` per step, the speed scaled by the cosine of the
+    wanted turn (0 beyond a right angle)."""
+    commands = np.empty((len(poses), 2))
+    for i in range(len(poses)):
+        goal_bearing = math.atan2(goals[i, 1] - poses[i, 1], goals[i, 0] - poses[i, 0])
+        turn = wrap(goal_bearing + PRIMITIVE_OFFSETS_RAD[primitives[i]] - poses[i, 2])
+        commands[i, 0] = speed_mps * max(math.cos(turn), 0.0)
+        commands[i, 1] = min(max(turn, -max_turn_rad), max_turn_rad) / dt
+    return commands
 
 
 def distances(positions: np.ndarray, goals: np.ndarray) -> np.ndarray:
