@@ -51,12 +51,24 @@ def action_layout(observable: np.ndarray, landmark_gains: np.ndarray) -> tuple[n
     """``(action_mask int8, action_information_gain)`` (n, 5 (1 + K)) of copies that may observe ``observable``
     landmarks (n, K) bool, each with its expected gain (n, K) [nats]: every primitive without an observation is
     valid, and with each observable landmark; gains 0 where masked."""
+    observable = contiguous(np.asarray(observable, dtype=np.bool_))
+    return layout_of_actions(observable, contiguous(np.asarray(landmark_gains, dtype=float)))
+
+
+@kernel
+def layout_of_actions(observable, landmark_gains):
+    """``action_layout`` of n copies: action ``5 (1 + k) + p`` observes landmark k with primitive p."""
     n_copies, n_landmarks = observable.shape
-    mask = np.ones((n_copies, 1 + n_landmarks, N_PRIMITIVES), dtype=np.int8)
-    mask[:, 1:] = observable[:, :, None]
-    gains = np.zeros((n_copies, 1 + n_landmarks, N_PRIMITIVES))
-    gains[:, 1:] = np.where(observable, landmark_gains, 0.0)[:, :, None]
-    return mask.reshape(n_copies, -1), gains.reshape(n_copies, -1)
+    mask = np.ones((n_copies, N_PRIMITIVES * (1 + n_landmarks)), dtype=np.int8)
+    gains = np.zeros(mask.shape)
+    for c in range(n_copies):
+        for k in range(n_landmarks):
+            for primitive in range(N_PRIMITIVES):
+                action = N_PRIMITIVES * (1 + k) + primitive
+                mask[c, action] = observable[c, k]
+                if observable[c, k]:
+                    gains[c, action] = landmark_gains[c, k]
+    return mask, gains
 
 
 class ActiveDecision(NamedTuple):
@@ -301,11 +313,12 @@ def infos(decision: ActiveDecision, state: CopiesState, stepped, chosen, terms: 
     errors = true_poses - x
     pose_entropy = decision.sight.pose_entropy
     everyone = np.ones(len(x), dtype=bool)
-    terms = {key: np.where(stepped, value, 0.0) for key, value in terms.items()}
+    stepped_terms = np.where(stepped, np.stack([terms[key] for key in REWARD_TERMS]), 0.0)  # one row per term
+    terms, stepped = dict(zip(REWARD_TERMS, stepped_terms)), stepped.copy()
     info = {
         "action_mask": decision.action_mask.copy(),
         "action_information_gain": decision.action_information_gain.copy(),
-        "reward_terms": {**terms, **{f"_{key}": stepped.copy() for key in terms}},
+        "reward_terms": {**terms, **{f"_{key}": stepped for key in terms}},
         "chosen_action": np.where(stepped, chosen, -1),
         "invalid_action": stepped & (chosen < 0),
         "pose_entropy": pose_entropy.copy(),
