@@ -128,6 +128,7 @@ class InfoNavVectorEnv(VectorEnv):
         self.num_envs = num_envs
         self.render_mode = render_mode
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
+        self._everyone = np.arange(num_envs)  # every copy's index, for steps that touch all of them
         self._decision = self._geometry = None
         self._prev_done = np.zeros(num_envs, dtype=bool)
 
@@ -163,7 +164,7 @@ class InfoNavVectorEnv(VectorEnv):
         ``NEXT_STEP``: the sub-envs that ended at the last step start again now, then all decide. ``SAME_STEP``: all
         decide, then those that ended start again, their last observation and info in ``final_obs`` / ``final_info``.
         """
-        everyone = np.arange(self.num_envs)
+        everyone = self._everyone
         if self.autoreset_mode == AutoresetMode.DISABLED:
             # a sub-env that ended goes on stepping (no autoreset) until reset() is called
             return self._rendered(step_outputs(everyone, self._geometry))
@@ -184,6 +185,11 @@ class InfoNavVectorEnv(VectorEnv):
             set_rows(info, copies, reset_info)
             info.update(final_infos)
         return self._rendered((observation, info))
+
+    def _rows(self, copies: np.ndarray):
+        """The index of ``copies`` (ascending) into the (N, ...) arrays: all rows as a slice (views, no copies) when
+        they are every copy."""
+        return slice(None) if len(copies) == self.num_envs else copies
 
     def _set_decision(self, copies: np.ndarray, decision) -> None:
         """Keep ``decision`` (a named tuple of arrays (n, ...)) as the decision of ``copies`` (n,), the others' kept."""
@@ -233,14 +239,13 @@ class InfoNavVectorEnv(VectorEnv):
                 f"actions of {owner} must be an integer array of shape ({self.num_envs},), one per sub-env, in "
                 f"[0, {top}]; got {array.dtype} of shape {array.shape}"
             )
-        outside = np.flatnonzero((array < 0) | (array > top))
-        if outside.size:
-            copy = int(outside[0])
+        if array.min() < 0 or array.max() > top:
+            copy = int(np.flatnonzero((array < 0) | (array > top))[0])
             raise ValueError(
                 f"action {array[copy]} of sub-env {copy} is not in the action space {space}: expected an integer "
                 f"in [0, {top}]"
             )
-        return array.astype(int)
+        return array.astype(int, copy=False)
 
     def _accepted_actions(self, actions: np.ndarray, acting: np.ndarray) -> np.ndarray:
         """Each acting sub-env's action where its mask allows it, else -1 (the no-op), per ``invalid_action``.
@@ -249,15 +254,17 @@ class InfoNavVectorEnv(VectorEnv):
             ValueError: with ``invalid_action="raise"``, for a masked action of a sub-env that has a valid one.
         """
         mask = self._decision.action_mask
-        valid = acting & mask[np.arange(self.num_envs), actions].astype(bool)
-        for copy in np.flatnonzero(acting & ~valid).tolist():
-            accepts_action(
-                int(actions[copy]),
-                mask[copy],
-                self.config["invalid_action"],
-                'info["action_mask"]',
-                None if self._owner else f"sub-env {copy}",  # a single env has no sub-envs to name
-            )
+        valid = mask[self._everyone, actions] != 0
+        valid &= acting
+        if self.config["invalid_action"] == "raise":  # with "noop" a masked action is the no-op, silently
+            for copy in np.flatnonzero(acting & ~valid).tolist():
+                accepts_action(
+                    int(actions[copy]),
+                    mask[copy],
+                    "raise",
+                    'info["action_mask"]',
+                    None if self._owner else f"sub-env {copy}",  # a single env has no sub-envs to name
+                )
         return np.where(valid, actions, -1)
 
     def action_masks(self) -> np.ndarray:

@@ -59,12 +59,12 @@ def _first_copy_columns(info: dict, n_robots: int, team_keys) -> dict[str, list]
     """Each key's values of copy 0, one per robot."""
     columns = {}
     for key, value in info.items():
-        if key.startswith("_"):
+        if key[0] == "_":
             continue
-        if isinstance(value, dict):
+        if type(value) is dict:
             columns[key] = _per_robot(_first_copy_columns(value, n_robots, ()), n_robots)
         elif key in team_keys:
-            columns[key] = [value[0].item() if isinstance(value[0], np.generic) else value[0]] * n_robots
+            columns[key] = [value.item(0) if value.ndim == 1 else value[0]] * n_robots
         else:  # (N, R) numbers become Python scalars; (N, R, ...) arrays one row per robot
             columns[key] = value[0].tolist() if value.ndim == 2 else list(value[0])
     return columns

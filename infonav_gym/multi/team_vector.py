@@ -17,12 +17,14 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
+from infonav_gym.compiled import contiguous, stacked
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
+from infonav_gym.estimation.kernels import predict_poses
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.multi.team_sensing import gps_available, gps_schedule
 from infonav_gym.sensors.gps import GPSSensor
@@ -249,9 +251,9 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         noise = self._noise[ODOMETRY_NOISE].take(copies).reshape(controls.shape)
         readings = self._odometry.measure_with_noise(controls, noise)
         rows = self._rows(copies)
-        self._x[rows], self._P[rows] = batched.predict_team(
-            self._x[rows], self._P[rows], readings, dt, self._odometry_covariances, check_input=False
-        )
+        x, P = contiguous(self._x[rows]), contiguous(self._P[rows])  # ``JointEKF.predict`` on the compiled core
+        covariances = stacked(self._odometry_covariances, (*controls.shape, 2))
+        self._x[rows], self._P[rows] = predict_poses(x, P, readings, float(dt), covariances)
 
     def _gps_fixes(self, copies: np.ndarray) -> None:
         """Which robots of ``copies`` have a DGPS fix now (schedule, zones), and their update."""
@@ -283,10 +285,6 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     def gps_denied(self, copy: int, positions: np.ndarray) -> np.ndarray:
         """Whether each of ``positions`` (M, 2) [m] lies in one of copy ``copy``'s GPS-denied zones (M,) bool."""
         return in_zones(positions, self._zone_centers[copy], self._zone_radii_sq[copy])
-
-    def _rows(self, copies: np.ndarray):
-        """An index of the rows of ``copies`` (sorted, distinct): a slice of all when they are all (a view, no copy)."""
-        return slice(None) if len(copies) == self.num_envs else copies
 
     def action_masks(self) -> np.ndarray:
         """The valid actions of each copy and robot as bool (N, R, A) (the no-op is always valid)."""
