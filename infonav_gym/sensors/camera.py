@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -133,6 +134,13 @@ class Camera(PanTiltGrid):
         """Mean reflectance of ``MATERIALS[material_index]``."""
         return getattr(self, f"{MATERIALS[material_index]}_albedo")
 
+    @cached_property
+    def _radiometry(self) -> tuple:
+        """What ``camera_kernels.shade`` takes of this camera (fixed: the dataclass is frozen)."""
+        albedos = np.array([self.albedo(index) for index in range(len(MATERIALS))], dtype=float)
+        scalars = (self.ambient, self.exposure, self.ground_texture_contrast, self.sky_level)
+        return albedos, self.sun_direction, *(float(value) for value in scalars)
+
     def radiance(
         self, terrain: Terrain, vehicle_pose, pan_rad: float | None = None, tilt_rad: float | None = None
     ) -> np.ndarray:
@@ -142,9 +150,6 @@ class Camera(PanTiltGrid):
         azimuth = pose[2] + azimuth
         origin = np.array([pose[0], pose[1], float(terrain.height_at(pose[:2])) + self.mount_height_m])
         hits = terrain.cast_rays(origin, azimuth, elevation, self.max_range_m)
-        albedos = np.array([self.albedo(index) for index in range(len(MATERIALS))], dtype=float)
-        scalars = (self.ambient, self.exposure, self.ground_texture_contrast, self.sky_level)
-        radiometry = (albedos, self.sun_direction, *(float(value) for value in scalars))
         return camera_kernels.shade(
             terrain.arrays,
             origin,
@@ -153,7 +158,7 @@ class Camera(PanTiltGrid):
             hits.range_m,
             hits.material_index,
             hits.obstacle_index,
-            radiometry,
+            self._radiometry,
             _TEXTURE,
         )
 
