@@ -32,11 +32,12 @@ def blend(lower_left, lower_right, upper_left, upper_right, tx, ty):
 @inline
 def cell_at(grid, x, y):
     """The corner heights ``(lower left, lower right, upper left, upper right)`` of the cell under ``(x, y)`` and the
-    offsets ``(tx, ty)`` in it, clamped to the grid."""
+    offsets ``(tx, ty)`` in it, clamped to the grid (a NaN coordinate to its first row or column)."""
     heights, x0, y0, cell_m = grid
     rows, columns = heights.shape
-    tx = min(max((x - x0) / cell_m, 0.0), columns - 1.0)
-    ty = min(max((y - y0) / cell_m, 0.0), rows - 1.0)
+    tx, ty = (x - x0) / cell_m, (y - y0) / cell_m
+    tx = min(tx if tx >= 0.0 else 0.0, columns - 1.0)  # NaN to 0: the index stays inside the grid
+    ty = min(ty if ty >= 0.0 else 0.0, rows - 1.0)
     j, i = min(int(tx), columns - 2), min(int(ty), rows - 2)
     tx -= j
     ty -= i
