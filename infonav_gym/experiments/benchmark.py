@@ -11,8 +11,8 @@ Vector envs (``infonav_gym.experiments.vector_timing``), in the same rounds, at 
 (``DEFAULT_VECTOR_SIZES``): env-steps per second (vector steps per second x N) of every registered
 native vector env, of Gymnasium's ``CartPoleVectorEnv`` and of VMAS ``navigation`` (4 agents, when
 ``vmas`` imports), each also as a ratio against CartPole-v1, and our vector envs against VMAS at the
-same N (SensorSelection-v0's goal at N = 256 is 0.05 of CartPole: each of its steps renders a LADAR or camera
-frame, ~10-30 ms). Memory per sub-env at the largest N (``*_kb_per_env``): peak RSS growth in a fresh subprocess,
+same N (SensorSelection-v0's goal at N = 256 is 0.05 of CartPole: most of its steps render a LADAR or camera
+frame, ~1-3 ms compiled). Memory per sub-env at the largest N (``*_kb_per_env``): peak RSS growth in a fresh subprocess,
 over ``MEMORY_STEPS`` vector steps or ``MEMORY_SECONDS`` of them (scaled down with ``--seconds`` below 1).
 
 Sensors (``infonav_gym.experiments.sensor_timing``): median milliseconds of one default
