@@ -23,7 +23,6 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import largest_position_std
-from infonav_gym.multi.cooperative_localization_batch import TeamDecision
 from infonav_gym.multi.exploration_decision import (
     EXPLORATION_INFO_KEYS,
     ExplorationDecision,
@@ -53,6 +52,7 @@ from infonav_gym.multi.exploration_team import (
     start_episode,
 )
 from infonav_gym.multi.parallel_view import team_metadata
+from infonav_gym.multi.team_decision import TeamDecision
 from infonav_gym.multi.team_localization import team_observation_bounds, team_observations
 from infonav_gym.multi.team_paths import FirstCopyPaths
 from infonav_gym.multi.team_vector import TeamVectorEnv, draws_in_slot_order

@@ -20,14 +20,14 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import log_det_spd
-from infonav_gym.multi.cooperative_localization_batch import (
+from infonav_gym.multi.parallel_view import team_metadata
+from infonav_gym.multi.team_decision import (
     TeamDecision,
     TeamSightLines,
     TeamStep,
     observable_pairs,
     team_info,
 )
-from infonav_gym.multi.parallel_view import team_metadata
 from infonav_gym.multi.team_localization import (
     TeamParts,
     start_episode,

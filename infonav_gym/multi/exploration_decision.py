@@ -14,7 +14,7 @@ import numpy as np
 from infonav_gym.envs.active_transition import ranges_and_bearings
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.multi.cooperative_localization_batch import (
+from infonav_gym.multi.team_decision import (
     TeamDecision,
     observable_pairs,
     team_step_info,

@@ -21,7 +21,7 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std
-from infonav_gym.multi.cooperative_localization_batch import TeamSightLines, observable_pairs
+from infonav_gym.multi.team_decision import TeamSightLines, observable_pairs
 from infonav_gym.multi.team_sensing import gps_available, gps_schedule
 from infonav_gym.sensors.relative_pose import noise_covariances
 from infonav_gym.world.clearance import clear_moves

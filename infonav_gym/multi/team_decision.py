@@ -1,4 +1,4 @@
-"""The batched decision and info of ``CooperativeLocalizationVectorEnv``: the team env's, on (N, R, ...) arrays.
+"""A team's relative-pose decision and info on (N, R, ...) arrays: what both team envs build theirs from.
 
 N copies of a team of R robots; every copy has the same P (observer, target) pairs (``SensingPairs``), so the
 candidates of all copies stack as (N, P, ...). A pair that is not observable now is masked out.
