@@ -153,11 +153,18 @@ def test_a_team_runner_steps_its_copies_at_once_and_its_episodes_take_only_valid
         team_step = team.step
         team.step = lambda actions: shapes.append(np.shape(actions)) or team_step(actions)
         episodes = runner.sample(num_timesteps=200)
+        metrics = runner.get_metrics()
     finally:
         algorithm.stop()
     assert set(shapes) == {(copies, 4)} and copies * len(shapes) >= 200  # one batched step serves every copy
-    assert 200 <= sum(len(episode) for episode in episodes) < 200 + copies  # RLlib stops at the first step past 200
+    steps = sum(len(episode) for episode in episodes)
+    assert 200 <= steps < 200 + copies  # RLlib stops at the first step past 200
     assert len({len(episode) for episode in episodes if episode.is_done}) > 1
+    # RLlib's counts, logged once per sample, as RLlib logs them step by step
+    assert metrics["num_env_steps_sampled"] == metrics["num_env_steps_sampled_lifetime"] == steps
+    assert metrics["num_episodes"] == sum(episode.is_done for episode in episodes)
+    assert metrics["num_agent_steps_sampled"] == {robot: steps for robot in runner.env.agents}
+    assert metrics["num_module_steps_sampled"] == {SHARED_POLICY: 4 * steps}
     for episode in episodes:
         for robot_episode in episode.agent_episodes.values():
             steps = slice(0, len(robot_episode))
