@@ -4,10 +4,11 @@ RLlib 2.60's ``MultiAgentEnvRunner`` always builds its envs with ``ray.rllib.env
 a ``SyncVectorMultiAgentEnv`` of N ``MultiAgentEnv`` copies stepped one after another in Python (only ``sync``
 vectorization exists for multi-agent envs). Its sampling loop needs no more than a ``VectorMultiAgentEnv``: lists
 of per-copy ``{agent: ...}`` dicts from ``reset`` / ``step``, ``NEXT_STEP`` autoreset, and ``envs[i]`` giving copy
-``i``'s ``possible_agents`` and spaces. So ``BatchedTeamEnvRunner`` overrides only ``make_env``: its env creator
-(``num_envs`` in the env config) returns ``BatchedTeamEnv``, the team's native vector env (``TeamVectorEnv``) seen
-that way. One runner step is then one batched env step of all copies and one forward pass of each policy over
-every copy's robots (RLlib's env-to-module connector batches the episodes).
+``i``'s ``possible_agents`` and spaces. So ``BatchedTeamEnvRunner`` (``config.env_runners(env_runner_cls=...)``)
+overrides ``make_env``: its env creator (``num_envs`` in the env config) returns ``BatchedTeamEnv``, the team's
+native vector env (``TeamVectorEnv``) seen that way. One runner step is then one batched env step of all copies
+and one forward pass of each policy over every copy's robots (RLlib's env-to-module connector batches the
+episodes). Copy ``i``'s episode ends and restarts on its own (``NEXT_STEP``), as in RLlib's sync vector env.
 """
 
 from __future__ import annotations
