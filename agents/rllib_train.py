@@ -3,9 +3,9 @@
 Single-agent envs train one policy on ``envs_per_runner`` copies per env runner: the env's native vector env
 where it has one (``MaskedVectorObservations``, RLlib's ``VECTOR_ENTRY_POINT`` mode), else Gymnasium's sync
 vectorization of ``MaskedObservations`` copies. A team env (a PettingZoo parallel env) trains multi-agent PPO
-on ``envs_per_runner`` copies (default ``TEAM_COPIES_PER_RUNNER``) of its native vector env per runner, stepped
-at once (``agents.rllib_team_env``): one policy shared by every robot (``policies="shared"``, parameter sharing)
-or one per robot (``"per_robot"``). Every policy is a
+on ``envs_per_runner`` copies (default: its block's ``n_envs`` over the runners) of its native vector env per
+runner, stepped at once (``agents.rllib_team_env``): one policy shared by every robot (``policies="shared"``,
+parameter sharing) or one per robot (``"per_robot"``). Every policy is a
 ``MaskedPPOTorchRLModule``. The PPO settings come from the env's block of ``agents/hyperparams/ppo.yml``,
 translated (``rllib_training_settings``). ``OUTPUT/checkpoint`` is RLlib's algorithm checkpoint,
 ``OUTPUT/train.json`` the record (as the SB3 backend's). Needs the ``distributed`` extra.
@@ -33,7 +33,6 @@ CHECKPOINT_DIR = "checkpoint"
 RLLIB_ENV_PREFIX = "infonav-rllib:"  # + env id: the name the env creator is registered under in Ray's registry
 SHARED_POLICY = "shared_policy"
 POLICY_LAYOUTS = ("shared", "per_robot")
-TEAM_COPIES_PER_RUNNER = 32  # a team env's copies per env runner by default: one batched env step and policy pass
 
 
 class SingleEnvCreator:
@@ -189,7 +188,8 @@ def build_config(
         PPOConfig()
         .environment(RLLIB_ENV_PREFIX + env_id, env_config=dict(env_kwargs))
         .env_runners(
-            num_env_runners=num_env_runners, num_envs_per_env_runner=copies_per_runner(env_id, envs_per_runner)
+            num_env_runners=num_env_runners,
+            num_envs_per_env_runner=copies_per_runner(env_id, hyperparameters, num_env_runners, envs_per_runner),
         )
         .training(**settings)
         .debugging(seed=seed, log_level="ERROR")
@@ -210,12 +210,14 @@ def build_config(
     )
 
 
-def copies_per_runner(env_id: str, envs_per_runner: int | None = None) -> int:
-    """Env copies each runner steps: ``envs_per_runner``, else ``TEAM_COPIES_PER_RUNNER`` of a team env (batched in
-    one step) and 1 of a single-agent env."""
+def copies_per_runner(env_id: str, hyperparameters: dict, num_env_runners: int, envs_per_runner: int | None) -> int:
+    """Env copies each runner steps: ``envs_per_runner``, else a team env's ``n_envs`` (its ``ppo.yml`` block: the
+    copies stepped at once) shared out over the runners, and 1 of a single-agent env."""
     if envs_per_runner is not None:
         return envs_per_runner
-    return TEAM_COPIES_PER_RUNNER if api_of(env_id) == PARALLEL else 1
+    if api_of(env_id) != PARALLEL:
+        return 1
+    return math.ceil(_setting(hyperparameters, "n_envs", int, ROLLOUT_KEYS["n_envs"]) / max(num_env_runners, 1))
 
 
 def native_vectorization(env_id: str) -> bool:
@@ -264,14 +266,14 @@ def train_rllib(
 
     if timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")
-    envs_per_runner = copies_per_runner(env_id, envs_per_runner)
-    if num_env_runners < 0 or envs_per_runner < 1:
+    if num_env_runners < 0 or (envs_per_runner is not None and envs_per_runner < 1):
         raise ValueError(
             f"--num-env-runners must be >= 0 and --envs-per-runner >= 1, got {num_env_runners}, {envs_per_runner}"
         )
     env_kwargs = dict(env_kwargs or {})
     hyperparameters = load_hyperparameters(env_id) if hyperparameters is None else hyperparameters
     check_arguments(env_id, env_kwargs, hyperparameters, policies)
+    envs_per_runner = copies_per_runner(env_id, hyperparameters, num_env_runners, envs_per_runner)
     output_dir = Path(output_dir)
     with local_or_cluster_ray(address), torch_threads(default_num_threads()):  # the learner runs here
         config = build_config(env_id, env_kwargs, seed, hyperparameters, num_env_runners, envs_per_runner, policies)

@@ -22,7 +22,6 @@ from agents.rllib_module import MaskedPPOTorchRLModule  # noqa: E402
 from agents.rllib_train import (  # noqa: E402
     CHECKPOINT_DIR,
     SHARED_POLICY,
-    TEAM_COPIES_PER_RUNNER,
     TeamEnvCreator,
     build_config,
 )
@@ -33,6 +32,7 @@ from infonav_gym.registry import PARALLEL, api_of, make_env  # noqa: E402
 LANDMARK_ID, TEAM_ID = "infonav/LandmarkSelection-v0", "cooperative_localization_v0"
 EXPLORATION_ID, EXPLORATION_CYCLES = "cooperative_exploration_v0", 40
 SMALL_BLOCK = {"n_envs": 1, "n_steps": 500, "batch_size": 128, "n_epochs": 2, "policy_kwargs": {"net_arch": [32, 32]}}
+TEAM_BLOCK = {**SMALL_BLOCK, "n_envs": 4, "n_steps": 125}  # the same 500 steps per batch, from 4 copies
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +47,7 @@ def small_blocks(tmp_path_factory):
     import yaml
 
     path = tmp_path_factory.mktemp("hyperparams") / "ppo.yml"
-    path.write_text(yaml.safe_dump({env_id: SMALL_BLOCK for env_id in (LANDMARK_ID, TEAM_ID, EXPLORATION_ID)}))
+    path.write_text(yaml.safe_dump({LANDMARK_ID: SMALL_BLOCK, TEAM_ID: TEAM_BLOCK, EXPLORATION_ID: TEAM_BLOCK}))
     return path
 
 
@@ -126,7 +126,7 @@ def test_train_writes_a_checkpoint_and_a_record_and_evaluate_plays_it(landmark_r
 def test_the_team_trains_one_shared_policy_whose_agents_take_only_valid_actions(team_run):
     output, record = team_run
     assert record["policies"] == "shared" and record["vectorization"] == "native"
-    assert record["envs_per_runner"] == TEAM_COPIES_PER_RUNNER  # the team's copies, stepped at once
+    assert record["envs_per_runner"] == TEAM_BLOCK["n_envs"]  # the block's copies, stepped at once by one runner
     modules = output.joinpath(CHECKPOINT_DIR, *MODULES_PATH)
     assert (modules / SHARED_POLICY).is_dir() and not (modules / "robot_0").exists()
     env = cooperative_localization_v0.parallel_env(max_cycles=30)

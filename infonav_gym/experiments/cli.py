@@ -178,7 +178,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--envs-per-runner",
         type=positive_int,
-        help="rllib: env copies per runner (default: 32 of a team env, stepped at once; 1 of a single-agent env)",
+        help="rllib: env copies per runner (default: a team env's ppo.yml n_envs over the runners, stepped at once; "
+        "1 of a single-agent env)",
     )
     train.add_argument(
         "--policies",
