@@ -5,8 +5,8 @@
 - ``rllib_runner_figures`` (when Ray imports): env-steps/s (team steps of one copy) RLlib's env runners sample
   on a team env (default ``cooperative_localization_v0``) with 2 runners against 1, and on
   ``cooperative_exploration_v0`` with 1, each run on the same local Ray: the RLlib backend's runners as training
-  builds them (its default copies per runner, stepped at once in the team's native vector env, masked,
-  random-initialized shared policy).
+  builds them (the ppo.yml block's ``n_envs`` copies shared out over the runners, stepped at once in the team's
+  native vector env, masked, random-initialized shared policy).
 """
 
 from __future__ import annotations
