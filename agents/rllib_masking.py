@@ -1,11 +1,11 @@
 """Action masks for RLlib: observations that carry them (the module that applies them: ``agents.rllib_module``).
 
 RLlib's new API stack reads nothing from ``info``, so the envs' masks travel in the observation:
-``MaskedObservations`` (a Gymnasium env), ``MaskedVectorObservations`` (an infonav native vector env) and
-``MaskedParallelEnv`` (a PettingZoo parallel env) turn each
-observation into ``{"observation": the env's observation, "action_mask": float32 (n,)}``, the mask being the
-env's ``action_masks()`` (all ones when nothing is valid, as ``MaskablePPO`` takes it) or its
-``info["action_mask"]``. Needs no Ray.
+``MaskedObservations`` (a Gymnasium env) and ``MaskedVectorObservations`` (an infonav native vector env; the team
+envs' is ``agents.rllib_team_env.BatchedTeamEnv``) turn each observation into
+``{"observation": the env's observation, "action_mask": float32 (n,)}``, the mask being the env's
+``action_masks()`` (all ones when nothing is valid, as ``MaskablePPO`` takes it) or its ``info["action_mask"]``.
+Needs no Ray.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import VectorWrapper
 from gymnasium.vector.utils import batch_space
-from pettingzoo.utils.wrappers import BaseParallelWrapper
 
 from agents.base import usable_mask
 
@@ -32,6 +31,13 @@ def masked_space(observation_space: spaces.Box, n_actions: int) -> spaces.Dict:
 def mask_observation(mask, n_actions: int) -> np.ndarray:
     """The ``"action_mask"`` part: ``mask`` as float32 0 / 1 (``usable_mask``: all ones when none is valid)."""
     return usable_mask(mask, n_actions).astype(np.float32)
+
+
+def mask_rows(masks) -> np.ndarray:
+    """``action_masks()`` of copies (..., n) as ``"action_mask"`` parts: float32 0 / 1, all ones where none is valid."""
+    masks = np.array(masks, dtype=np.float32)
+    masks[~masks.any(axis=-1)] = 1.0
+    return masks
 
 
 class MaskedObservations(gym.Wrapper):
@@ -76,37 +82,4 @@ class MaskedVectorObservations(VectorWrapper):
         return self._masked(observations), rewards, terminated, truncated, info
 
     def _masked(self, observations) -> dict:
-        masks = np.asarray(self.env.unwrapped.action_masks(), dtype=np.float32)
-        masks[~masks.any(axis=1)] = 1.0
-        return {OBSERVATION: observations, ACTION_MASK: masks}
-
-
-class MaskedParallelEnv(BaseParallelWrapper):
-    """A PettingZoo parallel env whose robots' observations carry their ``infos[robot]["action_mask"]``."""
-
-    def __init__(self, env):
-        super().__init__(env)
-        self._spaces = {
-            agent: masked_space(env.observation_space(agent), int(env.action_space(agent).n))
-            for agent in env.possible_agents
-        }
-
-    def observation_space(self, agent: str) -> spaces.Dict:
-        return self._spaces[agent]
-
-    def reset(self, seed=None, options=None):
-        observations, infos = self.env.reset(seed=seed, options=options)
-        return self._masked(observations, infos), infos
-
-    def step(self, actions):
-        observations, rewards, terminations, truncations, infos = self.env.step(actions)
-        return self._masked(observations, infos), rewards, terminations, truncations, infos
-
-    def _masked(self, observations: dict, infos: dict) -> dict:
-        return {
-            agent: {
-                OBSERVATION: observation,
-                ACTION_MASK: mask_observation(infos[agent].get(ACTION_MASK), self._spaces[agent][ACTION_MASK].shape[0]),
-            }
-            for agent, observation in observations.items()
-        }
+        return {OBSERVATION: observations, ACTION_MASK: mask_rows(self.env.unwrapped.action_masks())}

@@ -36,7 +36,7 @@ class MaskedPPOTorchRLModule(DefaultPPOTorchRLModule):
         if not isinstance(observation_space, spaces.Dict) or set(observation_space) != {OBSERVATION, ACTION_MASK}:
             raise ValueError(
                 f"MaskedPPOTorchRLModule needs observations {{{OBSERVATION!r}, {ACTION_MASK!r}}} "
-                f"(agents.rllib_masking.MaskedObservations / MaskedParallelEnv), got {observation_space}"
+                f"(agents.rllib_masking, agents.rllib_team_env), got {observation_space}"
             )
         super().__init__(observation_space=observation_space[OBSERVATION], **kwargs)  # the networks: on the Box
         self.observation_space = observation_space  # what a checkpoint rebuilds the module from

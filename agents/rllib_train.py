@@ -2,9 +2,10 @@
 
 Single-agent envs train one policy on ``envs_per_runner`` copies per env runner: the env's native vector env
 where it has one (``MaskedVectorObservations``, RLlib's ``VECTOR_ENTRY_POINT`` mode), else Gymnasium's sync
-vectorization of ``MaskedObservations`` copies; a PettingZoo parallel env (the team envs) trains
-multi-agent PPO through RLlib's ``ParallelPettingZooEnv`` on ``MaskedParallelEnv``: one policy shared by
-every robot (``policies="shared"``, parameter sharing) or one per robot (``"per_robot"``). Every policy is a
+vectorization of ``MaskedObservations`` copies. A team env (a PettingZoo parallel env) trains multi-agent PPO
+on ``envs_per_runner`` copies (default: its block's ``n_envs`` over the runners) of its native vector env per
+runner, stepped at once (``agents.rllib_team_env``): one policy shared by every robot (``policies="shared"``,
+parameter sharing) or one per robot (``"per_robot"``). Every policy is a
 ``MaskedPPOTorchRLModule``. The PPO settings come from the env's block of ``agents/hyperparams/ppo.yml``,
 translated (``rllib_training_settings``). ``OUTPUT/checkpoint`` is RLlib's algorithm checkpoint,
 ``OUTPUT/train.json`` the record (as the SB3 backend's). Needs the ``distributed`` extra.
@@ -18,12 +19,12 @@ import time
 from pathlib import Path
 
 import gymnasium as gym
+from gymnasium.vector import AutoresetMode
 from tqdm.auto import tqdm
 
 from agents.rllib_masking import (
     NORMALIZE_OBSERVATIONS,
     MaskedObservations,
-    MaskedParallelEnv,
     MaskedVectorObservations,
 )
 from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, make_vector_env
@@ -54,14 +55,16 @@ class SingleEnvCreator:
 
 
 class TeamEnvCreator(SingleEnvCreator):
-    """RLlib's env creator of a PettingZoo parallel env, as an RLlib ``MultiAgentEnv``."""
+    """RLlib's env creator of a team env: ``num_envs`` copies (default 1) of its native vector env, batched, as
+    ``BatchedTeamEnv`` (the env of ``BatchedTeamEnvRunner``)."""
 
     def __call__(self, env_config: dict):
-        from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
-
         import infonav_gym  # noqa: F401
+        from agents.rllib_team_env import BatchedTeamEnv
 
-        return ParallelPettingZooEnv(MaskedParallelEnv(make_env(self.env_id, **dict(env_config))))
+        config = dict(env_config)
+        num_envs = config.pop("num_envs", 1)
+        return BatchedTeamEnv(make_vector_env(self.env_id, num_envs, autoreset_mode=AutoresetMode.NEXT_STEP, **config))
 
 
 TRAINING_NAMES = {  # ppo.yml key: (its name in RLlib's PPOConfig.training, type, SB3's default)
@@ -163,7 +166,7 @@ def build_config(
     seed: int,
     hyperparameters: dict,
     num_env_runners: int = 1,
-    envs_per_runner: int = 1,
+    envs_per_runner: int | None = None,
     policies: str = "shared",
 ):
     """The ``PPOConfig`` of ``env_id`` (see the module); its train batch covers every runner's envs."""
@@ -184,7 +187,10 @@ def build_config(
     config = (
         PPOConfig()
         .environment(RLLIB_ENV_PREFIX + env_id, env_config=dict(env_kwargs))
-        .env_runners(num_env_runners=num_env_runners, num_envs_per_env_runner=1 if team else envs_per_runner)
+        .env_runners(
+            num_env_runners=num_env_runners,
+            num_envs_per_env_runner=copies_per_runner(env_id, hyperparameters, num_env_runners, envs_per_runner),
+        )
         .training(**settings)
         .debugging(seed=seed, log_level="ERROR")
         .reporting(metrics_num_episodes_for_smoothing=20)
@@ -193,17 +199,31 @@ def build_config(
         if native_vectorization(env_id):
             config = config.env_runners(gym_env_vectorize_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT)
         return config.rl_module(rl_module_spec=module)
+    from agents.rllib_team_env import BatchedTeamEnvRunner
+
     robots = make_env(env_id, **env_kwargs).possible_agents
     policy_ids = {robot: SHARED_POLICY if policies == "shared" else robot for robot in robots}
-    config = config.multi_agent(
-        policies=set(policy_ids.values()), policy_mapping_fn=PolicyMapping(policy_ids)
-    ).rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={policy: module for policy in policy_ids.values()}))
-    return config
+    return (
+        config.env_runners(env_runner_cls=BatchedTeamEnvRunner)
+        .multi_agent(policies=set(policy_ids.values()), policy_mapping_fn=PolicyMapping(policy_ids))
+        .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={policy: module for policy in policy_ids.values()}))
+    )
+
+
+def copies_per_runner(env_id: str, hyperparameters: dict, num_env_runners: int, envs_per_runner: int | None) -> int:
+    """Env copies each runner steps: ``envs_per_runner``, else a team env's ``n_envs`` (its ``ppo.yml`` block: the
+    copies stepped at once) shared out over the runners, and 1 of a single-agent env."""
+    if envs_per_runner is not None:
+        return envs_per_runner
+    if api_of(env_id) != PARALLEL:
+        return 1
+    return math.ceil(_setting(hyperparameters, "n_envs", int, ROLLOUT_KEYS["n_envs"]) / max(num_env_runners, 1))
 
 
 def native_vectorization(env_id: str) -> bool:
-    """Whether RLlib steps ``env_id``'s copies in its native vector env (single-agent envs that have one)."""
-    return api_of(env_id) != PARALLEL and has_native_vector_env(env_id)
+    """Whether RLlib steps ``env_id``'s copies in its native vector env (every team env, single-agent envs that
+    have one)."""
+    return has_native_vector_env(env_id)
 
 
 class PolicyMapping:
@@ -229,7 +249,7 @@ def train_rllib(
     env_kwargs: dict | None = None,
     hyperparameters: dict | None = None,
     num_env_runners: int = 1,
-    envs_per_runner: int = 1,
+    envs_per_runner: int | None = None,
     policies: str = "shared",
     address: str | None = None,
     progress: bool = True,
@@ -246,13 +266,14 @@ def train_rllib(
 
     if timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")
-    if num_env_runners < 0 or envs_per_runner < 1:
+    if num_env_runners < 0 or (envs_per_runner is not None and envs_per_runner < 1):
         raise ValueError(
             f"--num-env-runners must be >= 0 and --envs-per-runner >= 1, got {num_env_runners}, {envs_per_runner}"
         )
     env_kwargs = dict(env_kwargs or {})
     hyperparameters = load_hyperparameters(env_id) if hyperparameters is None else hyperparameters
     check_arguments(env_id, env_kwargs, hyperparameters, policies)
+    envs_per_runner = copies_per_runner(env_id, hyperparameters, num_env_runners, envs_per_runner)
     output_dir = Path(output_dir)
     with local_or_cluster_ray(address), torch_threads(default_num_threads()):  # the learner runs here
         config = build_config(env_id, env_kwargs, seed, hyperparameters, num_env_runners, envs_per_runner, policies)

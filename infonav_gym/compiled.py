@@ -85,6 +85,12 @@ def inner_kernel(function):
     return kernel(function, InnerKernel, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
+def inline(function):
+    """``function`` compiled into each kernel that calls it (numba's ``inline="always"``), IEEE like ``kernel``: a
+    small helper of hot loops, with no dispatcher of its own to compile, cache or call through."""
+    return numba.njit(inline="always", fastmath=False, error_model="numpy")(function)
+
+
 def contiguous(array):
     """An ndarray as the one array layout the kernels are compiled for: itself if C-contiguous and writeable, else a
     copy (a read-only or strided view, e.g. from ``np.broadcast_to``, would be another numba type: another compile)."""

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from infonav_gym.registry import env_entry
+from infonav_gym.sensors.relative_pose import noise_covariances
 
 TOLERANCE = 1e-9
 
@@ -95,3 +96,28 @@ def run_against_parallel_envs(env_id: str, config: dict, n_copies: int, seed: in
             ended["terminated"] += bool(terminations[copy, 0])
             ended["truncated"] += bool(truncations[copy, 0])
     return ended
+
+
+def exploration_observation_updates(ekf, env, slots: np.ndarray, relative=None, landmarks=None) -> tuple[int, int]:
+    """Fuse into filterpy's ``JointEKF`` ``ekf`` the observations of one step of a cooperative_exploration_v0 view
+    ``env`` whose robots chose observation ``slots`` (R,): the teammates' relative poses ``relative`` (R, 3), then
+    the landmarks' range-bearing ``landmarks`` (R, 2) (None: each as predicted). Returns how many of each."""
+    parts, n_landmarks = env.vector.parts, env.config["n_landmarks"]
+    observers = np.flatnonzero(slots > n_landmarks)
+    if observers.size:
+        targets = slots[observers] - 1 - n_landmarks
+        predicted, H_observer, H_target = ekf.relative_pose_model(observers, targets)
+        pairs = [
+            np.flatnonzero((parts.pairs.observers == i) & (parts.pairs.targets == j))[0]
+            for i, j in zip(observers, targets)
+        ]
+        R = noise_covariances(parts.pairs.noise[pairs], predicted[:, 0])
+        measured = predicted if relative is None else relative[observers]
+        ekf.relative_pose_update(observers, targets, measured, predicted, H_observer, H_target, R)
+    robots = np.flatnonzero((slots > 0) & (slots <= n_landmarks))
+    if robots.size:
+        predicted, H_pose = ekf.landmark_model(robots, env.vector.scenario(0).landmarks[slots[robots] - 1])
+        sensors = [parts.relative_sensors[robot].range_bearing for robot in robots]
+        R = np.array([sensor.noise_covariance(predicted[k, 0])[0] for k, sensor in enumerate(sensors)])
+        ekf.landmark_update(robots, predicted if landmarks is None else landmarks[robots], predicted, H_pose, R)
+    return observers.size, robots.size

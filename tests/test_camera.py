@@ -8,6 +8,7 @@ from skimage.measure import shannon_entropy
 
 from infonav_gym.information import histogram_entropy
 from infonav_gym.sensors import Camera, ground_texture
+from infonav_gym.sensors import camera as camera_module
 from infonav_gym.world.terrain import Box, Cylinder
 from infonav_gym.world.terrain_generation import flat_terrain, make_terrain
 
@@ -81,6 +82,20 @@ def test_ground_texture_varies_with_world_position_within_the_configured_contras
     texture = ground_texture(np.random.default_rng(1).uniform(-300, 300, size=(20000, 2)))
     assert np.all(np.abs(texture) <= 1) and abs(texture.mean()) < 0.05
     np.testing.assert_array_equal(texture, ground_texture(np.random.default_rng(1).uniform(-300, 300, (20000, 2))))
+
+
+def test_ground_texture_at_lattice_points_is_the_weighted_mean_of_the_octaves_table_values():
+    """At multiples of the coarsest cell (8 m) every octave sits on a lattice point: no interpolation, the documented
+    table entry ``[(j % 256) * 256 + i % 256]`` of each octave, mapped to [-1, 1] and weighted."""
+    table, cells, weights = camera_module._TEXTURE
+    lattice = np.random.default_rng(2).integers(-600, 600, size=(300, 2))
+    expected = np.zeros(300)
+    for octave in range(len(cells)):
+        i, j = (lattice * (8.0 / cells[octave])).astype(int).T % 256
+        expected += weights[octave] * (2 * table[octave, j * 256 + i] - 1)
+    np.testing.assert_allclose(ground_texture(8.0 * lattice), expected / weights.sum(), rtol=1e-12, atol=1e-15)
+    offsets = np.random.default_rng(3).uniform(-1e-7, 1e-7, size=(300, 2))  # continuous across cell borders
+    np.testing.assert_allclose(ground_texture(8.0 * lattice + offsets), expected / weights.sum(), atol=1e-12)
 
 
 def test_a_wall_straight_ahead_fills_the_columns_that_see_it_with_building_shading():

@@ -158,6 +158,7 @@ def test_benchmark_reports_every_goal(capsys):
             "cooperative_exploration_vector_256_vs_vmas_ratio",
             "evaluation_2_workers_time_ratio",
             "rllib_team_2_runners_vs_1_ratio",
+            "rllib_exploration_1_runner_steps_per_s",
             "landmark_selection_vector_1024_kb_per_env",
             "active_localization_vector_1024_kb_per_env",
             "cooperative_localization_vector_1024_kb_per_env",
@@ -189,10 +190,15 @@ def test_benchmark_reports_every_goal(capsys):
     assert evaluation_ratio == pytest.approx(two_over_one)  # one round: one ratio
     if importlib.util.find_spec("ray") is None:
         assert result["goals_met"]["rllib_team_2_runners_vs_1_ratio"] is None
+        assert result["goals_met"]["rllib_exploration_1_runner_steps_per_s"] is None
         assert any("RLlib figures absent" in note for note in result["notes"])
     else:
         one, two = figures["rllib_team_1_runner_steps_per_s"], figures["rllib_team_2_runners_steps_per_s"]
         assert one > 0 and figures["rllib_team_2_runners_vs_1_ratio"] == pytest.approx(two / one)
+        exploration = figures["rllib_exploration_1_runner_steps_per_s"]
+        assert exploration > 0 and result["goals_met"]["rllib_exploration_1_runner_steps_per_s"] == (
+            exploration >= 1000
+        )
 
 
 def test_reproduce_fig3_writes_the_plot_and_the_json_it_prints(capsys, tmp_path):

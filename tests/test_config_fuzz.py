@@ -19,25 +19,22 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import infonav_gym  # noqa: F401  (registers the envs)
-from infonav_gym.multi import cooperative_localization_v0
+from infonav_gym.registry import PARALLEL, env_entry, make_env, registered_envs
 
 TEAM_ENV = "cooperative_localization_v0"
-ENV_IDS = sorted(env_id for env_id in gym.registry if env_id.startswith("infonav/")) + [TEAM_ENV]
+ENV_IDS = [entry.id for entry in registered_envs()]  # every registered env, Gymnasium and PettingZoo alike
 N_STEPS = 10
 TRIAL_TIMEOUT_S = 30
 TRIAL_MEMORY_BYTES = 4 * 2**30
 
 
-def make(env_id: str, **config):
-    if env_id == TEAM_ENV:
-        return cooperative_localization_v0.parallel_env(**config)
-    return gym.make(env_id, **config)
+def is_team(env_id: str) -> bool:
+    return env_entry(env_id).api == PARALLEL
 
 
 def default_config(env_id: str) -> dict:
-    env = make(env_id)
-    config = env.unwrapped.default_config() if env_id != TEAM_ENV else env.default_config()
+    env = make_env(env_id)
+    config = (env if is_team(env_id) else env.unwrapped).default_config()
     env.close()
     return config
 
@@ -103,7 +100,7 @@ def run_single(env, rng: np.random.Generator) -> list[str]:
 
 
 def run_team(env, rng: np.random.Generator) -> list[str]:
-    """Reset and ``N_STEPS`` parallel steps of the team env with valid actions; the non-finite outputs."""
+    """Reset and ``N_STEPS`` parallel steps of a team env with valid actions; the non-finite outputs."""
     observations, infos = env.reset(seed=0)
     bad = non_finite_paths({"observations": observations, "infos": infos})
     for step in range(N_STEPS):
@@ -122,12 +119,12 @@ def test_a_bad_config_value_is_refused_naming_the_key_or_runs_finite(env_id, key
         trial = f"{env_id} with {key}={value!r}"
         with bounded(trial):
             try:
-                env = make(env_id, **{key: value})
+                env = make_env(env_id, **{key: value})
             except ValueError as error:
                 assert key in str(error), f"{trial}: the error does not name the key: {error}"
                 continue
             rng = np.random.default_rng(0)
-            bad = run_team(env, rng) if env_id == TEAM_ENV else run_single(env, rng)
+            bad = run_team(env, rng) if is_team(env_id) else run_single(env, rng)
             env.close()
         assert not bad, f"{trial}: non-finite outputs at {bad[:5]}"
 
@@ -146,7 +143,7 @@ def test_a_bad_config_value_is_refused_naming_the_key_or_runs_finite(env_id, key
 )
 def test_known_bad_values_are_refused_with_the_allowed_range(env_id, key, value, allowed):
     with pytest.raises(ValueError) as error:
-        make(env_id, **{key: value})
+        make_env(env_id, **{key: value})
     message = str(error.value)
     assert key in message and allowed in message and repr(value) in message
 

@@ -1,4 +1,5 @@
-"""cooperative_exploration_v0: PettingZoo's tests, determinism, bad input, gains against rewards, episode ends."""
+"""cooperative_exploration_v0: determinism, bad input, gains against rewards, episode ends (PettingZoo's own tests:
+``test_parallel_envs``)."""
 
 import os
 
@@ -10,7 +11,6 @@ import pickle  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from conftest import assert_identical, greedy_actions, random_valid_actions  # noqa: E402
-from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test  # noqa: E402
 
 from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0  # noqa: E402
@@ -19,20 +19,6 @@ from infonav_gym.multi.terrain_map import TerrainMapModel  # noqa: E402
 from infonav_gym.world.exploration_scenarios import BASE_CLEARANCE_M, exploration_field  # noqa: E402
 
 ID = "cooperative_exploration_v0"
-
-
-def test_pettingzoo_parallel_and_aec_api_tests_pass():
-    env = cooperative_exploration_v0.parallel_env()
-    parallel_api_test(env, num_cycles=300)
-    assert env.observation_space("robot_0") is env.observation_space("robot_0")
-    assert env.action_space("robot_1") is env.action_space("robot_1")
-    api_test(cooperative_exploration_v0.env(), num_cycles=100)
-
-
-def test_pettingzoo_seed_max_cycles_and_render_tests_pass():
-    parallel_seed_test(cooperative_exploration_v0.parallel_env, num_cycles=100)
-    max_cycles_test(cooperative_exploration_v0)
-    render_test(cooperative_exploration_v0.env)
 
 
 def test_same_seed_gives_bit_identical_episodes_and_other_seeds_other_worlds():
@@ -121,10 +107,11 @@ def test_a_robot_beyond_the_position_bound_is_lost_and_the_team_fails():
 def test_an_action_outside_the_space_raises_and_changes_nothing(bad_action):
     env = cooperative_exploration_v0.parallel_env()
     _, infos = env.reset(seed=0)
-    before = (env.ekf.x.copy(), env.ekf.P.copy(), env.world.poses, env.map_variances.copy())
+    vector = env.vector
+    before = (*vector.joint_state(), vector.true_poses, vector.map_variances)
     with pytest.raises(ValueError, match="not in the action space"):
         env.step({**greedy_actions(env, infos), "robot_2": bad_action})
-    assert_identical(before, (env.ekf.x, env.ekf.P, env.world.poses, env.map_variances))
+    assert_identical(before, (*vector.joint_state(), vector.true_poses, vector.map_variances))
 
 
 def test_masked_actions_are_noops_by_default_and_errors_on_request():
@@ -141,11 +128,11 @@ def test_masked_actions_are_noops_by_default_and_errors_on_request():
         np.testing.assert_array_equal(masked[0][agent], noop[0][agent])
     strict = cooperative_exploration_v0.parallel_env(invalid_action="raise")
     strict.reset(seed=0)
-    before = (strict.ekf.P.copy(), strict.world.poses)
+    before = (*strict.vector.joint_state(), strict.vector.true_poses)
     action = own_slot["robot_0"]
     with pytest.raises(ValueError, match=f"action {action} of robot_0 is not valid now"):
         strict.step({**dict.fromkeys(strict.agents, NOOP_ACTION), "robot_0": action})
-    assert_identical(before, (strict.ekf.P, strict.world.poses))
+    assert_identical(before, (*strict.vector.joint_state(), strict.vector.true_poses))
 
 
 @pytest.mark.parametrize(

@@ -36,8 +36,9 @@ def joint_nees_per_step(policy, seed: int, steps: int) -> list[float]:
     rng, values = np.random.default_rng(seed), []
     while env.agents:
         truth = np.array([infos[name]["true_pose"] for name in env.agents])
-        error = pose_error(truth, env.ekf.x.reshape(-1, 3)).ravel()
-        values.append(float(error @ np.linalg.solve(env.ekf.P, error)))
+        x, P = (part[0] for part in env.vector.joint_state())
+        error = pose_error(truth, x.reshape(-1, 3)).ravel()
+        values.append(float(error @ np.linalg.solve(P, error)))
         _, _, _, _, infos = env.step(policy(env, infos, rng))
     return values
 

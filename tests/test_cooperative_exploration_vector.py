@@ -1,15 +1,21 @@
-"""CooperativeExplorationVectorEnv: copy i equals the parallel env seeded seed + i, step for step, through the
-episodes' ends (a robot lost, the coverage target reached, the horizon) and the autoresets after them.
+"""CooperativeExplorationVectorEnv: copy i equals its PettingZoo view (N = 1, no autoreset) seeded seed + i, step for
+step, through the episodes' ends (a robot lost, the coverage target reached, the horizon) and the autoresets after
+them.
 
 Autoreset modes, seeding, bad input and rendering: ``test_team_vector_envs.py``, for every team vector env.
 """
 
 import numpy as np
 import pytest
-from team_vector_checks import greedy, run_against_parallel_envs
+from conftest import greedy_actions, random_valid_actions
+from team_vector_checks import exploration_observation_updates, greedy, run_against_parallel_envs
 
+from infonav_gym.estimation.ekf import JointEKF
+from infonav_gym.multi import cooperative_exploration_v0, cooperative_exploration_vector, team_vector
 from infonav_gym.multi.cooperative_exploration import N_MOTIONS
 from infonav_gym.multi.cooperative_exploration_vector import CooperativeExplorationVectorEnv
+from infonav_gym.multi.exploration_decision import TeamSight
+from infonav_gym.sensors.relative_pose import relative_poses_with_noise
 from infonav_gym.world import World
 from infonav_gym.world.world_batch import WorldBatch
 
@@ -77,3 +83,63 @@ def test_the_comparison_covers_landmarks_teammates_motions_scans_and_close_passe
     assert np.all(info["coverage"] > 0.0) and sum(substeps) > 10
     gains, mask = info["action_information_gain"], info["action_mask"]
     assert np.all(gains[mask == 0] == 0.0) and np.any(gains[mask == 1] > 0.0)
+
+
+# ----------------------------------------------------------------------------- the filter against filterpy's
+
+
+def recorded(function, sink: list):
+    """``function`` that also appends each result to ``sink``."""
+    return lambda *args: sink.append(function(*args)) or sink[-1]
+
+
+def test_the_filter_equals_filterpys_joint_ekf_update_for_update(monkeypatch):
+    """Along a whole episode (DGPS under canopies, landmark and teammate observations, turns and drives) the env's EKF
+    equals ``JointEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10), and each own-pose reward its MI."""
+    priors, readings, fixes, relative, landmark = [], [], [], [], []
+    monkeypatch.setattr(
+        cooperative_exploration_vector, "start_episode", recorded(cooperative_exploration_vector.start_episode, priors)
+    )
+    monkeypatch.setattr(team_vector, "relative_poses_with_noise", recorded(relative_poses_with_noise, relative))
+    measure_landmarks = TeamSight.landmark_measurements
+    monkeypatch.setattr(TeamSight, "landmark_measurements", lambda *args: recorded(measure_landmarks, landmark)(*args))
+    env = cooperative_exploration_v0.parallel_env(max_cycles=60, max_position_std_m=100.0)
+    vector, parts = env.vector, env.vector.parts
+    for sensor, sink in ((vector._odometry, readings), (vector._gps, fixes)):
+        measure = sensor.measure_with_noise
+        monkeypatch.setattr(
+            type(sensor), "measure_with_noise", lambda _, *args, m=measure, s=sink: recorded(m, s)(*args)
+        )
+    _, infos = env.reset(seed=4)
+    ekf = JointEKF(*priors[-1][1:3])
+    n_robots, n_landmarks = len(env.possible_agents), env.config["n_landmarks"]
+    odometry_covariances = np.repeat(parts.odometry.noise_covariance()[None], n_robots, axis=0)
+    gps_covariances = np.repeat(vector._gps.noise_covariance()[None], n_robots, axis=0)
+    turn_s, drive_s = env.config["turn_time_s"], env.config["time_step_s"] - env.config["turn_time_s"]
+
+    def fuse_gps(infos):
+        robots = np.flatnonzero([infos[agent]["gps_available"] for agent in env.possible_agents])
+        if robots.size:
+            ekf.gps_update(robots, fixes[-1][0][robots], gps_covariances[robots])
+        return robots.size
+
+    counts = np.array([0, 0, fuse_gps(infos)])  # teammate and landmark observations, DGPS fixes
+    rng = np.random.default_rng(4)
+    while env.agents:
+        actions = greedy_actions(env, infos) if rng.random() < 0.5 else random_valid_actions(env, infos, rng)
+        prior_pose_P = ekf.pose_covariances()
+        _, _, _, _, infos = env.step(actions)
+        slots = np.array([infos[agent]["chosen_action"] for agent in env.possible_agents]) // N_MOTIONS
+        landmarks = landmark[-1][0] if ((slots > 0) & (slots <= n_landmarks)).any() else None
+        teammates = relative[-1].reshape(n_robots, 3) if (slots > n_landmarks).any() else None
+        observed = exploration_observation_updates(ekf, env, slots, teammates, landmarks)
+        own = 0.5 * (np.linalg.slogdet(prior_pose_P)[1] - np.linalg.slogdet(ekf.pose_covariances())[1])
+        for robot, agent in enumerate(env.possible_agents):
+            assert infos[agent]["reward_terms"]["own_pose_information"] == pytest.approx(own[robot], abs=1e-10)
+        for phase_s, reading in zip((turn_s, drive_s), readings[-2:]):
+            ekf.predict(reading[0], phase_s, odometry_covariances)
+        counts += [*observed, fuse_gps(infos)]
+        x, P = vector.joint_state()
+        np.testing.assert_allclose(x[0], ekf.x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(P[0], ekf.P, rtol=0, atol=1e-10)
+    assert len(readings) == 2 * 60 and np.all(counts > 10), counts

@@ -1,53 +1,54 @@
-"""cooperative_exploration_v0's planning model against the env's own filter, and the decentralized planner on it."""
+"""cooperative_exploration_v0's planning model against filterpy's JointEKF, and the decentralized planner on it."""
 
-import copy
 import math
 
 import numpy as np
 import pytest
+from team_vector_checks import exploration_observation_updates
 
 from agents import PlannerAgent
 from agents.team_planning import TeamPlans
-from infonav_gym.estimation.ekf import POSE_DIM
+from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0
 from infonav_gym.multi.exploration_planning import MOTION_HEADINGS_RAD, N_MOTIONS, STAY
-from infonav_gym.sensors.relative_pose import noise_covariances
 
 FAST = {"rollout_steps": 4, "detour_steps": (0,)}  # short rollouts: the tests check behaviour, not quality
 
 
+def filterpy_joint_ekf(env) -> JointEKF:
+    """filterpy's ``JointEKF`` at the state of the env's one copy."""
+    x, P = (part[0] for part in env.vector.joint_state())
+    ekf = JointEKF(x.reshape(-1, POSE_DIM), [P[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] for k in range(len(x) // 3)])
+    ekf.P = P
+    return ekf
+
+
 def expected_step_by_hand(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The env's own JointEKF stepped through ``actions`` (R,) with every measurement as predicted and the
-    commanded odometry: ``(P after the step, each robot's reward)``, the DGPS robots all outside canopies."""
-    cfg, ekf, n_landmarks = env.config, copy.deepcopy(env.ekf), env.config["n_landmarks"]
+    """filterpy's ``JointEKF`` at the env's state stepped through ``actions`` (R,) with every measurement as
+    predicted and the commanded odometry: ``(P after the step, each robot's reward)``, the DGPS robots all outside
+    canopies."""
+    cfg, ekf, parts = env.config, filterpy_joint_ekf(env), env.vector.parts
+    map_variances = env.vector.map_variances[0]
     slots, motions = np.divmod(actions, N_MOTIONS)
     prior_log_dets = np.linalg.slogdet(ekf.pose_covariances())[1]
-    observers = np.flatnonzero(slots > n_landmarks)
-    if observers.size:
-        targets = slots[observers] - 1 - n_landmarks
-        predicted, H_observer, H_target = ekf.relative_pose_model(observers, targets)
-        R = noise_covariances(env.pairs.noise[env._pair_lookup[observers, targets]], predicted[:, 0])
-        ekf.relative_pose_update(observers, targets, predicted, predicted, H_observer, H_target, R)
-    robots = np.flatnonzero((slots > 0) & (slots <= n_landmarks))
-    if robots.size:
-        predicted, H_pose, R = env._landmark_models(robots, slots[robots] - 1)
-        ekf.landmark_update(robots, predicted, predicted, H_pose, R)
+    exploration_observation_updates(ekf, env, slots)
     own = 0.5 * (prior_log_dets - np.linalg.slogdet(ekf.pose_covariances())[1])
     drives = motions != STAY
-    headings = env.ekf.x[2::POSE_DIM]
+    headings = env.vector.joint_state()[0][0, 2::POSE_DIM]  # the decision's
     turns = np.where(drives, (MOTION_HEADINGS_RAD[motions] - headings + math.pi) % (2 * math.pi) - math.pi, 0.0)
-    speeds = np.where(drives, env.speeds_mps, 0.0)
+    speeds = np.where(drives, parts.speeds_mps, 0.0)
     turn_s, drive_s = cfg["turn_time_s"], cfg["time_step_s"] - cfg["turn_time_s"]
-    covariances = env._odometry_covariances
+    covariances = np.repeat(parts.odometry.noise_covariance()[None], len(actions), axis=0)
     ekf.predict(np.column_stack([np.zeros_like(turns), turns / turn_s]), turn_s, covariances)
     ekf.predict(np.column_stack([speeds, np.zeros_like(speeds)]), drive_s, covariances)
-    fixed = np.array([gps is not None for gps in env.gps])
-    ekf.gps_update(np.flatnonzero(fixed), ekf.poses[fixed, :2], env._gps_noise[fixed])
+    fixed = np.flatnonzero([gps is not None for gps in parts.gps])
+    ekf.gps_update(fixed, ekf.poses[fixed, :2], [parts.gps[k].noise_covariance() for k in fixed])
     position_std = largest_position_std(ekf.pose_covariances())
-    footprints = env.map_model.footprints(ekf.poses[drives, :2])
-    after = env.map_model.fused(env.map_variances, footprints, env.map_model.scan_noise_variances(position_std[drives]))
-    map_information = 0.5 * np.sum(np.log(env.map_variances / after))
+    footprints = parts.map_model.footprints(ekf.poses[drives, :2])
+    noise = parts.map_model.scan_noise_variances(position_std[drives])
+    after = parts.map_model.fused(map_variances, footprints, noise)
+    map_information = 0.5 * np.sum(np.log(map_variances / after))
     weight = cfg["team_reward"]
     costs = cfg["observation_cost_nats"] * (slots > 0) + cfg["motion_cost_per_step"] * drives
     return ekf.P, (1 - weight) * own + weight * map_information - costs
@@ -55,16 +56,17 @@ def expected_step_by_hand(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 def assert_model_step_is_the_filters(env, actions: np.ndarray):
     """The model's step of ``actions`` (R,) from the current belief gives ``expected_step_by_hand``'s numbers."""
-    belief = env.belief()
+    model = env.planning_model()
+    belief = model.belief()
     assert belief.motion_clear[0, np.arange(4), actions % N_MOTIONS].all(), "clear from the estimates too"
-    following, rewards = env.plan_step(belief, actions[None])
+    following, rewards = model.plan_step(belief, actions[None])
     P, expected = expected_step_by_hand(env, actions)
     np.testing.assert_allclose(following.covariance[0], P, rtol=1e-9, atol=1e-14)
     np.testing.assert_allclose(rewards[0], expected, rtol=1e-9)
     return following
 
 
-def test_one_model_step_is_the_envs_filter_on_predicted_measurements_and_commanded_motion():
+def test_one_model_step_is_filterpys_joint_ekf_on_predicted_measurements_and_commanded_motion():
     env = cooperative_exploration_v0.parallel_env()
     _, infos = env.reset(seed=0)
     n_landmarks = env.config["n_landmarks"]
@@ -76,7 +78,7 @@ def test_one_model_step_is_the_envs_filter_on_predicted_measurements_and_command
     assert following.steps.tolist() == [1] and following.observations_left[0].tolist() == [100, 99, 99, 100]
 
 
-def test_a_model_step_with_landmark_and_teammate_observations_matches_the_envs_filter_too():
+def test_a_model_step_with_landmark_and_teammate_observations_matches_filterpys_joint_ekf_too():
     env = cooperative_exploration_v0.parallel_env()
     _, infos = env.reset(seed=10)  # every robot sees landmark 0 from the base
     landmark_0, robot_3 = N_MOTIONS * 1, N_MOTIONS * (1 + env.config["n_landmarks"] + 3)
@@ -88,12 +90,12 @@ def test_a_model_step_with_landmark_and_teammate_observations_matches_the_envs_f
 def test_the_models_decision_at_the_current_belief_gives_the_envs_gains():
     env = cooperative_exploration_v0.parallel_env()
     _, infos = env.reset(seed=1)
-    rng = np.random.default_rng(1)
+    rng, model = np.random.default_rng(1), env.planning_model()
     agree, checked = [], 0
     for _ in range(12):
-        belief = env.belief()
+        belief = model.belief()
         for robot, agent in enumerate(env.agents):
-            mask, gains = env.plan_decision(belief, robot)
+            mask, gains = model.plan_decision(belief, robot)
             both = (mask[0] > 0) & (infos[agent]["action_mask"] > 0)
             np.testing.assert_allclose(gains[0][both], infos[agent]["action_information_gain"][both], atol=1e-12)
             agree.append(np.mean(mask[0] == infos[agent]["action_mask"]))
@@ -160,4 +162,4 @@ def test_the_planner_in_a_team_env_needs_a_robot_and_a_planning_model():
     with pytest.raises(ValueError, match=r"planning_model\(\) method"):
         PlannerAgent(cooperative_localization_v0.parallel_env(), "robot_0")
     with pytest.raises(RuntimeError, match="call reset"):
-        env.belief()
+        env.planning_model().belief()

@@ -1,4 +1,4 @@
-"""The hooks of ``InfoNavEnv`` / ``InfoNavParallelEnv``: declared, called as their contracts say; the planning model."""
+"""The hooks of ``InfoNavEnv``: declared, called as their contracts say; the planning model."""
 
 import pickle
 
@@ -12,16 +12,15 @@ import infonav_gym  # noqa: F401  (registers the envs)
 from agents.planner import PlannerAgent, planning_model
 from infonav_gym.envs.base import Decision, InfoNavEnv
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0
-from infonav_gym.multi.base import InfoNavParallelEnv
+from infonav_gym.registry import env_entry
 
 REQUIRED_HOOKS = {"_reset_episode", "_next_decision", "_apply_action", "_observation", "_scene_frame"}
-REQUIRED_PARALLEL_HOOKS = {"_reset_episode", "_next_decision", "_apply_actions", "_advance", "_observations"}
-REQUIRED_PARALLEL_HOOKS |= {"_infos", "_scene_frame"}
 SINGLE_AGENT_IDS = sorted(
     env_id
     for env_id, spec in gym.registry.items()
     if isinstance(spec.entry_point, str) and spec.entry_point.startswith("infonav_gym.")
 )
+HOOKED_IDS = [env_id for env_id in SINGLE_AGENT_IDS if issubclass(env_entry(env_id).load(), InfoNavEnv)]
 WALL_CLOCK_INFO_KEYS = {"icp_time_s"}
 
 
@@ -54,22 +53,12 @@ class AlternatingEnv(InfoNavEnv):
 
 def test_the_required_hooks_are_abstract():
     assert InfoNavEnv.__abstractmethods__ == REQUIRED_HOOKS
-    assert InfoNavParallelEnv.__abstractmethods__ == REQUIRED_PARALLEL_HOOKS
 
 
 @pytest.mark.parametrize("missing", sorted(REQUIRED_HOOKS))
 def test_an_env_missing_a_hook_cannot_be_instantiated(missing):
     hooks = {name: getattr(AlternatingEnv, name) for name in REQUIRED_HOOKS - {missing}}
     incomplete = type("IncompleteEnv", (InfoNavEnv,), hooks)
-    with pytest.raises(TypeError, match=f"abstract .*{missing}"):
-        incomplete()
-
-
-@pytest.mark.parametrize("missing", sorted(REQUIRED_PARALLEL_HOOKS))
-def test_a_parallel_env_missing_a_hook_cannot_be_instantiated(missing):
-    team = cooperative_exploration_v0.CooperativeExplorationEnv  # the team env still written twice
-    hooks = {name: getattr(team, name) for name in REQUIRED_PARALLEL_HOOKS - {missing}}
-    incomplete = type("IncompleteTeam", (InfoNavParallelEnv,), {**hooks, "__init__": team.__init__})
     with pytest.raises(TypeError, match=f"abstract .*{missing}"):
         incomplete()
 
@@ -110,11 +99,9 @@ def _without_wall_clock(transition):
     ]
 
 
-@pytest.mark.parametrize("env_id", SINGLE_AGENT_IDS)
+@pytest.mark.parametrize("env_id", HOOKED_IDS)  # an env written once has no single-env decision hook
 def test_next_decision_changes_nothing(env_id):
     env = gym.make(env_id).unwrapped
-    if not hasattr(env, "_next_decision"):
-        pytest.skip(f"{env_id} is written once on batched arrays: its decision is no hook of a single env")
     _, info = env.reset(seed=3)
     twin = pickle.loads(pickle.dumps(env))
     again = env._next_decision()
@@ -139,6 +126,12 @@ def test_the_planner_finds_the_planning_model_through_wrappers():
     env = gym.make("infonav/ActiveLocalization-v0")  # TimeLimit, OrderEnforcing, PassiveEnvChecker
     assert planning_model(env) is env.unwrapped.planning_model()
     assert PlannerAgent(env).model is planning_model(env)
+
+
+def test_a_team_view_has_its_copys_planning_model_when_its_vector_env_has_one():
+    env = cooperative_exploration_v0.parallel_env()
+    assert planning_model(env) is env.vector.planning_model(0) is env.planning_model()
+    assert not hasattr(cooperative_localization_v0.parallel_env(), "planning_model")
 
 
 def test_an_env_without_a_planning_model_is_a_clear_error():

@@ -104,14 +104,14 @@ def test_every_motion_the_mask_allows_is_executed_exactly_as_the_ekf_models_it()
         rng = np.random.default_rng(seed)
         while env.agents:
             masked += sum(int(info["action_mask"][:N_MOTIONS].sum() < N_MOTIONS) for info in infos.values())
-            before, headings = env.world.poses, env.ekf.x[2::3].copy()
+            before, headings = env.vector.true_poses[0], env.vector.joint_state()[0][0, 2::3]
             actions = random_valid_actions(env, infos, rng)
             motions = np.array([actions[agent] % N_MOTIONS for agent in env.agents])
             _, _, _, _, infos = env.step(actions)
             turned = before[:, 2] + np.where(
                 motions != STAY, (MOTION_HEADINGS_RAD[motions] - headings + math.pi) % (2 * math.pi) - math.pi, 0.0
             )
-            travel = drive_s * env.speeds_mps * (motions != STAY)
+            travel = drive_s * env.vector.parts.speeds_mps * (motions != STAY)
             expected = before[:, :2] + travel[:, None] * np.column_stack([np.cos(turned), np.sin(turned)])
-            np.testing.assert_allclose(env.world.poses[:, :2], expected, atol=1e-9)
+            np.testing.assert_allclose(env.vector.true_poses[0, :, :2], expected, atol=1e-9)
     assert masked > 20, "the walls, obstacles and teammates masked some motions"

@@ -1,4 +1,4 @@
-"""cooperative_localization_v0: PettingZoo's own test suite, determinism, bad input, rewards, GPS."""
+"""cooperative_localization_v0: PettingZoo's API tests in the convoy scenario, determinism, bad input, rewards, GPS."""
 
 import os
 
@@ -10,7 +10,7 @@ import pickle  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from conftest import assert_identical, greedy_actions, random_valid_actions  # noqa: E402
-from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test  # noqa: E402
+from pettingzoo.test import api_test, parallel_api_test  # noqa: E402
 
 from infonav_gym.information import mutual_information  # noqa: E402
 from infonav_gym.multi import cooperative_localization_v0  # noqa: E402
@@ -20,23 +20,11 @@ SCENARIO_CASES = [{}, {"scenario": "convoy", "n_robots": 3}]
 scenarios = pytest.mark.parametrize("config", SCENARIO_CASES, ids=["team_field", "convoy"])
 
 
-@scenarios
-def test_pettingzoo_parallel_api_test_passes_over_1000_cycles(config):
-    env = cooperative_localization_v0.parallel_env(**config)
-    parallel_api_test(env, num_cycles=1000)
-    assert env.observation_space("robot_0") is env.observation_space("robot_0")
-    assert env.action_space("robot_1") is env.action_space("robot_1")
-
-
-@scenarios
-def test_pettingzoo_aec_api_test_passes(config):
-    api_test(cooperative_localization_v0.env(**config), num_cycles=300)
-
-
-def test_pettingzoo_seed_max_cycles_and_render_tests_pass():
-    parallel_seed_test(cooperative_localization_v0.parallel_env)
-    max_cycles_test(cooperative_localization_v0)
-    render_test(cooperative_localization_v0.env)
+def test_pettingzoo_api_tests_pass_in_the_convoy_scenario():
+    """The default config is covered by ``test_parallel_envs`` (every registered team env); here the other scenario."""
+    config = SCENARIO_CASES[1]
+    parallel_api_test(cooperative_localization_v0.parallel_env(**config), num_cycles=300)
+    api_test(cooperative_localization_v0.env(**config), num_cycles=100)
 
 
 @scenarios

@@ -17,9 +17,14 @@ import torch  # noqa: E402
 from ray.rllib.core.rl_module.rl_module import RLModule, RLModuleSpec  # noqa: E402
 
 from agents.rllib_agent import MODULES_PATH, RLlibAgent  # noqa: E402
-from agents.rllib_masking import ACTION_MASK, MaskedObservations, MaskedParallelEnv, mask_observation  # noqa: E402
+from agents.rllib_masking import ACTION_MASK, MaskedObservations, mask_observation  # noqa: E402
 from agents.rllib_module import MaskedPPOTorchRLModule  # noqa: E402
-from agents.rllib_train import CHECKPOINT_DIR, SHARED_POLICY, build_config  # noqa: E402
+from agents.rllib_train import (  # noqa: E402
+    CHECKPOINT_DIR,
+    SHARED_POLICY,
+    TeamEnvCreator,
+    build_config,
+)
 from infonav_gym.experiments.cli import main  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0  # noqa: E402
 from infonav_gym.registry import PARALLEL, api_of, make_env  # noqa: E402
@@ -27,6 +32,7 @@ from infonav_gym.registry import PARALLEL, api_of, make_env  # noqa: E402
 LANDMARK_ID, TEAM_ID = "infonav/LandmarkSelection-v0", "cooperative_localization_v0"
 EXPLORATION_ID, EXPLORATION_CYCLES = "cooperative_exploration_v0", 40
 SMALL_BLOCK = {"n_envs": 1, "n_steps": 500, "batch_size": 128, "n_epochs": 2, "policy_kwargs": {"net_arch": [32, 32]}}
+TEAM_BLOCK = {**SMALL_BLOCK, "n_envs": 4, "n_steps": 125}  # the same 500 steps per batch, from 4 copies
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +47,7 @@ def small_blocks(tmp_path_factory):
     import yaml
 
     path = tmp_path_factory.mktemp("hyperparams") / "ppo.yml"
-    path.write_text(yaml.safe_dump({env_id: SMALL_BLOCK for env_id in (LANDMARK_ID, TEAM_ID, EXPLORATION_ID)}))
+    path.write_text(yaml.safe_dump({LANDMARK_ID: SMALL_BLOCK, TEAM_ID: TEAM_BLOCK, EXPLORATION_ID: TEAM_BLOCK}))
     return path
 
 
@@ -119,7 +125,8 @@ def test_train_writes_a_checkpoint_and_a_record_and_evaluate_plays_it(landmark_r
 
 def test_the_team_trains_one_shared_policy_whose_agents_take_only_valid_actions(team_run):
     output, record = team_run
-    assert record["policies"] == "shared"
+    assert record["policies"] == "shared" and record["vectorization"] == "native"
+    assert record["envs_per_runner"] == TEAM_BLOCK["n_envs"]  # the block's copies, stepped at once by one runner
     modules = output.joinpath(CHECKPOINT_DIR, *MODULES_PATH)
     assert (modules / SHARED_POLICY).is_dir() and not (modules / "robot_0").exists()
     env = cooperative_localization_v0.parallel_env(max_cycles=30)
@@ -129,6 +136,41 @@ def test_the_team_trains_one_shared_policy_whose_agents_take_only_valid_actions(
         actions = {robot: robots[robot].act(observations[robot], infos[robot]) for robot in env.agents}
         assert all(infos[robot]["action_mask"][action] for robot, action in actions.items())
         observations, _, _, _, infos = env.step(actions)
+
+
+def test_a_team_runner_steps_its_copies_at_once_and_its_episodes_take_only_valid_actions(local_ray, small_blocks):
+    from agents.ppo import load_hyperparameters
+    from agents.rllib_team_env import BatchedTeamEnv, BatchedTeamEnvRunner
+
+    copies, env_kwargs = 4, {"max_cycles": 30, "coverage_target": 0.05}  # copies end their episodes at different steps
+    hyperparameters = load_hyperparameters(EXPLORATION_ID, small_blocks)
+    config = build_config(EXPLORATION_ID, env_kwargs, 0, hyperparameters, num_env_runners=0, envs_per_runner=copies)
+    algorithm = config.build_algo()
+    try:
+        runner = algorithm.env_runner
+        assert isinstance(runner, BatchedTeamEnvRunner) and isinstance(runner.env, BatchedTeamEnv)
+        team, shapes = runner.env.team, []
+        team_step = team.step
+        team.step = lambda actions: shapes.append(np.shape(actions)) or team_step(actions)
+        episodes = runner.sample(num_timesteps=200)
+        metrics = runner.get_metrics()
+    finally:
+        algorithm.stop()
+    assert set(shapes) == {(copies, 4)} and copies * len(shapes) >= 200  # one batched step serves every copy
+    steps = sum(len(episode) for episode in episodes)
+    assert 200 <= steps < 200 + copies  # RLlib stops at the first step past 200
+    assert len({len(episode) for episode in episodes if episode.is_done}) > 1
+    # RLlib's counts, logged once per sample, as RLlib logs them step by step
+    assert metrics["num_env_steps_sampled"] == metrics["num_env_steps_sampled_lifetime"] == steps
+    assert metrics["num_episodes"] == sum(episode.is_done for episode in episodes)
+    assert metrics["num_agent_steps_sampled"] == {robot: steps for robot in runner.env.agents}
+    assert metrics["num_module_steps_sampled"] == {SHARED_POLICY: 4 * steps}
+    for episode in episodes:
+        for robot_episode in episode.agent_episodes.values():
+            steps = slice(0, len(robot_episode))
+            masks = robot_episode.get_observations(steps)[ACTION_MASK]
+            actions = np.asarray(robot_episode.get_actions(steps))
+            assert (masks[np.arange(len(actions)), actions] == 1).all()
 
 
 def test_one_policy_per_robot_trains_a_module_for_each(local_ray, tmp_path_factory, small_blocks):
@@ -146,15 +188,18 @@ def test_one_policy_per_robot_trains_a_module_for_each(local_ray, tmp_path_facto
 
 
 def _play(env_id: str, env_kwargs: dict, act, steps: int) -> None:
-    """``steps`` steps of the masked ``env_id`` from seed 3, each robot (or the agent) acting by ``act(obs)``."""
-    team = api_of(env_id) == PARALLEL
-    env = (MaskedParallelEnv if team else MaskedObservations)(make_env(env_id, **env_kwargs))
+    """``steps`` steps of the masked ``env_id`` (a team's: one copy, as RLlib sees it) from seed 3, each robot (or the
+    agent) acting by ``act(obs)``."""
+    if api_of(env_id) == PARALLEL:
+        env = TeamEnvCreator(env_id)(env_kwargs)
+        observations, _ = env.reset(seed=3)
+        for _ in range(steps):
+            observations, *_ = env.step([{robot: act(observation) for robot, observation in observations[0].items()}])
+        return
+    env = MaskedObservations(make_env(env_id, **env_kwargs))
     observation, _ = env.reset(seed=3)
     for _ in range(steps):
-        if team and not env.agents:
-            return
-        action = {robot: act(observation[robot]) for robot in env.agents} if team else act(observation)
-        observation, *_ = env.step(action)
+        observation, *_ = env.step(act(observation))
 
 
 @pytest.mark.parametrize(

@@ -8,11 +8,9 @@ from agents.rllib_masking import (
     ACTION_MASK,
     OBSERVATION,
     MaskedObservations,
-    MaskedParallelEnv,
     MaskedVectorObservations,
     mask_observation,
 )
-from infonav_gym.multi import cooperative_localization_v0
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 
@@ -31,17 +29,6 @@ def test_a_masked_single_env_observes_its_action_masks_and_stays_in_its_space():
         observation, *_ = masked.step(action)
         plain_observation, *_ = plain.step(action)
     assert partial > 0
-
-
-def test_a_masked_team_env_observes_each_robots_info_mask():
-    env = MaskedParallelEnv(cooperative_localization_v0.parallel_env(max_cycles=30))
-    observations, infos = env.reset(seed=2)
-    while env.agents:
-        for agent, observation in observations.items():
-            assert env.observation_space(agent).contains(observation)
-            np.testing.assert_array_equal(observation[ACTION_MASK], infos[agent]["action_mask"].astype(np.float32))
-        actions = {agent: int(np.flatnonzero(o[ACTION_MASK])[-1]) for agent, o in observations.items()}
-        observations, _, _, _, infos = env.step(actions)
 
 
 def test_no_valid_action_or_no_mask_means_every_action_as_maskable_ppo_takes_it():

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pymunk
 import pytest
+from scipy.interpolate import RegularGridInterpolator
 from skimage.measure import shannon_entropy
 
 from infonav_gym.experiments.sensor_timing import footprint_space
@@ -231,6 +232,40 @@ def test_height_and_normal_are_exact_on_a_plane_and_interpolate_between_grid_poi
     bump = Terrain(np.array([[0.0, 0.0], [0.0, 4.0]]), (0.0, 0.0), 2.0)
     assert bump.height_at(np.array([1.0, 1.0])) == pytest.approx(1.0)  # bilinear: 4 * 0.5 * 0.5
     assert bump.height_at(np.array([[5.0, 5.0]]))[0] == pytest.approx(4.0)  # the edge extends beyond the grid
+
+
+def test_height_is_scipys_bilinear_interpolation_and_the_normal_its_gradient_on_random_grids():
+    rng = np.random.default_rng(3)
+    terrain = Terrain(rng.normal(size=(9, 13)), (-2.0, 1.0), 0.7)
+    x0, y0, x1, y1 = terrain.bounds_m
+    inside = rng.uniform([x0, y0], [x1, y1], size=(400, 2))
+    beyond = rng.uniform([x0 - 3, y0 - 3], [x1 + 3, y1 + 3], size=(400, 2))  # the edge heights extend
+    x_grid, y_grid = x0 + 0.7 * np.arange(13), y0 + 0.7 * np.arange(9)
+    interpolate = RegularGridInterpolator((y_grid, x_grid), terrain.heights_m, method="linear")
+    for points in (inside, beyond):
+        clamped = np.clip(points, [x0, y0], [x1, y1])
+        np.testing.assert_allclose(terrain.height_at(points), interpolate(clamped[:, ::-1]), rtol=1e-12, atol=1e-12)
+    step = 1e-6
+    slope_x = (terrain.height_at(inside + [step, 0.0]) - terrain.height_at(inside - [step, 0.0])) / (2 * step)
+    slope_y = (terrain.height_at(inside + [0.0, step]) - terrain.height_at(inside - [0.0, step])) / (2 * step)
+    gradient_normal = np.stack([-slope_x, -slope_y, np.ones(400)], axis=1)
+    gradient_normal /= np.linalg.norm(gradient_normal, axis=1, keepdims=True)
+    on_grid_lines = np.any(np.abs(np.remainder(inside - [x0, y0] + step, 0.7)) < 2 * step, axis=1)
+    np.testing.assert_allclose(
+        terrain.surface_normal_at(inside)[~on_grid_lines], gradient_normal[~on_grid_lines], atol=1e-8
+    )
+    assert terrain.surface_normal_at(np.array([x0 - 1.0, y0 - 1.0])).tolist() == [0.0, 0.0, 1.0]  # level beyond
+
+
+def test_ray_hits_name_the_obstacle_they_hit():
+    trees = [Cylinder((10.0, 0.0), 1.0, -1.0, 6.0), Cylinder((10.0, 3.0), 0.5, -1.0, 6.0, material="rock")]
+    wall = Box((-12.0, -5.0, -1.0), (-11.0, 5.0, 4.0))
+    terrain = flat_terrain().with_obstacles(cylinders=trees, boxes=[wall])
+    azimuth = np.array([0.0, math.atan2(3.0, 10.0), math.pi, math.pi / 2])
+    hits = terrain.cast_rays([0.0, 0.0, 1.0], azimuth, np.array([0.0, -0.5]), 50.0)
+    np.testing.assert_array_equal(hits.obstacle_index, [[0, 1, 2, -1], [-1, -1, -1, -1]])
+    np.testing.assert_array_equal(hits.material_index, [[1, 2, 3, NO_HIT], [0, 0, 0, 0]])
+    np.testing.assert_allclose(hits.range_m[0, :3], [9.0, math.hypot(10.0, 3.0) - 0.5, 11.0], rtol=1e-12)
 
 
 def test_display_image_is_dark_near_light_far_and_white_without_return():

@@ -368,7 +368,8 @@ def check_autoreset_disabled(env_id: str, horizon: int = 3, **config) -> None:
 
 def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, seed: int, n_steps: int, **config):
     """Along a whole episode of ``gym.make(env_id)`` (written once: its ``vector`` copy), its EKF equals filterpy's
-    ``PoseEKF`` fed the same prior, odometry readings and measurements (x within 1e-12, P within 1e-10), and each
+    ``PoseEKF`` fed the same prior, odometry readings and measurements (x within 1e-12, P within 1e-10; the
+    measurements made by ``RangeBearingSensor.measure_with_noise`` from the env's noise draws), and each
     update's ``reward_terms["mutual_information"]`` is that update's MI.
 
     Args:
@@ -382,7 +383,7 @@ def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, s
     Returns:
         How many updates the episode had.
     """
-    priors, readings, measurements = [], [], []
+    priors, readings, draws = [], [], []
     start_episode = env_module.start_episode
 
     def recorded_start(*args):
@@ -394,11 +395,12 @@ def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, s
     env = gym.make(env_id, horizon=n_steps, **config).unwrapped
     vector = env.vector
     sensor, odometry = vector.sensor, vector._odometry
-    for recorder, sink in ((sensor, measurements), (odometry, readings)):
-        measure = recorder.measure_with_noise
-        monkeypatch.setattr(
-            type(recorder), "measure_with_noise", lambda *args, m=measure, s=sink: s.append(m(*args[1:])) or s[-1]
-        )
+    measure = odometry.measure_with_noise
+    monkeypatch.setattr(
+        type(odometry), "measure_with_noise", lambda _, *args, m=measure: readings.append(m(*args)) or readings[-1]
+    )
+    take = vector._measurement_noise.take  # the measurement's standard normals: the sensor measures with them below
+    monkeypatch.setattr(vector._measurement_noise, "take", lambda copies: draws.append(take(copies)) or draws[-1])
     _, info = env.reset(seed=seed)
     ekf, rng, dt = PoseEKF(*priors[-1]), np.random.default_rng(seed), env.config["time_step_s"]
     landmarks = None if config.get("mapping") else vector.scenario(0).landmarks
@@ -407,13 +409,15 @@ def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, s
         valid = np.flatnonzero(info["action_mask"])
         blind = rng.random() < 0.2 or not valid.size
         action = int(rng.integers(env.action_space.n)) if blind else int(rng.choice(valid))
-        prior_P = ekf.P.copy()
+        prior_P, true_pose = ekf.P.copy(), info["true_pose"]
         info = env.step(action)[4]
         landmark = landmark_of(info["chosen_action"])
         if landmark >= 0:
             predicted, H = ekf.landmark_measurement_model(landmarks)
             R = sensor.noise_covariance(predicted[landmark : landmark + 1, 0])[0]
-            ekf.update_range_bearing(measurements[-1][0], predicted[landmark], H[landmark], R)
+            true_landmark = vector.scenario(0).landmarks[landmark]
+            measurement = sensor.measure_with_noise(true_pose[None], true_landmark[None], draws[-1])[0]
+            ekf.update_range_bearing(measurement, predicted[landmark], H[landmark], R)
             realized = info["reward_terms"]["mutual_information"]
             assert realized == pytest.approx(mutual_information(prior_P, ekf.P), abs=1e-10)
             n_observed += 1

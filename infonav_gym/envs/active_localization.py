@@ -221,26 +221,26 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         (N,) each, 0 for the others. A no-op (``chosen`` -1) stands still observing nothing."""
         cfg, n = self.config, self.num_envs
         landmarks, primitives = decode_actions(chosen)
-        observed, mutual_information = self._observe(np.where(chosen >= 0, landmarks, -1))
+        driving = chosen >= 0  # -1: a no-op, or a copy not acting
+        observed, mutual_information = self._observe(np.where(driving, landmarks, -1))
         self._observations_left -= observed
-        driving, progress = np.zeros(n, dtype=bool), np.zeros(n)
-        reached, failed = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        progress, reached, failed = np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
         if copies.size:
-            driving[copies] = chosen[copies] >= 0
-            commands = primitive_commands(cfg, self._goals[copies], self._x[copies], primitives[copies])
-            commands[~driving[copies]] = 0.0
-            distance_before = self._distances_to_goal(copies)
-            self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies], commands)
-            distance_after = self._distances_to_goal(copies)
-            progress[copies] = distance_before - distance_after
-            reached[copies], failed[copies] = step_outcome(cfg, distance_after, self._P[copies])
-            self._goal_reached[copies], self._failed[copies] = reached[copies], failed[copies]
-            self._elapsed[copies] += 1
+            rows = self._rows(copies)
+            commands = primitive_commands(cfg, self._goals[rows], self._x[rows], primitives[rows])
+            commands[~driving[rows]] = 0.0
+            distance_before = self._distances_to_goal(rows)
+            self._x[rows], self._P[rows] = self._moved(copies, self._x[rows], self._P[rows], commands)
+            distance_after = self._distances_to_goal(rows)
+            progress[rows] = distance_before - distance_after
+            reached[rows], failed[rows] = step_outcome(cfg, distance_after, self._P[rows])
+            self._goal_reached[rows], self._failed[rows] = reached[rows], failed[rows]
+            self._elapsed[rows] += 1
         return reward_terms(cfg, mutual_information, observed, driving, progress, reached, failed)
 
-    def _distances_to_goal(self, copies: np.ndarray) -> np.ndarray:
-        """The true distance of each of ``copies`` to its goal [m] (n,)."""
-        return distances(self._worlds.poses[copies, 0, :2], self._goals[copies])
+    def _distances_to_goal(self, rows) -> np.ndarray:
+        """The true distance of the copies at ``rows`` (``_rows``) to their goals [m] (n,)."""
+        return distances(self._worlds.poses[rows, 0, :2], self._goals[rows])
 
     def _observe(self, landmarks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Update each observing copy's EKF with a noisy measurement of its landmark (-1: none).
@@ -248,15 +248,7 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         Returns:
             ``(observed (N,) bool, realized MI (N,) [nats])``.
         """
-
-        def measure(observers):
-            return self._sensor.measure_with_noise(
-                self._worlds.poses[observers, 0],
-                self._landmarks[observers, landmarks[observers]],
-                self._measurement_noise.take(observers),
-            )
-
-        self._x, self._P, mutual_information = self._decision.sight.observe(self._x, self._P, landmarks, measure)
+        self._x, self._P, mutual_information = self._measured(self._decision.sight, landmarks)
         return landmarks >= 0, mutual_information
 
     # ------------------------------------------------------------------ decision, observation and info
@@ -277,19 +269,20 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
             chosen: the action each took (n,), -1 for a no-op.
             terms: their reward terms, each (n,) [nats].
         """
+        rows = self._rows(copies)
         state = CopiesState(
-            x=self._x[copies],
-            P=self._P[copies],
-            true_poses=self._worlds.poses[copies, 0],
-            goals=self._goals[copies],
-            elapsed=self._elapsed[copies],
-            observations_left=self._observations_left[copies],
-            goal_reached=self._goal_reached[copies],
-            failed=self._failed[copies],
+            x=self._x[rows],
+            P=self._P[rows],
+            true_poses=self._worlds.poses[rows, 0],
+            goals=self._goals[rows],
+            elapsed=self._elapsed[rows],
+            observations_left=self._observations_left[rows],
+            goal_reached=self._goal_reached[rows],
+            failed=self._failed[rows],
         )
         everywhere = np.ones((len(copies), self._landmarks.shape[1]), dtype=bool)
         sight = LandmarkDecision.at_prior(
-            self._sensor, geometry, state.true_poses, state.x, state.P, self._landmarks[copies], everywhere, False
+            self._sensor, geometry, state.true_poses, state.x, state.P, self._landmarks[rows], everywhere, False
         )
         decision = ActiveDecision.from_sight(sight, state.observations_left)
         if len(copies) == self.num_envs:
@@ -298,9 +291,9 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
             self._decision.action_mask[copies] = decision.action_mask
             self._decision.action_information_gain[copies] = decision.action_information_gain
             set_rows(self._decision.sight._asdict(), copies, sight._asdict())
-        self._chosen[copies] = np.where(stepped, chosen, -1)
+        self._chosen[rows] = np.where(stepped, chosen, -1)
         self._track_first_copy(copies, stepped)
-        obstacles = (self._obstacle_centers[copies], self._obstacle_radii[copies])
+        obstacles = (self._obstacle_centers[rows], self._obstacle_radii[rows])
         observation = observations(decision, state, obstacles, self.config, self.single_observation_space)
         return observation, infos(decision, state, stepped, chosen, terms, self.config)
 

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.landmark_selection import Prior
 from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
@@ -51,12 +51,24 @@ def action_layout(observable: np.ndarray, landmark_gains: np.ndarray) -> tuple[n
     """``(action_mask int8, action_information_gain)`` (n, 5 (1 + K)) of copies that may observe ``observable``
     landmarks (n, K) bool, each with its expected gain (n, K) [nats]: every primitive without an observation is
     valid, and with each observable landmark; gains 0 where masked."""
+    observable = contiguous(np.asarray(observable, dtype=np.bool_))
+    return layout_of_actions(observable, contiguous(np.asarray(landmark_gains, dtype=float)))
+
+
+@kernel
+def layout_of_actions(observable, landmark_gains):
+    """``action_layout`` of n copies: action ``5 (1 + k) + p`` observes landmark k with primitive p."""
     n_copies, n_landmarks = observable.shape
-    mask = np.ones((n_copies, 1 + n_landmarks, N_PRIMITIVES), dtype=np.int8)
-    mask[:, 1:] = observable[:, :, None]
-    gains = np.zeros((n_copies, 1 + n_landmarks, N_PRIMITIVES))
-    gains[:, 1:] = np.where(observable, landmark_gains, 0.0)[:, :, None]
-    return mask.reshape(n_copies, -1), gains.reshape(n_copies, -1)
+    mask = np.ones((n_copies, N_PRIMITIVES * (1 + n_landmarks)), dtype=np.int8)
+    gains = np.zeros(mask.shape)
+    for c in range(n_copies):
+        for k in range(n_landmarks):
+            for primitive in range(N_PRIMITIVES):
+                action = N_PRIMITIVES * (1 + k) + primitive
+                mask[c, action] = observable[c, k]
+                if observable[c, k]:
+                    gains[c, action] = landmark_gains[c, k]
+    return mask, gains
 
 
 class ActiveDecision(NamedTuple):
@@ -97,14 +109,30 @@ def primitive_commands(config: dict, goals: np.ndarray, poses: np.ndarray, primi
         poses: estimated poses ``[x, y, heading]`` (n, 3).
         primitives: the primitive of each pose (n,), indices of ``PRIMITIVE_OFFSETS_RAD``.
     """
-    goals = np.asarray(goals)
-    goal_bearing = np.arctan2(goals[..., 1] - poses[:, 1], goals[..., 0] - poses[:, 0])
-    desired = goal_bearing + np.take(PRIMITIVE_OFFSETS_RAD, primitives)
-    turn = wrap_angle(desired - poses[:, 2])
-    max_turn = config["max_turn_rate_rps"] * config["time_step_s"]
-    executed_turn = np.clip(turn, -max_turn, max_turn)
-    speed = config["speed_mps"] * np.maximum(np.cos(turn), 0.0)
-    return np.stack([speed, executed_turn / config["time_step_s"]], axis=-1)
+    poses = contiguous(np.asarray(poses, dtype=float))
+    dt = config["time_step_s"]
+    return commands_of_primitives(
+        stacked(goals, (len(poses), 2)),
+        poses,
+        contiguous(np.asarray(primitives, dtype=np.int64)),
+        config["speed_mps"],
+        config["max_turn_rate_rps"] * dt,
+        dt,
+    )
+
+
+@kernel
+def commands_of_primitives(goals, poses, primitives, speed_mps, max_turn_rad, dt):
+    """``primitive_commands`` of n poses (n, 3) with their goals (n, 2): steer for the goal's estimated bearing plus
+    the primitive's offset, the turn clipped to ``max_turn_rad`` per step, the speed scaled by the cosine of the
+    wanted turn (0 beyond a right angle)."""
+    commands = np.empty((len(poses), 2))
+    for i in range(len(poses)):
+        goal_bearing = math.atan2(goals[i, 1] - poses[i, 1], goals[i, 0] - poses[i, 0])
+        turn = wrap(goal_bearing + PRIMITIVE_OFFSETS_RAD[primitives[i]] - poses[i, 2])
+        commands[i, 0] = speed_mps * max(math.cos(turn), 0.0)
+        commands[i, 1] = min(max(turn, -max_turn_rad), max_turn_rad) / dt
+    return commands
 
 
 def distances(positions: np.ndarray, goals: np.ndarray) -> np.ndarray:
@@ -285,11 +313,12 @@ def infos(decision: ActiveDecision, state: CopiesState, stepped, chosen, terms: 
     errors = true_poses - x
     pose_entropy = decision.sight.pose_entropy
     everyone = np.ones(len(x), dtype=bool)
-    terms = {key: np.where(stepped, value, 0.0) for key, value in terms.items()}
+    stepped_terms = np.where(stepped, np.stack([terms[key] for key in REWARD_TERMS]), 0.0)  # one row per term
+    terms, stepped = dict(zip(REWARD_TERMS, stepped_terms)), stepped.copy()
     info = {
         "action_mask": decision.action_mask.copy(),
         "action_information_gain": decision.action_information_gain.copy(),
-        "reward_terms": {**terms, **{f"_{key}": stepped.copy() for key in terms}},
+        "reward_terms": {**terms, **{f"_{key}": stepped for key in terms}},
         "chosen_action": np.where(stepped, chosen, -1),
         "invalid_action": stepped & (chosen < 0),
         "pose_entropy": pose_entropy.copy(),

@@ -43,7 +43,7 @@ class Decision(NamedTuple):
     (``Decision.frozen``): acting on a decision never changes it.
 
     Attributes:
-        action_mask: int8, 1 = valid, per action (a team env: per agent and action).
+        action_mask: int8, 1 = valid, per action.
         action_information_gain: float64, expected mutual information of each action [nats], 0 where masked.
         payload: what the env's ``_apply_action`` needs to act on this decision (e.g. the predicted
             measurements, their Jacobians ``H`` and noise ``R``, the prior's log-determinant); env-specific.
@@ -123,9 +123,9 @@ def accepts_action(action: int, mask: np.ndarray, invalid_action: str, mask_key:
 
 
 class SceneRendering(abc.ABC):
-    """Config and render mode checks, ``render``, ``close`` and pickling, shared by every infonav env.
+    """Config and render mode checks, ``render``, ``close`` and pickling of ``InfoNavEnv``.
 
-    Used by the single-agent envs and the PettingZoo team env. The host has
+    The host has
     ``metadata`` (``render_modes``, ``render_fps``), a ``default_config()`` with
     ``invalid_action`` and ``render_size_px``, calls ``_configure`` in ``__init__``,
     describes frames with ``_scene_frame()`` and counts ``_elapsed_steps`` from reset.

@@ -6,14 +6,21 @@ at the EKF's prior. Each copy has at most K landmarks, stacked as (N, K, 2) with
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 
 from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.kernels import landmark_gains, pose_block_log_dets, range_bearing_models
+from infonav_gym.estimation.kernels import (
+    chosen_landmark_updates,
+    landmark_gains,
+    pose_block_log_dets,
+    range_bearing_models,
+)
 from infonav_gym.estimation.state import POSE_DIM
+from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import gaussian_entropy_from_log_det, stacked_log_dets
 from infonav_gym.sensors.range_bearing import RangeBearingSensor, noise_covariances
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
@@ -60,7 +67,7 @@ class LandmarkDecision(NamedTuple):
         """
         floats = [contiguous(np.asarray(array, dtype=float)) for array in (x, P, landmarks, true_poses)]
         coverage = float(sensor.max_range_m), float(sensor.fov_rad)
-        *decision, coincident = landmark_decisions(
+        *decision, pose_log_det, coincident, not_positive_definite = landmark_decisions(
             *floats,
             contiguous(np.asarray(exists, dtype=bool)),
             bool(mapping),
@@ -70,33 +77,61 @@ class LandmarkDecision(NamedTuple):
         )
         if coincident:
             raise ValueError(batched.COINCIDENT)
-        if np.isnan(decision[-2].sum() + decision[-1].sum()):  # a NaN log det (the sums of finite ones are finite)
+        if not_positive_definite:
             raise ValueError("P is not positive definite (determinant <= 0)")
-        *decision, pose_log_det = decision
         return cls(*decision, gaussian_entropy_from_log_det(pose_log_det, POSE_DIM))
 
-    def observe(self, x, P, chosen: np.ndarray, measure) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Update each copy's EKF prior ``(x, P)`` with a measurement of its chosen landmark ``chosen`` (N,), -1: none.
+    def observe(
+        self, x, P, chosen, true_poses, landmarks, noise, noise_stds
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Update each copy's EKF prior ``(x, P)`` with a noisy range-bearing measurement of its chosen landmark.
 
-        ``measure(observers)`` gives the noisy ``[range, bearing]`` of the observing copies (n, 2).
+        Args:
+            x, P: the priors (N, n), (N, n, n) at which this decision was made.
+            chosen: each copy's landmark (N,), -1 for none.
+            true_poses: the poses the measurements are taken from (N, 3).
+            landmarks: the true landmark positions (N, K, 2).
+            noise: each observing copy's two standard normals (N, 2) (``RangeBearingSensor.measure_with_noise``).
+            noise_stds: the sensor's ``noise_stds``.
 
         Returns:
             ``(x, P, realized MI (N,) [nats])``, 0 for a copy without a measurement.
         """
-        observers = np.flatnonzero(chosen >= 0)
-        if not observers.size:
-            return x, P, np.zeros(len(chosen))
-        measurements = np.zeros((len(chosen), 2))
-        measurements[observers] = measure(observers)
-        return batched.chosen_landmark_updates(
-            x, P, measurements, chosen, self.predicted, self.H, self.R, self.prior_log_det
+        floats = (contiguous(np.asarray(array, dtype=float)) for array in (x, P, true_poses, landmarks, noise))
+        x, P, realized = measured_updates(
+            *floats,
+            contiguous(np.asarray(chosen, dtype=np.int64)),
+            noise_stds,
+            self.predicted,
+            self.H,
+            self.R,
+            self.prior_log_det,
         )
+        if np.isnan(realized.sum()):
+            raise ValueError("the posterior covariance is not positive definite (determinant <= 0)")
+        return x, P, realized
+
+
+@kernel
+def measured_updates(x, P, true_poses, landmarks, noise, chosen, noise_stds, predicted, H, R, prior_log_det):
+    """``LandmarkDecision.observe``: each chosen landmark's noisy ``[range, bearing]`` from its copy's true pose
+    (``RangeBearingSensor.measure_with_noise`` given ``noise``), then ``chosen_landmark_updates``."""
+    measurements = np.zeros((len(chosen), 2))
+    for c in range(len(chosen)):
+        k = chosen[c]
+        if k >= 0:
+            dx, dy = landmarks[c, k, 0] - true_poses[c, 0], landmarks[c, k, 1] - true_poses[c, 1]
+            distance = math.hypot(dx, dy)
+            measurements[c, 0] = distance + (noise_stds[0] + noise_stds[1] * distance) * noise[c, 0]
+            measurements[c, 1] = wrap(math.atan2(dy, dx) - true_poses[c, 2] + noise_stds[2] * noise[c, 1])
+    return chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det)
 
 
 @kernel
 def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, coverage, walls, discs, culled):
     """``LandmarkDecision.at_prior`` of N copies, but for the pose entropy: its fields, then the pose's ``ln det``
-    (N,) and whether a landmark coincides with its copy's estimate.
+    (N,), whether a landmark coincides with its copy's estimate and whether a log det is NaN (a prior that is not
+    positive definite).
 
     ``noise_stds``: the sensor's ``noise_stds``; ``coverage``: its ``(max_range_m, fov_rad)``; ``walls``, ``discs``,
     ``culled``: the static geometry's ``shape_arrays``. Without ``mapped`` a missing landmark is put 1 m off the
@@ -155,4 +190,7 @@ def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, 
                 gains[c, k] = 0.0
     prior_log_det = stacked_log_dets(P)
     pose_log_det = pose_block_log_dets(P, 1)[:, 0] if n > POSE_DIM else prior_log_det.copy()
-    return action_mask, gains, predicted, H, R, prior_log_det, pose_log_det, coincident
+    not_positive_definite = False
+    for c in range(n_copies):
+        not_positive_definite |= math.isnan(prior_log_det[c]) or math.isnan(pose_log_det[c])
+    return action_mask, gains, predicted, H, R, prior_log_det, pose_log_det, coincident, not_positive_definite

@@ -174,9 +174,8 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
         """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
         acting, chosen = self._begin_step(actions)
         rewards = self._observe(chosen)
-        stepped = np.flatnonzero(acting)
-        self._elapsed[stepped] += 1
-        self._advance(stepped)
+        self._elapsed += acting
+        self._advance(np.flatnonzero(acting))
         truncated = acting & (self._elapsed >= self.config["horizon"])
         observation, info = self._finish_step(
             truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, rewards)
@@ -185,13 +184,7 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
 
     def _observe(self, chosen: np.ndarray) -> np.ndarray:
         """Update each observing copy's EKF with a noisy measurement of its chosen landmark; the realized MI (N,)."""
-
-        def measure(observers):
-            landmarks = self._landmarks[observers, chosen[observers]]
-            noise = self._measurement_noise.take(observers)
-            return self._sensor.measure_with_noise(self._worlds.poses[observers, 0], landmarks, noise)
-
-        self._x, self._P, rewards = self._decision.observe(self._x, self._P, chosen, measure)
+        self._x, self._P, rewards = self._measured(self._decision, chosen)
         return rewards
 
     def _advance(self, copies: np.ndarray) -> None:
@@ -209,15 +202,15 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
 
     def _outputs(self, copies, geometry, stepped, chosen, rewards) -> tuple[np.ndarray, dict]:
         """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos."""
-        true_poses, x, P = self._worlds.poses[copies, 0], self._x[copies], self._P[copies]
-        exists = self._exists[copies]
+        rows = self._rows(copies)
+        true_poses, x, P, exists = self._worlds.poses[rows, 0], self._x[rows], self._P[rows], self._exists[rows]
         decision = LandmarkDecision.at_prior(
-            self._sensor, geometry, true_poses, x, P, self._landmarks[copies], exists, self.config["mapping"]
+            self._sensor, geometry, true_poses, x, P, self._landmarks[rows], exists, self.config["mapping"]
         )
         self._set_decision(copies, decision)
-        self._chosen[copies] = np.where(stepped, chosen, -1)
+        self._chosen[rows] = np.where(stepped, chosen, -1)
         self._track_first_copy(copies, stepped)
-        elapsed = self._elapsed[copies]
+        elapsed = self._elapsed[rows]
         observation = self._observation(decision, x, P, elapsed, exists)
         info = self._info(decision, x, true_poses, elapsed, stepped, chosen, rewards)
         return observation, info

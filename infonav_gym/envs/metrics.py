@@ -158,4 +158,12 @@ TEAM_LOCALIZATION_METRICS = (  # the team's (joint-state) MI; entropy and RMSE a
     EpisodeMetric("final_pose_entropy", POSE_ENTROPY_TITLE, team_mean_final_value("pose_entropy")),
     EpisodeMetric("pose_rmse_m", RMSE_TITLE, team_mean_root_mean_square("position_error_m")),
 )
+EXPLORATION_METRICS = (  # cooperative_exploration_v0: the team's success, coverage and information
+    EpisodeMetric("success_rate", "success rate", team_final_flag("success"), proportion=True),
+    EpisodeMetric("failure_rate", "robot lost rate", team_final_flag("failed"), proportion=True),
+    EpisodeMetric("final_coverage", "final coverage", team_mean_final_value("coverage")),
+    EpisodeMetric("map_information", "team map information [nats]", team_summed_reward_term("team_map_information")),
+    EpisodeMetric("pose_information", "team pose MI [nats]", team_total_reward_term("own_pose_information")),
+    EpisodeMetric("episode_steps", "episode length [steps]", len),
+)
 SUCCESS_RATE = EpisodeMetric("success_rate", "success rate", final_flag("success"), proportion=True)

@@ -2,16 +2,18 @@
 
 Their copies' robots move in a ``WorldBatch``; each copy's odometry and measurement noise come from its own
 streams (``NoiseStreams``, the single env's two generators drawn ahead), and the EKFs predict from the noisy
-odometry on the batched core, as ``PoseEKF.predict`` does.
+odometry on the compiled core, as ``PoseEKF.predict`` does.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from infonav_gym.compiled import contiguous, stacked
+from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
-from infonav_gym.estimation import batched
+from infonav_gym.estimation.kernels import predict_poses
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.scene import PathHistory, RobotDrawing
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
@@ -28,6 +30,7 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
         num_envs = self.num_envs
         self._sensor, self._odometry = self._parts()
         self._odometry_covariance = self._odometry.noise_covariance()
+        self._odometry_covariances = stacked(self._odometry_covariance, (num_envs, 1, 2, 2))  # what the kernel takes
         self._worlds = WorldBatch(num_envs)
         self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
         self._true_path = self._estimated_path = None  # copy 0's, when drawing
@@ -56,11 +59,23 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
         return self._worlds.scenario(copy)
 
     def _moved(self, copies: np.ndarray, x: np.ndarray, P: np.ndarray, commands=None):
-        """Drive the robots of ``copies`` one step (``commands`` (n, 2) or their routes); their predicted ``(x, P)``."""
+        """Drive the robots of ``copies`` one step (``commands`` (n, 2) or their routes); their predicted ``(x, P)``
+        (``PoseEKF.predict`` from the noisy odometry, on the compiled core)."""
         dt = self.config["time_step_s"]
         controls = self._worlds.step(dt, copies, None if commands is None else commands[:, None])[:, 0]
         readings = self._odometry.measure_with_noise(controls, self._odometry_noise.take(copies))
-        return batched.predict_pose(x, P, readings, dt, self._odometry_covariance, check_input=False)
+        x, P = (contiguous(np.asarray(array, dtype=float)) for array in (x, P))
+        return predict_poses(x, P, readings[:, None], float(dt), self._odometry_covariances[: len(copies)])
+
+    def _measured(self, decision: LandmarkDecision, chosen: np.ndarray):
+        """Each copy's EKF updated at ``decision`` with a noisy measurement of its chosen landmark (N,), -1: none
+        (taken from its true pose now, its noise from its own stream); ``(x, P, realized MI (N,) [nats])``."""
+        noise = np.zeros((self.num_envs, 2))
+        observers = np.flatnonzero(chosen >= 0)
+        if observers.size:
+            noise[observers] = self._measurement_noise.take(observers)
+        true_poses = self._worlds.poses[:, 0]
+        return decision.observe(self._x, self._P, chosen, true_poses, self._landmarks, noise, self._sensor.noise_stds)
 
     def _track_first_copy(self, copies: np.ndarray, stepped: np.ndarray) -> None:
         """When drawing: extend copy 0's true and estimated paths if it is among ``copies`` and stepped, else start

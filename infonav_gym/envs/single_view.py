@@ -24,14 +24,13 @@ def first_row(info: dict) -> dict:
     for key, value in info.items():
         if key[0] == "_":
             continue
-        mask = info.get(f"_{key}")
+        mask = info.get("_" + key)
         if mask is not None and not mask[0]:
             continue
-        if isinstance(value, dict):
+        if type(value) is dict:
             row[key] = first_row(value)
-        else:
-            item = value[0]
-            row[key] = item.item() if isinstance(item, np.generic) else item
+        else:  # an array: a 1-d one's row 0 as a Python scalar (or the object it holds), else a view of row 0
+            row[key] = value.item(0) if value.ndim == 1 else value[0]
     return row
 
 

@@ -1,12 +1,12 @@
 """``InfoNavVectorEnv``: what the native vector envs share (seeds per sub-env, action checks, masks, the API).
 
-An env written once on batched arrays declares ``default_config()`` and calls ``_setup`` (then sets its spaces
-with ``_set_spaces``); its single env is the N = 1 view (``envs.single_view``) and ``render()`` draws its copy 0
-from ``_scene_frame()``. An env still written twice names its single env (``single_env=``) and calls
-``_configure``, which builds that env to check the config and replays copy 0 in it to render. Either keeps the
-current decision in ``self._decision`` (with an ``action_mask`` (N, A)), starts episodes in ``_reset_copies``
-(returning their static geometry) with their first outputs from ``_reset_outputs``, and ends its ``step`` with
-``_finish_step``, which makes the resets of its ``autoreset_mode``.
+Every env is written once on batched arrays: it declares ``default_config()``; its constructor (fixed here) calls
+``_setup`` (the shared arguments and keys), then the env's ``_build`` hook (its own keys, its parts, its spaces with
+``_set_spaces``); its single env is the N = 1 view (``envs.single_view``) and ``render()`` draws its copy 0 from
+``_scene_frame()``. It keeps the current decision in ``self._decision`` (with an ``action_mask`` (N, A)), starts
+episodes in ``_reset_copies`` (returning their static geometry) with their first outputs from ``_reset_outputs``,
+and ends its ``step`` with ``_finish_step``, which makes the resets of its ``autoreset_mode`` (a team env's
+``TeamVectorEnv`` has its own cycle).
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ from gymnasium.vector.utils import batch_space
 from infonav_gym.config import check_choice, check_config, merge_config
 from infonav_gym.envs.base import EPISODE_STEPS, INVALID_ACTION_MODES, RENDER_SIZE_PX, accepts_action, shared_config
 from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
-from infonav_gym.envs.vector_view import FirstCopyView
 
 
 def is_seed(value) -> bool:
@@ -48,31 +47,19 @@ def sub_env_seeds(seed, num_envs: int, owner: str) -> list[int | None]:
 class InfoNavVectorEnv(VectorEnv):
     """Base of the native vector envs: N sub-envs of one single env, each with its own generator.
 
-    ``autoreset_mode`` is ``NEXT_STEP`` or ``SAME_STEP`` per instance (``metadata["autoreset_mode"]``). With a
-    ``render_mode``, ``render()`` draws sub-env 0 as its single env does (``FirstCopyView``): the subclass calls
-    ``_view_restarts`` when sub-env 0 starts an episode and ``_view_steps`` when it acts.
+    ``autoreset_mode`` is one of ``AUTORESET_MODES`` per instance (``metadata["autoreset_mode"]``). With a
+    ``render_mode``, ``render()`` draws sub-env 0 from the env's ``_scene_frame()``.
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
     AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP, AutoresetMode.DISABLED)
-    single_env: type | None = None  # an env written twice: ``class MyVectorEnv(InfoNavVectorEnv, single_env=MyEnv)``
-    _view: FirstCopyView | None = None  # set by ``_configure``; None before, so a half-built env closes cleanly
-    _renderer = None  # an env written once: made by the first ``render()``
+    _renderer = None  # made by the first ``render()``
     _owner: str | None = None  # the single env's name, in the errors of its copy (``one_copy``)
 
     @classmethod
     def default_config(cls) -> dict:
         """A fresh dict of every config key with its default; the constructor's keywords override it."""
         return shared_config()
-
-    def __init_subclass__(cls, single_env: type | None = None, **kwargs):
-        super().__init_subclass__(**kwargs)
-        if single_env is not None:  # its render modes and fps, NEXT_STEP autoreset by default
-            cls.single_env = single_env
-            cls.metadata = {
-                **InfoNavVectorEnv.metadata,
-                **{key: single_env.metadata[key] for key in ("render_modes", "render_fps")},
-            }
 
     def __init__(
         self,
@@ -81,15 +68,12 @@ class InfoNavVectorEnv(VectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **config,
     ):
-        """An env written once: the shared arguments and keys checked (``_setup``), then the env's own (``_build``).
-
-        An env written twice defines its own ``__init__`` around ``_configure``.
-        """
+        """The shared arguments and keys checked (``_setup``), then the env's own (``_build``)."""
         self._setup(num_envs, render_mode, autoreset_mode, config)
         self._build()
 
     def _build(self) -> None:
-        """Hook of an env written once: check its own config keys, set its spaces (``_set_spaces``), build its parts
+        """Hook: check the env's own config keys, set its spaces (``_set_spaces``), build its parts
         and allocate its stacked state for ``num_envs`` copies."""
         raise NotImplementedError(f"{type(self).__name__} must implement _build()")
 
@@ -135,26 +119,6 @@ class InfoNavVectorEnv(VectorEnv):
         self.observation_space = batch_space(single_observation_space, self.num_envs)
         self.action_space = batch_space(single_action_space, self.num_envs)
 
-    def _configure(self, num_envs: int, render_mode: str | None, autoreset_mode, config: dict) -> gym.Env:
-        """An env written twice: check the vector arguments; take the config (and a ``gym.Env``'s spaces) of
-        ``single_env(**config)``.
-
-        Returns:
-            That single env (it checked the config as it always does).
-
-        Raises:
-            ValueError: for ``num_envs`` that is not an int >= 1, a render mode the single env does not have,
-                an autoreset mode other than ``AUTORESET_MODES``, or a config the single env rejects.
-        """
-        single_env = type(self).single_env
-        single = single_env(**config)
-        self._start_copies(num_envs, render_mode, autoreset_mode)
-        self._view = None if render_mode is None else FirstCopyView(single_env(render_mode, **config))
-        self.config = single.config
-        if isinstance(single, gym.Env):  # a parallel env's subclass sets its own (N, R, ...) spaces
-            self._set_spaces(single.observation_space, single.action_space)
-        return single
-
     def _start_copies(self, num_envs: int, render_mode: str | None, autoreset_mode) -> None:
         owner = self.owner_name
         if type(num_envs) is not int or num_envs < 1:
@@ -164,6 +128,7 @@ class InfoNavVectorEnv(VectorEnv):
         self.num_envs = num_envs
         self.render_mode = render_mode
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
+        self._everyone = np.arange(num_envs)  # every copy's index, for steps that touch all of them
         self._decision = self._geometry = None
         self._prev_done = np.zeros(num_envs, dtype=bool)
 
@@ -190,9 +155,7 @@ class InfoNavVectorEnv(VectorEnv):
         """
         actions = self._checked_actions(actions)
         acting = ~self._prev_done
-        chosen = self._accepted_actions(actions, acting)
-        self._view_steps(actions, acting)
-        return acting, chosen
+        return acting, self._accepted_actions(actions, acting)
 
     def _finish_step(self, ended: np.ndarray, step_outputs) -> tuple[np.ndarray, dict]:
         """The observations and infos of a step in which the sub-envs ``ended`` (N,) bool ended their episodes.
@@ -201,7 +164,7 @@ class InfoNavVectorEnv(VectorEnv):
         ``NEXT_STEP``: the sub-envs that ended at the last step start again now, then all decide. ``SAME_STEP``: all
         decide, then those that ended start again, their last observation and info in ``final_obs`` / ``final_info``.
         """
-        everyone = np.arange(self.num_envs)
+        everyone = self._everyone
         if self.autoreset_mode == AutoresetMode.DISABLED:
             # a sub-env that ended goes on stepping (no autoreset) until reset() is called
             return self._rendered(step_outputs(everyone, self._geometry))
@@ -223,6 +186,11 @@ class InfoNavVectorEnv(VectorEnv):
             info.update(final_infos)
         return self._rendered((observation, info))
 
+    def _rows(self, copies: np.ndarray):
+        """The index of ``copies`` (ascending) into the (N, ...) arrays: all rows as a slice (views, no copies) when
+        they are every copy."""
+        return slice(None) if len(copies) == self.num_envs else copies
+
     def _set_decision(self, copies: np.ndarray, decision) -> None:
         """Keep ``decision`` (a named tuple of arrays (n, ...)) as the decision of ``copies`` (n,), the others' kept."""
         if len(copies) == self.num_envs:
@@ -232,20 +200,10 @@ class InfoNavVectorEnv(VectorEnv):
             self._decision = type(decision)(*rows)
 
     def _rendered(self, outputs: tuple) -> tuple:
-        """``outputs`` of a reset or step, after drawing sub-env 0 in ``"human"`` mode (an env written once)."""
-        if self.render_mode == "human" and self._view is None:
+        """``outputs`` of a reset or step, after drawing sub-env 0 in ``"human"`` mode."""
+        if self.render_mode == "human":
             self.render()
         return outputs
-
-    def _view_restarts(self, copies) -> None:
-        """Copies ``copies`` start an episode (before drawing from their generators): sub-env 0's view follows."""
-        if self._view is not None and 0 in copies:
-            self._view.restart(self._np_randoms[0])
-
-    def _view_steps(self, actions: np.ndarray, acting: np.ndarray) -> None:
-        """The sub-envs ``acting`` take ``actions``: sub-env 0's view replays its action."""
-        if self._view is not None and acting[0]:
-            self._view.step(int(actions[0]))
 
     @property
     def np_randoms(self) -> list[np.random.Generator | None]:
@@ -281,14 +239,13 @@ class InfoNavVectorEnv(VectorEnv):
                 f"actions of {owner} must be an integer array of shape ({self.num_envs},), one per sub-env, in "
                 f"[0, {top}]; got {array.dtype} of shape {array.shape}"
             )
-        outside = np.flatnonzero((array < 0) | (array > top))
-        if outside.size:
-            copy = int(outside[0])
+        if array.min() < 0 or array.max() > top:
+            copy = int(np.flatnonzero((array < 0) | (array > top))[0])
             raise ValueError(
                 f"action {array[copy]} of sub-env {copy} is not in the action space {space}: expected an integer "
                 f"in [0, {top}]"
             )
-        return array.astype(int)
+        return array.astype(int, copy=False)
 
     def _accepted_actions(self, actions: np.ndarray, acting: np.ndarray) -> np.ndarray:
         """Each acting sub-env's action where its mask allows it, else -1 (the no-op), per ``invalid_action``.
@@ -297,15 +254,17 @@ class InfoNavVectorEnv(VectorEnv):
             ValueError: with ``invalid_action="raise"``, for a masked action of a sub-env that has a valid one.
         """
         mask = self._decision.action_mask
-        valid = acting & mask[np.arange(self.num_envs), actions].astype(bool)
-        for copy in np.flatnonzero(acting & ~valid).tolist():
-            accepts_action(
-                int(actions[copy]),
-                mask[copy],
-                self.config["invalid_action"],
-                'info["action_mask"]',
-                None if self._owner else f"sub-env {copy}",  # a single env has no sub-envs to name
-            )
+        valid = mask[self._everyone, actions] != 0
+        valid &= acting
+        if self.config["invalid_action"] == "raise":  # with "noop" a masked action is the no-op, silently
+            for copy in np.flatnonzero(acting & ~valid).tolist():
+                accepts_action(
+                    int(actions[copy]),
+                    mask[copy],
+                    "raise",
+                    'info["action_mask"]',
+                    None if self._owner else f"sub-env {copy}",  # a single env has no sub-envs to name
+                )
         return np.where(valid, actions, -1)
 
     def action_masks(self) -> np.ndarray:
@@ -317,15 +276,13 @@ class InfoNavVectorEnv(VectorEnv):
         return mask
 
     def render(self):
-        """Sub-env 0's frame as its single env draws it (an RGB array for ``"rgb_array"``); None without a mode."""
+        """Sub-env 0's frame (an RGB array for ``"rgb_array"``), drawn from ``_scene_frame()``; None without a mode."""
         owner = self.owner_name
         if self.render_mode is None:
             gym.logger.warn(f'{owner}.render() called without a render_mode; use render_mode="rgb_array"')
             return None
         if self._decision is None:
             raise RuntimeError(f"{owner}: call reset() before render()")
-        if self._view is not None:
-            return self._view.render()
         if self._renderer is None:
             from infonav_gym.rendering import Renderer  # pygame only when drawing
 
@@ -333,14 +290,11 @@ class InfoNavVectorEnv(VectorEnv):
         return self._renderer.draw(self._scene_frame())
 
     def _scene_frame(self):
-        """Hook of an env written once: the ``infonav_gym.scene.SceneFrame`` of sub-env 0 now (it must not change
-        the env)."""
+        """Hook: the ``infonav_gym.scene.SceneFrame`` of sub-env 0 now (it must not change the env)."""
         raise NotImplementedError(f"{self.owner_name} must implement _scene_frame() to render")
 
     def close_extras(self, **kwargs) -> None:
         self._decision = None
-        if self._view is not None:
-            self._view.close()
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None

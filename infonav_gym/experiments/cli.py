@@ -176,7 +176,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="rllib: env runner processes; 0 samples in the driver process (default: 1)",
     )
     train.add_argument(
-        "--envs-per-runner", type=positive_int, default=1, help="rllib: env copies per runner (default: 1)"
+        "--envs-per-runner",
+        type=positive_int,
+        help="rllib: env copies per runner (default: a team env's ppo.yml n_envs over the runners, stepped at once; "
+        "1 of a single-agent env)",
     )
     train.add_argument(
         "--policies",
@@ -434,7 +437,7 @@ def _train_rllib(args) -> dict:
         progress=not args.json,
     )
     if not args.json:
-        copies = f"{args.num_env_runners} env runners x {args.envs_per_runner} envs"
+        copies = f"{args.num_env_runners} env runners x {record['envs_per_runner']} envs"
         _print_trained(args, record, copies, f"checkpoint: {record['checkpoint']}", f"rllib:{output}")
     return record
 

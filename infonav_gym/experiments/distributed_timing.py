@@ -2,9 +2,11 @@
 
 - ``evaluation_workers_figures``: the wall time of ``evaluate`` (LandmarkSelection-v0, the CLI's default agents,
   20 episodes each) with 2 worker processes over its time with 1, alternating rounds, median ratio;
-- ``rllib_runner_figures`` (when Ray imports): env-steps/s RLlib's env runners sample on a team env
-  (default ``cooperative_localization_v0``, the RLlib backend's masked multi-agent env, random-initialized shared
-  policy), with 2 runners against 1, each run on the same local Ray.
+- ``rllib_runner_figures`` (when Ray imports): env-steps/s (team steps of one copy) RLlib's env runners sample
+  on a team env (default ``cooperative_localization_v0``) with 2 runners against 1, and on
+  ``cooperative_exploration_v0`` with 1, each run on the same local Ray: the RLlib backend's runners as training
+  builds them (the ppo.yml block's ``n_envs`` copies shared out over the runners, stepped at once in the team's
+  native vector env, masked, random-initialized shared policy).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import time
 from infonav_gym.experiments.evaluation import evaluate
 
 EVALUATION_ENV_ID, EVALUATION_AGENTS, EVALUATION_EPISODES = "infonav/LandmarkSelection-v0", ("random", "greedy"), 20
-TEAM_ID = "cooperative_localization_v0"
+TEAM_ID, EXPLORATION_ID = "cooperative_localization_v0", "cooperative_exploration_v0"
 RLLIB_SAMPLE_STEPS = 2000  # env steps each runner samples per measurement (at --seconds 1)
 
 
@@ -70,15 +72,18 @@ def _sampled_steps_per_second(num_env_runners: int, seed: int, steps: int, env_i
 
 
 def rllib_runner_figures(seed: int = 0, steps: int = RLLIB_SAMPLE_STEPS, env_id: str = TEAM_ID) -> dict:
-    """Sampled env-steps/s on ``env_id`` with 1 and 2 env runners (``steps`` each), their ratio; {} without Ray."""
+    """Sampled env-steps/s on ``env_id`` with 1 and 2 env runners (``steps`` each), their ratio, and on the
+    exploration env with 1; {} without Ray."""
     if rllib_missing():
         return {}
     from agents.ray_support import local_or_cluster_ray
 
     with local_or_cluster_ray():
         one, two = (_sampled_steps_per_second(runners, seed, steps, env_id) for runners in (1, 2))
+        exploration = _sampled_steps_per_second(1, seed, steps, EXPLORATION_ID)
     return {
         "rllib_team_1_runner_steps_per_s": one,
         "rllib_team_2_runners_steps_per_s": two,
         "rllib_team_2_runners_vs_1_ratio": two / one,
+        "rllib_exploration_1_runner_steps_per_s": exploration,
     }

@@ -1,25 +1,30 @@
-"""``CooperativeExplorationVectorEnv``: N copies of ``cooperative_exploration_v0`` stepped at once on stacked arrays.
+"""``CooperativeExplorationVectorEnv``: ``cooperative_exploration_v0`` written once, N copies on stacked arrays.
 
-``make_vector_env("cooperative_exploration_v0", num_envs=N, **config)`` returns it. The joint estimation
-(prediction, DGPS, relative-pose and landmark updates, expected gains, log-determinants), the line of sight,
-the terrain maps and the scan gains run batched over the copies (``estimation.batched``, ``world.visibility``,
-``TerrainMapModel``), the physics in a ``WorldBatch`` driven by the motions' turn and drive commands, and the
-sensor noise from one stream per copy and sensor (``NoiseStreams``: the parallel env's generators, drawn ahead).
-So copy ``i`` after ``reset(seed=s)`` gives the numbers of ``parallel_env()`` after ``reset(seed=s + i)``.
+``make_vector_env("cooperative_exploration_v0", num_envs=N, **config)`` returns it; its PettingZoo env
+(``CooperativeExplorationEnv``, ``cooperative_exploration_v0.parallel_env``) is its N = 1 view without autoreset
+(``multi.parallel_view``). The joint estimation (prediction, DGPS, relative-pose and landmark updates, expected
+gains, log-determinants), the line of sight, the terrain maps and the scan gains run batched over the copies
+(``estimation.batched``, ``world.visibility``, ``TerrainMapModel``), the physics in a ``WorldBatch`` driven by the
+motions' turn and drive commands, and the sensor noise from one stream per copy and sensor (``NoiseStreams``), so
+copy ``i`` after ``reset(seed=s)`` gives the numbers of ``parallel_env()`` after ``reset(seed=s + i)``.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
+from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
 from infonav_gym.envs.active_transition import ranges_and_bearings
+from infonav_gym.envs.metrics import EXPLORATION_METRICS
+from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import largest_position_std
-from infonav_gym.multi.cooperative_exploration import REWARD_TERMS, CooperativeExplorationEnv, start_episode
-from infonav_gym.multi.cooperative_localization_batch import TeamDecision
-from infonav_gym.multi.exploration_batch import (
+from infonav_gym.multi.exploration_decision import (
+    EXPLORATION_INFO_KEYS,
     ExplorationDecision,
     ExplorationStep,
     TeamSight,
@@ -28,7 +33,9 @@ from infonav_gym.multi.exploration_batch import (
 )
 from infonav_gym.multi.exploration_planning import (
     N_MOTIONS,
+    NOOP_ACTION,
     STAY,
+    ExplorationPlanningModel,
     action_gains,
     clear_motions,
     motion_plan,
@@ -36,16 +43,47 @@ from infonav_gym.multi.exploration_planning import (
     scan_gains,
     total_reward,
 )
-from infonav_gym.multi.exploration_views import exploration_observations
-from infonav_gym.multi.team_localization import team_observations
+from infonav_gym.multi.exploration_team import (
+    REWARD_TERMS,
+    ExplorationParts,
+    exploration_config,
+    exploration_observation_bounds,
+    exploration_observations,
+    start_episode,
+)
+from infonav_gym.multi.parallel_view import team_metadata
+from infonav_gym.multi.team_decision import TeamDecision
+from infonav_gym.multi.team_localization import team_observation_bounds, team_observations
+from infonav_gym.multi.team_paths import FirstCopyPaths
 from infonav_gym.multi.team_vector import TeamVectorEnv, draws_in_slot_order
+from infonav_gym.scene import SceneFrame
 from infonav_gym.world.visibility import StaticGeometry
 
 LANDMARK_NOISE = 3  # ``_noise`` index of the landmark measurements' streams (after odometry, DGPS, relative poses)
+MAP_IMAGE_PIXELS_PER_CELL = 8
 
 
-class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplorationEnv):
-    """N copies of ``CooperativeExplorationEnv`` (see it for the spaces, rewards and config keys), batched.
+class CopyState(NamedTuple):
+    """One copy's estimator state at its current decision (copies of its arrays), for its planning model.
+
+    Attributes:
+        x: the joint EKF state (3R,); P: its covariance (3R, 3R).
+        map_variances: the terrain map's cell variances (G,) [m^2].
+        observations_left: each robot's sensing budget (R,).
+        done: whether the copy's episode has ended (a robot lost, the coverage target reached, or out of time).
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    map_variances: np.ndarray
+    observations_left: np.ndarray
+    done: bool
+
+
+class CooperativeExplorationVectorEnv(TeamVectorEnv):
+    """N copies of ``cooperative_exploration_v0`` on stacked arrays: the env's one implementation.
+
+    See ``CooperativeExplorationEnv`` (its N = 1 PettingZoo view) for the spaces, rewards and config keys.
 
     ## Vector API
     ``agents`` are the team's robots R; ``single_observation_space`` / ``single_action_space`` one robot's.
@@ -54,57 +92,130 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
     (N, R). Infos hold the parallel env's per-agent keys as arrays with leading (N, R), but the team's
     ``time_s``, ``coverage``, ``failed`` and ``success``: (N,); each with Gymnasium's ``_key`` mask (N,).
     ``info["action_mask"]`` and ``action_masks()`` (bool, for ``MaskablePPO``) are (N, R, 5 (1 + L + R)).
+    ``planning_model(copy)`` is the planning model of copy ``copy`` (``multi.exploration_planning``).
 
     ## Autoreset
     As ``CooperativeLocalizationVectorEnv``: ``NEXT_STEP`` (the default) resets a copy at the step after its
     episode ended (its actions ignored, rewards 0, its reset info with ``reward_terms`` masked out);
-    ``SAME_STEP`` at once, the last observation and info in ``info["final_obs"]`` and ``info["final_info"]``.
+    ``SAME_STEP`` at once, the last observation and info in ``info["final_obs"]`` and ``info["final_info"]``;
+    ``DISABLED``: a copy goes on from its last state until ``reset()`` (what the PettingZoo view steps).
 
     ## Arguments
     ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name ``"same_step"``) and
-    any key of ``CooperativeExplorationEnv.default_config()``, checked as the parallel env checks them.
-    ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0, as its parallel env would.
+    any key of ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0:
+    the field, the terrain map, each robot's truth, estimate, covariance and paths, and this step's observations.
     """
 
+    metadata = {**team_metadata("cooperative_exploration_v0"), "autoreset_mode": AutoresetMode.NEXT_STEP}
+    episode_metrics = EXPLORATION_METRICS
+    traits = EnvTraits(
+        reports_success=True,
+        may_terminate=True,
+        noop_action=NOOP_ACTION,
+        idle_actions=frozenset({NOOP_ACTION}),  # stay, observe nothing
+        reward_config_keys=("team_reward",),
+        reward_terms=REWARD_TERMS,
+        info_keys=EXPLORATION_INFO_KEYS,
+    )
     team_info_keys = frozenset({"time_s", "coverage", "failed", "success"})
 
-    def __init__(
-        self,
-        num_envs: int = 1,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        **config,
-    ):
-        self._configure_team(num_envs, render_mode, autoreset_mode, config, more_noise_widths=(2,))
-        single, n_robots = self._single, len(self.agents)
-        self._sight = TeamSight.of_team(single.relative_sensors, self._pairs)
-        self._map = single.map_model
-        self._speeds_mps = single.speeds_mps
-        self._landmarks = np.zeros((num_envs, self.config["n_landmarks"], 2))
-        self._map_variances = np.zeros((num_envs, self._map.n_cells))
+    @classmethod
+    def default_config(cls) -> dict:
+        """A fresh dict of every config key with its default."""
+        return exploration_config()
+
+    def _build(self) -> None:
+        num_envs, cfg = self.num_envs, self.config
+        self.parts = parts = ExplorationParts.of_config(cfg, self.owner_name)
+        n_robots, n_landmarks, n_cells = len(parts.gps), cfg["n_landmarks"], parts.map_model.n_cells
+        team_low, team_high = team_observation_bounds(n_robots, False)
+        self._team_space = spaces.Box(team_low, team_high, dtype=np.float32)
+        low, high = exploration_observation_bounds(team_low, team_high, n_landmarks, n_cells)
+        action_space = spaces.Discrete(N_MOTIONS * (1 + n_landmarks + n_robots))
+        observation_space = spaces.Box(low, high, dtype=np.float32)
+        self._setup_team(observation_space, action_space, parts.pairs, parts.gps, parts.odometry, (2,))
+        self._sight = TeamSight.of_team(parts.relative_sensors, parts.pairs)
+        self._landmarks = np.zeros((num_envs, n_landmarks, 2))
+        self._geometries: list[StaticGeometry | None] = [None] * num_envs
+        self._map_variances = np.zeros((num_envs, n_cells))
         self._coverage = np.zeros(num_envs)
         self._observations_left = np.zeros((num_envs, n_robots), dtype=int)
         self._lost = np.zeros((num_envs, n_robots), dtype=bool)
         self._success = np.zeros(num_envs, dtype=bool)
+        self._planning_models: dict[int, ExplorationPlanningModel] = {}
+        self._paths: FirstCopyPaths | None = None  # copy 0's paths and last observations, kept to draw them
+        self._observed_pairs: list[tuple[int, int]] = []
+        self._observed_landmarks: list[tuple[int, int]] = []
+
+    # ------------------------------------------------------------------ the state, for harnesses and tests
+
+    def static_geometry(self, copy: int = 0) -> StaticGeometry:
+        """The walls and obstacles of copy ``copy``'s episode (one copy)."""
+        return self._geometries[copy]
+
+    @property
+    def robot_radius_m(self) -> float:
+        """The radius of every robot's disc [m]."""
+        return self._worlds.robot_radius_m
+
+    @property
+    def map_variances(self) -> np.ndarray:
+        """Every copy's terrain map cell variances (N, G) [m^2] (a copy)."""
+        return self._map_variances.copy()
+
+    @property
+    def elapsed_steps(self) -> np.ndarray:
+        """Every copy's steps since its reset (N,) (a copy)."""
+        return self._elapsed.copy()
+
+    @property
+    def decision(self) -> ExplorationDecision:
+        """The current decision of every copy (masks, expected gains, the observation slots' validity)."""
+        return self._decision
+
+    def copy_state(self, copy: int) -> CopyState:
+        """Copy ``copy``'s estimator state at its current decision.
+
+        Raises:
+            RuntimeError: before the first ``reset()``.
+        """
+        if self._decision is None:
+            raise RuntimeError(f"{self.owner_name}: call reset() before copy_state() (a planning model's belief())")
+        done = self._lost[copy].any() or self._success[copy] or self._elapsed[copy] >= self.max_cycles
+        return CopyState(
+            self._x[copy].copy(),
+            self._P[copy].copy(),
+            self._map_variances[copy].copy(),
+            self._observations_left[copy].copy(),
+            bool(done),
+        )
+
+    def planning_model(self, copy: int = 0) -> ExplorationPlanningModel:
+        """The planning model of copy ``copy`` (the same object on every call), for look-ahead agents
+        (``agents.planner.PlannerAgent``)."""
+        if copy not in self._planning_models:
+            self._planning_models[copy] = ExplorationPlanningModel(self, copy)
+        return self._planning_models[copy]
 
     # ------------------------------------------------------------------ reset
 
     def _reset_copies(self, copies: np.ndarray) -> None:
-        """Start a new episode in each of ``copies`` from its own generator, as the parallel env's reset does."""
-        self._view_restarts(copies)
-        geometries = []
+        """Start a new episode in each of ``copies`` from its own generator."""
         for copy in copies.tolist():
             scenario, poses, covariances, *generators = start_episode(self.config, self._np_randoms[copy])
             self._start_copy(copy, scenario, poses, covariances, generators)
             self._landmarks[copy] = scenario.landmarks
-            geometries.append(StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m))
-        geometry = StaticGeometry.stack(geometries)
+            self._geometries[copy] = StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m)
+        geometry = StaticGeometry.stack([self._geometries[copy] for copy in copies.tolist()])
         self._geometry = geometry if len(copies) == self.num_envs else self._geometry.with_copies(copies, geometry)
-        self._map_variances[copies] = self._map.prior_variances()
+        self._map_variances[copies] = self.parts.map_model.prior_variances()
         self._coverage[copies] = 0.0
         self._observations_left[copies] = self.config["max_observations"]
         self._lost[copies] = self._success[copies] = False
         self._started(copies)
+        if copies[0] == 0 and self.render_mode is not None:
+            self._paths = FirstCopyPaths(self._worlds.poses[0], self._x[0].reshape(-1, POSE_DIM))
+            self._observed_pairs, self._observed_landmarks = [], []
 
     def _reset_record(self) -> ExplorationStep:
         return ExplorationStep.nothing(self.num_envs, len(self.agents), REWARD_TERMS)
@@ -115,7 +226,8 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
     # ------------------------------------------------------------------ step
 
     def _act(self, chosen: np.ndarray, invalid: np.ndarray, acting: np.ndarray) -> tuple:
-        """Observe at the prior, drive, predict, fuse DGPS, then scan, in the ``acting`` copies (see the single env)."""
+        """Observe at the prior, drive, predict, fuse DGPS, then scan, in the ``acting`` copies (rewards: see
+        ``CooperativeExplorationEnv``)."""
         cfg, decision = self.config, self._decision
         record = ExplorationStep.nothing(self.num_envs, len(self.agents), REWARD_TERMS)._replace(
             stepped=acting, chosen=chosen, invalid=invalid
@@ -125,7 +237,9 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
             return record, np.zeros(chosen.shape), np.zeros(self.num_envs, dtype=bool)
         n_landmarks = cfg["n_landmarks"]
         slots, motions = np.divmod(chosen[copies], N_MOTIONS)
-        plan = motion_plan(motions, self._x[copies, 2::POSE_DIM], self._speeds_mps)  # the decision's, as masked
+        plan = motion_plan(motions, self._x[copies, 2::POSE_DIM], self.parts.speeds_mps)  # the decision's, as masked
+        if acting[0] and self.render_mode is not None:  # drawn by render()
+            self._first_copy_observed(slots[0])
         observes_teammate = slots > n_landmarks
         teammates = np.where(observes_teammate, slots - n_landmarks, 0)
         measured = np.flatnonzero(observes_teammate.any(axis=1))
@@ -153,7 +267,17 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
         rewards[copies] = total_reward(cfg["team_reward"], terms)
         terminated = np.zeros(self.num_envs, dtype=bool)
         terminated[copies] = lost.any(axis=1) | self._success[copies]
+        if acting[0] and self._paths is not None:
+            self._paths.extend(self._worlds.poses[0], self._x[0].reshape(-1, POSE_DIM))
         return record, rewards, terminated
+
+    def _first_copy_observed(self, slots: np.ndarray) -> None:
+        """Keep copy 0's teammate and landmark observations of this step (its robots' observation ``slots`` (R,))."""
+        n_landmarks, robots = self.config["n_landmarks"], np.arange(len(slots))
+        teammates = slots > n_landmarks
+        landmarks = (slots > 0) & ~teammates
+        self._observed_pairs = list(zip(robots[teammates].tolist(), (slots[teammates] - 1 - n_landmarks).tolist()))
+        self._observed_landmarks = list(zip(robots[landmarks].tolist(), (slots[landmarks] - 1).tolist()))
 
     def _observe_landmarks(self, copies: np.ndarray, landmarks: np.ndarray) -> None:
         """Fuse the observations of landmark ``landmarks[c, k]`` (-1: none) by robot k of ``copies[c]``, linearized at
@@ -206,7 +330,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
         rows = np.flatnonzero(scanning.any(axis=1))
         if not rows.size:
             return information
-        model, mapped = self._map, copies[rows]
+        model, mapped = self.parts.map_model, copies[rows]
         before = self._map_variances[mapped]
         footprints = model.footprints(self._worlds.poses[mapped, :, :2]) & scanning[rows, :, None]
         noise = model.scan_noise_variances(position_std[rows])
@@ -239,9 +363,9 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
         position_std = self._position_std(np.arange(n_copies))
         drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
         positions = x.reshape(n_copies, n_robots, POSE_DIM)[..., :2]
-        scan = scan_gains(self._map, self._map_variances, positions, position_std, self._speeds_mps, drive_s)
-        headings, radius_m = x[:, 2::POSE_DIM], self._single.world.robot_radius_m
-        clear = clear_motions(self._geometry, true_poses, headings, self._speeds_mps, drive_s, radius_m)
+        speeds, radius_m = self.parts.speeds_mps, self._worlds.robot_radius_m
+        scan = scan_gains(self.parts.map_model, self._map_variances, positions, position_std, speeds, drive_s)
+        clear = clear_motions(self._geometry, true_poses, x[:, 2::POSE_DIM], speeds, drive_s, radius_m)
         mask = slot_valid[..., None] & clear[:, :, None, :]
         gains = action_gains(cfg["team_reward"], observation_gain, scan, mask).reshape(n_copies, n_robots, -1)
         mask = mask.reshape(n_copies, n_robots, -1).astype(np.int8)
@@ -260,17 +384,17 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
             self._gps_available,
             (self._elapsed / self.max_cycles)[:, None],
             decision.slot_valid[..., 1 + n_landmarks :],
-            self._single._team_space,
+            self._team_space,
         )
         seen = ranges_and_bearings(estimates.reshape(-1, POSE_DIM), np.repeat(self._landmarks, n_robots, axis=0))
         observations = exploration_observations(
             team,
             decision.slot_valid[..., 1 : 1 + n_landmarks],
             seen.reshape(n_copies, n_robots, n_landmarks, 2),
-            self._speeds_mps,
+            self.parts.speeds_mps,
             self._observations_left / budget if budget else np.zeros((n_copies, n_robots)),
             self._coverage,
-            np.sqrt(self._map_variances) / self._map.prior_std_m,
+            np.sqrt(self._map_variances) / self.parts.map_model.prior_std_m,
             self.single_observation_space,
         )
         state = {
@@ -284,3 +408,29 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv, single_env=CooperativeExplo
             "time_s": self._elapsed * cfg["time_step_s"],
         }
         return observations, exploration_info(decision, last, state)
+
+    # ------------------------------------------------------------------ rendering
+
+    def _scene_frame(self) -> SceneFrame:
+        """Copy 0 drawn: its field, the terrain map (inset), every robot (truth, estimate, covariance, paths) and this
+        step's teammate and landmark observations."""
+        scenario, side = self._worlds.scenario(0), self.config["map_cells_per_side"]
+        known = 1.0 - np.sqrt(self._map_variances[0]) / self.parts.map_model.prior_std_m
+        image = np.kron(np.flipud(known.reshape(side, side)), np.ones((MAP_IMAGE_PIXELS_PER_CELL,) * 2))
+        time_s = self._elapsed[0] * self.config["time_step_s"]
+        pairs, landmarks = self._observed_pairs, self._observed_landmarks
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            landmarks=scenario.landmarks,
+            robots=self._paths.drawings(
+                self._worlds.poses[0], self._x[0], self._P[0], self.agents, self._gps_available[0]
+            ),
+            observations=list(pairs),
+            landmark_observations=list(landmarks),
+            gps_denied_zones=scenario.gps_denied_zones,
+            inset_image=np.round(255 * image).astype(np.uint8),
+            inset_title=f"terrain map (white: known), coverage {self._coverage[0]:.0%}",
+            caption=f"t = {time_s:.0f} s   {len(pairs)} teammate and {len(landmarks)} landmark observations this step",
+        )

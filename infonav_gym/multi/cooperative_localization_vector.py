@@ -20,8 +20,8 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import log_det_spd
-from infonav_gym.multi.base import team_metadata
-from infonav_gym.multi.cooperative_localization_batch import (
+from infonav_gym.multi.parallel_view import team_metadata
+from infonav_gym.multi.team_decision import (
     TeamDecision,
     TeamSightLines,
     TeamStep,
@@ -102,19 +102,6 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
         self._observed_pairs: list[tuple[int, int]] = []  # copy 0's relative observations of the last step
 
     # ------------------------------------------------------------------ the state, for harnesses and tests
-
-    def scenario(self, copy: int = 0):
-        """The ``Scenario`` of copy ``copy``'s episode."""
-        return self._worlds.scenario(copy)
-
-    @property
-    def true_poses(self) -> np.ndarray:
-        """Every copy's true robot poses (N, R, 3) [m, m, rad] (a copy)."""
-        return self._worlds.poses.copy()
-
-    def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
-        """Every copy's joint EKF state ``x`` (N, 3R) and covariance ``P`` (N, 3R, 3R) (copies)."""
-        return self._x.copy(), self._P.copy()
 
     @property
     def decision(self) -> TeamDecision:
@@ -222,15 +209,14 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
     def _scene_frame(self) -> SceneFrame:
         """Copy 0 drawn: its scenario, every robot (truth, estimate, covariance, paths) and this step's observations."""
         scenario = self._worlds.scenario(0)
-        labels = [
-            f"{agent}{'' if available else ', no GPS'}" for agent, available in zip(self.agents, self._gps_available[0])
-        ]
         time_s = self._elapsed[0] * self.config["time_step_s"]
         return SceneFrame(
             bounds=scenario.bounds,
             walls=scenario.walls,
             obstacles=scenario.obstacles,
-            robots=self._paths.drawings(self._worlds.poses[0], self._x[0], self._P[0], labels),
+            robots=self._paths.drawings(
+                self._worlds.poses[0], self._x[0], self._P[0], self.agents, self._gps_available[0]
+            ),
             observations=list(self._observed_pairs),
             gps_denied_zones=scenario.gps_denied_zones,
             caption=f"t = {time_s:.1f} s   {len(self._observed_pairs)} relative observations this step",

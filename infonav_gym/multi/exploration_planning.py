@@ -2,10 +2,11 @@
 
 What ``agents.planner.PlannerAgent`` searches (the team counterpart of ``envs.active_planning``). Under the
 EKF's linearization a covariance after an update does not depend on the measured value, so a step's expected
-reward follows from the belief alone, without sampling and without the true state: ``belief()`` copies the
-joint EKF, the map and the budgets; ``plan_decision(belief, robot)`` gives one robot's mask and gains;
+reward follows from the belief alone, without sampling and without the true state: ``belief()`` copies a copy's
+joint EKF state, map and budgets; ``plan_decision(belief, robot)`` gives one robot's mask and gains;
 ``plan_step(belief, actions)`` predicts one step of the whole team. The helpers of one step (motion plans,
-scan gains, rewards) are the env's own: it computes its masks, gains and rewards with them.
+scan gains, rewards) are the env's own: ``CooperativeExplorationVectorEnv`` computes its masks, gains and rewards
+with them.
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std
-from infonav_gym.multi.cooperative_localization_batch import TeamSightLines, observable_pairs
-from infonav_gym.multi.team_sensing import gps_available
+from infonav_gym.multi.team_decision import TeamSightLines, observable_pairs
+from infonav_gym.multi.team_sensing import gps_available, gps_schedule
 from infonav_gym.sensors.relative_pose import noise_covariances
 from infonav_gym.world.clearance import clear_moves
 from infonav_gym.world.visibility import visible
@@ -137,40 +138,33 @@ class TeamBelief(BeliefBatch):
 
 
 class ExplorationPlanningModel:
-    """The step model and planning model of ``CooperativeExplorationEnv``, a mixin of it.
+    """The planning model of one copy of ``CooperativeExplorationVectorEnv`` (``env.planning_model(copy)``).
 
-    It reads the env's config, world, sensors, map model, ``pairs``, ``_pair_lookup``, ``speeds_mps``,
-    ``_static_geometry`` (and its copies ``_tiled_geometries``), ``_gps_schedule``, ``_gps_noise``,
-    ``_odometry_covariances`` and, for ``belief()``, its EKF, map, budgets and clock. A look-ahead agent uses
-    ``belief()``, ``plan_decision(belief, robot)``, ``plan_step(belief, actions)``, ``position_std(covariances)``,
-    ``n_primitives``, ``max_position_std_m``, ``idle_primitive`` and ``step_index``.
+    What a look-ahead agent uses: ``belief()``, ``plan_decision(belief, robot)``, ``plan_step(belief, actions)``,
+    ``position_std(covariances)``, ``n_primitives``, ``max_position_std_m``, ``idle_primitive`` and
+    ``step_index``. Built from the env's parts (``ExplorationParts``), it reads the copy's episode (landmarks,
+    static geometry, GPS-denied zones) and its estimator state (``env.copy_state(copy)``) when called, so one
+    model serves a whole run.
     """
 
     n_primitives = N_MOTIONS
     idle_primitive = STAY  # the motion that stands still
 
-    # ------------------------------------------------------------------ one step: the env's own helpers
+    def __init__(self, env, copy: int = 0):
+        self._env, self._copy = env, copy
+        self._parts = parts = env.parts
+        n_robots = len(parts.gps)
+        self._pair_lookup = np.full((n_robots, n_robots), -1)  # the pair index of (observer, target), -1 for none
+        self._pair_lookup[parts.pairs.observers, parts.pairs.targets] = np.arange(len(parts.pairs.observers))
+        self._gps_schedule = gps_schedule(parts.gps)
+        self._gps_noise = np.array([np.eye(2) if gps is None else gps.noise_covariance() for gps in parts.gps])
+        self._odometry_covariances = np.repeat(parts.odometry.noise_covariance()[None], n_robots, axis=0)
+        self._drive_s = self.config["time_step_s"] - self.config["turn_time_s"]  # the drive phase of a step [s]
+        self._tiled: tuple = (None, {})  # the copy's static geometry and its tiled copies by count
 
     @property
-    def _drive_s(self) -> float:
-        """The drive phase of a step [s]."""
-        return self.config["time_step_s"] - self.config["turn_time_s"]
-
-    def _motion_plan(self, headings: np.ndarray, motions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``motion_plan`` of M motions of each robot (..., R, M) at its estimated heading (..., R)."""
-        return motion_plan(motions, headings[..., None], self.speeds_mps[:, None])
-
-    def _scan_gains(self, poses, position_std, map_variances, robots=slice(None)) -> np.ndarray:
-        """``scan_gains`` from the estimated ``poses`` (..., R, 3); ``robots`` says which robots of the team the R
-        are (default: all)."""
-        speeds = self.speeds_mps[robots]
-        return scan_gains(self.map_model, map_variances, poses[..., :2], position_std, speeds, self._drive_s)
-
-    # ------------------------------------------------------------------ the planning model
-
-    def planning_model(self) -> ExplorationPlanningModel:
-        """The env's planning model (the env itself, through the methods above), for ``PlannerAgent``."""
-        return self
+    def config(self) -> dict:
+        return self._env.config
 
     @property
     def max_position_std_m(self) -> float:
@@ -179,8 +173,8 @@ class ExplorationPlanningModel:
 
     @property
     def step_index(self) -> int:
-        """The index of the current decision: steps since the reset."""
-        return self._elapsed_steps
+        """The index of the current decision: steps since the copy's reset."""
+        return int(self._env.elapsed_steps[self._copy])
 
     @staticmethod
     def position_std(covariances: np.ndarray) -> np.ndarray:
@@ -190,17 +184,19 @@ class ExplorationPlanningModel:
         return largest_position_std(blocks.reshape(-1, POSE_DIM, POSE_DIM)).reshape(blocks.shape[:2])
 
     def belief(self) -> TeamBelief:
-        """The team's estimator state at the current decision, as a batch of one."""
-        if getattr(self, "_elapsed_steps", None) is None:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before belief()")
-        done = bool(self.lost.any()) or self.success or self._elapsed_steps >= self.max_cycles
+        """The team's estimator state at the copy's current decision, as a batch of one.
+
+        Raises:
+            RuntimeError: before the env's first ``reset()``.
+        """
+        state = self._env.copy_state(self._copy)
         return self._belief(
-            self.ekf.x[None].copy(),
-            self.ekf.P[None].copy(),
-            self.map_variances[None].copy(),
-            self.observations_left[None].copy(),
+            state.x[None],
+            state.P[None],
+            state.map_variances[None],
+            state.observations_left[None],
             np.zeros(1, dtype=int),
-            np.array([done]),
+            np.array([state.done]),
         )
 
     def plan_decision(self, belief: TeamBelief, robot: int) -> tuple[np.ndarray, np.ndarray]:
@@ -209,36 +205,41 @@ class ExplorationPlanningModel:
         As ``infos`` give them, with what the robot would see judged from the estimates. A finished belief
         has only action 0 valid, with gain 0.
         """
-        n_landmarks, B = self.config["n_landmarks"], len(belief)
+        parts, n_landmarks, B = self._parts, self.config["n_landmarks"], len(belief)
+        pairs = parts.pairs
         poses = belief.x.reshape(B, -1, POSE_DIM)
+        n_slots = 1 + n_landmarks + poses.shape[1]
         observable = (belief.observations_left[:, robot] > 0) & ~belief.done
-        slot_valid = np.zeros((B, self.n_slots), dtype=bool)
+        slot_valid = np.zeros((B, n_slots), dtype=bool)
         slot_valid[:, 0] = True
         slot_valid[:, 1 : 1 + n_landmarks] = belief.landmark_visible[:, robot] & observable[:, None]
-        observation_gain = np.zeros((B, self.n_slots))
-        if n_landmarks and self.relative_sensors[robot] is not None:
+        observation_gain = np.zeros((B, n_slots))
+        if n_landmarks and parts.relative_sensors[robot] is not None:
             block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
-            landmarks = np.broadcast_to(self.world.landmarks, (B, n_landmarks, 2))
+            landmarks = np.broadcast_to(self._landmarks(), (B, n_landmarks, 2))
             _, H, R = self._plan_landmark_models(poses[:, robot], landmarks, robot)
             observation_gain[:, 1 : 1 + n_landmarks] = batched.landmark_information_gains(
                 belief.covariance[:, block, block], H, R, check_input=False
             )
-        own_pairs = np.flatnonzero(self.pairs.observers == robot)
+        own_pairs = np.flatnonzero(pairs.observers == robot)
         if own_pairs.size:
-            slots = 1 + n_landmarks + self.pairs.targets[own_pairs]
+            slots = 1 + n_landmarks + pairs.targets[own_pairs]
             slot_valid[:, slots] = belief.pair_visible[:, own_pairs] & observable[:, None]
-            pairs = np.broadcast_to(own_pairs, (B, own_pairs.size))
-            observers, targets = self.pairs.observers[pairs], self.pairs.targets[pairs]
+            chosen = np.broadcast_to(own_pairs, (B, own_pairs.size))
+            observers, targets = pairs.observers[chosen], pairs.targets[chosen]
             predicted, H_observer, H_target = batched.relative_pose_model(
                 belief.x, observers, targets, check_input=False
             )
-            R = self._pair_noise(pairs, predicted[..., 0])
+            R = self._pair_noise(chosen, predicted[..., 0])
             observation_gain[:, slots] = batched.relative_pose_information_gains(
                 belief.covariance, observers, targets, H_observer, H_target, R, check_input=False
             )[0]
         own = slice(robot, robot + 1)
         position_std = self.position_std(belief.covariance)[:, own]
-        scan = self._scan_gains(poses[:, own], position_std, belief.map_variances, own)[:, 0]
+        speeds = parts.speeds_mps[own]
+        scan = scan_gains(
+            parts.map_model, belief.map_variances, poses[:, own, :2], position_std, speeds, self._drive_s
+        )[:, 0]
         mask = slot_valid[:, :, None] & belief.motion_clear[:, robot, None, :]
         mask[belief.done] = False
         mask[belief.done, 0, STAY] = True
@@ -254,8 +255,8 @@ class ExplorationPlanningModel:
         position. What a robot's action asks for and its belief does not allow is dropped (an observation
         out of sight or budget: none; a motion that is not clear: stay). A finished belief stays put, earns 0.
         """
-        cfg = self.config
-        B, n_robots, n_landmarks = len(belief), len(self.possible_agents), cfg["n_landmarks"]
+        cfg, map_model = self.config, self._parts.map_model
+        B, n_robots, n_landmarks = len(belief), len(self._parts.gps), cfg["n_landmarks"]
         live = ~belief.done
         slots, motions = np.divmod(np.asarray(actions, dtype=int).reshape(B, n_robots), N_MOTIONS)
         budget = (belief.observations_left > 0) & live[:, None]
@@ -274,21 +275,22 @@ class ExplorationPlanningModel:
         own = 0.5 * (log_dets[0] - log_dets[1])
         x, P = self._expected_motion(belief.x, P, motions, driving)
         positions = x.reshape(B, n_robots, POSE_DIM)[..., :2]
-        time_s = self._time_s + (belief.steps + 1) * cfg["time_step_s"]
-        denied = self.world.gps_denied(positions.reshape(-1, 2)).reshape(B, n_robots)
+        elapsed = self.step_index
+        time_s = elapsed * cfg["time_step_s"] + (belief.steps + 1) * cfg["time_step_s"]
+        denied = self._env.gps_denied(self._copy, positions.reshape(-1, 2)).reshape(B, n_robots)
         has_fix = gps_available(*self._gps_schedule, denied, time_s) & live[:, None]
         if has_fix.any():
             x, P = batched.gps_update(x, P, positions, self._gps_noise, has_fix, check_input=False)
         position_std = self.position_std(P)
-        footprints = self.map_model.footprints(positions) & driving[..., None]
-        noise = self.map_model.scan_noise_variances(position_std)
-        map_variances = self.map_model.fused(belief.map_variances, footprints, noise)
+        footprints = map_model.footprints(positions) & driving[..., None]
+        noise = map_model.scan_noise_variances(position_std)
+        map_variances = map_model.fused(belief.map_variances, footprints, noise)
         map_information = 0.5 * np.sum(np.log(belief.map_variances / map_variances), axis=-1)
         lost = (position_std > cfg["max_position_std_m"]).any(axis=1) & live
-        success = (self.map_model.coverage(map_variances) >= cfg["coverage_target"]) & ~lost & live
-        out_of_time = self._elapsed_steps + belief.steps + 1 >= self.max_cycles
-        terms = reward_terms(self.config, own, map_information, observed, driving, lost)
-        rewards = total_reward(self.config["team_reward"], terms)
+        success = (map_model.coverage(map_variances) >= cfg["coverage_target"]) & ~lost & live
+        out_of_time = elapsed + belief.steps + 1 >= cfg["max_cycles"]
+        terms = reward_terms(cfg, own, map_information, observed, driving, lost)
+        rewards = total_reward(cfg["team_reward"], terms)
         following = self._belief(
             np.where(live[:, None], x, belief.x),
             np.where(live[:, None, None], P, belief.covariance),
@@ -307,30 +309,37 @@ class ExplorationPlanningModel:
         poses = x.reshape(B, -1, POSE_DIM)
         n_robots = poses.shape[1]
         landmark_visible = np.zeros((B, n_robots, n_landmarks), dtype=bool)
-        sensors = [None if sensor is None else sensor.range_bearing for sensor in self.relative_sensors]
+        sensors = [None if sensor is None else sensor.range_bearing for sensor in self._parts.relative_sensors]
         for sensor in {sensor for sensor in sensors if sensor is not None} if n_landmarks else ():
             robots = [robot for robot, other in enumerate(sensors) if other == sensor]  # one query per sensor
             seen = poses[:, robots].reshape(-1, POSE_DIM)
-            landmarks = np.broadcast_to(self.world.landmarks, (len(seen), n_landmarks, 2))
+            landmarks = np.broadcast_to(self._landmarks(), (len(seen), n_landmarks, 2))
             seen_landmarks = visible(self._tiled_geometry(len(seen)), sensor, seen, landmarks, check_input=False)
             landmark_visible[:, robots] = seen_landmarks.reshape(B, len(robots), n_landmarks)
-        pairs = self.pairs
+        pairs = self._parts.pairs
         lines = np.array(pairs.sight_lines, dtype=int).reshape(-1, 2)
         sight = TeamSightLines(self._tiled_geometry(B), lines) if len(pairs.observers) else None
         pair_visible = observable_pairs(pairs, sight, poses)[1]
-        radius_m = self.world.robot_radius_m
+        radius_m = self._env.robot_radius_m
         motion_clear = clear_motions(
-            self._tiled_geometry(B), poses, poses[..., 2], self.speeds_mps, self._drive_s, radius_m
+            self._tiled_geometry(B), poses, poses[..., 2], self._parts.speeds_mps, self._drive_s, radius_m
         )
         return TeamBelief(
             x, covariance, map_variances, observations_left, steps, done, landmark_visible, pair_visible, motion_clear
         )
 
+    def _landmarks(self) -> np.ndarray:
+        """The landmarks of the copy's episode (L, 2) [m]."""
+        return self._env.scenario(self._copy).landmarks
+
     def _tiled_geometry(self, n_copies: int):
-        """The world's static shapes as ``n_copies`` copies (``StaticGeometry.tiled``), kept for the episode."""
-        tiled = self._tiled_geometries.get(n_copies)
+        """The copy's static shapes as ``n_copies`` copies (``StaticGeometry.tiled``), kept for the episode."""
+        geometry = self._env.static_geometry(self._copy)
+        if self._tiled[0] is not geometry:
+            self._tiled = (geometry, {})
+        tiled = self._tiled[1].get(n_copies)
         if tiled is None:
-            tiled = self._tiled_geometries[n_copies] = self._static_geometry.tiled(n_copies)
+            tiled = self._tiled[1][n_copies] = geometry.tiled(n_copies)
         return tiled
 
     def _plan_landmark_models(self, poses, landmarks, robots):
@@ -342,13 +351,14 @@ class ExplorationPlanningModel:
         for robot in np.unique(robots).tolist():
             rows = robots == robot
             ranges = predicted[rows, :, 0]
-            noise = self.relative_sensors[robot].range_bearing.noise_covariance(ranges.ravel())
+            noise = self._parts.relative_sensors[robot].range_bearing.noise_covariance(ranges.ravel())
             R[rows] = noise.reshape(*ranges.shape, 2, 2)
         return predicted, H, R
 
     def _pair_noise(self, pairs: np.ndarray, ranges: np.ndarray) -> np.ndarray:
         """Noise covariances (..., 3, 3) of the relative poses of ``pairs`` (``SensingPairs`` rows) at ``ranges``."""
-        return noise_covariances(self.pairs.noise[pairs].reshape(-1, 5), ranges.ravel()).reshape(*np.shape(pairs), 3, 3)
+        noise = self._parts.pairs.noise[pairs].reshape(-1, 5)
+        return noise_covariances(noise, ranges.ravel()).reshape(*np.shape(pairs), 3, 3)
 
     def _expected_observations(self, belief, sees_landmark, landmarks, sees_teammate, pairs) -> np.ndarray:
         """The joint covariance (B, 3R, 3R) after every robot's observation of the step, as one stacked update.
@@ -364,7 +374,7 @@ class ExplorationPlanningModel:
         pose_columns = np.arange(POSE_DIM)[None, None, :]
         copies, robots = np.nonzero(sees_landmark)
         if copies.size:
-            seen = self.world.landmarks[landmarks[copies, robots]][:, None]
+            seen = self._landmarks()[landmarks[copies, robots]][:, None]
             _, H_pose, R_pose = self._plan_landmark_models(poses[copies, robots], seen, robots)
             rows = (copies[:, None, None], robots[:, None, None], np.arange(2)[None, :, None])
             H[(*rows, POSE_DIM * robots[:, None, None] + pose_columns)] = H_pose[:, 0]
@@ -372,7 +382,7 @@ class ExplorationPlanningModel:
         copies, robots = np.nonzero(sees_teammate)
         if copies.size:
             chosen = pairs[copies, robots]
-            targets = self.pairs.targets[chosen]
+            targets = self._parts.pairs.targets[chosen]
             predicted, H_observer, H_target = batched.relative_pose_model(
                 belief.x[copies], robots[:, None], targets[:, None], check_input=False
             )
@@ -392,7 +402,7 @@ class ExplorationPlanningModel:
     def _expected_motion(self, x, P, motions, driving) -> tuple[np.ndarray, np.ndarray]:
         """The prediction ``(x, P)`` of the step's commanded turns and drives (the ``driving`` robots' motions)."""
         cfg = self.config
-        turns, speeds = self._motion_plan(x[:, 2::POSE_DIM], motions[..., None])
+        turns, speeds = motion_plan(motions[..., None], x[:, 2::POSE_DIM, None], self._parts.speeds_mps[:, None])
         turns, speeds = np.where(driving, turns[..., 0], 0.0), np.where(driving, speeds[..., 0], 0.0)
         turn_s = cfg["turn_time_s"]
         phases = (

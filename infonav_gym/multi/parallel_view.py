@@ -5,7 +5,8 @@ copy, without autoreset: ``class MyTeamEnv(ParallelEnvView, vector_env=MyTeamVec
 action per live agent, hands them on as a batch of one, and returns row 0 of every output as dicts per agent (the
 infos' numbers as Python scalars where they are one number). All agents end together and leave ``agents`` then
 (PettingZoo's semantics); ``reset()`` starts again. So ``parallel_env()`` after ``reset(seed=s)`` gives exactly the
-numbers of copy ``i`` of the vector env after ``reset(seed=s - i)``: there is nothing else to keep equal.
+numbers of copy ``i`` of the vector env after ``reset(seed=s - i)``: there is nothing else to keep equal. A team
+env's ``metadata`` comes from ``team_metadata``, its versioned module's entry points from ``pettingzoo_entry_points``.
 """
 
 from __future__ import annotations
@@ -13,10 +14,39 @@ from __future__ import annotations
 import numpy as np
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
+from pettingzoo.utils.conversions import parallel_to_aec_wrapper
+from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from infonav_gym.envs.base import discrete_action_index
 from infonav_gym.envs.copy_view import OneCopyView
 from infonav_gym.multi.team_vector import TeamVectorEnv
+
+
+def team_metadata(name: str) -> dict:
+    """A fresh ``metadata`` dict of a team env named ``name`` (its versioned module's name)."""
+    return {"name": name, "render_modes": ["human", "rgb_array"], "render_fps": 10, "is_parallelizable": True}
+
+
+def pettingzoo_entry_points(env_class) -> tuple:
+    """The versioned module's ``(parallel_env, raw_env, env)`` of a team env class, as PettingZoo's envs have them.
+
+    ``parallel_env(render_mode=None, **config)`` is the env itself; ``raw_env`` its AEC conversion; ``env``
+    the AEC env with PettingZoo's order-enforcing wrapper (the one to use for turn-based code).
+    """
+
+    def parallel_env(render_mode: str | None = None, **config):
+        """The parallel env: every robot acts at every step."""
+        return env_class(render_mode=render_mode, **config)
+
+    def raw_env(render_mode: str | None = None, **config) -> parallel_to_aec_wrapper:
+        """The AEC (agent-by-agent) conversion of ``parallel_env``, without wrappers."""
+        return parallel_to_aec_wrapper(parallel_env(render_mode=render_mode, **config))
+
+    def env(render_mode: str | None = None, **config) -> OrderEnforcingWrapper:
+        """The AEC env, wrapped to enforce PettingZoo's call order."""
+        return OrderEnforcingWrapper(raw_env(render_mode=render_mode, **config))
+
+    return parallel_env, raw_env, env
 
 
 def first_copy_infos(info: dict, agents: list[str], team_keys) -> dict:
@@ -29,12 +59,12 @@ def _first_copy_columns(info: dict, n_robots: int, team_keys) -> dict[str, list]
     """Each key's values of copy 0, one per robot."""
     columns = {}
     for key, value in info.items():
-        if key.startswith("_"):
+        if key[0] == "_":
             continue
-        if isinstance(value, dict):
+        if type(value) is dict:
             columns[key] = _per_robot(_first_copy_columns(value, n_robots, ()), n_robots)
         elif key in team_keys:
-            columns[key] = [value[0].item() if isinstance(value[0], np.generic) else value[0]] * n_robots
+            columns[key] = [value.item(0) if value.ndim == 1 else value[0]] * n_robots
         else:  # (N, R) numbers become Python scalars; (N, R, ...) arrays one row per robot
             columns[key] = value[0].tolist() if value.ndim == 2 else list(value[0])
     return columns
@@ -49,10 +79,16 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
     rendering; every live agent acts at every step.
 
     ``vector`` is the underlying vector env of one copy (its state: ``vector.scenario(0)``, ``vector.true_poses``...).
+    When the vector env has a ``planning_model(copy)``, the view has ``planning_model()``: that of its copy.
     """
 
     vector_env: type[TeamVectorEnv]
     metadata_keys = ("name", "render_modes", "render_fps", "is_parallelizable")
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if callable(getattr(getattr(cls, "vector_env", None), "planning_model", None)):
+            cls.planning_model = _copy_planning_model
 
     def __init__(self, render_mode: str | None = None, **config):
         self._view_one_copy(render_mode, config)
@@ -115,3 +151,8 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
 
     def close(self):
         self.vector.close()
+
+
+def _copy_planning_model(self):
+    """The env's planning model (its vector env's of its one copy), for look-ahead agents (``PlannerAgent``)."""
+    return self.vector.planning_model(0)

@@ -7,6 +7,9 @@ import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from infonav_gym.config import config_keys
+from infonav_gym.sensors.gps import GPSSensor
+
 KNOWN_SENSORS = ("odometry", "gps", "laser", "vision")
 RELATIVE_SENSORS = ("laser", "vision")
 # Robot k of the default team has suite k % 4: two DGPS robots with lasers, one with only
@@ -107,3 +110,14 @@ def parse_speeds(spec, defaults: Sequence[float], n_robots: int, high_mps: float
         if not 0.0 < speed <= high_mps:
             raise ValueError(f"each of robot_speeds_mps must be in (0, {high_mps:g}] m/s, got {speed!r}")
     return tuple(float(speed) for speed in spec)
+
+
+def gps_receivers(config: dict, suites: Sequence[RobotSuite], owner: str) -> list[GPSSensor | None]:
+    """Each robot's ``GPSSensor`` (``gps_std_m``, its ``gps_outages`` spans), None for a robot without DGPS.
+
+    Raises:
+        ValueError: naming ``owner`` and the key, for bad ``gps_outages`` or ``gps_std_m``.
+    """
+    outages = parse_outages(config["gps_outages"], len(suites))
+    with config_keys(owner, {"position_std_m": "gps_std_m"}):
+        return [GPSSensor(config["gps_std_m"], spans) if suite.gps else None for suite, spans in zip(suites, outages)]

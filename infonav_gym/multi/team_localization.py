@@ -16,7 +16,7 @@ from infonav_gym.config import Interval, check_choice, check_config, check_confi
 from infonav_gym.envs.base import EPISODE_STEPS
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.information import gaussian_entropy_from_log_det
-from infonav_gym.multi.team import DEFAULT_OUTAGE, RobotSuite, parse_outages, parse_suites
+from infonav_gym.multi.team import DEFAULT_OUTAGE, RobotSuite, gps_receivers, parse_suites
 from infonav_gym.multi.team_sensing import SensingPairs, team_prior
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor, odometry_sensor_from_config
@@ -108,11 +108,7 @@ class TeamParts(NamedTuple):
             with config_keys(owner, {"n_robots": "n_robots"}):
                 team_route_bands(n_robots, config["field_size_m"], DEFAULT_WAYPOINTS)
         suites = parse_suites(config["robot_sensors"], n_robots, config["scenario"])
-        outages = parse_outages(config["gps_outages"], n_robots)
-        with config_keys(owner, {"position_std_m": "gps_std_m"}):
-            gps = [
-                GPSSensor(config["gps_std_m"], spans) if suite.gps else None for suite, spans in zip(suites, outages)
-            ]
+        gps = gps_receivers(config, suites, owner)
         relative_sensors = [RELATIVE_POSE_SENSORS.get(suite.relative_sensor) for suite in suites]
         return cls(suites, gps, SensingPairs.of_team(relative_sensors), odometry_sensor_from_config(config, owner))
 

@@ -1,4 +1,4 @@
-"""The robots' paths of a team env and how its robots are drawn (``TeamPaths``)."""
+"""The robots' paths of copy 0 of a team vector env and how its robots are drawn (``FirstCopyPaths``)."""
 
 from __future__ import annotations
 
@@ -6,40 +6,6 @@ import numpy as np
 
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.scene import PathHistory, RobotDrawing
-
-
-class TeamPaths:
-    """The true and estimated paths of a team env's robots, and their drawings; a mixin (of a team env still
-    written twice: one written once keeps its copy 0's in a ``FirstCopyPaths``).
-
-    The host has ``ekf`` (a ``JointEKF``), ``_true_poses`` (R, 3), ``_gps_available`` (R,) and ``possible_agents``.
-    """
-
-    def _start_paths(self) -> None:
-        """Start every robot's true and estimated path at its current pose."""
-        self._true_paths = [PathHistory(pose[:2]) for pose in self._true_poses]
-        self._estimated_paths = [PathHistory(pose[:2]) for pose in self.ekf.poses]
-
-    def _extend_paths(self) -> None:
-        """Append every robot's current true and estimated position to its paths."""
-        for robot, (true_pose, estimate) in enumerate(zip(self._true_poses, self.ekf.x.reshape(-1, POSE_DIM))):
-            self._true_paths[robot].append(true_pose[:2])
-            self._estimated_paths[robot].append(estimate[:2])  # PathHistory copies
-
-    def _robot_drawings(self) -> list[RobotDrawing]:
-        """Every robot's truth, estimate, covariance and paths, labelled with its name and whether it has DGPS."""
-        estimates = self.ekf.poses
-        return [
-            RobotDrawing(
-                true_pose=self._true_poses[k],
-                estimated_pose=estimates[k],
-                pose_covariance=self.ekf.pose_covariance(k),
-                true_path=self._true_paths[k].points(),
-                estimated_path=self._estimated_paths[k].points(),
-                label=f"{self.possible_agents[k]}{'' if self._gps_available[k] else ', no GPS'}",
-            )
-            for k in range(len(self.possible_agents))
-        ]
 
 
 class FirstCopyPaths:
@@ -56,10 +22,11 @@ class FirstCopyPaths:
             self.true_paths[robot].append(true_pose[:2])
             self.estimated_paths[robot].append(estimate[:2])  # PathHistory copies
 
-    def drawings(self, true_poses, x, P, labels) -> list[RobotDrawing]:
-        """Every robot's truth (R, 3), estimate and covariance (from the joint ``x`` (3R,), ``P`` (3R, 3R)), paths and
-        label."""
+    def drawings(self, true_poses, x, P, agents, gps_available) -> list[RobotDrawing]:
+        """Every robot's truth (R, 3), estimate and covariance (from the joint ``x`` (3R,), ``P`` (3R, 3R)) and paths,
+        labelled with its name (``agents``) and whether it has a DGPS fix (``gps_available`` (R,))."""
         estimates = x.reshape(-1, POSE_DIM)
+        labels = [f"{agent}{'' if available else ', no GPS'}" for agent, available in zip(agents, gps_available)]
         return [
             RobotDrawing(
                 true_pose=true_poses[k],

@@ -1,4 +1,4 @@
-"""What the team envs share about sensing: relative-pose pairs and their sight, DGPS fixes, the prior."""
+"""What the team envs share about sensing: relative-pose pairs, DGPS schedules and fixes, the prior."""
 
 from __future__ import annotations
 
@@ -6,34 +6,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from infonav_gym.estimation.models import relative_pose
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.sensors.relative_pose import noisy_relative_poses
 
 NO_OBSERVATION = 0  # a team env's teammate choice ``1 + j`` observes robot j; this observes no teammate
-
-
-class RelativeSight(NamedTuple):
-    """The relative-pose observations possible at a decision, and what their stacked update needs.
-
-    Immutable (a named tuple: cheap to build every step).
-
-    Attributes:
-        geometry: true range, bearing and relative heading of every (observer, target) pair (P, 3).
-        valid_pairs: the pairs observable now (V,), indices into the env's pair arrays.
-        candidate_row: for each robot and action, its row among the valid pairs, -1 where masked (N, N + 1).
-        candidates: ``(predicted (V, 3), H_observer (V, 3, 3), H_target (V, 3, 3), R (V, 3, 3))`` at
-            the prior, ``None`` when no pair is observable.
-        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (N,).
-        pose_std: each robot's x, y, heading standard deviations at the prior (N, 3).
-    """
-
-    geometry: np.ndarray
-    valid_pairs: np.ndarray
-    candidate_row: np.ndarray
-    candidates: tuple | None
-    pose_log_det: np.ndarray
-    pose_std: np.ndarray
 
 
 class SensingPairs(NamedTuple):
@@ -75,65 +50,6 @@ class SensingPairs(NamedTuple):
     def covered(self, geometry: np.ndarray) -> np.ndarray:
         """Which pairs' true ``[range, bearing, ...]`` (..., P, 3) lie in the observer's range and field of view."""
         return (geometry[..., 0] <= self.max_range_m) & (np.abs(geometry[..., 1]) <= self.half_fov_rad)
-
-
-class TeamSensing:
-    """The sensing steps of a team env on a ``JointEKF``, a mixin of it (of a team env still written twice).
-
-    The host has ``ekf`` (a ``JointEKF``), ``world`` (a ``World``), ``pairs`` (its ``SensingPairs``), ``gps``
-    (one ``GPSSensor`` or None per robot), ``_true_poses`` (R, 3), ``_time_s`` and the generators
-    ``_gps_rng`` and ``_relative_rng``.
-    """
-
-    def _observable_pairs(self) -> tuple[np.ndarray, np.ndarray]:
-        """The true ``[range, bearing, relative heading]`` of every pair (P, 3) and the pairs observable now (V,).
-
-        Observable: the target lies in the observer's range and field of view, and no wall or obstacle blocks
-        the line between them.
-        """
-        truth, pairs = self._true_poses, self.pairs
-        geometry = relative_pose(truth[pairs.observers], truth[pairs.targets])
-        covered = np.flatnonzero(pairs.covered(geometry))
-        lines = sorted(set(pairs.sight_line[covered].tolist()))
-        clear = dict(zip(lines, self.world.robots_in_sight([pairs.sight_lines[line] for line in lines])))
-        return geometry, covered[[clear[line] for line in pairs.sight_line[covered].tolist()]]
-
-    def _observe(self, chosen: np.ndarray, sight: RelativeSight) -> None:
-        """Apply the chosen relative-pose observations, taken at the same time, as one stacked update.
-
-        Args:
-            chosen: each robot's teammate choice (R,): ``NO_OBSERVATION`` or ``1 + j`` to observe robot j.
-            sight: the decision's ``RelativeSight`` (``candidate_row`` indexed by the teammate choice).
-        """
-        observers = np.flatnonzero(chosen != NO_OBSERVATION)
-        targets = chosen[observers] - 1
-        self._observed_pairs = list(zip(observers.tolist(), targets.tolist()))
-        if observers.size == 0:
-            return
-        rows = sight.candidate_row[observers, chosen[observers]]
-        predicted, H_observer, H_target, R = (part[rows] for part in sight.candidates)
-        pairs = sight.valid_pairs[rows]
-        measurements = noisy_relative_poses(sight.geometry[pairs], self.pairs.noise[pairs], self._relative_rng)
-        self.ekf.relative_pose_update(
-            observers, targets, measurements, predicted, H_observer, H_target, R, check_input=False
-        )
-
-    def _gps_fixes(self) -> None:
-        """Fuse the DGPS fixes of the robots that have one now (none under a canopy or in an outage)."""
-        denied = self.world.gps_denied(self._true_poses[:, :2])
-        self._gps_available = np.array(
-            [gps is not None and gps.available(self._time_s, bool(denied[k])) for k, gps in enumerate(self.gps)]
-        )
-        robots = np.flatnonzero(self._gps_available)
-        if robots.size:
-            fixes = np.array([self.gps[k].measure(self._true_poses[k, :2], self._gps_rng) for k in robots])
-            covariances = np.array([self.gps[k].noise_covariance() for k in robots])
-            self.ekf.gps_update(robots, fixes, covariances, check_input=False)
-
-    def _pose_uncertainty(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per robot, ``ln det`` of its pose covariance (N,) and its x, y, heading standard deviations (N, 3)."""
-        covariances = self.ekf.pose_covariances()
-        return np.linalg.slogdet(covariances)[1], np.sqrt(np.diagonal(covariances, axis1=1, axis2=2))
 
 
 def team_prior(config: dict, true_poses: np.ndarray, np_random: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

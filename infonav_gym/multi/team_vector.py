@@ -1,13 +1,12 @@
 """``TeamVectorEnv``: what the native vector envs of the team envs share (the step cycle, DGPS, relative poses).
 
 A team vector env batches N copies of a PettingZoo team env of R robots on stacked arrays: observations
-(N, R, ...), one action per copy and robot (N, R), joint EKF states ``x`` (N, 3R) and covariances ``P``. An env
-written once calls ``_setup`` (the config), checks its own keys, then ``_setup_team`` with its spaces and sensors;
-its PettingZoo env is the N = 1 view (``multi.parallel_view``) and ``render()`` draws its copy 0 from
-``_scene_frame()``. An env still written twice calls ``_configure_team`` (its parallel env checks the config).
-Either fills the hooks ``_reset_copies``, ``_reset_record``, ``_act``, ``_decide``, ``_outputs`` and
-``_restarted``; the cycle of ``reset`` and ``step`` (with the autoreset modes), the action checks, the DGPS fixes
-and the stacked relative-pose update are here.
+(N, R, ...), one action per copy and robot (N, R), joint EKF states ``x`` (N, 3R) and covariances ``P``. Its
+``_build`` hook (after ``_setup``, which merges the config) checks its own keys, then calls ``_setup_team`` with
+its spaces and sensors; its PettingZoo env is the N = 1 view (``multi.parallel_view``) and ``render()`` draws its
+copy 0 from ``_scene_frame()``. It fills the hooks ``_reset_copies``, ``_reset_record``, ``_act``, ``_decide``,
+``_outputs`` and ``_restarted``; the cycle of ``reset`` and ``step`` (with the autoreset modes), the action checks,
+the DGPS fixes and the stacked relative-pose update are here.
 """
 
 from __future__ import annotations
@@ -18,12 +17,14 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
+from infonav_gym.compiled import contiguous, stacked
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
+from infonav_gym.estimation.kernels import predict_poses
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.multi.team_sensing import gps_available, gps_schedule
 from infonav_gym.sensors.gps import GPSSensor
@@ -37,9 +38,9 @@ ODOMETRY_NOISE, GPS_NOISE, RELATIVE_NOISE = 0, 1, 2  # ``_noise`` index of each 
 class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     """Base of the native vector envs of the PettingZoo team envs (``CooperativeLocalizationVectorEnv``, ...).
 
-    Attributes set by ``_configure_team``: ``agents`` (the team's robots R), ``max_cycles``, the spaces, the
-    single env's ``_pairs`` (``SensingPairs``), ``_worlds`` (a ``WorldBatch``), ``_noise`` (one ``NoiseStreams``
-    per sensor generator of the single env, in the order it spawns them), ``_x``, ``_P``, ``_gps_available``
+    Attributes set by ``_setup_team``: ``agents`` (the team's robots R), ``max_cycles``, the spaces, the team's
+    ``_pairs`` (``SensingPairs``), ``_worlds`` (a ``WorldBatch``), ``_noise`` (one ``NoiseStreams`` per sensor
+    generator of an episode, in the order ``start_episode`` spawns them), ``_x``, ``_P``, ``_gps_available``
     (N, R) and ``_elapsed`` (N,). ``team_info_keys`` are the info keys of the whole team, (N,) arrays; every
     other key of the parallel env's ``infos[agent]`` is (N, R, ...).
     """
@@ -47,30 +48,6 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     team_info_keys = frozenset({"time_s"})
     AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP, AutoresetMode.DISABLED)
     traits: EnvTraits  # ``traits.noop_action``: the action that does nothing, always valid; a masked one becomes it
-
-    def __init_subclass__(cls, single_env: type | None = None, **kwargs):
-        super().__init_subclass__(single_env=single_env, **kwargs)
-        if single_env is not None:  # an env written twice: what its parallel env declares
-            cls.metadata = {**cls.metadata, "name": single_env.metadata["name"]}
-            cls.traits, cls.episode_metrics = single_env.traits, single_env.episode_metrics
-
-    def _configure_team(self, num_envs, render_mode, autoreset_mode, config: dict, more_noise_widths=()) -> None:
-        """An env written twice: check the arguments (``_configure``) and set up the copies' arrays.
-
-        Args:
-            num_envs, render_mode, autoreset_mode, config: as ``InfoNavVectorEnv._configure`` takes them.
-            more_noise_widths: the draw widths of the single env's generators after odometry, DGPS and relative poses.
-        """
-        self._single = single = self._configure(num_envs, render_mode, autoreset_mode, config)
-        agents = single.possible_agents
-        self._setup_team(
-            single.observation_space(agents[0]),
-            single.action_space(agents[0]),
-            single.pairs,
-            single.gps,
-            single.odometry,
-            more_noise_widths,
-        )
 
     def _setup_team(self, observation_space, action_space, pairs, gps, odometry, more_noise_widths=()) -> None:
         """Set the spaces and the copies' arrays of a team of ``len(gps)`` robots (after ``_setup``).
@@ -108,6 +85,21 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._zone_centers, self._zone_radii_sq = np.zeros((num_envs, 0, 2)), np.zeros((num_envs, 0))
         self._elapsed = np.zeros(num_envs, dtype=int)
         self._slots = (np.arange(num_envs)[:, None], np.arange(n_robots))  # index of every (copy, robot)
+
+    # ------------------------------------------------------------------ the state, for harnesses and tests
+
+    def scenario(self, copy: int = 0):
+        """The ``Scenario`` of copy ``copy``'s episode."""
+        return self._worlds.scenario(copy)
+
+    @property
+    def true_poses(self) -> np.ndarray:
+        """Every copy's true robot poses (N, R, 3) [m, m, rad] (a copy)."""
+        return self._worlds.poses.copy()
+
+    def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every copy's joint EKF state ``x`` (N, 3R) and covariance ``P`` (N, 3R, 3R) (copies)."""
+        return self._x.copy(), self._P.copy()
 
     # ------------------------------------------------------------------ reset
 
@@ -160,8 +152,6 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         actions = self._checked_actions(actions)
         resetting = self._prev_done.copy()
         chosen, invalid = self._chosen_actions(actions, ~resetting)
-        if self._view is not None and not resetting[0]:
-            self._view.step(dict(zip(self.agents, actions[0].tolist())))
         last, rewards, terminated = self._act(chosen, invalid, ~resetting)
         if resetting.any():
             self._reset_copies(np.flatnonzero(resetting))
@@ -248,7 +238,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         )
 
     def _relative_measurements(self, copies, geometry, pair, observed) -> np.ndarray:
-        """Noisy relative poses (n, R, 3) of the observed slots (n, R) of ``copies``, in the parallel env's order."""
+        """Noisy relative poses (n, R, 3) of the observed slots (n, R) of ``copies``, drawn in slot order."""
         noise = draws_in_slot_order(self._noise[RELATIVE_NOISE], copies, observed, POSE_DIM)
         parameters = self._pairs.noise[pair]
         measured = relative_poses_with_noise(
@@ -261,17 +251,16 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         noise = self._noise[ODOMETRY_NOISE].take(copies).reshape(controls.shape)
         readings = self._odometry.measure_with_noise(controls, noise)
         rows = self._rows(copies)
-        self._x[rows], self._P[rows] = batched.predict_team(
-            self._x[rows], self._P[rows], readings, dt, self._odometry_covariances, check_input=False
-        )
+        x, P = contiguous(self._x[rows]), contiguous(self._P[rows])  # ``JointEKF.predict`` on the compiled core
+        covariances = stacked(self._odometry_covariances, (*controls.shape, 2))
+        self._x[rows], self._P[rows] = predict_poses(x, P, readings, float(dt), covariances)
 
     def _gps_fixes(self, copies: np.ndarray) -> None:
         """Which robots of ``copies`` have a DGPS fix now (schedule, zones), and their update."""
         within = self._rows(copies)
         time_s = self._elapsed[within] * self.config["time_step_s"]
         positions = self._worlds.poses[within, :, :2]
-        offsets = positions[:, :, None] - self._zone_centers[within, None]
-        denied = ((offsets[..., 0] ** 2 + offsets[..., 1] ** 2) <= self._zone_radii_sq[within, None]).any(axis=2)
+        denied = in_zones(positions, self._zone_centers[within], self._zone_radii_sq[within])
         available = gps_available(self._has_gps, self._outages, denied, time_s)
         self._gps_available[within] = available
         fixing = np.flatnonzero(available.any(axis=1))
@@ -293,9 +282,9 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
             check_input=False,
         )
 
-    def _rows(self, copies: np.ndarray):
-        """An index of the rows of ``copies`` (sorted, distinct): a slice of all when they are all (a view, no copy)."""
-        return slice(None) if len(copies) == self.num_envs else copies
+    def gps_denied(self, copy: int, positions: np.ndarray) -> np.ndarray:
+        """Whether each of ``positions`` (M, 2) [m] lies in one of copy ``copy``'s GPS-denied zones (M,) bool."""
+        return in_zones(positions, self._zone_centers[copy], self._zone_radii_sq[copy])
 
     def action_masks(self) -> np.ndarray:
         """The valid actions of each copy and robot as bool (N, R, A) (the no-op is always valid)."""
@@ -307,8 +296,8 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
 
     @abc.abstractmethod
     def _reset_copies(self, copies: np.ndarray) -> None:
-        """Hook: start a new episode in each of ``copies`` from its own generator, as the parallel env's reset does
-        (``_view_restarts``, ``_start_copy`` for each, then ``_started``)."""
+        """Hook: start a new episode in each of ``copies`` from its own generator (``_start_copy`` for each, then
+        ``_started``)."""
 
     @abc.abstractmethod
     def _reset_record(self):
@@ -334,6 +323,13 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     @abc.abstractmethod
     def _restarted(self, record, copies: np.ndarray):
         """Hook: ``record`` with the (N,) bool ``copies`` reset since (their reset info: no action, no reward)."""
+
+
+def in_zones(positions: np.ndarray, centers: np.ndarray, radii_sq: np.ndarray) -> np.ndarray:
+    """Whether each position (..., M, 2) [m] lies in one of the discs of ``centers`` (..., Z, 2) [m] and squared radii
+    ``radii_sq`` (..., Z) [m^2] (-1 for padding: none), (..., M) bool."""
+    offsets = positions[..., :, None, :] - centers[..., None, :, :]
+    return ((offsets[..., 0] ** 2 + offsets[..., 1] ** 2) <= radii_sq[..., None, :]).any(axis=-1)
 
 
 def draws_in_slot_order(streams: NoiseStreams, copies: np.ndarray, used: np.ndarray, width: int) -> np.ndarray:

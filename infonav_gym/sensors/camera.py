@@ -4,7 +4,7 @@ Pixel model: the same equiangular grid as the ``Ladar`` (see ``infonav_gym.senso
 Row 0 is the top row, column 0 the leftmost; pixel ``(r, c)`` looks at elevation
 ``vertical_fov/2 - (r + 1/2) * vertical_fov/rows - tilt`` and azimuth
 ``heading + pan + horizontal_fov/2 - (c + 1/2) * horizontal_fov/columns``. Each column is one
-vertical plane, so ``Terrain.cast_rays`` renders the whole image in one vectorized call. This
+vertical plane, so ``Terrain.cast_rays`` casts the whole image in one compiled call. This
 approximates a pinhole camera: a pinhole's pixels are equally spaced on the image plane (angles
 ``atan`` of linear offsets) and a tilted pinhole's columns lean off the vertical. At the default
 60 degree field of view the angular spacing differs by at most ~30 % between centre and edge, and
@@ -22,23 +22,25 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
+from infonav_gym.compiled import contiguous
 from infonav_gym.config import check_number
-from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pose, pixel_directions, unit_directions
-from infonav_gym.world.terrain import MATERIALS, Cylinder, Terrain, blend_in_place
+from infonav_gym.sensors import camera_kernels
+from infonav_gym.sensors.pixel_grid import PanTiltGrid, check_pose, unit_directions
+from infonav_gym.world.terrain import MATERIALS, Terrain
 
-_GROUND = MATERIALS.index("ground")
 _TEXTURE_OCTAVES = ((0.5, 0.5), (2.0, 0.3), (8.0, 0.2))  # (cell [m], weight) of the ground value noise
-_SHADED_PIXELS_PER_BLOCK = 4096  # hit pixels shaded at once: temporaries stay small and cache-resident
-
-
 MAX_SKY_LUMINANCE = 100.0
 MAX_EXPOSURE = 1e6  # [gray levels]
 MAX_NOISE_STD = 1000.0  # [gray levels]
-_TEXTURE_TABLE_SIZE = 256  # lattice values repeat every 256 cells (128 m at the finest octave)
-_TEXTURE_TABLE = np.random.default_rng(20240917).random((len(_TEXTURE_OCTAVES), _TEXTURE_TABLE_SIZE**2))  # fixed
+_TEXTURE = (  # what camera_kernels.texture takes: the lattice table (fixed), the octaves' cells [m] and weights
+    np.random.default_rng(20240917).random((len(_TEXTURE_OCTAVES), camera_kernels.TEXTURE_TABLE_SIZE**2)),
+    np.array([cell_m for cell_m, _ in _TEXTURE_OCTAVES]),
+    np.array([weight for _, weight in _TEXTURE_OCTAVES]),
+)
 
 
 def ground_texture(xy) -> np.ndarray:
@@ -48,100 +50,7 @@ def ground_texture(xy) -> np.ndarray:
     looks like patchy soil and grass at any distance and two views of one spot agree.
     """
     points = np.asarray(xy, dtype=float)
-    flat = points.reshape(-1, 2)
-    total = np.zeros(flat.shape[0])
-    for octave, (cell_m, weight) in enumerate(_TEXTURE_OCTAVES):
-        value = blend_in_place(*_lattice_corners(_TEXTURE_TABLE[octave], flat[:, 0] / cell_m, flat[:, 1] / cell_m))
-        value *= 2
-        value -= 1
-        value *= weight
-        total += value
-    return (total / sum(weight for _, weight in _TEXTURE_OCTAVES)).reshape(points.shape[:-1])
-
-
-def _lattice_corners(table: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Lattice values around points ``(x, y)`` in cells and their smoothstep weights, for ``blend_in_place``.
-
-    Lattice point ``(i, j)`` holds ``table[(j % size) * size + i % size]``; overwrites ``x`` and ``y``.
-    """
-    size = _TEXTURE_TABLE_SIZE
-    wrap = size - 1  # & wrap == % size, also for negative cells
-    corner_x, corner_y = np.floor(x), np.floor(y)
-    column, row = corner_x.astype(np.int64), corner_y.astype(np.int64)
-    column &= wrap
-    row &= wrap
-    row *= size
-    next_column = column + 1
-    next_column &= wrap
-    next_row = row + size
-    next_row &= wrap * size
-    values = [table.take(r + c) for r in (row, next_row) for c in (column, next_column)]
-    weights = []
-    for fraction, corner in ((x, corner_x), (y, corner_y)):
-        fraction -= corner
-        np.multiply(fraction, -2, out=corner)
-        corner += 3
-        fraction *= fraction
-        fraction *= corner  # smoothstep: fraction * fraction * (3 - 2 * fraction)
-        weights.append(fraction)
-    return (*values, *weights)
-
-
-def _wall_distances(x, y, low, high) -> tuple[np.ndarray, np.ndarray]:
-    """Signed distances of points ``(x, y)`` to boxes' x walls and y walls, broadcast (negative inside)."""
-    return np.maximum(x - high[..., 0], low[..., 0] - x), np.maximum(y - high[..., 1], low[..., 1] - y)
-
-
-def _side_and_cap(points, low, high, centers, radii, is_cylinder) -> tuple[np.ndarray, np.ndarray]:
-    """Signed distances of ``points`` (..., 3) to obstacles' side walls and to their cap planes, broadcast."""
-    x, y, z = points[..., 0], points[..., 1], points[..., 2]
-    side = None if np.all(is_cylinder) else np.maximum(*_wall_distances(x, y, low, high))
-    if np.any(is_cylinder):
-        radial = np.hypot(x - centers[..., 0], y - centers[..., 1]) - radii
-        side = radial if side is None else np.where(is_cylinder, radial, side)
-    return side, np.maximum(z - high[..., 2], low[..., 2] - z)
-
-
-def _obstacle_normals(terrain: Terrain, points: np.ndarray, material: np.ndarray) -> np.ndarray:
-    """Outward unit normals (N, 3) at obstacle hit points (N, 3) of known material index (N,).
-
-    ``cast_rays`` reports the material, not the obstacle, so each point is attributed to the
-    obstacle of that material whose surface is nearest (by the bound ``|max(per-face distance)|``,
-    0 on the surface; the first such obstacle on ties); the normal is the cylinder's radial
-    direction or its cap's, or the normal of the box face nearest the point.
-    """
-    count = points.shape[0]
-    if count == 0:
-        return np.zeros((0, 3))
-    obstacles = terrain.cylinders + terrain.boxes
-    is_cylinder = np.array([isinstance(o, Cylinder) for o in obstacles])
-    centers = np.array([o.center_m if isinstance(o, Cylinder) else (0.0, 0.0) for o in obstacles])
-    radii = np.array([o.radius_m if isinstance(o, Cylinder) else 0.0 for o in obstacles])
-    low = np.array([(0.0, 0.0, o.bottom_m) if isinstance(o, Cylinder) else o.min_corner_m for o in obstacles])
-    high = np.array([(0.0, 0.0, o.top_m) if isinstance(o, Cylinder) else o.max_corner_m for o in obstacles])
-    materials = np.array([MATERIALS.index(o.material) for o in obstacles], dtype=material.dtype)
-    parameters = (low, high, centers, radii, is_cylinder)
-    nearest, on_cap = np.zeros(count, dtype=np.intp), np.zeros(count, dtype=bool)
-    for material_index in np.unique(material):  # compare each point with the obstacles of its own material only
-        group, candidates = np.flatnonzero(material == material_index), np.flatnonzero(materials == material_index)
-        side, cap = _side_and_cap(points[group, None], *(parameter[candidates] for parameter in parameters))
-        best = np.abs(np.maximum(side, cap)).argmin(axis=1)
-        rows = np.arange(group.size)
-        nearest[group], on_cap[group] = candidates[best], cap[rows, best] > side[rows, best]
-    middle = 0.5 * (low[nearest] + high[nearest])
-    normals = np.zeros((count, 3))
-    normals[:, 2] = np.where(on_cap, np.where(points[:, 2] >= middle[:, 2], 1.0, -1.0), 0.0)
-    on_cylinder = ~on_cap & is_cylinder[nearest]
-    radial = points[on_cylinder, :2] - centers[nearest[on_cylinder]]
-    normals[on_cylinder, :2] = radial / np.linalg.norm(radial, axis=1, keepdims=True)
-    on_box = ~on_cap & ~is_cylinder[nearest]
-    box = points[on_box]
-    wall_x, wall_y = _wall_distances(box[:, 0], box[:, 1], low[nearest[on_box]], high[nearest[on_box]])
-    on_x = wall_x >= wall_y
-    outward = np.where(box[:, :2] >= middle[on_box, :2], 1.0, -1.0)
-    normals[on_box, 0] = np.where(on_x, outward[:, 0], 0.0)
-    normals[on_box, 1] = np.where(on_x, 0.0, outward[:, 1])
-    return normals
+    return camera_kernels.textures(contiguous(points.reshape(-1, 2)), *_TEXTURE).reshape(points.shape[:-1])
 
 
 @dataclass(frozen=True)
@@ -225,37 +134,33 @@ class Camera(PanTiltGrid):
         """Mean reflectance of ``MATERIALS[material_index]``."""
         return getattr(self, f"{MATERIALS[material_index]}_albedo")
 
+    @cached_property
+    def _radiometry(self) -> tuple:
+        """What ``camera_kernels.shade`` takes of this camera (fixed: the dataclass is frozen)."""
+        albedos = np.array([self.albedo(index) for index in range(len(MATERIALS))], dtype=float)
+        scalars = (self.ambient, self.exposure, self.ground_texture_contrast, self.sky_level)
+        return albedos, self.sun_direction, *(float(value) for value in scalars)
+
     def radiance(
         self, terrain: Terrain, vehicle_pose, pan_rad: float | None = None, tilt_rad: float | None = None
     ) -> np.ndarray:
         """Noise-free, unclipped gray levels (rows, columns) float64 of ``terrain`` from ``vehicle_pose``."""
         pose = check_pose(vehicle_pose)
         azimuth, elevation = self.pixel_angles(pan_rad, tilt_rad)
-        ground_m = float(terrain.height_at(pose[:2]))
-        origin = np.array([pose[0], pose[1], ground_m + self.mount_height_m])
-        hits = terrain.cast_rays(origin, pose[2] + azimuth, elevation, self.max_range_m)
-        levels = np.full(hits.range_m.shape, self.sky_level)
-        hit_pixels = np.flatnonzero(np.isfinite(hits.range_m))
-        for start in range(0, hit_pixels.size, _SHADED_PIXELS_PER_BLOCK):
-            pixels = hit_pixels[start : start + _SHADED_PIXELS_PER_BLOCK]
-            rows, columns = np.divmod(pixels, hits.range_m.shape[1])
-            directions = pixel_directions(pose[2] + azimuth, elevation, rows, columns)
-            points = origin + directions * hits.range_m.ravel()[pixels, None]
-            levels.ravel()[pixels] = self._shade(terrain, points, hits.material_index.ravel()[pixels])
-        return levels
-
-    def _shade(self, terrain: Terrain, points: np.ndarray, material: np.ndarray) -> np.ndarray:
-        """Noise-free gray levels (N,) of the hit points (N, 3) [m] with material indices (N,)."""
-        on_ground = material == _GROUND
-        normals = np.empty_like(points)
-        normals[on_ground] = terrain.surface_normal_at(points[on_ground, :2])
-        normals[~on_ground] = _obstacle_normals(terrain, points[~on_ground], material[~on_ground])
-        albedo = np.array([self.albedo(index) for index in range(len(MATERIALS))])[material]
-        if self.ground_texture_contrast > 0:
-            texture = ground_texture(points[on_ground, :2])
-            albedo[on_ground] *= 1 + self.ground_texture_contrast * texture
-        shading = self.ambient + (1 - self.ambient) * np.maximum(normals @ self.sun_direction, 0.0)
-        return self.exposure * albedo * shading
+        azimuth = pose[2] + azimuth
+        origin = np.array([pose[0], pose[1], float(terrain.height_at(pose[:2])) + self.mount_height_m])
+        hits = terrain.cast_rays(origin, azimuth, elevation, self.max_range_m)
+        return camera_kernels.shade(
+            terrain.arrays,
+            origin,
+            azimuth,
+            elevation,
+            hits.range_m,
+            hits.material_index,
+            hits.obstacle_index,
+            self._radiometry,
+            _TEXTURE,
+        )
 
     def capture(
         self,

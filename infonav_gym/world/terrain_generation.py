@@ -8,7 +8,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from infonav_gym.config import Interval, ParameterError, check_arguments, check_number
-from infonav_gym.geometry import distance_to_loop
+from infonav_gym.geometry import ClosedLoop
 from infonav_gym.world.terrain import Box, Cylinder, Terrain, finite_vector
 
 _MAX_PLACEMENT_ATTEMPTS = 1000  # random draws per obstacle before the scene counts as too small
@@ -16,6 +16,7 @@ _HILL_STD_M = 2.0  # height standard deviation of the smooth hills at roughness 
 _HILL_CORRELATION_M = 8.0  # length scale of the hills [m]
 _BUMP_STD_M = 0.4  # height standard deviation of the small bumps at roughness 1 [m]
 _BUMP_CORRELATION_M = 1.0  # length scale of the bumps [m]
+_FOOTPRINT_CORNERS = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1], [0, 0]])  # the centre last
 DEFAULT_CELL_M = 0.5  # grid spacing of random scenes [m]
 MAX_GRID_POINTS = 2001  # most grid points along a side (a float64 height map of 32 MB)
 MAX_ROUGHNESS = 10.0
@@ -103,6 +104,7 @@ def make_terrain(
     if clear_path.ndim != 2 or clear_path.shape[1] != 2 or not np.all(np.isfinite(clear_path)):
         raise ValueError(f"clear_path_m must be a finite (W, 2) polyline [m], got {clear_path_m!r}")
     ground = Terrain(heights, tuple(center - size_m / 2), cell_m)
+    route = ClosedLoop(clear_path)
 
     def place(count: int, footprint_radius_m: np.ndarray) -> np.ndarray:
         """Centres (count, 2) inside the scene, their footprints ``clear_radius_m`` away from the clear path."""
@@ -112,7 +114,7 @@ def make_terrain(
             for _ in range(_MAX_PLACEMENT_ATTEMPTS):
                 offset = np_random.uniform(-half[index], half[index], size=2)
                 clearance = clear_radius_m + footprint_radius_m[index]
-                if half[index] > 0 and distance_to_loop(center + offset, clear_path) > clearance:
+                if half[index] > 0 and route.distances((center + offset)[None])[0] > clearance:
                     break
             else:
                 raise ValueError(
@@ -122,19 +124,19 @@ def make_terrain(
             centers[index] = center + offset
         return centers
 
-    def lowest_ground(center_xy, half_extent_m) -> float:
-        corners = center_xy + half_extent_m * np.array([[-1, -1], [-1, 1], [1, -1], [1, 1], [0, 0]])
-        return float(ground.height_at(corners).min())
+    def footing(centers: np.ndarray, half_extents_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The lowest ground under each footprint's corners and centre, and the ground at its centre (count,) [m]."""
+        ground_m = ground.height_at(centers[:, None] + half_extents_m[:, None] * _FOOTPRINT_CORNERS)
+        return ground_m.min(axis=1), ground_m[:, -1]
 
     def standing_cylinders(count, radius_range, height_range, material) -> list[Cylinder]:
         radii = np_random.uniform(*radius_range, size=count)
         tall = np_random.uniform(*height_range, size=count)
         centers = place(count, radii)
+        lowest, middle = footing(centers, radii[:, None])
         return [
-            Cylinder(
-                tuple(xy), float(r), lowest_ground(xy, r), float(ground.height_at(xy)) + float(t), material=material
-            )
-            for xy, r, t in zip(centers, radii, tall, strict=True)
+            Cylinder(tuple(xy), float(r), float(low), float(ground_m) + float(t), material=material)
+            for xy, r, low, ground_m, t in zip(centers, radii, lowest, middle, tall, strict=True)
         ]
 
     trees = standing_cylinders(int(n_trees), (0.2, 0.6), (4.0, 12.0), "vegetation")
@@ -142,11 +144,9 @@ def make_terrain(
     sides = np_random.uniform(3.0, 10.0, size=(int(n_buildings), 2))
     tall = np_random.uniform(3.0, 8.0, size=int(n_buildings))
     centers = place(int(n_buildings), np.linalg.norm(sides, axis=1) / 2)
+    lowest, middle = footing(centers, sides / 2)
     buildings = [
-        Box(
-            (*(xy - half), lowest_ground(xy, half)),
-            (*(xy + half), float(ground.height_at(xy)) + float(t)),
-        )
-        for xy, half, t in zip(centers, sides / 2, tall, strict=True)
+        Box((*(xy - half), float(low)), (*(xy + half), float(ground_m) + float(t)))
+        for xy, half, low, ground_m, t in zip(centers, sides / 2, lowest, middle, tall, strict=True)
     ]
     return ground.with_obstacles(cylinders=trees + rocks, boxes=buildings)

@@ -41,6 +41,7 @@ class WorldBatch:
 
     Attributes:
         wall_thickness_m: the copies' wall thickness [m] (their static geometry is ``StaticGeometry.from_scenario``'s).
+        robot_radius_m: the radius of every robot's disc [m].
         poses: true poses ``[x, y, heading]`` of every copy's robots (N, R, 3), after ``reset_copy``.
 
     Args:
@@ -56,7 +57,7 @@ class WorldBatch:
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
         self._has_space = np.zeros(n_copies, dtype=bool)  # the copy's World holds a Pymunk space
         reference = self._worlds[0]
-        self._radius_m = reference.robot_radius_m
+        self.robot_radius_m = reference.robot_radius_m
         self._tolerance_m = reference.waypoint_tolerance_m
         self._gain = reference.heading_gain
         self._max_turn_rate = reference.max_turn_rate_rps
@@ -149,7 +150,7 @@ class WorldBatch:
         controls = self._waypoint_controls(copies, before) if commands is None else np.asarray(commands, dtype=float)
         speeds = contiguous(controls[..., 0])
         after = unicycle_moves(before, controls, dt)
-        near_static, near_robots = contact_within(copies, before, speeds, dt, self._boxes, self._radius_m)
+        near_static, near_robots = contact_within(copies, before, speeds, dt, self._boxes, self.robot_radius_m)
         contact = near_static | near_robots
         free = np.flatnonzero(contact & ~self._in_contact[copies])
         if free.size:
@@ -208,12 +209,14 @@ class WorldBatch:
         heading = poses[..., 2]
         reach = controls[..., 0] * dt
         displacements = reach[..., None] * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
-        conflicts = teammate_conflicts(poses[..., :2], displacements[:, :, None], 2 * self._radius_m + CONTACT_GAP_M)
+        conflicts = teammate_conflicts(
+            poses[..., :2], displacements[:, :, None], 2 * self.robot_radius_m + CONTACT_GAP_M
+        )
         free = ~conflicts.any(axis=(1, 2, 3, 4))
         rows = np.flatnonzero(free & near_static)
         if rows.size:
             geometry = StaticGeometry.stack([self._geometry(copy) for copy in copies[rows].tolist()])
-            grown = geometry.grown(self._radius_m + CONTACT_GAP_M)
+            grown = geometry.grown(self.robot_radius_m + CONTACT_GAP_M)
             starts = poses[rows, :, :2]
             queries = np.repeat(np.arange(len(rows)), starts.shape[1])
             clear = segments_clear(grown, queries, starts.reshape(-1, 2), (starts + displacements[rows]).reshape(-1, 2))

@@ -1,4 +1,4 @@
-"""The batched decision and info of ``CooperativeLocalizationVectorEnv``: the team env's, on (N, R, ...) arrays.
+"""A team's relative-pose decision and info on (N, R, ...) arrays: what both team envs build theirs from.
 
 N copies of a team of R robots; every copy has the same P (observer, target) pairs (``SensingPairs``), so the
 candidates of all copies stack as (N, P, ...). A pair that is not observable now is masked out.
@@ -48,7 +48,7 @@ class TeamSightLines(NamedTuple):
 
 
 class TeamDecision(NamedTuple):
-    """Every copy's decision at its joint EKF's prior (the team env's ``Decision`` and ``RelativeSight``, stacked).
+    """Every copy's decision at its joint EKF's prior.
 
     Attributes:
         action_mask: int8 (N, R, R + 1): action 0 always, ``1 + j`` where robot ``j`` is observable.

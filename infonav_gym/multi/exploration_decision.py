@@ -1,4 +1,4 @@
-"""The batched sight, decision and info of ``CooperativeExplorationVectorEnv``: the team env's, on (N, R, ...) arrays.
+"""What ``CooperativeExplorationVectorEnv`` sees, decides and reports, on (N, R, ...) arrays: sight, decision, info.
 
 N copies of a team of R robots, each copy with L landmarks (N, L, 2) and a map of G cells (N, G). An action is
 observation slot ``a // 5`` (0 none, ``1 + j`` landmark j, ``1 + L + j`` robot j) and motion ``a % 5``, so masks
@@ -14,7 +14,7 @@ import numpy as np
 from infonav_gym.envs.active_transition import ranges_and_bearings
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.multi.cooperative_localization_batch import (
+from infonav_gym.multi.team_decision import (
     TeamDecision,
     observable_pairs,
     team_step_info,
@@ -22,6 +22,11 @@ from infonav_gym.multi.cooperative_localization_batch import (
 )
 from infonav_gym.multi.team_sensing import SensingPairs
 from infonav_gym.world.visibility import StaticGeometry, segments_clear
+
+EXPLORATION_INFO_KEYS = frozenset(
+    {"gps_available", "pose_std", "position_std_m", "pose_entropy", "position_error_m", "heading_error_rad"}
+    | {"estimated_pose", "observations_left", "coverage", "lost", "failed", "success"}
+)
 
 
 class TeamSight(NamedTuple):
@@ -49,8 +54,8 @@ class TeamSight(NamedTuple):
     def observable_pairs(self, geometry: StaticGeometry, true_poses) -> tuple[np.ndarray, np.ndarray]:
         """Every pair's true range, bearing, relative heading (N, P, 3) and which are observable now (N, P) bool.
 
-        As ``TeamSensing._observable_pairs``: in range and field of view, and no wall or obstacle on the line,
-        which is tested (``segments_clear``) only where some covered pair needs it.
+        In range and field of view, and no wall or obstacle on the line, which is tested (``segments_clear``) only
+        where some covered pair needs it.
         """
         pairs = self.pairs
         pair_geometry, covered = observable_pairs(pairs, None, true_poses)
@@ -63,8 +68,7 @@ class TeamSight(NamedTuple):
     def visible_landmarks(self, geometry: StaticGeometry, true_poses, landmarks) -> np.ndarray:
         """Which landmarks (N, L, 2) each robot's sensor sees from its true pose (N, R, 3): (N, R, L) bool.
 
-        As ``LandmarkSensing._visible_landmarks``: in the range-bearing sensor's range and field of view, with a
-        clear line of sight.
+        In the range-bearing sensor's range and field of view, with a clear line of sight.
         """
         n_copies, n_robots = true_poses.shape[:2]
         seen = ranges_and_bearings(true_poses.reshape(-1, POSE_DIM), np.repeat(landmarks, n_robots, axis=0))
@@ -105,7 +109,7 @@ class TeamSight(NamedTuple):
 
 
 class ExplorationDecision(NamedTuple):
-    """Every copy's decision at its joint EKF's prior (the team env's ``Decision`` and ``ExplorationSight``, stacked).
+    """Every copy's decision at its joint EKF's prior.
 
     Attributes:
         action_mask: int8 (N, R, 5 S), S = 1 + L + R observation slots times 5 motions.
@@ -172,7 +176,8 @@ class ExplorationStep(NamedTuple):
 
 
 def exploration_info(decision: ExplorationDecision, last: ExplorationStep, state: dict) -> dict:
-    """The team env's ``infos[agent]`` of every copy and robot as arrays (N, R, ...) with ``_key`` masks (N,).
+    """Every copy's and robot's ``infos[agent]`` (see ``CooperativeExplorationEnv``) as arrays (N, R, ...) with
+    ``_key`` masks (N,).
 
     The team's keys ``time_s``, ``coverage``, ``failed`` and ``success`` are (N,); ``reward_terms`` are masked out
     (``_own_pose_information`` False, ...) for the copies that were reset.
