@@ -187,7 +187,15 @@ def test_the_terrain_map_fuses_scans_in_information_form_and_gains_are_their_ent
     np.testing.assert_allclose(fused, expected, rtol=1e-14)
     alone = model.fused(variances, footprints[:1], noise[:1])
     entropy_reduction = 0.5 * np.sum(np.log(variances / alone))
-    assert math.isclose(model.scan_gains(variances, footprints[0], noise[0]), entropy_reduction, rel_tol=1e-12)
+    gain = model.scan_gains(variances[None], np.array([[[4.0, 4.0]]]), noise[None, :1])
+    assert math.isclose(gain[0, 0], entropy_reduction, rel_tol=1e-12)
+    positions = np.random.default_rng(0).uniform(-1.0, 11.0, (3, 4, 2))  # also off the field, on cell boundaries
+    positions[0, 0] = [5.0, 3.5]
+    many = model.footprints(positions)
+    expected = 0.5 * np.sum(many * np.log1p(variances / noise[1]), axis=-1)
+    np.testing.assert_allclose(
+        model.scan_gains(np.tile(variances, (3, 1)), positions, np.full((3, 4), noise[1])), expected, rtol=1e-14
+    )
     assert model.coverage(fused) == np.mean(fused <= 0.09) and model.coverage(model.prior_variances()) == 0.0
 
 
