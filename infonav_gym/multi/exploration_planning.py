@@ -287,10 +287,8 @@ class ExplorationPlanningModel:
         if has_fix.any():
             x, P = batched.gps_update(x, P, positions, self._gps_noise, has_fix, check_input=False)
         position_std = self.position_std(P)
-        footprints = map_model.footprints(positions) & driving[..., None]
         noise = map_model.scan_noise_variances(position_std)
-        map_variances = map_model.fused(belief.map_variances, footprints, noise)
-        map_information = 0.5 * np.sum(np.log(belief.map_variances / map_variances), axis=-1)
+        map_variances, map_information = map_model.fused(belief.map_variances, positions, noise, driving)
         lost = (position_std > cfg["max_position_std_m"]).any(axis=1) & live
         success = (map_model.coverage(map_variances) >= cfg["coverage_target"]) & ~lost & live
         out_of_time = elapsed + belief.steps + 1 >= cfg["max_cycles"]

@@ -41,3 +41,46 @@ def scan_gains(ticks, radius_squared, variances, ends, noise_variances):
                         total += math.log1p(variances[copy, row * n_ticks + col] / noise)
             gains[copy, scan] = 0.5 * total
     return gains
+
+
+@kernel
+def fused_scans(ticks, radius_squared, variances, positions, noise_variances, scanning):
+    """The cell variances (B, G) after each copy's scans of one step, fused in information form, and the map
+    information they bring (B,) [nats]: ``0.5 sum_c ln(v_c / v_c')`` over the cells some scan sees (elsewhere
+    ``v_c' = 1 / (1 / v_c + 0)``, as in numpy, and its term is left out).
+
+    Args:
+        ticks, radius_squared: as ``scan_gains`` takes them.
+        variances: the cell variances of each copy before the scans (B, K^2) [m^2].
+        positions: where each robot scans (B, S, 2) [m].
+        noise_variances: each scan's height noise variance (B, S) [m^2].
+        scanning: which robots scan (B, S) bool.
+    """
+    n_copies, n_scans, n_ticks = positions.shape[0], positions.shape[1], ticks.shape[0]
+    n_cells = n_ticks * n_ticks
+    after = np.empty((n_copies, n_cells))
+    information = np.zeros(n_copies)
+    added = np.empty(n_cells)
+    for copy in range(n_copies):
+        added[:] = 0.0
+        for scan in range(n_scans):
+            if not scanning[copy, scan]:
+                continue
+            x, y, weight = positions[copy, scan, 0], positions[copy, scan, 1], 1.0 / noise_variances[copy, scan]
+            for row in range(n_ticks):
+                dy = y - ticks[row]
+                dy_squared = dy * dy
+                if dy_squared > radius_squared:
+                    continue
+                for col in range(n_ticks):
+                    dx = x - ticks[col]
+                    if dx * dx + dy_squared <= radius_squared:
+                        added[row * n_ticks + col] += weight
+        total = 0.0
+        for cell in range(n_cells):
+            before = variances[copy, cell]
+            after[copy, cell] = 1.0 / (1.0 / before + added[cell])
+            if added[cell] != 0.0:
+                total += math.log(before / after[copy, cell])
+        information[copy] = 0.5 * total
+    return after, information

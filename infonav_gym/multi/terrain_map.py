@@ -81,10 +81,21 @@ class TerrainMapModel:
             np.ascontiguousarray(noise_variances, dtype=float),
         )
 
-    def fused(self, variances: np.ndarray, footprints: np.ndarray, noise_variances) -> np.ndarray:
-        """The cell variances (..., G) after the scans (..., S, G footprints, (..., S) noise variances) of one step."""
-        information = np.sum(footprints / np.asarray(noise_variances)[..., None], axis=-2)
-        return 1.0 / (1.0 / variances + information)
+    def fused(self, variances, positions, noise_variances, scanning) -> tuple[np.ndarray, np.ndarray]:
+        """The cell variances (B, G) after the scans of one step and the map information they bring (B,) [nats].
+
+        Each copy's cell variances (B, G) [m^2] take the scans of its ``scanning`` robots (B, S) bool from
+        ``positions`` (B, S, 2) [m] with noise variances (B, S) [m^2] (compiled: only the cells a scan sees are
+        visited).
+        """
+        return terrain_kernels.fused_scans(
+            self.ticks,
+            float(self.scan_radius_m) ** 2,
+            np.ascontiguousarray(variances, dtype=float),
+            np.ascontiguousarray(positions, dtype=float),
+            np.ascontiguousarray(noise_variances, dtype=float),
+            np.ascontiguousarray(scanning, dtype=bool),
+        )
 
     def coverage(self, variances: np.ndarray) -> np.ndarray:
         """The fraction of cells covered (height std at most ``covered_std_m``) (...)."""
