@@ -10,7 +10,24 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import kernel
+from infonav_gym.compiled import inline, kernel
+
+
+@inline
+def footprint(ticks, radius_squared, x, y, cells):
+    """Write the cells a scan from (x, y) [m] sees into ``cells`` (row-major, ``row * K + col``); their count."""
+    n_ticks, count = ticks.shape[0], 0
+    for row in range(n_ticks):
+        dy = y - ticks[row]
+        dy_squared = dy * dy
+        if dy_squared > radius_squared:
+            continue
+        for col in range(n_ticks):
+            dx = x - ticks[col]
+            if dx * dx + dy_squared <= radius_squared:
+                cells[count] = row * n_ticks + col
+                count += 1
+    return count
 
 
 @kernel
@@ -24,21 +41,15 @@ def scan_gains(ticks, radius_squared, variances, ends, noise_variances):
         ends: where each scan is taken (B, E, 2) [m].
         noise_variances: each scan's height noise variance (B, E) [m^2].
     """
-    n_copies, n_scans, n_ticks = ends.shape[0], ends.shape[1], ticks.shape[0]
+    n_copies, n_scans = ends.shape[0], ends.shape[1]
     gains = np.zeros((n_copies, n_scans))
+    cells = np.empty(variances.shape[1], dtype=np.int64)
     for copy in range(n_copies):
         for scan in range(n_scans):
-            x, y, noise = ends[copy, scan, 0], ends[copy, scan, 1], noise_variances[copy, scan]
+            noise = noise_variances[copy, scan]
             total = 0.0
-            for row in range(n_ticks):
-                dy = y - ticks[row]
-                dy_squared = dy * dy
-                if dy_squared > radius_squared:
-                    continue
-                for col in range(n_ticks):
-                    dx = x - ticks[col]
-                    if dx * dx + dy_squared <= radius_squared:
-                        total += math.log1p(variances[copy, row * n_ticks + col] / noise)
+            for k in range(footprint(ticks, radius_squared, ends[copy, scan, 0], ends[copy, scan, 1], cells)):
+                total += math.log1p(variances[copy, cells[k]] / noise)
             gains[copy, scan] = 0.5 * total
     return gains
 
@@ -51,31 +62,25 @@ def fused_scans(ticks, radius_squared, variances, positions, noise_variances, sc
 
     Args:
         ticks, radius_squared: as ``scan_gains`` takes them.
-        variances: the cell variances of each copy before the scans (B, K^2) [m^2].
+        variances: the cell variances of each copy before the scans (B, G) [m^2].
         positions: where each robot scans (B, S, 2) [m].
         noise_variances: each scan's height noise variance (B, S) [m^2].
         scanning: which robots scan (B, S) bool.
     """
-    n_copies, n_scans, n_ticks = positions.shape[0], positions.shape[1], ticks.shape[0]
-    n_cells = n_ticks * n_ticks
+    n_copies, n_scans, n_cells = positions.shape[0], positions.shape[1], variances.shape[1]
     after = np.empty((n_copies, n_cells))
     information = np.zeros(n_copies)
     added = np.empty(n_cells)
+    cells = np.empty(n_cells, dtype=np.int64)
     for copy in range(n_copies):
         added[:] = 0.0
         for scan in range(n_scans):
-            if not scanning[copy, scan]:
-                continue
-            x, y, weight = positions[copy, scan, 0], positions[copy, scan, 1], 1.0 / noise_variances[copy, scan]
-            for row in range(n_ticks):
-                dy = y - ticks[row]
-                dy_squared = dy * dy
-                if dy_squared > radius_squared:
-                    continue
-                for col in range(n_ticks):
-                    dx = x - ticks[col]
-                    if dx * dx + dy_squared <= radius_squared:
-                        added[row * n_ticks + col] += weight
+            if scanning[copy, scan]:
+                weight = 1.0 / noise_variances[copy, scan]
+                for k in range(
+                    footprint(ticks, radius_squared, positions[copy, scan, 0], positions[copy, scan, 1], cells)
+                ):
+                    added[cells[k]] += weight
         total = 0.0
         for cell in range(n_cells):
             before = variances[copy, cell]

@@ -73,13 +73,7 @@ class TerrainMapModel:
         """Map information [nats] each scan (B, E) would bring alone: ``0.5 sum_c ln(1 + v_c / r)`` over the cells
         its ``footprints`` hold, from positions (B, E, 2) [m] with noise variances (B, E) [m^2] on each copy's cell
         variances (B, G) [m^2] (compiled: only the cells a scan sees are visited)."""
-        return terrain_kernels.scan_gains(
-            self.ticks,
-            float(self.scan_radius_m) ** 2,
-            np.ascontiguousarray(variances, dtype=float),
-            np.ascontiguousarray(positions, dtype=float),
-            np.ascontiguousarray(noise_variances, dtype=float),
-        )
+        return terrain_kernels.scan_gains(*self._kernel_arguments(variances, positions, noise_variances))
 
     def fused(self, variances, positions, noise_variances, scanning) -> tuple[np.ndarray, np.ndarray]:
         """The cell variances (B, G) after the scans of one step and the map information they bring (B,) [nats].
@@ -88,14 +82,13 @@ class TerrainMapModel:
         ``positions`` (B, S, 2) [m] with noise variances (B, S) [m^2] (compiled: only the cells a scan sees are
         visited).
         """
-        return terrain_kernels.fused_scans(
-            self.ticks,
-            float(self.scan_radius_m) ** 2,
-            np.ascontiguousarray(variances, dtype=float),
-            np.ascontiguousarray(positions, dtype=float),
-            np.ascontiguousarray(noise_variances, dtype=float),
-            np.ascontiguousarray(scanning, dtype=bool),
-        )
+        arguments = self._kernel_arguments(variances, positions, noise_variances)
+        return terrain_kernels.fused_scans(*arguments, np.ascontiguousarray(scanning, dtype=bool))
+
+    def _kernel_arguments(self, variances, positions, noise_variances) -> tuple:
+        """The grid, the squared scan radius and the arrays as the one layout ``terrain_kernels`` is compiled for."""
+        arrays = (np.ascontiguousarray(array, dtype=float) for array in (variances, positions, noise_variances))
+        return self.ticks, float(self.scan_radius_m) ** 2, *arrays
 
     def coverage(self, variances: np.ndarray) -> np.ndarray:
         """The fraction of cells covered (height std at most ``covered_std_m``) (...)."""
