@@ -75,16 +75,16 @@ def scan_gains(map_model, variances, positions, position_std, speeds_mps, drive_
     robot's speed (R,) [m/s]), with the scan noise of its current position std (..., R) [m], on the map's cell
     variances (..., G) (a ``TerrainMapModel``'s; the same leading dimensions).
     """
-    reach = drive_s * speeds_mps[:, None] * (np.arange(N_MOTIONS) != STAY)  # (R, 5) [m]
-    ends = positions[..., None, :] + reach[..., None] * MOTION_DIRECTIONS
+    drives = np.flatnonzero(np.arange(N_MOTIONS) != STAY)
+    ends = positions[..., None, :] + drive_s * speeds_mps[:, None, None] * MOTION_DIRECTIONS[drives]  # (..., R, 4, 2)
     noise = np.broadcast_to(map_model.scan_noise_variances(position_std)[..., None], ends.shape[:-1])
     variances = np.asarray(variances)
-    n_scans = ends.shape[-3] * N_MOTIONS
+    n_scans = ends.shape[-3] * len(drives)
     flat_gains = map_model.scan_gains(
         variances.reshape(-1, variances.shape[-1]), ends.reshape(-1, n_scans, 2), noise.reshape(-1, n_scans)
     )
-    gains = flat_gains.reshape(ends.shape[:-1])
-    gains[..., STAY] = 0.0
+    gains = np.zeros((*ends.shape[:-2], N_MOTIONS))
+    gains[..., drives] = flat_gains.reshape(ends.shape[:-1])
     return gains
 
 

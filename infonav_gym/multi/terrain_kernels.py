@@ -15,18 +15,25 @@ from infonav_gym.compiled import inline, kernel
 
 @inline
 def footprint(ticks, radius_squared, x, y, cells):
-    """Write the cells a scan from (x, y) [m] sees into ``cells`` (row-major, ``row * K + col``); their count."""
+    """Write the cells a scan from (x, y) [m] sees into ``cells`` (row-major, ``row * K + col``); their count.
+
+    The ticks ascend, so past (x, y) the first cell out of reach ends its row, and the first row out of reach the
+    grid (rounding is monotone: no cell beyond is within reach)."""
     n_ticks, count = ticks.shape[0], 0
     for row in range(n_ticks):
         dy = y - ticks[row]
         dy_squared = dy * dy
         if dy_squared > radius_squared:
+            if dy < 0.0:  # the ticks ascend: every later row is farther still
+                break
             continue
         for col in range(n_ticks):
             dx = x - ticks[col]
             if dx * dx + dy_squared <= radius_squared:
                 cells[count] = row * n_ticks + col
                 count += 1
+            elif dx < 0.0:
+                break
     return count
 
 
