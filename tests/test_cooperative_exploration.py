@@ -182,13 +182,30 @@ def test_the_terrain_map_fuses_scans_in_information_form_and_gains_are_their_ent
     assert footprints.sum(axis=1).tolist() == [4, 6]  # centres within 2.5 m: (3|5, 3|5); (3|5|7, 5|7)
     noise = model.scan_noise_variances(np.array([0.0, 2.0]))
     np.testing.assert_allclose(noise, [0.01, 0.01 + 1.0])
-    fused = model.fused(variances, footprints, noise)
+    positions = np.array([[[4.0, 4.0], [5.0, 6.0], [5.0, 5.0]]])
+    fused, information = model.fused(variances[None], positions, noise[None, [0, 1, 1]], np.array([[1, 1, 0]], bool))
     expected = 1.0 / (1.0 / variances + footprints[0] / noise[0] + footprints[1] / noise[1])
-    np.testing.assert_allclose(fused, expected, rtol=1e-14)
-    alone = model.fused(variances, footprints[:1], noise[:1])
-    entropy_reduction = 0.5 * np.sum(np.log(variances / alone))
-    assert math.isclose(model.scan_gains(variances, footprints[0], noise[0]), entropy_reduction, rel_tol=1e-12)
-    assert model.coverage(fused) == np.mean(fused <= 0.09) and model.coverage(model.prior_variances()) == 0.0
+    np.testing.assert_allclose(fused[0], expected, rtol=1e-14)
+    assert math.isclose(information[0], 0.5 * np.sum(np.log(variances / expected)), rel_tol=1e-12)
+    alone, entropy_reduction = model.fused(variances[None], positions[:, :1], noise[None, :1], np.ones((1, 1), bool))
+    entropy_reduction = entropy_reduction[0]
+    assert math.isclose(entropy_reduction, 0.5 * np.sum(np.log(variances / alone[0])), rel_tol=1e-12)
+    gain = model.scan_gains(variances[None], np.array([[[4.0, 4.0]]]), noise[None, :1])
+    assert math.isclose(gain[0, 0], entropy_reduction, rel_tol=1e-12)
+    positions = np.random.default_rng(0).uniform(-1.0, 11.0, (3, 4, 2))  # also off the field, on cell boundaries
+    positions[0, 0] = [5.0, 3.5]
+    many = model.footprints(positions)
+    expected = 0.5 * np.sum(many * np.log1p(variances / noise[1]), axis=-1)
+    np.testing.assert_allclose(
+        model.scan_gains(np.tile(variances, (3, 1)), positions, np.full((3, 4), noise[1])), expected, rtol=1e-14
+    )
+    scanning = np.array([[1, 1, 0, 1], [0, 0, 0, 0], [1, 0, 1, 1]], bool)
+    noises = np.linspace(0.01, 1.0, 12).reshape(3, 4)
+    fused, information = model.fused(np.tile(variances, (3, 1)), positions, noises, scanning)
+    expected = 1.0 / (1.0 / variances + np.sum((many & scanning[..., None]) / noises[..., None], axis=1))
+    np.testing.assert_array_equal(fused, expected)  # the same operations: bit for bit
+    np.testing.assert_allclose(information, 0.5 * np.sum(np.log(variances / expected), axis=-1), rtol=1e-13, atol=1e-15)
+    assert model.coverage(fused[0]) == np.mean(fused[0] <= 0.09) and model.coverage(model.prior_variances()) == 0.0
 
 
 def test_the_exploration_field_is_drawn_from_its_generator_with_a_clear_base():

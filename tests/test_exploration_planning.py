@@ -47,7 +47,7 @@ def expected_step_by_hand(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndar
     position_std = largest_position_std(ekf.pose_covariances())
     footprints = parts.map_model.footprints(ekf.poses[drives, :2])
     noise = parts.map_model.scan_noise_variances(position_std[drives])
-    after = parts.map_model.fused(map_variances, footprints, noise)
+    after = 1.0 / (1.0 / map_variances + np.sum(footprints / noise[:, None], axis=0))
     map_information = 0.5 * np.sum(np.log(map_variances / after))
     weight = cfg["team_reward"]
     costs = cfg["observation_cost_nats"] * (slots > 0) + cfg["motion_cost_per_step"] * drives

@@ -331,13 +331,12 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         if not rows.size:
             return information
         model, mapped = self.parts.map_model, copies[rows]
-        before = self._map_variances[mapped]
-        footprints = model.footprints(self._worlds.poses[mapped, :, :2]) & scanning[rows, :, None]
         noise = model.scan_noise_variances(position_std[rows])
-        after = 1.0 / (1.0 / before + np.sum(footprints / noise[..., None], axis=1))
+        after, information[rows] = model.fused(
+            self._map_variances[mapped], self._worlds.poses[mapped, :, :2], noise, scanning[rows]
+        )
         self._map_variances[mapped] = after
         self._coverage[mapped] = model.coverage(after)
-        information[rows] = 0.5 * np.sum(np.log(before / after), axis=-1)
         return information
 
     # ------------------------------------------------------------------ decision and outputs

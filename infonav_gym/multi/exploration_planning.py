@@ -73,13 +73,18 @@ def scan_gains(map_model, variances, positions, position_std, speeds_mps, drive_
 
     From the position the motion predicts (estimated position (..., R, 2), compass heading, ``drive_s`` [s] at the
     robot's speed (R,) [m/s]), with the scan noise of its current position std (..., R) [m], on the map's cell
-    variances (..., G) (a ``TerrainMapModel``'s).
+    variances (..., G) (a ``TerrainMapModel``'s; the same leading dimensions).
     """
-    reach = drive_s * speeds_mps[:, None] * (np.arange(N_MOTIONS) != STAY)  # (R, 5) [m]
-    ends = positions[..., None, :] + reach[..., None] * MOTION_DIRECTIONS
-    noise = map_model.scan_noise_variances(position_std)[..., None]
-    gains = map_model.scan_gains(np.asarray(variances)[..., None, None, :], map_model.footprints(ends), noise)
-    gains[..., STAY] = 0.0
+    drives = np.flatnonzero(np.arange(N_MOTIONS) != STAY)
+    ends = positions[..., None, :] + drive_s * speeds_mps[:, None, None] * MOTION_DIRECTIONS[drives]  # (..., R, 4, 2)
+    noise = np.broadcast_to(map_model.scan_noise_variances(position_std)[..., None], ends.shape[:-1])
+    variances = np.asarray(variances)
+    n_scans = ends.shape[-3] * len(drives)
+    flat_gains = map_model.scan_gains(
+        variances.reshape(-1, variances.shape[-1]), ends.reshape(-1, n_scans, 2), noise.reshape(-1, n_scans)
+    )
+    gains = np.zeros((*ends.shape[:-2], N_MOTIONS))
+    gains[..., drives] = flat_gains.reshape(ends.shape[:-1])
     return gains
 
 
@@ -282,10 +287,8 @@ class ExplorationPlanningModel:
         if has_fix.any():
             x, P = batched.gps_update(x, P, positions, self._gps_noise, has_fix, check_input=False)
         position_std = self.position_std(P)
-        footprints = map_model.footprints(positions) & driving[..., None]
         noise = map_model.scan_noise_variances(position_std)
-        map_variances = map_model.fused(belief.map_variances, footprints, noise)
-        map_information = 0.5 * np.sum(np.log(belief.map_variances / map_variances), axis=-1)
+        map_variances, map_information = map_model.fused(belief.map_variances, positions, noise, driving)
         lost = (position_std > cfg["max_position_std_m"]).any(axis=1) & live
         success = (map_model.coverage(map_variances) >= cfg["coverage_target"]) & ~lost & live
         out_of_time = elapsed + belief.steps + 1 >= cfg["max_cycles"]

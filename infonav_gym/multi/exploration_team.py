@@ -204,6 +204,10 @@ def exploration_observations(
     extras = np.stack(
         np.broadcast_arrays(speeds_mps, budget_left, np.asarray(coverage, dtype=float)[..., None]), axis=-1
     )
-    cells = np.broadcast_to(np.asarray(cell_std)[..., None, :], (*lead, n, np.shape(cell_std)[-1]))
-    features = np.concatenate([team, landmarks.reshape(*lead, n, -1), extras, cells], axis=-1).astype(np.float32)
-    return np.clip(features, space.low, space.high, out=features)
+    n_cells = np.shape(cell_std)[-1]
+    robot = np.concatenate([team, landmarks.reshape(*lead, n, -1), extras], axis=-1).astype(np.float32)
+    cells = np.asarray(cell_std, dtype=np.float32)  # the same for every robot: clipped once per team
+    features = np.empty((*lead, n, space.shape[0]), dtype=np.float32)
+    np.clip(robot, space.low[:-n_cells], space.high[:-n_cells], out=features[..., :-n_cells])
+    features[..., -n_cells:] = np.clip(cells, space.low[-n_cells:], space.high[-n_cells:])[..., None, :]
+    return features

@@ -6,7 +6,8 @@ variance ``r = scan_std_m^2 + (terrain_slope * sigma)^2``: a position error ``si
 wrong place, and on terrain of slope ``terrain_slope`` [m/m] that is a height error. Scans of one step fuse in
 information form, ``1 / v_c' = 1 / v_c + sum_k 1 / r_k``, and the map information they bring is the entropy
 reduction ``0.5 sum_c ln(v_c / v_c')`` [nats], exact before the measured heights are known. A cell is covered
-once its std is at most ``covered_std_m``. Pure numpy on arrays with any leading batch dimensions.
+once its std is at most ``covered_std_m``. Numpy on arrays with any leading batch dimensions; the scan gains
+are compiled (``terrain_kernels``).
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from infonav_gym.multi import terrain_kernels
 
 
 @dataclass(frozen=True)
@@ -66,17 +69,26 @@ class TerrainMapModel:
         """Height noise variance [m^2] of a scan from a position known to ``position_std_m`` [m] (any shape)."""
         return self.scan_std_m**2 + (self.terrain_slope * np.asarray(position_std_m)) ** 2
 
-    def scan_gains(self, variances: np.ndarray, footprints: np.ndarray, noise_variances) -> np.ndarray:
-        """Map information [nats] each scan (..., G footprint, ... noise variance) would bring alone.
+    def scan_gains(self, variances: np.ndarray, positions: np.ndarray, noise_variances: np.ndarray) -> np.ndarray:
+        """Map information [nats] each scan (B, E) would bring alone: ``0.5 sum_c ln(1 + v_c / r)`` over the cells
+        its ``footprints`` hold, from positions (B, E, 2) [m] with noise variances (B, E) [m^2] on each copy's cell
+        variances (B, G) [m^2] (compiled: only the cells a scan sees are visited)."""
+        return terrain_kernels.scan_gains(*self._kernel_arguments(variances, positions, noise_variances))
 
-        ``0.5 sum_c ln(1 + v_c / r)`` over the cells the scan sees.
+    def fused(self, variances, positions, noise_variances, scanning) -> tuple[np.ndarray, np.ndarray]:
+        """The cell variances (B, G) after the scans of one step and the map information they bring (B,) [nats].
+
+        Each copy's cell variances (B, G) [m^2] take the scans of its ``scanning`` robots (B, S) bool from
+        ``positions`` (B, S, 2) [m] with noise variances (B, S) [m^2] (compiled: only the cells a scan sees are
+        visited).
         """
-        return 0.5 * np.sum(footprints * np.log1p(variances / np.asarray(noise_variances)[..., None]), axis=-1)
+        arguments = self._kernel_arguments(variances, positions, noise_variances)
+        return terrain_kernels.fused_scans(*arguments, np.ascontiguousarray(scanning, dtype=bool))
 
-    def fused(self, variances: np.ndarray, footprints: np.ndarray, noise_variances) -> np.ndarray:
-        """The cell variances (..., G) after the scans (..., S, G footprints, (..., S) noise variances) of one step."""
-        information = np.sum(footprints / np.asarray(noise_variances)[..., None], axis=-2)
-        return 1.0 / (1.0 / variances + information)
+    def _kernel_arguments(self, variances, positions, noise_variances) -> tuple:
+        """The grid, the squared scan radius and the arrays as the one layout ``terrain_kernels`` is compiled for."""
+        arrays = (np.ascontiguousarray(array, dtype=float) for array in (variances, positions, noise_variances))
+        return self.ticks, float(self.scan_radius_m) ** 2, *arrays
 
     def coverage(self, variances: np.ndarray) -> np.ndarray:
         """The fraction of cells covered (height std at most ``covered_std_m``) (...)."""

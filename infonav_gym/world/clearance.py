@@ -4,14 +4,15 @@ A team whose robots all move straight at once, each by one of M known displaceme
 over the same interval), stays out of contact if every robot takes a *clear* move: one whose swept disc keeps
 ``clearance_m`` from every wall and obstacle (``swept_discs_clear``) and comes within ``2 r + clearance_m`` of
 no teammate for *any* of the teammate's moves. The first move (no displacement) is always clear, and a
-teammate's clear moves keep away from it, so any combination of clear moves is contact-free. Pure numpy on
-arrays with a leading copy dimension.
+teammate's clear moves keep away from it, so any combination of clear moves is contact-free. Numpy on arrays
+with a leading copy dimension; the teammate conflicts are compiled (``clearance_kernels``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from infonav_gym.world import clearance_kernels
 from infonav_gym.world.visibility import StaticGeometry, swept_discs_clear
 
 CLEARANCE_M = 0.05  # the gap a clear move keeps from walls, obstacles and teammates [m]
@@ -29,22 +30,9 @@ def teammate_conflicts(positions: np.ndarray, displacements: np.ndarray, contact
         displacements: each robot's M possible displacements (N, R, M, 2) [m].
         contact_m: the distance between centres below which two robots touch [m].
     """
-    n_copies, n_robots, n_moves = displacements.shape[:3]
-    conflicts = np.zeros((n_copies, n_robots, n_moves, n_robots, n_moves), dtype=bool)
-    reach = np.sqrt(np.max(np.sum(displacements * displacements, axis=-1), axis=-1))  # (N, R) [m]
-    gaps = np.linalg.norm(positions[:, None] - positions[:, :, None], axis=-1)  # (N, R, R) [m]
-    near = (gaps < contact_m + reach[:, :, None] + reach[:, None, :]) & ~np.eye(n_robots, dtype=bool)
-    copy, i, j = np.nonzero(near)  # the pairs farther apart can never meet in the step
-    offset_x = (positions[copy, j, 0] - positions[copy, i, 0])[:, None, None]  # (K, 1, 1) [m]
-    offset_y = (positions[copy, j, 1] - positions[copy, i, 1])[:, None, None]
-    relative_x = displacements[copy, j, None, :, 0] - displacements[copy, i, :, None, 0]  # (K, M, M) [m]
-    relative_y = displacements[copy, j, None, :, 1] - displacements[copy, i, :, None, 1]
-    length_sq = relative_x * relative_x + relative_y * relative_y
-    along = -(offset_x * relative_x + offset_y * relative_y)
-    t = np.clip(along / np.where(length_sq > 0.0, length_sq, 1.0), 0.0, 1.0)
-    closest_x, closest_y = offset_x + t * relative_x, offset_y + t * relative_y
-    conflicts[copy, i, :, j, :] = closest_x * closest_x + closest_y * closest_y < contact_m * contact_m
-    return conflicts
+    return clearance_kernels.teammate_conflicts(
+        np.ascontiguousarray(positions, dtype=float), np.ascontiguousarray(displacements, dtype=float), float(contact_m)
+    )
 
 
 def clear_moves(

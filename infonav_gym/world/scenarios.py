@@ -178,17 +178,22 @@ def _polygon(center: np.ndarray, angles: np.ndarray, radii: np.ndarray) -> np.nd
     return center + radii[:, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1)
 
 
+def _next_vertices(polygon: np.ndarray) -> np.ndarray:
+    """Each vertex's successor around the closed ``polygon``: ``np.roll(polygon, -1, axis=0)`` without its overhead."""
+    return np.concatenate((polygon[1:], polygon[:1]))
+
+
 def _points_along(polygon: np.ndarray, per_edge: int = 8) -> np.ndarray:
     """Points spaced evenly along each edge of the closed ``polygon`` (W * per_edge, 2)."""
     fractions = np.arange(per_edge)[:, None, None] / per_edge
-    return (polygon + fractions * (np.roll(polygon, -1, axis=0) - polygon)).reshape(-1, 2)
+    return (polygon + fractions * (_next_vertices(polygon) - polygon)).reshape(-1, 2)
 
 
 def _closed_route(polygon: np.ndarray, speed_mps: float) -> Route:
     """A looping route around ``polygon``, starting at its first vertex and heading for the second."""
     heading = math.atan2(*(polygon[1] - polygon[0])[::-1])
     start_pose = (float(polygon[0, 0]), float(polygon[0, 1]), heading)
-    return Route(start_pose, np.roll(polygon, -1, axis=0), loop=True, speed_mps=speed_mps)
+    return Route(start_pose, _next_vertices(polygon), loop=True, speed_mps=speed_mps)
 
 
 def _box_walls(x_min: float, y_min: float, x_max: float, y_max: float) -> tuple:

@@ -52,7 +52,8 @@ class WorldBatch:
     def __init__(self, n_copies: int, **world_args):
         self._worlds = [World(**world_args) for _ in range(n_copies)]  # reset when a copy first needs Pymunk
         self._scenarios: list[Scenario | None] = [None] * n_copies
-        self._geometries: list[StaticGeometry | None] = [None] * n_copies  # built when a free step first needs it
+        self._grown: StaticGeometry | None = None  # every copy's static shapes, grown for the contact test
+        self._grown_stale = np.ones(n_copies, dtype=bool)  # copies reset since: rebuilt when a free step needs them
         self._world_is_stale = np.ones(n_copies, dtype=bool)
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
         self._has_space = np.zeros(n_copies, dtype=bool)  # the copy's World holds a Pymunk space
@@ -94,7 +95,7 @@ class WorldBatch:
                 f"{self.poses.shape[1]}; every copy needs the same number"
             )
         self._scenarios[copy] = scenario
-        self._geometries[copy] = None
+        self._grown_stale[copy] = True
         self._world_is_stale[copy] = True
         self._in_contact[copy] = self._has_space[copy] = False
         self._worlds[copy].drop_space()
@@ -192,11 +193,17 @@ class WorldBatch:
             self._max_turn_rate,
         )
 
-    def _geometry(self, copy: int) -> StaticGeometry:
-        """The walls and obstacles of ``copy``'s scenario (built once per scenario)."""
-        if self._geometries[copy] is None:
-            self._geometries[copy] = StaticGeometry.from_scenario(self._scenarios[copy], self.wall_thickness_m)
-        return self._geometries[copy]
+    def _grown_geometry(self, copies: np.ndarray) -> StaticGeometry:
+        """The walls and obstacles of all N copies grown by ``robot_radius_m + CONTACT_GAP_M``, those of ``copies``
+        (n,) as of their scenarios (each copy's built once per scenario, when a free step first needs it)."""
+        stale = copies[self._grown_stale[copies]]
+        if stale.size:
+            geometries = [StaticGeometry.from_scenario(self._scenarios[copy], self.wall_thickness_m) for copy in stale]
+            fresh = StaticGeometry.stack(geometries).grown(self.robot_radius_m + CONTACT_GAP_M)
+            base = fresh.tiled(self.n_copies) if self._grown is None else self._grown
+            self._grown = base.with_copies(stale, fresh)
+            self._grown_stale[stale] = False
+        return self._grown
 
     def _contact_free(self, copies, poses: np.ndarray, controls: np.ndarray, near_static, dt: float) -> np.ndarray:
         """Whether each of ``copies`` (n,) keeps ``CONTACT_GAP_M`` beyond touching all through the step: every two
@@ -215,10 +222,9 @@ class WorldBatch:
         free = ~conflicts.any(axis=(1, 2, 3, 4))
         rows = np.flatnonzero(free & near_static)
         if rows.size:
-            geometry = StaticGeometry.stack([self._geometry(copy) for copy in copies[rows].tolist()])
-            grown = geometry.grown(self.robot_radius_m + CONTACT_GAP_M)
+            grown = self._grown_geometry(copies[rows])
             starts = poses[rows, :, :2]
-            queries = np.repeat(np.arange(len(rows)), starts.shape[1])
+            queries = np.repeat(copies[rows], starts.shape[1])
             clear = segments_clear(grown, queries, starts.reshape(-1, 2), (starts + displacements[rows]).reshape(-1, 2))
             free[rows] = clear.reshape(starts.shape[:2]).all(axis=1)
         return free

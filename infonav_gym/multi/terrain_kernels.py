@@ -1,0 +1,98 @@
+"""Compiled scan gains of the coverage map (``multi.terrain_map``): each scan visits only the cells it sees.
+
+The footprint test is ``TerrainMapModel.footprints``'s, operation for operation (``dx * dx + dy * dy <=
+radius^2`` on the cell-centre ticks); the gain sums ``log1p(v_c / r)`` over those cells in row-major order.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from infonav_gym.compiled import inline, kernel
+
+
+@inline
+def footprint(ticks, radius_squared, x, y, cells):
+    """Write the cells a scan from (x, y) [m] sees into ``cells`` (row-major, ``row * K + col``); their count.
+
+    The ticks ascend, so past (x, y) the first cell out of reach ends its row, and the first row out of reach the
+    grid (rounding is monotone: no cell beyond is within reach)."""
+    n_ticks, count = ticks.shape[0], 0
+    for row in range(n_ticks):
+        dy = y - ticks[row]
+        dy_squared = dy * dy
+        if dy_squared > radius_squared:
+            if dy < 0.0:  # the ticks ascend: every later row is farther still
+                break
+            continue
+        for col in range(n_ticks):
+            dx = x - ticks[col]
+            if dx * dx + dy_squared <= radius_squared:
+                cells[count] = row * n_ticks + col
+                count += 1
+            elif dx < 0.0:
+                break
+    return count
+
+
+@kernel
+def scan_gains(ticks, radius_squared, variances, ends, noise_variances):
+    """``0.5 sum_c ln(1 + v_c / r)`` over the cells each scan sees (B, E) [nats].
+
+    Args:
+        ticks: the cell-centre coordinates along each axis (K,) [m]; cell ``row * K + col``.
+        radius_squared: the squared scan radius [m^2].
+        variances: the cell variances of each copy (B, K^2) [m^2].
+        ends: where each scan is taken (B, E, 2) [m].
+        noise_variances: each scan's height noise variance (B, E) [m^2].
+    """
+    n_copies, n_scans = ends.shape[0], ends.shape[1]
+    gains = np.zeros((n_copies, n_scans))
+    cells = np.empty(variances.shape[1], dtype=np.int64)
+    for copy in range(n_copies):
+        for scan in range(n_scans):
+            noise = noise_variances[copy, scan]
+            total = 0.0
+            for k in range(footprint(ticks, radius_squared, ends[copy, scan, 0], ends[copy, scan, 1], cells)):
+                total += math.log1p(variances[copy, cells[k]] / noise)
+            gains[copy, scan] = 0.5 * total
+    return gains
+
+
+@kernel
+def fused_scans(ticks, radius_squared, variances, positions, noise_variances, scanning):
+    """The cell variances (B, G) after each copy's scans of one step, fused in information form, and the map
+    information they bring (B,) [nats]: ``0.5 sum_c ln(v_c / v_c')`` over the cells some scan sees (elsewhere
+    ``v_c' = 1 / (1 / v_c + 0)``, as in numpy, and its term is left out).
+
+    Args:
+        ticks, radius_squared: as ``scan_gains`` takes them.
+        variances: the cell variances of each copy before the scans (B, G) [m^2].
+        positions: where each robot scans (B, S, 2) [m].
+        noise_variances: each scan's height noise variance (B, S) [m^2].
+        scanning: which robots scan (B, S) bool.
+    """
+    n_copies, n_scans, n_cells = positions.shape[0], positions.shape[1], variances.shape[1]
+    after = np.empty((n_copies, n_cells))
+    information = np.zeros(n_copies)
+    added = np.empty(n_cells)
+    cells = np.empty(n_cells, dtype=np.int64)
+    for copy in range(n_copies):
+        added[:] = 0.0
+        for scan in range(n_scans):
+            if scanning[copy, scan]:
+                weight = 1.0 / noise_variances[copy, scan]
+                for k in range(
+                    footprint(ticks, radius_squared, positions[copy, scan, 0], positions[copy, scan, 1], cells)
+                ):
+                    added[cells[k]] += weight
+        total = 0.0
+        for cell in range(n_cells):
+            before = variances[copy, cell]
+            after[copy, cell] = 1.0 / (1.0 / before + added[cell])
+            if added[cell] != 0.0:
+                total += math.log(before / after[copy, cell])
+        information[copy] = 0.5 * total
+    return after, information
