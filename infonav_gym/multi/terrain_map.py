@@ -7,7 +7,7 @@ wrong place, and on terrain of slope ``terrain_slope`` [m/m] that is a height er
 information form, ``1 / v_c' = 1 / v_c + sum_k 1 / r_k``, and the map information they bring is the entropy
 reduction ``0.5 sum_c ln(v_c / v_c')`` [nats], exact before the measured heights are known. A cell is covered
 once its std is at most ``covered_std_m``. Numpy on arrays with any leading batch dimensions; the scan gains
-are compiled (``terrain_kernels``).
+are compiled (``terrain_map_kernels``).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from infonav_gym.multi import terrain_kernels
+from infonav_gym.multi import terrain_map_kernels
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,7 @@ class TerrainMapModel:
         """Map information [nats] each scan (B, E) would bring alone: ``0.5 sum_c ln(1 + v_c / r)`` over the cells
         its ``footprints`` hold, from positions (B, E, 2) [m] with noise variances (B, E) [m^2] on each copy's cell
         variances (B, G) [m^2] (compiled: only the cells a scan sees are visited)."""
-        return terrain_kernels.scan_gains(*self._kernel_arguments(variances, positions, noise_variances))
+        return terrain_map_kernels.scan_gains(*self._kernel_arguments(variances, positions, noise_variances))
 
     def fused(self, variances, positions, noise_variances, scanning) -> tuple[np.ndarray, np.ndarray]:
         """The cell variances (B, G) after the scans of one step and the map information they bring (B,) [nats].
@@ -83,10 +83,10 @@ class TerrainMapModel:
         visited).
         """
         arguments = self._kernel_arguments(variances, positions, noise_variances)
-        return terrain_kernels.fused_scans(*arguments, np.ascontiguousarray(scanning, dtype=bool))
+        return terrain_map_kernels.fused_scans(*arguments, np.ascontiguousarray(scanning, dtype=bool))
 
     def _kernel_arguments(self, variances, positions, noise_variances) -> tuple:
-        """The grid, the squared scan radius and the arrays as the one layout ``terrain_kernels`` is compiled for."""
+        """The grid, the squared scan radius and the arrays as the one layout ``terrain_map_kernels`` is compiled for."""
         arrays = (np.ascontiguousarray(array, dtype=float) for array in (variances, positions, noise_variances))
         return self.ticks, float(self.scan_radius_m) ** 2, *arrays
 
