@@ -96,3 +96,11 @@ def unused_address():
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         yield f"127.0.0.1:{probe.getsockname()[1]}"
+
+
+def map_footprints(model, positions) -> np.ndarray:
+    """The reference of which cells of a ``TerrainMapModel`` a scan from each position (..., 2) [m] sees (..., G)
+    bool: those whose centre lies within ``scan_radius_m`` (the compiled map visits only these)."""
+    dx, dy = positions[..., 0, None] - model.ticks, positions[..., 1, None] - model.ticks  # (..., K) [m]
+    squared = dx[..., None, :] * dx[..., None, :] + dy[..., :, None] * dy[..., :, None]  # (..., K rows, K)
+    return squared.reshape(*squared.shape[:-2], -1) <= model.scan_radius_m**2

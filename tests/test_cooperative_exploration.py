@@ -10,7 +10,7 @@ import pickle  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-from conftest import assert_identical, greedy_actions, random_valid_actions  # noqa: E402
+from conftest import assert_identical, greedy_actions, map_footprints, random_valid_actions  # noqa: E402
 
 from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0  # noqa: E402
@@ -178,7 +178,7 @@ def test_the_terrain_map_fuses_scans_in_information_form_and_gains_are_their_ent
     )
     np.testing.assert_allclose(model.centers[:6], [[1, 1], [3, 1], [5, 1], [7, 1], [9, 1], [1, 3]])
     variances = model.prior_variances() * np.linspace(0.2, 1.0, model.n_cells)
-    footprints = model.footprints(np.array([[4.0, 4.0], [5.0, 6.0]]))
+    footprints = map_footprints(model, np.array([[4.0, 4.0], [5.0, 6.0]]))
     assert footprints.sum(axis=1).tolist() == [4, 6]  # centres within 2.5 m: (3|5, 3|5); (3|5|7, 5|7)
     noise = model.scan_noise_variances(np.array([0.0, 2.0]))
     np.testing.assert_allclose(noise, [0.01, 0.01 + 1.0])
@@ -194,7 +194,7 @@ def test_the_terrain_map_fuses_scans_in_information_form_and_gains_are_their_ent
     assert math.isclose(gain[0, 0], entropy_reduction, rel_tol=1e-12)
     positions = np.random.default_rng(0).uniform(-1.0, 11.0, (3, 4, 2))  # also off the field, on cell boundaries
     positions[0, 0] = [5.0, 3.5]
-    many = model.footprints(positions)
+    many = map_footprints(model, positions)
     expected = 0.5 * np.sum(many * np.log1p(variances / noise[1]), axis=-1)
     np.testing.assert_allclose(
         model.scan_gains(np.tile(variances, (3, 1)), positions, np.full((3, 4), noise[1])), expected, rtol=1e-14

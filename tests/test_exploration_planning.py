@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import map_footprints
 from team_vector_checks import exploration_observation_updates
 
 from agents import PlannerAgent
@@ -45,7 +46,7 @@ def expected_step_by_hand(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndar
     fixed = np.flatnonzero([gps is not None for gps in parts.gps])
     ekf.gps_update(fixed, ekf.poses[fixed, :2], [parts.gps[k].noise_covariance() for k in fixed])
     position_std = largest_position_std(ekf.pose_covariances())
-    footprints = parts.map_model.footprints(ekf.poses[drives, :2])
+    footprints = map_footprints(parts.map_model, ekf.poses[drives, :2])
     noise = parts.map_model.scan_noise_variances(position_std[drives])
     after = 1.0 / (1.0 / map_variances + np.sum(footprints / noise[:, None], axis=0))
     map_information = 0.5 * np.sum(np.log(map_variances / after))

@@ -59,19 +59,13 @@ class TerrainMapModel:
         """A fresh map: every cell at the prior variance (G,) [m^2]."""
         return np.full(self.n_cells, self.prior_std_m**2)
 
-    def footprints(self, positions: np.ndarray) -> np.ndarray:
-        """Which cells a scan from each position (..., 2) [m] sees (..., G) bool."""
-        dx, dy = positions[..., 0, None] - self.ticks, positions[..., 1, None] - self.ticks  # (..., K) [m]
-        squared = dx[..., None, :] * dx[..., None, :] + dy[..., :, None] * dy[..., :, None]  # (..., K rows, K)
-        return squared.reshape(*squared.shape[:-2], -1) <= self.scan_radius_m**2
-
     def scan_noise_variances(self, position_std_m) -> np.ndarray:
         """Height noise variance [m^2] of a scan from a position known to ``position_std_m`` [m] (any shape)."""
         return self.scan_std_m**2 + (self.terrain_slope * np.asarray(position_std_m)) ** 2
 
     def scan_gains(self, variances: np.ndarray, positions: np.ndarray, noise_variances: np.ndarray) -> np.ndarray:
         """Map information [nats] each scan (B, E) would bring alone: ``0.5 sum_c ln(1 + v_c / r)`` over the cells
-        its ``footprints`` hold, from positions (B, E, 2) [m] with noise variances (B, E) [m^2] on each copy's cell
+        it sees, from positions (B, E, 2) [m] with noise variances (B, E) [m^2] on each copy's cell
         variances (B, G) [m^2] (compiled: only the cells a scan sees are visited)."""
         return terrain_map_kernels.scan_gains(*self._kernel_arguments(variances, positions, noise_variances))
 
@@ -86,7 +80,7 @@ class TerrainMapModel:
         return terrain_map_kernels.fused_scans(*arguments, np.ascontiguousarray(scanning, dtype=bool))
 
     def _kernel_arguments(self, variances, positions, noise_variances) -> tuple:
-        """The grid, the squared scan radius and the arrays as the one layout ``terrain_map_kernels`` is compiled for."""
+        """The grid, the squared scan radius and the arrays in the one layout ``terrain_map_kernels`` compiles for."""
         arrays = (np.ascontiguousarray(array, dtype=float) for array in (variances, positions, noise_variances))
         return self.ticks, float(self.scan_radius_m) ** 2, *arrays
 
