@@ -84,11 +84,6 @@ def transform_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, flo
     return translation, rotation_angle(estimate[:3, :3].T @ truth[:3, :3])
 
 
-def distance_to_loop(point, loop) -> float:
-    """Shortest distance [m] from ``point`` (2,) to the closed polyline ``loop`` (W, 2); one vertex is a point."""
-    return float(ClosedLoop(loop).distances(np.asarray(point, dtype=float)[None])[0])
-
-
 class ClosedLoop:
     """Closed polylines (each (W, 2) [m]) whose edges are prepared once, for the distances of many points."""
 

@@ -73,17 +73,6 @@ class RobotDrawing:
     estimated_path: np.ndarray | None = None
     label: str = ""  # drawn next to the robot if fonts are available
 
-    @classmethod
-    def tracked(cls, true_pose, ekf, true_path: PathHistory, estimated_path: PathHistory) -> RobotDrawing:
-        """A robot tracked by a ``PoseEKF``: its truth, the filter's pose and covariance, and both paths."""
-        return cls(
-            true_pose=true_pose,
-            estimated_pose=ekf.pose,
-            pose_covariance=ekf.pose_covariance,
-            true_path=true_path.points(),
-            estimated_path=estimated_path.points(),
-        )
-
 
 @dataclass
 class SceneFrame:

@@ -104,3 +104,26 @@ def map_footprints(model, positions) -> np.ndarray:
     dx, dy = positions[..., 0, None] - model.ticks, positions[..., 1, None] - model.ticks  # (..., K) [m]
     squared = dx[..., None, :] * dx[..., None, :] + dy[..., :, None] * dy[..., :, None]  # (..., K rows, K)
     return squared.reshape(*squared.shape[:-2], -1) <= model.scan_radius_m**2
+
+
+def select_candidates(chosen, *candidates) -> tuple[np.ndarray, ...]:
+    """Each copy's chosen row of per-candidate arrays, and which copies chose one.
+
+    Args:
+        chosen: the chosen candidate of each copy (N,), -1 for none.
+        candidates: arrays (N, K, ...) (e.g. the predicted measurements, Jacobians and noise of K landmarks).
+
+    Returns:
+        ``(observed (N,) bool, *rows)``, each row (N, ...); a copy with none gets its candidate 0 (unused).
+    """
+    chosen = np.asarray(chosen)
+    observed = chosen >= 0
+    copies, rows = np.arange(len(chosen)), np.where(observed, chosen, 0)
+    return (observed, *(np.asarray(candidate)[copies, rows] for candidate in candidates))
+
+
+def distance_to_loop(point, loop) -> float:
+    """Shortest distance [m] from ``point`` (2,) to the closed polyline ``loop`` (W, 2); one vertex is a point."""
+    from infonav_gym.geometry import ClosedLoop  # here: this module does not import infonav_gym (see above)
+
+    return float(ClosedLoop(loop).distances(np.asarray(point, dtype=float)[None])[0])

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import select_candidates
 
 import infonav_gym  # noqa: F401  (registers the envs)
 from infonav_gym.estimation import JointEKF, PoseEKF, batched
@@ -150,7 +151,7 @@ def test_range_bearing_update_equals_pose_ekf_and_skips_unobserved_copies(n_copi
     n_landmarks = 6
     rng, x, P, landmarks, predicted, H, R = landmark_case(7 * n_copies + mapping, n_copies, mapping, n_landmarks)
     chosen = np.where(random_mask(rng, n_copies), rng.integers(0, n_landmarks, n_copies), -1)
-    observed, chosen_predicted, chosen_H, chosen_R = batched.select_candidates(chosen, predicted, H, R)
+    observed, chosen_predicted, chosen_H, chosen_R = select_candidates(chosen, predicted, H, R)
     measurements = chosen_predicted + rng.normal(0, [0.2, 0.1], (n_copies, 2))
     measurements[:, 1] = (measurements[:, 1] + math.pi) % (2 * math.pi) - math.pi
     x_new, P_new = batched.range_bearing_update(x, P, measurements, chosen_predicted, chosen_H, chosen_R, observed)
@@ -205,7 +206,7 @@ def test_unchecked_fast_path_equals_the_checked_call():
     ):
         np.testing.assert_array_equal(checked, unchecked)
     predicted, H = batched.landmark_measurement_model(x)
-    observed, rows, jacobians, R = batched.select_candidates(
+    observed, rows, jacobians, R = select_candidates(
         np.array([0, -1, 2, 1, -1]), predicted, H, landmark_noise(predicted)
     )
     arguments = (x, P, rows + 0.01, rows, jacobians, R, observed)

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import select_candidates
 from filterpy.kalman import ExtendedKalmanFilter
 
 from infonav_gym.estimation import batched
@@ -137,7 +138,7 @@ def test_pose_filter_episodes_equal_filterpy(n_landmarks):
         R = np.broadcast_to(np.diag([0.1**2, math.radians(3.0) ** 2]), (n_copies, n_candidates, 2, 2)).copy()
         gains = batched.landmark_information_gains(P, H, R)
         chosen = np.where(rng.random(n_copies) < 0.8, rng.integers(0, n_candidates, n_copies), -1)
-        observed, rows, jacobians, noises = batched.select_candidates(chosen, predicted, H, R)
+        observed, rows, jacobians, noises = select_candidates(chosen, predicted, H, R)
         measured = rows + rng.normal(0, [0.1, 0.05], (n_copies, 2))
         x, P = batched.range_bearing_update(x, P, measured, rows, jacobians, noises, observed)
         for copy, ekf in enumerate(filters):

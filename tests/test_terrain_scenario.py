@@ -4,8 +4,8 @@ import math
 
 import numpy as np
 import pytest
+from conftest import distance_to_loop
 
-from infonav_gym.geometry import distance_to_loop
 from infonav_gym.world import World
 from infonav_gym.world.terrain_generation import make_terrain
 from infonav_gym.world.terrain_scenario import ROUTE_CLEARANCE_M, terrain_loop

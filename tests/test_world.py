@@ -4,9 +4,9 @@ import math
 
 import numpy as np
 import pytest
+from conftest import distance_to_loop
 
 from infonav_gym.estimation.models import unicycle_motion
-from infonav_gym.geometry import distance_to_loop
 from infonav_gym.world import SCENARIOS, CircleObstacle, Scenario, World
 from infonav_gym.world.scenarios import (
     CORRIDOR_LANDMARK_COUNT,

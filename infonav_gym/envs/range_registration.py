@@ -30,7 +30,6 @@ from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config,
 from infonav_gym.world.world import TIME_STEP_S, World
 
 MIN_CONTROL_POINTS = 3  # fewer cannot fix a rigid motion
-PATCH_FEATURES = 5
 GLOBAL_FEATURES = 2
 MAX_PATCH_INFORMATION = 50.0  # observation bound of a patch's information [nats]
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses (patches: see __init__)

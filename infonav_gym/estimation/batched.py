@@ -233,22 +233,6 @@ def relative_pose_model(x, observers, targets, *, check_input: bool = True):
     return tuple(models)
 
 
-def select_candidates(chosen, *candidates) -> tuple[np.ndarray, ...]:
-    """Each copy's chosen row of per-candidate arrays, and which copies chose one.
-
-    Args:
-        chosen: the chosen candidate of each copy (N,), -1 for none.
-        candidates: arrays (N, K, ...) (e.g. the predicted measurements, Jacobians and noise of K landmarks).
-
-    Returns:
-        ``(observed (N,) bool, *rows)``, each row (N, ...); a copy with none gets its candidate 0 (unused).
-    """
-    chosen = np.asarray(chosen)
-    observed = chosen >= 0
-    copies, rows = np.arange(len(chosen)), np.where(observed, chosen, 0)
-    return (observed, *(np.asarray(candidate)[copies, rows] for candidate in candidates))
-
-
 # ---------------------------------------------------------------------------------------------- updates
 
 

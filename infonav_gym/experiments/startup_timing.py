@@ -14,17 +14,12 @@ import sys
 import tempfile
 import time
 
-from infonav_gym.registry import registered_envs
-
 FIRST_STEP_SCRIPT = """
-import sys
 import numpy as np
 from infonav_gym import make_env, registered_envs
 from infonav_gym.registry import PARALLEL
 
 for entry in registered_envs():
-    if sys.argv[1:] and entry.id not in sys.argv[1:]:
-        continue
     env = make_env(entry.id)
     if entry.api == PARALLEL:
         _, infos = env.reset(seed=0)
@@ -36,9 +31,8 @@ for entry in registered_envs():
 """
 
 
-def first_step_seconds(cache_dir: str, env_ids: tuple[str, ...] = ()) -> float:
-    """Wall seconds of a fresh Python process running ``FIRST_STEP_SCRIPT`` with numba's cache in ``cache_dir``, on
-    ``env_ids`` only if given (else every registered env).
+def first_step_seconds(cache_dir: str) -> float:
+    """Wall seconds of a fresh Python process running ``FIRST_STEP_SCRIPT`` with numba's cache in ``cache_dir``.
 
     Raises:
         RuntimeError: if the process fails (its stderr's last line quoted).
@@ -46,11 +40,7 @@ def first_step_seconds(cache_dir: str, env_ids: tuple[str, ...] = ()) -> float:
     environment = {**os.environ, "NUMBA_CACHE_DIR": cache_dir}
     start = time.perf_counter()
     result = subprocess.run(
-        [sys.executable, "-c", FIRST_STEP_SCRIPT, *env_ids],
-        capture_output=True,
-        text=True,
-        env=environment,
-        check=False,
+        [sys.executable, "-c", FIRST_STEP_SCRIPT], capture_output=True, text=True, env=environment, check=False
     )
     seconds = time.perf_counter() - start
     if result.returncode != 0:
@@ -65,12 +55,3 @@ def startup_figures() -> dict:
         cold = first_step_seconds(cache_dir)
         warm = first_step_seconds(cache_dir)
     return {"cold_start_s": cold, "warm_start_s": warm}
-
-
-def cold_start_s_by_env() -> dict[str, float]:
-    """``{env id: seconds}``: the first-step process of each registered env alone, each with an empty numba cache."""
-    seconds = {}
-    for entry in registered_envs():
-        with tempfile.TemporaryDirectory(prefix="infonav-numba-cache-") as cache_dir:
-            seconds[entry.id] = first_step_seconds(cache_dir, (entry.id,))
-    return seconds

@@ -270,11 +270,6 @@ class World:
             dtype=bool,
         )
 
-    def robots_in_sight(self, pairs) -> list[bool]:
-        """For each pair ``(i, j)`` of robot indices, whether walls and obstacles leave a clear line between them."""
-        query, poses = self.space.segment_query_first, self._poses
-        return [query(poses[i][:2], poses[j][:2], 0.0, _OBSTACLES_ONLY) is None for i, j in pairs]
-
     def gps_denied(self, positions) -> np.ndarray:
         """For each position (N, 2) [m], whether it lies inside one of the scenario's GPS-denied zones."""
         positions = np.atleast_2d(np.asarray(positions, dtype=float))
