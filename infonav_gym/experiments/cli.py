@@ -82,11 +82,6 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{' '.join(self.prog.split()[:2])}: error: {message}\n")
 
 
-def _common(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--seed", type=seed, default=0, help="first seed, from 0 to 2**32 - 1 (default: 0)")
-    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of tables")
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="infonav", description="Information-driven navigation environments.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {infonav_gym.__version__}")
@@ -95,7 +90,6 @@ def build_parser() -> argparse.ArgumentParser:
     demo = commands.add_parser("demo", help="the paper's Fig. 2 story: which corridor landmark brings most information")
     demo.add_argument("--steps", type=positive_int, default=12, help="steps per agent (default: 12)")
     demo.add_argument("--plot", type=Path, help="also write a Fig. 2-style plot to this PNG (needs matplotlib)")
-    _common(demo)
 
     evaluate = commands.add_parser("evaluate", help="evaluate baseline agents with the same seeds; print a table")
     evaluate.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
@@ -107,9 +101,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     evaluate.add_argument("--episodes", type=positive_int, default=20, help="episodes per agent (default: 20)")
     evaluate.add_argument(
-        "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
-    )
-    evaluate.add_argument(
         "--output", type=Path, help=_stem_help(EVALUATION_SUFFIXES, "OUTPUT.md, OUTPUT.csv, OUTPUT.json and OUTPUT.png")
     )
     evaluate.add_argument(
@@ -117,7 +108,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     evaluate.add_argument("--ray", action="store_true", help="play them as Ray tasks (the distributed extra)")
     evaluate.add_argument("--address", help="with --ray: an existing Ray cluster (default: a local Ray)")
-    _common(evaluate)
 
     render = commands.add_parser("render", help="render one episode of an agent: PREFIX.gif (animated), PREFIX.png")
     render.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
@@ -129,12 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PREFIX",
         help=_stem_help(RENDER_SUFFIXES, "PREFIX.gif and PREFIX.png"),
     )
-    render.add_argument(
-        "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
-    )
     render.add_argument("--every", type=positive_int, default=1, help="keep every K-th step's frame (default: 1)")
     render.add_argument("--max-steps", type=positive_int, help="stop after N steps (default: when the episode ends)")
-    _common(render)
 
     train = commands.add_parser("train", help="train PPO (MaskablePPO with action masks); save model.zip")
     train.add_argument(
@@ -188,10 +174,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="rllib, team env: one policy shared by every robot (default) or one per robot",
     )
     train.add_argument("--address", help="rllib: an existing Ray cluster (default: a local Ray)")
-    train.add_argument(
-        "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
-    )
-    _common(train)
 
     benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
     benchmark.add_argument("--rounds", type=positive_int, default=5, help="alternating measurement rounds (default: 5)")
@@ -203,7 +185,6 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"comma-separated sub-env counts N of the vector envs (default: {DEFAULT_VECTOR_SIZES_TEXT})",
     )
     benchmark.add_argument("--plot", type=Path, help="also write the steps/s-against-N curves to this PNG")
-    _common(benchmark)
 
     reproduce = commands.add_parser(
         "reproduce",
@@ -219,7 +200,6 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"where to write FIGURE.png and FIGURE.json (default: ./{DEFAULT_OUTPUT_DIR}, in the working directory)",
     )
     reproduce.add_argument("--seeds", type=positive_int, default=20, help="seeds averaged from --seed on (default: 20)")
-    _common(reproduce)
 
     replay = commands.add_parser("replay", help="replay measurement-selection policies on logged real robot data")
     replay_sources = replay.add_subparsers(dest="source", required=True)
@@ -269,11 +249,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="fit the noise model to DATASET_DIR's ground truth, write OUTPUT.json and OUTPUT.png, replay nothing "
         "(the options of a replay are refused with it)",
     )
-    _common(mrclam)
+    for command in (evaluate, render, train):
+        command.add_argument(
+            "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
+        )
+    for command in (demo, evaluate, render, train, benchmark, reproduce, mrclam):
+        command.add_argument("--seed", type=seed, default=0, help="first seed, from 0 to 2**32 - 1 (default: 0)")
+        command.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of tables")
     return parser
 
 
-def _demo(args) -> dict:
+def _demo(args, command: str) -> dict:
     from infonav_gym.experiments.demo import demo_table, plot_information_field, run_demo
 
     result = run_demo(steps=args.steps, seed=args.seed)
@@ -301,7 +287,7 @@ def _raise_if_failed(failure: str | None, result: dict) -> None:
         raise OutputWriteError(failure, result)
 
 
-def _evaluate(args, argv) -> dict:
+def _evaluate(args, command: str) -> dict:
     from infonav_gym.experiments.evaluation import config_line, evaluate, heading, markdown_table, write_results
 
     stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
@@ -326,7 +312,6 @@ def _evaluate(args, argv) -> dict:
             raise Interrupted("interrupted before an episode finished: nothing to write", results) from None
     failure = None
     if stem:
-        command = "infonav " + " ".join(shlex.quote(part) for part in argv)
         failure = _write_files(lambda: write_results(results, stem, command), results, f"--output {stem}")
     if not args.json:
         print(heading(results))
@@ -339,7 +324,7 @@ def _evaluate(args, argv) -> dict:
     return results
 
 
-def _render(args) -> dict:
+def _render(args, command: str) -> dict:
     """Render one episode into ``args.output`` .gif and .png; print what was written unless --json."""
     from infonav_gym.experiments.render_episode import render_episode, write_gif, write_strip
     from infonav_gym.rendering import require_extra
@@ -370,7 +355,7 @@ def _render(args) -> dict:
     return result
 
 
-def _train(args) -> dict:
+def _train(args, command: str) -> dict:
     """Train PPO on ``args.env``; print where the model went unless --json."""
     if args.backend == "rllib":
         return _train_rllib(args)
@@ -442,7 +427,7 @@ def _train_rllib(args) -> dict:
     return record
 
 
-def _benchmark(args) -> dict:
+def _benchmark(args, command: str) -> dict:
     from infonav_gym.experiments.benchmark import lower_is_better, run_benchmark
     from infonav_gym.experiments.throughput_plot import plot_throughput
     from infonav_gym.rendering import require_extra
@@ -476,7 +461,7 @@ def _benchmark(args) -> dict:
     return result
 
 
-def _reproduce(args, argv) -> dict:
+def _reproduce(args, command: str) -> dict:
     """Run ``reproduce_<figure>`` of ``infonav_gym.experiments.reproduce.<figure>``; print its table unless --json.
 
     The table is printed even when writing the files fails (then ``OutputWriteError`` follows).
@@ -485,7 +470,6 @@ def _reproduce(args, argv) -> dict:
 
     module = importlib.import_module(f"infonav_gym.experiments.reproduce.{args.figure}")
     reproduce, table = getattr(module, f"reproduce_{args.figure}"), getattr(module, f"{args.figure}_table")
-    command = "infonav " + shlex.join(argv)
     try:
         result = reproduce(args.output_dir, seed=args.seed, n_seeds=args.seeds, progress=not args.json, command=command)
         failure = None
@@ -531,7 +515,7 @@ def _replay_options_given(args) -> list[str]:
     return ["--" + key.replace("_", "-") for key in given]
 
 
-def _calibrate(args, argv) -> dict:
+def _calibrate(args, command: str) -> dict:
     """Fit the noise model of ``args.dataset_dir``; write the JSON and the residual plot."""
     from infonav_gym.experiments.replay.calibration import calibrate
     from infonav_gym.experiments.replay.plots import plot_calibration
@@ -542,7 +526,7 @@ def _calibrate(args, argv) -> dict:
         raise ValueError(f"--calibrate only fits the noise model: {', '.join(ignored)} would be ignored; drop {them}")
     stem = check_output_stem(args.calibrate, CALIBRATION_SUFFIXES, "--calibrate")
     dataset = _load_mrclam(args.dataset_dir)
-    model, errors = calibrate(dataset, command="infonav " + shlex.join(argv), progress=not args.json)
+    model, errors = calibrate(dataset, command=command, progress=not args.json)
     result = model.to_json()
 
     def write():
@@ -569,7 +553,7 @@ def calibration_table(model) -> str:
     return "\n".join(lines)
 
 
-def _replay(args, argv) -> dict:
+def _replay(args, command: str) -> dict:
     """Load an MRCLAM directory, replay the policies and budgets asked for; print the table unless --json."""
     from infonav_gym.experiments.replay import (
         ReplayConfig,
@@ -581,7 +565,7 @@ def _replay(args, argv) -> dict:
     from infonav_gym.experiments.replay.comparison import compare, comparison_markdown
 
     if args.calibrate:
-        return _calibrate(args, argv)
+        return _calibrate(args, command)
     check_experiments(args.policy, args.k, args.window_s, args.seeds)  # before the dataset loads
     ReplayConfig(outage_start_s=args.outage_start_s, outage_end_s=args.outage_end_s)  # its outage span check, too
     outage_span = [name for name in ("--outage-start-s", "--outage-end-s") if name in _replay_options_given(args)]
@@ -621,7 +605,6 @@ def _replay(args, argv) -> dict:
         result["compared_rows"] = before["rows"]
     failure = None
     if stem:
-        command = "infonav " + shlex.join(argv)
         failure = _write_files(lambda: write_results(result, stem, command), result, f"--output {stem}")
     if not args.json:
         print(markdown_table(result))
@@ -635,34 +618,18 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
+    run = {"demo": _demo, "evaluate": _evaluate, "render": _render, "train": _train, "benchmark": _benchmark}
+    run |= {"reproduce": _reproduce, "replay": _replay}
     try:
-        if args.command == "demo":
-            result = _demo(args)
-        elif args.command == "evaluate":
-            result = _evaluate(args, argv)
-        elif args.command == "render":
-            result = _render(args)
-        elif args.command == "train":
-            result = _train(args)
-        elif args.command == "reproduce":
-            result = _reproduce(args, argv)
-        elif args.command == "replay":
-            result = _replay(args, argv)
-        else:
-            result = _benchmark(args)
-    except OutputWriteError as failure:  # the table was printed; the JSON still is with --json
+        result = run[args.command](args, "infonav " + shlex.join(argv))
+    except (OutputWriteError, Interrupted) as kept:  # the work kept was printed; its JSON still is with --json
         if args.json:
-            print(json.dumps(failure.result))
-        parser.exit(2, f"infonav {args.command}: error: {failure}\n")
-    except Interrupted as interruption:  # the work finished so far was kept; the JSON too with --json
-        if args.json:
-            print(json.dumps(interruption.result))
-        parser.exit(130, f"infonav {args.command}: {interruption}\n")
+            print(json.dumps(kept.result))
+        interrupted = isinstance(kept, Interrupted)
+        parser.exit(130 if interrupted else 2, f"infonav {args.command}: {'' if interrupted else 'error: '}{kept}\n")
     except KeyboardInterrupt:
         parser.exit(130, f"infonav {args.command}: interrupted\n")
-    except (ValueError, ImportError) as error:
-        parser.exit(2, f"infonav {args.command}: error: {error}\n")
-    except OSError as error:  # a file that could not be read or written, e.g. demo --plot or train's model
+    except (ValueError, ImportError, OSError) as error:  # OSError: a file not read or written, e.g. demo --plot
         parser.exit(2, f"infonav {args.command}: error: {error}\n")
     if args.json:
         print(json.dumps(result))
