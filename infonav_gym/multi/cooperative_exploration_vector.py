@@ -52,7 +52,7 @@ from infonav_gym.multi.exploration_team import (
     start_episode,
 )
 from infonav_gym.multi.parallel_view import team_metadata
-from infonav_gym.multi.team_decision import TeamDecision
+from infonav_gym.multi.team_decision import TeamDecision, observable_pairs
 from infonav_gym.multi.team_localization import team_observation_bounds, team_observations
 from infonav_gym.multi.team_paths import FirstCopyPaths
 from infonav_gym.multi.team_vector import TeamVectorEnv, draws_in_slot_order
@@ -134,7 +134,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         action_space = spaces.Discrete(N_MOTIONS * (1 + n_landmarks + n_robots))
         observation_space = spaces.Box(low, high, dtype=np.float32)
         self._setup_team(observation_space, action_space, parts.pairs, parts.gps, parts.odometry, (2,))
-        self._sight = TeamSight.of_team(parts.relative_sensors, parts.pairs)
+        self._sight = TeamSight(tuple(parts.relative_sensors))
         self._landmarks = np.zeros((num_envs, n_landmarks, 2))
         self._geometries: list[StaticGeometry | None] = [None] * num_envs
         self._map_variances = np.zeros((num_envs, n_cells))
@@ -347,7 +347,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         true_poses, x, P = self._worlds.poses, self._x, self._P
         n_copies, n_robots = true_poses.shape[:2]
         budget_left = self._observations_left > 0
-        pair_geometry, valid = sight.observable_pairs(self._geometry, true_poses)
+        pair_geometry, valid = observable_pairs(self._pairs, self._geometry, true_poses)
         valid &= budget_left[:, self._pairs.observers]
         team = TeamDecision.at_prior(self._pairs, pair_geometry, valid, x, P, 0.0)  # the gains: own-pose MI
         landmark_valid = sight.visible_landmarks(self._geometry, true_poses, self._landmarks) & budget_left[..., None]

@@ -21,13 +21,7 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import log_det_spd
 from infonav_gym.multi.parallel_view import team_metadata
-from infonav_gym.multi.team_decision import (
-    TeamDecision,
-    TeamSightLines,
-    TeamStep,
-    observable_pairs,
-    team_info,
-)
+from infonav_gym.multi.team_decision import TeamDecision, TeamStep, observable_pairs, team_info
 from infonav_gym.multi.team_localization import (
     TeamParts,
     start_episode,
@@ -97,7 +91,7 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
         observation_space = spaces.Box(low, high, dtype=np.float32)
         self._setup_team(observation_space, spaces.Discrete(n_robots + 1), parts.pairs, parts.gps, parts.odometry)
         self._geometries: list[StaticGeometry | None] = [None] * num_envs
-        self._sight = None
+        self._geometry: StaticGeometry | None = None  # every copy's, stacked
         self._paths: FirstCopyPaths | None = None  # copy 0's paths, kept to draw them
         self._observed_pairs: list[tuple[int, int]] = []  # copy 0's relative observations of the last step
 
@@ -118,8 +112,7 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
             )
             self._start_copy(copy, scenario, poses, covariances, generators)
             self._geometries[copy] = StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m)
-        if len(self._pairs.observers):
-            self._sight = TeamSightLines.of_copies(self._geometries, self._pairs)
+        self._geometry = StaticGeometry.stack(self._geometries)
         self._started(copies)
         if copies[0] == 0 and self.render_mode is not None:
             self._paths = FirstCopyPaths(self._worlds.poses[0], self._x[0].reshape(-1, POSE_DIM))
@@ -179,7 +172,7 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
     # ------------------------------------------------------------------ outputs
 
     def _decide(self) -> None:
-        geometry, valid = observable_pairs(self._pairs, self._sight, self._worlds.poses)
+        geometry, valid = observable_pairs(self._pairs, self._geometry, self._worlds.poses)
         weight = self.config["team_reward"]
         self._decision = TeamDecision.at_prior(self._pairs, geometry, valid, self._x, self._P, weight)
 

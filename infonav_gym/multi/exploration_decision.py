@@ -16,11 +16,9 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.multi.team_decision import (
     TeamDecision,
-    observable_pairs,
     team_step_info,
     with_masks,
 )
-from infonav_gym.multi.team_sensing import SensingPairs
 from infonav_gym.world.visibility import StaticGeometry, segments_clear
 
 EXPLORATION_INFO_KEYS = frozenset(
@@ -30,40 +28,13 @@ EXPLORATION_INFO_KEYS = frozenset(
 
 
 class TeamSight(NamedTuple):
-    """What a team's sensors may see: their robots, and the sight lines their pairs need.
+    """What a team's sensors see of the landmarks.
 
     Attributes:
         sensors: each robot's ``RelativePoseSensor`` or None (R,); its range-bearing part sees landmarks.
-        pairs: the team's (observer, target) pairs.
-        line_of_pair: which sight line each pair needs, one-hot (P, Lines) int.
-        lines: the robot pairs ``(i, j)``, ``i < j``, of the sight lines (Lines, 2), queried from i to j.
     """
 
     sensors: tuple
-    pairs: SensingPairs
-    line_of_pair: np.ndarray
-    lines: np.ndarray
-
-    @classmethod
-    def of_team(cls, relative_sensors, pairs: SensingPairs) -> TeamSight:
-        lines = np.array(pairs.sight_lines, dtype=int).reshape(-1, 2)
-        line_of_pair = np.zeros((len(pairs.observers), len(lines)), dtype=int)
-        line_of_pair[np.arange(len(pairs.observers)), pairs.sight_line] = 1
-        return cls(tuple(relative_sensors), pairs, line_of_pair, lines)
-
-    def observable_pairs(self, geometry: StaticGeometry, true_poses) -> tuple[np.ndarray, np.ndarray]:
-        """Every pair's true range, bearing, relative heading (N, P, 3) and which are observable now (N, P) bool.
-
-        In range and field of view, and no wall or obstacle on the line, which is tested (``segments_clear``) only
-        where some covered pair needs it.
-        """
-        pairs = self.pairs
-        pair_geometry, covered = observable_pairs(pairs, None, true_poses)
-        copy, line = np.nonzero(covered.astype(int) @ self.line_of_pair)
-        clear = np.ones((len(true_poses), len(self.lines)), dtype=bool)
-        starts, ends = true_poses[copy, self.lines[line, 0], :2], true_poses[copy, self.lines[line, 1], :2]
-        clear[copy, line] = segments_clear(geometry, copy, starts, ends)
-        return pair_geometry, covered & clear[:, pairs.sight_line]
 
     def visible_landmarks(self, geometry: StaticGeometry, true_poses, landmarks) -> np.ndarray:
         """Which landmarks (N, L, 2) each robot's sensor sees from its true pose (N, R, 3): (N, R, L) bool.

@@ -21,7 +21,7 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std
-from infonav_gym.multi.team_decision import TeamSightLines, observable_pairs
+from infonav_gym.multi.team_decision import observable_pairs
 from infonav_gym.multi.team_sensing import gps_available, gps_schedule
 from infonav_gym.sensors.relative_pose import noise_covariances
 from infonav_gym.world.clearance import clear_moves
@@ -320,9 +320,7 @@ class ExplorationPlanningModel:
             seen_landmarks = visible(self._tiled_geometry(len(seen)), sensor, seen, landmarks, check_input=False)
             landmark_visible[:, robots] = seen_landmarks.reshape(B, len(robots), n_landmarks)
         pairs = self._parts.pairs
-        lines = np.array(pairs.sight_lines, dtype=int).reshape(-1, 2)
-        sight = TeamSightLines(self._tiled_geometry(B), lines) if len(pairs.observers) else None
-        pair_visible = observable_pairs(pairs, sight, poses)[1]
+        pair_visible = observable_pairs(pairs, self._tiled_geometry(B), poses)[1]
         radius_m = self._env.robot_radius_m
         motion_clear = clear_motions(
             self._tiled_geometry(B), poses, poses[..., 2], self._parts.speeds_mps, self._drive_s, radius_m

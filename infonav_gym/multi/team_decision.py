@@ -6,45 +6,20 @@ candidates of all copies stack as (N, P, ...). A pair that is not observable now
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 
-from infonav_gym.estimation import batched
-from infonav_gym.estimation.models import relative_pose
+from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.estimation.kernels import pose_block_log_dets, relative_pose_gains, relative_pose_models
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle
+from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, SensingPairs
-from infonav_gym.sensors.relative_pose import noise_covariances
-from infonav_gym.world.visibility import StaticGeometry, segments_clear
-
-
-class TeamSightLines(NamedTuple):
-    """The static shapes of N copies and the robot pairs whose line of sight the team's relative sensors need.
-
-    Attributes:
-        geometry: the copies' shapes (N copies).
-        lines: the robot pairs ``(i, j)`` of the L sight lines (L, 2).
-    """
-
-    geometry: StaticGeometry
-    lines: np.ndarray
-
-    @classmethod
-    def of_copies(cls, geometries: list[StaticGeometry], pairs: SensingPairs) -> TeamSightLines:
-        """The sight lines of ``pairs`` in each copy's ``geometries``."""
-        return cls(StaticGeometry.stack(geometries), np.array(pairs.sight_lines, dtype=int).reshape(-1, 2))
-
-    def clear(self, true_poses: np.ndarray, copies: np.ndarray, lines: np.ndarray) -> np.ndarray:
-        """Whether walls and obstacles leave sight line ``lines[m]`` of copy ``copies[m]`` clear (M,) bool, at the
-        true poses (N, R, 3); only these lines are tested."""
-        if not copies.size:
-            return np.ones(0, dtype=bool)
-        ends = self.lines[lines]
-        return segments_clear(
-            self.geometry, copies, true_poses[copies, ends[:, 0], :2], true_poses[copies, ends[:, 1], :2]
-        )
+from infonav_gym.world.visibility import StaticGeometry, shape_arrays
+from infonav_gym.world.visibility_kernels import blocked
 
 
 class TeamDecision(NamedTuple):
@@ -84,47 +59,86 @@ class TeamDecision(NamedTuple):
             x, P: as above.
             team_reward: the weight of the team's MI in each robot's reward, in [0, 1].
         """
-        n_copies, n_robots = x.shape[0], x.shape[1] // POSE_DIM
-        n_pairs = len(pairs.observers)
-        observers = np.repeat(pairs.observers[None], n_copies, axis=0)
-        targets = np.repeat(pairs.targets[None], n_copies, axis=0)
-        predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets, check_input=False)
-        noise = np.repeat(pairs.noise[None], n_copies, axis=0).reshape(-1, 5)
-        R = noise_covariances(noise, predicted[..., 0].ravel()).reshape(n_copies, n_pairs, POSE_DIM, POSE_DIM)
-        mask = np.zeros((n_copies, n_robots, n_robots + 1), dtype=np.int8)
-        mask[..., NO_OBSERVATION] = 1
-        mask[:, pairs.observers, pairs.targets + 1] = valid
-        gains = np.zeros(mask.shape)
-        if n_pairs:  # every pair of every copy at once (its own P), the unobservable ones masked out after
-            own, joint = batched.relative_pose_information_gains(
-                P, observers, targets, H_observer, H_target, R, check_input=False
-            )
-            pair_gains = np.where(valid, (1.0 - team_reward) * own + team_reward * joint, 0.0)
-            gains[:, pairs.observers, pairs.targets + 1] = pair_gains
-        pose_log_det = batched.pose_log_dets(P, n_robots, check_input=False)
-        pose_std = np.sqrt(np.diagonal(P, axis1=1, axis2=2)).reshape(n_copies, n_robots, POSE_DIM)
+        *decision, undefined = pair_decisions(x, P, *pairs[:3], valid, float(team_reward))
+        if undefined:
+            raise ValueError("a pose covariance, or a posterior or innovation covariance, is not positive definite")
+        mask, gains, predicted, H_observer, H_target, R, pose_log_det, pose_std = decision
         return cls(mask, gains, geometry, valid, predicted, H_observer, H_target, R, pose_log_det, pose_std)
 
 
-def observable_pairs(pairs: SensingPairs, sight: TeamSightLines | None, true_poses) -> tuple[np.ndarray, np.ndarray]:
+def observable_pairs(pairs: SensingPairs, geometry: StaticGeometry, true_poses) -> tuple[np.ndarray, np.ndarray]:
     """Every pair's true range, bearing and relative heading (N, P, 3) and which are observable now (N, P) bool.
 
-    Observable: the target lies in the observer's range and field of view, with a clear line of sight.
-
-    Args:
-        pairs: the team's (observer, target) pairs.
-        sight: the copies' sight lines; None when the team has no pair.
-        true_poses: every copy's true poses (N, R, 3).
+    Observable: the target lies in the observer's range and field of view, and walls and obstacles (``geometry``, N
+    copies) leave the line of sight clear; a sight line is tested once, and only where a covered pair needs it.
     """
-    n_copies, n_pairs = len(true_poses), len(pairs.observers)
-    geometry = relative_pose(
-        true_poses[:, pairs.observers].reshape(-1, POSE_DIM), true_poses[:, pairs.targets].reshape(-1, POSE_DIM)
-    ).reshape(n_copies, n_pairs, POSE_DIM)
-    valid = pairs.covered(geometry)
-    if sight is not None:  # the line of sight of the covered pairs only
-        copies, covered = np.nonzero(valid)
-        valid[copies, covered] = sight.clear(true_poses, copies, pairs.sight_line[covered])
+    lines = pairs.observers, pairs.targets, pairs.max_range_m, pairs.half_fov_rad, pairs.sight_line, pairs.sight_lines
+    return pair_sight(contiguous(true_poses), *lines, *shape_arrays(geometry))
+
+
+@kernel
+def pair_sight(true_poses, observers, targets, max_range_m, half_fov_rad, sight_line, lines, walls, discs, culled):
+    """``observable_pairs`` of the pairs' arrays (``SensingPairs``) and the shapes' (``shape_arrays``)."""
+    n_copies, n_pairs = true_poses.shape[0], len(observers)
+    geometry, valid = np.empty((n_copies, n_pairs, POSE_DIM)), np.zeros((n_copies, n_pairs), dtype=np.bool_)
+    needed = np.zeros((n_copies, len(lines)), dtype=np.bool_)
+    for c in range(n_copies):
+        for k in range(n_pairs):
+            observer, target = true_poses[c, observers[k]], true_poses[c, targets[k]]
+            dx, dy = target[0] - observer[0], target[1] - observer[1]
+            range_m, bearing = math.hypot(dx, dy), wrap(math.atan2(dy, dx) - observer[2])
+            geometry[c, k, 0], geometry[c, k, 1], geometry[c, k, 2] = range_m, bearing, wrap(target[2] - observer[2])
+            valid[c, k] = range_m <= max_range_m[k] and abs(bearing) <= half_fov_rad[k]
+            needed[c, sight_line[k]] |= valid[c, k]
+    copies, needed_lines = np.nonzero(needed)
+    starts, ends = np.empty((len(copies), 2)), np.empty((len(copies), 2))
+    for m in range(len(copies)):
+        starts[m] = true_poses[copies[m], lines[needed_lines[m], 0], :2]
+        ends[m] = true_poses[copies[m], lines[needed_lines[m], 1], :2]
+    clear = np.ones(needed.shape, dtype=np.bool_)
+    hit = blocked(copies, starts, ends, walls, discs, culled)
+    for m in range(len(copies)):
+        clear[copies[m], needed_lines[m]] = not hit[m]
+    for c in range(n_copies):
+        for k in range(n_pairs):
+            valid[c, k] &= clear[c, sight_line[k]]
     return geometry, valid
+
+
+@kernel
+def pair_decisions(x, P, observers, targets, noise, valid, team_reward):
+    """``TeamDecision.at_prior``'s arrays of the pairs (``SensingPairs``) and which are ``valid`` (N, P), then
+    whether a determinant was not > 0 (``relative_pose_gains``) or a target lies on its observer."""
+    n_copies, n_robots, n_pairs = x.shape[0], x.shape[1] // POSE_DIM, len(observers)
+    copy_observers, copy_targets = np.empty((n_copies, n_pairs), np.int64), np.empty((n_copies, n_pairs), np.int64)
+    copy_observers[:], copy_targets[:] = observers, targets
+    predicted, H_observer, H_target, coincident = relative_pose_models(x, copy_observers, copy_targets)
+    R = np.zeros((n_copies, n_pairs, POSE_DIM, POSE_DIM))
+    for c in range(n_copies):
+        for k in range(n_pairs):  # the diagonal noise covariance at the predicted range (``noise_covariances``)
+            range_m = predicted[c, k, 0]
+            R[c, k, 0, 0] = (noise[k, 0] + noise[k, 1] * range_m) ** 2
+            R[c, k, 1, 1] = noise[k, 2] ** 2
+            R[c, k, 2, 2] = (noise[k, 3] + noise[k, 4] * range_m) ** 2
+    own, joint = relative_pose_gains(P, copy_observers, copy_targets, H_observer, H_target, R)
+    mask, gains = np.zeros((n_copies, n_robots, n_robots + 1), np.int8), np.zeros((n_copies, n_robots, n_robots + 1))
+    mask[..., NO_OBSERVATION] = 1
+    undefined = coincident
+    for c in range(n_copies):
+        for k in range(n_pairs):
+            undefined |= math.isnan(own[c, k]) or math.isnan(joint[c, k])
+            if valid[c, k]:
+                mask[c, observers[k], targets[k] + 1] = 1
+                gains[c, observers[k], targets[k] + 1] = (1.0 - team_reward) * own[c, k] + team_reward * joint[c, k]
+    pose_std = np.empty((n_copies, n_robots, POSE_DIM))
+    for c in range(n_copies):
+        for i in range(POSE_DIM * n_robots):
+            pose_std[c, i // POSE_DIM, i % POSE_DIM] = math.sqrt(P[c, i, i])
+    pose_log_det = pose_block_log_dets(P, n_robots)
+    for c in range(n_copies):
+        for robot in range(n_robots):
+            undefined |= math.isnan(pose_log_det[c, robot])
+    return mask, gains, predicted, H_observer, H_target, R, pose_log_det, pose_std, undefined
 
 
 class TeamStep(NamedTuple):

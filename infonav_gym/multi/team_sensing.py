@@ -19,7 +19,7 @@ class SensingPairs(NamedTuple):
         noise: the observer's ``RelativePoseSensor.noise_parameters()`` per pair (P, 5).
         max_range_m: the observer's sensor range per pair (P,) [m].
         half_fov_rad: half its field of view per pair (P,) [rad].
-        sight_lines: the robot pairs ``(i, j)``, ``i < j``, whose line of sight some pair needs (symmetric).
+        sight_lines: the robot pairs ``(i, j)``, ``i < j``, whose line of sight some pair needs (L, 2) (symmetric).
         sight_line: each pair's index into ``sight_lines`` (P,).
     """
 
@@ -28,7 +28,7 @@ class SensingPairs(NamedTuple):
     noise: np.ndarray
     max_range_m: np.ndarray
     half_fov_rad: np.ndarray
-    sight_lines: list[tuple[int, int]]
+    sight_lines: np.ndarray
     sight_line: np.ndarray
 
     @classmethod
@@ -43,7 +43,7 @@ class SensingPairs(NamedTuple):
             noise=np.array([relative_sensors[i].noise_parameters() for i, _ in pairs]).reshape(-1, 5),
             max_range_m=np.array([relative_sensors[i].max_range_m for i, _ in pairs]),
             half_fov_rad=np.array([0.5 * relative_sensors[i].range_bearing.fov_rad for i, _ in pairs]),
-            sight_lines=sight_lines,
+            sight_lines=np.array(sight_lines, dtype=int).reshape(-1, 2),
             sight_line=np.array([sight_lines.index((min(i, j), max(i, j))) for i, j in pairs], dtype=int),
         )
 
