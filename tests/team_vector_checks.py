@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from infonav_gym.multi import team_vector
 from infonav_gym.registry import env_entry
-from infonav_gym.sensors.relative_pose import noise_covariances
+from infonav_gym.sensors.relative_pose import noise_covariances, relative_poses_with_noise
 
 TOLERANCE = 1e-9
 
@@ -19,6 +20,26 @@ def team_envs(env_id: str) -> tuple:
     """The parallel env class and the native vector env class of the registered team env ``env_id``."""
     entry = env_entry(env_id)
     return entry.load(), entry.load_vector()
+
+
+def record_relative_measurements(monkeypatch) -> list:
+    """The relative poses each ``relative_updates`` call measures (n, R, 3) (zeros where a robot observes no one),
+    computed by the sensor's ``relative_poses_with_noise`` from the call's truth, sensor and standard normals."""
+    measurements = []
+    updates = team_vector.relative_updates
+
+    def recorded(x, P, chosen, pair_index, targets, parameters, geometry, *rest):
+        noise, measured = rest[-2], np.zeros(rest[-2].shape)
+        for copy, robot in np.argwhere(pair_index[np.arange(chosen.shape[1]), chosen] >= 0):
+            pair = pair_index[robot, chosen[copy, robot]]
+            measured[copy, robot] = relative_poses_with_noise(
+                geometry[copy, pair][None], parameters[pair], noise[copy, robot][None]
+            )[0]
+        measurements.append(measured)
+        return updates(x, P, chosen, pair_index, targets, parameters, geometry, *rest)
+
+    monkeypatch.setattr(team_vector, "relative_updates", recorded)
+    return measurements
 
 
 def assert_copy_equals(observations, info, copy: int, reference: tuple, team_keys, stepped: bool = True) -> None:

@@ -8,14 +8,18 @@ Autoreset modes, seeding, bad input and rendering: ``test_team_vector_envs.py``,
 import numpy as np
 import pytest
 from conftest import greedy_actions, random_valid_actions
-from team_vector_checks import exploration_observation_updates, greedy, run_against_parallel_envs
+from team_vector_checks import (
+    exploration_observation_updates,
+    greedy,
+    record_relative_measurements,
+    run_against_parallel_envs,
+)
 
 from infonav_gym.estimation.ekf import JointEKF
-from infonav_gym.multi import cooperative_exploration_v0, cooperative_exploration_vector, team_vector
+from infonav_gym.multi import cooperative_exploration_v0, cooperative_exploration_vector
 from infonav_gym.multi.cooperative_exploration import N_MOTIONS
 from infonav_gym.multi.cooperative_exploration_vector import CooperativeExplorationVectorEnv
 from infonav_gym.multi.exploration_decision import TeamSight
-from infonav_gym.sensors.relative_pose import relative_poses_with_noise
 from infonav_gym.world import World
 from infonav_gym.world.world_batch import WorldBatch
 
@@ -96,11 +100,11 @@ def recorded(function, sink: list):
 def test_the_filter_equals_filterpys_joint_ekf_update_for_update(monkeypatch):
     """Along a whole episode (DGPS under canopies, landmark and teammate observations, turns and drives) the env's EKF
     equals ``JointEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10), and each own-pose reward its MI."""
-    priors, readings, fixes, relative, landmark = [], [], [], [], []
+    priors, readings, fixes, landmark = [], [], [], []
     monkeypatch.setattr(
         cooperative_exploration_vector, "start_episode", recorded(cooperative_exploration_vector.start_episode, priors)
     )
-    monkeypatch.setattr(team_vector, "relative_poses_with_noise", recorded(relative_poses_with_noise, relative))
+    relative = record_relative_measurements(monkeypatch)
     measure_landmarks = TeamSight.landmark_measurements
     monkeypatch.setattr(TeamSight, "landmark_measurements", lambda *args: recorded(measure_landmarks, landmark)(*args))
     env = cooperative_exploration_v0.parallel_env(max_cycles=60, max_position_std_m=100.0)

@@ -6,12 +6,12 @@ Autoreset, seeding, bad input and rendering: ``test_team_vector_envs.py``, for e
 import numpy as np
 import pytest
 from gymnasium import spaces
-from team_vector_checks import run_against_parallel_envs
+from team_vector_checks import record_relative_measurements, run_against_parallel_envs
 
 import infonav_gym
 from infonav_gym.estimation.ekf import JointEKF
 from infonav_gym.information import mutual_information
-from infonav_gym.multi import cooperative_localization_v0, cooperative_localization_vector, team_vector
+from infonav_gym.multi import cooperative_localization_v0, cooperative_localization_vector
 from infonav_gym.multi.cooperative_localization_vector import CooperativeLocalizationVectorEnv
 from infonav_gym.registry import PARALLEL, env_entry, make_vector_env, register, unregister
 from infonav_gym.sensors.gps import GPSSensor
@@ -140,14 +140,14 @@ def test_the_sensors_given_their_standard_normals_measure_what_they_draw():
 def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monkeypatch):
     """Along a whole episode (DGPS on schedule, lost by robot_1 at 21 s and under canopies, relative-pose updates)
     the env's EKF equals ``JointEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10), and each reward its MI."""
-    priors, readings, fixes, measurements = [], [], [], []
+    priors, readings, fixes = [], [], []
     start_episode = cooperative_localization_vector.start_episode
 
     def recorded(function, sink):
         return lambda *args: sink.append(function(*args)) or sink[-1]
 
     monkeypatch.setattr(cooperative_localization_vector, "start_episode", recorded(start_episode, priors))
-    monkeypatch.setattr(team_vector, "relative_poses_with_noise", recorded(relative_poses_with_noise, measurements))
+    measurements = record_relative_measurements(monkeypatch)
     env = cooperative_localization_v0.parallel_env(estimator=estimator, team_reward=0.5, max_cycles=80)
     vector = env.vector
     for sensor, sink in ((vector._odometry, readings), (vector._gps, fixes)):
@@ -184,7 +184,7 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
             pairs = vector._pair_index[observers, chosen[observers]]
             R = noise_covariances(vector._pairs.noise[pairs], predicted[:, 0])
             ekf.relative_pose_update(
-                observers, targets, measurements[-1][observers], predicted, H_observer, H_target, R
+                observers, targets, measurements[-1][0][observers], predicted, H_observer, H_target, R
             )
         own = 0.5 * (np.linalg.slogdet(pose_blocks(prior_P))[1] - np.linalg.slogdet(pose_blocks(ekf.P))[1])
         team = mutual_information(prior_P, ekf.P) if observers.size else 0.0

@@ -17,9 +17,7 @@ from gymnasium.vector import AutoresetMode
 
 from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.information import log_det_spd
 from infonav_gym.multi.parallel_view import team_metadata
 from infonav_gym.multi.team_decision import TeamDecision, TeamStep, observable_pairs, team_info
 from infonav_gym.multi.team_localization import (
@@ -148,15 +146,11 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
     def _observe(self, chosen: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Fuse each copy's chosen observations as one stacked update; the own and team MI (N, R) and the new std."""
         decision, n_robots = self._decision, len(self.agents)
-        team_mi = np.zeros(self.num_envs)
+        team_mi, own_mi, updated_std = np.zeros(self.num_envs), np.zeros(chosen.shape), decision.pose_std.copy()
         measured = np.flatnonzero((chosen != NO_OBSERVATION).any(axis=1))
         if measured.size:
             rows = self._rows(measured)
-            joint_before = log_det_spd(self._P[rows], check_input=False)
-            self._relative_update(measured, chosen[rows], decision)
-            team_mi[rows] = 0.5 * (joint_before - log_det_spd(self._P[rows], "the posterior P", check_input=False))
-        own_mi = 0.5 * (decision.pose_log_det - batched.pose_log_dets(self._P, n_robots, check_input=False))
-        updated_std = np.sqrt(np.diagonal(self._P, axis1=1, axis2=2)).reshape(self.num_envs, n_robots, POSE_DIM)
+            team_mi[rows], own_mi[rows], updated_std[rows] = self._relative_update(measured, chosen[rows], decision)
         return own_mi, np.repeat(team_mi[:, None], n_robots, axis=1), updated_std
 
     def _advance(self, copies: np.ndarray) -> None:

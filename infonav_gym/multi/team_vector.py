@@ -12,23 +12,25 @@ the DGPS fixes and the stacked relative-pose update are here.
 from __future__ import annotations
 
 import abc
+import math
 
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
-from infonav_gym.compiled import contiguous, stacked
+from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.kernels import predict_poses
+from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
-from infonav_gym.multi.team_sensing import gps_available, gps_schedule
+from infonav_gym.geometry import wrap_angle_kernel as wrap
+from infonav_gym.information import log_det_of
+from infonav_gym.multi.team_sensing import NO_OBSERVATION, gps_available, gps_schedule
 from infonav_gym.sensors.gps import GPSSensor
-from infonav_gym.sensors.relative_pose import relative_poses_with_noise
 from infonav_gym.world.world_batch import WorldBatch
 
 MASK_KEY = 'info["action_mask"]'
@@ -209,42 +211,35 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
             accepts_action(int(actions[copy, robot]), mask[copy, robot], self.config["invalid_action"], key, where)
         return np.where(acting[:, None] & valid, actions, noop), invalid
 
-    def _relative_update(self, copies: np.ndarray, chosen: np.ndarray, decision) -> None:
+    def _relative_update(self, copies: np.ndarray, chosen: np.ndarray, decision) -> list:
         """Fuse the teammate observations ``chosen`` (n, R) of ``copies`` as one stacked update per copy.
 
         Args:
             copies: the copies that observe a teammate (n,).
             chosen: each of their robots' teammate choice: ``NO_OBSERVATION`` (0) or ``1 + j`` for robot j.
             decision: the decision's relative-pose candidates (``TeamDecision``: geometry, predicted, H, R per pair).
-        """
-        n_robots = len(self.agents)
-        observed = chosen != 0
-        pair = self._pair_index[np.arange(n_robots), chosen]  # -1 (unused) where not observed
-        rows = copies[:, None], pair
-        state_rows = self._rows(copies)
-        self._x[state_rows], self._P[state_rows] = batched.relative_pose_update(
-            self._x[state_rows],
-            self._P[state_rows],
-            np.repeat(np.arange(n_robots)[None], len(copies), axis=0),
-            self._pairs.targets[pair],
-            self._relative_measurements(copies, decision.geometry[rows], pair, observed),
-            decision.predicted[rows],
-            decision.H_observer[rows],
-            decision.H_target[rows],
-            decision.R[rows],
-            observed,
-            cross_covariances=self._cross_covariances,
-            check_input=False,
-        )
 
-    def _relative_measurements(self, copies, geometry, pair, observed) -> np.ndarray:
-        """Noisy relative poses (n, R, 3) of the observed slots (n, R) of ``copies``, drawn in slot order."""
-        noise = draws_in_slot_order(self._noise[RELATIVE_NOISE], copies, observed, POSE_DIM)
-        parameters = self._pairs.noise[pair]
-        measured = relative_poses_with_noise(
-            geometry.reshape(-1, POSE_DIM), parameters.reshape(-1, 5), noise.reshape(-1, 3)
+        Returns:
+            What the updates brought (``relative_updates``): the joint MI (n,), each robot's own-pose MI (n, R)
+            [nats] and its x, y, heading standard deviations after (n, R, 3).
+        """
+        noise = draws_in_slot_order(self._noise[RELATIVE_NOISE], copies, chosen != NO_OBSERVATION, POSE_DIM)
+        rows = self._rows(copies)
+        candidates = (decision.geometry, decision.predicted, decision.H_observer, decision.H_target, decision.R)
+        self._x[rows], self._P[rows], *brought = relative_updates(
+            self._x[rows],
+            self._P[rows],
+            chosen,
+            self._pair_index,
+            self._pairs.targets,
+            self._pairs.noise,
+            *(contiguous(candidate[rows]) for candidate in (*candidates, decision.pose_log_det)),
+            noise,
+            self._cross_covariances,
         )
-        return measured.reshape(geometry.shape)
+        if np.isnan(brought[0]).any():
+            raise ValueError("the joint covariance after the relative-pose updates is not positive definite")
+        return brought
 
     def _predict(self, copies: np.ndarray, controls: np.ndarray, dt: float) -> None:
         """Predict the EKFs of ``copies`` with noisy odometry of the executed ``controls`` (n, R, 2) over ``dt`` [s]."""
@@ -323,6 +318,56 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     @abc.abstractmethod
     def _restarted(self, record, copies: np.ndarray):
         """Hook: ``record`` with the (N,) bool ``copies`` reset since (their reset info: no action, no reward)."""
+
+
+@kernel
+def relative_updates(
+    x, P, chosen, pair_index, targets, parameters, geometry, predicted, H_o, H_t, R, log_det, noise, cross
+):
+    """``JointEKF.relative_pose_update`` of n copies with their robots' teammate choices, and what it brought.
+
+    Robot k of copy c observes pair ``pair_index[k, chosen[c, k]]`` (-1: none) of the pairs' ``targets``: its true
+    relative pose ``geometry[c, pair]`` plus the sensor's noise (``noise_standard_deviations`` of
+    ``parameters[pair]`` times the standard normals ``noise[c, k]``, angles wrapped), fused at the prior's
+    ``predicted``, ``H_o``, ``H_t`` (observer's, target's Jacobian) and ``R`` in slot order (``kalman_updates``;
+    ``cross``: keep the cross-covariances).
+
+    Returns:
+        ``(x, P, joint_mi (n,), own_mi (n, R), pose_std (n, R, 3))``: the MI on the joint state and on each robot's
+        own pose (from the prior's ``log_det`` (n, R) of it) [nats], NaN where a determinant is not > 0, and each
+        robot's x, y, heading standard deviations after.
+    """
+    n_copies, n = x.shape
+    n_robots = chosen.shape[1]
+    residuals, slot_R = np.zeros((n_copies, n_robots, POSE_DIM)), np.zeros((n_copies, n_robots, POSE_DIM, POSE_DIM))
+    H, observed = np.zeros((n_copies, n_robots, POSE_DIM, n)), np.zeros((n_copies, n_robots), np.bool_)
+    std = np.empty(POSE_DIM)
+    for c in range(n_copies):
+        for robot in range(n_robots):
+            pair = pair_index[robot, chosen[c, robot]]
+            if pair < 0:
+                continue
+            observed[c, robot] = True
+            sensor, truth, target = parameters[pair], geometry[c, pair], targets[pair]
+            std[0], std[1], std[2] = sensor[0] + sensor[1] * truth[0], sensor[2], sensor[3] + sensor[4] * truth[0]
+            for i in range(POSE_DIM):
+                measured = truth[i] + std[i] * noise[c, robot, i]
+                residual = (wrap(measured) if i else measured) - predicted[c, pair, i]
+                residuals[c, robot, i] = wrap(residual) if i else residual
+                for j in range(POSE_DIM):
+                    H[c, robot, i, POSE_DIM * robot + j] = H_o[c, pair, i, j]
+                    H[c, robot, i, POSE_DIM * target + j] = H_t[c, pair, i, j]
+                    slot_R[c, robot, i, j] = R[c, pair, i, j]
+    x_new, P_new = kalman_updates(x, P, residuals, H, slot_R, observed, n_robots, cross)
+    joint_mi, own_mi, pose_std = np.empty(n_copies), np.empty((n_copies, n_robots)), np.empty(residuals.shape)
+    block = np.empty((POSE_DIM, POSE_DIM))
+    for c in range(n_copies):
+        joint_mi[c] = 0.5 * (log_det_of(P[c]) - log_det_of(P_new[c]))
+        for robot in range(n_robots):
+            own_mi[c, robot] = 0.5 * (log_det[c, robot] - pose_block_log_det(P_new[c], POSE_DIM * robot, block))
+            for i in range(POSE_DIM):
+                pose_std[c, robot, i] = math.sqrt(P_new[c, POSE_DIM * robot + i, POSE_DIM * robot + i])
+    return x_new, P_new, joint_mi, own_mi, pose_std
 
 
 def in_zones(positions: np.ndarray, centers: np.ndarray, radii_sq: np.ndarray) -> np.ndarray:
