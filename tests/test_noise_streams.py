@@ -28,15 +28,15 @@ def test_each_copy_gets_its_generators_draws_in_order_through_block_refills_and_
         np.testing.assert_array_equal(streams.take(copies), expected)
 
 
-def test_take_many_gives_each_copy_its_next_draws_in_order_across_block_boundaries():
-    n_copies, width = 4, 2
+def test_take_many_gives_each_used_slot_its_copys_next_draw_in_slot_order_across_block_boundaries():
+    n_copies, width, n_slots = 4, 2, 3
     streams, references, takers = streams_and_references(n_copies, width, 3, steps=30, share=0.7)
     for step, copies in enumerate(takers):
-        counts = (np.arange(len(copies)) + step) % 4  # 0 to 3 draws each
-        expected = [references[c].standard_normal((k, width)) for c, k in zip(copies.tolist(), counts.tolist())]
-        np.testing.assert_array_equal(
-            streams.take_many(copies, counts), np.concatenate([np.zeros((0, width)), *expected])
-        )
+        used = (np.arange(len(copies) * n_slots).reshape(-1, n_slots) * (step + 1)) % 3 != 1  # 0 to 3 slots each
+        expected = np.zeros((len(copies), n_slots, width))
+        for row, copy in enumerate(copies.tolist()):
+            expected[row, used[row]] = references[copy].standard_normal((used[row].sum(), width))
+        np.testing.assert_array_equal(streams.take_many(copies, used), expected)
         if len(copies):  # one draw each, through take, continues the same streams
             expected = np.array([references[c].standard_normal(width) for c in copies.tolist()])
             np.testing.assert_array_equal(streams.take(copies), expected)

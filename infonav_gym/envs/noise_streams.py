@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from infonav_gym.compiled import kernel
+
 BLOCK_DRAWS = 64  # draws of ``width`` numbers fetched per copy at a time
 
 
@@ -43,21 +45,16 @@ class NoiseStreams:
         self._next[copies] += 1
         return draws
 
-    def take_many(self, copies: np.ndarray, counts: np.ndarray) -> np.ndarray:
-        """The next ``counts[k]`` draws of each of ``copies`` (distinct), in copy order: (sum(counts), width).
-
-        What ``counts[k]`` calls of ``take`` give copy ``copies[k]``, in one indexing (``counts`` <= the block).
+    def take_many(self, copies: np.ndarray, used: np.ndarray) -> np.ndarray:
+        """The next draw of each ``used`` slot (n, M) of ``copies`` (distinct), in slot order: (n, M, width), zeros
+        where not used. What a copy's single env draws in one ``standard_normal((k, width))`` call for its k used
+        slots, or in k calls of ``width`` in slot order (at most a block's draws per copy).
 
         Raises:
             RuntimeError: for a copy that has no stream yet (``restart`` it first).
         """
-        self._refill(copies[self._next[copies] + counts > self._blocks.shape[1]])
-        starts = self._next[copies]
-        ends = np.cumsum(counts)
-        rows = np.repeat(starts - (ends - counts), counts) + np.arange(ends[-1] if len(ends) else 0)
-        draws = self._blocks[np.repeat(copies, counts), rows]
-        self._next[copies] += counts
-        return draws
+        self._refill(copies[self._next[copies] + used.sum(axis=1) > self._blocks.shape[1]])
+        return slot_draws(self._blocks, self._next, copies, used)
 
     def _refill(self, copies: np.ndarray) -> None:
         """Move each copy's unused draws to the front of its block and fill the rest from its generator."""
@@ -70,3 +67,15 @@ class NoiseStreams:
             self._blocks[copy, :unused] = self._blocks[copy, block_draws - unused :].copy()
             self._blocks[copy, unused:] = generator.standard_normal((block_draws - unused, width))
             self._next[copy] = 0
+
+
+@kernel
+def slot_draws(blocks, next_draw, copies, used):
+    """``NoiseStreams.take_many`` from the ``blocks`` (N, B, width), advancing each copy's ``next_draw`` (N,)."""
+    draws = np.zeros(used.shape + blocks.shape[2:])
+    for k in range(len(copies)):
+        for slot in range(used.shape[1]):
+            if used[k, slot]:
+                draws[k, slot] = blocks[copies[k], next_draw[copies[k]]]
+                next_draw[copies[k]] += 1
+    return draws

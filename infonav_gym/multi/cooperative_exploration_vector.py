@@ -55,7 +55,7 @@ from infonav_gym.multi.parallel_view import team_metadata
 from infonav_gym.multi.team_decision import TeamDecision, observable_pairs
 from infonav_gym.multi.team_localization import team_observation_bounds, team_observations
 from infonav_gym.multi.team_paths import FirstCopyPaths
-from infonav_gym.multi.team_vector import TeamVectorEnv, draws_in_slot_order
+from infonav_gym.multi.team_vector import TeamVectorEnv
 from infonav_gym.scene import SceneFrame
 from infonav_gym.world.visibility import StaticGeometry
 
@@ -292,7 +292,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         predicted, H = batched.landmark_measurement_model(poses, positions.reshape(-1, 1, 2), check_input=False)
         predicted = predicted.reshape(*observed.shape, 2)
         R = self._sight.landmark_noise(predicted[..., None, :])[..., 0, :, :]
-        noise = draws_in_slot_order(self._noise[LANDMARK_NOISE], observers, observed, 2)
+        noise = self._noise[LANDMARK_NOISE].take_many(observers, observed)
         measurements = self._sight.landmark_measurements(self._worlds.poses[observers], positions, noise)
         robots = np.broadcast_to(np.arange(observed.shape[1]), observed.shape)
         self._x[observers], self._P[observers] = batched.team_landmark_update(

@@ -22,7 +22,6 @@ from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi.team_decision import observable_pairs
-from infonav_gym.multi.team_sensing import gps_available, gps_schedule
 from infonav_gym.sensors.relative_pose import noise_covariances
 from infonav_gym.world.clearance import clear_moves
 from infonav_gym.world.visibility import visible
@@ -161,7 +160,6 @@ class ExplorationPlanningModel:
         n_robots = len(parts.gps)
         self._pair_lookup = np.full((n_robots, n_robots), -1)  # the pair index of (observer, target), -1 for none
         self._pair_lookup[parts.pairs.observers, parts.pairs.targets] = np.arange(len(parts.pairs.observers))
-        self._gps_schedule = gps_schedule(parts.gps)
         self._gps_noise = np.array([np.eye(2) if gps is None else gps.noise_covariance() for gps in parts.gps])
         self._odometry_covariances = np.repeat(parts.odometry.noise_covariance()[None], n_robots, axis=0)
         self._drive_s = self.config["time_step_s"] - self.config["turn_time_s"]  # the drive phase of a step [s]
@@ -282,8 +280,7 @@ class ExplorationPlanningModel:
         positions = x.reshape(B, n_robots, POSE_DIM)[..., :2]
         elapsed = self.step_index
         time_s = elapsed * cfg["time_step_s"] + (belief.steps + 1) * cfg["time_step_s"]
-        denied = self._env.gps_denied(self._copy, positions.reshape(-1, 2)).reshape(B, n_robots)
-        has_fix = gps_available(*self._gps_schedule, denied, time_s) & live[:, None]
+        has_fix = self._env.gps_available(np.full(B, self._copy), positions, time_s) & live[:, None]
         if has_fix.any():
             x, P = batched.gps_update(x, P, positions, self._gps_noise, has_fix, check_input=False)
         position_std = self.position_std(P)

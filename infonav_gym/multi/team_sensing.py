@@ -6,6 +6,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from infonav_gym.compiled import kernel
 from infonav_gym.estimation.state import POSE_DIM
 
 NO_OBSERVATION = 0  # a team env's teammate choice ``1 + j`` observes robot j; this observes no teammate
@@ -77,9 +78,21 @@ def gps_schedule(receivers) -> tuple[np.ndarray, np.ndarray]:
     return np.array([gps is not None for gps in receivers]), outages
 
 
-def gps_available(has_gps: np.ndarray, outages: np.ndarray, denied: np.ndarray, time_s) -> np.ndarray:
-    """Which robots have a DGPS fix (N, R): they carry DGPS, are in no GPS-denied zone (``denied`` (N, R)) and in
-    no outage span (``gps_schedule``) at each copy's ``time_s`` (N,) [s]."""
-    time_s = np.asarray(time_s, dtype=float)[:, None, None]
-    in_outage = np.any((outages[..., 0] <= time_s) & (time_s < outages[..., 1]), axis=2)
-    return has_gps & ~denied & ~in_outage
+@kernel
+def gps_available(copies, positions, centers, radii_sq, has_gps, outages, time_s):
+    """Which robots at ``positions`` (n, R, 2) [m] of ``copies`` (n,) have a DGPS fix at ``time_s`` (n,) [s]: they
+    carry DGPS (``has_gps``), are in no outage span (``outages``: ``gps_schedule``) and in no GPS-denied zone of their
+    copy (discs of ``centers`` (N, Z, 2) [m] and squared radii ``radii_sq`` (N, Z) [m^2], -1 for padding): (n, R)."""
+    n_copies, n_robots = positions.shape[0], positions.shape[1]
+    available = np.zeros((n_copies, n_robots), dtype=np.bool_)
+    for k in range(n_copies):
+        c, now = copies[k], time_s[k]
+        for robot in range(n_robots):
+            fix = has_gps[robot]
+            for span in range(outages.shape[1]):
+                fix &= not outages[robot, span, 0] <= now < outages[robot, span, 1]
+            for zone in range(radii_sq.shape[1]):
+                dx, dy = positions[k, robot, 0] - centers[c, zone, 0], positions[k, robot, 1] - centers[c, zone, 1]
+                fix &= not dx**2 + dy**2 <= radii_sq[c, zone]
+            available[k, robot] = fix
+    return available

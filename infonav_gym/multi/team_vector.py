@@ -223,7 +223,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
             What the updates brought (``relative_updates``): the joint MI (n,), each robot's own-pose MI (n, R)
             [nats] and its x, y, heading standard deviations after (n, R, 3).
         """
-        noise = draws_in_slot_order(self._noise[RELATIVE_NOISE], copies, chosen != NO_OBSERVATION, POSE_DIM)
+        noise = self._noise[RELATIVE_NOISE].take_many(copies, chosen != NO_OBSERVATION)
         rows = self._rows(copies)
         candidates = (decision.geometry, decision.predicted, decision.H_observer, decision.H_target, decision.R)
         self._x[rows], self._P[rows], *brought = relative_updates(
@@ -253,10 +253,8 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     def _gps_fixes(self, copies: np.ndarray) -> None:
         """Which robots of ``copies`` have a DGPS fix now (schedule, zones), and their update."""
         within = self._rows(copies)
-        time_s = self._elapsed[within] * self.config["time_step_s"]
         positions = self._worlds.poses[within, :, :2]
-        denied = in_zones(positions, self._zone_centers[within], self._zone_radii_sq[within])
-        available = gps_available(self._has_gps, self._outages, denied, time_s)
+        available = self.gps_available(copies, positions, self._elapsed[within] * self.config["time_step_s"])
         self._gps_available[within] = available
         fixing = np.flatnonzero(available.any(axis=1))
         if not fixing.size:
@@ -264,9 +262,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         if len(fixing) < len(copies):
             copies, positions, available = copies[fixing], positions[fixing], available[fixing]
         rows = self._rows(copies)
-        fixes = self._gps.measure_with_noise(
-            positions, draws_in_slot_order(self._noise[GPS_NOISE], copies, available, 2)
-        )
+        fixes = self._gps.measure_with_noise(positions, self._noise[GPS_NOISE].take_many(copies, available))
         self._x[rows], self._P[rows] = batched.gps_update(
             self._x[rows],
             self._P[rows],
@@ -277,9 +273,11 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
             check_input=False,
         )
 
-    def gps_denied(self, copy: int, positions: np.ndarray) -> np.ndarray:
-        """Whether each of ``positions`` (M, 2) [m] lies in one of copy ``copy``'s GPS-denied zones (M,) bool."""
-        return in_zones(positions, self._zone_centers[copy], self._zone_radii_sq[copy])
+    def gps_available(self, copies: np.ndarray, positions: np.ndarray, time_s: np.ndarray) -> np.ndarray:
+        """Which robots at ``positions`` (n, R, 2) [m] in ``copies`` (n,) have a DGPS fix at ``time_s`` (n,) [s]: they
+        carry DGPS, are in none of their copy's GPS-denied zones and in no outage span (n, R) bool."""
+        zones = self._zone_centers, self._zone_radii_sq
+        return gps_available(copies, contiguous(positions), *zones, self._has_gps, self._outages, time_s)
 
     def action_masks(self) -> np.ndarray:
         """The valid actions of each copy and robot as bool (N, R, A) (the no-op is always valid)."""
@@ -368,21 +366,3 @@ def relative_updates(
             for i in range(POSE_DIM):
                 pose_std[c, robot, i] = math.sqrt(P_new[c, POSE_DIM * robot + i, POSE_DIM * robot + i])
     return x_new, P_new, joint_mi, own_mi, pose_std
-
-
-def in_zones(positions: np.ndarray, centers: np.ndarray, radii_sq: np.ndarray) -> np.ndarray:
-    """Whether each position (..., M, 2) [m] lies in one of the discs of ``centers`` (..., Z, 2) [m] and squared radii
-    ``radii_sq`` (..., Z) [m^2] (-1 for padding: none), (..., M) bool."""
-    offsets = positions[..., :, None, :] - centers[..., None, :, :]
-    return ((offsets[..., 0] ** 2 + offsets[..., 1] ** 2) <= radii_sq[..., None, :]).any(axis=-1)
-
-
-def draws_in_slot_order(streams: NoiseStreams, copies: np.ndarray, used: np.ndarray, width: int) -> np.ndarray:
-    """One draw of ``width`` numbers for each used slot of ``copies`` (n, R, width), zeros elsewhere.
-
-    A copy's used slots take its stream's next draws in slot order: what its parallel env draws in one
-    ``standard_normal((k, width))`` call for its k used slots, or in k calls of ``width`` in slot order.
-    """
-    draws = np.zeros((*used.shape, width))
-    draws[used] = streams.take_many(copies, used.sum(axis=1))
-    return draws
