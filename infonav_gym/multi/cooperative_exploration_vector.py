@@ -381,7 +381,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
             decision.team.pose_std,
             decision.team.pose_log_det,
             self._gps_available,
-            (self._elapsed / self.max_cycles)[:, None],
+            self._elapsed / self.max_cycles,
             decision.slot_valid[..., 1 + n_landmarks :],
             self._team_space,
         )

@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.compiled import contiguous, kernel, stacked
+from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments, config_keys
 from infonav_gym.envs.base import EPISODE_STEPS
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
@@ -153,50 +153,34 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
 def team_observations(
     estimates, pose_std, pose_log_det, gps_available, elapsed_fraction, teammate_valid, space: spaces.Box, gains=None
 ) -> np.ndarray:
-    """Every robot's observation (see ``CooperativeLocalizationEnv``), float32 clipped to ``space``, for R robots.
-
-    Any leading dimensions (L...) are batch dimensions (the vector env's copies).
+    """Every robot's observation (see ``CooperativeLocalizationEnv``), float32 clipped to ``space``, for N copies of
+    R robots.
 
     Args:
-        estimates: estimated poses (L..., R, 3).
-        pose_std: x, y, heading standard deviations of each robot at the prior (L..., R, 3).
-        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (L..., R).
-        gps_available: whether each robot has a DGPS fix now (L..., R).
-        elapsed_fraction: elapsed fraction of ``max_cycles``, broadcastable to (L..., R) (a number, or (L..., 1)).
-        teammate_valid: whether each robot may observe each robot now (L..., R, R).
+        estimates: estimated poses (N, R, 3).
+        pose_std: x, y, heading standard deviations of each robot at the prior (N, R, 3).
+        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (N, R).
+        gps_available: whether each robot has a DGPS fix now (N, R) bool.
+        elapsed_fraction: elapsed fraction of ``max_cycles`` of each copy (N,).
+        teammate_valid: whether each robot may observe each robot now (N, R, R) bool.
         space: one robot's observation space.
-        gains: each robot's ``action_information_gain`` (L..., R, R + 1) to append (``observe_gains``), or None.
+        gains: each robot's ``action_information_gain`` (N, R, R + 1) to append (``observe_gains``), or None.
 
     Returns:
-        (L..., R, 10 + 5 R), or (L..., R, 11 + 6 R) with ``gains``.
+        (N, R, 10 + 5 R), or (N, R, 11 + 6 R) with ``gains``.
     """
-    lead, n = estimates.shape[:-2], estimates.shape[-2]
-    batch = (int(np.prod(lead)), n)
-
-    def rows(array, width=()):
-        return stacked(array, (*lead, n, *width)).reshape(*batch, *width)
-
-    width = space.shape[0]
-    gains = np.zeros((*lead, n, 0)) if gains is None else gains
-    features = np.zeros((*lead, n, width), dtype=np.float32)
-    team_features(
-        rows(estimates, (POSE_DIM,)),
-        rows(pose_std, (POSE_DIM,)),
-        rows(gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)),
-        rows(gps_available),
-        rows(elapsed_fraction),
-        rows(teammate_valid, (n,)),
-        rows(gains, (np.shape(gains)[-1],)),
-        contiguous(space.low),
-        contiguous(space.high),
-        features.reshape(*batch, width),
-    )
+    n_copies, n_robots = estimates.shape[:2]
+    features = np.zeros((n_copies, n_robots, space.shape[0]), dtype=np.float32)
+    entropy = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
+    gains = np.zeros((n_copies, n_robots, 0)) if gains is None else gains
+    arrays = (estimates, pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, space.low)
+    team_features(*(contiguous(array) for array in arrays), contiguous(space.high), features)
     return features
 
 
 @kernel
 def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, low, high, out):
-    """``team_observations`` of B teams of R robots into ``out`` (B, R, F) float32 (zeros), clipped to [low, high].
+    """``team_observations`` of N teams of R robots into ``out`` (N, R, F) float32 (zeros), clipped to [low, high].
 
     Robot ``i``'s row: its estimate (x, y, cos, sin of the heading), standard deviations, entropy, DGPS flag and
     elapsed fraction; then per robot ``j`` (zeros for ``j = i``): may observe, range, cos and sin of the bearing
@@ -211,7 +195,7 @@ def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction,
             row[0], row[1], row[2], row[3] = x, y, np.cos(heading), np.sin(heading)
             for k in range(POSE_DIM):
                 row[4 + k] = pose_std[team, i, k]
-            row[7], row[8], row[9] = entropy[team, i], gps_available[team, i], elapsed_fraction[team, i]
+            row[7], row[8], row[9] = entropy[team, i], gps_available[team, i], elapsed_fraction[team]
             for j in range(n_robots):
                 if j == i:
                     continue
