@@ -130,14 +130,12 @@ def pair_decisions(x, P, observers, targets, noise, valid, team_reward):
             if valid[c, k]:
                 mask[c, observers[k], targets[k] + 1] = 1
                 gains[c, observers[k], targets[k] + 1] = (1.0 - team_reward) * own[c, k] + team_reward * joint[c, k]
-    pose_std = np.empty((n_copies, n_robots, POSE_DIM))
+    pose_std, pose_log_det = np.empty((n_copies, n_robots * POSE_DIM)), pose_block_log_dets(P, n_robots)
     for c in range(n_copies):
         for i in range(POSE_DIM * n_robots):
-            pose_std[c, i // POSE_DIM, i % POSE_DIM] = math.sqrt(P[c, i, i])
-    pose_log_det = pose_block_log_dets(P, n_robots)
-    for c in range(n_copies):
-        for robot in range(n_robots):
-            undefined |= math.isnan(pose_log_det[c, robot])
+            pose_std[c, i] = math.sqrt(P[c, i, i])
+            undefined |= math.isnan(pose_log_det[c, i // POSE_DIM])
+    pose_std = pose_std.reshape((n_copies, n_robots, POSE_DIM))
     return mask, gains, predicted, H_observer, H_target, R, pose_log_det, pose_std, undefined
 
 

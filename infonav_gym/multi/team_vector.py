@@ -212,17 +212,9 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         return np.where(acting[:, None] & valid, actions, noop), invalid
 
     def _relative_update(self, copies: np.ndarray, chosen: np.ndarray, decision) -> list:
-        """Fuse the teammate observations ``chosen`` (n, R) of ``copies`` as one stacked update per copy.
-
-        Args:
-            copies: the copies that observe a teammate (n,).
-            chosen: each of their robots' teammate choice: ``NO_OBSERVATION`` (0) or ``1 + j`` for robot j.
-            decision: the decision's relative-pose candidates (``TeamDecision``: geometry, predicted, H, R per pair).
-
-        Returns:
-            What the updates brought (``relative_updates``): the joint MI (n,), each robot's own-pose MI (n, R)
-            [nats] and its x, y, heading standard deviations after (n, R, 3).
-        """
+        """Fuse the teammate choices ``chosen`` (n, R) (``NO_OBSERVATION`` or ``1 + j`` for robot j) of ``copies`` (n,)
+        at the ``decision``'s candidates as one stacked update per copy; the joint MI (n,), each robot's own-pose MI
+        (n, R) [nats] and its x, y, heading standard deviations after (n, R, 3) (``relative_updates``)."""
         noise = self._noise[RELATIVE_NOISE].take_many(copies, chosen != NO_OBSERVATION)
         rows = self._rows(copies)
         candidates = (decision.geometry, decision.predicted, decision.H_observer, decision.H_target, decision.R)
@@ -324,16 +316,11 @@ def relative_updates(
 ):
     """``JointEKF.relative_pose_update`` of n copies with their robots' teammate choices, and what it brought.
 
-    Robot k of copy c observes pair ``pair_index[k, chosen[c, k]]`` (-1: none) of the pairs' ``targets``: its true
-    relative pose ``geometry[c, pair]`` plus the sensor's noise (``noise_standard_deviations`` of
-    ``parameters[pair]`` times the standard normals ``noise[c, k]``, angles wrapped), fused at the prior's
-    ``predicted``, ``H_o``, ``H_t`` (observer's, target's Jacobian) and ``R`` in slot order (``kalman_updates``;
-    ``cross``: keep the cross-covariances).
-
-    Returns:
-        ``(x, P, joint_mi (n,), own_mi (n, R), pose_std (n, R, 3))``: the MI on the joint state and on each robot's
-        own pose (from the prior's ``log_det`` (n, R) of it) [nats], NaN where a determinant is not > 0, and each
-        robot's x, y, heading standard deviations after.
+    Robot k of copy c observes pair ``pair_index[k, chosen[c, k]]`` (-1: none): its true relative pose ``geometry``
+    plus the sensor's noise (``relative_poses_with_noise`` of its ``parameters`` and the standard normals ``noise[c,
+    k]``), fused at the prior's ``predicted``, ``H_o``, ``H_t`` and ``R`` in slot order (``kalman_updates``). Returns
+    ``(x, P, joint_mi (n,), own_mi (n, R), pose_std (n, R, 3))``: the MI on the joint state and on each robot's pose
+    (prior: ``log_det`` (n, R)) [nats], NaN where a determinant is not > 0, and each robot's std after.
     """
     n_copies, n = x.shape
     n_robots = chosen.shape[1]
