@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from infonav_gym.compiled import kernel
 from infonav_gym.config import Interval, ParameterError, check_arguments
 from infonav_gym.world.scenarios import (
     FIELD_ARGUMENTS,
@@ -80,46 +81,23 @@ def goal_field(
     check_arguments("goal_field", GOAL_FIELD_ARGUMENTS, n_landmarks=n_landmarks, n_obstacles=n_obstacles, size_m=size_m)
     if size_m < 3 * max(lit_offset_m):
         raise ParameterError("goal_field", "size_m", f">= {3 * max(lit_offset_m):g} m for its layout", size_m)
-    start = np.array([START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
-    goal = np.array([size_m - START_MARGIN_M, np_random.uniform(0.4, 0.6) * size_m])
-    along = (goal - start) / np.linalg.norm(goal - start)
-    normal = np.array([-along[1], along[0]])
+    near_line_draws = 3 * (START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS)  # side, place along, offset
+    u = np_random.random(3 + near_line_draws + 2 * (n_landmarks - START_CLUSTER_LANDMARKS - GOAL_CLUSTER_LANDMARKS))
+    start = np.array([START_MARGIN_M, _uniform(u[0], 0.4, 0.6) * size_m])
+    goal = np.array([size_m - START_MARGIN_M, _uniform(u[1], 0.4, 0.6) * size_m])
     length_m = float(np.linalg.norm(goal - start))
-    lit_side = 1.0 if np_random.random() < 0.5 else -1.0
-
-    def near_line(fraction_low: float, fraction_high: float, offset_low: float, offset_high: float) -> np.ndarray:
-        side = 1.0 if np_random.random() < 0.5 else -1.0
-        fraction = np_random.uniform(fraction_low, fraction_high)
-        return start + fraction * length_m * along + side * np_random.uniform(offset_low, offset_high) * normal
-
-    landmarks = [near_line(0.06, 0.22, 1.5, 4.0) for _ in range(START_CLUSTER_LANDMARKS)]
-    landmarks += [near_line(0.8, 0.9, 1.5, 4.0) for _ in range(GOAL_CLUSTER_LANDMARKS)]
-    n_lit = n_landmarks - len(landmarks)
-    for k in range(n_lit):
-        fraction = 0.3 + 0.45 * (k + np_random.uniform(0.2, 0.8)) / n_lit
-        offset = lit_side * np_random.uniform(*lit_offset_m)
-        landmarks.append(start + fraction * length_m * along + offset * normal)
-    landmarks = np.clip(np.array(landmarks), 1.0, size_m - 1.0)
-
-    def obstacle_discs(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Centres (M, 2) and radii (M,) of the obstacles drawn as ``u`` (M, 3): radius, place along, offset."""
-        radii = _uniform(u[:, 0], 0.7, 1.5)
-        fractions, offsets = _uniform(u[:, 1], 0.1, 0.9), -lit_side * _uniform(u[:, 2], radii + 2.0, 8.0)
-        return start + fractions[:, None] * length_m * along + offsets[:, None] * normal, radii
-
-    def clear(u: np.ndarray) -> np.ndarray:
-        centers, radii = obstacle_discs(u)
-        inside = np.all(centers - radii[:, None] > 0.5, axis=1) & np.all(
-            centers + radii[:, None] < size_m - 0.5, axis=1
-        )
-        gaps = np.linalg.norm(landmarks - centers[:, None], axis=-1) - radii[:, None]
-        return inside & np.all(gaps > 0.5, axis=1) & (np.linalg.norm(centers - goal, axis=1) > radii + 3.0)
-
-    u = _uniform_until_accepted(np_random, n_obstacles, 3, clear, "obstacles on the dark side")
-    centers, radii = obstacle_discs(u)
+    frame = (start, (goal - start) / length_m, length_m, 1.0 if u[2] < 0.5 else -1.0)  # the lit side: +-1
+    landmarks = field_landmarks(u[3:], near_line_draws // 3, *frame, *lit_offset_m, size_m)
+    u = _uniform_until_accepted(
+        np_random,
+        n_obstacles,
+        3,
+        lambda rows: field_obstacles(rows, *frame, landmarks, goal, size_m)[2],
+        "obstacles on the dark side",
+    )
+    centers, radii, _ = field_obstacles(u, *frame, landmarks, goal, size_m)
     obstacles = [CircleObstacle((x, y), radius) for (x, y), radius in zip(centers.tolist(), radii.tolist())]
-    heading = math.atan2(along[1], along[0])
-    route = Route((float(start[0]), float(start[1]), heading), goal[None, :])
+    route = Route((float(start[0]), float(start[1]), math.atan2(frame[1][1], frame[1][0])), goal[None, :])
     return Scenario(
         name="goal_field",
         bounds=(0.0, 0.0, size_m, size_m),
@@ -128,3 +106,46 @@ def goal_field(
         obstacles=tuple(obstacles),
         landmarks=landmarks,
     )
+
+
+@kernel
+def field_landmarks(u, n_near, start, along, length_m, lit_side, lit_low_m, lit_high_m, size_m):
+    """``goal_field``'s landmarks (K, 2) from its uniform draws ``u``: ``n_near`` near the line (side, place along,
+    offset each; the first ``START_CLUSTER_LANDMARKS`` ahead of the start), then the lit ones (place, offset each)."""
+    n_lit = (len(u) - 3 * n_near) // 2
+    landmarks = np.empty((n_near + n_lit, 2))
+    for k in range(n_near + n_lit):
+        if k < n_near:
+            side = 1.0 if u[3 * k] < 0.5 else -1.0
+            low, high = (0.06, 0.22) if k < START_CLUSTER_LANDMARKS else (0.8, 0.9)
+            fraction, offset = low + (high - low) * u[3 * k + 1], side * (1.5 + (4.0 - 1.5) * u[3 * k + 2])
+        else:
+            draw = 3 * n_near + 2 * (k - n_near)
+            fraction = 0.3 + 0.45 * ((k - n_near) + (0.2 + (0.8 - 0.2) * u[draw])) / n_lit
+            offset = lit_side * (lit_low_m + (lit_high_m - lit_low_m) * u[draw + 1])
+        for i in range(2):
+            normal = -along[1] if i == 0 else along[0]
+            value = start[i] + fraction * length_m * along[i] + offset * normal
+            landmarks[k, i] = min(max(value, 1.0), size_m - 1.0)
+    return landmarks
+
+
+@kernel
+def field_obstacles(u, start, along, length_m, lit_side, landmarks, goal, size_m):
+    """``goal_field``'s obstacles drawn as ``u`` (M, 3) (radius, place along, offset on the dark side): centres
+    (M, 2), radii (M,) [m] and which are clear (inside the field, off the landmarks and the goal)."""
+    centers, radii, clear = np.empty((len(u), 2)), np.empty(len(u)), np.empty(len(u), dtype=np.bool_)
+    for m in range(len(u)):
+        radius = 0.7 + (1.5 - 0.7) * u[m, 0]
+        fraction, offset = 0.1 + (0.9 - 0.1) * u[m, 1], -lit_side * (radius + 2.0 + (8.0 - (radius + 2.0)) * u[m, 2])
+        radii[m], clear[m] = radius, True
+        for i in range(2):
+            normal = -along[1] if i == 0 else along[0]
+            centers[m, i] = start[i] + fraction * length_m * along[i] + offset * normal
+            clear[m] &= centers[m, i] - radius > 0.5 and centers[m, i] + radius < size_m - 0.5
+        for k in range(len(landmarks)):
+            dx, dy = landmarks[k, 0] - centers[m, 0], landmarks[k, 1] - centers[m, 1]
+            clear[m] &= math.sqrt(dx * dx + dy * dy) - radius > 0.5
+        dx, dy = centers[m, 0] - goal[0], centers[m, 1] - goal[1]
+        clear[m] &= math.sqrt(dx * dx + dy * dy) > radius + 3.0
+    return centers, radii, clear
