@@ -126,12 +126,16 @@ def stacked_log_dets(M):
 
 
 def largest_position_std(covariances: np.ndarray) -> np.ndarray:
-    """Largest standard deviation of the position part of each (B, >=2, >=2) pose covariance [m]: (B,).
+    """Largest standard deviation of the position part of each (B, >=2, >=2) pose covariance [m]: (B,)."""
+    return position_std(covariances[:, 0, 0], covariances[:, 0, 1], covariances[:, 1, 1])
 
-    The square root of the largest eigenvalue of the 2 x 2 position block, in closed form.
-    """
-    a, b, d = covariances[:, 0, 0], covariances[:, 0, 1], covariances[:, 1, 1]
-    return np.sqrt(0.5 * (a + d) + np.sqrt(0.25 * (a - d) ** 2 + b * b))
+
+def position_std(a, b, d):
+    """The square root of the largest eigenvalue of ``[[a, b], [b, d]]`` in closed form (floats or arrays) [m]."""
+    return np.sqrt(0.5 * (a + d) + np.sqrt(0.25 * (a - d) * (a - d) + b * b))
+
+
+position_std_kernel = inner_kernel(position_std)  # the same formula compiled, for one covariance inside other kernels
 
 
 def gaussian_entropy(P, check_input: bool = True) -> float:

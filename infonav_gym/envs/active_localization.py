@@ -20,20 +20,14 @@ from infonav_gym.envs.active_transition import (
     PRIMITIVE_NAMES,
     PRIMITIVE_OFFSETS_RAD,
     REWARD_TERMS,
-    ActiveDecision,
-    CopiesState,
+    copy_outputs,
     decode_actions,
-    distances,
     episode_goal,
-    infos,
     observation_bounds,
-    observations,
     obstacle_discs,
     primitive_commands,
-    reward_terms,
     start_episode,
-    step_outcome,
-    total_reward,
+    step_rewards,
 )
 from infonav_gym.envs.base import MAX_EPISODE_STEPS
 from infonav_gym.envs.landmark_decision import LandmarkDecision
@@ -41,7 +35,7 @@ from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
 from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import set_rows
+from infonav_gym.envs.vector_infos import in_every_copy, set_rows
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
@@ -81,6 +75,7 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
     **INITIAL_POSE_STD,
     **{key: REWARD_WEIGHT for key in REWARD_WEIGHT_KEYS},
 }
+MASKS = tuple(f"_{key}" for key in REWARD_TERMS)  # the reward terms' info masks
 FIELD_KEYS = {"n_landmarks": "n_candidates", "n_obstacles": "n_obstacles", "size_m": "field_size_m"}
 
 
@@ -208,39 +203,33 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
     def step(self, actions):
         """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
         acting, chosen = self._begin_step(actions)
-        terms = self._act(np.flatnonzero(acting), chosen)
+        terms, rewards = self._act(acting, chosen)
         terminated = acting & (self._goal_reached | self._failed)
         truncated = acting & ~terminated & (self._elapsed >= self.config["horizon"])
         observation, info = self._finish_step(
             terminated | truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, terms)
         )
-        return observation, total_reward(terms), terminated, truncated, info
+        return observation, rewards, terminated, truncated, info
 
-    def _act(self, copies: np.ndarray, chosen: np.ndarray) -> dict:
-        """The whole transition of the acting ``copies`` (observe at the prior, then drive); their reward terms
-        (N,) each, 0 for the others. A no-op (``chosen`` -1) stands still observing nothing."""
-        cfg, n = self.config, self.num_envs
+    def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The whole transition of the ``acting`` copies (observe at the prior, then drive); their reward terms
+        (6, N) and rewards (N,), 0 for the others. A no-op (``chosen`` -1) stands still observing nothing."""
         landmarks, primitives = decode_actions(chosen)
         driving = chosen >= 0  # -1: a no-op, or a copy not acting
+        primitives[~driving] = -1
         observed, mutual_information = self._observe(np.where(driving, landmarks, -1))
         self._observations_left -= observed
-        progress, reached, failed = np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        copies, before = np.flatnonzero(acting), self._worlds.poses[:, 0, :2].copy()
         if copies.size:
             rows = self._rows(copies)
-            commands = primitive_commands(cfg, self._goals[rows], self._x[rows], primitives[rows])
-            commands[~driving[rows]] = 0.0
-            distance_before = self._distances_to_goal(rows)
+            commands = primitive_commands(self.config, self._goals[rows], self._x[rows], primitives[rows])
             self._x[rows], self._P[rows] = self._moved(copies, self._x[rows], self._P[rows], commands)
-            distance_after = self._distances_to_goal(rows)
-            progress[rows] = distance_before - distance_after
-            reached[rows], failed[rows] = step_outcome(cfg, distance_after, self._P[rows])
-            self._goal_reached[rows], self._failed[rows] = reached[rows], failed[rows]
             self._elapsed[rows] += 1
-        return reward_terms(cfg, mutual_information, observed, driving, progress, reached, failed)
-
-    def _distances_to_goal(self, rows) -> np.ndarray:
-        """The true distance of the copies at ``rows`` (``_rows``) to their goals [m] (n,)."""
-        return distances(self._worlds.poses[rows, 0, :2], self._goals[rows])
+        after, arrays = self._worlds.poses[:, 0, :2], (self._goals, self._P, mutual_information, observed, driving)
+        terms, rewards, reached, failed = step_rewards(self.config, before, after, *arrays, acting)
+        np.copyto(self._goal_reached, reached, where=acting)
+        np.copyto(self._failed, failed, where=acting)
+        return terms, rewards
 
     def _observe(self, landmarks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Update each observing copy's EKF with a noisy measurement of its landmark (-1: none).
@@ -255,9 +244,8 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
 
     def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
         """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""
-        nothing = np.zeros(len(copies))
-        terms = dict.fromkeys(REWARD_TERMS, nothing)
-        return self._outputs(copies, geometry, nothing.astype(bool), np.full(len(copies), -1), terms)
+        nothing = np.zeros(len(copies), dtype=bool)
+        return self._outputs(copies, geometry, nothing, np.full(len(copies), -1), np.zeros((len(REWARD_TERMS), 1)))
 
     def _outputs(self, copies, geometry, stepped, chosen, terms) -> tuple[np.ndarray, dict]:
         """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos.
@@ -267,24 +255,20 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
             geometry: their static geometry (n copies).
             stepped: which of them acted in this step (n,) bool; the others give their reset info.
             chosen: the action each took (n,), -1 for a no-op.
-            terms: their reward terms, each (n,) [nats].
+            terms: their reward terms (6, n) or (6, 1) [nats] (any where not ``stepped``).
         """
         rows = self._rows(copies)
-        state = CopiesState(
-            x=self._x[rows],
-            P=self._P[rows],
-            true_poses=self._worlds.poses[rows, 0],
-            goals=self._goals[rows],
-            elapsed=self._elapsed[rows],
-            observations_left=self._observations_left[rows],
-            goal_reached=self._goal_reached[rows],
-            failed=self._failed[rows],
-        )
+        x, P, true_poses, goals = self._x[rows], self._P[rows], self._worlds.poses[rows, 0], self._goals[rows]
+        state = {"x": x, "P": P, "true_poses": true_poses, "goals": goals, "elapsed": self._elapsed[rows]}
+        state["observations_left"] = left = self._observations_left[rows]
         everywhere = np.ones((len(copies), self._landmarks.shape[1]), dtype=bool)
         sight = LandmarkDecision.at_prior(
-            self._sensor, geometry, state.true_poses, state.x, state.P, self._landmarks[rows], everywhere, False
+            self._sensor, geometry, true_poses, x, P, self._landmarks[rows], everywhere, False
         )
-        decision = ActiveDecision.from_sight(sight, state.observations_left)
+        obstacles = (self._obstacle_centers[rows], self._obstacle_radii[rows])
+        decision, observation, values = copy_outputs(
+            sight, state, obstacles, self.config, self.single_observation_space
+        )
         if len(copies) == self.num_envs:
             self._decision = decision
         else:
@@ -293,9 +277,30 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
             set_rows(self._decision.sight._asdict(), copies, sight._asdict())
         self._chosen[rows] = np.where(stepped, chosen, -1)
         self._track_first_copy(copies, stepped)
-        obstacles = (self._obstacle_centers[rows], self._obstacle_radii[rows])
-        observation = observations(decision, state, obstacles, self.config, self.single_observation_space)
-        return observation, infos(decision, state, stepped, chosen, terms, self.config)
+        position_error, heading_error, position_std, distance_to_goal = values
+        masks = stepped.copy()
+        info = {
+            "action_mask": decision.action_mask.copy(),
+            "action_information_gain": decision.action_information_gain.copy(),
+            "reward_terms": {**dict(zip(REWARD_TERMS, np.where(stepped, terms, 0.0))), **dict.fromkeys(MASKS, masks)},
+            "chosen_action": self._chosen[rows].copy(),
+            "invalid_action": stepped & (chosen < 0),
+            "pose_entropy": sight.pose_entropy.copy(),
+            "state_entropy": sight.pose_entropy.copy(),
+            "position_error_m": position_error,
+            "heading_error_rad": heading_error,
+            "position_std_m": position_std,
+            "true_pose": true_poses.copy(),
+            "estimated_pose": x[:, :POSE_DIM].copy(),
+            "goal": goals.copy(),
+            "distance_to_goal_m": distance_to_goal,
+            "observations_left": left.copy(),
+            "goal_reached": self._goal_reached[rows].copy(),
+            "success": self._goal_reached[rows].copy(),  # the evaluation harness's success flag
+            "failed": self._failed[rows].copy(),
+            "time_s": self._elapsed[rows] * self.config["time_step_s"],
+        }
+        return observation, in_every_copy(info, len(copies))
 
     # ------------------------------------------------------------------ the planning model and drawing
 

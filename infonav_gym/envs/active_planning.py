@@ -14,18 +14,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.compiled import stacked
 from infonav_gym.envs.active_transition import (
     N_PRIMITIVES,
     PRIMITIVE_NAMES,
     PRIMITIVE_OFFSETS_RAD,
     action_layout,
     decode_actions,
-    distances,
     landmark_models,
     primitive_commands,
-    reward_terms,
-    step_outcome,
-    total_reward,
+    step_rewards,
 )
 from infonav_gym.estimation import batched
 from infonav_gym.information import largest_position_std
@@ -137,23 +135,15 @@ class ActivePlanningModel:
             covariance[rows] = batched.range_bearing_update(
                 belief.pose[rows], covariance[rows], no_residual, no_residual, H[:, 0], R[:, 0], check_input=False
             )[1]
-        commands = np.where(valid[:, None], primitive_commands(cfg, goal, belief.pose, primitives), 0.0)
+        commands = primitive_commands(cfg, goal, belief.pose, np.where(valid, primitives, -1))
         pose, predicted = batched.predict_pose(
             belief.pose, covariance, commands, cfg["time_step_s"], env.odometry_covariance, check_input=False
         )
         covariance = np.where(done[:, None, None], covariance, predicted)
         pose = np.where(done[:, None], belief.pose, pose)
-        distance_after = distances(pose[:, :2], goal)
-        reached, failed = step_outcome(cfg, distance_after, covariance)
-        terms = reward_terms(
-            cfg,
-            mutual_information,
-            observe,
-            valid,
-            distances(belief.pose[:, :2], goal) - distance_after,
-            reached & ~done,
-            failed & ~done,
-        )
+        goals = stacked(goal, (B, 2))
+        arrays = (goals, covariance, mutual_information, observe, valid, ~done)
+        _, rewards, reached, failed = step_rewards(cfg, belief.pose[:, :2], pose[:, :2], *arrays)
         following = Belief(
             pose=pose,
             covariance=covariance,
@@ -161,7 +151,7 @@ class ActivePlanningModel:
             visible=self._model_visibility(pose),
             done=done | reached | failed,
         )
-        return following, total_reward(terms)
+        return following, rewards
 
     def _model_visibility(self, poses: np.ndarray) -> np.ndarray:
         """Which landmarks each pose (B, 3) sees: in coverage (the env's ``in_coverage``), no round obstacle of the

@@ -24,7 +24,7 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.geometry import wrap_angle_kernel as wrap
-from infonav_gym.information import largest_position_std
+from infonav_gym.information import position_std_kernel as position_std
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.active_scenarios import goal_field
 from infonav_gym.world.scenarios import Scenario
@@ -85,12 +85,6 @@ class ActiveDecision(NamedTuple):
     action_mask: np.ndarray
     action_information_gain: np.ndarray
 
-    @classmethod
-    def from_sight(cls, sight: LandmarkDecision, observations_left: np.ndarray) -> ActiveDecision:
-        """The decisions of copies whose landmarks are ``sight`` and sensing budgets ``observations_left`` (N,)."""
-        observable = sight.action_mask.astype(bool) & (observations_left > 0)[:, None]
-        return cls(sight, *action_layout(observable, sight.action_information_gain))
-
 
 def landmark_models(sensor: RangeBearingSensor, poses: np.ndarray, landmarks: np.ndarray):
     """Each landmark's range-bearing model at each estimated pose: ``(predicted (n, K, 2), H (n, K, 2, 3),
@@ -107,7 +101,7 @@ def primitive_commands(config: dict, goals: np.ndarray, poses: np.ndarray, primi
         config: a checked ``ActiveLocalization-v0`` config.
         goals: the goal position [m], one (2,) for all poses or one per pose (n, 2).
         poses: estimated poses ``[x, y, heading]`` (n, 3).
-        primitives: the primitive of each pose (n,), indices of ``PRIMITIVE_OFFSETS_RAD``.
+        primitives: the primitive of each pose (n,), indices of ``PRIMITIVE_OFFSETS_RAD``; -1: stand still.
     """
     poses = contiguous(np.asarray(poses, dtype=float))
     dt = config["time_step_s"]
@@ -126,8 +120,10 @@ def commands_of_primitives(goals, poses, primitives, speed_mps, max_turn_rad, dt
     """``primitive_commands`` of n poses (n, 3) with their goals (n, 2): steer for the goal's estimated bearing plus
     the primitive's offset, the turn clipped to ``max_turn_rad`` per step, the speed scaled by the cosine of the
     wanted turn (0 beyond a right angle)."""
-    commands = np.empty((len(poses), 2))
+    commands = np.zeros((len(poses), 2))
     for i in range(len(poses)):
+        if primitives[i] < 0:
+            continue
         goal_bearing = math.atan2(goals[i, 1] - poses[i, 1], goals[i, 0] - poses[i, 0])
         turn = wrap(goal_bearing + PRIMITIVE_OFFSETS_RAD[primitives[i]] - poses[i, 2])
         commands[i, 0] = speed_mps * max(math.cos(turn), 0.0)
@@ -135,47 +131,53 @@ def commands_of_primitives(goals, poses, primitives, speed_mps, max_turn_rad, dt
     return commands
 
 
-def distances(positions: np.ndarray, goals: np.ndarray) -> np.ndarray:
-    """The distance [m] of each position (n, 2) to its goal (n, 2) or to one goal (2,)."""
-    offsets = positions - goals
-    return np.hypot(offsets[:, 0], offsets[:, 1])
-
-
-def step_outcome(config: dict, distance_after: np.ndarray, covariances: np.ndarray):
-    """``(reached, failed)`` (n,) bool after a step: within ``goal_radius_m`` of the goal, or (not reached) the
-    largest position std of ``covariances`` (n, 3, 3) above ``max_position_std_m``."""
-    reached = distance_after <= config["goal_radius_m"]
-    return reached, ~reached & (largest_position_std(covariances) > config["max_position_std_m"])
-
-
-def reward_terms(config: dict, mutual_information, observed, driving, progress_m, reached, failed) -> dict:
-    """Each of ``REWARD_TERMS`` of n steps, (n,) arrays [nats].
+def step_rewards(config: dict, before, after, goals, covariances, mutual_information, observed, driving, scored):
+    """The reward terms of n steps, their totals and how they ended, from the positions before and after them.
 
     Args:
-        config: a checked ``ActiveLocalization-v0`` config (the costs, bonus and penalty weights).
+        config: a checked ``ActiveLocalization-v0`` config (the costs, bonus and penalty weights, the goal radius
+            and the failure bound).
+        before, after: the positions [m] (n, 2) the progress to the goals (n, 2) is measured between.
+        covariances: the EKF covariances after the steps (n, >=2, >=2).
         mutual_information: the MI of each step's update (n,) [nats], 0 without one.
-        observed: which steps observed a landmark (n,) bool.
-        driving: which executed a primitive (n,) bool (a no-op does not).
-        progress_m: how much closer to the goal each step came [m] (n,).
-        reached: which reached the goal (n,) bool.
-        failed: which crossed the uncertainty bound (n,) bool.
+        observed: which steps observed a landmark (n,) bool; ``driving``: which executed a primitive.
+        scored: which steps may end in reaching the goal or failing (n,) bool.
+
+    Returns:
+        ``(terms (6, n) [nats] in REWARD_TERMS order, totals (n,), reached (n,) bool, failed (n,) bool)``: within
+        ``goal_radius_m`` of the goal, or (not reached) the largest position std above ``max_position_std_m``.
     """
-    return {
-        "mutual_information": np.asarray(mutual_information, dtype=float),
-        "sensing_cost": np.where(observed, -config["observation_cost_nats"], 0.0),
-        "motion_cost": np.where(driving, -config["motion_cost_per_step"], 0.0),
-        "progress": np.where(driving, config["progress_reward_per_m"] * progress_m, 0.0),
-        "goal_bonus": np.where(reached, config["goal_bonus"], 0.0),
-        "failure_penalty": np.where(failed, -config["failure_penalty"], 0.0),
-    }
+    keys = ("observation_cost_nats", "motion_cost_per_step", "progress_reward_per_m", "goal_bonus", "failure_penalty")
+    return rewards_of_steps(
+        *(contiguous(np.asarray(array, dtype=float)) for array in (before, after, goals, covariances)),
+        contiguous(np.asarray(mutual_information, dtype=float)),
+        *(contiguous(np.asarray(array, dtype=np.bool_)) for array in (observed, driving, scored)),
+        np.array([config[key] for key in (*keys, "goal_radius_m", "max_position_std_m")], dtype=float),
+    )
 
 
-def total_reward(terms: dict) -> np.ndarray:
-    """The reward: the sum of the terms (n,) [nats], in ``REWARD_TERMS`` order."""
-    total = np.zeros_like(terms[REWARD_TERMS[0]])
-    for key in REWARD_TERMS:
-        total = total + terms[key]
-    return total
+@kernel
+def rewards_of_steps(before, after, goals, covariances, mutual_information, observed, driving, scored, weights):
+    """``step_rewards`` of n steps; ``weights``: the config's five reward weights, goal radius and failure bound."""
+    n = len(before)
+    terms, totals = np.zeros((len(REWARD_TERMS), n)), np.zeros(n)
+    reached, failed = np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_)
+    for c in range(n):
+        distance_after = math.hypot(after[c, 0] - goals[c, 0], after[c, 1] - goals[c, 1])
+        if scored[c]:
+            reached[c] = distance_after <= weights[5]
+            std = position_std(covariances[c, 0, 0], covariances[c, 0, 1], covariances[c, 1, 1])
+            failed[c] = not reached[c] and std > weights[6]
+        terms[0, c] = mutual_information[c]
+        terms[1, c] = -weights[0] if observed[c] else 0.0
+        if driving[c]:
+            progress = math.hypot(before[c, 0] - goals[c, 0], before[c, 1] - goals[c, 1]) - distance_after
+            terms[2, c], terms[3, c] = -weights[1], weights[2] * progress
+        terms[4, c] = weights[3] if reached[c] else 0.0
+        terms[5, c] = -weights[4] if failed[c] else 0.0
+        for term in range(len(REWARD_TERMS)):
+            totals[c] += terms[term, c]
+    return terms, totals, reached, failed
 
 
 def ranges_and_bearings(x: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -225,68 +227,62 @@ def observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[np.ndarray, 
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
 
 
-class CopiesState(NamedTuple):
-    """The state of n copies that their outputs read (rows of the env's arrays).
-
-    Attributes:
-        x: EKF states (n, 3); ``P`` their covariances (n, 3, 3).
-        true_poses: true poses (n, 3).
-        goals: goal positions (n, 2) [m].
-        elapsed: steps since each copy's reset (n,).
-        observations_left: sensing budget left (n,).
-        goal_reached, failed: how the last step ended (n,) bool.
-    """
-
-    x: np.ndarray
-    P: np.ndarray
-    true_poses: np.ndarray
-    goals: np.ndarray
-    elapsed: np.ndarray
-    observations_left: np.ndarray
-    goal_reached: np.ndarray
-    failed: np.ndarray
-
-
-def observations(decision: ActiveDecision, state: CopiesState, obstacles, config: dict, space: spaces.Box):
-    """The observations of n copies (n, 14 + 4K + 4O), float32, clipped to ``space`` (see ``ActiveLocalizationEnv``).
+def copy_outputs(sight: LandmarkDecision, state: dict, obstacles, config: dict, space: spaces.Box):
+    """The decisions, observations (clipped to ``space``) and info values of n copies (see ``ActiveLocalizationEnv``).
 
     Args:
-        decision: their decisions.
-        state: their state.
+        sight: their landmarks' decisions at their priors.
+        state: their arrays ``x`` (n, 3), ``P`` (n, 3, 3), ``true_poses`` (n, 3), ``goals`` (n, 2) [m],
+            ``elapsed`` (n,) and ``observations_left`` (n,).
         obstacles: their ``(centers (n, O, 2), radii (n, O))`` [m].
         config: the env config; ``space`` the single observation space.
+
+    Returns:
+        ``(ActiveDecision, observations (n, 14 + 4K + 4O) float32, (position error [m], heading error [rad],
+        largest position std [m], distance to the goal [m]) (4, n))``.
     """
-    budget, sight = config["max_observations"], decision.sight
-    left = state.observations_left / budget if budget else np.zeros(len(state.x))
-    fractions = (sight.pose_entropy, state.elapsed / config["horizon"], left)
-    arrays = (state.x, state.P, *fractions, state.goals, sight.action_mask, sight.predicted, *obstacles)
-    return active_observations(
+    arrays = (state["x"], state["P"], state["true_poses"], state["goals"], *obstacles)
+    mask, gains, observation, values = outputs_of_copies(
+        sight.action_mask,
+        sight.action_information_gain,
+        sight.predicted,
+        sight.pose_entropy,
         *(contiguous(np.asarray(array, dtype=float)) for array in arrays),
+        contiguous(np.asarray(state["elapsed"], dtype=np.int64)),
+        contiguous(np.asarray(state["observations_left"], dtype=np.int64)),
+        config["horizon"],
+        config["max_observations"],
         space.low.astype(float),
         space.high.astype(float),
     )
+    return ActiveDecision(sight, mask, gains), observation, values
 
 
 @kernel
-def active_observations(
-    x, P, pose_entropy, elapsed_fraction, left, goals, action_mask, predicted, centers, radii, low, high
-):
-    """``observations`` of n copies from their arrays: (n, 14 + 4K + 4O) float32, clipped to ``[low, high]``."""
-    n_copies, n_landmarks = action_mask.shape
+def outputs_of_copies(
+    sight_mask, sight_gains, predicted, pose_entropy, x, P, true_poses, goals, centers, radii, elapsed, left, horizon,
+    budget, low, high
+):  # fmt: skip
+    """``copy_outputs`` of n copies from their arrays: the action layout (every primitive without an observation,
+    and with each visible landmark while budget is left), the observations clipped to ``[low, high]`` and the
+    info values."""
+    n_copies, n_landmarks = sight_mask.shape
+    observable = np.empty((n_copies, n_landmarks), dtype=np.bool_)
     observation = np.empty((n_copies, len(low)), dtype=np.float32)
-    values = np.zeros(len(low))
+    values, info = np.zeros(len(low)), np.empty((4, n_copies))
     landmarks_start = POSE_FEATURES + GOAL_FEATURES
     obstacles_start = landmarks_start + LANDMARK_FEATURES * n_landmarks
     for c in range(n_copies):
         values[:] = 0.0
-        pose_features(values, x[c], P[c], pose_entropy[c], elapsed_fraction[c])
+        pose_features(values, x[c], P[c], pose_entropy[c], elapsed[c] / horizon)
         dx, dy = goals[c, 0] - x[c, 0], goals[c, 1] - x[c, 1]
         bearing = wrap(math.atan2(dy, dx) - x[c, 2])
         range_bearing_features(values[POSE_FEATURES : POSE_FEATURES + 3], math.hypot(dx, dy), bearing)
-        values[POSE_FEATURES + 3] = left[c]
+        values[POSE_FEATURES + 3] = left[c] / budget if budget else 0.0
         for k in range(n_landmarks):
+            observable[c, k] = sight_mask[c, k] != 0 and left[c] > 0
             row = landmarks_start + LANDMARK_FEATURES * k
-            values[row] = action_mask[c, k]
+            values[row] = sight_mask[c, k]
             range_bearing_features(values[row + 1 : row + 4], predicted[c, k, 0], predicted[c, k, 1])
         for o in range(radii.shape[1]):
             row = obstacles_start + OBSTACLE_FEATURES * o
@@ -295,45 +291,9 @@ def active_observations(
             range_bearing_features(values[row : row + 3], math.hypot(dx, dy), bearing)
             values[row + 3] = radii[c, o]
         clip_into(observation[c], values, low, high)
-    return observation
-
-
-def infos(decision: ActiveDecision, state: CopiesState, stepped, chosen, terms: dict, config: dict) -> dict:
-    """The infos of n copies as arrays (n, ...), each with its ``_key`` mask.
-
-    Args:
-        decision: their new decisions.
-        state: their state.
-        stepped: which acted in this step (n,) bool; the others were reset and give the reset info.
-        chosen: the action each took (n,), -1 for a no-op.
-        terms: their reward terms, each (n,) [nats].
-        config: the env config.
-    """
-    x, true_poses = state.x, state.true_poses
-    errors = true_poses - x
-    pose_entropy = decision.sight.pose_entropy
-    everyone = np.ones(len(x), dtype=bool)
-    stepped_terms = np.where(stepped, np.stack([terms[key] for key in REWARD_TERMS]), 0.0)  # one row per term
-    terms, stepped = dict(zip(REWARD_TERMS, stepped_terms)), stepped.copy()
-    info = {
-        "action_mask": decision.action_mask.copy(),
-        "action_information_gain": decision.action_information_gain.copy(),
-        "reward_terms": {**terms, **{f"_{key}": stepped for key in terms}},
-        "chosen_action": np.where(stepped, chosen, -1),
-        "invalid_action": stepped & (chosen < 0),
-        "pose_entropy": pose_entropy.copy(),
-        "state_entropy": pose_entropy.copy(),
-        "position_error_m": np.hypot(errors[:, 0], errors[:, 1]),
-        "heading_error_rad": np.abs(wrap_angle(errors[:, 2])),
-        "position_std_m": largest_position_std(state.P),
-        "true_pose": true_poses.copy(),
-        "estimated_pose": x[:, :POSE_DIM].copy(),
-        "goal": state.goals.copy(),
-        "distance_to_goal_m": distances(true_poses[:, :2], state.goals),
-        "observations_left": state.observations_left.copy(),
-        "goal_reached": state.goal_reached.copy(),
-        "success": state.goal_reached.copy(),  # the evaluation harness's success flag
-        "failed": state.failed.copy(),
-        "time_s": state.elapsed * config["time_step_s"],
-    }
-    return {**info, **{f"_{key}": everyone for key in info}}
+        info[0, c] = math.hypot(true_poses[c, 0] - x[c, 0], true_poses[c, 1] - x[c, 1])
+        info[1, c] = abs(wrap(true_poses[c, 2] - x[c, 2]))
+        info[2, c] = position_std(P[c, 0, 0], P[c, 0, 1], P[c, 1, 1])
+        info[3, c] = math.hypot(true_poses[c, 0] - goals[c, 0], true_poses[c, 1] - goals[c, 1])
+    mask, gains = layout_of_actions(observable, sight_gains)
+    return mask, gains, observation, info
