@@ -23,6 +23,7 @@ from infonav_gym.envs.active_transition import (
     copy_outputs,
     decode_actions,
     episode_goal,
+    field_geometry,
     observation_bounds,
     obstacle_discs,
     primitive_commands,
@@ -184,7 +185,6 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
 
     def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
         """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
-        geometries = []
         for copy in copies.tolist():
             scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy])
             self._worlds.reset_copy(copy, scenario)
@@ -194,11 +194,11 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
             self._goals[copy] = episode_goal(scenario)
             self._obstacle_centers[copy], self._obstacle_radii[copy] = obstacle_discs(scenario)
             self._landmarks[copy] = scenario.landmarks
-            geometries.append(StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m))
         self._elapsed[copies] = 0
         self._observations_left[copies] = self.config["max_observations"]
         self._goal_reached[copies] = self._failed[copies] = False
-        return StaticGeometry.stack(geometries)
+        obstacles = (self._obstacle_centers[copies], self._obstacle_radii[copies])
+        return field_geometry(scenario.walls, self._worlds.wall_thickness_m, *obstacles)
 
     def step(self, actions):
         """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""

@@ -19,9 +19,9 @@ from infonav_gym.envs.active_transition import (
     N_PRIMITIVES,
     PRIMITIVE_NAMES,
     PRIMITIVE_OFFSETS_RAD,
-    action_layout,
     decode_actions,
     landmark_models,
+    layout_of_actions,
     primitive_commands,
     step_rewards,
 )
@@ -106,7 +106,7 @@ class ActivePlanningModel:
             gains[rows] = batched.landmark_information_gains(
                 belief.covariance[rows], H[rows], R[rows], check_input=False
             )
-        return action_layout(observable, gains)
+        return layout_of_actions(observable, gains)
 
     def plan_step(self, belief: Belief, actions) -> tuple[Belief, np.ndarray]:
         """Predict one step of each belief under its action: ``(next beliefs, expected rewards (B,))``.

@@ -28,6 +28,7 @@ from infonav_gym.information import position_std_kernel as position_std
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.active_scenarios import goal_field
 from infonav_gym.world.scenarios import Scenario
+from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world import start_poses
 
 # Motion primitives: the heading to steer for, relative to the estimated bearing of the goal [rad].
@@ -47,17 +48,11 @@ def decode_actions(actions) -> tuple[np.ndarray, np.ndarray]:
     return slots - 1, primitives
 
 
-def action_layout(observable: np.ndarray, landmark_gains: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(action_mask int8, action_information_gain)`` (n, 5 (1 + K)) of copies that may observe ``observable``
-    landmarks (n, K) bool, each with its expected gain (n, K) [nats]: every primitive without an observation is
-    valid, and with each observable landmark; gains 0 where masked."""
-    observable = contiguous(np.asarray(observable, dtype=np.bool_))
-    return layout_of_actions(observable, contiguous(np.asarray(landmark_gains, dtype=float)))
-
-
 @kernel
 def layout_of_actions(observable, landmark_gains):
-    """``action_layout`` of n copies: action ``5 (1 + k) + p`` observes landmark k with primitive p."""
+    """``(action_mask int8, action_information_gain)`` (n, 5 (1 + K)) of copies that may observe ``observable``
+    landmarks (n, K) bool, each with its expected gain (n, K) [nats]: action ``5 (1 + k) + p`` observes landmark k
+    with primitive p, and every primitive without an observation is valid; gains 0 where masked."""
     n_copies, n_landmarks = observable.shape
     mask = np.ones((n_copies, N_PRIMITIVES * (1 + n_landmarks)), dtype=np.int8)
     gains = np.zeros(mask.shape)
@@ -216,6 +211,18 @@ def obstacle_discs(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
     """The centres (O, 2) [m] and radii (O,) [m] of a scenario's round obstacles (the map the agent knows)."""
     centers = np.array([obstacle.center for obstacle in scenario.obstacles], dtype=float).reshape(-1, 2)
     return centers, np.array([obstacle.radius for obstacle in scenario.obstacles], dtype=float)
+
+
+def field_geometry(walls, wall_thickness_m: float, centers: np.ndarray, radii: np.ndarray) -> StaticGeometry:
+    """``StaticGeometry.from_scenario`` of n goal fields, stacked: their common ``walls`` of ``wall_thickness_m`` [m],
+    then their round obstacles, centres (n, O, 2) and radii (n, O) [m]."""
+    walls, n = np.array(walls, dtype=float), len(radii)
+    wall_shape, (starts, ends) = (n, len(walls)), (np.repeat(walls[None, :, end], n, axis=0) for end in (0, 1))
+    walls = (starts, ends, np.full(wall_shape, wall_thickness_m / 2), np.ones(wall_shape, dtype=bool))
+    arrays = (*walls, centers, radii, np.ones(radii.shape, dtype=bool))
+    for array in arrays:
+        array.flags.writeable = False  # as every StaticGeometry's
+    return StaticGeometry(*arrays)
 
 
 def observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[np.ndarray, np.ndarray]:
