@@ -22,10 +22,8 @@ from infonav_gym.envs.active_transition import (
     REWARD_TERMS,
     copy_outputs,
     decode_actions,
-    episode_goal,
     field_geometry,
     observation_bounds,
-    obstacle_discs,
     primitive_commands,
     start_episode,
     step_rewards,
@@ -191,8 +189,9 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
             self._odometry_noise.restart(copy, odometry_rng)
             self._measurement_noise.restart(copy, measurement_rng)
             self._x[copy], self._P[copy] = prior.state()
-            self._goals[copy] = episode_goal(scenario)
-            self._obstacle_centers[copy], self._obstacle_radii[copy] = obstacle_discs(scenario)
+            self._goals[copy] = scenario.routes[0].waypoints[0]  # the goal field's goal: its route's one waypoint
+            for o, obstacle in enumerate(scenario.obstacles):  # the round obstacles: the map the agent knows
+                self._obstacle_centers[copy, o], self._obstacle_radii[copy, o] = obstacle.center, obstacle.radius
             self._landmarks[copy] = scenario.landmarks
         self._elapsed[copies] = 0
         self._observations_left[copies] = self.config["max_observations"]
@@ -216,13 +215,15 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         (6, N) and rewards (N,), 0 for the others. A no-op (``chosen`` -1) stands still observing nothing."""
         landmarks, primitives = decode_actions(chosen)
         driving = chosen >= 0  # -1: a no-op, or a copy not acting
-        primitives[~driving] = -1
-        observed, mutual_information = self._observe(np.where(driving, landmarks, -1))
+        landmarks[~driving] = primitives[~driving] = -1
+        self._x, self._P, mutual_information = self._measured(self._decision.sight, landmarks)
+        observed = landmarks >= 0
         self._observations_left -= observed
         copies, before = np.flatnonzero(acting), self._worlds.poses[:, 0, :2].copy()
         if copies.size:
             rows = self._rows(copies)
             commands = primitive_commands(self.config, self._goals[rows], self._x[rows], primitives[rows])
+            self._worlds.static_geometry = self._geometry  # its contact test grows the geometry kept here
             self._x[rows], self._P[rows] = self._moved(copies, self._x[rows], self._P[rows], commands)
             self._elapsed[rows] += 1
         after, arrays = self._worlds.poses[:, 0, :2], (self._goals, self._P, mutual_information, observed, driving)
@@ -230,15 +231,6 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         np.copyto(self._goal_reached, reached, where=acting)
         np.copyto(self._failed, failed, where=acting)
         return terms, rewards
-
-    def _observe(self, landmarks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Update each observing copy's EKF with a noisy measurement of its landmark (-1: none).
-
-        Returns:
-            ``(observed (N,) bool, realized MI (N,) [nats])``.
-        """
-        self._x, self._P, mutual_information = self._measured(self._decision.sight, landmarks)
-        return landmarks >= 0, mutual_information
 
     # ------------------------------------------------------------------ decision, observation and info
 

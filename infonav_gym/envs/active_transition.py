@@ -27,7 +27,6 @@ from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import position_std_kernel as position_std
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.active_scenarios import goal_field
-from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world import start_poses
 
@@ -200,17 +199,6 @@ def start_episode(config: dict, np_random: np.random.Generator):
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
     pose = np.array(start_poses(scenario)[0]) + pose_std * np_random.standard_normal(POSE_DIM)
     return scenario, Prior(pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
-
-
-def episode_goal(scenario: Scenario) -> np.ndarray:
-    """The goal position [m] of a goal field (its route's one waypoint), a fresh (2,) array."""
-    return scenario.routes[0].waypoints[0].copy()
-
-
-def obstacle_discs(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
-    """The centres (O, 2) [m] and radii (O,) [m] of a scenario's round obstacles (the map the agent knows)."""
-    centers = np.array([obstacle.center for obstacle in scenario.obstacles], dtype=float).reshape(-1, 2)
-    return centers, np.array([obstacle.radius for obstacle in scenario.obstacles], dtype=float)
 
 
 def field_geometry(walls, wall_thickness_m: float, centers: np.ndarray, radii: np.ndarray) -> StaticGeometry:

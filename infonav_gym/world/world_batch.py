@@ -43,6 +43,8 @@ class WorldBatch:
         wall_thickness_m: the copies' wall thickness [m] (their static geometry is ``StaticGeometry.from_scenario``'s).
         robot_radius_m: the radius of every robot's disc [m].
         poses: true poses ``[x, y, heading]`` of every copy's robots (N, R, 3), after ``reset_copy``.
+        static_geometry: every copy's ``StaticGeometry.from_scenario`` as of its scenario, when the owner keeps it
+            (the contact test then grows it instead of building its own); None: built here.
 
     Args:
         n_copies: N >= 1.
@@ -52,7 +54,9 @@ class WorldBatch:
     def __init__(self, n_copies: int, **world_args):
         self._worlds = [World(**world_args) for _ in range(n_copies)]  # reset when a copy first needs Pymunk
         self._scenarios: list[Scenario | None] = [None] * n_copies
+        self.static_geometry: StaticGeometry | None = None
         self._grown: StaticGeometry | None = None  # every copy's static shapes, grown for the contact test
+        self._grown_from: StaticGeometry | None = None  # the static_geometry it was grown from
         self._grown_stale = np.ones(n_copies, dtype=bool)  # copies reset since: rebuilt when a free step needs them
         self._world_is_stale = np.ones(n_copies, dtype=bool)
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
@@ -195,7 +199,14 @@ class WorldBatch:
 
     def _grown_geometry(self, copies: np.ndarray) -> StaticGeometry:
         """The walls and obstacles of all N copies grown by ``robot_radius_m + CONTACT_GAP_M``, those of ``copies``
-        (n,) as of their scenarios (each copy's built once per scenario, when a free step first needs it)."""
+        (n,) as of their scenarios (each copy's built once per scenario, when a free step first needs it, unless
+        given as ``static_geometry``)."""
+        given = self.static_geometry
+        if given is not None:
+            if self._grown_from is not given:
+                self._grown, self._grown_from = given.grown(self.robot_radius_m + CONTACT_GAP_M), given
+                self._grown_stale[:] = True  # for a build here again, without it
+            return self._grown
         stale = copies[self._grown_stale[copies]]
         if stale.size:
             geometries = [StaticGeometry.from_scenario(self._scenarios[copy], self.wall_thickness_m) for copy in stale]
