@@ -94,18 +94,19 @@ def free_substeps(poses, controls, dt, substeps):
 
 
 @kernel
-def contact_within(copies, poses, speeds, dt, boxes, radius_m):
+def contact_within(copies, poses, controls, dt, boxes, radius_m):
     """Which of ``copies`` have a wall or obstacle box (n,) and which two robots (n,) within reach in ``dt``.
 
-    A robot reaches ``radius_m + speed * dt`` around its position; ``boxes`` (N, S, 4) are every copy's static
-    shapes' ``(left, bottom, right, top)`` [m] (padding boxes overlap nothing).
+    A robot reaches ``radius_m + speed * dt`` around its position (its speed: ``controls[..., 0]``, (n, R, 2));
+    ``boxes`` (N, S, 4) are every copy's static shapes' ``(left, bottom, right, top)`` [m] (padding boxes overlap
+    nothing).
     """
     n_rows, n_robots = poses.shape[0], poses.shape[1]
     near_static, near_robots = np.zeros(n_rows, dtype=np.bool_), np.zeros(n_rows, dtype=np.bool_)
     for row in range(n_rows):
         copy = copies[row]
         for robot in range(n_robots):
-            reach = radius_m + speeds[row, robot] * dt
+            reach = radius_m + controls[row, robot, 0] * dt
             x, y = poses[row, robot, 0], poses[row, robot, 1]
             low_x, low_y, high_x, high_y = x - reach, y - reach, x + reach, y + reach
             for shape in range(boxes.shape[1]):
@@ -116,7 +117,7 @@ def contact_within(copies, poses, speeds, dt, boxes, radius_m):
             for other in range(robot + 1, n_robots):
                 offset_x = poses[row, other, 0] - x
                 offset_y = poses[row, other, 1] - y
-                pair_reach = 2 * radius_m + (speeds[row, robot] + speeds[row, other]) * dt
+                pair_reach = 2 * radius_m + (controls[row, robot, 0] + controls[row, other, 0]) * dt
                 if offset_x**2 + offset_y**2 < pair_reach * pair_reach:
                     near_robots[row] = True
     return near_static, near_robots

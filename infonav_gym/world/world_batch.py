@@ -18,7 +18,6 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import contiguous
 from infonav_gym.world.clearance import teammate_conflicts
 from infonav_gym.world.motion_kernels import (
     contact_within,
@@ -153,16 +152,24 @@ class WorldBatch:
             TIME_STEP_S.check("WorldBatch.step", "dt", dt)
         before = self.poses[copies]
         controls = self._waypoint_controls(copies, before) if commands is None else np.asarray(commands, dtype=float)
-        speeds = contiguous(controls[..., 0])
         after = unicycle_moves(before, controls, dt)
-        near_static, near_robots = contact_within(copies, before, speeds, dt, self._boxes, self.robot_radius_m)
-        contact = near_static | near_robots
-        free = np.flatnonzero(contact & ~self._in_contact[copies])
+        near_static, near_robots = contact_within(copies, before, controls, dt, self._boxes, self.robot_radius_m)
+        contact, was_in_contact = near_static | near_robots, self._in_contact[copies]
+        if contact.any() or was_in_contact.any():
+            self._contact_steps(copies, before, controls, after, contact, near_static, was_in_contact, dt)
+        self.poses[copies] = after
+        return executed_controls(before, after, dt)
+
+    def _contact_steps(self, copies, before, controls, after, contact, near_static, was_in_contact, dt) -> None:
+        """``step`` of the ``copies`` that may touch something (``contact`` (n,)) or did in their last step: those the
+        contact-free test clears take Pymunk's substeps here, the others a step in their own Pymunk space (``after``
+        (n, R, 3) updated in place)."""
+        free = np.flatnonzero(contact & ~was_in_contact)
         if free.size:
             free = free[self._contact_free(copies[free], before[free], controls[free], near_static[free], dt)]
             after[free] = self._free_substeps(before[free], controls[free], dt)
             contact[free] = False
-        for copy in copies[self._in_contact[copies] & ~contact].tolist():  # their runs of contact steps end
+        for copy in copies[was_in_contact & ~contact].tolist():  # their runs of contact steps end
             world = self._worlds[copy]
             world.end_contacts()  # as the single World does on a free step
             if np.count_nonzero(self._has_space & ~self._in_contact) > MAX_IDLE_SPACES:
@@ -179,8 +186,6 @@ class WorldBatch:
             world.set_poses(before[row])
             world.drive_in_contact(controls[row].tolist(), dt)
             after[row] = world.poses
-        self.poses[copies] = after
-        return executed_controls(before, after, dt)
 
     def _waypoint_controls(self, copies: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """``World._waypoint_control`` of every robot of ``copies`` (n, R, 2); advances their waypoints alike."""
