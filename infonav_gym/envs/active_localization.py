@@ -178,6 +178,9 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         self._obstacle_centers = np.zeros((num_envs, cfg["n_obstacles"], 2))
         self._obstacle_radii = np.zeros((num_envs, cfg["n_obstacles"]))
         self._planning_models: dict[int, ActivePlanningModel] = {}
+        self._everywhere = np.ones((num_envs, cfg["n_candidates"]), dtype=bool)  # every landmark exists
+        space = self.single_observation_space
+        self._bounds = (space.low.astype(float), space.high.astype(float))  # what the outputs kernel takes
 
     # ------------------------------------------------------------------ the episode and the step
 
@@ -251,16 +254,13 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         """
         rows = self._rows(copies)
         x, P, true_poses, goals = self._x[rows], self._P[rows], self._worlds.poses[rows, 0], self._goals[rows]
-        state = {"x": x, "P": P, "true_poses": true_poses, "goals": goals, "elapsed": self._elapsed[rows]}
-        state["observations_left"] = left = self._observations_left[rows]
-        everywhere = np.ones((len(copies), self._landmarks.shape[1]), dtype=bool)
+        everywhere = self._everywhere[: len(copies)]
         sight = LandmarkDecision.at_prior(
             self._sensor, geometry, true_poses, x, P, self._landmarks[rows], everywhere, False
         )
-        obstacles = (self._obstacle_centers[rows], self._obstacle_radii[rows])
-        decision, observation, values = copy_outputs(
-            sight, state, obstacles, self.config, self.single_observation_space
-        )
+        left, obstacles = self._observations_left[rows], (self._obstacle_centers[rows], self._obstacle_radii[rows])
+        state = (x, P, true_poses, goals, self._elapsed[rows], left, *obstacles)
+        decision, observation, values = copy_outputs(sight, state, self.config, self._bounds)
         if len(copies) == self.num_envs:
             self._decision = decision
         else:

@@ -14,7 +14,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from gymnasium import spaces
 
 from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.landmark_decision import LandmarkDecision
@@ -222,40 +221,35 @@ def observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[np.ndarray, 
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
 
 
-def copy_outputs(sight: LandmarkDecision, state: dict, obstacles, config: dict, space: spaces.Box):
-    """The decisions, observations (clipped to ``space``) and info values of n copies (see ``ActiveLocalizationEnv``).
+def copy_outputs(sight: LandmarkDecision, state: tuple, config: dict, bounds: tuple):
+    """The decisions, observations (clipped to ``bounds``) and info values of n copies (see ``ActiveLocalizationEnv``).
 
     Args:
         sight: their landmarks' decisions at their priors.
-        state: their arrays ``x`` (n, 3), ``P`` (n, 3, 3), ``true_poses`` (n, 3), ``goals`` (n, 2) [m],
-            ``elapsed`` (n,) and ``observations_left`` (n,).
-        obstacles: their ``(centers (n, O, 2), radii (n, O))`` [m].
-        config: the env config; ``space`` the single observation space.
+        state: their C-contiguous arrays ``(x (n, 3), P (n, 3, 3), true poses (n, 3), goals (n, 2) [m], elapsed
+            steps (n,) and observations left (n,) int64, obstacle centres (n, O, 2) and radii (n, O) [m])``.
+        config: the env config; ``bounds``: the single observation space's ``(low, high)`` as float64.
 
     Returns:
         ``(ActiveDecision, observations (n, 14 + 4K + 4O) float32, (position error [m], heading error [rad],
         largest position std [m], distance to the goal [m]) (4, n))``.
     """
-    arrays = (state["x"], state["P"], state["true_poses"], state["goals"], *obstacles)
     mask, gains, observation, values = outputs_of_copies(
         sight.action_mask,
         sight.action_information_gain,
         sight.predicted,
         sight.pose_entropy,
-        *(contiguous(np.asarray(array, dtype=float)) for array in arrays),
-        contiguous(np.asarray(state["elapsed"], dtype=np.int64)),
-        contiguous(np.asarray(state["observations_left"], dtype=np.int64)),
+        *state,
         config["horizon"],
         config["max_observations"],
-        space.low.astype(float),
-        space.high.astype(float),
+        *bounds,
     )
     return ActiveDecision(sight, mask, gains), observation, values
 
 
 @kernel
 def outputs_of_copies(
-    sight_mask, sight_gains, predicted, pose_entropy, x, P, true_poses, goals, centers, radii, elapsed, left, horizon,
+    sight_mask, sight_gains, predicted, pose_entropy, x, P, true_poses, goals, elapsed, left, centers, radii, horizon,
     budget, low, high
 ):  # fmt: skip
     """``copy_outputs`` of n copies from their arrays: the action layout (every primitive without an observation,
