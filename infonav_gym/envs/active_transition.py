@@ -249,13 +249,13 @@ def copy_outputs(sight: LandmarkDecision, state: tuple, config: dict, bounds: tu
 
 @kernel
 def outputs_of_copies(
-    sight_mask, sight_gains, predicted, pose_entropy, x, P, true_poses, goals, elapsed, left, centers, radii, horizon,
-    budget, low, high
-):  # fmt: skip
+    visible, gains, predicted, entropy, x, P, truth, goals, elapsed, left, centers, radii, horizon, budget, low, high
+):
     """``copy_outputs`` of n copies from their arrays: the action layout (every primitive without an observation,
-    and with each visible landmark while budget is left), the observations clipped to ``[low, high]`` and the
-    info values."""
-    n_copies, n_landmarks = sight_mask.shape
+    and with each ``visible`` landmark while budget is left), the observations clipped to ``[low, high]`` and the
+    info values; ``gains``, ``predicted``, ``entropy``: the landmarks' gains and predictions, the pose entropy,
+    ``truth`` the true poses."""
+    n_copies, n_landmarks = visible.shape
     observable = np.empty((n_copies, n_landmarks), dtype=np.bool_)
     observation = np.empty((n_copies, len(low)), dtype=np.float32)
     values, info = np.zeros(len(low)), np.empty((4, n_copies))
@@ -263,15 +263,15 @@ def outputs_of_copies(
     obstacles_start = landmarks_start + LANDMARK_FEATURES * n_landmarks
     for c in range(n_copies):
         values[:] = 0.0
-        pose_features(values, x[c], P[c], pose_entropy[c], elapsed[c] / horizon)
+        pose_features(values, x[c], P[c], entropy[c], elapsed[c] / horizon)
         dx, dy = goals[c, 0] - x[c, 0], goals[c, 1] - x[c, 1]
         bearing = wrap(math.atan2(dy, dx) - x[c, 2])
         range_bearing_features(values[POSE_FEATURES : POSE_FEATURES + 3], math.hypot(dx, dy), bearing)
         values[POSE_FEATURES + 3] = left[c] / budget if budget else 0.0
         for k in range(n_landmarks):
-            observable[c, k] = sight_mask[c, k] != 0 and left[c] > 0
+            observable[c, k] = visible[c, k] != 0 and left[c] > 0
             row = landmarks_start + LANDMARK_FEATURES * k
-            values[row] = sight_mask[c, k]
+            values[row] = visible[c, k]
             range_bearing_features(values[row + 1 : row + 4], predicted[c, k, 0], predicted[c, k, 1])
         for o in range(radii.shape[1]):
             row = obstacles_start + OBSTACLE_FEATURES * o
@@ -280,9 +280,8 @@ def outputs_of_copies(
             range_bearing_features(values[row : row + 3], math.hypot(dx, dy), bearing)
             values[row + 3] = radii[c, o]
         clip_into(observation[c], values, low, high)
-        info[0, c] = math.hypot(true_poses[c, 0] - x[c, 0], true_poses[c, 1] - x[c, 1])
-        info[1, c] = abs(wrap(true_poses[c, 2] - x[c, 2]))
+        info[0, c] = math.hypot(truth[c, 0] - x[c, 0], truth[c, 1] - x[c, 1])
+        info[1, c] = abs(wrap(truth[c, 2] - x[c, 2]))
         info[2, c] = position_std(P[c, 0, 0], P[c, 0, 1], P[c, 1, 1])
-        info[3, c] = math.hypot(true_poses[c, 0] - goals[c, 0], true_poses[c, 1] - goals[c, 1])
-    mask, gains = layout_of_actions(observable, sight_gains)
-    return mask, gains, observation, info
+        info[3, c] = math.hypot(truth[c, 0] - goals[c, 0], truth[c, 1] - goals[c, 1])
+    return (*layout_of_actions(observable, gains), observation, info)
