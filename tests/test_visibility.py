@@ -12,14 +12,8 @@ from infonav_gym.estimation.models import range_bearing
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world import CircleObstacle, Route, Scenario, StaticGeometry, World
 from infonav_gym.world.scenarios import build_scenario
-from infonav_gym.world.visibility import (
-    in_coverage,
-    line_of_sight,
-    segment_hits_discs,
-    segment_hits_segments,
-    segments_clear,
-    visible,
-)
+from infonav_gym.world.visibility import in_coverage, segments_clear, visible
+from infonav_gym.world.visibility_kernels import DISC, WALL, shape_hits
 
 OFFSETS_M = np.array([0.0, 1e-15, -1e-15, 1e-12, -1e-12, 1e-9, -1e-9])  # how far off a surface a point lies [m]
 PARKED = (Route((0.0, 0.0, 0.0), np.zeros((0, 2))),)  # one robot that stays put
@@ -28,6 +22,32 @@ PARKED = (Route((0.0, 0.0, 0.0), np.zeros((0, 2))),)  # one robot that stays put
 def pymunk_line_of_sight(world: World, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """``World.line_of_sight`` of one query per row: origins (M, 2), targets (M, 2) -> (M,)."""
     return np.array([world.line_of_sight(origin, target[None])[0] for origin, target in zip(origins, targets)])
+
+
+def geometry_of(world: World) -> StaticGeometry:
+    """The geometry (one copy) of ``world``'s static shapes as of its last reset."""
+    return StaticGeometry.from_scenario(world.scenario, world.wall_thickness_m)
+
+
+def line_of_sight(geometry: StaticGeometry, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Whether each copy's origin (N, 2) sees each of its targets (N, K, 2): ``segments_clear`` of every pair (N, K)."""
+    n_copies, n_targets = targets.shape[:2]
+    copies = np.repeat(np.arange(n_copies), n_targets)
+    clear = segments_clear(geometry, copies, origins[copies], targets.reshape(-1, 2))
+    return clear.reshape(n_copies, n_targets)
+
+
+def unculled_hits(geometry: StaticGeometry, origins: np.ndarray, targets: np.ndarray, kind: int) -> np.ndarray:
+    """(N, K, S) bool: each query against each wall (``WALL``) or disc (``DISC``), no bounding-box culling."""
+    if kind == WALL:
+        shapes = (geometry.wall_points, geometry.wall_radii, geometry.wall_boxes)
+    else:
+        shapes = (geometry.disc_centers, geometry.disc_radii, geometry.disc_boxes)
+    n_copies, n_targets = targets.shape[:2]
+    copies = np.repeat(np.arange(n_copies), n_targets)
+    usable, culled = np.ones(shapes[1].shape, dtype=bool), np.zeros(n_copies, dtype=bool)
+    hits = shape_hits(copies, origins[copies], targets.reshape(-1, 2), *shapes, usable, culled, kind)
+    return hits.reshape(n_copies, n_targets, -1)
 
 
 def unit(angles: np.ndarray) -> np.ndarray:
@@ -90,7 +110,7 @@ def test_line_of_sight_equals_pymunk_over_copies_of_different_worlds(name):
     """N copies, each its own random world (obstacle counts differ: padding), poses and targets."""
     rng = np.random.default_rng(7)
     worlds = [random_world(name, seed) for seed in range(12)]
-    geometry = StaticGeometry.stack([StaticGeometry.from_world(world) for world in worlds])
+    geometry = StaticGeometry.stack([geometry_of(world) for world in worlds])
     if name != "corridor":
         assert not np.all(geometry.disc_valid)  # the copies' obstacle counts differ: some discs are padding
     targets, origins = [], []
@@ -115,7 +135,7 @@ def test_segments_clear_equals_pymunk_for_lines_of_any_copies_in_any_order():
     """Lines of copies in a shuffled order, each from its own start (as a team's robots see their own targets)."""
     rng = np.random.default_rng(3)
     worlds = [random_world("team_field", seed) for seed in range(6)]
-    geometry = StaticGeometry.stack([StaticGeometry.from_world(world) for world in worlds])
+    geometry = StaticGeometry.stack([geometry_of(world) for world in worlds])
     copies = rng.integers(len(worlds), size=600)
     starts, ends = rng.uniform(-1.0, 41.0, (600, 2)), rng.uniform(-1.0, 41.0, (600, 2))
     got = segments_clear(geometry, copies, starts, ends)
@@ -133,17 +153,14 @@ def test_tangent_queries_equal_pymunk_and_need_its_bounding_box_culling(name):
     culling_decides = 0
     for seed in range(6):
         world = random_world(name, seed)
-        geometry = StaticGeometry.from_world(world)
+        geometry = geometry_of(world)
         origins, targets = tangent_queries(world, 40, rng)
         stacked = StaticGeometry.stack([geometry] * len(origins))
         got = line_of_sight(stacked, origins, targets[:, None])[:, 0]
         expected = pymunk_line_of_sight(world, origins, targets)
         np.testing.assert_array_equal(got, expected, err_msg=f"{name} seed {seed}")
-        unculled = segment_hits_segments(
-            origins, targets[:, None], stacked.wall_starts, stacked.wall_ends, stacked.wall_radii, culled=False
-        ).any(axis=2) | segment_hits_discs(
-            origins, targets[:, None], stacked.disc_centers, stacked.disc_radii, culled=False
-        ).any(axis=2)
+        unculled = unculled_hits(stacked, origins, targets[:, None], WALL).any(axis=2)
+        unculled |= unculled_hits(stacked, origins, targets[:, None], DISC).any(axis=2)
         culling_decides += np.sum(~unculled[:, 0] != expected)
     assert culling_decides > 0
 
@@ -158,7 +175,7 @@ def test_a_world_of_one_static_shape_is_not_culled_as_pymunk_does():
     for walls, expected in (((), False), (far_wall, True)):
         world = World()
         world.reset(Scenario("disc", (0.0, 0.0, 30.0, 30.0), PARKED, walls=walls, obstacles=(disc,)))
-        geometry = StaticGeometry.from_world(world)
+        geometry = geometry_of(world)
         assert geometry.culled[0] == bool(walls)
         assert world.line_of_sight(origins[0], targets[0])[0] == expected
         assert line_of_sight(geometry, origins, targets)[0, 0] == expected
@@ -190,7 +207,7 @@ def test_degenerate_shapes_and_queries_equal_pymunk(walls, obstacles):
     directions = unit(rng.choice([0.0, math.pi / 2, 1.0, 2.5], count))
     origins = np.where(rng.random((count, 1)) < 0.2, near, near + rng.uniform(-3, 3, (count, 1)) * directions)
     targets = np.where(rng.random((count, 1)) < 0.9, near + rng.uniform(-3, 3, (count, 1)) * directions, origins)
-    geometry = StaticGeometry.stack([StaticGeometry.from_world(world)] * count)
+    geometry = StaticGeometry.stack([geometry_of(world)] * count)
     got = line_of_sight(geometry, origins, targets[:, None])[:, 0]
     expected = pymunk_line_of_sight(world, origins, targets)
     np.testing.assert_array_equal(got, expected)
@@ -219,7 +236,7 @@ def test_slanted_walls_equal_pymunk_on_near_faces_and_tangents():
         near = near_surfaces(world, 30, rng)
         origins = np.concatenate([origins, rng.uniform(-1, 21, (len(near), 2))])
         targets = np.concatenate([targets, near])
-        geometry = StaticGeometry.stack([StaticGeometry.from_world(world)] * len(origins))
+        geometry = StaticGeometry.stack([geometry_of(world)] * len(origins))
         got = line_of_sight(geometry, origins, targets[:, None])[:, 0]
         np.testing.assert_array_equal(got, pymunk_line_of_sight(world, origins, targets), err_msg=f"seed {seed}")
 
@@ -239,7 +256,7 @@ def test_in_coverage_and_visible_equal_the_single_env_rule():
     for copy in range(copies):
         worlds.append(World())
         worlds[copy].reset(replace(random_world("field", copy).scenario, landmarks=landmarks[copy]))
-    geometry = StaticGeometry.stack([StaticGeometry.from_world(world) for world in worlds])
+    geometry = StaticGeometry.stack([geometry_of(world) for world in worlds])
     covered, seen = in_coverage(sensor, poses, landmarks), visible(geometry, sensor, poses, landmarks)
     for copy, world in enumerate(worlds):
         expected = sensor.in_coverage(range_bearing(poses[copy], landmarks[copy]))
@@ -278,26 +295,13 @@ def test_with_copies_equals_stacking_the_replaced_list_up_to_padding():
 
 CORRIDOR = build_scenario("corridor", np.random.default_rng(0))
 GEOMETRY = StaticGeometry.from_scenario(CORRIDOR, 0.3)
-ORIGIN, TARGETS, CENTERS, RADII = np.zeros((1, 2)), np.ones((1, 1, 2)), np.zeros((1, 1, 2)), np.ones((1, 1))
+ORIGIN, TARGETS = np.zeros((1, 2)), np.ones((1, 1, 2))
 BAD_CALLS = {  # what is wrong: (the call, words its message must contain)
-    "origins not (N, 2)": (lambda: line_of_sight(GEOMETRY, np.zeros((1, 3)), TARGETS), "origins"),
-    "targets of another N": (lambda: line_of_sight(GEOMETRY, ORIGIN, np.zeros((2, 2, 2))), "targets"),
-    "a NaN target": (lambda: line_of_sight(GEOMETRY, ORIGIN, np.full((1, 1, 2), np.nan)), "finite"),
-    "more origins than copies": (lambda: line_of_sight(GEOMETRY, np.zeros((2, 2)), np.ones((2, 1, 2))), "2 origins"),
-    "not a geometry": (lambda: line_of_sight("walls", ORIGIN, TARGETS), "StaticGeometry"),
     "lines without a copy each": (lambda: segments_clear(GEOMETRY, [0, 0], ORIGIN, ORIGIN), "copies must be 1 ints"),
     "a line of no copy": (lambda: segments_clear(GEOMETRY, [1], ORIGIN, ORIGIN), r"copies must be in \[0, 0\]"),
     "line ends of another shape": (lambda: segments_clear(GEOMETRY, [0], ORIGIN, np.ones((2, 2))), "ends"),
     "poses not (N, 3)": (lambda: in_coverage(RangeBearingSensor(), ORIGIN, TARGETS), "poses"),
-    "a negative disc radius": (lambda: segment_hits_discs(ORIGIN, TARGETS, CENTERS, -RADII), ">= 0"),
-    "radii of another shape": (lambda: segment_hits_discs(ORIGIN, TARGETS, np.zeros((1, 2, 2)), RADII), "radii"),
-    "wall ends of another shape": (
-        lambda: segment_hits_segments(ORIGIN, TARGETS, np.zeros((1, 2, 2)), CENTERS, np.ones((1, 2))),
-        "wall ends",
-    ),
-    "culled not a bool": (lambda: segment_hits_discs(ORIGIN, TARGETS, CENTERS, RADII, 1), "culled"),
     "an empty stack": (lambda: StaticGeometry.stack([]), "one or more"),
-    "no scenario yet": (lambda: StaticGeometry.from_world(World()), "reset"),
     "a thickness of 0": (lambda: StaticGeometry.from_scenario(CORRIDOR, 0.0), "wall_thickness_m"),
     "a wall of one point": (
         lambda: StaticGeometry.from_scenario(Scenario("bad", (0, 0, 1, 1), PARKED, walls=((0.0, 1.0),)), 0.3),
@@ -319,7 +323,7 @@ def test_bad_input_raises_value_error_naming_it(case):
         call()
 
 
-def test_segment_hits_segments_of_radius_zero_equal_pymunk():
+def test_bare_segments_of_radius_zero_equal_pymunk():
     """Bare segments (radius 0, allowed by Pymunk though World's walls are thick), one per space: queries nearly
     along them, by their ends; ``culled=False`` as Pymunk's tree of one leaf."""
     rng = np.random.default_rng(17)
@@ -336,15 +340,24 @@ def test_segment_hits_segments_of_radius_zero_equal_pymunk():
         space = pymunk.Space()
         space.add(pymunk.Segment(space.static_body, tuple(start), tuple(stop), 0.0))
         expected.append(space.segment_query_first(tuple(origin), tuple(target), 0.0, pymunk.ShapeFilter()) is not None)
-    radii = np.zeros((count, 1))
-    got = segment_hits_segments(origins, targets[:, None], starts[:, None], ends[:, None], radii, culled=False)
+    no_discs = np.zeros((count, 0, 2))
+    segments = StaticGeometry(
+        starts[:, None],
+        ends[:, None],
+        np.zeros((count, 1)),
+        np.ones((count, 1), dtype=bool),
+        no_discs,
+        no_discs[..., 0],
+        no_discs[..., 0] > 0,
+    )
+    got = unculled_hits(segments, origins, targets[:, None], WALL)
     np.testing.assert_array_equal(got[:, 0, 0], expected)
     assert 0 < np.sum(expected) < count
 
 
 def test_tiled_copies_answer_as_stacked_ones_and_grown_shapes_are_swept_discs():
     world = random_world("field", 5)
-    geometry = StaticGeometry.from_world(world)
+    geometry = geometry_of(world)
     rng = np.random.default_rng(5)
     origins, targets = rng.uniform(0.0, 40.0, (6, 2)), rng.uniform(0.0, 40.0, (6, 9, 2))
     stacked = StaticGeometry.stack([geometry] * 6)

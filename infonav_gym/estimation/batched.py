@@ -365,20 +365,9 @@ def relative_pose_update(
         if observed is not None:
             observed = _mask("observed", observed, observers.shape)
         observers, targets = _pairs(observers, targets, len(x), _team_size(x.shape[1]), observed)
-    if observed is None:
-        observed = np.ones(np.shape(observers), dtype=bool)
-    if check_input:
-        m = np.shape(measurements)[-1] if np.ndim(measurements) == 3 and np.shape(measurements)[-1] == 2 else 3
-        measurements = _finite("measurements", measurements, (*observers.shape, m))
-        predicted = _finite("predicted", predicted, (*observers.shape, m))
-        H_observer = _finite("H_observer", H_observer, (*observers.shape, m, POSE_DIM))
-        H_target = _finite("H_target", H_target, (*observers.shape, m, POSE_DIM))
-        R = _noise_covariance("R", R, (*observers.shape, m, m))
-    n = np.shape(x)[1]
-    residual = np.subtract(measurements, predicted)
-    residual[..., 1:] = wrap_angle(residual[..., 1:])
-    H = _slot_jacobians(observers, H_observer, n) + _slot_jacobians(targets, H_target, n)
-    return _update(x, P, residual, H, R, observed, n // POSE_DIM, cross_covariances)
+    m = np.shape(measurements)[-1] if np.ndim(measurements) == 3 and np.shape(measurements)[-1] == 2 else 3
+    jacobians = {"H_observer": (observers, H_observer), "H_target": (targets, H_target)}
+    return _slot_update(x, P, measurements, predicted, jacobians, R, observed, m, cross_covariances, check_input)
 
 
 def team_landmark_update(
@@ -411,16 +400,25 @@ def team_landmark_update(
         robots = _indices("robots", robots, robots.shape, _team_size(x.shape[1]))
         if observed is not None:
             observed = _mask("observed", observed, robots.shape)
-        measurements = _finite("measurements", measurements, (*robots.shape, 2))
-        predicted = _finite("predicted", predicted, (*robots.shape, 2))
-        H_pose = _finite("H_pose", H_pose, (*robots.shape, 2, POSE_DIM))
-        R = _noise_covariance("R", R, (*robots.shape, 2, 2))
+    jacobians = {"H_pose": (robots, H_pose)}
+    return _slot_update(x, P, measurements, predicted, jacobians, R, observed, 2, cross_covariances, check_input)
+
+
+def _slot_update(x, P, measurements, predicted, jacobians, R, observed, m, cross_covariances, check_input):
+    """The team updates' common part: ``jacobians`` maps each Jacobian's name to ``(robot indices (N, M), blocks
+    (N, M, m, 3))``; the residuals' angles (all entries but the range) are wrapped."""
+    shape = np.shape(next(iter(jacobians.values()))[0])
     if observed is None:
-        observed = np.ones(np.shape(robots), dtype=bool)
+        observed = np.ones(shape, dtype=bool)
+    if check_input:
+        measurements = _finite("measurements", measurements, (*shape, m))
+        predicted = _finite("predicted", predicted, (*shape, m))
+        jacobians = {name: (robots, _finite(name, H, (*shape, m, POSE_DIM))) for name, (robots, H) in jacobians.items()}
+        R = _noise_covariance("R", R, (*shape, m, m))
     n = np.shape(x)[1]
     residual = np.subtract(measurements, predicted)
-    residual[..., 1] = wrap_angle(residual[..., 1])
-    H = _slot_jacobians(robots, H_pose, n)
+    residual[..., 1:] = wrap_angle(residual[..., 1:])
+    H = sum(_slot_jacobians(robots, blocks, n) for robots, blocks in jacobians.values())
     return _update(x, P, residual, H, R, observed, n // POSE_DIM, cross_covariances)
 
 

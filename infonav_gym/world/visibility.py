@@ -1,7 +1,7 @@
 """Batched visibility: which of K targets each of N robots sees, on stacked arrays (the queries compiled:
 ``visibility_kernels``).
 
-``line_of_sight`` decides as ``World.line_of_sight`` does with Pymunk's ``segment_query_first`` (radius 0,
+``segments_clear`` decides as ``World.line_of_sight`` does with Pymunk's ``segment_query_first`` (radius 0,
 static walls and discs only: robots never block): the same floating-point operations of Chipmunk's
 segment queries in the same order, so the answers agree bit for bit. There is no tolerance to tune;
 the degenerate cases follow Chipmunk's rules:
@@ -25,12 +25,11 @@ import numpy as np
 
 from infonav_gym.compiled import contiguous
 from infonav_gym.world.scenarios import Scenario
-from infonav_gym.world.visibility_kernels import DISC, WALL, blocked, covered, shape_hits
+from infonav_gym.world.visibility_kernels import blocked, covered
 from infonav_gym.world.world import WORLD_ARGUMENTS
 
 if TYPE_CHECKING:
     from infonav_gym.sensors.range_bearing import RangeBearingSensor
-    from infonav_gym.world.world import World
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:
@@ -95,17 +94,6 @@ class StaticGeometry:
             disc_radii=_read_only(radii[None]),
             disc_valid=_read_only(np.ones((1, len(radii)), dtype=bool)),
         )
-
-    @classmethod
-    def from_world(cls, world: World) -> StaticGeometry:
-        """The geometry (one copy) of ``world``'s static shapes as of its last reset.
-
-        Raises:
-            ValueError: if ``world`` has not been reset (it has no scenario yet).
-        """
-        if world.scenario is None:
-            raise ValueError("StaticGeometry.from_world: the world has no scenario yet; call world.reset(scenario)")
-        return cls.from_scenario(world.scenario, world.wall_thickness_m)
 
     @classmethod
     def stack(cls, geometries) -> StaticGeometry:
@@ -219,35 +207,6 @@ def _finite_array(value, shape: tuple, what: str) -> np.ndarray:
     return array
 
 
-def _queries(function: str, origins, targets) -> tuple[np.ndarray, np.ndarray]:
-    """Checked query origins (N, 2) and targets (N, K, 2) [m] of ``function``."""
-    origins = _finite_array(origins, (None, 2), f"{function}: origins [m]")
-    targets = _finite_array(targets, (len(origins), None, 2), f"{function}: targets [m] (one row per origin)")
-    return origins, targets
-
-
-def _checked(function: str, origins, targets, points, radii, culled, what: str) -> tuple:
-    """Checked queries (see ``_queries``), shape points (N, M, 2) [m], radii (N, M) [m] >= 0 and culling (N,) bool."""
-    origins, targets = _queries(function, origins, targets)
-    points = _finite_array(points, (len(origins), None, 2), f"{function}: {what} [m] (one row per origin)")
-    radii = _finite_array(radii, points.shape[:2], f"{function}: radii [m] of the {what}")
-    if np.any(radii < 0.0):
-        raise ValueError(f"{function}: radii [m] of the {what} must be >= 0, got {radii[radii < 0.0][0]}")
-    culling = np.asarray(culled)
-    if culling.dtype != bool or culling.shape not in ((), (len(origins),)):
-        raise ValueError(f"{function}: culled must be a bool or an ({len(origins)},) bool array, got {culled!r}")
-    return origins, targets, points, radii, np.broadcast_to(culling, (len(origins),))
-
-
-def _hits(origins, targets, shapes, radii, boxes, culled, kind) -> np.ndarray:
-    """(N, K, S) bool: the exact test of each query against each shape of ``kind``, where Chipmunk's tree runs it."""
-    n_copies, n_targets = targets.shape[:2]
-    copy = np.repeat(np.arange(n_copies), n_targets)
-    usable = np.ones(radii.shape, dtype=bool)
-    hits = shape_hits(copy, origins[copy], targets.reshape(-1, 2), shapes, radii, boxes, usable, culled, kind)
-    return hits.reshape(n_copies, n_targets, -1)
-
-
 def _wall_boxes(starts, ends, radii) -> np.ndarray:
     """Chipmunk's bounding box of each wall (cpSegmentShapeCacheData) (N, S, 4)."""
     a_x, a_y, b_x, b_y = starts[..., 0], starts[..., 1], ends[..., 0], ends[..., 1]
@@ -263,84 +222,11 @@ def _disc_boxes(centers, radii) -> np.ndarray:
     )
 
 
-def _segment_hits_segments(origins, targets, starts, ends, radii, culled) -> np.ndarray:
-    walls = np.concatenate([starts, ends], axis=-1)
-    return _hits(origins, targets, walls, radii, _wall_boxes(starts, ends, radii), culled, WALL)
-
-
-def _segment_hits_discs(origins, targets, centers, radii, culled) -> np.ndarray:
-    return _hits(origins, targets, centers, radii, _disc_boxes(centers, radii), culled, DISC)
-
-
-def segment_hits_segments(origins, targets, starts, ends, radii, culled=True) -> np.ndarray:
-    """Whether the segment from each origin to each of its targets hits each wall before the target.
-
-    A wall is the segment from ``starts`` to ``ends`` thickened by ``radii`` (a capsule), as a Pymunk
-    ``Segment``; the test is the one of Pymunk's ``segment_query_first`` at radius 0 (see the module).
-
-    Args:
-        origins: query starts (N, 2) [m].
-        targets: query ends (N, K, 2) [m].
-        starts, ends: wall ends (N, S, 2) [m].
-        radii: wall radii (N, S) [m], >= 0.
-        culled: whether Chipmunk's bounding-box culling applies (a bool, or one per origin (N,)): it does
-            unless the space holds a single static shape (``StaticGeometry.culled``).
-
-    Returns:
-        (N, K, S) bool.
-
-    Raises:
-        ValueError: naming the argument, for a wrong shape, a non-finite value or a negative radius.
-    """
-    checked = _checked("segment_hits_segments", origins, targets, starts, radii, culled, "wall starts")
-    origins, targets, starts, radii, culled = checked
-    ends = _finite_array(ends, starts.shape, "segment_hits_segments: wall ends [m] (one per wall start)")
-    return _segment_hits_segments(origins, targets, starts, ends, radii, culled)
-
-
-def segment_hits_discs(origins, targets, centers, radii, culled=True) -> np.ndarray:
-    """``segment_hits_segments`` for discs (Pymunk ``Circle``): centres (N, D, 2) [m], radii (N, D) [m] >= 0.
-
-    Returns (N, K, D) bool; raises as ``segment_hits_segments``.
-    """
-    checked = _checked("segment_hits_discs", origins, targets, centers, radii, culled, "disc centres")
-    return _segment_hits_discs(*checked)
-
-
 def _check_copies(function: str, geometry: StaticGeometry, count: int, what: str) -> None:
     if not isinstance(geometry, StaticGeometry):
         raise ValueError(f"{function}: geometry must be a StaticGeometry, got {type(geometry).__name__}")
     if count != geometry.n_copies:
         raise ValueError(f"{function}: {count} {what} for a geometry of {geometry.n_copies} copies (one each)")
-
-
-def line_of_sight(geometry: StaticGeometry, origins, targets) -> np.ndarray:
-    """Whether the straight line from each copy's origin to each of its targets misses every wall and disc.
-
-    Equal to ``World.line_of_sight(origins[i], targets[i])`` of each copy's world (see the module).
-
-    Args:
-        geometry: the static shapes of N copies.
-        origins: one origin per copy (N, 2) [m].
-        targets: K targets per copy (N, K, 2) [m].
-
-    Returns:
-        (N, K) bool.
-
-    Raises:
-        ValueError: for a wrong shape, a non-finite value, or another number of copies than ``geometry``'s.
-    """
-    origins, targets = _queries("line_of_sight", origins, targets)
-    _check_copies("line_of_sight", geometry, len(origins), "origins")
-    return _line_of_sight(geometry, origins, targets)
-
-
-def _line_of_sight(geometry: StaticGeometry, origins, targets, queried=None) -> np.ndarray:
-    """``line_of_sight`` of checked arguments, run only for the ``queried`` targets (N, K) bool (others: True)."""
-    copy, target = np.nonzero(np.ones(targets.shape[:2], dtype=bool) if queried is None else queried)
-    clear = np.ones(targets.shape[:2], dtype=bool)
-    clear[copy, target] = ~_blocked(geometry, copy, origins[copy], targets[copy, target])
-    return clear
 
 
 def segments_clear(geometry: StaticGeometry, copies, starts, ends) -> np.ndarray:
@@ -447,11 +333,13 @@ def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets
     ``check_input=False`` skips the checks, for known-good float arrays in hot loops.
 
     Raises:
-        ValueError: as ``in_coverage`` and ``line_of_sight``.
+        ValueError: as ``in_coverage``, or for another number of poses than ``geometry``'s copies.
     """
     if check_input:
         poses = _finite_array(poses, (None, 3), "in_coverage: poses [m, m, rad]")
         targets = _finite_array(targets, (len(poses), None, 2), "in_coverage: targets [m] (one row per pose)")
         _check_copies("visible", geometry, len(poses), "poses")
-    covered = _in_coverage(sensor, poses, targets)
-    return covered & _line_of_sight(geometry, poses[:, :2], targets, covered)
+    seen = _in_coverage(sensor, poses, targets)
+    copy, target = np.nonzero(seen)
+    seen[copy, target] = ~_blocked(geometry, copy, poses[copy, :2], targets[copy, target])
+    return seen
