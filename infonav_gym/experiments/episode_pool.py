@@ -100,10 +100,15 @@ def played(
         ValueError: for ``workers < 1``, or ``use_ray`` without Ray installed (saying how to install it).
     """
     check_workers(workers)
-    if use_ray:
-        from infonav_gym.experiments.ray_episodes import played_on_ray
+    if use_ray:  # one EpisodeRunner actor per worker (one CPU each)
+        from agents.ray_support import local_or_cluster_ray
 
-        yield from played_on_ray(runner.setup, tasks, workers, address)
+        with local_or_cluster_ray(address) as ray:
+            from ray.util import ActorPool
+
+            remote_runner = ray.remote(num_cpus=1)(EpisodeRunner)
+            actors = [remote_runner.remote(*runner.setup) for _ in range(workers)]
+            yield from ActorPool(actors).map(lambda actor, task: actor.play.remote(task), list(tasks))
         return
     if workers == 1:
         yield from map(runner.play, tasks)
