@@ -462,16 +462,14 @@ def _benchmark(args, command: str) -> dict:
 
 
 def _reproduce(args, command: str) -> dict:
-    """Run ``reproduce_<figure>`` of ``infonav_gym.experiments.reproduce.<figure>``; print its table unless --json.
-
-    The table is printed even when writing the files fails (then ``OutputWriteError`` follows).
-    """
+    """``reproduce.reproduce`` of the figure; print its table unless --json, even when writing the files fails."""
     import importlib
 
-    module = importlib.import_module(f"infonav_gym.experiments.reproduce.{args.figure}")
-    reproduce, table = getattr(module, f"reproduce_{args.figure}"), getattr(module, f"{args.figure}_table")
+    from infonav_gym.experiments.reproduce import reproduce
+
+    table = importlib.import_module(f"infonav_gym.experiments.reproduce.{args.figure}").table
     try:
-        result = reproduce(args.output_dir, seed=args.seed, n_seeds=args.seeds, progress=not args.json, command=command)
+        result = reproduce(args.figure, args.output_dir, args.seed, args.seeds, not args.json, command)
         failure = None
     except OutputWriteError as error:
         result, failure = error.result, str(error)

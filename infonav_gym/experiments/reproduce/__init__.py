@@ -1,7 +1,7 @@
 """Regenerate the paper's figures from the environments (``infonav reproduce``)."""
 
+import importlib
 import json
-from collections.abc import Callable
 from pathlib import Path
 
 from infonav_gym.experiments.paths import OutputWriteError, check_output_dir, write_failure
@@ -15,31 +15,33 @@ def paper_label(agent: str) -> str:
     return f"#{int(agent.rpartition('_')[2]) + 1}"
 
 
-def figure_paths(output_dir, figure: str, n_seeds: int, counted: str) -> tuple[Path, Path]:
-    """Check ``n_seeds`` (``counted``: what the seeds count, for the error) and ``output_dir``, create it;
-    return the figure's PNG and JSON paths in it.
+def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progress: bool = True, command: str = ""):
+    """Run ``figure`` (a module here), write ``output_dir/FIGURE.png`` and ``FIGURE.json``; return what the JSON holds.
+
+    Args:
+        figure: one of ``FIGURES``.
+        output_dir: directory for the two files (created if missing).
+        seed: the seed of the plotted run, and the first of the statistics' seeds.
+        n_seeds: how many seeds (``seed .. seed + n_seeds - 1``) the statistics count.
+        progress: show a tqdm bar over the seeds.
+        command: the command line that made the files, recorded in the JSON.
 
     Raises:
         ValueError: for ``n_seeds < 1``, or an ``output_dir`` that cannot be a writable directory.
+        OutputWriteError: when a file cannot be written; it carries the result (with the files that
+            were written), so the computed figures are not lost.
     """
+    module = importlib.import_module(f"{__name__}.{figure}")
     if n_seeds < 1:
-        raise ValueError(f"n_seeds ({counted}) must be >= 1, got {n_seeds}")
+        raise ValueError(f"n_seeds ({module.SEEDS_COUNT}) must be >= 1, got {n_seeds}")
     output_dir = check_output_dir(output_dir, "output directory")
     try:
         output_dir.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise ValueError(f"output directory {output_dir}: {error.strerror or error}") from None
-    return output_dir / f"{figure}.png", output_dir / f"{figure}.json"
-
-
-def write_result(result: dict, png: Path, json_path: Path, plot: Callable[[Path], object]) -> dict:
-    """Draw ``plot(png)``, record the two files in ``result``, write it as ``json_path`` and return it.
-
-    Raises:
-        OutputWriteError: when a file cannot be written; it carries ``result`` (with the files that
-            were written), so the computed figures are not lost.
-    """
-    result["files"] = []
+    png, json_path = output_dir / f"{figure}.png", output_dir / f"{figure}.json"
+    figures, plot = module.figures(seed, range(seed, seed + n_seeds), progress)
+    result = {"command": command, **figures, "files": []}
     try:
         plot(png)
         result["files"].append(str(png))

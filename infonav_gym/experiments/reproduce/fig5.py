@@ -27,19 +27,21 @@ can reverse it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from infonav_gym.experiments.reproduce import figure_paths, files_line, write_result
-from infonav_gym.experiments.reproduce.fig5_plot import plot_fig5
+from infonav_gym.experiments.reproduce import files_line
 from infonav_gym.information import histogram_entropy
+from infonav_gym.rendering import require_extra
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain import Box, Terrain
 from infonav_gym.world.terrain_generation import make_terrain
 
+SEEDS_COUNT = "how many random scenes the statistics count"  # what ``n_seeds`` counts, for its error
 PAPER_LIKE_TERRAIN = {
     "size_m": 120.0,
     "cell_m": 0.5,
@@ -199,22 +201,10 @@ def seed_statistics(seeds, progress: bool = False) -> dict:
     }
 
 
-def reproduce_fig5(
-    output_dir: Path, seed: int = 0, n_seeds: int = 20, progress: bool = True, command: str = ""
-) -> dict:
-    """Run Fig. 5, write ``output_dir/fig5.png`` and ``output_dir/fig5.json``; return what the JSON holds.
-
-    Args:
-        output_dir: directory for the two files (created if missing).
-        seed: the seed of the plotted scenes, and the first of the statistics' seeds.
-        n_seeds: how many seeds (``seed .. seed + n_seeds - 1``) the statistics count.
-        progress: show a tqdm bar over the seeds.
-        command: the command line that made the files, recorded in the JSON.
-    """
-    png, json_path = figure_paths(output_dir, "fig5", n_seeds, "how many random scenes the statistics count")
+def figures(seed: int, seeds, progress: bool) -> tuple[dict, Callable[[Path], object]]:
+    """Fig. 5's scenes of ``seed`` and the statistics over ``seeds`` (JSON-ready), and the function drawing them."""
     fig5, images = run_fig5(seed)
     result = {
-        "command": command,
         "scenes": {
             "paper_like": {
                 "make_terrain": dict(PAPER_LIKE_TERRAIN),
@@ -233,12 +223,12 @@ def reproduce_fig5(
             "sensors": {"camera": "Camera() defaults", "ladar": "Ladar() defaults, to_display_image (dark = near)"},
         },
         "fig5": fig5,
-        "seed_statistics": seed_statistics(range(seed, seed + n_seeds), progress=progress),
+        "seed_statistics": seed_statistics(seeds, progress=progress),
     }
-    return write_result(result, png, json_path, lambda path: plot_fig5(fig5, images, path))
+    return result, lambda path: plot_fig5(fig5, images, path)
 
 
-def fig5_table(result: dict) -> str:
+def table(result: dict) -> str:
     """The figures of the paper's Fig. 5 story as text: each view's entropies and the seed statistics."""
     fig5, statistics = result["fig5"], result["seed_statistics"]
     lines = [
@@ -259,3 +249,81 @@ def fig5_table(result: dict) -> str:
         )
     lines.append(files_line(result))
     return "\n".join(lines)
+
+
+_SENSORS = (("camera", "camera", "tab:blue"), ("ladar", "LADAR", "tab:red"))
+_LETTERS = "abcdefghijklmnopqrstuvwxyz"
+
+
+def _extent_deg(sensor) -> tuple[float, float, float, float]:
+    """``(left, right, bottom, top)`` of a sensor's image [deg]: azimuth from the heading (left +), elevation."""
+    half_width = math.degrees(sensor.horizontal_fov_rad) / 2
+    top = math.degrees(sensor.vertical_fov_rad / 2 - sensor.tilt_rad)
+    return half_width, -half_width, top - math.degrees(sensor.vertical_fov_rad), top
+
+
+def _draw_image(axes, image: np.ndarray, sensor, title: str) -> None:
+    axes.imshow(image, cmap="gray", vmin=0, vmax=255, extent=_extent_deg(sensor), interpolation="nearest")
+    axes.set_title(title, fontsize="medium")
+    axes.set_xlabel("azimuth, left + [deg]", fontsize="small")
+    axes.set_ylabel("elevation [deg]", fontsize="small")
+    axes.tick_params(labelsize="small")
+
+
+def _draw_histogram(axes, sensor_record: dict, colour: str, title: str) -> None:
+    counts = np.asarray(sensor_record["histogram"])
+    axes.stairs(counts, np.arange(257), fill=True, color=colour)
+    axes.set_xlim(0, 256)
+    axes.set_ylim(0, 1.25 * counts.max())
+    axes.text(
+        0.5,
+        0.95,
+        f"H = {sensor_record['entropy_nats']:.2f} nats",
+        transform=axes.transAxes,
+        ha="center",
+        va="top",
+        fontsize="large",
+        fontweight="bold",
+    )
+    axes.set_title(title, fontsize="medium")
+    axes.set_xlabel("gray level (brightness)", fontsize="small")
+    axes.set_ylabel("pixels", fontsize="small")
+    axes.tick_params(labelsize="small")
+
+
+def plot_fig5(fig5: dict, images: list[dict], path: Path) -> Path:
+    """Draw ``run_fig5``'s views like the paper's Fig. 5, one row per view, and save it as a PNG at ``path``."""
+    require_extra("matplotlib", "the Fig. 5 plot")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sensors = {"camera": Camera(), "ladar": Ladar()}
+    rows = len(fig5["views"])
+    figure, axes = plt.subplots(
+        rows, 4, figsize=(18, 3.6 * rows), width_ratios=(1.1, 1, 1.7, 1), layout="constrained", squeeze=False
+    )
+    letters = iter(_LETTERS)
+    for row, (view, pair) in enumerate(zip(fig5["views"], images, strict=True)):
+        for column, (key, name, colour) in enumerate(_SENSORS):
+            record = view[key]
+            rows_px, columns_px = record["shape"]
+            image_axes, histogram_axes = axes[row, 2 * column], axes[row, 2 * column + 1]
+            _draw_image(
+                image_axes,
+                pair[key],
+                sensors[key],
+                f"({next(letters)}) {name}, {view['label']} ({rows_px} x {columns_px})",
+            )
+            _draw_histogram(histogram_axes, record, colour, f"({next(letters)}) {name} histogram, {view['label']}")
+    figure.suptitle(
+        f"Fig. 5: camera and LADAR images (LADAR: dark = near) with their 256-bin gray-level histograms and "
+        f"entropies, seed {fig5['seed']}.\nRows 1-2: two similar views of vegetated, rugged terrain (LADAR more "
+        f"informative); row 3: a building {fig5['building']['distance_m']:.1f} m ahead (camera more informative)."
+    )
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(figure)
+    return path

@@ -16,20 +16,24 @@ displacement the rotation error causes 10 m away): recall (the fraction of pairs
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import cKDTree
 from tqdm.auto import tqdm
 
-from infonav_gym.experiments.reproduce import figure_paths, files_line, write_result
-from infonav_gym.experiments.reproduce.fig6_plot import plot_fig6
-from infonav_gym.geometry import transform_error
+from infonav_gym.experiments.reproduce import files_line
+from infonav_gym.geometry import transform_error, transform_points
 from infonav_gym.registration import icp
 from infonav_gym.registration.control_points import select_control_points
 from infonav_gym.registration.frame_pairs import FRAME_PAIR_ICP, FramePair, registration_error, terrain_frame_pair
 from infonav_gym.registration.gicp import gicp_covariances
+from infonav_gym.registration.icp import estimate_normals
+from infonav_gym.rendering import require_extra
 from infonav_gym.sensors.ladar import sensor_points
 
+SEEDS_COUNT = "how many frame pairs the statistics register"  # what ``n_seeds`` counts, for its error
 CONTROL_FRACTION = 0.25  # control points as a fraction of the returns
 STRATEGIES = ("entropy", "uniform", "random")
 RECALL_THRESHOLDS_M = (0.05, 0.10)  # a pair is registered when its registration error is below the threshold
@@ -120,24 +124,12 @@ def seed_statistics(seeds, progress: bool = False, settings: dict = FRAME_PAIR_I
     return {"seeds": list(seeds), "control_fraction": CONTROL_FRACTION, "methods": summary}
 
 
-def reproduce_fig6(
-    output_dir: Path, seed: int = 0, n_seeds: int = 20, progress: bool = True, command: str = ""
-) -> dict:
-    """Run Fig. 6, write ``output_dir/fig6.png`` and ``output_dir/fig6.json``; return what the JSON holds.
-
-    Args:
-        output_dir: directory for the two files (created if missing).
-        seed: the seed of the plotted pair, and the first of the statistics' seeds.
-        n_seeds: how many pairs (seeds ``seed .. seed + n_seeds - 1``) the statistics register.
-        progress: show a tqdm bar over the seeds.
-        command: the command line that made the files, recorded in the JSON.
-    """
-    png, json_path = figure_paths(output_dir, "fig6", n_seeds, "how many frame pairs the statistics register")
+def figures(seed: int, seeds, progress: bool) -> tuple[dict, Callable[[Path], object]]:
+    """Fig. 6's frame pair of ``seed`` and the statistics over ``seeds`` (JSON-ready), and the function drawing them."""
     pair = terrain_frame_pair(np.random.default_rng(seed))
     registration = register(pair)
     plotted = {key: value for key, value in registration.items() if key != "transform"}
     result = {
-        "command": command,
         "icp": dict(FRAME_PAIR_ICP),
         "fig6": {
             "seed": seed,
@@ -150,13 +142,12 @@ def reproduce_fig6(
             "odometry_motion": pair.odometry_motion.tolist(),
             "icp_motion": registration["transform"].tolist(),
         },
-        "seed_statistics": seed_statistics(range(seed, seed + n_seeds), progress=progress),
+        "seed_statistics": seed_statistics(seeds, progress=progress),
     }
-    icp_motion = registration["transform"]
-    return write_result(result, png, json_path, lambda path: plot_fig6(pair, icp_motion, registration, path))
+    return result, lambda path: plot_fig6(pair, registration["transform"], registration, path)
 
 
-def fig6_table(result: dict) -> str:
+def table(result: dict) -> str:
     """The Fig. 6 figures as text: the plotted pair's errors and, over the seeds, mean and median errors and recall."""
     fig6, statistics = result["fig6"], result["seed_statistics"]
     plotted = fig6["registration"]
@@ -175,3 +166,69 @@ def fig6_table(result: dict) -> str:
         )
     lines.append(files_line(result))
     return "\n".join(lines)
+
+
+_VIEWS = (("top view", 0, 1, "x [m]", "y [m]"), ("side view", 0, 2, "x [m]", "z [m]"))
+_POINT_SIZE = 1.5
+_RESIDUAL_SCALE_M = 0.2  # colour scale of the residuals [m]
+
+
+def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path: Path) -> None:
+    """Write ``path``: rows = top and side views, columns = before (odometry) and after (ICP) registration.
+
+    Points are in the older frame's body frame at its optical centre: the older frame in gray,
+    the newer one coloured by its distance to the older frame's surface (to the tangent plane at
+    the closest older point: the point-to-plane residual; misregistration shows as warm colours).
+    """
+    require_extra("matplotlib", "plotting Fig. 6")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    target = sensor_points(pair.previous)
+    source = sensor_points(pair.current)
+    tree = cKDTree(target)
+    normals = estimate_normals(target, tree)
+    placements = (
+        ("(a) before: odometry estimate", pair.odometry_motion, registration["error_before_m"]),
+        ("(b) after: ICP registration", icp_motion, registration["error_after_m"]),
+    )
+    figure, axes = plt.subplots(2, 2, figsize=(13, 8), constrained_layout=True)
+    for column, (title, motion, error) in enumerate(placements):
+        placed = transform_points(motion, source)
+        closest = tree.query(placed)[1]
+        residual = np.abs(np.einsum("ij,ij->i", placed - target[closest], normals[closest]))
+        for row, (view, first, second, first_label, second_label) in enumerate(_VIEWS):
+            ax = axes[row, column]
+            ax.scatter(
+                target[:, first],
+                target[:, second],
+                s=_POINT_SIZE,
+                c="0.75",
+                label="older frame (newer: coloured)",
+                lw=0,
+            )
+            points = ax.scatter(
+                placed[:, first],
+                placed[:, second],
+                s=_POINT_SIZE,
+                c=residual,
+                cmap="turbo",
+                vmin=0.0,
+                vmax=_RESIDUAL_SCALE_M,
+                lw=0,
+            )
+            ax.set_title(f"{title}, {view}: error {error:.3f} m", fontsize="medium")
+            ax.set_xlabel(first_label)
+            ax.set_ylabel(second_label)
+            if row == 0:
+                ax.set_aspect("equal", adjustable="datalim")
+            ax.legend(loc="upper right", markerscale=6, fontsize="small")
+    figure.colorbar(points, ax=axes, shrink=0.6, label="newer point to the older frame's surface [m]")
+    figure.suptitle(
+        "Fig. 6: consecutive 3D LADAR frames (32 x 180) of a vehicle pitching and rolling over rugged terrain, "
+        f"before and after ICP ({registration['points']} points, {registration['iterations']} iterations)"
+    )
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
