@@ -107,7 +107,7 @@ class TeamVecEnv(VectorEnvAdapter):
     episode together (truncation at ``max_cycles``): the step that ends it resets the copy at once and
     each of its slots gets ``info["terminal_observation"]`` and ``info["TimeLimit.truncated"]``, as SB3's
     ``DummyVecEnv`` does; the other slots' infos are empty (``VectorEnvAdapter``). The team env's whole info
-    of the last reset or step is ``batched_infos`` (arrays (N, R, ...)). ``action_masks()`` gives every
+    of the last reset or step is ``vector_env.team_info`` (arrays (N, R, ...)). ``action_masks()`` gives every
     slot's valid actions to ``MaskablePPO``. ``get_attr`` gives each slot its robot's ``agent`` name and
     the team env's other attributes; ``set_attr`` and ``env_method`` act on the team env, which every slot shares.
 
@@ -143,11 +143,6 @@ class TeamVecEnv(VectorEnvAdapter):
     def team(self) -> VectorEnv:
         """The team vector env every slot belongs to."""
         return self.vector_env.team
-
-    @property
-    def batched_infos(self) -> dict:
-        """The team env's info of the last reset or step (arrays (N, R, ...), ``final_info`` at an episode end)."""
-        return self.vector_env.team_info
 
     def seed(self, seed: int | None = None) -> list[int]:
         """Seed copy ``i`` with ``seed + i`` at the next ``reset()`` (``None``: a random ``seed``); each slot's seed."""

@@ -63,7 +63,7 @@ def test_slots_replay_copies_seeded_seed_plus_i_with_masks_rewards_and_automatic
                 slot = copy * N_ROBOTS + k
                 assert rewards[slot] == np.float32(reference_rewards[agent])
                 assert dones[slot] == truncations[agent] == (step + 1 == max_cycles)
-                step_info = vec_env.batched_infos["final_info"] if dones[slot] else vec_env.batched_infos
+                step_info = vec_env.vector_env.team_info["final_info"] if dones[slot] else vec_env.vector_env.team_info
                 assert step_info["chosen_action"][copy, k] == actions[slot]
                 if dones[slot]:
                     assert infos[slot]["TimeLimit.truncated"]

@@ -18,16 +18,12 @@ import numpy as np
 from scipy import optimize
 
 
-def huber_weight(nis: float, threshold_nis: float) -> float:
-    """The Huber weight ``min(1, c / d)`` of a normalized innovation squared ``d^2``, with ``c^2 = threshold_nis``."""
-    return 1.0 if nis <= threshold_nis else math.sqrt(threshold_nis / nis)
-
-
 def huber_noise(residual, H, P, R, threshold_nis: float) -> tuple[np.ndarray, float, float]:
     """The inflated noise covariance of a Huber-weighted update and its weight.
 
-    The weight is the fixed point of ``w = huber_weight(r^T (H P H^T + R / w)^-1 r)``: ``w - c / d(w)``
-    increases with ``w``, so the root is unique; it lies in ``[c / d(1), 1]`` and is found by Brent's method.
+    The weight is the fixed point of ``w = min(1, c / d(w))`` with ``d(w)^2 = r^T (H P H^T + R / w)^-1 r``:
+    ``w - c / d(w)`` increases with ``w``, so the root is unique; it lies in ``[c / d(1), 1]`` and is found by
+    Brent's method.
     The update with ``R / w`` is the Huber M-estimate.
 
     Args:

@@ -310,9 +310,7 @@ def _evaluate(args, command: str) -> dict:
         results, interruption = error.result, error
         if not results["agents"]:
             raise Interrupted("interrupted before an episode finished: nothing to write", results) from None
-    failure = None
-    if stem:
-        failure = _write_files(lambda: write_results(results, stem, command), results, f"--output {stem}")
+    failure = stem and _write_files(lambda: write_results(results, stem, command), results, f"--output {stem}")
     if not args.json:
         print(heading(results))
         print(config_line(results))
@@ -601,9 +599,7 @@ def _replay(args, command: str) -> dict:
         before = sweep(compared)
         result["comparison"] = compare(result, before)
         result["compared_rows"] = before["rows"]
-    failure = None
-    if stem:
-        failure = _write_files(lambda: write_results(result, stem, command), result, f"--output {stem}")
+    failure = stem and _write_files(lambda: write_results(result, stem, command), result, f"--output {stem}")
     if not args.json:
         print(markdown_table(result))
         if args.compare_noise:
