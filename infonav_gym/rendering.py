@@ -26,6 +26,15 @@ def require_extra(module: str, purpose: str) -> None:
         raise ImportError(f"{purpose} needs {module}: pip install 'infonav-gym[render]'") from error
 
 
+def matplotlib_figure(purpose: str, **kwargs):
+    """A matplotlib ``Figure(**kwargs)`` for ``purpose``: no pyplot, so it renders with Agg and leaves the caller's
+    backend alone; without matplotlib, ``require_extra``'s ``ImportError``."""
+    require_extra("matplotlib", purpose)
+    from matplotlib.figure import Figure
+
+    return Figure(**kwargs)
+
+
 _WHITE = (255, 255, 255)
 _DARK_GREY = (70, 70, 70)
 _LIGHT_GREY = (205, 205, 205)

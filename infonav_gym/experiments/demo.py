@@ -63,13 +63,7 @@ def demo_table(demo: dict) -> str:
 
 def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> Path:
     """Fig. 2 as a picture: the ic a landmark would bring, over where it could be, from the start pose."""
-    from infonav_gym.rendering import require_extra
-
-    require_extra("matplotlib", "the Fig. 2 plot")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from infonav_gym.rendering import matplotlib_figure
 
     env = gym.make("infonav/LandmarkSelection-v0", scenario="corridor", n_candidates=4).unwrapped
     _, info = env.reset(seed=seed)
@@ -81,7 +75,7 @@ def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> P
     positions = np.stack([xs.ravel(), ys.ravel()], axis=1)
     predicted, H = batched.landmark_measurement_model(x[None], positions[None])
     field = expected_information_gain(P, H[0], sensor.noise_covariance(predicted[0, :, 0])).reshape(xs.shape)
-    figure = plt.figure(figsize=(9, 4.5))
+    figure = matplotlib_figure("the Fig. 2 plot", figsize=(9, 4.5))
     axes = figure.add_subplot(projection="3d")
     axes.plot_surface(xs, ys, field, cmap="viridis", alpha=0.35, linewidth=0.2, edgecolor="grey")
     landmarks = model.scenario(0).landmarks
@@ -96,6 +90,5 @@ def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> P
     axes.set_title("Information contribution of a landmark, from the vehicle at the corridor start")
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(figure)
     env.close()
     return path

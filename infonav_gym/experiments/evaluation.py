@@ -26,6 +26,7 @@ from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, trai
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_workers, played
 from infonav_gym.experiments.paths import Interrupted, output_file
 from infonav_gym.registry import registered_envs
+from infonav_gym.rendering import matplotlib_figure
 
 AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH", "rllib:DIR")
 PPO_PREFIX = "ppo:"
@@ -342,10 +343,8 @@ def _plot_label(name: str) -> str:
 
 def plot_results(results: dict, path: Path) -> Path:
     """A box plot per metric of every agent's per-episode values, and the mean with its 95% CI (as in the table)."""
-    from matplotlib.figure import Figure  # no pyplot: renders with Agg, leaves the caller's backend alone
-
     metrics, names = results["metrics"], list(results["agents"])
-    figure = Figure(figsize=(3.2 * len(metrics) + 1, 3.6))
+    figure = matplotlib_figure("the evaluation plot", figsize=(3.2 * len(metrics) + 1, 3.6))
     axes = figure.subplots(1, len(metrics), squeeze=False)
     positions = np.arange(1, len(names) + 1)
     for axis, (key, title) in zip(axes[0], metrics.items()):

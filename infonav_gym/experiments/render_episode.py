@@ -14,7 +14,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from infonav_gym.experiments.episode_pool import EpisodeRunner
-from infonav_gym.rendering import require_extra
+from infonav_gym.rendering import matplotlib_figure, require_extra
 
 STRIP_FRAMES = 6  # frames in PREFIX.png
 STRIP_COLUMNS = 3
@@ -105,15 +105,12 @@ def strip_indices(n_frames: int, n_shown: int = STRIP_FRAMES) -> list[int]:
 
 def write_strip(episode: RenderedEpisode, path: Path, title: str) -> Path:
     """A grid of ``STRIP_FRAMES`` evenly spaced frames of the episode, each titled with its step (needs matplotlib)."""
-    require_extra("matplotlib", "infonav render's PNG")
-    from matplotlib.figure import Figure  # no pyplot: renders with Agg, leaves the caller's backend alone
-
     frames, steps = episode.frames, episode.steps
     shown = strip_indices(len(frames))
     columns = min(STRIP_COLUMNS, len(shown))
     rows = -(-len(shown) // columns)
     height, width = frames[0].shape[:2]
-    figure = Figure(figsize=(columns * 3.2, rows * 3.2 * height / width + 0.5))
+    figure = matplotlib_figure("infonav render's PNG", figsize=(columns * 3.2, rows * 3.2 * height / width + 0.5))
     axes = figure.subplots(rows, columns, squeeze=False).ravel()
     for axis in axes:
         axis.set_axis_off()

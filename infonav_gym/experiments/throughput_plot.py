@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from infonav_gym.rendering import require_extra
+from infonav_gym.rendering import matplotlib_figure
 
 CURVE_FIGURE = re.compile(
     r"^(?P<curve>.+)_(?P<size>\d+)_steps_per_s$"
@@ -33,10 +33,7 @@ def plot_throughput(figures: dict, path: Path | str) -> Path:
     curves = throughput_curves(figures)
     if not curves:
         raise ValueError(f"the throughput plot needs figures named CURVE_N_steps_per_s, got {sorted(figures)}")
-    require_extra("matplotlib", "the throughput plot")
-    from matplotlib.figure import Figure  # no pyplot: renders with Agg, leaves the caller's backend alone
-
-    figure = Figure(figsize=(7.5, 4.8))
+    figure = matplotlib_figure("the throughput plot", figsize=(7.5, 4.8))
     axes = figure.add_subplot()
     for curve, rates in curves.items():
         sizes = sorted(rates)

@@ -9,15 +9,7 @@ from scipy import stats
 
 from infonav_gym.estimation.consistency import chi2_bounds
 from infonav_gym.experiments.replay.noise_model import NoiseModel
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+from infonav_gym.rendering import matplotlib_figure
 
 
 def plot_calibration(model: NoiseModel, errors: dict, path) -> Path:
@@ -29,8 +21,8 @@ def plot_calibration(model: NoiseModel, errors: dict, path) -> Path:
         errors: robot subject -> ``calibration.landmark_errors`` arrays at the fitted clock offsets.
         path: the PNG to write.
     """
-    plt = _pyplot()
-    figure, axes = plt.subplots(1, 2, figsize=(11, 4))
+    figure = matplotlib_figure("the calibration plot", figsize=(11, 4))
+    axes = figure.subplots(1, 2)
     channels = {"range": ("range error [m]", 0.6), "bearing": ("bearing error [rad]", 0.08)}
     for axis, (channel, (label, limit)) in zip(axes, channels.items()):
         residuals, stds = [], []
@@ -62,7 +54,6 @@ def plot_calibration(model: NoiseModel, errors: dict, path) -> Path:
     figure.tight_layout()
     path = Path(path)
     figure.savefig(path, dpi=110)
-    plt.close(figure)
     return path
 
 
@@ -74,9 +65,9 @@ def plot_nees_over_time(result: dict, path, title: str = "") -> Path:
         path: the PNG to write.
         title: the figure's title.
     """
-    plt = _pyplot()
     robots = {robot: metrics for robot, metrics in result["robots"].items() if "nees_over_time" in metrics}
-    figure, axes = plt.subplots(len(robots), 1, figsize=(10, 1.6 * len(robots) + 0.6), sharex=True, squeeze=False)
+    figure = matplotlib_figure("the NEES plot", figsize=(10, 1.6 * len(robots) + 0.6))
+    axes = figure.subplots(len(robots), 1, sharex=True, squeeze=False)
     low, high = chi2_bounds(3)
     for axis, (robot, metrics) in zip(axes[:, 0], robots.items()):
         series = metrics["nees_over_time"]
@@ -95,5 +86,4 @@ def plot_nees_over_time(result: dict, path, title: str = "") -> Path:
     figure.tight_layout()
     path = Path(path)
     figure.savefig(path, dpi=110)
-    plt.close(figure)
     return path

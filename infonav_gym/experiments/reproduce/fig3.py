@@ -21,7 +21,7 @@ from infonav_gym.experiments.reproduce import files_line, paper_label
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.team import DEFAULT_OUTAGE
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
-from infonav_gym.rendering import require_extra
+from infonav_gym.rendering import matplotlib_figure
 
 SEEDS_COUNT = "how many seeds the outage RMSE averages"  # what ``n_seeds`` counts, for its error
 FIG3_ENV_CONFIG = {"scenario": "convoy", "n_robots": 3, "max_cycles": 120}
@@ -300,18 +300,12 @@ def _draw_standard_deviations(axes, fig3: dict) -> None:
 
 def plot_fig3(fig3: dict, path: Path) -> Path:
     """Draw ``run_fig3``'s result like the paper's Fig. 3 and save it as a PNG at ``path``."""
-    require_extra("matplotlib", "the Fig. 3 plot")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    figure, (paths_axes, std_axes) = plt.subplots(2, 1, figsize=(10, 7.5), height_ratios=(1, 1.4), layout="constrained")
+    figure = matplotlib_figure("the Fig. 3 plot", figsize=(10, 7.5), layout="constrained")
+    paths_axes, std_axes = figure.subplots(2, 1, height_ratios=(1, 1.4))
     _draw_paths(paths_axes, fig3)
     _draw_standard_deviations(std_axes, fig3)
     figure.suptitle(f"Fig. 3: laser-based cooperative localization on the convoy, seed {fig3['seed']}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(figure)
     return path

@@ -35,7 +35,7 @@ from tqdm.auto import tqdm
 
 from infonav_gym.experiments.reproduce import files_line
 from infonav_gym.information import histogram_entropy
-from infonav_gym.rendering import require_extra
+from infonav_gym.rendering import matplotlib_figure
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain import Box, Terrain
@@ -293,17 +293,10 @@ def _draw_histogram(axes, sensor_record: dict, colour: str, title: str) -> None:
 
 def plot_fig5(fig5: dict, images: list[dict], path: Path) -> Path:
     """Draw ``run_fig5``'s views like the paper's Fig. 5, one row per view, and save it as a PNG at ``path``."""
-    require_extra("matplotlib", "the Fig. 5 plot")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     sensors = {"camera": Camera(), "ladar": Ladar()}
     rows = len(fig5["views"])
-    figure, axes = plt.subplots(
-        rows, 4, figsize=(18, 3.6 * rows), width_ratios=(1.1, 1, 1.7, 1), layout="constrained", squeeze=False
-    )
+    figure = matplotlib_figure("the Fig. 5 plot", figsize=(18, 3.6 * rows), layout="constrained")
+    axes = figure.subplots(rows, 4, width_ratios=(1.1, 1, 1.7, 1), squeeze=False)
     letters = iter(_LETTERS)
     for row, (view, pair) in enumerate(zip(fig5["views"], images, strict=True)):
         for column, (key, name, colour) in enumerate(_SENSORS):
@@ -325,5 +318,4 @@ def plot_fig5(fig5: dict, images: list[dict], path: Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=110, bbox_inches="tight")
-    plt.close(figure)
     return path

@@ -30,7 +30,7 @@ from infonav_gym.registration.control_points import select_control_points
 from infonav_gym.registration.frame_pairs import FRAME_PAIR_ICP, FramePair, registration_error, terrain_frame_pair
 from infonav_gym.registration.gicp import gicp_covariances
 from infonav_gym.registration.icp import estimate_normals
-from infonav_gym.rendering import require_extra
+from infonav_gym.rendering import matplotlib_figure
 from infonav_gym.sensors.ladar import sensor_points
 
 SEEDS_COUNT = "how many frame pairs the statistics register"  # what ``n_seeds`` counts, for its error
@@ -180,12 +180,6 @@ def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path:
     the newer one coloured by its distance to the older frame's surface (to the tangent plane at
     the closest older point: the point-to-plane residual; misregistration shows as warm colours).
     """
-    require_extra("matplotlib", "plotting Fig. 6")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     target = sensor_points(pair.previous)
     source = sensor_points(pair.current)
     tree = cKDTree(target)
@@ -194,7 +188,8 @@ def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path:
         ("(a) before: odometry estimate", pair.odometry_motion, registration["error_before_m"]),
         ("(b) after: ICP registration", icp_motion, registration["error_after_m"]),
     )
-    figure, axes = plt.subplots(2, 2, figsize=(13, 8), constrained_layout=True)
+    figure = matplotlib_figure("plotting Fig. 6", figsize=(13, 8), constrained_layout=True)
+    axes = figure.subplots(2, 2)
     for column, (title, motion, error) in enumerate(placements):
         placed = transform_points(motion, source)
         closest = tree.query(placed)[1]
@@ -231,4 +226,3 @@ def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path:
         f"before and after ICP ({registration['points']} points, {registration['iterations']} iterations)"
     )
     figure.savefig(path, dpi=120)
-    plt.close(figure)
