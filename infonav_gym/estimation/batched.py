@@ -418,7 +418,7 @@ def _slot_update(x, P, measurements, predicted, jacobians, R, observed, m, cross
     n = np.shape(x)[1]
     residual = np.subtract(measurements, predicted)
     residual[..., 1:] = wrap_angle(residual[..., 1:])
-    H = sum(_slot_jacobians(robots, blocks, n) for robots, blocks in jacobians.values())
+    H = functools.reduce(np.add, (_slot_jacobians(robots, blocks, n) for robots, blocks in jacobians.values()))
     return _update(x, P, residual, H, R, observed, n // POSE_DIM, cross_covariances)
 
 
