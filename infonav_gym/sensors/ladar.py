@@ -90,12 +90,6 @@ class Ladar(PanTiltGrid):
         self._check_grid()
         check_number(self.SENSOR_NAME, "range_std_m", self.range_std_m, 0.0, MAX_RANGE_STD_M, unit="m")
 
-    def ray_directions(self, vehicle_pose, pan_rad: float | None = None, tilt_rad: float | None = None) -> np.ndarray:
-        """World-frame unit directions (rows, columns, 3) of the pixels; see the module docstring for the order."""
-        pose = check_pose(vehicle_pose)
-        azimuth, elevation = self.pixel_angles(pan_rad, tilt_rad)
-        return unit_directions(pose[2] + azimuth, elevation)
-
     def scan(
         self,
         terrain: Terrain,

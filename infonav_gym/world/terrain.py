@@ -159,20 +159,14 @@ class Terrain:
         """A copy with ``cylinders`` and ``boxes`` added to the existing obstacles."""
         return replace(self, cylinders=self.cylinders + tuple(cylinders), boxes=self.boxes + tuple(boxes))
 
-    def _ground_at(self, xy) -> tuple[np.ndarray, np.ndarray]:
-        """Elevations (N,) and upward normals (N, 3) at points ``xy`` (..., 2), checked, flattened."""
+    def height_at(self, xy) -> np.ndarray:
+        """Bilinear ground elevation [m] at points ``xy`` (..., 2) -> (...)."""
         points = np.asarray(xy, dtype=float)
         if points.ndim < 1 or points.shape[-1] != 2 or not np.all(np.isfinite(points)):
             raise ValueError(f"terrain query points must be finite (..., 2) [m], got shape {points.shape}")
-        return terrain_kernels.ground_at(self.arrays[0], contiguous(points.reshape(-1, 2)))
-
-    def height_at(self, xy) -> np.ndarray:
-        """Bilinear ground elevation [m] at points ``xy`` (..., 2) -> (...)."""
-        return self._ground_at(xy)[0].reshape(np.shape(xy)[:-1])[()]
-
-    def surface_normal_at(self, xy) -> np.ndarray:
-        """Upward unit normals (..., 3) of the bilinear ground at points ``xy`` (..., 2); level beyond the grid."""
-        return self._ground_at(xy)[1].reshape(*np.shape(xy)[:-1], 3)
+        return terrain_kernels.ground_at(self.arrays[0], contiguous(points.reshape(-1, 2)))[0].reshape(
+            points.shape[:-1]
+        )[()]
 
     def cast_rays(self, origin_m, azimuth_rad, elevation_rad, max_range_m: float) -> RayHits:
         """First hits of a grid of rays whose columns share an azimuth (a scanner's or an upright camera's).

@@ -141,10 +141,6 @@ class World:
         """True pose ``[x, y, heading]`` of robot 0 (the only robot of single-robot scenarios)."""
         return np.array(self._poses[0])
 
-    def route_finished(self, robot: int = 0) -> bool:
-        """True once robot ``robot``'s non-looping route has had its last waypoint reached."""
-        return self.waypoint_indices[robot] >= len(self._waypoints[robot])
-
     def step(self, dt: float) -> np.ndarray:
         """Drive every robot toward its current waypoint for ``dt`` seconds.
 
