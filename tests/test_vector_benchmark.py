@@ -15,9 +15,14 @@ import pytest
 from scipy import stats
 
 from infonav_gym.experiments import benchmark, startup_timing
-from infonav_gym.experiments.benchmark import env_step_figures, lower_is_better, memory_figures
+from infonav_gym.experiments.benchmark import (
+    env_step_figures,
+    lower_is_better,
+    memory_figures,
+    plot_throughput,
+    throughput_curves,
+)
 from infonav_gym.experiments.cli import main
-from infonav_gym.experiments.throughput_plot import plot_throughput, throughput_curves
 from infonav_gym.experiments.vector_timing import (
     VectorRun,
     check_vector_sizes,

@@ -426,8 +426,7 @@ def _train_rllib(args) -> dict:
 
 
 def _benchmark(args, command: str) -> dict:
-    from infonav_gym.experiments.benchmark import lower_is_better, run_benchmark
-    from infonav_gym.experiments.throughput_plot import plot_throughput
+    from infonav_gym.experiments.benchmark import lower_is_better, plot_throughput, run_benchmark
     from infonav_gym.rendering import require_extra
 
     plot = check_output_stem(args.plot, ("",), "--plot") if args.plot else None  # the file itself
