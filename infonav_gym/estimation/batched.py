@@ -20,7 +20,6 @@ import numpy as np
 
 from infonav_gym.compiled import contiguous, stacked
 from infonav_gym.estimation import kernels
-from infonav_gym.estimation.models import GPS_POSE_JACOBIAN
 from infonav_gym.estimation.state import POSE_DIM, _finite, _noise_covariance, _time_step
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import log_det_spd
@@ -308,20 +307,8 @@ def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bo
         has_fix = _mask("has_fix", has_fix, (len(x), n_robots))
         fixes = _finite("fixes", fixes, (len(x), n_robots, 2))
         noise_covariances = _noise_stack("noise_covariances", noise_covariances, (len(x), n_robots, 2, 2))
-    n_copies, n = np.shape(x)
-    H = np.repeat(_gps_jacobians(n // POSE_DIM)[None], n_copies, axis=0)
-    residual = fixes - np.reshape(x, (n_copies, -1, POSE_DIM))[..., :2]  # the fix minus H x, the robot's position
     R = stacked(noise_covariances, (*np.shape(fixes), 2))
-    return _update(x, P, residual, H, R, has_fix, n // POSE_DIM, cross_covariances)
-
-
-@functools.cache
-def _gps_jacobians(n_robots: int) -> np.ndarray:
-    """Each robot's position fix's Jacobian in the joint state (R, 2, 3R) (read only: shared)."""
-    blocks = np.broadcast_to(GPS_POSE_JACOBIAN, (1, n_robots, 2, POSE_DIM))
-    H = _slot_jacobians(np.arange(n_robots)[None], blocks, POSE_DIM * n_robots)[0]
-    H.flags.writeable = False
-    return H
+    return kernels.gps_updates(_floats(x), _floats(P), _floats(fixes), R, _floats(has_fix, bool), cross_covariances)
 
 
 def relative_pose_update(

@@ -289,6 +289,20 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
 
 
 @kernel
+def gps_updates(x, P, fixes, R, has_fix, cross_covariances):
+    """``kalman_updates`` of each robot's position fix (N, R, 2) where ``has_fix`` (N, R), noise ``R`` (N, R, 2, 2)."""
+    n_copies, n = x.shape
+    n_robots = n // POSE_DIM
+    residuals, H = np.empty((n_copies, n_robots, 2)), np.zeros((n_copies, n_robots, 2, n))
+    for c in range(n_copies):
+        for robot in range(n_robots):
+            for i in range(2):  # the fix minus H x, the robot's position
+                residuals[c, robot, i] = fixes[c, robot, i] - x[c, POSE_DIM * robot + i]
+                H[c, robot, i, POSE_DIM * robot + i] = 1.0
+    return kalman_updates(x, P, residuals, H, R, has_fix, n_robots, cross_covariances)
+
+
+@kernel
 def chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det):
     """The EKF update of each copy with its range-bearing measurement of its chosen candidate; the others unchanged.
 

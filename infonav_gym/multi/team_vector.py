@@ -75,6 +75,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._pair_index[pairs.observers, pairs.targets + 1] = np.arange(len(pairs.observers))
         self._has_gps, self._outages = gps_schedule(gps)
         self._gps = GPSSensor(self.config["gps_std_m"])  # every receiver's noise; the schedules are _outages
+        self._gps_covariance = self._gps.noise_covariance()
         self._cross_covariances = self.config.get("estimator", "joint") == "joint"  # a team env may drop them
         self._odometry = odometry
         self._odometry_covariances = np.repeat(odometry.noise_covariance()[None], n_robots, axis=0)
@@ -188,21 +189,21 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
                 f"actions of {self.owner_name} must be an integer array of shape ({self.num_envs}, {n_robots}), "
                 f"one per copy and robot, in [0, {top}]; got {array.dtype} of shape {array.shape}"
             )
-        outside = np.argwhere((array < 0) | (array > top))
-        if outside.size:
-            copy, robot = outside[0].tolist()
+        outside = (array < 0) | (array > top)
+        if outside.any():
+            copy, robot = np.argwhere(outside)[0].tolist()
             raise ValueError(
                 f"action {array[copy, robot]} of {self.agents[robot]} in sub-env {copy} is not in the action space "
                 f"{self.single_action_space}: expected an integer in [0, {top}]"
             )
-        return array.astype(int)
+        return array.astype(int, copy=False)
 
     def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each robot's executed action (the no-op for a masked one and in a resetting copy), and which were masked."""
         mask, noop = self._decision.action_mask, self.traits.noop_action
         valid = mask[self._slots + (actions,)].astype(bool)
         invalid = acting[:, None] & ~valid
-        for copy, robot in np.argwhere(invalid).tolist():
+        for copy, robot in np.argwhere(invalid).tolist() if invalid.any() else ():
             agent = self.agents[robot]
             # a PettingZoo view (one copy, ``_owner``) names the agent and where its infos give its mask
             key, where = (
@@ -248,18 +249,14 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         positions = self._worlds.poses[within, :, :2]
         available = self.gps_available(copies, positions, self._elapsed[within] * self.config["time_step_s"])
         self._gps_available[within] = available
-        fixing = np.flatnonzero(available.any(axis=1))
-        if not fixing.size:
+        if not available.any():
             return
-        if len(fixing) < len(copies):
-            copies, positions, available = copies[fixing], positions[fixing], available[fixing]
-        rows = self._rows(copies)
         fixes = self._gps.measure_with_noise(positions, self._noise[GPS_NOISE].take_many(copies, available))
-        self._x[rows], self._P[rows] = batched.gps_update(
-            self._x[rows],
-            self._P[rows],
+        self._x[within], self._P[within] = batched.gps_update(  # copies without a fix come back unchanged
+            self._x[within],
+            self._P[within],
             fixes,
-            self._gps.noise_covariance(),
+            self._gps_covariance,
             available,
             cross_covariances=self._cross_covariances,
             check_input=False,
