@@ -50,13 +50,17 @@ def scan_gains(ticks, radius_squared, variances, ends, noise_variances):
     """
     n_copies, n_scans = ends.shape[0], ends.shape[1]
     gains = np.zeros((n_copies, n_scans))
-    cells = np.empty(variances.shape[1], dtype=np.int64)
+    cells, terms = np.empty(variances.shape[1], dtype=np.int64), np.empty(variances.shape[1])
+    noise_of_term = np.full(variances.shape[1], np.nan)  # each cell's term is kept for scans of the same noise
     for copy in range(n_copies):
+        noise_of_term[:] = np.nan
         for scan in range(n_scans):
-            noise = noise_variances[copy, scan]
-            total = 0.0
+            noise, total = noise_variances[copy, scan], 0.0
             for k in range(footprint(ticks, radius_squared, ends[copy, scan, 0], ends[copy, scan, 1], cells)):
-                total += math.log1p(variances[copy, cells[k]] / noise)
+                cell = cells[k]
+                if noise_of_term[cell] != noise:
+                    terms[cell], noise_of_term[cell] = math.log1p(variances[copy, cell] / noise), noise
+                total += terms[cell]
             gains[copy, scan] = 0.5 * total
     return gains
 

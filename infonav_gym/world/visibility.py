@@ -168,9 +168,14 @@ class StaticGeometry:
         """
         if not margin_m >= 0.0:
             raise ValueError(f"StaticGeometry.grown: margin_m must be >= 0 [m], got {margin_m}")
-        return replace(
-            self, wall_radii=_read_only(self.wall_radii + margin_m), disc_radii=_read_only(self.disc_radii + margin_m)
-        )
+        if margin_m not in self._grown:  # kept: a grown geometry's boxes are computed once
+            radii = {name: _read_only(getattr(self, name) + margin_m) for name in ("wall_radii", "disc_radii")}
+            self._grown[margin_m] = replace(self, **radii)
+        return self._grown[margin_m]
+
+    @functools.cached_property
+    def _grown(self) -> dict:
+        return {}
 
     @property
     def n_copies(self) -> int:
