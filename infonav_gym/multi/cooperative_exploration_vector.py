@@ -22,7 +22,6 @@ from infonav_gym.envs.metrics import EXPLORATION_METRICS
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.information import largest_position_std
 from infonav_gym.multi.exploration_decision import (
     EXPLORATION_INFO_KEYS,
     ExplorationDecision,
@@ -30,6 +29,7 @@ from infonav_gym.multi.exploration_decision import (
     TeamSight,
     exploration_info,
     landmark_gains,
+    range_bearing_noise,
 )
 from infonav_gym.multi.exploration_planning import (
     N_MOTIONS,
@@ -255,7 +255,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         self._drive(copies, *plan)
         self._elapsed[copies] += 1
         self._gps_fixes(copies)
-        position_std = self._position_std(copies)
+        position_std = ExplorationPlanningModel.position_std(self._P[copies])
         map_information = self._scan(copies, motions != STAY, position_std)
         lost = position_std > cfg["max_position_std_m"]
         self._lost[copies] = lost
@@ -291,7 +291,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         poses = self._x[observers].reshape(-1, POSE_DIM)
         predicted, H = batched.landmark_measurement_model(poses, positions.reshape(-1, 1, 2), check_input=False)
         predicted = predicted.reshape(*observed.shape, 2)
-        R = self._sight.landmark_noise(predicted[..., None, :])[..., 0, :, :]
+        R = range_bearing_noise(self._sight.noise_stds[:, None], predicted[..., None, :])[..., 0, :, :]
         noise = self._noise[LANDMARK_NOISE].take_many(observers, observed)
         measurements = self._sight.landmark_measurements(self._worlds.poses[observers], positions, noise)
         robots = np.broadcast_to(np.arange(observed.shape[1]), observed.shape)
@@ -316,12 +316,6 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         driving = np.stack([speeds, np.zeros_like(turns)], axis=-1)
         for phase_s, commands in ((turn_s, turning), (cfg["time_step_s"] - turn_s, driving)):
             self._predict(copies, self._worlds.step(phase_s, copies, commands), phase_s)
-
-    def _position_std(self, copies) -> np.ndarray:
-        """Each robot's largest position std of ``copies`` (n, R) [m]."""
-        n_robots = len(self.agents)
-        own = batched.pose_blocks(self._P[copies])[:, np.arange(n_robots), np.arange(n_robots)]
-        return largest_position_std(own.reshape(-1, POSE_DIM, POSE_DIM)).reshape(len(copies), n_robots)
 
     def _scan(self, copies: np.ndarray, scanning: np.ndarray, position_std: np.ndarray) -> np.ndarray:
         """Fuse the scans of the ``scanning`` robots (n, R) of ``copies`` from their true positions; the map
@@ -351,7 +345,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         valid &= budget_left[:, self._pairs.observers]
         team = TeamDecision.at_prior(self._pairs, pair_geometry, valid, x, P, 0.0)  # the gains: own-pose MI
         landmark_valid = sight.visible_landmarks(self._geometry, true_poses, self._landmarks) & budget_left[..., None]
-        gains_of_landmarks = landmark_gains(x, P, self._landmarks, sight.landmark_noise)
+        gains_of_landmarks = landmark_gains(x, P, self._landmarks, sight.noise_stds)
         slot_valid = np.concatenate(
             [np.ones((n_copies, n_robots, 1), dtype=bool), landmark_valid, team.action_mask[..., 1:].astype(bool)],
             axis=-1,
@@ -359,7 +353,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         observation_gain = np.concatenate(
             [np.zeros((n_copies, n_robots, 1)), gains_of_landmarks, team.action_information_gain[..., 1:]], axis=-1
         )
-        position_std = self._position_std(np.arange(n_copies))
+        position_std = ExplorationPlanningModel.position_std(P)
         drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
         positions = x.reshape(n_copies, n_robots, POSE_DIM)[..., :2]
         speeds, radius_m = self.parts.speeds_mps, self._worlds.robot_radius_m

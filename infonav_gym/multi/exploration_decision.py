@@ -7,19 +7,23 @@ and gains are (N, R, 1 + L + R, 5) flattened to (N, R, 5 (1 + L + R)).
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 
-from infonav_gym.envs.active_transition import ranges_and_bearings
-from infonav_gym.estimation import batched
+from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.estimation import batched, kernels
+from infonav_gym.estimation.kernels import range_bearing_of_offset
 from infonav_gym.estimation.state import POSE_DIM
+from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.multi.team_decision import (
     TeamDecision,
     team_step_info,
     with_masks,
 )
-from infonav_gym.world.visibility import StaticGeometry, segments_clear
+from infonav_gym.world.visibility import StaticGeometry, shape_arrays
+from infonav_gym.world.visibility_kernels import blocked
 
 EXPLORATION_INFO_KEYS = frozenset(
     {"gps_available", "pose_std", "position_std_m", "pose_entropy", "position_error_m", "heading_error_rad"}
@@ -41,32 +45,13 @@ class TeamSight(NamedTuple):
 
         In the range-bearing sensor's range and field of view, with a clear line of sight.
         """
-        n_copies, n_robots = true_poses.shape[:2]
-        seen = ranges_and_bearings(true_poses.reshape(-1, POSE_DIM), np.repeat(landmarks, n_robots, axis=0))
-        seen = seen.reshape(n_copies, n_robots, -1, 2)
-        covered = np.zeros(seen.shape[:3], dtype=bool)
-        for robot, sensor in enumerate(self.sensors):
-            if sensor is not None:
-                in_range = sensor.range_bearing.in_coverage(seen[:, robot].reshape(-1, 2))
-                covered[:, robot] = in_range.reshape(n_copies, -1)
-        copy, robot, landmark = np.nonzero(covered)
-        covered[copy, robot, landmark] = segments_clear(
-            geometry, copy, true_poses[copy, robot, :2], landmarks[copy, landmark]
-        )
-        return covered
+        reach = [(-1.0, -1.0) if s is None else (s.max_range_m, 0.5 * s.range_bearing.fov_rad) for s in self.sensors]
+        return landmark_sight(contiguous(true_poses), contiguous(landmarks), np.array(reach), *shape_arrays(geometry))
 
-    def landmark_noise(self, predicted) -> np.ndarray:
-        """Each robot's range-bearing noise (..., R, K, 2, 2) at its predicted measurements (..., R, K, 2).
-
-        The identity for a robot without a sensor (it observes nothing).
-        """
-        R = np.broadcast_to(np.eye(2), (*predicted.shape, 2)).copy()
-        for robot, sensor in enumerate(self.sensors):
-            if sensor is not None:
-                ranges = predicted[..., robot, :, 0]
-                noise = sensor.range_bearing.noise_covariance(ranges.ravel())
-                R[..., robot, :, :, :] = noise.reshape(*ranges.shape, 2, 2)
-        return R
+    @property
+    def noise_stds(self) -> np.ndarray:
+        """Each robot's ``RangeBearingSensor.noise_stds`` (R, 3); unit noise ``(1, 0, 1)`` without a sensor."""
+        return np.array([(1.0, 0.0, 1.0) if s is None else s.range_bearing.noise_stds for s in self.sensors])
 
     def landmark_measurements(self, true_poses, positions, noise) -> np.ndarray:
         """Noisy range-bearing (n, R, 2) of ``positions`` (n, R, 2) seen from ``true_poses`` (n, R, 3) by each robot's
@@ -77,6 +62,15 @@ class TeamSight(NamedTuple):
                 rb = sensor.range_bearing
                 measured[:, robot] = rb.measure_with_noise(true_poses[:, robot], positions[:, robot], noise[:, robot])
         return measured
+
+
+def range_bearing_noise(noise_stds, predicted) -> np.ndarray:
+    """The noise covariances (..., K, 2, 2) at predicted measurements (..., K, 2) of sensors of ``noise_stds``
+    (..., 1, 3) (``RangeBearingSensor.noise_stds``), as ``noise_covariances`` gives them."""
+    R = np.zeros((*predicted.shape, 2))
+    range_std = noise_stds[..., 0] + noise_stds[..., 1] * predicted[..., 0]
+    R[..., 0, 0], R[..., 1, 1] = range_std * range_std, noise_stds[..., 2] * noise_stds[..., 2]
+    return R
 
 
 class ExplorationDecision(NamedTuple):
@@ -97,20 +91,55 @@ class ExplorationDecision(NamedTuple):
     position_std: np.ndarray
 
 
-def landmark_gains(x, P, landmarks, noise_of) -> np.ndarray:
-    """Expected MI [nats] of each robot observing each landmark alone at the prior (N, R, L).
+@kernel
+def landmark_sight(true_poses, landmarks, reach, walls, discs, culled):
+    """``TeamSight.visible_landmarks`` of each robot's range [m] and half field of view [rad] ``reach`` (R, 2)."""
+    n_copies, n_robots, n_landmarks = true_poses.shape[0], true_poses.shape[1], landmarks.shape[1]
+    covered = np.zeros((n_copies, n_robots, n_landmarks), dtype=np.bool_)
+    for c in range(n_copies):
+        for robot in range(n_robots):
+            x, y, heading = true_poses[c, robot, 0], true_poses[c, robot, 1], true_poses[c, robot, 2]
+            for k in range(n_landmarks):
+                dx, dy = landmarks[c, k, 0] - x, landmarks[c, k, 1] - y
+                in_range = math.hypot(dx, dy) <= reach[robot, 0]
+                covered[c, robot, k] = in_range and abs(wrap(math.atan2(dy, dx) - heading)) <= reach[robot, 1]
+    copies, robots, seen = np.nonzero(covered)
+    starts, ends = np.empty((len(copies), 2)), np.empty((len(copies), 2))
+    for m in range(len(copies)):
+        starts[m], ends[m] = true_poses[copies[m], robots[m], :2], landmarks[copies[m], seen[m]]
+    hit = blocked(copies, starts, ends, walls, discs, culled)
+    for m in range(len(copies)):
+        covered[copies[m], robots[m], seen[m]] = not hit[m]
+    return covered
 
-    Args:
-        x, P: the joint EKF states (N, 3R) and covariances (N, 3R, 3R).
-        landmarks: each copy's landmarks (N, L, 2) [m].
-        noise_of: ``TeamSight.landmark_noise``.
-    """
-    n_copies, n_robots = len(x), x.shape[1] // POSE_DIM
-    poses = x.reshape(-1, POSE_DIM)
-    predicted, H = batched.landmark_measurement_model(poses, np.repeat(landmarks, n_robots, axis=0), check_input=False)
-    R = noise_of(predicted.reshape(n_copies, n_robots, -1, 2)).reshape(len(poses), -1, 2, 2)
-    own = batched.pose_blocks(P)[:, np.arange(n_robots), np.arange(n_robots)].reshape(-1, POSE_DIM, POSE_DIM)
-    return batched.landmark_information_gains(own, H, R, check_input=False).reshape(n_copies, n_robots, -1)
+
+def landmark_gains(x, P, landmarks, noise_stds) -> np.ndarray:
+    """Expected MI [nats] of each robot (``TeamSight.noise_stds``) observing each landmark (N, L, 2) [m] alone at the
+    prior ``x`` (N, 3R), ``P`` (N, 3R, 3R): (N, R, L); ``ValueError`` where it is undefined."""
+    gains, coincident = robot_landmark_gains(contiguous(x), contiguous(P), contiguous(landmarks), noise_stds)
+    if coincident or np.isnan(gains).any():
+        raise ValueError(f"{batched.COINCIDENT}, or an innovation covariance is not positive definite")
+    return gains
+
+
+@kernel
+def robot_landmark_gains(x, P, landmarks, noise_stds):
+    """``kernels.landmark_gains`` of each robot's range-bearing to each landmark (``range_bearing_of_offset``, noise as
+    ``noise_covariances``) on its pose block (N, R, L), and whether a landmark lies on a robot's estimate."""
+    n_copies, n_robots, n_landmarks = x.shape[0], x.shape[1] // POSE_DIM, landmarks.shape[1]
+    blocks, predicted = np.empty((n_copies * n_robots, POSE_DIM, POSE_DIM)), np.empty(2)
+    H, R = np.zeros((len(blocks), n_landmarks, 2, POSE_DIM)), np.zeros((len(blocks), n_landmarks, 2, 2))
+    coincident = False
+    for c in range(n_copies):
+        for robot in range(n_robots):
+            row, pose = c * n_robots + robot, POSE_DIM * robot
+            blocks[row] = P[c, pose : pose + POSE_DIM, pose : pose + POSE_DIM]
+            for k in range(n_landmarks):
+                dx, dy = landmarks[c, k, 0] - x[c, pose], landmarks[c, k, 1] - x[c, pose + 1]
+                coincident |= not range_bearing_of_offset(dx, dy, x[c, pose + 2], predicted, H[row, k])
+                range_std = noise_stds[robot, 0] + noise_stds[robot, 1] * predicted[0]
+                R[row, k, 0, 0], R[row, k, 1, 1] = range_std * range_std, noise_stds[robot, 2] * noise_stds[robot, 2]
+    return kernels.landmark_gains(blocks, H, R).reshape(n_copies, n_robots, n_landmarks), coincident
 
 
 class ExplorationStep(NamedTuple):

@@ -21,10 +21,10 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std
+from infonav_gym.multi.exploration_decision import TeamSight, landmark_gains, range_bearing_noise
 from infonav_gym.multi.team_decision import observable_pairs
 from infonav_gym.sensors.relative_pose import noise_covariances
 from infonav_gym.world.clearance import clear_moves
-from infonav_gym.world.visibility import visible
 
 MOTION_NAMES = ("stay", "east", "north", "west", "south")
 MOTION_HEADINGS_RAD = np.array([0.0, 0.0, math.pi / 2, math.pi, -math.pi / 2])  # "stay" does not drive
@@ -157,6 +157,7 @@ class ExplorationPlanningModel:
     def __init__(self, env, copy: int = 0):
         self._env, self._copy = env, copy
         self._parts = parts = env.parts
+        self._sight = TeamSight(tuple(parts.relative_sensors))
         n_robots = len(parts.gps)
         self._pair_lookup = np.full((n_robots, n_robots), -1)  # the pair index of (observer, target), -1 for none
         self._pair_lookup[parts.pairs.observers, parts.pairs.targets] = np.arange(len(parts.pairs.observers))
@@ -218,12 +219,9 @@ class ExplorationPlanningModel:
         slot_valid[:, 1 : 1 + n_landmarks] = belief.landmark_visible[:, robot] & observable[:, None]
         observation_gain = np.zeros((B, n_slots))
         if n_landmarks and parts.relative_sensors[robot] is not None:
-            block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
             landmarks = np.broadcast_to(self._landmarks(), (B, n_landmarks, 2))
-            _, H, R = self._plan_landmark_models(poses[:, robot], landmarks, robot)
-            observation_gain[:, 1 : 1 + n_landmarks] = batched.landmark_information_gains(
-                belief.covariance[:, block, block], H, R, check_input=False
-            )
+            gains = landmark_gains(belief.x, belief.covariance, landmarks, self._sight.noise_stds)
+            observation_gain[:, 1 : 1 + n_landmarks] = gains[:, robot]
         own_pairs = np.flatnonzero(pairs.observers == robot)
         if own_pairs.size:
             slots = 1 + n_landmarks + pairs.targets[own_pairs]
@@ -307,15 +305,8 @@ class ExplorationPlanningModel:
         """A ``TeamBelief`` with what each robot would see judged from the estimates ``x`` (B, 3R)."""
         B, n_landmarks = len(x), self.config["n_landmarks"]
         poses = x.reshape(B, -1, POSE_DIM)
-        n_robots = poses.shape[1]
-        landmark_visible = np.zeros((B, n_robots, n_landmarks), dtype=bool)
-        sensors = [None if sensor is None else sensor.range_bearing for sensor in self._parts.relative_sensors]
-        for sensor in {sensor for sensor in sensors if sensor is not None} if n_landmarks else ():
-            robots = [robot for robot, other in enumerate(sensors) if other == sensor]  # one query per sensor
-            seen = poses[:, robots].reshape(-1, POSE_DIM)
-            landmarks = np.broadcast_to(self._landmarks(), (len(seen), n_landmarks, 2))
-            seen_landmarks = visible(self._tiled_geometry(len(seen)), sensor, seen, landmarks, check_input=False)
-            landmark_visible[:, robots] = seen_landmarks.reshape(B, len(robots), n_landmarks)
+        landmarks = np.broadcast_to(self._landmarks(), (B, n_landmarks, 2))
+        landmark_visible = self._sight.visible_landmarks(self._tiled_geometry(B), poses, landmarks)
         pairs = self._parts.pairs
         pair_visible = observable_pairs(pairs, self._tiled_geometry(B), poses)[1]
         radius_m = self._env.robot_radius_m
@@ -340,19 +331,6 @@ class ExplorationPlanningModel:
             tiled = self._tiled[1][n_copies] = geometry.tiled(n_copies)
         return tiled
 
-    def _plan_landmark_models(self, poses, landmarks, robots):
-        """``(predicted (M, K, 2), H (M, K, 2, 3), R (M, K, 2, 2))`` of ``robots[m]`` (or one robot) at the
-        estimated ``poses[m]`` (M, 3) seeing each of ``landmarks[m]`` (M, K, 2)."""
-        predicted, H = batched.landmark_measurement_model(poses, landmarks, check_input=False)
-        R = np.empty((*predicted.shape, 2))
-        robots = np.broadcast_to(robots, len(poses))
-        for robot in np.unique(robots).tolist():
-            rows = robots == robot
-            ranges = predicted[rows, :, 0]
-            noise = self._parts.relative_sensors[robot].range_bearing.noise_covariance(ranges.ravel())
-            R[rows] = noise.reshape(*ranges.shape, 2, 2)
-        return predicted, H, R
-
     def _pair_noise(self, pairs: np.ndarray, ranges: np.ndarray) -> np.ndarray:
         """Noise covariances (..., 3, 3) of the relative poses of ``pairs`` (``SensingPairs`` rows) at ``ranges``."""
         noise = self._parts.pairs.noise[pairs].reshape(-1, 5)
@@ -373,7 +351,8 @@ class ExplorationPlanningModel:
         copies, robots = np.nonzero(sees_landmark)
         if copies.size:
             seen = self._landmarks()[landmarks[copies, robots]][:, None]
-            _, H_pose, R_pose = self._plan_landmark_models(poses[copies, robots], seen, robots)
+            predicted, H_pose = batched.landmark_measurement_model(poses[copies, robots], seen, check_input=False)
+            R_pose = range_bearing_noise(self._sight.noise_stds[robots][:, None], predicted)
             rows = (copies[:, None, None], robots[:, None, None], np.arange(2)[None, :, None])
             H[(*rows, POSE_DIM * robots[:, None, None] + pose_columns)] = H_pose[:, 0]
             R[copies, robots, :2, :2] = R_pose[:, 0]

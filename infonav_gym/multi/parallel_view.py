@@ -52,26 +52,19 @@ def pettingzoo_entry_points(env_class) -> tuple:
 def first_copy_infos(info: dict, agents: list[str], team_keys) -> dict:
     """Copy 0's ``{agent: info}`` from a team vector env's info: row ``(0, robot)`` of each key (``team_keys``: row
     0), one-number values as Python scalars, nested dicts alike; ``_key`` masks left out."""
-    return dict(zip(agents, _per_robot(_first_copy_columns(info, len(agents), team_keys), len(agents))))
-
-
-def _first_copy_columns(info: dict, n_robots: int, team_keys) -> dict[str, list]:
-    """Each key's values of copy 0, one per robot."""
-    columns = {}
+    infos = {agent: {} for agent in agents}
     for key, value in info.items():
         if key[0] == "_":
             continue
         if type(value) is dict:
-            columns[key] = _per_robot(_first_copy_columns(value, n_robots, ()), n_robots)
+            column = first_copy_infos(value, agents, ()).values()
         elif key in team_keys:
-            columns[key] = [value.item(0) if value.ndim == 1 else value[0]] * n_robots
+            column = [value.item(0) if value.ndim == 1 else value[0]] * len(agents)
         else:  # (N, R) numbers become Python scalars; (N, R, ...) arrays one row per robot
-            columns[key] = value[0].tolist() if value.ndim == 2 else list(value[0])
-    return columns
-
-
-def _per_robot(columns: dict[str, list], n_robots: int) -> list[dict]:
-    return [{key: column[robot] for key, column in columns.items()} for robot in range(n_robots)]
+            column = value[0].tolist() if value.ndim == 2 else value[0]
+        for agent_info, item in zip(infos.values(), column):
+            agent_info[key] = item
+    return infos
 
 
 class ParallelEnvView(OneCopyView, ParallelEnv):

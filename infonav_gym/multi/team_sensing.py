@@ -48,10 +48,6 @@ class SensingPairs(NamedTuple):
             sight_line=np.array([sight_lines.index((min(i, j), max(i, j))) for i, j in pairs], dtype=int),
         )
 
-    def covered(self, geometry: np.ndarray) -> np.ndarray:
-        """Which pairs' true ``[range, bearing, ...]`` (..., P, 3) lie in the observer's range and field of view."""
-        return (geometry[..., 0] <= self.max_range_m) & (np.abs(geometry[..., 1]) <= self.half_fov_rad)
-
 
 def team_prior(config: dict, true_poses: np.ndarray, np_random: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """The ``JointEKF`` prior: estimates drawn around the true poses (R, 3), and their covariances (R, 3, 3).
