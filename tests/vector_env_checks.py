@@ -366,10 +366,22 @@ def check_autoreset_disabled(env_id: str, horizon: int = 3, **config) -> None:
     np.testing.assert_array_equal(info["time_s"], 0.0)
 
 
+def _recording(reserve, draws: list):
+    """``NoiseStreams.reserve`` that records the draw copy 0 takes next (if it takes one)."""
+
+    def recorded(*args):
+        blocks, next_draw = reserve(*args)
+        draws.append(blocks[0, next_draw[0]].copy())
+        return blocks, next_draw
+
+    return recorded
+
+
 def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, seed: int, n_steps: int, **config):
     """Along a whole episode of ``gym.make(env_id)`` (written once: its ``vector`` copy), its EKF equals filterpy's
     ``PoseEKF`` fed the same prior, odometry readings and measurements (x within 1e-12, P within 1e-10; the
-    measurements made by ``RangeBearingSensor.measure_with_noise`` from the env's noise draws), and each
+    readings made by ``OdometrySensor.measure_with_noise`` from the world's executed controls, the measurements by
+    ``RangeBearingSensor.measure_with_noise``, both with the env's noise draws), and each
     update's ``reward_terms["mutual_information"]`` is that update's MI.
 
     Args:
@@ -383,7 +395,7 @@ def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, s
     Returns:
         How many updates the episode had.
     """
-    priors, readings, draws = [], [], []
+    priors, draws = [], []
     start_episode = env_module.start_episode
 
     def recorded_start(*args):
@@ -395,12 +407,12 @@ def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, s
     env = gym.make(env_id, horizon=n_steps, **config).unwrapped
     vector = env.vector
     sensor, odometry = vector.sensor, vector._odometry
-    measure = odometry.measure_with_noise
-    monkeypatch.setattr(
-        type(odometry), "measure_with_noise", lambda _, *args, m=measure: readings.append(m(*args)) or readings[-1]
-    )
-    take = vector._measurement_noise.take  # the measurement's standard normals: the sensor measures with them below
-    monkeypatch.setattr(vector._measurement_noise, "take", lambda copies: draws.append(take(copies)) or draws[-1])
+    controls, odometry_draws = [], []
+    world_step = vector._worlds.step  # the executed controls, and below the noise draws the odometry reads them with
+    monkeypatch.setattr(vector._worlds, "step", lambda *args: controls.append(world_step(*args)) or controls[-1])
+    monkeypatch.setattr(vector._odometry_noise, "reserve", _recording(vector._odometry_noise.reserve, odometry_draws))
+    # the measurement's standard normals: the sensor measures with them below
+    monkeypatch.setattr(vector._measurement_noise, "reserve", _recording(vector._measurement_noise.reserve, draws))
     _, info = env.reset(seed=seed)
     ekf, rng, dt = PoseEKF(*priors[-1]), np.random.default_rng(seed), env.config["time_step_s"]
     landmarks = None if config.get("mapping") else vector.scenario(0).landmarks
@@ -416,13 +428,14 @@ def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, s
             predicted, H = ekf.landmark_measurement_model(landmarks)
             R = sensor.noise_covariance(predicted[landmark : landmark + 1, 0])[0]
             true_landmark = vector.scenario(0).landmarks[landmark]
-            measurement = sensor.measure_with_noise(true_pose[None], true_landmark[None], draws[-1])[0]
+            measurement = sensor.measure_with_noise(true_pose[None], true_landmark[None], draws[-1][None])[0]
             ekf.update_range_bearing(measurement, predicted[landmark], H[landmark], R)
             realized = info["reward_terms"]["mutual_information"]
             assert realized == pytest.approx(mutual_information(prior_P, ekf.P), abs=1e-10)
             n_observed += 1
-        ekf.predict(readings[-1][0], dt, odometry.noise_covariance())
+        reading = odometry.measure_with_noise(controls[-1][0, 0], odometry_draws[-1])
+        ekf.predict(reading, dt, odometry.noise_covariance())
         np.testing.assert_allclose(vector._x[0], ekf.x, rtol=0, atol=1e-12)
         np.testing.assert_allclose(vector._P[0], ekf.P, rtol=0, atol=1e-10)
-    assert len(readings) == n_steps
+    assert len(controls) == n_steps
     return n_observed

@@ -12,6 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.envs.noise_streams import NoiseStreams, taken
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import (
     chosen_landmark_updates,
@@ -82,24 +83,26 @@ class LandmarkDecision(NamedTuple):
         return cls(*decision, gaussian_entropy_from_log_det(pose_log_det, POSE_DIM))
 
     def observe(
-        self, x, P, chosen, true_poses, landmarks, noise, noise_stds
+        self, x, P, chosen, true_poses, landmarks, noise: NoiseStreams, noise_stds
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Update each copy's EKF prior ``(x, P)`` with a noisy range-bearing measurement of its chosen landmark.
 
         Args:
             x, P: the priors (N, n), (N, n, n) at which this decision was made.
-            chosen: each copy's landmark (N,), -1 for none.
+            chosen: each copy's landmark (N,) int64, -1 for none.
             true_poses: the poses the measurements are taken from (N, 3).
             landmarks: the true landmark positions (N, K, 2).
-            noise: each observing copy's two standard normals (N, 2) (``RangeBearingSensor.measure_with_noise``).
+            noise: the copies' measurement noise: each observing copy takes its next draw of two standard normals
+                (``RangeBearingSensor.measure_with_noise``).
             noise_stds: the sensor's ``noise_stds``.
 
         Returns:
             ``(x, P, realized MI (N,) [nats])``, 0 for a copy without a measurement.
         """
-        floats = (contiguous(np.asarray(array, dtype=float)) for array in (x, P, true_poses, landmarks, noise))
-        x, P, realized = measured_updates(
+        floats = (contiguous(array) for array in (x, P, true_poses, landmarks))
+        *updated, not_positive_definite = measured_updates(
             *floats,
+            *noise.reserve(),
             contiguous(np.asarray(chosen, dtype=np.int64)),
             noise_stds,
             self.predicted,
@@ -107,24 +110,32 @@ class LandmarkDecision(NamedTuple):
             self.R,
             self.prior_log_det,
         )
-        if np.isnan(realized.sum()):
+        if not_positive_definite:
             raise ValueError("the posterior covariance is not positive definite (determinant <= 0)")
-        return x, P, realized
+        return tuple(updated)
 
 
 @kernel
-def measured_updates(x, P, true_poses, landmarks, noise, chosen, noise_stds, predicted, H, R, prior_log_det):
+def measured_updates(
+    x, P, true_poses, landmarks, blocks, next_draw, chosen, noise_stds, predicted, H, R, prior_log_det
+):
     """``LandmarkDecision.observe``: each chosen landmark's noisy ``[range, bearing]`` from its copy's true pose
-    (``RangeBearingSensor.measure_with_noise`` given ``noise``), then ``chosen_landmark_updates``."""
+    (``RangeBearingSensor.measure_with_noise`` given its copy's next draw of ``blocks``, ``NoiseStreams.reserve``'s),
+    then ``chosen_landmark_updates``; and whether a posterior is not positive definite."""
     measurements = np.zeros((len(chosen), 2))
     for c in range(len(chosen)):
         k = chosen[c]
         if k >= 0:
+            noise = taken(blocks, next_draw, c)
             dx, dy = landmarks[c, k, 0] - true_poses[c, 0], landmarks[c, k, 1] - true_poses[c, 1]
             distance = math.hypot(dx, dy)
-            measurements[c, 0] = distance + (noise_stds[0] + noise_stds[1] * distance) * noise[c, 0]
-            measurements[c, 1] = wrap(math.atan2(dy, dx) - true_poses[c, 2] + noise_stds[2] * noise[c, 1])
-    return chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det)
+            measurements[c, 0] = distance + (noise_stds[0] + noise_stds[1] * distance) * noise[0]
+            measurements[c, 1] = wrap(math.atan2(dy, dx) - true_poses[c, 2] + noise_stds[2] * noise[1])
+    x, P, realized = chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det)
+    not_positive_definite = False
+    for c in range(len(chosen)):
+        not_positive_definite |= math.isnan(realized[c])
+    return x, P, realized, not_positive_definite
 
 
 @kernel

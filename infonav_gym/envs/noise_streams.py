@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from infonav_gym.compiled import kernel
+from infonav_gym.compiled import inline, kernel
 
 BLOCK_DRAWS = 64  # draws of ``width`` numbers fetched per copy at a time
 
@@ -28,33 +28,40 @@ class NoiseStreams:
         self._generators: list[np.random.Generator | None] = [None] * n_copies
         self._blocks = np.zeros((n_copies, block_draws, width))
         self._next = np.full(n_copies, block_draws)
+        self._unused = 0  # draws every copy surely has left in its block
 
     def restart(self, copy: int, generator: np.random.Generator) -> None:
         """Give copy ``copy`` a new stream: a generator that serves only it (numbers are drawn ahead of use)."""
         self._generators[copy] = generator
         self._next[copy] = self._blocks.shape[1]
+        self._unused = 0
 
-    def take(self, copies: np.ndarray) -> np.ndarray:
-        """The next draw of each of ``copies`` (n, width), distinct copies; exhausted blocks are refilled first.
+    def reserve(self, draws: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """``(blocks, next_draw)`` with ``draws`` (<= the block) unused draws in every copy's block: a kernel takes
+        up to that many per copy with ``taken`` (copy ``c``'s next draw is ``blocks[c, next_draw[c]]``).
 
         Raises:
             RuntimeError: for a copy that has no stream yet (``restart`` it first).
         """
-        self._refill(copies[self._next[copies] >= self._blocks.shape[1]])
-        draws = self._blocks[copies, self._next[copies]]
-        self._next[copies] += 1
+        if self._unused < draws:
+            block_draws = self._blocks.shape[1]
+            self._refill(np.flatnonzero(self._next + draws > block_draws))
+            self._unused = block_draws - int(self._next.max())
+        self._unused -= draws
+        return self._blocks, self._next
+
+    def take(self, copies: np.ndarray) -> np.ndarray:
+        """The next draw of each of ``copies`` (n, width), distinct copies (see ``reserve``)."""
+        blocks, next_draw = self.reserve()
+        draws = blocks[copies, next_draw[copies]]
+        next_draw[copies] += 1
         return draws
 
     def take_many(self, copies: np.ndarray, used: np.ndarray) -> np.ndarray:
         """The next draw of each ``used`` slot (n, M) of ``copies`` (distinct), in slot order: (n, M, width), zeros
         where not used. What a copy's single env draws in one ``standard_normal((k, width))`` call for its k used
-        slots, or in k calls of ``width`` in slot order (at most a block's draws per copy).
-
-        Raises:
-            RuntimeError: for a copy that has no stream yet (``restart`` it first).
-        """
-        self._refill(copies[self._next[copies] + used.sum(axis=1) > self._blocks.shape[1]])
-        return slot_draws(self._blocks, self._next, copies, used)
+        slots, or in k calls of ``width`` in slot order (M at most a block's draws; see ``reserve``)."""
+        return slot_draws(*self.reserve(used.shape[1]), copies, used)
 
     def _refill(self, copies: np.ndarray) -> None:
         """Move each copy's unused draws to the front of its block and fill the rest from its generator."""
@@ -76,6 +83,13 @@ def slot_draws(blocks, next_draw, copies, used):
     for k in range(len(copies)):
         for slot in range(used.shape[1]):
             if used[k, slot]:
-                draws[k, slot] = blocks[copies[k], next_draw[copies[k]]]
-                next_draw[copies[k]] += 1
+                draws[k, slot] = taken(blocks, next_draw, copies[k])
     return draws
+
+
+@inline
+def taken(blocks, next_draw, copy):
+    """Copy ``copy``'s next draw (width,) of a ``NoiseStreams.reserve``d stream, in a kernel; its stream moves on."""
+    row = next_draw[copy]
+    next_draw[copy] = row + 1
+    return blocks[copy, row]

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from infonav_gym.compiled import contiguous, stacked
+from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.landmark_decision import LandmarkDecision
-from infonav_gym.envs.noise_streams import NoiseStreams
+from infonav_gym.envs.noise_streams import NoiseStreams, taken
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.estimation.kernels import predict_poses
 from infonav_gym.estimation.state import POSE_DIM
@@ -31,6 +31,7 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
         self._sensor, self._odometry = self._parts()
         self._odometry_covariance = self._odometry.noise_covariance()
         self._odometry_covariances = stacked(self._odometry_covariance, (num_envs, 1, 2, 2))  # what the kernel takes
+        self._odometry_stds = float(self._odometry.speed_std_mps), float(self._odometry.turn_rate_std_rps)
         self._worlds = WorldBatch(num_envs)
         self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
         self._true_path = self._estimated_path = None  # copy 0's, when drawing
@@ -61,21 +62,25 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
     def _moved(self, copies: np.ndarray, x: np.ndarray, P: np.ndarray, commands=None):
         """Drive the robots of ``copies`` one step (``commands`` (n, 2) or their routes); their predicted ``(x, P)``
         (``PoseEKF.predict`` from the noisy odometry, on the compiled core)."""
-        dt = self.config["time_step_s"]
-        controls = self._worlds.step(dt, copies, None if commands is None else commands[:, None])[:, 0]
-        readings = self._odometry.measure_with_noise(controls, self._odometry_noise.take(copies))
-        x, P = (contiguous(np.asarray(array, dtype=float)) for array in (x, P))
-        return predict_poses(x, P, readings[:, None], float(dt), self._odometry_covariances[: len(copies)])
+        dt = float(self.config["time_step_s"])
+        controls = self._worlds.step(dt, copies, None if commands is None else commands[:, None])
+        return predicted_from_odometry(
+            contiguous(x),
+            contiguous(P),
+            controls,
+            copies,
+            *self._odometry_noise.reserve(),
+            self._odometry_stds,
+            dt,
+            self._odometry_covariances[: len(copies)],
+        )
 
     def _measured(self, decision: LandmarkDecision, chosen: np.ndarray):
         """Each copy's EKF updated at ``decision`` with a noisy measurement of its chosen landmark (N,), -1: none
         (taken from its true pose now, its noise from its own stream); ``(x, P, realized MI (N,) [nats])``."""
-        noise = np.zeros((self.num_envs, 2))
-        observers = np.flatnonzero(chosen >= 0)
-        if observers.size:
-            noise[observers] = self._measurement_noise.take(observers)
         true_poses = self._worlds.poses[:, 0]
-        return decision.observe(self._x, self._P, chosen, true_poses, self._landmarks, noise, self._sensor.noise_stds)
+        noise, stds = self._measurement_noise, self._sensor.noise_stds
+        return decision.observe(self._x, self._P, chosen, true_poses, self._landmarks, noise, stds)
 
     def _track_first_copy(self, copies: np.ndarray, stepped: np.ndarray) -> None:
         """When drawing: extend copy 0's true and estimated paths if it is among ``copies`` and stepped, else start
@@ -98,3 +103,16 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
             true_path=self._true_path.points(),
             estimated_path=self._estimated_path.points(),
         )
+
+
+@kernel
+def predicted_from_odometry(x, P, controls, copies, blocks, next_draw, odometry_stds, dt, covariances):
+    """``predict_poses`` of ``copies`` from their robots' odometry readings: the executed ``controls`` (n, 1, 2) plus
+    each copy's next draw of ``blocks`` (``NoiseStreams.reserve``'s) times ``odometry_stds``, as
+    ``OdometrySensor.measure_with_noise`` reads them."""
+    readings = np.empty(controls.shape)
+    for row in range(len(copies)):
+        noise = taken(blocks, next_draw, copies[row])
+        for i in range(2):
+            readings[row, 0, i] = controls[row, 0, i] + noise[i] * odometry_stds[i]
+    return predict_poses(x, P, readings, dt, covariances)
