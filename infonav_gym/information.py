@@ -151,6 +151,9 @@ def gaussian_entropy_from_log_det(log_det: float, dimension: int) -> float:
     return 0.5 * (dimension * _LOG_2PI_E + log_det)
 
 
+gaussian_entropy_kernel = inner_kernel(gaussian_entropy_from_log_det)  # the same formula, for floats inside kernels
+
+
 def information_metric(P) -> float:
     """The paper's information metric ``im = -h``: higher for a more compact Gaussian [nats]."""
     return -gaussian_entropy(P)

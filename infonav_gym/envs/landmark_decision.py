@@ -22,7 +22,7 @@ from infonav_gym.estimation.kernels import (
 )
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle_kernel as wrap
-from infonav_gym.information import gaussian_entropy_from_log_det, stacked_log_dets
+from infonav_gym.information import gaussian_entropy_kernel, stacked_log_dets
 from infonav_gym.sensors.range_bearing import RangeBearingSensor, noise_covariances
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
 from infonav_gym.world.visibility_kernels import blocked, covered
@@ -63,24 +63,24 @@ class LandmarkDecision(NamedTuple):
     ) -> LandmarkDecision:
         """The decisions of N copies: true poses (N, 3), priors ``x`` (N, n), ``P`` (N, n, n), landmarks (N, K, 2).
 
-        One compiled kernel (``landmark_decisions``). Raises ``ValueError`` if a landmark coincides with a copy's
-        estimated position or a prior is not positive definite.
+        One compiled kernel (``landmark_decisions``); raises as ``checked``.
         """
-        floats = [contiguous(np.asarray(array, dtype=float)) for array in (x, P, landmarks, true_poses)]
-        coverage = float(sensor.max_range_m), float(sensor.fov_rad)
-        *decision, pose_log_det, coincident, not_positive_definite = landmark_decisions(
-            *floats,
-            contiguous(np.asarray(exists, dtype=bool)),
-            bool(mapping),
-            sensor.noise_stds,
-            coverage,
-            *shape_arrays(geometry),
-        )
+        arguments = decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping)
+        return cls.checked(landmark_decisions(*arguments))
+
+    @classmethod
+    def checked(cls, decided: tuple) -> LandmarkDecision:
+        """The decision ``landmark_decisions`` returned.
+
+        Raises:
+            ValueError: if a landmark coincides with a copy's estimated position or a prior is not positive definite.
+        """
+        *decision, coincident, not_positive_definite = decided
         if coincident:
             raise ValueError(batched.COINCIDENT)
         if not_positive_definite:
             raise ValueError("P is not positive definite (determinant <= 0)")
-        return cls(*decision, gaussian_entropy_from_log_det(pose_log_det, POSE_DIM))
+        return cls(*decision)
 
     def observe(
         self, x, P, chosen, true_poses, landmarks, noise: NoiseStreams, noise_stds
@@ -115,6 +115,14 @@ class LandmarkDecision(NamedTuple):
         return tuple(updated)
 
 
+def decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping) -> tuple:
+    """The arguments of ``landmark_decisions`` for ``LandmarkDecision.at_prior``'s (C-contiguous, typed)."""
+    floats = (contiguous(np.asarray(array, dtype=float)) for array in (x, P, landmarks, true_poses))
+    coverage = float(sensor.max_range_m), float(sensor.fov_rad)
+    exists = contiguous(np.asarray(exists, dtype=bool))
+    return (*floats, exists, bool(mapping), sensor.noise_stds, coverage, *shape_arrays(geometry))
+
+
 @kernel
 def measured_updates(
     x, P, true_poses, landmarks, blocks, next_draw, chosen, noise_stds, predicted, H, R, prior_log_det
@@ -140,9 +148,8 @@ def measured_updates(
 
 @kernel
 def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, coverage, walls, discs, culled):
-    """``LandmarkDecision.at_prior`` of N copies, but for the pose entropy: its fields, then the pose's ``ln det``
-    (N,), whether a landmark coincides with its copy's estimate and whether a log det is NaN (a prior that is not
-    positive definite).
+    """``LandmarkDecision.at_prior`` of N copies: its fields, then whether a landmark coincides with its copy's
+    estimate and whether a log det is NaN (a prior that is not positive definite).
 
     ``noise_stds``: the sensor's ``noise_stds``; ``coverage``: its ``(max_range_m, fov_rad)``; ``walls``, ``discs``,
     ``culled``: the static geometry's ``shape_arrays``. Without ``mapped`` a missing landmark is put 1 m off the
@@ -200,8 +207,9 @@ def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, 
             if not action_mask[c, k]:
                 gains[c, k] = 0.0
     prior_log_det = stacked_log_dets(P)
-    pose_log_det = pose_block_log_dets(P, 1)[:, 0] if n > POSE_DIM else prior_log_det.copy()
-    not_positive_definite = False
+    pose_log_det = pose_block_log_dets(P, 1)[:, 0] if n > POSE_DIM else prior_log_det
+    not_positive_definite, pose_entropy = False, np.empty(n_copies)
     for c in range(n_copies):
         not_positive_definite |= math.isnan(prior_log_det[c]) or math.isnan(pose_log_det[c])
-    return action_mask, gains, predicted, H, R, prior_log_det, pose_log_det, coincident, not_positive_definite
+        pose_entropy[c] = gaussian_entropy_kernel(pose_log_det[c], POSE_DIM)
+    return action_mask, gains, predicted, H, R, prior_log_det, pose_entropy, coincident, not_positive_definite

@@ -9,9 +9,9 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
-from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.compiled import kernel
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments
-from infonav_gym.envs.landmark_decision import LandmarkDecision
+from infonav_gym.envs.landmark_decision import LandmarkDecision, decision_arguments, landmark_decisions
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS
 from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
@@ -19,8 +19,8 @@ from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info, in_every_copy
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
-from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import gaussian_entropy_from_log_det
+from infonav_gym.geometry import wrap_angle_kernel as wrap
+from infonav_gym.information import gaussian_entropy_kernel
 from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
@@ -41,6 +41,9 @@ SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "size_m": "field_size_m",
 }
 CANDIDATE_FEATURES = 5
+# the info keys ``landmark_outputs`` computes, in its order
+INFO_NUMBERS = ("pose_entropy", "state_entropy", "position_error_m", "heading_error_rad", "time_s")
+INFO_NUMBERS += ("true_pose", "estimated_pose")
 _BIG = 1e4
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
     "n_candidates": Interval(1, MAX_LANDMARKS, integer=True),
@@ -201,51 +204,30 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
         )
 
     def _outputs(self, copies, geometry, stepped, chosen, rewards) -> tuple[np.ndarray, dict]:
-        """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos."""
-        rows = self._rows(copies)
-        true_poses, x, P, exists = self._worlds.poses[rows, 0], self._x[rows], self._P[rows], self._exists[rows]
-        decision = LandmarkDecision.at_prior(
-            self._sensor, geometry, true_poses, x, P, self._landmarks[rows], exists, self.config["mapping"]
-        )
-        self._set_decision(copies, decision)
-        self._chosen[rows] = np.where(stepped, chosen, -1)
-        self._track_first_copy(copies, stepped)
-        elapsed = self._elapsed[rows]
-        observation = self._observation(decision, x, P, elapsed, exists)
-        info = self._info(decision, x, true_poses, elapsed, stepped, chosen, rewards)
-        return observation, info
-
-    def _observation(self, decision: LandmarkDecision, x, P, elapsed, exists) -> np.ndarray:
-        """The observations of some copies (n, 10 + 5K), float32, clipped to the space (see the single env)."""
-        fraction = elapsed / self.config["horizon"]
-        arrays = (contiguous(np.asarray(array, dtype=float)) for array in (x, P, decision.pose_entropy, fraction))
-        mask, predicted = contiguous(decision.action_mask), contiguous(decision.predicted)
-        return observations(*arrays, mask, predicted, contiguous(exists), self.config["mapping"], *self._bounds)
-
-    def _info(self, decision: LandmarkDecision, x, true_poses, elapsed, stepped, chosen, rewards) -> dict:
-        """The infos of some copies as arrays (n, ...), each with its ``_key`` mask.
+        """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos.
 
         Args:
-            decision: their new decisions.
-            x: their EKF states (n, dim).
-            true_poses: their true poses (n, 3).
-            elapsed: steps since each one's reset (n,).
+            copies: the copies (n,), ascending.
+            geometry: their static geometry.
             stepped: which acted in this step (n,) bool; the others were reset and give the reset info.
             chosen: the landmark each observed (n,), -1 for none.
             rewards: each one's realized MI (n,) [nats].
         """
-        errors = true_poses - x[:, :POSE_DIM]
-        info = {
-            **decision_info(decision, stepped, chosen, "mutual_information", rewards),
-            "pose_entropy": decision.pose_entropy.copy(),
-            "state_entropy": gaussian_entropy_from_log_det(decision.prior_log_det, x.shape[1]),
-            "position_error_m": np.hypot(errors[:, 0], errors[:, 1]),
-            "heading_error_rad": np.abs(wrap_angle(errors[:, 2])),
-            "true_pose": true_poses.copy(),
-            "estimated_pose": x[:, :POSE_DIM].copy(),
-            "time_s": elapsed * self.config["time_step_s"],
-        }
-        return in_every_copy(info, len(x))
+        rows, cfg = self._rows(copies), self.config
+        true_poses, x, P = self._worlds.poses[rows, 0], self._x[rows], self._P[rows]
+        arguments = decision_arguments(
+            self._sensor, geometry, true_poses, x, P, self._landmarks[rows], self._exists[rows], cfg["mapping"]
+        )
+        decided, observation, numbers, *poses = landmark_outputs(
+            arguments, self._elapsed[rows], float(cfg["horizon"]), float(cfg["time_step_s"]), *self._bounds
+        )
+        decision = LandmarkDecision.checked(decided)
+        self._set_decision(copies, decision)
+        self._chosen[rows] = np.where(stepped, chosen, -1)
+        self._track_first_copy(copies, stepped)
+        info = decision_info(decision, stepped, chosen, "mutual_information", rewards)
+        info.update(zip(INFO_NUMBERS, (*numbers, *poses)))
+        return observation, in_every_copy(info, len(copies))
 
     def _scene_frame(self):
         """Sub-env 0 drawn: its scenario, landmarks (seen ones marked, the chosen one linked), the robot."""
@@ -376,20 +358,32 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
 
 
 @kernel
-def observations(x, P, pose_entropy, elapsed_fraction, action_mask, predicted, exists, mapping, low, high):
-    """``LandmarkSelectionVectorEnv._observation`` of n copies: (n, 10 + 5K) float32, clipped to ``[low, high]``.
+def landmark_outputs(arguments, elapsed, horizon, time_step_s, low, high):
+    """``landmark_decisions``, then the observations and the ``INFO_NUMBERS`` of n copies (see the single env).
 
-    ``x`` (n, dim), ``P`` (n, dim, dim), ``pose_entropy`` and ``elapsed_fraction`` (n,), then the decision's
-    ``action_mask`` (n, K), ``predicted`` (n, K, 2) and the ``exists`` mask (n, K); ``mapping``: fill the landmarks'
-    position std (the root of the mean of their two variances). Values are computed in float64, clipped, then rounded.
+    Args:
+        arguments: ``landmark_decisions``' (``decision_arguments``).
+        elapsed: the steps since each copy's reset (n,) int.
+        horizon, time_step_s: the config's, as floats [steps], [s].
+        low, high: the observation space's bounds (float64).
+
+    Returns:
+        ``(landmark_decisions' outputs, observations (n, 10 + 5K) float32, INFO_NUMBERS' (5, n), true poses (n, 3),
+        estimated poses (n, 3))``. The observations are
+        computed in float64, clipped, then rounded; with mapping the landmarks' position std is the root of the
+        mean of their two variances.
     """
+    decided = landmark_decisions(*arguments)
+    x, P, true_poses, exists, mapped = arguments[0], arguments[1], arguments[3], arguments[4], arguments[5]
+    action_mask, predicted, prior_log_det, pose_entropy = decided[0], decided[2], decided[5], decided[6]
     n_copies, n_candidates = exists.shape
     observation = np.empty((n_copies, len(low)), dtype=np.float32)
     values = np.zeros(len(low))
-    n_mapped = (x.shape[1] - POSE_DIM) // 2 if mapping else 0
+    n_mapped = (x.shape[1] - POSE_DIM) // 2 if mapped else 0
+    numbers = np.empty((len(INFO_NUMBERS) - 2, n_copies))  # the INFO_NUMBERS but the poses
     for c in range(n_copies):
         values[:] = 0.0
-        pose_features(values, x[c], P[c], pose_entropy[c], elapsed_fraction[c])
+        pose_features(values, x[c], P[c], pose_entropy[c], elapsed[c] / horizon)
         for k in range(n_candidates):
             row = POSE_FEATURES + CANDIDATE_FEATURES * k
             values[row] = action_mask[c, k]
@@ -399,4 +393,7 @@ def observations(x, P, pose_entropy, elapsed_fraction, action_mask, predicted, e
                 i = POSE_DIM + 2 * k
                 values[row + 4] = math.sqrt((P[c, i, i] + P[c, i + 1, i + 1]) / 2)
         clip_into(observation[c], values, low, high)
-    return observation
+        numbers[0, c], numbers[1, c] = pose_entropy[c], gaussian_entropy_kernel(prior_log_det[c], x.shape[1])
+        numbers[2, c] = math.hypot(true_poses[c, 0] - x[c, 0], true_poses[c, 1] - x[c, 1])
+        numbers[3, c], numbers[4, c] = abs(wrap(true_poses[c, 2] - x[c, 2])), elapsed[c] * time_step_s
+    return decided, observation, numbers, true_poses.copy(), x[:, :POSE_DIM].copy()
