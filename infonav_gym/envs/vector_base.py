@@ -17,6 +17,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from infonav_gym.compiled import kernel
 from infonav_gym.config import check_choice, check_config, merge_config
 from infonav_gym.envs.base import EPISODE_STEPS, INVALID_ACTION_MODES, RENDER_SIZE_PX, accepts_action, shared_config
 from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
@@ -151,11 +152,21 @@ class InfoNavVectorEnv(VectorEnv):
         Raises:
             RuntimeError: before the first ``reset``.
             ValueError: for actions that are not N integers of the action space, or, with
-                ``invalid_action="raise"``, a masked action (each naming its sub-env).
+                ``invalid_action="raise"``, a masked action of a sub-env that has a valid one (each naming its sub-env).
         """
-        actions = self._checked_actions(actions)
+        actions, mask = self._checked_actions(actions), self._decision.action_mask
+        chosen, outside = accepted_actions(actions.astype(np.int64, copy=False), mask, self._prev_done)
+        if outside >= 0:
+            raise ValueError(
+                f"action {actions[outside]} of sub-env {outside} is not in the action space "
+                f"{self.single_action_space}: expected an integer in [0, {self.single_action_space.n - 1}]"
+            )
         acting = ~self._prev_done
-        return acting, self._accepted_actions(actions, acting)
+        if self.config["invalid_action"] == "raise":  # with "noop" a masked action is the no-op, silently
+            for copy in np.flatnonzero(acting & (chosen < 0)).tolist():
+                sub_env = None if self._owner else f"sub-env {copy}"  # a single env has no sub-envs to name
+                accepts_action(int(actions[copy]), mask[copy], "raise", 'info["action_mask"]', sub_env)
+        return acting, chosen
 
     def _finish_step(self, ended: np.ndarray, step_outputs) -> tuple[np.ndarray, dict]:
         """The observations and infos of a step in which the sub-envs ``ended`` (N,) bool ended their episodes.
@@ -224,48 +235,22 @@ class InfoNavVectorEnv(VectorEnv):
                 self._np_randoms[copy] = seeding.np_random(copy_seed)[0]
 
     def _checked_actions(self, actions) -> np.ndarray:
-        """The actions as an int array (N,), one index of the ``Discrete`` single action space per sub-env.
+        """The actions as an integer array (N,), one per sub-env (``_begin_step`` checks that they are in the space).
 
         Raises:
             RuntimeError: before the first ``reset``.
-            ValueError: for another shape, a non-integer dtype, or an action outside the space (naming its sub-env).
+            ValueError: for another shape or a non-integer dtype.
         """
-        owner, space = self.owner_name, self.single_action_space
+        owner = self.owner_name
         if self._decision is None:
             raise RuntimeError(f"{owner}: call reset() before step()")
-        array, top = np.asarray(actions), space.n - 1
+        array = np.asarray(actions)
         if array.shape != (self.num_envs,) or array.dtype.kind not in "iu":
             raise ValueError(
                 f"actions of {owner} must be an integer array of shape ({self.num_envs},), one per sub-env, in "
-                f"[0, {top}]; got {array.dtype} of shape {array.shape}"
+                f"[0, {self.single_action_space.n - 1}]; got {array.dtype} of shape {array.shape}"
             )
-        if array.min() < 0 or array.max() > top:
-            copy = int(np.flatnonzero((array < 0) | (array > top))[0])
-            raise ValueError(
-                f"action {array[copy]} of sub-env {copy} is not in the action space {space}: expected an integer "
-                f"in [0, {top}]"
-            )
-        return array.astype(int, copy=False)
-
-    def _accepted_actions(self, actions: np.ndarray, acting: np.ndarray) -> np.ndarray:
-        """Each acting sub-env's action where its mask allows it, else -1 (the no-op), per ``invalid_action``.
-
-        Raises:
-            ValueError: with ``invalid_action="raise"``, for a masked action of a sub-env that has a valid one.
-        """
-        mask = self._decision.action_mask
-        valid = mask[self._everyone, actions] != 0
-        valid &= acting
-        if self.config["invalid_action"] == "raise":  # with "noop" a masked action is the no-op, silently
-            for copy in np.flatnonzero(acting & ~valid).tolist():
-                accepts_action(
-                    int(actions[copy]),
-                    mask[copy],
-                    "raise",
-                    'info["action_mask"]',
-                    None if self._owner else f"sub-env {copy}",  # a single env has no sub-envs to name
-                )
-        return np.where(valid, actions, -1)
+        return array
 
     def action_masks(self) -> np.ndarray:
         """The valid actions of each sub-env as bool (N, A); all ``True`` where none is valid (each is the no-op)."""
@@ -303,3 +288,17 @@ class InfoNavVectorEnv(VectorEnv):
         state = self.__dict__.copy()
         state.pop("_renderer", None)  # a pygame window or surface does not pickle; the copy draws anew
         return state
+
+
+@kernel
+def accepted_actions(actions, mask, done):
+    """Each sub-env's action (N,) where it acts (not ``done``) and its ``mask`` (N, A) allows it, else -1 (the
+    no-op); and the first sub-env whose action is outside ``[0, A)``, -1 if none."""
+    chosen, outside = np.empty(len(actions), dtype=np.int64), -1
+    for copy in range(len(actions)):
+        action = actions[copy]
+        inside = 0 <= action < mask.shape[1]
+        if not inside and outside < 0:
+            outside = copy
+        chosen[copy] = action if inside and not done[copy] and mask[copy, action] != 0 else -1
+    return chosen, outside
