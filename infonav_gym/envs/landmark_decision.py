@@ -16,7 +16,7 @@ from infonav_gym.envs.noise_streams import NoiseStreams, taken
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import (
     chosen_landmark_updates,
-    landmark_gains,
+    landmark_gain,
     pose_block_log_dets,
     range_bearing_models,
 )
@@ -196,16 +196,16 @@ def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, 
                 targets[query, 0], targets[query, 1] = landmarks[c, k, 0], landmarks[c, k, 1]
                 query += 1
     hit = blocked(copy, origins, targets, walls, discs, culled)
-    gains = landmark_gains(P, H, R)
-    action_mask = np.zeros((n_copies, n_candidates), dtype=np.int8)
+    action_mask, gains = np.zeros((n_copies, n_candidates), dtype=np.int8), np.zeros((n_copies, n_candidates))
+    HP, S, columns = np.empty((2, n)), np.empty((2, 2)), np.empty(n, dtype=np.int64)
     query = 0
     for c in range(n_copies):
         for k in range(n_candidates):
             if seen[c, k]:
                 action_mask[c, k] = not hit[query]
                 query += 1
-            if not action_mask[c, k]:
-                gains[c, k] = 0.0
+            if action_mask[c, k]:  # a gain only where the landmark can be observed
+                gains[c, k] = landmark_gain(P[c], H[c, k], R[c, k], HP, S, columns)
     prior_log_det = stacked_log_dets(P)
     pose_log_det = pose_block_log_dets(P, 1)[:, 0] if n > POSE_DIM else prior_log_det
     not_positive_definite, pose_entropy = False, np.empty(n_copies)

@@ -343,30 +343,35 @@ def chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_l
 
 @kernel
 def landmark_gains(P, H, R):
-    """``0.5 ln(det S / det R)``, ``S = H P H^T + R``, of each candidate (N, K) [nats]; NaN where a determinant
-    is not > 0. ``P`` (N, n, n), ``H`` (N, K, m, n), ``R`` (N, K, m, m)."""
+    """``landmark_gain`` of each candidate (N, K) [nats]: ``P`` (N, n, n), ``H`` (N, K, m, n), ``R`` (N, K, m, m)."""
     n_copies, n_candidates, m, n = H.shape
     gains = np.empty((n_copies, n_candidates))
-    HP, S = np.empty((m, n)), np.empty((m, m))
-    columns = np.empty(n, dtype=np.int64)
+    HP, S, columns = np.empty((m, n)), np.empty((m, m)), np.empty(n, dtype=np.int64)
     for c in range(n_copies):
         for k in range(n_candidates):
-            J = H[c, k]
-            n_columns = nonzero_columns(J, columns)
-            for i in range(m):
-                for t in range(n_columns):
-                    total = 0.0
-                    for s in range(n_columns):
-                        total += J[i, columns[s]] * P[c, columns[s], columns[t]]
-                    HP[i, columns[t]] = total
-            for i in range(m):
-                for j in range(m):
-                    total = 0.0
-                    for t in range(n_columns):
-                        total += HP[i, columns[t]] * J[j, columns[t]]
-                    S[i, j] = total + R[c, k, i, j]
-            gains[c, k] = 0.5 * (log_det_of(S) - log_det_of(R[c, k]))
+            gains[c, k] = landmark_gain(P[c], H[c, k], R[c, k], HP, S, columns)
     return gains
+
+
+@inner_kernel
+def landmark_gain(P, J, R, HP, S, columns) -> float:
+    """``0.5 ln(det S / det R)``, ``S = J P J^T + R``, of one candidate [nats], NaN where a determinant is not > 0:
+    ``P`` (n, n), ``J`` (m, n), ``R`` (m, m); ``HP`` (m, n), ``S`` (m, m) and ``columns`` (n,) int are scratch."""
+    m = J.shape[0]
+    n_columns = nonzero_columns(J, columns)
+    for i in range(m):
+        for t in range(n_columns):
+            total = 0.0
+            for s in range(n_columns):
+                total += J[i, columns[s]] * P[columns[s], columns[t]]
+            HP[i, columns[t]] = total
+    for i in range(m):
+        for j in range(m):
+            total = 0.0
+            for t in range(n_columns):
+                total += HP[i, columns[t]] * J[j, columns[t]]
+            S[i, j] = total + R[i, j]
+    return 0.5 * (log_det_of(S) - log_det_of(R))
 
 
 @kernel
