@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import inner_kernel
+from infonav_gym.compiled import contiguous, inner_kernel, kernel
 
 
 def wrap_angle(angle):
@@ -90,17 +90,32 @@ class ClosedLoop:
     def __init__(self, *loops):
         starts = [np.asarray(loop, dtype=float).reshape(-1, 2) for loop in loops]
         self._starts = np.concatenate(starts)
-        self._directions = np.concatenate([np.roll(start, -1, axis=0) - start for start in starts])
-        direction_x, direction_y = self._directions.T
-        self._length_sq = direction_x * direction_x + direction_y * direction_y
+        self._directions = np.concatenate([np.concatenate((start[1:], start[:1])) - start for start in starts])
 
     def distances(self, points) -> np.ndarray:
         """Shortest distance [m] from each of ``points`` (M, 2) to the nearest loop (M,)."""
-        points = np.asarray(points, dtype=float)
-        (start_x, start_y), (direction_x, direction_y) = self._starts.T, self._directions.T
-        along = (points[:, None, 0] - start_x) * direction_x + (points[:, None, 1] - start_y) * direction_y
-        degenerate = self._length_sq <= 0
-        t = np.where(degenerate, 0.0, np.clip(along / np.where(degenerate, 1.0, self._length_sq), 0.0, 1.0))
-        gap_x = start_x + t * direction_x - points[:, None, 0]
-        gap_y = start_y + t * direction_y - points[:, None, 1]
-        return np.sqrt(np.min(gap_x * gap_x + gap_y * gap_y, axis=1))
+        return loop_distances(contiguous(np.asarray(points, dtype=float)), self._starts, self._directions)
+
+
+@kernel
+def loop_distances(points, starts, directions):
+    """``ClosedLoop.distances`` to the edges ``starts + t directions`` (E, 2), ``t`` in [0, 1] (0 on an edge of no
+    length); a NaN point or edge gives NaN."""
+    distances = np.empty(len(points))
+    for p in range(len(points)):
+        nearest = np.inf
+        for e in range(len(starts)):
+            start_x, start_y, direction_x, direction_y = starts[e, 0], starts[e, 1], directions[e, 0], directions[e, 1]
+            length_sq = direction_x * direction_x + direction_y * direction_y
+            t = 0.0
+            if not length_sq <= 0.0:
+                along = (points[p, 0] - start_x) * direction_x + (points[p, 1] - start_y) * direction_y
+                t = along / length_sq  # clipped to [0, 1] below; NaN stays NaN
+                t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+            gap_x = start_x + t * direction_x - points[p, 0]
+            gap_y = start_y + t * direction_y - points[p, 1]
+            squared = gap_x * gap_x + gap_y * gap_y
+            if squared < nearest or math.isnan(squared):
+                nearest = squared
+        distances[p] = math.sqrt(nearest)
+    return distances

@@ -65,14 +65,14 @@ class NoiseStreams:
 
     def _refill(self, copies: np.ndarray) -> None:
         """Move each copy's unused draws to the front of its block and fill the rest from its generator."""
-        block_draws, width = self._blocks.shape[1:]
+        block_draws = self._blocks.shape[1]
         for copy in copies.tolist():
             generator = self._generators[copy]
             if generator is None:
                 raise RuntimeError(f"NoiseStreams: copy {copy} has no generator yet; restart() it first")
             unused = block_draws - min(self._next[copy], block_draws)
             self._blocks[copy, :unused] = self._blocks[copy, block_draws - unused :].copy()
-            self._blocks[copy, unused:] = generator.standard_normal((block_draws - unused, width))
+            generator.standard_normal(out=self._blocks[copy, unused:])
             self._next[copy] = 0
 
 
