@@ -264,26 +264,9 @@ def range_bearing_update(x, P, measurements, predicted, H, R, observed=None, *, 
         H = _finite("H", H, (n_copies, 2, x.shape[1]))
         R = _noise_covariance("R", R, (n_copies, 2, 2))
     chosen = np.where(observed, 0, -1)
-    candidates = (np.asarray(predicted)[:, None], np.asarray(H)[:, None], np.asarray(R)[:, None])
-    return _chosen_updates(x, P, measurements, chosen, *candidates, np.zeros(n_copies))[:2]
-
-
-def chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det):
-    """``kernels.chosen_landmark_updates`` (see there) of known-good arrays: ``(x, P, realized MI)``.
-
-    Raises:
-        ValueError: if a posterior covariance's determinant is not > 0.
-    """
-    x, P, realized = _chosen_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det)
-    if np.isnan(realized).any():
-        raise ValueError("the posterior covariance is not positive definite (determinant <= 0)")
-    return x, P, realized
-
-
-def _chosen_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det):
     floats = (_floats(array) for array in (x, P, measurements))
-    candidates = (_floats(array) for array in (predicted, H, R, prior_log_det))
-    return kernels.chosen_landmark_updates(*floats, _floats(chosen, np.int64), *candidates)
+    candidates = (_floats(np.asarray(array)[:, None]) for array in (predicted, H, R))
+    return kernels.chosen_landmark_updates(*floats, _floats(chosen, np.int64), *candidates, np.zeros(n_copies))[:2]
 
 
 def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bool = True, check_input: bool = True):
