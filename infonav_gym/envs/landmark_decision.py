@@ -157,7 +157,6 @@ def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, 
     """
     n_copies, n = x.shape
     n_candidates = exists.shape[1]
-    predicted, H = np.zeros((n_copies, n_candidates, 2)), np.zeros((n_copies, n_candidates, 2, n))
     n_modelled = (n - POSE_DIM) // 2 if mapped else n_candidates
     positions = np.empty((n_copies, n_modelled, 2))
     for c in range(n_copies):
@@ -168,13 +167,16 @@ def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, 
                 positions[c, k, 0], positions[c, k, 1] = landmarks[c, k, 0], landmarks[c, k, 1]
             else:
                 positions[c, k, 0], positions[c, k, 1] = x[c, 0] + 1.0, x[c, 1] + 1.0
-    modelled, modelled_H, coincident = range_bearing_models(x, positions, mapped)
-    for c in range(n_copies):  # element by element: a slice assignment compiles numba's shape-error formatting
-        for k in range(n_modelled):
-            for i in range(2):
-                predicted[c, k, i] = modelled[c, k, i]
-                for j in range(n):
-                    H[c, k, i, j] = modelled_H[c, k, i, j]
+    predicted, H, coincident = range_bearing_models(x, positions, mapped)
+    if n_modelled < n_candidates:  # the candidates beyond the state's landmarks get zeros
+        modelled, modelled_H = predicted, H
+        predicted, H = np.zeros((n_copies, n_candidates, 2)), np.zeros((n_copies, n_candidates, 2, n))
+        for c in range(n_copies):  # element by element: a slice assignment compiles numba's shape-error formatting
+            for k in range(n_modelled):
+                for i in range(2):
+                    predicted[c, k, i] = modelled[c, k, i]
+                    for j in range(n):
+                        H[c, k, i, j] = modelled_H[c, k, i, j]
     ranges = np.empty(n_copies * n_candidates)
     for c in range(n_copies):
         for k in range(n_candidates):
