@@ -23,8 +23,8 @@ from infonav_gym.estimation.kernels import (
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import gaussian_entropy_kernel, stacked_log_dets
-from infonav_gym.sensors.range_bearing import RangeBearingSensor, noise_covariances
-from infonav_gym.world.visibility import StaticGeometry, shape_arrays
+from infonav_gym.sensors.range_bearing import noise_covariances
+from infonav_gym.world.visibility import shape_arrays
 from infonav_gym.world.visibility_kernels import blocked, covered
 
 
@@ -50,31 +50,17 @@ class LandmarkDecision(NamedTuple):
     pose_entropy: np.ndarray
 
     @classmethod
-    def at_prior(
-        cls,
-        sensor: RangeBearingSensor,
-        geometry: StaticGeometry,
-        true_poses: np.ndarray,
-        x: np.ndarray,
-        P: np.ndarray,
-        landmarks: np.ndarray,
-        exists: np.ndarray,
-        mapping: bool,
-    ) -> LandmarkDecision:
-        """The decisions of N copies: true poses (N, 3), priors ``x`` (N, n), ``P`` (N, n, n), landmarks (N, K, 2).
-
-        One compiled kernel (``landmark_decisions``); raises as ``checked``.
-        """
+    def at_prior(cls, sensor, geometry, true_poses, x, P, landmarks, exists, mapping: bool) -> LandmarkDecision:
+        """The decisions of N copies (a ``RangeBearingSensor``, their ``StaticGeometry``, true poses (N, 3), priors
+        ``x`` (N, n), ``P`` (N, n, n), landmarks (N, K, 2) and which exist (N, K)): one compiled kernel
+        (``landmark_decisions``); raises as ``checked``."""
         arguments = decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping)
         return cls.checked(landmark_decisions(*arguments))
 
     @classmethod
     def checked(cls, decided: tuple) -> LandmarkDecision:
-        """The decision ``landmark_decisions`` returned.
-
-        Raises:
-            ValueError: if a landmark coincides with a copy's estimated position or a prior is not positive definite.
-        """
+        """The decision ``landmark_decisions`` returned; a ``ValueError`` if a landmark coincides with a copy's
+        estimated position or a prior is not positive definite."""
         *decision, coincident, not_positive_definite = decided
         if coincident:
             raise ValueError(batched.COINCIDENT)
@@ -85,30 +71,14 @@ class LandmarkDecision(NamedTuple):
     def observe(
         self, x, P, chosen, true_poses, landmarks, noise: NoiseStreams, noise_stds
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Update each copy's EKF prior ``(x, P)`` with a noisy range-bearing measurement of its chosen landmark.
-
-        Args:
-            x, P: the priors (N, n), (N, n, n) at which this decision was made.
-            chosen: each copy's landmark (N,) int64, -1 for none.
-            true_poses: the poses the measurements are taken from (N, 3).
-            landmarks: the true landmark positions (N, K, 2).
-            noise: the copies' measurement noise: each observing copy takes its next draw of two standard normals
-                (``RangeBearingSensor.measure_with_noise``).
-            noise_stds: the sensor's ``noise_stds``.
-
-        Returns:
-            ``(x, P, realized MI (N,) [nats])``, 0 for a copy without a measurement.
-        """
+        """Update each copy's EKF prior ``(x, P)`` ((N, n), (N, n, n), this decision's) with a noisy range-bearing
+        measurement of its ``chosen`` landmark (N,) (-1: none) from its true pose (N, 3) to the true ``landmarks``
+        (N, K, 2), its two standard normals the next draw of its ``noise`` stream (``noise_stds``: the sensor's);
+        ``(x, P, realized MI (N,) [nats])``, 0 for a copy without a measurement."""
         floats = (contiguous(array) for array in (x, P, true_poses, landmarks))
+        chosen, model = contiguous(np.asarray(chosen, dtype=np.int64)), (self.predicted, self.H, self.R)
         *updated, not_positive_definite = measured_updates(
-            *floats,
-            *noise.reserve(),
-            contiguous(np.asarray(chosen, dtype=np.int64)),
-            noise_stds,
-            self.predicted,
-            self.H,
-            self.R,
-            self.prior_log_det,
+            *floats, *noise.reserve(), chosen, noise_stds, *model, self.prior_log_det
         )
         if not_positive_definite:
             raise ValueError("the posterior covariance is not positive definite (determinant <= 0)")

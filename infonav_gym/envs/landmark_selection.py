@@ -176,26 +176,18 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
     def step(self, actions):
         """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
         acting, chosen = self._begin_step(actions)
-        rewards = self._observe(chosen)
+        self._x, self._P, rewards = self._measured(self._decision, chosen)
         self._elapsed += acting
-        self._advance(np.flatnonzero(acting))
+        copies = np.flatnonzero(acting)  # their worlds step, their EKFs predict from noisy odometry
+        if copies.size == self.num_envs:  # all of them (the usual step): the predicted arrays are new ones
+            self._x, self._P = self._moved(copies, self._x, self._P)
+        elif copies.size:
+            self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
         truncated = acting & (self._elapsed >= self.config["horizon"])
         observation, info = self._finish_step(
             truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, rewards)
         )
         return observation, rewards, np.zeros(self.num_envs, dtype=bool), truncated, info
-
-    def _observe(self, chosen: np.ndarray) -> np.ndarray:
-        """Update each observing copy's EKF with a noisy measurement of its chosen landmark; the realized MI (N,)."""
-        self._x, self._P, rewards = self._measured(self._decision, chosen)
-        return rewards
-
-    def _advance(self, copies: np.ndarray) -> None:
-        """Step the worlds of ``copies`` and predict their EKFs from noisy odometry."""
-        if copies.size == self.num_envs:  # all of them (the usual step): the predicted arrays are new ones
-            self._x, self._P = self._moved(copies, self._x, self._P)
-        elif copies.size:
-            self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
 
     def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
         """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""
@@ -204,15 +196,9 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
         )
 
     def _outputs(self, copies, geometry, stepped, chosen, rewards) -> tuple[np.ndarray, dict]:
-        """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos.
-
-        Args:
-            copies: the copies (n,), ascending.
-            geometry: their static geometry.
-            stepped: which acted in this step (n,) bool; the others were reset and give the reset info.
-            chosen: the landmark each observed (n,), -1 for none.
-            rewards: each one's realized MI (n,) [nats].
-        """
+        """Decide again at the priors of ``copies`` (n,) (``geometry``: theirs); their observations and infos. Those not
+        ``stepped`` (n,) were reset and give the reset info; ``chosen`` and ``rewards`` (n,): each one's landmark (-1:
+        none) and realized MI [nats]."""
         rows, cfg = self._rows(copies), self.config
         true_poses, x, P = self._worlds.poses[rows, 0], self._x[rows], self._P[rows]
         arguments = decision_arguments(
@@ -359,20 +345,10 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
 
 @kernel
 def landmark_outputs(arguments, elapsed, horizon, time_step_s, low, high):
-    """``landmark_decisions``, then the observations and the ``INFO_NUMBERS`` of n copies (see the single env).
-
-    Args:
-        arguments: ``landmark_decisions``' (``decision_arguments``).
-        elapsed: the steps since each copy's reset (n,) int.
-        horizon, time_step_s: the config's, as floats [steps], [s].
-        low, high: the observation space's bounds (float64).
-
-    Returns:
-        ``(landmark_decisions' outputs, observations (n, 10 + 5K) float32, INFO_NUMBERS' (5, n), true poses (n, 3),
-        estimated poses (n, 3))``. The observations are
-        computed in float64, clipped, then rounded; with mapping the landmarks' position std is the root of the
-        mean of their two variances.
-    """
+    """``landmark_decisions(*arguments)`` (``decision_arguments``), then the observations (n, 10 + 5K) float32 (in
+    float64, clipped to ``low``, ``high``, then rounded), the ``INFO_NUMBERS`` but the poses (5, n), then the true and
+    estimated poses (n, 3) of n copies; ``elapsed`` (n,) int: steps since each one's reset; ``horizon`` [steps] and
+    ``time_step_s`` [s] as floats. A mapped landmark's position std is the root of the mean of its two variances."""
     decided = landmark_decisions(*arguments)
     x, P, true_poses, exists, mapped = arguments[0], arguments[1], arguments[3], arguments[4], arguments[5]
     action_mask, predicted, prior_log_det, pose_entropy = decided[0], decided[2], decided[5], decided[6]

@@ -52,10 +52,7 @@ class NoiseStreams:
 
     def take(self, copies: np.ndarray) -> np.ndarray:
         """The next draw of each of ``copies`` (n, width), distinct copies (see ``reserve``)."""
-        blocks, next_draw = self.reserve()
-        draws = blocks[copies, next_draw[copies]]
-        next_draw[copies] += 1
-        return draws
+        return self.take_many(copies, np.ones((len(copies), 1), dtype=bool))[:, 0]
 
     def take_many(self, copies: np.ndarray, used: np.ndarray) -> np.ndarray:
         """The next draw of each ``used`` slot (n, M) of ``copies`` (distinct), in slot order: (n, M, width), zeros

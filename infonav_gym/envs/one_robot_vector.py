@@ -64,16 +64,9 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
         (``PoseEKF.predict`` from the noisy odometry, on the compiled core)."""
         dt = float(self.config["time_step_s"])
         controls = self._worlds.step(dt, copies, None if commands is None else commands[:, None])
-        return predicted_from_odometry(
-            contiguous(x),
-            contiguous(P),
-            controls,
-            copies,
-            *self._odometry_noise.reserve(),
-            self._odometry_stds,
-            dt,
-            self._odometry_covariances[: len(copies)],
-        )
+        noise, covariances = self._odometry_noise.reserve(), self._odometry_covariances[: len(copies)]
+        x, P = contiguous(x), contiguous(P)
+        return predicted_from_odometry(x, P, controls, copies, *noise, self._odometry_stds, dt, covariances)
 
     def _measured(self, decision: LandmarkDecision, chosen: np.ndarray):
         """Each copy's EKF updated at ``decision`` with a noisy measurement of its chosen landmark (N,), -1: none
