@@ -63,12 +63,13 @@ class NoiseStreams:
     def _refill(self, copies: np.ndarray) -> None:
         """Move each copy's unused draws to the front of its block and fill the rest from its generator."""
         block_draws = self._blocks.shape[1]
-        for copy in copies.tolist():
+        unused_draws = block_draws - np.minimum(self._next[copies], block_draws)
+        for copy, unused in zip(copies.tolist(), unused_draws.tolist()):
             generator = self._generators[copy]
             if generator is None:
                 raise RuntimeError(f"NoiseStreams: copy {copy} has no generator yet; restart() it first")
-            unused = block_draws - min(self._next[copy], block_draws)
-            self._blocks[copy, :unused] = self._blocks[copy, block_draws - unused :].copy()
+            if unused:
+                self._blocks[copy, :unused] = self._blocks[copy, block_draws - unused :].copy()
             generator.standard_normal(out=self._blocks[copy, unused:])
             self._next[copy] = 0
 
