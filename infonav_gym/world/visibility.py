@@ -234,11 +234,12 @@ def _check_copies(function: str, geometry: StaticGeometry, count: int, what: str
         raise ValueError(f"{function}: {count} {what} for a geometry of {geometry.n_copies} copies (one each)")
 
 
-def segments_clear(geometry: StaticGeometry, copies, starts, ends) -> np.ndarray:
+def segments_clear(geometry: StaticGeometry, copies, starts, ends, *, check_input: bool = True) -> np.ndarray:
     """Whether each straight line ``starts[m]`` -> ``ends[m]`` in copy ``copies[m]`` misses every wall and disc.
 
     Equal to ``World.line_of_sight(starts[m], ends[m:m + 1])`` of that copy's world (see the module): lines of
-    any copies in one call, e.g. from each of a copy's robots to its own targets.
+    any copies in one call, e.g. from each of a copy's robots to its own targets. ``check_input=False`` skips the
+    checks, for known-good arrays in hot loops (as ``visible``).
 
     Args:
         geometry: the static shapes of N copies.
@@ -251,15 +252,16 @@ def segments_clear(geometry: StaticGeometry, copies, starts, ends) -> np.ndarray
     Raises:
         ValueError: for a wrong shape, a non-finite value, or a copy index outside the geometry's.
     """
-    if not isinstance(geometry, StaticGeometry):
-        raise ValueError(f"segments_clear: geometry must be a StaticGeometry, got {type(geometry).__name__}")
-    starts = _finite_array(starts, (None, 2), "segments_clear: starts [m]")
-    ends = _finite_array(ends, (len(starts), 2), "segments_clear: ends [m] (one per start)")
-    copies = np.asarray(copies)
-    if copies.shape != (len(starts),) or (copies.size and copies.dtype.kind not in "iu"):
-        raise ValueError(f"segments_clear: copies must be {len(starts)} ints (one per line), got {copies!r}")
-    if np.any((copies < 0) | (copies >= geometry.n_copies)):
-        raise ValueError(f"segments_clear: copies must be in [0, {geometry.n_copies - 1}], got {copies.tolist()}")
+    if check_input:
+        if not isinstance(geometry, StaticGeometry):
+            raise ValueError(f"segments_clear: geometry must be a StaticGeometry, got {type(geometry).__name__}")
+        starts = _finite_array(starts, (None, 2), "segments_clear: starts [m]")
+        ends = _finite_array(ends, (len(starts), 2), "segments_clear: ends [m] (one per start)")
+        copies = np.asarray(copies)
+        if copies.shape != (len(starts),) or (copies.size and copies.dtype.kind not in "iu"):
+            raise ValueError(f"segments_clear: copies must be {len(starts)} ints (one per line), got {copies!r}")
+        if np.any((copies < 0) | (copies >= geometry.n_copies)):
+            raise ValueError(f"segments_clear: copies must be in [0, {geometry.n_copies - 1}], got {copies.tolist()}")
     return ~_blocked(geometry, copies, starts, ends)
 
 

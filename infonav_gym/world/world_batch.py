@@ -229,8 +229,7 @@ class WorldBatch:
         the straight line of its heading at the start: the robots' relative paths (``teammate_conflicts``) and
         each disc's sweep, a line past the shapes grown by its radius (``segments_clear``), decide it.
         """
-        heading = poses[..., 2]
-        reach = controls[..., 0] * dt
+        heading, reach = poses[..., 2], controls[..., 0] * dt
         displacements = reach[..., None] * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
         conflicts = teammate_conflicts(
             poses[..., :2], displacements[:, :, None], 2 * self.robot_radius_m + CONTACT_GAP_M
@@ -238,10 +237,9 @@ class WorldBatch:
         free = ~conflicts.any(axis=(1, 2, 3, 4))
         rows = np.flatnonzero(free & near_static)
         if rows.size:
-            grown = self._grown_geometry(copies[rows])
-            starts = poses[rows, :, :2]
-            queries = np.repeat(copies[rows], starts.shape[1])
-            clear = segments_clear(grown, queries, starts.reshape(-1, 2), (starts + displacements[rows]).reshape(-1, 2))
+            starts, queries = poses[rows, :, :2], np.repeat(copies[rows], poses.shape[1])
+            lines = (starts.reshape(-1, 2), (starts + displacements[rows]).reshape(-1, 2))
+            clear = segments_clear(self._grown_geometry(copies[rows]), queries, *lines, check_input=False)
             free[rows] = clear.reshape(starts.shape[:2]).all(axis=1)
         return free
 
