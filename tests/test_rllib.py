@@ -1,7 +1,7 @@
 """RLlib PPO on the infonav envs (the ``distributed`` extra): masking, train + evaluate by the CLI, restoring.
 
-One local Ray (2 CPUs) serves the whole module; the trainings are a few thousand env steps with small
-batches (``SMALL_BLOCKS``), enough to exercise every path, not to learn.
+One local Ray (2 CPUs) serves the whole module (the benchmark's RLlib figures too); the trainings are two small
+batches (``SMALL_BLOCK``) of 500 env steps, enough to exercise every path, not to learn.
 """
 
 import json
@@ -25,6 +25,8 @@ from agents.rllib_train import (  # noqa: E402
     TeamEnvCreator,
     build_config,
 )
+from infonav_gym.experiments import distributed_timing  # noqa: E402
+from infonav_gym.experiments.benchmark import GOALS  # noqa: E402
 from infonav_gym.experiments.cli import main  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0  # noqa: E402
 from infonav_gym.registry import PARALLEL, api_of, make_env  # noqa: E402
@@ -51,7 +53,7 @@ def small_blocks(tmp_path_factory):
     return path
 
 
-def _trained(tmp_path_factory, small_blocks, env_id, *config, timesteps: int = 2000) -> tuple:
+def _trained(tmp_path_factory, small_blocks, env_id, *config, timesteps: int = 1000) -> tuple:
     output = tmp_path_factory.mktemp("rllib")
     argv = ["train", "--backend", "rllib", "--env", env_id, "--timesteps", str(timesteps)]
     argv += ["--hyperparams", str(small_blocks)]
@@ -112,7 +114,7 @@ def test_the_module_refuses_observations_without_a_mask():
 
 def test_train_writes_a_checkpoint_and_a_record_and_evaluate_plays_it(landmark_run, capsys):
     output, record = landmark_run
-    assert record["backend"] == "rllib" and record["env_id"] == LANDMARK_ID and record["timesteps"] >= 2000
+    assert record["backend"] == "rllib" and record["env_id"] == LANDMARK_ID and record["timesteps"] >= 1000
     assert record["rllib_training"]["train_batch_size_per_learner"] == 500 and record["num_env_runners"] == 1
     assert record["vectorization"] == "native"  # RLlib steps the native vector env (VECTOR_ENTRY_POINT)
     agents = f"greedy,rllib:{output}"
@@ -175,9 +177,8 @@ def test_a_team_runner_steps_its_copies_at_once_and_its_episodes_take_only_valid
 
 
 def test_one_policy_per_robot_trains_a_module_for_each(local_ray, tmp_path_factory, small_blocks):
-    output, record = _trained(
-        tmp_path_factory, small_blocks, TEAM_ID, "--config", "max_cycles=20", "--policies", "per_robot"
-    )
+    config = ("--config", "max_cycles=20", "--policies", "per_robot", "--num-env-runners", "0")  # samples here
+    output, record = _trained(tmp_path_factory, small_blocks, TEAM_ID, *config)
     modules = output.joinpath(CHECKPOINT_DIR, *MODULES_PATH)
     robots = cooperative_localization_v0.parallel_env().possible_agents
     assert record["policies"] == "per_robot" and all((modules / robot).is_dir() for robot in robots)
@@ -209,7 +210,7 @@ def _play(env_id: str, env_kwargs: dict, act, steps: int) -> None:
 def test_a_restored_module_gives_the_trained_modules_actions(local_ray, tmp_path, small_blocks, env_id, env_kwargs):
     from agents.ppo import load_hyperparameters
 
-    config = build_config(env_id, env_kwargs, 0, load_hyperparameters(env_id, small_blocks))
+    config = build_config(env_id, env_kwargs, 0, load_hyperparameters(env_id, small_blocks), num_env_runners=0)
     policy = SHARED_POLICY if api_of(env_id) == PARALLEL else "default_policy"
     algorithm = config.build_algo()
     try:
@@ -235,7 +236,7 @@ def test_the_exploration_team_trains_and_evaluates_and_its_policy_never_gives_a_
     exploration_run, capsys
 ):
     output, record = exploration_run
-    assert record["env_id"] == EXPLORATION_ID and record["policies"] == "shared" and record["timesteps"] >= 2000
+    assert record["env_id"] == EXPLORATION_ID and record["policies"] == "shared" and record["timesteps"] >= 1000
     argv = ["evaluate", "--env", EXPLORATION_ID, "--agents", f"rllib:{output}", "--episodes", "2"]
     assert main([*argv, "--config", f"max_cycles={EXPLORATION_CYCLES}", "--json"]) == 0
     episodes = json.loads(capsys.readouterr().out)["agents"][f"rllib:{output}"]["episodes"]
@@ -327,3 +328,19 @@ def test_an_env_without_a_native_vector_env_trains_on_gymnasiums_sync_copies(loc
     env = gym.make(env_id, horizon=20)
     observation, info = env.reset(seed=0)
     assert env.action_space.contains(RLlibAgent(output, env).act(observation, info))
+
+
+def test_the_benchmarks_rllib_figures_are_sampled_rates_named_as_its_goals(local_ray, monkeypatch):
+    assert distributed_timing._sampled_steps_per_second(2, 0, 100, TEAM_ID) > 0  # two remote runners sample at once
+    rates = {(1, TEAM_ID): 300.0, (2, TEAM_ID): 450.0, (1, EXPLORATION_ID): 900.0}  # one runner samples as training's
+    monkeypatch.setattr(
+        distributed_timing, "_sampled_steps_per_second", lambda runners, _, __, env: rates[runners, env]
+    )
+    figures = distributed_timing.rllib_runner_figures(steps=100)
+    assert figures == {
+        "rllib_team_1_runner_steps_per_s": 300.0,
+        "rllib_team_2_runners_steps_per_s": 450.0,
+        "rllib_team_2_runners_vs_1_ratio": 1.5,
+        "rllib_exploration_1_runner_steps_per_s": 900.0,
+    }
+    assert {name for name in GOALS if name.startswith("rllib_")} <= set(figures)
