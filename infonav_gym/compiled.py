@@ -4,24 +4,34 @@
 values dropped: one specialization per set of types) and caches the machine code on disk
 (``cache=True``), next to the source or, in a read-only install, in numba's user-wide cache directory
 (or ``NUMBA_CACHE_DIR``). Where no cache location is writable the kernels run uncached, after one
-warning line. ``fastmath`` stays off (the EKF's numbers are IEEE's) and nothing runs in parallel.
+warning line. ``fastmath`` stays off (the EKF's numbers are IEEE's) and nothing runs in parallel. A cached kernel
+is keyed on the sources of every kernel module of the package too (``kernel_sources_digest``): numba's own key
+holds only the function's bytecode, so a kernel cached before a kernel it calls (in another file) changed would run
+the old callee.
 Compiling the kernels takes seconds on a first use: when it takes longer than
 ``COMPILE_NOTICE_AFTER_S``, one line says what is happening.
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import logging
 import threading
 import weakref
+from pathlib import Path
 
 import numba
 import numpy as np
 from numba.core import event, sigutils, types
+from numba.core.caching import FunctionCache
 from numba.core.registry import CPUDispatcher
 
 COMPILE_NOTICE_AFTER_S = 1.0  # [s] a compile that takes longer is announced (once per process)
 KERNEL_OPTIONS = {"cache": True, "fastmath": False, "parallel": False, "error_model": "numpy"}  # IEEE: x / 0 is inf
+
+PACKAGE_ROOT = Path(__file__).resolve().parent
+KERNEL_MODULE_MARK = b"infonav_gym.compiled import"  # what a module that makes kernels has in its imports
 
 logger = logging.getLogger(__name__)
 _kernels: weakref.WeakSet = weakref.WeakSet()  # the dispatchers made here: only their compiles are announced
@@ -39,6 +49,28 @@ class Kernel(CPUDispatcher):
         args, return_type = sigutils.normalize_signature(sig)
         args = tuple(types.unliteral(arg) for arg in args)
         return super().compile(args if return_type is None else return_type(*args))
+
+    def enable_caching(self):
+        self._cache = SourcesKeyedCache(self.py_func)
+
+
+@functools.cache
+def kernel_sources_digest() -> str:
+    """SHA-256 of this module and of every package module that makes kernels, read once per process."""
+    digest = hashlib.sha256()
+    for path in sorted(PACKAGE_ROOT.rglob("*.py")):
+        source = path.read_bytes()
+        if KERNEL_MODULE_MARK in source or path.name == "compiled.py" and path.parent == PACKAGE_ROOT:
+            digest.update(path.relative_to(PACKAGE_ROOT).as_posix().encode() + b"\0" + source)
+    return digest.hexdigest()
+
+
+class SourcesKeyedCache(FunctionCache):
+    """numba's on-disk cache of one kernel, its index key extended by ``kernel_sources_digest()``: a change in any
+    kernel module makes every kernel compile again (once), instead of a caller running a stale callee."""
+
+    def _index_key(self, sig, codegen):
+        return (*super()._index_key(sig, codegen), kernel_sources_digest())
 
 
 class InnerKernel(Kernel):

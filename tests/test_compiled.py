@@ -15,6 +15,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import pytest
+from numba.core.caching import FunctionCache
 
 from infonav_gym import compiled
 from infonav_gym.estimation import kernels
@@ -106,6 +107,36 @@ def test_without_any_writable_cache_location_kernels_run_uncached_after_one_warn
     assert "NUMBA_CACHE_DIR" in warnings[0]
 
 
+CALLEE = "from infonav_gym.compiled import kernel\n\n\n@kernel\ndef offset(value):\n    return value + {}\n"
+CALLER = """from infonav_gym.compiled import kernel
+from infonav_gym.probe_callee import offset
+
+
+@kernel
+def doubled_offset(value):
+    return 2.0 * offset(value)
+"""
+
+
+def test_a_cached_kernel_compiles_again_when_a_kernel_it_calls_changes_in_another_file(tmp_path):
+    """numba keys its cache on the function's own bytecode: without the package's sources in the key, the caller
+    would keep running the old callee it was cached with."""
+    site = tmp_path / "site"
+    shutil.copytree(PACKAGE, site / "infonav_gym", ignore=shutil.ignore_patterns("__pycache__"))
+    (site / "infonav_gym" / "probe_caller.py").write_text(CALLER)
+    env = {key: value for key, value in os.environ.items() if not key.startswith(("NUMBA_", "XDG_"))}
+    env.update(PYTHONPATH=str(site), NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    probe = "from infonav_gym.probe_caller import doubled_offset; print(doubled_offset(1.0))"
+    printed = []
+    for offset in ("1.0", "2.0", "2.0"):
+        (site / "infonav_gym" / "probe_callee.py").write_text(CALLEE.format(offset))
+        done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, cwd=site)
+        assert done.returncode == 0, done.stderr
+        printed.append(done.stdout.strip())
+    assert printed == ["4.0", "6.0", "6.0"]
+    assert len(list((tmp_path / "cache").rglob("*.nbc"))) >= 2  # cached, not merely compiled each time
+
+
 def test_the_uncached_fallback_warns_once_for_many_kernels(monkeypatch, caplog):
     """numba's "no locator available" at decoration (here: no locator at all) makes uncached kernels, one warning."""
     monkeypatch.setattr(numba.core.caching.CacheImpl, "_locator_classes", [])
@@ -140,7 +171,7 @@ def test_a_long_first_compile_is_announced_once(monkeypatch, caplog):
 
 def test_the_packages_kernels_are_cached_on_disk_with_ieee_arithmetic():
     for dispatcher in (kernels.kalman_updates, kernels.predict_poses, kernels.landmark_gains):
-        assert type(dispatcher._cache).__name__ == "FunctionCache"  # numba's on-disk cache, not its NullCache
+        assert isinstance(dispatcher._cache, FunctionCache)  # numba's on-disk cache, not its NullCache
         assert dispatcher.targetoptions["fastmath"] is False and not dispatcher.targetoptions["parallel"]
     predicted, _, _ = kernels.range_bearing_models(np.array([[0.0, 0.0, np.inf]]), np.array([[[1.0, 0.0]]]), False)
     assert np.isnan(predicted[0, 0, 1])  # the bearing wrapped from an infinite heading: NaN, as numpy's remainder gives
