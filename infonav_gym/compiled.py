@@ -28,7 +28,8 @@ from numba.core.caching import FunctionCache
 from numba.core.registry import CPUDispatcher
 
 COMPILE_NOTICE_AFTER_S = 1.0  # [s] a compile that takes longer is announced (once per process)
-KERNEL_OPTIONS = {"cache": True, "fastmath": False, "parallel": False, "error_model": "numpy"}  # IEEE: x / 0 is inf
+# IEEE (x / 0 is inf); no C entry wrapper (numba's, for ``cfunc`` uses: none here)
+KERNEL_OPTIONS = {"cache": True, "fastmath": False, "parallel": False, "error_model": "numpy", "no_cfunc_wrapper": True}
 
 PACKAGE_ROOT = Path(__file__).resolve().parent
 KERNEL_MODULE_MARK = b"infonav_gym.compiled import"  # what a module that makes kernels has in its imports
@@ -112,9 +113,15 @@ def kernel(function, dispatcher_class=Kernel, **options):
 
 
 def inner_kernel(function):
-    """A ``kernel`` that only other kernels call: numba's Python and C entry wrappers, which a kernel-to-kernel call
-    does not use, are not compiled (less to compile on a first use); a call from Python raises ``TypeError``."""
-    return kernel(function, InnerKernel, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+    """A ``kernel`` that only other kernels call: numba's Python entry wrapper, which a kernel-to-kernel call does not
+    use, is not compiled (less to compile on a first use); a call from Python raises ``TypeError``."""
+    return kernel(function, InnerKernel, no_cpython_wrapper=True)
+
+
+def inlined_kernel(function):
+    """A ``kernel`` that the kernels calling it compile into themselves (numba's ``inline="always"``) instead of
+    linking its own compiled library, which numba would optimize once more at each level of a call chain."""
+    return kernel(function, inline="always")
 
 
 def inline(function):

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import inner_kernel, kernel
+from infonav_gym.compiled import inlined_kernel, inner_kernel, kernel
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import log_det_of
 
@@ -302,7 +302,7 @@ def gps_updates(x, P, fixes, R, has_fix, cross_covariances):
     return kalman_updates(x, P, residuals, H, R, has_fix, n_robots, cross_covariances)
 
 
-@kernel
+@inlined_kernel
 def chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det):
     """The EKF update of each copy with its range-bearing measurement of its chosen candidate; the others unchanged.
 

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import inner_kernel, kernel
+from infonav_gym.compiled import inlined_kernel, inner_kernel, kernel
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 
 SMALLEST_NORMAL = np.finfo(float).tiny  # Chipmunk's CPFLOAT_MIN, added to a length before dividing by it
@@ -155,7 +155,7 @@ def blocked(copy, origins, targets, walls, discs, culled):
     return hit
 
 
-@kernel
+@inlined_kernel
 def covered(poses, targets, max_range_m, fov_rad):
     """Whether each target (N, K, 2) [m] lies within ``max_range_m`` and the field of view ``fov_rad`` around the
     heading of its copy's pose (N, 3): (N, K) bool (``RangeBearingSensor.in_coverage`` of the noise-free reading)."""
