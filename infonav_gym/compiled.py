@@ -125,9 +125,9 @@ def inlined_kernel(function):
 
 
 def inline(function):
-    """``function`` compiled into each kernel that calls it (numba's ``inline="always"``), IEEE like ``kernel``: a
-    small helper of hot loops, with no dispatcher of its own to compile, cache or call through."""
-    return numba.njit(inline="always", fastmath=False, error_model="numpy")(function)
+    """An ``inner_kernel`` that LLVM inlines into each kernel calling it (numba's ``forceinline``): a small helper of
+    hot loops, compiled once rather than typed again at each call site (numba's ``inline="always"`` would)."""
+    return kernel(function, InnerKernel, no_cpython_wrapper=True, forceinline=True)
 
 
 def contiguous(array):
