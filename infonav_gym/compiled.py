@@ -4,10 +4,10 @@
 values dropped: one specialization per set of types) and caches the machine code on disk
 (``cache=True``), next to the source or, in a read-only install, in numba's user-wide cache directory
 (or ``NUMBA_CACHE_DIR``). Where no cache location is writable the kernels run uncached, after one
-warning line. ``fastmath`` stays off (the EKF's numbers are IEEE's) and nothing runs in parallel. A cached kernel
-is keyed on the sources of every kernel module of the package too (``kernel_sources_digest``): numba's own key
-holds only the function's bytecode, so a kernel cached before a kernel it calls (in another file) changed would run
-the old callee.
+warning line. ``fastmath`` stays off (the EKF's numbers are IEEE's, x / 0 is inf) and nothing runs in parallel.
+A cached kernel is keyed on the sources of every kernel module of the package too (``kernel_sources_digest``):
+numba's own key holds only the function's bytecode, so a kernel cached before a kernel it calls (in another file)
+changed would run the old callee.
 Compiling the kernels takes seconds on a first use: when it takes longer than
 ``COMPILE_NOTICE_AFTER_S``, one line says what is happening.
 """
@@ -28,7 +28,6 @@ from numba.core.caching import FunctionCache
 from numba.core.registry import CPUDispatcher
 
 COMPILE_NOTICE_AFTER_S = 1.0  # [s] a compile that takes longer is announced (once per process)
-# IEEE (x / 0 is inf); no C entry wrapper (numba's, for ``cfunc`` uses: none here)
 KERNEL_OPTIONS = {"cache": True, "fastmath": False, "parallel": False, "error_model": "numpy", "no_cfunc_wrapper": True}
 
 PACKAGE_ROOT = Path(__file__).resolve().parent
@@ -119,8 +118,8 @@ def inner_kernel(function):
 
 
 def inlined_kernel(function):
-    """A ``kernel`` that the kernels calling it compile into themselves (numba's ``inline="always"``) instead of
-    linking its own compiled library, which numba would optimize once more at each level of a call chain."""
+    """A ``kernel`` that kernels calling it compile into themselves (numba's ``inline="always"``): no library of its
+    own for numba to link into each caller and optimize once more at each level of a call chain."""
     return kernel(function, inline="always")
 
 

@@ -110,12 +110,8 @@ def shape_hits(copy, origins, targets, points, radii, boxes, usable, culled, kin
     hits = np.zeros((n_queries, n_shapes), dtype=np.bool_)
     for query in range(n_queries):
         c = copy[query]
-        origin_x, origin_y, target_x, target_y = (
-            origins[query, 0],
-            origins[query, 1],
-            targets[query, 0],
-            targets[query, 1],
-        )
+        origin_x, origin_y = origins[query, 0], origins[query, 1]
+        target_x, target_y = targets[query, 0], targets[query, 1]
         low_x, high_x = min(origin_x, target_x), max(origin_x, target_x)
         low_y, high_y = min(origin_y, target_y), max(origin_y, target_y)
         for shape in range(n_shapes):
