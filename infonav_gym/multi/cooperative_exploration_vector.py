@@ -291,10 +291,11 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         poses = self._x[observers].reshape(-1, POSE_DIM)
         predicted, H = batched.landmark_measurement_model(poses, positions.reshape(-1, 1, 2), check_input=False)
         predicted = predicted.reshape(*observed.shape, 2)
-        R = range_bearing_noise(self._sight.noise_stds[:, None], predicted[..., None, :])[..., 0, :, :]
+        robots = np.broadcast_to(np.arange(observed.shape[1]), observed.shape)
+        R = range_bearing_noise(self._sight.noise_stds, robots.ravel(), predicted[..., 0].ravel())
+        R = R.reshape(*observed.shape, 2, 2)
         noise = self._noise[LANDMARK_NOISE].take_many(observers, observed)
         measurements = self._sight.landmark_measurements(self._worlds.poses[observers], positions, noise)
-        robots = np.broadcast_to(np.arange(observed.shape[1]), observed.shape)
         self._x[observers], self._P[observers] = batched.team_landmark_update(
             self._x[observers],
             self._P[observers],

@@ -22,6 +22,7 @@ from infonav_gym.multi.team_decision import (
     team_step_info,
     with_masks,
 )
+from infonav_gym.sensors.range_bearing import noise_covariances
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
 from infonav_gym.world.visibility_kernels import blocked
 
@@ -64,12 +65,13 @@ class TeamSight(NamedTuple):
         return measured
 
 
-def range_bearing_noise(noise_stds, predicted) -> np.ndarray:
-    """The noise covariances (..., K, 2, 2) at predicted measurements (..., K, 2) of sensors of ``noise_stds``
-    (..., 1, 3) (``RangeBearingSensor.noise_stds``), as ``noise_covariances`` gives them."""
-    R = np.zeros((*predicted.shape, 2))
-    range_std = noise_stds[..., 0] + noise_stds[..., 1] * predicted[..., 0]
-    R[..., 0, 0], R[..., 1, 1] = range_std * range_std, noise_stds[..., 2] * noise_stds[..., 2]
+def range_bearing_noise(noise_stds, robots, ranges) -> np.ndarray:
+    """``noise_covariances`` (M, 2, 2) of the sensor of each robot ``robots`` (M,) at ``ranges`` (M,) [m]
+    (``noise_stds``: ``TeamSight.noise_stds``)."""
+    R = np.empty((len(ranges), 2, 2))
+    for robot in np.unique(robots):
+        rows = robots == robot
+        R[rows] = noise_covariances(np.ascontiguousarray(ranges[rows], dtype=float), *noise_stds[robot])
     return R
 
 
@@ -124,11 +126,12 @@ def landmark_gains(x, P, landmarks, noise_stds) -> np.ndarray:
 
 @kernel
 def robot_landmark_gains(x, P, landmarks, noise_stds):
-    """``kernels.landmark_gains`` of each robot's range-bearing to each landmark (``range_bearing_of_offset``, noise as
+    """``kernels.landmark_gains`` of each robot's range-bearing to each landmark (``range_bearing_of_offset``,
     ``noise_covariances``) on its pose block (N, R, L), and whether a landmark lies on a robot's estimate."""
     n_copies, n_robots, n_landmarks = x.shape[0], x.shape[1] // POSE_DIM, landmarks.shape[1]
     blocks, predicted = np.empty((n_copies * n_robots, POSE_DIM, POSE_DIM)), np.empty(2)
     H, R = np.zeros((len(blocks), n_landmarks, 2, POSE_DIM)), np.zeros((len(blocks), n_landmarks, 2, 2))
+    ranges = np.empty(n_landmarks)
     coincident = False
     for c in range(n_copies):
         for robot in range(n_robots):
@@ -137,8 +140,8 @@ def robot_landmark_gains(x, P, landmarks, noise_stds):
             for k in range(n_landmarks):
                 dx, dy = landmarks[c, k, 0] - x[c, pose], landmarks[c, k, 1] - x[c, pose + 1]
                 coincident |= not range_bearing_of_offset(dx, dy, x[c, pose + 2], predicted, H[row, k])
-                range_std = noise_stds[robot, 0] + noise_stds[robot, 1] * predicted[0]
-                R[row, k, 0, 0], R[row, k, 1, 1] = range_std * range_std, noise_stds[robot, 2] * noise_stds[robot, 2]
+                ranges[k] = predicted[0]
+            R[row] = noise_covariances(ranges, noise_stds[robot, 0], noise_stds[robot, 1], noise_stds[robot, 2])
     return kernels.landmark_gains(blocks, H, R).reshape(n_copies, n_robots, n_landmarks), coincident
 
 

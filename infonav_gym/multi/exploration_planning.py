@@ -352,7 +352,7 @@ class ExplorationPlanningModel:
         if copies.size:
             seen = self._landmarks()[landmarks[copies, robots]][:, None]
             predicted, H_pose = batched.landmark_measurement_model(poses[copies, robots], seen, check_input=False)
-            R_pose = range_bearing_noise(self._sight.noise_stds[robots][:, None], predicted)
+            R_pose = range_bearing_noise(self._sight.noise_stds, robots, predicted[:, 0, 0])[:, None]
             rows = (copies[:, None, None], robots[:, None, None], np.arange(2)[None, :, None])
             H[(*rows, POSE_DIM * robots[:, None, None] + pose_columns)] = H_pose[:, 0]
             R[copies, robots, :2, :2] = R_pose[:, 0]
