@@ -31,6 +31,7 @@ from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import log_det_of
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, gps_available, gps_schedule
 from infonav_gym.sensors.gps import GPSSensor
+from infonav_gym.sensors.relative_pose import relative_pose_measured
 from infonav_gym.world.world_batch import WorldBatch
 
 MASK_KEY = 'info["action_mask"]'
@@ -323,18 +324,17 @@ def relative_updates(
     n_robots = chosen.shape[1]
     residuals, slot_R = np.zeros((n_copies, n_robots, POSE_DIM)), np.zeros((n_copies, n_robots, POSE_DIM, POSE_DIM))
     H, observed = np.zeros((n_copies, n_robots, POSE_DIM, n)), np.zeros((n_copies, n_robots), np.bool_)
-    std = np.empty(POSE_DIM)
+    measured = np.empty(POSE_DIM)
     for c in range(n_copies):
         for robot in range(n_robots):
             pair = pair_index[robot, chosen[c, robot]]
             if pair < 0:
                 continue
             observed[c, robot] = True
-            sensor, truth, target = parameters[pair], geometry[c, pair], targets[pair]
-            std[0], std[1], std[2] = sensor[0] + sensor[1] * truth[0], sensor[2], sensor[3] + sensor[4] * truth[0]
+            target = targets[pair]
+            relative_pose_measured(geometry[c, pair], parameters[pair], noise[c, robot], measured)
             for i in range(POSE_DIM):
-                measured = truth[i] + std[i] * noise[c, robot, i]
-                residual = (wrap(measured) if i else measured) - predicted[c, pair, i]
+                residual = measured[i] - predicted[c, pair, i]
                 residuals[c, robot, i] = wrap(residual) if i else residual
                 for j in range(POSE_DIM):
                     H[c, robot, i, POSE_DIM * robot + j] = H_o[c, pair, i, j]

@@ -7,9 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.compiled import contiguous, inline, kernel, stacked
 from infonav_gym.config import check_number
 from infonav_gym.estimation.models import relative_pose
-from infonav_gym.geometry import wrap_angle
+from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.sensors.range_bearing import MIN_BEARING_STD_RAD, RangeBearingSensor
 
 
@@ -68,12 +69,35 @@ def noise_standard_deviations(parameters, ranges) -> np.ndarray:
         parameters: ``RelativePoseSensor.noise_parameters()`` rows, (5,) or one per range (M, 5).
         ranges: true or predicted ranges [m] (M,).
     """
-    parameters = np.reshape(parameters, (-1, 5))  # one row for all ranges, or one per range
+    ranges = np.asarray(ranges, dtype=float)
+    return standard_deviations(stacked(np.reshape(parameters, (-1, 5)), (len(ranges), 5)), contiguous(ranges))
+
+
+@kernel
+def standard_deviations(parameters, ranges):
+    """``noise_standard_deviations`` of one parameter row (M, 5) per range (M,)."""
     std = np.empty((len(ranges), 3))
-    std[:, 0] = parameters[:, 0] + parameters[:, 1] * ranges
-    std[:, 1] = parameters[:, 2]
-    std[:, 2] = parameters[:, 3] + parameters[:, 4] * ranges
+    for m in range(len(ranges)):
+        row_standard_deviations(parameters[m], ranges[m], std[m])
     return std
+
+
+@inline
+def row_standard_deviations(sensor, range_m, std):
+    """Write the noise stds (3,) of a sensor's ``noise_parameters()`` (5,) at ``range_m`` into ``std``."""
+    std[0] = sensor[0] + sensor[1] * range_m
+    std[1] = sensor[2]
+    std[2] = sensor[3] + sensor[4] * range_m
+
+
+@inline
+def relative_pose_measured(truth, sensor, noise, measured):
+    """Write one row of ``relative_poses_with_noise`` into ``measured`` (3,): ``truth`` (3,), the sensor's
+    ``noise_parameters()`` (5,), its standard normals ``noise`` (3,); usable inside kernels."""
+    row_standard_deviations(sensor, truth[0], measured)
+    measured[0] = truth[0] + measured[0] * noise[0]
+    measured[1] = wrap(truth[1] + measured[1] * noise[1])
+    measured[2] = wrap(truth[2] + measured[2] * noise[2])
 
 
 def noise_covariances(parameters, ranges) -> np.ndarray:
@@ -93,8 +117,17 @@ def noisy_relative_poses(truth, parameters, np_random: np.random.Generator) -> n
 
 def relative_poses_with_noise(truth, parameters, noise) -> np.ndarray:
     """``noisy_relative_poses`` given its standard normals ``noise`` (M, 3)."""
-    measured = truth + noise_standard_deviations(parameters, truth[:, 0]) * noise
-    measured[:, 1:] = wrap_angle(measured[:, 1:])
+    truth = np.asarray(truth, dtype=float)
+    parameters = stacked(np.reshape(parameters, (-1, 5)), (len(truth), 5))
+    return measured_relative_poses(contiguous(truth), parameters, contiguous(np.asarray(noise, dtype=float)))
+
+
+@kernel
+def measured_relative_poses(truth, parameters, noise):
+    """``relative_poses_with_noise`` of one parameter row (M, 5) per true relative pose (M, 3)."""
+    measured = np.empty(truth.shape)
+    for m in range(len(truth)):
+        relative_pose_measured(truth[m], parameters[m], noise[m], measured[m])
     return measured
 
 
