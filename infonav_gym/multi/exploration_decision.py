@@ -7,7 +7,6 @@ and gains are (N, R, 1 + L + R, 5) flattened to (N, R, 5 (1 + L + R)).
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import numpy as np
@@ -16,7 +15,6 @@ from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.estimation import batched, kernels
 from infonav_gym.estimation.kernels import range_bearing_of_offset
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.multi.team_decision import (
     TeamDecision,
     team_step_info,
@@ -24,7 +22,7 @@ from infonav_gym.multi.team_decision import (
 )
 from infonav_gym.sensors.range_bearing import noise_covariances
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
-from infonav_gym.world.visibility_kernels import blocked
+from infonav_gym.world.visibility_kernels import blocked, within_coverage
 
 EXPLORATION_INFO_KEYS = frozenset(
     {"gps_available", "pose_std", "position_std_m", "pose_entropy", "position_error_m", "heading_error_rad"}
@@ -103,8 +101,7 @@ def landmark_sight(true_poses, landmarks, reach, walls, discs, culled):
             x, y, heading = true_poses[c, robot, 0], true_poses[c, robot, 1], true_poses[c, robot, 2]
             for k in range(n_landmarks):
                 dx, dy = landmarks[c, k, 0] - x, landmarks[c, k, 1] - y
-                in_range = math.hypot(dx, dy) <= reach[robot, 0]
-                covered[c, robot, k] = in_range and abs(wrap(math.atan2(dy, dx) - heading)) <= reach[robot, 1]
+                covered[c, robot, k] = within_coverage(dx, dy, heading, reach[robot, 0], reach[robot, 1])
     copies, robots, seen = np.nonzero(covered)
     starts, ends = np.empty((len(copies), 2)), np.empty((len(copies), 2))
     for m in range(len(copies)):

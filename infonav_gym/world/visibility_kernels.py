@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import inlined_kernel, inner_kernel, kernel
+from infonav_gym.compiled import inline, inlined_kernel, inner_kernel, kernel
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 
 SMALLEST_NORMAL = np.finfo(float).tiny  # Chipmunk's CPFLOAT_MIN, added to a length before dividing by it
@@ -160,6 +160,12 @@ def covered(poses, targets, max_range_m, fov_rad):
     for c in range(n_copies):
         for k in range(n_targets):
             dx, dy = targets[c, k, 0] - poses[c, 0], targets[c, k, 1] - poses[c, 1]
-            bearing = wrap(math.atan2(dy, dx) - poses[c, 2])
-            inside[c, k] = math.hypot(dx, dy) <= max_range_m and abs(bearing) <= 0.5 * fov_rad
+            inside[c, k] = within_coverage(dx, dy, poses[c, 2], max_range_m, 0.5 * fov_rad)
     return inside
+
+
+@inline
+def within_coverage(dx, dy, heading, max_range_m, half_fov_rad) -> bool:
+    """Whether a target at offset ``(dx, dy)`` [m] from a sensor heading ``heading`` [rad] lies within ``max_range_m``
+    and ``half_fov_rad`` of the heading."""
+    return math.hypot(dx, dy) <= max_range_m and abs(wrap(math.atan2(dy, dx) - heading)) <= half_fov_rad
