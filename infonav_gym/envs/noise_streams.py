@@ -80,8 +80,10 @@ def slot_draws(blocks, next_draw, copies, used):
     draws = np.zeros(used.shape + blocks.shape[2:])
     for k in range(len(copies)):
         for slot in range(used.shape[1]):
-            if used[k, slot]:
-                draws[k, slot] = taken(blocks, next_draw, copies[k])
+            if used[k, slot]:  # element by element: an array into a slice compiles numba's shape-error formatting
+                draw = taken(blocks, next_draw, copies[k])
+                for i in range(len(draw)):
+                    draws[k, slot, i] = draw[i]
     return draws
 
 

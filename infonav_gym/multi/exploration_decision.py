@@ -105,7 +105,8 @@ def landmark_sight(true_poses, landmarks, reach, walls, discs, culled):
     copies, robots, seen = np.nonzero(covered)
     starts, ends = np.empty((len(copies), 2)), np.empty((len(copies), 2))
     for m in range(len(copies)):
-        starts[m], ends[m] = true_poses[copies[m], robots[m], :2], landmarks[copies[m], seen[m]]
+        for i in range(2):
+            starts[m, i], ends[m, i] = true_poses[copies[m], robots[m], i], landmarks[copies[m], seen[m], i]
     hit = blocked(copies, starts, ends, walls, discs, culled)
     for m in range(len(copies)):
         covered[copies[m], robots[m], seen[m]] = not hit[m]
@@ -128,17 +129,25 @@ def robot_landmark_gains(x, P, landmarks, noise_stds):
     n_copies, n_robots, n_landmarks = x.shape[0], x.shape[1] // POSE_DIM, landmarks.shape[1]
     blocks, predicted = np.empty((n_copies * n_robots, POSE_DIM, POSE_DIM)), np.empty(2)
     H, R = np.zeros((len(blocks), n_landmarks, 2, POSE_DIM)), np.zeros((len(blocks), n_landmarks, 2, 2))
-    ranges = np.empty(n_landmarks)
+    ranges = np.empty((n_robots, n_copies * n_landmarks))
     coincident = False
     for c in range(n_copies):
         for robot in range(n_robots):
             row, pose = c * n_robots + robot, POSE_DIM * robot
-            blocks[row] = P[c, pose : pose + POSE_DIM, pose : pose + POSE_DIM]
+            for i in range(POSE_DIM):  # element by element: an array into a slice compiles numba's error formatting
+                for j in range(POSE_DIM):
+                    blocks[row, i, j] = P[c, pose + i, pose + j]
             for k in range(n_landmarks):
                 dx, dy = landmarks[c, k, 0] - x[c, pose], landmarks[c, k, 1] - x[c, pose + 1]
                 coincident |= not range_bearing_of_offset(dx, dy, x[c, pose + 2], predicted, H[row, k])
-                ranges[k] = predicted[0]
-            R[row] = noise_covariances(ranges, noise_stds[robot, 0], noise_stds[robot, 1], noise_stds[robot, 2])
+                ranges[robot, c * n_landmarks + k] = predicted[0]
+    for robot in range(n_robots):
+        covariances = noise_covariances(ranges[robot], noise_stds[robot, 0], noise_stds[robot, 1], noise_stds[robot, 2])
+        for c in range(n_copies):
+            for k in range(n_landmarks):
+                for i in range(2):
+                    for j in range(2):
+                        R[c * n_robots + robot, k, i, j] = covariances[c * n_landmarks + k, i, j]
     return kernels.landmark_gains(blocks, H, R).reshape(n_copies, n_robots, n_landmarks), coincident
 
 

@@ -93,8 +93,9 @@ def pair_sight(true_poses, observers, targets, max_range_m, half_fov_rad, sight_
     copies, needed_lines = np.nonzero(needed)
     starts, ends = np.empty((len(copies), 2)), np.empty((len(copies), 2))
     for m in range(len(copies)):
-        starts[m] = true_poses[copies[m], lines[needed_lines[m], 0], :2]
-        ends[m] = true_poses[copies[m], lines[needed_lines[m], 1], :2]
+        for i in range(2):
+            starts[m, i] = true_poses[copies[m], lines[needed_lines[m], 0], i]
+            ends[m, i] = true_poses[copies[m], lines[needed_lines[m], 1], i]
     clear = np.ones(needed.shape, dtype=np.bool_)
     hit = blocked(copies, starts, ends, walls, discs, culled)
     for m in range(len(copies)):
@@ -111,7 +112,9 @@ def pair_decisions(x, P, observers, targets, noise, valid, team_reward):
     whether a determinant was not > 0 (``relative_pose_gains``) or a target lies on its observer."""
     n_copies, n_robots, n_pairs = x.shape[0], x.shape[1] // POSE_DIM, len(observers)
     copy_observers, copy_targets = np.empty((n_copies, n_pairs), np.int64), np.empty((n_copies, n_pairs), np.int64)
-    copy_observers[:], copy_targets[:] = observers, targets
+    for c in range(n_copies):
+        for k in range(n_pairs):
+            copy_observers[c, k], copy_targets[c, k] = observers[k], targets[k]
     predicted, H_observer, H_target, coincident = relative_pose_models(x, copy_observers, copy_targets)
     R = np.zeros((n_copies, n_pairs, POSE_DIM, POSE_DIM))
     for c in range(n_copies):
