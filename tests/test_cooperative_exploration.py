@@ -11,10 +11,12 @@ import pickle  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from conftest import assert_identical, greedy_actions, map_footprints, random_valid_actions  # noqa: E402
+from gymnasium import spaces  # noqa: E402
 
 from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0  # noqa: E402
 from infonav_gym.multi.cooperative_exploration import N_MOTIONS, NOOP_ACTION  # noqa: E402
+from infonav_gym.multi.exploration_team import exploration_observation_bounds, exploration_observations  # noqa: E402
 from infonav_gym.multi.terrain_map import TerrainMapModel  # noqa: E402
 from infonav_gym.world.exploration_scenarios import BASE_CLEARANCE_M, exploration_field  # noqa: E402
 
@@ -234,3 +236,27 @@ def test_rgb_array_frames_show_the_team_and_the_map():
     assert first.dtype == np.uint8 and first.ndim == 3 and max(first.shape[:2]) == 300
     assert not np.array_equal(first, second)
     env.close()
+
+
+def test_observations_are_the_team_landmark_extra_and_map_features_clipped_to_the_space():
+    rng = np.random.default_rng(5)
+    n_copies, n_robots, n_landmarks, n_cells = 3, 3, 2, 5
+    n_team = 10 + 5 * n_robots
+    team = rng.normal(0, 3, (n_copies, n_robots, n_team)).astype(np.float32)
+    valid = rng.random((n_copies, n_robots, n_landmarks)) < 0.5
+    seen = np.stack([rng.uniform(0, 2e4, valid.shape), rng.uniform(-4, 4, valid.shape)], axis=-1)
+    seen[0, 0, 0, 1] = np.nan
+    speeds, budget, coverage = rng.uniform(0, 2, n_robots), rng.random((n_copies, n_robots)), rng.random(n_copies)
+    cells = rng.uniform(-0.2, 1.3, (n_copies, n_cells))
+    low, high = exploration_observation_bounds(np.full(n_team, -2.0), np.full(n_team, 2.0), n_landmarks, n_cells)
+    observed = exploration_observations(
+        team, valid, seen, speeds, budget, coverage, cells, spaces.Box(low, high, dtype=np.float32)
+    )
+    landmarks = np.stack([valid, seen[..., 0], np.cos(seen[..., 1]), np.sin(seen[..., 1])], axis=-1)
+    extras = np.stack([np.broadcast_to(speeds, budget.shape), budget, np.repeat(coverage[:, None], n_robots, 1)], -1)
+    map_cells = np.repeat(cells[:, None], n_robots, axis=1)
+    parts = [team, landmarks.reshape(n_copies, n_robots, -1), extras, map_cells]
+    expected = np.clip(np.concatenate(parts, axis=-1).astype(np.float32), low, high)
+    assert observed.dtype == np.float32
+    np.testing.assert_array_equal(observed, expected)
+    assert np.isnan(observed[0, 0, n_team + 2]) and (observed[~np.isnan(observed)] <= 1e4).all()

@@ -184,7 +184,7 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
             decision.pose_log_det,
             self._gps_available,
             self._elapsed / self.max_cycles,
-            decision.action_mask[..., 1:],
+            decision.action_mask[..., 1:] == 1,
             self.single_observation_space,
             decision.action_information_gain if self.config["observe_gains"] else None,
         )

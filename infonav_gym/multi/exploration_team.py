@@ -10,9 +10,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.config import Interval, check_config, check_config_arguments, config_keys
 from infonav_gym.envs.active_localization import REWARD_WEIGHT
 from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS
+from infonav_gym.envs.observation_kernels import clip_into, range_bearing_features
 from infonav_gym.estimation.state import INITIAL_POSE_STD
 from infonav_gym.multi.team import gps_receivers, parse_speeds, parse_suites
 from infonav_gym.multi.team_sensing import SensingPairs, team_prior
@@ -182,32 +184,45 @@ def exploration_observation_bounds(team_low, team_high, n_landmarks: int, n_cell
 def exploration_observations(
     team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, space
 ) -> np.ndarray:
-    """Every robot's observation (see ``CooperativeExplorationEnv``), float32 clipped to ``space``, for R robots.
-
-    Any leading dimensions (B...) are batch dimensions (the vector env's copies).
+    """Every robot's observation (see ``CooperativeExplorationEnv``), float32 clipped to ``space``, of N teams of R
+    robots, in one kernel (``exploration_features``).
 
     Args:
-        team: the ``team_observations`` part (B..., R, 10 + 5 R).
-        landmark_valid: whether observing each landmark is valid now (B..., R, L).
-        landmarks_seen: each landmark's range [m] and bearing [rad] from each robot's estimate (B..., R, L, 2).
+        team: the ``team_observations`` part (N, R, 10 + 5 R).
+        landmark_valid: whether observing each landmark is valid now (N, R, L).
+        landmarks_seen: each landmark's range [m] and bearing [rad] from each robot's estimate (N, R, L, 2).
         speeds_mps: each robot's speed (R,) [m/s].
-        budget_left: each robot's sensing budget left, a fraction (B..., R).
-        coverage: the team's coverage (B...) (a number for one team).
-        cell_std: each cell's height std left, a fraction of the prior's (B..., G).
+        budget_left: each robot's sensing budget left, a fraction (N, R).
+        coverage: each team's coverage (N,).
+        cell_std: each cell's height std left, a fraction of the prior's (N, G).
         space: one robot's observation space.
     """
-    lead, n = np.shape(team)[:-2], np.shape(team)[-2]
-    landmarks = np.zeros((*lead, n, np.shape(landmark_valid)[-1], LANDMARK_FEATURES))
-    landmarks[..., 0] = landmark_valid
-    landmarks[..., 1] = landmarks_seen[..., 0]
-    landmarks[..., 2], landmarks[..., 3] = np.cos(landmarks_seen[..., 1]), np.sin(landmarks_seen[..., 1])
-    extras = np.stack(
-        np.broadcast_arrays(speeds_mps, budget_left, np.asarray(coverage, dtype=float)[..., None]), axis=-1
-    )
-    n_cells = np.shape(cell_std)[-1]
-    robot = np.concatenate([team, landmarks.reshape(*lead, n, -1), extras], axis=-1).astype(np.float32)
-    cells = np.asarray(cell_std, dtype=np.float32)  # the same for every robot: clipped once per team
-    features = np.empty((*lead, n, space.shape[0]), dtype=np.float32)
-    np.clip(robot, space.low[:-n_cells], space.high[:-n_cells], out=features[..., :-n_cells])
-    features[..., -n_cells:] = np.clip(cells, space.low[-n_cells:], space.high[-n_cells:])[..., None, :]
+    n_copies, n_robots = np.shape(team)[:2]
+    features = np.empty((n_copies, n_robots, space.shape[0]), dtype=np.float32)
+    arrays = (team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, space.low, space.high)
+    exploration_features(*(contiguous(np.asarray(array, dtype=float)) for array in arrays), features)
     return features
+
+
+@kernel
+def exploration_features(
+    team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, low, high, out
+):
+    """``exploration_observations`` (its arguments as float64 arrays, ``space``'s bounds) into ``out`` (N, R, F)."""
+    n_copies, n_robots, n_team = team.shape
+    n_landmarks, n_cells = landmark_valid.shape[2], cell_std.shape[1]
+    extras = n_team + LANDMARK_FEATURES * n_landmarks
+    values = np.empty(len(low))
+    for c in range(n_copies):
+        for i in range(n_robots):
+            for k in range(n_team):
+                values[k] = team[c, i, k]
+            for k in range(n_landmarks):
+                start = n_team + LANDMARK_FEATURES * k
+                values[start] = landmark_valid[c, i, k]
+                range_m, bearing = landmarks_seen[c, i, k, 0], landmarks_seen[c, i, k, 1]
+                range_bearing_features(values[start + 1 : start + LANDMARK_FEATURES], range_m, bearing)
+            values[extras], values[extras + 1], values[extras + 2] = speeds_mps[i], budget_left[c, i], coverage[c]
+            for k in range(n_cells):
+                values[extras + 3 + k] = cell_std[c, k]
+            clip_into(out[c, i], values, low, high)
