@@ -21,9 +21,8 @@ from infonav_gym.estimation.kernels import (
     range_bearing_models,
 )
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import gaussian_entropy_kernel, stacked_log_dets
-from infonav_gym.sensors.range_bearing import noise_covariances
+from infonav_gym.sensors.range_bearing import noise_covariances, noisy_range_bearing
 from infonav_gym.world.visibility import shape_arrays
 from infonav_gym.world.visibility_kernels import blocked, covered
 
@@ -98,17 +97,15 @@ def measured_updates(
     x, P, true_poses, landmarks, blocks, next_draw, chosen, noise_stds, predicted, H, R, prior_log_det
 ):
     """``LandmarkDecision.observe``: each chosen landmark's noisy ``[range, bearing]`` from its copy's true pose
-    (``RangeBearingSensor.measure_with_noise`` given its copy's next draw of ``blocks``, ``NoiseStreams.reserve``'s),
+    (``noisy_range_bearing`` given its copy's next draw of ``blocks``, ``NoiseStreams.reserve``'s),
     then ``chosen_landmark_updates``; and whether a posterior is not positive definite."""
     measurements = np.zeros((len(chosen), 2))
     for c in range(len(chosen)):
         k = chosen[c]
         if k >= 0:
-            noise = taken(blocks, next_draw, c)
             dx, dy = landmarks[c, k, 0] - true_poses[c, 0], landmarks[c, k, 1] - true_poses[c, 1]
-            distance = math.hypot(dx, dy)
-            measurements[c, 0] = distance + (noise_stds[0] + noise_stds[1] * distance) * noise[0]
-            measurements[c, 1] = wrap(math.atan2(dy, dx) - true_poses[c, 2] + noise_stds[2] * noise[1])
+            noise = taken(blocks, next_draw, c)
+            noisy_range_bearing(dx, dy, true_poses[c, 2], noise_stds, noise, measurements[c])
     x, P, realized = chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det)
     not_positive_definite = False
     for c in range(len(chosen)):

@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.compiled import contiguous, inline, kernel
 from infonav_gym.config import check_number, from_config
-from infonav_gym.geometry import wrap_angle
+from infonav_gym.geometry import wrap_angle_kernel as wrap
 
 MIN_RANGE_STD_M = 1e-4  # finer noise makes the covariance numerically singular [m]
 MAX_RANGE_STD_M = 100.0  # [m]
@@ -62,26 +62,16 @@ class RangeBearingSensor:
 
     def measure(self, pose, landmark, np_random: np.random.Generator) -> np.ndarray:
         """A noisy ``[range, bearing]`` of ``landmark`` seen from ``pose``."""
-        dx, dy = landmark[0] - pose[0], landmark[1] - pose[1]
-        distance = math.hypot(dx, dy)
-        range_noise, bearing_noise = np_random.standard_normal(2)
-        return np.array(
-            [
-                distance + (self.range_std_m + self.range_std_per_m * distance) * range_noise,
-                wrap_angle(math.atan2(dy, dx) - pose[2] + self.bearing_std_rad * bearing_noise),
-            ]
-        )
+        noise = np_random.standard_normal(2)
+        return self.measure_with_noise(np.asarray(pose)[None], np.asarray(landmark)[None], noise[None])[0]
 
     def measure_with_noise(self, poses, landmarks, noise) -> np.ndarray:
         """``measure`` of N pose-landmark pairs at once, given its standard normals: (N, 3), (N, 2), (N, 2) -> (N, 2).
 
         ``noise[i]`` are the two numbers ``measure`` draws (``np_random.standard_normal(2)``).
         """
-        dx, dy = landmarks[:, 0] - poses[:, 0], landmarks[:, 1] - poses[:, 1]
-        distances = np.hypot(dx, dy)
-        ranges = distances + (self.range_std_m + self.range_std_per_m * distances) * noise[:, 0]
-        bearings = wrap_angle(np.arctan2(dy, dx) - poses[:, 2] + self.bearing_std_rad * noise[:, 1])
-        return np.stack([ranges, bearings], axis=-1)
+        arrays = (contiguous(np.asarray(array, dtype=float)) for array in (poses, landmarks, noise))
+        return noisy_ranges_bearings(*arrays, self.noise_stds)
 
 
 CONFIG_KEYS = {  # the env config key of each attribute
@@ -107,3 +97,22 @@ def noise_covariances(ranges, range_std_m, range_std_per_m, bearing_std_rad):
         covariance[index, 0, 0] = range_std * range_std
         covariance[index, 1, 1] = bearing_std_rad * bearing_std_rad
     return covariance
+
+
+@kernel
+def noisy_ranges_bearings(poses, landmarks, noise, noise_stds):
+    """``RangeBearingSensor.measure_with_noise`` of the sensor's ``noise_stds`` (``noisy_range_bearing`` per row)."""
+    measured = np.empty((len(poses), 2))
+    for i in range(len(poses)):
+        dx, dy = landmarks[i, 0] - poses[i, 0], landmarks[i, 1] - poses[i, 1]
+        noisy_range_bearing(dx, dy, poses[i, 2], noise_stds, noise[i], measured[i])
+    return measured
+
+
+@inline
+def noisy_range_bearing(dx, dy, heading, noise_stds, noise, out):
+    """The noisy ``[range, bearing]`` into ``out`` of a landmark ``(dx, dy)`` [m] off a pose of ``heading`` [rad],
+    given the two standard normals ``noise`` and the sensor's ``noise_stds``; the range noise grows with the range."""
+    distance = math.hypot(dx, dy)
+    out[0] = distance + (noise_stds[0] + noise_stds[1] * distance) * noise[0]
+    out[1] = wrap(math.atan2(dy, dx) - heading + noise_stds[2] * noise[1])
