@@ -22,7 +22,7 @@ from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_base import InfoNavVectorEnv
+from infonav_gym.envs.vector_base import InfoNavVectorEnv, accepted_actions
 from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses
@@ -183,6 +183,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         )
 
     def _checked_actions(self, actions) -> np.ndarray:
+        """The actions as an int64 array (N, R) (``_chosen_actions`` checks that they are in the space)."""
         array = np.asarray(actions)
         n_robots, top = len(self.agents), self.single_action_space.n - 1
         if array.shape != (self.num_envs, n_robots) or array.dtype.kind not in "iu":
@@ -190,20 +191,23 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
                 f"actions of {self.owner_name} must be an integer array of shape ({self.num_envs}, {n_robots}), "
                 f"one per copy and robot, in [0, {top}]; got {array.dtype} of shape {array.shape}"
             )
-        outside = (array < 0) | (array > top)
-        if outside.any():
-            copy, robot = np.argwhere(outside)[0].tolist()
-            raise ValueError(
-                f"action {array[copy, robot]} of {self.agents[robot]} in sub-env {copy} is not in the action space "
-                f"{self.single_action_space}: expected an integer in [0, {top}]"
-            )
-        return array.astype(int, copy=False)
+        return array.astype(np.int64, copy=False)
 
     def _chosen_actions(self, actions: np.ndarray, acting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each robot's executed action (the no-op for a masked one and in a resetting copy), and which were masked."""
+        """Each robot's executed action (the no-op for a masked one and in a resetting copy), and which were masked
+        (``accepted_actions`` over the copies' robots)."""
         mask, noop = self._decision.action_mask, self.traits.noop_action
-        valid = mask[self._slots + (actions,)].astype(bool)
-        invalid = acting[:, None] & ~valid
+        n_robots = actions.shape[1]
+        flat_mask, resetting = mask.reshape(-1, mask.shape[-1]), np.repeat(~acting, n_robots)
+        accepted, outside = accepted_actions(actions.reshape(-1), flat_mask, resetting)
+        if outside >= 0:
+            copy, robot = divmod(outside, n_robots)
+            raise ValueError(
+                f"action {actions[copy, robot]} of {self.agents[robot]} in sub-env {copy} is not in the action space "
+                f"{self.single_action_space}: expected an integer in [0, {self.single_action_space.n - 1}]"
+            )
+        accepted = accepted.reshape(actions.shape)
+        invalid = acting[:, None] & (accepted < 0)
         for copy, robot in np.argwhere(invalid).tolist() if invalid.any() else ():
             agent = self.agents[robot]
             # a PettingZoo view (one copy, ``_owner``) names the agent and where its infos give its mask
@@ -211,7 +215,7 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
                 (f"infos[{agent!r}]['action_mask']", agent) if self._owner else (MASK_KEY, f"{agent} in sub-env {copy}")
             )
             accepts_action(int(actions[copy, robot]), mask[copy, robot], self.config["invalid_action"], key, where)
-        return np.where(acting[:, None] & valid, actions, noop), invalid
+        return np.where(accepted >= 0, accepted, noop), invalid
 
     def _relative_update(self, copies: np.ndarray, chosen: np.ndarray, decision) -> list:
         """Fuse the teammate choices ``chosen`` (n, R) (``NO_OBSERVATION`` or ``1 + j`` for robot j) of ``copies`` (n,)
