@@ -1,7 +1,7 @@
 """Evaluation episodes played by one process, a pool of worker processes, or Ray tasks.
 
 An episode's metrics are a function of the env id, its config, the agent's name and the seed alone
-(``run_episode`` resets the env and the agent with the seed), so each worker builds its own env and
+(``EpisodeRunner.infos`` resets the env and the agent with the seed), so each worker builds its own env and
 agents once (``EpisodeRunner``) and plays the ``(agent, seed)`` tasks it is given: results equal a single
 process's, seed for seed, whatever the number of workers. Results come back in task order.
 
@@ -54,12 +54,11 @@ class EpisodeRunner:
             raise
 
     def play(self, task: tuple[str, int]) -> dict:
-        """The metrics of agent ``task[0]``'s episode on seed ``task[1]``."""
-        from infonav_gym.experiments.evaluation import run_episode, run_parallel_episode
+        """The env's declared ``episode_metrics`` of agent ``task[0]``'s episode on seed ``task[1]``."""
+        from infonav_gym.envs.traits import episode_metrics_of
 
-        name, seed = task
-        run = run_parallel_episode if self.parallel else run_episode
-        return run(self.env, self.agents[name], seed)
+        steps = list(self.infos(task))[1:]
+        return {metric.name: metric.compute(steps) for metric in episode_metrics_of(self.env)}
 
     def infos(self, task: tuple[str, int]):
         """The infos of agent ``task[0]``'s episode on seed ``task[1]``: the reset's, then each step's, as played."""
@@ -72,11 +71,11 @@ class EpisodeRunner:
         self.env.close()
 
 
-def check_workers(workers: int) -> int:
-    """``workers`` as an int >= 1, else ``ValueError``."""
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    return workers
+def check_positive(value, name: str) -> int:
+    """``value`` as an int >= 1, else ``ValueError`` naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return value
 
 
 def played(
@@ -99,7 +98,7 @@ def played(
     Raises:
         ValueError: for ``workers < 1``, or ``use_ray`` without Ray installed (saying how to install it).
     """
-    check_workers(workers)
+    check_positive(workers, "workers")
     if use_ray:  # one EpisodeRunner actor per worker (one CPU each)
         from agents.ray_support import local_or_cluster_ray
 

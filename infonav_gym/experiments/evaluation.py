@@ -23,7 +23,7 @@ from agents import GreedyEntropyAgent, RandomAgent
 from agents.base import env_name
 from agents.ray_support import DISTRIBUTED_HINT, import_ray
 from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, traits_of
-from infonav_gym.experiments.episode_pool import EpisodeRunner, check_workers, played
+from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
 from infonav_gym.experiments.paths import Interrupted, output_file
 from infonav_gym.registry import registered_envs
 from infonav_gym.rendering import matplotlib_figure
@@ -48,11 +48,6 @@ def check_agent_name(name: str) -> None:
     raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
 
 
-def _planning_env_ids() -> list[str]:
-    """The registered envs whose class declares a planning model."""
-    return [entry.id for entry in registered_envs() if has_planning_model(entry.load())]
-
-
 def make_agent(
     name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None, agent: str | None = None
 ):
@@ -73,10 +68,11 @@ def make_agent(
         raise ValueError(f"agent {name!r} needs the env it will act in")
     if name == "planner":
         if not has_planning_model(env):
+            planning_env_ids = [entry.id for entry in registered_envs() if has_planning_model(entry.load())]
             raise ValueError(
                 f"agent 'planner' is not available for {env_name(env)}: it declares no planning model "
                 f"(no planning_model() method); use random, greedy or ppo:PATH, or the planner on "
-                f"{', '.join(_planning_env_ids())}"
+                f"{', '.join(planning_env_ids)}"
             )
         try:
             from agents.planner import PlannerAgent, planner_settings
@@ -125,12 +121,6 @@ def episode_infos(env: gym.Env, agent, seed: int) -> Iterator[dict]:
         done = terminated or truncated
 
 
-def run_episode(env: gym.Env, agent, seed: int) -> dict:
-    """One seeded episode; returns the env's declared ``episode_metrics`` of it, ``{name: value}``."""
-    infos = list(episode_infos(env, agent, seed))[1:]
-    return {metric.name: metric.compute(infos) for metric in episode_metrics_of(env)}
-
-
 def parallel_episode_infos(env, agents: dict, seed: int) -> Iterator[dict]:
     """The per-robot infos ``{robot: info}`` of one seeded episode of a PettingZoo parallel env's reset, then
     of each of its steps, as they are played; ``agents[robot]`` (reset with seed ``1000 * seed + k`` for robot
@@ -143,13 +133,6 @@ def parallel_episode_infos(env, agents: dict, seed: int) -> Iterator[dict]:
         actions = {name: agents[name].act(observations[name], infos[name]) for name in env.agents}
         observations, _, _, _, infos = env.step(actions)
         yield infos
-
-
-def run_parallel_episode(env, agents: dict, seed: int) -> dict:
-    """One seeded episode of a PettingZoo parallel env (``parallel_episode_infos``, ``agents`` from
-    ``make_team_agents``); its metrics, the env's ``episode_metrics`` of the per-step dicts ``{robot: info}``."""
-    steps = list(parallel_episode_infos(env, agents, seed))[1:]
-    return {metric.name: metric.compute(steps) for metric in episode_metrics_of(env)}
 
 
 def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float, float]:
@@ -239,7 +222,7 @@ def evaluate(
         raise ValueError(f"no agents given; choose from {', '.join(AGENT_NAMES)}")
     for name in agent_names:
         check_agent_name(name)
-    check_workers(workers)
+    check_positive(workers, "workers")
     if use_ray:
         import_ray(address)  # before any episode: a missing extra or a wrong address is a one-line error
     env_kwargs = dict(env_kwargs or {})
@@ -292,12 +275,6 @@ def _cell(summary: dict) -> str:
     return f"{summary['mean']:.3f} ± {summary['ci95']:.3f}"
 
 
-def interval_note(results: dict) -> str:
-    """What the table's intervals are: one sentence per kind of interval it holds."""
-    kinds = {s["interval"] for result in results["agents"].values() for s in result["summary"].values()}
-    return "; ".join(note for kind, note in INTERVAL_NOTES.items() if kind in kinds) + "."
-
-
 def heading(results: dict) -> str:
     """``env, N episodes per agent, seeds a..b``, and the config keys that decide the reward (env traits)."""
     seeds, episodes = results["seeds"], f"{results['episodes']} episodes per agent"
@@ -316,13 +293,16 @@ def config_line(results: dict) -> str:
 
 
 def markdown_table(results: dict) -> str:
-    """The summary as a Markdown table (a cell per agent and metric), and what its intervals are."""
+    """The summary as a Markdown table (a cell per agent and metric), and what its intervals are (a sentence
+    per kind of interval it holds)."""
     metrics = results["metrics"]
     header = "| agent | " + " | ".join(metrics.values()) + " |"
     lines = [header, "|" + " --- |" * (len(metrics) + 1)]
     for name, result in results["agents"].items():
         lines.append(f"| {name} | " + " | ".join(_cell(result["summary"][key]) for key in metrics) + " |")
-    return "\n".join(lines) + "\n\nEach cell: " + interval_note(results)
+    kinds = {s["interval"] for result in results["agents"].values() for s in result["summary"].values()}
+    note = "; ".join(note for kind, note in INTERVAL_NOTES.items() if kind in kinds)
+    return "\n".join(lines) + f"\n\nEach cell: {note}."
 
 
 def _error_bar(summary: dict) -> tuple[float, float]:

@@ -13,18 +13,11 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from infonav_gym.experiments.episode_pool import EpisodeRunner
+from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive
 from infonav_gym.rendering import matplotlib_figure, require_extra
 
 STRIP_FRAMES = 6  # frames in PREFIX.png
 STRIP_COLUMNS = 3
-
-
-def check_positive(value, name: str) -> int:
-    """``value`` as an int >= 1, else ``ValueError`` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -64,7 +57,9 @@ def render_episode(
         check_positive(max_steps, "--max-steps")
     runner = EpisodeRunner(env_id, {**(env_kwargs or {}), "render_mode": "rgb_array"}, [agent_name])
     frames, steps = [], []
-    bar = tqdm(total=max_steps or _horizon(runner.env), desc=f"rendering {env_id}", disable=not progress, unit="step")
+    spec = getattr(runner.env, "spec", None)  # the horizon: its Gymnasium time limit, or a team env's max_cycles
+    horizon = spec.max_episode_steps if spec is not None else getattr(runner.env, "max_cycles", None)
+    bar = tqdm(total=max_steps or horizon, desc=f"rendering {env_id}", disable=not progress, unit="step")
     try:
         stop = None if max_steps is None else max_steps + 1  # the reset, then max_steps steps
         for step, _ in enumerate(itertools.islice(runner.infos((agent_name, seed)), stop)):
@@ -79,12 +74,6 @@ def render_episode(
         bar.close()
         runner.close()
     return RenderedEpisode(frames, steps, float(runner.env.metadata["render_fps"]))
-
-
-def _horizon(env) -> int | None:
-    """The most steps an episode of ``env`` lasts: its Gymnasium time limit, or a team env's ``max_cycles``."""
-    spec = getattr(env, "spec", None)
-    return spec.max_episode_steps if spec is not None else getattr(env, "max_cycles", None)
 
 
 def write_gif(episode: RenderedEpisode, path: Path) -> Path:
