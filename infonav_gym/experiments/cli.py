@@ -354,74 +354,62 @@ def _render(args, command: str) -> dict:
 
 
 def _train(args, command: str) -> dict:
-    """Train PPO on ``args.env``; print where the model went unless --json."""
-    if args.backend == "rllib":
-        return _train_rllib(args)
+    """Train PPO on ``args.env`` with SB3 or RLlib; print where the model went unless --json."""
+    rllib = args.backend == "rllib"
+    if rllib:
+        from agents.ray_support import import_ray
+
+        import_ray(args.address)  # a missing extra or a wrong address: a one-line error before the slow imports below
+        from agents.rllib_train import train_rllib
     try:
         from agents.ppo import load_hyperparameters, train
     except ImportError as error:
         raise ValueError(f"training needs the rl extra (pip install 'infonav-gym[rl]'): {error}") from None
-    output = args.output or Path("models") / f"{args.env.rsplit('/', 1)[-1]}_seed{args.seed}"
-    check_output_dir(output, "--output")
-    hyperparameters = load_hyperparameters(args.env, args.hyperparams) if args.hyperparams else None
-    model_path = train(
-        args.env,
-        args.timesteps,
-        seed=args.seed,
-        n_envs=args.n_envs,
-        output_dir=output,
-        hyperparameters=hyperparameters,
-        progress=not args.json,
-        tensorboard=args.tensorboard,
-        vectorization=args.vectorization,
-        env_kwargs=dict(args.config),
-    )
-    record = json.loads((model_path.parent / "train.json").read_text())
-    if record["interrupted"]:
-        message = f"interrupted after {record['timesteps']} of {args.timesteps} env steps; saved {model_path}"
-        raise Interrupted(f"{message} and train.json", record)
-    if not args.json:
-        copies = f"{record['n_envs']} envs, {record['vectorization']}"
-        _print_trained(args, record, copies, f"model: {model_path}", f"ppo:{model_path}")
-    return record
-
-
-def _print_trained(args, record: dict, copies: str, written: str, agent: str) -> None:
-    """What ``infonav train`` did (``record``: its train.json) and the command that evaluates ``agent``."""
-    print(
-        f"trained {record['algorithm']} on {args.env} ({copies}) for {record['timesteps']} env steps in "
-        f"{record['seconds']:.1f} s ({record['fps']:.0f} steps/s); {written}"
-    )
-    config_flags = "".join(f" --config {shlex.quote(f'{key}={json.dumps(value)}')}" for key, value in args.config)
-    print(f"evaluate it: infonav evaluate --env {args.env}{config_flags} --agents random,greedy,{agent}")
-
-
-def _train_rllib(args) -> dict:
-    """Train RLlib PPO on ``args.env``; print where the checkpoint went unless --json."""
-    from agents.ray_support import import_ray
-
-    import_ray(args.address)  # a missing extra or a wrong address: a one-line error before the slow imports below
-    from agents.ppo import load_hyperparameters
-    from agents.rllib_train import train_rllib
-
-    output = args.output or Path("models") / f"{args.env.rsplit('/', 1)[-1]}_rllib_seed{args.seed}"
-    check_output_dir(output, "--output")
-    record = train_rllib(
-        args.env,
-        args.timesteps,
-        output,
-        seed=args.seed,
-        env_kwargs=dict(args.config),
-        hyperparameters=load_hyperparameters(args.env, args.hyperparams),
-        num_env_runners=args.num_env_runners,
-        envs_per_runner=args.envs_per_runner,
-        policies=args.policies,
-        address=args.address,
-        progress=not args.json,
-    )
-    if not args.json:
+    name = f"{args.env.rsplit('/', 1)[-1]}{'_rllib' if rllib else ''}_seed{args.seed}"
+    output = check_output_dir(args.output or Path("models") / name, "--output")
+    env_kwargs, progress = dict(args.config), not args.json
+    if rllib:
+        record = train_rllib(
+            args.env,
+            args.timesteps,
+            output,
+            seed=args.seed,
+            env_kwargs=env_kwargs,
+            hyperparameters=load_hyperparameters(args.env, args.hyperparams),
+            num_env_runners=args.num_env_runners,
+            envs_per_runner=args.envs_per_runner,
+            policies=args.policies,
+            address=args.address,
+            progress=progress,
+        )
         copies = f"{args.num_env_runners} env runners x {record['envs_per_runner']} envs"
-        _print_trained(args, record, copies, f"checkpoint: {record['checkpoint']}", f"rllib:{output}")
+        written, agent = f"checkpoint: {record['checkpoint']}", f"rllib:{output}"
+    else:
+        model_path = train(
+            args.env,
+            args.timesteps,
+            seed=args.seed,
+            n_envs=args.n_envs,
+            output_dir=output,
+            hyperparameters=load_hyperparameters(args.env, args.hyperparams) if args.hyperparams else None,
+            progress=progress,
+            tensorboard=args.tensorboard,
+            vectorization=args.vectorization,
+            env_kwargs=env_kwargs,
+        )
+        record = json.loads((model_path.parent / "train.json").read_text())
+        if record["interrupted"]:
+            message = f"interrupted after {record['timesteps']} of {args.timesteps} env steps; saved {model_path}"
+            raise Interrupted(f"{message} and train.json", record)
+        copies = f"{record['n_envs']} envs, {record['vectorization']}"
+        written, agent = f"model: {model_path}", f"ppo:{model_path}"
+    if not args.json:
+        print(
+            f"trained {record['algorithm']} on {args.env} ({copies}) for {record['timesteps']} env steps in "
+            f"{record['seconds']:.1f} s ({record['fps']:.0f} steps/s); {written}"
+        )
+        config_flags = "".join(f" --config {shlex.quote(f'{key}={json.dumps(value)}')}" for key, value in args.config)
+        print(f"evaluate it: infonav evaluate --env {args.env}{config_flags} --agents random,greedy,{agent}")
     return record
 
 
