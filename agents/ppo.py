@@ -19,8 +19,8 @@ and ``PPOAgent`` applies. Needs the ``rl`` extra (stable-baselines3, sb3-contrib
 
 from __future__ import annotations
 
-import contextlib
 import copy
+import importlib.util
 import inspect
 import json
 import pickle
@@ -41,7 +41,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMoni
 from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
-from agents.base import checked_action_count, usable_mask
+from agents.base import TORCH_THREADS, checked_action_count, torch_threads, usable_mask
 from agents.vector_adapter import monitored_vec_env
 from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, resolve_env_id
 
@@ -51,27 +51,6 @@ MODEL_FILE = "model.zip"
 NORMALIZATION_FILE = "vecnormalize.pkl"  # VecNormalize statistics, beside MODEL_FILE, when trained with ``normalize``
 NATIVE, SYNC, SUBPROCESS = "native", "sync", "subprocess"
 VECTORIZATIONS = (NATIVE, SYNC, SUBPROCESS)  # the env's own VectorEnv, DummyVecEnv, SubprocVecEnv
-
-
-def default_num_threads() -> int:
-    """Torch threads for PPO's small MLPs: 1.
-
-    On a 2-core CPU a second thread gains nothing for 64 x 64 networks (measured: CartPole
-    PPO at 5600 vs 5450 steps/s) and, when another process holds the other core, makes
-    training about 20x slower (the threads spin-wait on each other).
-    """
-    return 1
-
-
-@contextlib.contextmanager
-def torch_threads(n_threads: int):
-    """Run the block with ``torch.set_num_threads(n_threads)``; restore the caller's setting after."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(n_threads)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
 
 
 class InfoActionMask(gym.Wrapper):
@@ -205,15 +184,6 @@ def constructor_values(algorithm, policy: str, kwargs: dict) -> dict:
     empty = inspect.Parameter.empty
     values = {name: parameters[name].default for name in public if parameters[name].default is not empty}
     return json.loads(json.dumps({**values, "policy": policy, **kwargs}, default=_json_name))
-
-
-def tensorboard_available() -> bool:
-    """Whether the ``tensorboard`` package (SB3's TensorBoard writer) imports."""
-    try:
-        import tensorboard  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 class TqdmCallback(BaseCallback):
@@ -381,7 +351,7 @@ def train(
     """
     if timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")
-    if tensorboard and not tensorboard_available():
+    if tensorboard and importlib.util.find_spec("tensorboard") is None:  # SB3's TensorBoard writer
         raise ValueError("TensorBoard logging needs the tensorboard package: pip install tensorboard")
     output_dir = Path(output_dir)
     if hyperparameters is None:
@@ -389,7 +359,7 @@ def train(
     hyperparameters = {**hyperparameters, "n_envs": int(hyperparameters.get("n_envs", 8) if n_envs is None else n_envs)}
     tensorboard_log = str(output_dir / "tensorboard") if tensorboard else None
     vectorization = checked_vectorization(env_id, vectorization)
-    with torch_threads(default_num_threads()):
+    with torch_threads():
         model = build_model(env_id, seed, None, hyperparameters, env_kwargs, vectorization, tensorboard_log)
         n_envs = model.n_envs
         rollout = model.n_steps * n_envs  # learn() collects whole rollouts: the bar's true total
@@ -424,7 +394,7 @@ def train(
         "constructor": constructor_values(type(model), *_constructor_arguments(hyperparameters, seed, tensorboard_log)),
         "seconds": seconds,
         "fps": model.num_timesteps / seconds,
-        "torch_threads": default_num_threads(),
+        "torch_threads": TORCH_THREADS,
         "model": str(model_path),
         "interrupted": interrupted,
     }

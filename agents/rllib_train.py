@@ -196,7 +196,7 @@ def build_config(
         .reporting(metrics_num_episodes_for_smoothing=20)
     )
     if not team:
-        if native_vectorization(env_id):
+        if has_native_vector_env(env_id):
             config = config.env_runners(gym_env_vectorize_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT)
         return config.rl_module(rl_module_spec=module)
     from agents.rllib_team_env import BatchedTeamEnvRunner
@@ -220,12 +220,6 @@ def copies_per_runner(env_id: str, hyperparameters: dict, num_env_runners: int, 
     return math.ceil(_setting(hyperparameters, "n_envs", int, ROLLOUT_KEYS["n_envs"]) / max(num_env_runners, 1))
 
 
-def native_vectorization(env_id: str) -> bool:
-    """Whether RLlib steps ``env_id``'s copies in its native vector env (every team env, single-agent envs that
-    have one)."""
-    return has_native_vector_env(env_id)
-
-
 class PolicyMapping:
     """RLlib's ``policy_mapping_fn``: each robot's policy id (picklable, unlike a lambda)."""
 
@@ -234,11 +228,6 @@ class PolicyMapping:
 
     def __call__(self, agent_id, episode=None, **kwargs) -> str:
         return self.policy_ids[agent_id]
-
-
-def sampled_steps(result: dict) -> int:
-    """Env steps sampled so far (every robot's step counts once per team step: RLlib's env steps)."""
-    return int(result.get("env_runners", {}).get("num_env_steps_sampled_lifetime", 0))
 
 
 def train_rllib(
@@ -261,7 +250,7 @@ def train_rllib(
     Returns:
         The ``train.json`` record (also written to ``output_dir``).
     """
-    from agents.ppo import default_num_threads, load_hyperparameters, torch_threads
+    from agents.ppo import load_hyperparameters, torch_threads
     from agents.ray_support import local_or_cluster_ray
 
     if timesteps < 1:
@@ -275,7 +264,7 @@ def train_rllib(
     check_arguments(env_id, env_kwargs, hyperparameters, policies)
     envs_per_runner = copies_per_runner(env_id, hyperparameters, num_env_runners, envs_per_runner)
     output_dir = Path(output_dir)
-    with local_or_cluster_ray(address), torch_threads(default_num_threads()):  # the learner runs here
+    with local_or_cluster_ray(address), torch_threads():  # the learner runs here
         config = build_config(env_id, env_kwargs, seed, hyperparameters, num_env_runners, envs_per_runner, policies)
         algorithm = config.build_algo()
         try:
@@ -283,7 +272,8 @@ def train_rllib(
             with tqdm(total=timesteps, desc="training PPO (RLlib)", unit="step", disable=not progress) as bar:
                 while steps < timesteps:
                     result = algorithm.train()
-                    now = sampled_steps(result)
+                    # env steps sampled so far (a team step counts once: RLlib's env steps)
+                    now = int(result.get("env_runners", {}).get("num_env_steps_sampled_lifetime", 0))
                     bar.update(min(now, timesteps) - min(steps, timesteps))
                     bar.set_postfix(episode_return=result.get("env_runners", {}).get("episode_return_mean"))
                     steps = now
@@ -300,7 +290,7 @@ def train_rllib(
         "num_env_runners": num_env_runners,
         "envs_per_runner": envs_per_runner,
         "policies": policies if api_of(env_id) == PARALLEL else "single",
-        "vectorization": "native" if native_vectorization(env_id) else "sync",
+        "vectorization": "native" if has_native_vector_env(env_id) else "sync",
         "env_kwargs": env_kwargs,
         "hyperparameters": hyperparameters,
         "rllib_training": rllib_training_settings(hyperparameters),

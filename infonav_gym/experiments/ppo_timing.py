@@ -84,10 +84,10 @@ def _fps_figures(infix: str, make_vec_envs: dict, hyperparameters: dict, seed: i
         infix: in the figure names (``ppo_landmark_selection_{infix}fps``, ...).
         make_vec_envs: ``LANDMARK_ID`` and ``CARTPOLE_ID`` -> a function making that env's SB3 ``VecEnv``.
     """
-    from agents.ppo import default_num_threads, torch_threads
+    from agents.ppo import torch_threads
 
     rates = {name: [] for name in make_vec_envs}
-    with torch_threads(default_num_threads()):
+    with torch_threads():
         models = {name: _masked_model(make(), hyperparameters, seed) for name, make in make_vec_envs.items()}
         for _ in range(rounds):
             for name, model in models.items():

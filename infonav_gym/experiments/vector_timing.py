@@ -11,7 +11,6 @@ env-step is one step of every robot of one copy; for VMAS, of all 4 agents of on
 
 from __future__ import annotations
 
-import contextlib
 import importlib
 import os
 import subprocess
@@ -114,23 +113,14 @@ def vmas_missing() -> str | None:
     return None
 
 
-@contextlib.contextmanager
-def _one_torch_thread(torch):
-    """Run the block with one torch thread (VMAS's CPU setting here), restoring the caller's setting after."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
-
-
 def vmas_navigation_run(num_envs: int, seed: int) -> VectorRun:
     """VMAS ``navigation`` (``VMAS_AGENTS`` agents, CPU, one torch thread) under uniform random forces.
 
     Raises:
         ImportError: when ``vmas`` does not import (see ``vmas_missing``).
     """
+    from agents.base import torch_threads
+
     vmas, torch = importlib.import_module("vmas"), importlib.import_module("torch")
     env = vmas.make_env(
         "navigation", num_envs=num_envs, device="cpu", n_agents=VMAS_AGENTS, max_steps=VMAS_MAX_STEPS, seed=seed
@@ -139,7 +129,7 @@ def vmas_navigation_run(num_envs: int, seed: int) -> VectorRun:
     spaces = [env.action_space[agent] for agent in range(VMAS_AGENTS)]
 
     def step() -> None:
-        with _one_torch_thread(torch):
+        with torch_threads(1):
             forces = [rng.uniform(space.low, space.high, (num_envs, *space.shape)) for space in spaces]
             actions = [torch.from_numpy(force.astype(np.float32)) for force in forces]
             dones = env.step(actions)[2]
@@ -147,7 +137,7 @@ def vmas_navigation_run(num_envs: int, seed: int) -> VectorRun:
                 env.reset_at(index, return_observations=False)
 
     def start() -> None:
-        with _one_torch_thread(torch):
+        with torch_threads(1):
             env.reset(seed=seed, return_observations=False)
 
     return VectorRun(num_envs, start, step)
