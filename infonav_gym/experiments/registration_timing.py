@@ -22,11 +22,11 @@ from __future__ import annotations
 import importlib
 import math
 import statistics
-import time
 from functools import partial
 
 import numpy as np
 
+from infonav_gym.experiments.sensor_timing import call_times_ms
 from infonav_gym.geometry import transform_error
 from infonav_gym.registration import icp
 from infonav_gym.registration.frame_pairs import motion_between, perturbed_motion
@@ -58,23 +58,6 @@ def frame_pair(seed: int = 0, ladar: Ladar | None = None) -> tuple[np.ndarray, n
     axis, direction = (vector / np.linalg.norm(vector) for vector in rng.standard_normal((2, 3)))
     error = np.concatenate([WARM_START_ERROR_M * direction, math.radians(WARM_START_ERROR_DEG) * axis])
     return sensor_points(current), sensor_points(previous), truth, perturbed_motion(truth, error)
-
-
-def motion_errors(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
-    """Rotation error [deg] and translation error [m] of a (4, 4) ``estimate`` of ``truth``."""
-    translation, rotation = transform_error(estimate, truth)
-    return math.degrees(rotation), translation
-
-
-def _median_ms(register, repeats: int) -> tuple[float, np.ndarray]:
-    """Median milliseconds of ``repeats`` calls ``register() -> transform`` after a warm-up, and the transform."""
-    transform = register()
-    times = []
-    for _ in range(repeats):
-        begin = time.perf_counter()
-        register()
-        times.append((time.perf_counter() - begin) * 1e3)
-    return statistics.median(times), transform
 
 
 def registration_peers_missing() -> str | None:
@@ -171,9 +154,10 @@ def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, floa
                 register = make(*clouds)
             except ImportError:
                 continue
-            figures[f"{name}_{pair}_ms"], transform = _median_ms(register, repeats)
-            rotation, translation = motion_errors(transform, truth)
-            figures[f"{name}_{pair}_rotation_error_deg"] = rotation
+            transform, times = call_times_ms(register, repeats)
+            figures[f"{name}_{pair}_ms"] = statistics.median(times)
+            translation, rotation = transform_error(transform, truth)
+            figures[f"{name}_{pair}_rotation_error_deg"] = math.degrees(rotation)
             figures[f"{name}_{pair}_translation_error_m"] = translation
             if name in PEER_OF:
                 ours = figures[f"{PEER_OF[name]}_{pair}_ms"]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
+from functools import partial
 
 import numpy as np
 import pymunk
@@ -56,15 +57,15 @@ def pymunk_rays_ms(space: pymunk.Space, sensor: Ladar | Camera, vehicle_pose) ->
     return (time.perf_counter() - begin) * 1e3
 
 
-def frame_times_ms(take_frame, vehicle_pose, frames: int) -> list[float]:
-    """Milliseconds of each of ``frames`` calls ``take_frame(vehicle_pose)``, after one untimed warm-up call."""
-    take_frame(vehicle_pose)
+def call_times_ms(call, repeats: int) -> tuple[object, list[float]]:
+    """The result of one untimed warm-up ``call()``, and the milliseconds of each of ``repeats`` calls after it."""
+    result = call()
     times = []
-    for _ in range(frames):
+    for _ in range(repeats):
         begin = time.perf_counter()
-        take_frame(vehicle_pose)
+        call()
         times.append((time.perf_counter() - begin) * 1e3)
-    return times
+    return result, times
 
 
 def sensor_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
@@ -86,7 +87,7 @@ def sensor_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, f
     for name, (sensor, take_frame) in sensors.items():
         ours, reference = [], []
         for pose in POSES:  # alternate with the reference, so a busy machine slows both alike
-            ours += frame_times_ms(take_frame, pose, frames)
+            ours += call_times_ms(partial(take_frame, pose), frames)[1]
             reference.append(pymunk_rays_ms(space, sensor, pose))
         figures[f"{name}_frame_ms"] = statistics.median(ours)
         figures[f"pymunk_{name}_rays_ms"] = statistics.median(reference)
