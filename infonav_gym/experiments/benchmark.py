@@ -326,7 +326,10 @@ def run_benchmark(
     figures.update(evaluation_workers_figures(min(rounds, 3), seed, max(2, round(EVALUATION_EPISODES * scale))))
     figures.update(rllib_runner_figures(seed, max(100, round(RLLIB_SAMPLE_STEPS * scale))))
     figures.update(startup_figures())
-    met = {name: _goal_met(name, figures.get(name), goal) for name, goal in GOALS.items()}
+    met = {}
+    for name, goal in GOALS.items():  # None: not measured
+        value = figures.get(name)
+        met[name] = None if value is None else (value <= goal if lower_is_better(name) else value >= goal)
     return {
         "figures": figures,
         "goals": GOALS,
@@ -338,13 +341,6 @@ def run_benchmark(
         "seconds_per_round": seconds_per_round,
         "vector_sizes": list(vector_sizes),
     }
-
-
-def _goal_met(name: str, value: float | None, goal: float) -> bool | None:
-    """Whether figure ``name`` of ``value`` meets ``goal``; None when it was not measured."""
-    if value is None:
-        return None
-    return value <= goal if lower_is_better(name) else value >= goal
 
 
 def throughput_curves(figures: dict) -> dict[str, dict[int, float]]:
