@@ -243,24 +243,18 @@ def fit_measurement_offset(dataset: MRCLAMDataset, robot: int) -> float:
     return float(OFFSET_GRID_S[int(np.argmin(spreads))])
 
 
-def look_pairs(errors: dict, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
-    """Indices ``(first, second)`` of looks at the same target ``k`` looks apart, for each ``k`` in ``steps``
-    (time order within each target): pairs from consecutive looks to far-apart ones."""
-    order = np.lexsort((errors["time"], errors["target"]))
-    return _pairs(order, errors["target"][order], steps, same=True)
-
-
-def cross_target_pairs(errors: dict, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
-    """Indices ``(first, second)`` of looks ``k`` apart in time order, for each ``k`` in ``steps``, at different
-    targets: their covariance is the error the targets share."""
-    order = np.argsort(errors["time"], kind="stable")
-    return _pairs(order, errors["target"][order], steps, same=False)
-
-
-def _pairs(order, targets, steps, same: bool) -> tuple[np.ndarray, np.ndarray]:
+def look_pairs(errors: dict, same_target: bool, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
+    """Indices ``(first, second)`` of looks ``k`` looks apart, for each ``k`` in ``steps``: at the same target (time
+    order within each target: pairs from consecutive looks to far-apart ones) or, not ``same_target``, at different
+    targets in time order (their covariance is the error the targets share)."""
+    if same_target:
+        order = np.lexsort((errors["time"], errors["target"]))
+    else:
+        order = np.argsort(errors["time"], kind="stable")
+    targets = errors["target"][order]
     firsts, seconds = [], []
     for step in steps:
-        keep = (targets[step:] == targets[:-step]) == same
+        keep = (targets[step:] == targets[:-step]) == same_target
         firsts.append(order[:-step][keep])
         seconds.append(order[step:][keep])
     return np.concatenate(firsts), np.concatenate(seconds)
@@ -403,9 +397,7 @@ def fit_robot(
     clock offsets [s] and the travel heading offset [rad]."""
     odometry = fit_odometry(odometry_samples)
     merged = {key: np.concatenate([errors[key] for errors in measurement_errors]) for key in measurement_errors[0]}
-    pairs, cross_pairs = (
-        _pairs_within_each(measurement_errors, pairing) for pairing in (look_pairs, cross_target_pairs)
-    )
+    pairs, cross_pairs = (_pairs_within_each(measurement_errors, same_target) for same_target in (True, False))
     channels = {
         channel: fit_channel(
             merged[f"{channel}_error"],
@@ -438,24 +430,15 @@ def fit_robot(
     return noise, diagnostics
 
 
-def _pairs_within_each(measurement_errors: list[dict], pairing) -> tuple[np.ndarray, np.ndarray]:
-    """``pairing``'s look pairs within each robot's errors, indexed into their concatenation."""
+def _pairs_within_each(measurement_errors: list[dict], same_target: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``look_pairs`` within each robot's errors, indexed into their concatenation."""
     firsts, seconds, offset = [], [], 0
     for errors in measurement_errors:
-        first, second = pairing(errors)
+        first, second = look_pairs(errors, same_target)
         firsts.append(first + offset)
         seconds.append(second + offset)
         offset += len(errors["time"])
     return np.concatenate(firsts), np.concatenate(seconds)
-
-
-def _odometry_samples(odometry, groundtruth, offset_s: float) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``(measured, truth)`` increments over each window of ``NOISE_WINDOWS_S``."""
-    samples = []
-    for window in NOISE_WINDOWS_S:
-        errors, truth = odometry_errors(odometry, groundtruth, offset_s, window)
-        samples.append((errors + truth, truth))
-    return samples
 
 
 def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False) -> tuple[NoiseModel, dict]:
@@ -486,7 +469,8 @@ def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False)
             fit_measurement_offset(dataset, robot),
             fit_travel_heading_offset(groundtruth),
         )
-        robot_samples = _odometry_samples(odometry, groundtruth, robot_offsets[0])
+        windows = (odometry_errors(odometry, groundtruth, robot_offsets[0], window) for window in NOISE_WINDOWS_S)
+        robot_samples = [(errors + truth, truth) for errors, truth in windows]  # (measured, truth) increments
         errors[robot] = landmark_errors(dataset, robot, robot_offsets[1], robot_offsets[0])
         models[robot], diagnostics[str(robot)] = fit_robot(robot_samples, [errors[robot]], robot_offsets)
         samples.append(robot_samples)

@@ -49,11 +49,6 @@ def nees_series(true_poses: np.ndarray, estimates: np.ndarray, covariances: np.n
     return np.einsum("ti,ti->t", error, np.linalg.solve(covariances, error[..., None])[..., 0])
 
 
-def mean_nees(true_poses: np.ndarray, estimates: np.ndarray, covariances: np.ndarray) -> float:
-    """Mean normalized estimation error squared (3 dof: consistent filters average 3)."""
-    return float(np.mean(nees_series(true_poses, estimates, covariances)))
-
-
 def fraction_inside_95(values, dof: int) -> float:
     """Share of ``values`` inside the two-sided 95 % chi-square(``dof``) interval."""
     low, high = chi2_bounds(dof)

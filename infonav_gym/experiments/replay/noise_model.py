@@ -270,9 +270,11 @@ def shipped_noise_model() -> NoiseModel:
     return parse_noise_model(json.loads(text), f"{__package__}/{SHIPPED_MODEL} (package data)")
 
 
-def corrected_logs(dataset, model: NoiseModel):
-    """``dataset`` with each robot's odometry and measurements on the ground-truth clock, odometry scales
+def corrected_logs(dataset, model: NoiseModel | None):
+    """``dataset`` (itself without a ``model``) with each robot's logs on the ground-truth clock, odometry scales
     and mean range / bearing errors removed (``RobotNoise.correct_odometry`` / ``correct_measurements``)."""
+    if not model:
+        return dataset
     noise = {robot: model.for_robot(robot) for robot in dataset.robots}
     return dataclasses.replace(
         dataset,

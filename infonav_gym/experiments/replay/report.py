@@ -12,8 +12,9 @@ from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.experiments.paths import output_file
 from infonav_gym.experiments.replay.filters import ReplayConfig
 from infonav_gym.experiments.replay.metrics import mean_and_ci95
+from infonav_gym.experiments.replay.noise_model import corrected_logs
 from infonav_gym.experiments.replay.policies import POLICIES
-from infonav_gym.experiments.replay.run import replay, replay_dataset, replay_header
+from infonav_gym.experiments.replay.run import replay, replay_header
 from infonav_gym.experiments.replay.timeline import make_timeline
 
 ROW_KEYS = (
@@ -74,7 +75,7 @@ def run_experiments(
     if outage and outage[0] not in dataset.robots:
         raise ValueError(f"outage robot {outage[0]} is not one of the robots {list(dataset.robots)}")
     base = config or ReplayConfig()
-    timeline = make_timeline(replay_dataset(dataset, base), dt=dt, duration_s=duration_s)
+    timeline = make_timeline(corrected_logs(dataset, base.noise), dt=dt, duration_s=duration_s)
     plan = []
     for policy in policies:
         if policy == "all":
@@ -216,11 +217,6 @@ def markdown_table(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def nees_plot_path(output: Path) -> Path:
-    """``OUTPUT_nees.png``: the NEES-over-time figure of the all-landmark run."""
-    return output_file(output, "_nees.png")
-
-
 def write_results(summary: dict, output: Path, command: str) -> list[Path]:
     """Write ``OUTPUT.md`` (table and command), ``OUTPUT.json`` (everything but the per-run detail) and, with an
     all-landmark run, ``OUTPUT_nees.png`` (its NEES over time)."""
@@ -248,5 +244,5 @@ def write_results(summary: dict, output: Path, command: str) -> list[Path]:
     all_landmarks = [run for run in summary["runs"] if run["config"]["policy"] == "all"]
     if all_landmarks and any("nees_over_time" in metrics for metrics in all_landmarks[0]["robots"].values()):
         title = f"{Path(summary['dataset']).name}, all landmarks, noise: {summary['config']['noise']}"
-        written.append(plot_nees_over_time(all_landmarks[0], nees_plot_path(output), title))
+        written.append(plot_nees_over_time(all_landmarks[0], output_file(output, "_nees.png"), title))
     return written

@@ -68,11 +68,6 @@ def replay_header(dataset: MRCLAMDataset, timeline: Timeline, config: ReplayConf
     }
 
 
-def replay_dataset(dataset: MRCLAMDataset, config: ReplayConfig) -> MRCLAMDataset:
-    """The logs a replay runs on: with a calibrated noise model, on the ground-truth clock and corrected."""
-    return corrected_logs(dataset, config.noise) if config.noise else dataset
-
-
 def replay(
     dataset: MRCLAMDataset,
     config: ReplayConfig | None = None,
@@ -89,7 +84,7 @@ def replay(
         config: filter, policy, budget and outage settings (default: all landmarks, PoseEKF per robot).
         dt: tick length of the replay clock [s].
         duration_s: replay only the first ``duration_s`` seconds (None: all).
-        timeline: a precomputed ``make_timeline(replay_dataset(dataset, config), dt, duration_s)`` to reuse.
+        timeline: a precomputed ``make_timeline(corrected_logs(dataset, config.noise), dt, duration_s)`` to reuse.
         progress: show a tqdm bar.
 
     Returns:
@@ -100,7 +95,7 @@ def replay(
     config = config or ReplayConfig()
     if config.outage_robot is not None and config.outage_robot not in dataset.robots:
         raise ValueError(f"outage robot {config.outage_robot} is not one of the robots {list(dataset.robots)}")
-    dataset = replay_dataset(dataset, config)
+    dataset = corrected_logs(dataset, config.noise)
     timeline = timeline or make_timeline(dataset, dt=dt, duration_s=duration_s)
     poses, covariances = initial_state(dataset, config)
     trace = replay_filter(dataset, timeline, poses, covariances, config, progress=progress)
@@ -109,8 +104,11 @@ def replay(
         **replay_header(dataset, timeline, config),
         "dt_s": timeline.dt,
         "robots": robots,
-        "mean": _mean_over_robots(robots),
+        "mean": {},  # over the robots that have each metric
     }
+    for key in SUMMARY_KEYS:
+        values = [metrics[key] for metrics in robots.values() if metrics[key] is not None]
+        result["mean"][key] = float(np.mean(values)) if values else None
     if config.outage_robot is not None:
         baseline_config = dataclasses.replace(config, policy="all", cooperative=False)
         baseline = (
@@ -163,14 +161,6 @@ def _robot_metrics(dataset: MRCLAMDataset, timeline: Timeline, trace: ReplayTrac
                     }
         robots[str(robot)] = metrics
     return robots
-
-
-def _mean_over_robots(robots: dict) -> dict:
-    mean = {}
-    for key in SUMMARY_KEYS:
-        values = [metrics[key] for metrics in robots.values() if metrics[key] is not None]
-        mean[key] = float(np.mean(values)) if values else None
-    return mean
 
 
 def _outage_metrics(dataset, timeline, config, trace, baseline) -> dict:
