@@ -265,26 +265,23 @@ def _demo(args, command: str) -> dict:
     result = run_demo(steps=args.steps, seed=args.seed)
     if args.plot:
         result["plot"] = str(plot_information_field(args.plot, seed=args.seed))
-    if not args.json:
-        print(demo_table(result))
-        if args.plot:
-            print(f"\nwrote {result['plot']}")
-    return result
+    return _show(args, result, lambda: [demo_table(result)] + ([f"\nwrote {result['plot']}"] if args.plot else []))
 
 
-def _write_files(write, result: dict, where: str) -> str | None:
-    """Run ``write()`` (it returns the paths written) into ``result["files"]``; a failure's message, else None."""
+def _show(args, result: dict, lines, write=None, where: str = "") -> dict:
+    """Run ``write()`` (it returns the paths written) into ``result["files"]``, print the ``lines()`` unless --json,
+    then raise a failed write as ``OutputWriteError`` carrying ``result`` (the table is printed all the same)."""
+    failure = None
     try:
-        result["files"] = [str(path) for path in write()]
+        if write:
+            result["files"] = [str(path) for path in write()]
     except OSError as error:
-        return write_failure(where, error)
-    return None
-
-
-def _raise_if_failed(failure: str | None, result: dict) -> None:
-    """After the table is printed: a failed write becomes ``OutputWriteError`` carrying ``result``."""
+        failure = write_failure(where, error)
+    for line in [] if args.json else lines():
+        print(line)
     if failure:
         raise OutputWriteError(failure, result)
+    return result
 
 
 def _evaluate(args, command: str) -> dict:
@@ -310,12 +307,11 @@ def _evaluate(args, command: str) -> dict:
         results, interruption = error.result, error
         if not results["agents"]:
             raise Interrupted("interrupted before an episode finished: nothing to write", results) from None
-    failure = stem and _write_files(lambda: write_results(results, stem, command), results, f"--output {stem}")
-    if not args.json:
-        print(heading(results))
-        print(config_line(results))
-        print(markdown_table(results))
-    _raise_if_failed(failure, results)
+
+    def lines():
+        return [heading(results), config_line(results), markdown_table(results)]
+
+    _show(args, results, lines, stem and (lambda: write_results(results, stem, command)), f"--output {stem}")
     if interruption:
         kept = f"wrote {', '.join(results['files'])}" if stem else "the tables above hold them"
         raise Interrupted(f"{interruption}; {kept}", results)
@@ -344,13 +340,11 @@ def _render(args, command: str) -> dict:
         gif, png = (output_file(stem, suffix) for suffix in RENDER_SUFFIXES)
         return [write_gif(episode, gif), write_strip(episode, png, title)]
 
-    failure = _write_files(write, result, f"--output {stem}")
-    if not args.json:
-        print(f"{title}: {steps} steps, {len(episode.steps)} frames (every {args.every})")
-        for path in result.get("files", []):
-            print(f"wrote {path} ({Path(path).stat().st_size / 1e6:.2f} MB)")
-    _raise_if_failed(failure, result)
-    return result
+    def lines():
+        yield f"{title}: {steps} steps, {len(episode.steps)} frames (every {args.every})"
+        yield from (f"wrote {path} ({Path(path).stat().st_size / 1e6:.2f} MB)" for path in result.get("files", []))
+
+    return _show(args, result, lines, write, f"--output {stem}")
 
 
 def _train(args, command: str) -> dict:
@@ -427,23 +421,19 @@ def _benchmark(args, command: str) -> dict:
         progress=not args.json,
         vector_sizes=args.vector_sizes,
     )
-    failure = (
-        _write_files(lambda: [plot_throughput(result["figures"], plot)], result, f"--plot {plot}") if plot else None
-    )
-    if not args.json:
-        figures, goals, met = result["figures"], result["goals"], result["goals_met"]
-        for name, value in figures.items():
+
+    def lines():
+        goals, met = result["goals"], result["goals_met"]
+        for name, value in result["figures"].items():
             goal = ""
             if name in goals:
                 relation = "<=" if lower_is_better(name) else ">="
                 goal = f"  (goal {relation} {goals[name]}: {'met' if met[name] else 'NOT met'})"
-            print(f"{name:40s} {value:12.3f}{goal}")
-        for note in result["notes"]:
-            print(note)
-        for path in result.get("files", []):
-            print(f"wrote {path}")
-    _raise_if_failed(failure, result)
-    return result
+            yield f"{name:40s} {value:12.3f}{goal}"
+        yield from result["notes"]
+        yield from (f"wrote {path}" for path in result.get("files", []))
+
+    return _show(args, result, lines, plot and (lambda: [plot_throughput(result["figures"], plot)]), f"--plot {plot}")
 
 
 def _reproduce(args, command: str) -> dict:
@@ -455,13 +445,11 @@ def _reproduce(args, command: str) -> dict:
     table = importlib.import_module(f"infonav_gym.experiments.reproduce.{args.figure}").table
     try:
         result = reproduce(args.figure, args.output_dir, args.seed, args.seeds, not args.json, command)
-        failure = None
     except OutputWriteError as error:
-        result, failure = error.result, str(error)
-    if not args.json:
-        print(table(result))
-    _raise_if_failed(failure, result)
-    return result
+        kept = error.result
+        _show(args, kept, lambda: [table(kept)])
+        raise
+    return _show(args, result, lambda: [table(result)])
 
 
 def _noise_model(value: str | None):
@@ -517,11 +505,7 @@ def _calibrate(args, command: str) -> dict:
         path_json, png = (output_file(stem, suffix) for suffix in CALIBRATION_SUFFIXES)
         return [model.save(path_json), plot_calibration(model, errors, png)]
 
-    failure = _write_files(write, result, f"--calibrate {args.calibrate}")
-    if not args.json:
-        print(calibration_table(model))
-    _raise_if_failed(failure, result)
-    return result
+    return _show(args, result, lambda: [calibration_table(model)], write, f"--calibrate {args.calibrate}")
 
 
 def calibration_table(model) -> str:
@@ -586,13 +570,13 @@ def _replay(args, command: str) -> dict:
         before = sweep(compared)
         result["comparison"] = compare(result, before)
         result["compared_rows"] = before["rows"]
-    failure = stem and _write_files(lambda: write_results(result, stem, command), result, f"--output {stem}")
-    if not args.json:
-        print(markdown_table(result))
+
+    def lines():
+        yield markdown_table(result)
         if args.compare_noise:
-            print("\n" + comparison_markdown(result["comparison"]))
-    _raise_if_failed(failure, result)
-    return result
+            yield "\n" + comparison_markdown(result["comparison"])
+
+    return _show(args, result, lines, stem and (lambda: write_results(result, stem, command)), f"--output {stem}")
 
 
 def main(argv: list[str] | None = None) -> int:
