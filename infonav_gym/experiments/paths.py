@@ -24,17 +24,9 @@ class Interrupted(KeptWork, KeyboardInterrupt):
     much of it."""
 
 
-def _nearest_existing(path: Path) -> Path:
-    """``path`` or its closest ancestor that exists."""
-    for candidate in (path, *path.parents):
-        if candidate.exists():
-            return candidate
-    return Path(".")
-
-
 def _directory_problem(directory: Path) -> str | None:
     """Why ``directory`` cannot be, or be created as, a writable directory; None if it can."""
-    existing = _nearest_existing(directory)
+    existing = next((path for path in (directory, *directory.parents) if path.exists()), Path("."))
     if not existing.is_dir():
         return f"{existing} is a file, not a directory"
     if not os.access(existing, os.W_OK | os.X_OK):

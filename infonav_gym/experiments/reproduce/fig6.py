@@ -58,30 +58,23 @@ class PairRegistration:
             if self._covariances is None:
                 self._covariances = gicp_covariances(self.source), gicp_covariances(self.target)
             covariances = {"source_covariances": self._covariances[0][rows], "target_covariances": self._covariances[1]}
-        return _errors(
-            pair,
-            len(self.source[rows]),
-            icp(self.source[rows], self.target, pair.odometry_motion, **self.settings, **covariances),
-        )
+        result = icp(self.source[rows], self.target, pair.odometry_motion, **self.settings, **covariances)
+        translation, rotation = transform_error(result.transform, pair.true_motion)
+        return {
+            "points": len(self.source[rows]),
+            "error_before_m": registration_error(pair.odometry_motion, pair.true_motion),
+            "error_after_m": registration_error(result.transform, pair.true_motion),
+            "translation_error_m": translation,
+            "rotation_error_deg": math.degrees(rotation),
+            "iterations": result.iterations,
+            "converged": result.converged,
+            "transform": result.transform,
+        }
 
 
 def register(pair: FramePair, control_points=None, settings: dict = FRAME_PAIR_ICP) -> dict:
     """ICP of the newer frame (its ``control_points`` rows, default all) onto the older; errors before and after."""
     return PairRegistration(pair, settings)(control_points)
-
-
-def _errors(pair: FramePair, points: int, result) -> dict:
-    translation, rotation = transform_error(result.transform, pair.true_motion)
-    return {
-        "points": points,
-        "error_before_m": registration_error(pair.odometry_motion, pair.true_motion),
-        "error_after_m": registration_error(result.transform, pair.true_motion),
-        "translation_error_m": translation,
-        "rotation_error_deg": math.degrees(rotation),
-        "iterations": result.iterations,
-        "converged": result.converged,
-        "transform": result.transform,
-    }
 
 
 def recall_summary(errors_m) -> dict:
