@@ -65,8 +65,7 @@ class InfoActionMask(gym.Wrapper):
         self._mask = np.ones(env.action_space.n, dtype=bool)
 
     def _remember(self, info: dict) -> None:
-        mask = np.asarray(info.get("action_mask", 1), dtype=bool)
-        self._mask = np.broadcast_to(mask, (self.action_space.n,)).copy() if mask.any() else np.ones_like(self._mask)
+        self._mask = np.array(usable_mask(info.get("action_mask"), self.action_space.n))
 
     def reset(self, **kwargs):
         observation, info = self.env.reset(**kwargs)
@@ -402,15 +401,6 @@ def train(
     return model_path
 
 
-def _algorithm_of(path: Path):
-    """``MaskablePPO`` or ``PPO``, from the policy class recorded in the SB3 zip's ``data``."""
-    with zipfile.ZipFile(path) as archive:
-        data = json.loads(archive.read("data"))
-    policy_class = data.get("policy_class")
-    module = policy_class.get("__module__", "") if isinstance(policy_class, dict) else ""
-    return MaskablePPO if module.startswith("sb3_contrib") else PPO
-
-
 def model_file(path: Path | str) -> Path:
     """``path`` itself, or ``path/model.zip`` when ``path`` is a directory (the ``--output`` of ``infonav train``).
 
@@ -434,7 +424,10 @@ def load_model(path: Path | str):
     """
     path = model_file(path)
     try:
-        return _algorithm_of(path).load(path, device="cpu")
+        with zipfile.ZipFile(path) as archive:  # MaskablePPO or PPO: the policy class recorded in the zip's data
+            policy_class = json.loads(archive.read("data")).get("policy_class")
+        module = policy_class.get("__module__", "") if isinstance(policy_class, dict) else ""
+        return (MaskablePPO if module.startswith("sb3_contrib") else PPO).load(path, device="cpu")
     except Exception as error:  # zipfile, pickle, torch and KeyError failures all mean "not a model"
         message = str(error).splitlines()[0] if str(error) else type(error).__name__
         raise ValueError(f"cannot load PPO model {str(path)!r}: {message}") from None

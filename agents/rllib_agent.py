@@ -17,13 +17,6 @@ SINGLE_AGENT_POLICY = "default_policy"  # RLlib's module id of a single-agent al
 MODULES_PATH = ("learner_group", "learner", "rl_module")  # where an algorithm checkpoint keeps its modules
 
 
-def module_id(record: dict, agent: str | None) -> str:
-    """The module a robot (``agent``) or a single-agent env acts with, from a ``train.json`` record."""
-    if agent is None:
-        return SINGLE_AGENT_POLICY
-    return SHARED_POLICY if record.get("policies") == "shared" else agent
-
-
 class RLlibAgent:
     """The policy of an RLlib training directory (``train.json`` + ``checkpoint/``) as a deterministic agent.
 
@@ -47,7 +40,8 @@ class RLlibAgent:
                 "write one with infonav train --backend rllib --output DIR"
             )
         record = json.loads(record_path.read_text())
-        policy = module_id(record, agent)
+        shared = record.get("policies") == "shared"  # the module a robot (agent) or a single-agent env acts with
+        policy = SINGLE_AGENT_POLICY if agent is None else SHARED_POLICY if shared else agent
         modules = directory.joinpath(CHECKPOINT_DIR, *MODULES_PATH)
         trained_on = f"env {record.get('env_id')!r}"
         if not (modules / policy).is_dir():  # a team's policies in a single-agent env, or the reverse

@@ -22,18 +22,14 @@ TEAM_ID, EXPLORATION_ID = "cooperative_localization_v0", "cooperative_exploratio
 RLLIB_SAMPLE_STEPS = 2000  # env steps each runner samples per measurement (at --seconds 1)
 
 
-def _evaluation_seconds(workers: int, episodes: int, seed: int) -> float:
-    start = time.perf_counter()
-    evaluate(EVALUATION_ENV_ID, list(EVALUATION_AGENTS), episodes, seed, progress=False, workers=workers)
-    return time.perf_counter() - start
-
-
 def evaluation_workers_figures(rounds: int = 3, seed: int = 0, episodes: int = EVALUATION_EPISODES) -> dict:
     """Median wall times of the evaluation with 1 and 2 workers and their median ratio (2 / 1)."""
     times = {1: [], 2: []}
     for _ in range(rounds):
         for workers in times:
-            times[workers].append(_evaluation_seconds(workers, episodes, seed))
+            start = time.perf_counter()
+            evaluate(EVALUATION_ENV_ID, list(EVALUATION_AGENTS), episodes, seed, progress=False, workers=workers)
+            times[workers].append(time.perf_counter() - start)
     ratios = [two / one for one, two in zip(times[1], times[2])]
     return {
         "evaluation_1_worker_s": statistics.median(times[1]),
