@@ -9,7 +9,8 @@ A cached kernel is keyed on the sources of every kernel module of the package to
 numba's own key holds only the function's bytecode, so a kernel cached before a kernel it calls (in another file)
 changed would run the old callee.
 Compiling the kernels takes seconds on a first use: when it takes longer than
-``COMPILE_NOTICE_AFTER_S``, one line says what is happening.
+``COMPILE_NOTICE_AFTER_S``, one line says what is happening. Kernels copy arrays element by element: an array
+assigned into a slice makes numba compile its shape-error message formatting, about 2 s more on a first use.
 """
 
 from __future__ import annotations
