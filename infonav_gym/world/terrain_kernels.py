@@ -122,30 +122,27 @@ def first_at_or_above(ascending, value):
 
 
 @inline
-def ground_crossing(grid, origin, heading_x, heading_y, slope, step_m, k, ground):
-    """Horizontal distance [m] where a ray from ``origin`` (3,) of ``slope`` goes below the ground between samples
-    ``k - 1`` and ``k`` (heights ``ground`` (K,) every ``step_m`` along the column): false position with the Illinois
-    rule."""
-    origin_z = origin[2]
-    low_s, high_s = (k - 1) * step_m, k * step_m
-    low_f, high_f = (origin_z + low_s * slope) - ground[k - 1], (origin_z + high_s * slope) - ground[k]
-    s = (high_s - low_s) * low_f / (low_f - high_f) + low_s
-    was_above = False
-    for iteration in range(REFINE_ITERATIONS):
-        f = (origin_z + s * slope) - height(grid, s * heading_x + origin[0], s * heading_y + origin[1])
-        above = f > 0.0
-        if iteration > 0:  # halve the end kept twice in a row, so the bracket shrinks from both sides
-            if above and was_above:
-                high_f *= 0.5
-            elif not above and not was_above:
-                low_f *= 0.5
-        if above:
-            low_s, low_f = s, f
-        else:
-            high_s, high_f = s, f
-        was_above = above
-        s = (high_s - low_s) * low_f / (low_f - high_f) + low_s
-    return s
+def false_position(low_s, high_s, low_f, high_f):
+    """Where the chord from ``(low_s, low_f)`` to ``(high_s, high_f)`` crosses zero."""
+    return (high_s - low_s) * low_f / (low_f - high_f) + low_s
+
+
+@inline
+def illinois_step(bracket, f, side):
+    """Narrow ``bracket`` ``(low_s, high_s, low_f, high_f, s)`` by the clearance ``f`` above the ground at its ``s``
+    and move ``s`` to the new chord's zero, halving the end kept twice in a row (the Illinois rule: the bracket
+    shrinks from both sides); ``side`` is where the last step went (1 above, 0 below, -1 none yet), the new one is
+    returned. Written with selects, not branches, so that the steps of many rays overlap in the processor."""
+    low_s, high_s, low_f, high_f, s = bracket[0], bracket[1], bracket[2], bracket[3], bracket[4]
+    above = int(f > 0.0)
+    kept_twice = above == side
+    high_f *= 0.5 if kept_twice and above else 1.0
+    low_f *= 0.5 if kept_twice and not above else 1.0
+    low_s, low_f = (s, f) if above else (low_s, low_f)
+    high_s, high_f = (high_s, high_f) if above else (s, f)
+    bracket[0], bracket[1], bracket[2], bracket[3] = low_s, high_s, low_f, high_f
+    bracket[4] = false_position(low_s, high_s, low_f, high_f)
+    return above
 
 
 @kernel
@@ -155,10 +152,11 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
     (-pi/2, pi/2)) [rad].
 
     Each column is one vertical plane: the ground is sampled once per cell along it and a ray meets the ground at
-    the first sample whose slope seen from the origin reaches the ray's, refined by false position (exact on
-    planar ground); obstacles are intersected analytically (an origin inside one gives range 0; on equal distances
-    the higher material index wins). Rays that meet an obstacle before the sample bracketing their ground crossing
-    are not refined.
+    the first sample whose slope seen from the origin reaches the ray's, refined by ``REFINE_ITERATIONS`` false
+    position steps with the Illinois rule (exact on planar ground); obstacles are intersected analytically (an
+    origin inside one gives range 0; on equal distances the higher material index wins). Rays that meet an
+    obstacle before the sample bracketing their ground crossing are not refined. A column's rays are refined
+    together, step by step without branches, so their steps overlap in the processor.
 
     Returns:
         ``(range_m, material, obstacle)`` (R, C): the distance to the first hit [m] (``inf`` for none within
@@ -177,11 +175,14 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
     ground, horizon = np.empty(samples), np.empty(samples)
     n_obstacles = obstacles.shape[0]
     candidates, enters, exits = np.empty(n_obstacles, np.int64), np.empty(n_obstacles), np.empty(n_obstacles)
+    refined, bracket, side = np.empty(rows, np.int64), np.empty((rows, 5)), np.empty(rows, np.int64)
+    ground_s = np.empty(rows)
     range_m = np.empty((rows, columns))
     material = np.empty((rows, columns), np.int8)
     obstacle = np.empty((rows, columns), np.int64)
     for c in range(columns):
         heading_x, heading_y = math.cos(azimuth[c]), math.sin(azimuth[c])
+        column = c if wide else 0
         horizon[0] = -np.inf  # the origin is above the ground
         ground[0] = height(grid, origin[0], origin[1])
         for k in range(1, samples):
@@ -194,9 +195,9 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
             if enter <= exit_ and exit_ >= 0.0:
                 candidates[count], enters[count], exits[count] = m, enter, exit_
                 count += 1
+        n_refined = 0
         for r in range(rows):
-            column = c if wide else 0
-            slope, cosine = slopes[r, column], cosines[r, column]
+            slope = slopes[r, column]
             nearest_s, nearest_material, nearest_obstacle = np.inf, NO_HIT, -1
             for q in range(count):
                 m = candidates[q]
@@ -204,15 +205,32 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
                 enter, exit_ = max(max(enters[q], z_enter), 0.0), min(exits[q], z_exit)
                 if enter <= exit_ and (enter < nearest_s or (enter == nearest_s and materials[m] > nearest_material)):
                     nearest_s, nearest_material, nearest_obstacle = enter, materials[m], m
+            range_m[r, c], material[r, c], obstacle[r, c] = nearest_s, nearest_material, nearest_obstacle
+            ground_s[r] = np.inf
             k = first_at_or_above(horizon, slope)
-            ground_s = np.inf
             if k < samples and (k - 1) * step_m <= nearest_s:
-                ground_s = ground_crossing(grid, origin, heading_x, heading_y, slope, step_m, k, ground)
-            distance = min(ground_s, nearest_s) / cosine
+                low_s, high_s = (k - 1) * step_m, k * step_m
+                low_f, high_f = (origin_z + low_s * slope) - ground[k - 1], (origin_z + high_s * slope) - ground[k]
+                s = false_position(low_s, high_s, low_f, high_f)
+                bracket[n_refined, 0], bracket[n_refined, 1], bracket[n_refined, 2] = low_s, high_s, low_f
+                bracket[n_refined, 3], bracket[n_refined, 4] = high_f, s
+                refined[n_refined], side[n_refined] = r, -1
+                n_refined += 1
+        for _ in range(REFINE_ITERATIONS):
+            for q in range(n_refined):
+                s = bracket[q, 4]
+                slope = slopes[refined[q], column]
+                f = (origin_z + s * slope) - height(grid, s * heading_x + origin[0], s * heading_y + origin[1])
+                side[q] = illinois_step(bracket[q], f, side[q])
+        for q in range(n_refined):
+            ground_s[refined[q]] = bracket[q, 4]
+        for r in range(rows):
+            nearest_s = range_m[r, c]
+            distance = min(ground_s[r], nearest_s) / cosines[r, column]
             if not distance <= max_range_m:
                 range_m[r, c], material[r, c], obstacle[r, c] = np.inf, NO_HIT, -1
-            elif nearest_s < ground_s:
-                range_m[r, c], material[r, c], obstacle[r, c] = distance, nearest_material, nearest_obstacle
+            elif nearest_s < ground_s[r]:
+                range_m[r, c] = distance
             else:
                 range_m[r, c], material[r, c], obstacle[r, c] = distance, GROUND, -1
     return range_m, material, obstacle
