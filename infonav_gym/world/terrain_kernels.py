@@ -20,6 +20,7 @@ GROUND = 0  # material index of the ground (``MATERIALS[0]``)
 NO_HIT = -1  # material index of a ray that hits nothing within range
 REFINE_ITERATIONS = 4  # Illinois false-position steps refining a ground crossing on curved terrain
 OBSTACLE_COLUMNS = 9  # center x, center y, radius, low x, low y, low z, high x, high y, high z
+HEIGHT_BOUND_SLACK = 1e-9  # relative margin over the highest grid point: a blend rounds a few ulps above it
 
 
 @inline
@@ -168,6 +169,9 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
     origin_z = origin[2]
     step_m = grid[3]
     samples = math.ceil(max_range_m / step_m) + 1
+    highest = grid[0].max()
+    rise_m = highest + HEIGHT_BOUND_SLACK * (1.0 + abs(highest)) - origin_z  # no ground rises higher above the origin
+    farthest_m = (samples - 1) * step_m
     slopes, cosines = np.empty(elevation.shape), np.empty(elevation.shape)
     for r in range(elevation.shape[0]):
         for column in range(elevation.shape[1]):
@@ -183,12 +187,17 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
     for c in range(columns):
         heading_x, heading_y = math.cos(azimuth[c]), math.sin(azimuth[c])
         column = c if wide else 0
+        steepest = slopes[:, column].max()
         horizon[0] = -np.inf  # the origin is above the ground
         ground[0] = height(grid, origin[0], origin[1])
+        marched = samples
         for k in range(1, samples):
             distance = k * step_m
             ground[k] = height(grid, origin[0] + distance * heading_x, origin[1] + distance * heading_y)
             horizon[k] = max(horizon[k - 1], (ground[k] - origin_z) / distance)
+            if horizon[k] >= min(steepest, rise_m / (distance if rise_m >= 0.0 else farthest_m)):
+                marched = k + 1  # every ray is below the horizon here or above all the ground beyond
+                break
         count = 0
         for m in range(n_obstacles):
             enter, exit_ = footprint_crossing(obstacles, m, n_cylinders, origin[0], origin[1], heading_x, heading_y)
@@ -207,8 +216,8 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
                     nearest_s, nearest_material, nearest_obstacle = enter, materials[m], m
             range_m[r, c], material[r, c], obstacle[r, c] = nearest_s, nearest_material, nearest_obstacle
             ground_s[r] = np.inf
-            k = first_at_or_above(horizon, slope)
-            if k < samples and (k - 1) * step_m <= nearest_s:
+            k = first_at_or_above(horizon[:marched], slope)
+            if k < marched and (k - 1) * step_m <= nearest_s:
                 low_s, high_s = (k - 1) * step_m, k * step_m
                 low_f, high_f = (origin_z + low_s * slope) - ground[k - 1], (origin_z + high_s * slope) - ground[k]
                 s = false_position(low_s, high_s, low_f, high_f)
