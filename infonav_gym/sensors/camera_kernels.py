@@ -29,7 +29,8 @@ def texture(texture_table, texture_cells, texture_weights, x, y):
     """Smoothly interpolated value noise at world ``(x, y)`` [m], in [-1, 1]: the octaves' weighted mean."""
     total, weight_sum = 0.0, 0.0
     for octave in range(texture_cells.shape[0]):
-        u, v = x / texture_cells[octave], y / texture_cells[octave]
+        per_cell = 1.0 / texture_cells[octave]  # a product equals the quotient: the cells are powers of two [m]
+        u, v = x * per_cell, y * per_cell
         corner_u, corner_v = math.floor(u), math.floor(v)
         column, row = int(corner_u) & _WRAP, (int(corner_v) & _WRAP) * TEXTURE_TABLE_SIZE
         next_column, next_row = (column + 1) & _WRAP, (row + TEXTURE_TABLE_SIZE) & (_WRAP * TEXTURE_TABLE_SIZE)

@@ -5,7 +5,8 @@ The ground is a ``grid`` ``(heights, x0, y0, cell_m)``: bilinear between the poi
 Obstacles are rows of an (M, 9) table ``(center x, center y, radius, low x, low y, low z, high x, high y,
 high z)`` [m]: the first ``n_cylinders`` are vertical cylinders (centre, radius, ``low z`` to ``high z``), the rest
 axis-aligned boxes (``low`` to ``high``); ``materials`` (M,) int8 hold their indices into ``MATERIALS``. A NaN in a
-comparison makes it false.
+comparison makes it false. Lengths are divided by ``cell_m`` as products by its reciprocal, ``per_m``: quicker, and
+equal for a power-of-two cell (the random scenes' 0.5 m), within an ulp otherwise.
 """
 
 from __future__ import annotations
@@ -36,7 +37,8 @@ def cell_at(grid, x, y):
     offsets ``(tx, ty)`` in it, clamped to the grid (a NaN coordinate to its first row or column)."""
     heights, x0, y0, cell_m = grid
     rows, columns = heights.shape
-    tx, ty = (x - x0) / cell_m, (y - y0) / cell_m
+    per_m = 1.0 / cell_m
+    tx, ty = (x - x0) * per_m, (y - y0) * per_m
     tx = min(tx if tx >= 0.0 else 0.0, columns - 1.0)  # NaN to 0: the index stays inside the grid
     ty = min(ty if ty >= 0.0 else 0.0, rows - 1.0)
     j, i = min(int(tx), columns - 2), min(int(ty), rows - 2)
@@ -58,8 +60,9 @@ def ground_normal(grid, x, y):
     lower_left, lower_right, upper_left, upper_right, tx, ty = cell_at(grid, x, y)
     heights, x0, y0, cell_m = grid
     rows, columns = heights.shape
-    slope_x = ((lower_right - lower_left) * (1.0 - ty) + (upper_right - upper_left) * ty) / cell_m
-    slope_y = ((upper_left - lower_left) * (1.0 - tx) + (upper_right - lower_right) * tx) / cell_m
+    per_m = 1.0 / cell_m
+    slope_x = ((lower_right - lower_left) * (1.0 - ty) + (upper_right - upper_left) * ty) * per_m
+    slope_y = ((upper_left - lower_left) * (1.0 - tx) + (upper_right - lower_right) * tx) * per_m
     if x < x0 or x > x0 + (columns - 1) * cell_m:
         slope_x = 0.0
     if y < y0 or y > y0 + (rows - 1) * cell_m:
