@@ -133,19 +133,16 @@ def false_position(low_s, high_s, low_f, high_f):
 
 @inline
 def illinois_step(bracket, f, side):
-    """Narrow ``bracket`` ``(low_s, high_s, low_f, high_f, s)`` by the clearance ``f`` above the ground at its ``s``
+    """Narrow ``bracket`` ``(low_s, low_f, high_s, high_f, s)`` by the clearance ``f`` above the ground at its ``s``
     and move ``s`` to the new chord's zero, halving the end kept twice in a row (the Illinois rule: the bracket
     shrinks from both sides); ``side`` is where the last step went (1 above, 0 below, -1 none yet), the new one is
-    returned. Written with selects, not branches, so that the steps of many rays overlap in the processor."""
-    low_s, high_s, low_f, high_f, s = bracket[0], bracket[1], bracket[2], bracket[3], bracket[4]
+    returned. The ends are picked by index, not by branches, so that the steps of many rays overlap in the
+    processor."""
     above = int(f > 0.0)
-    kept_twice = above == side
-    high_f *= 0.5 if kept_twice and above else 1.0
-    low_f *= 0.5 if kept_twice and not above else 1.0
-    low_s, low_f = (s, f) if above else (low_s, low_f)
-    high_s, high_f = (high_s, high_f) if above else (s, f)
-    bracket[0], bracket[1], bracket[2], bracket[3] = low_s, high_s, low_f, high_f
-    bracket[4] = false_position(low_s, high_s, low_f, high_f)
+    kept = 2 * above  # the high end stays when s is above the ground, else the low end
+    bracket[kept + 1] *= 1.0 - 0.5 * (above == side)
+    bracket[2 - kept], bracket[3 - kept] = bracket[4], f
+    bracket[4] = false_position(bracket[0], bracket[2], bracket[1], bracket[3])
     return above
 
 
@@ -224,7 +221,7 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
                 low_s, high_s = (k - 1) * step_m, k * step_m
                 low_f, high_f = (origin_z + low_s * slope) - ground[k - 1], (origin_z + high_s * slope) - ground[k]
                 s = false_position(low_s, high_s, low_f, high_f)
-                bracket[n_refined, 0], bracket[n_refined, 1], bracket[n_refined, 2] = low_s, high_s, low_f
+                bracket[n_refined, 0], bracket[n_refined, 1], bracket[n_refined, 2] = low_s, low_f, high_s
                 bracket[n_refined, 3], bracket[n_refined, 4] = high_f, s
                 refined[n_refined], side[n_refined] = r, -1
                 n_refined += 1
