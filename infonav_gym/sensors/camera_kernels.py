@@ -25,12 +25,14 @@ def smoothstep(fraction):
 
 
 @inline
-def texture(texture_table, texture_cells, texture_weights, x, y):
-    """Smoothly interpolated value noise at world ``(x, y)`` [m], in [-1, 1]: the octaves' weighted mean."""
+def texture(texture_table, cells_per_m, texture_weights, x, y):
+    """Smoothly interpolated value noise at world ``(x, y)`` [m], in [-1, 1]: the octaves' weighted mean.
+
+    ``cells_per_m`` is ``1 / texture_cells``: a product by it equals the quotient by the cell, a power of two [m].
+    """
     total, weight_sum = 0.0, 0.0
-    for octave in range(texture_cells.shape[0]):
-        per_cell = 1.0 / texture_cells[octave]  # a product equals the quotient: the cells are powers of two [m]
-        u, v = x * per_cell, y * per_cell
+    for octave in range(cells_per_m.shape[0]):
+        u, v = x * cells_per_m[octave], y * cells_per_m[octave]
         corner_u, corner_v = math.floor(u), math.floor(v)
         column, row = int(corner_u) & _WRAP, (int(corner_v) & _WRAP) * TEXTURE_TABLE_SIZE
         next_column, next_row = (column + 1) & _WRAP, (row + TEXTURE_TABLE_SIZE) & (_WRAP * TEXTURE_TABLE_SIZE)
@@ -51,9 +53,9 @@ def texture(texture_table, texture_cells, texture_weights, x, y):
 @kernel
 def textures(points, texture_table, texture_cells, texture_weights):
     """``texture`` at each of points (N, 2) [m]: (N,)."""
-    values = np.empty(points.shape[0])
+    values, cells_per_m = np.empty(points.shape[0]), 1.0 / texture_cells
     for n in range(points.shape[0]):
-        values[n] = texture(texture_table, texture_cells, texture_weights, points[n, 0], points[n, 1])
+        values[n] = texture(texture_table, cells_per_m, texture_weights, points[n, 0], points[n, 1])
     return values
 
 
@@ -72,6 +74,7 @@ def shade(arrays, origin, azimuth, elevation, range_m, material, obstacle, radio
     grid, obstacles, _, n_cylinders = arrays
     albedos, sun, ambient, exposure, contrast, sky_level = radiometry
     rows, columns = range_m.shape
+    texture_table, cells_per_m, texture_weights = texture_arrays[0], 1.0 / texture_arrays[1], texture_arrays[2]
     cos_azimuth, sin_azimuth = np.empty(columns), np.empty(columns)
     for c in range(columns):
         cos_azimuth[c], sin_azimuth[c] = math.cos(azimuth[c]), math.sin(azimuth[c])
@@ -91,7 +94,7 @@ def shade(arrays, origin, azimuth, elevation, range_m, material, obstacle, radio
             if hit_material == GROUND:
                 normal_x, normal_y, normal_z = ground_normal(grid, x, y)
                 if contrast > 0.0:
-                    albedo *= 1.0 + contrast * texture(texture_arrays[0], texture_arrays[1], texture_arrays[2], x, y)
+                    albedo *= 1.0 + contrast * texture(texture_table, cells_per_m, texture_weights, x, y)
             else:
                 normal_x, normal_y, normal_z = obstacle_normal(obstacles, obstacle[r, c], n_cylinders, x, y, z)
             cosine = normal_x * sun[0] + normal_y * sun[1] + normal_z * sun[2]
