@@ -21,7 +21,6 @@ GROUND = 0  # material index of the ground (``MATERIALS[0]``)
 NO_HIT = -1  # material index of a ray that hits nothing within range
 REFINE_ITERATIONS = 4  # Illinois false-position steps refining a ground crossing on curved terrain
 OBSTACLE_COLUMNS = 9  # center x, center y, radius, low x, low y, low z, high x, high y, high z
-HEIGHT_BOUND_SLACK = 1e-9  # relative margin over the highest grid point: a blend rounds a few ulps above it
 
 
 @inline
@@ -169,9 +168,6 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
     origin_z = origin[2]
     step_m = grid[3]
     samples = math.ceil(max_range_m / step_m) + 1
-    highest = grid[0].max()
-    rise_m = highest + HEIGHT_BOUND_SLACK * (1.0 + abs(highest)) - origin_z  # no ground rises higher above the origin
-    farthest_m = (samples - 1) * step_m
     slopes, cosines = np.empty(elevation.shape), np.empty(elevation.shape)
     for r in range(elevation.shape[0]):
         for column in range(elevation.shape[1]):
@@ -187,7 +183,9 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
     for c in range(columns):
         heading_x, heading_y = math.cos(azimuth[c]), math.sin(azimuth[c])
         column = c if wide else 0
-        steepest = slopes[:, column].max()
+        steepest = -np.inf
+        for r in range(rows):
+            steepest = max(steepest, slopes[r, column])
         horizon[0] = -np.inf  # the origin is above the ground
         ground[0] = height(grid, origin[0], origin[1])
         marched = samples
@@ -195,8 +193,8 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
             distance = k * step_m
             ground[k] = height(grid, origin[0] + distance * heading_x, origin[1] + distance * heading_y)
             horizon[k] = max(horizon[k - 1], (ground[k] - origin_z) / distance)
-            if horizon[k] >= min(steepest, rise_m / (distance if rise_m >= 0.0 else farthest_m)):
-                marched = k + 1  # every ray is below the horizon here or above all the ground beyond
+            if horizon[k] >= steepest:
+                marched = k + 1  # every ray meets the ground by here
                 break
         count = 0
         for m in range(n_obstacles):
