@@ -151,12 +151,13 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
     ``origin`` (3,) towards azimuth ``azimuth[c]`` (C,) at elevation ``elevation[r, c]`` ((R, C) or (R, 1), inside
     (-pi/2, pi/2)) [rad].
 
-    Each column is one vertical plane: the ground is sampled once per cell along it and a ray meets the ground at
-    the first sample whose slope seen from the origin reaches the ray's, refined by ``REFINE_ITERATIONS`` false
-    position steps with the Illinois rule (exact on planar ground); obstacles are intersected analytically (an
-    origin inside one gives range 0; on equal distances the higher material index wins). Rays that meet an
-    obstacle before the sample bracketing their ground crossing are not refined. A column's rays are refined
-    together, step by step without branches, so their steps overlap in the processor.
+    Each column is one vertical plane: the ground is sampled once per cell along it (up to where the horizon seen
+    from the origin reaches the column's steepest ray) and a ray meets the ground at the first sample whose slope
+    seen from the origin reaches the ray's, refined by ``REFINE_ITERATIONS`` false position steps with the Illinois
+    rule (exact on planar ground); obstacles are intersected analytically (an origin inside one gives range 0; on
+    equal distances the higher material index wins). Rays that meet an obstacle before the sample bracketing their
+    ground crossing are not refined. A column's rays are refined together, step by step without branches, so
+    their steps overlap in the processor.
 
     Returns:
         ``(range_m, material, obstacle)`` (R, C): the distance to the first hit [m] (``inf`` for none within
