@@ -22,22 +22,17 @@ SENSORS = ("ladar", "camera")
 IDLE_ACTION = 0
 MAX_IMAGE_ENTROPY = math.log(256)  # entropy of a uniform 256-level histogram [nats]
 _BYTES_PER_PIXEL = {"ladar": 2, "camera": 1}  # 16-bit ranges, 8-bit gray levels
+_CONFIG_FIELDS = {  # the fields of each sensor an env config sets
+    "ladar": ("rows", "columns", "vertical_fov_rad", "horizontal_fov_rad", "range_std_m", "max_range_m"),
+    "camera": ("rows", "columns", "horizontal_fov_rad", "noise_std"),
+}
 
 
 def sensor_config() -> dict:
-    """The env config keys of the two sensors, with the sensors' defaults."""
-    ladar, camera = Ladar(), Camera()
+    """The env config keys of the two sensors (``camera_noise_std`` in gray levels), with the sensors' defaults."""
+    sensors = {"ladar": Ladar(), "camera": Camera()}
     return {
-        "ladar_rows": ladar.rows,
-        "ladar_columns": ladar.columns,
-        "ladar_vertical_fov_rad": ladar.vertical_fov_rad,
-        "ladar_horizontal_fov_rad": ladar.horizontal_fov_rad,
-        "ladar_range_std_m": ladar.range_std_m,
-        "ladar_max_range_m": ladar.max_range_m,
-        "camera_rows": camera.rows,
-        "camera_columns": camera.columns,
-        "camera_horizontal_fov_rad": camera.horizontal_fov_rad,
-        "camera_noise_std": camera.noise_std,  # [gray levels]
+        f"{name}_{field}": getattr(sensors[name], field) for name, fields in _CONFIG_FIELDS.items() for field in fields
     }
 
 

@@ -26,10 +26,7 @@ def smoothstep(fraction):
 
 @inline
 def texture(texture_table, cells_per_m, texture_weights, x, y):
-    """Smoothly interpolated value noise at world ``(x, y)`` [m], in [-1, 1]: the octaves' weighted mean.
-
-    ``cells_per_m`` is ``1 / texture_cells``: a product by it equals the quotient by the cell, a power of two [m].
-    """
+    """Value noise at world ``(x, y)`` [m], in [-1, 1]: the octaves' weighted mean (``cells_per_m``: 1 / cell)."""
     total, weight_sum = 0.0, 0.0
     for octave in range(cells_per_m.shape[0]):
         u, v = x * cells_per_m[octave], y * cells_per_m[octave]
@@ -74,7 +71,7 @@ def shade(arrays, origin, azimuth, elevation, range_m, material, obstacle, radio
     grid, obstacles, _, n_cylinders = arrays
     albedos, sun, ambient, exposure, contrast, sky_level = radiometry
     rows, columns = range_m.shape
-    texture_table, cells_per_m, texture_weights = texture_arrays[0], 1.0 / texture_arrays[1], texture_arrays[2]
+    cells_per_m = 1.0 / texture_arrays[1]
     cos_azimuth, sin_azimuth = np.empty(columns), np.empty(columns)
     for c in range(columns):
         cos_azimuth[c], sin_azimuth[c] = math.cos(azimuth[c]), math.sin(azimuth[c])
@@ -94,7 +91,7 @@ def shade(arrays, origin, azimuth, elevation, range_m, material, obstacle, radio
             if hit_material == GROUND:
                 normal_x, normal_y, normal_z = ground_normal(grid, x, y)
                 if contrast > 0.0:
-                    albedo *= 1.0 + contrast * texture(texture_table, cells_per_m, texture_weights, x, y)
+                    albedo *= 1.0 + contrast * texture(texture_arrays[0], cells_per_m, texture_arrays[2], x, y)
             else:
                 normal_x, normal_y, normal_z = obstacle_normal(obstacles, obstacle[r, c], n_cylinders, x, y, z)
             cosine = normal_x * sun[0] + normal_y * sun[1] + normal_z * sun[2]

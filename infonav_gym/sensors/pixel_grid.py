@@ -30,24 +30,10 @@ def check_pose(vehicle_pose) -> np.ndarray:
 
 def unit_directions(azimuth_rad: np.ndarray, elevation_rad: np.ndarray) -> np.ndarray:
     """World unit vectors (R, C, 3) for column azimuths (C,) and row elevations (R,)."""
-    rows, columns = np.indices((np.size(elevation_rad), np.size(azimuth_rad)))
-    return pixel_directions(azimuth_rad, elevation_rad, rows, columns)
-
-
-def pixel_directions(azimuth_rad: np.ndarray, elevation_rad: np.ndarray, rows, columns) -> np.ndarray:
-    """World unit vectors (..., 3) of the pixels ``(rows, columns)`` (...) of column azimuths and row elevations.
-
-    Equals ``unit_directions(azimuth_rad, elevation_rad)[rows, columns]`` without building the whole grid.
-    """
-    cos_elevation = np.cos(elevation_rad)[rows]
-    return np.stack(
-        [
-            cos_elevation * np.cos(azimuth_rad)[columns],
-            cos_elevation * np.sin(azimuth_rad)[columns],
-            np.sin(elevation_rad)[rows],
-        ],
-        axis=-1,
-    )
+    cos_elevation, sin_elevation = np.cos(elevation_rad).reshape(-1, 1), np.sin(elevation_rad).reshape(-1, 1)
+    cos_azimuth, sin_azimuth = np.cos(azimuth_rad).reshape(-1), np.sin(azimuth_rad).reshape(-1)
+    up = np.broadcast_to(sin_elevation, (sin_elevation.shape[0], cos_azimuth.shape[0]))
+    return np.stack([cos_elevation * cos_azimuth, cos_elevation * sin_azimuth, up], axis=-1)
 
 
 def check_pan_tilt(sensor: str, pan_rad: float, tilt_rad: float, vertical_fov_rad: float) -> None:

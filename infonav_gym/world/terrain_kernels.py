@@ -5,8 +5,7 @@ The ground is a ``grid`` ``(heights, x0, y0, cell_m)``: bilinear between the poi
 Obstacles are rows of an (M, 9) table ``(center x, center y, radius, low x, low y, low z, high x, high y,
 high z)`` [m]: the first ``n_cylinders`` are vertical cylinders (centre, radius, ``low z`` to ``high z``), the rest
 axis-aligned boxes (``low`` to ``high``); ``materials`` (M,) int8 hold their indices into ``MATERIALS``. A NaN in a
-comparison makes it false. Lengths are divided by ``cell_m`` as products by its reciprocal, ``per_m``: quicker, and
-equal for a power-of-two cell (the random scenes' 0.5 m), within an ulp otherwise.
+comparison makes it false. ``x / cell_m`` is ``x * (1 / cell_m)``: quicker, equal for a power-of-two cell (0.5 m).
 """
 
 from __future__ import annotations
@@ -36,8 +35,7 @@ def cell_at(grid, x, y):
     offsets ``(tx, ty)`` in it, clamped to the grid (a NaN coordinate to its first row or column)."""
     heights, x0, y0, cell_m = grid
     rows, columns = heights.shape
-    per_m = 1.0 / cell_m
-    tx, ty = (x - x0) * per_m, (y - y0) * per_m
+    tx, ty = (x - x0) * (1.0 / cell_m), (y - y0) * (1.0 / cell_m)
     tx = min(tx if tx >= 0.0 else 0.0, columns - 1.0)  # NaN to 0: the index stays inside the grid
     ty = min(ty if ty >= 0.0 else 0.0, rows - 1.0)
     j, i = min(int(tx), columns - 2), min(int(ty), rows - 2)
@@ -59,9 +57,8 @@ def ground_normal(grid, x, y):
     lower_left, lower_right, upper_left, upper_right, tx, ty = cell_at(grid, x, y)
     heights, x0, y0, cell_m = grid
     rows, columns = heights.shape
-    per_m = 1.0 / cell_m
-    slope_x = ((lower_right - lower_left) * (1.0 - ty) + (upper_right - upper_left) * ty) * per_m
-    slope_y = ((upper_left - lower_left) * (1.0 - tx) + (upper_right - lower_right) * tx) * per_m
+    slope_x = ((lower_right - lower_left) * (1.0 - ty) + (upper_right - upper_left) * ty) * (1.0 / cell_m)
+    slope_y = ((upper_left - lower_left) * (1.0 - tx) + (upper_right - lower_right) * tx) * (1.0 / cell_m)
     if x < x0 or x > x0 + (columns - 1) * cell_m:
         slope_x = 0.0
     if y < y0 or y > y0 + (rows - 1) * cell_m:
@@ -131,18 +128,15 @@ def false_position(low_s, high_s, low_f, high_f):
 
 
 @inline
-def illinois_step(bracket, f, side):
-    """Narrow ``bracket`` ``(low_s, low_f, high_s, high_f, s)`` by the clearance ``f`` above the ground at its ``s``
-    and move ``s`` to the new chord's zero, halving the end kept twice in a row (the Illinois rule: the bracket
-    shrinks from both sides); ``side`` is where the last step went (1 above, 0 below, -1 none yet), the new one is
-    returned. The ends are picked by index, not by branches, so that the steps of many rays overlap in the
-    processor."""
+def illinois_step(bracket, f):
+    """Narrow ``bracket`` ``(low_s, low_f, high_s, high_f, s, side of the last s: 1 above, 0 below, -1 none)`` by the
+    clearance ``f`` above the ground at ``s``, halving the end kept twice in a row (Illinois), and move ``s`` to the
+    chord's zero; ends picked by index, not by branches, so that many rays' steps overlap in the processor."""
     above = int(f > 0.0)
     kept = 2 * above  # the high end stays when s is above the ground, else the low end
-    bracket[kept + 1] *= 1.0 - 0.5 * (above == side)
-    bracket[2 - kept], bracket[3 - kept] = bracket[4], f
+    bracket[kept + 1] *= 1.0 - 0.5 * (above == bracket[5])
+    bracket[2 - kept], bracket[3 - kept], bracket[5] = bracket[4], f, above
     bracket[4] = false_position(bracket[0], bracket[2], bracket[1], bracket[3])
-    return above
 
 
 @kernel
@@ -153,11 +147,10 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
 
     Each column is one vertical plane: the ground is sampled once per cell along it (up to where the horizon seen
     from the origin reaches the column's steepest ray) and a ray meets the ground at the first sample whose slope
-    seen from the origin reaches the ray's, refined by ``REFINE_ITERATIONS`` false position steps with the Illinois
-    rule (exact on planar ground); obstacles are intersected analytically (an origin inside one gives range 0; on
-    equal distances the higher material index wins). Rays that meet an obstacle before the sample bracketing their
-    ground crossing are not refined. A column's rays are refined together, step by step without branches, so
-    their steps overlap in the processor.
+    seen from the origin reaches the ray's, refined by ``REFINE_ITERATIONS`` Illinois steps (exact on planar ground),
+    a column's rays together; obstacles are intersected analytically (an origin inside one gives range 0; on equal
+    distances the higher material index wins). Rays that meet an obstacle before the sample bracketing their ground
+    crossing are not refined.
 
     Returns:
         ``(range_m, material, obstacle)`` (R, C): the distance to the first hit [m] (``inf`` for none within
@@ -176,8 +169,7 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
     ground, horizon = np.empty(samples), np.empty(samples)
     n_obstacles = obstacles.shape[0]
     candidates, enters, exits = np.empty(n_obstacles, np.int64), np.empty(n_obstacles), np.empty(n_obstacles)
-    refined, bracket, side = np.empty(rows, np.int64), np.empty((rows, 5)), np.empty(rows, np.int64)
-    ground_s = np.empty(rows)
+    refined, ground_s, bracket = np.empty(rows, np.int64), np.empty(rows), np.empty((rows, 6))
     range_m = np.empty((rows, columns))
     material = np.empty((rows, columns), np.int8)
     obstacle = np.empty((rows, columns), np.int64)
@@ -219,17 +211,16 @@ def first_hits(arrays, origin, azimuth, elevation, max_range_m):
             if k < marched and (k - 1) * step_m <= nearest_s:
                 low_s, high_s = (k - 1) * step_m, k * step_m
                 low_f, high_f = (origin_z + low_s * slope) - ground[k - 1], (origin_z + high_s * slope) - ground[k]
-                s = false_position(low_s, high_s, low_f, high_f)
                 bracket[n_refined, 0], bracket[n_refined, 1], bracket[n_refined, 2] = low_s, low_f, high_s
-                bracket[n_refined, 3], bracket[n_refined, 4] = high_f, s
-                refined[n_refined], side[n_refined] = r, -1
+                bracket[n_refined, 3], bracket[n_refined, 5] = high_f, -1.0
+                bracket[n_refined, 4], refined[n_refined] = false_position(low_s, high_s, low_f, high_f), r
                 n_refined += 1
         for _ in range(REFINE_ITERATIONS):
             for q in range(n_refined):
                 s = bracket[q, 4]
                 slope = slopes[refined[q], column]
                 f = (origin_z + s * slope) - height(grid, s * heading_x + origin[0], s * heading_y + origin[1])
-                side[q] = illinois_step(bracket[q], f, side[q])
+                illinois_step(bracket[q], f)
         for q in range(n_refined):
             ground_s[refined[q]] = bracket[q, 4]
         for r in range(rows):
