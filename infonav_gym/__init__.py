@@ -28,7 +28,12 @@ BUILTIN_ENVS = (
         GYMNASIUM,
         "infonav_gym.envs.sensor_selection:SensorSelectionVectorEnv",
     ),
-    ("infonav/RangeRegistration-v0", "infonav_gym.envs.range_registration:RangeRegistrationEnv", GYMNASIUM),
+    (
+        "infonav/RangeRegistration-v0",
+        "infonav_gym.envs.range_registration:RangeRegistrationEnv",
+        GYMNASIUM,
+        "infonav_gym.envs.range_registration:RangeRegistrationVectorEnv",
+    ),
     (
         "cooperative_localization_v0",
         "infonav_gym.multi.cooperative_localization:CooperativeLocalizationEnv",

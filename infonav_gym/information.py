@@ -214,15 +214,19 @@ def information_gain_of_innovation(S, R, check_input: bool = True) -> float | np
     return float(gain) if np.ndim(gain) == 0 else gain
 
 
-def information_gain_of_information(prior_root, information) -> float:
+def information_gain_of_information(prior_root, information):
     """MI [nats] of an observation carrying Fisher ``information`` A about x ~ N(., P): ``0.5 ln det(I + L^T A L)``.
 
     Args:
-        prior_root: ``L`` with ``P = L L^T`` (e.g. its Cholesky factor), (n, n).
-        information: ``A = sum_i J_i^T R_i^-1 J_i``, (n, n) symmetric positive semi-definite.
+        prior_root: ``L`` with ``P = L L^T`` (e.g. its Cholesky factor), (..., n, n).
+        information: ``A = sum_i J_i^T R_i^-1 J_i``, (..., n, n) symmetric positive semi-definite.
+
+    Returns:
+        A float for one (n, n) pair, else an array of the broadcast leading shape.
     """
-    whitened = prior_root.T @ information @ prior_root
-    return 0.5 * float(np.linalg.slogdet(np.eye(len(whitened)) + whitened)[1])
+    whitened = np.swapaxes(prior_root, -1, -2) @ information @ prior_root
+    gain = 0.5 * np.linalg.slogdet(np.eye(whitened.shape[-1]) + whitened)[1]
+    return float(gain) if gain.ndim == 0 else gain
 
 
 def histogram_entropy(image, bins: int = 256, value_range=None, base: float = math.e) -> float:

@@ -26,17 +26,18 @@ WALL_CLOCK_INFO_KEYS = {"icp_time_s"}  # measured computing times: the only info
 OUT_OF_SPACE_ACTIONS = [-1, "n", 2.5, "a", True, np.array([0, 1])]  # "n": the space size, resolved per env
 
 
-def _without_wall_clock(value):
+def without_wall_clock(value):
+    """``value`` (a transition, an info, nested) without the measured computing times (``WALL_CLOCK_INFO_KEYS``)."""
     if isinstance(value, dict):
-        return {key: _without_wall_clock(item) for key, item in value.items() if key not in WALL_CLOCK_INFO_KEYS}
+        return {key: without_wall_clock(item) for key, item in value.items() if key not in WALL_CLOCK_INFO_KEYS}
     if isinstance(value, (list, tuple)):
-        return type(value)(_without_wall_clock(item) for item in value)
+        return type(value)(without_wall_clock(item) for item in value)
     return value
 
 
 def assert_reproducible(a, b, where: str = "value") -> None:
     """``assert_identical`` on everything but the measured computing times (``WALL_CLOCK_INFO_KEYS``)."""
-    assert_identical(_without_wall_clock(a), _without_wall_clock(b), where)
+    assert_identical(without_wall_clock(a), without_wall_clock(b), where)
 
 
 def make(env_id: str, kwargs: dict, **extra) -> gym.Env:

@@ -96,8 +96,12 @@ def test_make_vector_env_makes_a_gymnasium_envs_native_vector_env_too():
 
 
 def test_make_vector_env_refuses_an_env_without_a_native_vector_env():
-    with pytest.raises(ValueError, match=r"env 'infonav/RangeRegistration-v0' has no native vector env"):
-        make_vector_env("infonav/RangeRegistration-v0", 2)
+    register("toy/Unbatched-v0", "toy.unbatched:UnbatchedEnv")  # imported only when made
+    try:
+        with pytest.raises(ValueError, match=r"env 'toy/Unbatched-v0' has no native vector env"):
+            make_vector_env("toy/Unbatched-v0", 2)
+    finally:
+        unregister("toy/Unbatched-v0")
     with pytest.raises(ValueError, match="unknown env id 'nowhere'"):
         make_vector_env("nowhere", 2)
 

@@ -101,7 +101,6 @@ def test_bad_input_exits_2_with_one_line_naming_it(capsys, argv, message):
 @pytest.mark.parametrize(
     "env_id, vectorization, why, available",
     [
-        ("infonav/RangeRegistration-v0", "native", "no native vector env in the registry", "sync, subprocess"),
         ("CartPole-v1", "native", "no native vector env in the registry", "sync, subprocess"),
         (
             "cooperative_localization_v0",
@@ -134,9 +133,9 @@ def test_the_default_vectorization_is_native_where_the_registry_has_a_native_vec
     assert vectorizations(LANDMARK_ID) == ("native", "sync", "subprocess")
     assert checked_vectorization(LANDMARK_ID, None) == "native"
     assert checked_vectorization("infonav/ActiveLocalization-v0", None) == "native"
+    assert checked_vectorization("infonav/RangeRegistration-v0", None) == "native"
     assert vectorizations("cooperative_localization_v0") == ("native",)  # its robots' slots of the batched env
-    for env_id in ("infonav/RangeRegistration-v0", "CartPole-v1"):
-        assert checked_vectorization(env_id, None) == "sync"
+    assert checked_vectorization("CartPole-v1", None) == "sync"
     with pytest.raises(ValueError, match="vectorization must be one of native, sync, subprocess, got 'threads'"):
         checked_vectorization(LANDMARK_ID, "threads")
 

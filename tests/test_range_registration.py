@@ -1,6 +1,7 @@
 """``infonav/RangeRegistration-v0`` and ICP on simulated terrain frame pairs (the paper's Section V).
 
-The env contract (checkers, determinism, pickle, subprocess) is in ``test_envs.py``.
+The env contract (checkers, determinism, pickle, subprocess) is in ``test_envs.py``, the vector env's in
+``test_vector_envs.py``; here the sub-envs of the vector env against the single env in the configs that matter.
 """
 
 import math
@@ -8,6 +9,8 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+import vector_env_checks
+from gymnasium.vector import AutoresetMode
 
 import infonav_gym  # noqa: F401
 from agents import GreedyEntropyAgent, RandomAgent
@@ -91,8 +94,8 @@ def test_gain_is_the_mutual_information_a_patch_adds_to_the_chosen_ones():
     alone = info["action_information_gain"].copy()
     _, _, _, _, info = env.step(first)
     second = int(np.argmax(info["action_information_gain"]))
-    information = env._patch_information
-    root = np.linalg.cholesky(env.pair.motion_covariance)
+    information = env.vector._patch_information[0]
+    root = np.linalg.cholesky(env.vector._pairs[0].motion_covariance)
 
     def mi(matrix):
         return 0.5 * np.linalg.slogdet(np.eye(6) + root.T @ matrix @ root)[1]
@@ -106,9 +109,11 @@ def test_gain_is_the_mutual_information_a_patch_adds_to_the_chosen_ones():
 def test_gicp_registers_the_chosen_points_with_whole_frame_covariances_kept_for_the_next_pair():
     """Two pairs: each registration equals ``icp`` with ``FRAME_PAIR_ICP`` and both whole frames' covariances."""
     env = gym.make(REGISTRATION_ID).unwrapped
+    vector = env.vector
     _, info = env.reset(seed=3)
     for _ in range(2):
-        pair, source, target, patches = env.pair, env._source_points, env._target_points, env._patch_of_return
+        pair, source, target = vector._pairs[0], vector._source_points[0], vector._target_points[0]
+        patches = vector._patch_of_return[0]
         chosen = []
         while len(chosen) < env.config["picks_per_pair"]:
             chosen.append(int(np.argmax(info["action_information_gain"])))
@@ -124,7 +129,7 @@ def test_gicp_registers_the_chosen_points_with_whole_frame_covariances_kept_for_
             source_covariances=gicp_covariances(source)[rows],
             target_covariances=gicp_covariances(target),
         )
-        np.testing.assert_array_equal(env.last_registration["transform"], expected.transform)
+        np.testing.assert_array_equal(vector._last_registration["transform"][0], expected.transform)
 
 
 @pytest.mark.parametrize(
@@ -152,8 +157,26 @@ def test_ladar_range_noise_and_odometry_defaults_come_from_one_source():
     """``ladar_range_std_m`` reaches the scans (so the control-point errors); odometry defaults are frame_pair's."""
     env = gym.make(REGISTRATION_ID, ladar_range_std_m=0.05).unwrapped
     env.reset(seed=0)
-    assert env.pair.current.range_std_m == env.pair.previous.range_std_m == 0.05
+    pair = env.vector._pairs[0]
+    assert pair.current.range_std_m == pair.previous.range_std_m == 0.05
     default = gym.make(REGISTRATION_ID).unwrapped
-    np.testing.assert_array_equal(default.odometry_std, DEFAULT_ODOMETRY_STD)
+    np.testing.assert_array_equal(default.vector.odometry_std, DEFAULT_ODOMETRY_STD)
     default.reset(seed=0)
-    np.testing.assert_array_equal(default.pair.motion_covariance, np.diag(np.square(DEFAULT_ODOMETRY_STD)))
+    np.testing.assert_array_equal(default.vector._pairs[0].motion_covariance, np.diag(np.square(DEFAULT_ODOMETRY_STD)))
+
+
+def _greedy_or_any(rng, info):
+    """Per sub-env: the patch of largest gain, or one time in four any action (a masked one is the no-op)."""
+    greedy = np.argmax(info["action_information_gain"], axis=1)
+    return np.where(rng.random(len(greedy)) < 0.75, greedy, rng.integers(0, info["action_mask"].shape[1], len(greedy)))
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_sub_envs_equal_the_single_env_through_autoresets(mode):
+    config = {"horizon": 5, "picks_per_pair": 2, "patch_rows": 2, "patch_columns": 3}
+    assert vector_env_checks.run_in_lockstep(REGISTRATION_ID, 3, 4, 12, _greedy_or_any, mode, **config) == (0, 6)
+
+
+def test_sub_envs_equal_the_single_env_with_point_to_point_icp_and_one_pick_per_pair():
+    config = {"horizon": 4, "picks_per_pair": 1, "icp_method": "point_to_point", "icp_robust_kernel": "none"}
+    assert vector_env_checks.run_in_lockstep(REGISTRATION_ID, 2, 9, 4, _greedy_or_any, **config) == (0, 2)

@@ -316,7 +316,7 @@ def test_ray_tasks_give_the_numbers_of_one_process(local_ray):
     assert evaluate(LANDMARK_ID, ["random", "greedy"], 3, workers=2, use_ray=True, **kwargs) == one
 
 
-def test_an_env_without_a_native_vector_env_trains_on_gymnasiums_sync_copies(local_ray, tmp_path_factory, small_blocks):
+def test_range_registration_trains_on_its_native_vector_env(local_ray, tmp_path_factory, small_blocks):
     import yaml
 
     env_id = "infonav/RangeRegistration-v0"
@@ -324,7 +324,7 @@ def test_an_env_without_a_native_vector_env_trains_on_gymnasiums_sync_copies(loc
     path.write_text(yaml.safe_dump({env_id: {**SMALL_BLOCK, "n_steps": 64, "batch_size": 32}}))
     config = ("--envs-per-runner", "2", "--config", "horizon=20")
     output, record = _trained(tmp_path_factory, path, env_id, *config, timesteps=256)  # ICP every step: slow
-    assert record["vectorization"] == "sync" and record["timesteps"] >= 256
+    assert record["vectorization"] == "native" and record["timesteps"] >= 256
     env = gym.make(env_id, horizon=20)
     observation, info = env.reset(seed=0)
     assert env.action_space.contains(RLlibAgent(output, env).act(observation, info))

@@ -31,9 +31,12 @@ CHECKS = [
 
 
 def test_the_native_vector_envs_are_found():
-    assert {"infonav/LandmarkSelection-v0", "infonav/ActiveLocalization-v0", "infonav/SensorSelection-v0"} <= set(
-        VECTOR_ENV_IDS
-    )
+    assert {
+        "infonav/LandmarkSelection-v0",
+        "infonav/ActiveLocalization-v0",
+        "infonav/SensorSelection-v0",
+        "infonav/RangeRegistration-v0",
+    } <= set(VECTOR_ENV_IDS)
 
 
 @pytest.mark.parametrize("env_id", VECTOR_ENV_IDS)

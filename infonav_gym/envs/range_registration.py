@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
 
 from infonav_gym.config import Interval, check_choice, check_config, config_keys, from_config
-from infonav_gym.envs.base import Decision, InfoNavEnv
+from infonav_gym.envs.image_acquisition import TerrainStack
 from infonav_gym.envs.metrics import EpisodeMetric, mean_where, summed_reward
+from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
+from infonav_gym.envs.vector_base import InfoNavVectorEnv
+from infonav_gym.envs.vector_infos import decision_info, in_every_copy
 from infonav_gym.information import information_gain_of_information
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import (
@@ -27,10 +32,10 @@ from infonav_gym.registration.robust_kernels import ROBUST_KERNELS
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import TIME_STEP_S, World
+from infonav_gym.world.world import TIME_STEP_S
+from infonav_gym.world.world_batch import WorldBatch
 
 MIN_CONTROL_POINTS = 3  # fewer cannot fix a rigid motion
-GLOBAL_FEATURES = 2
 MAX_PATCH_INFORMATION = 50.0  # observation bound of a patch's information [nats]
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses (patches: see __init__)
     "time_step_s": TIME_STEP_S,
@@ -47,9 +52,324 @@ ODOMETRY_KEYS = {  # the config key of each axis of the odometry error (frame_pa
     "pitch": "odometry_tilt_std_rad",
     "yaw": "odometry_yaw_std_rad",
 }
+REGISTRATION = np.dtype(  # what each copy's last ICP run gave (zeros before its first in an episode)
+    [
+        ("error_before_m", float),
+        ("error_after_m", float),
+        ("icp_iterations", np.int64),
+        ("icp_time_s", float),
+        ("n_control_points", np.int64),
+        ("transform", float, (4, 4)),
+    ]
+)
 
 
-class RangeRegistrationEnv(InfoNavEnv):
+class PatchDecision(NamedTuple):
+    """Every copy's decision: the patches it may add (int8 (N, P), 1 = valid) and the MI each adds (N, P) [nats]."""
+
+    action_mask: np.ndarray
+    action_information_gain: np.ndarray
+
+
+class RangeRegistrationVectorEnv(InfoNavVectorEnv):
+    """N copies of ``infonav/RangeRegistration-v0`` on stacked arrays: the env's one implementation.
+
+    See ``RangeRegistrationEnv`` (its N = 1 view) for the spaces, rewards and config keys.
+    ``gym.make_vec("infonav/RangeRegistration-v0", num_envs=N, **config)`` returns it. Each copy drives its own
+    terrain loop (the vehicles in a ``WorldBatch``); the patches' information, masks, gains and observations are
+    (N, P, ...) arrays; scans, frame pairs and ICP run copy by copy, each from its copy's own generators, so sub-env
+    ``i`` after ``reset(seed=s)`` gives the numbers of ``gym.make("infonav/RangeRegistration-v0")`` after
+    ``reset(seed=s + i)``. ``autoreset_mode`` and ``render_mode`` as ``LandmarkSelectionVectorEnv`` describes.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
+    episode_metrics = (
+        EpisodeMetric("cumulative_reward", "cumulative reward [m]", summed_reward),
+        EpisodeMetric(
+            "mean_error_after_m",
+            "registration error after ICP [m]",
+            mean_where("error_after_m", lambda info: info["registered"]),
+        ),
+        EpisodeMetric(
+            "mean_control_points",
+            "control points per frame pair",
+            mean_where("n_control_points", lambda info: info["registered"]),
+        ),
+    )
+    traits = EnvTraits(
+        valid_gain_may_be_zero=True,  # a patch may hold no usable control point
+        reward_terms=("error_reduction_m", "point_cost"),
+        info_keys=frozenset(
+            {"registered", "error_before_m", "error_after_m", "icp_iterations", "icp_time_s", "n_control_points"}
+        ),
+    )
+
+    @classmethod
+    def default_config(cls) -> dict:
+        return {
+            **InfoNavVectorEnv.default_config(),
+            "horizon": 60,  # steps: 15 frame pairs of 4 picks
+            "picks_per_pair": 4,  # patches chosen before ICP runs
+            "patch_rows": 4,
+            "patch_columns": 9,
+            "point_cost": 1e-4,  # cost of one control point [m of registration error]
+            "time_step_s": 0.5,  # between frames [s]
+            "speed_mps": 2.0,  # [m/s]
+            **SCENE_CONFIG,  # the terrain_loop scene
+            "odometry_xy_std_m": DEFAULT_ODOMETRY_STD[0],  # std of the odometry's motion error along x and y [m]
+            "odometry_z_std_m": DEFAULT_ODOMETRY_STD[2],  # ... along z [m]
+            "odometry_tilt_std_rad": DEFAULT_ODOMETRY_STD[3],  # ... about x and y (inclinometers) [rad]
+            "odometry_yaw_std_rad": DEFAULT_ODOMETRY_STD[5],  # ... about z [rad]
+            "icp_method": FRAME_PAIR_ICP["method"],
+            "icp_robust_kernel": FRAME_PAIR_ICP["robust_kernel"] or "none",  # "none" or one of ROBUST_KERNELS
+            "icp_kernel_scale_m": FRAME_PAIR_ICP["kernel_scale"],  # [m]
+            "icp_max_iterations": 30,
+            "max_correspondence_distance_m": FRAME_PAIR_ICP["max_correspondence_distance"],
+            "ladar_range_std_m": Ladar().range_std_m,
+        }
+
+    def _build(self) -> None:
+        cfg, owner, num_envs = self.config, self.owner_name, self.num_envs
+        check_choice(cfg, "icp_method", METHODS, owner)
+        check_choice(cfg, "icp_robust_kernel", ("none", *ROBUST_KERNELS), owner)
+        check_config(cfg, owner, CONFIG_INTERVALS)
+        check_scene_config(cfg, owner)
+        with config_keys(owner, ODOMETRY_KEYS):
+            self.odometry_std = check_odometry_std([cfg[key] for key in ODOMETRY_KEYS.values()])
+        self.ladar = from_config(Ladar, cfg, {"range_std_m": "ladar_range_std_m"}, owner)
+        patches = {"patch_rows": self.ladar.rows, "patch_columns": self.ladar.columns}  # at most the image's pixels
+        check_config(cfg, owner, {key: Interval(1, pixels, integer=True) for key, pixels in patches.items()})
+        n_patches = cfg["patch_rows"] * cfg["patch_columns"]
+        check_config(cfg, owner, {"picks_per_pair": Interval(1, n_patches, integer=True)})
+        high = np.tile([1.0, 1.0, 1.0, 1.0, MAX_PATCH_INFORMATION], n_patches)
+        high = np.append(high, [1.0, 1.0]).astype(np.float32)
+        self._set_spaces(spaces.Box(np.zeros_like(high), high, dtype=np.float32), spaces.Discrete(n_patches))
+        rows, columns = np.indices((self.ladar.rows, self.ladar.columns))
+        patch_row = rows * cfg["patch_rows"] // self.ladar.rows
+        self._pixel_patch = patch_row * cfg["patch_columns"] + columns * cfg["patch_columns"] // self.ladar.columns
+        self._pixels_per_patch = np.bincount(self._pixel_patch.ravel(), minlength=n_patches)
+        self._worlds = WorldBatch(num_envs)
+        self._sensor_rngs = [None] * num_envs
+        self._odometry_rngs = [None] * num_envs
+        self._frames = [None] * num_envs  # each copy's newest LADAR frame (its pair's source)
+        self._pairs = [None] * num_envs  # each copy's current FramePair
+        self._source_points = [None] * num_envs  # the points of each copy's newest frame, and of the one before
+        self._target_points = [None] * num_envs
+        self._patch_of_return = [None] * num_envs  # the patch of each return of the newest frame
+        self._covariances = [{} for _ in range(num_envs)]  # GICP's, by frame (_gicp_covariances)
+        self._patch_information = np.zeros((num_envs, n_patches, 6, 6))  # Fisher information about the motion
+        self._prior_root = np.zeros((num_envs, 6, 6))  # Cholesky factor of the pair's motion covariance
+        self._patch_alone = np.zeros((num_envs, n_patches))  # each patch's information alone [nats]
+        self._return_fraction = np.zeros((num_envs, n_patches))
+        self._mean_range = np.zeros((num_envs, n_patches))  # [m]
+        self._odometry_error = np.zeros(num_envs)  # [m]
+        self._attitude = np.zeros((num_envs, 2))  # roll and pitch of the newest frame [rad]
+        self._chosen = np.zeros((num_envs, n_patches), dtype=bool)
+        self._registered = np.zeros(num_envs, dtype=bool)  # which registered their pair at the last step
+        self._last_registration = np.zeros(num_envs, dtype=REGISTRATION)
+        self._elapsed = np.zeros(num_envs, dtype=int)
+        self._true_path = None  # copy 0's, when drawing
+
+    def _reset_copies(self, copies: np.ndarray) -> TerrainStack:
+        """Start a new episode in each of ``copies`` from its own generator, with its first pair; their terrains."""
+        terrains = []
+        for copy in copies.tolist():
+            scene = terrain_loop_from_config(self._np_randoms[copy], self.config)
+            self._worlds.reset_copy(copy, scene.scenario)
+            self._sensor_rngs[copy], self._odometry_rngs[copy] = self._np_randoms[copy].spawn(2)
+            self._frames[copy] = self._scan(copy, scene.terrain)
+            self._covariances[copy] = {}
+            terrains.append(scene.terrain)
+        self._elapsed[copies] = 0
+        self._registered[copies] = False
+        self._last_registration[copies] = 0
+        if self.render_mode is not None and copies[0] == 0:
+            self._true_path = PathHistory(self._worlds.poses[0, 0, :2])
+        self._next_pairs(copies, terrains)
+        return TerrainStack(tuple(terrains))
+
+    def _scan(self, copy: int, terrain):
+        return scan_on_terrain(self.ladar, terrain, self._worlds.poses[copy, 0].copy(), self._sensor_rngs[copy])
+
+    def _next_pairs(self, copies: np.ndarray, terrains: list) -> None:
+        """Drive ``copies`` one frame on; each one's pair (previous frame, new frame), odometry estimate and patches.
+
+        ``terrains``: theirs, in order.
+        """
+        self._worlds.step(self.config["time_step_s"], copies)
+        if self._true_path is not None and copies[0] == 0:
+            self._true_path.append(self._worlds.poses[0, 0, :2])
+        n_patches = self.single_action_space.n
+        for copy, terrain in zip(copies.tolist(), terrains):
+            previous, current = self._frames[copy], self._scan(copy, terrain)
+            pair = frame_pair(previous, current, self._odometry_rngs[copy], self.odometry_std)
+            geometry = control_point_geometry(current, pair.motion_covariance)
+            returns = ~current.no_return
+            patch_of_return = self._pixel_patch[returns]
+            self._frames[copy], self._pairs[copy], self._patch_of_return[copy] = current, pair, patch_of_return
+            self._source_points[copy], self._target_points[copy] = sensor_points(current), sensor_points(previous)
+            self._covariances[copy] = {"target": self._covariances[copy].get("source")}
+            error_std = geometry.error_std_m
+            informative = np.isfinite(error_std)
+            weighted = geometry.jacobians / np.where(informative, error_std, 1.0)[:, None]
+            information = self._patch_information[copy]
+            information[:] = 0.0
+            np.add.at(
+                information,
+                patch_of_return[informative],
+                weighted[informative, :, None] * weighted[informative, None, :],
+            )
+            self._prior_root[copy] = np.linalg.cholesky(pair.motion_covariance)
+            returns_per_patch = np.bincount(patch_of_return, minlength=n_patches)
+            self._return_fraction[copy] = returns_per_patch / self._pixels_per_patch
+            range_sum = np.bincount(patch_of_return, current.ranges_m[returns], minlength=n_patches)
+            self._mean_range[copy] = range_sum / np.maximum(1, returns_per_patch)
+            self._odometry_error[copy] = registration_error(pair.odometry_motion, pair.true_motion)
+            self._attitude[copy] = current.attitude_rad
+        self._chosen[copies] = False
+        roots = self._prior_root[copies, None]
+        self._patch_alone[copies] = information_gain_of_information(roots, self._patch_information[copies])
+
+    def step(self, actions):
+        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
+        acting, chosen = self._begin_step(actions)
+        picking = np.flatnonzero(chosen >= 0)
+        self._chosen[picking, chosen[picking]] = True
+        left = ((self._return_fraction > 0) & ~self._chosen).any(axis=1)
+        self._registered = (chosen >= 0) & ((self._chosen.sum(axis=1) >= self.config["picks_per_pair"]) | ~left)
+        reduction, cost = np.zeros(self.num_envs), np.zeros(self.num_envs)
+        registering = np.flatnonzero(self._registered)
+        for copy in registering.tolist():
+            reduction[copy], cost[copy] = self._register(copy)
+        self._elapsed[acting] += 1
+        if registering.size:
+            self._next_pairs(registering, [self._geometry[copy] for copy in registering.tolist()])
+        truncated = acting & (self._elapsed >= self.config["horizon"])
+        observation, info = self._finish_step(
+            truncated, lambda copies, _: self._outputs(copies, acting, chosen, reduction, cost)
+        )
+        return observation, reduction + cost, np.zeros(self.num_envs, dtype=bool), truncated, info
+
+    def _register(self, copy: int) -> tuple[float, float]:
+        """Run ICP on the chosen patches' points of ``copy``; the pair's reward terms (error reduction, point cost)."""
+        cfg, pair = self.config, self._pairs[copy]
+        chosen = self._chosen[copy][self._patch_of_return[copy]]
+        source = self._source_points[copy][chosen]
+        before = self._odometry_error[copy]
+        start = time.perf_counter()
+        if len(source) >= MIN_CONTROL_POINTS:
+            kernel = None if cfg["icp_robust_kernel"] == "none" else cfg["icp_robust_kernel"]
+            result = icp(
+                source,
+                self._target_points[copy],
+                pair.odometry_motion,
+                max_iterations=cfg["icp_max_iterations"],
+                max_correspondence_distance=cfg["max_correspondence_distance_m"],
+                method=cfg["icp_method"],
+                robust_kernel=kernel,
+                kernel_scale=cfg["icp_kernel_scale_m"],
+                **self._gicp_covariances(copy, chosen),
+            )
+            transform, iterations = result.transform, result.iterations
+        else:  # too few points to register: keep the odometry estimate
+            transform, iterations = pair.odometry_motion, 0
+        elapsed = time.perf_counter() - start
+        after = registration_error(transform, pair.true_motion)
+        self._last_registration[copy] = (before, after, iterations, elapsed, len(source), transform)
+        return before - after, -cfg["point_cost"] * len(source)
+
+    def _gicp_covariances(self, copy: int, chosen: np.ndarray) -> dict:
+        """For GICP, the covariances of the ``chosen`` returns (from the whole frame) and of the previous frame.
+
+        Each frame's are computed once: as the current frame's, then kept for the next pair, whose target it is.
+        """
+        if self.config["icp_method"] != "gicp":
+            return {}
+        covariances = self._covariances[copy]
+        for name, points in (("source", self._source_points[copy]), ("target", self._target_points[copy])):
+            if covariances.get(name) is None:
+                covariances[name] = gicp_covariances(points)
+        return {"source_covariances": covariances["source"][chosen], "target_covariances": covariances["target"]}
+
+    def _reset_outputs(self, copies: np.ndarray, terrains: TerrainStack) -> tuple[np.ndarray, dict]:
+        """The observations and reset infos of ``copies``, just reset."""
+        none = np.zeros(len(copies))
+        return self._outputs(copies, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), none, none)
+
+    def _outputs(self, copies, stepped, chosen, reduction, cost) -> tuple[np.ndarray, dict]:
+        """Decide again in ``copies`` (n,); their observations and infos. Those not ``stepped`` (n,) were reset and
+        give the reset info; ``chosen`` (n,): each one's patch (-1: none); ``reduction``, ``cost`` (n,): its terms."""
+        rows = self._rows(copies)
+        decision = self._decision_of(rows)
+        self._set_decision(copies, decision)
+        return self._observation(rows, decision), self._info(rows, decision, stepped, chosen, reduction, cost)
+
+    def _decision_of(self, rows) -> PatchDecision:
+        """The decisions of the copies at ``rows``: each valid patch's MI added to the patches chosen for the pair."""
+        chosen, information = self._chosen[rows], self._patch_information[rows]
+        mask = (self._return_fraction[rows] > 0) & ~chosen
+        chosen_information = np.where(chosen[..., None, None], information, 0.0).sum(axis=1)
+        root = self._prior_root[rows]
+        base = information_gain_of_information(root, chosen_information)
+        added = information_gain_of_information(root[:, None], chosen_information[:, None] + information)
+        return PatchDecision(mask.astype(np.int8), np.where(mask, added - base[:, None], 0.0))
+
+    def _observation(self, rows, decision: PatchDecision) -> np.ndarray:
+        """The observations of the copies at ``rows`` (n, 5 * P + 2), float32 (see the single env)."""
+        chosen, cfg = self._chosen[rows], self.config
+        patches = np.stack(
+            [
+                decision.action_mask,
+                chosen,
+                self._return_fraction[rows],
+                self._mean_range[rows] / self.ladar.max_range_m,
+                np.minimum(self._patch_alone[rows], MAX_PATCH_INFORMATION),
+            ],
+            axis=-1,
+        )
+        progress = np.stack([chosen.sum(axis=1) / cfg["picks_per_pair"], self._elapsed[rows] / cfg["horizon"]], axis=1)
+        return np.concatenate([patches.reshape(len(progress), -1), progress], axis=1).astype(np.float32)
+
+    def _info(self, rows, decision: PatchDecision, stepped, chosen, reduction, cost) -> dict:
+        """The infos of the copies at ``rows`` as arrays (n, ...), each with its ``_key`` mask."""
+        info = decision_info(decision, stepped, chosen, "error_reduction_m", reduction)
+        info["reward_terms"].update(point_cost=np.where(stepped, cost, 0.0), _point_cost=stepped.copy())
+        last = self._last_registration[rows]
+        info.update({name: last[name].copy() for name in REGISTRATION.names if name != "transform"})
+        pairs = self._pairs if isinstance(rows, slice) else [self._pairs[copy] for copy in rows.tolist()]
+        info.update(
+            registered=self._registered[rows].copy(),
+            odometry_error_m=self._odometry_error[rows].copy(),
+            motion_covariance=np.array([pair.motion_covariance for pair in pairs]),
+            true_pose=self._worlds.poses[rows, 0].copy(),
+            attitude_rad=self._attitude[rows].copy(),
+            time_s=self._elapsed[rows] * self.config["time_step_s"],
+        )
+        return in_every_copy(info, len(stepped))
+
+    def _scene_frame(self):
+        """Sub-env 0 drawn: its scene, the vehicle and its path, and its newest range image with the picked patches."""
+        cfg, scenario, pose = self.config, self._worlds.scenario(0), self._worlds.poses[0, 0].copy()
+        caption = f"t = {self._elapsed[0] * cfg['time_step_s']:.1f} s   "
+        caption += f"picked {int(self._chosen[0].sum())}/{cfg['picks_per_pair']} patches"
+        last = self._last_registration[0]
+        if last["n_control_points"] > 0:  # registered in this episode (a picked patch has returns)
+            caption += f"   last ICP: error {last['error_before_m']:.3f} -> {last['error_after_m']:.3f} m"
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            robots=[RobotDrawing(true_pose=pose, true_path=self._true_path.points())],
+            sensor_wedge=(float(pose[2]), self.ladar.horizontal_fov_rad, SENSOR_WEDGE_LENGTH_M),
+            inset_image=to_display_image(self._frames[0]),
+            inset_title="newest LADAR range image (dark = near, white = no return); red: patches picked for ICP",
+            inset_grid=(cfg["patch_rows"], cfg["patch_columns"]),
+            inset_highlights=np.flatnonzero(self._chosen[0]).tolist(),
+            caption=caption,
+        )
+
+
+class RangeRegistrationEnv(SingleEnvView, vector_env=RangeRegistrationVectorEnv):
     """A vehicle pitches and rolls over rugged terrain; per pair of LADAR frames the agent picks ICP's control points.
 
     ## Description
@@ -100,251 +420,3 @@ class RangeRegistrationEnv(InfoNavEnv):
     ## Version History
     * v0: initial version.
     """
-
-    episode_metrics = (
-        EpisodeMetric("cumulative_reward", "cumulative reward [m]", summed_reward),
-        EpisodeMetric(
-            "mean_error_after_m",
-            "registration error after ICP [m]",
-            mean_where("error_after_m", lambda info: info["registered"]),
-        ),
-        EpisodeMetric(
-            "mean_control_points",
-            "control points per frame pair",
-            mean_where("n_control_points", lambda info: info["registered"]),
-        ),
-    )
-    traits = EnvTraits(
-        valid_gain_may_be_zero=True,  # a patch may hold no usable control point
-        reward_terms=("error_reduction_m", "point_cost"),
-        info_keys=frozenset(
-            {"registered", "error_before_m", "error_after_m", "icp_iterations", "icp_time_s", "n_control_points"}
-        ),
-    )
-
-    @classmethod
-    def default_config(cls) -> dict:
-        return {
-            **super().default_config(),
-            "horizon": 60,  # steps: 15 frame pairs of 4 picks
-            "picks_per_pair": 4,  # patches chosen before ICP runs
-            "patch_rows": 4,
-            "patch_columns": 9,
-            "point_cost": 1e-4,  # cost of one control point [m of registration error]
-            "time_step_s": 0.5,  # between frames [s]
-            "speed_mps": 2.0,  # [m/s]
-            **SCENE_CONFIG,  # the terrain_loop scene
-            "odometry_xy_std_m": DEFAULT_ODOMETRY_STD[0],  # std of the odometry's motion error along x and y [m]
-            "odometry_z_std_m": DEFAULT_ODOMETRY_STD[2],  # ... along z [m]
-            "odometry_tilt_std_rad": DEFAULT_ODOMETRY_STD[3],  # ... about x and y (inclinometers) [rad]
-            "odometry_yaw_std_rad": DEFAULT_ODOMETRY_STD[5],  # ... about z [rad]
-            "icp_method": FRAME_PAIR_ICP["method"],
-            "icp_robust_kernel": FRAME_PAIR_ICP["robust_kernel"] or "none",  # "none" or one of ROBUST_KERNELS
-            "icp_kernel_scale_m": FRAME_PAIR_ICP["kernel_scale"],  # [m]
-            "icp_max_iterations": 30,
-            "max_correspondence_distance_m": FRAME_PAIR_ICP["max_correspondence_distance"],
-            "ladar_range_std_m": Ladar().range_std_m,
-        }
-
-    def __init__(self, render_mode: str | None = None, **config):
-        super().__init__(render_mode=render_mode, **config)
-        cfg, owner = self.config, type(self).__name__
-        check_choice(cfg, "icp_method", METHODS, owner)
-        check_choice(cfg, "icp_robust_kernel", ("none", *ROBUST_KERNELS), owner)
-        check_config(cfg, owner, CONFIG_INTERVALS)
-        check_scene_config(cfg, owner)
-        with config_keys(owner, ODOMETRY_KEYS):
-            self.odometry_std = check_odometry_std([cfg[key] for key in ODOMETRY_KEYS.values()])
-        self.ladar = from_config(Ladar, cfg, {"range_std_m": "ladar_range_std_m"}, owner)
-        patches = {"patch_rows": self.ladar.rows, "patch_columns": self.ladar.columns}  # at most the image's pixels
-        check_config(cfg, owner, {key: Interval(1, pixels, integer=True) for key, pixels in patches.items()})
-        self.n_patches = cfg["patch_rows"] * cfg["patch_columns"]
-        check_config(cfg, owner, {"picks_per_pair": Interval(1, self.n_patches, integer=True)})
-        self.action_space = spaces.Discrete(self.n_patches)
-        high = np.tile([1.0, 1.0, 1.0, 1.0, MAX_PATCH_INFORMATION], self.n_patches)
-        high = np.append(high, [1.0, 1.0]).astype(np.float32)
-        self.observation_space = spaces.Box(np.zeros_like(high), high, dtype=np.float32)
-        self.world = World()
-        rows, columns = np.indices((self.ladar.rows, self.ladar.columns))
-        patch_row = rows * cfg["patch_rows"] // self.ladar.rows
-        self._pixel_patch = patch_row * cfg["patch_columns"] + columns * cfg["patch_columns"] // self.ladar.columns
-
-    def _reset_episode(self) -> None:
-        cfg = self.config
-        scene = terrain_loop_from_config(self.np_random, cfg)
-        self.terrain = scene.terrain
-        self.world.reset(scene.scenario)
-        self._sensor_rng, self._odometry_rng = self.np_random.spawn(2)
-        self._current_frame = self._scan()
-        self._true_path = PathHistory(self.world.pose[:2])
-        self.last_registration = None
-        self._registered_now = False
-        self._covariances = {}
-        self._next_pair()
-
-    def _scan(self):
-        return scan_on_terrain(self.ladar, self.terrain, self.world.pose, self._sensor_rng)
-
-    def _next_pair(self) -> None:
-        """Drive one frame on and set up the pair (previous frame, new frame) and its odometry estimate."""
-        previous = self._current_frame
-        self.world.step(self.config["time_step_s"])
-        self._true_path.append(self.world.pose[:2])
-        self._current_frame = self._scan()
-        self.pair = frame_pair(previous, self._current_frame, self._odometry_rng, self.odometry_std)
-        geometry = control_point_geometry(self._current_frame, self.pair.motion_covariance)
-        returns = ~self._current_frame.no_return
-        patch_of_return = self._pixel_patch[returns]
-        self._source_points = sensor_points(self._current_frame)
-        self._target_points = sensor_points(previous)
-        self._covariances = {"target": self._covariances.get("source")}  # GICP's, by frame (_gicp_covariances)
-        self._patch_of_return = patch_of_return
-        error_std = geometry.error_std_m
-        informative = np.isfinite(error_std)
-        weighted = geometry.jacobians / np.where(informative, error_std, 1.0)[:, None]
-        self._patch_information = np.zeros((self.n_patches, 6, 6))
-        np.add.at(
-            self._patch_information,
-            patch_of_return[informative],
-            weighted[informative, :, None] * weighted[informative, None, :],
-        )
-        self._prior_root = np.linalg.cholesky(self.pair.motion_covariance)
-        pixels_per_patch = np.bincount(self._pixel_patch.ravel(), minlength=self.n_patches)
-        self._return_fraction = np.bincount(patch_of_return, minlength=self.n_patches) / pixels_per_patch
-        range_sum = np.bincount(patch_of_return, self._current_frame.ranges_m[returns], minlength=self.n_patches)
-        self._mean_range = range_sum / np.maximum(1, np.bincount(patch_of_return, minlength=self.n_patches))
-        self._chosen = np.zeros(self.n_patches, dtype=bool)
-        self._pair_done = False
-        self._patch_alone = np.array([self._mutual_information(info) for info in self._patch_information])
-
-    def _mutual_information(self, information: np.ndarray) -> float:
-        """``0.5 ln det(I + P A)`` [nats] of information ``A`` about the motion, with the pair's prior ``P``."""
-        return information_gain_of_information(self._prior_root, information)
-
-    def _next_decision(self) -> Decision:
-        mask = ((self._return_fraction > 0) & ~self._chosen).astype(np.int8)
-        chosen_information = self._patch_information[self._chosen].sum(axis=0)
-        base = self._mutual_information(chosen_information)
-        gains = np.zeros(self.n_patches)
-        for patch in np.flatnonzero(mask):
-            gains[patch] = self._mutual_information(chosen_information + self._patch_information[patch]) - base
-        return Decision(mask, gains)
-
-    def _apply_action(self, action: int | None, decision: Decision) -> dict:
-        self._registered_now = False
-        if action is None:
-            return {"error_reduction_m": 0.0, "point_cost": 0.0}
-        self._chosen[action] = True
-        if self._chosen.sum() < self.config["picks_per_pair"] and self._next_mask_has_choice():
-            return {"error_reduction_m": 0.0, "point_cost": 0.0}
-        return self._register()
-
-    def _next_mask_has_choice(self) -> bool:
-        return bool(np.any((self._return_fraction > 0) & ~self._chosen))
-
-    def _register(self) -> dict:
-        """Run ICP on the chosen patches' points; the reward terms of the pair."""
-        cfg, pair = self.config, self.pair
-        source = self._source_points[self._chosen[self._patch_of_return]]
-        before = registration_error(pair.odometry_motion, pair.true_motion)
-        start = time.perf_counter()
-        if len(source) >= MIN_CONTROL_POINTS:
-            kernel = None if cfg["icp_robust_kernel"] == "none" else cfg["icp_robust_kernel"]
-            result = icp(
-                source,
-                self._target_points,
-                pair.odometry_motion,
-                max_iterations=cfg["icp_max_iterations"],
-                max_correspondence_distance=cfg["max_correspondence_distance_m"],
-                method=cfg["icp_method"],
-                robust_kernel=kernel,
-                kernel_scale=cfg["icp_kernel_scale_m"],
-                **self._gicp_covariances(),
-            )
-            transform, iterations, converged = result.transform, result.iterations, result.converged
-        else:  # too few points to register: keep the odometry estimate
-            transform, iterations, converged = pair.odometry_motion, 0, False
-        elapsed = time.perf_counter() - start
-        after = registration_error(transform, pair.true_motion)
-        self.last_registration = {
-            "error_before_m": before,
-            "error_after_m": after,
-            "icp_iterations": iterations,
-            "icp_converged": converged,
-            "icp_time_s": elapsed,
-            "n_control_points": len(source),
-            "transform": transform.copy(),
-        }
-        self._pair_done = self._registered_now = True
-        return {"error_reduction_m": before - after, "point_cost": -cfg["point_cost"] * len(source)}
-
-    def _gicp_covariances(self) -> dict:
-        """For GICP, the covariances of the chosen returns (from the whole frame) and of the previous frame.
-
-        Each frame's are computed once: as the current frame's, then kept for the next pair, whose target it is.
-        """
-        if self.config["icp_method"] != "gicp":
-            return {}
-        for name, points in (("source", self._source_points), ("target", self._target_points)):
-            if self._covariances.get(name) is None:
-                self._covariances[name] = gicp_covariances(points)
-        chosen = self._chosen[self._patch_of_return]
-        return {
-            "source_covariances": self._covariances["source"][chosen],
-            "target_covariances": self._covariances["target"],
-        }
-
-    def _advance(self) -> None:
-        if self._pair_done:
-            self._next_pair()
-
-    def _observation(self) -> np.ndarray:
-        valid = (self._return_fraction > 0) & ~self._chosen
-        patches = np.stack(
-            [
-                valid,
-                self._chosen,
-                self._return_fraction,
-                self._mean_range / self.ladar.max_range_m,
-                np.minimum(self._patch_alone, MAX_PATCH_INFORMATION),
-            ],
-            axis=1,
-        )
-        progress = [self._chosen.sum() / self.config["picks_per_pair"], self._elapsed_steps / self.config["horizon"]]
-        return np.append(patches.ravel(), progress).astype(np.float32)
-
-    def _extra_info(self) -> dict:
-        last = self.last_registration or {}
-        return {
-            "registered": self._registered_now,
-            "error_before_m": last.get("error_before_m", 0.0),
-            "error_after_m": last.get("error_after_m", 0.0),
-            "icp_iterations": last.get("icp_iterations", 0),
-            "icp_time_s": last.get("icp_time_s", 0.0),
-            "n_control_points": last.get("n_control_points", 0),
-            "odometry_error_m": registration_error(self.pair.odometry_motion, self.pair.true_motion),
-            "motion_covariance": self.pair.motion_covariance.copy(),
-            "true_pose": self.world.pose.copy(),
-            "attitude_rad": np.array(self._current_frame.attitude_rad),
-            "time_s": self._elapsed_steps * self.config["time_step_s"],
-        }
-
-    def _scene_frame(self):
-        cfg, scenario, pose = self.config, self.world.scenario, self.world.pose
-        caption = f"t = {self._elapsed_steps * cfg['time_step_s']:.1f} s   "
-        caption += f"picked {int(self._chosen.sum())}/{cfg['picks_per_pair']} patches"
-        if self.last_registration is not None:
-            last = self.last_registration
-            caption += f"   last ICP: error {last['error_before_m']:.3f} -> {last['error_after_m']:.3f} m"
-        return SceneFrame(
-            bounds=scenario.bounds,
-            walls=scenario.walls,
-            obstacles=scenario.obstacles,
-            robots=[RobotDrawing(true_pose=pose, true_path=self._true_path.points())],
-            sensor_wedge=(float(pose[2]), self.ladar.horizontal_fov_rad, SENSOR_WEDGE_LENGTH_M),
-            inset_image=to_display_image(self._current_frame),
-            inset_title="newest LADAR range image (dark = near, white = no return); red: patches picked for ICP",
-            inset_grid=(cfg["patch_rows"], cfg["patch_columns"]),
-            inset_highlights=np.flatnonzero(self._chosen).tolist(),
-            caption=caption,
-        )
