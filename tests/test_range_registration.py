@@ -142,6 +142,7 @@ def test_gicp_registers_the_chosen_points_with_whole_frame_covariances_kept_for_
         ("point_cost", -1.0),
         ("odometry_xy_std_m", 0.0),
         ("icp_method", "magic"),
+        ("icp_method", "point_to_point"),  # with the default robust kernel, which it cannot weigh
         ("icp_robust_kernel", None),
         ("icp_robust_kernel", "welsch"),
         ("icp_kernel_scale_m", 0.0),

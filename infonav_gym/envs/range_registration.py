@@ -132,6 +132,11 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         cfg, owner, num_envs = self.config, self.owner_name, self.num_envs
         check_choice(cfg, "icp_method", METHODS, owner)
         check_choice(cfg, "icp_robust_kernel", ("none", *ROBUST_KERNELS), owner)
+        if cfg["icp_method"] == "point_to_point" and cfg["icp_robust_kernel"] != "none":  # icp() would refuse it
+            raise ValueError(
+                f"config key 'icp_robust_kernel' of {owner} must be 'none' with 'icp_method' 'point_to_point' "
+                f"(a robust kernel weighs point_to_plane or gicp residuals), got {cfg['icp_robust_kernel']!r}"
+            )
         check_config(cfg, owner, CONFIG_INTERVALS)
         check_scene_config(cfg, owner)
         with config_keys(owner, ODOMETRY_KEYS):
