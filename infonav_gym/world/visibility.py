@@ -127,6 +127,8 @@ class StaticGeometry:
     def with_copies(self, copies, replacement: StaticGeometry) -> StaticGeometry:
         """This geometry with copies ``copies`` (n,) replaced by the n copies of ``replacement``, padded to fit.
 
+        With the same shape counts, the boxes and grown shapes computed so far are kept, only those rows anew.
+
         Raises:
             ValueError: unless ``replacement`` holds one copy per index of ``copies``.
         """
@@ -136,21 +138,33 @@ class StaticGeometry:
                 f"StaticGeometry.with_copies: {len(copies)} copies to replace, but the replacement holds "
                 f"{replacement.n_copies}"
             )
-        walls = max(self.wall_radii.shape[1], replacement.wall_radii.shape[1])
-        discs = max(self.disc_radii.shape[1], replacement.disc_radii.shape[1])
+        counts, new_counts = (
+            (geometry.wall_radii.shape[1], geometry.disc_radii.shape[1]) for geometry in (self, replacement)
+        )
+        same_counts, (walls, discs) = counts == new_counts, np.maximum(counts, new_counts).tolist()
 
-        def merged(name: str, count: int) -> np.ndarray:
+        def merged(name: str, count: int | None = None) -> np.ndarray:
             array, new = getattr(self, name), getattr(replacement, name)
+            if same_counts:
+                result = array.copy()
+                result[copies] = new
+                return _read_only(result)
             result = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
             result[:, : array.shape[1]] = array
             result[copies] = 0
             result[copies, : new.shape[1]] = new
             return _read_only(result)
 
-        return StaticGeometry(
+        result = StaticGeometry(
             **{name: merged(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
             **{name: merged(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
         )
+        if same_counts:
+            kept = ("wall_boxes", "wall_points", "disc_boxes", "culled")
+            result.__dict__.update({name: merged(name) for name in kept if name in self.__dict__})
+            for margin_m, grown in self._grown.items():
+                result._grown[margin_m] = grown.with_copies(copies, replacement.grown(margin_m))
+        return result
 
     def tiled(self, n_copies: int) -> StaticGeometry:
         """Copy 0 of this geometry ``n_copies`` times (read-only views: nothing is copied)."""
