@@ -14,6 +14,7 @@ import pytest
 import infonav_gym  # noqa: F401
 from agents import GreedyEntropyAgent, PlannerAgent, RandomAgent
 from infonav_gym.envs.active_localization import N_PRIMITIVES, REWARD_TERMS
+from infonav_gym.world import active_scenarios
 
 ENV_ID = "infonav/ActiveLocalization-v0"
 TO_GOAL = 0  # primitive 0, no observation
@@ -43,6 +44,19 @@ def run_episode(env, agent, seed: int) -> dict:
         total += reward
         if terminated or truncated:
             return {"success": info["goal_reached"], "entropy": info["pose_entropy"], "return": total}
+
+
+def test_the_goal_fields_obstacle_attempts_drawn_ahead_change_neither_the_field_nor_the_generator(monkeypatch):
+    """As many attempts as obstacles drawn at once (more drawn when some fail): the fields of four per obstacle."""
+
+    def fields() -> list:
+        generators = [np.random.default_rng(seed) for seed in range(30)]
+        layouts = [active_scenarios.goal_field(rng, n_obstacles=6) for rng in generators]
+        return [(field.obstacles, field.landmarks.tolist(), rng.random()) for field, rng in zip(layouts, generators)]
+
+    expected = fields()
+    monkeypatch.setattr(active_scenarios, "OBSTACLE_ATTEMPTS_AHEAD", 1)
+    assert fields() == expected
 
 
 def test_reaching_the_goal_terminates_with_the_bonus():

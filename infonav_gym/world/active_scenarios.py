@@ -17,7 +17,6 @@ from infonav_gym.world.scenarios import (
     Scenario,
     _box_walls,
     _uniform,
-    _uniform_until_accepted,
 )
 from infonav_gym.world.world import World
 
@@ -27,6 +26,7 @@ GOAL_CLUSTER_LANDMARKS = 1
 MIN_GOAL_FIELD_LANDMARKS = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS + 1
 LIT_OFFSET_M = (7.0, 11.0)  # distance of the lit-side landmarks from the straight line start-goal [m]
 MIN_GOAL_FIELD_SIZE_M = 3 * LIT_OFFSET_M[1]
+OBSTACLE_ATTEMPTS_AHEAD = 4  # attempts drawn at once per obstacle, more if too few are clear (the same numbers)
 GOAL_FIELD_ARGUMENTS = {  # the allowed arguments of goal_field (a size of at least 3 lit offsets)
     "n_landmarks": Interval(MIN_GOAL_FIELD_LANDMARKS, MAX_LANDMARKS, integer=True),
     "n_obstacles": FIELD_ARGUMENTS["n_obstacles"],
@@ -82,20 +82,24 @@ def goal_field(
     if size_m < 3 * max(lit_offset_m):
         raise ParameterError("goal_field", "size_m", f">= {3 * max(lit_offset_m):g} m for its layout", size_m)
     near_line_draws = 3 * (START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS)  # side, place along, offset
-    u = np_random.random(3 + near_line_draws + 2 * (n_landmarks - START_CLUSTER_LANDMARKS - GOAL_CLUSTER_LANDMARKS))
-    start = np.array([START_MARGIN_M, _uniform(u[0], 0.4, 0.6) * size_m])
-    goal = np.array([size_m - START_MARGIN_M, _uniform(u[1], 0.4, 0.6) * size_m])
-    length_m = float(np.linalg.norm(goal - start))
-    frame = (start, (goal - start) / length_m, length_m, 1.0 if u[2] < 0.5 else -1.0)  # the lit side: +-1
-    landmarks = field_landmarks(u[3:], near_line_draws // 3, *frame, *lit_offset_m, size_m)
-    u = _uniform_until_accepted(
-        np_random,
-        n_obstacles,
-        3,
-        lambda rows: field_obstacles(rows, *frame, landmarks, goal, size_m)[2],
-        "obstacles on the dark side",
-    )
-    centers, radii, _ = field_obstacles(u, *frame, landmarks, goal, size_m)
+    n_draws = 3 + near_line_draws + 2 * (n_landmarks - START_CLUSTER_LANDMARKS - GOAL_CLUSTER_LANDMARKS)
+    state, max_attempts = np_random.bit_generator.state, 1000 * max(n_obstacles, 1)
+    attempts = OBSTACLE_ATTEMPTS_AHEAD * max(n_obstacles, 4)
+    while True:  # the obstacles' attempts (radius, place along, offset) drawn ahead, then exactly those used taken
+        u = np_random.random(n_draws + 3 * attempts)
+        start = np.array([START_MARGIN_M, _uniform(u[0], 0.4, 0.6) * size_m])
+        goal = np.array([size_m - START_MARGIN_M, _uniform(u[1], 0.4, 0.6) * size_m])
+        length_m = float(np.linalg.norm(goal - start))
+        frame = (start, (goal - start) / length_m, length_m, 1.0 if u[2] < 0.5 else -1.0)  # the lit side: +-1
+        lit = (*frame, *lit_offset_m, goal, size_m)
+        landmarks, centers, radii, used = field_layout(u[3:n_draws], u[n_draws:].reshape(-1, 3), n_obstacles, *lit)
+        np_random.bit_generator.state = state
+        if used >= 0 or attempts >= max_attempts:
+            break
+        attempts = min(2 * attempts, max_attempts)
+    np_random.random(n_draws + 3 * (used if used >= 0 else attempts))
+    if used < 0:
+        raise ValueError(f"could not place {n_obstacles} obstacles on the dark side after many attempts: too crowded")
     obstacles = [CircleObstacle((x, y), radius) for (x, y), radius in zip(centers.tolist(), radii.tolist())]
     route = Route((float(start[0]), float(start[1]), math.atan2(frame[1][1], frame[1][0])), goal[None, :])
     return Scenario(
@@ -106,6 +110,18 @@ def goal_field(
         obstacles=tuple(obstacles),
         landmarks=landmarks,
     )
+
+
+@kernel
+def field_layout(u, attempts, n_obstacles, start, along, length_m, lit_side, lit_low_m, lit_high_m, goal, size_m):
+    """``goal_field``'s landmarks (K, 2) from their draws ``u`` and the first ``n_obstacles`` clear ``attempts``
+    (M, 3): centres (O, 2), radii (O,) [m] and the attempts used, -1 when fewer are clear."""
+    near_line = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS
+    landmarks = field_landmarks(u, near_line, start, along, length_m, lit_side, lit_low_m, lit_high_m, size_m)
+    centers, radii, clear = field_obstacles(attempts, start, along, length_m, lit_side, landmarks, goal, size_m)
+    chosen = np.flatnonzero(clear)[:n_obstacles]
+    used = -1 if len(chosen) < n_obstacles else (chosen[-1] + 1 if n_obstacles else 0)
+    return landmarks, centers[chosen], radii[chosen], used
 
 
 @kernel
