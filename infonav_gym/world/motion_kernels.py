@@ -13,6 +13,8 @@ import numpy as np
 
 from infonav_gym.compiled import kernel
 from infonav_gym.geometry import wrap_angle_kernel as wrap
+from infonav_gym.world.clearance_kernels import teammate_conflicts
+from infonav_gym.world.visibility_kernels import blocked
 
 
 @kernel
@@ -121,3 +123,39 @@ def contact_within(copies, poses, controls, dt, boxes, radius_m):
                 if offset_x**2 + offset_y**2 < pair_reach * pair_reach:
                     near_robots[row] = True
     return near_static, near_robots
+
+
+@kernel
+def contact_free(copies, poses, controls, dt, robots_contact_m, near_static, walls, discs, culled):
+    """Which of ``copies`` (n,) keep clear of contact all through a step of ``dt`` [s] in which each robot moves
+    straight along its heading at its speed (``controls[..., 0]``): no two robots come within ``robots_contact_m``
+    [m] (``teammate_conflicts``), and in the copies ``near_static`` (n,) no robot's line meets a wall or disc of
+    ``walls``, ``discs``, ``culled`` (``visibility.shape_arrays`` of the static shapes grown by a robot's reach)."""
+    n_rows, n_robots = poses.shape[0], poses.shape[1]
+    positions, displacements = np.empty((n_rows, n_robots, 2)), np.empty((n_rows, n_robots, 1, 2))
+    for row in range(n_rows):
+        for robot in range(n_robots):
+            reach, heading = controls[row, robot, 0] * dt, poses[row, robot, 2]
+            positions[row, robot, 0], positions[row, robot, 1] = poses[row, robot, 0], poses[row, robot, 1]
+            displacements[row, robot, 0, 0] = reach * math.cos(heading)
+            displacements[row, robot, 0, 1] = reach * math.sin(heading)
+    conflicts = teammate_conflicts(positions, displacements, robots_contact_m)
+    free, tested = np.ones(n_rows, dtype=np.bool_), np.zeros(n_rows, dtype=np.bool_)
+    for row in range(n_rows):
+        for robot in range(n_robots):
+            for other in range(n_robots):
+                free[row] &= not conflicts[row, robot, 0, other, 0]
+        tested[row] = free[row] and near_static[row]
+    lines = np.flatnonzero(np.repeat(tested, n_robots))
+    line_copies = np.empty(len(lines), dtype=np.int64)
+    starts, ends = np.empty((len(lines), 2)), np.empty((len(lines), 2))
+    for line in range(len(lines)):
+        row, robot = lines[line] // n_robots, lines[line] % n_robots
+        line_copies[line] = copies[row]
+        for i in range(2):
+            starts[line, i] = positions[row, robot, i]
+            ends[line, i] = positions[row, robot, i] + displacements[row, robot, 0, i]
+    hits = blocked(line_copies, starts, ends, walls, discs, culled)
+    for line in range(len(lines)):
+        free[lines[line] // n_robots] &= not hits[line]
+    return free

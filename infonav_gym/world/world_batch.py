@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
-from infonav_gym.world.clearance import teammate_conflicts
 from infonav_gym.world.motion_kernels import (
+    contact_free,
     contact_within,
     executed_controls,
     free_substeps,
@@ -27,7 +27,7 @@ from infonav_gym.world.motion_kernels import (
     waypoint_controls,
 )
 from infonav_gym.world.scenarios import Scenario
-from infonav_gym.world.visibility import StaticGeometry, segments_clear
+from infonav_gym.world.visibility import StaticGeometry, shape_arrays
 from infonav_gym.world.world import MAX_TIME_STEP_S, TIME_STEP_S, World, start_poses, static_boxes
 
 _EMPTY_BOX = (np.inf, np.inf, -np.inf, -np.inf)  # a padding box that overlaps nothing
@@ -226,22 +226,12 @@ class WorldBatch:
         robots, and each robot from the walls and obstacles where they are within reach (``near_static`` (n,)).
 
         In a Pymunk step a robot's velocity is set once and no force acts without a contact, so each moves along
-        the straight line of its heading at the start: the robots' relative paths (``teammate_conflicts``) and
-        each disc's sweep, a line past the shapes grown by its radius (``segments_clear``), decide it.
+        the straight line of its heading at the start: the robots' relative paths and each disc's sweep, a line
+        past the shapes grown by its radius, decide it (``contact_free``).
         """
-        heading, reach = poses[..., 2], controls[..., 0] * dt
-        displacements = reach[..., None] * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
-        conflicts = teammate_conflicts(
-            poses[..., :2], displacements[:, :, None], 2 * self.robot_radius_m + CONTACT_GAP_M
-        )
-        free = ~conflicts.any(axis=(1, 2, 3, 4))
-        rows = np.flatnonzero(free & near_static)
-        if rows.size:
-            starts, queries = poses[rows, :, :2], np.repeat(copies[rows], poses.shape[1])
-            lines = (starts.reshape(-1, 2), (starts + displacements[rows]).reshape(-1, 2))
-            clear = segments_clear(self._grown_geometry(copies[rows]), queries, *lines, check_input=False)
-            free[rows] = clear.reshape(starts.shape[:2]).all(axis=1)
-        return free
+        shapes = shape_arrays(self._grown_geometry(copies))
+        robots_contact_m = 2 * self.robot_radius_m + CONTACT_GAP_M
+        return contact_free(copies, poses, controls, dt, robots_contact_m, near_static, *shapes)
 
     def _free_substeps(self, poses: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
         """The poses (n, R, 3) after ``World.drive_in_contact`` of a step without contact: Pymunk's substeps.
