@@ -143,27 +143,28 @@ class StaticGeometry:
         )
         same_counts, (walls, discs) = counts == new_counts, np.maximum(counts, new_counts).tolist()
 
-        def merged(name: str, count: int | None = None) -> np.ndarray:
-            array, new = getattr(self, name), getattr(replacement, name)
+        def merged(old: StaticGeometry, new: StaticGeometry, name: str, count: int = 0) -> np.ndarray:
+            array, rows = getattr(old, name), getattr(new, name)
             if same_counts:
                 result = array.copy()
-                result[copies] = new
-                return _read_only(result)
-            result = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
-            result[:, : array.shape[1]] = array
-            result[copies] = 0
-            result[copies, : new.shape[1]] = new
+            else:
+                result = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
+                result[:, : array.shape[1]] = array
+                result[copies] = 0
+            result[copies, : rows.shape[1]] = rows
             return _read_only(result)
 
+        walls_and_discs = {"wall": walls, "disc": discs}
         result = StaticGeometry(
-            **{name: merged(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
-            **{name: merged(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
+            **{name: merged(self, replacement, name, walls_and_discs[name[:4]]) for name in self.__dataclass_fields__}
         )
-        if same_counts:
-            kept = ("wall_boxes", "wall_points", "disc_boxes", "culled")
-            result.__dict__.update({name: merged(name) for name in kept if name in self.__dict__})
-            for margin_m, grown in self._grown.items():
-                result._grown[margin_m] = grown.with_copies(copies, replacement.grown(margin_m))
+        if same_counts:  # the boxes computed so far are kept, those of the replaced rows computed anew
+            grown = [
+                (result.grown(margin_m), old, replacement.grown(margin_m)) for margin_m, old in self._grown.items()
+            ]
+            for kept, old, new in ((result, self, replacement), *grown):
+                boxes = {name: merged(old, new, name) for name in ("wall_boxes", "disc_boxes") if name in old.__dict__}
+                kept.__dict__.update(boxes)
         return result
 
     def tiled(self, n_copies: int) -> StaticGeometry:
