@@ -113,18 +113,6 @@ def goal_field(
 
 
 @kernel
-def field_layout(u, attempts, n_obstacles, start, along, length_m, lit_side, lit_low_m, lit_high_m, goal, size_m):
-    """``goal_field``'s landmarks (K, 2) from their draws ``u`` and the first ``n_obstacles`` clear ``attempts``
-    (M, 3): centres (O, 2), radii (O,) [m] and the attempts used, -1 when fewer are clear."""
-    near_line = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS
-    landmarks = field_landmarks(u, near_line, start, along, length_m, lit_side, lit_low_m, lit_high_m, size_m)
-    centers, radii, clear = field_obstacles(attempts, start, along, length_m, lit_side, landmarks, goal, size_m)
-    chosen = np.flatnonzero(clear)[:n_obstacles]
-    used = -1 if len(chosen) < n_obstacles else (chosen[-1] + 1 if n_obstacles else 0)
-    return landmarks, centers[chosen], radii[chosen], used
-
-
-@kernel
 def field_landmarks(u, n_near, start, along, length_m, lit_side, lit_low_m, lit_high_m, size_m):
     """``goal_field``'s landmarks (K, 2) from its uniform draws ``u``: ``n_near`` near the line (side, place along,
     offset each; the first ``START_CLUSTER_LANDMARKS`` ahead of the start), then the lit ones (place, offset each)."""
@@ -147,21 +135,27 @@ def field_landmarks(u, n_near, start, along, length_m, lit_side, lit_low_m, lit_
 
 
 @kernel
-def field_obstacles(u, start, along, length_m, lit_side, landmarks, goal, size_m):
-    """``goal_field``'s obstacles drawn as ``u`` (M, 3) (radius, place along, offset on the dark side): centres
-    (M, 2), radii (M,) [m] and which are clear (inside the field, off the landmarks and the goal)."""
-    centers, radii, clear = np.empty((len(u), 2)), np.empty(len(u)), np.empty(len(u), dtype=np.bool_)
-    for m in range(len(u)):
-        radius = 0.7 + (1.5 - 0.7) * u[m, 0]
-        fraction, offset = 0.1 + (0.9 - 0.1) * u[m, 1], -lit_side * (radius + 2.0 + (8.0 - (radius + 2.0)) * u[m, 2])
-        radii[m], clear[m] = radius, True
+def field_layout(u, attempts, n_obstacles, start, along, length_m, lit_side, lit_low_m, lit_high_m, goal, size_m):
+    """``goal_field``'s landmarks (K, 2) from their draws ``u`` (``field_landmarks``) and its obstacles: the first
+    ``n_obstacles`` clear ``attempts`` (M, 3) (radius, place along, offset on the dark side; clear: inside the
+    field, off the landmarks and the goal), centres (O, 2) and radii (O,) [m]; and the attempts used, -1: too few."""
+    near_line = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS
+    landmarks = field_landmarks(u, near_line, start, along, length_m, lit_side, lit_low_m, lit_high_m, size_m)
+    centers, radii, placed = np.empty((n_obstacles, 2)), np.empty(n_obstacles), 0
+    for m in range(len(attempts)):
+        if placed == n_obstacles:
+            return landmarks, centers, radii, m
+        radius, fraction = 0.7 + (1.5 - 0.7) * attempts[m, 0], 0.1 + (0.9 - 0.1) * attempts[m, 1]
+        offset, clear = -lit_side * (radius + 2.0 + (8.0 - (radius + 2.0)) * attempts[m, 2]), True
+        center = centers[placed]
         for i in range(2):
-            normal = -along[1] if i == 0 else along[0]
-            centers[m, i] = start[i] + fraction * length_m * along[i] + offset * normal
-            clear[m] &= centers[m, i] - radius > 0.5 and centers[m, i] + radius < size_m - 0.5
+            center[i] = start[i] + fraction * length_m * along[i] + offset * (-along[1] if i == 0 else along[0])
+            clear &= center[i] - radius > 0.5 and center[i] + radius < size_m - 0.5
         for k in range(len(landmarks)):
-            dx, dy = landmarks[k, 0] - centers[m, 0], landmarks[k, 1] - centers[m, 1]
-            clear[m] &= math.sqrt(dx * dx + dy * dy) - radius > 0.5
-        dx, dy = centers[m, 0] - goal[0], centers[m, 1] - goal[1]
-        clear[m] &= math.sqrt(dx * dx + dy * dy) > radius + 3.0
-    return centers, radii, clear
+            dx, dy = landmarks[k, 0] - center[0], landmarks[k, 1] - center[1]
+            clear &= math.sqrt(dx * dx + dy * dy) - radius > 0.5
+        dx, dy = center[0] - goal[0], center[1] - goal[1]
+        clear &= math.sqrt(dx * dx + dy * dy) > radius + 3.0
+        radii[placed] = radius
+        placed += 1 if clear else 0
+    return landmarks, centers, radii, len(attempts) if placed == n_obstacles else -1

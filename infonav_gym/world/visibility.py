@@ -138,33 +138,24 @@ class StaticGeometry:
                 f"StaticGeometry.with_copies: {len(copies)} copies to replace, but the replacement holds "
                 f"{replacement.n_copies}"
             )
-        counts, new_counts = (
-            (geometry.wall_radii.shape[1], geometry.disc_radii.shape[1]) for geometry in (self, replacement)
-        )
-        same_counts, (walls, discs) = counts == new_counts, np.maximum(counts, new_counts).tolist()
+        shapes = [geometry.wall_radii.shape[1:] + geometry.disc_radii.shape[1:] for geometry in (self, replacement)]
+        counts = dict(zip(("wall", "disc"), np.maximum(*shapes).tolist()))
 
-        def merged(old: StaticGeometry, new: StaticGeometry, name: str, count: int = 0) -> np.ndarray:
+        def merged(old: StaticGeometry, new: StaticGeometry, name: str) -> np.ndarray:
             array, rows = getattr(old, name), getattr(new, name)
-            if same_counts:
-                result = array.copy()
-            else:
-                result = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
-                result[:, : array.shape[1]] = array
-                result[copies] = 0
+            result = np.zeros((len(array), counts[name[:4]], *array.shape[2:]), dtype=array.dtype)
+            result[:, : array.shape[1]] = array
+            result[copies] = 0
             result[copies, : rows.shape[1]] = rows
             return _read_only(result)
 
-        walls_and_discs = {"wall": walls, "disc": discs}
-        result = StaticGeometry(
-            **{name: merged(self, replacement, name, walls_and_discs[name[:4]]) for name in self.__dataclass_fields__}
-        )
-        if same_counts:  # the boxes computed so far are kept, those of the replaced rows computed anew
-            grown = [
-                (result.grown(margin_m), old, replacement.grown(margin_m)) for margin_m, old in self._grown.items()
-            ]
-            for kept, old, new in ((result, self, replacement), *grown):
-                boxes = {name: merged(old, new, name) for name in ("wall_boxes", "disc_boxes") if name in old.__dict__}
-                kept.__dict__.update(boxes)
+        result = StaticGeometry(**{name: merged(self, replacement, name) for name in self.__dataclass_fields__})
+        if shapes[0] == shapes[1]:
+            grown = [(result.grown(margin), old, replacement.grown(margin)) for margin, old in self._grown.items()]
+            for kept, old, new in ((result, self, replacement), *grown):  # the boxes computed so far, those rows anew
+                kept.__dict__.update(
+                    {name: merged(old, new, name) for name in ("wall_boxes", "disc_boxes") if name in old.__dict__}
+                )
         return result
 
     def tiled(self, n_copies: int) -> StaticGeometry:

@@ -165,8 +165,10 @@ class WorldBatch:
         contact-free test clears take Pymunk's substeps here, the others a step in their own Pymunk space (``after``
         (n, R, 3) updated in place)."""
         free = np.flatnonzero(contact & ~was_in_contact)
-        if free.size:
-            free = free[self._contact_free(copies[free], before[free], controls[free], near_static[free], dt)]
+        if free.size:  # in the static shapes grown by a robot's radius and CONTACT_GAP_M
+            shapes = shape_arrays(self._grown_geometry(copies[free]))
+            moves = (before[free], controls[free], dt, 2 * self.robot_radius_m + CONTACT_GAP_M, near_static[free])
+            free = free[contact_free(copies[free], *moves, *shapes)]
             after[free] = self._free_substeps(before[free], controls[free], dt)
             contact[free] = False
         for copy in copies[was_in_contact & ~contact].tolist():  # their runs of contact steps end
@@ -220,18 +222,6 @@ class WorldBatch:
             self._grown = base.with_copies(stale, fresh)
             self._grown_stale[stale] = False
         return self._grown
-
-    def _contact_free(self, copies, poses: np.ndarray, controls: np.ndarray, near_static, dt: float) -> np.ndarray:
-        """Whether each of ``copies`` (n,) keeps ``CONTACT_GAP_M`` beyond touching all through the step: every two
-        robots, and each robot from the walls and obstacles where they are within reach (``near_static`` (n,)).
-
-        In a Pymunk step a robot's velocity is set once and no force acts without a contact, so each moves along
-        the straight line of its heading at the start: the robots' relative paths and each disc's sweep, a line
-        past the shapes grown by its radius, decide it (``contact_free``).
-        """
-        shapes = shape_arrays(self._grown_geometry(copies))
-        robots_contact_m = 2 * self.robot_radius_m + CONTACT_GAP_M
-        return contact_free(copies, poses, controls, dt, robots_contact_m, near_static, *shapes)
 
     def _free_substeps(self, poses: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
         """The poses (n, R, 3) after ``World.drive_in_contact`` of a step without contact: Pymunk's substeps.
