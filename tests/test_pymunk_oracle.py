@@ -13,7 +13,6 @@ import pytest
 
 from infonav_gym.registry import make_vector_env, registered_envs
 from infonav_gym.world import world_batch
-from infonav_gym.world.world_batch import WorldBatch
 
 POSE_TOLERANCE_M = 1e-9
 N_COPIES, N_STEPS = 2, 40
@@ -32,7 +31,7 @@ def _pymunk_only(monkeypatch) -> None:
         return everywhere, everywhere
 
     monkeypatch.setattr(world_batch, "contact_within", always_within)
-    monkeypatch.setattr(WorldBatch, "_contact_free", lambda self, copies, *_: np.zeros(len(copies), dtype=bool))
+    monkeypatch.setattr(world_batch, "contact_free", lambda copies, *_: np.zeros(len(copies), dtype=bool))
 
 
 def _true_pose_trajectory(env_id: str, seed: int) -> list[np.ndarray]:

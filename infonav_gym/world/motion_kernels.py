@@ -132,30 +132,22 @@ def contact_free(copies, poses, controls, dt, robots_contact_m, near_static, wal
     come within ``robots_contact_m`` [m] (``teammate_conflicts``), nor, in the copies ``near_static`` (n,), a
     robot's line meet ``walls``, ``discs`` (``visibility.shape_arrays`` of the shapes grown by a robot's reach)."""
     n_rows, n_robots = poses.shape[0], poses.shape[1]
-    positions, displacements = np.empty((n_rows, n_robots, 2)), np.empty((n_rows, n_robots, 1, 2))
-    for row in range(n_rows):
-        for robot in range(n_robots):
-            reach, heading = controls[row, robot, 0] * dt, poses[row, robot, 2]
-            positions[row, robot, 0], positions[row, robot, 1] = poses[row, robot, 0], poses[row, robot, 1]
-            displacements[row, robot, 0, 0] = reach * math.cos(heading)
-            displacements[row, robot, 0, 1] = reach * math.sin(heading)
-    conflicts = teammate_conflicts(positions, displacements, robots_contact_m)
-    free, tested = np.ones(n_rows, dtype=np.bool_), np.zeros(n_rows, dtype=np.bool_)
-    for row in range(n_rows):
-        for robot in range(n_robots):
-            for other in range(n_robots):
-                free[row] &= not conflicts[row, robot, 0, other, 0]
-        tested[row] = free[row] and near_static[row]
-    lines = np.flatnonzero(np.repeat(tested, n_robots))
-    line_copies = np.empty(len(lines), dtype=np.int64)
-    starts, ends = np.empty((len(lines), 2)), np.empty((len(lines), 2))
-    for line in range(len(lines)):
-        row, robot = lines[line] // n_robots, lines[line] % n_robots
-        line_copies[line] = copies[row]
+    starts, ends = np.empty((n_rows * n_robots, 2)), np.empty((n_rows * n_robots, 2))
+    displacements = np.empty((n_rows, n_robots, 1, 2))
+    for line in range(n_rows * n_robots):  # every robot's line, the copies not near_static's unused
+        row, robot = line // n_robots, line % n_robots
+        reach, heading = controls[row, robot, 0] * dt, poses[row, robot, 2]
+        displacements[row, robot, 0, 0] = reach * math.cos(heading)
+        displacements[row, robot, 0, 1] = reach * math.sin(heading)
         for i in range(2):
-            starts[line, i] = positions[row, robot, i]
-            ends[line, i] = positions[row, robot, i] + displacements[row, robot, 0, i]
-    hits = blocked(line_copies, starts, ends, walls, discs, culled)
-    for line in range(len(lines)):
-        free[lines[line] // n_robots] &= not hits[line]
+            starts[line, i] = poses[row, robot, i]
+            ends[line, i] = starts[line, i] + displacements[row, robot, 0, i]
+    conflicts = teammate_conflicts(starts.reshape(n_rows, n_robots, 2), displacements, robots_contact_m)
+    hits = blocked(np.repeat(copies, n_robots), starts, ends, walls, discs, culled)
+    free = np.ones(n_rows, dtype=np.bool_)
+    for line in range(n_rows * n_robots):
+        row, robot = line // n_robots, line % n_robots
+        free[row] &= not (near_static[row] and hits[line])
+        for other in range(n_robots):
+            free[row] &= not conflicts[row, robot, 0, other, 0]
     return free
