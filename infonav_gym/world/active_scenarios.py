@@ -83,21 +83,21 @@ def goal_field(
         raise ParameterError("goal_field", "size_m", f">= {3 * max(lit_offset_m):g} m for its layout", size_m)
     near_line_draws = 3 * (START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS)  # side, place along, offset
     n_draws = 3 + near_line_draws + 2 * (n_landmarks - START_CLUSTER_LANDMARKS - GOAL_CLUSTER_LANDMARKS)
-    state, max_attempts = np_random.bit_generator.state, 1000 * max(n_obstacles, 1)
-    attempts = OBSTACLE_ATTEMPTS_AHEAD * max(n_obstacles, 4)
+    u = np_random.random(n_draws)
+    start = np.array([START_MARGIN_M, _uniform(u[0], 0.4, 0.6) * size_m])
+    goal = np.array([size_m - START_MARGIN_M, _uniform(u[1], 0.4, 0.6) * size_m])
+    length_m = float(np.linalg.norm(goal - start))
+    frame = (start, (goal - start) / length_m, length_m, 1.0 if u[2] < 0.5 else -1.0)  # the lit side: +-1
+    state, attempts = np_random.bit_generator.state, OBSTACLE_ATTEMPTS_AHEAD * max(n_obstacles, 4)
+    most_attempts = 1000 * max(n_obstacles, 1)
     while True:  # the obstacles' attempts (radius, place along, offset) drawn ahead, then exactly those used taken
-        u = np_random.random(n_draws + 3 * attempts)
-        start = np.array([START_MARGIN_M, _uniform(u[0], 0.4, 0.6) * size_m])
-        goal = np.array([size_m - START_MARGIN_M, _uniform(u[1], 0.4, 0.6) * size_m])
-        length_m = float(np.linalg.norm(goal - start))
-        frame = (start, (goal - start) / length_m, length_m, 1.0 if u[2] < 0.5 else -1.0)  # the lit side: +-1
-        lit = (*frame, *lit_offset_m, goal, size_m)
-        landmarks, centers, radii, used = field_layout(u[3:n_draws], u[n_draws:].reshape(-1, 3), n_obstacles, *lit)
+        layout = field_layout(u[3:], np_random.random((attempts, 3)), n_obstacles, *frame, *lit_offset_m, goal, size_m)
         np_random.bit_generator.state = state
-        if used >= 0 or attempts >= max_attempts:
+        if layout[3] >= 0 or attempts >= most_attempts:
             break
-        attempts = min(2 * attempts, max_attempts)
-    np_random.random(n_draws + 3 * (used if used >= 0 else attempts))
+        attempts = min(2 * attempts, most_attempts)
+    landmarks, centers, radii, used = layout
+    np_random.random((used if used >= 0 else attempts, 3))
     if used < 0:
         raise ValueError(f"could not place {n_obstacles} obstacles on the dark side after many attempts: too crowded")
     obstacles = [CircleObstacle((x, y), radius) for (x, y), radius in zip(centers.tolist(), radii.tolist())]

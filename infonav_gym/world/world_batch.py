@@ -1,15 +1,11 @@
 """``WorldBatch``: N copies of a ``World`` stepped at once on stacked arrays, for the native vector envs.
 
-Each copy is a ``World`` (R robots) whose free motion, waypoint controller and contact test run batched in
-numpy with the single ``World``'s formulas. A copy in which a wall, obstacle or other robot comes within reach of
-a robot takes the step in its own Pymunk space (``World.drive_in_contact``), as the single ``World`` does; so
-every copy moves exactly as a single ``World`` would. Per-copy Pymunk spaces (built only when a copy first needs
-one) rather than one space of tiled worlds: contact steps are rare (none in 4,000 steps of the default field),
-so the Pymunk work per step is almost nil, while a tiled space would step every copy's bodies every time.
-A step whose straight paths keep ``CONTACT_GAP_M`` beyond touching from the other robots, walls and obstacles
-is one in which Pymunk finds no contact: its substeps then run here in numpy, the same numbers as Pymunk's (a
-team driving side by side, or a robot passing close to a wall, takes such steps all the time). Not inside a run
-of contact steps, whose contacts Pymunk keeps.
+Each copy is a ``World`` (R robots) whose free motion, waypoint controller and contact test are compiled with the
+single ``World``'s formulas (``motion_kernels``). A copy in which a wall, obstacle or other robot comes within
+reach of a robot takes the step in its own Pymunk space (``World.drive_in_contact``, built when a copy first needs
+one), unless the robots' straight paths keep ``CONTACT_GAP_M`` beyond touching anything: Pymunk then finds no
+contact, and its substeps run here, the same numbers (not inside a run of contact steps, whose contacts Pymunk
+keeps). So every copy moves exactly as a single ``World`` would.
 """
 
 from __future__ import annotations
@@ -55,7 +51,6 @@ class WorldBatch:
         self._scenarios: list[Scenario | None] = [None] * n_copies
         self.static_geometry: StaticGeometry | None = None
         self._grown: StaticGeometry | None = None  # every copy's static shapes, grown for the contact test
-        self._grown_from: StaticGeometry | None = None  # the static_geometry it was grown from
         self._grown_stale = np.ones(n_copies, dtype=bool)  # copies reset since: rebuilt when a free step needs them
         self._world_is_stale = np.ones(n_copies, dtype=bool)
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
@@ -208,12 +203,8 @@ class WorldBatch:
         """The walls and obstacles of all N copies grown by ``robot_radius_m + CONTACT_GAP_M``, those of ``copies``
         (n,) as of their scenarios (each copy's built once per scenario, when a free step first needs it, unless
         given as ``static_geometry``)."""
-        given = self.static_geometry
-        if given is not None:
-            if self._grown_from is not given:
-                self._grown, self._grown_from = given.grown(self.robot_radius_m + CONTACT_GAP_M), given
-                self._grown_stale[:] = True  # for a build here again, without it
-            return self._grown
+        if self.static_geometry is not None:
+            return self.static_geometry.grown(self.robot_radius_m + CONTACT_GAP_M)  # kept by the geometry
         stale = copies[self._grown_stale[copies]]
         if stale.size:
             geometries = [StaticGeometry.from_scenario(self._scenarios[copy], self.wall_thickness_m) for copy in stale]
