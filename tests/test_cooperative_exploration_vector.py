@@ -20,8 +20,7 @@ from infonav_gym.multi import cooperative_exploration_v0, cooperative_exploratio
 from infonav_gym.multi.cooperative_exploration import N_MOTIONS
 from infonav_gym.multi.cooperative_exploration_vector import CooperativeExplorationVectorEnv
 from infonav_gym.multi.exploration_decision import TeamSight
-from infonav_gym.world import World
-from infonav_gym.world.world_batch import WorldBatch
+from infonav_gym.world import World, world_batch
 
 ID = "cooperative_exploration_v0"
 
@@ -65,11 +64,9 @@ def test_the_comparison_covers_landmarks_teammates_motions_scans_and_close_passe
     """A greedy run observes landmarks and teammates, drives every way, maps cells and passes close to teammates
     or walls (steps ``WorldBatch`` checks are contact-free, then takes as Pymunk's substeps: the masks leave none
     with a contact)."""
-    substeps, free_substeps = [], WorldBatch._free_substeps
+    substeps, free_substeps = [], world_batch.free_substeps
     monkeypatch.setattr(
-        WorldBatch,
-        "_free_substeps",
-        lambda batch, poses, *args: substeps.append(len(poses)) or free_substeps(batch, poses, *args),
+        world_batch, "free_substeps", lambda poses, *args: substeps.append(len(poses)) or free_substeps(poses, *args)
     )
     drive_in_contact = World.drive_in_contact
     monkeypatch.setattr(World, "drive_in_contact", lambda *args: pytest.fail("a contact") or drive_in_contact(*args))

@@ -81,8 +81,8 @@ def goal_field(
     check_arguments("goal_field", GOAL_FIELD_ARGUMENTS, n_landmarks=n_landmarks, n_obstacles=n_obstacles, size_m=size_m)
     if size_m < 3 * max(lit_offset_m):
         raise ParameterError("goal_field", "size_m", f">= {3 * max(lit_offset_m):g} m for its layout", size_m)
-    near_line_draws = 3 * (START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS)  # side, place along, offset
-    n_draws = 3 + near_line_draws + 2 * (n_landmarks - START_CLUSTER_LANDMARKS - GOAL_CLUSTER_LANDMARKS)
+    n_near = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS  # draws: the frame's, 3 per near landmark, 2 per lit
+    n_draws = 3 + 3 * n_near + 2 * (n_landmarks - n_near)
     u = np_random.random(n_draws)
     start = np.array([START_MARGIN_M, _uniform(u[0], 0.4, 0.6) * size_m])
     goal = np.array([size_m - START_MARGIN_M, _uniform(u[1], 0.4, 0.6) * size_m])
@@ -113,9 +113,12 @@ def goal_field(
 
 
 @kernel
-def field_landmarks(u, n_near, start, along, length_m, lit_side, lit_low_m, lit_high_m, size_m):
-    """``goal_field``'s landmarks (K, 2) from its uniform draws ``u``: ``n_near`` near the line (side, place along,
-    offset each; the first ``START_CLUSTER_LANDMARKS`` ahead of the start), then the lit ones (place, offset each)."""
+def field_layout(u, attempts, n_obstacles, start, along, length_m, lit_side, lit_low_m, lit_high_m, goal, size_m):
+    """``goal_field``'s landmarks (K, 2) from their draws ``u``: those near the line (side, place along, offset each;
+    the first ``START_CLUSTER_LANDMARKS`` ahead of the start), then the lit ones (place, offset each); its obstacles,
+    the first ``n_obstacles`` clear ``attempts`` (M, 3) (radius, place along, offset on the dark side; clear: inside
+    the field, off the landmarks and the goal): centres (O, 2), radii (O,) [m]; and the attempts used, -1: too few."""
+    n_near = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS
     n_lit = (len(u) - 3 * n_near) // 2
     landmarks = np.empty((n_near + n_lit, 2))
     for k in range(n_near + n_lit):
@@ -131,16 +134,6 @@ def field_landmarks(u, n_near, start, along, length_m, lit_side, lit_low_m, lit_
             normal = -along[1] if i == 0 else along[0]
             value = start[i] + fraction * length_m * along[i] + offset * normal
             landmarks[k, i] = min(max(value, 1.0), size_m - 1.0)
-    return landmarks
-
-
-@kernel
-def field_layout(u, attempts, n_obstacles, start, along, length_m, lit_side, lit_low_m, lit_high_m, goal, size_m):
-    """``goal_field``'s landmarks (K, 2) from their draws ``u`` (``field_landmarks``) and its obstacles: the first
-    ``n_obstacles`` clear ``attempts`` (M, 3) (radius, place along, offset on the dark side; clear: inside the
-    field, off the landmarks and the goal), centres (O, 2) and radii (O,) [m]; and the attempts used, -1: too few."""
-    near_line = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS
-    landmarks = field_landmarks(u, near_line, start, along, length_m, lit_side, lit_low_m, lit_high_m, size_m)
     centers, radii, placed = np.empty((n_obstacles, 2)), np.empty(n_obstacles), 0
     for m in range(len(attempts)):
         if placed == n_obstacles:

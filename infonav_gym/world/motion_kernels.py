@@ -127,10 +127,9 @@ def contact_within(copies, poses, controls, dt, boxes, radius_m):
 
 @kernel
 def contact_free(copies, poses, controls, dt, robots_contact_m, near_static, walls, discs, culled):
-    """Which of ``copies`` (n,) keep clear of contact through a step of ``dt`` [s]: in a Pymunk step without
-    contact each robot moves straight along its heading at its speed (``controls[..., 0]``), so no two robots may
-    come within ``robots_contact_m`` [m] (``teammate_conflicts``), nor, in the copies ``near_static`` (n,), a
-    robot's line meet ``walls``, ``discs`` (``visibility.shape_arrays`` of the shapes grown by a robot's reach)."""
+    """Which of ``copies`` (n,) keep clear of contact in ``dt`` [s], each robot straight along its heading (as in a
+    contact-free Pymunk step): two robots stay ``robots_contact_m`` [m] apart, and in the copies ``near_static`` (n,)
+    its line misses ``walls``, ``discs`` (``visibility.shape_arrays`` of the shapes grown by a robot's reach)."""
     n_rows, n_robots = poses.shape[0], poses.shape[1]
     starts, ends = np.empty((n_rows * n_robots, 2)), np.empty((n_rows * n_robots, 2))
     displacements = np.empty((n_rows, n_robots, 1, 2))

@@ -153,9 +153,8 @@ class StaticGeometry:
         if shapes[0] == shapes[1]:
             grown = [(result.grown(margin), old, replacement.grown(margin)) for margin, old in self._grown.items()]
             for kept, old, new in ((result, self, replacement), *grown):  # the boxes computed so far, those rows anew
-                kept.__dict__.update(
-                    {name: merged(old, new, name) for name in ("wall_boxes", "disc_boxes") if name in old.__dict__}
-                )
+                for key in {"wall_boxes", "disc_boxes"} & set(old.__dict__):
+                    kept.__dict__[key] = merged(old, new, key)
         return result
 
     def tiled(self, n_copies: int) -> StaticGeometry:

@@ -85,7 +85,7 @@ class WorldBatch:
             ValueError: when ``scenario`` has another number of routes than the copies reset before.
         """
         routes = scenario.routes
-        if copy == 0 or self.poses.shape[1] == 0:
+        if (copy == 0 or self.poses.shape[1] == 0) and len(routes) != self.poses.shape[1]:
             self._resize_robots(len(routes))
         if len(routes) != self.poses.shape[1]:
             raise ValueError(
@@ -93,8 +93,7 @@ class WorldBatch:
                 f"{self.poses.shape[1]}; every copy needs the same number"
             )
         self._scenarios[copy] = scenario
-        self._grown_stale[copy] = True
-        self._world_is_stale[copy] = True
+        self._grown_stale[copy] = self._world_is_stale[copy] = True
         self._in_contact[copy] = self._has_space[copy] = False
         self._worlds[copy].drop_space()
         self.poses[copy] = start_poses(scenario)
@@ -118,8 +117,6 @@ class WorldBatch:
         self._boxes[copy, : len(boxes)] = boxes
 
     def _resize_robots(self, n_robots: int) -> None:
-        if n_robots == self.poses.shape[1]:
-            return
         n = self.n_copies
         self.poses = np.zeros((n, n_robots, 3))
         self._waypoints = np.zeros((n, n_robots, self._waypoints.shape[2], 2))
@@ -164,7 +161,8 @@ class WorldBatch:
             shapes = shape_arrays(self._grown_geometry(copies[free]))
             moves = (before[free], controls[free], dt, 2 * self.robot_radius_m + CONTACT_GAP_M, near_static[free])
             free = free[contact_free(copies[free], *moves, *shapes)]
-            after[free] = self._free_substeps(before[free], controls[free], dt)
+            substeps = math.ceil(dt / self._max_physics_step_s - 1e-9)  # as World.drive_in_contact
+            after[free] = free_substeps(before[free], controls[free], dt, substeps)  # Chipmunk's free-body integration
             contact[free] = False
         for copy in copies[was_in_contact & ~contact].tolist():  # their runs of contact steps end
             world = self._worlds[copy]
@@ -213,12 +211,3 @@ class WorldBatch:
             self._grown = base.with_copies(stale, fresh)
             self._grown_stale[stale] = False
         return self._grown
-
-    def _free_substeps(self, poses: np.ndarray, controls: np.ndarray, dt: float) -> np.ndarray:
-        """The poses (n, R, 3) after ``World.drive_in_contact`` of a step without contact: Pymunk's substeps.
-
-        Each substep adds velocity x substep to the position and angular velocity x substep to the angle, as
-        Chipmunk integrates a free body, so the numbers are Pymunk's.
-        """
-        substeps = math.ceil(dt / self._max_physics_step_s - 1e-9)
-        return free_substeps(poses, controls, dt, substeps)
