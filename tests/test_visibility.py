@@ -12,7 +12,7 @@ from infonav_gym.estimation.models import range_bearing
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world import CircleObstacle, Route, Scenario, StaticGeometry, World
 from infonav_gym.world.scenarios import build_scenario
-from infonav_gym.world.visibility import in_coverage, segments_clear, shape_arrays, visible
+from infonav_gym.world.visibility import in_coverage, segments_clear, visible
 from infonav_gym.world.visibility_kernels import DISC, WALL, shape_hits
 
 OFFSETS_M = np.array([0.0, 1e-15, -1e-15, 1e-12, -1e-12, 1e-9, -1e-9])  # how far off a surface a point lies [m]
@@ -291,19 +291,6 @@ def test_with_copies_equals_stacking_the_replaced_list_up_to_padding():
     assert not replaced.disc_valid.flags.writeable
     with pytest.raises(ValueError, match="2 copies to replace, but the replacement holds 1"):
         replaced.with_copies([0, 1], corridor)
-
-
-def test_with_copies_of_equal_counts_keeps_the_boxes_and_grown_shapes_as_computed_anew():
-    rng = np.random.default_rng(5)
-    fields = [StaticGeometry.from_scenario(build_scenario("field", rng, n_obstacles=3), 0.3) for _ in range(5)]
-    old = StaticGeometry.stack(fields[:3])
-    shape_arrays(old), shape_arrays(old.grown(0.4))  # computed before the replacement, then kept
-    replaced = old.with_copies([2, 0], StaticGeometry.stack(fields[3:]))
-    expected = StaticGeometry.stack([fields[4], fields[1], fields[3]])
-    for kept, fresh in ((replaced, expected), (replaced.grown(0.4), expected.grown(0.4))):
-        for name in ("wall_boxes", "wall_points", "disc_boxes", "culled", "disc_radii"):
-            np.testing.assert_array_equal(getattr(kept, name), getattr(fresh, name), err_msg=name)
-        assert not kept.wall_boxes.flags.writeable and not kept.disc_boxes.flags.writeable
 
 
 CORRIDOR = build_scenario("corridor", np.random.default_rng(0))

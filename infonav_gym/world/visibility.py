@@ -127,8 +127,6 @@ class StaticGeometry:
     def with_copies(self, copies, replacement: StaticGeometry) -> StaticGeometry:
         """This geometry with copies ``copies`` (n,) replaced by the n copies of ``replacement``, padded to fit.
 
-        With the same shape counts, the boxes and grown shapes computed so far are kept, only those rows anew.
-
         Raises:
             ValueError: unless ``replacement`` holds one copy per index of ``copies``.
         """
@@ -138,24 +136,21 @@ class StaticGeometry:
                 f"StaticGeometry.with_copies: {len(copies)} copies to replace, but the replacement holds "
                 f"{replacement.n_copies}"
             )
-        shapes = [geometry.wall_radii.shape[1:] + geometry.disc_radii.shape[1:] for geometry in (self, replacement)]
-        counts = dict(zip(("wall", "disc"), np.maximum(*shapes).tolist()))
+        walls = max(self.wall_radii.shape[1], replacement.wall_radii.shape[1])
+        discs = max(self.disc_radii.shape[1], replacement.disc_radii.shape[1])
 
-        def merged(old: StaticGeometry, new: StaticGeometry, name: str) -> np.ndarray:
-            array, rows = getattr(old, name), getattr(new, name)
-            result = np.zeros((len(array), counts[name[:4]], *array.shape[2:]), dtype=array.dtype)
+        def merged(name: str, count: int) -> np.ndarray:
+            array, new = getattr(self, name), getattr(replacement, name)
+            result = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
             result[:, : array.shape[1]] = array
             result[copies] = 0
-            result[copies, : rows.shape[1]] = rows
+            result[copies, : new.shape[1]] = new
             return _read_only(result)
 
-        result = StaticGeometry(**{name: merged(self, replacement, name) for name in self.__dataclass_fields__})
-        if shapes[0] == shapes[1]:
-            grown = [(result.grown(margin), old, replacement.grown(margin)) for margin, old in self._grown.items()]
-            for kept, old, new in ((result, self, replacement), *grown):  # the boxes computed so far, those rows anew
-                for key in {"wall_boxes", "disc_boxes"} & set(old.__dict__):
-                    kept.__dict__[key] = merged(old, new, key)
-        return result
+        return StaticGeometry(
+            **{name: merged(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
+            **{name: merged(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
+        )
 
     def tiled(self, n_copies: int) -> StaticGeometry:
         """Copy 0 of this geometry ``n_copies`` times (read-only views: nothing is copied)."""
