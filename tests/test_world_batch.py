@@ -4,11 +4,31 @@ import numpy as np
 import pytest
 
 from infonav_gym.world import CircleObstacle, World, world_batch
-from infonav_gym.world.active_scenarios import CommandedWorld, goal_field
+from infonav_gym.world.active_scenarios import goal_field
 from infonav_gym.world.scenarios import Route, Scenario, build_scenario
 from infonav_gym.world.world_batch import WorldBatch
 
 TIME_STEP_S = 0.5
+
+
+class CommandedWorld(World):
+    """A ``World`` whose robots follow velocity commands instead of waypoints.
+
+    ``command(speeds, turn_rates)`` sets what each robot drives during the next
+    ``step``; Pymunk still executes it (obstacles stop or deflect the robot) and
+    ``step`` returns the executed motion, as for ``World``.
+    """
+
+    def reset(self, scenario: Scenario) -> None:
+        super().reset(scenario)
+        self._commands = [(0.0, 0.0)] * self.n_robots
+
+    def command(self, speed_mps: float, turn_rate_rps: float, robot: int = 0) -> None:
+        """Drive robot ``robot`` at ``speed_mps`` [m/s] and ``turn_rate_rps`` [rad/s] until the next command."""
+        self._commands[robot] = (float(speed_mps), float(turn_rate_rps))
+
+    def _waypoint_control(self, robot: int, x: float, y: float, heading: float) -> tuple[float, float]:
+        return self._commands[robot]
 
 
 def scenarios(name: str, seed: int, n_copies: int, **parameters) -> list[Scenario]:

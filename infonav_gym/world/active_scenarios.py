@@ -1,4 +1,4 @@
-"""The world of ``ActiveLocalization-v0``: its goal-field scenario and a World driven by velocity commands."""
+"""The world of ``ActiveLocalization-v0``: its goal-field scenario (its robot drives by velocity commands)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,6 @@ from infonav_gym.world.scenarios import (
     _box_walls,
     _uniform,
 )
-from infonav_gym.world.world import World
 
 START_MARGIN_M = 2.5  # distance of the start and the goal from the left and right walls [m]
 START_CLUSTER_LANDMARKS = 2
@@ -32,26 +31,6 @@ GOAL_FIELD_ARGUMENTS = {  # the allowed arguments of goal_field (a size of at le
     "n_obstacles": FIELD_ARGUMENTS["n_obstacles"],
     "size_m": Interval(MIN_GOAL_FIELD_SIZE_M, MAX_FIELD_SIZE_M, unit="m"),
 }
-
-
-class CommandedWorld(World):
-    """A ``World`` whose robots follow velocity commands instead of waypoints.
-
-    ``command(speeds, turn_rates)`` sets what each robot drives during the next
-    ``step``; Pymunk still executes it (obstacles stop or deflect the robot) and
-    ``step`` returns the executed motion, as for ``World``.
-    """
-
-    def reset(self, scenario: Scenario) -> None:
-        super().reset(scenario)
-        self._commands = [(0.0, 0.0)] * self.n_robots
-
-    def command(self, speed_mps: float, turn_rate_rps: float, robot: int = 0) -> None:
-        """Drive robot ``robot`` at ``speed_mps`` [m/s] and ``turn_rate_rps`` [rad/s] until the next command."""
-        self._commands[robot] = (float(speed_mps), float(turn_rate_rps))
-
-    def _waypoint_control(self, robot: int, x: float, y: float, heading: float) -> tuple[float, float]:
-        return self._commands[robot]
 
 
 def goal_field(

@@ -44,7 +44,7 @@ def exploration_field(
     """A square field with round obstacles, GPS-denied canopy zones and sparse landmarks, explored from a base.
 
     The robots start parked side by side at a base ``BASE_INSET_M`` from the walls of one corner (drawn),
-    facing the field's centre; they drive by commands (``CommandedWorld``), so their routes hold no waypoint.
+    facing the field's centre; they drive by velocity commands, so their routes hold no waypoint.
     Landmarks, canopy zones (radius 5-9 m) and obstacles (radius 0.7-1.5 m) are uniform over the field and
     keep ``BASE_CLEARANCE_M`` (plus their radius) from the base; obstacles keep 1 m from every landmark.
     The numbers are drawn in a fixed order (the corner, then rows of uniform numbers for the landmarks,

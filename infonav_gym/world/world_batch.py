@@ -131,8 +131,8 @@ class WorldBatch:
         Args:
             dt: the step (0, 60] s.
             copies: indices of the copies to step (n,).
-            commands: ``[speed, turn_rate]`` of every robot of those copies (n, R, 2), as ``CommandedWorld.command``
-                sets them; None: each robot's waypoint controller.
+            commands: ``[speed, turn_rate]`` of every robot of those copies (n, R, 2), as a velocity command;
+                None: each robot's waypoint controller.
 
         Returns:
             The executed ``[speed, turn_rate]`` of every robot of ``copies`` (n, R, 2) [m/s, rad/s].
