@@ -27,7 +27,7 @@ from infonav_gym.registration.frame_pairs import (
     scan_on_terrain,
 )
 from infonav_gym.registration.gicp import gicp_covariances
-from infonav_gym.registration.icp import METHODS, icp
+from infonav_gym.registration.icp import METHODS, check_kernel_method, icp
 from infonav_gym.registration.robust_kernels import ROBUST_KERNELS
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
@@ -132,11 +132,11 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         cfg, owner, num_envs = self.config, self.owner_name, self.num_envs
         check_choice(cfg, "icp_method", METHODS, owner)
         check_choice(cfg, "icp_robust_kernel", ("none", *ROBUST_KERNELS), owner)
-        if cfg["icp_method"] == "point_to_point" and cfg["icp_robust_kernel"] != "none":  # icp() would refuse it
-            raise ValueError(
-                f"config key 'icp_robust_kernel' of {owner} must be 'none' with 'icp_method' 'point_to_point' "
-                f"(a robust kernel weighs point_to_plane or gicp residuals), got {cfg['icp_robust_kernel']!r}"
-            )
+        self._robust_kernel = None if cfg["icp_robust_kernel"] == "none" else cfg["icp_robust_kernel"]
+        try:  # icp()'s rule, checked now rather than at the first registration
+            check_kernel_method(self._robust_kernel, cfg["icp_method"])
+        except ValueError as error:
+            raise ValueError(f"config keys 'icp_robust_kernel' and 'icp_method' of {owner}: {error}") from None
         check_config(cfg, owner, CONFIG_INTERVALS)
         check_scene_config(cfg, owner)
         with config_keys(owner, ODOMETRY_KEYS):
@@ -263,7 +263,6 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         before = self._odometry_error[copy]
         start = time.perf_counter()
         if len(source) >= MIN_CONTROL_POINTS:
-            kernel = None if cfg["icp_robust_kernel"] == "none" else cfg["icp_robust_kernel"]
             result = icp(
                 source,
                 self._target_points[copy],
@@ -271,7 +270,7 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
                 max_iterations=cfg["icp_max_iterations"],
                 max_correspondence_distance=cfg["max_correspondence_distance_m"],
                 method=cfg["icp_method"],
-                robust_kernel=kernel,
+                robust_kernel=self._robust_kernel,
                 kernel_scale=cfg["icp_kernel_scale_m"],
                 **self._gicp_covariances(copy, chosen),
             )

@@ -122,6 +122,12 @@ def check_rigid_transform(matrix, name: str, atol: float = 1e-6) -> np.ndarray:
     return array
 
 
+def check_kernel_method(robust_kernel: str | None, method: str) -> None:
+    """``ValueError`` for a robust kernel with ``point_to_point``, which has no residual scale for it to weigh."""
+    if robust_kernel is not None and method == "point_to_point":
+        raise ValueError(f"robust_kernel {robust_kernel!r} applies to method point_to_plane or gicp, not {method}")
+
+
 def _check_settings(max_iterations, tolerance, max_correspondence_distance, method) -> float:
     """``ValueError`` for a bad setting; returns the correspondence distance limit (``inf`` for none)."""
     if method not in METHODS:
@@ -357,8 +363,7 @@ def icp(
     transform = np.eye(4) if init is None else check_rigid_transform(init, "init").copy()
     limit = _check_settings(max_iterations, tolerance, max_correspondence_distance, method)
     check_robust_kernel(robust_kernel, kernel_scale)
-    if robust_kernel is not None and method == "point_to_point":
-        raise ValueError(f"robust_kernel {robust_kernel!r} applies to method point_to_plane or gicp, not {method}")
+    check_kernel_method(robust_kernel, method)
 
     tree = cKDTree(target)
     normals = estimate_normals(target, tree) if method == "point_to_plane" else None
