@@ -157,10 +157,7 @@ class InfoNavVectorEnv(VectorEnv):
         actions, mask = self._checked_actions(actions), self._decision.action_mask
         chosen, outside = accepted_actions(actions.astype(np.int64, copy=False), mask, self._prev_done)
         if outside >= 0:
-            raise ValueError(
-                f"action {actions[outside]} of sub-env {outside} is not in the action space "
-                f"{self.single_action_space}: expected an integer in [0, {self.single_action_space.n - 1}]"
-            )
+            raise outside_action_space(actions[outside], f"sub-env {outside}", self.single_action_space)
         acting = ~self._prev_done
         if self.config["invalid_action"] == "raise":  # with "noop" a masked action is the no-op, silently
             for copy in np.flatnonzero(acting & (chosen < 0)).tolist():
@@ -288,6 +285,13 @@ class InfoNavVectorEnv(VectorEnv):
         state = self.__dict__.copy()
         state.pop("_renderer", None)  # a pygame window or surface does not pickle; the copy draws anew
         return state
+
+
+def outside_action_space(action, where: str, space) -> ValueError:
+    """The error for ``action`` of ``where`` (a sub-env, an agent in one) outside the ``Discrete`` ``space``."""
+    return ValueError(
+        f"action {action} of {where} is not in the action space {space}: expected an integer in [0, {space.n - 1}]"
+    )
 
 
 @kernel

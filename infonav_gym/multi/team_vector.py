@@ -22,7 +22,7 @@ from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.base import accepts_action
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_base import InfoNavVectorEnv, accepted_actions
+from infonav_gym.envs.vector_base import InfoNavVectorEnv, accepted_actions, outside_action_space
 from infonav_gym.envs.vector_infos import final_step_infos
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses
@@ -202,10 +202,8 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         accepted, outside = accepted_actions(actions.reshape(-1), flat_mask, resetting)
         if outside >= 0:
             copy, robot = divmod(outside, n_robots)
-            raise ValueError(
-                f"action {actions[copy, robot]} of {self.agents[robot]} in sub-env {copy} is not in the action space "
-                f"{self.single_action_space}: expected an integer in [0, {self.single_action_space.n - 1}]"
-            )
+            where = f"{self.agents[robot]} in sub-env {copy}"
+            raise outside_action_space(actions[copy, robot], where, self.single_action_space)
         accepted = accepted.reshape(actions.shape)
         invalid = acting[:, None] & (accepted < 0)
         for copy, robot in np.argwhere(invalid).tolist() if invalid.any() else ():
