@@ -199,8 +199,9 @@ def exploration_observations(
     """
     n_copies, n_robots = np.shape(team)[:2]
     features = np.empty((n_copies, n_robots, space.shape[0]), dtype=np.float32)
-    arrays = (team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, space.low, space.high)
-    exploration_features(*(contiguous(np.asarray(array, dtype=float)) for array in arrays), features)
+    arrays = (landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, space.low, space.high)
+    floats = (contiguous(np.asarray(array, dtype=float)) for array in arrays)  # the team part stays float32
+    exploration_features(contiguous(np.asarray(team, dtype=np.float32)), *floats, features)
     return features
 
 
@@ -208,7 +209,7 @@ def exploration_observations(
 def exploration_features(
     team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, low, high, out
 ):
-    """``exploration_observations`` (its arguments as float64 arrays, ``space``'s bounds) into ``out`` (N, R, F)."""
+    """``exploration_observations`` (``team`` float32, the others float64 arrays, ``space``'s bounds) into ``out``."""
     n_copies, n_robots, n_team = team.shape
     n_landmarks, n_cells = landmark_valid.shape[2], cell_std.shape[1]
     extras = n_team + LANDMARK_FEATURES * n_landmarks
