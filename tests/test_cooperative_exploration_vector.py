@@ -20,7 +20,8 @@ from infonav_gym.multi import cooperative_exploration_v0, cooperative_exploratio
 from infonav_gym.multi.cooperative_exploration import N_MOTIONS
 from infonav_gym.multi.cooperative_exploration_vector import CooperativeExplorationVectorEnv
 from infonav_gym.multi.exploration_decision import TeamSight
-from infonav_gym.world import World, world_batch
+from infonav_gym.world import world_batch
+from infonav_gym.world.physics import ContactSpace
 
 ID = "cooperative_exploration_v0"
 
@@ -68,8 +69,8 @@ def test_the_comparison_covers_landmarks_teammates_motions_scans_and_close_passe
     monkeypatch.setattr(
         world_batch, "free_substeps", lambda poses, *args: substeps.append(len(poses)) or free_substeps(poses, *args)
     )
-    drive_in_contact = World.drive_in_contact
-    monkeypatch.setattr(World, "drive_in_contact", lambda *args: pytest.fail("a contact") or drive_in_contact(*args))
+    drive = ContactSpace.drive
+    monkeypatch.setattr(ContactSpace, "drive", lambda *args: pytest.fail("a contact") or drive(*args))
     vector = CooperativeExplorationVectorEnv(4, max_cycles=60)
     _, info = vector.reset(seed=5)
     n_landmarks = vector.config["n_landmarks"]

@@ -16,11 +16,11 @@ from infonav_gym.estimation.models import (
     range_bearing,
     range_bearing_linearized,
     range_bearing_residual,
-    unicycle_control,
     unicycle_jacobians,
     unicycle_motion,
 )
 from infonav_gym.geometry import wrap_angle
+from infonav_gym.world.motion_kernels import executed_controls
 
 POSES = [np.array([0.3, -1.2, 0.4]), np.array([5.0, 2.0, 3.1]), np.array([-2.0, 7.0, -2.9])]
 
@@ -50,9 +50,10 @@ def test_range_bearing_at_the_sensor_is_an_error():
         range_bearing_linearized(np.zeros(3), np.zeros((1, 2)))
 
 
-def test_unicycle_control_inverts_the_motion_model():
-    pose, control = np.array([1.0, 2.0, 3.0]), np.array([0.8, 0.6])
-    np.testing.assert_allclose(unicycle_control(pose, unicycle_motion(pose, control, 0.5), 0.5), control, rtol=1e-12)
+def test_executed_controls_invert_the_motion_model():
+    pose, control = np.array([1.0, -2.0, 3.0]), np.array([1.3, 0.4])  # the turn wraps the heading past pi
+    after = unicycle_motion(pose, control, 0.5)
+    np.testing.assert_allclose(executed_controls(pose[None, None], after[None, None], 0.5)[0, 0], control, rtol=1e-12)
 
 
 def test_wrap_angle_and_residual_cross_the_branch_cut():

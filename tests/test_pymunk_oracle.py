@@ -2,7 +2,7 @@
 same robot poses as the batched world (whose contact-free steps run in compiled numpy).
 
 ``WorldBatch`` steps a copy in its own Pymunk space only when a contact may happen; here that test is forced to
-say "maybe" everywhere, so every step of every copy goes through ``World.drive_in_contact`` (Chipmunk's solver
+say "maybe" everywhere, so every step of every copy goes through ``ContactSpace.drive`` (Chipmunk's solver
 and integrator). The same seeds and actions must then give the same true poses to 1e-9 m, step by step.
 """
 
@@ -65,10 +65,8 @@ def test_episodes_in_a_pymunk_only_world_find_the_same_robot_poses(env_id, monke
 def test_the_pymunk_only_world_really_steps_in_pymunk(monkeypatch):
     """The oracle is not vacuous: forced, every copy builds and steps its own Pymunk space."""
     steps = []
-    original = world_batch.World.drive_in_contact
-    monkeypatch.setattr(
-        world_batch.World, "drive_in_contact", lambda self, *args: steps.append(1) or original(self, *args)
-    )
+    original = world_batch.ContactSpace.drive
+    monkeypatch.setattr(world_batch.ContactSpace, "drive", lambda self, *args: steps.append(1) or original(self, *args))
     _pymunk_only(monkeypatch)
     env = make_vector_env(WORLD_ENV_IDS[0], num_envs=N_COPIES)
     env.reset(seed=0)

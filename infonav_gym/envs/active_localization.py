@@ -40,9 +40,9 @@ from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
 from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS
+from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.scenarios import SPEED_MPS
 from infonav_gym.world.visibility import StaticGeometry
-from infonav_gym.world.world import TIME_STEP_S
 
 __all__ = [
     "N_PRIMITIVES",

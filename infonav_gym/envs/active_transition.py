@@ -27,7 +27,7 @@ from infonav_gym.information import position_std_kernel as position_std
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
 from infonav_gym.world.active_scenarios import goal_field
 from infonav_gym.world.visibility import StaticGeometry
-from infonav_gym.world.world import start_poses
+from infonav_gym.world.world_batch import start_poses
 
 # Motion primitives: the heading to steer for, relative to the estimated bearing of the goal [rad].
 PRIMITIVE_OFFSETS_RAD = (0.0, math.pi / 4, -math.pi / 4, math.pi / 2, -math.pi / 2)

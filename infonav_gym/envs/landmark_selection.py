@@ -24,6 +24,7 @@ from infonav_gym.information import gaussian_entropy_kernel
 from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
 from infonav_gym.sensors.range_bearing import range_bearing_sensor_from_config
+from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.scenarios import (
     CORRIDOR_LANDMARK_COUNT,
     FIELD_ARGUMENTS,
@@ -32,7 +33,7 @@ from infonav_gym.world.scenarios import (
     scenario_names,
 )
 from infonav_gym.world.visibility import StaticGeometry
-from infonav_gym.world.world import TIME_STEP_S, start_poses
+from infonav_gym.world.world_batch import start_poses
 
 SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "speed_mps": "speed_mps",

@@ -31,8 +31,8 @@ from infonav_gym.registration.icp import METHODS, check_kernel_method, icp
 from infonav_gym.registration.robust_kernels import ROBUST_KERNELS
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
+from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import TIME_STEP_S
 from infonav_gym.world.world_batch import WorldBatch
 
 MIN_CONTROL_POINTS = 3  # fewer cannot fix a rigid motion

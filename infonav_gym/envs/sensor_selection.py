@@ -25,8 +25,8 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import decision_info, in_every_copy
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
+from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
-from infonav_gym.world.world import TIME_STEP_S
 from infonav_gym.world.world_batch import WorldBatch
 
 __all__ = ["IDLE_ACTION", "MAX_IMAGE_ENTROPY", "SENSORS", "SensorSelectionEnv", "SensorSelectionVectorEnv"]

@@ -35,18 +35,6 @@ def unicycle_jacobians(pose, control, dt: float) -> tuple[np.ndarray, np.ndarray
     return F, V
 
 
-def unicycle_control(pose_before, pose_after, dt: float) -> np.ndarray:
-    """The ``[speed, turn_rate]`` that ``unicycle_motion`` turns ``pose_before`` into ``pose_after`` with.
-
-    Exact when the move had no sideways slip (the component across the heading is dropped).
-    """
-    heading = pose_before[2]
-    dx = pose_after[0] - pose_before[0]
-    dy = pose_after[1] - pose_before[1]
-    speed = (dx * math.cos(heading) + dy * math.sin(heading)) / dt
-    return np.array([speed, wrap_angle(pose_after[2] - heading) / dt])
-
-
 def range_bearing(pose, landmarks) -> np.ndarray:
     """Range [m] and bearing [rad] from ``pose`` to each landmark: (N, 2) -> (N, 2)."""
     landmarks = np.atleast_2d(landmarks)

@@ -23,8 +23,9 @@ from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor, odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, RelativePoseSensor
 from infonav_gym.world.exploration_scenarios import EXPLORATION_FIELD_ARGUMENTS, exploration_field
+from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.scenarios import MAX_ROBOTS, MAX_SPEED_MPS
-from infonav_gym.world.world import TIME_STEP_S, start_poses
+from infonav_gym.world.world_batch import start_poses
 
 DEFAULT_SPEEDS_MPS = (0.8, 0.8, 1.2, 1.2)  # robot k of the default team: the DGPS robots are the slower ones
 RANGE_KEYS = {"laser": "laser_range_m", "vision": "vision_range_m"}  # the config key of each sensor's range

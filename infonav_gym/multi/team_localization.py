@@ -21,6 +21,7 @@ from infonav_gym.multi.team_sensing import SensingPairs, team_prior
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor, odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS
+from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.scenarios import (
     DEFAULT_WAYPOINTS,
     MAX_ROBOTS,
@@ -29,7 +30,7 @@ from infonav_gym.world.scenarios import (
     scenario_names,
     team_route_bands,
 )
-from infonav_gym.world.world import TIME_STEP_S, start_poses
+from infonav_gym.world.world_batch import start_poses
 
 ESTIMATORS = ("joint", "independent")
 TEAM_SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it

@@ -1,8 +1,8 @@
-"""Compiled robot motion of ``WorldBatch``: the single ``World``'s formulas, one robot of one copy at a time.
+"""Compiled robot motion of ``WorldBatch``, one robot of one copy at a time.
 
 Poses are ``[x, y, heading]`` [m, m, rad], controls ``[speed, turn_rate]`` [m/s, rad/s]; arrays carry the copies
-first and the robots second. The operations are those of ``World`` (and of Chipmunk's free-body integration for
-``free_substeps``) in the same order, so the numbers are its numbers.
+first and the robots second. Free motion is integrated as Pymunk integrates a free body (``free_substeps``: the
+operations of Chipmunk's integration, in its order), so a step taken here gives Pymunk's numbers.
 """
 
 from __future__ import annotations
@@ -19,7 +19,11 @@ from infonav_gym.world.visibility_kernels import blocked
 
 @kernel
 def waypoint_controls(copies, poses, index, n_waypoints, loops, waypoints, route_speeds, tolerance_m, gain, max_turn):
-    """``World._waypoint_control`` of every robot of ``copies``: the controls (n, R, 2); advances ``index`` in place.
+    """The waypoint controller of every robot of ``copies``: the controls (n, R, 2); advances ``index`` in place.
+
+    A robot steers toward its current waypoint (heading error times ``gain``, saturated at ``max_turn``) at its
+    route's speed times the cosine of the heading error (none when facing away); a waypoint within ``tolerance_m``
+    is passed to the next (a looping route starts again, an open route ends: the robot stops).
 
     Args:
         copies: the copies stepped (n,); poses: their robots' poses (n, R, 3).

@@ -1,7 +1,7 @@
 """Batched visibility: which of K targets each of N robots sees, on stacked arrays (the queries compiled:
 ``visibility_kernels``).
 
-``segments_clear`` decides as ``World.line_of_sight`` does with Pymunk's ``segment_query_first`` (radius 0,
+``segments_clear`` decides as ``ContactSpace.line_of_sight`` does with Pymunk's ``segment_query_first`` (radius 0,
 static walls and discs only: robots never block): the same floating-point operations of Chipmunk's
 segment queries in the same order, so the answers agree bit for bit. There is no tolerance to tune;
 the degenerate cases follow Chipmunk's rules:
@@ -24,9 +24,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from infonav_gym.compiled import contiguous
+from infonav_gym.world.physics import WORLD_ARGUMENTS
 from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.visibility_kernels import blocked, covered
-from infonav_gym.world.world import WORLD_ARGUMENTS
 
 if TYPE_CHECKING:
     from infonav_gym.sensors.range_bearing import RangeBearingSensor
@@ -61,7 +61,7 @@ class StaticGeometry:
 
     @classmethod
     def from_scenario(cls, scenario: Scenario, wall_thickness_m: float) -> StaticGeometry:
-        """The geometry (one copy) of the static shapes ``World.reset(scenario)`` builds with ``wall_thickness_m``.
+        """The geometry (one copy) of the static shapes ``ContactSpace`` builds of ``scenario`` (``wall_thickness_m``).
 
         Raises:
             ParameterError: (a ``ValueError``) for a ``wall_thickness_m`` outside World's interval.

@@ -1,11 +1,13 @@
-"""``WorldBatch``: N copies of a ``World`` stepped at once on stacked arrays, for the native vector envs.
+"""``WorldBatch``: N copies of a world of robots driving among walls and obstacles, stepped at once on stacked arrays.
 
-Each copy is a ``World`` (R robots) whose free motion, waypoint controller and contact test are compiled with the
-single ``World``'s formulas (``motion_kernels``). A copy in which a wall, obstacle or other robot comes within
-reach of a robot takes the step in its own Pymunk space (``World.drive_in_contact``, built when a copy first needs
-one), unless the robots' straight paths keep ``CONTACT_GAP_M`` beyond touching anything: Pymunk then finds no
-contact, and its substeps run here, the same numbers (not inside a run of contact steps, whose contacts Pymunk
-keeps). So every copy moves exactly as a single ``World`` would.
+Each copy holds R robots, each driven by a waypoint controller or a velocity command. A step in which no wall,
+obstacle or other robot comes within reach of any robot of a copy is free motion, integrated as Pymunk integrates a
+free body (position += velocity x dt, angle += angular velocity x dt), compiled (``motion_kernels``). A copy in which
+something comes within reach takes the step in its own Pymunk space (``physics.ContactSpace``, built when a copy
+first needs one), unless the robots' straight paths keep ``CONTACT_GAP_M`` beyond touching anything: Pymunk then
+finds no contact, and its substeps run here, the same numbers (not inside a run of contact steps, whose contacts
+Pymunk keeps). So every copy moves as Pymunk moves it; ``tests/test_pymunk_oracle.py`` holds it to a world where
+Pymunk takes every step. ``World`` is its N = 1 view.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import math
 
 import numpy as np
 
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.world.motion_kernels import (
     contact_free,
     contact_within,
@@ -22,9 +25,9 @@ from infonav_gym.world.motion_kernels import (
     unicycle_moves,
     waypoint_controls,
 )
+from infonav_gym.world.physics import MAX_TIME_STEP_S, TIME_STEP_S, WORLD_ARGUMENTS, ContactSpace, static_boxes
 from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
-from infonav_gym.world.world import MAX_TIME_STEP_S, TIME_STEP_S, World, start_poses, static_boxes
 
 _EMPTY_BOX = (np.inf, np.inf, -np.inf, -np.inf)  # a padding box that overlaps nothing
 CONTACT_GAP_M = 1e-3  # paths this far beyond touching anything take Pymunk's contact-free substeps here [m]
@@ -32,36 +35,50 @@ MAX_IDLE_SPACES = 64  # Pymunk spaces kept for copies between runs of contact st
 
 
 class WorldBatch:
-    """N copies of a ``World``, each holding the same number R of robots.
+    """N copies of a world, each holding the same number R of robots.
 
     Attributes:
-        wall_thickness_m: the copies' wall thickness [m] (their static geometry is ``StaticGeometry.from_scenario``'s).
-        robot_radius_m: the radius of every robot's disc [m].
         poses: true poses ``[x, y, heading]`` of every copy's robots (N, R, 3), after ``reset_copy``.
         static_geometry: every copy's ``StaticGeometry.from_scenario`` as of its scenario, when the owner keeps it
             (the contact test then grows it instead of building its own); None: built here.
 
     Args:
         n_copies: N >= 1.
-        **world_args: the ``World`` arguments every copy shares (``WORLD_ARGUMENTS``).
+        robot_radius_m: radius of every robot's disc [m].
+        max_turn_rate_rps: saturation of the heading controller [rad/s].
+        heading_gain: proportional gain of the heading controller [1/s].
+        waypoint_tolerance_m: a waypoint closer than this counts as reached [m].
+        wall_thickness_m: thickness of wall segments [m] (the static geometry is ``StaticGeometry.from_scenario``'s).
+        max_physics_step_s: longest Pymunk substep [s] of a contact step, split into equal substeps.
+
+    Raises:
+        ParameterError: (a ``ValueError``) for an argument outside its ``WORLD_ARGUMENTS`` interval.
     """
 
-    def __init__(self, n_copies: int, **world_args):
-        self._worlds = [World(**world_args) for _ in range(n_copies)]  # reset when a copy first needs Pymunk
+    def __init__(
+        self,
+        n_copies: int,
+        robot_radius_m: float = 0.3,
+        max_turn_rate_rps: float = 1.0,
+        heading_gain: float = 2.0,
+        waypoint_tolerance_m: float = 1.0,
+        wall_thickness_m: float = 0.3,
+        max_physics_step_s: float = 0.1,
+    ):
+        self.robot_radius_m = robot_radius_m
+        self.max_turn_rate_rps = max_turn_rate_rps
+        self.heading_gain = heading_gain
+        self.waypoint_tolerance_m = waypoint_tolerance_m
+        self.wall_thickness_m = wall_thickness_m
+        self.max_physics_step_s = max_physics_step_s
+        for name, interval in WORLD_ARGUMENTS.items():
+            interval.check("World", name, getattr(self, name))
+        self._spaces: list[ContactSpace | None] = [None] * n_copies  # built when a copy first needs Pymunk
         self._scenarios: list[Scenario | None] = [None] * n_copies
         self.static_geometry: StaticGeometry | None = None
         self._grown: StaticGeometry | None = None  # every copy's static shapes, grown for the contact test
         self._grown_stale = np.ones(n_copies, dtype=bool)  # copies reset since: rebuilt when a free step needs them
-        self._world_is_stale = np.ones(n_copies, dtype=bool)
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
-        self._has_space = np.zeros(n_copies, dtype=bool)  # the copy's World holds a Pymunk space
-        reference = self._worlds[0]
-        self.robot_radius_m = reference.robot_radius_m
-        self._tolerance_m = reference.waypoint_tolerance_m
-        self._gain = reference.heading_gain
-        self._max_turn_rate = reference.max_turn_rate_rps
-        self._max_physics_step_s = reference.max_physics_step_s
-        self.wall_thickness_m = reference.wall_thickness_m
         self.poses = np.zeros((n_copies, 0, 3))
         self._waypoints = np.zeros((n_copies, 0, 0, 2))
         self._n_waypoints = np.zeros((n_copies, 0), dtype=int)
@@ -72,7 +89,7 @@ class WorldBatch:
 
     @property
     def n_copies(self) -> int:
-        return len(self._worlds)
+        return len(self._spaces)
 
     def scenario(self, copy: int) -> Scenario:
         """The scenario copy ``copy`` was last reset to."""
@@ -92,10 +109,9 @@ class WorldBatch:
                 f"WorldBatch copy {copy}: scenario {scenario.name!r} has {len(routes)} robots, the other copies "
                 f"{self.poses.shape[1]}; every copy needs the same number"
             )
-        self._scenarios[copy] = scenario
-        self._grown_stale[copy] = self._world_is_stale[copy] = True
-        self._in_contact[copy] = self._has_space[copy] = False
-        self._worlds[copy].drop_space()
+        self._scenarios[copy], self._spaces[copy] = scenario, None
+        self._grown_stale[copy] = True
+        self._in_contact[copy] = False
         self.poses[copy] = start_poses(scenario)
         longest = max(len(route.waypoints) for route in routes)
         if longest > self._waypoints.shape[2]:
@@ -141,7 +157,7 @@ class WorldBatch:
             ParameterError: (a ``ValueError``) unless ``dt`` is in ``TIME_STEP_S``.
         """
         if not 0.0 < dt <= MAX_TIME_STEP_S:
-            TIME_STEP_S.check("WorldBatch.step", "dt", dt)
+            TIME_STEP_S.check("World.step", "dt", dt)
         before = self.poses[copies]
         controls = self._waypoint_controls(copies, before) if commands is None else np.asarray(commands, dtype=float)
         after = unicycle_moves(before, controls, dt)
@@ -161,29 +177,28 @@ class WorldBatch:
             shapes = shape_arrays(self._grown_geometry(copies[free]))
             moves = (before[free], controls[free], dt, 2 * self.robot_radius_m + CONTACT_GAP_M, near_static[free])
             free = free[contact_free(copies[free], *moves, *shapes)]
-            substeps = math.ceil(dt / self._max_physics_step_s - 1e-9)  # as World.drive_in_contact
+            substeps = math.ceil(dt / self.max_physics_step_s - 1e-9)  # as ContactSpace.drive
             after[free] = free_substeps(before[free], controls[free], dt, substeps)  # Chipmunk's free-body integration
             contact[free] = False
         for copy in copies[was_in_contact & ~contact].tolist():  # their runs of contact steps end
-            world = self._worlds[copy]
-            world.end_contacts()  # as the single World does on a free step
-            if np.count_nonzero(self._has_space & ~self._in_contact) > MAX_IDLE_SPACES:
-                world.drop_space()  # built again, alike, at its next contact step
-                self._has_space[copy] = False
+            self._spaces[copy].end_contacts()
+            idle = np.array([space is not None for space in self._spaces]) & ~self._in_contact
+            if np.count_nonzero(idle) > MAX_IDLE_SPACES:
+                self._spaces[copy] = None  # built again, alike, at its next contact step
         self._in_contact[copies] = contact
         for row in np.flatnonzero(contact).tolist():
-            copy = int(copies[row])
-            world = self._worlds[copy]
-            if self._world_is_stale[copy]:
-                world.reset(self._scenarios[copy])
-                self._world_is_stale[copy] = False
-            self._has_space[copy] = True
-            world.set_poses(before[row])
-            world.drive_in_contact(controls[row].tolist(), dt)
-            after[row] = world.poses
+            after[row] = self.contact_space(int(copies[row])).drive(before[row], controls[row], dt)
+
+    def contact_space(self, copy: int) -> ContactSpace:
+        """Copy ``copy``'s Pymunk space as of its scenario (built when first asked for after ``reset_copy``)."""
+        if self._spaces[copy] is None:
+            arguments = self.robot_radius_m, self.wall_thickness_m, self.max_physics_step_s
+            self._spaces[copy] = ContactSpace(self._scenarios[copy], *arguments)
+        return self._spaces[copy]
 
     def _waypoint_controls(self, copies: np.ndarray, poses: np.ndarray) -> np.ndarray:
-        """``World._waypoint_control`` of every robot of ``copies`` (n, R, 2); advances their waypoints alike."""
+        """The waypoint controls ``[speed, turn_rate]`` of every robot of ``copies`` (n, R, 2); advances their
+        waypoints (``motion_kernels.waypoint_controls``)."""
         return waypoint_controls(
             copies,
             poses,
@@ -192,10 +207,14 @@ class WorldBatch:
             self._loops,
             self._waypoints,
             self._route_speeds,
-            self._tolerance_m,
-            self._gain,
-            self._max_turn_rate,
+            self.waypoint_tolerance_m,
+            self.heading_gain,
+            self.max_turn_rate_rps,
         )
+
+    def waypoint_indices(self, copy: int) -> list[int]:
+        """The waypoint each robot of copy ``copy`` drives to next (its route's length once an open route ends)."""
+        return self._waypoint_index[copy].tolist()
 
     def _grown_geometry(self, copies: np.ndarray) -> StaticGeometry:
         """The walls and obstacles of all N copies grown by ``robot_radius_m + CONTACT_GAP_M``, those of ``copies``
@@ -211,3 +230,8 @@ class WorldBatch:
             self._grown = base.with_copies(stale, fresh)
             self._grown_stale[stale] = False
         return self._grown
+
+
+def start_poses(scenario: Scenario) -> list[tuple[float, float, float]]:
+    """Each robot's pose ``(x, y, heading)`` at the start of its route, heading wrapped to [-pi, pi)."""
+    return [(*route.start_pose[:2], wrap_angle(route.start_pose[2])) for route in scenario.routes]
