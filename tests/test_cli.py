@@ -180,6 +180,7 @@ def test_benchmark_reports_every_goal(capsys, monkeypatch):
             "warm_start_s",
         }
     )
+    assert figures["cold_start_all_envs_s"] > 0
     for start in ("cold_start_s", "warm_start_s"):
         assert figures[start] > 0 and result["goals_met"][start] == (figures[start] <= result["goals"][start])
     ppo_fps, cartpole_ppo_fps = figures["ppo_landmark_selection_fps"], figures["ppo_cartpole_fps"]

@@ -225,4 +225,4 @@ def test_a_plot_path_that_cannot_be_written_stops_before_the_run(tmp_path, capsy
 def test_a_failing_first_step_process_is_a_runtime_error_quoting_it(monkeypatch):
     monkeypatch.setattr(startup_timing, "FIRST_STEP_SCRIPT", "raise SystemExit('no envs here')")
     with pytest.raises(RuntimeError, match=r"the first-step process failed \(exit 1\): no envs here"):
-        startup_timing.first_step_seconds("/nonexistent-cache-dir")
+        startup_timing.first_step_seconds("/nonexistent-cache-dir", ["infonav/LandmarkSelection-v0"])

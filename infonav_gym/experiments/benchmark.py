@@ -30,7 +30,8 @@ Parallel evaluation and RLlib (``infonav_gym.experiments.distributed_timing``): 
 LandmarkSelection-v0 episodes per default agent with ``--workers 2`` against 1, and the env-steps/s RLlib's
 env runners sample on the team env with 2 runners against 1 and on the exploration env with 1 (when Ray imports).
 Start-up (``infonav_gym.experiments.startup_timing``): ``cold_start_s`` and ``warm_start_s``, the wall time of a
-fresh process that makes, resets and steps every registered env, with an empty and then a filled numba cache.
+fresh process that makes, resets and steps a registered env (the slowest env's), with an empty and then a filled
+numba cache; ``cold_start_all_envs_s``, every env in one process with an empty cache.
 Figures named ``*_us``, ``*_ms``, ``*_kb_per_env``, ``*_time_ratio`` or ``*_start_s`` meet their goal at or below
 it, all others at or above; a goal whose figure was not measured (its env, a peer or Ray absent) is met ``None``.
 """
@@ -325,7 +326,7 @@ def run_benchmark(
     scale = min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens these too
     figures.update(evaluation_workers_figures(min(rounds, 3), seed, max(2, round(EVALUATION_EPISODES * scale))))
     figures.update(rllib_runner_figures(seed, max(100, round(RLLIB_SAMPLE_STEPS * scale))))
-    figures.update(startup_figures())
+    figures.update(startup_figures(benchmarked_env_ids()))
     met = {}
     for name, goal in GOALS.items():  # None: not measured
         value = figures.get(name)
