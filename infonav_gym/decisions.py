@@ -56,6 +56,16 @@ def top_k_tied(values, k: int, axis: int = -1) -> np.ndarray:
     return np.moveaxis(np.stack(picks, axis=-1) if picks else np.zeros((*values.shape[:-1], 0), int), -1, axis)
 
 
+def descending_tied(values) -> np.ndarray:
+    """The indices of 1-D ``values`` from largest to smallest, a run of values each tied with the one before it
+    (``tie_threshold``) in index order: an order that last-digit differences between CPUs do not reshuffle."""
+    values = np.asarray(values, dtype=float)
+    order = np.argsort(-values, kind="stable")
+    ordered = values[order]
+    new_run = np.concatenate(([True], ordered[1:] < tie_threshold(ordered[:-1])))
+    return order[np.lexsort((order, np.cumsum(new_run)))]
+
+
 def _first_tied(values: np.ndarray, eligible: np.ndarray) -> np.ndarray:
     """The lowest index along the last axis of an ``eligible`` value tied with the best eligible one."""
     values = np.where(eligible & ~np.isnan(values), values, -np.inf)

@@ -14,7 +14,9 @@ from infonav_gym.registration import icp, range_image_to_points
 from infonav_gym.registration.control_points import (
     CONTROL_POINT_STRATEGIES,
     DEFAULT_POSE_COVARIANCE,
+    NORMAL_SPACE_BINS,
     ControlPointGeometry,
+    balanced_picks,
     control_point_geometry,
     select_control_points,
 )
@@ -37,6 +39,28 @@ def wall_scan() -> LadarScan:
         boxes=[Box((12.0, -3.0, 0.0), (14.0, 3.0, 6.0))],
     )
     return Ladar().scan(terrain, [0.0, 0.0, 0.0], np.random.default_rng(0))
+
+
+@pytest.fixture(scope="module")
+def corridor_scan() -> LadarScan:
+    """A corridor along x (walls at y = +-3 m) over level ground, with one low block 15 m ahead: the ground and walls
+    fix z, roll, pitch, y and yaw many times over, only the block's face fixes the along-track x."""
+    walls = [Box((-40.0, 3.0, 0.0), (40.0, 3.5, 4.0)), Box((-40.0, -3.5, 0.0), (40.0, -3.0, 4.0))]
+    block = Box((15.0, -0.4, 0.0), (15.8, 0.4, 1.0))
+    terrain = flat_terrain(size_m=120.0, cell_m=1.0).with_obstacles(boxes=[*walls, block])
+    return Ladar().scan(terrain, [0.0, 0.0, 0.0], np.random.default_rng(0))
+
+
+def _stability(geometry: ControlPointGeometry, indices) -> np.ndarray:
+    """Gelfand et al.'s covariance ``C = sum F F^T`` of the returns ``indices``, ``F = [(p - c) x n / L, n]``, with
+    the centroid ``c`` and mean distance ``L`` of all usable returns (the same frame for every selector)."""
+    usable = np.isfinite(geometry.error_var_m2)
+    centroid = geometry.points_m[usable].mean(axis=0)
+    scale = np.linalg.norm(geometry.points_m[usable] - centroid, axis=1).mean()
+    chosen = np.asarray(indices)[usable[indices]]
+    offsets, normals = geometry.points_m[chosen] - centroid, geometry.normals[chosen]
+    constraints = np.concatenate([np.cross(offsets, normals) / scale, normals], axis=1)
+    return constraints.T @ constraints
 
 
 @pytest.fixture(scope="module")
@@ -183,6 +207,61 @@ def test_entropy_beats_random_and_uniform_in_mutual_information(rugged_scans, wa
                 assert entropy >= geometry.mutual_information(random)
 
 
+def test_covariance_sampling_keeps_the_weak_direction_and_the_lowest_condition_number(corridor_scan):
+    geometry = control_point_geometry(corridor_scan)
+    weakest = np.linalg.eigh(_stability(geometry, np.arange(_returns(corridor_scan))))[1][:, 0]
+    assert abs(weakest[3]) > 0.9, "the corridor's weak direction is the along-track translation"
+    for k in (100, 400):
+        picks = {
+            strategy: select_control_points(corridor_scan, k, strategy, np_random=np.random.default_rng(3))
+            for strategy in ("random", "uniform", "normal_space", "covariance")
+        }
+        stability = {strategy: _stability(geometry, indices) for strategy, indices in picks.items()}
+        condition = {strategy: np.linalg.cond(matrix) for strategy, matrix in stability.items()}
+        weak = {strategy: weakest @ matrix @ weakest for strategy, matrix in stability.items()}
+        for other in ("random", "uniform", "normal_space"):
+            assert condition["covariance"] < condition[other], f"k={k}: {condition}"
+            assert weak["covariance"] > 2 * weak[other], f"k={k}: {weak}"
+
+
+def test_normal_space_sampling_takes_every_normal_bucket_in_turn(corridor_scan):
+    geometry = control_point_geometry(corridor_scan)
+    usable = np.flatnonzero(np.isfinite(geometry.error_var_m2))
+    normals = geometry.normals
+    bands, sectors = NORMAL_SPACE_BINS  # equal-area bands of the normal's z, sectors of its azimuth
+    band = np.minimum(((normals[:, 2] + 1) / 2 * bands).astype(int), bands - 1)
+    sector = np.minimum(
+        ((np.arctan2(normals[:, 1], normals[:, 0]) + np.pi) / (2 * np.pi) * sectors).astype(int), sectors - 1
+    )
+    bucket = band * sectors + sector
+    sizes = np.bincount(bucket[usable], minlength=bands * sectors)
+    assert np.count_nonzero(sizes) >= 4 and sizes.max() > 20 * sizes[sizes > 0].min()  # the ground dominates
+    for k in (np.count_nonzero(sizes), 300):
+        indices = select_control_points(corridor_scan, k, "normal_space", np_random=np.random.default_rng(5))
+        taken = np.bincount(bucket[indices], minlength=bands * sectors)
+        expected = np.zeros_like(sizes)  # every bucket gets a pick before any gets a second, and so on
+        for _ in range(k):
+            expected[np.argmin(np.where(expected < sizes, expected, np.iinfo(int).max))] += 1
+        np.testing.assert_array_equal(np.sort(taken), np.sort(expected))
+        assert set(indices.tolist()) <= set(usable.tolist())
+
+
+def test_the_balanced_picks_follow_gelfands_greedy_rule():
+    """The compiled loop against the rule written out: pick for the least constrained direction its strongest
+    untaken return."""
+    rng = np.random.default_rng(11)
+    squared = rng.random((60, 6)) ** 3
+    orders = np.argsort(-squared, axis=0, kind="stable").T
+    expected, totals, taken = [], np.zeros(6), set()
+    for _ in range(40):
+        direction = int(np.argmin(totals))
+        point = next(int(p) for p in orders[direction] if int(p) not in taken)
+        taken.add(point)
+        expected.append(point)
+        totals += squared[point]
+    np.testing.assert_array_equal(balanced_picks(squared, orders, 40, 1e-9, 1e-12), expected)
+
+
 # ---------------------------------------------------------------- registration accuracy (needs icp)
 
 PAIR_SEEDS = range(24)
@@ -268,9 +347,21 @@ def test_bad_strategy_and_k(wall_scan):
             select_control_points(wall_scan, k)
 
 
-def test_random_needs_a_generator(wall_scan):
-    with pytest.raises(ValueError, match="strategy 'random' needs np_random"):
-        select_control_points(wall_scan, 10, "random")
+@pytest.mark.parametrize("strategy", ["random", "normal_space"])
+def test_drawing_strategies_need_a_generator(wall_scan, strategy):
+    with pytest.raises(ValueError, match=f"strategy '{strategy}' needs np_random"):
+        select_control_points(wall_scan, 10, strategy)
+
+
+@pytest.mark.parametrize("strategy", ["entropy", "normal_space", "covariance"])
+def test_too_few_returns_with_a_normal_is_a_clear_error(wall_scan, strategy):
+    rows, columns = np.indices(wall_scan.no_return.shape)
+    checkered = dataclasses.replace(wall_scan, no_return=wall_scan.no_return | ((rows + columns) % 2 == 1))
+    with pytest.raises(
+        ValueError, match=f"0 returns with a surface normal .* fewer than k = 10: strategy '{strategy}'"
+    ):
+        select_control_points(checkered, 10, strategy, np_random=np.random.default_rng(0))
+    assert len(select_control_points(checkered, 10, "uniform")) == 10  # the strategies without normals still choose
 
 
 @pytest.mark.parametrize(

@@ -11,7 +11,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from agents import GreedyEntropyAgent, PlannerAgent
-from infonav_gym.decisions import DECISION_ATOL, DECISION_RTOL, argmax_tied, is_positive, top_k_tied
+from infonav_gym.decisions import (
+    DECISION_ATOL,
+    DECISION_RTOL,
+    argmax_tied,
+    descending_tied,
+    is_positive,
+    top_k_tied,
+)
 from infonav_gym.experiments.replay.policies import select_greedy, select_nearest
 from infonav_gym.multi import cooperative_exploration_v0
 from infonav_gym.registration.control_points import DEFAULT_POSE_COVARIANCE, select_control_points
@@ -131,6 +138,7 @@ def test_values_inside_the_band_tie_and_the_lowest_index_wins():
     assert top_k_tied([1.0, best, inside, -np.inf], 4).tolist() == [1, 2, 0, 3]
     assert top_k_tied(np.array([[1.0, 2.0, 3.0]]), 5, axis=1).tolist() == [[2, 1, 0]]
     assert is_positive([0.0, DECISION_ATOL / 2, 1e-6]).tolist() == [False, False, True]
+    assert descending_tied([1.0, inside, best, 3.0, best * (1 + 0.5 * DECISION_RTOL)]).tolist() == [3, 1, 2, 4, 0]
 
 
 @settings(max_examples=200, deadline=None)
@@ -139,6 +147,7 @@ def test_apart_from_near_ties_top_k_is_the_stable_descending_order(levels, k):
     """Values on a grid 1e-3 apart (no near-ties but exact ones): the stable sort's order."""
     values = np.array(levels) * 1e-3
     assert top_k_tied(values, k).tolist() == np.argsort(-values, kind="stable")[:k].tolist()
+    assert descending_tied(values).tolist() == np.argsort(-values, kind="stable").tolist()
     assert argmax_tied(values) == int(np.argmax(values))
 
 
@@ -194,4 +203,21 @@ def test_the_control_point_picks_are_the_same_under_a_perturbed_pose_prior():
         for k in (50, 400):
             reference = select_control_points(scan, k, pose_covariance=DEFAULT_POSE_COVARIANCE)
             again = select_control_points(scan, k, pose_covariance=nudged_symmetric(DEFAULT_POSE_COVARIANCE, rng))
+            np.testing.assert_array_equal(again, reference)
+
+
+@pytest.mark.parametrize("strategy", ["covariance", "normal_space"])
+def test_the_standard_selectors_pick_the_same_from_a_perturbed_scan(strategy):
+    """Level ground with a wall: thousands of returns whose constraints are equal in exact arithmetic."""
+    flat = flat_terrain(size_m=120.0, cell_m=1.0).with_obstacles(boxes=[Box((12.0, -3.0, 0.0), (14.0, 3.0, 6.0))])
+    rugged = make_terrain(np.random.default_rng(3), roughness=1.0, n_trees=25, n_rocks=8)
+    rng = np.random.default_rng(1)
+    for terrain in (flat, rugged):
+        scan = Ladar().scan(terrain, [0.0, 0.0, 0.3], np.random.default_rng(0))
+        nudged = dataclasses.replace(
+            scan, ranges_m=scan.ranges_m * (1 + 1e-13 * rng.standard_normal(scan.ranges_m.shape))
+        )
+        for k in (50, 400):
+            reference = select_control_points(scan, k, strategy, np_random=np.random.default_rng(2))
+            again = select_control_points(nudged, k, strategy, np_random=np.random.default_rng(2))
             np.testing.assert_array_equal(again, reference)

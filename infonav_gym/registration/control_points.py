@@ -40,6 +40,26 @@ greedily by mutual-information gain per point, each gain conditioned on everythi
 points spread over the patches that tell about different motions. For speed at most
 ``MAX_GREEDY_ROUNDS`` rounds are run: a round takes the next chunk of each of the
 ``ceil(k / (CHUNK_POINTS * MAX_GREEDY_ROUNDS))`` patches with the best gains.
+
+The field's standard selectors, for comparison at the same budget:
+
+- ``"random"``: drawn without replacement; ``"uniform"``: evenly spaced in row-major order (a grid over the image);
+- ``"normal_space"``, normal-space sampling (Rusinkiewicz and Levoy, "Efficient variants of the ICP algorithm",
+  3DIM 2001): the usable returns are bucketed by the direction of their normal (``NORMAL_SPACE_BINS``: bands of
+  equal area on the sphere by the normal's z, times sectors of its azimuth) and drawn from the buckets in turn,
+  one random return of every non-empty bucket per round, so that rare orientations (a wall in a field of ground)
+  are as well represented as common ones;
+- ``"covariance"``, covariance (stability) sampling (Gelfand, Ikemoto, Rusinkiewicz and Levoy, "Geometrically
+  stable sampling for the ICP algorithm", 3DIM 2003; libpointmatcher's and PCL's ``CovarianceSampling``): each
+  usable return constrains the motion by ``F = [(p - c) x n / L, n]`` (torque first, rotation about the
+  centroid ``c``; torques normalised by ``L``, the mean distance of the points from ``c``, libpointmatcher's
+  default); with ``C = sum F F^T = X diag(lambda) X^T``, returns are picked greedily for the eigen-direction
+  whose summed squared constraint ``sum (F . x_j)^2`` over the picks is lowest, each time the untaken return
+  that constrains it most, which balances the six directions and keeps the condition number of the picks'
+  ``C`` low (what stability sampling minimises).
+
+Ties (equal constraints or totals, within ``decisions.DECISION_RTOL``) go to the lower index, so a last-digit
+difference between CPUs does not change the picks.
 """
 
 from __future__ import annotations
@@ -50,14 +70,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import distance_transform_cdt, uniform_filter
 
-from infonav_gym.decisions import top_k_tied
+from infonav_gym.compiled import kernel
+from infonav_gym.decisions import DECISION_ATOL, DECISION_RTOL, descending_tied, top_k_tied
 from infonav_gym.geometry import cross
 from infonav_gym.information import information_gain_of_information, log_det_spd
 from infonav_gym.sensors.ladar import LadarScan
 from infonav_gym.sensors.pixel_grid import unit_directions
 
-CONTROL_POINT_STRATEGIES = ("entropy", "random", "uniform", "all")
+CONTROL_POINT_STRATEGIES = ("entropy", "random", "uniform", "normal_space", "covariance", "all")
+NEEDS_NP_RANDOM = ("random", "normal_space")  # the strategies that draw
 PATCH_SHAPE = (8, 10)  # rows x columns of pixels per patch of the "entropy" strategy
+NORMAL_SPACE_BINS = (6, 12)  # "normal_space" buckets: equal-area bands of the normal's z x sectors of its azimuth
 CHUNK_POINTS = 5  # points a patch contributes per greedy pick
 MAX_GREEDY_ROUNDS = 10  # greedy rounds; a round picks several patches' chunks when k needs more
 NORMAL_WINDOW = 5  # side of the pixel box whose points are averaged before taking normals
@@ -291,27 +314,30 @@ def select_control_points(
         strategy: one of ``CONTROL_POINT_STRATEGIES``: ``"entropy"`` (the most information about
             the motion, see the module docstring), ``"random"`` (drawn without replacement from
             ``np_random``), ``"uniform"`` (evenly spaced in row-major order, about every
-            ``N / k``-th return), ``"all"``.
+            ``N / k``-th return), ``"normal_space"`` (Rusinkiewicz and Levoy 2001, drawn from
+            ``np_random``), ``"covariance"`` (Gelfand et al. 2003's stability sampling), ``"all"``.
         pose_covariance: prior covariance (6, 6) of the frame-to-frame motion over (x, y, z [m],
             rotation about x, y, z [rad]) for ``"entropy"``; default ``DEFAULT_POSE_COVARIANCE``.
-        np_random: the generator for ``"random"`` (required there, unused otherwise).
+        np_random: the generator of ``"random"`` and ``"normal_space"`` (required there, unused otherwise).
 
     Returns:
         Sorted unique int64 indices into the row-major list of returns (the rows of
         ``point_cloud(range_image)`` and ``range_image_to_points``), ``min(k, N)`` of them
-        (all ``N`` for ``"all"``).
+        (all ``N`` for ``"all"``, or when ``k >= N``).
 
     Raises:
         ValueError: for an unknown strategy, ``k < 1``, a bad ``pose_covariance``, a range image
-            without returns, or ``"random"`` without ``np_random``.
+            without returns, ``"random"`` or ``"normal_space"`` without ``np_random``, or a range image
+            with fewer than ``k`` returns that have a surface normal (``k < N``) for the strategies that
+            need normals (``"entropy"``, ``"normal_space"``, ``"covariance"``).
     """
     if strategy not in CONTROL_POINT_STRATEGIES:
         raise ValueError(f"unknown control point strategy {strategy!r}; expected one of {CONTROL_POINT_STRATEGIES}")
     k = _check_k(k)
     _check_scan(range_image)
     covariance = check_pose_covariance(pose_covariance)
-    if strategy == "random" and np_random is None:
-        raise ValueError("strategy 'random' needs np_random (a numpy Generator) to draw the control points")
+    if strategy in NEEDS_NP_RANDOM and np_random is None:
+        raise ValueError(f"strategy {strategy!r} needs np_random (a numpy Generator) to draw the control points")
     count = int(np.count_nonzero(~np.asarray(range_image.no_return, dtype=bool)))
     if strategy == "all" or k >= count:
         return np.arange(count, dtype=np.int64)
@@ -319,7 +345,68 @@ def select_control_points(
         return np.floor((np.arange(k) + 0.5) * (count / k)).astype(np.int64)
     if strategy == "random":
         return np.sort(np_random.choice(count, size=k, replace=False)).astype(np.int64)
-    return _most_informative(_geometry(range_image, covariance), k)
+    geometry = _geometry(range_image, covariance)
+    usable = np.flatnonzero(np.isfinite(geometry.error_var_m2))
+    if len(usable) < k:
+        raise ValueError(
+            f"range_image has {len(usable)} returns with a surface normal (all four neighbours on one surface), "
+            f"fewer than k = {k}: strategy {strategy!r} cannot choose k control points"
+        )
+    if strategy == "normal_space":
+        return np.sort(usable[_normal_space_picks(geometry.normals[usable], k, np_random)])
+    if strategy == "covariance":
+        return np.sort(usable[_stability_picks(geometry.points_m[usable], geometry.normals[usable], k)])
+    return _most_informative(geometry, k)
+
+
+def _normal_space_picks(normals: np.ndarray, k: int, np_random: np.random.Generator) -> np.ndarray:
+    """``k`` rows of ``normals`` (U, 3) drawn from their ``NORMAL_SPACE_BINS`` buckets in turn (random within each)."""
+    bands, sectors = NORMAL_SPACE_BINS
+    band = np.minimum(((normals[:, 2] + 1.0) / 2.0 * bands).astype(np.int64), bands - 1)  # z: equal-area bands
+    azimuth = np.arctan2(normals[:, 1], normals[:, 0])
+    sector = np.minimum(((azimuth + math.pi) / (2 * math.pi) * sectors).astype(np.int64), sectors - 1)
+    bucket = band * sectors + sector
+    shuffled = np_random.permutation(len(normals))
+    grouped = shuffled[np.argsort(bucket[shuffled], kind="stable")]  # by bucket, random within each
+    grouped_bucket = bucket[grouped]
+    turn = np.arange(len(grouped)) - np.searchsorted(grouped_bucket, grouped_bucket)  # its place in its bucket
+    return grouped[np.lexsort((grouped_bucket, turn))[:k]]  # every bucket's first, then every second, ...
+
+
+def _stability_picks(points: np.ndarray, normals: np.ndarray, k: int) -> np.ndarray:
+    """``k`` rows of ``points`` / ``normals`` (U, 3) by Gelfand et al.'s covariance sampling (the module docstring)."""
+    centred = points - points.mean(axis=0)
+    scale = float(np.mean(np.sqrt(np.einsum("ni,ni->n", centred, centred))))
+    constraints = np.concatenate([cross(centred, normals) / max(scale, 1e-12), normals], axis=1)  # (U, 6)
+    _, directions = np.linalg.eigh(constraints.T @ constraints)
+    squared = (constraints @ directions) ** 2  # each return's constraint on each eigen-direction
+    orders = np.stack([descending_tied(column) for column in squared.T])  # (6, U), strongest first
+    return balanced_picks(squared, orders, k, DECISION_RTOL, DECISION_ATOL)
+
+
+@kernel
+def balanced_picks(squared, orders, k, rtol, atol):
+    """Covariance sampling's greedy loop: ``k`` distinct rows of ``squared`` (U, 6), each the strongest untaken row
+    (by ``orders`` (6, U)) of the direction whose summed ``squared`` over the picks is lowest (ties within
+    ``rtol`` / ``atol`` to the lower direction)."""
+    n_points, n_directions = squared.shape
+    taken = np.zeros(n_points, dtype=np.bool_)
+    position = np.zeros(n_directions, dtype=np.int64)
+    totals = np.zeros(n_directions)
+    picks = np.empty(k, dtype=np.int64)
+    for pick in range(k):
+        least = totals.min()
+        direction = 0
+        while totals[direction] > least + rtol * abs(least) + atol:
+            direction += 1
+        while taken[orders[direction, position[direction]]]:
+            position[direction] += 1
+        point = orders[direction, position[direction]]
+        taken[point] = True
+        picks[pick] = point
+        for column in range(n_directions):
+            totals[column] += squared[point, column]
+    return picks
 
 
 def _most_informative(geometry: ControlPointGeometry, k: int) -> np.ndarray:
