@@ -9,6 +9,7 @@ extra, so it is imported only when a ``Renderer`` is built.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -33,6 +34,14 @@ def matplotlib_figure(purpose: str, **kwargs):
     from matplotlib.figure import Figure
 
     return Figure(**kwargs)
+
+
+def save_figure(figure, path, dpi: int, **savefig_kwargs) -> Path:
+    """Write ``figure`` (``savefig``) to ``path``, its directory created if missing; return the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=dpi, **savefig_kwargs)
+    return path
 
 
 _WHITE = (255, 255, 255)

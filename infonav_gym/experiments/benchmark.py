@@ -74,7 +74,7 @@ from infonav_gym.experiments.vector_timing import (
     vmas_navigation_run,
 )
 from infonav_gym.registry import PARALLEL, api_of, make_env, registered_envs
-from infonav_gym.rendering import matplotlib_figure
+from infonav_gym.rendering import matplotlib_figure, save_figure
 
 GOALS = {
     "landmark_selection_vs_cartpole_ratio": 0.10,
@@ -377,6 +377,4 @@ def plot_throughput(figures: dict, path: Path | str) -> Path:
     axes.grid(True, which="both", alpha=0.3)
     axes.legend(fontsize="small")
     figure.tight_layout()
-    path = Path(path)
-    figure.savefig(path, dpi=120)
-    return path
+    return save_figure(figure, path, dpi=120)

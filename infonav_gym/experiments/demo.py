@@ -63,7 +63,7 @@ def demo_table(demo: dict) -> str:
 
 def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> Path:
     """Fig. 2 as a picture: the ic a landmark would bring, over where it could be, from the start pose."""
-    from infonav_gym.rendering import matplotlib_figure
+    from infonav_gym.rendering import matplotlib_figure, save_figure
 
     env = gym.make("infonav/LandmarkSelection-v0", scenario="corridor", n_candidates=4).unwrapped
     _, info = env.reset(seed=seed)
@@ -88,7 +88,5 @@ def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> P
     axes.set_ylabel("landmark y [m]")
     axes.set_zlabel("ic [nats]")
     axes.set_title("Information contribution of a landmark, from the vehicle at the corridor start")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=120, bbox_inches="tight")
     env.close()
-    return path
+    return save_figure(figure, path, dpi=120, bbox_inches="tight")

@@ -26,7 +26,7 @@ from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, trai
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
 from infonav_gym.experiments.paths import Interrupted, output_file
 from infonav_gym.registry import registered_envs
-from infonav_gym.rendering import matplotlib_figure
+from infonav_gym.rendering import matplotlib_figure, save_figure
 
 AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH", "rllib:DIR")
 PPO_PREFIX = "ppo:"
@@ -340,8 +340,7 @@ def plot_results(results: dict, path: Path) -> Path:
         axis.set_title(title, fontsize=10)
     figure.suptitle(f"{results['env_id']}: {results['episodes']} episodes per agent", fontsize=11)
     figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    return path
+    return save_figure(figure, path, dpi=110)
 
 
 def write_results(results: dict, stem: Path, command: str) -> list[Path]:

@@ -14,7 +14,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive
-from infonav_gym.rendering import matplotlib_figure, require_extra
+from infonav_gym.rendering import matplotlib_figure, require_extra, save_figure
 
 STRIP_FRAMES = 6  # frames in PREFIX.png
 STRIP_COLUMNS = 3
@@ -108,5 +108,4 @@ def write_strip(episode: RenderedEpisode, path: Path, title: str) -> Path:
         axis.set_title(f"step {steps[index]}", fontsize=9)
     figure.suptitle(title, fontsize=10)
     figure.tight_layout()
-    figure.savefig(path, dpi=150)
-    return path
+    return save_figure(figure, path, dpi=150)

@@ -9,7 +9,7 @@ from scipy import stats
 
 from infonav_gym.estimation.consistency import chi2_bounds
 from infonav_gym.experiments.replay.noise_model import NoiseModel
-from infonav_gym.rendering import matplotlib_figure
+from infonav_gym.rendering import matplotlib_figure, save_figure
 
 
 def plot_calibration(model: NoiseModel, errors: dict, path) -> Path:
@@ -52,9 +52,7 @@ def plot_calibration(model: NoiseModel, errors: dict, path) -> Path:
         axis.set_title(f"{channel}: systematic part removed")
         axis.legend(fontsize=8)
     figure.tight_layout()
-    path = Path(path)
-    figure.savefig(path, dpi=110)
-    return path
+    return save_figure(figure, path, dpi=110)
 
 
 def plot_nees_over_time(result: dict, path, title: str = "") -> Path:
@@ -84,6 +82,4 @@ def plot_nees_over_time(result: dict, path, title: str = "") -> Path:
     axes[-1, 0].set_xlabel("replay time [s]")
     figure.suptitle(title or "NEES over time (band: two-sided 95 % chi-square, 3 dof)", fontsize=10)
     figure.tight_layout()
-    path = Path(path)
-    figure.savefig(path, dpi=110)
-    return path
+    return save_figure(figure, path, dpi=110)

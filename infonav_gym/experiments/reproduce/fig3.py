@@ -21,7 +21,7 @@ from infonav_gym.experiments.reproduce import files_line, paper_label
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.team import DEFAULT_OUTAGE
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
-from infonav_gym.rendering import matplotlib_figure
+from infonav_gym.rendering import matplotlib_figure, save_figure
 
 SEEDS_COUNT = "how many seeds the outage RMSE averages"  # what ``n_seeds`` counts, for its error
 FIG3_ENV_CONFIG = {"scenario": "convoy", "n_robots": 3, "max_cycles": 120}
@@ -305,7 +305,4 @@ def plot_fig3(fig3: dict, path: Path) -> Path:
     _draw_paths(paths_axes, fig3)
     _draw_standard_deviations(std_axes, fig3)
     figure.suptitle(f"Fig. 3: laser-based cooperative localization on the convoy, seed {fig3['seed']}")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=120, bbox_inches="tight")
-    return path
+    return save_figure(figure, path, dpi=120, bbox_inches="tight")

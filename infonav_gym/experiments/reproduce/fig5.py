@@ -35,7 +35,7 @@ from tqdm.auto import tqdm
 
 from infonav_gym.experiments.reproduce import files_line
 from infonav_gym.information import histogram_entropy
-from infonav_gym.rendering import matplotlib_figure
+from infonav_gym.rendering import matplotlib_figure, save_figure
 from infonav_gym.sensors.camera import Camera
 from infonav_gym.sensors.ladar import Ladar, to_display_image
 from infonav_gym.world.terrain import Box, Terrain
@@ -315,7 +315,4 @@ def plot_fig5(fig5: dict, images: list[dict], path: Path) -> Path:
         f"entropies, seed {fig5['seed']}.\nRows 1-2: two similar views of vegetated, rugged terrain (LADAR more "
         f"informative); row 3: a building {fig5['building']['distance_m']:.1f} m ahead (camera more informative)."
     )
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=110, bbox_inches="tight")
-    return path
+    return save_figure(figure, path, dpi=110, bbox_inches="tight")

@@ -30,7 +30,7 @@ from infonav_gym.registration.control_points import select_control_points
 from infonav_gym.registration.frame_pairs import FRAME_PAIR_ICP, FramePair, registration_error, terrain_frame_pair
 from infonav_gym.registration.gicp import gicp_covariances
 from infonav_gym.registration.icp import estimate_normals
-from infonav_gym.rendering import matplotlib_figure
+from infonav_gym.rendering import matplotlib_figure, save_figure
 from infonav_gym.sensors.ladar import sensor_points
 
 SEEDS_COUNT = "how many frame pairs the statistics register"  # what ``n_seeds`` counts, for its error
@@ -166,7 +166,7 @@ _POINT_SIZE = 1.5
 _RESIDUAL_SCALE_M = 0.2  # colour scale of the residuals [m]
 
 
-def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path: Path) -> None:
+def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path: Path) -> Path:
     """Write ``path``: rows = top and side views, columns = before (odometry) and after (ICP) registration.
 
     Points are in the older frame's body frame at its optical centre: the older frame in gray,
@@ -218,4 +218,4 @@ def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path:
         "Fig. 6: consecutive 3D LADAR frames (32 x 180) of a vehicle pitching and rolling over rugged terrain, "
         f"before and after ICP ({registration['points']} points, {registration['iterations']} iterations)"
     )
-    figure.savefig(path, dpi=120)
+    return save_figure(figure, path, dpi=120)
