@@ -41,6 +41,7 @@ from scipy import optimize, stats
 from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.experiments.replay.metrics import groundtruth_at
 from infonav_gym.experiments.replay.noise_model import ODOMETRY_HORIZON_S, NoiseModel, RobotNoise, integrated_variance
+from infonav_gym.experiments.replay.timeline import held_integral, running_sums
 from infonav_gym.geometry import wrap_angle
 
 OFFSET_GRID_S = np.round(np.arange(-0.5, 0.5001, 0.01), 2)  # [s] candidate clock offsets
@@ -110,17 +111,12 @@ def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, sca
     heading = np.unwrap(poses[:, 2])
     middle = heading[:-1] + 0.5 * np.diff(heading)
     forward = np.einsum("ti,ti->t", np.diff(poses[:, :2], axis=0), np.stack([np.cos(middle), np.sin(middle)], -1))
-    true_cumulative = np.column_stack([np.concatenate([[0.0], np.cumsum(forward)]), heading - heading[0]])
-    durations = np.diff(times, append=times[-1])
+    true_cumulative = np.column_stack([running_sums(forward), heading - heading[0]])
     odometry_cumulative = np.column_stack(
-        [
-            np.interp(grid, times, np.concatenate([[0.0], np.cumsum(odometry[:-1, column] * durations[:-1])]))
-            / scales[column - 1]
-            for column in (1, 2)
-        ]
+        [np.interp(grid, times, held_integral(times, odometry[:, column])) / scales[column - 1] for column in (1, 2)]
     )
     stride = int(round(window_s / ODOMETRY_GRID_S))
-    invalid_before = np.concatenate([[0], np.cumsum(~valid)])
+    invalid_before = running_sums(~valid)
     starts = np.arange(0, len(grid) - stride, int(round(WINDOW_STEP_S / ODOMETRY_GRID_S)))
     ok = invalid_before[starts + stride + 1] == invalid_before[starts]
     truth = (true_cumulative[starts + stride] - true_cumulative[starts])[ok]
@@ -207,9 +203,7 @@ def fit_integrated_variance(windows_s, variances, independent) -> tuple[float, f
 def travelled(odometry: np.ndarray, times) -> np.ndarray:
     """Forward progress by odometry (speed integrated, zero-order hold) [m] up to each of ``times``; the
     distance driven between two times is the difference (the robots drive forward), its noise averaged."""
-    durations = np.diff(odometry[:, 0])
-    knots = np.concatenate([[0.0], np.cumsum(odometry[:-1, 1] * durations)])
-    return np.interp(times, odometry[:, 0], knots)
+    return np.interp(times, odometry[:, 0], held_integral(odometry[:, 0], odometry[:, 1]))
 
 
 def landmark_errors(dataset: MRCLAMDataset, robot: int, offset_s: float = 0.0, odometry_offset_s: float = 0.0) -> dict:

@@ -39,14 +39,23 @@ class Timeline:
         return self.dt * np.arange(self.n_ticks + 1)
 
 
+def running_sums(increments) -> np.ndarray:
+    """Sums of ``increments`` (T, ...) along the first axis from zero: (T + 1, ...), the first row 0."""
+    increments = np.asarray(increments)
+    return np.concatenate([np.zeros((1, *increments.shape[1:])), np.cumsum(increments, axis=0)])
+
+
+def held_integral(times: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """The integral of ``values`` (T,), each held from its time to the next (zero-order), at each of ``times``."""
+    return running_sums(values[:-1] * np.diff(times))
+
+
 def _tick_means(odometry: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Mean of the held (zero-order) odometry readings over each interval between ``edges``; 0 before the first."""
     times = odometry[:, 0]
-    durations = np.diff(times, append=times[-1])
     means = np.zeros((len(edges) - 1, 2))
     for column in (1, 2):
-        knots = np.concatenate([[0.0], np.cumsum(odometry[:-1, column] * durations[:-1])])
-        integral = np.interp(edges, times, knots, left=0.0)
+        integral = np.interp(edges, times, held_integral(times, odometry[:, column]), left=0.0)
         means[:, column - 1] = np.diff(integral) / np.diff(edges)
     return means
 
@@ -94,14 +103,8 @@ def _events(rows: np.ndarray, kind: int, targets: np.ndarray, start: float, dt: 
 def dead_reckoning(initial_poses: np.ndarray, timeline: Timeline) -> np.ndarray:
     """Odometry-only poses at every boundary (n_ticks + 1, N, 3), the filters' Euler steps without updates."""
     speed, turn_rate = timeline.controls[..., 0], timeline.controls[..., 1]
-    headings = initial_poses[:, 2] + np.concatenate(
-        [np.zeros((1, len(initial_poses))), np.cumsum(turn_rate * timeline.dt, axis=0)]
-    )
+    headings = initial_poses[:, 2] + running_sums(turn_rate * timeline.dt)
     steps = speed * timeline.dt
-    x = initial_poses[:, 0] + np.concatenate(
-        [np.zeros((1, len(initial_poses))), np.cumsum(steps * np.cos(headings[:-1]), 0)]
-    )
-    y = initial_poses[:, 1] + np.concatenate(
-        [np.zeros((1, len(initial_poses))), np.cumsum(steps * np.sin(headings[:-1]), 0)]
-    )
+    x = initial_poses[:, 0] + running_sums(steps * np.cos(headings[:-1]))
+    y = initial_poses[:, 1] + running_sums(steps * np.sin(headings[:-1]))
     return np.stack([x, y, wrap_angle(headings)], axis=-1)
