@@ -473,8 +473,8 @@ class Renderer:
         font = self._text_font()
         return font.size(text)[0] if font else _FALLBACK_CHAR_PX * len(text)
 
-    def _draw_text(self, pygame, surface, text: str, colour, corner, background=None) -> None:
+    def _draw_text(self, pygame, surface, text: str, colour, corner) -> None:
         """Blit ``text`` with its top-left at pixel ``corner``; nothing if pygame has no fonts."""
         font = self._text_font()
         if font:
-            surface.blit(font.render(text, True, colour, background), corner)
+            surface.blit(font.render(text, True, colour), corner)

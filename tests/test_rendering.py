@@ -383,9 +383,9 @@ def test_landmarks_are_numbered_from_one_next_to_each_landmark(monkeypatch):
     drawn = []
     original = Renderer._draw_text
 
-    def recording(self, pygame, surface, text, colour, corner, background=None):
+    def recording(self, pygame, surface, text, colour, corner):
         drawn.append((text, colour, tuple(corner)))
-        original(self, pygame, surface, text, colour, corner, background)
+        original(self, pygame, surface, text, colour, corner)
 
     monkeypatch.setattr(Renderer, "_draw_text", recording)
     renderer = Renderer("rgb_array", 600)

@@ -512,12 +512,14 @@ def calibration_table(model) -> str:
     """The fitted parameters as Markdown, one column per robot and pooled."""
     import dataclasses
 
+    from infonav_gym.experiments.replay.report import table_lines
+
     columns = {f"robot {subject}": noise for subject, noise in sorted(model.robots.items())} | {"pooled": model.pooled}
-    lines = ["| parameter | " + " | ".join(columns) + " |", "| --- |" + " --- |" * len(columns)]
-    for field in dataclasses.fields(model.pooled):
-        cells = " | ".join(f"{getattr(noise, field.name):.4g}" for noise in columns.values())
-        lines.append(f"| {field.name} | {cells} |")
-    return "\n".join(lines)
+    rows = [
+        [field.name, *(f"{getattr(noise, field.name):.4g}" for noise in columns.values())]
+        for field in dataclasses.fields(model.pooled)
+    ]
+    return "\n".join(table_lines(["parameter", *columns], rows))
 
 
 def _replay(args, command: str) -> dict:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from tqdm.auto import tqdm
 
-from infonav_gym.experiments.reproduce.fig6 import recall_summary, register, seed_statistics
+from infonav_gym.experiments.reproduce.fig6 import PairRegistration, recall_summary, seed_statistics
 from infonav_gym.registration.frame_pairs import FRAME_PAIR_ICP, terrain_frame_pair
 from infonav_gym.sensors.ladar import Ladar
 
@@ -47,7 +47,7 @@ def candidate_table(seed_sets=SEED_SETS, progress: bool = False) -> dict[str, li
             for seed in seeds:
                 pair = terrain_frame_pair(np.random.default_rng(seed))
                 for name, keywords in settings.items():
-                    errors[name][index].append(register(pair, settings=keywords)["error_after_m"])
+                    errors[name][index].append(PairRegistration(pair, keywords)()["error_after_m"])
                 bar.update()
     return {name: [recall_summary(values) for values in per_set] for name, per_set in errors.items()}
 

@@ -72,11 +72,6 @@ class PairRegistration:
         }
 
 
-def register(pair: FramePair, control_points=None, settings: dict = FRAME_PAIR_ICP) -> dict:
-    """ICP of the newer frame (its ``control_points`` rows, default all) onto the older; errors before and after."""
-    return PairRegistration(pair, settings)(control_points)
-
-
 def recall_summary(errors_m) -> dict:
     """Recall at each of ``RECALL_THRESHOLDS_M``, median and mean of registration errors [m], and the errors."""
     errors_m = np.asarray(errors_m, dtype=float)
@@ -120,7 +115,7 @@ def seed_statistics(seeds, progress: bool = False, settings: dict = FRAME_PAIR_I
 def figures(seed: int, seeds, progress: bool) -> tuple[dict, Callable[[Path], object]]:
     """Fig. 6's frame pair of ``seed`` and the statistics over ``seeds`` (JSON-ready), and the function drawing them."""
     pair = terrain_frame_pair(np.random.default_rng(seed))
-    registration = register(pair)
+    registration = PairRegistration(pair)()
     plotted = {key: value for key, value in registration.items() if key != "transform"}
     result = {
         "icp": dict(FRAME_PAIR_ICP),
