@@ -512,7 +512,7 @@ def calibration_table(model) -> str:
     """The fitted parameters as Markdown, one column per robot and pooled."""
     import dataclasses
 
-    from infonav_gym.experiments.replay.report import table_lines
+    from infonav_gym.experiments.replay.tables import table_lines
 
     columns = {f"robot {subject}": noise for subject, noise in sorted(model.robots.items())} | {"pooled": model.pooled}
     rows = [

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 
 from infonav_gym.estimation import batched
-from infonav_gym.experiments.evaluation import make_agent
+from infonav_gym.experiments.episodes import make_agent
 from infonav_gym.information import expected_information_gain
 
 DEMO_AGENTS = ("greedy", "random")

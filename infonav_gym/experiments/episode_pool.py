@@ -20,6 +20,10 @@ import sys
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 
+from infonav_gym.envs.traits import episode_metrics_of, traits_of
+from infonav_gym.experiments.episodes import episode_infos, make_agent, make_team_agents, parallel_episode_infos
+from infonav_gym.registry import PARALLEL, api_of, make_env
+
 FORKSERVER_PRELOAD = ["infonav_gym.experiments.evaluation", "infonav_gym.envs"]  # the harness, the single envs
 _worker_runner = None  # a pool worker's EpisodeRunner, built once by _start_worker
 
@@ -30,14 +34,10 @@ class EpisodeRunner:
     Args:
         env_id: a registered env id.
         env_kwargs: its config overrides.
-        agent_names: names ``evaluation.make_agent`` takes (random, greedy, planner, ppo:PATH).
+        agent_names: names ``episodes.make_agent`` takes (random, greedy, planner, ppo:PATH).
     """
 
     def __init__(self, env_id: str, env_kwargs: dict, agent_names: Sequence[str]):
-        from infonav_gym.envs.traits import traits_of
-        from infonav_gym.experiments.evaluation import make_agent, make_team_agents
-        from infonav_gym.registry import PARALLEL, api_of, make_env
-
         self.setup = (env_id, dict(env_kwargs), list(agent_names))  # what a worker builds its own runner from
         self.parallel = api_of(env_id) == PARALLEL
         self.env = make_env(env_id, **env_kwargs)
@@ -55,15 +55,11 @@ class EpisodeRunner:
 
     def play(self, task: tuple[str, int]) -> dict:
         """The env's declared ``episode_metrics`` of agent ``task[0]``'s episode on seed ``task[1]``."""
-        from infonav_gym.envs.traits import episode_metrics_of
-
         steps = list(self.infos(task))[1:]
         return {metric.name: metric.compute(steps) for metric in episode_metrics_of(self.env)}
 
     def infos(self, task: tuple[str, int]):
         """The infos of agent ``task[0]``'s episode on seed ``task[1]``: the reset's, then each step's, as played."""
-        from infonav_gym.experiments.evaluation import episode_infos, parallel_episode_infos
-
         name, seed = task
         return (parallel_episode_infos if self.parallel else episode_infos)(self.env, self.agents[name], seed)
 

@@ -10,129 +10,26 @@ from __future__ import annotations
 import csv
 import json
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 from scipy import stats
 from tqdm.auto import tqdm
 
-from agents import GreedyEntropyAgent, RandomAgent
-from agents.base import env_name
-from agents.ray_support import DISTRIBUTED_HINT, import_ray
-from infonav_gym.envs.traits import episode_metrics_of, has_planning_model, traits_of
+from agents.ray_support import import_ray
+from infonav_gym.envs.traits import episode_metrics_of, traits_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
+from infonav_gym.experiments.episodes import AGENT_NAMES, PPO_PREFIX, check_agent_name
 from infonav_gym.experiments.paths import Interrupted, output_file
-from infonav_gym.registry import registered_envs
 from infonav_gym.rendering import matplotlib_figure, save_figure
 
-AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH", "rllib:DIR")
-PPO_PREFIX = "ppo:"
-RLLIB_PREFIX = "rllib:"
 STUDENT_T, WILSON = "student_t", "wilson"
 Z_95 = float(stats.norm.ppf(0.975))  # two-sided 95% quantile of the standard normal
 INTERVAL_NOTES = {
     STUDENT_T: "mean ± half-width of its 95% confidence interval (Student t)",
     WILSON: "rate [low, high]: its 95% confidence interval (Wilson score)",
 }
-
-
-def check_agent_name(name: str) -> None:
-    """Raise ``ValueError`` unless ``name`` is random, greedy, planner, ppo:PATH or rllib:DIR."""
-    if name in ("random", "greedy", "planner"):
-        return
-    if any(name.startswith(prefix) and len(name) > len(prefix) for prefix in (PPO_PREFIX, RLLIB_PREFIX)):
-        return
-    raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
-
-
-def make_agent(
-    name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None, agent: str | None = None
-):
-    """A baseline agent by name (``noop_action``: see ``RandomAgent``).
-
-    ``planner`` (``agents.planner.PlannerAgent(env, agent)`` with the env's ``planner_settings``),
-    ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``) and ``rllib:DIR`` (``agents.rllib_agent.RLlibAgent(DIR,
-    env)``, the ``distributed`` extra) need the ``env`` they will act in; each is imported only when asked for.
-    ``planner`` is refused unless the env offers a planning model (``envs.traits.has_planning_model``). In a
-    PettingZoo env ``agent`` names the robot a ``planner`` or ``ppo:PATH`` agent acts for.
-    """
-    check_agent_name(name)
-    if name == "random":
-        return RandomAgent(n_actions, noop_action=noop_action)
-    if name == "greedy":
-        return GreedyEntropyAgent()
-    if env is None:
-        raise ValueError(f"agent {name!r} needs the env it will act in")
-    if name == "planner":
-        if not has_planning_model(env):
-            planning_env_ids = [entry.id for entry in registered_envs() if has_planning_model(entry.load())]
-            raise ValueError(
-                f"agent 'planner' is not available for {env_name(env)}: it declares no planning model "
-                f"(no planning_model() method); use random, greedy or ppo:PATH, or the planner on "
-                f"{', '.join(planning_env_ids)}"
-            )
-        try:
-            from agents.planner import PlannerAgent, planner_settings
-        except ImportError as error:
-            raise ValueError(
-                f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
-            ) from None
-        return PlannerAgent(env, agent, **planner_settings(env_name(env)))
-    if name.startswith(RLLIB_PREFIX):
-        try:
-            from agents.rllib_agent import RLlibAgent
-        except ImportError as error:
-            raise ValueError(f"agent {name!r} needs Ray: {DISTRIBUTED_HINT} ({error})") from None
-        return RLlibAgent(name[len(RLLIB_PREFIX) :], env, agent)
-    try:
-        from agents.ppo import PPOAgent
-    except ImportError as error:
-        raise ValueError(f"agent {name!r} needs the rl extra (pip install 'infonav-gym[rl]'): {error}") from None
-    return PPOAgent(name[len(PPO_PREFIX) :], env, agent)
-
-
-def make_team_agents(name: str, env) -> dict:
-    """One agent per robot of a PettingZoo parallel env ``env``: ``{robot: agent}``.
-
-    ``random`` is a random choice of what to observe (it takes the env's ``traits.noop_action`` only
-    when nothing else is valid); ``planner`` plans for its robot, its teammates following the plans they
-    published (``agents.team_planning``); ``ppo:PATH`` is one policy shared by every robot
-    (``infonav train --env cooperative_localization_v0``), checked against each robot's spaces.
-    """
-    noop_action = traits_of(env).noop_action
-    return {
-        robot: make_agent(name, env.action_space(robot).n, noop_action=noop_action, env=env, agent=robot)
-        for robot in env.possible_agents
-    }
-
-
-def episode_infos(env: gym.Env, agent, seed: int) -> Iterator[dict]:
-    """The info of one seeded episode's reset, then of each of its steps, as they are played."""
-    observation, info = env.reset(seed=seed)
-    agent.reset(seed=seed)
-    yield info
-    done = False
-    while not done:
-        observation, _, terminated, truncated, info = env.step(agent.act(observation, info))
-        yield info
-        done = terminated or truncated
-
-
-def parallel_episode_infos(env, agents: dict, seed: int) -> Iterator[dict]:
-    """The per-robot infos ``{robot: info}`` of one seeded episode of a PettingZoo parallel env's reset, then
-    of each of its steps, as they are played; ``agents[robot]`` (reset with seed ``1000 * seed + k`` for robot
-    ``k``) acts for each robot."""
-    observations, infos = env.reset(seed=seed)
-    for k, robot in enumerate(env.possible_agents):
-        agents[robot].reset(seed=1000 * seed + k)
-    yield infos
-    while env.agents:
-        actions = {name: agents[name].act(observations[name], infos[name]) for name in env.agents}
-        observations, _, _, _, infos = env.step(actions)
-        yield infos
 
 
 def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float, float]:

@@ -42,7 +42,7 @@ def render_episode(
 
     Args:
         env_id: a registered env id.
-        agent_name: random, greedy, planner, ppo:PATH or rllib:DIR (``evaluation.make_agent``).
+        agent_name: random, greedy, planner, ppo:PATH or rllib:DIR (``episodes.make_agent``).
         seed: the episode's seed.
         env_kwargs: config overrides.
         every: keep every ``every``-th step's frame.

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from infonav_gym.experiments.replay.report import budget_cells, table_lines
+from infonav_gym.experiments.replay.tables import budget_cells, table_lines
 
 COMPARED_KEYS = ("position_rmse_m", "mean_nees", "nees_fraction_inside_95", "mean_nis", "nis_inside_95")
 

@@ -10,11 +10,14 @@ from tqdm.auto import tqdm
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.experiments.paths import output_file
+from infonav_gym.experiments.replay.comparison import comparison_markdown
 from infonav_gym.experiments.replay.filters import ReplayConfig
 from infonav_gym.experiments.replay.metrics import mean_and_ci95
 from infonav_gym.experiments.replay.noise_model import corrected_logs
+from infonav_gym.experiments.replay.plots import plot_nees_over_time
 from infonav_gym.experiments.replay.policies import POLICIES
 from infonav_gym.experiments.replay.run import replay, replay_header
+from infonav_gym.experiments.replay.tables import budget_cells, table_lines
 from infonav_gym.experiments.replay.timeline import make_timeline
 
 ROW_KEYS = (
@@ -152,16 +155,6 @@ NEES_NOTE = (
 )
 
 
-def budget_cells(row: dict) -> tuple[str, str]:
-    """The ``k`` and ``window [s]`` cells of a row (``-`` for the unbudgeted all-landmark policy)."""
-    return ("-", "-") if row["k"] is None else (str(row["k"]), f"{row['window_s']:g}")
-
-
-def table_lines(header, rows) -> list[str]:
-    """A Markdown table's lines: the ``header`` cells, the rule under them, one line per row of cells."""
-    return ["| " + " | ".join(cells) + " |" for cells in (header, ["---"] * len(header), *rows)]
-
-
 def _cell(value, digits=3) -> str:
     if value is None:
         return "n/a"
@@ -220,9 +213,6 @@ def markdown_table(summary: dict) -> str:
 def write_results(summary: dict, output: Path, command: str) -> list[Path]:
     """Write ``OUTPUT.md`` (table and command), ``OUTPUT.json`` (everything but the per-run detail) and, with an
     all-landmark run, ``OUTPUT_nees.png`` (its NEES over time)."""
-    from infonav_gym.experiments.replay.comparison import comparison_markdown
-    from infonav_gym.experiments.replay.plots import plot_nees_over_time
-
     output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)
     markdown = output_file(output, ".md")

@@ -1,0 +1,114 @@
+"""The agents an evaluation plays, by name, and their seeded episodes: what the evaluation and its worker pools
+(``episode_pool``) both run."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import gymnasium as gym
+
+from agents import GreedyEntropyAgent, RandomAgent
+from agents.base import env_name
+from agents.ray_support import DISTRIBUTED_HINT
+from infonav_gym.envs.traits import has_planning_model, traits_of
+from infonav_gym.registry import registered_envs
+
+AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH", "rllib:DIR")
+PPO_PREFIX = "ppo:"
+RLLIB_PREFIX = "rllib:"
+
+
+def check_agent_name(name: str) -> None:
+    """Raise ``ValueError`` unless ``name`` is random, greedy, planner, ppo:PATH or rllib:DIR."""
+    if name in ("random", "greedy", "planner"):
+        return
+    if any(name.startswith(prefix) and len(name) > len(prefix) for prefix in (PPO_PREFIX, RLLIB_PREFIX)):
+        return
+    raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
+
+
+def make_agent(
+    name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None, agent: str | None = None
+):
+    """A baseline agent by name (``noop_action``: see ``RandomAgent``).
+
+    ``planner`` (``agents.planner.PlannerAgent(env, agent)`` with the env's ``planner_settings``),
+    ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``) and ``rllib:DIR`` (``agents.rllib_agent.RLlibAgent(DIR,
+    env)``, the ``distributed`` extra) need the ``env`` they will act in; each is imported only when asked for.
+    ``planner`` is refused unless the env offers a planning model (``envs.traits.has_planning_model``). In a
+    PettingZoo env ``agent`` names the robot a ``planner`` or ``ppo:PATH`` agent acts for.
+    """
+    check_agent_name(name)
+    if name == "random":
+        return RandomAgent(n_actions, noop_action=noop_action)
+    if name == "greedy":
+        return GreedyEntropyAgent()
+    if env is None:
+        raise ValueError(f"agent {name!r} needs the env it will act in")
+    if name == "planner":
+        if not has_planning_model(env):
+            planning_env_ids = [entry.id for entry in registered_envs() if has_planning_model(entry.load())]
+            raise ValueError(
+                f"agent 'planner' is not available for {env_name(env)}: it declares no planning model "
+                f"(no planning_model() method); use random, greedy or ppo:PATH, or the planner on "
+                f"{', '.join(planning_env_ids)}"
+            )
+        try:
+            from agents.planner import PlannerAgent, planner_settings
+        except ImportError as error:
+            raise ValueError(
+                f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
+            ) from None
+        return PlannerAgent(env, agent, **planner_settings(env_name(env)))
+    if name.startswith(RLLIB_PREFIX):
+        try:
+            from agents.rllib_agent import RLlibAgent
+        except ImportError as error:
+            raise ValueError(f"agent {name!r} needs Ray: {DISTRIBUTED_HINT} ({error})") from None
+        return RLlibAgent(name[len(RLLIB_PREFIX) :], env, agent)
+    try:
+        from agents.ppo import PPOAgent
+    except ImportError as error:
+        raise ValueError(f"agent {name!r} needs the rl extra (pip install 'infonav-gym[rl]'): {error}") from None
+    return PPOAgent(name[len(PPO_PREFIX) :], env, agent)
+
+
+def make_team_agents(name: str, env) -> dict:
+    """One agent per robot of a PettingZoo parallel env ``env``: ``{robot: agent}``.
+
+    ``random`` is a random choice of what to observe (it takes the env's ``traits.noop_action`` only
+    when nothing else is valid); ``planner`` plans for its robot, its teammates following the plans they
+    published (``agents.team_planning``); ``ppo:PATH`` is one policy shared by every robot
+    (``infonav train --env cooperative_localization_v0``), checked against each robot's spaces.
+    """
+    noop_action = traits_of(env).noop_action
+    return {
+        robot: make_agent(name, env.action_space(robot).n, noop_action=noop_action, env=env, agent=robot)
+        for robot in env.possible_agents
+    }
+
+
+def episode_infos(env: gym.Env, agent, seed: int) -> Iterator[dict]:
+    """The info of one seeded episode's reset, then of each of its steps, as they are played."""
+    observation, info = env.reset(seed=seed)
+    agent.reset(seed=seed)
+    yield info
+    done = False
+    while not done:
+        observation, _, terminated, truncated, info = env.step(agent.act(observation, info))
+        yield info
+        done = terminated or truncated
+
+
+def parallel_episode_infos(env, agents: dict, seed: int) -> Iterator[dict]:
+    """The per-robot infos ``{robot: info}`` of one seeded episode of a PettingZoo parallel env's reset, then
+    of each of its steps, as they are played; ``agents[robot]`` (reset with seed ``1000 * seed + k`` for robot
+    ``k``) acts for each robot."""
+    observations, infos = env.reset(seed=seed)
+    for k, robot in enumerate(env.possible_agents):
+        agents[robot].reset(seed=1000 * seed + k)
+    yield infos
+    while env.agents:
+        actions = {name: agents[name].act(observations[name], infos[name]) for name in env.agents}
+        observations, _, _, _, infos = env.step(actions)
+        yield infos
