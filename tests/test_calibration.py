@@ -14,6 +14,9 @@ from infonav_gym.experiments.replay import ReplayConfig, replay
 from infonav_gym.experiments.replay.calibration import calibrate, fit_systematic, robust_std, systematic_design
 from infonav_gym.experiments.replay.noise_model import load_noise_model
 
+# calibrations on whole logs: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 WITHIN_10_PERCENT = (  # the parameters the estimators identify to 10 % on 2 x 20 min of logs
     "odometry_time_offset_s",
     "measurement_time_offset_s",

@@ -130,9 +130,11 @@ def test_config_values_must_be_key_value_pairs(capsys):
     assert "KEY=VALUE" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # every benchmark figure, briefly
 def test_benchmark_reports_every_goal(capsys, monkeypatch):
-    # the start-up processes only import the suite here: compiling every kernel cold is the benchmark's to time
+    # the start-up processes only import the suite here, for one env: compiling every kernel cold is the benchmark's
     monkeypatch.setattr(startup_timing, "FIRST_STEP_SCRIPT", "import infonav_gym")
+    monkeypatch.setattr(benchmark, "startup_figures", lambda env_ids: startup_timing.startup_figures(env_ids[:1]))
     # RLlib's figures are sampled in tests/test_rllib.py, on the Ray it starts anyway: here they are given
     rllib, rllib_calls = RLLIB_FIGURES if rllib_missing() is None else {}, []
     monkeypatch.setattr(benchmark, "rllib_runner_figures", lambda *args: rllib_calls.append(args) or dict(rllib))

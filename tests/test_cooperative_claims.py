@@ -8,6 +8,9 @@ from infonav_gym.estimation import chi2_bounds
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.multi import cooperative_localization_v0
 
+# claims over 50 runs: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 N_RUNS = 50
 N_SEEDS = 20
 CONVOY = {"scenario": "convoy", "n_robots": 3, "max_cycles": 120}  # robot_1 loses DGPS at 21 s

@@ -10,6 +10,9 @@ from infonav_gym.estimation.consistency import pose_error
 from infonav_gym.multi import cooperative_exploration_v0
 from infonav_gym.multi.cooperative_exploration import N_MOTIONS
 
+# claims over 50 runs: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 N_RUNS = 50
 OPEN_ENDED = {"max_position_std_m": 100.0, "coverage_target": 1.0}  # no early end
 

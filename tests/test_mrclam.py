@@ -13,6 +13,9 @@ from infonav_gym.datasets import mrclam
 from infonav_gym.experiments.cli import main
 from infonav_gym.experiments.replay import ReplayConfig, replay, run_experiments
 
+# whole MRCLAM replays: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 DEFAULT_DATASET6 = Path(__file__).resolve().parents[1] / ".." / "shared" / "datasets" / "MRCLAM_Dataset6"
 DATASET6 = Path(os.environ.get("INFONAV_MRCLAM_DATASET6", DEFAULT_DATASET6))  # e.g. in a git worktree
 needs_dataset6 = pytest.mark.skipif(

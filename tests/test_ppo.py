@@ -14,6 +14,9 @@ import infonav_gym  # noqa: E402, F401  (registers the envs)
 from agents.ppo import InfoActionMask, PPOAgent, load_hyperparameters  # noqa: E402
 from infonav_gym.experiments.cli import main  # noqa: E402
 
+# PPO training: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 
 

@@ -15,6 +15,9 @@ pytest.importorskip("sb3_contrib")
 from agents.ppo import load_hyperparameters  # noqa: E402
 from infonav_gym.experiments.cli import main  # noqa: E402
 
+# PPO training: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = "default:\n  n_steps: 16\n  batch_size: 16\n  n_epochs: 1\n  gamma: 0.5\n"  # one 2 x 16-step rollout

@@ -31,6 +31,9 @@ from infonav_gym.experiments.cli import main  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0  # noqa: E402
 from infonav_gym.registry import PARALLEL, api_of, make_env  # noqa: E402
 
+# RLlib training and Ray: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 LANDMARK_ID, TEAM_ID = "infonav/LandmarkSelection-v0", "cooperative_localization_v0"
 EXPLORATION_ID, EXPLORATION_CYCLES = "cooperative_exploration_v0", 40
 SMALL_BLOCK = {"n_envs": 1, "n_steps": 500, "batch_size": 128, "n_epochs": 2, "policy_kwargs": {"net_arch": [32, 32]}}

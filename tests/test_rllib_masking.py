@@ -12,6 +12,9 @@ from agents.rllib_masking import (
     mask_observation,
 )
 
+# RLlib: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 
 

@@ -16,6 +16,9 @@ from agents.rllib_team_env import ALL, BatchedTeamEnv  # noqa: E402
 from agents.rllib_train import TeamEnvCreator  # noqa: E402
 from infonav_gym.registry import make_vector_env  # noqa: E402
 
+# RLlib: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 COPIES, STEPS = 4, 40
 TEAM_CONFIGS = [
     ("cooperative_localization_v0", {"max_cycles": 7}),

@@ -16,6 +16,9 @@ from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
 from infonav_gym.multi import cooperative_localization_v0  # noqa: E402
 from infonav_gym.registry import make_vector_env  # noqa: E402
 
+# PPO training: slow; `pytest -m "not slow"` leaves it out while developing
+pytestmark = pytest.mark.slow
+
 TEAM_ENV = "cooperative_localization_v0"
 CONFIG = {"max_cycles": 6}
 N_ROBOTS = 4  # the default team
