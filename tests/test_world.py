@@ -7,6 +7,7 @@ import pytest
 from conftest import distance_to_loop
 
 from infonav_gym.estimation.models import unicycle_motion
+from infonav_gym.multi.team_sensing import gps_available
 from infonav_gym.world import SCENARIOS, CircleObstacle, Scenario, World
 from infonav_gym.world.scenarios import (
     CORRIDOR_LANDMARK_COUNT,
@@ -196,17 +197,17 @@ def test_robots_on_crossing_routes_collide_and_push_each_other():
     assert largest_detour_m > 1.0
 
 
-def test_gps_denied_matches_a_hand_computed_case():
-    zones = (CircleObstacle((0.0, 0.0), 2.0), CircleObstacle((5.0, 0.0), 1.0))
-    world = World()
-    world.reset(open_scenario(gps_denied_zones=zones))
-    positions = np.array([[1.0, 1.0], [5.0, 0.9], [3.0, 0.0], [5.0, 1.5], [-1.5, -1.5]])
-    np.testing.assert_array_equal(world.gps_denied(positions), [True, True, False, False, False])
-    assert world.gps_denied([0.0, 0.0]).tolist() == [True]
-    world.reset(open_scenario())
-    np.testing.assert_array_equal(world.gps_denied(positions), [False] * 5)
-    with pytest.raises(ValueError, match=r"\(N, 2\)"):
-        world.gps_denied(np.zeros((2, 3)))
+def test_dgps_fixes_match_a_hand_computed_case():
+    """``gps_available``: a robot has a fix when it carries DGPS, is in no outage span and in no GPS-denied zone."""
+    centers = np.array([[[0.0, 0.0], [5.0, 0.0], [0.0, 0.0]]])  # two zones, then padding
+    radii_sq = np.array([[4.0, 1.0, -1.0]])
+    positions = np.array([[[1.0, 1.0], [5.0, 0.9], [3.0, 0.0], [5.0, 1.5], [-1.5, -1.5], [3.0, 3.0], [3.0, 3.0]]])
+    has_gps = np.array([True] * 6 + [False])
+    outages = np.zeros((7, 1, 2))
+    outages[5, 0] = (10.0, 20.0)  # robot 5 loses its DGPS from 10 s to 20 s
+    for time_s, robot_5 in ((5.0, True), (10.0, False), (20.0, True)):
+        available = gps_available(np.array([0]), positions, centers, radii_sq, has_gps, outages, np.array([time_s]))
+        assert available[0].tolist() == [False, False, True, True, True, robot_5, False]
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -250,7 +251,10 @@ def test_team_field_robots_pass_under_the_canopies():
     denied_steps = 0
     for _ in range(200):
         world.step(0.5)
-        denied_steps += int(np.any(world.gps_denied(world.poses[:, :2])))
+        offsets = world.poses[:, None, :2] - [zone.center for zone in world.scenario.gps_denied_zones]
+        denied_steps += int(
+            np.any(np.linalg.norm(offsets, axis=-1) <= [zone.radius for zone in world.scenario.gps_denied_zones])
+        )
     assert denied_steps > 0
 
 

@@ -86,14 +86,3 @@ class World:
         Robots do not block the line of sight.
         """
         return self._batch.contact_space(0).line_of_sight(origin, targets)
-
-    def gps_denied(self, positions) -> np.ndarray:
-        """For each position (N, 2) [m], whether it lies inside one of the scenario's GPS-denied zones."""
-        positions = np.atleast_2d(np.asarray(positions, dtype=float))
-        if positions.ndim != 2 or positions.shape[1] != 2:
-            raise ValueError(f"positions must be an (N, 2) array of x, y [m], got shape {positions.shape}")
-        zones = self.scenario.gps_denied_zones
-        centers = np.array([zone.center for zone in zones], dtype=float).reshape(-1, 2)
-        radii_sq = np.array([zone.radius for zone in zones], dtype=float) ** 2
-        offsets = positions[:, None, :] - centers
-        return np.any(np.einsum("nzi,nzi->nz", offsets, offsets) <= radii_sq, axis=1)
