@@ -13,7 +13,6 @@ import vector_env_checks
 from gymnasium.vector import AutoresetMode
 
 from agents import GreedyEntropyAgent
-from infonav_gym.envs import active_localization
 from infonav_gym.envs.active_localization import N_PRIMITIVES, REWARD_TERMS, ActiveLocalizationVectorEnv
 
 ENV_ID = "infonav/ActiveLocalization-v0"
@@ -141,7 +140,6 @@ def test_the_filter_equals_filterpys_pose_ekf_update_for_update(seed, monkeypatc
     each observation's ``mutual_information`` term is the MI of filterpy's update."""
     n_observed = vector_env_checks.check_filter_equals_pose_ekf(
         ENV_ID,
-        active_localization,
         lambda chosen: chosen // N_PRIMITIVES - 1 if chosen >= 0 else -1,
         monkeypatch,
         seed=seed,

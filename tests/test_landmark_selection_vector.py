@@ -9,7 +9,6 @@ import vector_env_checks
 from gymnasium.vector import AutoresetMode
 
 import infonav_gym
-from infonav_gym.envs import landmark_selection
 from infonav_gym.envs.landmark_selection import LandmarkSelectionVectorEnv
 from infonav_gym.world.scenarios import SCENARIOS, field
 
@@ -222,6 +221,6 @@ def test_render_without_a_render_mode_warns_and_returns_none():
 def test_the_filter_equals_filterpys_pose_ekf_update_for_update(mapping, monkeypatch):
     """Along a whole episode the env's EKF equals ``PoseEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10)."""
     n_observed = vector_env_checks.check_filter_equals_pose_ekf(
-        ENV_ID, landmark_selection, lambda chosen: chosen, monkeypatch, seed=5, n_steps=120, mapping=mapping
+        ENV_ID, lambda chosen: chosen, monkeypatch, seed=5, n_steps=120, mapping=mapping
     )
     assert n_observed > 60

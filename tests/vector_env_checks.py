@@ -18,6 +18,7 @@ from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 
 import infonav_gym  # noqa: F401  (registers the envs)
 from infonav_gym.estimation.ekf import PoseEKF
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import mutual_information
 
 TOLERANCE = 1e-9
@@ -378,16 +379,15 @@ def _recording(reserve, draws: list):
     return recorded
 
 
-def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, seed: int, n_steps: int, **config):
+def check_filter_equals_pose_ekf(env_id, landmark_of, monkeypatch, seed: int, n_steps: int, **config):
     """Along a whole episode of ``gym.make(env_id)`` (written once: its ``vector`` copy), its EKF equals filterpy's
-    ``PoseEKF`` fed the same prior, odometry readings and measurements (x within 1e-12, P within 1e-10; the
-    readings made by ``OdometrySensor.measure_with_noise`` from the world's executed controls, the measurements by
-    ``RangeBearingSensor.measure_with_noise``, both with the env's noise draws), and each
-    update's ``reward_terms["mutual_information"]`` is that update's MI.
+    ``PoseEKF`` fed the same prior (the env's estimate after its reset), odometry readings and measurements (x within
+    1e-12, P within 1e-10; the readings made by ``OdometrySensor.measure_with_noise`` from the world's executed
+    controls, the measurements by ``RangeBearingSensor.measure_with_noise``, both with the env's noise draws), and
+    each update's ``reward_terms["mutual_information"]`` is that update's MI.
 
     Args:
-        env_id: the registered id; its episodes start with ``env_module.start_episode`` (recorded here).
-        env_module: the env's module.
+        env_id: the registered id.
         landmark_of: the landmark an action observes (-1: none).
         monkeypatch: pytest's fixture.
         seed, n_steps: the episode's seed and length (mostly valid actions, some blind).
@@ -396,15 +396,7 @@ def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, s
     Returns:
         How many updates the episode had.
     """
-    priors, draws = [], []
-    start_episode = env_module.start_episode
-
-    def recorded_start(*args):
-        episode = start_episode(*args)
-        priors.append(episode[1])
-        return episode
-
-    monkeypatch.setattr(env_module, "start_episode", recorded_start)
+    draws = []
     env = gym.make(env_id, horizon=n_steps, **config).unwrapped
     vector = env.vector
     sensor, odometry = vector.sensor, vector._odometry
@@ -415,7 +407,9 @@ def check_filter_equals_pose_ekf(env_id, env_module, landmark_of, monkeypatch, s
     # the measurement's standard normals: the sensor measures with them below
     monkeypatch.setattr(vector._measurement_noise, "reserve", _recording(vector._measurement_noise.reserve, draws))
     _, info = env.reset(seed=seed)
-    ekf, rng, dt = PoseEKF(*priors[-1]), np.random.default_rng(seed), env.config["time_step_s"]
+    x, P = vector.estimate(0)  # the prior: the pose, then the mapped landmarks if any
+    ekf = PoseEKF(x[:POSE_DIM], P[:POSE_DIM, :POSE_DIM], x[POSE_DIM:].reshape(-1, 2), P[POSE_DIM:, POSE_DIM:])
+    rng, dt = np.random.default_rng(seed), env.config["time_step_s"]
     landmarks = None if config.get("mapping") else vector.scenario(0).landmarks
     n_observed = 0
     for _ in range(n_steps):

@@ -26,6 +26,7 @@ from infonav_gym.envs.active_transition import (
     observation_bounds,
     primitive_commands,
     start_episode,
+    start_episodes,
     step_rewards,
 )
 from infonav_gym.envs.base import MAX_EPISODE_STEPS
@@ -186,21 +187,21 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
 
     def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
         """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
-        for copy in copies.tolist():
-            scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy])
+        starts = start_episodes(self.config, [self._np_randoms[copy] for copy in copies.tolist()])
+        generators = zip(starts.odometry_generators, starts.measurement_generators)
+        for copy, scenario, (odometry_rng, measurement_rng) in zip(copies.tolist(), starts.scenarios, generators):
             self._worlds.reset_copy(copy, scenario)
             self._odometry_noise.restart(copy, odometry_rng)
             self._measurement_noise.restart(copy, measurement_rng)
-            self._x[copy], self._P[copy] = prior.state()
-            self._goals[copy] = scenario.routes[0].waypoints[0]  # the goal field's goal: its route's one waypoint
-            for o, obstacle in enumerate(scenario.obstacles):  # the round obstacles: the map the agent knows
-                self._obstacle_centers[copy, o], self._obstacle_radii[copy, o] = obstacle.center, obstacle.radius
-            self._landmarks[copy] = scenario.landmarks
+        layouts = starts.layouts
+        self._x[copies], self._P[copies] = starts.poses, starts.pose_covariance
+        self._goals[copies], self._landmarks[copies] = layouts.goals, layouts.landmarks
+        obstacles = (layouts.obstacle_centers, layouts.obstacle_radii)  # the round obstacles: the map the agent knows
+        self._obstacle_centers[copies], self._obstacle_radii[copies] = obstacles
         self._elapsed[copies] = 0
         self._observations_left[copies] = self.config["max_observations"]
         self._goal_reached[copies] = self._failed[copies] = False
-        obstacles = (self._obstacle_centers[copies], self._obstacle_radii[copies])
-        return field_geometry(scenario.walls, self._worlds.wall_thickness_m, *obstacles)
+        return field_geometry(starts.scenarios[0].walls, self._worlds.wall_thickness_m, *obstacles)
 
     def step(self, actions):
         """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""

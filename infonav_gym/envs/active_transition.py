@@ -25,7 +25,8 @@ from infonav_gym.geometry import wrap_angle
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import position_std_kernel as position_std
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
-from infonav_gym.world.active_scenarios import goal_field
+from infonav_gym.world.active_scenarios import GoalFieldLayouts, goal_field_layouts, goal_field_scenarios
+from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world_batch import start_poses
 
@@ -179,6 +180,25 @@ def ranges_and_bearings(x: np.ndarray, targets: np.ndarray) -> np.ndarray:
     return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - x[:, None, 2])], axis=-1)
 
 
+class EpisodeStarts(NamedTuple):
+    """The starts of n episodes of ``ActiveLocalization-v0`` (``start_episodes``).
+
+    Attributes:
+        scenarios: their goal fields (n).
+        layouts: the same fields' arrays (goals, landmarks, obstacles), stacked.
+        poses: the estimators' initial pose estimates (n, 3).
+        pose_covariance: their covariance (3, 3), diagonal, the same for all.
+        odometry_generators, measurement_generators: each episode's sensors' generators (n).
+    """
+
+    scenarios: list[Scenario]
+    layouts: GoalFieldLayouts
+    poses: np.ndarray
+    pose_covariance: np.ndarray
+    odometry_generators: list[np.random.Generator]
+    measurement_generators: list[np.random.Generator]
+
+
 def start_episode(config: dict, np_random: np.random.Generator):
     """Start an episode of ``ActiveLocalization-v0``: draw its goal field and the estimator's prior from ``np_random``.
 
@@ -193,11 +213,20 @@ def start_episode(config: dict, np_random: np.random.Generator):
         ``(scenario, prior, odometry_rng, measurement_rng)``: the goal field, the estimator's ``Prior`` and the
         sensors' generators.
     """
-    scenario = goal_field(np_random, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
-    odometry_rng, measurement_rng = np_random.spawn(2)
+    starts = start_episodes(config, [np_random])
+    prior = Prior(starts.poses[0], starts.pose_covariance)
+    return starts.scenarios[0], prior, starts.odometry_generators[0], starts.measurement_generators[0]
+
+
+def start_episodes(config: dict, generators: list[np.random.Generator]) -> EpisodeStarts:
+    """``start_episode`` of each of ``generators`` (its own episode), the fields laid out in one batch."""
+    layouts = goal_field_layouts(generators, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
+    scenarios = goal_field_scenarios(layouts)
+    spawned = [np_random.spawn(2) for np_random in generators]
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    pose = np.array(start_poses(scenario)[0]) + pose_std * np_random.standard_normal(POSE_DIM)
-    return scenario, Prior(pose, np.diag(pose_std**2)), odometry_rng, measurement_rng
+    normals = np.array([np_random.standard_normal(POSE_DIM) for np_random in generators])
+    poses = np.array([start_poses(scenario)[0] for scenario in scenarios]) + pose_std * normals
+    return EpisodeStarts(scenarios, layouts, poses, np.diag(pose_std**2), *map(list, zip(*spawned)))
 
 
 def field_geometry(walls, wall_thickness_m: float, centers: np.ndarray, radii: np.ndarray) -> StaticGeometry:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
-from infonav_gym.compiled import kernel
+from infonav_gym.compiled import inline, kernel
 from infonav_gym.config import Interval, ParameterError, check_arguments
 from infonav_gym.world.scenarios import (
     FIELD_ARGUMENTS,
@@ -57,50 +58,138 @@ def goal_field(
             size below three times the largest lit offset.
         ValueError: when the obstacles do not fit.
     """
+    return goal_field_scenarios(goal_field_layouts([np_random], n_landmarks, n_obstacles, size_m, lit_offset_m))[0]
+
+
+class GoalFieldLayouts(NamedTuple):
+    """The layouts of n goal fields (``goal_field``'s), stacked.
+
+    Attributes:
+        size_m: the side of every field [m].
+        starts: the start positions (n, 2) [m]; headings: toward the goals (n,) [rad].
+        goals: the goal positions (n, 2) [m].
+        landmarks: (n, K, 2) [m].
+        obstacle_centers: the round obstacles' centres (n, O, 2) [m]; obstacle_radii: their radii (n, O) [m].
+    """
+
+    size_m: float
+    starts: np.ndarray
+    headings: np.ndarray
+    goals: np.ndarray
+    landmarks: np.ndarray
+    obstacle_centers: np.ndarray
+    obstacle_radii: np.ndarray
+
+
+def goal_field_layouts(
+    generators: list[np.random.Generator],
+    n_landmarks: int = 8,
+    n_obstacles: int = 4,
+    size_m: float = 40.0,
+    lit_offset_m: tuple[float, float] = LIT_OFFSET_M,
+) -> GoalFieldLayouts:
+    """The layout of ``goal_field`` of each of ``generators``, each drawn from its own as ``goal_field`` draws it:
+    the arguments checked once, every layout in one kernel call (what a vector env starting many episodes wants).
+
+    Raises:
+        As ``goal_field``.
+    """
     check_arguments("goal_field", GOAL_FIELD_ARGUMENTS, n_landmarks=n_landmarks, n_obstacles=n_obstacles, size_m=size_m)
     if size_m < 3 * max(lit_offset_m):
         raise ParameterError("goal_field", "size_m", f">= {3 * max(lit_offset_m):g} m for its layout", size_m)
     n_near = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS  # draws: the frame's, 3 per near landmark, 2 per lit
-    n_draws = 3 + 3 * n_near + 2 * (n_landmarks - n_near)
-    u = np_random.random(n_draws)
-    start = np.array([START_MARGIN_M, _uniform(u[0], 0.4, 0.6) * size_m])
-    goal = np.array([size_m - START_MARGIN_M, _uniform(u[1], 0.4, 0.6) * size_m])
-    length_m = float(np.linalg.norm(goal - start))
-    frame = (start, (goal - start) / length_m, length_m, 1.0 if u[2] < 0.5 else -1.0)  # the lit side: +-1
-    state, attempts = np_random.bit_generator.state, OBSTACLE_ATTEMPTS_AHEAD * max(n_obstacles, 4)
-    most_attempts = 1000 * max(n_obstacles, 1)
-    while True:  # the obstacles' attempts (radius, place along, offset) drawn ahead, then exactly those used taken
-        layout = field_layout(u[3:], np_random.random((attempts, 3)), n_obstacles, *frame, *lit_offset_m, goal, size_m)
-        np_random.bit_generator.state = state
-        if layout[3] >= 0 or attempts >= most_attempts:
-            break
-        attempts = min(2 * attempts, most_attempts)
-    landmarks, centers, radii, used = layout
-    np_random.random((used if used >= 0 else attempts, 3))
-    if used < 0:
-        raise ValueError(f"could not place {n_obstacles} obstacles on the dark side after many attempts: too crowded")
-    obstacles = [CircleObstacle((x, y), radius) for (x, y), radius in zip(centers.tolist(), radii.tolist())]
-    route = Route((float(start[0]), float(start[1]), math.atan2(frame[1][1], frame[1][0])), goal[None, :])
-    return Scenario(
-        name="goal_field",
-        bounds=(0.0, 0.0, size_m, size_m),
-        routes=(route,),
-        walls=_box_walls(0.0, 0.0, size_m, size_m),
-        obstacles=tuple(obstacles),
-        landmarks=landmarks,
+    u = np.array([np_random.random(3 + 3 * n_near + 2 * (n_landmarks - n_near)) for np_random in generators])
+    starts = np.stack([np.full(len(u), START_MARGIN_M), _uniform(u[:, 0], 0.4, 0.6) * size_m], axis=1)
+    goals = np.stack([np.full(len(u), size_m - START_MARGIN_M), _uniform(u[:, 1], 0.4, 0.6) * size_m], axis=1)
+    offsets = goals - starts
+    lengths_m = np.array([float(np.linalg.norm(offset)) for offset in offsets])  # each the norm of a single field
+    frames = (starts, offsets / lengths_m[:, None], lengths_m, np.where(u[:, 2] < 0.5, 1.0, -1.0))  # lit side: +-1
+    layouts = drawn_layouts(generators, u[:, 3:], n_landmarks, n_obstacles, frames, lit_offset_m, goals, size_m)
+    headings = np.array([math.atan2(y, x) for x, y in frames[1].tolist()])
+    return GoalFieldLayouts(size_m, starts, headings, goals, *layouts)
+
+
+def goal_field_scenarios(layouts: GoalFieldLayouts) -> list[Scenario]:
+    """The ``Scenario`` of each goal field of ``layouts``: its route from the start (facing the goal) to the goal."""
+    size_m = layouts.size_m
+    walls = _box_walls(0.0, 0.0, size_m, size_m)
+    fields = zip(
+        layouts.starts.tolist(),
+        layouts.headings.tolist(),
+        layouts.goals,
+        layouts.landmarks,
+        layouts.obstacle_centers.tolist(),
+        layouts.obstacle_radii.tolist(),
     )
+    return [
+        Scenario(
+            name="goal_field",
+            bounds=(0.0, 0.0, size_m, size_m),
+            routes=(Route((*start, heading), goal[None, :]),),
+            walls=walls,
+            obstacles=tuple(CircleObstacle((x, y), radius) for (x, y), radius in zip(centers, radii)),
+            landmarks=landmarks,
+        )
+        for start, heading, goal, landmarks, centers, radii in fields
+    ]
+
+
+def drawn_layouts(generators, u, n_landmarks: int, n_obstacles: int, frames: tuple, lit_offset_m, goals, size_m):
+    """``field_layouts`` of each generator's field (``u``: its landmarks' draws), its obstacles' attempts drawn ahead
+    from it, then exactly those used taken (more drawn ahead for a field they did not suffice): ``(landmarks
+    (n, K, 2), centres (n, O, 2), radii (n, O))`` [m].
+
+    Raises:
+        ValueError: when the obstacles of a field do not fit.
+    """
+    n = len(generators)
+    layouts = (np.empty((n, n_landmarks, 2)), np.empty((n, n_obstacles, 2)), np.empty((n, n_obstacles)))
+    pending, attempts = np.arange(n), OBSTACLE_ATTEMPTS_AHEAD * max(n_obstacles, 4)
+    most_attempts = 1000 * max(n_obstacles, 1)
+    while pending.size:
+        rows = pending.tolist()
+        states = [generators[copy].bit_generator.state for copy in rows]
+        drawn = np.array([generators[copy].random((attempts, 3)) for copy in rows])
+        frame = (part[pending] for part in frames)
+        *layout, used = field_layouts(u[pending], drawn, n_obstacles, *frame, *lit_offset_m, goals[pending], size_m)
+        placed = used >= 0
+        if not placed.all() and attempts >= most_attempts:
+            raise ValueError(
+                f"could not place {n_obstacles} obstacles on the dark side after many attempts: too crowded"
+            )
+        for copy, state, count in zip(rows, states, used.tolist()):
+            generators[copy].bit_generator.state = state
+            generators[copy].random((max(count, 0), 3))
+        for array, part in zip(layouts, layout):
+            array[pending[placed]] = part[placed]
+        pending, attempts = pending[~placed], min(2 * attempts, most_attempts)
+    return layouts
 
 
 @kernel
-def field_layout(u, attempts, n_obstacles, start, along, length_m, lit_side, lit_low_m, lit_high_m, goal, size_m):
-    """``goal_field``'s landmarks (K, 2) from their draws ``u``: those near the line (side, place along, offset each;
-    the first ``START_CLUSTER_LANDMARKS`` ahead of the start), then the lit ones (place, offset each); its obstacles,
-    the first ``n_obstacles`` clear ``attempts`` (M, 3) (radius, place along, offset on the dark side; clear: inside
-    the field, off the landmarks and the goal): centres (O, 2), radii (O,) [m]; and the attempts used, -1: too few."""
+def field_layouts(u, attempts, n_obstacles, starts, alongs, lengths_m, lit_sides, lit_low_m, lit_high_m, goals, size_m):
+    """The layouts of n goal fields from their landmarks' draws ``u`` (n, D) and obstacle ``attempts`` (n, M, 3),
+    their frames (``starts`` (n, 2), unit vectors ``alongs`` to the ``goals`` (n, 2), ``lengths_m`` (n,), ``lit_sides``
+    (n,) +-1): landmarks (n, K, 2) (``place_landmarks``), obstacle centres (n, O, 2) and radii (n, O) [m]
+    (``place_obstacles``), and the attempts each used (n,), -1: too few."""
+    n_fields, n_near = len(u), START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS
+    landmarks = np.empty((n_fields, n_near + (u.shape[1] - 3 * n_near) // 2, 2))
+    centers, radii = np.empty((n_fields, n_obstacles, 2)), np.empty((n_fields, n_obstacles))
+    used = np.empty(n_fields, dtype=np.int64)
+    for f in range(n_fields):
+        frame = (starts[f], alongs[f], lengths_m[f], lit_sides[f])
+        place_landmarks(landmarks[f], u[f], *frame, lit_low_m, lit_high_m, size_m)
+        used[f] = place_obstacles(centers[f], radii[f], attempts[f], landmarks[f], *frame, goals[f], size_m)
+    return landmarks, centers, radii, used
+
+
+@inline
+def place_landmarks(landmarks, u, start, along, length_m, lit_side, lit_low_m, lit_high_m, size_m):
+    """One field's landmarks into ``landmarks`` (K, 2) from their draws ``u``: those near the line (side, place along,
+    offset each; the first ``START_CLUSTER_LANDMARKS`` ahead of the start), then the lit ones (place, offset each)."""
     n_near = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS
-    n_lit = (len(u) - 3 * n_near) // 2
-    landmarks = np.empty((n_near + n_lit, 2))
-    for k in range(n_near + n_lit):
+    n_lit = len(landmarks) - n_near
+    for k in range(len(landmarks)):
         if k < n_near:
             side = 1.0 if u[3 * k] < 0.5 else -1.0
             low, high = (0.06, 0.22) if k < START_CLUSTER_LANDMARKS else (0.8, 0.9)
@@ -113,10 +202,17 @@ def field_layout(u, attempts, n_obstacles, start, along, length_m, lit_side, lit
             normal = -along[1] if i == 0 else along[0]
             value = start[i] + fraction * length_m * along[i] + offset * normal
             landmarks[k, i] = min(max(value, 1.0), size_m - 1.0)
-    centers, radii, placed = np.empty((n_obstacles, 2)), np.empty(n_obstacles), 0
+
+
+@inline
+def place_obstacles(centers, radii, attempts, landmarks, start, along, length_m, lit_side, goal, size_m):
+    """One field's obstacles into ``centers`` (O, 2) and ``radii`` (O,): the first O clear ``attempts`` (M, 3)
+    (radius, place along, offset on the dark side; clear: inside the field, off the ``landmarks`` and the goal);
+    the attempts used, -1: too few."""
+    n_obstacles, placed = len(radii), 0
     for m in range(len(attempts)):
         if placed == n_obstacles:
-            return landmarks, centers, radii, m
+            return m
         radius, fraction = 0.7 + (1.5 - 0.7) * attempts[m, 0], 0.1 + (0.9 - 0.1) * attempts[m, 1]
         offset, clear = -lit_side * (radius + 2.0 + (8.0 - (radius + 2.0)) * attempts[m, 2]), True
         center = centers[placed]
@@ -130,4 +226,4 @@ def field_layout(u, attempts, n_obstacles, start, along, length_m, lit_side, lit
         clear &= math.sqrt(dx * dx + dy * dy) > radius + 3.0
         radii[placed] = radius
         placed += 1 if clear else 0
-    return landmarks, centers, radii, len(attempts) if placed == n_obstacles else -1
+    return len(attempts) if placed == n_obstacles else -1
