@@ -47,16 +47,22 @@ def run_episode(env, agent, seed: int) -> dict:
 
 
 def test_the_goal_fields_obstacle_attempts_drawn_ahead_change_neither_the_field_nor_the_generator(monkeypatch):
-    """As many attempts as obstacles drawn at once (more drawn when some fail): the fields of four per obstacle."""
+    """As many attempts as obstacles drawn at once (more drawn when some fail), one field at a time or all at once:
+    the fields of four per obstacle, one at a time."""
 
-    def fields() -> list:
+    def fields(at_once: bool = False) -> list:
         generators = [np.random.default_rng(seed) for seed in range(30)]
-        layouts = [active_scenarios.goal_field(rng, n_obstacles=6) for rng in generators]
-        return [(field.obstacles, field.landmarks.tolist(), rng.random()) for field, rng in zip(layouts, generators)]
+        if at_once:
+            layouts = active_scenarios.goal_field_layouts(generators, n_obstacles=6)
+            fields = active_scenarios.goal_field_scenarios(layouts)
+        else:
+            fields = [active_scenarios.goal_field(rng, n_obstacles=6) for rng in generators]
+        return [(field.obstacles, field.landmarks.tolist(), rng.random()) for field, rng in zip(fields, generators)]
 
     expected = fields()
     monkeypatch.setattr(active_scenarios, "OBSTACLE_ATTEMPTS_AHEAD", 1)
     assert fields() == expected
+    assert fields(at_once=True) == expected
 
 
 def test_reaching_the_goal_terminates_with_the_bonus():

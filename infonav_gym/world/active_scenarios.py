@@ -99,14 +99,15 @@ def goal_field_layouts(
         raise ParameterError("goal_field", "size_m", f">= {3 * max(lit_offset_m):g} m for its layout", size_m)
     n_near = START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS  # draws: the frame's, 3 per near landmark, 2 per lit
     u = np.array([np_random.random(3 + 3 * n_near + 2 * (n_landmarks - n_near)) for np_random in generators])
-    starts = np.stack([np.full(len(u), START_MARGIN_M), _uniform(u[:, 0], 0.4, 0.6) * size_m], axis=1)
-    goals = np.stack([np.full(len(u), size_m - START_MARGIN_M), _uniform(u[:, 1], 0.4, 0.6) * size_m], axis=1)
-    offsets = goals - starts
+    ends = np.empty((len(u), 2, 2))  # each field's start and goal [m]
+    ends[:, :, 0] = START_MARGIN_M, size_m - START_MARGIN_M
+    ends[:, :, 1] = _uniform(u[:, :2], 0.4, 0.6) * size_m
+    offsets = ends[:, 1] - ends[:, 0]
     lengths_m = np.array([float(np.linalg.norm(offset)) for offset in offsets])  # each the norm of a single field
-    frames = (starts, offsets / lengths_m[:, None], lengths_m, np.where(u[:, 2] < 0.5, 1.0, -1.0))  # lit side: +-1
-    layouts = drawn_layouts(generators, u[:, 3:], n_landmarks, n_obstacles, frames, lit_offset_m, goals, size_m)
+    frames = (ends, offsets / lengths_m[:, None], lengths_m, np.where(u[:, 2] < 0.5, 1.0, -1.0))  # lit side: +-1
+    layouts = drawn_layouts(generators, u[:, 3:], n_obstacles, frames, lit_offset_m, size_m)
     headings = np.array([math.atan2(y, x) for x, y in frames[1].tolist()])
-    return GoalFieldLayouts(size_m, starts, headings, goals, *layouts)
+    return GoalFieldLayouts(size_m, ends[:, 0], headings, ends[:, 1], *layouts)
 
 
 def goal_field_scenarios(layouts: GoalFieldLayouts) -> list[Scenario]:
@@ -134,52 +135,48 @@ def goal_field_scenarios(layouts: GoalFieldLayouts) -> list[Scenario]:
     ]
 
 
-def drawn_layouts(generators, u, n_landmarks: int, n_obstacles: int, frames: tuple, lit_offset_m, goals, size_m):
-    """``field_layouts`` of each generator's field (``u``: its landmarks' draws), its obstacles' attempts drawn ahead
-    from it, then exactly those used taken (more drawn ahead for a field they did not suffice): ``(landmarks
-    (n, K, 2), centres (n, O, 2), radii (n, O))`` [m].
+def drawn_layouts(generators, u, n_obstacles: int, frames: tuple, lit_offset_m, size_m: float, attempts: int = 0):
+    """``field_layouts`` of each generator's field (``u``: its landmarks' draws, ``frames``: its ends, direction,
+    length and lit side), ``attempts`` for its obstacles drawn ahead from it (0: ``OBSTACLE_ATTEMPTS_AHEAD`` per
+    obstacle), then exactly those used taken; twice as many drawn again for the fields they did not suffice.
+    ``(landmarks (n, K, 2), centres (n, O, 2), radii (n, O))`` [m].
 
     Raises:
         ValueError: when the obstacles of a field do not fit.
     """
-    n = len(generators)
-    layouts = (np.empty((n, n_landmarks, 2)), np.empty((n, n_obstacles, 2)), np.empty((n, n_obstacles)))
-    pending, attempts = np.arange(n), OBSTACLE_ATTEMPTS_AHEAD * max(n_obstacles, 4)
-    most_attempts = 1000 * max(n_obstacles, 1)
-    while pending.size:
-        rows = pending.tolist()
-        states = [generators[copy].bit_generator.state for copy in rows]
-        drawn = np.array([generators[copy].random((attempts, 3)) for copy in rows])
-        frame = (part[pending] for part in frames)
-        *layout, used = field_layouts(u[pending], drawn, n_obstacles, *frame, *lit_offset_m, goals[pending], size_m)
-        placed = used >= 0
-        if not placed.all() and attempts >= most_attempts:
-            raise ValueError(
-                f"could not place {n_obstacles} obstacles on the dark side after many attempts: too crowded"
-            )
-        for copy, state, count in zip(rows, states, used.tolist()):
-            generators[copy].bit_generator.state = state
-            generators[copy].random((max(count, 0), 3))
-        for array, part in zip(layouts, layout):
-            array[pending[placed]] = part[placed]
-        pending, attempts = pending[~placed], min(2 * attempts, most_attempts)
+    attempts, most_attempts = attempts or OBSTACLE_ATTEMPTS_AHEAD * max(n_obstacles, 4), 1000 * max(n_obstacles, 1)
+    states = [np_random.bit_generator.state for np_random in generators]
+    drawn = np.array([np_random.random((attempts, 3)) for np_random in generators])
+    *layouts, used = field_layouts(u, drawn, n_obstacles, *frames, *lit_offset_m, size_m)
+    for np_random, state, count in zip(generators, states, used.tolist()):
+        np_random.bit_generator.state = state
+        np_random.random((max(count, 0), 3))  # the attempts used; none where too few: drawn again, more
+    short = np.flatnonzero(used < 0)
+    if short.size and attempts >= most_attempts:
+        raise ValueError(f"could not place {n_obstacles} obstacles on the dark side after many attempts: too crowded")
+    if short.size:
+        retried = [generators[field] for field in short.tolist()], u[short], n_obstacles
+        frames = tuple(part[short] for part in frames)
+        again = min(2 * attempts, most_attempts)
+        for array, part in zip(layouts, drawn_layouts(*retried, frames, lit_offset_m, size_m, again)):
+            array[short] = part
     return layouts
 
 
 @kernel
-def field_layouts(u, attempts, n_obstacles, starts, alongs, lengths_m, lit_sides, lit_low_m, lit_high_m, goals, size_m):
+def field_layouts(u, attempts, n_obstacles, ends, alongs, lengths_m, lit_sides, lit_low_m, lit_high_m, size_m):
     """The layouts of n goal fields from their landmarks' draws ``u`` (n, D) and obstacle ``attempts`` (n, M, 3),
-    their frames (``starts`` (n, 2), unit vectors ``alongs`` to the ``goals`` (n, 2), ``lengths_m`` (n,), ``lit_sides``
-    (n,) +-1): landmarks (n, K, 2) (``place_landmarks``), obstacle centres (n, O, 2) and radii (n, O) [m]
-    (``place_obstacles``), and the attempts each used (n,), -1: too few."""
+    their frames (``ends``: start and goal (n, 2, 2), the unit vectors ``alongs`` from one to the other (n, 2), their
+    distances ``lengths_m`` (n,), ``lit_sides`` (n,) +-1): landmarks (n, K, 2) (``place_landmarks``), obstacle
+    centres (n, O, 2) and radii (n, O) [m] (``place_obstacles``), and the attempts each used (n,), -1: too few."""
     n_fields, n_near = len(u), START_CLUSTER_LANDMARKS + GOAL_CLUSTER_LANDMARKS
     landmarks = np.empty((n_fields, n_near + (u.shape[1] - 3 * n_near) // 2, 2))
     centers, radii = np.empty((n_fields, n_obstacles, 2)), np.empty((n_fields, n_obstacles))
     used = np.empty(n_fields, dtype=np.int64)
     for f in range(n_fields):
-        frame = (starts[f], alongs[f], lengths_m[f], lit_sides[f])
+        frame = (ends[f, 0], alongs[f], lengths_m[f], lit_sides[f])
         place_landmarks(landmarks[f], u[f], *frame, lit_low_m, lit_high_m, size_m)
-        used[f] = place_obstacles(centers[f], radii[f], attempts[f], landmarks[f], *frame, goals[f], size_m)
+        used[f] = place_obstacles(centers[f], radii[f], attempts[f], landmarks[f], *frame, ends[f, 1], size_m)
     return landmarks, centers, radii, used
 
 
