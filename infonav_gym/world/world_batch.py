@@ -79,6 +79,7 @@ class WorldBatch:
         self._grown: StaticGeometry | None = None  # every copy's static shapes, grown for the contact test
         self._grown_stale = np.ones(n_copies, dtype=bool)  # copies reset since: rebuilt when a free step needs them
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
+        self._has_space = np.zeros(n_copies, dtype=bool)  # the copy holds a Pymunk space (``_spaces[copy]``)
         self.poses = np.zeros((n_copies, 0, 3))
         self._waypoints = np.zeros((n_copies, 0, 0, 2))
         self._n_waypoints = np.zeros((n_copies, 0), dtype=int)
@@ -109,7 +110,7 @@ class WorldBatch:
                 f"WorldBatch copy {copy}: scenario {scenario.name!r} has {len(routes)} robots, the other copies "
                 f"{self.poses.shape[1]}; every copy needs the same number"
             )
-        self._scenarios[copy], self._spaces[copy] = scenario, None
+        self._scenarios[copy], self._spaces[copy], self._has_space[copy] = scenario, None, False
         self._grown_stale[copy] = True
         self._in_contact[copy] = False
         self.poses[copy] = start_poses(scenario)
@@ -182,9 +183,8 @@ class WorldBatch:
             contact[free] = False
         for copy in copies[was_in_contact & ~contact].tolist():  # their runs of contact steps end
             self._spaces[copy].end_contacts()
-            idle = np.array([space is not None for space in self._spaces]) & ~self._in_contact
-            if np.count_nonzero(idle) > MAX_IDLE_SPACES:
-                self._spaces[copy] = None  # built again, alike, at its next contact step
+            if np.count_nonzero(self._has_space & ~self._in_contact) > MAX_IDLE_SPACES:
+                self._spaces[copy], self._has_space[copy] = None, False  # built again, alike, at its next contact step
         self._in_contact[copies] = contact
         for row in np.flatnonzero(contact).tolist():
             after[row] = self.contact_space(int(copies[row])).drive(before[row], controls[row], dt)
@@ -193,7 +193,7 @@ class WorldBatch:
         """Copy ``copy``'s Pymunk space as of its scenario (built when first asked for after ``reset_copy``)."""
         if self._spaces[copy] is None:
             arguments = self.robot_radius_m, self.wall_thickness_m, self.max_physics_step_s
-            self._spaces[copy] = ContactSpace(self._scenarios[copy], *arguments)
+            self._spaces[copy], self._has_space[copy] = ContactSpace(self._scenarios[copy], *arguments), True
         return self._spaces[copy]
 
     def _waypoint_controls(self, copies: np.ndarray, poses: np.ndarray) -> np.ndarray:
