@@ -62,6 +62,12 @@ def height(grid, x, y):
 def ground_normal(grid, x, y):
     """Upward unit normal ``(nx, ny, nz)`` of the bilinear ground at ``(x, y)``; level beyond the grid."""
     lower_left, lower_right, upper_left, upper_right, tx, ty = cell_at(grid, x, y)
+    return cell_normal(grid, x, y, lower_left, lower_right, upper_left, upper_right, tx, ty)
+
+
+@inline
+def cell_normal(grid, x, y, lower_left, lower_right, upper_left, upper_right, tx, ty):
+    """``ground_normal`` at ``(x, y)`` from ``cell_at``'s corner heights and offsets there."""
     heights, x0, y0, cell_m = grid
     rows, columns = heights.shape
     slope_x = ((lower_right - lower_left) * (1.0 - ty) + (upper_right - upper_left) * ty) * (1.0 / cell_m)
