@@ -87,7 +87,7 @@ def shade(arrays, origin, azimuth, elevation, range_m, material, obstacle, radio
 
     A row's sky and obstacle pixels are shaded one by one, its ground pixels together in loops that each do one
     thing (locate cells, read the table or the heights at computed indices, compute), the computing ones vectorized
-    by the compiler; the loops stay in this kernel (in a helper kernel they are vectorized less well).
+    by the compiler; the loops stay in this kernel, as ``first_hits``' do.
     """
     grid, obstacles, _, n_cylinders = arrays
     albedos, sun, _, _, contrast, sky_level = radiometry
