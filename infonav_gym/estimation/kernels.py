@@ -138,9 +138,10 @@ def relative_pose_models(x, observers, targets):
 
 
 @inner_kernel
-def invert(S, r, inverse):
+def invert(S, r, inverse, pivoted, order):
     """The inverse of the leading (r, r) block of ``S`` into ``inverse``: the adjugate over the determinant up to
-    3 x 3, else Gauss-Jordan elimination with partial pivoting."""
+    3 x 3, else Gauss-Jordan elimination with partial pivoting (``gauss_jordan_inverse``; ``pivoted`` (r, r) and
+    ``order`` (r,) int are its scratch)."""
     if r == 1:
         inverse[0, 0] = 1.0 / S[0, 0]
     elif r == 2:
@@ -159,34 +160,54 @@ def invert(S, r, inverse):
             for j in range(3):
                 inverse[i, j] /= determinant
     else:
-        A = S[:r, :r].copy()
-        for i in range(r):
-            for j in range(r):
-                inverse[i, j] = 1.0 if i == j else 0.0
-        for j in range(r):
-            pivot = j
-            for i in range(j + 1, r):
-                if abs(A[i, j]) > abs(A[pivot, j]):
-                    pivot = i
-            for k in range(r):
-                A[j, k], A[pivot, k] = A[pivot, k], A[j, k]
-                inverse[j, k], inverse[pivot, k] = inverse[pivot, k], inverse[j, k]
-            scale = 1.0 / A[j, j]
-            for k in range(r):
-                A[j, k] *= scale
-                inverse[j, k] *= scale
-            for i in range(r):
-                if i != j and A[i, j] != 0.0:
-                    factor = A[i, j]
-                    for k in range(r):
-                        A[i, k] -= factor * A[j, k]
-                        inverse[i, k] -= factor * inverse[j, k]
+        gauss_jordan_inverse(S, r, inverse, pivoted, order)
 
 
 @inner_kernel
-def times_inverse(X, S, r, S_inverse, product):
-    """``X S^-1`` with the leading (r, r) block of ``S`` into ``product[:, :r]``; ``S_inverse``: scratch."""
-    invert(S, r, S_inverse)
+def gauss_jordan_inverse(S, r, inverse, A, order):
+    """The inverse of the leading (r, r) block of ``S`` into ``inverse`` by Gauss-Jordan elimination with partial
+    pivoting of its copy ``A``, leaving out only operations that cannot change the inverse.
+
+    Left out: the columns of ``A`` at and left of the pivot (no later step reads them) and the columns of the
+    inverse that are still exact zeros: the identity's columns of the rows not pivoted yet (``order[:j + 1]`` holds
+    the identity columns of the rows pivoted so far, ``order``: (r,) int scratch). Adding a zero product leaves a
+    number as it is, so the inverse's numbers are those of the full elimination.
+    """
+    for i in range(r):
+        order[i] = i
+        for k in range(r):
+            A[i, k] = S[i, k]
+            inverse[i, k] = 1.0 if i == k else 0.0
+    for j in range(r):
+        pivot = j
+        for i in range(j + 1, r):
+            if abs(A[i, j]) > abs(A[pivot, j]):
+                pivot = i
+        if pivot != j:
+            for k in range(j, r):
+                A[j, k], A[pivot, k] = A[pivot, k], A[j, k]
+            for k in range(r):
+                inverse[j, k], inverse[pivot, k] = inverse[pivot, k], inverse[j, k]
+            order[j], order[pivot] = order[pivot], order[j]
+        scale = 1.0 / A[j, j]
+        for k in range(j + 1, r):
+            A[j, k] *= scale
+        for t in range(j + 1):
+            inverse[j, order[t]] *= scale
+        for i in range(r):
+            if i != j and A[i, j] != 0.0:
+                factor = A[i, j]
+                for k in range(j + 1, r):
+                    A[i, k] -= factor * A[j, k]
+                for t in range(j + 1):
+                    inverse[i, order[t]] -= factor * inverse[j, order[t]]
+
+
+@inner_kernel
+def times_inverse(X, S, r, S_inverse, product, pivoted, order):
+    """``X S^-1`` with the leading (r, r) block of ``S`` into ``product[:, :r]``; ``S_inverse``, ``pivoted`` and
+    ``order``: ``invert``'s scratch."""
+    invert(S, r, S_inverse, pivoted, order)
     for i in range(X.shape[0]):
         for j in range(r):
             total = 0.0
@@ -231,41 +252,17 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
     n_copies, n_slots, m, n = H.shape
     most = n_slots * m
     x_new, P_new = x.copy(), P.copy()
-    rows, y = np.empty((most, n)), np.empty(most)
-    PHT, S, S_inverse, K = np.empty((n, most)), np.empty((most, most)), np.empty((most, most)), np.empty((n, most))
-    columns = np.empty(n, dtype=np.int64)
+    rows, y, HP = np.empty((most, n)), np.empty(most), np.empty((most, n))
+    supports, support_sizes = np.empty((most, n), dtype=np.int64), np.empty(most, dtype=np.int64)
+    S, S_inverse, pivoted = np.empty((most, most)), np.empty((most, most)), np.empty((most, most))
+    order, K, correction = np.empty(most, dtype=np.int64), np.empty((n, most)), np.empty(n)
     for c in range(n_copies):
-        r = 0
-        for slot in range(n_slots):
-            if used[c, slot]:
-                for i in range(m):
-                    y[r + i] = residuals[c, slot, i]
-                    for j in range(n):
-                        rows[r + i, j] = H[c, slot, i, j]
-                r += m
+        r = stacked_slots(H[c], residuals[c], used[c], rows, y, supports, support_sizes)
         if r == 0:
             continue
-        n_columns = nonzero_columns(rows[:r], columns)
-        for i in range(n):
-            for j in range(r):
-                total = 0.0
-                for t in range(n_columns):
-                    total += P[c, i, columns[t]] * rows[j, columns[t]]
-                PHT[i, j] = total
-        for i in range(r):
-            for j in range(r):
-                total = 0.0
-                for t in range(n_columns):
-                    total += rows[i, columns[t]] * PHT[columns[t], j]
-                S[i, j] = total
-        offset = 0
-        for slot in range(n_slots):
-            if used[c, slot]:
-                for i in range(m):
-                    for j in range(m):
-                        S[offset + i, offset + j] += R[c, slot, i, j]
-                offset += m
-        times_inverse(PHT, S, r, S_inverse, K)
+        innovation_covariance(P[c], R[c], used[c], rows, supports, support_sizes, r, HP, S)
+        invert(S, r, S_inverse, pivoted, order)
+        kalman_gain(HP, S_inverse, r, K)
         for i in range(n):
             total = 0.0
             for j in range(r):
@@ -273,19 +270,101 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
             x_new[c, i] = x[c, i] + total
         for robot in range(n_headings):
             x_new[c, POSE_DIM * robot + 2] = wrap(x_new[c, POSE_DIM * robot + 2])
-        for i in range(n):
-            for j in range(n):
-                total = 0.0
-                for t in range(r):
-                    total += K[i, t] * PHT[j, t]
-                P_new[c, i, j] = P[c, i, j] - total
-        for i in range(n):
-            for j in range(i + 1, n):
-                if not cross_covariances and i // POSE_DIM != j // POSE_DIM:
-                    P_new[c, i, j] = P_new[c, j, i] = 0.0
-                else:
-                    P_new[c, i, j] = P_new[c, j, i] = 0.5 * (P_new[c, i, j] + P_new[c, j, i])
+        corrected_covariance(P[c], K, HP, r, cross_covariances, correction, P_new[c])
     return x_new, P_new
+
+
+@inner_kernel
+def stacked_slots(H, residuals, used, rows, y, supports, support_sizes) -> int:
+    """Stack one copy's used slots in slot order, how many rows r: their Jacobian rows into ``rows`` (r, n), residuals
+    into ``y`` (r,) and each row's non-zero columns into ``supports[row, :support_sizes[row]]``.
+
+    A measurement depends on a few state entries (a pose, a landmark): the products with its rows visit only those.
+    """
+    n_slots, m, n = H.shape
+    r = 0
+    for slot in range(n_slots):
+        if not used[slot]:
+            continue
+        for i in range(m):
+            y[r] = residuals[slot, i]
+            size = 0
+            for j in range(n):
+                rows[r, j] = H[slot, i, j]
+                if rows[r, j] != 0.0:
+                    supports[r, size] = j
+                    size += 1
+            support_sizes[r] = size
+            r += 1
+    return r
+
+
+@inner_kernel
+def innovation_covariance(P, R, used, rows, supports, support_sizes, r, HP, S):
+    """``S = H P H^T + R`` of one copy's ``stacked_slots`` (``R`` (M, m, m) of its ``used`` slots on the diagonal),
+    and on the way ``HP`` (r, n): ``P H^T`` transposed, row j is ``P`` times the Jacobian's row j."""
+    m = R.shape[1]
+    rows_times(rows, supports, support_sizes, r, P, P.shape[0], HP)
+    rows_times(rows, supports, support_sizes, r, HP, r, S)
+    offset = 0
+    for slot in range(len(used)):
+        if used[slot]:
+            for i in range(m):
+                for j in range(m):
+                    S[offset + i, offset + j] += R[slot, i, j]
+            offset += m
+
+
+@inner_kernel
+def rows_times(rows, supports, support_sizes, r, X, n_x, product):
+    """``product[a, b] = sum_t rows[a, t] X[b, t]`` for the first r rows and ``n_x`` rows of ``X``: ``rows (X^T)``.
+
+    Each sum runs over its row's support in column order, from 0.0: the numbers of the sum over every column (a
+    zero product leaves a sum as it is).
+    """
+    for a in range(r):
+        for b in range(n_x):
+            product[a, b] = 0.0
+        for t in range(support_sizes[a]):
+            column = supports[a, t]
+            h = rows[a, column]
+            for b in range(n_x):
+                product[a, b] += h * X[b, column]
+
+
+@inner_kernel
+def kalman_gain(HP, S_inverse, r, K):
+    """``K = P H^T S^-1`` (n, r) from ``innovation_covariance``'s ``HP`` and ``S^-1`` (r, r). Each entry sums its
+    products in order; the loops run the innermost along a row, which the compiler vectorizes."""
+    for i in range(HP.shape[1]):
+        for j in range(r):
+            K[i, j] = 0.0
+        for t in range(r):
+            a = HP[t, i]
+            for j in range(r):
+                K[i, j] += a * S_inverse[t, j]
+
+
+@inner_kernel
+def corrected_covariance(P, K, HP, r, cross_covariances, correction, P_new):
+    """``P - K (P H^T)^T`` into ``P_new`` (n, n), symmetrized, from ``kalman_gain``'s ``K`` and ``HP``; without
+    ``cross_covariances`` only each robot's own 3 x 3 blocks are kept. ``correction`` (n,): scratch of one row."""
+    n = P.shape[0]
+    for i in range(n):
+        for j in range(n):
+            correction[j] = 0.0
+        for t in range(r):
+            a = K[i, t]
+            for j in range(n):
+                correction[j] += a * HP[t, j]
+        for j in range(n):
+            P_new[i, j] = P[i, j] - correction[j]
+    for i in range(n):
+        for j in range(i + 1, n):
+            if not cross_covariances and i // POSE_DIM != j // POSE_DIM:
+                P_new[i, j] = P_new[j, i] = 0.0
+            else:
+                P_new[i, j] = P_new[j, i] = 0.5 * (P_new[i, j] + P_new[j, i])
 
 
 @kernel
@@ -385,6 +464,7 @@ def relative_pose_gains(P, observers, targets, H_observer, H_target, R):
     own, joint = np.empty((n_copies, n_pairs)), np.empty((n_copies, n_pairs))
     A, B = np.empty((POSE_DIM, m)), np.empty((POSE_DIM, m))
     S, S_inverse, A_S_inverse = np.empty((m, m)), np.empty((m, m)), np.empty((POSE_DIM, m))
+    pivoted, order = np.empty((m, m)), np.empty(m, dtype=np.int64)  # ``invert``'s scratch
     prior, posterior = np.empty((POSE_DIM, POSE_DIM)), np.empty((POSE_DIM, POSE_DIM))
     for c in range(n_copies):
         for k in range(n_pairs):
@@ -406,7 +486,7 @@ def relative_pose_gains(P, observers, targets, H_observer, H_target, R):
                         from_observer += H_o[i, s] * A[s, j]
                         from_target += H_t[i, s] * B[s, j]
                     S[i, j] = from_observer + from_target + R[c, k, i, j]
-            times_inverse(A, S, m, S_inverse, A_S_inverse)
+            times_inverse(A, S, m, S_inverse, A_S_inverse, pivoted, order)
             for i in range(POSE_DIM):
                 for j in range(POSE_DIM):
                     total = 0.0
