@@ -346,7 +346,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         valid &= budget_left[:, self._pairs.observers]
         team = TeamDecision.at_prior(self._pairs, pair_geometry, valid, x, P, 0.0)  # the gains: own-pose MI
         landmark_valid = sight.visible_landmarks(self._geometry, true_poses, self._landmarks) & budget_left[..., None]
-        gains_of_landmarks = landmark_gains(x, P, self._landmarks, sight.noise_stds)
+        gains_of_landmarks = landmark_gains(x, P, self._landmarks, sight.noise_stds, landmark_valid)
         slot_valid = np.concatenate(
             [np.ones((n_copies, n_robots, 1), dtype=bool), landmark_valid, team.action_mask[..., 1:].astype(bool)],
             axis=-1,

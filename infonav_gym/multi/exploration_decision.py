@@ -113,42 +113,43 @@ def landmark_sight(true_poses, landmarks, reach, walls, discs, culled):
     return covered
 
 
-def landmark_gains(x, P, landmarks, noise_stds) -> np.ndarray:
+def landmark_gains(x, P, landmarks, noise_stds, valid) -> np.ndarray:
     """Expected MI [nats] of each robot (``TeamSight.noise_stds``) observing each landmark (N, L, 2) [m] alone at the
-    prior ``x`` (N, 3R), ``P`` (N, 3R, 3R): (N, R, L); ``ValueError`` where it is undefined."""
-    gains, coincident = robot_landmark_gains(contiguous(x), contiguous(P), contiguous(landmarks), noise_stds)
+    prior ``x`` (N, 3R), ``P`` (N, 3R, 3R), where ``valid`` (N, R, L) bool (0 elsewhere: no action observes it):
+    (N, R, L); ``ValueError`` where it is undefined."""
+    arrays = (x, P, landmarks)
+    gains, coincident = robot_landmark_gains(*(contiguous(a) for a in arrays), noise_stds, contiguous(valid))
     if coincident or np.isnan(gains).any():
         raise ValueError(f"{batched.COINCIDENT}, or an innovation covariance is not positive definite")
     return gains
 
 
 @kernel
-def robot_landmark_gains(x, P, landmarks, noise_stds):
-    """``kernels.landmark_gains`` of each robot's range-bearing to each landmark (``range_bearing_of_offset``,
-    ``noise_covariances``) on its pose block (N, R, L), and whether a landmark lies on a robot's estimate."""
-    n_copies, n_robots, n_landmarks = x.shape[0], x.shape[1] // POSE_DIM, landmarks.shape[1]
-    blocks, predicted = np.empty((n_copies * n_robots, POSE_DIM, POSE_DIM)), np.empty(2)
-    H, R = np.zeros((len(blocks), n_landmarks, 2, POSE_DIM)), np.zeros((len(blocks), n_landmarks, 2, 2))
-    ranges = np.empty((n_robots, n_copies * n_landmarks))
-    coincident = False
-    for c in range(n_copies):
-        for robot in range(n_robots):
-            row, pose = c * n_robots + robot, POSE_DIM * robot
+def robot_landmark_gains(x, P, landmarks, noise_stds, valid):
+    """``kernels.landmark_gain`` of each robot's range-bearing to each landmark (``range_bearing_of_offset``,
+    ``noise_covariances``) on its pose block where ``valid`` (N, R, L), 0 elsewhere, and whether a landmark lies on a
+    robot's estimate."""
+    n_robots = x.shape[1] // POSE_DIM
+    gains, coincident = np.zeros(valid.shape), False
+    predicted, block = np.empty(2), np.empty((POSE_DIM, POSE_DIM))
+    HP, S, columns = np.empty((2, POSE_DIM)), np.empty((2, 2)), np.empty(POSE_DIM, dtype=np.int64)
+    for robot in range(n_robots):
+        pose = POSE_DIM * robot
+        copies, seen = np.nonzero(valid[:, robot])
+        H, ranges = np.zeros((len(copies), 2, POSE_DIM)), np.empty(len(copies))
+        for m in range(len(copies)):
+            c, k = copies[m], seen[m]
+            dx, dy = landmarks[c, k, 0] - x[c, pose], landmarks[c, k, 1] - x[c, pose + 1]
+            coincident |= not range_bearing_of_offset(dx, dy, x[c, pose + 2], predicted, H[m])
+            ranges[m] = predicted[0]
+        covariances = noise_covariances(ranges, noise_stds[robot, 0], noise_stds[robot, 1], noise_stds[robot, 2])
+        for m in range(len(copies)):
+            c = copies[m]
             for i in range(POSE_DIM):  # element by element: an array into a slice compiles numba's error formatting
                 for j in range(POSE_DIM):
-                    blocks[row, i, j] = P[c, pose + i, pose + j]
-            for k in range(n_landmarks):
-                dx, dy = landmarks[c, k, 0] - x[c, pose], landmarks[c, k, 1] - x[c, pose + 1]
-                coincident |= not range_bearing_of_offset(dx, dy, x[c, pose + 2], predicted, H[row, k])
-                ranges[robot, c * n_landmarks + k] = predicted[0]
-    for robot in range(n_robots):
-        covariances = noise_covariances(ranges[robot], noise_stds[robot, 0], noise_stds[robot, 1], noise_stds[robot, 2])
-        for c in range(n_copies):
-            for k in range(n_landmarks):
-                for i in range(2):
-                    for j in range(2):
-                        R[c * n_robots + robot, k, i, j] = covariances[c * n_landmarks + k, i, j]
-    return kernels.landmark_gains(blocks, H, R).reshape(n_copies, n_robots, n_landmarks), coincident
+                    block[i, j] = P[c, pose + i, pose + j]
+            gains[c, robot, seen[m]] = kernels.landmark_gain(block, H[m], covariances[m], HP, S, columns)
+    return gains, coincident
 
 
 class ExplorationStep(NamedTuple):

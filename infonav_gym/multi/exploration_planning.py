@@ -220,7 +220,8 @@ class ExplorationPlanningModel:
         observation_gain = np.zeros((B, n_slots))
         if n_landmarks and parts.relative_sensors[robot] is not None:
             landmarks = np.broadcast_to(self._landmarks(), (B, n_landmarks, 2))
-            gains = landmark_gains(belief.x, belief.covariance, landmarks, self._sight.noise_stds)
+            noise_stds, visible = self._sight.noise_stds, belief.landmark_visible
+            gains = landmark_gains(belief.x, belief.covariance, landmarks, noise_stds, visible)
             observation_gain[:, 1 : 1 + n_landmarks] = gains[:, robot]
         own_pairs = np.flatnonzero(pairs.observers == robot)
         if own_pairs.size:
