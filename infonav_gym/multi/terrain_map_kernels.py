@@ -92,11 +92,11 @@ def fused_scans(ticks, radius_squared, variances, positions, noise_variances, sc
                     footprint(ticks, radius_squared, positions[copy, scan, 0], positions[copy, scan, 1], cells)
                 ):
                     added[cells[k]] += weight
+        for cell in range(n_cells):  # apart from the sum below: a loop without calls, which the compiler vectorizes
+            after[copy, cell] = 1.0 / (1.0 / variances[copy, cell] + added[cell])
         total = 0.0
         for cell in range(n_cells):
-            before = variances[copy, cell]
-            after[copy, cell] = 1.0 / (1.0 / before + added[cell])
             if added[cell] != 0.0:
-                total += math.log(before / after[copy, cell])
+                total += math.log(variances[copy, cell] / after[copy, cell])
         information[copy] = 0.5 * total
     return after, information
