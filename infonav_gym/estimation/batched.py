@@ -502,7 +502,10 @@ def relative_pose_information_gains(P, observers, targets, H_observer, H_target,
         R = _noise_covariance("R", R, (*observers.shape, m, m))
     observers, targets = _floats(observers, np.int64), _floats(targets, np.int64)
     H_observer, H_target = _floats(H_observer), _floats(H_target)
-    own, joint = kernels.relative_pose_gains(_floats(P), observers, targets, H_observer, H_target, _floats(R))
+    every_pair = np.ones(observers.shape, dtype=bool)
+    own, joint = kernels.relative_pose_gains(
+        _floats(P), observers, targets, H_observer, H_target, _floats(R), every_pair
+    )
     if np.isnan(own).any():
         raise ValueError("an observer's pose covariance, or its posterior, is not positive definite (determinant <= 0)")
     return own, _checked_gains(joint, R)

@@ -454,20 +454,23 @@ def landmark_gain(P, J, R, HP, S, columns) -> float:
 
 
 @kernel
-def relative_pose_gains(P, observers, targets, H_observer, H_target, R):
-    """``JointEKF.relative_pose_information_gains`` of each candidate pair: ``(own, joint)``, each (N, M) [nats].
+def relative_pose_gains(P, observers, targets, H_observer, H_target, R, wanted):
+    """``JointEKF.relative_pose_information_gains`` of each ``wanted`` candidate pair (N, M) bool, 0 for the others:
+    ``(own, joint)``, each (N, M) [nats].
 
     ``own = 0.5 ln(det P_oo / det (P_oo - A S^-1 A^T))`` with ``A`` the observer's rows of ``P H^T`` and
     ``joint = 0.5 ln(det S / det R)``; NaN where a determinant is not > 0.
     """
     n_copies, n_pairs, m, _ = H_observer.shape
-    own, joint = np.empty((n_copies, n_pairs)), np.empty((n_copies, n_pairs))
+    own, joint = np.zeros((n_copies, n_pairs)), np.zeros((n_copies, n_pairs))
     A, B = np.empty((POSE_DIM, m)), np.empty((POSE_DIM, m))
     S, S_inverse, A_S_inverse = np.empty((m, m)), np.empty((m, m)), np.empty((POSE_DIM, m))
     pivoted, order = np.empty((m, m)), np.empty(m, dtype=np.int64)  # ``invert``'s scratch
     prior, posterior = np.empty((POSE_DIM, POSE_DIM)), np.empty((POSE_DIM, POSE_DIM))
     for c in range(n_copies):
         for k in range(n_pairs):
+            if not wanted[c, k]:
+                continue
             o, t = POSE_DIM * observers[c, k], POSE_DIM * targets[c, k]
             H_o, H_t = H_observer[c, k], H_target[c, k]
             for i in range(POSE_DIM):  # A = P_oo H_o^T + P_ot H_t^T, B = P_to H_o^T + P_tt H_t^T

@@ -109,7 +109,8 @@ def pair_sight(true_poses, observers, targets, max_range_m, half_fov_rad, sight_
 @kernel
 def pair_decisions(x, P, observers, targets, noise, valid, team_reward):
     """``TeamDecision.at_prior``'s arrays of the pairs (``SensingPairs``) and which are ``valid`` (N, P), then
-    whether a determinant was not > 0 (``relative_pose_gains``) or a target lies on its observer."""
+    whether a determinant was not > 0 (``relative_pose_gains``, of the valid pairs: no action observes another)
+    or a target lies on its observer."""
     n_copies, n_robots, n_pairs = x.shape[0], x.shape[1] // POSE_DIM, len(observers)
     copy_observers, copy_targets = np.empty((n_copies, n_pairs), np.int64), np.empty((n_copies, n_pairs), np.int64)
     for c in range(n_copies):
@@ -123,7 +124,7 @@ def pair_decisions(x, P, observers, targets, noise, valid, team_reward):
             R[c, k, 0, 0] = (noise[k, 0] + noise[k, 1] * range_m) ** 2
             R[c, k, 1, 1] = noise[k, 2] ** 2
             R[c, k, 2, 2] = (noise[k, 3] + noise[k, 4] * range_m) ** 2
-    own, joint = relative_pose_gains(P, copy_observers, copy_targets, H_observer, H_target, R)
+    own, joint = relative_pose_gains(P, copy_observers, copy_targets, H_observer, H_target, R, valid)
     mask, gains = np.zeros((n_copies, n_robots, n_robots + 1), np.int8), np.zeros((n_copies, n_robots, n_robots + 1))
     mask[..., NO_OBSERVATION] = 1
     undefined = coincident
