@@ -235,9 +235,9 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         copies = np.flatnonzero(acting)
         if not copies.size:
             return record, np.zeros(chosen.shape), np.zeros(self.num_envs, dtype=bool)
-        n_landmarks = cfg["n_landmarks"]
-        slots, motions = np.divmod(chosen[copies], N_MOTIONS)
-        plan = motion_plan(motions, self._x[copies, 2::POSE_DIM], self.parts.speeds_mps)  # the decision's, as masked
+        rows, n_landmarks = self._rows(copies), cfg["n_landmarks"]
+        slots, motions = np.divmod(chosen[rows], N_MOTIONS)
+        plan = motion_plan(motions, self._x[rows, 2::POSE_DIM], self.parts.speeds_mps)  # the decision's, as masked
         if acting[0] and self.render_mode is not None:  # drawn by render()
             self._first_copy_observed(slots[0])
         observes_teammate = slots > n_landmarks
@@ -250,12 +250,12 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         self._observations_left[copies] -= observed
         n_robots = len(self.agents)
         own_information = 0.5 * (
-            decision.team.pose_log_det[copies] - batched.pose_log_dets(self._P[copies], n_robots, check_input=False)
+            decision.team.pose_log_det[rows] - batched.pose_log_dets(self._P[rows], n_robots, check_input=False)
         )
         self._drive(copies, *plan)
         self._elapsed[copies] += 1
         self._gps_fixes(copies)
-        position_std = ExplorationPlanningModel.position_std(self._P[copies])
+        position_std = ExplorationPlanningModel.position_std(self._P[rows])
         map_information = self._scan(copies, motions != STAY, position_std)
         lost = position_std > cfg["max_position_std_m"]
         self._lost[copies] = lost
@@ -325,7 +325,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         rows = np.flatnonzero(scanning.any(axis=1))
         if not rows.size:
             return information
-        model, mapped = self.parts.map_model, copies[rows]
+        model, mapped = self.parts.map_model, self._rows(copies[rows])
         noise = model.scan_noise_variances(position_std[rows])
         after, information[rows] = model.fused(
             self._map_variances[mapped], self._worlds.poses[mapped, :, :2], noise, scanning[rows]
