@@ -242,9 +242,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
             self._first_copy_observed(slots[0])
         observes_teammate = slots > n_landmarks
         teammates = np.where(observes_teammate, slots - n_landmarks, 0)
-        measured = np.flatnonzero(observes_teammate.any(axis=1))
-        if measured.size:
-            self._relative_update(copies[measured], teammates[measured], decision.team)
+        self._relative_update(copies, teammates, decision.team)
         self._observe_landmarks(copies, np.where((slots > 0) & ~observes_teammate, slots - 1, -1))
         observed = slots > 0
         self._observations_left[copies] -= observed

@@ -144,14 +144,10 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
         )
 
     def _observe(self, chosen: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Fuse each copy's chosen observations as one stacked update; the own and team MI (N, R) and the new std."""
-        decision, n_robots = self._decision, len(self.agents)
-        team_mi, own_mi, updated_std = np.zeros(self.num_envs), np.zeros(chosen.shape), decision.pose_std.copy()
-        measured = np.flatnonzero((chosen != NO_OBSERVATION).any(axis=1))
-        if measured.size:
-            rows = self._rows(measured)
-            team_mi[rows], own_mi[rows], updated_std[rows] = self._relative_update(measured, chosen[rows], decision)
-        return own_mi, np.repeat(team_mi[:, None], n_robots, axis=1), updated_std
+        """Fuse each copy's chosen observations as one stacked update; the own and team MI (N, R) and the new std
+        (MI 0 and the prior's std where a copy observes nothing)."""
+        team_mi, own_mi, updated_std = self._relative_update(np.arange(self.num_envs), chosen, self._decision)
+        return own_mi, np.repeat(team_mi[:, None], len(self.agents), axis=1), updated_std
 
     def _advance(self, copies: np.ndarray) -> None:
         """Move the robots of ``copies``, predict with their noisy odometry, then fuse the DGPS fixes available."""

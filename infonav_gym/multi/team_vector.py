@@ -218,7 +218,8 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
     def _relative_update(self, copies: np.ndarray, chosen: np.ndarray, decision) -> list:
         """Fuse the teammate choices ``chosen`` (n, R) (``NO_OBSERVATION`` or ``1 + j`` for robot j) of ``copies`` (n,)
         at the ``decision``'s candidates as one stacked update per copy; the joint MI (n,), each robot's own-pose MI
-        (n, R) [nats] and its x, y, heading standard deviations after (n, R, 3) (``relative_updates``)."""
+        (n, R) [nats] and its x, y, heading standard deviations after (n, R, 3) (``relative_updates``: MI 0 and the
+        prior's std in a copy without observations; all copies are views, no copies)."""
         noise = self._noise[RELATIVE_NOISE].take_many(copies, chosen != NO_OBSERVATION)
         rows = self._rows(copies)
         candidates = (decision.geometry, decision.predicted, decision.H_observer, decision.H_target, decision.R)
@@ -320,19 +321,21 @@ def relative_updates(
     plus the sensor's noise (``relative_poses_with_noise`` of its ``parameters`` and the standard normals ``noise[c,
     k]``), fused at the prior's ``predicted``, ``H_o``, ``H_t`` and ``R`` in slot order (``kalman_updates``). Returns
     ``(x, P, joint_mi (n,), own_mi (n, R), pose_std (n, R, 3))``: the MI on the joint state and on each robot's pose
-    (prior: ``log_det`` (n, R)) [nats], NaN where a determinant is not > 0, and each robot's std after.
+    (prior: ``log_det`` (n, R)) [nats], NaN where a determinant is not > 0, and each robot's std after. A copy
+    without observations keeps its x and P: MI 0 (its joint log-determinants are not computed).
     """
     n_copies, n = x.shape
     n_robots = chosen.shape[1]
     residuals, slot_R = np.zeros((n_copies, n_robots, POSE_DIM)), np.zeros((n_copies, n_robots, POSE_DIM, POSE_DIM))
     H, observed = np.zeros((n_copies, n_robots, POSE_DIM, n)), np.zeros((n_copies, n_robots), np.bool_)
-    measured = np.empty(POSE_DIM)
+    measured, observations = np.empty(POSE_DIM), np.zeros(n_copies, np.int64)
     for c in range(n_copies):
         for robot in range(n_robots):
             pair = pair_index[robot, chosen[c, robot]]
             if pair < 0:
                 continue
             observed[c, robot] = True
+            observations[c] += 1
             target = targets[pair]
             relative_pose_measured(geometry[c, pair], parameters[pair], noise[c, robot], measured)
             for i in range(POSE_DIM):
@@ -346,7 +349,7 @@ def relative_updates(
     joint_mi, own_mi, pose_std = np.empty(n_copies), np.empty((n_copies, n_robots)), np.empty(residuals.shape)
     block = np.empty((POSE_DIM, POSE_DIM))
     for c in range(n_copies):
-        joint_mi[c] = 0.5 * (log_det_of(P[c]) - log_det_of(P_new[c]))
+        joint_mi[c] = 0.5 * (log_det_of(P[c]) - log_det_of(P_new[c])) if observations[c] else 0.0
         for robot in range(n_robots):
             own_mi[c, robot] = 0.5 * (log_det[c, robot] - pose_block_log_det(P_new[c], POSE_DIM * robot, block))
             for i in range(POSE_DIM):
