@@ -18,16 +18,19 @@ def footprint(ticks, radius_squared, x, y, cells):
     """Write the cells a scan from (x, y) [m] sees into ``cells`` (row-major, ``row * K + col``); their count.
 
     The ticks ascend, so past (x, y) the first cell out of reach ends its row, and the first row out of reach the
-    grid (rounding is monotone: no cell beyond is within reach)."""
+    grid (rounding is monotone: no cell beyond is within reach); before (x, y), the rows and columns more than a cell
+    out of reach are not visited (``first_near``)."""
     n_ticks, count = ticks.shape[0], 0
-    for row in range(n_ticks):
+    reach = math.sqrt(radius_squared)
+    first_col = first_near(ticks, x - reach)
+    for row in range(first_near(ticks, y - reach), n_ticks):
         dy = y - ticks[row]
         dy_squared = dy * dy
         if dy_squared > radius_squared:
             if dy < 0.0:  # the ticks ascend: every later row is farther still
                 break
             continue
-        for col in range(n_ticks):
+        for col in range(first_col, n_ticks):
             dx = x - ticks[col]
             if dx * dx + dy_squared <= radius_squared:
                 cells[count] = row * n_ticks + col
@@ -35,6 +38,16 @@ def footprint(ticks, radius_squared, x, y, cells):
             elif dx < 0.0:
                 break
     return count
+
+
+@inline
+def first_near(ticks, low):
+    """The index of a tick at least a cell below the first tick >= ``low`` (0 for NaN): the ticks before it lie more
+    than two cells below ``low``. ``ticks`` (K >= 2,) ascend evenly."""
+    start = (low - ticks[0]) / (ticks[1] - ticks[0]) - 1.0
+    if not start > 0.0:
+        return 0
+    return int(min(start, float(len(ticks))))
 
 
 @kernel
