@@ -185,11 +185,18 @@ def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction,
 
     Robot ``i``'s row: its estimate (x, y, cos, sin of the heading), standard deviations, entropy, DGPS flag and
     elapsed fraction; then per robot ``j`` (zeros for ``j = i``): may observe, range, cos and sin of the bearing
-    from ``i``'s estimate, ``j``'s position std (hypot of its x, y std); then ``gains`` (B, R, G).
+    from ``i``'s estimate, ``j``'s position std (hypot of its x, y std); then ``gains`` (B, R, G). Each pair's range
+    and each robot's position std are computed once per team (``hypot(-dx, -dy) = hypot(dx, dy)``).
     """
     n_teams, n_robots = estimates.shape[0], estimates.shape[1]
     teammates_end = OWN_FEATURES + TEAMMATE_FEATURES * n_robots
+    ranges, position_std = np.empty((n_robots, n_robots)), np.empty(n_robots)
     for team in range(n_teams):
+        for j in range(n_robots):
+            position_std[j] = np.hypot(pose_std[team, j, 0], pose_std[team, j, 1])
+            for i in range(j):
+                dx, dy = estimates[team, j, 0] - estimates[team, i, 0], estimates[team, j, 1] - estimates[team, i, 1]
+                ranges[i, j] = ranges[j, i] = np.hypot(dx, dy)
         for i in range(n_robots):
             row = out[team, i]
             x, y, heading = estimates[team, i, 0], estimates[team, i, 1], estimates[team, i, 2]
@@ -203,10 +210,9 @@ def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction,
                 start = OWN_FEATURES + TEAMMATE_FEATURES * j
                 dx, dy = estimates[team, j, 0] - x, estimates[team, j, 1] - y
                 bearing = np.arctan2(dy, dx) - heading
-                row[start] = teammate_valid[team, i, j]
-                row[start + 1] = np.hypot(dx, dy)
+                row[start], row[start + 1] = teammate_valid[team, i, j], ranges[i, j]
                 row[start + 2], row[start + 3] = np.cos(bearing), np.sin(bearing)
-                row[start + 4] = np.hypot(pose_std[team, j, 0], pose_std[team, j, 1])
+                row[start + 4] = position_std[j]
             for k in range(gains.shape[2]):
                 row[teammates_end + k] = gains[team, i, k]
             for k in range(row.shape[0]):  # as np.clip: NaN stays NaN
