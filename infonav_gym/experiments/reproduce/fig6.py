@@ -35,6 +35,7 @@ from infonav_gym.sensors.ladar import sensor_points
 
 SEEDS_COUNT = "how many frame pairs the statistics register"  # what ``n_seeds`` counts, for its error
 CONTROL_FRACTION = 0.25  # control points as a fraction of the returns
+MIN_CONTROL_POINTS = 3  # the fewest control points a registration is given, whatever the fraction
 STRATEGIES = ("entropy", "uniform", "random")
 RECALL_THRESHOLDS_M = (0.05, 0.10)  # a pair is registered when its registration error is below the threshold
 
@@ -55,9 +56,8 @@ class PairRegistration:
         rows = slice(None) if control_points is None else control_points
         pair, covariances = self.pair, {}
         if self.settings.get("method") == "gicp":
-            if self._covariances is None:
-                self._covariances = gicp_covariances(self.source), gicp_covariances(self.target)
-            covariances = {"source_covariances": self._covariances[0][rows], "target_covariances": self._covariances[1]}
+            source_covariances, target_covariances = self.frame_covariances()
+            covariances = {"source_covariances": source_covariances[rows], "target_covariances": target_covariances}
         result = icp(self.source[rows], self.target, pair.odometry_motion, **self.settings, **covariances)
         translation, rotation = transform_error(result.transform, pair.true_motion)
         return {
@@ -70,6 +70,17 @@ class PairRegistration:
             "converged": result.converged,
             "transform": result.transform,
         }
+
+    def frame_covariances(self) -> tuple[np.ndarray, np.ndarray]:
+        """GICP's covariances of the newer and the older frame's returns, computed on first use and kept."""
+        if self._covariances is None:
+            self._covariances = gicp_covariances(self.source), gicp_covariances(self.target)
+        return self._covariances
+
+
+def control_point_count(fraction: float, returns: int) -> int:
+    """Control points for ``fraction`` of a frame's ``returns``: rounded, at least ``MIN_CONTROL_POINTS``."""
+    return max(MIN_CONTROL_POINTS, round(fraction * returns))
 
 
 def recall_summary(errors_m) -> dict:
@@ -91,7 +102,7 @@ def seed_statistics(seeds, progress: bool = False, settings: dict = FRAME_PAIR_I
         pair = terrain_frame_pair(rng)
         registration = PairRegistration(pair, settings)
         records["all"].append(registration())
-        k = max(3, round(CONTROL_FRACTION * len(registration.source)))
+        k = control_point_count(CONTROL_FRACTION, len(registration.source))
         for strategy in STRATEGIES:
             chosen = select_control_points(
                 pair.current, k, strategy, pose_covariance=pair.motion_covariance, np_random=rng
