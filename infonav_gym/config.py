@@ -51,10 +51,43 @@ def _typed_like(default, value, where: str):
     raise ValueError(f"{where} must be {kind} (like the default {default!r}), got {value!r}")
 
 
+_requirement_logs: list[dict[str, list[str]]] = []  # the logs of the open ``stated_requirements`` contexts
+_open_key_maps: list[dict[str, str]] = []  # key_of_parameter of the open ``config_keys`` while a log is open
+
+
+@contextmanager
+def stated_requirements():
+    """Log what the checks run inside require of each config key, in the words its error would use.
+
+    Yields a dict, config key -> its requirements (``["in (0, 1000] m"]``, ``["one of ['corridor', 'field']"]``),
+    filled as checks pass: making an env inside gives the allowed values of its keys (for its documentation)
+    from the checks themselves. A parameter's key is the one ``config_keys`` would name in its error.
+    """
+    log: dict[str, list[str]] = {}
+    _requirement_logs.append(log)
+    try:
+        yield log
+    finally:
+        _requirement_logs.remove(log)
+
+
+def _note_requirement(parameter: str, requirement: str, *, is_key: bool = False) -> None:
+    """Add ``requirement`` to the open logs, under ``parameter``'s config key (``parameter`` itself if ``is_key``)."""
+    key = parameter if is_key else next((keys[parameter] for keys in _open_key_maps[::-1] if parameter in keys), None)
+    if key is None:  # a parameter no config key sets
+        return
+    for log in _requirement_logs:
+        if requirement not in log.setdefault(key, []):
+            log[key].append(requirement)
+
+
 def check_choice(config: dict, key: str, choices, owner: str) -> None:
     """Raise ``ValueError`` unless ``config[key]`` is one of ``choices``."""
+    requirement = f"one of {sorted(choices)}"
+    if _requirement_logs:
+        _note_requirement(key, requirement, is_key=True)
     if config[key] not in choices:
-        raise ValueError(f"config key {key!r} of {owner} must be one of {sorted(choices)}, got {config[key]!r}")
+        raise ValueError(f"config key {key!r} of {owner} must be {requirement}, got {config[key]!r}")
 
 
 class ParameterError(ValueError):
@@ -89,15 +122,23 @@ def check_number(
     the bound; ``unit`` follows the interval in the message.
     """
     real = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
-    if not (real and (low < value if open_low else low <= value) and (value < high if open_high else value <= high)):
-        interval = f"{'(' if open_low else '['}{low:g}, {high:g}{')' if open_high else ']'}"
-        raise ParameterError(owner, parameter, f"in {interval}{' ' + unit if unit else ''}", value)
+    inside = real and (low < value if open_low else low <= value) and (value < high if open_high else value <= high)
+    if inside and not _requirement_logs:
+        return
+    interval = f"{'(' if open_low else '['}{low:g}, {high:g}{')' if open_high else ']'}"
+    requirement = f"in {interval}{' ' + unit if unit else ''}"
+    _note_requirement(parameter, requirement)
+    if not inside:
+        raise ParameterError(owner, parameter, requirement, value)
 
 
 def check_integer(owner: str, parameter: str, value, low: int, high: int) -> None:
     """Raise ``ParameterError`` unless ``value`` is an integer (not a bool) in ``[low, high]``."""
+    requirement = f"an integer in [{low}, {high}]"
+    if _requirement_logs:
+        _note_requirement(parameter, requirement)
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or not low <= value <= high:
-        raise ParameterError(owner, parameter, f"an integer in [{low}, {high}]", value)
+        raise ParameterError(owner, parameter, requirement, value)
 
 
 @dataclass(frozen=True)
@@ -142,6 +183,9 @@ def config_keys(owner: str, key_of_parameter: dict[str, str]):
         key_of_parameter: the config key of each parameter name, e.g. ``{"max_range_m": "sensor_max_range_m"}``;
             a ``ParameterError`` of another parameter passes through unchanged.
     """
+    logging = bool(_requirement_logs)
+    if logging:
+        _open_key_maps.append(key_of_parameter)
     try:
         yield
     except ParameterError as error:
@@ -152,6 +196,9 @@ def config_keys(owner: str, key_of_parameter: dict[str, str]):
         raise ValueError(
             f"config key {key!r} of {owner} must be {error.requirement}, got {error.value!r}{source}"
         ) from None
+    finally:
+        if logging:
+            _open_key_maps.pop()
 
 
 def from_config(factory, config: dict, key_of_parameter: dict[str, str], owner: str):

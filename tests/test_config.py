@@ -1,6 +1,7 @@
 """The config check helpers: intervals with finiteness, integer checks, and errors that name the config key."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from infonav_gym.config import (
     check_number,
     config_keys,
     from_config,
+    stated_requirements,
 )
 from infonav_gym.sensors import RangeBearingSensor
 
@@ -70,3 +72,32 @@ def test_from_config_builds_from_the_keys_and_names_the_bad_one():
     assert (sensor.range_std_m, sensor.max_range_m) == (0.2, 5.0)
     with pytest.raises(ValueError, match=r"config key 'reach' of MyEnv must be in \(0, 1000\] m, got -5.0"):
         from_config(RangeBearingSensor, {"noise": 0.2, "reach": -5.0}, keys, "MyEnv")
+
+
+def test_stated_requirements_log_each_key_as_its_error_states_it():
+    config = {"sensor_max_range_m": 15.0, "range_std_m": 0.1, "unused": 1.0}
+    keys = {"max_range_m": "sensor_max_range_m", "range_std_m": "range_std_m"}
+    with stated_requirements() as requirements:
+        from_config(RangeBearingSensor, config, keys, "Env")
+        check_number("Sensor", "gain", 1.0, 0.0, 10.0)  # no config key sets it: not logged
+    assert requirements["sensor_max_range_m"] == ["in (0, 1000] m"]
+    assert "gain" not in requirements and "unused" not in requirements
+    with pytest.raises(ValueError) as error:
+        from_config(RangeBearingSensor, {**config, "sensor_max_range_m": -1.0}, keys, "Env")
+    assert f"must be {requirements['sensor_max_range_m'][0]}, got -1.0" in str(error.value)
+    from_config(RangeBearingSensor, config, keys, "Env")  # outside the context: nothing more logged
+    assert requirements["sensor_max_range_m"] == ["in (0, 1000] m"]
+
+
+def test_stated_requirements_of_a_made_env_match_its_errors():
+    import gymnasium as gym
+
+    import infonav_gym  # noqa: F401  (registers the envs)
+
+    with stated_requirements() as requirements:
+        gym.make("infonav/LandmarkSelection-v0").close()
+    assert requirements["scenario"] == ["one of ['corridor', 'field']"]
+    assert requirements["n_obstacles"] == ["an integer in [0, 100]"]
+    for key, value in (("scenario", "nowhere"), ("n_obstacles", 101)):
+        with pytest.raises(ValueError, match=re.escape(f"must be {requirements[key][0]}, got {value!r}")):
+            gym.make("infonav/LandmarkSelection-v0", **{key: value})
