@@ -1,7 +1,8 @@
-"""Render one mid-episode ``rgb_array`` frame of every env to ``docs/frames/<env>.png``.
+"""Render a mid-episode frame and a short animated episode of every registered env into ``docs/frames``.
 
-Usage: python scripts/render_frames.py [--output-dir DIR]. Each env runs from ``reset(seed=0)``
-under the greedy-entropy agent for the stated number of steps, then renders once.
+Usage: python scripts/render_frames.py [--output-dir DIR] [--env ENV_ID ...]. Each env plays the episode
+``infonav render`` plays (the greedy-entropy agent from ``reset(seed=0)``); ``<name>.png`` is its frame after
+``FRAME_STEPS`` steps, ``<name>.gif`` its first ``GIF_STEPS`` steps at ``GIF_SIZE_PX`` (``frame_stem`` names them).
 """
 
 import argparse
@@ -11,62 +12,52 @@ from pathlib import Path
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
-import gymnasium as gym
-import numpy as np
 from PIL import Image
 
-import infonav_gym  # noqa: F401  (registers the envs)
-from agents import GreedyEntropyAgent
-from infonav_gym.multi import cooperative_localization_v0
+from infonav_gym.experiments.render_episode import frame_stem, render_episode, write_gif
+from infonav_gym.registry import registered_envs
 
 SEED = 0
-SINGLE_AGENT_FRAMES = {  # file name: (env id, config, steps before the frame)
-    "LandmarkSelection": ("infonav/LandmarkSelection-v0", {"scenario": "corridor", "render_size_px": 900}, 12),
-    "ActiveLocalization": ("infonav/ActiveLocalization-v0", {}, 12),
-    "SensorSelection": ("infonav/SensorSelection-v0", {}, 20),
-    "RangeRegistration": ("infonav/RangeRegistration-v0", {}, 10),
+AGENT = "greedy"
+FRAME_STEPS = 12  # steps before the frame, unless FRAME_SETTINGS says otherwise
+FRAME_SETTINGS = {  # env id: (config, steps before the frame) where another moment shows the env better
+    "infonav/LandmarkSelection-v0": ({"scenario": "corridor", "render_size_px": 900}, 12),
+    "infonav/SensorSelection-v0": ({}, 20),
+    "infonav/RangeRegistration-v0": ({}, 10),
+    "cooperative_localization_v0": ({}, 80),
 }
-TEAM_FRAME = ("cooperative_localization_v0", 80)  # file name, steps before the frame
+GIF_STEPS = 40  # steps in each GIF (the reset's frame first)
+GIF_EVERY = 2  # keep every GIF_EVERY-th step's frame
+GIF_SIZE_PX = 400  # render_size_px of the GIF frames: small files
 
 
-def single_agent_frame(env_id: str, config: dict, steps: int) -> np.ndarray:
-    """The frame of ``env_id`` after ``steps`` greedy steps from ``reset(seed=SEED)``."""
-    env = gym.make(env_id, render_mode="rgb_array", **config)
-    agent = GreedyEntropyAgent()
-    observation, info = env.reset(seed=SEED)
-    for _ in range(steps):
-        observation, _, terminated, truncated, info = env.step(agent.act(observation, info))
-        if terminated or truncated:
-            raise RuntimeError(f"{env_id} ended before step {steps}; render an earlier step")
-    frame = env.render()
-    env.close()
-    return frame
+def write_frame(env_id: str, output_dir: Path) -> Path:
+    """The env's frame after its ``FRAME_SETTINGS`` steps (default ``FRAME_STEPS``), as ``<stem>.png``."""
+    config, steps = FRAME_SETTINGS.get(env_id, ({}, FRAME_STEPS))
+    episode = render_episode(env_id, AGENT, SEED, config, every=steps, max_steps=steps, progress=False)
+    if episode.steps[-1] != steps:
+        raise RuntimeError(f"{env_id} ended before step {steps}; render an earlier step")
+    path = output_dir / f"{frame_stem(env_id)}.png"
+    Image.fromarray(episode.frames[-1]).save(path)
+    return path
 
 
-def team_frame(steps: int) -> np.ndarray:
-    """The team env's frame after ``steps`` greedy steps of every robot from ``reset(seed=SEED)``."""
-    env = cooperative_localization_v0.parallel_env(render_mode="rgb_array")
-    agent = GreedyEntropyAgent()
-    observations, infos = env.reset(seed=SEED)
-    for _ in range(steps):
-        actions = {name: agent.act(observations[name], infos[name]) for name in env.agents}
-        observations, _, _, _, infos = env.step(actions)
-    frame = env.render()
-    env.close()
-    return frame
+def write_episode_gif(env_id: str, output_dir: Path) -> Path:
+    """The env's first ``GIF_STEPS`` steps (every ``GIF_EVERY``-th frame) as ``<stem>.gif``."""
+    config = {**FRAME_SETTINGS.get(env_id, ({}, FRAME_STEPS))[0], "render_size_px": GIF_SIZE_PX}
+    episode = render_episode(env_id, AGENT, SEED, config, every=GIF_EVERY, max_steps=GIF_STEPS, progress=False)
+    return write_gif(episode, output_dir / f"{frame_stem(env_id)}.gif")
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output-dir", type=Path, default=Path("docs/frames"), help="default: docs/frames")
-    output_dir = parser.parse_args(argv).output_dir
-    output_dir.mkdir(parents=True, exist_ok=True)
-    frames = {name: single_agent_frame(*spec) for name, spec in SINGLE_AGENT_FRAMES.items()}
-    frames[TEAM_FRAME[0]] = team_frame(TEAM_FRAME[1])
-    for name, frame in frames.items():
-        path = output_dir / f"{name}.png"
-        Image.fromarray(frame).save(path)
-        print(f"wrote {path} ({frame.shape[1]} x {frame.shape[0]} px)")
+    parser.add_argument("--env", action="append", help="only this env (repeatable; default: every registered env)")
+    args = parser.parse_args(argv)
+    args.output_dir.mkdir(parents=True, exist_ok=True)
+    for env_id in args.env or [entry.id for entry in registered_envs()]:
+        for path in (write_frame(env_id, args.output_dir), write_episode_gif(env_id, args.output_dir)):
+            print(f"wrote {path} ({path.stat().st_size / 1e3:.0f} kB)")
     return 0
 
 

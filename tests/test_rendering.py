@@ -584,8 +584,11 @@ def test_the_team_env_keeps_every_robots_paths_bounded(monkeypatch):
     env.close()
 
 
-def test_the_frames_script_writes_one_png_per_env(tmp_path):
+def test_the_frames_script_writes_a_png_and_a_gif_of_every_registered_env(tmp_path):
     from PIL import Image
+
+    from infonav_gym.experiments.render_episode import frame_stem
+    from infonav_gym.registry import registered_envs
 
     script = Path(__file__).resolve().parents[1] / "scripts" / "render_frames.py"
     environment = {**os.environ, "SDL_VIDEODRIVER": "dummy", "PYTHONPATH": os.pathsep.join(sys.path)}
@@ -593,11 +596,13 @@ def test_the_frames_script_writes_one_png_per_env(tmp_path):
         [sys.executable, str(script), "--output-dir", str(tmp_path)], capture_output=True, text=True, env=environment
     )
     assert result.returncode == 0, result.stderr
-    names = ["ActiveLocalization", "LandmarkSelection", "RangeRegistration", "SensorSelection"]
-    assert sorted(path.name for path in tmp_path.iterdir()) == [f"{name}.png" for name in names] + [
-        "cooperative_localization_v0.png"
-    ]
+    stems = sorted(frame_stem(entry.id) for entry in registered_envs())
+    assert sorted(path.name for path in tmp_path.iterdir()) == sorted(
+        f"{s}{x}" for s in stems for x in (".gif", ".png")
+    )
     with Image.open(tmp_path / "LandmarkSelection.png") as corridor:
         assert corridor.size[0] == 900 and corridor.mode == "RGB"
     with Image.open(tmp_path / "cooperative_localization_v0.png") as team:
         assert max(team.size) == 600
+    with Image.open(tmp_path / "cooperative_exploration_v0.gif") as episode:  # the reset and every 2nd of 40 steps
+        assert episode.n_frames == 21 and max(episode.size) == 400

@@ -7,6 +7,7 @@ episode is the one ``evaluate`` plays on the same seed; the env draws every fram
 from __future__ import annotations
 
 import itertools
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +19,13 @@ from infonav_gym.rendering import matplotlib_figure, require_extra, save_figure
 
 STRIP_FRAMES = 6  # frames in PREFIX.png
 STRIP_COLUMNS = 3
+
+
+def frame_stem(env_id: str) -> str:
+    """The file stem of an env's rendered frame and episode in ``docs/frames``: the id without its namespace and
+    Gymnasium version (``infonav/LandmarkSelection-v0``: ``LandmarkSelection``; ``cooperative_localization_v0``
+    as it is)."""
+    return re.sub(r"-v\d+$", "", env_id.rpartition("/")[2])
 
 
 @dataclass(frozen=True)
