@@ -9,6 +9,7 @@ from pathlib import Path
 
 DOCS = Path(__file__).resolve().parent
 sys.path.insert(0, str(DOCS.parent))  # the package beside the docs, not an installed copy
+sys.path.insert(0, str(DOCS / "_ext"))  # this site's Sphinx extensions
 
 import infonav_gym  # noqa: E402  (after the path above)
 
@@ -17,7 +18,7 @@ author = "the infonav-gym authors"
 copyright = "the infonav-gym authors, MIT licence"
 release = version = infonav_gym.__version__
 
-extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon"]
+extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "env_pages"]  # env_pages: docs/envs/
 source_suffix = {".md": "markdown"}
 exclude_patterns = ["_build"]
 myst_heading_anchors = 3  # links to a page's sections: [text](page.md#section-title)

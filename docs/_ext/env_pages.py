@@ -1,0 +1,238 @@
+"""Sphinx extension: one page per registered env, written from the registry and the env itself at each build.
+
+For every env in ``infonav_gym.registry.registered_envs()`` it writes ``docs/envs/<stem>.md`` (not committed):
+the env class's docstring, the spaces of a made env, its config keys with their defaults and the allowed values
+its own checks state (``infonav_gym.config.stated_requirements``), its episode metrics and traits, its frame and
+episode GIF from ``docs/frames`` (``scripts/render_frames.py``) and every committed evaluation of it in
+``results/``. A new env gets its page by being registered; nothing here names one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import os
+from pathlib import Path
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+
+import numpy as np
+
+from infonav_gym.config import stated_requirements
+from infonav_gym.envs.traits import episode_metrics_of, traits_of
+from infonav_gym.experiments.render_episode import frame_stem
+from infonav_gym.registry import PARALLEL, EnvEntry, make_env, registered_envs
+
+DOCS = Path(__file__).resolve().parent.parent
+PAGES = DOCS / "envs"  # written at each build (.gitignore)
+FRAMES = DOCS / "frames"
+RESULTS = DOCS.parent / "results"
+
+
+def markdown_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    """A Markdown table; ``|`` inside a cell escaped."""
+    lines = [header, ["---"] * len(header), *rows]
+    return ["| " + " | ".join(str(cell).replace("|", "\\|") for cell in line) + " |" for line in lines]
+
+
+def code(value) -> str:
+    """``value`` as inline code (the backtick fence longer than any run of backticks inside)."""
+    text = str(value).replace("\n", " ")
+    fence = "``" if "`" in text else "`"
+    return f"{fence}{text}{fence}"
+
+
+def shown(value) -> str:
+    """``repr(value)``, a set's items sorted: the same text at every build (string hashes vary by process)."""
+    if isinstance(value, (set, frozenset)):
+        return "{" + ", ".join(sorted(map(repr, value))) + "}"
+    return repr(value)
+
+
+def spaces_of(env, parallel: bool) -> dict[str, tuple]:
+    """``{who: (observation space, action space)}``: the env's, or each robot's of a team env."""
+    if not parallel:
+        return {"the agent": (env.observation_space, env.action_space)}
+    return {agent: (env.observation_space(agent), env.action_space(agent)) for agent in env.possible_agents}
+
+
+def space_row(who: str, kind: str, space) -> list[str]:
+    """A row of the spaces table: whose, which, the space's class, shape, dtype and bounds."""
+    low, high = getattr(space, "low", None), getattr(space, "high", None)
+    bounds = f"[{np.min(low):g}, {np.max(high):g}]" if low is not None else f"{{0, ..., {space.n - 1}}}"
+    dtype = getattr(space, "dtype", None)
+    return [who, kind, code(type(space).__name__), code(space.shape), code(dtype), bounds]
+
+
+def spaces_section(env, parallel: bool) -> list[str]:
+    """The spaces table (robots with equal spaces in one row) and the spaces' full ``repr``."""
+    groups: dict[tuple[str, str], list[str]] = {}
+    spaces = {}
+    for who, (observation, action) in spaces_of(env, parallel).items():
+        groups.setdefault((repr(observation), repr(action)), []).append(who)
+        spaces[(repr(observation), repr(action))] = (observation, action)
+    rows, reprs = [], []
+    for key, names in groups.items():
+        who = ", ".join(names)
+        observation, action = spaces[key]
+        rows += [space_row(who, "observation", observation), space_row(who, "action", action)]
+        reprs += [f"# {who}", f"observation_space = {key[0]}", f"action_space = {key[1]}"]
+    header = ["who", "space", "class", "shape", "dtype", "bounds (lowest, highest)"]
+    return [
+        "## Spaces",
+        "",
+        *markdown_table(header, rows),
+        "",
+        "The spaces of a made env, as Python prints them:",
+        "",
+        "```text",
+        *reprs,
+        "```",
+    ]
+
+
+def config_section(entry: EnvEntry, requirements: dict[str, list[str]]) -> list[str]:
+    """Every key of ``default_config()`` with its default and the allowed values its checks stated."""
+    defaults = entry.load().default_config()
+    rows = [
+        [code(key), code(repr(default)), " and ".join(requirements.get(key, [])) or "see the docstring"]
+        for key, default in defaults.items()
+    ]
+    make = "make_env" if entry.api == PARALLEL else "gym.make"
+    return [
+        "## Config",
+        "",
+        f"`{make}({entry.id!r}, **config)` overrides these keys of `default_config()`; an unknown key or a value "
+        "outside its range raises `ValueError` naming it. The allowed values are those the env's own checks state "
+        "when it is made with the defaults (units after the interval).",
+        "",
+        *markdown_table(["key", "default", "allowed values"], rows),
+    ]
+
+
+def metrics_section(env) -> list[str]:
+    """The episode metrics ``infonav evaluate`` reports, and the traits the env declares."""
+    metrics = [
+        [code(metric.name), metric.title, "rate (Wilson 95% interval)" if metric.proportion else "mean (Student t 95%)"]
+        for metric in episode_metrics_of(env)
+    ]
+    traits = traits_of(env)
+    trait_rows = [[code(field.name), code(shown(getattr(traits, field.name)))] for field in dataclasses.fields(traits)]
+    return [
+        "## Episode metrics",
+        "",
+        "What `infonav evaluate` reports for this env (`episode_metrics`):",
+        "",
+        *markdown_table(["name", "column", "summary"], metrics),
+        "",
+        "## Traits",
+        "",
+        "What the env promises code outside it (`traits`, see `infonav_gym.envs.traits.EnvTraits`):",
+        "",
+        *markdown_table(["trait", "value"], trait_rows),
+    ]
+
+
+def pictures_section(env_id: str) -> list[str]:
+    """The env's frame and episode GIF from ``docs/frames``, or how to make them."""
+    stem = frame_stem(env_id)
+    pictures = [(FRAMES / f"{stem}{suffix}", what) for suffix, what in ((".png", "a frame"), (".gif", "an episode"))]
+    found = [f"![{env_id}: {what}](../frames/{path.name})\n" for path, what in pictures if path.is_file()]
+    how = f"`python scripts/render_frames.py --env {env_id}` renders them"
+    if not found:
+        return ["## Rendering", "", f"No frame of this env in `docs/frames` yet: {how}."]
+    return [
+        "## Rendering",
+        "",
+        f'`render_mode="rgb_array"` under the greedy-entropy agent from `reset(seed=0)` ({how}):',
+        "",
+        *found,
+    ]
+
+
+def evaluations_of(env_id: str) -> list[Path]:
+    """The committed ``infonav evaluate`` tables of ``env_id`` in ``results/`` (their first line names it)."""
+    return [path for path in sorted(RESULTS.glob("*.md")) if path.read_text().startswith(f"# {env_id},")]
+
+
+def results_section(env_id: str) -> list[str]:
+    """Every committed evaluation of the env, included as it is in ``results/``."""
+    lines = ["## Baselines", ""]
+    evaluations = evaluations_of(env_id)
+    if not evaluations:
+        return [*lines, "No committed evaluation of this env in `results/` yet."]
+    for path in evaluations:
+        include = ["```{include} ../../results/" + path.name, ":heading-offset: 2", "```"]
+        lines += [f"From `results/{path.name}`:", "", *include, ""]
+    return lines
+
+
+def env_page(entry: EnvEntry) -> str:
+    """The Markdown page of one registered env."""
+    with stated_requirements() as requirements:
+        env = make_env(entry.id)
+    try:
+        parallel = entry.api == PARALLEL
+        vector = entry.vector_entry_point
+        made = f"`infonav_gym.make_env({entry.id!r})`" + ("" if parallel else f" or `gym.make({entry.id!r})`")
+        if vector is not None:
+            made += f"; its native vector env: `infonav_gym.make_vector_env({entry.id!r}, num_envs=N)` ({code(vector)})"
+        lines = [
+            f"# {entry.id}",
+            "",
+            f"API: {'PettingZoo parallel' if parallel else 'Gymnasium'}; entry point {code(entry.entry_point)}. Made "
+            f"by {made}.",
+            "",
+            inspect.getdoc(entry.load()) or "(no docstring)",
+            "",
+            *spaces_section(env, parallel),
+            "",
+            *config_section(entry, requirements),
+            "",
+            *metrics_section(env),
+            "",
+            *pictures_section(entry.id),
+            "",
+            *results_section(entry.id),
+        ]
+    finally:
+        env.close()
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def write_env_pages(app=None) -> list[Path]:
+    """Write ``docs/envs/<stem>.md`` for every registered env and ``docs/envs/index.md`` listing them."""
+    PAGES.mkdir(exist_ok=True)
+    entries = registered_envs()
+    pages = []
+    for entry in entries:
+        page = PAGES / f"{frame_stem(entry.id)}.md"
+        write_if_changed(page, env_page(entry))
+        pages.append(page)
+    index = [
+        "# Environments",
+        "",
+        "One page per registered env (`infonav_gym.registry.registered_envs()`), written from the registry and the "
+        "env itself at each build.",
+        "",
+        "```{toctree}",
+        ":maxdepth: 1",
+        "",
+        *(page.stem for page in pages),
+        "```",
+    ]
+    write_if_changed(PAGES / "index.md", "\n".join(index) + "\n")
+    for stale in set(PAGES.glob("*.md")) - {*pages, PAGES / "index.md"}:
+        stale.unlink()
+    return pages
+
+
+def write_if_changed(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` unless it holds it already (Sphinx then keeps the page's cached build)."""
+    if not path.is_file() or path.read_text() != text:
+        path.write_text(text)
+
+
+def setup(app):
+    app.connect("builder-inited", write_env_pages)
+    return {"parallel_read_safe": True, "parallel_write_safe": True}
