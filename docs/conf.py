@@ -18,7 +18,13 @@ author = "the infonav-gym authors"
 copyright = "the infonav-gym authors, MIT licence"
 release = version = infonav_gym.__version__
 
-extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "env_pages"]  # env_pages: docs/envs/
+extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon"]
+extensions += [
+    "env_pages",
+    "api_page",
+    "cli_page",
+    "figures_page",
+]  # docs/_ext: the pages in docs/generated, written at each build
 source_suffix = {".md": "markdown"}
 exclude_patterns = ["_build"]
 myst_heading_anchors = 3  # links to a page's sections: [text](page.md#section-title)

@@ -1,6 +1,6 @@
 """Sphinx extension: one page per registered env, written from the registry and the env itself at each build.
 
-For every env in ``infonav_gym.registry.registered_envs()`` it writes ``docs/envs/<stem>.md`` (not committed):
+For every env in ``infonav_gym.registry.registered_envs()`` it writes ``docs/generated/envs/<stem>.md``:
 the env class's docstring, the spaces of a made env, its config keys with their defaults and the allowed values
 its own checks state (``infonav_gym.config.stated_requirements``), its episode metrics and traits, its frame and
 episode GIF from ``docs/frames`` (``scripts/render_frames.py``) and every committed evaluation of it in
@@ -17,29 +17,15 @@ from pathlib import Path
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
 import numpy as np
+from page_writing import DOCS, code, markdown_table, write_page
 
 from infonav_gym.config import stated_requirements
 from infonav_gym.envs.traits import episode_metrics_of, traits_of
 from infonav_gym.experiments.render_episode import frame_stem
 from infonav_gym.registry import PARALLEL, EnvEntry, make_env, registered_envs
 
-DOCS = Path(__file__).resolve().parent.parent
-PAGES = DOCS / "envs"  # written at each build (.gitignore)
 FRAMES = DOCS / "frames"
 RESULTS = DOCS.parent / "results"
-
-
-def markdown_table(header: list[str], rows: list[list[str]]) -> list[str]:
-    """A Markdown table; ``|`` inside a cell escaped."""
-    lines = [header, ["---"] * len(header), *rows]
-    return ["| " + " | ".join(str(cell).replace("|", "\\|") for cell in line) + " |" for line in lines]
-
-
-def code(value) -> str:
-    """``value`` as inline code (the backtick fence longer than any run of backticks inside)."""
-    text = str(value).replace("\n", " ")
-    fence = "``" if "`" in text else "`"
-    return f"{fence}{text}{fence}"
 
 
 def shown(value) -> str:
@@ -137,7 +123,7 @@ def pictures_section(env_id: str) -> list[str]:
     """The env's frame and episode GIF from ``docs/frames``, or how to make them."""
     stem = frame_stem(env_id)
     pictures = [(FRAMES / f"{stem}{suffix}", what) for suffix, what in ((".png", "a frame"), (".gif", "an episode"))]
-    found = [f"![{env_id}: {what}](../frames/{path.name})\n" for path, what in pictures if path.is_file()]
+    found = [f"![{env_id}: {what}](../../frames/{path.name})\n" for path, what in pictures if path.is_file()]
     how = f"`python scripts/render_frames.py --env {env_id}` renders them"
     if not found:
         return ["## Rendering", "", f"No frame of this env in `docs/frames` yet: {how}."]
@@ -162,12 +148,12 @@ def results_section(env_id: str) -> list[str]:
     if not evaluations:
         return [*lines, "No committed evaluation of this env in `results/` yet."]
     for path in evaluations:
-        include = ["```{include} ../../results/" + path.name, ":heading-offset: 2", "```"]
+        include = ["```{include} ../../../results/" + path.name, ":heading-offset: 2", "```"]
         lines += [f"From `results/{path.name}`:", "", *include, ""]
     return lines
 
 
-def env_page(entry: EnvEntry) -> str:
+def env_page(entry: EnvEntry) -> list[str]:
     """The Markdown page of one registered env."""
     with stated_requirements() as requirements:
         env = make_env(entry.id)
@@ -197,18 +183,14 @@ def env_page(entry: EnvEntry) -> str:
         ]
     finally:
         env.close()
-    return "\n".join(lines).rstrip() + "\n"
+    return lines
 
 
 def write_env_pages(app=None) -> list[Path]:
-    """Write ``docs/envs/<stem>.md`` for every registered env and ``docs/envs/index.md`` listing them."""
-    PAGES.mkdir(exist_ok=True)
+    """Write the page of every registered env and ``envs/index.md`` listing them."""
     entries = registered_envs()
-    pages = []
-    for entry in entries:
-        page = PAGES / f"{frame_stem(entry.id)}.md"
-        write_if_changed(page, env_page(entry))
-        pages.append(page)
+    stems = [frame_stem(entry.id) for entry in entries]
+    pages = [write_page(f"envs/{stem}", env_page(entry)) for stem, entry in zip(stems, entries)]
     index = [
         "# Environments",
         "",
@@ -218,19 +200,13 @@ def write_env_pages(app=None) -> list[Path]:
         "```{toctree}",
         ":maxdepth: 1",
         "",
-        *(page.stem for page in pages),
+        *stems,
         "```",
     ]
-    write_if_changed(PAGES / "index.md", "\n".join(index) + "\n")
-    for stale in set(PAGES.glob("*.md")) - {*pages, PAGES / "index.md"}:
-        stale.unlink()
+    write_page("envs/index", index)
+    for stale in set(pages[0].parent.glob("*.md")) - {*pages, pages[0].parent / "index.md"}:
+        stale.unlink()  # an env no longer registered
     return pages
-
-
-def write_if_changed(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` unless it holds it already (Sphinx then keeps the page's cached build)."""
-    if not path.is_file() or path.read_text() != text:
-        path.write_text(text)
 
 
 def setup(app):
