@@ -1,14 +1,17 @@
 """The documentation site builds with warnings as errors (``python -m sphinx -W -b html docs docs/_build/html``):
 a page per registered env, the API reference, every ``infonav`` command and the paper's figures; ``docs/frames``
-holds a frame and an episode GIF of every registered env."""
+holds a frame and an episode GIF of every registered env; a headless Chromium renders the index and an env page."""
 
 from __future__ import annotations
 
+import json
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from infonav_gym.experiments.cli import build_parser
@@ -100,3 +103,79 @@ def test_docs_frames_hold_a_frame_and_a_gif_of_every_registered_env(env_id):
     for suffix in (".png", ".gif"):
         path = DOCS / "frames" / f"{frame_stem(env_id)}{suffix}"
         assert path.is_file(), f"{path} is missing: python scripts/render_frames.py --env {env_id}"
+
+
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+PROBE = """<html><head><title>probe</title></head><body><pre id="report">not loaded</pre>
+<iframe id="page" src="{url}" width="1280" height="2000"></iframe>
+<script>
+document.getElementById("page").onload = function () {{
+  const page = this.contentDocument;
+  document.getElementById("report").textContent = JSON.stringify({{
+    title: page.title,
+    tables: Array.from(page.querySelectorAll("table"), table => table.rows[0].innerText),
+    images: Array.from(page.images, image => ({{src: image.getAttribute("src"), width: image.naturalWidth}})),
+  }});
+}};
+</script></body></html>
+"""  # reports, once the page and its images have loaded, its title, the header rows of its tables and its images
+
+
+@pytest.fixture(scope="module")
+def browser() -> str:
+    """A Chromium on PATH, or a skip that says how to install one."""
+    found = next(filter(None, map(shutil.which, BROWSERS)), None)
+    if found is None:
+        pytest.skip("no Chromium on PATH: install Debian's package (apt-get install chromium) for the browser check")
+    return found
+
+
+def headless(browser: str, *arguments: str) -> str:
+    """What a headless Chromium run prints on stdout (root needs --no-sandbox)."""
+    command = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", *arguments]
+    return subprocess.run(command, capture_output=True, text=True, timeout=120, check=True).stdout
+
+
+def rendered(browser: str, page: Path, tmp_path: Path) -> dict:
+    """The title, table headers and images (their natural widths: 0 if not loaded) of ``page`` as Chromium shows it."""
+    probe = tmp_path / "probe.html"
+    probe.write_text(PROBE.format(url=page.as_uri()))
+    budget = ["--allow-file-access-from-files", "--virtual-time-budget=20000", "--dump-dom", probe.as_uri()]
+    report = re.search(r'<pre id="report">(.*?)</pre>', headless(browser, *budget), flags=re.S).group(1)
+    return json.loads(report.replace("&amp;", "&").replace("&lt;", "<").replace("&gt;", ">"))
+
+
+def screenshot_is_a_page(browser: str, page: Path, tmp_path: Path) -> bool:
+    """Whether Chromium's screenshot of ``page`` shows text and pictures: many colours, not mostly one."""
+    from PIL import Image
+
+    shot = tmp_path / "shot.png"
+    headless(browser, "--window-size=1280,1600", f"--screenshot={shot}", page.as_uri())
+    with Image.open(shot) as image:
+        pixels = np.asarray(image.convert("RGB")).reshape(-1, 3)
+    colours, counts = np.unique(pixels, axis=0, return_counts=True)
+    return len(colours) > 100 and counts.max() < 0.95 * len(pixels)
+
+
+def test_chromium_renders_the_index(browser, built_site, tmp_path):
+    page = rendered(browser, built_site / "index.html", tmp_path)
+    assert page["title"].startswith("infonav-gym")
+    assert screenshot_is_a_page(browser, built_site / "index.html", tmp_path)
+
+
+def test_chromium_renders_an_env_page_with_its_spaces_table_and_pictures(browser, built_site, tmp_path):
+    from PIL import Image
+
+    env_id = registered_envs()[0].id
+    path = built_site / "generated" / "envs" / f"{frame_stem(env_id)}.html"
+    page = rendered(browser, path, tmp_path)
+    assert page["title"].startswith(env_id)
+    assert any(
+        header.split() == ["who", "space", "class", "shape", "dtype", "bounds", "(lowest,", "highest)"]
+        for header in page["tables"]
+    ), page["tables"]
+    widths = {Path(image["src"]).name: image["width"] for image in page["images"]}
+    for suffix in (".png", ".gif"):
+        with Image.open(DOCS / "frames" / f"{frame_stem(env_id)}{suffix}") as picture:
+            assert widths[f"{frame_stem(env_id)}{suffix}"] == picture.width  # loaded, at its own size
+    assert screenshot_is_a_page(browser, path, tmp_path)
