@@ -16,7 +16,7 @@ import pytest
 
 from infonav_gym.experiments.cli import build_parser
 from infonav_gym.experiments.render_episode import frame_stem
-from infonav_gym.registry import registered_envs
+from infonav_gym.registry import env_entry, registered_envs
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 sys.path.insert(0, str(DOCS / "_ext"))
@@ -69,6 +69,8 @@ def test_every_registered_env_has_a_page_with_its_spaces_config_and_pictures(bui
     for section in ("Spaces", "Config", "Episode metrics", "Rendering", "Baselines"):
         assert f">{section}<" in page, f"the page of {env_id} has no {section} section"
     assert "observation_space = " in page and "action_space = " in page
+    for key in env_entry(env_id).load().default_config():
+        assert f'<span class="pre">{key}</span>' in page, f"the config table of {env_id} has no row for {key}"
     assert f"{frame_stem(env_id)}.png" in page and f"{frame_stem(env_id)}.gif" in page
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import os
+import re
 from pathlib import Path
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
@@ -19,12 +20,17 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 import numpy as np
 from page_writing import DOCS, code, markdown_table, write_page
 
+import infonav_gym
 from infonav_gym.config import stated_requirements
 from infonav_gym.envs.traits import episode_metrics_of, traits_of
 from infonav_gym.experiments.render_episode import frame_stem
 from infonav_gym.registry import PARALLEL, EnvEntry, make_env, registered_envs
 
 FRAMES = DOCS / "frames"
+PACKAGE = Path(infonav_gym.__file__).resolve().parent
+COMMENTED_KEY = re.compile(  # a default's comment, ``"key": 1.0,  # ...`` (not an interval's, ``"key": Interval(...``)
+    r'^\s*"(\w+)": (?!Interval\()[^#\n]+,\s*#\s*(.+)$', flags=re.M
+)
 RESULTS = DOCS.parent / "results"
 
 
@@ -77,12 +83,42 @@ def spaces_section(env, parallel: bool) -> list[str]:
     ]
 
 
+def defining_files(env_class: type) -> list[Path]:
+    """The source files where ``env_class``'s config defaults are written, nearest first: those of its classes,
+    then those of the functions and dicts their ``default_config`` methods name (``shared_config``,
+    ``**SCENE_CONFIG``)."""
+    classes = [cls for cls in env_class.__mro__ if cls.__module__.partition(".")[0] == PACKAGE.name]
+    named = {}
+    for function in (vars(cls)["default_config"].__func__ for cls in classes if "default_config" in vars(cls)):
+        named.update(
+            {name: function.__globals__[name] for name in function.__code__.co_names if name in function.__globals__}
+        )
+    sources = list(classes)
+    sources += [value for value in named.values() if inspect.isfunction(value)]
+    files = [Path(inspect.getsourcefile(source)) for source in sources]
+    for name, value in named.items():  # a dict of defaults: the module that assigns it
+        if isinstance(value, dict):
+            files += [path for path in PACKAGE.rglob("*.py") if re.search(rf"^{name} = {{", path.read_text(), re.M)]
+    return files
+
+
+def key_comments(env_class: type) -> dict[str, str]:
+    """The comment beside each config key where its default is written (``"time_step_s": 0.5,  # [s]``), from the
+    nearest of ``defining_files``; keys without one are left out."""
+    comments: dict[str, str] = {}
+    for path in defining_files(env_class):
+        for key, comment in COMMENTED_KEY.findall(path.read_text()):
+            comments.setdefault(key, comment)
+    return comments
+
+
 def config_section(entry: EnvEntry, requirements: dict[str, list[str]]) -> list[str]:
-    """Every key of ``default_config()`` with its default and the allowed values its checks stated."""
-    defaults = entry.load().default_config()
+    """Every key of ``default_config()`` with its default, the allowed values its checks stated and its comment."""
+    env_class = entry.load() if entry.vector_entry_point is None else entry.load_vector()  # the one that defines it
+    comments = key_comments(env_class)
     rows = [
-        [code(key), code(repr(default)), " and ".join(requirements.get(key, [])) or "see the docstring"]
-        for key, default in defaults.items()
+        [code(key), code(repr(default)), " and ".join(requirements.get(key, [])), comments.get(key, "")]
+        for key, default in env_class.default_config().items()
     ]
     make = "make_env" if entry.api == PARALLEL else "gym.make"
     return [
@@ -90,9 +126,10 @@ def config_section(entry: EnvEntry, requirements: dict[str, list[str]]) -> list[
         "",
         f"`{make}({entry.id!r}, **config)` overrides these keys of `default_config()`; an unknown key or a value "
         "outside its range raises `ValueError` naming it. The allowed values are those the env's own checks state "
-        "when it is made with the defaults (units after the interval).",
+        "when it is made with the defaults (units after the interval); the last column is the comment beside the "
+        "default in the source.",
         "",
-        *markdown_table(["key", "default", "allowed values"], rows),
+        *markdown_table(["key", "default", "allowed values", "what it is [unit]"], rows),
     ]
 
 
