@@ -190,6 +190,11 @@ def results_section(env_id: str) -> list[str]:
     return lines
 
 
+def api_name(entry: EnvEntry) -> str:
+    """The env's API as people name it."""
+    return "PettingZoo parallel" if entry.api == PARALLEL else "Gymnasium"
+
+
 def env_page(entry: EnvEntry) -> list[str]:
     """The Markdown page of one registered env."""
     with stated_requirements() as requirements:
@@ -203,8 +208,7 @@ def env_page(entry: EnvEntry) -> list[str]:
         lines = [
             f"# {entry.id}",
             "",
-            f"API: {'PettingZoo parallel' if parallel else 'Gymnasium'}; entry point {code(entry.entry_point)}. Made "
-            f"by {made}.",
+            f"API: {api_name(entry)}; entry point {code(entry.entry_point)}. Made by {made}.",
             "",
             inspect.getdoc(entry.load()) or "(no docstring)",
             "",
@@ -228,11 +232,17 @@ def write_env_pages(app=None) -> list[Path]:
     entries = registered_envs()
     stems = [frame_stem(entry.id) for entry in entries]
     pages = [write_page(f"envs/{stem}", env_page(entry)) for stem, entry in zip(stems, entries)]
+    rows = [
+        [f"[{code(entry.id)}]({stem}.md)", api_name(entry), inspect.getdoc(entry.load()).partition("\n")[0]]
+        for stem, entry in zip(stems, entries)
+    ]
     index = [
         "# Environments",
         "",
         "One page per registered env (`infonav_gym.registry.registered_envs()`), written from the registry and the "
         "env itself at each build.",
+        "",
+        *markdown_table(["env", "API", "what happens"], rows),
         "",
         "```{toctree}",
         ":maxdepth: 1",
