@@ -84,6 +84,16 @@ def write_api_page(app=None):
     return write_page("api", lines)
 
 
+def markdown_headings_as_rubrics(app, what, name, obj, options, lines: list[str]) -> None:
+    """An env docstring's Markdown sections (``## Action Space``, Gymnasium's layout, which the env pages show as
+    headings) as reStructuredText rubrics in autodoc's output."""
+    for index in reversed(range(len(lines))):
+        heading = re.fullmatch(r"## (.+)", lines[index])
+        if heading:
+            lines[index : index + 1] = [f".. rubric:: {heading.group(1)}", ""]
+
+
 def setup(app):
     app.connect("builder-inited", write_api_page)
+    app.connect("autodoc-process-docstring", markdown_headings_as_rubrics)
     return {"parallel_read_safe": True, "parallel_write_safe": True}
