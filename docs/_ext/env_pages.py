@@ -58,17 +58,14 @@ def space_row(who: str, kind: str, space) -> list[str]:
 
 def spaces_section(env, parallel: bool) -> list[str]:
     """The spaces table (robots with equal spaces in one row) and the spaces' full ``repr``."""
-    groups: dict[tuple[str, str], list[str]] = {}
-    spaces = {}
-    for who, (observation, action) in spaces_of(env, parallel).items():
-        groups.setdefault((repr(observation), repr(action)), []).append(who)
-        spaces[(repr(observation), repr(action))] = (observation, action)
+    groups: dict[str, tuple[tuple, list[str]]] = {}  # the spaces' reprs: (the spaces, who has them)
+    for who, pair in spaces_of(env, parallel).items():
+        groups.setdefault(f"observation_space = {pair[0]!r}\naction_space = {pair[1]!r}", (pair, []))[1].append(who)
     rows, reprs = [], []
-    for key, names in groups.items():
+    for text, ((observation, action), names) in groups.items():
         who = ", ".join(names)
-        observation, action = spaces[key]
         rows += [space_row(who, "observation", observation), space_row(who, "action", action)]
-        reprs += [f"# {who}", f"observation_space = {key[0]}", f"action_space = {key[1]}"]
+        reprs += [f"# {who}", text]
     header = ["who", "space", "class", "shape", "dtype", "bounds (lowest, highest)"]
     return [
         "## Spaces",
@@ -87,7 +84,7 @@ def defining_files(env_class: type) -> list[Path]:
     """The source files where ``env_class``'s config defaults are written, nearest first: those of its classes,
     then those of the functions and dicts their ``default_config`` methods name (``shared_config``,
     ``**SCENE_CONFIG``)."""
-    classes = [cls for cls in env_class.__mro__ if cls.__module__.partition(".")[0] == PACKAGE.name]
+    classes = [env_class] + [cls for cls in env_class.__mro__[1:] if "default_config" in vars(cls)]
     named = {}
     for function in (vars(cls)["default_config"].__func__ for cls in classes if "default_config" in vars(cls)):
         named.update(
