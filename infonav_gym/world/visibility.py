@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.compiled import contiguous
 from infonav_gym.world.physics import WORLD_ARGUMENTS
 from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.visibility_kernels import blocked, covered
@@ -182,61 +182,24 @@ class StaticGeometry:
         return len(self.wall_radii)
 
     @functools.cached_property
-    def _derived(self) -> tuple:
-        """``(wall_points, wall_boxes, disc_boxes, culled)``, computed together in one kernel (``derived_arrays``):
-        a vector env makes a geometry at each step that resets a copy, and its queries read them all at once."""
-        arrays = derived_arrays(*(contiguous(getattr(self, name)) for name in self.__dataclass_fields__))
-        return tuple(_read_only(array) for array in arrays)
-
-    @property
-    def wall_points(self) -> np.ndarray:
-        """Each wall's ends side by side (N, S, 4) ``(x0, y0, x1, y1)`` [m]."""
-        return self._derived[0]
-
-    @property
     def wall_boxes(self) -> np.ndarray:
         """Chipmunk's bounding box of each wall (cpSegmentShapeCacheData) (N, S, 4) ``(left, bottom, right, top)``."""
-        return self._derived[1]
+        return _read_only(_wall_boxes(self.wall_starts, self.wall_ends, self.wall_radii))
 
-    @property
+    @functools.cached_property
+    def wall_points(self) -> np.ndarray:
+        """Each wall's ends side by side (N, S, 4) ``(x0, y0, x1, y1)`` [m]."""
+        return _read_only(np.concatenate([self.wall_starts, self.wall_ends], axis=-1))
+
+    @functools.cached_property
     def disc_boxes(self) -> np.ndarray:
         """Chipmunk's bounding box of each disc (cpBBNewForCircle) (N, D, 4)."""
-        return self._derived[2]
+        return _read_only(_disc_boxes(self.disc_centers, self.disc_radii))
 
-    @property
+    @functools.cached_property
     def culled(self) -> np.ndarray:
         """Whether Chipmunk culls each copy's shapes by bounding box: it has more than one static shape (N,) bool."""
-        return self._derived[3]
-
-
-@kernel
-def derived_arrays(wall_starts, wall_ends, wall_radii, wall_valid, disc_centers, disc_radii, disc_valid):
-    """``StaticGeometry``'s arrays derived from its fields: ``wall_points``, ``wall_boxes``, ``disc_boxes``, ``culled``.
-
-    A wall's box spans its ends, widened by its radius; a disc's its centre plus or minus its radius (Chipmunk's
-    cpSegmentShapeCacheData and cpBBNewForCircle, ``(left, bottom, right, top)``).
-    """
-    n_copies, n_walls, n_discs = wall_radii.shape[0], wall_radii.shape[1], disc_radii.shape[1]
-    points, wall_boxes = np.empty((n_copies, n_walls, 4)), np.empty((n_copies, n_walls, 4))
-    disc_boxes, culled = np.empty((n_copies, n_discs, 4)), np.empty(n_copies, dtype=np.bool_)
-    for c in range(n_copies):
-        shapes = 0
-        for s in range(n_walls):
-            a_x, a_y, b_x, b_y = wall_starts[c, s, 0], wall_starts[c, s, 1], wall_ends[c, s, 0], wall_ends[c, s, 1]
-            radius = wall_radii[c, s]
-            points[c, s, 0], points[c, s, 1], points[c, s, 2], points[c, s, 3] = a_x, a_y, b_x, b_y
-            wall_boxes[c, s, 0] = (a_x if a_x < b_x else b_x) - radius
-            wall_boxes[c, s, 1] = (a_y if a_y < b_y else b_y) - radius
-            wall_boxes[c, s, 2] = (b_x if a_x < b_x else a_x) + radius
-            wall_boxes[c, s, 3] = (b_y if a_y < b_y else a_y) + radius
-            shapes += wall_valid[c, s]
-        for d in range(n_discs):
-            x, y, radius = disc_centers[c, d, 0], disc_centers[c, d, 1], disc_radii[c, d]
-            disc_boxes[c, d, 0], disc_boxes[c, d, 1] = x - radius, y - radius
-            disc_boxes[c, d, 2], disc_boxes[c, d, 3] = x + radius, y + radius
-            shapes += disc_valid[c, d]
-        culled[c] = shapes > 1
-    return points, wall_boxes, disc_boxes, culled
+        return self.wall_valid.sum(axis=1) + self.disc_valid.sum(axis=1) > 1
 
 
 def _finite_array(value, shape: tuple, what: str) -> np.ndarray:
@@ -247,6 +210,21 @@ def _finite_array(value, shape: tuple, what: str) -> np.ndarray:
         expected = "(" + ", ".join("any" if size is None else str(size) for size in shape) + ")"
         raise ValueError(f"{what} must be a finite array of shape {expected}, got shape {array.shape}")
     return array
+
+
+def _wall_boxes(starts, ends, radii) -> np.ndarray:
+    """Chipmunk's bounding box of each wall (cpSegmentShapeCacheData) (N, S, 4)."""
+    a_x, a_y, b_x, b_y = starts[..., 0], starts[..., 1], ends[..., 0], ends[..., 1]
+    left, right = np.where(a_x < b_x, a_x, b_x) - radii, np.where(a_x < b_x, b_x, a_x) + radii
+    bottom, top = np.where(a_y < b_y, a_y, b_y) - radii, np.where(a_y < b_y, b_y, a_y) + radii
+    return np.stack([left, bottom, right, top], axis=-1)
+
+
+def _disc_boxes(centers, radii) -> np.ndarray:
+    """Chipmunk's bounding box of each disc (cpBBNewForCircle) (N, D, 4)."""
+    return np.stack(
+        [centers[..., 0] - radii, centers[..., 1] - radii, centers[..., 0] + radii, centers[..., 1] + radii], -1
+    )
 
 
 def _check_copies(function: str, geometry: StaticGeometry, count: int, what: str) -> None:
