@@ -27,7 +27,8 @@ from infonav_gym.experiments.paths import (
     output_file,
     write_failure,
 )
-from infonav_gym.experiments.reproduce import DEFAULT_OUTPUT_DIR, FIGURES
+from infonav_gym.experiments.reproduce import DEFAULT_OUTPUT_DIR, FIGURES, printed_table
+from infonav_gym.experiments.reproduce import reproduce as reproduce_figure
 from infonav_gym.experiments.vector_timing import DEFAULT_VECTOR_SIZES, parse_vector_sizes
 
 DEFAULT_ENV = "infonav/LandmarkSelection-v0"
@@ -437,19 +438,14 @@ def _benchmark(args, command: str) -> dict:
 
 
 def _reproduce(args, command: str) -> dict:
-    """``reproduce.reproduce`` of the figure; print its table unless --json, even when writing the files fails."""
-    import importlib
-
-    from infonav_gym.experiments.reproduce import reproduce
-
-    table = importlib.import_module(f"infonav_gym.experiments.reproduce.{args.figure}").table
+    """``reproduce_figure`` of the figure; print its table unless --json, even when writing the files fails."""
     try:
-        result = reproduce(args.figure, args.output_dir, args.seed, args.seeds, not args.json, command)
+        result = reproduce_figure(args.figure, args.output_dir, args.seed, args.seeds, not args.json, command)
     except OutputWriteError as error:
         kept = error.result
-        _show(args, kept, lambda: [table(kept)])
+        _show(args, kept, lambda: [printed_table(args.figure, kept)])
         raise
-    return _show(args, result, lambda: [table(result)])
+    return _show(args, result, lambda: [printed_table(args.figure, result)])
 
 
 def _noise_model(value: str | None):

@@ -1,18 +1,32 @@
 """Regenerate the paper's figures from the environments (``infonav reproduce``)."""
 
-import importlib
 import json
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from infonav_gym.experiments.paths import OutputWriteError, check_output_dir, write_failure
+from infonav_gym.experiments.reproduce import fig3, fig5, fig6
 
-FIGURES = ("fig3", "fig5", "fig6")
 DEFAULT_OUTPUT_DIR = Path("results")  # relative to the working directory
 
 
-def paper_label(agent: str) -> str:
-    """The paper's name of a robot, numbered from 1: ``robot_0`` -> ``#1``."""
-    return f"#{int(agent.rpartition('_')[2]) + 1}"
+@dataclass(frozen=True)
+class PaperFigure:
+    """One of the paper's figures: how to compute it and how to print what was computed.
+
+    ``figures(seed, seeds, progress)`` returns the figures (JSON-ready) and the function drawing them into a PNG.
+    """
+
+    figures: Callable[[int, range, bool], tuple[dict, Callable[[Path], object]]]
+    table: Callable[[dict], str]  # the JSON's figures as text
+    seeds_count: str  # what ``n_seeds`` counts, for its error
+
+
+FIGURES = {
+    module.__name__.rpartition(".")[2]: PaperFigure(module.figures, module.table, module.SEEDS_COUNT)
+    for module in (fig3, fig5, fig6)
+}
 
 
 def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progress: bool = True, command: str = ""):
@@ -31,16 +45,16 @@ def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progres
         OutputWriteError: when a file cannot be written; it carries the result (with the files that
             were written), so the computed figures are not lost.
     """
-    module = importlib.import_module(f"{__name__}.{figure}")
+    paper_figure = FIGURES[figure]
     if n_seeds < 1:
-        raise ValueError(f"n_seeds ({module.SEEDS_COUNT}) must be >= 1, got {n_seeds}")
+        raise ValueError(f"n_seeds ({paper_figure.seeds_count}) must be >= 1, got {n_seeds}")
     output_dir = check_output_dir(output_dir, "output directory")
     try:
         output_dir.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise ValueError(f"output directory {output_dir}: {error.strerror or error}") from None
     png, json_path = output_dir / f"{figure}.png", output_dir / f"{figure}.json"
-    figures, plot = module.figures(seed, range(seed, seed + n_seeds), progress)
+    figures, plot = paper_figure.figures(seed, range(seed, seed + n_seeds), progress)
     result = {"command": command, **figures, "files": []}
     try:
         plot(png)
@@ -53,6 +67,7 @@ def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progres
     return result
 
 
-def files_line(result: dict) -> str:
-    """The last line of a figure's table: the files it wrote."""
-    return f"wrote {', '.join(result['files'])}" if result["files"] else "wrote no files"
+def printed_table(figure: str, result: dict) -> str:
+    """``figure``'s table of ``result`` and, last, the files it wrote."""
+    files = f"wrote {', '.join(result['files'])}" if result["files"] else "wrote no files"
+    return f"{FIGURES[figure].table(result)}\n{files}"

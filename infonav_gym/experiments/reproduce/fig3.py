@@ -17,7 +17,6 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent
-from infonav_gym.experiments.reproduce import files_line, paper_label
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.team import DEFAULT_OUTAGE
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
@@ -28,6 +27,11 @@ FIG3_ENV_CONFIG = {"scenario": "convoy", "n_robots": 3, "max_cycles": 120}
 OBSERVER = "robot_1"  # the paper's robot #2, which loses DGPS
 DGPS_LOSS_S = DEFAULT_OUTAGE[1]  # [s]
 PATH_ROBOTS = ("robot_0", "robot_1")  # the paper's robots #1 and #2, drawn in Fig. 3(a)
+
+
+def paper_label(agent: str) -> str:
+    """The paper's name of a robot, numbered from 1: ``robot_0`` -> ``#1``."""
+    return f"#{int(agent.rpartition('_')[2]) + 1}"
 
 
 def position_std_m(pose_std) -> float:
@@ -215,7 +219,6 @@ def table(result: dict) -> str:
         f"  team greedy      {rmse['mean_greedy_m']:.3f} m",
         f"  dead reckoning   {rmse['mean_dead_reckoning_m']:.3f} m",
         f"  ratio            {rmse['ratio']:.3f}",
-        files_line(result),
     ]
     return "\n".join(lines)
 

@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from infonav_gym.experiments.reproduce import files_line
 from infonav_gym.information import histogram_entropy
 from infonav_gym.rendering import matplotlib_figure, save_figure
 from infonav_gym.sensors.camera import Camera
@@ -247,7 +246,6 @@ def table(result: dict) -> str:
             f"  {case:16s}{summary['expected']:16s} in {summary['fraction']:6.1%} of seeds"
             f"  (mean camera {summary['mean_camera_nats']:.3f}, LADAR {summary['mean_ladar_nats']:.3f})"
         )
-    lines.append(files_line(result))
     return "\n".join(lines)
 
 

@@ -23,7 +23,6 @@ import numpy as np
 from scipy.spatial import cKDTree
 from tqdm.auto import tqdm
 
-from infonav_gym.experiments.reproduce import files_line
 from infonav_gym.geometry import transform_error, transform_points
 from infonav_gym.registration import icp
 from infonav_gym.registration.control_points import select_control_points
@@ -163,7 +162,6 @@ def table(result: dict) -> str:
             f"{summary['mean_error_after_m']:9.3f}{summary['median_error_after_m']:9.4f}"
             f"{summary['recall_5cm']:8.0%}{summary['recall_10cm']:8.0%}"
         )
-    lines.append(files_line(result))
     return "\n".join(lines)
 
 
