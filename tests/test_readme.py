@@ -1,4 +1,5 @@
-"""README's Python snippets run and print what they compute; its env table matches the registry and results/."""
+"""README's and the docs pages' Python snippets run and print what their comments say; README stays short, its links
+resolve, its env table matches the registry and results/, and its results table the committed files."""
 
 from __future__ import annotations
 
@@ -12,18 +13,32 @@ import pytest
 
 from infonav_gym.registry import GYMNASIUM, env_entry, registered_envs
 
-README = Path(__file__).resolve().parent.parent / "README.md"
-SNIPPETS = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
+ROOT = Path(__file__).resolve().parent.parent
+README = ROOT / "README.md"
+SNIPPET = re.compile(r"```python\n(.*?)```", flags=re.S)
+PAGES = [README, *sorted((ROOT / "docs").glob("*.md"))]  # the docs' top-level pages (tutorials test their own)
+SNIPPETS = {
+    f"{page.name}:{index}": snippet for page in PAGES for index, snippet in enumerate(SNIPPET.findall(page.read_text()))
+}
+README_MAX_BYTES = 15_000
 
 
-def test_readme_has_snippets():
-    assert len(SNIPPETS) >= 3
+def promised_output(snippet: str) -> list[str]:
+    """What a snippet's comments say it prints: the text after ``prints:`` in each comment that has one."""
+    return re.findall(r"#.*?\bprints: (.+)$", snippet, flags=re.M)
 
 
-@pytest.mark.parametrize("index", range(len(SNIPPETS)))
-def test_snippet_runs_and_prints(index, tmp_path):
+def test_readme_has_snippets_each_promising_its_output():
+    readme_snippets = SNIPPET.findall(README.read_text())
+    assert len(readme_snippets) >= 3
+    for snippet in readme_snippets:
+        assert promised_output(snippet), f"a README snippet says nowhere what it prints (# prints: ...):\n{snippet}"
+
+
+@pytest.mark.parametrize("name", SNIPPETS)
+def test_snippet_runs_and_prints_what_its_comments_say(name, tmp_path):
     completed = subprocess.run(
-        [sys.executable, "-c", SNIPPETS[index]],
+        [sys.executable, "-c", SNIPPETS[name]],
         cwd=tmp_path,
         capture_output=True,
         text=True,
@@ -31,7 +46,22 @@ def test_snippet_runs_and_prints(index, tmp_path):
         env={**os.environ, "SDL_VIDEODRIVER": "dummy"},
     )
     assert completed.returncode == 0, completed.stderr[-2000:]
-    assert completed.stdout.strip(), f"README snippet {index} prints nothing:\n{SNIPPETS[index]}"
+    assert completed.stdout.strip(), f"snippet {name} prints nothing:\n{SNIPPETS[name]}"
+    for promised in promised_output(SNIPPETS[name]):
+        assert promised in completed.stdout, f"snippet {name} does not print {promised!r}:\n{completed.stdout}"
+
+
+def test_readme_is_short():
+    size = len(README.read_bytes())
+    assert size < README_MAX_BYTES, f"README.md is {size} bytes, more than {README_MAX_BYTES}: move text into docs/"
+
+
+def test_every_relative_link_of_the_readme_points_to_a_file():
+    targets = re.findall(r"\]\(([^)\s]+)\)", README.read_text())  # [text](target) and ![alt](target)
+    relative = [target.partition("#")[0] for target in targets if not re.match(r"[a-z]+:|#", target)]
+    assert relative, "README links to nothing in the repository"
+    missing = [target for target in relative if not (ROOT / target).is_file()]
+    assert not missing, f"README links to files that do not exist: {missing}"
 
 
 def _env_table() -> dict[str, dict[str, str]]:
@@ -75,3 +105,17 @@ def test_env_table_agents_are_those_of_the_committed_results():
         assert paths and all(path.is_file() for path in paths), (env_id, row["results"])
         found = set().union(*(_result_agents(path, env_id) for path in paths))
         assert set(row["agents in the committed results"].split(", ")) == found, env_id
+
+
+def test_results_table_figures_are_those_of_the_files_it_links():
+    section = README.read_text().split("## Results\n", 1)[1].split("\n## ", 1)[0]
+    lines = [line for line in section.splitlines() if line.startswith("|")]
+    header = [cell.strip() for cell in lines[0].strip("|").split("|")]
+    assert len(lines) > 2, "README's results table has no rows"
+    for line in lines[2:]:
+        row = dict(zip(header, (cell.strip() for cell in line.strip("|").split("|")), strict=True))
+        paths = [ROOT / target for target in re.findall(r"\]\(([^)]+)\)", row["from"])]
+        committed = re.findall(r"-?\d+\.\d+", "".join(path.read_text() for path in paths))
+        for figure in re.findall(r"(?<![\w=.])-?\d+\.\d+", row["headline"]):  # not a config value (team_reward=1.0)
+            half_unit = 0.5 * 10.0 ** -len(figure.partition(".")[2]) + 1e-12  # the figure rounds a committed number
+            assert any(abs(float(number) - float(figure)) <= half_unit for number in committed), (row["env"], figure)
