@@ -30,8 +30,8 @@ def write_figures_page(app=None):
         "",
         "The figures of *Quantifying Uncertainty Towards Information-Centric Unmanned Navigation* as this suite "
         "reproduces them (committed in `results/`), each with the command that regenerates it, from "
-        "`results/README.md` (run from the repository root). The repository's README discusses each against the "
-        "paper.",
+        "`results/README.md` (run from the repository root). The [results page](../results.md) discusses each "
+        "against the paper.",
         "",
     ]
     for figure in sorted(RESULTS.glob("fig*.png"), key=lambda path: int(re.sub(r"\D", "", path.stem))):
