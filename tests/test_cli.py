@@ -172,6 +172,7 @@ def test_benchmark_reports_every_goal(capsys, monkeypatch):
             "sensor_selection_vector_256_vs_cartpole_ratio",
             "cooperative_localization_vector_256_vs_vmas_ratio",
             "cooperative_exploration_vector_256_vs_vmas_ratio",
+            "range_registration_vector_256_vs_single_ratio",
             "evaluation_2_workers_time_ratio",
             "rllib_team_2_runners_vs_1_ratio",
             "rllib_exploration_1_runner_steps_per_s",

@@ -100,13 +100,17 @@ def test_a_vector_env_is_reset_once_and_its_rounds_go_on_through_autoresets():
 def test_vector_figures_have_the_right_keys_and_are_positive(no_vmas):
     figures = env_step_figures([LANDMARKS], rounds=1, seconds_per_round=0.01, progress=False, vector_sizes=(1, 3))
     names = ["landmark_selection"] + [f"{env}_vector_{n}" for n in (1, 3) for env in ("landmark_selection", "cartpole")]
+    ours = [f"landmark_selection_vector_{n}" for n in (1, 3)]
     assert set(figures) == {"cartpole_steps_per_s"} | {
         f"{name}{suffix}" for name in names for suffix in ("_steps_per_s", "_vs_cartpole_ratio")
-    }
+    } | {f"{name}_vs_single_ratio" for name in ours}
     assert all(value > 0 for value in figures.values())
     for name in names:  # one round: the ratio is that round's quotient
         ratio = figures[f"{name}_steps_per_s"] / figures["cartpole_steps_per_s"]
         assert figures[f"{name}_vs_cartpole_ratio"] == pytest.approx(ratio)
+    for name in ours:  # env-steps per second of the vector env over its single env's
+        ratio = figures[f"{name}_steps_per_s"] / figures["landmark_selection_steps_per_s"]
+        assert figures[f"{name}_vs_single_ratio"] == pytest.approx(ratio)
 
 
 def test_without_vmas_its_rows_are_absent_with_a_note(no_vmas, monkeypatch):

@@ -10,10 +10,11 @@ ratio is reported, so a busy machine slows them alike.
 Vector envs (``infonav_gym.experiments.vector_timing``), in the same rounds, at each vector size N
 (``DEFAULT_VECTOR_SIZES``): env-steps per second (vector steps per second x N) of every registered
 native vector env, of Gymnasium's ``CartPoleVectorEnv`` and of VMAS ``navigation`` (4 agents, when
-``vmas`` imports), each also as a ratio against CartPole-v1, and our vector envs against VMAS at the
-same N (SensorSelection-v0's goal at N = 256 is 0.05 of CartPole: most of its steps render a LADAR or camera
-frame, ~1-3 ms compiled). Memory per sub-env at the largest N (``*_kb_per_env``): peak RSS growth in a fresh subprocess,
-over ``MEMORY_STEPS`` vector steps or ``MEMORY_SECONDS`` of them (scaled down with ``--seconds`` below 1).
+``vmas`` imports), each also as a ratio against CartPole-v1, and our vector envs against their single env
+(RangeRegistration-v0's goal: 10x at N = 256) and VMAS at the same N (SensorSelection-v0's goal at N = 256
+is 0.05 of CartPole: most of its steps render a LADAR or camera frame, ~1-3 ms compiled). Memory per sub-env
+at the largest N (``*_kb_per_env``): peak RSS growth in a fresh subprocess, over ``MEMORY_STEPS`` vector
+steps or ``MEMORY_SECONDS`` of them (scaled down with ``--seconds`` below 1).
 
 Sensors (``infonav_gym.experiments.sensor_timing``): median milliseconds of one default
 ``Ladar().scan`` (32 x 180) and ``Camera().capture`` (120 x 160) on a default
@@ -93,6 +94,7 @@ GOALS = {
     "sensor_selection_vector_256_vs_cartpole_ratio": 0.05,
     "cooperative_localization_vector_256_vs_vmas_ratio": 2.0,
     "cooperative_exploration_vector_256_vs_vmas_ratio": 1.0,
+    "range_registration_vector_256_vs_single_ratio": 10.0,
     "landmark_selection_vector_1024_kb_per_env": 200.0,
     "active_localization_vector_1024_kb_per_env": 200.0,
     "cooperative_localization_vector_1024_kb_per_env": 200.0,
@@ -223,8 +225,9 @@ def env_step_figures(
 
     Returns:
         ``{"cartpole_steps_per_s", NAME + "_steps_per_s", NAME + "_vs_cartpole_ratio"}`` for each env's
-        ``figure_name`` and each of ``vector_runs`` (as ``NAME_vector_N``), and ``NAME_vector_N_vs_vmas_ratio``
-        for our vector envs when VMAS is timed.
+        ``figure_name`` and each of ``vector_runs`` (as ``NAME_vector_N``); for our vector envs
+        ``NAME_vector_N_vs_single_ratio`` (env-steps per second against the env's single env, N = 1) and
+        ``NAME_vector_N_vs_vmas_ratio`` when VMAS is timed.
 
     Raises:
         ValueError: for ``vector_sizes`` that are not integers >= 1.
@@ -252,6 +255,8 @@ def env_step_figures(
     for env_id in env_ids:
         for size in vector_sizes:
             name, vmas = f"{figure_name(env_id)}_vector_{size}", f"vmas_navigation_{size}"
+            if name in rates:
+                figures[f"{name}_vs_single_ratio"] = _median_ratio(rates, name, figure_name(env_id))
             if name in rates and vmas in rates:
                 figures[f"{name}_vs_vmas_ratio"] = _median_ratio(rates, name, vmas)
     return figures
