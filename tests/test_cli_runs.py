@@ -217,3 +217,20 @@ def test_an_rllib_policy_of_another_env_names_the_env_it_was_trained_for(
         main(["evaluate", "--env", evaluated_on, "--agents", f"random,rllib:{tmp_path}", "--episodes", "1"])
     assert exit_info.value.code == 2
     _one_line_error(capsys.readouterr().err, "evaluate", f"RLlib training directory '{tmp_path}' {message}")
+
+
+def test_the_infonav_command_imports_an_env_module_from_the_working_directory(tmp_path):
+    """``--env MODULE:ID`` finds ``./MODULE.py`` from the installed console script, as ``python -m`` would."""
+    script = Path(sys.executable).with_name("infonav")
+    assert script.is_file(), f"the infonav console script is not installed beside {sys.executable}"
+    (tmp_path / "my_lab_envs.py").write_text(
+        "import infonav_gym\n"
+        "infonav_gym.register('mylab/Landmarks-v0', 'infonav_gym.envs.landmark_selection:LandmarkSelectionEnv')\n"
+    )
+    argv = ["evaluate", "--env", "my_lab_envs:mylab/Landmarks-v0", "--agents", "random", "--episodes", "1", "--json"]
+    environment = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
+    completed = subprocess.run(
+        [str(script), *argv], cwd=tmp_path, capture_output=True, text=True, env=environment, check=False
+    )
+    assert completed.returncode == 0, completed.stderr[-2000:]
+    assert json.loads(completed.stdout.splitlines()[-1])["env_id"] == "my_lab_envs:mylab/Landmarks-v0"

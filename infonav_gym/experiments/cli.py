@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shlex
 import sys
 from pathlib import Path
@@ -579,6 +580,8 @@ def _replay(args, command: str) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if "" not in sys.path and os.getcwd() not in sys.path:  # as `python -m`: --env MODULE:ID finds ./MODULE.py
+        sys.path.insert(0, os.getcwd())
     parser = build_parser()
     args = parser.parse_args(argv)
     run = {"demo": _demo, "evaluate": _evaluate, "render": _render, "train": _train, "benchmark": _benchmark}
