@@ -64,3 +64,19 @@ def test_a_planning_model_missing_a_method_is_a_clear_error():
     env.planning_model = Incomplete
     with pytest.raises(ValueError, match="lacks plan_decision, plan_step, position_std"):
         PlannerAgent(env)
+
+
+class SpacesOnlyVectorEnv(InfoNavVectorEnv):
+    """A vector env that builds its spaces and fills no other hook."""
+
+    def _build(self) -> None:
+        self._set_spaces(gym.spaces.Discrete(2), gym.spaces.Discrete(2))
+
+
+def test_a_vector_env_missing_its_episode_and_step_hooks_says_which():
+    env = SpacesOnlyVectorEnv(num_envs=2)
+    with pytest.raises(NotImplementedError, match=r"SpacesOnlyVectorEnv must implement _reset_copies\(\)"):
+        env.reset(seed=0)
+    env._decision = type("Decision", (), {"action_mask": np.ones((2, 2), dtype=np.int8)})()
+    with pytest.raises(NotImplementedError, match=r"SpacesOnlyVectorEnv must implement _act\(\)"):
+        env.step(np.zeros(2, dtype=int))

@@ -170,7 +170,6 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         num_envs, cfg = self.num_envs, self.config
         self._x, self._P = np.zeros((num_envs, POSE_DIM)), np.zeros((num_envs, POSE_DIM, POSE_DIM))
         self._goals = np.zeros((num_envs, 2))
-        self._elapsed = np.zeros(num_envs, dtype=int)
         self._observations_left = np.zeros(num_envs, dtype=int)
         self._goal_reached = np.zeros(num_envs, dtype=bool)
         self._failed = np.zeros(num_envs, dtype=bool)
@@ -198,25 +197,14 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         self._goals[copies], self._landmarks[copies] = layouts.goals, layouts.landmarks
         obstacles = (layouts.obstacle_centers, layouts.obstacle_radii)  # the round obstacles: the map the agent knows
         self._obstacle_centers[copies], self._obstacle_radii[copies] = obstacles
-        self._elapsed[copies] = 0
         self._observations_left[copies] = self.config["max_observations"]
         self._goal_reached[copies] = self._failed[copies] = False
         return field_geometry(starts.scenarios[0].walls, self._worlds.wall_thickness_m, *obstacles)
 
-    def step(self, actions):
-        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
-        acting, chosen = self._begin_step(actions)
-        terms, rewards = self._act(acting, chosen)
-        terminated = acting & (self._goal_reached | self._failed)
-        truncated = acting & ~terminated & (self._elapsed >= self.config["horizon"])
-        observation, info = self._finish_step(
-            terminated | truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, terms)
-        )
-        return observation, rewards, terminated, truncated, info
-
-    def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple:
         """The whole transition of the ``acting`` copies (observe at the prior, then drive); their reward terms
-        (6, N) and rewards (N,), 0 for the others. A no-op (``chosen`` -1) stands still observing nothing."""
+        (6, N), rewards (N,) (0 for the others) and which reached the goal or failed. A no-op (``chosen`` -1) stands
+        still observing nothing."""
         landmarks, primitives = decode_actions(chosen)
         driving = chosen >= 0  # -1: a no-op, or a copy not acting
         landmarks[~driving] = primitives[~driving] = -1
@@ -229,12 +217,11 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
             commands = primitive_commands(self.config, self._goals[rows], self._x[rows], primitives[rows])
             self._worlds.static_geometry = self._geometry  # its contact test grows the geometry kept here
             self._x[rows], self._P[rows] = self._moved(copies, self._x[rows], self._P[rows], commands)
-            self._elapsed[rows] += 1
         after, arrays = self._worlds.poses[:, 0, :2], (self._goals, self._P, mutual_information, observed, driving)
         terms, rewards, reached, failed = step_rewards(self.config, before, after, *arrays, acting)
         np.copyto(self._goal_reached, reached, where=acting)
         np.copyto(self._failed, failed, where=acting)
-        return terms, rewards
+        return terms, rewards, acting & (self._goal_reached | self._failed)
 
     # ------------------------------------------------------------------ decision, observation and info
 

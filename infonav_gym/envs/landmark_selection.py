@@ -142,7 +142,6 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
     def _allocate(self) -> None:
         num_envs = self.num_envs
         self._x = self._P = None
-        self._elapsed = np.zeros(num_envs, dtype=int)
         n_candidates = self.config["n_candidates"]
         self._landmarks = np.zeros((num_envs, n_candidates, 2))
         self._exists = np.zeros((num_envs, n_candidates), dtype=bool)
@@ -171,24 +170,17 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
             self._landmarks[copy, :n_landmarks] = scenario.landmarks
             self._exists[copy] = np.arange(self.config["n_candidates"]) < n_landmarks
             geometries.append(StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m))
-        self._elapsed[copies] = 0
         return StaticGeometry.stack(geometries)
 
-    def step(self, actions):
-        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
-        acting, chosen = self._begin_step(actions)
+    def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple:
+        """Observe the chosen landmarks, then drive the ``acting`` copies; ``(rewards, rewards, never terminated)``."""
         self._x, self._P, rewards = self._measured(self._decision, chosen)
-        self._elapsed += acting
         copies = np.flatnonzero(acting)  # their worlds step, their EKFs predict from noisy odometry
         if copies.size == self.num_envs:  # all of them (the usual step): the predicted arrays are new ones
             self._x, self._P = self._moved(copies, self._x, self._P)
         elif copies.size:
             self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
-        truncated = acting & (self._elapsed >= self.config["horizon"])
-        observation, info = self._finish_step(
-            truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, rewards)
-        )
-        return observation, rewards, np.zeros(self.num_envs, dtype=bool), truncated, info
+        return rewards, rewards, np.zeros(self.num_envs, dtype=bool)
 
     def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
         """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""

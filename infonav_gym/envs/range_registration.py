@@ -172,7 +172,6 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         self._chosen = np.zeros((num_envs, n_patches), dtype=bool)
         self._registered = np.zeros(num_envs, dtype=bool)  # which registered their pair at the last step
         self._last_registration = np.zeros(num_envs, dtype=REGISTRATION)
-        self._elapsed = np.zeros(num_envs, dtype=int)
         self._true_path = None  # copy 0's, when drawing
 
     def _reset_copies(self, copies: np.ndarray) -> TerrainStack:
@@ -185,7 +184,6 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
             self._frames[copy] = self._scan(copy, scene.terrain)
             self._covariances[copy] = {}
             terrains.append(scene.terrain)
-        self._elapsed[copies] = 0
         self._registered[copies] = False
         self._last_registration[copies] = 0
         if self.render_mode is not None and copies[0] == 0:
@@ -235,9 +233,9 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         roots = self._prior_root[copies, None]
         self._patch_alone[copies] = information_gain_of_information(roots, self._patch_information[copies])
 
-    def step(self, actions):
-        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
-        acting, chosen = self._begin_step(actions)
+    def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple:
+        """Pick the chosen patches; the copies with their pair's picks made register it and drive on to the next
+        pair. ``((reduction, cost), reduction + cost, never terminated)``."""
         picking = np.flatnonzero(chosen >= 0)
         self._chosen[picking, chosen[picking]] = True
         left = ((self._return_fraction > 0) & ~self._chosen).any(axis=1)
@@ -246,14 +244,9 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         registering = np.flatnonzero(self._registered)
         for copy in registering.tolist():
             reduction[copy], cost[copy] = self._register(copy)
-        self._elapsed[acting] += 1
         if registering.size:
             self._next_pairs(registering, [self._geometry[copy] for copy in registering.tolist()])
-        truncated = acting & (self._elapsed >= self.config["horizon"])
-        observation, info = self._finish_step(
-            truncated, lambda copies, _: self._outputs(copies, acting, chosen, reduction, cost)
-        )
-        return observation, reduction + cost, np.zeros(self.num_envs, dtype=bool), truncated, info
+        return (reduction, cost), reduction + cost, np.zeros(self.num_envs, dtype=bool)
 
     def _register(self, copy: int) -> tuple[float, float]:
         """Run ICP on the chosen patches' points of ``copy``; the pair's reward terms (error reduction, point cost)."""
@@ -298,11 +291,15 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
     def _reset_outputs(self, copies: np.ndarray, terrains: TerrainStack) -> tuple[np.ndarray, dict]:
         """The observations and reset infos of ``copies``, just reset."""
         none = np.zeros(len(copies))
-        return self._outputs(copies, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), none, none)
+        return self._outputs(
+            copies, terrains, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), (none, none)
+        )
 
-    def _outputs(self, copies, stepped, chosen, reduction, cost) -> tuple[np.ndarray, dict]:
+    def _outputs(self, copies, terrains, stepped, chosen, record) -> tuple[np.ndarray, dict]:
         """Decide again in ``copies`` (n,); their observations and infos. Those not ``stepped`` (n,) were reset and
-        give the reset info; ``chosen`` (n,): each one's patch (-1: none); ``reduction``, ``cost`` (n,): its terms."""
+        give the reset info; ``chosen`` (n,): each one's patch (-1: none); ``record``: the step's ``(reduction,
+        cost)`` (n,) reward terms."""
+        reduction, cost = record
         rows = self._rows(copies)
         decision = self._decision_of(rows)
         self._set_decision(copies, decision)

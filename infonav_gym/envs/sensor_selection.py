@@ -129,7 +129,6 @@ class SensorSelectionVectorEnv(InfoNavVectorEnv):
         self._set_spaces(observation_space, spaces.Discrete(1 + n_options))
         self._worlds = WorldBatch(num_envs)
         self._sensor_rngs: list[np.random.Generator | None] = [None] * num_envs
-        self._elapsed = np.zeros(num_envs, dtype=int)
         self._credit_bytes = np.zeros(num_envs, dtype=np.int64)
         self._last_information = np.zeros((num_envs, n_options))
         self._last_acquired_step = np.full((num_envs, n_options), -1)
@@ -160,7 +159,6 @@ class SensorSelectionVectorEnv(InfoNavVectorEnv):
             self._worlds.reset_copy(copy, scene.scenario)
             self._sensor_rngs[copy] = np_random.spawn(1)[0]
             terrains.append(scene.terrain)
-        self._elapsed[copies] = 0
         self._credit_bytes[copies] = self.config["bandwidth_buffer_bytes"]
         self._last_information[copies] = 0.0
         self._last_acquired_step[copies] = -1
@@ -168,22 +166,17 @@ class SensorSelectionVectorEnv(InfoNavVectorEnv):
             self._first_image = None
         return TerrainStack(tuple(terrains))
 
-    def step(self, actions):
-        """Act in every sub-env, with ``autoreset_mode``'s resets (see the class; errors: ``_begin_step``)."""
-        acting, chosen = self._begin_step(actions)
+    def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple:
+        """Acquire the chosen frames, then drive the ``acting`` copies and credit their bandwidth;
+        ``((rewards, entropies), rewards, never terminated)``."""
         rewards, entropies = self._acquire(chosen)
         stepped = np.flatnonzero(acting)
-        self._elapsed[stepped] += 1
         cfg = self.config
         if stepped.size:
             self._worlds.step(cfg["time_step_s"], stepped)
             credit = self._credit_bytes[stepped] + cfg["bandwidth_bytes_per_step"]
             self._credit_bytes[stepped] = np.minimum(credit, cfg["bandwidth_buffer_bytes"])
-        truncated = acting & (self._elapsed >= cfg["horizon"])
-        observation, info = self._finish_step(
-            truncated, lambda copies, _: self._outputs(copies, acting, chosen, rewards, entropies)
-        )
-        return observation, rewards, np.zeros(self.num_envs, dtype=bool), truncated, info
+        return (rewards, entropies), rewards, np.zeros(self.num_envs, dtype=bool)
 
     def _acquire(self, chosen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each copy acquires the frame of its chosen action (none for -1 and the idle action), paying its bytes.
@@ -215,10 +208,14 @@ class SensorSelectionVectorEnv(InfoNavVectorEnv):
     def _reset_outputs(self, copies: np.ndarray, terrains: TerrainStack) -> tuple[np.ndarray, dict]:
         """The observations and reset infos of ``copies``, just reset."""
         none = np.zeros(len(copies))
-        return self._outputs(copies, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), none, none)
+        return self._outputs(
+            copies, terrains, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), (none, none)
+        )
 
-    def _outputs(self, copies, stepped, chosen, rewards, entropies) -> tuple[np.ndarray, dict]:
-        """Decide again in ``copies``; their observations and infos (the others' as ``_info`` describes)."""
+    def _outputs(self, copies, terrains, stepped, chosen, record) -> tuple[np.ndarray, dict]:
+        """Decide again in ``copies``; their observations and infos (the others' as ``_info`` describes) after the
+        step's ``record``, ``(rewards, entropies)``."""
+        rewards, entropies = record
         decision = self._decision_of(copies)
         self._set_decision(copies, decision)
         self._chosen[copies] = np.where(stepped, chosen, -1)

@@ -4,8 +4,10 @@ Every env is written once on batched arrays: it declares ``default_config()``; i
 ``_setup`` (the shared arguments and keys), then the env's ``_build`` hook (its own keys, its parts, its spaces with
 ``_set_spaces``); its single env is the N = 1 view (``envs.single_view``) and ``render()`` draws its copy 0 from
 ``_scene_frame()``. It keeps the current decision in ``self._decision`` (with an ``action_mask`` (N, A)), starts
-episodes in ``_reset_copies`` (returning their static geometry) with their first outputs from ``_reset_outputs``,
-and ends its ``step`` with ``_finish_step``, which makes the resets of its ``autoreset_mode`` (a team env's
+episodes in ``_reset_copies`` (returning their static geometry, or None) with their first outputs from
+``_reset_outputs``, and fills ``step``'s two hooks: ``_act`` (the transition of the copies acting) and
+``_outputs`` (observations and infos after it). ``reset`` and ``step`` are fixed here, with the seeding, the action
+checks, ``_elapsed`` (each copy's steps, against ``horizon``) and the resets of ``autoreset_mode`` (a team env's
 ``TeamVectorEnv`` has its own cycle).
 """
 
@@ -130,6 +132,7 @@ class InfoNavVectorEnv(VectorEnv):
         self.render_mode = render_mode
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
         self._everyone = np.arange(num_envs)  # every copy's index, for steps that touch all of them
+        self._elapsed = np.zeros(num_envs, dtype=int)  # each copy's steps in its episode
         self._decision = self._geometry = None
         self._prev_done = np.zeros(num_envs, dtype=bool)
 
@@ -141,9 +144,45 @@ class InfoNavVectorEnv(VectorEnv):
         """
         self._seed_sub_envs(seed, options)
         everyone = np.arange(self.num_envs)
+        self._elapsed[:] = 0
         self._geometry = self._reset_copies(everyone)
         self._prev_done[:] = False
         return self._rendered(self._reset_outputs(everyone, self._geometry))
+
+    def step(self, actions):
+        """Act in every sub-env, with ``autoreset_mode``'s resets (errors: ``_begin_step``). Fixed: an env fills
+        ``_act`` and ``_outputs``."""
+        acting, chosen = self._begin_step(actions)
+        record, rewards, terminated = self._act(acting, chosen)
+        self._elapsed += acting
+        truncated = acting & ~terminated & (self._elapsed >= self.config["horizon"])
+        observation, info = self._finish_step(
+            terminated | truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, record)
+        )
+        return observation, rewards, terminated, truncated, info
+
+    def _reset_copies(self, copies: np.ndarray):
+        """Hook: start a new episode in each of ``copies`` (their ``_elapsed`` is 0) from its own generator; return
+        their static geometry (an object with ``with_copies(copies, replacement)``), or None if the env keeps none."""
+        raise NotImplementedError(f"{self.owner_name} must implement _reset_copies()")
+
+    def _reset_outputs(self, copies: np.ndarray, geometry) -> tuple[np.ndarray, dict]:
+        """Hook: the observations (n, ...) and reset infos of ``copies``, just reset (``geometry``: theirs)."""
+        raise NotImplementedError(f"{self.owner_name} must implement _reset_outputs()")
+
+    def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple:
+        """Hook: the ``acting`` copies (N,) bool take their ``chosen`` actions (N,) (-1: the no-op).
+
+        Returns:
+            ``(record, rewards (N,), terminated (N,) bool)``: what ``_outputs`` reads of the step, 0 and False
+            for the copies not acting.
+        """
+        raise NotImplementedError(f"{self.owner_name} must implement _act()")
+
+    def _outputs(self, copies: np.ndarray, geometry, acting: np.ndarray, chosen: np.ndarray, record) -> tuple:
+        """Hook: the observations (n, ...) and infos of ``copies`` at their new decisions (set with
+        ``_set_decision``), after the step ``_act`` made (its ``acting``, ``chosen`` and ``record``)."""
+        raise NotImplementedError(f"{self.owner_name} must implement _outputs()")
 
     def _begin_step(self, actions) -> tuple[np.ndarray, np.ndarray]:
         """``(acting, chosen)``: which sub-envs act in this step (with ``NEXT_STEP``, not those starting again) and
@@ -179,20 +218,27 @@ class InfoNavVectorEnv(VectorEnv):
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:
             resetting = np.flatnonzero(self._prev_done)
             if resetting.size:
-                self._geometry = self._geometry.with_copies(resetting, self._reset_copies(resetting))
+                self._new_episodes(resetting)
             self._prev_done = ended
             return self._rendered(step_outputs(everyone, self._geometry))
         observation, info = step_outputs(everyone, self._geometry)
         copies = np.flatnonzero(ended)
         if copies.size:
             final_infos = final_step_infos(observation, info, ended)
-            geometry = self._reset_copies(copies)
-            self._geometry = self._geometry.with_copies(copies, geometry)
+            geometry = self._new_episodes(copies)
             reset_observation, reset_info = self._reset_outputs(copies, geometry)
             observation[copies] = reset_observation
             set_rows(info, copies, reset_info)
             info.update(final_infos)
         return self._rendered((observation, info))
+
+    def _new_episodes(self, copies: np.ndarray):
+        """Start a new episode in each of ``copies`` (``_reset_copies``); their geometry, merged into ``_geometry``."""
+        self._elapsed[copies] = 0
+        geometry = self._reset_copies(copies)
+        if geometry is not None:
+            self._geometry = self._geometry.with_copies(copies, geometry)
+        return geometry
 
     def _rows(self, copies: np.ndarray):
         """The index of ``copies`` (ascending) into the (N, ...) arrays: all rows as a slice (views, no copies) when

@@ -87,7 +87,6 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         self._x, self._P = np.zeros((num_envs, dim)), np.zeros((num_envs, dim, dim))
         self._gps_available = np.zeros((num_envs, n_robots), dtype=bool)
         self._zone_centers, self._zone_radii_sq = np.zeros((num_envs, 0, 2)), np.zeros((num_envs, 0))
-        self._elapsed = np.zeros(num_envs, dtype=int)
         self._slots = (np.arange(num_envs)[:, None], np.arange(n_robots))  # index of every (copy, robot)
 
     # ------------------------------------------------------------------ the state, for harnesses and tests
