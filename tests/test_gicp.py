@@ -9,17 +9,11 @@ import math
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 from test_icp import errors, face_cloud, random_motion
 
 from infonav_gym.registration import icp
-from infonav_gym.registration.gicp import (
-    PLANE_EPSILON,
-    gicp_covariances,
-    gicp_step,
-    neighbour_covariances,
-    plane_covariances,
-    symmetric_inverse,
-)
+from infonav_gym.registration.gicp import PLANE_EPSILON, gicp_covariances, gicp_step, pair_information
 from infonav_gym.registration.robust_kernels import ROBUST_KERNELS, robust_weights
 
 
@@ -29,40 +23,45 @@ def moved_source(rng, target, motion, noise_std_m):
     return source + rng.normal(scale=noise_std_m, size=source.shape)
 
 
-def test_neighbour_covariances_equal_numpy_cov_of_the_k_nearest_points():
-    points = np.random.default_rng(0).uniform(-1.0, 1.0, (300, 3))
-    covariances = neighbour_covariances(points, 12)
-    _, index = cKDTree(points).query(points, k=12)
-    for i in (0, 17, 299):
-        np.testing.assert_allclose(covariances[i], np.cov(points[index[i]].T), rtol=1e-12, atol=1e-15)
+def reference_gicp_covariances(points, neighbours):
+    """numpy's: ``np.cov`` of each point's ``neighbours`` nearest (scipy's ``cKDTree``), eigenvalues set by ``eigh``."""
+    _, index = cKDTree(points).query(points, k=neighbours)
+    covariances = np.array([np.cov(points[row].T) for row in index])
+    _, axes = np.linalg.eigh(covariances)
+    return np.einsum("nik,k,njk->nij", axes, [PLANE_EPSILON, 1.0, 1.0], axes)
 
 
-def test_plane_covariances_keep_the_axes_and_set_the_eigenvalues():
-    rng = np.random.default_rng(1)
-    covariances = neighbour_covariances(rng.uniform(-1.0, 1.0, (200, 3)) * [1.0, 0.5, 0.05], 20)
-    planes = plane_covariances(covariances)
-    values, axes = np.linalg.eigh(planes)
-    np.testing.assert_allclose(values, np.tile([PLANE_EPSILON, 1.0, 1.0], (200, 1)), atol=1e-12)
-    normals = np.linalg.eigh(covariances)[1][:, :, 0]
-    np.testing.assert_allclose(np.abs(np.einsum("ni,ni->n", axes[:, :, 0], normals)), 1.0, atol=1e-9)
+@pytest.mark.parametrize("offset_m", [0.0, 1000.0])
+def test_gicp_covariances_equal_numpys_of_the_k_nearest_points(offset_m):
+    """Patches thin along one axis, also 1 km from the origin (the one-pass scatter is summed about a patch point)."""
+    points = np.random.default_rng(0).uniform(-1.0, 1.0, (400, 3)) * [1.0, 0.5, 0.05] + offset_m
+    np.testing.assert_allclose(gicp_covariances(points, 12), reference_gicp_covariances(points, 12), atol=1e-10)
+
+
+def test_pair_information_inverts_the_combined_covariances_of_the_pairs():
+    rng = np.random.default_rng(7)
+    source_covariances, target_covariances = (gicp_covariances(rng.uniform(-1.0, 1.0, (50, 3)), 8) for _ in range(2))
+    source_index, target_index = rng.integers(0, 50, 30), rng.integers(0, 50, 30)
+    rotation = Rotation.random(random_state=rng).as_matrix()
+    combined = target_covariances[target_index] + rotation @ source_covariances[source_index] @ rotation.T
+    information = pair_information(source_covariances, target_covariances, source_index, target_index, rotation)
+    np.testing.assert_allclose(information, np.linalg.inv(combined), rtol=1e-9, atol=1e-9)
 
 
 def test_gicp_step_solves_the_normal_equations_of_the_stacked_jacobians():
-    """Against ``sum J^T M J x = -sum J^T M d`` with ``J = [[a]_x, -I]`` stacked per pair and ``np.linalg.inv``."""
+    """Against ``sum J^T M J x = -sum J^T M d`` with ``J = [[a]_x, -I]`` stacked per pair."""
     rng = np.random.default_rng(6)
     moved = rng.standard_normal((40, 3))
     matched = moved + 0.1 * rng.standard_normal((40, 3))
     roots = rng.standard_normal((40, 3, 3))
-    combined = roots @ np.swapaxes(roots, 1, 2) + 0.1 * np.eye(3)
-    information = np.linalg.inv(combined)
-    np.testing.assert_allclose(symmetric_inverse(combined), information, rtol=1e-9, atol=1e-12)
+    information = np.linalg.inv(roots @ np.swapaxes(roots, 1, 2) + 0.1 * np.eye(3))
     arm = moved - moved.mean(axis=0)
     jacobian = np.concatenate([np.cross(arm[:, :, None], np.eye(3)[None], axis=1), np.tile(-np.eye(3), (40, 1, 1))], 2)
     np.testing.assert_allclose(jacobian[:, :, :3] @ [0.1, 0.2, 0.3], np.cross(arm, [0.1, 0.2, 0.3]))  # [a]_x w = a x w
     hessian = np.einsum("nki,nkl,nlj->ij", jacobian, information, jacobian)
     gradient = np.einsum("nki,nkl,nl->i", jacobian, information, matched - moved)
     expected = np.linalg.solve(hessian, -gradient)
-    np.testing.assert_allclose(gicp_step(moved, matched, combined), expected, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(gicp_step(moved, matched, information), expected, rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -175,6 +174,14 @@ def test_bad_gicp_input_is_refused_with_a_clear_message(kwargs, message):
         icp(cloud, cloud, covariance_neighbours=kwargs.pop("covariance_neighbours", 5), **kwargs)
 
 
-def test_too_few_points_for_the_covariances_is_refused():
-    with pytest.raises(ValueError, match="points has 4 points, too few for covariances from neighbours=5"):
-        gicp_covariances(np.zeros((4, 3)), 5)
+@pytest.mark.parametrize(
+    ("points", "message"),
+    [
+        (np.zeros((4, 3)), "points has 4 points, too few for covariances from neighbours=5"),
+        (np.zeros((6, 2)), r"points must be an \(N, 3\) array of points, got shape \(6, 2\)"),
+        (np.full((6, 3), np.inf), "points must be finite, but 6 of its 6 points hold NaN or inf"),
+    ],
+)
+def test_bad_points_for_the_covariances_are_refused(points, message):
+    with pytest.raises(ValueError, match=message):
+        gicp_covariances(points, 5)

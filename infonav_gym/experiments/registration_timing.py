@@ -1,4 +1,4 @@
-"""ICP time and accuracy on LADAR frame pairs, ours against Open3D's and small_gicp's when they import.
+"""ICP time and accuracy on LADAR frame pairs, ours against small_gicp's and, when it imports, Open3D's.
 
 A pair: two ``scan``s of ``make_terrain(default_rng(seed), roughness=1.0)`` by one LADAR, from the
 vehicle pose ``[0, 0, 0]`` and from 1 m ahead turned 2 degrees left; ``PAIR_LADARS`` names the
@@ -14,7 +14,8 @@ same correspondence distance and iteration cap:
   k-d trees and ``GICP_NEIGHBOURS``-neighbour covariances of both clouds (``estimate_covariances``),
   no downsampling, and its convergence thresholds set to our ``tolerance``.
 
-``*_time_ratio`` figures are our median time over the peer's (below 1: ours is faster).
+``*_time_ratio`` figures are our median time over the peer's (below 1: ours is faster), the registrations of a
+pair timed in turn, round after round, so that the load of a shared machine weighs on both alike.
 """
 
 from __future__ import annotations
@@ -22,11 +23,11 @@ from __future__ import annotations
 import importlib
 import math
 import statistics
+import time
 from functools import partial
 
 import numpy as np
 
-from infonav_gym.experiments.sensor_timing import call_times_ms
 from infonav_gym.geometry import transform_error
 from infonav_gym.registration import icp
 from infonav_gym.registration.frame_pairs import motion_between, perturbed_motion
@@ -43,7 +44,7 @@ TOLERANCE = 1e-6  # icp's default convergence threshold [rad] and [m], also give
 REPEATS_PER_SECOND = 40  # timed registrations of a frame pair per second of benchmark round, at least MIN_REPEATS
 MIN_REPEATS = 3  # also the timed registrations of the 40k-point pair
 PAIR_LADARS = {"frame_pair": Ladar(), "scan_40k": Ladar(rows=128, columns=360)}
-PEERS = ("open3d", "small_gicp")
+PEERS = ("open3d",)  # the optional peers (the bench extra); small_gicp is a core dependency
 PEER_OF = {"open3d_icp": "icp", "small_gicp": "gicp"}  # a peer's registration -> ours it is timed against
 
 
@@ -61,7 +62,7 @@ def frame_pair(seed: int = 0, ladar: Ladar | None = None) -> tuple[np.ndarray, n
 
 
 def registration_peers_missing() -> str | None:
-    """Why peer rows are absent (Open3D or small_gicp does not import), or None when both import."""
+    """Why peer rows are absent (Open3D does not import), or None when it imports."""
     missing = []
     for name in PEERS:
         try:
@@ -129,13 +130,25 @@ def _small_gicp(source, target, truth, warm_start):
     return register
 
 
+def alternating_times_ms(calls: dict, repeats: int) -> dict[str, tuple[object, list[float]]]:
+    """Per name of ``calls``: the result of one untimed warm-up call and the milliseconds of ``repeats`` calls, the
+    calls taken in turn (round after round), so that a change in the machine's load between them hits each alike."""
+    results = {name: (call(), []) for name, call in calls.items()}
+    for _ in range(repeats):
+        for name, call in calls.items():
+            begin = time.perf_counter()
+            call()
+            results[name][1].append((time.perf_counter() - begin) * 1e3)
+    return results
+
+
 def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
     """ICP figures on each pair of ``PAIR_LADARS`` (module docstring), named by pair and registration.
 
     ``icp_<pair>_ms`` and ``gicp_<pair>_ms`` (median milliseconds), their ``*_rotation_error_deg`` and
     ``*_translation_error_m``, ``icp_<pair>_points``; with a peer importable its ``open3d_icp_<pair>_*``
     or ``small_gicp_<pair>_*`` figures and the ``*_time_ratio``. ``seconds_per_round`` scales the number
-    of timed registrations of the frame pair.
+    of timed registrations of the frame pair. The registrations are timed in turn (``alternating_times_ms``).
     """
     figures = {}
     for pair, ladar in PAIR_LADARS.items():
@@ -149,12 +162,13 @@ def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, floa
             "open3d_icp": _open3d,
             "small_gicp": _small_gicp,
         }
+        registers = {}
         for name, make in registrations.items():
             try:
-                register = make(*clouds)
+                registers[name] = make(*clouds)
             except ImportError:
                 continue
-            transform, times = call_times_ms(register, repeats)
+        for name, (transform, times) in alternating_times_ms(registers, repeats).items():
             figures[f"{name}_{pair}_ms"] = statistics.median(times)
             translation, rotation = transform_error(transform, truth)
             figures[f"{name}_{pair}_rotation_error_deg"] = math.degrees(rotation)

@@ -11,19 +11,23 @@ as an exact rotation (as point-to-plane in ``icp``).
 The residual a robust kernel sees is ``r = sqrt(2 PLANE_EPSILON d^T M d)`` with ``M`` that inverse: for
 two coplanar points it equals their distance along the normal (up to ``PLANE_EPSILON`` times the
 tangential part), so a kernel scale means the same length for GICP as for point-to-plane.
+
+The neighbours come from small_gicp's k-d tree (``kdtree`` module: the backend, and the figures that
+chose it), each patch's normal from a compiled kernel (``normals``), and the step's sums from two
+compiled kernels (``pair_information``, ``normal_equations``).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from infonav_gym.geometry import cross
+from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.registration.kdtree import KdTree, check_points
+from infonav_gym.registration.normals import estimate_normals
 from infonav_gym.registration.robust_kernels import robust_weights
 
 GICP_NEIGHBOURS = 20  # points per covariance
 PLANE_EPSILON = 1e-3  # eigenvalue along the normal of a regularised covariance (the tangent ones are 1)
-QUERY_WORKERS = 1  # cKDTree.query threads, as in icp
 
 
 def check_neighbours(neighbours, count: int, name: str) -> int:
@@ -38,71 +42,121 @@ def check_neighbours(neighbours, count: int, name: str) -> int:
     return int(neighbours)
 
 
-def neighbour_covariances(points: np.ndarray, neighbours: int, tree: cKDTree | None = None) -> np.ndarray:
-    """Sample covariance (N, 3, 3) of each point's ``neighbours`` nearest points (itself included), as ``np.cov``.
+def gicp_covariances(
+    points, neighbours: int = GICP_NEIGHBOURS, tree: KdTree | None = None, rows=slice(None)
+) -> np.ndarray:
+    """The plane-regularised covariances (R, 3, 3) GICP uses for ``points[rows]`` (all by default); compute once
+    per cloud.
 
     Args:
-        points: (N, 3) points, N >= ``neighbours``.
-        neighbours: points per covariance, >= 3.
-        tree: a ``cKDTree`` of ``points`` if one is at hand.
+        points: (N, 3) finite points, N >= ``neighbours``.
+        neighbours: points per covariance (the point itself included), >= 3.
+        tree: a ``KdTree`` of ``points`` if one is at hand.
+        rows: the points whose covariances to compute (an index or slice of ``points``).
+
+    Raises:
+        ValueError: for ``points`` not a finite (N, 3) array or fewer than ``neighbours``, or bad ``neighbours``.
     """
-    neighbours = check_neighbours(neighbours, points.shape[0], "points")
-    tree = cKDTree(points) if tree is None else tree
-    _, index = tree.query(points, k=neighbours, workers=QUERY_WORKERS)
-    patches = points[index]
-    patches -= patches.mean(axis=1, keepdims=True)
-    return np.swapaxes(patches, 1, 2) @ patches / (neighbours - 1)
+    points = check_points(points, "points")
+    tree = KdTree(points) if tree is None else tree
+    normals = estimate_normals(points, tree, check_neighbours(neighbours, points.shape[0], "points"), rows)
+    return np.eye(3) - (1.0 - PLANE_EPSILON) * normals[:, :, None] * normals[:, None, :]  # eigenvalues (eps, 1, 1)
 
 
-def plane_covariances(covariances: np.ndarray) -> np.ndarray:
-    """``covariances`` (N, 3, 3) with their eigenvalues replaced by ``(PLANE_EPSILON, 1, 1)``, smallest first."""
-    _, axes = np.linalg.eigh(covariances)
-    scaled = axes * np.array([PLANE_EPSILON, 1.0, 1.0])
-    return np.einsum("nik,njk->nij", scaled, axes)
+@kernel
+def pair_information(source_covariances, target_covariances, source_index, target_index, rotation):
+    """``(C_q + R C_p R^T)^-1`` (K, 3, 3) of the pairs ``source_index`` -> ``target_index`` (K,) under ``rotation``.
+
+    ``C_p`` and ``C_q`` are rows of ``source_covariances`` (N, 3, 3) and ``target_covariances`` (M, 3, 3), symmetric;
+    the sum is inverted by its adjugate (faster than ``np.linalg.inv``).
+    """
+    information = np.empty((source_index.size, 3, 3))
+    rotated, combined = np.empty((3, 3)), np.empty((3, 3))
+    for n in range(source_index.size):
+        source, target = source_covariances[source_index[n]], target_covariances[target_index[n]]
+        for i in range(3):
+            for j in range(3):
+                rotated[i, j] = (
+                    rotation[i, 0] * source[0, j] + rotation[i, 1] * source[1, j] + rotation[i, 2] * source[2, j]
+                )
+        for i in range(3):
+            for j in range(3):
+                combined[i, j] = target[i, j] + rotated[i, 0] * rotation[j, 0] + rotated[i, 1] * rotation[j, 1]
+                combined[i, j] += rotated[i, 2] * rotation[j, 2]
+        a, b, c = combined[0, 0], combined[0, 1], combined[0, 2]
+        d, e, f = combined[1, 1], combined[1, 2], combined[2, 2]
+        first, second, third = d * f - e * e, c * e - b * f, b * e - c * d
+        scale = 1.0 / (a * first + b * second + c * third)
+        inverse = information[n]
+        inverse[0, 0], inverse[0, 1], inverse[0, 2] = first * scale, second * scale, third * scale
+        inverse[1, 1], inverse[1, 2], inverse[2, 2] = (
+            (a * f - c * c) * scale,
+            (b * c - a * e) * scale,
+            (a * d - b * b) * scale,
+        )
+        inverse[1, 0], inverse[2, 0], inverse[2, 1] = inverse[0, 1], inverse[0, 2], inverse[1, 2]
+    return information
 
 
-def gicp_covariances(points, neighbours: int = GICP_NEIGHBOURS, tree: cKDTree | None = None) -> np.ndarray:
-    """The plane-regularised covariances (N, 3, 3) GICP uses for ``points`` (N, 3); compute once per cloud."""
-    return plane_covariances(neighbour_covariances(np.asarray(points, dtype=float), neighbours, tree))
-
-
-def symmetric_inverse(matrices: np.ndarray) -> np.ndarray:
-    """Inverses (K, 3, 3) of symmetric (K, 3, 3) ``matrices`` by the adjugate (faster than ``np.linalg.inv``)."""
-    a, b, c = matrices[:, 0, 0], matrices[:, 0, 1], matrices[:, 0, 2]
-    d, e, f = matrices[:, 1, 1], matrices[:, 1, 2], matrices[:, 2, 2]
-    cofactors = [d * f - e * e, c * e - b * f, b * e - c * d, a * f - c * c, b * c - a * e, a * d - b * b]
-    scale = 1.0 / (a * cofactors[0] + b * cofactors[1] + c * cofactors[2])
-    first, second, third, fourth, fifth, sixth = (cofactor * scale for cofactor in cofactors)
-    return np.stack([first, second, third, second, fourth, fifth, third, fifth, sixth], axis=1).reshape(-1, 3, 3)
+@kernel
+def normal_equations(moved, matched, information, weights):
+    """``(sum w J^T M J, sum w J^T M d)`` ((6, 6), (6,)) of the pairs ``moved`` -> ``matched`` (K, 3), ``d`` their
+    difference, ``M`` = ``information`` (K, 3, 3), ``w`` = ``weights`` (K,) and ``J = [[a]_x, -I]`` (``a`` the arm
+    of ``moved`` from its centroid)."""
+    count = moved.shape[0]
+    centre = np.zeros(3)
+    for n in range(count):
+        for i in range(3):
+            centre[i] += moved[n, i]
+    for i in range(3):
+        centre[i] /= count
+    hessian, gradient = np.zeros((6, 6)), np.zeros(6)
+    arm, pulled, skew, weighted = np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((3, 3))
+    for n in range(count):
+        for i in range(3):
+            arm[i] = moved[n, i] - centre[i]
+        skew[0, 0], skew[0, 1], skew[0, 2] = 0.0, -arm[2], arm[1]  # [a]_x
+        skew[1, 0], skew[1, 1], skew[1, 2] = arm[2], 0.0, -arm[0]
+        skew[2, 0], skew[2, 1], skew[2, 2] = -arm[1], arm[0], 0.0
+        for i in range(3):
+            pulled[i] = 0.0
+            for j in range(3):
+                weighted[i, j] = weights[n] * information[n, i, j]
+                pulled[i] += weighted[i, j] * (matched[n, j] - moved[n, j])  # w M d
+        for i in range(3):
+            for j in range(3):
+                pushed = weighted[i, 0] * skew[0, j] + weighted[i, 1] * skew[1, j] + weighted[i, 2] * skew[2, j]
+                hessian[3 + i, j] -= pushed  # -w M [a]_x
+                hessian[3 + i, 3 + j] += weighted[i, j]
+                for k in range(3):
+                    hessian[k, j] += skew[i, k] * pushed  # [a]_x^T w M [a]_x
+            gradient[i] += skew[0, i] * pulled[0] + skew[1, i] * pulled[1] + skew[2, i] * pulled[2]
+            gradient[3 + i] -= pulled[i]
+    for i in range(3):
+        for j in range(3):
+            hessian[i, 3 + j] = hessian[3 + j, i]
+    return hessian, gradient
 
 
 def gicp_step(
     moved: np.ndarray,
     matched: np.ndarray,
-    combined: np.ndarray,
+    information: np.ndarray,
     robust_kernel: str | None = None,
     kernel_scale: float = 1.0,
 ) -> np.ndarray:
     """The Gauss-Newton step ``(w, v)`` (6,) for the pairs ``moved`` -> ``matched`` (K, 3).
 
-    ``combined`` (K, 3, 3) holds ``C_q + R C_p R^T`` per pair (symmetric); the step's rotation ``w``
-    [rad] is about the centroid of ``moved``, its translation ``v`` moves that centroid. With
-    ``d = matched - moved`` and the arm ``a`` from the centroid, ``d(d)/d(w, v) = J = [[a]_x, -I]``;
-    the normal equations ``sum J^T M J step = -sum J^T M d`` are summed in blocks by cross products.
+    ``information`` (K, 3, 3) holds ``M = (C_q + R C_p R^T)^-1`` per pair (``pair_information``); the step's
+    rotation ``w`` [rad] is about the centroid of ``moved``, its translation ``v`` moves that centroid. With
+    ``d = matched - moved`` and the arm ``a`` from the centroid, ``d(d)/d(w, v) = J = [[a]_x, -I]``; the step
+    solves the normal equations ``sum J^T M J step = -sum J^T M d`` (``normal_equations``).
     """
-    information = symmetric_inverse(combined)
-    difference = matched - moved
-    pulled = np.einsum("nij,nj->ni", information, difference)  # M d
+    moved, matched, information = contiguous(moved), contiguous(matched), contiguous(information)
+    weights = np.ones(moved.shape[0])
     if robust_kernel is not None:
-        squared = np.maximum(np.einsum("ni,ni->n", difference, pulled), 0.0)
+        difference = matched - moved
+        squared = np.maximum(np.einsum("ni,nij,nj->n", difference, information, difference), 0.0)
         weights = robust_weights(np.sqrt(2.0 * PLANE_EPSILON * squared), robust_kernel, kernel_scale)
-        information, pulled = information * weights[:, None, None], pulled * weights[:, None]
-    arm = (moved - np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved)[:, None, :]
-    arm_information = cross(arm, information)  # -M [a]_x per pair: its rows are a x M_j
-    hessian = np.empty((6, 6))
-    hessian[:3, :3] = cross(arm, np.swapaxes(arm_information, 1, 2)).sum(axis=0).T  # [a]_x^T M [a]_x
-    hessian[3:, :3] = arm_information.sum(axis=0)  # -M [a]_x
-    hessian[:3, 3:] = hessian[3:, :3].T
-    hessian[3:, 3:] = information.sum(axis=0)
-    gradient = np.concatenate([cross(pulled, arm[:, 0]).sum(axis=0), -pulled.sum(axis=0)])
+    hessian, gradient = normal_equations(moved, matched, information, weights)
     return np.linalg.lstsq(hessian, -gradient, rcond=None)[0]

@@ -4,7 +4,7 @@ As the paper summarises [its ref. 7]: from an initial motion, pair each source p
 closest target point under the current transform, compute the incremental motion that best
 aligns the pairs, apply it, and repeat until the increment falls below a threshold.
 
-Correspondences come from a ``scipy.spatial.cKDTree`` built once per call on the target. A pair
+Correspondences come from a ``KdTree`` (``kdtree`` module) built once per call on the target. A pair
 is an inlier when it is closer than ``max_correspondence_distance`` and passes a robust test:
 with ``d`` the distances of the pairs inside that limit, pairs beyond
 ``median(d) + ROBUST_K * 1.4826 * MAD(d)`` are dropped (``1.4826 * MAD`` estimates a standard
@@ -15,10 +15,11 @@ distances of well-aligned noisy points) loses well under 1% of its pairs.
 The increment is solved in closed form on the inliers: ``point_to_point`` by the SVD of the
 cross-covariance (Kabsch / Umeyama without scale, with the reflection fix); ``point_to_plane``
 by the small-angle linearisation ``n . (p + w x p + v - q)`` in least squares, on target
-normals estimated once per call by PCA of each target point's ``NORMAL_NEIGHBOURS`` nearest
+normals estimated once per call by PCA of each target point's ``normals.NORMAL_NEIGHBOURS`` nearest
 neighbours (their sign does not matter), the angle ``w`` then applied as an exact rotation;
 ``gicp`` by one Gauss-Newton step of generalized ICP (``gicp`` module) on per-point covariances of both
-clouds, computed once per call (or passed in, computed once per cloud). For ``point_to_plane`` and
+clouds (passed in, computed once per cloud, or computed here for each point the first time a pair uses
+it: the same covariances, for the 70-90 % of the points that take part). For ``point_to_plane`` and
 ``gicp`` a ``robust_kernel`` (``robust_kernels`` module) reweights the inlier pairs by their residuals
 in every step (iteratively reweighted least squares).
 
@@ -57,18 +58,24 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
+from infonav_gym.compiled import contiguous
 from infonav_gym.geometry import rotation_angle
-from infonav_gym.registration.gicp import GICP_NEIGHBOURS, check_neighbours, gicp_covariances, gicp_step
+from infonav_gym.registration.gicp import (
+    GICP_NEIGHBOURS,
+    check_neighbours,
+    gicp_covariances,
+    gicp_step,
+    pair_information,
+)
+from infonav_gym.registration.kdtree import KdTree, check_points
+from infonav_gym.registration.normals import estimate_normals
 from infonav_gym.registration.robust_kernels import check_robust_kernel, robust_weights
 
 METHODS = ("point_to_point", "point_to_plane", "gicp")
 DEFAULT_KERNEL_SCALE = 0.1  # robust kernel scale [length unit]
 ROBUST_K = 3.0  # robust scale multiples beyond the median pair distance that mark an outlier
 MAD_TO_STD = 1.4826  # standard deviation of a Gaussian per unit median absolute deviation
-NORMAL_NEIGHBOURS = 10  # target points per PCA normal
-QUERY_WORKERS = 1  # cKDTree.query threads; -1 (both cores) measured slower on 5,760-point frames
 
 
 @dataclass(frozen=True)
@@ -89,19 +96,6 @@ class RegistrationResult:
     fitness: float
     iterations: int
     converged: bool
-
-
-def check_points(points, name: str) -> np.ndarray:
-    """``points`` as a finite float (K, 3) array with K >= 3, or ``ValueError`` naming ``name``."""
-    array = np.asarray(points, dtype=float)
-    if array.ndim != 2 or array.shape[1] != 3:
-        raise ValueError(f"{name} must be an (N, 3) array of points, got shape {array.shape}")
-    if array.shape[0] < 3:
-        raise ValueError(f"{name} needs at least 3 points to fix a rigid motion, got {array.shape[0]}")
-    if not np.all(np.isfinite(array)):
-        bad = int(np.count_nonzero(~np.all(np.isfinite(array), axis=1)))
-        raise ValueError(f"{name} must be finite, but {bad} of its {array.shape[0]} points hold NaN or inf")
-    return array
 
 
 def check_rigid_transform(matrix, name: str, atol: float = 1e-6) -> np.ndarray:
@@ -162,27 +156,35 @@ def rotation_from_vector(rotation_vector: np.ndarray) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * cross + (1.0 - math.cos(angle)) * (cross @ cross)
 
 
-def estimate_normals(points: np.ndarray, tree: cKDTree, neighbours: int = NORMAL_NEIGHBOURS) -> np.ndarray:
-    """Unit normals (M, 3) of ``points``: the least-variance axis of each point's ``neighbours`` nearest points."""
-    k = min(neighbours, points.shape[0])
-    _, index = tree.query(points, k=k, workers=QUERY_WORKERS)
-    patches = points[index]
-    patches -= patches.mean(axis=1, keepdims=True)
-    _, axes = np.linalg.eigh(np.einsum("mki,mkj->mij", patches, patches))
-    return axes[:, :, 0]
+class _Covariances:
+    """The GICP covariances of a cloud: ``given`` (checked to be (N, 3, 3) and finite), or computed for each point
+    the first time a pair uses it (in a LADAR frame pair about 90 % of the source points and 70 % of the target's)."""
 
+    def __init__(self, points: np.ndarray, given, neighbours, name: str, tree: KdTree | None = None):
+        count = points.shape[0]
+        self.missing = np.zeros(count, dtype=bool)
+        if given is not None:
+            self.values = contiguous(np.asarray(given, dtype=float))
+            if self.values.shape != (count, 3, 3) or not np.all(np.isfinite(self.values)):
+                raise ValueError(
+                    f"{name}_covariances must be finite, one (3, 3) covariance per {name} point: shape "
+                    f"{(count, 3, 3)}, got {self.values.shape}"
+                )
+            return
+        self.neighbours = check_neighbours(neighbours, count, name)
+        self.tree = KdTree(points) if tree is None else tree
+        self.values, self.missing[:] = np.empty((count, 3, 3)), True
 
-def _covariances(points: np.ndarray, given, neighbours, name: str, tree: cKDTree | None = None) -> np.ndarray:
-    """The GICP covariances of ``points``: ``given`` checked to be (N, 3, 3) and finite, else computed."""
-    if given is None:
-        return gicp_covariances(points, check_neighbours(neighbours, points.shape[0], name), tree)
-    covariances = np.asarray(given, dtype=float)
-    if covariances.shape != (points.shape[0], 3, 3) or not np.all(np.isfinite(covariances)):
-        raise ValueError(
-            f"{name}_covariances must be finite, one (3, 3) covariance per {name} point: shape "
-            f"{(points.shape[0], 3, 3)}, got {covariances.shape}"
-        )
-    return covariances
+    def of(self, index: np.ndarray) -> np.ndarray:
+        """All covariances (N, 3, 3), those of the points ``index`` computed."""
+        needed = index[self.missing[index]]
+        if needed.size:
+            fresh = np.zeros(self.missing.size, dtype=bool)
+            fresh[needed] = True
+            new = np.flatnonzero(fresh)  # needed, each once
+            self.values[new] = gicp_covariances(self.tree.data, self.neighbours, self.tree, new)
+            self.missing[new] = False
+        return self.values
 
 
 class _ClosestPoints:
@@ -191,16 +193,16 @@ class _ClosestPoints:
     A query asks for the two closest target points, at distances ``d1 <= d2``. While a point stays
     within ``(d2 - d1) / 2`` of where it was queried, the first is still its closest (triangle
     inequality), so only the points that moved farther are queried again: near convergence almost
-    none. The result equals a full query every time (up to exact ties). With a distance limit the
-    search is bounded by ``SEARCH_BOUND_FACTOR`` times it, which stands in for a missing ``d2``, and
-    a point with nothing inside the bound stays unmatched while it moves less than bound - limit.
+    none. The result equals a full query every time (up to exact ties). With a distance limit,
+    ``SEARCH_BOUND_FACTOR`` times it stands in for a farther ``d2``, and a point with nothing inside
+    that bound stays unmatched while it moves less than bound - limit.
     The cache covers all source points; ``update`` serves a basic slice of them (the coarse subsample),
     whose entries the full set later reuses.
     """
 
     SEARCH_BOUND_FACTOR = 1.5
 
-    def __init__(self, tree: cKDTree, count: int, limit: float):
+    def __init__(self, tree: KdTree, count: int, limit: float):
         self.tree, self.limit = tree, limit
         self.bound = limit * self.SEARCH_BOUND_FACTOR
         self.unmatched_safe = self.bound - limit if math.isfinite(limit) else 0.0
@@ -219,11 +221,9 @@ class _ClosestPoints:
         stale = np.flatnonzero(np.einsum("ij,ij->i", drift, drift) >= safe_squared)
         if stale.size:
             moved_stale = np.take(moved, stale, axis=0)
-            distance, nearest = self.tree.query(
-                moved_stale, k=2, distance_upper_bound=self.bound, workers=QUERY_WORKERS
-            )
+            distance, nearest = self.tree.query(moved_stale, k=2)
             first, second = distance[:, 0], np.minimum(distance[:, 1], self.bound)
-            found = np.isfinite(first)
+            found = first < self.bound
             safe = np.where(found, 0.5 * (second - first), self.unmatched_safe)
             index[stale], anchor[stale], safe_squared[stale] = nearest[:, 0], moved_stale, safe**2
             closest[stale] = np.inf
@@ -340,7 +340,7 @@ def icp(
         tolerance: an increment with rotation below this [rad] and translation below this [length]
             ends the iteration as converged; > 0.
         max_correspondence_distance: pairs at least this far apart are not correspondences; ``None``
-            for no limit. Also bounds the k-d tree search, which makes it faster.
+            for no limit.
         method: ``"point_to_point"``, ``"point_to_plane"`` or ``"gicp"`` (generalized ICP, ``gicp`` module).
         robust_kernel: ``None`` (least squares) or one of ``ROBUST_KERNELS`` (``robust_kernels`` module),
             for ``"point_to_plane"`` and ``"gicp"``.
@@ -365,11 +365,11 @@ def icp(
     check_robust_kernel(robust_kernel, kernel_scale)
     check_kernel_method(robust_kernel, method)
 
-    tree = cKDTree(target)
+    tree = KdTree(target)
     normals = estimate_normals(target, tree) if method == "point_to_plane" else None
     if method == "gicp":
-        source_covariances = _covariances(source, source_covariances, covariance_neighbours, "source")
-        target_covariances = _covariances(target, target_covariances, covariance_neighbours, "target", tree)
+        source_covariances = _Covariances(source, source_covariances, covariance_neighbours, "source")
+        target_covariances = _Covariances(target, target_covariances, covariance_neighbours, "target", tree)
     rotation, translation = transform[:3, :3].copy(), transform[:3, 3].copy()
     closest = _ClosestPoints(tree, source.shape[0], limit)
 
@@ -387,10 +387,16 @@ def icp(
         matched_index = closest.index[rows][inliers]
         if method == "point_to_plane":
             return _point_to_plane(moved, matched, normals[matched_index], robust_kernel, kernel_scale)
-        rotated = rotation @ source_covariances[rows][inliers] @ rotation.T
-        combined = target_covariances[matched_index] + rotated
+        source_index = np.arange(source.shape[0])[rows][inliers]
+        information = pair_information(
+            source_covariances.of(source_index),
+            target_covariances.of(matched_index),
+            source_index,
+            matched_index,
+            rotation,
+        )
         centre = np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved
-        return _step_about(centre, gicp_step(moved, matched, combined, robust_kernel, kernel_scale))
+        return _step_about(centre, gicp_step(moved, matched, information, robust_kernel, kernel_scale))
 
     def smaller_than(threshold: float, step_rotation: np.ndarray, step_translation: np.ndarray) -> bool:
         return rotation_angle(step_rotation) < threshold and float(np.linalg.norm(step_translation)) < threshold
