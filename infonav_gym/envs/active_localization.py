@@ -115,6 +115,7 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
         may_terminate=True,
         idle_actions=frozenset(range(N_PRIMITIVES)),  # the primitives without an observation
         reward_terms=REWARD_TERMS,
+        main_metric="success_rate",
         info_keys=frozenset(
             {"goal", "goal_reached", "failed", "success", "observations_left", "distance_to_goal_m", "position_std_m"}
         ),

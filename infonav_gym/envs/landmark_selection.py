@@ -89,7 +89,12 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
     episode_metrics = LOCALIZATION_METRICS
-    traits = EnvTraits(estimates_pose=True, rewards_information_at_once=True, reward_terms=("mutual_information",))
+    traits = EnvTraits(
+        estimates_pose=True,
+        rewards_information_at_once=True,
+        reward_terms=("mutual_information",),
+        main_metric="cumulative_mi",
+    )
 
     @classmethod
     def default_config(cls) -> dict:

@@ -99,6 +99,7 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
     traits = EnvTraits(
         valid_gain_may_be_zero=True,  # a patch may hold no usable control point
         reward_terms=("error_reduction_m", "point_cost"),
+        main_metric="cumulative_reward",
         info_keys=frozenset(
             {"registered", "error_before_m", "error_after_m", "icp_iterations", "icp_time_s", "n_control_points"}
         ),

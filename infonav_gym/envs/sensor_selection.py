@@ -95,6 +95,7 @@ class SensorSelectionVectorEnv(InfoNavVectorEnv):
         rewards_information_at_once=True,
         idle_actions=frozenset({IDLE_ACTION}),
         reward_terms=("image_information",),
+        main_metric="cumulative_information",
         info_keys=frozenset({"sensor", "pan_rad", "image_entropy", "bandwidth_credit_bytes"}),
     )
 

@@ -42,6 +42,8 @@ class EnvTraits:
         noop_action: an action that observes nothing, which the random baseline takes only when nothing
             else is valid (``RandomAgent(noop_action=...)``); ``None``: the random baseline picks among all
             valid actions.
+        main_metric: the name of the ``episode_metrics`` entry that ranks agents on the env, higher being better
+            (``infonav leaderboard`` reports it); every infonav env names one.
     """
 
     estimates_pose: bool = False
@@ -54,6 +56,7 @@ class EnvTraits:
     info_keys: frozenset[str] = frozenset()
     reward_config_keys: tuple[str, ...] = ()
     noop_action: int | None = None
+    main_metric: str = ""
 
 
 def has_planning_model(env_or_class) -> bool:
@@ -81,3 +84,20 @@ def episode_metrics_of(env) -> tuple:
             "infonav_gym.envs.metrics.EpisodeMetric to evaluate it"
         )
     return tuple(metrics)
+
+
+def main_metric_of(env):
+    """The ``EpisodeMetric`` the env's ``traits.main_metric`` names.
+
+    Raises:
+        ValueError: if it names none of the env's ``episode_metrics``, naming its class and the choices.
+    """
+    metrics = episode_metrics_of(env)
+    name = traits_of(env).main_metric
+    for metric in metrics:
+        if metric.name == name:
+            return metric
+    raise ValueError(
+        f"{type(env.unwrapped).__name__}.traits.main_metric is {name!r}, not one of its episode_metrics: "
+        f"name one of {', '.join(metric.name for metric in metrics)}"
+    )

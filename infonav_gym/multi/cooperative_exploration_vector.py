@@ -115,6 +115,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         idle_actions=frozenset({NOOP_ACTION}),  # stay, observe nothing
         reward_config_keys=("team_reward",),
         reward_terms=REWARD_TERMS,
+        main_metric="success_rate",
         info_keys=EXPLORATION_INFO_KEYS,
     )
     team_info_keys = frozenset({"time_s", "coverage", "failed", "success"})

@@ -67,6 +67,7 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
     traits = EnvTraits(
         idle_actions=frozenset({NO_OBSERVATION}),
         reward_terms=("own_mutual_information", "team_mutual_information"),
+        main_metric="cumulative_mi",
         info_keys=frozenset(
             {"gps_available", "pose_std", "pose_std_after_update", "pose_entropy", "position_error_m"}
             | {"heading_error_rad", "estimated_pose"}
