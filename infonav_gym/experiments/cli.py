@@ -1,4 +1,4 @@
-"""The ``infonav`` command: demo, evaluate, render, train, benchmark, reproduce, replay."""
+"""The ``infonav`` command: demo, evaluate, leaderboard, render, train, benchmark, reproduce, replay."""
 
 from __future__ import annotations
 
@@ -34,6 +34,8 @@ from infonav_gym.experiments.vector_timing import DEFAULT_VECTOR_SIZES, parse_ve
 
 DEFAULT_ENV = "infonav/LandmarkSelection-v0"
 EVALUATION_SUFFIXES = (".md", ".csv", ".json", ".png")  # the files of ``evaluate --output STEM``
+LEADERBOARD_SUFFIXES = (".md", ".json")  # the files of ``leaderboard --output STEM``
+DEFAULT_MODELS = Path("results/models")  # leaderboard --models: the committed models, when run in the repository
 REPLAY_SUFFIXES = (".md", ".json")  # the files of ``replay mrclam --output STEM``
 RENDER_SUFFIXES = (".gif", ".png")  # the files of ``render --output PREFIX``
 CALIBRATION_SUFFIXES = (".json", ".png")  # the files of ``replay mrclam --calibrate OUTPUT.json``
@@ -105,11 +107,39 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument(
         "--output", type=Path, help=_stem_help(EVALUATION_SUFFIXES, "OUTPUT.md, OUTPUT.csv, OUTPUT.json and OUTPUT.png")
     )
-    evaluate.add_argument(
-        "--workers", type=positive_int, default=1, help="episodes played at once, each in its own process (default: 1)"
+
+    leaderboard = commands.add_parser(
+        "leaderboard",
+        help="every env's baselines and committed models on the same seeds, ranked by the env's main metric",
     )
-    evaluate.add_argument("--ray", action="store_true", help="play them as Ray tasks (the distributed extra)")
-    evaluate.add_argument("--address", help="with --ray: an existing Ray cluster (default: a local Ray)")
+    leaderboard.add_argument(
+        "--agents",
+        type=names,
+        default="random,greedy,planner,ppo,rllib",
+        help="comma-separated columns: random, greedy, planner, ppo, rllib (default: all)",
+    )
+    leaderboard.add_argument("--envs", type=names, help="comma-separated env ids (default: every registered env)")
+    leaderboard.add_argument(
+        "--models",
+        type=Path,
+        help=f"the committed models, a directory per model (default: {DEFAULT_MODELS}, if present)",
+    )
+    leaderboard.add_argument("--episodes", type=positive_int, default=50, help="episodes per agent (default: 50)")
+    leaderboard.add_argument(
+        "--output",
+        type=Path,
+        default=Path("results/leaderboard"),
+        help=_stem_help(LEADERBOARD_SUFFIXES, "OUTPUT.md and OUTPUT.json (default: results/leaderboard)"),
+    )
+    for command in (evaluate, leaderboard):
+        command.add_argument(
+            "--workers",
+            type=positive_int,
+            default=1,
+            help="episodes played at once, each in its own process (default: 1)",
+        )
+        command.add_argument("--ray", action="store_true", help="play them as Ray tasks (the distributed extra)")
+        command.add_argument("--address", help="with --ray: an existing Ray cluster (default: a local Ray)")
 
     render = commands.add_parser("render", help="render one episode of an agent: PREFIX.gif (animated), PREFIX.png")
     render.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
@@ -255,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
         command.add_argument(
             "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
         )
-    for command in (demo, evaluate, render, train, benchmark, reproduce, mrclam):
+    for command in (demo, evaluate, leaderboard, render, train, benchmark, reproduce, mrclam):
         command.add_argument("--seed", type=seed, default=0, help="first seed, from 0 to 2**32 - 1 (default: 0)")
         command.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of tables")
     return parser
@@ -286,12 +316,52 @@ def _show(args, result: dict, lines, write=None, where: str = "") -> dict:
     return result
 
 
+def _check_address(args) -> None:
+    if args.address and not args.ray:
+        raise ValueError("--address is the Ray cluster of --ray; add --ray or drop --address")
+
+
+def _leaderboard(args, command: str) -> dict:
+    """Play the leaderboard; write OUTPUT.md and OUTPUT.json (the finished rows on Ctrl-C); print it unless --json."""
+    from infonav_gym.experiments.leaderboard import heading, leaderboard, markdown_tables, write_leaderboard
+
+    stem = check_output_stem(args.output, LEADERBOARD_SUFFIXES, "--output")
+    _check_address(args)
+    if args.models and not args.models.is_dir():
+        raise ValueError(f"--models {args.models}: not a directory (the committed models, one directory each)")
+    models = args.models or (DEFAULT_MODELS if DEFAULT_MODELS.is_dir() else None)
+    interruption = None
+    try:
+        results = leaderboard(
+            args.envs,
+            args.agents,
+            models,
+            args.episodes,
+            args.seed,
+            progress=not args.json,
+            workers=args.workers,
+            use_ray=args.ray,
+            address=args.address,
+        )
+    except Interrupted as error:  # the finished rows are written and printed as a whole leaderboard's
+        results, interruption = error.result, error
+        if not results["rows"]:
+            raise Interrupted("interrupted before a row finished: nothing to write", results) from None
+
+    def lines():
+        return [heading(results), markdown_tables(results)]
+
+    _show(args, results, lines, lambda: write_leaderboard(results, stem, command), f"--output {stem}")
+    if interruption:
+        raise Interrupted(f"{interruption}; wrote {', '.join(results['files'])}", results)
+    return results
+
+
 def _evaluate(args, command: str) -> dict:
     from infonav_gym.experiments.evaluation import config_line, evaluate, heading, markdown_table, write_results
 
     stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
-    if args.address and not args.ray:
-        raise ValueError("--address is the Ray cluster of --ray; add --ray or drop --address")
+    _check_address(args)
     try:
         results = evaluate(
             args.env,
@@ -585,7 +655,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     run = {"demo": _demo, "evaluate": _evaluate, "render": _render, "train": _train, "benchmark": _benchmark}
-    run |= {"reproduce": _reproduce, "replay": _replay}
+    run |= {"reproduce": _reproduce, "replay": _replay, "leaderboard": _leaderboard}
     try:
         result = run[args.command](args, "infonav " + shlex.join(argv))
     except (OutputWriteError, Interrupted) as kept:  # the work kept was printed; its JSON still is with --json

@@ -1,0 +1,232 @@
+"""The leaderboard: every registered env's baselines and every committed model, on the same seeds, ranked by the
+env's main metric (its ``traits.main_metric``, higher being better).
+
+A row is an env and a config: the env's defaults, or the config a model was trained with (its ``train.json``
+``env_kwargs``), every agent of the row played on it. Each (row, agent) cell is played by ``episode_pool.played``
+alone, after a warm-up of ``WARMUP_STEPS`` steps (numba compiles, lazy imports), so its wall time over its episode
+count is the agent's seconds per episode.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from tqdm.auto import tqdm
+
+from agents.ray_support import local_or_cluster_ray
+from infonav_gym.envs.traits import has_planning_model, main_metric_of
+from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
+from infonav_gym.experiments.evaluation import INTERVAL_NOTES, ProportionSummary, Summary, _cell
+from infonav_gym.experiments.paths import Interrupted, output_file
+from infonav_gym.registry import env_entry, registered_envs
+
+COLUMNS = {"random": "random", "greedy": "greedy", "planner": "planner", "ppo": "PPO", "rllib": "RLlib PPO"}
+BASELINES = ("random", "greedy", "planner")  # agent name = column; the learned ones come from results/models
+WARMUP_STEPS = 2  # steps of an untimed, uncounted episode start before each cell's timed episodes
+TIE_TOLERANCE = 1e-9  # means within TIE_TOLERANCE * max(1, |best|) of the best mean are tied for the best
+
+
+@dataclass(frozen=True)
+class Row:
+    """An env, the config it runs with, and the agent each column plays (``{column: agent name}``)."""
+
+    env_id: str
+    env_kwargs: dict
+    agents: dict
+
+
+def committed_models(directory: Path) -> list[tuple[str, str, str, dict]]:
+    """``(column, agent name, env id, env kwargs)`` of each model under ``directory`` (a subdirectory with the
+    ``train.json`` of ``infonav train``): column ``rllib`` for ``backend: rllib``, else ``ppo``.
+
+    Raises:
+        ValueError: naming the ``train.json`` that does not parse or names no registered env.
+    """
+    models = []
+    for record_path in sorted(Path(directory).glob("*/train.json")):
+        try:
+            record = json.loads(record_path.read_text())
+            env_entry(record["env_id"])
+        except (ValueError, KeyError) as error:
+            raise ValueError(f"{record_path}: not the train.json of a registered env ({error})") from None
+        column = "rllib" if record.get("backend") == "rllib" else "ppo"
+        models.append((column, f"{column}:{record_path.parent}", record["env_id"], record.get("env_kwargs", {})))
+    return models
+
+
+def leaderboard_rows(env_ids, columns, models_dir: Path | None) -> list[Row]:
+    """A row per env of ``env_ids`` and config of its models (the defaults if it has none), with the ``columns``
+    that apply: the planner where the env has a planning model, a model in its env and config's row.
+
+    Raises:
+        ValueError: for an unknown column or env id, or two models of one column in one row.
+    """
+    for column in columns:
+        if column not in COLUMNS:
+            raise ValueError(f"unknown agent {column!r} in --agents; choose from {', '.join(COLUMNS)}")
+    models = committed_models(models_dir) if models_dir else []
+    rows = []
+    for env_id in env_ids:
+        has_planner = has_planning_model(env_entry(env_id).load())
+        configs = {}  # config as sorted JSON -> (config, {column: model agent})
+        for column, agent, model_env_id, env_kwargs in models:
+            if model_env_id != env_id or column not in columns:
+                continue
+            cells = configs.setdefault(json.dumps(env_kwargs, sort_keys=True), (env_kwargs, {}))[1]
+            if column in cells:
+                raise ValueError(f"two {COLUMNS[column]} models for {env_id} {env_kwargs}: {cells[column]}, {agent}")
+            cells[column] = agent
+        baselines = {name: name for name in BASELINES if name in columns and (name != "planner" or has_planner)}
+        for env_kwargs, learned in configs.values() or [({}, {})]:
+            agents = baselines | learned
+            if agents:
+                rows.append(Row(env_id, env_kwargs, {column: agents[column] for column in COLUMNS if column in agents}))
+    if not rows:
+        raise ValueError(f"no agent of {', '.join(columns)} applies to {', '.join(env_ids)}: nothing to play")
+    return rows
+
+
+def best_columns(cells: dict) -> list[str]:
+    """The columns whose mean is the best (highest) one, within ``TIE_TOLERANCE``."""
+    best = max(cell["summary"]["mean"] for cell in cells.values())
+    return [
+        column for column, cell in cells.items() if best - cell["summary"]["mean"] <= TIE_TOLERANCE * max(1, abs(best))
+    ]
+
+
+def _played_row(row: Row, seeds: list[int], bar, workers: int, use_ray: bool, address: str | None) -> dict:
+    """Every agent of ``row`` on ``seeds``: its main metric's values, summary and seconds per episode."""
+    cells, metric = {}, None
+    for column, agent in row.agents.items():
+        runner = EpisodeRunner(row.env_id, row.env_kwargs, [agent])
+        try:
+            metric = main_metric_of(runner.env)
+            for _ in itertools.islice(runner.infos((agent, seeds[0])), WARMUP_STEPS + 1):
+                pass  # compiles and loads what the agent and env need before the clock starts
+            values, start = [], time.perf_counter()
+            for metrics in played(runner, [(agent, seed) for seed in seeds], workers, use_ray, address):
+                values.append(metrics[metric.name])
+                bar.update()
+            seconds = time.perf_counter() - start
+        finally:
+            runner.close()
+        summary = (ProportionSummary if metric.proportion else Summary).of(values).as_dict()
+        cells[column] = {
+            "agent": agent,
+            "summary": summary,
+            "values": values,
+            "seconds_per_episode": seconds / len(seeds),
+        }
+    return {
+        "env_id": row.env_id,
+        "env_kwargs": row.env_kwargs,
+        "metric": {"name": metric.name, "title": metric.title},
+        "cells": cells,
+        "best": best_columns(cells),
+    }
+
+
+def leaderboard(
+    env_ids=None,
+    columns=tuple(COLUMNS),
+    models_dir: Path | None = None,
+    episodes: int = 50,
+    seed: int = 0,
+    progress=True,
+    workers: int = 1,
+    use_ray: bool = False,
+    address: str | None = None,
+) -> dict:
+    """Play the leaderboard's rows (``leaderboard_rows``) on seeds ``seed, ..., seed + episodes - 1``.
+
+    ``env_ids``: default every registered env. ``workers`` / ``use_ray`` / ``address`` as ``evaluate`` takes them.
+
+    Returns:
+        ``{"episodes", "seeds", "columns", "workers", "tie_tolerance", "rows": [{"env_id", "env_kwargs", "metric",
+        "cells": {column: {"agent", "summary", "values", "seconds_per_episode"}}, "best": [column, ...]}]}``.
+
+    Raises:
+        Interrupted: on Ctrl-C, with the rows finished (``"interrupted": True``).
+    """
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    check_positive(workers, "workers")
+    env_ids = [entry.id for entry in registered_envs()] if env_ids is None else list(env_ids)
+    rows = leaderboard_rows(env_ids, columns, models_dir)
+    seeds = list(range(seed, seed + episodes))
+    results = {"episodes": episodes, "seeds": seeds, "columns": [c for c in COLUMNS if c in columns], "rows": []}
+    results |= {"workers": workers, "tie_tolerance": TIE_TOLERANCE}
+    total = episodes * sum(len(row.agents) for row in rows)
+    bar = tqdm(total=total, desc="leaderboard", disable=not progress, unit="episode")
+    try:
+        with local_or_cluster_ray(address) if use_ray else contextlib.nullcontext():  # one Ray for every cell
+            for row in rows:
+                results["rows"].append(_played_row(row, seeds, bar, workers, use_ray, address))
+    except KeyboardInterrupt:
+        raise Interrupted(
+            f"interrupted after {len(results['rows'])} of {len(rows)} rows", results | {"interrupted": True}
+        ) from None
+    finally:
+        bar.close()
+    return results
+
+
+def _config_text(env_kwargs: dict) -> str:
+    return ", ".join(f"{key}={value!r}" for key, value in env_kwargs.items()) or "defaults"
+
+
+def markdown_tables(results: dict) -> str:
+    """The main metric table (best per row in bold), the seconds-per-episode table and what their cells are."""
+    titles = [COLUMNS[column] for column in results["columns"]]
+    lines = ["| env | config | main metric | " + " | ".join(titles) + " |", "|" + " --- |" * (len(titles) + 3)]
+    times = ["| env | config | " + " | ".join(titles) + " |", "|" + " --- |" * (len(titles) + 2)]
+    for row in results["rows"]:
+        cells, head = row["cells"], f"| {row['env_id']} | {_config_text(row['env_kwargs'])} |"
+        shown = [_cell(cells[c]["summary"]) if c in cells else "" for c in results["columns"]]
+        bold = [f"**{text}**" if column in row["best"] else text for column, text in zip(results["columns"], shown)]
+        lines.append(f"{head} {row['metric']['title']} | " + " | ".join(bold) + " |")
+        seconds = [f"{cells[c]['seconds_per_episode']:.3g}" if c in cells else "" for c in results["columns"]]
+        times.append(f"{head} " + " | ".join(seconds) + " |")
+    kinds = {cell["summary"]["interval"] for row in results["rows"] for cell in row["cells"].values()}
+    notes = "; ".join(note for kind, note in INTERVAL_NOTES.items() if kind in kinds)
+    return (
+        "\n".join(lines) + f"\n\nEach cell: {notes}. Bold: the best mean of the row (higher is better; means within "
+        f"{results['tie_tolerance']:g} x max(1, |best|) of it tie). An empty cell: the agent does not apply.\n\n"
+        f"Seconds per episode (the wall time of an agent's episodes over their count, {results['workers']} "
+        f"worker(s)):\n\n" + "\n".join(times)
+    )
+
+
+def heading(results: dict) -> str:
+    """``Leaderboard: N episodes per agent, seeds a..b`` (and how far an interrupted run got)."""
+    seeds = results["seeds"]
+    interrupted = " (interrupted: the finished rows)" if results.get("interrupted") else ""
+    return f"Leaderboard: {results['episodes']} episodes per agent, seeds {seeds[0]}..{seeds[-1]}{interrupted}"
+
+
+def models_text(results: dict) -> str:
+    """The learned agents of each row, one line each."""
+    learned = [
+        f"- {row['env_id']} ({_config_text(row['env_kwargs'])}): {COLUMNS[column]} `{cell['agent']}`"
+        for row in results["rows"]
+        for column, cell in row["cells"].items()
+        if column not in BASELINES
+    ]
+    return "\n".join(["Models:", *learned]) if learned else "No models."
+
+
+def write_leaderboard(results: dict, stem: Path, command: str) -> list[Path]:
+    """Write ``stem.md`` (tables, models and command) and ``stem.json``."""
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    md, json_path = output_file(stem, ".md"), output_file(stem, ".json")
+    md.write_text(
+        f"# {heading(results)}\n\n{markdown_tables(results)}\n\n{models_text(results)}\n\n"
+        f"Regenerate with:\n\n    {command}\n"
+    )
+    json_path.write_text(json.dumps({**results, "command": command}, indent=2) + "\n")
+    return [md, json_path]
