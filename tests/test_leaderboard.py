@@ -131,12 +131,19 @@ def test_two_seeds_of_a_cheap_env_give_evaluates_numbers_wilson_intervals_and_th
     assert json.loads(stem.with_suffix(".json").read_text())["command"].startswith("infonav leaderboard --envs")
 
 
-def test_worker_processes_give_one_processs_numbers():
-    def values(workers):
-        board = leaderboard([LANDMARKS], ("random", "greedy"), None, episodes=3, progress=False, workers=workers)
-        return {column: cell["values"] for column, cell in board["rows"][0]["cells"].items()}
+def played_values(**parallel) -> dict:
+    board = leaderboard([LANDMARKS], ("random", "greedy"), None, episodes=3, progress=False, **parallel)
+    return {column: cell["values"] for column, cell in board["rows"][0]["cells"].items()}
 
-    assert values(2) == values(1)
+
+def test_worker_processes_give_one_processs_numbers():
+    assert played_values(workers=2) == played_values()
+
+
+@pytest.mark.slow  # starts a local Ray
+def test_ray_tasks_give_one_processs_numbers():
+    pytest.importorskip("ray")
+    assert played_values(workers=2, use_ray=True) == played_values()
 
 
 @pytest.mark.parametrize(
