@@ -10,7 +10,7 @@ from scipy import stats
 from infonav_gym.experiments import benchmark, startup_timing
 from infonav_gym.experiments.cli import _config_pair, main
 from infonav_gym.experiments.distributed_timing import rllib_missing
-from infonav_gym.experiments.evaluation import ProportionSummary, Summary, wilson_interval
+from infonav_gym.experiments.intervals import ProportionSummary, Summary, wilson_interval
 
 RLLIB_EXPLORATION = "rllib_exploration_1_runner_steps_per_s"
 RLLIB_FIGURES = {

@@ -29,7 +29,8 @@ from infonav_gym.envs.traits import COMMON_INFO_KEYS, EnvTraits, has_planning_mo
 from infonav_gym.experiments.benchmark import benchmarked_env_ids, env_step_figures
 from infonav_gym.experiments.cli import main
 from infonav_gym.experiments.episodes import make_agent
-from infonav_gym.experiments.evaluation import evaluate, wilson_interval
+from infonav_gym.experiments.evaluation import evaluate
+from infonav_gym.experiments.intervals import wilson_interval
 from infonav_gym.registry import GYMNASIUM, PARALLEL, env_entry, make_env, register, registered_envs, unregister
 
 TOY_ID = "toy/Beacon-v0"

@@ -358,7 +358,8 @@ def _leaderboard(args, command: str) -> dict:
 
 
 def _evaluate(args, command: str) -> dict:
-    from infonav_gym.experiments.evaluation import config_line, evaluate, heading, markdown_table, write_results
+    from infonav_gym.experiments.evaluation import evaluate
+    from infonav_gym.experiments.evaluation_files import config_line, heading, markdown_table, write_results
 
     stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
     _check_address(args)

@@ -21,7 +21,7 @@ from tqdm.auto import tqdm
 from agents.ray_support import local_or_cluster_ray
 from infonav_gym.envs.traits import has_planning_model, main_metric_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
-from infonav_gym.experiments.evaluation import INTERVAL_NOTES, ProportionSummary, Summary, _cell
+from infonav_gym.experiments.intervals import INTERVAL_NOTES, ProportionSummary, Summary, interval_cell
 from infonav_gym.experiments.paths import Interrupted, output_file
 from infonav_gym.registry import env_entry, registered_envs
 
@@ -187,7 +187,7 @@ def markdown_tables(results: dict) -> str:
     times = ["| env | config | " + " | ".join(titles) + " |", "|" + " --- |" * (len(titles) + 2)]
     for row in results["rows"]:
         cells, head = row["cells"], f"| {row['env_id']} | {_config_text(row['env_kwargs'])} |"
-        shown = [_cell(cells[c]["summary"]) if c in cells else "" for c in results["columns"]]
+        shown = [interval_cell(cells[c]["summary"]) if c in cells else "" for c in results["columns"]]
         bold = [f"**{text}**" if column in row["best"] else text for column, text in zip(results["columns"], shown)]
         lines.append(f"{head} {row['metric']['title']} | " + " | ".join(bold) + " |")
         seconds = [f"{cells[c]['seconds_per_episode']:.3g}" if c in cells else "" for c in results["columns"]]

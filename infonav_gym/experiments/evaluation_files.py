@@ -1,0 +1,100 @@
+"""What ``infonav evaluate`` prints and writes: its heading, config line, Markdown table, plot and files."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from infonav_gym.experiments.episodes import PPO_PREFIX
+from infonav_gym.experiments.intervals import INTERVAL_NOTES, WILSON, error_bar, interval_cell
+from infonav_gym.experiments.paths import output_file
+from infonav_gym.rendering import matplotlib_figure, save_figure
+
+
+def heading(results: dict) -> str:
+    """``env, N episodes per agent, seeds a..b``, and the config keys that decide the reward (env traits)."""
+    seeds, episodes = results["seeds"], f"{results['episodes']} episodes per agent"
+    if results.get("interrupted"):
+        episodes = f"interrupted after {len(seeds)} of {episodes}"
+    text = f"{results['env_id']}, {episodes}, seeds {seeds[0]}..{seeds[-1]}"
+    reward_keys = results.get("reward_config_keys", [])
+    defaults = results["env_config"]
+    choices = [f"{key}={defaults[key]!r}{'' if key in results['env_kwargs'] else ' (default)'}" for key in reward_keys]
+    return text + (f"; reward set by {', '.join(choices)}" if choices else "")
+
+
+def config_line(results: dict) -> str:
+    """The env config the evaluation ran, defaults included, as ``key=value`` pairs."""
+    return "env config: " + ", ".join(f"{key}={value!r}" for key, value in results["env_config"].items())
+
+
+def markdown_table(results: dict) -> str:
+    """The summary as a Markdown table (a cell per agent and metric), and what its intervals are (a sentence
+    per kind of interval it holds)."""
+    metrics = results["metrics"]
+    header = "| agent | " + " | ".join(metrics.values()) + " |"
+    lines = [header, "|" + " --- |" * (len(metrics) + 1)]
+    for name, result in results["agents"].items():
+        lines.append(f"| {name} | " + " | ".join(interval_cell(result["summary"][key]) for key in metrics) + " |")
+    kinds = {s["interval"] for result in results["agents"].values() for s in result["summary"].values()}
+    note = "; ".join(note for kind, note in INTERVAL_NOTES.items() if kind in kinds)
+    return "\n".join(lines) + f"\n\nEach cell: {note}."
+
+
+def _plot_label(name: str) -> str:
+    """``ppo:runs/x/model.zip`` -> ``ppo:x/model.zip``: short enough for an axis."""
+    if not name.startswith(PPO_PREFIX):
+        return name
+    path = Path(name[len(PPO_PREFIX) :])
+    return PPO_PREFIX + "/".join(path.parts[-2:])
+
+
+def plot_results(results: dict, path: Path) -> Path:
+    """A box plot per metric of every agent's per-episode values, and the mean with its 95% CI (as in the table)."""
+    metrics, names = results["metrics"], list(results["agents"])
+    figure = matplotlib_figure("the evaluation plot", figsize=(3.2 * len(metrics) + 1, 3.6))
+    axes = figure.subplots(1, len(metrics), squeeze=False)
+    positions = np.arange(1, len(names) + 1)
+    for axis, (key, title) in zip(axes[0], metrics.items()):
+        values = [[e[key] for e in results["agents"][name]["episodes"]] for name in names]
+        axis.boxplot(values, positions=positions, widths=0.5, showfliers=True)
+        summaries = [results["agents"][name]["summary"][key] for name in names]
+        means = [s["mean"] for s in summaries]
+        errors = np.array([error_bar(s) for s in summaries]).T
+        label = f"mean, 95% CI ({'Wilson score' if summaries[0]['interval'] == WILSON else 'Student t'})"
+        axis.errorbar(positions, means, yerr=errors, fmt="o", color="tab:red", capsize=4, label=label)
+        axis.legend(fontsize=8)
+        axis.set_xticks(positions, [_plot_label(name) for name in names], rotation=20, ha="right")
+        axis.set_title(title, fontsize=10)
+    figure.suptitle(f"{results['env_id']}: {results['episodes']} episodes per agent", fontsize=11)
+    figure.tight_layout()
+    return save_figure(figure, path, dpi=110)
+
+
+def write_results(results: dict, stem: Path, command: str) -> list[Path]:
+    """Write ``stem.md`` (table and command), ``stem.csv`` (per episode), ``stem.json`` and ``stem.png``.
+
+    The plot needs matplotlib (the ``render`` extra); without it the other three are written.
+    """
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    md, csv_path, json_path = (output_file(stem, suffix) for suffix in (".md", ".csv", ".json"))
+    md.write_text(
+        f"# {heading(results)}\n\n{config_line(results)}\n\n{markdown_table(results)}\n\n"
+        f"Regenerate with:\n\n    {command}\n"
+    )
+    with csv_path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["agent", "seed", *results["metrics"]])
+        for name, result in results["agents"].items():
+            for episode_seed, episode in zip(results["seeds"], result["episodes"]):
+                writer.writerow([name, episode_seed, *(episode[key] for key in results["metrics"])])
+    json_path.write_text(json.dumps({**results, "command": command}, indent=2) + "\n")
+    written = [md, csv_path, json_path]
+    try:
+        written.append(plot_results(results, output_file(stem, ".png")))
+    except ImportError:
+        pass  # matplotlib is optional
+    return written
