@@ -8,6 +8,7 @@ import pytest
 from test_mrclam import write_dataset  # tests/ is on sys.path (pytest rootdir-relative import)
 
 import infonav_gym.experiments.evaluation as evaluation
+import infonav_gym.experiments.evaluation_files as evaluation_files
 import infonav_gym.experiments.replay as replay_package
 from infonav_gym.experiments.cli import main
 from infonav_gym.experiments.paths import check_output_dir, check_output_stem, output_file
@@ -95,7 +96,7 @@ def _fail_to_write(*args, **kwargs):
 
 @pytest.mark.parametrize("as_json", [False, True])
 def test_evaluate_prints_its_table_when_writing_fails(capsys, tmp_path, monkeypatch, as_json):
-    monkeypatch.setattr(evaluation, "write_results", _fail_to_write)
+    monkeypatch.setattr(evaluation_files, "write_results", _fail_to_write)
     out, error = one_line_error(capsys, EVALUATE + ["--output", str(tmp_path / "eval")] + ["--json"] * as_json)
     assert error.endswith("could not write --output " + str(tmp_path / "eval") + ": results/eval.md Permission denied")
     if as_json:
