@@ -42,6 +42,14 @@ from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
 from agents.base import TORCH_THREADS, checked_action_count, torch_threads, usable_mask
+from agents.learning_curve import (
+    METRIC_KEY,
+    CurveCallback,
+    MetricVectorWrapper,
+    MetricWrapper,
+    drawn_curve,
+    start_curve,
+)
 from agents.vector_adapter import monitored_vec_env
 from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, resolve_env_id
 
@@ -253,10 +261,13 @@ def checked_vectorization(env_id: str, vectorization: str | None) -> str:
     return vectorization
 
 
-def native_vec_env(env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None) -> VecMonitor:
+def native_vec_env(
+    env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None, record_metric: bool = False
+) -> VecMonitor:
     """``env_id``'s own vector env of ``n_envs`` copies, resetting in the step an episode ends, as an SB3 ``VecEnv``.
 
-    Sub-env ``i`` gets the seed ``seed + i`` at the first reset (``monitored_vec_env``).
+    Sub-env ``i`` gets the seed ``seed + i`` at the first reset (``monitored_vec_env``). ``record_metric``: the
+    infos of an episode's end hold its main metric (``learning_curve.METRIC_KEY``, for the learning curve).
     """
     vector_env = gym.make_vec(
         resolve_env_id(env_id),
@@ -265,6 +276,8 @@ def native_vec_env(env_id: str, n_envs: int, seed: int, env_kwargs: dict | None 
         autoreset_mode=AutoresetMode.SAME_STEP,
         **(env_kwargs or {}),
     )
+    if record_metric:
+        return monitored_vec_env(MetricVectorWrapper(vector_env), seed, (METRIC_KEY,))
     return monitored_vec_env(vector_env, seed)
 
 
@@ -278,6 +291,8 @@ def build_model(
     tensorboard_log: str | None = None,
 ):
     """A fresh ``MaskablePPO`` (env with action masks) or ``PPO`` on ``n_envs`` seeded copies of ``env_id``.
+
+    The infos of an episode's end hold its main metric (``learning_curve.METRIC_KEY``), but for a team env.
 
     Args:
         hyperparameters: ppo.yml-style keys; ``None`` loads the env's block of ppo.yml.
@@ -299,14 +314,14 @@ def build_model(
     else:
         masked, wrapper = mask_wrapper(env_id, env_kwargs)
         if vectorization == NATIVE:
-            vec_env = native_vec_env(env_id, n_envs, seed, env_kwargs)
+            vec_env = native_vec_env(env_id, n_envs, seed, env_kwargs, record_metric=True)
         else:
             vec_env = make_vec_env(
                 env_id,
                 n_envs=n_envs,
                 seed=seed,
                 env_kwargs=env_kwargs,
-                wrapper_class=wrapper,
+                wrapper_class=lambda env: MetricWrapper(wrapper(env) if wrapper else env),
                 vec_env_cls=SubprocVecEnv if vectorization == SUBPROCESS else DummyVecEnv,
             )
     normalize = normalization_kwargs(hyperparameters)
@@ -334,6 +349,7 @@ def train(
     vectorization: str | None = None,
     env_kwargs: dict | None = None,
     checkpoints: int = 4,
+    curve_references: dict | None = None,
 ) -> Path:
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
 
@@ -341,12 +357,14 @@ def train(
     (``native`` where it has a native vector env, see ``build_model``).
     Also writes ``output_dir/train.json`` (env, seed, vectorization, the hyperparameters asked for, every keyword
     the PPO / MaskablePPO constructor got, SB3's defaults included, as ``constructor``, wall time, fps),
-    ``checkpoints`` intermediate models in ``output_dir/checkpoints/`` and, with
+    ``checkpoints`` intermediate models in ``output_dir/checkpoints/``, the learning curve (``curve.csv``, a row per
+    rollout, and ``curve.png`` with ``curve_references``, e.g. ``{"greedy": 48.0}``, as lines:
+    ``agents.learning_curve``) and, with
     ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
     (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
 
-    Ctrl-C ends the training early: the model trained so far is saved as above, its train.json with
-    ``"interrupted": true`` and the ``timesteps`` reached.
+    Ctrl-C ends the training early: the model trained so far is saved as above, with the curve so far and its
+    train.json with ``"interrupted": true`` and the ``timesteps`` reached.
     """
     if timesteps < 1:
         raise ValueError(f"timesteps must be >= 1, got {timesteps}")
@@ -363,7 +381,7 @@ def train(
         n_envs = model.n_envs
         rollout = model.n_steps * n_envs  # learn() collects whole rollouts: the bar's true total
         progress_bar = TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)
-        callbacks = [progress_bar]
+        callbacks = [progress_bar, CurveCallback(start_curve(output_dir, env_id, env_kwargs))]
         if checkpoints > 0:
             every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
             callbacks.append(
@@ -381,6 +399,7 @@ def train(
         if isinstance(model.get_env(), VecNormalize):
             model.get_env().save(str(output_dir / NORMALIZATION_FILE))
         model.get_env().close()
+    curve = drawn_curve(output_dir, f"{env_id}: {type(model).__name__}, seed {seed}", curve_references)
     record = {
         "env_id": env_id,
         "algorithm": type(model).__name__,
@@ -396,6 +415,7 @@ def train(
         "torch_threads": TORCH_THREADS,
         "model": str(model_path),
         "interrupted": interrupted,
+        "curve": curve,
     }
     (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
     return model_path

@@ -8,7 +8,10 @@ runner, stepped at once (``agents.rllib_team_env``): one policy shared by every 
 parameter sharing) or one per robot (``"per_robot"``). Every policy is a
 ``MaskedPPOTorchRLModule``. The PPO settings come from the env's block of ``agents/hyperparams/ppo.yml``,
 translated (``rllib_training_settings``). ``OUTPUT/checkpoint`` is RLlib's algorithm checkpoint,
-``OUTPUT/train.json`` the record (as the SB3 backend's). Needs the ``distributed`` extra.
+``OUTPUT/train.json`` the record (as the SB3 backend's), ``OUTPUT/curve.csv`` and ``curve.png`` the learning curve
+(``agents.learning_curve``; a row per iteration in which episodes ended, with RLlib's episode return mean, over
+its last 20 episodes, ``metrics_num_episodes_for_smoothing``; the env's main metric is not recorded). Needs the
+``distributed`` extra.
 """
 
 from __future__ import annotations
@@ -242,6 +245,7 @@ def train_rllib(
     policies: str = "shared",
     address: str | None = None,
     progress: bool = True,
+    curve_references: dict | None = None,
 ) -> dict:
     """Train RLlib PPO on ``env_id`` for at least ``timesteps`` env steps; checkpoint and record it.
 
@@ -250,6 +254,7 @@ def train_rllib(
     Returns:
         The ``train.json`` record (also written to ``output_dir``).
     """
+    from agents.learning_curve import append_row, drawn_curve, start_curve
     from agents.ppo import load_hyperparameters, torch_threads
     from agents.ray_support import local_or_cluster_ray
 
@@ -264,6 +269,7 @@ def train_rllib(
     check_arguments(env_id, env_kwargs, hyperparameters, policies)
     envs_per_runner = copies_per_runner(env_id, hyperparameters, num_env_runners, envs_per_runner)
     output_dir = Path(output_dir)
+    curve = start_curve(output_dir, env_id, env_kwargs)
     with local_or_cluster_ray(address), torch_threads():  # the learner runs here
         config = build_config(env_id, env_kwargs, seed, hyperparameters, num_env_runners, envs_per_runner, policies)
         algorithm = config.build_algo()
@@ -271,16 +277,19 @@ def train_rllib(
             steps, start = 0, time.perf_counter()
             with tqdm(total=timesteps, desc="training PPO (RLlib)", unit="step", disable=not progress) as bar:
                 while steps < timesteps:
-                    result = algorithm.train()
+                    runners = algorithm.train().get("env_runners", {})
                     # env steps sampled so far (a team step counts once: RLlib's env steps)
-                    now = int(result.get("env_runners", {}).get("num_env_steps_sampled_lifetime", 0))
+                    now = int(runners.get("num_env_steps_sampled_lifetime", 0))
                     bar.update(min(now, timesteps) - min(steps, timesteps))
-                    bar.set_postfix(episode_return=result.get("env_runners", {}).get("episode_return_mean"))
+                    bar.set_postfix(episode_return=runners.get("episode_return_mean"))
                     steps = now
+                    if runners.get("num_episodes", 0) > 0:
+                        append_row(curve, steps, runners["episode_return_mean"], math.nan, runners["num_episodes"])
             seconds = time.perf_counter() - start
             checkpoint = algorithm.save_to_path(str((output_dir / CHECKPOINT_DIR).resolve()))
         finally:
             algorithm.stop()
+            drawn = drawn_curve(output_dir, f"{env_id}: PPO (RLlib), seed {seed}", curve_references)  # also on Ctrl-C
     record = {
         "env_id": env_id,
         "algorithm": "PPO (RLlib)",
@@ -297,6 +306,7 @@ def train_rllib(
         "seconds": seconds,
         "fps": steps / seconds,
         "checkpoint": str(checkpoint),
+        "curve": drawn,
     }
     (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
     return record

@@ -16,6 +16,7 @@ ray = pytest.importorskip("ray", reason="the distributed extra (ray[rllib]) is n
 import torch  # noqa: E402
 from ray.rllib.core.rl_module.rl_module import RLModule, RLModuleSpec  # noqa: E402
 
+from agents.learning_curve import CURVE_CSV, CURVE_PNG, read_curve  # noqa: E402
 from agents.rllib_agent import MODULES_PATH, RLlibAgent  # noqa: E402
 from agents.rllib_masking import ACTION_MASK, MaskedObservations, mask_observation  # noqa: E402
 from agents.rllib_module import MaskedPPOTorchRLModule  # noqa: E402
@@ -127,6 +128,16 @@ def test_train_writes_a_checkpoint_and_a_record_and_evaluate_plays_it(landmark_r
     assert main([*argv, "--json"]) == 0
     assert json.loads(capsys.readouterr().out) == first
     assert all(episode["cumulative_mi"] > 0 for episode in first["agents"][f"rllib:{output}"]["episodes"])
+
+
+def test_train_writes_the_curve_of_rllibs_episode_return_mean_without_the_metric(landmark_run):
+    output, record = landmark_run
+    name, rows = read_curve(output / CURVE_CSV)
+    assert name == "cumulative_mi" and len(rows) >= 2 and (np.diff(rows[:, 0]) > 0).all()
+    assert rows[-1, 0] == record["timesteps"] and rows[:, 3].sum() == record["timesteps"] // 40  # horizon=40 episodes
+    assert (rows[:, 1] > 0).all() and np.isnan(rows[:, 2]).all()  # MI rewards; RLlib reports no main metric
+    image = pytest.importorskip("matplotlib.image").imread(record["curve"])
+    assert record["curve"] == str(output / CURVE_PNG) and image.shape[:2] == (350, 700)  # the return panel alone
 
 
 def test_the_team_trains_one_shared_policy_whose_agents_take_only_valid_actions(team_run):

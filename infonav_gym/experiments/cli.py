@@ -36,6 +36,8 @@ DEFAULT_ENV = "infonav/LandmarkSelection-v0"
 EVALUATION_SUFFIXES = (".md", ".csv", ".json", ".png")  # the files of ``evaluate --output STEM``
 LEADERBOARD_SUFFIXES = (".md", ".json")  # the files of ``leaderboard --output STEM``
 DEFAULT_MODELS = Path("results/models")  # leaderboard --models: the committed models, when run in the repository
+LEADERBOARD_JSON = Path("results/leaderboard.json")  # train's curve.png references, when run in the repository
+CURVE_REFERENCES = ("greedy", "planner")  # the agents drawn as lines on a learning curve
 REPLAY_SUFFIXES = (".md", ".json")  # the files of ``replay mrclam --output STEM``
 RENDER_SUFFIXES = (".gif", ".png")  # the files of ``render --output PREFIX``
 CALIBRATION_SUFFIXES = (".json", ".png")  # the files of ``replay mrclam --calibrate OUTPUT.json``
@@ -420,6 +422,18 @@ def _render(args, command: str) -> dict:
     return _show(args, result, lines, write, f"--output {stem}")
 
 
+def _curve_references(env_id: str, env_kwargs: dict) -> dict | None:
+    """The greedy and planner means of the env's main metric in ``LEADERBOARD_JSON`` for this env and config (the
+    lines of the learning curve); None without that file or its row."""
+    if not LEADERBOARD_JSON.is_file():
+        return None
+    for row in json.loads(LEADERBOARD_JSON.read_text())["rows"]:
+        if row["env_id"] == env_id and row["env_kwargs"] == env_kwargs:
+            cells = row["cells"]
+            return {agent: cells[agent]["summary"]["mean"] for agent in CURVE_REFERENCES if cells.get(agent)}
+    return None
+
+
 def _train(args, command: str) -> dict:
     """Train PPO on ``args.env`` with SB3 or RLlib; print where the model went unless --json."""
     rllib = args.backend == "rllib"
@@ -435,6 +449,7 @@ def _train(args, command: str) -> dict:
     name = f"{args.env.rsplit('/', 1)[-1]}{'_rllib' if rllib else ''}_seed{args.seed}"
     output = check_output_dir(args.output or Path("models") / name, "--output")
     env_kwargs, progress = dict(args.config), not args.json
+    references = _curve_references(args.env, env_kwargs)
     if rllib:
         record = train_rllib(
             args.env,
@@ -448,6 +463,7 @@ def _train(args, command: str) -> dict:
             policies=args.policies,
             address=args.address,
             progress=progress,
+            curve_references=references,
         )
         copies = f"{args.num_env_runners} env runners x {record['envs_per_runner']} envs"
         written, agent = f"checkpoint: {record['checkpoint']}", f"rllib:{output}"
@@ -463,6 +479,7 @@ def _train(args, command: str) -> dict:
             tensorboard=args.tensorboard,
             vectorization=args.vectorization,
             env_kwargs=env_kwargs,
+            curve_references=references,
         )
         record = json.loads((model_path.parent / "train.json").read_text())
         if record["interrupted"]:
@@ -475,6 +492,7 @@ def _train(args, command: str) -> dict:
             f"trained {record['algorithm']} on {args.env} ({copies}) for {record['timesteps']} env steps in "
             f"{record['seconds']:.1f} s ({record['fps']:.0f} steps/s); {written}"
         )
+        print(f"learning curve: {record['curve']}")
         config_flags = "".join(f" --config {shlex.quote(f'{key}={json.dumps(value)}')}" for key, value in args.config)
         print(f"evaluate it: infonav evaluate --env {args.env}{config_flags} --agents random,greedy,{agent}")
     return record

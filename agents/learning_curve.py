@@ -1,0 +1,197 @@
+"""Learning curves of training runs: ``curve.csv`` appended to as training goes, ``curve.png`` drawn from it.
+
+A row of ``curve.csv`` holds the env steps so far, the mean return and the mean of the env's main metric
+(``main_metric_of``, computed by its ``EpisodeMetric`` from each episode's infos) over the episodes that ended
+since the previous row, and how many ended; a window without a finished episode writes no row. Each row is
+flushed when written, so a run stopped with Ctrl-C keeps its curve so far. The episodes' metric is computed
+at their last step by ``MetricVectorWrapper`` (a native vector env) or ``MetricWrapper`` (a single env), which
+put it in that step's info as ``METRIC_KEY``; SB3's monitor gives the return (``info["episode"]["r"]``).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import VectorWrapper
+from stable_baselines3.common.callbacks import BaseCallback
+
+from infonav_gym.envs.traits import main_metric_of
+from infonav_gym.registry import make_env
+from infonav_gym.rendering import matplotlib_figure, save_figure
+
+CURVE_CSV, CURVE_PNG = "curve.csv", "curve.png"
+METRIC_KEY = "curve_main_metric"  # the main metric of the episode ending in this step, in its last info
+VECTOR_ONLY_KEYS = ("final_obs", "final_info")  # a vector env's info keys that are not one sub-env's info
+
+
+class SubEnvInfo(Mapping):
+    """Sub-env ``index``'s info, read on demand from a vector env's batched ``info`` (the keys its ``_key`` masks
+    give it): what an ``EpisodeMetric`` computes from, without copying every key of every step."""
+
+    def __init__(self, info: dict, index: int):
+        self.info, self.index = info, index
+
+    def _has(self, key: str) -> bool:
+        present = self.info.get(f"_{key}")
+        return not key.startswith("_") and key not in VECTOR_ONLY_KEYS and (present is None or present[self.index])
+
+    def __getitem__(self, key: str):
+        if key not in self.info or not self._has(key):
+            raise KeyError(key)
+        value = self.info[key]
+        return SubEnvInfo(value, self.index) if isinstance(value, dict) else value[self.index]
+
+    def __iter__(self):
+        return (key for key in self.info if self._has(key))
+
+    def __len__(self) -> int:
+        return sum(1 for _ in self)
+
+
+class MetricVectorWrapper(VectorWrapper):
+    """A ``SAME_STEP`` vector env whose ``info["final_info"]`` holds each ended episode's main metric
+    (``METRIC_KEY``).
+
+    It keeps the batched info of every step since the oldest running episode began (the envs return fresh arrays
+    each step) and reads a sub-env's rows of them when its episode ends.
+    """
+
+    def __init__(self, env):
+        super().__init__(env)
+        self.metric = main_metric_of(env)
+        self.infos, self.first, self.dropped = [], np.zeros(self.num_envs, dtype=int), 0
+
+    def reset(self, **kwargs):
+        self.infos, self.first, self.dropped = [], np.zeros(self.num_envs, dtype=int), 0
+        return self.env.reset(**kwargs)
+
+    def step(self, actions):
+        observations, rewards, terminated, truncated, info = self.env.step(actions)
+        self.infos.append(info)
+        ended = np.logical_or(terminated, truncated)
+        if ended.any():
+            metrics = np.full(self.num_envs, np.nan)
+            for index in np.flatnonzero(ended).tolist():
+                before_last = self.infos[self.first[index] - self.dropped : -1]
+                steps = [SubEnvInfo(step, index) for step in before_last] + [SubEnvInfo(info["final_info"], index)]
+                metrics[index] = self.metric.compute(steps)
+            self.first[ended] = self.dropped + len(self.infos)
+            del self.infos[: self.first.min() - self.dropped]
+            self.dropped = int(self.first.min())
+            info["final_info"] = {**info["final_info"], METRIC_KEY: metrics, f"_{METRIC_KEY}": ended}
+        return observations, rewards, terminated, truncated, info
+
+
+class MetricWrapper(gym.Wrapper):
+    """A single env whose last info of an episode holds the episode's main metric (``METRIC_KEY``)."""
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        self.metric, self.infos = main_metric_of(env), []
+
+    def reset(self, **kwargs):
+        self.infos = []
+        return self.env.reset(**kwargs)
+
+    def step(self, action):
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        self.infos.append(info)
+        if terminated or truncated:
+            info = {**info, METRIC_KEY: float(self.metric.compute(self.infos))}
+            self.infos = []
+        return observation, reward, terminated, truncated, info
+
+
+def start_curve(directory: Path, env_id: str, env_kwargs: dict | None) -> Path:
+    """A fresh ``directory/curve.csv`` holding only its header, which names the env's main metric; its path."""
+    env = make_env(env_id, **(env_kwargs or {}))
+    try:
+        metric_name = main_metric_of(env).name
+    finally:
+        env.close()
+    path = Path(directory) / CURVE_CSV
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as file:
+        csv.writer(file).writerow(["steps", "mean_return", metric_name, "episodes"])
+    return path
+
+
+def append_row(path: Path, steps: int, mean_return: float, mean_metric: float, episodes: int) -> None:
+    """A row of ``path`` for the episodes that ended in one window, written at once."""
+    with path.open("a", newline="") as file:
+        csv.writer(file).writerow([int(steps), repr(float(mean_return)), repr(float(mean_metric)), int(episodes)])
+
+
+class CurveCallback(BaseCallback):
+    """Appends a row of ``curve.csv`` at the end of every rollout in which episodes ended.
+
+    Reads the infos SB3's monitor completes at an episode's end (``episode``, and ``METRIC_KEY`` where an env
+    wrapper computed it: not for a team env, whose metric column is then NaN).
+    """
+
+    def __init__(self, path: Path):
+        super().__init__()
+        self.path, self.returns, self.metrics = path, [], []
+
+    def _on_step(self) -> bool:
+        for index in np.flatnonzero(self.locals["dones"]):
+            info = self.locals["infos"][index]
+            self.returns.append(info["episode"]["r"])
+            self.metrics.append(info.get(METRIC_KEY, math.nan))
+        return True
+
+    def _on_rollout_end(self) -> None:
+        if self.returns:
+            append_row(self.path, self.num_timesteps, np.mean(self.returns), np.mean(self.metrics), len(self.returns))
+        self.returns, self.metrics = [], []
+
+
+def read_curve(path: Path) -> tuple[str, np.ndarray]:
+    """The metric's name and the rows (steps, mean return, mean metric, episodes) of a ``curve.csv``."""
+    with Path(path).open(newline="") as file:
+        header, *rows = list(csv.reader(file))
+    return header[2], np.array(rows, dtype=float).reshape(-1, 4)
+
+
+def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
+    """``directory/curve.png`` from its ``curve.csv``: mean return and, when recorded, the main metric against env
+    steps, with ``references`` (agent name: its value of the metric) as horizontal lines; their absence is said.
+
+    Raises:
+        ImportError: without matplotlib, saying how to install the ``render`` extra.
+    """
+    metric_name, rows = read_curve(Path(directory) / CURVE_CSV)
+    has_metric = rows.size > 0 and not np.isnan(rows[:, 2]).all()
+    figure = matplotlib_figure("curve.png", figsize=(7, 6 if has_metric else 3.5), layout="constrained")
+    axes = figure.subplots(2 if has_metric else 1, 1, sharex=True, squeeze=False)[:, 0]
+    axes[0].plot(rows[:, 0], rows[:, 1], marker=".")
+    axes[0].set_ylabel("mean episode return")
+    if has_metric:
+        axes[1].plot(rows[:, 0], rows[:, 2], marker=".", label="trained policy")
+        known = references or {}
+        for style, (agent, value) in zip(("--", ":"), known.items(), strict=False):
+            axes[1].axhline(value, linestyle=style, color="grey", label=agent)
+        if not known:
+            axes[1].plot([], [], " ", label="greedy / planner: unknown (not in the leaderboard)")
+        axes[1].set_ylabel(metric_name)
+        axes[1].legend(fontsize="small")
+    elif rows.size:
+        title += f"\n({metric_name} not recorded in training: return only)"
+    else:
+        title += "\n(no episode ended)"
+    axes[-1].set_xlabel("environment steps")
+    figure.suptitle(title)
+    return save_figure(figure, Path(directory) / CURVE_PNG, dpi=100)
+
+
+def drawn_curve(directory: Path, title: str, references: dict | None) -> str:
+    """``draw_curve``'s path, or, without matplotlib, one line saying the PNG needs the ``render`` extra."""
+    try:
+        return str(draw_curve(directory, title, references))
+    except ImportError as error:
+        return f"{CURVE_CSV} written; {error}"
