@@ -74,7 +74,7 @@ class LandmarkDecision(NamedTuple):
         measurement of its ``chosen`` landmark (N,) (-1: none) from its true pose (N, 3) to the true ``landmarks``
         (N, K, 2), its two standard normals the next draw of its ``noise`` stream (``noise_stds``: the sensor's);
         ``(x, P, realized MI (N,) [nats])``, 0 for a copy without a measurement."""
-        floats = (contiguous(array) for array in (x, P, true_poses, landmarks))
+        floats = [contiguous(array) for array in (x, P, true_poses, landmarks)]
         chosen, model = contiguous(np.asarray(chosen, dtype=np.int64)), (self.predicted, self.H, self.R)
         *updated, not_positive_definite = measured_updates(
             *floats, *noise.reserve(), chosen, noise_stds, *model, self.prior_log_det
@@ -86,7 +86,7 @@ class LandmarkDecision(NamedTuple):
 
 def decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping) -> tuple:
     """The arguments of ``landmark_decisions`` for ``LandmarkDecision.at_prior``'s (C-contiguous, typed)."""
-    floats = (contiguous(np.asarray(array, dtype=float)) for array in (x, P, landmarks, true_poses))
+    floats = [contiguous(np.asarray(array, dtype=float)) for array in (x, P, landmarks, true_poses)]
     coverage = float(sensor.max_range_m), float(sensor.fov_rad)
     exists = contiguous(np.asarray(exists, dtype=bool))
     return (*floats, exists, bool(mapping), sensor.noise_stds, coverage, *shape_arrays(geometry))

@@ -180,10 +180,11 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
     def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple:
         """Observe the chosen landmarks, then drive the ``acting`` copies; ``(rewards, rewards, never terminated)``."""
         self._x, self._P, rewards = self._measured(self._decision, chosen)
-        copies = np.flatnonzero(acting)  # their worlds step, their EKFs predict from noisy odometry
-        if copies.size == self.num_envs:  # all of them (the usual step): the predicted arrays are new ones
-            self._x, self._P = self._moved(copies, self._x, self._P)
-        elif copies.size:
+        n_acting = np.count_nonzero(acting)  # their worlds step, their EKFs predict from noisy odometry
+        if n_acting == self.num_envs:  # all of them (the usual step): the predicted arrays are new ones
+            self._x, self._P = self._moved(self._everyone, self._x, self._P)
+        elif n_acting:
+            copies = np.flatnonzero(acting)
             self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
         return rewards, rewards, np.zeros(self.num_envs, dtype=bool)
 
@@ -207,9 +208,9 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
         )
         decision = LandmarkDecision.checked(decided)
         self._set_decision(copies, decision)
-        self._chosen[rows] = np.where(stepped, chosen, -1)
-        self._track_first_copy(copies, stepped)
         info = decision_info(decision, stepped, chosen, "mutual_information", rewards)
+        self._chosen[rows] = info["chosen_action"]
+        self._track_first_copy(copies, stepped)
         info.update(zip(INFO_NUMBERS, (*numbers, *poses)))
         return observation, in_every_copy(info, len(copies))
 

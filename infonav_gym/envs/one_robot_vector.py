@@ -32,6 +32,7 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
         self._odometry_covariance = self._odometry.noise_covariance()
         self._odometry_covariances = stacked(self._odometry_covariance, (num_envs, 1, 2, 2))  # what the kernel takes
         self._odometry_stds = float(self._odometry.speed_std_mps), float(self._odometry.turn_rate_std_rps)
+        self._measurement_stds = self._sensor.noise_stds  # what the kernels take, made once
         self._worlds = WorldBatch(num_envs)
         self._odometry_noise, self._measurement_noise = NoiseStreams(num_envs, 2), NoiseStreams(num_envs, 2)
         self._true_path = self._estimated_path = None  # copy 0's, when drawing
@@ -72,7 +73,7 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
         """Each copy's EKF updated at ``decision`` with a noisy measurement of its chosen landmark (N,), -1: none
         (taken from its true pose now, its noise from its own stream); ``(x, P, realized MI (N,) [nats])``."""
         true_poses = self._worlds.poses[:, 0]
-        noise, stds = self._measurement_noise, self._sensor.noise_stds
+        noise, stds = self._measurement_noise, self._measurement_stds
         return decision.observe(self._x, self._P, chosen, true_poses, self._landmarks, noise, stds)
 
     def _track_first_copy(self, copies: np.ndarray, stepped: np.ndarray) -> None:

@@ -35,19 +35,25 @@ def decision_info(decision, stepped: np.ndarray, chosen: np.ndarray, reward_term
         reward_term: the name of the reward term.
         rewards: each one's reward (n,).
     """
+    if np.count_nonzero(stepped) == len(stepped):  # the usual step: ``np.where``'s numbers, at less cost
+        rewards, chosen = rewards.copy(), chosen.copy()
+    else:
+        rewards, chosen = np.where(stepped, rewards, 0.0), np.where(stepped, chosen, -1)
     return {
         "action_mask": decision.action_mask.copy(),
         "action_information_gain": decision.action_information_gain.copy(),
-        "reward_terms": {reward_term: np.where(stepped, rewards, 0.0), f"_{reward_term}": stepped.copy()},
-        "chosen_action": np.where(stepped, chosen, -1),
+        "reward_terms": {reward_term: rewards, f"_{reward_term}": stepped.copy()},
+        "chosen_action": chosen,
         "invalid_action": stepped & (chosen < 0),
     }
 
 
 def in_every_copy(info: dict, n_copies: int) -> dict:
     """``info`` with a ``_key`` mask holding for all ``n_copies`` beside each of its keys."""
-    everyone = np.ones(n_copies, dtype=bool)
-    return {**info, **{f"_{key}": everyone for key in info}}
+    everyone, masked = np.ones(n_copies, dtype=bool), info.copy()
+    for key in info:
+        masked["_" + key] = everyone
+    return masked
 
 
 def set_rows(full, rows: np.ndarray, part):

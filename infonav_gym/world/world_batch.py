@@ -147,7 +147,7 @@ class WorldBatch:
 
         Args:
             dt: the step (0, 60] s.
-            copies: indices of the copies to step (n,).
+            copies: indices of the copies to step (n,), ascending.
             commands: ``[speed, turn_rate]`` of every robot of those copies (n, R, 2), as a velocity command;
                 None: each robot's waypoint controller.
 
@@ -159,15 +159,18 @@ class WorldBatch:
         """
         if not 0.0 < dt <= MAX_TIME_STEP_S:
             TIME_STEP_S.check("World.step", "dt", dt)
-        before = self.poses[copies]
+        rows = slice(None) if len(copies) == self.n_copies else copies  # all copies: views, no fancy-index copies
+        before = self.poses[rows]
         controls = self._waypoint_controls(copies, before) if commands is None else np.asarray(commands, dtype=float)
         after = unicycle_moves(before, controls, dt)
         near_static, near_robots = contact_within(copies, before, controls, dt, self._boxes, self.robot_radius_m)
-        contact, was_in_contact = near_static | near_robots, self._in_contact[copies]
-        if contact.any() or was_in_contact.any():
-            self._contact_steps(copies, before, controls, after, contact, near_static, was_in_contact, dt)
-        self.poses[copies] = after
-        return executed_controls(before, after, dt)
+        was_in_contact = self._in_contact[rows]
+        if np.count_nonzero(near_static) or np.count_nonzero(near_robots) or np.count_nonzero(was_in_contact):
+            contact = near_static | near_robots
+            self._contact_steps(copies, before, controls, after, contact, near_static, was_in_contact.copy(), dt)
+        executed = executed_controls(before, after, dt)  # before ``poses`` changes: ``before`` may be its view
+        self.poses[rows] = after
+        return executed
 
     def _contact_steps(self, copies, before, controls, after, contact, near_static, was_in_contact, dt) -> None:
         """``step`` of the ``copies`` that may touch something (``contact`` (n,)) or did in their last step: those the
