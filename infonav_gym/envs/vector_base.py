@@ -154,10 +154,9 @@ class InfoNavVectorEnv(VectorEnv):
         ``_act`` and ``_outputs``."""
         acting, chosen = self._begin_step(actions)
         record, rewards, terminated = self._act(acting, chosen)
-        self._elapsed += acting
-        truncated = acting & ~terminated & (self._elapsed >= self.config["horizon"])
+        truncated, ended = counted_steps(self._elapsed, acting, terminated, self.config["horizon"])
         observation, info = self._finish_step(
-            terminated | truncated, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, record)
+            ended, lambda copies, geometry: self._outputs(copies, geometry, acting, chosen, record)
         )
         return observation, rewards, terminated, truncated, info
 
@@ -352,3 +351,15 @@ def accepted_actions(actions, mask, done):
             outside = copy
         chosen[copy] = action if inside and not done[copy] and mask[copy, action] != 0 else -1
     return chosen, outside
+
+
+@kernel
+def counted_steps(elapsed, acting, terminated, horizon):
+    """Count the step of each ``acting`` sub-env in ``elapsed`` (N,), in place; ``(truncated, ended)`` (N,) bool: it
+    acted, did not terminate and reached ``horizon`` [steps]; it terminated or was truncated."""
+    truncated, ended = np.empty(len(elapsed), dtype=np.bool_), np.empty(len(elapsed), dtype=np.bool_)
+    for copy in range(len(elapsed)):
+        elapsed[copy] += acting[copy]
+        truncated[copy] = acting[copy] and not terminated[copy] and elapsed[copy] >= horizon
+        ended[copy] = terminated[copy] or truncated[copy]
+    return truncated, ended
