@@ -51,6 +51,7 @@ from agents.learning_curve import (
     start_curve,
 )
 from agents.vector_adapter import monitored_vec_env
+from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, resolve_env_id
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
@@ -390,7 +391,9 @@ def train(
         start, interrupted = time.perf_counter(), False
         try:
             model.learn(timesteps, callback=callbacks, tb_log_name="ppo")
-        except KeyboardInterrupt:
+        except INTERRUPTIONS as error:
+            if not pressed_ctrl_c(error):
+                raise
             interrupted = True
             progress_bar.close()
         seconds = time.perf_counter() - start

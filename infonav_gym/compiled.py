@@ -179,3 +179,16 @@ class _CompileNotice(event.Listener):
 
 compile_notice = _CompileNotice()
 event.register("numba:compile", compile_notice)
+
+
+INTERRUPTIONS = (KeyboardInterrupt, SystemError)  # what Ctrl-C raises: see ``pressed_ctrl_c``
+
+
+def pressed_ctrl_c(error: BaseException) -> bool:
+    """Whether ``error`` is Ctrl-C: a ``KeyboardInterrupt``, or the ``SystemError`` a kernel call raises when one
+    arrives while numba runs Python inside it (the interrupt is then in the error's chain)."""
+    while error is not None:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        error = error.__cause__ or error.__context__
+    return False

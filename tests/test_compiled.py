@@ -200,3 +200,16 @@ def test_an_inner_kernel_runs_inside_kernels_and_refuses_a_call_from_python():
     assert compiled.kernel(lambda value: halved(value) + 1.0)(3.0) == 2.5
     with pytest.raises(TypeError, match="is an inner kernel: only other kernels can call it"):
         halved(3.0)
+
+
+def test_ctrl_c_inside_a_kernel_call_is_recognized_through_the_system_error_numba_raises():
+    def raised(error, cause=None):
+        try:
+            raise error from cause
+        except BaseException as caught:  # noqa: BLE001  (the test builds the chains)
+            return caught
+
+    inside_kernel = raised(SystemError("returned a result with an exception set"), raised(KeyboardInterrupt()))
+    assert compiled.pressed_ctrl_c(KeyboardInterrupt()) and compiled.pressed_ctrl_c(inside_kernel)
+    assert not compiled.pressed_ctrl_c(SystemError("a real one"))
+    assert not compiled.pressed_ctrl_c(raised(SystemError(), ValueError()))

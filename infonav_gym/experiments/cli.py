@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import infonav_gym  # registers the envs
+from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.experiments.arguments import (
     comma_separated,
     end_time,
@@ -682,7 +683,9 @@ def main(argv: list[str] | None = None) -> int:
             print(json.dumps(kept.result))
         interrupted = isinstance(kept, Interrupted)
         parser.exit(130 if interrupted else 2, f"infonav {args.command}: {'' if interrupted else 'error: '}{kept}\n")
-    except KeyboardInterrupt:
+    except INTERRUPTIONS as error:
+        if not pressed_ctrl_c(error):
+            raise
         parser.exit(130, f"infonav {args.command}: interrupted\n")
     except (ValueError, ImportError, OSError) as error:  # OSError: a file not read or written, e.g. demo --plot
         parser.exit(2, f"infonav {args.command}: error: {error}\n")

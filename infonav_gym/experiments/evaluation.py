@@ -11,6 +11,7 @@ from __future__ import annotations
 from tqdm.auto import tqdm
 
 from agents.ray_support import import_ray
+from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.envs.traits import episode_metrics_of, traits_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
 from infonav_gym.experiments.episodes import AGENT_NAMES, check_agent_name
@@ -78,7 +79,9 @@ def evaluate(
             results["agents"][name]["episodes"].append(metrics)
             finished += 1
             bar.update()
-    except KeyboardInterrupt:
+    except INTERRUPTIONS as error:
+        if not pressed_ctrl_c(error):
+            raise
         played_agents = {name: result for name, result in results["agents"].items() if result["episodes"]}
         seeds_played = max(map(len, (result["episodes"] for result in played_agents.values())), default=0)
         results.update(interrupted=True, agents=played_agents, seeds=seeds[:seeds_played])

@@ -19,6 +19,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from agents.ray_support import local_or_cluster_ray
+from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.envs.traits import has_planning_model, main_metric_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
 from infonav_gym.experiments.intervals import INTERVAL_NOTES, ProportionSummary, Summary, interval_cell
@@ -167,7 +168,9 @@ def leaderboard(
         with local_or_cluster_ray(address) if use_ray else contextlib.nullcontext():  # one Ray for every cell
             for row in rows:
                 results["rows"].append(_played_row(row, seeds, bar, workers, use_ray, address))
-    except KeyboardInterrupt:
+    except INTERRUPTIONS as error:
+        if not pressed_ctrl_c(error):
+            raise
         raise Interrupted(
             f"interrupted after {len(results['rows'])} of {len(rows)} rows", results | {"interrupted": True}
         ) from None
