@@ -15,7 +15,7 @@ from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.envs.traits import episode_metrics_of, traits_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
 from infonav_gym.experiments.episodes import AGENT_NAMES, check_agent_name
-from infonav_gym.experiments.intervals import ProportionSummary, Summary
+from infonav_gym.experiments.intervals import summary_of
 from infonav_gym.experiments.paths import Interrupted
 
 
@@ -90,10 +90,7 @@ def evaluate(
         runner.close()
     for result in results["agents"].values():
         result["summary"] = {
-            metric.name: (ProportionSummary if metric.proportion else Summary)
-            .of([e[metric.name] for e in result["episodes"]])
-            .as_dict()
-            for metric in declared
+            metric.name: summary_of(metric, [e[metric.name] for e in result["episodes"]]) for metric in declared
         }
     if results.get("interrupted"):
         raise Interrupted(f"interrupted after {finished} of {len(tasks)} episodes", results)

@@ -16,6 +16,12 @@ INTERVAL_NOTES = {
 }
 
 
+def summary_of(metric, values) -> dict:
+    """The JSON summary of ``metric``'s per-episode ``values``: a rate and its Wilson interval for a proportion
+    metric, else a mean and its Student t half-width."""
+    return (ProportionSummary if metric.proportion else Summary).of(values).as_dict()
+
+
 def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float, float]:
     """The Wilson score interval of a binomial proportion ``successes / trials``, inside [0, 1].
 

@@ -22,7 +22,7 @@ from agents.ray_support import local_or_cluster_ray
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.envs.traits import has_planning_model, main_metric_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
-from infonav_gym.experiments.intervals import INTERVAL_NOTES, ProportionSummary, Summary, interval_cell
+from infonav_gym.experiments.intervals import INTERVAL_NOTES, interval_cell, summary_of
 from infonav_gym.experiments.paths import Interrupted, output_file
 from infonav_gym.registry import env_entry, registered_envs
 
@@ -116,7 +116,7 @@ def _played_row(row: Row, seeds: list[int], bar, workers: int, use_ray: bool, ad
             seconds = time.perf_counter() - start
         finally:
             runner.close()
-        summary = (ProportionSummary if metric.proportion else Summary).of(values).as_dict()
+        summary = summary_of(metric, values)
         cells[column] = {
             "agent": agent,
             "summary": summary,

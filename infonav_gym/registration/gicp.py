@@ -59,7 +59,12 @@ def gicp_covariances(
     """
     points = check_points(points, "points")
     tree = KdTree(points) if tree is None else tree
-    normals = estimate_normals(points, tree, check_neighbours(neighbours, points.shape[0], "points"), rows)
+    return plane_covariances(points, check_neighbours(neighbours, points.shape[0], "points"), tree, rows)
+
+
+def plane_covariances(points: np.ndarray, neighbours: int, tree: KdTree, rows) -> np.ndarray:
+    """``gicp_covariances`` of checked ``points`` and ``neighbours``, unchecked (what ``icp`` calls per iteration)."""
+    normals = estimate_normals(points, tree, neighbours, rows)
     return np.eye(3) - (1.0 - PLANE_EPSILON) * normals[:, :, None] * normals[:, None, :]  # eigenvalues (eps, 1, 1)
 
 

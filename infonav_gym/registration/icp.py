@@ -64,9 +64,9 @@ from infonav_gym.geometry import rotation_angle
 from infonav_gym.registration.gicp import (
     GICP_NEIGHBOURS,
     check_neighbours,
-    gicp_covariances,
     gicp_step,
     pair_information,
+    plane_covariances,
 )
 from infonav_gym.registration.kdtree import KdTree, check_points
 from infonav_gym.registration.normals import estimate_normals
@@ -179,10 +179,8 @@ class _Covariances:
         """All covariances (N, 3, 3), those of the points ``index`` computed."""
         needed = index[self.missing[index]]
         if needed.size:
-            fresh = np.zeros(self.missing.size, dtype=bool)
-            fresh[needed] = True
-            new = np.flatnonzero(fresh)  # needed, each once
-            self.values[new] = gicp_covariances(self.tree.data, self.neighbours, self.tree, new)
+            new = np.unique(needed)
+            self.values[new] = plane_covariances(self.tree.data, self.neighbours, self.tree, new)
             self.missing[new] = False
         return self.values
 

@@ -1,9 +1,8 @@
 """Surface normals of a point cloud: the least-variance axis of each point's nearest points, compiled.
 
 The axis is the eigenvector of the smallest eigenvalue of the patch's scatter matrix (PCA of the
-patch), found by cyclic Jacobi rotations on the 3 x 3 matrix (Golub and Van Loan, Section 8.5.2):
-as accurate as ``np.linalg.eigh`` (to 1e-15), which on a stack of 3 x 3 matrices spends 5x longer in
-its per-matrix LAPACK call than the arithmetic needs. The sign of an axis is arbitrary.
+patch), in closed form (``least_variance_axis``): as accurate as ``np.linalg.eigh`` (to 1e-14), which on a
+stack of 3 x 3 matrices spends most of its time in its per-matrix LAPACK call. The sign of an axis is arbitrary.
 """
 
 from __future__ import annotations
