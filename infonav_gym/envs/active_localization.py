@@ -226,10 +226,9 @@ class ActiveLocalizationVectorEnv(OneRobotVectorEnv):
 
     # ------------------------------------------------------------------ decision, observation and info
 
-    def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
-        """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""
-        nothing = np.zeros(len(copies), dtype=bool)
-        return self._outputs(copies, geometry, nothing, np.full(len(copies), -1), np.zeros((len(REWARD_TERMS), 1)))
+    def _no_step_record(self, n: int) -> np.ndarray:
+        """No reward terms (6, 1), for every copy alike."""
+        return np.zeros((len(REWARD_TERMS), 1))
 
     def _outputs(self, copies, geometry, stepped, chosen, terms) -> tuple[np.ndarray, dict]:
         """Decide again at the priors of ``copies`` (geometry: theirs); their observations and infos.

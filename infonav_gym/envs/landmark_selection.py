@@ -188,11 +188,9 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
             self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
         return rewards, rewards, np.zeros(self.num_envs, dtype=bool)
 
-    def _reset_outputs(self, copies: np.ndarray, geometry: StaticGeometry) -> tuple[np.ndarray, dict]:
-        """The observations and reset infos of ``copies``, just reset (``geometry``: theirs)."""
-        return self._outputs(
-            copies, geometry, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), np.zeros(len(copies))
-        )
+    def _no_step_record(self, n: int) -> np.ndarray:
+        """No rewards (n,)."""
+        return np.zeros(n)
 
     def _outputs(self, copies, geometry, stepped, chosen, rewards) -> tuple[np.ndarray, dict]:
         """Decide again at the priors of ``copies`` (n,) (``geometry``: theirs); their observations and infos. Those not

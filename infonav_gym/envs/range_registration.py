@@ -289,12 +289,10 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
                 covariances[name] = gicp_covariances(points)
         return {"source_covariances": covariances["source"][chosen], "target_covariances": covariances["target"]}
 
-    def _reset_outputs(self, copies: np.ndarray, terrains: TerrainStack) -> tuple[np.ndarray, dict]:
-        """The observations and reset infos of ``copies``, just reset."""
-        none = np.zeros(len(copies))
-        return self._outputs(
-            copies, terrains, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), (none, none)
-        )
+    def _no_step_record(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """No reward terms: two zeros (n,)."""
+        none = np.zeros(n)
+        return none, none
 
     def _outputs(self, copies, terrains, stepped, chosen, record) -> tuple[np.ndarray, dict]:
         """Decide again in ``copies`` (n,); their observations and infos. Those not ``stepped`` (n,) were reset and

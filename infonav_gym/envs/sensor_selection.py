@@ -206,12 +206,10 @@ class SensorSelectionVectorEnv(InfoNavVectorEnv):
             self._first_image, self._first_entropy, self._first_heading = images[0], entropies[0], poses[0, 2]
         return rewards, entropies
 
-    def _reset_outputs(self, copies: np.ndarray, terrains: TerrainStack) -> tuple[np.ndarray, dict]:
-        """The observations and reset infos of ``copies``, just reset."""
-        none = np.zeros(len(copies))
-        return self._outputs(
-            copies, terrains, np.zeros(len(copies), dtype=bool), np.full(len(copies), -1), (none, none)
-        )
+    def _no_step_record(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """No reward terms: two zeros (n,)."""
+        none = np.zeros(n)
+        return none, none
 
     def _outputs(self, copies, terrains, stepped, chosen, record) -> tuple[np.ndarray, dict]:
         """Decide again in ``copies``; their observations and infos (the others' as ``_info`` describes) after the

@@ -5,10 +5,10 @@ Every env is written once on batched arrays: it declares ``default_config()``; i
 ``_set_spaces``); its single env is the N = 1 view (``envs.single_view``) and ``render()`` draws its copy 0 from
 ``_scene_frame()``. It keeps the current decision in ``self._decision`` (with an ``action_mask`` (N, A)), starts
 episodes in ``_reset_copies`` (returning their static geometry, or None) with their first outputs from
-``_reset_outputs``, and fills ``step``'s two hooks: ``_act`` (the transition of the copies acting) and
-``_outputs`` (observations and infos after it). ``reset`` and ``step`` are fixed here, with the seeding, the action
-checks, ``_elapsed`` (each copy's steps, against ``horizon``) and the resets of ``autoreset_mode`` (a team env's
-``TeamVectorEnv`` has its own cycle).
+``_reset_outputs`` (``_outputs`` after no step: ``_no_step_record``), and fills ``step``'s two hooks: ``_act`` (the
+transition of the copies acting) and ``_outputs`` (observations and infos after it). ``reset`` and ``step`` are
+fixed here, with the seeding, the action checks, ``_elapsed`` (each copy's steps, against ``horizon``) and the
+resets of ``autoreset_mode`` (a team env's ``TeamVectorEnv`` has its own cycle).
 """
 
 from __future__ import annotations
@@ -166,8 +166,14 @@ class InfoNavVectorEnv(VectorEnv):
         raise NotImplementedError(f"{self.owner_name} must implement _reset_copies()")
 
     def _reset_outputs(self, copies: np.ndarray, geometry) -> tuple[np.ndarray, dict]:
-        """Hook: the observations (n, ...) and reset infos of ``copies``, just reset (``geometry``: theirs)."""
-        raise NotImplementedError(f"{self.owner_name} must implement _reset_outputs()")
+        """The observations (n, ...) and reset infos of ``copies``, just reset (``geometry``: theirs): ``_outputs``
+        after no step (none acting, no action, ``_no_step_record``)."""
+        n = len(copies)
+        return self._outputs(copies, geometry, np.zeros(n, dtype=bool), np.full(n, -1), self._no_step_record(n))
+
+    def _no_step_record(self, n: int):
+        """Hook: the record ``_outputs`` reads for ``n`` copies that took no step (their reset)."""
+        raise NotImplementedError(f"{self.owner_name} must implement _no_step_record()")
 
     def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple:
         """Hook: the ``acting`` copies (N,) bool take their ``chosen`` actions (N,) (-1: the no-op).
