@@ -13,7 +13,7 @@ from conftest import assert_identical, greedy_actions, random_valid_actions  # n
 from pettingzoo.test import api_test, parallel_api_test  # noqa: E402
 
 from infonav_gym.information import mutual_information  # noqa: E402
-from infonav_gym.multi import cooperative_localization_v0  # noqa: E402
+from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0  # noqa: E402
 from infonav_gym.multi.team import KNOWN_SENSORS  # noqa: E402
 
 SCENARIO_CASES = [{}, {"scenario": "convoy", "n_robots": 3}]
@@ -225,20 +225,27 @@ def test_rgb_array_frames_show_the_team_and_relative_observations():
     env.close()
 
 
-def test_observe_gains_appends_each_actions_expected_reward_to_the_observation():
-    plain = cooperative_localization_v0.parallel_env(team_reward=1.0)
-    with_gains = cooperative_localization_v0.parallel_env(team_reward=1.0, observe_gains=True)
-    n = len(plain.possible_agents)
-    assert with_gains.observation_space("robot_0").shape == (plain.observation_space("robot_0").shape[0] + n + 1,)
+@pytest.mark.parametrize(
+    ("module", "config"),
+    [(cooperative_localization_v0, {"team_reward": 1.0}), (cooperative_exploration_v0, {})],
+    ids=["localization", "exploration"],
+)
+def test_observe_gains_appends_each_actions_expected_reward_to_the_observation(module, config):
+    plain = module.parallel_env(**config)
+    with_gains = module.parallel_env(**config, observe_gains=True)
+    n_actions = plain.action_space("robot_0").n
+    assert with_gains.observation_space("robot_0").shape == (plain.observation_space("robot_0").shape[0] + n_actions,)
     observations, infos = with_gains.reset(seed=3)
     plain_observations, _ = plain.reset(seed=3)
     for _ in range(30):
         for agent, observation in observations.items():
             gains = infos[agent]["action_information_gain"]
-            np.testing.assert_array_equal(observation[: -(n + 1)], plain_observations[agent])
-            np.testing.assert_allclose(observation[-(n + 1) :], gains, rtol=1e-6)
+            np.testing.assert_array_equal(observation[:-n_actions], plain_observations[agent])
+            np.testing.assert_allclose(observation[-n_actions:], gains, rtol=1e-6)
             assert with_gains.observation_space(agent).contains(observation)
         actions = {agent: int(np.argmax(infos[agent]["action_information_gain"])) for agent in observations}
         observations, _, _, _, infos = with_gains.step(actions)
         plain_observations, *_ = plain.step(actions)
+        if not observations:
+            break
     assert any(np.any(info["action_information_gain"] > 0) for info in infos.values())

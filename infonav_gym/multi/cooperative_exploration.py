@@ -61,7 +61,9 @@ class CooperativeExplorationEnv(ParallelEnvView, vector_env=CooperativeExplorati
     5 per-robot features of ``cooperative_localization_v0``; per landmark: whether observing
     it is valid, its estimated range [m], ``cos, sin`` of its estimated bearing; the robot's
     speed [m/s], its budget left (fraction), the team's coverage; per cell (row-major from the
-    lower left corner) the height std left, as a fraction of ``map_prior_std_m``.
+    lower left corner) the height std left, as a fraction of ``map_prior_std_m``. With
+    ``observe_gains=True`` (off by default), ``5 (1 + L + N)`` more: ``action_information_gain`` of each
+    action, the immediate expected gains the greedy agent ranks and the planner starts its search from.
 
     ## Rewards
     ``(1 - team_reward) * own_pose_information + team_reward * team_map_information`` plus

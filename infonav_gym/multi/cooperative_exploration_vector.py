@@ -87,9 +87,9 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
 
     ## Vector API
     ``agents`` are the team's robots R; ``single_observation_space`` / ``single_action_space`` one robot's.
-    ``step`` takes one action per copy and robot (N, R) and returns observations (N, R, 10 + 5R + 4L + 3 + G),
-    rewards, ``terminated`` (a robot lost, or the coverage target reached) and ``truncated`` (``max_cycles``)
-    (N, R). Infos hold the parallel env's per-agent keys as arrays with leading (N, R), but the team's
+    ``step`` takes one action per copy and robot (N, R) and returns observations (N, R, 10 + 5R + 4L + 3 + G; A more
+    with ``observe_gains``), rewards, ``terminated`` (a robot lost, or the coverage target reached) and ``truncated``
+    (``max_cycles``) (N, R). Infos hold the parallel env's per-agent keys as arrays with leading (N, R), but the team's
     ``time_s``, ``coverage``, ``failed`` and ``success``: (N,); each with Gymnasium's ``_key`` mask (N,).
     ``info["action_mask"]`` and ``action_masks()`` (bool, for ``MaskablePPO``) are (N, R, 5 (1 + L + R)).
     ``planning_model(copy)`` is the planning model of copy ``copy`` (``multi.exploration_planning``).
@@ -131,8 +131,9 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
         n_robots, n_landmarks, n_cells = len(parts.gps), cfg["n_landmarks"], parts.map_model.n_cells
         team_low, team_high = team_observation_bounds(n_robots, False)
         self._team_space = spaces.Box(team_low, team_high, dtype=np.float32)
-        low, high = exploration_observation_bounds(team_low, team_high, n_landmarks, n_cells)
         action_space = spaces.Discrete(N_MOTIONS * (1 + n_landmarks + n_robots))
+        n_gains = action_space.n if cfg["observe_gains"] else 0
+        low, high = exploration_observation_bounds(team_low, team_high, n_landmarks, n_cells, n_gains)
         observation_space = spaces.Box(low, high, dtype=np.float32)
         self._setup_team(observation_space, action_space, parts.pairs, parts.gps, parts.odometry, (2,))
         self._sight = TeamSight(tuple(parts.relative_sensors))
@@ -389,6 +390,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
             self._coverage,
             np.sqrt(self._map_variances) / self.parts.map_model.prior_std_m,
             self.single_observation_space,
+            decision.action_information_gain if cfg["observe_gains"] else None,
         )
         state = {
             "x": self._x,

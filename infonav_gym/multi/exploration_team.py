@@ -73,6 +73,7 @@ def exploration_config() -> dict:
         "robot_speeds_mps": None,  # one cruise speed per robot [m/s]; None: DEFAULT_SPEEDS_MPS
         "gps_outages": (),  # (robot, start_s, end_s) spans without DGPS [s], besides the canopies
         "team_reward": 0.5,  # weight of the team's map information against the own pose MI, in [0, 1]
+        "observe_gains": False,  # True: each observation ends with the expected gain of each action (as the planner)
         "invalid_action": "noop",  # a masked action: "noop" or "raise" (ValueError)
         "time_step_s": 1.0,  # [s]
         "turn_time_s": 0.25,  # the turn phase of a step: a robot turns on the spot, then drives straight [s]
@@ -174,16 +175,16 @@ def start_episode(config: dict, np_random: np.random.Generator):
     return scenario, poses, covariances, *generators
 
 
-def exploration_observation_bounds(team_low, team_high, n_landmarks: int, n_cells: int) -> tuple:
+def exploration_observation_bounds(team_low, team_high, n_landmarks: int, n_cells: int, n_gains: int = 0) -> tuple:
     """The bounds (low, high) of one robot's observation, float32: the team features (``team_low``,
-    ``team_high``), then landmarks, extras and the map."""
-    low = [*team_low, *[0, 0, -1, -1] * n_landmarks, 0, 0, 0, *[0] * n_cells]
-    high = [*team_high, *[1, _BIG, 1, 1] * n_landmarks, _BIG, 1, 1, *[1] * n_cells]
+    ``team_high``), then landmarks, extras, the map and ``n_gains`` action gains (``observe_gains``)."""
+    low = [*team_low, *[0, 0, -1, -1] * n_landmarks, 0, 0, 0, *[0] * n_cells, *[0] * n_gains]
+    high = [*team_high, *[1, _BIG, 1, 1] * n_landmarks, _BIG, 1, 1, *[1] * n_cells, *[_BIG] * n_gains]
     return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
 
 
 def exploration_observations(
-    team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, space
+    team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, space, gains=None
 ) -> np.ndarray:
     """Every robot's observation (see ``CooperativeExplorationEnv``), float32 clipped to ``space``, of N teams of R
     robots, in one kernel (``exploration_features``).
@@ -197,10 +198,12 @@ def exploration_observations(
         coverage: each team's coverage (N,).
         cell_std: each cell's height std left, a fraction of the prior's (N, G).
         space: one robot's observation space.
+        gains: each robot's ``action_information_gain`` (N, R, A) to append (``observe_gains``), or None.
     """
     n_copies, n_robots = np.shape(team)[:2]
     features = np.empty((n_copies, n_robots, space.shape[0]), dtype=np.float32)
-    arrays = (landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, space.low, space.high)
+    gains = np.zeros((n_copies, n_robots, 0)) if gains is None else gains
+    arrays = (landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, gains, space.low, space.high)
     floats = (contiguous(np.asarray(array, dtype=float)) for array in arrays)  # the team part stays float32
     exploration_features(contiguous(np.asarray(team, dtype=np.float32)), *floats, features)
     return features
@@ -208,7 +211,7 @@ def exploration_observations(
 
 @kernel
 def exploration_features(
-    team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, low, high, out
+    team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, gains, low, high, out
 ):
     """``exploration_observations`` (``team`` float32, the others float64 arrays, ``space``'s bounds) into ``out``."""
     n_copies, n_robots, n_team = team.shape
@@ -227,4 +230,6 @@ def exploration_features(
             values[extras], values[extras + 1], values[extras + 2] = speeds_mps[i], budget_left[c, i], coverage[c]
             for k in range(n_cells):
                 values[extras + 3 + k] = cell_std[c, k]
+            for k in range(gains.shape[2]):
+                values[extras + 3 + n_cells + k] = gains[c, i, k]
             clip_into(out[c, i], values, low, high)
