@@ -42,6 +42,14 @@ from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
 from agents.base import TORCH_THREADS, checked_action_count, torch_threads, usable_mask
+from agents.imitation import (
+    DEMONSTRATION_SEEDS,
+    DEMONSTRATIONS_FILE,
+    Demonstrations,
+    agreement,
+    clone_planner,
+    planner_demonstrations,
+)
 from agents.learning_curve import (
     METRIC_KEY,
     CurveCallback,
@@ -351,6 +359,8 @@ def train(
     env_kwargs: dict | None = None,
     checkpoints: int = 4,
     curve_references: dict | None = None,
+    init_from_planner: int | Path | str | None = None,
+    planner_workers: int = 1,
 ) -> Path:
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
 
@@ -363,6 +373,13 @@ def train(
     ``agents.learning_curve``) and, with
     ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
     (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
+
+    ``init_from_planner`` warm-starts the policy by behaviour cloning of the env's planner
+    (``agents.imitation.clone_planner``) before PPO: a number of planner episodes to play (seeds
+    ``DEMONSTRATION_SEEDS + seed ..``, far from the seeds evaluations play, in
+    ``planner_workers`` processes), saved as ``output_dir/demonstrations.npz``, or the path of such a file to
+    clone from again. train.json's ``warm_start`` records them, each cloning epoch's losses, the cloned policy's
+    agreement with the planner and the seconds taken.
 
     Ctrl-C ends the training early: the model trained so far is saved as above, with the curve so far and its
     train.json with ``"interrupted": true`` and the ``timesteps`` reached.
@@ -379,6 +396,9 @@ def train(
     vectorization = checked_vectorization(env_id, vectorization)
     with torch_threads():
         model = build_model(env_id, seed, None, hyperparameters, env_kwargs, vectorization, tensorboard_log)
+        warm_start = None
+        if init_from_planner is not None:
+            warm_start = _cloned_planner(model, env_id, init_from_planner, env_kwargs, output_dir, planner_workers)
         n_envs = model.n_envs
         rollout = model.n_steps * n_envs  # learn() collects whole rollouts: the bar's true total
         progress_bar = TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)
@@ -402,7 +422,10 @@ def train(
         if isinstance(model.get_env(), VecNormalize):
             model.get_env().save(str(output_dir / NORMALIZATION_FILE))
         model.get_env().close()
-    curve = drawn_curve(output_dir, f"{env_id}: {type(model).__name__}, seed {seed}", curve_references)
+    title = f"{env_id}: {type(model).__name__}, seed {seed}"
+    if warm_start is not None:
+        title += f", cloned from {len(warm_start['seeds'])} planner episodes"
+    curve = drawn_curve(output_dir, title, curve_references)
     record = {
         "env_id": env_id,
         "algorithm": type(model).__name__,
@@ -419,9 +442,36 @@ def train(
         "model": str(model_path),
         "interrupted": interrupted,
         "curve": curve,
+        "warm_start": warm_start,
     }
     (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
     return model_path
+
+
+def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_dir: Path, workers: int) -> dict:
+    """Warm-start ``model`` from the planner (``train``'s ``init_from_planner``: episodes to play, or a saved file);
+    what train.json records of it."""
+    start = time.perf_counter()
+    if isinstance(source, int):
+        gamma = model.gamma
+        first = DEMONSTRATION_SEEDS + model.seed
+        demonstrations = planner_demonstrations(env_id, source, first, gamma, env_kwargs, workers)
+        origin = f"{source} planner episodes, seeds {first}..{first + source - 1}"
+    else:
+        demonstrations, origin = Demonstrations.load(source), str(source)
+    output_dir.mkdir(parents=True, exist_ok=True)
+    demonstrations.save(output_dir / DEMONSTRATIONS_FILE)
+    played = time.perf_counter()
+    epochs = clone_planner(model, demonstrations)
+    return {
+        "demonstrations": origin,
+        "seeds": demonstrations.seeds.tolist(),
+        "rows": len(demonstrations.actions),
+        "cloning_epochs": epochs,
+        "agreement": agreement(model, demonstrations),
+        "demonstration_seconds": played - start,
+        "cloning_seconds": time.perf_counter() - played,
+    }
 
 
 def model_file(path: Path | str) -> Path:

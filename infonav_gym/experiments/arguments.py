@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 SEED_LIMIT = 2**32  # seeds below it suit gymnasium, numpy's legacy seeding and Stable-Baselines3 alike
 
@@ -49,6 +50,15 @@ def non_negative_float(text: str) -> float:
 def end_time(text: str) -> float:
     """A number > 0; ``inf`` for the end of the data."""
     return _checked(text, float, "a number > 0 (inf: the end)", lambda value: value > 0)
+
+
+def episodes_or_file(text: str) -> int | Path:
+    """A number of episodes (an integer >= 1), or an existing file (saved episodes, e.g. demonstrations.npz)."""
+    if text.strip().isdigit():
+        return positive_int(text)
+    if not Path(text).is_file():
+        raise argparse.ArgumentTypeError(f"must be a number of episodes >= 1 or an existing file, got {text!r}")
+    return Path(text)
 
 
 def names(text: str) -> list[str]:

@@ -14,6 +14,7 @@ from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.experiments.arguments import (
     comma_separated,
     end_time,
+    episodes_or_file,
     names,
     non_negative_float,
     non_negative_int,
@@ -184,6 +185,19 @@ def build_parser() -> argparse.ArgumentParser:
         "sync: one process, copy after copy (DummyVecEnv; the default otherwise); subprocess: one process per copy",
     )
     train.add_argument("--tensorboard", action="store_true", help="log to OUTPUT/tensorboard (needs tensorboard)")
+    train.add_argument(
+        "--init-from-planner",
+        type=episodes_or_file,
+        metavar="EPISODES|FILE",
+        help="sb3: warm-start the policy by behaviour cloning of the env's planner before PPO: play EPISODES planner "
+        "episodes (saved as OUTPUT/demonstrations.npz), or clone from such a FILE again",
+    )
+    train.add_argument(
+        "--workers",
+        type=positive_int,
+        default=1,
+        help="processes that play the planner's episodes of --init-from-planner (default: 1)",
+    )
     train.add_argument(
         "--backend",
         choices=("sb3", "rllib"),
@@ -438,6 +452,8 @@ def _curve_references(env_id: str, env_kwargs: dict) -> dict | None:
 def _train(args, command: str) -> dict:
     """Train PPO on ``args.env`` with SB3 or RLlib; print where the model went unless --json."""
     rllib = args.backend == "rllib"
+    if rllib and args.init_from_planner is not None:
+        raise ValueError("--init-from-planner warm-starts SB3's MaskablePPO: use it with --backend sb3")
     if rllib:
         from agents.ray_support import import_ray
 
@@ -481,6 +497,8 @@ def _train(args, command: str) -> dict:
             vectorization=args.vectorization,
             env_kwargs=env_kwargs,
             curve_references=references,
+            init_from_planner=args.init_from_planner,
+            planner_workers=args.workers,
         )
         record = json.loads((model_path.parent / "train.json").read_text())
         if record["interrupted"]:
@@ -493,6 +511,12 @@ def _train(args, command: str) -> dict:
             f"trained {record['algorithm']} on {args.env} ({copies}) for {record['timesteps']} env steps in "
             f"{record['seconds']:.1f} s ({record['fps']:.0f} steps/s); {written}"
         )
+        if record.get("warm_start"):
+            start = record["warm_start"]
+            print(
+                f"warm start: cloned {start['rows']} planner decisions ({start['demonstrations']}), "
+                f"{start['agreement']:.0%} agreement"
+            )
         print(f"learning curve: {record['curve']}")
         config_flags = "".join(f" --config {shlex.quote(f'{key}={json.dumps(value)}')}" for key, value in args.config)
         print(f"evaluate it: infonav evaluate --env {args.env}{config_flags} --agents random,greedy,{agent}")

@@ -1,0 +1,238 @@
+"""Planning amortized into a policy: behaviour cloning of the look-ahead planner, PPO's warm start.
+
+``planner_demonstrations`` plays the env's ``PlannerAgent`` (one per robot in a team env, each planning on the
+team model while its teammates follow their published plans) on seeded episodes and records, per robot and step,
+the observation, the action mask, the planner's action and the discounted return from there on.
+``clone_planner`` fits a ``MaskablePPO`` policy to them before PPO trains it further (``infonav train
+--init-from-planner``): the actor by the masked log-likelihood of the planner's actions (behaviour cloning), the
+critic by the squared error to the returns, so that PPO's first updates start from the planner's values, not from
+an untrained critic. With ``VecNormalize`` the running observation statistics start from the demonstrations'.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from agents.planner import PlannerAgent, planner_settings
+from infonav_gym.registry import PARALLEL, api_of, make_env
+
+DEMONSTRATIONS_FILE = "demonstrations.npz"  # what ``train`` saves beside the model, to clone from again
+DEMONSTRATION_SEEDS = 1_000_000  # ``train`` plays the planner from this seed on: not the fields evaluations play
+
+
+class Demonstrations(NamedTuple):
+    """The planner's decisions, one row per robot and step.
+
+    Attributes:
+        observations: what the robot observed (M, D) float32.
+        action_masks: its valid actions (M, A) bool.
+        actions: the planner's action (M,) int.
+        returns: the robot's discounted return from that step on (M,).
+        seeds: the seeds of the episodes played (E,).
+    """
+
+    observations: np.ndarray
+    action_masks: np.ndarray
+    actions: np.ndarray
+    returns: np.ndarray
+    seeds: np.ndarray
+
+    @classmethod
+    def joined(cls, parts: list[Demonstrations]) -> Demonstrations:
+        """The rows of ``parts`` one after another."""
+        return cls(*(np.concatenate([getattr(part, field) for part in parts]) for field in cls._fields))
+
+    def save(self, path: Path | str) -> None:
+        np.savez_compressed(path, **self._asdict())
+
+    @classmethod
+    def load(cls, path: Path | str) -> Demonstrations:
+        """Demonstrations saved by ``save``.
+
+        Raises:
+            ValueError: naming the file when it is missing, not an npz file, or lacks one of the fields.
+        """
+        try:
+            with np.load(path) as arrays:
+                return cls(*(arrays[field] for field in cls._fields))
+        except (OSError, ValueError, KeyError) as error:
+            raise ValueError(f"cannot read planner demonstrations {str(path)!r}: {error}") from None
+
+
+def discounted_returns(rewards: np.ndarray, gamma: float) -> np.ndarray:
+    """The return ``sum_k gamma^k r_{t+k}`` from every step ``t`` of each column of ``rewards`` (T, R)."""
+    returns = np.zeros(np.shape(rewards), dtype=float)
+    following = np.zeros(np.shape(rewards)[1:])
+    for t in range(len(rewards) - 1, -1, -1):
+        following = returns[t] = rewards[t] + gamma * following
+    return returns
+
+
+def planner_episode(env_id: str, seed: int, gamma: float, env_kwargs: dict | None = None) -> Demonstrations:
+    """The planner's episode on ``seed`` (robot ``k``'s planner reset with ``1000 * seed + k``, as ``infonav
+    evaluate`` does), as demonstrations."""
+    env = make_env(env_id, **(env_kwargs or {}))
+    try:
+        if api_of(env_id) == PARALLEL:
+            return _team_episode(env, env_id, seed, gamma)
+        return _single_episode(env, env_id, seed, gamma)
+    finally:
+        env.close()
+
+
+def _team_episode(env, env_id: str, seed: int, gamma: float) -> Demonstrations:
+    robots = list(env.possible_agents)
+    planners = {robot: PlannerAgent(env, robot, **planner_settings(env_id)) for robot in robots}
+    observations, infos = env.reset(seed=seed)
+    for k, robot in enumerate(robots):
+        planners[robot].reset(seed=1000 * seed + k)
+    seen, masks, actions, rewards = [], [], [], []
+    while env.agents:  # a team env ends for every robot at once
+        chosen = {robot: planners[robot].act(observations[robot], infos[robot]) for robot in robots}
+        seen.append([observations[robot] for robot in robots])
+        masks.append([infos[robot]["action_mask"] for robot in robots])
+        actions.append([chosen[robot] for robot in robots])
+        observations, reward, _, _, infos = env.step(chosen)
+        rewards.append([reward[robot] for robot in robots])
+    return _as_demonstrations(seen, masks, actions, discounted_returns(np.array(rewards), gamma), seed)
+
+
+def _single_episode(env, env_id: str, seed: int, gamma: float) -> Demonstrations:
+    planner = PlannerAgent(env, **planner_settings(env_id))
+    observation, info = env.reset(seed=seed)
+    planner.reset(seed=seed)
+    seen, masks, actions, rewards, done = [], [], [], [], False
+    while not done:
+        action = planner.act(observation, info)
+        seen.append([observation])
+        masks.append([info["action_mask"]])
+        actions.append([action])
+        observation, reward, terminated, truncated, info = env.step(action)
+        rewards.append([reward])
+        done = terminated or truncated
+    return _as_demonstrations(seen, masks, actions, discounted_returns(np.array(rewards), gamma), seed)
+
+
+def _as_demonstrations(seen, masks, actions, returns, seed: int) -> Demonstrations:
+    """Rows robot by robot of per-step lists (T, R, ...)."""
+
+    def rows(values, dtype):
+        array = np.asarray(values, dtype=dtype)
+        return np.swapaxes(array, 0, 1).reshape(-1, *array.shape[2:])
+
+    return Demonstrations(
+        rows(seen, np.float32), rows(masks, bool), rows(actions, np.int64), rows(returns, float), np.array([seed])
+    )
+
+
+def planner_demonstrations(
+    env_id: str,
+    episodes: int,
+    seed: int = 0,
+    gamma: float = 0.99,
+    env_kwargs: dict | None = None,
+    workers: int = 1,
+    progress: bool = True,
+) -> Demonstrations:
+    """The planner's episodes on seeds ``seed .. seed + episodes - 1``, joined in seed order.
+
+    ``workers`` > 1 plays them in that many processes. Ctrl-C raises ``KeyboardInterrupt`` (nothing is kept).
+
+    Raises:
+        ValueError: for ``episodes`` or ``workers`` below 1, or an env without a planning model (``PlannerAgent``).
+    """
+    if episodes < 1 or workers < 1:
+        raise ValueError(f"episodes and workers must be >= 1, got {episodes} and {workers}")
+    seeds = range(seed, seed + episodes)
+    bar = tqdm(total=episodes, desc="planner demonstrations", unit="episode", disable=not progress)
+    arguments = ([env_id] * episodes, seeds, [gamma] * episodes, [env_kwargs] * episodes)
+    parts = []
+    with bar, ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        played = map if workers == 1 else pool.map  # spawn: fresh interpreters, no torch or numba state forked
+        for part in played(planner_episode, *arguments):
+            parts.append(part)
+            bar.update()
+    return Demonstrations.joined(parts)
+
+
+def clone_planner(
+    model, demonstrations: Demonstrations, epochs: int = 50, batch_size: int = 256, learning_rate: float = 1e-3
+) -> list[dict]:
+    """Fit ``model``'s policy (a ``MaskablePPO``) to ``demonstrations``: the actor by behaviour cloning, the critic
+    to the returns; its ``VecNormalize`` (if any) starts from the demonstrations' observation statistics.
+
+    Minibatches are drawn from ``model.seed`` (the training's seed); each step lowers the negative log-likelihood
+    of the planner's actions plus half the critic's squared error. Returns each epoch's mean ``action_nll`` and
+    ``value_mse``.
+
+    Raises:
+        ValueError: for demonstrations whose observation or action size is not the model's.
+    """
+    n_observations, n_actions = model.observation_space.shape[0], model.action_space.n
+    if demonstrations.observations.shape[1:] != (n_observations,) or demonstrations.action_masks.shape[1:] != (
+        n_actions,
+    ):
+        raise ValueError(
+            f"planner demonstrations of {demonstrations.observations.shape[1:]} observations and "
+            f"{demonstrations.action_masks.shape[1:]} actions do not fit a model of ({n_observations},) and "
+            f"({n_actions},): were they recorded on another env or config?"
+        )
+    normalization = model.get_vec_normalize_env()
+    if normalization is not None and normalization.norm_obs:
+        rows = demonstrations.observations.astype(float)
+        normalization.obs_rms.mean, normalization.obs_rms.var = rows.mean(axis=0), rows.var(axis=0)
+        normalization.obs_rms.count = float(len(rows))
+    observations = _normalized(model, demonstrations.observations)
+    tensors = [
+        torch.as_tensor(array)
+        for array in (observations, demonstrations.actions, demonstrations.action_masks, demonstrations.returns)
+    ]
+    policy = model.policy
+    optimizer = torch.optim.Adam(policy.parameters(), lr=learning_rate)
+    order = np.random.default_rng(model.seed)
+    epochs_done = []
+    policy.set_training_mode(True)
+    for _ in range(epochs):
+        batches = np.array_split(order.permutation(len(observations)), max(len(observations) // batch_size, 1))
+        losses = np.array(
+            [_fitted_batch(policy, optimizer, *(tensor[batch] for tensor in tensors)) for batch in batches]
+        )
+        epochs_done.append(dict(zip(("action_nll", "value_mse"), losses.mean(axis=0).tolist())))
+    policy.set_training_mode(False)
+    return epochs_done
+
+
+def _fitted_batch(policy, optimizer, observations, actions, masks, returns) -> tuple[float, float]:
+    """One gradient step on a minibatch; its ``(action_nll, value_mse)`` before the step."""
+    values, log_prob, _ = policy.evaluate_actions(observations.float(), actions, action_masks=masks)
+    action_nll = -log_prob.mean()
+    value_mse = torch.nn.functional.mse_loss(values.flatten(), returns.float())
+    optimizer.zero_grad()
+    (action_nll + 0.5 * value_mse).backward()
+    optimizer.step()
+    return action_nll.item(), value_mse.item()
+
+
+def agreement(model, demonstrations: Demonstrations) -> float:
+    """The fraction of the demonstrations' rows where ``model``'s most probable valid action is the planner's."""
+    observations = torch.as_tensor(_normalized(model, demonstrations.observations)).float()
+    with torch.no_grad():
+        distribution = model.policy.get_distribution(observations)
+        logits = distribution.distribution.logits.numpy()
+    chosen = np.argmax(np.where(demonstrations.action_masks, logits, -np.inf), axis=1)
+    return float(np.mean(chosen == demonstrations.actions))
+
+
+def _normalized(model, observations: np.ndarray) -> np.ndarray:
+    """``observations`` as ``model``'s policy sees them: through its ``VecNormalize``, if it normalizes them."""
+    normalization = model.get_vec_normalize_env()
+    if normalization is None or not normalization.norm_obs:
+        return observations
+    return normalization.normalize_obs(observations)
