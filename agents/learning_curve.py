@@ -4,8 +4,9 @@ A row of ``curve.csv`` holds the env steps so far, the mean return and the mean 
 (``main_metric_of``, computed by its ``EpisodeMetric`` from each episode's infos) over the episodes that ended
 since the previous row, and how many ended; a window without a finished episode writes no row. Each row is
 flushed when written, so a run stopped with Ctrl-C keeps its curve so far. The episodes' metric is computed
-at their last step by ``MetricVectorWrapper`` (a native vector env) or ``MetricWrapper`` (a single env), which
-put it in that step's info as ``METRIC_KEY``; SB3's monitor gives the return (``info["episode"]["r"]``).
+at their last step by ``MetricVectorWrapper`` (a native vector env), ``MetricWrapper`` (a single env) or a team's
+``RobotSlots`` (``agents.team_vec_env``, each robot's slot: the team's metric), which put it in that step's info as
+``METRIC_KEY``; SB3's monitor gives the return (``info["episode"]["r"]``).
 """
 
 from __future__ import annotations
@@ -31,10 +32,13 @@ VECTOR_ONLY_KEYS = ("final_obs", "final_info")  # a vector env's info keys that 
 
 class SubEnvInfo(Mapping):
     """Sub-env ``index``'s info, read on demand from a vector env's batched ``info`` (the keys its ``_key`` masks
-    give it): what an ``EpisodeMetric`` computes from, without copying every key of every step."""
+    give it): what an ``EpisodeMetric`` computes from, without copying every key of every step.
 
-    def __init__(self, info: dict, index: int):
-        self.info, self.index = info, index
+    In a team vector env (infos (N, R, ...), but ``team_keys`` (N,)) ``robot`` reads robot ``robot``'s column.
+    """
+
+    def __init__(self, info: dict, index: int, robot: int | None = None, team_keys=frozenset()):
+        self.info, self.index, self.robot, self.team_keys = info, index, robot, team_keys
 
     def _has(self, key: str) -> bool:
         present = self.info.get(f"_{key}")
@@ -44,7 +48,10 @@ class SubEnvInfo(Mapping):
         if key not in self.info or not self._has(key):
             raise KeyError(key)
         value = self.info[key]
-        return SubEnvInfo(value, self.index) if isinstance(value, dict) else value[self.index]
+        if isinstance(value, dict):
+            return SubEnvInfo(value, self.index, self.robot)  # nested keys are per robot
+        value = value[self.index]
+        return value if self.robot is None or key in self.team_keys else value[self.robot]
 
     def __iter__(self):
         return (key for key in self.info if self._has(key))
@@ -53,36 +60,60 @@ class SubEnvInfo(Mapping):
         return sum(1 for _ in self)
 
 
-class MetricVectorWrapper(VectorWrapper):
-    """A ``SAME_STEP`` vector env whose ``info["final_info"]`` holds each ended episode's main metric
-    (``METRIC_KEY``).
+def team_view(agents, team_keys):
+    """How a team vector env's batched info is one copy's ``{agent: info}``, as a PettingZoo env's metrics read it."""
+    return lambda info, index: {agent: SubEnvInfo(info, index, k, team_keys) for k, agent in enumerate(agents)}
+
+
+class EndedEpisodeMetrics:
+    """The main metric of each episode of a ``SAME_STEP`` vector env of ``num_envs`` copies, as it ends.
 
     It keeps the batched info of every step since the oldest running episode began (the envs return fresh arrays
-    each step) and reads a sub-env's rows of them when its episode ends.
+    each step) and reads an ended copy's rows of them through ``view(info, index)`` (``SubEnvInfo``, or
+    ``team_view``'s ``{agent: info}``).
     """
+
+    def __init__(self, metric, num_envs: int, view=SubEnvInfo):
+        self.metric, self.num_envs, self.view = metric, num_envs, view
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the steps kept (every episode starts again)."""
+        self.infos, self.first, self.dropped = [], np.zeros(self.num_envs, dtype=int), 0
+
+    def step(self, info: dict, ended: np.ndarray) -> np.ndarray | None:
+        """Keep this step's ``info``; each copy's metric (NaN where its episode goes on) when ``ended`` has one."""
+        self.infos.append(info)
+        if not ended.any():
+            return None
+        metrics = np.full(self.num_envs, np.nan)
+        for index in np.flatnonzero(ended).tolist():
+            before_last = self.infos[self.first[index] - self.dropped : -1]
+            steps = [self.view(step, index) for step in before_last] + [self.view(info["final_info"], index)]
+            metrics[index] = self.metric.compute(steps)
+        self.first[ended] = self.dropped + len(self.infos)
+        del self.infos[: self.first.min() - self.dropped]
+        self.dropped = int(self.first.min())
+        return metrics
+
+
+class MetricVectorWrapper(VectorWrapper):
+    """A ``SAME_STEP`` vector env whose ``info["final_info"]`` holds each ended episode's main metric
+    (``METRIC_KEY``, by ``EndedEpisodeMetrics``)."""
 
     def __init__(self, env):
         super().__init__(env)
-        self.metric = main_metric_of(env)
-        self.infos, self.first, self.dropped = [], np.zeros(self.num_envs, dtype=int), 0
+        self.metrics = EndedEpisodeMetrics(main_metric_of(env), self.num_envs)
 
     def reset(self, **kwargs):
-        self.infos, self.first, self.dropped = [], np.zeros(self.num_envs, dtype=int), 0
+        self.metrics.reset()
         return self.env.reset(**kwargs)
 
     def step(self, actions):
         observations, rewards, terminated, truncated, info = self.env.step(actions)
-        self.infos.append(info)
         ended = np.logical_or(terminated, truncated)
-        if ended.any():
-            metrics = np.full(self.num_envs, np.nan)
-            for index in np.flatnonzero(ended).tolist():
-                before_last = self.infos[self.first[index] - self.dropped : -1]
-                steps = [SubEnvInfo(step, index) for step in before_last] + [SubEnvInfo(info["final_info"], index)]
-                metrics[index] = self.metric.compute(steps)
-            self.first[ended] = self.dropped + len(self.infos)
-            del self.infos[: self.first.min() - self.dropped]
-            self.dropped = int(self.first.min())
+        metrics = self.metrics.step(info, ended)
+        if metrics is not None:
             info["final_info"] = {**info["final_info"], METRIC_KEY: metrics, f"_{METRIC_KEY}": ended}
         return observations, rewards, terminated, truncated, info
 
@@ -131,7 +162,7 @@ class CurveCallback(BaseCallback):
     """Appends a row of ``curve.csv`` at the end of every rollout in which episodes ended.
 
     Reads the infos SB3's monitor completes at an episode's end (``episode``, and ``METRIC_KEY`` where an env
-    wrapper computed it: not for a team env, whose metric column is then NaN).
+    wrapper computed it; NaN where none did).
     """
 
     def __init__(self, path: Path):

@@ -16,7 +16,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from stable_baselines3.common.vec_env import VecMonitor
 
+from agents.learning_curve import METRIC_KEY, EndedEpisodeMetrics, team_view
 from agents.vector_adapter import MASKS_METHOD, VectorEnvAdapter
+from infonav_gym.envs.traits import main_metric_of
 from infonav_gym.registry import PARALLEL, api_of, make_vector_env
 
 
@@ -24,7 +26,8 @@ class RobotSlots(VectorEnv):
     """A team vector env's robots as sub-envs: slot ``copy * R + k`` is robot ``k`` of copy ``copy``.
 
     Observations, rewards, terminations, truncations and masks are the team env's arrays reshaped to
-    (N R, ...); the info holds only ``final_obs`` per slot (``SAME_STEP``: what the SB3 adapter reads);
+    (N R, ...); the info holds only ``final_obs`` per slot (``SAME_STEP``: what the SB3 adapter reads) and the
+    ended episodes' main metric (``final_info[METRIC_KEY]``, the team's, in each of its robots' slots);
     the team env's whole info of the last reset or step is ``team_info``.
 
     Args:
@@ -42,6 +45,8 @@ class RobotSlots(VectorEnv):
         self.metadata = team.metadata
         self.render_mode = team.render_mode
         self.team_info: dict = {}
+        view = team_view(team.agents, team.team_info_keys)
+        self.episode_metrics = EndedEpisodeMetrics(main_metric_of(team), self.n_copies, view)
 
     def reset(self, *, seed=None, options=None):
         """Reset every copy; a list seeds each slot, and the robots of a copy share their copy's seed.
@@ -51,6 +56,7 @@ class RobotSlots(VectorEnv):
                 robots differently.
         """
         observations, self.team_info = self.team.reset(seed=self._copy_seeds(seed), options=options)
+        self.episode_metrics.reset()
         return observations.reshape(self.num_envs, -1), {}
 
     def _copy_seeds(self, seed):
@@ -76,12 +82,20 @@ class RobotSlots(VectorEnv):
         step = self.team.step(actions.reshape(self.n_copies, self.n_robots))
         observations, rewards, terminations, truncations, self.team_info = step
         info = {}
-        if "final_obs" in self.team_info:
+        metrics = self.episode_metrics.step(self.team_info, np.logical_or(terminations, truncations).any(axis=1))
+        if metrics is not None:
             ended = self.team_info["_final_obs"]
             final_obs = np.full(self.num_envs, None, dtype=object)
             for copy in np.flatnonzero(ended).tolist():
                 final_obs[copy * self.n_robots : (copy + 1) * self.n_robots] = list(self.team_info["final_obs"][copy])
-            info = {"final_obs": final_obs, "_final_obs": np.repeat(ended, self.n_robots)}
+            slots_ended = np.repeat(ended, self.n_robots)
+            final_info = {METRIC_KEY: np.repeat(metrics, self.n_robots), f"_{METRIC_KEY}": slots_ended}
+            info = {
+                "final_obs": final_obs,
+                "_final_obs": slots_ended,
+                "final_info": final_info,
+                "_final_info": slots_ended,
+            }
         slots = (self.num_envs,)
         return (
             observations.reshape(self.num_envs, -1),
@@ -135,7 +149,7 @@ class TeamVecEnv(VectorEnvAdapter):
         team = make_vector_env(env_id, n_envs, autoreset_mode=AutoresetMode.SAME_STEP, **(env_kwargs or {}))
         self.possible_agents = list(team.agents)
         self.n_robots = len(self.possible_agents)
-        super().__init__(RobotSlots(team))
+        super().__init__(RobotSlots(team), (METRIC_KEY,))
         if seed is not None:
             self.seed(seed)
 
@@ -180,4 +194,4 @@ def make_team_vec_env(
     n_envs: int, seed: int | None = 0, env_kwargs: dict | None = None, env_id: str = "cooperative_localization_v0"
 ) -> VecMonitor:
     """A ``TeamVecEnv`` under SB3's ``VecMonitor``, which records each robot's episode return and length (the logs)."""
-    return VecMonitor(TeamVecEnv(n_envs, seed, env_kwargs, env_id))
+    return VecMonitor(TeamVecEnv(n_envs, seed, env_kwargs, env_id), info_keywords=(METRIC_KEY,))

@@ -23,8 +23,10 @@ from agents.learning_curve import (  # noqa: E402
     read_curve,
 )
 from agents.ppo import load_hyperparameters, train  # noqa: E402
+from agents.team_vec_env import RobotSlots  # noqa: E402
 from infonav_gym.envs.traits import main_metric_of  # noqa: E402
 from infonav_gym.experiments import cli  # noqa: E402
+from infonav_gym.registry import make_env, make_vector_env  # noqa: E402
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 HORIZON = 20  # short episodes: many end in every rollout
@@ -202,7 +204,7 @@ def test_the_references_are_the_leaderboards_greedy_and_planner_means_of_the_sam
     assert cli._curve_references("a", {}) is None
 
 
-def test_a_team_curve_counts_each_robots_episodes_and_leaves_the_team_metric_out(tmp_path):
+def test_a_team_curve_counts_each_robots_episodes_with_the_teams_metric(tmp_path):
     small = {"n_steps": 32, "batch_size": 32, "n_epochs": 1}
     train(
         "cooperative_localization_v0",
@@ -216,6 +218,43 @@ def test_a_team_curve_counts_each_robots_episodes_and_leaves_the_team_metric_out
     )
     name, rows = read_curve(tmp_path / CURVE_CSV)
     assert name == "cumulative_mi" and rows[:, 0].tolist() == [128]  # 32 steps of 4 robot slots
-    assert rows[0, 3] == 4 * 4 and np.isfinite(rows[0, 1]) and np.isnan(rows[0, 2])  # 4 episodes of 8 steps a robot
+    assert rows[0, 3] == 4 * 4 and np.isfinite(rows[0, 1]) and np.isfinite(rows[0, 2])  # 4 episodes of 8 steps a robot
     image = pytest.importorskip("matplotlib.image").imread(tmp_path / CURVE_PNG)
-    assert image.shape[:2] == (350, 700)  # the return panel alone
+    assert image.shape[:2] == (600, 700)  # the return and metric panels
+
+
+@pytest.mark.parametrize(
+    "env_id, config",
+    [
+        ("cooperative_localization_v0", {"max_cycles": 5, "team_reward": 1.0}),
+        # a tight position bound: random teams get lost at different steps, or cover nothing in time
+        ("cooperative_exploration_v0", {"max_cycles": 12, "max_position_std_m": 0.3}),
+    ],
+)
+def test_robot_slots_give_each_slot_the_team_metric_of_the_parallel_env_played_with_the_same_actions(env_id, config):
+    slots = RobotSlots(make_vector_env(env_id, 2, autoreset_mode="same_step", **config))
+    slots.reset(seed=7)
+    n_robots = slots.n_robots
+    plays, ends = [], {copy: [] for copy in range(2)}  # ends: (steps played, metric) of each episode
+    generator = np.random.default_rng(0)
+    while min(map(len, ends.values())) < 2:
+        masks = slots.action_masks()
+        plays.append(np.argmax(masks * generator.random(masks.shape), axis=1).reshape(2, n_robots))
+        *_, info = slots.step(plays[-1].ravel())
+        ended = info.get("final_info", {}).get(f"_{METRIC_KEY}", np.zeros(2 * n_robots, dtype=bool))
+        for copy in range(2):
+            robots = slice(copy * n_robots, (copy + 1) * n_robots)
+            assert ended[robots].all() or not ended[robots].any()
+            if ended[robots].all():
+                assert len(set(info["final_info"][METRIC_KEY][robots])) == 1
+                ends[copy].append((len(plays), info["final_info"][METRIC_KEY][robots][0]))
+    for copy, episodes in ends.items():
+        env = make_env(env_id, **config)
+        env.reset(seed=7 + copy)
+        played = 0
+        for steps, metric in episodes:
+            agents = list(env.possible_agents)
+            infos = [env.step(dict(zip(agents, actions[copy].tolist())))[-1] for actions in plays[played:steps]]
+            assert metric == main_metric_of(env).compute(infos)
+            env.reset()
+            played = steps
