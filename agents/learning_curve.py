@@ -66,15 +66,16 @@ def team_view(agents, team_keys):
 
 
 class EndedEpisodeMetrics:
-    """The main metric of each episode of a ``SAME_STEP`` vector env of ``num_envs`` copies, as it ends.
+    """The main metric of each episode of a vector env of ``num_envs`` copies, as it ends.
 
     It keeps the batched info of every step since the oldest running episode began (the envs return fresh arrays
     each step) and reads an ended copy's rows of them through ``view(info, index)`` (``SubEnvInfo``, or
-    ``team_view``'s ``{agent: info}``).
+    ``team_view``'s ``{agent: info}``). ``same_step``: the env autoresets in ``SAME_STEP`` mode (the last info in
+    ``info["final_info"]``), else in ``NEXT_STEP`` mode (the step after the last is the copy's reset, left out).
     """
 
-    def __init__(self, metric, num_envs: int, view=SubEnvInfo):
-        self.metric, self.num_envs, self.view = metric, num_envs, view
+    def __init__(self, metric, num_envs: int, view=SubEnvInfo, same_step: bool = True):
+        self.metric, self.num_envs, self.view, self.same_step = metric, num_envs, view, same_step
         self.reset()
 
     def reset(self) -> None:
@@ -86,14 +87,15 @@ class EndedEpisodeMetrics:
         self.infos.append(info)
         if not ended.any():
             return None
-        metrics = np.full(self.num_envs, np.nan)
+        metrics, last = np.full(self.num_envs, np.nan), info["final_info"] if self.same_step else info
         for index in np.flatnonzero(ended).tolist():
             before_last = self.infos[self.first[index] - self.dropped : -1]
-            steps = [self.view(step, index) for step in before_last] + [self.view(info["final_info"], index)]
+            steps = [self.view(step, index) for step in before_last] + [self.view(last, index)]
             metrics[index] = self.metric.compute(steps)
-        self.first[ended] = self.dropped + len(self.infos)
-        del self.infos[: self.first.min() - self.dropped]
-        self.dropped = int(self.first.min())
+        self.first[ended] = self.dropped + len(self.infos) + (0 if self.same_step else 1)
+        unread = min(int(self.first.min()) - self.dropped, len(self.infos))  # NEXT_STEP: the reset steps come later
+        del self.infos[:unread]
+        self.dropped += unread
         return metrics
 
 

@@ -378,14 +378,15 @@ def train(
     (``agents.imitation.clone_planner``) before PPO: a number of planner episodes to play (seeds
     ``DEMONSTRATION_SEEDS + seed ..``, far from the seeds evaluations play, in
     ``planner_workers`` processes), saved as ``output_dir/demonstrations.npz``, or the path of such a file to
-    clone from again. train.json's ``warm_start`` records them, each cloning epoch's losses, the cloned policy's
+    clone from again; ``timesteps=0`` then keeps the cloned policy as it is. train.json's ``warm_start`` records
+    them, each cloning epoch's losses, the cloned policy's
     agreement with the planner and the seconds taken.
 
     Ctrl-C ends the training early: the model trained so far is saved as above, with the curve so far and its
     train.json with ``"interrupted": true`` and the ``timesteps`` reached.
     """
-    if timesteps < 1:
-        raise ValueError(f"timesteps must be >= 1, got {timesteps}")
+    if timesteps < (0 if init_from_planner is not None else 1):
+        raise ValueError(f"timesteps must be >= 1 (0 only with a planner warm start: cloning alone), got {timesteps}")
     if tensorboard and importlib.util.find_spec("tensorboard") is None:  # SB3's TensorBoard writer
         raise ValueError("TensorBoard logging needs the tensorboard package: pip install tensorboard")
     output_dir = Path(output_dir)
@@ -410,7 +411,8 @@ def train(
             )
         start, interrupted = time.perf_counter(), False
         try:
-            model.learn(timesteps, callback=callbacks, tb_log_name="ppo")
+            if timesteps:
+                model.learn(timesteps, callback=callbacks, tb_log_name="ppo")
         except INTERRUPTIONS as error:
             if not pressed_ctrl_c(error):
                 raise
@@ -437,7 +439,7 @@ def train(
         "hyperparameters": hyperparameters,
         "constructor": constructor_values(type(model), *_constructor_arguments(hyperparameters, seed, tensorboard_log)),
         "seconds": seconds,
-        "fps": model.num_timesteps / seconds,
+        "fps": model.num_timesteps / seconds if model.num_timesteps else 0.0,
         "torch_threads": TORCH_THREADS,
         "model": str(model_path),
         "interrupted": interrupted,

@@ -18,6 +18,7 @@ from collections import Counter
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
+from ray.rllib.callbacks.callbacks import RLlibCallback
 from ray.rllib.callbacks.utils import make_callback
 from ray.rllib.env.env_context import EnvContext
 from ray.rllib.env.multi_agent_env import MultiAgentEnv
@@ -35,7 +36,9 @@ from ray.rllib.utils.metrics import (
 )
 from ray.tune.registry import ENV_CREATOR, _global_registry
 
+from agents.learning_curve import METRIC_KEY, EndedEpisodeMetrics, team_view
 from agents.rllib_masking import ACTION_MASK, OBSERVATION, mask_rows, masked_space
+from infonav_gym.envs.traits import main_metric_of
 
 ALL = "__all__"  # RLlib's key of the whole team's termination and truncation
 LIFETIME = {  # each count RLlib keeps per sample and over the runner's lifetime
@@ -61,9 +64,10 @@ class BatchedTeamEnv(VectorMultiAgentEnv):
 
     Copy ``i``'s observations are ``{robot: {"observation": ..., "action_mask": float32}}`` (the masks of
     ``action_masks()``, all ones where none is valid, as ``MaskedObservations`` gives them); rewards and
-    terminations ``{robot: ...}`` with RLlib's ``"__all__"``; infos ``{}``. Autoreset is ``NEXT_STEP``, RLlib's:
-    the step after a copy's episode ended resets it (its actions, empty or not, are ignored) and returns its reset
-    observations with rewards 0. ``reset(seed=s)`` seeds copy ``i`` with ``s + i``.
+    terminations ``{robot: ...}`` with RLlib's ``"__all__"``; infos ``{}``, but at an episode's last step each
+    robot's ``{METRIC_KEY: the episode's main metric}`` (for the learning curve, ``CurveMetricCallback``).
+    Autoreset is ``NEXT_STEP``, RLlib's: the step after a copy's episode ended resets it (its actions, empty or not,
+    are ignored) and returns its reset observations with rewards 0. ``reset(seed=s)`` seeds copy ``i`` with ``s + i``.
 
     Args:
         team: a team vector env in ``NEXT_STEP`` autoreset (``make_vector_env`` of a PettingZoo parallel env).
@@ -89,11 +93,14 @@ class BatchedTeamEnv(VectorMultiAgentEnv):
         self.envs = [TeamCopy(self.agents, observation_space, team.single_action_space) for _ in range(self.num_envs)]
         self._actions = np.zeros((self.num_envs, len(self.agents)), dtype=np.int64)
         self._restarting = np.zeros(self.num_envs, dtype=bool)
+        view = team_view(self.agents, team.team_info_keys)
+        self.episode_metrics = EndedEpisodeMetrics(main_metric_of(team), self.num_envs, view, same_step=False)
         self.closed = False
 
     def reset(self, *, seed=None, options=None):
         observations, _ = self.team.reset(seed=seed, options=options)
         self._restarting[:] = False
+        self.episode_metrics.reset()
         return self._observations(observations), [{} for _ in range(self.num_envs)]
 
     def step(self, actions: list[dict]):
@@ -111,14 +118,18 @@ class BatchedTeamEnv(VectorMultiAgentEnv):
                 self._actions[copy] = [copy_actions[agent] for agent in self.agents]
             except KeyError as missing:
                 raise ValueError(f"copy {copy} has no action for {missing.args[0]}: got {copy_actions!r}") from None
-        observations, rewards, terminated, truncated, _ = self.team.step(self._actions)
+        observations, rewards, terminated, truncated, info = self.team.step(self._actions)
         self._restarting = terminated[:, 0] | truncated[:, 0]
+        metrics = self.episode_metrics.step(info, self._restarting)
+        infos = [{} for _ in range(self.num_envs)]
+        for copy in np.flatnonzero(self._restarting).tolist():
+            infos[copy] = {agent: {METRIC_KEY: metrics[copy]} for agent in self.agents}
         return (
             self._observations(observations),
             [dict(zip(self.agents, copy_rewards)) for copy_rewards in rewards.tolist()],
             _team_flags(self.agents, terminated[:, 0]),
             _team_flags(self.agents, truncated[:, 0]),
-            [{} for _ in range(self.num_envs)],
+            infos,
         )
 
     def _observations(self, observations: np.ndarray) -> list[dict]:
@@ -139,6 +150,17 @@ class BatchedTeamEnv(VectorMultiAgentEnv):
 
     def close_extras(self, **kwargs) -> None:
         self.team.close()
+
+
+class CurveMetricCallback(RLlibCallback):
+    """Logs each ended episode's main metric (``METRIC_KEY`` in its last infos) as RLlib logs the episode return:
+    a mean over the last ``metrics_num_episodes_for_smoothing`` episodes, in the results' ``env_runners``."""
+
+    def on_episode_end(self, *, episode, env_runner=None, metrics_logger=None, **kwargs) -> None:
+        infos = [info for info in episode.get_infos(-1).values() if METRIC_KEY in info]
+        if infos and metrics_logger is not None:
+            window = env_runner.config.metrics_num_episodes_for_smoothing
+            metrics_logger.log_value(METRIC_KEY, float(infos[0][METRIC_KEY]), reduce="mean", window=window)
 
 
 def _team_flags(agents: list[str], ended: np.ndarray) -> list[dict]:

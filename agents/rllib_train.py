@@ -10,8 +10,8 @@ parameter sharing) or one per robot (``"per_robot"``). Every policy is a
 translated (``rllib_training_settings``). ``OUTPUT/checkpoint`` is RLlib's algorithm checkpoint,
 ``OUTPUT/train.json`` the record (as the SB3 backend's), ``OUTPUT/curve.csv`` and ``curve.png`` the learning curve
 (``agents.learning_curve``; a row per iteration in which episodes ended, with RLlib's episode return mean, over
-its last 20 episodes, ``metrics_num_episodes_for_smoothing``; the env's main metric is not recorded). Needs the
-``distributed`` extra.
+its last 20 episodes, ``metrics_num_episodes_for_smoothing``, and for a team env the main metric over the same
+episodes; a single-agent env's is not recorded). Needs the ``distributed`` extra.
 """
 
 from __future__ import annotations
@@ -202,12 +202,13 @@ def build_config(
         if has_native_vector_env(env_id):
             config = config.env_runners(gym_env_vectorize_mode=gym.VectorizeMode.VECTOR_ENTRY_POINT)
         return config.rl_module(rl_module_spec=module)
-    from agents.rllib_team_env import BatchedTeamEnvRunner
+    from agents.rllib_team_env import BatchedTeamEnvRunner, CurveMetricCallback
 
     robots = make_env(env_id, **env_kwargs).possible_agents
     policy_ids = {robot: SHARED_POLICY if policies == "shared" else robot for robot in robots}
     return (
         config.env_runners(env_runner_cls=BatchedTeamEnvRunner)
+        .callbacks(CurveMetricCallback)
         .multi_agent(policies=set(policy_ids.values()), policy_mapping_fn=PolicyMapping(policy_ids))
         .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={policy: module for policy in policy_ids.values()}))
     )
@@ -254,7 +255,7 @@ def train_rllib(
     Returns:
         The ``train.json`` record (also written to ``output_dir``).
     """
-    from agents.learning_curve import append_row, drawn_curve, start_curve
+    from agents.learning_curve import METRIC_KEY, append_row, drawn_curve, start_curve
     from agents.ppo import load_hyperparameters, torch_threads
     from agents.ray_support import local_or_cluster_ray
 
@@ -284,7 +285,8 @@ def train_rllib(
                     bar.set_postfix(episode_return=runners.get("episode_return_mean"))
                     steps = now
                     if runners.get("num_episodes", 0) > 0:
-                        append_row(curve, steps, runners["episode_return_mean"], math.nan, runners["num_episodes"])
+                        metric = runners.get(METRIC_KEY, math.nan)  # a team env's (``CurveMetricCallback``)
+                        append_row(curve, steps, runners["episode_return_mean"], metric, runners["num_episodes"])
             seconds = time.perf_counter() - start
             checkpoint = algorithm.save_to_path(str((output_dir / CHECKPOINT_DIR).resolve()))
         finally:

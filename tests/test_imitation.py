@@ -108,6 +108,11 @@ def test_train_init_from_planner_records_the_warm_start_and_saves_the_demonstrat
     again = ["--init-from-planner", str(tmp_path / "a" / "demonstrations.npz"), "--output", str(tmp_path / "b")]
     assert main([*argv[:-2], *again, "--config", "horizon=12", "--json"]) == 0
     assert json.loads((tmp_path / "b" / "train.json").read_text())["warm_start"]["seeds"] == record["seeds"]
+    alone = ["train", "--env", ACTIVE_ID, "--timesteps", "0", "--n-envs", "2", "--config", "horizon=12"]
+    alone += ["--init-from-planner", str(tmp_path / "a" / "demonstrations.npz"), "--output", str(tmp_path / "c")]
+    assert main([*alone, "--json"]) == 0
+    cloned = json.loads((tmp_path / "c" / "train.json").read_text())
+    assert cloned["timesteps"] == 0 and cloned["warm_start"]["rows"] == 24 and (tmp_path / "c" / "model.zip").is_file()
     capsys.readouterr()
 
 
@@ -117,6 +122,7 @@ def test_train_init_from_planner_records_the_warm_start_and_saves_the_demonstrat
         (["--init-from-planner", "0"], "must be an integer >= 1, got '0'"),
         (["--init-from-planner", "no/such.npz"], "must be a number of episodes >= 1 or an existing file"),
         (["--init-from-planner", "2", "--backend", "rllib"], "use it with --backend sb3"),
+        (["--timesteps", "0"], "timesteps must be >= 1 (0 only with a planner warm start"),
     ],
 )
 def test_a_bad_warm_start_is_one_line_exit_2(capsys, extra, message):

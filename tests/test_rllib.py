@@ -140,6 +140,12 @@ def test_train_writes_the_curve_of_rllibs_episode_return_mean_without_the_metric
     assert record["curve"] == str(output / CURVE_PNG) and image.shape[:2] == (350, 700)  # the return panel alone
 
 
+def test_a_team_curve_holds_the_teams_main_metric(team_run):
+    output, record = team_run
+    name, rows = read_curve(output / CURVE_CSV)
+    assert name == "cumulative_mi" and len(rows) >= 1 and np.isfinite(rows[:, 2]).all() and (rows[:, 2] > 0).all()
+
+
 def test_the_team_trains_one_shared_policy_whose_agents_take_only_valid_actions(team_run):
     output, record = team_run
     assert record["policies"] == "shared" and record["vectorization"] == "native"

@@ -11,10 +11,12 @@ pytest.importorskip("ray", reason="the distributed extra (ray[rllib]) is not ins
 
 from gymnasium.vector import AutoresetMode  # noqa: E402
 
+from agents.learning_curve import METRIC_KEY  # noqa: E402
 from agents.rllib_masking import ACTION_MASK, OBSERVATION  # noqa: E402
 from agents.rllib_team_env import ALL, BatchedTeamEnv  # noqa: E402
 from agents.rllib_train import TeamEnvCreator  # noqa: E402
-from infonav_gym.registry import make_vector_env  # noqa: E402
+from infonav_gym.envs.traits import main_metric_of  # noqa: E402
+from infonav_gym.registry import make_env, make_vector_env  # noqa: E402
 
 # RLlib: slow; `pytest -m "not slow"` leaves it out while developing
 pytestmark = pytest.mark.slow
@@ -52,6 +54,10 @@ def test_each_copy_gets_the_vector_envs_observations_masks_rewards_and_episode_e
     assert infos == [{}] * COPIES
     _assert_copies_equal(adapter, observations, reference_observations, reference.action_masks())
     rng, restarting, end_steps = np.random.default_rng(0), np.zeros(COPIES, dtype=bool), []
+    singles = [make_env(env_id, **config) for _ in range(COPIES)]  # copy i is the parallel env from seed 5 + i
+    for copy, single in enumerate(singles):
+        single.reset(seed=5 + copy)
+    episodes = [[] for _ in singles]
     for step in range(STEPS):
         masks = reference.action_masks()
         actions = np.array([[rng.choice(np.flatnonzero(robot_mask)) for robot_mask in copy] for copy in masks])
@@ -70,6 +76,15 @@ def test_each_copy_gets_the_vector_envs_observations_masks_rewards_and_episode_e
             assert truncateds[copy] == {**dict(zip(adapter.agents, truncated[copy].tolist())), ALL: truncated[copy, 0]}
             if restarting[copy]:  # the step after an end: the copy's reset observations, no reward, running
                 assert set(rewards[copy].values()) == {0.0} and not terminateds[copy][ALL] | truncateds[copy][ALL]
+                singles[copy].reset()
+                episodes[copy] = []
+            else:
+                episodes[copy].append(singles[copy].step(dict(zip(adapter.agents, actions[copy].tolist())))[-1])
+            if terminated[copy, 0] or truncated[copy, 0]:  # the episode's main metric, for the learning curve
+                metric = main_metric_of(singles[copy]).compute(episodes[copy])
+                assert infos[copy] == {agent: {METRIC_KEY: metric} for agent in adapter.agents}
+            else:
+                assert infos[copy] == {}
         restarting = terminated[:, 0] | truncated[:, 0]
         end_steps.extend((step, copy) for copy in np.flatnonzero(restarting).tolist())
     assert end_steps  # every copy's episode ended at least once ...

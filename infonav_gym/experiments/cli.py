@@ -163,7 +163,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--env", required=True, help="env id, e.g. infonav/LandmarkSelection-v0 or cooperative_localization_v0"
     )
     train.add_argument(
-        "--timesteps", type=positive_int, required=True, help="env steps to train for (robot steps in a team)"
+        "--timesteps",
+        type=non_negative_int,
+        required=True,
+        help="env steps to train for (robot steps in a team); 0 with --init-from-planner: behaviour cloning alone",
     )
     train.add_argument(
         "--n-envs",
