@@ -3,6 +3,7 @@ intervals, its errors, and an interrupted run keeping its finished rows."""
 
 import json
 import math
+import shutil
 from pathlib import Path
 
 import pytest
@@ -76,15 +77,35 @@ def test_rows_are_every_registered_env_and_every_committed_model_is_a_cell_of_it
     assert len(learned) == len(records)
 
 
-def test_a_models_train_json_must_name_a_registered_env_and_a_row_holds_one_model_per_column(tmp_path):
+def test_a_models_train_json_must_name_a_registered_env_and_a_second_model_of_a_column_gets_its_own_row(tmp_path):
     for name in ("a", "b"):
         (tmp_path / name).mkdir()
         (tmp_path / name / "train.json").write_text(json.dumps({"env_id": LANDMARKS, "env_kwargs": {}}))
-    with pytest.raises(ValueError, match=r"two PPO models for infonav/LandmarkSelection-v0 \{\}: ppo:.*a, ppo:.*b$"):
-        leaderboard_rows([LANDMARKS], ("ppo",), tmp_path)
+    rows = leaderboard_rows([LANDMARKS], ("greedy", "ppo"), tmp_path)
+    assert [(row.agents, row.models) for row in rows] == [
+        ({"greedy": "greedy", "ppo": f"ppo:{tmp_path / 'a'}"}, "a"),
+        ({"greedy": "greedy", "ppo": f"ppo:{tmp_path / 'b'}"}, "b"),
+    ]
     (tmp_path / "b" / "train.json").write_text(json.dumps({"env_id": "infonav/Nowhere-v0"}))
     with pytest.raises(ValueError, match=r"b/train.json: not the train.json of a registered env \(unknown env id"):
         leaderboard_rows([LANDMARKS], ("ppo",), tmp_path)
+
+
+def test_rows_of_one_env_and_config_share_their_baselines_cells_played_once(tmp_path, monkeypatch):
+    board = leaderboard_module
+    for name in ("a", "b"):
+        shutil.copytree(MODELS / "landmark_selection_ppo", tmp_path / name)
+    calls = []
+    played_cell = board._played_cell
+    monkeypatch.setattr(
+        board, "_played_cell", lambda row, agent, *rest: calls.append(agent) or played_cell(row, agent, *rest)
+    )
+    results = leaderboard([LANDMARKS], ("greedy", "ppo"), tmp_path, episodes=1, progress=False)
+    assert sorted(calls) == ["greedy", f"ppo:{tmp_path / 'a'}", f"ppo:{tmp_path / 'b'}"]
+    first, second = results["rows"]
+    assert (first["models"], second["models"]) == ("a", "b") and first["cells"]["greedy"] == second["cells"]["greedy"]
+    assert first["cells"]["ppo"]["values"] == second["cells"]["ppo"]["values"]  # the same model, copied
+    assert "| infonav/LandmarkSelection-v0 | defaults (b) |" in board.markdown_tables(results)
 
 
 def test_the_best_is_the_highest_mean_and_means_within_the_tolerance_all_tie():

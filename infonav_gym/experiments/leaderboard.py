@@ -34,11 +34,13 @@ TIE_TOLERANCE = 1e-9  # means within TIE_TOLERANCE * max(1, |best|) of the best 
 
 @dataclass(frozen=True)
 class Row:
-    """An env, the config it runs with, and the agent each column plays (``{column: agent name}``)."""
+    """An env, the config it runs with, and the agent each column plays (``{column: agent name}``); ``models``
+    names the row's models when its env and config have more than one row (``""`` otherwise)."""
 
     env_id: str
     env_kwargs: dict
     agents: dict
+    models: str = ""
 
 
 def committed_models(directory: Path) -> list[tuple[str, str, str, dict]]:
@@ -62,10 +64,12 @@ def committed_models(directory: Path) -> list[tuple[str, str, str, dict]]:
 
 def leaderboard_rows(env_ids, columns, models_dir: Path | None) -> list[Row]:
     """A row per env of ``env_ids`` and config of its models (the defaults if it has none), with the ``columns``
-    that apply: the planner where the env has a planning model, a model in its env and config's row.
+    that apply: the planner where the env has a planning model, a model in its env and config's row. Where one env
+    and config have several models of a column, each further one gets a row of its own, after the first, with the
+    same baselines (played once: ``leaderboard`` shares their cells).
 
     Raises:
-        ValueError: for an unknown column or env id, or two models of one column in one row.
+        ValueError: for an unknown column or env id.
     """
     for column in columns:
         if column not in COLUMNS:
@@ -74,19 +78,23 @@ def leaderboard_rows(env_ids, columns, models_dir: Path | None) -> list[Row]:
     rows = []
     for env_id in env_ids:
         has_planner = has_planning_model(env_entry(env_id).load())
-        configs = {}  # config as sorted JSON -> (config, {column: model agent})
+        configs = {}  # config as sorted JSON -> (config, [{column: model agent}, ...]): a row each
         for column, agent, model_env_id, env_kwargs in models:
             if model_env_id != env_id or column not in columns:
                 continue
-            cells = configs.setdefault(json.dumps(env_kwargs, sort_keys=True), (env_kwargs, {}))[1]
-            if column in cells:
-                raise ValueError(f"two {COLUMNS[column]} models for {env_id} {env_kwargs}: {cells[column]}, {agent}")
-            cells[column] = agent
+            groups = configs.setdefault(json.dumps(env_kwargs, sort_keys=True), (env_kwargs, []))[1]
+            free = next((group for group in groups if column not in group), None)
+            if free is None:
+                groups.append(free := {})
+            free[column] = agent
         baselines = {name: name for name in BASELINES if name in columns and (name != "planner" or has_planner)}
-        for env_kwargs, learned in configs.values() or [({}, {})]:
-            agents = baselines | learned
-            if agents:
-                rows.append(Row(env_id, env_kwargs, {column: agents[column] for column in COLUMNS if column in agents}))
+        for env_kwargs, groups in configs.values() or [({}, [{}])]:
+            for learned in groups:
+                agents = baselines | learned
+                names = ", ".join(Path(agent.split(":", 1)[1]).name for agent in learned.values())
+                if agents:
+                    ordered = {column: agents[column] for column in COLUMNS if column in agents}
+                    rows.append(Row(env_id, env_kwargs, ordered, names if len(groups) > 1 else ""))
     if not rows:
         raise ValueError(f"no agent of {', '.join(columns)} applies to {', '.join(env_ids)}: nothing to play")
     return rows
@@ -100,36 +108,41 @@ def best_columns(cells: dict) -> list[str]:
     ]
 
 
-def _played_row(row: Row, seeds: list[int], bar, workers: int, use_ray: bool, address: str | None) -> dict:
-    """Every agent of ``row`` on ``seeds``: its main metric's values, summary and seconds per episode."""
-    cells, metric = {}, None
+def _played_row(row: Row, seeds: list[int], bar, played_cells: dict, how: tuple) -> dict:
+    """Every agent of ``row`` on ``seeds``: its main metric's values, summary and seconds per episode; a cell already
+    in ``played_cells`` (by env, config and agent) is not played again. ``how``: (workers, use_ray, address)."""
+    cells = {}
     for column, agent in row.agents.items():
-        runner = EpisodeRunner(row.env_id, row.env_kwargs, [agent])
-        try:
-            metric = main_metric_of(runner.env)
-            for _ in itertools.islice(runner.infos((agent, seeds[0])), WARMUP_STEPS + 1):
-                pass  # compiles and loads what the agent and env need before the clock starts
-            values, start = [], time.perf_counter()
-            for metrics in played(runner, [(agent, seed) for seed in seeds], workers, use_ray, address):
-                values.append(metrics[metric.name])
-                bar.update()
-            seconds = time.perf_counter() - start
-        finally:
-            runner.close()
-        summary = summary_of(metric, values)
-        cells[column] = {
-            "agent": agent,
-            "summary": summary,
-            "values": values,
-            "seconds_per_episode": seconds / len(seeds),
-        }
+        key = (row.env_id, json.dumps(row.env_kwargs, sort_keys=True), agent)
+        if key not in played_cells:
+            played_cells[key] = _played_cell(row, agent, seeds, bar, *how)
+        metric, cells[column] = played_cells[key]
     return {
         "env_id": row.env_id,
         "env_kwargs": row.env_kwargs,
+        "models": row.models,
         "metric": {"name": metric.name, "title": metric.title},
         "cells": cells,
         "best": best_columns(cells),
     }
+
+
+def _played_cell(row: Row, agent: str, seeds: list[int], bar, workers: int, use_ray: bool, address: str | None):
+    """``(the env's main metric, the cell)`` of ``agent`` in ``row``'s env and config on ``seeds``."""
+    runner = EpisodeRunner(row.env_id, row.env_kwargs, [agent])
+    try:
+        metric = main_metric_of(runner.env)
+        for _ in itertools.islice(runner.infos((agent, seeds[0])), WARMUP_STEPS + 1):
+            pass  # compiles and loads what the agent and env need before the clock starts
+        values, start = [], time.perf_counter()
+        for metrics in played(runner, [(agent, seed) for seed in seeds], workers, use_ray, address):
+            values.append(metrics[metric.name])
+            bar.update()
+        seconds = time.perf_counter() - start
+    finally:
+        runner.close()
+    cell = {"agent": agent, "summary": summary_of(metric, values), "values": values}
+    return metric, cell | {"seconds_per_episode": seconds / len(seeds)}
 
 
 def leaderboard(
@@ -162,12 +175,15 @@ def leaderboard(
     seeds = list(range(seed, seed + episodes))
     results = {"episodes": episodes, "seeds": seeds, "columns": [c for c in COLUMNS if c in columns], "rows": []}
     results |= {"workers": workers, "tie_tolerance": TIE_TOLERANCE}
-    total = episodes * sum(len(row.agents) for row in rows)
-    bar = tqdm(total=total, desc="leaderboard", disable=not progress, unit="episode")
+    cells = {
+        (row.env_id, json.dumps(row.env_kwargs, sort_keys=True), agent) for row in rows for agent in row.agents.values()
+    }
+    bar = tqdm(total=episodes * len(cells), desc="leaderboard", disable=not progress, unit="episode")
+    played_cells = {}
     try:
         with local_or_cluster_ray(address) if use_ray else contextlib.nullcontext():  # one Ray for every cell
             for row in rows:
-                results["rows"].append(_played_row(row, seeds, bar, workers, use_ray, address))
+                results["rows"].append(_played_row(row, seeds, bar, played_cells, (workers, use_ray, address)))
     except INTERRUPTIONS as error:
         if not pressed_ctrl_c(error):
             raise
@@ -179,8 +195,10 @@ def leaderboard(
     return results
 
 
-def _config_text(env_kwargs: dict) -> str:
-    return ", ".join(f"{key}={value!r}" for key, value in env_kwargs.items()) or "defaults"
+def _config_text(row: dict) -> str:
+    """A row's config, and its models where its env and config have several rows."""
+    text = ", ".join(f"{key}={value!r}" for key, value in row["env_kwargs"].items()) or "defaults"
+    return f"{text} ({row['models']})" if row.get("models") else text
 
 
 def markdown_tables(results: dict) -> str:
@@ -189,7 +207,7 @@ def markdown_tables(results: dict) -> str:
     lines = ["| env | config | main metric | " + " | ".join(titles) + " |", "|" + " --- |" * (len(titles) + 3)]
     times = ["| env | config | " + " | ".join(titles) + " |", "|" + " --- |" * (len(titles) + 2)]
     for row in results["rows"]:
-        cells, head = row["cells"], f"| {row['env_id']} | {_config_text(row['env_kwargs'])} |"
+        cells, head = row["cells"], f"| {row['env_id']} | {_config_text(row)} |"
         shown = [interval_cell(cells[c]["summary"]) if c in cells else "" for c in results["columns"]]
         bold = [f"**{text}**" if column in row["best"] else text for column, text in zip(results["columns"], shown)]
         lines.append(f"{head} {row['metric']['title']} | " + " | ".join(bold) + " |")
@@ -215,7 +233,7 @@ def heading(results: dict) -> str:
 def models_text(results: dict) -> str:
     """The learned agents of each row, one line each."""
     learned = [
-        f"- {row['env_id']} ({_config_text(row['env_kwargs'])}): {COLUMNS[column]} `{cell['agent']}`"
+        f"- {row['env_id']} ({_config_text(row)}): {COLUMNS[column]} `{cell['agent']}`"
         for row in results["rows"]
         for column, cell in row["cells"].items()
         if column not in BASELINES
