@@ -76,8 +76,8 @@ def discounted_returns(rewards: np.ndarray, gamma: float) -> np.ndarray:
 
 
 def planner_episode(env_id: str, seed: int, gamma: float, env_kwargs: dict | None = None) -> Demonstrations:
-    """The planner's episode on ``seed`` (robot ``k``'s planner reset with ``1000 * seed + k``, as ``infonav
-    evaluate`` does), as demonstrations."""
+    """The planner's episode on ``seed`` as demonstrations; its planners reset as ``infonav evaluate`` resets them
+    (with ``seed``; in a team env robot ``k``'s with ``1000 * seed + k``), so they take the evaluated decisions."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
         if api_of(env_id) == PARALLEL:
