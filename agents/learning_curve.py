@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import math
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -218,7 +219,8 @@ def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
     else:
         title += "\n(no episode ended)"
     axes[-1].set_xlabel("environment steps")
-    figure.suptitle(title)
+    lines = [line for part in title.split("\n") for line in textwrap.wrap(part, 70)]  # long titles: several lines
+    figure.suptitle("\n".join(lines), fontsize="medium")
     return save_figure(figure, Path(directory) / CURVE_PNG, dpi=100)
 
 
