@@ -288,7 +288,7 @@ def train_rllib(
                         metric = runners.get(METRIC_KEY, math.nan)  # a team env's (``CurveMetricCallback``)
                         append_row(curve, steps, runners["episode_return_mean"], metric, runners["num_episodes"])
             seconds = time.perf_counter() - start
-            checkpoint = algorithm.save_to_path(str((output_dir / CHECKPOINT_DIR).resolve()))
+            algorithm.save_to_path(str((output_dir / CHECKPOINT_DIR).resolve()))
         finally:
             algorithm.stop()
             drawn = drawn_curve(output_dir, f"{env_id}: PPO (RLlib), seed {seed}", curve_references)  # also on Ctrl-C
@@ -307,7 +307,7 @@ def train_rllib(
         "rllib_training": rllib_training_settings(hyperparameters),
         "seconds": seconds,
         "fps": steps / seconds,
-        "checkpoint": str(checkpoint),
+        "checkpoint": str(output_dir / CHECKPOINT_DIR),  # as given, as the SB3 record's model path
         "curve": drawn,
     }
     (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
