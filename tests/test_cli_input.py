@@ -73,7 +73,7 @@ def test_the_seed_limit_is_numpys_legacy_one_that_stable_baselines_seeds_with():
         (["evaluate", "--agents", "greedy,,random"], "argument --agents: an empty name in 'greedy,,random'"),
         (["render", "--output", "{tmp}/e", "--every", "0"], "argument --every: must be an integer >= 1, got '0'"),
         (["render", "--output", "{tmp}/e", "--max-steps", "-1"], "argument --max-steps: must be an integer >= 1"),
-        (["train", "--env", LANDMARK_ID, "--timesteps", "0"], "argument --timesteps: must be an integer >= 1"),
+        (["train", "--env", LANDMARK_ID, "--timesteps", "-1"], "argument --timesteps: must be an integer >= 0"),
         (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--n-envs", "0"], "argument --n-envs: must be"),
         (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--num-env-runners", "-1"], "must be an integer >= 0"),
         (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--envs-per-runner", "0"], "--envs-per-runner: must"),
