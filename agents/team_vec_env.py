@@ -82,9 +82,9 @@ class RobotSlots(VectorEnv):
         step = self.team.step(actions.reshape(self.n_copies, self.n_robots))
         observations, rewards, terminations, truncations, self.team_info = step
         info = {}
-        metrics = self.episode_metrics.step(self.team_info, np.logical_or(terminations, truncations).any(axis=1))
+        ended = np.logical_or(terminations, truncations).any(axis=1)  # a copy's robots end together
+        metrics = self.episode_metrics.step(self.team_info, ended)
         if metrics is not None:
-            ended = self.team_info["_final_obs"]
             final_obs = np.full(self.num_envs, None, dtype=object)
             for copy in np.flatnonzero(ended).tolist():
                 final_obs[copy * self.n_robots : (copy + 1) * self.n_robots] = list(self.team_info["final_obs"][copy])

@@ -11,13 +11,14 @@ per robot and step, over the first ``--steps`` steps of seeds 0 and 1) and write
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from infonav_gym.experiments.episodes import make_team_agents
+from infonav_gym.experiments.episodes import make_team_agents, parallel_episode_infos
 from infonav_gym.experiments.intervals import interval_cell
 from infonav_gym.registry import make_env
 
@@ -41,23 +42,30 @@ ATTEMPTS = (  # (what was tried, the evaluation file, the agent in it)
 METRICS = ("success_rate", "failure_rate", "final_coverage", "episode_steps")
 
 
+class TimedAgent:
+    """An agent whose ``act`` calls are timed (seconds, appended to ``times``)."""
+
+    def __init__(self, agent, times: list):
+        self.agent, self.times = agent, times
+
+    def reset(self, seed=None) -> None:
+        self.agent.reset(seed=seed)
+
+    def act(self, observation, info):
+        start = time.perf_counter()
+        action = self.agent.act(observation, info)
+        self.times.append(time.perf_counter() - start)
+        return action
+
+
 def decision_ms(agent_name: str, env_kwargs: dict, steps: int) -> float:
-    """The mean milliseconds one robot's agent takes to decide, over the first ``steps`` steps of seeds 0 and 1."""
-    env = make_env(ENV_ID, **env_kwargs)
-    agents, times = make_team_agents(agent_name, env), []
+    """The mean milliseconds one robot's agent takes to decide, over the first ``steps`` steps of seeds 0 and 1,
+    played as ``infonav evaluate`` plays them (``parallel_episode_infos``)."""
+    env, times = make_env(ENV_ID, **env_kwargs), []
+    agents = {robot: TimedAgent(agent, times) for robot, agent in make_team_agents(agent_name, env).items()}
     for seed in (0, 1):
-        observations, infos = env.reset(seed=seed)
-        for k, robot in enumerate(env.possible_agents):
-            agents[robot].reset(seed=1000 * seed + k)
-        for _ in range(steps):
-            actions = {}
-            for robot in env.agents:
-                start = time.perf_counter()
-                actions[robot] = agents[robot].act(observations[robot], infos[robot])
-                times.append(time.perf_counter() - start)
-            observations, _, _, _, infos = env.step(actions)
-            if not env.agents:
-                break
+        for _ in itertools.islice(parallel_episode_infos(env, agents, seed), steps + 1):
+            pass  # the reset's infos, then a step each
     env.close()
     return 1000 * float(np.mean(times))
 

@@ -113,7 +113,7 @@ def _played_row(row: Row, seeds: list[int], bar, played_cells: dict, how: tuple)
     in ``played_cells`` (by env, config and agent) is not played again. ``how``: (workers, use_ray, address)."""
     cells = {}
     for column, agent in row.agents.items():
-        key = (row.env_id, json.dumps(row.env_kwargs, sort_keys=True), agent)
+        key = _cell_key(row, agent)
         if key not in played_cells:
             played_cells[key] = _played_cell(row, agent, seeds, bar, *how)
         metric, cells[column] = played_cells[key]
@@ -125,6 +125,11 @@ def _played_row(row: Row, seeds: list[int], bar, played_cells: dict, how: tuple)
         "cells": cells,
         "best": best_columns(cells),
     }
+
+
+def _cell_key(row: Row, agent: str) -> tuple:
+    """What makes a cell: the env, its config and the agent (rows of one env and config share their baselines')."""
+    return row.env_id, json.dumps(row.env_kwargs, sort_keys=True), agent
 
 
 def _played_cell(row: Row, agent: str, seeds: list[int], bar, workers: int, use_ray: bool, address: str | None):
@@ -175,9 +180,7 @@ def leaderboard(
     seeds = list(range(seed, seed + episodes))
     results = {"episodes": episodes, "seeds": seeds, "columns": [c for c in COLUMNS if c in columns], "rows": []}
     results |= {"workers": workers, "tie_tolerance": TIE_TOLERANCE}
-    cells = {
-        (row.env_id, json.dumps(row.env_kwargs, sort_keys=True), agent) for row in rows for agent in row.agents.values()
-    }
+    cells = {_cell_key(row, agent) for row in rows for agent in row.agents.values()}
     bar = tqdm(total=episodes * len(cells), desc="leaderboard", disable=not progress, unit="episode")
     played_cells = {}
     try:
