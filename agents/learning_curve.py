@@ -27,6 +27,7 @@ from infonav_gym.registry import make_env
 from infonav_gym.rendering import matplotlib_figure, save_figure
 
 CURVE_CSV, CURVE_PNG = "curve.csv", "curve.png"
+VALIDATION_CSV = "validation.csv"  # steps, mean main metric, episodes, kept (0/1): ``agents.validation``'s rows
 METRIC_KEY = "curve_main_metric"  # the main metric of the episode ending in this step, in its last info
 VECTOR_ONLY_KEYS = ("final_obs", "final_info")  # a vector env's info keys that are not one sub-env's info
 
@@ -192,21 +193,37 @@ def read_curve(path: Path) -> tuple[str, np.ndarray]:
     return header[2], np.array(rows, dtype=float).reshape(-1, 4)
 
 
+def _validations(path: Path) -> np.ndarray:
+    """The rows (steps, mean metric, episodes, kept) of a ``validation.csv``; none when the run did not validate."""
+    if not path.is_file():
+        return np.empty((0, 4))
+    with path.open(newline="") as file:
+        return np.array(list(csv.reader(file))[1:], dtype=float).reshape(-1, 4)
+
+
 def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
     """``directory/curve.png`` from its ``curve.csv``: mean return and, when recorded, the main metric against env
     steps, with ``references`` (agent name: its value of the metric) as horizontal lines; their absence is said.
+    A run that validated (``validation.csv``) also shows the deterministic policy's metric on the validation seeds
+    and the policy kept.
 
     Raises:
         ImportError: without matplotlib, saying how to install the ``render`` extra.
     """
     metric_name, rows = read_curve(Path(directory) / CURVE_CSV)
-    has_metric = rows.size > 0 and not np.isnan(rows[:, 2]).all()
+    validations = _validations(Path(directory) / VALIDATION_CSV)
+    has_metric = (rows.size > 0 and not np.isnan(rows[:, 2]).all()) or validations.size > 0
     figure = matplotlib_figure("curve.png", figsize=(7, 6 if has_metric else 3.5), layout="constrained")
     axes = figure.subplots(2 if has_metric else 1, 1, sharex=True, squeeze=False)[:, 0]
     axes[0].plot(rows[:, 0], rows[:, 1], marker=".")
     axes[0].set_ylabel("mean episode return")
     if has_metric:
-        axes[1].plot(rows[:, 0], rows[:, 2], marker=".", label="trained policy")
+        axes[1].plot(rows[:, 0], rows[:, 2], marker=".", label="training episodes (sampled actions)")
+        if validations.size:
+            best = np.flatnonzero(validations[:, 3])[-1]  # the last policy kept as the best
+            label = f"deterministic, {int(validations[0, 2])} validation seeds"
+            axes[1].plot(validations[:, 0], validations[:, 1], marker="s", linestyle="-", label=label)
+            axes[1].plot(*validations[best, :2], marker="*", markersize=14, linestyle="", label="best: kept")
         known = references or {}
         for style, (agent, value) in zip(("--", ":"), known.items(), strict=False):
             axes[1].axhline(value, linestyle=style, color="grey", label=agent)

@@ -58,6 +58,7 @@ from agents.learning_curve import (
     drawn_curve,
     start_curve,
 )
+from agents.validation import VALIDATION_SEEDS, ValidationCallback
 from agents.vector_adapter import monitored_vec_env
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, resolve_env_id
@@ -290,6 +291,30 @@ def native_vec_env(
     return monitored_vec_env(vector_env, seed)
 
 
+def training_vec_env(
+    env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None, vectorization: str | None = None
+) -> tuple[bool, VecMonitor]:
+    """Whether ``env_id`` trains with action masks, and ``n_envs`` seeded copies of it as ``build_model`` trains on
+    (copy ``i`` seeded ``seed + i``), whose infos at an episode's end hold its main metric (``METRIC_KEY``)."""
+    vectorization = checked_vectorization(env_id, vectorization)
+    if api_of(env_id) == PARALLEL:
+        from agents.team_vec_env import make_team_vec_env
+
+        return True, make_team_vec_env(n_envs, seed, env_kwargs, env_id)
+    masked, wrapper = mask_wrapper(env_id, env_kwargs)
+    if vectorization == NATIVE:
+        return masked, native_vec_env(env_id, n_envs, seed, env_kwargs, record_metric=True)
+    vec_env = make_vec_env(
+        env_id,
+        n_envs=n_envs,
+        seed=seed,
+        env_kwargs=env_kwargs,
+        wrapper_class=lambda env: MetricWrapper(wrapper(env) if wrapper else env),
+        vec_env_cls=SubprocVecEnv if vectorization == SUBPROCESS else DummyVecEnv,
+    )
+    return masked, vec_env
+
+
 def build_model(
     env_id: str,
     seed: int = 0,
@@ -301,7 +326,7 @@ def build_model(
 ):
     """A fresh ``MaskablePPO`` (env with action masks) or ``PPO`` on ``n_envs`` seeded copies of ``env_id``.
 
-    The infos of an episode's end hold its main metric (``learning_curve.METRIC_KEY``), but for a team env.
+    The infos of an episode's end hold its main metric (``learning_curve.METRIC_KEY``).
 
     Args:
         hyperparameters: ppo.yml-style keys; ``None`` loads the env's block of ppo.yml.
@@ -315,24 +340,7 @@ def build_model(
     n_envs = int(hyperparameters.get("n_envs", 8) if n_envs is None else n_envs)
     if n_envs < 1:
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
-    vectorization = checked_vectorization(env_id, vectorization)
-    if api_of(env_id) == PARALLEL:
-        from agents.team_vec_env import make_team_vec_env
-
-        masked, vec_env = True, make_team_vec_env(n_envs, seed, env_kwargs, env_id)
-    else:
-        masked, wrapper = mask_wrapper(env_id, env_kwargs)
-        if vectorization == NATIVE:
-            vec_env = native_vec_env(env_id, n_envs, seed, env_kwargs, record_metric=True)
-        else:
-            vec_env = make_vec_env(
-                env_id,
-                n_envs=n_envs,
-                seed=seed,
-                env_kwargs=env_kwargs,
-                wrapper_class=lambda env: MetricWrapper(wrapper(env) if wrapper else env),
-                vec_env_cls=SubprocVecEnv if vectorization == SUBPROCESS else DummyVecEnv,
-            )
+    masked, vec_env = training_vec_env(env_id, n_envs, seed, env_kwargs, vectorization)
     normalize = normalization_kwargs(hyperparameters)
     if normalize is not None:
         vec_env = VecNormalize(vec_env, gamma=hyperparameters.get("gamma", 0.99), **normalize)
@@ -361,6 +369,8 @@ def train(
     curve_references: dict | None = None,
     init_from_planner: int | Path | str | None = None,
     planner_workers: int = 1,
+    validation_episodes: int = 0,
+    validation_every: int | None = None,
 ) -> Path:
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
 
@@ -382,11 +392,20 @@ def train(
     them, each cloning epoch's losses, the cloned policy's
     agreement with the planner and the seconds taken.
 
+    ``validation_episodes`` > 0 keeps the policy best on that many validation episodes by the env's main metric,
+    validated every ``validation_every`` env steps (default: a twentieth of ``timesteps``), at the start and at the
+    end, in ``output_dir/best/`` (``agents.validation``; train.json's ``validation`` records when and what it
+    reached). ``model.zip`` stays the last policy.
+
     Ctrl-C ends the training early: the model trained so far is saved as above, with the curve so far and its
     train.json with ``"interrupted": true`` and the ``timesteps`` reached.
     """
     if timesteps < (0 if init_from_planner is not None else 1):
         raise ValueError(f"timesteps must be >= 1 (0 only with a planner warm start: cloning alone), got {timesteps}")
+    if validation_episodes < 0 or (validation_every is not None and validation_every < 1):
+        raise ValueError(
+            f"validation needs episodes >= 0 and every >= 1 env steps, got {validation_episodes} and {validation_every}"
+        )
     if tensorboard and importlib.util.find_spec("tensorboard") is None:  # SB3's TensorBoard writer
         raise ValueError("TensorBoard logging needs the tensorboard package: pip install tensorboard")
     output_dir = Path(output_dir)
@@ -409,6 +428,13 @@ def train(
             callbacks.append(
                 CheckpointCallback(every, str(output_dir / "checkpoints"), name_prefix="ppo", save_vecnormalize=True)
             )
+        validation = None
+        if validation_episodes:
+            copies = training_vec_env(env_id, validation_episodes, 0, env_kwargs, vectorization)[1]
+            every = validation_every or max(timesteps // 20, 1)
+            first_seed = VALIDATION_SEEDS + seed
+            validation = ValidationCallback(copies, validation_episodes, every, first_seed, output_dir, save_policy)
+            callbacks.append(validation)
         start, interrupted = time.perf_counter(), False
         try:
             if timesteps:
@@ -419,10 +445,7 @@ def train(
             interrupted = True
             progress_bar.close()
         seconds = time.perf_counter() - start
-        model_path = output_dir / MODEL_FILE
-        model.save(model_path)
-        if isinstance(model.get_env(), VecNormalize):
-            model.get_env().save(str(output_dir / NORMALIZATION_FILE))
+        model_path = save_policy(model, output_dir)
         model.get_env().close()
     title = f"{env_id}: {type(model).__name__}, seed {seed}"
     if warm_start is not None:
@@ -445,9 +468,19 @@ def train(
         "interrupted": interrupted,
         "curve": curve,
         "warm_start": warm_start,
+        "validation": validation.record() if validation is not None else None,
     }
     (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
     return model_path
+
+
+def save_policy(model, directory: Path) -> Path:
+    """``model`` as ``directory/model.zip``, with its ``VecNormalize`` statistics beside it when it has them."""
+    directory.mkdir(parents=True, exist_ok=True)
+    model.save(directory / MODEL_FILE)
+    if isinstance(model.get_env(), VecNormalize):
+        model.get_env().save(str(directory / NORMALIZATION_FILE))
+    return directory / MODEL_FILE
 
 
 def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_dir: Path, workers: int) -> dict:

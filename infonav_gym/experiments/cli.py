@@ -202,6 +202,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="processes that play the planner's episodes of --init-from-planner (default: 1)",
     )
     train.add_argument(
+        "--eval-episodes",
+        type=positive_int,
+        metavar="K",
+        help="sb3: keep the policy best on K validation episodes (seeds from 2000000, deterministic, the env's main "
+        "metric) in OUTPUT/best/, validated at the start, every --eval-every steps and at the end",
+    )
+    train.add_argument(
+        "--eval-every",
+        type=positive_int,
+        metavar="STEPS",
+        help="env steps between validations of --eval-episodes (default: a twentieth of --timesteps)",
+    )
+    train.add_argument(
         "--backend",
         choices=("sb3", "rllib"),
         default="sb3",
@@ -457,6 +470,10 @@ def _train(args, command: str) -> dict:
     rllib = args.backend == "rllib"
     if rllib and args.init_from_planner is not None:
         raise ValueError("--init-from-planner warm-starts SB3's MaskablePPO: use it with --backend sb3")
+    if rllib and args.eval_episodes is not None:
+        raise ValueError("--eval-episodes keeps the best SB3 policy: use it with --backend sb3")
+    if args.eval_every is not None and args.eval_episodes is None:
+        raise ValueError("--eval-every needs --eval-episodes (how many validation episodes)")
     if rllib:
         from agents.ray_support import import_ray
 
@@ -502,6 +519,8 @@ def _train(args, command: str) -> dict:
             curve_references=references,
             init_from_planner=args.init_from_planner,
             planner_workers=args.workers,
+            validation_episodes=args.eval_episodes or 0,
+            validation_every=args.eval_every,
         )
         record = json.loads((model_path.parent / "train.json").read_text())
         if record["interrupted"]:
@@ -519,6 +538,12 @@ def _train(args, command: str) -> dict:
             print(
                 f"warm start: cloned {start['rows']} planner decisions ({start['demonstrations']}), "
                 f"{start['agreement']:.0%} agreement"
+            )
+        if record.get("validation"):
+            kept = record["validation"]
+            print(
+                f"best on {kept['episodes']} validation episodes: {kept['best_metric']:.4g} after "
+                f"{kept['best_steps']} env steps; model: {kept['best']}"
             )
         print(f"learning curve: {record['curve']}")
         config_flags = "".join(f" --config {shlex.quote(f'{key}={json.dumps(value)}')}" for key, value in args.config)
