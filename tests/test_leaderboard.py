@@ -72,19 +72,21 @@ def test_rows_are_every_registered_env_and_every_committed_model_is_a_cell_of_it
     assert len(records) >= 6
     for directory, record in records.items():
         column = "rllib" if record.get("backend") == "rllib" else "ppo"
-        assert (record["env_id"], json.dumps(record["env_kwargs"], sort_keys=True), f"{column}:{directory}") in cells
+        played = directory / "best" if record.get("validation") else directory  # the policy kept on validation
+        assert (record["env_id"], json.dumps(record["env_kwargs"], sort_keys=True), f"{column}:{played}") in cells
     learned = [agent for row in rows for column, agent in row.agents.items() if column in ("ppo", "rllib")]
     assert len(learned) == len(records)
 
 
 def test_a_models_train_json_must_name_a_registered_env_and_a_second_model_of_a_column_gets_its_own_row(tmp_path):
-    for name in ("a", "b"):
+    for name, validation in (("a", None), ("b", {"best": "runs/b/best"})):  # b kept its best on validation seeds
         (tmp_path / name).mkdir()
-        (tmp_path / name / "train.json").write_text(json.dumps({"env_id": LANDMARKS, "env_kwargs": {}}))
+        record = {"env_id": LANDMARKS, "env_kwargs": {}, "validation": validation}
+        (tmp_path / name / "train.json").write_text(json.dumps(record))
     rows = leaderboard_rows([LANDMARKS], ("greedy", "ppo"), tmp_path)
     assert [(row.agents, row.models) for row in rows] == [
         ({"greedy": "greedy", "ppo": f"ppo:{tmp_path / 'a'}"}, "a"),
-        ({"greedy": "greedy", "ppo": f"ppo:{tmp_path / 'b'}"}, "b"),
+        ({"greedy": "greedy", "ppo": f"ppo:{tmp_path / 'b' / 'best'}"}, "b"),
     ]
     (tmp_path / "b" / "train.json").write_text(json.dumps({"env_id": "infonav/Nowhere-v0"}))
     with pytest.raises(ValueError, match=r"b/train.json: not the train.json of a registered env \(unknown env id"):

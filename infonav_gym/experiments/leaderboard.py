@@ -43,9 +43,10 @@ class Row:
     models: str = ""
 
 
-def committed_models(directory: Path) -> list[tuple[str, str, str, dict]]:
-    """``(column, agent name, env id, env kwargs)`` of each model under ``directory`` (a subdirectory with the
-    ``train.json`` of ``infonav train``): column ``rllib`` for ``backend: rllib``, else ``ppo``.
+def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
+    """``(column, agent name, env id, env kwargs, model directory's name)`` of each model under ``directory`` (a
+    subdirectory with the ``train.json`` of ``infonav train``): column ``rllib`` for ``backend: rllib``, else ``ppo``.
+    A run that kept its best policy on validation seeds (``train.json``'s ``validation``) plays that one.
 
     Raises:
         ValueError: naming the ``train.json`` that does not parse or names no registered env.
@@ -58,7 +59,12 @@ def committed_models(directory: Path) -> list[tuple[str, str, str, dict]]:
         except (ValueError, KeyError) as error:
             raise ValueError(f"{record_path}: not the train.json of a registered env ({error})") from None
         column = "rllib" if record.get("backend") == "rllib" else "ppo"
-        models.append((column, f"{column}:{record_path.parent}", record["env_id"], record.get("env_kwargs", {})))
+        model = record_path.parent
+        if record.get("validation"):
+            model /= Path(record["validation"]["best"]).name
+        models.append(
+            (column, f"{column}:{model}", record["env_id"], record.get("env_kwargs", {}), record_path.parent.name)
+        )
     return models
 
 
@@ -78,20 +84,20 @@ def leaderboard_rows(env_ids, columns, models_dir: Path | None) -> list[Row]:
     rows = []
     for env_id in env_ids:
         has_planner = has_planning_model(env_entry(env_id).load())
-        configs = {}  # config as sorted JSON -> (config, [{column: model agent}, ...]): a row each
-        for column, agent, model_env_id, env_kwargs in models:
+        configs = {}  # config as sorted JSON -> (config, [{column: (model agent, its name)}, ...]): a row each
+        for column, agent, model_env_id, env_kwargs, name in models:
             if model_env_id != env_id or column not in columns:
                 continue
             groups = configs.setdefault(json.dumps(env_kwargs, sort_keys=True), (env_kwargs, []))[1]
             free = next((group for group in groups if column not in group), None)
             if free is None:
                 groups.append(free := {})
-            free[column] = agent
+            free[column] = agent, name
         baselines = {name: name for name in BASELINES if name in columns and (name != "planner" or has_planner)}
         for env_kwargs, groups in configs.values() or [({}, [{}])]:
             for learned in groups:
-                agents = baselines | learned
-                names = ", ".join(Path(agent.split(":", 1)[1]).name for agent in learned.values())
+                agents = baselines | {column: agent for column, (agent, _) in learned.items()}
+                names = ", ".join(name for _, name in learned.values())
                 if agents:
                     ordered = {column: agents[column] for column in COLUMNS if column in agents}
                     rows.append(Row(env_id, env_kwargs, ordered, names if len(groups) > 1 else ""))
