@@ -392,10 +392,10 @@ def train(
     them, each cloning epoch's losses, the cloned policy's
     agreement with the planner and the seconds taken.
 
-    ``validation_episodes`` > 0 keeps the policy best on that many validation episodes by the env's main metric,
-    validated every ``validation_every`` env steps (default: a twentieth of ``timesteps``), at the start and at the
-    end, in ``output_dir/best/`` (``agents.validation``; train.json's ``validation`` records when and what it
-    reached). ``model.zip`` stays the last policy.
+    ``validation_episodes`` > 0 (with ``timesteps`` > 0) keeps the policy best on that many validation episodes by
+    the env's main metric, validated every ``validation_every`` env steps (default: a twentieth of ``timesteps``),
+    at the start and at the end, in ``output_dir/best/`` (``agents.validation``; train.json's ``validation`` records
+    when and what it reached). ``model.zip`` stays the last policy.
 
     Ctrl-C ends the training early: the model trained so far is saved as above, with the curve so far and its
     train.json with ``"interrupted": true`` and the ``timesteps`` reached.
@@ -429,7 +429,7 @@ def train(
                 CheckpointCallback(every, str(output_dir / "checkpoints"), name_prefix="ppo", save_vecnormalize=True)
             )
         validation = None
-        if validation_episodes:
+        if validation_episodes and timesteps:
             copies = training_vec_env(env_id, validation_episodes, 0, env_kwargs, vectorization)[1]
             every = validation_every or max(timesteps // 20, 1)
             first_seed = VALIDATION_SEEDS + seed
@@ -447,7 +447,9 @@ def train(
         seconds = time.perf_counter() - start
         model_path = save_policy(model, output_dir)
         model.get_env().close()
-    title = f"{env_id}: {type(model).__name__}, seed {seed}"
+        if validation is not None:
+            validation.close()
+    title = f"{env_id}: {type(model).__name__}, seed {seed}, gamma {model.gamma}"
     if warm_start is not None:
         title += f", cloned from {len(warm_start['seeds'])} planner episodes"
     curve = drawn_curve(output_dir, title, curve_references)

@@ -59,7 +59,7 @@ class ValidationCallback(BaseCallback):
     """Validates the policy every ``every`` env steps, at the start and at the end of training; keeps the best.
 
     Args:
-        vec_env: ``episodes`` copies of the training env (see ``validation_metrics``), closed at the end.
+        vec_env: ``episodes`` copies of the training env (see ``validation_metrics``); ``close()`` closes them.
         episodes: validation episodes per validation.
         every: env steps between validations (checked at the end of each rollout).
         seed: the first validation seed (``VALIDATION_SEEDS + the training seed``).
@@ -93,6 +93,9 @@ class ValidationCallback(BaseCallback):
     def _on_training_end(self) -> None:
         if self.num_timesteps != self.validated_at:
             self._validate()
+
+    def close(self) -> None:
+        """Close the validation copies (``train`` does, after training or Ctrl-C)."""
         self.vec_env.close()
 
     def _validate(self) -> None:
