@@ -193,7 +193,7 @@ def read_curve(path: Path) -> tuple[str, np.ndarray]:
     return header[2], np.array(rows, dtype=float).reshape(-1, 4)
 
 
-def _validations(path: Path) -> np.ndarray:
+def read_validations(path: Path) -> np.ndarray:
     """The rows (steps, mean metric, episodes, kept) of a ``validation.csv``; none when the run did not validate."""
     if not path.is_file():
         return np.empty((0, 4))
@@ -211,7 +211,7 @@ def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
         ImportError: without matplotlib, saying how to install the ``render`` extra.
     """
     metric_name, rows = read_curve(Path(directory) / CURVE_CSV)
-    validations = _validations(Path(directory) / VALIDATION_CSV)
+    validations = read_validations(Path(directory) / VALIDATION_CSV)
     has_metric = (rows.size > 0 and not np.isnan(rows[:, 2]).all()) or validations.size > 0
     figure = matplotlib_figure("curve.png", figsize=(7, 6 if has_metric else 3.5), layout="constrained")
     axes = figure.subplots(2 if has_metric else 1, 1, sharex=True, squeeze=False)[:, 0]

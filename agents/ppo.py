@@ -431,9 +431,9 @@ def train(
         validation = None
         if validation_episodes and timesteps:
             copies = training_vec_env(env_id, validation_episodes, 0, env_kwargs, vectorization)[1]
-            every = validation_every or max(timesteps // 20, 1)
+            period = validation_every or max(timesteps // 20, 1)
             first_seed = VALIDATION_SEEDS + seed
-            validation = ValidationCallback(copies, validation_episodes, every, first_seed, output_dir, save_policy)
+            validation = ValidationCallback(copies, validation_episodes, period, first_seed, output_dir, save_policy)
             callbacks.append(validation)
         start, interrupted = time.perf_counter(), False
         try:

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.learning_curve import VALIDATION_CSV, read_validations
 from agents.ppo import load_model, load_normalization, model_file, training_vec_env
 from agents.validation import validation_metrics
 from infonav_gym.experiments.episodes import make_team_agents, parallel_episode_infos
@@ -141,14 +142,13 @@ def validation_rows() -> list[str]:
         kept = record.get("validation")
         if record["env_id"] != ENV_ID or not kept:
             continue
-        with (record_path.parent / "validation.csv").open() as file:
-            last = file.read().strip().splitlines()[-1].split(",")
+        last_metric = read_validations(record_path.parent / VALIDATION_CSV)[-1, 1]
         gamma = record["constructor"]["gamma"]
         start = "cloned planner" if record.get("warm_start") else ""
         rows.append(
             f"| {record_path.parent.relative_to(RESULTS)} | {gamma} | {record['seed']} | {start} | "
             f"{record['timesteps'] / 1e6:.2f}M, {record['seconds'] / 60:.0f} min | {kept['best_metric']:.2f} after "
-            f"{kept['best_steps'] / 1e6:.2f}M | {float(last[1]):.2f} |"
+            f"{kept['best_steps'] / 1e6:.2f}M | {last_metric:.2f} |"
         )
     return rows
 
