@@ -23,6 +23,7 @@ import copy
 import importlib.util
 import inspect
 import json
+import math
 import pickle
 import time
 import zipfile
@@ -37,6 +38,7 @@ from sb3_contrib import MaskablePPO
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.utils import LinearSchedule
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 from tqdm.auto import tqdm
 
@@ -65,6 +67,8 @@ from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_e
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
 ACTIVATIONS = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
+SCHEDULED = ("learning_rate", "clip_range")  # may be rl-zoo's "lin_<start>": annealed linearly to 0 over training
+LINEAR = "lin_"
 MODEL_FILE = "model.zip"
 NORMALIZATION_FILE = "vecnormalize.pkl"  # VecNormalize statistics, beside MODEL_FILE, when trained with ``normalize``
 NATIVE, SYNC, SUBPROCESS = "native", "sync", "subprocess"
@@ -155,6 +159,7 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
     """Hyperparameters as PPO constructor keywords: drop the others (``not_constructor``), resolve the activation."""
     not_constructor = ("n_envs", "policy", "n_timesteps", "normalize")
     kwargs = {key: value for key, value in hyperparameters.items() if key not in not_constructor}
+    kwargs.update({key: _schedule(key, kwargs[key]) for key in SCHEDULED if isinstance(kwargs.get(key), str)})
     policy_kwargs = dict(kwargs.get("policy_kwargs") or {})
     activation = policy_kwargs.get("activation_fn")
     if isinstance(activation, str):
@@ -164,6 +169,17 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
     if policy_kwargs:
         kwargs["policy_kwargs"] = policy_kwargs
     return kwargs
+
+
+def _schedule(key: str, value: str) -> LinearSchedule:
+    """rl-zoo's ``lin_<start>`` (e.g. ``lin_3e-4``): from ``start`` at the first update to 0 at the end of training."""
+    try:
+        start = float(value.removeprefix(LINEAR)) if value.startswith(LINEAR) else math.nan
+    except ValueError:
+        start = math.nan
+    if not (math.isfinite(start) and start > 0):
+        raise ValueError(f"hyperparameter {key} must be a number or {LINEAR}<start> with a start > 0, got {value!r}")
+    return LinearSchedule(start, 0.0, 1.0)
 
 
 def _constructor_arguments(hyperparameters: dict, seed: int, tensorboard_log: str | None) -> tuple[str, dict]:

@@ -12,7 +12,7 @@ import pytest
 
 pytest.importorskip("sb3_contrib")
 
-from agents.ppo import load_hyperparameters  # noqa: E402
+from agents.ppo import load_hyperparameters, load_model  # noqa: E402
 from infonav_gym.experiments.cli import main  # noqa: E402
 
 # PPO training: slow; `pytest -m "not slow"` leaves it out while developing
@@ -78,6 +78,17 @@ def test_hyperparams_file_overrides_the_tuned_blocks(tmp_path):
     assert record["constructor"]["ent_coef"] == 0.0 and record["timesteps"] == 32
 
 
+def test_lin_anneals_the_learning_rate_and_clip_range_to_zero_over_training(tmp_path):
+    file = tmp_path / "annealed.yml"
+    file.write_text(SMALL + "  learning_rate: lin_1e-3\n  clip_range: lin_0.2\n")
+    train_json(tmp_path, "--hyperparams", str(file))
+    model = load_model(tmp_path / "model")
+    assert model.learning_rate(1.0) == 1e-3 and model.learning_rate(0.25) == pytest.approx(2.5e-4)
+    assert model.clip_range(0.5) == pytest.approx(0.1) and model.clip_range(0.0) == 0.0
+    # the saved optimizer holds the rate of the one update, after the 32 steps of 32: progress_remaining 0
+    assert model.policy.optimizer.param_groups[0]["lr"] == 0.0
+
+
 @pytest.mark.parametrize(
     ("content", "message"),
     [
@@ -88,6 +99,9 @@ def test_hyperparams_file_overrides_the_tuned_blocks(tmp_path):
         ("default: 3\n", "block 'default' of hyperparameter file {file} must be a mapping"),
         ("default: {gama: 0.9}\n", "unknown PPO hyperparameter(s) ['gama']: MaskablePPO takes policy, learning_rate"),
         ("default: {seed: 3}\n", "hyperparameter(s) ['seed'] are set by train's arguments"),
+        ("default: {learning_rate: lin_x}\n", "hyperparameter learning_rate must be a number or lin_<start>"),
+        ("default: {clip_range: exp_0.2}\n", "hyperparameter clip_range must be a number or lin_<start>"),
+        ("default: {learning_rate: lin_-1}\n", "with a start > 0, got 'lin_-1'"),
     ],
 )
 def test_a_bad_hyperparams_file_is_one_line_exit_2(capsys, tmp_path, content, message):
