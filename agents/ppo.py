@@ -466,6 +466,8 @@ def train(
         if validation is not None:
             validation.close()
     title = f"{env_id}: {type(model).__name__}, seed {seed}, gamma {model.gamma}"
+    if isinstance(hyperparameters.get("learning_rate"), str):
+        title += f", learning rate {hyperparameters['learning_rate']}"
     if warm_start is not None:
         title += f", cloned from {len(warm_start['seeds'])} planner episodes"
     curve = drawn_curve(output_dir, title, curve_references)

@@ -8,7 +8,7 @@ robot and step, over the first ``--steps`` steps of seeds 0 and 1), tabulates th
 its best policy (``results/models/*`` and ``results/exploration_runs/*``, the runs whose models are not committed)
 and writes ``results/cooperative_exploration_ablation.md``.
 
-    python scripts/exploration_ablation.py   # about three minutes on 2 cores
+    python scripts/exploration_ablation.py   # about ten minutes on 2 cores
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from infonav_gym.registry import make_env
 ENV_ID = "cooperative_exploration_v0"
 RESULTS = Path("results")
 RUNS = (RESULTS / "models", RESULTS / "exploration_runs")  # runs with a train.json; exploration_runs: no model
-FRESH_SEEDS, FRESH_EPISODES = 3_000_000, 200
+FRESH_SEEDS, FRESH_EPISODES = 3_000_000, 1000
 ATTEMPTS = (  # (what was tried, the evaluation file, the agent in it)
     ("greedy (immediate gains)", "cooperative_exploration.json", "greedy"),
     ("planner (20-step look-ahead search)", "cooperative_exploration.json", "planner"),
@@ -58,6 +58,11 @@ ATTEMPTS = (  # (what was tried, the evaluation file, the agent in it)
             f"ppo:results/models/cooperative_exploration_ppo_gamma{tag}/best",
         )
         for gamma, tag in (("0.9", "090"), ("0.8", "080"))
+    ),
+    (
+        "PPO, `observe_gains=True`, gamma 0.8, learning rate annealed to 0 (`lin_3e-4`), the best of its validations",
+        "cooperative_exploration_best.json",
+        "ppo:results/models/cooperative_exploration_ppo_gamma080_lin/best",
     ),
 )
 METRICS = ("success_rate", "failure_rate", "final_coverage", "episode_steps")
@@ -144,11 +149,14 @@ def validation_rows() -> list[str]:
             continue
         last_metric = read_validations(record_path.parent / VALIDATION_CSV)[-1, 1]
         gamma = record["constructor"]["gamma"]
+        rate = record["hyperparameters"].get("learning_rate", record["constructor"]["learning_rate"])
         start = "cloned planner" if record.get("warm_start") else ""
         rows.append(
-            f"| {record_path.parent.relative_to(RESULTS)} | {gamma} | {record['seed']} | {start} | "
-            f"{record['timesteps'] / 1e6:.2f}M, {record['seconds'] / 60:.0f} min | {kept['best_metric']:.2f} after "
-            f"{kept['best_steps'] / 1e6:.2f}M | {last_metric:.2f} |"
+            f"| {record_path.parent.relative_to(RESULTS)} | {gamma} | {rate} | "
+            f"{record['seed']} | {start} | "
+            f"{record['timesteps'] / 1e6:.2f}M, {record['seconds'] / 60:.0f} min | {kept['episodes']} | "
+            f"{kept['best_metric']:.3f} after "
+            f"{kept['best_steps'] / 1e6:.2f}M | {last_metric:.3f} |"
         )
     return rows
 
@@ -170,8 +178,9 @@ def main(argv=None) -> None:
         ms = decision_ms(agent_name, results["env_kwargs"], args.steps)
         lines.append(f"| {attempt} | " + " | ".join(cells) + f" | {training(agent_name)} | {fresh} | {ms:.3g} |")
     runs = [
-        "| run | gamma | seed | warm start | trained | best validation success | last validation success |",
-        "|" + " --- |" * 7,
+        "| run | gamma | learning rate | seed | warm start | trained | validation seeds | best validation success | "
+        "last validation success |",
+        "|" + " --- |" * 9,
         *validation_rows(),
     ]
     text = "\n".join(lines)
@@ -181,8 +190,8 @@ def main(argv=None) -> None:
         f"further seeds: {FRESH_SEEDS}..{FRESH_SEEDS + FRESH_EPISODES - 1}, played here with the deterministic policy; "
         f"decision times measured on this machine over the first {args.steps} steps of seeds 0 and 1.\n\n"
         "## Keeping the best policy on validation seeds\n\n"
-        "Runs of `infonav train --eval-episodes 100` (`observe_gains=True`): the deterministic policy's success on "
-        "100 validation seeds (from 2,000,000 + the seed), validated every 32,768 or 65,536 robot steps; the best "
+        "Runs of `infonav train --eval-episodes K` (`observe_gains=True`): the deterministic policy's success on "
+        "K validation seeds (from 2,000,000 + the seed), validated every 32,768 to 196,608 robot steps; the best "
         "is kept in the run's `best/`. Runs under `exploration_runs/` keep their records, not their models.\n\n"
         + "\n".join(runs)
         + "\n\nRegenerate with:\n\n    python scripts/exploration_ablation.py\n"
