@@ -159,7 +159,7 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
     """Hyperparameters as PPO constructor keywords: drop the others (``not_constructor``), resolve the activation."""
     not_constructor = ("n_envs", "policy", "n_timesteps", "normalize")
     kwargs = {key: value for key, value in hyperparameters.items() if key not in not_constructor}
-    kwargs.update({key: _schedule(key, kwargs[key]) for key in SCHEDULED if isinstance(kwargs.get(key), str)})
+    kwargs.update({key: _schedule(key, value) for key, value in scheduled(hyperparameters).items()})
     policy_kwargs = dict(kwargs.get("policy_kwargs") or {})
     activation = policy_kwargs.get("activation_fn")
     if isinstance(activation, str):
@@ -169,6 +169,11 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
     if policy_kwargs:
         kwargs["policy_kwargs"] = policy_kwargs
     return kwargs
+
+
+def scheduled(hyperparameters: dict) -> dict:
+    """The hyperparameters given as a schedule (``lin_<start>``), not a number: ``{key: value}`` of ``SCHEDULED``."""
+    return {key: hyperparameters[key] for key in SCHEDULED if isinstance(hyperparameters.get(key), str)}
 
 
 def _schedule(key: str, value: str) -> LinearSchedule:
@@ -466,8 +471,7 @@ def train(
         if validation is not None:
             validation.close()
     title = f"{env_id}: {type(model).__name__}, seed {seed}, gamma {model.gamma}"
-    if isinstance(hyperparameters.get("learning_rate"), str):
-        title += f", learning rate {hyperparameters['learning_rate']}"
+    title += "".join(f", {key.replace('_', ' ')} {value}" for key, value in scheduled(hyperparameters).items())
     if warm_start is not None:
         title += f", cloned from {len(warm_start['seeds'])} planner episodes"
     curve = drawn_curve(output_dir, title, curve_references)

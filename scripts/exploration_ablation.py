@@ -26,7 +26,7 @@ from agents.learning_curve import VALIDATION_CSV, read_validations
 from agents.ppo import load_model, load_normalization, model_file, training_vec_env
 from agents.validation import validation_metrics
 from infonav_gym.experiments.episodes import make_team_agents, parallel_episode_infos
-from infonav_gym.experiments.intervals import interval_cell, wilson_interval
+from infonav_gym.experiments.intervals import ProportionSummary, interval_cell
 from infonav_gym.registry import make_env
 
 ENV_ID = "cooperative_exploration_v0"
@@ -128,22 +128,26 @@ def training(agent_name: str) -> str:
 
 def fresh_success(agent_name: str, env_kwargs: dict) -> str:
     """A PPO model's success rate [Wilson 95%] over ``FRESH_EPISODES`` seeds from ``FRESH_SEEDS``, deterministic as
-    ``infonav evaluate`` plays it; a baseline's from the committed ``FURTHER_EVALUATION`` (seeds from ``FRESH_SEEDS``),
-    empty when it is not there."""
+    ``infonav evaluate`` plays it; a baseline's from ``committed_further_success``."""
     if not agent_name.startswith("ppo:"):
-        further = json.loads((RESULTS / FURTHER_EVALUATION).read_text())
-        if agent_name not in further["agents"] or further["seeds"][0] != FRESH_SEEDS:
-            return ""
-        success = interval_cell(further["agents"][agent_name]["summary"]["success_rate"])
-        return f"{success} (the first {further['episodes']}: `{FURTHER_EVALUATION.removesuffix('.json')}.md`)"
+        return committed_further_success(agent_name)
     path = Path(agent_name[4:])
     copies = training_vec_env(ENV_ID, FRESH_EPISODES, 0, env_kwargs)[1]
     successes = validation_metrics(
         load_model(path), copies, FRESH_EPISODES, FRESH_SEEDS, load_normalization(model_file(path))
     )
     copies.close()
-    low, high = wilson_interval(int(successes.sum()), FRESH_EPISODES)
-    return f"{successes.mean():.3f} [{low:.3f}, {high:.3f}]"
+    return interval_cell(ProportionSummary.of(successes).as_dict())
+
+
+def committed_further_success(agent_name: str) -> str:
+    """An agent's success rate in the committed ``FURTHER_EVALUATION`` (seeds from ``FRESH_SEEDS``) and how many of
+    those seeds it played; empty when it is not there."""
+    further = json.loads((RESULTS / FURTHER_EVALUATION).read_text())
+    if agent_name not in further["agents"] or further["seeds"][0] != FRESH_SEEDS:
+        return ""
+    success = interval_cell(further["agents"][agent_name]["summary"]["success_rate"])
+    return f"{success} (the first {further['episodes']}: `{FURTHER_EVALUATION.removesuffix('.json')}.md`)"
 
 
 def validation_rows() -> list[str]:

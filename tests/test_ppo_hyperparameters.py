@@ -86,7 +86,9 @@ def test_lin_anneals_the_learning_rate_and_clip_range_to_zero_over_training(tmp_
     file = tmp_path / "annealed.yml"
     file.write_text(SMALL + "  learning_rate: lin_1e-3\n  clip_range: lin_0.2\n")
     train_json(tmp_path, "--hyperparams", str(file))
-    assert titles[0].endswith(", gamma 0.5, learning rate lin_1e-3"), "the curve's title names the schedule"
+    assert titles[0].endswith(", gamma 0.5, learning rate lin_1e-3, clip range lin_0.2"), (
+        "the title names each schedule"
+    )
     model = load_model(tmp_path / "model")
     assert model.learning_rate(1.0) == 1e-3 and model.learning_rate(0.25) == pytest.approx(2.5e-4)
     assert model.clip_range(0.5) == pytest.approx(0.1) and model.clip_range(0.0) == 0.0
