@@ -119,7 +119,7 @@ def test_train_init_from_planner_records_the_warm_start_and_saves_the_demonstrat
 @pytest.mark.parametrize(
     "extra, message",
     [
-        (["--init-from-planner", "0"], "must be an integer >= 1, got '0'"),
+        (["--init-from-planner", "0"], "must be an integer from 1 to 100000, got '0'"),
         (["--init-from-planner", "no/such.npz"], "must be a number of episodes >= 1 or an existing file"),
         (["--init-from-planner", "2", "--backend", "rllib"], "use it with --backend sb3"),
         (["--timesteps", "0"], "timesteps must be >= 1 (0 only with a planner warm start"),

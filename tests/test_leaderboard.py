@@ -173,7 +173,7 @@ def test_ray_tasks_give_one_processs_numbers():
     "argv, message",
     [
         (["--agents", "random,oracle"], "error: unknown agent 'oracle' in --agents; choose from random, greedy"),
-        (["--episodes", "0"], "--episodes: must be an integer >= 1, got '0'"),
+        (["--episodes", "0"], "--episodes: must be an integer from 1 to 1000000, got '0'"),
         (["--envs", "infonav/Nowhere-v0"], "error: unknown env id 'infonav/Nowhere-v0'"),
         (["--models", "no/such/dir"], "error: --models no/such/dir: not a directory"),
         (["--output", "."], "error: --output . is a directory: give a file stem"),

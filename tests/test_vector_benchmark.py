@@ -194,7 +194,7 @@ def test_benchmark_plot_option_writes_the_plot_of_the_figures(tmp_path, capsys, 
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("0,16", r"--vector-sizes: each number of sub-envs must be an integer >= 1, got 0 in \(0, 16\)"),
+        ("0,16", r"--vector-sizes: each number of sub-envs must be an integer from 1 to 65536, got 0 in \(0, 16\)"),
         ("1,x", r"--vector-sizes: expected comma-separated integers >= 1 such as '1,16,256', got 'x' in '1,x'"),
         ("", r"got '' in ''"),
         ("16,-4", r"got -4 in \(16, -4\)"),

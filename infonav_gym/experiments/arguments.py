@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 SEED_LIMIT = 2**32  # seeds below it suit gymnasium, numpy's legacy seeding and Stable-Baselines3 alike
+MAX_PLANNER_EPISODES = 100_000  # train --init-from-planner EPISODES
 
 
 def _checked(text: str, convert, requirement: str, accepts):
@@ -21,14 +22,9 @@ def _checked(text: str, convert, requirement: str, accepts):
     return value
 
 
-def positive_int(text: str) -> int:
-    """An integer >= 1 (a count: episodes, steps, workers, ...)."""
-    return _checked(text, int, "an integer >= 1", lambda value: value >= 1)
-
-
-def non_negative_int(text: str) -> int:
-    """An integer >= 0 (a count that may be none)."""
-    return _checked(text, int, "an integer >= 0", lambda value: value >= 0)
+def integer(low: int, high: int):
+    """A type function for an integer from ``low`` to ``high`` (a count: episodes, steps, workers, ...)."""
+    return lambda text: _checked(text, int, f"an integer from {low} to {high}", lambda value: low <= value <= high)
 
 
 def seed(text: str) -> int:
@@ -37,14 +33,15 @@ def seed(text: str) -> int:
     return _checked(text, int, requirement, lambda value: 0 <= value < SEED_LIMIT)
 
 
-def positive_float(text: str) -> float:
-    """A finite number > 0 (a duration)."""
-    return _checked(text, float, "a finite number > 0", lambda value: 0 < value < math.inf)
-
-
-def non_negative_float(text: str) -> float:
-    """A finite number >= 0 (a start time)."""
-    return _checked(text, float, "a finite number >= 0", lambda value: 0 <= value < math.inf)
+def number(low: float, high: float, *, low_open: bool = True):
+    """A type function for a finite number in ``(low, high]`` (``[low, high]`` unless ``low_open``)."""
+    bracket = "(" if low_open else "["
+    return lambda text: _checked(
+        text,
+        float,
+        f"a number in {bracket}{low:g}, {high:g}]",
+        lambda value: (low < value if low_open else low <= value) and value <= high,
+    )
 
 
 def end_time(text: str) -> float:
@@ -55,7 +52,7 @@ def end_time(text: str) -> float:
 def episodes_or_file(text: str) -> int | Path:
     """A number of episodes (an integer >= 1), or an existing file (saved episodes, e.g. demonstrations.npz)."""
     if text.strip().isdigit():
-        return positive_int(text)
+        return integer(1, MAX_PLANNER_EPISODES)(text)
     if not Path(text).is_file():
         raise argparse.ArgumentTypeError(f"must be a number of episodes >= 1 or an existing file, got {text!r}")
     return Path(text)

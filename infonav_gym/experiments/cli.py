@@ -15,11 +15,9 @@ from infonav_gym.experiments.arguments import (
     comma_separated,
     end_time,
     episodes_or_file,
+    integer,
     names,
-    non_negative_float,
-    non_negative_int,
-    positive_float,
-    positive_int,
+    number,
     seed,
 )
 from infonav_gym.experiments.paths import (
@@ -45,6 +43,20 @@ RENDER_SUFFIXES = (".gif", ".png")  # the files of ``render --output PREFIX``
 CALIBRATION_SUFFIXES = (".json", ".png")  # the files of ``replay mrclam --calibrate OUTPUT.json``
 PYTHON_CONSTANTS = {"True": True, "False": False, "None": None}  # --config values written as in Python
 DEFAULT_VECTOR_SIZES_TEXT = ",".join(map(str, DEFAULT_VECTOR_SIZES))
+# The upper ends of the counts and sizes the options take; a run's memory is checked against the machine as well.
+MAX_EPISODES = 1_000_000  # episodes per agent
+MAX_WORKERS = 1024  # processes; also capped at the number of tasks
+MAX_DEMO_STEPS = 10_000  # demo steps per agent
+MAX_STEPS = 1_000_000  # render: steps of one episode
+MAX_TIMESTEPS = 10**10  # train: env steps
+MAX_COPIES = 65_536  # env copies of one vector env
+MAX_ROUNDS = 100  # benchmark rounds
+MAX_SECONDS = 600.0  # benchmark seconds per env per round
+MAX_SEEDS = 10_000  # reproduce / replay seeds
+MAX_BUDGET = 1_000  # replay: observations per robot per window
+MAX_WINDOW_S = 3_600.0  # replay: budget window [s]
+MAX_ROBOT = 99  # replay: a robot's subject number
+MAX_LOG_S = 1e7  # replay: a time in the log [s] (MRCLAM logs last about 1e4 s)
 
 
 def _config_pair(text: str) -> tuple[str, object]:
@@ -96,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True)
 
     demo = commands.add_parser("demo", help="the paper's Fig. 2 story: which corridor landmark brings most information")
-    demo.add_argument("--steps", type=positive_int, default=12, help="steps per agent (default: 12)")
+    demo.add_argument("--steps", type=integer(1, MAX_DEMO_STEPS), default=12, help="steps per agent (default: 12)")
     demo.add_argument("--plot", type=Path, help="also write a Fig. 2-style plot to this PNG (needs matplotlib)")
 
     evaluate = commands.add_parser("evaluate", help="evaluate baseline agents with the same seeds; print a table")
@@ -107,7 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="random,greedy",
         help="comma-separated: random, greedy, planner, ppo:PATH (a model.zip from infonav train, or its directory)",
     )
-    evaluate.add_argument("--episodes", type=positive_int, default=20, help="episodes per agent (default: 20)")
+    evaluate.add_argument("--episodes", type=integer(1, MAX_EPISODES), default=20, help="episodes per agent (default: 20)")
     evaluate.add_argument(
         "--output", type=Path, help=_stem_help(EVALUATION_SUFFIXES, "OUTPUT.md, OUTPUT.csv, OUTPUT.json and OUTPUT.png")
     )
@@ -128,7 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         help=f"the committed models, a directory per model (default: {DEFAULT_MODELS}, if present)",
     )
-    leaderboard.add_argument("--episodes", type=positive_int, default=50, help="episodes per agent (default: 50)")
+    leaderboard.add_argument("--episodes", type=integer(1, MAX_EPISODES), default=50, help="episodes per agent (default: 50)")
     leaderboard.add_argument(
         "--output",
         type=Path,
@@ -138,7 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
     for command in (evaluate, leaderboard):
         command.add_argument(
             "--workers",
-            type=positive_int,
+            type=integer(1, MAX_WORKERS),
             default=1,
             help="episodes played at once, each in its own process (default: 1)",
         )
@@ -155,8 +167,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PREFIX",
         help=_stem_help(RENDER_SUFFIXES, "PREFIX.gif and PREFIX.png"),
     )
-    render.add_argument("--every", type=positive_int, default=1, help="keep every K-th step's frame (default: 1)")
-    render.add_argument("--max-steps", type=positive_int, help="stop after N steps (default: when the episode ends)")
+    render.add_argument("--every", type=integer(1, MAX_STEPS), default=1, help="keep every K-th step's frame (default: 1)")
+    render.add_argument("--max-steps", type=integer(1, MAX_STEPS), help="stop after N steps (default: when the episode ends)")
 
     train = commands.add_parser("train", help="train PPO (MaskablePPO with action masks); save model.zip")
     train.add_argument(
@@ -164,13 +176,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument(
         "--timesteps",
-        type=non_negative_int,
+        type=integer(0, MAX_TIMESTEPS),
         required=True,
         help="env steps to train for (robot steps in a team); 0 with --init-from-planner: behaviour cloning alone",
     )
     train.add_argument(
         "--n-envs",
-        type=positive_int,
+        type=integer(1, MAX_COPIES),
         help="vectorized env copies (default: the hyperparameters' n_envs); a team copy gives each robot a slot",
     )
     train.add_argument("--output", type=Path, help="output directory (default: models/ENV-NAME_seedS)")
@@ -197,20 +209,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument(
         "--workers",
-        type=positive_int,
+        type=integer(1, MAX_WORKERS),
         default=1,
         help="processes that play the planner's episodes of --init-from-planner (default: 1)",
     )
     train.add_argument(
         "--eval-episodes",
-        type=positive_int,
+        type=integer(1, MAX_EPISODES),
         metavar="K",
         help="sb3: keep the policy best on K validation episodes (seeds from 2000000, deterministic, the env's main "
         "metric) in OUTPUT/best/, validated at the start, every --eval-every steps and at the end",
     )
     train.add_argument(
         "--eval-every",
-        type=positive_int,
+        type=integer(1, MAX_TIMESTEPS),
         metavar="STEPS",
         help="env steps between validations of --eval-episodes (default: a twentieth of --timesteps)",
     )
@@ -222,13 +234,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument(
         "--num-env-runners",
-        type=non_negative_int,
+        type=integer(0, MAX_WORKERS),
         default=1,
         help="rllib: env runner processes; 0 samples in the driver process (default: 1)",
     )
     train.add_argument(
         "--envs-per-runner",
-        type=positive_int,
+        type=integer(1, MAX_COPIES),
         help="rllib: env copies per runner (default: a team env's ppo.yml n_envs over the runners, stepped at once; "
         "1 of a single-agent env)",
     )
@@ -241,8 +253,8 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--address", help="rllib: an existing Ray cluster (default: a local Ray)")
 
     benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
-    benchmark.add_argument("--rounds", type=positive_int, default=5, help="alternating measurement rounds (default: 5)")
-    benchmark.add_argument("--seconds", type=positive_float, default=1.0, help="seconds per env per round (default: 1)")
+    benchmark.add_argument("--rounds", type=integer(1, MAX_ROUNDS), default=5, help="alternating measurement rounds (default: 5)")
+    benchmark.add_argument("--seconds", type=number(0, MAX_SECONDS), default=1.0, help="seconds per env per round (default: 1)")
     benchmark.add_argument(
         "--vector-sizes",
         type=_vector_sizes,
@@ -264,7 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULT_OUTPUT_DIR,
         help=f"where to write FIGURE.png and FIGURE.json (default: ./{DEFAULT_OUTPUT_DIR}, in the working directory)",
     )
-    reproduce.add_argument("--seeds", type=positive_int, default=20, help="seeds averaged from --seed on (default: 20)")
+    reproduce.add_argument("--seeds", type=integer(1, MAX_SEEDS), default=20, help="seeds averaged from --seed on (default: 20)")
 
     replay = commands.add_parser("replay", help="replay measurement-selection policies on logged real robot data")
     replay_sources = replay.add_subparsers(dest="source", required=True)
@@ -275,24 +287,24 @@ def build_parser() -> argparse.ArgumentParser:
     )
     mrclam.add_argument(
         "--k",
-        type=comma_separated(positive_int),
+        type=comma_separated(integer(1, MAX_BUDGET)),
         default="1",
         help="comma-separated budgets: observations per robot per window (default: 1)",
     )
     mrclam.add_argument(
         "--window-s",
-        type=comma_separated(positive_float),
+        type=comma_separated(number(0, MAX_WINDOW_S)),
         default="1",
         help="comma-separated budget windows [s] (default: 1)",
     )
-    mrclam.add_argument("--seeds", type=positive_int, default=1, help="random-policy runs per budget from --seed on")
+    mrclam.add_argument("--seeds", type=integer(1, MAX_SEEDS), default=1, help="random-policy runs per budget from --seed on")
     mrclam.add_argument("--cooperative", action="store_true", help="JointEKF with robot-to-robot observations")
     mrclam.add_argument(
-        "--outage-robot", type=positive_int, help="also run the outage experiment for this robot (subject #)"
+        "--outage-robot", type=integer(1, MAX_ROBOT), help="also run the outage experiment for this robot (subject #)"
     )
-    mrclam.add_argument("--outage-start-s", type=non_negative_float, default=0.0, help="outage start [s] (default: 0)")
+    mrclam.add_argument("--outage-start-s", type=number(0, MAX_LOG_S, low_open=False), default=0.0, help="outage start [s] (default: 0)")
     mrclam.add_argument("--outage-end-s", type=end_time, default=float("inf"), help="outage end [s] (default: the end)")
-    mrclam.add_argument("--duration-s", type=positive_float, help="replay only the first DURATION_S seconds")
+    mrclam.add_argument("--duration-s", type=number(0, MAX_LOG_S), help="replay only the first DURATION_S seconds")
     mrclam.add_argument(
         "--output",
         type=Path,

@@ -26,6 +26,7 @@ from gymnasium.envs.classic_control.cartpole import CartPoleVectorEnv
 from infonav_gym.registry import make_vector_env, registered_envs
 
 DEFAULT_VECTOR_SIZES = (1, 16, 64, 256, 1024)
+MAX_VECTOR_SIZE = 65_536  # sub-envs of one measured vector env
 MEMORY_STEPS = 1000  # vector steps inside the measured peak: episodes enough for what copies build up as they go
 MEMORY_SECONDS = 60.0  # ... or fewer: a memory run stops stepping after this (one step at least) [s]
 VMAS_AGENTS = 4
@@ -53,8 +54,10 @@ def check_vector_sizes(sizes, where: str = "vector sizes") -> tuple[int, ...]:
     if not sizes:
         raise ValueError(f"{where}: expected at least one number of sub-envs, got none")
     for size in sizes:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
-            raise ValueError(f"{where}: each number of sub-envs must be an integer >= 1, got {size!r} in {sizes}")
+        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or not 1 <= size <= MAX_VECTOR_SIZE:
+            raise ValueError(
+                f"{where}: each number of sub-envs must be an integer from 1 to {MAX_VECTOR_SIZE}, got {size!r} in {sizes}"
+            )
     return tuple(int(size) for size in sizes)
 
 
