@@ -71,11 +71,23 @@ def test_the_seed_limit_is_numpys_legacy_one_that_stable_baselines_seeds_with():
         (["evaluate", "--episodes", "-2"], "argument --episodes: must be an integer from 1 to 1000000, got '-2'"),
         (["evaluate", "--workers", "0"], "argument --workers: must be an integer from 1 to 1024, got '0'"),
         (["evaluate", "--agents", "greedy,,random"], "argument --agents: an empty name in 'greedy,,random'"),
-        (["render", "--output", "{tmp}/e", "--every", "0"], "argument --every: must be an integer from 1 to 1000000, got '0'"),
-        (["render", "--output", "{tmp}/e", "--max-steps", "-1"], "argument --max-steps: must be an integer from 1 to 1000000"),
-        (["train", "--env", LANDMARK_ID, "--timesteps", "-1"], "argument --timesteps: must be an integer from 0 to 10000000000"),
+        (
+            ["render", "--output", "{tmp}/e", "--every", "0"],
+            "argument --every: must be an integer from 1 to 1000000, got '0'",
+        ),
+        (
+            ["render", "--output", "{tmp}/e", "--max-steps", "-1"],
+            "argument --max-steps: must be an integer from 1 to 1000000",
+        ),
+        (
+            ["train", "--env", LANDMARK_ID, "--timesteps", "-1"],
+            "argument --timesteps: must be an integer from 0 to 10000000000",
+        ),
         (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--n-envs", "0"], "argument --n-envs: must be"),
-        (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--num-env-runners", "-1"], "must be an integer from 0 to 1024"),
+        (
+            ["train", "--env", LANDMARK_ID, "--timesteps", "8", "--num-env-runners", "-1"],
+            "must be an integer from 0 to 1024",
+        ),
         (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--envs-per-runner", "0"], "--envs-per-runner: must"),
         (["benchmark", "--seconds", "-1"], "argument --seconds: must be a number in (0, 600], got '-1'"),
         (["benchmark", "--seconds", "inf"], "argument --seconds: must be a number in (0, 600], got 'inf'"),

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 SEED_LIMIT = 2**32  # seeds below it suit gymnasium, numpy's legacy seeding and Stable-Baselines3 alike

@@ -119,7 +119,9 @@ def build_parser() -> argparse.ArgumentParser:
         default="random,greedy",
         help="comma-separated: random, greedy, planner, ppo:PATH (a model.zip from infonav train, or its directory)",
     )
-    evaluate.add_argument("--episodes", type=integer(1, MAX_EPISODES), default=20, help="episodes per agent (default: 20)")
+    evaluate.add_argument(
+        "--episodes", type=integer(1, MAX_EPISODES), default=20, help="episodes per agent (default: 20)"
+    )
     evaluate.add_argument(
         "--output", type=Path, help=_stem_help(EVALUATION_SUFFIXES, "OUTPUT.md, OUTPUT.csv, OUTPUT.json and OUTPUT.png")
     )
@@ -140,7 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         help=f"the committed models, a directory per model (default: {DEFAULT_MODELS}, if present)",
     )
-    leaderboard.add_argument("--episodes", type=integer(1, MAX_EPISODES), default=50, help="episodes per agent (default: 50)")
+    leaderboard.add_argument(
+        "--episodes", type=integer(1, MAX_EPISODES), default=50, help="episodes per agent (default: 50)"
+    )
     leaderboard.add_argument(
         "--output",
         type=Path,
@@ -167,8 +171,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PREFIX",
         help=_stem_help(RENDER_SUFFIXES, "PREFIX.gif and PREFIX.png"),
     )
-    render.add_argument("--every", type=integer(1, MAX_STEPS), default=1, help="keep every K-th step's frame (default: 1)")
-    render.add_argument("--max-steps", type=integer(1, MAX_STEPS), help="stop after N steps (default: when the episode ends)")
+    render.add_argument(
+        "--every", type=integer(1, MAX_STEPS), default=1, help="keep every K-th step's frame (default: 1)"
+    )
+    render.add_argument(
+        "--max-steps", type=integer(1, MAX_STEPS), help="stop after N steps (default: when the episode ends)"
+    )
 
     train = commands.add_parser("train", help="train PPO (MaskablePPO with action masks); save model.zip")
     train.add_argument(
@@ -253,8 +261,12 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--address", help="rllib: an existing Ray cluster (default: a local Ray)")
 
     benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
-    benchmark.add_argument("--rounds", type=integer(1, MAX_ROUNDS), default=5, help="alternating measurement rounds (default: 5)")
-    benchmark.add_argument("--seconds", type=number(0, MAX_SECONDS), default=1.0, help="seconds per env per round (default: 1)")
+    benchmark.add_argument(
+        "--rounds", type=integer(1, MAX_ROUNDS), default=5, help="alternating measurement rounds (default: 5)"
+    )
+    benchmark.add_argument(
+        "--seconds", type=number(0, MAX_SECONDS), default=1.0, help="seconds per env per round (default: 1)"
+    )
     benchmark.add_argument(
         "--vector-sizes",
         type=_vector_sizes,
@@ -276,7 +288,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULT_OUTPUT_DIR,
         help=f"where to write FIGURE.png and FIGURE.json (default: ./{DEFAULT_OUTPUT_DIR}, in the working directory)",
     )
-    reproduce.add_argument("--seeds", type=integer(1, MAX_SEEDS), default=20, help="seeds averaged from --seed on (default: 20)")
+    reproduce.add_argument(
+        "--seeds", type=integer(1, MAX_SEEDS), default=20, help="seeds averaged from --seed on (default: 20)"
+    )
 
     replay = commands.add_parser("replay", help="replay measurement-selection policies on logged real robot data")
     replay_sources = replay.add_subparsers(dest="source", required=True)
@@ -297,12 +311,16 @@ def build_parser() -> argparse.ArgumentParser:
         default="1",
         help="comma-separated budget windows [s] (default: 1)",
     )
-    mrclam.add_argument("--seeds", type=integer(1, MAX_SEEDS), default=1, help="random-policy runs per budget from --seed on")
+    mrclam.add_argument(
+        "--seeds", type=integer(1, MAX_SEEDS), default=1, help="random-policy runs per budget from --seed on"
+    )
     mrclam.add_argument("--cooperative", action="store_true", help="JointEKF with robot-to-robot observations")
     mrclam.add_argument(
         "--outage-robot", type=integer(1, MAX_ROBOT), help="also run the outage experiment for this robot (subject #)"
     )
-    mrclam.add_argument("--outage-start-s", type=number(0, MAX_LOG_S, low_open=False), default=0.0, help="outage start [s] (default: 0)")
+    mrclam.add_argument(
+        "--outage-start-s", type=number(0, MAX_LOG_S, low_open=False), default=0.0, help="outage start [s] (default: 0)"
+    )
     mrclam.add_argument("--outage-end-s", type=end_time, default=float("inf"), help="outage end [s] (default: the end)")
     mrclam.add_argument("--duration-s", type=number(0, MAX_LOG_S), help="replay only the first DURATION_S seconds")
     mrclam.add_argument(
