@@ -56,7 +56,8 @@ def check_vector_sizes(sizes, where: str = "vector sizes") -> tuple[int, ...]:
     for size in sizes:
         if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or not 1 <= size <= MAX_VECTOR_SIZE:
             raise ValueError(
-                f"{where}: each number of sub-envs must be an integer from 1 to {MAX_VECTOR_SIZE}, got {size!r} in {sizes}"
+                f"{where}: each number of sub-envs must be an integer from 1 to {MAX_VECTOR_SIZE}, "
+                f"got {size!r} in {sizes}"
             )
     return tuple(int(size) for size in sizes)
 
