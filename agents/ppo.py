@@ -362,14 +362,14 @@ def training_block(env_id: str, hyperparameters: dict | None, n_envs: int | None
 
 def rollout_steps(env_id: str, hyperparameters: dict, env_kwargs: dict | None) -> tuple[int, str]:
     """The env steps of one PPO rollout, ``n_steps`` per copy of each of ``n_envs`` copies (and of each robot in a team
-    env: a slot per robot), and that product in words."""
+    env: a slot per robot), and that product in words; builds one env, which checks the id and the config."""
     n_steps, n_envs, robots = hyperparameters.get("n_steps", DEFAULT_N_STEPS), hyperparameters["n_envs"], 1
     factors = f"n_steps {n_steps} x n_envs {n_envs}"
+    env = make_env(env_id, **(env_kwargs or {}))  # an unknown id or config key: its one-line error, before any work
     if api_of(env_id) == PARALLEL:
-        team = make_env(env_id, **(env_kwargs or {}))
-        robots = len(team.possible_agents)
-        team.close()
+        robots = len(env.possible_agents)
         factors += f" x {robots} robots"
+    env.close()
     return n_steps * n_envs * robots, factors
 
 

@@ -96,12 +96,12 @@ def test_train_refuses_an_http_proxy_as_a_ray_cluster_in_one_line(capsys):
 
 @pytest.fixture
 def no_work(monkeypatch):
-    """Building an env or a model, or starting Ray, fails the test: the input must be refused before."""
+    """Building the training envs or a model, or starting Ray, fails the test: the input must be refused before."""
 
     def fail(*args, **kwargs):
         raise AssertionError("work started before the input was checked")
 
-    for name in ("training_vec_env", "build_model", "make_env"):
+    for name in ("training_vec_env", "build_model"):
         monkeypatch.setattr(agents.ppo, name, fail)
     ray = pytest.importorskip("ray")
     monkeypatch.setattr(ray, "init", fail)
