@@ -24,6 +24,7 @@ from agents.planner import PlannerAgent, planner_settings
 from infonav_gym.registry import PARALLEL, api_of, make_env
 
 DEMONSTRATIONS_FILE = "demonstrations.npz"  # what ``train`` saves beside the model, to clone from again
+ZIP_MAGIC = b"PK\x03\x04"  # how an .npz file starts
 DEMONSTRATION_SEEDS = 1_000_000  # ``train`` plays the planner from this seed on: not the fields evaluations play
 
 
@@ -54,16 +55,32 @@ class Demonstrations(NamedTuple):
 
     @classmethod
     def load(cls, path: Path | str) -> Demonstrations:
-        """Demonstrations saved by ``save``.
+        """Demonstrations saved by ``save`` (``train --init-from-planner``'s file).
 
         Raises:
-            ValueError: naming the file when it is missing, not an npz file, or lacks one of the fields.
+            ValueError: one line naming the option, the file and what it should be, for a file that is not
+                such an npz (missing, text, empty, truncated, an .npy, other arrays, rows that do not match).
         """
+        zipped = None
         try:
-            with np.load(path) as arrays:
-                return cls(*(arrays[field] for field in cls._fields))
-        except (OSError, ValueError, KeyError) as error:
-            raise ValueError(f"cannot read planner demonstrations {str(path)!r}: {error}") from None
+            with Path(path).open("rb") as file:
+                zipped = file.read(len(ZIP_MAGIC)) == ZIP_MAGIC
+            with np.load(path, allow_pickle=False) as arrays:
+                missing = [field for field in cls._fields if field not in arrays.files]
+                demonstrations = None if missing else cls(*(arrays[field] for field in cls._fields))
+            problem = f"it has no arrays {', '.join(missing)}" if missing else ""
+            if demonstrations is not None and len({len(rows) for rows in demonstrations[:4]}) > 1:
+                problem = "its arrays have unequal rows"
+        except Exception as error:  # numpy, zipfile and OS errors all mean "not such a file"
+            damaged = getattr(error, "strerror", None) or "a damaged .npz"  # strerror: the OS's reason
+            problem = "it is not an .npz (zip) file" if zipped is False else damaged
+        if problem:
+            raise ValueError(
+                f"--init-from-planner {str(path)!r} is not planner demonstrations ({problem}): expected the "
+                f"{DEMONSTRATIONS_FILE} a run with --init-from-planner EPISODES saved, an .npz with arrays "
+                f"{', '.join(cls._fields)}"
+            )
+        return demonstrations
 
 
 def discounted_returns(rewards: np.ndarray, gamma: float) -> np.ndarray:

@@ -209,9 +209,12 @@ def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
 
     Raises:
         ImportError: without matplotlib, saying how to install the ``render`` extra.
+        ValueError: when there is no point to draw (no episode ended, no validation): never empty axes.
     """
     metric_name, rows = read_curve(Path(directory) / CURVE_CSV)
     validations = read_validations(Path(directory) / VALIDATION_CSV)
+    if not rows.size and not validations.size:
+        raise ValueError(f"no episode ended in training, so no {CURVE_PNG}: nothing to draw")
     has_metric = (rows.size > 0 and not np.isnan(rows[:, 2]).all()) or validations.size > 0
     figure = matplotlib_figure("curve.png", figsize=(7, 6 if has_metric else 3.5), layout="constrained")
     axes = figure.subplots(2 if has_metric else 1, 1, sharex=True, squeeze=False)[:, 0]
@@ -231,10 +234,8 @@ def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
             axes[1].plot([], [], " ", label="greedy / planner: unknown (not in the leaderboard)")
         axes[1].set_ylabel(metric_name)
         axes[1].legend(fontsize="small")
-    elif rows.size:
-        title += f"\n({metric_name} not recorded in training: return only)"
     else:
-        title += "\n(no episode ended)"
+        title += f"\n({metric_name} not recorded in training: return only)"
     axes[-1].set_xlabel("environment steps")
     lines = [line for part in title.split("\n") for line in textwrap.wrap(part, 70)]  # long titles: several lines
     figure.suptitle("\n".join(lines), fontsize="medium")
@@ -242,8 +243,9 @@ def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
 
 
 def drawn_curve(directory: Path, title: str, references: dict | None) -> str:
-    """``draw_curve``'s path, or, without matplotlib, one line saying the PNG needs the ``render`` extra."""
+    """``draw_curve``'s path, or one line saying why there is no PNG: no point to draw, or no matplotlib (the
+    ``render`` extra)."""
     try:
         return str(draw_curve(directory, title, references))
-    except ImportError as error:
+    except (ImportError, ValueError) as error:
         return f"{CURVE_CSV} written; {error}"

@@ -19,12 +19,14 @@ and ``PPOAgent`` applies. Needs the ``rl`` extra (stable-baselines3, sb3-contrib
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import importlib.util
 import inspect
 import json
-import math
 import pickle
+import shutil
+import sys
 import time
 import zipfile
 from importlib import resources
@@ -38,12 +40,14 @@ from sb3_contrib import MaskablePPO
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.utils import LinearSchedule
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 from tqdm.auto import tqdm
 
 import infonav_gym  # noqa: F401  (registers the envs, also in SubprocVecEnv workers that unpickle this module)
 from agents.base import TORCH_THREADS, checked_action_count, torch_threads, usable_mask
+from agents.hyperparameters import ACTIVATIONS, LINEAR, checked_block
 from agents.imitation import (
     DEMONSTRATION_SEEDS,
     DEMONSTRATIONS_FILE,
@@ -66,9 +70,8 @@ from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, resolve_env_id
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
-ACTIVATIONS = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}
 SCHEDULED = ("learning_rate", "clip_range")  # may be rl-zoo's "lin_<start>": annealed linearly to 0 over training
-LINEAR = "lin_"
+DEFAULT_N_ENVS, DEFAULT_N_STEPS = 8, 2048  # without them in the block: ours, SB3's
 MODEL_FILE = "model.zip"
 NORMALIZATION_FILE = "vecnormalize.pkl"  # VecNormalize statistics, beside MODEL_FILE, when trained with ``normalize``
 NATIVE, SYNC, SUBPROCESS = "native", "sync", "subprocess"
@@ -127,7 +130,8 @@ def load_hyperparameters(env_id: str, path: Path | str | None = None) -> dict:
 
     Raises:
         ValueError: naming the file when it is missing, not YAML, not a mapping of blocks, or has
-            neither a block for ``env_id`` nor a ``default`` one, or that block is not a mapping.
+            neither a block for ``env_id`` nor a ``default`` one, or that block is not a mapping; naming the file,
+            the block and the key for a key outside ``agents.hyperparameters.HYPERPARAMETERS`` or out of its range.
     """
     import yaml
 
@@ -152,7 +156,7 @@ def load_hyperparameters(env_id: str, path: Path | str | None = None) -> dict:
         raise ValueError(f"hyperparameter file {source} has no block for {env_id!r} and no 'default' block")
     if not isinstance(blocks[key], dict):
         raise ValueError(f"block {key!r} of hyperparameter file {source} must be a mapping, got {blocks[key]!r}")
-    return copy.deepcopy(blocks[key])
+    return checked_block(copy.deepcopy(blocks[key]), f"block {key!r} of hyperparameter file {source}")
 
 
 def _constructor_kwargs(hyperparameters: dict) -> dict:
@@ -161,11 +165,8 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
     kwargs = {key: value for key, value in hyperparameters.items() if key not in not_constructor}
     kwargs.update({key: _schedule(key, value) for key, value in scheduled(hyperparameters).items()})
     policy_kwargs = dict(kwargs.get("policy_kwargs") or {})
-    activation = policy_kwargs.get("activation_fn")
-    if isinstance(activation, str):
-        if activation not in ACTIVATIONS:
-            raise ValueError(f"policy_kwargs.activation_fn must be one of {', '.join(ACTIVATIONS)}, got {activation!r}")
-        policy_kwargs["activation_fn"] = ACTIVATIONS[activation]
+    if "activation_fn" in policy_kwargs:
+        policy_kwargs["activation_fn"] = getattr(torch.nn, ACTIVATIONS[policy_kwargs["activation_fn"]])
     if policy_kwargs:
         kwargs["policy_kwargs"] = policy_kwargs
     return kwargs
@@ -178,23 +179,13 @@ def scheduled(hyperparameters: dict) -> dict:
 
 def _schedule(key: str, value: str) -> LinearSchedule:
     """rl-zoo's ``lin_<start>`` (e.g. ``lin_3e-4``): from ``start`` at the first update to 0 at the end of training."""
-    try:
-        start = float(value.removeprefix(LINEAR)) if value.startswith(LINEAR) else math.nan
-    except ValueError:
-        start = math.nan
-    if not (math.isfinite(start) and start > 0):
-        raise ValueError(f"hyperparameter {key} must be a number or {LINEAR}<start> with a start > 0, got {value!r}")
-    return LinearSchedule(start, 0.0, 1.0)
+    return LinearSchedule(float(value.removeprefix(LINEAR)), 0.0, 1.0)
 
 
 def _constructor_arguments(hyperparameters: dict, seed: int, tensorboard_log: str | None) -> tuple[str, dict]:
     """The policy and the keywords ``build_model`` hands the PPO / MaskablePPO constructor."""
     fixed = {"seed": seed, "device": "cpu", "verbose": 0, "tensorboard_log": tensorboard_log}
-    kwargs = _constructor_kwargs(hyperparameters)
-    clash = sorted(set(fixed) & set(kwargs))
-    if clash:
-        raise ValueError(f"hyperparameter(s) {clash} are set by train's arguments (seed, tensorboard), not by a file")
-    return hyperparameters.get("policy", "MlpPolicy"), {**fixed, **kwargs}
+    return hyperparameters.get("policy", "MlpPolicy"), {**fixed, **_constructor_kwargs(hyperparameters)}
 
 
 def _json_name(value) -> str:
@@ -249,16 +240,9 @@ class TqdmCallback(BaseCallback):
 
 def normalization_kwargs(hyperparameters: dict) -> dict | None:
     """``VecNormalize`` keywords from ``normalize`` (rl-zoo style: true, false, or a dict such as
-    ``{norm_obs: true, norm_reward: false}``); ``None`` when off."""
+    ``{norm_obs: true, norm_reward: false}``, checked by ``agents.hyperparameters``); ``None`` when off."""
     normalize = hyperparameters.get("normalize", False)
-    if normalize is True:
-        return {}
-    if normalize is False or normalize is None:
-        return None
-    allowed = {"norm_obs", "norm_reward", "clip_obs", "clip_reward", "epsilon"}
-    if not isinstance(normalize, dict) or set(normalize) - allowed:
-        raise ValueError(f"normalize must be true, false or a dict with keys from {sorted(allowed)}, got {normalize!r}")
-    return dict(normalize)
+    return dict(normalize) if isinstance(normalize, dict) else ({} if normalize is True else None)
 
 
 def vectorizations(env_id: str) -> tuple[str, ...]:
@@ -356,23 +340,82 @@ def build_model(
         vectorization: ``native``, ``sync`` or ``subprocess`` (see the module); ``None``: the env's
             default (``checked_vectorization``).
     """
-    if hyperparameters is None:
-        hyperparameters = load_hyperparameters(env_id)
-    n_envs = int(hyperparameters.get("n_envs", 8) if n_envs is None else n_envs)
-    if n_envs < 1:
-        raise ValueError(f"n_envs must be >= 1, got {n_envs}")
-    masked, vec_env = training_vec_env(env_id, n_envs, seed, env_kwargs, vectorization)
+    hyperparameters = training_block(env_id, hyperparameters, n_envs)
+    masked, vec_env = training_vec_env(env_id, hyperparameters["n_envs"], seed, env_kwargs, vectorization)
     normalize = normalization_kwargs(hyperparameters)
     if normalize is not None:
         vec_env = VecNormalize(vec_env, gamma=hyperparameters.get("gamma", 0.99), **normalize)
-    algorithm = MaskablePPO if masked else PPO
     policy, kwargs = _constructor_arguments(hyperparameters, seed, tensorboard_log)
+    model = (MaskablePPO if masked else PPO)(policy, vec_env, **kwargs)
+    if tensorboard_log is None:  # SB3's default logger would make an empty SB3-<time> folder in the temp folder
+        model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
+
+
+def training_block(env_id: str, hyperparameters: dict | None, n_envs: int | None) -> dict:
+    """The hyperparameters training uses, checked: ``hyperparameters`` (``None``: the env's block of ppo.yml) with
+    ``n_envs`` when given, else the block's (``DEFAULT_N_ENVS`` without one)."""
+    block = load_hyperparameters(env_id) if hyperparameters is None else hyperparameters
+    block = {**block, "n_envs": block.get("n_envs", DEFAULT_N_ENVS) if n_envs is None else n_envs}
+    return checked_block(block, "the hyperparameters" + (", n_envs as given (--n-envs)" if n_envs is not None else ""))
+
+
+def rollout_steps(env_id: str, hyperparameters: dict, env_kwargs: dict | None) -> tuple[int, str]:
+    """The env steps of one PPO rollout, ``n_steps`` per copy of each of ``n_envs`` copies (and of each robot in a team
+    env: a slot per robot), and that product in words; builds one env, which checks the id and the config."""
+    n_steps, n_envs, robots = hyperparameters.get("n_steps", DEFAULT_N_STEPS), hyperparameters["n_envs"], 1
+    factors = f"n_steps {n_steps} x n_envs {n_envs}"
+    env = make_env(env_id, **(env_kwargs or {}))  # an unknown id or config key: its one-line error, before any work
+    if api_of(env_id) == PARALLEL:
+        robots = len(env.possible_agents)
+        factors += f" x {robots} robots"
+    env.close()
+    return n_steps * n_envs * robots, factors
+
+
+def planned_steps(timesteps: int, rollout: int, factors: str, hyperparameters: dict) -> int:
+    """The env steps PPO will train for ``timesteps``: whole rollouts (said on stderr when more).
+
+    Raises:
+        ValueError: for fewer steps than one rollout (but 0: cloning alone), or a ``batch_size`` whose last
+            minibatch holds a single step (MaskablePPO's advantage normalization would make it NaN).
+    """
+    if 0 < timesteps < rollout:
+        raise ValueError(
+            f"--timesteps {timesteps} is less than one rollout of {rollout} env steps ({factors}): PPO learns from "
+            f"whole rollouts; ask for {rollout} or more, or lower n_steps or --n-envs"
+        )
+    batch_size = hyperparameters.get("batch_size", 64)
+    if hyperparameters.get("normalize_advantage", True) and rollout % batch_size == 1:
+        raise ValueError(
+            f"hyperparameter batch_size {batch_size} leaves a minibatch of 1 step in each rollout of {rollout} env "
+            f"steps ({factors}): its advantage cannot be normalized; choose a batch_size that divides {rollout}"
+        )
+    planned = -(-timesteps // rollout) * rollout
+    if planned != timesteps:
+        print(
+            f"note: --timesteps {timesteps} is not a whole number of rollouts of {rollout} env steps ({factors}): "
+            f"PPO will train {planned}",
+            file=sys.stderr,
+        )
+    return planned
+
+
+@contextlib.contextmanager
+def removed_on_error(directory: Path):
+    """Removes what the block adds to ``directory`` (the directory itself when it adds it) if the block raises an
+    error: a failed run leaves nothing half-written. Ctrl-C (no ``Exception``) keeps what was saved."""
+    before = set(directory.iterdir()) if directory.is_dir() else None
     try:
-        constructor_values(algorithm, policy, kwargs)  # unknown keywords: a ValueError, not a TypeError
-    except ValueError:
-        vec_env.close()
+        yield
+    except Exception:
+        added = [directory] if before is None else sorted(set(directory.iterdir()) - before)
+        for path in added:
+            if path.is_dir():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
         raise
-    return algorithm(policy, vec_env, **kwargs)
 
 
 def train(
@@ -430,19 +473,20 @@ def train(
     if tensorboard and importlib.util.find_spec("tensorboard") is None:  # SB3's TensorBoard writer
         raise ValueError("TensorBoard logging needs the tensorboard package: pip install tensorboard")
     output_dir = Path(output_dir)
-    if hyperparameters is None:
-        hyperparameters = load_hyperparameters(env_id)
-    hyperparameters = {**hyperparameters, "n_envs": int(hyperparameters.get("n_envs", 8) if n_envs is None else n_envs)}
     tensorboard_log = str(output_dir / "tensorboard") if tensorboard else None
+    hyperparameters = training_block(env_id, hyperparameters, n_envs)
     vectorization = checked_vectorization(env_id, vectorization)
-    with torch_threads():
+    rollout, factors = rollout_steps(env_id, hyperparameters, env_kwargs)
+    planned = planned_steps(timesteps, rollout, factors, hyperparameters)
+    demonstrations = None if isinstance(init_from_planner, int | None) else Demonstrations.load(init_from_planner)
+    with removed_on_error(output_dir), torch_threads():
         model = build_model(env_id, seed, None, hyperparameters, env_kwargs, vectorization, tensorboard_log)
         warm_start = None
         if init_from_planner is not None:
-            warm_start = _cloned_planner(model, env_id, init_from_planner, env_kwargs, output_dir, planner_workers)
+            source = (init_from_planner, demonstrations)
+            warm_start = _cloned_planner(model, env_id, source, env_kwargs, output_dir, planner_workers)
         n_envs = model.n_envs
-        rollout = model.n_steps * n_envs  # learn() collects whole rollouts: the bar's true total
-        progress_bar = TqdmCallback(-(-timesteps // rollout) * rollout, disable=not progress)
+        progress_bar = TqdmCallback(planned, disable=not progress)
         callbacks = [progress_bar, CurveCallback(start_curve(output_dir, env_id, env_kwargs))]
         if checkpoints > 0:
             every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
@@ -470,31 +514,35 @@ def train(
         model.get_env().close()
         if validation is not None:
             validation.close()
-    title = f"{env_id}: {type(model).__name__}, seed {seed}, gamma {model.gamma}"
-    title += "".join(f", {key.replace('_', ' ')} {value}" for key, value in scheduled(hyperparameters).items())
-    if warm_start is not None:
-        title += f", cloned from {len(warm_start['seeds'])} planner episodes"
-    curve = drawn_curve(output_dir, title, curve_references)
-    record = {
-        "env_id": env_id,
-        "algorithm": type(model).__name__,
-        "timesteps": int(model.num_timesteps),
-        "seed": seed,
-        "n_envs": n_envs,
-        "vectorization": vectorization,
-        "env_kwargs": env_kwargs or {},
-        "hyperparameters": hyperparameters,
-        "constructor": constructor_values(type(model), *_constructor_arguments(hyperparameters, seed, tensorboard_log)),
-        "seconds": seconds,
-        "fps": model.num_timesteps / seconds if model.num_timesteps else 0.0,
-        "torch_threads": TORCH_THREADS,
-        "model": str(model_path),
-        "interrupted": interrupted,
-        "curve": curve,
-        "warm_start": warm_start,
-        "validation": validation.record() if validation is not None else None,
-    }
-    (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
+        title = f"{env_id}: {type(model).__name__}, seed {seed}, gamma {model.gamma}"
+        title += "".join(f", {key.replace('_', ' ')} {value}" for key, value in scheduled(hyperparameters).items())
+        if warm_start is not None:
+            title += f", cloned from {len(warm_start['seeds'])} planner episodes"
+        curve = drawn_curve(output_dir, title, curve_references)
+        record = {
+            "env_id": env_id,
+            "algorithm": type(model).__name__,
+            "timesteps": int(model.num_timesteps),
+            "timesteps_asked": timesteps,
+            "rollout": rollout,  # env steps: PPO trains whole rollouts
+            "seed": seed,
+            "n_envs": n_envs,
+            "vectorization": vectorization,
+            "env_kwargs": env_kwargs or {},
+            "hyperparameters": hyperparameters,
+            "constructor": constructor_values(
+                type(model), *_constructor_arguments(hyperparameters, seed, tensorboard_log)
+            ),
+            "seconds": seconds,
+            "fps": model.num_timesteps / seconds if model.num_timesteps else 0.0,
+            "torch_threads": TORCH_THREADS,
+            "model": str(model_path),
+            "interrupted": interrupted,
+            "curve": curve,
+            "warm_start": warm_start,
+            "validation": validation.record() if validation is not None else None,
+        }
+        (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
     return model_path
 
 
@@ -508,16 +556,17 @@ def save_policy(model, directory: Path) -> Path:
 
 
 def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_dir: Path, workers: int) -> dict:
-    """Warm-start ``model`` from the planner (``train``'s ``init_from_planner``: episodes to play, or a saved file);
-    what train.json records of it."""
+    """Warm-start ``model`` from the planner (``source``: ``train``'s ``init_from_planner``, episodes to play or a saved
+    file, and that file's ``Demonstrations``, already read); what train.json records of it."""
     start = time.perf_counter()
+    source, demonstrations = source
     if isinstance(source, int):
         gamma = model.gamma
         first = DEMONSTRATION_SEEDS + model.seed
         demonstrations = planner_demonstrations(env_id, source, first, gamma, env_kwargs, workers)
         origin = f"{source} planner episodes, seeds {first}..{first + source - 1}"
     else:
-        demonstrations, origin = Demonstrations.load(source), str(source)
+        origin = str(source)
     output_dir.mkdir(parents=True, exist_ok=True)
     demonstrations.save(output_dir / DEMONSTRATIONS_FILE)
     played = time.perf_counter()

@@ -25,6 +25,7 @@ import gymnasium as gym
 from gymnasium.vector import AutoresetMode
 from tqdm.auto import tqdm
 
+from agents.hyperparameters import checked_block
 from agents.rllib_masking import (
     NORMALIZE_OBSERVATIONS,
     MaskedObservations,
@@ -84,38 +85,19 @@ MODEL_KEYS = ("policy", "policy_kwargs", "normalize")  # policy: MlpPolicy, the 
 POLICY_KWARGS = ("net_arch", "activation_fn")
 
 
-def _setting(hyperparameters: dict, key: str, kind: type, default):
-    """``hyperparameters[key]`` (else ``default``) as ``kind``: an int >= 1 or a finite float >= 0; else ``ValueError``
-    naming the key."""
-    value = hyperparameters.get(key, default)
-    try:
-        number = kind(value)
-        usable = not isinstance(value, bool) and number == float(value) and math.isfinite(number)
-    except (TypeError, ValueError):
-        usable = False
-    if not usable or number < (1 if kind is int else 0):
-        expected = "an integer >= 1" if kind is int else "a finite number >= 0"
-        raise ValueError(f"hyperparameter {key} must be {expected}, got {value!r}")
-    return number
-
-
 def _model_settings(hyperparameters: dict) -> dict:
-    """The module's settings from ``policy``, ``policy_kwargs`` and ``normalize``; ``ValueError`` for others."""
-    from agents.ppo import ACTIVATIONS, normalization_kwargs
+    """The module's settings from ``policy``, ``policy_kwargs`` and ``normalize``; ``ValueError`` for the SB3 ones
+    RLlib's module does not mirror."""
+    from agents.ppo import normalization_kwargs
 
-    policy = hyperparameters.get("policy", "MlpPolicy")
     policy_kwargs = hyperparameters.get("policy_kwargs") or {}
-    if policy != "MlpPolicy" or not isinstance(policy_kwargs, dict) or set(policy_kwargs) - set(POLICY_KWARGS):
-        raise ValueError(
-            f"the rllib backend trains an MLP: policy MlpPolicy, policy_kwargs with {' and '.join(POLICY_KWARGS)}; "
-            f"got policy {policy!r}, policy_kwargs {policy_kwargs!r}"
-        )
     hidden = policy_kwargs.get("net_arch", [64, 64])
+    if set(policy_kwargs) - set(POLICY_KWARGS) or not isinstance(hidden, list):
+        raise ValueError(
+            f"the rllib backend trains an MLP: policy_kwargs with {' and '.join(POLICY_KWARGS)}, net_arch a list of "
+            f"layer widths shared by the policy and the value function; got policy_kwargs {policy_kwargs!r}"
+        )
     activation = policy_kwargs.get("activation_fn", "tanh")
-    if not isinstance(hidden, list) or not all(type(width) is int and width >= 1 for width in hidden):
-        raise ValueError(f"policy_kwargs.net_arch must be a list of layer widths >= 1, got {hidden!r}")
-    if activation not in ACTIVATIONS:
-        raise ValueError(f"policy_kwargs.activation_fn must be one of {', '.join(ACTIVATIONS)}, got {activation!r}")
     normalize = normalization_kwargs(hyperparameters)
     return {
         "fcnet_hiddens": list(hidden),
@@ -131,16 +113,20 @@ def rllib_training_settings(hyperparameters: dict) -> dict:
     train batch; ``batch_size`` its minibatch.
 
     Raises:
-        ValueError: for a key without an RLlib translation, or a value it cannot take (naming the key).
+        ValueError: for a value outside its range (``agents.hyperparameters``), a key without an RLlib translation,
+            or a schedule (``lin_<start>``), naming the key.
     """
+    from agents.ppo import scheduled
+
+    hyperparameters = checked_block(hyperparameters, "the hyperparameters")
     unknown = sorted(set(hyperparameters) - set(TRAINING_NAMES) - set(ROLLOUT_KEYS) - set(MODEL_KEYS))
     if unknown:
         known = ", ".join([*TRAINING_NAMES, *ROLLOUT_KEYS, *MODEL_KEYS])
         raise ValueError(f"hyperparameter(s) {unknown} have no RLlib translation; the rllib backend takes {known}")
-    rollout = math.prod(_setting(hyperparameters, key, int, default) for key, default in ROLLOUT_KEYS.items())
-    training = {
-        name: _setting(hyperparameters, key, kind, default) for key, (name, kind, default) in TRAINING_NAMES.items()
-    }
+    if scheduled(hyperparameters):
+        raise ValueError(f"hyperparameter(s) {sorted(scheduled(hyperparameters))} are schedules: rllib takes numbers")
+    rollout = math.prod(hyperparameters.get(key, default) for key, default in ROLLOUT_KEYS.items())
+    training = {name: kind(hyperparameters.get(key, default)) for key, (name, kind, default) in TRAINING_NAMES.items()}
     return {"train_batch_size_per_learner": rollout, **training, "model": _model_settings(hyperparameters)}
 
 
@@ -221,7 +207,7 @@ def copies_per_runner(env_id: str, hyperparameters: dict, num_env_runners: int, 
         return envs_per_runner
     if api_of(env_id) != PARALLEL:
         return 1
-    return math.ceil(_setting(hyperparameters, "n_envs", int, ROLLOUT_KEYS["n_envs"]) / max(num_env_runners, 1))
+    return math.ceil(hyperparameters.get("n_envs", ROLLOUT_KEYS["n_envs"]) / max(num_env_runners, 1))
 
 
 class PolicyMapping:

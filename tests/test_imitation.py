@@ -73,7 +73,7 @@ def test_demonstrations_round_trip_through_a_file_and_a_bad_file_is_named(tmp_pa
     for saved, loaded in zip(demonstrations, Demonstrations.load(tmp_path / "d.npz")):
         np.testing.assert_array_equal(saved, loaded)
     (tmp_path / "bad.npz").write_text("not numpy")
-    with pytest.raises(ValueError, match="cannot read planner demonstrations .*bad.npz"):
+    with pytest.raises(ValueError, match="--init-from-planner '.*bad.npz' is not planner demonstrations"):
         Demonstrations.load(tmp_path / "bad.npz")
     with pytest.raises(ValueError, match="episodes and workers must be >= 1"):
         planner_demonstrations(ACTIVE_ID, 0)
@@ -100,7 +100,7 @@ def test_cloning_fits_the_planners_actions_and_values():
 
 
 def test_train_init_from_planner_records_the_warm_start_and_saves_the_demonstrations(tmp_path, capsys):
-    argv = ["train", "--env", ACTIVE_ID, "--timesteps", "64", "--n-envs", "2", "--init-from-planner", "2"]
+    argv = ["train", "--env", ACTIVE_ID, "--timesteps", "256", "--n-envs", "2", "--init-from-planner", "2"]
     assert main([*argv, "--config", "horizon=12", "--output", str(tmp_path / "a"), "--json"]) == 0
     record = json.loads((tmp_path / "a" / "train.json").read_text())["warm_start"]
     assert record["seeds"] == [1_000_000, 1_000_001] and record["rows"] == 24

@@ -208,7 +208,7 @@ def test_a_team_curve_counts_each_robots_episodes_with_the_teams_metric(tmp_path
     small = {"n_steps": 32, "batch_size": 32, "n_epochs": 1}
     train(
         "cooperative_localization_v0",
-        64,
+        128,  # one rollout: 32 steps x 4 robots
         n_envs=1,
         output_dir=tmp_path,
         hyperparameters=small,

@@ -23,10 +23,11 @@ ROOT = Path(__file__).resolve().parents[1]
 SMALL = "default:\n  n_steps: 16\n  batch_size: 16\n  n_epochs: 1\n  gamma: 0.5\n"  # one 2 x 16-step rollout
 
 
-def train_json(tmp_path, *extra) -> dict:
-    """``infonav train`` for 32 steps on 2 envs; its train.json."""
+def train_json(tmp_path, *extra, timesteps: int = 32) -> dict:
+    """``infonav train`` for ``timesteps`` steps on 2 envs; its train.json."""
     output = tmp_path / "model"
-    argv = ["train", "--env", LANDMARK_ID, "--timesteps", "32", "--n-envs", "2", "--output", str(output), *extra]
+    argv = ["train", "--env", LANDMARK_ID, "--timesteps", str(timesteps), "--n-envs", "2", "--output", str(output)]
+    argv += extra
     assert main([*argv, "--json"]) == 0
     return json.loads((output / "train.json").read_text())
 
@@ -62,7 +63,7 @@ def test_the_built_wheel_contains_the_hyperparameters(tmp_path):
 
 
 def test_train_json_records_every_constructor_value_sb3_defaults_included(tmp_path):
-    record = train_json(tmp_path)
+    record = train_json(tmp_path, timesteps=128)  # one rollout of the tuned block: 64 steps x 2 envs
     assert record["hyperparameters"] == {**load_hyperparameters(LANDMARK_ID), "n_envs": 2}
     constructor = record["constructor"]
     assert constructor["gamma"] == 0.9 and constructor["n_steps"] == 64 and constructor["seed"] == 0
@@ -73,9 +74,10 @@ def test_train_json_records_every_constructor_value_sb3_defaults_included(tmp_pa
 def test_hyperparams_file_overrides_the_tuned_blocks(tmp_path):
     file = tmp_path / "small.yml"
     file.write_text(SMALL)
-    record = train_json(tmp_path, "--hyperparams", str(file))
+    record = train_json(tmp_path, "--hyperparams", str(file), timesteps=40)
     assert record["constructor"]["gamma"] == 0.5 and record["constructor"]["n_steps"] == 16
-    assert record["constructor"]["ent_coef"] == 0.0 and record["timesteps"] == 32
+    assert record["constructor"]["ent_coef"] == 0.0 and record["rollout"] == 32
+    assert record["timesteps_asked"] == 40 and record["timesteps"] == 64, "whole rollouts, said in train.json"
 
 
 def test_lin_anneals_the_learning_rate_and_clip_range_to_zero_over_training(tmp_path, monkeypatch):
@@ -104,11 +106,17 @@ def test_lin_anneals_the_learning_rate_and_clip_range_to_zero_over_training(tmp_
         ("- 1\n- 2\n", "hyperparameter file {file} must map env ids to blocks"),
         ("CartPole-v1: {}\n", "hyperparameter file {file} has no block for 'infonav/LandmarkSelection-v0'"),
         ("default: 3\n", "block 'default' of hyperparameter file {file} must be a mapping"),
-        ("default: {gama: 0.9}\n", "unknown PPO hyperparameter(s) ['gama']: MaskablePPO takes policy, learning_rate"),
-        ("default: {seed: 3}\n", "hyperparameter(s) ['seed'] are set by train's arguments"),
-        ("default: {learning_rate: lin_x}\n", "hyperparameter learning_rate must be a number or lin_<start>"),
-        ("default: {clip_range: exp_0.2}\n", "hyperparameter clip_range must be a number or lin_<start>"),
-        ("default: {learning_rate: lin_-1}\n", "with a start > 0, got 'lin_-1'"),
+        ("default: {gama: 0.9}\n", "unknown hyperparameter 'gama': the keys are n_envs, policy, n_timesteps"),
+        ("default: {seed: 3}\n", "unknown hyperparameter 'seed': the keys are"),
+        (
+            "default: {learning_rate: lin_x}\n",
+            "hyperparameter learning_rate must be a finite number > 0 or lin_<start>",
+        ),
+        ("default: {clip_range: exp_0.2}\n", "hyperparameter clip_range must be a number in (0, 1] or lin_<start>"),
+        (
+            "default: {learning_rate: lin_-1}\n",
+            "with such a start, got 'lin_-1' (block 'default' of hyperparameter file",
+        ),
     ],
 )
 def test_a_bad_hyperparams_file_is_one_line_exit_2(capsys, tmp_path, content, message):

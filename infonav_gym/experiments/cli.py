@@ -191,7 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--n-envs",
         type=integer(1, MAX_COPIES),
-        help="vectorized env copies (default: the hyperparameters' n_envs); a team copy gives each robot a slot",
+        help="sb3: vectorized env copies (default: the hyperparameters' n_envs); a team copy gives each robot a slot",
     )
     train.add_argument("--output", type=Path, help="output directory (default: models/ENV-NAME_seedS)")
     train.add_argument(
@@ -204,10 +204,10 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--vectorization",
         choices=("native", "sync", "subprocess"),
-        help="native: the env's own vector env, all copies stepped at once (the default where the env has one); "
+        help="sb3: native: the env's own vector env, all copies stepped at once (the default where the env has one); "
         "sync: one process, copy after copy (DummyVecEnv; the default otherwise); subprocess: one process per copy",
     )
-    train.add_argument("--tensorboard", action="store_true", help="log to OUTPUT/tensorboard (needs tensorboard)")
+    train.add_argument("--tensorboard", action="store_true", help="sb3: log to OUTPUT/tensorboard (needs tensorboard)")
     train.add_argument(
         "--init-from-planner",
         type=episodes_or_file,
@@ -218,7 +218,6 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--workers",
         type=integer(1, MAX_WORKERS),
-        default=1,
         help="processes that play the planner's episodes of --init-from-planner (default: 1)",
     )
     train.add_argument(
@@ -243,7 +242,6 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--num-env-runners",
         type=integer(0, MAX_WORKERS),
-        default=1,
         help="rllib: env runner processes; 0 samples in the driver process (default: 1)",
     )
     train.add_argument(
@@ -255,7 +253,6 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--policies",
         choices=("shared", "per_robot"),
-        default="shared",
         help="rllib, team env: one policy shared by every robot (default) or one per robot",
     )
     train.add_argument("--address", help="rllib: an existing Ray cluster (default: a local Ray)")
@@ -495,15 +492,42 @@ def _curve_references(env_id: str, env_kwargs: dict) -> dict | None:
     return None
 
 
+TRAIN_BACKEND_OPTIONS = {  # train's option: (the one backend that reads it, what it does there)
+    "init_from_planner": ("sb3", "warm-starts SB3's MaskablePPO"),
+    "eval_episodes": ("sb3", "keeps the best SB3 policy"),
+    "n_envs": ("sb3", "sets SB3's env copies (rllib: --envs-per-runner)"),
+    "vectorization": ("sb3", "picks how SB3 steps its env copies"),
+    "tensorboard": ("sb3", "logs SB3's training"),
+    "num_env_runners": ("rllib", "sets RLlib's env runner processes"),
+    "envs_per_runner": ("rllib", "sets the env copies of each RLlib env runner"),
+    "policies": ("rllib", "lays out RLlib's policies in a team env"),
+    "address": ("rllib", "names the Ray cluster RLlib trains on"),
+}
+TRAIN_OPTION_NEEDS = {  # train's option: (the option it needs, what that one gives)
+    "eval_every": ("eval_episodes", "how many validation episodes"),
+    "workers": ("init_from_planner", "the planner episodes the workers play"),
+}
+
+
+def _flag(dest: str) -> str:
+    return "--" + dest.replace("_", "-")
+
+
+def _check_train_options(args) -> None:
+    """``ValueError`` naming an option the chosen backend ignores, or one given without the option it needs."""
+    given = {dest for dest, value in vars(args).items() if value is not None and value is not False}
+    for dest, (backend, does) in TRAIN_BACKEND_OPTIONS.items():
+        if dest in given and backend != args.backend:
+            raise ValueError(f"{_flag(dest)} {does}: use it with --backend {backend} ({args.backend} ignores it)")
+    for dest, (needed, gives) in TRAIN_OPTION_NEEDS.items():
+        if dest in given and needed not in given:
+            raise ValueError(f"{_flag(dest)} needs {_flag(needed)} ({gives})")
+
+
 def _train(args, command: str) -> dict:
     """Train PPO on ``args.env`` with SB3 or RLlib; print where the model went unless --json."""
     rllib = args.backend == "rllib"
-    if rllib and args.init_from_planner is not None:
-        raise ValueError("--init-from-planner warm-starts SB3's MaskablePPO: use it with --backend sb3")
-    if rllib and args.eval_episodes is not None:
-        raise ValueError("--eval-episodes keeps the best SB3 policy: use it with --backend sb3")
-    if args.eval_every is not None and args.eval_episodes is None:
-        raise ValueError("--eval-every needs --eval-episodes (how many validation episodes)")
+    _check_train_options(args)
     if rllib:
         from agents.ray_support import import_ray
 
@@ -518,6 +542,7 @@ def _train(args, command: str) -> dict:
     env_kwargs, progress = dict(args.config), not args.json
     references = _curve_references(args.env, env_kwargs)
     if rllib:
+        options = {key: getattr(args, key) for key in ("num_env_runners", "envs_per_runner", "policies", "address")}
         record = train_rllib(
             args.env,
             args.timesteps,
@@ -525,14 +550,11 @@ def _train(args, command: str) -> dict:
             seed=args.seed,
             env_kwargs=env_kwargs,
             hyperparameters=load_hyperparameters(args.env, args.hyperparams),
-            num_env_runners=args.num_env_runners,
-            envs_per_runner=args.envs_per_runner,
-            policies=args.policies,
-            address=args.address,
             progress=progress,
             curve_references=references,
+            **{key: value for key, value in options.items() if value is not None},  # else train_rllib's defaults
         )
-        copies = f"{args.num_env_runners} env runners x {record['envs_per_runner']} envs"
+        copies = f"{record['num_env_runners']} env runners x {record['envs_per_runner']} envs"
         written, agent = f"checkpoint: {record['checkpoint']}", f"rllib:{output}"
     else:
         model_path = train(
@@ -548,7 +570,7 @@ def _train(args, command: str) -> dict:
             env_kwargs=env_kwargs,
             curve_references=references,
             init_from_planner=args.init_from_planner,
-            planner_workers=args.workers,
+            planner_workers=args.workers or 1,
             validation_episodes=args.eval_episodes or 0,
             validation_every=args.eval_every,
         )
