@@ -249,6 +249,13 @@ def test_an_option_the_backend_ignores_is_refused_naming_it(capsys, tmp_path, no
     assert message in refused(capsys, [*argv, "--output", str(tmp_path / "out")])
 
 
+def test_workers_with_a_demonstrations_file_are_refused(capsys, tmp_path, no_work):
+    file = tmp_path / "demonstrations.npz"
+    Demonstrations(*(np.zeros((2, 1)) for _ in range(5))).save(file)
+    argv = ["train", "--env", LANDMARK_ID, "--timesteps", "0", "--init-from-planner", str(file), "--workers", "2"]
+    assert "--workers play the planner's episodes of --init-from-planner EPISODES" in refused(capsys, argv)
+
+
 def _npz_bytes(**arrays) -> bytes:
     path = Path(tempfile.mkdtemp()) / "a.npz"
     np.savez(path, **arrays)

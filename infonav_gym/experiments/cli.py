@@ -522,6 +522,8 @@ def _check_train_options(args) -> None:
     for dest, (needed, gives) in TRAIN_OPTION_NEEDS.items():
         if dest in given and needed not in given:
             raise ValueError(f"{_flag(dest)} needs {_flag(needed)} ({gives})")
+    if args.workers is not None and isinstance(args.init_from_planner, Path):
+        raise ValueError("--workers play the planner's episodes of --init-from-planner EPISODES; a FILE plays none")
 
 
 def _train(args, command: str) -> dict:
