@@ -126,7 +126,7 @@ def test_a_frame_of_piled_robots_has_no_overlapping_labels_and_discs_stay_inside
 def test_an_episode_strip_shows_frames_at_their_own_pixels_with_legible_titles():
     from infonav_gym.experiments.render_episode import RenderedEpisode, figure_strip
 
-    renderer = Renderer("rgb_array", 300)
+    renderer = Renderer("rgb_array", 600)
     frames = [renderer.draw(piled_frame(step)) for step in range(3)]
     assert_frame_readable(renderer, frames[-1])
     figure = figure_strip(RenderedEpisode(frames, [0, 1, 2], 10.0), "cooperative_exploration_v0, planner, seed 0")

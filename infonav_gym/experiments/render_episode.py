@@ -115,10 +115,10 @@ def figure_strip(episode: RenderedEpisode, title: str):
     columns = min(STRIP_COLUMNS, len(shown))
     rows = -(-len(shown) // columns)
     height, width = (size / STRIP_DPI for size in frames[0].shape[:2])  # [in]
-    titles = STRIP_TITLE_IN * (rows + 1)
+    titles = STRIP_TITLE_IN * (rows + 2)  # the strip's title takes two bands
     figure = matplotlib_figure("infonav render's PNG", figsize=(columns * width, rows * height + titles))
     axes = figure.subplots(rows, columns, squeeze=False)
-    top = 1 - STRIP_TITLE_IN / figure.get_figheight()
+    top = 1 - 2 * STRIP_TITLE_IN / figure.get_figheight()
     figure.subplots_adjust(left=0, right=1, bottom=0, top=top, wspace=0, hspace=STRIP_TITLE_IN / height)
     for axis in axes.ravel():
         axis.set_axis_off()
