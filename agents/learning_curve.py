@@ -12,6 +12,7 @@ at their last step by ``MetricVectorWrapper`` (a native vector env), ``MetricWra
 from __future__ import annotations
 
 import csv
+import json
 import math
 import textwrap
 from collections.abc import Mapping
@@ -22,11 +23,12 @@ import numpy as np
 from gymnasium.vector import VectorWrapper
 from stable_baselines3.common.callbacks import BaseCallback
 
-from infonav_gym.envs.traits import main_metric_of
+from infonav_gym.envs.traits import main_metric_of, traits_of
 from infonav_gym.registry import make_env
 from infonav_gym.rendering import matplotlib_figure, save_figure
 
 CURVE_CSV, CURVE_PNG = "curve.csv", "curve.png"
+CURVE_LABELS = "curve_labels.json"  # the axis titles of curve.png with their units: {"return": ..., "metric": ...}
 VALIDATION_CSV = "validation.csv"  # steps, mean main metric, episodes, kept (0/1): ``agents.validation``'s rows
 METRIC_KEY = "curve_main_metric"  # the main metric of the episode ending in this step, in its last info
 VECTOR_ONLY_KEYS = ("final_obs", "final_info")  # a vector env's info keys that are not one sub-env's info
@@ -143,14 +145,17 @@ class MetricWrapper(gym.Wrapper):
 
 
 def start_curve(directory: Path, env_id: str, env_kwargs: dict | None) -> Path:
-    """A fresh ``directory/curve.csv`` holding only its header, which names the env's main metric; its path."""
+    """A fresh ``directory/curve.csv`` holding only its header, which names the env's main metric, and
+    ``CURVE_LABELS``: the return in the env's reward unit and the metric's title; the CSV's path."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
-        metric_name = main_metric_of(env).name
+        metric, reward_unit = main_metric_of(env), traits_of(env).reward_unit
     finally:
         env.close()
-    path = Path(directory) / CURVE_CSV
+    metric_name, path = metric.name, Path(directory) / CURVE_CSV
     path.parent.mkdir(parents=True, exist_ok=True)
+    labels = {"return": f"mean episode return [{reward_unit}]", "metric": metric.title}
+    (path.parent / CURVE_LABELS).write_text(json.dumps(labels, indent=2) + "\n")
     with path.open("w", newline="") as file:
         csv.writer(file).writerow(["steps", "mean_return", metric_name, "episodes"])
     return path
@@ -201,17 +206,29 @@ def read_validations(path: Path) -> np.ndarray:
         return np.array(list(csv.reader(file))[1:], dtype=float).reshape(-1, 4)
 
 
+def read_labels(directory: Path, metric_name: str) -> dict:
+    """The run's ``CURVE_LABELS``; without the file (a run older than it), the bare names."""
+    path = Path(directory) / CURVE_LABELS
+    return json.loads(path.read_text()) if path.is_file() else {"return": "mean episode return", "metric": metric_name}
+
+
 def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
-    """``directory/curve.png`` from its ``curve.csv``: mean return and, when recorded, the main metric against env
-    steps, with ``references`` (agent name: its value of the metric) as horizontal lines; their absence is said.
-    A run that validated (``validation.csv``) also shows the deterministic policy's metric on the validation seeds
-    and the policy kept.
+    """``directory/curve.png`` (``figure_curve``).
 
     Raises:
         ImportError: without matplotlib, saying how to install the ``render`` extra.
         ValueError: when there is no point to draw (no episode ended, no validation): never empty axes.
     """
+    return save_figure(figure_curve(directory, title, references), Path(directory) / CURVE_PNG, dpi=100)
+
+
+def figure_curve(directory: Path, title: str, references: dict | None):
+    """The learning curve of ``directory``'s ``curve.csv``: mean return and, when recorded, the main metric against
+    env steps (axes titled by ``CURVE_LABELS``), with ``references`` (agent name: its value of the metric) as
+    horizontal lines; their absence is said. A run that validated (``validation.csv``) also shows the deterministic
+    policy's metric on the validation seeds and the policy kept."""
     metric_name, rows = read_curve(Path(directory) / CURVE_CSV)
+    labels = read_labels(directory, metric_name)
     validations = read_validations(Path(directory) / VALIDATION_CSV)
     if not rows.size and not validations.size:
         raise ValueError(f"no episode ended in training, so no {CURVE_PNG}: nothing to draw")
@@ -219,7 +236,7 @@ def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
     figure = matplotlib_figure("curve.png", figsize=(7, 6 if has_metric else 3.5), layout="constrained")
     axes = figure.subplots(2 if has_metric else 1, 1, sharex=True, squeeze=False)[:, 0]
     axes[0].plot(rows[:, 0], rows[:, 1], marker=".")
-    axes[0].set_ylabel("mean episode return")
+    axes[0].set_ylabel(labels["return"])
     if has_metric:
         axes[1].plot(rows[:, 0], rows[:, 2], marker=".", label="training episodes (sampled actions)")
         if validations.size:
@@ -232,14 +249,14 @@ def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
             axes[1].axhline(value, linestyle=style, color="grey", label=agent)
         if not known:
             axes[1].plot([], [], " ", label="greedy / planner: unknown (not in the leaderboard)")
-        axes[1].set_ylabel(metric_name)
+        axes[1].set_ylabel(labels["metric"])
         axes[1].legend(fontsize="small")
     else:
-        title += f"\n({metric_name} not recorded in training: return only)"
-    axes[-1].set_xlabel("environment steps")
+        title += f"\n({labels['metric']} not recorded in training: return only)"
+    axes[-1].set_xlabel("environment steps [steps]")
     lines = [line for part in title.split("\n") for line in textwrap.wrap(part, 70)]  # long titles: several lines
     figure.suptitle("\n".join(lines), fontsize="medium")
-    return save_figure(figure, Path(directory) / CURVE_PNG, dpi=100)
+    return figure
 
 
 def drawn_curve(directory: Path, title: str, references: dict | None) -> str:

@@ -8,6 +8,7 @@ extra, so it is imported only when a ``Renderer`` is built.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,7 +60,12 @@ LANDMARK_LABEL_COLOUR = (20, 90, 40)  # the "#k" next to landmark k (index k - 1
 _LANDMARK_PX = 5
 _ROBOT_PX = 7
 _TICK_PX = 14
-_LABEL_OFFSET_PX = (9, -18)
+_LABEL_GAP_PX = 8  # from a landmark's centre to its label
+_ROBOT_CLEARANCE_PX = MIN_ELLIPSE_RADIUS_PX + 2  # labels keep off this square around a robot and its ellipse
+_LABEL_STEP_PX = 6  # a label that does not fit is tried this much farther away, up to _LABEL_REACH_PX
+_LABEL_REACH_PX = 200
+_LABEL_DIRECTIONS = ((1, 0), (1, -1), (1, 1), (-1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1))  # tried in this order
+_SCALE_BAR_PX = 60  # the legend's scale bar is at most about this long
 _FONT_SIZE = 20
 _FALLBACK_LINE_PX = 15  # text line height when pygame has no fonts
 _FALLBACK_CHAR_PX = 8  # ... and the width of one character
@@ -68,16 +74,19 @@ _SYMBOL_PX = (24, 14)  # width, height of a legend symbol
 _ENTRY_GAP_PX = 14  # between legend entries
 _MAX_INSET_FRACTION = 0.25  # the inset image is at most this fraction of the frame's longer side tall
 _MAX_PANEL_FRACTION = 0.5  # caption, inset and legend together take at most this fraction of it
-LEGEND_SYMBOLS = ("disc", "ring", "ellipse", "line", "cross", "zone", "wedge", "target")
+LEGEND_SYMBOLS = ("disc", "ring", "ellipse", "line", "cross", "zone", "wedge", "target", "scale")
 
 
 @dataclass(frozen=True)
 class LegendEntry:
-    """One legend item: a symbol (one of ``LEGEND_SYMBOLS``) in ``colour``, then ``text``."""
+    """One legend item: a symbol (one of ``LEGEND_SYMBOLS``) in ``colour``, ``symbol_px`` wide, then ``text``.
+    A ``scale`` symbol is a bar ``length_m`` long at the frame's scale."""
 
     symbol: str
     colour: tuple[int, int, int]
     text: str
+    symbol_px: int = _SYMBOL_PX[0]
+    length_m: float = 0.0
 
     def __post_init__(self):
         if self.symbol not in LEGEND_SYMBOLS:
@@ -92,7 +101,8 @@ class FrameLayout:
     width: int
     height: int
     scene_corner: tuple[int, int]  # the pixel of the bounds' top-left corner (x_min, y_max)
-    scene_clip: tuple[int, int, int, int]  # left, top, width, height: the scene and its margin
+    field: tuple[int, int, int, int]  # left, top, width, height: the bounds, where discs are clipped
+    scene_clip: tuple[int, int, int, int]  # left, top, width, height: the scene and its margin, where labels go
     caption_lines: tuple[str, ...]
     inset: tuple[int, int, int, int] | None  # left, top, width, height of the inset image
     inset_title_lines: tuple[str, ...]  # drawn right above the inset image
@@ -124,7 +134,7 @@ def legend_entries(frame: SceneFrame) -> list[LegendEntry]:
         ),
         (any(_has_path(robot.true_path) for robot in robots), "line", _PATH_GREY, "true path"),
         (any(_has_path(robot.estimated_path) for robot in robots), "line", colour, "estimated path"),
-        (bool(visible.any()), "disc", _GREEN, "landmark #k in sight"),
+        (bool(visible.any()), "disc", _GREEN, f"landmark in sight, numbered {_landmark_numbers(len(visible))}"),
         (not visible.all(), "disc", _LIGHT_GREY, "landmark out of sight"),
         (frame.chosen_landmark is not None or bool(frame.landmark_observations), "disc", _RED, "landmark observed now"),
         (frame.landmark_estimates is not None, "cross", _ORANGE, f"landmark estimate, {N_SIGMA:g}\u03c3"),
@@ -147,6 +157,42 @@ def legend_entries(frame: SceneFrame) -> list[LegendEntry]:
         (frame.goal is not None, "target", _BLACK, "goal"),
     ]
     return [LegendEntry(symbol, colour, text) for shown, symbol, colour, text in candidates if shown]
+
+
+def _landmark_numbers(count: int) -> str:
+    return "#1" if count == 1 else f"#1-#{count}"
+
+
+def scale_bar_m(longest_m: float) -> float:
+    """The longest of 1, 2 or 5 times a power of ten metres that is at most ``longest_m``."""
+    power = 10.0 ** math.floor(math.log10(longest_m))
+    return max(step * power for step in (1, 2, 5) if step * power <= longest_m)
+
+
+def overlap(box, other) -> bool:
+    """Whether two (left, top, width, height) boxes share an area (touching edges do not)."""
+    return (
+        box[0] < other[0] + other[2]
+        and other[0] < box[0] + box[2]
+        and box[1] < other[1] + other[3]
+        and (other[1] < box[1] + box[3])
+    )
+
+
+def place_label(anchor, size, taken: list, area) -> tuple[int, int, int, int] | None:
+    """The box (left, top, width, height) of a label of ``size`` (width, height) nearest ``anchor`` (col, row):
+    ``_LABEL_DIRECTIONS`` tried at growing distances, the first inside ``area`` that overlaps no box of ``taken``;
+    ``None`` if none does within ``_LABEL_REACH_PX``."""
+    width, height = size
+    for distance in range(_LABEL_GAP_PX, _LABEL_REACH_PX, _LABEL_STEP_PX):
+        for dx, dy in _LABEL_DIRECTIONS:
+            left = anchor[0] + dx * distance - (width if dx < 0 else width // 2 if dx == 0 else 0)
+            top = anchor[1] + dy * distance - (height if dy < 0 else height // 2 if dy == 0 else 0)
+            box = (int(left), int(top), width, height)
+            inside = area[0] <= box[0] and box[0] + width <= area[0] + area[2] and area[1] <= box[1]
+            if inside and box[1] + height <= area[1] + area[3] and not any(overlap(box, other) for other in taken):
+                return box
+    return None
 
 
 def _first_observer_colour(pairs) -> tuple[int, int, int]:
@@ -183,6 +229,7 @@ class Renderer:
         self._window = None
         self._clock = None
         self._font = None
+        self.text_boxes: list[tuple[str, tuple[int, int, int, int]]] = []  # the last frame's texts and their boxes
 
     def __getstate__(self) -> dict:
         return {**self.__dict__, "_window": None, "_clock": None, "_font": None}
@@ -206,7 +253,12 @@ class Renderer:
             available = budget - caption_px - line * len(title_lines) - _PAD_PX
             inset_size = self._inset_size(np.shape(frame.inset_image), inner, available)
             inset_block = line * len(title_lines) + inset_size[1] + _PAD_PX if inset_size else 0
-        legend_rows = self._legend_rows(legend_entries(frame), inner)
+        widest_scale = min(inner / (x_max - x_min), (self.size_px - 2 * margin) / (y_max - y_min))  # [px / m]
+        bar_m = scale_bar_m(_SCALE_BAR_PX / widest_scale)
+        bar_px = max(_SYMBOL_PX[0], math.ceil(bar_m * widest_scale))
+        scale_bar = LegendEntry("scale", _BLACK, f"{bar_m:g} m", bar_px, bar_m)
+        entries = legend_entries(frame)
+        legend_rows = self._legend_rows([*entries, scale_bar] if entries else [], inner)  # an empty scene: no legend
         legend_px = len(legend_rows) * line + _PAD_PX if legend_rows else 0
         if caption_px + inset_block + legend_px > budget:
             legend_rows, legend_px = (), 0
@@ -216,11 +268,13 @@ class Renderer:
         content_w = max(scene_w, inner) if caption_px or inset_block or legend_px else scene_w
         panel_top = caption_px + scene_h + 2 * margin
         inset = (margin, panel_top + line * len(title_lines), *inset_size) if inset_size else None
+        scene_corner = (margin + (content_w - scene_w) // 2, caption_px + margin)
         return FrameLayout(
             scale=scale,
             width=content_w + 2 * margin,
             height=panel_top + inset_block + legend_px,
-            scene_corner=(margin + (content_w - scene_w) // 2, caption_px + margin),
+            scene_corner=scene_corner,
+            field=(*scene_corner, scene_w, scene_h),
             scene_clip=(0, caption_px, content_w + 2 * margin, scene_h + 2 * margin),
             caption_lines=caption_lines,
             inset=inset,
@@ -253,6 +307,7 @@ class Renderer:
         import pygame
 
         layout = self.layout(frame)
+        self.text_boxes = []
         surface = pygame.Surface((layout.width, layout.height))
         surface.fill(_WHITE)
         surface.set_clip(pygame.Rect(layout.scene_clip))
@@ -310,12 +365,15 @@ class Renderer:
         def disc(circle, colour):
             pygame.draw.circle(surface, colour, screen(circle.center)[0].tolist(), max(1, round(circle.radius * scale)))
 
-        for zone in frame.gps_denied_zones:
-            disc(zone, _CANOPY_GREEN)
+        surface.set_clip(pygame.Rect(layout.field))
+        for circle, colour in [
+            *((zone, _CANOPY_GREEN) for zone in frame.gps_denied_zones),
+            *((obstacle, _DARK_GREY) for obstacle in frame.obstacles),
+        ]:
+            disc(circle, colour)
+        surface.set_clip(pygame.Rect(layout.scene_clip))
         for start, end in frame.walls:
             pygame.draw.line(surface, _DARK_GREY, *screen([start, end]).tolist(), 3)
-        for obstacle in frame.obstacles:
-            disc(obstacle, _DARK_GREY)
         if frame.goal is not None:
             target(screen(frame.goal)[0], max(_ROBOT_PX, round(frame.goal_radius_m * scale)))
         for index, drawing in enumerate(frame.robots):
@@ -343,9 +401,6 @@ class Renderer:
                 start = screen(observer_pose[:2])[0].tolist()
                 pygame.draw.line(surface, _robot_colour(observer), start, landmarks[landmark], 1)
             pygame.draw.circle(surface, _RED, landmarks[landmark], _LANDMARK_PX + 2)
-        for index, (col, row) in enumerate(landmarks):
-            label_corner = (col + _LANDMARK_PX + 3, row - layout.line_px // 2)
-            self._draw_text(pygame, surface, f"#{index + 1}", LANDMARK_LABEL_COLOUR, label_corner)
         for observer, target in frame.observations:
             ends = [frame.robots[observer].true_pose, frame.robots[target].true_pose]
             if ends[0] is not None and ends[1] is not None:
@@ -358,17 +413,37 @@ class Renderer:
         for drawing in frame.robots:
             if drawing.true_pose is not None:
                 robot(drawing.true_pose, _BLACK, filled=True)
-        for index, drawing in enumerate(frame.robots):
-            anchor = drawing.true_pose if drawing.true_pose is not None else drawing.estimated_pose
-            if drawing.label and anchor is not None:
-                corner = screen(anchor[:2])[0] + _LABEL_OFFSET_PX
-                self._draw_text(pygame, surface, drawing.label, _robot_colour(index), corner.tolist())
         if frame.sensor_wedge is not None and frame.robots and frame.robots[0].true_pose is not None:
             axis, width, length = frame.sensor_wedge
             angles = axis + np.linspace(-width / 2, width / 2, 16)
             apex = np.asarray(frame.robots[0].true_pose[:2], dtype=float)
             arc = apex + length * np.stack([np.cos(angles), np.sin(angles)], axis=1)
             pygame.draw.lines(surface, _RED, True, screen(np.vstack([apex, arc])).tolist(), 2)
+        self._draw_labels(pygame, surface, frame, layout, landmarks, screen)
+
+    def _draw_labels(self, pygame, surface, frame: SceneFrame, layout: FrameLayout, landmarks, screen) -> None:
+        """Landmark numbers, then robot labels, each where ``place_label`` finds room beside the landmarks, the
+        robots and the labels before it; a label pushed away from its anchor gets a leader line."""
+        font = self._text_font()
+        if font is None:
+            return
+        labels = [(point, f"#{index + 1}", LANDMARK_LABEL_COLOUR) for index, point in enumerate(landmarks)]
+        taken = [(col - _LANDMARK_PX, row - _LANDMARK_PX, 2 * _LANDMARK_PX, 2 * _LANDMARK_PX) for col, row in landmarks]
+        for index, drawing in enumerate(frame.robots):
+            poses = [pose for pose in (drawing.true_pose, drawing.estimated_pose) if pose is not None]
+            for col, row in screen([pose[:2] for pose in poses]).tolist() if poses else []:
+                taken.append((col - _ROBOT_CLEARANCE_PX, row - _ROBOT_CLEARANCE_PX, *(2 * _ROBOT_CLEARANCE_PX,) * 2))
+            if drawing.label and poses:
+                labels.append((screen(poses[0][:2])[0].tolist(), drawing.label, _robot_colour(index)))
+        for anchor, text, colour in labels:
+            box = place_label(anchor, font.size(text), taken, layout.scene_clip)
+            if box is None:
+                continue  # no room: the legend and the colours still tell the robots apart
+            taken.append(box)
+            nearest = np.clip(anchor, box[:2], (box[0] + box[2], box[1] + box[3]))
+            if np.hypot(*(nearest - anchor)) > 2 * _LABEL_GAP_PX:
+                pygame.draw.line(surface, colour, anchor, nearest.tolist(), 1)
+            self._draw_text(pygame, surface, text, colour, box[:2], background=_WHITE)
 
     def _draw_inset(self, pygame, surface, frame: SceneFrame, layout: FrameLayout) -> None:
         """Blit the gray inset image, framed, with its title above it, its grid and its highlighted cells."""
@@ -394,13 +469,16 @@ class Renderer:
         pygame.draw.rect(surface, _BLACK, (left, top, width, height), 1)
 
     def _draw_legend(self, pygame, surface, layout: FrameLayout) -> None:
-        symbol_w, symbol_h = _SYMBOL_PX
+        symbol_h = _SYMBOL_PX[1]
         for row_index, entries in enumerate(layout.legend_rows):
             top = layout.legend_top + row_index * layout.line_px
             col = self.MARGIN_PX
             for entry in entries:
-                box = pygame.Rect(col, top + (layout.line_px - symbol_h) // 2, symbol_w, symbol_h)
+                box = pygame.Rect(col, top + (layout.line_px - symbol_h) // 2, entry.symbol_px, symbol_h)
+                if entry.symbol == "scale":
+                    box.width = max(1, round(entry.length_m * layout.scale))  # at most symbol_px
                 self._draw_symbol(pygame, surface, entry, box)
+                box.width = entry.symbol_px
                 self._draw_text(pygame, surface, entry.text, _BLACK, (box.right + _PAD_PX, top))
                 col += self._entry_width(entry) + _ENTRY_GAP_PX
 
@@ -420,6 +498,10 @@ class Renderer:
             pygame.draw.line(surface, entry.colour, (center[0] - 4, center[1] + 4), (center[0] + 4, center[1] - 4), 2)
         elif entry.symbol == "zone":
             pygame.draw.rect(surface, entry.colour, box)
+        elif entry.symbol == "scale":
+            pygame.draw.line(surface, entry.colour, box.midleft, box.midright, 2)
+            for end in (box.left, box.right - 1):
+                pygame.draw.line(surface, entry.colour, (end, box.top + 2), (end, box.bottom - 2), 2)
         elif entry.symbol == "wedge":
             pygame.draw.polygon(surface, entry.colour, [box.midleft, box.topright, box.bottomright], 2)
         else:
@@ -440,7 +522,7 @@ class Renderer:
         return tuple(rows + [tuple(row)]) if row else ()
 
     def _entry_width(self, entry: LegendEntry) -> int:
-        return _SYMBOL_PX[0] + _PAD_PX + self._text_width(entry.text)
+        return entry.symbol_px + _PAD_PX + self._text_width(entry.text)
 
     def _wrap(self, text: str, width_px: int) -> list[str]:
         """``text`` broken at spaces into lines at most ``width_px`` wide (a longer word gets a line of its own)."""
@@ -473,8 +555,10 @@ class Renderer:
         font = self._text_font()
         return font.size(text)[0] if font else _FALLBACK_CHAR_PX * len(text)
 
-    def _draw_text(self, pygame, surface, text: str, colour, corner) -> None:
-        """Blit ``text`` with its top-left at pixel ``corner``; nothing if pygame has no fonts."""
+    def _draw_text(self, pygame, surface, text: str, colour, corner, background=None) -> None:
+        """Blit ``text`` (on ``background``, if given) with its top-left at pixel ``corner``; nothing if pygame has
+        no fonts."""
         font = self._text_font()
         if font:
-            surface.blit(font.render(text, True, colour), corner)
+            surface.blit(font.render(text, True, colour, background), corner)
+            self.text_boxes.append((text, (int(corner[0]), int(corner[1]), *font.size(text))))

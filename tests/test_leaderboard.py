@@ -135,7 +135,7 @@ def test_two_seeds_of_a_cheap_env_give_evaluates_numbers_wilson_intervals_and_th
                        "--episodes", "2", "--output", str(stem))  # fmt: skip
     assert results["columns"] == ["random", "greedy", "planner", "ppo"] and results["seeds"] == [0, 1]
     [row] = results["rows"]
-    assert row["metric"] == {"name": "success_rate", "title": "success rate"}
+    assert row["metric"] == {"name": "success_rate", "title": "success rate [-]"}
     assert row["cells"]["ppo"]["agent"] == f"ppo:{MODELS / 'active_localization_ppo'}"
     agents = [cell["agent"] for cell in row["cells"].values()]
     evaluated = evaluate(ACTIVE, agents, 2, progress=False)["agents"]

@@ -239,7 +239,8 @@ def test_a_robot_label_is_drawn_next_to_it():
     )
     changed_rows, changed_cols = np.nonzero(np.any(plain != labelled, axis=2))
     col, row = renderer.world_to_screen(SceneFrame(bounds=(0.0, 0.0, 20.0, 10.0), robots=[robot]), (10.0, 5.0))
-    assert changed_rows.size and np.all(changed_cols > col) and np.all(changed_rows < row)
+    assert changed_rows.size and np.all(changed_cols > col + MIN_ELLIPSE_RADIUS_PX), "right of the robot's ellipse"
+    assert changed_cols.min() < col + 3 * MIN_ELLIPSE_RADIUS_PX and abs(changed_rows.mean() - row) < 5, "beside it"
 
 
 def test_caption_draws_text_in_top_left():
@@ -362,7 +363,7 @@ def test_the_legend_names_the_sigma_and_draws_each_kind_below_the_scene():
     frame = full_frame(chosen_landmark=0)
     texts = [entry.text for entry in legend_entries(frame)]
     assert "3\u03c3 position ellipse (min 12 px)" in texts
-    assert {"true pose", "estimated pose", "landmark #k in sight", "landmark out of sight"} <= set(texts)
+    assert {"true pose", "estimated pose", "landmark in sight, numbered #1-#3", "landmark out of sight"} <= set(texts)
     assert "landmark observed now" in texts and "obstacle" in texts
     assert "relative observation (observer's colour)" not in texts, "only what the frame draws"
     image = renderer.draw(frame)
@@ -383,9 +384,9 @@ def test_landmarks_are_numbered_from_one_next_to_each_landmark(monkeypatch):
     drawn = []
     original = Renderer._draw_text
 
-    def recording(self, pygame, surface, text, colour, corner):
+    def recording(self, pygame, surface, text, colour, corner, background=None):
         drawn.append((text, colour, tuple(corner)))
-        original(self, pygame, surface, text, colour, corner)
+        original(self, pygame, surface, text, colour, corner, background)
 
     monkeypatch.setattr(Renderer, "_draw_text", recording)
     renderer = Renderer("rgb_array", 600)

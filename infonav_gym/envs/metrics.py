@@ -20,7 +20,8 @@ class EpisodeMetric:
 
     Attributes:
         name: the key in the results (``"cumulative_mi"``).
-        title: the column title, with the unit (``"cumulative MI [nats]"``).
+        title: the axis and column title, its unit in brackets (``"cumulative MI [nats]"``, ``"success rate [-]"``):
+            every table and plot that names the metric shows it.
         compute: the value from the episode's infos (see the module docstring).
         proportion: the values are 0 or 1 (a rate): summarized by a Wilson score interval, not Student t.
     """
@@ -159,11 +160,11 @@ TEAM_LOCALIZATION_METRICS = (  # the team's (joint-state) MI; entropy and RMSE a
     EpisodeMetric("pose_rmse_m", RMSE_TITLE, team_mean_root_mean_square("position_error_m")),
 )
 EXPLORATION_METRICS = (  # cooperative_exploration_v0: the team's success, coverage and information
-    EpisodeMetric("success_rate", "success rate", team_final_flag("success"), proportion=True),
-    EpisodeMetric("failure_rate", "robot lost rate", team_final_flag("failed"), proportion=True),
-    EpisodeMetric("final_coverage", "final coverage", team_mean_final_value("coverage")),
+    EpisodeMetric("success_rate", "success rate [-]", team_final_flag("success"), proportion=True),
+    EpisodeMetric("failure_rate", "robot lost rate [-]", team_final_flag("failed"), proportion=True),
+    EpisodeMetric("final_coverage", "final coverage [-]", team_mean_final_value("coverage")),
     EpisodeMetric("map_information", "team map information [nats]", team_summed_reward_term("team_map_information")),
     EpisodeMetric("pose_information", "team pose MI [nats]", team_total_reward_term("own_pose_information")),
     EpisodeMetric("episode_steps", "episode length [steps]", len),
 )
-SUCCESS_RATE = EpisodeMetric("success_rate", "success rate", final_flag("success"), proportion=True)
+SUCCESS_RATE = EpisodeMetric("success_rate", "success rate [-]", final_flag("success"), proportion=True)

@@ -92,7 +92,7 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         ),
         EpisodeMetric(
             "mean_control_points",
-            "control points per frame pair",
+            "control points per frame pair [points]",
             mean_where("n_control_points", lambda info: info["registered"]),
         ),
     )
@@ -100,6 +100,7 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         valid_gain_may_be_zero=True,  # a patch may hold no usable control point
         reward_terms=("error_reduction_m", "point_cost"),
         main_metric="cumulative_reward",
+        reward_unit="m",
         info_keys=frozenset(
             {"registered", "error_before_m", "error_after_m", "icp_iterations", "icp_time_s", "n_control_points"}
         ),

@@ -84,7 +84,7 @@ class SensorSelectionVectorEnv(InfoNavVectorEnv):
         EpisodeMetric(
             "cumulative_information", "cumulative image information [nats]", summed_reward_term("image_information")
         ),
-        EpisodeMetric("frames", "frames acquired", count_where(lambda info: info["sensor"] != "none")),
+        EpisodeMetric("frames", "frames acquired [frames]", count_where(lambda info: info["sensor"] != "none")),
         EpisodeMetric(
             "mean_frame_entropy",
             "mean frame entropy [nats]",

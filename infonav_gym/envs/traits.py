@@ -44,6 +44,7 @@ class EnvTraits:
             valid actions.
         main_metric: the name of the ``episode_metrics`` entry that ranks agents on the env, higher being better
             (``infonav leaderboard`` reports it); every infonav env names one.
+        reward_unit: the unit of a reward and a return, as plots write it in brackets (``"nats"``).
     """
 
     estimates_pose: bool = False
@@ -57,6 +58,7 @@ class EnvTraits:
     reward_config_keys: tuple[str, ...] = ()
     noop_action: int | None = None
     main_metric: str = ""
+    reward_unit: str = "nats"
 
 
 def has_planning_model(env_or_class) -> bool:

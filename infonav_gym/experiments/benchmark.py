@@ -360,26 +360,31 @@ def throughput_curves(figures: dict) -> dict[str, dict[int, float]]:
 
 
 def plot_throughput(figures: dict, path: Path | str) -> Path:
-    """Draw ``throughput_curves(figures)`` log-log, CartPole-v1's single-env rate as a horizontal line; write PNG.
+    """Write ``figure_throughput(figures)`` to ``path``.
 
     Raises:
         ValueError: when ``figures`` hold no ``CURVE_N_steps_per_s`` figure.
         ImportError: without matplotlib (the ``render`` extra).
     """
+    return save_figure(figure_throughput(figures), path, dpi=120)
+
+
+def figure_throughput(figures: dict):
+    """``throughput_curves(figures)`` log-log, CartPole-v1's single-env rate as a horizontal line, the legend beside
+    the axes."""
     curves = throughput_curves(figures)
     if not curves:
         raise ValueError(f"the throughput plot needs figures named CURVE_N_steps_per_s, got {sorted(figures)}")
-    figure = matplotlib_figure("the throughput plot", figsize=(7.5, 4.8))
+    figure = matplotlib_figure("the throughput plot", figsize=(9, 4.8), layout="constrained")
     axes = figure.add_subplot()
     for curve, rates in curves.items():
         sizes = sorted(rates)
         axes.loglog(sizes, [rates[size] for size in sizes], marker="o", label=curve)
     if SINGLE_CARTPOLE_FIGURE in figures:
         axes.axhline(figures[SINGLE_CARTPOLE_FIGURE], color="black", linestyle="--", label="CartPole-v1 (single env)")
-    axes.set_xlabel("sub-envs per vector env, N")
-    axes.set_ylabel("env-steps per second")
+    axes.set_xlabel("sub-envs per vector env, N [-]")
+    axes.set_ylabel("throughput [env-steps/s]")
     axes.set_title("Throughput, one process (infonav benchmark)")
     axes.grid(True, which="both", alpha=0.3)
-    axes.legend(fontsize="small")
-    figure.tight_layout()
-    return save_figure(figure, path, dpi=120)
+    axes.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    return figure

@@ -62,8 +62,15 @@ def demo_table(demo: dict) -> str:
 
 
 def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> Path:
+    """Write ``figure_information_field(seed, resolution)`` to ``path``."""
+    from infonav_gym.rendering import save_figure
+
+    return save_figure(figure_information_field(seed, resolution), path, dpi=120, bbox_inches="tight")
+
+
+def figure_information_field(seed: int = 0, resolution: int = 80):
     """Fig. 2 as a picture: the ic a landmark would bring, over where it could be, from the start pose."""
-    from infonav_gym.rendering import matplotlib_figure, save_figure
+    from infonav_gym.rendering import matplotlib_figure
 
     env = gym.make("infonav/LandmarkSelection-v0", scenario="corridor", n_candidates=4).unwrapped
     _, info = env.reset(seed=seed)
@@ -89,4 +96,4 @@ def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> P
     axes.set_zlabel("ic [nats]")
     axes.set_title("Information contribution of a landmark, from the vehicle at the corridor start")
     env.close()
-    return save_figure(figure, path, dpi=120, bbox_inches="tight")
+    return figure

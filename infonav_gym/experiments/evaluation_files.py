@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,8 @@ from infonav_gym.experiments.episodes import PPO_PREFIX
 from infonav_gym.experiments.intervals import INTERVAL_NOTES, WILSON, error_bar, interval_cell
 from infonav_gym.experiments.paths import output_file
 from infonav_gym.rendering import matplotlib_figure, save_figure
+
+TICK_CHARACTERS = 16  # an agent's name on the plot's axis is wrapped to lines this long
 
 
 def heading(results: dict) -> str:
@@ -45,33 +48,53 @@ def markdown_table(results: dict) -> str:
 
 
 def _plot_label(name: str) -> str:
-    """``ppo:runs/x/model.zip`` -> ``ppo:x/model.zip``: short enough for an axis."""
-    if not name.startswith(PPO_PREFIX):
-        return name
-    path = Path(name[len(PPO_PREFIX) :])
-    return PPO_PREFIX + "/".join(path.parts[-2:])
+    """``ppo:runs/x/model.zip`` -> ``ppo:x/model.zip``, in lines of ``TICK_CHARACTERS``: short enough for an axis."""
+    if name.startswith(PPO_PREFIX):
+        name = PPO_PREFIX + "/".join(Path(name[len(PPO_PREFIX) :]).parts[-2:])
+    return "\n".join(textwrap.wrap(name, TICK_CHARACTERS))
 
 
 def plot_results(results: dict, path: Path) -> Path:
-    """A box plot per metric of every agent's per-episode values, and the mean with its 95% CI (as in the table)."""
+    """Write ``figure_results(results)`` to ``path``."""
+    return save_figure(figure_results(results), path, dpi=110)
+
+
+def figure_results(results: dict):
+    """One panel per metric, titled by the metric (with its unit): a rate (a 0/1 metric) as a point with its Wilson
+    interval; any other metric as a box plot of every agent's per-episode values with the mean and its Student t
+    interval (as in the table). What the marks mean is said once, under the panels."""
     metrics, names = results["metrics"], list(results["agents"])
-    figure = matplotlib_figure("the evaluation plot", figsize=(3.2 * len(metrics) + 1, 3.6))
+    width = max(3.2, 0.9 * len(names))  # [in] per panel: room for every agent's name
+    figure = matplotlib_figure("the evaluation plot", figsize=(width * len(metrics) + 1, 4.2), layout="constrained")
     axes = figure.subplots(1, len(metrics), squeeze=False)
     positions = np.arange(1, len(names) + 1)
     for axis, (key, title) in zip(axes[0], metrics.items()):
-        values = [[e[key] for e in results["agents"][name]["episodes"]] for name in names]
-        axis.boxplot(values, positions=positions, widths=0.5, showfliers=True)
         summaries = [results["agents"][name]["summary"][key] for name in names]
-        means = [s["mean"] for s in summaries]
+        rate = summaries[0]["interval"] == WILSON
+        if rate:
+            axis.set_ylim(-0.05, 1.05)
+        else:
+            values = [[e[key] for e in results["agents"][name]["episodes"]] for name in names]
+            axis.boxplot(
+                values,
+                positions=positions,
+                widths=0.5,
+                showfliers=True,
+                label="episodes: median, quartiles, whiskers to 1.5 IQR",
+            )
         errors = np.array([error_bar(s) for s in summaries]).T
-        label = f"mean, 95% CI ({'Wilson score' if summaries[0]['interval'] == WILSON else 'Student t'})"
-        axis.errorbar(positions, means, yerr=errors, fmt="o", color="tab:red", capsize=4, label=label)
-        axis.legend(fontsize=8)
-        axis.set_xticks(positions, [_plot_label(name) for name in names], rotation=20, ha="right")
-        axis.set_title(title, fontsize=10)
+        label = "rate, 95% CI (Wilson score)" if rate else "mean, 95% CI (Student t)"
+        colour = "tab:blue" if rate else "tab:red"
+        axis.errorbar(
+            positions, [s["mean"] for s in summaries], yerr=errors, fmt="o", color=colour, capsize=4, label=label
+        )
+        axis.set_xticks(positions, [_plot_label(name) for name in names], fontsize=8)
+        axis.set_xlim(0.5, len(names) + 0.5)
+        axis.set_ylabel(title)
+    marks = {label: handle for axis in axes[0] for handle, label in zip(*axis.get_legend_handles_labels())}
+    figure.legend(marks.values(), marks.keys(), loc="outside lower center", ncols=len(marks), fontsize=8)
     figure.suptitle(f"{results['env_id']}: {results['episodes']} episodes per agent", fontsize=11)
-    figure.tight_layout()
-    return save_figure(figure, path, dpi=110)
+    return figure
 
 
 def write_results(results: dict, stem: Path, command: str) -> list[Path]:

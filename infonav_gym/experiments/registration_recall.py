@@ -274,7 +274,12 @@ _DODGE = 0.2  # how far apart the outermost selectors are drawn at a budget [tic
 
 
 def plot_comparison(comparison: dict, path) -> Path:
-    """Write ``path``: median error against budget and against mean time, per selector.
+    """Write ``figure_comparison(comparison)`` to ``path``."""
+    return save_figure(figure_comparison(comparison), path, dpi=120)
+
+
+def figure_comparison(comparison: dict):
+    """The control-point selectors compared: median error against budget and against mean time, per selector.
 
     Left, one line per selector through the median over the seed sets of each set's median error, with the
     sets' lowest to highest as an error bar (the selectors set slightly apart); all returns as a horizontal
@@ -298,7 +303,7 @@ def plot_comparison(comparison: dict, path) -> Path:
         bars = against_budget.errorbar(positions + offset, middle, yerr=spread, marker="o", capsize=3, label=selector)
         times = [_mean_time_ms(selectors[selector]) for selectors in by_budget.values()]
         against_time.plot(times, middle, marker="o", color=bars.lines[0].get_color(), label=selector)
-        for time_ms, median, label in zip(times, middle, by_budget):
+        for time_ms, median, label in zip(times, middle, by_budget) if selector == comparison["selectors"][0] else ():
             against_time.annotate(
                 label, (time_ms, median), fontsize="x-small", xytext=(3, 3), textcoords="offset points"
             )
@@ -311,12 +316,12 @@ def plot_comparison(comparison: dict, path) -> Path:
     against_time.set(
         xlabel="mean time of selection + ICP [ms]",
         ylabel="median registration error [mm]",
-        title="error against time, one marker per selector and budget",
+        title="error against time, one marker per selector and budget\n(budgets named on the first selector's line)",
     )
     for axes in (against_budget, against_time):
         axes.grid(True, alpha=0.3)
         axes.legend(fontsize="small")
-    return save_figure(figure, path, dpi=120)
+    return figure
 
 
 def _set_medians_mm(per_set: list[dict]) -> np.ndarray:

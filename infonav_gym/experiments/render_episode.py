@@ -19,6 +19,8 @@ from infonav_gym.rendering import matplotlib_figure, require_extra, save_figure
 
 STRIP_FRAMES = 6  # frames in PREFIX.png
 STRIP_COLUMNS = 3
+STRIP_DPI = 100  # one frame pixel to one PNG pixel
+STRIP_TITLE_IN = 0.4  # above every row of frames, and the strip's title on top [in]
 
 
 def frame_stem(env_id: str) -> str:
@@ -101,19 +103,27 @@ def strip_indices(n_frames: int, n_shown: int = STRIP_FRAMES) -> list[int]:
 
 
 def write_strip(episode: RenderedEpisode, path: Path, title: str) -> Path:
-    """A grid of ``STRIP_FRAMES`` evenly spaced frames of the episode, each titled with its step (needs matplotlib)."""
+    """Write ``figure_strip(episode, title)`` to ``path`` (needs matplotlib)."""
+    return save_figure(figure_strip(episode, title), path, dpi=STRIP_DPI)
+
+
+def figure_strip(episode: RenderedEpisode, title: str):
+    """A grid of ``STRIP_FRAMES`` evenly spaced frames of the episode, each titled with its step, one frame pixel to
+    one pixel of the PNG at ``STRIP_DPI``: the frames' text stays as legible as in the GIF."""
     frames, steps = episode.frames, episode.steps
     shown = strip_indices(len(frames))
     columns = min(STRIP_COLUMNS, len(shown))
     rows = -(-len(shown) // columns)
-    height, width = frames[0].shape[:2]
-    figure = matplotlib_figure("infonav render's PNG", figsize=(columns * 3.2, rows * 3.2 * height / width + 0.5))
-    axes = figure.subplots(rows, columns, squeeze=False).ravel()
-    for axis in axes:
+    height, width = (size / STRIP_DPI for size in frames[0].shape[:2])  # [in]
+    titles = STRIP_TITLE_IN * (rows + 2)  # the strip's title takes two bands
+    figure = matplotlib_figure("infonav render's PNG", figsize=(columns * width, rows * height + titles))
+    axes = figure.subplots(rows, columns, squeeze=False)
+    top = 1 - 2 * STRIP_TITLE_IN / figure.get_figheight()
+    figure.subplots_adjust(left=0, right=1, bottom=0, top=top, wspace=0, hspace=STRIP_TITLE_IN / height)
+    for axis in axes.ravel():
         axis.set_axis_off()
-    for axis, index in zip(axes, shown):
-        axis.imshow(frames[index])
-        axis.set_title(f"step {steps[index]}", fontsize=9)
-    figure.suptitle(title, fontsize=10)
-    figure.tight_layout()
-    return save_figure(figure, path, dpi=150)
+    for axis, index in zip(axes.ravel(), shown):
+        axis.imshow(frames[index], interpolation="none")
+        axis.set_title(f"step {steps[index]}", fontsize=11)
+    figure.suptitle(title, fontsize=12, y=1 - STRIP_TITLE_IN / 4 / figure.get_figheight(), va="top")
+    return figure

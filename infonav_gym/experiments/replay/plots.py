@@ -13,15 +13,19 @@ from infonav_gym.rendering import matplotlib_figure, save_figure
 
 
 def plot_calibration(model: NoiseModel, errors: dict, path) -> Path:
+    """Write ``figure_calibration(model, errors)`` to ``path``."""
+    return save_figure(figure_calibration(model, errors), path, dpi=110)
+
+
+def figure_calibration(model: NoiseModel, errors: dict):
     """Histograms of the range and bearing errors left after the systematic part, pooled over the robots,
     with the fitted Gaussian model (white plus bias, at each error's range) and the Student-t fit; log scale.
 
     Args:
         model: the fitted model.
         errors: robot subject -> ``calibration.landmark_errors`` arrays at the fitted clock offsets.
-        path: the PNG to write.
     """
-    figure = matplotlib_figure("the calibration plot", figsize=(11, 4))
+    figure = matplotlib_figure("the calibration plot", figsize=(11, 4.4), layout="constrained")
     axes = figure.subplots(1, 2)
     channels = {"range": ("range error [m]", 0.6), "bearing": ("bearing error [rad]", 0.08)}
     for axis, (channel, (label, limit)) in zip(axes, channels.items()):
@@ -48,30 +52,33 @@ def plot_calibration(model: NoiseModel, errors: dict, path) -> Path:
         axis.set_yscale("log")
         axis.set_ylim(1e-3 / limit, None)
         axis.set_xlabel(label)
-        axis.set_ylabel("density")
+        axis.set_ylabel(f"density [1/{label.split('[')[1]}")
         axis.set_title(f"{channel}: systematic part removed")
-        axis.legend(fontsize=8)
-    figure.tight_layout()
-    return save_figure(figure, path, dpi=110)
+        axis.legend(fontsize=8, loc="upper left")
+    return figure
 
 
 def plot_nees_over_time(result: dict, path, title: str = "") -> Path:
+    """Write ``figure_nees_over_time(result, title)`` to ``path``."""
+    return save_figure(figure_nees_over_time(result, title), path, dpi=110)
+
+
+def figure_nees_over_time(result: dict, title: str = ""):
     """Each robot's NEES over time in an all-landmark replay, with the two-sided 95 % chi-square(3) band.
 
     Args:
         result: a ``replay`` result of policy ``all`` (its robots hold ``nees_over_time``).
-        path: the PNG to write.
         title: the figure's title.
     """
     robots = {robot: metrics for robot, metrics in result["robots"].items() if "nees_over_time" in metrics}
-    figure = matplotlib_figure("the NEES plot", figsize=(10, 1.6 * len(robots) + 0.6))
+    figure = matplotlib_figure("the NEES plot", figsize=(10, 1.6 * len(robots) + 1.0), layout="constrained")
     axes = figure.subplots(len(robots), 1, sharex=True, squeeze=False)
     low, high = chi2_bounds(3)
     for axis, (robot, metrics) in zip(axes[:, 0], robots.items()):
         series = metrics["nees_over_time"]
         axis.semilogy(series["time_s"], np.maximum(series["nees"], 1e-3), lw=0.7)
         axis.axhspan(low, high, color="green", alpha=0.15)
-        axis.set_ylabel(f"robot {robot}")
+        axis.set_ylabel(f"robot {robot}\nNEES [-]")
         axis.text(
             0.01,
             0.85,
@@ -81,5 +88,4 @@ def plot_nees_over_time(result: dict, path, title: str = "") -> Path:
         )
     axes[-1, 0].set_xlabel("replay time [s]")
     figure.suptitle(title or "NEES over time (band: two-sided 95 % chi-square, 3 dof)", fontsize=10)
-    figure.tight_layout()
-    return save_figure(figure, path, dpi=110)
+    return figure

@@ -302,10 +302,15 @@ def _draw_standard_deviations(axes, fig3: dict) -> None:
 
 
 def plot_fig3(fig3: dict, path: Path) -> Path:
-    """Draw ``run_fig3``'s result like the paper's Fig. 3 and save it as a PNG at ``path``."""
+    """Write ``figure_fig3(fig3)`` as a PNG at ``path``."""
+    return save_figure(figure_fig3(fig3), path, dpi=120, bbox_inches="tight")
+
+
+def figure_fig3(fig3: dict):
+    """``run_fig3``'s result drawn like the paper's Fig. 3."""
     figure = matplotlib_figure("the Fig. 3 plot", figsize=(10, 7.5), layout="constrained")
     paths_axes, std_axes = figure.subplots(2, 1, height_ratios=(1, 1.4))
     _draw_paths(paths_axes, fig3)
     _draw_standard_deviations(std_axes, fig3)
     figure.suptitle(f"Fig. 3: laser-based cooperative localization on the convoy, seed {fig3['seed']}")
-    return save_figure(figure, path, dpi=120, bbox_inches="tight")
+    return figure

@@ -284,13 +284,18 @@ def _draw_histogram(axes, sensor_record: dict, colour: str, title: str) -> None:
         fontweight="bold",
     )
     axes.set_title(title, fontsize="medium")
-    axes.set_xlabel("gray level (brightness)", fontsize="small")
-    axes.set_ylabel("pixels", fontsize="small")
+    axes.set_xlabel("gray level (brightness) [0-255]", fontsize="small")
+    axes.set_ylabel("pixels [count]", fontsize="small")
     axes.tick_params(labelsize="small")
 
 
 def plot_fig5(fig5: dict, images: list[dict], path: Path) -> Path:
-    """Draw ``run_fig5``'s views like the paper's Fig. 5, one row per view, and save it as a PNG at ``path``."""
+    """Write ``figure_fig5(fig5, images)`` as a PNG at ``path``."""
+    return save_figure(figure_fig5(fig5, images), path, dpi=110, bbox_inches="tight")
+
+
+def figure_fig5(fig5: dict, images: list[dict]):
+    """``run_fig5``'s views drawn like the paper's Fig. 5, one row per view."""
     sensors = {"camera": Camera(), "ladar": Ladar()}
     rows = len(fig5["views"])
     figure = matplotlib_figure("the Fig. 5 plot", figsize=(18, 3.6 * rows), layout="constrained")
@@ -313,4 +318,4 @@ def plot_fig5(fig5: dict, images: list[dict], path: Path) -> Path:
         f"entropies, seed {fig5['seed']}.\nRows 1-2: two similar views of vegetated, rugged terrain (LADAR more "
         f"informative); row 3: a building {fig5['building']['distance_m']:.1f} m ahead (camera more informative)."
     )
-    return save_figure(figure, path, dpi=110, bbox_inches="tight")
+    return figure

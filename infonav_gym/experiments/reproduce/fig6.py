@@ -171,7 +171,12 @@ _RESIDUAL_SCALE_M = 0.2  # colour scale of the residuals [m]
 
 
 def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path: Path) -> Path:
-    """Write ``path``: rows = top and side views, columns = before (odometry) and after (ICP) registration.
+    """Write ``figure_fig6(pair, icp_motion, registration)`` to ``path``."""
+    return save_figure(figure_fig6(pair, icp_motion, registration), path, dpi=120)
+
+
+def figure_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict):
+    """Fig. 6: rows = top and side views, columns = before (odometry) and after (ICP) registration.
 
     Points are in the older frame's body frame at its optical centre: the older frame in gray,
     the newer one coloured by its distance to the older frame's surface (to the tangent plane at
@@ -222,4 +227,4 @@ def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path:
         "Fig. 6: consecutive 3D LADAR frames (32 x 180) of a vehicle pitching and rolling over rugged terrain, "
         f"before and after ICP ({registration['points']} points, {registration['iterations']} iterations)"
     )
-    return save_figure(figure, path, dpi=120)
+    return figure
