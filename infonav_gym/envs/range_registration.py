@@ -97,6 +97,7 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         ),
     )
     traits = EnvTraits(
+        kb_per_copy=900,  # [kB] at the defaults, between peak RSS growth and traced allocations
         valid_gain_may_be_zero=True,  # a patch may hold no usable control point
         reward_terms=("error_reduction_m", "point_cost"),
         main_metric="cumulative_reward",

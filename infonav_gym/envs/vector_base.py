@@ -22,7 +22,9 @@ from gymnasium.vector.utils import batch_space
 from infonav_gym.compiled import kernel
 from infonav_gym.config import check_choice, check_config, merge_config
 from infonav_gym.envs.base import EPISODE_STEPS, INVALID_ACTION_MODES, RENDER_SIZE_PX, accepts_action, shared_config
+from infonav_gym.envs.traits import traits_of
 from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
+from infonav_gym.memory import check_memory
 
 
 def is_seed(value) -> bool:
@@ -123,9 +125,13 @@ class InfoNavVectorEnv(VectorEnv):
         self.action_space = batch_space(single_action_space, self.num_envs)
 
     def _start_copies(self, num_envs: int, render_mode: str | None, autoreset_mode) -> None:
+        """Set the copies' bookkeeping, after checking ``num_envs`` and the memory its copies need (their traits'
+        ``kb_per_copy``), before any array of them is allocated."""
         owner = self.owner_name
         if type(num_envs) is not int or num_envs < 1:
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
+        kb_per_copy = traits_of(self).kb_per_copy
+        check_memory(num_envs * kb_per_copy * 1024, f"num_envs={num_envs} of {owner} (about {kb_per_copy:g} kB a copy)")
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, self.AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.num_envs = num_envs
