@@ -13,6 +13,7 @@ from infonav_gym.experiments.vector_timing import random_valid_actions, vector_e
 from infonav_gym.registry import env_entry, make_vector_env
 
 VECTOR_ENVS = vector_env_ids()
+GROWING_MAP, PATCHES = "cooperative_exploration_v0", "infonav/RangeRegistration-v0"  # copies grow with a config key
 DECLARATION_FACTOR = 4.0  # the declared memory a copy is within this factor of the one measured here
 
 
@@ -55,7 +56,7 @@ def _traced_peak_bytes(env_id: str, num_envs: int, config: dict) -> int:
 @pytest.mark.parametrize(
     ("env_id", "config"),
     [(env_id, {}) for env_id in VECTOR_ENVS]
-    + [("cooperative_exploration_v0", {"map_cells_per_side": 60}), ("infonav/RangeRegistration-v0", {"patch_rows": 16})],
+    + [(GROWING_MAP, {"map_cells_per_side": 60}), (PATCHES, {"patch_rows": 16})],
 )
 def test_the_declared_memory_a_copy_matches_a_measurement(env_id, config):
     """The marginal traced memory a copy (17 copies against 1, numpy's arrays included) against ``copy_kb()`` (the
