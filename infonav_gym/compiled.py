@@ -3,8 +3,9 @@
 ``@kernel`` compiles a function on its first call for each new set of argument types (their literal
 values dropped: one specialization per set of types) and caches the machine code on disk
 (``cache=True``), next to the source or, in a read-only install, in numba's user-wide cache directory
-(or ``NUMBA_CACHE_DIR``). Where no cache location is writable the kernels run uncached, after one
-warning line. ``fastmath`` stays off (the EKF's numbers are IEEE's, x / 0 is inf) and nothing runs in parallel.
+(or ``NUMBA_CACHE_DIR``); where numba finds neither writable, in the first writable ``fallback_cache_dirs()`` (set
+as ``NUMBA_CACHE_DIR``, said in one line). Where none is writable the kernels run uncached, after one warning line.
+``fastmath`` stays off (the EKF's numbers are IEEE's, x / 0 is inf) and nothing runs in parallel.
 A cached kernel is keyed on the sources of every kernel module of the package too (``kernel_sources_digest``):
 numba's own key holds only the function's bytecode, so a kernel cached before a kernel it calls (in another file)
 changed would run the old callee.
@@ -18,6 +19,8 @@ from __future__ import annotations
 import functools
 import hashlib
 import logging
+import os
+import tempfile
 import threading
 import weakref
 from pathlib import Path
@@ -37,6 +40,7 @@ KERNEL_MODULE_MARK = b"infonav_gym.compiled import"  # what a module that makes 
 logger = logging.getLogger(__name__)
 _kernels: weakref.WeakSet = weakref.WeakSet()  # the dispatchers made here: only their compiles are announced
 _uncached_warned = False
+_fallback_tried = False
 
 
 class Kernel(CPUDispatcher):
@@ -82,13 +86,9 @@ class InnerKernel(Kernel):
 
 
 def kernel(function, dispatcher_class=Kernel, **options):
-    """``function`` compiled by numba in nopython mode, cached on disk where a writable cache location exists.
-
-    Where numba finds none (it raises ``RuntimeError`` "no locator available" when caching is enabled), the
-    kernel is compiled on every process start instead, and one warning line (once per process) says so.
-    ``dispatcher_class`` and ``options`` (more numba target options): ``inner_kernel``'s.
+    """``function`` compiled by numba in nopython mode, cached on disk where a writable location exists
+    (``_enable_caching``). ``dispatcher_class`` and ``options`` (more numba target options): ``inner_kernel``'s.
     """
-    global _uncached_warned
     if numba.config.DISABLE_JIT:
         return function
     options = {key: value for key, value in {**KERNEL_OPTIONS, **options}.items() if key != "cache"}
@@ -96,20 +96,59 @@ def kernel(function, dispatcher_class=Kernel, **options):
         py_func=function, locals={}, targetoptions={**options, "nopython": True, "boundscheck": None}
     )
     if KERNEL_OPTIONS["cache"]:
-        try:
-            dispatcher.enable_caching()
-        except RuntimeError as error:
-            if "no locator available" not in str(error):
-                raise
-            if not _uncached_warned:
-                _uncached_warned = True
-                logger.warning(
-                    "infonav_gym: no writable numba cache location (set NUMBA_CACHE_DIR to a writable directory); "
-                    "kernels are compiled on every start: %s",
-                    error,
-                )
+        _enable_caching(dispatcher)
     _kernels.add(dispatcher)
     return dispatcher
+
+
+def fallback_cache_dirs() -> list[Path]:
+    """Where the kernels are cached when numba finds no writable location: the user's cache, then a temporary
+    directory (kept across runs until the system clears it)."""
+    user_cache = Path(os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"))
+    return [user_cache / "infonav-gym" / "numba", Path(tempfile.gettempdir()) / "infonav-gym-numba"]
+
+
+def _writable_directory(path: Path) -> bool:
+    """Whether ``path`` is, or is now made, a directory a file can be written into (a probe file, removed)."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+    except OSError:
+        return False
+    return True
+
+
+def _enable_caching(dispatcher) -> None:
+    """numba's on-disk cache for ``dispatcher``; where numba has no writable location (it raises ``RuntimeError``
+    "no locator available"), the first writable ``fallback_cache_dirs()`` becomes ``NUMBA_CACHE_DIR`` (tried once
+    per process); where none is, the kernel is compiled on every start. Each fallback is said once."""
+    global _fallback_tried, _uncached_warned
+    try:
+        dispatcher.enable_caching()
+        return
+    except RuntimeError as error:
+        if "no locator available" not in str(error):
+            raise
+        reason = error
+    if not _fallback_tried:
+        _fallback_tried = True
+        directory = next((path for path in fallback_cache_dirs() if _writable_directory(path)), None)
+        if directory is not None:
+            os.environ["NUMBA_CACHE_DIR"] = numba.config.CACHE_DIR = str(directory)  # numba reads config.CACHE_DIR
+            logger.warning(
+                "infonav_gym: neither the package's directory nor numba's user-wide cache is writable; "
+                "the kernels are cached in %s (set NUMBA_CACHE_DIR to choose)",
+                directory,
+            )
+            return _enable_caching(dispatcher)
+    if not _uncached_warned:
+        _uncached_warned = True
+        compile_notice.cached = False
+        logger.warning(
+            "infonav_gym: no writable numba cache location (set NUMBA_CACHE_DIR to a writable directory); "
+            "kernels are compiled on every start: %s",
+            reason,
+        )
 
 
 def inner_kernel(function):
@@ -157,6 +196,7 @@ class _CompileNotice(event.Listener):
         self.depth = 0
         self.timer = None
         self.said = False
+        self.cached = True  # False once kernels run uncached: the notice says so
 
     def on_start(self, event_):
         if self.depth == 0 and not self.said and event_.data["dispatcher"] in _kernels:
@@ -174,7 +214,8 @@ class _CompileNotice(event.Listener):
     def say(self):
         if not self.said:
             self.said = True
-            logger.warning("infonav_gym: compiling the numba kernels (first use; cached for later runs) ...")
+            when = "first use; cached for later runs" if self.cached else "not cached: on every start"
+            logger.warning("infonav_gym: compiling the numba kernels (%s) ...", when)
 
 
 compile_notice = _CompileNotice()

@@ -66,7 +66,7 @@ def test_the_seed_limit_is_numpys_legacy_one_that_stable_baselines_seeds_with():
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["demo", "--steps", "-1"], "argument --steps: must be an integer from 1 to 10000, got '-1'"),
+        (["demo", "--steps", "-1"], "argument --steps: must be an integer from 1 to 200, got '-1'"),
         (["evaluate", "--episodes", "0"], "argument --episodes: must be an integer from 1 to 1000000, got '0'"),
         (["evaluate", "--episodes", "-2"], "argument --episodes: must be an integer from 1 to 1000000, got '-2'"),
         (["evaluate", "--workers", "0"], "argument --workers: must be an integer from 1 to 1024, got '0'"),
@@ -104,7 +104,7 @@ def test_the_seed_limit_is_numpys_legacy_one_that_stable_baselines_seeds_with():
         (["evaluate", "--episodes", "1000000000"], "argument --episodes: must be an integer from 1 to 1000000"),
         (["evaluate", "--episodes", "100000000000000000000"], "--episodes: must be an integer from 1 to 1000000"),
         (["leaderboard", "--episodes", "1000001"], "argument --episodes: must be an integer from 1 to 1000000"),
-        (["demo", "--steps", "100000000000"], "argument --steps: must be an integer from 1 to 10000"),
+        (["demo", "--steps", "100000000000"], "argument --steps: must be an integer from 1 to 200"),
         (["evaluate", "--workers", "100000"], "argument --workers: must be an integer from 1 to 1024"),
         (["train", "--env", LANDMARK_ID, "--timesteps", "1e30"], "--timesteps: must be an integer from 0 to"),
         (["train", "--env", LANDMARK_ID, "--timesteps", "8", "--n-envs", "10000000"], "--n-envs: must be an integer"),

@@ -29,7 +29,11 @@ UNCACHED_WARNING = "no writable numba cache location"
 PROBE = textwrap.dedent(
     """
     import sys
+    from pathlib import Path
     import numpy as np
+    from infonav_gym import compiled
+    if len(sys.argv) > 2:  # the fallback cache directories instead of the user's cache and the temporary directory
+        compiled.fallback_cache_dirs = lambda: [Path(sys.argv[2])]
     from infonav_gym import information
     assert information.__file__.startswith(sys.argv[1]), information.__file__
     print(information.log_det_spd(np.stack([np.diag([2.0, 3.0]), np.eye(2)]), check_input=False).tolist())
@@ -58,12 +62,11 @@ def unwritable(root: Path) -> Path:
     return blocker / "cache"
 
 
-def run_probe(site: Path, **environment) -> subprocess.CompletedProcess:
+def run_probe(site: Path, *fallback: Path, **environment) -> subprocess.CompletedProcess:
     env = {key: value for key, value in os.environ.items() if not key.startswith(("NUMBA_", "XDG_"))}
     env.update(PYTHONPATH=str(site), PYTHONDONTWRITEBYTECODE="1", **environment)
-    done = subprocess.run(
-        [sys.executable, "-c", PROBE, str(site)], capture_output=True, text=True, env=env, cwd=site, timeout=300
-    )
+    argv = [sys.executable, "-c", PROBE, str(site), *map(str, fallback)]
+    done = subprocess.run(argv, capture_output=True, text=True, env=env, cwd=site, timeout=300)
     assert done.returncode == 0, done.stderr
     return done
 
@@ -98,9 +101,21 @@ def test_a_read_only_install_falls_back_to_numbas_user_wide_cache(site, tmp_path
     assert list((user_cache / "numba").rglob("*.nbi"))
 
 
+def test_a_read_only_install_without_a_user_cache_caches_its_kernels_in_a_temporary_directory(site, tmp_path):
+    """Neither the package's directory nor numba's user-wide cache is writable: the temporary directory it is."""
+    blocked, temporary = unwritable(tmp_path), tmp_path / "tmp"
+    temporary.mkdir()
+    first, second = (run_probe(site, XDG_CACHE_HOME=str(blocked), TMPDIR=str(temporary)) for _ in range(2))
+    assert first.stdout.split("\n")[:3] == [*expected_lines(), "0"]
+    assert second.stdout.split("\n")[:3] == [*expected_lines(), "1"]  # loaded from the cache, not compiled
+    said = f"the kernels are cached in {temporary / 'infonav-gym-numba'} (set NUMBA_CACHE_DIR to choose)"
+    assert said in first.stderr and UNCACHED_WARNING not in first.stderr + second.stderr
+    assert list((temporary / "infonav-gym-numba").rglob("*.nbi"))
+
+
 def test_without_any_writable_cache_location_kernels_run_uncached_after_one_warning_line(site, tmp_path):
     blocked = unwritable(tmp_path)
-    done = run_probe(site, NUMBA_CACHE_DIR=str(blocked), XDG_CACHE_HOME=str(blocked))
+    done = run_probe(site, blocked, NUMBA_CACHE_DIR=str(blocked), XDG_CACHE_HOME=str(blocked))
     assert done.stdout.split("\n")[:3] == [*expected_lines(), "0"]
     warnings = [line for line in done.stderr.splitlines() if UNCACHED_WARNING in line]
     assert len(warnings) == 1, done.stderr
@@ -137,15 +152,21 @@ def test_a_cached_kernel_compiles_again_when_a_kernel_it_calls_changes_in_anothe
     assert len(list((tmp_path / "cache").rglob("*.nbc"))) >= 2  # cached, not merely compiled each time
 
 
-def test_the_uncached_fallback_warns_once_for_many_kernels(monkeypatch, caplog):
+def test_the_uncached_fallback_warns_once_for_many_kernels_and_the_compile_notice_says_so(monkeypatch, caplog):
     """numba's "no locator available" at decoration (here: no locator at all) makes uncached kernels, one warning."""
     monkeypatch.setattr(numba.core.caching.CacheImpl, "_locator_classes", [])
+    monkeypatch.setattr(compiled, "fallback_cache_dirs", lambda: [])
+    monkeypatch.setattr(compiled, "_fallback_tried", False)
     monkeypatch.setattr(compiled, "_uncached_warned", False)
+    monkeypatch.setattr(compiled, "compile_notice", compiled._CompileNotice())
     with caplog.at_level(logging.WARNING, logger=compiled.__name__):
         twice = compiled.kernel(lambda value: 2.0 * value)
         thrice = compiled.kernel(lambda value: 3.0 * value)
-    assert (twice(1.5), thrice(1.5)) == (3.0, 4.5)
-    assert sum(record.getMessage().count(UNCACHED_WARNING) for record in caplog.records) == 1  # (not the notice)
+        assert (twice(1.5), thrice(1.5)) == (3.0, 4.5)
+        compiled.compile_notice.say()
+    messages = [record.getMessage() for record in caplog.records]
+    assert sum(message.count(UNCACHED_WARNING) for message in messages) == 1
+    assert messages[-1] == "infonav_gym: compiling the numba kernels (not cached: on every start) ..."
 
 
 def test_a_long_first_compile_is_announced_once(monkeypatch, caplog):

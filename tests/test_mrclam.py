@@ -206,12 +206,23 @@ def test_a_file_given_for_the_dataset_directory_says_so(dataset_dir, capsys):
     assert f"{file} is a file: give the MRCLAM dataset directory" in _replay_error(capsys, file)
 
 
-def test_a_robot_without_odometry_rows_is_an_error_naming_the_file(dataset_dir, capsys):
-    odometry = dataset_dir / "Robot2_Odometry.dat"
-    odometry.write_text(HEADER)
-    with pytest.raises(ValueError, match="Robot2_Odometry.dat holds no rows: robot 2 has no odometry to replay"):
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [
+        ("Robot2_Odometry.dat", "time [s], forward velocity [m/s], angular velocity [rad/s]"),
+        ("Robot2_Measurement.dat", "time [s], barcode #, range [m], bearing [rad]"),
+        ("Robot2_Groundtruth.dat", "time [s], x [m], y [m], orientation [rad]"),
+    ],
+)
+@pytest.mark.parametrize("content", ["", HEADER])
+def test_an_empty_or_header_only_robot_file_is_an_error_naming_it(dataset_dir, capsys, name, expected, content):
+    path = dataset_dir / name
+    path.write_text(content)
+    message = f"{path} holds no rows (empty or only '#' comments): expected lines of {expected}"
+    with pytest.raises(ValueError) as error:
         mrclam.load(dataset_dir)
-    assert f"{odometry} holds no rows" in _replay_error(capsys, dataset_dir)
+    assert str(error.value) == message
+    assert _replay_error(capsys, dataset_dir).endswith(message)
 
 
 def test_negative_or_repeated_timestamps_warn_naming_the_file_and_the_count(dataset_dir, capsys):

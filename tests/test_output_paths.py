@@ -1,7 +1,6 @@
 """Output paths of ``infonav``: checked before the work starts; a write that fails afterwards keeps the table."""
 
 import json
-import os
 from pathlib import Path
 
 import pytest
@@ -47,6 +46,8 @@ def no_work(monkeypatch):
     monkeypatch.setattr(evaluation, "evaluate", fail)
     monkeypatch.setattr(fig6, "terrain_frame_pair", fail)
     monkeypatch.setattr("agents.ppo.train", fail)
+    monkeypatch.setattr("infonav_gym.experiments.replay.calibration.calibrate", fail)
+    monkeypatch.setattr("infonav_gym.experiments.demo.run_demo", fail)
 
 
 def test_check_output_dir_accepts_a_directory_to_be_created_and_creates_nothing(tmp_path, a_file):
@@ -80,14 +81,17 @@ def test_a_bad_output_path_is_one_line_exit_2_before_the_work(capsys, tmp_path, 
     assert message.format(**names) in error
 
 
-def test_an_unwritable_directory_is_refused_before_the_work(capsys, tmp_path, no_work, monkeypatch):
-    locked = tmp_path / "locked"
-    locked.mkdir()
-    monkeypatch.setattr(os, "access", lambda path, mode: Path(path) != locked)  # as for a non-root user after chmod
+@pytest.mark.parametrize("locked", [Path("/sys"), Path("/proc")])  # os.access passes for root; a write fails
+def test_an_unwritable_directory_is_refused_before_the_work(capsys, tmp_path, no_work, locked):
     _, error = one_line_error(capsys, EVALUATE + ["--output", str(locked / "eval")])
-    assert f"cannot write to {locked} (permission denied)" in error
-    _, error = one_line_error(capsys, ["reproduce", "fig6", "--output-dir", str(locked / "figures")])
-    assert f"cannot create {locked / 'figures'} in {locked} (permission denied)" in error
+    assert f"--output {locked / 'eval'}: cannot write to {locked} (" in error
+    _, error = one_line_error(capsys, ["reproduce", "fig6", "--output-dir", str(locked / "figures" / "fig6")])
+    assert f"cannot create {locked / 'figures' / 'fig6'} in {locked} (" in error
+    _, error = one_line_error(capsys, ["demo", "--plot", str(locked / "demo")])
+    assert f"--plot {locked / 'demo'}: cannot write to {locked} (" in error
+    dataset = write_dataset(tmp_path / "dataset")
+    _, error = one_line_error(capsys, ["replay", "mrclam", str(dataset), "--calibrate", str(locked / "noise.json")])
+    assert f"--calibrate {locked / 'noise'}: cannot write to {locked} (" in error
 
 
 def _fail_to_write(*args, **kwargs):

@@ -19,10 +19,10 @@ import numpy as np
 
 BARCODES_FILE = "Barcodes.dat"
 LANDMARKS_FILE = "Landmark_Groundtruth.dat"
-ODOMETRY_COLUMNS = 3  # time [s], forward velocity [m/s], angular velocity [rad/s]
-MEASUREMENT_COLUMNS = 4  # time [s], barcode #, range [m], bearing [rad]
-GROUNDTRUTH_COLUMNS = 4  # time [s], x [m], y [m], orientation [rad]
-LANDMARK_COLUMNS = 5  # subject #, x [m], y [m], x std-dev [m], y std-dev [m]
+ODOMETRY_COLUMNS, ODOMETRY_ROW = 3, "time [s], forward velocity [m/s], angular velocity [rad/s]"
+MEASUREMENT_COLUMNS, MEASUREMENT_ROW = 4, "time [s], barcode #, range [m], bearing [rad]"
+GROUNDTRUTH_COLUMNS, GROUNDTRUTH_ROW = 4, "time [s], x [m], y [m], orientation [rad]"
+LANDMARK_COLUMNS, LANDMARK_ROW = 5, "subject #, x [m], y [m], x std-dev [m], y std-dev [m]"
 _ROBOT_FILE = re.compile(r"Robot(\d+)_(Odometry|Measurement|Groundtruth)\.dat$")
 
 
@@ -140,10 +140,15 @@ def _sorted_by_time(table: np.ndarray, path: Path, unique_times: bool = True) ->
 
 
 def _required(directory: Path, name: str, columns: int, what: str) -> np.ndarray:
-    """The table of ``directory / name``, which must exist and hold at least one row (``what`` it lists)."""
+    """The rows of ``directory / name`` (``_rows``), which must exist."""
     path = directory / name
     if not path.is_file():
         raise FileNotFoundError(f"{path} is missing: {directory} is not an MRCLAM dataset directory")
+    return _rows(path, columns, what)
+
+
+def _rows(path: Path, columns: int, what: str) -> np.ndarray:
+    """The table of ``path`` (``read_table``), which must hold at least one row (``what`` its columns are)."""
     table = read_table(path, columns)
     if not len(table):
         raise ValueError(f"{path} holds no rows (empty or only '#' comments): expected lines of {what}")
@@ -167,7 +172,7 @@ def load(path) -> MRCLAMDataset:
             every robot's odometry is missing.
         NotADirectoryError: if ``path`` is a file.
         ValueError: on a malformed line, naming the file and the line number; on an empty (or
-            comments-only) ``Barcodes.dat``, ``Landmark_Groundtruth.dat`` or odometry file, naming it.
+            comments-only) file of any kind, naming it and the rows expected.
     """
     directory = Path(path)
     if directory.is_file():
@@ -177,7 +182,7 @@ def load(path) -> MRCLAMDataset:
     if not directory.is_dir():
         raise FileNotFoundError(f"MRCLAM dataset directory {directory} does not exist")
     barcode_rows = _required(directory, BARCODES_FILE, 2, "subject #, barcode #").astype(int)
-    landmark_rows = _required(directory, LANDMARKS_FILE, LANDMARK_COLUMNS, "subject #, x, y, x std, y std")
+    landmark_rows = _required(directory, LANDMARKS_FILE, LANDMARK_COLUMNS, LANDMARK_ROW)
     barcodes = {int(barcode): int(subject) for subject, barcode in barcode_rows}
     landmark_ids = landmark_rows[:, 0].astype(int)
     candidate_robots = {int(subject) for subject in barcode_rows[:, 0]} - set(landmark_ids.tolist())
@@ -194,19 +199,18 @@ def load(path) -> MRCLAMDataset:
         if not odometry_path.is_file():
             missing.append(f"robot {robot}: {odometry_path.name} is missing, robot left out")
             continue
-        odometry[robot] = _sorted_by_time(read_table(odometry_path, ODOMETRY_COLUMNS), odometry_path)
-        if not len(odometry[robot]):
-            raise ValueError(f"{odometry_path} holds no rows: robot {robot} has no odometry to replay")
+        odometry[robot] = _sorted_by_time(_rows(odometry_path, ODOMETRY_COLUMNS, ODOMETRY_ROW), odometry_path)
         measurement_path = directory / f"Robot{robot}_Measurement.dat"
         if measurement_path.is_file():
-            table = read_table(measurement_path, MEASUREMENT_COLUMNS)
+            table = _rows(measurement_path, MEASUREMENT_COLUMNS, MEASUREMENT_ROW)
             raw_measurements[robot] = _sorted_by_time(table, measurement_path, unique_times=False)
         else:
             missing.append(f"robot {robot}: {measurement_path.name} is missing, no measurements")
             raw_measurements[robot] = np.zeros((0, MEASUREMENT_COLUMNS))
         groundtruth_path = directory / f"Robot{robot}_Groundtruth.dat"
         if groundtruth_path.is_file():
-            groundtruth[robot] = _sorted_by_time(read_table(groundtruth_path, GROUNDTRUTH_COLUMNS), groundtruth_path)
+            table = _rows(groundtruth_path, GROUNDTRUTH_COLUMNS, GROUNDTRUTH_ROW)
+            groundtruth[robot] = _sorted_by_time(table, groundtruth_path)
         else:
             missing.append(f"robot {robot}: {groundtruth_path.name} is missing, no ground truth")
     robots = tuple(sorted(odometry))

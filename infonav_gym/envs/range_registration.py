@@ -37,6 +37,7 @@ from infonav_gym.world.world_batch import WorldBatch
 
 MIN_CONTROL_POINTS = 3  # fewer cannot fix a rigid motion
 MAX_PATCH_INFORMATION = 50.0  # observation bound of a patch's information [nats]
+PATCH_KB = 1.2  # [kB] a copy's memory per control-point patch, measured from 4 x 9 to 32 x 180 patches
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses (patches: see __init__)
     "time_step_s": TIME_STEP_S,
     "point_cost": Interval(0.0, 1e3, unit="m per control point"),
@@ -97,6 +98,7 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         ),
     )
     traits = EnvTraits(
+        kb_per_copy=900,  # [kB] at the defaults, between peak RSS growth and traced allocations
         valid_gain_may_be_zero=True,  # a patch may hold no usable control point
         reward_terms=("error_reduction_m", "point_cost"),
         main_metric="cumulative_reward",
@@ -129,6 +131,13 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
             "max_correspondence_distance_m": FRAME_PAIR_ICP["max_correspondence_distance"],
             "ladar_range_std_m": Ladar().range_std_m,
         }
+
+    def copy_kb(self) -> float:
+        """``kb_per_copy`` and ``PATCH_KB`` a patch beyond the default's (at most one per pixel of the LADAR)."""
+        cfg, defaults = self.config, self.default_config()
+        patches = min(cfg["patch_rows"], Ladar.rows) * min(cfg["patch_columns"], Ladar.columns)
+        more_patches = patches - defaults["patch_rows"] * defaults["patch_columns"]
+        return self.traits.kb_per_copy + PATCH_KB * max(more_patches, 0)
 
     def _build(self) -> None:
         cfg, owner, num_envs = self.config, self.owner_name, self.num_envs

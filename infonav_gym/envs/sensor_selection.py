@@ -92,6 +92,7 @@ class SensorSelectionVectorEnv(InfoNavVectorEnv):
         ),
     )
     traits = EnvTraits(
+        kb_per_copy=250,  # [kB] at the defaults, between peak RSS growth and traced allocations
         rewards_information_at_once=True,
         idle_actions=frozenset({IDLE_ACTION}),
         reward_terms=("image_information",),

@@ -45,6 +45,10 @@ class EnvTraits:
         main_metric: the name of the ``episode_metrics`` entry that ranks agents on the env, higher being better
             (``infonav leaderboard`` reports it); every infonav env names one.
         reward_unit: the unit of a reward and a return, as plots write it in brackets (``"nats"``).
+        kb_per_copy: the memory a copy of its vector env takes [kB] at the default config: within a factor 4 of
+            both the benchmark's ``*_kb_per_env`` (peak RSS growth) and the allocations numpy and Python trace
+            (``tests/test_sizes.py``); a vector env refuses more copies than the available memory holds, before
+            allocating them (0: not declared, not checked).
     """
 
     estimates_pose: bool = False
@@ -59,6 +63,7 @@ class EnvTraits:
     noop_action: int | None = None
     main_metric: str = ""
     reward_unit: str = "nats"
+    kb_per_copy: float = 0.0
 
 
 def has_planning_model(env_or_class) -> bool:

@@ -22,7 +22,9 @@ from gymnasium.vector.utils import batch_space
 from infonav_gym.compiled import kernel
 from infonav_gym.config import check_choice, check_config, merge_config
 from infonav_gym.envs.base import EPISODE_STEPS, INVALID_ACTION_MODES, RENDER_SIZE_PX, accepts_action, shared_config
+from infonav_gym.envs.traits import traits_of
 from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
+from infonav_gym.memory import check_memory
 
 
 def is_seed(value) -> bool:
@@ -115,6 +117,11 @@ class InfoNavVectorEnv(VectorEnv):
         check_config(self.config, owner, {key: interval for key, interval in shared.items() if key in self.config})
         self._start_copies(num_envs, render_mode, autoreset_mode)
 
+    def copy_kb(self) -> float:
+        """The memory a copy takes at this config [kB]: the traits' ``kb_per_copy``. An env whose copies grow with a
+        config key adds to it, reading the key up to its range's end (its range check comes later, in ``_build``)."""
+        return traits_of(self).kb_per_copy
+
     def _set_spaces(self, single_observation_space: gym.Space, single_action_space: gym.Space) -> None:
         """Set the spaces of one sub-env and their batched versions."""
         self.single_observation_space = single_observation_space
@@ -123,9 +130,13 @@ class InfoNavVectorEnv(VectorEnv):
         self.action_space = batch_space(single_action_space, self.num_envs)
 
     def _start_copies(self, num_envs: int, render_mode: str | None, autoreset_mode) -> None:
+        """Set the copies' bookkeeping, after checking ``num_envs`` and the memory its copies need (``copy_kb``),
+        before any array of them is allocated."""
         owner = self.owner_name
         if type(num_envs) is not int or num_envs < 1:
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
+        kb = self.copy_kb()
+        check_memory(num_envs * kb * 1024, f"num_envs={num_envs} of {owner} (about {kb:.4g} kB a copy)")
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, self.AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.num_envs = num_envs

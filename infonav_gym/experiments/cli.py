@@ -20,6 +20,7 @@ from infonav_gym.experiments.arguments import (
     number,
     seed,
 )
+from infonav_gym.experiments.demo import DEMO_HORIZON
 from infonav_gym.experiments.paths import (
     Interrupted,
     OutputWriteError,
@@ -41,12 +42,12 @@ CURVE_REFERENCES = ("greedy", "planner")  # the agents drawn as lines on a learn
 REPLAY_SUFFIXES = (".md", ".json")  # the files of ``replay mrclam --output STEM``
 RENDER_SUFFIXES = (".gif", ".png")  # the files of ``render --output PREFIX``
 CALIBRATION_SUFFIXES = (".json", ".png")  # the files of ``replay mrclam --calibrate OUTPUT.json``
+PLOT_SUFFIX = ".png"  # demo / benchmark --plot: the file written, its suffix added unless given
 PYTHON_CONSTANTS = {"True": True, "False": False, "None": None}  # --config values written as in Python
 DEFAULT_VECTOR_SIZES_TEXT = ",".join(map(str, DEFAULT_VECTOR_SIZES))
 # The upper ends of the counts and sizes the options take; a run's memory is checked against the machine as well.
 MAX_EPISODES = 1_000_000  # episodes per agent
 MAX_WORKERS = 1024  # processes; also capped at the number of tasks
-MAX_DEMO_STEPS = 10_000  # demo steps per agent
 MAX_STEPS = 1_000_000  # render: steps of one episode
 MAX_TIMESTEPS = 10**10  # train: env steps
 MAX_COPIES = 65_536  # env copies of one vector env
@@ -108,8 +109,15 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True)
 
     demo = commands.add_parser("demo", help="the paper's Fig. 2 story: which corridor landmark brings most information")
-    demo.add_argument("--steps", type=integer(1, MAX_DEMO_STEPS), default=12, help="steps per agent (default: 12)")
-    demo.add_argument("--plot", type=Path, help="also write a Fig. 2-style plot to this PNG (needs matplotlib)")
+    demo.add_argument(
+        "--steps",
+        type=integer(1, DEMO_HORIZON),
+        default=12,
+        help=f"steps per agent, of one corridor episode: at most its horizon, {DEMO_HORIZON} (default: 12)",
+    )
+    demo.add_argument(
+        "--plot", type=Path, help="also write a Fig. 2-style plot to PLOT.png (.png added unless given; matplotlib)"
+    )
 
     evaluate = commands.add_parser("evaluate", help="evaluate baseline agents with the same seeds; print a table")
     evaluate.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
@@ -270,7 +278,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULT_VECTOR_SIZES,
         help=f"comma-separated sub-env counts N of the vector envs (default: {DEFAULT_VECTOR_SIZES_TEXT})",
     )
-    benchmark.add_argument("--plot", type=Path, help="also write the steps/s-against-N curves to this PNG")
+    benchmark.add_argument(
+        "--plot", type=Path, help="also write the steps/s-against-N curves to PLOT.png (.png added unless given)"
+    )
 
     reproduce = commands.add_parser(
         "reproduce",
@@ -351,13 +361,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _plot_file(plot: Path | None) -> Path | None:
+    """The PNG file ``--plot PLOT`` writes (``PLOT_SUFFIX`` added unless given), checked before the work; None
+    without ``--plot``."""
+    return plot and output_file(check_output_stem(plot, (PLOT_SUFFIX,), "--plot"), PLOT_SUFFIX)
+
+
 def _demo(args, command: str) -> dict:
     from infonav_gym.experiments.demo import demo_table, plot_information_field, run_demo
 
-    result = run_demo(steps=args.steps, seed=args.seed)
-    if args.plot:
-        result["plot"] = str(plot_information_field(args.plot, seed=args.seed))
-    return _show(args, result, lambda: [demo_table(result)] + ([f"\nwrote {result['plot']}"] if args.plot else []))
+    plot = _plot_file(args.plot)
+    result = run_demo(steps=args.steps, seed=args.seed, progress=not args.json)
+    if plot:
+        result["plot"] = str(plot_information_field(plot, seed=args.seed))
+    return _show(args, result, lambda: [demo_table(result)] + ([f"\nwrote {result['plot']}"] if plot else []))
 
 
 def _show(args, result: dict, lines, write=None, where: str = "") -> dict:
@@ -609,7 +626,7 @@ def _benchmark(args, command: str) -> dict:
     from infonav_gym.experiments.benchmark import lower_is_better, plot_throughput, run_benchmark
     from infonav_gym.rendering import require_extra
 
-    plot = check_output_stem(args.plot, ("",), "--plot") if args.plot else None  # the file itself
+    plot = _plot_file(args.plot)
     if plot:
         require_extra("matplotlib", "benchmark --plot")  # before the run, not after it
     result = run_benchmark(

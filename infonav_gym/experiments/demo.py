@@ -6,18 +6,25 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from tqdm import tqdm
 
 from infonav_gym.estimation import batched
 from infonav_gym.experiments.episodes import make_agent
 from infonav_gym.information import expected_information_gain
 
 DEMO_AGENTS = ("greedy", "random")
+DEMO_HORIZON = 200  # [steps] the corridor episode each agent drives: the most steps a demo shows
+PROGRESS_DELAY_S = 2.0  # the progress bar shows once a demo has run this long [s]
 
 
-def run_demo(steps: int = 12, seed: int = 0) -> dict:
-    """Both agents on the corridor for ``steps`` steps with the same seed; one record per step."""
-    env = gym.make("infonav/LandmarkSelection-v0", scenario="corridor", n_candidates=4)
+def run_demo(steps: int = 12, seed: int = 0, progress: bool = False) -> dict:
+    """Both agents on the corridor for ``steps`` steps of one episode (at most ``DEMO_HORIZON``) with the same seed;
+    one record per step. ``progress``: a bar on stderr once the demo runs longer than ``PROGRESS_DELAY_S``."""
+    if not 1 <= steps <= DEMO_HORIZON:
+        raise ValueError(f"steps must be in [1, {DEMO_HORIZON}] (one corridor episode), got {steps}")
+    env = gym.make("infonav/LandmarkSelection-v0", scenario="corridor", n_candidates=4, horizon=DEMO_HORIZON)
     runs = {}
+    bar = tqdm(total=steps * len(DEMO_AGENTS), desc="demo", unit="step", delay=PROGRESS_DELAY_S, disable=not progress)
     for name in DEMO_AGENTS:
         agent = make_agent(name, env.action_space.n)
         observation, info = env.reset(seed=seed)
@@ -36,7 +43,9 @@ def run_demo(steps: int = 12, seed: int = 0) -> dict:
                     "pose_entropy": info["pose_entropy"],
                 }
             )
+            bar.update()
         runs[name] = records
+    bar.close()
     env.close()
     return {"seed": seed, "steps": steps, "runs": runs}
 

@@ -3,7 +3,7 @@ work."""
 
 from __future__ import annotations
 
-import os
+import tempfile
 from pathlib import Path
 
 
@@ -29,9 +29,20 @@ def _directory_problem(directory: Path) -> str | None:
     existing = next((path for path in (directory, *directory.parents) if path.exists()), Path("."))
     if not existing.is_dir():
         return f"{existing} is a file, not a directory"
-    if not os.access(existing, os.W_OK | os.X_OK):
+    try:  # a real write, not os.access: root passes os.access where the file system refuses (read-only, /proc)
+        tempfile.TemporaryFile(dir=existing).close()  # unnamed or removed at once: nothing stays
+    except OSError as error:
         action = f"write to {existing}" if existing == directory else f"create {directory} in {existing}"
-        return f"cannot {action} (permission denied)"
+        return f"cannot {action} ({error.strerror or error})"
+    return None
+
+
+def _file_problem(path: Path) -> str | None:
+    """Why the existing file ``path`` cannot be overwritten; None if it can (opened to append, nothing written)."""
+    try:
+        path.open("ab").close()
+    except OSError as error:
+        return f"cannot overwrite {path} ({error.strerror or error})"
     return None
 
 
@@ -88,8 +99,9 @@ def check_output_stem(stem: Path | str, suffixes: tuple[str, ...], where: str) -
         path = output_file(stem, suffix)
         if path.is_dir():
             raise ValueError(f"{where} {stem}: {path} is a directory, not a file")
-        if path.exists() and not os.access(path, os.W_OK):
-            raise ValueError(f"{where} {stem}: cannot overwrite {path} (permission denied)")
+        problem = _file_problem(path) if path.exists() else None
+        if problem:
+            raise ValueError(f"{where} {stem}: {problem}")
     return stem
 
 

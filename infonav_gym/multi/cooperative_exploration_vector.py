@@ -44,6 +44,7 @@ from infonav_gym.multi.exploration_planning import (
     total_reward,
 )
 from infonav_gym.multi.exploration_team import (
+    CONFIG_INTERVALS,
     REWARD_TERMS,
     ExplorationParts,
     exploration_config,
@@ -61,6 +62,7 @@ from infonav_gym.world.visibility import StaticGeometry
 
 LANDMARK_NOISE = 3  # ``_noise`` index of the landmark measurements' streams (after odometry, DGPS, relative poses)
 MAP_IMAGE_PIXELS_PER_CELL = 8
+MAP_CELL_KB = 0.07  # [kB] a copy's memory per coverage-map cell, measured from 20 x 20 to 100 x 100 cells
 
 
 class CopyState(NamedTuple):
@@ -109,6 +111,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
     metadata = {**team_metadata("cooperative_exploration_v0"), "autoreset_mode": AutoresetMode.NEXT_STEP}
     episode_metrics = EXPLORATION_METRICS
     traits = EnvTraits(
+        kb_per_copy=75,  # [kB] at the defaults, between peak RSS growth and traced allocations
         reports_success=True,
         may_terminate=True,
         noop_action=NOOP_ACTION,
@@ -124,6 +127,12 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
     def default_config(cls) -> dict:
         """A fresh dict of every config key with its default."""
         return exploration_config()
+
+    def copy_kb(self) -> float:
+        """``kb_per_copy`` and ``MAP_CELL_KB`` a map cell beyond the default's."""
+        side = min(self.config["map_cells_per_side"], CONFIG_INTERVALS["map_cells_per_side"].high)
+        more_cells = side**2 - self.default_config()["map_cells_per_side"] ** 2
+        return self.traits.kb_per_copy + MAP_CELL_KB * max(more_cells, 0)
 
     def _build(self) -> None:
         num_envs, cfg = self.num_envs, self.config

@@ -65,6 +65,7 @@ class CooperativeLocalizationVectorEnv(TeamVectorEnv):
     metadata = {**team_metadata("cooperative_localization_v0"), "autoreset_mode": AutoresetMode.NEXT_STEP}
     episode_metrics = TEAM_LOCALIZATION_METRICS
     traits = EnvTraits(
+        kb_per_copy=20,  # [kB] at the defaults, between peak RSS growth and traced allocations
         idle_actions=frozenset({NO_OBSERVATION}),
         reward_terms=("own_mutual_information", "team_mutual_information"),
         main_metric="cumulative_mi",

@@ -17,7 +17,7 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec_wrapper
 from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
-from infonav_gym.envs.base import discrete_action_index
+from infonav_gym.envs.base import accepts_action, discrete_action_index
 from infonav_gym.envs.copy_view import OneCopyView
 from infonav_gym.multi.team_vector import TeamVectorEnv
 
@@ -38,9 +38,9 @@ def pettingzoo_entry_points(env_class) -> tuple:
         """The parallel env: every robot acts at every step."""
         return env_class(render_mode=render_mode, **config)
 
-    def raw_env(render_mode: str | None = None, **config) -> parallel_to_aec_wrapper:
+    def raw_env(render_mode: str | None = None, **config) -> TeamAECEnv:
         """The AEC (agent-by-agent) conversion of ``parallel_env``, without wrappers."""
-        return parallel_to_aec_wrapper(parallel_env(render_mode=render_mode, **config))
+        return TeamAECEnv(parallel_env(render_mode=render_mode, **config))
 
     def env(render_mode: str | None = None, **config) -> OrderEnforcingWrapper:
         """The AEC env, wrapped to enforce PettingZoo's call order."""
@@ -121,7 +121,7 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
         if not isinstance(actions, dict) or set(actions) != set(self.agents):
             given = sorted(actions) if isinstance(actions, dict) else actions
             raise ValueError(f"actions must be a dict with one action per live agent {self.agents}, got {given!r}")
-        chosen = [discrete_action_index(actions[agent], self.action_space(agent), agent) for agent in self.agents]
+        chosen = [self.checked_action(agent, actions[agent]) for agent in self.agents]
         observations, rewards, terminated, truncated, info = self.vector.step(np.array([chosen]))
         agents = self.agents
         outputs = (
@@ -135,6 +135,17 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
             self.agents = []
         return outputs
 
+    def checked_action(self, agent: str, action) -> int:
+        """``agent``'s action as an int, checked against its space and, with ``invalid_action="raise"``, its mask.
+
+        Raises:
+            ValueError: naming ``agent`` and its allowed range, or its mask (see ``accepts_action``).
+        """
+        index = discrete_action_index(action, self.action_space(agent), agent)
+        mask = self.vector.action_masks()[0, self.possible_agents.index(agent)].astype(np.int8)  # 1 = valid
+        accepts_action(index, mask, self.vector.config["invalid_action"], f"infos[{agent!r}]['action_mask']", agent)
+        return index
+
     def _per_agent(self, observations: np.ndarray) -> dict:
         return {agent: observations[0, robot] for robot, agent in enumerate(self.agents)}
 
@@ -144,6 +155,17 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
 
     def close(self):
         self.vector.close()
+
+
+class TeamAECEnv(parallel_to_aec_wrapper):
+    """The AEC conversion of a team env: an action is checked at the ``step`` that gives it, naming its agent
+    (PettingZoo's conversion would hold it until the last agent acts)."""
+
+    def step(self, action):
+        agent = self.agent_selection
+        if not (self.terminations[agent] or self.truncations[agent]):
+            self.env.checked_action(agent, action)
+        super().step(action)
 
 
 def _copy_planning_model(self):

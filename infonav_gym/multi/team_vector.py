@@ -206,12 +206,8 @@ class TeamVectorEnv(InfoNavVectorEnv, abc.ABC):
         accepted = accepted.reshape(actions.shape)
         invalid = acting[:, None] & (accepted < 0)
         for copy, robot in np.argwhere(invalid).tolist() if invalid.any() else ():
-            agent = self.agents[robot]
-            # a PettingZoo view (one copy, ``_owner``) names the agent and where its infos give its mask
-            key, where = (
-                (f"infos[{agent!r}]['action_mask']", agent) if self._owner else (MASK_KEY, f"{agent} in sub-env {copy}")
-            )
-            accepts_action(int(actions[copy, robot]), mask[copy, robot], self.config["invalid_action"], key, where)
+            where = f"{self.agents[robot]} in sub-env {copy}"  # a PettingZoo view checks its agents' actions first
+            accepts_action(int(actions[copy, robot]), mask[copy, robot], self.config["invalid_action"], MASK_KEY, where)
         return np.where(accepted >= 0, accepted, noop), invalid
 
     def _relative_update(self, copies: np.ndarray, chosen: np.ndarray, decision) -> list:
