@@ -115,48 +115,76 @@ def _robot_colour(index: int) -> tuple[int, int, int]:
     return ROBOT_COLOURS[index % len(ROBOT_COLOURS)]
 
 
-def legend_entries(frame: SceneFrame) -> list[LegendEntry]:
-    """The legend of ``frame``: one entry per kind of thing it draws, in drawing order."""
+def legend_entries(frame: SceneFrame, *, possible: bool = False) -> list[LegendEntry]:
+    """The legend of ``frame``: one entry per kind of thing it draws, in drawing order. With ``possible``, also the
+    kinds that come and go in its scene (paths, observations, landmarks in and out of sight): the rows a frame
+    reserves, so that every frame of an episode has the same size."""
     robots = list(frame.robots)
     estimated = [index for index, robot in enumerate(robots) if robot.estimated_pose is not None]
     colour = _robot_colour(estimated[0] if estimated else 0)
     per_robot = " (colour per robot)" if len(estimated) > 1 else ""
     visible = np.ones(len(frame.landmarks), bool) if frame.landmark_visible is None else frame.landmark_visible
     visible = np.asarray(visible, dtype=bool)
-    candidates = [
-        (any(robot.true_pose is not None for robot in robots), "disc", _BLACK, "true pose"),
-        (bool(estimated), "ring", colour, "estimated pose" + per_robot),
+    has_landmarks, team = len(visible) > 0, len(robots) > 1
+    candidates = [  # (drawn in this frame, may be drawn in its scene, symbol, colour, text)
+        (any(robot.true_pose is not None for robot in robots), False, "disc", _BLACK, "true pose"),
+        (bool(estimated), False, "ring", colour, "estimated pose" + per_robot),
         (
             any(robots[index].pose_covariance is not None for index in estimated),
+            False,
             "ellipse",
             colour,
             f"{N_SIGMA:g}\u03c3 position ellipse (min {MIN_ELLIPSE_RADIUS_PX} px)",
         ),
-        (any(_has_path(robot.true_path) for robot in robots), "line", _PATH_GREY, "true path"),
-        (any(_has_path(robot.estimated_path) for robot in robots), "line", colour, "estimated path"),
-        (bool(visible.any()), "disc", _GREEN, f"landmark in sight, numbered {_landmark_numbers(len(visible))}"),
-        (not visible.all(), "disc", _LIGHT_GREY, "landmark out of sight"),
-        (frame.chosen_landmark is not None or bool(frame.landmark_observations), "disc", _RED, "landmark observed now"),
-        (frame.landmark_estimates is not None, "cross", _ORANGE, f"landmark estimate, {N_SIGMA:g}\u03c3"),
+        (any(_has_path(robot.true_path) for robot in robots), bool(robots), "line", _PATH_GREY, "true path"),
+        (any(_has_path(robot.estimated_path) for robot in robots), bool(estimated), "line", colour, "estimated path"),
+        (
+            bool(visible.any()),
+            has_landmarks,
+            "disc",
+            _GREEN,
+            f"landmark in sight, numbered {_landmark_numbers(len(visible))}",
+        ),
+        (
+            not visible.all(),
+            has_landmarks and frame.landmark_visible is not None,
+            "disc",
+            _LIGHT_GREY,
+            "landmark out of sight",
+        ),
+        (
+            frame.chosen_landmark is not None or bool(frame.landmark_observations),
+            has_landmarks,
+            "disc",
+            _RED,
+            "landmark observed now",
+        ),
+        (frame.landmark_estimates is not None, False, "cross", _ORANGE, f"landmark estimate, {N_SIGMA:g}\u03c3"),
         (
             bool(frame.observations),
+            team,
             "line",
             _first_observer_colour(frame.observations),
             "relative observation (observer's colour)",
         ),
         (
             bool(frame.landmark_observations),
+            team and has_landmarks,
             "line",
             _first_observer_colour(frame.landmark_observations),
             "landmark observation (observer's colour)",
         ),
-        (bool(frame.walls), "line", _DARK_GREY, "wall"),
-        (bool(frame.obstacles), "disc", _DARK_GREY, "obstacle"),
-        (bool(frame.gps_denied_zones), "zone", _CANOPY_GREEN, "GPS denied"),
-        (frame.sensor_wedge is not None, "wedge", _RED, "sensor field of view"),
-        (frame.goal is not None, "target", _BLACK, "goal"),
+        (bool(frame.walls), False, "line", _DARK_GREY, "wall"),
+        (bool(frame.obstacles), False, "disc", _DARK_GREY, "obstacle"),
+        (bool(frame.gps_denied_zones), False, "zone", _CANOPY_GREEN, "GPS denied"),
+        (frame.sensor_wedge is not None, False, "wedge", _RED, "sensor field of view"),
+        (frame.goal is not None, False, "target", _BLACK, "goal"),
     ]
-    return [LegendEntry(symbol, colour, text) for shown, symbol, colour, text in candidates if shown]
+    return [
+        LegendEntry(symbol, colour, text)
+        for shown, may_show, symbol, colour, text in candidates
+        if shown or (possible and may_show)
+    ]
 
 
 def _landmark_numbers(count: int) -> str:
@@ -257,9 +285,10 @@ class Renderer:
         bar_m = scale_bar_m(_SCALE_BAR_PX / widest_scale)
         bar_px = max(_SYMBOL_PX[0], math.ceil(bar_m * widest_scale))
         scale_bar = LegendEntry("scale", _BLACK, f"{bar_m:g} m", bar_px, bar_m)
-        entries = legend_entries(frame)
+        entries, reserved = legend_entries(frame), legend_entries(frame, possible=True)
         legend_rows = self._legend_rows([*entries, scale_bar] if entries else [], inner)  # an empty scene: no legend
-        legend_px = len(legend_rows) * line + _PAD_PX if legend_rows else 0
+        reserved_rows = self._legend_rows([*reserved, scale_bar] if reserved else [], inner)
+        legend_px = max(len(legend_rows), len(reserved_rows)) * line + _PAD_PX if reserved_rows else 0
         if caption_px + inset_block + legend_px > budget:
             legend_rows, legend_px = (), 0
         scene_height = self.size_px - 2 * margin - caption_px - inset_block - legend_px
