@@ -47,17 +47,24 @@ def _infonav(*argv: str, stderr=subprocess.PIPE) -> subprocess.Popen:
     )
 
 
-def _ctrl_c_once_progressing(argv: list[str], tmp_path) -> tuple[int, str, str]:
-    """Run ``infonav ARGV``, press Ctrl-C (SIGINT to its process group) once its progress bar has counted one
-    (an episode, a step); its exit code, stdout and the lines of stderr that are not the bar's."""
+def _ctrl_c_once_progressing(
+    argv: list[str], tmp_path, counted: int = 1, within_s: float | None = None
+) -> tuple[int, str, str]:
+    """Run ``infonav ARGV``, press Ctrl-C (SIGINT to its process group) once its progress bar has counted ``counted``
+    (episodes, steps); its exit code, stdout and the lines of stderr that are not the bar's. ``within_s``: the
+    seconds it may take from Ctrl-C to its exit."""
     log = tmp_path / "stderr.txt"
     with log.open("w") as stderr:
         run = _infonav(*argv, stderr=stderr)
         deadline = time.monotonic() + 30
-        while not re.search(r"\| *[1-9]\d*/", log.read_text()) and run.poll() is None and time.monotonic() < deadline:
+        while run.poll() is None and time.monotonic() < deadline:
+            if max(map(int, re.findall(r"\| *(\d+)/", log.read_text())), default=0) >= counted:
+                break
             time.sleep(0.05)
         os.killpg(run.pid, signal.SIGINT)
+        pressed = time.monotonic()
         stdout, _ = run.communicate(timeout=30)
+    assert within_s is None or time.monotonic() - pressed < within_s
     text = log.read_text()
     assert "Traceback" not in text, text
     bar = re.compile(r"^(evaluating on|training PPO)")
@@ -128,7 +135,7 @@ def test_rllib_training_checks_its_arguments_before_ray_starts(extra, message, t
     _one_line_error(capsys.readouterr().err, "train", message)
 
 
-def test_an_interrupted_evaluation_writes_the_episodes_it_finished(tmp_path, capsys, monkeypatch):
+def test_an_interrupted_evaluation_writes_the_seeds_every_agent_finished(tmp_path, capsys, monkeypatch):
     play, played = EpisodeRunner.play, []
 
     def ctrl_c_after_3(runner, task):
@@ -144,28 +151,28 @@ def test_an_interrupted_evaluation_writes_the_episodes_it_finished(tmp_path, cap
     captured = capsys.readouterr()
     assert exit_info.value.code == 130 and played == [("random", 0), ("greedy", 0), ("random", 1)]
     files = ", ".join(f"{stem}{suffix}" for suffix in (".md", ".csv", ".json", ".png"))
-    assert captured.err == f"infonav evaluate: interrupted after 3 of 10 episodes; wrote {files}\n"
+    assert captured.err == f"infonav evaluate: interrupted after 1 of 5 seeds; wrote {files}\n"
     result = json.loads(captured.out)
     assert json.loads(stem.with_suffix(".json").read_text())["interrupted"] is result["interrupted"] is True
     monkeypatch.setattr(EpisodeRunner, "play", play)
-    whole = evaluate(LANDMARK_ID, ["random", "greedy"], 2, progress=False)  # the same episodes, uninterrupted
-    assert result["seeds"] == [0, 1] and result["agents"]["random"] == whole["agents"]["random"]
-    assert result["agents"]["greedy"]["episodes"] == whole["agents"]["greedy"]["episodes"][:1]
+    whole = evaluate(LANDMARK_ID, ["random", "greedy"], 1, progress=False)  # the same episodes, uninterrupted
+    assert result["seeds"] == [0] and all(
+        result["agents"][name]["episodes"] == agent["episodes"] for name, agent in whole["agents"].items()
+    )
     rows = list(csv.DictReader(stem.with_suffix(".csv").open()))
-    assert [(row["agent"], row["seed"]) for row in rows] == [("random", "0"), ("random", "1"), ("greedy", "0")]
-    assert "interrupted after 2 of 5 episodes per agent, seeds 0..1" in stem.with_suffix(".md").read_text()
+    assert [(row["agent"], row["seed"]) for row in rows] == [("random", "0"), ("greedy", "0")]
+    assert "interrupted after 1 of 5 episodes per agent, seeds 0..0" in stem.with_suffix(".md").read_text()
 
 
-def test_ctrl_c_in_an_evaluation_on_two_workers_keeps_what_they_finished(tmp_path):
-    stem = tmp_path / "out"
-    argv = ["evaluate", "--agents", "random,greedy", "--episodes", "1000", "--workers", "2", "--output", str(stem)]
-    code, _, message = _ctrl_c_once_progressing(argv, tmp_path)
-    finished = re.fullmatch(r"infonav evaluate: interrupted after (\d+) of 2000 episodes; wrote .*out\.png", message)
-    assert code == 130 and finished, message
-    result = json.loads(stem.with_suffix(".json").read_text())
-    kept = sum(len(agent["episodes"]) for agent in result["agents"].values())
-    assert result["interrupted"] and kept == int(finished[1]) >= 1
-    assert len(stem.with_suffix(".csv").read_text().splitlines()) == 1 + kept
+def test_ctrl_c_stops_an_evaluation_on_two_workers_within_2_s_keeping_whole_seeds(tmp_path):
+    argv = ["evaluate", "--agents", "random,greedy", "--episodes", "1000000", "--workers", "2"]
+    code, stdout, message = _ctrl_c_once_progressing(argv, tmp_path, counted=4, within_s=2.0)
+    kept = re.fullmatch(
+        r"infonav evaluate: interrupted after (\d+) of 1000000 seeds; the tables above hold them", message
+    )
+    assert code == 130 and kept, message
+    seeds = int(kept[1])
+    assert f"interrupted after {seeds} of 1000000 episodes per agent, seeds 0..{seeds - 1}" in stdout and seeds >= 1
 
 
 def test_ctrl_c_in_training_saves_the_model_trained_so_far(tmp_path):

@@ -58,10 +58,13 @@ def episodes_or_file(text: str) -> int | Path:
 
 
 def names(text: str) -> list[str]:
-    """Comma-separated names, none empty: ``"random, greedy"`` -> ``["random", "greedy"]``."""
+    """Comma-separated names, none empty or repeated: ``"random, greedy"`` -> ``["random", "greedy"]``."""
     parts = [part.strip() for part in text.split(",")]
     if not all(parts):
         raise argparse.ArgumentTypeError(f"an empty name in {text!r}: give comma-separated names, e.g. random,greedy")
+    repeated = next((part for index, part in enumerate(parts) if part in parts[:index]), None)
+    if repeated:
+        raise argparse.ArgumentTypeError(f"{repeated!r} is given twice in {text!r}: give each name once")
     return parts
 
 

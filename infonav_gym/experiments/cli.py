@@ -21,6 +21,7 @@ from infonav_gym.experiments.arguments import (
     seed,
 )
 from infonav_gym.experiments.demo import DEMO_HORIZON
+from infonav_gym.experiments.episodes import AGENT_KINDS
 from infonav_gym.experiments.paths import (
     Interrupted,
     OutputWriteError,
@@ -125,7 +126,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--agents",
         type=names,
         default="random,greedy",
-        help="comma-separated: random, greedy, planner, ppo:PATH (a model.zip from infonav train, or its directory)",
+        help="comma-separated, each once (default: random,greedy): "
+        + "; ".join(f"{name}: {what}" for name, what in AGENT_KINDS.items()),
     )
     evaluate.add_argument(
         "--episodes", type=integer(1, MAX_EPISODES), default=20, help="episodes per agent (default: 20)"
@@ -142,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--agents",
         type=names,
         default="random,greedy,planner,ppo,rllib",
-        help="comma-separated columns: random, greedy, planner, ppo, rllib (default: all)",
+        help="comma-separated columns, each once: random, greedy, planner, ppo, rllib (default: all)",
     )
     leaderboard.add_argument("--envs", type=names, help="comma-separated env ids (default: every registered env)")
     leaderboard.add_argument(
@@ -456,7 +458,7 @@ def _evaluate(args, command: str) -> dict:
     except Interrupted as error:  # the episodes finished so far are written and printed as a whole evaluation's
         results, interruption = error.result, error
         if not results["agents"]:
-            raise Interrupted("interrupted before an episode finished: nothing to write", results) from None
+            raise Interrupted("interrupted before every agent finished a seed: nothing to write", results) from None
 
     def lines():
         return [heading(results), config_line(results), markdown_table(results)]

@@ -8,24 +8,39 @@ process's, seed for seed, whatever the number of workers. Results come back in t
 Worker processes are forked on platforms that have ``fork`` while torch is not yet imported. Once it is (a
 fork after torch has started its thread pool can hang) they come from a fork server that has imported the
 harness and the envs once (``forkserver``, started on first use and kept for the process's later pools),
-else they are spawned (each re-imports the package: about a second). Workers ignore Ctrl-C (it reaches the whole
-process group): the parent stops handing out episodes and keeps the results it has.
+else they are spawned (each re-imports the package: about a second). Tasks are handed out as workers need them
+(never all at once: a million episodes are not a million pending futures). Workers ignore Ctrl-C (it reaches the
+whole process group): the parent keeps the results it has and kills the workers rather than wait for their episodes.
 """
 
 from __future__ import annotations
 
+import collections
 import multiprocessing
 import signal
 import sys
-from collections.abc import Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from functools import partial
 
 from infonav_gym.envs.traits import episode_metrics_of, traits_of
+from infonav_gym.experiments.arguments import SEED_LIMIT
 from infonav_gym.experiments.episodes import episode_infos, make_agent, make_team_agents, parallel_episode_infos
+from infonav_gym.memory import check_memory
 from infonav_gym.registry import PARALLEL, api_of, make_env
 
 FORKSERVER_PRELOAD = ["infonav_gym.experiments.evaluation", "infonav_gym.envs"]  # the harness, the single envs
 _worker_runner = None  # a pool worker's EpisodeRunner, built once by _start_worker
+# Measured once (Linux, CPython 3.11). RECORD_BYTES: the peak RSS of `infonav evaluate --env cooperative_exploration_v0
+# (6 metrics, the most of the registered envs) --agents random,greedy --json --output STEM`, its episodes replaced by
+# fresh records, at 101,000 episodes less at 1,000, over the 200,000 records between: 1,834 bytes (1,054 for the
+# 3 metrics of LandmarkSelection-v0); the records, their summaries, JSON, CSV and plot. A leaderboard keeps less: a
+# float per episode. WORKER_BYTES: the Pss (/proc/PID/smaps_rollup) of a worker after its episodes: 98 MB forked
+# playing LandmarkSelection-v0, 198 MB cooperative_exploration_v0, 333 MB from the fork server with a ppo:PATH agent
+# (torch); the largest is taken.
+RECORD_BYTES = 1_834  # an episode's record, per agent
+WORKER_BYTES = 333_000_000  # a worker process
+TASKS_PER_WORKER = 2  # tasks handed out ahead per worker: one playing, one waiting
 
 
 class EpisodeRunner:
@@ -74,9 +89,35 @@ def check_positive(value, name: str) -> int:
     return value
 
 
+def seeds_of(seed: int, episodes: int) -> range:
+    """The seeds ``seed .. seed + episodes - 1`` of a run, refused where they would pass ``SEED_LIMIT - 1``."""
+    check_positive(episodes, "episodes")
+    if seed + episodes > SEED_LIMIT:
+        raise ValueError(
+            f"--seed {seed} and --episodes {episodes} would play seeds up to {seed + episodes - 1}, past the last "
+            f"seed {SEED_LIMIT - 1} (2**32 - 1): lower --seed or --episodes"
+        )
+    return range(seed, seed + episodes)
+
+
+def checked_workers(workers: int, tasks: int, records: int, what: str) -> int:
+    """``workers`` capped at the ``tasks`` there are to play (saying so on stderr), once the footprint of the run (the
+    episode ``records`` it keeps and its worker processes; ``what``: the records, for the error) is checked against
+    the available memory.
+
+    Raises:
+        ValueError: for ``workers < 1``, or a footprint above the available memory (giving the estimate).
+    """
+    capped = min(check_positive(workers, "workers"), tasks)
+    check_memory(records * RECORD_BYTES + (capped if capped > 1 else 0) * WORKER_BYTES, f"{what} on {capped} worker(s)")
+    if capped < workers:
+        print(f"--workers {workers} capped at {capped}: there are {tasks} episodes to play", file=sys.stderr)
+    return capped
+
+
 def played(
     runner: EpisodeRunner,
-    tasks: Sequence[tuple[str, int]],
+    tasks: Iterable[tuple[str, int]],
     workers: int = 1,
     use_ray: bool = False,
     address: str | None = None,
@@ -86,7 +127,7 @@ def played(
     Args:
         runner: plays the tasks itself when ``workers == 1`` (and gives its env id, config and agents to the
             workers otherwise).
-        tasks: ``(agent name, seed)`` pairs.
+        tasks: ``(agent name, seed)`` pairs, taken as they are handed out (a generator is never held whole).
         workers: processes playing at once.
         use_ray: play them as Ray tasks (``workers`` of them at once) on a local Ray, or the cluster at
             ``address``; needs the ``distributed`` extra.
@@ -102,8 +143,8 @@ def played(
             from ray.util import ActorPool
 
             remote_runner = ray.remote(num_cpus=1)(EpisodeRunner)
-            actors = [remote_runner.remote(*runner.setup) for _ in range(workers)]
-            yield from ActorPool(actors).map(lambda actor, task: actor.play.remote(task), list(tasks))
+            actors = ActorPool([remote_runner.remote(*runner.setup) for _ in range(workers)])
+            yield from _in_order(partial(actors.submit, _remote_play), lambda _: actors.get_next(), tasks, workers)
         return
     if workers == 1:
         yield from map(runner.play, tasks)
@@ -111,8 +152,34 @@ def played(
     context = multiprocessing.get_context(_start_method())
     if context.get_start_method() == "forkserver":
         context.set_forkserver_preload(FORKSERVER_PRELOAD)  # imported once by the server, its workers fork from it
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=runner.setup) as pool:
-        yield from pool.map(_play, tasks)  # one task at a time: on Ctrl-C only the episodes being played are waited for
+    pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker, initargs=runner.setup)
+    finished = False
+    try:
+        yield from _in_order(lambda task: pool.submit(_play, task), Future.result, tasks, workers)
+        finished = True
+    finally:
+        _stop(pool, finished)
+
+
+def _in_order(submit: Callable, result: Callable, tasks: Iterable, workers: int) -> Iterator:
+    """``result(submit(task))`` of each task, in task order, with at most ``TASKS_PER_WORKER * workers`` submitted
+    and not yet returned."""
+    submitted = collections.deque()
+    for task in tasks:
+        submitted.append(submit(task))
+        if len(submitted) == TASKS_PER_WORKER * workers:
+            yield result(submitted.popleft())
+    while submitted:
+        yield result(submitted.popleft())
+
+
+def _stop(pool: ProcessPoolExecutor, finished: bool) -> None:
+    """Shut ``pool`` down; unless its tasks ``finished`` (Ctrl-C, an error), kill its workers mid-episode rather than
+    wait for them (Python 3.14's ``pool.kill_workers()``)."""
+    workers = list((pool._processes or {}).values()) if not finished else []
+    for worker in workers:
+        worker.kill()
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _start_method() -> str:
@@ -131,3 +198,7 @@ def _start_worker(env_id: str, env_kwargs: dict, agent_names: Sequence[str]) -> 
 
 def _play(task: tuple[str, int]) -> dict:
     return _worker_runner.play(task)
+
+
+def _remote_play(actor, task: tuple[str, int]):
+    return actor.play.remote(task)

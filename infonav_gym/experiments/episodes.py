@@ -13,16 +13,23 @@ from agents.ray_support import DISTRIBUTED_HINT
 from infonav_gym.envs.traits import has_planning_model, traits_of
 from infonav_gym.registry import registered_envs
 
-AGENT_NAMES = ("random", "greedy", "planner", "ppo:PATH", "rllib:DIR")
+AGENT_KINDS = {  # every agent name make_agent takes (NAME:ARGUMENT: a prefix and its argument), and what it is
+    "random": "a valid action at random",
+    "greedy": "the most expected information gain now",
+    "planner": "a look-ahead planner, on envs with a planning model",
+    "ppo:PATH": "a model.zip of infonav train, or its directory",
+    "rllib:DIR": "a checkpoint directory of infonav train --backend rllib (the distributed extra)",
+}
+AGENT_NAMES = tuple(AGENT_KINDS)
 PPO_PREFIX = "ppo:"
 RLLIB_PREFIX = "rllib:"
 
 
 def check_agent_name(name: str) -> None:
-    """Raise ``ValueError`` unless ``name`` is random, greedy, planner, ppo:PATH or rllib:DIR."""
-    if name in ("random", "greedy", "planner"):
-        return
-    if any(name.startswith(prefix) and len(name) > len(prefix) for prefix in (PPO_PREFIX, RLLIB_PREFIX)):
+    """Raise ``ValueError`` unless ``name`` is one of ``AGENT_KINDS``: a plain name, or a prefix and its argument."""
+    takes_argument = {kind.partition(":")[0]: ":" in kind for kind in AGENT_KINDS}
+    kind, colon, argument = name.partition(":")
+    if takes_argument.get(kind) == bool(colon) == bool(argument):
         return
     raise ValueError(f"unknown agent {name!r}; choose from {', '.join(AGENT_NAMES)}")
 

@@ -8,12 +8,15 @@ from the registry's ``api`` (``infonav_gym.registry``).
 
 from __future__ import annotations
 
+import contextlib
+import itertools
+
 from tqdm.auto import tqdm
 
 from agents.ray_support import import_ray
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.envs.traits import episode_metrics_of, traits_of
-from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
+from infonav_gym.experiments.episode_pool import EpisodeRunner, checked_workers, played, seeds_of
 from infonav_gym.experiments.episodes import AGENT_NAMES, check_agent_name
 from infonav_gym.experiments.intervals import summary_of
 from infonav_gym.experiments.paths import Interrupted
@@ -34,33 +37,36 @@ def evaluate(
 
     ``env_id``: any registered env (``infonav_gym.registry``). In a PettingZoo parallel env (e.g.
     ``cooperative_localization_v0``) every robot plays its own copy of the agent, ``ppo:PATH`` one policy
-    for every robot. ``agent_names``: random, greedy, planner (envs with a planning model), ppo:PATH (a model
-    written by ``infonav train``). The metrics are the env's ``episode_metrics``. ``workers`` processes play
-    the episodes at once (``use_ray``: as Ray tasks, on the cluster at ``address`` or a local Ray), with the
-    same results as one (``episode_pool``).
+    for every robot. ``agent_names``: any of ``episodes.AGENT_KINDS``, each once. The metrics are the env's
+    ``episode_metrics``. ``workers`` processes play the episodes at once (``use_ray``: as Ray tasks, on the cluster
+    at ``address`` or a local Ray), with the same results as one (``episode_pool``).
 
     Returns:
         ``{"env_id", "episodes", "seeds", "env_kwargs", "env_config", "metrics", "agents": {name: {"episodes":
         [...], "summary": {...}}}}``; ``env_config`` is the config the env ran, defaults included.
 
     Raises:
-        Interrupted: on Ctrl-C, with the evaluation of the episodes finished (``"interrupted": True``; only the
-            seeds and agents that finished one). The episodes are played seed by seed, every agent on each seed.
+        ValueError: before any episode, for a bad agent, seed range or worker count, or a run whose records and
+            workers would not fit in the available memory (``episode_pool.checked_workers``).
+        Interrupted: on Ctrl-C, with the evaluation of the seeds every agent finished (``"interrupted": True``):
+            the episodes are played seed by seed, every agent on each seed, and a seed some agent did not finish
+            is dropped, so every agent keeps the same seeds.
     """
-    if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    seeds = seeds_of(seed, episodes)
     if not agent_names:
         raise ValueError(f"no agents given; choose from {', '.join(AGENT_NAMES)}")
     for name in agent_names:
         check_agent_name(name)
-    check_positive(workers, "workers")
+    if len(set(agent_names)) < len(agent_names):
+        raise ValueError(f"an agent is given twice in {', '.join(agent_names)}: give each once")
+    tasks = episodes * len(agent_names)
+    workers = checked_workers(workers, tasks, tasks, f"{episodes} episodes of {len(agent_names)} agent(s)")
     if use_ray:
         import_ray(address)  # before any episode: a missing extra or a wrong address is a one-line error
     env_kwargs = dict(env_kwargs or {})
     runner = EpisodeRunner(env_id, env_kwargs, agent_names)
     env = runner.env
     declared = episode_metrics_of(env)
-    seeds = list(range(seed, seed + episodes))
     results = {
         "env_id": env_id,
         "episodes": episodes,
@@ -71,27 +77,29 @@ def evaluate(
         "metrics": {metric.name: metric.title for metric in declared},
         "agents": {name: {"episodes": []} for name in runner.agents},
     }
-    tasks = [(name, episode_seed) for episode_seed in seeds for name in runner.agents]
-    bar = tqdm(total=len(tasks), desc=f"evaluating on {env_id}", disable=not progress, unit="episode")
-    finished = 0
+    seed_tasks = ((name, episode_seed) for episode_seed in seeds for name in runner.agents)  # made as played
+    how = workers, use_ray, address
+    bar = tqdm(total=tasks, desc=f"evaluating on {env_id}", disable=not progress, unit="episode")
     try:
-        for (name, _), metrics in zip(tasks, played(runner, tasks, workers, use_ray, address)):
-            results["agents"][name]["episodes"].append(metrics)
-            finished += 1
-            bar.update()
+        with contextlib.closing(played(runner, seed_tasks, *how)) as played_metrics:  # closed: the workers stop
+            for name, metrics in zip(itertools.cycle(runner.agents), played_metrics):
+                results["agents"][name]["episodes"].append(metrics)
+                bar.update()
     except INTERRUPTIONS as error:
         if not pressed_ctrl_c(error):
             raise
-        played_agents = {name: result for name, result in results["agents"].items() if result["episodes"]}
-        seeds_played = max(map(len, (result["episodes"] for result in played_agents.values())), default=0)
-        results.update(interrupted=True, agents=played_agents, seeds=seeds[:seeds_played])
+        whole = min(len(result["episodes"]) for result in results["agents"].values())  # seeds every agent finished
+        for result in results["agents"].values():
+            del result["episodes"][whole:]
+        results.update(interrupted=True, seeds=seeds[:whole], agents=results["agents"] if whole else {})
     finally:
         bar.close()
         runner.close()
+    results["seeds"] = list(results["seeds"])
     for result in results["agents"].values():
         result["summary"] = {
             metric.name: summary_of(metric, [e[metric.name] for e in result["episodes"]]) for metric in declared
         }
     if results.get("interrupted"):
-        raise Interrupted(f"interrupted after {finished} of {len(tasks)} episodes", results)
+        raise Interrupted(f"interrupted after {len(results['seeds'])} of {episodes} seeds", results)
     return results

@@ -21,7 +21,7 @@ from tqdm.auto import tqdm
 from agents.ray_support import local_or_cluster_ray
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.envs.traits import has_planning_model, main_metric_of
-from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive, played
+from infonav_gym.experiments.episode_pool import EpisodeRunner, checked_workers, played, seeds_of
 from infonav_gym.experiments.intervals import INTERVAL_NOTES, interval_cell, summary_of
 from infonav_gym.experiments.paths import Interrupted, output_file
 from infonav_gym.registry import env_entry, registered_envs
@@ -114,7 +114,7 @@ def best_columns(cells: dict) -> list[str]:
     ]
 
 
-def _played_row(row: Row, seeds: list[int], bar, played_cells: dict, how: tuple) -> dict:
+def _played_row(row: Row, seeds: range, bar, played_cells: dict, how: tuple) -> dict:
     """Every agent of ``row`` on ``seeds``: its main metric's values, summary and seconds per episode; a cell already
     in ``played_cells`` (by env, config and agent) is not played again. ``how``: (workers, use_ray, address)."""
     cells = {}
@@ -138,7 +138,7 @@ def _cell_key(row: Row, agent: str) -> tuple:
     return row.env_id, json.dumps(row.env_kwargs, sort_keys=True), agent
 
 
-def _played_cell(row: Row, agent: str, seeds: list[int], bar, workers: int, use_ray: bool, address: str | None):
+def _played_cell(row: Row, agent: str, seeds: range, bar, workers: int, use_ray: bool, address: str | None):
     """``(the env's main metric, the cell)`` of ``agent`` in ``row``'s env and config on ``seeds``."""
     runner = EpisodeRunner(row.env_id, row.env_kwargs, [agent])
     try:
@@ -146,9 +146,10 @@ def _played_cell(row: Row, agent: str, seeds: list[int], bar, workers: int, use_
         for _ in itertools.islice(runner.infos((agent, seeds[0])), WARMUP_STEPS + 1):
             pass  # compiles and loads what the agent and env need before the clock starts
         values, start = [], time.perf_counter()
-        for metrics in played(runner, [(agent, seed) for seed in seeds], workers, use_ray, address):
-            values.append(metrics[metric.name])
-            bar.update()
+        with contextlib.closing(played(runner, ((agent, seed) for seed in seeds), workers, use_ray, address)) as cell:
+            for metrics in cell:
+                values.append(metrics[metric.name])
+                bar.update()
         seconds = time.perf_counter() - start
     finally:
         runner.close()
@@ -176,17 +177,18 @@ def leaderboard(
         "cells": {column: {"agent", "summary", "values", "seconds_per_episode"}}, "best": [column, ...]}]}``.
 
     Raises:
-        Interrupted: on Ctrl-C, with the rows finished (``"interrupted": True``).
+        ValueError: before any episode, for a bad seed range, column or env, or a run whose values and workers would
+            not fit in the available memory (``episode_pool.checked_workers``).
+        Interrupted: on Ctrl-C, with the rows finished (``"interrupted": True``): every cell of a kept row has every
+            seed; a row not finished is dropped.
     """
-    if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
-    check_positive(workers, "workers")
+    seeds = seeds_of(seed, episodes)
     env_ids = [entry.id for entry in registered_envs()] if env_ids is None else list(env_ids)
     rows = leaderboard_rows(env_ids, columns, models_dir)
-    seeds = list(range(seed, seed + episodes))
-    results = {"episodes": episodes, "seeds": seeds, "columns": [c for c in COLUMNS if c in columns], "rows": []}
-    results |= {"workers": workers, "tie_tolerance": TIE_TOLERANCE}
     cells = {_cell_key(row, agent) for row in rows for agent in row.agents.values()}
+    workers = checked_workers(workers, episodes, episodes * len(cells), f"{episodes} episodes of {len(cells)} cells")
+    results = {"episodes": episodes, "seeds": list(seeds), "columns": [c for c in COLUMNS if c in columns], "rows": []}
+    results |= {"workers": workers, "tie_tolerance": TIE_TOLERANCE}
     bar = tqdm(total=episodes * len(cells), desc="leaderboard", disable=not progress, unit="episode")
     played_cells = {}
     try:
