@@ -321,3 +321,18 @@ def test_a_curve_with_no_point_is_not_drawn_and_says_so(tmp_path):
         "curve.csv written; no episode ended in training, so no curve.png: nothing to draw"
     )
     assert not (tmp_path / CURVE_PNG).exists()
+
+
+def test_planner_workers_are_capped_at_the_planner_episodes(capsys, tmp_path, monkeypatch):
+    asked = {}
+
+    def stop(*args, planner_workers, **kwargs):
+        asked["workers"] = planner_workers
+        raise ValueError("stopped before training")
+
+    monkeypatch.setattr(agents.ppo, "train", stop)
+    argv = ["train", "--env", LANDMARK_ID, "--timesteps", "0", "--init-from-planner", "2", "--workers", "8"]
+    with pytest.raises(SystemExit):
+        main([*argv, "--output", str(tmp_path / "out")])
+    assert asked == {"workers": 2}
+    assert capsys.readouterr().err.startswith("--workers 8 capped at 2: there are 2 episodes to play\n")

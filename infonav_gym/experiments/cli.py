@@ -21,6 +21,7 @@ from infonav_gym.experiments.arguments import (
     seed,
 )
 from infonav_gym.experiments.demo import DEMO_HORIZON
+from infonav_gym.experiments.episode_pool import checked_workers
 from infonav_gym.experiments.episodes import AGENT_KINDS
 from infonav_gym.experiments.paths import (
     Interrupted,
@@ -173,7 +174,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     render = commands.add_parser("render", help="render one episode of an agent: PREFIX.gif (animated), PREFIX.png")
     render.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default: {DEFAULT_ENV})")
-    render.add_argument("--agents", default="greedy", help="one agent: random, greedy (default), planner, ppo:PATH")
+    render.add_argument(
+        "--agents", default="greedy", help=f"one agent (default: greedy): {', '.join(AGENT_KINDS)}, as evaluate takes"
+    )
     render.add_argument(
         "--output",
         type=Path,
@@ -558,6 +561,9 @@ def _train(args, command: str) -> dict:
         from agents.ppo import load_hyperparameters, train
     except ImportError as error:
         raise ValueError(f"training needs the rl extra (pip install 'infonav-gym[rl]'): {error}") from None
+    planner_workers = args.workers or 1
+    if isinstance(args.init_from_planner, int):  # the planner's episodes: as many workers as episodes at most
+        planner_workers = checked_workers(planner_workers, args.init_from_planner, 0, "the planner's episodes")
     name = f"{args.env.rsplit('/', 1)[-1]}{'_rllib' if rllib else ''}_seed{args.seed}"
     output = check_output_dir(args.output or Path("models") / name, "--output")
     env_kwargs, progress = dict(args.config), not args.json
@@ -591,7 +597,7 @@ def _train(args, command: str) -> dict:
             env_kwargs=env_kwargs,
             curve_references=references,
             init_from_planner=args.init_from_planner,
-            planner_workers=args.workers or 1,
+            planner_workers=planner_workers,
             validation_episodes=args.eval_episodes or 0,
             validation_every=args.eval_every,
         )
