@@ -301,7 +301,7 @@ def test_bad_rllib_arguments_are_one_line_errors(local_ray, capsys, small_blocks
     argv = ["train", "--backend", "rllib", "--env", LANDMARK_ID, "--timesteps", "10"]
     with unused_address() as address:
         for extra, message in [
-            (["--num-env-runners", "-1"], "--num-env-runners: must be an integer >= 0"),
+            (["--num-env-runners", "-1"], "--num-env-runners: must be an integer from 0 to 1024"),
             (["--envs-per-runner", "0"], "--envs-per-runner: must be an integer from 1 to 65536"),
             (["--address", address], "cannot reach a Ray cluster at"),
         ]:

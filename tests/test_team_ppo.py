@@ -137,11 +137,11 @@ TEAM_HYPERPARAMETERS = {"n_steps": 128, "batch_size": 256, "gamma": 0.9, "normal
 
 @pytest.fixture(scope="module")
 def team_model(tmp_path_factory) -> dict:
-    """One parameter-shared MaskablePPO trained ~1,000 robot steps (2 copies x 4 robots x 128), about 2 s."""
+    """One parameter-shared MaskablePPO trained one rollout: 1,024 robot steps (2 copies x 4 robots x 128)."""
     output = tmp_path_factory.mktemp("team_ppo")
     path = train(
         TEAM_ENV,
-        1000,
+        2 * N_ROBOTS * 128,
         n_envs=2,
         output_dir=output,
         env_kwargs={"max_cycles": 20},
