@@ -250,3 +250,12 @@ def test_the_replay_and_registration_plots_are_readable():
     robot = {"nees_over_time": series, "mean_nees": 3.1, "nees_fraction_inside_95": 0.9}
     assert_readable(figure_nees_over_time({"robots": {1: robot, 2: robot}}))
     assert_readable(figure_comparison(json.loads((RESULTS / "registration_recall.json").read_text())["control_points"]))
+
+
+def test_the_committed_evaluation_with_the_longest_agent_names_is_readable():
+    from infonav_gym.experiments.evaluation_files import figure_results
+
+    evaluations = [json.loads(path.read_text()) for path in sorted(RESULTS.glob("*.json"))]
+    evaluations = [results for results in evaluations if "agents" in results]
+    longest = max(evaluations, key=lambda results: (sum(map(len, results["agents"])), len(results["metrics"])))
+    assert_readable(figure_results(longest))

@@ -15,6 +15,8 @@ from infonav_gym.experiments.paths import output_file
 from infonav_gym.rendering import matplotlib_figure, save_figure
 
 TICK_CHARACTERS = 16  # an agent's name on the plot's axis is wrapped to lines this long
+TICK_CHARACTER_IN = 0.075  # the width of a character of a tick label (8 pt) [in], with room to spare
+PANELS_PER_ROW = 3  # the plot's metric panels per row
 
 
 def heading(results: dict) -> str:
@@ -64,11 +66,18 @@ def figure_results(results: dict):
     interval; any other metric as a box plot of every agent's per-episode values with the mean and its Student t
     interval (as in the table). What the marks mean is said once, under the panels."""
     metrics, names = results["metrics"], list(results["agents"])
-    width = max(3.2, 0.9 * len(names))  # [in] per panel: room for every agent's name
-    figure = matplotlib_figure("the evaluation plot", figsize=(width * len(metrics) + 1, 4.2), layout="constrained")
-    axes = figure.subplots(1, len(metrics), squeeze=False)
+    labels = [_plot_label(name) for name in names]
+    widest = max(len(line) for label in labels for line in label.split("\n"))
+    width = max(3.2, len(names) * (TICK_CHARACTER_IN * widest + 0.3))  # [in] per panel: room for every agent's name
+    columns = min(len(metrics), PANELS_PER_ROW)
+    rows = -(-len(metrics) // columns)
+    figsize = (width * columns + 1, 4.2 * rows)
+    figure = matplotlib_figure("the evaluation plot", figsize=figsize, layout="constrained")
+    axes = figure.subplots(rows, columns, squeeze=False).ravel()
+    for unused in axes[len(metrics) :]:
+        unused.set_visible(False)
     positions = np.arange(1, len(names) + 1)
-    for axis, (key, title) in zip(axes[0], metrics.items()):
+    for axis, (key, title) in zip(axes, metrics.items()):
         summaries = [results["agents"][name]["summary"][key] for name in names]
         rate = summaries[0]["interval"] == WILSON
         if rate:
@@ -88,10 +97,10 @@ def figure_results(results: dict):
         axis.errorbar(
             positions, [s["mean"] for s in summaries], yerr=errors, fmt="o", color=colour, capsize=4, label=label
         )
-        axis.set_xticks(positions, [_plot_label(name) for name in names], fontsize=8)
+        axis.set_xticks(positions, labels, fontsize=8)
         axis.set_xlim(0.5, len(names) + 0.5)
         axis.set_ylabel(title)
-    marks = {label: handle for axis in axes[0] for handle, label in zip(*axis.get_legend_handles_labels())}
+    marks = {label: handle for axis in axes for handle, label in zip(*axis.get_legend_handles_labels())}
     figure.legend(marks.values(), marks.keys(), loc="outside lower center", ncols=len(marks), fontsize=8)
     figure.suptitle(f"{results['env_id']}: {results['episodes']} episodes per agent", fontsize=11)
     return figure
