@@ -35,7 +35,7 @@ def planning_model(env):
     except AttributeError:
         raise ValueError(
             f"PlannerAgent needs an env with a planning_model() method (a model with {needed}), "
-            f"but {env} has none; use e.g. infonav/ActiveLocalization-v0"
+            f"but {type(getattr(env, 'unwrapped', env)).__name__} has none; use e.g. infonav/ActiveLocalization-v0"
         ) from None
     missing = [name for name in PLANNING_METHODS if not callable(getattr(model, name, None))]
     missing += [name for name in PLANNING_ATTRIBUTES if not hasattr(model, name)]

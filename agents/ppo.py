@@ -64,6 +64,7 @@ from agents.learning_curve import (
     drawn_curve,
     start_curve,
 )
+from agents.planner import planning_model
 from agents.validation import VALIDATION_SEEDS, ValidationCallback
 from agents.vector_adapter import monitored_vec_env
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
@@ -360,12 +361,17 @@ def training_block(env_id: str, hyperparameters: dict | None, n_envs: int | None
     return checked_block(block, "the hyperparameters" + (", n_envs as given (--n-envs)" if n_envs is not None else ""))
 
 
-def rollout_steps(env_id: str, hyperparameters: dict, env_kwargs: dict | None) -> tuple[int, str]:
+def rollout_steps(
+    env_id: str, hyperparameters: dict, env_kwargs: dict | None, planner: bool = False
+) -> tuple[int, str]:
     """The env steps of one PPO rollout, ``n_steps`` per copy of each of ``n_envs`` copies (and of each robot in a team
-    env: a slot per robot), and that product in words; builds one env, which checks the id and the config."""
+    env: a slot per robot), and that product in words; builds one env, which checks the id and the config (and, with
+    ``planner``, that the env offers the planner's model: behaviour cloning plays it)."""
     n_steps, n_envs, robots = hyperparameters.get("n_steps", DEFAULT_N_STEPS), hyperparameters["n_envs"], 1
     factors = f"n_steps {n_steps} x n_envs {n_envs}"
     env = make_env(env_id, **(env_kwargs or {}))  # an unknown id or config key: its one-line error, before any work
+    if planner:
+        planning_model(env)
     if api_of(env_id) == PARALLEL:
         robots = len(env.possible_agents)
         factors += f" x {robots} robots"
@@ -476,9 +482,9 @@ def train(
     tensorboard_log = str(output_dir / "tensorboard") if tensorboard else None
     hyperparameters = training_block(env_id, hyperparameters, n_envs)
     vectorization = checked_vectorization(env_id, vectorization)
-    rollout, factors = rollout_steps(env_id, hyperparameters, env_kwargs)
-    planned = planned_steps(timesteps, rollout, factors, hyperparameters)
     demonstrations = None if isinstance(init_from_planner, int | None) else Demonstrations.load(init_from_planner)
+    rollout, factors = rollout_steps(env_id, hyperparameters, env_kwargs, planner=isinstance(init_from_planner, int))
+    planned = planned_steps(timesteps, rollout, factors, hyperparameters)
     with removed_on_error(output_dir), torch_threads():
         model = build_model(env_id, seed, None, hyperparameters, env_kwargs, vectorization, tensorboard_log)
         warm_start = None

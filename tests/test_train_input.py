@@ -336,3 +336,12 @@ def test_planner_workers_are_capped_at_the_planner_episodes(capsys, tmp_path, mo
         main([*argv, "--output", str(tmp_path / "out")])
     assert asked == {"workers": 2}
     assert capsys.readouterr().err.startswith("--workers 8 capped at 2: there are 2 episodes to play\n")
+
+
+def test_init_from_planner_on_an_env_without_a_planner_is_refused_before_work(capsys, tmp_path, no_work):
+    argv = ["train", "--env", "infonav/SensorSelection-v0", "--timesteps", "0", "--init-from-planner", "3"]
+    error = refused(capsys, [*argv, "--output", str(tmp_path / "out")])
+    assert (
+        "PlannerAgent needs an env with a planning_model() method" in error and "SensorSelectionEnv has none" in error
+    )
+    assert not (tmp_path / "out").exists()
