@@ -164,6 +164,21 @@ def test_an_interrupted_evaluation_writes_the_seeds_every_agent_finished(tmp_pat
     assert "interrupted after 1 of 5 episodes per agent, seeds 0..0" in stem.with_suffix(".md").read_text()
 
 
+def test_an_interrupted_evaluation_without_output_says_where_its_seeds_are(capsys, monkeypatch):
+    def ctrl_c(runner, task):
+        if task[1] == 1:
+            raise KeyboardInterrupt
+        return play(runner, task)
+
+    play = EpisodeRunner.play
+    monkeypatch.setattr(EpisodeRunner, "play", ctrl_c)
+    for flags, where in (([], "the tables above hold them"), (["--json"], "the JSON on stdout holds them")):
+        with pytest.raises(SystemExit):
+            main(["evaluate", "--agents", "random", "--episodes", "3", *flags])
+        last_line = capsys.readouterr().err.splitlines()[-1]
+        assert last_line == f"infonav evaluate: interrupted after 1 of 3 seeds; {where}"
+
+
 def test_ctrl_c_stops_an_evaluation_on_two_workers_within_2_s_keeping_whole_seeds(tmp_path):
     argv = ["evaluate", "--agents", "random,greedy", "--episodes", "1000000", "--workers", "2"]
     code, stdout, message = _ctrl_c_once_progressing(argv, tmp_path, counted=4, within_s=2.0)

@@ -468,7 +468,8 @@ def _evaluate(args, command: str) -> dict:
 
     _show(args, results, lines, stem and (lambda: write_results(results, stem, command)), f"--output {stem}")
     if interruption:
-        kept = f"wrote {', '.join(results['files'])}" if stem else "the tables above hold them"
+        kept = "the tables above hold them" if not args.json else "the JSON on stdout holds them"
+        kept = f"wrote {', '.join(results['files'])}" if stem else kept
         raise Interrupted(f"{interruption}; {kept}", results)
     return results
 
