@@ -68,11 +68,15 @@ from agents.planner import planning_model
 from agents.validation import VALIDATION_SEEDS, ValidationCallback
 from agents.vector_adapter import monitored_vec_env
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
+from infonav_gym.memory import check_memory
 from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_env, resolve_env_id
 
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
 SCHEDULED = ("learning_rate", "clip_range")  # may be rl-zoo's "lin_<start>": annealed linearly to 0 over training
 DEFAULT_N_ENVS, DEFAULT_N_STEPS = 8, 2048  # without them in the block: ours, SB3's
+# float32 a MaskableRolloutBuffer slot keeps beside its observation and action mask: action, reward, return, episode
+# start, value, log-probability, advantage
+ROLLOUT_FLOATS = 7
 MODEL_FILE = "model.zip"
 NORMALIZATION_FILE = "vecnormalize.pkl"  # VecNormalize statistics, beside MODEL_FILE, when trained with ``normalize``
 NATIVE, SYNC, SUBPROCESS = "native", "sync", "subprocess"
@@ -372,11 +376,18 @@ def rollout_steps(
     env = make_env(env_id, **(env_kwargs or {}))  # an unknown id or config key: its one-line error, before any work
     if planner:
         planning_model(env)
+    agent = None
     if api_of(env_id) == PARALLEL:
-        robots = len(env.possible_agents)
+        robots, agent = len(env.possible_agents), env.possible_agents[0]
         factors += f" x {robots} robots"
+    observation_space, action_space = (
+        (env.observation_space(agent), env.action_space(agent)) if agent else (env.observation_space, env.action_space)
+    )
     env.close()
-    return n_steps * n_envs * robots, factors
+    rollout = n_steps * n_envs * robots
+    floats = gym.spaces.flatdim(observation_space) + int(action_space.n) + ROLLOUT_FLOATS
+    check_memory(4 * floats * rollout, f"a rollout of {rollout} env steps ({factors}, {floats} float32 each)")
+    return rollout, factors
 
 
 def planned_steps(timesteps: int, rollout: int, factors: str, hyperparameters: dict) -> int:

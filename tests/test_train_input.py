@@ -345,3 +345,11 @@ def test_init_from_planner_on_an_env_without_a_planner_is_refused_before_work(ca
         "PlannerAgent needs an env with a planning_model() method" in error and "SensorSelectionEnv has none" in error
     )
     assert not (tmp_path / "out").exists()
+
+
+def test_a_rollout_beyond_the_available_memory_is_refused_with_its_estimate(capsys, tmp_path, no_work, monkeypatch):
+    monkeypatch.setattr("infonav_gym.memory.available_bytes", lambda: 10**8)
+    file = hyperparams_file(tmp_path, "default:\n  n_steps: 65536\n  n_envs: 64\n  batch_size: 4096\n")
+    argv = ["train", "--env", LANDMARK_ID, "--timesteps", str(65536 * 64), "--hyperparams", str(file)]
+    error = refused(capsys, [*argv, "--output", str(tmp_path / "out")])
+    assert "a rollout of 4194304 env steps (n_steps 65536 x n_envs 64, 65 float32 each) needs about 1.1 GB" in error
