@@ -29,7 +29,7 @@ from infonav_gym.envs.active_transition import (
     start_episodes,
     step_rewards,
 )
-from infonav_gym.envs.base import MAX_EPISODE_STEPS
+from infonav_gym.envs.base import MAX_EPISODE_STEPS, REWARD_WEIGHT
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
 from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
@@ -57,7 +57,6 @@ __all__ = [
     "start_episode",
 ]
 
-REWARD_WEIGHT = Interval(0.0, 1e6)  # a cost, reward or bonus weight [nats, or nats per unit]
 REWARD_WEIGHT_KEYS = (
     "observation_cost_nats",
     "motion_cost_per_step",

@@ -26,21 +26,11 @@ from infonav_gym.envs.active_transition import (
     step_rewards,
 )
 from infonav_gym.estimation import batched
+from infonav_gym.estimation.state import BeliefBatch
 from infonav_gym.information import largest_position_std
 from infonav_gym.world.visibility import in_coverage
 
-__all__ = ["N_PRIMITIVES", "PRIMITIVE_NAMES", "PRIMITIVE_OFFSETS_RAD", "ActivePlanningModel", "Belief", "BeliefBatch"]
-
-
-class BeliefBatch:
-    """The batch behaviour of a planning model's belief: a frozen dataclass of arrays, each of leading size B."""
-
-    def __len__(self) -> int:
-        return len(getattr(self, next(iter(self.__dataclass_fields__))))
-
-    def take(self, indices):
-        """The beliefs at ``indices`` (a new batch, e.g. repeated once per action to try)."""
-        return type(self)(*(np.take(getattr(self, name), indices, axis=0) for name in self.__dataclass_fields__))
+__all__ = ["N_PRIMITIVES", "PRIMITIVE_NAMES", "PRIMITIVE_OFFSETS_RAD", "ActivePlanningModel", "Belief"]
 
 
 @dataclass(frozen=True)

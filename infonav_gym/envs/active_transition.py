@@ -17,11 +17,9 @@ import numpy as np
 
 from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.landmark_decision import LandmarkDecision
-from infonav_gym.envs.landmark_selection import Prior
 from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.geometry import wrap_angle
+from infonav_gym.estimation.state import POSE_DIM, Prior
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import position_std_kernel as position_std
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
@@ -172,12 +170,6 @@ def rewards_of_steps(before, after, goals, covariances, mutual_information, obse
         for term in range(len(REWARD_TERMS)):
             totals[c] += terms[term, c]
     return terms, totals, reached, failed
-
-
-def ranges_and_bearings(x: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """Range [m] and bearing [rad] of targets (N, T, 2) from each pose (N, 3): (N, T, 2), as ``range_bearing``."""
-    dx, dy = targets[..., 0] - x[:, None, 0], targets[..., 1] - x[:, None, 1]
-    return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - x[:, None, 2])], axis=-1)
 
 
 class EpisodeStarts(NamedTuple):

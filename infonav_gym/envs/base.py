@@ -17,6 +17,7 @@ INVALID_ACTION_MODES = ("noop", "raise")
 RENDER_SIZE_PX = Interval(64, 4096, integer=True)  # the allowed frame sizes [px]
 MAX_EPISODE_STEPS = 10**7
 EPISODE_STEPS = Interval(1, MAX_EPISODE_STEPS, integer=True)  # the allowed horizons (``horizon``, ``max_cycles``)
+REWARD_WEIGHT = Interval(0.0, 1e6)  # a cost, reward or bonus weight [nats, or nats per unit]
 
 
 def shared_config() -> dict:

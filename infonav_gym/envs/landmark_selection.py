@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -18,7 +17,7 @@ from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info, in_every_copy
-from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
+from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM, Prior
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import gaussian_entropy_kernel
 from infonav_gym.scene import SceneFrame
@@ -286,32 +285,6 @@ class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv)
     ## Version History
     * v0: initial version.
     """
-
-
-class Prior(NamedTuple):
-    """The estimator's prior at an episode's start: ``PoseEKF(*prior)``, diagonal covariances.
-
-    Attributes:
-        pose: the initial pose estimate (3,).
-        pose_covariance: its covariance (3, 3), diagonal.
-        landmarks: the mapped landmarks' estimates (L, 2), None without mapping.
-        landmark_variance: the variance of each of their coordinates [m^2], None without mapping.
-    """
-
-    pose: np.ndarray
-    pose_covariance: np.ndarray
-    landmarks: np.ndarray | None = None
-    landmark_variance: float | None = None
-
-    def state(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(x, P)`` of ``PoseEKF(*prior)``: the pose then the landmarks, block-diagonal covariance."""
-        if self.landmarks is None:
-            return self.pose.copy(), self.pose_covariance.copy()
-        x = np.concatenate([self.pose, self.landmarks.ravel()])
-        variances = np.concatenate(
-            [np.diagonal(self.pose_covariance), np.full(self.landmarks.size, self.landmark_variance)]
-        )
-        return x, np.diag(variances)
 
 
 def start_episode(config: dict, np_random: np.random.Generator, owner: str):

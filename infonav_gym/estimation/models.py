@@ -36,11 +36,12 @@ def unicycle_jacobians(pose, control, dt: float) -> tuple[np.ndarray, np.ndarray
 
 
 def range_bearing(pose, landmarks) -> np.ndarray:
-    """Range [m] and bearing [rad] from ``pose`` to each landmark: (N, 2) -> (N, 2)."""
-    landmarks = np.atleast_2d(landmarks)
-    dx = landmarks[:, 0] - pose[0]
-    dy = landmarks[:, 1] - pose[1]
-    return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - pose[2])], axis=-1)
+    """Range [m] and bearing [rad] from ``pose`` to each landmark: (N, 2) -> (N, 2); batched, from each of the poses
+    (..., 3) to its landmarks (..., N, 2) -> (..., N, 2)."""
+    landmarks, pose = np.atleast_2d(landmarks), np.asarray(pose)
+    dx = landmarks[..., 0] - pose[..., None, 0]
+    dy = landmarks[..., 1] - pose[..., None, 1]
+    return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - pose[..., None, 2])], axis=-1)
 
 
 def _range_bearing_geometry(dx, dy, heading) -> tuple[np.ndarray, np.ndarray]:

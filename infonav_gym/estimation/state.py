@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from typing import NamedTuple
 
 import numpy as np
 
@@ -49,3 +50,40 @@ def block_diagonal(blocks) -> np.ndarray:
     matrix = np.zeros((k, m, k, m))
     matrix[np.arange(k), :, np.arange(k), :] = blocks
     return matrix.reshape(k * m, k * m)
+
+
+class Prior(NamedTuple):
+    """The estimator's prior at an episode's start: ``PoseEKF(*prior)``, diagonal covariances.
+
+    Attributes:
+        pose: the initial pose estimate (3,).
+        pose_covariance: its covariance (3, 3), diagonal.
+        landmarks: the mapped landmarks' estimates (L, 2), None without mapping.
+        landmark_variance: the variance of each of their coordinates [m^2], None without mapping.
+    """
+
+    pose: np.ndarray
+    pose_covariance: np.ndarray
+    landmarks: np.ndarray | None = None
+    landmark_variance: float | None = None
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(x, P)`` of ``PoseEKF(*prior)``: the pose then the landmarks, block-diagonal covariance."""
+        if self.landmarks is None:
+            return self.pose.copy(), self.pose_covariance.copy()
+        x = np.concatenate([self.pose, self.landmarks.ravel()])
+        variances = np.concatenate(
+            [np.diagonal(self.pose_covariance), np.full(self.landmarks.size, self.landmark_variance)]
+        )
+        return x, np.diag(variances)
+
+
+class BeliefBatch:
+    """The batch behaviour of a planning model's belief: a frozen dataclass of arrays, each of leading size B."""
+
+    def __len__(self) -> int:
+        return len(getattr(self, next(iter(self.__dataclass_fields__))))
+
+    def take(self, indices):
+        """The beliefs at ``indices`` (a new batch, e.g. repeated once per action to try)."""
+        return type(self)(*(np.take(getattr(self, name), indices, axis=0) for name in self.__dataclass_fields__))

@@ -17,10 +17,10 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
-from infonav_gym.envs.active_transition import ranges_and_bearings
 from infonav_gym.envs.metrics import EXPLORATION_METRICS
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
+from infonav_gym.estimation.models import range_bearing
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.multi.exploration_decision import (
     EXPLORATION_INFO_KEYS,
@@ -389,7 +389,7 @@ class CooperativeExplorationVectorEnv(TeamVectorEnv):
             decision.slot_valid[..., 1 + n_landmarks :],
             self._team_space,
         )
-        seen = ranges_and_bearings(estimates.reshape(-1, POSE_DIM), np.repeat(self._landmarks, n_robots, axis=0))
+        seen = range_bearing(estimates.reshape(-1, POSE_DIM), np.repeat(self._landmarks, n_robots, axis=0))
         observations = exploration_observations(
             team,
             decision.slot_valid[..., 1 : 1 + n_landmarks],

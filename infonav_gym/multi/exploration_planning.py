@@ -16,9 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from infonav_gym.envs.active_planning import BeliefBatch
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.state import POSE_DIM, block_diagonal
+from infonav_gym.estimation.state import POSE_DIM, BeliefBatch, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi.exploration_decision import TeamSight, landmark_gains, range_bearing_noise

@@ -12,8 +12,7 @@ import numpy as np
 
 from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.config import Interval, check_config, check_config_arguments, config_keys
-from infonav_gym.envs.active_localization import REWARD_WEIGHT
-from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS
+from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS, REWARD_WEIGHT
 from infonav_gym.envs.observation_kernels import clip_into, range_bearing_features
 from infonav_gym.estimation.state import INITIAL_POSE_STD
 from infonav_gym.multi.team import gps_receivers, parse_speeds, parse_suites
