@@ -54,7 +54,7 @@ from infonav_gym.multi.exploration_team import (
 )
 from infonav_gym.multi.parallel_view import team_metadata
 from infonav_gym.multi.team_decision import TeamDecision, observable_pairs
-from infonav_gym.multi.team_localization import team_observation_bounds, team_observations
+from infonav_gym.multi.team_observations import team_observation_bounds, team_observations
 from infonav_gym.multi.team_paths import FirstCopyPaths
 from infonav_gym.multi.team_vector import TeamVectorEnv
 from infonav_gym.scene import SceneFrame

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from infonav_gym.multi.cooperative_localization_vector import CooperativeLocalizationVectorEnv
 from infonav_gym.multi.parallel_view import ParallelEnvView
-from infonav_gym.multi.team_localization import start_episode, team_observations
+from infonav_gym.multi.team_localization import start_episode
+from infonav_gym.multi.team_observations import team_observations
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, SensingPairs
 
 __all__ = ["NO_OBSERVATION", "CooperativeLocalizationEnv", "SensingPairs", "start_episode", "team_observations"]

@@ -20,13 +20,8 @@ from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.multi.parallel_view import team_metadata
 from infonav_gym.multi.team_decision import TeamDecision, TeamStep, observable_pairs, team_info
-from infonav_gym.multi.team_localization import (
-    TeamParts,
-    start_episode,
-    team_localization_config,
-    team_observation_bounds,
-    team_observations,
-)
+from infonav_gym.multi.team_localization import TeamParts, start_episode, team_localization_config
+from infonav_gym.multi.team_observations import team_observation_bounds, team_observations
 from infonav_gym.multi.team_paths import FirstCopyPaths
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
 from infonav_gym.multi.team_vector import TeamVectorEnv
