@@ -159,6 +159,15 @@ def information_metric(P) -> float:
     return -gaussian_entropy(P)
 
 
+def mutual_information_from_log_dets(prior_log_det, posterior_log_det):
+    """Eq. 3 on known log-determinants, ``0.5 (ln det P_prior - ln det P_post)`` [nats]: the one MI formula (the
+    expected gain ``0.5 (ln det S - ln det R)`` is it too, ``det S / det R = det P_prior / det P_post``)."""
+    return 0.5 * (prior_log_det - posterior_log_det)
+
+
+mutual_information_kernel = inner_kernel(mutual_information_from_log_dets)  # the same formula, inside kernels
+
+
 def mutual_information(P_prior, P_post, check_input: bool = True) -> float:
     """Information contribution ``ic = 0.5 ln(det P_prior / det P_post)`` of an update (Eq. 3) [nats]."""
     if check_input:
@@ -169,8 +178,8 @@ def mutual_information(P_prior, P_post, check_input: bool = True) -> float:
                 "prior and posterior covariances must be matrices of the same shape, "
                 f"got {P_prior.shape} and {P_post.shape}"
             )
-    return 0.5 * (
-        log_det_spd(P_prior, "prior covariance", check_input) - log_det_spd(P_post, "posterior covariance", check_input)
+    return mutual_information_from_log_dets(
+        log_det_spd(P_prior, "prior covariance", check_input), log_det_spd(P_post, "posterior covariance", check_input)
     )
 
 
@@ -207,9 +216,9 @@ def expected_information_gain(P, H, R, check_input: bool = True) -> float | np.n
 
 def information_gain_of_innovation(S, R, check_input: bool = True) -> float | np.ndarray:
     """``expected_information_gain`` given the innovation covariance ``S = H P H^T + R``: ``0.5 ln(det S / det R)``."""
-    gain = 0.5 * (
-        log_det_spd(S, "innovation covariance H P H^T + R", check_input)
-        - log_det_spd(R, "noise covariance R", check_input)
+    gain = mutual_information_from_log_dets(
+        log_det_spd(S, "innovation covariance H P H^T + R", check_input),
+        log_det_spd(R, "noise covariance R", check_input),
     )
     return float(gain) if np.ndim(gain) == 0 else gain
 

@@ -217,3 +217,18 @@ def test_largest_position_std_is_the_root_of_the_position_blocks_largest_eigenva
     covariances = roots @ roots.transpose(0, 2, 1) + 1e-3 * np.eye(3)
     expected = np.sqrt(np.linalg.eigvalsh(covariances[:, :2, :2])[:, -1])
     np.testing.assert_allclose(largest_position_std(covariances), expected, rtol=1e-12)
+
+
+def test_the_mi_formula_is_written_once():
+    """Every MI in the package, the compiled kernels' included, is ``mutual_information_from_log_dets`` (or its kernel
+    twin): no other module halves a difference of log-determinants."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    copy = re.compile(r"0\.5 \* \(\s*(np\.linalg\.slogdet|log_det|[a-z_]*log_dets?\b|pose_block_log_det)")
+    sources = [*(root / "infonav_gym").rglob("*.py"), *(root / "agents").rglob("*.py")]
+    copies = [str(path.relative_to(root)) for path in sources if copy.search(path.read_text())]
+    assert copies == ["infonav_gym/information.py"], copies
+    prior, posterior = np.diag([4.0, 9.0]), np.diag([1.0, 1.0])
+    assert mutual_information(prior, posterior) == pytest.approx(0.5 * math.log(36.0), rel=1e-15)

@@ -29,7 +29,7 @@ from infonav_gym.estimation.state import (  # noqa: F401  (POSE_DIM, INITIAL_POS
     block_diagonal,
 )
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import log_det_spd
+from infonav_gym.information import log_det_spd, mutual_information_from_log_dets
 
 
 def _robot_indices(name: str, value, n_robots: int) -> np.ndarray:
@@ -390,7 +390,7 @@ class JointEKF(ExtendedKalmanFilter):
         S = H_observer @ A + H_target @ (P_to @ H_observer_T + P_tt @ H_target_T) + R
         posterior = P_oo - A @ np.linalg.solve(S, np.swapaxes(A, 1, 2))
         log_dets = np.linalg.slogdet(np.concatenate([P_oo, posterior, S, R]))[1].reshape(4, -1)
-        return 0.5 * (log_dets[0] - log_dets[1]), 0.5 * (log_dets[2] - log_dets[3])
+        return mutual_information_from_log_dets(*log_dets[:2]), mutual_information_from_log_dets(*log_dets[2:])
 
     def landmark_model(self, robots, landmarks) -> tuple[np.ndarray, np.ndarray]:
         """Predicted range-bearing of known landmark ``landmarks[k]`` from robot ``robots[k]``, with its Jacobian.
@@ -446,7 +446,7 @@ class JointEKF(ExtendedKalmanFilter):
         robots = np.atleast_1d(robots)
         P_oo = self._blocks()[robots, robots]
         S = H_pose @ P_oo @ np.swapaxes(H_pose, 1, 2) + R
-        return 0.5 * (np.linalg.slogdet(S)[1] - np.linalg.slogdet(R)[1])
+        return mutual_information_from_log_dets(np.linalg.slogdet(S)[1], np.linalg.slogdet(R)[1])
 
     def _drop_cross_covariances(self) -> None:
         if not self.cross_covariances:

@@ -14,7 +14,7 @@ import numpy as np
 
 from infonav_gym.compiled import inlined_kernel, inner_kernel, kernel
 from infonav_gym.geometry import wrap_angle_kernel as wrap
-from infonav_gym.information import log_det_of
+from infonav_gym.information import log_det_of, mutual_information_kernel
 
 POSE_DIM = 3
 COINCIDENT_SQUARED_RANGE = 1e-18  # [m^2] a target this close to the sensor has no defined bearing
@@ -416,7 +416,7 @@ def chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_l
     realized = np.zeros(n_copies)
     for c in range(n_copies):
         if used[c, 0]:
-            realized[c] = 0.5 * (prior_log_det[c] - log_det_of(P_new[c]))
+            realized[c] = mutual_information_kernel(prior_log_det[c], log_det_of(P_new[c]))
     return x_new, P_new, realized
 
 
@@ -450,7 +450,7 @@ def landmark_gain(P, J, R, HP, S, columns) -> float:
             for t in range(n_columns):
                 total += HP[i, columns[t]] * J[j, columns[t]]
             S[i, j] = total + R[i, j]
-    return 0.5 * (log_det_of(S) - log_det_of(R))
+    return mutual_information_kernel(log_det_of(S), log_det_of(R))
 
 
 @kernel
@@ -496,8 +496,8 @@ def relative_pose_gains(P, observers, targets, H_observer, H_target, R, wanted):
                     for s in range(m):
                         total += A_S_inverse[i, s] * A[j, s]
                     posterior[i, j] = P[c, o + i, o + j] - total
-            own[c, k] = 0.5 * (pose_block_log_det(P[c], o, prior) - log_det_of(posterior))
-            joint[c, k] = 0.5 * (log_det_of(S) - log_det_of(R[c, k]))
+            own[c, k] = mutual_information_kernel(pose_block_log_det(P[c], o, prior), log_det_of(posterior))
+            joint[c, k] = mutual_information_kernel(log_det_of(S), log_det_of(R[c, k]))
     return own, joint
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM, BeliefBatch, block_diagonal
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import largest_position_std
+from infonav_gym.information import largest_position_std, mutual_information_from_log_dets
 from infonav_gym.multi.exploration_decision import TeamSight, landmark_gains, range_bearing_noise
 from infonav_gym.multi.team_decision import observable_pairs
 from infonav_gym.sensors.relative_pose import noise_covariances
@@ -273,7 +273,7 @@ class ExplorationPlanningModel:
         observed = sees_landmark | sees_teammate
         P = self._expected_observations(belief, sees_landmark, landmarks, sees_teammate, pairs)
         log_dets = [batched.pose_log_dets(M, n_robots, check_input=False) for M in (belief.covariance, P)]
-        own = 0.5 * (log_dets[0] - log_dets[1])
+        own = mutual_information_from_log_dets(*log_dets)
         x, P = self._expected_motion(belief.x, P, motions, driving)
         positions = x.reshape(B, n_robots, POSE_DIM)[..., :2]
         elapsed = self.step_index

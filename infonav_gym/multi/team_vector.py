@@ -28,7 +28,7 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle_kernel as wrap
-from infonav_gym.information import log_det_of
+from infonav_gym.information import log_det_of, mutual_information_kernel
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, gps_available, gps_schedule
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.relative_pose import relative_pose_measured
@@ -344,9 +344,11 @@ def relative_updates(
     joint_mi, own_mi, pose_std = np.empty(n_copies), np.empty((n_copies, n_robots)), np.empty(residuals.shape)
     block = np.empty((POSE_DIM, POSE_DIM))
     for c in range(n_copies):
-        joint_mi[c] = 0.5 * (log_det_of(P[c]) - log_det_of(P_new[c])) if observations[c] else 0.0
+        joint_mi[c] = mutual_information_kernel(log_det_of(P[c]), log_det_of(P_new[c])) if observations[c] else 0.0
         for robot in range(n_robots):
-            own_mi[c, robot] = 0.5 * (log_det[c, robot] - pose_block_log_det(P_new[c], POSE_DIM * robot, block))
+            own_mi[c, robot] = mutual_information_kernel(
+                log_det[c, robot], pose_block_log_det(P_new[c], POSE_DIM * robot, block)
+            )
             for i in range(POSE_DIM):
                 pose_std[c, robot, i] = math.sqrt(P_new[c, POSE_DIM * robot + i, POSE_DIM * robot + i])
     return x_new, P_new, joint_mi, own_mi, pose_std

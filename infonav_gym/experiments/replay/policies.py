@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from infonav_gym.decisions import argmax_tied, top_k_tied
-from infonav_gym.information import expected_information_gain
+from infonav_gym.information import expected_information_gain, mutual_information_from_log_dets
 
 POLICIES = ("all", "greedy", "random", "nearest")
 
@@ -47,7 +47,7 @@ def _marginal_gains(P, H, R, of) -> np.ndarray:
     A = PHT[:, of]
     prior = P[np.ix_(of, of)]
     posterior = prior - A @ np.linalg.solve(S, np.swapaxes(A, 1, 2))
-    return 0.5 * (np.linalg.slogdet(prior)[1] - np.linalg.slogdet(posterior)[1])
+    return mutual_information_from_log_dets(np.linalg.slogdet(prior)[1], np.linalg.slogdet(posterior)[1])
 
 
 def select_nearest(predicted_ranges: np.ndarray, k: int) -> list[int]:
