@@ -543,6 +543,14 @@ SINGLE_AGENT_IDS = (
 )
 
 
+def drawn_paths(env) -> list:
+    """Copy 0's drawn paths, the true one first: in a scenario's state, or (not yet a scenario) the env's own."""
+    state = getattr(env, "state", None)
+    if state is not None:
+        return list(state.paths)
+    return [env._true_path] + ([env._estimated_path] if hasattr(env, "_estimated_path") else [])
+
+
 @pytest.mark.parametrize("env_id", SINGLE_AGENT_IDS)
 def test_an_env_keeps_its_drawn_paths_bounded_over_many_more_steps_than_the_bound(env_id, monkeypatch):
     import gymnasium as gym
@@ -553,18 +561,17 @@ def test_an_env_keeps_its_drawn_paths_bounded_over_many_more_steps_than_the_boun
     single = gym.make(env_id, horizon=40, render_mode="rgb_array").unwrapped
     env = getattr(single, "vector", single)  # an env written once keeps its paths in its one copy
     _, info = single.reset(seed=0)
-    start = env._true_path.points()[0].copy()
+    start = drawn_paths(env)[0].points()[0].copy()
     steps = 0
     for _ in range(40):
         action = int(np.argmax(info["action_mask"]))  # the first valid action, else 0 (a no-op)
         _, _, terminated, truncated, info = single.step(action)
         steps += 1
-        paths = [env._true_path] + ([env._estimated_path] if hasattr(env, "_estimated_path") else [])
-        assert all(len(path) <= 5 for path in paths)
+        assert all(len(path) <= 5 for path in drawn_paths(env))
         if terminated or truncated:
             break
     assert steps > 10, "many more steps than the bound"
-    np.testing.assert_array_equal(env._true_path.points()[0], start)
+    np.testing.assert_array_equal(drawn_paths(env)[0].points()[0], start)
     frame = single.render()
     assert frame.dtype == np.uint8
     single.close()

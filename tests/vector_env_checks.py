@@ -399,13 +399,18 @@ def check_filter_equals_pose_ekf(env_id, landmark_of, monkeypatch, seed: int, n_
     draws = []
     env = gym.make(env_id, horizon=n_steps, **config).unwrapped
     vector = env.vector
-    sensor, odometry = vector.sensor, vector._odometry
-    controls, odometry_draws = [], []
-    world_step = vector._worlds.step  # the executed controls, and below the noise draws the odometry reads them with
-    monkeypatch.setattr(vector._worlds, "step", lambda *args: controls.append(world_step(*args)) or controls[-1])
-    monkeypatch.setattr(vector._odometry_noise, "reserve", _recording(vector._odometry_noise.reserve, odometry_draws))
+    if hasattr(vector, "state"):  # a scenario: its constants and state
+        odometry, robot = vector.env_scenario.odometry, vector.state
+        worlds, odometry_noise, measurement_noise = robot.worlds, robot.odometry_noise, robot.measurement_noise
+    else:
+        odometry, worlds = vector._odometry, vector._worlds
+        odometry_noise, measurement_noise = vector._odometry_noise, vector._measurement_noise
+    sensor, controls, odometry_draws = vector.sensor, [], []
+    world_step = worlds.step  # the executed controls, and below the noise draws the odometry reads them with
+    monkeypatch.setattr(worlds, "step", lambda *args: controls.append(world_step(*args)) or controls[-1])
+    monkeypatch.setattr(odometry_noise, "reserve", _recording(odometry_noise.reserve, odometry_draws))
     # the measurement's standard normals: the sensor measures with them below
-    monkeypatch.setattr(vector._measurement_noise, "reserve", _recording(vector._measurement_noise.reserve, draws))
+    monkeypatch.setattr(measurement_noise, "reserve", _recording(measurement_noise.reserve, draws))
     _, info = env.reset(seed=seed)
     x, P = vector.estimate(0)  # the prior: the pose, then the mapped landmarks if any
     ekf = PoseEKF(x[:POSE_DIM], P[:POSE_DIM, :POSE_DIM], x[POSE_DIM:].reshape(-1, 2), P[POSE_DIM:, POSE_DIM:])
@@ -430,7 +435,8 @@ def check_filter_equals_pose_ekf(env_id, landmark_of, monkeypatch, seed: int, n_
             n_observed += 1
         reading = odometry.measure_with_noise(controls[-1][0, 0], odometry_draws[-1])
         ekf.predict(reading, dt, odometry.noise_covariance())
-        np.testing.assert_allclose(vector._x[0], ekf.x, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(vector._P[0], ekf.P, rtol=0, atol=1e-10)
+        x, P = vector.estimate(0)
+        np.testing.assert_allclose(x, ekf.x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(P, ekf.P, rtol=0, atol=1e-10)
     assert len(controls) == n_steps
     return n_observed

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from infonav_gym.compiled import contiguous, kernel, stacked
+from infonav_gym.compiled import contiguous, stacked
 from infonav_gym.envs.landmark_decision import LandmarkDecision
-from infonav_gym.envs.noise_streams import NoiseStreams, taken
+from infonav_gym.envs.noise_streams import NoiseStreams
+from infonav_gym.envs.one_robot import predicted_from_odometry
 from infonav_gym.envs.vector_base import InfoNavVectorEnv
-from infonav_gym.estimation.kernels import predict_poses
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.scene import PathHistory, RobotDrawing
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
@@ -97,16 +97,3 @@ class OneRobotVectorEnv(InfoNavVectorEnv):
             true_path=self._true_path.points(),
             estimated_path=self._estimated_path.points(),
         )
-
-
-@kernel
-def predicted_from_odometry(x, P, controls, copies, blocks, next_draw, odometry_stds, dt, covariances):
-    """``predict_poses`` of ``copies`` from their robots' odometry readings: the executed ``controls`` (n, 1, 2) plus
-    each copy's next draw of ``blocks`` (``NoiseStreams.reserve``'s) times ``odometry_stds``, as
-    ``OdometrySensor.measure_with_noise`` reads them."""
-    readings = np.empty(controls.shape)
-    for row in range(len(copies)):
-        noise = taken(blocks, next_draw, copies[row])
-        for i in range(2):
-            readings[row, 0, i] = controls[row, 0, i] + noise[i] * odometry_stds[i]
-    return predict_poses(x, P, readings, dt, covariances)

@@ -1,19 +1,22 @@
-"""``infonav/LandmarkSelection-v0``: choose which landmark to observe (the paper's Section III)."""
+"""``infonav/LandmarkSelection-v0``: choose which landmark to observe (the paper's Section III), as a scenario."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
-from gymnasium.vector import AutoresetMode
 
 from infonav_gym.compiled import kernel
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments
+from infonav_gym.envs.base import shared_config
+from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.landmark_decision import LandmarkDecision, decision_arguments, landmark_decisions
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS
 from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
-from infonav_gym.envs.one_robot_vector import OneRobotVectorEnv
+from infonav_gym.envs.one_robot import OneRobotScenario, OneRobotState
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info, in_every_copy
@@ -53,7 +56,196 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 }
 
 
-class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
+@dataclass
+class LandmarkState(OneRobotState):
+    """``OneRobotState`` and the realized MI of each copy's last step (N,) [nats]; ``geometries``: each copy's
+    static geometry (one copy each), stacked in ``geometry``."""
+
+    mutual_information: np.ndarray = None
+    geometries: list = None
+
+
+class LandmarkStep(NamedTuple):
+    """Every copy's ``LandmarkDecision`` (its first seven fields) and what the same kernel computes at the prior:
+    the observation (n, 10 + 5K) float32, the ``INFO_NUMBERS`` but the poses (n, 5) and the true and estimated
+    poses (n, 3)."""
+
+    action_mask: np.ndarray
+    action_information_gain: np.ndarray
+    predicted: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    prior_log_det: np.ndarray
+    pose_entropy: np.ndarray
+    observation: np.ndarray
+    numbers: np.ndarray
+    true_pose: np.ndarray
+    estimated_pose: np.ndarray
+
+
+class LandmarkSelection(OneRobotScenario):
+    """``infonav/LandmarkSelection-v0`` as a scenario: see ``LandmarkSelectionEnv`` for its spaces, reward and
+    config keys."""
+
+    episode_metrics = LOCALIZATION_METRICS
+    traits = EnvTraits(
+        kb_per_copy=10,  # [kB] at the defaults, between peak RSS growth and traced allocations
+        estimates_pose=True,
+        rewards_information_at_once=True,
+        reward_terms=("mutual_information",),
+        main_metric="cumulative_mi",
+    )
+
+    @classmethod
+    def default_config(cls) -> dict:
+        return {
+            **shared_config(),
+            "scenario": "field",  # "field" (random), "corridor" (the paper's Fig. 1), or registered (register_scenario)
+            "n_candidates": 8,  # K, size of the action space
+            "time_step_s": 0.5,  # [s]
+            "speed_mps": 1.0,  # cruise speed along the route [m/s]
+            "mapping": False,  # True: landmark positions are uncertain and estimated (EKF-SLAM)
+            "landmark_prior_std_m": 1.0,  # prior std of each landmark coordinate when mapping [m]
+            "range_std_m": 0.1,  # [m]
+            "range_std_per_m": 0.01,  # growth of the range std with distance [m/m]
+            "bearing_std_rad": math.radians(2.0),  # [rad]
+            "sensor_max_range_m": 15.0,  # [m]
+            "sensor_fov_rad": math.pi,  # full field of view around the heading [rad]
+            "odometry_speed_std_mps": 0.05,  # [m/s]
+            "odometry_turn_rate_std_rps": 0.02,  # [rad/s]
+            "initial_position_std_m": 0.1,  # [m]
+            "initial_heading_std_rad": 0.02,  # [rad]
+            "n_obstacles": 6,  # field scenario only
+            "field_size_m": 30.0,  # side of the square field [m]
+        }
+
+    def __init__(self, config: dict, copies: int, owner: str, render_mode: str | None):
+        super().__init__(config, copies, owner, render_mode)
+        cfg = config
+        check_choice(cfg, "scenario", scenario_names(team=False), owner)
+        check_config(cfg, owner, CONFIG_INTERVALS)
+        check_config_arguments(cfg, owner, "field", FIELD_ARGUMENTS, SCENARIO_KEYS)  # the corridor's speed too
+        if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
+            raise ValueError(
+                f"config key 'n_candidates' of {owner} must be >= {CORRIDOR_LANDMARK_COUNT} "
+                f"(the corridor's landmarks), got {cfg['n_candidates']}"
+            )
+        low, high = self._observation_bounds(cfg["n_candidates"])
+        self.bounds = low.astype(float), high.astype(float)  # the space's float32 bounds, for ``observations``
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.action_space = spaces.Discrete(cfg["n_candidates"])
+        self.use_sensors(range_bearing_sensor_from_config(cfg, owner), odometry_sensor_from_config(cfg, owner))
+
+    @staticmethod
+    def _observation_bounds(n_candidates: int) -> tuple[np.ndarray, np.ndarray]:
+        pose_low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0]
+        pose_high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1]
+        candidate_low, candidate_high = [0, 0, -1, -1, 0], [1, _BIG, 1, 1, _BIG]
+        low = np.array(pose_low + candidate_low * n_candidates, dtype=np.float32)
+        high = np.array(pose_high + candidate_high * n_candidates, dtype=np.float32)
+        return low, high
+
+    def allocate(self, copies: int) -> LandmarkState:
+        fields = self.robot_fields(copies, self.config["n_candidates"])
+        return LandmarkState(**fields, mutual_information=np.zeros(copies), geometries=[None] * copies)
+
+    def initial(self, state: LandmarkState, rows: np.ndarray, rngs: list) -> LandmarkState:
+        """Draw each copy's scenario and prior (``start_episode``); with ``mapping`` every copy needs the same
+        number of landmarks."""
+        owner, n_copies = self.owner, len(state.elapsed)
+        for copy, rng in zip(rows.tolist(), rngs):
+            scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, rng, owner)
+            x, P = prior.state()
+            if state.x is None or len(rows) == n_copies and copy == 0:
+                state.x, state.P = np.zeros((n_copies, len(x))), np.zeros((n_copies, len(x), len(x)))
+            if len(x) != state.x.shape[1]:
+                raise ValueError(
+                    f"sub-env {copy} of {owner}: with mapping=True every copy needs the same number of landmarks; "
+                    f"scenario {scenario.name!r} has {len(scenario.landmarks)}, the other copies "
+                    f"{(state.x.shape[1] - 3) // 2}"
+                )
+            state.worlds.reset_copy(copy, scenario)
+            state.odometry_noise.restart(copy, odometry_rng)
+            state.measurement_noise.restart(copy, measurement_rng)
+            state.x[copy], state.P[copy] = x, P
+            n_landmarks = len(scenario.landmarks)
+            state.landmarks[copy] = 0.0
+            state.landmarks[copy, :n_landmarks] = scenario.landmarks
+            state.exists[copy] = np.arange(self.config["n_candidates"]) < n_landmarks
+            state.geometries[copy] = StaticGeometry.from_scenario(scenario, state.worlds.wall_thickness_m)
+        state.geometry = StaticGeometry.stack(state.geometries)
+        state.chosen[rows], state.mutual_information[rows] = -1, 0.0
+        if rows[0] == 0:
+            self.follow_first_copy(state, restarted=True)
+        return state
+
+    def decision(self, state: LandmarkState, rows) -> LandmarkStep:
+        """The landmarks each copy sees, their models and expected MI at its prior, with its observation and info
+        numbers (one compiled call, ``landmark_outputs``)."""
+        cfg = self.config
+        full = isinstance(rows, slice)
+        geometry = state.geometry if full else StaticGeometry.stack([state.geometries[row] for row in rows])
+        true_poses, x, P = state.worlds.poses[rows, 0], state.x[rows], state.P[rows]
+        arguments = decision_arguments(
+            self.sensor, geometry, true_poses, x, P, state.landmarks[rows], state.exists[rows], cfg["mapping"]
+        )
+        decided, observation, numbers, *poses = landmark_outputs(
+            arguments, state.elapsed[rows], float(cfg["horizon"]), float(cfg["time_step_s"]), *self.bounds
+        )
+        return LandmarkStep(*LandmarkDecision.checked(decided), observation, numbers.T, *poses)
+
+    def transition(self, state: LandmarkState, decision: LandmarkStep, action, acting) -> LandmarkState:
+        """Observe the chosen landmarks at the prior, then drive the ``acting`` copies along their routes."""
+        chosen = action[:, 0]
+        sight = LandmarkDecision(*decision[: len(LandmarkDecision._fields)])
+        state.x, state.P, state.mutual_information = self.measured(state, sight, chosen)
+        state.chosen = chosen
+        n_acting = np.count_nonzero(acting)  # their worlds step, their EKFs predict from noisy odometry
+        if n_acting == len(acting):  # all of them (the usual step): the predicted arrays are new ones
+            state.x, state.P = self.moved(state, np.arange(len(acting)), state.x, state.P)
+        elif n_acting:
+            copies = np.flatnonzero(acting)
+            state.x[copies], state.P[copies] = self.moved(state, copies, state.x[copies], state.P[copies])
+        if acting[0]:
+            self.follow_first_copy(state, restarted=False)
+        return state
+
+    def reward(self, decision, action, state: LandmarkState) -> np.ndarray:
+        """The realized mutual information of each copy's update [nats] (0 without one)."""
+        return state.mutual_information.copy()
+
+    def observation(self, state: LandmarkState, decision: LandmarkStep, rows) -> np.ndarray:
+        return decision.observation
+
+    def info(self, state: LandmarkState, decision: LandmarkStep, rows, stepped) -> dict:
+        """The decision's mask and gains, the reward term, the action taken and the ``INFO_NUMBERS``."""
+        rewards = state.mutual_information[rows]
+        info = decision_info(decision, stepped, state.chosen[rows], "mutual_information", rewards)
+        info.update(zip(INFO_NUMBERS, (*decision.numbers.T, decision.true_pose, decision.estimated_pose)))
+        return in_every_copy(info, len(stepped))
+
+    def frame(self, state: LandmarkState, decision: LandmarkStep):
+        """Copy 0 drawn: its scenario, landmarks (seen ones marked, the chosen one linked), the robot."""
+        scenario, n_landmarks = state.worlds.scenario(0), int(state.exists[0].sum())
+        mapped = state.x[0, POSE_DIM:].reshape(-1, 2) if self.config["mapping"] else None
+        blocks = [state.P[0, 3 + 2 * i : 5 + 2 * i, 3 + 2 * i : 5 + 2 * i] for i in range(n_landmarks)]
+        chosen = int(state.chosen[0])
+        time_s = state.elapsed[0] * self.config["time_step_s"]
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            landmarks=scenario.landmarks,
+            landmark_visible=decision.action_mask[0, :n_landmarks].astype(bool),
+            chosen_landmark=None if chosen < 0 else chosen,
+            robots=[self.first_robot_drawing(state)],
+            landmark_estimates=mapped,
+            landmark_covariances=np.array(blocks) if mapped is not None else None,
+            caption=f"t = {time_s:.1f} s   pose entropy {decision.pose_entropy[0]:.2f} nats",
+        )
+
+
+class LandmarkSelectionVectorEnv(Driver, scenario=LandmarkSelection):
     """N copies of ``infonav/LandmarkSelection-v0`` on stacked arrays: the env's one implementation.
 
     See ``LandmarkSelectionEnv`` (its N = 1 view) for the spaces, rewards and config keys.
@@ -86,151 +278,18 @@ class LandmarkSelectionVectorEnv(OneRobotVectorEnv):
     (``"rgb_array"`` or ``"human"``): ``render()`` draws sub-env 0.
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
-    episode_metrics = LOCALIZATION_METRICS
-    traits = EnvTraits(
-        kb_per_copy=10,  # [kB] at the defaults, between peak RSS growth and traced allocations
-        estimates_pose=True,
-        rewards_information_at_once=True,
-        reward_terms=("mutual_information",),
-        main_metric="cumulative_mi",
-    )
+    @property
+    def sensor(self):
+        """The range-bearing sensor every copy carries (coverage and noise)."""
+        return self.env_scenario.sensor
 
-    @classmethod
-    def default_config(cls) -> dict:
-        return {
-            **OneRobotVectorEnv.default_config(),
-            "scenario": "field",  # "field" (random), "corridor" (the paper's Fig. 1), or registered (register_scenario)
-            "n_candidates": 8,  # K, size of the action space
-            "time_step_s": 0.5,  # [s]
-            "speed_mps": 1.0,  # cruise speed along the route [m/s]
-            "mapping": False,  # True: landmark positions are uncertain and estimated (EKF-SLAM)
-            "landmark_prior_std_m": 1.0,  # prior std of each landmark coordinate when mapping [m]
-            "range_std_m": 0.1,  # [m]
-            "range_std_per_m": 0.01,  # growth of the range std with distance [m/m]
-            "bearing_std_rad": math.radians(2.0),  # [rad]
-            "sensor_max_range_m": 15.0,  # [m]
-            "sensor_fov_rad": math.pi,  # full field of view around the heading [rad]
-            "odometry_speed_std_mps": 0.05,  # [m/s]
-            "odometry_turn_rate_std_rps": 0.02,  # [rad/s]
-            "initial_position_std_m": 0.1,  # [m]
-            "initial_heading_std_rad": 0.02,  # [rad]
-            "n_obstacles": 6,  # field scenario only
-            "field_size_m": 30.0,  # side of the square field [m]
-        }
+    def estimate(self, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Sub-env ``copy``'s EKF state and covariance now, ``(x (n,), P (n, n))`` (copies)."""
+        return self.state.x[copy].copy(), self.state.P[copy].copy()
 
-    def _parts(self):
-        """Check the env's own config keys and set the spaces; its range-bearing sensor and odometry."""
-        cfg, owner = self.config, self.owner_name
-        check_choice(cfg, "scenario", scenario_names(team=False), owner)
-        check_config(cfg, owner, CONFIG_INTERVALS)
-        check_config_arguments(cfg, owner, "field", FIELD_ARGUMENTS, SCENARIO_KEYS)  # the corridor's speed too
-        if cfg["scenario"] == "corridor" and cfg["n_candidates"] < CORRIDOR_LANDMARK_COUNT:
-            raise ValueError(
-                f"config key 'n_candidates' of {owner} must be >= {CORRIDOR_LANDMARK_COUNT} "
-                f"(the corridor's landmarks), got {cfg['n_candidates']}"
-            )
-        low, high = self._observation_bounds(cfg["n_candidates"])
-        self._bounds = low.astype(float), high.astype(float)  # the space's float32 bounds, for ``observations``
-        self._set_spaces(spaces.Box(low, high, dtype=np.float32), spaces.Discrete(cfg["n_candidates"]))
-        return range_bearing_sensor_from_config(cfg, owner), odometry_sensor_from_config(cfg, owner)
-
-    @staticmethod
-    def _observation_bounds(n_candidates: int) -> tuple[np.ndarray, np.ndarray]:
-        pose_low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0]
-        pose_high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1]
-        candidate_low, candidate_high = [0, 0, -1, -1, 0], [1, _BIG, 1, 1, _BIG]
-        low = np.array(pose_low + candidate_low * n_candidates, dtype=np.float32)
-        high = np.array(pose_high + candidate_high * n_candidates, dtype=np.float32)
-        return low, high
-
-    def _allocate(self) -> None:
-        num_envs = self.num_envs
-        self._x = self._P = None
-        n_candidates = self.config["n_candidates"]
-        self._landmarks = np.zeros((num_envs, n_candidates, 2))
-        self._exists = np.zeros((num_envs, n_candidates), dtype=bool)
-        self._chosen = np.full(num_envs, -1)
-
-    def _reset_copies(self, copies: np.ndarray) -> StaticGeometry:
-        """Start a new episode in each of ``copies`` from its own generator; the static geometry of those copies."""
-        owner, geometries = self.owner_name, []
-        for copy in copies.tolist():
-            scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, self._np_randoms[copy], owner)
-            x, P = prior.state()
-            if self._x is None or len(copies) == self.num_envs and copy == 0:
-                self._x, self._P = np.zeros((self.num_envs, len(x))), np.zeros((self.num_envs, len(x), len(x)))
-            if len(x) != self._x.shape[1]:
-                raise ValueError(
-                    f"sub-env {copy} of {owner}: with mapping=True every copy needs the same number of landmarks; "
-                    f"scenario {scenario.name!r} has {len(scenario.landmarks)}, the other copies "
-                    f"{(self._x.shape[1] - 3) // 2}"
-                )
-            self._worlds.reset_copy(copy, scenario)
-            self._odometry_noise.restart(copy, odometry_rng)
-            self._measurement_noise.restart(copy, measurement_rng)
-            self._x[copy], self._P[copy] = x, P
-            n_landmarks = len(scenario.landmarks)
-            self._landmarks[copy] = 0.0
-            self._landmarks[copy, :n_landmarks] = scenario.landmarks
-            self._exists[copy] = np.arange(self.config["n_candidates"]) < n_landmarks
-            geometries.append(StaticGeometry.from_scenario(scenario, self._worlds.wall_thickness_m))
-        return StaticGeometry.stack(geometries)
-
-    def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple:
-        """Observe the chosen landmarks, then drive the ``acting`` copies; ``(rewards, rewards, never terminated)``."""
-        self._x, self._P, rewards = self._measured(self._decision, chosen)
-        n_acting = np.count_nonzero(acting)  # their worlds step, their EKFs predict from noisy odometry
-        if n_acting == self.num_envs:  # all of them (the usual step): the predicted arrays are new ones
-            self._x, self._P = self._moved(self._everyone, self._x, self._P)
-        elif n_acting:
-            copies = np.flatnonzero(acting)
-            self._x[copies], self._P[copies] = self._moved(copies, self._x[copies], self._P[copies])
-        return rewards, rewards, np.zeros(self.num_envs, dtype=bool)
-
-    def _no_step_record(self, n: int) -> np.ndarray:
-        """No rewards (n,)."""
-        return np.zeros(n)
-
-    def _outputs(self, copies, geometry, stepped, chosen, rewards) -> tuple[np.ndarray, dict]:
-        """Decide again at the priors of ``copies`` (n,) (``geometry``: theirs); their observations and infos. Those not
-        ``stepped`` (n,) were reset and give the reset info; ``chosen`` and ``rewards`` (n,): each one's landmark (-1:
-        none) and realized MI [nats]."""
-        rows, cfg = self._rows(copies), self.config
-        true_poses, x, P = self._worlds.poses[rows, 0], self._x[rows], self._P[rows]
-        arguments = decision_arguments(
-            self._sensor, geometry, true_poses, x, P, self._landmarks[rows], self._exists[rows], cfg["mapping"]
-        )
-        decided, observation, numbers, *poses = landmark_outputs(
-            arguments, self._elapsed[rows], float(cfg["horizon"]), float(cfg["time_step_s"]), *self._bounds
-        )
-        decision = LandmarkDecision.checked(decided)
-        self._set_decision(copies, decision)
-        info = decision_info(decision, stepped, chosen, "mutual_information", rewards)
-        self._chosen[rows] = info["chosen_action"]
-        self._track_first_copy(copies, stepped)
-        info.update(zip(INFO_NUMBERS, (*numbers, *poses)))
-        return observation, in_every_copy(info, len(copies))
-
-    def _scene_frame(self):
-        """Sub-env 0 drawn: its scenario, landmarks (seen ones marked, the chosen one linked), the robot."""
-        scenario, n_landmarks = self._worlds.scenario(0), int(self._exists[0].sum())
-        mapped = self._x[0, POSE_DIM:].reshape(-1, 2) if self.config["mapping"] else None
-        blocks = [self._P[0, 3 + 2 * i : 5 + 2 * i, 3 + 2 * i : 5 + 2 * i] for i in range(n_landmarks)]
-        pose_entropy = self._decision.pose_entropy[0]
-        chosen = int(self._chosen[0])
-        return SceneFrame(
-            bounds=scenario.bounds,
-            walls=scenario.walls,
-            obstacles=scenario.obstacles,
-            landmarks=scenario.landmarks,
-            landmark_visible=self._decision.action_mask[0, :n_landmarks].astype(bool),
-            chosen_landmark=None if chosen < 0 else chosen,
-            robots=[self._first_robot_drawing()],
-            landmark_estimates=mapped,
-            landmark_covariances=np.array(blocks) if mapped is not None else None,
-            caption=f"t = {self._elapsed[0] * self.config['time_step_s']:.1f} s   pose entropy {pose_entropy:.2f} nats",
-        )
+    def scenario(self, copy: int = 0):
+        """The scenario sub-env ``copy`` runs in its current episode (its landmarks, routes, walls)."""
+        return self.state.worlds.scenario(copy)
 
 
 class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv):
