@@ -157,3 +157,43 @@ def test_no_import_cycle_between_the_packages_modules():
 )
 def test_find_cycle_finds_a_cycle_exactly_when_there_is_one(graph, expected):
     assert find_cycle(graph) == expected
+
+
+ENVS = "infonav_gym.envs"
+
+
+def env_folders() -> list[str]:
+    """The env folders: the packages right below ``infonav_gym.envs`` (one per env)."""
+    return sorted(
+        module for module, path in MODULES.items() if path.name == "__init__.py" and module.rsplit(".", 1)[0] == ENVS
+    )
+
+
+def cross_env_imports() -> list[str]:
+    """``"module:line imports target"`` for every import of one env folder's module in another env folder."""
+    folders = env_folders()
+    return [
+        f"{MODULES[module].relative_to(ROOT)}:{line} imports {target}"
+        for folder in folders
+        for module in MODULES
+        if within(module, folder)
+        for target, line in imports(module)
+        if any(within(target, other) for other in folders if other != folder)
+    ]
+
+
+def test_no_env_folder_imports_another():
+    found = cross_env_imports()
+    assert found == [], "an env folder imports another:\n" + "\n".join(found)
+
+
+def test_the_env_folder_check_finds_an_import_of_another_env(tmp_path, monkeypatch):
+    """The scan itself: a module of one env folder importing another env folder's module is named with its line."""
+    for name, source in (("a", '"""x"""\nfrom infonav_gym.envs.b import thing\n'), ("b", '"""x"""\nthing = 1\n')):
+        folder = tmp_path / "infonav_gym" / "envs" / name
+        folder.mkdir(parents=True)
+        (folder / "__init__.py").write_text(source)
+    monkeypatch.setattr(f"{__name__}.ROOT", tmp_path)
+    found = {f"{ENVS}.{name}": tmp_path / "infonav_gym" / "envs" / name / "__init__.py" for name in "ab"}
+    monkeypatch.setattr(f"{__name__}.MODULES", found)
+    assert cross_env_imports() == ["infonav_gym/envs/a/__init__.py:2 imports infonav_gym.envs.b"]

@@ -149,6 +149,14 @@ def test_add_a_scenario(tmp_path):
     assert number(output, r"^greedy: ([\d.]+) nats") > number(output, r"^random: ([\d.]+) nats")
 
 
+def test_the_tutorial_env_is_at_most_80_lines_with_its_registration():
+    """The tutorial's env (its first code block: imports, state, scenario, classes, registration) in <= 80 lines."""
+    code = next(block["code"] for block in BLOCK.finditer((TUTORIALS / "write_a_vector_env.md").read_text()))
+    lines = [line for line in code.splitlines() if line.strip()]
+    assert "class Beacon(EnvScenario)" in code and "infonav_gym.register(" in lines[-1]
+    assert len(lines) <= 80, f"{len(lines)} non-blank lines"
+
+
 @pytest.mark.slow
 def test_write_a_vector_env(tmp_path):
     output = run_page("write_a_vector_env", tmp_path)
