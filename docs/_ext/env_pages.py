@@ -84,7 +84,9 @@ def defining_files(env_class: type) -> list[Path]:
     """The source files where ``env_class``'s config defaults are written, nearest first: those of its classes,
     then those of the functions and dicts their ``default_config`` methods name (``shared_config``,
     ``**SCENE_CONFIG``)."""
-    classes = [env_class] + [cls for cls in env_class.__mro__[1:] if "default_config" in vars(cls)]
+    scenario = scenario_of(env_class)
+    owners = [*env_class.__mro__[1:], *(scenario.__mro__ if scenario else ())]
+    classes = [env_class] + [cls for cls in owners if "default_config" in vars(cls)]
     named = {}
     for function in (vars(cls)["default_config"].__func__ for cls in classes if "default_config" in vars(cls)):
         named.update(
@@ -97,6 +99,22 @@ def defining_files(env_class: type) -> list[Path]:
         if isinstance(value, dict):
             files += [path for path in PACKAGE.rglob("*.py") if re.search(rf"^{name} = {{", path.read_text(), re.M)]
     return files
+
+
+def scenario_of(env_class: type) -> type | None:
+    """The scenario class (``infonav_gym.envs.protocol.EnvScenario``) an env's view or vector class runs, if any."""
+    vector = getattr(env_class, "vector_env", env_class)
+    return getattr(vector, "scenario_class", None)
+
+
+def reward_section(entry: EnvEntry) -> list[str]:
+    """Where the env's reward is computed: its scenario's ``reward`` function, with its file and docstring."""
+    scenario = scenario_of(entry.load_vector() if entry.vector_entry_point else entry.load())
+    if scenario is None:
+        return []
+    path = Path(inspect.getsourcefile(scenario.reward)).relative_to(PACKAGE.parent)
+    doc = inspect.getdoc(scenario.reward) or ""
+    return ["## Reward function", "", f"`{scenario.__name__}.reward` in `{path.as_posix()}`: {doc}"]
 
 
 def key_comments(env_class: type) -> dict[str, str]:
@@ -210,6 +228,8 @@ def env_page(entry: EnvEntry) -> list[str]:
             inspect.getdoc(entry.load()) or "(no docstring)",
             "",
             *spaces_section(env, parallel),
+            "",
+            *reward_section(entry),
             "",
             *config_section(entry, requirements),
             "",

@@ -65,22 +65,10 @@ class LandmarkState(OneRobotState):
     geometries: list = None
 
 
-class LandmarkStep(NamedTuple):
-    """Every copy's ``LandmarkDecision`` (its first seven fields) and what the same kernel computes at the prior:
-    the observation (n, 10 + 5K) float32, the ``INFO_NUMBERS`` but the poses (n, 5) and the true and estimated
-    poses (n, 3)."""
-
-    action_mask: np.ndarray
-    action_information_gain: np.ndarray
-    predicted: np.ndarray
-    H: np.ndarray
-    R: np.ndarray
-    prior_log_det: np.ndarray
-    pose_entropy: np.ndarray
-    observation: np.ndarray
-    numbers: np.ndarray
-    true_pose: np.ndarray
-    estimated_pose: np.ndarray
+STEP_FIELDS = ("observation", "numbers", "true_pose", "estimated_pose")
+LandmarkStep = NamedTuple("LandmarkStep", [(name, np.ndarray) for name in (*LandmarkDecision._fields, *STEP_FIELDS)])
+LandmarkStep.__doc__ = """Every copy's ``LandmarkDecision`` and what the same kernel computes at the prior: the
+observation (n, 10 + 5K) float32, the ``INFO_NUMBERS`` but the poses (n, 5) and the true and estimated poses (n, 3)."""
 
 
 class LandmarkSelection(OneRobotScenario):
