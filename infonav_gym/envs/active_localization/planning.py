@@ -4,7 +4,7 @@
 not depend on the measured values, so a sequence's expected reward is computed without sampling: ``belief()``
 copies a sub-env's estimator state, ``plan_decision`` gives the action masks and gains at each belief,
 ``plan_step`` predicts one step of each belief under its action. A batch of B beliefs is a batch of B copies:
-the model steps them with the env's own batched functions (``envs.active_transition``: the measurement model,
+the model steps them with the env's own batched functions (``transition.py``: the measurement model,
 gains and update, the primitives' commands, the prediction, the step's outcome and reward terms).
 """
 
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from infonav_gym.compiled import stacked
-from infonav_gym.envs.active_transition import (
+from infonav_gym.envs.active_localization.transition import (
     N_PRIMITIVES,
     PRIMITIVE_NAMES,
     PRIMITIVE_OFFSETS_RAD,

@@ -1,7 +1,7 @@
 """The episode and step of ``infonav/ActiveLocalization-v0`` on (N, ...) arrays, and its outputs.
 
-The env (``envs.active_localization``) starts its copies' episodes, steps them and writes their observations
-and infos with these functions; the planning model (``envs.active_planning``) steps a batch of hypothetical
+The scenario (``scenario.py``) starts its copies' episodes, steps them and writes their observations
+and infos with these functions; the planning model (``planning.py``) steps a batch of hypothetical
 beliefs with the same ones (decision layout, measurement model, commands, outcome, reward terms), its unknowns
 (noise, collisions, the true pose) replaced by their expectation. An action is observation slot ``a // 5``
 (0: none, ``j + 1``: landmark ``j``) and motion primitive ``a % 5``, so masks and gains are (N, 1 + K, 5)
@@ -61,21 +61,6 @@ def layout_of_actions(observable, landmark_gains):
                 if observable[c, k]:
                     gains[c, action] = landmark_gains[c, k]
     return mask, gains
-
-
-class ActiveDecision(NamedTuple):
-    """Every copy's decision at its EKF's prior.
-
-    Attributes:
-        sight: the landmarks' visibility and measurement model at each prior (its mask: visible, budget aside).
-        action_mask: int8 (N, A), 1 = valid: every primitive without an observation, and with each visible
-            landmark while budget is left.
-        action_information_gain: expected MI of each action (N, A) [nats], 0 where masked.
-    """
-
-    sight: LandmarkDecision
-    action_mask: np.ndarray
-    action_information_gain: np.ndarray
 
 
 def landmark_models(sensor: RangeBearingSensor, poses: np.ndarray, landmarks: np.ndarray):
@@ -252,10 +237,11 @@ def copy_outputs(sight: LandmarkDecision, state: tuple, config: dict, bounds: tu
         config: the env config; ``bounds``: the single observation space's ``(low, high)`` as float64.
 
     Returns:
-        ``(ActiveDecision, observations (n, 14 + 4K + 4O) float32, (position error [m], heading error [rad],
-        largest position std [m], distance to the goal [m]) (4, n))``.
+        ``(action_mask int8 (n, 5 (1 + K)), action_information_gain (n, 5 (1 + K)) [nats], observations
+        (n, 14 + 4K + 4O) float32, (position error [m], heading error [rad], largest position std [m], distance to
+        the goal [m]) (4, n))``.
     """
-    mask, gains, observation, values = outputs_of_copies(
+    return outputs_of_copies(
         sight.action_mask,
         sight.action_information_gain,
         sight.predicted,
@@ -265,7 +251,6 @@ def copy_outputs(sight: LandmarkDecision, state: tuple, config: dict, bounds: tu
         config["max_observations"],
         *bounds,
     )
-    return ActiveDecision(sight, mask, gains), observation, values
 
 
 @kernel
