@@ -1,17 +1,10 @@
 """The one place that makes a compiled kernel: numba's nopython dispatcher with an on-disk cache and IEEE arithmetic.
 
-``@kernel`` compiles a function on its first call for each new set of argument types (their literal
-values dropped: one specialization per set of types) and caches the machine code on disk
-(``cache=True``), next to the source or, in a read-only install, in numba's user-wide cache directory
-(or ``NUMBA_CACHE_DIR``); where numba finds neither writable, in the first writable ``fallback_cache_dirs()`` (set
-as ``NUMBA_CACHE_DIR``, said in one line). Where none is writable the kernels run uncached, after one warning line.
-``fastmath`` stays off (the EKF's numbers are IEEE's, x / 0 is inf) and nothing runs in parallel.
-A cached kernel is keyed on the sources of every kernel module of the package too (``kernel_sources_digest``):
-numba's own key holds only the function's bytecode, so a kernel cached before a kernel it calls (in another file)
-changed would run the old callee.
-Compiling the kernels takes seconds on a first use: when it takes longer than
-``COMPILE_NOTICE_AFTER_S``, one line says what is happening. Kernels copy arrays element by element: an array
-assigned into a slice makes numba compile its shape-error message formatting, about 2 s more on a first use.
+``@kernel`` compiles on the first call per set of argument types (literal values dropped) and caches the machine
+code on disk (``_enable_caching``), keyed also on the sources of every kernel module (``kernel_sources_digest``:
+numba's key alone would let a caller run a stale callee from another file). ``fastmath`` stays off (IEEE numbers,
+x / 0 is inf); nothing runs in parallel. A compile longer than ``COMPILE_NOTICE_AFTER_S`` is announced once.
+Kernels copy arrays element by element: slice assignment compiles numba's shape-error formatting (2 s more).
 """
 
 from __future__ import annotations
@@ -44,11 +37,8 @@ _fallback_tried = False
 
 
 class Kernel(CPUDispatcher):
-    """numba's CPU dispatcher compiling for the argument types without their literal values.
-
-    A kernel calling another with a constant (``1``, ``True``, a module constant), or with a counter that numba's
-    type inference still holds at its initial constant, would otherwise compile the callee once more per value.
-    """
+    """numba's CPU dispatcher compiling for the argument types without their literal values (else a callee
+    compiles once more per constant a caller passes)."""
 
     def compile(self, sig):
         args, return_type = sigutils.normalize_signature(sig)
@@ -185,12 +175,8 @@ def stacked(value, shape: tuple[int, ...]) -> np.ndarray:
 
 
 class _CompileNotice(event.Listener):
-    """Says once that kernels are being compiled when a compile of one of ours runs past the threshold.
-
-    A timer starts with the outermost compile (a kernel compiles the kernels it calls inside its own
-    compile) and is cancelled when it ends; numba holds its compiler lock meanwhile, so compiles nest
-    but never overlap.
-    """
+    """Says once that kernels are being compiled when an outermost compile of ours runs past the threshold (numba's
+    compiler lock makes compiles nest, never overlap)."""
 
     def __init__(self):
         self.depth = 0

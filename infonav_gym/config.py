@@ -11,12 +11,7 @@ import numpy as np
 
 
 def merge_config(defaults: dict, overrides: dict, owner: str) -> dict:
-    """Return ``defaults`` updated by ``overrides``.
-
-    Raises:
-        ValueError: for a key that ``defaults`` lacks (naming it and the closest
-            valid key) or a value of the wrong type.
-    """
+    """``defaults`` updated by ``overrides``; ``ValueError`` for a key it lacks (naming the closest) or a wrong type."""
     merged = dict(defaults)
     for key, value in overrides.items():
         if key not in defaults:
@@ -57,12 +52,8 @@ _open_key_maps: list[dict[str, str]] = []  # key_of_parameter of the open ``conf
 
 @contextmanager
 def stated_requirements():
-    """Log what the checks run inside require of each config key, in the words its error would use.
-
-    Yields a dict, config key -> its requirements (``["in (0, 1000] m"]``, ``["one of ['corridor', 'field']"]``),
-    filled as checks pass: making an env inside gives the allowed values of its keys (for its documentation)
-    from the checks themselves. A parameter's key is the one ``config_keys`` would name in its error.
-    """
+    """Yields a dict, config key -> the requirements the checks run inside state (``["in (0, 1000] m"]``), in their
+    errors' words: making an env inside documents its keys' allowed values from the checks themselves."""
     log: dict[str, list[str]] = {}
     _requirement_logs.append(log)
     try:
@@ -91,14 +82,8 @@ def check_choice(config: dict, key: str, choices, owner: str) -> None:
 
 
 class ParameterError(ValueError):
-    """A parameter value outside its allowed range; a config layer turns it into an error naming its key.
-
-    Attributes:
-        owner: what defines the parameter, e.g. ``"RangeBearingSensor"``.
-        parameter: its name there, e.g. ``"max_range_m"``.
-        requirement: what it must be, e.g. ``"in (0, 1000] m"``.
-        value: the value given.
-    """
+    """A parameter value outside its allowed range (``owner``, ``parameter``, ``requirement`` such as ``"in (0,
+    1000] m"``, ``value``); a config layer turns it into an error naming its key."""
 
     def __init__(self, owner: str, parameter: str, requirement: str, value):
         self.owner, self.parameter, self.requirement, self.value = owner, parameter, requirement, value
@@ -116,11 +101,8 @@ def check_number(
     open_high: bool = False,
     unit: str = "",
 ) -> None:
-    """Raise ``ParameterError`` unless ``value`` is a real number in the interval from ``low`` to ``high``.
-
-    NaN and infinities never are (the bounds are finite). ``open_low`` / ``open_high`` exclude
-    the bound; ``unit`` follows the interval in the message.
-    """
+    """``ParameterError`` unless ``value`` is a real number from ``low`` to ``high`` (finite; ``open_*`` excludes a
+    bound); ``unit`` follows the interval in the message."""
     real = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
     inside = real and (low < value if open_low else low <= value) and (value < high if open_high else value <= high)
     if inside and not _requirement_logs:
@@ -143,14 +125,8 @@ def check_integer(owner: str, parameter: str, value, low: int, high: int) -> Non
 
 @dataclass(frozen=True)
 class Interval:
-    """The allowed values of a number parameter, from ``low`` to ``high`` (finite bounds).
-
-    Attributes:
-        low, high: the bounds.
-        integer: only integers (not bools) are allowed; else any real number.
-        open_low, open_high: exclude the bound (real numbers only).
-        unit: shown after the interval in messages.
-    """
+    """The allowed values of a number parameter, from ``low`` to ``high`` (finite): only integers (not bools) if
+    ``integer``; ``open_*`` excludes a bound (reals only); ``unit`` follows the interval in messages."""
 
     low: float
     high: float
@@ -176,13 +152,8 @@ def check_arguments(owner: str, intervals: dict[str, Interval], **arguments) -> 
 
 @contextmanager
 def config_keys(owner: str, key_of_parameter: dict[str, str]):
-    """Turn a ``ParameterError`` raised inside into a ``ValueError`` naming the config key that set the parameter.
-
-    Args:
-        owner: the config's owner (the env's class name).
-        key_of_parameter: the config key of each parameter name, e.g. ``{"max_range_m": "sensor_max_range_m"}``;
-            a ``ParameterError`` of another parameter passes through unchanged.
-    """
+    """Turn a ``ParameterError`` raised inside into a ``ValueError`` of ``owner`` naming the config key of its
+    parameter (``key_of_parameter``, e.g. ``{"max_range_m": "sensor_max_range_m"}``; others pass unchanged)."""
     logging = bool(_requirement_logs)
     if logging:
         _open_key_maps.append(key_of_parameter)

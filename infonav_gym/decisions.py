@@ -1,11 +1,8 @@
 """Decisions over floating-point values that do not flip on rounding: near-ties count as ties, the lowest index wins.
 
-Two CPUs (or two BLAS kernels) may round the last digits of the same computation differently, so values that
-are equal in exact arithmetic (two motions that uncover the same cells, two symmetric landmarks) come out a
-few units in the last place apart, in either order. An argmax over them would then follow the machine. Here
-values within ``DECISION_RTOL`` of the best (relative, with the floor ``DECISION_ATOL`` for values near 0)
-count as equal to it, and the lowest index among them wins. Rounding moves a step's values by about 1e-14
-relative; 1e-9 leaves a wide margin above that while keeping any preference that means something.
+Two CPUs may round values equal in exact arithmetic a few units in the last place apart, in either order; an
+argmax would follow the machine. Values within ``DECISION_RTOL`` of the best (floor ``DECISION_ATOL`` near 0)
+count as equal to it: rounding moves a step's values by about 1e-14 relative, 1e-9 keeps a wide margin.
 """
 
 from __future__ import annotations

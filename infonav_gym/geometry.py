@@ -1,8 +1,7 @@
 """Geometry shared by every floor: angles, rigid transforms, distances to polylines.
 
-Transforms are (4, 4) homogeneous matrices; ``A_from_B`` maps points of frame B into frame A.
-``rotation_matrix(roll, pitch, yaw)`` is ``Rz(yaw) Ry(pitch) Rx(roll)``, each a right-handed
-rotation about the named axis (body frame: x forward, y left, z up).
+Transforms are (4, 4) homogeneous matrices; ``A_from_B`` maps points of frame B into frame A. Body frame: x
+forward, y left, z up; rotations right-handed.
 """
 
 from __future__ import annotations
@@ -24,14 +23,8 @@ wrap_angle_kernel = inner_kernel(wrap_angle)  # the same formula compiled, for o
 
 def rotation_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (3, 3)."""
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(roll),
-        math.sin(roll),
-        math.cos(pitch),
-        math.sin(pitch),
-        math.cos(yaw),
-        math.sin(yaw),
-    )
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
     return np.array(
         [
             [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],

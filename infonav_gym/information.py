@@ -1,12 +1,8 @@
-"""Entropy, information and mutual information, in nats.
+"""Entropy, information and mutual information, in nats; bad input raises ``ValueError`` naming the problem.
 
-The paper's Section III-A: a Gaussian with covariance ``P`` has entropy
-``h = 0.5 ln((2 pi e)^n det P)``; its information metric is ``im = -h``; the
-information contribution of an observation is ``ic = im_post - im_prior``
-(Eq. 3), the mutual information between state and observation. Section IV
-(Eqs. 4-5): the entropy of an image is the entropy of its gray-level histogram.
-
-Every function validates its input and raises ``ValueError`` naming the problem.
+Section III-A: a Gaussian's entropy ``h = 0.5 ln((2 pi e)^n det P)``, information metric ``im = -h``, an
+observation's contribution ``ic = im_post - im_prior`` (Eq. 3, the mutual information). Section IV (Eqs. 4-5):
+an image's entropy is its gray-level histogram's.
 """
 
 from __future__ import annotations
@@ -38,18 +34,10 @@ def _square_stack(name: str, value) -> np.ndarray:
 
 
 def log_det_spd(matrix, name: str = "matrix", check_input: bool = True) -> float | np.ndarray:
-    """``ln det`` of a symmetric positive-definite matrix (or stack).
+    """``ln det`` of a symmetric positive-definite matrix (n, n) or stack (..., n, n), ``name`` for errors.
 
-    Args:
-        matrix: (n, n) or (..., n, n).
-        name: what the matrix is, for error messages.
-        check_input: check shape, finiteness and symmetry, and factor by Cholesky
-            (which proves positive definiteness); ``False`` is for hot loops whose
-            matrices are known good: the determinant (a compiled kernel, ``log_det_of``:
-            cofactors up to 3 x 3, else an LU factorization), rejecting only a non-positive one.
-
-    Raises:
-        ValueError: if the input is not square, not symmetric, not positive definite, or not finite.
+    ``check_input`` checks shape, finiteness and symmetry and factors by Cholesky (``ValueError`` for each);
+    ``False``, for hot loops, takes the compiled ``log_det_of`` and rejects only a non-positive determinant.
     """
     if not check_input:
         matrix = np.asarray(matrix, dtype=float)
@@ -74,10 +62,8 @@ def log_det_spd(matrix, name: str = "matrix", check_input: bool = True) -> float
 
 @inner_kernel
 def log_det_of(M) -> float:
-    """``ln det`` of a square matrix (n, n), NaN unless its determinant is > 0.
-
-    Cofactors up to 3 x 3; above, Gaussian elimination with partial pivoting (``slogdet``'s LU).
-    """
+    """``ln det`` of a square matrix (n, n), NaN unless its determinant is > 0: cofactors up to 3 x 3, else
+    ``slogdet``'s LU with partial pivoting."""
     n = M.shape[0]
     if n <= 3:
         if n == 0:
@@ -184,21 +170,11 @@ def mutual_information(P_prior, P_post, check_input: bool = True) -> float:
 
 
 def expected_information_gain(P, H, R, check_input: bool = True) -> float | np.ndarray:
-    """Mutual information an EKF update would bring, before measuring [nats].
+    """Mutual information an EKF update would bring, before measuring: ``0.5 (ln det(H P H^T + R) - ln det R)``
+    [nats], also the realized one (a linearized posterior does not depend on the measured value).
 
-    ``0.5 * (ln det(H P H^T + R) - ln det R)``: with a linearized model the
-    posterior covariance does not depend on the measurement value, so this is
-    also the realized ``mutual_information`` of that update.
-
-    Args:
-        P: prior covariance, (n, n).
-        H: measurement Jacobian, (m, n) or a batch (..., m, n) over candidates.
-        R: measurement noise covariance, (m, m) or a batch (..., m, m).
-        check_input: validate shapes, finiteness, symmetry and ``P``; ``False``
-            for hot loops (see ``log_det_spd``).
-
-    Returns:
-        A float for one candidate, else an array of the broadcast batch shape.
+    ``P`` (n, n); ``H`` (..., m, n) and ``R`` (..., m, m) batched over candidates (a float for one);
+    ``check_input=False`` for hot loops (``log_det_spd``).
     """
     if check_input:
         P = _square_stack("prior covariance P", P)
@@ -211,45 +187,25 @@ def expected_information_gain(P, H, R, check_input: bool = True) -> float | np.n
             raise ValueError(f"Jacobian H must have shape (..., m, {P.shape[0]}) to match P, got {H.shape}")
         if R.shape[-1] != H.shape[-2]:
             raise ValueError(f"noise covariance R must be ({H.shape[-2]}, {H.shape[-2]}) to match H, got {R.shape}")
-    return information_gain_of_innovation(H @ P @ np.swapaxes(H, -1, -2) + R, R, check_input)
-
-
-def information_gain_of_innovation(S, R, check_input: bool = True) -> float | np.ndarray:
-    """``expected_information_gain`` given the innovation covariance ``S = H P H^T + R``: ``0.5 ln(det S / det R)``."""
     gain = mutual_information_from_log_dets(
-        log_det_spd(S, "innovation covariance H P H^T + R", check_input),
+        log_det_spd(H @ P @ np.swapaxes(H, -1, -2) + R, "innovation covariance H P H^T + R", check_input),
         log_det_spd(R, "noise covariance R", check_input),
     )
     return float(gain) if np.ndim(gain) == 0 else gain
 
 
 def information_gain_of_information(prior_root, information):
-    """MI [nats] of an observation carrying Fisher ``information`` A about x ~ N(., P): ``0.5 ln det(I + L^T A L)``.
-
-    Args:
-        prior_root: ``L`` with ``P = L L^T`` (e.g. its Cholesky factor), (..., n, n).
-        information: ``A = sum_i J_i^T R_i^-1 J_i``, (..., n, n) symmetric positive semi-definite.
-
-    Returns:
-        A float for one (n, n) pair, else an array of the broadcast leading shape.
-    """
+    """MI [nats] of an observation carrying Fisher ``information`` ``A = sum J^T R^-1 J`` (..., n, n) about
+    x ~ N(., L L^T), ``prior_root`` ``L`` (..., n, n): ``0.5 ln det(I + L^T A L)`` (a float for one pair)."""
     whitened = np.swapaxes(prior_root, -1, -2) @ information @ prior_root
     gain = 0.5 * np.linalg.slogdet(np.eye(whitened.shape[-1]) + whitened)[1]
     return float(gain) if gain.ndim == 0 else gain
 
 
 def histogram_entropy(image, bins: int = 256, value_range=None, base: float = math.e) -> float:
-    """Entropy of an image's gray-level histogram (the paper's Eqs. 4-5).
+    """Entropy ``-sum p_i log p_i`` of an image's gray-level histogram (Eqs. 4-5) in ``base`` (e: nats, 2: bits).
 
-    Args:
-        image: array of gray levels (any shape).
-        bins: number of histogram bins.
-        value_range: ``(low, high)`` of the histogram; default ``(0, 256)`` for
-            uint8 images (one bin per level) and ``(min, max)`` otherwise.
-        base: logarithm base (``math.e`` gives nats, 2 gives bits).
-
-    Returns:
-        ``-sum p_i log p_i`` over the non-empty bins.
+    ``value_range`` defaults to ``(0, 256)`` for uint8 images (one bin per level), else ``(min, max)``.
     """
     pixels = np.asarray(image)
     if pixels.size == 0:

@@ -24,12 +24,7 @@ def available_bytes() -> int | None:
 
 
 def check_memory(estimate_bytes: float, what: str) -> None:
-    """Refuse ``what`` when its estimated footprint exceeds the available memory.
-
-    Raises:
-        ValueError: giving the estimate and what is available, e.g. ``num_envs=10000000 needs about 52.1 GB of
-            memory; 20.3 GB are available``.
-    """
+    """``ValueError`` giving the estimate and what is available when ``what``'s footprint exceeds the memory."""
     available = available_bytes()
     if available is not None and estimate_bytes > available:
         raise ValueError(

@@ -1,20 +1,10 @@
 """One registry of every infonav env, Gymnasium and PettingZoo: id, entry point, API.
 
-A Gymnasium entry is also registered with ``gymnasium.register``, so ``gym.make(id)`` and
-``gym.make("infonav_gym:" + id)`` (what a spawned ``SubprocVecEnv`` worker does) work. A
-PettingZoo parallel entry is made by ``make_env`` only. Entry points are strings
-(``"module:EnvClass"``), imported when an env is made, so registering imports no env module.
-
-Adding an env (its class declares ``episode_metrics`` and ``traits``, see ``infonav_gym.envs.traits``)::
-
-    import infonav_gym
-
-    infonav_gym.register("mylab/Beacon-v0", "mylab.beacon:BeaconEnv")
-    env = infonav_gym.make_env("mylab/Beacon-v0", horizon=50)  # gym.make("mylab/Beacon-v0") too
-
-Then ``evaluate("mylab/Beacon-v0", ...)`` and the benchmark's env timing run it; from the command line,
-where only ``infonav_gym`` is imported, give the module that registers it on import:
-``infonav evaluate --env mylab.beacon:mylab/Beacon-v0`` (``tests/test_registry.py`` does this with a toy env).
+A Gymnasium entry is registered with ``gymnasium.register`` too, so ``gym.make("infonav_gym:" + id)`` works in a
+spawned worker; a PettingZoo parallel entry is made by ``make_env``. String entry points (``"module:EnvClass"``)
+are imported when an env is made. An env of yours (its class declares ``episode_metrics`` and ``traits``):
+``infonav_gym.register("mylab/Beacon-v0", "mylab.beacon:BeaconEnv")``; on the command line name the module that
+registers it: ``infonav evaluate --env mylab.beacon:mylab/Beacon-v0``.
 """
 
 from __future__ import annotations
@@ -32,16 +22,8 @@ APIS = (GYMNASIUM, PARALLEL)
 
 @dataclass(frozen=True)
 class EnvEntry:
-    """A registered env.
-
-    Attributes:
-        id: the env id, e.g. ``"infonav/LandmarkSelection-v0"``.
-        entry_point: ``"module:EnvClass"`` (or the class itself); called with the config as keywords.
-        api: ``GYMNASIUM`` or ``PARALLEL``.
-        vector_entry_point: ``"module:VectorEnvClass"`` of a native ``gymnasium.vector.VectorEnv``, called with
-            ``num_envs`` and the config by ``make_vector_env`` (and ``gym.make_vec`` for a Gymnasium entry); None
-            for none. A parallel env's vector env steps N copies of the whole team: arrays (N, R, ...).
-    """
+    """A registered env: id, ``"module:EnvClass"`` (or the class) called with the config, ``GYMNASIUM`` or
+    ``PARALLEL``, and its native vector env's entry point or None (a parallel env's steps N copies of the team)."""
 
     id: str
     entry_point: str | Callable
@@ -53,11 +35,7 @@ class EnvEntry:
         return _loaded(self.entry_point)
 
     def load_vector(self) -> Callable:
-        """The native vector env class (or factory) ``vector_entry_point`` names, imported now.
-
-        Raises:
-            ValueError: if the env has none.
-        """
+        """The native vector env class (or factory) ``vector_entry_point`` names, imported; ``ValueError`` if none."""
         if self.vector_entry_point is None:
             raise ValueError(f"env {self.id!r} has no native vector env (no vector_entry_point is registered)")
         return _loaded(self.vector_entry_point)
@@ -78,9 +56,7 @@ def register(
 ) -> EnvEntry:
     """Add an env to the registry (and to Gymnasium's for ``api=GYMNASIUM``); the same entry again does nothing.
 
-    Raises:
-        ValueError: for an unknown ``api``, a malformed entry point string, or an id already
-            registered with another entry point or API.
+    ``ValueError`` for an unknown ``api``, a malformed entry point, or an id registered otherwise.
     """
     if api not in APIS:
         raise ValueError(f"api of env {env_id!r} must be one of {', '.join(APIS)}, got {api!r}")
@@ -120,13 +96,8 @@ def env_entry(env_id: str) -> EnvEntry:
 
 
 def resolve_env_id(env_id: str) -> str:
-    """``"module:id"`` (Gymnasium's prefix): import ``module``, which registers its envs, and return ``id``.
-
-    An id without the prefix, or one registered as it is, is returned unchanged.
-
-    Raises:
-        ValueError: if the module does not import.
-    """
+    """``"module:id"`` (Gymnasium's prefix): import ``module`` (``ValueError`` if it fails) and return ``id``; an id
+    without the prefix, or registered as it is, unchanged."""
     module, separator, name = env_id.partition(":")
     if not separator or env_id in _ENTRIES:
         return env_id
@@ -144,11 +115,8 @@ def api_of(env_id: str) -> str:
 
 
 def has_native_vector_env(env_id: str) -> bool:
-    """Whether ``env_id`` is in this registry with a ``vector_entry_point``.
-
-    Such a native vector env takes ``autoreset_mode=AutoresetMode.SAME_STEP``; a vector entry point outside
-    the registry need not (Gymnasium's ``CartPoleVectorEnv`` does not).
-    """
+    """Whether ``env_id`` is in this registry with a ``vector_entry_point`` (which takes ``SAME_STEP`` autoreset,
+    unlike Gymnasium's ``CartPoleVectorEnv``)."""
     try:
         entry = _ENTRIES.get(resolve_env_id(env_id))
     except ValueError:  # a module that does not import: make_env names it
@@ -157,13 +125,9 @@ def has_native_vector_env(env_id: str) -> bool:
 
 
 def make_env(env_id: str, **config):
-    """A new env: ``gym.make(env_id, **config)`` for a Gymnasium env, the parallel env itself for a PettingZoo one.
+    """A new env: ``gym.make(env_id, **config)`` (also for ids only Gymnasium knows), or the PettingZoo parallel env.
 
-    ``env_id`` may carry Gymnasium's module prefix (``"mylab.beacon:mylab/Beacon-v0"``, see
-    ``resolve_env_id``). A Gymnasium id outside the registry (e.g. ``CartPole-v1``) is made by ``gym.make`` too.
-
-    Raises:
-        ValueError: for an id neither registry knows (listing the infonav ids), or a bad config.
+    ``env_id`` may carry the module prefix (``resolve_env_id``). ``ValueError`` for an unknown id or a bad config.
     """
     env_id = resolve_env_id(env_id)
     if api_of(env_id) == PARALLEL:
@@ -175,12 +139,6 @@ def make_env(env_id: str, **config):
 
 
 def make_vector_env(env_id: str, num_envs: int, **config):
-    """The native vector env of ``env_id`` with ``num_envs`` copies: ``vector_entry_point(num_envs=..., **config)``.
-
-    For a Gymnasium env that is what ``gym.make_vec(env_id, num_envs)`` returns; for a PettingZoo parallel env
-    (not known to Gymnasium) it steps N copies of the whole team. ``env_id`` may carry the module prefix.
-
-    Raises:
-        ValueError: for an unknown id, an env without a native vector env, or a bad config.
-    """
+    """The native vector env of ``env_id`` (module prefix allowed) with ``num_envs`` copies, as ``gym.make_vec``;
+    ``ValueError`` for an unknown id, no native vector env, or a bad config."""
     return env_entry(resolve_env_id(env_id)).load_vector()(num_envs=num_envs, **config)

@@ -1,9 +1,7 @@
 """Pygame drawing of a :class:`~infonav_gym.scene.SceneFrame` for the ``rgb_array`` and ``human`` render modes.
 
-:class:`Renderer` draws the caption on top, the scene, then a panel with the inset image and
-a legend of what the frame shows. Pose and landmark ellipses are drawn at ``N_SIGMA`` (3)
-standard deviations and never smaller than ``MIN_ELLIPSE_RADIUS_PX``. pygame is an optional
-extra, so it is imported only when a ``Renderer`` is built.
+Ellipses are drawn at ``N_SIGMA`` standard deviations, at least ``MIN_ELLIPSE_RADIUS_PX``. pygame (an optional
+extra) is imported only when a ``Renderer`` is built.
 """
 
 from __future__ import annotations
@@ -233,13 +231,8 @@ def _has_path(path) -> bool:
 
 
 class Renderer:
-    """Draws :class:`SceneFrame` objects to an RGB array or a pygame window.
-
-    A frame's longer side is ``size_px``. With a caption, an inset or a legend the frame is
-    ``size_px`` wide: the caption on top, the scene at one scale in metres, and under it the
-    inset and the legend, which together take at most half of ``size_px`` (a legend that
-    does not fit is left out).
-    """
+    """Draws :class:`SceneFrame` objects to an RGB array or a pygame window, the longer side ``size_px``: caption on
+    top, the scene, then the inset and the legend (at most half of ``size_px`` with the caption, else no legend)."""
 
     MARGIN_PX = 10
 
@@ -263,11 +256,7 @@ class Renderer:
         return {**self.__dict__, "_window": None, "_clock": None, "_font": None}
 
     def layout(self, frame: SceneFrame) -> FrameLayout:
-        """Where ``frame``'s caption, scene, inset and legend go.
-
-        Raises:
-            ValueError: if ``frame.bounds`` are not finite with max > min.
-        """
+        """Where ``frame``'s caption, scene, inset and legend go; ``ValueError`` for bad bounds."""
         x_min, y_min, x_max, y_max = (float(value) for value in frame.bounds)
         if not (np.isfinite([x_min, y_min, x_max, y_max]).all() and x_max > x_min and y_max > y_min):
             raise ValueError(f"bounds must be finite (x_min, y_min, x_max, y_max) with max > min, got {frame.bounds}")

@@ -16,12 +16,8 @@ SENSOR_WEDGE_LENGTH_M = 12.0  # drawn length of a sensor's field of view [m]
 
 
 class PathHistory:
-    """The points of a path in bounded memory: at most ``max_points`` evenly spaced ones, plus the latest.
-
-    Every point is kept until ``max_points`` are stored; then every other one is dropped and only
-    every second new one is kept, and so on (the stride doubles each time). The whole path keeps
-    its shape at a coarser step; the first and the latest point are always kept.
-    """
+    """The points of a path in bounded memory: at most ``max_points`` evenly spaced ones (the stride doubles each
+    time they fill), plus the first and the latest."""
 
     MAX_POINTS = 1024  # per path; an env's default horizon never reaches it
 
@@ -76,39 +72,26 @@ class RobotDrawing:
 
 @dataclass
 class SceneFrame:
-    """Everything to draw for one frame; positions in metres, headings in radians.
-
-    Landmark ``k`` (index ``k - 1``) is labelled ``#k``, the paper's Fig. 1 numbering.
-    ``observations`` are ``(observer, target)`` pairs of robot indices, drawn as a line
-    between their true positions; ``landmark_observations`` ``(observer, landmark index)`` pairs,
-    a line from the observer's true position to the landmark, marked observed; ``gps_denied_zones``
-    are circles (``center``, ``radius``) filled lightly under everything else. The chosen landmark's line starts
-    at ``robots[0]``'s true pose. ``sensor_wedge`` is a field of view from ``robots[0]``'s
-    true position: ``(world azimuth of its axis, full width [rad], length [m])``; ``goal`` a
-    position drawn as a target circle of ``goal_radius_m`` (at least a robot's drawn size);
-    ``inset_image`` a gray uint8 image (e.g. the frame a sensor just acquired) drawn under
-    the scene with ``inset_title`` above it; ``inset_grid`` ``(rows, columns)`` divides it
-    into cells (e.g. patches) and the row-major cells in ``inset_highlights`` are outlined in red.
-    """
+    """Everything to draw for one frame; positions in metres, headings in radians."""
 
     bounds: tuple[float, float, float, float]
     walls: Sequence[tuple[tuple[float, float], tuple[float, float]]] = ()
     obstacles: Sequence = ()
-    landmarks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    landmarks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # landmark k labelled #k (Fig. 1)
     landmark_visible: np.ndarray | None = None
-    chosen_landmark: int | None = None
+    chosen_landmark: int | None = None  # its line starts at robots[0]'s true pose
     robots: Sequence[RobotDrawing] = ()
     landmark_estimates: np.ndarray | None = None
     landmark_covariances: np.ndarray | None = None
-    observations: Sequence[tuple[int, int]] = ()
-    landmark_observations: Sequence[tuple[int, int]] = ()
-    gps_denied_zones: Sequence = ()
-    sensor_wedge: tuple[float, float, float] | None = None
-    goal: tuple[float, float] | None = None
+    observations: Sequence[tuple[int, int]] = ()  # (observer, target) robots: a line between their true positions
+    landmark_observations: Sequence[tuple[int, int]] = ()  # (observer, landmark): a line, the landmark marked
+    gps_denied_zones: Sequence = ()  # circles (center, radius) filled lightly under everything
+    sensor_wedge: tuple[float, float, float] | None = None  # from robots[0]: axis azimuth, width [rad], length [m]
+    goal: tuple[float, float] | None = None  # a target circle of goal_radius_m (at least a robot's size)
     goal_radius_m: float = 0.0
-    inset_image: np.ndarray | None = None
+    inset_image: np.ndarray | None = None  # gray uint8 (e.g. the acquired frame), under the scene
     inset_title: str = ""
-    inset_grid: tuple[int, int] | None = None
+    inset_grid: tuple[int, int] | None = None  # (rows, columns) cells; those in inset_highlights outlined red
     inset_highlights: Sequence[int] = ()
     caption: str = ""
 
@@ -116,16 +99,8 @@ class SceneFrame:
 def covariance_ellipse(
     covariance_2x2, n_sigma: float = N_SIGMA, n_points: int = 48, min_radius: float = 0.0
 ) -> np.ndarray:
-    """Return the (n_points, 2) outline offsets of a covariance's ``n_sigma`` ellipse.
-
-    The semi-axes are ``n_sigma`` standard deviations along the principal axes, each at
-    least ``min_radius``. The first point lies along the smallest principal axis (angle 0),
-    so a multiple of 4 points hits both axis extremes.
-
-    Raises:
-        ValueError: for a non-finite or non-2x2 matrix, a non-positive or non-finite
-            ``n_sigma``, a negative ``min_radius`` or fewer than 3 points.
-    """
+    """The (n_points, 2) outline offsets of a covariance's ``n_sigma`` ellipse, semi-axes at least ``min_radius``;
+    the first point along the smallest principal axis. ``ValueError`` for a bad matrix or argument."""
     covariance = np.asarray(covariance_2x2, dtype=float)
     if covariance.shape != (2, 2):
         raise ValueError(f"covariance must be 2x2, got shape {covariance.shape}")

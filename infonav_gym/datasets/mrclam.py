@@ -1,11 +1,8 @@
 """Loader for the UTIAS MRCLAM directory format (Leung et al., IJRR 2011).
 
-A dataset directory holds ``Barcodes.dat`` (subject -> barcode), ``Landmark_Groundtruth.dat``
-and, per robot ``N``, ``RobotN_Odometry.dat``, ``RobotN_Measurement.dat`` and
-``RobotN_Groundtruth.dat``: whitespace-separated numbers with ``#`` header lines.
-Measurements name a *barcode*; ``load`` maps it to the observed subject and splits
-landmark from robot-to-robot observations. Times stay absolute [s] as logged;
-``MRCLAMDataset.start_time`` is the first odometry time, the origin of replay times.
+A directory holds ``Barcodes.dat`` (subject -> barcode), ``Landmark_Groundtruth.dat`` and per robot ``N``
+``RobotN_{Odometry,Measurement,Groundtruth}.dat``: numbers with ``#`` header lines. Measurements name a barcode,
+mapped here to its subject. Times stay absolute [s]; replay times count from ``MRCLAMDataset.start_time``.
 """
 
 from __future__ import annotations
@@ -28,38 +25,21 @@ _ROBOT_FILE = re.compile(r"Robot(\d+)_(Odometry|Measurement|Groundtruth)\.dat$")
 
 @dataclass
 class MRCLAMDataset:
-    """One MRCLAM dataset in numpy arrays; robots and landmarks are named by subject number.
-
-    Attributes:
-        path: the dataset directory.
-        robots: subject numbers of the robots with odometry, ascending.
-        barcodes: barcode # -> subject #.
-        landmark_ids: subject numbers of the mapped landmarks (L,).
-        landmarks: their positions ``[x, y]`` [m] (L, 2).
-        landmark_std: their ground-truth standard deviations ``[x, y]`` [m] (L, 2).
-        odometry: robot -> ``[time, speed, turn_rate]`` rows (n, 3), time-sorted.
-        landmark_measurements: robot -> ``[time, landmark subject, range, bearing]`` (m, 4).
-        robot_measurements: robot -> ``[time, observed robot subject, range, bearing]`` (m, 4).
-        groundtruth: robot -> ``[time, x, y, heading]`` (g, 4); robots without the file are absent.
-        unknown_barcodes: measurements skipped because their barcode (or its subject) is not in the
-            map of robots and landmarks.
-        unknown_barcode_values: the distinct skipped barcodes.
-        missing: human-readable notes on missing files (each also issued as a warning).
-    """
+    """One MRCLAM dataset in numpy arrays; robots and landmarks are named by subject number, rows time-sorted."""
 
     path: Path
-    robots: tuple[int, ...]
-    barcodes: dict[int, int]
-    landmark_ids: np.ndarray
-    landmarks: np.ndarray
-    landmark_std: np.ndarray
-    odometry: dict[int, np.ndarray]
-    landmark_measurements: dict[int, np.ndarray]
-    robot_measurements: dict[int, np.ndarray]
-    groundtruth: dict[int, np.ndarray]
-    unknown_barcodes: int = 0
+    robots: tuple[int, ...]  # the robots with odometry, ascending
+    barcodes: dict[int, int]  # barcode # -> subject #
+    landmark_ids: np.ndarray  # the mapped landmarks (L,)
+    landmarks: np.ndarray  # their [x, y] (L, 2) [m]
+    landmark_std: np.ndarray  # their ground-truth standard deviations [x, y] (L, 2) [m]
+    odometry: dict[int, np.ndarray]  # robot -> [time, speed, turn_rate] (n, 3)
+    landmark_measurements: dict[int, np.ndarray]  # robot -> [time, landmark subject, range, bearing] (m, 4)
+    robot_measurements: dict[int, np.ndarray]  # robot -> [time, observed robot subject, range, bearing] (m, 4)
+    groundtruth: dict[int, np.ndarray]  # robot -> [time, x, y, heading] (g, 4); absent without the file
+    unknown_barcodes: int = 0  # measurements skipped: their barcode names no robot or mapped landmark
     unknown_barcode_values: tuple[int, ...] = ()
-    missing: list[str] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)  # notes on missing files (also warned)
 
     @property
     def start_time(self) -> float:
@@ -83,12 +63,8 @@ class MRCLAMDataset:
 
 
 def read_table(path: Path, columns: int) -> np.ndarray:
-    """A whitespace-separated numeric table with ``#`` comments, as (rows, ``columns``) float64.
-
-    Raises:
-        ValueError: naming the file and the 1-based line number of the first line that does not
-            hold exactly ``columns`` finite numbers.
-    """
+    """A numeric table with ``#`` comments as (rows, ``columns``) float64; ``ValueError`` naming the file and line
+    number of the first line without ``columns`` finite numbers."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # numpy warns on an empty file
         try:
@@ -158,21 +134,14 @@ def _rows(path: Path, columns: int, what: str) -> np.ndarray:
 def load(path) -> MRCLAMDataset:
     """Read an MRCLAM dataset directory into numpy arrays.
 
-    Robots are the subjects of ``Barcodes.dat`` without a row in ``Landmark_Groundtruth.dat``
-    (subjects 1-5 in the published sets). A robot without an odometry file is left out, a
-    missing measurement file gives no measurements and a missing ground-truth file no ground
-    truth; each is noted in ``missing`` and warned about. Measurements whose barcode maps to
-    no robot or mapped landmark are skipped and counted (one warning with the count).
-
-    Negative timestamps, and repeated ones in odometry and ground truth, are warned about
-    (file and count); rows out of time order are sorted.
+    Robots are the subjects of ``Barcodes.dat`` without a landmark row. A robot without odometry is left out;
+    missing measurement or ground-truth files, unknown barcodes (skipped), negative or repeated timestamps are
+    warned about; rows out of time order are sorted.
 
     Raises:
-        FileNotFoundError: if the directory, ``Barcodes.dat``, ``Landmark_Groundtruth.dat`` or
-            every robot's odometry is missing.
+        FileNotFoundError: if the directory, ``Barcodes.dat``, ``Landmark_Groundtruth.dat`` or all odometry is missing.
         NotADirectoryError: if ``path`` is a file.
-        ValueError: on a malformed line, naming the file and the line number; on an empty (or
-            comments-only) file of any kind, naming it and the rows expected.
+        ValueError: on a malformed line (file and line number) or an empty file.
     """
     directory = Path(path)
     if directory.is_file():
@@ -200,19 +169,16 @@ def load(path) -> MRCLAMDataset:
             missing.append(f"robot {robot}: {odometry_path.name} is missing, robot left out")
             continue
         odometry[robot] = _sorted_by_time(_rows(odometry_path, ODOMETRY_COLUMNS, ODOMETRY_ROW), odometry_path)
-        measurement_path = directory / f"Robot{robot}_Measurement.dat"
-        if measurement_path.is_file():
-            table = _rows(measurement_path, MEASUREMENT_COLUMNS, MEASUREMENT_ROW)
-            raw_measurements[robot] = _sorted_by_time(table, measurement_path, unique_times=False)
-        else:
-            missing.append(f"robot {robot}: {measurement_path.name} is missing, no measurements")
-            raw_measurements[robot] = np.zeros((0, MEASUREMENT_COLUMNS))
-        groundtruth_path = directory / f"Robot{robot}_Groundtruth.dat"
-        if groundtruth_path.is_file():
-            table = _rows(groundtruth_path, GROUNDTRUTH_COLUMNS, GROUNDTRUTH_ROW)
-            groundtruth[robot] = _sorted_by_time(table, groundtruth_path)
-        else:
-            missing.append(f"robot {robot}: {groundtruth_path.name} is missing, no ground truth")
+        raw_measurements[robot] = np.zeros((0, MEASUREMENT_COLUMNS))
+        for kind, columns, what, tables, absent in (
+            ("Measurement", MEASUREMENT_COLUMNS, MEASUREMENT_ROW, raw_measurements, "no measurements"),
+            ("Groundtruth", GROUNDTRUTH_COLUMNS, GROUNDTRUTH_ROW, groundtruth, "no ground truth"),
+        ):
+            path = directory / f"Robot{robot}_{kind}.dat"
+            if path.is_file():  # measurements may share a time, odometry and ground truth rows may not
+                tables[robot] = _sorted_by_time(_rows(path, columns, what), path, unique_times=tables is groundtruth)
+            else:
+                missing.append(f"robot {robot}: {path.name} is missing, {absent}")
     robots = tuple(sorted(odometry))
     if not robots:
         raise FileNotFoundError(f"no RobotN_Odometry.dat in {directory}: nothing to replay")

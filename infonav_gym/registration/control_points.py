@@ -1,65 +1,25 @@
 """ICP control points chosen by their information about the frame-to-frame motion (Section V-A).
 
-The paper proposes choosing registration control points "by implicitly accounting for vehicle
-position uncertainty", like the landmarks of Section III. Made precise here. A return ``p`` with
-surface normal ``n`` (sensor frame) observes the small motion ``x = (t [m], w [rad])`` of its frame
-through the point-to-plane residual ``n . (p + w x p + t - q)``, with Jacobian
-``J = [n^T, (p x n)^T]``. With the prior motion covariance ``P`` (the odometry uncertainty,
-``L L^T = P``), control points whose residual errors have covariance ``C`` bring the mutual
-information ``0.5 ln det(I + L^T J^T C^-1 J L)`` [nats] about the motion: Section III's
-``ic = im_post - im_prior`` (Eq. 3) for a linear Gaussian update. With independent errors of
-standard deviation ``sigma`` this is ``0.5 ln det(I + P sum_i J_i^T J_i / sigma^2)``.
+A return ``p`` with normal ``n`` observes the small motion ``x = (t [m], w [rad])`` through the point-to-plane
+residual ``n . (p + w x p + t - q)``, Jacobian ``J = [n^T, (p x n)^T]``. With the prior (odometry) covariance
+``P`` and independent residual errors of variance ``a_i``, points bring ``0.5 ln det(I + P sum_i J_i^T J_i / a_i)``
+[nats] about the motion: Eq. 3's ``ic`` for a linear Gaussian update.
 
-Error model of a control point (all from its own range image, before any correspondence): independent
-errors of variance ``a_i = (2 sigma_r^2 + normal_i^2 + curvature_i^2 + footprint_i^2) * f_i``:
+Error model, from each point's own range image: ``a_i = (2 sigma_r^2 + normal_i^2 + curvature_i^2 +
+footprint_i^2) * f_i``, with ``sigma_r`` the range noise of both frames; ``normal_i`` the matched normal's error
+when its ``NORMAL_SAMPLES`` samples span one scan line; ``curvature_i`` the point's offset from the chords to its
+neighbours; ``footprint_i = FOOTPRINT_BIAS * range * pixel angle`` (the matched sample is up to a footprint away;
+fit on simulator pairs, seeds >= 1000); ``f_i = max(1, spread_i / structure_i)^2`` for ambiguous matches, where
+``spread_i = sqrt(J_i P J_i^T)`` and ``structure_i`` is the distance to the nearest depth edge. A point without
+all four neighbours has no normal and no information.
 
-- range noise in both frames, ``sigma_r`` the scan's ``range_std_m`` (its LADAR's);
-- ``normal_i``, the error of the matched point's normal when the ``NORMAL_SAMPLES`` nearest samples
-  span one scan line (anisotropic sampling, e.g. grazing ground: the normal's angle error
-  ``sqrt(2) sigma_r / width`` times the offset to the matched sample);
-- ``curvature_i``, how far the point lies off the chords to its row and column neighbours along its
-  normal (a bump or trunk between the target's samples puts the point off their tangent plane);
-- ``footprint_i = FOOTPRINT_BIAS * range * pixel angle``: the matched sample is up to a pixel
-  footprint away, and the target's surface and normal are only known at that resolution, so a far
-  point's residual is biased in proportion to its footprint (measured on simulator pairs, seeds
-  >= 1000: the point-to-plane residuals at the true motion grow from about 2 cm at 5-10 m to 5 cm at
-  20-30 m);
-- ``f_i = max(1, spread_i / structure_i)^2`` inflates all of it for ambiguous correspondences (the
-  spread rule): ``spread_i = sqrt(J_i P J_i^T)`` is how far the prior motion uncertainty moves the
-  point along its normal (a far point moves by ``|p| * angle``); ``structure_i`` is its distance to
-  the nearest depth edge (a range step above ``DEPTH_JUMP_RATIO`` of the range, a pixel without a
-  return, or the image border), ``(edge distance [pixel steps] + 1/2) * range * pixel angle``. A
-  point whose spread reaches past the edge of its surface may be matched with another surface or
-  with nothing, so its errors grow with the ratio; within its structure it is unaffected.
-- a point without all four neighbours (edges, image border) has no usable normal: no information.
-
-The ``"entropy"`` strategy splits the image into ``PATCH_SHAPE`` patches, orders each patch's
-points by their error (most reliable first) in chunks of ``CHUNK_POINTS``, and adds chunks
-greedily by mutual-information gain per point, each gain conditioned on everything chosen so far
-(ground fixes z, roll and pitch; walls and trunks complement it with x, y and yaw), so the control
-points spread over the patches that tell about different motions. For speed at most
-``MAX_GREEDY_ROUNDS`` rounds are run: a round takes the next chunk of each of the
-``ceil(k / (CHUNK_POINTS * MAX_GREEDY_ROUNDS))`` patches with the best gains.
-
-The field's standard selectors, for comparison at the same budget:
-
-- ``"random"``: drawn without replacement; ``"uniform"``: evenly spaced in row-major order (a grid over the image);
-- ``"normal_space"``, normal-space sampling (Rusinkiewicz and Levoy, "Efficient variants of the ICP algorithm",
-  3DIM 2001): the usable returns are bucketed by the direction of their normal (``NORMAL_SPACE_BINS``: bands of
-  equal area on the sphere by the normal's z, times sectors of its azimuth) and drawn from the buckets in turn,
-  one random return of every non-empty bucket per round, so that rare orientations (a wall in a field of ground)
-  are as well represented as common ones;
-- ``"covariance"``, covariance (stability) sampling (Gelfand, Ikemoto, Rusinkiewicz and Levoy, "Geometrically
-  stable sampling for the ICP algorithm", 3DIM 2003; libpointmatcher's and PCL's ``CovarianceSampling``): each
-  usable return constrains the motion by ``F = [(p - c) x n / L, n]`` (torque first, rotation about the
-  centroid ``c``; torques normalised by ``L``, the mean distance of the points from ``c``, libpointmatcher's
-  default); with ``C = sum F F^T = X diag(lambda) X^T``, returns are picked greedily for the eigen-direction
-  whose summed squared constraint ``sum (F . x_j)^2`` over the picks is lowest, each time the untaken return
-  that constrains it most, which balances the six directions and keeps the condition number of the picks'
-  ``C`` low (what stability sampling minimises).
-
-Ties (equal constraints or totals, within ``decisions.DECISION_RTOL``) go to the lower index, so a last-digit
-difference between CPUs does not change the picks.
+``"entropy"`` orders each ``PATCH_SHAPE`` patch's points by error in chunks of ``CHUNK_POINTS`` and adds chunks
+greedily by gain per point, conditioned on what is chosen (ground fixes z, roll, pitch; walls x, y, yaw), in at
+most ``MAX_GREEDY_ROUNDS`` rounds. For comparison: ``"random"``, ``"uniform"`` (row-major grid),
+``"normal_space"`` (Rusinkiewicz and Levoy, 3DIM 2001: one return per ``NORMAL_SPACE_BINS`` normal bucket per
+round) and ``"covariance"`` (Gelfand et al., 3DIM 2003, as libpointmatcher's ``CovarianceSampling``: picks the
+return that constrains the least constrained eigen-direction of ``sum F F^T``, ``F = [(p - c) x n / L, n]``).
+Ties within ``decisions.DECISION_RTOL`` go to the lower index, so CPUs agree.
 """
 
 from __future__ import annotations
@@ -93,18 +53,8 @@ DEFAULT_POSE_COVARIANCE = np.diag(np.square(DEFAULT_POSE_STD))  # over (x, y, z,
 
 @dataclass(frozen=True)
 class ControlPointGeometry:
-    """What each return tells about the motion of its frame, in row-major order of the returns.
-
-    Attributes:
-        points_m: the returns in the sensor frame (N, 3) [m].
-        normals: unit surface normals facing the sensor (N, 3).
-        jacobians: point-to-plane Jacobians ``[n^T, (p x n)^T]`` (N, 6).
-        error_var_m2: variance ``a_i`` of the residual error (N,) [m^2]; ``inf`` if unusable.
-        spread_m: how far the prior motion uncertainty moves each point along its normal, ``sqrt(J P J^T)`` (N,) [m].
-        structure_m: distance to the nearest depth edge, image border or missing return (N,) [m].
-        patch: index of each point's patch (N,), row-major over the ``PATCH_SHAPE`` grid.
-        pose_covariance: the prior motion covariance ``P`` (6, 6) [m^2, rad^2].
-    """
+    """Per return (row-major; N): points_m, sensor-facing normals, Jacobians ``[n^T, (p x n)^T]`` (N, 6), error
+    variance ``a_i`` [m^2] (``inf`` if unusable), spread and structure [m], patch index; the prior ``P`` (6, 6)."""
 
     points_m: np.ndarray
     normals: np.ndarray
@@ -180,11 +130,8 @@ def _depth_edges(ranges: np.ndarray, returns: np.ndarray) -> np.ndarray:
 
 
 def _smoothed_normals(grid: np.ndarray, returns: np.ndarray) -> np.ndarray:
-    """Unit normals (rows, columns, 3) facing the sensor, from the ``NORMAL_WINDOW`` box means of the returns.
-
-    Central differences of the box means; NaN or zero (no normal) on the image border and next to a
-    pixel without a return.
-    """
+    """Unit normals (rows, columns, 3) facing the sensor, by central differences of ``NORMAL_WINDOW`` box means;
+    NaN or zero where there is none (border, next to a missing return)."""
     weights = uniform_filter(returns.astype(float), NORMAL_WINDOW, mode="constant")
     sums = uniform_filter(np.where(returns[..., None], grid, 0.0), (NORMAL_WINDOW, NORMAL_WINDOW, 1), mode="constant")
     smooth = sums / np.maximum(weights, 1e-12)[..., None]
@@ -201,10 +148,7 @@ def _smoothed_normals(grid: np.ndarray, returns: np.ndarray) -> np.ndarray:
 
 
 def _curvature(grid: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """How far each pixel's point lies off the chords to its row and column neighbours, along its normal [m].
-
-    (rows, columns); NaN without all four neighbours.
-    """
+    """Per pixel, the point's distance along its normal from the chords to its neighbours [m]; NaN at the border."""
     curvature = np.full(grid.shape[:2], np.nan)
     centre, normal = grid[1:-1, 1:-1], normals[1:-1, 1:-1]
     row_chord = (grid[1:-1, :-2] + grid[1:-1, 2:]) / 2 - centre
@@ -217,12 +161,10 @@ def _curvature(grid: np.ndarray, normals: np.ndarray) -> np.ndarray:
 
 
 def _normal_error(row_spacing: np.ndarray, column_spacing: np.ndarray, range_std_m: float) -> np.ndarray:
-    """Residual error [m] from a matched point's normal estimated from ``NORMAL_SAMPLES`` samples.
+    """Residual error [m] of a normal from ``NORMAL_SAMPLES`` samples: angle error times the offset ``(s_h + s_v) / 4``.
 
-    The samples fill a disc of radius ``sqrt(NORMAL_SAMPLES * s_h * s_v / pi)``; narrower than the
-    coarser spacing, they lie on one scan line and leave the normal undetermined (angle error 1 rad).
-    The angle error times the typical offset to the matched sample ``(s_h + s_v) / 4`` is the error;
-    ``range_std_m`` is the range noise [m].
+    The samples fill a disc of radius ``sqrt(NORMAL_SAMPLES * s_h * s_v / pi)``; narrower than the coarser
+    spacing, they lie on one scan line and the angle is undetermined (1 rad).
     """
     radius = np.sqrt(NORMAL_SAMPLES * row_spacing * column_spacing / math.pi)
     determined = radius >= np.fmax(row_spacing, column_spacing)
@@ -242,13 +184,8 @@ def _pixel_angle(range_image: LadarScan) -> float:
 
 
 def control_point_geometry(range_image: LadarScan, pose_covariance=None) -> ControlPointGeometry:
-    """Normals, Jacobians and the error model of every return (see the module docstring).
-
-    Args:
-        range_image: the range image with its pixel angles and range noise.
-        pose_covariance: prior covariance (6, 6) of the frame's motion over (x, y, z [m], rotation
-            about x, y, z [rad]); default ``DEFAULT_POSE_COVARIANCE`` (0.2 m and 2 degrees on every axis).
-    """
+    """Normals, Jacobians and the error model of every return; ``pose_covariance`` (6, 6) over (x, y, z [m],
+    rotations [rad]), default ``DEFAULT_POSE_COVARIANCE``."""
     _check_scan(range_image)
     return _geometry(range_image, check_pose_covariance(pose_covariance))
 
@@ -309,27 +246,18 @@ def select_control_points(
     """Indices of ``k`` control points among the returns of a range image.
 
     Args:
-        range_image: the range image with its pixel geometry.
-        k: how many control points, >= 1; ``"all"`` ignores it and returns every return.
-        strategy: one of ``CONTROL_POINT_STRATEGIES``: ``"entropy"`` (the most information about
-            the motion, see the module docstring), ``"random"`` (drawn without replacement from
-            ``np_random``), ``"uniform"`` (evenly spaced in row-major order, about every
-            ``N / k``-th return), ``"normal_space"`` (Rusinkiewicz and Levoy 2001, drawn from
-            ``np_random``), ``"covariance"`` (Gelfand et al. 2003's stability sampling), ``"all"``.
-        pose_covariance: prior covariance (6, 6) of the frame-to-frame motion over (x, y, z [m],
-            rotation about x, y, z [rad]) for ``"entropy"``; default ``DEFAULT_POSE_COVARIANCE``.
-        np_random: the generator of ``"random"`` and ``"normal_space"`` (required there, unused otherwise).
+        range_image: the range image.
+        k: how many, >= 1 (``"all"`` ignores it).
+        strategy: one of ``CONTROL_POINT_STRATEGIES`` (module docstring).
+        pose_covariance: (6, 6) prior motion covariance for ``"entropy"``; default ``DEFAULT_POSE_COVARIANCE``.
+        np_random: the generator of ``NEEDS_NP_RANDOM``'s strategies (required there).
 
     Returns:
-        Sorted unique int64 indices into the row-major list of returns (the rows of
-        ``point_cloud(range_image)`` and ``range_image_to_points``), ``min(k, N)`` of them
-        (all ``N`` for ``"all"``, or when ``k >= N``).
+        Sorted int64 indices into the row-major returns (``range_image_to_points``' rows), ``min(k, N)`` of them.
 
     Raises:
-        ValueError: for an unknown strategy, ``k < 1``, a bad ``pose_covariance``, a range image
-            without returns, ``"random"`` or ``"normal_space"`` without ``np_random``, or a range image
-            with fewer than ``k`` returns that have a surface normal (``k < N``) for the strategies that
-            need normals (``"entropy"``, ``"normal_space"``, ``"covariance"``).
+        ValueError: for a bad strategy, ``k``, ``pose_covariance`` or scan, a missing ``np_random``, or fewer
+            than ``k`` returns with a normal for the strategies that need normals.
     """
     if strategy not in CONTROL_POINT_STRATEGIES:
         raise ValueError(f"unknown control point strategy {strategy!r}; expected one of {CONTROL_POINT_STRATEGIES}")
@@ -386,9 +314,8 @@ def _stability_picks(points: np.ndarray, normals: np.ndarray, k: int) -> np.ndar
 
 @kernel
 def balanced_picks(squared, orders, k, rtol, atol):
-    """Covariance sampling's greedy loop: ``k`` distinct rows of ``squared`` (U, 6), each the strongest untaken row
-    (by ``orders`` (6, U)) of the direction whose summed ``squared`` over the picks is lowest (ties within
-    ``rtol`` / ``atol`` to the lower direction)."""
+    """Covariance sampling's greedy loop: ``k`` rows of ``squared`` (U, 6), each the strongest untaken one (by
+    ``orders`` (6, U)) of the least constrained direction (ties within ``rtol`` / ``atol`` to the lower)."""
     n_points, n_directions = squared.shape
     taken = np.zeros(n_points, dtype=np.bool_)
     position = np.zeros(n_directions, dtype=np.int64)

@@ -1,8 +1,7 @@
 """Consecutive LADAR frames of a vehicle pitching and rolling over terrain, with the true and odometry motion.
 
-A frame's points are expressed in its own body frame at the optical centre
-(``sensor_points``). Registering the current frame (source) onto the previous one
-(target) estimates ``previous_from_current``, the motion between the two frames.
+Points are in each frame's body frame at the optical centre (``sensor_points``); registering the current frame
+(source) onto the previous (target) estimates ``previous_from_current``.
 """
 
 from __future__ import annotations
@@ -37,21 +36,13 @@ FRAME_PAIR_ICP = {
 
 @dataclass(frozen=True)
 class FramePair:
-    """Two consecutive range images and the motion between them.
+    """Two consecutive range images and the motion between them."""
 
-    Attributes:
-        previous: the earlier frame (the registration target).
-        current: the later frame (the registration source).
-        true_motion: ``previous_from_current`` (4, 4), maps current-frame points into the previous frame.
-        odometry_motion: the dead-reckoning estimate of ``true_motion`` (4, 4), the ICP warm start.
-        motion_covariance: (6, 6) covariance of the odometry error over ``MOTION_AXES`` [m^2, rad^2].
-    """
-
-    previous: LadarScan
-    current: LadarScan
-    true_motion: np.ndarray
-    odometry_motion: np.ndarray
-    motion_covariance: np.ndarray
+    previous: LadarScan  # the registration target
+    current: LadarScan  # the source
+    true_motion: np.ndarray  # previous_from_current (4, 4)
+    odometry_motion: np.ndarray  # its dead-reckoning estimate (4, 4), the ICP warm start
+    motion_covariance: np.ndarray  # of the odometry error over MOTION_AXES (6, 6) [m^2, rad^2]
 
 
 def motion_between(previous: LadarScan, current: LadarScan) -> np.ndarray:

@@ -1,20 +1,10 @@
 """Generalized ICP (Segal, Haehnel and Thrun, 2009): plane-to-plane registration with per-point covariances.
 
-Each point gets the covariance of its ``neighbours`` nearest points (itself included), regularised
-to a plane: its eigenvalues are replaced by ``(PLANE_EPSILON, 1, 1)``, keeping the eigenvectors, so
-the covariance is thin along the local normal and wide in the tangent plane whatever the sampling
-density. A pair ``(p, q)`` under the motion ``(R, t)``, with ``d = q - (R p + t)``, then costs the
-Mahalanobis term ``d^T (C_q + R C_p R^T)^-1 d``; the step minimising the sum is one Gauss-Newton
-step on SE(3): a small motion ``(w, v)`` about the centroid of the moved points, ``w`` then applied
-as an exact rotation (as point-to-plane in ``icp``).
-
-The residual a robust kernel sees is ``r = sqrt(2 PLANE_EPSILON d^T M d)`` with ``M`` that inverse: for
-two coplanar points it equals their distance along the normal (up to ``PLANE_EPSILON`` times the
-tangential part), so a kernel scale means the same length for GICP as for point-to-plane.
-
-The neighbours come from small_gicp's k-d tree (``kdtree`` module: the backend, and the figures that
-chose it), each patch's normal from a compiled kernel (``normals``), and the step's sums from two
-compiled kernels (``pair_information``, ``normal_equations``).
+Each point's covariance, of its ``neighbours`` nearest points, is regularised to a plane (eigenvalues
+``(PLANE_EPSILON, 1, 1)``). A pair ``(p, q)`` with ``d = q - (R p + t)`` costs ``d^T (C_q + R C_p R^T)^-1 d``;
+a step is one Gauss-Newton step on SE(3) about the moved points' centroid (as point-to-plane in ``icp``). A robust
+kernel sees ``r = sqrt(2 PLANE_EPSILON d^T M d)``: for coplanar points their distance along the normal, so a kernel
+scale means the same length as for point-to-plane.
 """
 
 from __future__ import annotations
@@ -45,18 +35,8 @@ def check_neighbours(neighbours, count: int, name: str) -> int:
 def gicp_covariances(
     points, neighbours: int = GICP_NEIGHBOURS, tree: KdTree | None = None, rows=slice(None)
 ) -> np.ndarray:
-    """The plane-regularised covariances (R, 3, 3) GICP uses for ``points[rows]`` (all by default); compute once
-    per cloud.
-
-    Args:
-        points: (N, 3) finite points, N >= ``neighbours``.
-        neighbours: points per covariance (the point itself included), >= 3.
-        tree: a ``KdTree`` of ``points`` if one is at hand.
-        rows: the points whose covariances to compute (an index or slice of ``points``).
-
-    Raises:
-        ValueError: for ``points`` not a finite (N, 3) array or fewer than ``neighbours``, or bad ``neighbours``.
-    """
+    """The plane-regularised covariances (R, 3, 3) of ``points[rows]`` (N, 3) from ``neighbours`` >= 3 nearest
+    (itself included; ``tree``: a ``KdTree`` of ``points`` at hand); ``ValueError`` for bad points or neighbours."""
     points = check_points(points, "points")
     tree = KdTree(points) if tree is None else tree
     return plane_covariances(points, check_neighbours(neighbours, points.shape[0], "points"), tree, rows)
@@ -150,13 +130,8 @@ def gicp_step(
     robust_kernel: str | None = None,
     kernel_scale: float = 1.0,
 ) -> np.ndarray:
-    """The Gauss-Newton step ``(w, v)`` (6,) for the pairs ``moved`` -> ``matched`` (K, 3).
-
-    ``information`` (K, 3, 3) holds ``M = (C_q + R C_p R^T)^-1`` per pair (``pair_information``); the step's
-    rotation ``w`` [rad] is about the centroid of ``moved``, its translation ``v`` moves that centroid. With
-    ``d = matched - moved`` and the arm ``a`` from the centroid, ``d(d)/d(w, v) = J = [[a]_x, -I]``; the step
-    solves the normal equations ``sum J^T M J step = -sum J^T M d`` (``normal_equations``).
-    """
+    """The Gauss-Newton step ``(w [rad], v)`` (6,) about the centroid of ``moved`` for the pairs ``moved`` ->
+    ``matched`` (K, 3) with ``information`` ``M`` (K, 3, 3): solves ``sum J^T M J step = -sum J^T M d``."""
     moved, matched, information = contiguous(moved), contiguous(matched), contiguous(information)
     weights = np.ones(moved.shape[0])
     if robust_kernel is not None:

@@ -1,55 +1,25 @@
 """Iterative closest point (ICP) registration of two 3D point sets (the paper's Section V).
 
-As the paper summarises [its ref. 7]: from an initial motion, pair each source point with the
-closest target point under the current transform, compute the incremental motion that best
-aligns the pairs, apply it, and repeat until the increment falls below a threshold.
+From an initial motion: pair each source point with its closest target point (a ``KdTree`` on the target),
+solve the increment that best aligns the pairs, apply it, repeat. Inliers lie within
+``max_correspondence_distance`` and below ``median(d) + ROBUST_K * MAD_TO_STD * MAD(d)`` (a robust sigma, so a
+few junk points cannot pull the solution while a good distribution loses well under 1 % of its pairs).
 
-Correspondences come from a ``KdTree`` (``kdtree`` module) built once per call on the target. A pair
-is an inlier when it is closer than ``max_correspondence_distance`` and passes a robust test:
-with ``d`` the distances of the pairs inside that limit, pairs beyond
-``median(d) + ROBUST_K * 1.4826 * MAD(d)`` are dropped (``1.4826 * MAD`` estimates a standard
-deviation without being moved by the outliers it is meant to find; ``ROBUST_K = 3``). A few
-junk points thus cannot pull the solution, while an inlier distribution (the Maxwell-like
-distances of well-aligned noisy points) loses well under 1% of its pairs.
+Increments, in closed form on the inliers: ``point_to_point`` by Kabsch's SVD (reflection-safe);
+``point_to_plane`` by the small-angle least squares of ``n . (p + w x p + v - q)`` on PCA target normals
+(``normals`` module); ``gicp`` by one Gauss-Newton step of generalized ICP (``gicp`` module) on per-point
+covariances (given, or computed the first time a pair uses a point). The last two take a ``robust_kernel``
+(IRLS).
 
-The increment is solved in closed form on the inliers: ``point_to_point`` by the SVD of the
-cross-covariance (Kabsch / Umeyama without scale, with the reflection fix); ``point_to_plane``
-by the small-angle linearisation ``n . (p + w x p + v - q)`` in least squares, on target
-normals estimated once per call by PCA of each target point's ``normals.NORMAL_NEIGHBOURS`` nearest
-neighbours (their sign does not matter), the angle ``w`` then applied as an exact rotation;
-``gicp`` by one Gauss-Newton step of generalized ICP (``gicp`` module) on per-point covariances of both
-clouds (passed in, computed once per cloud, or computed here for each point the first time a pair uses
-it: the same covariances, for the 70-90 % of the points that take part). For ``point_to_plane`` and
-``gicp`` a ``robust_kernel`` (``robust_kernels`` module) reweights the inlier pairs by their residuals
-in every step (iteratively reweighted least squares).
+Speed-ups: a step continuing the last one (within ``STEADY_ANGLE_DEG``) and shrinking by ``rho`` is scaled by
+``1 / (1 - rho)`` (Besl & McKay 1992, at most ``MAX_EXTRAPOLATION``; 29 steps to 12 on a LADAR pair). A source
+of at least ``COARSE_STRIDE * COARSE_MIN_POINTS`` points is first registered on every ``COARSE_STRIDE``-th
+point until a step is below the subsample's resolution (``rms / sqrt(pairs)``, at least ``tolerance``; not
+applied); then all points iterate on, so the result is theirs (halves the time on a 4,900-point pair).
 
-Acceleration (after Besl & McKay, 1992): point-to-point ICP creeps along a steady direction,
-each step a fraction ``rho`` of the last. When a step continues the previous one (their 6-vectors,
-rotation vector [rad] and translation, within ``STEADY_ANGLE_DEG``) and shrinks, it is applied
-scaled by ``1 / (1 - rho)`` (the geometric series' sum, at most ``MAX_EXTRAPOLATION``); an
-overshoot is undone by the next closest-point step. On a LADAR frame pair this cuts 29 steps to 12.
-
-Coarse to fine: most of the time goes into k-d tree queries, and the early steps, which are large,
-need no more than a fraction of the points to point the right way. So a source of at least
-``COARSE_STRIDE * COARSE_MIN_POINTS`` points is first registered on the fixed subsample of every
-``COARSE_STRIDE``-th point (in a LADAR frame's row-major order, every 4th column of each scan line),
-with the same pairing, robust test and acceleration. That coarse phase ends at the first step
-smaller (rotation [rad] and translation, as in the convergence rule) than the subsample's
-resolution, the standard error ``rms / sqrt(pairs)`` of its inlier pair distances, but at least
-``tolerance``: a smaller step on the subsample would chase its noise. That step is not applied; the
-full set takes over from the same transform, reusing the subsample's cached closest points, and
-iterates to the convergence rule below, so the final transform, ``rmse`` and ``fitness`` are those of
-all points. On a 4,900-point LADAR frame pair (warm start) this halves the time.
-
-Convergence rule: stop as soon as the transform moved by less than ``tolerance`` -- rotation
-angle below ``tolerance`` [rad] *and* translation norm below ``tolerance`` [length unit] -- over
-the last increment, or over the last two increments together. The first is a fixed point; the
-second a two-cycle, where the pairing flips between two sets and the transform between two
-states that close together (point-to-plane, and the robust test, can enter one, since neither
-decreases one cost monotonically); the later state is returned. ``converged`` is then True and
-``iterations`` counts the increments applied in both phases, that one included (so identical
-clouds converge in exactly 1: their coarse step is below ``tolerance`` and not applied).
-Otherwise stop after ``max_iterations`` with ``converged=False``.
+Converged when the last increment, or the last two together (a two-cycle of the pairing), rotates less than
+``tolerance`` [rad] and moves less than ``tolerance``; ``iterations`` counts the increments applied in both
+phases (identical clouds: 1). Else it stops after ``max_iterations`` with ``converged=False``.
 """
 
 from __future__ import annotations
@@ -80,16 +50,8 @@ MAD_TO_STD = 1.4826  # standard deviation of a Gaussian per unit median absolute
 
 @dataclass(frozen=True)
 class RegistrationResult:
-    """The outcome of ``icp``.
-
-    Attributes:
-        transform: (4, 4) rigid transform mapping source points onto the target: ``target ~ R @ source + t``.
-        rmse: root mean square distance of the inlier pairs under ``transform`` [same unit as the points];
-            ``inf`` when fewer than 3 pairs are inliers.
-        fitness: inlier pairs under ``transform`` as a fraction of the source points, in [0, 1].
-        iterations: incremental motions applied.
-        converged: whether the last increment fell below ``tolerance`` before ``max_iterations``.
-    """
+    """The outcome of ``icp``: ``transform`` (4, 4) maps source onto target; ``rmse`` of the inlier pairs (``inf``
+    below 3 pairs) and ``fitness`` (inlier fraction of the source) under it; increments applied; converged."""
 
     transform: np.ndarray
     rmse: float
@@ -157,8 +119,7 @@ def rotation_from_vector(rotation_vector: np.ndarray) -> np.ndarray:
 
 
 class _Covariances:
-    """The GICP covariances of a cloud: ``given`` (checked to be (N, 3, 3) and finite), or computed for each point
-    the first time a pair uses it (in a LADAR frame pair about 90 % of the source points and 70 % of the target's)."""
+    """A cloud's GICP covariances: ``given`` (checked), or computed for a point the first time a pair uses it."""
 
     def __init__(self, points: np.ndarray, given, neighbours, name: str, tree: KdTree | None = None):
         count = points.shape[0]
@@ -188,14 +149,9 @@ class _Covariances:
 class _ClosestPoints:
     """Closest target point of each moved source point, re-queried only where it may have changed.
 
-    A query asks for the two closest target points, at distances ``d1 <= d2``. While a point stays
-    within ``(d2 - d1) / 2`` of where it was queried, the first is still its closest (triangle
-    inequality), so only the points that moved farther are queried again: near convergence almost
-    none. The result equals a full query every time (up to exact ties). With a distance limit,
-    ``SEARCH_BOUND_FACTOR`` times it stands in for a farther ``d2``, and a point with nothing inside
-    that bound stays unmatched while it moves less than bound - limit.
-    The cache covers all source points; ``update`` serves a basic slice of them (the coarse subsample),
-    whose entries the full set later reuses.
+    With the two closest at ``d1 <= d2``, a point that moved less than ``(d2 - d1) / 2`` keeps its closest
+    (triangle inequality), so results equal a full query. With a limit, ``SEARCH_BOUND_FACTOR`` times it stands
+    in for a farther ``d2``. ``update`` serves a slice (the coarse subsample) of the cache of all source points.
     """
 
     SEARCH_BOUND_FACTOR = 1.5
@@ -210,9 +166,8 @@ class _ClosestPoints:
         self.safe_squared = np.full(count, -1.0)  # squared safe radius; negative forces the first query
 
     def update(self, moved: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
-        """Distances (N,) from ``moved`` (N, 3), the source points ``rows`` (a slice) moved, to their closest target
-        points (``self.index[rows]``, ``self.closest[rows]``), ``inf`` where the closest is at or beyond the distance
-        limit (its index then meaningless)."""
+        """Distances (N,) of ``moved``, the source points ``rows`` moved, to their closest target points (``index``,
+        ``closest``); ``inf`` at or beyond the limit."""
         index, closest, anchor = self.index[rows], self.closest[rows], self.anchor[rows]  # views: writes persist
         safe_squared = self.safe_squared[rows]
         drift = moved - anchor
@@ -269,11 +224,8 @@ def _point_to_point(moved: np.ndarray, matched: np.ndarray) -> tuple[np.ndarray,
 def _point_to_plane(
     moved: np.ndarray, matched: np.ndarray, normals: np.ndarray, robust_kernel=None, kernel_scale=1.0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation and translation minimising ``sum rho(n . (R p + t - q))``, linearised in the rotation.
-
-    ``rho`` is the square, or ``robust_kernel`` by one IRLS step. The rotation is about the centroid of
-    ``moved`` (better conditioned than about the origin).
-    """
+    """Rotation and translation minimising ``sum rho(n . (R p + t - q))`` (``rho``: square or ``robust_kernel`` by
+    one IRLS step), linearised in the rotation about the centroid (better conditioned than the origin)."""
     centre = np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved  # faster than mean(axis=0)
     arm = moved - centre
     residual = np.einsum("ij,ij->i", moved - matched, normals)
@@ -328,33 +280,19 @@ def icp(
     source_covariances=None,
     target_covariances=None,
 ) -> RegistrationResult:
-    """Rigid transform that maps ``source`` onto ``target`` by iterative closest point; see the module docstring.
+    """Rigid transform that maps ``source`` (N, 3) onto ``target`` (M, 3) by ICP (module docstring).
 
     Args:
-        source: (N, 3) points to move.
-        target: (M, 3) points to align them with.
-        init: (4, 4) rigid transform to start from (a warm start); default identity.
-        max_iterations: most incremental motions to apply, >= 1.
-        tolerance: an increment with rotation below this [rad] and translation below this [length]
-            ends the iteration as converged; > 0.
-        max_correspondence_distance: pairs at least this far apart are not correspondences; ``None``
-            for no limit.
-        method: ``"point_to_point"``, ``"point_to_plane"`` or ``"gicp"`` (generalized ICP, ``gicp`` module).
-        robust_kernel: ``None`` (least squares) or one of ``ROBUST_KERNELS`` (``robust_kernels`` module),
-            for ``"point_to_plane"`` and ``"gicp"``.
-        kernel_scale: the robust kernel's scale ``c`` [length unit], > 0.
-        covariance_neighbours: points per GICP covariance (``gicp_covariances``), >= 3.
-        source_covariances, target_covariances: (N, 3, 3) and (M, 3, 3) symmetric GICP covariances computed before
-            (``gicp_covariances``, e.g. of a whole frame whose control points are ``source``); default:
-            computed here from each cloud's ``covariance_neighbours`` nearest points.
-
-    Returns:
-        A ``RegistrationResult``; ``rmse`` and ``fitness`` are evaluated under the final transform.
+        init: (4, 4) rigid transform to start from; default identity.
+        tolerance: an increment below this in rotation [rad] and translation converges; > 0.
+        max_correspondence_distance: pairs this far apart or farther are not paired; ``None``: no limit.
+        robust_kernel: ``None`` or one of ``ROBUST_KERNELS``, for ``"point_to_plane"`` and ``"gicp"``.
+        source_covariances, target_covariances: (N, 3, 3), (M, 3, 3) GICP covariances computed before
+            (``gicp_covariances``); default: computed here from ``covariance_neighbours`` points each.
 
     Raises:
-        ValueError: for points not (K, 3) with K >= 3, NaN / inf, a non-rigid ``init``, an unknown
-            ``method`` or ``robust_kernel``, a kernel with ``"point_to_point"``, a non-positive setting,
-            fewer points than ``covariance_neighbours`` or covariances of the wrong shape (``"gicp"``).
+        ValueError: for points not (K >= 3, 3) or not finite, a non-rigid ``init``, an unknown method or kernel, a
+            kernel with ``"point_to_point"``, a non-positive setting, or bad GICP covariances or neighbours.
     """
     source = check_points(source, "source")
     target = check_points(target, "target")

@@ -1,14 +1,8 @@
 """The registration's neighbour search: small_gicp's k-d tree on one thread, chosen by measurement (issue 26).
 
-On the 39k-point cloud of ``registration_timing``'s 40k pair (CPU ms of one process, medians of 7
-interleaved rounds on a shared 2-core machine), the 20 nearest neighbours of every point, tree built
-included, take 120 with ``scipy.spatial.cKDTree`` (114 with ``workers=-1``: the cores were busy),
-74 with pykdtree (one OpenMP thread; by default it takes every core) and 73 with ``small_gicp.KdTree``,
-all the same neighbours. With the compiled patch axes (``normals``) the GICP covariances of the cloud
-take 127, 87 and 81; small_gicp's own ``estimate_covariances`` and reading them back into numpy take 107.
-So small_gicp (MIT; a core dependency) gives the tree, and the arithmetic stays ours. A whole GICP
-registration of the pair then takes 0.88 (0.86-0.95) of small_gicp's CPU time, against 2.6 with scipy's
-tree and numpy's ``eigh``; point-to-point ICP 0.60 of Open3D's, against 0.77.
+On ``registration_timing``'s 39k-point cloud, 20 neighbours of every point (tree included) took 120 CPU ms with
+``scipy.spatial.cKDTree``, 74 with pykdtree and 73 with ``small_gicp.KdTree`` (the same neighbours); GICP
+covariances 127, 87 and 81 (small_gicp's own: 107). A GICP registration then takes 0.88 of small_gicp's time.
 """
 
 from __future__ import annotations

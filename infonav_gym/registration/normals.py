@@ -1,8 +1,7 @@
 """Surface normals of a point cloud: the least-variance axis of each point's nearest points, compiled.
 
-The axis is the eigenvector of the smallest eigenvalue of the patch's scatter matrix (PCA of the
-patch), in closed form (``least_variance_axis``): as accurate as ``np.linalg.eigh`` (to 1e-14), which on a
-stack of 3 x 3 matrices spends most of its time in its per-matrix LAPACK call. The sign of an axis is arbitrary.
+In closed form (``least_variance_axis``): as accurate as ``np.linalg.eigh`` (1e-14), whose per-matrix LAPACK call
+dominates on stacks of 3 x 3. The sign of an axis is arbitrary.
 """
 
 from __future__ import annotations
@@ -18,13 +17,9 @@ NORMAL_NEIGHBOURS = 10  # points per normal
 
 @inline
 def least_variance_axis(scatter, out):
-    """Unit eigenvector of the smallest eigenvalue of the symmetric 3 x 3 ``scatter`` into ``out`` (3,).
-
-    The eigenvalue by the trigonometric solution of the characteristic cubic of ``B = (scatter - q I) / p``
-    (``q`` the mean eigenvalue, ``p`` their spread), the vector as the longest cross product of two rows of
-    ``B - beta I`` (Smith 1961; Kopp 2008): accurate to rounding when the smallest eigenvalue is apart from the
-    others, as for any surface patch. A multiple of the identity (no smallest axis) gives ``e_x``, as ``eigh``.
-    """
+    """Unit eigenvector of the smallest eigenvalue of the symmetric 3 x 3 ``scatter`` into ``out`` (3,): the
+    trigonometric root of ``B = (scatter - q I) / p``'s cubic, the longest cross product of two rows of ``B - beta I``
+    (Smith 1961; Kopp 2008). A multiple of the identity gives ``e_x``, as ``eigh``."""
     q = (scatter[0, 0] + scatter[1, 1] + scatter[2, 2]) / 3.0
     b00, b11, b22 = scatter[0, 0] - q, scatter[1, 1] - q, scatter[2, 2] - q
     b01, b02, b12 = scatter[0, 1], scatter[0, 2], scatter[1, 2]
@@ -52,11 +47,8 @@ def least_variance_axis(scatter, out):
 
 @kernel
 def least_variance_axes(points, index):
-    """Unit least-variance axes (N, 3) of the patches ``points[index[n]]`` (``index`` (N, k) rows of ``points``).
-
-    The scatter is summed in one pass about the patch's first point, ``S - s s^T / k`` with ``s`` and ``S`` the sums
-    of the offsets and of their outer products: offsets of the patch's size, so nothing cancels.
-    """
+    """Unit least-variance axes (N, 3) of the patches ``points[index[n]]`` (``index`` (N, k)); the scatter summed
+    about the patch's first point, so nothing cancels."""
     count, size = index.shape
     normals = np.empty((count, 3))
     offset, total, scatter = np.empty(3), np.empty(3), np.empty((3, 3))

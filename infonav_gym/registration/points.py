@@ -9,22 +9,10 @@ from infonav_gym.sensors.pixel_grid import unit_directions
 
 
 def range_image_to_points(ranges_m, azimuth_rad, elevation_rad, no_return=None, sensor_pose=None) -> np.ndarray:
-    """Points (N, 3) [m] of the pixels with a return, in row-major pixel order.
-
-    Pixel ``(r, c)`` gives ``ranges_m[r, c] * [cos(el) cos(az), cos(el) sin(az), sin(el)]`` with
-    ``el = elevation_rad[r]`` and ``az = azimuth_rad[c]``: the sensor frame, unless ``sensor_pose``
-    (a (4, 4) rigid transform from the sensor frame to another) moves them.
-
-    Args:
-        ranges_m: (R, C) ranges [m].
-        azimuth_rad: (C,) column azimuths, counterclockwise from the sensor's x axis [rad].
-        elevation_rad: (R,) row elevations above its x-y plane [rad].
-        no_return: (R, C) bool, True where the pixel saw nothing; default: pixels with a non-finite range.
-        sensor_pose: optional (4, 4) rigid transform applied to the points.
-
-    Raises:
-        ValueError: for mismatched shapes, a non-finite range at a pixel with a return, or a non-rigid pose.
-    """
+    """Points (N, 3) [m] of the pixels with a return (row-major): ``ranges_m[r, c]`` (R, C) along column azimuth
+    ``azimuth_rad[c]`` (C,) and row elevation ``elevation_rad[r]`` (R,) [rad] in the sensor frame, moved by the
+    (4, 4) rigid ``sensor_pose`` if given. ``no_return`` (R, C) defaults to the non-finite ranges; ``ValueError``
+    for mismatched shapes, a non-finite return or a non-rigid pose."""
     ranges = np.asarray(ranges_m, dtype=float)
     azimuth, elevation = np.asarray(azimuth_rad, dtype=float), np.asarray(elevation_rad, dtype=float)
     if azimuth.ndim != 1 or elevation.ndim != 1 or ranges.shape != (elevation.size, azimuth.size):

@@ -1,12 +1,8 @@
 """Robust kernels for ICP by iteratively reweighted least squares (IRLS).
 
-Each kernel ``rho(r)`` of a residual ``r`` with scale ``c`` is minimised by least squares with the
-weight ``w(r) = rho'(r) / r`` recomputed from the residuals of every step (Zhang 1997; the weights
-follow Black & Rangarajan 1996):
-
-- ``"huber"``: ``w = 1`` for ``|r| <= c``, else ``c / |r|`` (quadratic core, linear tails);
-- ``"cauchy"``: ``w = 1 / (1 + (r / c)^2)`` (logarithmic tails: far pairs fade out);
-- ``"tukey"``: ``w = (1 - (r / c)^2)^2`` for ``|r| <= c``, else 0 (biweight: pairs beyond ``c`` are ignored).
+Each step weighs a residual ``r`` by ``w(r) = rho'(r) / r`` at scale ``c`` (Zhang 1997; Black & Rangarajan 1996):
+``"huber"`` 1 within ``c``, else ``c / |r|``; ``"cauchy"`` ``1 / (1 + (r / c)^2)``; ``"tukey"`` ``(1 - (r / c)^2)^2``
+within ``c``, else 0.
 """
 
 from __future__ import annotations

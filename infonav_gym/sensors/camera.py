@@ -1,21 +1,10 @@
 """Grayscale camera on a pan-tilt platform: a Lambertian-shaded uint8 image of a 2.5D ``Terrain``.
 
-Pixel model: the same equiangular grid as the ``Ladar`` (see ``infonav_gym.sensors.ladar``).
-Row 0 is the top row, column 0 the leftmost; pixel ``(r, c)`` looks at elevation
-``vertical_fov/2 - (r + 1/2) * vertical_fov/rows - tilt`` and azimuth
-``heading + pan + horizontal_fov/2 - (c + 1/2) * horizontal_fov/columns``. Each column is one
-vertical plane, so ``Terrain.cast_rays`` casts the whole image in one compiled call. This
-approximates a pinhole camera: a pinhole's pixels are equally spaced on the image plane (angles
-``atan`` of linear offsets) and a tilted pinhole's columns lean off the vertical. At the default
-60 degree field of view the angular spacing differs by at most ~30 % between centre and edge, and
-the scene's radiometry (what the histogram entropy measures) is unaffected.
-
-Radiometry: a pixel whose ray hits nothing within ``max_range_m`` (a far plane, like haze) sees the
-sky, gray level ``exposure * sky_luminance``; a hit pixel reads
-``exposure * albedo(material, position) * (ambient + (1 - ambient) * max(0, n . sun))`` with ``n``
-the outward surface normal at the hit and ``sun`` the unit vector towards the sun. Gaussian sensor
-noise (in gray levels) from ``np_random`` is added, then levels are rounded and clipped to 0..255
-(saturation, never wrapping).
+The LADAR's equiangular pixel grid (``pixel_grid``), which approximates a pinhole (angular spacing differs by
+at most ~30 % at 60 degrees; the radiometry the histogram entropy measures is unaffected). A ray hitting nothing
+within ``max_range_m`` sees the sky, ``exposure * sky_luminance``; a hit reads ``exposure * albedo *
+(ambient + (1 - ambient) * max(0, n . sun))``. Gaussian noise [gray levels] is added, then rounded and clipped
+to 0..255.
 """
 
 from __future__ import annotations
@@ -44,65 +33,36 @@ _TEXTURE = (  # what camera_kernels.texture takes: the lattice table (fixed), th
 
 
 def ground_texture(xy) -> np.ndarray:
-    """Deterministic texture of world position ``xy`` (..., 2) [m] -> (...) in [-1, 1].
-
-    Smoothly interpolated value noise in three octaves (0.5 m, 2 m and 8 m cells), so the ground
-    looks like patchy soil and grass at any distance and two views of one spot agree.
-    """
+    """Deterministic texture in [-1, 1] of world positions ``xy`` (..., 2) [m]: value noise in ``_TEXTURE_OCTAVES``."""
     points = np.asarray(xy, dtype=float)
     return camera_kernels.textures(contiguous(points.reshape(-1, 2)), *_TEXTURE).reshape(points.shape[:-1])
 
 
 @dataclass(frozen=True)
 class Camera(PanTiltGrid):
-    """A grayscale camera producing a ``rows x columns`` uint8 image (default 120 x 160, 60 degrees wide).
-
-    Attributes:
-        rows: image rows.
-        columns: image columns.
-        horizontal_fov_rad: horizontal field of view [rad], in (0, pi).
-        vertical_fov_rad: vertical field of view [rad], in (0, pi); ``None`` derives it from the
-            aspect ratio as a pinhole with square pixels would: ``2 atan(tan(h/2) rows/columns)``.
-        mount_height_m: optical centre above the ground under the vehicle [m].
-        tilt_rad: depression of the optical axis, positive = looking down [rad].
-        pan_rad: azimuth of the optical axis from the vehicle heading, positive = left [rad].
-        max_range_m: far plane: nothing beyond it is rendered, those pixels show sky [m].
-        sun_azimuth_rad: world azimuth towards the sun, counterclockwise from +x [rad], in [-2 pi, 2 pi].
-        sun_elevation_rad: elevation of the sun above the horizon [rad], in (0, pi/2].
-        sky_luminance: sky brightness relative to a white (albedo 1) surface lit head-on, in [0, 100].
-        ground_albedo: mean reflectance of the ground, in [0, 1].
-        vegetation_albedo: reflectance of trees, in [0, 1].
-        rock_albedo: reflectance of rocks, in [0, 1].
-        building_albedo: reflectance of walls and buildings, in [0, 1].
-        ground_texture_contrast: relative amplitude of the ground texture, in [0, 1); the ground
-            albedo at ``xy`` is ``ground_albedo * (1 + contrast * ground_texture(xy))``; 0 is uniform.
-        ambient: fraction of the light that is diffuse (reaches surfaces facing away from the sun), in [0, 1].
-        exposure: gray level of a white surface lit head-on (gain), in [0, 1e6].
-        noise_std: standard deviation of the Gaussian sensor noise [gray levels], in [0, 1000].
-        rows, columns, fields of view, mount height, range, pan and tilt: as checked by ``PanTiltGrid``.
-    """
+    """A grayscale camera producing a ``rows x columns`` uint8 image; the grid's fields as ``PanTiltGrid``'s."""
 
     SENSOR_NAME = "camera"
 
     rows: int = 120
     columns: int = 160
     horizontal_fov_rad: float = math.radians(60.0)
-    vertical_fov_rad: float | None = None
+    vertical_fov_rad: float | None = None  # None: a square-pixel pinhole's, 2 atan(tan(h/2) rows/columns)
     mount_height_m: float = 2.0
     tilt_rad: float = math.radians(5.0)
     pan_rad: float = 0.0
-    max_range_m: float = 100.0
-    sun_azimuth_rad: float = math.radians(135.0)
-    sun_elevation_rad: float = math.radians(45.0)
-    sky_luminance: float = 1.1
-    ground_albedo: float = 0.45
+    max_range_m: float = 100.0  # far plane: pixels beyond it show sky [m]
+    sun_azimuth_rad: float = math.radians(135.0)  # world azimuth towards the sun, from +x [rad]
+    sun_elevation_rad: float = math.radians(45.0)  # in (0, pi/2] [rad]
+    sky_luminance: float = 1.1  # relative to a white surface lit head-on
+    ground_albedo: float = 0.45  # mean reflectances, in [0, 1]
     vegetation_albedo: float = 0.2
     rock_albedo: float = 0.5
     building_albedo: float = 0.75
-    ground_texture_contrast: float = 0.5
-    ambient: float = 0.3
-    exposure: float = 200.0
-    noise_std: float = 2.0
+    ground_texture_contrast: float = 0.5  # albedo at xy: ground_albedo * (1 + contrast * ground_texture(xy))
+    ambient: float = 0.3  # diffuse fraction of the light
+    exposure: float = 200.0  # gray level of a white surface lit head-on
+    noise_std: float = 2.0  # [gray levels]
 
     def __post_init__(self):
         self._check_image_size()
@@ -170,12 +130,8 @@ class Camera(PanTiltGrid):
         pan_rad: float | None = None,
         tilt_rad: float | None = None,
     ) -> np.ndarray:
-        """Grayscale uint8 image (rows, columns) of ``terrain`` from ``vehicle_pose`` ``[x, y, heading]``.
-
-        The optical centre is ``mount_height_m`` above the ground under the vehicle. Gaussian noise
-        of ``noise_std`` gray levels is drawn from ``np_random`` for every pixel (also when the std
-        is 0, so the generator advances the same way), then levels are rounded and clipped to 0..255.
-        """
+        """Grayscale uint8 image (rows, columns) of ``terrain`` from ``vehicle_pose`` ``[x, y, heading]``; noise is
+        drawn for every pixel even at ``noise_std`` 0, so the generator advances the same way."""
         levels = self.radiance(terrain, vehicle_pose, pan_rad, tilt_rad)
         noise = np_random.standard_normal(levels.shape)
         noise *= self.noise_std

@@ -75,19 +75,12 @@ def lit_level(albedo, cosine, radiometry):
 
 @kernel
 def shade(arrays, origin, azimuth, elevation, range_m, material, obstacle, radiometry, texture_arrays):
-    """Noise-free gray levels (R, C) of the rays from ``origin`` (3,) at column azimuths (C,) and row elevations
-    (R,) [rad] that ``Terrain.cast_rays`` cast into the scene ``arrays``, with its hits ``range_m``, ``material``
-    and ``obstacle`` (R, C).
+    """Noise-free gray levels (R, C) of the rays ``Terrain.cast_rays`` cast from ``origin`` (3,) at azimuths (C,)
+    and elevations (R,) [rad] into ``arrays``, with its hits (R, C) (the model: ``camera`` module).
 
-    ``radiometry`` is ``(albedos, sun, ambient, exposure, contrast, sky_level)``: the albedo of each material (4,),
-    the unit vector towards the sun (3,) and the camera's scalars; ``texture_arrays`` is ``(texture_table,
-    texture_cells, texture_weights)``. A pixel without a hit is the sky; a hit pixel reads
-    ``exposure * albedo * (ambient + (1 - ambient) * max(0, n . sun))``, the ground's albedo scaled by ``1 +
-    contrast * texture``.
-
-    A row's sky and obstacle pixels are shaded one by one, its ground pixels together in loops that each do one
-    thing (locate cells, read the table or the heights at computed indices, compute), the computing ones vectorized
-    by the compiler; the loops stay in this kernel, as ``first_hits``' do.
+    ``radiometry``: ``(albedos (4,), sun (3,), ambient, exposure, contrast, sky_level)``; ``texture_arrays``:
+    ``(table, cells, weights)``. Ground pixels are shaded in loops that each do one thing (vectorized by the
+    compiler); they stay in this kernel, as ``first_hits``' do.
     """
     grid, obstacles, _, n_cylinders = arrays
     albedos, sun, _, _, contrast, sky_level = radiometry

@@ -14,16 +14,10 @@ MAX_POSITION_STD_M = 100.0  # [m]
 
 @dataclass(frozen=True)
 class GPSSensor:
-    """Measures the position ``[x, y]`` with isotropic Gaussian noise, when satellites are available.
+    """Measures the position ``[x, y]`` with isotropic Gaussian noise, when satellites are available."""
 
-    Attributes:
-        position_std_m: standard deviation of each coordinate of a fix [m] (DGPS: centimetres to decimetres),
-            in [1e-3, 100].
-        outages: time spans ``(start_s, end_s)`` without a fix (``start_s <= t < end_s``) [s].
-    """
-
-    position_std_m: float = 0.1
-    outages: tuple[tuple[float, float], ...] = ()
+    position_std_m: float = 0.1  # per coordinate [m] (DGPS: centimetres to decimetres)
+    outages: tuple[tuple[float, float], ...] = ()  # spans start_s <= t < end_s without a fix [s]
 
     def __post_init__(self):
         check_number(

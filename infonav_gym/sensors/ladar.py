@@ -1,12 +1,4 @@
-"""Scanning LADAR on a pan-tilt platform: a range image of a 2.5D ``Terrain`` (the paper's Section IV).
-
-Pixel convention: row 0 is the top row (highest elevation), column 0 the leftmost (largest
-azimuth, azimuths counterclockwise). Pixel ``(r, c)`` looks along the centre of its angular
-cell: elevation ``vertical_fov/2 - (r + 1/2) * vertical_fov/rows - tilt`` above the horizontal
-and azimuth ``heading + pan + horizontal_fov/2 - (c + 1/2) * horizontal_fov/columns``. The tilt
-lowers every row's elevation by the same angle (a nodding scanner), so each column's rays stay in
-one vertical plane.
-"""
+"""Scanning LADAR on a pan-tilt platform (pixels: ``pixel_grid``): a range image of a 2.5D ``Terrain`` (Section IV)."""
 
 from __future__ import annotations
 
@@ -26,30 +18,17 @@ MAX_RANGE_STD_M = 10.0  # [m]
 
 @dataclass(frozen=True)
 class LadarScan:
-    """One range image.
+    """One range image; angles in the vehicle's body frame, pan and tilt included."""
 
-    Attributes:
-        ranges_m: measured range per pixel (rows, columns), float32 [m]; ``max_range_m`` where no return.
-        no_return: True where nothing was hit within ``max_range_m`` (rows, columns).
-        azimuth_rad: azimuth of each column relative to the vehicle heading, pan included (columns,) [rad].
-        elevation_rad: elevation of each row above the horizontal, tilt included (rows,) [rad].
-        vehicle_pose: true ``[x, y, heading]`` of the vehicle when the scan was taken [m, m, rad].
-        sensor_position_m: ``(x, y, z)`` of the optical centre when the scan was taken [m].
-        max_range_m: the sensor's maximum range [m].
-        attitude_rad: the vehicle's ``(roll, pitch)`` when the scan was taken [rad] (see
-            ``infonav_gym.world.attitude``); azimuths and elevations are in its body frame.
-        range_std_m: standard deviation of the range noise the scan was taken with [m] (its ``Ladar``'s).
-    """
-
-    ranges_m: np.ndarray
-    no_return: np.ndarray
-    azimuth_rad: np.ndarray
-    elevation_rad: np.ndarray
-    vehicle_pose: np.ndarray
-    sensor_position_m: np.ndarray
+    ranges_m: np.ndarray  # (rows, columns) float32 [m]; max_range_m where no return
+    no_return: np.ndarray  # (rows, columns) bool
+    azimuth_rad: np.ndarray  # per column, from the vehicle heading (columns,) [rad]
+    elevation_rad: np.ndarray  # per row (rows,) [rad]
+    vehicle_pose: np.ndarray  # true [x, y, heading] [m, m, rad]
+    sensor_position_m: np.ndarray  # the optical centre (x, y, z) [m]
     max_range_m: float
-    attitude_rad: tuple[float, float] = (0.0, 0.0)
-    range_std_m: float = DEFAULT_RANGE_STD_M
+    attitude_rad: tuple[float, float] = (0.0, 0.0)  # the vehicle's (roll, pitch) [rad]
+    range_std_m: float = DEFAULT_RANGE_STD_M  # its Ladar's range noise [m]
 
     @property
     def world_from_sensor(self) -> np.ndarray:
@@ -60,19 +39,8 @@ class LadarScan:
 
 @dataclass(frozen=True)
 class Ladar(PanTiltGrid):
-    """A LADAR producing a ``rows x columns`` range image (defaults: the XUV's 32 x 180, 20 x 80 degrees).
-
-    Attributes:
-        rows: image rows.
-        columns: image columns.
-        vertical_fov_rad: vertical field of view [rad], in (0, pi).
-        horizontal_fov_rad: horizontal field of view [rad], in (0, pi).
-        mount_height_m: optical centre above the ground under the vehicle [m].
-        max_range_m: farthest return [m].
-        range_std_m: standard deviation of the Gaussian range noise [m], in [0, 10].
-        tilt_rad: depression of the optical axis, positive = looking down [rad].
-        pan_rad: azimuth of the optical axis from the vehicle heading, positive = left [rad].
-    """
+    """A LADAR producing a ``rows x columns`` range image (defaults: the XUV's 32 x 180, 20 x 80 degrees); the
+    grid's fields as ``PanTiltGrid``'s, ``range_std_m`` the Gaussian range noise [m] in [0, 10]."""
 
     SENSOR_NAME = "LADAR"
 
@@ -99,14 +67,10 @@ class Ladar(PanTiltGrid):
         tilt_rad: float | None = None,
         attitude_rad=(0.0, 0.0),
     ) -> LadarScan:
-        """Range image of ``terrain`` seen from ``vehicle_pose`` ``[x, y, heading]`` [m, m, rad].
+        """Range image of ``terrain`` from ``vehicle_pose`` ``[x, y, heading]`` at ``attitude_rad`` (roll, pitch).
 
-        The optical centre is ``mount_height_m`` along the body's up axis above the ground
-        under the vehicle, whose ``(roll, pitch)`` is ``attitude_rad`` (e.g. from
-        ``terrain_attitude``). Each pixel's range is the first hit of its ray plus Gaussian
-        noise from ``np_random``, clipped to ``[0, max_range_m]``; pixels without a hit read
-        ``max_range_m``. A level vehicle's columns are vertical planes, cast together; a rolled
-        or pitched one's rays are cast one by one (about 15 times slower).
+        The optical centre is ``mount_height_m`` up the body's axis; ranges get noise and are clipped to
+        ``[0, max_range_m]``. A rolled or pitched vehicle's rays are cast one by one (about 15 times slower).
         """
         pose = check_pose(vehicle_pose)
         roll, pitch = (float(angle) for angle in attitude_rad)
@@ -143,10 +107,7 @@ class Ladar(PanTiltGrid):
 
 
 def to_display_image(scan: LadarScan) -> np.ndarray:
-    """The paper's display convention: uint8 (rows, columns), 0 at range 0 (dark = near) to 255 at max range.
-
-    Gray levels are linear in range; pixels without a return are 255.
-    """
+    """The paper's display: uint8 (rows, columns) linear in range, 0 at 0 (dark = near), 255 at max or no return."""
     levels = np.rint(255.0 * np.clip(scan.ranges_m / scan.max_range_m, 0.0, 1.0)).astype(np.uint8)
     levels[scan.no_return] = 255
     return levels
@@ -154,24 +115,19 @@ def to_display_image(scan: LadarScan) -> np.ndarray:
 
 def sensor_points(scan: LadarScan) -> np.ndarray:
     """Points (N, 3) [m] of the pixels with a return in the scan's body frame at the optical centre, row-major."""
+    return _points_along(scan, unit_directions(scan.azimuth_rad, scan.elevation_rad))
+
+
+def _points_along(scan: LadarScan, directions: np.ndarray) -> np.ndarray:
     returns = ~scan.no_return
-    directions = unit_directions(scan.azimuth_rad, scan.elevation_rad)
     return directions[returns] * scan.ranges_m[returns, None].astype(float)
 
 
 def point_cloud(scan: LadarScan, vehicle_pose=None) -> np.ndarray:
-    """World points (N, 3) [m] of the pixels with a return, in row-major pixel order.
-
-    Args:
-        scan: the range image.
-        vehicle_pose: ``[x, y, heading]`` to place the points from (e.g. an estimate, for
-            registration); default: the true pose of the scan. The sensor's elevation and the
-            vehicle's roll and pitch are the scan's in either case.
-    """
+    """World points (N, 3) [m] of the pixels with a return, row-major, placed from ``vehicle_pose`` (e.g. an
+    estimate; default the scan's true pose) at the scan's sensor height, roll and pitch."""
     pose = scan.vehicle_pose if vehicle_pose is None else check_pose(vehicle_pose)
     origin = scan.sensor_position_m + np.append(pose[:2] - scan.vehicle_pose[:2], 0.0)
     if scan.attitude_rad == (0.0, 0.0):
-        directions = unit_directions(pose[2] + scan.azimuth_rad, scan.elevation_rad)
-        returns = ~scan.no_return
-        return origin + directions[returns] * scan.ranges_m[returns, None].astype(float)
+        return origin + _points_along(scan, unit_directions(pose[2] + scan.azimuth_rad, scan.elevation_rad))
     return origin + sensor_points(scan) @ rotation_matrix(*scan.attitude_rad, pose[2]).T

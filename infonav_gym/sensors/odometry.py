@@ -13,15 +13,7 @@ MAX_ODOMETRY_STD = 10.0  # largest speed [m/s] and turn-rate [rad/s] noise stand
 
 @dataclass(frozen=True)
 class OdometrySensor:
-    """Measures ``[speed, turn_rate]`` with independent Gaussian noise.
-
-    Attributes:
-        speed_std_mps: standard deviation of the speed reading [m/s], in (0, 10].
-        turn_rate_std_rps: standard deviation of the turn-rate reading [rad/s], in (0, 10].
-
-    Raises:
-        ParameterError: (a ``ValueError``) naming the first attribute outside its range.
-    """
+    """Measures ``[speed, turn_rate]`` with independent Gaussian noise of these standard deviations (in (0, 10])."""
 
     speed_std_mps: float = 0.05
     turn_rate_std_rps: float = 0.02

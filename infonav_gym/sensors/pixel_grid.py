@@ -1,9 +1,8 @@
-"""The equiangular pixel grid shared by the LADAR and the camera on a pan-tilt platform.
+"""The equiangular pixel grid of the LADAR and the camera on a pan-tilt platform.
 
-Row 0 is the top row and column 0 the leftmost. Pixel ``(r, c)`` looks along the
-centre of its angular cell; azimuths are counterclockwise from the vehicle heading.
-Tilt lowers every row by the same angle, so each column's rays stay in one vertical
-plane (what ``Terrain.cast_rays`` needs).
+Pixel ``(r, c)`` (row 0 on top, column 0 leftmost) looks at elevation ``vfov/2 - (r + 1/2) vfov/rows - tilt`` and
+azimuth ``heading + pan + hfov/2 - (c + 1/2) hfov/columns`` (counterclockwise). Tilt lowers every row alike, so
+each column's rays stay in one vertical plane: ``Terrain.cast_rays`` casts the image in one call.
 """
 
 from __future__ import annotations
@@ -48,12 +47,9 @@ def check_pan_tilt(sensor: str, pan_rad: float, tilt_rad: float, vertical_fov_ra
 
 
 class PanTiltGrid:
-    """Pixel angles and grid checks for a sensor dataclass on the pan-tilt platform.
-
-    The host has ``rows``, ``columns``, ``horizontal_fov_rad``, ``vertical_fov_rad``,
-    ``mount_height_m``, ``max_range_m``, ``pan_rad`` and ``tilt_rad`` fields;
-    ``SENSOR_NAME`` names it in errors.
-    """
+    """Pixel angles and checks of a sensor dataclass with ``rows``, ``columns``, fields of view in (0, pi) [rad],
+    ``mount_height_m`` above the ground, ``max_range_m``, ``pan_rad`` (left positive) and ``tilt_rad`` (down
+    positive); ``SENSOR_NAME`` names it in errors."""
 
     SENSOR_NAME = "sensor"
 
@@ -63,10 +59,7 @@ class PanTiltGrid:
         check_integer(self.SENSOR_NAME, "columns", self.columns, 1, MAX_COLUMNS)
 
     def _check_grid(self) -> None:
-        """``ParameterError`` naming the field unless the grid, mount, range, pan and tilt are valid.
-
-        Fields of view are in (0, pi) rad, the mount height in (0, 100] m, the range in (0, 1000] m.
-        """
+        """``ParameterError`` naming the field unless the grid, mount, range, pan and tilt are valid."""
         name = self.SENSOR_NAME
         self._check_image_size()
         for key in ("horizontal_fov_rad", "vertical_fov_rad"):
@@ -78,10 +71,8 @@ class PanTiltGrid:
     def pixel_angles(
         self, pan_rad: float | None = None, tilt_rad: float | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Column azimuths (columns,) relative to the vehicle heading and row elevations (rows,) [rad].
-
-        ``pan_rad`` / ``tilt_rad`` override the configured platform angles for this call.
-        """
+        """Column azimuths from the heading (columns,) and row elevations (rows,) [rad]; ``pan_rad`` / ``tilt_rad``
+        override the platform's for this call."""
         pan_rad = self.pan_rad if pan_rad is None else float(pan_rad)
         tilt_rad = self.tilt_rad if tilt_rad is None else float(tilt_rad)
         check_pan_tilt(self.SENSOR_NAME, pan_rad, tilt_rad, self.vertical_fov_rad)

@@ -19,24 +19,14 @@ MAX_SENSOR_RANGE_M = 1000.0  # [m]
 
 @dataclass(frozen=True)
 class RangeBearingSensor:
-    """Range and bearing to point landmarks; range noise grows with distance.
+    """Range and bearing to point landmarks; range noise grows with distance. ``ParameterError`` for a field out
+    of range."""
 
-    Attributes:
-        range_std_m: range noise standard deviation at zero range [m], in [1e-4, 100].
-        range_std_per_m: growth of that standard deviation per metre of range [m/m], in [0, 1].
-        bearing_std_rad: bearing noise standard deviation [rad], in [1e-5, pi].
-        max_range_m: landmarks farther than this are not detected [m], in (0, 1000].
-        fov_rad: full field of view, centred on the heading [rad] (2 pi = all around), in (0, 2 pi].
-
-    Raises:
-        ParameterError: (a ``ValueError``) naming the first attribute outside its range.
-    """
-
-    range_std_m: float = 0.1
-    range_std_per_m: float = 0.01
+    range_std_m: float = 0.1  # at zero range [m]
+    range_std_per_m: float = 0.01  # its growth per metre of range [m/m]
     bearing_std_rad: float = math.radians(2.0)
-    max_range_m: float = 15.0
-    fov_rad: float = math.pi
+    max_range_m: float = 15.0  # farther landmarks are not detected
+    fov_rad: float = math.pi  # full field of view centred on the heading (2 pi: all around)
 
     def __post_init__(self):
         owner = type(self).__name__

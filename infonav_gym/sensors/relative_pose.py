@@ -16,21 +16,11 @@ from infonav_gym.sensors.range_bearing import MIN_BEARING_STD_RAD, RangeBearingS
 
 @dataclass(frozen=True)
 class RelativePoseSensor:
-    """Measures ``[range, bearing, relative heading]`` of a teammate's pose from the observer's.
+    """Measures ``[range, bearing, relative heading]`` of a teammate's pose from the observer's."""
 
-    The range-bearing part (noise, range and field of view) is a ``RangeBearingSensor``;
-    the relative heading (teammate's heading minus the observer's) has its own noise,
-    which may grow with distance.
-
-    Attributes:
-        range_bearing: the range-bearing part of the measurement.
-        heading_std_rad: relative-heading noise standard deviation at zero range [rad], in [1e-5, pi].
-        heading_std_per_m: its growth per metre of range [rad/m], in [0, 0.1].
-    """
-
-    range_bearing: RangeBearingSensor
-    heading_std_rad: float
-    heading_std_per_m: float = 0.0
+    range_bearing: RangeBearingSensor  # noise, range and field of view of the first two
+    heading_std_rad: float  # relative-heading noise at zero range [rad]
+    heading_std_per_m: float = 0.0  # its growth per metre of range [rad/m]
 
     def __post_init__(self):
         owner = type(self).__name__
@@ -63,12 +53,8 @@ class RelativePoseSensor:
 
 
 def noise_standard_deviations(parameters, ranges) -> np.ndarray:
-    """Noise standard deviations ``[range, bearing, relative heading]`` (M, 3) at ``ranges`` (M,).
-
-    Args:
-        parameters: ``RelativePoseSensor.noise_parameters()`` rows, (5,) or one per range (M, 5).
-        ranges: true or predicted ranges [m] (M,).
-    """
+    """Noise standard deviations ``[range, bearing, relative heading]`` (M, 3) at ``ranges`` (M,) [m] of sensors'
+    ``noise_parameters()`` (5,) or one row per range (M, 5)."""
     ranges = np.asarray(ranges, dtype=float)
     return standard_deviations(stacked(np.reshape(parameters, (-1, 5)), (len(ranges), 5)), contiguous(ranges))
 

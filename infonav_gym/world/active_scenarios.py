@@ -41,36 +41,22 @@ def goal_field(
     size_m: float = 40.0,
     lit_offset_m: tuple[float, float] = LIT_OFFSET_M,
 ) -> Scenario:
-    """A square field crossed from a start on the left to a goal on the right; landmarks light only parts of it.
+    """A square field crossed from a start on the left to a goal on the right (the route's one waypoint).
 
-    Two landmarks lie ahead of the start and one before the goal, within a few metres
-    of the straight line between them; the others line the middle of the crossing on
-    one side only (the *lit* side, drawn at random), ``lit_offset_m`` away from the
-    straight line. With a sensor range shorter than that offset, the middle of the
-    straight line is dark: a robot keeps seeing landmarks there only by detouring to
-    the lit side. Round obstacles stand on the dark half, clear of the straight line
-    by their radius + 2 m, where they can hide the start and goal landmarks.
-
-    The route holds the start pose (facing the goal) and the goal as its one waypoint.
+    Two landmarks lie ahead of the start and one before the goal, near the straight line; the others line the
+    middle on one random (lit) side, ``lit_offset_m`` off the line: with a shorter sensor range a robot sees them
+    only by detouring. Round obstacles stand on the dark half, clear of the line by their radius + 2 m.
 
     Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its ``GOAL_FIELD_ARGUMENTS`` interval, or a
-            size below three times the largest lit offset.
-        ValueError: when the obstacles do not fit.
+        ValueError: for an argument outside ``GOAL_FIELD_ARGUMENTS`` or a size below three lit offsets
+            (``ParameterError``), or obstacles that do not fit.
     """
     return goal_field_scenarios(goal_field_layouts([np_random], n_landmarks, n_obstacles, size_m, lit_offset_m))[0]
 
 
 class GoalFieldLayouts(NamedTuple):
-    """The layouts of n goal fields (``goal_field``'s), stacked.
-
-    Attributes:
-        size_m: the side of every field [m].
-        starts: the start positions (n, 2) [m]; headings: toward the goals (n,) [rad].
-        goals: the goal positions (n, 2) [m].
-        landmarks: (n, K, 2) [m].
-        obstacle_centers: the round obstacles' centres (n, O, 2) [m]; obstacle_radii: their radii (n, O) [m].
-    """
+    """The layouts of n goal fields (``goal_field``'s), stacked: starts, goals (n, 2), headings toward the goals
+    (n,) [rad], landmarks (n, K, 2), obstacle centres (n, O, 2) and radii (n, O) [m]."""
 
     size_m: float
     starts: np.ndarray
@@ -88,12 +74,7 @@ def goal_field_layouts(
     size_m: float = 40.0,
     lit_offset_m: tuple[float, float] = LIT_OFFSET_M,
 ) -> GoalFieldLayouts:
-    """The layout of ``goal_field`` of each of ``generators``, each drawn from its own as ``goal_field`` draws it:
-    the arguments checked once, every layout in one kernel call (what a vector env starting many episodes wants).
-
-    Raises:
-        As ``goal_field``.
-    """
+    """``goal_field``'s layout from each of ``generators`` (the same draws), checked once, in one kernel call."""
     check_arguments("goal_field", GOAL_FIELD_ARGUMENTS, n_landmarks=n_landmarks, n_obstacles=n_obstacles, size_m=size_m)
     if size_m < 3 * max(lit_offset_m):
         raise ParameterError("goal_field", "size_m", f">= {3 * max(lit_offset_m):g} m for its layout", size_m)
@@ -136,14 +117,9 @@ def goal_field_scenarios(layouts: GoalFieldLayouts) -> list[Scenario]:
 
 
 def drawn_layouts(generators, u, n_obstacles: int, frames: tuple, lit_offset_m, size_m: float, attempts: int = 0):
-    """``field_layouts`` of each generator's field (``u``: its landmarks' draws, ``frames``: its ends, direction,
-    length and lit side), ``attempts`` for its obstacles drawn ahead from it (0: ``OBSTACLE_ATTEMPTS_AHEAD`` per
-    obstacle), then exactly those used taken; twice as many drawn again for the fields they did not suffice.
-    ``(landmarks (n, K, 2), centres (n, O, 2), radii (n, O))`` [m].
-
-    Raises:
-        ValueError: when the obstacles of a field do not fit.
-    """
+    """``field_layouts`` of each generator's field: ``attempts`` obstacle draws ahead (0: ``OBSTACLE_ATTEMPTS_AHEAD``
+    per obstacle), the generator rewound to take exactly those used; twice as many again where too few
+    (``ValueError`` past 1000 per obstacle). ``(landmarks (n, K, 2), centres (n, O, 2), radii (n, O))`` [m]."""
     attempts, most_attempts = attempts or OBSTACLE_ATTEMPTS_AHEAD * max(n_obstacles, 4), 1000 * max(n_obstacles, 1)
     states = [np_random.bit_generator.state for np_random in generators]
     drawn = np.array([np_random.random((attempts, 3)) for np_random in generators])

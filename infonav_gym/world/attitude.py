@@ -1,8 +1,4 @@
-"""A vehicle's 3D attitude on a 2.5D terrain.
-
-Frames: the body frame has x forward, y left, z up; a positive pitch lowers the nose and a
-positive roll raises the left side (``infonav_gym.geometry.rotation_matrix``).
-"""
+"""A vehicle's 3D attitude on a 2.5D terrain (body x forward, y left, z up: ``geometry.rotation_matrix``)."""
 
 from __future__ import annotations
 
@@ -19,12 +15,8 @@ TRACK_M = 1.8  # left to right wheels [m]
 def terrain_attitude(
     terrain: Terrain, vehicle_pose, wheelbase_m: float = WHEELBASE_M, track_m: float = TRACK_M
 ) -> tuple[float, float]:
-    """``(roll, pitch)`` [rad] of a vehicle at ``[x, y, heading]`` standing on ``terrain``.
-
-    The ground is sampled under the front and rear axle midpoints and the left and right
-    wheel midpoints; pitch follows the front-rear height difference over the wheelbase and
-    roll the left-right difference over the track.
-    """
+    """``(roll, pitch)`` [rad] of a vehicle at ``[x, y, heading]`` on ``terrain``: the front-rear height difference
+    over the wheelbase, the left-right one over the track."""
     x, y, heading = (float(value) for value in vehicle_pose)
     forward = np.array([math.cos(heading), math.sin(heading)])
     left = np.array([-forward[1], forward[0]])

@@ -41,18 +41,12 @@ def exploration_field(
     n_landmarks: int = SPARSE_LANDMARKS,
     size_m: float = 40.0,
 ) -> Scenario:
-    """A square field with round obstacles, GPS-denied canopy zones and sparse landmarks, explored from a base.
+    """A square field with round obstacles, GPS-denied canopies and sparse landmarks, explored from a base.
 
-    The robots start parked side by side at a base ``BASE_INSET_M`` from the walls of one corner (drawn),
-    facing the field's centre; they drive by velocity commands, so their routes hold no waypoint.
-    Landmarks, canopy zones (radius 5-9 m) and obstacles (radius 0.7-1.5 m) are uniform over the field and
-    keep ``BASE_CLEARANCE_M`` (plus their radius) from the base; obstacles keep 1 m from every landmark.
-    The numbers are drawn in a fixed order (the corner, then rows of uniform numbers for the landmarks,
-    canopies and obstacles), so a batched builder can draw the same episodes.
-
-    Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its ``EXPLORATION_FIELD_ARGUMENTS`` interval.
-        ValueError: when the team does not fit along the base's diagonal, or the obstacles do not fit.
+    The robots start side by side at a base ``BASE_INSET_M`` from the walls of a random corner, facing the centre,
+    with no waypoints (velocity commands). Landmarks, canopies (radius 5-9 m) and obstacles (0.7-1.5 m) are uniform,
+    ``BASE_CLEARANCE_M`` (plus radius) off the base; obstacles 1 m off landmarks. ``ValueError`` for an argument
+    outside ``EXPLORATION_FIELD_ARGUMENTS`` or a team or obstacles that do not fit.
     """
     counts = {"n_robots": n_robots, "n_obstacles": n_obstacles, "n_canopies": n_canopies, "n_landmarks": n_landmarks}
     check_arguments("exploration_field", EXPLORATION_FIELD_ARGUMENTS, **counts, size_m=size_m)

@@ -19,17 +19,10 @@ from infonav_gym.world.visibility_kernels import blocked
 
 @kernel
 def waypoint_controls(copies, poses, index, n_waypoints, loops, waypoints, route_speeds, tolerance_m, gain, max_turn):
-    """The waypoint controller of every robot of ``copies``: the controls (n, R, 2); advances ``index`` in place.
+    """The waypoint controls (n, R, 2) of the robots (poses (n, R, 3)) of ``copies`` (n,); advances ``index`` (N, R).
 
-    A robot steers toward its current waypoint (heading error times ``gain``, saturated at ``max_turn``) at its
-    route's speed times the cosine of the heading error (none when facing away); a waypoint within ``tolerance_m``
-    is passed to the next (a looping route starts again, an open route ends: the robot stops).
-
-    Args:
-        copies: the copies stepped (n,); poses: their robots' poses (n, R, 3).
-        index: every copy's current waypoint per robot (N, R), updated; n_waypoints: route lengths (N, R);
-        loops: whether each route loops (N, R); waypoints: (N, R, W, 2) [m]; route_speeds: (N, R) [m/s].
-        tolerance_m: a waypoint this near is reached [m]; gain: heading gain [1/s]; max_turn: [rad/s].
+    Heading error times ``gain`` saturated at ``max_turn``, the route's speed times the error's cosine (none facing
+    away); a waypoint within ``tolerance_m`` is passed (a looping route restarts, an open one ends: a stop).
     """
     n_rows, n_robots = poses.shape[0], poses.shape[1]
     last = waypoints.shape[2] - 1
@@ -56,18 +49,9 @@ def waypoint_controls(copies, poses, index, n_waypoints, loops, waypoints, route
     return controls
 
 
-@kernel
 def unicycle_moves(poses, controls, dt):
     """Each robot driven straight along its heading for ``dt`` [s], heading turned at its rate: (n, R, 3)."""
-    after = np.empty_like(poses)
-    for row in range(poses.shape[0]):
-        for robot in range(poses.shape[1]):
-            x, y, heading = poses[row, robot, 0], poses[row, robot, 1], poses[row, robot, 2]
-            speed, turn_rate = controls[row, robot, 0], controls[row, robot, 1]
-            after[row, robot, 0] = x + speed * math.cos(heading) * dt
-            after[row, robot, 1] = y + speed * math.sin(heading) * dt
-            after[row, robot, 2] = wrap(heading + turn_rate * dt)
-    return after
+    return free_substeps(poses, controls, dt, 1)
 
 
 @kernel
@@ -101,12 +85,8 @@ def free_substeps(poses, controls, dt, substeps):
 
 @kernel
 def contact_within(copies, poses, controls, dt, boxes, radius_m):
-    """Which of ``copies`` have a wall or obstacle box (n,) and which two robots (n,) within reach in ``dt``.
-
-    A robot reaches ``radius_m + speed * dt`` around its position (its speed: ``controls[..., 0]``, (n, R, 2));
-    ``boxes`` (N, S, 4) are every copy's static shapes' ``(left, bottom, right, top)`` [m] (padding boxes overlap
-    nothing).
-    """
+    """Which of ``copies`` have a static box (``boxes`` (N, S, 4)) and which two robots (n,) within reach
+    ``radius_m + speed * dt`` in ``dt``."""
     n_rows, n_robots = poses.shape[0], poses.shape[1]
     near_static, near_robots = np.zeros(n_rows, dtype=np.bool_), np.zeros(n_rows, dtype=np.bool_)
     for row in range(n_rows):

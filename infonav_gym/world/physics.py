@@ -22,24 +22,18 @@ _ROBOT_MASS_KG = 10.0
 MAX_TIME_STEP_S = 60.0  # longest ``step`` [s]; near contacts it takes up to 600 Pymunk substeps
 TIME_STEP_S = Interval(0.0, MAX_TIME_STEP_S, open_low=True, unit="s")  # the allowed ``step`` durations
 WORLD_ARGUMENTS = {  # the allowed arguments of World and WorldBatch
-    "robot_radius_m": Interval(0.0, 10.0, open_low=True, unit="m"),
-    "max_turn_rate_rps": Interval(0.0, 100.0, open_low=True, unit="rad/s"),
-    "heading_gain": Interval(0.0, 1000.0, open_low=True, unit="1/s"),
-    "waypoint_tolerance_m": Interval(0.0, 100.0, open_low=True, unit="m"),
+    "robot_radius_m": Interval(0.0, 10.0, open_low=True, unit="m"),  # every robot's disc
+    "max_turn_rate_rps": Interval(0.0, 100.0, open_low=True, unit="rad/s"),  # the heading controller's saturation
+    "heading_gain": Interval(0.0, 1000.0, open_low=True, unit="1/s"),  # and its proportional gain
+    "waypoint_tolerance_m": Interval(0.0, 100.0, open_low=True, unit="m"),  # a waypoint this close is reached
     "wall_thickness_m": Interval(0.0, 10.0, open_low=True, unit="m"),
-    "max_physics_step_s": Interval(1e-3, 1.0, unit="s"),  # at most 60000 substeps of a longest step
+    "max_physics_step_s": Interval(1e-3, 1.0, unit="s"),  # longest Pymunk substep of a contact step
 }
 
 
 class ContactSpace:
-    """One copy's scenario in a Pymunk space: static walls and round obstacles, and a dynamic disc per robot.
-
-    Args:
-        scenario: the walls, obstacles and routes (one disc per route).
-        robot_radius_m: radius of every robot's disc [m].
-        wall_thickness_m: thickness of wall segments [m].
-        max_physics_step_s: longest Pymunk substep [s] of a ``drive``, split into equal substeps.
-    """
+    """One copy's scenario in a Pymunk space: static walls and round obstacles, a dynamic disc per route (robot);
+    arguments as ``WORLD_ARGUMENTS``."""
 
     def __init__(self, scenario: Scenario, robot_radius_m: float, wall_thickness_m: float, max_physics_step_s: float):
         self.max_physics_step_s = max_physics_step_s
@@ -75,43 +69,18 @@ class ContactSpace:
         return np.array([(*body.position, wrap_angle(body.angle)) for body in self._robot_bodies])
 
     def end_contacts(self) -> None:
-        """A free step ends a run of ``drive`` steps: Pymunk forgets the run's contacts (the robots leave and re-enter).
-
-        Pymunk remembers recent contacts to warm-start its solver; forgetting them when a run ends makes every run
-        start as in a fresh space, whatever came before, so a batched world may drop an idle copy's space to save
-        its memory (a few hundred kB) and build it again for the next run, with the same numbers.
-        """
+        """A free step ends a run of ``drive`` steps: Pymunk forgets the run's warm-start contacts, so every run starts
+        as in a fresh space and an idle copy's space may be dropped and rebuilt with the same numbers."""
         for body in self._robot_bodies:
             self.space.remove(body, *body.shapes)
         for body in self._robot_bodies:
             self.space.add(body, *body.shapes)
 
     def line_of_sight(self, origin, targets) -> np.ndarray:
-        """For each target point (N, 2), whether the straight line from ``origin`` misses every wall and obstacle.
-
-        Robots do not block the line of sight.
-        """
+        """Per target point (N, 2), whether the line from ``origin`` misses all walls and obstacles (not robots)."""
         start = (float(origin[0]), float(origin[1]))
         query = self.space.segment_query_first
         return np.array(
             [query(start, (float(x), float(y)), 0.0, _OBSTACLES_ONLY) is None for x, y in np.atleast_2d(targets)],
             dtype=bool,
         )
-
-
-def static_boxes(scenario: Scenario, wall_thickness_m: float) -> np.ndarray:
-    """Bounding boxes ``(left, bottom, right, top)`` of the scenario's walls, then obstacles (S, 4) [m], as Pymunk's."""
-    boxes = [
-        (
-            min(a[0], b[0]) - wall_thickness_m / 2,
-            min(a[1], b[1]) - wall_thickness_m / 2,
-            max(a[0], b[0]) + wall_thickness_m / 2,
-            max(a[1], b[1]) + wall_thickness_m / 2,
-        )
-        for a, b in scenario.walls
-    ]
-    boxes += [
-        (o.center[0] - o.radius, o.center[1] - o.radius, o.center[0] + o.radius, o.center[1] + o.radius)
-        for o in scenario.obstacles
-    ]
-    return np.array(boxes, dtype=float).reshape(-1, 4)

@@ -49,14 +49,8 @@ class CircleObstacle:
 
 @dataclass(frozen=True)
 class Route:
-    """One robot's route.
-
-    Attributes:
-        start_pose: initial ``[x, y, heading]`` of the robot [m, m, rad].
-        waypoints: points the robot drives to in turn (W, 2) [m]; empty: the robot stays parked.
-        loop: after the last waypoint, go back to the first (else stop there).
-        speed_mps: cruise speed along the route [m/s].
-    """
+    """One robot's route: start ``[x, y, heading]`` [m, m, rad], waypoints driven to in turn (W, 2) [m] (none:
+    parked), whether to loop back to the first, cruise speed [m/s]."""
 
     start_pose: tuple[float, float, float]
     waypoints: np.ndarray
@@ -76,18 +70,9 @@ class Route:
 
 @dataclass(frozen=True)
 class Scenario:
-    """Everything static about a world.
-
-    Attributes:
-        name: scenario name.
-        bounds: ``(x_min, y_min, x_max, y_max)`` of the drawable area [m].
-        routes: one route per robot (at least one); robot ``i`` drives ``routes[i]``.
-        walls: segments ``((x0, y0), (x1, y1))`` [m].
-        obstacles: circular obstacles.
-        landmarks: point landmark positions (L, 2) [m].
-        gps_denied_zones: circles where satellite positioning is unavailable (e.g. under
-            canopy); not physical, robots drive through them.
-    """
+    """Everything static about a world: drawable ``bounds`` ``(x_min, y_min, x_max, y_max)`` [m], one route per
+    robot (at least one), wall segments ``((x0, y0), (x1, y1))`` [m], circular obstacles, landmarks (L, 2) [m]
+    and GPS-denied circles (not physical: robots drive through them)."""
 
     name: str
     bounds: tuple[float, float, float, float]
@@ -103,12 +88,8 @@ class Scenario:
 
 
 def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario:
-    """The paper's Fig. 1: a straight corridor, the vehicle at its start, 4 candidate landmarks.
-
-    Landmark #3 (index 2) is the closest and lies across the direction of travel,
-    so it brings clearly more information than the others (Fig. 2). The layout is
-    fixed; ``np_random`` is accepted for a uniform builder signature.
-    """
+    """The paper's Fig. 1: a straight corridor, 4 landmarks; #3 (index 2), closest and across the direction of
+    travel, brings clearly the most information (Fig. 2). Fixed: ``np_random`` is unused."""
     del np_random
     check_arguments("corridor", CORRIDOR_ARGUMENTS, speed_mps=speed_mps)
     half_width, length = 3.0, 40.0
@@ -143,15 +124,10 @@ def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: in
 
 
 def _uniform_until_accepted(np_random, count: int, width: int, accept, what: str, max_attempts_each: int = 1000):
-    """Attempts of ``width`` uniform [0, 1) numbers, drawn until ``count`` pass ``accept``; the accepted rows.
+    """The first ``count`` rows of ``width`` uniform [0, 1) numbers that pass the batched test ``accept``.
 
-    ``_rejection_sample`` for samples made of ``width`` calls of ``np_random.uniform`` (``_uniform`` of each
-    number: ``Generator.uniform``'s arithmetic) whose test takes a batch of rows (M, width) -> (M,) bool and does
-    not depend on the rows accepted before. Attempts are drawn ahead in batches and the generator is rewound,
-    so it ends exactly after the last attempt, as with one draw per attempt: the same numbers.
-
-    Raises:
-        ValueError: naming ``what``, when ``count`` rows do not pass within ``max_attempts_each`` attempts each.
+    ``_rejection_sample`` drawn ahead in batches; the generator is rewound to end right after the last attempt,
+    so the numbers equal one draw per attempt. ``ValueError`` naming ``what`` when they do not fit.
     """
     accepted, attempts_left, batch = [], max_attempts_each * max(count, 1), max(4 * count, 16)
     while len(accepted) < count and attempts_left > 0:
@@ -224,15 +200,8 @@ def field(
     speed_mps: float = 1.0,
     n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> Scenario:
-    """An open square field: random landmarks and round obstacles around a random closed route.
-
-    Obstacles keep clear of the route and landmarks stay outside obstacles, so
-    the robot never collides and every landmark can be seen from somewhere.
-
-    Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its ``FIELD_ARGUMENTS`` interval.
-        ValueError: when the obstacles or landmarks do not fit.
-    """
+    """An open square field: random landmarks, and round obstacles clear of a random closed route. ``ValueError`` for
+    an argument outside ``FIELD_ARGUMENTS`` (``ParameterError``) or obstacles that do not fit."""
     arguments = {"n_landmarks": n_landmarks, "n_obstacles": n_obstacles, "size_m": size_m, "speed_mps": speed_mps}
     check_arguments("field", FIELD_ARGUMENTS, **arguments, n_waypoints=n_waypoints)
     center = np.array([size_m / 2, size_m / 2])
@@ -268,15 +237,10 @@ _TEAM_ANGLE_JITTER = 0.1  # jitter of a waypoint's polar angle, as a fraction of
 def _radial_bands(
     n_bands: int, inner_m: float, outer_m: float, gap_m: float, sector_rad: float, max_width_m: float
 ) -> list[tuple[float, float]]:
-    """Vertex radius ranges [m], innermost first, for closed polygons that stay ``gap_m`` apart.
+    """Vertex radius ranges [m], innermost first, of closed polygons ``gap_m`` apart between ``inner_m`` and
+    ``outer_m``, each up to ``max_width_m`` wide; ``ValueError`` when they do not fit.
 
-    A polygon's farthest point from the centre is a vertex, and its edges, each spanning
-    at most ``sector_rad``, stay at least ``cos(sector_rad / 2)`` times its smallest vertex
-    radius from the centre. Bands are stacked inward from ``outer_m`` so that every
-    polygon stays beyond ``inner_m``; each is as wide as fits, up to ``max_width_m``.
-
-    Raises:
-        ValueError: when even zero-width bands do not fit between ``inner_m`` and ``outer_m``.
+    Edges spanning at most ``sector_rad`` stay beyond ``cos(sector_rad / 2)`` times the smallest vertex radius.
     """
     sag = math.cos(sector_rad / 2)
 
@@ -300,11 +264,8 @@ def _radial_bands(
 
 
 def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> list:
-    """``count`` GPS-denied zones (radius 4-8 m) centred on random points of the closed routes.
-
-    Each covers at most ``MAX_CANOPY_COVER`` of every route, so no robot stays under one for
-    good, and no route's start (its first vertex), so every robot starts with satellite positioning.
-    """
+    """``count`` GPS-denied zones (radius 4-8 m) on the routes, each covering at most ``MAX_CANOPY_COVER`` of any
+    route and no route's start."""
 
     def draw() -> CircleObstacle:
         polygon = polygons[np_random.integers(len(polygons))]
@@ -327,10 +288,7 @@ def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> 
 
 
 def team_route_bands(n_robots: int, size_m: float, n_waypoints: int) -> list[tuple[float, float]]:
-    """The radial bands of ``team_field``'s routes, or ``ParameterError`` naming ``n_robots`` when they do not fit.
-
-    Deterministic, so an env can check at construction that its team fits its field.
-    """
+    """The radial bands of ``team_field``'s routes (deterministic), or ``ParameterError`` when they do not fit."""
     try:
         return _radial_bands(
             n_robots,
@@ -353,18 +311,12 @@ def team_field(
     speed_mps: float = 1.0,
     n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> Scenario:
-    """An open square field for a team: each robot loops its own route around the centre.
-
-    The routes lie in separate radial bands at least ``TEAM_ROUTE_GAP_M`` apart, so robots
-    rarely meet, and the robots start at spread-out angles. Round obstacles keep clear of
-    every route; ``n_canopies`` GPS-denied zones (radius 4-8 m) are centred on route points,
-    so robots pass under them; each covers at most ``MAX_CANOPY_COVER`` of any route and no
-    robot's start, so no robot stays under one for good. There are no landmarks.
+    """An open square field for a team, no landmarks: each robot loops its own route in a radial band
+    ``TEAM_ROUTE_GAP_M`` from the next; obstacles clear of the routes; GPS-denied zones on them (``_canopies_on``).
 
     Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its ``TEAM_FIELD_ARGUMENTS`` interval
-            or routes that do not fit (``team_route_bands``).
-        ValueError: when the obstacles or canopies do not fit.
+        ValueError: for an argument outside ``TEAM_FIELD_ARGUMENTS`` or a team that does not fit
+            (``ParameterError``), or obstacles or canopies that do not fit.
     """
     counts = {"n_robots": n_robots, "n_obstacles": n_obstacles, "n_canopies": n_canopies, "n_waypoints": n_waypoints}
     check_arguments("team_field", TEAM_FIELD_ARGUMENTS, **counts, size_m=size_m, speed_mps=speed_mps)
@@ -390,8 +342,7 @@ def team_field(
 
 CONVOY_LANE_SPACING_M = 6.0
 CONVOY_LENGTH_M = 62.0
-# Openings [m along x] in the hedge between lanes h and h + 1; the first hedge's openings
-# come after the Fig. 3 DGPS loss at 21 s, and at x = 42-45 both hedges are open.
+# Openings [m along x] in the hedge between lanes h and h + 1 (the first after Fig. 3's DGPS loss at 21 s)
 CONVOY_OPENINGS = (((30.0, 33.0), (42.0, 45.0), (54.0, 57.0)), ((12.0, 15.0), (42.0, 45.0)))
 
 
@@ -402,14 +353,8 @@ def _hedge(y: float, openings, x_start: float, x_end: float) -> tuple:
 
 
 def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float = 1.0) -> Scenario:
-    """The paper's Fig. 3 layout: robots drive side by side along +x in parallel lanes.
-
-    Robot ``k`` drives lane ``y = -6 k`` from ``x = 0`` to ``x = 62``. Hedges between
-    neighbouring lanes block line of sight except at a few openings
-    (``CONVOY_OPENINGS``; later hedges reuse the second pattern), so relative
-    observations come in bursts, as the paper's marked corrections do. The layout is
-    fixed; ``np_random`` is accepted for a uniform builder signature.
-    """
+    """The paper's Fig. 3: robot ``k`` drives lane ``y = -6 k`` from ``x = 0`` to 62; hedges between lanes block
+    sight but at ``CONVOY_OPENINGS``, so relative observations come in bursts. Fixed: ``np_random`` is unused."""
     del np_random
     check_arguments("convoy", CONVOY_ARGUMENTS, n_robots=n_robots, speed_mps=speed_mps)
     lanes = [-CONVOY_LANE_SPACING_M * k for k in range(n_robots)]
@@ -436,20 +381,10 @@ TEAM_SCENARIOS: set[str] = {"team_field", "convoy"}
 
 
 def register_scenario(name: str, builder: ScenarioBuilder, *, team: bool = False) -> None:
-    """Make ``builder`` the scenario ``name``: ``gym.make(..., scenario=name)`` then builds its worlds.
+    """Make ``builder(np_random, **parameters) -> Scenario`` the scenario ``name`` (``gym.make(..., scenario=name)``).
 
-    On every reset the env calls ``builder(np_random, **parameters)`` with its ``np_random`` and
-    those of its parameters that the builder's signature names (see ``build_scenario``). Register
-    in a module every process imports (``SubprocVecEnv`` workers start fresh).
-
-    Args:
-        name: the value of the env's ``scenario`` config key.
-        builder: returns a ``Scenario``; all its randomness from ``np_random``.
-        team: for ``cooperative_localization_v0`` (one route per robot), else for
-            ``LandmarkSelection-v0`` (one route, at most ``n_candidates`` landmarks).
-
-    Raises:
-        ValueError: for a name that is taken or not a non-empty string, or a builder that is not callable.
+    Register in a module every process imports (``SubprocVecEnv`` workers start fresh). ``team``: for the team
+    envs (one route per robot). ``ValueError`` for a taken or empty name or a builder that is not callable.
     """
     if not isinstance(name, str) or not name:
         raise ValueError(f"a scenario name must be a non-empty string, got {name!r}")
@@ -468,13 +403,9 @@ def scenario_names(team: bool) -> tuple[str, ...]:
 
 
 def build_scenario(name: str, np_random: np.random.Generator, **parameters) -> Scenario:
-    """Build the registered scenario ``name`` with ``np_random`` and the ``parameters`` its builder names.
+    """Build the scenario ``name`` with ``np_random`` and the ``parameters`` its builder names (all for ``**kwargs``).
 
-    A builder that takes ``**kwargs`` gets every parameter; one that names a few gets those:
-    ``corridor(np_random, speed_mps)`` ignores the field's ``n_obstacles``.
-
-    Raises:
-        ValueError: for an unknown name (listing the registered ones), or a builder that returns no ``Scenario``.
+    ``ValueError`` for an unknown name or a builder that returns no ``Scenario``.
     """
     if name not in SCENARIOS:
         raise ValueError(f"unknown scenario {name!r}; registered: {', '.join(sorted(SCENARIOS))}")
@@ -505,20 +436,8 @@ def scenario_from_config(
     n_routes: int,
     max_landmarks: int | None = None,
 ) -> Scenario:
-    """Build the registered scenario ``config["scenario"]`` for the env ``owner`` and check that it fits.
-
-    Args:
-        config: the env's config.
-        np_random: the env's generator.
-        parameter_keys: builder parameter -> the config key that gives its value.
-        owner: the env, for the error.
-        n_routes: how many routes the env drives (its robots).
-        max_landmarks: how many landmarks the env can tell apart (None: any number).
-
-    Raises:
-        ValueError: see ``build_scenario``; or, naming the scenario, when it has another number of
-            routes or more landmarks than the env can handle.
-    """
+    """Build ``config["scenario"]`` for the env ``owner`` (``parameter_keys``: builder parameter -> config key);
+    ``ValueError`` as ``build_scenario``'s, or unless it has ``n_routes`` routes and at most ``max_landmarks``."""
     parameters = {name: config[key] for name, key in parameter_keys.items()}
     scenario = build_scenario(config["scenario"], np_random, **parameters)
     routes, landmarks = len(scenario.routes), len(scenario.landmarks)

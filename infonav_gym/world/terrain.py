@@ -33,19 +33,11 @@ def _check_material(material: str, owner: str) -> None:
 
 @dataclass(frozen=True)
 class Cylinder:
-    """A vertical solid cylinder: a tree trunk or canopy, a rock.
+    """A vertical solid cylinder (a tree, a rock); lengths [m], material one of ``MATERIALS[1:]``."""
 
-    Attributes:
-        center_m: ``(x, y)`` of the axis [m].
-        radius_m: radius [m].
-        bottom_m: elevation of the base [m].
-        top_m: elevation of the top [m].
-        material: one of ``MATERIALS`` except ``"ground"``.
-    """
-
-    center_m: tuple[float, float]
+    center_m: tuple[float, float]  # (x, y) of the axis
     radius_m: float
-    bottom_m: float
+    bottom_m: float  # elevation of the base
     top_m: float
     material: str = "vegetation"
 
@@ -60,13 +52,7 @@ class Cylinder:
 
 @dataclass(frozen=True)
 class Box:
-    """An axis-aligned solid box: a wall or a building.
-
-    Attributes:
-        min_corner_m: ``(x, y, z)`` of the lowest corner [m].
-        max_corner_m: ``(x, y, z)`` of the highest corner [m].
-        material: one of ``MATERIALS`` except ``"ground"``.
-    """
+    """An axis-aligned solid box (a wall, a building) between two (x, y, z) corners [m]; material as a Cylinder's."""
 
     min_corner_m: tuple[float, float, float]
     max_corner_m: tuple[float, float, float]
@@ -84,43 +70,24 @@ class Box:
 
 @dataclass(frozen=True)
 class RayHits:
-    """Where a grid of rays first meets the scene.
+    """Where a grid of rays first meets the scene (R, C)."""
 
-    Attributes:
-        range_m: distance along each ray to the first hit (R, C) [m]; ``inf`` for no hit within range.
-        material_index: index into ``MATERIALS`` of what each ray hit (R, C); ``NO_HIT`` for none.
-        obstacle_index: index into ``cylinders + boxes`` of the obstacle each ray hit (R, C); -1 for the
-            ground and for none.
-    """
-
-    range_m: np.ndarray
-    material_index: np.ndarray
-    obstacle_index: np.ndarray
+    range_m: np.ndarray  # [m]; inf for no hit within range
+    material_index: np.ndarray  # into MATERIALS; NO_HIT for none
+    obstacle_index: np.ndarray  # into cylinders + boxes; -1 for the ground and for none
 
 
 @dataclass(frozen=True, eq=False)
 class Terrain:
-    """A height map on a regular grid plus solid obstacles.
+    """A height map plus solid obstacles: ``heights_m[i, j]`` is the ground at ``(x0 + j * cell_m, y0 + i * cell_m)``,
+    bilinear between grid points, the edge heights extended beyond."""
 
-    ``heights_m[i, j]`` is the ground elevation at ``(x0 + j * cell_m, y0 + i * cell_m)``;
-    between grid points the ground is bilinear, beyond the grid the edge heights extend.
-
-    Attributes:
-        heights_m: ground elevations (H, W) with H, W >= 2 [m].
-        origin_m: ``(x0, y0)`` of grid point ``[0, 0]`` [m].
-        cell_m: grid spacing [m].
-        cylinders: vertical cylinders (trees, rocks).
-        boxes: axis-aligned boxes (walls, buildings).
-        arrays: the scene as the kernels of ``terrain_kernels`` take it, ``(grid, obstacles, materials,
-            n_cylinders)``: the grid ``(heights, x0, y0, cell_m)``, the obstacle table (M, 9) of ``cylinders +
-            boxes`` and their material indices (M,) int8.
-    """
-
-    heights_m: np.ndarray
-    origin_m: tuple[float, float] = (0.0, 0.0)
-    cell_m: float = 1.0
+    heights_m: np.ndarray  # (H, W), H, W >= 2 [m]
+    origin_m: tuple[float, float] = (0.0, 0.0)  # (x0, y0) [m]
+    cell_m: float = 1.0  # [m]
     cylinders: tuple[Cylinder, ...] = ()
     boxes: tuple[Box, ...] = ()
+    # for terrain_kernels: ((heights, x0, y0, cell_m), obstacle table (M, 9), materials (M,) int8, n_cylinders)
     arrays: tuple = field(init=False, repr=False)
 
     def __post_init__(self):
@@ -169,25 +136,9 @@ class Terrain:
         )[()]
 
     def cast_rays(self, origin_m, azimuth_rad, elevation_rad, max_range_m: float) -> RayHits:
-        """First hits of a grid of rays whose columns share an azimuth (a scanner's or an upright camera's).
-
-        Ray ``(r, c)`` leaves ``origin_m`` towards azimuth ``azimuth_rad[c]`` (world frame,
-        counterclockwise from +x) at elevation ``elevation_rad[r]`` (or ``[r, c]``) above the
-        horizontal. Since a column's rays share one vertical plane, the ground is sampled once
-        per cell along each column; a ray meets it at the first sample whose elevation angle seen
-        from the origin reaches the ray's, refined by linear interpolation (exact on planar ground)
-        and false-position steps. Obstacles are intersected analytically; an origin inside one
-        gives range 0. Compiled: ``terrain_kernels.first_hits``.
-
-        Args:
-            origin_m: ``(x, y, z)`` of the ray origin, above the ground [m].
-            azimuth_rad: (C,) world azimuth of each column [rad].
-            elevation_rad: (R,) or (R, C) elevation of each ray, inside (-pi/2, pi/2) [rad].
-            max_range_m: hits farther than this are dropped [m].
-
-        Returns:
-            The range, material and obstacle of each ray's first hit, (R, C).
-        """
+        """First hits (R, C) within ``max_range_m`` of rays from ``origin_m`` ``(x, y, z)`` [m] at world azimuths
+        ``azimuth_rad`` (C,) and elevations ``elevation_rad`` (R,) or (R, C) in (-pi/2, pi/2) [rad]: compiled
+        ``terrain_kernels.first_hits``."""
         origin = np.array(finite_vector(origin_m, 3, "ray origin_m"))
         azimuth = np.asarray(azimuth_rad, dtype=float)
         elevation = np.asarray(elevation_rad, dtype=float)

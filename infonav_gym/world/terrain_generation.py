@@ -64,32 +64,17 @@ def make_terrain(
     clear_radius_m: float = 5.0,
     clear_path_m=None,
 ) -> Terrain:
-    """A random scene: hills and bumps scaled by ``roughness``, with trees, rocks and buildings.
+    """A random ``size_m`` square scene centred on ``center_m`` [m] with trees, rocks and buildings.
 
-    Heights are smooth Gaussian random fields: hills (std ``2 m * roughness``, length scale
-    8 m) plus bumps (std ``0.4 m * roughness**2``, length scale 1 m), so ``roughness=0`` is
-    level ground at height 0, 0.5 gently rolling, 1 and more rugged. Obstacles stand on the
-    ground (their bases reach the lowest ground under their footprint) and keep out of the
-    disc of ``clear_radius_m`` around ``center_m``, where a vehicle can start. Obstacle layout
-    does not depend on ``roughness`` for a given generator state.
-
-    Args:
-        np_random: the only source of randomness.
-        size_m: side of the square scene [m].
-        cell_m: grid spacing [m].
-        roughness: dimensionless ground roughness, in [0, 10].
-        n_trees: trees (vegetation cylinders, radius 0.2-0.6 m, 4-12 m tall); each count in [0, 500].
-        n_rocks: rocks (rock cylinders, radius 0.4-1.5 m, 0.3-1.5 m tall).
-        n_buildings: buildings (boxes, sides 3-10 m, 3-8 m tall).
-        center_m: ``(x, y)`` of the scene centre [m].
-        clear_radius_m: obstacle-free distance around ``clear_path_m`` [m].
-        clear_path_m: a closed polyline (W, 2) [m] the obstacles keep clear of, e.g. a vehicle's
-            route; default: the single point ``center_m``.
+    Heights: Gaussian random fields, hills (std ``_HILL_STD_M * roughness``) plus bumps (std ``_BUMP_STD_M *
+    roughness**2``): 0 is level, 0.5 rolling, 1 rugged. Obstacles stand on the lowest ground under them and keep
+    ``clear_radius_m`` off ``clear_path_m`` (a closed (W, 2) polyline [m], default ``center_m``); their layout
+    does not depend on ``roughness``. Trees: radius 0.2-0.6 m, 4-12 m tall; rocks: 0.4-1.5 m, 0.3-1.5 m tall;
+    buildings: boxes, sides 3-10 m, 3-8 m tall.
 
     Raises:
-        ParameterError: (a ``ValueError``) for a size outside [cell_m, 2000 cells] or another argument outside
-            its ``TERRAIN_ARGUMENTS`` interval.
-        ValueError: for a bad clear path or when the obstacles do not fit.
+        ValueError: for an argument outside ``TERRAIN_ARGUMENTS`` or ``_grid_points``' range (``ParameterError``),
+            a bad clear path, or obstacles that do not fit.
     """
     points = _grid_points(size_m, cell_m)
     counts = {"n_trees": n_trees, "n_rocks": n_rocks, "n_buildings": n_buildings}

@@ -168,23 +168,14 @@ def illinois_step(low_s, low_f, high_s, high_f, side, s, f):
 
 @kernel
 def first_hits(arrays, origin, azimuth, elevation, max_range_m):
-    """First hits in the scene ``arrays`` ``(grid, obstacles, materials, n_cylinders)`` of rays ``(r, c)`` from
-    ``origin`` (3,) towards azimuth ``azimuth[c]`` (C,) at elevation ``elevation[r, c]`` ((R, C) or (R, 1), inside
-    (-pi/2, pi/2)) [rad].
+    """First hits ``(range_m, material, obstacle)`` (R, C) in the scene ``arrays`` of rays from ``origin`` (3,) at
+    azimuth ``azimuth[c]`` and elevation ``elevation[r, c]`` ((R, C) or (R, 1), in (-pi/2, pi/2)) [rad].
 
-    Each column is one vertical plane: the ground is sampled once per cell along it (up to where the horizon seen
-    from the origin reaches the column's steepest ray) and a ray meets the ground at the first sample whose slope
-    seen from the origin reaches the ray's, refined by ``REFINE_ITERATIONS`` Illinois steps (exact on planar ground),
-    a column's rays together; obstacles are intersected analytically (an origin inside one gives range 0; on equal
-    distances the higher material index wins). Rays that meet an obstacle before the sample bracketing their ground
-    crossing are not refined. The refinement is three loops over a column's rays per step: the cells under their
-    points (vectorized), the cells' corner heights (scalar reads), the Illinois steps (vectorized); they stay in this
-    kernel (moved into a helper kernel, they compiled to slower code: casts took 10 to 50 % longer).
-
-    Returns:
-        ``(range_m, material, obstacle)`` (R, C): the distance to the first hit [m] (``inf`` for none within
-        ``max_range_m``), its material index (``GROUND``, an obstacle's, ``NO_HIT``) and its obstacle's row
-        (-1 for the ground and for none).
+    A column is one vertical plane: the ground is sampled once per cell along it, and a ray meets it at the first
+    sample whose slope seen from the origin reaches the ray's, refined by ``REFINE_ITERATIONS`` Illinois steps
+    (exact on planar ground) unless an obstacle comes first. Obstacles are intersected analytically (an origin
+    inside one: range 0; ties to the higher material index). No hit: ``inf``, ``NO_HIT``, obstacle -1 (also -1 for
+    the ground). The refinement loops stay in this kernel: in a helper they compiled 10 to 50 % slower.
     """
     grid, obstacles, materials, n_cylinders = arrays
     rows, columns, wide = elevation.shape[0], azimuth.shape[0], elevation.shape[1] > 1

@@ -1,8 +1,7 @@
 """A vehicle's loop through a 2.5D terrain: the ``Terrain`` the sensors see and the ``Scenario`` Pymunk drives.
 
-The obstacles are one set seen two ways: trees and rocks (``Cylinder``) are round
-obstacles of the 2D world, buildings (``Box``) are four walls, so what blocks the
-vehicle is what the LADAR and the camera see.
+Trees and rocks are round obstacles of the 2D world, buildings four walls: what blocks the vehicle is what the
+sensors see.
 """
 
 from __future__ import annotations
@@ -70,15 +69,8 @@ def terrain_loop(
     speed_mps: float = 2.0,
     n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> TerrainScenario:
-    """A random scene (see ``make_terrain``) and a closed route through it that obstacles keep clear of.
-
-    The route is a jittered polygon around the scene centre at 22-36 % of ``size_m``; trees,
-    rocks and buildings stand anywhere else, so the views along the loop change from open
-    ground to woods to buildings.
-
-    Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its ``TERRAIN_LOOP_ARGUMENTS`` interval.
-    """
+    """A random scene (``make_terrain``) and a closed route through it, a jittered polygon at 22-36 % of ``size_m``
+    that obstacles keep clear of; ``ParameterError`` outside ``TERRAIN_LOOP_ARGUMENTS``."""
     counts = {"n_trees": n_trees, "n_rocks": n_rocks, "n_buildings": n_buildings, "n_waypoints": n_waypoints}
     check_arguments("terrain_loop", TERRAIN_LOOP_ARGUMENTS, size_m=size_m, roughness=roughness, **counts)
     check_arguments("terrain_loop", TERRAIN_LOOP_ARGUMENTS, speed_mps=speed_mps)

@@ -1,18 +1,9 @@
-"""Batched visibility: which of K targets each of N robots sees, on stacked arrays (the queries compiled:
-``visibility_kernels``).
+"""Batched visibility: which of K targets each of N robots sees (the queries compiled: ``visibility_kernels``).
 
-``segments_clear`` decides as ``ContactSpace.line_of_sight`` does with Pymunk's ``segment_query_first`` (radius 0,
-static walls and discs only: robots never block): the same floating-point operations of Chipmunk's
-segment queries in the same order, so the answers agree bit for bit. There is no tolerance to tune;
-the degenerate cases follow Chipmunk's rules:
-
-- a query whose origin lies inside or on a wall or disc (distance <= 0) is blocked;
-- a hit counts only before the target (fraction along the query < 1): a target exactly on a surface is visible;
-- a zero-length query (target = origin) is blocked only from inside a shape;
-- a tangent line is blocked where the rounded discriminant of its circle test is >= 0;
-- a wall of zero length tests its end discs, except for a query line exactly through its point (never a hit);
-- a shape counts only where the query also enters its bounding box (Chipmunk's tree culls the others),
-  unless the world has a single static shape (a tree of one leaf, never culled).
+``segments_clear`` repeats the floating-point operations of Chipmunk's segment queries (Pymunk's
+``segment_query_first``, radius 0, static shapes only) in their order, so it agrees with
+``ContactSpace.line_of_sight`` bit for bit, degenerate cases included (an origin inside or on a shape is
+blocked; a target on a surface is visible; bounding-box culling unless the world has one static shape).
 """
 
 from __future__ import annotations
@@ -39,17 +30,8 @@ def _read_only(array: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class StaticGeometry:
-    """The static walls (segments with a radius) and discs of N worlds, padded to the largest counts.
-
-    Attributes:
-        wall_starts: first end of each wall (N, S, 2) [m].
-        wall_ends: second end of each wall (N, S, 2) [m].
-        wall_radii: half of each wall's thickness (N, S) [m].
-        wall_valid: which walls are real, not padding (N, S) bool.
-        disc_centers: centre of each disc (N, D, 2) [m].
-        disc_radii: radius of each disc (N, D) [m].
-        disc_valid: which discs are real, not padding (N, D) bool.
-    """
+    """The static walls (N, S) (ends [m], radius: half the thickness [m]) and discs (N, D) (centre, radius [m]) of
+    N worlds, padded to the largest counts (``*_valid``: not padding)."""
 
     wall_starts: np.ndarray
     wall_ends: np.ndarray
@@ -61,13 +43,8 @@ class StaticGeometry:
 
     @classmethod
     def from_scenario(cls, scenario: Scenario, wall_thickness_m: float) -> StaticGeometry:
-        """The geometry (one copy) of the static shapes ``ContactSpace`` builds of ``scenario`` (``wall_thickness_m``).
-
-        Raises:
-            ParameterError: (a ``ValueError``) for a ``wall_thickness_m`` outside World's interval.
-            ValueError: naming the scenario, for a wall that is not two finite points or a disc without
-                a finite centre and a finite radius >= 0.
-        """
+        """The static shapes ``ContactSpace`` builds of ``scenario`` (one copy); ``ValueError`` for a bad
+        ``wall_thickness_m``, wall or obstacle."""
         WORLD_ARGUMENTS["wall_thickness_m"].check("StaticGeometry.from_scenario", "wall_thickness_m", wall_thickness_m)
         try:
             walls = np.array(scenario.walls, dtype=float).reshape(-1, 2, 2)
@@ -97,60 +74,39 @@ class StaticGeometry:
 
     @classmethod
     def stack(cls, geometries) -> StaticGeometry:
-        """The copies of all ``geometries`` one after the other, walls and discs padded to the largest counts.
-
-        Raises:
-            ValueError: for an empty sequence or an item that is not a ``StaticGeometry``.
-        """
+        """The copies of all ``geometries`` one after the other, padded; ``ValueError`` for none or another type."""
         geometries = list(geometries)
         if not geometries or not all(isinstance(geometry, StaticGeometry) for geometry in geometries):
             raise ValueError(f"StaticGeometry.stack needs one or more StaticGeometry, got {geometries!r}")
+        return cls._padded(geometries, lambda name, count: np.concatenate([_pad(g, name, count) for g in geometries]))
+
+    @classmethod
+    def _padded(cls, geometries: list, make) -> StaticGeometry:
+        """The geometry whose field ``name`` is ``make(name, count)``, count the largest of ``geometries``'."""
         walls = max(geometry.wall_radii.shape[1] for geometry in geometries)
         discs = max(geometry.disc_radii.shape[1] for geometry in geometries)
-
-        copies = sum(geometry.n_copies for geometry in geometries)
-
-        def padded(name: str, count: int) -> np.ndarray:
-            first = getattr(geometries[0], name)
-            stacked, copy = np.zeros((copies, count, *first.shape[2:]), dtype=first.dtype), 0
-            for geometry in geometries:
-                array = getattr(geometry, name)
-                stacked[copy : copy + len(array), : array.shape[1]] = array
-                copy += len(array)
-            return _read_only(stacked)
-
         return cls(
-            **{name: padded(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
-            **{name: padded(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
+            **{
+                name: _read_only(make(name, discs if name.startswith("disc") else walls))
+                for name in cls.__dataclass_fields__
+            }
         )
 
     def with_copies(self, copies, replacement: StaticGeometry) -> StaticGeometry:
-        """This geometry with copies ``copies`` (n,) replaced by the n copies of ``replacement``, padded to fit.
-
-        Raises:
-            ValueError: unless ``replacement`` holds one copy per index of ``copies``.
-        """
+        """This geometry with copies ``copies`` (n,) replaced by the n copies of ``replacement``, padded to fit."""
         copies = np.asarray(copies, dtype=int)
         if replacement.n_copies != len(copies):
             raise ValueError(
                 f"StaticGeometry.with_copies: {len(copies)} copies to replace, but the replacement holds "
                 f"{replacement.n_copies}"
             )
-        walls = max(self.wall_radii.shape[1], replacement.wall_radii.shape[1])
-        discs = max(self.disc_radii.shape[1], replacement.disc_radii.shape[1])
 
         def merged(name: str, count: int) -> np.ndarray:
-            array, new = getattr(self, name), getattr(replacement, name)
-            result = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
-            result[:, : array.shape[1]] = array
-            result[copies] = 0
-            result[copies, : new.shape[1]] = new
-            return _read_only(result)
+            result = _pad(self, name, count)
+            result[copies] = _pad(replacement, name, count)
+            return result
 
-        return StaticGeometry(
-            **{name: merged(name, walls) for name in ("wall_starts", "wall_ends", "wall_radii", "wall_valid")},
-            **{name: merged(name, discs) for name in ("disc_centers", "disc_radii", "disc_valid")},
-        )
+        return self._padded([self, replacement], merged)
 
     def tiled(self, n_copies: int) -> StaticGeometry:
         """Copy 0 of this geometry ``n_copies`` times (read-only views: nothing is copied)."""
@@ -162,10 +118,8 @@ class StaticGeometry:
         )
 
     def grown(self, margin_m: float) -> StaticGeometry:
-        """These shapes grown by ``margin_m`` [m] >= 0 (each one's Minkowski sum with a disc of that radius).
-
-        A disc of radius ``margin_m`` swept along a line touches a shape exactly where the line hits the grown one.
-        """
+        """These shapes grown by ``margin_m`` [m] >= 0: a disc of that radius swept along a line touches a shape
+        where the line hits the grown one."""
         if not margin_m >= 0.0:
             raise ValueError(f"StaticGeometry.grown: margin_m must be >= 0 [m], got {margin_m}")
         if margin_m not in self._grown:  # kept: a grown geometry's boxes are computed once
@@ -184,7 +138,11 @@ class StaticGeometry:
     @functools.cached_property
     def wall_boxes(self) -> np.ndarray:
         """Chipmunk's bounding box of each wall (cpSegmentShapeCacheData) (N, S, 4) ``(left, bottom, right, top)``."""
-        return _read_only(_wall_boxes(self.wall_starts, self.wall_ends, self.wall_radii))
+        a_x, a_y, b_x, b_y = np.moveaxis(self.wall_points, -1, 0)
+        radii = self.wall_radii
+        left, right = np.where(a_x < b_x, a_x, b_x) - radii, np.where(a_x < b_x, b_x, a_x) + radii
+        bottom, top = np.where(a_y < b_y, a_y, b_y) - radii, np.where(a_y < b_y, b_y, a_y) + radii
+        return _read_only(np.stack([left, bottom, right, top], axis=-1))
 
     @functools.cached_property
     def wall_points(self) -> np.ndarray:
@@ -194,12 +152,21 @@ class StaticGeometry:
     @functools.cached_property
     def disc_boxes(self) -> np.ndarray:
         """Chipmunk's bounding box of each disc (cpBBNewForCircle) (N, D, 4)."""
-        return _read_only(_disc_boxes(self.disc_centers, self.disc_radii))
+        centers, radii = self.disc_centers, self.disc_radii
+        return _read_only(np.concatenate([centers - radii[..., None], centers + radii[..., None]], axis=-1))
 
     @functools.cached_property
     def culled(self) -> np.ndarray:
         """Whether Chipmunk culls each copy's shapes by bounding box: it has more than one static shape (N,) bool."""
         return self.wall_valid.sum(axis=1) + self.disc_valid.sum(axis=1) > 1
+
+
+def _pad(geometry: StaticGeometry, name: str, count: int) -> np.ndarray:
+    """``geometry``'s field ``name`` zero-padded to ``count`` walls or discs."""
+    array = getattr(geometry, name)
+    padded = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
+    padded[:, : array.shape[1]] = array
+    return padded
 
 
 def _finite_array(value, shape: tuple, what: str) -> np.ndarray:
@@ -212,21 +179,6 @@ def _finite_array(value, shape: tuple, what: str) -> np.ndarray:
     return array
 
 
-def _wall_boxes(starts, ends, radii) -> np.ndarray:
-    """Chipmunk's bounding box of each wall (cpSegmentShapeCacheData) (N, S, 4)."""
-    a_x, a_y, b_x, b_y = starts[..., 0], starts[..., 1], ends[..., 0], ends[..., 1]
-    left, right = np.where(a_x < b_x, a_x, b_x) - radii, np.where(a_x < b_x, b_x, a_x) + radii
-    bottom, top = np.where(a_y < b_y, a_y, b_y) - radii, np.where(a_y < b_y, b_y, a_y) + radii
-    return np.stack([left, bottom, right, top], axis=-1)
-
-
-def _disc_boxes(centers, radii) -> np.ndarray:
-    """Chipmunk's bounding box of each disc (cpBBNewForCircle) (N, D, 4)."""
-    return np.stack(
-        [centers[..., 0] - radii, centers[..., 1] - radii, centers[..., 0] + radii, centers[..., 1] + radii], -1
-    )
-
-
 def _check_copies(function: str, geometry: StaticGeometry, count: int, what: str) -> None:
     if not isinstance(geometry, StaticGeometry):
         raise ValueError(f"{function}: geometry must be a StaticGeometry, got {type(geometry).__name__}")
@@ -235,22 +187,10 @@ def _check_copies(function: str, geometry: StaticGeometry, count: int, what: str
 
 
 def segments_clear(geometry: StaticGeometry, copies, starts, ends, *, check_input: bool = True) -> np.ndarray:
-    """Whether each straight line ``starts[m]`` -> ``ends[m]`` in copy ``copies[m]`` misses every wall and disc.
+    """Whether each line ``starts[m]`` -> ``ends[m]`` (M, 2) [m] in copy ``copies[m]`` misses every shape (M,).
 
-    Equal to ``World.line_of_sight(starts[m], ends[m:m + 1])`` of that copy's world (see the module): lines of
-    any copies in one call, e.g. from each of a copy's robots to its own targets. ``check_input=False`` skips the
-    checks, for known-good arrays in hot loops (as ``visible``).
-
-    Args:
-        geometry: the static shapes of N copies.
-        copies: each line's copy (M,) int in [0, N).
-        starts, ends: the lines' ends (M, 2) [m].
-
-    Returns:
-        (M,) bool.
-
-    Raises:
-        ValueError: for a wrong shape, a non-finite value, or a copy index outside the geometry's.
+    Equal to ``World.line_of_sight`` of that copy's world. ``check_input=False`` skips the checks (``ValueError``
+    for a wrong shape, a non-finite value or a copy outside the geometry's), for hot loops.
     """
     if check_input:
         if not isinstance(geometry, StaticGeometry):
@@ -283,21 +223,8 @@ def shape_arrays(geometry: StaticGeometry) -> tuple:
 
 
 def swept_discs_clear(geometry: StaticGeometry, starts, ends, radius_m: float) -> np.ndarray:
-    """Whether a disc of ``radius_m`` [m] moved straight from each start to its end touches no wall or disc.
-
-    The line of sight of the shapes grown by ``radius_m`` (``StaticGeometry.grown``); a disc that starts
-    touching a shape is not clear, one that ends just touching it is.
-
-    Args:
-        geometry: the static shapes of N copies.
-        starts, ends: K moves per copy (N, K, 2) [m].
-        radius_m: the disc's radius [m] >= 0.
-
-    Returns:
-        (N, K) bool.
-
-    Raises:
-        ValueError: for a wrong shape, a non-finite value, a negative radius or another number of copies.
+    """Whether a disc of ``radius_m`` [m] moved straight along each of K moves per copy (N, K, 2) [m] touches no
+    shape (N, K): one that starts touching is not clear, one that ends touching is. ``ValueError`` for bad input.
     """
     starts = _finite_array(starts, (None, None, 2), "swept_discs_clear: starts [m]")
     ends = _finite_array(ends, starts.shape, "swept_discs_clear: ends [m] (one per start)")
@@ -308,24 +235,14 @@ def swept_discs_clear(geometry: StaticGeometry, starts, ends, radius_m: float) -
 
 
 def in_coverage(sensor: RangeBearingSensor, poses, targets) -> np.ndarray:
-    """Whether each target lies within ``sensor``'s range and field of view from each copy's pose.
+    """Whether each of K targets per copy (N, K, 2) [m] lies in ``sensor``'s range and field of view from the
+    copy's pose ``[x, y, heading]`` (N, 3) (N, K); ``ValueError`` for a wrong shape or a non-finite value."""
+    return _in_coverage(sensor, *_poses_and_targets(poses, targets))
 
-    Equal to ``sensor.in_coverage(range_bearing(poses[i], targets[i]))`` of each copy.
 
-    Args:
-        sensor: the range-bearing sensor.
-        poses: one true pose ``[x, y, heading]`` per copy (N, 3) [m, m, rad].
-        targets: K targets per copy (N, K, 2) [m].
-
-    Returns:
-        (N, K) bool.
-
-    Raises:
-        ValueError: for a wrong shape or a non-finite value.
-    """
+def _poses_and_targets(poses, targets) -> tuple[np.ndarray, np.ndarray]:
     poses = _finite_array(poses, (None, 3), "in_coverage: poses [m, m, rad]")
-    targets = _finite_array(targets, (len(poses), None, 2), "in_coverage: targets [m] (one row per pose)")
-    return _in_coverage(sensor, poses, targets)
+    return poses, _finite_array(targets, (len(poses), None, 2), "in_coverage: targets [m] (one row per pose)")
 
 
 def _in_coverage(sensor: RangeBearingSensor, poses: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -334,17 +251,12 @@ def _in_coverage(sensor: RangeBearingSensor, poses: np.ndarray, targets: np.ndar
 
 
 def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets, *, check_input: bool = True):
-    """Which targets each copy's robot sees: in ``sensor``'s coverage and in line of sight (N, K) bool.
+    """Which targets each copy's robot sees: in ``sensor``'s coverage and line of sight (N, K) bool.
 
-    Equal to ``sensor.in_coverage`` of each copy's measurements and ``World.line_of_sight`` (Pymunk's segment queries).
-    ``check_input=False`` skips the checks, for known-good float arrays in hot loops.
-
-    Raises:
-        ValueError: as ``in_coverage``, or for another number of poses than ``geometry``'s copies.
+    ``check_input=False`` skips the checks (as ``in_coverage``'s, and one pose per copy), for hot loops.
     """
     if check_input:
-        poses = _finite_array(poses, (None, 3), "in_coverage: poses [m, m, rad]")
-        targets = _finite_array(targets, (len(poses), None, 2), "in_coverage: targets [m] (one row per pose)")
+        poses, targets = _poses_and_targets(poses, targets)
         _check_copies("visible", geometry, len(poses), "poses")
     seen = _in_coverage(sensor, poses, targets)
     copy, target = np.nonzero(seen)

@@ -1,9 +1,7 @@
 """Compiled segment queries of ``world.visibility``: Chipmunk's tests, one query and one shape at a time.
 
-Each function does the floating-point operations of Chipmunk's segment queries in the same order as
-``pymunk``'s ``segment_query_first`` at radius 0 (see ``world.visibility`` for the rules of the degenerate
-cases); ``shape_hits`` runs them for M queries against the shapes of their copies, where Chipmunk's bounding-box
-tree would. A NaN in a comparison makes it false, as in the numpy expressions these replace.
+The floating-point operations of ``pymunk``'s ``segment_query_first`` at radius 0 in its order (``world.visibility``);
+a NaN in a comparison makes it false.
 """
 
 from __future__ import annotations
@@ -97,15 +95,8 @@ def hits_disc(origin_x, origin_y, target_x, target_y, center_x, center_y, r) -> 
 
 @kernel
 def shape_hits(copy, origins, targets, points, radii, boxes, usable, culled, kind):
-    """Which shapes M queries hit where Chipmunk's tree would test them: (M, S) bool.
-
-    Args:
-        copy: each query's copy (M,) int; origins, targets: the queries' ends (M, 2) [m].
-        points: the shapes' points (N, S, P) [m]: a wall's two ends (P = 4) or a disc's centre (P = 2).
-        radii: (N, S) [m]; boxes: their bounding boxes (N, S, 4) ``(left, bottom, right, top)`` [m].
-        usable: the real (not padding) shapes (N, S) bool; culled: whether the copy's tree culls (N,) bool.
-        kind: ``WALL`` or ``DISC``.
-    """
+    """Which shapes (of ``kind``: walls' ends (N, S, 4) or discs' centres (N, S, 2) in ``points``) the M queries
+    ``origins`` -> ``targets`` (M, 2) of copies ``copy`` hit where Chipmunk's tree would test them (M, S)."""
     n_queries, n_shapes = len(copy), radii.shape[1]
     hits = np.zeros((n_queries, n_shapes), dtype=np.bool_)
     for query in range(n_queries):

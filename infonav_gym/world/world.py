@@ -12,20 +12,8 @@ _ONLY_COPY = np.zeros(1, dtype=int)
 
 
 class World:
-    """The robots of a scenario driving in a Pymunk world of walls and round obstacles.
-
-    Each robot is a dynamic disc driven by a waypoint controller. A step in which no wall, obstacle or other robot
-    comes within reach of any robot is free motion, integrated as Pymunk integrates a free body; any other step is
-    Pymunk's, so walls, obstacles and the other robots stop or push them for real, and the executed motion is read
-    back, not assumed. It is one copy of a ``WorldBatch``, which holds the arrays and the rules.
-
-    Args:
-        **world_args: ``robot_radius_m``, ``max_turn_rate_rps``, ``heading_gain``, ``waypoint_tolerance_m``,
-            ``wall_thickness_m``, ``max_physics_step_s`` (``WorldBatch``'s, with its defaults).
-
-    Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its ``WORLD_ARGUMENTS`` interval.
-    """
+    """The robots of a scenario, discs driven by waypoint controllers in a Pymunk world of walls and obstacles: one
+    copy of a ``WorldBatch`` (``world_args``: ``WORLD_ARGUMENTS``; ``ParameterError`` outside them)."""
 
     def __init__(self, **world_args):
         self._batch = WorldBatch(1, **world_args)
@@ -70,19 +58,10 @@ class World:
         return self._batch.waypoint_indices(0)
 
     def step(self, dt: float) -> np.ndarray:
-        """Drive every robot toward its current waypoint for ``dt`` seconds.
-
-        Returns:
-            The executed ``[speed, turn_rate]`` of every robot (R, 2) [m/s, rad/s].
-
-        Raises:
-            ParameterError: (a ``ValueError``) unless ``dt`` is in ``TIME_STEP_S``, (0, 60] s.
-        """
+        """Drive every robot toward its waypoint for ``dt`` s (``TIME_STEP_S``); the executed ``[speed, turn_rate]``
+        (R, 2) [m/s, rad/s]."""
         return self._batch.step(dt, _ONLY_COPY)[0]
 
     def line_of_sight(self, origin, targets) -> np.ndarray:
-        """For each target point (N, 2), whether the straight line from ``origin`` misses every wall and obstacle.
-
-        Robots do not block the line of sight.
-        """
+        """Per target point (N, 2), whether the line from ``origin`` misses all walls and obstacles (not robots)."""
         return self._batch.contact_space(0).line_of_sight(origin, targets)

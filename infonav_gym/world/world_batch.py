@@ -1,13 +1,10 @@
 """``WorldBatch``: N copies of a world of robots driving among walls and obstacles, stepped at once on stacked arrays.
 
-Each copy holds R robots, each driven by a waypoint controller or a velocity command. A step in which no wall,
-obstacle or other robot comes within reach of any robot of a copy is free motion, integrated as Pymunk integrates a
-free body (position += velocity x dt, angle += angular velocity x dt), compiled (``motion_kernels``). A copy in which
-something comes within reach takes the step in its own Pymunk space (``physics.ContactSpace``, built when a copy
-first needs one), unless the robots' straight paths keep ``CONTACT_GAP_M`` beyond touching anything: Pymunk then
-finds no contact, and its substeps run here, the same numbers (not inside a run of contact steps, whose contacts
-Pymunk keeps). So every copy moves as Pymunk moves it; ``tests/test_pymunk_oracle.py`` holds it to a world where
-Pymunk takes every step. ``World`` is its N = 1 view.
+A step with nothing within reach of a copy's robots is free motion, integrated as Pymunk integrates a free body
+(compiled: ``motion_kernels``); otherwise the copy steps in its own Pymunk space (``physics.ContactSpace``), unless
+the straight paths keep ``CONTACT_GAP_M`` off everything outside a run of contact steps (Pymunk would find no
+contact: its substeps run here, the same numbers). So every copy moves as Pymunk moves it
+(``tests/test_pymunk_oracle.py``). ``World`` is its N = 1 view.
 """
 
 from __future__ import annotations
@@ -25,7 +22,7 @@ from infonav_gym.world.motion_kernels import (
     unicycle_moves,
     waypoint_controls,
 )
-from infonav_gym.world.physics import MAX_TIME_STEP_S, TIME_STEP_S, WORLD_ARGUMENTS, ContactSpace, static_boxes
+from infonav_gym.world.physics import MAX_TIME_STEP_S, TIME_STEP_S, WORLD_ARGUMENTS, ContactSpace
 from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
 
@@ -35,25 +32,9 @@ MAX_IDLE_SPACES = 64  # Pymunk spaces kept for copies between runs of contact st
 
 
 class WorldBatch:
-    """N copies of a world, each holding the same number R of robots.
-
-    Attributes:
-        poses: true poses ``[x, y, heading]`` of every copy's robots (N, R, 3), after ``reset_copy``.
-        static_geometry: every copy's ``StaticGeometry.from_scenario`` as of its scenario, when the owner keeps it
-            (the contact test then grows it instead of building its own); None: built here.
-
-    Args:
-        n_copies: N >= 1.
-        robot_radius_m: radius of every robot's disc [m].
-        max_turn_rate_rps: saturation of the heading controller [rad/s].
-        heading_gain: proportional gain of the heading controller [1/s].
-        waypoint_tolerance_m: a waypoint closer than this counts as reached [m].
-        wall_thickness_m: thickness of wall segments [m] (the static geometry is ``StaticGeometry.from_scenario``'s).
-        max_physics_step_s: longest Pymunk substep [s] of a contact step, split into equal substeps.
-
-    Raises:
-        ParameterError: (a ``ValueError``) for an argument outside its ``WORLD_ARGUMENTS`` interval.
-    """
+    """N >= 1 copies of a world, each with R robots: ``poses`` (N, R, 3) ``[x, y, heading]``; ``static_geometry``
+    (the copies' ``StaticGeometry``, when the owner keeps it, else None: built here). Arguments: ``WORLD_ARGUMENTS``
+    (``ParameterError`` outside them)."""
 
     def __init__(
         self,
@@ -97,11 +78,7 @@ class WorldBatch:
         return self._scenarios[copy]
 
     def reset_copy(self, copy: int, scenario: Scenario) -> None:
-        """Put copy ``copy``'s robots at the starts of ``scenario``'s routes (it must have R routes, as the others).
-
-        Raises:
-            ValueError: when ``scenario`` has another number of routes than the copies reset before.
-        """
+        """Put copy ``copy``'s robots at the starts of ``scenario``'s routes (``ValueError`` unless R of them)."""
         routes = scenario.routes
         if (copy == 0 or self.poses.shape[1] == 0) and len(routes) != self.poses.shape[1]:
             self._resize_robots(len(routes))
@@ -125,7 +102,8 @@ class WorldBatch:
         self._waypoint_index[copy] = 0
         self._route_speeds[copy] = [route.speed_mps for route in routes]
         self._loops[copy] = [route.loop for route in routes]
-        boxes = static_boxes(scenario, self.wall_thickness_m)
+        geometry = StaticGeometry.from_scenario(scenario, self.wall_thickness_m)  # Pymunk's boxes, walls first
+        boxes = np.concatenate([geometry.wall_boxes[0], geometry.disc_boxes[0]])
         if len(boxes) > self._boxes.shape[1]:
             grown = np.full((self.n_copies, len(boxes), 4), _EMPTY_BOX)
             grown[:, : self._boxes.shape[1]] = self._boxes
@@ -143,20 +121,8 @@ class WorldBatch:
         self._loops = np.zeros((n, n_robots), dtype=bool)
 
     def step(self, dt: float, copies: np.ndarray, commands: np.ndarray | None = None) -> np.ndarray:
-        """Drive the robots of ``copies`` for ``dt`` seconds, by their waypoint controllers or by ``commands``.
-
-        Args:
-            dt: the step (0, 60] s.
-            copies: indices of the copies to step (n,), ascending.
-            commands: ``[speed, turn_rate]`` of every robot of those copies (n, R, 2), as a velocity command;
-                None: each robot's waypoint controller.
-
-        Returns:
-            The executed ``[speed, turn_rate]`` of every robot of ``copies`` (n, R, 2) [m/s, rad/s].
-
-        Raises:
-            ParameterError: (a ``ValueError``) unless ``dt`` is in ``TIME_STEP_S``.
-        """
+        """Drive the robots of ``copies`` (n,) ascending for ``dt`` seconds (``TIME_STEP_S``) by ``commands`` (n, R, 2)
+        ``[speed, turn_rate]``, or None: their waypoint controllers. Returns the executed (n, R, 2) [m/s, rad/s]."""
         if not 0.0 < dt <= MAX_TIME_STEP_S:
             TIME_STEP_S.check("World.step", "dt", dt)
         rows = slice(None) if len(copies) == self.n_copies else copies  # all copies: views, no fancy-index copies
