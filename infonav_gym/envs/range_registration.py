@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -10,7 +11,6 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 
 from infonav_gym.config import Interval, check_choice, check_config, config_keys, from_config
-from infonav_gym.envs.image_acquisition import TerrainStack
 from infonav_gym.envs.metrics import EpisodeMetric, mean_where, summed_reward
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
@@ -32,6 +32,7 @@ from infonav_gym.registration.robust_kernels import ROBUST_KERNELS
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
 from infonav_gym.world.physics import TIME_STEP_S
+from infonav_gym.world.terrain import Terrain
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
 from infonav_gym.world.world_batch import WorldBatch
 
@@ -63,6 +64,23 @@ REGISTRATION = np.dtype(  # what each copy's last ICP run gave (zeros before its
         ("transform", float, (4, 4)),
     ]
 )
+
+
+@dataclass(frozen=True)
+class TerrainStack:
+    """Each copy's terrain: the static scene its sensors see in its current episode (what ``_reset_copies`` gives)."""
+
+    terrains: tuple[Terrain, ...]
+
+    def __getitem__(self, copy: int) -> Terrain:
+        return self.terrains[copy]
+
+    def with_copies(self, copies: np.ndarray, replacement: TerrainStack) -> TerrainStack:
+        """These terrains with those of ``copies`` (n,) replaced by the n of ``replacement``, in order."""
+        terrains = list(self.terrains)
+        for copy, terrain in zip(np.asarray(copies).tolist(), replacement.terrains, strict=True):
+            terrains[copy] = terrain
+        return TerrainStack(tuple(terrains))
 
 
 class PatchDecision(NamedTuple):
