@@ -1,4 +1,4 @@
-"""``infonav/RangeRegistration-v0``: which control-point patches feed ICP (the paper's Section V)."""
+"""``infonav/RangeRegistration-v0``: which control-point patches feed ICP (the paper's Section V), as a scenario."""
 
 from __future__ import annotations
 
@@ -8,13 +8,14 @@ from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
-from gymnasium.vector import AutoresetMode
 
 from infonav_gym.config import Interval, check_choice, check_config, config_keys, from_config
+from infonav_gym.envs.base import shared_config
+from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import EpisodeMetric, mean_where, summed_reward
+from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.envs.vector_infos import decision_info, in_every_copy
 from infonav_gym.information import information_gain_of_information
 from infonav_gym.registration.control_points import control_point_geometry
@@ -32,7 +33,6 @@ from infonav_gym.registration.robust_kernels import ROBUST_KERNELS
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.sensors.ladar import Ladar, sensor_points, to_display_image
 from infonav_gym.world.physics import TIME_STEP_S
-from infonav_gym.world.terrain import Terrain
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
 from infonav_gym.world.world_batch import WorldBatch
 
@@ -66,21 +66,41 @@ REGISTRATION = np.dtype(  # what each copy's last ICP run gave (zeros before its
 )
 
 
-@dataclass(frozen=True)
-class TerrainStack:
-    """Each copy's terrain: the static scene its sensors see in its current episode (what ``_reset_copies`` gives)."""
+@dataclass
+class RegistrationState(State):
+    """Every copy's vehicle (``worlds``), terrain, generators (sensor, odometry), newest LADAR frame (its pair's
+    source), current ``FramePair``, the points of its newest frame and of the one before, the patch of each return of
+    the newest frame and GICP's covariances by frame (``_gicp_covariances``); per patch its Fisher information about
+    the motion (N, P, 6, 6), its information alone (N, P) [nats], fraction of returns, mean range [m] and whether it
+    is picked for the pair (N, P); the Cholesky factor of the pair's motion covariance (N, 6, 6), the odometry error
+    (N,) [m] and the newest frame's roll and pitch (N, 2) [rad]; whether it registered its pair at the last step, its
+    last ICP run (``REGISTRATION``), its last action (N,) (-1: none) and the step's reward terms (N,) [m]; copy 0's
+    true path (``paths``, when drawing)."""
 
-    terrains: tuple[Terrain, ...]
-
-    def __getitem__(self, copy: int) -> Terrain:
-        return self.terrains[copy]
-
-    def with_copies(self, copies: np.ndarray, replacement: TerrainStack) -> TerrainStack:
-        """These terrains with those of ``copies`` (n,) replaced by the n of ``replacement``, in order."""
-        terrains = list(self.terrains)
-        for copy, terrain in zip(np.asarray(copies).tolist(), replacement.terrains, strict=True):
-            terrains[copy] = terrain
-        return TerrainStack(tuple(terrains))
+    worlds: WorldBatch
+    terrains: list
+    sensor_rngs: list
+    odometry_rngs: list
+    frames: list
+    pairs: list
+    source_points: list
+    target_points: list
+    patch_of_return: list
+    covariances: list
+    patch_information: np.ndarray
+    prior_root: np.ndarray
+    patch_alone: np.ndarray
+    return_fraction: np.ndarray
+    mean_range: np.ndarray
+    odometry_error: np.ndarray
+    attitude: np.ndarray
+    picked: np.ndarray
+    registered: np.ndarray
+    last_registration: np.ndarray
+    chosen: np.ndarray
+    reduction: np.ndarray
+    cost: np.ndarray
+    paths: tuple[PathHistory] | None = None
 
 
 class PatchDecision(NamedTuple):
@@ -90,18 +110,10 @@ class PatchDecision(NamedTuple):
     action_information_gain: np.ndarray
 
 
-class RangeRegistrationVectorEnv(InfoNavVectorEnv):
-    """N copies of ``infonav/RangeRegistration-v0`` on stacked arrays: the env's one implementation.
+class RangeRegistration(EnvScenario):
+    """``infonav/RangeRegistration-v0`` as a scenario: see ``RangeRegistrationEnv`` for its spaces, reward and config
+    keys."""
 
-    See ``RangeRegistrationEnv`` (its N = 1 view) for the spaces, rewards and config keys.
-    ``gym.make_vec("infonav/RangeRegistration-v0", num_envs=N, **config)`` returns it. Each copy drives its own
-    terrain loop (the vehicles in a ``WorldBatch``); the patches' information, masks, gains and observations are
-    (N, P, ...) arrays; scans, frame pairs and ICP run copy by copy, each from its copy's own generators, so sub-env
-    ``i`` after ``reset(seed=s)`` gives the numbers of ``gym.make("infonav/RangeRegistration-v0")`` after
-    ``reset(seed=s + i)``. ``autoreset_mode`` and ``render_mode`` as ``LandmarkSelectionVectorEnv`` describes.
-    """
-
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.NEXT_STEP}
     episode_metrics = (
         EpisodeMetric("cumulative_reward", "cumulative reward [m]", summed_reward),
         EpisodeMetric(
@@ -129,7 +141,7 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
     @classmethod
     def default_config(cls) -> dict:
         return {
-            **InfoNavVectorEnv.default_config(),
+            **shared_config(),
             "horizon": 60,  # steps: 15 frame pairs of 4 picks
             "picks_per_pair": 4,  # patches chosen before ICP runs
             "patch_rows": 4,
@@ -150,20 +162,22 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
             "ladar_range_std_m": Ladar().range_std_m,
         }
 
-    def copy_kb(self) -> float:
+    @classmethod
+    def copy_kb(cls, config: dict) -> float:
         """``kb_per_copy`` and ``PATCH_KB`` a patch beyond the default's (at most one per pixel of the LADAR)."""
-        cfg, defaults = self.config, self.default_config()
-        patches = min(cfg["patch_rows"], Ladar.rows) * min(cfg["patch_columns"], Ladar.columns)
+        defaults = cls.default_config()
+        patches = min(config["patch_rows"], Ladar.rows) * min(config["patch_columns"], Ladar.columns)
         more_patches = patches - defaults["patch_rows"] * defaults["patch_columns"]
-        return self.traits.kb_per_copy + PATCH_KB * max(more_patches, 0)
+        return cls.traits.kb_per_copy + PATCH_KB * max(more_patches, 0)
 
-    def _build(self) -> None:
-        cfg, owner, num_envs = self.config, self.owner_name, self.num_envs
+    def __init__(self, config: dict, copies: int, owner: str, render_mode: str | None):
+        super().__init__(config, copies, owner, render_mode)
+        cfg = config
         check_choice(cfg, "icp_method", METHODS, owner)
         check_choice(cfg, "icp_robust_kernel", ("none", *ROBUST_KERNELS), owner)
-        self._robust_kernel = None if cfg["icp_robust_kernel"] == "none" else cfg["icp_robust_kernel"]
+        self.robust_kernel = None if cfg["icp_robust_kernel"] == "none" else cfg["icp_robust_kernel"]
         try:  # icp()'s rule, checked now rather than at the first registration
-            check_kernel_method(self._robust_kernel, cfg["icp_method"])
+            check_kernel_method(self.robust_kernel, cfg["icp_method"])
         except ValueError as error:
             raise ValueError(f"config keys 'icp_robust_kernel' and 'icp_method' of {owner}: {error}") from None
         check_config(cfg, owner, CONFIG_INTERVALS)
@@ -173,228 +187,242 @@ class RangeRegistrationVectorEnv(InfoNavVectorEnv):
         self.ladar = from_config(Ladar, cfg, {"range_std_m": "ladar_range_std_m"}, owner)
         patches = {"patch_rows": self.ladar.rows, "patch_columns": self.ladar.columns}  # at most the image's pixels
         check_config(cfg, owner, {key: Interval(1, pixels, integer=True) for key, pixels in patches.items()})
-        n_patches = cfg["patch_rows"] * cfg["patch_columns"]
+        self.n_patches = n_patches = cfg["patch_rows"] * cfg["patch_columns"]
         check_config(cfg, owner, {"picks_per_pair": Interval(1, n_patches, integer=True)})
         high = np.tile([1.0, 1.0, 1.0, 1.0, MAX_PATCH_INFORMATION], n_patches)
         high = np.append(high, [1.0, 1.0]).astype(np.float32)
-        self._set_spaces(spaces.Box(np.zeros_like(high), high, dtype=np.float32), spaces.Discrete(n_patches))
+        self.observation_space = spaces.Box(np.zeros_like(high), high, dtype=np.float32)
+        self.action_space = spaces.Discrete(n_patches)
         rows, columns = np.indices((self.ladar.rows, self.ladar.columns))
         patch_row = rows * cfg["patch_rows"] // self.ladar.rows
-        self._pixel_patch = patch_row * cfg["patch_columns"] + columns * cfg["patch_columns"] // self.ladar.columns
-        self._pixels_per_patch = np.bincount(self._pixel_patch.ravel(), minlength=n_patches)
-        self._worlds = WorldBatch(num_envs)
-        self._sensor_rngs = [None] * num_envs
-        self._odometry_rngs = [None] * num_envs
-        self._frames = [None] * num_envs  # each copy's newest LADAR frame (its pair's source)
-        self._pairs = [None] * num_envs  # each copy's current FramePair
-        self._source_points = [None] * num_envs  # the points of each copy's newest frame, and of the one before
-        self._target_points = [None] * num_envs
-        self._patch_of_return = [None] * num_envs  # the patch of each return of the newest frame
-        self._covariances = [{} for _ in range(num_envs)]  # GICP's, by frame (_gicp_covariances)
-        self._patch_information = np.zeros((num_envs, n_patches, 6, 6))  # Fisher information about the motion
-        self._prior_root = np.zeros((num_envs, 6, 6))  # Cholesky factor of the pair's motion covariance
-        self._patch_alone = np.zeros((num_envs, n_patches))  # each patch's information alone [nats]
-        self._return_fraction = np.zeros((num_envs, n_patches))
-        self._mean_range = np.zeros((num_envs, n_patches))  # [m]
-        self._odometry_error = np.zeros(num_envs)  # [m]
-        self._attitude = np.zeros((num_envs, 2))  # roll and pitch of the newest frame [rad]
-        self._chosen = np.zeros((num_envs, n_patches), dtype=bool)
-        self._registered = np.zeros(num_envs, dtype=bool)  # which registered their pair at the last step
-        self._last_registration = np.zeros(num_envs, dtype=REGISTRATION)
-        self._true_path = None  # copy 0's, when drawing
+        self.pixel_patch = patch_row * cfg["patch_columns"] + columns * cfg["patch_columns"] // self.ladar.columns
+        self.pixels_per_patch = np.bincount(self.pixel_patch.ravel(), minlength=n_patches)
 
-    def _reset_copies(self, copies: np.ndarray) -> TerrainStack:
-        """Start a new episode in each of ``copies`` from its own generator, with its first pair; their terrains."""
-        terrains = []
+    def allocate(self, copies: int) -> RegistrationState:
+        n_patches = self.n_patches
+        return RegistrationState(
+            elapsed=np.zeros(copies, dtype=int),
+            worlds=WorldBatch(copies),
+            **{name: [None] * copies for name in ("terrains", "sensor_rngs", "odometry_rngs", "frames", "pairs")},
+            **{name: [None] * copies for name in ("source_points", "target_points", "patch_of_return")},
+            covariances=[{} for _ in range(copies)],
+            patch_information=np.zeros((copies, n_patches, 6, 6)),
+            prior_root=np.zeros((copies, 6, 6)),
+            patch_alone=np.zeros((copies, n_patches)),
+            return_fraction=np.zeros((copies, n_patches)),
+            mean_range=np.zeros((copies, n_patches)),
+            odometry_error=np.zeros(copies),
+            attitude=np.zeros((copies, 2)),
+            picked=np.zeros((copies, n_patches), dtype=bool),
+            registered=np.zeros(copies, dtype=bool),
+            last_registration=np.zeros(copies, dtype=REGISTRATION),
+            chosen=np.full(copies, -1),
+            reduction=np.zeros(copies),
+            cost=np.zeros(copies),
+        )
+
+    def initial(self, state: RegistrationState, rows: np.ndarray, rngs: list) -> RegistrationState:
+        """Draw each copy's terrain loop, spawn its sensor and odometry generators and scan its first frame; then
+        its first pair."""
+        for copy, rng in zip(rows.tolist(), rngs):
+            scene = terrain_loop_from_config(rng, self.config)
+            state.worlds.reset_copy(copy, scene.scenario)
+            state.sensor_rngs[copy], state.odometry_rngs[copy] = rng.spawn(2)
+            state.terrains[copy] = scene.terrain
+            state.frames[copy] = self._scan(state, copy)
+            state.covariances[copy] = {}
+        state.registered[rows] = False
+        state.last_registration[rows] = 0
+        state.chosen[rows], state.reduction[rows], state.cost[rows] = -1, 0.0, 0.0
+        if self.drawing and rows[0] == 0:
+            state.paths = (PathHistory(state.worlds.poses[0, 0, :2]),)
+        self._next_pairs(state, rows)
+        return state
+
+    def _scan(self, state: RegistrationState, copy: int):
+        pose = state.worlds.poses[copy, 0].copy()
+        return scan_on_terrain(self.ladar, state.terrains[copy], pose, state.sensor_rngs[copy])
+
+    def _next_pairs(self, state: RegistrationState, copies: np.ndarray) -> None:
+        """Drive ``copies`` one frame on; each one's pair (previous frame, new frame), odometry estimate and
+        patches."""
+        state.worlds.step(self.config["time_step_s"], copies)
+        if self.drawing and copies[0] == 0:
+            state.paths[0].append(state.worlds.poses[0, 0, :2])
+        n_patches = self.n_patches
         for copy in copies.tolist():
-            scene = terrain_loop_from_config(self._np_randoms[copy], self.config)
-            self._worlds.reset_copy(copy, scene.scenario)
-            self._sensor_rngs[copy], self._odometry_rngs[copy] = self._np_randoms[copy].spawn(2)
-            self._frames[copy] = self._scan(copy, scene.terrain)
-            self._covariances[copy] = {}
-            terrains.append(scene.terrain)
-        self._registered[copies] = False
-        self._last_registration[copies] = 0
-        if self.render_mode is not None and copies[0] == 0:
-            self._true_path = PathHistory(self._worlds.poses[0, 0, :2])
-        self._next_pairs(copies, terrains)
-        return TerrainStack(tuple(terrains))
-
-    def _scan(self, copy: int, terrain):
-        return scan_on_terrain(self.ladar, terrain, self._worlds.poses[copy, 0].copy(), self._sensor_rngs[copy])
-
-    def _next_pairs(self, copies: np.ndarray, terrains: list) -> None:
-        """Drive ``copies`` one frame on; each one's pair (previous frame, new frame), odometry estimate and patches.
-
-        ``terrains``: theirs, in order.
-        """
-        self._worlds.step(self.config["time_step_s"], copies)
-        if self._true_path is not None and copies[0] == 0:
-            self._true_path.append(self._worlds.poses[0, 0, :2])
-        n_patches = self.single_action_space.n
-        for copy, terrain in zip(copies.tolist(), terrains):
-            previous, current = self._frames[copy], self._scan(copy, terrain)
-            pair = frame_pair(previous, current, self._odometry_rngs[copy], self.odometry_std)
+            previous, current = state.frames[copy], self._scan(state, copy)
+            pair = frame_pair(previous, current, state.odometry_rngs[copy], self.odometry_std)
             geometry = control_point_geometry(current, pair.motion_covariance)
             returns = ~current.no_return
-            patch_of_return = self._pixel_patch[returns]
-            self._frames[copy], self._pairs[copy], self._patch_of_return[copy] = current, pair, patch_of_return
-            self._source_points[copy], self._target_points[copy] = sensor_points(current), sensor_points(previous)
-            self._covariances[copy] = {"target": self._covariances[copy].get("source")}
+            patch_of_return = self.pixel_patch[returns]
+            state.frames[copy], state.pairs[copy], state.patch_of_return[copy] = current, pair, patch_of_return
+            state.source_points[copy], state.target_points[copy] = sensor_points(current), sensor_points(previous)
+            state.covariances[copy] = {"target": state.covariances[copy].get("source")}
             error_std = geometry.error_std_m
             informative = np.isfinite(error_std)
             weighted = geometry.jacobians / np.where(informative, error_std, 1.0)[:, None]
-            information = self._patch_information[copy]
+            information = state.patch_information[copy]
             information[:] = 0.0
             np.add.at(
                 information,
                 patch_of_return[informative],
                 weighted[informative, :, None] * weighted[informative, None, :],
             )
-            self._prior_root[copy] = np.linalg.cholesky(pair.motion_covariance)
+            state.prior_root[copy] = np.linalg.cholesky(pair.motion_covariance)
             returns_per_patch = np.bincount(patch_of_return, minlength=n_patches)
-            self._return_fraction[copy] = returns_per_patch / self._pixels_per_patch
+            state.return_fraction[copy] = returns_per_patch / self.pixels_per_patch
             range_sum = np.bincount(patch_of_return, current.ranges_m[returns], minlength=n_patches)
-            self._mean_range[copy] = range_sum / np.maximum(1, returns_per_patch)
-            self._odometry_error[copy] = registration_error(pair.odometry_motion, pair.true_motion)
-            self._attitude[copy] = current.attitude_rad
-        self._chosen[copies] = False
-        roots = self._prior_root[copies, None]
-        self._patch_alone[copies] = information_gain_of_information(roots, self._patch_information[copies])
+            state.mean_range[copy] = range_sum / np.maximum(1, returns_per_patch)
+            state.odometry_error[copy] = registration_error(pair.odometry_motion, pair.true_motion)
+            state.attitude[copy] = current.attitude_rad
+        state.picked[copies] = False
+        roots = state.prior_root[copies, None]
+        state.patch_alone[copies] = information_gain_of_information(roots, state.patch_information[copies])
 
-    def _act(self, acting: np.ndarray, chosen: np.ndarray) -> tuple:
-        """Pick the chosen patches; the copies with their pair's picks made register it and drive on to the next
-        pair. ``((reduction, cost), reduction + cost, never terminated)``."""
+    def decision(self, state: RegistrationState, rows) -> PatchDecision:
+        """The decisions of the copies ``rows``: each valid patch's MI added to the patches picked for the pair."""
+        picked, information = state.picked[rows], state.patch_information[rows]
+        mask = (state.return_fraction[rows] > 0) & ~picked
+        picked_information = np.where(picked[..., None, None], information, 0.0).sum(axis=1)
+        root = state.prior_root[rows]
+        base = information_gain_of_information(root, picked_information)
+        added = information_gain_of_information(root[:, None], picked_information[:, None] + information)
+        return PatchDecision(mask.astype(np.int8), np.where(mask, added - base[:, None], 0.0))
+
+    def transition(self, state: RegistrationState, decision: PatchDecision, action, acting) -> RegistrationState:
+        """Pick the chosen patches; the copies with their pair's picks made register it (the step's reward terms)
+        and drive on to the next pair."""
+        chosen = action[:, 0]
         picking = np.flatnonzero(chosen >= 0)
-        self._chosen[picking, chosen[picking]] = True
-        left = ((self._return_fraction > 0) & ~self._chosen).any(axis=1)
-        self._registered = (chosen >= 0) & ((self._chosen.sum(axis=1) >= self.config["picks_per_pair"]) | ~left)
-        reduction, cost = np.zeros(self.num_envs), np.zeros(self.num_envs)
-        registering = np.flatnonzero(self._registered)
+        state.picked[picking, chosen[picking]] = True
+        left = ((state.return_fraction > 0) & ~state.picked).any(axis=1)
+        done = state.picked.sum(axis=1) >= self.config["picks_per_pair"]
+        state.registered = (chosen >= 0) & (done | ~left)
+        state.chosen, state.reduction, state.cost = chosen, np.zeros(len(chosen)), np.zeros(len(chosen))
+        registering = np.flatnonzero(state.registered)
         for copy in registering.tolist():
-            reduction[copy], cost[copy] = self._register(copy)
+            state.reduction[copy], state.cost[copy] = self._register(state, copy)
         if registering.size:
-            self._next_pairs(registering, [self._geometry[copy] for copy in registering.tolist()])
-        return (reduction, cost), reduction + cost, np.zeros(self.num_envs, dtype=bool)
+            self._next_pairs(state, registering)
+        return state
 
-    def _register(self, copy: int) -> tuple[float, float]:
-        """Run ICP on the chosen patches' points of ``copy``; the pair's reward terms (error reduction, point cost)."""
-        cfg, pair = self.config, self._pairs[copy]
-        chosen = self._chosen[copy][self._patch_of_return[copy]]
-        source = self._source_points[copy][chosen]
-        before = self._odometry_error[copy]
+    def _register(self, state: RegistrationState, copy: int) -> tuple[float, float]:
+        """Run ICP on the picked patches' points of ``copy``; the pair's reward terms (error reduction, point
+        cost)."""
+        cfg, pair = self.config, state.pairs[copy]
+        chosen = state.picked[copy][state.patch_of_return[copy]]
+        source = state.source_points[copy][chosen]
+        before = state.odometry_error[copy]
         start = time.perf_counter()
         if len(source) >= MIN_CONTROL_POINTS:
             result = icp(
                 source,
-                self._target_points[copy],
+                state.target_points[copy],
                 pair.odometry_motion,
                 max_iterations=cfg["icp_max_iterations"],
                 max_correspondence_distance=cfg["max_correspondence_distance_m"],
                 method=cfg["icp_method"],
-                robust_kernel=self._robust_kernel,
+                robust_kernel=self.robust_kernel,
                 kernel_scale=cfg["icp_kernel_scale_m"],
-                **self._gicp_covariances(copy, chosen),
+                **self._gicp_covariances(state, copy, chosen),
             )
             transform, iterations = result.transform, result.iterations
         else:  # too few points to register: keep the odometry estimate
             transform, iterations = pair.odometry_motion, 0
         elapsed = time.perf_counter() - start
         after = registration_error(transform, pair.true_motion)
-        self._last_registration[copy] = (before, after, iterations, elapsed, len(source), transform)
+        state.last_registration[copy] = (before, after, iterations, elapsed, len(source), transform)
         return before - after, -cfg["point_cost"] * len(source)
 
-    def _gicp_covariances(self, copy: int, chosen: np.ndarray) -> dict:
+    def _gicp_covariances(self, state: RegistrationState, copy: int, chosen: np.ndarray) -> dict:
         """For GICP, the covariances of the ``chosen`` returns (from the whole frame) and of the previous frame.
 
         Each frame's are computed once: as the current frame's, then kept for the next pair, whose target it is.
         """
         if self.config["icp_method"] != "gicp":
             return {}
-        covariances = self._covariances[copy]
-        for name, points in (("source", self._source_points[copy]), ("target", self._target_points[copy])):
+        covariances = state.covariances[copy]
+        for name, points in (("source", state.source_points[copy]), ("target", state.target_points[copy])):
             if covariances.get(name) is None:
                 covariances[name] = gicp_covariances(points)
         return {"source_covariances": covariances["source"][chosen], "target_covariances": covariances["target"]}
 
-    def _no_step_record(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """No reward terms: two zeros (n,)."""
-        none = np.zeros(n)
-        return none, none
+    def reward(self, decision, action, state: RegistrationState) -> np.ndarray:
+        """The error reduction of each copy's registration [m] plus its point cost (0 without one)."""
+        return state.reduction + state.cost
 
-    def _outputs(self, copies, terrains, stepped, chosen, record) -> tuple[np.ndarray, dict]:
-        """Decide again in ``copies`` (n,); their observations and infos. Those not ``stepped`` (n,) were reset and
-        give the reset info; ``chosen`` (n,): each one's patch (-1: none); ``record``: the step's ``(reduction,
-        cost)`` (n,) reward terms."""
-        reduction, cost = record
-        rows = self._rows(copies)
-        decision = self._decision_of(rows)
-        self._set_decision(copies, decision)
-        return self._observation(rows, decision), self._info(rows, decision, stepped, chosen, reduction, cost)
-
-    def _decision_of(self, rows) -> PatchDecision:
-        """The decisions of the copies at ``rows``: each valid patch's MI added to the patches chosen for the pair."""
-        chosen, information = self._chosen[rows], self._patch_information[rows]
-        mask = (self._return_fraction[rows] > 0) & ~chosen
-        chosen_information = np.where(chosen[..., None, None], information, 0.0).sum(axis=1)
-        root = self._prior_root[rows]
-        base = information_gain_of_information(root, chosen_information)
-        added = information_gain_of_information(root[:, None], chosen_information[:, None] + information)
-        return PatchDecision(mask.astype(np.int8), np.where(mask, added - base[:, None], 0.0))
-
-    def _observation(self, rows, decision: PatchDecision) -> np.ndarray:
-        """The observations of the copies at ``rows`` (n, 5 * P + 2), float32 (see the single env)."""
-        chosen, cfg = self._chosen[rows], self.config
+    def observation(self, state: RegistrationState, decision: PatchDecision, rows) -> np.ndarray:
+        """The observations of the copies ``rows`` (n, 5 * P + 2), float32 (see the single env)."""
+        picked, cfg = state.picked[rows], self.config
         patches = np.stack(
             [
                 decision.action_mask,
-                chosen,
-                self._return_fraction[rows],
-                self._mean_range[rows] / self.ladar.max_range_m,
-                np.minimum(self._patch_alone[rows], MAX_PATCH_INFORMATION),
+                picked,
+                state.return_fraction[rows],
+                state.mean_range[rows] / self.ladar.max_range_m,
+                np.minimum(state.patch_alone[rows], MAX_PATCH_INFORMATION),
             ],
             axis=-1,
         )
-        progress = np.stack([chosen.sum(axis=1) / cfg["picks_per_pair"], self._elapsed[rows] / cfg["horizon"]], axis=1)
+        progress = np.stack([picked.sum(axis=1) / cfg["picks_per_pair"], state.elapsed[rows] / cfg["horizon"]], axis=1)
         return np.concatenate([patches.reshape(len(progress), -1), progress], axis=1).astype(np.float32)
 
-    def _info(self, rows, decision: PatchDecision, stepped, chosen, reduction, cost) -> dict:
-        """The infos of the copies at ``rows`` as arrays (n, ...), each with its ``_key`` mask."""
-        info = decision_info(decision, stepped, chosen, "error_reduction_m", reduction)
-        info["reward_terms"].update(point_cost=np.where(stepped, cost, 0.0), _point_cost=stepped.copy())
-        last = self._last_registration[rows]
+    def info(self, state: RegistrationState, decision: PatchDecision, rows, stepped) -> dict:
+        """The decision's mask and gains, both reward terms, the action taken, the last ICP run, the pair's odometry
+        error and motion covariance, the true pose, the attitude and the time."""
+        info = decision_info(decision, stepped, state.chosen[rows], "error_reduction_m", state.reduction[rows])
+        info["reward_terms"].update(point_cost=np.where(stepped, state.cost[rows], 0.0), _point_cost=stepped.copy())
+        last = state.last_registration[rows]
         info.update({name: last[name].copy() for name in REGISTRATION.names if name != "transform"})
-        pairs = self._pairs if isinstance(rows, slice) else [self._pairs[copy] for copy in rows.tolist()]
+        pairs = state.pairs if isinstance(rows, slice) else [state.pairs[copy] for copy in rows.tolist()]
         info.update(
-            registered=self._registered[rows].copy(),
-            odometry_error_m=self._odometry_error[rows].copy(),
+            registered=state.registered[rows].copy(),
+            odometry_error_m=state.odometry_error[rows].copy(),
             motion_covariance=np.array([pair.motion_covariance for pair in pairs]),
-            true_pose=self._worlds.poses[rows, 0].copy(),
-            attitude_rad=self._attitude[rows].copy(),
-            time_s=self._elapsed[rows] * self.config["time_step_s"],
+            true_pose=state.worlds.poses[rows, 0].copy(),
+            attitude_rad=state.attitude[rows].copy(),
+            time_s=state.elapsed[rows] * self.config["time_step_s"],
         )
         return in_every_copy(info, len(stepped))
 
-    def _scene_frame(self):
-        """Sub-env 0 drawn: its scene, the vehicle and its path, and its newest range image with the picked patches."""
-        cfg, scenario, pose = self.config, self._worlds.scenario(0), self._worlds.poses[0, 0].copy()
-        caption = f"t = {self._elapsed[0] * cfg['time_step_s']:.1f} s   "
-        caption += f"picked {int(self._chosen[0].sum())}/{cfg['picks_per_pair']} patches"
-        last = self._last_registration[0]
+    def frame(self, state: RegistrationState, decision: PatchDecision):
+        """Copy 0 drawn: its scene, the vehicle and its path, and its newest range image with the picked patches."""
+        cfg, scenario, pose = self.config, state.worlds.scenario(0), state.worlds.poses[0, 0].copy()
+        caption = f"t = {state.elapsed[0] * cfg['time_step_s']:.1f} s   "
+        caption += f"picked {int(state.picked[0].sum())}/{cfg['picks_per_pair']} patches"
+        last = state.last_registration[0]
         if last["n_control_points"] > 0:  # registered in this episode (a picked patch has returns)
             caption += f"   last ICP: error {last['error_before_m']:.3f} -> {last['error_after_m']:.3f} m"
         return SceneFrame(
             bounds=scenario.bounds,
             walls=scenario.walls,
             obstacles=scenario.obstacles,
-            robots=[RobotDrawing(true_pose=pose, true_path=self._true_path.points())],
+            robots=[RobotDrawing(true_pose=pose, true_path=state.paths[0].points())],
             sensor_wedge=(float(pose[2]), self.ladar.horizontal_fov_rad, SENSOR_WEDGE_LENGTH_M),
-            inset_image=to_display_image(self._frames[0]),
+            inset_image=to_display_image(state.frames[0]),
             inset_title="newest LADAR range image (dark = near, white = no return); red: patches picked for ICP",
             inset_grid=(cfg["patch_rows"], cfg["patch_columns"]),
-            inset_highlights=np.flatnonzero(self._chosen[0]).tolist(),
+            inset_highlights=np.flatnonzero(state.picked[0]).tolist(),
             caption=caption,
         )
+
+
+class RangeRegistrationVectorEnv(Driver, scenario=RangeRegistration):
+    """N copies of ``infonav/RangeRegistration-v0`` on stacked arrays: the env's one implementation.
+
+    See ``RangeRegistrationEnv`` (its N = 1 view) for the spaces, rewards and config keys.
+    ``gym.make_vec("infonav/RangeRegistration-v0", num_envs=N, **config)`` returns it. Each copy drives its own
+    terrain loop (the vehicles in a ``WorldBatch``); the patches' information, masks, gains and observations are
+    (N, P, ...) arrays; scans, frame pairs and ICP run copy by copy, each from its copy's own generators, so sub-env
+    ``i`` after ``reset(seed=s)`` gives the numbers of ``gym.make("infonav/RangeRegistration-v0")`` after
+    ``reset(seed=s + i)``. ``autoreset_mode`` and ``render_mode`` as ``LandmarkSelectionVectorEnv`` describes.
+    """
+
+    @property
+    def odometry_std(self) -> np.ndarray:
+        """The odometry's motion error std per axis (x, y, z [m], roll, pitch, yaw [rad])."""
+        return self.env_scenario.odometry_std
 
 
 class RangeRegistrationEnv(SingleEnvView, vector_env=RangeRegistrationVectorEnv):
