@@ -94,8 +94,8 @@ def test_gain_is_the_mutual_information_a_patch_adds_to_the_chosen_ones():
     alone = info["action_information_gain"].copy()
     _, _, _, _, info = env.step(first)
     second = int(np.argmax(info["action_information_gain"]))
-    information = env.vector._patch_information[0]
-    root = np.linalg.cholesky(env.vector._pairs[0].motion_covariance)
+    information = env.vector.state.patch_information[0]
+    root = np.linalg.cholesky(env.vector.state.pairs[0].motion_covariance)
 
     def mi(matrix):
         return 0.5 * np.linalg.slogdet(np.eye(6) + root.T @ matrix @ root)[1]
@@ -112,8 +112,8 @@ def test_gicp_registers_the_chosen_points_with_whole_frame_covariances_kept_for_
     vector = env.vector
     _, info = env.reset(seed=3)
     for _ in range(2):
-        pair, source, target = vector._pairs[0], vector._source_points[0], vector._target_points[0]
-        patches = vector._patch_of_return[0]
+        pair, source, target = vector.state.pairs[0], vector.state.source_points[0], vector.state.target_points[0]
+        patches = vector.state.patch_of_return[0]
         chosen = []
         while len(chosen) < env.config["picks_per_pair"]:
             chosen.append(int(np.argmax(info["action_information_gain"])))
@@ -129,7 +129,7 @@ def test_gicp_registers_the_chosen_points_with_whole_frame_covariances_kept_for_
             source_covariances=gicp_covariances(source)[rows],
             target_covariances=gicp_covariances(target),
         )
-        np.testing.assert_array_equal(vector._last_registration["transform"][0], expected.transform)
+        np.testing.assert_array_equal(vector.state.last_registration["transform"][0], expected.transform)
 
 
 @pytest.mark.parametrize(
@@ -158,12 +158,14 @@ def test_ladar_range_noise_and_odometry_defaults_come_from_one_source():
     """``ladar_range_std_m`` reaches the scans (so the control-point errors); odometry defaults are frame_pair's."""
     env = gym.make(REGISTRATION_ID, ladar_range_std_m=0.05).unwrapped
     env.reset(seed=0)
-    pair = env.vector._pairs[0]
+    pair = env.vector.state.pairs[0]
     assert pair.current.range_std_m == pair.previous.range_std_m == 0.05
     default = gym.make(REGISTRATION_ID).unwrapped
     np.testing.assert_array_equal(default.vector.odometry_std, DEFAULT_ODOMETRY_STD)
     default.reset(seed=0)
-    np.testing.assert_array_equal(default.vector._pairs[0].motion_covariance, np.diag(np.square(DEFAULT_ODOMETRY_STD)))
+    np.testing.assert_array_equal(
+        default.vector.state.pairs[0].motion_covariance, np.diag(np.square(DEFAULT_ODOMETRY_STD))
+    )
 
 
 def _greedy_or_any(rng, info):

@@ -13,8 +13,7 @@ from gymnasium.vector import AutoresetMode
 from skimage.measure import shannon_entropy
 
 import infonav_gym  # noqa: F401
-from infonav_gym.envs.image_acquisition import IDLE_ACTION
-from infonav_gym.envs.sensor_selection import SensorSelectionVectorEnv
+from infonav_gym.envs.sensor_selection import IDLE_ACTION, SensorSelectionVectorEnv
 
 ENV_ID = "infonav/SensorSelection-v0"
 SMALL_FRAMES = {  # quick frames; the buffer holds 3 LADAR frames, and the credit still runs out

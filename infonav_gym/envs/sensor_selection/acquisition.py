@@ -8,7 +8,6 @@ acquire one in a step: most of the env's step (compiled ray casting and shading)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -115,23 +114,6 @@ def acquire_frames(sensors: ImageSensors, terrains, poses, generators, copies, a
         images.append(image)
         entropies[k] = histogram_entropy(image)
     return images, entropies
-
-
-@dataclass(frozen=True)
-class TerrainStack:
-    """Each copy's terrain: the static scene its sensors see in its current episode (what ``_reset_copies`` gives)."""
-
-    terrains: tuple[Terrain, ...]
-
-    def __getitem__(self, copy: int) -> Terrain:
-        return self.terrains[copy]
-
-    def with_copies(self, copies: np.ndarray, replacement: TerrainStack) -> TerrainStack:
-        """These terrains with those of ``copies`` (n,) replaced by the n of ``replacement``, in order."""
-        terrains = list(self.terrains)
-        for copy, terrain in zip(np.asarray(copies).tolist(), replacement.terrains, strict=True):
-            terrains[copy] = terrain
-        return TerrainStack(tuple(terrains))
 
 
 def _prefixed_keys(config: dict, prefix: str) -> dict[str, str]:
