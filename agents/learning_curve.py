@@ -1,12 +1,8 @@
 """Learning curves of training runs: ``curve.csv`` appended to as training goes, ``curve.png`` drawn from it.
 
-A row of ``curve.csv`` holds the env steps so far, the mean return and the mean of the env's main metric
-(``main_metric_of``, computed by its ``EpisodeMetric`` from each episode's infos) over the episodes that ended
-since the previous row, and how many ended; a window without a finished episode writes no row. Each row is
-flushed when written, so a run stopped with Ctrl-C keeps its curve so far. The episodes' metric is computed
-at their last step by ``MetricVectorWrapper`` (a native vector env), ``MetricWrapper`` (a single env) or a team's
-``RobotSlots`` (``agents.team_vec_env``, each robot's slot: the team's metric), which put it in that step's info as
-``METRIC_KEY``; SB3's monitor gives the return (``info["episode"]["r"]``).
+A row: env steps so far, mean return, mean main metric (``main_metric_of``) over the episodes ended since the last
+row, and their count; each row is flushed, so Ctrl-C keeps the curve. ``MetricVectorWrapper``, ``MetricWrapper``
+or a team's ``RobotSlots`` put an episode's metric into its last info as ``METRIC_KEY``; SB3's monitor the return.
 """
 
 from __future__ import annotations
@@ -35,10 +31,8 @@ VECTOR_ONLY_KEYS = ("final_obs", "final_info")  # a vector env's info keys that 
 
 
 class SubEnvInfo(Mapping):
-    """Sub-env ``index``'s info, read on demand from a vector env's batched ``info`` (the keys its ``_key`` masks
-    give it): what an ``EpisodeMetric`` computes from, without copying every key of every step.
-
-    In a team vector env (infos (N, R, ...), but ``team_keys`` (N,)) ``robot`` reads robot ``robot``'s column.
+    """Sub-env ``index``'s info, read on demand from a vector env's batched ``info`` (by its ``_key`` masks), without
+    copying every key of every step. In a team vector env ``robot`` picks its column (but not of ``team_keys``).
     """
 
     def __init__(self, info: dict, index: int, robot: int | None = None, team_keys=frozenset()):
@@ -72,10 +66,8 @@ def team_view(agents, team_keys):
 class EndedEpisodeMetrics:
     """The main metric of each episode of a vector env of ``num_envs`` copies, as it ends.
 
-    It keeps the batched info of every step since the oldest running episode began (the envs return fresh arrays
-    each step) and reads an ended copy's rows of them through ``view(info, index)`` (``SubEnvInfo``, or
-    ``team_view``'s ``{agent: info}``). ``same_step``: the env autoresets in ``SAME_STEP`` mode (the last info in
-    ``info["final_info"]``), else in ``NEXT_STEP`` mode (the step after the last is the copy's reset, left out).
+    Keeps the batched infos since the oldest running episode began and reads an ended copy's rows through
+    ``view(info, index)``. ``same_step``: SAME_STEP autoreset (last info in ``final_info``), else NEXT_STEP.
     """
 
     def __init__(self, metric, num_envs: int, view=SubEnvInfo, same_step: bool = True):
@@ -223,10 +215,9 @@ def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
 
 
 def figure_curve(directory: Path, title: str, references: dict | None):
-    """The learning curve of ``directory``'s ``curve.csv``: mean return and, when recorded, the main metric against
-    env steps (axes titled by ``CURVE_LABELS``), with ``references`` (agent name: its value of the metric) as
-    horizontal lines; their absence is said. A run that validated (``validation.csv``) also shows the deterministic
-    policy's metric on the validation seeds and the policy kept."""
+    """The learning curve of ``directory``'s ``curve.csv``: mean return and the main metric against env steps, with
+    ``references`` (agent: its metric) as horizontal lines, and the validations of ``validation.csv`` if any.
+    """
     metric_name, rows = read_curve(Path(directory) / CURVE_CSV)
     labels = read_labels(directory, metric_name)
     validations = read_validations(Path(directory) / VALIDATION_CSV)

@@ -47,49 +47,27 @@ def planning_model(env):
 
 
 class PlannerAgent:
-    """Searches action sequences ``depth`` steps ahead, scores them by expected return, executes the first action.
+    """Searches action sequences ``depth`` steps ahead on the env's ``planning_model()``, executes the best first.
 
-    Uses the model that the env's ``planning_model()`` returns (``belief()``,
-    ``plan_decision(belief)``, ``plan_step(belief, actions)``, ``position_std``,
-    ``n_primitives``, ``max_position_std_m``, ``idle_primitive``, as ``ActiveLocalizationEnv``
-    provides): the EKF covariance propagates without measurement values (under the
-    linearization the posterior covariance does not depend on them), so a sequence's
-    expected reward (MI minus costs, progress, goal bonus, failure penalty) is computed
-    without sampling. The search is exhaustive over a pruned branching: every motion
-    primitive, each without an observation or with one of the
-    ``observation_branching`` most informative valid observations. Each leaf is
-    valued by rolling out base policies for ``rollout_steps`` steps and keeping the
-    best: steer with one primitive for ``detour_steps`` steps (or none), then take the
-    valid primitive whose no-observation gain is largest (the lowest on near-ties: heading for
-    the goal in ActiveLocalization-v0, driving to the most unmapped cells in
-    cooperative_exploration_v0), observing the most informative visible target only once
-    the position standard deviation has reached ``sensing_std_fraction`` of the failure
-    bound, so the budget is kept for when it is needed. A model with an ``idle_primitive``
-    (one that stands still) also gets each of these policies stopping there once the std
-    reaches one of ``stop_std_fractions`` of the bound. Every candidate sequence of every
-    leaf is evaluated in one numpy batch per step.
-
-    In a PettingZoo team env (``agent`` names the robot) the robot plans alone on the env's team model
-    (``agents.team_planning.RobotPlanningView``): its teammates follow the plans they published at the
-    last step, and it publishes its own (the best sequence found: the first action, then its rollout).
-
-    The first step always uses the env's current ``info["action_mask"]`` and gains, so
-    the chosen action is valid. The agent reads the env it was built with at each
-    ``act``, so ``act`` must be called with that env's latest ``info``.
+    The EKF covariance propagates without measurement values (under the linearization it does not depend on them),
+    so expected returns need no sampling. Each primitive is tried alone and with the ``observation_branching`` most
+    informative valid observations; each leaf is valued by the best of several base-policy rollouts of
+    ``rollout_steps`` steps: an optional detour (``detour_steps``), then the primitive of largest no-observation gain,
+    observing only once the position std reaches ``sensing_std_fraction`` of the bound, and (models with an
+    ``idle_primitive``) standing still at each of ``stop_std_fractions``. All candidates run in one numpy batch a step.
+    In a PettingZoo team env (``agent`` names the robot) teammates follow the plans they published
+    (``agents.team_planning``). ``act`` must get the latest ``info`` of the env the agent was built with.
 
     Args:
         env: the env (wrapped or not) to plan in; it must have a ``planning_model()`` method.
         agent: the robot this agent acts for, in a PettingZoo team env (None for a Gymnasium env).
-        depth: number of steps searched exhaustively (>= 1). The default 1, followed by the
-            rollouts, did best on ActiveLocalization-v0 (20 seeds: 85 % success against 70 % at
-            depth 2) and is about 3.5 times faster.
+        depth: steps searched exhaustively (>= 1); 1 did best on ActiveLocalization-v0 (85 % success against 70 %
+            at depth 2, 20 seeds) and is about 3.5 times faster.
         observation_branching: observations tried per primitive at each searched step (>= 0).
         rollout_steps: length of the base-policy rollouts that value each leaf (>= 0).
         detour_steps: lengths of the initial detours of the base policies (0 for none).
-        sensing_std_fraction: the base policies observe once the largest position std
-            reaches this fraction of the env's ``max_position_std_m``.
-        stop_std_fractions: the fractions of ``max_position_std_m`` at which the stopping base
-            policies stand still (a model without an ``idle_primitive`` ignores them).
+        sensing_std_fraction: the base policies observe from this fraction of ``max_position_std_m`` on.
+        stop_std_fractions: fractions of ``max_position_std_m`` at which stopping base policies stand still.
         discount: discount of later rewards in the expected return (0, 1].
     """
 

@@ -1,20 +1,11 @@
 """Stable-Baselines3 PPO for the infonav envs: train, save, load, act.
 
-Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib's
-``MaskablePPO``, which reads each env's public ``action_masks()`` through the wrappers. Other envs
-(CartPole, for the benchmark) train with plain ``PPO``, or with ``MaskablePPO`` through ``InfoActionMask``.
-A PettingZoo parallel env (registry ``api``, e.g. ``cooperative_localization_v0``) trains one
-``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv`` (one slot per
-robot of its batched vector env, ``CooperativeLocalizationVectorEnv``).
-``vectorization`` picks how the copies run: ``native`` (the default where the env's registry entry has a
-``vector_entry_point``) steps them at once in the env's own ``gymnasium.vector.VectorEnv``, seen by SB3
-through ``agents.vector_adapter.VectorEnvAdapter``; ``sync`` in a ``DummyVecEnv``, ``subprocess`` in a
-``SubprocVecEnv`` (one process per copy).
-Hyperparameters come from ``agents/hyperparams/ppo.yml`` (package data, so an installed copy
-has them too), one block per env id (rl-baselines3-zoo style), or from a file of the same format
-(``infonav train --hyperparams FILE``); a block with ``normalize`` trains on observations normalized by
-SB3's ``VecNormalize``, whose statistics ``train`` saves beside the model (``vecnormalize.pkl``)
-and ``PPOAgent`` applies. Needs the ``rl`` extra (stable-baselines3, sb3-contrib, torch, pyyaml).
+Envs with ``info["action_mask"]`` train with sb3-contrib's ``MaskablePPO``, others (CartPole) with ``PPO``; a
+PettingZoo team env trains one policy shared by its robots (``agents.team_vec_env``). ``vectorization``:
+``native`` (the env's own ``VectorEnv`` through ``agents.vector_adapter``, the default where it has one),
+``sync`` (``DummyVecEnv``) or ``subprocess`` (``SubprocVecEnv``). Hyperparameters: rl-zoo style blocks keyed by
+env id (``agents/hyperparams/ppo.yml``, package data, or a file); ``normalize`` adds ``VecNormalize``, saved
+beside the model. Needs the ``rl`` extra.
 """
 
 from __future__ import annotations
@@ -84,10 +75,9 @@ VECTORIZATIONS = (NATIVE, SYNC, SUBPROCESS)  # the env's own VectorEnv, DummyVec
 
 
 class InfoActionMask(gym.Wrapper):
-    """Gives an env without ``action_masks()`` one (what ``MaskablePPO`` calls), from the last ``info["action_mask"]``.
+    """Gives an env without ``action_masks()`` one (for ``MaskablePPO``), from the last ``info["action_mask"]``.
 
-    An env without that key gets an all-valid mask (CartPole in ``ppo_timing``). When no action is
-    valid, every action is allowed, as the infonav envs' own ``action_masks()`` do.
+    No key, or no valid action: every action is allowed (CartPole in ``ppo_timing``).
     """
 
     def __init__(self, env: gym.Env):
@@ -130,13 +120,11 @@ def load_hyperparameters(env_id: str, path: Path | str | None = None) -> dict:
 
     Args:
         env_id: the env whose block to read.
-        path: a YAML file of blocks keyed by env id; ``None`` reads the tuned blocks shipped in the
-            package (``agents/hyperparams/ppo.yml``, through ``importlib.resources``).
+        path: a YAML file of blocks keyed by env id; ``None``: the blocks shipped in the package.
 
     Raises:
-        ValueError: naming the file when it is missing, not YAML, not a mapping of blocks, or has
-            neither a block for ``env_id`` nor a ``default`` one, or that block is not a mapping; naming the file,
-            the block and the key for a key outside ``agents.hyperparameters.HYPERPARAMETERS`` or out of its range.
+        ValueError: naming the file (and block and key) when it is unreadable, not a mapping of mappings, has no
+            block for ``env_id`` nor a ``default`` one, or a key is unknown or out of range.
     """
     import yaml
 
@@ -336,14 +324,10 @@ def build_model(
 ):
     """A fresh ``MaskablePPO`` (env with action masks) or ``PPO`` on ``n_envs`` seeded copies of ``env_id``.
 
-    The infos of an episode's end hold its main metric (``learning_curve.METRIC_KEY``).
-
     Args:
         hyperparameters: ppo.yml-style keys; ``None`` loads the env's block of ppo.yml.
-        n_envs: overrides the hyperparameters' ``n_envs`` (default 8). For the team env, each
-            copy is ``n_robots`` slots of the vec env (``TeamVecEnv``), all run in this process.
-        vectorization: ``native``, ``sync`` or ``subprocess`` (see the module); ``None``: the env's
-            default (``checked_vectorization``).
+        n_envs: overrides the hyperparameters' ``n_envs`` (a team copy is a slot per robot).
+        vectorization: ``native``, ``sync`` or ``subprocess``; ``None``: the env's default.
     """
     hyperparameters = training_block(env_id, hyperparameters, n_envs)
     masked, vec_env = training_vec_env(env_id, hyperparameters["n_envs"], seed, env_kwargs, vectorization)
@@ -455,31 +439,15 @@ def train(
 ) -> Path:
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
 
-    ``n_envs`` ``None`` takes the hyperparameters' ``n_envs``; ``vectorization`` ``None`` the env's default
-    (``native`` where it has a native vector env, see ``build_model``).
-    Also writes ``output_dir/train.json`` (env, seed, vectorization, the hyperparameters asked for, every keyword
-    the PPO / MaskablePPO constructor got, SB3's defaults included, as ``constructor``, wall time, fps),
-    ``checkpoints`` intermediate models in ``output_dir/checkpoints/``, the learning curve (``curve.csv``, a row per
-    rollout, and ``curve.png`` with ``curve_references``, e.g. ``{"greedy": 48.0}``, as lines:
-    ``agents.learning_curve``) and, with
-    ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
-    (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
-
-    ``init_from_planner`` warm-starts the policy by behaviour cloning of the env's planner
-    (``agents.imitation.clone_planner``) before PPO: a number of planner episodes to play (seeds
-    ``DEMONSTRATION_SEEDS + seed ..``, far from the seeds evaluations play, in
-    ``planner_workers`` processes), saved as ``output_dir/demonstrations.npz``, or the path of such a file to
-    clone from again; ``timesteps=0`` then keeps the cloned policy as it is. train.json's ``warm_start`` records
-    them, each cloning epoch's losses, the cloned policy's
-    agreement with the planner and the seconds taken.
-
-    ``validation_episodes`` > 0 (with ``timesteps`` > 0) keeps the policy best on that many validation episodes by
-    the env's main metric, validated every ``validation_every`` env steps (default: a twentieth of ``timesteps``),
-    at the start and at the end, in ``output_dir/best/`` (``agents.validation``; train.json's ``validation`` records
-    when and what it reached). ``model.zip`` stays the last policy.
-
-    Ctrl-C ends the training early: the model trained so far is saved as above, with the curve so far and its
-    train.json with ``"interrupted": true`` and the ``timesteps`` reached.
+    ``n_envs`` / ``vectorization`` ``None``: the hyperparameters' / the env's default. Also writes
+    ``output_dir/train.json`` (settings, every constructor keyword as ``constructor``, wall time, fps),
+    ``checkpoints`` models in ``checkpoints/``, the learning curve (``curve.csv``, ``curve.png`` with
+    ``curve_references`` as lines) and, with ``tensorboard``, event files in ``tensorboard/``.
+    ``init_from_planner`` warm-starts by behaviour cloning of the env's planner: a number of episodes to play (seeds
+    from ``DEMONSTRATION_SEEDS + seed``, in ``planner_workers`` processes, saved as ``demonstrations.npz``) or such a
+    file; ``timesteps=0`` then keeps the cloned policy. ``validation_episodes`` > 0 keeps the policy best on them in
+    ``best/`` (``agents.validation``), every ``validation_every`` env steps (default: a twentieth of ``timesteps``).
+    Ctrl-C saves the model so far, its train.json with ``"interrupted": true``.
     """
     if timesteps < (0 if init_from_planner is not None else 1):
         raise ValueError(f"timesteps must be >= 1 (0 only with a planner warm start: cloning alone), got {timesteps}")
@@ -655,14 +623,11 @@ def load_normalization(model_path: Path) -> VecNormalize | None:
 class PPOAgent:
     """A trained PPO policy as an agent: deterministic (the most probable action) among the valid ones.
 
-    Observations are normalized first when the model was trained with ``normalize`` (the
-    statistics in ``vecnormalize.pkl`` beside the model).
-
     Args:
-        model_path: a ``model.zip`` written by ``train`` (or any SB3 PPO / MaskablePPO zip), or the
-            directory that holds it.
+        model_path: a ``model.zip`` (with ``vecnormalize.pkl`` beside it when trained with ``normalize``), or its
+            directory.
         env: the env it will act in; its spaces must match the model's.
-        agent: in a PettingZoo env, the agent (robot) it acts for: the spaces checked are that agent's.
+        agent: in a PettingZoo env, the agent (robot) it acts for.
     """
 
     def __init__(self, model_path: Path | str, env, agent: str | None = None):

@@ -13,9 +13,7 @@ class RandomAgent:
     Args:
         n_actions: size of the env's ``Discrete`` action space.
         seed: seed of the agent's own generator; ``reset(seed)`` re-seeds it.
-        noop_action: an action that does nothing (e.g. "no relative observation" in
-            cooperative_localization_v0); if given, it is chosen only when nothing else
-            is valid, so the agent is a random *choice of what to observe*.
+        noop_action: an action that does nothing, chosen only when nothing else is valid.
     """
 
     def __init__(self, n_actions: int, seed: int | None = None, noop_action: int | None = None):

@@ -1,14 +1,9 @@
 """``MaskedPPOTorchRLModule``: RLlib's default PPO module that never picks a masked action (needs Ray).
 
-It builds RLlib's default PPO networks on the ``"observation"`` part of the observations of
-``agents.rllib_masking`` and adds ``log(mask)`` (clamped to RLlib's ``FLOAT_MIN``) to the action logits
-in every forward pass, so sampling, the greedy action, the PPO loss and its entropy all see masked logits.
-
-With ``model_config["normalize_observations"]`` (the RLlib backend sets it from a ``ppo.yml`` block's
-``normalize: {norm_obs: true}``) the module also normalizes that part, as SB3's ``VecNormalize`` does: by a
-running mean and variance (clipped to +-``NORMALIZED_CLIP``) kept in the module's buffers, updated from each
-training batch on the learner and sent with the weights to the env runners, so a checkpoint acts alike.
-(RLlib's ``MeanStdFilter`` connector would normalize the mask too, and lives outside the module.)
+It adds ``log(mask)`` (clamped to ``FLOAT_MIN``) to the logits of every forward pass, so sampling, the greedy
+action, the loss and its entropy see masked logits. With ``model_config["normalize_observations"]`` it normalizes
+the ``"observation"`` part as SB3's ``VecNormalize`` does, with running statistics in its buffers, updated on the
+learner and synced with the weights (RLlib's ``MeanStdFilter`` would normalize the mask too).
 """
 
 from __future__ import annotations

@@ -1,14 +1,9 @@
 """RLlib's multi-agent env runner on a team env's native vector env: N copies in one batched step (needs Ray).
 
-RLlib 2.60's ``MultiAgentEnvRunner`` always builds its envs with ``ray.rllib.env.vector.registration.make_vec``:
-a ``SyncVectorMultiAgentEnv`` of N ``MultiAgentEnv`` copies stepped one after another in Python (only ``sync``
-vectorization exists for multi-agent envs). Its sampling loop needs no more than a ``VectorMultiAgentEnv``: lists
-of per-copy ``{agent: ...}`` dicts from ``reset`` / ``step``, ``NEXT_STEP`` autoreset, and ``envs[i]`` giving copy
-``i``'s ``possible_agents`` and spaces. So ``BatchedTeamEnvRunner`` (``config.env_runners(env_runner_cls=...)``)
-overrides ``make_env``: its env creator (``num_envs`` in the env config) returns ``BatchedTeamEnv``, the team's
-native vector env (``TeamVectorEnv``) seen that way. One runner step is then one batched env step of all copies
-and one forward pass of each policy over every copy's robots (RLlib's env-to-module connector batches the
-episodes). Copy ``i``'s episode ends and restarts on its own (``NEXT_STEP``), as in RLlib's sync vector env.
+RLlib 2.60's ``MultiAgentEnvRunner`` only builds a ``SyncVectorMultiAgentEnv`` (copies stepped one by one in
+Python), yet its sampling loop needs only a ``VectorMultiAgentEnv``. ``BatchedTeamEnvRunner`` overrides
+``make_env`` to build ``BatchedTeamEnv``, the team's native vector env seen that way: one runner step is one
+batched env step and one forward pass per policy. Copies end and restart on their own (``NEXT_STEP``).
 """
 
 from __future__ import annotations
@@ -60,17 +55,15 @@ class TeamCopy(MultiAgentEnv):
 
 
 class BatchedTeamEnv(VectorMultiAgentEnv):
-    """A team vector env (``TeamVectorEnv``, N copies of R robots) as RLlib's ``VectorMultiAgentEnv``.
+    """A team vector env (N copies of R robots) as RLlib's ``VectorMultiAgentEnv``.
 
-    Copy ``i``'s observations are ``{robot: {"observation": ..., "action_mask": float32}}`` (the masks of
-    ``action_masks()``, all ones where none is valid, as ``MaskedObservations`` gives them); rewards and
-    terminations ``{robot: ...}`` with RLlib's ``"__all__"``; infos ``{}``, but at an episode's last step each
-    robot's ``{METRIC_KEY: the episode's main metric}`` (for the learning curve, ``CurveMetricCallback``).
-    Autoreset is ``NEXT_STEP``, RLlib's: the step after a copy's episode ended resets it (its actions, empty or not,
-    are ignored) and returns its reset observations with rewards 0. ``reset(seed=s)`` seeds copy ``i`` with ``s + i``.
+    Copy ``i``'s observations are ``{robot: {"observation": ..., "action_mask": float32}}`` (all ones where none is
+    valid); rewards and terminations ``{robot: ...}`` with ``"__all__"``; infos ``{}`` but at an episode's last step
+    ``{METRIC_KEY: main metric}``. ``NEXT_STEP`` autoreset: the step after an end resets the copy (its actions
+    ignored, rewards 0). ``reset(seed=s)`` seeds copy ``i`` with ``s + i``.
 
     Args:
-        team: a team vector env in ``NEXT_STEP`` autoreset (``make_vector_env`` of a PettingZoo parallel env).
+        team: a team vector env in ``NEXT_STEP`` autoreset.
 
     Raises:
         ValueError: for another autoreset mode.

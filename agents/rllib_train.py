@@ -1,17 +1,11 @@
 """RLlib PPO for the infonav envs (``infonav train --backend rllib``): train, checkpoint, record.
 
-Single-agent envs train one policy on ``envs_per_runner`` copies per env runner: the env's native vector env
-where it has one (``MaskedVectorObservations``, RLlib's ``VECTOR_ENTRY_POINT`` mode), else Gymnasium's sync
-vectorization of ``MaskedObservations`` copies. A team env (a PettingZoo parallel env) trains multi-agent PPO
-on ``envs_per_runner`` copies (default: its block's ``n_envs`` over the runners) of its native vector env per
-runner, stepped at once (``agents.rllib_team_env``): one policy shared by every robot (``policies="shared"``,
-parameter sharing) or one per robot (``"per_robot"``). Every policy is a
-``MaskedPPOTorchRLModule``. The PPO settings come from the env's block of ``agents/hyperparams/ppo.yml``,
-translated (``rllib_training_settings``). ``OUTPUT/checkpoint`` is RLlib's algorithm checkpoint,
-``OUTPUT/train.json`` the record (as the SB3 backend's), ``OUTPUT/curve.csv`` and ``curve.png`` the learning curve
-(``agents.learning_curve``; a row per iteration in which episodes ended, with RLlib's episode return mean, over
-its last 20 episodes, ``metrics_num_episodes_for_smoothing``, and for a team env the main metric over the same
-episodes; a single-agent env's is not recorded). Needs the ``distributed`` extra.
+A single-agent env trains one policy on ``envs_per_runner`` copies per runner (its native vector env where it has
+one, else Gymnasium's sync vectorization); a team env trains multi-agent PPO on its native vector env per runner
+(``agents.rllib_team_env``), one policy shared by the robots or one per robot. Every policy is a
+``MaskedPPOTorchRLModule``; settings are the env's ppo.yml block translated (``rllib_training_settings``). Writes
+``OUTPUT/checkpoint``, ``train.json`` and the learning curve (a row per iteration with episodes: RLlib's smoothed
+return over 20 episodes and, for a team env, the main metric). Needs the ``distributed`` extra.
 """
 
 from __future__ import annotations
@@ -40,10 +34,8 @@ POLICY_LAYOUTS = ("shared", "per_robot")
 
 
 class SingleEnvCreator:
-    """RLlib's env creator of a single-agent env: the masked env ``env_id`` with ``env_config``.
-
-    Asked for ``num_envs`` copies (RLlib's ``VECTOR_ENTRY_POINT`` mode, taken where the env has a native vector
-    env), it returns that native vector env, masked (``MaskedVectorObservations``).
+    """RLlib's env creator of a single-agent env: the masked env ``env_id``, or its masked native vector env when
+    asked for ``num_envs`` copies (RLlib's ``VECTOR_ENTRY_POINT`` mode).
     """
 
     def __init__(self, env_id: str):
@@ -107,14 +99,11 @@ def _model_settings(hyperparameters: dict) -> dict:
 
 
 def rllib_training_settings(hyperparameters: dict) -> dict:
-    """The PPO settings of an ``agents/hyperparams/ppo.yml`` block in RLlib's names (``PPOConfig.training``).
-
-    The block's rollout, ``n_steps`` per env times ``n_envs`` (env steps, whatever the runners), is RLlib's
-    train batch; ``batch_size`` its minibatch.
+    """The PPO settings of a ppo.yml block in RLlib's names (``PPOConfig.training``); the rollout ``n_steps * n_envs``
+    is the train batch, ``batch_size`` its minibatch.
 
     Raises:
-        ValueError: for a value outside its range (``agents.hyperparameters``), a key without an RLlib translation,
-            or a schedule (``lin_<start>``), naming the key.
+        ValueError: for a value out of range, a key without an RLlib translation, or a schedule, naming the key.
     """
     from agents.ppo import scheduled
 

@@ -1,10 +1,7 @@
 """``TeamVecEnv``: every robot of a batched team env as one slot of a Stable-Baselines3 ``VecEnv``.
 
-PPO on it learns one policy for all robots (parameter sharing): it sees ``n_envs * n_robots``
-single-robot envs with the same spaces, each with its robot's own reward and action mask. The copies
-run as one native vector env of the team env (``make_vector_env``, e.g. ``CooperativeLocalizationVectorEnv``)
-in ``SAME_STEP`` autoreset, stepped at once on stacked arrays; ``RobotSlots`` sees its (N, R, ...) arrays as
-N R single-robot sub-envs, and ``VectorEnvAdapter`` (SB3's view of every vector env) does the rest.
+PPO on it learns one policy shared by all robots: it sees ``n_envs * n_robots`` single-robot envs, each with its
+robot's reward and mask, run as one native team vector env in ``SAME_STEP`` autoreset.
 """
 
 from __future__ import annotations
@@ -25,13 +22,8 @@ from infonav_gym.registry import PARALLEL, api_of, make_vector_env
 class RobotSlots(VectorEnv):
     """A team vector env's robots as sub-envs: slot ``copy * R + k`` is robot ``k`` of copy ``copy``.
 
-    Observations, rewards, terminations, truncations and masks are the team env's arrays reshaped to
-    (N R, ...); the info holds only ``final_obs`` per slot (``SAME_STEP``: what the SB3 adapter reads) and the
-    ended episodes' main metric (``final_info[METRIC_KEY]``, the team's, in each of its robots' slots);
-    the team env's whole info of the last reset or step is ``team_info``.
-
-    Args:
-        team: a team vector env in ``SAME_STEP`` autoreset, with ``agents`` and ``action_masks()`` (N, R, A).
+    Arrays are the team env's reshaped to (N R, ...); the info holds only ``final_obs`` per slot and the ended
+    episodes' main metric (``final_info[METRIC_KEY]``); the team env's whole last info is ``team_info``.
     """
 
     def __init__(self, team: VectorEnv):
@@ -116,19 +108,14 @@ class RobotSlots(VectorEnv):
 class TeamVecEnv(VectorEnvAdapter):
     """``n_envs`` copies of a PettingZoo parallel env, batched; slot ``copy * n_robots + k`` is robot ``k`` of ``copy``.
 
-    Copy ``i`` is reset with seed ``seed + i`` the first time and continues its own generator on the
-    automatic resets after that, so the seed fixes every rollout. All robots of a copy end their
-    episode together (truncation at ``max_cycles``): the step that ends it resets the copy at once and
-    each of its slots gets ``info["terminal_observation"]`` and ``info["TimeLimit.truncated"]``, as SB3's
-    ``DummyVecEnv`` does; the other slots' infos are empty (``VectorEnvAdapter``). The team env's whole info
-    of the last reset or step is ``vector_env.team_info`` (arrays (N, R, ...)). ``action_masks()`` gives every
-    slot's valid actions to ``MaskablePPO``. ``get_attr`` gives each slot its robot's ``agent`` name and
-    the team env's other attributes; ``set_attr`` and ``env_method`` act on the team env, which every slot shares.
+    Copy ``i`` is reset with seed ``seed + i`` first, then continues its generator. A copy's robots end together and
+    their slots get ``terminal_observation`` as in SB3's ``DummyVecEnv``. ``get_attr("agent")`` is each slot's
+    robot; other attributes, ``set_attr`` and ``env_method`` act on the team env, which every slot shares.
 
     Args:
         n_envs: copies of the team env.
         seed: seed of copy 0 (copy ``i`` gets ``seed + i``); ``None``: unseeded.
-        env_kwargs: the config of every copy (keys of ``CooperativeLocalizationEnv.default_config()``).
+        env_kwargs: the config of every copy.
         env_id: the registry id of a PettingZoo parallel env with a native vector env.
 
     Raises:

@@ -1,10 +1,7 @@
-"""``VectorEnvAdapter``: a Gymnasium ``VectorEnv`` as a Stable-Baselines3 ``VecEnv`` (SB3 has none).
+"""``VectorEnvAdapter``: a Gymnasium ``VectorEnv`` in ``AutoresetMode.SAME_STEP`` as a Stable-Baselines3 ``VecEnv``.
 
-SB3 resets a sub-env in the step that ended its episode and finds the last observation in
-``infos[i]["terminal_observation"]``; Gymnasium calls that autoreset mode ``AutoresetMode.SAME_STEP``
-(``info["final_obs"]``, ``info["final_info"]``), the only one the adapter takes. With it, PPO trains on a
-native vector env (N copies stepped at once on stacked arrays) as it does on a ``DummyVecEnv`` of
-single envs, and ``MaskablePPO`` gets the (N, K) action masks in one call.
+SB3 resets a sub-env in the step that ended it (last observation in ``infos[i]["terminal_observation"]``),
+which is Gymnasium's SAME_STEP mode; so PPO trains on a native vector env as on a ``DummyVecEnv``.
 """
 
 from __future__ import annotations
@@ -30,40 +27,20 @@ SAME_STEP_HINT = (
 class VectorEnvAdapter(VecEnv):
     """A Gymnasium ``VectorEnv`` in ``AutoresetMode.SAME_STEP`` seen as an SB3 ``VecEnv``.
 
-    ## Seeding and reset
-    As SB3's ``DummyVecEnv``: ``seed(s)`` gives sub-env ``i`` the seed ``s + i`` at the next ``reset()``
-    (SB3's ``_seeds``), ``set_options`` its options; both are used once. Without them ``reset()`` passes
-    ``seed=None``, so every sub-env continues its generator.
-
-    ## Infos
-    Building a dict of every info key for every sub-env and step would cost more than a native step at
-    64+ envs, so each step's ``infos`` holds only what SB3 reads: ``{}`` for a sub-env whose episode goes
-    on; for one whose episode ended, ``terminal_observation`` (from ``info["final_obs"]``),
-    ``TimeLimit.truncated`` (truncated and not terminated) and each key of ``info_keywords`` from that
-    final step's info (``info["final_info"]``), where ``VecMonitor(info_keywords=...)`` reads them.
-    ``TimeLimit.truncated`` is absent, not ``False``, on the other steps: SB3 reads it with
-    ``.get("TimeLimit.truncated", False)``. ``reset_infos`` stay empty dicts (SB3 itself does not read them).
-
-    ## Action masks
-    ``action_masks()`` (N, n) bool for ``MaskablePPO``: the vector env's own ``action_masks()`` when it
-    has one, else the last ``info["action_mask"]``; a row with no valid action (or no mask) is all
-    ``True``. ``env_method("action_masks")`` returns the rows asked for as one array (no per-env loop).
-
-    ## Sub-env access
-    ``get_attr`` / ``set_attr`` / ``env_method`` reach the sub-envs of a ``SyncVectorEnv`` /
-    ``AsyncVectorEnv`` (through Gymnasium's ``get_attr``, ``set_attr``, ``call``, which act on every
-    sub-env, so ``set_attr`` and ``env_method`` take all indices only); a native vector env has no
-    sub-env objects: read or call it on ``adapter.vector_env``. Misses raise ``AttributeError`` (what
-    ``has_attr`` tests), other refusals ``ValueError``.
+    Seeding as SB3's ``DummyVecEnv``: ``seed(s)`` gives sub-env ``i`` the seed ``s + i`` at the next ``reset()``.
+    A step's ``infos`` hold only what SB3 reads (a per-key dict for every sub-env would cost more than a native step
+    at 64+ envs): ``{}`` while an episode goes on; at its end ``terminal_observation``, ``TimeLimit.truncated`` and
+    the ``info_keywords`` of its final info (for ``VecMonitor``). ``action_masks()`` (N, n) bool: the vector env's
+    own, else the last ``info["action_mask"]``; a row without a valid action is all ``True``. ``get_attr`` /
+    ``set_attr`` / ``env_method`` reach the sub-envs of a sync / async vector env (the last two on all of them); a
+    native one has none: use ``adapter.vector_env``. Misses raise ``AttributeError``, other refusals ``ValueError``.
 
     Args:
-        vector_env: the vector env, ``metadata["autoreset_mode"]`` SAME_STEP; its spaces are the
-            ``single_observation_space`` and ``single_action_space``.
+        vector_env: the vector env, ``metadata["autoreset_mode"]`` SAME_STEP.
         info_keywords: info keys copied into the infos of sub-envs whose episode ended.
 
     Raises:
-        ValueError: for an object that is not a ``gymnasium.vector.VectorEnv`` or another autoreset
-            mode (saying how to ask for SAME_STEP).
+        ValueError: for an object that is not a ``gymnasium.vector.VectorEnv`` or another autoreset mode.
     """
 
     def __init__(self, vector_env: VectorEnv, info_keywords: Sequence[str] = ()):
@@ -83,8 +60,6 @@ class VectorEnvAdapter(VecEnv):
         self._actions = None
         super().__init__(vector_env.num_envs, vector_env.single_observation_space, vector_env.single_action_space)
         self.metadata = dict(vector_env.metadata)
-
-    # ------------------------------------------------------------------ stepping
 
     def reset(self):
         """Reset every sub-env with the seeds of ``seed()`` and the options of ``set_options()``, once."""
@@ -156,8 +131,6 @@ class VectorEnvAdapter(VecEnv):
     def close(self) -> None:
         self.vector_env.close()
 
-    # ------------------------------------------------------------------ action masks
-
     def action_masks(self) -> np.ndarray:
         """Valid actions (N, n) bool: the vector env's ``action_masks()``, else the last ``info["action_mask"]``.
 
@@ -188,8 +161,6 @@ class VectorEnvAdapter(VecEnv):
                     "(one row of valid actions per sub-env)"
                 )
         return masks.copy()
-
-    # ------------------------------------------------------------------ sub-env access
 
     def _rows(self, indices) -> list[int]:
         rows = list(self._get_indices(indices))

@@ -1,40 +1,14 @@
-"""Speed goals, measured as ratios against a reference run in the same process.
+"""Speed goals, measured as ratios against a reference run in the same process (rounds alternate; median ratios).
 
-Env steps: every registered env (``infonav_gym.registry``; a parallel env's step is one step of
-every robot) against CartPole-v1, with goals for LandmarkSelection-v0 (K = 8) and the 4-robot
-cooperative_localization_v0. CartPole is driven by ``action_space.sample()`` as in
-``gymnasium.utils.performance.benchmark_step``; the infonav envs by agents uniform over the
-*valid* actions, so steps do full EKF updates. Rounds alternate between the envs and the median
-ratio is reported, so a busy machine slows them alike.
+- Env steps: every registered env under random valid actions against CartPole-v1 under ``action_space.sample()``.
+- Vector envs (``vector_timing``) at each size N: env-steps/s of every native vector env, CartPoleVectorEnv and
+  VMAS ``navigation``, as ratios against CartPole-v1, their single env and VMAS; memory per sub-env at the
+  largest N (``*_kb_per_env``).
+- Sensors (``sensor_timing``), ICP against Open3D / small_gicp (``registration_timing``), PPO training fps
+  (``ppo_timing``), parallel evaluation and RLlib runners (``distributed_timing``), start-up (``startup_timing``).
 
-Vector envs (``infonav_gym.experiments.vector_timing``), in the same rounds, at each vector size N
-(``DEFAULT_VECTOR_SIZES``): env-steps per second (vector steps per second x N) of every registered
-native vector env, of Gymnasium's ``CartPoleVectorEnv`` and of VMAS ``navigation`` (4 agents, when
-``vmas`` imports), each also as a ratio against CartPole-v1, and our vector envs against their single env
-(RangeRegistration-v0's goal: 10x at N = 256) and VMAS at the same N (SensorSelection-v0's goal at N = 256
-is 0.05 of CartPole: most of its steps render a LADAR or camera frame, ~1-3 ms compiled). Memory per sub-env
-at the largest N (``*_kb_per_env``): peak RSS growth in a fresh subprocess, over ``MEMORY_STEPS`` vector
-steps or ``MEMORY_SECONDS`` of them (scaled down with ``--seconds`` below 1).
-
-Sensors (``infonav_gym.experiments.sensor_timing``): median milliseconds of one default
-``Ladar().scan`` (32 x 180) and ``Camera().capture`` (120 x 160) on a default
-``make_terrain`` scene, with absolute goals, each against a pure-Pymunk
-``segment_query_first`` loop over the same rays (ratio < 1: the sensor is faster).
-ICP (``infonav_gym.experiments.registration_timing``): median milliseconds of point-to-point and GICP
-``icp`` on a 32 x 180 LADAR frame pair and a 40k-point scan pair from a warm start, and their errors
-against the true motion, beside Open3D's ``registration_icp`` and small_gicp's GICP (one thread) on the
-same pairs when they import (the ``bench`` extra), with the time ratios.
-PPO (``infonav_gym.experiments.ppo_timing``): training timesteps per second of the same MaskablePPO
-settings on LandmarkSelection-v0 and on CartPole-v1, 8 envs each, and on their vector envs (the native
-LandmarkSelection one, Gymnasium's CartPoleVectorEnv), 64 copies each, alternating rounds in one run.
-Parallel evaluation and RLlib (``infonav_gym.experiments.distributed_timing``): the wall time of 20
-LandmarkSelection-v0 episodes per default agent with ``--workers 2`` against 1, and the env-steps/s RLlib's
-env runners sample on the team env with 2 runners against 1 and on the exploration env with 1 (when Ray imports).
-Start-up (``infonav_gym.experiments.startup_timing``): ``cold_start_s`` and ``warm_start_s``, the wall time of a
-fresh process that makes, resets and steps a registered env (the slowest env's), with an empty and then a filled
-numba cache; ``cold_start_all_envs_s``, every env in one process with an empty cache.
 Figures named ``*_us``, ``*_ms``, ``*_kb_per_env``, ``*_time_ratio`` or ``*_start_s`` meet their goal at or below
-it, all others at or above; a goal whose figure was not measured (its env, a peer or Ray absent) is met ``None``.
+it, all others at or above; a goal whose figure was not measured (a peer or Ray absent) is met ``None``.
 """
 
 from __future__ import annotations
@@ -223,11 +197,8 @@ def env_step_figures(
 ) -> dict:
     """Median steps per second of each env (default ``benchmarked_env_ids()``), of CartPole-v1 and of the vector envs.
 
-    Returns:
-        ``{"cartpole_steps_per_s", NAME + "_steps_per_s", NAME + "_vs_cartpole_ratio"}`` for each env's
-        ``figure_name`` and each of ``vector_runs`` (as ``NAME_vector_N``); for our vector envs
-        ``NAME_vector_N_vs_single_ratio`` (env-steps per second against the env's single env, N = 1) and
-        ``NAME_vector_N_vs_vmas_ratio`` when VMAS is timed.
+    Returns ``NAME_steps_per_s`` and ``NAME_vs_cartpole_ratio`` for each env and ``vector_runs`` entry, and for our
+    vector envs ``NAME_vector_N_vs_single_ratio`` and (VMAS timed) ``NAME_vector_N_vs_vmas_ratio``.
 
     Raises:
         ValueError: for ``vector_sizes`` that are not integers >= 1.

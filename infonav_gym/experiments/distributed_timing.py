@@ -1,12 +1,8 @@
 """What the benchmark measures of parallel evaluation and of RLlib's env runners.
 
-- ``evaluation_workers_figures``: the wall time of ``evaluate`` (LandmarkSelection-v0, the CLI's default agents,
-  20 episodes each) with 2 worker processes over its time with 1, alternating rounds, median ratio;
-- ``rllib_runner_figures`` (when Ray imports): env-steps/s (team steps of one copy) RLlib's env runners sample
-  on a team env (default ``cooperative_localization_v0``) with 2 runners against 1, and on
-  ``cooperative_exploration_v0`` with 1, each run on the same local Ray: the RLlib backend's runners as training
-  builds them (the ppo.yml block's ``n_envs`` copies shared out over the runners, stepped at once in the team's
-  native vector env, masked, random-initialized shared policy).
+``evaluation_workers_figures``: wall time of ``evaluate`` with 2 workers over 1 (median ratio);
+``rllib_runner_figures`` (when Ray imports): env-steps/s RLlib's runners sample, as training builds them, on the
+team env with 2 runners against 1, and on the exploration env with 1.
 """
 
 from __future__ import annotations

@@ -39,11 +39,8 @@ def make_agent(
 ):
     """A baseline agent by name (``noop_action``: see ``RandomAgent``).
 
-    ``planner`` (``agents.planner.PlannerAgent(env, agent)`` with the env's ``planner_settings``),
-    ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``) and ``rllib:DIR`` (``agents.rllib_agent.RLlibAgent(DIR,
-    env)``, the ``distributed`` extra) need the ``env`` they will act in; each is imported only when asked for.
-    ``planner`` is refused unless the env offers a planning model (``envs.traits.has_planning_model``). In a
-    PettingZoo env ``agent`` names the robot a ``planner`` or ``ppo:PATH`` agent acts for.
+    ``planner``, ``ppo:PATH`` and ``rllib:DIR`` need the ``env`` they act in (and ``agent``, the robot, in a
+    PettingZoo env) and are imported only when asked for; ``planner`` needs an env with a planning model.
     """
     check_agent_name(name)
     if name == "random":
@@ -81,13 +78,7 @@ def make_agent(
 
 
 def make_team_agents(name: str, env) -> dict:
-    """One agent per robot of a PettingZoo parallel env ``env``: ``{robot: agent}``.
-
-    ``random`` is a random choice of what to observe (it takes the env's ``traits.noop_action`` only
-    when nothing else is valid); ``planner`` plans for its robot, its teammates following the plans they
-    published (``agents.team_planning``); ``ppo:PATH`` is one policy shared by every robot
-    (``infonav train --env cooperative_localization_v0``), checked against each robot's spaces.
-    """
+    """One agent per robot of a PettingZoo parallel env ``env``: ``{robot: agent}`` (``ppo:PATH`` one shared policy)."""
     noop_action = traits_of(env).noop_action
     return {
         robot: make_agent(name, env.action_space(robot).n, noop_action=noop_action, env=env, agent=robot)

@@ -1,9 +1,6 @@
-"""Evaluate agents on an env: same seeds for every agent, means and 95% confidence intervals (``intervals``);
-``evaluation_files`` prints and writes what it finds.
+"""Evaluate agents on an env: same seeds for every agent, means and 95% confidence intervals (``intervals``).
 
-What is reported comes from the env: its class's ``episode_metrics`` and ``traits``
-(``infonav_gym.envs.metrics``, ``infonav_gym.envs.traits``); whether every robot acts at once
-from the registry's ``api`` (``infonav_gym.registry``).
+What is reported is the env's own ``episode_metrics`` and ``traits``; ``evaluation_files`` prints and writes it.
 """
 
 from __future__ import annotations
@@ -33,24 +30,18 @@ def evaluate(
     use_ray: bool = False,
     address: str | None = None,
 ):
-    """Run every agent for ``episodes`` episodes on seeds ``seed, seed + 1, ...``.
+    """Run every agent (names of ``episodes.AGENT_KINDS``, each once) for ``episodes`` episodes on seeds ``seed ..``.
 
-    ``env_id``: any registered env (``infonav_gym.registry``). In a PettingZoo parallel env (e.g.
-    ``cooperative_localization_v0``) every robot plays its own copy of the agent, ``ppo:PATH`` one policy
-    for every robot. ``agent_names``: any of ``episodes.AGENT_KINDS``, each once. The metrics are the env's
-    ``episode_metrics``. ``workers`` processes play the episodes at once (``use_ray``: as Ray tasks, on the cluster
-    at ``address`` or a local Ray), with the same results as one (``episode_pool``).
+    In a PettingZoo env every robot plays its own copy of the agent (``ppo:PATH``: one policy for all). ``workers``
+    processes (``use_ray``: Ray tasks at ``address`` or local) give the same results as one (``episode_pool``).
 
     Returns:
-        ``{"env_id", "episodes", "seeds", "env_kwargs", "env_config", "metrics", "agents": {name: {"episodes":
-        [...], "summary": {...}}}}``; ``env_config`` is the config the env ran, defaults included.
+        ``{"env_id", "episodes", "seeds", "env_kwargs", "env_config" (defaults included), "metrics", "agents": {name:
+        {"episodes": [...], "summary": {...}}}}``.
 
     Raises:
-        ValueError: before any episode, for a bad agent, seed range or worker count, or a run whose records and
-            workers would not fit in the available memory (``episode_pool.checked_workers``).
-        Interrupted: on Ctrl-C, with the evaluation of the seeds every agent finished (``"interrupted": True``):
-            the episodes are played seed by seed, every agent on each seed, and a seed some agent did not finish
-            is dropped, so every agent keeps the same seeds.
+        ValueError: before any episode, for a bad agent, seed range or worker count, or too little memory.
+        Interrupted: on Ctrl-C, with the seeds every agent finished (``"interrupted": True``).
     """
     seeds = seeds_of(seed, episodes)
     if not agent_names:

@@ -1,10 +1,7 @@
-"""The leaderboard: every registered env's baselines and every committed model, on the same seeds, ranked by the
-env's main metric (its ``traits.main_metric``, higher being better).
+"""The leaderboard: every env's baselines and committed models on the same seeds, ranked by the env's main metric.
 
-A row is an env and a config: the env's defaults, or the config a model was trained with (its ``train.json``
-``env_kwargs``), every agent of the row played on it. Each (row, agent) cell is played by ``episode_pool.played``
-alone, after a warm-up of ``WARMUP_STEPS`` steps (numba compiles, lazy imports), so its wall time over its episode
-count is the agent's seconds per episode.
+A row is an env and a config (its defaults, or a model's ``train.json`` ``env_kwargs``). Each cell is played alone
+after a ``WARMUP_STEPS`` warm-up, so its wall time over its episodes is the agent's seconds per episode.
 """
 
 from __future__ import annotations
@@ -44,9 +41,8 @@ class Row:
 
 
 def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
-    """``(column, agent name, env id, env kwargs, model directory's name)`` of each model under ``directory`` (a
-    subdirectory with the ``train.json`` of ``infonav train``): column ``rllib`` for ``backend: rllib``, else ``ppo``.
-    A run that kept its best policy on validation seeds (``train.json``'s ``validation``) plays that one.
+    """``(column, agent name, env id, env kwargs, model dir's name)`` of each ``*/train.json`` under ``directory``:
+    column ``rllib`` for ``backend: rllib``, else ``ppo``; a run that kept a best policy plays that one.
 
     Raises:
         ValueError: naming the ``train.json`` that does not parse or names no registered env.
@@ -69,10 +65,9 @@ def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
 
 
 def leaderboard_rows(env_ids, columns, models_dir: Path | None) -> list[Row]:
-    """A row per env of ``env_ids`` and config of its models (the defaults if it has none), with the ``columns``
-    that apply: the planner where the env has a planning model, a model in its env and config's row. Where one env
-    and config have several models of a column, each further one gets a row of its own, after the first, with the
-    same baselines (played once: ``leaderboard`` shares their cells).
+    """A row per env of ``env_ids`` and config of its models (the defaults if none), with the ``columns`` that apply
+    (the planner where the env has a planning model); several models of one column and config get a row each, sharing
+    the baselines' cells.
 
     Raises:
         ValueError: for an unknown column or env id.
@@ -168,19 +163,15 @@ def leaderboard(
     use_ray: bool = False,
     address: str | None = None,
 ) -> dict:
-    """Play the leaderboard's rows (``leaderboard_rows``) on seeds ``seed, ..., seed + episodes - 1``.
-
-    ``env_ids``: default every registered env. ``workers`` / ``use_ray`` / ``address`` as ``evaluate`` takes them.
+    """Play the rows (``leaderboard_rows``) on seeds ``seed .. seed + episodes - 1`` (``env_ids``: default all).
 
     Returns:
         ``{"episodes", "seeds", "columns", "workers", "tie_tolerance", "rows": [{"env_id", "env_kwargs", "metric",
         "cells": {column: {"agent", "summary", "values", "seconds_per_episode"}}, "best": [column, ...]}]}``.
 
     Raises:
-        ValueError: before any episode, for a bad seed range, column or env, or a run whose values and workers would
-            not fit in the available memory (``episode_pool.checked_workers``).
-        Interrupted: on Ctrl-C, with the rows finished (``"interrupted": True``): every cell of a kept row has every
-            seed; a row not finished is dropped.
+        ValueError: before any episode, for a bad seed range, column or env, or too little memory.
+        Interrupted: on Ctrl-C, with the rows finished (``"interrupted": True``).
     """
     seeds = seeds_of(seed, episodes)
     env_ids = [entry.id for entry in registered_envs()] if env_ids is None else list(env_ids)

@@ -49,13 +49,9 @@ def _file_problem(path: Path) -> str | None:
 def check_output_dir(directory: Path | str, where: str) -> Path:
     """Check that ``directory`` is, or can be created as, a writable directory; create nothing.
 
-    Args:
-        directory: where the files will go.
-        where: what named it, for the error (e.g. ``"--output-dir"``).
-
     Raises:
-        ValueError: naming ``where`` and the path when it (or an ancestor) is a file, or when the
-            directory, or the ancestor it would be created in, is not writable.
+        ValueError: naming ``where`` (the option, e.g. ``"--output-dir"``) and the path when it or an ancestor is a
+            file, or it (or the ancestor it would be created in) is not writable.
     """
     directory = Path(directory)
     problem = _directory_problem(directory)
@@ -71,21 +67,13 @@ def output_file(stem: Path, suffix: str) -> Path:
 
 
 def check_output_stem(stem: Path | str, suffixes: tuple[str, ...], where: str) -> Path:
-    """Check that the files ``stem`` + each of ``suffixes`` can be written; create nothing.
+    """Check that the files ``stem`` + each of ``suffixes`` can be written; create nothing; return the stem.
 
-    Args:
-        stem: the files' common path, e.g. ``results/eval`` for ``results/eval.md``; one of ``suffixes``
-            ending it is dropped (``results/eval.md`` -> ``results/eval``), any other suffix is kept.
-        suffixes: the files' suffixes (``".md"``, ...).
-        where: what named it, for the error (e.g. ``"--output"``).
-
-    Returns:
-        The stem, to which ``output_file`` adds each suffix.
+    A trailing one of ``suffixes`` is dropped (``results/eval.md`` -> ``results/eval``), any other suffix kept.
 
     Raises:
-        ValueError: naming ``where`` and the path when ``stem`` is an existing directory (a file
-            stem is expected), when one of the files is a directory or not writable, or when the
-            parent directory cannot be created or written (see ``check_output_dir``).
+        ValueError: naming ``where`` and the path when ``stem`` is a directory, one of the files is a directory or not
+            writable, or the parent directory cannot be created or written.
     """
     stem = Path(stem)
     if stem.suffix and stem.suffix in suffixes:

@@ -1,16 +1,8 @@
-"""PPO training speed on LandmarkSelection-v0 against CartPole, same settings, same process.
+"""PPO training speed on LandmarkSelection-v0 against CartPole, same MaskablePPO settings and process.
 
-Two comparisons, each with ``MaskablePPO`` and the LandmarkSelection-v0 block of
-``agents/hyperparams/ppo.yml`` on both envs (CartPole gets all-valid masks) and the same torch threads:
-
-- ``ppo_fps_figures``: the single envs, ``n_envs`` (8) ``DummyVecEnv`` copies each (CartPole-v1 through
-  ``InfoActionMask``);
-- ``ppo_vector_fps_figures``: vector envs of ``n_envs`` (64) copies stepped at once, both through
-  ``agents.vector_adapter.VectorEnvAdapter``: LandmarkSelection's native vector env against Gymnasium's
-  ``CartPoleVectorEnv`` (as ``SameStepCartPoleVectorEnv``: SB3 needs the reset in the step an episode ends).
-
-Rounds alternate between the two envs and time only ``learn`` (rollouts and gradient updates), so model
-construction and a busy machine affect both alike; the median ratio is reported.
+``ppo_fps_figures``: 8 ``DummyVecEnv`` copies each; ``ppo_vector_fps_figures``: 64-copy vector envs through
+``VectorEnvAdapter`` (LandmarkSelection's native one against CartPoleVectorEnv). Rounds alternate and time only
+``learn``; the median ratio is reported.
 """
 
 from __future__ import annotations
@@ -30,9 +22,7 @@ SINGLE_ENV_N_STEPS = 256  # per env of ppo_fps_figures: 8 x 256 = 2048 transitio
 class SameStepCartPoleVectorEnv(CartPoleVectorEnv):
     """Gymnasium's ``CartPoleVectorEnv`` resetting a sub-env in the step its episode ends (``AutoresetMode.SAME_STEP``).
 
-    Gymnasium's resets it at the next step (``NEXT_STEP``); this one draws the same reset states from
-    ``np_random`` one step earlier and returns the last observation in ``info["final_obs"]`` (and an empty
-    ``info["final_info"]``), each with its ``_`` mask. The dynamics are Gymnasium's.
+    The same reset states are drawn one step earlier; the last observation is in ``info["final_obs"]``.
     """
 
     metadata = {**CartPoleVectorEnv.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
@@ -53,10 +43,8 @@ class SameStepCartPoleVectorEnv(CartPoleVectorEnv):
 
 
 def _round_settings(timesteps_per_round: int, n_envs: int, n_steps: int | None = None) -> tuple[dict, int]:
-    """The LandmarkSelection-v0 hyperparameters for rounds of about ``timesteps_per_round``; the round's timesteps.
-
-    ``n_steps`` (per env; ``None``: the block's) shrinks when a round is shorter than one rollout, so a
-    quick run (a few hundred timesteps) still does full rollout + update cycles.
+    """The LandmarkSelection-v0 hyperparameters for rounds of about ``timesteps_per_round``, and the round's timesteps;
+    ``n_steps`` (``None``: the block's) shrinks so a quick run still does whole rollout + update cycles.
     """
     from agents.ppo import load_hyperparameters
 

@@ -1,11 +1,8 @@
 """Frame times of the LADAR and the camera, and a pure-Pymunk ray loop over the same rays as a reference.
 
-The scene is a default ``make_terrain``; frames are taken from a few poses near its centre, inside
-the disc ``make_terrain`` keeps clear of obstacles. The reference, as issue 4 asks, holds the
-obstacles' footprints in a ``pymunk.Space`` (a ``pymunk.Circle`` per ``Cylinder``, a box
-``pymunk.Poly`` per ``Box``) and calls ``segment_query_first`` once per pixel, in a Python loop,
-along the ray's horizontal track out to the sensor's maximum range. It is 2D and ignores the
-terrain, so a ratio below 1 means the full 3D sensor beats even that loop.
+Frames are taken on a default ``make_terrain`` from poses near its clear centre. The reference (issue 4) holds the
+obstacles' footprints in a ``pymunk.Space`` and calls ``segment_query_first`` once per pixel in Python, in 2D:
+a ratio below 1 means the full 3D sensor beats even that loop.
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
-"""How long a user waits before the first step: a fresh process imports the suite, makes an env, resets it and
-steps it once.
+"""How long a user waits before the first step: a fresh process imports the suite, makes, resets and steps an env.
 
-``cold_start_s``: with an empty numba cache (``NUMBA_CACHE_DIR`` a new directory), so every kernel the env runs is
-compiled; ``warm_start_s``: the same again with the cache the cold run filled. Each is the slowest registered env's,
-every env timed in its own processes. ``cold_start_all_envs_s``: one process making, resetting and stepping every
-registered env with an empty cache (every kernel of the suite compiled). All are whole-process wall times,
-interpreter start included, as a user sees them.
+``cold_start_s``: with an empty numba cache; ``warm_start_s``: again with the cache filled; each the slowest env's.
+``cold_start_all_envs_s``: every env in one process, empty cache. Whole-process wall times.
 """
 
 from __future__ import annotations

@@ -1,12 +1,8 @@
 """What the benchmark steps at each vector size N: native vector envs, CartPoleVectorEnv, VMAS; memory per sub-env.
 
-Every registered env with a native vector env (``vector_entry_point``) is found through
-``infonav_gym.registry`` and made by its ``make_vector_env``; it is driven by uniform random *valid*
-actions drawn at once for all copies from its ``action_masks()`` with a seeded generator.
-Gymnasium's ``CartPoleVectorEnv`` is driven by its seeded ``action_space.sample()``; VMAS's
-``navigation`` scenario (4 agents, CPU, one torch thread) by uniform random forces from a seeded
-generator, when ``vmas`` imports. One vector step counts as N env-steps (for a team env, one
-env-step is one step of every robot of one copy; for VMAS, of all 4 agents of one env).
+Native vector envs take uniform random valid actions from their ``action_masks()``, CartPoleVectorEnv its seeded
+``action_space.sample()``, VMAS ``navigation`` (4 agents, CPU, one torch thread) random forces. One vector step
+counts as N env-steps (a team's env-step: every robot of one copy).
 """
 
 from __future__ import annotations
@@ -169,10 +165,8 @@ def peak_rss_growth_kb_per_env(
 ) -> float:
     """In this process: peak RSS growth [kB] per copy while building ``env_id``'s vector env and stepping it.
 
-    A 1-copy vector env is built and stepped ``steps`` times first (imports, caches); then the peak RSS
-    is reset to the current one (``/proc/self/clear_refs``) and the growth of the peak (``VmHWM``) over
-    building ``num_envs`` copies, resetting them and stepping them ``steps`` times is divided by ``num_envs``.
-    Either stepping stops after ``seconds`` (an env whose steps render images takes seconds a step at N = 1024).
+    After a warmed-up 1-copy run, the peak is reset (``/proc/self/clear_refs``); the growth of ``VmHWM`` over building,
+    resetting and stepping ``num_envs`` copies ``steps`` times (or for ``seconds``) is divided by ``num_envs``.
     """
     warm_up = vector_env_run(env_id, 1, seed)
     warm_up.start()
@@ -188,10 +182,8 @@ def peak_rss_growth_kb_per_env(
 def kb_per_env(
     env_id: str, num_envs: int, steps: int = MEMORY_STEPS, seed: int = 0, seconds: float = MEMORY_SECONDS
 ) -> float:
-    """Memory per sub-env [kB] of ``env_id``'s vector env: ``peak_rss_growth_kb_per_env`` in a fresh subprocess.
-
-    The subprocess imports ``infonav_gym`` only, so ``env_id`` must be registered by that import (or carry
-    Gymnasium's ``module:`` prefix naming the module that registers it).
+    """Memory per sub-env [kB] of ``env_id``'s vector env: ``peak_rss_growth_kb_per_env`` in a fresh subprocess (which
+    imports only ``infonav_gym``: ``env_id`` must be registered by it or carry a ``module:`` prefix).
 
     Raises:
         RuntimeError: when the subprocess fails (its error output is in the message).

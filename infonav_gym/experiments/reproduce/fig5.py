@@ -1,27 +1,16 @@
 """The paper's Fig. 5: how much information camera and LADAR images carry, by their gray-level histogram entropy.
 
-Every image is a default ``Camera()`` (120 x 160, 60 degrees) or ``Ladar()`` (32 x 180,
-20 x 80 degrees, shown with ``to_display_image``: dark = near) view of a ``make_terrain``
-scene, and its information is ``histogram_entropy`` (Eqs. 4-5, 256 bins, nats). Like the
-paper we call the image with the higher entropy the more informative one. Only the scene
-differs between the cases, never the sensors:
+Every image is a default ``Camera()`` or ``Ladar()`` (shown with ``to_display_image``: dark = near) view of a
+``make_terrain`` scene; its information is ``histogram_entropy`` (Eqs. 4-5, 256 bins, nats), higher being more
+informative. Only the scene differs between the cases:
 
-* ``paper_like``: the XUV traversing vegetated, rugged terrain (hills of 1.6 m standard
-  deviation, 150 trees and 100 rocks on 120 m x 120 m). The vehicle drives along the most
-  level line ahead, as a driver does rather than pointing it into a hillside; the second,
-  similar view is 1.5 m further along and 4 degrees to the left. The LADAR, tilted down 10
-  degrees, sees ground, rocks and trunks at ranges spread over its 60 m, so its range image
-  spans many gray levels; the camera's histogram is a lump of shaded, textured ground plus a
-  narrow sky peak. LADAR > camera.
-* ``building_ahead``: the vehicle stopped 3-8 m in front of a building on gently rolling
-  ground. The building fills nearly all of the LADAR's 20 degree field of view at almost one
-  range, so its image is a handful of dark levels, while the camera's 46 degree field still
-  shows the textured ground below the evenly lit facade (and the sky above a low building).
-  Camera > LADAR: information is scene-specific, as the paper found on other data sets.
+* ``paper_like``: vegetated, rugged terrain, the vehicle heading along the most level line (a second view 1.5 m
+  on, 4 degrees left). The LADAR sees ranges spread over its 60 m; the camera mostly textured ground and a narrow
+  sky peak. LADAR > camera.
+* ``building_ahead``: a building 3-8 m ahead fills the LADAR's 20 degree field at nearly one range, while the
+  camera's wider field still shows textured ground. Camera > LADAR: information is scene-specific.
 
-The seed statistics draw each case's random scene for many seeds and count how often the
-ordering holds; a paper-like view facing a steep rise (the LADAR then sees only near ground)
-can reverse it.
+The seed statistics count how often the ordering holds over many random scenes.
 """
 
 from __future__ import annotations
@@ -55,15 +44,7 @@ SECOND_VIEW_TURN_RAD = math.radians(4.0)  # ... and turned this much to the left
 LEVEL_LOOKAHEAD_M = (2.0, 25.0)  # stretch of ground ahead whose levelness picks the heading [m]
 HEADING_CANDIDATES_DEG = 5.0  # spacing of the candidate headings [deg]
 
-BUILDING_AHEAD_TERRAIN = {
-    "size_m": 120.0,
-    "cell_m": 0.5,
-    "roughness": 0.3,
-    "n_trees": 0,
-    "n_rocks": 0,
-    "n_buildings": 0,
-    "clear_radius_m": 3.0,
-}
+BUILDING_AHEAD_TERRAIN = {**PAPER_LIKE_TERRAIN, "roughness": 0.3, "n_trees": 0, "n_rocks": 0}
 BUILDING_DISTANCE_M = (3.0, 8.0)  # from the vehicle to the building's facade [m]
 BUILDING_WIDTH_M = (10.0, 30.0)  # facade width, centred on the vehicle's line [m]
 BUILDING_HEIGHT_M = (3.0, 8.0)  # above the ground in front of it [m]
