@@ -49,8 +49,7 @@ def valid_actions(info: dict, n_actions: int) -> np.ndarray:
 
 
 def usable_mask(mask, n_actions: int) -> np.ndarray:
-    """``mask`` (a robot's or env's action mask, or None) as (n_actions,) bool; all True when none is valid,
-    as ``MaskablePPO`` takes it (every action is then the env's no-op)."""
+    """``mask`` (or None) as (n_actions,) bool; all True when none is valid, as ``MaskablePPO`` takes it."""
     if mask is None:
         return np.ones(n_actions, dtype=bool)
     valid = np.broadcast_to(np.asarray(mask, dtype=bool), (n_actions,))

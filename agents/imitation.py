@@ -27,8 +27,7 @@ DEMONSTRATION_SEEDS = 1_000_000  # ``train`` plays the planner from this seed on
 
 class Demonstrations(NamedTuple):
     """The planner's decisions, one row per robot and step: ``observations`` (M, D) float32, ``action_masks`` (M, A)
-    bool, ``actions`` (M,) int, ``returns`` (M,) discounted from that step on, and the episodes' ``seeds`` (E,).
-    """
+    bool, ``actions`` (M,) int, ``returns`` (M,) discounted from that step on, and the episodes' ``seeds`` (E,)."""
 
     observations: np.ndarray
     action_masks: np.ndarray
@@ -84,8 +83,7 @@ def discounted_returns(rewards: np.ndarray, gamma: float) -> np.ndarray:
 
 
 def planner_episode(env_id: str, seed: int, gamma: float, env_kwargs: dict | None = None) -> Demonstrations:
-    """The planner's episode on ``seed`` as demonstrations; its planners reset as ``infonav evaluate`` resets them
-    (with ``seed``; in a team env robot ``k``'s with ``1000 * seed + k``), so they take the evaluated decisions."""
+    """The planner's episode on ``seed`` as demonstrations, its planners reset as ``infonav evaluate`` resets them."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
         team = api_of(env_id) == PARALLEL

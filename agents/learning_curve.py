@@ -31,9 +31,8 @@ VECTOR_ONLY_KEYS = ("final_obs", "final_info")  # a vector env's info keys that 
 
 
 class SubEnvInfo(Mapping):
-    """Sub-env ``index``'s info, read on demand from a vector env's batched ``info`` (by its ``_key`` masks), without
-    copying every key of every step. In a team vector env ``robot`` picks its column (but not of ``team_keys``).
-    """
+    """Sub-env ``index``'s info read on demand from a vector env's batched ``info`` (by its ``_key`` masks); in a team
+    vector env ``robot`` picks its column (but not of ``team_keys``)."""
 
     def __init__(self, info: dict, index: int, robot: int | None = None, team_keys=frozenset()):
         self.info, self.index, self.robot, self.team_keys = info, index, robot, team_keys
@@ -96,8 +95,7 @@ class EndedEpisodeMetrics:
 
 
 class MetricVectorWrapper(VectorWrapper):
-    """A ``SAME_STEP`` vector env whose ``info["final_info"]`` holds each ended episode's main metric
-    (``METRIC_KEY``, by ``EndedEpisodeMetrics``)."""
+    """A ``SAME_STEP`` vector env whose ``info["final_info"]`` holds ended episodes' main metric (``METRIC_KEY``)."""
 
     def __init__(self, env):
         super().__init__(env)
@@ -137,8 +135,7 @@ class MetricWrapper(gym.Wrapper):
 
 
 def start_curve(directory: Path, env_id: str, env_kwargs: dict | None) -> Path:
-    """A fresh ``directory/curve.csv`` holding only its header, which names the env's main metric, and
-    ``CURVE_LABELS``: the return in the env's reward unit and the metric's title; the CSV's path."""
+    """A fresh ``directory/curve.csv`` (its header names the env's main metric) and ``CURVE_LABELS``; the CSV's path."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
         metric, reward_unit = main_metric_of(env), traits_of(env).reward_unit
@@ -215,9 +212,8 @@ def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
 
 
 def figure_curve(directory: Path, title: str, references: dict | None):
-    """The learning curve of ``directory``'s ``curve.csv``: mean return and the main metric against env steps, with
-    ``references`` (agent: its metric) as horizontal lines, and the validations of ``validation.csv`` if any.
-    """
+    """The learning curve of ``directory``'s ``curve.csv``: return and main metric against env steps, ``references``
+    (agent: metric) as lines, and the validations of ``validation.csv`` if any."""
     metric_name, rows = read_curve(Path(directory) / CURVE_CSV)
     labels = read_labels(directory, metric_name)
     validations = read_validations(Path(directory) / VALIDATION_CSV)
@@ -251,8 +247,7 @@ def figure_curve(directory: Path, title: str, references: dict | None):
 
 
 def drawn_curve(directory: Path, title: str, references: dict | None) -> str:
-    """``draw_curve``'s path, or one line saying why there is no PNG: no point to draw, or no matplotlib (the
-    ``render`` extra)."""
+    """``draw_curve``'s path, or one line saying why there is no PNG (nothing to draw, or no matplotlib)."""
     try:
         return str(draw_curve(directory, title, references))
     except (ImportError, ValueError) as error:

@@ -157,10 +157,8 @@ class PlannerAgent:
         return action
 
     def _candidates(self, mask: np.ndarray, gains: np.ndarray) -> np.ndarray:
-        """Actions to try at each belief (B, C): every primitive alone and with the best few valid observations.
-
-        Rows with fewer valid observations repeat the primitive alone (a duplicate costs time, not correctness).
-        """
+        """Actions to try at each belief (B, C): every primitive alone and with the best few valid observations
+        (a row with fewer repeats the primitive alone)."""
         n_primitives, B = self.n_primitives, len(mask)
         slot_gains = np.where(mask > 0, gains, -np.inf).reshape(B, -1, n_primitives)[:, 1:, 0]  # (B, K)
         options = np.zeros((B, 1 + self.observation_branching), dtype=int)

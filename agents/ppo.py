@@ -75,10 +75,7 @@ VECTORIZATIONS = (NATIVE, SYNC, SUBPROCESS)  # the env's own VectorEnv, DummyVec
 
 
 class InfoActionMask(gym.Wrapper):
-    """Gives an env without ``action_masks()`` one (for ``MaskablePPO``), from the last ``info["action_mask"]``.
-
-    No key, or no valid action: every action is allowed (CartPole in ``ppo_timing``).
-    """
+    """Gives an env ``action_masks()`` from its last ``info["action_mask"]`` (all valid without one, or none valid)."""
 
     def __init__(self, env: gym.Env):
         super().__init__(env)
@@ -102,9 +99,8 @@ class InfoActionMask(gym.Wrapper):
 
 
 def mask_wrapper(env_id: str, env_kwargs: dict | None = None) -> tuple[bool, type | None]:
-    """``(masked, wrapper)``: whether ``env_id`` has action masks (then it trains with ``MaskablePPO``) and the
-    wrapper it needs for them: ``None`` with its own ``action_masks()`` (every infonav env), ``InfoActionMask``
-    when it only reports ``info["action_mask"]``."""
+    """``(masked, wrapper)``: whether ``env_id`` has action masks (``MaskablePPO``); ``InfoActionMask`` when they are
+    only in its infos (``None`` with its own ``action_masks()``)."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
         if callable(getattr(env.unwrapped, "action_masks", None)):
@@ -232,17 +228,13 @@ class TqdmCallback(BaseCallback):
 
 
 def normalization_kwargs(hyperparameters: dict) -> dict | None:
-    """``VecNormalize`` keywords from ``normalize`` (rl-zoo style: true, false, or a dict such as
-    ``{norm_obs: true, norm_reward: false}``, checked by ``agents.hyperparameters``); ``None`` when off."""
+    """``VecNormalize`` keywords from rl-zoo's ``normalize`` (true, false or a dict of them); ``None`` when off."""
     normalize = hyperparameters.get("normalize", False)
     return dict(normalize) if isinstance(normalize, dict) else ({} if normalize is True else None)
 
 
 def vectorizations(env_id: str) -> tuple[str, ...]:
-    """The vectorizations ``env_id`` trains with, its default first (``native`` where it has a native vector env).
-
-    A PettingZoo env trains on ``TeamVecEnv``, a slot per robot of its batched vector env: ``native`` only.
-    """
+    """The vectorizations ``env_id`` trains with, its default first (a team env: ``native`` only)."""
     if api_of(env_id) == PARALLEL:
         return (NATIVE,)
     return (NATIVE, SYNC, SUBPROCESS) if has_native_vector_env(env_id) else (SYNC, SUBPROCESS)
@@ -292,8 +284,8 @@ def native_vec_env(
 def training_vec_env(
     env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None, vectorization: str | None = None
 ) -> tuple[bool, VecMonitor]:
-    """Whether ``env_id`` trains with action masks, and ``n_envs`` seeded copies of it as ``build_model`` trains on
-    (copy ``i`` seeded ``seed + i``), whose infos at an episode's end hold its main metric (``METRIC_KEY``)."""
+    """Whether ``env_id`` trains with action masks, and ``n_envs`` copies (copy ``i`` seeded ``seed + i``) whose last
+    infos of an episode hold its main metric (``METRIC_KEY``)."""
     vectorization = checked_vectorization(env_id, vectorization)
     if api_of(env_id) == PARALLEL:
         from agents.team_vec_env import make_team_vec_env
@@ -342,8 +334,7 @@ def build_model(
 
 
 def training_block(env_id: str, hyperparameters: dict | None, n_envs: int | None) -> dict:
-    """The hyperparameters training uses, checked: ``hyperparameters`` (``None``: the env's block of ppo.yml) with
-    ``n_envs`` when given, else the block's (``DEFAULT_N_ENVS`` without one)."""
+    """The checked hyperparameters training uses (``None``: the env's block), ``n_envs`` as given or the block's."""
     block = load_hyperparameters(env_id) if hyperparameters is None else hyperparameters
     block = {**block, "n_envs": block.get("n_envs", DEFAULT_N_ENVS) if n_envs is None else n_envs}
     return checked_block(block, "the hyperparameters" + (", n_envs as given (--n-envs)" if n_envs is not None else ""))
@@ -352,9 +343,8 @@ def training_block(env_id: str, hyperparameters: dict | None, n_envs: int | None
 def rollout_steps(
     env_id: str, hyperparameters: dict, env_kwargs: dict | None, planner: bool = False
 ) -> tuple[int, str]:
-    """The env steps of one PPO rollout, ``n_steps`` per copy of each of ``n_envs`` copies (and of each robot in a team
-    env: a slot per robot), and that product in words; builds one env, which checks the id and the config (and, with
-    ``planner``, that the env offers the planner's model: behaviour cloning plays it)."""
+    """The env steps of one PPO rollout (``n_steps x n_envs``, x robots in a team env) and that product in words; builds
+    one env, which checks the id, the config and (with ``planner``) that it offers the planner's model."""
     n_steps, n_envs, robots = hyperparameters.get("n_steps", DEFAULT_N_STEPS), hyperparameters["n_envs"], 1
     factors = f"n_steps {n_steps} x n_envs {n_envs}"
     env = make_env(env_id, **(env_kwargs or {}))  # an unknown id or config key: its one-line error, before any work
@@ -404,8 +394,7 @@ def planned_steps(timesteps: int, rollout: int, factors: str, hyperparameters: d
 
 @contextlib.contextmanager
 def removed_on_error(directory: Path):
-    """Removes what the block adds to ``directory`` (the directory itself when it adds it) if the block raises an
-    error: a failed run leaves nothing half-written. Ctrl-C (no ``Exception``) keeps what was saved."""
+    """Removes what the block adds to ``directory`` if it raises an ``Exception`` (Ctrl-C keeps what was saved)."""
     before = set(directory.iterdir()) if directory.is_dir() else None
     try:
         yield
@@ -541,8 +530,8 @@ def save_policy(model, directory: Path) -> Path:
 
 
 def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_dir: Path, workers: int) -> dict:
-    """Warm-start ``model`` from the planner (``source``: ``train``'s ``init_from_planner``, episodes to play or a saved
-    file, and that file's ``Demonstrations``, already read); what train.json records of it."""
+    """Warm-start ``model`` from the planner (``source``: episodes or a file, and its ``Demonstrations``); returns
+    what train.json records of it."""
     start = time.perf_counter()
     source, demonstrations = source
     if isinstance(source, int):
@@ -584,10 +573,7 @@ def model_file(path: Path | str) -> Path:
 
 
 def load_model(path: Path | str):
-    """A saved ``MaskablePPO`` / ``PPO`` model from a zip or the directory holding ``model.zip``.
-
-    A missing or unreadable file raises ``ValueError`` naming it.
-    """
+    """A saved ``MaskablePPO`` / ``PPO`` model from a zip or its directory (``ValueError`` naming a bad one)."""
     path = model_file(path)
     try:
         with zipfile.ZipFile(path) as archive:  # MaskablePPO or PPO: the policy class recorded in the zip's data
@@ -600,10 +586,7 @@ def load_model(path: Path | str):
 
 
 def load_normalization(model_path: Path) -> VecNormalize | None:
-    """The ``VecNormalize`` statistics saved beside ``model_path`` (``NORMALIZATION_FILE``); ``None`` if none.
-
-    Raises ``ValueError`` naming the file when it exists but is not SB3 ``VecNormalize`` statistics.
-    """
+    """The ``VecNormalize`` statistics beside ``model_path`` (``None`` without; ``ValueError`` if not such)."""
     path = Path(model_path).parent / NORMALIZATION_FILE
     if not path.is_file():
         return None

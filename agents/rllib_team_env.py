@@ -162,13 +162,10 @@ def _team_flags(agents: list[str], ended: np.ndarray) -> list[dict]:
 
 
 class BatchedTeamEnvRunner(MultiAgentEnvRunner):
-    """RLlib's ``MultiAgentEnvRunner`` whose env is the one its env creator makes for all copies at once.
+    """RLlib's ``MultiAgentEnvRunner`` on one ``BatchedTeamEnv`` for all copies (its creator gets ``num_envs``).
 
-    The creator registered as ``config.env`` is called with the env config plus ``num_envs``
-    (``num_envs_per_env_runner``) and returns a ``VectorMultiAgentEnv`` (``BatchedTeamEnv``); everything else is
-    RLlib's runner (sampling, episodes, connectors, metrics), but that the counts of sampled env, agent and module
-    steps and of episodes, which RLlib logs copy by copy at every step (2 + 4 R logger calls, a quarter of a copy's
-    step), are summed and logged once per ``sample()``: the same sums.
+    All else is RLlib's, but the sampled step and episode counts, which RLlib logs copy by copy every step (a quarter
+    of a copy's step), are summed and logged once per ``sample()``: the same sums.
     """
 
     def __init__(self, config, **kwargs):

@@ -34,9 +34,7 @@ POLICY_LAYOUTS = ("shared", "per_robot")
 
 
 class SingleEnvCreator:
-    """RLlib's env creator of a single-agent env: the masked env ``env_id``, or its masked native vector env when
-    asked for ``num_envs`` copies (RLlib's ``VECTOR_ENTRY_POINT`` mode).
-    """
+    """RLlib's env creator of a single-agent env: the masked env, or its masked native vector env for ``num_envs``."""
 
     def __init__(self, env_id: str):
         self.env_id = env_id
@@ -223,13 +221,8 @@ def train_rllib(
     progress: bool = True,
     curve_references: dict | None = None,
 ) -> dict:
-    """Train RLlib PPO on ``env_id`` for at least ``timesteps`` env steps; checkpoint and record it.
-
-    Runs on the Ray cluster at ``address`` or a local Ray started and stopped here.
-
-    Returns:
-        The ``train.json`` record (also written to ``output_dir``).
-    """
+    """Train RLlib PPO on ``env_id`` for at least ``timesteps`` env steps on the Ray at ``address`` (or a local one);
+    checkpoint it and return the ``train.json`` record (also written to ``output_dir``)."""
     from agents.learning_curve import METRIC_KEY, append_row, drawn_curve, start_curve
     from agents.ppo import load_hyperparameters, torch_threads
     from agents.ray_support import local_or_cluster_ray

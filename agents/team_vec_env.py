@@ -41,12 +41,7 @@ class RobotSlots(VectorEnv):
         self.episode_metrics = EndedEpisodeMetrics(main_metric_of(team), self.n_copies, view)
 
     def reset(self, *, seed=None, options=None):
-        """Reset every copy; a list seeds each slot, and the robots of a copy share their copy's seed.
-
-        Raises:
-            ValueError: for a seed list whose length is not the number of slots, or that seeds a copy's
-                robots differently.
-        """
+        """Reset every copy; a list seeds each slot, a copy's robots sharing its seed (else ``ValueError``)."""
         observations, self.team_info = self.team.reset(seed=self._copy_seeds(seed), options=options)
         self.episode_metrics.reset()
         return observations.reshape(self.num_envs, -1), {}

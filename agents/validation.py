@@ -51,15 +51,10 @@ def validation_metrics(model, vec_env: VecEnv, episodes: int, seed: int, normali
 
 
 class ValidationCallback(BaseCallback):
-    """Validates the policy every ``every`` env steps, at the start and at the end of training; keeps the best.
+    """Validates the policy every ``every`` env steps (checked at each rollout's end), at the start and at the end.
 
-    Args:
-        vec_env: ``episodes`` copies of the training env (see ``validation_metrics``); ``close()`` closes them.
-        episodes: validation episodes per validation.
-        every: env steps between validations (checked at the end of each rollout).
-        seed: the first validation seed (``VALIDATION_SEEDS + the training seed``).
-        directory: where ``validation.csv`` and ``best/`` go.
-        save: writes a model (and its observation statistics) into a directory (``ppo.save_policy``).
+    ``vec_env``: ``episodes`` copies (see ``validation_metrics``); ``seed``: the first validation seed; ``directory``
+    holds ``validation.csv`` and ``best/``; ``save`` writes a model into a directory (``ppo.save_policy``).
     """
 
     def __init__(

@@ -246,10 +246,7 @@ class VectorEnvAdapter(VecEnv):
 
 
 def monitored_vec_env(vector_env: VectorEnv, seed: int | None, info_keywords: Sequence[str] = ()) -> VecMonitor:
-    """``vector_env`` as an SB3 ``VecEnv`` that records episodes (``VecMonitor``, as ``make_vec_env``'s ``Monitor``).
-
-    Sub-env ``i`` gets the seed ``seed + i`` at the first reset, as with ``make_vec_env``; ``None``: unseeded.
-    """
+    """``vector_env`` as an SB3 ``VecEnv`` under ``VecMonitor``; sub-env ``i`` seeded ``seed + i``."""
     adapter = VectorEnvAdapter(vector_env, info_keywords)
     if seed is not None:
         adapter.seed(seed)

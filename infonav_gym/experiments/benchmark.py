@@ -158,10 +158,8 @@ def _random_stepper(env_id: str, seconds: float, seed: int):
 
 
 def _vector_stepper(run: VectorRun, seconds: float):
-    """A function measuring ``run``'s env-steps per second (vector steps per second x N).
-
-    ``run`` is reset once, here: each round goes on where the last one stopped, so the rounds time the
-    autoresets too, even at large N where one round is shorter than an episode.
+    """A function measuring ``run``'s env-steps per second; ``run`` is reset once, here, so the rounds go on where the
+    last stopped and time the autoresets too.
     """
     run.start()
     return lambda: _timed_steps(run.step, seconds) * run.num_envs
@@ -284,12 +282,8 @@ def run_benchmark(
     progress: bool = True,
     vector_sizes=DEFAULT_VECTOR_SIZES,
 ) -> dict:
-    """Measure every speed goal; returns a JSON-ready dict with the figures and whether each goal is met.
-
-    ``notes`` says which figures are absent and why (no vmas, no ICP peers, no memory measurement).
-
-    Raises:
-        ValueError: for ``vector_sizes`` that are not integers >= 1.
+    """Measure every speed goal: a JSON-ready dict of the figures, whether each goal is met and ``notes`` on what is
+    absent and why (else ``ValueError`` for bad ``vector_sizes``).
     """
     vector_sizes = check_vector_sizes(vector_sizes)
     figures = env_step_figures(None, rounds, seconds_per_round, seed, progress, vector_sizes)
@@ -331,11 +325,8 @@ def throughput_curves(figures: dict) -> dict[str, dict[int, float]]:
 
 
 def plot_throughput(figures: dict, path: Path | str) -> Path:
-    """Write ``figure_throughput(figures)`` to ``path``.
-
-    Raises:
-        ValueError: when ``figures`` hold no ``CURVE_N_steps_per_s`` figure.
-        ImportError: without matplotlib (the ``render`` extra).
+    """Write ``figure_throughput(figures)`` to ``path`` (``ValueError`` without a ``CURVE_N_steps_per_s`` figure,
+    ``ImportError`` without matplotlib).
     """
     return save_figure(figure_throughput(figures), path, dpi=120)
 

@@ -32,12 +32,8 @@ TASKS_PER_WORKER = 2  # tasks handed out ahead per worker: one playing, one wait
 
 
 class EpisodeRunner:
-    """An env and one agent (or one per robot) per agent name, playing seeded episodes.
-
-    Args:
-        env_id: a registered env id.
-        env_kwargs: its config overrides.
-        agent_names: names ``episodes.make_agent`` takes (random, greedy, planner, ppo:PATH).
+    """An env and one agent (or one per robot) per name of ``agent_names`` (as ``episodes.make_agent``), playing seeded
+    episodes.
     """
 
     def __init__(self, env_id: str, env_kwargs: dict, agent_names: Sequence[str]):

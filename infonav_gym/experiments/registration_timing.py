@@ -1,21 +1,11 @@
 """ICP time and accuracy on LADAR frame pairs, ours against small_gicp's and, when it imports, Open3D's.
 
-A pair: two ``scan``s of ``make_terrain(default_rng(seed), roughness=1.0)`` by one LADAR, from the
-vehicle pose ``[0, 0, 0]`` and from 1 m ahead turned 2 degrees left; ``PAIR_LADARS`` names the
-default 32 x 180 frame (``frame_pair``, about 5k points) and a 128 x 360 scan (``scan_40k``, about
-40k points). Each frame's points are kept in its own sensor frame (``sensor_points``), so the true
-motion mapping the second frame onto the first is known exactly (``motion_between``). Every
-registration maps the second frame onto the first from the same warm start (the true motion
-perturbed by ``WARM_START_ERROR_M`` and ``WARM_START_ERROR_DEG`` about random directions), with the
-same correspondence distance and iteration cap:
-
-- point-to-point ``icp`` against Open3D's ``registration_icp`` (``TransformationEstimationPointToPoint``);
-- ``icp(method="gicp")`` against small_gicp's GICP on one thread, its preprocessing timed as ours is:
-  k-d trees and ``GICP_NEIGHBOURS``-neighbour covariances of both clouds (``estimate_covariances``),
-  no downsampling, and its convergence thresholds set to our ``tolerance``.
-
-``*_time_ratio`` figures are our median time over the peer's (below 1: ours is faster), the registrations of a
-pair timed in turn, round after round, so that the load of a shared machine weighs on both alike.
+A pair: two ``scan``s of a rough ``make_terrain`` by one LADAR (``PAIR_LADARS``: the default 32 x 180 frame and a
+128 x 360 ``scan_40k``), 1 m apart and turned 2 degrees, points in each sensor frame, so the true motion is known.
+Every registration starts from the true motion perturbed by ``WARM_START_ERROR_M`` / ``_DEG``, with the same
+correspondence distance and iteration cap: point-to-point ``icp`` against Open3D's ``registration_icp``, and
+``icp(method="gicp")`` against small_gicp's one-thread GICP (its k-d trees and ``GICP_NEIGHBOURS`` covariances
+timed as ours, no downsampling). ``*_time_ratio``: our median time over the peer's, timed in turn round by round.
 """
 
 from __future__ import annotations
@@ -143,12 +133,9 @@ def alternating_times_ms(calls: dict, repeats: int) -> dict[str, tuple[object, l
 
 
 def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
-    """ICP figures on each pair of ``PAIR_LADARS`` (module docstring), named by pair and registration.
-
-    ``icp_<pair>_ms`` and ``gicp_<pair>_ms`` (median milliseconds), their ``*_rotation_error_deg`` and
-    ``*_translation_error_m``, ``icp_<pair>_points``; with a peer importable its ``open3d_icp_<pair>_*``
-    or ``small_gicp_<pair>_*`` figures and the ``*_time_ratio``. ``seconds_per_round`` scales the number
-    of timed registrations of the frame pair. The registrations are timed in turn (``alternating_times_ms``).
+    """ICP figures on each pair of ``PAIR_LADARS``: ``icp_<pair>_ms`` / ``gicp_<pair>_ms``, their rotation and
+    translation errors, ``icp_<pair>_points``, and with a peer its ``open3d_*`` / ``small_gicp_*`` figures and the
+    ``*_time_ratio``; ``seconds_per_round`` scales the repeats on the frame pair.
     """
     figures = {}
     for pair, ladar in PAIR_LADARS.items():

@@ -50,14 +50,7 @@ def render_episode(
 ) -> RenderedEpisode:
     """Play one episode and keep the frame after the reset, after every ``every``-th step and after the last.
 
-    Args:
-        env_id: a registered env id.
-        agent_name: random, greedy, planner, ppo:PATH or rllib:DIR (``episodes.make_agent``).
-        seed: the episode's seed.
-        env_kwargs: config overrides.
-        every: keep every ``every``-th step's frame.
-        max_steps: stop after this many steps (default: when the episode ends).
-        progress: show a progress bar over the steps.
+    ``agent_name``: as ``episodes.make_agent`` takes; ``max_steps``: stop after that many (default: the episode's end).
 
     Raises:
         ValueError: for ``every`` or ``max_steps`` not an integer >= 1, an unknown env, agent or config key.

@@ -15,6 +15,7 @@ from functools import partial
 import numpy as np
 import pymunk
 
+from infonav_gym.experiments.registration_timing import alternating_times_ms
 from infonav_gym.sensors import Camera, Ladar
 from infonav_gym.world.terrain import Terrain
 from infonav_gym.world.terrain_generation import make_terrain
@@ -54,17 +55,6 @@ def pymunk_rays_ms(space: pymunk.Space, sensor: Ladar | Camera, vehicle_pose) ->
     return (time.perf_counter() - begin) * 1e3
 
 
-def call_times_ms(call, repeats: int) -> tuple[object, list[float]]:
-    """The result of one untimed warm-up ``call()``, and the milliseconds of each of ``repeats`` calls after it."""
-    result = call()
-    times = []
-    for _ in range(repeats):
-        begin = time.perf_counter()
-        call()
-        times.append((time.perf_counter() - begin) * 1e3)
-    return result, times
-
-
 def sensor_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
     """Median frame time of the default ``Ladar().scan`` and ``Camera().capture`` and of the Pymunk loop.
 
@@ -84,7 +74,7 @@ def sensor_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, f
     for name, (sensor, take_frame) in sensors.items():
         ours, reference = [], []
         for pose in POSES:  # alternate with the reference, so a busy machine slows both alike
-            ours += call_times_ms(partial(take_frame, pose), frames)[1]
+            ours += alternating_times_ms({name: partial(take_frame, pose)}, frames)[name][1]
             reference.append(pymunk_rays_ms(space, sensor, pose))
         figures[f"{name}_frame_ms"] = statistics.median(ours)
         figures[f"pymunk_{name}_rays_ms"] = statistics.median(reference)

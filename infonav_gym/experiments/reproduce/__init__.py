@@ -30,20 +30,13 @@ FIGURES = {
 
 
 def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progress: bool = True, command: str = ""):
-    """Run ``figure`` (a module here), write ``output_dir/FIGURE.png`` and ``FIGURE.json``; return what the JSON holds.
+    """Run ``figure`` (one of ``FIGURES``), write ``output_dir/FIGURE.png`` and ``FIGURE.json``; return its content.
 
-    Args:
-        figure: one of ``FIGURES``.
-        output_dir: directory for the two files (created if missing).
-        seed: the seed of the plotted run, and the first of the statistics' seeds.
-        n_seeds: how many seeds (``seed .. seed + n_seeds - 1``) the statistics count.
-        progress: show a tqdm bar over the seeds.
-        command: the command line that made the files, recorded in the JSON.
+    ``seed``: the plotted run's, and the first of the ``n_seeds`` the statistics count; ``command`` is recorded.
 
     Raises:
         ValueError: for ``n_seeds < 1``, or an ``output_dir`` that cannot be a writable directory.
-        OutputWriteError: when a file cannot be written; it carries the result (with the files that
-            were written), so the computed figures are not lost.
+        OutputWriteError: when a file cannot be written, carrying the result (and the files written).
     """
     paper_figure = FIGURES[figure]
     if n_seeds < 1:

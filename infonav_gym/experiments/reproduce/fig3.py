@@ -121,14 +121,9 @@ def _outage_rmse_m(history: list[dict]) -> float:
 
 
 def run_fig3(seed: int = 0) -> dict:
-    """Fig. 3 for one seed: robot #2's steps, the corrections and the paths, greedy team vs dead reckoning.
-
-    Returns:
-        A JSON-ready dict: ``steps`` (robot #2's per-step ``time_s``, prior ``pose_std``,
-        ``pose_std_after_update``, ``gps_available``, ``gains_nats`` of the visible
-        teammates and the ``chosen`` one or None), ``corrections``, ``correction_bursts``,
-        ``position_std`` (at the last DGPS fix and the outage peak), ``paths`` and
-        ``position_error_m`` per policy, and the convoy's ``walls``.
+    """Fig. 3 for one seed, greedy team vs dead reckoning (JSON-ready): robot #2's ``steps`` (time, prior and updated
+    ``pose_std``, DGPS, gains of visible teammates, the one ``chosen``), its corrections and their bursts, position std
+    extremes, ``paths`` and ``position_error_m`` per policy, and the convoy's ``walls``.
     """
     env = cooperative_localization_v0.parallel_env(**FIG3_ENV_CONFIG)
     greedy = _run_episode(env, _greedy_team, seed)
@@ -156,15 +151,8 @@ def run_fig3(seed: int = 0) -> dict:
 
 
 def outage_rmse(seeds=range(20), progress: bool = False) -> dict:
-    """Robot #2's position RMSE over the outage (``t >= 21 s`` to the end), greedy team vs dead reckoning.
-
-    Args:
-        seeds: the episode seeds; both policies run each one.
-        progress: show a tqdm bar over the seeds.
-
-    Returns:
-        ``per_seed`` records, the mean RMSE of each policy [m], ``ratio`` (mean greedy
-        over mean dead reckoning) and ``mean_per_seed_ratio``.
+    """Robot #2's position RMSE over the outage (``t >= 21 s``) on each of ``seeds``, greedy team vs dead reckoning: the
+    ``per_seed`` records, each policy's mean [m], their ``ratio`` and the ``mean_per_seed_ratio``.
     """
     seeds = list(seeds)
     if not seeds:

@@ -129,12 +129,9 @@ def _seed_views(seed: int) -> tuple[list[tuple[str, str, list[float], dict]], di
 
 
 def run_fig5(seed: int = 0) -> tuple[dict, list[dict]]:
-    """Fig. 5 for one seed: two similar paper-like views and one building-ahead view.
-
-    Returns:
-        A JSON-ready dict (``seed``, ``building`` size and the ``views``, each with its
-        ``case``, ``label``, ``vehicle_pose`` and per sensor the ``shape``, 256-bin
-        ``histogram`` and ``entropy_nats``) and the images of each view, in the same order.
+    """Fig. 5 for one seed: two similar paper-like views and one building-ahead view; the JSON-ready dict (``seed``,
+    ``building`` and the ``views``, each with per sensor ``shape``, 256-bin ``histogram`` and ``entropy_nats``) and
+    the images of each view.
     """
     views, building = _seed_views(seed)
     records = [_view_record(case, label, pose, images) for label, case, pose, images in views]
@@ -142,15 +139,8 @@ def run_fig5(seed: int = 0) -> tuple[dict, list[dict]]:
 
 
 def seed_statistics(seeds, progress: bool = False) -> dict:
-    """How often each case's ordering holds over random scenes: LADAR > camera (paper-like), camera > LADAR.
-
-    Args:
-        seeds: one random scene of each case per seed (the paper-like case gives two views).
-        progress: show a tqdm bar over the seeds.
-
-    Returns:
-        ``per_seed`` entropies [nats], and per case the fraction of seeds where the expected
-        sensor wins (in every view of the seed) and the mean entropy of each sensor.
+    """How often each case's ordering holds over ``seeds`` (a random scene of each case per seed): LADAR > camera
+    (paper-like, in every view), camera > LADAR; with the ``per_seed`` entropies and each sensor's mean [nats].
     """
     seeds = list(seeds)
     if not seeds:

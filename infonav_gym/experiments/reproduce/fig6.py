@@ -1,16 +1,9 @@
 """The paper's Fig. 6: two consecutive 3D LADAR range images before and after ICP registration.
 
-Frames come from a vehicle pitching and rolling over rugged terrain
-(``terrain_frame_pair``: a ``terrain_loop`` scene of roughness 0.7, frames 1 m apart). The
-newer frame is placed in the older one's frame by the odometry estimate ("before") and by
-ICP started from it ("after"; ``FRAME_PAIR_ICP``: GICP with a Tukey kernel, 1 m correspondence
-distance). The seed
-statistics register many such pairs with every return, and with a quarter of the returns
-chosen by each control-point strategy (``select_control_points``), and report the
-registration errors (``registration_error``: translation error combined with the
-displacement the rotation error causes 10 m away): recall (the fraction of pairs within
-``RECALL_THRESHOLDS_M``), median and mean. GICP's covariances are those of the whole frames
-(a control point's from its neighbours among all returns), computed once per pair.
+Frames come from a vehicle pitching and rolling over rugged terrain (``terrain_frame_pair``). The newer frame is
+placed by the odometry estimate ("before") and by ICP started from it ("after", ``FRAME_PAIR_ICP``). The seed
+statistics register many pairs with every return and with a quarter chosen by each control-point strategy, and
+report ``registration_error`` recall (within ``RECALL_THRESHOLDS_M``), median and mean.
 """
 
 from __future__ import annotations
@@ -176,11 +169,8 @@ def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path:
 
 
 def figure_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict):
-    """Fig. 6: rows = top and side views, columns = before (odometry) and after (ICP) registration.
-
-    Points are in the older frame's body frame at its optical centre: the older frame in gray,
-    the newer one coloured by its distance to the older frame's surface (to the tangent plane at
-    the closest older point: the point-to-plane residual; misregistration shows as warm colours).
+    """Fig. 6: rows = top and side views, columns = before (odometry) and after (ICP) registration; the older frame in
+    gray, the newer coloured by its point-to-plane residual to the older (misregistration shows warm).
     """
     target = sensor_points(pair.previous)
     source = sensor_points(pair.current)
