@@ -10,8 +10,7 @@ MAX_PLANNER_EPISODES = 100_000  # train --init-from-planner EPISODES
 
 
 def _checked(text: str, convert, requirement: str, accepts):
-    """``convert(text)`` if it converts and ``accepts`` the value, else ``ArgumentTypeError``: it must be
-    ``requirement``."""
+    """``convert(text)`` if it converts and ``accepts`` the value, else ``ArgumentTypeError``: ``requirement``."""
     try:
         value = convert(text)
     except ValueError:

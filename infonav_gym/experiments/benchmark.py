@@ -88,8 +88,7 @@ SINGLE_CARTPOLE_FIGURE = "cartpole_steps_per_s"
 
 
 def lower_is_better(name: str) -> bool:
-    """Whether figure ``name`` meets its goal at or below it: times, time ratios, memory and start-up times do,
-    rates don't."""
+    """Whether figure ``name`` meets its goal at or below it (times, time ratios, memory, start-up), not above."""
     return name.endswith(("_us", "_ms", "_kb_per_env", "_time_ratio", "_start_s"))
 
 
@@ -158,17 +157,14 @@ def _random_stepper(env_id: str, seconds: float, seed: int):
 
 
 def _vector_stepper(run: VectorRun, seconds: float):
-    """A function measuring ``run``'s env-steps per second; ``run`` is reset once, here, so the rounds go on where the
-    last stopped and time the autoresets too.
-    """
+    """``run``'s env-steps per second; reset once, so the rounds go on where the last stopped (autoresets timed too)."""
     run.start()
     return lambda: _timed_steps(run.step, seconds) * run.num_envs
 
 
 def vector_runs(env_ids: list[str], vector_sizes, seed: int) -> dict[str, VectorRun]:
     """The vector envs timed at each size N: ``cartpole_vector_N``, ``vmas_navigation_N`` (when vmas imports) and
-    ``NAME_vector_N`` for each of ``env_ids`` with a native vector env (``vector_sizes``: checked integers >= 1).
-    """
+    ``NAME_vector_N`` for each of ``env_ids`` with a native vector env."""
     vector_ids = [env_id for env_id in vector_env_ids() if env_id in env_ids]
     runs = {}
     for size in vector_sizes:
@@ -238,9 +234,8 @@ def memory_figures(
     steps: int = MEMORY_STEPS,
     seconds: float = MEMORY_SECONDS,
 ) -> dict:
-    """``NAME_vector_N_kb_per_env`` (``vector_timing.kb_per_env`` over ``steps`` vector steps, or ``seconds`` of
-    them) at N = ``num_envs`` of each of ``env_ids`` (default: all) with a native vector env; none where
-    ``memory_missing`` says so."""
+    """``NAME_vector_N_kb_per_env`` at N = ``num_envs`` of each of ``env_ids`` (default: all) with a native vector env
+    (``vector_timing.kb_per_env``); none where ``memory_missing`` says so."""
     if memory_missing():
         return {}
     vector_ids = [env_id for env_id in vector_env_ids() if env_ids is None or env_id in env_ids]
@@ -282,9 +277,7 @@ def run_benchmark(
     progress: bool = True,
     vector_sizes=DEFAULT_VECTOR_SIZES,
 ) -> dict:
-    """Measure every speed goal: a JSON-ready dict of the figures, whether each goal is met and ``notes`` on what is
-    absent and why (else ``ValueError`` for bad ``vector_sizes``).
-    """
+    """Measure every speed goal: the figures, whether each goal is met and ``notes`` on what is absent, JSON-ready."""
     vector_sizes = check_vector_sizes(vector_sizes)
     figures = env_step_figures(None, rounds, seconds_per_round, seed, progress, vector_sizes)
     memory_seconds = MEMORY_SECONDS * min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens them
@@ -325,15 +318,12 @@ def throughput_curves(figures: dict) -> dict[str, dict[int, float]]:
 
 
 def plot_throughput(figures: dict, path: Path | str) -> Path:
-    """Write ``figure_throughput(figures)`` to ``path`` (``ValueError`` without a ``CURVE_N_steps_per_s`` figure,
-    ``ImportError`` without matplotlib).
-    """
+    """Write ``figure_throughput(figures)`` to ``path`` (needs matplotlib)."""
     return save_figure(figure_throughput(figures), path, dpi=120)
 
 
 def figure_throughput(figures: dict):
-    """``throughput_curves(figures)`` log-log, CartPole-v1's single-env rate as a horizontal line, the legend beside
-    the axes."""
+    """``throughput_curves(figures)`` log-log, CartPole-v1's single-env rate as a horizontal line."""
     curves = throughput_curves(figures)
     if not curves:
         raise ValueError(f"the throughput plot needs figures named CURVE_N_steps_per_s, got {sorted(figures)}")

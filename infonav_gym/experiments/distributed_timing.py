@@ -64,8 +64,7 @@ def _sampled_steps_per_second(num_env_runners: int, seed: int, steps: int, env_i
 
 
 def rllib_runner_figures(seed: int = 0, steps: int = RLLIB_SAMPLE_STEPS, env_id: str = TEAM_ID) -> dict:
-    """Sampled env-steps/s on ``env_id`` with 1 and 2 env runners (``steps`` each), their ratio, and on the
-    exploration env with 1; {} without Ray."""
+    """Sampled env-steps/s on ``env_id`` with 1 and 2 runners, their ratio, and on the exploration env with 1."""
     if rllib_missing():
         return {}
     from agents.ray_support import local_or_cluster_ray

@@ -32,9 +32,7 @@ TASKS_PER_WORKER = 2  # tasks handed out ahead per worker: one playing, one wait
 
 
 class EpisodeRunner:
-    """An env and one agent (or one per robot) per name of ``agent_names`` (as ``episodes.make_agent``), playing seeded
-    episodes.
-    """
+    """An env and one agent (or one per robot) per name of ``agent_names``, playing seeded episodes."""
 
     def __init__(self, env_id: str, env_kwargs: dict, agent_names: Sequence[str]):
         self.setup = (env_id, dict(env_kwargs), list(agent_names))  # what a worker builds its own runner from
@@ -140,8 +138,7 @@ def played(
 
 
 def _in_order(submit: Callable, result: Callable, tasks: Iterable, workers: int) -> Iterator:
-    """``result(submit(task))`` of each task, in task order, with at most ``TASKS_PER_WORKER * workers`` submitted
-    and not yet returned."""
+    """``result(submit(task))`` of each task in order, at most ``TASKS_PER_WORKER * workers`` pending."""
     submitted = collections.deque()
     for task in tasks:
         submitted.append(submit(task))
@@ -152,8 +149,7 @@ def _in_order(submit: Callable, result: Callable, tasks: Iterable, workers: int)
 
 
 def _stop(pool: ProcessPoolExecutor, finished: bool) -> None:
-    """Shut ``pool`` down; unless its tasks ``finished`` (Ctrl-C, an error), kill its workers mid-episode rather than
-    wait for them (Python 3.14's ``pool.kill_workers()``)."""
+    """Shut ``pool`` down; unless its tasks ``finished``, kill its workers rather than wait for them."""
     workers = list((pool._processes or {}).values()) if not finished else []
     for worker in workers:
         worker.kill()

@@ -99,9 +99,8 @@ def episode_infos(env: gym.Env, agent, seed: int) -> Iterator[dict]:
 
 
 def parallel_episode_infos(env, agents: dict, seed: int) -> Iterator[dict]:
-    """The per-robot infos ``{robot: info}`` of one seeded episode of a PettingZoo parallel env's reset, then
-    of each of its steps, as they are played; ``agents[robot]`` (reset with seed ``1000 * seed + k`` for robot
-    ``k``) acts for each robot."""
+    """The ``{robot: info}`` of one seeded episode's reset and steps of a PettingZoo parallel env, as played (robot
+    ``k``'s agent reset with seed ``1000 * seed + k``)."""
     observations, infos = env.reset(seed=seed)
     for k, robot in enumerate(env.possible_agents):
         agents[robot].reset(seed=1000 * seed + k)

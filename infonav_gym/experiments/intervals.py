@@ -17,8 +17,7 @@ INTERVAL_NOTES = {
 
 
 def summary_of(metric, values) -> dict:
-    """The JSON summary of ``metric``'s per-episode ``values``: a rate and its Wilson interval for a proportion
-    metric, else a mean and its Student t half-width."""
+    """The JSON summary of the per-episode ``values``: a Wilson rate for a proportion, else a Student t mean."""
     return (ProportionSummary if metric.proportion else Summary).of(values).as_dict()
 
 

@@ -31,8 +31,8 @@ TIE_TOLERANCE = 1e-9  # means within TIE_TOLERANCE * max(1, |best|) of the best 
 
 @dataclass(frozen=True)
 class Row:
-    """An env, the config it runs with, and the agent each column plays (``{column: agent name}``); ``models``
-    names the row's models when its env and config have more than one row (``""`` otherwise)."""
+    """An env, its config and the agent each column plays; ``models`` names the row's models when its env and config
+    have several rows."""
 
     env_id: str
     env_kwargs: dict
@@ -110,8 +110,8 @@ def best_columns(cells: dict) -> list[str]:
 
 
 def _played_row(row: Row, seeds: range, bar, played_cells: dict, how: tuple) -> dict:
-    """Every agent of ``row`` on ``seeds``: its main metric's values, summary and seconds per episode; a cell already
-    in ``played_cells`` (by env, config and agent) is not played again. ``how``: (workers, use_ray, address)."""
+    """Every agent of ``row`` on ``seeds``: values, summary and seconds per episode of its main metric; a cell in
+    ``played_cells`` is not played again."""
     cells = {}
     for column, agent in row.agents.items():
         key = _cell_key(row, agent)

@@ -20,8 +20,7 @@ class OutputWriteError(KeptWork, Exception):
 
 
 class Interrupted(KeptWork, KeyboardInterrupt):
-    """Ctrl-C stopped the work; ``result`` holds what was finished (marked ``"interrupted": True``), the message how
-    much of it."""
+    """Ctrl-C stopped the work; ``result`` holds what was finished (``"interrupted": True``)."""
 
 
 def _directory_problem(directory: Path) -> str | None:
@@ -61,8 +60,7 @@ def check_output_dir(directory: Path | str, where: str) -> Path:
 
 
 def output_file(stem: Path, suffix: str) -> Path:
-    """``stem`` + ``suffix``, the whole stem kept: ``out/eval.v2`` -> ``out/eval.v2.md`` (``with_suffix`` would cut
-    ``.v2``)."""
+    """``stem`` + ``suffix``, the whole stem kept: ``out/eval.v2`` -> ``out/eval.v2.md`` (``with_suffix`` would cut)."""
     return stem.with_name(stem.name + suffix)
 
 

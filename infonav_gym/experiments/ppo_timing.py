@@ -20,10 +20,7 @@ SINGLE_ENV_N_STEPS = 256  # per env of ppo_fps_figures: 8 x 256 = 2048 transitio
 
 
 class SameStepCartPoleVectorEnv(CartPoleVectorEnv):
-    """Gymnasium's ``CartPoleVectorEnv`` resetting a sub-env in the step its episode ends (``AutoresetMode.SAME_STEP``).
-
-    The same reset states are drawn one step earlier; the last observation is in ``info["final_obs"]``.
-    """
+    """Gymnasium's ``CartPoleVectorEnv`` in ``AutoresetMode.SAME_STEP``: last observation in ``info["final_obs"]``."""
 
     metadata = {**CartPoleVectorEnv.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
 

@@ -39,8 +39,7 @@ PEER_OF = {"open3d_icp": "icp", "small_gicp": "gicp"}  # a peer's registration -
 
 
 def frame_pair(seed: int = 0, ladar: Ladar | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(source, target, true_motion, warm_start)`` by ``ladar`` (default ``Ladar()``): the second frame, the
-    first, and (4, 4) transforms."""
+    """``(source, target, true_motion, warm_start)``: the second frame, the first, and (4, 4) transforms."""
     ladar = Ladar() if ladar is None else ladar
     rng = np.random.default_rng(seed)
     terrain = make_terrain(np.random.default_rng(seed), roughness=1.0)
@@ -121,8 +120,8 @@ def _small_gicp(source, target, truth, warm_start):
 
 
 def alternating_times_ms(calls: dict, repeats: int) -> dict[str, tuple[object, list[float]]]:
-    """Per name of ``calls``: the result of one untimed warm-up call and the milliseconds of ``repeats`` calls, the
-    calls taken in turn (round after round), so that a change in the machine's load between them hits each alike."""
+    """Per name of ``calls``: one untimed warm-up call's result and the milliseconds of ``repeats`` calls, taken in
+    turn so that the machine's load weighs on each alike."""
     results = {name: (call(), []) for name, call in calls.items()}
     for _ in range(repeats):
         for name, call in calls.items():

@@ -24,9 +24,7 @@ STRIP_TITLE_IN = 0.4  # above every row of frames, and the strip's title on top 
 
 
 def frame_stem(env_id: str) -> str:
-    """The file stem of an env's rendered frame and episode in ``docs/frames``: the id without its namespace and
-    Gymnasium version (``infonav/LandmarkSelection-v0``: ``LandmarkSelection``; ``cooperative_localization_v0``
-    as it is)."""
+    """An env's file stem in ``docs/frames``: its id without namespace and version (``LandmarkSelection``)."""
     return re.sub(r"-v\d+$", "", env_id.rpartition("/")[2])
 
 
@@ -101,8 +99,7 @@ def write_strip(episode: RenderedEpisode, path: Path, title: str) -> Path:
 
 
 def figure_strip(episode: RenderedEpisode, title: str):
-    """A grid of ``STRIP_FRAMES`` evenly spaced frames of the episode, each titled with its step, one frame pixel to
-    one pixel of the PNG at ``STRIP_DPI``: the frames' text stays as legible as in the GIF."""
+    """A grid of ``STRIP_FRAMES`` evenly spaced frames, one frame pixel to one PNG pixel at ``STRIP_DPI``."""
     frames, steps = episode.frames, episode.steps
     shown = strip_indices(len(frames))
     columns = min(STRIP_COLUMNS, len(shown))

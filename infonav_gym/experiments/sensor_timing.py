@@ -37,10 +37,7 @@ def footprint_space(terrain: Terrain) -> pymunk.Space:
 
 
 def pymunk_rays_ms(space: pymunk.Space, sensor: Ladar | Camera, vehicle_pose) -> float:
-    """Milliseconds for one ``segment_query_first`` per pixel of ``sensor`` at ``vehicle_pose`` (one frame).
-
-    Each pixel's segment runs from the vehicle along its ray's horizontal track, ``max_range_m`` long.
-    """
+    """Milliseconds of one ``segment_query_first`` per pixel along its ray's horizontal track, ``max_range_m`` long."""
     azimuth, elevation = sensor.pixel_angles()
     start = (float(vehicle_pose[0]), float(vehicle_pose[1]))
     ends = [

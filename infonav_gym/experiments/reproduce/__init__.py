@@ -13,10 +13,8 @@ DEFAULT_OUTPUT_DIR = Path("results")  # relative to the working directory
 
 @dataclass(frozen=True)
 class PaperFigure:
-    """One of the paper's figures: how to compute it and how to print what was computed.
-
-    ``figures(seed, seeds, progress)`` returns the figures (JSON-ready) and the function drawing them into a PNG.
-    """
+    """One of the paper's figures: ``figures(seed, seeds, progress)`` -> (JSON-ready figures, the function drawing them
+    into a PNG), and the ``table`` printing them."""
 
     figures: Callable[[int, range, bool], tuple[dict, Callable[[Path], object]]]
     table: Callable[[dict], str]  # the JSON's figures as text

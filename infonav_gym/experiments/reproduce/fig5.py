@@ -56,10 +56,7 @@ _SENSOR_NAMES = {"camera": "camera", "ladar": "LADAR"}
 
 
 def level_heading(terrain: Terrain, position_m) -> float:
-    """The heading [rad] from ``position_m`` along which the ground over ``LEVEL_LOOKAHEAD_M`` stays most level.
-
-    Level means the smallest mean absolute height difference from the ground under the vehicle.
-    """
+    """The heading [rad] from ``position_m`` whose ground over ``LEVEL_LOOKAHEAD_M`` stays most level."""
     position = np.asarray(position_m, dtype=float)
     headings = np.radians(np.arange(0.0, 360.0, HEADING_CANDIDATES_DEG))
     distances = np.linspace(*LEVEL_LOOKAHEAD_M, 24)
@@ -129,19 +126,16 @@ def _seed_views(seed: int) -> tuple[list[tuple[str, str, list[float], dict]], di
 
 
 def run_fig5(seed: int = 0) -> tuple[dict, list[dict]]:
-    """Fig. 5 for one seed: two similar paper-like views and one building-ahead view; the JSON-ready dict (``seed``,
-    ``building`` and the ``views``, each with per sensor ``shape``, 256-bin ``histogram`` and ``entropy_nats``) and
-    the images of each view.
-    """
+    """Fig. 5 for one seed (two similar paper-like views, one building-ahead view): the JSON-ready dict (``seed``,
+    ``building`` and per view and sensor ``shape``, 256-bin ``histogram``, ``entropy_nats``) and each view's images."""
     views, building = _seed_views(seed)
     records = [_view_record(case, label, pose, images) for label, case, pose, images in views]
     return {"seed": seed, "building": building, "views": records}, [images for *_, images in views]
 
 
 def seed_statistics(seeds, progress: bool = False) -> dict:
-    """How often each case's ordering holds over ``seeds`` (a random scene of each case per seed): LADAR > camera
-    (paper-like, in every view), camera > LADAR; with the ``per_seed`` entropies and each sensor's mean [nats].
-    """
+    """How often each case's ordering holds over ``seeds`` (one scene of each case per seed; paper-like: in every view),
+    with the ``per_seed`` entropies and each sensor's mean [nats]."""
     seeds = list(seeds)
     if not seeds:
         raise ValueError("seed_statistics needs at least one seed, got none")

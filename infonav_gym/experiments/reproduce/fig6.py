@@ -33,10 +33,8 @@ RECALL_THRESHOLDS_M = (0.05, 0.10)  # a pair is registered when its registration
 
 
 class PairRegistration:
-    """ICP of a pair's newer frame (all returns or control points) onto the older, with ``settings`` (``icp`` keywords).
-
-    For GICP the frames' covariances are computed on first use and kept for every registration of the pair.
-    """
+    """ICP of a pair's newer frame (all returns or control points) onto the older, with ``settings`` (``icp`` keywords);
+    GICP's frame covariances are computed once per pair."""
 
     def __init__(self, pair: FramePair, settings: dict = FRAME_PAIR_ICP):
         self.pair, self.settings = pair, settings
