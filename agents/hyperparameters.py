@@ -146,12 +146,8 @@ HYPERPARAMETERS = mapping(
 
 
 def checked_block(block: dict, where: str) -> dict:
-    """``block`` with its values as used (``"3e-4"`` a float), once every key is in ``HYPERPARAMETERS`` and every
-    value in its range.
-
-    Raises:
-        ValueError: one line naming the key, its allowed range and ``where`` (e.g. the file and the block).
-    """
+    """``block`` with its values as used (``"3e-4"`` a float), once every key and value is seen to be allowed
+    (``ValueError`` naming the key, its allowed range and ``where``)."""
     try:
         return HYPERPARAMETERS.check(block, "")
     except ValueError as error:

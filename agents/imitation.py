@@ -45,12 +45,8 @@ class Demonstrations(NamedTuple):
 
     @classmethod
     def load(cls, path: Path | str) -> Demonstrations:
-        """Demonstrations saved by ``save`` (``train --init-from-planner``'s file).
-
-        Raises:
-            ValueError: one line naming the option, the file and what it should be, for a file that is not
-                such an npz (missing, text, empty, truncated, an .npy, other arrays, rows that do not match).
-        """
+        """Demonstrations saved by ``save``; ``ValueError`` in one line naming the option, the file and what it should
+        be, for any file that is not such an npz."""
         zipped = None
         try:
             with Path(path).open("rb") as file:
@@ -130,13 +126,8 @@ def planner_demonstrations(
     workers: int = 1,
     progress: bool = True,
 ) -> Demonstrations:
-    """The planner's episodes on seeds ``seed .. seed + episodes - 1``, joined in seed order.
-
-    ``workers`` > 1 plays them in that many processes. Ctrl-C raises ``KeyboardInterrupt`` (nothing is kept).
-
-    Raises:
-        ValueError: for ``episodes`` or ``workers`` below 1, or an env without a planning model (``PlannerAgent``).
-    """
+    """The planner's episodes on seeds ``seed .. seed + episodes - 1``, joined in seed order, played in ``workers``
+    processes (``ValueError`` for counts below 1 or an env without a planning model)."""
     if episodes < 1 or workers < 1:
         raise ValueError(f"episodes and workers must be >= 1, got {episodes} and {workers}")
     seeds = range(seed, seed + episodes)
@@ -155,13 +146,9 @@ def clone_planner(
     model, demonstrations: Demonstrations, epochs: int = 50, batch_size: int = 256, learning_rate: float = 1e-3
 ) -> list[dict]:
     """Fit ``model``'s ``MaskablePPO`` policy to ``demonstrations``: the actor by behaviour cloning, the critic to the
-    returns (loss: action NLL + half the value MSE); its ``VecNormalize`` starts from their observation statistics.
-
-    Minibatches are drawn from ``model.seed``. Returns each epoch's mean ``action_nll`` and ``value_mse``.
-
-    Raises:
-        ValueError: for demonstrations whose observation or action size is not the model's.
-    """
+    returns (loss: action NLL + half the value MSE), minibatches drawn from ``model.seed``; its ``VecNormalize`` starts
+    from their observation statistics. Returns each epoch's mean ``action_nll`` and ``value_mse``; ``ValueError`` for
+    demonstrations of another observation or action size."""
     n_observations, n_actions = model.observation_space.shape[0], model.action_space.n
     if demonstrations.observations.shape[1:] != (n_observations,) or demonstrations.action_masks.shape[1:] != (
         n_actions,

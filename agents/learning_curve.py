@@ -157,11 +157,8 @@ def append_row(path: Path, steps: int, mean_return: float, mean_metric: float, e
 
 
 class CurveCallback(BaseCallback):
-    """Appends a row of ``curve.csv`` at the end of every rollout in which episodes ended.
-
-    Reads the infos SB3's monitor completes at an episode's end (``episode``, and ``METRIC_KEY`` where an env
-    wrapper computed it; NaN where none did).
-    """
+    """Appends a row of ``curve.csv`` after every rollout in which episodes ended, from the infos SB3's monitor
+    completes (``episode``, and ``METRIC_KEY`` where a wrapper computed it, else NaN)."""
 
     def __init__(self, path: Path):
         super().__init__()
@@ -202,12 +199,8 @@ def read_labels(directory: Path, metric_name: str) -> dict:
 
 
 def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
-    """``directory/curve.png`` (``figure_curve``).
-
-    Raises:
-        ImportError: without matplotlib, saying how to install the ``render`` extra.
-        ValueError: when there is no point to draw (no episode ended, no validation): never empty axes.
-    """
+    """``directory/curve.png`` (``figure_curve``); ``ImportError`` without matplotlib, ``ValueError`` with nothing to
+    draw."""
     return save_figure(figure_curve(directory, title, references), Path(directory) / CURVE_PNG, dpi=100)
 
 

@@ -23,12 +23,8 @@ def planner_settings(env_id: str) -> dict:
 
 
 def planning_model(env):
-    """The planning model of ``env`` (wrapped or not), from its ``planning_model()`` method.
-
-    Raises:
-        ValueError: if the env has no ``planning_model()``, or its model lacks one of
-            ``PLANNING_METHODS`` or ``PLANNING_ATTRIBUTES``.
-    """
+    """The planning model of ``env`` (wrapped or not), from its ``planning_model()``; ``ValueError`` if it has none or
+    the model lacks one of ``PLANNING_METHODS`` or ``PLANNING_ATTRIBUTES``."""
     needed = ", ".join(PLANNING_METHODS + PLANNING_ATTRIBUTES)
     try:  # a Gymnasium env through its wrappers, or a PettingZoo env itself
         model = (env.get_wrapper_attr("planning_model") if hasattr(env, "get_wrapper_attr") else env.planning_model)()

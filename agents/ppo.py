@@ -65,9 +65,7 @@ from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_e
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
 SCHEDULED = ("learning_rate", "clip_range")  # may be rl-zoo's "lin_<start>": annealed linearly to 0 over training
 DEFAULT_N_ENVS, DEFAULT_N_STEPS = 8, 2048  # without them in the block: ours, SB3's
-# float32 a MaskableRolloutBuffer slot keeps beside its observation and action mask: action, reward, return, episode
-# start, value, log-probability, advantage
-ROLLOUT_FLOATS = 7
+ROLLOUT_FLOATS = 7  # float32 of a MaskableRolloutBuffer slot beside observation and mask (action, reward, ...)
 MODEL_FILE = "model.zip"
 NORMALIZATION_FILE = "vecnormalize.pkl"  # VecNormalize statistics, beside MODEL_FILE, when trained with ``normalize``
 NATIVE, SYNC, SUBPROCESS = "native", "sync", "subprocess"
@@ -112,16 +110,8 @@ def mask_wrapper(env_id: str, env_kwargs: dict | None = None) -> tuple[bool, typ
 
 
 def load_hyperparameters(env_id: str, path: Path | str | None = None) -> dict:
-    """The block of a ppo.yml-style file for ``env_id``, else its ``default`` block; a fresh dict.
-
-    Args:
-        env_id: the env whose block to read.
-        path: a YAML file of blocks keyed by env id; ``None``: the blocks shipped in the package.
-
-    Raises:
-        ValueError: naming the file (and block and key) when it is unreadable, not a mapping of mappings, has no
-            block for ``env_id`` nor a ``default`` one, or a key is unknown or out of range.
-    """
+    """The block for ``env_id`` (else the ``default`` block) of a ppo.yml-style file at ``path`` (``None``: the blocks
+    shipped in the package), a fresh dict; ``ValueError`` naming the file, block and key of any fault."""
     import yaml
 
     if path is None:
@@ -152,7 +142,8 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
     """Hyperparameters as PPO constructor keywords: drop the others (``not_constructor``), resolve the activation."""
     not_constructor = ("n_envs", "policy", "n_timesteps", "normalize")
     kwargs = {key: value for key, value in hyperparameters.items() if key not in not_constructor}
-    kwargs.update({key: _schedule(key, value) for key, value in scheduled(hyperparameters).items()})
+    for key, value in scheduled(hyperparameters).items():  # rl-zoo's lin_<start>: from start to 0 over training
+        kwargs[key] = LinearSchedule(float(value.removeprefix(LINEAR)), 0.0, 1.0)
     policy_kwargs = dict(kwargs.get("policy_kwargs") or {})
     if "activation_fn" in policy_kwargs:
         policy_kwargs["activation_fn"] = getattr(torch.nn, ACTIVATIONS[policy_kwargs["activation_fn"]])
@@ -164,11 +155,6 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
 def scheduled(hyperparameters: dict) -> dict:
     """The hyperparameters given as a schedule (``lin_<start>``), not a number: ``{key: value}`` of ``SCHEDULED``."""
     return {key: hyperparameters[key] for key in SCHEDULED if isinstance(hyperparameters.get(key), str)}
-
-
-def _schedule(key: str, value: str) -> LinearSchedule:
-    """rl-zoo's ``lin_<start>`` (e.g. ``lin_3e-4``): from ``start`` at the first update to 0 at the end of training."""
-    return LinearSchedule(float(value.removeprefix(LINEAR)), 0.0, 1.0)
 
 
 def _constructor_arguments(hyperparameters: dict, seed: int, tensorboard_log: str | None) -> tuple[str, dict]:
@@ -185,12 +171,8 @@ def _json_name(value) -> str:
 
 
 def constructor_values(algorithm, policy: str, kwargs: dict) -> dict:
-    """Every keyword of ``algorithm``'s constructor as called with ``policy`` and ``kwargs``, its defaults
-    included (what ``train.json`` records); classes by qualified name, JSON-ready.
-
-    Raises:
-        ValueError: for a keyword the constructor does not take, listing those it takes.
-    """
+    """Every keyword of ``algorithm``'s constructor as called with ``policy`` and ``kwargs``, defaults included,
+    JSON-ready (classes by qualified name); ``ValueError`` for a keyword it does not take, listing those it takes."""
     parameters = inspect.signature(algorithm.__init__).parameters
     public = [name for name in parameters if name not in ("self", "env") and not name.startswith("_")]
     unknown = sorted(set(kwargs) - set(public))
@@ -241,11 +223,7 @@ def vectorizations(env_id: str) -> tuple[str, ...]:
 
 
 def checked_vectorization(env_id: str, vectorization: str | None) -> str:
-    """``vectorization`` if ``env_id`` has it, ``None``: its default.
-
-    Raises:
-        ValueError: for a mode outside ``VECTORIZATIONS`` or one the env lacks, naming the env and its modes.
-    """
+    """``vectorization`` if ``env_id`` has it, ``None``: its default (else ``ValueError`` naming the env's modes)."""
     available = vectorizations(env_id)
     if vectorization is None:
         return available[0]
@@ -264,11 +242,8 @@ def checked_vectorization(env_id: str, vectorization: str | None) -> str:
 def native_vec_env(
     env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None, record_metric: bool = False
 ) -> VecMonitor:
-    """``env_id``'s own vector env of ``n_envs`` copies, resetting in the step an episode ends, as an SB3 ``VecEnv``.
-
-    Sub-env ``i`` gets the seed ``seed + i`` at the first reset (``monitored_vec_env``). ``record_metric``: the
-    infos of an episode's end hold its main metric (``learning_curve.METRIC_KEY``, for the learning curve).
-    """
+    """``env_id``'s own vector env of ``n_envs`` copies in SAME_STEP autoreset as an SB3 ``VecEnv`` (sub-env ``i``
+    seeded ``seed + i``); ``record_metric``: an episode's last infos hold its main metric (``METRIC_KEY``)."""
     vector_env = gym.make_vec(
         resolve_env_id(env_id),
         num_envs=n_envs,
@@ -314,13 +289,8 @@ def build_model(
     vectorization: str | None = None,
     tensorboard_log: str | None = None,
 ):
-    """A fresh ``MaskablePPO`` (env with action masks) or ``PPO`` on ``n_envs`` seeded copies of ``env_id``.
-
-    Args:
-        hyperparameters: ppo.yml-style keys; ``None`` loads the env's block of ppo.yml.
-        n_envs: overrides the hyperparameters' ``n_envs`` (a team copy is a slot per robot).
-        vectorization: ``native``, ``sync`` or ``subprocess``; ``None``: the env's default.
-    """
+    """A fresh ``MaskablePPO`` (env with action masks) or ``PPO`` on ``n_envs`` seeded copies of ``env_id``
+    (``hyperparameters`` ``None``: the env's block; ``vectorization`` ``None``: the env's default)."""
     hyperparameters = training_block(env_id, hyperparameters, n_envs)
     masked, vec_env = training_vec_env(env_id, hyperparameters["n_envs"], seed, env_kwargs, vectorization)
     normalize = normalization_kwargs(hyperparameters)
@@ -365,12 +335,8 @@ def rollout_steps(
 
 
 def planned_steps(timesteps: int, rollout: int, factors: str, hyperparameters: dict) -> int:
-    """The env steps PPO will train for ``timesteps``: whole rollouts (said on stderr when more).
-
-    Raises:
-        ValueError: for fewer steps than one rollout (but 0: cloning alone), or a ``batch_size`` whose last
-            minibatch holds a single step (MaskablePPO's advantage normalization would make it NaN).
-    """
+    """The env steps PPO will train for ``timesteps``: whole rollouts (said on stderr when more). ``ValueError`` for
+    fewer than one rollout (but 0: cloning alone), or a ``batch_size`` leaving a 1-step minibatch (NaN advantages)."""
     if 0 < timesteps < rollout:
         raise ValueError(
             f"--timesteps {timesteps} is less than one rollout of {rollout} env steps ({factors}): PPO learns from "
@@ -428,15 +394,11 @@ def train(
 ) -> Path:
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
 
-    ``n_envs`` / ``vectorization`` ``None``: the hyperparameters' / the env's default. Also writes
-    ``output_dir/train.json`` (settings, every constructor keyword as ``constructor``, wall time, fps),
-    ``checkpoints`` models in ``checkpoints/``, the learning curve (``curve.csv``, ``curve.png`` with
-    ``curve_references`` as lines) and, with ``tensorboard``, event files in ``tensorboard/``.
-    ``init_from_planner`` warm-starts by behaviour cloning of the env's planner: a number of episodes to play (seeds
-    from ``DEMONSTRATION_SEEDS + seed``, in ``planner_workers`` processes, saved as ``demonstrations.npz``) or such a
-    file; ``timesteps=0`` then keeps the cloned policy. ``validation_episodes`` > 0 keeps the policy best on them in
-    ``best/`` (``agents.validation``), every ``validation_every`` env steps (default: a twentieth of ``timesteps``).
-    Ctrl-C saves the model so far, its train.json with ``"interrupted": true``.
+    Also writes ``train.json`` (settings, every constructor keyword, time, fps), ``checkpoints/``, the learning curve
+    (``curve.csv``, ``curve.png``) and with ``tensorboard`` its event files. ``init_from_planner``: warm start by
+    behaviour cloning of the planner, on that many episodes (seeds from ``DEMONSTRATION_SEEDS + seed``, saved as
+    ``demonstrations.npz``) or such a file; ``timesteps=0`` keeps the cloned policy. ``validation_episodes`` > 0 keeps
+    the policy best on them in ``best/``. Ctrl-C saves the model so far (train.json: ``"interrupted": true``).
     """
     if timesteps < (0 if init_from_planner is not None else 1):
         raise ValueError(f"timesteps must be >= 1 (0 only with a planner warm start: cloning alone), got {timesteps}")
@@ -557,11 +519,7 @@ def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_
 
 
 def model_file(path: Path | str) -> Path:
-    """``path`` itself, or ``path/model.zip`` when ``path`` is a directory (the ``--output`` of ``infonav train``).
-
-    Raises:
-        ValueError: naming the path when it does not exist, or is a directory without ``model.zip``.
-    """
+    """``path``, or ``path/model.zip`` for a directory; ``ValueError`` naming a path that is neither."""
     path = Path(path)
     if path.is_dir():
         if not (path / MODEL_FILE).is_file():
@@ -604,14 +562,9 @@ def load_normalization(model_path: Path) -> VecNormalize | None:
 
 
 class PPOAgent:
-    """A trained PPO policy as an agent: deterministic (the most probable action) among the valid ones.
-
-    Args:
-        model_path: a ``model.zip`` (with ``vecnormalize.pkl`` beside it when trained with ``normalize``), or its
-            directory.
-        env: the env it will act in; its spaces must match the model's.
-        agent: in a PettingZoo env, the agent (robot) it acts for.
-    """
+    """A trained PPO policy (a ``model.zip`` or its directory, with ``vecnormalize.pkl`` when trained with
+    ``normalize``) acting deterministically among the valid actions in ``env`` (for robot ``agent`` in a PettingZoo
+    env)."""
 
     def __init__(self, model_path: Path | str, env, agent: str | None = None):
         self.model_path = model_file(model_path)

@@ -108,11 +108,8 @@ def check_reachable(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
 
 @contextlib.contextmanager
 def local_or_cluster_ray(address: str | None = None) -> Iterator:
-    """Ray connected to the cluster at ``address``, or a local Ray started (and stopped) here; yields ``ray``.
-
-    Inside an already initialized Ray (a caller's), that one is used and left running (``address`` is still
-    checked: a wrong one is an error, not ignored).
-    """
+    """Ray connected to the cluster at ``address``, or a local Ray started (and stopped) here; yields ``ray``. Inside a
+    caller's initialized Ray, that one is used and left running (a wrong ``address`` is still an error)."""
     ray = import_ray(address)
     if ray.is_initialized():
         yield ray

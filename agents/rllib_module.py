@@ -21,11 +21,7 @@ VARIANCE_EPSILON = 1e-8
 
 
 class MaskedPPOTorchRLModule(DefaultPPOTorchRLModule):
-    """RLlib's default PPO module on the ``"observation"`` part, its logits masked by ``"action_mask"``.
-
-    Raises:
-        ValueError: for observations without those two parts.
-    """
+    """RLlib's default PPO module on the ``"observation"`` part, its logits masked by the ``"action_mask"`` part."""
 
     def __init__(self, *, observation_space: spaces.Dict, **kwargs):
         if not isinstance(observation_space, spaces.Dict) or set(observation_space) != {OBSERVATION, ACTION_MASK}:

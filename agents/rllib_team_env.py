@@ -55,18 +55,13 @@ class TeamCopy(MultiAgentEnv):
 
 
 class BatchedTeamEnv(VectorMultiAgentEnv):
-    """A team vector env (N copies of R robots) as RLlib's ``VectorMultiAgentEnv``.
+    """A team vector env (N copies of R robots, ``NEXT_STEP`` autoreset, else ``ValueError``) as RLlib's
+    ``VectorMultiAgentEnv``.
 
     Copy ``i``'s observations are ``{robot: {"observation": ..., "action_mask": float32}}`` (all ones where none is
     valid); rewards and terminations ``{robot: ...}`` with ``"__all__"``; infos ``{}`` but at an episode's last step
-    ``{METRIC_KEY: main metric}``. ``NEXT_STEP`` autoreset: the step after an end resets the copy (its actions
-    ignored, rewards 0). ``reset(seed=s)`` seeds copy ``i`` with ``s + i``.
-
-    Args:
-        team: a team vector env in ``NEXT_STEP`` autoreset.
-
-    Raises:
-        ValueError: for another autoreset mode.
+    ``{METRIC_KEY: main metric}``. The step after an end resets the copy (its actions ignored, rewards 0).
+    ``reset(seed=s)`` seeds copy ``i`` with ``s + i``.
     """
 
     closed = True  # until built: a construction that failed has nothing to close
@@ -97,11 +92,8 @@ class BatchedTeamEnv(VectorMultiAgentEnv):
         return self._observations(observations), [{} for _ in range(self.num_envs)]
 
     def step(self, actions: list[dict]):
-        """Step every copy with ``actions[i]`` ``{robot: action}`` (every robot, except in a restarting copy).
-
-        Raises:
-            ValueError: for not one dict per copy, or a copy that is not restarting without some robot's action.
-        """
+        """Step every copy with ``actions[i]`` ``{robot: action}`` (every robot, except in a restarting copy: else
+        ``ValueError``)."""
         if len(actions) != self.num_envs:
             raise ValueError(f"expected one {{robot: action}} dict per copy ({self.num_envs}), got {len(actions)}")
         for copy, copy_actions in enumerate(actions):

@@ -97,12 +97,8 @@ def _model_settings(hyperparameters: dict) -> dict:
 
 
 def rllib_training_settings(hyperparameters: dict) -> dict:
-    """The PPO settings of a ppo.yml block in RLlib's names (``PPOConfig.training``); the rollout ``n_steps * n_envs``
-    is the train batch, ``batch_size`` its minibatch.
-
-    Raises:
-        ValueError: for a value out of range, a key without an RLlib translation, or a schedule, naming the key.
-    """
+    """The PPO settings of a ppo.yml block in RLlib's names (``PPOConfig.training``), the rollout ``n_steps * n_envs``
+    as train batch; ``ValueError`` naming a key out of range, without an RLlib translation, or a schedule."""
     from agents.ppo import scheduled
 
     hyperparameters = checked_block(hyperparameters, "the hyperparameters")

@@ -58,11 +58,7 @@ class RobotSlots(VectorEnv):
         return [seeds[0] for seeds in by_copy]
 
     def step(self, actions):
-        """Step every copy with the slots' actions (N R,); the arrays of ``CooperativeLocalizationVectorEnv.step``.
-
-        Raises:
-            ValueError: for actions that are not one per slot (the team env checks the values).
-        """
+        """Step every copy with the slots' actions (N R,) (``ValueError`` unless one per slot)."""
         actions = np.asarray(actions)
         if actions.shape != (self.num_envs,):
             raise ValueError(f"expected one action per slot, shape ({self.num_envs},), got shape {actions.shape}")
@@ -156,11 +152,7 @@ class TeamVecEnv(VectorEnvAdapter):
         return [value for _ in slots]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        """Set ``attr_name`` of the team env, which every slot shares: ``indices`` must be None or every slot.
-
-        Raises:
-            ValueError: for indices that leave some slot out (one copy cannot differ from the others).
-        """
+        """Set ``attr_name`` of the team env, which every slot shares (``ValueError`` unless ``indices`` are all)."""
         self._all_rows(indices, f"set_attr({attr_name!r})")
         setattr(self.team, attr_name, value)
 

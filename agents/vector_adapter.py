@@ -132,11 +132,8 @@ class VectorEnvAdapter(VecEnv):
         self.vector_env.close()
 
     def action_masks(self) -> np.ndarray:
-        """Valid actions (N, n) bool: the vector env's ``action_masks()``, else the last ``info["action_mask"]``.
-
-        Raises:
-            ValueError: for a mask of another shape, or an info mask with a non-Discrete action space.
-        """
+        """Valid actions (N, n) bool: the vector env's ``action_masks()``, else the last ``info["action_mask"]``
+        (checked)."""
         own = getattr(self._base, MASKS_METHOD, None)
         if callable(own):
             return self._checked_masks(np.asarray(own(), dtype=bool), "action_masks()")
@@ -186,11 +183,8 @@ class VectorEnvAdapter(VecEnv):
         return attr_name == MASKS_METHOD or super().has_attr(attr_name)
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        """Attribute ``attr_name`` of each sub-env asked for (``render_mode``: the vector env's, for each).
-
-        Raises:
-            AttributeError: when the sub-envs lack it or the vector env is native (no sub-env objects).
-        """
+        """Attribute ``attr_name`` of each sub-env asked for (``render_mode``: the vector env's); ``AttributeError`` if
+        none."""
         rows = self._rows(indices)
         if attr_name == "render_mode":
             return [self.vector_env.render_mode] * len(rows)
@@ -216,11 +210,8 @@ class VectorEnvAdapter(VecEnv):
         return list(self._base.call(method_name, *method_args, **method_kwargs))
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices=None) -> list[bool]:
-        """Whether each sub-env is wrapped in ``wrapper_class``; a native vector env's sub-envs are wrapped in nothing.
-
-        Raises:
-            ValueError: for an ``AsyncVectorEnv``, whose sub-envs live in worker processes.
-        """
+        """Whether each sub-env is wrapped in ``wrapper_class`` (native: never; async: ``ValueError``, they are
+        elsewhere)."""
         rows = self._rows(indices)
         envs = getattr(self._base, "envs", None)
         if envs is not None:

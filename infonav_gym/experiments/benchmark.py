@@ -189,14 +189,8 @@ def env_step_figures(
     progress=True,
     vector_sizes=DEFAULT_VECTOR_SIZES,
 ) -> dict:
-    """Median steps per second of each env (default ``benchmarked_env_ids()``), of CartPole-v1 and of the vector envs.
-
-    Returns ``NAME_steps_per_s`` and ``NAME_vs_cartpole_ratio`` for each env and ``vector_runs`` entry, and for our
-    vector envs ``NAME_vector_N_vs_single_ratio`` and (VMAS timed) ``NAME_vector_N_vs_vmas_ratio``.
-
-    Raises:
-        ValueError: for ``vector_sizes`` that are not integers >= 1.
-    """
+    """Median steps/s of each env (default: all), CartPole-v1 and the vector envs: ``NAME_steps_per_s``,
+    ``NAME_vs_cartpole_ratio`` and, for our vector envs, ``NAME_vector_N_vs_single_ratio`` / ``_vs_vmas_ratio``."""
     vector_sizes = check_vector_sizes(vector_sizes)
     env_ids = benchmarked_env_ids() if env_ids is None else env_ids
     cartpole = gym.make("CartPole-v1")
@@ -334,8 +328,7 @@ def figure_throughput(figures: dict):
         axes.loglog(sizes, [rates[size] for size in sizes], marker="o", label=curve)
     if SINGLE_CARTPOLE_FIGURE in figures:
         axes.axhline(figures[SINGLE_CARTPOLE_FIGURE], color="black", linestyle="--", label="CartPole-v1 (single env)")
-    axes.set_xlabel("sub-envs per vector env, N [-]")
-    axes.set_ylabel("throughput [env-steps/s]")
+    axes.set(xlabel="sub-envs per vector env, N [-]", ylabel="throughput [env-steps/s]")
     axes.set_title("Throughput, one process (infonav benchmark)")
     axes.grid(True, which="both", alpha=0.3)
     axes.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0))

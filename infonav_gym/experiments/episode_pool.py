@@ -100,17 +100,8 @@ def played(
     use_ray: bool = False,
     address: str | None = None,
 ) -> Iterator[dict]:
-    """The metrics of every ``(agent, seed)`` task, in task order, as they are played.
-
-    Args:
-        runner: plays the tasks itself when ``workers == 1``; else gives the workers its setup.
-        tasks: ``(agent name, seed)`` pairs, taken as they are handed out.
-        workers: processes playing at once.
-        use_ray: play them as Ray tasks on a local Ray or the cluster at ``address`` (the ``distributed`` extra).
-
-    Raises:
-        ValueError: for ``workers < 1``, or ``use_ray`` without Ray installed.
-    """
+    """The metrics of every ``(agent, seed)`` task, in task order, as played by ``runner`` itself (``workers == 1``),
+    ``workers`` processes or Ray tasks (``use_ray``, on a local Ray or the cluster at ``address``)."""
     check_positive(workers, "workers")
     if use_ray:  # one EpisodeRunner actor per worker (one CPU each)
         from agents.ray_support import local_or_cluster_ray

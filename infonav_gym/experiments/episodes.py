@@ -37,11 +37,8 @@ def check_agent_name(name: str) -> None:
 def make_agent(
     name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None, agent: str | None = None
 ):
-    """A baseline agent by name (``noop_action``: see ``RandomAgent``).
-
-    ``planner``, ``ppo:PATH`` and ``rllib:DIR`` need the ``env`` they act in (and ``agent``, the robot, in a
-    PettingZoo env) and are imported only when asked for; ``planner`` needs an env with a planning model.
-    """
+    """A baseline agent by name; ``planner``, ``ppo:PATH`` and ``rllib:DIR`` need the ``env`` (and in a PettingZoo env
+    the robot ``agent``) they act in, and are imported only when asked for."""
     check_agent_name(name)
     if name == "random":
         return RandomAgent(n_actions, noop_action=noop_action)

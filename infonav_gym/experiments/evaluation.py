@@ -30,10 +30,8 @@ def evaluate(
     use_ray: bool = False,
     address: str | None = None,
 ):
-    """Run every agent (names of ``episodes.AGENT_KINDS``, each once) for ``episodes`` episodes on seeds ``seed ..``.
-
-    In a PettingZoo env every robot plays its own copy of the agent (``ppo:PATH``: one policy for all). ``workers``
-    processes (``use_ray``: Ray tasks at ``address`` or local) give the same results as one (``episode_pool``).
+    """Run every agent (each once) for ``episodes`` episodes on seeds ``seed ..``; in a PettingZoo env every robot plays
+    its own copy. ``workers`` processes or Ray tasks give the same results as one.
 
     Returns:
         ``{"env_id", "episodes", "seeds", "env_kwargs", "env_config" (defaults included), "metrics", "agents": {name:

@@ -41,12 +41,8 @@ class Row:
 
 
 def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
-    """``(column, agent name, env id, env kwargs, model dir's name)`` of each ``*/train.json`` under ``directory``:
-    column ``rllib`` for ``backend: rllib``, else ``ppo``; a run that kept a best policy plays that one.
-
-    Raises:
-        ValueError: naming the ``train.json`` that does not parse or names no registered env.
-    """
+    """``(column, agent name, env id, env kwargs, model name)`` of each ``*/train.json`` in ``directory`` (a run
+    that kept a best policy plays that one); ``ValueError`` naming a ``train.json`` that is not an env's."""
     models = []
     for record_path in sorted(Path(directory).glob("*/train.json")):
         try:
@@ -65,13 +61,8 @@ def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
 
 
 def leaderboard_rows(env_ids, columns, models_dir: Path | None) -> list[Row]:
-    """A row per env of ``env_ids`` and config of its models (the defaults if none), with the ``columns`` that apply
-    (the planner where the env has a planning model); several models of one column and config get a row each, sharing
-    the baselines' cells.
-
-    Raises:
-        ValueError: for an unknown column or env id.
-    """
+    """A row per env of ``env_ids`` and config of its models (the defaults if none), with the ``columns`` that apply;
+    several models of one column and config get a row each. ``ValueError`` for an unknown column or env."""
     for column in columns:
         if column not in COLUMNS:
             raise ValueError(f"unknown agent {column!r} in --agents; choose from {', '.join(COLUMNS)}")

@@ -46,12 +46,7 @@ def _file_problem(path: Path) -> str | None:
 
 
 def check_output_dir(directory: Path | str, where: str) -> Path:
-    """Check that ``directory`` is, or can be created as, a writable directory; create nothing.
-
-    Raises:
-        ValueError: naming ``where`` (the option, e.g. ``"--output-dir"``) and the path when it or an ancestor is a
-            file, or it (or the ancestor it would be created in) is not writable.
-    """
+    """``directory``, once seen to be, or creatable as, a writable directory (else ``ValueError`` naming ``where``)."""
     directory = Path(directory)
     problem = _directory_problem(directory)
     if problem:
@@ -65,14 +60,8 @@ def output_file(stem: Path, suffix: str) -> Path:
 
 
 def check_output_stem(stem: Path | str, suffixes: tuple[str, ...], where: str) -> Path:
-    """Check that the files ``stem`` + each of ``suffixes`` can be written; create nothing; return the stem.
-
-    A trailing one of ``suffixes`` is dropped (``results/eval.md`` -> ``results/eval``), any other suffix kept.
-
-    Raises:
-        ValueError: naming ``where`` and the path when ``stem`` is a directory, one of the files is a directory or not
-            writable, or the parent directory cannot be created or written.
-    """
+    """The stem of files ``stem`` + each of ``suffixes``, once they are seen to be writable (else ``ValueError`` naming
+    ``where``); a trailing one of ``suffixes`` is dropped (``results/eval.md`` -> ``results/eval``)."""
     stem = Path(stem)
     if stem.suffix and stem.suffix in suffixes:
         stem = stem.with_suffix("")

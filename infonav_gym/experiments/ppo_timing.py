@@ -63,12 +63,7 @@ def _masked_model(vec_env, hyperparameters: dict, seed: int):
 
 
 def _fps_figures(infix: str, make_vec_envs: dict, hyperparameters: dict, seed: int, timesteps: int, rounds: int):
-    """Median training timesteps per second on ``LANDMARK_ID`` and ``CARTPOLE_ID`` and their median ratio.
-
-    Args:
-        infix: in the figure names (``ppo_landmark_selection_{infix}fps``, ...).
-        make_vec_envs: ``LANDMARK_ID`` and ``CARTPOLE_ID`` -> a function making that env's SB3 ``VecEnv``.
-    """
+    """Median training timesteps/s on the two envs ``make_vec_envs`` makes and their median ratio."""
     from agents.ppo import torch_threads
 
     rates = {name: [] for name in make_vec_envs}
@@ -105,11 +100,8 @@ def ppo_fps_figures(timesteps_per_round: int = 2048, rounds: int = 3, seed: int 
 
 
 def landmark_vector_vec_env(n_envs: int, seed: int, vectorization: str = "native"):
-    """The LandmarkSelection copies of ``ppo_vector_fps_figures``, an SB3 ``VecEnv`` (sub-env ``i``: ``seed + i``).
-
-    ``native``: its own vector env (``agents.ppo.native_vec_env``); ``sync``: Gymnasium's ``SyncVectorEnv``
-    of single envs in SAME_STEP mode, through the same adapter.
-    """
+    """The LandmarkSelection copies of ``ppo_vector_fps_figures`` as an SB3 ``VecEnv``: its native vector env, or
+    (``sync``) Gymnasium's SAME_STEP ``SyncVectorEnv``; sub-env ``i`` seeded ``seed + i``."""
     import gymnasium as gym
 
     from agents.ppo import NATIVE, SYNC, native_vec_env
@@ -128,11 +120,7 @@ def landmark_vector_vec_env(n_envs: int, seed: int, vectorization: str = "native
 def ppo_vector_fps_figures(
     timesteps_per_round: int = 8192, rounds: int = 3, seed: int = 0, n_envs: int = 64, vectorization: str = "native"
 ) -> dict:
-    """Median PPO training timesteps per second on the LandmarkSelection and CartPole vector envs and their ratio.
-
-    Args:
-        vectorization: how the LandmarkSelection copies run (``landmark_vector_vec_env``).
-    """
+    """Median PPO training timesteps/s on the LandmarkSelection and CartPole vector envs and their ratio."""
     from agents.vector_adapter import monitored_vec_env
 
     hyperparameters, timesteps = _round_settings(timesteps_per_round, n_envs)

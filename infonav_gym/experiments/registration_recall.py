@@ -145,11 +145,8 @@ def _load_kernels(seed: int) -> None:
 
 
 def control_point_comparison(seed_sets=SEED_SETS, budgets=BUDGETS, progress: bool = False) -> dict:
-    """All returns and every selector at every budget with ``FRAME_PAIR_ICP`` (module docstring), per seed set.
-
-    Returns ``{"budgets", "selectors", "frame_covariances_mean_s", "all", "capped_pairs", "by_budget": {label:
-    {selector: ...}}}``, each per seed set (summaries by ``run_summary``).
-    """
+    """All returns and every selector at every budget with ``FRAME_PAIR_ICP``, per seed set: ``{"budgets",
+    "selectors", "frame_covariances_mean_s", "all", "capped_pairs", "by_budget": {label: {selector: ...}}}``."""
     budgets = check_budgets(budgets)
     _load_kernels(seed_sets[0][0])
     per_pair = [[] for _ in seed_sets]

@@ -46,13 +46,8 @@ def render_episode(
     max_steps: int | None = None,
     progress: bool = True,
 ) -> RenderedEpisode:
-    """Play one episode and keep the frame after the reset, after every ``every``-th step and after the last.
-
-    ``agent_name``: as ``episodes.make_agent`` takes; ``max_steps``: stop after that many (default: the episode's end).
-
-    Raises:
-        ValueError: for ``every`` or ``max_steps`` not an integer >= 1, an unknown env, agent or config key.
-    """
+    """Play one episode (``agent_name`` as ``make_agent`` takes) and keep the frame after the reset, after every
+    ``every``-th step and after the last; ``max_steps``: stop after that many."""
     check_positive(every, "--every")
     if max_steps is not None:
         check_positive(max_steps, "--max-steps")

@@ -53,11 +53,8 @@ def pymunk_rays_ms(space: pymunk.Space, sensor: Ladar | Camera, vehicle_pose) ->
 
 
 def sensor_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
-    """Median frame time of the default ``Ladar().scan`` and ``Camera().capture`` and of the Pymunk loop.
-
-    Returns ``{sensor}_frame_ms``, ``pymunk_{sensor}_rays_ms`` and ``{sensor}_vs_pymunk_ratio`` (their
-    quotient) for ``sensor`` in ladar, camera; ``seconds_per_round`` scales the number of frames.
-    """
+    """Median frame time [ms] of the default LADAR and camera and of the Pymunk loop, and their ratio, per sensor;
+    ``seconds_per_round`` scales the number of frames."""
     terrain = make_terrain(np.random.default_rng(seed))
     space = footprint_space(terrain)
     rng = np.random.default_rng(seed)

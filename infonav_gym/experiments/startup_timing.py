@@ -32,12 +32,8 @@ for env_id in sys.argv[1:]:
 
 
 def first_step_seconds(cache_dir: str, env_ids: list[str]) -> float:
-    """Wall seconds of a fresh Python process running ``FIRST_STEP_SCRIPT`` on ``env_ids`` with numba's cache in
-    ``cache_dir``.
-
-    Raises:
-        RuntimeError: if the process fails (its stderr's last line quoted).
-    """
+    """Wall seconds of a fresh process running ``FIRST_STEP_SCRIPT`` on ``env_ids``, numba's cache in ``cache_dir``
+    (``RuntimeError`` quoting its stderr's last line if it fails)."""
     environment = {**os.environ, "NUMBA_CACHE_DIR": cache_dir}
     start = time.perf_counter()
     result = subprocess.run(

@@ -41,11 +41,7 @@ class VectorRun:
 
 
 def check_vector_sizes(sizes, where: str = "vector sizes") -> tuple[int, ...]:
-    """``sizes`` as a tuple of ints after checking it is a non-empty sequence of integers >= 1.
-
-    Raises:
-        ValueError: naming ``where`` and the offending value.
-    """
+    """``sizes`` as a tuple of ints, once checked to be integers from 1 to ``MAX_VECTOR_SIZE`` (``ValueError``)."""
     sizes = tuple(sizes)
     if not sizes:
         raise ValueError(f"{where}: expected at least one number of sub-envs, got none")
@@ -59,11 +55,7 @@ def check_vector_sizes(sizes, where: str = "vector sizes") -> tuple[int, ...]:
 
 
 def parse_vector_sizes(text: str, where: str = "--vector-sizes") -> tuple[int, ...]:
-    """Comma-separated numbers of sub-envs, e.g. ``"1,16,256"`` -> ``(1, 16, 256)``.
-
-    Raises:
-        ValueError: naming ``where`` and the part that is not an integer >= 1.
-    """
+    """Comma-separated numbers of sub-envs, ``"1,16,256"`` -> ``(1, 16, 256)`` (``ValueError`` naming ``where``)."""
     sizes = []
     for part in text.split(","):
         try:
@@ -114,11 +106,7 @@ def vmas_missing() -> str | None:
 
 
 def vmas_navigation_run(num_envs: int, seed: int) -> VectorRun:
-    """VMAS ``navigation`` (``VMAS_AGENTS`` agents, CPU, one torch thread) under uniform random forces.
-
-    Raises:
-        ImportError: when ``vmas`` does not import (see ``vmas_missing``).
-    """
+    """VMAS ``navigation`` (``VMAS_AGENTS`` agents, CPU, one torch thread) under uniform random forces."""
     from agents.base import torch_threads
 
     vmas, torch = importlib.import_module("vmas"), importlib.import_module("torch")
@@ -163,11 +151,8 @@ def _step_for(run: VectorRun, steps: int, seconds: float) -> None:
 def peak_rss_growth_kb_per_env(
     env_id: str, num_envs: int, steps: int, seed: int, seconds: float = MEMORY_SECONDS
 ) -> float:
-    """In this process: peak RSS growth [kB] per copy while building ``env_id``'s vector env and stepping it.
-
-    After a warmed-up 1-copy run, the peak is reset (``/proc/self/clear_refs``); the growth of ``VmHWM`` over building,
-    resetting and stepping ``num_envs`` copies ``steps`` times (or for ``seconds``) is divided by ``num_envs``.
-    """
+    """In this process: peak RSS growth [kB] per copy of building, resetting and stepping ``num_envs`` copies, after a
+    warmed-up 1-copy run and a reset of the peak (``/proc/self/clear_refs``)."""
     warm_up = vector_env_run(env_id, 1, seed)
     warm_up.start()
     _step_for(warm_up, steps, seconds)
@@ -182,12 +167,8 @@ def peak_rss_growth_kb_per_env(
 def kb_per_env(
     env_id: str, num_envs: int, steps: int = MEMORY_STEPS, seed: int = 0, seconds: float = MEMORY_SECONDS
 ) -> float:
-    """Memory per sub-env [kB] of ``env_id``'s vector env: ``peak_rss_growth_kb_per_env`` in a fresh subprocess (which
-    imports only ``infonav_gym``: ``env_id`` must be registered by it or carry a ``module:`` prefix).
-
-    Raises:
-        RuntimeError: when the subprocess fails (its error output is in the message).
-    """
+    """Memory per sub-env [kB] of ``env_id``'s vector env: ``peak_rss_growth_kb_per_env`` in a fresh subprocess, which
+    imports only ``infonav_gym`` (``RuntimeError`` with its error output if it fails)."""
     code = (
         "from infonav_gym.experiments.vector_timing import peak_rss_growth_kb_per_env; "
         f"print(peak_rss_growth_kb_per_env({env_id!r}, {num_envs}, {steps}, {seed}, {seconds!r}))"

@@ -30,8 +30,6 @@ FIGURES = {
 def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progress: bool = True, command: str = ""):
     """Run ``figure`` (one of ``FIGURES``), write ``output_dir/FIGURE.png`` and ``FIGURE.json``; return its content.
 
-    ``seed``: the plotted run's, and the first of the ``n_seeds`` the statistics count; ``command`` is recorded.
-
     Raises:
         ValueError: for ``n_seeds < 1``, or an ``output_dir`` that cannot be a writable directory.
         OutputWriteError: when a file cannot be written, carrying the result (and the files written).

@@ -242,10 +242,7 @@ def _draw_paths(axes, fig3: dict) -> None:
     observer = fig3["observer"]
     loss_xy = fig3["paths"]["greedy"][observer]["estimated_xy_m"][fig3["time_s"].index(fig3["dgps_loss_s"])]
     axes.plot(*loss_xy, "kx", markersize=8, label=f"{paper_label(observer)} loses DGPS")
-    axes.set_aspect("equal")
-    axes.set_xlabel("x [m]")
-    axes.set_ylabel("y [m]")
-    axes.set_title("(a) EKF estimated paths (hedges in grey)")
+    axes.set(aspect="equal", xlabel="x [m]", ylabel="y [m]", title="(a) EKF estimated paths (hedges in grey)")
     axes.legend(loc="lower right", fontsize="small")
 
 
@@ -282,9 +279,7 @@ def _draw_standard_deviations(axes, fig3: dict) -> None:
     _mark_events(axes, fig3, label_y=0.9 * _HEADROOM * top)
     lines = axes.get_lines()[:2] + heading_axes.get_lines()
     axes.legend(lines, [line.get_label() for line in lines], loc="upper left", fontsize="small")
-    axes.set_xlim(0, steps[-1]["time_s"] + 0.5)
-    axes.set_xlabel("time [s]")
-    axes.set_ylabel("position std [m]")
+    axes.set(xlim=(0, steps[-1]["time_s"] + 0.5), xlabel="time [s]", ylabel="position std [m]")
     heading_axes.set_ylabel("heading std [rad]")
     axes.set_title("(b) robot #2's pose standard deviations; arrows: relative corrections (observed teammate)")
 

@@ -236,8 +236,7 @@ def _draw_image(axes, image: np.ndarray, sensor, title: str) -> None:
 def _draw_histogram(axes, sensor_record: dict, colour: str, title: str) -> None:
     counts = np.asarray(sensor_record["histogram"])
     axes.stairs(counts, np.arange(257), fill=True, color=colour)
-    axes.set_xlim(0, 256)
-    axes.set_ylim(0, 1.25 * counts.max())
+    axes.set(xlim=(0, 256), ylim=(0, 1.25 * counts.max()))
     axes.text(
         0.5,
         0.95,

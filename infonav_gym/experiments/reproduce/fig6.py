@@ -205,8 +205,7 @@ def figure_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict):
                 lw=0,
             )
             ax.set_title(f"{title}, {view}: error {error:.3f} m", fontsize="medium")
-            ax.set_xlabel(first_label)
-            ax.set_ylabel(second_label)
+            ax.set(xlabel=first_label, ylabel=second_label)
             if row == 0:
                 ax.set_aspect("equal", adjustable="datalim")
             ax.legend(loc="upper right", markerscale=6, fontsize="small")
