@@ -182,7 +182,7 @@ def outage_rmse(seeds=range(20), progress: bool = False) -> dict:
 def figures(seed: int, seeds, progress: bool) -> tuple[dict, Callable[[Path], object]]:
     """Fig. 3 of ``seed`` and the outage RMSE over ``seeds`` (JSON-ready), and the function drawing them into a PNG."""
     result = {"fig3": run_fig3(seed), "outage_rmse": outage_rmse(seeds, progress=progress)}
-    return result, lambda path: plot_fig3(result["fig3"], path)
+    return result, lambda path: save_figure(figure_fig3(result["fig3"]), path, dpi=120, bbox_inches="tight")
 
 
 def table(result: dict) -> str:
@@ -282,11 +282,6 @@ def _draw_standard_deviations(axes, fig3: dict) -> None:
     axes.set(xlim=(0, steps[-1]["time_s"] + 0.5), xlabel="time [s]", ylabel="position std [m]")
     heading_axes.set_ylabel("heading std [rad]")
     axes.set_title("(b) robot #2's pose standard deviations; arrows: relative corrections (observed teammate)")
-
-
-def plot_fig3(fig3: dict, path: Path) -> Path:
-    """Write ``figure_fig3(fig3)`` as a PNG at ``path``."""
-    return save_figure(figure_fig3(fig3), path, dpi=120, bbox_inches="tight")
 
 
 def figure_fig3(fig3: dict):

@@ -189,7 +189,7 @@ def figures(seed: int, seeds, progress: bool) -> tuple[dict, Callable[[Path], ob
         "fig5": fig5,
         "seed_statistics": seed_statistics(seeds, progress=progress),
     }
-    return result, lambda path: plot_fig5(fig5, images, path)
+    return result, lambda path: save_figure(figure_fig5(fig5, images), path, dpi=110, bbox_inches="tight")
 
 
 def table(result: dict) -> str:
@@ -225,37 +225,25 @@ def _extent_deg(sensor) -> tuple[float, float, float, float]:
     return half_width, -half_width, top - math.degrees(sensor.vertical_fov_rad), top
 
 
+def _label(axes, title: str, xlabel: str, ylabel: str) -> None:
+    axes.set_title(title, fontsize="medium")
+    axes.set_xlabel(xlabel, fontsize="small")
+    axes.set_ylabel(ylabel, fontsize="small")
+    axes.tick_params(labelsize="small")
+
+
 def _draw_image(axes, image: np.ndarray, sensor, title: str) -> None:
     axes.imshow(image, cmap="gray", vmin=0, vmax=255, extent=_extent_deg(sensor), interpolation="nearest")
-    axes.set_title(title, fontsize="medium")
-    axes.set_xlabel("azimuth, left + [deg]", fontsize="small")
-    axes.set_ylabel("elevation [deg]", fontsize="small")
-    axes.tick_params(labelsize="small")
+    _label(axes, title, "azimuth, left + [deg]", "elevation [deg]")
 
 
 def _draw_histogram(axes, sensor_record: dict, colour: str, title: str) -> None:
     counts = np.asarray(sensor_record["histogram"])
     axes.stairs(counts, np.arange(257), fill=True, color=colour)
     axes.set(xlim=(0, 256), ylim=(0, 1.25 * counts.max()))
-    axes.text(
-        0.5,
-        0.95,
-        f"H = {sensor_record['entropy_nats']:.2f} nats",
-        transform=axes.transAxes,
-        ha="center",
-        va="top",
-        fontsize="large",
-        fontweight="bold",
-    )
-    axes.set_title(title, fontsize="medium")
-    axes.set_xlabel("gray level (brightness) [0-255]", fontsize="small")
-    axes.set_ylabel("pixels [count]", fontsize="small")
-    axes.tick_params(labelsize="small")
-
-
-def plot_fig5(fig5: dict, images: list[dict], path: Path) -> Path:
-    """Write ``figure_fig5(fig5, images)`` as a PNG at ``path``."""
-    return save_figure(figure_fig5(fig5, images), path, dpi=110, bbox_inches="tight")
+    entropy = f"H = {sensor_record['entropy_nats']:.2f} nats"
+    axes.text(0.5, 0.95, entropy, transform=axes.transAxes, ha="center", va="top", fontsize="large", fontweight="bold")
+    _label(axes, title, "gray level (brightness) [0-255]", "pixels [count]")
 
 
 def figure_fig5(fig5: dict, images: list[dict]):
@@ -270,12 +258,8 @@ def figure_fig5(fig5: dict, images: list[dict]):
             record = view[key]
             rows_px, columns_px = record["shape"]
             image_axes, histogram_axes = axes[row, 2 * column], axes[row, 2 * column + 1]
-            _draw_image(
-                image_axes,
-                pair[key],
-                sensors[key],
-                f"({next(letters)}) {name}, {view['label']} ({rows_px} x {columns_px})",
-            )
+            title = f"({next(letters)}) {name}, {view['label']} ({rows_px} x {columns_px})"
+            _draw_image(image_axes, pair[key], sensors[key], title)
             _draw_histogram(histogram_axes, record, colour, f"({next(letters)}) {name} histogram, {view['label']}")
     figure.suptitle(
         f"Fig. 5: camera and LADAR images (LADAR: dark = near) with their 256-bin gray-level histograms and "
