@@ -1,9 +1,6 @@
 """Every PPO hyperparameter ``infonav train`` takes, with its type and range, in one table: ``HYPERPARAMETERS``.
-
-Both backends check a block with ``checked_block`` as they read it (``agents.ppo.load_hyperparameters``), before an
-output directory or an env exists. Numbers YAML 1.1 reads as strings (``3e-4``) are numbers; NaN and infinities
-are refused. ``batch_size`` is 2 or more: MaskablePPO normalizes the advantages of every minibatch.
-"""
+Numbers YAML 1.1 reads as strings (``3e-4``) are numbers; NaN and infinities are refused; ``batch_size`` is 2 or
+more (MaskablePPO normalizes every minibatch's advantages)."""
 
 from __future__ import annotations
 

@@ -1,9 +1,7 @@
 """Planning amortized into a policy: behaviour cloning of the look-ahead planner, PPO's warm start.
 
-``planner_demonstrations`` records the env's ``PlannerAgent`` (one per robot in a team env) on seeded episodes:
-per robot and step the observation, mask, action and discounted return. ``clone_planner`` fits a ``MaskablePPO``
-policy to them before PPO (``infonav train --init-from-planner``): the actor by masked log-likelihood, the critic
-to the returns, so PPO's first updates start from the planner's values, not an untrained critic.
+``planner_demonstrations`` records the planner's decisions and returns; ``clone_planner`` fits a ``MaskablePPO``
+policy to them (actor by likelihood, critic to the returns) before PPO (``infonav train --init-from-planner``).
 """
 
 from __future__ import annotations

@@ -1,8 +1,7 @@
 """Learning curves of training runs: ``curve.csv`` appended to as training goes, ``curve.png`` drawn from it.
 
-A row: env steps so far, mean return, mean main metric (``main_metric_of``) over the episodes ended since the last
-row, and their count; each row is flushed, so Ctrl-C keeps the curve. ``MetricVectorWrapper``, ``MetricWrapper``
-or a team's ``RobotSlots`` put an episode's metric into its last info as ``METRIC_KEY``; SB3's monitor the return.
+A row per window with ended episodes: env steps, mean return, mean main metric (put into an episode's last info
+as ``METRIC_KEY`` by the wrappers here or a team's ``RobotSlots``) and count; rows are flushed, so Ctrl-C keeps them.
 """
 
 from __future__ import annotations

@@ -45,25 +45,18 @@ def planning_model(env):
 class PlannerAgent:
     """Searches action sequences ``depth`` steps ahead on the env's ``planning_model()``, executes the best first.
 
-    The EKF covariance propagates without measurement values (under the linearization it does not depend on them),
-    so expected returns need no sampling. Each primitive is tried alone and with the ``observation_branching`` most
-    informative valid observations; each leaf is valued by the best of several base-policy rollouts of
-    ``rollout_steps`` steps: an optional detour (``detour_steps``), then the primitive of largest no-observation gain,
-    observing only once the position std reaches ``sensing_std_fraction`` of the bound, and (models with an
-    ``idle_primitive``) standing still at each of ``stop_std_fractions``. All candidates run in one numpy batch a step.
-    In a PettingZoo team env (``agent`` names the robot) teammates follow the plans they published
-    (``agents.team_planning``). ``act`` must get the latest ``info`` of the env the agent was built with.
+    Expected returns need no sampling: under the linearization the EKF covariance does not depend on measurement
+    values. Each primitive is tried alone and with the ``observation_branching`` best valid observations; each leaf is
+    valued by the best of several base-policy rollouts: an optional detour, then the primitive of largest gain,
+    observing once the position std reaches ``sensing_std_fraction`` of the bound and (with an ``idle_primitive``)
+    stopping at each of ``stop_std_fractions``; one numpy batch a step. In a team env (``agent``: the robot) teammates
+    follow their published plans. ``act`` must get the latest ``info`` of the env the agent was built with.
 
     Args:
-        env: the env (wrapped or not) to plan in; it must have a ``planning_model()`` method.
-        agent: the robot this agent acts for, in a PettingZoo team env (None for a Gymnasium env).
         depth: steps searched exhaustively (>= 1); 1 did best on ActiveLocalization-v0 (85 % success against 70 %
             at depth 2, 20 seeds) and is about 3.5 times faster.
-        observation_branching: observations tried per primitive at each searched step (>= 0).
         rollout_steps: length of the base-policy rollouts that value each leaf (>= 0).
         detour_steps: lengths of the initial detours of the base policies (0 for none).
-        sensing_std_fraction: the base policies observe from this fraction of ``max_position_std_m`` on.
-        stop_std_fractions: fractions of ``max_position_std_m`` at which stopping base policies stand still.
         discount: discount of later rewards in the expected return (0, 1].
     """
 

@@ -1,11 +1,8 @@
-"""Stable-Baselines3 PPO for the infonav envs: train, save, load, act.
+"""Stable-Baselines3 PPO for the infonav envs: train, save, load, act (the ``rl`` extra).
 
-Envs with ``info["action_mask"]`` train with sb3-contrib's ``MaskablePPO``, others (CartPole) with ``PPO``; a
-PettingZoo team env trains one policy shared by its robots (``agents.team_vec_env``). ``vectorization``:
-``native`` (the env's own ``VectorEnv`` through ``agents.vector_adapter``, the default where it has one),
-``sync`` (``DummyVecEnv``) or ``subprocess`` (``SubprocVecEnv``). Hyperparameters: rl-zoo style blocks keyed by
-env id (``agents/hyperparams/ppo.yml``, package data, or a file); ``normalize`` adds ``VecNormalize``, saved
-beside the model. Needs the ``rl`` extra.
+``MaskablePPO`` where the env has action masks (a team env: one policy shared by its robots, ``team_vec_env``),
+else ``PPO``; copies run ``native`` (the env's own vector env), ``sync`` or ``subprocess``. Hyperparameters are
+rl-zoo style blocks keyed by env id (``agents/hyperparams/ppo.yml`` or a file); ``normalize`` adds ``VecNormalize``.
 """
 
 from __future__ import annotations

@@ -1,9 +1,5 @@
-"""Ray for RLlib training and parallel evaluation: importing it with a one-line hint, a local Ray or a cluster.
-
-``local_or_cluster_ray(address)`` starts a local Ray (and stops it afterwards) when ``address`` is None, else
-connects to the cluster at ``address`` (``HOST:PORT`` of ``ray start --head``, or ``ray://HOST:PORT``) after
-checking within ``CONNECT_TIMEOUT_S`` that a gRPC server answers a call there: Ray itself would retry for minutes.
-"""
+"""Ray for RLlib training and parallel evaluation: importing it with a one-line hint, a local Ray or a cluster, whose
+address is first probed with one gRPC call within ``CONNECT_TIMEOUT_S`` (Ray itself would retry for minutes)."""
 
 from __future__ import annotations
 

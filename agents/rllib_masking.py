@@ -1,9 +1,5 @@
-"""Action masks for RLlib, carried in the observation (applied by ``agents.rllib_module``); needs no Ray.
-
-RLlib's new API stack reads nothing from ``info``, so ``MaskedObservations`` (a Gymnasium env) and
-``MaskedVectorObservations`` (a native vector env) give ``{"observation": ..., "action_mask": float32 (n,)}``,
-the mask all ones when nothing is valid, as ``MaskablePPO`` takes it.
-"""
+"""Action masks for RLlib, carried in the observation as ``{"observation", "action_mask"}`` (RLlib's new API stack
+reads nothing from ``info``); applied by ``agents.rllib_module``. Needs no Ray."""
 
 from __future__ import annotations
 

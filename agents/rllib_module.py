@@ -1,9 +1,7 @@
 """``MaskedPPOTorchRLModule``: RLlib's default PPO module that never picks a masked action (needs Ray).
 
-It adds ``log(mask)`` (clamped to ``FLOAT_MIN``) to the logits of every forward pass, so sampling, the greedy
-action, the loss and its entropy see masked logits. With ``model_config["normalize_observations"]`` it normalizes
-the ``"observation"`` part as SB3's ``VecNormalize`` does, with running statistics in its buffers, updated on the
-learner and synced with the weights (RLlib's ``MeanStdFilter`` would normalize the mask too).
+``log(mask)`` is added to the logits of every forward pass; with ``model_config["normalize_observations"]`` the
+``"observation"`` part is normalized as by ``VecNormalize``, its running statistics kept in the module's buffers.
 """
 
 from __future__ import annotations

@@ -1,9 +1,7 @@
 """RLlib's multi-agent env runner on a team env's native vector env: N copies in one batched step (needs Ray).
 
-RLlib 2.60's ``MultiAgentEnvRunner`` only builds a ``SyncVectorMultiAgentEnv`` (copies stepped one by one in
-Python), yet its sampling loop needs only a ``VectorMultiAgentEnv``. ``BatchedTeamEnvRunner`` overrides
-``make_env`` to build ``BatchedTeamEnv``, the team's native vector env seen that way: one runner step is one
-batched env step and one forward pass per policy. Copies end and restart on their own (``NEXT_STEP``).
+RLlib 2.60 steps multi-agent copies one by one in Python; ``BatchedTeamEnvRunner`` builds ``BatchedTeamEnv``
+instead, so a runner step is one batched env step and one forward pass per policy.
 """
 
 from __future__ import annotations

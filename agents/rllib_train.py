@@ -1,11 +1,8 @@
-"""RLlib PPO for the infonav envs (``infonav train --backend rllib``): train, checkpoint, record.
+"""RLlib PPO for the infonav envs (``infonav train --backend rllib``, the ``distributed`` extra).
 
-A single-agent env trains one policy on ``envs_per_runner`` copies per runner (its native vector env where it has
-one, else Gymnasium's sync vectorization); a team env trains multi-agent PPO on its native vector env per runner
-(``agents.rllib_team_env``), one policy shared by the robots or one per robot. Every policy is a
-``MaskedPPOTorchRLModule``; settings are the env's ppo.yml block translated (``rllib_training_settings``). Writes
-``OUTPUT/checkpoint``, ``train.json`` and the learning curve (a row per iteration with episodes: RLlib's smoothed
-return over 20 episodes and, for a team env, the main metric). Needs the ``distributed`` extra.
+A single-agent env trains one policy on its (native or sync) vector env per runner, a team env multi-agent PPO on
+its native vector env (``rllib_team_env``), one policy shared by the robots or one per robot; every policy is a
+``MaskedPPOTorchRLModule`` with the env's ppo.yml block translated. Writes ``checkpoint/``, ``train.json``, a curve.
 """
 
 from __future__ import annotations

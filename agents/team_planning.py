@@ -1,8 +1,5 @@
-"""Decentralized planning in a team env: one robot's view of the team's planning model, teammates on their plans.
-
-Each robot's ``PlannerAgent`` searches its own actions on the team model while every teammate follows the plan it
-published at the last step, as robots radioing their plans do; ``TeamPlans`` is the board they publish on.
-"""
+"""Decentralized planning in a team env: each robot's ``PlannerAgent`` searches its own actions on the team model
+while its teammates follow the plans they published at the last step (``TeamPlans``)."""
 
 from __future__ import annotations
 

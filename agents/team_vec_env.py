@@ -1,8 +1,5 @@
-"""``TeamVecEnv``: every robot of a batched team env as one slot of a Stable-Baselines3 ``VecEnv``.
-
-PPO on it learns one policy shared by all robots: it sees ``n_envs * n_robots`` single-robot envs, each with its
-robot's reward and mask, run as one native team vector env in ``SAME_STEP`` autoreset.
-"""
+"""``TeamVecEnv``: every robot of a batched team env as one slot of a Stable-Baselines3 ``VecEnv``, so PPO learns one
+policy shared by all robots, each slot with its robot's reward and mask."""
 
 from __future__ import annotations
 
@@ -97,20 +94,12 @@ class RobotSlots(VectorEnv):
 
 
 class TeamVecEnv(VectorEnvAdapter):
-    """``n_envs`` copies of a PettingZoo parallel env, batched; slot ``copy * n_robots + k`` is robot ``k`` of ``copy``.
+    """``n_envs`` copies of a PettingZoo parallel env ``env_id``, batched; slot ``copy * n_robots + k`` is robot ``k``.
 
-    Copy ``i`` is reset with seed ``seed + i`` first, then continues its generator. A copy's robots end together and
-    their slots get ``terminal_observation`` as in SB3's ``DummyVecEnv``. ``get_attr("agent")`` is each slot's
-    robot; other attributes, ``set_attr`` and ``env_method`` act on the team env, which every slot shares.
-
-    Args:
-        n_envs: copies of the team env.
-        seed: seed of copy 0 (copy ``i`` gets ``seed + i``); ``None``: unseeded.
-        env_kwargs: the config of every copy.
-        env_id: the registry id of a PettingZoo parallel env with a native vector env.
-
-    Raises:
-        ValueError: for ``n_envs < 1``, an id that is not a parallel env with a vector env, or a bad config.
+    Copy ``i`` is first reset with seed ``seed + i``. A copy's robots end together, their slots getting
+    ``terminal_observation`` as in SB3's ``DummyVecEnv``. ``get_attr("agent")`` is each slot's robot; other
+    attributes, ``set_attr`` and ``env_method`` act on the team env every slot shares. ``ValueError`` for no copy,
+    an id that is not a parallel env with a vector env, or a bad config.
     """
 
     def __init__(

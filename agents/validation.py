@@ -1,9 +1,7 @@
 """Keep the best policy of a training run, judged on validation seeds by the env's main metric (rl-zoo's EvalCallback).
 
-Every ``every`` env steps, at the start and at the end, ``ValidationCallback`` plays ``episodes`` episodes with the
-deterministic policy on seeds ``VALIDATION_SEEDS + seed ..`` (apart from evaluation and demonstration seeds), appends
-a row to ``validation.csv`` and saves a policy better than the best so far by more than ``IMPROVEMENT`` (relative;
-ties keep the earlier) in ``best/``, which ``ppo:OUTPUT/best`` evaluates. Higher metric is better.
+Each validation plays the deterministic policy on seeds from ``VALIDATION_SEEDS + seed``, appends to
+``validation.csv`` and saves a policy better by more than ``IMPROVEMENT`` (relative) in ``best/``.
 """
 
 from __future__ import annotations

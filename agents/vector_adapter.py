@@ -1,8 +1,5 @@
-"""``VectorEnvAdapter``: a Gymnasium ``VectorEnv`` in ``AutoresetMode.SAME_STEP`` as a Stable-Baselines3 ``VecEnv``.
-
-SB3 resets a sub-env in the step that ended it (last observation in ``infos[i]["terminal_observation"]``),
-which is Gymnasium's SAME_STEP mode; so PPO trains on a native vector env as on a ``DummyVecEnv``.
-"""
+"""``VectorEnvAdapter``: a Gymnasium ``VectorEnv`` in ``AutoresetMode.SAME_STEP`` (SB3's autoreset convention) as a
+Stable-Baselines3 ``VecEnv``, so PPO trains on a native vector env as on a ``DummyVecEnv``."""
 
 from __future__ import annotations
 
@@ -25,22 +22,14 @@ SAME_STEP_HINT = (
 
 
 class VectorEnvAdapter(VecEnv):
-    """A Gymnasium ``VectorEnv`` in ``AutoresetMode.SAME_STEP`` seen as an SB3 ``VecEnv``.
+    """A Gymnasium ``VectorEnv`` in ``AutoresetMode.SAME_STEP`` seen as an SB3 ``VecEnv`` (else ``ValueError``).
 
-    Seeding as SB3's ``DummyVecEnv``: ``seed(s)`` gives sub-env ``i`` the seed ``s + i`` at the next ``reset()``.
-    A step's ``infos`` hold only what SB3 reads (a per-key dict for every sub-env would cost more than a native step
-    at 64+ envs): ``{}`` while an episode goes on; at its end ``terminal_observation``, ``TimeLimit.truncated`` and
-    the ``info_keywords`` of its final info (for ``VecMonitor``). ``action_masks()`` (N, n) bool: the vector env's
-    own, else the last ``info["action_mask"]``; a row without a valid action is all ``True``. ``get_attr`` /
-    ``set_attr`` / ``env_method`` reach the sub-envs of a sync / async vector env (the last two on all of them); a
-    native one has none: use ``adapter.vector_env``. Misses raise ``AttributeError``, other refusals ``ValueError``.
-
-    Args:
-        vector_env: the vector env, ``metadata["autoreset_mode"]`` SAME_STEP.
-        info_keywords: info keys copied into the infos of sub-envs whose episode ended.
-
-    Raises:
-        ValueError: for an object that is not a ``gymnasium.vector.VectorEnv`` or another autoreset mode.
+    Seeding as SB3's ``DummyVecEnv`` (``seed(s)``: sub-env ``i`` gets ``s + i`` at the next reset). A step's ``infos``
+    hold only what SB3 reads (a dict per key and sub-env would cost more than a native step at 64+ envs): at an
+    episode's end ``terminal_observation``, ``TimeLimit.truncated`` and the ``info_keywords`` of its final info.
+    ``action_masks()``: the vector env's own, else the last ``info["action_mask"]``, a row without a valid action all
+    ``True``. ``get_attr`` / ``set_attr`` / ``env_method`` reach the sub-envs of a sync / async vector env; a native
+    one has none (use ``adapter.vector_env``). Misses raise ``AttributeError``, other refusals ``ValueError``.
     """
 
     def __init__(self, vector_env: VectorEnv, info_keywords: Sequence[str] = ()):

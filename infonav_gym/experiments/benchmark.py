@@ -1,14 +1,8 @@
 """Speed goals, measured as ratios against a reference run in the same process (rounds alternate; median ratios).
 
-- Env steps: every registered env under random valid actions against CartPole-v1 under ``action_space.sample()``.
-- Vector envs (``vector_timing``) at each size N: env-steps/s of every native vector env, CartPoleVectorEnv and
-  VMAS ``navigation``, as ratios against CartPole-v1, their single env and VMAS; memory per sub-env at the
-  largest N (``*_kb_per_env``).
-- Sensors (``sensor_timing``), ICP against Open3D / small_gicp (``registration_timing``), PPO training fps
-  (``ppo_timing``), parallel evaluation and RLlib runners (``distributed_timing``), start-up (``startup_timing``).
-
-Figures named ``*_us``, ``*_ms``, ``*_kb_per_env``, ``*_time_ratio`` or ``*_start_s`` meet their goal at or below
-it, all others at or above; a goal whose figure was not measured (a peer or Ray absent) is met ``None``.
+Env steps against CartPole-v1; vector envs, sensors, ICP, PPO, parallel evaluation and start-up in the
+``*_timing`` modules. Figures named ``*_us``, ``*_ms``, ``*_kb_per_env``, ``*_time_ratio`` or ``*_start_s`` meet
+their goal at or below it, all others at or above; a goal not measured (a peer or Ray absent) is met ``None``.
 """
 
 from __future__ import annotations

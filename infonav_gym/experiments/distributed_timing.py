@@ -1,9 +1,5 @@
-"""What the benchmark measures of parallel evaluation and of RLlib's env runners.
-
-``evaluation_workers_figures``: wall time of ``evaluate`` with 2 workers over 1 (median ratio);
-``rllib_runner_figures`` (when Ray imports): env-steps/s RLlib's runners sample, as training builds them, on the
-team env with 2 runners against 1, and on the exploration env with 1.
-"""
+"""What the benchmark measures of parallel evaluation (2 workers against 1) and of RLlib's env runners (on the team
+env with 2 against 1, and on the exploration env with 1), when Ray imports."""
 
 from __future__ import annotations
 

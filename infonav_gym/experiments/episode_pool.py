@@ -1,9 +1,7 @@
-"""Evaluation episodes played by one process, a pool of worker processes, or Ray tasks.
+"""Evaluation episodes played by one process, a pool of worker processes, or Ray tasks, with the same results.
 
-An episode's metrics depend only on the env id, config, agent name and seed, so each worker builds its own
-``EpisodeRunner`` once and results equal a single process's, in task order. Workers are forked while torch is not
-imported (a fork after its thread pool started can hang), else come from a preloaded fork server, else are spawned.
-Tasks are handed out as workers need them; workers ignore Ctrl-C, and the parent kills them and keeps its results.
+Workers build their ``EpisodeRunner`` once; they are forked while torch is not imported (else from a preloaded
+fork server, else spawned), get tasks as they need them and ignore Ctrl-C: the parent kills them.
 """
 
 from __future__ import annotations

@@ -1,7 +1,4 @@
-"""Evaluate agents on an env: same seeds for every agent, means and 95% confidence intervals (``intervals``).
-
-What is reported is the env's own ``episode_metrics`` and ``traits``; ``evaluation_files`` prints and writes it.
-"""
+"""Evaluate agents on an env: same seeds for every agent, the env's own metrics with 95% confidence intervals."""
 
 from __future__ import annotations
 
@@ -31,16 +28,9 @@ def evaluate(
     address: str | None = None,
 ):
     """Run every agent (each once) for ``episodes`` episodes on seeds ``seed ..``; in a PettingZoo env every robot plays
-    its own copy. ``workers`` processes or Ray tasks give the same results as one.
-
-    Returns:
-        ``{"env_id", "episodes", "seeds", "env_kwargs", "env_config" (defaults included), "metrics", "agents": {name:
-        {"episodes": [...], "summary": {...}}}}``.
-
-    Raises:
-        ValueError: before any episode, for a bad agent, seed range or worker count, or too little memory.
-        Interrupted: on Ctrl-C, with the seeds every agent finished (``"interrupted": True``).
-    """
+    its own copy. ``workers`` processes or Ray tasks give the same results as one. Returns ``{"env_id", "episodes",
+    "seeds", "env_kwargs", "env_config", "metrics", "agents": {name: {"episodes", "summary"}}}``; ``ValueError`` before
+    any episode for bad input, ``Interrupted`` on Ctrl-C with the seeds every agent finished."""
     seeds = seeds_of(seed, episodes)
     if not agent_names:
         raise ValueError(f"no agents given; choose from {', '.join(AGENT_NAMES)}")

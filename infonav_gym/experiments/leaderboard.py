@@ -1,8 +1,5 @@
 """The leaderboard: every env's baselines and committed models on the same seeds, ranked by the env's main metric.
-
-A row is an env and a config (its defaults, or a model's ``train.json`` ``env_kwargs``). Each cell is played alone
-after a ``WARMUP_STEPS`` warm-up, so its wall time over its episodes is the agent's seconds per episode.
-"""
+Each cell is played alone after a ``WARMUP_STEPS`` warm-up: its wall time over its episodes is seconds per episode."""
 
 from __future__ import annotations
 
@@ -154,16 +151,9 @@ def leaderboard(
     use_ray: bool = False,
     address: str | None = None,
 ) -> dict:
-    """Play the rows (``leaderboard_rows``) on seeds ``seed .. seed + episodes - 1`` (``env_ids``: default all).
-
-    Returns:
-        ``{"episodes", "seeds", "columns", "workers", "tie_tolerance", "rows": [{"env_id", "env_kwargs", "metric",
-        "cells": {column: {"agent", "summary", "values", "seconds_per_episode"}}, "best": [column, ...]}]}``.
-
-    Raises:
-        ValueError: before any episode, for a bad seed range, column or env, or too little memory.
-        Interrupted: on Ctrl-C, with the rows finished (``"interrupted": True``).
-    """
+    """Play the rows (``leaderboard_rows``) on seeds ``seed .. seed + episodes - 1`` (``env_ids``: default all): a dict
+    of ``"episodes", "seeds", "columns", "workers", "tie_tolerance"`` and ``"rows"`` (each with its ``"cells"`` and
+    ``"best"`` columns). ``ValueError`` before any episode for bad input; ``Interrupted`` with the finished rows."""
     seeds = seeds_of(seed, episodes)
     env_ids = [entry.id for entry in registered_envs()] if env_ids is None else list(env_ids)
     rows = leaderboard_rows(env_ids, columns, models_dir)

@@ -1,9 +1,5 @@
-"""PPO training speed on LandmarkSelection-v0 against CartPole, same MaskablePPO settings and process.
-
-``ppo_fps_figures``: 8 ``DummyVecEnv`` copies each; ``ppo_vector_fps_figures``: 64-copy vector envs through
-``VectorEnvAdapter`` (LandmarkSelection's native one against CartPoleVectorEnv). Rounds alternate and time only
-``learn``; the median ratio is reported.
-"""
+"""PPO training speed on LandmarkSelection-v0 against CartPole, same MaskablePPO settings and process: 8
+``DummyVecEnv`` copies each, and 64-copy vector envs; rounds alternate and time only ``learn``."""
 
 from __future__ import annotations
 

@@ -1,12 +1,9 @@
 """Registration recall on ``terrain_frame_pair`` pairs: which registration frame pairs use, and control points by it.
 
-A method is judged by its recall (pairs within ``fig6.RECALL_THRESHOLDS_M`` of ``registration_error``) and median
-error, over ``SEED_SETS``: first every candidate (point-to-plane, GICP, each robust kernel at its 95%-efficiency
-scale) with all returns (``FRAME_PAIR_ICP`` is the best by lowest recall over the sets, then mean recall, then
-median); then every selector of ``SELECTORS`` at each of ``BUDGETS`` with ``FRAME_PAIR_ICP``. "random" and
-"normal_space" draw from a generator made afresh from the pair's seed per cell. Times cover selection and ICP (each
-selector run once untimed first; the frames' GICP covariances are timed apart). A budget above the returns with a
-surface normal (``usable_returns``) gives every selector that many; the tables count those pairs.
+Recall (pairs within ``fig6.RECALL_THRESHOLDS_M``) and median error over ``SEED_SETS``: every candidate with all
+returns (``FRAME_PAIR_ICP`` is the best by lowest, then mean recall, then median), then every selector at each of
+``BUDGETS`` with it. Times cover selection and ICP (each selector run once untimed first, the frames' GICP
+covariances timed apart); a budget above the returns with a surface normal gives every selector that many.
 """
 
 from __future__ import annotations

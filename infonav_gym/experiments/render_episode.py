@@ -1,8 +1,5 @@
-"""One seeded episode of an env and an agent, rendered: an animated GIF and a strip of frames (``infonav render``).
-
-The agent is built as ``infonav evaluate`` builds it (``EpisodeRunner``: one per robot in a team env), and the
-episode is the one ``evaluate`` plays on the same seed; the env draws every frame (``render_mode="rgb_array"``).
-"""
+"""One seeded episode of an env and an agent (as ``infonav evaluate`` plays it), rendered: an animated GIF and a
+strip of frames (``infonav render``)."""
 
 from __future__ import annotations
 

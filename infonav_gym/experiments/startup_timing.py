@@ -1,8 +1,5 @@
-"""How long a user waits before the first step: a fresh process imports the suite, makes, resets and steps an env.
-
-``cold_start_s``: with an empty numba cache; ``warm_start_s``: again with the cache filled; each the slowest env's.
-``cold_start_all_envs_s``: every env in one process, empty cache. Whole-process wall times.
-"""
+"""How long a user waits before the first step, in fresh processes: ``cold_start_s`` (empty numba cache),
+``warm_start_s`` (filled), each the slowest env's, and ``cold_start_all_envs_s`` (every env in one process)."""
 
 from __future__ import annotations
 

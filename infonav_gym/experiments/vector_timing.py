@@ -1,9 +1,5 @@
-"""What the benchmark steps at each vector size N: native vector envs, CartPoleVectorEnv, VMAS; memory per sub-env.
-
-Native vector envs take uniform random valid actions from their ``action_masks()``, CartPoleVectorEnv its seeded
-``action_space.sample()``, VMAS ``navigation`` (4 agents, CPU, one torch thread) random forces. One vector step
-counts as N env-steps (a team's env-step: every robot of one copy).
-"""
+"""What the benchmark steps at each vector size N (native vector envs under random valid actions, CartPoleVectorEnv,
+VMAS ``navigation``), and memory per sub-env; a vector step counts N env-steps."""
 
 from __future__ import annotations
 

@@ -1,9 +1,7 @@
 """The paper's Fig. 3: robot #2 loses DGPS at 21 s and relocalizes through laser observations of robot #1.
 
-The convoy team (``infonav_gym.multi.team.CONVOY_SUITES``) is run twice with the
-same seed: every robot greedy on the expected information gain, and dead
-reckoning (no relative observations). Odometry and DGPS noise come from their own
-random streams, so both runs see the same noise and differ only by the choices.
+The convoy team runs twice on one seed, greedy on expected information gain and dead reckoning; odometry and DGPS
+noise have their own streams, so the runs differ only by the choices.
 """
 
 from __future__ import annotations

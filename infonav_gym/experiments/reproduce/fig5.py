@@ -1,16 +1,8 @@
 """The paper's Fig. 5: how much information camera and LADAR images carry, by their gray-level histogram entropy.
 
-Every image is a default ``Camera()`` or ``Ladar()`` (shown with ``to_display_image``: dark = near) view of a
-``make_terrain`` scene; its information is ``histogram_entropy`` (Eqs. 4-5, 256 bins, nats), higher being more
-informative. Only the scene differs between the cases:
-
-* ``paper_like``: vegetated, rugged terrain, the vehicle heading along the most level line (a second view 1.5 m
-  on, 4 degrees left). The LADAR sees ranges spread over its 60 m; the camera mostly textured ground and a narrow
-  sky peak. LADAR > camera.
-* ``building_ahead``: a building 3-8 m ahead fills the LADAR's 20 degree field at nearly one range, while the
-  camera's wider field still shows textured ground. Camera > LADAR: information is scene-specific.
-
-The seed statistics count how often the ordering holds over many random scenes.
+Default ``Camera()`` and ``Ladar()`` views of two ``make_terrain`` scenes, scored by ``histogram_entropy`` (nats):
+``paper_like`` (rugged, vegetated terrain: LADAR > camera) and ``building_ahead`` (a facade fills the LADAR's
+narrow field at one range: camera > LADAR); the seed statistics count how often each ordering holds.
 """
 
 from __future__ import annotations

@@ -1,9 +1,7 @@
-"""The paper's Fig. 6: two consecutive 3D LADAR range images before and after ICP registration.
+"""The paper's Fig. 6: two consecutive 3D LADAR range images before (odometry) and after ICP registration.
 
-Frames come from a vehicle pitching and rolling over rugged terrain (``terrain_frame_pair``). The newer frame is
-placed by the odometry estimate ("before") and by ICP started from it ("after", ``FRAME_PAIR_ICP``). The seed
-statistics register many pairs with every return and with a quarter chosen by each control-point strategy, and
-report ``registration_error`` recall (within ``RECALL_THRESHOLDS_M``), median and mean.
+Frames of a vehicle pitching and rolling over rugged terrain (``terrain_frame_pair``); the seed statistics report
+``registration_error`` recall, median and mean with all returns and each control-point strategy's quarter.
 """
 
 from __future__ import annotations
