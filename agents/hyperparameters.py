@@ -101,19 +101,14 @@ LAYERS = _leaf(
     f"a list of layer widths from 1 to {MAX_LAYER_WIDTH}",
     lambda value: isinstance(value, list) and all(type(w) is int and 1 <= w <= MAX_LAYER_WIDTH for w in value),
 )
+POSITIVE = number(0, above=True)
 HYPERPARAMETERS = mapping(
     {
         "n_envs": integer(1, MAX_N_ENVS),
         "policy": choice("MlpPolicy"),
         "n_timesteps": integer(1),  # rl-zoo's; infonav train's --timesteps decides
         "normalize": mapping(
-            {
-                "norm_obs": FLAG,
-                "norm_reward": FLAG,
-                "clip_obs": number(0, above=True),
-                "clip_reward": number(0, above=True),
-                "epsilon": number(0, above=True),
-            },
+            {"norm_obs": FLAG, "norm_reward": FLAG} | dict.fromkeys(("clip_obs", "clip_reward", "epsilon"), POSITIVE),
             allowed_too=FLAG,
         ),
         "learning_rate": number(0, above=True, schedule=True),
@@ -127,7 +122,7 @@ HYPERPARAMETERS = mapping(
         "normalize_advantage": FLAG,
         "ent_coef": number(0),
         "vf_coef": number(0),
-        "max_grad_norm": number(0, above=True),
+        "max_grad_norm": POSITIVE,
         "target_kl": number(0, above=True, null=True),
         "stats_window_size": integer(1),
         "policy_kwargs": mapping(

@@ -191,12 +191,6 @@ def read_validations(path: Path) -> np.ndarray:
         return np.array(list(csv.reader(file))[1:], dtype=float).reshape(-1, 4)
 
 
-def read_labels(directory: Path, metric_name: str) -> dict:
-    """The run's ``CURVE_LABELS``; without the file (a run older than it), the bare names."""
-    path = Path(directory) / CURVE_LABELS
-    return json.loads(path.read_text()) if path.is_file() else {"return": "mean episode return", "metric": metric_name}
-
-
 def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
     """``directory/curve.png`` (``figure_curve``); ``ImportError`` without matplotlib, ``ValueError`` with nothing to
     draw."""
@@ -207,7 +201,9 @@ def figure_curve(directory: Path, title: str, references: dict | None):
     """The learning curve of ``directory``'s ``curve.csv``: return and main metric against env steps, ``references``
     (agent: metric) as lines, and the validations of ``validation.csv`` if any."""
     metric_name, rows = read_curve(Path(directory) / CURVE_CSV)
-    labels = read_labels(directory, metric_name)
+    labels_path = Path(directory) / CURVE_LABELS  # absent in runs older than it: the bare names
+    labels = {"return": "mean episode return", "metric": metric_name}
+    labels = json.loads(labels_path.read_text()) if labels_path.is_file() else labels
     validations = read_validations(Path(directory) / VALIDATION_CSV)
     if not rows.size and not validations.size:
         raise ValueError(f"no episode ended in training, so no {CURVE_PNG}: nothing to draw")
