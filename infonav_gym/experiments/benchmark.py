@@ -100,28 +100,16 @@ def _timed_steps(step, seconds: float) -> float:
         chunk = min(2 * chunk, MAX_STEPS_BETWEEN_CLOCK_READS)
 
 
-def steps_per_second(env: gym.Env, policy, seconds: float, seed: int) -> float:
-    """Env steps per second of ``env`` under ``policy(info) -> action`` for about ``seconds``."""
+def steps_per_second(env, policy, seconds: float, seed: int, parallel: bool = False) -> float:
+    """Env steps per second of ``env`` under ``policy(info) -> action`` for about ``seconds``; ``parallel``: of a
+    PettingZoo parallel env, ``policy(infos) -> actions`` (a step of every robot)."""
     info = env.reset(seed=seed)[1]
 
     def step() -> None:
         nonlocal info
         _, _, terminated, truncated, info = env.step(policy(info))
-        if terminated or truncated:
+        if (not env.agents) if parallel else (terminated or truncated):
             info = env.reset()[1]
-
-    return _timed_steps(step, seconds)
-
-
-def parallel_steps_per_second(env, policies: dict, seconds: float, seed: int) -> float:
-    """Parallel (all-agent) steps per second of a PettingZoo ``env`` under per-agent ``policies[agent](info)``."""
-    infos = env.reset(seed=seed)[1]
-
-    def step() -> None:
-        nonlocal infos
-        infos = env.step({agent: policies[agent](infos[agent]) for agent in env.agents})[4]
-        if not env.agents:
-            infos = env.reset()[1]
 
     return _timed_steps(step, seconds)
 
@@ -144,8 +132,11 @@ def _random_stepper(env_id: str, seconds: float, seed: int):
         agents = {
             name: RandomAgent(env.action_space(name).n, seed=seed + k) for k, name in enumerate(env.possible_agents)
         }
-        policies = {name: (lambda info, agent=agent: agent.act(None, info)) for name, agent in agents.items()}
-        return lambda: parallel_steps_per_second(env, policies, seconds, seed)
+
+        def policy(infos: dict) -> dict:
+            return {name: agents[name].act(None, infos[name]) for name in env.agents}
+
+        return lambda: steps_per_second(env, policy, seconds, seed, parallel=True)
     agent = RandomAgent(env.action_space.n, seed=seed)
     return lambda: steps_per_second(env, lambda info: agent.act(None, info), seconds, seed)
 
