@@ -15,6 +15,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent
+from infonav_gym.experiments.episodes import parallel_episode_infos
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.team import DEFAULT_OUTAGE
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
@@ -37,23 +38,19 @@ def position_std_m(pose_std) -> float:
     return math.hypot(pose_std[0], pose_std[1])
 
 
-def _greedy_team(observations: dict, infos: dict) -> dict:
-    agent = GreedyEntropyAgent()
-    return {name: agent.act(observations[name], infos[name]) for name in infos}
+class _DeadReckoning:
+    """Never observes a teammate."""
+
+    def reset(self, seed: int | None = None) -> None:
+        """Nothing to reset."""
+
+    def act(self, observation, info: dict) -> int:
+        return NO_OBSERVATION
 
 
-def _dead_reckoning(observations: dict, infos: dict) -> dict:
-    return dict.fromkeys(infos, NO_OBSERVATION)
-
-
-def _run_episode(env, policy, seed: int) -> list[dict]:
-    """The infos of every step, from ``reset`` to truncation, with ``policy`` choosing every robot's action."""
-    observations, infos = env.reset(seed=seed)
-    history = [infos]
-    while env.agents:
-        observations, _, _, _, infos = env.step(policy(observations, infos))
-        history.append(infos)
-    return history
+def _run_episode(env, agent, seed: int) -> list[dict]:
+    """The infos of every step, from ``reset`` to truncation, with ``agent`` acting for every robot."""
+    return list(parallel_episode_infos(env, dict.fromkeys(env.possible_agents, agent), seed))
 
 
 def _step_record(before: dict, after: dict) -> dict:
@@ -124,8 +121,8 @@ def run_fig3(seed: int = 0) -> dict:
     extremes, ``paths`` and ``position_error_m`` per policy, and the convoy's ``walls``.
     """
     env = cooperative_localization_v0.parallel_env(**FIG3_ENV_CONFIG)
-    greedy = _run_episode(env, _greedy_team, seed)
-    dead_reckoning = _run_episode(env, _dead_reckoning, seed)
+    greedy = _run_episode(env, GreedyEntropyAgent(), seed)
+    dead_reckoning = _run_episode(env, _DeadReckoning(), seed)
     walls = [[list(point) for point in wall] for wall in env.vector.scenario(0).walls]
     env.close()
     steps = [_step_record(before[OBSERVER], after[OBSERVER]) for before, after in itertools.pairwise(greedy)]
@@ -158,8 +155,8 @@ def outage_rmse(seeds=range(20), progress: bool = False) -> dict:
     env = cooperative_localization_v0.parallel_env(**FIG3_ENV_CONFIG)
     per_seed = []
     for seed in tqdm(seeds, desc="Fig. 3 outage RMSE", unit="seed", disable=not progress):
-        greedy = _outage_rmse_m(_run_episode(env, _greedy_team, seed))
-        dead_reckoning = _outage_rmse_m(_run_episode(env, _dead_reckoning, seed))
+        greedy = _outage_rmse_m(_run_episode(env, GreedyEntropyAgent(), seed))
+        dead_reckoning = _outage_rmse_m(_run_episode(env, _DeadReckoning(), seed))
         per_seed.append(
             {"seed": seed, "greedy_m": greedy, "dead_reckoning_m": dead_reckoning, "ratio": greedy / dead_reckoning}
         )
