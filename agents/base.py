@@ -49,8 +49,7 @@ def valid_actions(info: dict, n_actions: int) -> np.ndarray:
 
 
 def usable_mask(mask, n_actions: int) -> np.ndarray:
-    """``mask`` (a robot's or env's action mask, or None) as (n_actions,) bool; all True when none is valid,
-    as ``MaskablePPO`` takes it (every action is then the env's no-op)."""
+    """``mask`` (or None) as (n_actions,) bool; all True when none is valid, as ``MaskablePPO`` takes it."""
     if mask is None:
         return np.ones(n_actions, dtype=bool)
     valid = np.broadcast_to(np.asarray(mask, dtype=bool), (n_actions,))
@@ -70,11 +69,8 @@ def trained_elsewhere(policy: str, trained_for: str, env_has: str, agent: str | 
 
 
 def checked_action_count(policy: str, observation_shape: tuple, action_space, env, agent: str | None = None) -> int:
-    """The env's number of actions, once a trained ``policy``'s spaces are seen to match the env's (or robot's).
-
-    Raises:
-        ValueError: naming both when the observation shapes or the action spaces differ.
-    """
+    """The env's number of actions, once a trained ``policy``'s spaces are seen to match the env's (or robot's);
+    ``ValueError`` naming both where they differ."""
     env_obs = env.observation_space if agent is None else env.observation_space(agent)
     env_actions = env.action_space if agent is None else env.action_space(agent)
     if tuple(observation_shape) != env_obs.shape or action_space != env_actions:

@@ -8,11 +8,7 @@ from infonav_gym.decisions import argmax_tied
 
 
 class GreedyEntropyAgent:
-    """Argmax of ``info["action_information_gain"]`` over the valid actions (near-ties: lowest index).
-
-    Uses only ``info``, so it works through any wrapper that passes infos on.
-    When no action is valid it returns action 0 (a no-op in the infonav envs).
-    """
+    """Argmax of ``info["action_information_gain"]`` over the valid actions (near-ties: lowest index; none valid: 0)."""
 
     def reset(self, seed: int | None = None) -> None:
         """Stateless and deterministic: nothing to reset."""

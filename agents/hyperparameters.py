@@ -1,9 +1,6 @@
 """Every PPO hyperparameter ``infonav train`` takes, with its type and range, in one table: ``HYPERPARAMETERS``.
-
-Both backends check a block with ``checked_block`` as they read it (``agents.ppo.load_hyperparameters``), before an
-output directory or an env exists. Numbers YAML 1.1 reads as strings (``3e-4``) are numbers; NaN and infinities
-are refused. ``batch_size`` is 2 or more: MaskablePPO normalizes the advantages of every minibatch.
-"""
+Numbers YAML 1.1 reads as strings (``3e-4``) are numbers; NaN and infinities are refused; ``batch_size`` is 2 or
+more (MaskablePPO normalizes every minibatch's advantages)."""
 
 from __future__ import annotations
 
@@ -104,19 +101,14 @@ LAYERS = _leaf(
     f"a list of layer widths from 1 to {MAX_LAYER_WIDTH}",
     lambda value: isinstance(value, list) and all(type(w) is int and 1 <= w <= MAX_LAYER_WIDTH for w in value),
 )
+POSITIVE = number(0, above=True)
 HYPERPARAMETERS = mapping(
     {
         "n_envs": integer(1, MAX_N_ENVS),
         "policy": choice("MlpPolicy"),
         "n_timesteps": integer(1),  # rl-zoo's; infonav train's --timesteps decides
         "normalize": mapping(
-            {
-                "norm_obs": FLAG,
-                "norm_reward": FLAG,
-                "clip_obs": number(0, above=True),
-                "clip_reward": number(0, above=True),
-                "epsilon": number(0, above=True),
-            },
+            {"norm_obs": FLAG, "norm_reward": FLAG} | dict.fromkeys(("clip_obs", "clip_reward", "epsilon"), POSITIVE),
             allowed_too=FLAG,
         ),
         "learning_rate": number(0, above=True, schedule=True),
@@ -130,7 +122,7 @@ HYPERPARAMETERS = mapping(
         "normalize_advantage": FLAG,
         "ent_coef": number(0),
         "vf_coef": number(0),
-        "max_grad_norm": number(0, above=True),
+        "max_grad_norm": POSITIVE,
         "target_kl": number(0, above=True, null=True),
         "stats_window_size": integer(1),
         "policy_kwargs": mapping(
@@ -146,12 +138,8 @@ HYPERPARAMETERS = mapping(
 
 
 def checked_block(block: dict, where: str) -> dict:
-    """``block`` with its values as used (``"3e-4"`` a float), once every key is in ``HYPERPARAMETERS`` and every
-    value in its range.
-
-    Raises:
-        ValueError: one line naming the key, its allowed range and ``where`` (e.g. the file and the block).
-    """
+    """``block`` with its values as used (``"3e-4"`` a float), once every key and value is seen to be allowed
+    (``ValueError`` naming the key, its allowed range and ``where``)."""
     try:
         return HYPERPARAMETERS.check(block, "")
     except ValueError as error:

@@ -1,12 +1,7 @@
 """Planning amortized into a policy: behaviour cloning of the look-ahead planner, PPO's warm start.
 
-``planner_demonstrations`` plays the env's ``PlannerAgent`` (one per robot in a team env, each planning on the
-team model while its teammates follow their published plans) on seeded episodes and records, per robot and step,
-the observation, the action mask, the planner's action and the discounted return from there on.
-``clone_planner`` fits a ``MaskablePPO`` policy to them before PPO trains it further (``infonav train
---init-from-planner``): the actor by the masked log-likelihood of the planner's actions (behaviour cloning), the
-critic by the squared error to the returns, so that PPO's first updates start from the planner's values, not from
-an untrained critic. With ``VecNormalize`` the running observation statistics start from the demonstrations'.
+``planner_demonstrations`` records the planner's decisions and returns; ``clone_planner`` fits a ``MaskablePPO``
+policy to them (actor by likelihood, critic to the returns) before PPO (``infonav train --init-from-planner``).
 """
 
 from __future__ import annotations
@@ -29,15 +24,8 @@ DEMONSTRATION_SEEDS = 1_000_000  # ``train`` plays the planner from this seed on
 
 
 class Demonstrations(NamedTuple):
-    """The planner's decisions, one row per robot and step.
-
-    Attributes:
-        observations: what the robot observed (M, D) float32.
-        action_masks: its valid actions (M, A) bool.
-        actions: the planner's action (M,) int.
-        returns: the robot's discounted return from that step on (M,).
-        seeds: the seeds of the episodes played (E,).
-    """
+    """The planner's decisions, one row per robot and step: ``observations`` (M, D) float32, ``action_masks`` (M, A)
+    bool, ``actions`` (M,) int, ``returns`` (M,) discounted from that step on, and the episodes' ``seeds`` (E,)."""
 
     observations: np.ndarray
     action_masks: np.ndarray
@@ -55,12 +43,8 @@ class Demonstrations(NamedTuple):
 
     @classmethod
     def load(cls, path: Path | str) -> Demonstrations:
-        """Demonstrations saved by ``save`` (``train --init-from-planner``'s file).
-
-        Raises:
-            ValueError: one line naming the option, the file and what it should be, for a file that is not
-                such an npz (missing, text, empty, truncated, an .npy, other arrays, rows that do not match).
-        """
+        """Demonstrations saved by ``save``; ``ValueError`` in one line naming the option, the file and what it should
+        be, for any file that is not such an npz."""
         zipped = None
         try:
             with Path(path).open("rb") as file:
@@ -93,57 +77,39 @@ def discounted_returns(rewards: np.ndarray, gamma: float) -> np.ndarray:
 
 
 def planner_episode(env_id: str, seed: int, gamma: float, env_kwargs: dict | None = None) -> Demonstrations:
-    """The planner's episode on ``seed`` as demonstrations; its planners reset as ``infonav evaluate`` resets them
-    (with ``seed``; in a team env robot ``k``'s with ``1000 * seed + k``), so they take the evaluated decisions."""
+    """The planner's episode on ``seed`` as demonstrations, its planners reset as ``infonav evaluate`` resets them."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
-        if api_of(env_id) == PARALLEL:
-            return _team_episode(env, env_id, seed, gamma)
-        return _single_episode(env, env_id, seed, gamma)
+        team = api_of(env_id) == PARALLEL
+        robots = list(env.possible_agents) if team else [None]
+        planners = [PlannerAgent(env, robot, **planner_settings(env_id)) for robot in robots]
+        observations, infos = env.reset(seed=seed)
+        if not team:  # a single env as a team of one
+            observations, infos = {None: observations}, {None: infos}
+        for k, planner in enumerate(planners):
+            planner.reset(seed=1000 * seed + k if team else seed)
+        seen, masks, actions, rewards, done = [], [], [], [], False
+        while not done:  # a team env ends for every robot at once
+            chosen = [planner.act(observations[robot], infos[robot]) for robot, planner in zip(robots, planners)]
+            seen.append([observations[robot] for robot in robots])
+            masks.append([infos[robot]["action_mask"] for robot in robots])
+            actions.append(chosen)
+            if team:
+                observations, reward, _, _, infos = env.step(dict(zip(robots, chosen)))
+                done = not env.agents
+            else:
+                observation, reward, terminated, truncated, info = env.step(chosen[0])
+                observations, reward, infos = {None: observation}, {None: reward}, {None: info}
+                done = terminated or truncated
+            rewards.append([reward[robot] for robot in robots])
     finally:
         env.close()
 
-
-def _team_episode(env, env_id: str, seed: int, gamma: float) -> Demonstrations:
-    robots = list(env.possible_agents)
-    planners = {robot: PlannerAgent(env, robot, **planner_settings(env_id)) for robot in robots}
-    observations, infos = env.reset(seed=seed)
-    for k, robot in enumerate(robots):
-        planners[robot].reset(seed=1000 * seed + k)
-    seen, masks, actions, rewards = [], [], [], []
-    while env.agents:  # a team env ends for every robot at once
-        chosen = {robot: planners[robot].act(observations[robot], infos[robot]) for robot in robots}
-        seen.append([observations[robot] for robot in robots])
-        masks.append([infos[robot]["action_mask"] for robot in robots])
-        actions.append([chosen[robot] for robot in robots])
-        observations, reward, _, _, infos = env.step(chosen)
-        rewards.append([reward[robot] for robot in robots])
-    return _as_demonstrations(seen, masks, actions, discounted_returns(np.array(rewards), gamma), seed)
-
-
-def _single_episode(env, env_id: str, seed: int, gamma: float) -> Demonstrations:
-    planner = PlannerAgent(env, **planner_settings(env_id))
-    observation, info = env.reset(seed=seed)
-    planner.reset(seed=seed)
-    seen, masks, actions, rewards, done = [], [], [], [], False
-    while not done:
-        action = planner.act(observation, info)
-        seen.append([observation])
-        masks.append([info["action_mask"]])
-        actions.append([action])
-        observation, reward, terminated, truncated, info = env.step(action)
-        rewards.append([reward])
-        done = terminated or truncated
-    return _as_demonstrations(seen, masks, actions, discounted_returns(np.array(rewards), gamma), seed)
-
-
-def _as_demonstrations(seen, masks, actions, returns, seed: int) -> Demonstrations:
-    """Rows robot by robot of per-step lists (T, R, ...)."""
-
-    def rows(values, dtype):
+    def rows(values, dtype):  # robot by robot, of per-step lists (T, R, ...)
         array = np.asarray(values, dtype=dtype)
         return np.swapaxes(array, 0, 1).reshape(-1, *array.shape[2:])
 
+    returns = discounted_returns(np.array(rewards), gamma)
     return Demonstrations(
         rows(seen, np.float32), rows(masks, bool), rows(actions, np.int64), rows(returns, float), np.array([seed])
     )
@@ -158,13 +124,8 @@ def planner_demonstrations(
     workers: int = 1,
     progress: bool = True,
 ) -> Demonstrations:
-    """The planner's episodes on seeds ``seed .. seed + episodes - 1``, joined in seed order.
-
-    ``workers`` > 1 plays them in that many processes. Ctrl-C raises ``KeyboardInterrupt`` (nothing is kept).
-
-    Raises:
-        ValueError: for ``episodes`` or ``workers`` below 1, or an env without a planning model (``PlannerAgent``).
-    """
+    """The planner's episodes on seeds ``seed .. seed + episodes - 1``, joined in seed order, played in ``workers``
+    processes (``ValueError`` for counts below 1 or an env without a planning model)."""
     if episodes < 1 or workers < 1:
         raise ValueError(f"episodes and workers must be >= 1, got {episodes} and {workers}")
     seeds = range(seed, seed + episodes)
@@ -182,16 +143,10 @@ def planner_demonstrations(
 def clone_planner(
     model, demonstrations: Demonstrations, epochs: int = 50, batch_size: int = 256, learning_rate: float = 1e-3
 ) -> list[dict]:
-    """Fit ``model``'s policy (a ``MaskablePPO``) to ``demonstrations``: the actor by behaviour cloning, the critic
-    to the returns; its ``VecNormalize`` (if any) starts from the demonstrations' observation statistics.
-
-    Minibatches are drawn from ``model.seed`` (the training's seed); each step lowers the negative log-likelihood
-    of the planner's actions plus half the critic's squared error. Returns each epoch's mean ``action_nll`` and
-    ``value_mse``.
-
-    Raises:
-        ValueError: for demonstrations whose observation or action size is not the model's.
-    """
+    """Fit ``model``'s ``MaskablePPO`` policy to ``demonstrations``: the actor by behaviour cloning, the critic to the
+    returns (loss: action NLL + half the value MSE), minibatches drawn from ``model.seed``; its ``VecNormalize`` starts
+    from their observation statistics. Returns each epoch's mean ``action_nll`` and ``value_mse``; ``ValueError`` for
+    demonstrations of another observation or action size."""
     n_observations, n_actions = model.observation_space.shape[0], model.action_space.n
     if demonstrations.observations.shape[1:] != (n_observations,) or demonstrations.action_masks.shape[1:] != (
         n_actions,

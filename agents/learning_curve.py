@@ -1,12 +1,7 @@
 """Learning curves of training runs: ``curve.csv`` appended to as training goes, ``curve.png`` drawn from it.
 
-A row of ``curve.csv`` holds the env steps so far, the mean return and the mean of the env's main metric
-(``main_metric_of``, computed by its ``EpisodeMetric`` from each episode's infos) over the episodes that ended
-since the previous row, and how many ended; a window without a finished episode writes no row. Each row is
-flushed when written, so a run stopped with Ctrl-C keeps its curve so far. The episodes' metric is computed
-at their last step by ``MetricVectorWrapper`` (a native vector env), ``MetricWrapper`` (a single env) or a team's
-``RobotSlots`` (``agents.team_vec_env``, each robot's slot: the team's metric), which put it in that step's info as
-``METRIC_KEY``; SB3's monitor gives the return (``info["episode"]["r"]``).
+A row per window with ended episodes: env steps, mean return, mean main metric (put into an episode's last info
+as ``METRIC_KEY`` by the wrappers here or a team's ``RobotSlots``) and count; rows are flushed, so Ctrl-C keeps them.
 """
 
 from __future__ import annotations
@@ -35,11 +30,8 @@ VECTOR_ONLY_KEYS = ("final_obs", "final_info")  # a vector env's info keys that 
 
 
 class SubEnvInfo(Mapping):
-    """Sub-env ``index``'s info, read on demand from a vector env's batched ``info`` (the keys its ``_key`` masks
-    give it): what an ``EpisodeMetric`` computes from, without copying every key of every step.
-
-    In a team vector env (infos (N, R, ...), but ``team_keys`` (N,)) ``robot`` reads robot ``robot``'s column.
-    """
+    """Sub-env ``index``'s info read on demand from a vector env's batched ``info`` (by its ``_key`` masks); in a team
+    vector env ``robot`` picks its column (but not of ``team_keys``)."""
 
     def __init__(self, info: dict, index: int, robot: int | None = None, team_keys=frozenset()):
         self.info, self.index, self.robot, self.team_keys = info, index, robot, team_keys
@@ -72,10 +64,8 @@ def team_view(agents, team_keys):
 class EndedEpisodeMetrics:
     """The main metric of each episode of a vector env of ``num_envs`` copies, as it ends.
 
-    It keeps the batched info of every step since the oldest running episode began (the envs return fresh arrays
-    each step) and reads an ended copy's rows of them through ``view(info, index)`` (``SubEnvInfo``, or
-    ``team_view``'s ``{agent: info}``). ``same_step``: the env autoresets in ``SAME_STEP`` mode (the last info in
-    ``info["final_info"]``), else in ``NEXT_STEP`` mode (the step after the last is the copy's reset, left out).
+    Keeps the batched infos since the oldest running episode began and reads an ended copy's rows through
+    ``view(info, index)``. ``same_step``: SAME_STEP autoreset (last info in ``final_info``), else NEXT_STEP.
     """
 
     def __init__(self, metric, num_envs: int, view=SubEnvInfo, same_step: bool = True):
@@ -104,8 +94,7 @@ class EndedEpisodeMetrics:
 
 
 class MetricVectorWrapper(VectorWrapper):
-    """A ``SAME_STEP`` vector env whose ``info["final_info"]`` holds each ended episode's main metric
-    (``METRIC_KEY``, by ``EndedEpisodeMetrics``)."""
+    """A ``SAME_STEP`` vector env whose ``info["final_info"]`` holds ended episodes' main metric (``METRIC_KEY``)."""
 
     def __init__(self, env):
         super().__init__(env)
@@ -145,8 +134,7 @@ class MetricWrapper(gym.Wrapper):
 
 
 def start_curve(directory: Path, env_id: str, env_kwargs: dict | None) -> Path:
-    """A fresh ``directory/curve.csv`` holding only its header, which names the env's main metric, and
-    ``CURVE_LABELS``: the return in the env's reward unit and the metric's title; the CSV's path."""
+    """A fresh ``directory/curve.csv`` (its header names the env's main metric) and ``CURVE_LABELS``; the CSV's path."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
         metric, reward_unit = main_metric_of(env), traits_of(env).reward_unit
@@ -168,11 +156,8 @@ def append_row(path: Path, steps: int, mean_return: float, mean_metric: float, e
 
 
 class CurveCallback(BaseCallback):
-    """Appends a row of ``curve.csv`` at the end of every rollout in which episodes ended.
-
-    Reads the infos SB3's monitor completes at an episode's end (``episode``, and ``METRIC_KEY`` where an env
-    wrapper computed it; NaN where none did).
-    """
+    """Appends a row of ``curve.csv`` after every rollout in which episodes ended, from the infos SB3's monitor
+    completes (``episode``, and ``METRIC_KEY`` where a wrapper computed it, else NaN)."""
 
     def __init__(self, path: Path):
         super().__init__()
@@ -206,29 +191,19 @@ def read_validations(path: Path) -> np.ndarray:
         return np.array(list(csv.reader(file))[1:], dtype=float).reshape(-1, 4)
 
 
-def read_labels(directory: Path, metric_name: str) -> dict:
-    """The run's ``CURVE_LABELS``; without the file (a run older than it), the bare names."""
-    path = Path(directory) / CURVE_LABELS
-    return json.loads(path.read_text()) if path.is_file() else {"return": "mean episode return", "metric": metric_name}
-
-
 def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
-    """``directory/curve.png`` (``figure_curve``).
-
-    Raises:
-        ImportError: without matplotlib, saying how to install the ``render`` extra.
-        ValueError: when there is no point to draw (no episode ended, no validation): never empty axes.
-    """
+    """``directory/curve.png`` (``figure_curve``); ``ImportError`` without matplotlib, ``ValueError`` with nothing to
+    draw."""
     return save_figure(figure_curve(directory, title, references), Path(directory) / CURVE_PNG, dpi=100)
 
 
 def figure_curve(directory: Path, title: str, references: dict | None):
-    """The learning curve of ``directory``'s ``curve.csv``: mean return and, when recorded, the main metric against
-    env steps (axes titled by ``CURVE_LABELS``), with ``references`` (agent name: its value of the metric) as
-    horizontal lines; their absence is said. A run that validated (``validation.csv``) also shows the deterministic
-    policy's metric on the validation seeds and the policy kept."""
+    """The learning curve of ``directory``'s ``curve.csv``: return and main metric against env steps, ``references``
+    (agent: metric) as lines, and the validations of ``validation.csv`` if any."""
     metric_name, rows = read_curve(Path(directory) / CURVE_CSV)
-    labels = read_labels(directory, metric_name)
+    labels_path = Path(directory) / CURVE_LABELS  # absent in runs older than it: the bare names
+    labels = {"return": "mean episode return", "metric": metric_name}
+    labels = json.loads(labels_path.read_text()) if labels_path.is_file() else labels
     validations = read_validations(Path(directory) / VALIDATION_CSV)
     if not rows.size and not validations.size:
         raise ValueError(f"no episode ended in training, so no {CURVE_PNG}: nothing to draw")
@@ -260,8 +235,7 @@ def figure_curve(directory: Path, title: str, references: dict | None):
 
 
 def drawn_curve(directory: Path, title: str, references: dict | None) -> str:
-    """``draw_curve``'s path, or one line saying why there is no PNG: no point to draw, or no matplotlib (the
-    ``render`` extra)."""
+    """``draw_curve``'s path, or one line saying why there is no PNG (nothing to draw, or no matplotlib)."""
     try:
         return str(draw_curve(directory, title, references))
     except (ImportError, ValueError) as error:

@@ -23,12 +23,8 @@ def planner_settings(env_id: str) -> dict:
 
 
 def planning_model(env):
-    """The planning model of ``env`` (wrapped or not), from its ``planning_model()`` method.
-
-    Raises:
-        ValueError: if the env has no ``planning_model()``, or its model lacks one of
-            ``PLANNING_METHODS`` or ``PLANNING_ATTRIBUTES``.
-    """
+    """The planning model of ``env`` (wrapped or not), from its ``planning_model()``; ``ValueError`` if it has none or
+    the model lacks one of ``PLANNING_METHODS`` or ``PLANNING_ATTRIBUTES``."""
     needed = ", ".join(PLANNING_METHODS + PLANNING_ATTRIBUTES)
     try:  # a Gymnasium env through its wrappers, or a PettingZoo env itself
         model = (env.get_wrapper_attr("planning_model") if hasattr(env, "get_wrapper_attr") else env.planning_model)()
@@ -47,49 +43,20 @@ def planning_model(env):
 
 
 class PlannerAgent:
-    """Searches action sequences ``depth`` steps ahead, scores them by expected return, executes the first action.
+    """Searches action sequences ``depth`` steps ahead on the env's ``planning_model()``, executes the best first.
 
-    Uses the model that the env's ``planning_model()`` returns (``belief()``,
-    ``plan_decision(belief)``, ``plan_step(belief, actions)``, ``position_std``,
-    ``n_primitives``, ``max_position_std_m``, ``idle_primitive``, as ``ActiveLocalizationEnv``
-    provides): the EKF covariance propagates without measurement values (under the
-    linearization the posterior covariance does not depend on them), so a sequence's
-    expected reward (MI minus costs, progress, goal bonus, failure penalty) is computed
-    without sampling. The search is exhaustive over a pruned branching: every motion
-    primitive, each without an observation or with one of the
-    ``observation_branching`` most informative valid observations. Each leaf is
-    valued by rolling out base policies for ``rollout_steps`` steps and keeping the
-    best: steer with one primitive for ``detour_steps`` steps (or none), then take the
-    valid primitive whose no-observation gain is largest (the lowest on near-ties: heading for
-    the goal in ActiveLocalization-v0, driving to the most unmapped cells in
-    cooperative_exploration_v0), observing the most informative visible target only once
-    the position standard deviation has reached ``sensing_std_fraction`` of the failure
-    bound, so the budget is kept for when it is needed. A model with an ``idle_primitive``
-    (one that stands still) also gets each of these policies stopping there once the std
-    reaches one of ``stop_std_fractions`` of the bound. Every candidate sequence of every
-    leaf is evaluated in one numpy batch per step.
-
-    In a PettingZoo team env (``agent`` names the robot) the robot plans alone on the env's team model
-    (``agents.team_planning.RobotPlanningView``): its teammates follow the plans they published at the
-    last step, and it publishes its own (the best sequence found: the first action, then its rollout).
-
-    The first step always uses the env's current ``info["action_mask"]`` and gains, so
-    the chosen action is valid. The agent reads the env it was built with at each
-    ``act``, so ``act`` must be called with that env's latest ``info``.
+    Expected returns need no sampling: under the linearization the EKF covariance does not depend on measurement
+    values. Each primitive is tried alone and with the ``observation_branching`` best valid observations; each leaf is
+    valued by the best of several base-policy rollouts: an optional detour, then the primitive of largest gain,
+    observing once the position std reaches ``sensing_std_fraction`` of the bound and (with an ``idle_primitive``)
+    stopping at each of ``stop_std_fractions``; one numpy batch a step. In a team env (``agent``: the robot) teammates
+    follow their published plans. ``act`` must get the latest ``info`` of the env the agent was built with.
 
     Args:
-        env: the env (wrapped or not) to plan in; it must have a ``planning_model()`` method.
-        agent: the robot this agent acts for, in a PettingZoo team env (None for a Gymnasium env).
-        depth: number of steps searched exhaustively (>= 1). The default 1, followed by the
-            rollouts, did best on ActiveLocalization-v0 (20 seeds: 85 % success against 70 % at
-            depth 2) and is about 3.5 times faster.
-        observation_branching: observations tried per primitive at each searched step (>= 0).
+        depth: steps searched exhaustively (>= 1); 1 did best on ActiveLocalization-v0 (85 % success against 70 %
+            at depth 2, 20 seeds) and is about 3.5 times faster.
         rollout_steps: length of the base-policy rollouts that value each leaf (>= 0).
         detour_steps: lengths of the initial detours of the base policies (0 for none).
-        sensing_std_fraction: the base policies observe once the largest position std
-            reaches this fraction of the env's ``max_position_std_m``.
-        stop_std_fractions: the fractions of ``max_position_std_m`` at which the stopping base
-            policies stand still (a model without an ``idle_primitive`` ignores them).
         discount: discount of later rewards in the expected return (0, 1].
     """
 
@@ -179,10 +146,8 @@ class PlannerAgent:
         return action
 
     def _candidates(self, mask: np.ndarray, gains: np.ndarray) -> np.ndarray:
-        """Actions to try at each belief (B, C): every primitive alone and with the best few valid observations.
-
-        Rows with fewer valid observations repeat the primitive alone (a duplicate costs time, not correctness).
-        """
+        """Actions to try at each belief (B, C): every primitive alone and with the best few valid observations
+        (a row with fewer repeats the primitive alone)."""
         n_primitives, B = self.n_primitives, len(mask)
         slot_gains = np.where(mask > 0, gains, -np.inf).reshape(B, -1, n_primitives)[:, 1:, 0]  # (B, K)
         options = np.zeros((B, 1 + self.observation_branching), dtype=int)

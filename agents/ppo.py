@@ -1,20 +1,8 @@
-"""Stable-Baselines3 PPO for the infonav envs: train, save, load, act.
+"""Stable-Baselines3 PPO for the infonav envs: train, save, load, act (the ``rl`` extra).
 
-Envs that put ``info["action_mask"]`` (every infonav env) train with sb3-contrib's
-``MaskablePPO``, which reads each env's public ``action_masks()`` through the wrappers. Other envs
-(CartPole, for the benchmark) train with plain ``PPO``, or with ``MaskablePPO`` through ``InfoActionMask``.
-A PettingZoo parallel env (registry ``api``, e.g. ``cooperative_localization_v0``) trains one
-``MaskablePPO`` policy shared by all its robots, through ``agents.team_vec_env.TeamVecEnv`` (one slot per
-robot of its batched vector env, ``CooperativeLocalizationVectorEnv``).
-``vectorization`` picks how the copies run: ``native`` (the default where the env's registry entry has a
-``vector_entry_point``) steps them at once in the env's own ``gymnasium.vector.VectorEnv``, seen by SB3
-through ``agents.vector_adapter.VectorEnvAdapter``; ``sync`` in a ``DummyVecEnv``, ``subprocess`` in a
-``SubprocVecEnv`` (one process per copy).
-Hyperparameters come from ``agents/hyperparams/ppo.yml`` (package data, so an installed copy
-has them too), one block per env id (rl-baselines3-zoo style), or from a file of the same format
-(``infonav train --hyperparams FILE``); a block with ``normalize`` trains on observations normalized by
-SB3's ``VecNormalize``, whose statistics ``train`` saves beside the model (``vecnormalize.pkl``)
-and ``PPOAgent`` applies. Needs the ``rl`` extra (stable-baselines3, sb3-contrib, torch, pyyaml).
+``MaskablePPO`` where the env has action masks (a team env: one policy shared by its robots, ``team_vec_env``),
+else ``PPO``; copies run ``native`` (the env's own vector env), ``sync`` or ``subprocess``. Hyperparameters are
+rl-zoo style blocks keyed by env id (``agents/hyperparams/ppo.yml`` or a file); ``normalize`` adds ``VecNormalize``.
 """
 
 from __future__ import annotations
@@ -74,9 +62,7 @@ from infonav_gym.registry import PARALLEL, api_of, has_native_vector_env, make_e
 HYPERPARAMETERS_RESOURCE = ("agents", "hyperparams/ppo.yml")  # (package, file in it): the tuned blocks
 SCHEDULED = ("learning_rate", "clip_range")  # may be rl-zoo's "lin_<start>": annealed linearly to 0 over training
 DEFAULT_N_ENVS, DEFAULT_N_STEPS = 8, 2048  # without them in the block: ours, SB3's
-# float32 a MaskableRolloutBuffer slot keeps beside its observation and action mask: action, reward, return, episode
-# start, value, log-probability, advantage
-ROLLOUT_FLOATS = 7
+ROLLOUT_FLOATS = 7  # float32 of a MaskableRolloutBuffer slot beside observation and mask (action, reward, ...)
 MODEL_FILE = "model.zip"
 NORMALIZATION_FILE = "vecnormalize.pkl"  # VecNormalize statistics, beside MODEL_FILE, when trained with ``normalize``
 NATIVE, SYNC, SUBPROCESS = "native", "sync", "subprocess"
@@ -84,11 +70,7 @@ VECTORIZATIONS = (NATIVE, SYNC, SUBPROCESS)  # the env's own VectorEnv, DummyVec
 
 
 class InfoActionMask(gym.Wrapper):
-    """Gives an env without ``action_masks()`` one (what ``MaskablePPO`` calls), from the last ``info["action_mask"]``.
-
-    An env without that key gets an all-valid mask (CartPole in ``ppo_timing``). When no action is
-    valid, every action is allowed, as the infonav envs' own ``action_masks()`` do.
-    """
+    """Gives an env ``action_masks()`` from its last ``info["action_mask"]`` (all valid without one, or none valid)."""
 
     def __init__(self, env: gym.Env):
         super().__init__(env)
@@ -112,9 +94,8 @@ class InfoActionMask(gym.Wrapper):
 
 
 def mask_wrapper(env_id: str, env_kwargs: dict | None = None) -> tuple[bool, type | None]:
-    """``(masked, wrapper)``: whether ``env_id`` has action masks (then it trains with ``MaskablePPO``) and the
-    wrapper it needs for them: ``None`` with its own ``action_masks()`` (every infonav env), ``InfoActionMask``
-    when it only reports ``info["action_mask"]``."""
+    """``(masked, wrapper)``: whether ``env_id`` has action masks (``MaskablePPO``); ``InfoActionMask`` when they are
+    only in its infos (``None`` with its own ``action_masks()``)."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
         if callable(getattr(env.unwrapped, "action_masks", None)):
@@ -126,18 +107,8 @@ def mask_wrapper(env_id: str, env_kwargs: dict | None = None) -> tuple[bool, typ
 
 
 def load_hyperparameters(env_id: str, path: Path | str | None = None) -> dict:
-    """The block of a ppo.yml-style file for ``env_id``, else its ``default`` block; a fresh dict.
-
-    Args:
-        env_id: the env whose block to read.
-        path: a YAML file of blocks keyed by env id; ``None`` reads the tuned blocks shipped in the
-            package (``agents/hyperparams/ppo.yml``, through ``importlib.resources``).
-
-    Raises:
-        ValueError: naming the file when it is missing, not YAML, not a mapping of blocks, or has
-            neither a block for ``env_id`` nor a ``default`` one, or that block is not a mapping; naming the file,
-            the block and the key for a key outside ``agents.hyperparameters.HYPERPARAMETERS`` or out of its range.
-    """
+    """The block for ``env_id`` (else the ``default`` block) of a ppo.yml-style file at ``path`` (``None``: the blocks
+    shipped in the package), a fresh dict; ``ValueError`` naming the file, block and key of any fault."""
     import yaml
 
     if path is None:
@@ -168,7 +139,8 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
     """Hyperparameters as PPO constructor keywords: drop the others (``not_constructor``), resolve the activation."""
     not_constructor = ("n_envs", "policy", "n_timesteps", "normalize")
     kwargs = {key: value for key, value in hyperparameters.items() if key not in not_constructor}
-    kwargs.update({key: _schedule(key, value) for key, value in scheduled(hyperparameters).items()})
+    for key, value in scheduled(hyperparameters).items():  # rl-zoo's lin_<start>: from start to 0 over training
+        kwargs[key] = LinearSchedule(float(value.removeprefix(LINEAR)), 0.0, 1.0)
     policy_kwargs = dict(kwargs.get("policy_kwargs") or {})
     if "activation_fn" in policy_kwargs:
         policy_kwargs["activation_fn"] = getattr(torch.nn, ACTIVATIONS[policy_kwargs["activation_fn"]])
@@ -180,11 +152,6 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
 def scheduled(hyperparameters: dict) -> dict:
     """The hyperparameters given as a schedule (``lin_<start>``), not a number: ``{key: value}`` of ``SCHEDULED``."""
     return {key: hyperparameters[key] for key in SCHEDULED if isinstance(hyperparameters.get(key), str)}
-
-
-def _schedule(key: str, value: str) -> LinearSchedule:
-    """rl-zoo's ``lin_<start>`` (e.g. ``lin_3e-4``): from ``start`` at the first update to 0 at the end of training."""
-    return LinearSchedule(float(value.removeprefix(LINEAR)), 0.0, 1.0)
 
 
 def _constructor_arguments(hyperparameters: dict, seed: int, tensorboard_log: str | None) -> tuple[str, dict]:
@@ -201,12 +168,8 @@ def _json_name(value) -> str:
 
 
 def constructor_values(algorithm, policy: str, kwargs: dict) -> dict:
-    """Every keyword of ``algorithm``'s constructor as called with ``policy`` and ``kwargs``, its defaults
-    included (what ``train.json`` records); classes by qualified name, JSON-ready.
-
-    Raises:
-        ValueError: for a keyword the constructor does not take, listing those it takes.
-    """
+    """Every keyword of ``algorithm``'s constructor as called with ``policy`` and ``kwargs``, defaults included,
+    JSON-ready (classes by qualified name); ``ValueError`` for a keyword it does not take, listing those it takes."""
     parameters = inspect.signature(algorithm.__init__).parameters
     public = [name for name in parameters if name not in ("self", "env") and not name.startswith("_")]
     unknown = sorted(set(kwargs) - set(public))
@@ -244,28 +207,20 @@ class TqdmCallback(BaseCallback):
 
 
 def normalization_kwargs(hyperparameters: dict) -> dict | None:
-    """``VecNormalize`` keywords from ``normalize`` (rl-zoo style: true, false, or a dict such as
-    ``{norm_obs: true, norm_reward: false}``, checked by ``agents.hyperparameters``); ``None`` when off."""
+    """``VecNormalize`` keywords from rl-zoo's ``normalize`` (true, false or a dict of them); ``None`` when off."""
     normalize = hyperparameters.get("normalize", False)
     return dict(normalize) if isinstance(normalize, dict) else ({} if normalize is True else None)
 
 
 def vectorizations(env_id: str) -> tuple[str, ...]:
-    """The vectorizations ``env_id`` trains with, its default first (``native`` where it has a native vector env).
-
-    A PettingZoo env trains on ``TeamVecEnv``, a slot per robot of its batched vector env: ``native`` only.
-    """
+    """The vectorizations ``env_id`` trains with, its default first (a team env: ``native`` only)."""
     if api_of(env_id) == PARALLEL:
         return (NATIVE,)
     return (NATIVE, SYNC, SUBPROCESS) if has_native_vector_env(env_id) else (SYNC, SUBPROCESS)
 
 
 def checked_vectorization(env_id: str, vectorization: str | None) -> str:
-    """``vectorization`` if ``env_id`` has it, ``None``: its default.
-
-    Raises:
-        ValueError: for a mode outside ``VECTORIZATIONS`` or one the env lacks, naming the env and its modes.
-    """
+    """``vectorization`` if ``env_id`` has it, ``None``: its default (else ``ValueError`` naming the env's modes)."""
     available = vectorizations(env_id)
     if vectorization is None:
         return available[0]
@@ -284,11 +239,8 @@ def checked_vectorization(env_id: str, vectorization: str | None) -> str:
 def native_vec_env(
     env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None, record_metric: bool = False
 ) -> VecMonitor:
-    """``env_id``'s own vector env of ``n_envs`` copies, resetting in the step an episode ends, as an SB3 ``VecEnv``.
-
-    Sub-env ``i`` gets the seed ``seed + i`` at the first reset (``monitored_vec_env``). ``record_metric``: the
-    infos of an episode's end hold its main metric (``learning_curve.METRIC_KEY``, for the learning curve).
-    """
+    """``env_id``'s own vector env of ``n_envs`` copies in SAME_STEP autoreset as an SB3 ``VecEnv`` (sub-env ``i``
+    seeded ``seed + i``); ``record_metric``: an episode's last infos hold its main metric (``METRIC_KEY``)."""
     vector_env = gym.make_vec(
         resolve_env_id(env_id),
         num_envs=n_envs,
@@ -304,8 +256,8 @@ def native_vec_env(
 def training_vec_env(
     env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None, vectorization: str | None = None
 ) -> tuple[bool, VecMonitor]:
-    """Whether ``env_id`` trains with action masks, and ``n_envs`` seeded copies of it as ``build_model`` trains on
-    (copy ``i`` seeded ``seed + i``), whose infos at an episode's end hold its main metric (``METRIC_KEY``)."""
+    """Whether ``env_id`` trains with action masks, and ``n_envs`` copies (copy ``i`` seeded ``seed + i``) whose last
+    infos of an episode hold its main metric (``METRIC_KEY``)."""
     vectorization = checked_vectorization(env_id, vectorization)
     if api_of(env_id) == PARALLEL:
         from agents.team_vec_env import make_team_vec_env
@@ -334,17 +286,8 @@ def build_model(
     vectorization: str | None = None,
     tensorboard_log: str | None = None,
 ):
-    """A fresh ``MaskablePPO`` (env with action masks) or ``PPO`` on ``n_envs`` seeded copies of ``env_id``.
-
-    The infos of an episode's end hold its main metric (``learning_curve.METRIC_KEY``).
-
-    Args:
-        hyperparameters: ppo.yml-style keys; ``None`` loads the env's block of ppo.yml.
-        n_envs: overrides the hyperparameters' ``n_envs`` (default 8). For the team env, each
-            copy is ``n_robots`` slots of the vec env (``TeamVecEnv``), all run in this process.
-        vectorization: ``native``, ``sync`` or ``subprocess`` (see the module); ``None``: the env's
-            default (``checked_vectorization``).
-    """
+    """A fresh ``MaskablePPO`` (env with action masks) or ``PPO`` on ``n_envs`` seeded copies of ``env_id``
+    (``hyperparameters`` ``None``: the env's block; ``vectorization`` ``None``: the env's default)."""
     hyperparameters = training_block(env_id, hyperparameters, n_envs)
     masked, vec_env = training_vec_env(env_id, hyperparameters["n_envs"], seed, env_kwargs, vectorization)
     normalize = normalization_kwargs(hyperparameters)
@@ -358,8 +301,7 @@ def build_model(
 
 
 def training_block(env_id: str, hyperparameters: dict | None, n_envs: int | None) -> dict:
-    """The hyperparameters training uses, checked: ``hyperparameters`` (``None``: the env's block of ppo.yml) with
-    ``n_envs`` when given, else the block's (``DEFAULT_N_ENVS`` without one)."""
+    """The checked hyperparameters training uses (``None``: the env's block), ``n_envs`` as given or the block's."""
     block = load_hyperparameters(env_id) if hyperparameters is None else hyperparameters
     block = {**block, "n_envs": block.get("n_envs", DEFAULT_N_ENVS) if n_envs is None else n_envs}
     return checked_block(block, "the hyperparameters" + (", n_envs as given (--n-envs)" if n_envs is not None else ""))
@@ -368,9 +310,8 @@ def training_block(env_id: str, hyperparameters: dict | None, n_envs: int | None
 def rollout_steps(
     env_id: str, hyperparameters: dict, env_kwargs: dict | None, planner: bool = False
 ) -> tuple[int, str]:
-    """The env steps of one PPO rollout, ``n_steps`` per copy of each of ``n_envs`` copies (and of each robot in a team
-    env: a slot per robot), and that product in words; builds one env, which checks the id and the config (and, with
-    ``planner``, that the env offers the planner's model: behaviour cloning plays it)."""
+    """The env steps of one PPO rollout (``n_steps x n_envs``, x robots in a team env) and that product in words; builds
+    one env, which checks the id, the config and (with ``planner``) that it offers the planner's model."""
     n_steps, n_envs, robots = hyperparameters.get("n_steps", DEFAULT_N_STEPS), hyperparameters["n_envs"], 1
     factors = f"n_steps {n_steps} x n_envs {n_envs}"
     env = make_env(env_id, **(env_kwargs or {}))  # an unknown id or config key: its one-line error, before any work
@@ -391,12 +332,8 @@ def rollout_steps(
 
 
 def planned_steps(timesteps: int, rollout: int, factors: str, hyperparameters: dict) -> int:
-    """The env steps PPO will train for ``timesteps``: whole rollouts (said on stderr when more).
-
-    Raises:
-        ValueError: for fewer steps than one rollout (but 0: cloning alone), or a ``batch_size`` whose last
-            minibatch holds a single step (MaskablePPO's advantage normalization would make it NaN).
-    """
+    """The env steps PPO will train for ``timesteps``: whole rollouts (said on stderr when more). ``ValueError`` for
+    fewer than one rollout (but 0: cloning alone), or a ``batch_size`` leaving a 1-step minibatch (NaN advantages)."""
     if 0 < timesteps < rollout:
         raise ValueError(
             f"--timesteps {timesteps} is less than one rollout of {rollout} env steps ({factors}): PPO learns from "
@@ -420,8 +357,7 @@ def planned_steps(timesteps: int, rollout: int, factors: str, hyperparameters: d
 
 @contextlib.contextmanager
 def removed_on_error(directory: Path):
-    """Removes what the block adds to ``directory`` (the directory itself when it adds it) if the block raises an
-    error: a failed run leaves nothing half-written. Ctrl-C (no ``Exception``) keeps what was saved."""
+    """Removes what the block adds to ``directory`` if it raises an ``Exception`` (Ctrl-C keeps what was saved)."""
     before = set(directory.iterdir()) if directory.is_dir() else None
     try:
         yield
@@ -455,31 +391,11 @@ def train(
 ) -> Path:
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
 
-    ``n_envs`` ``None`` takes the hyperparameters' ``n_envs``; ``vectorization`` ``None`` the env's default
-    (``native`` where it has a native vector env, see ``build_model``).
-    Also writes ``output_dir/train.json`` (env, seed, vectorization, the hyperparameters asked for, every keyword
-    the PPO / MaskablePPO constructor got, SB3's defaults included, as ``constructor``, wall time, fps),
-    ``checkpoints`` intermediate models in ``output_dir/checkpoints/``, the learning curve (``curve.csv``, a row per
-    rollout, and ``curve.png`` with ``curve_references``, e.g. ``{"greedy": 48.0}``, as lines:
-    ``agents.learning_curve``) and, with
-    ``tensorboard=True``, TensorBoard event files in ``output_dir/tensorboard/``
-    (needs the ``tensorboard`` package: a ``ValueError`` says so when it is missing).
-
-    ``init_from_planner`` warm-starts the policy by behaviour cloning of the env's planner
-    (``agents.imitation.clone_planner``) before PPO: a number of planner episodes to play (seeds
-    ``DEMONSTRATION_SEEDS + seed ..``, far from the seeds evaluations play, in
-    ``planner_workers`` processes), saved as ``output_dir/demonstrations.npz``, or the path of such a file to
-    clone from again; ``timesteps=0`` then keeps the cloned policy as it is. train.json's ``warm_start`` records
-    them, each cloning epoch's losses, the cloned policy's
-    agreement with the planner and the seconds taken.
-
-    ``validation_episodes`` > 0 (with ``timesteps`` > 0) keeps the policy best on that many validation episodes by
-    the env's main metric, validated every ``validation_every`` env steps (default: a twentieth of ``timesteps``),
-    at the start and at the end, in ``output_dir/best/`` (``agents.validation``; train.json's ``validation`` records
-    when and what it reached). ``model.zip`` stays the last policy.
-
-    Ctrl-C ends the training early: the model trained so far is saved as above, with the curve so far and its
-    train.json with ``"interrupted": true`` and the ``timesteps`` reached.
+    Also writes ``train.json`` (settings, every constructor keyword, time, fps), ``checkpoints/``, the learning curve
+    (``curve.csv``, ``curve.png``) and with ``tensorboard`` its event files. ``init_from_planner``: warm start by
+    behaviour cloning of the planner, on that many episodes (seeds from ``DEMONSTRATION_SEEDS + seed``, saved as
+    ``demonstrations.npz``) or such a file; ``timesteps=0`` keeps the cloned policy. ``validation_episodes`` > 0 keeps
+    the policy best on them in ``best/``. Ctrl-C saves the model so far (train.json: ``"interrupted": true``).
     """
     if timesteps < (0 if init_from_planner is not None else 1):
         raise ValueError(f"timesteps must be >= 1 (0 only with a planner warm start: cloning alone), got {timesteps}")
@@ -573,8 +489,8 @@ def save_policy(model, directory: Path) -> Path:
 
 
 def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_dir: Path, workers: int) -> dict:
-    """Warm-start ``model`` from the planner (``source``: ``train``'s ``init_from_planner``, episodes to play or a saved
-    file, and that file's ``Demonstrations``, already read); what train.json records of it."""
+    """Warm-start ``model`` from the planner (``source``: episodes or a file, and its ``Demonstrations``); returns
+    what train.json records of it."""
     start = time.perf_counter()
     source, demonstrations = source
     if isinstance(source, int):
@@ -600,11 +516,7 @@ def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_
 
 
 def model_file(path: Path | str) -> Path:
-    """``path`` itself, or ``path/model.zip`` when ``path`` is a directory (the ``--output`` of ``infonav train``).
-
-    Raises:
-        ValueError: naming the path when it does not exist, or is a directory without ``model.zip``.
-    """
+    """``path``, or ``path/model.zip`` for a directory; ``ValueError`` naming a path that is neither."""
     path = Path(path)
     if path.is_dir():
         if not (path / MODEL_FILE).is_file():
@@ -616,10 +528,7 @@ def model_file(path: Path | str) -> Path:
 
 
 def load_model(path: Path | str):
-    """A saved ``MaskablePPO`` / ``PPO`` model from a zip or the directory holding ``model.zip``.
-
-    A missing or unreadable file raises ``ValueError`` naming it.
-    """
+    """A saved ``MaskablePPO`` / ``PPO`` model from a zip or its directory (``ValueError`` naming a bad one)."""
     path = model_file(path)
     try:
         with zipfile.ZipFile(path) as archive:  # MaskablePPO or PPO: the policy class recorded in the zip's data
@@ -632,10 +541,7 @@ def load_model(path: Path | str):
 
 
 def load_normalization(model_path: Path) -> VecNormalize | None:
-    """The ``VecNormalize`` statistics saved beside ``model_path`` (``NORMALIZATION_FILE``); ``None`` if none.
-
-    Raises ``ValueError`` naming the file when it exists but is not SB3 ``VecNormalize`` statistics.
-    """
+    """The ``VecNormalize`` statistics beside ``model_path`` (``None`` without; ``ValueError`` if not such)."""
     path = Path(model_path).parent / NORMALIZATION_FILE
     if not path.is_file():
         return None
@@ -653,17 +559,9 @@ def load_normalization(model_path: Path) -> VecNormalize | None:
 
 
 class PPOAgent:
-    """A trained PPO policy as an agent: deterministic (the most probable action) among the valid ones.
-
-    Observations are normalized first when the model was trained with ``normalize`` (the
-    statistics in ``vecnormalize.pkl`` beside the model).
-
-    Args:
-        model_path: a ``model.zip`` written by ``train`` (or any SB3 PPO / MaskablePPO zip), or the
-            directory that holds it.
-        env: the env it will act in; its spaces must match the model's.
-        agent: in a PettingZoo env, the agent (robot) it acts for: the spaces checked are that agent's.
-    """
+    """A trained PPO policy (a ``model.zip`` or its directory, with ``vecnormalize.pkl`` when trained with
+    ``normalize``) acting deterministically among the valid actions in ``env`` (for robot ``agent`` in a PettingZoo
+    env)."""
 
     def __init__(self, model_path: Path | str, env, agent: str | None = None):
         self.model_path = model_file(model_path)

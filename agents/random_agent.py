@@ -8,15 +8,8 @@ from agents.base import valid_actions
 
 
 class RandomAgent:
-    """Picks uniformly among the actions ``info["action_mask"]`` allows (any action if none is valid).
-
-    Args:
-        n_actions: size of the env's ``Discrete`` action space.
-        seed: seed of the agent's own generator; ``reset(seed)`` re-seeds it.
-        noop_action: an action that does nothing (e.g. "no relative observation" in
-            cooperative_localization_v0); if given, it is chosen only when nothing else
-            is valid, so the agent is a random *choice of what to observe*.
-    """
+    """Picks uniformly among the actions ``info["action_mask"]`` allows (any action if none is valid), from its own
+    generator (``seed``; ``reset(seed)`` re-seeds it); ``noop_action`` only when nothing else is valid."""
 
     def __init__(self, n_actions: int, seed: int | None = None, noop_action: int | None = None):
         if n_actions < 1:

@@ -1,9 +1,5 @@
-"""Ray for RLlib training and parallel evaluation: importing it with a one-line hint, a local Ray or a cluster.
-
-``local_or_cluster_ray(address)`` starts a local Ray (and stops it afterwards) when ``address`` is None, else
-connects to the cluster at ``address`` (``HOST:PORT`` of ``ray start --head``, or ``ray://HOST:PORT``) after
-checking within ``CONNECT_TIMEOUT_S`` that a gRPC server answers a call there: Ray itself would retry for minutes.
-"""
+"""Ray for RLlib training and parallel evaluation: importing it with a one-line hint, a local Ray or a cluster, whose
+address is first probed with one gRPC call within ``CONNECT_TIMEOUT_S`` (Ray itself would retry for minutes)."""
 
 from __future__ import annotations
 
@@ -108,11 +104,8 @@ def check_reachable(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
 
 @contextlib.contextmanager
 def local_or_cluster_ray(address: str | None = None) -> Iterator:
-    """Ray connected to the cluster at ``address``, or a local Ray started (and stopped) here; yields ``ray``.
-
-    Inside an already initialized Ray (a caller's), that one is used and left running (``address`` is still
-    checked: a wrong one is an error, not ignored).
-    """
+    """Ray connected to the cluster at ``address``, or a local Ray started (and stopped) here; yields ``ray``. Inside a
+    caller's initialized Ray, that one is used and left running (a wrong ``address`` is still an error)."""
     ray = import_ray(address)
     if ray.is_initialized():
         yield ray

@@ -20,14 +20,11 @@ MODULES_PATH = ("learner_group", "learner", "rl_module")  # where an algorithm c
 class RLlibAgent:
     """The policy of an RLlib training directory (``train.json`` + ``checkpoint/``) as a deterministic agent.
 
-    Args:
-        directory: the ``--output`` directory of ``infonav train --backend rllib``.
-        env: the env it will act in; its spaces must match the module's.
-        agent: in a PettingZoo env, the robot it acts for.
+    ``env``: the env it acts in (spaces must match); ``agent``: in a PettingZoo env, the robot it acts for.
 
     Raises:
-        ValueError: without Ray, for a directory without ``train.json`` or checkpoint, trained on an env whose
-            policies do not fit this one (naming that env), or spaces that do not match.
+        ValueError: without Ray, for a directory without ``train.json`` or checkpoint, a policy trained on an env that
+            does not fit this one (naming it), or spaces that do not match.
     """
 
     def __init__(self, directory: Path | str, env, agent: str | None = None):

@@ -1,12 +1,5 @@
-"""Action masks for RLlib: observations that carry them (the module that applies them: ``agents.rllib_module``).
-
-RLlib's new API stack reads nothing from ``info``, so the envs' masks travel in the observation:
-``MaskedObservations`` (a Gymnasium env) and ``MaskedVectorObservations`` (an infonav native vector env; the team
-envs' is ``agents.rllib_team_env.BatchedTeamEnv``) turn each observation into
-``{"observation": the env's observation, "action_mask": float32 (n,)}``, the mask being the env's
-``action_masks()`` (all ones when nothing is valid, as ``MaskablePPO`` takes it) or its ``info["action_mask"]``.
-Needs no Ray.
-"""
+"""Action masks for RLlib, carried in the observation as ``{"observation", "action_mask"}`` (RLlib's new API stack
+reads nothing from ``info``); applied by ``agents.rllib_module``. Needs no Ray."""
 
 from __future__ import annotations
 

@@ -1,14 +1,7 @@
 """``MaskedPPOTorchRLModule``: RLlib's default PPO module that never picks a masked action (needs Ray).
 
-It builds RLlib's default PPO networks on the ``"observation"`` part of the observations of
-``agents.rllib_masking`` and adds ``log(mask)`` (clamped to RLlib's ``FLOAT_MIN``) to the action logits
-in every forward pass, so sampling, the greedy action, the PPO loss and its entropy all see masked logits.
-
-With ``model_config["normalize_observations"]`` (the RLlib backend sets it from a ``ppo.yml`` block's
-``normalize: {norm_obs: true}``) the module also normalizes that part, as SB3's ``VecNormalize`` does: by a
-running mean and variance (clipped to +-``NORMALIZED_CLIP``) kept in the module's buffers, updated from each
-training batch on the learner and sent with the weights to the env runners, so a checkpoint acts alike.
-(RLlib's ``MeanStdFilter`` connector would normalize the mask too, and lives outside the module.)
+``log(mask)`` is added to the logits of every forward pass; with ``model_config["normalize_observations"]`` the
+``"observation"`` part is normalized as by ``VecNormalize``, its running statistics kept in the module's buffers.
 """
 
 from __future__ import annotations
@@ -26,11 +19,7 @@ VARIANCE_EPSILON = 1e-8
 
 
 class MaskedPPOTorchRLModule(DefaultPPOTorchRLModule):
-    """RLlib's default PPO module on the ``"observation"`` part, its logits masked by ``"action_mask"``.
-
-    Raises:
-        ValueError: for observations without those two parts.
-    """
+    """RLlib's default PPO module on the ``"observation"`` part, its logits masked by the ``"action_mask"`` part."""
 
     def __init__(self, *, observation_space: spaces.Dict, **kwargs):
         if not isinstance(observation_space, spaces.Dict) or set(observation_space) != {OBSERVATION, ACTION_MASK}:

@@ -1,14 +1,7 @@
 """RLlib's multi-agent env runner on a team env's native vector env: N copies in one batched step (needs Ray).
 
-RLlib 2.60's ``MultiAgentEnvRunner`` always builds its envs with ``ray.rllib.env.vector.registration.make_vec``:
-a ``SyncVectorMultiAgentEnv`` of N ``MultiAgentEnv`` copies stepped one after another in Python (only ``sync``
-vectorization exists for multi-agent envs). Its sampling loop needs no more than a ``VectorMultiAgentEnv``: lists
-of per-copy ``{agent: ...}`` dicts from ``reset`` / ``step``, ``NEXT_STEP`` autoreset, and ``envs[i]`` giving copy
-``i``'s ``possible_agents`` and spaces. So ``BatchedTeamEnvRunner`` (``config.env_runners(env_runner_cls=...)``)
-overrides ``make_env``: its env creator (``num_envs`` in the env config) returns ``BatchedTeamEnv``, the team's
-native vector env (``TeamVectorEnv``) seen that way. One runner step is then one batched env step of all copies
-and one forward pass of each policy over every copy's robots (RLlib's env-to-module connector batches the
-episodes). Copy ``i``'s episode ends and restarts on its own (``NEXT_STEP``), as in RLlib's sync vector env.
+RLlib 2.60 steps multi-agent copies one by one in Python; ``BatchedTeamEnvRunner`` builds ``BatchedTeamEnv``
+instead, so a runner step is one batched env step and one forward pass per policy.
 """
 
 from __future__ import annotations
@@ -60,20 +53,13 @@ class TeamCopy(MultiAgentEnv):
 
 
 class BatchedTeamEnv(VectorMultiAgentEnv):
-    """A team vector env (``TeamVectorEnv``, N copies of R robots) as RLlib's ``VectorMultiAgentEnv``.
+    """A team vector env (N copies of R robots, ``NEXT_STEP`` autoreset, else ``ValueError``) as RLlib's
+    ``VectorMultiAgentEnv``.
 
-    Copy ``i``'s observations are ``{robot: {"observation": ..., "action_mask": float32}}`` (the masks of
-    ``action_masks()``, all ones where none is valid, as ``MaskedObservations`` gives them); rewards and
-    terminations ``{robot: ...}`` with RLlib's ``"__all__"``; infos ``{}``, but at an episode's last step each
-    robot's ``{METRIC_KEY: the episode's main metric}`` (for the learning curve, ``CurveMetricCallback``).
-    Autoreset is ``NEXT_STEP``, RLlib's: the step after a copy's episode ended resets it (its actions, empty or not,
-    are ignored) and returns its reset observations with rewards 0. ``reset(seed=s)`` seeds copy ``i`` with ``s + i``.
-
-    Args:
-        team: a team vector env in ``NEXT_STEP`` autoreset (``make_vector_env`` of a PettingZoo parallel env).
-
-    Raises:
-        ValueError: for another autoreset mode.
+    Copy ``i``'s observations are ``{robot: {"observation": ..., "action_mask": float32}}`` (all ones where none is
+    valid); rewards and terminations ``{robot: ...}`` with ``"__all__"``; infos ``{}`` but at an episode's last step
+    ``{METRIC_KEY: main metric}``. The step after an end resets the copy (its actions ignored, rewards 0).
+    ``reset(seed=s)`` seeds copy ``i`` with ``s + i``.
     """
 
     closed = True  # until built: a construction that failed has nothing to close
@@ -104,11 +90,8 @@ class BatchedTeamEnv(VectorMultiAgentEnv):
         return self._observations(observations), [{} for _ in range(self.num_envs)]
 
     def step(self, actions: list[dict]):
-        """Step every copy with ``actions[i]`` ``{robot: action}`` (every robot, except in a restarting copy).
-
-        Raises:
-            ValueError: for not one dict per copy, or a copy that is not restarting without some robot's action.
-        """
+        """Step every copy with ``actions[i]`` ``{robot: action}`` (every robot, except in a restarting copy: else
+        ``ValueError``)."""
         if len(actions) != self.num_envs:
             raise ValueError(f"expected one {{robot: action}} dict per copy ({self.num_envs}), got {len(actions)}")
         for copy, copy_actions in enumerate(actions):
@@ -169,13 +152,10 @@ def _team_flags(agents: list[str], ended: np.ndarray) -> list[dict]:
 
 
 class BatchedTeamEnvRunner(MultiAgentEnvRunner):
-    """RLlib's ``MultiAgentEnvRunner`` whose env is the one its env creator makes for all copies at once.
+    """RLlib's ``MultiAgentEnvRunner`` on one ``BatchedTeamEnv`` for all copies (its creator gets ``num_envs``).
 
-    The creator registered as ``config.env`` is called with the env config plus ``num_envs``
-    (``num_envs_per_env_runner``) and returns a ``VectorMultiAgentEnv`` (``BatchedTeamEnv``); everything else is
-    RLlib's runner (sampling, episodes, connectors, metrics), but that the counts of sampled env, agent and module
-    steps and of episodes, which RLlib logs copy by copy at every step (2 + 4 R logger calls, a quarter of a copy's
-    step), are summed and logged once per ``sample()``: the same sums.
+    All else is RLlib's, but the sampled step and episode counts, which RLlib logs copy by copy every step (a quarter
+    of a copy's step), are summed and logged once per ``sample()``: the same sums.
     """
 
     def __init__(self, config, **kwargs):

@@ -1,17 +1,8 @@
-"""RLlib PPO for the infonav envs (``infonav train --backend rllib``): train, checkpoint, record.
+"""RLlib PPO for the infonav envs (``infonav train --backend rllib``, the ``distributed`` extra).
 
-Single-agent envs train one policy on ``envs_per_runner`` copies per env runner: the env's native vector env
-where it has one (``MaskedVectorObservations``, RLlib's ``VECTOR_ENTRY_POINT`` mode), else Gymnasium's sync
-vectorization of ``MaskedObservations`` copies. A team env (a PettingZoo parallel env) trains multi-agent PPO
-on ``envs_per_runner`` copies (default: its block's ``n_envs`` over the runners) of its native vector env per
-runner, stepped at once (``agents.rllib_team_env``): one policy shared by every robot (``policies="shared"``,
-parameter sharing) or one per robot (``"per_robot"``). Every policy is a
-``MaskedPPOTorchRLModule``. The PPO settings come from the env's block of ``agents/hyperparams/ppo.yml``,
-translated (``rllib_training_settings``). ``OUTPUT/checkpoint`` is RLlib's algorithm checkpoint,
-``OUTPUT/train.json`` the record (as the SB3 backend's), ``OUTPUT/curve.csv`` and ``curve.png`` the learning curve
-(``agents.learning_curve``; a row per iteration in which episodes ended, with RLlib's episode return mean, over
-its last 20 episodes, ``metrics_num_episodes_for_smoothing``, and for a team env the main metric over the same
-episodes; a single-agent env's is not recorded). Needs the ``distributed`` extra.
+A single-agent env trains one policy on its (native or sync) vector env per runner, a team env multi-agent PPO on
+its native vector env (``rllib_team_env``), one policy shared by the robots or one per robot; every policy is a
+``MaskedPPOTorchRLModule`` with the env's ppo.yml block translated. Writes ``checkpoint/``, ``train.json``, a curve.
 """
 
 from __future__ import annotations
@@ -40,11 +31,7 @@ POLICY_LAYOUTS = ("shared", "per_robot")
 
 
 class SingleEnvCreator:
-    """RLlib's env creator of a single-agent env: the masked env ``env_id`` with ``env_config``.
-
-    Asked for ``num_envs`` copies (RLlib's ``VECTOR_ENTRY_POINT`` mode, taken where the env has a native vector
-    env), it returns that native vector env, masked (``MaskedVectorObservations``).
-    """
+    """RLlib's env creator of a single-agent env: the masked env, or its masked native vector env for ``num_envs``."""
 
     def __init__(self, env_id: str):
         self.env_id = env_id
@@ -107,15 +94,8 @@ def _model_settings(hyperparameters: dict) -> dict:
 
 
 def rllib_training_settings(hyperparameters: dict) -> dict:
-    """The PPO settings of an ``agents/hyperparams/ppo.yml`` block in RLlib's names (``PPOConfig.training``).
-
-    The block's rollout, ``n_steps`` per env times ``n_envs`` (env steps, whatever the runners), is RLlib's
-    train batch; ``batch_size`` its minibatch.
-
-    Raises:
-        ValueError: for a value outside its range (``agents.hyperparameters``), a key without an RLlib translation,
-            or a schedule (``lin_<start>``), naming the key.
-    """
+    """The PPO settings of a ppo.yml block in RLlib's names (``PPOConfig.training``), the rollout ``n_steps * n_envs``
+    as train batch; ``ValueError`` naming a key out of range, without an RLlib translation, or a schedule."""
     from agents.ppo import scheduled
 
     hyperparameters = checked_block(hyperparameters, "the hyperparameters")
@@ -234,13 +214,8 @@ def train_rllib(
     progress: bool = True,
     curve_references: dict | None = None,
 ) -> dict:
-    """Train RLlib PPO on ``env_id`` for at least ``timesteps`` env steps; checkpoint and record it.
-
-    Runs on the Ray cluster at ``address`` or a local Ray started and stopped here.
-
-    Returns:
-        The ``train.json`` record (also written to ``output_dir``).
-    """
+    """Train RLlib PPO on ``env_id`` for at least ``timesteps`` env steps on the Ray at ``address`` (or a local one);
+    checkpoint it and return the ``train.json`` record (also written to ``output_dir``)."""
     from agents.learning_curve import METRIC_KEY, append_row, drawn_curve, start_curve
     from agents.ppo import load_hyperparameters, torch_threads
     from agents.ray_support import local_or_cluster_ray

@@ -1,11 +1,5 @@
-"""Decentralized planning in a team env: one robot's view of the team's planning model, teammates on their plans.
-
-Each robot of a PettingZoo team env runs its own ``PlannerAgent``. It searches its own actions on the env's
-team planning model (``plan_decision(belief, robot)``, ``plan_step(belief, team_actions)``) while every
-teammate follows the plan it published at the last step (its planner's best action sequence then), as robots
-that radio their plans to each other do. ``RobotPlanningView`` turns the team model into the one-robot
-interface ``PlannerAgent`` searches; ``TeamPlans`` is the board where a team's planners publish.
-"""
+"""Decentralized planning in a team env: each robot's ``PlannerAgent`` searches its own actions on the team model
+while its teammates follow the plans they published at the last step (``TeamPlans``)."""
 
 from __future__ import annotations
 
@@ -52,13 +46,7 @@ class TeamPlans:
 
 
 class RobotPlanningView:
-    """Robot ``robot``'s one-robot view of a team planning model, the teammates following ``plans``.
-
-    Has what ``PlannerAgent`` searches (``belief``, ``plan_decision``, ``plan_step``, ``position_std``,
-    ``n_primitives``, ``max_position_std_m``, ``idle_primitive``): ``plan_step(belief, actions)`` takes the
-    robot's actions (B,), completes them with the teammates' planned actions at the belief's depth, and
-    returns the robot's expected rewards (B,).
-    """
+    """Robot ``robot``'s one-robot view of a team planning model, its teammates following ``plans``."""
 
     def __init__(self, model, robot: int, plans: TeamPlans, noop_action: int):
         self.model, self.robot, self.plans, self.noop_action = model, int(robot), plans, int(noop_action)

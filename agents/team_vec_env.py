@@ -1,11 +1,5 @@
-"""``TeamVecEnv``: every robot of a batched team env as one slot of a Stable-Baselines3 ``VecEnv``.
-
-PPO on it learns one policy for all robots (parameter sharing): it sees ``n_envs * n_robots``
-single-robot envs with the same spaces, each with its robot's own reward and action mask. The copies
-run as one native vector env of the team env (``make_vector_env``, e.g. ``CooperativeLocalizationVectorEnv``)
-in ``SAME_STEP`` autoreset, stepped at once on stacked arrays; ``RobotSlots`` sees its (N, R, ...) arrays as
-N R single-robot sub-envs, and ``VectorEnvAdapter`` (SB3's view of every vector env) does the rest.
-"""
+"""``TeamVecEnv``: every robot of a batched team env as one slot of a Stable-Baselines3 ``VecEnv``, so PPO learns one
+policy shared by all robots, each slot with its robot's reward and mask."""
 
 from __future__ import annotations
 
@@ -25,13 +19,8 @@ from infonav_gym.registry import PARALLEL, api_of, make_vector_env
 class RobotSlots(VectorEnv):
     """A team vector env's robots as sub-envs: slot ``copy * R + k`` is robot ``k`` of copy ``copy``.
 
-    Observations, rewards, terminations, truncations and masks are the team env's arrays reshaped to
-    (N R, ...); the info holds only ``final_obs`` per slot (``SAME_STEP``: what the SB3 adapter reads) and the
-    ended episodes' main metric (``final_info[METRIC_KEY]``, the team's, in each of its robots' slots);
-    the team env's whole info of the last reset or step is ``team_info``.
-
-    Args:
-        team: a team vector env in ``SAME_STEP`` autoreset, with ``agents`` and ``action_masks()`` (N, R, A).
+    Arrays are the team env's reshaped to (N R, ...); the info holds only ``final_obs`` per slot and the ended
+    episodes' main metric (``final_info[METRIC_KEY]``); the team env's whole last info is ``team_info``.
     """
 
     def __init__(self, team: VectorEnv):
@@ -49,12 +38,7 @@ class RobotSlots(VectorEnv):
         self.episode_metrics = EndedEpisodeMetrics(main_metric_of(team), self.n_copies, view)
 
     def reset(self, *, seed=None, options=None):
-        """Reset every copy; a list seeds each slot, and the robots of a copy share their copy's seed.
-
-        Raises:
-            ValueError: for a seed list whose length is not the number of slots, or that seeds a copy's
-                robots differently.
-        """
+        """Reset every copy; a list seeds each slot, a copy's robots sharing its seed (else ``ValueError``)."""
         observations, self.team_info = self.team.reset(seed=self._copy_seeds(seed), options=options)
         self.episode_metrics.reset()
         return observations.reshape(self.num_envs, -1), {}
@@ -71,11 +55,7 @@ class RobotSlots(VectorEnv):
         return [seeds[0] for seeds in by_copy]
 
     def step(self, actions):
-        """Step every copy with the slots' actions (N R,); the arrays of ``CooperativeLocalizationVectorEnv.step``.
-
-        Raises:
-            ValueError: for actions that are not one per slot (the team env checks the values).
-        """
+        """Step every copy with the slots' actions (N R,) (``ValueError`` unless one per slot)."""
         actions = np.asarray(actions)
         if actions.shape != (self.num_envs,):
             raise ValueError(f"expected one action per slot, shape ({self.num_envs},), got shape {actions.shape}")
@@ -114,25 +94,12 @@ class RobotSlots(VectorEnv):
 
 
 class TeamVecEnv(VectorEnvAdapter):
-    """``n_envs`` copies of a PettingZoo parallel env, batched; slot ``copy * n_robots + k`` is robot ``k`` of ``copy``.
+    """``n_envs`` copies of a PettingZoo parallel env ``env_id``, batched; slot ``copy * n_robots + k`` is robot ``k``.
 
-    Copy ``i`` is reset with seed ``seed + i`` the first time and continues its own generator on the
-    automatic resets after that, so the seed fixes every rollout. All robots of a copy end their
-    episode together (truncation at ``max_cycles``): the step that ends it resets the copy at once and
-    each of its slots gets ``info["terminal_observation"]`` and ``info["TimeLimit.truncated"]``, as SB3's
-    ``DummyVecEnv`` does; the other slots' infos are empty (``VectorEnvAdapter``). The team env's whole info
-    of the last reset or step is ``vector_env.team_info`` (arrays (N, R, ...)). ``action_masks()`` gives every
-    slot's valid actions to ``MaskablePPO``. ``get_attr`` gives each slot its robot's ``agent`` name and
-    the team env's other attributes; ``set_attr`` and ``env_method`` act on the team env, which every slot shares.
-
-    Args:
-        n_envs: copies of the team env.
-        seed: seed of copy 0 (copy ``i`` gets ``seed + i``); ``None``: unseeded.
-        env_kwargs: the config of every copy (keys of ``CooperativeLocalizationEnv.default_config()``).
-        env_id: the registry id of a PettingZoo parallel env with a native vector env.
-
-    Raises:
-        ValueError: for ``n_envs < 1``, an id that is not a parallel env with a vector env, or a bad config.
+    Copy ``i`` is first reset with seed ``seed + i``. A copy's robots end together, their slots getting
+    ``terminal_observation`` as in SB3's ``DummyVecEnv``. ``get_attr("agent")`` is each slot's robot; other
+    attributes, ``set_attr`` and ``env_method`` act on the team env every slot shares. ``ValueError`` for no copy,
+    an id that is not a parallel env with a vector env, or a bad config.
     """
 
     def __init__(
@@ -174,11 +141,7 @@ class TeamVecEnv(VectorEnvAdapter):
         return [value for _ in slots]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        """Set ``attr_name`` of the team env, which every slot shares: ``indices`` must be None or every slot.
-
-        Raises:
-            ValueError: for indices that leave some slot out (one copy cannot differ from the others).
-        """
+        """Set ``attr_name`` of the team env, which every slot shares (``ValueError`` unless ``indices`` are all)."""
         self._all_rows(indices, f"set_attr({attr_name!r})")
         setattr(self.team, attr_name, value)
 

@@ -1,13 +1,7 @@
-"""Keep the best policy of a training run, judged on validation seeds by the env's main metric.
+"""Keep the best policy of a training run, judged on validation seeds by the env's main metric (rl-zoo's EvalCallback).
 
-As rl-zoo's ``EvalCallback`` keeps ``best_model.zip``: every ``every`` env steps (and at the start and the end of
-training) ``ValidationCallback`` plays ``episodes`` episodes with the deterministic policy (the most probable valid
-action, as ``PPOAgent`` acts) on the seeds ``VALIDATION_SEEDS + seed ..``, far from the seeds evaluations play and
-from the planner demonstrations' (``agents.imitation.DEMONSTRATION_SEEDS``). Each validation appends a row to
-``validation.csv``; a policy whose mean main metric beats the best so far by more than ``IMPROVEMENT`` (relative)
-is saved in ``best/`` (``model.zip``, and ``vecnormalize.pkl`` when training normalizes observations), so
-``ppo:OUTPUT/best`` evaluates it. Ties keep the earlier policy. The main metric is the one the learning curve
-records (``learning_curve.METRIC_KEY``), higher being better.
+Each validation plays the deterministic policy on seeds from ``VALIDATION_SEEDS + seed``, appends to
+``validation.csv`` and saves a policy better by more than ``IMPROVEMENT`` (relative) in ``best/``.
 """
 
 from __future__ import annotations
@@ -33,9 +27,8 @@ IMPROVEMENT = 1e-9  # relative: a smaller gain over the best so far is a tie, wh
 def validation_metrics(model, vec_env: VecEnv, episodes: int, seed: int, normalization=None) -> np.ndarray:
     """The main metric of each of ``episodes`` episodes, seeds ``seed ..``, played by ``model``'s deterministic policy.
 
-    ``vec_env`` holds ``episodes`` copies (a team copy ``num_envs // episodes`` robot slots, ``TeamVecEnv``) whose
-    infos at an episode's end hold ``METRIC_KEY``; copy ``i`` plays seed ``seed + i`` and only its first episode
-    counts. ``normalization``: the training ``VecNormalize``, whose statistics normalize the observations.
+    ``vec_env`` holds ``episodes`` copies (of ``num_envs // episodes`` robot slots each) reporting ``METRIC_KEY``; only
+    each copy's first episode counts. ``normalization``: the training ``VecNormalize``.
     """
     slots = vec_env.num_envs // episodes
     vec_env.seed(seed)
@@ -56,15 +49,10 @@ def validation_metrics(model, vec_env: VecEnv, episodes: int, seed: int, normali
 
 
 class ValidationCallback(BaseCallback):
-    """Validates the policy every ``every`` env steps, at the start and at the end of training; keeps the best.
+    """Validates the policy every ``every`` env steps (checked at each rollout's end), at the start and at the end.
 
-    Args:
-        vec_env: ``episodes`` copies of the training env (see ``validation_metrics``); ``close()`` closes them.
-        episodes: validation episodes per validation.
-        every: env steps between validations (checked at the end of each rollout).
-        seed: the first validation seed (``VALIDATION_SEEDS + the training seed``).
-        directory: where ``validation.csv`` and ``best/`` go.
-        save: writes a model (and its observation statistics) into a directory (``ppo.save_policy``).
+    ``vec_env``: ``episodes`` copies (see ``validation_metrics``); ``seed``: the first validation seed; ``directory``
+    holds ``validation.csv`` and ``best/``; ``save`` writes a model into a directory (``ppo.save_policy``).
     """
 
     def __init__(

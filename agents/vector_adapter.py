@@ -1,11 +1,5 @@
-"""``VectorEnvAdapter``: a Gymnasium ``VectorEnv`` as a Stable-Baselines3 ``VecEnv`` (SB3 has none).
-
-SB3 resets a sub-env in the step that ended its episode and finds the last observation in
-``infos[i]["terminal_observation"]``; Gymnasium calls that autoreset mode ``AutoresetMode.SAME_STEP``
-(``info["final_obs"]``, ``info["final_info"]``), the only one the adapter takes. With it, PPO trains on a
-native vector env (N copies stepped at once on stacked arrays) as it does on a ``DummyVecEnv`` of
-single envs, and ``MaskablePPO`` gets the (N, K) action masks in one call.
-"""
+"""``VectorEnvAdapter``: a Gymnasium ``VectorEnv`` in ``AutoresetMode.SAME_STEP`` (SB3's autoreset convention) as a
+Stable-Baselines3 ``VecEnv``, so PPO trains on a native vector env as on a ``DummyVecEnv``."""
 
 from __future__ import annotations
 
@@ -28,42 +22,14 @@ SAME_STEP_HINT = (
 
 
 class VectorEnvAdapter(VecEnv):
-    """A Gymnasium ``VectorEnv`` in ``AutoresetMode.SAME_STEP`` seen as an SB3 ``VecEnv``.
+    """A Gymnasium ``VectorEnv`` in ``AutoresetMode.SAME_STEP`` seen as an SB3 ``VecEnv`` (else ``ValueError``).
 
-    ## Seeding and reset
-    As SB3's ``DummyVecEnv``: ``seed(s)`` gives sub-env ``i`` the seed ``s + i`` at the next ``reset()``
-    (SB3's ``_seeds``), ``set_options`` its options; both are used once. Without them ``reset()`` passes
-    ``seed=None``, so every sub-env continues its generator.
-
-    ## Infos
-    Building a dict of every info key for every sub-env and step would cost more than a native step at
-    64+ envs, so each step's ``infos`` holds only what SB3 reads: ``{}`` for a sub-env whose episode goes
-    on; for one whose episode ended, ``terminal_observation`` (from ``info["final_obs"]``),
-    ``TimeLimit.truncated`` (truncated and not terminated) and each key of ``info_keywords`` from that
-    final step's info (``info["final_info"]``), where ``VecMonitor(info_keywords=...)`` reads them.
-    ``TimeLimit.truncated`` is absent, not ``False``, on the other steps: SB3 reads it with
-    ``.get("TimeLimit.truncated", False)``. ``reset_infos`` stay empty dicts (SB3 itself does not read them).
-
-    ## Action masks
-    ``action_masks()`` (N, n) bool for ``MaskablePPO``: the vector env's own ``action_masks()`` when it
-    has one, else the last ``info["action_mask"]``; a row with no valid action (or no mask) is all
-    ``True``. ``env_method("action_masks")`` returns the rows asked for as one array (no per-env loop).
-
-    ## Sub-env access
-    ``get_attr`` / ``set_attr`` / ``env_method`` reach the sub-envs of a ``SyncVectorEnv`` /
-    ``AsyncVectorEnv`` (through Gymnasium's ``get_attr``, ``set_attr``, ``call``, which act on every
-    sub-env, so ``set_attr`` and ``env_method`` take all indices only); a native vector env has no
-    sub-env objects: read or call it on ``adapter.vector_env``. Misses raise ``AttributeError`` (what
-    ``has_attr`` tests), other refusals ``ValueError``.
-
-    Args:
-        vector_env: the vector env, ``metadata["autoreset_mode"]`` SAME_STEP; its spaces are the
-            ``single_observation_space`` and ``single_action_space``.
-        info_keywords: info keys copied into the infos of sub-envs whose episode ended.
-
-    Raises:
-        ValueError: for an object that is not a ``gymnasium.vector.VectorEnv`` or another autoreset
-            mode (saying how to ask for SAME_STEP).
+    Seeding as SB3's ``DummyVecEnv`` (``seed(s)``: sub-env ``i`` gets ``s + i`` at the next reset). A step's ``infos``
+    hold only what SB3 reads (a dict per key and sub-env would cost more than a native step at 64+ envs): at an
+    episode's end ``terminal_observation``, ``TimeLimit.truncated`` and the ``info_keywords`` of its final info.
+    ``action_masks()``: the vector env's own, else the last ``info["action_mask"]``, a row without a valid action all
+    ``True``. ``get_attr`` / ``set_attr`` / ``env_method`` reach the sub-envs of a sync / async vector env; a native
+    one has none (use ``adapter.vector_env``). Misses raise ``AttributeError``, other refusals ``ValueError``.
     """
 
     def __init__(self, vector_env: VectorEnv, info_keywords: Sequence[str] = ()):
@@ -83,8 +49,6 @@ class VectorEnvAdapter(VecEnv):
         self._actions = None
         super().__init__(vector_env.num_envs, vector_env.single_observation_space, vector_env.single_action_space)
         self.metadata = dict(vector_env.metadata)
-
-    # ------------------------------------------------------------------ stepping
 
     def reset(self):
         """Reset every sub-env with the seeds of ``seed()`` and the options of ``set_options()``, once."""
@@ -156,14 +120,9 @@ class VectorEnvAdapter(VecEnv):
     def close(self) -> None:
         self.vector_env.close()
 
-    # ------------------------------------------------------------------ action masks
-
     def action_masks(self) -> np.ndarray:
-        """Valid actions (N, n) bool: the vector env's ``action_masks()``, else the last ``info["action_mask"]``.
-
-        Raises:
-            ValueError: for a mask of another shape, or an info mask with a non-Discrete action space.
-        """
+        """Valid actions (N, n) bool: the vector env's ``action_masks()``, else the last ``info["action_mask"]``
+        (checked)."""
         own = getattr(self._base, MASKS_METHOD, None)
         if callable(own):
             return self._checked_masks(np.asarray(own(), dtype=bool), "action_masks()")
@@ -189,8 +148,6 @@ class VectorEnvAdapter(VecEnv):
                 )
         return masks.copy()
 
-    # ------------------------------------------------------------------ sub-env access
-
     def _rows(self, indices) -> list[int]:
         rows = list(self._get_indices(indices))
         outside = [row for row in rows if not 0 <= row < self.num_envs]
@@ -215,11 +172,8 @@ class VectorEnvAdapter(VecEnv):
         return attr_name == MASKS_METHOD or super().has_attr(attr_name)
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        """Attribute ``attr_name`` of each sub-env asked for (``render_mode``: the vector env's, for each).
-
-        Raises:
-            AttributeError: when the sub-envs lack it or the vector env is native (no sub-env objects).
-        """
+        """Attribute ``attr_name`` of each sub-env asked for (``render_mode``: the vector env's); ``AttributeError`` if
+        none."""
         rows = self._rows(indices)
         if attr_name == "render_mode":
             return [self.vector_env.render_mode] * len(rows)
@@ -245,11 +199,8 @@ class VectorEnvAdapter(VecEnv):
         return list(self._base.call(method_name, *method_args, **method_kwargs))
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices=None) -> list[bool]:
-        """Whether each sub-env is wrapped in ``wrapper_class``; a native vector env's sub-envs are wrapped in nothing.
-
-        Raises:
-            ValueError: for an ``AsyncVectorEnv``, whose sub-envs live in worker processes.
-        """
+        """Whether each sub-env is wrapped in ``wrapper_class`` (native: never; async: ``ValueError``, they are
+        elsewhere)."""
         rows = self._rows(indices)
         envs = getattr(self._base, "envs", None)
         if envs is not None:
@@ -275,10 +226,7 @@ class VectorEnvAdapter(VecEnv):
 
 
 def monitored_vec_env(vector_env: VectorEnv, seed: int | None, info_keywords: Sequence[str] = ()) -> VecMonitor:
-    """``vector_env`` as an SB3 ``VecEnv`` that records episodes (``VecMonitor``, as ``make_vec_env``'s ``Monitor``).
-
-    Sub-env ``i`` gets the seed ``seed + i`` at the first reset, as with ``make_vec_env``; ``None``: unseeded.
-    """
+    """``vector_env`` as an SB3 ``VecEnv`` under ``VecMonitor``; sub-env ``i`` seeded ``seed + i``."""
     adapter = VectorEnvAdapter(vector_env, info_keywords)
     if seed is not None:
         adapter.seed(seed)

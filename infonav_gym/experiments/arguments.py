@@ -10,8 +10,7 @@ MAX_PLANNER_EPISODES = 100_000  # train --init-from-planner EPISODES
 
 
 def _checked(text: str, convert, requirement: str, accepts):
-    """``convert(text)`` if it converts and ``accepts`` the value, else ``ArgumentTypeError``: it must be
-    ``requirement``."""
+    """``convert(text)`` if it converts and ``accepts`` the value, else ``ArgumentTypeError``: ``requirement``."""
     try:
         value = convert(text)
     except ValueError:
@@ -34,13 +33,8 @@ def seed(text: str) -> int:
 
 def number(low: float, high: float, *, low_open: bool = True):
     """A type function for a finite number in ``(low, high]`` (``[low, high]`` unless ``low_open``)."""
-    bracket = "(" if low_open else "["
-    return lambda text: _checked(
-        text,
-        float,
-        f"a number in {bracket}{low:g}, {high:g}]",
-        lambda value: (low < value if low_open else low <= value) and value <= high,
-    )
+    requirement = f"a number in {'(' if low_open else '['}{low:g}, {high:g}]"
+    return lambda text: _checked(text, float, requirement, lambda x: (low < x if low_open else low <= x) and x <= high)
 
 
 def end_time(text: str) -> float:

@@ -1,40 +1,8 @@
-"""Speed goals, measured as ratios against a reference run in the same process.
+"""Speed goals, measured as ratios against a reference run in the same process (rounds alternate; median ratios).
 
-Env steps: every registered env (``infonav_gym.registry``; a parallel env's step is one step of
-every robot) against CartPole-v1, with goals for LandmarkSelection-v0 (K = 8) and the 4-robot
-cooperative_localization_v0. CartPole is driven by ``action_space.sample()`` as in
-``gymnasium.utils.performance.benchmark_step``; the infonav envs by agents uniform over the
-*valid* actions, so steps do full EKF updates. Rounds alternate between the envs and the median
-ratio is reported, so a busy machine slows them alike.
-
-Vector envs (``infonav_gym.experiments.vector_timing``), in the same rounds, at each vector size N
-(``DEFAULT_VECTOR_SIZES``): env-steps per second (vector steps per second x N) of every registered
-native vector env, of Gymnasium's ``CartPoleVectorEnv`` and of VMAS ``navigation`` (4 agents, when
-``vmas`` imports), each also as a ratio against CartPole-v1, and our vector envs against their single env
-(RangeRegistration-v0's goal: 10x at N = 256) and VMAS at the same N (SensorSelection-v0's goal at N = 256
-is 0.05 of CartPole: most of its steps render a LADAR or camera frame, ~1-3 ms compiled). Memory per sub-env
-at the largest N (``*_kb_per_env``): peak RSS growth in a fresh subprocess, over ``MEMORY_STEPS`` vector
-steps or ``MEMORY_SECONDS`` of them (scaled down with ``--seconds`` below 1).
-
-Sensors (``infonav_gym.experiments.sensor_timing``): median milliseconds of one default
-``Ladar().scan`` (32 x 180) and ``Camera().capture`` (120 x 160) on a default
-``make_terrain`` scene, with absolute goals, each against a pure-Pymunk
-``segment_query_first`` loop over the same rays (ratio < 1: the sensor is faster).
-ICP (``infonav_gym.experiments.registration_timing``): median milliseconds of point-to-point and GICP
-``icp`` on a 32 x 180 LADAR frame pair and a 40k-point scan pair from a warm start, and their errors
-against the true motion, beside Open3D's ``registration_icp`` and small_gicp's GICP (one thread) on the
-same pairs when they import (the ``bench`` extra), with the time ratios.
-PPO (``infonav_gym.experiments.ppo_timing``): training timesteps per second of the same MaskablePPO
-settings on LandmarkSelection-v0 and on CartPole-v1, 8 envs each, and on their vector envs (the native
-LandmarkSelection one, Gymnasium's CartPoleVectorEnv), 64 copies each, alternating rounds in one run.
-Parallel evaluation and RLlib (``infonav_gym.experiments.distributed_timing``): the wall time of 20
-LandmarkSelection-v0 episodes per default agent with ``--workers 2`` against 1, and the env-steps/s RLlib's
-env runners sample on the team env with 2 runners against 1 and on the exploration env with 1 (when Ray imports).
-Start-up (``infonav_gym.experiments.startup_timing``): ``cold_start_s`` and ``warm_start_s``, the wall time of a
-fresh process that makes, resets and steps a registered env (the slowest env's), with an empty and then a filled
-numba cache; ``cold_start_all_envs_s``, every env in one process with an empty cache.
-Figures named ``*_us``, ``*_ms``, ``*_kb_per_env``, ``*_time_ratio`` or ``*_start_s`` meet their goal at or below
-it, all others at or above; a goal whose figure was not measured (its env, a peer or Ray absent) is met ``None``.
+Env steps against CartPole-v1; vector envs, sensors, ICP, PPO, parallel evaluation and start-up in the
+``*_timing`` modules. Figures named ``*_us``, ``*_ms``, ``*_kb_per_env``, ``*_time_ratio`` or ``*_start_s`` meet
+their goal at or below it, all others at or above; a goal not measured (a peer or Ray absent) is met ``None``.
 """
 
 from __future__ import annotations
@@ -114,8 +82,7 @@ SINGLE_CARTPOLE_FIGURE = "cartpole_steps_per_s"
 
 
 def lower_is_better(name: str) -> bool:
-    """Whether figure ``name`` meets its goal at or below it: times, time ratios, memory and start-up times do,
-    rates don't."""
+    """Whether figure ``name`` meets its goal at or below it (times, time ratios, memory, start-up), not above."""
     return name.endswith(("_us", "_ms", "_kb_per_env", "_time_ratio", "_start_s"))
 
 
@@ -133,28 +100,16 @@ def _timed_steps(step, seconds: float) -> float:
         chunk = min(2 * chunk, MAX_STEPS_BETWEEN_CLOCK_READS)
 
 
-def steps_per_second(env: gym.Env, policy, seconds: float, seed: int) -> float:
-    """Env steps per second of ``env`` under ``policy(info) -> action`` for about ``seconds``."""
+def steps_per_second(env, policy, seconds: float, seed: int, parallel: bool = False) -> float:
+    """Env steps per second of ``env`` under ``policy(info) -> action`` for about ``seconds``; ``parallel``: of a
+    PettingZoo parallel env, ``policy(infos) -> actions`` (a step of every robot)."""
     info = env.reset(seed=seed)[1]
 
     def step() -> None:
         nonlocal info
         _, _, terminated, truncated, info = env.step(policy(info))
-        if terminated or truncated:
+        if (not env.agents) if parallel else (terminated or truncated):
             info = env.reset()[1]
-
-    return _timed_steps(step, seconds)
-
-
-def parallel_steps_per_second(env, policies: dict, seconds: float, seed: int) -> float:
-    """Parallel (all-agent) steps per second of a PettingZoo ``env`` under per-agent ``policies[agent](info)``."""
-    infos = env.reset(seed=seed)[1]
-
-    def step() -> None:
-        nonlocal infos
-        infos = env.step({agent: policies[agent](infos[agent]) for agent in env.agents})[4]
-        if not env.agents:
-            infos = env.reset()[1]
 
     return _timed_steps(step, seconds)
 
@@ -177,26 +132,24 @@ def _random_stepper(env_id: str, seconds: float, seed: int):
         agents = {
             name: RandomAgent(env.action_space(name).n, seed=seed + k) for k, name in enumerate(env.possible_agents)
         }
-        policies = {name: (lambda info, agent=agent: agent.act(None, info)) for name, agent in agents.items()}
-        return lambda: parallel_steps_per_second(env, policies, seconds, seed)
+
+        def policy(infos: dict) -> dict:
+            return {name: agents[name].act(None, infos[name]) for name in env.agents}
+
+        return lambda: steps_per_second(env, policy, seconds, seed, parallel=True)
     agent = RandomAgent(env.action_space.n, seed=seed)
     return lambda: steps_per_second(env, lambda info: agent.act(None, info), seconds, seed)
 
 
 def _vector_stepper(run: VectorRun, seconds: float):
-    """A function measuring ``run``'s env-steps per second (vector steps per second x N).
-
-    ``run`` is reset once, here: each round goes on where the last one stopped, so the rounds time the
-    autoresets too, even at large N where one round is shorter than an episode.
-    """
+    """``run``'s env-steps per second; reset once, so the rounds go on where the last stopped (autoresets timed too)."""
     run.start()
     return lambda: _timed_steps(run.step, seconds) * run.num_envs
 
 
 def vector_runs(env_ids: list[str], vector_sizes, seed: int) -> dict[str, VectorRun]:
     """The vector envs timed at each size N: ``cartpole_vector_N``, ``vmas_navigation_N`` (when vmas imports) and
-    ``NAME_vector_N`` for each of ``env_ids`` with a native vector env (``vector_sizes``: checked integers >= 1).
-    """
+    ``NAME_vector_N`` for each of ``env_ids`` with a native vector env."""
     vector_ids = [env_id for env_id in vector_env_ids() if env_id in env_ids]
     runs = {}
     for size in vector_sizes:
@@ -221,17 +174,8 @@ def env_step_figures(
     progress=True,
     vector_sizes=DEFAULT_VECTOR_SIZES,
 ) -> dict:
-    """Median steps per second of each env (default ``benchmarked_env_ids()``), of CartPole-v1 and of the vector envs.
-
-    Returns:
-        ``{"cartpole_steps_per_s", NAME + "_steps_per_s", NAME + "_vs_cartpole_ratio"}`` for each env's
-        ``figure_name`` and each of ``vector_runs`` (as ``NAME_vector_N``); for our vector envs
-        ``NAME_vector_N_vs_single_ratio`` (env-steps per second against the env's single env, N = 1) and
-        ``NAME_vector_N_vs_vmas_ratio`` when VMAS is timed.
-
-    Raises:
-        ValueError: for ``vector_sizes`` that are not integers >= 1.
-    """
+    """Median steps/s of each env (default: all), CartPole-v1 and the vector envs: ``NAME_steps_per_s``,
+    ``NAME_vs_cartpole_ratio`` and, for our vector envs, ``NAME_vector_N_vs_single_ratio`` / ``_vs_vmas_ratio``."""
     vector_sizes = check_vector_sizes(vector_sizes)
     env_ids = benchmarked_env_ids() if env_ids is None else env_ids
     cartpole = gym.make("CartPole-v1")
@@ -269,9 +213,8 @@ def memory_figures(
     steps: int = MEMORY_STEPS,
     seconds: float = MEMORY_SECONDS,
 ) -> dict:
-    """``NAME_vector_N_kb_per_env`` (``vector_timing.kb_per_env`` over ``steps`` vector steps, or ``seconds`` of
-    them) at N = ``num_envs`` of each of ``env_ids`` (default: all) with a native vector env; none where
-    ``memory_missing`` says so."""
+    """``NAME_vector_N_kb_per_env`` at N = ``num_envs`` of each of ``env_ids`` (default: all) with a native vector env
+    (``vector_timing.kb_per_env``); none where ``memory_missing`` says so."""
     if memory_missing():
         return {}
     vector_ids = [env_id for env_id in vector_env_ids() if env_ids is None or env_id in env_ids]
@@ -313,13 +256,7 @@ def run_benchmark(
     progress: bool = True,
     vector_sizes=DEFAULT_VECTOR_SIZES,
 ) -> dict:
-    """Measure every speed goal; returns a JSON-ready dict with the figures and whether each goal is met.
-
-    ``notes`` says which figures are absent and why (no vmas, no ICP peers, no memory measurement).
-
-    Raises:
-        ValueError: for ``vector_sizes`` that are not integers >= 1.
-    """
+    """Measure every speed goal: the figures, whether each goal is met and ``notes`` on what is absent, JSON-ready."""
     vector_sizes = check_vector_sizes(vector_sizes)
     figures = env_step_figures(None, rounds, seconds_per_round, seed, progress, vector_sizes)
     memory_seconds = MEMORY_SECONDS * min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens them
@@ -360,18 +297,12 @@ def throughput_curves(figures: dict) -> dict[str, dict[int, float]]:
 
 
 def plot_throughput(figures: dict, path: Path | str) -> Path:
-    """Write ``figure_throughput(figures)`` to ``path``.
-
-    Raises:
-        ValueError: when ``figures`` hold no ``CURVE_N_steps_per_s`` figure.
-        ImportError: without matplotlib (the ``render`` extra).
-    """
+    """Write ``figure_throughput(figures)`` to ``path`` (needs matplotlib)."""
     return save_figure(figure_throughput(figures), path, dpi=120)
 
 
 def figure_throughput(figures: dict):
-    """``throughput_curves(figures)`` log-log, CartPole-v1's single-env rate as a horizontal line, the legend beside
-    the axes."""
+    """``throughput_curves(figures)`` log-log, CartPole-v1's single-env rate as a horizontal line."""
     curves = throughput_curves(figures)
     if not curves:
         raise ValueError(f"the throughput plot needs figures named CURVE_N_steps_per_s, got {sorted(figures)}")
@@ -382,8 +313,7 @@ def figure_throughput(figures: dict):
         axes.loglog(sizes, [rates[size] for size in sizes], marker="o", label=curve)
     if SINGLE_CARTPOLE_FIGURE in figures:
         axes.axhline(figures[SINGLE_CARTPOLE_FIGURE], color="black", linestyle="--", label="CartPole-v1 (single env)")
-    axes.set_xlabel("sub-envs per vector env, N [-]")
-    axes.set_ylabel("throughput [env-steps/s]")
+    axes.set(xlabel="sub-envs per vector env, N [-]", ylabel="throughput [env-steps/s]")
     axes.set_title("Throughput, one process (infonav benchmark)")
     axes.grid(True, which="both", alpha=0.3)
     axes.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0))

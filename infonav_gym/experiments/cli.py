@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import shlex
@@ -68,16 +69,10 @@ def _config_pair(text: str) -> tuple[str, object]:
     key, separator, value = text.partition("=")
     if not separator or not key:
         raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
-    if value in PYTHON_CONSTANTS:
-        return key, PYTHON_CONSTANTS[value]
-    try:
-        return key, json.loads(value)
-    except json.JSONDecodeError:
-        pass
-    try:
-        return key, float(value)
-    except ValueError:
-        return key, value
+    for read in (PYTHON_CONSTANTS.__getitem__, json.loads, float):
+        with contextlib.suppress(KeyError, ValueError):  # json.JSONDecodeError is a ValueError
+            return key, read(value)
+    return key, value
 
 
 def _vector_sizes(text: str) -> tuple[int, ...]:
@@ -97,6 +92,11 @@ def _stem_help(suffixes: tuple[str, ...], files: str) -> str:
     )
 
 
+def _count(parser, flag: str, high: int, default: int, what: str) -> None:
+    """An integer option from 1 to ``high``, its default said in its help."""
+    parser.add_argument(flag, type=integer(1, high), default=default, help=f"{what} (default: {default})")
+
+
 class _Parser(argparse.ArgumentParser):
     """An ``ArgumentParser`` whose errors are one line on stderr, ``infonav COMMAND: error: MESSAGE`` (as ``main``'s
     are; ``replay mrclam``'s are ``infonav replay``'s), exit 2."""
@@ -111,11 +111,12 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True)
 
     demo = commands.add_parser("demo", help="the paper's Fig. 2 story: which corridor landmark brings most information")
-    demo.add_argument(
+    _count(
+        demo,
         "--steps",
-        type=integer(1, DEMO_HORIZON),
-        default=12,
-        help=f"steps per agent, of one corridor episode: at most its horizon, {DEMO_HORIZON} (default: 12)",
+        DEMO_HORIZON,
+        12,
+        f"steps per agent, of one corridor episode: at most its horizon, {DEMO_HORIZON}",
     )
     demo.add_argument(
         "--plot", type=Path, help="also write a Fig. 2-style plot to PLOT.png (.png added unless given; matplotlib)"
@@ -130,9 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="comma-separated, each once (default: random,greedy): "
         + "; ".join(f"{name}: {what}" for name, what in AGENT_KINDS.items()),
     )
-    evaluate.add_argument(
-        "--episodes", type=integer(1, MAX_EPISODES), default=20, help="episodes per agent (default: 20)"
-    )
+    _count(evaluate, "--episodes", MAX_EPISODES, 20, "episodes per agent")
     evaluate.add_argument(
         "--output", type=Path, help=_stem_help(EVALUATION_SUFFIXES, "OUTPUT.md, OUTPUT.csv, OUTPUT.json and OUTPUT.png")
     )
@@ -153,9 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         help=f"the committed models, a directory per model (default: {DEFAULT_MODELS}, if present)",
     )
-    leaderboard.add_argument(
-        "--episodes", type=integer(1, MAX_EPISODES), default=50, help="episodes per agent (default: 50)"
-    )
+    _count(leaderboard, "--episodes", MAX_EPISODES, 50, "episodes per agent")
     leaderboard.add_argument(
         "--output",
         type=Path,
@@ -163,12 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
         help=_stem_help(LEADERBOARD_SUFFIXES, "OUTPUT.md and OUTPUT.json (default: results/leaderboard)"),
     )
     for command in (evaluate, leaderboard):
-        command.add_argument(
-            "--workers",
-            type=integer(1, MAX_WORKERS),
-            default=1,
-            help="episodes played at once, each in its own process (default: 1)",
-        )
+        _count(command, "--workers", MAX_WORKERS, 1, "episodes played at once, each in its own process")
         command.add_argument("--ray", action="store_true", help="play them as Ray tasks (the distributed extra)")
         command.add_argument("--address", help="with --ray: an existing Ray cluster (default: a local Ray)")
 
@@ -184,9 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PREFIX",
         help=_stem_help(RENDER_SUFFIXES, "PREFIX.gif and PREFIX.png"),
     )
-    render.add_argument(
-        "--every", type=integer(1, MAX_STEPS), default=1, help="keep every K-th step's frame (default: 1)"
-    )
+    _count(render, "--every", MAX_STEPS, 1, "keep every K-th step's frame")
     render.add_argument(
         "--max-steps", type=integer(1, MAX_STEPS), help="stop after N steps (default: when the episode ends)"
     )
@@ -271,9 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--address", help="rllib: an existing Ray cluster (default: a local Ray)")
 
     benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
-    benchmark.add_argument(
-        "--rounds", type=integer(1, MAX_ROUNDS), default=5, help="alternating measurement rounds (default: 5)"
-    )
+    _count(benchmark, "--rounds", MAX_ROUNDS, 5, "alternating measurement rounds")
     benchmark.add_argument(
         "--seconds", type=number(0, MAX_SECONDS), default=1.0, help="seconds per env per round (default: 1)"
     )
@@ -300,9 +288,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULT_OUTPUT_DIR,
         help=f"where to write FIGURE.png and FIGURE.json (default: ./{DEFAULT_OUTPUT_DIR}, in the working directory)",
     )
-    reproduce.add_argument(
-        "--seeds", type=integer(1, MAX_SEEDS), default=20, help="seeds averaged from --seed on (default: 20)"
-    )
+    _count(reproduce, "--seeds", MAX_SEEDS, 20, "seeds averaged from --seed on")
 
     replay = commands.add_parser("replay", help="replay measurement-selection policies on logged real robot data")
     replay_sources = replay.add_subparsers(dest="source", required=True)

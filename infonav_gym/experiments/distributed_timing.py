@@ -1,13 +1,5 @@
-"""What the benchmark measures of parallel evaluation and of RLlib's env runners.
-
-- ``evaluation_workers_figures``: the wall time of ``evaluate`` (LandmarkSelection-v0, the CLI's default agents,
-  20 episodes each) with 2 worker processes over its time with 1, alternating rounds, median ratio;
-- ``rllib_runner_figures`` (when Ray imports): env-steps/s (team steps of one copy) RLlib's env runners sample
-  on a team env (default ``cooperative_localization_v0``) with 2 runners against 1, and on
-  ``cooperative_exploration_v0`` with 1, each run on the same local Ray: the RLlib backend's runners as training
-  builds them (the ppo.yml block's ``n_envs`` copies shared out over the runners, stepped at once in the team's
-  native vector env, masked, random-initialized shared policy).
-"""
+"""What the benchmark measures of parallel evaluation (2 workers against 1) and of RLlib's env runners (on the team
+env with 2 against 1, and on the exploration env with 1), when Ray imports."""
 
 from __future__ import annotations
 
@@ -68,8 +60,7 @@ def _sampled_steps_per_second(num_env_runners: int, seed: int, steps: int, env_i
 
 
 def rllib_runner_figures(seed: int = 0, steps: int = RLLIB_SAMPLE_STEPS, env_id: str = TEAM_ID) -> dict:
-    """Sampled env-steps/s on ``env_id`` with 1 and 2 env runners (``steps`` each), their ratio, and on the
-    exploration env with 1; {} without Ray."""
+    """Sampled env-steps/s on ``env_id`` with 1 and 2 runners, their ratio, and on the exploration env with 1."""
     if rllib_missing():
         return {}
     from agents.ray_support import local_or_cluster_ray

@@ -1,16 +1,7 @@
-"""Evaluation episodes played by one process, a pool of worker processes, or Ray tasks.
+"""Evaluation episodes played by one process, a pool of worker processes, or Ray tasks, with the same results.
 
-An episode's metrics are a function of the env id, its config, the agent's name and the seed alone
-(``EpisodeRunner.infos`` resets the env and the agent with the seed), so each worker builds its own env and
-agents once (``EpisodeRunner``) and plays the ``(agent, seed)`` tasks it is given: results equal a single
-process's, seed for seed, whatever the number of workers. Results come back in task order.
-
-Worker processes are forked on platforms that have ``fork`` while torch is not yet imported. Once it is (a
-fork after torch has started its thread pool can hang) they come from a fork server that has imported the
-harness and the envs once (``forkserver``, started on first use and kept for the process's later pools),
-else they are spawned (each re-imports the package: about a second). Tasks are handed out as workers need them
-(never all at once: a million episodes are not a million pending futures). Workers ignore Ctrl-C (it reaches the
-whole process group): the parent keeps the results it has and kills the workers rather than wait for their episodes.
+Workers build their ``EpisodeRunner`` once; they are forked while torch is not imported (else from a preloaded
+fork server, else spawned), get tasks as they need them and ignore Ctrl-C: the parent kills them.
 """
 
 from __future__ import annotations
@@ -31,26 +22,15 @@ from infonav_gym.registry import PARALLEL, api_of, make_env
 
 FORKSERVER_PRELOAD = ["infonav_gym.experiments.evaluation", "infonav_gym.envs"]  # the harness, the single envs
 _worker_runner = None  # a pool worker's EpisodeRunner, built once by _start_worker
-# Measured once (Linux, CPython 3.11). RECORD_BYTES: the peak RSS of `infonav evaluate --env cooperative_exploration_v0
-# (6 metrics, the most of the registered envs) --agents random,greedy --json --output STEM`, its episodes replaced by
-# fresh records, at 101,000 episodes less at 1,000, over the 200,000 records between: 1,834 bytes (1,054 for the
-# 3 metrics of LandmarkSelection-v0); the records, their summaries, JSON, CSV and plot. A leaderboard keeps less: a
-# float per episode. WORKER_BYTES: the Pss (/proc/PID/smaps_rollup) of a worker after its episodes: 98 MB forked
-# playing LandmarkSelection-v0, 198 MB cooperative_exploration_v0, 333 MB from the fork server with a ppo:PATH agent
-# (torch); the largest is taken.
+# Measured (Linux, CPython 3.11): peak RSS per episode record of `evaluate --json --output` on the env with the most
+# metrics (cooperative_exploration_v0), and the largest worker Pss (from the fork server with a ppo:PATH agent).
 RECORD_BYTES = 1_834  # an episode's record, per agent
 WORKER_BYTES = 333_000_000  # a worker process
 TASKS_PER_WORKER = 2  # tasks handed out ahead per worker: one playing, one waiting
 
 
 class EpisodeRunner:
-    """An env and one agent (or one per robot) per agent name, playing seeded episodes.
-
-    Args:
-        env_id: a registered env id.
-        env_kwargs: its config overrides.
-        agent_names: names ``episodes.make_agent`` takes (random, greedy, planner, ppo:PATH).
-    """
+    """An env and one agent (or one per robot) per name of ``agent_names``, playing seeded episodes."""
 
     def __init__(self, env_id: str, env_kwargs: dict, agent_names: Sequence[str]):
         self.setup = (env_id, dict(env_kwargs), list(agent_names))  # what a worker builds its own runner from
@@ -101,12 +81,8 @@ def seeds_of(seed: int, episodes: int) -> range:
 
 
 def checked_workers(workers: int, tasks: int, records: int, what: str) -> int:
-    """``workers`` capped at the ``tasks`` there are to play (saying so on stderr), once the footprint of the run (the
-    episode ``records`` it keeps and its worker processes; ``what``: the records, for the error) is checked against
-    the available memory.
-
-    Raises:
-        ValueError: for ``workers < 1``, or a footprint above the available memory (giving the estimate).
+    """``workers`` capped at the ``tasks`` to play (said on stderr), checking the run's memory (``records`` episode
+    records, the worker processes) against the available memory; ``what`` names the records in the error.
     """
     capped = min(check_positive(workers, "workers"), tasks)
     check_memory(records * RECORD_BYTES + (capped if capped > 1 else 0) * WORKER_BYTES, f"{what} on {capped} worker(s)")
@@ -122,19 +98,8 @@ def played(
     use_ray: bool = False,
     address: str | None = None,
 ) -> Iterator[dict]:
-    """The metrics of every ``(agent, seed)`` task, in task order, as they are played.
-
-    Args:
-        runner: plays the tasks itself when ``workers == 1`` (and gives its env id, config and agents to the
-            workers otherwise).
-        tasks: ``(agent name, seed)`` pairs, taken as they are handed out (a generator is never held whole).
-        workers: processes playing at once.
-        use_ray: play them as Ray tasks (``workers`` of them at once) on a local Ray, or the cluster at
-            ``address``; needs the ``distributed`` extra.
-
-    Raises:
-        ValueError: for ``workers < 1``, or ``use_ray`` without Ray installed (saying how to install it).
-    """
+    """The metrics of every ``(agent, seed)`` task, in task order, as played by ``runner`` itself (``workers == 1``),
+    ``workers`` processes or Ray tasks (``use_ray``, on a local Ray or the cluster at ``address``)."""
     check_positive(workers, "workers")
     if use_ray:  # one EpisodeRunner actor per worker (one CPU each)
         from agents.ray_support import local_or_cluster_ray
@@ -162,8 +127,7 @@ def played(
 
 
 def _in_order(submit: Callable, result: Callable, tasks: Iterable, workers: int) -> Iterator:
-    """``result(submit(task))`` of each task, in task order, with at most ``TASKS_PER_WORKER * workers`` submitted
-    and not yet returned."""
+    """``result(submit(task))`` of each task in order, at most ``TASKS_PER_WORKER * workers`` pending."""
     submitted = collections.deque()
     for task in tasks:
         submitted.append(submit(task))
@@ -174,8 +138,7 @@ def _in_order(submit: Callable, result: Callable, tasks: Iterable, workers: int)
 
 
 def _stop(pool: ProcessPoolExecutor, finished: bool) -> None:
-    """Shut ``pool`` down; unless its tasks ``finished`` (Ctrl-C, an error), kill its workers mid-episode rather than
-    wait for them (Python 3.14's ``pool.kill_workers()``)."""
+    """Shut ``pool`` down; unless its tasks ``finished``, kill its workers rather than wait for them."""
     workers = list((pool._processes or {}).values()) if not finished else []
     for worker in workers:
         worker.kill()

@@ -37,14 +37,8 @@ def check_agent_name(name: str) -> None:
 def make_agent(
     name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None, agent: str | None = None
 ):
-    """A baseline agent by name (``noop_action``: see ``RandomAgent``).
-
-    ``planner`` (``agents.planner.PlannerAgent(env, agent)`` with the env's ``planner_settings``),
-    ``ppo:PATH`` (``agents.ppo.PPOAgent(PATH, env)``) and ``rllib:DIR`` (``agents.rllib_agent.RLlibAgent(DIR,
-    env)``, the ``distributed`` extra) need the ``env`` they will act in; each is imported only when asked for.
-    ``planner`` is refused unless the env offers a planning model (``envs.traits.has_planning_model``). In a
-    PettingZoo env ``agent`` names the robot a ``planner`` or ``ppo:PATH`` agent acts for.
-    """
+    """A baseline agent by name; ``planner``, ``ppo:PATH`` and ``rllib:DIR`` need the ``env`` (and in a PettingZoo env
+    the robot ``agent``) they act in, and are imported only when asked for."""
     check_agent_name(name)
     if name == "random":
         return RandomAgent(n_actions, noop_action=noop_action)
@@ -81,13 +75,7 @@ def make_agent(
 
 
 def make_team_agents(name: str, env) -> dict:
-    """One agent per robot of a PettingZoo parallel env ``env``: ``{robot: agent}``.
-
-    ``random`` is a random choice of what to observe (it takes the env's ``traits.noop_action`` only
-    when nothing else is valid); ``planner`` plans for its robot, its teammates following the plans they
-    published (``agents.team_planning``); ``ppo:PATH`` is one policy shared by every robot
-    (``infonav train --env cooperative_localization_v0``), checked against each robot's spaces.
-    """
+    """One agent per robot of a PettingZoo parallel env ``env``: ``{robot: agent}`` (``ppo:PATH`` one shared policy)."""
     noop_action = traits_of(env).noop_action
     return {
         robot: make_agent(name, env.action_space(robot).n, noop_action=noop_action, env=env, agent=robot)
@@ -108,9 +96,8 @@ def episode_infos(env: gym.Env, agent, seed: int) -> Iterator[dict]:
 
 
 def parallel_episode_infos(env, agents: dict, seed: int) -> Iterator[dict]:
-    """The per-robot infos ``{robot: info}`` of one seeded episode of a PettingZoo parallel env's reset, then
-    of each of its steps, as they are played; ``agents[robot]`` (reset with seed ``1000 * seed + k`` for robot
-    ``k``) acts for each robot."""
+    """The ``{robot: info}`` of one seeded episode's reset and steps of a PettingZoo parallel env, as played (robot
+    ``k``'s agent reset with seed ``1000 * seed + k``)."""
     observations, infos = env.reset(seed=seed)
     for k, robot in enumerate(env.possible_agents):
         agents[robot].reset(seed=1000 * seed + k)

@@ -1,10 +1,4 @@
-"""Evaluate agents on an env: same seeds for every agent, means and 95% confidence intervals (``intervals``);
-``evaluation_files`` prints and writes what it finds.
-
-What is reported comes from the env: its class's ``episode_metrics`` and ``traits``
-(``infonav_gym.envs.metrics``, ``infonav_gym.envs.traits``); whether every robot acts at once
-from the registry's ``api`` (``infonav_gym.registry``).
-"""
+"""Evaluate agents on an env: same seeds for every agent, the env's own metrics with 95% confidence intervals."""
 
 from __future__ import annotations
 
@@ -33,25 +27,10 @@ def evaluate(
     use_ray: bool = False,
     address: str | None = None,
 ):
-    """Run every agent for ``episodes`` episodes on seeds ``seed, seed + 1, ...``.
-
-    ``env_id``: any registered env (``infonav_gym.registry``). In a PettingZoo parallel env (e.g.
-    ``cooperative_localization_v0``) every robot plays its own copy of the agent, ``ppo:PATH`` one policy
-    for every robot. ``agent_names``: any of ``episodes.AGENT_KINDS``, each once. The metrics are the env's
-    ``episode_metrics``. ``workers`` processes play the episodes at once (``use_ray``: as Ray tasks, on the cluster
-    at ``address`` or a local Ray), with the same results as one (``episode_pool``).
-
-    Returns:
-        ``{"env_id", "episodes", "seeds", "env_kwargs", "env_config", "metrics", "agents": {name: {"episodes":
-        [...], "summary": {...}}}}``; ``env_config`` is the config the env ran, defaults included.
-
-    Raises:
-        ValueError: before any episode, for a bad agent, seed range or worker count, or a run whose records and
-            workers would not fit in the available memory (``episode_pool.checked_workers``).
-        Interrupted: on Ctrl-C, with the evaluation of the seeds every agent finished (``"interrupted": True``):
-            the episodes are played seed by seed, every agent on each seed, and a seed some agent did not finish
-            is dropped, so every agent keeps the same seeds.
-    """
+    """Run every agent (each once) for ``episodes`` episodes on seeds ``seed ..``; in a PettingZoo env every robot plays
+    its own copy. ``workers`` processes or Ray tasks give the same results as one. Returns ``{"env_id", "episodes",
+    "seeds", "env_kwargs", "env_config", "metrics", "agents": {name: {"episodes", "summary"}}}``; ``ValueError`` before
+    any episode for bad input, ``Interrupted`` on Ctrl-C with the seeds every agent finished."""
     seeds = seeds_of(seed, episodes)
     if not agent_names:
         raise ValueError(f"no agents given; choose from {', '.join(AGENT_NAMES)}")

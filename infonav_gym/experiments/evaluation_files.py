@@ -37,8 +37,7 @@ def config_line(results: dict) -> str:
 
 
 def markdown_table(results: dict) -> str:
-    """The summary as a Markdown table (a cell per agent and metric), and what its intervals are (a sentence
-    per kind of interval it holds)."""
+    """The summary as a Markdown table (a cell per agent and metric) and a sentence per kind of interval in it."""
     metrics = results["metrics"]
     header = "| agent | " + " | ".join(metrics.values()) + " |"
     lines = [header, "|" + " --- |" * (len(metrics) + 1)]
@@ -62,9 +61,8 @@ def plot_results(results: dict, path: Path) -> Path:
 
 
 def figure_results(results: dict):
-    """One panel per metric, titled by the metric (with its unit): a rate (a 0/1 metric) as a point with its Wilson
-    interval; any other metric as a box plot of every agent's per-episode values with the mean and its Student t
-    interval (as in the table). What the marks mean is said once, under the panels."""
+    """One panel per metric: a 0/1 metric's rate with its Wilson interval, else a box plot of the per-episode values
+    with the mean and its Student t interval; the marks explained once, below."""
     metrics, names = results["metrics"], list(results["agents"])
     labels = [_plot_label(name) for name in names]
     widest = max(len(line) for label in labels for line in label.split("\n"))
@@ -107,10 +105,7 @@ def figure_results(results: dict):
 
 
 def write_results(results: dict, stem: Path, command: str) -> list[Path]:
-    """Write ``stem.md`` (table and command), ``stem.csv`` (per episode), ``stem.json`` and ``stem.png``.
-
-    The plot needs matplotlib (the ``render`` extra); without it the other three are written.
-    """
+    """Write ``stem.md``, ``stem.csv`` (per episode), ``stem.json`` and, with matplotlib, ``stem.png``."""
     stem.parent.mkdir(parents=True, exist_ok=True)
     md, csv_path, json_path = (output_file(stem, suffix) for suffix in (".md", ".csv", ".json"))
     md.write_text(

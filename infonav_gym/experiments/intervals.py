@@ -17,17 +17,12 @@ INTERVAL_NOTES = {
 
 
 def summary_of(metric, values) -> dict:
-    """The JSON summary of ``metric``'s per-episode ``values``: a rate and its Wilson interval for a proportion
-    metric, else a mean and its Student t half-width."""
+    """The JSON summary of the per-episode ``values``: a Wilson rate for a proportion, else a Student t mean."""
     return (ProportionSummary if metric.proportion else Summary).of(values).as_dict()
 
 
 def wilson_interval(successes: int, trials: int, z: float = Z_95) -> tuple[float, float]:
-    """The Wilson score interval of a binomial proportion ``successes / trials``, inside [0, 1].
-
-    Raises:
-        ValueError: unless ``0 <= successes <= trials`` and ``trials >= 1``.
-    """
+    """The Wilson score interval of ``successes / trials`` (``ValueError`` unless ``0 <= successes <= trials``)."""
     if trials < 1 or not 0 <= successes <= trials:
         raise ValueError(f"a proportion needs 0 <= successes <= trials and trials >= 1, got {successes} of {trials}")
     rate, z2 = successes / trials, z * z

@@ -1,11 +1,5 @@
-"""The leaderboard: every registered env's baselines and every committed model, on the same seeds, ranked by the
-env's main metric (its ``traits.main_metric``, higher being better).
-
-A row is an env and a config: the env's defaults, or the config a model was trained with (its ``train.json``
-``env_kwargs``), every agent of the row played on it. Each (row, agent) cell is played by ``episode_pool.played``
-alone, after a warm-up of ``WARMUP_STEPS`` steps (numba compiles, lazy imports), so its wall time over its episode
-count is the agent's seconds per episode.
-"""
+"""The leaderboard: every env's baselines and committed models on the same seeds, ranked by the env's main metric.
+Each cell is played alone after a ``WARMUP_STEPS`` warm-up: its wall time over its episodes is seconds per episode."""
 
 from __future__ import annotations
 
@@ -34,8 +28,8 @@ TIE_TOLERANCE = 1e-9  # means within TIE_TOLERANCE * max(1, |best|) of the best 
 
 @dataclass(frozen=True)
 class Row:
-    """An env, the config it runs with, and the agent each column plays (``{column: agent name}``); ``models``
-    names the row's models when its env and config have more than one row (``""`` otherwise)."""
+    """An env, its config and the agent each column plays; ``models`` names the row's models when its env and config
+    have several rows."""
 
     env_id: str
     env_kwargs: dict
@@ -44,13 +38,8 @@ class Row:
 
 
 def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
-    """``(column, agent name, env id, env kwargs, model directory's name)`` of each model under ``directory`` (a
-    subdirectory with the ``train.json`` of ``infonav train``): column ``rllib`` for ``backend: rllib``, else ``ppo``.
-    A run that kept its best policy on validation seeds (``train.json``'s ``validation``) plays that one.
-
-    Raises:
-        ValueError: naming the ``train.json`` that does not parse or names no registered env.
-    """
+    """``(column, agent name, env id, env kwargs, model name)`` of each ``*/train.json`` in ``directory`` (a run
+    that kept a best policy plays that one); ``ValueError`` naming a ``train.json`` that is not an env's."""
     models = []
     for record_path in sorted(Path(directory).glob("*/train.json")):
         try:
@@ -69,14 +58,8 @@ def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
 
 
 def leaderboard_rows(env_ids, columns, models_dir: Path | None) -> list[Row]:
-    """A row per env of ``env_ids`` and config of its models (the defaults if it has none), with the ``columns``
-    that apply: the planner where the env has a planning model, a model in its env and config's row. Where one env
-    and config have several models of a column, each further one gets a row of its own, after the first, with the
-    same baselines (played once: ``leaderboard`` shares their cells).
-
-    Raises:
-        ValueError: for an unknown column or env id.
-    """
+    """A row per env of ``env_ids`` and config of its models (the defaults if none), with the ``columns`` that apply;
+    several models of one column and config get a row each. ``ValueError`` for an unknown column or env."""
     for column in columns:
         if column not in COLUMNS:
             raise ValueError(f"unknown agent {column!r} in --agents; choose from {', '.join(COLUMNS)}")
@@ -115,8 +98,8 @@ def best_columns(cells: dict) -> list[str]:
 
 
 def _played_row(row: Row, seeds: range, bar, played_cells: dict, how: tuple) -> dict:
-    """Every agent of ``row`` on ``seeds``: its main metric's values, summary and seconds per episode; a cell already
-    in ``played_cells`` (by env, config and agent) is not played again. ``how``: (workers, use_ray, address)."""
+    """Every agent of ``row`` on ``seeds``: values, summary and seconds per episode of its main metric; a cell in
+    ``played_cells`` is not played again."""
     cells = {}
     for column, agent in row.agents.items():
         key = _cell_key(row, agent)
@@ -168,20 +151,9 @@ def leaderboard(
     use_ray: bool = False,
     address: str | None = None,
 ) -> dict:
-    """Play the leaderboard's rows (``leaderboard_rows``) on seeds ``seed, ..., seed + episodes - 1``.
-
-    ``env_ids``: default every registered env. ``workers`` / ``use_ray`` / ``address`` as ``evaluate`` takes them.
-
-    Returns:
-        ``{"episodes", "seeds", "columns", "workers", "tie_tolerance", "rows": [{"env_id", "env_kwargs", "metric",
-        "cells": {column: {"agent", "summary", "values", "seconds_per_episode"}}, "best": [column, ...]}]}``.
-
-    Raises:
-        ValueError: before any episode, for a bad seed range, column or env, or a run whose values and workers would
-            not fit in the available memory (``episode_pool.checked_workers``).
-        Interrupted: on Ctrl-C, with the rows finished (``"interrupted": True``): every cell of a kept row has every
-            seed; a row not finished is dropped.
-    """
+    """Play the rows (``leaderboard_rows``) on seeds ``seed .. seed + episodes - 1`` (``env_ids``: default all): a dict
+    of ``"episodes", "seeds", "columns", "workers", "tie_tolerance"`` and ``"rows"`` (each with its ``"cells"`` and
+    ``"best"`` columns). ``ValueError`` before any episode for bad input; ``Interrupted`` with the finished rows."""
     seeds = seeds_of(seed, episodes)
     env_ids = [entry.id for entry in registered_envs()] if env_ids is None else list(env_ids)
     rows = leaderboard_rows(env_ids, columns, models_dir)

@@ -20,8 +20,7 @@ class OutputWriteError(KeptWork, Exception):
 
 
 class Interrupted(KeptWork, KeyboardInterrupt):
-    """Ctrl-C stopped the work; ``result`` holds what was finished (marked ``"interrupted": True``), the message how
-    much of it."""
+    """Ctrl-C stopped the work; ``result`` holds what was finished (``"interrupted": True``)."""
 
 
 def _directory_problem(directory: Path) -> str | None:
@@ -47,16 +46,7 @@ def _file_problem(path: Path) -> str | None:
 
 
 def check_output_dir(directory: Path | str, where: str) -> Path:
-    """Check that ``directory`` is, or can be created as, a writable directory; create nothing.
-
-    Args:
-        directory: where the files will go.
-        where: what named it, for the error (e.g. ``"--output-dir"``).
-
-    Raises:
-        ValueError: naming ``where`` and the path when it (or an ancestor) is a file, or when the
-            directory, or the ancestor it would be created in, is not writable.
-    """
+    """``directory``, once seen to be, or creatable as, a writable directory (else ``ValueError`` naming ``where``)."""
     directory = Path(directory)
     problem = _directory_problem(directory)
     if problem:
@@ -65,28 +55,13 @@ def check_output_dir(directory: Path | str, where: str) -> Path:
 
 
 def output_file(stem: Path, suffix: str) -> Path:
-    """``stem`` + ``suffix``, the whole stem kept: ``out/eval.v2`` -> ``out/eval.v2.md`` (``with_suffix`` would cut
-    ``.v2``)."""
+    """``stem`` + ``suffix``, the whole stem kept: ``out/eval.v2`` -> ``out/eval.v2.md`` (``with_suffix`` would cut)."""
     return stem.with_name(stem.name + suffix)
 
 
 def check_output_stem(stem: Path | str, suffixes: tuple[str, ...], where: str) -> Path:
-    """Check that the files ``stem`` + each of ``suffixes`` can be written; create nothing.
-
-    Args:
-        stem: the files' common path, e.g. ``results/eval`` for ``results/eval.md``; one of ``suffixes``
-            ending it is dropped (``results/eval.md`` -> ``results/eval``), any other suffix is kept.
-        suffixes: the files' suffixes (``".md"``, ...).
-        where: what named it, for the error (e.g. ``"--output"``).
-
-    Returns:
-        The stem, to which ``output_file`` adds each suffix.
-
-    Raises:
-        ValueError: naming ``where`` and the path when ``stem`` is an existing directory (a file
-            stem is expected), when one of the files is a directory or not writable, or when the
-            parent directory cannot be created or written (see ``check_output_dir``).
-    """
+    """The stem of files ``stem`` + each of ``suffixes``, once they are seen to be writable (else ``ValueError`` naming
+    ``where``); a trailing one of ``suffixes`` is dropped (``results/eval.md`` -> ``results/eval``)."""
     stem = Path(stem)
     if stem.suffix and stem.suffix in suffixes:
         stem = stem.with_suffix("")

@@ -1,17 +1,5 @@
-"""PPO training speed on LandmarkSelection-v0 against CartPole, same settings, same process.
-
-Two comparisons, each with ``MaskablePPO`` and the LandmarkSelection-v0 block of
-``agents/hyperparams/ppo.yml`` on both envs (CartPole gets all-valid masks) and the same torch threads:
-
-- ``ppo_fps_figures``: the single envs, ``n_envs`` (8) ``DummyVecEnv`` copies each (CartPole-v1 through
-  ``InfoActionMask``);
-- ``ppo_vector_fps_figures``: vector envs of ``n_envs`` (64) copies stepped at once, both through
-  ``agents.vector_adapter.VectorEnvAdapter``: LandmarkSelection's native vector env against Gymnasium's
-  ``CartPoleVectorEnv`` (as ``SameStepCartPoleVectorEnv``: SB3 needs the reset in the step an episode ends).
-
-Rounds alternate between the two envs and time only ``learn`` (rollouts and gradient updates), so model
-construction and a busy machine affect both alike; the median ratio is reported.
-"""
+"""PPO training speed on LandmarkSelection-v0 against CartPole, same MaskablePPO settings and process: 8
+``DummyVecEnv`` copies each, and 64-copy vector envs; rounds alternate and time only ``learn``."""
 
 from __future__ import annotations
 
@@ -28,12 +16,7 @@ SINGLE_ENV_N_STEPS = 256  # per env of ppo_fps_figures: 8 x 256 = 2048 transitio
 
 
 class SameStepCartPoleVectorEnv(CartPoleVectorEnv):
-    """Gymnasium's ``CartPoleVectorEnv`` resetting a sub-env in the step its episode ends (``AutoresetMode.SAME_STEP``).
-
-    Gymnasium's resets it at the next step (``NEXT_STEP``); this one draws the same reset states from
-    ``np_random`` one step earlier and returns the last observation in ``info["final_obs"]`` (and an empty
-    ``info["final_info"]``), each with its ``_`` mask. The dynamics are Gymnasium's.
-    """
+    """Gymnasium's ``CartPoleVectorEnv`` in ``AutoresetMode.SAME_STEP``: last observation in ``info["final_obs"]``."""
 
     metadata = {**CartPoleVectorEnv.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
 
@@ -53,10 +36,8 @@ class SameStepCartPoleVectorEnv(CartPoleVectorEnv):
 
 
 def _round_settings(timesteps_per_round: int, n_envs: int, n_steps: int | None = None) -> tuple[dict, int]:
-    """The LandmarkSelection-v0 hyperparameters for rounds of about ``timesteps_per_round``; the round's timesteps.
-
-    ``n_steps`` (per env; ``None``: the block's) shrinks when a round is shorter than one rollout, so a
-    quick run (a few hundred timesteps) still does full rollout + update cycles.
+    """The LandmarkSelection-v0 hyperparameters for rounds of about ``timesteps_per_round``, and the round's timesteps;
+    ``n_steps`` (``None``: the block's) shrinks so a quick run still does whole rollout + update cycles.
     """
     from agents.ppo import load_hyperparameters
 
@@ -78,12 +59,7 @@ def _masked_model(vec_env, hyperparameters: dict, seed: int):
 
 
 def _fps_figures(infix: str, make_vec_envs: dict, hyperparameters: dict, seed: int, timesteps: int, rounds: int):
-    """Median training timesteps per second on ``LANDMARK_ID`` and ``CARTPOLE_ID`` and their median ratio.
-
-    Args:
-        infix: in the figure names (``ppo_landmark_selection_{infix}fps``, ...).
-        make_vec_envs: ``LANDMARK_ID`` and ``CARTPOLE_ID`` -> a function making that env's SB3 ``VecEnv``.
-    """
+    """Median training timesteps/s on the two envs ``make_vec_envs`` makes and their median ratio."""
     from agents.ppo import torch_threads
 
     rates = {name: [] for name in make_vec_envs}
@@ -120,11 +96,8 @@ def ppo_fps_figures(timesteps_per_round: int = 2048, rounds: int = 3, seed: int 
 
 
 def landmark_vector_vec_env(n_envs: int, seed: int, vectorization: str = "native"):
-    """The LandmarkSelection copies of ``ppo_vector_fps_figures``, an SB3 ``VecEnv`` (sub-env ``i``: ``seed + i``).
-
-    ``native``: its own vector env (``agents.ppo.native_vec_env``); ``sync``: Gymnasium's ``SyncVectorEnv``
-    of single envs in SAME_STEP mode, through the same adapter.
-    """
+    """The LandmarkSelection copies of ``ppo_vector_fps_figures`` as an SB3 ``VecEnv``: its native vector env, or
+    (``sync``) Gymnasium's SAME_STEP ``SyncVectorEnv``; sub-env ``i`` seeded ``seed + i``."""
     import gymnasium as gym
 
     from agents.ppo import NATIVE, SYNC, native_vec_env
@@ -143,11 +116,7 @@ def landmark_vector_vec_env(n_envs: int, seed: int, vectorization: str = "native
 def ppo_vector_fps_figures(
     timesteps_per_round: int = 8192, rounds: int = 3, seed: int = 0, n_envs: int = 64, vectorization: str = "native"
 ) -> dict:
-    """Median PPO training timesteps per second on the LandmarkSelection and CartPole vector envs and their ratio.
-
-    Args:
-        vectorization: how the LandmarkSelection copies run (``landmark_vector_vec_env``).
-    """
+    """Median PPO training timesteps/s on the LandmarkSelection and CartPole vector envs and their ratio."""
     from agents.vector_adapter import monitored_vec_env
 
     hyperparameters, timesteps = _round_settings(timesteps_per_round, n_envs)

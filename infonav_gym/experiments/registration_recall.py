@@ -1,24 +1,9 @@
 """Registration recall on ``terrain_frame_pair`` pairs: which registration frame pairs use, and control points by it.
 
-Registration benchmarks judge a method by its *recall* (the fraction of pairs registered within a
-threshold, here ``fig6.RECALL_THRESHOLDS_M`` of ``registration_error``) and its median error, which a
-diverged pair cannot dominate as it does a mean (kept beside them). Two comparisons, on ``SEED_SETS``:
-
-- every candidate registration (point-to-plane and GICP, without and with each robust kernel at its
-  95%-efficiency scale times the LADAR's range noise) with all returns; ``FRAME_PAIR_ICP`` is the best
-  by recall first (the lowest recall over the sets, then the mean recall), then median;
-- with ``FRAME_PAIR_ICP``, every control-point selector (``SELECTORS``: the paper's "entropy" and the
-  field's standard ones) at each of ``BUDGETS`` (fractions of the newer frame's returns), against all
-  returns (once per pair, the reference). Each pair is made once and registered by every selector at
-  every budget. ``"random"`` and ``"normal_space"`` draw from a generator seeded by the pair's seed
-  (``selection_generator``), made afresh for every selector and budget, so a cell does not depend on
-  which others are computed. A registration's time is ``time.perf_counter`` around the selection and
-  ICP together; the frames' GICP covariances are computed once per pair before the timed runs (as a
-  sequence of frames reuses the older frame's), and their time is reported apart. Every selector is
-  called once untimed first, so that loading its compiled kernels is not timed. On a pair whose newer
-  frame has fewer returns with a surface normal than a budget asks for (a frame close to an obstacle),
-  every selector is given that many (``usable_returns``: "entropy", "normal_space" and "covariance" can
-  choose no more), so all compare at the same count; the tables say on how many pairs.
+Recall (pairs within ``fig6.RECALL_THRESHOLDS_M``) and median error over ``SEED_SETS``: every candidate with all
+returns (``FRAME_PAIR_ICP`` is the best by lowest, then mean recall, then median), then every selector at each of
+``BUDGETS`` with it. Times cover selection and ICP (each selector run once untimed first, the frames' GICP
+covariances timed apart); a budget above the returns with a surface normal gives every selector that many.
 """
 
 from __future__ import annotations
@@ -116,12 +101,8 @@ def timed_registration(registration: PairRegistration, select=lambda: None) -> d
 
 
 def pair_runs(seed: int, budgets) -> dict:
-    """Every timed registration of ``seed``'s pair.
-
-    Returns:
-        ``{"frame_covariances_s": time, "all": run, "capped": labels, label: {selector: run}}`` with a
-        ``timed_registration`` run per selector at each budget (``budget_label``); ``capped`` lists the budgets
-        that asked for more points than the newer frame has returns with a surface normal.
+    """Every timed registration of ``seed``'s pair: ``{"frame_covariances_s", "all": run, "capped": labels, label:
+    {selector: run}}``; ``capped``: the budgets asking for more points than returns with a surface normal.
     """
     pair = terrain_frame_pair(np.random.default_rng(seed))
     registration = PairRegistration(pair)
@@ -142,10 +123,7 @@ def pair_runs(seed: int, budgets) -> dict:
 
 
 def usable_returns(pair: FramePair) -> int:
-    """How many of the newer frame's returns have a surface normal: the most the selectors that need one can pick.
-
-    A budget above it gives every selector this many points, so that all compare at the same count.
-    """
+    """How many of the newer frame's returns have a surface normal: the most the selectors that need one can pick."""
     geometry = control_point_geometry(pair.current, pair.motion_covariance)
     return int(np.count_nonzero(np.isfinite(geometry.error_var_m2)))
 
@@ -164,12 +142,8 @@ def _load_kernels(seed: int) -> None:
 
 
 def control_point_comparison(seed_sets=SEED_SETS, budgets=BUDGETS, progress: bool = False) -> dict:
-    """All returns and every selector at every budget with ``FRAME_PAIR_ICP`` (module docstring), per seed set.
-
-    Returns:
-        ``{"budgets", "selectors", "frame_covariances_mean_s": per set, "all": per set, "capped_pairs": {label:
-        count per set}, "by_budget": {label: {selector: per set}}}``, each "per set" a list of ``run_summary``.
-    """
+    """All returns and every selector at every budget with ``FRAME_PAIR_ICP``, per seed set: ``{"budgets",
+    "selectors", "frame_covariances_mean_s", "all", "capped_pairs", "by_budget": {label: {selector: ...}}}``."""
     budgets = check_budgets(budgets)
     _load_kernels(seed_sets[0][0])
     per_pair = [[] for _ in seed_sets]
@@ -279,13 +253,7 @@ def plot_comparison(comparison: dict, path) -> Path:
 
 
 def figure_comparison(comparison: dict):
-    """The control-point selectors compared: median error against budget and against mean time, per selector.
-
-    Left, one line per selector through the median over the seed sets of each set's median error, with the
-    sets' lowest to highest as an error bar (the selectors set slightly apart); all returns as a horizontal
-    line and band. Right, one marker per selector and budget at that median error and its mean time of
-    selection and ICP (mean over the sets).
-    """
+    """The selectors' median error (median over the sets, bars min-max) against budget, and against mean time."""
     figure = matplotlib_figure("plotting the control-point comparison", figsize=(13, 5), constrained_layout=True)
     by_budget, against_budget, against_time = comparison["by_budget"], *figure.subplots(1, 2)
     positions = np.arange(len(by_budget), dtype=float)

@@ -1,21 +1,8 @@
 """ICP time and accuracy on LADAR frame pairs, ours against small_gicp's and, when it imports, Open3D's.
 
-A pair: two ``scan``s of ``make_terrain(default_rng(seed), roughness=1.0)`` by one LADAR, from the
-vehicle pose ``[0, 0, 0]`` and from 1 m ahead turned 2 degrees left; ``PAIR_LADARS`` names the
-default 32 x 180 frame (``frame_pair``, about 5k points) and a 128 x 360 scan (``scan_40k``, about
-40k points). Each frame's points are kept in its own sensor frame (``sensor_points``), so the true
-motion mapping the second frame onto the first is known exactly (``motion_between``). Every
-registration maps the second frame onto the first from the same warm start (the true motion
-perturbed by ``WARM_START_ERROR_M`` and ``WARM_START_ERROR_DEG`` about random directions), with the
-same correspondence distance and iteration cap:
-
-- point-to-point ``icp`` against Open3D's ``registration_icp`` (``TransformationEstimationPointToPoint``);
-- ``icp(method="gicp")`` against small_gicp's GICP on one thread, its preprocessing timed as ours is:
-  k-d trees and ``GICP_NEIGHBOURS``-neighbour covariances of both clouds (``estimate_covariances``),
-  no downsampling, and its convergence thresholds set to our ``tolerance``.
-
-``*_time_ratio`` figures are our median time over the peer's (below 1: ours is faster), the registrations of a
-pair timed in turn, round after round, so that the load of a shared machine weighs on both alike.
+Two ``scan``s of a rough terrain (``PAIR_LADARS``: ~5k and ~40k points) 1 m apart, the true motion known, every
+registration from the same perturbed warm start, correspondence distance and iteration cap; small_gicp's
+preprocessing timed as ours. ``*_time_ratio``: our median time over the peer's, timed in turn round by round.
 """
 
 from __future__ import annotations
@@ -44,13 +31,11 @@ TOLERANCE = 1e-6  # icp's default convergence threshold [rad] and [m], also give
 REPEATS_PER_SECOND = 40  # timed registrations of a frame pair per second of benchmark round, at least MIN_REPEATS
 MIN_REPEATS = 3  # also the timed registrations of the 40k-point pair
 PAIR_LADARS = {"frame_pair": Ladar(), "scan_40k": Ladar(rows=128, columns=360)}
-PEERS = ("open3d",)  # the optional peers (the bench extra); small_gicp is a core dependency
 PEER_OF = {"open3d_icp": "icp", "small_gicp": "gicp"}  # a peer's registration -> ours it is timed against
 
 
 def frame_pair(seed: int = 0, ladar: Ladar | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(source, target, true_motion, warm_start)`` by ``ladar`` (default ``Ladar()``): the second frame, the
-    first, and (4, 4) transforms."""
+    """``(source, target, true_motion, warm_start)``: the second frame, the first, and (4, 4) transforms."""
     ladar = Ladar() if ladar is None else ladar
     rng = np.random.default_rng(seed)
     terrain = make_terrain(np.random.default_rng(seed), roughness=1.0)
@@ -62,16 +47,12 @@ def frame_pair(seed: int = 0, ladar: Ladar | None = None) -> tuple[np.ndarray, n
 
 
 def registration_peers_missing() -> str | None:
-    """Why peer rows are absent (Open3D does not import), or None when it imports."""
-    missing = []
-    for name in PEERS:
-        try:
-            importlib.import_module(name)
-        except ImportError as error:
-            missing.append(f"{name} ({error})")
-    if not missing:
-        return None
-    return f"ICP peer figures absent: {', '.join(missing)} does not import; pip install 'infonav-gym[bench]'"
+    """Why the Open3D rows are absent (it does not import), or None when it imports."""
+    try:
+        importlib.import_module("open3d")
+    except ImportError as error:
+        return f"ICP peer figures absent: open3d ({error}) does not import; pip install 'infonav-gym[bench]'"
+    return None
 
 
 def _ours(source, target, truth, warm_start, method: str):
@@ -131,8 +112,8 @@ def _small_gicp(source, target, truth, warm_start):
 
 
 def alternating_times_ms(calls: dict, repeats: int) -> dict[str, tuple[object, list[float]]]:
-    """Per name of ``calls``: the result of one untimed warm-up call and the milliseconds of ``repeats`` calls, the
-    calls taken in turn (round after round), so that a change in the machine's load between them hits each alike."""
+    """Per name of ``calls``: one untimed warm-up call's result and the milliseconds of ``repeats`` calls, taken in
+    turn so that the machine's load weighs on each alike."""
     results = {name: (call(), []) for name, call in calls.items()}
     for _ in range(repeats):
         for name, call in calls.items():
@@ -143,12 +124,9 @@ def alternating_times_ms(calls: dict, repeats: int) -> dict[str, tuple[object, l
 
 
 def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
-    """ICP figures on each pair of ``PAIR_LADARS`` (module docstring), named by pair and registration.
-
-    ``icp_<pair>_ms`` and ``gicp_<pair>_ms`` (median milliseconds), their ``*_rotation_error_deg`` and
-    ``*_translation_error_m``, ``icp_<pair>_points``; with a peer importable its ``open3d_icp_<pair>_*``
-    or ``small_gicp_<pair>_*`` figures and the ``*_time_ratio``. ``seconds_per_round`` scales the number
-    of timed registrations of the frame pair. The registrations are timed in turn (``alternating_times_ms``).
+    """ICP figures on each pair of ``PAIR_LADARS``: ``icp_<pair>_ms`` / ``gicp_<pair>_ms``, their rotation and
+    translation errors, ``icp_<pair>_points``, and with a peer its ``open3d_*`` / ``small_gicp_*`` figures and the
+    ``*_time_ratio``; ``seconds_per_round`` scales the repeats on the frame pair.
     """
     figures = {}
     for pair, ladar in PAIR_LADARS.items():

@@ -1,8 +1,5 @@
-"""One seeded episode of an env and an agent, rendered: an animated GIF and a strip of frames (``infonav render``).
-
-The agent is built as ``infonav evaluate`` builds it (``EpisodeRunner``: one per robot in a team env), and the
-episode is the one ``evaluate`` plays on the same seed; the env draws every frame (``render_mode="rgb_array"``).
-"""
+"""One seeded episode of an env and an agent (as ``infonav evaluate`` plays it), rendered: an animated GIF and a
+strip of frames (``infonav render``)."""
 
 from __future__ import annotations
 
@@ -24,9 +21,7 @@ STRIP_TITLE_IN = 0.4  # above every row of frames, and the strip's title on top 
 
 
 def frame_stem(env_id: str) -> str:
-    """The file stem of an env's rendered frame and episode in ``docs/frames``: the id without its namespace and
-    Gymnasium version (``infonav/LandmarkSelection-v0``: ``LandmarkSelection``; ``cooperative_localization_v0``
-    as it is)."""
+    """An env's file stem in ``docs/frames``: its id without namespace and version (``LandmarkSelection``)."""
     return re.sub(r"-v\d+$", "", env_id.rpartition("/")[2])
 
 
@@ -48,20 +43,8 @@ def render_episode(
     max_steps: int | None = None,
     progress: bool = True,
 ) -> RenderedEpisode:
-    """Play one episode and keep the frame after the reset, after every ``every``-th step and after the last.
-
-    Args:
-        env_id: a registered env id.
-        agent_name: random, greedy, planner, ppo:PATH or rllib:DIR (``episodes.make_agent``).
-        seed: the episode's seed.
-        env_kwargs: config overrides.
-        every: keep every ``every``-th step's frame.
-        max_steps: stop after this many steps (default: when the episode ends).
-        progress: show a progress bar over the steps.
-
-    Raises:
-        ValueError: for ``every`` or ``max_steps`` not an integer >= 1, an unknown env, agent or config key.
-    """
+    """Play one episode (``agent_name`` as ``make_agent`` takes) and keep the frame after the reset, after every
+    ``every``-th step and after the last; ``max_steps``: stop after that many."""
     check_positive(every, "--every")
     if max_steps is not None:
         check_positive(max_steps, "--max-steps")
@@ -108,8 +91,7 @@ def write_strip(episode: RenderedEpisode, path: Path, title: str) -> Path:
 
 
 def figure_strip(episode: RenderedEpisode, title: str):
-    """A grid of ``STRIP_FRAMES`` evenly spaced frames of the episode, each titled with its step, one frame pixel to
-    one pixel of the PNG at ``STRIP_DPI``: the frames' text stays as legible as in the GIF."""
+    """A grid of ``STRIP_FRAMES`` evenly spaced frames, one frame pixel to one PNG pixel at ``STRIP_DPI``."""
     frames, steps = episode.frames, episode.steps
     shown = strip_indices(len(frames))
     columns = min(STRIP_COLUMNS, len(shown))

@@ -1,12 +1,5 @@
-"""Frame times of the LADAR and the camera, and a pure-Pymunk ray loop over the same rays as a reference.
-
-The scene is a default ``make_terrain``; frames are taken from a few poses near its centre, inside
-the disc ``make_terrain`` keeps clear of obstacles. The reference, as issue 4 asks, holds the
-obstacles' footprints in a ``pymunk.Space`` (a ``pymunk.Circle`` per ``Cylinder``, a box
-``pymunk.Poly`` per ``Box``) and calls ``segment_query_first`` once per pixel, in a Python loop,
-along the ray's horizontal track out to the sensor's maximum range. It is 2D and ignores the
-terrain, so a ratio below 1 means the full 3D sensor beats even that loop.
-"""
+"""Frame times of the LADAR and the camera, against a pure-Pymunk 2D ray loop (``segment_query_first`` per pixel)
+over the same rays on a default ``make_terrain``: a ratio below 1 means the 3D sensor beats even that loop."""
 
 from __future__ import annotations
 
@@ -18,6 +11,7 @@ from functools import partial
 import numpy as np
 import pymunk
 
+from infonav_gym.experiments.registration_timing import alternating_times_ms
 from infonav_gym.sensors import Camera, Ladar
 from infonav_gym.world.terrain import Terrain
 from infonav_gym.world.terrain_generation import make_terrain
@@ -39,10 +33,7 @@ def footprint_space(terrain: Terrain) -> pymunk.Space:
 
 
 def pymunk_rays_ms(space: pymunk.Space, sensor: Ladar | Camera, vehicle_pose) -> float:
-    """Milliseconds for one ``segment_query_first`` per pixel of ``sensor`` at ``vehicle_pose`` (one frame).
-
-    Each pixel's segment runs from the vehicle along its ray's horizontal track, ``max_range_m`` long.
-    """
+    """Milliseconds of one ``segment_query_first`` per pixel along its ray's horizontal track, ``max_range_m`` long."""
     azimuth, elevation = sensor.pixel_angles()
     start = (float(vehicle_pose[0]), float(vehicle_pose[1]))
     ends = [
@@ -57,23 +48,9 @@ def pymunk_rays_ms(space: pymunk.Space, sensor: Ladar | Camera, vehicle_pose) ->
     return (time.perf_counter() - begin) * 1e3
 
 
-def call_times_ms(call, repeats: int) -> tuple[object, list[float]]:
-    """The result of one untimed warm-up ``call()``, and the milliseconds of each of ``repeats`` calls after it."""
-    result = call()
-    times = []
-    for _ in range(repeats):
-        begin = time.perf_counter()
-        call()
-        times.append((time.perf_counter() - begin) * 1e3)
-    return result, times
-
-
 def sensor_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
-    """Median frame time of the default ``Ladar().scan`` and ``Camera().capture`` and of the Pymunk loop.
-
-    Returns ``{sensor}_frame_ms``, ``pymunk_{sensor}_rays_ms`` and ``{sensor}_vs_pymunk_ratio`` (their
-    quotient) for ``sensor`` in ladar, camera; ``seconds_per_round`` scales the number of frames.
-    """
+    """Median frame time [ms] of the default LADAR and camera and of the Pymunk loop, and their ratio, per sensor;
+    ``seconds_per_round`` scales the number of frames."""
     terrain = make_terrain(np.random.default_rng(seed))
     space = footprint_space(terrain)
     rng = np.random.default_rng(seed)
@@ -87,7 +64,7 @@ def sensor_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, f
     for name, (sensor, take_frame) in sensors.items():
         ours, reference = [], []
         for pose in POSES:  # alternate with the reference, so a busy machine slows both alike
-            ours += call_times_ms(partial(take_frame, pose), frames)[1]
+            ours += alternating_times_ms({name: partial(take_frame, pose)}, frames)[name][1]
             reference.append(pymunk_rays_ms(space, sensor, pose))
         figures[f"{name}_frame_ms"] = statistics.median(ours)
         figures[f"pymunk_{name}_rays_ms"] = statistics.median(reference)

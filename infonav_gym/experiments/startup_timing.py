@@ -1,12 +1,5 @@
-"""How long a user waits before the first step: a fresh process imports the suite, makes an env, resets it and
-steps it once.
-
-``cold_start_s``: with an empty numba cache (``NUMBA_CACHE_DIR`` a new directory), so every kernel the env runs is
-compiled; ``warm_start_s``: the same again with the cache the cold run filled. Each is the slowest registered env's,
-every env timed in its own processes. ``cold_start_all_envs_s``: one process making, resetting and stepping every
-registered env with an empty cache (every kernel of the suite compiled). All are whole-process wall times,
-interpreter start included, as a user sees them.
-"""
+"""How long a user waits before the first step, in fresh processes: ``cold_start_s`` (empty numba cache),
+``warm_start_s`` (filled), each the slowest env's, and ``cold_start_all_envs_s`` (every env in one process)."""
 
 from __future__ import annotations
 
@@ -36,12 +29,8 @@ for env_id in sys.argv[1:]:
 
 
 def first_step_seconds(cache_dir: str, env_ids: list[str]) -> float:
-    """Wall seconds of a fresh Python process running ``FIRST_STEP_SCRIPT`` on ``env_ids`` with numba's cache in
-    ``cache_dir``.
-
-    Raises:
-        RuntimeError: if the process fails (its stderr's last line quoted).
-    """
+    """Wall seconds of a fresh process running ``FIRST_STEP_SCRIPT`` on ``env_ids``, numba's cache in ``cache_dir``
+    (``RuntimeError`` quoting its stderr's last line if it fails)."""
     environment = {**os.environ, "NUMBA_CACHE_DIR": cache_dir}
     start = time.perf_counter()
     result = subprocess.run(

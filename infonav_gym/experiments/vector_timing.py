@@ -1,13 +1,5 @@
-"""What the benchmark steps at each vector size N: native vector envs, CartPoleVectorEnv, VMAS; memory per sub-env.
-
-Every registered env with a native vector env (``vector_entry_point``) is found through
-``infonav_gym.registry`` and made by its ``make_vector_env``; it is driven by uniform random *valid*
-actions drawn at once for all copies from its ``action_masks()`` with a seeded generator.
-Gymnasium's ``CartPoleVectorEnv`` is driven by its seeded ``action_space.sample()``; VMAS's
-``navigation`` scenario (4 agents, CPU, one torch thread) by uniform random forces from a seeded
-generator, when ``vmas`` imports. One vector step counts as N env-steps (for a team env, one
-env-step is one step of every robot of one copy; for VMAS, of all 4 agents of one env).
-"""
+"""What the benchmark steps at each vector size N (native vector envs under random valid actions, CartPoleVectorEnv,
+VMAS ``navigation``), and memory per sub-env; a vector step counts N env-steps."""
 
 from __future__ import annotations
 
@@ -45,11 +37,7 @@ class VectorRun:
 
 
 def check_vector_sizes(sizes, where: str = "vector sizes") -> tuple[int, ...]:
-    """``sizes`` as a tuple of ints after checking it is a non-empty sequence of integers >= 1.
-
-    Raises:
-        ValueError: naming ``where`` and the offending value.
-    """
+    """``sizes`` as a tuple of ints, once checked to be integers from 1 to ``MAX_VECTOR_SIZE`` (``ValueError``)."""
     sizes = tuple(sizes)
     if not sizes:
         raise ValueError(f"{where}: expected at least one number of sub-envs, got none")
@@ -63,11 +51,7 @@ def check_vector_sizes(sizes, where: str = "vector sizes") -> tuple[int, ...]:
 
 
 def parse_vector_sizes(text: str, where: str = "--vector-sizes") -> tuple[int, ...]:
-    """Comma-separated numbers of sub-envs, e.g. ``"1,16,256"`` -> ``(1, 16, 256)``.
-
-    Raises:
-        ValueError: naming ``where`` and the part that is not an integer >= 1.
-    """
+    """Comma-separated numbers of sub-envs, ``"1,16,256"`` -> ``(1, 16, 256)`` (``ValueError`` naming ``where``)."""
     sizes = []
     for part in text.split(","):
         try:
@@ -118,11 +102,7 @@ def vmas_missing() -> str | None:
 
 
 def vmas_navigation_run(num_envs: int, seed: int) -> VectorRun:
-    """VMAS ``navigation`` (``VMAS_AGENTS`` agents, CPU, one torch thread) under uniform random forces.
-
-    Raises:
-        ImportError: when ``vmas`` does not import (see ``vmas_missing``).
-    """
+    """VMAS ``navigation`` (``VMAS_AGENTS`` agents, CPU, one torch thread) under uniform random forces."""
     from agents.base import torch_threads
 
     vmas, torch = importlib.import_module("vmas"), importlib.import_module("torch")
@@ -167,13 +147,8 @@ def _step_for(run: VectorRun, steps: int, seconds: float) -> None:
 def peak_rss_growth_kb_per_env(
     env_id: str, num_envs: int, steps: int, seed: int, seconds: float = MEMORY_SECONDS
 ) -> float:
-    """In this process: peak RSS growth [kB] per copy while building ``env_id``'s vector env and stepping it.
-
-    A 1-copy vector env is built and stepped ``steps`` times first (imports, caches); then the peak RSS
-    is reset to the current one (``/proc/self/clear_refs``) and the growth of the peak (``VmHWM``) over
-    building ``num_envs`` copies, resetting them and stepping them ``steps`` times is divided by ``num_envs``.
-    Either stepping stops after ``seconds`` (an env whose steps render images takes seconds a step at N = 1024).
-    """
+    """In this process: peak RSS growth [kB] per copy of building, resetting and stepping ``num_envs`` copies, after a
+    warmed-up 1-copy run and a reset of the peak (``/proc/self/clear_refs``)."""
     warm_up = vector_env_run(env_id, 1, seed)
     warm_up.start()
     _step_for(warm_up, steps, seconds)
@@ -188,14 +163,8 @@ def peak_rss_growth_kb_per_env(
 def kb_per_env(
     env_id: str, num_envs: int, steps: int = MEMORY_STEPS, seed: int = 0, seconds: float = MEMORY_SECONDS
 ) -> float:
-    """Memory per sub-env [kB] of ``env_id``'s vector env: ``peak_rss_growth_kb_per_env`` in a fresh subprocess.
-
-    The subprocess imports ``infonav_gym`` only, so ``env_id`` must be registered by that import (or carry
-    Gymnasium's ``module:`` prefix naming the module that registers it).
-
-    Raises:
-        RuntimeError: when the subprocess fails (its error output is in the message).
-    """
+    """Memory per sub-env [kB] of ``env_id``'s vector env: ``peak_rss_growth_kb_per_env`` in a fresh subprocess, which
+    imports only ``infonav_gym`` (``RuntimeError`` with its error output if it fails)."""
     code = (
         "from infonav_gym.experiments.vector_timing import peak_rss_growth_kb_per_env; "
         f"print(peak_rss_growth_kb_per_env({env_id!r}, {num_envs}, {steps}, {seed}, {seconds!r}))"

@@ -13,10 +13,8 @@ DEFAULT_OUTPUT_DIR = Path("results")  # relative to the working directory
 
 @dataclass(frozen=True)
 class PaperFigure:
-    """One of the paper's figures: how to compute it and how to print what was computed.
-
-    ``figures(seed, seeds, progress)`` returns the figures (JSON-ready) and the function drawing them into a PNG.
-    """
+    """One of the paper's figures: ``figures(seed, seeds, progress)`` -> (JSON-ready figures, the function drawing them
+    into a PNG), and the ``table`` printing them."""
 
     figures: Callable[[int, range, bool], tuple[dict, Callable[[Path], object]]]
     table: Callable[[dict], str]  # the JSON's figures as text
@@ -30,20 +28,11 @@ FIGURES = {
 
 
 def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progress: bool = True, command: str = ""):
-    """Run ``figure`` (a module here), write ``output_dir/FIGURE.png`` and ``FIGURE.json``; return what the JSON holds.
-
-    Args:
-        figure: one of ``FIGURES``.
-        output_dir: directory for the two files (created if missing).
-        seed: the seed of the plotted run, and the first of the statistics' seeds.
-        n_seeds: how many seeds (``seed .. seed + n_seeds - 1``) the statistics count.
-        progress: show a tqdm bar over the seeds.
-        command: the command line that made the files, recorded in the JSON.
+    """Run ``figure`` (one of ``FIGURES``), write ``output_dir/FIGURE.png`` and ``FIGURE.json``; return its content.
 
     Raises:
         ValueError: for ``n_seeds < 1``, or an ``output_dir`` that cannot be a writable directory.
-        OutputWriteError: when a file cannot be written; it carries the result (with the files that
-            were written), so the computed figures are not lost.
+        OutputWriteError: when a file cannot be written, carrying the result (and the files written).
     """
     paper_figure = FIGURES[figure]
     if n_seeds < 1:

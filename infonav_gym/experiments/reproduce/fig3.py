@@ -1,9 +1,7 @@
 """The paper's Fig. 3: robot #2 loses DGPS at 21 s and relocalizes through laser observations of robot #1.
 
-The convoy team (``infonav_gym.multi.team.CONVOY_SUITES``) is run twice with the
-same seed: every robot greedy on the expected information gain, and dead
-reckoning (no relative observations). Odometry and DGPS noise come from their own
-random streams, so both runs see the same noise and differ only by the choices.
+The convoy team runs twice on one seed, greedy on expected information gain and dead reckoning; odometry and DGPS
+noise have their own streams, so the runs differ only by the choices.
 """
 
 from __future__ import annotations
@@ -17,6 +15,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from agents import GreedyEntropyAgent
+from infonav_gym.experiments.episodes import parallel_episode_infos
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.team import DEFAULT_OUTAGE
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
@@ -39,23 +38,19 @@ def position_std_m(pose_std) -> float:
     return math.hypot(pose_std[0], pose_std[1])
 
 
-def _greedy_team(observations: dict, infos: dict) -> dict:
-    agent = GreedyEntropyAgent()
-    return {name: agent.act(observations[name], infos[name]) for name in infos}
+class _DeadReckoning:
+    """Never observes a teammate."""
+
+    def reset(self, seed: int | None = None) -> None:
+        """Nothing to reset."""
+
+    def act(self, observation, info: dict) -> int:
+        return NO_OBSERVATION
 
 
-def _dead_reckoning(observations: dict, infos: dict) -> dict:
-    return dict.fromkeys(infos, NO_OBSERVATION)
-
-
-def _run_episode(env, policy, seed: int) -> list[dict]:
-    """The infos of every step, from ``reset`` to truncation, with ``policy`` choosing every robot's action."""
-    observations, infos = env.reset(seed=seed)
-    history = [infos]
-    while env.agents:
-        observations, _, _, _, infos = env.step(policy(observations, infos))
-        history.append(infos)
-    return history
+def _run_episode(env, agent, seed: int) -> list[dict]:
+    """The infos of every step, from ``reset`` to truncation, with ``agent`` acting for every robot."""
+    return list(parallel_episode_infos(env, dict.fromkeys(env.possible_agents, agent), seed))
 
 
 def _step_record(before: dict, after: dict) -> dict:
@@ -121,18 +116,13 @@ def _outage_rmse_m(history: list[dict]) -> float:
 
 
 def run_fig3(seed: int = 0) -> dict:
-    """Fig. 3 for one seed: robot #2's steps, the corrections and the paths, greedy team vs dead reckoning.
-
-    Returns:
-        A JSON-ready dict: ``steps`` (robot #2's per-step ``time_s``, prior ``pose_std``,
-        ``pose_std_after_update``, ``gps_available``, ``gains_nats`` of the visible
-        teammates and the ``chosen`` one or None), ``corrections``, ``correction_bursts``,
-        ``position_std`` (at the last DGPS fix and the outage peak), ``paths`` and
-        ``position_error_m`` per policy, and the convoy's ``walls``.
+    """Fig. 3 for one seed, greedy team vs dead reckoning (JSON-ready): robot #2's ``steps`` (time, prior and updated
+    ``pose_std``, DGPS, gains of visible teammates, the one ``chosen``), its corrections and their bursts, position std
+    extremes, ``paths`` and ``position_error_m`` per policy, and the convoy's ``walls``.
     """
     env = cooperative_localization_v0.parallel_env(**FIG3_ENV_CONFIG)
-    greedy = _run_episode(env, _greedy_team, seed)
-    dead_reckoning = _run_episode(env, _dead_reckoning, seed)
+    greedy = _run_episode(env, GreedyEntropyAgent(), seed)
+    dead_reckoning = _run_episode(env, _DeadReckoning(), seed)
     walls = [[list(point) for point in wall] for wall in env.vector.scenario(0).walls]
     env.close()
     steps = [_step_record(before[OBSERVER], after[OBSERVER]) for before, after in itertools.pairwise(greedy)]
@@ -156,15 +146,8 @@ def run_fig3(seed: int = 0) -> dict:
 
 
 def outage_rmse(seeds=range(20), progress: bool = False) -> dict:
-    """Robot #2's position RMSE over the outage (``t >= 21 s`` to the end), greedy team vs dead reckoning.
-
-    Args:
-        seeds: the episode seeds; both policies run each one.
-        progress: show a tqdm bar over the seeds.
-
-    Returns:
-        ``per_seed`` records, the mean RMSE of each policy [m], ``ratio`` (mean greedy
-        over mean dead reckoning) and ``mean_per_seed_ratio``.
+    """Robot #2's position RMSE over the outage (``t >= 21 s``) on each of ``seeds``, greedy team vs dead reckoning: the
+    ``per_seed`` records, each policy's mean [m], their ``ratio`` and the ``mean_per_seed_ratio``.
     """
     seeds = list(seeds)
     if not seeds:
@@ -172,8 +155,8 @@ def outage_rmse(seeds=range(20), progress: bool = False) -> dict:
     env = cooperative_localization_v0.parallel_env(**FIG3_ENV_CONFIG)
     per_seed = []
     for seed in tqdm(seeds, desc="Fig. 3 outage RMSE", unit="seed", disable=not progress):
-        greedy = _outage_rmse_m(_run_episode(env, _greedy_team, seed))
-        dead_reckoning = _outage_rmse_m(_run_episode(env, _dead_reckoning, seed))
+        greedy = _outage_rmse_m(_run_episode(env, GreedyEntropyAgent(), seed))
+        dead_reckoning = _outage_rmse_m(_run_episode(env, _DeadReckoning(), seed))
         per_seed.append(
             {"seed": seed, "greedy_m": greedy, "dead_reckoning_m": dead_reckoning, "ratio": greedy / dead_reckoning}
         )
@@ -194,7 +177,7 @@ def outage_rmse(seeds=range(20), progress: bool = False) -> dict:
 def figures(seed: int, seeds, progress: bool) -> tuple[dict, Callable[[Path], object]]:
     """Fig. 3 of ``seed`` and the outage RMSE over ``seeds`` (JSON-ready), and the function drawing them into a PNG."""
     result = {"fig3": run_fig3(seed), "outage_rmse": outage_rmse(seeds, progress=progress)}
-    return result, lambda path: plot_fig3(result["fig3"], path)
+    return result, lambda path: save_figure(figure_fig3(result["fig3"]), path, dpi=120, bbox_inches="tight")
 
 
 def table(result: dict) -> str:
@@ -254,10 +237,7 @@ def _draw_paths(axes, fig3: dict) -> None:
     observer = fig3["observer"]
     loss_xy = fig3["paths"]["greedy"][observer]["estimated_xy_m"][fig3["time_s"].index(fig3["dgps_loss_s"])]
     axes.plot(*loss_xy, "kx", markersize=8, label=f"{paper_label(observer)} loses DGPS")
-    axes.set_aspect("equal")
-    axes.set_xlabel("x [m]")
-    axes.set_ylabel("y [m]")
-    axes.set_title("(a) EKF estimated paths (hedges in grey)")
+    axes.set(aspect="equal", xlabel="x [m]", ylabel="y [m]", title="(a) EKF estimated paths (hedges in grey)")
     axes.legend(loc="lower right", fontsize="small")
 
 
@@ -294,16 +274,9 @@ def _draw_standard_deviations(axes, fig3: dict) -> None:
     _mark_events(axes, fig3, label_y=0.9 * _HEADROOM * top)
     lines = axes.get_lines()[:2] + heading_axes.get_lines()
     axes.legend(lines, [line.get_label() for line in lines], loc="upper left", fontsize="small")
-    axes.set_xlim(0, steps[-1]["time_s"] + 0.5)
-    axes.set_xlabel("time [s]")
-    axes.set_ylabel("position std [m]")
+    axes.set(xlim=(0, steps[-1]["time_s"] + 0.5), xlabel="time [s]", ylabel="position std [m]")
     heading_axes.set_ylabel("heading std [rad]")
     axes.set_title("(b) robot #2's pose standard deviations; arrows: relative corrections (observed teammate)")
-
-
-def plot_fig3(fig3: dict, path: Path) -> Path:
-    """Write ``figure_fig3(fig3)`` as a PNG at ``path``."""
-    return save_figure(figure_fig3(fig3), path, dpi=120, bbox_inches="tight")
 
 
 def figure_fig3(fig3: dict):

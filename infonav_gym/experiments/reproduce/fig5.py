@@ -1,27 +1,8 @@
 """The paper's Fig. 5: how much information camera and LADAR images carry, by their gray-level histogram entropy.
 
-Every image is a default ``Camera()`` (120 x 160, 60 degrees) or ``Ladar()`` (32 x 180,
-20 x 80 degrees, shown with ``to_display_image``: dark = near) view of a ``make_terrain``
-scene, and its information is ``histogram_entropy`` (Eqs. 4-5, 256 bins, nats). Like the
-paper we call the image with the higher entropy the more informative one. Only the scene
-differs between the cases, never the sensors:
-
-* ``paper_like``: the XUV traversing vegetated, rugged terrain (hills of 1.6 m standard
-  deviation, 150 trees and 100 rocks on 120 m x 120 m). The vehicle drives along the most
-  level line ahead, as a driver does rather than pointing it into a hillside; the second,
-  similar view is 1.5 m further along and 4 degrees to the left. The LADAR, tilted down 10
-  degrees, sees ground, rocks and trunks at ranges spread over its 60 m, so its range image
-  spans many gray levels; the camera's histogram is a lump of shaded, textured ground plus a
-  narrow sky peak. LADAR > camera.
-* ``building_ahead``: the vehicle stopped 3-8 m in front of a building on gently rolling
-  ground. The building fills nearly all of the LADAR's 20 degree field of view at almost one
-  range, so its image is a handful of dark levels, while the camera's 46 degree field still
-  shows the textured ground below the evenly lit facade (and the sky above a low building).
-  Camera > LADAR: information is scene-specific, as the paper found on other data sets.
-
-The seed statistics draw each case's random scene for many seeds and count how often the
-ordering holds; a paper-like view facing a steep rise (the LADAR then sees only near ground)
-can reverse it.
+Default ``Camera()`` and ``Ladar()`` views of two ``make_terrain`` scenes, scored by ``histogram_entropy`` (nats):
+``paper_like`` (rugged, vegetated terrain: LADAR > camera) and ``building_ahead`` (a facade fills the LADAR's
+narrow field at one range: camera > LADAR); the seed statistics count how often each ordering holds.
 """
 
 from __future__ import annotations
@@ -55,15 +36,7 @@ SECOND_VIEW_TURN_RAD = math.radians(4.0)  # ... and turned this much to the left
 LEVEL_LOOKAHEAD_M = (2.0, 25.0)  # stretch of ground ahead whose levelness picks the heading [m]
 HEADING_CANDIDATES_DEG = 5.0  # spacing of the candidate headings [deg]
 
-BUILDING_AHEAD_TERRAIN = {
-    "size_m": 120.0,
-    "cell_m": 0.5,
-    "roughness": 0.3,
-    "n_trees": 0,
-    "n_rocks": 0,
-    "n_buildings": 0,
-    "clear_radius_m": 3.0,
-}
+BUILDING_AHEAD_TERRAIN = {**PAPER_LIKE_TERRAIN, "roughness": 0.3, "n_trees": 0, "n_rocks": 0}
 BUILDING_DISTANCE_M = (3.0, 8.0)  # from the vehicle to the building's facade [m]
 BUILDING_WIDTH_M = (10.0, 30.0)  # facade width, centred on the vehicle's line [m]
 BUILDING_HEIGHT_M = (3.0, 8.0)  # above the ground in front of it [m]
@@ -75,10 +48,7 @@ _SENSOR_NAMES = {"camera": "camera", "ladar": "LADAR"}
 
 
 def level_heading(terrain: Terrain, position_m) -> float:
-    """The heading [rad] from ``position_m`` along which the ground over ``LEVEL_LOOKAHEAD_M`` stays most level.
-
-    Level means the smallest mean absolute height difference from the ground under the vehicle.
-    """
+    """The heading [rad] from ``position_m`` whose ground over ``LEVEL_LOOKAHEAD_M`` stays most level."""
     position = np.asarray(position_m, dtype=float)
     headings = np.radians(np.arange(0.0, 360.0, HEADING_CANDIDATES_DEG))
     distances = np.linspace(*LEVEL_LOOKAHEAD_M, 24)
@@ -148,29 +118,16 @@ def _seed_views(seed: int) -> tuple[list[tuple[str, str, list[float], dict]], di
 
 
 def run_fig5(seed: int = 0) -> tuple[dict, list[dict]]:
-    """Fig. 5 for one seed: two similar paper-like views and one building-ahead view.
-
-    Returns:
-        A JSON-ready dict (``seed``, ``building`` size and the ``views``, each with its
-        ``case``, ``label``, ``vehicle_pose`` and per sensor the ``shape``, 256-bin
-        ``histogram`` and ``entropy_nats``) and the images of each view, in the same order.
-    """
+    """Fig. 5 for one seed (two similar paper-like views, one building-ahead view): the JSON-ready dict (``seed``,
+    ``building`` and per view and sensor ``shape``, 256-bin ``histogram``, ``entropy_nats``) and each view's images."""
     views, building = _seed_views(seed)
     records = [_view_record(case, label, pose, images) for label, case, pose, images in views]
     return {"seed": seed, "building": building, "views": records}, [images for *_, images in views]
 
 
 def seed_statistics(seeds, progress: bool = False) -> dict:
-    """How often each case's ordering holds over random scenes: LADAR > camera (paper-like), camera > LADAR.
-
-    Args:
-        seeds: one random scene of each case per seed (the paper-like case gives two views).
-        progress: show a tqdm bar over the seeds.
-
-    Returns:
-        ``per_seed`` entropies [nats], and per case the fraction of seeds where the expected
-        sensor wins (in every view of the seed) and the mean entropy of each sensor.
-    """
+    """How often each case's ordering holds over ``seeds`` (one scene of each case per seed; paper-like: in every view),
+    with the ``per_seed`` entropies and each sensor's mean [nats]."""
     seeds = list(seeds)
     if not seeds:
         raise ValueError("seed_statistics needs at least one seed, got none")
@@ -224,7 +181,7 @@ def figures(seed: int, seeds, progress: bool) -> tuple[dict, Callable[[Path], ob
         "fig5": fig5,
         "seed_statistics": seed_statistics(seeds, progress=progress),
     }
-    return result, lambda path: plot_fig5(fig5, images, path)
+    return result, lambda path: save_figure(figure_fig5(fig5, images), path, dpi=110, bbox_inches="tight")
 
 
 def table(result: dict) -> str:
@@ -260,38 +217,25 @@ def _extent_deg(sensor) -> tuple[float, float, float, float]:
     return half_width, -half_width, top - math.degrees(sensor.vertical_fov_rad), top
 
 
+def _label(axes, title: str, xlabel: str, ylabel: str) -> None:
+    axes.set_title(title, fontsize="medium")
+    axes.set_xlabel(xlabel, fontsize="small")
+    axes.set_ylabel(ylabel, fontsize="small")
+    axes.tick_params(labelsize="small")
+
+
 def _draw_image(axes, image: np.ndarray, sensor, title: str) -> None:
     axes.imshow(image, cmap="gray", vmin=0, vmax=255, extent=_extent_deg(sensor), interpolation="nearest")
-    axes.set_title(title, fontsize="medium")
-    axes.set_xlabel("azimuth, left + [deg]", fontsize="small")
-    axes.set_ylabel("elevation [deg]", fontsize="small")
-    axes.tick_params(labelsize="small")
+    _label(axes, title, "azimuth, left + [deg]", "elevation [deg]")
 
 
 def _draw_histogram(axes, sensor_record: dict, colour: str, title: str) -> None:
     counts = np.asarray(sensor_record["histogram"])
     axes.stairs(counts, np.arange(257), fill=True, color=colour)
-    axes.set_xlim(0, 256)
-    axes.set_ylim(0, 1.25 * counts.max())
-    axes.text(
-        0.5,
-        0.95,
-        f"H = {sensor_record['entropy_nats']:.2f} nats",
-        transform=axes.transAxes,
-        ha="center",
-        va="top",
-        fontsize="large",
-        fontweight="bold",
-    )
-    axes.set_title(title, fontsize="medium")
-    axes.set_xlabel("gray level (brightness) [0-255]", fontsize="small")
-    axes.set_ylabel("pixels [count]", fontsize="small")
-    axes.tick_params(labelsize="small")
-
-
-def plot_fig5(fig5: dict, images: list[dict], path: Path) -> Path:
-    """Write ``figure_fig5(fig5, images)`` as a PNG at ``path``."""
-    return save_figure(figure_fig5(fig5, images), path, dpi=110, bbox_inches="tight")
+    axes.set(xlim=(0, 256), ylim=(0, 1.25 * counts.max()))
+    entropy = f"H = {sensor_record['entropy_nats']:.2f} nats"
+    axes.text(0.5, 0.95, entropy, transform=axes.transAxes, ha="center", va="top", fontsize="large", fontweight="bold")
+    _label(axes, title, "gray level (brightness) [0-255]", "pixels [count]")
 
 
 def figure_fig5(fig5: dict, images: list[dict]):
@@ -306,12 +250,8 @@ def figure_fig5(fig5: dict, images: list[dict]):
             record = view[key]
             rows_px, columns_px = record["shape"]
             image_axes, histogram_axes = axes[row, 2 * column], axes[row, 2 * column + 1]
-            _draw_image(
-                image_axes,
-                pair[key],
-                sensors[key],
-                f"({next(letters)}) {name}, {view['label']} ({rows_px} x {columns_px})",
-            )
+            title = f"({next(letters)}) {name}, {view['label']} ({rows_px} x {columns_px})"
+            _draw_image(image_axes, pair[key], sensors[key], title)
             _draw_histogram(histogram_axes, record, colour, f"({next(letters)}) {name} histogram, {view['label']}")
     figure.suptitle(
         f"Fig. 5: camera and LADAR images (LADAR: dark = near) with their 256-bin gray-level histograms and "

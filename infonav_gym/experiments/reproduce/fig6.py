@@ -1,16 +1,7 @@
-"""The paper's Fig. 6: two consecutive 3D LADAR range images before and after ICP registration.
+"""The paper's Fig. 6: two consecutive 3D LADAR range images before (odometry) and after ICP registration.
 
-Frames come from a vehicle pitching and rolling over rugged terrain
-(``terrain_frame_pair``: a ``terrain_loop`` scene of roughness 0.7, frames 1 m apart). The
-newer frame is placed in the older one's frame by the odometry estimate ("before") and by
-ICP started from it ("after"; ``FRAME_PAIR_ICP``: GICP with a Tukey kernel, 1 m correspondence
-distance). The seed
-statistics register many such pairs with every return, and with a quarter of the returns
-chosen by each control-point strategy (``select_control_points``), and report the
-registration errors (``registration_error``: translation error combined with the
-displacement the rotation error causes 10 m away): recall (the fraction of pairs within
-``RECALL_THRESHOLDS_M``), median and mean. GICP's covariances are those of the whole frames
-(a control point's from its neighbours among all returns), computed once per pair.
+Frames of a vehicle pitching and rolling over rugged terrain (``terrain_frame_pair``); the seed statistics report
+``registration_error`` recall, median and mean with all returns and each control-point strategy's quarter.
 """
 
 from __future__ import annotations
@@ -40,10 +31,8 @@ RECALL_THRESHOLDS_M = (0.05, 0.10)  # a pair is registered when its registration
 
 
 class PairRegistration:
-    """ICP of a pair's newer frame (all returns or control points) onto the older, with ``settings`` (``icp`` keywords).
-
-    For GICP the frames' covariances are computed on first use and kept for every registration of the pair.
-    """
+    """ICP of a pair's newer frame (all returns or control points) onto the older, with ``settings`` (``icp`` keywords);
+    GICP's frame covariances are computed once per pair."""
 
     def __init__(self, pair: FramePair, settings: dict = FRAME_PAIR_ICP):
         self.pair, self.settings = pair, settings
@@ -176,11 +165,8 @@ def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path:
 
 
 def figure_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict):
-    """Fig. 6: rows = top and side views, columns = before (odometry) and after (ICP) registration.
-
-    Points are in the older frame's body frame at its optical centre: the older frame in gray,
-    the newer one coloured by its distance to the older frame's surface (to the tangent plane at
-    the closest older point: the point-to-plane residual; misregistration shows as warm colours).
+    """Fig. 6: rows = top and side views, columns = before (odometry) and after (ICP) registration; the older frame in
+    gray, the newer coloured by its point-to-plane residual to the older (misregistration shows warm).
     """
     target = sensor_points(pair.previous)
     source = sensor_points(pair.current)
@@ -217,8 +203,7 @@ def figure_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict):
                 lw=0,
             )
             ax.set_title(f"{title}, {view}: error {error:.3f} m", fontsize="medium")
-            ax.set_xlabel(first_label)
-            ax.set_ylabel(second_label)
+            ax.set(xlabel=first_label, ylabel=second_label)
             if row == 0:
                 ax.set_aspect("equal", adjustable="datalim")
             ax.legend(loc="upper right", markerscale=6, fontsize="small")
