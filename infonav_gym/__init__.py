@@ -36,9 +36,9 @@ BUILTIN_ENVS = (
     ),
     (
         "cooperative_localization_v0",
-        "infonav_gym.multi.cooperative_localization:CooperativeLocalizationEnv",
+        "infonav_gym.envs.cooperative_localization:CooperativeLocalizationEnv",
         PARALLEL,
-        "infonav_gym.multi.cooperative_localization_vector:CooperativeLocalizationVectorEnv",
+        "infonav_gym.envs.cooperative_localization:CooperativeLocalizationVectorEnv",
     ),
     (
         "cooperative_exploration_v0",
