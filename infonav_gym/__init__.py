@@ -42,9 +42,9 @@ BUILTIN_ENVS = (
     ),
     (
         "cooperative_exploration_v0",
-        "infonav_gym.multi.cooperative_exploration:CooperativeExplorationEnv",
+        "infonav_gym.envs.cooperative_exploration:CooperativeExplorationEnv",
         PARALLEL,
-        "infonav_gym.multi.cooperative_exploration_vector:CooperativeExplorationVectorEnv",
+        "infonav_gym.envs.cooperative_exploration:CooperativeExplorationVectorEnv",
     ),
 )
 

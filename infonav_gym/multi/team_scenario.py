@@ -175,6 +175,26 @@ class TeamScenario(EnvScenario):
         return gps_available(copies, contiguous(positions), *zones, self.has_gps, self.outages, time_s)
 
 
+class TeamAccessors:
+    """What a team vector env (the ``Driver`` of a ``TeamScenario``) shows of its ``state``, for harnesses and tests:
+    ``class MyTeamVectorEnv(TeamAccessors, Driver, scenario=MyTeamScenario)``."""
+
+    state: TeamState
+
+    def scenario(self, copy: int = 0):
+        """The ``Scenario`` of copy ``copy``'s episode."""
+        return self.state.worlds.scenario(copy)
+
+    @property
+    def true_poses(self) -> np.ndarray:
+        """Every copy's true robot poses (N, R, 3) [m, m, rad] (a copy)."""
+        return self.state.worlds.poses.copy()
+
+    def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every copy's joint EKF state ``x`` (N, 3R) and covariance ``P`` (N, 3R, 3R) (copies)."""
+        return self.state.x.copy(), self.state.P.copy()
+
+
 def gps_denied_zones(worlds: WorldBatch) -> tuple[np.ndarray, np.ndarray]:
     """Every copy's GPS-denied zones: centres (N, Z, 2) [m] and squared radii (N, Z) [m^2] (-1: padding)."""
     zones = [worlds.scenario(copy).gps_denied_zones for copy in range(len(worlds.poses))]

@@ -28,7 +28,7 @@ from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.multi.parallel_view import ParallelEnvView, team_metadata
 from infonav_gym.multi.team_decision import TeamDecision, TeamStep, observable_pairs, team_info
 from infonav_gym.multi.team_observations import team_observation_bounds, team_observations
-from infonav_gym.multi.team_scenario import TeamScenario, TeamState
+from infonav_gym.multi.team_scenario import TeamAccessors, TeamScenario, TeamState
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
 from infonav_gym.scene import SceneFrame
 from infonav_gym.world.visibility import StaticGeometry
@@ -179,7 +179,7 @@ class CooperativeLocalization(TeamScenario):
         )
 
 
-class CooperativeLocalizationVectorEnv(Driver, scenario=CooperativeLocalization):
+class CooperativeLocalizationVectorEnv(TeamAccessors, Driver, scenario=CooperativeLocalization):
     """N copies of ``cooperative_localization_v0`` on stacked arrays: the env's one implementation.
 
     See ``CooperativeLocalizationEnv`` (its N = 1 PettingZoo view) for the spaces, rewards and config keys.
@@ -206,19 +206,6 @@ class CooperativeLocalizationVectorEnv(Driver, scenario=CooperativeLocalization)
     any key of ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0:
     the scenario, each robot's truth, estimate, covariance and paths, and this step's relative observations.
     """
-
-    def scenario(self, copy: int = 0):
-        """The ``Scenario`` of copy ``copy``'s episode."""
-        return self.state.worlds.scenario(copy)
-
-    @property
-    def true_poses(self) -> np.ndarray:
-        """Every copy's true robot poses (N, R, 3) [m, m, rad] (a copy)."""
-        return self.state.worlds.poses.copy()
-
-    def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
-        """Every copy's joint EKF state ``x`` (N, 3R) and covariance ``P`` (N, 3R, 3R) (copies)."""
-        return self.state.x.copy(), self.state.P.copy()
 
 
 class CooperativeLocalizationEnv(ParallelEnvView, vector_env=CooperativeLocalizationVectorEnv):
