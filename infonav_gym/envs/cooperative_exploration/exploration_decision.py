@@ -174,23 +174,6 @@ class ExplorationStep(NamedTuple):
     invalid: np.ndarray
     terms: dict
 
-    @classmethod
-    def nothing(cls, n_copies: int, n_robots: int, terms) -> ExplorationStep:
-        """No copy stepped: no action, every term 0."""
-        shape = (n_copies, n_robots)
-        nothing = {key: np.zeros(shape) for key in terms}
-        return cls(np.zeros(n_copies, bool), np.zeros(shape, int), np.zeros(shape, bool), nothing)
-
-    def restarted(self, copies: np.ndarray) -> ExplorationStep:
-        """This record with the (N,) bool ``copies`` reset since: no action, no reward, not stepped."""
-        rows = copies[:, None]
-        return ExplorationStep(
-            self.stepped & ~copies,
-            np.where(rows, 0, self.chosen),
-            self.invalid & ~rows,
-            {key: np.where(rows, 0.0, value) for key, value in self.terms.items()},
-        )
-
 
 def exploration_info(decision: ExplorationDecision, last: ExplorationStep, state: dict) -> dict:
     """Every copy's and robot's ``infos[agent]`` (see ``CooperativeExplorationEnv``) as arrays (N, R, ...) with

@@ -486,7 +486,7 @@ class CooperativeExplorationVectorEnv(TeamAccessors, Driver, scenario=Cooperativ
     def planning_model(self, copy: int = 0) -> ExplorationPlanningModel:
         """The planning model of copy ``copy`` (the same object on every call), for look-ahead agents
         (``agents.planner.PlannerAgent``)."""
-        models = self.__dict__.setdefault("_planning_models", {})
+        models = vars(self).setdefault("_planning_models", {})  # made by the first call
         if copy not in models:
             models[copy] = ExplorationPlanningModel(self, copy)
         return models[copy]
