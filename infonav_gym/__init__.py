@@ -36,15 +36,15 @@ BUILTIN_ENVS = (
     ),
     (
         "cooperative_localization_v0",
-        "infonav_gym.multi.cooperative_localization:CooperativeLocalizationEnv",
+        "infonav_gym.envs.cooperative_localization:CooperativeLocalizationEnv",
         PARALLEL,
-        "infonav_gym.multi.cooperative_localization_vector:CooperativeLocalizationVectorEnv",
+        "infonav_gym.envs.cooperative_localization:CooperativeLocalizationVectorEnv",
     ),
     (
         "cooperative_exploration_v0",
-        "infonav_gym.multi.cooperative_exploration:CooperativeExplorationEnv",
+        "infonav_gym.envs.cooperative_exploration:CooperativeExplorationEnv",
         PARALLEL,
-        "infonav_gym.multi.cooperative_exploration_vector:CooperativeExplorationVectorEnv",
+        "infonav_gym.envs.cooperative_exploration:CooperativeExplorationVectorEnv",
     ),
 )
 

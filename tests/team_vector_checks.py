@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from infonav_gym.multi import team_vector
+from infonav_gym.multi import team_scenario
 from infonav_gym.registry import env_entry
 from infonav_gym.sensors.relative_pose import noise_covariances, relative_poses_with_noise
 
@@ -26,7 +26,7 @@ def record_relative_measurements(monkeypatch) -> list:
     """The relative poses each ``relative_updates`` call measures (n, R, 3) (zeros where a robot observes no one),
     computed by the sensor's ``relative_poses_with_noise`` from the call's truth, sensor and standard normals."""
     measurements = []
-    updates = team_vector.relative_updates
+    updates = team_scenario.relative_updates
 
     def recorded(x, P, chosen, pair_index, targets, parameters, geometry, *rest):
         noise, measured = rest[-2], np.zeros(rest[-2].shape)
@@ -38,7 +38,7 @@ def record_relative_measurements(monkeypatch) -> list:
         measurements.append(measured)
         return updates(x, P, chosen, pair_index, targets, parameters, geometry, *rest)
 
-    monkeypatch.setattr(team_vector, "relative_updates", recorded)
+    monkeypatch.setattr(team_scenario, "relative_updates", recorded)
     return measurements
 
 

@@ -13,11 +13,14 @@ import pytest  # noqa: E402
 from conftest import assert_identical, greedy_actions, map_footprints, random_valid_actions  # noqa: E402
 from gymnasium import spaces  # noqa: E402
 
+from infonav_gym.envs.cooperative_exploration import N_MOTIONS, NOOP_ACTION  # noqa: E402
+from infonav_gym.envs.cooperative_exploration.exploration_team import (
+    exploration_observation_bounds,
+    exploration_observations,
+)  # noqa: E402
+from infonav_gym.envs.cooperative_exploration.terrain_map import TerrainMapModel  # noqa: E402
 from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0  # noqa: E402
-from infonav_gym.multi.cooperative_exploration import N_MOTIONS, NOOP_ACTION  # noqa: E402
-from infonav_gym.multi.exploration_team import exploration_observation_bounds, exploration_observations  # noqa: E402
-from infonav_gym.multi.terrain_map import TerrainMapModel  # noqa: E402
 from infonav_gym.world.exploration_scenarios import BASE_CLEARANCE_M, exploration_field  # noqa: E402
 
 ID = "cooperative_exploration_v0"

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from conftest import greedy_actions, random_valid_actions
 
+from infonav_gym.envs.cooperative_exploration import N_MOTIONS
 from infonav_gym.estimation import chi2_bounds
 from infonav_gym.estimation.consistency import pose_error
 from infonav_gym.multi import cooperative_exploration_v0
-from infonav_gym.multi.cooperative_exploration import N_MOTIONS
 
 # claims over 50 runs: slow; `pytest -m "not slow"` leaves it out while developing
 pytestmark = pytest.mark.slow

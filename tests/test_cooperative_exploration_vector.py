@@ -15,11 +15,10 @@ from team_vector_checks import (
     run_against_parallel_envs,
 )
 
+from infonav_gym.envs.cooperative_exploration import N_MOTIONS, CooperativeExplorationVectorEnv, scenario
+from infonav_gym.envs.cooperative_exploration.exploration_decision import TeamSight
 from infonav_gym.estimation.ekf import JointEKF
-from infonav_gym.multi import cooperative_exploration_v0, cooperative_exploration_vector
-from infonav_gym.multi.cooperative_exploration import N_MOTIONS
-from infonav_gym.multi.cooperative_exploration_vector import CooperativeExplorationVectorEnv
-from infonav_gym.multi.exploration_decision import TeamSight
+from infonav_gym.multi import cooperative_exploration_v0
 from infonav_gym.world import world_batch
 from infonav_gym.world.physics import ContactSpace
 
@@ -99,15 +98,13 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(monkeypatch):
     """Along a whole episode (DGPS under canopies, landmark and teammate observations, turns and drives) the env's EKF
     equals ``JointEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10), and each own-pose reward its MI."""
     priors, readings, fixes, landmark = [], [], [], []
-    monkeypatch.setattr(
-        cooperative_exploration_vector, "start_episode", recorded(cooperative_exploration_vector.start_episode, priors)
-    )
+    monkeypatch.setattr(scenario, "start_episode", recorded(scenario.start_episode, priors))
     relative = record_relative_measurements(monkeypatch)
     measure_landmarks = TeamSight.landmark_measurements
     monkeypatch.setattr(TeamSight, "landmark_measurements", lambda *args: recorded(measure_landmarks, landmark)(*args))
     env = cooperative_exploration_v0.parallel_env(max_cycles=60, max_position_std_m=100.0)
     vector, parts = env.vector, env.vector.parts
-    for sensor, sink in ((vector._odometry, readings), (vector._gps, fixes)):
+    for sensor, sink in ((vector.env_scenario.odometry, readings), (vector.env_scenario.gps, fixes)):
         measure = sensor.measure_with_noise
         monkeypatch.setattr(
             type(sensor), "measure_with_noise", lambda _, *args, m=measure, s=sink: recorded(m, s)(*args)
@@ -116,7 +113,7 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(monkeypatch):
     ekf = JointEKF(*priors[-1][1:3])
     n_robots, n_landmarks = len(env.possible_agents), env.config["n_landmarks"]
     odometry_covariances = np.repeat(parts.odometry.noise_covariance()[None], n_robots, axis=0)
-    gps_covariances = np.repeat(vector._gps.noise_covariance()[None], n_robots, axis=0)
+    gps_covariances = np.repeat(vector.env_scenario.gps.noise_covariance()[None], n_robots, axis=0)
     turn_s, drive_s = env.config["turn_time_s"], env.config["time_step_s"] - env.config["turn_time_s"]
 
     def fuse_gps(infos):

@@ -9,10 +9,10 @@ from gymnasium import spaces
 from team_vector_checks import record_relative_measurements, run_against_parallel_envs
 
 import infonav_gym
+from infonav_gym.envs.cooperative_localization import CooperativeLocalizationVectorEnv, scenario
 from infonav_gym.estimation.ekf import JointEKF
 from infonav_gym.information import mutual_information
-from infonav_gym.multi import cooperative_localization_v0, cooperative_localization_vector
-from infonav_gym.multi.cooperative_localization_vector import CooperativeLocalizationVectorEnv
+from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.registry import PARALLEL, env_entry, make_vector_env, register, unregister
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.relative_pose import (
@@ -145,16 +145,16 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
     """Along a whole episode (DGPS on schedule, lost by robot_1 at 21 s and under canopies, relative-pose updates)
     the env's EKF equals ``JointEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10), and each reward its MI."""
     priors, readings, fixes = [], [], []
-    start_episode = cooperative_localization_vector.start_episode
+    start_episode = scenario.start_episode
 
     def recorded(function, sink):
         return lambda *args: sink.append(function(*args)) or sink[-1]
 
-    monkeypatch.setattr(cooperative_localization_vector, "start_episode", recorded(start_episode, priors))
+    monkeypatch.setattr(scenario, "start_episode", recorded(start_episode, priors))
     measurements = record_relative_measurements(monkeypatch)
     env = cooperative_localization_v0.parallel_env(estimator=estimator, team_reward=0.5, max_cycles=80)
     vector = env.vector
-    for sensor, sink in ((vector._odometry, readings), (vector._gps, fixes)):
+    for sensor, sink in ((vector.env_scenario.odometry, readings), (vector.env_scenario.gps, fixes)):
         measure = sensor.measure_with_noise
         monkeypatch.setattr(
             type(sensor), "measure_with_noise", lambda _, *args, m=measure, s=sink: recorded(m, s)(*args)
@@ -162,8 +162,8 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
     _, infos = env.reset(seed=3)
     ekf = JointEKF(*priors[-1][1:3], cross_covariances=estimator == "joint")
     n_robots, dt = len(env.possible_agents), env.config["time_step_s"]
-    odometry_covariances = np.repeat(vector._odometry.noise_covariance()[None], n_robots, axis=0)
-    gps_covariances = np.repeat(vector._gps.noise_covariance()[None], n_robots, axis=0)
+    odometry_covariances = np.repeat(vector.env_scenario.odometry.noise_covariance()[None], n_robots, axis=0)
+    gps_covariances = np.repeat(vector.env_scenario.gps.noise_covariance()[None], n_robots, axis=0)
 
     def fuse_gps(infos):
         robots = np.flatnonzero([infos[agent]["gps_available"] for agent in env.possible_agents])
@@ -185,8 +185,8 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
         if observers.size:
             targets = chosen[observers] - 1
             predicted, H_observer, H_target = ekf.relative_pose_model(observers, targets)
-            pairs = vector._pair_index[observers, chosen[observers]]
-            R = noise_covariances(vector._pairs.noise[pairs], predicted[:, 0])
+            pairs = vector.env_scenario.pair_index[observers, chosen[observers]]
+            R = noise_covariances(vector.env_scenario.pairs.noise[pairs], predicted[:, 0])
             ekf.relative_pose_update(
                 observers, targets, measurements[-1][0][observers], predicted, H_observer, H_target, R
             )

@@ -9,10 +9,10 @@ from team_vector_checks import exploration_observation_updates
 
 from agents import PlannerAgent
 from agents.team_planning import TeamPlans
+from infonav_gym.envs.cooperative_exploration.exploration_planning import MOTION_HEADINGS_RAD, N_MOTIONS, STAY
 from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0
-from infonav_gym.multi.exploration_planning import MOTION_HEADINGS_RAD, N_MOTIONS, STAY
 
 FAST = {"rollout_steps": 4, "detour_steps": (0,)}  # short rollouts: the tests check behaviour, not quality
 

@@ -29,8 +29,7 @@ def test_the_team_decision_changes_nothing():
     env = cooperative_localization_v0.parallel_env()
     _, infos = env.reset(seed=3)
     twin = pickle.loads(pickle.dumps(env))
-    env.vector._decide()
-    again = env.vector.decision
+    again = env.vector.env_scenario.decision(env.vector.state, slice(None))
     np.testing.assert_array_equal(again.action_mask[0], [infos[agent]["action_mask"] for agent in env.agents])
     actions = {agent: int(np.flatnonzero(infos[agent]["action_mask"])[-1]) for agent in env.agents}
     assert_identical(env.step(actions), twin.step(actions))

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from conftest import random_valid_actions
 
+from infonav_gym.envs.cooperative_exploration.exploration_planning import MOTION_HEADINGS_RAD, N_MOTIONS, STAY
 from infonav_gym.multi import cooperative_exploration_v0
-from infonav_gym.multi.exploration_planning import MOTION_HEADINGS_RAD, N_MOTIONS, STAY
 from infonav_gym.world import StaticGeometry
 from infonav_gym.world.clearance import clear_moves, teammate_conflicts
 from infonav_gym.world.exploration_scenarios import exploration_field

@@ -585,7 +585,7 @@ def test_the_team_env_keeps_every_robots_paths_bounded(monkeypatch):
     env.reset(seed=0)
     while env.agents:
         env.step({name: 0 for name in env.agents})
-        paths = env.vector._paths
+        paths = env.vector.state.paths
         assert all(len(path) <= 5 for path in paths.true_paths + paths.estimated_paths)
     np.testing.assert_array_equal(paths.true_paths[0].points()[-1], env.vector.true_poses[0, 0, :2])
     assert env.render().dtype == np.uint8

@@ -8,7 +8,7 @@ episodes in ``_reset_copies`` (returning their static geometry, or None) with th
 ``_reset_outputs`` (``_outputs`` after no step: ``_no_step_record``), and fills ``step``'s two hooks: ``_act`` (the
 transition of the copies acting) and ``_outputs`` (observations and infos after it). ``reset`` and ``step`` are
 fixed here, with the seeding, the action checks, ``_elapsed`` (each copy's steps, against ``horizon``) and the
-resets of ``autoreset_mode`` (a team env's ``TeamVectorEnv`` has its own cycle).
+resets of ``autoreset_mode`` (the team envs run on ``envs.driver.Driver``).
 """
 
 from __future__ import annotations

@@ -1,12 +1,12 @@
 """``ParallelEnvView``: the PettingZoo ``ParallelEnv`` of a team env written once on batched arrays, as its N = 1 view.
 
-A team env's logic lives in its native vector env (``TeamVectorEnv``); its PettingZoo env is that code with one
-copy, without autoreset: ``class MyTeamEnv(ParallelEnvView, vector_env=MyTeamVectorEnv)``. The view takes one
-action per live agent, hands them on as a batch of one, and returns row 0 of every output as dicts per agent (the
-infos' numbers as Python scalars where they are one number). All agents end together and leave ``agents`` then
+A team env is a scenario (``EnvScenario.team``) run by the one driver (``envs.driver.Driver``); its PettingZoo env is
+that driver with one copy, without autoreset: ``class MyTeamEnv(ParallelEnvView, vector_env=MyTeamVectorEnv)``. The view
+takes one action per live agent, hands them on as a batch of one, and returns row 0 of every output as dicts per agent
+(the infos' numbers as Python scalars where they are one number). All agents end together and leave ``agents`` then
 (PettingZoo's semantics); ``reset()`` starts again. So ``parallel_env()`` after ``reset(seed=s)`` gives exactly the
-numbers of copy ``i`` of the vector env after ``reset(seed=s - i)``: there is nothing else to keep equal. A team
-env's ``metadata`` comes from ``team_metadata``, its versioned module's entry points from ``pettingzoo_entry_points``.
+numbers of copy ``i`` of the vector env after ``reset(seed=s - i)``: there is nothing else to keep equal. A team env's
+``metadata`` comes from ``team_metadata``, its versioned module's entry points from ``pettingzoo_entry_points``.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from infonav_gym.envs.base import accepts_action, discrete_action_index
 from infonav_gym.envs.copy_view import OneCopyView
-from infonav_gym.multi.team_vector import TeamVectorEnv
+from infonav_gym.envs.driver import Driver
 
 
 def team_metadata(name: str) -> dict:
@@ -75,7 +75,7 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
     When the vector env has a ``planning_model(copy)``, the view has ``planning_model()``: that of its copy.
     """
 
-    vector_env: type[TeamVectorEnv]
+    vector_env: type[Driver]
     metadata_keys = ("name", "render_modes", "render_fps", "is_parallelizable")
 
     def __init_subclass__(cls, **kwargs):

@@ -152,7 +152,7 @@ class TeamStep(NamedTuple):
         invalid: whether each robot's action was masked (N, R) bool.
         own_mi, team_mi: the MI on each robot's own pose and on the joint state (N, R) [nats].
         pose_std_after_update: each robot's x, y, heading standard deviations right after the relative
-            updates (N, R, 3); None for the prior's (a reset).
+            updates (N, R, 3) (the prior's where a copy did not step).
     """
 
     stepped: np.ndarray
@@ -160,16 +160,7 @@ class TeamStep(NamedTuple):
     invalid: np.ndarray
     own_mi: np.ndarray
     team_mi: np.ndarray
-    pose_std_after_update: np.ndarray | None
-
-    @classmethod
-    def of_reset(cls, n_copies: int, n_robots: int) -> TeamStep:
-        """A reset of every copy: nothing stepped, no action, no MI (``pose_std_after_update`` None: the prior's)."""
-        shape = (n_copies, n_robots)
-        nothing = np.zeros(shape)
-        return cls(
-            np.zeros(n_copies, bool), np.full(shape, NO_OBSERVATION), np.zeros(shape, bool), nothing, nothing, None
-        )
+    pose_std_after_update: np.ndarray
 
 
 def team_info(decision: TeamDecision, last: TeamStep, x, true_poses, gps_available, time_s) -> dict:

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.envs.cooperative_exploration.exploration_decision import TeamSight, landmark_gains, range_bearing_noise
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM, BeliefBatch, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import largest_position_std, mutual_information_from_log_dets
-from infonav_gym.multi.exploration_decision import TeamSight, landmark_gains, range_bearing_noise
 from infonav_gym.multi.team_decision import observable_pairs
 from infonav_gym.sensors.relative_pose import noise_covariances
 from infonav_gym.world.clearance import clear_moves

@@ -16,7 +16,6 @@ from infonav_gym.estimation import batched, kernels
 from infonav_gym.estimation.kernels import range_bearing_of_offset
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.multi.team_decision import (
-    TeamDecision,
     team_step_info,
     with_masks,
 )
@@ -79,14 +78,22 @@ class ExplorationDecision(NamedTuple):
     Attributes:
         action_mask: int8 (N, R, 5 S), S = 1 + L + R observation slots times 5 motions.
         action_information_gain: immediate expected information of each action (N, R, 5 S) [nats], 0 where masked.
-        team: the relative-pose candidates (``TeamDecision`` with the budget applied; its gains are own-pose MI).
+        geometry, valid, predicted, H_observer, H_target, R, pose_log_det, pose_std: the relative-pose candidates
+            and the prior's poses, as ``TeamDecision`` has them (with the budget applied).
         slot_valid: which observation slots each robot may choose now (N, R, S) bool.
         position_std: each robot's largest position standard deviation at the prior (N, R) [m].
     """
 
     action_mask: np.ndarray
     action_information_gain: np.ndarray
-    team: TeamDecision
+    geometry: np.ndarray
+    valid: np.ndarray
+    predicted: np.ndarray
+    H_observer: np.ndarray
+    H_target: np.ndarray
+    R: np.ndarray
+    pose_log_det: np.ndarray
+    pose_std: np.ndarray
     slot_valid: np.ndarray
     position_std: np.ndarray
 
@@ -167,23 +174,6 @@ class ExplorationStep(NamedTuple):
     invalid: np.ndarray
     terms: dict
 
-    @classmethod
-    def nothing(cls, n_copies: int, n_robots: int, terms) -> ExplorationStep:
-        """No copy stepped: no action, every term 0."""
-        shape = (n_copies, n_robots)
-        nothing = {key: np.zeros(shape) for key in terms}
-        return cls(np.zeros(n_copies, bool), np.zeros(shape, int), np.zeros(shape, bool), nothing)
-
-    def restarted(self, copies: np.ndarray) -> ExplorationStep:
-        """This record with the (N,) bool ``copies`` reset since: no action, no reward, not stepped."""
-        rows = copies[:, None]
-        return ExplorationStep(
-            self.stepped & ~copies,
-            np.where(rows, 0, self.chosen),
-            self.invalid & ~rows,
-            {key: np.where(rows, 0.0, value) for key, value in self.terms.items()},
-        )
-
 
 def exploration_info(decision: ExplorationDecision, last: ExplorationStep, state: dict) -> dict:
     """Every copy's and robot's ``infos[agent]`` (see ``CooperativeExplorationEnv``) as arrays (N, R, ...) with
@@ -198,11 +188,8 @@ def exploration_info(decision: ExplorationDecision, last: ExplorationStep, state
         state: the copies' ``x`` (N, 3R), ``true_poses`` (N, R, 3), ``gps_available``, ``observations_left`` and
             ``lost`` (N, R), ``coverage``, ``success`` and ``time_s`` (N,).
     """
-    prior = decision.team._replace(
-        action_mask=decision.action_mask, action_information_gain=decision.action_information_gain
-    )
     info = team_step_info(
-        prior, last, last.terms, state["x"], state["true_poses"], state["gps_available"], state["time_s"]
+        decision, last, last.terms, state["x"], state["true_poses"], state["gps_available"], state["time_s"]
     )
     return with_masks(
         {

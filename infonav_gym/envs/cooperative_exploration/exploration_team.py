@@ -13,11 +13,11 @@ import numpy as np
 from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.config import Interval, check_config, check_config_arguments, config_keys
 from infonav_gym.envs.base import EPISODE_STEPS, MAX_EPISODE_STEPS, REWARD_WEIGHT
+from infonav_gym.envs.cooperative_exploration.terrain_map import TerrainMapModel
 from infonav_gym.envs.observation_kernels import clip_into, range_bearing_features
 from infonav_gym.estimation.state import INITIAL_POSE_STD
 from infonav_gym.multi.team import gps_receivers, parse_speeds, parse_suites
 from infonav_gym.multi.team_sensing import SensingPairs, team_prior
-from infonav_gym.multi.terrain_map import TerrainMapModel
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor, odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, RelativePoseSensor

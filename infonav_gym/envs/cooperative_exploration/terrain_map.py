@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from infonav_gym.multi import terrain_map_kernels
+from infonav_gym.envs.cooperative_exploration import terrain_map_kernels
 
 
 @dataclass(frozen=True)

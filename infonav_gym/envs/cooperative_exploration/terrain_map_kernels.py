@@ -1,4 +1,4 @@
-"""Compiled scan gains of the coverage map (``multi.terrain_map``): each scan visits only the cells it sees.
+"""Compiled scan gains of the coverage map (``terrain_map``): each scan visits only the cells it sees.
 
 The footprint test is ``TerrainMapModel.footprints``'s, operation for operation (``dx * dx + dy * dy <=
 radius^2`` on the cell-centre ticks); the gain sums ``log1p(v_c / r)`` over those cells in row-major order.

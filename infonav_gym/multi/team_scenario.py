@@ -1,0 +1,266 @@
+"""``TeamScenario`` and ``TeamState``: what the team scenarios share (DGPS fixes, relative poses, odometry).
+
+A team scenario runs N copies of a team of R robots on stacked arrays: one action per copy and robot (N, R), joint EKF
+states ``x`` (N, 3R) and covariances ``P`` (N, 3R, 3R). Its ``__init__`` checks its own keys, then calls ``use_team``
+with its sensors; its ``allocate`` starts from ``team_fields``, its ``initial`` calls ``start_copy`` for each copy and
+then ``started``. The helpers take the state as an argument; the driver (``envs.driver.Driver``) runs the steps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from infonav_gym.compiled import contiguous, kernel, stacked
+from infonav_gym.envs.noise_streams import NoiseStreams
+from infonav_gym.envs.protocol import EnvScenario, State
+from infonav_gym.estimation import batched
+from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses
+from infonav_gym.estimation.state import POSE_DIM, block_diagonal
+from infonav_gym.geometry import wrap_angle_kernel as wrap
+from infonav_gym.information import log_det_of, mutual_information_kernel
+from infonav_gym.multi.team_paths import FirstCopyPaths
+from infonav_gym.multi.team_sensing import NO_OBSERVATION, gps_available, gps_schedule
+from infonav_gym.sensors.gps import GPSSensor
+from infonav_gym.sensors.relative_pose import relative_pose_measured
+from infonav_gym.world.world_batch import WorldBatch
+
+ODOMETRY_NOISE, GPS_NOISE, RELATIVE_NOISE = 0, 1, 2  # ``noise`` index of each sensor's streams (more may follow)
+
+
+@dataclass
+class TeamState(State):
+    """Every copy's world, noise streams (one ``NoiseStreams`` per sensor generator of an episode, in the order its
+    ``start_episode`` spawns them), joint EKF ``x`` (N, 3R) and ``P`` (N, 3R, 3R), which robots have a DGPS fix
+    (N, R), its GPS-denied zones (centres (N, Z, 2) [m], squared radii (N, Z) [m^2], -1: padding), each copy's static
+    geometry (``geometries``, stacked in ``geometry``) and copy 0's paths (when drawing)."""
+
+    worlds: WorldBatch
+    noise: tuple
+    x: np.ndarray
+    P: np.ndarray
+    gps_available: np.ndarray
+    zone_centers: np.ndarray
+    zone_radii_sq: np.ndarray
+    geometries: list
+    geometry: object = None
+    paths: FirstCopyPaths | None = None
+
+
+def copy_rows(copies: np.ndarray, n_copies: int):
+    """The index of ``copies`` (ascending) into (N, ...) arrays: a slice (views) when they are every copy."""
+    return slice(None) if len(copies) == n_copies else copies
+
+
+class TeamScenario(EnvScenario):
+    """A team scenario of robots with DGPS, odometry and relative-pose sensors: its constants and shared steps.
+
+    Constants set by ``use_team``: ``agents`` (the robots R), ``pairs`` (``SensingPairs``), ``pair_index``, the DGPS
+    schedules, ``gps`` (every receiver's noise), ``odometry``. ``team_info_keys`` are the info keys of the whole team,
+    (N,) arrays; every other key of the parallel env's ``infos[agent]`` is (N, R, ...).
+    """
+
+    team = True
+    horizon_key = "max_cycles"
+    team_info_keys: ClassVar[frozenset] = frozenset({"time_s"})
+
+    def use_team(self, pairs, gps, odometry) -> None:
+        """Keep the team's sensors: its (observer, target) ``pairs`` (``SensingPairs``), each robot's ``GPSSensor``
+        (with its outage spans) or None without DGPS (R,), and every robot's ``odometry``."""
+        n_robots = len(gps)
+        self.agents = [f"robot_{k}" for k in range(n_robots)]
+        self.pairs = pairs
+        self.pair_index = np.full((n_robots, n_robots + 1), -1)  # robot, teammate choice -> its pair
+        self.pair_index[pairs.observers, pairs.targets + 1] = np.arange(len(pairs.observers))
+        self.has_gps, self.outages = gps_schedule(gps)
+        self.gps = GPSSensor(self.config["gps_std_m"])  # every receiver's noise; the schedules are ``outages``
+        self.gps_covariance = self.gps.noise_covariance()
+        self.cross_covariances = self.config.get("estimator", "joint") == "joint"  # a team env may drop them
+        self.odometry = odometry
+        self.odometry_covariances = np.repeat(odometry.noise_covariance()[None], n_robots, axis=0)
+
+    def team_fields(self, copies: int, more_noise_widths=()) -> dict:
+        """The ``TeamState`` fields of ``copies`` copies before their first episode; ``more_noise_widths``: the draw
+        widths of the episode's generators after odometry, DGPS and relative poses."""
+        n_robots = len(self.agents)
+        widths = (2 * n_robots, 2, POSE_DIM, *more_noise_widths)
+        dim = POSE_DIM * n_robots
+        return {
+            "elapsed": np.zeros(copies, dtype=int),
+            "worlds": WorldBatch(copies),
+            "noise": tuple(NoiseStreams(copies, width) for width in widths),
+            "x": np.zeros((copies, dim)),
+            "P": np.zeros((copies, dim, dim)),
+            "gps_available": np.zeros((copies, n_robots), dtype=bool),
+            "zone_centers": np.zeros((copies, 0, 2)),
+            "zone_radii_sq": np.zeros((copies, 0)),
+            "geometries": [None] * copies,
+        }
+
+    @staticmethod
+    def start_copy(state: TeamState, copy: int, scenario, poses, covariances, generators) -> None:
+        """Copy ``copy`` starts an episode of ``scenario``: its world, sensor streams and joint EKF prior."""
+        state.worlds.reset_copy(copy, scenario)
+        for streams, generator in zip(state.noise, generators):
+            streams.restart(copy, generator)
+        state.x[copy], state.P[copy] = poses.ravel(), block_diagonal(covariances)
+
+    def started(self, state: TeamState, copies: np.ndarray) -> None:
+        """``copies`` have started their episodes (``start_copy``): their DGPS zones and first fixes; copy 0's paths
+        start anew when drawing."""
+        state.zone_centers, state.zone_radii_sq = gps_denied_zones(state.worlds)
+        self.gps_fixes(state, copies, state.elapsed[copies])
+        if copies[0] == 0 and self.drawing:
+            state.paths = FirstCopyPaths(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
+
+    def relative_update(self, state: TeamState, copies: np.ndarray, chosen: np.ndarray, decision) -> list:
+        """Fuse the teammate choices ``chosen`` (n, R) (``NO_OBSERVATION`` or ``1 + j`` for robot j) of ``copies`` (n,)
+        at the ``decision``'s candidates as one stacked update per copy; the joint MI (n,), each robot's own-pose MI
+        (n, R) [nats] and its x, y, heading standard deviations after (n, R, 3) (``relative_updates``: MI 0 and the
+        prior's std in a copy without observations)."""
+        noise = state.noise[RELATIVE_NOISE].take_many(copies, chosen != NO_OBSERVATION)
+        rows = copy_rows(copies, len(state.elapsed))
+        candidates = (decision.geometry, decision.predicted, decision.H_observer, decision.H_target, decision.R)
+        state.x[rows], state.P[rows], *brought = relative_updates(
+            state.x[rows],
+            state.P[rows],
+            chosen,
+            self.pair_index,
+            self.pairs.targets,
+            self.pairs.noise,
+            *(contiguous(candidate[rows]) for candidate in (*candidates, decision.pose_log_det)),
+            noise,
+            self.cross_covariances,
+        )
+        if np.isnan(brought[0]).any():
+            raise ValueError("the joint covariance after the relative-pose updates is not positive definite")
+        return brought
+
+    def predict(self, state: TeamState, copies: np.ndarray, controls: np.ndarray, dt: float) -> None:
+        """Predict the EKFs of ``copies`` with noisy odometry of the executed ``controls`` (n, R, 2) over ``dt`` [s]."""
+        noise = state.noise[ODOMETRY_NOISE].take(copies).reshape(controls.shape)
+        readings = self.odometry.measure_with_noise(controls, noise)
+        rows = copy_rows(copies, len(state.elapsed))
+        x, P = contiguous(state.x[rows]), contiguous(state.P[rows])  # ``JointEKF.predict`` on the compiled core
+        covariances = stacked(self.odometry_covariances, (*controls.shape, 2))
+        state.x[rows], state.P[rows] = predict_poses(x, P, readings, float(dt), covariances)
+
+    def gps_fixes(self, state: TeamState, copies: np.ndarray, steps: np.ndarray) -> None:
+        """Which robots of ``copies`` have a DGPS fix after ``steps`` (n,) steps of their episodes (schedule, zones),
+        and their update."""
+        within = copy_rows(copies, len(state.elapsed))
+        positions = state.worlds.poses[within, :, :2]
+        available = self.gps_available(state, copies, positions, steps * self.config["time_step_s"])
+        state.gps_available[within] = available
+        if not available.any():
+            return
+        fixes = self.gps.measure_with_noise(positions, state.noise[GPS_NOISE].take_many(copies, available))
+        state.x[within], state.P[within] = batched.gps_update(  # copies without a fix come back unchanged
+            state.x[within],
+            state.P[within],
+            fixes,
+            self.gps_covariance,
+            available,
+            cross_covariances=self.cross_covariances,
+            check_input=False,
+        )
+
+    def gps_available(self, state: TeamState, copies: np.ndarray, positions: np.ndarray, time_s) -> np.ndarray:
+        """Which robots at ``positions`` (n, R, 2) [m] in ``copies`` (n,) have a DGPS fix at ``time_s`` (n,) [s]: they
+        carry DGPS, are in none of their copy's GPS-denied zones and in no outage span (n, R) bool."""
+        zones = state.zone_centers, state.zone_radii_sq
+        return gps_available(copies, contiguous(positions), *zones, self.has_gps, self.outages, time_s)
+
+
+class TeamAccessors:
+    """What a team vector env (the ``Driver`` of a ``TeamScenario``) shows of its ``state``, for harnesses and tests:
+    ``class MyTeamVectorEnv(TeamAccessors, Driver, scenario=MyTeamScenario)``."""
+
+    state: TeamState
+    horizon: int
+    config: dict
+
+    @property
+    def max_cycles(self) -> int:
+        """Every copy's episode length [steps]; setting it (``set_attr``) sets the horizon the steps count against
+        and the ``max_cycles`` the scenario reads."""
+        return self.horizon
+
+    @max_cycles.setter
+    def max_cycles(self, value: int) -> None:
+        self.horizon = self.config["max_cycles"] = value
+
+    def scenario(self, copy: int = 0):
+        """The ``Scenario`` of copy ``copy``'s episode."""
+        return self.state.worlds.scenario(copy)
+
+    @property
+    def true_poses(self) -> np.ndarray:
+        """Every copy's true robot poses (N, R, 3) [m, m, rad] (a copy)."""
+        return self.state.worlds.poses.copy()
+
+    def joint_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every copy's joint EKF state ``x`` (N, 3R) and covariance ``P`` (N, 3R, 3R) (copies)."""
+        return self.state.x.copy(), self.state.P.copy()
+
+
+def gps_denied_zones(worlds: WorldBatch) -> tuple[np.ndarray, np.ndarray]:
+    """Every copy's GPS-denied zones: centres (N, Z, 2) [m] and squared radii (N, Z) [m^2] (-1: padding)."""
+    zones = [worlds.scenario(copy).gps_denied_zones for copy in range(len(worlds.poses))]
+    centers = np.zeros((len(zones), max(map(len, zones)), 2))
+    radii_sq = np.full(centers.shape[:2], -1.0)
+    for copy, copy_zones in enumerate(zones):
+        for slot, zone in enumerate(copy_zones):
+            centers[copy, slot], radii_sq[copy, slot] = zone.center, zone.radius**2
+    return centers, radii_sq
+
+
+@kernel
+def relative_updates(
+    x, P, chosen, pair_index, targets, parameters, geometry, predicted, H_o, H_t, R, log_det, noise, cross
+):
+    """``JointEKF.relative_pose_update`` of n copies with their robots' teammate choices, and what it brought.
+
+    Robot k of copy c observes pair ``pair_index[k, chosen[c, k]]`` (-1: none): its true relative pose ``geometry``
+    plus the sensor's noise (``relative_poses_with_noise`` of its ``parameters`` and the standard normals ``noise[c,
+    k]``), fused at the prior's ``predicted``, ``H_o``, ``H_t`` and ``R`` in slot order (``kalman_updates``). Returns
+    ``(x, P, joint_mi (n,), own_mi (n, R), pose_std (n, R, 3))``: the MI on the joint state and on each robot's pose
+    (prior: ``log_det`` (n, R)) [nats], NaN where a determinant is not > 0, and each robot's std after. A copy
+    without observations keeps its x and P: MI 0 (its joint log-determinants are not computed).
+    """
+    n_copies, n = x.shape
+    n_robots = chosen.shape[1]
+    residuals, slot_R = np.zeros((n_copies, n_robots, POSE_DIM)), np.zeros((n_copies, n_robots, POSE_DIM, POSE_DIM))
+    H, observed = np.zeros((n_copies, n_robots, POSE_DIM, n)), np.zeros((n_copies, n_robots), np.bool_)
+    measured, observations = np.empty(POSE_DIM), np.zeros(n_copies, np.int64)
+    for c in range(n_copies):
+        for robot in range(n_robots):
+            pair = pair_index[robot, chosen[c, robot]]
+            if pair < 0:
+                continue
+            observed[c, robot] = True
+            observations[c] += 1
+            target = targets[pair]
+            relative_pose_measured(geometry[c, pair], parameters[pair], noise[c, robot], measured)
+            for i in range(POSE_DIM):
+                residual = measured[i] - predicted[c, pair, i]
+                residuals[c, robot, i] = wrap(residual) if i else residual
+                for j in range(POSE_DIM):
+                    H[c, robot, i, POSE_DIM * robot + j] = H_o[c, pair, i, j]
+                    H[c, robot, i, POSE_DIM * target + j] = H_t[c, pair, i, j]
+                    slot_R[c, robot, i, j] = R[c, pair, i, j]
+    x_new, P_new = kalman_updates(x, P, residuals, H, slot_R, observed, n_robots, cross)
+    joint_mi, own_mi, pose_std = np.empty(n_copies), np.empty((n_copies, n_robots)), np.empty(residuals.shape)
+    block = np.empty((POSE_DIM, POSE_DIM))
+    for c in range(n_copies):
+        joint_mi[c] = mutual_information_kernel(log_det_of(P[c]), log_det_of(P_new[c])) if observations[c] else 0.0
+        for robot in range(n_robots):
+            own_mi[c, robot] = mutual_information_kernel(
+                log_det[c, robot], pose_block_log_det(P_new[c], POSE_DIM * robot, block)
+            )
+            for i in range(POSE_DIM):
+                pose_std[c, robot, i] = math.sqrt(P_new[c, POSE_DIM * robot + i, POSE_DIM * robot + i])
+    return x_new, P_new, joint_mi, own_mi, pose_std
