@@ -1,4 +1,4 @@
-"""The hooks of the vector-env contract and of the team decision; the planning model."""
+"""The team decision and the planning model (the protocol's own checks: ``test_protocol.py``)."""
 
 import pickle
 
@@ -9,20 +9,7 @@ from conftest import assert_identical
 
 import infonav_gym  # noqa: F401  (registers the envs)
 from agents.planner import PlannerAgent, planning_model
-from infonav_gym.envs.vector_base import InfoNavVectorEnv
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0
-
-
-class HooklessVectorEnv(InfoNavVectorEnv):
-    """A vector env that fills none of the contract's hooks."""
-
-
-def test_a_vector_env_missing_its_hooks_says_which():
-    with pytest.raises(NotImplementedError, match=r"HooklessVectorEnv must implement _build\(\)"):
-        HooklessVectorEnv(num_envs=2)
-    env = HooklessVectorEnv.__new__(HooklessVectorEnv)
-    with pytest.raises(NotImplementedError, match=r"HooklessVectorEnv must implement _scene_frame\(\) to render"):
-        env._scene_frame()
 
 
 def test_the_team_decision_changes_nothing():
@@ -63,19 +50,3 @@ def test_a_planning_model_missing_a_method_is_a_clear_error():
     env.planning_model = Incomplete
     with pytest.raises(ValueError, match="lacks plan_decision, plan_step, position_std"):
         PlannerAgent(env)
-
-
-class SpacesOnlyVectorEnv(InfoNavVectorEnv):
-    """A vector env that builds its spaces and fills no other hook."""
-
-    def _build(self) -> None:
-        self._set_spaces(gym.spaces.Discrete(2), gym.spaces.Discrete(2))
-
-
-def test_a_vector_env_missing_its_episode_and_step_hooks_says_which():
-    env = SpacesOnlyVectorEnv(num_envs=2)
-    with pytest.raises(NotImplementedError, match=r"SpacesOnlyVectorEnv must implement _reset_copies\(\)"):
-        env.reset(seed=0)
-    env._decision = type("Decision", (), {"action_mask": np.ones((2, 2), dtype=np.int8)})()
-    with pytest.raises(NotImplementedError, match=r"SpacesOnlyVectorEnv must implement _act\(\)"):
-        env.step(np.zeros(2, dtype=int))

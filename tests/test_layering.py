@@ -182,6 +182,20 @@ def cross_env_imports() -> list[str]:
     ]
 
 
+def test_each_built_in_env_is_one_folder():
+    """Every built-in env's vector env (its driver bound to its scenario) lives in its own folder below
+    ``infonav_gym.envs``: one env, one folder."""
+    from infonav_gym.registry import registered_envs
+
+    homes = {}
+    for entry in registered_envs():
+        module = entry.load_vector().__module__
+        if within(module, "infonav_gym"):  # not an env a test registered
+            homes[entry.id] = ".".join(module.split(".")[:3])
+    assert len(homes) >= 6 and len(set(homes.values())) == len(homes), homes
+    assert all(home in env_folders() for home in homes.values()), homes
+
+
 def test_no_env_folder_imports_another():
     found = cross_env_imports()
     assert found == [], "an env folder imports another:\n" + "\n".join(found)

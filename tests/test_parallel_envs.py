@@ -13,7 +13,7 @@ import pytest  # noqa: E402
 from conftest import assert_identical, random_valid_actions  # noqa: E402
 from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test  # noqa: E402
 
-from infonav_gym.multi.parallel_view import pettingzoo_entry_points  # noqa: E402
+from infonav_gym.envs.parallel_view import pettingzoo_entry_points  # noqa: E402
 from infonav_gym.registry import PARALLEL, registered_envs  # noqa: E402
 
 API_CYCLES = 300

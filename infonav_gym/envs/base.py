@@ -1,7 +1,7 @@
 """What every infonav env shares below its vector base: the shared config keys and their limits, and action checks.
 
-The envs are written once on the vector-env contract (``envs.vector_base``); their single envs are its N = 1 views
-(``envs.single_view``, ``multi.parallel_view``), which check one action with ``discrete_action_index``.
+The envs are scenarios run by the one driver (``envs.driver``); their single envs are its N = 1 views
+(``envs.single_view``, ``envs.parallel_view``), which check one action with ``discrete_action_index``.
 """
 
 from __future__ import annotations

@@ -107,10 +107,9 @@ class Driver(VectorEnv):
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.num_envs, self.render_mode = num_envs, render_mode
         self.env_scenario = scenario = self.scenario_class(self.config, num_envs, owner, render_mode)
-        self.agents, self.horizon = list(scenario.agents), self.config[scenario.horizon_key]
+        self.agents = list(scenario.agents)
         self.single_observation_space, self.single_action_space = scenario.observation_space, scenario.action_space
         if scenario.team:
-            self.max_cycles = self.horizon
             low, high = scenario.observation_space.low, scenario.observation_space.high
             shape = (num_envs, len(self.agents), *low.shape)
             box = spaces.Box(np.broadcast_to(low, shape), np.broadcast_to(high, shape), dtype=np.float32)
@@ -135,6 +134,15 @@ class Driver(VectorEnv):
         env._owner = owner
         env.__init__(num_envs=1, render_mode=render_mode, autoreset_mode=AutoresetMode.DISABLED, **config)
         return env
+
+    @property
+    def horizon(self) -> int:
+        """Every copy's episode length [steps]: the config's ``horizon`` (a team's ``max_cycles``); settable."""
+        return self.config[self.env_scenario.horizon_key]
+
+    @horizon.setter
+    def horizon(self, steps: int) -> None:
+        self.config[self.env_scenario.horizon_key] = steps
 
     @property
     def owner_name(self) -> str:

@@ -1,7 +1,8 @@
 """``SingleEnvView``: the Gymnasium ``Env`` of an env written once on batched arrays, as its N = 1 view.
 
-An env's logic lives in its native vector env (``InfoNavVectorEnv``); its single env is that code with one copy,
-without autoreset: ``class MyEnv(SingleEnvView, vector_env=MyVectorEnv)``. The view takes one action, hands it on as
+An env's logic lives in its scenario, run over N copies by the one driver (``envs.driver.Driver``, its native vector
+env); its single env is the driver with one copy, without autoreset: ``class MyEnv(SingleEnvView,
+vector_env=MyVectorEnv)``. The view takes one action, hands it on as
 a batch of one, and returns row 0 of every output, its info as the single env's dict (masked keys left out). So
 ``gym.make(id)`` after ``reset(seed=s)`` gives exactly the numbers of sub-env ``i`` of ``gym.make_vec(id, N)`` after
 ``reset(seed=s - i)``: there is nothing else to keep equal.
@@ -14,7 +15,7 @@ import numpy as np
 
 from infonav_gym.envs.base import discrete_action_index
 from infonav_gym.envs.copy_view import OneCopyView
-from infonav_gym.envs.vector_base import InfoNavVectorEnv
+from infonav_gym.envs.driver import Driver
 
 
 def first_row(info: dict) -> dict:
@@ -41,7 +42,7 @@ class SingleEnvView(OneCopyView, gym.Env):
     ``reset()`` to start again. ``vector`` is the underlying vector env of one copy.
     """
 
-    vector_env: type[InfoNavVectorEnv]
+    vector_env: type[Driver]
 
     def __init__(self, render_mode: str | None = None, **config):
         self._view_one_copy(render_mode, config)

@@ -8,7 +8,7 @@ Config keys: ``CooperativeExplorationEnv.default_config()``.
 from __future__ import annotations
 
 from infonav_gym.envs.cooperative_exploration import CooperativeExplorationEnv
-from infonav_gym.multi.parallel_view import pettingzoo_entry_points
+from infonav_gym.envs.parallel_view import pettingzoo_entry_points
 
 __all__ = ["env", "parallel_env", "raw_env"]
 

@@ -8,7 +8,7 @@ conversion; ``env(**config)`` the AEC env with PettingZoo's order-enforcing wrap
 from __future__ import annotations
 
 from infonav_gym.envs.cooperative_localization import CooperativeLocalizationEnv
-from infonav_gym.multi.parallel_view import pettingzoo_entry_points
+from infonav_gym.envs.parallel_view import pettingzoo_entry_points
 
 __all__ = ["env", "parallel_env", "raw_env"]
 

@@ -181,17 +181,15 @@ class TeamAccessors:
 
     state: TeamState
     horizon: int
-    config: dict
 
     @property
     def max_cycles(self) -> int:
-        """Every copy's episode length [steps]; setting it (``set_attr``) sets the horizon the steps count against
-        and the ``max_cycles`` the scenario reads."""
+        """Every copy's episode length [steps], the driver's ``horizon``; settable (``set_attr``)."""
         return self.horizon
 
     @max_cycles.setter
     def max_cycles(self, value: int) -> None:
-        self.horizon = self.config["max_cycles"] = value
+        self.horizon = value
 
     def scenario(self, copy: int = 0):
         """The ``Scenario`` of copy ``copy``'s episode."""

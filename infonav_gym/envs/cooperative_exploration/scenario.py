@@ -2,7 +2,7 @@
 
 ``make_vector_env("cooperative_exploration_v0", num_envs=N, **config)`` returns ``CooperativeExplorationVectorEnv``
 (the driver of this scenario); its PettingZoo env (``CooperativeExplorationEnv``,
-``cooperative_exploration_v0.parallel_env``) is its N = 1 view without autoreset (``multi.parallel_view``). The joint
+``cooperative_exploration_v0.parallel_env``) is its N = 1 view without autoreset (``envs.parallel_view``). The joint
 estimation (prediction, DGPS, relative-pose and landmark updates, expected gains, log-determinants), the line of
 sight, the terrain maps and the scan gains run batched over the copies (``estimation.batched``, ``world.visibility``,
 ``TerrainMapModel``), the physics in a ``WorldBatch`` driven by the motions' turn and drive commands, and the sensor
@@ -50,11 +50,11 @@ from infonav_gym.envs.cooperative_exploration.exploration_team import (
 )
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import EXPLORATION_METRICS
+from infonav_gym.envs.parallel_view import ParallelEnvView, team_metadata
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.models import range_bearing
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.multi.parallel_view import ParallelEnvView, team_metadata
 from infonav_gym.multi.team_decision import TeamDecision, observable_pairs
 from infonav_gym.multi.team_observations import team_observation_bounds, team_observations
 from infonav_gym.multi.team_scenario import TeamAccessors, TeamScenario, TeamState, copy_rows

@@ -2,7 +2,7 @@
 
 ``make_vector_env("cooperative_localization_v0", num_envs=N, **config)`` returns ``CooperativeLocalizationVectorEnv``
 (the driver of this scenario); its PettingZoo env (``CooperativeLocalizationEnv``,
-``cooperative_localization_v0.parallel_env``) is its N = 1 view without autoreset (``multi.parallel_view``). The joint
+``cooperative_localization_v0.parallel_env``) is its N = 1 view without autoreset (``envs.parallel_view``). The joint
 estimation (prediction, DGPS and relative-pose updates, expected gains, log-determinants) runs on the batched EKF core
 (``estimation.batched``), the robot-robot line of sight on ``world.visibility``, the physics in a ``WorldBatch`` and
 the sensor noise from one stream per copy and sensor (``NoiseStreams``), so copy ``i`` after ``reset(seed=s)`` gives
@@ -23,9 +23,9 @@ from infonav_gym.envs.cooperative_localization.team_localization import (
 )
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
+from infonav_gym.envs.parallel_view import ParallelEnvView, team_metadata
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.multi.parallel_view import ParallelEnvView, team_metadata
 from infonav_gym.multi.team_decision import TeamDecision, TeamStep, observable_pairs, team_info
 from infonav_gym.multi.team_observations import team_observation_bounds, team_observations
 from infonav_gym.multi.team_scenario import TeamAccessors, TeamScenario, TeamState
