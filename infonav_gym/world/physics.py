@@ -84,3 +84,22 @@ class ContactSpace:
             [query(start, (float(x), float(y)), 0.0, _OBSTACLES_ONLY) is None for x, y in np.atleast_2d(targets)],
             dtype=bool,
         )
+
+
+def static_boxes(scenario: Scenario, wall_thickness_m: float) -> np.ndarray:
+    """Bounding boxes ``(left, bottom, right, top)`` of the scenario's walls, then obstacles (S, 4) [m], as Pymunk's
+    (what ``StaticGeometry``'s boxes hold, without building one: a reset of many copies calls this per copy)."""
+    boxes = [
+        (
+            min(a[0], b[0]) - wall_thickness_m / 2,
+            min(a[1], b[1]) - wall_thickness_m / 2,
+            max(a[0], b[0]) + wall_thickness_m / 2,
+            max(a[1], b[1]) + wall_thickness_m / 2,
+        )
+        for a, b in scenario.walls
+    ]
+    boxes += [
+        (o.center[0] - o.radius, o.center[1] - o.radius, o.center[0] + o.radius, o.center[1] + o.radius)
+        for o in scenario.obstacles
+    ]
+    return np.array(boxes, dtype=float).reshape(-1, 4)

@@ -22,7 +22,7 @@ from infonav_gym.world.motion_kernels import (
     unicycle_moves,
     waypoint_controls,
 )
-from infonav_gym.world.physics import MAX_TIME_STEP_S, TIME_STEP_S, WORLD_ARGUMENTS, ContactSpace
+from infonav_gym.world.physics import MAX_TIME_STEP_S, TIME_STEP_S, WORLD_ARGUMENTS, ContactSpace, static_boxes
 from infonav_gym.world.scenarios import Scenario
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
 
@@ -102,8 +102,7 @@ class WorldBatch:
         self._waypoint_index[copy] = 0
         self._route_speeds[copy] = [route.speed_mps for route in routes]
         self._loops[copy] = [route.loop for route in routes]
-        geometry = StaticGeometry.from_scenario(scenario, self.wall_thickness_m)  # Pymunk's boxes, walls first
-        boxes = np.concatenate([geometry.wall_boxes[0], geometry.disc_boxes[0]])
+        boxes = static_boxes(scenario, self.wall_thickness_m)
         if len(boxes) > self._boxes.shape[1]:
             grown = np.full((self.n_copies, len(boxes), 4), _EMPTY_BOX)
             grown[:, : self._boxes.shape[1]] = self._boxes
