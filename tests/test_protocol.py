@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import ast
 import importlib
 import inspect
 import pkgutil
+import textwrap
 from typing import NamedTuple
 
 import gymnasium as gym
@@ -17,6 +19,7 @@ from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.registry import registered_envs
 
+BUILT_IN_IDS = {env_id for env_id, *_ in infonav_gym.BUILTIN_ENVS}
 HOOKS = ("allocate", "initial", "decision", "transition", "reward", "observation", "info")
 
 
@@ -140,3 +143,36 @@ def test_no_env_class_defines_reset_or_step():
         f"{cls.__module__}.{cls.__name__}.{name}" for cls in classes for name in ("reset", "step") if name in vars(cls)
     ]
     assert found == []
+
+
+def self_assignments(function) -> list[str]:
+    """The ``self.attribute`` names ``function``'s source assigns to (``self.x = ...``, ``self.x += ...``)."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(function)))
+    targets = [
+        target
+        for node in ast.walk(tree)
+        if isinstance(node, (ast.Assign, ast.AugAssign, ast.AnnAssign))
+        for target in (node.targets if isinstance(node, ast.Assign) else [node.target])
+    ]
+    return [
+        node.attr
+        for target in targets
+        for node in ast.walk(target)
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "self"
+    ]
+
+
+def test_a_scenarios_functions_keep_nothing_on_the_scenario():
+    """The named functions read their arguments and the scenario's constants: what changes lives in the state."""
+    scenarios = {entry.load_vector().scenario_class for entry in registered_envs() if entry.id in BUILT_IN_IDS}
+    found = [
+        f"{scenario.__name__}.{hook} sets self.{attribute}"
+        for scenario in scenarios
+        for hook in (*HOOKS, "terminal", "frame")
+        for attribute in self_assignments(getattr(scenario, hook))
+    ]
+    assert len(scenarios) == len(BUILT_IN_IDS) and found == []
+    assert self_assignments(Coin.transition) == [] and self_assignments(Coin.__init__) == [
+        "observation_space",
+        "action_space",
+    ]
