@@ -5,11 +5,11 @@ Autoreset, seeding, bad input and rendering: ``test_team_vector_envs.py``, for e
 
 import numpy as np
 import pytest
+from filterpy_reference import block_diagonal, filterpy_filter, filterpy_predict, filterpy_update, relative_pose
 from gymnasium import spaces
 from team_vector_checks import record_relative_measurements, run_against_parallel_envs
 
 import infonav_gym
-from infonav_gym.estimation.ekf import JointEKF
 from infonav_gym.information import mutual_information
 from infonav_gym.multi import cooperative_localization_v0, cooperative_localization_vector
 from infonav_gym.multi.cooperative_localization_vector import CooperativeLocalizationVectorEnv
@@ -141,9 +141,9 @@ def test_the_sensors_given_their_standard_normals_measure_what_they_draw():
 
 
 @pytest.mark.parametrize("estimator", ["joint", "independent"])
-def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monkeypatch):
+def test_the_filter_equals_filterpys_ekf_update_for_update(estimator, monkeypatch):
     """Along a whole episode (DGPS on schedule, lost by robot_1 at 21 s and under canopies, relative-pose updates)
-    the env's EKF equals ``JointEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10), and each reward its MI."""
+    the env's EKF equals raw filterpy fed the same readings (x 1e-12, P 1e-10), and each reward its MI."""
     priors, readings, fixes = [], [], []
     start_episode = cooperative_localization_vector.start_episode
 
@@ -160,7 +160,8 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
             type(sensor), "measure_with_noise", lambda _, *args, m=measure, s=sink: recorded(m, s)(*args)
         )
     _, infos = env.reset(seed=3)
-    ekf = JointEKF(*priors[-1][1:3], cross_covariances=estimator == "joint")
+    poses, covariances = priors[-1][1:3]
+    ekf, kept = filterpy_filter(poses.ravel(), block_diagonal(covariances)), {"cross_covariances": estimator == "joint"}
     n_robots, dt = len(env.possible_agents), env.config["time_step_s"]
     odometry_covariances = np.repeat(vector._odometry.noise_covariance()[None], n_robots, axis=0)
     gps_covariances = np.repeat(vector._gps.noise_covariance()[None], n_robots, axis=0)
@@ -168,7 +169,10 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
     def fuse_gps(infos):
         robots = np.flatnonzero([infos[agent]["gps_available"] for agent in env.possible_agents])
         if robots.size:
-            ekf.gps_update(robots, fixes[-1][0][robots], gps_covariances[robots])
+            H = np.zeros((2 * robots.size, 3 * n_robots))
+            H[np.arange(2 * robots.size), (3 * robots[:, None] + [0, 1]).ravel()] = 1.0
+            R = block_diagonal(gps_covariances[robots])
+            filterpy_update(ekf, fixes[-1][0][robots].ravel(), H @ ekf.x, H, R, [], n_robots, **kept)
         return robots.size
 
     counts = np.array([0, fuse_gps(infos)])  # relative observations, DGPS fixes
@@ -184,17 +188,18 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
         observers = np.flatnonzero(chosen)
         if observers.size:
             targets = chosen[observers] - 1
-            predicted, H_observer, H_target = ekf.relative_pose_model(observers, targets)
+            models = [relative_pose(ekf.x, observer, target) for observer, target in zip(observers, targets)]
+            predicted, H = np.concatenate([z for z, _ in models]), np.concatenate([J for _, J in models])
             pairs = vector._pair_index[observers, chosen[observers]]
-            R = noise_covariances(vector._pairs.noise[pairs], predicted[:, 0])
-            ekf.relative_pose_update(
-                observers, targets, measurements[-1][0][observers], predicted, H_observer, H_target, R
-            )
+            R = block_diagonal(noise_covariances(vector._pairs.noise[pairs], predicted[0::3]))
+            angles = [3 * k + row for k in range(observers.size) for row in (1, 2)]
+            measured = measurements[-1][0][observers].ravel()
+            filterpy_update(ekf, measured, predicted, H, R, angles, n_robots, **kept)
         own = 0.5 * (np.linalg.slogdet(pose_blocks(prior_P))[1] - np.linalg.slogdet(pose_blocks(ekf.P))[1])
         team = mutual_information(prior_P, ekf.P) if observers.size else 0.0
         for robot, agent in enumerate(env.possible_agents):
             assert rewards[agent] == pytest.approx(0.5 * own[robot] + 0.5 * team, abs=1e-10)
-        ekf.predict(readings[-1][0], dt, odometry_covariances)
+        filterpy_predict(ekf, readings[-1][0], odometry_covariances, dt)
         counts += [observers.size, fuse_gps(infos)]
         x, P = vector.joint_state()
         np.testing.assert_allclose(x[0], ekf.x, rtol=0, atol=1e-12)
