@@ -89,3 +89,26 @@ def block_diagonal(blocks) -> np.ndarray:
     for index, block in enumerate(blocks):
         matrix[index * m : index * m + m, index * m : index * m + m] = block
     return matrix
+
+
+def stacked(models) -> tuple[np.ndarray, np.ndarray]:
+    """The stacked predictions (k m,) and Jacobians (k m, n) of ``(z, H)`` pairs."""
+    return np.concatenate([z for z, _ in models]), np.concatenate([H for _, H in models])
+
+
+def angle_rows(k: int, m: int) -> list[int]:
+    """The angle rows of k stacked measurements of m rows each, the range first: all rows but each range's."""
+    return [m * slot + row for slot in range(k) for row in range(1, m)]
+
+
+def gps_jacobian(robots, n: int) -> np.ndarray:
+    """The Jacobian (2k, n) of the position fixes ``[x, y]`` of ``robots`` (k,)."""
+    robots = np.asarray(robots)
+    H = np.zeros((2 * robots.size, n))
+    H[np.arange(2 * robots.size), (3 * robots[:, None] + [0, 1]).ravel()] = 1.0
+    return H
+
+
+def pose_blocks(P: np.ndarray) -> np.ndarray:
+    """Each robot's (3, 3) pose block of a joint covariance (R, 3, 3)."""
+    return np.array([P[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] for k in range(len(P) // 3)])

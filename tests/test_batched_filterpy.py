@@ -12,12 +12,15 @@ import numpy as np
 import pytest
 from conftest import select_candidates
 from filterpy_reference import (
+    angle_rows,
     block_diagonal,
     filterpy_filter,
     filterpy_predict,
     filterpy_update,
+    gps_jacobian,
     range_bearing,
     relative_pose,
+    stacked,
 )
 
 from infonav_gym.estimation import batched
@@ -132,11 +135,10 @@ def test_team_filter_episodes_equal_filterpy(cross_covariances):
         for copy, ekf in enumerate(filters):
             slots = np.flatnonzero(observed[copy])
             if slots.size:
-                models = [relative_pose(ekf.x, slot, targets[copy, slot]) for slot in slots]
-                expected = np.concatenate([z[:m] for z, _ in models])
-                expected_H = np.concatenate([J[:m] for _, J in models])
+                models = [(z[:m], J[:m]) for z, J in (relative_pose(ekf.x, k, targets[copy, k]) for k in slots)]
+                expected, expected_H = stacked(models)
                 np.testing.assert_allclose(predicted[copy, slots].ravel(), expected, rtol=0, atol=X_TOLERANCE)
-                angles = [m * k + row for k in range(len(slots)) for row in range(1, m)]
+                angles = angle_rows(len(slots), m)
                 measurement = measured[copy, slots].ravel()
                 R_stacked = block_diagonal(R[copy, slots])
                 filterpy_update(ekf, measurement, expected, expected_H, R_stacked, angles, n_robots, **kept)
@@ -149,9 +151,7 @@ def test_team_filter_episodes_equal_filterpy(cross_covariances):
         for copy, ekf in enumerate(filters):
             fixed = np.flatnonzero(has_fix[copy])
             if fixed.size:
-                H = np.zeros((2 * len(fixed), n))
-                for k, robot in enumerate(fixed):
-                    H[2 * k : 2 * k + 2, 3 * robot : 3 * robot + 2] = np.eye(2)
+                H = gps_jacobian(fixed, n)
                 R_stacked = block_diagonal(gps_noise[fixed])
                 filterpy_update(ekf, fixes[copy, fixed].ravel(), H @ ekf.x, H, R_stacked, [], n_robots, **kept)
         assert_equal_to_filterpy(x, P, filters, step)
@@ -165,9 +165,8 @@ def test_team_filter_episodes_equal_filterpy(cross_covariances):
         for copy, ekf in enumerate(filters):
             slots = np.flatnonzero(sees[copy])
             if slots.size:
-                models = [range_bearing(ekf.x, slot, landmarks[copy, slot]) for slot in slots]
-                expected, expected_H = np.concatenate([z for z, _ in models]), np.concatenate([J for _, J in models])
-                angles = list(range(1, 2 * len(slots), 2))
+                expected, expected_H = stacked([range_bearing(ekf.x, slot, landmarks[copy, slot]) for slot in slots])
+                angles = angle_rows(len(slots), 2)
                 measurement = measured[copy, slots].ravel()
                 R_stacked = block_diagonal(R[copy, slots])
                 filterpy_update(ekf, measurement, expected, expected_H, R_stacked, angles, n_robots, **kept)

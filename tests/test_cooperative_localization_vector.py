@@ -5,7 +5,17 @@ Autoreset, seeding, bad input and rendering: ``test_team_vector_envs.py``, for e
 
 import numpy as np
 import pytest
-from filterpy_reference import block_diagonal, filterpy_filter, filterpy_predict, filterpy_update, relative_pose
+from filterpy_reference import (
+    angle_rows,
+    block_diagonal,
+    filterpy_filter,
+    filterpy_predict,
+    filterpy_update,
+    gps_jacobian,
+    pose_blocks,
+    relative_pose,
+    stacked,
+)
 from gymnasium import spaces
 from team_vector_checks import record_relative_measurements, run_against_parallel_envs
 
@@ -169,8 +179,7 @@ def test_the_filter_equals_filterpys_ekf_update_for_update(estimator, monkeypatc
     def fuse_gps(infos):
         robots = np.flatnonzero([infos[agent]["gps_available"] for agent in env.possible_agents])
         if robots.size:
-            H = np.zeros((2 * robots.size, 3 * n_robots))
-            H[np.arange(2 * robots.size), (3 * robots[:, None] + [0, 1]).ravel()] = 1.0
+            H = gps_jacobian(robots, 3 * n_robots)
             R = block_diagonal(gps_covariances[robots])
             filterpy_update(ekf, fixes[-1][0][robots].ravel(), H @ ekf.x, H, R, [], n_robots, **kept)
         return robots.size
@@ -188,13 +197,13 @@ def test_the_filter_equals_filterpys_ekf_update_for_update(estimator, monkeypatc
         observers = np.flatnonzero(chosen)
         if observers.size:
             targets = chosen[observers] - 1
-            models = [relative_pose(ekf.x, observer, target) for observer, target in zip(observers, targets)]
-            predicted, H = np.concatenate([z for z, _ in models]), np.concatenate([J for _, J in models])
+            predicted, H = stacked(
+                [relative_pose(ekf.x, observer, target) for observer, target in zip(observers, targets)]
+            )
             pairs = vector._pair_index[observers, chosen[observers]]
             R = block_diagonal(noise_covariances(vector._pairs.noise[pairs], predicted[0::3]))
-            angles = [3 * k + row for k in range(observers.size) for row in (1, 2)]
             measured = measurements[-1][0][observers].ravel()
-            filterpy_update(ekf, measured, predicted, H, R, angles, n_robots, **kept)
+            filterpy_update(ekf, measured, predicted, H, R, angle_rows(observers.size, 3), n_robots, **kept)
         own = 0.5 * (np.linalg.slogdet(pose_blocks(prior_P))[1] - np.linalg.slogdet(pose_blocks(ekf.P))[1])
         team = mutual_information(prior_P, ekf.P) if observers.size else 0.0
         for robot, agent in enumerate(env.possible_agents):
@@ -206,8 +215,3 @@ def test_the_filter_equals_filterpys_ekf_update_for_update(estimator, monkeypatc
         np.testing.assert_allclose(P[0], ekf.P, rtol=0, atol=1e-10)
     assert len(readings) == 80 and np.all(counts > 60)
     assert not infos["robot_1"]["gps_available"]  # its DGPS was lost at 21 s
-
-
-def pose_blocks(P: np.ndarray) -> np.ndarray:
-    """Each robot's (3, 3) pose block of a joint covariance (R, 3, 3)."""
-    return np.array([P[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] for k in range(len(P) // 3)])
