@@ -3,19 +3,9 @@
 Autoreset, seeding, bad input and rendering: ``test_team_vector_envs.py``, for every team vector env.
 """
 
+import filterpy_reference as oracle
 import numpy as np
 import pytest
-from filterpy_reference import (
-    angle_rows,
-    block_diagonal,
-    filterpy_filter,
-    filterpy_predict,
-    filterpy_update,
-    gps_jacobian,
-    pose_blocks,
-    relative_pose,
-    stacked,
-)
 from gymnasium import spaces
 from team_vector_checks import record_relative_measurements, run_against_parallel_envs
 
@@ -171,7 +161,8 @@ def test_the_filter_equals_filterpys_ekf_update_for_update(estimator, monkeypatc
         )
     _, infos = env.reset(seed=3)
     poses, covariances = priors[-1][1:3]
-    ekf, kept = filterpy_filter(poses.ravel(), block_diagonal(covariances)), {"cross_covariances": estimator == "joint"}
+    ekf = oracle.filterpy_filter(poses.ravel(), oracle.block_diagonal(covariances))
+    kept = {"cross_covariances": estimator == "joint"}
     n_robots, dt = len(env.possible_agents), env.config["time_step_s"]
     odometry_covariances = np.repeat(vector._odometry.noise_covariance()[None], n_robots, axis=0)
     gps_covariances = np.repeat(vector._gps.noise_covariance()[None], n_robots, axis=0)
@@ -179,9 +170,9 @@ def test_the_filter_equals_filterpys_ekf_update_for_update(estimator, monkeypatc
     def fuse_gps(infos):
         robots = np.flatnonzero([infos[agent]["gps_available"] for agent in env.possible_agents])
         if robots.size:
-            H = gps_jacobian(robots, 3 * n_robots)
-            R = block_diagonal(gps_covariances[robots])
-            filterpy_update(ekf, fixes[-1][0][robots].ravel(), H @ ekf.x, H, R, [], n_robots, **kept)
+            H = oracle.gps_jacobian(robots, 3 * n_robots)
+            R = oracle.block_diagonal(gps_covariances[robots])
+            oracle.filterpy_update(ekf, fixes[-1][0][robots].ravel(), H @ ekf.x, H, R, [], n_robots, **kept)
         return robots.size
 
     counts = np.array([0, fuse_gps(infos)])  # relative observations, DGPS fixes
@@ -197,18 +188,22 @@ def test_the_filter_equals_filterpys_ekf_update_for_update(estimator, monkeypatc
         observers = np.flatnonzero(chosen)
         if observers.size:
             targets = chosen[observers] - 1
-            predicted, H = stacked(
-                [relative_pose(ekf.x, observer, target) for observer, target in zip(observers, targets)]
+            predicted, H = oracle.stacked(
+                [oracle.relative_pose(ekf.x, observer, target) for observer, target in zip(observers, targets)]
             )
             pairs = vector._pair_index[observers, chosen[observers]]
-            R = block_diagonal(noise_covariances(vector._pairs.noise[pairs], predicted[0::3]))
+            R = oracle.block_diagonal(noise_covariances(vector._pairs.noise[pairs], predicted[0::3]))
             measured = measurements[-1][0][observers].ravel()
-            filterpy_update(ekf, measured, predicted, H, R, angle_rows(observers.size, 3), n_robots, **kept)
-        own = 0.5 * (np.linalg.slogdet(pose_blocks(prior_P))[1] - np.linalg.slogdet(pose_blocks(ekf.P))[1])
+            oracle.filterpy_update(
+                ekf, measured, predicted, H, R, oracle.angle_rows(observers.size, 3), n_robots, **kept
+            )
+        own = 0.5 * (
+            np.linalg.slogdet(oracle.pose_blocks(prior_P))[1] - np.linalg.slogdet(oracle.pose_blocks(ekf.P))[1]
+        )
         team = mutual_information(prior_P, ekf.P) if observers.size else 0.0
         for robot, agent in enumerate(env.possible_agents):
             assert rewards[agent] == pytest.approx(0.5 * own[robot] + 0.5 * team, abs=1e-10)
-        filterpy_predict(ekf, readings[-1][0], odometry_covariances, dt)
+        oracle.filterpy_predict(ekf, readings[-1][0], odometry_covariances, dt)
         counts += [observers.size, fuse_gps(infos)]
         x, P = vector.joint_state()
         np.testing.assert_allclose(x[0], ekf.x, rtol=0, atol=1e-12)

@@ -2,17 +2,10 @@
 
 import math
 
+import filterpy_reference as oracle
 import numpy as np
 import pytest
 from conftest import map_footprints
-from filterpy_reference import (
-    block_diagonal,
-    filterpy_filter,
-    filterpy_predict,
-    filterpy_update,
-    gps_jacobian,
-    pose_blocks,
-)
 from team_vector_checks import exploration_observation_updates
 
 from agents import PlannerAgent
@@ -29,25 +22,26 @@ def expected_step_by_hand(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndar
     """Raw filterpy at the env's state stepped through ``actions`` (R,) with every measurement as
     predicted and the commanded odometry: ``(P after the step, each robot's reward)``, the DGPS robots all outside
     canopies."""
-    cfg, ekf, parts = env.config, filterpy_filter(*(part[0] for part in env.vector.joint_state())), env.vector.parts
+    cfg, parts = env.config, env.vector.parts
+    ekf = oracle.filterpy_filter(*(part[0] for part in env.vector.joint_state()))
     map_variances = env.vector.map_variances[0]
     slots, motions = np.divmod(actions, N_MOTIONS)
-    prior_log_dets = np.linalg.slogdet(pose_blocks(ekf.P))[1]
+    prior_log_dets = np.linalg.slogdet(oracle.pose_blocks(ekf.P))[1]
     exploration_observation_updates(ekf, env, slots)
-    own = 0.5 * (prior_log_dets - np.linalg.slogdet(pose_blocks(ekf.P))[1])
+    own = 0.5 * (prior_log_dets - np.linalg.slogdet(oracle.pose_blocks(ekf.P))[1])
     drives = motions != STAY
     headings = env.vector.joint_state()[0][0, 2::POSE_DIM]  # the decision's
     turns = np.where(drives, (MOTION_HEADINGS_RAD[motions] - headings + math.pi) % (2 * math.pi) - math.pi, 0.0)
     speeds = np.where(drives, parts.speeds_mps, 0.0)
     turn_s, drive_s = cfg["turn_time_s"], cfg["time_step_s"] - cfg["turn_time_s"]
     covariances = np.repeat(parts.odometry.noise_covariance()[None], len(actions), axis=0)
-    filterpy_predict(ekf, np.column_stack([np.zeros_like(turns), turns / turn_s]), covariances, turn_s)
-    filterpy_predict(ekf, np.column_stack([speeds, np.zeros_like(speeds)]), covariances, drive_s)
+    oracle.filterpy_predict(ekf, np.column_stack([np.zeros_like(turns), turns / turn_s]), covariances, turn_s)
+    oracle.filterpy_predict(ekf, np.column_stack([speeds, np.zeros_like(speeds)]), covariances, drive_s)
     fixed, n = np.flatnonzero([gps is not None for gps in parts.gps]), len(ekf.x)
-    H, R = gps_jacobian(fixed, n), block_diagonal([parts.gps[k].noise_covariance() for k in fixed])
-    filterpy_update(ekf, H @ ekf.x, H @ ekf.x, H, R, [], n // POSE_DIM)
+    H, R = oracle.gps_jacobian(fixed, n), oracle.block_diagonal([parts.gps[k].noise_covariance() for k in fixed])
+    oracle.filterpy_update(ekf, H @ ekf.x, H @ ekf.x, H, R, [], n // POSE_DIM)
     poses = ekf.x.reshape(-1, POSE_DIM)
-    position_std = largest_position_std(pose_blocks(ekf.P))
+    position_std = largest_position_std(oracle.pose_blocks(ekf.P))
     footprints = map_footprints(parts.map_model, poses[drives, :2])
     noise = parts.map_model.scan_noise_variances(position_std[drives])
     after = 1.0 / (1.0 / map_variances + np.sum(footprints / noise[:, None], axis=0))
