@@ -4,8 +4,7 @@ update in Joseph form). The envs, planners and the replay run the batched EKF (`
 
 The public ``predict`` and update methods check what they are given (shapes, finiteness, a
 symmetric positive-definite noise covariance) and raise ``ValueError`` naming the argument, so a
-bad input never fills the state with NaN. ``check_input=False`` skips that for hot loops whose
-inputs are already known good (the envs: their sensors' parameters were checked at construction).
+bad input never fills the state with NaN; ``check_input=False`` skips that for known-good inputs.
 """
 
 from __future__ import annotations
@@ -22,14 +21,7 @@ from infonav_gym.estimation.models import (
     unicycle_jacobians,
     unicycle_motion,
 )
-from infonav_gym.estimation.state import (  # noqa: F401  (POSE_DIM, INITIAL_POSE_STD, block_diagonal: also from here)
-    INITIAL_POSE_STD,
-    POSE_DIM,
-    _finite,
-    _noise_covariance,
-    _time_step,
-    block_diagonal,
-)
+from infonav_gym.estimation.state import POSE_DIM, _finite, _noise_covariance, _time_step, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import log_det_spd
 
