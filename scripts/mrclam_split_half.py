@@ -2,7 +2,7 @@
 
     python scripts/mrclam_split_half.py ../shared/datasets/MRCLAM_Dataset6
 
-Prints, for the second half (all landmarks, PoseEKF per robot): the mean position RMSE, mean NEES, the
+Prints, for the second half (all landmarks, a pose filter per robot): the mean position RMSE, mean NEES, the
 share of time steps inside the 95 % band and the mean NIS, with the model fitted on the first half and
 with the hand-picked noise; then the outage ratio (robot 2 without landmarks from 60 s into the half).
 """

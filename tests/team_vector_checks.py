@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from filterpy_reference import angle_rows, block_diagonal, filterpy_update, range_bearing, relative_pose, stacked
 
 from infonav_gym.multi import team_scenario
 from infonav_gym.registry import env_entry
@@ -120,25 +121,28 @@ def run_against_parallel_envs(env_id: str, config: dict, n_copies: int, seed: in
 
 
 def exploration_observation_updates(ekf, env, slots: np.ndarray, relative=None, landmarks=None) -> tuple[int, int]:
-    """Fuse into filterpy's ``JointEKF`` ``ekf`` the observations of one step of a cooperative_exploration_v0 view
-    ``env`` whose robots chose observation ``slots`` (R,): the teammates' relative poses ``relative`` (R, 3), then
-    the landmarks' range-bearing ``landmarks`` (R, 2) (None: each as predicted). Returns how many of each."""
-    parts, n_landmarks = env.vector.parts, env.config["n_landmarks"]
+    """Fuse into raw filterpy ``ekf`` (``filterpy_reference``) the observations of one step of a
+    cooperative_exploration_v0 view ``env`` whose robots chose observation ``slots`` (R,): the teammates' relative
+    poses ``relative`` (R, 3), then the landmarks' range-bearing ``landmarks`` (R, 2) (None: each as predicted).
+    Returns how many of each."""
+    parts, n_landmarks, n_robots = env.vector.parts, env.config["n_landmarks"], len(slots)
     observers = np.flatnonzero(slots > n_landmarks)
     if observers.size:
         targets = slots[observers] - 1 - n_landmarks
-        predicted, H_observer, H_target = ekf.relative_pose_model(observers, targets)
+        predicted, H = stacked([relative_pose(ekf.x, o, t) for o, t in zip(observers, targets)])
         pairs = [
             np.flatnonzero((parts.pairs.observers == i) & (parts.pairs.targets == j))[0]
             for i, j in zip(observers, targets)
         ]
-        R = noise_covariances(parts.pairs.noise[pairs], predicted[:, 0])
-        measured = predicted if relative is None else relative[observers]
-        ekf.relative_pose_update(observers, targets, measured, predicted, H_observer, H_target, R)
+        R = block_diagonal(noise_covariances(parts.pairs.noise[pairs], predicted[0::3]))
+        measured = predicted if relative is None else relative[observers].ravel()
+        filterpy_update(ekf, measured, predicted, H, R, angle_rows(observers.size, 3), n_robots)
     robots = np.flatnonzero((slots > 0) & (slots <= n_landmarks))
     if robots.size:
-        predicted, H_pose = ekf.landmark_model(robots, env.vector.scenario(0).landmarks[slots[robots] - 1])
+        positions = env.vector.scenario(0).landmarks[slots[robots] - 1]
+        predicted, H = stacked([range_bearing(ekf.x, robot, position) for robot, position in zip(robots, positions)])
         sensors = [parts.relative_sensors[robot].range_bearing for robot in robots]
-        R = np.array([sensor.noise_covariance(predicted[k, 0])[0] for k, sensor in enumerate(sensors)])
-        ekf.landmark_update(robots, predicted if landmarks is None else landmarks[robots], predicted, H_pose, R)
+        R = block_diagonal([sensor.noise_covariance(predicted[2 * k])[0] for k, sensor in enumerate(sensors)])
+        measured = predicted if landmarks is None else landmarks[robots].ravel()
+        filterpy_update(ekf, measured, predicted, H, R, angle_rows(robots.size, 2), n_robots)
     return observers.size, robots.size

@@ -1,5 +1,5 @@
 """``ActiveLocalizationVectorEnv``: sub-env ``i`` is the N = 1 env seeded ``s + i`` through terminations and
-truncations (the seeding and autoreset contract), and its filter is filterpy's ``PoseEKF`` update for update.
+truncations (the seeding and autoreset contract), and its filter is raw filterpy's EKF update for update.
 
 The checks every native vector env passes (seeding, API, bad input, SyncVectorEnv) run in ``test_vector_envs.py``.
 """
@@ -135,10 +135,10 @@ def test_with_autoreset_disabled_sub_envs_step_on_past_their_end_until_reset():
 
 
 @pytest.mark.parametrize("seed", [2, 7])
-def test_the_filter_equals_filterpys_pose_ekf_update_for_update(seed, monkeypatch):
-    """Along a whole episode the env's EKF equals ``PoseEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10);
+def test_the_filter_equals_filterpys_ekf_update_for_update(seed, monkeypatch):
+    """Along a whole episode the env's EKF equals raw filterpy fed the same readings (x 1e-12, P 1e-10);
     each observation's ``mutual_information`` term is the MI of filterpy's update."""
-    n_observed = vector_env_checks.check_filter_equals_pose_ekf(
+    n_observed = vector_env_checks.check_filter_equals_filterpy(
         ENV_ID,
         lambda chosen: chosen // N_PRIMITIVES - 1 if chosen >= 0 else -1,
         monkeypatch,

@@ -1,8 +1,8 @@
 """The compiled batched EKF core against filterpy's ``ExtendedKalmanFilter``, step for step along random episodes.
 
 Each copy has its own filterpy filter, fed the same controls and measurements; the models (unicycle,
-range-bearing, relative pose) and their Jacobians are written here in closed form, so nothing of the
-package stands on the oracle's side. filterpy predicts ``F P F^T + Q`` and updates in Joseph form
+range-bearing, relative pose) and their Jacobians are written in closed form in ``filterpy_reference``, so nothing
+of the package stands on the oracle's side. filterpy predicts ``F P F^T + Q`` and updates in Joseph form
 ``(I - K H) P (I - K H)^T + K R K^T``; the core's ``P - K H P`` must agree to 1e-10, its states to 1e-12.
 """
 
@@ -11,7 +11,17 @@ import math
 import numpy as np
 import pytest
 from conftest import select_candidates
-from filterpy.kalman import ExtendedKalmanFilter
+from filterpy_reference import (
+    angle_rows,
+    block_diagonal,
+    filterpy_filter,
+    filterpy_predict,
+    filterpy_update,
+    gps_jacobian,
+    range_bearing,
+    relative_pose,
+    stacked,
+)
 
 from infonav_gym.estimation import batched
 
@@ -19,10 +29,6 @@ X_TOLERANCE = 1e-12
 P_TOLERANCE = 1e-10
 STEPS = 40
 DT = 0.25  # [s]
-
-
-def wrap(angle):
-    return (np.asarray(angle) + math.pi) % (2 * math.pi) - math.pi
 
 
 def random_spd(rng, n: int, scale: float) -> np.ndarray:
@@ -35,76 +41,8 @@ def random_noise(rng, shape: tuple[int, ...], m: int) -> np.ndarray:
     return np.stack([random_spd(rng, m, 0.01) for _ in range(math.prod(shape))]).reshape(*shape, m, m)
 
 
-def filterpy_filters(x, P) -> list[ExtendedKalmanFilter]:
-    filters = []
-    for state, covariance in zip(x, P):
-        ekf = ExtendedKalmanFilter(dim_x=len(state), dim_z=2)
-        ekf.x, ekf.P = state.copy(), covariance.copy()
-        filters.append(ekf)
-    return filters
-
-
-def filterpy_predict(ekf: ExtendedKalmanFilter, controls, control_covariances) -> None:
-    """Every pose (the first 3R entries) through the Euler unicycle step; F and Q = V C V^T in closed form."""
-    n = len(ekf.x)
-    F, Q, moved = np.eye(n), np.zeros((n, n)), ekf.x.copy()
-    for robot, ((speed, turn_rate), C) in enumerate(zip(controls, control_covariances)):
-        i = 3 * robot
-        heading = ekf.x[i + 2]
-        moved[i : i + 3] = ekf.x[i : i + 3] + [speed * DT * math.cos(heading), speed * DT * math.sin(heading), 0]
-        moved[i + 2] = wrap(heading + turn_rate * DT)
-        F[i, i + 2], F[i + 1, i + 2] = -speed * DT * math.sin(heading), speed * DT * math.cos(heading)
-        V = np.array([[DT * math.cos(heading), 0.0], [DT * math.sin(heading), 0.0], [0.0, DT]])
-        Q[i : i + 3, i : i + 3] = V @ C @ V.T
-    ekf.F, ekf.Q = F, Q
-
-    def predict_x(u=0):
-        ekf.x = moved
-
-    ekf.predict_x = predict_x
-    ekf.predict()
-
-
-def filterpy_update(ekf, measured, predicted, H, R, angle_rows, n_robots: int, cross_covariances=True) -> None:
-    """filterpy's update with the angle rows of the innovation wrapped; then headings wrapped, and without
-    ``cross_covariances`` only each robot's own blocks kept (``JointEKF``'s shortcut)."""
-
-    def residual(z, hz):
-        y = np.subtract(z, hz)
-        y[angle_rows] = wrap(y[angle_rows])
-        return y
-
-    ekf.update(np.asarray(measured), lambda x: H, lambda x: np.asarray(predicted), R=R, residual=residual)
-    headings = 3 * np.arange(n_robots) + 2
-    ekf.x[headings] = wrap(ekf.x[headings])
-    if not cross_covariances:
-        ekf.P = ekf.P * np.kron(np.eye(n_robots), np.ones((3, 3)))
-
-
-def range_bearing(state, robot: int, landmark, mapped_column=None):
-    """Range-bearing of ``landmark`` from robot ``robot``'s pose in ``state``, and its Jacobian (2, n)."""
-    x, y, heading = state[3 * robot : 3 * robot + 3]
-    dx, dy = landmark[0] - x, landmark[1] - y
-    q = dx * dx + dy * dy
-    d = math.sqrt(q)
-    H = np.zeros((2, len(state)))
-    H[:, 3 * robot : 3 * robot + 3] = [[-dx / d, -dy / d, 0.0], [dy / q, -dx / q, -1.0]]
-    if mapped_column is not None:
-        H[:, mapped_column : mapped_column + 2] = [[dx / d, dy / d], [-dy / q, dx / q]]
-    return np.array([d, wrap(math.atan2(dy, dx) - heading)]), H
-
-
-def relative_pose(state, observer: int, target: int):
-    """Range, bearing and relative heading of ``target`` seen from ``observer``, and its Jacobian (3, n)."""
-    xo, yo, ho = state[3 * observer : 3 * observer + 3]
-    xt, yt, ht = state[3 * target : 3 * target + 3]
-    dx, dy = xt - xo, yt - yo
-    q = dx * dx + dy * dy
-    d = math.sqrt(q)
-    H = np.zeros((3, len(state)))
-    H[:, 3 * observer : 3 * observer + 3] = [[-dx / d, -dy / d, 0.0], [dy / q, -dx / q, -1.0], [0.0, 0.0, -1.0]]
-    H[:, 3 * target : 3 * target + 3] = [[dx / d, dy / d, 0.0], [-dy / q, dx / q, 0.0], [0.0, 0.0, 1.0]]
-    return np.array([d, wrap(math.atan2(dy, dx) - ho), wrap(ht - ho)]), H
+def filterpy_filters(x, P) -> list:
+    return [filterpy_filter(state, covariance) for state, covariance in zip(x, P)]
 
 
 def assert_equal_to_filterpy(x, P, filters, step: int) -> None:
@@ -132,7 +70,7 @@ def test_pose_filter_episodes_equal_filterpy(n_landmarks):
         controls, noise = random_controls(rng, n_copies), random_spd(rng, 2, 0.01)
         x, P = batched.predict_pose(x, P, controls, DT, noise)
         for copy, ekf in enumerate(filters):
-            filterpy_predict(ekf, controls[copy : copy + 1], noise[None])
+            filterpy_predict(ekf, controls[copy : copy + 1], noise[None], DT)
         assert_equal_to_filterpy(x, P, filters, step)
         predicted, H = batched.landmark_measurement_model(x, known)
         R = np.broadcast_to(np.diag([0.1**2, math.radians(3.0) ** 2]), (n_copies, n_candidates, 2, 2)).copy()
@@ -183,25 +121,26 @@ def test_team_filter_episodes_equal_filterpy(cross_covariances):
         noise = np.stack([random_spd(rng, 2, 0.01) for _ in range(n_robots)])
         x, P = batched.predict_team(x, P, controls, DT, noise)
         for copy, ekf in enumerate(filters):
-            filterpy_predict(ekf, controls[copy], noise)
+            filterpy_predict(ekf, controls[copy], noise, DT)
         assert_equal_to_filterpy(x, P, filters, step)
 
         targets = (robots + rng.integers(1, n_robots, robots.shape)) % n_robots
         observed = rng.random(robots.shape) < 0.5
-        predicted, H_observer, H_target = batched.relative_pose_model(x, robots, targets)
-        R = random_noise(rng, (n_copies, n_robots), 3)
+        m = 3 - step % 2  # range, bearing and relative heading, or range and bearing (the MRCLAM replay's)
+        predicted, H_observer, H_target = (part[:, :, :m] for part in batched.relative_pose_model(x, robots, targets))
+        R = random_noise(rng, (n_copies, n_robots), m)
         measured = predicted + rng.normal(0, 0.05, predicted.shape)
         args = (robots, targets, measured, predicted, H_observer, H_target, R, observed)
         x, P = batched.relative_pose_update(x, P, *args, **kept)
         for copy, ekf in enumerate(filters):
             slots = np.flatnonzero(observed[copy])
             if slots.size:
-                models = [relative_pose(ekf.x, slot, targets[copy, slot]) for slot in slots]
-                expected, expected_H = np.concatenate([z for z, _ in models]), np.concatenate([J for _, J in models])
+                models = [(z[:m], J[:m]) for z, J in (relative_pose(ekf.x, k, targets[copy, k]) for k in slots)]
+                expected, expected_H = stacked(models)
                 np.testing.assert_allclose(predicted[copy, slots].ravel(), expected, rtol=0, atol=X_TOLERANCE)
-                angles = [3 * k + row for k in range(len(slots)) for row in (1, 2)]
+                angles = angle_rows(len(slots), m)
                 measurement = measured[copy, slots].ravel()
-                R_stacked = _block_diagonal(R[copy, slots])
+                R_stacked = block_diagonal(R[copy, slots])
                 filterpy_update(ekf, measurement, expected, expected_H, R_stacked, angles, n_robots, **kept)
         assert_equal_to_filterpy(x, P, filters, step)
 
@@ -212,10 +151,8 @@ def test_team_filter_episodes_equal_filterpy(cross_covariances):
         for copy, ekf in enumerate(filters):
             fixed = np.flatnonzero(has_fix[copy])
             if fixed.size:
-                H = np.zeros((2 * len(fixed), n))
-                for k, robot in enumerate(fixed):
-                    H[2 * k : 2 * k + 2, 3 * robot : 3 * robot + 2] = np.eye(2)
-                R_stacked = _block_diagonal(gps_noise[fixed])
+                H = gps_jacobian(fixed, n)
+                R_stacked = block_diagonal(gps_noise[fixed])
                 filterpy_update(ekf, fixes[copy, fixed].ravel(), H @ ekf.x, H, R_stacked, [], n_robots, **kept)
         assert_equal_to_filterpy(x, P, filters, step)
 
@@ -228,24 +165,15 @@ def test_team_filter_episodes_equal_filterpy(cross_covariances):
         for copy, ekf in enumerate(filters):
             slots = np.flatnonzero(sees[copy])
             if slots.size:
-                models = [range_bearing(ekf.x, slot, landmarks[copy, slot]) for slot in slots]
-                expected, expected_H = np.concatenate([z for z, _ in models]), np.concatenate([J for _, J in models])
-                angles = list(range(1, 2 * len(slots), 2))
+                expected, expected_H = stacked([range_bearing(ekf.x, slot, landmarks[copy, slot]) for slot in slots])
+                angles = angle_rows(len(slots), 2)
                 measurement = measured[copy, slots].ravel()
-                R_stacked = _block_diagonal(R[copy, slots])
+                R_stacked = block_diagonal(R[copy, slots])
                 filterpy_update(ekf, measurement, expected, expected_H, R_stacked, angles, n_robots, **kept)
         assert_equal_to_filterpy(x, P, filters, step)
     if not cross_covariances:
         cross = P * (1 - np.kron(np.eye(n_robots), np.ones((3, 3))))
         assert not cross.any()
-
-
-def _block_diagonal(blocks) -> np.ndarray:
-    k, m, _ = np.shape(blocks)
-    matrix = np.zeros((k * m, k * m))
-    for index, block in enumerate(blocks):
-        matrix[index * m : index * m + m, index * m : index * m + m] = block
-    return matrix
 
 
 @pytest.mark.parametrize("cross_covariances", [True, False])
@@ -264,6 +192,7 @@ def test_relative_pose_gains_equal_the_mi_of_filterpys_update(cross_covariances)
     predicted, H_observer, H_target = batched.relative_pose_model(x, observers, targets)
     R = random_noise(rng, (n_copies, n_robots), 3)
     own, joint = batched.relative_pose_information_gains(P, observers, targets, H_observer, H_target, R)
+    pose_log_dets = batched.pose_log_dets(P, n_robots)
     for copy in range(n_copies):
         for slot in range(n_robots):
             ekf = filterpy_filters(x[copy : copy + 1], P[copy : copy + 1])[0]
@@ -275,3 +204,4 @@ def test_relative_pose_gains_equal_the_mi_of_filterpys_update(cross_covariances)
             realized_own = 0.5 * (own_log_dets[0] - own_log_dets[1])
             assert joint[copy, slot] == pytest.approx(realized_joint, abs=P_TOLERANCE)
             assert own[copy, slot] == pytest.approx(realized_own, abs=P_TOLERANCE)
+            assert pose_log_dets[copy, slot] == pytest.approx(own_log_dets[0], abs=P_TOLERANCE)

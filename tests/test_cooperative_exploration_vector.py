@@ -5,6 +5,7 @@ them.
 Autoreset modes, seeding, bad input and rendering: ``test_team_vector_envs.py``, for every team vector env.
 """
 
+import filterpy_reference as oracle
 import numpy as np
 import pytest
 from conftest import greedy_actions, random_valid_actions
@@ -17,7 +18,6 @@ from team_vector_checks import (
 
 from infonav_gym.envs.cooperative_exploration import N_MOTIONS, CooperativeExplorationVectorEnv, scenario
 from infonav_gym.envs.cooperative_exploration.exploration_decision import TeamSight
-from infonav_gym.estimation.ekf import JointEKF
 from infonav_gym.multi import cooperative_exploration_v0
 from infonav_gym.world import world_batch
 from infonav_gym.world.physics import ContactSpace
@@ -94,9 +94,9 @@ def recorded(function, sink: list):
     return lambda *args: sink.append(function(*args)) or sink[-1]
 
 
-def test_the_filter_equals_filterpys_joint_ekf_update_for_update(monkeypatch):
+def test_the_filter_equals_filterpys_ekf_update_for_update(monkeypatch):
     """Along a whole episode (DGPS under canopies, landmark and teammate observations, turns and drives) the env's EKF
-    equals ``JointEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10), and each own-pose reward its MI."""
+    equals raw filterpy fed the same readings (x 1e-12, P 1e-10), and each own-pose reward its MI."""
     priors, readings, fixes, landmark = [], [], [], []
     monkeypatch.setattr(scenario, "start_episode", recorded(scenario.start_episode, priors))
     relative = record_relative_measurements(monkeypatch)
@@ -110,7 +110,8 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(monkeypatch):
             type(sensor), "measure_with_noise", lambda _, *args, m=measure, s=sink: recorded(m, s)(*args)
         )
     _, infos = env.reset(seed=4)
-    ekf = JointEKF(*priors[-1][1:3])
+    poses, covariances = priors[-1][1:3]
+    ekf = oracle.filterpy_filter(poses.ravel(), oracle.block_diagonal(covariances))
     n_robots, n_landmarks = len(env.possible_agents), env.config["n_landmarks"]
     odometry_covariances = np.repeat(parts.odometry.noise_covariance()[None], n_robots, axis=0)
     gps_covariances = np.repeat(vector.env_scenario.gps.noise_covariance()[None], n_robots, axis=0)
@@ -119,24 +120,25 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(monkeypatch):
     def fuse_gps(infos):
         robots = np.flatnonzero([infos[agent]["gps_available"] for agent in env.possible_agents])
         if robots.size:
-            ekf.gps_update(robots, fixes[-1][0][robots], gps_covariances[robots])
+            H, R = oracle.gps_jacobian(robots, 3 * n_robots), oracle.block_diagonal(gps_covariances[robots])
+            oracle.filterpy_update(ekf, fixes[-1][0][robots].ravel(), H @ ekf.x, H, R, [], n_robots)
         return robots.size
 
     counts = np.array([0, 0, fuse_gps(infos)])  # teammate and landmark observations, DGPS fixes
     rng = np.random.default_rng(4)
     while env.agents:
         actions = greedy_actions(env, infos) if rng.random() < 0.5 else random_valid_actions(env, infos, rng)
-        prior_pose_P = ekf.pose_covariances()
+        prior_pose_P = oracle.pose_blocks(ekf.P)
         _, _, _, _, infos = env.step(actions)
         slots = np.array([infos[agent]["chosen_action"] for agent in env.possible_agents]) // N_MOTIONS
         landmarks = landmark[-1][0] if ((slots > 0) & (slots <= n_landmarks)).any() else None
         teammates = relative[-1].reshape(n_robots, 3) if (slots > n_landmarks).any() else None
         observed = exploration_observation_updates(ekf, env, slots, teammates, landmarks)
-        own = 0.5 * (np.linalg.slogdet(prior_pose_P)[1] - np.linalg.slogdet(ekf.pose_covariances())[1])
+        own = 0.5 * (np.linalg.slogdet(prior_pose_P)[1] - np.linalg.slogdet(oracle.pose_blocks(ekf.P))[1])
         for robot, agent in enumerate(env.possible_agents):
             assert infos[agent]["reward_terms"]["own_pose_information"] == pytest.approx(own[robot], abs=1e-10)
         for phase_s, reading in zip((turn_s, drive_s), readings[-2:]):
-            ekf.predict(reading[0], phase_s, odometry_covariances)
+            oracle.filterpy_predict(ekf, reading[0], odometry_covariances, phase_s)
         counts += [*observed, fuse_gps(infos)]
         x, P = vector.joint_state()
         np.testing.assert_allclose(x[0], ekf.x, rtol=0, atol=1e-12)

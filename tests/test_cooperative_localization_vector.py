@@ -3,6 +3,7 @@
 Autoreset, seeding, bad input and rendering: ``test_team_vector_envs.py``, for every team vector env.
 """
 
+import filterpy_reference as oracle
 import numpy as np
 import pytest
 from gymnasium import spaces
@@ -10,7 +11,6 @@ from team_vector_checks import record_relative_measurements, run_against_paralle
 
 import infonav_gym
 from infonav_gym.envs.cooperative_localization import CooperativeLocalizationVectorEnv, scenario
-from infonav_gym.estimation.ekf import JointEKF
 from infonav_gym.information import mutual_information
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.registry import PARALLEL, env_entry, make_vector_env, register, unregister
@@ -141,9 +141,9 @@ def test_the_sensors_given_their_standard_normals_measure_what_they_draw():
 
 
 @pytest.mark.parametrize("estimator", ["joint", "independent"])
-def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monkeypatch):
+def test_the_filter_equals_filterpys_ekf_update_for_update(estimator, monkeypatch):
     """Along a whole episode (DGPS on schedule, lost by robot_1 at 21 s and under canopies, relative-pose updates)
-    the env's EKF equals ``JointEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10), and each reward its MI."""
+    the env's EKF equals raw filterpy fed the same readings (x 1e-12, P 1e-10), and each reward its MI."""
     priors, readings, fixes = [], [], []
     start_episode = scenario.start_episode
 
@@ -160,7 +160,9 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
             type(sensor), "measure_with_noise", lambda _, *args, m=measure, s=sink: recorded(m, s)(*args)
         )
     _, infos = env.reset(seed=3)
-    ekf = JointEKF(*priors[-1][1:3], cross_covariances=estimator == "joint")
+    poses, covariances = priors[-1][1:3]
+    ekf = oracle.filterpy_filter(poses.ravel(), oracle.block_diagonal(covariances))
+    kept = {"cross_covariances": estimator == "joint"}
     n_robots, dt = len(env.possible_agents), env.config["time_step_s"]
     odometry_covariances = np.repeat(vector.env_scenario.odometry.noise_covariance()[None], n_robots, axis=0)
     gps_covariances = np.repeat(vector.env_scenario.gps.noise_covariance()[None], n_robots, axis=0)
@@ -168,7 +170,9 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
     def fuse_gps(infos):
         robots = np.flatnonzero([infos[agent]["gps_available"] for agent in env.possible_agents])
         if robots.size:
-            ekf.gps_update(robots, fixes[-1][0][robots], gps_covariances[robots])
+            H = oracle.gps_jacobian(robots, 3 * n_robots)
+            R = oracle.block_diagonal(gps_covariances[robots])
+            oracle.filterpy_update(ekf, fixes[-1][0][robots].ravel(), H @ ekf.x, H, R, [], n_robots, **kept)
         return robots.size
 
     counts = np.array([0, fuse_gps(infos)])  # relative observations, DGPS fixes
@@ -184,25 +188,25 @@ def test_the_filter_equals_filterpys_joint_ekf_update_for_update(estimator, monk
         observers = np.flatnonzero(chosen)
         if observers.size:
             targets = chosen[observers] - 1
-            predicted, H_observer, H_target = ekf.relative_pose_model(observers, targets)
-            pairs = vector.env_scenario.pair_index[observers, chosen[observers]]
-            R = noise_covariances(vector.env_scenario.pairs.noise[pairs], predicted[:, 0])
-            ekf.relative_pose_update(
-                observers, targets, measurements[-1][0][observers], predicted, H_observer, H_target, R
+            predicted, H = oracle.stacked(
+                [oracle.relative_pose(ekf.x, observer, target) for observer, target in zip(observers, targets)]
             )
-        own = 0.5 * (np.linalg.slogdet(pose_blocks(prior_P))[1] - np.linalg.slogdet(pose_blocks(ekf.P))[1])
+            pairs = vector.env_scenario.pair_index[observers, chosen[observers]]
+            R = oracle.block_diagonal(noise_covariances(vector.env_scenario.pairs.noise[pairs], predicted[0::3]))
+            measured = measurements[-1][0][observers].ravel()
+            oracle.filterpy_update(
+                ekf, measured, predicted, H, R, oracle.angle_rows(observers.size, 3), n_robots, **kept
+            )
+        own = 0.5 * (
+            np.linalg.slogdet(oracle.pose_blocks(prior_P))[1] - np.linalg.slogdet(oracle.pose_blocks(ekf.P))[1]
+        )
         team = mutual_information(prior_P, ekf.P) if observers.size else 0.0
         for robot, agent in enumerate(env.possible_agents):
             assert rewards[agent] == pytest.approx(0.5 * own[robot] + 0.5 * team, abs=1e-10)
-        ekf.predict(readings[-1][0], dt, odometry_covariances)
+        oracle.filterpy_predict(ekf, readings[-1][0], odometry_covariances, dt)
         counts += [observers.size, fuse_gps(infos)]
         x, P = vector.joint_state()
         np.testing.assert_allclose(x[0], ekf.x, rtol=0, atol=1e-12)
         np.testing.assert_allclose(P[0], ekf.P, rtol=0, atol=1e-10)
     assert len(readings) == 80 and np.all(counts > 60)
     assert not infos["robot_1"]["gps_available"]  # its DGPS was lost at 21 s
-
-
-def pose_blocks(P: np.ndarray) -> np.ndarray:
-    """Each robot's (3, 3) pose block of a joint covariance (R, 3, 3)."""
-    return np.array([P[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] for k in range(len(P) // 3)])

@@ -6,7 +6,6 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from conftest import numerical_jacobian
-from filterpy.kalman import ExtendedKalmanFilter
 from scipy import stats
 
 import infonav_gym  # noqa: F401  (registers the envs)
@@ -64,36 +63,13 @@ def test_wrap_angle_and_residual_cross_the_branch_cut():
     np.testing.assert_allclose(residual, [0.5, -0.02], atol=1e-12)
 
 
-def make_filters(mapped: bool):
-    """A PoseEKF and a plain filterpy EKF in the same state."""
-    pose, pose_covariance = np.array([1.0, 2.0, 3.0]), np.diag([0.3, 0.2, 0.05])
-    landmarks = np.array([[5.0, 4.0], [0.0, -3.0]]) if mapped else None
-    ekf = PoseEKF(pose, pose_covariance, landmarks, 0.5 if mapped else None)
-    reference = ExtendedKalmanFilter(dim_x=ekf.dim_x, dim_z=2)
-    reference.x, reference.P = ekf.x.copy(), ekf.P.copy()
-    return ekf, reference
-
-
-@pytest.mark.parametrize("mapped", [False, True])
-def test_range_bearing_update_equals_filterpys_update(mapped):
-    ekf, reference = make_filters(mapped)
-    known = None if mapped else np.array([[5.0, 4.0], [0.0, -3.0]])
-    predicted, H = ekf.landmark_measurement_model(known)
-    R = np.diag([0.04, 0.001])
-    measurement = predicted[1] + np.array([0.1, 0.05])
-    ekf.update_range_bearing(measurement, predicted[1], H[1], R)
-    reference.update(measurement, lambda x: H[1], lambda x: predicted[1], R=R, residual=range_bearing_residual)
-    reference.x[2] = wrap_angle(reference.x[2])
-    np.testing.assert_allclose(ekf.x, reference.x, rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(ekf.P, reference.P, rtol=1e-10, atol=1e-14)
-    for name in ("y", "S", "K"):
-        np.testing.assert_allclose(getattr(ekf, name), getattr(reference, name), rtol=1e-10, atol=1e-14)
-    assert math.isclose(ekf.log_likelihood, reference.log_likelihood, rel_tol=1e-10)
-    np.testing.assert_array_equal(ekf.P, ekf.P.T)
+def mapping_filter() -> PoseEKF:
+    """A PoseEKF mapping two landmarks."""
+    return PoseEKF(np.array([1.0, 2.0, 3.0]), np.diag([0.3, 0.2, 0.05]), np.array([[5.0, 4.0], [0.0, -3.0]]), 0.5)
 
 
 def test_mapped_measurement_jacobian_matches_finite_differences_on_the_whole_state():
-    ekf, _ = make_filters(mapped=True)
+    ekf = mapping_filter()
     _, H = ekf.landmark_measurement_model()
 
     def measure(state, index):
@@ -104,7 +80,7 @@ def test_mapped_measurement_jacobian_matches_finite_differences_on_the_whole_sta
 
 
 def test_predict_is_the_linearized_unicycle_propagation():
-    ekf, _ = make_filters(mapped=True)
+    ekf = mapping_filter()
     prior_x, prior_P = ekf.x.copy(), ekf.P.copy()
     control, dt, M = np.array([1.0, 0.2]), 0.5, np.diag([0.01, 0.004])
     ekf.predict(control, dt, M)

@@ -1,7 +1,8 @@
-"""cooperative_exploration_v0's planning model against filterpy's JointEKF, and the decentralized planner on it."""
+"""cooperative_exploration_v0's planning model against raw filterpy, and the decentralized planner on it."""
 
 import math
 
+import filterpy_reference as oracle
 import numpy as np
 import pytest
 from conftest import map_footprints
@@ -10,43 +11,38 @@ from team_vector_checks import exploration_observation_updates
 from agents import PlannerAgent
 from agents.team_planning import TeamPlans
 from infonav_gym.envs.cooperative_exploration.exploration_planning import MOTION_HEADINGS_RAD, N_MOTIONS, STAY
-from infonav_gym.estimation.ekf import POSE_DIM, JointEKF
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import largest_position_std
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0
 
 FAST = {"rollout_steps": 4, "detour_steps": (0,)}  # short rollouts: the tests check behaviour, not quality
 
 
-def filterpy_joint_ekf(env) -> JointEKF:
-    """filterpy's ``JointEKF`` at the state of the env's one copy."""
-    x, P = (part[0] for part in env.vector.joint_state())
-    ekf = JointEKF(x.reshape(-1, POSE_DIM), [P[3 * k : 3 * k + 3, 3 * k : 3 * k + 3] for k in range(len(x) // 3)])
-    ekf.P = P
-    return ekf
-
-
 def expected_step_by_hand(env, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """filterpy's ``JointEKF`` at the env's state stepped through ``actions`` (R,) with every measurement as
+    """Raw filterpy at the env's state stepped through ``actions`` (R,) with every measurement as
     predicted and the commanded odometry: ``(P after the step, each robot's reward)``, the DGPS robots all outside
     canopies."""
-    cfg, ekf, parts = env.config, filterpy_joint_ekf(env), env.vector.parts
+    cfg, parts = env.config, env.vector.parts
+    ekf = oracle.filterpy_filter(*(part[0] for part in env.vector.joint_state()))
     map_variances = env.vector.map_variances[0]
     slots, motions = np.divmod(actions, N_MOTIONS)
-    prior_log_dets = np.linalg.slogdet(ekf.pose_covariances())[1]
+    prior_log_dets = np.linalg.slogdet(oracle.pose_blocks(ekf.P))[1]
     exploration_observation_updates(ekf, env, slots)
-    own = 0.5 * (prior_log_dets - np.linalg.slogdet(ekf.pose_covariances())[1])
+    own = 0.5 * (prior_log_dets - np.linalg.slogdet(oracle.pose_blocks(ekf.P))[1])
     drives = motions != STAY
     headings = env.vector.joint_state()[0][0, 2::POSE_DIM]  # the decision's
     turns = np.where(drives, (MOTION_HEADINGS_RAD[motions] - headings + math.pi) % (2 * math.pi) - math.pi, 0.0)
     speeds = np.where(drives, parts.speeds_mps, 0.0)
     turn_s, drive_s = cfg["turn_time_s"], cfg["time_step_s"] - cfg["turn_time_s"]
     covariances = np.repeat(parts.odometry.noise_covariance()[None], len(actions), axis=0)
-    ekf.predict(np.column_stack([np.zeros_like(turns), turns / turn_s]), turn_s, covariances)
-    ekf.predict(np.column_stack([speeds, np.zeros_like(speeds)]), drive_s, covariances)
-    fixed = np.flatnonzero([gps is not None for gps in parts.gps])
-    ekf.gps_update(fixed, ekf.poses[fixed, :2], [parts.gps[k].noise_covariance() for k in fixed])
-    position_std = largest_position_std(ekf.pose_covariances())
-    footprints = map_footprints(parts.map_model, ekf.poses[drives, :2])
+    oracle.filterpy_predict(ekf, np.column_stack([np.zeros_like(turns), turns / turn_s]), covariances, turn_s)
+    oracle.filterpy_predict(ekf, np.column_stack([speeds, np.zeros_like(speeds)]), covariances, drive_s)
+    fixed, n = np.flatnonzero([gps is not None for gps in parts.gps]), len(ekf.x)
+    H, R = oracle.gps_jacobian(fixed, n), oracle.block_diagonal([parts.gps[k].noise_covariance() for k in fixed])
+    oracle.filterpy_update(ekf, H @ ekf.x, H @ ekf.x, H, R, [], n // POSE_DIM)
+    poses = ekf.x.reshape(-1, POSE_DIM)
+    position_std = largest_position_std(oracle.pose_blocks(ekf.P))
+    footprints = map_footprints(parts.map_model, poses[drives, :2])
     noise = parts.map_model.scan_noise_variances(position_std[drives])
     after = 1.0 / (1.0 / map_variances + np.sum(footprints / noise[:, None], axis=0))
     map_information = 0.5 * np.sum(np.log(map_variances / after))

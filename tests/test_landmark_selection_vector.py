@@ -218,9 +218,9 @@ def test_render_without_a_render_mode_warns_and_returns_none():
 
 
 @pytest.mark.parametrize("mapping", [False, True])
-def test_the_filter_equals_filterpys_pose_ekf_update_for_update(mapping, monkeypatch):
-    """Along a whole episode the env's EKF equals ``PoseEKF`` (on filterpy) fed the same readings (x 1e-12, P 1e-10)."""
-    n_observed = vector_env_checks.check_filter_equals_pose_ekf(
+def test_the_filter_equals_filterpys_ekf_update_for_update(mapping, monkeypatch):
+    """Along a whole episode the env's EKF equals raw filterpy fed the same readings (x 1e-12, P 1e-10)."""
+    n_observed = vector_env_checks.check_filter_equals_filterpy(
         ENV_ID, lambda chosen: chosen, monkeypatch, seed=5, n_steps=120, mapping=mapping
     )
     assert n_observed > 60

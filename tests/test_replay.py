@@ -67,12 +67,12 @@ def test_cooperative_models_match_central_differences():
         for column in range(6):
             step = np.zeros(6)
             step[column] = 1e-6
-            backend.ekf.x = poses.ravel() + step
+            backend.x = (poses.ravel() + step)[None]
             plus = backend.model(0, kind, target)[0]
-            backend.ekf.x = poses.ravel() - step
+            backend.x = (poses.ravel() - step)[None]
             minus = backend.model(0, kind, target)[0]
             numeric[:, column] = (plus - minus) / 2e-6
-        backend.ekf.x = poses.ravel().copy()
+        backend.x = poses.reshape(1, -1).copy()
         np.testing.assert_allclose(H, numeric, atol=1e-6)
         assert predicted[0] == pytest.approx(
             np.hypot(*((landmarks[target] if kind == LANDMARK else poses[1, :2]) - poses[0, :2]))

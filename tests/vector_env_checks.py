@@ -12,13 +12,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from env_checks import WALL_CLOCK_INFO_KEYS, without_wall_clock
+from filterpy_reference import filterpy_filter, filterpy_predict, filterpy_update, range_bearing
 from gymnasium.utils.env_checker import data_equivalence
 from gymnasium.vector import AutoresetMode
 from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 
 import infonav_gym  # noqa: F401  (registers the envs)
-from infonav_gym.estimation.ekf import PoseEKF
-from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import mutual_information
 
 TOLERANCE = 1e-9
@@ -379,12 +378,12 @@ def _recording(reserve, draws: list):
     return recorded
 
 
-def check_filter_equals_pose_ekf(env_id, landmark_of, monkeypatch, seed: int, n_steps: int, **config):
-    """Along a whole episode of ``gym.make(env_id)`` (written once: its ``vector`` copy), its EKF equals filterpy's
-    ``PoseEKF`` fed the same prior (the env's estimate after its reset), odometry readings and measurements (x within
-    1e-12, P within 1e-10; the readings made by ``OdometrySensor.measure_with_noise`` from the world's executed
-    controls, the measurements by ``RangeBearingSensor.measure_with_noise``, both with the env's noise draws), and
-    each update's ``reward_terms["mutual_information"]`` is that update's MI.
+def check_filter_equals_filterpy(env_id, landmark_of, monkeypatch, seed: int, n_steps: int, **config):
+    """Along a whole episode of ``gym.make(env_id)`` (written once: its ``vector`` copy), its EKF equals raw filterpy
+    (``filterpy_reference``) fed the same prior (the env's estimate after its reset), odometry readings and
+    measurements (x within 1e-12, P within 1e-10; the readings made by ``OdometrySensor.measure_with_noise`` from the
+    world's executed controls, the measurements by ``RangeBearingSensor.measure_with_noise``, both with the env's
+    noise draws), and each update's ``reward_terms["mutual_information"]`` is that update's MI.
 
     Args:
         env_id: the registered id.
@@ -399,12 +398,8 @@ def check_filter_equals_pose_ekf(env_id, landmark_of, monkeypatch, seed: int, n_
     draws = []
     env = gym.make(env_id, horizon=n_steps, **config).unwrapped
     vector = env.vector
-    if hasattr(vector, "state"):  # a scenario: its constants and state
-        odometry, robot = vector.env_scenario.odometry, vector.state
-        worlds, odometry_noise, measurement_noise = robot.worlds, robot.odometry_noise, robot.measurement_noise
-    else:
-        odometry, worlds = vector._odometry, vector._worlds
-        odometry_noise, measurement_noise = vector._odometry_noise, vector._measurement_noise
+    odometry, robot = vector.env_scenario.odometry, vector.state  # the scenario's constants and state
+    worlds, odometry_noise, measurement_noise = robot.worlds, robot.odometry_noise, robot.measurement_noise
     sensor, controls, odometry_draws = vector.sensor, [], []
     world_step = worlds.step  # the executed controls, and below the noise draws the odometry reads them with
     monkeypatch.setattr(worlds, "step", lambda *args: controls.append(world_step(*args)) or controls[-1])
@@ -412,10 +407,8 @@ def check_filter_equals_pose_ekf(env_id, landmark_of, monkeypatch, seed: int, n_
     # the measurement's standard normals: the sensor measures with them below
     monkeypatch.setattr(measurement_noise, "reserve", _recording(measurement_noise.reserve, draws))
     _, info = env.reset(seed=seed)
-    x, P = vector.estimate(0)  # the prior: the pose, then the mapped landmarks if any
-    ekf = PoseEKF(x[:POSE_DIM], P[:POSE_DIM, :POSE_DIM], x[POSE_DIM:].reshape(-1, 2), P[POSE_DIM:, POSE_DIM:])
-    rng, dt = np.random.default_rng(seed), env.config["time_step_s"]
-    landmarks = None if config.get("mapping") else vector.scenario(0).landmarks
+    ekf = filterpy_filter(*vector.estimate(0))  # the prior: the pose, then the mapped landmarks if any
+    rng, dt, mapping = np.random.default_rng(seed), env.config["time_step_s"], config.get("mapping")
     n_observed = 0
     for _ in range(n_steps):
         valid = np.flatnonzero(info["action_mask"])
@@ -425,16 +418,18 @@ def check_filter_equals_pose_ekf(env_id, landmark_of, monkeypatch, seed: int, n_
         info = env.step(action)[4]
         landmark = landmark_of(info["chosen_action"])
         if landmark >= 0:
-            predicted, H = ekf.landmark_measurement_model(landmarks)
-            R = sensor.noise_covariance(predicted[landmark : landmark + 1, 0])[0]
             true_landmark = vector.scenario(0).landmarks[landmark]
+            column = 3 + 2 * landmark
+            predicted, H = range_bearing(ekf.x, 0, ekf.x[column : column + 2] if mapping else true_landmark,
+                                         column if mapping else None)  # fmt: skip
+            R = sensor.noise_covariance(predicted[None, 0])[0]
             measurement = sensor.measure_with_noise(true_pose[None], true_landmark[None], draws[-1][None])[0]
-            ekf.update_range_bearing(measurement, predicted[landmark], H[landmark], R)
+            filterpy_update(ekf, measurement, predicted, H, R, [1], 1)
             realized = info["reward_terms"]["mutual_information"]
             assert realized == pytest.approx(mutual_information(prior_P, ekf.P), abs=1e-10)
             n_observed += 1
         reading = odometry.measure_with_noise(controls[-1][0, 0], odometry_draws[-1])
-        ekf.predict(reading, dt, odometry.noise_covariance())
+        filterpy_predict(ekf, [reading], [odometry.noise_covariance()], dt)
         x, P = vector.estimate(0)
         np.testing.assert_allclose(x, ekf.x, rtol=0, atol=1e-12)
         np.testing.assert_allclose(P, ekf.P, rtol=0, atol=1e-10)

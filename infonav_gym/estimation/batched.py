@@ -1,10 +1,10 @@
 """The batched EKF core: N filter copies on stacked arrays, states ``x (N, n)``, covariances ``P (N, n, n)``.
 
-The same models and the same floating-point steps as ``PoseEKF`` and ``JointEKF`` (the scalar API and
-the tested oracle), one leading batch dimension over env copies; the loops over the copies run in the
-compiled ``kernels``. A state starts with the poses of its R robots ``[x, y, heading]`` (R = 1 for a
-``PoseEKF``), followed by any static entries (mapped landmarks ``[lx, ly]``). Functions return new
-arrays; copies that take no measurement come back unchanged.
+The package's one EKF (the envs, the planners, the MRCLAM replay at N = 1): the models and updates of ``PoseEKF`` and
+``JointEKF`` with one leading batch dimension over env copies, tested update for update against filterpy's
+``ExtendedKalmanFilter``; the loops over the copies run in the compiled ``kernels``. A state starts with the poses
+of its R robots ``[x, y, heading]`` (R = 1 for a ``PoseEKF``), followed by any static entries (mapped landmarks
+``[lx, ly]``). Functions return new arrays; copies that take no measurement come back unchanged.
 
 Every public function checks its inputs (shapes, finiteness, symmetric positive-definite noise, indices)
 and raises ``ValueError`` naming the argument; ``check_input=False`` skips that for hot loops whose

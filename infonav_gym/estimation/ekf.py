@@ -1,9 +1,10 @@
-"""Extended Kalman filters built on filterpy's ``ExtendedKalmanFilter``.
+"""The scalar reference: ``PoseEKF`` and ``JointEKF`` configure filterpy's ``ExtendedKalmanFilter`` with the unicycle
+motion and the range-bearing, relative-pose and position-fix models; filterpy performs every predict and update (its
+update in Joseph form). The envs, planners and the replay run the batched EKF (``batched``), tested against filterpy.
 
 The public ``predict`` and update methods check what they are given (shapes, finiteness, a
 symmetric positive-definite noise covariance) and raise ``ValueError`` naming the argument, so a
-bad input never fills the state with NaN. ``check_input=False`` skips that for hot loops whose
-inputs are already known good (the envs: their sensors' parameters were checked at construction).
+bad input never fills the state with NaN; ``check_input=False`` skips that for known-good inputs.
 """
 
 from __future__ import annotations
@@ -14,22 +15,15 @@ from scipy.linalg import block_diag
 
 from infonav_gym.estimation.models import (
     GPS_POSE_JACOBIAN,
+    angular_residual,
     range_bearing_linearized,
-    range_bearing_residual,
     relative_pose_linearized,
     unicycle_jacobians,
     unicycle_motion,
 )
-from infonav_gym.estimation.state import (  # noqa: F401  (POSE_DIM, INITIAL_POSE_STD, block_diagonal: also from here)
-    INITIAL_POSE_STD,
-    POSE_DIM,
-    _finite,
-    _noise_covariance,
-    _time_step,
-    block_diagonal,
-)
+from infonav_gym.estimation.state import POSE_DIM, _finite, _noise_covariance, _time_step, block_diagonal
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import log_det_spd, mutual_information_from_log_dets
+from infonav_gym.information import log_det_spd
 
 
 def _robot_indices(name: str, value, n_robots: int) -> np.ndarray:
@@ -42,15 +36,40 @@ def _robot_indices(name: str, value, n_robots: int) -> np.ndarray:
     return indices.astype(int)
 
 
-class PoseEKF(ExtendedKalmanFilter):
+class _UnicycleEKF(ExtendedKalmanFilter):
+    """filterpy's EKF over states that start with robot poses: the unicycle step of each pose in ``predict_x`` (the
+    rest static), headings wrapped after each update."""
+
+    def _predict(self, controls, dt: float, control_covariances) -> None:
+        """filterpy's predict with each robot's unicycle step in F and Q."""
+        for robot, (control, covariance) in enumerate(zip(controls, control_covariances)):
+            block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
+            F_pose, V = unicycle_jacobians(self.x[block], control, dt)
+            self.F[block, block] = F_pose
+            self.Q[block, block] = V @ covariance @ V.T
+        self._motion = (controls, dt)
+        super().predict()
+
+    def predict_x(self, u=0) -> None:
+        """filterpy hook: the nonlinear prediction of every pose."""
+        controls, dt = self._motion
+        for robot, control in enumerate(controls):
+            block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
+            self.x[block] = unicycle_motion(self.x[block], control, dt)
+
+    def _update(self, measurement, predicted, H, R, angle_rows) -> None:
+        """filterpy's update with the innovation's ``angle_rows`` wrapped; the headings wrapped after it."""
+        residual = lambda measured, hx: angular_residual(measured, hx, angle_rows)  # noqa: E731
+        self.update(np.ravel(measurement), lambda _: H, lambda _: np.ravel(predicted), R=R, residual=residual)
+        self.x[self._headings] = wrap_angle(self.x[self._headings])
+
+
+class PoseEKF(_UnicycleEKF):
     """EKF over a planar pose ``[x, y, heading]``, optionally with mapped landmarks (EKF-SLAM).
 
     The state is ``[x, y, heading, l1x, l1y, l2x, ...]``: with ``landmarks`` given,
-    their positions are estimated alongside the pose. Prediction runs through
-    filterpy's ``predict`` (with the unicycle model in ``predict_x``); range-bearing
-    updates are closed-form and equal filterpy's generic ``update``, which stays
-    available for other measurement models. Headings and bearing innovations are
-    wrapped, and the covariance is symmetrized after every update.
+    their positions are estimated alongside the pose. filterpy predicts (the unicycle
+    model in ``predict_x``) and updates; headings and bearing innovations are wrapped.
 
     Args:
         pose: initial pose estimate (3,).
@@ -79,7 +98,7 @@ class PoseEKF(ExtendedKalmanFilter):
         self.x = np.concatenate([pose, landmarks.ravel()])
         self.P = covariance.copy()
         self.Q = np.zeros_like(self.P)
-        self._motion = None
+        self._headings = [2]
 
     @property
     def n_landmarks(self) -> int:
@@ -102,8 +121,6 @@ class PoseEKF(ExtendedKalmanFilter):
     def predict(self, control, dt: float, control_covariance, *, check_input: bool = True) -> None:
         """Propagate through the unicycle model with a noisy odometry ``control`` (speed, turn rate).
 
-        ``F P F^T + Q`` keeps the covariance symmetric; the update symmetrizes it.
-
         Args:
             control: odometry ``[speed, turn_rate]`` [m/s, rad/s], finite.
             dt: time step [s], finite and >= 0.
@@ -114,13 +131,7 @@ class PoseEKF(ExtendedKalmanFilter):
             control = _finite("control", control, (2,))
             dt = _time_step(dt)
             control_covariance = _noise_covariance("control_covariance", control_covariance, (2, 2))
-        set_pose_motion(self, control, dt, control_covariance)
-        super().predict()
-
-    def predict_x(self, u=0) -> None:
-        """filterpy hook: the nonlinear state prediction (landmarks are static)."""
-        control, dt = self._motion
-        self.x[:POSE_DIM] = unicycle_motion(self.x[:POSE_DIM], control, dt)
+        self._predict([control], dt, [control_covariance])
 
     def landmark_measurement_model(self, landmarks=None) -> tuple[np.ndarray, np.ndarray]:
         """Predicted range-bearing to each landmark and its Jacobian w.r.t. the whole state.
@@ -145,12 +156,7 @@ class PoseEKF(ExtendedKalmanFilter):
         return predicted, H
 
     def update_range_bearing(self, measurement, predicted, H, R, *, check_input: bool = True) -> None:
-        """Update with one range-bearing measurement, linearized at the prior; covariance symmetrized.
-
-        Gives what filterpy's generic ``update`` gives with a wrapped-bearing
-        residual (tested against it) and fills the same attributes (``y``, ``S``,
-        ``SI``, ``K``, ``z``, ``x_post``, ``P_post``), without its per-call
-        overhead (a general matrix inverse and deep copies) in the env's hot loop.
+        """filterpy's update with one range-bearing measurement, linearized at the prior, the bearing wrapped.
 
         Args:
             measurement: ``[range, bearing]``.
@@ -165,53 +171,10 @@ class PoseEKF(ExtendedKalmanFilter):
             predicted = _finite("predicted", predicted, (2,))
             H = _finite("H", H, (2, self.dim_x))
             R = _noise_covariance("R", R, (2, 2))
-        _kalman_update(self, measurement, range_bearing_residual(measurement, predicted), H, R, 2)
+        self._update(measurement, predicted, H, R, 1)
 
 
-def set_pose_motion(ekf: ExtendedKalmanFilter, control, dt: float, control_covariance) -> None:
-    """Fill the pose block (the first 3 states) of ``ekf.F`` and ``ekf.Q`` for a unicycle step, and keep the
-    step in ``ekf._motion`` for ``predict_x``."""
-    F_pose, V = unicycle_jacobians(ekf.x, control, dt)
-    ekf.F[:POSE_DIM, :POSE_DIM] = F_pose
-    ekf.Q[:POSE_DIM, :POSE_DIM] = V @ control_covariance @ V.T
-    ekf._motion = (control, dt)
-
-
-def _inverse(S: np.ndarray) -> np.ndarray:
-    """Inverse of a small SPD matrix (closed form for 2x2, the common case in the hot loop)."""
-    if S.shape == (2, 2):
-        (a, b), (_, d) = S.tolist()
-        return np.array([[d, -b], [-b, a]]) / (a * d - b * b)
-    return np.linalg.inv(S)
-
-
-def _kalman_update(ekf: ExtendedKalmanFilter, measurement, residual, H, R, heading_indices) -> None:
-    """The EKF update linearized at the prior; fills filterpy's attributes; covariance symmetrized.
-
-    Args:
-        ekf: the filter to update in place.
-        measurement: the measured value (m,).
-        residual: ``measurement - predicted``, angles already wrapped (m,).
-        H: measurement Jacobian w.r.t. the whole state (m, dim_x).
-        R: measurement noise covariance (m, m).
-        heading_indices: state entries that are headings, wrapped after the update.
-    """
-    PHT = ekf.P @ H.T
-    S = H @ PHT + R
-    SI = _inverse(S)
-    K = PHT @ SI
-    ekf.z = np.array(measurement, dtype=float)
-    ekf.y = residual
-    ekf.x = ekf.x + K @ residual
-    ekf.x[heading_indices] = wrap_angle(ekf.x[heading_indices])
-    P = ekf.P - K @ PHT.T
-    ekf.P = 0.5 * (P + P.T)
-    ekf.S, ekf.SI, ekf.K = S, SI, K
-    ekf.x_post, ekf.P_post = ekf.x.copy(), ekf.P.copy()
-    ekf._log_likelihood = ekf._likelihood = ekf._mahalanobis = None
-
-
-class JointEKF(ExtendedKalmanFilter):
+class JointEKF(_UnicycleEKF):
     """EKF over the planar poses of N robots: state ``[x0, y0, h0, x1, y1, h1, ...]`` (3N).
 
     A relative-pose measurement between two robots correlates their estimates;
@@ -219,8 +182,7 @@ class JointEKF(ExtendedKalmanFilter):
     twice. With ``cross_covariances=False`` it drops them after every update
     (each robot keeps only its own 3x3 block): the common shortcut that treats
     teammates' estimates as independent, reuses the same information again and
-    again, and becomes overconfident. Prediction runs through filterpy's
-    ``predict``; updates are closed-form (see ``PoseEKF``).
+    again, and becomes overconfident. filterpy predicts and updates (see ``PoseEKF``).
 
     Args:
         poses: initial pose estimates (N, 3).
@@ -246,7 +208,6 @@ class JointEKF(ExtendedKalmanFilter):
         self.Q = np.zeros_like(self.P)
         self._own_block = np.kron(np.eye(n_robots), np.ones((POSE_DIM, POSE_DIM)))
         self._headings = np.arange(2, self.dim_x, POSE_DIM)
-        self._motion = None
 
     @property
     def poses(self) -> np.ndarray:
@@ -260,13 +221,8 @@ class JointEKF(ExtendedKalmanFilter):
 
     def pose_covariances(self) -> np.ndarray:
         """Every robot's own covariance block (N, 3, 3)."""
-        robots = np.arange(self.n_robots)
-        return self._blocks()[robots, robots]
-
-    def _blocks(self) -> np.ndarray:
-        """``P`` as (N, N, 3, 3) blocks: ``[i, j]`` is the covariance of robot i's pose with robot j's."""
-        n = self.n_robots
-        return self.P.reshape(n, POSE_DIM, n, POSE_DIM).transpose(0, 2, 1, 3)
+        n, robots = self.n_robots, np.arange(self.n_robots)
+        return self.P.reshape(n, POSE_DIM, n, POSE_DIM).transpose(0, 2, 1, 3)[robots, robots]
 
     def predict(self, controls, dt: float, control_covariances, *, check_input: bool = True) -> None:
         """Propagate every robot through the unicycle model with its noisy odometry ``[speed, turn_rate]``.
@@ -281,19 +237,7 @@ class JointEKF(ExtendedKalmanFilter):
             controls = _finite("controls", controls, (self.n_robots, 2))
             dt = _time_step(dt)
             control_covariances = _noise_covariance("control_covariances", control_covariances, (self.n_robots, 2, 2))
-        for robot in range(self.n_robots):
-            block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
-            F_pose, V = unicycle_jacobians(self.x[block], controls[robot], dt)
-            self.F[block, block] = F_pose
-            self.Q[block, block] = V @ control_covariances[robot] @ V.T
-        self._motion = (controls, dt)
-        super().predict()
-
-    def predict_x(self, u=0) -> None:
-        """filterpy hook: the nonlinear prediction of every pose."""
-        controls, dt = self._motion
-        poses = self.x.reshape(-1, POSE_DIM)
-        self.x = np.concatenate([unicycle_motion(pose, control, dt) for pose, control in zip(poses, controls)])
+        self._predict(controls, dt, control_covariances)
 
     def gps_update(self, robots, fixes, noise_covariances, *, check_input: bool = True) -> None:
         """Update with position fixes ``[x, y]`` of some robots (one stacked linear update).
@@ -312,11 +256,7 @@ class JointEKF(ExtendedKalmanFilter):
         if robots.size == 0:
             return
         H = self._stacked_jacobian(robots, GPS_POSE_JACOBIAN[None])
-        measurement = np.asarray(fixes, dtype=float).ravel()
-        _kalman_update(
-            self, measurement, measurement - H @ self.x, H, block_diagonal(noise_covariances), self._headings
-        )
-        self._drop_cross_covariances()
+        self._update(fixes, H @ self.x, H, block_diagonal(noise_covariances), [])
 
     def relative_pose_model(self, observers, targets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predicted relative pose of each ``targets[k]`` seen from ``observers[k]``, with both Jacobians.
@@ -361,10 +301,8 @@ class JointEKF(ExtendedKalmanFilter):
         if np.any(observers == targets):
             raise ValueError(f"a robot cannot observe its own relative pose (observers {observers}, targets {targets})")
         H = self._stacked_jacobian(observers, H_observer) + self._stacked_jacobian(targets, H_target)
-        residual = np.subtract(measurements, predicted)
-        residual[:, 1:] = wrap_angle(residual[:, 1:])
-        _kalman_update(self, np.ravel(measurements), residual.ravel(), H, block_diagonal(R), self._headings)
-        self._drop_cross_covariances()
+        m = np.shape(measurements)[1]
+        self._update(measurements, predicted, H, block_diagonal(R), np.arange(len(H)) % m != 0)
 
     def _stacked_jacobian(self, robots: np.ndarray, blocks: np.ndarray) -> np.ndarray:
         """(k m, 3N) Jacobian whose k-th row block holds ``blocks[k]`` (m, 3) in robot ``robots[k]``'s columns."""
@@ -372,25 +310,6 @@ class JointEKF(ExtendedKalmanFilter):
         H = np.zeros((len(robots), m, self.n_robots, POSE_DIM))
         H[np.arange(len(robots)), :, robots, :] = blocks
         return H.reshape(len(robots) * m, self.dim_x)
-
-    def relative_pose_information_gains(self, observers, targets, H_observer, H_target, R):
-        """Expected MI of each candidate relative-pose update, alone at the current prior [nats].
-
-        Returns:
-            ``(own, joint)``, each (M,): the MI on the *observer's own* pose,
-            ``0.5 ln(det P_oo / det P_oo_post)`` with ``P_oo_post = P_oo - A S^-1 A^T``
-            (``A`` the observer's rows of ``P H^T``, ``S = H P H^T + R``), and the MI on
-            the joint state of all robots, ``0.5 ln(det S / det R)``.
-        """
-        blocks = self._blocks()
-        P_oo, P_ot = blocks[observers, observers], blocks[observers, targets]
-        P_to, P_tt = blocks[targets, observers], blocks[targets, targets]
-        H_observer_T, H_target_T = np.swapaxes(H_observer, 1, 2), np.swapaxes(H_target, 1, 2)
-        A = P_oo @ H_observer_T + P_ot @ H_target_T
-        S = H_observer @ A + H_target @ (P_to @ H_observer_T + P_tt @ H_target_T) + R
-        posterior = P_oo - A @ np.linalg.solve(S, np.swapaxes(A, 1, 2))
-        log_dets = np.linalg.slogdet(np.concatenate([P_oo, posterior, S, R]))[1].reshape(4, -1)
-        return mutual_information_from_log_dets(*log_dets[:2]), mutual_information_from_log_dets(*log_dets[2:])
 
     def landmark_model(self, robots, landmarks) -> tuple[np.ndarray, np.ndarray]:
         """Predicted range-bearing of known landmark ``landmarks[k]`` from robot ``robots[k]``, with its Jacobian.
@@ -432,22 +351,10 @@ class JointEKF(ExtendedKalmanFilter):
         if robots.size == 0:
             return
         H = self._stacked_jacobian(robots, H_pose)
-        residual = np.subtract(measurements, predicted)
-        residual[:, 1] = wrap_angle(residual[:, 1])
-        _kalman_update(self, np.ravel(measurements), residual.ravel(), H, block_diagonal(R), self._headings)
-        self._drop_cross_covariances()
+        self._update(measurements, predicted, H, block_diagonal(R), np.arange(len(H)) % 2 == 1)
 
-    def landmark_information_gains(self, robots, H_pose, R) -> np.ndarray:
-        """Expected MI of each candidate landmark update, alone at the current prior [nats] (M,).
-
-        The measurement depends on the observer's pose only, so its MI on the joint state equals its MI on
-        the observer's own pose: ``0.5 ln(det S / det R)``, ``S = H P_oo H^T + R``.
-        """
-        robots = np.atleast_1d(robots)
-        P_oo = self._blocks()[robots, robots]
-        S = H_pose @ P_oo @ np.swapaxes(H_pose, 1, 2) + R
-        return mutual_information_from_log_dets(np.linalg.slogdet(S)[1], np.linalg.slogdet(R)[1])
-
-    def _drop_cross_covariances(self) -> None:
+    def _update(self, measurement, predicted, H, R, angle_rows) -> None:
+        """``_UnicycleEKF._update``; without ``cross_covariances`` each robot keeps only its own block."""
+        super()._update(measurement, predicted, H, R, angle_rows)
         if not self.cross_covariances:
             self.P = self.P * self._own_block

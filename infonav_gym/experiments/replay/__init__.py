@@ -1,7 +1,7 @@
 """Replay of information-driven measurement selection on logged real robot data (MRCLAM).
 
-``replay(dataset, ReplayConfig(...))`` runs one filter (PoseEKF per robot with the landmark
-map, or a cooperative JointEKF) through a dataset's odometry and measurements in time order,
+``replay(dataset, ReplayConfig(...))`` runs the batched EKF (a pose filter per robot with the landmark
+map, or one joint filter over all robots) through a dataset's odometry and measurements in time order,
 with chi-square innovation gating, under a selection policy; ``run_experiments`` sweeps
 policies and budgets and runs the absolute-sensing outage experiment. ``calibrate`` fits a
 ``NoiseModel`` to a dataset's ground truth; ``ReplayConfig(noise=...)`` replays with it

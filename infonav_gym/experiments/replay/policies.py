@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from infonav_gym.decisions import argmax_tied, top_k_tied
+from infonav_gym.estimation import batched
 from infonav_gym.information import expected_information_gain, mutual_information_from_log_dets
 
 POLICIES = ("all", "greedy", "random", "nearest")
@@ -34,19 +35,15 @@ def select_greedy(P: np.ndarray, H: np.ndarray, R: np.ndarray, k: int, of: np.nd
         best = argmax_tied(np.where(available, gains, -np.inf))
         chosen.append(best)
         available[best] = False
-        PHT = P @ H[best].T
-        P = P - PHT @ np.linalg.solve(H[best] @ PHT + R[best], PHT.T)
-        P = 0.5 * (P + P.T)
+        P = batched.posterior_covariance(P[None], H[best][None], R[best][None], check_input=False)[0]
     return chosen
 
 
 def _marginal_gains(P, H, R, of) -> np.ndarray:
     """Expected MI of each candidate update on the state entries ``of`` alone [nats] (m,)."""
-    PHT = P @ np.swapaxes(H, 1, 2)  # (m, n, 2)
-    S = H @ PHT + R
-    A = PHT[:, of]
     prior = P[np.ix_(of, of)]
-    posterior = prior - A @ np.linalg.solve(S, np.swapaxes(A, 1, 2))
+    posterior = batched.posterior_covariance(np.broadcast_to(P, (len(H), *P.shape)), H, R, check_input=False)
+    posterior = posterior[:, of][:, :, of]
     return mutual_information_from_log_dets(np.linalg.slogdet(prior)[1], np.linalg.slogdet(posterior)[1])
 
 

@@ -64,7 +64,7 @@ def run_experiments(
         n_seeds: runs of ``random`` per budget, seeds ``seed .. seed + n_seeds - 1`` (mean and 95 % CI).
         seed: first seed.
         outage: ``(robot, start_s, end_s)``: also run the outage experiment, a cooperative replay
-            (JointEKF, every landmark and robot-to-robot observation) in which ``robot`` gets no landmark
+            (the joint filter, every landmark and robot-to-robot observation) in which ``robot`` gets no landmark
             observations over the span, against the landmark-only replay in which it dead-reckons.
         config: filter settings (noise, gate, cooperative) shared by every run.
         dt: replay tick [s].

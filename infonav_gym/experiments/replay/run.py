@@ -81,7 +81,7 @@ def replay(
 
     Args:
         dataset: a loaded MRCLAM dataset.
-        config: filter, policy, budget and outage settings (default: all landmarks, PoseEKF per robot).
+        config: filter, policy, budget and outage settings (default: all landmarks, a pose filter per robot).
         dt: tick length of the replay clock [s].
         duration_s: replay only the first ``duration_s`` seconds (None: all).
         timeline: a precomputed ``make_timeline(corrected_logs(dataset, config.noise), dt, duration_s)`` to reuse.
