@@ -28,10 +28,9 @@ from infonav_gym.envs.active_localization.transition import (
     step_rewards,
 )
 from infonav_gym.envs.base import MAX_EPISODE_STEPS, REWARD_WEIGHT, shared_config
-from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
-from infonav_gym.envs.one_robot import OneRobotScenario, OneRobotState
+from infonav_gym.envs.one_robot import OneRobotDriver, OneRobotScenario, OneRobotState
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import in_every_copy
@@ -111,8 +110,7 @@ class ActiveStep(NamedTuple):
 
 
 class ActiveLocalization(OneRobotScenario):
-    """``infonav/ActiveLocalization-v0`` as a scenario: see ``ActiveLocalizationEnv`` for its spaces, rewards and
-    config keys."""
+    """``infonav/ActiveLocalization-v0`` as a scenario (spaces, rewards, config: ``ActiveLocalizationEnv``)."""
 
     episode_metrics = (*LOCALIZATION_METRICS, SUCCESS_RATE)
     traits = EnvTraits(
@@ -315,46 +313,12 @@ class ActiveLocalization(OneRobotScenario):
         )
 
 
-class ActiveLocalizationVectorEnv(Driver, scenario=ActiveLocalization):
-    """N copies of ``infonav/ActiveLocalization-v0`` on stacked arrays: the env's one implementation.
+class ActiveLocalizationVectorEnv(OneRobotDriver, scenario=ActiveLocalization):
+    """N copies of ``infonav/ActiveLocalization-v0``, the driver bound to its scenario (``gym.make_vec``).
 
-    See ``ActiveLocalizationEnv`` (its N = 1 view) for the spaces, rewards and config keys.
-    ``gym.make_vec("infonav/ActiveLocalization-v0", num_envs=N, **config)`` returns it. The estimation runs on
-    the batched EKF core (``estimation.batched``), the visibility on ``world.visibility``, the physics in a
-    ``WorldBatch`` driven by the primitives' commands and each copy's sensor noise from its own streams
-    (``NoiseStreams``), so sub-env ``i`` after ``reset(seed=s)`` gives the numbers of
-    ``gym.make("infonav/ActiveLocalization-v0")`` after ``reset(seed=s + i)``.
-
-    ## Vector API
-    ``step`` takes one action per sub-env (N,) and returns observations (N, 14 + 4K + 4O), rewards,
-    ``terminated`` (goal reached or uncertainty bound crossed) and ``truncated`` (horizon) (N,). Infos hold the
-    single env's keys as arrays with a leading N dimension, each with Gymnasium's ``_key`` mask
-    (``reward_terms`` is a dict of such arrays, all six terms); ``info["action_mask"]`` is (N, 5 (1 + K)).
-    ``action_masks()`` gives the bool masks for ``MaskablePPO``; ``planning_model(copy)`` the planning model of
-    sub-env ``copy``.
-
-    ## Autoreset
-    As ``LandmarkSelectionVectorEnv``: ``NEXT_STEP`` by default (``metadata["autoreset_mode"]``), ``SAME_STEP``
-    (the last outputs in ``info["final_obs"]`` / ``info["final_info"]``) or ``DISABLED``; an episode ends
-    terminated or truncated.
-
-    ## Arguments
-    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode`` or its value) and any key of
-    ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws sub-env 0.
+    Observations (N, 14 + 4K + 4O), ``info["action_mask"]`` (N, 5 (1 + K)), all six ``reward_terms``;
+    ``planning_model(copy)`` is sub-env ``copy``'s planning model.
     """
-
-    @property
-    def sensor(self):
-        """The range-bearing sensor every copy carries (coverage and noise)."""
-        return self.env_scenario.sensor
-
-    def estimate(self, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Sub-env ``copy``'s EKF state and covariance now, ``(x (n,), P (n, n))`` (copies)."""
-        return self.state.x[copy].copy(), self.state.P[copy].copy()
-
-    def scenario(self, copy: int = 0):
-        """The scenario sub-env ``copy`` runs in its current episode (its landmarks, routes, walls)."""
-        return self.state.worlds.scenario(copy)
 
     def planning_model(self, copy: int = 0) -> ActivePlanningModel:
         """The planning model of sub-env ``copy`` (the same object on every call), for look-ahead agents
