@@ -1,8 +1,6 @@
-"""``LandmarkDecision``: which landmarks each copy's range-bearing sensor sees, their measurement model and gains.
-
-Shared by ``LandmarkSelection-v0`` and ``ActiveLocalization-v0``, whose decisions both pick a landmark to observe
-at the EKF's prior. Each copy has at most K landmarks, stacked as (N, K, 2) with an ``exists`` mask (N, K).
-"""
+"""``LandmarkDecision``: which landmarks each copy's range-bearing sensor sees, their measurement model and gains
+at the EKF's prior (``LandmarkSelection-v0``, ``ActiveLocalization-v0``); at most K landmarks a copy, (N, K, 2)
+with an ``exists`` mask (N, K)."""
 
 from __future__ import annotations
 

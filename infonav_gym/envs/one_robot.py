@@ -1,10 +1,5 @@
 """What the one-robot scenarios share (``LandmarkSelection-v0``, ``ActiveLocalization-v0``): a robot with a
-range-bearing sensor and odometry, its state and the steps of its EKF.
-
-The copies' robots move in a ``WorldBatch``; each copy's odometry and measurement noise come from its own streams
-(``NoiseStreams``, the single env's two generators drawn ahead), and the EKFs predict from the noisy odometry on the
-compiled core, as ``PoseEKF.predict`` does.
-"""
+range-bearing sensor and odometry, its state, the steps of its EKF and the accessors of its driver."""
 
 from __future__ import annotations
 

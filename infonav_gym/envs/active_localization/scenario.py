@@ -1,9 +1,5 @@
-"""``infonav/ActiveLocalization-v0``: drive to a goal, choosing how to move and what to observe under a budget.
-
-Written once as the scenario ``ActiveLocalization`` on (N, ...) arrays, its step in ``transition.py`` (shared with
-its planning model, ``planning.py``); ``ActiveLocalizationVectorEnv`` is the driver bound to it (``gym.make_vec``),
-``ActiveLocalizationEnv`` its N = 1 view (``gym.make``).
-"""
+"""``infonav/ActiveLocalization-v0``: drive to a goal, choosing how to move and what to observe under a budget, as
+a scenario (its step in ``transition.py``, shared with its planning model)."""
 
 from __future__ import annotations
 
@@ -80,16 +76,8 @@ class ActiveState(OneRobotState):
 
 
 class ActiveStep(NamedTuple):
-    """Every copy's decision at its EKF's prior and what the same kernel computes there.
-
-    Attributes:
-        action_mask: int8 (n, 5 (1 + K)), 1 = valid: every primitive without an observation, and with each
-            visible landmark while budget is left.
-        action_information_gain: expected MI of each action (n, 5 (1 + K)) [nats], 0 where masked.
-        visible ... pose_entropy: the landmarks' ``LandmarkDecision`` (``sight``; its mask: visible, budget aside).
-        observation: the observations (n, 14 + 4K + 4O) float32.
-        numbers: position error [m], heading error [rad], largest position std [m], distance to the goal [m] (n, 4).
-    """
+    """Every copy's action mask and gains (n, 5 (1 + K)), its landmarks' ``LandmarkDecision`` (``sight``, its mask
+    ``visible``) at its EKF's prior, and what ``copy_outputs`` computes there: observations and info ``numbers``."""
 
     action_mask: np.ndarray
     action_information_gain: np.ndarray
@@ -391,10 +379,8 @@ class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEn
     limited to ``max_turn_rate_rps`` and the speed is ``speed_mps * max(cos(turn), 0)``
     for the heading change still to make. Pymunk executes the motion. Observing
     landmark ``j`` is valid while it lies within range and field of view, no obstacle
-    hides it, and budget is left; observing nothing is always valid. A masked action
-    is a no-op (stand still, observe nothing) by default (``invalid_action="noop"``) or
-    raises ``ValueError`` with ``invalid_action="raise"``. ``action_masks()`` gives the mask as bool,
-    for ``MaskablePPO``.
+    hides it, and budget is left; observing nothing is always valid. The no-op of a masked action
+    stands still and observes nothing.
 
     ## Observation Space
     ``Box(float32, (14 + 4 * n_candidates + 4 * n_obstacles,))``: the 10 pose features
@@ -425,24 +411,17 @@ class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEn
     Truncated after ``horizon`` steps.
 
     ## Planning model
-    ``planning_model()`` returns the env's own model for look-ahead agents
-    (``agents.planner.PlannerAgent``, through wrappers with
-    ``env.get_wrapper_attr("planning_model")()``), with ``belief()``, ``plan_decision(belief)``
-    and ``plan_step(belief, actions)``: the env's batched step (``envs.active_localization.transition``) on a
-    batch of beliefs, the EKF covariance propagated under the linearization, with the motion
-    predicted from the estimated pose and visibility judged from it.
+    ``planning_model()`` (``env.get_wrapper_attr("planning_model")()`` through wrappers) is the env's batched
+    step (``transition.py``) on beliefs, for look-ahead agents (``PlannerAgent``): the EKF covariance propagated
+    under the linearization, the motion predicted from the estimated pose and visibility judged from it.
 
     ## Arguments
-    ``gym.make("infonav/ActiveLocalization-v0", render_mode=None, **config)`` with any
-    key of ``default_config()``; an unknown key raises ``ValueError`` naming it.
+    ``gym.make("infonav/ActiveLocalization-v0", render_mode=None, **config)`` with any key of ``default_config()``.
 
     ## Version History
     * v0: initial version.
     """
 
     def planning_model(self) -> ActivePlanningModel:
-        """The env's planning model (``ActivePlanningModel`` of its one copy), for ``PlannerAgent``.
-
-        Reachable through Gymnasium wrappers: ``env.get_wrapper_attr("planning_model")()``.
-        """
+        """The env's planning model (``ActivePlanningModel`` of its one copy), for ``PlannerAgent``."""
         return self.vector.planning_model(0)

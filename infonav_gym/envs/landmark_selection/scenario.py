@@ -43,10 +43,10 @@ SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "size_m": "field_size_m",
 }
 CANDIDATE_FEATURES = 5
+_BIG = 1e4
 # the info keys ``landmark_outputs`` computes, in its order
 INFO_NUMBERS = ("pose_entropy", "state_entropy", "position_error_m", "heading_error_rad", "time_s")
 INFO_NUMBERS += ("true_pose", "estimated_pose")
-_BIG = 1e4
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
     "n_candidates": Interval(1, MAX_LANDMARKS, integer=True),
     "time_step_s": TIME_STEP_S,
@@ -256,12 +256,8 @@ class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv)
     ## Action Space
     ``Discrete(n_candidates)``: the index of the landmark to observe. An action
     is valid when that landmark exists, lies within the sensor's range and field
-    of view, and no wall or obstacle blocks the line of sight
-    (``info["action_mask"]``). A masked action is a no-op with reward 0 by
-    default (``invalid_action="noop"``; RL algorithms and env checkers sample
-    actions blindly) or raises ``ValueError`` with ``invalid_action="raise"``.
-    An integer outside the space always raises ``ValueError``. ``action_masks()`` gives the mask as
-    bool, for ``MaskablePPO`` (all ``True`` when no landmark is visible: every action is then the no-op).
+    of view, and no wall or obstacle blocks the line of sight (``info["action_mask"]``; ``action_masks()``
+    is all ``True`` when no landmark is visible: every action is then the no-op).
 
     ## Observation Space
     ``Box(float32, (10 + 5 * n_candidates,))``: estimated ``x, y`` [m], ``cos, sin``
@@ -284,8 +280,7 @@ class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv)
     Truncated after ``horizon`` steps; never terminated.
 
     ## Arguments
-    ``gym.make("infonav/LandmarkSelection-v0", render_mode=None, **config)`` with any
-    key of ``default_config()``; an unknown key raises ``ValueError`` naming it.
+    ``gym.make("infonav/LandmarkSelection-v0", render_mode=None, **config)`` with any key of ``default_config()``.
 
     ## Version History
     * v0: initial version.

@@ -434,10 +434,8 @@ class RangeRegistrationEnv(SingleEnvView, vector_env=RangeRegistrationVectorEnv)
 
     ## Action Space
     ``Discrete(patch_rows * patch_columns)``: the patch (row-major over the image) to add.
-    Valid while it has returns and was not chosen for this pair (``info["action_mask"]``).
-    A masked action is a no-op with reward 0 (``invalid_action="noop"``) or raises
-    ``ValueError`` (``invalid_action="raise"``). ``action_masks()`` gives the mask as bool, for
-    ``MaskablePPO`` (all ``True`` when no patch can be picked: every action is then the no-op).
+    Valid while it has returns and was not chosen for this pair (``info["action_mask"]``; ``action_masks()``
+    is all ``True`` when no patch can be picked: every action is then the no-op).
 
     ## Observation Space
     ``Box(float32, (5 * patches + 2,))``: per patch: valid, chosen, fraction of its pixels
@@ -456,8 +454,7 @@ class RangeRegistrationEnv(SingleEnvView, vector_env=RangeRegistrationVectorEnv)
     Truncated after ``horizon`` steps (``horizon / picks_per_pair`` frame pairs); never terminated.
 
     ## Arguments
-    ``gym.make("infonav/RangeRegistration-v0", render_mode=None, **config)`` with any key of
-    ``default_config()``; an unknown key raises ``ValueError`` naming it.
+    ``gym.make("infonav/RangeRegistration-v0", render_mode=None, **config)`` with any key of ``default_config()``.
 
     ## Version History
     * v0: initial version.

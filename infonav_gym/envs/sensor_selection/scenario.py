@@ -324,9 +324,7 @@ class SensorSelectionEnv(SingleEnvView, vector_env=SensorSelectionVectorEnv):
     + p`` acquires sensor ``s`` (0 LADAR, 1 camera) panned to sector ``p``, the pan angles
     spread evenly over ``pan_span_rad`` from left (``p = 0``) to right. An acquisition is
     valid when the bandwidth credit covers the frame (``info["action_mask"]``); waiting
-    always is. A masked action is a no-op with reward 0 by default (``invalid_action="noop"``)
-    or raises ``ValueError`` with ``invalid_action="raise"``. ``action_masks()`` gives the mask as
-    bool, for ``MaskablePPO``.
+    always is.
 
     ## Observation Space
     ``Box(float32, (3 * 2 * n_pan_sectors + 4,))``: per (sensor, sector), in action order:
@@ -346,8 +344,7 @@ class SensorSelectionEnv(SingleEnvView, vector_env=SensorSelectionVectorEnv):
     Truncated after ``horizon`` steps; never terminated.
 
     ## Arguments
-    ``gym.make("infonav/SensorSelection-v0", render_mode=None, **config)`` with any key of
-    ``default_config()``; an unknown key raises ``ValueError`` naming it.
+    ``gym.make("infonav/SensorSelection-v0", render_mode=None, **config)`` with any key of ``default_config()``.
 
     ## Version History
     * v0: initial version.
