@@ -48,9 +48,8 @@ class LandmarkDecision(NamedTuple):
 
     @classmethod
     def at_prior(cls, sensor, geometry, true_poses, x, P, landmarks, exists, mapping: bool) -> LandmarkDecision:
-        """The decisions of N copies (a ``RangeBearingSensor``, their ``StaticGeometry``, true poses (N, 3), priors
-        ``x`` (N, n), ``P`` (N, n, n), landmarks (N, K, 2) and which exist (N, K)): one compiled kernel
-        (``landmark_decisions``); raises as ``checked``."""
+        """The decisions of N copies at their priors ``x`` (N, n), ``P`` (N, n, n) (``landmark_decisions``, one
+        compiled call); raises as ``checked``."""
         arguments = decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping)
         return cls.checked(landmark_decisions(*arguments))
 

@@ -29,7 +29,7 @@ from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
 from infonav_gym.envs.one_robot import OneRobotDriver, OneRobotScenario, OneRobotState
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import in_every_copy
+from infonav_gym.envs.vector_infos import decision_info, in_every_copy
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
@@ -257,29 +257,26 @@ class ActiveLocalization(OneRobotScenario):
         """The decision's mask and gains, the six reward terms, the action taken, the errors, the goal and
         outcome."""
         position_error, heading_error, position_std, distance_to_goal = decision.numbers.T
-        masks, terms = stepped.copy(), np.where(stepped, state.terms[:, rows], 0.0)
-        goal_reached, chosen = state.goal_reached[rows], state.chosen[rows]
-        info = {
-            "action_mask": decision.action_mask.copy(),
-            "action_information_gain": decision.action_information_gain.copy(),
-            "reward_terms": {**dict(zip(REWARD_TERMS, terms)), **dict.fromkeys(MASKS, masks)},
-            "chosen_action": chosen.copy(),
-            "invalid_action": stepped & (chosen < 0),
-            "pose_entropy": decision.pose_entropy.copy(),
-            "state_entropy": decision.pose_entropy.copy(),
-            "position_error_m": position_error,
-            "heading_error_rad": heading_error,
-            "position_std_m": position_std,
-            "true_pose": state.worlds.poses[rows, 0].copy(),
-            "estimated_pose": state.x[rows, :POSE_DIM].copy(),
-            "goal": state.goals[rows].copy(),
-            "distance_to_goal_m": distance_to_goal,
-            "observations_left": state.observations_left[rows].copy(),
-            "goal_reached": goal_reached.copy(),
-            "success": goal_reached.copy(),  # the evaluation harness's success flag
-            "failed": state.failed[rows].copy(),
-            "time_s": state.elapsed[rows] * self.config["time_step_s"],
-        }
+        goal_reached = state.goal_reached[rows]
+        info = decision_info(decision, stepped, state.chosen[rows], "mutual_information", state.rewards[rows])
+        terms = np.where(stepped, state.terms[:, rows], 0.0)  # a copy that did not step has chosen -1 already
+        info["reward_terms"] = {**dict(zip(REWARD_TERMS, terms)), **dict.fromkeys(MASKS, stepped.copy())}
+        info.update(
+            pose_entropy=decision.pose_entropy.copy(),
+            state_entropy=decision.pose_entropy.copy(),
+            position_error_m=position_error,
+            heading_error_rad=heading_error,
+            position_std_m=position_std,
+            true_pose=state.worlds.poses[rows, 0].copy(),
+            estimated_pose=state.x[rows, :POSE_DIM].copy(),
+            goal=state.goals[rows].copy(),
+            distance_to_goal_m=distance_to_goal,
+            observations_left=state.observations_left[rows].copy(),
+            goal_reached=goal_reached.copy(),
+            success=goal_reached.copy(),  # the evaluation harness's success flag
+            failed=state.failed[rows].copy(),
+            time_s=state.elapsed[rows] * self.config["time_step_s"],
+        )
         return in_every_copy(info, len(stepped))
 
     def frame(self, state: ActiveState, decision: ActiveStep):
@@ -384,9 +381,7 @@ class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEn
 
     ## Observation Space
     ``Box(float32, (14 + 4 * n_candidates + 4 * n_obstacles,))``: the 10 pose features
-    of ``LandmarkSelection-v0`` (estimated ``x, y`` [m], ``cos, sin`` of the heading,
-    standard deviations of ``x, y`` [m] and heading [rad], ``x-y`` correlation, pose
-    entropy [nats], elapsed fraction of the horizon); the estimated distance to the goal
+    of ``LandmarkSelection-v0``; the estimated distance to the goal
     [m], ``cos, sin`` of its estimated bearing, and the fraction of the sensing budget
     left; per landmark: visible flag, estimated range [m], ``cos, sin`` of the estimated
     bearing; per obstacle: estimated range to its centre [m], ``cos, sin`` of its
