@@ -1,8 +1,5 @@
-"""What every infonav env shares below its vector base: the shared config keys and their limits, and action checks.
-
-The envs are scenarios run by the one driver (``envs.driver``); their single envs are its N = 1 views
-(``envs.single_view``, ``envs.parallel_view``), which check one action with ``discrete_action_index``.
-"""
+"""What every infonav env shares below the driver (``envs.driver``): the shared config keys, their limits, and
+action checks."""
 
 from __future__ import annotations
 
@@ -34,11 +31,7 @@ def discrete_action_index(action, space: gym.spaces.Discrete, agent: str | None 
 
     A Python or numpy integer and an integer array or list of one element (``[0]``, ``np.array([[0]])``)
     are accepted alike; floats, bools, strings, several elements and values outside ``[0, n)`` are not.
-
-    Args:
-        action: what the agent passed to ``step``.
-        space: the action space.
-        agent: the agent whose action it is (team envs), named in the error.
+    ``agent`` (team envs) is named in the error.
     """
     if type(action) is int and 0 <= action < space.n:  # the common case, first
         return action
@@ -68,14 +61,8 @@ def accepts_action(action: int, mask: np.ndarray, invalid_action: str, mask_key:
     """Whether ``action`` is valid per ``mask``; ``False`` means it becomes the env's no-op.
 
     When no action is valid, every action is the same no-op and is accepted even with
-    ``invalid_action="raise"`` (there is nothing valid to choose instead).
-
-    Args:
-        action: an index of the action space.
-        mask: the current action mask (int8, 1 = valid).
-        invalid_action: the env's ``invalid_action`` config value, ``"noop"`` or ``"raise"``.
-        mask_key: where the agent reads ``mask`` (e.g. ``info["action_mask"]``), named in the error.
-        agent: the agent whose action it is (team envs), named in the error.
+    ``invalid_action="raise"`` (there is nothing valid to choose instead). The error names ``mask_key``, where the
+    agent reads ``mask`` (int8, 1 = valid), and ``agent`` (team envs).
 
     Raises:
         ValueError: for a masked action with ``invalid_action="raise"`` while some action is valid.

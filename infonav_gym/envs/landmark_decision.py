@@ -1,8 +1,6 @@
-"""``LandmarkDecision``: which landmarks each copy's range-bearing sensor sees, their measurement model and gains.
-
-Shared by ``LandmarkSelection-v0`` and ``ActiveLocalization-v0``, whose decisions both pick a landmark to observe
-at the EKF's prior. Each copy has at most K landmarks, stacked as (N, K, 2) with an ``exists`` mask (N, K).
-"""
+"""``LandmarkDecision``: which landmarks each copy's range-bearing sensor sees, their measurement model and gains
+at the EKF's prior (``LandmarkSelection-v0``, ``ActiveLocalization-v0``); at most K landmarks a copy, (N, K, 2)
+with an ``exists`` mask (N, K)."""
 
 from __future__ import annotations
 
@@ -50,9 +48,8 @@ class LandmarkDecision(NamedTuple):
 
     @classmethod
     def at_prior(cls, sensor, geometry, true_poses, x, P, landmarks, exists, mapping: bool) -> LandmarkDecision:
-        """The decisions of N copies (a ``RangeBearingSensor``, their ``StaticGeometry``, true poses (N, 3), priors
-        ``x`` (N, n), ``P`` (N, n, n), landmarks (N, K, 2) and which exist (N, K)): one compiled kernel
-        (``landmark_decisions``); raises as ``checked``."""
+        """The decisions of N copies at their priors ``x`` (N, n), ``P`` (N, n, n) (``landmark_decisions``, one
+        compiled call); raises as ``checked``."""
         arguments = decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping)
         return cls.checked(landmark_decisions(*arguments))
 

@@ -1,10 +1,5 @@
 """What the one-robot scenarios share (``LandmarkSelection-v0``, ``ActiveLocalization-v0``): a robot with a
-range-bearing sensor and odometry, its state and the steps of its EKF.
-
-The copies' robots move in a ``WorldBatch``; each copy's odometry and measurement noise come from its own streams
-(``NoiseStreams``, the single env's two generators drawn ahead), and the EKFs predict from the noisy odometry on the
-compiled core, as ``PoseEKF.predict`` does.
-"""
+range-bearing sensor and odometry, its state, the steps of its EKF and the accessors of its driver."""
 
 from __future__ import annotations
 
@@ -13,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from infonav_gym.compiled import contiguous, kernel, stacked
+from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.noise_streams import NoiseStreams, taken
 from infonav_gym.envs.protocol import EnvScenario, State
@@ -101,6 +97,23 @@ class OneRobotScenario(EnvScenario):
             true_path=state.paths[0].points(),
             estimated_path=state.paths[1].points(),
         )
+
+
+class OneRobotDriver(Driver):
+    """The driver of a one-robot scenario, with what agents and tests read of its copies."""
+
+    @property
+    def sensor(self):
+        """The range-bearing sensor every copy carries (coverage and noise)."""
+        return self.env_scenario.sensor
+
+    def estimate(self, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Sub-env ``copy``'s EKF state and covariance now, ``(x (n,), P (n, n))`` (copies)."""
+        return self.state.x[copy].copy(), self.state.P[copy].copy()
+
+    def scenario(self, copy: int = 0):
+        """The scenario sub-env ``copy`` runs in its current episode (its landmarks, routes, walls)."""
+        return self.state.worlds.scenario(copy)
 
 
 @kernel

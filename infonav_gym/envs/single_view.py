@@ -1,12 +1,6 @@
-"""``SingleEnvView``: the Gymnasium ``Env`` of an env written once on batched arrays, as its N = 1 view.
-
-An env's logic lives in its scenario, run over N copies by the one driver (``envs.driver.Driver``, its native vector
-env); its single env is the driver with one copy, without autoreset: ``class MyEnv(SingleEnvView,
-vector_env=MyVectorEnv)``. The view takes one action, hands it on as
-a batch of one, and returns row 0 of every output, its info as the single env's dict (masked keys left out). So
-``gym.make(id)`` after ``reset(seed=s)`` gives exactly the numbers of sub-env ``i`` of ``gym.make_vec(id, N)`` after
-``reset(seed=s - i)``: there is nothing else to keep equal.
-"""
+"""``SingleEnvView``: the Gymnasium ``Env`` of an env, the driver with one copy and no autoreset
+(``class MyEnv(SingleEnvView, vector_env=MyVectorEnv)``). It hands one action on as a batch of one and returns row 0
+of every output, its info as the single env's dict (masked keys left out)."""
 
 from __future__ import annotations
 

@@ -1,13 +1,5 @@
-"""What an env promises about itself (``EnvTraits``), and how the harness reads an env's declarations.
-
-Every infonav env class declares two class attributes near its top:
-
-- ``episode_metrics``: a tuple of ``infonav_gym.envs.metrics.EpisodeMetric``, what ``infonav evaluate`` reports;
-- ``traits``: an ``EnvTraits``, what agents, the harness and the shared env tests may rely on.
-
-Whether an env is single-agent (Gymnasium) or parallel (PettingZoo) is its registry ``api``
-(``infonav_gym.registry``), known before its module is imported.
-"""
+"""What an env promises about itself (``EnvTraits``), and how the harness reads an env's declarations: every env
+class declares ``episode_metrics`` (``EpisodeMetric``, what ``infonav evaluate`` reports) and ``traits``."""
 
 from __future__ import annotations
 

@@ -6,8 +6,18 @@ Infos follow Gymnasium's vector layout: each key holds an array with a leading s
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from gymnasium.vector import AutoresetMode
+
+
+class Decision(NamedTuple):
+    """Every copy's action mask (int8 (N, A), 1 = valid) and expected information gain of each action (N, A) [nats],
+    0 where masked."""
+
+    action_mask: np.ndarray
+    action_information_gain: np.ndarray
 
 
 def autoreset_mode_of(value, allowed: tuple[AutoresetMode, ...], owner: str) -> AutoresetMode:
@@ -24,17 +34,9 @@ def autoreset_mode_of(value, allowed: tuple[AutoresetMode, ...], owner: str) -> 
 
 
 def decision_info(decision, stepped: np.ndarray, chosen: np.ndarray, reward_term: str, rewards: np.ndarray) -> dict:
-    """The info keys of n copies that every single-agent env has first: their decision's mask and gains, their one
-    reward term (masked out where a copy was reset), the action each took (-1: none or the no-op) and whether it
-    was invalid.
-
-    Args:
-        decision: the copies' new decisions, with ``action_mask`` and ``action_information_gain`` (n, A).
-        stepped: which acted in this step (n,) bool; the others were reset.
-        chosen: the action each acting copy took (n,), -1 for the no-op of a masked action.
-        reward_term: the name of the reward term.
-        rewards: each one's reward (n,).
-    """
+    """The info keys every single-agent env has first, of n copies: their ``decision``'s mask and gains, their one
+    ``reward_term`` with ``rewards`` (n,) (masked out where a copy did not step: ``stepped`` (n,) bool), the action
+    each took (``chosen`` (n,), -1: none or the no-op) and whether it was invalid."""
     if np.count_nonzero(stepped) == len(stepped):  # the usual step: ``np.where``'s numbers, at less cost
         rewards, chosen = rewards.copy(), chosen.copy()
     else:

@@ -13,7 +13,6 @@ from infonav_gym.envs.active_localization.transition import (
     PRIMITIVE_OFFSETS_RAD,
     REWARD_TERMS,
     primitive_commands,
-    start_episode,
 )
 
 __all__ = [
@@ -27,5 +26,4 @@ __all__ = [
     "ActivePlanningModel",
     "Belief",
     "primitive_commands",
-    "start_episode",
 ]

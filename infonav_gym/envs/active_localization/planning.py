@@ -1,11 +1,8 @@
 """The planning model of ``infonav/ActiveLocalization-v0``: its transition, batched over hypothetical futures.
 
-``PlannerAgent`` searches action sequences on it. Under the EKF's linearization the posterior covariance does
-not depend on the measured values, so a sequence's expected reward is computed without sampling: ``belief()``
-copies a sub-env's estimator state, ``plan_decision`` gives the action masks and gains at each belief,
-``plan_step`` predicts one step of each belief under its action. A batch of B beliefs is a batch of B copies:
-the model steps them with the env's own batched functions (``transition.py``: the measurement model,
-gains and update, the primitives' commands, the prediction, the step's outcome and reward terms).
+Under the EKF's linearization the posterior covariance does not depend on the measured values, so a sequence's
+expected reward is computed without sampling. A batch of B beliefs is a batch of B copies, stepped with the env's
+own batched functions (``transition.py``).
 """
 
 from __future__ import annotations

@@ -1,9 +1,5 @@
-"""``infonav/ActiveLocalization-v0``: drive to a goal, choosing how to move and what to observe under a budget.
-
-Written once as the scenario ``ActiveLocalization`` on (N, ...) arrays, its step in ``transition.py`` (shared with
-its planning model, ``planning.py``); ``ActiveLocalizationVectorEnv`` is the driver bound to it (``gym.make_vec``),
-``ActiveLocalizationEnv`` its N = 1 view (``gym.make``).
-"""
+"""``infonav/ActiveLocalization-v0``: drive to a goal, choosing how to move and what to observe under a budget, as
+a scenario (its step in ``transition.py``, shared with its planning model)."""
 
 from __future__ import annotations
 
@@ -28,13 +24,12 @@ from infonav_gym.envs.active_localization.transition import (
     step_rewards,
 )
 from infonav_gym.envs.base import MAX_EPISODE_STEPS, REWARD_WEIGHT, shared_config
-from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
-from infonav_gym.envs.one_robot import OneRobotScenario, OneRobotState
+from infonav_gym.envs.one_robot import OneRobotDriver, OneRobotScenario, OneRobotState
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import in_every_copy
+from infonav_gym.envs.vector_infos import decision_info, in_every_copy
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
@@ -81,16 +76,8 @@ class ActiveState(OneRobotState):
 
 
 class ActiveStep(NamedTuple):
-    """Every copy's decision at its EKF's prior and what the same kernel computes there.
-
-    Attributes:
-        action_mask: int8 (n, 5 (1 + K)), 1 = valid: every primitive without an observation, and with each
-            visible landmark while budget is left.
-        action_information_gain: expected MI of each action (n, 5 (1 + K)) [nats], 0 where masked.
-        visible ... pose_entropy: the landmarks' ``LandmarkDecision`` (``sight``; its mask: visible, budget aside).
-        observation: the observations (n, 14 + 4K + 4O) float32.
-        numbers: position error [m], heading error [rad], largest position std [m], distance to the goal [m] (n, 4).
-    """
+    """Every copy's action mask and gains (n, 5 (1 + K)), its landmarks' ``LandmarkDecision`` (``sight``, its mask
+    ``visible``) at its EKF's prior, and what ``copy_outputs`` computes there: observations and info ``numbers``."""
 
     action_mask: np.ndarray
     action_information_gain: np.ndarray
@@ -111,8 +98,7 @@ class ActiveStep(NamedTuple):
 
 
 class ActiveLocalization(OneRobotScenario):
-    """``infonav/ActiveLocalization-v0`` as a scenario: see ``ActiveLocalizationEnv`` for its spaces, rewards and
-    config keys."""
+    """``infonav/ActiveLocalization-v0`` as a scenario (spaces, rewards, config: ``ActiveLocalizationEnv``)."""
 
     episode_metrics = (*LOCALIZATION_METRICS, SUCCESS_RATE)
     traits = EnvTraits(
@@ -271,29 +257,26 @@ class ActiveLocalization(OneRobotScenario):
         """The decision's mask and gains, the six reward terms, the action taken, the errors, the goal and
         outcome."""
         position_error, heading_error, position_std, distance_to_goal = decision.numbers.T
-        masks, terms = stepped.copy(), np.where(stepped, state.terms[:, rows], 0.0)
-        goal_reached, chosen = state.goal_reached[rows], state.chosen[rows]
-        info = {
-            "action_mask": decision.action_mask.copy(),
-            "action_information_gain": decision.action_information_gain.copy(),
-            "reward_terms": {**dict(zip(REWARD_TERMS, terms)), **dict.fromkeys(MASKS, masks)},
-            "chosen_action": chosen.copy(),
-            "invalid_action": stepped & (chosen < 0),
-            "pose_entropy": decision.pose_entropy.copy(),
-            "state_entropy": decision.pose_entropy.copy(),
-            "position_error_m": position_error,
-            "heading_error_rad": heading_error,
-            "position_std_m": position_std,
-            "true_pose": state.worlds.poses[rows, 0].copy(),
-            "estimated_pose": state.x[rows, :POSE_DIM].copy(),
-            "goal": state.goals[rows].copy(),
-            "distance_to_goal_m": distance_to_goal,
-            "observations_left": state.observations_left[rows].copy(),
-            "goal_reached": goal_reached.copy(),
-            "success": goal_reached.copy(),  # the evaluation harness's success flag
-            "failed": state.failed[rows].copy(),
-            "time_s": state.elapsed[rows] * self.config["time_step_s"],
-        }
+        goal_reached = state.goal_reached[rows]
+        info = decision_info(decision, stepped, state.chosen[rows], "mutual_information", state.rewards[rows])
+        terms = np.where(stepped, state.terms[:, rows], 0.0)  # a copy that did not step has chosen -1 already
+        info["reward_terms"] = {**dict(zip(REWARD_TERMS, terms)), **dict.fromkeys(MASKS, stepped.copy())}
+        info.update(
+            pose_entropy=decision.pose_entropy.copy(),
+            state_entropy=decision.pose_entropy.copy(),
+            position_error_m=position_error,
+            heading_error_rad=heading_error,
+            position_std_m=position_std,
+            true_pose=state.worlds.poses[rows, 0].copy(),
+            estimated_pose=state.x[rows, :POSE_DIM].copy(),
+            goal=state.goals[rows].copy(),
+            distance_to_goal_m=distance_to_goal,
+            observations_left=state.observations_left[rows].copy(),
+            goal_reached=goal_reached.copy(),
+            success=goal_reached.copy(),  # the evaluation harness's success flag
+            failed=state.failed[rows].copy(),
+            time_s=state.elapsed[rows] * self.config["time_step_s"],
+        )
         return in_every_copy(info, len(stepped))
 
     def frame(self, state: ActiveState, decision: ActiveStep):
@@ -315,46 +298,12 @@ class ActiveLocalization(OneRobotScenario):
         )
 
 
-class ActiveLocalizationVectorEnv(Driver, scenario=ActiveLocalization):
-    """N copies of ``infonav/ActiveLocalization-v0`` on stacked arrays: the env's one implementation.
+class ActiveLocalizationVectorEnv(OneRobotDriver, scenario=ActiveLocalization):
+    """N copies of ``infonav/ActiveLocalization-v0``, the driver bound to its scenario (``gym.make_vec``).
 
-    See ``ActiveLocalizationEnv`` (its N = 1 view) for the spaces, rewards and config keys.
-    ``gym.make_vec("infonav/ActiveLocalization-v0", num_envs=N, **config)`` returns it. The estimation runs on
-    the batched EKF core (``estimation.batched``), the visibility on ``world.visibility``, the physics in a
-    ``WorldBatch`` driven by the primitives' commands and each copy's sensor noise from its own streams
-    (``NoiseStreams``), so sub-env ``i`` after ``reset(seed=s)`` gives the numbers of
-    ``gym.make("infonav/ActiveLocalization-v0")`` after ``reset(seed=s + i)``.
-
-    ## Vector API
-    ``step`` takes one action per sub-env (N,) and returns observations (N, 14 + 4K + 4O), rewards,
-    ``terminated`` (goal reached or uncertainty bound crossed) and ``truncated`` (horizon) (N,). Infos hold the
-    single env's keys as arrays with a leading N dimension, each with Gymnasium's ``_key`` mask
-    (``reward_terms`` is a dict of such arrays, all six terms); ``info["action_mask"]`` is (N, 5 (1 + K)).
-    ``action_masks()`` gives the bool masks for ``MaskablePPO``; ``planning_model(copy)`` the planning model of
-    sub-env ``copy``.
-
-    ## Autoreset
-    As ``LandmarkSelectionVectorEnv``: ``NEXT_STEP`` by default (``metadata["autoreset_mode"]``), ``SAME_STEP``
-    (the last outputs in ``info["final_obs"]`` / ``info["final_info"]``) or ``DISABLED``; an episode ends
-    terminated or truncated.
-
-    ## Arguments
-    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode`` or its value) and any key of
-    ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws sub-env 0.
+    Observations (N, 14 + 4K + 4O), ``info["action_mask"]`` (N, 5 (1 + K)), all six ``reward_terms``;
+    ``planning_model(copy)`` is sub-env ``copy``'s planning model.
     """
-
-    @property
-    def sensor(self):
-        """The range-bearing sensor every copy carries (coverage and noise)."""
-        return self.env_scenario.sensor
-
-    def estimate(self, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Sub-env ``copy``'s EKF state and covariance now, ``(x (n,), P (n, n))`` (copies)."""
-        return self.state.x[copy].copy(), self.state.P[copy].copy()
-
-    def scenario(self, copy: int = 0):
-        """The scenario sub-env ``copy`` runs in its current episode (its landmarks, routes, walls)."""
-        return self.state.worlds.scenario(copy)
 
     def planning_model(self, copy: int = 0) -> ActivePlanningModel:
         """The planning model of sub-env ``copy`` (the same object on every call), for look-ahead agents
@@ -427,16 +376,12 @@ class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEn
     limited to ``max_turn_rate_rps`` and the speed is ``speed_mps * max(cos(turn), 0)``
     for the heading change still to make. Pymunk executes the motion. Observing
     landmark ``j`` is valid while it lies within range and field of view, no obstacle
-    hides it, and budget is left; observing nothing is always valid. A masked action
-    is a no-op (stand still, observe nothing) by default (``invalid_action="noop"``) or
-    raises ``ValueError`` with ``invalid_action="raise"``. ``action_masks()`` gives the mask as bool,
-    for ``MaskablePPO``.
+    hides it, and budget is left; observing nothing is always valid. The no-op of a masked action
+    stands still and observes nothing.
 
     ## Observation Space
     ``Box(float32, (14 + 4 * n_candidates + 4 * n_obstacles,))``: the 10 pose features
-    of ``LandmarkSelection-v0`` (estimated ``x, y`` [m], ``cos, sin`` of the heading,
-    standard deviations of ``x, y`` [m] and heading [rad], ``x-y`` correlation, pose
-    entropy [nats], elapsed fraction of the horizon); the estimated distance to the goal
+    of ``LandmarkSelection-v0``; the estimated distance to the goal
     [m], ``cos, sin`` of its estimated bearing, and the fraction of the sensing budget
     left; per landmark: visible flag, estimated range [m], ``cos, sin`` of the estimated
     bearing; per obstacle: estimated range to its centre [m], ``cos, sin`` of its
@@ -461,24 +406,17 @@ class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEn
     Truncated after ``horizon`` steps.
 
     ## Planning model
-    ``planning_model()`` returns the env's own model for look-ahead agents
-    (``agents.planner.PlannerAgent``, through wrappers with
-    ``env.get_wrapper_attr("planning_model")()``), with ``belief()``, ``plan_decision(belief)``
-    and ``plan_step(belief, actions)``: the env's batched step (``envs.active_localization.transition``) on a
-    batch of beliefs, the EKF covariance propagated under the linearization, with the motion
-    predicted from the estimated pose and visibility judged from it.
+    ``planning_model()`` (``env.get_wrapper_attr("planning_model")()`` through wrappers) is the env's batched
+    step (``transition.py``) on beliefs, for look-ahead agents (``PlannerAgent``): the EKF covariance propagated
+    under the linearization, the motion predicted from the estimated pose and visibility judged from it.
 
     ## Arguments
-    ``gym.make("infonav/ActiveLocalization-v0", render_mode=None, **config)`` with any
-    key of ``default_config()``; an unknown key raises ``ValueError`` naming it.
+    ``gym.make("infonav/ActiveLocalization-v0", render_mode=None, **config)`` with any key of ``default_config()``.
 
     ## Version History
     * v0: initial version.
     """
 
     def planning_model(self) -> ActivePlanningModel:
-        """The env's planning model (``ActivePlanningModel`` of its one copy), for ``PlannerAgent``.
-
-        Reachable through Gymnasium wrappers: ``env.get_wrapper_attr("planning_model")()``.
-        """
+        """The env's planning model (``ActivePlanningModel`` of its one copy), for ``PlannerAgent``."""
         return self.vector.planning_model(0)

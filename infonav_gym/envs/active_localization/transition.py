@@ -19,7 +19,7 @@ from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.estimation import batched
-from infonav_gym.estimation.state import POSE_DIM, Prior
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import position_std_kernel as position_std
 from infonav_gym.sensors.range_bearing import RangeBearingSensor
@@ -72,14 +72,8 @@ def landmark_models(sensor: RangeBearingSensor, poses: np.ndarray, landmarks: np
 
 
 def primitive_commands(config: dict, goals: np.ndarray, poses: np.ndarray, primitives) -> np.ndarray:
-    """``[speed, turn rate]`` (n, 2) that each motion primitive commands from each estimated pose.
-
-    Args:
-        config: a checked ``ActiveLocalization-v0`` config.
-        goals: the goal position [m], one (2,) for all poses or one per pose (n, 2).
-        poses: estimated poses ``[x, y, heading]`` (n, 3).
-        primitives: the primitive of each pose (n,), indices of ``PRIMITIVE_OFFSETS_RAD``; -1: stand still.
-    """
+    """``[speed, turn rate]`` (n, 2) that each pose's primitive (n,) (-1: stand still) commands from the estimated
+    ``poses`` (n, 3) towards ``goals`` [m], one (2,) for all or one per pose (n, 2)."""
     poses = contiguous(np.asarray(poses, dtype=float))
     dt = config["time_step_s"]
     return commands_of_primitives(
@@ -109,21 +103,10 @@ def commands_of_primitives(goals, poses, primitives, speed_mps, max_turn_rad, dt
 
 
 def step_rewards(config: dict, before, after, goals, covariances, mutual_information, observed, driving, scored):
-    """The reward terms of n steps, their totals and how they ended, from the positions before and after them.
-
-    Args:
-        config: a checked ``ActiveLocalization-v0`` config (the costs, bonus and penalty weights, the goal radius
-            and the failure bound).
-        before, after: the positions [m] (n, 2) the progress to the goals (n, 2) is measured between.
-        covariances: the EKF covariances after the steps (n, >=2, >=2).
-        mutual_information: the MI of each step's update (n,) [nats], 0 without one.
-        observed: which steps observed a landmark (n,) bool; ``driving``: which executed a primitive.
-        scored: which steps may end in reaching the goal or failing (n,) bool.
-
-    Returns:
-        ``(terms (6, n) [nats] in REWARD_TERMS order, totals (n,), reached (n,) bool, failed (n,) bool)``: within
-        ``goal_radius_m`` of the goal, or (not reached) the largest position std above ``max_position_std_m``.
-    """
+    """``(terms (6, n) [nats] in REWARD_TERMS order, totals (n,), reached (n,), failed (n,))`` of n steps: progress
+    from the positions ``before`` to ``after`` [m] (n, 2) towards ``goals``; the EKF ``covariances`` after them, the
+    MI of each update (n,) [nats], which ``observed``, were ``driving`` and are ``scored`` (may reach the goal, within
+    ``goal_radius_m``, or fail: not reached and the largest position std above ``max_position_std_m``)."""
     keys = ("observation_cost_nats", "motion_cost_per_step", "progress_reward_per_m", "goal_bonus", "failure_penalty")
     return rewards_of_steps(
         *(contiguous(np.asarray(array, dtype=float)) for array in (before, after, goals, covariances)),
@@ -158,15 +141,8 @@ def rewards_of_steps(before, after, goals, covariances, mutual_information, obse
 
 
 class EpisodeStarts(NamedTuple):
-    """The starts of n episodes of ``ActiveLocalization-v0`` (``start_episodes``).
-
-    Attributes:
-        scenarios: their goal fields (n).
-        layouts: the same fields' arrays (goals, landmarks, obstacles), stacked.
-        poses: the estimators' initial pose estimates (n, 3).
-        pose_covariance: their covariance (3, 3), diagonal, the same for all.
-        odometry_generators, measurement_generators: each episode's sensors' generators (n).
-    """
+    """The starts of n episodes (``start_episodes``): goal fields, their arrays stacked, the initial pose estimates
+    (n, 3) and their covariance (3, 3), the same for all, and each episode's sensors' generators."""
 
     scenarios: list[Scenario]
     layouts: GoalFieldLayouts
@@ -176,27 +152,9 @@ class EpisodeStarts(NamedTuple):
     measurement_generators: list[np.random.Generator]
 
 
-def start_episode(config: dict, np_random: np.random.Generator):
-    """Start an episode of ``ActiveLocalization-v0``: draw its goal field and the estimator's prior from ``np_random``.
-
-    Draws in a fixed order (the field, the sensors' generators, the initial estimate), so a sub-env gives the
-    same episode for the same generator whatever the number of copies.
-
-    Args:
-        config: a checked ``ActiveLocalization-v0`` config.
-        np_random: the episode's generator.
-
-    Returns:
-        ``(scenario, prior, odometry_rng, measurement_rng)``: the goal field, the estimator's ``Prior`` and the
-        sensors' generators.
-    """
-    starts = start_episodes(config, [np_random])
-    prior = Prior(starts.poses[0], starts.pose_covariance)
-    return starts.scenarios[0], prior, starts.odometry_generators[0], starts.measurement_generators[0]
-
-
 def start_episodes(config: dict, generators: list[np.random.Generator]) -> EpisodeStarts:
-    """``start_episode`` of each of ``generators`` (its own episode), the fields laid out in one batch."""
+    """Each generator's episode: its goal field, then its sensors' generators, then its initial estimate (in that
+    order, so a sub-env's episode does not depend on the number of copies); the fields laid out in one batch."""
     layouts = goal_field_layouts(generators, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
     scenarios = goal_field_scenarios(layouts)
     spawned = [np_random.spawn(2) for np_random in generators]
@@ -228,19 +186,9 @@ def observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[np.ndarray, 
 
 
 def copy_outputs(sight: LandmarkDecision, state: tuple, config: dict, bounds: tuple):
-    """The decisions, observations (clipped to ``bounds``) and info values of n copies (see ``ActiveLocalizationEnv``).
-
-    Args:
-        sight: their landmarks' decisions at their priors.
-        state: their C-contiguous arrays ``(x (n, 3), P (n, 3, 3), true poses (n, 3), goals (n, 2) [m], elapsed
-            steps (n,) and observations left (n,) int64, obstacle centres (n, O, 2) and radii (n, O) [m])``.
-        config: the env config; ``bounds``: the single observation space's ``(low, high)`` as float64.
-
-    Returns:
-        ``(action_mask int8 (n, 5 (1 + K)), action_information_gain (n, 5 (1 + K)) [nats], observations
-        (n, 14 + 4K + 4O) float32, (position error [m], heading error [rad], largest position std [m], distance to
-        the goal [m]) (4, n))``.
-    """
+    """``(action_mask, action_information_gain, observations, info values (4, n))`` of n copies (``outputs_of_copies``)
+    from their landmarks' decisions ``sight`` and ``state``: ``(x, P, true poses, goals, elapsed, observations left,
+    obstacle centres, radii)``; ``bounds``: the observation space's ``(low, high)`` as float64."""
     return outputs_of_copies(
         sight.action_mask,
         sight.action_information_gain,
@@ -257,10 +205,9 @@ def copy_outputs(sight: LandmarkDecision, state: tuple, config: dict, bounds: tu
 def outputs_of_copies(
     visible, gains, predicted, entropy, x, P, truth, goals, elapsed, left, centers, radii, horizon, budget, low, high
 ):
-    """``copy_outputs`` of n copies from their arrays: the action layout (every primitive without an observation,
-    and with each ``visible`` landmark while budget is left), the observations clipped to ``[low, high]`` and the
-    info values; ``gains``, ``predicted``, ``entropy``: the landmarks' gains and predictions, the pose entropy,
-    ``truth`` the true poses."""
+    """``copy_outputs``: the action layout (every primitive without an observation, and with each ``visible`` landmark
+    while budget is left), the observations (n, 14 + 4K + 4O) clipped to ``[low, high]``, and the position error [m],
+    heading error [rad], largest position std [m] and true distance to the goal [m] (4, n)."""
     n_copies, n_landmarks = visible.shape
     observable = np.empty((n_copies, n_landmarks), dtype=np.bool_)
     observation = np.empty((n_copies, len(low)), dtype=np.float32)

@@ -12,11 +12,10 @@ from gymnasium import spaces
 from infonav_gym.compiled import kernel
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments
 from infonav_gym.envs.base import shared_config
-from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.landmark_decision import LandmarkDecision, decision_arguments, landmark_decisions
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS
 from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
-from infonav_gym.envs.one_robot import OneRobotScenario, OneRobotState
+from infonav_gym.envs.one_robot import OneRobotDriver, OneRobotScenario, OneRobotState
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info, in_every_copy
@@ -44,10 +43,10 @@ SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "size_m": "field_size_m",
 }
 CANDIDATE_FEATURES = 5
+_BIG = 1e4
 # the info keys ``landmark_outputs`` computes, in its order
 INFO_NUMBERS = ("pose_entropy", "state_entropy", "position_error_m", "heading_error_rad", "time_s")
 INFO_NUMBERS += ("true_pose", "estimated_pose")
-_BIG = 1e4
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
     "n_candidates": Interval(1, MAX_LANDMARKS, integer=True),
     "time_step_s": TIME_STEP_S,
@@ -58,8 +57,7 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
 
 @dataclass
 class LandmarkState(OneRobotState):
-    """``OneRobotState`` and the realized MI of each copy's last step (N,) [nats]; ``geometries``: each copy's
-    static geometry (one copy each), stacked in ``geometry``."""
+    """``OneRobotState``, the realized MI of each copy's last step (N,) [nats] and each copy's static geometry."""
 
     mutual_information: np.ndarray = None
     geometries: list = None
@@ -72,8 +70,7 @@ observation (n, 10 + 5K) float32, the ``INFO_NUMBERS`` but the poses (n, 5) and 
 
 
 class LandmarkSelection(OneRobotScenario):
-    """``infonav/LandmarkSelection-v0`` as a scenario: see ``LandmarkSelectionEnv`` for its spaces, reward and
-    config keys."""
+    """``infonav/LandmarkSelection-v0`` as a scenario (spaces, reward, config: ``LandmarkSelectionEnv``)."""
 
     episode_metrics = LOCALIZATION_METRICS
     traits = EnvTraits(
@@ -233,51 +230,12 @@ class LandmarkSelection(OneRobotScenario):
         )
 
 
-class LandmarkSelectionVectorEnv(Driver, scenario=LandmarkSelection):
-    """N copies of ``infonav/LandmarkSelection-v0`` on stacked arrays: the env's one implementation.
+class LandmarkSelectionVectorEnv(OneRobotDriver, scenario=LandmarkSelection):
+    """N copies of ``infonav/LandmarkSelection-v0``, the driver bound to its scenario (``gym.make_vec``).
 
-    See ``LandmarkSelectionEnv`` (its N = 1 view) for the spaces, rewards and config keys.
-    ``gym.make_vec("infonav/LandmarkSelection-v0", num_envs=N, **config)`` returns it. The estimation runs on the
-    batched EKF core (``estimation.batched``), the visibility on ``world.visibility``, the physics in a
-    ``WorldBatch`` and each copy's sensor noise from its own streams (``NoiseStreams``), so sub-env ``i`` after
-    ``reset(seed=s)`` gives the numbers of ``gym.make("infonav/LandmarkSelection-v0")`` after ``reset(seed=s + i)``.
-
-    ## Vector API
-    ``single_observation_space`` / ``single_action_space`` are the single env's; ``step`` takes one
-    action per sub-env (N,) and returns observations (N, 10 + 5K), rewards, ``terminated`` and
-    ``truncated`` (N,). Infos hold the single env's keys as arrays with a leading N dimension, each with
-    Gymnasium's ``_key`` mask; ``info["action_mask"]`` is (N, K). ``action_masks()`` gives the (N, K)
-    bool masks for ``MaskablePPO``.
-
-    ## Autoreset
-    ``autoreset_mode`` (``metadata["autoreset_mode"]``) is Gymnasium's ``NEXT_STEP`` by default, as its
-    ``CartPoleVectorEnv``: the step after a sub-env's episode ended resets it (its action is ignored), with
-    reward 0, not terminated nor truncated, and its reset info (``reward_terms`` masked out). With
-    ``SAME_STEP`` (what SB3-style training wants) the step that ends an episode returns the reset
-    observation and info, with the last observation and info in ``info["final_obs"]`` (an object array,
-    ``None`` for the others) and ``info["final_info"]``, masked by ``info["_final_obs"]`` / ``"_final_info"``.
-    A sub-env reset this way continues its own generator, as the single env's ``reset()`` without a seed does.
-    With ``DISABLED`` no sub-env restarts until ``reset()``.
-
-    ## Arguments
-    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode`` or its value, ``"NextStep"`` /
-    ``"SameStep"`` / ``"Disabled"``) and any key of ``default_config()``. With ``mapping=True`` every copy's
-    scenario must have the same number of landmarks (the stacked states share their size). ``render_mode``
-    (``"rgb_array"`` or ``"human"``): ``render()`` draws sub-env 0.
+    Observations (N, 10 + 5K), ``info["action_mask"]`` (N, K). With ``mapping=True`` every copy's scenario must
+    have the same number of landmarks (the stacked states share their size).
     """
-
-    @property
-    def sensor(self):
-        """The range-bearing sensor every copy carries (coverage and noise)."""
-        return self.env_scenario.sensor
-
-    def estimate(self, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Sub-env ``copy``'s EKF state and covariance now, ``(x (n,), P (n, n))`` (copies)."""
-        return self.state.x[copy].copy(), self.state.P[copy].copy()
-
-    def scenario(self, copy: int = 0):
-        """The scenario sub-env ``copy`` runs in its current episode (its landmarks, routes, walls)."""
-        return self.state.worlds.scenario(copy)
 
 
 class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv):
@@ -298,12 +256,8 @@ class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv)
     ## Action Space
     ``Discrete(n_candidates)``: the index of the landmark to observe. An action
     is valid when that landmark exists, lies within the sensor's range and field
-    of view, and no wall or obstacle blocks the line of sight
-    (``info["action_mask"]``). A masked action is a no-op with reward 0 by
-    default (``invalid_action="noop"``; RL algorithms and env checkers sample
-    actions blindly) or raises ``ValueError`` with ``invalid_action="raise"``.
-    An integer outside the space always raises ``ValueError``. ``action_masks()`` gives the mask as
-    bool, for ``MaskablePPO`` (all ``True`` when no landmark is visible: every action is then the no-op).
+    of view, and no wall or obstacle blocks the line of sight (``info["action_mask"]``; ``action_masks()``
+    is all ``True`` when no landmark is visible: every action is then the no-op).
 
     ## Observation Space
     ``Box(float32, (10 + 5 * n_candidates,))``: estimated ``x, y`` [m], ``cos, sin``
@@ -326,8 +280,7 @@ class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv)
     Truncated after ``horizon`` steps; never terminated.
 
     ## Arguments
-    ``gym.make("infonav/LandmarkSelection-v0", render_mode=None, **config)`` with any
-    key of ``default_config()``; an unknown key raises ``ValueError`` naming it.
+    ``gym.make("infonav/LandmarkSelection-v0", render_mode=None, **config)`` with any key of ``default_config()``.
 
     ## Version History
     * v0: initial version.
@@ -335,20 +288,9 @@ class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv)
 
 
 def start_episode(config: dict, np_random: np.random.Generator, owner: str):
-    """Start an episode of ``LandmarkSelection-v0``: draw its scenario and the estimator's prior from ``np_random``.
-
-    Draws in a fixed order (the scenario, the sensors' generators, the initial estimate, the mapped landmarks'
-    estimates), so the single and the vector env give the same episode for the same generator.
-
-    Args:
-        config: a checked ``LandmarkSelectionEnv`` config.
-        np_random: the episode's generator.
-        owner: the env named in config errors.
-
-    Returns:
-        ``(scenario, prior, odometry_rng, measurement_rng)``: the scenario ``config["scenario"]`` (one route,
-        <= ``n_candidates`` landmarks), the estimator's ``Prior`` and the sensors' generators.
-    """
+    """``(scenario, prior, odometry_rng, measurement_rng)`` of an episode drawn from ``np_random`` in a fixed order:
+    the scenario (one route, <= ``n_candidates`` landmarks), the sensors' generators, the initial estimate, the
+    mapped landmarks' estimates; ``owner`` is named in config errors."""
     scenario = scenario_from_config(config, np_random, SCENARIO_KEYS, owner, 1, max_landmarks=config["n_candidates"])
     odometry_rng, measurement_rng = np_random.spawn(2)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -16,7 +15,7 @@ from infonav_gym.envs.metrics import EpisodeMetric, mean_where, summed_reward
 from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import decision_info, in_every_copy
+from infonav_gym.envs.vector_infos import Decision, decision_info, in_every_copy
 from infonav_gym.information import information_gain_of_information
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import (
@@ -103,16 +102,8 @@ class RegistrationState(State):
     paths: tuple[PathHistory] | None = None
 
 
-class PatchDecision(NamedTuple):
-    """Every copy's decision: the patches it may add (int8 (N, P), 1 = valid) and the MI each adds (N, P) [nats]."""
-
-    action_mask: np.ndarray
-    action_information_gain: np.ndarray
-
-
 class RangeRegistration(EnvScenario):
-    """``infonav/RangeRegistration-v0`` as a scenario: see ``RangeRegistrationEnv`` for its spaces, reward and config
-    keys."""
+    """``infonav/RangeRegistration-v0`` as a scenario (spaces, reward, config: ``RangeRegistrationEnv``)."""
 
     episode_metrics = (
         EpisodeMetric("cumulative_reward", "cumulative reward [m]", summed_reward),
@@ -280,7 +271,7 @@ class RangeRegistration(EnvScenario):
         roots = state.prior_root[copies, None]
         state.patch_alone[copies] = information_gain_of_information(roots, state.patch_information[copies])
 
-    def decision(self, state: RegistrationState, rows) -> PatchDecision:
+    def decision(self, state: RegistrationState, rows) -> Decision:
         """The decisions of the copies ``rows``: each valid patch's MI added to the patches picked for the pair."""
         picked, information = state.picked[rows], state.patch_information[rows]
         mask = (state.return_fraction[rows] > 0) & ~picked
@@ -288,9 +279,9 @@ class RangeRegistration(EnvScenario):
         root = state.prior_root[rows]
         base = information_gain_of_information(root, picked_information)
         added = information_gain_of_information(root[:, None], picked_information[:, None] + information)
-        return PatchDecision(mask.astype(np.int8), np.where(mask, added - base[:, None], 0.0))
+        return Decision(mask.astype(np.int8), np.where(mask, added - base[:, None], 0.0))
 
-    def transition(self, state: RegistrationState, decision: PatchDecision, action, acting) -> RegistrationState:
+    def transition(self, state: RegistrationState, decision: Decision, action, acting) -> RegistrationState:
         """Pick the chosen patches; the copies with their pair's picks made register it (the step's reward terms)
         and drive on to the next pair."""
         chosen = action[:, 0]
@@ -352,7 +343,7 @@ class RangeRegistration(EnvScenario):
         """The error reduction of each copy's registration [m] plus its point cost (0 without one)."""
         return state.reduction + state.cost
 
-    def observation(self, state: RegistrationState, decision: PatchDecision, rows) -> np.ndarray:
+    def observation(self, state: RegistrationState, decision: Decision, rows) -> np.ndarray:
         """The observations of the copies ``rows`` (n, 5 * P + 2), float32 (see the single env)."""
         picked, cfg = state.picked[rows], self.config
         patches = np.stack(
@@ -368,7 +359,7 @@ class RangeRegistration(EnvScenario):
         progress = np.stack([picked.sum(axis=1) / cfg["picks_per_pair"], state.elapsed[rows] / cfg["horizon"]], axis=1)
         return np.concatenate([patches.reshape(len(progress), -1), progress], axis=1).astype(np.float32)
 
-    def info(self, state: RegistrationState, decision: PatchDecision, rows, stepped) -> dict:
+    def info(self, state: RegistrationState, decision: Decision, rows, stepped) -> dict:
         """The decision's mask and gains, both reward terms, the action taken, the last ICP run, the pair's odometry
         error and motion covariance, the true pose, the attitude and the time."""
         info = decision_info(decision, stepped, state.chosen[rows], "error_reduction_m", state.reduction[rows])
@@ -386,7 +377,7 @@ class RangeRegistration(EnvScenario):
         )
         return in_every_copy(info, len(stepped))
 
-    def frame(self, state: RegistrationState, decision: PatchDecision):
+    def frame(self, state: RegistrationState, decision: Decision):
         """Copy 0 drawn: its scene, the vehicle and its path, and its newest range image with the picked patches."""
         cfg, scenario, pose = self.config, state.worlds.scenario(0), state.worlds.poses[0, 0].copy()
         caption = f"t = {state.elapsed[0] * cfg['time_step_s']:.1f} s   "
@@ -409,14 +400,9 @@ class RangeRegistration(EnvScenario):
 
 
 class RangeRegistrationVectorEnv(Driver, scenario=RangeRegistration):
-    """N copies of ``infonav/RangeRegistration-v0`` on stacked arrays: the env's one implementation.
+    """N copies of ``infonav/RangeRegistration-v0``, the driver bound to its scenario (``gym.make_vec``).
 
-    See ``RangeRegistrationEnv`` (its N = 1 view) for the spaces, rewards and config keys.
-    ``gym.make_vec("infonav/RangeRegistration-v0", num_envs=N, **config)`` returns it. Each copy drives its own
-    terrain loop (the vehicles in a ``WorldBatch``); the patches' information, masks, gains and observations are
-    (N, P, ...) arrays; scans, frame pairs and ICP run copy by copy, each from its copy's own generators, so sub-env
-    ``i`` after ``reset(seed=s)`` gives the numbers of ``gym.make("infonav/RangeRegistration-v0")`` after
-    ``reset(seed=s + i)``. ``autoreset_mode`` and ``render_mode`` as ``LandmarkSelectionVectorEnv`` describes.
+    Observations (N, 5 * P + 2); scans, frame pairs and ICP run copy by copy.
     """
 
     @property
@@ -448,10 +434,8 @@ class RangeRegistrationEnv(SingleEnvView, vector_env=RangeRegistrationVectorEnv)
 
     ## Action Space
     ``Discrete(patch_rows * patch_columns)``: the patch (row-major over the image) to add.
-    Valid while it has returns and was not chosen for this pair (``info["action_mask"]``).
-    A masked action is a no-op with reward 0 (``invalid_action="noop"``) or raises
-    ``ValueError`` (``invalid_action="raise"``). ``action_masks()`` gives the mask as bool, for
-    ``MaskablePPO`` (all ``True`` when no patch can be picked: every action is then the no-op).
+    Valid while it has returns and was not chosen for this pair (``info["action_mask"]``; ``action_masks()``
+    is all ``True`` when no patch can be picked: every action is then the no-op).
 
     ## Observation Space
     ``Box(float32, (5 * patches + 2,))``: per patch: valid, chosen, fraction of its pixels
@@ -470,8 +454,7 @@ class RangeRegistrationEnv(SingleEnvView, vector_env=RangeRegistrationVectorEnv)
     Truncated after ``horizon`` steps (``horizon / picks_per_pair`` frame pairs); never terminated.
 
     ## Arguments
-    ``gym.make("infonav/RangeRegistration-v0", render_mode=None, **config)`` with any key of
-    ``default_config()``; an unknown key raises ``ValueError`` naming it.
+    ``gym.make("infonav/RangeRegistration-v0", render_mode=None, **config)`` with any key of ``default_config()``.
 
     ## Version History
     * v0: initial version.

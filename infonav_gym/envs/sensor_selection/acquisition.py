@@ -1,9 +1,4 @@
-"""What ``SensorSelection-v0`` acquires: its LADAR and camera on the pan-tilt platform, their options and frames.
-
-``ImageSensors`` holds the two sensors built from an env config, what a frame of each costs on the radio link, and
-the (sensor, pan angle) of each acquisition action. ``acquire_frames`` renders the frames of the copies that
-acquire one in a step: most of the env's step (compiled ray casting and shading), one frame per copy.
-"""
+"""What ``SensorSelection-v0`` acquires: its LADAR and camera on the pan-tilt platform, their options and frames."""
 
 from __future__ import annotations
 
@@ -41,13 +36,9 @@ class ImageSensors:
     Action ``1 + s * n_pan_sectors + p`` acquires sensor ``SENSORS[s]`` panned to ``pan_angles_rad[p]``, spread
     evenly over ``pan_span_rad`` from left to right; action 0 (``IDLE_ACTION``) acquires nothing.
 
-    Args:
-        config: an env config with the ``sensor_config()`` keys, ``n_pan_sectors``, ``pan_span_rad`` and
-            ``bandwidth_buffer_bytes`` (checked against the smallest frame).
-        owner: the env named in config errors.
-
     Raises:
-        ValueError: naming the config key, for a bad sensor parameter or a buffer smaller than any frame.
+        ValueError: naming the config key of ``owner``, for a bad sensor parameter or a buffer smaller than any
+            frame.
     """
 
     def __init__(self, config: dict, owner: str):
@@ -97,15 +88,10 @@ class ImageSensors:
 def acquire_frames(sensors: ImageSensors, terrains, poses, generators, copies, actions) -> tuple[list, np.ndarray]:
     """The frames that ``copies`` (n,) acquire with acquisition ``actions`` (n,) (>= 1), and their entropies (n,).
 
-    Copy ``copies[k]`` renders its own ``terrains[copy]`` from ``poses[k]`` with noise from
-    ``generators[copies[k]]``. Each frame is one compiled pass over its rays (``Terrain.cast_rays``, and
-    ``camera_kernels.shade`` for the camera) and its pixels' noise drawn from its copy's generator; the copies
-    differ in terrain, pose and sensor, so they are looped over here. Profile of a step (random valid actions,
-    0.75 frames per step): at N = 1 the ray casting ~45 %, the shading, noise and entropy ~30 %, the decisions,
-    observations, infos, motion and resets ~25 %; at N = 256 ~65 %, ~35 % and ~1 %.
-
-    Returns:
-        ``(images, entropies)``: the uint8 images, and each one's histogram entropy [nats].
+    Copy ``copies[k]`` renders its own terrain from ``poses[k]`` with noise from its own generator: one compiled
+    pass over the rays each (the copies differ in terrain, pose and sensor, so they are looped over here). Profile
+    of a step (random valid actions, 0.75 frames per step): at N = 1 the ray casting ~45 %, the shading, noise and
+    entropy ~30 %, the rest ~25 %; at N = 256 ~65 %, ~35 % and ~1 %. The images are uint8, the entropies [nats].
     """
     images, entropies = [], np.zeros(len(copies))
     for k, (copy, action) in enumerate(zip(copies.tolist(), actions.tolist())):

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -25,7 +24,7 @@ from infonav_gym.envs.sensor_selection.acquisition import (
 )
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import decision_info, in_every_copy
+from infonav_gym.envs.vector_infos import Decision, decision_info, in_every_copy
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
@@ -66,22 +65,8 @@ class SensorState(State):
     paths: tuple[PathHistory] | None = None
 
 
-class ImageDecision(NamedTuple):
-    """Every copy's decision: which acquisitions the credit covers and their greedy estimates.
-
-    Attributes:
-        action_mask: int8 (N, A), 1 = valid: waiting always, an acquisition when the credit covers its frame.
-        action_information_gain: (N, A) [nats]: the last value measured of each (sensor, direction), ``ln 256``
-            for one never acquired; 0 for waiting and where masked.
-    """
-
-    action_mask: np.ndarray
-    action_information_gain: np.ndarray
-
-
 class SensorSelection(EnvScenario):
-    """``infonav/SensorSelection-v0`` as a scenario: see ``SensorSelectionEnv`` for its spaces, reward and config
-    keys."""
+    """``infonav/SensorSelection-v0`` as a scenario (spaces, reward, config: ``SensorSelectionEnv``)."""
 
     episode_metrics = (
         EpisodeMetric(
@@ -164,7 +149,7 @@ class SensorSelection(EnvScenario):
                 state.paths = (PathHistory(state.worlds.poses[0, 0, :2]),)
         return state
 
-    def decision(self, state: SensorState, rows) -> ImageDecision:
+    def decision(self, state: SensorState, rows) -> Decision:
         """The decisions of the copies ``rows`` at their credit and last values."""
         affordable = self.sensors.option_costs <= state.credit_bytes[rows, None]
         known = state.last_acquired_step[rows] >= 0
@@ -173,9 +158,9 @@ class SensorSelection(EnvScenario):
         mask[:, 1:] = affordable
         gains = np.zeros(mask.shape)
         gains[:, 1:] = np.where(affordable, estimate, 0.0)
-        return ImageDecision(mask, gains)
+        return Decision(mask, gains)
 
-    def transition(self, state: SensorState, decision: ImageDecision, action, acting) -> SensorState:
+    def transition(self, state: SensorState, decision: Decision, action, acting) -> SensorState:
         """Acquire the chosen frames, then drive the ``acting`` copies and credit their bandwidth."""
         chosen, cfg = action[:, 0], self.config
         state.rewards, state.entropies = self._acquire(state, chosen)
@@ -220,7 +205,7 @@ class SensorSelection(EnvScenario):
         """The information of each copy's frame [nats] (0 without one)."""
         return state.rewards.copy()
 
-    def observation(self, state: SensorState, decision: ImageDecision, rows) -> np.ndarray:
+    def observation(self, state: SensorState, decision: Decision, rows) -> np.ndarray:
         """The observations of the copies ``rows`` (n, 3 * options + 4), float32 (see the single env)."""
         horizon, frame_bytes = self.config["horizon"], self.sensors.frame_bytes
         elapsed, last_step = state.elapsed[rows], state.last_acquired_step[rows]
@@ -236,7 +221,7 @@ class SensorSelection(EnvScenario):
         features[:, -1] = elapsed / horizon
         return features.astype(np.float32)
 
-    def info(self, state: SensorState, decision: ImageDecision, rows, stepped) -> dict:
+    def info(self, state: SensorState, decision: Decision, rows, stepped) -> dict:
         """The decision's mask and gains, the reward term, the action taken, the sensor and pan it used, the frame's
         entropy (0 without one), the credit, the true pose and the time."""
         info = decision_info(decision, stepped, state.chosen[rows], "image_information", state.rewards[rows])
@@ -252,7 +237,7 @@ class SensorSelection(EnvScenario):
         )
         return in_every_copy(info, len(stepped))
 
-    def frame(self, state: SensorState, decision: ImageDecision):
+    def frame(self, state: SensorState, decision: Decision):
         """Copy 0 drawn: its scene, the vehicle and its path, the wedge and inset of the frame it acquired."""
         scenario, time_s = state.worlds.scenario(0), state.elapsed[0] * self.config["time_step_s"]
         caption, wedge, title = f"t = {time_s:.1f} s   ", None, ""
@@ -278,25 +263,10 @@ class SensorSelection(EnvScenario):
 
 
 class SensorSelectionVectorEnv(Driver, scenario=SensorSelection):
-    """N copies of ``infonav/SensorSelection-v0`` on stacked arrays: the env's one implementation.
+    """N copies of ``infonav/SensorSelection-v0``, the driver bound to its scenario (``gym.make_vec``).
 
-    See ``SensorSelectionEnv`` (its N = 1 view) for the spaces, rewards and config keys.
-    ``gym.make_vec("infonav/SensorSelection-v0", num_envs=N, **config)`` returns it. Each copy drives its own
-    terrain loop (the vehicles in a ``WorldBatch``); credits, last values and ages are (N, ...) arrays; the frames
-    of the copies that acquire one are rendered one by one (``acquire_frames``), each with noise from its copy's
-    own generator, so sub-env ``i`` after ``reset(seed=s)`` gives the numbers of
-    ``gym.make("infonav/SensorSelection-v0")`` after ``reset(seed=s + i)``.
-
-    ## Vector API
-    ``step`` takes one action per sub-env (N,) and returns observations (N, 6 * n_pan_sectors + 4), rewards,
-    ``terminated`` and ``truncated`` (N,). Infos hold the single env's keys as arrays with a leading N dimension,
-    each with Gymnasium's ``_key`` mask (``info["sensor"]`` a str array); ``action_masks()`` gives the (N, A) bool
-    masks for ``MaskablePPO``.
-
-    ## Autoreset
-    ``autoreset_mode`` is ``NEXT_STEP`` by default, or ``SAME_STEP`` (``final_obs`` / ``final_info``) or
-    ``DISABLED``, as ``LandmarkSelectionVectorEnv`` describes. ``render_mode`` (``"rgb_array"`` or ``"human"``):
-    ``render()`` draws sub-env 0, with the image it acquired in an inset.
+    Observations (N, 6 * n_pan_sectors + 4), ``info["sensor"]`` a str array; ``render()`` insets the image sub-env
+    0 acquired.
     """
 
     @property
@@ -354,9 +324,7 @@ class SensorSelectionEnv(SingleEnvView, vector_env=SensorSelectionVectorEnv):
     + p`` acquires sensor ``s`` (0 LADAR, 1 camera) panned to sector ``p``, the pan angles
     spread evenly over ``pan_span_rad`` from left (``p = 0``) to right. An acquisition is
     valid when the bandwidth credit covers the frame (``info["action_mask"]``); waiting
-    always is. A masked action is a no-op with reward 0 by default (``invalid_action="noop"``)
-    or raises ``ValueError`` with ``invalid_action="raise"``. ``action_masks()`` gives the mask as
-    bool, for ``MaskablePPO``.
+    always is.
 
     ## Observation Space
     ``Box(float32, (3 * 2 * n_pan_sectors + 4,))``: per (sensor, sector), in action order:
@@ -376,8 +344,7 @@ class SensorSelectionEnv(SingleEnvView, vector_env=SensorSelectionVectorEnv):
     Truncated after ``horizon`` steps; never terminated.
 
     ## Arguments
-    ``gym.make("infonav/SensorSelection-v0", render_mode=None, **config)`` with any key of
-    ``default_config()``; an unknown key raises ``ValueError`` naming it.
+    ``gym.make("infonav/SensorSelection-v0", render_mode=None, **config)`` with any key of ``default_config()``.
 
     ## Version History
     * v0: initial version.
