@@ -1,5 +1,5 @@
-"""What a robot of a team env observes: its own estimate and uncertainty, and each teammate's range, bearing and
-uncertainty (both team envs build their observations with it)."""
+"""What a robot of a team env observes: its own estimate and uncertainty, each teammate's range, bearing and
+uncertainty."""
 
 from __future__ import annotations
 
@@ -29,21 +29,9 @@ def team_observations(
     estimates, pose_std, pose_log_det, gps_available, elapsed_fraction, teammate_valid, space: spaces.Box, gains=None
 ) -> np.ndarray:
     """Every robot's observation (see ``CooperativeLocalizationEnv``), float32 clipped to ``space``, for N copies of
-    R robots.
-
-    Args:
-        estimates: estimated poses (N, R, 3).
-        pose_std: x, y, heading standard deviations of each robot at the prior (N, R, 3).
-        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (N, R).
-        gps_available: whether each robot has a DGPS fix now (N, R) bool.
-        elapsed_fraction: elapsed fraction of ``max_cycles`` of each copy (N,).
-        teammate_valid: whether each robot may observe each robot now (N, R, R) bool.
-        space: one robot's observation space.
-        gains: each robot's ``action_information_gain`` (N, R, R + 1) to append (``observe_gains``), or None.
-
-    Returns:
-        (N, R, 10 + 5 R), or (N, R, 11 + 6 R) with ``gains``.
-    """
+    R robots: (N, R, 10 + 5 R), or (N, R, 11 + 6 R) with the ``gains`` (``action_information_gain`` (N, R, R + 1)).
+    Of the estimated poses (N, R, 3), each robot's x, y, heading std and pose ``ln det`` at the prior, its DGPS fix
+    (N, R), each copy's elapsed fraction of ``max_cycles`` (N,) and who may observe whom now (N, R, R) bool."""
     n_copies, n_robots = estimates.shape[:2]
     features = np.zeros((n_copies, n_robots, space.shape[0]), dtype=np.float32)
     entropy = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)

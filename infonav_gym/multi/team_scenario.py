@@ -1,9 +1,7 @@
-"""``TeamScenario`` and ``TeamState``: what the team scenarios share (DGPS fixes, relative poses, odometry).
+"""``TeamScenario`` and ``TeamState``: what the team scenarios share (DGPS fixes, relative poses, odometry, infos).
 
-A team scenario runs N copies of a team of R robots on stacked arrays: one action per copy and robot (N, R), joint EKF
-states ``x`` (N, 3R) and covariances ``P`` (N, 3R, 3R). Its ``__init__`` checks its own keys, then calls ``use_team``
-with its sensors; its ``allocate`` starts from ``team_fields``, its ``initial`` calls ``start_copy`` for each copy and
-then ``started``. The helpers take the state as an argument; the driver (``envs.driver.Driver``) runs the steps.
+A team scenario's ``__init__`` calls ``use_team`` with its sensors; its ``allocate`` starts from ``team_fields``, its
+``initial`` calls ``start_copy`` for each copy and then ``started``.
 """
 
 from __future__ import annotations
@@ -20,12 +18,15 @@ from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.geometry import wrap_angle_kernel as wrap
-from infonav_gym.information import log_det_of, mutual_information_kernel
+from infonav_gym.information import gaussian_entropy_from_log_det, log_det_of, mutual_information_kernel
 from infonav_gym.multi.team_paths import FirstCopyPaths
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, gps_available, gps_schedule
+from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.relative_pose import relative_pose_measured
+from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world_batch import WorldBatch
 
 ODOMETRY_NOISE, GPS_NOISE, RELATIVE_NOISE = 0, 1, 2  # ``noise`` index of each sensor's streams (more may follow)
@@ -35,8 +36,9 @@ ODOMETRY_NOISE, GPS_NOISE, RELATIVE_NOISE = 0, 1, 2  # ``noise`` index of each s
 class TeamState(State):
     """Every copy's world, noise streams (one ``NoiseStreams`` per sensor generator of an episode, in the order its
     ``start_episode`` spawns them), joint EKF ``x`` (N, 3R) and ``P`` (N, 3R, 3R), which robots have a DGPS fix
-    (N, R), its GPS-denied zones (centres (N, Z, 2) [m], squared radii (N, Z) [m^2], -1: padding), each copy's static
-    geometry (``geometries``, stacked in ``geometry``) and copy 0's paths (when drawing)."""
+    (N, R), its GPS-denied zones (``gps_denied_zones``), each copy's static geometry (``geometries``, stacked in
+    ``geometry``), copy 0's paths (when drawing), and each robot's last executed action and whether it was masked
+    (N, R)."""
 
     worlds: WorldBatch
     noise: tuple
@@ -48,6 +50,8 @@ class TeamState(State):
     geometries: list
     geometry: object = None
     paths: FirstCopyPaths | None = None
+    chosen: np.ndarray = None
+    invalid: np.ndarray = None
 
 
 def copy_rows(copies: np.ndarray, n_copies: int):
@@ -102,8 +106,10 @@ class TeamScenario(EnvScenario):
 
     @staticmethod
     def start_copy(state: TeamState, copy: int, scenario, poses, covariances, generators) -> None:
-        """Copy ``copy`` starts an episode of ``scenario``: its world, sensor streams and joint EKF prior."""
+        """Copy ``copy`` starts an episode of ``scenario``: its world, static geometry, sensor streams and joint EKF
+        prior."""
         state.worlds.reset_copy(copy, scenario)
+        state.geometries[copy] = StaticGeometry.from_scenario(scenario, state.worlds.wall_thickness_m)
         for streams, generator in zip(state.noise, generators):
             streams.restart(copy, generator)
         state.x[copy], state.P[copy] = poses.ravel(), block_diagonal(covariances)
@@ -115,6 +121,16 @@ class TeamScenario(EnvScenario):
         self.gps_fixes(state, copies, state.elapsed[copies])
         if copies[0] == 0 and self.drawing:
             state.paths = FirstCopyPaths(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
+
+    @staticmethod
+    def rows_geometry(state: TeamState, rows) -> StaticGeometry:
+        """The static geometry of the copies ``rows`` (a slice: every copy)."""
+        return state.geometry if isinstance(rows, slice) else StaticGeometry.stack([state.geometries[r] for r in rows])
+
+    def moved(self, state: TeamState, copies: np.ndarray) -> None:
+        """``copies`` have moved: copy 0's paths (when drawing) take its robots' true and estimated positions."""
+        if copies[0] == 0 and state.paths is not None:
+            state.paths.extend(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
 
     def relative_update(self, state: TeamState, copies: np.ndarray, chosen: np.ndarray, decision) -> list:
         """Fuse the teammate choices ``chosen`` (n, R) (``NO_OBSERVATION`` or ``1 + j`` for robot j) of ``copies`` (n,)
@@ -173,6 +189,50 @@ class TeamScenario(EnvScenario):
         carry DGPS, are in none of their copy's GPS-denied zones and in no outage span (n, R) bool."""
         zones = state.zone_centers, state.zone_radii_sq
         return gps_available(copies, contiguous(positions), *zones, self.has_gps, self.outages, time_s)
+
+    def team_info(self, state: TeamState, decision, rows, stepped, terms: dict, **more) -> dict:
+        """The infos of the copies ``rows`` every team env gives, then ``more``: arrays (N, R, ...) (the team's
+        (N,)), each with Gymnasium's ``_key`` mask (N,). ``decision`` has ``action_mask``,
+        ``action_information_gain``, ``pose_log_det`` and ``pose_std``; the reward ``terms`` (N, R) [nats] are 0 and
+        masked out in the copies that were reset (not ``stepped``)."""
+        true_poses = state.worlds.poses[rows]
+        estimates = state.x[rows].reshape(true_poses.shape)
+        errors = true_poses - estimates
+        terms = {key: np.where(stepped[:, None], value, 0.0) for key, value in terms.items()}
+        info = {
+            "action_mask": decision.action_mask.copy(),
+            "action_information_gain": decision.action_information_gain.copy(),
+            "reward_terms": {**terms, **{f"_{key}": stepped.copy() for key in terms}},
+            "chosen_action": state.chosen[rows].copy(),
+            "invalid_action": state.invalid[rows].copy(),
+            "gps_available": state.gps_available[rows].copy(),
+            "position_error_m": np.hypot(errors[..., 0], errors[..., 1]),
+            "heading_error_rad": np.abs(wrap_angle(errors[..., 2])),
+            "pose_entropy": gaussian_entropy_from_log_det(decision.pose_log_det, POSE_DIM),
+            "pose_std": decision.pose_std.copy(),
+            "true_pose": true_poses.copy(),
+            "estimated_pose": estimates.copy(),
+            "time_s": np.asarray(state.elapsed[rows] * self.config["time_step_s"], dtype=float).copy(),
+            **more,
+        }
+        everyone = np.ones(len(info["action_mask"]), dtype=bool)
+        return {**info, **{f"_{key}": everyone for key in info}}
+
+    def team_frame(self, state: TeamState, caption: str, **more) -> SceneFrame:
+        """Copy 0 drawn: its scenario, every robot (truth, estimate, covariance, paths), its teammate observations
+        (``more``) and the ``caption``."""
+        scenario = state.worlds.scenario(0)
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            robots=state.paths.drawings(
+                state.worlds.poses[0], state.x[0], state.P[0], self.agents, state.gps_available[0]
+            ),
+            gps_denied_zones=scenario.gps_denied_zones,
+            caption=caption,
+            **more,
+        )
 
 
 class TeamAccessors:

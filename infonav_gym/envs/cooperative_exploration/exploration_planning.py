@@ -1,12 +1,8 @@
-"""The planning model of ``cooperative_exploration_v0``: one step of the team, on beliefs batched over futures.
+"""The planning model of ``cooperative_exploration_v0`` (what ``agents.planner.PlannerAgent`` searches), and the
+helpers of one step (motion plans, scan gains, rewards) the env computes its masks, gains and rewards with.
 
-What ``agents.planner.PlannerAgent`` searches (the team counterpart of ``envs.active_planning``). Under the
-EKF's linearization a covariance after an update does not depend on the measured value, so a step's expected
-reward follows from the belief alone, without sampling and without the true state: ``belief()`` copies a copy's
-joint EKF state, map and budgets; ``plan_decision(belief, robot)`` gives one robot's mask and gains;
-``plan_step(belief, actions)`` predicts one step of the whole team. The helpers of one step (motion plans,
-scan gains, rewards) are the env's own: ``CooperativeExplorationVectorEnv`` computes its masks, gains and rewards
-with them.
+Under the EKF's linearization a covariance after an update does not depend on the measured value, so a step's
+expected reward follows from the belief alone, without sampling and without the true state.
 """
 
 from __future__ import annotations
@@ -43,6 +39,16 @@ def motion_plan(motions, headings, speeds_mps) -> tuple[np.ndarray, np.ndarray]:
     drives = motions != STAY
     turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
     return turns, np.where(drives, speeds_mps, 0.0)
+
+
+def motion_phases(turns, speeds, config: dict) -> tuple:
+    """A step's turn phase, then its drive phase: ``(duration [s], unicycle controls (..., 2))`` of each, of the
+    ``turns`` [rad] on the spot and the drives at ``speeds`` [m/s] (``turn_time_s``, ``time_step_s``)."""
+    turn_s = config["turn_time_s"]
+    return (
+        (turn_s, np.stack([np.zeros_like(turns), turns / turn_s], axis=-1)),
+        (config["time_step_s"] - turn_s, np.stack([speeds, np.zeros_like(speeds)], axis=-1)),
+    )
 
 
 def drive_displacements(headings, speeds, drive_s: float) -> np.ndarray:
@@ -115,19 +121,11 @@ def total_reward(team_reward: float, terms: dict) -> np.ndarray:
 
 @dataclass(frozen=True)
 class TeamBelief(BeliefBatch):
-    """The team's estimator state at a decision, batched over ``B`` hypothetical futures (estimates only).
-
-    Attributes:
-        x: estimated poses of the R robots (B, 3R) [m, m, rad].
-        covariance: their joint covariance (B, 3R, 3R).
-        map_variances: the terrain map's cell variances (B, G) [m^2].
-        observations_left: each robot's sensing budget (B, R).
-        steps: steps since the env's current decision (B,).
-        done: whether the episode has ended (a robot lost, coverage reached, or out of time) (B,).
-        landmark_visible: which landmarks each robot's sensor would see from its estimate (B, R, L).
-        pair_visible: which (observer, target) pairs of ``SensingPairs`` are observable between estimates (B, P).
-        motion_clear: which motions keep each robot clear of contacts, judged from the estimates (B, R, 5).
-    """
+    """The team's estimator state at a decision, batched over ``B`` hypothetical futures (estimates only): the
+    joint ``x`` (B, 3R) and ``covariance``, the map's cell variances (B, G) [m^2], each robot's budget left (B, R),
+    the ``steps`` since the env's decision and whether the episode has ended (B,); judged from the estimates, which
+    landmarks each robot would see (B, R, L), which ``SensingPairs`` are observable (B, P) and which motions are
+    clear of contacts (B, R, 5)."""
 
     x: np.ndarray
     covariance: np.ndarray
@@ -143,11 +141,8 @@ class TeamBelief(BeliefBatch):
 class ExplorationPlanningModel:
     """The planning model of one copy of ``CooperativeExplorationVectorEnv`` (``env.planning_model(copy)``).
 
-    What a look-ahead agent uses: ``belief()``, ``plan_decision(belief, robot)``, ``plan_step(belief, actions)``,
-    ``position_std(covariances)``, ``n_primitives``, ``max_position_std_m``, ``idle_primitive`` and
-    ``step_index``. Built from the env's parts (``ExplorationParts``), it reads the copy's episode (landmarks,
-    static geometry, GPS-denied zones) and its estimator state (``env.copy_state(copy)``) when called, so one
-    model serves a whole run.
+    It reads the copy's episode (landmarks, static geometry, GPS-denied zones) and estimator state
+    (``env.copy_state(copy)``) when called, so one model serves a whole run.
     """
 
     n_primitives = N_MOTIONS
@@ -192,15 +187,8 @@ class ExplorationPlanningModel:
         Raises:
             RuntimeError: before the env's first ``reset()``.
         """
-        state = self._env.copy_state(self._copy)
-        return self._belief(
-            state.x[None],
-            state.P[None],
-            state.map_variances[None],
-            state.observations_left[None],
-            np.zeros(1, dtype=int),
-            np.array([state.done]),
-        )
+        *arrays, done = self._env.copy_state(self._copy)
+        return self._belief(*(array[None] for array in arrays), np.zeros(1, dtype=int), np.array([done]))
 
     def plan_decision(self, belief: TeamBelief, robot: int) -> tuple[np.ndarray, np.ndarray]:
         """Robot ``robot``'s ``(action_mask (B, A), action_information_gain (B, A))`` at each belief.
@@ -378,14 +366,8 @@ class ExplorationPlanningModel:
 
     def _expected_motion(self, x, P, motions, driving) -> tuple[np.ndarray, np.ndarray]:
         """The prediction ``(x, P)`` of the step's commanded turns and drives (the ``driving`` robots' motions)."""
-        cfg = self.config
         turns, speeds = motion_plan(motions[..., None], x[:, 2::POSE_DIM, None], self._parts.speeds_mps[:, None])
         turns, speeds = np.where(driving, turns[..., 0], 0.0), np.where(driving, speeds[..., 0], 0.0)
-        turn_s = cfg["turn_time_s"]
-        phases = (
-            (turn_s, np.stack([np.zeros_like(turns), turns / turn_s], axis=-1)),
-            (cfg["time_step_s"] - turn_s, np.stack([speeds, np.zeros_like(speeds)], axis=-1)),
-        )
-        for phase_s, controls in phases:
+        for phase_s, controls in motion_phases(turns, speeds, self.config):
             x, P = batched.predict_team(x, P, controls, phase_s, self._odometry_covariances, check_input=False)
         return x, P

@@ -1,29 +1,19 @@
 """``cooperative_exploration_v0``: a team maps a field, each robot choosing where to go and what to see, as a scenario.
 
-``make_vector_env("cooperative_exploration_v0", num_envs=N, **config)`` returns ``CooperativeExplorationVectorEnv``
-(the driver of this scenario); its PettingZoo env (``CooperativeExplorationEnv``,
-``cooperative_exploration_v0.parallel_env``) is its N = 1 view without autoreset (``envs.parallel_view``). The joint
-estimation (prediction, DGPS, relative-pose and landmark updates, expected gains, log-determinants), the line of
-sight, the terrain maps and the scan gains run batched over the copies (``estimation.batched``, ``world.visibility``,
-``TerrainMapModel``), the physics in a ``WorldBatch`` driven by the motions' turn and drive commands, and the sensor
-noise from one stream per copy and sensor (``NoiseStreams``), so copy ``i`` after ``reset(seed=s)`` gives the numbers
-of ``parallel_env()`` after ``reset(seed=s + i)``.
+``CooperativeExplorationVectorEnv`` is the driver of this scenario, ``CooperativeExplorationEnv`` its PettingZoo view
+(``envs.parallel_view``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
 
 from infonav_gym.envs.cooperative_exploration.exploration_decision import (
-    EXPLORATION_INFO_KEYS,
     ExplorationDecision,
-    ExplorationStep,
     TeamSight,
-    exploration_info,
     landmark_gains,
     range_bearing_noise,
 )
@@ -34,6 +24,7 @@ from infonav_gym.envs.cooperative_exploration.exploration_planning import (
     ExplorationPlanningModel,
     action_gains,
     clear_motions,
+    motion_phases,
     motion_plan,
     reward_terms,
     scan_gains,
@@ -70,8 +61,8 @@ MAP_CELL_KB = 0.07  # [kB] a copy's memory per coverage-map cell, measured from 
 class ExplorationState(TeamState):
     """``TeamState`` and each copy's landmarks (N, L, 2), terrain map cell variances (N, G) [m^2], coverage (N,),
     sensing budgets (N, R), which robots are lost (N, R), whether it succeeded (N,); what its last step brought: each
-    robot's executed action and whether it was masked (N, R), its own pose MI (N, R) and the map information (N,)
-    [nats], whether it observed and drove (N, R); and copy 0's observed teammates and landmarks (robot, target)."""
+    robot's own pose MI (N, R) and the map information (N,) [nats], whether it observed and drove (N, R); and copy
+    0's observed teammates and landmarks (robot, target)."""
 
     landmarks: np.ndarray = None
     map_variances: np.ndarray = None
@@ -79,31 +70,12 @@ class ExplorationState(TeamState):
     observations_left: np.ndarray = None
     lost: np.ndarray = None
     success: np.ndarray = None
-    chosen: np.ndarray = None
-    invalid: np.ndarray = None
     own_information: np.ndarray = None
     map_information: np.ndarray = None
     observed: np.ndarray = None
     driving: np.ndarray = None
     observed_pairs: list = None
     observed_landmarks: list = None
-
-
-class CopyState(NamedTuple):
-    """One copy's estimator state at its current decision (copies of its arrays), for its planning model.
-
-    Attributes:
-        x: the joint EKF state (3R,); P: its covariance (3R, 3R).
-        map_variances: the terrain map's cell variances (G,) [m^2].
-        observations_left: each robot's sensing budget (R,).
-        done: whether the copy's episode has ended (a robot lost, the coverage target reached, or out of time).
-    """
-
-    x: np.ndarray
-    P: np.ndarray
-    map_variances: np.ndarray
-    observations_left: np.ndarray
-    done: bool
 
 
 class CooperativeExploration(TeamScenario):
@@ -121,7 +93,10 @@ class CooperativeExploration(TeamScenario):
         reward_config_keys=("team_reward",),
         reward_terms=REWARD_TERMS,
         main_metric="success_rate",
-        info_keys=EXPLORATION_INFO_KEYS,
+        info_keys=frozenset(
+            {"gps_available", "pose_std", "position_std_m", "pose_entropy", "position_error_m", "heading_error_rad"}
+            | {"estimated_pose", "observations_left", "coverage", "lost", "failed", "success"}
+        ),
     )
     team_info_keys = frozenset({"time_s", "coverage", "failed", "success"})
 
@@ -182,7 +157,6 @@ class CooperativeExploration(TeamScenario):
             scenario, poses, covariances, *generators = start_episode(self.config, rng)
             self.start_copy(state, copy, scenario, poses, covariances, generators)
             state.landmarks[copy] = scenario.landmarks
-            state.geometries[copy] = StaticGeometry.from_scenario(scenario, state.worlds.wall_thickness_m)
         geometry = StaticGeometry.stack([state.geometries[copy] for copy in rows.tolist()])
         state.geometry = geometry if len(rows) == len(state.elapsed) else state.geometry.with_copies(rows, geometry)
         state.map_variances[rows] = self.parts.map_model.prior_variances()
@@ -200,8 +174,7 @@ class CooperativeExploration(TeamScenario):
         """Masks and immediate expected gains of every (observation, motion) pair of the copies ``rows``, at their
         priors."""
         cfg, sight = self.config, self.sight
-        full = isinstance(rows, slice)
-        geometry = state.geometry if full else StaticGeometry.stack([state.geometries[row] for row in rows])
+        geometry = self.rows_geometry(state, rows)
         true_poses, x, P, landmarks = state.worlds.poses[rows], state.x[rows], state.P[rows], state.landmarks[rows]
         n_copies, n_robots = true_poses.shape[:2]
         budget_left = state.observations_left[rows] > 0
@@ -262,8 +235,7 @@ class CooperativeExploration(TeamScenario):
         state.success[copies] = (state.coverage[copies] >= cfg["coverage_target"]) & ~lost.any(axis=1)
         state.own_information[copies], state.map_information[copies] = own_information, map_information
         state.observed[copies], state.driving[copies] = observed, driving
-        if acting[0] and state.paths is not None:
-            state.paths.extend(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
+        self.moved(state, copies)
         return state
 
     def step_terms(self, state: ExplorationState, rows) -> dict:
@@ -325,11 +297,7 @@ class CooperativeExploration(TeamScenario):
     def drive(self, state: ExplorationState, copies: np.ndarray, turns: np.ndarray, speeds: np.ndarray) -> None:
         """Turn every robot of ``copies`` on the spot by ``turns`` (n, R) [rad], then drive it straight at ``speeds``
         (n, R) [m/s] (both in the ``WorldBatch``); predict with the odometry of each phase."""
-        cfg = self.config
-        turn_s = cfg["turn_time_s"]
-        turning = np.stack([np.zeros_like(turns), turns / turn_s], axis=-1)
-        driving = np.stack([speeds, np.zeros_like(turns)], axis=-1)
-        for phase_s, commands in ((turn_s, turning), (cfg["time_step_s"] - turn_s, driving)):
+        for phase_s, commands in motion_phases(turns, speeds, self.config):
             self.predict(state, copies, state.worlds.step(phase_s, copies, commands), phase_s)
 
     def scan(self, state: ExplorationState, copies: np.ndarray, scanning: np.ndarray, position_std) -> np.ndarray:
@@ -379,61 +347,48 @@ class CooperativeExploration(TeamScenario):
 
     def info(self, state: ExplorationState, decision: ExplorationDecision, rows, stepped) -> dict:
         """The decision's masks and gains, the reward terms, the actions, the estimates, map and budgets."""
-        last = ExplorationStep(stepped, state.chosen[rows], state.invalid[rows], self.step_terms(state, rows))
-        fields = ("x", "gps_available", "observations_left", "lost", "coverage", "success")
-        copies = {key: getattr(state, key)[rows] for key in fields}
-        copies.update(true_poses=state.worlds.poses[rows], time_s=state.elapsed[rows] * self.config["time_step_s"])
-        return exploration_info(decision, last, copies)
+        lost = state.lost[rows]
+        return self.team_info(
+            state,
+            decision,
+            rows,
+            stepped,
+            self.step_terms(state, rows),
+            position_std_m=decision.position_std.copy(),
+            observations_left=state.observations_left[rows].copy(),
+            coverage=state.coverage[rows].copy(),
+            lost=lost.copy(),
+            failed=lost.any(axis=1),
+            success=state.success[rows].copy(),
+        )
 
     def frame(self, state: ExplorationState, decision: ExplorationDecision) -> SceneFrame:
         """Copy 0 drawn: its field, the terrain map (inset), every robot (truth, estimate, covariance, paths) and this
         step's teammate and landmark observations."""
-        scenario, side = state.worlds.scenario(0), self.config["map_cells_per_side"]
+        side = self.config["map_cells_per_side"]
         known = 1.0 - np.sqrt(state.map_variances[0]) / self.parts.map_model.prior_std_m
         image = np.kron(np.flipud(known.reshape(side, side)), np.ones((MAP_IMAGE_PIXELS_PER_CELL,) * 2))
         time_s = state.elapsed[0] * self.config["time_step_s"]
         pairs, landmarks = state.observed_pairs, state.observed_landmarks
-        return SceneFrame(
-            bounds=scenario.bounds,
-            walls=scenario.walls,
-            obstacles=scenario.obstacles,
-            landmarks=scenario.landmarks,
-            robots=state.paths.drawings(
-                state.worlds.poses[0], state.x[0], state.P[0], self.agents, state.gps_available[0]
-            ),
+        return self.team_frame(
+            state,
+            f"t = {time_s:.0f} s   {len(pairs)} teammate and {len(landmarks)} landmark observations this step",
+            landmarks=state.worlds.scenario(0).landmarks,
             observations=list(pairs),
             landmark_observations=list(landmarks),
-            gps_denied_zones=scenario.gps_denied_zones,
             inset_image=np.round(255 * image).astype(np.uint8),
             inset_title=f"terrain map (white: known), coverage {state.coverage[0]:.0%}",
-            caption=f"t = {time_s:.0f} s   {len(pairs)} teammate and {len(landmarks)} landmark observations this step",
         )
 
 
 class CooperativeExplorationVectorEnv(TeamAccessors, Driver, scenario=CooperativeExploration):
-    """N copies of ``cooperative_exploration_v0`` on stacked arrays: the env's one implementation.
+    """N copies of ``cooperative_exploration_v0`` (the driver's vector API, autoreset and arguments; spaces,
+    rewards and config keys: ``CooperativeExplorationEnv``).
 
-    See ``CooperativeExplorationEnv`` (its N = 1 PettingZoo view) for the spaces, rewards and config keys.
-
-    ## Vector API
-    ``agents`` are the team's robots R; ``single_observation_space`` / ``single_action_space`` one robot's.
-    ``step`` takes one action per copy and robot (N, R) and returns observations (N, R, 10 + 5R + 4L + 3 + G; A more
-    with ``observe_gains``), rewards, ``terminated`` (a robot lost, or the coverage target reached) and ``truncated``
-    (``max_cycles``) (N, R). Infos hold the parallel env's per-agent keys as arrays with leading (N, R), but the team's
-    ``time_s``, ``coverage``, ``failed`` and ``success``: (N,); each with Gymnasium's ``_key`` mask (N,).
-    ``info["action_mask"]`` and ``action_masks()`` (bool, for ``MaskablePPO``) are (N, R, 5 (1 + L + R)).
-    ``planning_model(copy)`` is the planning model of copy ``copy`` (``exploration_planning``).
-
-    ## Autoreset
-    As ``CooperativeLocalizationVectorEnv``: ``NEXT_STEP`` (the default) resets a copy at the step after its
-    episode ended (its actions ignored, rewards 0, its reset info with ``reward_terms`` masked out);
-    ``SAME_STEP`` at once, the last observation and info in ``info["final_obs"]`` and ``info["final_info"]``;
-    ``DISABLED``: a copy goes on from its last state until ``reset()`` (what the PettingZoo view steps).
-
-    ## Arguments
-    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name ``"same_step"``) and
-    any key of ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0:
-    the field, the terrain map, each robot's truth, estimate, covariance and paths, and this step's observations.
+    Observations (N, R, 10 + 5R + 4L + 3 + G; A more with ``observe_gains``); rewards, ``terminated``, ``truncated``
+    (N, R); infos (N, R, ...) (the team's ``time_s``, ``coverage``, ``failed``, ``success``: (N,));
+    ``info["action_mask"]`` and ``action_masks()`` (N, R, 5 (1 + L + R)). ``planning_model(copy)``: copy
+    ``copy``'s planning model (``exploration_planning``).
     """
 
     @property
@@ -465,8 +420,10 @@ class CooperativeExplorationVectorEnv(TeamAccessors, Driver, scenario=Cooperativ
         (``TeamScenario.gps_available``)."""
         return self.env_scenario.gps_available(self.state, copies, positions, time_s)
 
-    def copy_state(self, copy: int) -> CopyState:
-        """Copy ``copy``'s estimator state at its current decision.
+    def copy_state(self, copy: int) -> tuple:
+        """Copy ``copy``'s estimator state at its current decision, for its planning model (copies): the joint EKF
+        ``x`` (3R,) and ``P`` (3R, 3R), the map's cell variances (G,) [m^2], each robot's budget left (R,), and
+        whether its episode has ended (a robot lost, the coverage target reached, or out of time).
 
         Raises:
             RuntimeError: before the first ``reset()``.
@@ -475,13 +432,8 @@ class CooperativeExplorationVectorEnv(TeamAccessors, Driver, scenario=Cooperativ
             raise RuntimeError(f"{self.owner_name}: call reset() before copy_state() (a planning model's belief())")
         state = self.state
         done = state.lost[copy].any() or state.success[copy] or state.elapsed[copy] >= self.max_cycles
-        return CopyState(
-            state.x[copy].copy(),
-            state.P[copy].copy(),
-            state.map_variances[copy].copy(),
-            state.observations_left[copy].copy(),
-            bool(done),
-        )
+        arrays = (state.x, state.P, state.map_variances, state.observations_left)
+        return (*(array[copy].copy() for array in arrays), bool(done))
 
     def planning_model(self, copy: int = 0) -> ExplorationPlanningModel:
         """The planning model of copy ``copy`` (the same object on every call), for look-ahead agents

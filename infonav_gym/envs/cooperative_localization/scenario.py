@@ -1,12 +1,7 @@
 """``cooperative_localization_v0``: a heterogeneous team localizes through relative-pose observations, as a scenario.
 
-``make_vector_env("cooperative_localization_v0", num_envs=N, **config)`` returns ``CooperativeLocalizationVectorEnv``
-(the driver of this scenario); its PettingZoo env (``CooperativeLocalizationEnv``,
-``cooperative_localization_v0.parallel_env``) is its N = 1 view without autoreset (``envs.parallel_view``). The joint
-estimation (prediction, DGPS and relative-pose updates, expected gains, log-determinants) runs on the batched EKF core
-(``estimation.batched``), the robot-robot line of sight on ``world.visibility``, the physics in a ``WorldBatch`` and
-the sensor noise from one stream per copy and sensor (``NoiseStreams``), so copy ``i`` after ``reset(seed=s)`` gives
-the numbers of ``parallel_env()`` after ``reset(seed=s + i)``.
+``CooperativeLocalizationVectorEnv`` is the driver of this scenario, ``CooperativeLocalizationEnv`` its PettingZoo
+view (``envs.parallel_view``).
 """
 
 from __future__ import annotations
@@ -26,7 +21,7 @@ from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
 from infonav_gym.envs.parallel_view import ParallelEnvView, team_metadata
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.multi.team_decision import TeamDecision, TeamStep, observable_pairs, team_info
+from infonav_gym.multi.team_decision import TeamDecision, observable_pairs
 from infonav_gym.multi.team_observations import team_observation_bounds, team_observations
 from infonav_gym.multi.team_scenario import TeamAccessors, TeamScenario, TeamState
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
@@ -36,12 +31,10 @@ from infonav_gym.world.visibility import StaticGeometry
 
 @dataclass
 class LocalizationState(TeamState):
-    """``TeamState`` and what each copy's last step brought: each robot's executed action (N, R) (``NO_OBSERVATION``
-    for none), whether it was masked (N, R), the MI on its own pose and the team's (N, R) [nats], its standard
-    deviations right after the relative updates (N, R, 3), and copy 0's observed (observer, target) pairs."""
+    """``TeamState`` and what each copy's last step brought: each robot's MI on its own pose and the team's (N, R)
+    [nats], its standard deviations right after the relative updates (N, R, 3), and copy 0's observed (observer,
+    target) pairs."""
 
-    chosen: np.ndarray = None
-    invalid: np.ndarray = None
     own_mi: np.ndarray = None
     team_mi: np.ndarray = None
     pose_std_after: np.ndarray = None
@@ -97,7 +90,6 @@ class CooperativeLocalization(TeamScenario):
         for copy, rng in zip(rows.tolist(), rngs):
             scenario, poses, covariances, *generators = start_episode(self.config, rng, self.owner)
             self.start_copy(state, copy, scenario, poses, covariances, generators)
-            state.geometries[copy] = StaticGeometry.from_scenario(scenario, state.worlds.wall_thickness_m)
         state.geometry = StaticGeometry.stack(state.geometries)
         self.started(state, rows)
         state.chosen[rows], state.invalid[rows] = NO_OBSERVATION, False
@@ -108,10 +100,7 @@ class CooperativeLocalization(TeamScenario):
 
     def decision(self, state: LocalizationState, rows) -> TeamDecision:
         """The observable pairs of the copies ``rows``, the candidates' models and expected gains at their priors."""
-        geometry = (
-            state.geometry if isinstance(rows, slice) else StaticGeometry.stack([state.geometries[row] for row in rows])
-        )
-        pair_geometry, valid = observable_pairs(self.pairs, geometry, state.worlds.poses[rows])
+        pair_geometry, valid = observable_pairs(self.pairs, self.rows_geometry(state, rows), state.worlds.poses[rows])
         return TeamDecision.at_prior(
             self.pairs, pair_geometry, valid, state.x[rows], state.P[rows], self.config["team_reward"]
         )
@@ -133,8 +122,7 @@ class CooperativeLocalization(TeamScenario):
             dt = self.config["time_step_s"]
             self.predict(state, copies, state.worlds.step(dt, copies), dt)
             self.gps_fixes(state, copies, state.elapsed[copies] + 1)  # the driver counts the step after
-            if copies[0] == 0 and state.paths is not None:
-                state.paths.extend(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
+            self.moved(state, copies)
         return state
 
     def reward(self, decision, action, state: LocalizationState) -> np.ndarray:
@@ -158,53 +146,22 @@ class CooperativeLocalization(TeamScenario):
     def info(self, state: LocalizationState, decision: TeamDecision, rows, stepped) -> dict:
         """The decision's masks and gains, the reward terms, the actions and the robots' estimates (``team_info``)."""
         std = np.where(stepped[:, None, None], state.pose_std_after[rows], decision.pose_std)
-        last = TeamStep(stepped, state.chosen[rows], state.invalid[rows], state.own_mi[rows], state.team_mi[rows], std)
-        time_s = state.elapsed[rows] * self.config["time_step_s"]
-        return team_info(decision, last, state.x[rows], state.worlds.poses[rows], state.gps_available[rows], time_s)
+        terms = {"own_mutual_information": state.own_mi[rows], "team_mutual_information": state.team_mi[rows]}
+        return self.team_info(state, decision, rows, stepped, terms, pose_std_after_update=std)
 
     def frame(self, state: LocalizationState, decision: TeamDecision) -> SceneFrame:
         """Copy 0 drawn: its scenario, every robot (truth, estimate, covariance, paths) and this step's observations."""
-        scenario = state.worlds.scenario(0)
         time_s = state.elapsed[0] * self.config["time_step_s"]
-        return SceneFrame(
-            bounds=scenario.bounds,
-            walls=scenario.walls,
-            obstacles=scenario.obstacles,
-            robots=state.paths.drawings(
-                state.worlds.poses[0], state.x[0], state.P[0], self.agents, state.gps_available[0]
-            ),
-            observations=list(state.observed_pairs),
-            gps_denied_zones=scenario.gps_denied_zones,
-            caption=f"t = {time_s:.1f} s   {len(state.observed_pairs)} relative observations this step",
-        )
+        caption = f"t = {time_s:.1f} s   {len(state.observed_pairs)} relative observations this step"
+        return self.team_frame(state, caption, observations=list(state.observed_pairs))
 
 
 class CooperativeLocalizationVectorEnv(TeamAccessors, Driver, scenario=CooperativeLocalization):
-    """N copies of ``cooperative_localization_v0`` on stacked arrays: the env's one implementation.
+    """N copies of ``cooperative_localization_v0`` (the driver's vector API, autoreset and arguments; spaces,
+    rewards and config keys: ``CooperativeLocalizationEnv``).
 
-    See ``CooperativeLocalizationEnv`` (its N = 1 PettingZoo view) for the spaces, rewards and config keys.
-
-    ## Vector API
-    ``agents`` are the team's robots R; ``single_observation_space`` / ``single_action_space`` one robot's.
-    ``step`` takes one action per copy and robot (N, R) and returns observations (N, R, 10 + 5R), rewards,
-    ``terminated`` and ``truncated`` (N, R). Infos hold the parallel env's per-agent keys as arrays with
-    leading (N, R) (``time_s``: (N,)), each with Gymnasium's ``_key`` mask (N,); ``info["action_mask"]`` is
-    (N, R, R + 1). ``action_masks()`` gives the (N, R, R + 1) bool masks for ``MaskablePPO``.
-
-    ## Autoreset
-    ``metadata["autoreset_mode"]``, chosen by ``autoreset_mode``. ``NEXT_STEP`` (the default, as Gymnasium's
-    ``CartPoleVectorEnv``): the step after a copy's episode ended resets it (its actions are ignored), with
-    rewards 0, not terminated nor truncated, and its reset info (``reward_terms`` masked out). ``SAME_STEP``:
-    the step that ends an episode resets the copy at once and returns its reset observation; the last
-    observation is ``info["final_obs"]`` (an object array (N,) of (R, 10 + 5R) arrays, None for the others) and
-    the last info ``info["final_info"]``, masked by ``info["_final_obs"]`` / ``info["_final_info"]`` (N,).
-    A copy reset this way continues its own generator, as the parallel env's ``reset()`` without a seed does.
-    ``DISABLED``: a copy goes on from its last state until ``reset()`` (what the PettingZoo view steps).
-
-    ## Arguments
-    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name ``"same_step"``) and
-    any key of ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0:
-    the scenario, each robot's truth, estimate, covariance and paths, and this step's relative observations.
+    Observations (N, R, 10 + 5R); rewards, ``terminated``, ``truncated`` (N, R); infos (N, R, ...) (``time_s``
+    (N,)); ``info["action_mask"]`` and ``action_masks()`` (N, R, R + 1).
     """
 
 
