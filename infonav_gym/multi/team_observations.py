@@ -43,13 +43,9 @@ def team_observations(
 
 @kernel
 def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, low, high, out):
-    """``team_observations`` of N teams of R robots into ``out`` (N, R, F) float32 (zeros), clipped to [low, high].
-
-    Robot ``i``'s row: its estimate (x, y, cos, sin of the heading), standard deviations, entropy, DGPS flag and
-    elapsed fraction; then per robot ``j`` (zeros for ``j = i``): may observe, range, cos and sin of the bearing
-    from ``i``'s estimate, ``j``'s position std (hypot of its x, y std); then ``gains`` (B, R, G). Each pair's range
-    and each robot's position std are computed once per team (``hypot(-dx, -dy) = hypot(dx, dy)``).
-    """
+    """``team_observations`` into ``out`` (N, R, F) float32 (zeros), clipped to [low, high]; ``j``'s position std is
+    the hypot of its x, y std. Each pair's range and each robot's position std are computed once per team
+    (``hypot(-dx, -dy) = hypot(dx, dy)``)."""
     n_teams, n_robots = estimates.shape[0], estimates.shape[1]
     teammates_end = OWN_FEATURES + TEAMMATE_FEATURES * n_robots
     ranges, position_std = np.empty((n_robots, n_robots)), np.empty(n_robots)

@@ -37,8 +37,8 @@ class TeamState(State):
     """Every copy's world, noise streams (one ``NoiseStreams`` per sensor generator of an episode, in the order its
     ``start_episode`` spawns them), joint EKF ``x`` (N, 3R) and ``P`` (N, 3R, 3R), which robots have a DGPS fix
     (N, R), its GPS-denied zones (``gps_denied_zones``), each copy's static geometry (``geometries``, stacked in
-    ``geometry``), copy 0's paths (when drawing), and each robot's last executed action and whether it was masked
-    (N, R)."""
+    ``geometry``), copy 0's paths (when drawing), each robot's last executed action and whether it was masked (N, R),
+    and copy 0's observed (observer, target) pairs (drawn)."""
 
     worlds: WorldBatch
     noise: tuple
@@ -52,6 +52,7 @@ class TeamState(State):
     paths: FirstCopyPaths | None = None
     chosen: np.ndarray = None
     invalid: np.ndarray = None
+    observed_pairs: list = None
 
 
 def copy_rows(copies: np.ndarray, n_copies: int):
@@ -60,12 +61,8 @@ def copy_rows(copies: np.ndarray, n_copies: int):
 
 
 class TeamScenario(EnvScenario):
-    """A team scenario of robots with DGPS, odometry and relative-pose sensors: its constants and shared steps.
-
-    Constants set by ``use_team``: ``agents`` (the robots R), ``pairs`` (``SensingPairs``), ``pair_index``, the DGPS
-    schedules, ``gps`` (every receiver's noise), ``odometry``. ``team_info_keys`` are the info keys of the whole team,
-    (N,) arrays; every other key of the parallel env's ``infos[agent]`` is (N, R, ...).
-    """
+    """A team scenario of robots with DGPS, odometry and relative-pose sensors: its constants (``use_team``) and
+    shared steps. ``team_info_keys`` are the infos of the whole team, (N,); the others are (N, R, ...)."""
 
     team = True
     horizon_key = "max_cycles"
@@ -102,23 +99,30 @@ class TeamScenario(EnvScenario):
             "zone_centers": np.zeros((copies, 0, 2)),
             "zone_radii_sq": np.zeros((copies, 0)),
             "geometries": [None] * copies,
+            "chosen": np.full((copies, n_robots), self.traits.noop_action),
+            "invalid": np.zeros((copies, n_robots), dtype=bool),
+            "observed_pairs": [],
         }
 
     @staticmethod
-    def start_copy(state: TeamState, copy: int, scenario, poses, covariances, generators) -> None:
-        """Copy ``copy`` starts an episode of ``scenario``: its world, static geometry, sensor streams and joint EKF
-        prior."""
+    def start_copy(state: TeamState, copy: int, scenario, poses, covariances, *generators):
+        """Copy ``copy`` starts an episode of ``scenario`` (``start_episode``'s): its world, static geometry, sensor
+        streams and joint EKF prior; returns ``scenario``."""
         state.worlds.reset_copy(copy, scenario)
         state.geometries[copy] = StaticGeometry.from_scenario(scenario, state.worlds.wall_thickness_m)
         for streams, generator in zip(state.noise, generators):
             streams.restart(copy, generator)
         state.x[copy], state.P[copy] = poses.ravel(), block_diagonal(covariances)
+        return scenario
 
     def started(self, state: TeamState, copies: np.ndarray) -> None:
-        """``copies`` have started their episodes (``start_copy``): their DGPS zones and first fixes; copy 0's paths
-        start anew when drawing."""
+        """``copies`` have started their episodes (``start_copy``): their DGPS zones and first fixes, no action yet;
+        copy 0's paths and observations start anew."""
         state.zone_centers, state.zone_radii_sq = gps_denied_zones(state.worlds)
         self.gps_fixes(state, copies, state.elapsed[copies])
+        state.chosen[copies], state.invalid[copies] = self.traits.noop_action, False
+        if copies[0] == 0:
+            state.observed_pairs = []
         if copies[0] == 0 and self.drawing:
             state.paths = FirstCopyPaths(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
 
@@ -280,15 +284,11 @@ def gps_denied_zones(worlds: WorldBatch) -> tuple[np.ndarray, np.ndarray]:
 def relative_updates(
     x, P, chosen, pair_index, targets, parameters, geometry, predicted, H_o, H_t, R, log_det, noise, cross
 ):
-    """``JointEKF.relative_pose_update`` of n copies with their robots' teammate choices, and what it brought.
-
-    Robot k of copy c observes pair ``pair_index[k, chosen[c, k]]`` (-1: none): its true relative pose ``geometry``
-    plus the sensor's noise (``relative_poses_with_noise`` of its ``parameters`` and the standard normals ``noise[c,
-    k]``), fused at the prior's ``predicted``, ``H_o``, ``H_t`` and ``R`` in slot order (``kalman_updates``). Returns
-    ``(x, P, joint_mi (n,), own_mi (n, R), pose_std (n, R, 3))``: the MI on the joint state and on each robot's pose
-    (prior: ``log_det`` (n, R)) [nats], NaN where a determinant is not > 0, and each robot's std after. A copy
-    without observations keeps its x and P: MI 0 (its joint log-determinants are not computed).
-    """
+    """``JointEKF.relative_pose_update`` of n copies: robot k of copy c observes pair ``pair_index[k, chosen[c, k]]``
+    (-1: none), its true relative pose ``geometry`` plus the sensor's noise (of its ``parameters`` and standard normals
+    ``noise[c, k]``), fused at the prior's models in slot order (``kalman_updates``). Returns ``(x, P, joint_mi (n,),
+    own_mi (n, R), pose_std (n, R, 3))``: the MI [nats] on the joint state and each robot's pose (prior: ``log_det``),
+    NaN where a determinant is not > 0, and each robot's std after; a copy without observations keeps x, P: MI 0."""
     n_copies, n = x.shape
     n_robots = chosen.shape[1]
     residuals, slot_R = np.zeros((n_copies, n_robots, POSE_DIM)), np.zeros((n_copies, n_robots, POSE_DIM, POSE_DIM))

@@ -1,8 +1,6 @@
 """What ``CooperativeExplorationVectorEnv`` sees and decides, on (N, R, ...) arrays: sight, decision, landmark gains.
 
-N copies of a team of R robots, each copy with L landmarks (N, L, 2) and a map of G cells (N, G). An action is
-observation slot ``a // 5`` (0 none, ``1 + j`` landmark j, ``1 + L + j`` robot j) and motion ``a % 5``, so masks
-and gains are (N, R, 1 + L + R, 5) flattened to (N, R, 5 (1 + L + R)).
+An action is observation slot ``a // 5`` (0 none, ``1 + j`` landmark j, ``1 + L + j`` robot j) and motion ``a % 5``.
 """
 
 from __future__ import annotations
@@ -27,19 +25,14 @@ EXPLORATION_INFO_KEYS = frozenset(
 
 
 class TeamSight(NamedTuple):
-    """What a team's sensors see of the landmarks.
-
-    Attributes:
-        sensors: each robot's ``RelativePoseSensor`` or None (R,); its range-bearing part sees landmarks.
-    """
+    """What a team's sensors (each robot's ``RelativePoseSensor`` or None) see of the landmarks: their
+    range-bearing parts."""
 
     sensors: tuple
 
     def visible_landmarks(self, geometry: StaticGeometry, true_poses, landmarks) -> np.ndarray:
-        """Which landmarks (N, L, 2) each robot's sensor sees from its true pose (N, R, 3): (N, R, L) bool.
-
-        In the range-bearing sensor's range and field of view, with a clear line of sight.
-        """
+        """Which landmarks (N, L, 2) each robot's sensor sees from its true pose (N, R, 3), in range and field of
+        view with a clear line of sight: (N, R, L) bool."""
         reach = [(-1.0, -1.0) if s is None else (s.max_range_m, 0.5 * s.range_bearing.fov_rad) for s in self.sensors]
         return landmark_sight(contiguous(true_poses), contiguous(landmarks), np.array(reach), *shape_arrays(geometry))
 

@@ -62,7 +62,7 @@ class ExplorationState(TeamState):
     """``TeamState`` and each copy's landmarks (N, L, 2), terrain map cell variances (N, G) [m^2], coverage (N,),
     sensing budgets (N, R), which robots are lost (N, R), whether it succeeded (N,); what its last step brought: each
     robot's own pose MI (N, R) and the map information (N,) [nats], whether it observed and drove (N, R); and copy
-    0's observed teammates and landmarks (robot, target)."""
+    0's observed landmarks (robot, landmark)."""
 
     landmarks: np.ndarray = None
     map_variances: np.ndarray = None
@@ -74,7 +74,6 @@ class ExplorationState(TeamState):
     map_information: np.ndarray = None
     observed: np.ndarray = None
     driving: np.ndarray = None
-    observed_pairs: list = None
     observed_landmarks: list = None
 
 
@@ -135,16 +134,13 @@ class CooperativeExploration(TeamScenario):
             lost=np.zeros(shape, dtype=bool),
             success=np.zeros(copies, dtype=bool),
             **self.no_step(copies),
-            observed_pairs=[],
             observed_landmarks=[],
         )
 
     def no_step(self, copies: int) -> dict:
-        """The step record of ``copies`` copies that did not step: no action, nothing brought."""
+        """What ``copies`` copies that did not step brought: nothing."""
         shape = (copies, len(self.agents))
         return {
-            "chosen": np.full(shape, NOOP_ACTION),
-            "invalid": np.zeros(shape, dtype=bool),
             "own_information": np.zeros(shape),
             "map_information": np.zeros(copies),
             "observed": np.zeros(shape, dtype=bool),
@@ -154,9 +150,7 @@ class CooperativeExploration(TeamScenario):
     def initial(self, state: ExplorationState, rows: np.ndarray, rngs: list) -> ExplorationState:
         """Draw each copy's field, landmarks and joint prior (``start_episode``), then its first DGPS fixes."""
         for copy, rng in zip(rows.tolist(), rngs):
-            scenario, poses, covariances, *generators = start_episode(self.config, rng)
-            self.start_copy(state, copy, scenario, poses, covariances, generators)
-            state.landmarks[copy] = scenario.landmarks
+            state.landmarks[copy] = self.start_copy(state, copy, *start_episode(self.config, rng)).landmarks
         geometry = StaticGeometry.stack([state.geometries[copy] for copy in rows.tolist()])
         state.geometry = geometry if len(rows) == len(state.elapsed) else state.geometry.with_copies(rows, geometry)
         state.map_variances[rows] = self.parts.map_model.prior_variances()
@@ -167,7 +161,7 @@ class CooperativeExploration(TeamScenario):
         for key, value in self.no_step(len(rows)).items():
             getattr(state, key)[rows] = value
         if rows[0] == 0:
-            state.observed_pairs, state.observed_landmarks = [], []
+            state.observed_landmarks = []
         return state
 
     def decision(self, state: ExplorationState, rows) -> ExplorationDecision:
@@ -206,8 +200,7 @@ class CooperativeExploration(TeamScenario):
         cfg = self.config
         state.chosen, state.invalid = np.where(action >= 0, action, NOOP_ACTION), acting[:, None] & (action < 0)
         for key, value in self.no_step(len(acting)).items():
-            if key not in ("chosen", "invalid"):
-                setattr(state, key, value)
+            setattr(state, key, value)
         copies = np.flatnonzero(acting)
         if not copies.size:
             return state
@@ -396,44 +389,10 @@ class CooperativeExplorationVectorEnv(TeamAccessors, Driver, scenario=Cooperativ
         """The team's sensors, speeds and map model (``ExplorationParts``), as the config gives them."""
         return self.env_scenario.parts
 
-    def static_geometry(self, copy: int = 0) -> StaticGeometry:
-        """The walls and obstacles of copy ``copy``'s episode (one copy)."""
-        return self.state.geometries[copy]
-
-    @property
-    def robot_radius_m(self) -> float:
-        """The radius of every robot's disc [m]."""
-        return self.state.worlds.robot_radius_m
-
     @property
     def map_variances(self) -> np.ndarray:
         """Every copy's terrain map cell variances (N, G) [m^2] (a copy)."""
         return self.state.map_variances.copy()
-
-    @property
-    def elapsed_steps(self) -> np.ndarray:
-        """Every copy's steps since its reset (N,) (a copy)."""
-        return self.state.elapsed.copy()
-
-    def gps_available(self, copies: np.ndarray, positions: np.ndarray, time_s) -> np.ndarray:
-        """Which robots at ``positions`` (n, R, 2) [m] in ``copies`` (n,) would have a DGPS fix at ``time_s`` (n,) [s]
-        (``TeamScenario.gps_available``)."""
-        return self.env_scenario.gps_available(self.state, copies, positions, time_s)
-
-    def copy_state(self, copy: int) -> tuple:
-        """Copy ``copy``'s estimator state at its current decision, for its planning model (copies): the joint EKF
-        ``x`` (3R,) and ``P`` (3R, 3R), the map's cell variances (G,) [m^2], each robot's budget left (R,), and
-        whether its episode has ended (a robot lost, the coverage target reached, or out of time).
-
-        Raises:
-            RuntimeError: before the first ``reset()``.
-        """
-        if self.decision is None:
-            raise RuntimeError(f"{self.owner_name}: call reset() before copy_state() (a planning model's belief())")
-        state = self.state
-        done = state.lost[copy].any() or state.success[copy] or state.elapsed[copy] >= self.max_cycles
-        arrays = (state.x, state.P, state.map_variances, state.observations_left)
-        return (*(array[copy].copy() for array in arrays), bool(done))
 
     def planning_model(self, copy: int = 0) -> ExplorationPlanningModel:
         """The planning model of copy ``copy`` (the same object on every call), for look-ahead agents
@@ -448,101 +407,90 @@ class CooperativeExplorationEnv(ParallelEnvView, vector_env=CooperativeExplorati
     """A heterogeneous team maps a field; each robot chooses where to drive and what to observe, together.
 
     ## Description
-    The paper's Section III-C, distributed heterogeneous multirobot exploration. The team
-    starts at a base in one corner of a square Pymunk field (``exploration_field``) with
-    round obstacles, GPS-denied canopy zones and a few landmarks, and must map the terrain:
-    a grid of cells whose heights are Gaussian estimates (``terrain_map``). A robot that
-    drives scans the cells around it; a position error ``sigma`` puts heights at the wrong
-    place, so a scan's height noise grows as ``scan_std_m^2 + (terrain_slope * sigma)^2``:
-    a badly localized robot maps poorly. A ``JointEKF`` over all poses fuses odometry, DGPS
-    fixes (robots with DGPS, outside the canopies) and the observations the agents choose:
-    a known landmark (range-bearing) or a teammate (relative pose, which correlates the two).
+    The paper's Section III-C, distributed heterogeneous multirobot exploration. The team starts at a base in one
+    corner of a square Pymunk field (``exploration_field``) with round obstacles, GPS-denied canopy zones and a few
+    landmarks, and must map the terrain: a grid of cells whose heights are Gaussian estimates (``terrain_map``). A
+    robot that drives scans the cells around it; a position error ``sigma`` puts heights at the wrong place, so a
+    scan's height noise grows as ``scan_std_m^2 + (terrain_slope * sigma)^2``: a badly localized robot maps poorly.
+    A ``JointEKF`` over all poses fuses odometry, DGPS fixes (robots with DGPS, outside the canopies) and the
+    observations the agents choose: a known landmark (range-bearing) or a teammate (relative pose, which correlates
+    the two).
 
-    Why a myopic agent fails: the robots without DGPS drift on odometry alone and stay
-    localized only while a landmark or a well-localized teammate is within their sensor's
-    short range. The unmapped cells lie far from both, so the action with the most immediate
-    information (drive to fresh cells, observe whatever is in sight) leads the GPS-less
-    robots away from every reference; their position std then crosses
-    ``max_position_std_m`` and the team fails. Succeeding needs plans over several steps:
-    scouts that cover far cells while returning near a teammate or a landmark in time, DGPS
-    robots that escort them and leave the canopies, and a budget kept for when it matters.
+    Why a myopic agent fails: the robots without DGPS drift on odometry alone and stay localized only while a
+    landmark or a well-localized teammate is within their sensor's short range. The unmapped cells lie far from
+    both, so the action with the most immediate information (drive to fresh cells, observe whatever is in sight)
+    leads the GPS-less robots away from every reference; their position std then crosses ``max_position_std_m`` and
+    the team fails. Succeeding needs plans over several steps: scouts that cover far cells while returning near a
+    teammate or a landmark in time, DGPS robots that escort them and leave the canopies, and a budget kept for when
+    it matters.
 
     ## Agents
-    ``robot_0 .. robot_{N-1}`` (default 4). Suites from ``robot_sensors`` (default: suite
-    ``k % 4`` of ``gps+laser, gps+laser, laser, vision``; odometry always), speeds from
-    ``robot_speeds_mps`` (default ``0.8, 0.8, 1.2, 1.2`` m/s: the DGPS robots are slower).
-    The laser sees all around up to ``laser_range_m``, the camera a 60 deg field of view up
-    to ``vision_range_m``; a robot observes landmarks and teammates with its one sensor.
+    ``robot_0 .. robot_{N-1}`` (default 4). Suites from ``robot_sensors`` (default: suite ``k % 4`` of ``gps+laser,
+    gps+laser, laser, vision``; odometry always), speeds from ``robot_speeds_mps`` (default ``0.8, 0.8, 1.2, 1.2``
+    m/s: the DGPS robots are slower). The laser sees all around up to ``laser_range_m``, the camera a 60 deg field
+    of view up to ``vision_range_m``; a robot observes landmarks and teammates with its one sensor.
 
     ## Action Space
-    ``Discrete(5 * (1 + L + N))`` per agent, ``L = n_landmarks``: action ``a`` is slot
-    ``a // 5`` and motion ``a % 5``. Slots: 0 observe nothing, ``1 + j`` landmark ``j``,
-    ``1 + L + j`` ``robot_j``. A motion (``stay``, ``east``, ``north``, ``west``, ``south``)
-    turns the robot on the spot for ``turn_time_s`` until its heading *estimated at the decision* is the
-    compass heading, then drives it straight at its speed for the rest of the step (``stay`` does neither);
-    Pymunk executes both phases, and both are exact unicycle motions for the EKF. A motion is valid while its
-    true path keeps ``clearance.CLEARANCE_M`` (5 cm) from walls, obstacles and wherever a teammate's motions can take it
-    (``world.clearance``): no contact ever pushes a robot unseen by its odometry. An observation is valid while the
-    target is in range and field of view with a clear line of sight and the robot has budget
-    left (``max_observations``); every observation goes with every valid motion, and action 0 (stay,
-    observe nothing) is always valid. A masked
-    action is action 0 (``invalid_action="noop"``) or raises ``ValueError`` (``"raise"``).
+    ``Discrete(5 * (1 + L + N))`` per agent, ``L = n_landmarks``: action ``a`` is slot ``a // 5`` and motion ``a %
+    5``. Slots: 0 observe nothing, ``1 + j`` landmark ``j``, ``1 + L + j`` ``robot_j``. A motion (``stay``,
+    ``east``, ``north``, ``west``, ``south``) turns the robot on the spot for ``turn_time_s`` until its heading
+    *estimated at the decision* is the compass heading, then drives it straight at its speed for the rest of the
+    step (``stay`` does neither); Pymunk executes both phases, and both are exact unicycle motions for the EKF. A
+    motion is valid while its true path keeps ``clearance.CLEARANCE_M`` (5 cm) from walls, obstacles and wherever a
+    teammate's motions can take it (``world.clearance``): no contact ever pushes a robot unseen by its odometry. An
+    observation is valid while the target is in range and field of view with a clear line of sight and the robot has
+    budget left (``max_observations``); every observation goes with every valid motion, and action 0 (stay, observe
+    nothing) is always valid. A masked action is action 0 (``invalid_action="noop"``) or raises ``ValueError``
+    (``"raise"``).
 
     ## Observation Space
-    ``Box(float32, (10 + 5 N + 4 L + 3 + G,))``, ``G = map_cells_per_side^2``: the 10 own and
-    5 per-robot features of ``cooperative_localization_v0``; per landmark: whether observing
-    it is valid, its estimated range [m], ``cos, sin`` of its estimated bearing; the robot's
-    speed [m/s], its budget left (fraction), the team's coverage; per cell (row-major from the
-    lower left corner) the height std left, as a fraction of ``map_prior_std_m``. With
-    ``observe_gains=True`` (off by default), ``5 (1 + L + N)`` more: ``action_information_gain`` of each
-    action, the immediate expected gains the greedy agent ranks and the planner starts its search from.
+    ``Box(float32, (10 + 5 N + 4 L + 3 + G,))``, ``G = map_cells_per_side^2``: the 10 own and 5 per-robot features
+    of ``cooperative_localization_v0``; per landmark: whether observing it is valid, its estimated range [m], ``cos,
+    sin`` of its estimated bearing; the robot's speed [m/s], its budget left (fraction), the team's coverage; per
+    cell (row-major from the lower left corner) the height std left, as a fraction of ``map_prior_std_m``. With
+    ``observe_gains=True`` (off by default), ``5 (1 + L + N)`` more: ``action_information_gain`` of each action, the
+    immediate expected gains the greedy agent ranks and the planner starts its search from.
 
     ## Rewards
-    ``(1 - team_reward) * own_pose_information + team_reward * team_map_information`` plus
-    the costs, with ``info["reward_terms"]``: ``own_pose_information``, the realized MI of
-    the step's observations on the robot's own pose [nats]; ``team_map_information``, the map
-    entropy reduction of every robot's scans this step [nats]; ``sensing_cost``
-    ``-observation_cost_nats`` per observation; ``motion_cost`` ``-motion_cost_per_step`` per
-    step driven; ``lost_penalty`` ``-lost_penalty`` for every robot when one is lost.
-    ``info["action_information_gain"][a]`` is the immediate expected information of ``a``:
-    ``(1 - team_reward)`` times the MI its observation alone brings to the robot's pose at the
-    prior, plus ``team_reward`` times the map information its scan alone would bring, from the
-    position the motion predicts, at the robot's current position std (0 where masked).
-    A scan is taken only after driving forward: standing or turning in place sees the same
+    ``(1 - team_reward) * own_pose_information + team_reward * team_map_information`` plus the costs, with
+    ``info["reward_terms"]``: ``own_pose_information``, the realized MI of the step's observations on the robot's
+    own pose [nats]; ``team_map_information``, the map entropy reduction of every robot's scans this step [nats];
+    ``sensing_cost`` ``-observation_cost_nats`` per observation; ``motion_cost`` ``-motion_cost_per_step`` per step
+    driven; ``lost_penalty`` ``-lost_penalty`` for every robot when one is lost.
+    ``info["action_information_gain"][a]`` is the immediate expected information of ``a``: ``(1 - team_reward)``
+    times the MI its observation alone brings to the robot's pose at the prior, plus ``team_reward`` times the map
+    information its scan alone would bring, from the position the motion predicts, at the robot's current position
+    std (0 where masked). A scan is taken only after driving forward: standing or turning in place sees the same
     view again, with the same errors, so it brings nothing new (action 0 has gain 0).
 
     ## Info
-    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain``, ``reward_terms``,
-    ``chosen_action``, ``invalid_action``, ``gps_available``, ``pose_std``, ``position_std_m``
-    (largest, at the decision), ``pose_entropy``, ``position_error_m``, ``heading_error_rad``,
-    ``true_pose``, ``estimated_pose``, ``time_s``, ``observations_left``, ``coverage``
-    (team), ``lost`` (this robot), ``failed`` and ``success`` (the team).
+    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain``, ``reward_terms``, ``chosen_action``,
+    ``invalid_action``, ``gps_available``, ``pose_std``, ``position_std_m`` (largest, at the decision),
+    ``pose_entropy``, ``position_error_m``, ``heading_error_rad``, ``true_pose``, ``estimated_pose``, ``time_s``,
+    ``observations_left``, ``coverage`` (team), ``lost`` (this robot), ``failed`` and ``success`` (the team).
 
     ## Starting State
-    Parked at the base, facing the field's centre; estimates drawn from
-    ``N(true pose, diag(initial_position_std_m^2, ..., initial_heading_std_rad^2))``; the map
-    at its prior (std ``map_prior_std_m`` in every cell).
+    Parked at the base, facing the field's centre; estimates drawn from ``N(true pose,
+    diag(initial_position_std_m^2, ..., initial_heading_std_rad^2))``; the map at its prior (std ``map_prior_std_m``
+    in every cell).
 
     ## Episode End
-    Terminated for all agents when a robot's largest position std exceeds
-    ``max_position_std_m`` (it is lost: ``failed``), or when the coverage reaches
-    ``coverage_target`` (``success``); truncated after ``max_cycles`` steps (no success).
+    Terminated for all agents when a robot's largest position std exceeds ``max_position_std_m`` (it is lost:
+    ``failed``), or when the coverage reaches ``coverage_target`` (``success``); truncated after ``max_cycles``
+    steps (no success).
 
     ## Planning model
-    ``planning_model()`` returns the model look-ahead agents search (``ExplorationPlanningModel`` of the
-    env's one copy, ``multi.exploration_planning``): ``belief()`` copies the joint EKF state, the map and the
-    budgets, ``plan_decision(belief, robot)`` and ``plan_step(belief, team_actions)`` step copies of it under
-    the expected measurements with the env's own batched functions, never reading the true state
-    (``agents.planner.PlannerAgent(env, robot)``).
+    ``planning_model()`` is the model look-ahead agents search (``ExplorationPlanningModel``,
+    ``agents.planner.PlannerAgent(env, robot)``): ``belief()`` copies the joint EKF state, the map and the budgets,
+    ``plan_decision(belief, robot)`` and ``plan_step(belief, team_actions)`` step them under the expected
+    measurements with the env's own functions, never reading the true state.
 
     ## Arguments
-    ``parallel_env(render_mode=None, **config)`` with any key of ``default_config()``; an
-    unknown key or a bad value raises ``ValueError`` naming it. The env is the N = 1 view of
-    ``CooperativeExplorationVectorEnv`` (its one implementation, ``self.vector``: ``scenario(0)``,
-    ``true_poses``, ``joint_state()``, ``map_variances``, ``copy_state(0)``).
+    ``parallel_env(render_mode=None, **config)`` with any key of ``default_config()``; an unknown key or a bad value
+    raises ``ValueError`` naming it. The env is the N = 1 view of ``CooperativeExplorationVectorEnv`` (its one
+    implementation, ``self.vector``: ``scenario(0)``, ``true_poses``, ``joint_state()``, ``map_variances``).
 
     ## Version History
-    * v0: initial version (issue 18). Motions masked clear of contacts, and the planning model, added before
-      any results were committed; the N = 1 view of the vector env since the one-implementation refactor
-      (same numbers).
+    * v0: initial version (issue 18). Motions masked clear of contacts, and the planning model, added before any
+      results were committed; the N = 1 view of the vector env since the one-implementation refactor (same numbers).
     """
