@@ -104,11 +104,8 @@ def parse_speeds(spec, defaults: Sequence[float], n_robots: int, high_mps: float
 
 
 def gps_receivers(config: dict, suites: Sequence[RobotSuite], owner: str) -> list[GPSSensor | None]:
-    """Each robot's ``GPSSensor`` (``gps_std_m``, its ``gps_outages`` spans), None for a robot without DGPS.
-
-    Raises:
-        ValueError: naming ``owner`` and the key, for bad ``gps_outages`` or ``gps_std_m``.
-    """
+    """Each robot's ``GPSSensor`` (``gps_std_m``, its ``gps_outages`` spans), None for a robot without DGPS
+    (``ValueError`` naming ``owner`` and the key, for bad ``gps_outages`` or ``gps_std_m``)."""
     outages = parse_outages(config["gps_outages"], len(suites))
     with config_keys(owner, {"position_std_m": "gps_std_m"}):
         return [GPSSensor(config["gps_std_m"], spans) if suite.gps else None for suite, spans in zip(suites, outages)]

@@ -1,8 +1,5 @@
-"""A team's relative-pose decision on (N, R, ...) arrays: what both team envs build theirs from.
-
-N copies of a team of R robots; every copy has the same P (observer, target) pairs (``SensingPairs``), so the
-candidates of all copies stack as (N, P, ...). A pair that is not observable now is masked out.
-"""
+"""A team's relative-pose decision on (N, R, ...) arrays: every copy has the same P pairs (``SensingPairs``), so the
+candidates of all copies stack as (N, P, ...); a pair that is not observable now is masked out."""
 
 from __future__ import annotations
 
@@ -50,11 +47,8 @@ class TeamDecision(NamedTuple):
 
 
 def observable_pairs(pairs: SensingPairs, geometry: StaticGeometry, true_poses) -> tuple[np.ndarray, np.ndarray]:
-    """Every pair's true range, bearing and relative heading (N, P, 3) and which are observable now (N, P) bool.
-
-    Observable: the target lies in the observer's range and field of view, and walls and obstacles (``geometry``, N
-    copies) leave the line of sight clear; a sight line is tested once, and only where a covered pair needs it.
-    """
+    """Every pair's true range, bearing and relative heading (N, P, 3) and which are observable now (N, P) bool: in
+    the observer's range and field of view, the line of sight clear of ``geometry`` (tested once, where needed)."""
     lines = pairs.observers, pairs.targets, pairs.max_range_m, pairs.half_fov_rad, pairs.sight_line, pairs.sight_lines
     return pair_sight(contiguous(true_poses), *lines, *shape_arrays(geometry))
 

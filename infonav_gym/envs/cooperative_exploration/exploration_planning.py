@@ -47,19 +47,14 @@ def motion_phases(turns, speeds, config: dict) -> tuple:
     )
 
 
-def drive_displacements(headings, speeds, drive_s: float) -> np.ndarray:
-    """Where a drive phase of ``drive_s`` [s] at ``speeds`` [m/s] along ``headings`` [rad] takes a robot (..., 2)."""
-    reach = drive_s * speeds
-    return reach[..., None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
-
-
 def clear_motions(geometry, poses, headings, speeds_mps, drive_s: float, robot_radius_m: float) -> np.ndarray:
     """Which motions each robot may take (N, R, 5): after its turn (planned at the estimated ``headings``), its drive
     from ``poses`` (N, R, 3) for ``drive_s`` [s] at its speed (R,) [m/s] keeps ``world.clearance.clear_moves``'
     ``CLEARANCE_M`` from ``geometry`` and wherever a teammate's motions take it. From the true poses (the env's
     masks) no contact ever pushes a robot unseen by its odometry; from the estimates it is the belief's guess."""
     turns, speeds = motion_plan(np.arange(N_MOTIONS), headings[..., None], speeds_mps[:, None])
-    displacements = drive_displacements(poses[..., 2:3] + turns, speeds, drive_s)
+    headings, reach = poses[..., 2:3] + turns, drive_s * speeds
+    displacements = reach[..., None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
     return clear_moves(geometry, poses[..., :2], displacements, robot_radius_m)
 
 
@@ -272,20 +267,15 @@ class ExplorationPlanningModel:
         )
         return following, np.where(live[:, None], rewards, 0.0)
 
-    # ------------------------------------------------------------------ the model's parts
-
     def _belief(self, x, covariance, map_variances, observations_left, steps, done) -> TeamBelief:
         """A ``TeamBelief`` with what each robot would see judged from the estimates ``x`` (B, 3R)."""
         B, n_landmarks = len(x), self.config["n_landmarks"]
         poses = x.reshape(B, -1, POSE_DIM)
         landmarks = np.broadcast_to(self._landmarks(), (B, n_landmarks, 2))
-        landmark_visible = self._sight.visible_landmarks(self._tiled_geometry(B), poses, landmarks)
-        pairs = self._parts.pairs
-        pair_visible = observable_pairs(pairs, self._tiled_geometry(B), poses)[1]
-        radius_m = self._env.state.worlds.robot_radius_m
-        motion_clear = clear_motions(
-            self._tiled_geometry(B), poses, poses[..., 2], self._parts.speeds_mps, self._drive_s, radius_m
-        )
+        geometry, radius_m = self._tiled_geometry(B), self._env.state.worlds.robot_radius_m
+        landmark_visible = self._sight.visible_landmarks(geometry, poses, landmarks)
+        pair_visible = observable_pairs(self._parts.pairs, geometry, poses)[1]
+        motion_clear = clear_motions(geometry, poses, poses[..., 2], self._parts.speeds_mps, self._drive_s, radius_m)
         return TeamBelief(
             x, covariance, map_variances, observations_left, steps, done, landmark_visible, pair_visible, motion_clear
         )

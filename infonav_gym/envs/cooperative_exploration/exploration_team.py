@@ -115,12 +115,8 @@ class ExplorationParts(NamedTuple):
 
     @classmethod
     def of_config(cls, config: dict, owner: str) -> ExplorationParts:
-        """Check the keys of a merged config and build the team and its map.
-
-        Raises:
-            ValueError: naming ``owner`` and the key, for a number outside its interval or not above its floor
-                (``FLOORS``), a bad field argument, sensor suite, speed or outage.
-        """
+        """Check the keys of a merged config and build the team and its map (``ValueError`` naming ``owner`` and the
+        key, for a number outside its interval or not above its floor, a bad field argument, suite, speed or outage)."""
         check_config(config, owner, CONFIG_INTERVALS)
         check_config_arguments(config, owner, "exploration_field", EXPLORATION_FIELD_ARGUMENTS, SCENARIO_KEYS)
         for key, floor in FLOORS:

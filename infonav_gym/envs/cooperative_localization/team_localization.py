@@ -79,12 +79,8 @@ class TeamParts(NamedTuple):
 
     @classmethod
     def of_config(cls, config: dict, owner: str) -> TeamParts:
-        """Check the team keys of a merged config and build the team's sensors.
-
-        Raises:
-            ValueError: naming ``owner`` and the key, for a bad scenario, estimator, number, sensor suite, outage
-                or a team that does not fit in its field.
-        """
+        """Check the team keys of a merged config and build the team's sensors (``ValueError`` naming ``owner`` and
+        the key, for a bad scenario, estimator, number, sensor suite, outage or a team that does not fit its field)."""
         check_choice(config, "scenario", scenario_names(team=True), owner)
         check_choice(config, "estimator", ESTIMATORS, owner)
         check_config(config, owner, CONFIG_INTERVALS)
