@@ -1,12 +1,7 @@
-"""``ParallelEnvView``: the PettingZoo ``ParallelEnv`` of a team env written once on batched arrays, as its N = 1 view.
+"""``ParallelEnvView``: the PettingZoo ``ParallelEnv`` of a team env, the driver at N = 1 without autoreset.
 
-A team env is a scenario (``EnvScenario.team``) run by the one driver (``envs.driver.Driver``); its PettingZoo env is
-that driver with one copy, without autoreset: ``class MyTeamEnv(ParallelEnvView, vector_env=MyTeamVectorEnv)``. The view
-takes one action per live agent, hands them on as a batch of one, and returns row 0 of every output as dicts per agent
-(the infos' numbers as Python scalars where they are one number). All agents end together and leave ``agents`` then
-(PettingZoo's semantics); ``reset()`` starts again. So ``parallel_env()`` after ``reset(seed=s)`` gives exactly the
-numbers of copy ``i`` of the vector env after ``reset(seed=s - i)``: there is nothing else to keep equal. A team env's
-``metadata`` comes from ``team_metadata``, its versioned module's entry points from ``pettingzoo_entry_points``.
+``class MyTeamEnv(ParallelEnvView, vector_env=MyTeamVectorEnv)``: row 0 of every output as dicts per agent (one-number
+infos as Python scalars). All agents end together and leave ``agents`` then (PettingZoo's semantics).
 """
 
 from __future__ import annotations
@@ -28,14 +23,10 @@ def team_metadata(name: str) -> dict:
 
 
 def pettingzoo_entry_points(env_class) -> tuple:
-    """The versioned module's ``(parallel_env, raw_env, env)`` of a team env class, as PettingZoo's envs have them.
-
-    ``parallel_env(render_mode=None, **config)`` is the env itself; ``raw_env`` its AEC conversion; ``env``
-    the AEC env with PettingZoo's order-enforcing wrapper (the one to use for turn-based code).
-    """
+    """The versioned module's ``(parallel_env, raw_env, env)`` of a team env class, as PettingZoo's envs have them."""
 
     def parallel_env(render_mode: str | None = None, **config):
-        """The parallel env: every robot acts at every step."""
+        """The parallel env (``**config``: any key of ``default_config()``): every robot acts at every step."""
         return env_class(render_mode=render_mode, **config)
 
     def raw_env(render_mode: str | None = None, **config) -> TeamAECEnv:
@@ -43,7 +34,7 @@ def pettingzoo_entry_points(env_class) -> tuple:
         return TeamAECEnv(parallel_env(render_mode=render_mode, **config))
 
     def env(render_mode: str | None = None, **config) -> OrderEnforcingWrapper:
-        """The AEC env, wrapped to enforce PettingZoo's call order."""
+        """The AEC env with PettingZoo's order-enforcing wrapper (the one for turn-based code)."""
         return OrderEnforcingWrapper(raw_env(render_mode=render_mode, **config))
 
     return parallel_env, raw_env, env
@@ -68,12 +59,8 @@ def first_copy_infos(info: dict, agents: list[str], team_keys) -> dict:
 
 
 class ParallelEnvView(OneCopyView, ParallelEnv):
-    """One copy of ``vector_env`` as a PettingZoo ``ParallelEnv``: its config keys, spaces, metrics, traits and
-    rendering; every live agent acts at every step.
-
-    ``vector`` is the underlying vector env of one copy (its state: ``vector.scenario(0)``, ``vector.true_poses``...).
-    When the vector env has a ``planning_model(copy)``, the view has ``planning_model()``: that of its copy.
-    """
+    """One copy of ``vector_env`` (``vector``) as a PettingZoo ``ParallelEnv``; with the vector env's
+    ``planning_model(copy)``, ``planning_model()`` is that of its copy."""
 
     vector_env: type[Driver]
     metadata_keys = ("name", "render_modes", "render_fps", "is_parallelizable")
@@ -136,11 +123,8 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
         return outputs
 
     def checked_action(self, agent: str, action) -> int:
-        """``agent``'s action as an int, checked against its space and, with ``invalid_action="raise"``, its mask.
-
-        Raises:
-            ValueError: naming ``agent`` and its allowed range, or its mask (see ``accepts_action``).
-        """
+        """``agent``'s action as an int, checked against its space and, with ``invalid_action="raise"``, its mask
+        (``ValueError`` naming ``agent``, see ``accepts_action``)."""
         index = discrete_action_index(action, self.action_space(agent), agent)
         mask = self.vector.action_masks()[0, self.possible_agents.index(agent)].astype(np.int8)  # 1 = valid
         accepts_action(index, mask, self.vector.config["invalid_action"], f"infos[{agent!r}]['action_mask']", agent)

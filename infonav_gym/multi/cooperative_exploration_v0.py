@@ -1,9 +1,4 @@
-"""``cooperative_exploration_v0``: the versioned PettingZoo entry points (``pettingzoo_entry_points``).
-
-``parallel_env(**config)`` is the native parallel env; ``raw_env(**config)`` its AEC
-conversion; ``env(**config)`` the AEC env with PettingZoo's order-enforcing wrapper.
-Config keys: ``CooperativeExplorationEnv.default_config()``.
-"""
+"""``cooperative_exploration_v0``: PettingZoo entry points ``parallel_env``, ``raw_env`` (AEC), ``env`` (wrapped)."""
 
 from __future__ import annotations
 

@@ -23,29 +23,20 @@ DEFAULT_OUTAGE = (1, 21.0, 1e9)  # robot_1 loses DGPS at t = 21 s for the rest o
 
 @dataclass(frozen=True)
 class RobotSuite:
-    """What one robot carries besides odometry (which every robot has).
-
-    Attributes:
-        gps: a DGPS receiver.
-        relative_sensor: ``"laser"``, ``"vision"`` or None (it cannot observe teammates).
-    """
+    """What one robot carries besides odometry: a DGPS receiver (``gps``), its ``relative_sensor`` (``"laser"``,
+    ``"vision"`` or None: it cannot observe teammates)."""
 
     gps: bool
     relative_sensor: str | None
 
 
 def parse_suites(spec, n_robots: int, scenario: str) -> tuple[RobotSuite, ...]:
-    """Turn ``robot_sensors`` into one ``RobotSuite`` per robot.
-
-    Args:
-        spec: None for the scenario's default team, else one entry per robot: a
-            sequence of sensor names or a string joining them with ``+`` (``"gps+laser"``).
-        n_robots: size of the team.
-        scenario: scenario name (the convoy has its own default team).
+    """One ``RobotSuite`` per robot from ``robot_sensors``: None for the ``scenario``'s default team (the convoy
+    has its own), else one entry per robot: sensor names or a string joining them with ``+`` (``"gps+laser"``).
 
     Raises:
-        ValueError: for a wrong number of entries, an unknown sensor (listing the
-            known ones) or two relative-pose sensors on one robot.
+        ValueError: for a wrong number of entries, an unknown sensor (listing the known ones) or two relative-pose
+            sensors on one robot.
     """
     if spec is None:
         defaults = CONVOY_SUITES if scenario == "convoy" else DEFAULT_SUITES
@@ -113,11 +104,8 @@ def parse_speeds(spec, defaults: Sequence[float], n_robots: int, high_mps: float
 
 
 def gps_receivers(config: dict, suites: Sequence[RobotSuite], owner: str) -> list[GPSSensor | None]:
-    """Each robot's ``GPSSensor`` (``gps_std_m``, its ``gps_outages`` spans), None for a robot without DGPS.
-
-    Raises:
-        ValueError: naming ``owner`` and the key, for bad ``gps_outages`` or ``gps_std_m``.
-    """
+    """Each robot's ``GPSSensor`` (``gps_std_m``, its ``gps_outages`` spans), None for a robot without DGPS
+    (``ValueError`` naming ``owner`` and the key, for bad ``gps_outages`` or ``gps_std_m``)."""
     outages = parse_outages(config["gps_outages"], len(suites))
     with config_keys(owner, {"position_std_m": "gps_std_m"}):
         return [GPSSensor(config["gps_std_m"], spans) if suite.gps else None for suite, spans in zip(suites, outages)]

@@ -1,8 +1,5 @@
-"""A team's relative-pose decision and info on (N, R, ...) arrays: what both team envs build theirs from.
-
-N copies of a team of R robots; every copy has the same P (observer, target) pairs (``SensingPairs``), so the
-candidates of all copies stack as (N, P, ...). A pair that is not observable now is masked out.
-"""
+"""A team's relative-pose decision on (N, R, ...) arrays: every copy has the same P pairs (``SensingPairs``), so the
+candidates of all copies stack as (N, P, ...); a pair that is not observable now is masked out."""
 
 from __future__ import annotations
 
@@ -14,28 +11,18 @@ import numpy as np
 from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.estimation.kernels import pose_block_log_dets, relative_pose_gains, relative_pose_models
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.geometry import wrap_angle
 from infonav_gym.geometry import wrap_angle_kernel as wrap
-from infonav_gym.information import gaussian_entropy_from_log_det
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, SensingPairs
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
 from infonav_gym.world.visibility_kernels import blocked
 
 
 class TeamDecision(NamedTuple):
-    """Every copy's decision at its joint EKF's prior.
-
-    Attributes:
-        action_mask: int8 (N, R, R + 1): action 0 always, ``1 + j`` where robot ``j`` is observable.
-        action_information_gain: expected reward of each action (N, R, R + 1) [nats], 0 where masked.
-        geometry: true range, bearing and relative heading of every pair (N, P, 3).
-        valid: which pairs are observable now (N, P).
-        predicted: the prior's prediction of every pair's measurement (N, P, 3).
-        H_observer, H_target: its Jacobians (N, P, 3, 3).
-        R: its noise covariances at the predicted range (N, P, 3, 3).
-        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (N, R).
-        pose_std: each robot's x, y, heading standard deviations at the prior (N, R, 3).
-    """
+    """Every copy's decision at its joint EKF's prior: ``action_mask`` int8 (N, R, R + 1) (action 0 always,
+    ``1 + j`` where robot ``j`` is observable) and ``action_information_gain`` (expected reward [nats], 0 where
+    masked); of every pair (N, P, ...): its true range, bearing and relative heading (``geometry``), whether it is
+    observable (``valid``), the prior's prediction of its measurement (``predicted``), its Jacobians and its noise
+    covariance ``R`` at the predicted range; each robot's pose ``ln det`` (N, R) and x, y, heading std (N, R, 3)."""
 
     action_mask: np.ndarray
     action_information_gain: np.ndarray
@@ -50,15 +37,8 @@ class TeamDecision(NamedTuple):
 
     @classmethod
     def at_prior(cls, pairs: SensingPairs, geometry, valid, x, P, team_reward: float) -> TeamDecision:
-        """The decisions of N copies at their priors ``x`` (N, 3R), ``P`` (N, 3R, 3R).
-
-        Args:
-            pairs: the team's (observer, target) pairs.
-            geometry: every pair's true range, bearing and relative heading (N, P, 3) (``observable_pairs``).
-            valid: which pairs are observable now (N, P).
-            x, P: as above.
-            team_reward: the weight of the team's MI in each robot's reward, in [0, 1].
-        """
+        """The decisions of N copies at their priors ``x`` (N, 3R), ``P`` (N, 3R, 3R), of the ``pairs``' true
+        ``geometry`` and ``valid`` (``observable_pairs``); ``team_reward``: the team MI's weight in [0, 1]."""
         *decision, undefined = pair_decisions(x, P, *pairs[:3], valid, float(team_reward))
         if undefined:
             raise ValueError("a pose covariance, or a posterior or innovation covariance, is not positive definite")
@@ -67,11 +47,8 @@ class TeamDecision(NamedTuple):
 
 
 def observable_pairs(pairs: SensingPairs, geometry: StaticGeometry, true_poses) -> tuple[np.ndarray, np.ndarray]:
-    """Every pair's true range, bearing and relative heading (N, P, 3) and which are observable now (N, P) bool.
-
-    Observable: the target lies in the observer's range and field of view, and walls and obstacles (``geometry``, N
-    copies) leave the line of sight clear; a sight line is tested once, and only where a covered pair needs it.
-    """
+    """Every pair's true range, bearing and relative heading (N, P, 3) and which are observable now (N, P) bool: in
+    the observer's range and field of view, the line of sight clear of ``geometry`` (tested once, where needed)."""
     lines = pairs.observers, pairs.targets, pairs.max_range_m, pairs.half_fov_rad, pairs.sight_line, pairs.sight_lines
     return pair_sight(contiguous(true_poses), *lines, *shape_arrays(geometry))
 
@@ -141,80 +118,3 @@ def pair_decisions(x, P, observers, targets, noise, valid, team_reward):
             undefined |= math.isnan(pose_log_det[c, i // POSE_DIM])
     pose_std = pose_std.reshape((n_copies, n_robots, POSE_DIM))
     return mask, gains, predicted, H_observer, H_target, R, pose_log_det, pose_std, undefined
-
-
-class TeamStep(NamedTuple):
-    """What the last reset or step did in each copy, for its info.
-
-    Attributes:
-        stepped: which copies acted (N,) bool; the others were reset and give the reset info.
-        chosen: each robot's executed action (N, R), ``NO_OBSERVATION`` for a masked one and at a reset.
-        invalid: whether each robot's action was masked (N, R) bool.
-        own_mi, team_mi: the MI on each robot's own pose and on the joint state (N, R) [nats].
-        pose_std_after_update: each robot's x, y, heading standard deviations right after the relative
-            updates (N, R, 3) (the prior's where a copy did not step).
-    """
-
-    stepped: np.ndarray
-    chosen: np.ndarray
-    invalid: np.ndarray
-    own_mi: np.ndarray
-    team_mi: np.ndarray
-    pose_std_after_update: np.ndarray
-
-
-def team_info(decision: TeamDecision, last: TeamStep, x, true_poses, gps_available, time_s) -> dict:
-    """The team env's ``infos[agent]`` of every copy and robot as arrays (N, R, ...), each with its ``_key`` mask (N,).
-
-    ``reward_terms`` are masked out (``_own_mutual_information`` False) for the copies that were reset.
-
-    Args:
-        decision: the new decisions.
-        last: what the reset or step did.
-        x: the joint EKF states (N, 3R).
-        true_poses: the true poses (N, R, 3).
-        gps_available: which robots have a DGPS fix now (N, R).
-        time_s: each copy's time (N,) [s].
-    """
-    terms = {"own_mutual_information": last.own_mi, "team_mutual_information": last.team_mi}
-    info = {
-        **team_step_info(decision, last, terms, x, true_poses, gps_available, time_s),
-        "pose_std_after_update": last.pose_std_after_update.copy(),
-    }
-    return with_masks(info)
-
-
-def team_step_info(decision, last, terms: dict, x, true_poses, gps_available, time_s) -> dict:
-    """The info keys every team vector env gives, as arrays (N, R, ...) (``time_s``: (N,)), without ``_key`` masks.
-
-    Args:
-        decision: the new decisions, with ``action_mask``, ``action_information_gain`` (N, R, A),
-            ``pose_log_det`` (N, R) and ``pose_std`` (N, R, 3) at the prior.
-        last: what the reset or step did (``stepped`` (N,), ``chosen`` and ``invalid`` (N, R)).
-        terms: each reward term (N, R) [nats], taken where ``last.stepped`` (0 and masked out elsewhere).
-        x, true_poses, gps_available, time_s: as ``team_info`` takes them.
-    """
-    estimates = x.reshape(true_poses.shape)
-    errors = true_poses - estimates
-    terms = {key: np.where(last.stepped[:, None], value, 0.0) for key, value in terms.items()}
-    return {
-        "action_mask": decision.action_mask.copy(),
-        "action_information_gain": decision.action_information_gain.copy(),
-        "reward_terms": {**terms, **{f"_{key}": last.stepped.copy() for key in terms}},
-        "chosen_action": last.chosen.copy(),
-        "invalid_action": last.invalid.copy(),
-        "gps_available": gps_available.copy(),
-        "position_error_m": np.hypot(errors[..., 0], errors[..., 1]),
-        "heading_error_rad": np.abs(wrap_angle(errors[..., 2])),
-        "pose_entropy": gaussian_entropy_from_log_det(decision.pose_log_det, POSE_DIM),
-        "pose_std": decision.pose_std.copy(),
-        "true_pose": true_poses.copy(),
-        "estimated_pose": estimates.copy(),
-        "time_s": np.asarray(time_s, dtype=float).copy(),
-    }
-
-
-def with_masks(info: dict) -> dict:
-    """``info`` with Gymnasium's ``_key`` mask (N,), all True, beside each key (its arrays lead with N)."""
-    everyone = np.ones(len(info["action_mask"]), dtype=bool)
-    return {**info, **{f"_{key}": everyone for key in info}}

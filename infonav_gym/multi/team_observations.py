@@ -1,5 +1,5 @@
-"""What a robot of a team env observes: its own estimate and uncertainty, and each teammate's range, bearing and
-uncertainty (both team envs build their observations with it)."""
+"""What a robot of a team env observes: its own estimate and uncertainty, each teammate's range, bearing and
+uncertainty."""
 
 from __future__ import annotations
 
@@ -29,21 +29,9 @@ def team_observations(
     estimates, pose_std, pose_log_det, gps_available, elapsed_fraction, teammate_valid, space: spaces.Box, gains=None
 ) -> np.ndarray:
     """Every robot's observation (see ``CooperativeLocalizationEnv``), float32 clipped to ``space``, for N copies of
-    R robots.
-
-    Args:
-        estimates: estimated poses (N, R, 3).
-        pose_std: x, y, heading standard deviations of each robot at the prior (N, R, 3).
-        pose_log_det: ``ln det`` of each robot's pose covariance at the prior (N, R).
-        gps_available: whether each robot has a DGPS fix now (N, R) bool.
-        elapsed_fraction: elapsed fraction of ``max_cycles`` of each copy (N,).
-        teammate_valid: whether each robot may observe each robot now (N, R, R) bool.
-        space: one robot's observation space.
-        gains: each robot's ``action_information_gain`` (N, R, R + 1) to append (``observe_gains``), or None.
-
-    Returns:
-        (N, R, 10 + 5 R), or (N, R, 11 + 6 R) with ``gains``.
-    """
+    R robots: (N, R, 10 + 5 R), or (N, R, 11 + 6 R) with the ``gains`` (``action_information_gain`` (N, R, R + 1)).
+    Of the estimated poses (N, R, 3), each robot's x, y, heading std and pose ``ln det`` at the prior, its DGPS fix
+    (N, R), each copy's elapsed fraction of ``max_cycles`` (N,) and who may observe whom now (N, R, R) bool."""
     n_copies, n_robots = estimates.shape[:2]
     features = np.zeros((n_copies, n_robots, space.shape[0]), dtype=np.float32)
     entropy = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
@@ -55,13 +43,9 @@ def team_observations(
 
 @kernel
 def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, low, high, out):
-    """``team_observations`` of N teams of R robots into ``out`` (N, R, F) float32 (zeros), clipped to [low, high].
-
-    Robot ``i``'s row: its estimate (x, y, cos, sin of the heading), standard deviations, entropy, DGPS flag and
-    elapsed fraction; then per robot ``j`` (zeros for ``j = i``): may observe, range, cos and sin of the bearing
-    from ``i``'s estimate, ``j``'s position std (hypot of its x, y std); then ``gains`` (B, R, G). Each pair's range
-    and each robot's position std are computed once per team (``hypot(-dx, -dy) = hypot(dx, dy)``).
-    """
+    """``team_observations`` into ``out`` (N, R, F) float32 (zeros), clipped to [low, high]; ``j``'s position std is
+    the hypot of its x, y std. Each pair's range and each robot's position std are computed once per team
+    (``hypot(-dx, -dy) = hypot(dx, dy)``)."""
     n_teams, n_robots = estimates.shape[0], estimates.shape[1]
     teammates_end = OWN_FEATURES + TEAMMATE_FEATURES * n_robots
     ranges, position_std = np.empty((n_robots, n_robots)), np.empty(n_robots)

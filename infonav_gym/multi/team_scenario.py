@@ -1,9 +1,7 @@
-"""``TeamScenario`` and ``TeamState``: what the team scenarios share (DGPS fixes, relative poses, odometry).
+"""``TeamScenario`` and ``TeamState``: what the team scenarios share (DGPS fixes, relative poses, odometry, infos).
 
-A team scenario runs N copies of a team of R robots on stacked arrays: one action per copy and robot (N, R), joint EKF
-states ``x`` (N, 3R) and covariances ``P`` (N, 3R, 3R). Its ``__init__`` checks its own keys, then calls ``use_team``
-with its sensors; its ``allocate`` starts from ``team_fields``, its ``initial`` calls ``start_copy`` for each copy and
-then ``started``. The helpers take the state as an argument; the driver (``envs.driver.Driver``) runs the steps.
+A team scenario's ``__init__`` calls ``use_team`` with its sensors; its ``allocate`` starts from ``team_fields``, its
+``initial`` calls ``start_copy`` for each copy and then ``started``.
 """
 
 from __future__ import annotations
@@ -20,12 +18,15 @@ from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
+from infonav_gym.geometry import wrap_angle
 from infonav_gym.geometry import wrap_angle_kernel as wrap
-from infonav_gym.information import log_det_of, mutual_information_kernel
+from infonav_gym.information import gaussian_entropy_from_log_det, log_det_of, mutual_information_kernel
 from infonav_gym.multi.team_paths import FirstCopyPaths
 from infonav_gym.multi.team_sensing import NO_OBSERVATION, gps_available, gps_schedule
+from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.relative_pose import relative_pose_measured
+from infonav_gym.world.visibility import StaticGeometry
 from infonav_gym.world.world_batch import WorldBatch
 
 ODOMETRY_NOISE, GPS_NOISE, RELATIVE_NOISE = 0, 1, 2  # ``noise`` index of each sensor's streams (more may follow)
@@ -35,8 +36,9 @@ ODOMETRY_NOISE, GPS_NOISE, RELATIVE_NOISE = 0, 1, 2  # ``noise`` index of each s
 class TeamState(State):
     """Every copy's world, noise streams (one ``NoiseStreams`` per sensor generator of an episode, in the order its
     ``start_episode`` spawns them), joint EKF ``x`` (N, 3R) and ``P`` (N, 3R, 3R), which robots have a DGPS fix
-    (N, R), its GPS-denied zones (centres (N, Z, 2) [m], squared radii (N, Z) [m^2], -1: padding), each copy's static
-    geometry (``geometries``, stacked in ``geometry``) and copy 0's paths (when drawing)."""
+    (N, R), its GPS-denied zones (``gps_denied_zones``), each copy's static geometry (``geometries``, stacked in
+    ``geometry``), copy 0's paths (when drawing), each robot's last executed action and whether it was masked (N, R),
+    and copy 0's observed (observer, target) pairs (drawn)."""
 
     worlds: WorldBatch
     noise: tuple
@@ -48,6 +50,9 @@ class TeamState(State):
     geometries: list
     geometry: object = None
     paths: FirstCopyPaths | None = None
+    chosen: np.ndarray = None
+    invalid: np.ndarray = None
+    observed_pairs: list = None
 
 
 def copy_rows(copies: np.ndarray, n_copies: int):
@@ -56,12 +61,8 @@ def copy_rows(copies: np.ndarray, n_copies: int):
 
 
 class TeamScenario(EnvScenario):
-    """A team scenario of robots with DGPS, odometry and relative-pose sensors: its constants and shared steps.
-
-    Constants set by ``use_team``: ``agents`` (the robots R), ``pairs`` (``SensingPairs``), ``pair_index``, the DGPS
-    schedules, ``gps`` (every receiver's noise), ``odometry``. ``team_info_keys`` are the info keys of the whole team,
-    (N,) arrays; every other key of the parallel env's ``infos[agent]`` is (N, R, ...).
-    """
+    """A team scenario of robots with DGPS, odometry and relative-pose sensors: its constants (``use_team``) and
+    shared steps. ``team_info_keys`` are the infos of the whole team, (N,); the others are (N, R, ...)."""
 
     team = True
     horizon_key = "max_cycles"
@@ -98,23 +99,42 @@ class TeamScenario(EnvScenario):
             "zone_centers": np.zeros((copies, 0, 2)),
             "zone_radii_sq": np.zeros((copies, 0)),
             "geometries": [None] * copies,
+            "chosen": np.full((copies, n_robots), self.traits.noop_action),
+            "invalid": np.zeros((copies, n_robots), dtype=bool),
+            "observed_pairs": [],
         }
 
     @staticmethod
-    def start_copy(state: TeamState, copy: int, scenario, poses, covariances, generators) -> None:
-        """Copy ``copy`` starts an episode of ``scenario``: its world, sensor streams and joint EKF prior."""
+    def start_copy(state: TeamState, copy: int, scenario, poses, covariances, *generators):
+        """Copy ``copy`` starts an episode of ``scenario`` (``start_episode``'s): its world, static geometry, sensor
+        streams and joint EKF prior; returns ``scenario``."""
         state.worlds.reset_copy(copy, scenario)
+        state.geometries[copy] = StaticGeometry.from_scenario(scenario, state.worlds.wall_thickness_m)
         for streams, generator in zip(state.noise, generators):
             streams.restart(copy, generator)
         state.x[copy], state.P[copy] = poses.ravel(), block_diagonal(covariances)
+        return scenario
 
     def started(self, state: TeamState, copies: np.ndarray) -> None:
-        """``copies`` have started their episodes (``start_copy``): their DGPS zones and first fixes; copy 0's paths
-        start anew when drawing."""
+        """``copies`` have started their episodes (``start_copy``): their DGPS zones and first fixes, no action yet;
+        copy 0's paths and observations start anew."""
         state.zone_centers, state.zone_radii_sq = gps_denied_zones(state.worlds)
         self.gps_fixes(state, copies, state.elapsed[copies])
+        state.chosen[copies], state.invalid[copies] = self.traits.noop_action, False
+        if copies[0] == 0:
+            state.observed_pairs = []
         if copies[0] == 0 and self.drawing:
             state.paths = FirstCopyPaths(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
+
+    @staticmethod
+    def rows_geometry(state: TeamState, rows) -> StaticGeometry:
+        """The static geometry of the copies ``rows`` (a slice: every copy)."""
+        return state.geometry if isinstance(rows, slice) else StaticGeometry.stack([state.geometries[r] for r in rows])
+
+    def moved(self, state: TeamState, copies: np.ndarray) -> None:
+        """``copies`` have moved: copy 0's paths (when drawing) take its robots' true and estimated positions."""
+        if copies[0] == 0 and state.paths is not None:
+            state.paths.extend(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
 
     def relative_update(self, state: TeamState, copies: np.ndarray, chosen: np.ndarray, decision) -> list:
         """Fuse the teammate choices ``chosen`` (n, R) (``NO_OBSERVATION`` or ``1 + j`` for robot j) of ``copies`` (n,)
@@ -174,6 +194,50 @@ class TeamScenario(EnvScenario):
         zones = state.zone_centers, state.zone_radii_sq
         return gps_available(copies, contiguous(positions), *zones, self.has_gps, self.outages, time_s)
 
+    def team_info(self, state: TeamState, decision, rows, stepped, terms: dict, **more) -> dict:
+        """The infos of the copies ``rows`` every team env gives, then ``more``: arrays (N, R, ...) (the team's
+        (N,)), each with Gymnasium's ``_key`` mask (N,). ``decision`` has ``action_mask``,
+        ``action_information_gain``, ``pose_log_det`` and ``pose_std``; the reward ``terms`` (N, R) [nats] are 0 and
+        masked out in the copies that were reset (not ``stepped``)."""
+        true_poses = state.worlds.poses[rows]
+        estimates = state.x[rows].reshape(true_poses.shape)
+        errors = true_poses - estimates
+        terms = {key: np.where(stepped[:, None], value, 0.0) for key, value in terms.items()}
+        info = {
+            "action_mask": decision.action_mask.copy(),
+            "action_information_gain": decision.action_information_gain.copy(),
+            "reward_terms": {**terms, **{f"_{key}": stepped.copy() for key in terms}},
+            "chosen_action": state.chosen[rows].copy(),
+            "invalid_action": state.invalid[rows].copy(),
+            "gps_available": state.gps_available[rows].copy(),
+            "position_error_m": np.hypot(errors[..., 0], errors[..., 1]),
+            "heading_error_rad": np.abs(wrap_angle(errors[..., 2])),
+            "pose_entropy": gaussian_entropy_from_log_det(decision.pose_log_det, POSE_DIM),
+            "pose_std": decision.pose_std.copy(),
+            "true_pose": true_poses.copy(),
+            "estimated_pose": estimates.copy(),
+            "time_s": np.asarray(state.elapsed[rows] * self.config["time_step_s"], dtype=float).copy(),
+            **more,
+        }
+        everyone = np.ones(len(info["action_mask"]), dtype=bool)
+        return {**info, **{f"_{key}": everyone for key in info}}
+
+    def team_frame(self, state: TeamState, caption: str, **more) -> SceneFrame:
+        """Copy 0 drawn: its scenario, every robot (truth, estimate, covariance, paths), its teammate observations
+        (``more``) and the ``caption``."""
+        scenario = state.worlds.scenario(0)
+        return SceneFrame(
+            bounds=scenario.bounds,
+            walls=scenario.walls,
+            obstacles=scenario.obstacles,
+            robots=state.paths.drawings(
+                state.worlds.poses[0], state.x[0], state.P[0], self.agents, state.gps_available[0]
+            ),
+            gps_denied_zones=scenario.gps_denied_zones,
+            caption=caption,
+            **more,
+        )
+
 
 class TeamAccessors:
     """What a team vector env (the ``Driver`` of a ``TeamScenario``) shows of its ``state``, for harnesses and tests:
@@ -220,15 +284,11 @@ def gps_denied_zones(worlds: WorldBatch) -> tuple[np.ndarray, np.ndarray]:
 def relative_updates(
     x, P, chosen, pair_index, targets, parameters, geometry, predicted, H_o, H_t, R, log_det, noise, cross
 ):
-    """``JointEKF.relative_pose_update`` of n copies with their robots' teammate choices, and what it brought.
-
-    Robot k of copy c observes pair ``pair_index[k, chosen[c, k]]`` (-1: none): its true relative pose ``geometry``
-    plus the sensor's noise (``relative_poses_with_noise`` of its ``parameters`` and the standard normals ``noise[c,
-    k]``), fused at the prior's ``predicted``, ``H_o``, ``H_t`` and ``R`` in slot order (``kalman_updates``). Returns
-    ``(x, P, joint_mi (n,), own_mi (n, R), pose_std (n, R, 3))``: the MI on the joint state and on each robot's pose
-    (prior: ``log_det`` (n, R)) [nats], NaN where a determinant is not > 0, and each robot's std after. A copy
-    without observations keeps its x and P: MI 0 (its joint log-determinants are not computed).
-    """
+    """``JointEKF.relative_pose_update`` of n copies: robot k of copy c observes pair ``pair_index[k, chosen[c, k]]``
+    (-1: none), its true relative pose ``geometry`` plus the sensor's noise (of its ``parameters`` and standard normals
+    ``noise[c, k]``), fused at the prior's models in slot order (``kalman_updates``). Returns ``(x, P, joint_mi (n,),
+    own_mi (n, R), pose_std (n, R, 3))``: the MI [nats] on the joint state and each robot's pose (prior: ``log_det``),
+    NaN where a determinant is not > 0, and each robot's std after; a copy without observations keeps x, P: MI 0."""
     n_copies, n = x.shape
     n_robots = chosen.shape[1]
     residuals, slot_R = np.zeros((n_copies, n_robots, POSE_DIM)), np.zeros((n_copies, n_robots, POSE_DIM, POSE_DIM))

@@ -13,16 +13,9 @@ NO_OBSERVATION = 0  # a team env's teammate choice ``1 + j`` observes robot j; t
 
 
 class SensingPairs(NamedTuple):
-    """The (observer, target) robot pairs P of a team whose observer carries a relative-pose sensor.
-
-    Attributes:
-        observers, targets: robot indices of each pair (P,).
-        noise: the observer's ``RelativePoseSensor.noise_parameters()`` per pair (P, 5).
-        max_range_m: the observer's sensor range per pair (P,) [m].
-        half_fov_rad: half its field of view per pair (P,) [rad].
-        sight_lines: the robot pairs ``(i, j)``, ``i < j``, whose line of sight some pair needs (L, 2) (symmetric).
-        sight_line: each pair's index into ``sight_lines`` (P,).
-    """
+    """The (observer, target) robot pairs P of a team whose observer carries a relative-pose sensor: their robots,
+    the observer's ``noise_parameters()`` (P, 5), range [m] and half field of view [rad]; the robot pairs ``(i, j)``,
+    ``i < j``, whose line of sight some pair needs (L, 2) and each pair's index into them (P,)."""
 
     observers: np.ndarray
     targets: np.ndarray
@@ -50,11 +43,8 @@ class SensingPairs(NamedTuple):
 
 
 def team_prior(config: dict, true_poses: np.ndarray, np_random: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """The ``JointEKF`` prior: estimates drawn around the true poses (R, 3), and their covariances (R, 3, 3).
-
-    The standard deviations are the config's ``initial_position_std_m`` and ``initial_heading_std_rad``; the
-    robots start uncorrelated.
-    """
+    """The ``JointEKF`` prior: estimates drawn around the true poses (R, 3) with the config's
+    ``initial_position_std_m`` and ``initial_heading_std_rad``, and their covariances (R, 3, 3) (uncorrelated)."""
     n = len(true_poses)
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
     initial = true_poses + pose_std * np_random.standard_normal((n, POSE_DIM))
@@ -62,11 +52,8 @@ def team_prior(config: dict, true_poses: np.ndarray, np_random: np.random.Genera
 
 
 def gps_schedule(receivers) -> tuple[np.ndarray, np.ndarray]:
-    """Which robots carry DGPS (R,) and each robot's outage spans (R, S, 2) [s], padded with (inf, inf).
-
-    Args:
-        receivers: one ``GPSSensor`` or None per robot.
-    """
+    """Which robots carry DGPS (R,) and each robot's outage spans (R, S, 2) [s], padded with (inf, inf), of their
+    ``receivers`` (a ``GPSSensor`` or None each)."""
     spans = [gps.outages if gps is not None else () for gps in receivers]
     outages = np.full((len(receivers), max(map(len, spans), default=0), 2), np.inf)
     for robot, robot_spans in enumerate(spans):

@@ -1,8 +1,6 @@
-"""What ``CooperativeExplorationVectorEnv`` sees, decides and reports, on (N, R, ...) arrays: sight, decision, info.
+"""What ``CooperativeExplorationVectorEnv`` sees and decides, on (N, R, ...) arrays: sight, decision, landmark gains.
 
-N copies of a team of R robots, each copy with L landmarks (N, L, 2) and a map of G cells (N, G). An action is
-observation slot ``a // 5`` (0 none, ``1 + j`` landmark j, ``1 + L + j`` robot j) and motion ``a % 5``, so masks
-and gains are (N, R, 1 + L + R, 5) flattened to (N, R, 5 (1 + L + R)).
+An action is observation slot ``a // 5`` (0 none, ``1 + j`` landmark j, ``1 + L + j`` robot j) and motion ``a % 5``.
 """
 
 from __future__ import annotations
@@ -15,10 +13,7 @@ from infonav_gym.compiled import contiguous, kernel
 from infonav_gym.estimation import batched, kernels
 from infonav_gym.estimation.kernels import range_bearing_of_offset
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.multi.team_decision import (
-    team_step_info,
-    with_masks,
-)
+from infonav_gym.multi.team_decision import TeamDecision
 from infonav_gym.sensors.range_bearing import noise_covariances
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
 from infonav_gym.world.visibility_kernels import blocked, within_coverage
@@ -30,19 +25,14 @@ EXPLORATION_INFO_KEYS = frozenset(
 
 
 class TeamSight(NamedTuple):
-    """What a team's sensors see of the landmarks.
-
-    Attributes:
-        sensors: each robot's ``RelativePoseSensor`` or None (R,); its range-bearing part sees landmarks.
-    """
+    """What a team's sensors (each robot's ``RelativePoseSensor`` or None) see of the landmarks: their
+    range-bearing parts."""
 
     sensors: tuple
 
     def visible_landmarks(self, geometry: StaticGeometry, true_poses, landmarks) -> np.ndarray:
-        """Which landmarks (N, L, 2) each robot's sensor sees from its true pose (N, R, 3): (N, R, L) bool.
-
-        In the range-bearing sensor's range and field of view, with a clear line of sight.
-        """
+        """Which landmarks (N, L, 2) each robot's sensor sees from its true pose (N, R, 3), in range and field of
+        view with a clear line of sight: (N, R, L) bool."""
         reach = [(-1.0, -1.0) if s is None else (s.max_range_m, 0.5 * s.range_bearing.fov_rad) for s in self.sensors]
         return landmark_sight(contiguous(true_poses), contiguous(landmarks), np.array(reach), *shape_arrays(geometry))
 
@@ -72,30 +62,13 @@ def range_bearing_noise(noise_stds, robots, ranges) -> np.ndarray:
     return R
 
 
-class ExplorationDecision(NamedTuple):
-    """Every copy's decision at its joint EKF's prior.
-
-    Attributes:
-        action_mask: int8 (N, R, 5 S), S = 1 + L + R observation slots times 5 motions.
-        action_information_gain: immediate expected information of each action (N, R, 5 S) [nats], 0 where masked.
-        geometry, valid, predicted, H_observer, H_target, R, pose_log_det, pose_std: the relative-pose candidates
-            and the prior's poses, as ``TeamDecision`` has them (with the budget applied).
-        slot_valid: which observation slots each robot may choose now (N, R, S) bool.
-        position_std: each robot's largest position standard deviation at the prior (N, R) [m].
-    """
-
-    action_mask: np.ndarray
-    action_information_gain: np.ndarray
-    geometry: np.ndarray
-    valid: np.ndarray
-    predicted: np.ndarray
-    H_observer: np.ndarray
-    H_target: np.ndarray
-    R: np.ndarray
-    pose_log_det: np.ndarray
-    pose_std: np.ndarray
-    slot_valid: np.ndarray
-    position_std: np.ndarray
+ExplorationDecision = NamedTuple(
+    "ExplorationDecision", [(name, np.ndarray) for name in (*TeamDecision._fields, "slot_valid", "position_std")]
+)
+ExplorationDecision.__doc__ = """Every copy's decision at its joint EKF's prior: ``TeamDecision``'s fields (the
+relative-pose candidates with the budget applied) but ``action_mask`` int8 and ``action_information_gain`` [nats]
+(N, R, 5 S) of S = 1 + L + R observation slots times 5 motions; which slots each robot may choose now
+``slot_valid`` (N, R, S) bool, and each robot's largest position std at the prior ``position_std`` (N, R) [m]."""
 
 
 @kernel
@@ -157,48 +130,3 @@ def robot_landmark_gains(x, P, landmarks, noise_stds, valid):
                     block[i, j] = P[c, pose + i, pose + j]
             gains[c, robot, seen[m]] = kernels.landmark_gain(block, H[m], covariances[m], HP, S, columns)
     return gains, coincident
-
-
-class ExplorationStep(NamedTuple):
-    """What the last reset or step did in each copy, for its info.
-
-    Attributes:
-        stepped: which copies acted (N,) bool; the others were reset and give the reset info.
-        chosen: each robot's executed action (N, R), the no-op (0) for a masked one and at a reset.
-        invalid: whether each robot's action was masked (N, R) bool.
-        terms: each reward term (``REWARD_TERMS``) of each robot (N, R) [nats].
-    """
-
-    stepped: np.ndarray
-    chosen: np.ndarray
-    invalid: np.ndarray
-    terms: dict
-
-
-def exploration_info(decision: ExplorationDecision, last: ExplorationStep, state: dict) -> dict:
-    """Every copy's and robot's ``infos[agent]`` (see ``CooperativeExplorationEnv``) as arrays (N, R, ...) with
-    ``_key`` masks (N,).
-
-    The team's keys ``time_s``, ``coverage``, ``failed`` and ``success`` are (N,); ``reward_terms`` are masked out
-    (``_own_pose_information`` False, ...) for the copies that were reset.
-
-    Args:
-        decision: the new decisions.
-        last: what the reset or step did.
-        state: the copies' ``x`` (N, 3R), ``true_poses`` (N, R, 3), ``gps_available``, ``observations_left`` and
-            ``lost`` (N, R), ``coverage``, ``success`` and ``time_s`` (N,).
-    """
-    info = team_step_info(
-        decision, last, last.terms, state["x"], state["true_poses"], state["gps_available"], state["time_s"]
-    )
-    return with_masks(
-        {
-            **info,
-            "position_std_m": decision.position_std.copy(),
-            "observations_left": state["observations_left"].copy(),
-            "coverage": state["coverage"].copy(),
-            "lost": state["lost"].copy(),
-            "failed": state["lost"].any(axis=1),
-            "success": state["success"].copy(),
-        }
-    )

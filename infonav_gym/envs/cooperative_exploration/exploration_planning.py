@@ -1,12 +1,8 @@
-"""The planning model of ``cooperative_exploration_v0``: one step of the team, on beliefs batched over futures.
+"""The planning model of ``cooperative_exploration_v0`` (what ``agents.planner.PlannerAgent`` searches), and the
+helpers of one step (motion plans, scan gains, rewards) the env computes its masks, gains and rewards with.
 
-What ``agents.planner.PlannerAgent`` searches (the team counterpart of ``envs.active_planning``). Under the
-EKF's linearization a covariance after an update does not depend on the measured value, so a step's expected
-reward follows from the belief alone, without sampling and without the true state: ``belief()`` copies a copy's
-joint EKF state, map and budgets; ``plan_decision(belief, robot)`` gives one robot's mask and gains;
-``plan_step(belief, actions)`` predicts one step of the whole team. The helpers of one step (motion plans,
-scan gains, rewards) are the env's own: ``CooperativeExplorationVectorEnv`` computes its masks, gains and rewards
-with them.
+Under the EKF's linearization a covariance after an update does not depend on the measured value, so a step's
+expected reward follows from the belief alone, without sampling and without the true state.
 """
 
 from __future__ import annotations
@@ -34,45 +30,38 @@ MOTION_DIRECTIONS = np.stack([np.cos(MOTION_HEADINGS_RAD), np.sin(MOTION_HEADING
 
 
 def motion_plan(motions, headings, speeds_mps) -> tuple[np.ndarray, np.ndarray]:
-    """Each robot's turn [rad] in the step's turn phase and its speed [m/s] in the drive phase after it.
-
-    A motion turns the *estimated* heading (the decision's: before this step's observations) to its compass
-    heading on the spot, then drives straight; ``stay`` does neither. Both are exact unicycle motions. The
-    motions, the estimated headings and the robots' speeds broadcast together (e.g. (..., R), (..., R), (R,)).
-    """
+    """Each robot's turn [rad] on the spot, from its *estimated* heading at the decision to the motion's compass
+    heading, and its speed [m/s] in the drive phase after it (``stay``: neither); the arguments broadcast together."""
     drives = motions != STAY
     turns = np.where(drives, wrap_angle(MOTION_HEADINGS_RAD[motions] - headings), 0.0)
     return turns, np.where(drives, speeds_mps, 0.0)
 
 
-def drive_displacements(headings, speeds, drive_s: float) -> np.ndarray:
-    """Where a drive phase of ``drive_s`` [s] at ``speeds`` [m/s] along ``headings`` [rad] takes a robot (..., 2)."""
-    reach = drive_s * speeds
-    return reach[..., None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
+def motion_phases(turns, speeds, config: dict) -> tuple:
+    """A step's turn phase, then its drive phase: ``(duration [s], unicycle controls (..., 2))`` of each, of the
+    ``turns`` [rad] on the spot and the drives at ``speeds`` [m/s] (``turn_time_s``, ``time_step_s``)."""
+    turn_s = config["turn_time_s"]
+    return (
+        (turn_s, np.stack([np.zeros_like(turns), turns / turn_s], axis=-1)),
+        (config["time_step_s"] - turn_s, np.stack([speeds, np.zeros_like(speeds)], axis=-1)),
+    )
 
 
 def clear_motions(geometry, poses, headings, speeds_mps, drive_s: float, robot_radius_m: float) -> np.ndarray:
-    """Which motions each robot may take (N, R, 5): those whose path from ``poses`` (N, R, 3) keeps clear of every
-    contact.
-
-    After the turn on the spot (planned at the estimated headings (N, R)) the robot drives straight along its
-    pose's heading plus the turn for ``drive_s`` [s] at its speed (R,) [m/s] (``world.clearance.clear_moves``:
-    ``CLEARANCE_M`` from the walls and obstacles of ``geometry`` (N copies) and wherever a teammate's motions take
-    it). From the true poses (the env's masks) no contact ever pushes a robot where its odometry does not see it,
-    so the EKF's motion model stays exact; from the estimates (the planning model's) it is the belief's guess.
-    """
+    """Which motions each robot may take (N, R, 5): after its turn (planned at the estimated ``headings``), its drive
+    from ``poses`` (N, R, 3) for ``drive_s`` [s] at its speed (R,) [m/s] keeps ``world.clearance.clear_moves``'
+    ``CLEARANCE_M`` from ``geometry`` and wherever a teammate's motions take it. From the true poses (the env's
+    masks) no contact ever pushes a robot unseen by its odometry; from the estimates it is the belief's guess."""
     turns, speeds = motion_plan(np.arange(N_MOTIONS), headings[..., None], speeds_mps[:, None])
-    displacements = drive_displacements(poses[..., 2:3] + turns, speeds, drive_s)
+    headings, reach = poses[..., 2:3] + turns, drive_s * speeds
+    displacements = reach[..., None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
     return clear_moves(geometry, poses[..., :2], displacements, robot_radius_m)
 
 
 def scan_gains(map_model, variances, positions, position_std, speeds_mps, drive_s: float) -> np.ndarray:
-    """Map information [nats] each robot's scan would bring alone after each motion (..., R, 5); 0 for ``stay``.
-
-    From the position the motion predicts (estimated position (..., R, 2), compass heading, ``drive_s`` [s] at the
-    robot's speed (R,) [m/s]), with the scan noise of its current position std (..., R) [m], on the map's cell
-    variances (..., G) (a ``TerrainMapModel``'s; the same leading dimensions).
-    """
+    """Map information [nats] each robot's scan would bring alone after each motion (..., R, 5), 0 for ``stay``:
+    from where the motion takes its estimated position (..., R, 2) in ``drive_s`` [s] at its speed (R,) [m/s], with
+    the scan noise of its position std (..., R) [m], on the map's cell variances (..., G)."""
     drives = np.flatnonzero(np.arange(N_MOTIONS) != STAY)
     ends = positions[..., None, :] + drive_s * speeds_mps[:, None, None] * MOTION_DIRECTIONS[drives]  # (..., R, 4, 2)
     noise = np.broadcast_to(map_model.scan_noise_variances(position_std)[..., None], ends.shape[:-1])
@@ -115,19 +104,11 @@ def total_reward(team_reward: float, terms: dict) -> np.ndarray:
 
 @dataclass(frozen=True)
 class TeamBelief(BeliefBatch):
-    """The team's estimator state at a decision, batched over ``B`` hypothetical futures (estimates only).
-
-    Attributes:
-        x: estimated poses of the R robots (B, 3R) [m, m, rad].
-        covariance: their joint covariance (B, 3R, 3R).
-        map_variances: the terrain map's cell variances (B, G) [m^2].
-        observations_left: each robot's sensing budget (B, R).
-        steps: steps since the env's current decision (B,).
-        done: whether the episode has ended (a robot lost, coverage reached, or out of time) (B,).
-        landmark_visible: which landmarks each robot's sensor would see from its estimate (B, R, L).
-        pair_visible: which (observer, target) pairs of ``SensingPairs`` are observable between estimates (B, P).
-        motion_clear: which motions keep each robot clear of contacts, judged from the estimates (B, R, 5).
-    """
+    """The team's estimator state at a decision, batched over ``B`` hypothetical futures (estimates only): the
+    joint ``x`` (B, 3R) and ``covariance``, the map's cell variances (B, G) [m^2], each robot's budget left (B, R),
+    the ``steps`` since the env's decision and whether the episode has ended (B,); judged from the estimates, which
+    landmarks each robot would see (B, R, L), which ``SensingPairs`` are observable (B, P) and which motions are
+    clear of contacts (B, R, 5)."""
 
     x: np.ndarray
     covariance: np.ndarray
@@ -143,11 +124,8 @@ class TeamBelief(BeliefBatch):
 class ExplorationPlanningModel:
     """The planning model of one copy of ``CooperativeExplorationVectorEnv`` (``env.planning_model(copy)``).
 
-    What a look-ahead agent uses: ``belief()``, ``plan_decision(belief, robot)``, ``plan_step(belief, actions)``,
-    ``position_std(covariances)``, ``n_primitives``, ``max_position_std_m``, ``idle_primitive`` and
-    ``step_index``. Built from the env's parts (``ExplorationParts``), it reads the copy's episode (landmarks,
-    static geometry, GPS-denied zones) and its estimator state (``env.copy_state(copy)``) when called, so one
-    model serves a whole run.
+    It reads the copy's episode (landmarks, static geometry, GPS-denied zones) and estimator state (``env.state``)
+    when called, so one model serves a whole run.
     """
 
     n_primitives = N_MOTIONS
@@ -157,11 +135,9 @@ class ExplorationPlanningModel:
         self._env, self._copy = env, copy
         self._parts = parts = env.parts
         self._sight = TeamSight(tuple(parts.relative_sensors))
-        n_robots = len(parts.gps)
-        self._pair_lookup = np.full((n_robots, n_robots), -1)  # the pair index of (observer, target), -1 for none
-        self._pair_lookup[parts.pairs.observers, parts.pairs.targets] = np.arange(len(parts.pairs.observers))
+        self._pair_index = env.env_scenario.pair_index  # robot, teammate choice -> its pair, -1 for none
         self._gps_noise = np.array([np.eye(2) if gps is None else gps.noise_covariance() for gps in parts.gps])
-        self._odometry_covariances = np.repeat(parts.odometry.noise_covariance()[None], n_robots, axis=0)
+        self._odometry_covariances = env.env_scenario.odometry_covariances
         self._drive_s = self.config["time_step_s"] - self.config["turn_time_s"]  # the drive phase of a step [s]
         self._tiled: tuple = (None, {})  # the copy's static geometry and its tiled copies by count
 
@@ -177,7 +153,7 @@ class ExplorationPlanningModel:
     @property
     def step_index(self) -> int:
         """The index of the current decision: steps since the copy's reset."""
-        return int(self._env.elapsed_steps[self._copy])
+        return int(self._env.state.elapsed[self._copy])
 
     @staticmethod
     def position_std(covariances: np.ndarray) -> np.ndarray:
@@ -187,27 +163,19 @@ class ExplorationPlanningModel:
         return largest_position_std(blocks.reshape(-1, POSE_DIM, POSE_DIM)).reshape(blocks.shape[:2])
 
     def belief(self) -> TeamBelief:
-        """The team's estimator state at the copy's current decision, as a batch of one.
-
-        Raises:
-            RuntimeError: before the env's first ``reset()``.
-        """
-        state = self._env.copy_state(self._copy)
-        return self._belief(
-            state.x[None],
-            state.P[None],
-            state.map_variances[None],
-            state.observations_left[None],
-            np.zeros(1, dtype=int),
-            np.array([state.done]),
-        )
+        """The team's estimator state at the copy's current decision, as a batch of one (``RuntimeError`` before the
+        env's first ``reset()``)."""
+        env, copy = self._env, self._copy
+        if env.decision is None:
+            raise RuntimeError(f"{env.owner_name}: call reset() before the planning model's belief()")
+        state = env.state
+        done = state.lost[copy].any() or state.success[copy] or state.elapsed[copy] >= env.max_cycles
+        arrays = (state.x, state.P, state.map_variances, state.observations_left)
+        return self._belief(*(array[None, copy].copy() for array in arrays), np.zeros(1, dtype=int), np.array([done]))
 
     def plan_decision(self, belief: TeamBelief, robot: int) -> tuple[np.ndarray, np.ndarray]:
-        """Robot ``robot``'s ``(action_mask (B, A), action_information_gain (B, A))`` at each belief.
-
-        As ``infos`` give them, with what the robot would see judged from the estimates. A finished belief
-        has only action 0 valid, with gain 0.
-        """
+        """Robot ``robot``'s ``(action_mask (B, A), action_information_gain (B, A))`` at each belief, as ``infos``
+        give them but judged from the estimates; a finished belief has only action 0 valid, with gain 0."""
         parts, n_landmarks, B = self._parts, self.config["n_landmarks"], len(belief)
         pairs = parts.pairs
         poses = belief.x.reshape(B, -1, POSE_DIM)
@@ -250,11 +218,10 @@ class ExplorationPlanningModel:
     def plan_step(self, belief: TeamBelief, actions) -> tuple[TeamBelief, np.ndarray]:
         """Predict one step of every belief under the team's actions (B, R): ``(next beliefs, rewards (B, R))``.
 
-        The env's transition with the unknowns replaced by their expectation: each observation is an EKF
-        update with the measurement as predicted (its MI is exact), each motion the commanded one from the
-        estimate, DGPS fixes where the estimate lies outside the canopies, each scan from the estimated
-        position. What a robot's action asks for and its belief does not allow is dropped (an observation
-        out of sight or budget: none; a motion that is not clear: stay). A finished belief stays put, earns 0.
+        The env's transition with the unknowns at their expectation: observations fused with the measurement as
+        predicted (exact MI), motions commanded from the estimate, DGPS fixes and scans at the estimated positions.
+        What the belief does not allow is dropped (an observation out of sight or budget; a motion not clear: stay).
+        A finished belief stays put and earns 0.
         """
         cfg, map_model = self.config, self._parts.map_model
         B, n_robots, n_landmarks = len(belief), len(self._parts.gps), cfg["n_landmarks"]
@@ -266,7 +233,7 @@ class ExplorationPlanningModel:
         sees_landmark = (slots >= 1) & (slots <= n_landmarks) & budget
         if n_landmarks:
             sees_landmark &= belief.landmark_visible[copies, robots, landmarks]
-        pairs = self._pair_lookup[robots, np.clip(slots - 1 - n_landmarks, 0, n_robots - 1)]
+        pairs = self._pair_index[robots, np.clip(slots - n_landmarks, 1, n_robots)]
         sees_teammate = (slots > n_landmarks) & budget & (pairs >= 0)
         sees_teammate &= belief.pair_visible[copies, np.maximum(pairs, 0)]
         driving = (motions != STAY) & live[:, None] & belief.motion_clear[copies, robots, motions]
@@ -278,7 +245,8 @@ class ExplorationPlanningModel:
         positions = x.reshape(B, n_robots, POSE_DIM)[..., :2]
         elapsed = self.step_index
         time_s = elapsed * cfg["time_step_s"] + (belief.steps + 1) * cfg["time_step_s"]
-        has_fix = self._env.gps_available(np.full(B, self._copy), positions, time_s) & live[:, None]
+        env = self._env
+        has_fix = env.env_scenario.gps_available(env.state, np.full(B, self._copy), positions, time_s) & live[:, None]
         if has_fix.any():
             x, P = batched.gps_update(x, P, positions, self._gps_noise, has_fix, check_input=False)
         position_std = self.position_std(P)
@@ -299,20 +267,15 @@ class ExplorationPlanningModel:
         )
         return following, np.where(live[:, None], rewards, 0.0)
 
-    # ------------------------------------------------------------------ the model's parts
-
     def _belief(self, x, covariance, map_variances, observations_left, steps, done) -> TeamBelief:
         """A ``TeamBelief`` with what each robot would see judged from the estimates ``x`` (B, 3R)."""
         B, n_landmarks = len(x), self.config["n_landmarks"]
         poses = x.reshape(B, -1, POSE_DIM)
         landmarks = np.broadcast_to(self._landmarks(), (B, n_landmarks, 2))
-        landmark_visible = self._sight.visible_landmarks(self._tiled_geometry(B), poses, landmarks)
-        pairs = self._parts.pairs
-        pair_visible = observable_pairs(pairs, self._tiled_geometry(B), poses)[1]
-        radius_m = self._env.robot_radius_m
-        motion_clear = clear_motions(
-            self._tiled_geometry(B), poses, poses[..., 2], self._parts.speeds_mps, self._drive_s, radius_m
-        )
+        geometry, radius_m = self._tiled_geometry(B), self._env.state.worlds.robot_radius_m
+        landmark_visible = self._sight.visible_landmarks(geometry, poses, landmarks)
+        pair_visible = observable_pairs(self._parts.pairs, geometry, poses)[1]
+        motion_clear = clear_motions(geometry, poses, poses[..., 2], self._parts.speeds_mps, self._drive_s, radius_m)
         return TeamBelief(
             x, covariance, map_variances, observations_left, steps, done, landmark_visible, pair_visible, motion_clear
         )
@@ -323,7 +286,7 @@ class ExplorationPlanningModel:
 
     def _tiled_geometry(self, n_copies: int):
         """The copy's static shapes as ``n_copies`` copies (``StaticGeometry.tiled``), kept for the episode."""
-        geometry = self._env.static_geometry(self._copy)
+        geometry = self._env.state.geometries[self._copy]
         if self._tiled[0] is not geometry:
             self._tiled = (geometry, {})
         tiled = self._tiled[1].get(n_copies)
@@ -337,11 +300,8 @@ class ExplorationPlanningModel:
         return noise_covariances(noise, ranges.ravel()).reshape(*np.shape(pairs), 3, 3)
 
     def _expected_observations(self, belief, sees_landmark, landmarks, sees_teammate, pairs) -> np.ndarray:
-        """The joint covariance (B, 3R, 3R) after every robot's observation of the step, as one stacked update.
-
-        Robot r's observation fills rows ``3r .. 3r + 2`` of the stacked Jacobian (a landmark's range-bearing
-        leaves the third row zero, with unit noise: no measurement), at the estimates (the prior's).
-        """
+        """The joint covariance (B, 3R, 3R) after every robot's observation of the step, as one stacked update at
+        the estimates: robot r's fills rows ``3r .. 3r + 2`` of the Jacobian (a landmark's leaves the third zero)."""
         B, n = belief.covariance.shape[:2]
         n_robots = n // POSE_DIM
         H = np.zeros((B, n_robots, POSE_DIM, n))
@@ -378,14 +338,8 @@ class ExplorationPlanningModel:
 
     def _expected_motion(self, x, P, motions, driving) -> tuple[np.ndarray, np.ndarray]:
         """The prediction ``(x, P)`` of the step's commanded turns and drives (the ``driving`` robots' motions)."""
-        cfg = self.config
         turns, speeds = motion_plan(motions[..., None], x[:, 2::POSE_DIM, None], self._parts.speeds_mps[:, None])
         turns, speeds = np.where(driving, turns[..., 0], 0.0), np.where(driving, speeds[..., 0], 0.0)
-        turn_s = cfg["turn_time_s"]
-        phases = (
-            (turn_s, np.stack([np.zeros_like(turns), turns / turn_s], axis=-1)),
-            (cfg["time_step_s"] - turn_s, np.stack([speeds, np.zeros_like(speeds)], axis=-1)),
-        )
-        for phase_s, controls in phases:
+        for phase_s, controls in motion_phases(turns, speeds, self.config):
             x, P = batched.predict_team(x, P, controls, phase_s, self._odometry_covariances, check_input=False)
         return x, P

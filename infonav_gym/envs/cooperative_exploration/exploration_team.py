@@ -1,7 +1,4 @@
-"""What ``cooperative_exploration_v0`` is made of: its config, the parts built from it, its features and episode start.
-
-``CooperativeExplorationVectorEnv`` (the env's one implementation) and its planning model are built from these.
-"""
+"""What ``cooperative_exploration_v0`` and its planning model are made of: config, parts, features, episode start."""
 
 from __future__ import annotations
 
@@ -104,17 +101,10 @@ def exploration_config() -> dict:
 
 
 class ExplorationParts(NamedTuple):
-    """The team and the map of ``cooperative_exploration_v0``, as its config gives them.
-
-    Attributes:
-        speeds_mps: each robot's cruise speed (R,) [m/s].
-        gps: each robot's ``GPSSensor`` (with its outage spans), None without DGPS (R,).
-        relative_sensors: each robot's ``RelativePoseSensor`` at the env's range for it, or None (R,); its
-            range-bearing part sees the landmarks.
-        pairs: the (observer, target) pairs of the robots with a relative-pose sensor.
-        odometry: every robot's odometry sensor.
-        map_model: the terrain map's grid and scan model.
-    """
+    """The team and the map of ``cooperative_exploration_v0``, as its config gives them: each robot's cruise speed
+    (R,) [m/s], ``GPSSensor`` (with its outage spans) or None, ``RelativePoseSensor`` at the env's range (its
+    range-bearing part sees the landmarks) or None, the (observer, target) ``pairs``, the odometry and the terrain
+    ``map_model``."""
 
     speeds_mps: np.ndarray
     gps: list[GPSSensor | None]
@@ -125,12 +115,8 @@ class ExplorationParts(NamedTuple):
 
     @classmethod
     def of_config(cls, config: dict, owner: str) -> ExplorationParts:
-        """Check the keys of a merged config and build the team and its map.
-
-        Raises:
-            ValueError: naming ``owner`` and the key, for a number outside its interval or not above its floor
-                (``FLOORS``), a bad field argument, sensor suite, speed or outage.
-        """
+        """Check the keys of a merged config and build the team and its map (``ValueError`` naming ``owner`` and the
+        key, for a number outside its interval or not above its floor, a bad field argument, suite, speed or outage)."""
         check_config(config, owner, CONFIG_INTERVALS)
         check_config_arguments(config, owner, "exploration_field", EXPLORATION_FIELD_ARGUMENTS, SCENARIO_KEYS)
         for key, floor in FLOORS:
@@ -163,11 +149,8 @@ def ranged_sensor(config: dict, name: str | None, owner: str) -> RelativePoseSen
 
 
 def start_episode(config: dict, np_random: np.random.Generator):
-    """Start an episode: draw its field and the joint EKF's prior from ``np_random``, in a fixed order.
-
-    Returns:
-        ``(scenario, poses (R, 3), covariances (R, 3, 3), odometry_rng, gps_rng, relative_rng, landmark_rng)``.
-    """
+    """Draw an episode's field and joint EKF prior from ``np_random``: ``(scenario, poses (R, 3), covariances
+    (R, 3, 3), odometry_rng, gps_rng, relative_rng, landmark_rng)``."""
     scenario = exploration_field(np_random, **{name: config[key] for name, key in SCENARIO_KEYS.items()})
     generators = np_random.spawn(4)
     poses, covariances = team_prior(config, np.array(start_poses(scenario)), np_random)
@@ -186,19 +169,10 @@ def exploration_observations(
     team, landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, space, gains=None
 ) -> np.ndarray:
     """Every robot's observation (see ``CooperativeExplorationEnv``), float32 clipped to ``space``, of N teams of R
-    robots, in one kernel (``exploration_features``).
-
-    Args:
-        team: the ``team_observations`` part (N, R, 10 + 5 R).
-        landmark_valid: whether observing each landmark is valid now (N, R, L).
-        landmarks_seen: each landmark's range [m] and bearing [rad] from each robot's estimate (N, R, L, 2).
-        speeds_mps: each robot's speed (R,) [m/s].
-        budget_left: each robot's sensing budget left, a fraction (N, R).
-        coverage: each team's coverage (N,).
-        cell_std: each cell's height std left, a fraction of the prior's (N, G).
-        space: one robot's observation space.
-        gains: each robot's ``action_information_gain`` (N, R, A) to append (``observe_gains``), or None.
-    """
+    robots: the ``team_observations`` part (N, R, 10 + 5 R), whether observing each landmark is valid (N, R, L), its
+    range [m] and bearing [rad] from the robot's estimate (N, R, L, 2), each robot's speed (R,) [m/s], budget left
+    (fraction, (N, R)), the coverage (N,), each cell's height std left (fraction of the prior's, (N, G)) and the
+    ``action_information_gain`` (N, R, A) to append (``observe_gains``) or None."""
     n_copies, n_robots = np.shape(team)[:2]
     features = np.empty((n_copies, n_robots, space.shape[0]), dtype=np.float32)
     gains = np.zeros((n_copies, n_robots, 0)) if gains is None else gains

@@ -1,29 +1,19 @@
 """``cooperative_exploration_v0``: a team maps a field, each robot choosing where to go and what to see, as a scenario.
 
-``make_vector_env("cooperative_exploration_v0", num_envs=N, **config)`` returns ``CooperativeExplorationVectorEnv``
-(the driver of this scenario); its PettingZoo env (``CooperativeExplorationEnv``,
-``cooperative_exploration_v0.parallel_env``) is its N = 1 view without autoreset (``envs.parallel_view``). The joint
-estimation (prediction, DGPS, relative-pose and landmark updates, expected gains, log-determinants), the line of
-sight, the terrain maps and the scan gains run batched over the copies (``estimation.batched``, ``world.visibility``,
-``TerrainMapModel``), the physics in a ``WorldBatch`` driven by the motions' turn and drive commands, and the sensor
-noise from one stream per copy and sensor (``NoiseStreams``), so copy ``i`` after ``reset(seed=s)`` gives the numbers
-of ``parallel_env()`` after ``reset(seed=s + i)``.
+``CooperativeExplorationVectorEnv`` is the driver of this scenario, ``CooperativeExplorationEnv`` its PettingZoo view
+(``envs.parallel_view``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
 
 from infonav_gym.envs.cooperative_exploration.exploration_decision import (
-    EXPLORATION_INFO_KEYS,
     ExplorationDecision,
-    ExplorationStep,
     TeamSight,
-    exploration_info,
     landmark_gains,
     range_bearing_noise,
 )
@@ -34,6 +24,7 @@ from infonav_gym.envs.cooperative_exploration.exploration_planning import (
     ExplorationPlanningModel,
     action_gains,
     clear_motions,
+    motion_phases,
     motion_plan,
     reward_terms,
     scan_gains,
@@ -70,8 +61,8 @@ MAP_CELL_KB = 0.07  # [kB] a copy's memory per coverage-map cell, measured from 
 class ExplorationState(TeamState):
     """``TeamState`` and each copy's landmarks (N, L, 2), terrain map cell variances (N, G) [m^2], coverage (N,),
     sensing budgets (N, R), which robots are lost (N, R), whether it succeeded (N,); what its last step brought: each
-    robot's executed action and whether it was masked (N, R), its own pose MI (N, R) and the map information (N,)
-    [nats], whether it observed and drove (N, R); and copy 0's observed teammates and landmarks (robot, target)."""
+    robot's own pose MI (N, R) and the map information (N,) [nats], whether it observed and drove (N, R); and copy
+    0's observed landmarks (robot, landmark)."""
 
     landmarks: np.ndarray = None
     map_variances: np.ndarray = None
@@ -79,31 +70,11 @@ class ExplorationState(TeamState):
     observations_left: np.ndarray = None
     lost: np.ndarray = None
     success: np.ndarray = None
-    chosen: np.ndarray = None
-    invalid: np.ndarray = None
     own_information: np.ndarray = None
     map_information: np.ndarray = None
     observed: np.ndarray = None
     driving: np.ndarray = None
-    observed_pairs: list = None
     observed_landmarks: list = None
-
-
-class CopyState(NamedTuple):
-    """One copy's estimator state at its current decision (copies of its arrays), for its planning model.
-
-    Attributes:
-        x: the joint EKF state (3R,); P: its covariance (3R, 3R).
-        map_variances: the terrain map's cell variances (G,) [m^2].
-        observations_left: each robot's sensing budget (R,).
-        done: whether the copy's episode has ended (a robot lost, the coverage target reached, or out of time).
-    """
-
-    x: np.ndarray
-    P: np.ndarray
-    map_variances: np.ndarray
-    observations_left: np.ndarray
-    done: bool
 
 
 class CooperativeExploration(TeamScenario):
@@ -121,7 +92,10 @@ class CooperativeExploration(TeamScenario):
         reward_config_keys=("team_reward",),
         reward_terms=REWARD_TERMS,
         main_metric="success_rate",
-        info_keys=EXPLORATION_INFO_KEYS,
+        info_keys=frozenset(
+            {"gps_available", "pose_std", "position_std_m", "pose_entropy", "position_error_m", "heading_error_rad"}
+            | {"estimated_pose", "observations_left", "coverage", "lost", "failed", "success"}
+        ),
     )
     team_info_keys = frozenset({"time_s", "coverage", "failed", "success"})
 
@@ -160,16 +134,13 @@ class CooperativeExploration(TeamScenario):
             lost=np.zeros(shape, dtype=bool),
             success=np.zeros(copies, dtype=bool),
             **self.no_step(copies),
-            observed_pairs=[],
             observed_landmarks=[],
         )
 
     def no_step(self, copies: int) -> dict:
-        """The step record of ``copies`` copies that did not step: no action, nothing brought."""
+        """What ``copies`` copies that did not step brought: nothing."""
         shape = (copies, len(self.agents))
         return {
-            "chosen": np.full(shape, NOOP_ACTION),
-            "invalid": np.zeros(shape, dtype=bool),
             "own_information": np.zeros(shape),
             "map_information": np.zeros(copies),
             "observed": np.zeros(shape, dtype=bool),
@@ -179,10 +150,7 @@ class CooperativeExploration(TeamScenario):
     def initial(self, state: ExplorationState, rows: np.ndarray, rngs: list) -> ExplorationState:
         """Draw each copy's field, landmarks and joint prior (``start_episode``), then its first DGPS fixes."""
         for copy, rng in zip(rows.tolist(), rngs):
-            scenario, poses, covariances, *generators = start_episode(self.config, rng)
-            self.start_copy(state, copy, scenario, poses, covariances, generators)
-            state.landmarks[copy] = scenario.landmarks
-            state.geometries[copy] = StaticGeometry.from_scenario(scenario, state.worlds.wall_thickness_m)
+            state.landmarks[copy] = self.start_copy(state, copy, *start_episode(self.config, rng)).landmarks
         geometry = StaticGeometry.stack([state.geometries[copy] for copy in rows.tolist()])
         state.geometry = geometry if len(rows) == len(state.elapsed) else state.geometry.with_copies(rows, geometry)
         state.map_variances[rows] = self.parts.map_model.prior_variances()
@@ -193,15 +161,14 @@ class CooperativeExploration(TeamScenario):
         for key, value in self.no_step(len(rows)).items():
             getattr(state, key)[rows] = value
         if rows[0] == 0:
-            state.observed_pairs, state.observed_landmarks = [], []
+            state.observed_landmarks = []
         return state
 
     def decision(self, state: ExplorationState, rows) -> ExplorationDecision:
         """Masks and immediate expected gains of every (observation, motion) pair of the copies ``rows``, at their
         priors."""
         cfg, sight = self.config, self.sight
-        full = isinstance(rows, slice)
-        geometry = state.geometry if full else StaticGeometry.stack([state.geometries[row] for row in rows])
+        geometry = self.rows_geometry(state, rows)
         true_poses, x, P, landmarks = state.worlds.poses[rows], state.x[rows], state.P[rows], state.landmarks[rows]
         n_copies, n_robots = true_poses.shape[:2]
         budget_left = state.observations_left[rows] > 0
@@ -233,8 +200,7 @@ class CooperativeExploration(TeamScenario):
         cfg = self.config
         state.chosen, state.invalid = np.where(action >= 0, action, NOOP_ACTION), acting[:, None] & (action < 0)
         for key, value in self.no_step(len(acting)).items():
-            if key not in ("chosen", "invalid"):
-                setattr(state, key, value)
+            setattr(state, key, value)
         copies = np.flatnonzero(acting)
         if not copies.size:
             return state
@@ -262,8 +228,7 @@ class CooperativeExploration(TeamScenario):
         state.success[copies] = (state.coverage[copies] >= cfg["coverage_target"]) & ~lost.any(axis=1)
         state.own_information[copies], state.map_information[copies] = own_information, map_information
         state.observed[copies], state.driving[copies] = observed, driving
-        if acting[0] and state.paths is not None:
-            state.paths.extend(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
+        self.moved(state, copies)
         return state
 
     def step_terms(self, state: ExplorationState, rows) -> dict:
@@ -325,11 +290,7 @@ class CooperativeExploration(TeamScenario):
     def drive(self, state: ExplorationState, copies: np.ndarray, turns: np.ndarray, speeds: np.ndarray) -> None:
         """Turn every robot of ``copies`` on the spot by ``turns`` (n, R) [rad], then drive it straight at ``speeds``
         (n, R) [m/s] (both in the ``WorldBatch``); predict with the odometry of each phase."""
-        cfg = self.config
-        turn_s = cfg["turn_time_s"]
-        turning = np.stack([np.zeros_like(turns), turns / turn_s], axis=-1)
-        driving = np.stack([speeds, np.zeros_like(turns)], axis=-1)
-        for phase_s, commands in ((turn_s, turning), (cfg["time_step_s"] - turn_s, driving)):
+        for phase_s, commands in motion_phases(turns, speeds, self.config):
             self.predict(state, copies, state.worlds.step(phase_s, copies, commands), phase_s)
 
     def scan(self, state: ExplorationState, copies: np.ndarray, scanning: np.ndarray, position_std) -> np.ndarray:
@@ -379,61 +340,48 @@ class CooperativeExploration(TeamScenario):
 
     def info(self, state: ExplorationState, decision: ExplorationDecision, rows, stepped) -> dict:
         """The decision's masks and gains, the reward terms, the actions, the estimates, map and budgets."""
-        last = ExplorationStep(stepped, state.chosen[rows], state.invalid[rows], self.step_terms(state, rows))
-        fields = ("x", "gps_available", "observations_left", "lost", "coverage", "success")
-        copies = {key: getattr(state, key)[rows] for key in fields}
-        copies.update(true_poses=state.worlds.poses[rows], time_s=state.elapsed[rows] * self.config["time_step_s"])
-        return exploration_info(decision, last, copies)
+        lost = state.lost[rows]
+        return self.team_info(
+            state,
+            decision,
+            rows,
+            stepped,
+            self.step_terms(state, rows),
+            position_std_m=decision.position_std.copy(),
+            observations_left=state.observations_left[rows].copy(),
+            coverage=state.coverage[rows].copy(),
+            lost=lost.copy(),
+            failed=lost.any(axis=1),
+            success=state.success[rows].copy(),
+        )
 
     def frame(self, state: ExplorationState, decision: ExplorationDecision) -> SceneFrame:
         """Copy 0 drawn: its field, the terrain map (inset), every robot (truth, estimate, covariance, paths) and this
         step's teammate and landmark observations."""
-        scenario, side = state.worlds.scenario(0), self.config["map_cells_per_side"]
+        side = self.config["map_cells_per_side"]
         known = 1.0 - np.sqrt(state.map_variances[0]) / self.parts.map_model.prior_std_m
         image = np.kron(np.flipud(known.reshape(side, side)), np.ones((MAP_IMAGE_PIXELS_PER_CELL,) * 2))
         time_s = state.elapsed[0] * self.config["time_step_s"]
         pairs, landmarks = state.observed_pairs, state.observed_landmarks
-        return SceneFrame(
-            bounds=scenario.bounds,
-            walls=scenario.walls,
-            obstacles=scenario.obstacles,
-            landmarks=scenario.landmarks,
-            robots=state.paths.drawings(
-                state.worlds.poses[0], state.x[0], state.P[0], self.agents, state.gps_available[0]
-            ),
+        return self.team_frame(
+            state,
+            f"t = {time_s:.0f} s   {len(pairs)} teammate and {len(landmarks)} landmark observations this step",
+            landmarks=state.worlds.scenario(0).landmarks,
             observations=list(pairs),
             landmark_observations=list(landmarks),
-            gps_denied_zones=scenario.gps_denied_zones,
             inset_image=np.round(255 * image).astype(np.uint8),
             inset_title=f"terrain map (white: known), coverage {state.coverage[0]:.0%}",
-            caption=f"t = {time_s:.0f} s   {len(pairs)} teammate and {len(landmarks)} landmark observations this step",
         )
 
 
 class CooperativeExplorationVectorEnv(TeamAccessors, Driver, scenario=CooperativeExploration):
-    """N copies of ``cooperative_exploration_v0`` on stacked arrays: the env's one implementation.
+    """N copies of ``cooperative_exploration_v0`` (the driver's vector API, autoreset and arguments; spaces,
+    rewards and config keys: ``CooperativeExplorationEnv``).
 
-    See ``CooperativeExplorationEnv`` (its N = 1 PettingZoo view) for the spaces, rewards and config keys.
-
-    ## Vector API
-    ``agents`` are the team's robots R; ``single_observation_space`` / ``single_action_space`` one robot's.
-    ``step`` takes one action per copy and robot (N, R) and returns observations (N, R, 10 + 5R + 4L + 3 + G; A more
-    with ``observe_gains``), rewards, ``terminated`` (a robot lost, or the coverage target reached) and ``truncated``
-    (``max_cycles``) (N, R). Infos hold the parallel env's per-agent keys as arrays with leading (N, R), but the team's
-    ``time_s``, ``coverage``, ``failed`` and ``success``: (N,); each with Gymnasium's ``_key`` mask (N,).
-    ``info["action_mask"]`` and ``action_masks()`` (bool, for ``MaskablePPO``) are (N, R, 5 (1 + L + R)).
-    ``planning_model(copy)`` is the planning model of copy ``copy`` (``exploration_planning``).
-
-    ## Autoreset
-    As ``CooperativeLocalizationVectorEnv``: ``NEXT_STEP`` (the default) resets a copy at the step after its
-    episode ended (its actions ignored, rewards 0, its reset info with ``reward_terms`` masked out);
-    ``SAME_STEP`` at once, the last observation and info in ``info["final_obs"]`` and ``info["final_info"]``;
-    ``DISABLED``: a copy goes on from its last state until ``reset()`` (what the PettingZoo view steps).
-
-    ## Arguments
-    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name ``"same_step"``) and
-    any key of ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0:
-    the field, the terrain map, each robot's truth, estimate, covariance and paths, and this step's observations.
+    Observations (N, R, 10 + 5R + 4L + 3 + G; A more with ``observe_gains``); rewards, ``terminated``, ``truncated``
+    (N, R); infos (N, R, ...) (the team's ``time_s``, ``coverage``, ``failed``, ``success``: (N,));
+    ``info["action_mask"]`` and ``action_masks()`` (N, R, 5 (1 + L + R)). ``planning_model(copy)``: copy
+    ``copy``'s planning model (``exploration_planning``).
     """
 
     @property
@@ -441,47 +389,10 @@ class CooperativeExplorationVectorEnv(TeamAccessors, Driver, scenario=Cooperativ
         """The team's sensors, speeds and map model (``ExplorationParts``), as the config gives them."""
         return self.env_scenario.parts
 
-    def static_geometry(self, copy: int = 0) -> StaticGeometry:
-        """The walls and obstacles of copy ``copy``'s episode (one copy)."""
-        return self.state.geometries[copy]
-
-    @property
-    def robot_radius_m(self) -> float:
-        """The radius of every robot's disc [m]."""
-        return self.state.worlds.robot_radius_m
-
     @property
     def map_variances(self) -> np.ndarray:
         """Every copy's terrain map cell variances (N, G) [m^2] (a copy)."""
         return self.state.map_variances.copy()
-
-    @property
-    def elapsed_steps(self) -> np.ndarray:
-        """Every copy's steps since its reset (N,) (a copy)."""
-        return self.state.elapsed.copy()
-
-    def gps_available(self, copies: np.ndarray, positions: np.ndarray, time_s) -> np.ndarray:
-        """Which robots at ``positions`` (n, R, 2) [m] in ``copies`` (n,) would have a DGPS fix at ``time_s`` (n,) [s]
-        (``TeamScenario.gps_available``)."""
-        return self.env_scenario.gps_available(self.state, copies, positions, time_s)
-
-    def copy_state(self, copy: int) -> CopyState:
-        """Copy ``copy``'s estimator state at its current decision.
-
-        Raises:
-            RuntimeError: before the first ``reset()``.
-        """
-        if self.decision is None:
-            raise RuntimeError(f"{self.owner_name}: call reset() before copy_state() (a planning model's belief())")
-        state = self.state
-        done = state.lost[copy].any() or state.success[copy] or state.elapsed[copy] >= self.max_cycles
-        return CopyState(
-            state.x[copy].copy(),
-            state.P[copy].copy(),
-            state.map_variances[copy].copy(),
-            state.observations_left[copy].copy(),
-            bool(done),
-        )
 
     def planning_model(self, copy: int = 0) -> ExplorationPlanningModel:
         """The planning model of copy ``copy`` (the same object on every call), for look-ahead agents
@@ -496,101 +407,90 @@ class CooperativeExplorationEnv(ParallelEnvView, vector_env=CooperativeExplorati
     """A heterogeneous team maps a field; each robot chooses where to drive and what to observe, together.
 
     ## Description
-    The paper's Section III-C, distributed heterogeneous multirobot exploration. The team
-    starts at a base in one corner of a square Pymunk field (``exploration_field``) with
-    round obstacles, GPS-denied canopy zones and a few landmarks, and must map the terrain:
-    a grid of cells whose heights are Gaussian estimates (``terrain_map``). A robot that
-    drives scans the cells around it; a position error ``sigma`` puts heights at the wrong
-    place, so a scan's height noise grows as ``scan_std_m^2 + (terrain_slope * sigma)^2``:
-    a badly localized robot maps poorly. A ``JointEKF`` over all poses fuses odometry, DGPS
-    fixes (robots with DGPS, outside the canopies) and the observations the agents choose:
-    a known landmark (range-bearing) or a teammate (relative pose, which correlates the two).
+    The paper's Section III-C, distributed heterogeneous multirobot exploration. The team starts at a base in one
+    corner of a square Pymunk field (``exploration_field``) with round obstacles, GPS-denied canopy zones and a few
+    landmarks, and must map the terrain: a grid of cells whose heights are Gaussian estimates (``terrain_map``). A
+    robot that drives scans the cells around it; a position error ``sigma`` puts heights at the wrong place, so a
+    scan's height noise grows as ``scan_std_m^2 + (terrain_slope * sigma)^2``: a badly localized robot maps poorly.
+    A ``JointEKF`` over all poses fuses odometry, DGPS fixes (robots with DGPS, outside the canopies) and the
+    observations the agents choose: a known landmark (range-bearing) or a teammate (relative pose, which correlates
+    the two).
 
-    Why a myopic agent fails: the robots without DGPS drift on odometry alone and stay
-    localized only while a landmark or a well-localized teammate is within their sensor's
-    short range. The unmapped cells lie far from both, so the action with the most immediate
-    information (drive to fresh cells, observe whatever is in sight) leads the GPS-less
-    robots away from every reference; their position std then crosses
-    ``max_position_std_m`` and the team fails. Succeeding needs plans over several steps:
-    scouts that cover far cells while returning near a teammate or a landmark in time, DGPS
-    robots that escort them and leave the canopies, and a budget kept for when it matters.
+    Why a myopic agent fails: the robots without DGPS drift on odometry alone and stay localized only while a
+    landmark or a well-localized teammate is within their sensor's short range. The unmapped cells lie far from
+    both, so the action with the most immediate information (drive to fresh cells, observe whatever is in sight)
+    leads the GPS-less robots away from every reference; their position std then crosses ``max_position_std_m`` and
+    the team fails. Succeeding needs plans over several steps: scouts that cover far cells while returning near a
+    teammate or a landmark in time, DGPS robots that escort them and leave the canopies, and a budget kept for when
+    it matters.
 
     ## Agents
-    ``robot_0 .. robot_{N-1}`` (default 4). Suites from ``robot_sensors`` (default: suite
-    ``k % 4`` of ``gps+laser, gps+laser, laser, vision``; odometry always), speeds from
-    ``robot_speeds_mps`` (default ``0.8, 0.8, 1.2, 1.2`` m/s: the DGPS robots are slower).
-    The laser sees all around up to ``laser_range_m``, the camera a 60 deg field of view up
-    to ``vision_range_m``; a robot observes landmarks and teammates with its one sensor.
+    ``robot_0 .. robot_{N-1}`` (default 4). Suites from ``robot_sensors`` (default: suite ``k % 4`` of ``gps+laser,
+    gps+laser, laser, vision``; odometry always), speeds from ``robot_speeds_mps`` (default ``0.8, 0.8, 1.2, 1.2``
+    m/s: the DGPS robots are slower). The laser sees all around up to ``laser_range_m``, the camera a 60 deg field
+    of view up to ``vision_range_m``; a robot observes landmarks and teammates with its one sensor.
 
     ## Action Space
-    ``Discrete(5 * (1 + L + N))`` per agent, ``L = n_landmarks``: action ``a`` is slot
-    ``a // 5`` and motion ``a % 5``. Slots: 0 observe nothing, ``1 + j`` landmark ``j``,
-    ``1 + L + j`` ``robot_j``. A motion (``stay``, ``east``, ``north``, ``west``, ``south``)
-    turns the robot on the spot for ``turn_time_s`` until its heading *estimated at the decision* is the
-    compass heading, then drives it straight at its speed for the rest of the step (``stay`` does neither);
-    Pymunk executes both phases, and both are exact unicycle motions for the EKF. A motion is valid while its
-    true path keeps ``clearance.CLEARANCE_M`` (5 cm) from walls, obstacles and wherever a teammate's motions can take it
-    (``world.clearance``): no contact ever pushes a robot unseen by its odometry. An observation is valid while the
-    target is in range and field of view with a clear line of sight and the robot has budget
-    left (``max_observations``); every observation goes with every valid motion, and action 0 (stay,
-    observe nothing) is always valid. A masked
-    action is action 0 (``invalid_action="noop"``) or raises ``ValueError`` (``"raise"``).
+    ``Discrete(5 * (1 + L + N))`` per agent, ``L = n_landmarks``: action ``a`` is slot ``a // 5`` and motion ``a %
+    5``. Slots: 0 observe nothing, ``1 + j`` landmark ``j``, ``1 + L + j`` ``robot_j``. A motion (``stay``,
+    ``east``, ``north``, ``west``, ``south``) turns the robot on the spot for ``turn_time_s`` until its heading
+    *estimated at the decision* is the compass heading, then drives it straight at its speed for the rest of the
+    step (``stay`` does neither); Pymunk executes both phases, and both are exact unicycle motions for the EKF. A
+    motion is valid while its true path keeps ``clearance.CLEARANCE_M`` (5 cm) from walls, obstacles and wherever a
+    teammate's motions can take it (``world.clearance``): no contact ever pushes a robot unseen by its odometry. An
+    observation is valid while the target is in range and field of view with a clear line of sight and the robot has
+    budget left (``max_observations``); every observation goes with every valid motion, and action 0 (stay, observe
+    nothing) is always valid. A masked action is action 0 (``invalid_action="noop"``) or raises ``ValueError``
+    (``"raise"``).
 
     ## Observation Space
-    ``Box(float32, (10 + 5 N + 4 L + 3 + G,))``, ``G = map_cells_per_side^2``: the 10 own and
-    5 per-robot features of ``cooperative_localization_v0``; per landmark: whether observing
-    it is valid, its estimated range [m], ``cos, sin`` of its estimated bearing; the robot's
-    speed [m/s], its budget left (fraction), the team's coverage; per cell (row-major from the
-    lower left corner) the height std left, as a fraction of ``map_prior_std_m``. With
-    ``observe_gains=True`` (off by default), ``5 (1 + L + N)`` more: ``action_information_gain`` of each
-    action, the immediate expected gains the greedy agent ranks and the planner starts its search from.
+    ``Box(float32, (10 + 5 N + 4 L + 3 + G,))``, ``G = map_cells_per_side^2``: the 10 own and 5 per-robot features
+    of ``cooperative_localization_v0``; per landmark: whether observing it is valid, its estimated range [m], ``cos,
+    sin`` of its estimated bearing; the robot's speed [m/s], its budget left (fraction), the team's coverage; per
+    cell (row-major from the lower left corner) the height std left, as a fraction of ``map_prior_std_m``. With
+    ``observe_gains=True`` (off by default), ``5 (1 + L + N)`` more: ``action_information_gain`` of each action, the
+    immediate expected gains the greedy agent ranks and the planner starts its search from.
 
     ## Rewards
-    ``(1 - team_reward) * own_pose_information + team_reward * team_map_information`` plus
-    the costs, with ``info["reward_terms"]``: ``own_pose_information``, the realized MI of
-    the step's observations on the robot's own pose [nats]; ``team_map_information``, the map
-    entropy reduction of every robot's scans this step [nats]; ``sensing_cost``
-    ``-observation_cost_nats`` per observation; ``motion_cost`` ``-motion_cost_per_step`` per
-    step driven; ``lost_penalty`` ``-lost_penalty`` for every robot when one is lost.
-    ``info["action_information_gain"][a]`` is the immediate expected information of ``a``:
-    ``(1 - team_reward)`` times the MI its observation alone brings to the robot's pose at the
-    prior, plus ``team_reward`` times the map information its scan alone would bring, from the
-    position the motion predicts, at the robot's current position std (0 where masked).
-    A scan is taken only after driving forward: standing or turning in place sees the same
+    ``(1 - team_reward) * own_pose_information + team_reward * team_map_information`` plus the costs, with
+    ``info["reward_terms"]``: ``own_pose_information``, the realized MI of the step's observations on the robot's
+    own pose [nats]; ``team_map_information``, the map entropy reduction of every robot's scans this step [nats];
+    ``sensing_cost`` ``-observation_cost_nats`` per observation; ``motion_cost`` ``-motion_cost_per_step`` per step
+    driven; ``lost_penalty`` ``-lost_penalty`` for every robot when one is lost.
+    ``info["action_information_gain"][a]`` is the immediate expected information of ``a``: ``(1 - team_reward)``
+    times the MI its observation alone brings to the robot's pose at the prior, plus ``team_reward`` times the map
+    information its scan alone would bring, from the position the motion predicts, at the robot's current position
+    std (0 where masked). A scan is taken only after driving forward: standing or turning in place sees the same
     view again, with the same errors, so it brings nothing new (action 0 has gain 0).
 
     ## Info
-    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain``, ``reward_terms``,
-    ``chosen_action``, ``invalid_action``, ``gps_available``, ``pose_std``, ``position_std_m``
-    (largest, at the decision), ``pose_entropy``, ``position_error_m``, ``heading_error_rad``,
-    ``true_pose``, ``estimated_pose``, ``time_s``, ``observations_left``, ``coverage``
-    (team), ``lost`` (this robot), ``failed`` and ``success`` (the team).
+    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain``, ``reward_terms``, ``chosen_action``,
+    ``invalid_action``, ``gps_available``, ``pose_std``, ``position_std_m`` (largest, at the decision),
+    ``pose_entropy``, ``position_error_m``, ``heading_error_rad``, ``true_pose``, ``estimated_pose``, ``time_s``,
+    ``observations_left``, ``coverage`` (team), ``lost`` (this robot), ``failed`` and ``success`` (the team).
 
     ## Starting State
-    Parked at the base, facing the field's centre; estimates drawn from
-    ``N(true pose, diag(initial_position_std_m^2, ..., initial_heading_std_rad^2))``; the map
-    at its prior (std ``map_prior_std_m`` in every cell).
+    Parked at the base, facing the field's centre; estimates drawn from ``N(true pose,
+    diag(initial_position_std_m^2, ..., initial_heading_std_rad^2))``; the map at its prior (std ``map_prior_std_m``
+    in every cell).
 
     ## Episode End
-    Terminated for all agents when a robot's largest position std exceeds
-    ``max_position_std_m`` (it is lost: ``failed``), or when the coverage reaches
-    ``coverage_target`` (``success``); truncated after ``max_cycles`` steps (no success).
+    Terminated for all agents when a robot's largest position std exceeds ``max_position_std_m`` (it is lost:
+    ``failed``), or when the coverage reaches ``coverage_target`` (``success``); truncated after ``max_cycles``
+    steps (no success).
 
     ## Planning model
-    ``planning_model()`` returns the model look-ahead agents search (``ExplorationPlanningModel`` of the
-    env's one copy, ``multi.exploration_planning``): ``belief()`` copies the joint EKF state, the map and the
-    budgets, ``plan_decision(belief, robot)`` and ``plan_step(belief, team_actions)`` step copies of it under
-    the expected measurements with the env's own batched functions, never reading the true state
-    (``agents.planner.PlannerAgent(env, robot)``).
+    ``planning_model()`` is the model look-ahead agents search (``ExplorationPlanningModel``,
+    ``agents.planner.PlannerAgent(env, robot)``): ``belief()`` copies the joint EKF state, the map and the budgets,
+    ``plan_decision(belief, robot)`` and ``plan_step(belief, team_actions)`` step them under the expected
+    measurements with the env's own functions, never reading the true state.
 
     ## Arguments
-    ``parallel_env(render_mode=None, **config)`` with any key of ``default_config()``; an
-    unknown key or a bad value raises ``ValueError`` naming it. The env is the N = 1 view of
-    ``CooperativeExplorationVectorEnv`` (its one implementation, ``self.vector``: ``scenario(0)``,
-    ``true_poses``, ``joint_state()``, ``map_variances``, ``copy_state(0)``).
+    ``parallel_env(render_mode=None, **config)`` with any key of ``default_config()``; an unknown key or a bad value
+    raises ``ValueError`` naming it. The env is the N = 1 view of ``CooperativeExplorationVectorEnv`` (its one
+    implementation, ``self.vector``: ``scenario(0)``, ``true_poses``, ``joint_state()``, ``map_variances``).
 
     ## Version History
-    * v0: initial version (issue 18). Motions masked clear of contacts, and the planning model, added before
-      any results were committed; the N = 1 view of the vector env since the one-implementation refactor
-      (same numbers).
+    * v0: initial version (issue 18). Motions masked clear of contacts, and the planning model, added before any
+      results were committed; the N = 1 view of the vector env since the one-implementation refactor (same numbers).
     """

@@ -21,17 +21,9 @@ from infonav_gym.envs.cooperative_exploration import terrain_map_kernels
 
 @dataclass(frozen=True)
 class TerrainMapModel:
-    """The static part of the coverage map; its state is the cell variances, an array the env keeps.
-
-    Attributes:
-        ticks: the coordinate of the cell centres along each axis of the square grid (K,) [m]; the G = K^2
-            cells are row-major from the field's lower left corner.
-        prior_std_m: height std of an unscanned cell [m].
-        scan_radius_m: a scan sees the cells whose centre lies this close [m].
-        scan_std_m: height noise std of a scan from a perfectly known position [m].
-        terrain_slope: height error per metre of position error [m/m].
-        covered_std_m: a cell is covered once its height std is at most this [m].
-    """
+    """The static part of the coverage map (its state is the cell variances, an array the env keeps): the cell
+    centres' coordinate along each axis ``ticks`` (K,) [m] (the G = K^2 cells row-major from the lower left corner),
+    and the config keys of the same names (see the module)."""
 
     ticks: np.ndarray
     prior_std_m: float
@@ -70,12 +62,8 @@ class TerrainMapModel:
         return terrain_map_kernels.scan_gains(*self._kernel_arguments(variances, positions, noise_variances))
 
     def fused(self, variances, positions, noise_variances, scanning) -> tuple[np.ndarray, np.ndarray]:
-        """The cell variances (B, G) after the scans of one step and the map information they bring (B,) [nats].
-
-        Each copy's cell variances (B, G) [m^2] take the scans of its ``scanning`` robots (B, S) bool from
-        ``positions`` (B, S, 2) [m] with noise variances (B, S) [m^2] (compiled: only the cells a scan sees are
-        visited).
-        """
+        """The cell variances (B, G) [m^2] after the scans of the ``scanning`` robots (B, S) from ``positions``
+        (B, S, 2) [m] with noise variances (B, S) [m^2], and the map information they bring (B,) [nats]."""
         arguments = self._kernel_arguments(variances, positions, noise_variances)
         return terrain_map_kernels.fused_scans(*arguments, np.ascontiguousarray(scanning, dtype=bool))
 

@@ -1,7 +1,7 @@
 """Compiled scan gains of the coverage map (``terrain_map``): each scan visits only the cells it sees.
 
-The footprint test is ``TerrainMapModel.footprints``'s, operation for operation (``dx * dx + dy * dy <=
-radius^2`` on the cell-centre ticks); the gain sums ``log1p(v_c / r)`` over those cells in row-major order.
+A scan sees the cells with ``dx * dx + dy * dy <= radius^2`` (on the cell-centre ticks); the gain sums
+``log1p(v_c / r)`` over those cells in row-major order.
 """
 
 from __future__ import annotations
@@ -15,11 +15,9 @@ from infonav_gym.compiled import inline, kernel
 
 @inline
 def footprint(ticks, radius_squared, x, y, cells):
-    """Write the cells a scan from (x, y) [m] sees into ``cells`` (row-major, ``row * K + col``); their count.
-
-    The ticks ascend, so past (x, y) the first cell out of reach ends its row, and the first row out of reach the
-    grid (rounding is monotone: no cell beyond is within reach); before (x, y), the rows and columns more than a cell
-    out of reach are not visited (``first_near``)."""
+    """Write the cells a scan from (x, y) [m] sees into ``cells`` (row-major, ``row * K + col``); their count. The
+    ticks ascend, so past (x, y) the first cell out of reach ends its row, the first row out of reach the grid;
+    the rows and columns more than a cell out of reach before (x, y) are not visited (``first_near``)."""
     n_ticks, count = ticks.shape[0], 0
     reach = math.sqrt(radius_squared)
     first_col = first_near(ticks, x - reach)
@@ -52,15 +50,7 @@ def first_near(ticks, low):
 
 @kernel
 def scan_gains(ticks, radius_squared, variances, ends, noise_variances):
-    """``0.5 sum_c ln(1 + v_c / r)`` over the cells each scan sees (B, E) [nats].
-
-    Args:
-        ticks: the cell-centre coordinates along each axis (K,) [m]; cell ``row * K + col``.
-        radius_squared: the squared scan radius [m^2].
-        variances: the cell variances of each copy (B, K^2) [m^2].
-        ends: where each scan is taken (B, E, 2) [m].
-        noise_variances: each scan's height noise variance (B, E) [m^2].
-    """
+    """``TerrainMapModel.scan_gains`` on the cell-centre ``ticks`` (K,) [m] and squared scan radius [m^2]."""
     n_copies, n_scans = ends.shape[0], ends.shape[1]
     gains = np.zeros((n_copies, n_scans))
     cells, terms = np.empty(variances.shape[1], dtype=np.int64), np.empty(variances.shape[1])
@@ -82,15 +72,8 @@ def scan_gains(ticks, radius_squared, variances, ends, noise_variances):
 def fused_scans(ticks, radius_squared, variances, positions, noise_variances, scanning):
     """The cell variances (B, G) after each copy's scans of one step, fused in information form, and the map
     information they bring (B,) [nats]: ``0.5 sum_c ln(v_c / v_c')`` over the cells some scan sees (elsewhere
-    ``v_c' = 1 / (1 / v_c + 0)``, as in numpy, and its term is left out).
-
-    Args:
-        ticks, radius_squared: as ``scan_gains`` takes them.
-        variances: the cell variances of each copy before the scans (B, G) [m^2].
-        positions: where each robot scans (B, S, 2) [m].
-        noise_variances: each scan's height noise variance (B, S) [m^2].
-        scanning: which robots scan (B, S) bool.
-    """
+    ``v_c' = 1 / (1 / v_c + 0)``, as in numpy, and its term is left out) (``TerrainMapModel.fused``; ``ticks`` and
+    ``radius_squared`` as ``scan_gains`` takes them)."""
     n_copies, n_scans, n_cells = positions.shape[0], positions.shape[1], variances.shape[1]
     after = np.empty((n_copies, n_cells))
     information = np.zeros(n_copies)

@@ -5,6 +5,5 @@ from infonav_gym.envs.cooperative_localization.scenario import (
     CooperativeLocalizationEnv,
     CooperativeLocalizationVectorEnv,
 )
-from infonav_gym.envs.cooperative_localization.team_localization import start_episode
 
-__all__ = ["CooperativeLocalization", "CooperativeLocalizationEnv", "CooperativeLocalizationVectorEnv", "start_episode"]
+__all__ = ["CooperativeLocalization", "CooperativeLocalizationEnv", "CooperativeLocalizationVectorEnv"]

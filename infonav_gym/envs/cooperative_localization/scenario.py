@@ -1,12 +1,7 @@
 """``cooperative_localization_v0``: a heterogeneous team localizes through relative-pose observations, as a scenario.
 
-``make_vector_env("cooperative_localization_v0", num_envs=N, **config)`` returns ``CooperativeLocalizationVectorEnv``
-(the driver of this scenario); its PettingZoo env (``CooperativeLocalizationEnv``,
-``cooperative_localization_v0.parallel_env``) is its N = 1 view without autoreset (``envs.parallel_view``). The joint
-estimation (prediction, DGPS and relative-pose updates, expected gains, log-determinants) runs on the batched EKF core
-(``estimation.batched``), the robot-robot line of sight on ``world.visibility``, the physics in a ``WorldBatch`` and
-the sensor noise from one stream per copy and sensor (``NoiseStreams``), so copy ``i`` after ``reset(seed=s)`` gives
-the numbers of ``parallel_env()`` after ``reset(seed=s + i)``.
+``CooperativeLocalizationVectorEnv`` is the driver of this scenario, ``CooperativeLocalizationEnv`` its PettingZoo
+view (``envs.parallel_view``).
 """
 
 from __future__ import annotations
@@ -26,7 +21,7 @@ from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS
 from infonav_gym.envs.parallel_view import ParallelEnvView, team_metadata
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.multi.team_decision import TeamDecision, TeamStep, observable_pairs, team_info
+from infonav_gym.multi.team_decision import TeamDecision, observable_pairs
 from infonav_gym.multi.team_observations import team_observation_bounds, team_observations
 from infonav_gym.multi.team_scenario import TeamAccessors, TeamScenario, TeamState
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
@@ -36,16 +31,12 @@ from infonav_gym.world.visibility import StaticGeometry
 
 @dataclass
 class LocalizationState(TeamState):
-    """``TeamState`` and what each copy's last step brought: each robot's executed action (N, R) (``NO_OBSERVATION``
-    for none), whether it was masked (N, R), the MI on its own pose and the team's (N, R) [nats], its standard
-    deviations right after the relative updates (N, R, 3), and copy 0's observed (observer, target) pairs."""
+    """``TeamState`` and what each copy's last step brought: each robot's MI on its own pose and the team's (N, R)
+    [nats] and its standard deviations right after the relative updates (N, R, 3)."""
 
-    chosen: np.ndarray = None
-    invalid: np.ndarray = None
     own_mi: np.ndarray = None
     team_mi: np.ndarray = None
     pose_std_after: np.ndarray = None
-    observed_pairs: list = None
 
 
 class CooperativeLocalization(TeamScenario):
@@ -84,34 +75,23 @@ class CooperativeLocalization(TeamScenario):
         shape = (copies, len(self.agents))
         return LocalizationState(
             **self.team_fields(copies),
-            chosen=np.full(shape, NO_OBSERVATION),
-            invalid=np.zeros(shape, dtype=bool),
             own_mi=np.zeros(shape),
             team_mi=np.zeros(shape),
             pose_std_after=np.zeros((*shape, POSE_DIM)),
-            observed_pairs=[],
         )
 
     def initial(self, state: LocalizationState, rows: np.ndarray, rngs: list) -> LocalizationState:
         """Draw each copy's scenario and joint prior (``start_episode``), then its first DGPS fixes."""
         for copy, rng in zip(rows.tolist(), rngs):
-            scenario, poses, covariances, *generators = start_episode(self.config, rng, self.owner)
-            self.start_copy(state, copy, scenario, poses, covariances, generators)
-            state.geometries[copy] = StaticGeometry.from_scenario(scenario, state.worlds.wall_thickness_m)
+            self.start_copy(state, copy, *start_episode(self.config, rng, self.owner))
         state.geometry = StaticGeometry.stack(state.geometries)
         self.started(state, rows)
-        state.chosen[rows], state.invalid[rows] = NO_OBSERVATION, False
         state.own_mi[rows] = state.team_mi[rows] = 0.0
-        if rows[0] == 0:
-            state.observed_pairs = []
         return state
 
     def decision(self, state: LocalizationState, rows) -> TeamDecision:
         """The observable pairs of the copies ``rows``, the candidates' models and expected gains at their priors."""
-        geometry = (
-            state.geometry if isinstance(rows, slice) else StaticGeometry.stack([state.geometries[row] for row in rows])
-        )
-        pair_geometry, valid = observable_pairs(self.pairs, geometry, state.worlds.poses[rows])
+        pair_geometry, valid = observable_pairs(self.pairs, self.rows_geometry(state, rows), state.worlds.poses[rows])
         return TeamDecision.at_prior(
             self.pairs, pair_geometry, valid, state.x[rows], state.P[rows], self.config["team_reward"]
         )
@@ -133,8 +113,7 @@ class CooperativeLocalization(TeamScenario):
             dt = self.config["time_step_s"]
             self.predict(state, copies, state.worlds.step(dt, copies), dt)
             self.gps_fixes(state, copies, state.elapsed[copies] + 1)  # the driver counts the step after
-            if copies[0] == 0 and state.paths is not None:
-                state.paths.extend(state.worlds.poses[0], state.x[0].reshape(-1, POSE_DIM))
+            self.moved(state, copies)
         return state
 
     def reward(self, decision, action, state: LocalizationState) -> np.ndarray:
@@ -158,53 +137,22 @@ class CooperativeLocalization(TeamScenario):
     def info(self, state: LocalizationState, decision: TeamDecision, rows, stepped) -> dict:
         """The decision's masks and gains, the reward terms, the actions and the robots' estimates (``team_info``)."""
         std = np.where(stepped[:, None, None], state.pose_std_after[rows], decision.pose_std)
-        last = TeamStep(stepped, state.chosen[rows], state.invalid[rows], state.own_mi[rows], state.team_mi[rows], std)
-        time_s = state.elapsed[rows] * self.config["time_step_s"]
-        return team_info(decision, last, state.x[rows], state.worlds.poses[rows], state.gps_available[rows], time_s)
+        terms = {"own_mutual_information": state.own_mi[rows], "team_mutual_information": state.team_mi[rows]}
+        return self.team_info(state, decision, rows, stepped, terms, pose_std_after_update=std)
 
     def frame(self, state: LocalizationState, decision: TeamDecision) -> SceneFrame:
         """Copy 0 drawn: its scenario, every robot (truth, estimate, covariance, paths) and this step's observations."""
-        scenario = state.worlds.scenario(0)
         time_s = state.elapsed[0] * self.config["time_step_s"]
-        return SceneFrame(
-            bounds=scenario.bounds,
-            walls=scenario.walls,
-            obstacles=scenario.obstacles,
-            robots=state.paths.drawings(
-                state.worlds.poses[0], state.x[0], state.P[0], self.agents, state.gps_available[0]
-            ),
-            observations=list(state.observed_pairs),
-            gps_denied_zones=scenario.gps_denied_zones,
-            caption=f"t = {time_s:.1f} s   {len(state.observed_pairs)} relative observations this step",
-        )
+        caption = f"t = {time_s:.1f} s   {len(state.observed_pairs)} relative observations this step"
+        return self.team_frame(state, caption, observations=list(state.observed_pairs))
 
 
 class CooperativeLocalizationVectorEnv(TeamAccessors, Driver, scenario=CooperativeLocalization):
-    """N copies of ``cooperative_localization_v0`` on stacked arrays: the env's one implementation.
+    """N copies of ``cooperative_localization_v0`` (the driver's vector API, autoreset and arguments; spaces,
+    rewards and config keys: ``CooperativeLocalizationEnv``).
 
-    See ``CooperativeLocalizationEnv`` (its N = 1 PettingZoo view) for the spaces, rewards and config keys.
-
-    ## Vector API
-    ``agents`` are the team's robots R; ``single_observation_space`` / ``single_action_space`` one robot's.
-    ``step`` takes one action per copy and robot (N, R) and returns observations (N, R, 10 + 5R), rewards,
-    ``terminated`` and ``truncated`` (N, R). Infos hold the parallel env's per-agent keys as arrays with
-    leading (N, R) (``time_s``: (N,)), each with Gymnasium's ``_key`` mask (N,); ``info["action_mask"]`` is
-    (N, R, R + 1). ``action_masks()`` gives the (N, R, R + 1) bool masks for ``MaskablePPO``.
-
-    ## Autoreset
-    ``metadata["autoreset_mode"]``, chosen by ``autoreset_mode``. ``NEXT_STEP`` (the default, as Gymnasium's
-    ``CartPoleVectorEnv``): the step after a copy's episode ended resets it (its actions are ignored), with
-    rewards 0, not terminated nor truncated, and its reset info (``reward_terms`` masked out). ``SAME_STEP``:
-    the step that ends an episode resets the copy at once and returns its reset observation; the last
-    observation is ``info["final_obs"]`` (an object array (N,) of (R, 10 + 5R) arrays, None for the others) and
-    the last info ``info["final_info"]``, masked by ``info["_final_obs"]`` / ``info["_final_info"]`` (N,).
-    A copy reset this way continues its own generator, as the parallel env's ``reset()`` without a seed does.
-    ``DISABLED``: a copy goes on from its last state until ``reset()`` (what the PettingZoo view steps).
-
-    ## Arguments
-    ``num_envs`` (N >= 1), ``autoreset_mode`` (an ``AutoresetMode``, its value or its name ``"same_step"``) and
-    any key of ``default_config()``. ``render_mode`` (``"rgb_array"`` or ``"human"``): ``render()`` draws copy 0:
-    the scenario, each robot's truth, estimate, covariance and paths, and this step's relative observations.
+    Observations (N, R, 10 + 5R); rewards, ``terminated``, ``truncated`` (N, R); infos (N, R, ...) (``time_s``
+    (N,)); ``info["action_mask"]`` and ``action_masks()`` (N, R, R + 1).
     """
 
 
@@ -212,72 +160,60 @@ class CooperativeLocalizationEnv(ParallelEnvView, vector_env=CooperativeLocaliza
     """Robots without (or losing) DGPS localize through relative-pose observations of teammates.
 
     ## Description
-    The paper's Section III-C. N robots follow their routes in a Pymunk world; a
-    joint EKF over all poses fuses every robot's odometry, the DGPS fixes of
-    the robots that have them (DGPS drops out on a time schedule and under
-    GPS-denied canopy zones) and the relative-pose observations the agents choose.
-    Each step each robot may observe one teammate with its laser or camera: the
-    measured range, bearing and relative heading update both robots' poses and
-    correlate them. A greedy-entropy agent picks the teammate whose observation
-    brings the most information on its own pose.
+    The paper's Section III-C. N robots follow their routes in a Pymunk world; a joint EKF over all poses fuses
+    every robot's odometry, the DGPS fixes of the robots that have them (DGPS drops out on a time schedule and under
+    GPS-denied canopy zones) and the relative-pose observations the agents choose. Each step each robot may observe
+    one teammate with its laser or camera: the measured range, bearing and relative heading update both robots'
+    poses and correlate them. A greedy-entropy agent picks the teammate whose observation brings the most
+    information on its own pose.
 
     ## Agents
-    ``robot_0 .. robot_{N-1}`` (``team_field`` fits up to 4 robots in its default
-    40 m field; ``convoy`` any number). Each robot's sensor suite comes from
-    ``robot_sensors`` (default: suite ``k % 4`` of ``gps+laser, gps+laser,
-    laser, vision``; odometry always).
+    ``robot_0 .. robot_{N-1}`` (``team_field`` fits up to 4 robots in its default 40 m field; ``convoy`` any
+    number). Each robot's sensor suite comes from ``robot_sensors`` (default: suite ``k % 4`` of ``gps+laser,
+    gps+laser, laser, vision``; odometry always).
 
     ## Action Space
-    ``Discrete(N + 1)`` per agent: 0 = no relative observation (always valid),
-    ``1 + j`` = observe ``robot_j``. Valid when the robot carries a relative-pose
-    sensor, ``robot_j`` is another robot inside its range and field of view and no
-    wall or obstacle blocks the line of sight (``infos[agent]["action_mask"]``). A
-    masked action is a no-op (``invalid_action="noop"``, the default, as in the
-    single-agent envs) or raises ``ValueError`` (``invalid_action="raise"``). An
-    integer outside the space always raises ``ValueError``.
+    ``Discrete(N + 1)`` per agent: 0 = no relative observation (always valid), ``1 + j`` = observe ``robot_j``.
+    Valid when the robot carries a relative-pose sensor, ``robot_j`` is another robot inside its range and field of
+    view and no wall or obstacle blocks the line of sight (``infos[agent]["action_mask"]``). A masked action is a
+    no-op (``invalid_action="noop"``, the default, as in the single-agent envs) or raises ``ValueError``
+    (``invalid_action="raise"``). An integer outside the space always raises ``ValueError``.
 
     ## Observation Space
-    ``Box(float32, (10 + 5 N,))`` per agent: the robot's estimated ``x, y`` [m],
-    ``cos, sin`` of its estimated heading, standard deviations of ``x, y`` [m] and
-    heading [rad], its pose entropy [nats], whether it has a DGPS fix now, and the
-    elapsed fraction of ``max_cycles``; then per robot ``j``: whether observing it
-    is valid, its estimated range [m], ``cos, sin`` of its estimated bearing and its
-    position standard deviation [m] (zeros for the robot itself). With
-    ``observe_gains=True``, ``N + 1`` more: ``action_information_gain`` of each
-    action (what a greedy agent ranks by [nats]), so ``Box(float32, (11 + 6 N,))``.
+    ``Box(float32, (10 + 5 N,))`` per agent: the robot's estimated ``x, y`` [m], ``cos, sin`` of its estimated
+    heading, standard deviations of ``x, y`` [m] and heading [rad], its pose entropy [nats], whether it has a DGPS
+    fix now, and the elapsed fraction of ``max_cycles``; then per robot ``j``: whether observing it is valid, its
+    estimated range [m], ``cos, sin`` of its estimated bearing and its position standard deviation [m] (zeros for
+    the robot itself). With ``observe_gains=True``, ``N + 1`` more: ``action_information_gain`` of each action (what
+    a greedy agent ranks by [nats]), so ``Box(float32, (11 + 6 N,))``.
 
     ## Rewards
-    The realized mutual information on the robot's own pose of this step's
-    relative-pose updates, ``0.5 ln(det P_ii,prior / det P_ii,post)`` [nats], mixed
-    with the team's (the MI on the joint state) by ``team_reward`` in [0, 1]:
-    ``(1 - team_reward) * own + team_reward * team``. The observations of one step
-    are taken at the same time and fused as one stacked EKF update, so a robot's
-    reward also counts what teammates' observations of it brought;
-    ``action_information_gain[a]`` is the MI action ``a`` alone would bring to the
-    robot's own pose at the step's prior.
+    The realized mutual information on the robot's own pose of this step's relative-pose updates, ``0.5 ln(det
+    P_ii,prior / det P_ii,post)`` [nats], mixed with the team's (the MI on the joint state) by ``team_reward`` in
+    [0, 1]: ``(1 - team_reward) * own + team_reward * team``. The observations of one step are taken at the same
+    time and fused as one stacked EKF update, so a robot's reward also counts what teammates' observations of it
+    brought; ``action_information_gain[a]`` is the MI action ``a`` alone would bring to the robot's own pose at the
+    step's prior.
 
     ## Info
-    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain`` (expected
-    reward of each action [nats], 0 where masked), ``reward_terms`` (own and team MI),
-    ``chosen_action``, ``invalid_action``, ``gps_available``, ``pose_std`` (x, y,
-    heading std at the step's prior), ``pose_std_after_update`` (right after the
-    step's relative updates), ``pose_entropy``, ``position_error_m``,
-    ``heading_error_rad``, ``true_pose``, ``estimated_pose``, ``time_s``.
+    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain`` (expected reward of each action [nats], 0
+    where masked), ``reward_terms`` (own and team MI), ``chosen_action``, ``invalid_action``, ``gps_available``,
+    ``pose_std`` (x, y, heading std at the step's prior), ``pose_std_after_update`` (right after the step's relative
+    updates), ``pose_entropy``, ``position_error_m``, ``heading_error_rad``, ``true_pose``, ``estimated_pose``,
+    ``time_s``.
 
     ## Starting State
-    The robots at their routes' starts; initial estimates drawn from
-    ``N(true pose, diag(initial_position_std_m^2, ..., initial_heading_std_rad^2))``.
+    The robots at their routes' starts; initial estimates drawn from ``N(true pose, diag(initial_position_std_m^2,
+    ..., initial_heading_std_rad^2))``.
 
     ## Episode End
     All agents are truncated after ``max_cycles`` steps; never terminated.
 
     ## Arguments
-    ``parallel_env(render_mode=None, **config)`` with any key of
-    ``default_config()``; an unknown key raises ``ValueError`` naming it.
-    The env is the N = 1 view of ``CooperativeLocalizationVectorEnv`` (its one
-    implementation, ``self.vector``: ``scenario(0)``, ``true_poses``,
-    ``joint_state()``); its EKF equals filterpy's ``JointEKF`` update for update.
-    ``estimator="independent"`` drops the cross-covariances (overconfident, for
+    ``parallel_env(render_mode=None, **config)`` with any key of ``default_config()``; an unknown key raises
+    ``ValueError`` naming it. The env is the N = 1 view of ``CooperativeLocalizationVectorEnv`` (its one
+    implementation, ``self.vector``: ``scenario(0)``, ``true_poses``, ``joint_state()``); its EKF equals filterpy's
+    ``JointEKF`` update for update. ``estimator="independent"`` drops the cross-covariances (overconfident, for
     comparison).
 
     ## Version History

@@ -1,8 +1,4 @@
-"""What a team localization env is made of: its config, the parts built from it, its features and episode start.
-
-``cooperative_localization_v0`` (``CooperativeLocalizationVectorEnv``) is built from these; the team exploration
-env reuses the features (``team_observation_bounds``, ``team_observations``).
-"""
+"""What ``cooperative_localization_v0`` is made of: its config, the parts built from it and its episode start."""
 
 from __future__ import annotations
 
@@ -73,14 +69,8 @@ def team_localization_config() -> dict:
 
 
 class TeamParts(NamedTuple):
-    """The sensors of a team of R robots, as its config gives them.
-
-    Attributes:
-        suites: what each robot carries besides odometry (R,).
-        gps: each robot's ``GPSSensor`` (with its outage spans), None without DGPS (R,).
-        pairs: the (observer, target) pairs of the robots with a relative-pose sensor.
-        odometry: every robot's odometry sensor.
-    """
+    """The sensors of a team of R robots, as its config gives them: each robot's ``RobotSuite`` and ``GPSSensor``
+    (with its outage spans) or None, the (observer, target) ``pairs`` and the odometry."""
 
     suites: tuple[RobotSuite, ...]
     gps: list[GPSSensor | None]
@@ -89,18 +79,12 @@ class TeamParts(NamedTuple):
 
     @classmethod
     def of_config(cls, config: dict, owner: str) -> TeamParts:
-        """Check the team keys of a merged config and build the team's sensors.
-
-        Raises:
-            ValueError: naming ``owner`` and the key, for a bad scenario, estimator, number, sensor suite, outage
-                or a team that does not fit in its field.
-        """
+        """Check the team keys of a merged config and build the team's sensors (``ValueError`` naming ``owner`` and
+        the key, for a bad scenario, estimator, number, sensor suite, outage or a team that does not fit its field)."""
         check_choice(config, "scenario", scenario_names(team=True), owner)
         check_choice(config, "estimator", ESTIMATORS, owner)
         check_config(config, owner, CONFIG_INTERVALS)
-        check_config_arguments(
-            config, owner, "team_field", TEAM_FIELD_ARGUMENTS, TEAM_SCENARIO_KEYS
-        )  # the convoy's too
+        check_config_arguments(config, owner, "team_field", TEAM_FIELD_ARGUMENTS, TEAM_SCENARIO_KEYS)  # and convoy's
         n_robots = config["n_robots"]
         if config["scenario"] == "team_field":
             with config_keys(owner, {"n_robots": "n_robots"}):
@@ -112,20 +96,9 @@ class TeamParts(NamedTuple):
 
 
 def start_episode(config: dict, np_random: np.random.Generator, owner: str):
-    """Start an episode of the team env: draw its scenario and the joint estimator's prior from ``np_random``.
-
-    Draws in a fixed order (the scenario, the sensors' generators, the initial estimates).
-
-    Args:
-        config: a checked ``cooperative_localization_v0`` config.
-        np_random: the episode's generator.
-        owner: the env named in config errors.
-
-    Returns:
-        ``(scenario, poses, covariances, odometry_rng, gps_rng, relative_rng)``: the team scenario
-        ``config["scenario"]`` (one route per robot), the robots' initial estimates (R, 3) and their
-        covariances (R, 3, 3) (the ``JointEKF`` prior, no cross-covariance) and the sensors' generators.
-    """
+    """Draw an episode from ``np_random`` (``owner``: the env named in config errors), in a fixed order:
+    ``(scenario, poses (R, 3), covariances (R, 3, 3), odometry_rng, gps_rng, relative_rng)``: the scenario (one
+    route per robot), the sensors' generators, then the ``JointEKF`` prior (no cross-covariance)."""
     n = config["n_robots"]
     scenario = scenario_from_config(config, np_random, TEAM_SCENARIO_KEYS, owner, n)
     odometry_rng, gps_rng, relative_rng = np_random.spawn(3)
