@@ -77,8 +77,7 @@ LEGEND_SYMBOLS = ("disc", "ring", "ellipse", "line", "cross", "zone", "wedge", "
 
 @dataclass(frozen=True)
 class LegendEntry:
-    """One legend item: a symbol (one of ``LEGEND_SYMBOLS``) in ``colour``, ``symbol_px`` wide, then ``text``.
-    A ``scale`` symbol is a bar ``length_m`` long at the frame's scale."""
+    """A legend item: a ``LEGEND_SYMBOLS`` symbol in ``colour``, ``symbol_px`` wide (``scale``: ``length_m``), text."""
 
     symbol: str
     colour: tuple[int, int, int]
@@ -574,8 +573,7 @@ class Renderer:
         return font.size(text)[0] if font else _FALLBACK_CHAR_PX * len(text)
 
     def _draw_text(self, pygame, surface, text: str, colour, corner, background=None) -> None:
-        """Blit ``text`` (on ``background``, if given) with its top-left at pixel ``corner``; nothing if pygame has
-        no fonts."""
+        """Blit ``text`` (on ``background``, if given) at top-left pixel ``corner``; nothing without fonts."""
         font = self._text_font()
         if font:
             surface.blit(font.render(text, True, colour, background), corner)
