@@ -196,12 +196,9 @@ def scale_bar_m(longest_m: float) -> float:
 
 def overlap(box, other) -> bool:
     """Whether two (left, top, width, height) boxes share an area (touching edges do not)."""
-    return (
-        box[0] < other[0] + other[2]
-        and other[0] < box[0] + box[2]
-        and box[1] < other[1] + other[3]
-        and (other[1] < box[1] + box[3])
-    )
+    (left, top, width, height), (other_left, other_top, other_width, other_height) = box, other
+    horizontal = left < other_left + other_width and other_left < left + width
+    return horizontal and top < other_top + other_height and other_top < top + height
 
 
 def place_label(anchor, size, taken: list, area) -> tuple[int, int, int, int] | None:
