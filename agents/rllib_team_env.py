@@ -1,8 +1,5 @@
-"""RLlib's multi-agent env runner on a team env's native vector env: N copies in one batched step (needs Ray).
-
-RLlib 2.60 steps multi-agent copies one by one in Python; ``BatchedTeamEnvRunner`` builds ``BatchedTeamEnv``
-instead, so a runner step is one batched env step and one forward pass per policy.
-"""
+"""RLlib's multi-agent env runner on a team env's native vector env: N copies in one batched step, one forward pass
+per policy, where RLlib 2.60 steps multi-agent copies one by one in Python (needs Ray)."""
 
 from __future__ import annotations
 
