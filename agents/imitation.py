@@ -1,8 +1,5 @@
-"""Planning amortized into a policy: behaviour cloning of the look-ahead planner, PPO's warm start.
-
-``planner_demonstrations`` records the planner's decisions and returns; ``clone_planner`` fits a ``MaskablePPO``
-policy to them (actor by likelihood, critic to the returns) before PPO (``infonav train --init-from-planner``).
-"""
+"""Planning amortized into a policy: behaviour cloning of the look-ahead planner, PPO's warm start
+(``infonav train --init-from-planner``)."""
 
 from __future__ import annotations
 

@@ -192,8 +192,7 @@ def read_validations(path: Path) -> np.ndarray:
 
 
 def draw_curve(directory: Path, title: str, references: dict | None) -> Path:
-    """``directory/curve.png`` (``figure_curve``); ``ImportError`` without matplotlib, ``ValueError`` with nothing to
-    draw."""
+    """``directory/curve.png``; ``ImportError`` without matplotlib, ``ValueError`` with nothing to draw."""
     return save_figure(figure_curve(directory, title, references), Path(directory) / CURVE_PNG, dpi=100)
 
 

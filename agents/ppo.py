@@ -94,8 +94,7 @@ class InfoActionMask(gym.Wrapper):
 
 
 def mask_wrapper(env_id: str, env_kwargs: dict | None = None) -> tuple[bool, type | None]:
-    """``(masked, wrapper)``: whether ``env_id`` has action masks (``MaskablePPO``); ``InfoActionMask`` when they are
-    only in its infos (``None`` with its own ``action_masks()``)."""
+    """Whether ``env_id`` has action masks (``MaskablePPO``), and ``InfoActionMask`` if they are only in its infos."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
         if callable(getattr(env.unwrapped, "action_masks", None)):
@@ -256,8 +255,7 @@ def native_vec_env(
 def training_vec_env(
     env_id: str, n_envs: int, seed: int, env_kwargs: dict | None = None, vectorization: str | None = None
 ) -> tuple[bool, VecMonitor]:
-    """Whether ``env_id`` trains with action masks, and ``n_envs`` copies (copy ``i`` seeded ``seed + i``) whose last
-    infos of an episode hold its main metric (``METRIC_KEY``)."""
+    """Whether ``env_id`` trains with action masks, and ``n_envs`` copies as ``native_vec_env``'s with the metric."""
     vectorization = checked_vectorization(env_id, vectorization)
     if api_of(env_id) == PARALLEL:
         from agents.team_vec_env import make_team_vec_env
@@ -266,7 +264,7 @@ def training_vec_env(
     masked, wrapper = mask_wrapper(env_id, env_kwargs)
     if vectorization == NATIVE:
         return masked, native_vec_env(env_id, n_envs, seed, env_kwargs, record_metric=True)
-    vec_env = make_vec_env(
+    return masked, make_vec_env(
         env_id,
         n_envs=n_envs,
         seed=seed,
@@ -274,7 +272,6 @@ def training_vec_env(
         wrapper_class=lambda env: MetricWrapper(wrapper(env) if wrapper else env),
         vec_env_cls=SubprocVecEnv if vectorization == SUBPROCESS else DummyVecEnv,
     )
-    return masked, vec_env
 
 
 def build_model(
@@ -489,8 +486,7 @@ def save_policy(model, directory: Path) -> Path:
 
 
 def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_dir: Path, workers: int) -> dict:
-    """Warm-start ``model`` from the planner (``source``: episodes or a file, and its ``Demonstrations``); returns
-    what train.json records of it."""
+    """Warm-start ``model`` from the planner (``source``: episodes or a file, and its ``Demonstrations``)."""
     start = time.perf_counter()
     source, demonstrations = source
     if isinstance(source, int):
@@ -559,9 +555,7 @@ def load_normalization(model_path: Path) -> VecNormalize | None:
 
 
 class PPOAgent:
-    """A trained PPO policy (a ``model.zip`` or its directory, with ``vecnormalize.pkl`` when trained with
-    ``normalize``) acting deterministically among the valid actions in ``env`` (for robot ``agent`` in a PettingZoo
-    env)."""
+    """A trained PPO policy (``model_file``) acting deterministically among the valid actions (of robot ``agent``)."""
 
     def __init__(self, model_path: Path | str, env, agent: str | None = None):
         self.model_path = model_file(model_path)

@@ -1,8 +1,5 @@
-"""RLlib's multi-agent env runner on a team env's native vector env: N copies in one batched step (needs Ray).
-
-RLlib 2.60 steps multi-agent copies one by one in Python; ``BatchedTeamEnvRunner`` builds ``BatchedTeamEnv``
-instead, so a runner step is one batched env step and one forward pass per policy.
-"""
+"""RLlib's multi-agent env runner on a team env's native vector env: N copies in one batched step, one forward pass
+per policy, where RLlib 2.60 steps multi-agent copies one by one in Python (needs Ray)."""
 
 from __future__ import annotations
 
@@ -90,8 +87,7 @@ class BatchedTeamEnv(VectorMultiAgentEnv):
         return self._observations(observations), [{} for _ in range(self.num_envs)]
 
     def step(self, actions: list[dict]):
-        """Step every copy with ``actions[i]`` ``{robot: action}`` (every robot, except in a restarting copy: else
-        ``ValueError``)."""
+        """Step copy ``i`` with ``actions[i]``: ``{robot: action}`` of every robot but in a restarting copy."""
         if len(actions) != self.num_envs:
             raise ValueError(f"expected one {{robot: action}} dict per copy ({self.num_envs}), got {len(actions)}")
         for copy, copy_actions in enumerate(actions):
@@ -116,8 +112,7 @@ class BatchedTeamEnv(VectorMultiAgentEnv):
         )
 
     def _observations(self, observations: np.ndarray) -> list[dict]:
-        """Each copy's ``{robot: {"observation", "action_mask"}}`` from the (N, R, ...) arrays (copied: the rows
-        stay in RLlib's episodes)."""
+        """Each copy's ``{robot: {"observation", "action_mask"}}``, copied (RLlib's episodes keep them)."""
         observations = np.array(observations, dtype=np.float32)
         masks = mask_rows(self.team.action_masks())
         return [

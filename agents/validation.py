@@ -1,8 +1,4 @@
-"""Keep the best policy of a training run, judged on validation seeds by the env's main metric (rl-zoo's EvalCallback).
-
-Each validation plays the deterministic policy on seeds from ``VALIDATION_SEEDS + seed``, appends to
-``validation.csv`` and saves a policy better by more than ``IMPROVEMENT`` (relative) in ``best/``.
-"""
+"""Keep the best policy of a training run, judged on validation seeds by the main metric (rl-zoo's EvalCallback)."""
 
 from __future__ import annotations
 

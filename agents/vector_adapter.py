@@ -58,8 +58,7 @@ class VectorEnvAdapter(VecEnv):
         return observations
 
     def _common_seed(self) -> int | list | None:
-        """``seed()``'s ``s, s + 1, ...`` as Gymnasium's ``reset(seed=s)`` (sub-env ``i`` gets ``s + i``; what
-        ``CartPoleVectorEnv`` takes too); other seeds as a list; None for none."""
+        """``seed()``'s ``s, s + 1, ...`` as Gymnasium's ``reset(seed=s)``; other seeds as a list; None for none."""
         seeds = self._seeds
         if all(seed is None for seed in seeds):
             return None
@@ -121,8 +120,7 @@ class VectorEnvAdapter(VecEnv):
         self.vector_env.close()
 
     def action_masks(self) -> np.ndarray:
-        """Valid actions (N, n) bool: the vector env's ``action_masks()``, else the last ``info["action_mask"]``
-        (checked)."""
+        """Valid actions (N, n) bool: the vector env's ``action_masks()``, else the last ``info["action_mask"]``."""
         own = getattr(self._base, MASKS_METHOD, None)
         if callable(own):
             return self._checked_masks(np.asarray(own(), dtype=bool), "action_masks()")
@@ -172,8 +170,7 @@ class VectorEnvAdapter(VecEnv):
         return attr_name == MASKS_METHOD or super().has_attr(attr_name)
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        """Attribute ``attr_name`` of each sub-env asked for (``render_mode``: the vector env's); ``AttributeError`` if
-        none."""
+        """Attribute ``attr_name`` of each sub-env asked for (``render_mode``: the vector env's)."""
         rows = self._rows(indices)
         if attr_name == "render_mode":
             return [self.vector_env.render_mode] * len(rows)
@@ -199,8 +196,7 @@ class VectorEnvAdapter(VecEnv):
         return list(self._base.call(method_name, *method_args, **method_kwargs))
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices=None) -> list[bool]:
-        """Whether each sub-env is wrapped in ``wrapper_class`` (native: never; async: ``ValueError``, they are
-        elsewhere)."""
+        """Whether each sub-env is wrapped in ``wrapper_class`` (native: never; async: unknown, ``ValueError``)."""
         rows = self._rows(indices)
         envs = getattr(self._base, "envs", None)
         if envs is not None:

@@ -77,8 +77,7 @@ LEGEND_SYMBOLS = ("disc", "ring", "ellipse", "line", "cross", "zone", "wedge", "
 
 @dataclass(frozen=True)
 class LegendEntry:
-    """One legend item: a symbol (one of ``LEGEND_SYMBOLS``) in ``colour``, ``symbol_px`` wide, then ``text``.
-    A ``scale`` symbol is a bar ``length_m`` long at the frame's scale."""
+    """A legend item: a ``LEGEND_SYMBOLS`` symbol in ``colour``, ``symbol_px`` wide (``scale``: ``length_m``), text."""
 
     symbol: str
     colour: tuple[int, int, int]
@@ -197,12 +196,9 @@ def scale_bar_m(longest_m: float) -> float:
 
 def overlap(box, other) -> bool:
     """Whether two (left, top, width, height) boxes share an area (touching edges do not)."""
-    return (
-        box[0] < other[0] + other[2]
-        and other[0] < box[0] + box[2]
-        and box[1] < other[1] + other[3]
-        and (other[1] < box[1] + box[3])
-    )
+    (left, top, width, height), (other_left, other_top, other_width, other_height) = box, other
+    horizontal = left < other_left + other_width and other_left < left + width
+    return horizontal and top < other_top + other_height and other_top < top + height
 
 
 def place_label(anchor, size, taken: list, area) -> tuple[int, int, int, int] | None:
@@ -574,8 +570,7 @@ class Renderer:
         return font.size(text)[0] if font else _FALLBACK_CHAR_PX * len(text)
 
     def _draw_text(self, pygame, surface, text: str, colour, corner, background=None) -> None:
-        """Blit ``text`` (on ``background``, if given) with its top-left at pixel ``corner``; nothing if pygame has
-        no fonts."""
+        """Blit ``text`` (on ``background``, if given) at top-left pixel ``corner``; nothing without fonts."""
         font = self._text_font()
         if font:
             surface.blit(font.render(text, True, colour, background), corner)

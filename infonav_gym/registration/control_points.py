@@ -109,12 +109,9 @@ def _neighbour_spacing(grid: np.ndarray, axis: int) -> np.ndarray:
     difference = np.diff(grid, axis=axis)
     step = np.sqrt(np.einsum("...i,...i->...", difference, difference))
     spacing = np.full(grid.shape[:2], np.nan)
-    if axis == 0:
-        spacing[:-1] = step
-        spacing[1:] = np.fmin(spacing[1:], step)
-    else:
-        spacing[:, :-1] = step
-        spacing[:, 1:] = np.fmin(spacing[:, 1:], step)
+    along, step = np.moveaxis(spacing, axis, 0), np.moveaxis(step, axis, 0)  # views: writes reach spacing
+    along[:-1] = step
+    along[1:] = np.fmin(along[1:], step)
     return spacing
 
 

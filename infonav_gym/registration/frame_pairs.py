@@ -56,11 +56,8 @@ def perturbed_motion(motion: np.ndarray, error: np.ndarray) -> np.ndarray:
 
 
 def registration_error(estimate: np.ndarray, truth: np.ndarray, lever_arm_m: float = LEVER_ARM_M) -> float:
-    """One number for how wrong a motion estimate is [m]: ``sqrt(e_t^2 + (lever_arm_m * e_r)^2)``.
-
-    ``e_t`` is the translation error and ``e_r`` the rotation error angle; the second term is
-    how far the rotation error moves a point ``lever_arm_m`` away (a typical LADAR range).
-    """
+    """How wrong a motion estimate is [m]: ``sqrt(e_t^2 + (lever_arm_m * e_r)^2)``, translation error ``e_t`` and
+    how far the rotation error ``e_r`` moves a point ``lever_arm_m`` away (a typical LADAR range)."""
     translation, rotation = transform_error(estimate, truth)
     return math.hypot(translation, lever_arm_m * rotation)
 
@@ -87,10 +84,8 @@ def frame_pair(
     np_random: np.random.Generator,
     odometry_std=DEFAULT_ODOMETRY_STD,
 ) -> FramePair:
-    """The pair with its true motion and an odometry estimate whose error is drawn from ``np_random``.
-
-    ``odometry_std``: the odometry error's standard deviation along each of ``MOTION_AXES`` (``check_odometry_std``).
-    """
+    """The pair with its true motion and an odometry estimate, its error drawn from ``np_random`` with standard
+    deviations ``odometry_std`` along ``MOTION_AXES``."""
     std = check_odometry_std(odometry_std)
     truth = motion_between(previous, current)
     odometry = perturbed_motion(truth, std * np_random.standard_normal(6))
@@ -100,10 +95,7 @@ def frame_pair(
 def terrain_frame_pair(
     np_random: np.random.Generator, roughness: float = 0.7, drive_steps: int = 4, time_step_s: float = 0.5
 ) -> FramePair:
-    """A pair from a vehicle driving a random ``terrain_loop``: frames ``drive_steps`` and ``drive_steps + 1``.
-
-    The vehicle drives at the loop's 2 m/s, so consecutive frames are ``2 * time_step_s`` metres apart.
-    """
+    """Frames ``drive_steps`` and ``drive_steps + 1`` of a vehicle driving a random ``terrain_loop`` at 2 m/s."""
     scene = terrain_loop(np_random, roughness=roughness)
     world = World()
     world.reset(scene.scenario)

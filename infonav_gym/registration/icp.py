@@ -1,25 +1,17 @@
 """Iterative closest point (ICP) registration of two 3D point sets (the paper's Section V).
 
-From an initial motion: pair each source point with its closest target point (a ``KdTree`` on the target),
-solve the increment that best aligns the pairs, apply it, repeat. Inliers lie within
-``max_correspondence_distance`` and below ``median(d) + ROBUST_K * MAD_TO_STD * MAD(d)`` (a robust sigma, so a
-few junk points cannot pull the solution while a good distribution loses well under 1 % of its pairs).
+Pair each source point with its closest target point (a ``KdTree``), solve the increment that best aligns the
+inlier pairs (within ``max_correspondence_distance`` and below ``median(d) + ROBUST_K * MAD_TO_STD * MAD(d)``, a
+robust sigma: junk points cannot pull the solution), apply it, repeat. Increments: ``point_to_point`` by Kabsch's
+SVD; ``point_to_plane`` by small-angle least squares on PCA target normals; ``gicp`` by one Gauss-Newton step of
+generalized ICP on per-point covariances (given, or computed when a pair first uses a point); the last two take a
+``robust_kernel`` (IRLS).
 
-Increments, in closed form on the inliers: ``point_to_point`` by Kabsch's SVD (reflection-safe);
-``point_to_plane`` by the small-angle least squares of ``n . (p + w x p + v - q)`` on PCA target normals
-(``normals`` module); ``gicp`` by one Gauss-Newton step of generalized ICP (``gicp`` module) on per-point
-covariances (given, or computed the first time a pair uses a point). The last two take a ``robust_kernel``
-(IRLS).
-
-Speed-ups: a step continuing the last one (within ``STEADY_ANGLE_DEG``) and shrinking by ``rho`` is scaled by
-``1 / (1 - rho)`` (Besl & McKay 1992, at most ``MAX_EXTRAPOLATION``; 29 steps to 12 on a LADAR pair). A source
-of at least ``COARSE_STRIDE * COARSE_MIN_POINTS`` points is first registered on every ``COARSE_STRIDE``-th
-point until a step is below the subsample's resolution (``rms / sqrt(pairs)``, at least ``tolerance``; not
-applied); then all points iterate on, so the result is theirs (halves the time on a 4,900-point pair).
-
-Converged when the last increment, or the last two together (a two-cycle of the pairing), rotates less than
-``tolerance`` [rad] and moves less than ``tolerance``; ``iterations`` counts the increments applied in both
-phases (identical clouds: 1). Else it stops after ``max_iterations`` with ``converged=False``.
+Speed-ups: a step continuing the last one is extrapolated (``_extrapolate``, Besl & McKay 1992; 29 steps to 12 on
+a LADAR pair); a large source is first registered on every ``COARSE_STRIDE``-th point until a step is below the
+subsample's resolution, then on all points, so the result is theirs (halves the time on a 4,900-point pair).
+Converged when the last increment, or the last two together (a two-cycle of the pairing), rotates [rad] and moves
+less than ``tolerance``; ``iterations`` counts the increments of both phases (identical clouds: 1).
 """
 
 from __future__ import annotations
@@ -166,8 +158,7 @@ class _ClosestPoints:
         self.safe_squared = np.full(count, -1.0)  # squared safe radius; negative forces the first query
 
     def update(self, moved: np.ndarray, rows: slice = slice(None)) -> np.ndarray:
-        """Distances (N,) of ``moved``, the source points ``rows`` moved, to their closest target points (``index``,
-        ``closest``); ``inf`` at or beyond the limit."""
+        """Distances (N,) of ``moved`` (source points ``rows``) to their closest target points; ``inf`` past limit."""
         index, closest, anchor = self.index[rows], self.closest[rows], self.anchor[rows]  # views: writes persist
         safe_squared = self.safe_squared[rows]
         drift = moved - anchor
@@ -249,20 +240,22 @@ COARSE_STRIDE = 4  # the coarse phase registers every COARSE_STRIDE-th source po
 COARSE_MIN_POINTS = 500  # fewest subsample points for a coarse phase; below, queries no longer dominate the time
 
 
-def _extrapolate(raw, previous_raw, step_rotation, step_translation):
-    """The step, scaled by ``1 / (1 - rho)`` if it continues the last one and shrank by ``rho`` (module docstring)."""
+def _extrapolate(step_rotation, step_translation, previous_raw):
+    """The step, scaled by ``1 / (1 - rho)`` (at most ``MAX_EXTRAPOLATION``) if it continues the last one
+    (``previous_raw``) within ``STEADY_ANGLE_DEG`` and shrank by ``rho``; and its 6-vector."""
+    raw = np.concatenate([rotation_vector(step_rotation), step_translation])
+    if previous_raw is None:
+        return step_rotation, step_translation, raw
     norm, previous_norm = float(np.linalg.norm(raw)), float(np.linalg.norm(previous_raw))
     if (
         norm == 0.0
         or previous_norm == 0.0
         or raw @ previous_raw < math.cos(math.radians(STEADY_ANGLE_DEG)) * norm * previous_norm
+        or norm / previous_norm >= 1.0
     ):
-        return step_rotation, step_translation
-    ratio = norm / previous_norm
-    if ratio >= 1.0:
-        return step_rotation, step_translation
-    factor = min(MAX_EXTRAPOLATION, 1.0 / (1.0 - ratio))
-    return rotation_from_vector(factor * raw[:3]), factor * raw[3:]
+        return step_rotation, step_translation, raw
+    factor = min(MAX_EXTRAPOLATION, 1.0 / (1.0 - norm / previous_norm))
+    return rotation_from_vector(factor * raw[:3]), factor * raw[3:], raw
 
 
 def icp(
@@ -348,9 +341,7 @@ def icp(
             standard_error = math.sqrt(float(distance @ distance)) / inliers.size  # rms / sqrt(pairs)
             if smaller_than(max(standard_error, tolerance), step_rotation, step_translation):
                 break
-            raw = np.concatenate([rotation_vector(step_rotation), step_translation])
-            if previous_raw is not None:
-                step_rotation, step_translation = _extrapolate(raw, previous_raw, step_rotation, step_translation)
+            step_rotation, step_translation, raw = _extrapolate(step_rotation, step_translation, previous_raw)
             rotation = step_rotation @ rotation
             translation = step_rotation @ translation + step_translation
             iterations, previous_raw = iterations + 1, raw
@@ -359,9 +350,7 @@ def icp(
     moved, matched, distance, inliers = correspondences(rows)
     while iterations < max_iterations and inliers.size >= 3:
         step_rotation, step_translation = increment(moved, matched, inliers, rows)
-        raw = np.concatenate([rotation_vector(step_rotation), step_translation])
-        if previous_raw is not None:
-            step_rotation, step_translation = _extrapolate(raw, previous_raw, step_rotation, step_translation)
+        step_rotation, step_translation, raw = _extrapolate(step_rotation, step_translation, previous_raw)
         rotation = step_rotation @ rotation
         translation = step_rotation @ translation + step_translation
         iterations += 1

@@ -67,11 +67,9 @@ class Ladar(PanTiltGrid):
         tilt_rad: float | None = None,
         attitude_rad=(0.0, 0.0),
     ) -> LadarScan:
-        """Range image of ``terrain`` from ``vehicle_pose`` ``[x, y, heading]`` at ``attitude_rad`` (roll, pitch).
-
-        The optical centre is ``mount_height_m`` up the body's axis; ranges get noise and are clipped to
-        ``[0, max_range_m]``. A rolled or pitched vehicle's rays are cast one by one (about 15 times slower).
-        """
+        """Range image of ``terrain`` from ``vehicle_pose`` ``[x, y, heading]`` at ``attitude_rad`` (roll, pitch), the
+        optical centre ``mount_height_m`` up the body's axis, noisy ranges clipped to ``[0, max_range_m]``. A rolled
+        or pitched vehicle's rays are cast one by one (about 15 times slower)."""
         pose = check_pose(vehicle_pose)
         roll, pitch = (float(angle) for angle in attitude_rad)
         if not (math.isfinite(roll) and math.isfinite(pitch) and max(abs(roll), abs(pitch)) < math.pi / 2):

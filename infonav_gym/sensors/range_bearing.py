@@ -19,8 +19,7 @@ MAX_SENSOR_RANGE_M = 1000.0  # [m]
 
 @dataclass(frozen=True)
 class RangeBearingSensor:
-    """Range and bearing to point landmarks; range noise grows with distance. ``ParameterError`` for a field out
-    of range."""
+    """Range and bearing to point landmarks; range noise grows with distance. ``ParameterError`` for a bad field."""
 
     range_std_m: float = 0.1  # at zero range [m]
     range_std_per_m: float = 0.01  # its growth per metre of range [m/m]
@@ -56,10 +55,7 @@ class RangeBearingSensor:
         return self.measure_with_noise(np.asarray(pose)[None], np.asarray(landmark)[None], noise[None])[0]
 
     def measure_with_noise(self, poses, landmarks, noise) -> np.ndarray:
-        """``measure`` of N pose-landmark pairs at once, given its standard normals: (N, 3), (N, 2), (N, 2) -> (N, 2).
-
-        ``noise[i]`` are the two numbers ``measure`` draws (``np_random.standard_normal(2)``).
-        """
+        """``measure`` of N pose-landmark pairs given its standard normals: (N, 3), (N, 2), (N, 2) -> (N, 2)."""
         arrays = (contiguous(np.asarray(array, dtype=float)) for array in (poses, landmarks, noise))
         return noisy_ranges_bearings(*arrays, self.noise_stds)
 

@@ -94,10 +94,7 @@ def noise_covariances(parameters, ranges) -> np.ndarray:
 
 
 def noisy_relative_poses(truth, parameters, np_random: np.random.Generator) -> np.ndarray:
-    """Noisy measurements of the true relative poses (M, 3), with per-row sensor ``parameters`` (M, 5).
-
-    Draws one (M, 3) block of standard normals from ``np_random``.
-    """
+    """Noisy measurements of the true relative poses (M, 3), per-row sensor ``parameters`` (M, 5); draws (M, 3)."""
     return relative_poses_with_noise(truth, parameters, np_random.standard_normal(truth.shape))
 
 

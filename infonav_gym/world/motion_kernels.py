@@ -85,8 +85,7 @@ def free_substeps(poses, controls, dt, substeps):
 
 @kernel
 def contact_within(copies, poses, controls, dt, boxes, radius_m):
-    """Which of ``copies`` have a static box (``boxes`` (N, S, 4)) and which two robots (n,) within reach
-    ``radius_m + speed * dt`` in ``dt``."""
+    """Which of ``copies`` have a static box and which two robots (n,) within reach ``radius_m + speed * dt``."""
     n_rows, n_robots = poses.shape[0], poses.shape[1]
     near_static, near_robots = np.zeros(n_rows, dtype=np.bool_), np.zeros(n_rows, dtype=np.bool_)
     for row in range(n_rows):

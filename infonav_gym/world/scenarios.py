@@ -124,11 +124,8 @@ def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: in
 
 
 def _uniform_until_accepted(np_random, count: int, width: int, accept, what: str, max_attempts_each: int = 1000):
-    """The first ``count`` rows of ``width`` uniform [0, 1) numbers that pass the batched test ``accept``.
-
-    ``_rejection_sample`` drawn ahead in batches; the generator is rewound to end right after the last attempt,
-    so the numbers equal one draw per attempt. ``ValueError`` naming ``what`` when they do not fit.
-    """
+    """The first ``count`` rows of ``width`` uniform [0, 1) numbers that pass the batched test ``accept``: drawn
+    ahead in batches, the generator rewound to end right after the last attempt (as one draw per attempt)."""
     accepted, attempts_left, batch = [], max_attempts_each * max(count, 1), max(4 * count, 16)
     while len(accepted) < count and attempts_left > 0:
         state, size = np_random.bit_generator.state, min(batch, attempts_left)
@@ -381,11 +378,8 @@ TEAM_SCENARIOS: set[str] = {"team_field", "convoy"}
 
 
 def register_scenario(name: str, builder: ScenarioBuilder, *, team: bool = False) -> None:
-    """Make ``builder(np_random, **parameters) -> Scenario`` the scenario ``name`` (``gym.make(..., scenario=name)``).
-
-    Register in a module every process imports (``SubprocVecEnv`` workers start fresh). ``team``: for the team
-    envs (one route per robot). ``ValueError`` for a taken or empty name or a builder that is not callable.
-    """
+    """Make ``builder(np_random, **parameters) -> Scenario`` the scenario ``name`` (``team``: for the team envs), in
+    a module every process imports (``SubprocVecEnv`` workers start fresh); ``ValueError`` for a bad name/builder."""
     if not isinstance(name, str) or not name:
         raise ValueError(f"a scenario name must be a non-empty string, got {name!r}")
     if name in SCENARIOS:
@@ -403,10 +397,8 @@ def scenario_names(team: bool) -> tuple[str, ...]:
 
 
 def build_scenario(name: str, np_random: np.random.Generator, **parameters) -> Scenario:
-    """Build the scenario ``name`` with ``np_random`` and the ``parameters`` its builder names (all for ``**kwargs``).
-
-    ``ValueError`` for an unknown name or a builder that returns no ``Scenario``.
-    """
+    """Build the scenario ``name`` with the ``parameters`` its builder names; ``ValueError`` for an unknown name or
+    a builder that returns no ``Scenario``."""
     if name not in SCENARIOS:
         raise ValueError(f"unknown scenario {name!r}; registered: {', '.join(sorted(SCENARIOS))}")
     builder = SCENARIOS[name]

@@ -43,8 +43,7 @@ class StaticGeometry:
 
     @classmethod
     def from_scenario(cls, scenario: Scenario, wall_thickness_m: float) -> StaticGeometry:
-        """The static shapes ``ContactSpace`` builds of ``scenario`` (one copy); ``ValueError`` for a bad
-        ``wall_thickness_m``, wall or obstacle."""
+        """The static shapes ``ContactSpace`` builds of ``scenario`` (one copy); ``ValueError`` for bad ones."""
         WORLD_ARGUMENTS["wall_thickness_m"].check("StaticGeometry.from_scenario", "wall_thickness_m", wall_thickness_m)
         try:
             walls = np.array(scenario.walls, dtype=float).reshape(-1, 2, 2)
@@ -187,11 +186,8 @@ def _check_copies(function: str, geometry: StaticGeometry, count: int, what: str
 
 
 def segments_clear(geometry: StaticGeometry, copies, starts, ends, *, check_input: bool = True) -> np.ndarray:
-    """Whether each line ``starts[m]`` -> ``ends[m]`` (M, 2) [m] in copy ``copies[m]`` misses every shape (M,).
-
-    Equal to ``World.line_of_sight`` of that copy's world. ``check_input=False`` skips the checks (``ValueError``
-    for a wrong shape, a non-finite value or a copy outside the geometry's), for hot loops.
-    """
+    """Whether each line ``starts[m]`` -> ``ends[m]`` (M, 2) [m] in copy ``copies[m]`` misses every shape (M,), as
+    ``World.line_of_sight``; ``check_input=False`` skips the checks (``ValueError``) for hot loops."""
     if check_input:
         if not isinstance(geometry, StaticGeometry):
             raise ValueError(f"segments_clear: geometry must be a StaticGeometry, got {type(geometry).__name__}")
@@ -251,10 +247,8 @@ def _in_coverage(sensor: RangeBearingSensor, poses: np.ndarray, targets: np.ndar
 
 
 def visible(geometry: StaticGeometry, sensor: RangeBearingSensor, poses, targets, *, check_input: bool = True):
-    """Which targets each copy's robot sees: in ``sensor``'s coverage and line of sight (N, K) bool.
-
-    ``check_input=False`` skips the checks (as ``in_coverage``'s, and one pose per copy), for hot loops.
-    """
+    """Which targets each copy's robot sees: in ``sensor``'s coverage and line of sight (N, K) bool;
+    ``check_input=False`` skips the checks (as ``in_coverage``'s, and one pose per copy), for hot loops."""
     if check_input:
         poses, targets = _poses_and_targets(poses, targets)
         _check_copies("visible", geometry, len(poses), "poses")

@@ -58,8 +58,7 @@ class World:
         return self._batch.waypoint_indices(0)
 
     def step(self, dt: float) -> np.ndarray:
-        """Drive every robot toward its waypoint for ``dt`` s (``TIME_STEP_S``); the executed ``[speed, turn_rate]``
-        (R, 2) [m/s, rad/s]."""
+        """Drive every robot toward its waypoint for ``dt`` [s]; the executed ``[speed, turn_rate]`` (R, 2)."""
         return self._batch.step(dt, _ONLY_COPY)[0]
 
     def line_of_sight(self, origin, targets) -> np.ndarray:

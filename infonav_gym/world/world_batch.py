@@ -165,8 +165,7 @@ class WorldBatch:
         return self._spaces[copy]
 
     def _waypoint_controls(self, copies: np.ndarray, poses: np.ndarray) -> np.ndarray:
-        """The waypoint controls ``[speed, turn_rate]`` of every robot of ``copies`` (n, R, 2); advances their
-        waypoints (``motion_kernels.waypoint_controls``)."""
+        """The waypoint controls ``[speed, turn_rate]`` (n, R, 2) of ``copies``; advances their waypoints."""
         return waypoint_controls(
             copies,
             poses,
