@@ -312,7 +312,7 @@ def build_parser() -> argparse.ArgumentParser:
     mrclam.add_argument(
         "--seeds", type=integer(1, MAX_SEEDS), default=1, help="random-policy runs per budget from --seed on"
     )
-    mrclam.add_argument("--cooperative", action="store_true", help="JointEKF with robot-to-robot observations")
+    mrclam.add_argument("--cooperative", action="store_true", help="one joint EKF of the team, with robot-to-robot observations")
     mrclam.add_argument(
         "--outage-robot", type=integer(1, MAX_ROBOT), help="also run the outage experiment for this robot (subject #)"
     )

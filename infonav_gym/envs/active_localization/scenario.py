@@ -350,7 +350,7 @@ class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEn
 
     ## Description
     A robot crosses a square field (``goal_field``) from a start on the left to a goal
-    on the right, tracking its pose with a ``PoseEKF`` from noisy odometry. Landmarks
+    on the right, tracking its pose with an EKF from noisy odometry. Landmarks
     light only parts of the way: two ahead of the start, one before the goal, and the
     rest along one side of the middle, farther from the straight line than the sensor
     reaches; round obstacles on the other side hide some of them. Each step the agent

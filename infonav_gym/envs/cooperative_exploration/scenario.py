@@ -412,7 +412,7 @@ class CooperativeExplorationEnv(ParallelEnvView, vector_env=CooperativeExplorati
     landmarks, and must map the terrain: a grid of cells whose heights are Gaussian estimates (``terrain_map``). A
     robot that drives scans the cells around it; a position error ``sigma`` puts heights at the wrong place, so a
     scan's height noise grows as ``scan_std_m^2 + (terrain_slope * sigma)^2``: a badly localized robot maps poorly.
-    A ``JointEKF`` over all poses fuses odometry, DGPS fixes (robots with DGPS, outside the canopies) and the
+    A joint EKF over all poses fuses odometry, DGPS fixes (robots with DGPS, outside the canopies) and the
     observations the agents choose: a known landmark (range-bearing) or a teammate (relative pose, which correlates
     the two).
 

@@ -212,8 +212,8 @@ class CooperativeLocalizationEnv(ParallelEnvView, vector_env=CooperativeLocaliza
     ## Arguments
     ``parallel_env(render_mode=None, **config)`` with any key of ``default_config()``; an unknown key raises
     ``ValueError`` naming it. The env is the N = 1 view of ``CooperativeLocalizationVectorEnv`` (its one
-    implementation, ``self.vector``: ``scenario(0)``, ``true_poses``, ``joint_state()``); its EKF equals filterpy's
-    ``JointEKF`` update for update. ``estimator="independent"`` drops the cross-covariances (overconfident, for
+    implementation, ``self.vector``: ``scenario(0)``, ``true_poses``, ``joint_state()``); its EKF (the batched kernels)
+    equals raw filterpy's update for update. ``estimator="independent"`` drops the cross-covariances (overconfident, for
     comparison).
 
     ## Version History

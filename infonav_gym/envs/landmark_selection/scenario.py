@@ -242,7 +242,7 @@ class LandmarkSelectionEnv(SingleEnvView, vector_env=LandmarkSelectionVectorEnv)
     """A robot drives a fixed route; each step it observes one landmark, chosen for its information.
 
     ## Description
-    The vehicle follows its route in a Pymunk world while a ``PoseEKF`` tracks its
+    The vehicle follows its route in a Pymunk world while an EKF tracks its
     pose from noisy odometry. Each step the agent picks one of ``n_candidates``
     landmarks; the EKF updates with a noisy range-bearing measurement of it. A
     greedy-entropy agent picks the landmark with the largest expected mutual
