@@ -1,10 +1,8 @@
 """The scalar reference: ``PoseEKF`` and ``JointEKF`` configure filterpy's ``ExtendedKalmanFilter`` with the unicycle
 motion and the range-bearing, relative-pose and position-fix models; filterpy performs every predict and update (its
 update in Joseph form). The envs, planners and the replay run the batched EKF (``batched``), tested against filterpy.
-
-The public ``predict`` and update methods check what they are given (shapes, finiteness, a
-symmetric positive-definite noise covariance) and raise ``ValueError`` naming the argument, so a
-bad input never fills the state with NaN; ``check_input=False`` skips that for known-good inputs.
+The public methods raise ``ValueError`` naming a bad argument (shape, finiteness, SPD noise), so a bad input never
+fills the state with NaN; ``check_input=False`` skips the checks for known-good inputs.
 """
 
 from __future__ import annotations
@@ -13,6 +11,7 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 from scipy.linalg import block_diag
 
+from infonav_gym.estimation import batched
 from infonav_gym.estimation.models import (
     GPS_POSE_JACOBIAN,
     angular_residual,
@@ -65,11 +64,8 @@ class _UnicycleEKF(ExtendedKalmanFilter):
 
 
 class PoseEKF(_UnicycleEKF):
-    """EKF over a planar pose ``[x, y, heading]``, optionally with mapped landmarks (EKF-SLAM).
-
-    The state is ``[x, y, heading, l1x, l1y, l2x, ...]``: with ``landmarks`` given,
-    their positions are estimated alongside the pose. filterpy predicts (the unicycle
-    model in ``predict_x``) and updates; headings and bearing innovations are wrapped.
+    """EKF over a planar pose ``[x, y, heading]``, optionally with mapped landmarks (EKF-SLAM): the state is
+    ``[x, y, heading, l1x, l1y, l2x, ...]``. Headings and bearing innovations are wrapped.
 
     Args:
         pose: initial pose estimate (3,).
@@ -125,7 +121,6 @@ class PoseEKF(_UnicycleEKF):
             control: odometry ``[speed, turn_rate]`` [m/s, rad/s], finite.
             dt: time step [s], finite and >= 0.
             control_covariance: its noise covariance (2, 2), symmetric positive definite.
-            check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
         """
         if check_input:
             control = _finite("control", control, (2,))
@@ -142,18 +137,9 @@ class PoseEKF(_UnicycleEKF):
         Returns:
             ``(predicted (N, 2), H (N, 2, dim_x))``.
         """
-        mapped = landmarks is None
-        positions = self.x[POSE_DIM:].reshape(-1, 2) if mapped else np.asarray(landmarks, dtype=float).reshape(-1, 2)
-        predicted, H_pose, H_landmark = range_bearing_linearized(self.x, positions)
-        if self.dim_x == POSE_DIM:
-            return predicted, H_pose
-        H = np.zeros((len(positions), 2, self.dim_x))
-        H[:, :, :POSE_DIM] = H_pose
-        if mapped:
-            rows = np.arange(len(positions))
-            columns = POSE_DIM + 2 * rows[:, None] + np.arange(2)
-            H[rows[:, None, None], np.arange(2)[None, :, None], columns[:, None, :]] = H_landmark
-        return predicted, H
+        positions = None if landmarks is None else np.asarray(landmarks, dtype=float).reshape(1, -1, 2)
+        predicted, H = batched.landmark_measurement_model(self.x[None], positions, check_input=False)
+        return predicted[0], H[0]
 
     def update_range_bearing(self, measurement, predicted, H, R, *, check_input: bool = True) -> None:
         """filterpy's update with one range-bearing measurement, linearized at the prior, the bearing wrapped.
@@ -163,8 +149,6 @@ class PoseEKF(_UnicycleEKF):
             predicted: the measurement predicted at the prior, ``[range, bearing]``.
             H: its Jacobian w.r.t. the state (2, dim_x).
             R: measurement noise covariance (2, 2), symmetric positive definite.
-            check_input: check shapes, finiteness and ``R`` (``ValueError`` naming a bad argument);
-                ``False`` for known-good inputs.
         """
         if check_input:
             measurement = _finite("measurement", measurement, (2,))
@@ -177,12 +161,9 @@ class PoseEKF(_UnicycleEKF):
 class JointEKF(_UnicycleEKF):
     """EKF over the planar poses of N robots: state ``[x0, y0, h0, x1, y1, h1, ...]`` (3N).
 
-    A relative-pose measurement between two robots correlates their estimates;
-    this filter keeps those cross-covariances, so information is never counted
-    twice. With ``cross_covariances=False`` it drops them after every update
-    (each robot keeps only its own 3x3 block): the common shortcut that treats
-    teammates' estimates as independent, reuses the same information again and
-    again, and becomes overconfident. filterpy predicts and updates (see ``PoseEKF``).
+    A relative-pose measurement correlates two robots' estimates; this filter keeps those cross-covariances, so
+    information is never counted twice. ``cross_covariances=False`` drops them after every update (each robot keeps its
+    own 3x3 block): the common shortcut that treats teammates as independent, reuses information, grows overconfident.
 
     Args:
         poses: initial pose estimates (N, 3).
@@ -231,7 +212,6 @@ class JointEKF(_UnicycleEKF):
             controls: odometry readings (N, 2), finite.
             dt: time step [s], finite and >= 0.
             control_covariances: their noise covariances (N, 2, 2), symmetric positive definite.
-            check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
         """
         if check_input:
             controls = _finite("controls", controls, (self.n_robots, 2))
@@ -246,7 +226,6 @@ class JointEKF(_UnicycleEKF):
             robots: indices of the robots with a fix (k,).
             fixes: their measured positions (k, 2), finite.
             noise_covariances: the fixes' noise covariances (k, 2, 2), symmetric positive definite.
-            check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
         """
         if check_input:
             robots = _robot_indices("robots", robots, self.n_robots)
@@ -272,18 +251,14 @@ class JointEKF(_UnicycleEKF):
     ) -> None:
         """Update with relative-pose measurements taken at the same time (one stacked update).
 
-        Measurement ``k`` is ``[range, bearing, relative heading]`` of robot ``targets[k]``
-        seen from robot ``observers[k]`` (or ``[range, bearing]``, m = 2, without the heading);
-        ``predicted``, ``H_observer`` and ``H_target`` come from ``relative_pose_model`` at the
-        current prior (their first m rows).
+        Measurement ``k`` is ``[range, bearing, relative heading]`` (or ``[range, bearing]``, m = 2) of robot
+        ``targets[k]`` seen from robot ``observers[k]``; the rest from ``relative_pose_model`` (first m rows).
 
         Args:
             observers, targets: robot indices (k,).
             measurements, predicted: (k, m), m = 3 or 2.
             H_observer, H_target: (k, m, 3).
             R: noise covariances (k, m, m), independent between measurements, symmetric positive definite.
-            check_input: check shapes, finiteness, indices and ``R`` (``ValueError`` naming a bad argument);
-                ``False`` for known-good inputs.
         """
         if check_input:
             observers = _robot_indices("observers", observers, self.n_robots)
@@ -326,19 +301,14 @@ class JointEKF(_UnicycleEKF):
         return predicted, H_pose
 
     def landmark_update(self, robots, measurements, predicted, H_pose, R, *, check_input: bool = True) -> None:
-        """Update with range-bearing measurements of known landmarks taken at the same time (one stacked update).
-
-        Measurement ``k`` is ``[range, bearing]`` of a landmark seen by robot ``robots[k]``; ``predicted`` and
-        ``H_pose`` come from ``landmark_model`` at the current prior. Through the cross-covariances the update
-        also corrects the teammates correlated with the observers.
+        """Update with range-bearing measurements of known landmarks taken at the same time (one stacked update):
+        ``k`` is of a landmark seen by robot ``robots[k]``, ``predicted`` and ``H_pose`` from ``landmark_model``.
 
         Args:
             robots: robot indices (k,).
             measurements, predicted: (k, 2).
             H_pose: (k, 2, 3).
             R: noise covariances (k, 2, 2), independent between measurements, symmetric positive definite.
-            check_input: check shapes, finiteness, indices and ``R`` (``ValueError`` naming a bad argument);
-                ``False`` for known-good inputs.
         """
         if check_input:
             robots = _robot_indices("robots", robots, self.n_robots)
