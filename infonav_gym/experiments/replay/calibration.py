@@ -138,13 +138,8 @@ def fit_odometry_offset(odometry, groundtruth) -> float:
 
 
 def fit_odometry(samples: list[tuple[np.ndarray, np.ndarray]], windows_s=NOISE_WINDOWS_S) -> dict:
-    """Scales and noise densities from per-window samples.
-
-    Args:
-        samples: per window length in ``windows_s``, ``(measured, truth)`` increments (W, 2) of forward
-            distance and heading change.
-        windows_s: the window lengths [s].
-    """
+    """Scales and noise densities from per-window samples: per window length in ``windows_s`` [s], ``(measured,
+    truth)`` increments (W, 2) of forward distance and heading change."""
     measured, truth = samples[0]
     scales = []
     for column in (0, 1):
@@ -191,14 +186,10 @@ def travelled(odometry: np.ndarray, times) -> np.ndarray:
 
 
 def landmark_errors(dataset: MRCLAMDataset, robot: int, offset_s: float = 0.0, odometry_offset_s: float = 0.0) -> dict:
-    """Errors of ``robot``'s landmark measurements against the ground-truth geometry.
-
-    Returns:
-        Arrays over the measurements with valid ground truth: ``time`` [s] (shifted by ``offset_s``),
-        ``target`` (landmark subject), ``range`` and ``bearing`` (measured) [m, rad], ``range_error`` [m],
-        ``bearing_error`` [rad],
-        ``travelled`` [m] (odometry shifted by ``odometry_offset_s``).
-    """
+    """Errors of ``robot``'s landmark measurements against the ground-truth geometry: arrays over the measurements
+    with valid ground truth, ``time`` [s] (shifted by ``offset_s``), ``target`` (landmark subject), ``range`` and
+    ``bearing`` (measured) [m, rad], ``range_error`` [m], ``bearing_error`` [rad], ``travelled`` [m] (odometry shifted
+    by ``odometry_offset_s``)."""
     rows = dataset.landmark_measurements[robot]
     poses, valid = groundtruth_at(dataset.groundtruth[robot], rows[:, 0] + offset_s)
     offsets = dataset.landmarks[dataset.landmark_index(rows[:, 1])] - poses[:, :2]
@@ -420,12 +411,8 @@ def _pairs_within_each(measurement_errors: list[dict], same_target: bool) -> tup
 
 
 def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False) -> tuple[NoiseModel, dict]:
-    """Fit the noise model of every robot with ground truth, and the pooled model.
-
-    Args:
-        dataset: a loaded MRCLAM dataset with ground truth.
-        command: the command line that ran this, recorded in the model.
-        progress: show a tqdm bar.
+    """Fit the noise model of every robot of ``dataset`` with ground truth, and the pooled model; ``command``: the
+    command line that ran this, recorded in the model; ``progress``: a tqdm bar.
 
     Returns:
         ``(model, errors)``: the model (its ``diagnostics`` hold the fits' evidence) and, per robot

@@ -278,15 +278,8 @@ def replay_filter(
     config: ReplayConfig,
     progress: bool = False,
 ) -> ReplayTrace:
-    """Run the filter through the timeline: predict every tick, select (budget), gate and update at each event.
-
-    Args:
-        dataset: the loaded dataset (robots, landmark map).
-        timeline: its logs on the replay clock.
-        initial_poses, initial_covariances: the robots' poses at boundary 0 (N, 3) and their covariances (N, 3, 3).
-        config: noise model, gate, policy, outage.
-        progress: show a tqdm bar.
-    """
+    """Run the filter through the ``timeline`` of ``dataset`` from the robots' poses (N, 3) and covariances (N, 3, 3)
+    at boundary 0: predict every tick, select (budget), gate and update at each event."""
     n_robots = len(dataset.robots)
     if config.cooperative:
         backend_class = _CooperativeFilter

@@ -61,14 +61,12 @@ def run_experiments(
         dataset: a loaded MRCLAM dataset.
         policies: names from ``POLICIES``; ``all`` runs once, the others once per ``(k, window)``.
         ks, windows_s: budgets: ``k`` observations per robot per window of ``window_s`` seconds.
-        n_seeds: runs of ``random`` per budget, seeds ``seed .. seed + n_seeds - 1`` (mean and 95 % CI).
-        seed: first seed.
-        outage: ``(robot, start_s, end_s)``: also run the outage experiment, a cooperative replay
-            (the joint filter, every landmark and robot-to-robot observation) in which ``robot`` gets no landmark
-            observations over the span, against the landmark-only replay in which it dead-reckons.
+        n_seeds, seed: runs of ``random`` per budget, seeds ``seed .. seed + n_seeds - 1`` (mean and 95 % CI).
+        outage: ``(robot, start_s, end_s)``: also run the outage experiment, a cooperative replay (the joint filter,
+            every landmark and robot-to-robot observation) in which ``robot`` gets no landmark observations over the
+            span, against the landmark-only replay in which it dead-reckons.
         config: filter settings (noise, gate, cooperative) shared by every run.
-        dt: replay tick [s].
-        duration_s: replay only this long [s].
+        dt, duration_s: replay tick [s]; replay only this long [s].
         progress: show tqdm bars.
 
     Returns:
