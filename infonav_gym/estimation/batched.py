@@ -238,7 +238,7 @@ def range_bearing_update(x, P, measurements, predicted, H, R, observed=None, *, 
 
 
 def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bool = True, check_input: bool = True):
-    """``JointEKF.gps_update`` on every copy: the position fixes ``[x, y]`` of the robots that have one.
+    """``JointEKF.gps_update`` on every copy: the updated ``(x, P)`` with the robots' position fixes ``[x, y]``.
 
     Args:
         x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
@@ -246,9 +246,6 @@ def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bo
         noise_covariances: the fixes' noise (N, R, 2, 2) or (R, 2, 2), symmetric positive definite.
         has_fix: which robots of which copy have a fix (N, R) bool.
         cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-
-    Returns:
-        The updated ``(x, P)``; copies without any fix unchanged.
     """
     if check_input:
         x, P = _state(x, P)
@@ -275,11 +272,9 @@ def relative_pose_update(
     cross_covariances: bool = True,
     check_input: bool = True,
 ):
-    """``JointEKF.relative_pose_update`` on every copy: its observed relative poses as one stacked update.
-
-    Slot ``k`` of copy ``c`` is ``[range, bearing, relative heading]`` (m = 3) or ``[range, bearing]``
-    (m = 2) of robot ``targets[c, k]`` seen from robot ``observers[c, k]``; the observed slots of a copy
-    are fused together in slot order, as ``JointEKF`` fuses the measurements it is given.
+    """``JointEKF.relative_pose_update`` on every copy: the updated ``(x, P)``, the observed slots of a copy fused in
+    slot order as one stacked update (copies without any unchanged). Slot ``k`` of copy ``c`` is ``[range, bearing,
+    relative heading]`` (m = 3) or ``[range, bearing]`` (m = 2) of robot ``targets[c, k]`` seen by ``observers[c, k]``.
 
     Args:
         x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
@@ -289,9 +284,6 @@ def relative_pose_update(
         R: noise covariances (N, M, m, m), symmetric positive definite.
         observed: which slots are measured (N, M) bool; None for all.
         cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-
-    Returns:
-        The updated ``(x, P)``; copies without any observed slot unchanged.
     """
     if check_input:
         x, P = _state(x, P)
@@ -307,10 +299,8 @@ def relative_pose_update(
 def team_landmark_update(
     x, P, robots, measurements, predicted, H_pose, R, observed=None, *, cross_covariances=True, check_input=True
 ):
-    """``JointEKF.landmark_update`` on every copy: its robots' range-bearing measurements of known landmarks.
-
-    Slot ``k`` of copy ``c`` is ``[range, bearing]`` of a landmark seen by robot ``robots[c, k]``; the observed
-    slots of a copy are fused together in slot order, as one stacked update.
+    """The team's updates with known landmarks on every copy: the updated ``(x, P)``, as ``relative_pose_update`` with
+    slot ``k`` of copy ``c`` the ``[range, bearing]`` of a known landmark seen by robot ``robots[c, k]``.
 
     Args:
         x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
@@ -320,9 +310,6 @@ def team_landmark_update(
         R: noise covariances (N, M, 2, 2), symmetric positive definite.
         observed: which slots are measured (N, M) bool; None for all.
         cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-
-    Returns:
-        The updated ``(x, P)``; copies without any observed slot unchanged.
     """
     if check_input:
         x, P = _state(x, P)

@@ -15,7 +15,6 @@ from infonav_gym.estimation import batched
 from infonav_gym.estimation.models import (
     GPS_POSE_JACOBIAN,
     angular_residual,
-    range_bearing_linearized,
     relative_pose_linearized,
     unicycle_jacobians,
     unicycle_motion,
@@ -95,24 +94,6 @@ class PoseEKF(_UnicycleEKF):
         self.P = covariance.copy()
         self.Q = np.zeros_like(self.P)
         self._headings = [2]
-
-    @property
-    def n_landmarks(self) -> int:
-        """Number of landmarks in the state."""
-        return (self.dim_x - POSE_DIM) // 2
-
-    @property
-    def pose(self) -> np.ndarray:
-        return self.x[:POSE_DIM].copy()
-
-    @property
-    def pose_covariance(self) -> np.ndarray:
-        return self.P[:POSE_DIM, :POSE_DIM].copy()
-
-    @property
-    def landmark_positions(self) -> np.ndarray:
-        """Current estimates of the mapped landmarks (L, 2)."""
-        return self.x[POSE_DIM:].reshape(-1, 2).copy()
 
     def predict(self, control, dt: float, control_covariance, *, check_input: bool = True) -> None:
         """Propagate through the unicycle model with a noisy odometry ``control`` (speed, turn rate).
@@ -200,11 +181,6 @@ class JointEKF(_UnicycleEKF):
         block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
         return self.P[block, block].copy()
 
-    def pose_covariances(self) -> np.ndarray:
-        """Every robot's own covariance block (N, 3, 3)."""
-        n, robots = self.n_robots, np.arange(self.n_robots)
-        return self.P.reshape(n, POSE_DIM, n, POSE_DIM).transpose(0, 2, 1, 3)[robots, robots]
-
     def predict(self, controls, dt: float, control_covariances, *, check_input: bool = True) -> None:
         """Propagate every robot through the unicycle model with its noisy odometry ``[speed, turn_rate]``.
 
@@ -285,43 +261,6 @@ class JointEKF(_UnicycleEKF):
         H = np.zeros((len(robots), m, self.n_robots, POSE_DIM))
         H[np.arange(len(robots)), :, robots, :] = blocks
         return H.reshape(len(robots) * m, self.dim_x)
-
-    def landmark_model(self, robots, landmarks) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted range-bearing of known landmark ``landmarks[k]`` from robot ``robots[k]``, with its Jacobian.
-
-        Args:
-            robots: robot indices (M,).
-            landmarks: known landmark positions (M, 2) [m].
-
-        Returns:
-            ``(predicted (M, 2), H_pose (M, 2, 3))``: ``[range, bearing]`` and its Jacobian w.r.t. the robot's pose.
-        """
-        poses = self.x.reshape(-1, POSE_DIM)[np.atleast_1d(robots)]
-        predicted, H_pose, _ = range_bearing_linearized(poses.T, landmarks)
-        return predicted, H_pose
-
-    def landmark_update(self, robots, measurements, predicted, H_pose, R, *, check_input: bool = True) -> None:
-        """Update with range-bearing measurements of known landmarks taken at the same time (one stacked update):
-        ``k`` is of a landmark seen by robot ``robots[k]``, ``predicted`` and ``H_pose`` from ``landmark_model``.
-
-        Args:
-            robots: robot indices (k,).
-            measurements, predicted: (k, 2).
-            H_pose: (k, 2, 3).
-            R: noise covariances (k, 2, 2), independent between measurements, symmetric positive definite.
-        """
-        if check_input:
-            robots = _robot_indices("robots", robots, self.n_robots)
-            k = len(robots)
-            measurements = _finite("measurements", measurements, (k, 2))
-            predicted = _finite("predicted", predicted, (k, 2))
-            H_pose = _finite("H_pose", H_pose, (k, 2, POSE_DIM))
-            R = _noise_covariance("R", R, (k, 2, 2))
-        robots = np.atleast_1d(robots)
-        if robots.size == 0:
-            return
-        H = self._stacked_jacobian(robots, H_pose)
-        self._update(measurements, predicted, H, block_diagonal(R), np.arange(len(H)) % 2 == 1)
 
     def _update(self, measurement, predicted, H, R, angle_rows) -> None:
         """``_UnicycleEKF._update``; without ``cross_covariances`` each robot keeps only its own block."""
