@@ -96,13 +96,8 @@ class PoseEKF(_UnicycleEKF):
         self._headings = [2]
 
     def predict(self, control, dt: float, control_covariance, *, check_input: bool = True) -> None:
-        """Propagate through the unicycle model with a noisy odometry ``control`` (speed, turn rate).
-
-        Args:
-            control: odometry ``[speed, turn_rate]`` [m/s, rad/s], finite.
-            dt: time step [s], finite and >= 0.
-            control_covariance: its noise covariance (2, 2), symmetric positive definite.
-        """
+        """Propagate through the unicycle model with a noisy odometry ``control = [speed, turn_rate]`` [m/s, rad/s]
+        over ``dt`` >= 0 [s], its noise covariance ``control_covariance`` (2, 2)."""
         if check_input:
             control = _finite("control", control, (2,))
             dt = _time_step(dt)
@@ -110,27 +105,15 @@ class PoseEKF(_UnicycleEKF):
         self._predict([control], dt, [control_covariance])
 
     def landmark_measurement_model(self, landmarks=None) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted range-bearing to each landmark and its Jacobian w.r.t. the whole state.
-
-        Args:
-            landmarks: known positions (N, 2); None to use the mapped landmarks in the state.
-
-        Returns:
-            ``(predicted (N, 2), H (N, 2, dim_x))``.
-        """
+        """Predicted range-bearing to each landmark, known positions (N, 2) or (None) those mapped in the state, and its
+        Jacobian w.r.t. the whole state: ``(predicted (N, 2), H (N, 2, dim_x))``."""
         positions = None if landmarks is None else np.asarray(landmarks, dtype=float).reshape(1, -1, 2)
         predicted, H = batched.landmark_measurement_model(self.x[None], positions, check_input=False)
         return predicted[0], H[0]
 
     def update_range_bearing(self, measurement, predicted, H, R, *, check_input: bool = True) -> None:
-        """filterpy's update with one range-bearing measurement, linearized at the prior, the bearing wrapped.
-
-        Args:
-            measurement: ``[range, bearing]``.
-            predicted: the measurement predicted at the prior, ``[range, bearing]``.
-            H: its Jacobian w.r.t. the state (2, dim_x).
-            R: measurement noise covariance (2, 2), symmetric positive definite.
-        """
+        """filterpy's update with one ``[range, bearing]`` measurement, linearized at the prior (``predicted``, ``H``
+        (2, dim_x)), noise ``R`` (2, 2), the bearing wrapped."""
         if check_input:
             measurement = _finite("measurement", measurement, (2,))
             predicted = _finite("predicted", predicted, (2,))
@@ -182,13 +165,8 @@ class JointEKF(_UnicycleEKF):
         return self.P[block, block].copy()
 
     def predict(self, controls, dt: float, control_covariances, *, check_input: bool = True) -> None:
-        """Propagate every robot through the unicycle model with its noisy odometry ``[speed, turn_rate]``.
-
-        Args:
-            controls: odometry readings (N, 2), finite.
-            dt: time step [s], finite and >= 0.
-            control_covariances: their noise covariances (N, 2, 2), symmetric positive definite.
-        """
+        """Propagate every robot through the unicycle model with its noisy odometry ``[speed, turn_rate]`` (N, 2) over
+        ``dt`` >= 0 [s], their noise covariances ``control_covariances`` (N, 2, 2)."""
         if check_input:
             controls = _finite("controls", controls, (self.n_robots, 2))
             dt = _time_step(dt)
@@ -196,13 +174,8 @@ class JointEKF(_UnicycleEKF):
         self._predict(controls, dt, control_covariances)
 
     def gps_update(self, robots, fixes, noise_covariances, *, check_input: bool = True) -> None:
-        """Update with position fixes ``[x, y]`` of some robots (one stacked linear update).
-
-        Args:
-            robots: indices of the robots with a fix (k,).
-            fixes: their measured positions (k, 2), finite.
-            noise_covariances: the fixes' noise covariances (k, 2, 2), symmetric positive definite.
-        """
+        """Update with the position fixes ``[x, y]`` (k, 2) of ``robots`` (k,), their noise covariances (k, 2, 2),
+        as one stacked linear update."""
         if check_input:
             robots = _robot_indices("robots", robots, self.n_robots)
             fixes = _finite("fixes", fixes, (len(robots), 2))
@@ -214,28 +187,18 @@ class JointEKF(_UnicycleEKF):
         self._update(fixes, H @ self.x, H, block_diagonal(noise_covariances), [])
 
     def relative_pose_model(self, observers, targets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Predicted relative pose of each ``targets[k]`` seen from ``observers[k]``, with both Jacobians.
-
-        Returns:
-            ``(predicted (M, 3), H_observer (M, 3, 3), H_target (M, 3, 3))``.
-        """
+        """Predicted relative pose of each ``targets[k]`` seen from ``observers[k]``, with both Jacobians:
+        ``(predicted (M, 3), H_observer (M, 3, 3), H_target (M, 3, 3))``."""
         poses = self.x.reshape(-1, POSE_DIM)
         return relative_pose_linearized(poses[observers], poses[targets])
 
     def relative_pose_update(
         self, observers, targets, measurements, predicted, H_observer, H_target, R, *, check_input: bool = True
     ) -> None:
-        """Update with relative-pose measurements taken at the same time (one stacked update).
-
-        Measurement ``k`` is ``[range, bearing, relative heading]`` (or ``[range, bearing]``, m = 2) of robot
-        ``targets[k]`` seen from robot ``observers[k]``; the rest from ``relative_pose_model`` (first m rows).
-
-        Args:
-            observers, targets: robot indices (k,).
-            measurements, predicted: (k, m), m = 3 or 2.
-            H_observer, H_target: (k, m, 3).
-            R: noise covariances (k, m, m), independent between measurements, symmetric positive definite.
-        """
+        """Update with relative-pose measurements taken at the same time (one stacked update): measurement ``k``
+        (k, m) is ``[range, bearing, relative heading]`` (or ``[range, bearing]``, m = 2) of robot ``targets[k]`` seen
+        from robot ``observers[k]``, ``predicted`` and the Jacobians (k, m, 3) the first m rows of
+        ``relative_pose_model``'s, ``R`` (k, m, m) the noise of each (independent between measurements)."""
         if check_input:
             observers = _robot_indices("observers", observers, self.n_robots)
             targets = _robot_indices("targets", targets, self.n_robots)

@@ -156,12 +156,9 @@ def invert(S, r, inverse, pivoted, order):
 @inner_kernel
 def gauss_jordan_inverse(S, r, inverse, A, order):
     """The inverse of the leading (r, r) block of ``S`` into ``inverse`` by Gauss-Jordan elimination with partial
-    pivoting of its copy ``A``, leaving out only operations that cannot change the inverse.
-
-    Left out: the columns of ``A`` at and left of the pivot (no later step reads them) and the columns of the
-    inverse that are still exact zeros: the identity's columns of the rows not pivoted yet (``order[:j + 1]`` holds
-    the identity columns of the rows pivoted so far, ``order``: (r,) int scratch). Adding a zero product leaves a
-    number as it is, so the inverse's numbers are those of the full elimination.
+    pivoting of its copy ``A``, leaving out the columns of ``A`` at and left of the pivot (no later step reads them)
+    and the inverse's columns that are still exact zeros (``order[:j + 1]``, (r,) int scratch, holds the identity
+    columns of the rows pivoted so far): adding a zero product changes no number, so the result is the full one's.
     """
     for i in range(r):
         order[i] = i
@@ -208,10 +205,8 @@ def times_inverse(X, S, r, S_inverse, product, pivoted, order):
 
 @inner_kernel
 def nonzero_columns(rows, columns) -> int:
-    """How many columns of ``rows`` (r, n) hold a non-zero entry; their indices into ``columns[:count]``.
-
-    A measurement depends on a few state entries (a pose, a landmark): products with H skip the others.
-    """
+    """How many columns of ``rows`` (r, n) hold a non-zero entry (the state entries a measurement depends on); their
+    indices into ``columns[:count]``."""
     count = 0
     for column in range(rows.shape[1]):
         for i in range(rows.shape[0]):
@@ -259,11 +254,8 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
 
 @inner_kernel
 def stacked_slots(H, residuals, used, rows, y, supports, support_sizes) -> int:
-    """Stack one copy's used slots in slot order, how many rows r: their Jacobian rows into ``rows`` (r, n), residuals
-    into ``y`` (r,) and each row's non-zero columns into ``supports[row, :support_sizes[row]]``.
-
-    A measurement depends on a few state entries (a pose, a landmark): the products with its rows visit only those.
-    """
+    """Stack one copy's used slots in slot order, how many rows r: Jacobian rows into ``rows`` (r, n), residuals into
+    ``y`` (r,), each row's non-zero columns (all the products visit) into ``supports[row, :support_sizes[row]]``."""
     n_slots, m, n = H.shape
     r = 0
     for slot in range(n_slots):
@@ -300,11 +292,8 @@ def innovation_covariance(P, R, used, rows, supports, support_sizes, r, HP, S):
 
 @inner_kernel
 def rows_times(rows, supports, support_sizes, r, X, n_x, product):
-    """``product[a, b] = sum_t rows[a, t] X[b, t]`` for the first r rows and ``n_x`` rows of ``X``: ``rows (X^T)``.
-
-    Each sum runs over its row's support in column order, from 0.0: the numbers of the sum over every column (a
-    zero product leaves a sum as it is).
-    """
+    """``product[a, b] = sum_t rows[a, t] X[b, t]`` for the first r rows and ``n_x`` rows of ``X``: ``rows (X^T)``, each
+    sum over its row's support in column order from 0.0 (the numbers of the sum over every column)."""
     for a in range(r):
         for b in range(n_x):
             product[a, b] = 0.0

@@ -414,12 +414,9 @@ def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False)
     """Fit the noise model of every robot of ``dataset`` with ground truth, and the pooled model; ``command``: the
     command line that ran this, recorded in the model; ``progress``: a tqdm bar.
 
-    Returns:
-        ``(model, errors)``: the model (its ``diagnostics`` hold the fits' evidence) and, per robot
-        subject, the landmark errors at the fitted clock offset (for the residual plot).
-
-    Raises:
-        ValueError: if no robot has ground truth and landmark measurements.
+    Returns ``(model, errors)``: the model (its ``diagnostics`` hold the fits' evidence) and, per robot subject, the
+    landmark errors at the fitted clock offset (for the residual plot); ``ValueError`` if no robot has ground truth and
+    landmark measurements.
     """
     from tqdm.auto import tqdm
 

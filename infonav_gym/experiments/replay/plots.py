@@ -54,11 +54,6 @@ def figure_calibration(model: NoiseModel, errors: dict):
     return figure
 
 
-def plot_nees_over_time(result: dict, path, title: str = "") -> Path:
-    """Write ``figure_nees_over_time(result, title)`` to ``path``."""
-    return save_figure(figure_nees_over_time(result, title), path, dpi=110)
-
-
 def figure_nees_over_time(result: dict, title: str = ""):
     """Each robot's NEES over time in an all-landmark replay ``result`` (its robots hold ``nees_over_time``), with the
     two-sided 95 % chi-square(3) band."""
