@@ -8,7 +8,7 @@ from conftest import numerical_jacobian
 from filterpy.kalman import ExtendedKalmanFilter
 
 from infonav_gym.estimation import JointEKF, relative_pose, relative_pose_linearized
-from infonav_gym.estimation.models import GPS_POSE_JACOBIAN, angular_residual, range_bearing
+from infonav_gym.estimation.models import GPS_POSE_JACOBIAN, angular_residual
 from infonav_gym.geometry import wrap_angle
 
 OBSERVERS = np.array([[0.3, -1.2, 0.4], [5.0, 2.0, 3.1], [-2.0, 7.0, -2.9], [1.0, 1.0, -math.pi]])
@@ -123,53 +123,3 @@ def test_bad_inputs_raise_clear_errors():
     ekf = make_joint()
     with pytest.raises(ValueError, match="its own relative pose"):
         ekf.relative_pose_update([1], [1], *relative_update_args(ekf, 0, 1)[2:])
-
-
-LANDMARKS = np.array([[3.0, 4.0], [2.0, -9.0]])
-R_LANDMARK = np.diag([0.1**2, math.radians(2) ** 2])
-
-
-@pytest.mark.parametrize("cross_covariances", [True, False])
-def test_stacked_landmark_update_equals_filterpys_update_on_the_joint_state(cross_covariances):
-    ekf = make_joint()
-    ekf.relative_pose_update(*relative_update_args(ekf, 0, 1))  # robot 1's landmark fix then corrects robot 0 too
-    ekf.cross_covariances = cross_covariances
-    reference = filterpy_twin(ekf)
-    robots = np.array([1, 2])
-    predicted, H_pose = ekf.landmark_model(robots, LANDMARKS)
-    for k, robot in enumerate(robots):
-        np.testing.assert_allclose(predicted[k], range_bearing(ekf.poses[robot], LANDMARKS[k])[0], rtol=1e-15)
-        numeric = numerical_jacobian(lambda pose, k=k: range_bearing(pose, LANDMARKS[k])[0], ekf.poses[robot])
-        np.testing.assert_allclose(H_pose[k], numeric, atol=1e-6)
-    measurements = predicted + np.array([[0.2, -0.03], [-0.1, 0.05]])
-    measurements[1, 1] = wrap_angle(measurements[1, 1])
-    R = np.array([R_LANDMARK, 3 * R_LANDMARK])
-    H = np.zeros((4, ekf.dim_x))
-    H[0:2, 3:6], H[2:4, 6:9] = H_pose
-    robot_0_before = ekf.x[0:3].copy()
-    ekf.landmark_update(robots, measurements, predicted, H_pose, R)
-    reference.update(
-        measurements.ravel(),
-        lambda x: H,
-        lambda x: predicted.ravel(),
-        R=np.kron(np.diag([1.0, 3.0]), R_LANDMARK),
-        residual=lambda a, b: angular_residual(a, b, [1, 3]),
-    )
-    reference.x[2::3] = wrap_angle(reference.x[2::3])
-    np.testing.assert_allclose(ekf.x, reference.x, rtol=1e-12, atol=1e-14)
-    own = np.kron(np.eye(3), np.ones((3, 3))).astype(bool)
-    checked = slice(None) if cross_covariances else own
-    np.testing.assert_allclose(ekf.P[checked], reference.P[checked], rtol=1e-10, atol=1e-14)
-    assert np.all(ekf.x[0:3] != robot_0_before)  # robot 0 observed nothing: corrected through its correlation
-
-
-def test_landmark_update_checks_its_inputs():
-    ekf = make_joint()
-    predicted, H_pose = ekf.landmark_model([0], LANDMARKS[:1])
-    with pytest.raises(ValueError, match="robots must be robot indices"):
-        ekf.landmark_update([3], predicted, predicted, H_pose, R_LANDMARK[None])
-    with pytest.raises(ValueError, match="R is not positive definite"):
-        ekf.landmark_update([0], predicted, predicted, H_pose, -R_LANDMARK[None])
-    with pytest.raises(ValueError, match="measurements must have shape"):
-        ekf.landmark_update([0], predicted.ravel(), predicted, H_pose, R_LANDMARK[None])
-    np.testing.assert_array_equal(ekf.P, make_joint().P)

@@ -1,15 +1,10 @@
-"""The batched EKF core: N filter copies on stacked arrays, states ``x (N, n)``, covariances ``P (N, n, n)``.
+"""The batched EKF core, the package's one EKF: N filter copies, states ``x (N, n)``, covariances ``P (N, n, n)``.
 
-The package's one EKF (the envs, the planners, the MRCLAM replay at N = 1): the models and updates of ``PoseEKF`` and
-``JointEKF`` with one leading batch dimension over env copies, tested update for update against filterpy's
-``ExtendedKalmanFilter``; the loops over the copies run in the compiled ``kernels``. A state starts with the poses
-of its R robots ``[x, y, heading]`` (R = 1 for a ``PoseEKF``), followed by any static entries (mapped landmarks
-``[lx, ly]``). Functions return new arrays; copies that take no measurement come back unchanged.
-
-Every public function checks its inputs (shapes, finiteness, symmetric positive-definite noise, indices)
-and raises ``ValueError`` naming the argument; ``check_input=False`` skips that for hot loops whose
-inputs are known good, as the scalar filters do. ``information.log_det_spd`` gives the ``ln det`` of a
-whole stack of covariances (N,); ``pose_log_dets`` those of the robots' pose blocks.
+The models and updates of ``PoseEKF`` and ``JointEKF`` over a leading dimension of copies (the envs, the planners,
+the MRCLAM replay at N = 1), tested against filterpy; the loops run in the compiled ``kernels``. A state starts with
+R robot poses ``[x, y, heading]``, then any static entries (mapped landmarks ``[lx, ly]``). Functions return new
+arrays; copies that take no measurement come back unchanged. Every public function raises ``ValueError`` naming a
+bad argument (shape, finiteness, SPD noise, indices); ``check_input=False`` skips the checks for known-good inputs.
 """
 
 from __future__ import annotations
@@ -114,18 +109,13 @@ def _noise_stack(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def predict_pose(x, P, controls, dt: float, control_covariance, *, check_input: bool = True):
-    """``PoseEKF.predict`` on every copy: the pose (first 3 entries) through the unicycle model.
+    """``PoseEKF.predict`` on every copy: the predicted ``(x, P)``, the pose (first 3 entries) through the unicycle.
 
     Args:
-        x: states (N, n), the pose first; the other entries (mapped landmarks) are static.
-        P: covariances (N, n, n).
+        x, P: states (N, n), the pose first (the other entries are static), and covariances (N, n, n).
         controls: odometry ``[speed, turn_rate]`` of each copy (N, 2) [m/s, rad/s].
         dt: time step [s], finite and >= 0.
         control_covariance: odometry noise (N, 2, 2), or one (2, 2) for all copies.
-        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
-
-    Returns:
-        The predicted ``(x (N, n), P (N, n, n))``.
     """
     if check_input:
         x, P = _state(x, P)
@@ -139,18 +129,13 @@ def predict_pose(x, P, controls, dt: float, control_covariance, *, check_input: 
 
 
 def predict_team(x, P, controls, dt: float, control_covariances, *, check_input: bool = True):
-    """``JointEKF.predict`` on every copy: each of R robots' poses through the unicycle model.
+    """``JointEKF.predict`` on every copy: the predicted ``(x, P)``, each robot's pose through the unicycle model.
 
     Args:
-        x: joint states (N, 3R).
-        P: their covariances (N, 3R, 3R), with or without cross-covariances.
+        x, P: joint states (N, 3R) and covariances (N, 3R, 3R), with or without cross-covariances.
         controls: odometry ``[speed, turn_rate]`` of each robot (N, R, 2) [m/s, rad/s].
         dt: time step [s], finite and >= 0.
         control_covariances: odometry noise of each robot (N, R, 2, 2), or (R, 2, 2) for all copies.
-        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
-
-    Returns:
-        The predicted ``(x (N, 3R), P (N, 3R, 3R))``.
     """
     if check_input:
         x, P = _state(x, P)
@@ -162,7 +147,7 @@ def predict_team(x, P, controls, dt: float, control_covariances, *, check_input:
 
 
 def _predict(x, P, controls, dt, control_covariances):
-    """Unicycle prediction of the first R poses (``kernels.predict_poses``); noise (N, R, 2, 2) or broadcasting."""
+    """``kernels.predict_poses`` of the first R poses; noise (N, R, 2, 2) or broadcasting to it."""
     control_covariances = np.broadcast_to(control_covariances, (*np.shape(controls), 2))
     return kernels.predict_poses(_floats(x), _floats(P), _floats(controls), float(dt), _floats(control_covariances))
 
@@ -181,13 +166,10 @@ def landmark_measurement_model(x, landmarks=None, *, check_input: bool = True):
     Args:
         x: states (N, n), the pose first, then (when mapping) the landmark estimates ``[l1x, l1y, ...]``.
         landmarks: known positions (K, 2) or per copy (N, K, 2); None to use the landmarks in the state.
-        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
 
     Returns:
-        ``(predicted (N, K, 2), H (N, K, 2, n))``; ``H`` has landmark columns only for mapped landmarks.
-
-    Raises:
-        ValueError: also if a landmark coincides with a copy's estimated position (its bearing is undefined).
+        ``(predicted (N, K, 2), H (N, K, 2, n))``; ``H`` has landmark columns only for mapped landmarks. A landmark on
+        a copy's estimated position (no bearing) raises ``ValueError``.
     """
     mapped = landmarks is None
     if check_input:
@@ -212,16 +194,9 @@ def landmark_measurement_model(x, landmarks=None, *, check_input: bool = True):
 
 
 def relative_pose_model(x, observers, targets, *, check_input: bool = True):
-    """``JointEKF.relative_pose_model`` on every copy: relative pose of ``targets[c, k]`` seen from ``observers[c, k]``.
-
-    Args:
-        x: joint states (N, 3R).
-        observers, targets: robot indices (N, M), ``observers != targets``.
-        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
-
-    Returns:
-        ``(predicted (N, M, 3), H_observer (N, M, 3, 3), H_target (N, M, 3, 3))``.
-    """
+    """``JointEKF.relative_pose_model`` on every copy: the relative pose of robot ``targets[c, k]`` seen from robot
+    ``observers[c, k]`` (both (N, M) indices into states ``x`` (N, 3R)), ``(predicted (N, M, 3), H_observer (N, M, 3,
+    3), H_target (N, M, 3, 3))``."""
     if check_input:
         x = _states(x)
         observers, targets = _pairs(observers, targets, len(x), _team_size(x.shape[1]))
@@ -236,21 +211,14 @@ def relative_pose_model(x, observers, targets, *, check_input: bool = True):
 
 
 def range_bearing_update(x, P, measurements, predicted, H, R, observed=None, *, check_input: bool = True):
-    """``PoseEKF.update_range_bearing`` on the copies that observe a landmark; the others unchanged.
+    """``PoseEKF.update_range_bearing`` of the copies that observe a landmark: the updated ``(x, P)``.
 
     Args:
-        x: states (N, n), the pose first.
-        P: covariances (N, n, n).
+        x, P: states (N, n), the pose first, and covariances (N, n, n).
         measurements: the measured ``[range, bearing]`` of each copy (N, 2).
-        predicted: the prior's prediction of it (N, 2), from ``landmark_measurement_model``.
-        H: its Jacobian w.r.t. the state (N, 2, n).
+        predicted, H: its prediction at the prior (N, 2) and Jacobian (N, 2, n) (``landmark_measurement_model``).
         R: its noise covariance (N, 2, 2), symmetric positive definite.
         observed: which copies take their measurement (N,) bool; None for all.
-        check_input: check shapes, finiteness, ``P`` and ``R`` (``ValueError`` naming a bad argument);
-            ``False`` for known-good inputs.
-
-    Returns:
-        The updated ``(x, P)``; covariances symmetrized, headings wrapped.
     """
     if check_input:
         x, P = _state(x, P)
@@ -270,19 +238,14 @@ def range_bearing_update(x, P, measurements, predicted, H, R, observed=None, *, 
 
 
 def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bool = True, check_input: bool = True):
-    """``JointEKF.gps_update`` on every copy: the position fixes ``[x, y]`` of the robots that have one.
+    """``JointEKF.gps_update`` on every copy: the updated ``(x, P)`` with the robots' position fixes ``[x, y]``.
 
     Args:
-        x: joint states (N, 3R).
-        P: their covariances (N, 3R, 3R).
+        x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
         fixes: measured positions of every robot (N, R, 2); only those with ``has_fix`` are used.
         noise_covariances: the fixes' noise (N, R, 2, 2) or (R, 2, 2), symmetric positive definite.
         has_fix: which robots of which copy have a fix (N, R) bool.
         cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
-
-    Returns:
-        The updated ``(x, P)``; copies without any fix unchanged.
     """
     if check_input:
         x, P = _state(x, P)
@@ -309,25 +272,18 @@ def relative_pose_update(
     cross_covariances: bool = True,
     check_input: bool = True,
 ):
-    """``JointEKF.relative_pose_update`` on every copy: its observed relative poses as one stacked update.
-
-    Slot ``k`` of copy ``c`` is ``[range, bearing, relative heading]`` (m = 3) or ``[range, bearing]``
-    (m = 2) of robot ``targets[c, k]`` seen from robot ``observers[c, k]``; the observed slots of a copy
-    are fused together in slot order, as ``JointEKF`` fuses the measurements it is given.
+    """``JointEKF.relative_pose_update`` on every copy: the updated ``(x, P)``, the observed slots of a copy fused in
+    slot order as one stacked update (copies without any unchanged). Slot ``k`` of copy ``c`` is ``[range, bearing,
+    relative heading]`` (m = 3) or ``[range, bearing]`` (m = 2) of robot ``targets[c, k]`` seen by ``observers[c, k]``.
 
     Args:
-        x: joint states (N, 3R).
-        P: their covariances (N, 3R, 3R).
+        x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
         observers, targets: robot indices (N, M).
         measurements, predicted: (N, M, m); ``predicted`` from ``relative_pose_model`` at the prior.
         H_observer, H_target: their Jacobians (N, M, m, 3) (the first m rows of ``relative_pose_model``'s).
         R: noise covariances (N, M, m, m), symmetric positive definite.
         observed: which slots are measured (N, M) bool; None for all.
         cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
-
-    Returns:
-        The updated ``(x, P)``; copies without any observed slot unchanged.
     """
     if check_input:
         x, P = _state(x, P)
@@ -343,24 +299,17 @@ def relative_pose_update(
 def team_landmark_update(
     x, P, robots, measurements, predicted, H_pose, R, observed=None, *, cross_covariances=True, check_input=True
 ):
-    """``JointEKF.landmark_update`` on every copy: its robots' range-bearing measurements of known landmarks.
-
-    Slot ``k`` of copy ``c`` is ``[range, bearing]`` of a landmark seen by robot ``robots[c, k]``; the observed
-    slots of a copy are fused together in slot order, as one stacked update.
+    """The team's updates with known landmarks on every copy: the updated ``(x, P)``, as ``relative_pose_update`` with
+    slot ``k`` of copy ``c`` the ``[range, bearing]`` of a known landmark seen by robot ``robots[c, k]``.
 
     Args:
-        x: joint states (N, 3R).
-        P: their covariances (N, 3R, 3R).
+        x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
         robots: the observers' indices (N, M).
         measurements, predicted: (N, M, 2); ``predicted`` from ``landmark_measurement_model`` at the prior.
         H_pose: its Jacobian w.r.t. the observer's pose (N, M, 2, 3).
         R: noise covariances (N, M, 2, 2), symmetric positive definite.
         observed: which slots are measured (N, M) bool; None for all.
         cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
-
-    Returns:
-        The updated ``(x, P)``; copies without any observed slot unchanged.
     """
     if check_input:
         x, P = _state(x, P)
@@ -393,11 +342,7 @@ def _slot_update(x, P, measurements, predicted, jacobians, R, observed, m, cross
 
 
 def _update(x, P, residuals, H, R, used, n_headings: int, cross_covariances: bool = True):
-    """``kernels.kalman_updates``: each copy's used slots (N, M) fused in slot order, the others unchanged.
-
-    ``residuals`` (N, M, m), ``H`` (N, M, m, n), ``R`` (N, M, m, m); the headings of the first ``n_headings``
-    poses are wrapped; without ``cross_covariances`` updated copies keep only each robot's own blocks.
-    """
+    """``kernels.kalman_updates`` on arrays in the layout it is compiled for."""
     return kernels.kalman_updates(
         _floats(x),
         _floats(P),
@@ -427,16 +372,8 @@ def _jacobians(H, P: np.ndarray, inner: tuple[str, ...]) -> np.ndarray:
 
 
 def posterior_covariance(P, H, R, *, check_input: bool = True) -> np.ndarray:
-    """The covariance after an EKF update of each copy (N, n, n): it does not depend on the measured value.
-
-    ``P - K H P`` as ``range_bearing_update`` and the team updates compute it. A zero row of ``H`` with
-    its own unit noise (no correlation with the other rows) is no measurement: it leaves ``P`` unchanged.
-
-    Args:
-        P: prior covariances (N, n, n).
-        H: stacked measurement Jacobians (N, m, n).
-        R: their noise covariances (N, m, m), symmetric positive definite.
-        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
+    """The covariance (N, n, n) after the EKF update of priors ``P`` (N, n, n) with Jacobians ``H`` (N, m, n) and SPD
+    noise ``R`` (N, m, m), as the updates compute it; a zero row of ``H`` with its own unit noise leaves ``P`` as it is.
     """
     if check_input:
         P = _covariances(P)
@@ -452,17 +389,8 @@ def posterior_covariance(P, H, R, *, check_input: bool = True) -> np.ndarray:
 
 
 def landmark_information_gains(P, H, R, *, check_input: bool = True) -> np.ndarray:
-    """Expected MI [nats] of observing each candidate, alone at each copy's prior: ``0.5 ln(det S / det R)``.
-
-    Args:
-        P: prior covariances (N, n, n).
-        H: candidates' Jacobians (N, K, m, n).
-        R: their noise covariances (N, K, m, m).
-        check_input: check shapes, finiteness, ``P`` and ``R``; ``False`` for known-good inputs.
-
-    Returns:
-        (N, K) gains.
-    """
+    """Expected MI (N, K) [nats] of observing each candidate alone at each copy's prior, ``0.5 ln(det S / det R)``:
+    priors ``P`` (N, n, n), the candidates' Jacobians ``H`` (N, K, m, n) and noise ``R`` (N, K, m, m)."""
     if check_input:
         P = _covariances(P)
         H = _jacobians(H, P, ("K", "m"))
@@ -487,7 +415,6 @@ def relative_pose_information_gains(P, observers, targets, H_observer, H_target,
         observers, targets: candidate pairs' robot indices (N, M).
         H_observer, H_target: their Jacobians (N, M, m, 3).
         R: their noise covariances (N, M, m, m).
-        check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
 
     Returns:
         ``(own, joint)``, each (N, M): the MI on the observer's own pose and on the joint state.
@@ -519,13 +446,8 @@ def pose_blocks(P) -> np.ndarray:
 
 
 def pose_log_dets(P, n_robots: int = 1, *, check_input: bool = True) -> np.ndarray:
-    """``ln det`` of each robot's own pose covariance block (N, R): the first ``3 n_robots`` entries of the state.
-
-    Args:
-        P: covariances (N, n, n), the R poses first.
-        n_robots: how many poses lead the state (1 for a ``PoseEKF``).
-        check_input: check ``P`` and ``n_robots``; ``False`` for known-good inputs.
-    """
+    """``ln det`` of each robot's own pose covariance block (N, R) of ``P`` (N, n, n) whose state starts with
+    ``n_robots`` poses (1 for a ``PoseEKF``)."""
     if check_input:
         P = _covariances(P)
         n_robots = _robot_count(P.shape[1], n_robots)

@@ -1,10 +1,8 @@
 """The scalar reference: ``PoseEKF`` and ``JointEKF`` configure filterpy's ``ExtendedKalmanFilter`` with the unicycle
 motion and the range-bearing, relative-pose and position-fix models; filterpy performs every predict and update (its
 update in Joseph form). The envs, planners and the replay run the batched EKF (``batched``), tested against filterpy.
-
-The public ``predict`` and update methods check what they are given (shapes, finiteness, a
-symmetric positive-definite noise covariance) and raise ``ValueError`` naming the argument, so a
-bad input never fills the state with NaN; ``check_input=False`` skips that for known-good inputs.
+The public methods raise ``ValueError`` naming a bad argument (shape, finiteness, SPD noise), so a bad input never
+fills the state with NaN; ``check_input=False`` skips the checks for known-good inputs.
 """
 
 from __future__ import annotations
@@ -13,10 +11,10 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 from scipy.linalg import block_diag
 
+from infonav_gym.estimation import batched
 from infonav_gym.estimation.models import (
     GPS_POSE_JACOBIAN,
     angular_residual,
-    range_bearing_linearized,
     relative_pose_linearized,
     unicycle_jacobians,
     unicycle_motion,
@@ -65,11 +63,8 @@ class _UnicycleEKF(ExtendedKalmanFilter):
 
 
 class PoseEKF(_UnicycleEKF):
-    """EKF over a planar pose ``[x, y, heading]``, optionally with mapped landmarks (EKF-SLAM).
-
-    The state is ``[x, y, heading, l1x, l1y, l2x, ...]``: with ``landmarks`` given,
-    their positions are estimated alongside the pose. filterpy predicts (the unicycle
-    model in ``predict_x``) and updates; headings and bearing innovations are wrapped.
+    """EKF over a planar pose ``[x, y, heading]``, optionally with mapped landmarks (EKF-SLAM): the state is
+    ``[x, y, heading, l1x, l1y, l2x, ...]``. Headings and bearing innovations are wrapped.
 
     Args:
         pose: initial pose estimate (3,).
@@ -100,33 +95,9 @@ class PoseEKF(_UnicycleEKF):
         self.Q = np.zeros_like(self.P)
         self._headings = [2]
 
-    @property
-    def n_landmarks(self) -> int:
-        """Number of landmarks in the state."""
-        return (self.dim_x - POSE_DIM) // 2
-
-    @property
-    def pose(self) -> np.ndarray:
-        return self.x[:POSE_DIM].copy()
-
-    @property
-    def pose_covariance(self) -> np.ndarray:
-        return self.P[:POSE_DIM, :POSE_DIM].copy()
-
-    @property
-    def landmark_positions(self) -> np.ndarray:
-        """Current estimates of the mapped landmarks (L, 2)."""
-        return self.x[POSE_DIM:].reshape(-1, 2).copy()
-
     def predict(self, control, dt: float, control_covariance, *, check_input: bool = True) -> None:
-        """Propagate through the unicycle model with a noisy odometry ``control`` (speed, turn rate).
-
-        Args:
-            control: odometry ``[speed, turn_rate]`` [m/s, rad/s], finite.
-            dt: time step [s], finite and >= 0.
-            control_covariance: its noise covariance (2, 2), symmetric positive definite.
-            check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
-        """
+        """Propagate through the unicycle model with a noisy odometry ``control = [speed, turn_rate]`` [m/s, rad/s]
+        over ``dt`` >= 0 [s], its noise covariance ``control_covariance`` (2, 2)."""
         if check_input:
             control = _finite("control", control, (2,))
             dt = _time_step(dt)
@@ -134,38 +105,15 @@ class PoseEKF(_UnicycleEKF):
         self._predict([control], dt, [control_covariance])
 
     def landmark_measurement_model(self, landmarks=None) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted range-bearing to each landmark and its Jacobian w.r.t. the whole state.
-
-        Args:
-            landmarks: known positions (N, 2); None to use the mapped landmarks in the state.
-
-        Returns:
-            ``(predicted (N, 2), H (N, 2, dim_x))``.
-        """
-        mapped = landmarks is None
-        positions = self.x[POSE_DIM:].reshape(-1, 2) if mapped else np.asarray(landmarks, dtype=float).reshape(-1, 2)
-        predicted, H_pose, H_landmark = range_bearing_linearized(self.x, positions)
-        if self.dim_x == POSE_DIM:
-            return predicted, H_pose
-        H = np.zeros((len(positions), 2, self.dim_x))
-        H[:, :, :POSE_DIM] = H_pose
-        if mapped:
-            rows = np.arange(len(positions))
-            columns = POSE_DIM + 2 * rows[:, None] + np.arange(2)
-            H[rows[:, None, None], np.arange(2)[None, :, None], columns[:, None, :]] = H_landmark
-        return predicted, H
+        """Predicted range-bearing to each landmark, known positions (N, 2) or (None) those mapped in the state, and its
+        Jacobian w.r.t. the whole state: ``(predicted (N, 2), H (N, 2, dim_x))``."""
+        positions = None if landmarks is None else np.asarray(landmarks, dtype=float).reshape(1, -1, 2)
+        predicted, H = batched.landmark_measurement_model(self.x[None], positions, check_input=False)
+        return predicted[0], H[0]
 
     def update_range_bearing(self, measurement, predicted, H, R, *, check_input: bool = True) -> None:
-        """filterpy's update with one range-bearing measurement, linearized at the prior, the bearing wrapped.
-
-        Args:
-            measurement: ``[range, bearing]``.
-            predicted: the measurement predicted at the prior, ``[range, bearing]``.
-            H: its Jacobian w.r.t. the state (2, dim_x).
-            R: measurement noise covariance (2, 2), symmetric positive definite.
-            check_input: check shapes, finiteness and ``R`` (``ValueError`` naming a bad argument);
-                ``False`` for known-good inputs.
-        """
+        """filterpy's update with one ``[range, bearing]`` measurement, linearized at the prior (``predicted``, ``H``
+        (2, dim_x)), noise ``R`` (2, 2), the bearing wrapped."""
         if check_input:
             measurement = _finite("measurement", measurement, (2,))
             predicted = _finite("predicted", predicted, (2,))
@@ -177,12 +125,9 @@ class PoseEKF(_UnicycleEKF):
 class JointEKF(_UnicycleEKF):
     """EKF over the planar poses of N robots: state ``[x0, y0, h0, x1, y1, h1, ...]`` (3N).
 
-    A relative-pose measurement between two robots correlates their estimates;
-    this filter keeps those cross-covariances, so information is never counted
-    twice. With ``cross_covariances=False`` it drops them after every update
-    (each robot keeps only its own 3x3 block): the common shortcut that treats
-    teammates' estimates as independent, reuses the same information again and
-    again, and becomes overconfident. filterpy predicts and updates (see ``PoseEKF``).
+    A relative-pose measurement correlates two robots' estimates; this filter keeps those cross-covariances, so
+    information is never counted twice. ``cross_covariances=False`` drops them after every update (each robot keeps its
+    own 3x3 block): the common shortcut that treats teammates as independent, reuses information, grows overconfident.
 
     Args:
         poses: initial pose estimates (N, 3).
@@ -219,20 +164,9 @@ class JointEKF(_UnicycleEKF):
         block = slice(POSE_DIM * robot, POSE_DIM * robot + POSE_DIM)
         return self.P[block, block].copy()
 
-    def pose_covariances(self) -> np.ndarray:
-        """Every robot's own covariance block (N, 3, 3)."""
-        n, robots = self.n_robots, np.arange(self.n_robots)
-        return self.P.reshape(n, POSE_DIM, n, POSE_DIM).transpose(0, 2, 1, 3)[robots, robots]
-
     def predict(self, controls, dt: float, control_covariances, *, check_input: bool = True) -> None:
-        """Propagate every robot through the unicycle model with its noisy odometry ``[speed, turn_rate]``.
-
-        Args:
-            controls: odometry readings (N, 2), finite.
-            dt: time step [s], finite and >= 0.
-            control_covariances: their noise covariances (N, 2, 2), symmetric positive definite.
-            check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
-        """
+        """Propagate every robot through the unicycle model with its noisy odometry ``[speed, turn_rate]`` (N, 2) over
+        ``dt`` >= 0 [s], their noise covariances ``control_covariances`` (N, 2, 2)."""
         if check_input:
             controls = _finite("controls", controls, (self.n_robots, 2))
             dt = _time_step(dt)
@@ -240,14 +174,8 @@ class JointEKF(_UnicycleEKF):
         self._predict(controls, dt, control_covariances)
 
     def gps_update(self, robots, fixes, noise_covariances, *, check_input: bool = True) -> None:
-        """Update with position fixes ``[x, y]`` of some robots (one stacked linear update).
-
-        Args:
-            robots: indices of the robots with a fix (k,).
-            fixes: their measured positions (k, 2), finite.
-            noise_covariances: the fixes' noise covariances (k, 2, 2), symmetric positive definite.
-            check_input: check the arguments (``ValueError`` naming a bad one); ``False`` for known-good inputs.
-        """
+        """Update with the position fixes ``[x, y]`` (k, 2) of ``robots`` (k,), their noise covariances (k, 2, 2),
+        as one stacked linear update."""
         if check_input:
             robots = _robot_indices("robots", robots, self.n_robots)
             fixes = _finite("fixes", fixes, (len(robots), 2))
@@ -259,32 +187,18 @@ class JointEKF(_UnicycleEKF):
         self._update(fixes, H @ self.x, H, block_diagonal(noise_covariances), [])
 
     def relative_pose_model(self, observers, targets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Predicted relative pose of each ``targets[k]`` seen from ``observers[k]``, with both Jacobians.
-
-        Returns:
-            ``(predicted (M, 3), H_observer (M, 3, 3), H_target (M, 3, 3))``.
-        """
+        """Predicted relative pose of each ``targets[k]`` seen from ``observers[k]``, with both Jacobians:
+        ``(predicted (M, 3), H_observer (M, 3, 3), H_target (M, 3, 3))``."""
         poses = self.x.reshape(-1, POSE_DIM)
         return relative_pose_linearized(poses[observers], poses[targets])
 
     def relative_pose_update(
         self, observers, targets, measurements, predicted, H_observer, H_target, R, *, check_input: bool = True
     ) -> None:
-        """Update with relative-pose measurements taken at the same time (one stacked update).
-
-        Measurement ``k`` is ``[range, bearing, relative heading]`` of robot ``targets[k]``
-        seen from robot ``observers[k]`` (or ``[range, bearing]``, m = 2, without the heading);
-        ``predicted``, ``H_observer`` and ``H_target`` come from ``relative_pose_model`` at the
-        current prior (their first m rows).
-
-        Args:
-            observers, targets: robot indices (k,).
-            measurements, predicted: (k, m), m = 3 or 2.
-            H_observer, H_target: (k, m, 3).
-            R: noise covariances (k, m, m), independent between measurements, symmetric positive definite.
-            check_input: check shapes, finiteness, indices and ``R`` (``ValueError`` naming a bad argument);
-                ``False`` for known-good inputs.
-        """
+        """Update with relative-pose measurements taken at the same time (one stacked update): measurement ``k``
+        (k, m) is ``[range, bearing, relative heading]`` (or ``[range, bearing]``, m = 2) of robot ``targets[k]`` seen
+        from robot ``observers[k]``, ``predicted`` and the Jacobians (k, m, 3) the first m rows of
+        ``relative_pose_model``'s, ``R`` (k, m, m) the noise of each (independent between measurements)."""
         if check_input:
             observers = _robot_indices("observers", observers, self.n_robots)
             targets = _robot_indices("targets", targets, self.n_robots)
@@ -310,48 +224,6 @@ class JointEKF(_UnicycleEKF):
         H = np.zeros((len(robots), m, self.n_robots, POSE_DIM))
         H[np.arange(len(robots)), :, robots, :] = blocks
         return H.reshape(len(robots) * m, self.dim_x)
-
-    def landmark_model(self, robots, landmarks) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted range-bearing of known landmark ``landmarks[k]`` from robot ``robots[k]``, with its Jacobian.
-
-        Args:
-            robots: robot indices (M,).
-            landmarks: known landmark positions (M, 2) [m].
-
-        Returns:
-            ``(predicted (M, 2), H_pose (M, 2, 3))``: ``[range, bearing]`` and its Jacobian w.r.t. the robot's pose.
-        """
-        poses = self.x.reshape(-1, POSE_DIM)[np.atleast_1d(robots)]
-        predicted, H_pose, _ = range_bearing_linearized(poses.T, landmarks)
-        return predicted, H_pose
-
-    def landmark_update(self, robots, measurements, predicted, H_pose, R, *, check_input: bool = True) -> None:
-        """Update with range-bearing measurements of known landmarks taken at the same time (one stacked update).
-
-        Measurement ``k`` is ``[range, bearing]`` of a landmark seen by robot ``robots[k]``; ``predicted`` and
-        ``H_pose`` come from ``landmark_model`` at the current prior. Through the cross-covariances the update
-        also corrects the teammates correlated with the observers.
-
-        Args:
-            robots: robot indices (k,).
-            measurements, predicted: (k, 2).
-            H_pose: (k, 2, 3).
-            R: noise covariances (k, 2, 2), independent between measurements, symmetric positive definite.
-            check_input: check shapes, finiteness, indices and ``R`` (``ValueError`` naming a bad argument);
-                ``False`` for known-good inputs.
-        """
-        if check_input:
-            robots = _robot_indices("robots", robots, self.n_robots)
-            k = len(robots)
-            measurements = _finite("measurements", measurements, (k, 2))
-            predicted = _finite("predicted", predicted, (k, 2))
-            H_pose = _finite("H_pose", H_pose, (k, 2, POSE_DIM))
-            R = _noise_covariance("R", R, (k, 2, 2))
-        robots = np.atleast_1d(robots)
-        if robots.size == 0:
-            return
-        H = self._stacked_jacobian(robots, H_pose)
-        self._update(measurements, predicted, H, block_diagonal(R), np.arange(len(H)) % 2 == 1)
 
     def _update(self, measurement, predicted, H, R, angle_rows) -> None:
         """``_UnicycleEKF._update``; without ``cross_covariances`` each robot keeps only its own block."""

@@ -69,16 +69,9 @@ def predict_poses(x, P, controls, dt, control_covariances):
 
 @kernel
 def range_bearing_models(x, positions, mapped):
-    """Range-bearing from each copy's pose to each landmark, and its Jacobian w.r.t. the state.
-
-    Args:
-        x: states (N, n), the pose first.
-        positions: landmark positions (N, K, 2); with ``mapped`` they are the state's entries ``3 + 2k``.
-        mapped: give ``H`` the landmark columns too (minus the position columns of the pose).
-
-    Returns:
-        ``(predicted (N, K, 2), H (N, K, 2, n), coincident)``; ``coincident``: some landmark lies on its sensor.
-    """
+    """Range-bearing from each copy's pose (states ``x`` (N, n)) to each landmark ``positions`` (N, K, 2) and its
+    Jacobian w.r.t. the state, ``(predicted (N, K, 2), H (N, K, 2, n), coincident)``; with ``mapped`` the positions are
+    the state's entries ``3 + 2k`` and ``H`` has their columns too. ``coincident``: some landmark lies on its sensor."""
     n_copies, n = x.shape
     n_landmarks = positions.shape[1]
     predicted, H = np.empty((n_copies, n_landmarks, 2)), np.zeros((n_copies, n_landmarks, 2, n))
@@ -112,12 +105,9 @@ def range_bearing_of_offset(dx, dy, heading, predicted, J) -> bool:
 
 @kernel
 def relative_pose_models(x, observers, targets):
-    """Range, bearing and relative heading of robot ``targets[c, k]`` seen from robot ``observers[c, k]``.
-
-    Returns:
-        ``(predicted (N, M, 3), H_observer (N, M, 3, 3), H_target (N, M, 3, 3), coincident)``: the Jacobians
-        w.r.t. the two poses; ``coincident``: some target lies on its observer.
-    """
+    """Range, bearing and relative heading of robot ``targets[c, k]`` seen from robot ``observers[c, k]``, with the
+    Jacobians w.r.t. the two poses and whether some target lies on its observer: ``(predicted (N, M, 3), H_observer
+    (N, M, 3, 3), H_target (N, M, 3, 3), coincident)``."""
     n_copies, n_pairs = observers.shape
     predicted = np.empty((n_copies, n_pairs, POSE_DIM))
     H_observer = np.zeros((n_copies, n_pairs, POSE_DIM, POSE_DIM))
@@ -166,12 +156,9 @@ def invert(S, r, inverse, pivoted, order):
 @inner_kernel
 def gauss_jordan_inverse(S, r, inverse, A, order):
     """The inverse of the leading (r, r) block of ``S`` into ``inverse`` by Gauss-Jordan elimination with partial
-    pivoting of its copy ``A``, leaving out only operations that cannot change the inverse.
-
-    Left out: the columns of ``A`` at and left of the pivot (no later step reads them) and the columns of the
-    inverse that are still exact zeros: the identity's columns of the rows not pivoted yet (``order[:j + 1]`` holds
-    the identity columns of the rows pivoted so far, ``order``: (r,) int scratch). Adding a zero product leaves a
-    number as it is, so the inverse's numbers are those of the full elimination.
+    pivoting of its copy ``A``, leaving out the columns of ``A`` at and left of the pivot (no later step reads them)
+    and the inverse's columns that are still exact zeros (``order[:j + 1]``, (r,) int scratch, holds the identity
+    columns of the rows pivoted so far): adding a zero product changes no number, so the result is the full one's.
     """
     for i in range(r):
         order[i] = i
@@ -218,10 +205,8 @@ def times_inverse(X, S, r, S_inverse, product, pivoted, order):
 
 @inner_kernel
 def nonzero_columns(rows, columns) -> int:
-    """How many columns of ``rows`` (r, n) hold a non-zero entry; their indices into ``columns[:count]``.
-
-    A measurement depends on a few state entries (a pose, a landmark): products with H skip the others.
-    """
+    """How many columns of ``rows`` (r, n) hold a non-zero entry (the state entries a measurement depends on); their
+    indices into ``columns[:count]``."""
     count = 0
     for column in range(rows.shape[1]):
         for i in range(rows.shape[0]):
@@ -234,20 +219,13 @@ def nonzero_columns(rows, columns) -> int:
 
 @kernel
 def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
-    """The EKF update of every copy with its used measurement slots, stacked in slot order; the others unchanged.
+    """The EKF update of every copy (``x`` (N, n), ``P`` (N, n, n)) with its ``used`` (N, M) measurement slots,
+    stacked in slot order; the others unchanged. ``residuals`` (N, M, m) are measured minus predicted, angles wrapped;
+    ``H`` (N, M, m, n), ``R`` (N, M, m, m) each slot's Jacobian and noise.
 
     ``K = P H^T S^-1`` with ``S = H P H^T + R`` (``R`` block diagonal over the slots); ``x + K y`` with the
     headings of the first ``n_headings`` poses wrapped; ``P - K (P H^T)^T``, symmetrized. Without
     ``cross_covariances`` an updated copy keeps only each robot's own 3 x 3 blocks (``JointEKF``'s option).
-
-    Args:
-        x, P: states (N, n) and covariances (N, n, n).
-        residuals: ``measured - predicted`` of each slot (N, M, m), angles wrapped.
-        H: each slot's Jacobian w.r.t. the state (N, M, m, n).
-        R: each slot's noise covariance (N, M, m, m).
-        used: which slots carry a measurement (N, M) bool.
-        n_headings: how many poses lead the state (their headings are wrapped).
-        cross_covariances: keep the cross-robot blocks of ``P``.
     """
     n_copies, n_slots, m, n = H.shape
     most = n_slots * m
@@ -276,11 +254,8 @@ def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
 
 @inner_kernel
 def stacked_slots(H, residuals, used, rows, y, supports, support_sizes) -> int:
-    """Stack one copy's used slots in slot order, how many rows r: their Jacobian rows into ``rows`` (r, n), residuals
-    into ``y`` (r,) and each row's non-zero columns into ``supports[row, :support_sizes[row]]``.
-
-    A measurement depends on a few state entries (a pose, a landmark): the products with its rows visit only those.
-    """
+    """Stack one copy's used slots in slot order, how many rows r: Jacobian rows into ``rows`` (r, n), residuals into
+    ``y`` (r,), each row's non-zero columns (all the products visit) into ``supports[row, :support_sizes[row]]``."""
     n_slots, m, n = H.shape
     r = 0
     for slot in range(n_slots):
@@ -317,11 +292,8 @@ def innovation_covariance(P, R, used, rows, supports, support_sizes, r, HP, S):
 
 @inner_kernel
 def rows_times(rows, supports, support_sizes, r, X, n_x, product):
-    """``product[a, b] = sum_t rows[a, t] X[b, t]`` for the first r rows and ``n_x`` rows of ``X``: ``rows (X^T)``.
-
-    Each sum runs over its row's support in column order, from 0.0: the numbers of the sum over every column (a
-    zero product leaves a sum as it is).
-    """
+    """``product[a, b] = sum_t rows[a, t] X[b, t]`` for the first r rows and ``n_x`` rows of ``X``: ``rows (X^T)``, each
+    sum over its row's support in column order from 0.0 (the numbers of the sum over every column)."""
     for a in range(r):
         for b in range(n_x):
             product[a, b] = 0.0
@@ -383,19 +355,11 @@ def gps_updates(x, P, fixes, R, has_fix, cross_covariances):
 
 @inlined_kernel
 def chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det):
-    """The EKF update of each copy with its range-bearing measurement of its chosen candidate; the others unchanged.
+    """The EKF update of each copy with its measured ``[range, bearing]`` (N, 2) of its ``chosen`` (N,) candidate
+    (-1: none, unchanged), the candidates' ``predicted`` (N, K, 2), ``H`` (N, K, 2, n) and ``R`` (N, K, 2, 2).
 
-    Args:
-        x, P: states (N, n), the pose first, and covariances (N, n, n).
-        measurements: each copy's measured ``[range, bearing]`` (N, 2).
-        chosen: each copy's candidate (N,) int, -1 for none.
-        predicted, H, R: the candidates' predicted measurements (N, K, 2), Jacobians (N, K, 2, n) and noise
-            (N, K, 2, 2).
-        prior_log_det: ``ln det P`` of each prior (N,).
-
-    Returns:
-        ``(x, P, realized MI (N,))``: ``0.5 (ln det P_prior - ln det P_post)`` [nats], 0 for a copy without a
-        measurement, NaN where a posterior determinant is not > 0.
+    Returns ``(x, P, realized MI (N,))``, the MI ``0.5 (prior_log_det - ln det P_post)`` [nats], 0 for a copy without a
+    measurement, NaN where a posterior determinant is not > 0.
     """
     n_copies, n = x.shape
     residuals, rows = np.zeros((n_copies, 1, 2)), np.zeros((n_copies, 1, 2, n))

@@ -44,31 +44,20 @@ def range_bearing(pose, landmarks) -> np.ndarray:
     return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - pose[..., None, 2])], axis=-1)
 
 
-def _range_bearing_geometry(dx, dy, heading) -> tuple[np.ndarray, np.ndarray]:
-    """Range-bearing of offsets ``(dx, dy)`` seen at ``heading``, and its Jacobian w.r.t. the sensor pose (N, 2, 3)."""
-    squared_range = dx * dx + dy * dy
-    if np.any(squared_range < 1e-18):
-        raise ValueError("a target coincides with the sensor position: its bearing is undefined")
-    distance = np.sqrt(squared_range)
-    predicted = np.stack([distance, wrap_angle(np.arctan2(dy, dx) - heading)], axis=-1)
-    H_pose = np.zeros((len(distance), 2, 3))
-    H_pose[:, 0, 0] = -dx / distance
-    H_pose[:, 0, 1] = -dy / distance
-    H_pose[:, 1, 0] = dy / squared_range
-    H_pose[:, 1, 1] = -dx / squared_range
-    H_pose[:, 1, 2] = -1.0
-    return predicted, H_pose
-
-
 def range_bearing_linearized(pose, landmarks) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``range_bearing`` and its Jacobians w.r.t. the pose (N, 2, 3) and the landmark position (N, 2, 2).
+    """``range_bearing`` and its Jacobians w.r.t. the pose (N, 2, 3) and the landmark position (N, 2, 2), on the
+    batched kernels; a pose stack (3, N) sees one landmark each.
 
     Raises:
         ValueError: if a landmark coincides with the sensor (the bearing is undefined there).
     """
-    landmarks = np.atleast_2d(landmarks)
-    predicted, H_pose = _range_bearing_geometry(landmarks[:, 0] - pose[0], landmarks[:, 1] - pose[1], pose[2])
-    return predicted, H_pose, -H_pose[:, :, :2]
+    from infonav_gym.estimation import batched  # numba: only when a linearization is asked for
+
+    poses, landmarks = np.atleast_2d(np.asarray(pose, dtype=float)[:3].T), np.atleast_2d(landmarks)
+    positions = landmarks[None] if len(poses) == 1 else landmarks[:, None]
+    predicted, H = batched.landmark_measurement_model(poses, positions, check_input=False)
+    H_pose = H.reshape(-1, 2, 3)
+    return predicted.reshape(-1, 2), H_pose, -H_pose[:, :, :2]
 
 
 def range_bearing_residual(measured, predicted) -> np.ndarray:
@@ -91,24 +80,18 @@ def relative_pose(observer, target) -> np.ndarray:
 
 
 def relative_pose_linearized(observer, target) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``relative_pose`` and its Jacobians w.r.t. the observer's pose (N, 3, 3) and the target's pose (N, 3, 3).
+    """``relative_pose`` and its Jacobians w.r.t. the observer's pose (N, 3, 3) and the target's pose (N, 3, 3), on the
+    batched kernels.
 
     Raises:
         ValueError: if a target coincides with its observer (the bearing is undefined there).
     """
+    from infonav_gym.estimation import batched
+
     observer, target = np.atleast_2d(observer), np.atleast_2d(target)
-    dx, dy = target[:, 0] - observer[:, 0], target[:, 1] - observer[:, 1]
-    range_bearing_part, H_range_bearing = _range_bearing_geometry(dx, dy, observer[:, 2])
-    predicted = np.empty((len(dx), 3))
-    predicted[:, :2] = range_bearing_part
-    predicted[:, 2] = wrap_angle(target[:, 2] - observer[:, 2])
-    H_observer = np.zeros((len(dx), 3, 3))
-    H_observer[:, :2] = H_range_bearing
-    H_observer[:, 2, 2] = -1.0
-    H_target = np.zeros((len(dx), 3, 3))
-    H_target[:, :2, :2] = -H_range_bearing[:, :, :2]
-    H_target[:, 2, 2] = 1.0
-    return predicted, H_observer, H_target
+    pairs = np.zeros((len(observer), 1), dtype=int)
+    models = batched.relative_pose_model(np.hstack([observer, target]), pairs, pairs + 1, check_input=False)
+    return tuple(model[:, 0] for model in models)
 
 
 def angular_residual(measured, predicted, angle_rows) -> np.ndarray:

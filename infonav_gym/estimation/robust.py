@@ -1,13 +1,11 @@
 """Huber-weighted Kalman update: heavy-tailed measurement noise without discarding data.
 
-A Kalman update is the least-squares fit of the prior and the measurement; one outlier pulls it
-as hard as its squared residual. The Huber M-estimator (Huber 1964, "Robust estimation of a location
-parameter") keeps the quadratic loss for a normalized innovation ``d = sqrt(NIS)`` up to a threshold
-``c`` and grows linearly beyond it. Solved by iteratively reweighted least squares it is a Kalman
-update with the noise covariance inflated by ``1 / w``, ``w = min(1, c / d)``, ``d`` evaluated with the
-inflated covariance (Karlgaard and Schaub 2007, "Huber-based divided difference filtering", J. Guidance
-Control and Dynamics 30(3); Zoubir et al. 2012, "Robust estimation in signal processing", IEEE SPM).
-Inside the threshold ``w = 1`` and the update is the standard EKF update, exactly.
+A Kalman update is the least-squares fit of the prior and the measurement; one outlier pulls it as hard as its
+squared residual. The Huber M-estimator (Huber 1964) keeps the quadratic loss for a normalized innovation
+``d = sqrt(NIS)`` up to a threshold ``c`` and grows linearly beyond it: by iteratively reweighted least squares, a
+Kalman update with the noise inflated by ``1 / w``, ``w = min(1, c / d)`` (Karlgaard and Schaub 2007, "Huber-based
+divided difference filtering", J. Guidance Control and Dynamics 30(3); Zoubir et al. 2012, IEEE SPM). Inside the
+threshold ``w = 1``: the standard EKF update, exactly.
 """
 
 from __future__ import annotations
@@ -22,9 +20,7 @@ def huber_noise(residual, H, P, R, threshold_nis: float) -> tuple[np.ndarray, fl
     """The inflated noise covariance of a Huber-weighted update and its weight.
 
     The weight is the fixed point of ``w = min(1, c / d(w))`` with ``d(w)^2 = r^T (H P H^T + R / w)^-1 r``:
-    ``w - c / d(w)`` increases with ``w``, so the root is unique; it lies in ``[c / d(1), 1]`` and is found by
-    Brent's method.
-    The update with ``R / w`` is the Huber M-estimate.
+    ``w - c / d(w)`` increases with ``w``, so the root is unique, in ``[c / d(1), 1]`` (Brent's method).
 
     Args:
         residual: innovation ``z - h(x)`` (m,), angles wrapped.

@@ -53,14 +53,8 @@ def block_diagonal(blocks) -> np.ndarray:
 
 
 class Prior(NamedTuple):
-    """The estimator's prior at an episode's start: ``PoseEKF(*prior)``, diagonal covariances.
-
-    Attributes:
-        pose: the initial pose estimate (3,).
-        pose_covariance: its covariance (3, 3), diagonal.
-        landmarks: the mapped landmarks' estimates (L, 2), None without mapping.
-        landmark_variance: the variance of each of their coordinates [m^2], None without mapping.
-    """
+    """The estimator's prior at an episode's start, ``PoseEKF(*prior)``: the pose estimate (3,) and its diagonal
+    covariance (3, 3); with mapping, the landmarks' estimates (L, 2) and the variance of each coordinate [m^2]."""
 
     pose: np.ndarray
     pose_covariance: np.ndarray

@@ -1,32 +1,16 @@
 """Noise identification from motion-capture ground truth: the measurement and odometry errors actually seen.
 
-For each robot (and pooled over the robots):
-
-- **Clock offsets.** The odometry log's offset is the shift that makes its 1 s heading changes agree
-  best with the ground truth's (least spread of the error, trimmed at 4 robust std); the measurement
-  log's, the shift that makes the landmark bearings agree best (least robust spread). Searched on a
-  10 ms grid over +-0.5 s.
-- **Direction of travel.** The angle between the ground truth's heading and the way the robot moves
-  (a marker frame mounted a little askew): the least-squares slope of sideways on forward motion over
-  0.2 s steps of the ground truth, beside a term in the heading change.
-- **Odometry.** Scale of speed and turn rate (least squares through the origin over 1 s windows), then
-  white noise densities and a slow Gauss-Markov bias from the growth of the integrated error's variance
-  with the window length ``T`` (``var(T) = q^2 T + 2 sigma^2 tau^2 (T / tau - 1 + exp(-T / tau))``,
-  fitted over T = 1 to 64 s). The plain variance, not a robust one: odometry cannot be gated, so its
-  noise must carry its heavy tails (wheel slip).
-- **Range and bearing to landmarks.** The error against the ground-truth geometry is split into a
-  systematic part (a polynomial in the measured bearing, the target's place in the camera image: range
-  quadratic in it, plus the range times another quadratic in it, since a range read from the target's
-  size in the image errs in proportion to the range; bearing cubic; robust least squares; on Dataset 6
-  the range term cuts the robust spread of the range residuals from 4-5.5 cm to 1.5-2 cm), a slow bias per target
-  and white noise. The white std comes from the differences of
-  consecutive looks at the same target under 0.5 s apart (the bias cancels), against range in range
-  bins; the bias's variance and correlation length from the covariance of pairs of looks at the same
-  target (1 to 256 looks apart) against the distance the robot drove between them (odometry),
-  ``c(s) = sigma_b^2 exp(-s / l)`` (least squares over log-spaced distance bins: the errors follow the
-  viewing geometry, not the clock); the outlier
-  fraction is the share of errors beyond 4 std of that Gaussian model. A Student-t fit of the
-  standardized errors (scipy) is kept as a diagnostic of the tails.
+For each robot (and pooled over the robots): the clock offsets of the odometry and measurement logs
+(``fit_odometry_offset``, ``fit_measurement_offset``; a 10 ms grid over +-0.5 s), the direction of travel
+against the ground-truth heading (``fit_travel_heading_offset``), the odometry's scales, white noise densities
+and slow Gauss-Markov biases (``fit_odometry``: from the growth of the integrated error's variance with the
+window, T = 1 to 64 s; the plain variance, not a robust one: odometry cannot be gated, so its noise must carry
+its heavy tails, wheel slip), and for range and bearing to landmarks (``fit_channel``) a systematic part (a
+polynomial in the measured bearing, the target's place in the camera image, ``systematic_design``; on Dataset 6
+the range term cuts the robust spread of the range residuals from 4-5.5 cm to 1.5-2 cm), white noise (from
+consecutive looks at a target under 0.5 s apart, where the bias cancels), a slow per-target and a shared bias
+(the covariance of look pairs against the distance driven between them: the errors follow the viewing geometry,
+not the clock) and the outlier fraction; a Student-t fit of the standardized errors is kept as a diagnostic.
 
 Robust spreads are ``1.4826 MAD``. Only the ground truth is used, never the filter's RMSE.
 """
@@ -154,13 +138,8 @@ def fit_odometry_offset(odometry, groundtruth) -> float:
 
 
 def fit_odometry(samples: list[tuple[np.ndarray, np.ndarray]], windows_s=NOISE_WINDOWS_S) -> dict:
-    """Scales and noise densities from per-window samples.
-
-    Args:
-        samples: per window length in ``windows_s``, ``(measured, truth)`` increments (W, 2) of forward
-            distance and heading change.
-        windows_s: the window lengths [s].
-    """
+    """Scales and noise densities from per-window samples: per window length in ``windows_s`` [s], ``(measured,
+    truth)`` increments (W, 2) of forward distance and heading change."""
     measured, truth = samples[0]
     scales = []
     for column in (0, 1):
@@ -207,14 +186,10 @@ def travelled(odometry: np.ndarray, times) -> np.ndarray:
 
 
 def landmark_errors(dataset: MRCLAMDataset, robot: int, offset_s: float = 0.0, odometry_offset_s: float = 0.0) -> dict:
-    """Errors of ``robot``'s landmark measurements against the ground-truth geometry.
-
-    Returns:
-        Arrays over the measurements with valid ground truth: ``time`` [s] (shifted by ``offset_s``),
-        ``target`` (landmark subject), ``range`` and ``bearing`` (measured) [m, rad], ``range_error`` [m],
-        ``bearing_error`` [rad],
-        ``travelled`` [m] (odometry shifted by ``odometry_offset_s``).
-    """
+    """Errors of ``robot``'s landmark measurements against the ground-truth geometry: arrays over the measurements
+    with valid ground truth, ``time`` [s] (shifted by ``offset_s``), ``target`` (landmark subject), ``range`` and
+    ``bearing`` (measured) [m, rad], ``range_error`` [m], ``bearing_error`` [rad], ``travelled`` [m] (odometry shifted
+    by ``odometry_offset_s``)."""
     rows = dataset.landmark_measurements[robot]
     poses, valid = groundtruth_at(dataset.groundtruth[robot], rows[:, 0] + offset_s)
     offsets = dataset.landmarks[dataset.landmark_index(rows[:, 1])] - poses[:, :2]
@@ -436,19 +411,12 @@ def _pairs_within_each(measurement_errors: list[dict], same_target: bool) -> tup
 
 
 def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False) -> tuple[NoiseModel, dict]:
-    """Fit the noise model of every robot with ground truth, and the pooled model.
+    """Fit the noise model of every robot of ``dataset`` with ground truth, and the pooled model; ``command``: the
+    command line that ran this, recorded in the model; ``progress``: a tqdm bar.
 
-    Args:
-        dataset: a loaded MRCLAM dataset with ground truth.
-        command: the command line that ran this, recorded in the model.
-        progress: show a tqdm bar.
-
-    Returns:
-        ``(model, errors)``: the model (its ``diagnostics`` hold the fits' evidence) and, per robot
-        subject, the landmark errors at the fitted clock offset (for the residual plot).
-
-    Raises:
-        ValueError: if no robot has ground truth and landmark measurements.
+    Returns ``(model, errors)``: the model (its ``diagnostics`` hold the fits' evidence) and, per robot subject, the
+    landmark errors at the fitted clock offset (for the residual plot); ``ValueError`` if no robot has ground truth and
+    landmark measurements.
     """
     from tqdm.auto import tqdm
 

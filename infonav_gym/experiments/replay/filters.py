@@ -1,14 +1,10 @@
 """Time-ordered replay of a dataset through the batched EKF: a pose filter per robot (landmark map) or one joint
 filter over all robots (cooperative).
 
-Two noise models: the hand-picked one of the dataset README (``ReplayConfig.noise = None``: fixed range
-and bearing std, independent errors, a chi-square gate), or a calibrated ``NoiseModel``. With a
-calibrated model each robot's filter holds the slow per-landmark range and bearing biases in its state
-(``_CalibratedFilters``, white noise growing with range in R), the cooperative joint filter takes the
-whole error as white, and every update is Huber-weighted (``estimation.robust``: the standard update
-for innovations inside ``huber_threshold_nis``, inflated noise beyond) after the gate. The expected
-information gains of the greedy policy use the same covariance, Jacobians and noise, and count the
-information on the pose only (the biases are nuisance parameters).
+Noise: the hand-picked stds of the dataset README (``ReplayConfig.noise = None``: independent errors, a chi-square
+gate), or a calibrated ``NoiseModel``: each robot's filter then holds the slow biases in its state
+(``_CalibratedFilters``), the joint filter takes the whole error as white, and every update passing the gate is
+Huber-weighted (``estimation.robust``). Greedy's expected gains use the filter's covariance, Jacobians and noise.
 """
 
 from __future__ import annotations
@@ -116,7 +112,7 @@ class _IndependentFilters:
         return self.R
 
     def information_of(self, robot):
-        """The state entries whose information greedy counts: the robot's pose (None: the whole state)."""
+        """The state entries whose information greedy counts (None: the whole state)."""
         return None
 
     def update(self, robot, kind, target, z, predicted, H, R):
@@ -133,17 +129,18 @@ class _IndependentFilters:
 
 
 class _CalibratedFilters(_IndependentFilters):
-    """Per robot, the pose filter with the slow biases of colored measurement noise in its state.
+    """Per robot, the pose filter with the slow biases of colored measurement noise in its state (greedy counts the
+    information on the pose only: the biases are nuisance parameters).
 
     The state is ``[x, y, heading, b_range, b_bearing, b_range_1, b_bearing_1, ..., b_range_L, b_bearing_L]``: a range
     and a bearing bias shared by every landmark, then each landmark's own; a measurement of landmark ``j`` is
-    ``h(pose, j) + b_shared + b_j`` plus white noise. This is colored noise by state augmentation (Gelb 1974, "Applied
-    Optimal Estimation", Sec. 4.5; Bar-Shalom, Li and Kirubarajan 2001, Sec. 8.3): on MRCLAM Dataset 6 consecutive
-    range errors to a landmark correlate above 0.9, and bearing errors to different landmarks seen within 0.3 s by
-    0.2-0.5 (the camera's yaw against the robot's frame drifts). Each bias is a first-order Gauss-Markov process in the
-    distance travelled (a parked robot keeps its error): ``b(s + ds) = a b(s) + w``, ``a = exp(-ds / l)``, stationary
-    variance ``sigma_b^2``. The wheels drive along ``heading + travel_heading_offset_rad`` (on Dataset 6, -0.017 to
-    +0.008 rad).
+    ``h(pose, j) + b_shared + b_j`` plus white noise (growing with range). This is colored noise by state augmentation
+    (Gelb 1974, "Applied Optimal Estimation", Sec. 4.5; Bar-Shalom, Li and Kirubarajan 2001, Sec. 8.3): on MRCLAM
+    Dataset 6 consecutive range errors to a landmark correlate above 0.9, and bearing errors to different landmarks
+    seen within 0.3 s by 0.2-0.5 (the camera's yaw against the robot's frame drifts). Each bias is a first-order
+    Gauss-Markov process in the distance travelled (a parked robot keeps its error): ``b(s + ds) = a b(s) + w``,
+    ``a = exp(-ds / l)``, stationary variance ``sigma_b^2``. The wheels drive along ``heading +
+    travel_heading_offset_rad`` (on Dataset 6, -0.017 to +0.008 rad).
     """
 
     def __init__(self, poses, covariances, dataset, config):
@@ -281,15 +278,8 @@ def replay_filter(
     config: ReplayConfig,
     progress: bool = False,
 ) -> ReplayTrace:
-    """Run the filter through the timeline: predict every tick, select (budget), gate and update at each event.
-
-    Args:
-        dataset: the loaded dataset (robots, landmark map).
-        timeline: its logs on the replay clock.
-        initial_poses, initial_covariances: the robots' poses at boundary 0 (N, 3) and their covariances (N, 3, 3).
-        config: noise model, gate, policy, outage.
-        progress: show a tqdm bar.
-    """
+    """Run the filter through the ``timeline`` of ``dataset`` from the robots' poses (N, 3) and covariances (N, 3, 3)
+    at boundary 0: predict every tick, select (budget), gate and update at each event."""
     n_robots = len(dataset.robots)
     if config.cooperative:
         backend_class = _CooperativeFilter

@@ -1,15 +1,9 @@
 """The calibrated noise model of the MRCLAM robots: JSON schema, checks, and the shipped calibration.
 
-A model holds, per robot subject (and ``pooled`` for robots it does not name), what
-``calibration.calibrate`` estimated from motion-capture ground truth: clock offsets of the
-odometry and measurement logs, the direction of travel against the ground-truth heading, odometry
-scale, noise densities and slow biases, and range / bearing errors as a
-mean offset plus a slow per-target bias and a slow bias all targets share (each Gauss-Markov in
-distance driven: stationary std, correlation length) plus white
-noise (range std growing with the square of the range) with a share of gross outliers.
-
-The shipped model (``data/mrclam_dataset6_noise.json``, package data) was fitted on Dataset 6 by
-(from the repository root; it writes the fit and its residual plot ``results/mrclam_dataset6_noise.png``)::
+A model holds, per robot subject (and ``pooled`` for robots it does not name), the ``RobotNoise`` that
+``calibration.calibrate`` estimated from motion-capture ground truth. The shipped model
+(``data/mrclam_dataset6_noise.json``, package data) was fitted on Dataset 6 by (from the repository root; it writes
+the fit and its residual plot ``results/mrclam_dataset6_noise.png``)::
 
     infonav replay mrclam ../shared/datasets/MRCLAM_Dataset6 --calibrate results/mrclam_dataset6_noise.json
     cp results/mrclam_dataset6_noise.json infonav_gym/experiments/replay/data/

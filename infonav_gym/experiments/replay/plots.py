@@ -18,13 +18,9 @@ def plot_calibration(model: NoiseModel, errors: dict, path) -> Path:
 
 
 def figure_calibration(model: NoiseModel, errors: dict):
-    """Histograms of the range and bearing errors left after the systematic part, pooled over the robots,
-    with the fitted Gaussian model (white plus bias, at each error's range) and the Student-t fit; log scale.
-
-    Args:
-        model: the fitted model.
-        errors: robot subject -> ``calibration.landmark_errors`` arrays at the fitted clock offsets.
-    """
+    """Histograms of the range and bearing errors left after the systematic part, pooled over the robots, with the
+    fitted Gaussian model (white plus bias, at each error's range) and the Student-t fit; log scale. ``errors``: robot
+    subject -> ``calibration.landmark_errors`` arrays at the fitted clock offsets."""
     figure = matplotlib_figure("the calibration plot", figsize=(11, 4.4), layout="constrained")
     axes = figure.subplots(1, 2)
     channels = {"range": ("range error [m]", 0.6), "bearing": ("bearing error [rad]", 0.08)}
@@ -58,18 +54,9 @@ def figure_calibration(model: NoiseModel, errors: dict):
     return figure
 
 
-def plot_nees_over_time(result: dict, path, title: str = "") -> Path:
-    """Write ``figure_nees_over_time(result, title)`` to ``path``."""
-    return save_figure(figure_nees_over_time(result, title), path, dpi=110)
-
-
 def figure_nees_over_time(result: dict, title: str = ""):
-    """Each robot's NEES over time in an all-landmark replay, with the two-sided 95 % chi-square(3) band.
-
-    Args:
-        result: a ``replay`` result of policy ``all`` (its robots hold ``nees_over_time``).
-        title: the figure's title.
-    """
+    """Each robot's NEES over time in an all-landmark replay ``result`` (its robots hold ``nees_over_time``), with the
+    two-sided 95 % chi-square(3) band."""
     robots = {robot: metrics for robot, metrics in result["robots"].items() if "nees_over_time" in metrics}
     figure = matplotlib_figure("the NEES plot", figsize=(10, 1.6 * len(robots) + 1.0), layout="constrained")
     axes = figure.subplots(len(robots), 1, sharex=True, squeeze=False)

@@ -19,12 +19,11 @@ def select_greedy(P: np.ndarray, H: np.ndarray, R: np.ndarray, k: int, of: np.nd
         H: candidate Jacobians (m, 2, n).
         R: measurement noise covariance (2, 2), shared by the candidates, or each one's (m, 2, 2).
         k: how many to pick.
-        of: the state entries whose information counts (e.g. the pose of a state that also holds nuisance
-            biases): the gain is ``0.5 ln(det P_oo / det P_oo_post)``; None: the whole state,
-            ``expected_information_gain``.
+        of: the state entries whose information counts (e.g. the pose beside nuisance biases), the gain
+            ``0.5 ln(det P_oo / det P_oo_post)``; None: the whole state (``expected_information_gain``).
 
     Returns:
-        Indices of the chosen candidates in the order picked.
+        The chosen candidates' indices in the order picked.
     """
     chosen: list[int] = []
     available = np.ones(len(H), dtype=bool)

@@ -14,11 +14,12 @@ from infonav_gym.experiments.replay.comparison import comparison_markdown
 from infonav_gym.experiments.replay.filters import ReplayConfig
 from infonav_gym.experiments.replay.metrics import mean_and_ci95
 from infonav_gym.experiments.replay.noise_model import corrected_logs
-from infonav_gym.experiments.replay.plots import plot_nees_over_time
+from infonav_gym.experiments.replay.plots import figure_nees_over_time
 from infonav_gym.experiments.replay.policies import POLICIES
 from infonav_gym.experiments.replay.run import replay, replay_header
 from infonav_gym.experiments.replay.tables import budget_cells, table_lines
 from infonav_gym.experiments.replay.timeline import make_timeline
+from infonav_gym.rendering import save_figure
 
 ROW_KEYS = (
     "position_rmse_m",
@@ -61,14 +62,12 @@ def run_experiments(
         dataset: a loaded MRCLAM dataset.
         policies: names from ``POLICIES``; ``all`` runs once, the others once per ``(k, window)``.
         ks, windows_s: budgets: ``k`` observations per robot per window of ``window_s`` seconds.
-        n_seeds: runs of ``random`` per budget, seeds ``seed .. seed + n_seeds - 1`` (mean and 95 % CI).
-        seed: first seed.
-        outage: ``(robot, start_s, end_s)``: also run the outage experiment, a cooperative replay
-            (the joint filter, every landmark and robot-to-robot observation) in which ``robot`` gets no landmark
-            observations over the span, against the landmark-only replay in which it dead-reckons.
+        n_seeds, seed: runs of ``random`` per budget, seeds ``seed .. seed + n_seeds - 1`` (mean and 95 % CI).
+        outage: ``(robot, start_s, end_s)``: also run the outage experiment, a cooperative replay (the joint filter,
+            every landmark and robot-to-robot observation) in which ``robot`` gets no landmark observations over the
+            span, against the landmark-only replay in which it dead-reckons.
         config: filter settings (noise, gate, cooperative) shared by every run.
-        dt: replay tick [s].
-        duration_s: replay only this long [s].
+        dt, duration_s: replay tick [s]; replay only this long [s].
         progress: show tqdm bars.
 
     Returns:
@@ -234,5 +233,6 @@ def write_results(summary: dict, output: Path, command: str) -> list[Path]:
     all_landmarks = [run for run in summary["runs"] if run["config"]["policy"] == "all"]
     if all_landmarks and any("nees_over_time" in metrics for metrics in all_landmarks[0]["robots"].values()):
         title = f"{Path(summary['dataset']).name}, all landmarks, noise: {summary['config']['noise']}"
-        written.append(plot_nees_over_time(all_landmarks[0], output_file(output, "_nees.png"), title))
+        figure = figure_nees_over_time(all_landmarks[0], title)
+        written.append(save_figure(figure, output_file(output, "_nees.png"), dpi=110))
     return written

@@ -82,15 +82,13 @@ def replay(
     Args:
         dataset: a loaded MRCLAM dataset.
         config: filter, policy, budget and outage settings (default: all landmarks, a pose filter per robot).
-        dt: tick length of the replay clock [s].
-        duration_s: replay only the first ``duration_s`` seconds (None: all).
+        dt, duration_s: tick length of the replay clock [s]; replay only this long [s] (None: all).
         timeline: a precomputed ``make_timeline(corrected_logs(dataset, config.noise), dt, duration_s)`` to reuse.
         progress: show a tqdm bar.
 
     Returns:
-        A JSON-ready dict: ``config``, ``robots`` (subject -> metrics), ``mean`` (over robots) and,
-        with an outage, ``outage`` (the outage robot's RMSE over the span against a landmark-only
-        replay with the same outage, in which it dead-reckons).
+        A JSON-ready dict: ``config``, ``robots`` (subject -> metrics), ``mean`` (over robots) and, with an outage,
+        ``outage`` (the outage robot's RMSE over the span against a landmark-only replay in which it dead-reckons).
     """
     config = config or ReplayConfig()
     if config.outage_robot is not None and config.outage_robot not in dataset.robots:

@@ -61,13 +61,8 @@ def _tick_means(odometry: np.ndarray, edges: np.ndarray) -> np.ndarray:
 
 
 def make_timeline(dataset: MRCLAMDataset, dt: float = 0.02, duration_s: float | None = None) -> Timeline:
-    """Resample the logs of ``dataset`` onto ticks of ``dt`` seconds from its first odometry time.
-
-    Args:
-        dataset: a loaded MRCLAM dataset.
-        dt: tick length [s].
-        duration_s: replay only this long [s] (None: to the last odometry time).
-    """
+    """Resample the logs of ``dataset`` onto ticks of ``dt`` seconds from its first odometry time, for ``duration_s``
+    seconds (None: to the last odometry time)."""
     if not dt > 0:
         raise ValueError(f"dt must be positive, got {dt}")
     start = dataset.start_time
