@@ -108,6 +108,7 @@ class Driver(VectorEnv):
         self.num_envs, self.render_mode = num_envs, render_mode
         self.env_scenario = scenario = self.scenario_class(self.config, num_envs, owner, render_mode)
         self.agents = list(scenario.agents)
+        self._action_shape = (num_envs, len(self.agents)) if scenario.team else (num_envs,)
         self.single_observation_space, self.single_action_space = scenario.observation_space, scenario.action_space
         if scenario.team:
             low, high = scenario.observation_space.low, scenario.observation_space.high
@@ -187,13 +188,14 @@ class Driver(VectorEnv):
         """
         scenario, decision = self.env_scenario, self.decision
         acting, chosen = self._begin_step(actions)
+        resetting = np.flatnonzero(self._prev_done)  # with NEXT_STEP: the copies starting again take no step
         state = self.state = scenario.transition(self.state, decision, chosen, acting)
-        rewards, terminated = scenario.reward(decision, chosen, state), scenario.terminal(state) & acting
-        if not acting.all():
+        rewards, terminated = scenario.reward(decision, chosen, state), scenario.terminal(state)
+        if resetting.size:
             rewards = np.where(acting.reshape(-1, *(1,) * (rewards.ndim - 1)), rewards, 0.0)
+            terminated = terminated & acting
         truncated, ended = counted_steps(state.elapsed, acting, terminated, self.horizon)
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:
-            resetting = np.flatnonzero(self._prev_done)
             if resetting.size:
                 self._start(resetting)
             self._prev_done = ended
@@ -239,21 +241,20 @@ class Driver(VectorEnv):
             ValueError: for actions of another shape or dtype, outside the space, or, with
                 ``invalid_action="raise"``, masked while the robot has a valid one (naming its copy and robot).
         """
-        owner, n_robots = self.owner_name, len(self.agents)
         if self.decision is None:
-            raise RuntimeError(f"{owner}: call reset() before step()")
-        array, top = np.asarray(actions), self.single_action_space.n - 1
-        shape = (self.num_envs, n_robots) if self.env_scenario.team else (self.num_envs,)
-        if array.shape != shape or array.dtype.kind not in "iu":
+            raise RuntimeError(f"{self.owner_name}: call reset() before step()")
+        array, n_robots = np.asarray(actions), len(self.agents)
+        if array.shape != self._action_shape or array.dtype.kind not in "iu":
             per = "one per copy and robot" if self.env_scenario.team else "one per sub-env"
             raise ValueError(
-                f"actions of {owner} must be an integer array of shape {shape}, {per}, in [0, {top}]; "
-                f"got {array.dtype} of shape {array.shape}"
+                f"actions of {self.owner_name} must be an integer array of shape {self._action_shape}, {per}, in "
+                f"[0, {self.single_action_space.n - 1}]; got {array.dtype} of shape {array.shape}"
             )
-        actions = array.reshape(self.num_envs, n_robots).astype(np.int64, copy=False)
-        mask = self.decision.action_mask.reshape(self.num_envs, n_robots, -1)
+        actions = array.astype(np.int64, copy=False).reshape(self.num_envs, n_robots)
+        mask = self.decision.action_mask
         acting = ~self._prev_done
-        accepted, outside = accepted_actions(actions.reshape(-1), mask.reshape(-1, mask.shape[-1]), ~acting, n_robots)
+        flat_mask = mask.reshape(-1, mask.shape[-1])
+        accepted, outside = accepted_actions(actions.reshape(-1), flat_mask, self._prev_done, n_robots)
         if outside >= 0:
             copy, robot = divmod(outside, n_robots)
             raise outside_action_space(actions[copy, robot], self._where(copy, robot), self.single_action_space)
@@ -261,7 +262,7 @@ class Driver(VectorEnv):
         if self.config["invalid_action"] == "raise":  # with "noop" a masked action is the no-op, silently
             for copy, robot in np.argwhere(acting[:, None] & (accepted < 0)).tolist():
                 where = self._where(copy, robot)
-                accepts_action(int(actions[copy, robot]), mask[copy, robot], "raise", MASK_KEY, where)
+                accepts_action(int(actions[copy, robot]), flat_mask[copy * n_robots + robot], "raise", MASK_KEY, where)
         return acting, accepted
 
     def _where(self, copy: int, robot: int) -> str | None:
