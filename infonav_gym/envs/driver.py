@@ -122,6 +122,7 @@ class Driver(VectorEnv):
         self._np_randoms: list[np.random.Generator | None] = [None] * num_envs
         self._everyone = np.arange(num_envs)
         self._prev_done = np.zeros(num_envs, dtype=bool)
+        self._restarting = False  # whether any copy starts again in the next step (``_prev_done.any()``)
         self.state, self.decision = scenario.allocate(num_envs), None
 
     def copy_kb(self) -> float:
@@ -174,7 +175,7 @@ class Driver(VectorEnv):
             if copy_seed is not None or self._np_randoms[copy] is None:
                 self._np_randoms[copy] = seeding.np_random(copy_seed)[0]
         self._start(self._everyone)
-        self._prev_done[:] = False
+        self._prev_done[:], self._restarting = False, False
         self.decision = self.env_scenario.decision(self.state, slice(None))
         return self._rendered(self._outputs(slice(None), np.zeros(self.num_envs, dtype=bool)))
 
@@ -188,20 +189,21 @@ class Driver(VectorEnv):
         """
         scenario, decision = self.env_scenario, self.decision
         acting, chosen = self._begin_step(actions)
-        resetting = np.flatnonzero(self._prev_done)  # with NEXT_STEP: the copies starting again take no step
+        # with NEXT_STEP: the copies starting again take no step
+        resetting = np.flatnonzero(self._prev_done) if self._restarting else None
         state = self.state = scenario.transition(self.state, decision, chosen, acting)
         rewards, terminated = scenario.reward(decision, chosen, state), scenario.terminal(state)
-        if resetting.size:
+        if resetting is not None:
             rewards = np.where(acting.reshape(-1, *(1,) * (rewards.ndim - 1)), rewards, 0.0)
             terminated = terminated & acting
-        truncated, ended = counted_steps(state.elapsed, acting, terminated, self.horizon)
+        truncated, ended, n_ended = counted_steps(state.elapsed, acting, terminated, self.horizon)
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:
-            if resetting.size:
+            if resetting is not None:
                 self._start(resetting)
-            self._prev_done = ended
+            self._prev_done, self._restarting = ended, n_ended > 0
         self.decision = scenario.decision(state, slice(None))
         observation, info = self._outputs(slice(None), acting)
-        if self.autoreset_mode == AutoresetMode.SAME_STEP and ended.any():
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and n_ended:
             copies = np.flatnonzero(ended)
             final_infos = final_step_infos(observation, info, ended)
             self._start(copies)
@@ -250,20 +252,19 @@ class Driver(VectorEnv):
                 f"actions of {self.owner_name} must be an integer array of shape {self._action_shape}, {per}, in "
                 f"[0, {self.single_action_space.n - 1}]; got {array.dtype} of shape {array.shape}"
             )
-        actions = array.astype(np.int64, copy=False).reshape(self.num_envs, n_robots)
+        flat_actions = array.astype(np.int64, copy=False).reshape(-1)
         mask = self.decision.action_mask
-        acting = ~self._prev_done
-        flat_mask = mask.reshape(-1, mask.shape[-1])
-        accepted, outside = accepted_actions(actions.reshape(-1), flat_mask, self._prev_done, n_robots)
+        flat_mask = mask if mask.ndim == 2 else mask.reshape(-1, mask.shape[-1])
+        accepted, outside, refused = accepted_actions(flat_actions, flat_mask, self._prev_done, n_robots)
         if outside >= 0:
             copy, robot = divmod(outside, n_robots)
-            raise outside_action_space(actions[copy, robot], self._where(copy, robot), self.single_action_space)
-        accepted = accepted.reshape(actions.shape)
-        if self.config["invalid_action"] == "raise":  # with "noop" a masked action is the no-op, silently
-            for copy, robot in np.argwhere(acting[:, None] & (accepted < 0)).tolist():
-                where = self._where(copy, robot)
-                accepts_action(int(actions[copy, robot]), flat_mask[copy * n_robots + robot], "raise", MASK_KEY, where)
-        return acting, accepted
+            raise outside_action_space(flat_actions[outside], self._where(copy, robot), self.single_action_space)
+        acting = ~self._prev_done
+        if refused and self.config["invalid_action"] == "raise":  # with "noop" a masked action is the no-op
+            for slot in np.flatnonzero(np.repeat(acting, n_robots) & (accepted < 0)).tolist():
+                where = self._where(*divmod(slot, n_robots))
+                accepts_action(int(flat_actions[slot]), flat_mask[slot], "raise", MASK_KEY, where)
+        return acting, accepted.reshape(self.num_envs, n_robots)
 
     def _where(self, copy: int, robot: int) -> str | None:
         """The copy and robot an action error names (a single env's view names neither)."""
@@ -331,24 +332,31 @@ def outside_action_space(action, where: str | None, space) -> ValueError:
 @kernel
 def accepted_actions(actions, mask, done, n_robots):
     """Each robot's action (N R,) where its copy acts (not ``done`` (N,)) and its ``mask`` (N R, A) allows it, else -1
-    (the no-op); and the first robot whose action is outside ``[0, A)``, -1 if none."""
-    chosen, outside = np.empty(len(actions), dtype=np.int64), -1
+    (the no-op); the first robot whose action is outside ``[0, A)`` (-1 if none); how many acting robots chose a
+    masked action inside it."""
+    chosen, outside, refused = np.empty(len(actions), dtype=np.int64), -1, 0
     for slot in range(len(actions)):
         action = actions[slot]
         inside = 0 <= action < mask.shape[1]
         if not inside and outside < 0:
             outside = slot
-        chosen[slot] = action if inside and not done[slot // n_robots] and mask[slot, action] != 0 else -1
-    return chosen, outside
+        acts = not done[slot // n_robots]
+        allowed = inside and mask[slot, action] != 0
+        refused += acts and inside and not allowed
+        chosen[slot] = action if acts and allowed else -1
+    return chosen, outside, refused
 
 
 @kernel
 def counted_steps(elapsed, acting, terminated, horizon):
-    """Count the step of each ``acting`` sub-env in ``elapsed`` (N,), in place; ``(truncated, ended)`` (N,) bool: it
-    acted, did not terminate and reached ``horizon`` [steps]; it terminated or was truncated."""
+    """Count the step of each ``acting`` sub-env in ``elapsed`` (N,), in place; ``(truncated, ended, n_ended)``:
+    (N,) bool, it acted, did not terminate and reached ``horizon`` [steps]; (N,) bool, it terminated or was
+    truncated; how many ended."""
     truncated, ended = np.empty(len(elapsed), dtype=np.bool_), np.empty(len(elapsed), dtype=np.bool_)
+    n_ended = 0
     for copy in range(len(elapsed)):
         elapsed[copy] += acting[copy]
         truncated[copy] = acting[copy] and not terminated[copy] and elapsed[copy] >= horizon
         ended[copy] = terminated[copy] or truncated[copy]
-    return truncated, ended
+        n_ended += ended[copy]
+    return truncated, ended, n_ended

@@ -55,14 +55,8 @@ class LandmarkDecision(NamedTuple):
 
     @classmethod
     def checked(cls, decided: tuple) -> LandmarkDecision:
-        """The decision ``landmark_decisions`` returned; a ``ValueError`` if a landmark coincides with a copy's
-        estimated position or a prior is not positive definite."""
-        *decision, coincident, not_positive_definite = decided
-        if coincident:
-            raise ValueError(batched.COINCIDENT)
-        if not_positive_definite:
-            raise ValueError("P is not positive definite (determinant <= 0)")
-        return cls(*decision)
+        """The decision ``landmark_decisions`` returned (``checked_fields``)."""
+        return cls(*checked_fields(decided))
 
     def observe(
         self, x, P, chosen, true_poses, landmarks, noise: NoiseStreams, noise_stds
@@ -79,6 +73,17 @@ class LandmarkDecision(NamedTuple):
         if not_positive_definite:
             raise ValueError("the posterior covariance is not positive definite (determinant <= 0)")
         return tuple(updated)
+
+
+def checked_fields(decided: tuple) -> list:
+    """The fields of the decision ``landmark_decisions`` returned; a ``ValueError`` if a landmark coincides with a
+    copy's estimated position or a prior is not positive definite."""
+    *decision, coincident, not_positive_definite = decided
+    if coincident:
+        raise ValueError(batched.COINCIDENT)
+    if not_positive_definite:
+        raise ValueError("P is not positive definite (determinant <= 0)")
+    return decision
 
 
 def decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping) -> tuple:

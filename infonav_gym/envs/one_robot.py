@@ -69,12 +69,13 @@ class OneRobotScenario(EnvScenario):
         x, P = contiguous(x), contiguous(P)
         return predicted_from_odometry(x, P, controls, copies, *noise, self.odometry_stds, dt, covariances)
 
-    def measured(self, state: OneRobotState, decision: LandmarkDecision, chosen: np.ndarray):
-        """Each copy's EKF updated at ``decision`` with a noisy measurement of its chosen landmark (N,), -1: none
-        (taken from its true pose now, its noise from its own stream); ``(x, P, realized MI (N,) [nats])``."""
+    def measured(self, state: OneRobotState, decision, chosen: np.ndarray):
+        """Each copy's EKF updated at ``decision`` (a ``LandmarkDecision`` or a named tuple with its fields) with a
+        noisy measurement of its chosen landmark (N,), -1: none (taken from its true pose now, its noise from its own
+        stream); ``(x, P, realized MI (N,) [nats])``."""
         true_poses = state.worlds.poses[:, 0]
         noise, stds = state.measurement_noise, self.measurement_stds
-        return decision.observe(state.x, state.P, chosen, true_poses, state.landmarks, noise, stds)
+        return LandmarkDecision.observe(decision, state.x, state.P, chosen, true_poses, state.landmarks, noise, stds)
 
     def follow_first_copy(self, state: OneRobotState, restarted: bool) -> None:
         """When drawing: start copy 0's true and estimated paths anew (``restarted``) or extend them."""

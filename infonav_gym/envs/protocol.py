@@ -62,6 +62,7 @@ class EnvScenario(abc.ABC):
     def __init__(self, config: dict, copies: int, owner: str, render_mode: str | None):
         """Check the scenario's own config keys (``owner`` names the env in errors) and set its constants."""
         self.config, self.copies, self.owner, self.drawing = config, copies, owner, render_mode is not None
+        self.every_copy = np.arange(copies)  # the rows of all copies, for a step in which they all act
 
     @classmethod
     def default_config(cls) -> dict:

@@ -101,9 +101,7 @@ class CooperativeLocalization(TeamScenario):
         predict with their noisy odometry and fuse the DGPS fixes available."""
         chosen = np.where(action >= 0, action, NO_OBSERVATION)
         state.chosen, state.invalid = chosen, acting[:, None] & (action < 0)
-        team_mi, state.own_mi, state.pose_std_after = self.relative_update(
-            state, np.arange(len(acting)), chosen, decision
-        )
+        team_mi, state.own_mi, state.pose_std_after = self.relative_update(state, self.every_copy, chosen, decision)
         state.team_mi = np.repeat(team_mi[:, None], len(self.agents), axis=1)
         if acting[0] and self.drawing:  # drawn by ``frame``
             observers = np.flatnonzero(chosen[0] != NO_OBSERVATION)

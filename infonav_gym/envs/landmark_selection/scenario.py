@@ -12,7 +12,7 @@ from gymnasium import spaces
 from infonav_gym.compiled import kernel
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments
 from infonav_gym.envs.base import shared_config
-from infonav_gym.envs.landmark_decision import LandmarkDecision, decision_arguments, landmark_decisions
+from infonav_gym.envs.landmark_decision import LandmarkDecision, checked_fields, decision_arguments, landmark_decisions
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS
 from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.envs.one_robot import OneRobotDriver, OneRobotScenario, OneRobotState
@@ -177,17 +177,16 @@ class LandmarkSelection(OneRobotScenario):
         decided, observation, numbers, *poses = landmark_outputs(
             arguments, state.elapsed[rows], float(cfg["horizon"]), float(cfg["time_step_s"]), *self.bounds
         )
-        return LandmarkStep(*LandmarkDecision.checked(decided), observation, numbers.T, *poses)
+        return LandmarkStep(*checked_fields(decided), observation, numbers.T, *poses)
 
     def transition(self, state: LandmarkState, decision: LandmarkStep, action, acting) -> LandmarkState:
         """Observe the chosen landmarks at the prior, then drive the ``acting`` copies along their routes."""
         chosen = action[:, 0]
-        sight = LandmarkDecision(*decision[: len(LandmarkDecision._fields)])
-        state.x, state.P, state.mutual_information = self.measured(state, sight, chosen)
+        state.x, state.P, state.mutual_information = self.measured(state, decision, chosen)
         state.chosen = chosen
         n_acting = np.count_nonzero(acting)  # their worlds step, their EKFs predict from noisy odometry
         if n_acting == len(acting):  # all of them (the usual step): the predicted arrays are new ones
-            state.x, state.P = self.moved(state, np.arange(len(acting)), state.x, state.P)
+            state.x, state.P = self.moved(state, self.every_copy, state.x, state.P)
         elif n_acting:
             copies = np.flatnonzero(acting)
             state.x[copies], state.P[copies] = self.moved(state, copies, state.x[copies], state.P[copies])
