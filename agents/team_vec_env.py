@@ -76,14 +76,8 @@ class RobotSlots(VectorEnv):
                 "final_info": final_info,
                 "_final_info": slots_ended,
             }
-        slots = (self.num_envs,)
-        return (
-            observations.reshape(self.num_envs, -1),
-            rewards.reshape(slots),
-            terminations.reshape(slots),
-            truncations.reshape(slots),
-            info,
-        )
+        per_slot = (array.reshape(self.num_envs) for array in (rewards, terminations, truncations))
+        return observations.reshape(self.num_envs, -1), *per_slot, info
 
     def action_masks(self) -> np.ndarray:
         """Every slot's valid actions (N R, A) bool."""
