@@ -415,11 +415,10 @@ def train(
         if init_from_planner is not None:
             source = (init_from_planner, demonstrations)
             warm_start = _cloned_planner(model, env_id, source, env_kwargs, output_dir, planner_workers)
-        n_envs = model.n_envs
         progress_bar = TqdmCallback(planned, disable=not progress)
         callbacks = [progress_bar, CurveCallback(start_curve(output_dir, env_id, env_kwargs))]
         if checkpoints > 0:
-            every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
+            every = max(timesteps // (checkpoints * model.n_envs), 1)  # in vec-env steps
             callbacks.append(
                 CheckpointCallback(every, str(output_dir / "checkpoints"), name_prefix="ppo", save_vecnormalize=True)
             )
@@ -456,7 +455,7 @@ def train(
             "timesteps_asked": timesteps,
             "rollout": rollout,  # env steps: PPO trains whole rollouts
             "seed": seed,
-            "n_envs": n_envs,
+            "n_envs": model.n_envs,
             "vectorization": vectorization,
             "env_kwargs": env_kwargs or {},
             "hyperparameters": hyperparameters,
@@ -490,9 +489,8 @@ def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_
     start = time.perf_counter()
     source, demonstrations = source
     if isinstance(source, int):
-        gamma = model.gamma
         first = DEMONSTRATION_SEEDS + model.seed
-        demonstrations = planner_demonstrations(env_id, source, first, gamma, env_kwargs, workers)
+        demonstrations = planner_demonstrations(env_id, source, first, model.gamma, env_kwargs, workers)
         origin = f"{source} planner episodes, seeds {first}..{first + source - 1}"
     else:
         origin = str(source)
