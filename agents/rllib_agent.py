@@ -18,14 +18,9 @@ MODULES_PATH = ("learner_group", "learner", "rl_module")  # where an algorithm c
 
 
 class RLlibAgent:
-    """The policy of an RLlib training directory (``train.json`` + ``checkpoint/``) as a deterministic agent.
-
-    ``env``: the env it acts in (spaces must match); ``agent``: in a PettingZoo env, the robot it acts for.
-
-    Raises:
-        ValueError: without Ray, for a directory without ``train.json`` or checkpoint, a policy trained on an env that
-            does not fit this one (naming it), or spaces that do not match.
-    """
+    """The policy of an RLlib training directory (``train.json`` + ``checkpoint/``) as a deterministic agent in ``env``
+    (for robot ``agent`` of a PettingZoo env); ``ValueError`` without Ray, for a directory without ``train.json`` or
+    checkpoint, or for a policy trained on an env that does not fit this one (naming it) or with other spaces."""
 
     def __init__(self, directory: Path | str, env, agent: str | None = None):
         import_ray()  # a missing extra: a one-line ValueError saying what to install

@@ -88,12 +88,9 @@ class RobotSlots(VectorEnv):
 
 
 class TeamVecEnv(VectorEnvAdapter):
-    """``n_envs`` copies of a PettingZoo parallel env ``env_id``, batched; slot ``copy * n_robots + k`` is robot ``k``.
-
-    Copy ``i`` is first reset with seed ``seed + i``. ``get_attr("agent")`` is each slot's robot; other attributes,
-    ``set_attr`` and ``env_method`` act on the team env every slot shares. ``ValueError`` for no copy, an id that is
-    not a parallel env with a vector env, or a bad config.
-    """
+    """``n_envs`` copies of a PettingZoo parallel env ``env_id``, batched; slot ``copy * n_robots + k`` is robot ``k``,
+    copy ``i`` first reset with seed ``seed + i`` (``ValueError`` for no copy, an id that is not a parallel env with a
+    vector env, or a bad config). ``get_attr`` / ``set_attr`` / ``env_method`` act on the team env every slot shares."""
 
     def __init__(
         self,
