@@ -540,8 +540,7 @@ def load_normalization(model_path: Path) -> VecNormalize | None:
     if not path.is_file():
         return None
     try:
-        with path.open("rb") as file:
-            normalization = pickle.load(file)
+        normalization = pickle.loads(path.read_bytes())
     except Exception as error:  # truncated or foreign pickles fail in many ways
         raise ValueError(f"cannot load observation normalization {str(path)!r}: {error}") from None
     if not isinstance(normalization, VecNormalize):

@@ -113,8 +113,7 @@ def check_arguments(env_id: str, env_kwargs: dict, hyperparameters: dict, polici
     """``ValueError`` for an env id, config, hyperparameter or policy layout that training would fail on, before Ray
     starts (which takes a minute)."""
     check_policies(policies)
-    env = make_env(env_id, **env_kwargs)  # an unknown id or config key: the message ``infonav evaluate`` gives
-    env.close()
+    make_env(env_id, **env_kwargs).close()  # an unknown id or config key: the message ``infonav evaluate`` gives
     if policies != "shared" and api_of(env_id) != PARALLEL:
         raise ValueError(
             f"policies {policies!r} is for a team env (a PettingZoo parallel env); {env_id!r} has one robot"

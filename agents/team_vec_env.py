@@ -127,8 +127,7 @@ class TeamVecEnv(VectorEnvAdapter):
         slots = self._rows(indices)
         if attr_name == "agent":
             return [self.possible_agents[slot % self.n_robots] for slot in slots]
-        value = getattr(self.team, attr_name)
-        return [value for _ in slots]
+        return [getattr(self.team, attr_name)] * len(slots)
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
         """Set ``attr_name`` of the team env, which every slot shares (``ValueError`` unless ``indices`` are all)."""
@@ -139,8 +138,7 @@ class TeamVecEnv(VectorEnvAdapter):
         """``action_masks``: the slots' rows; another method of the team env runs once, every slot gets its result."""
         if method_name == MASKS_METHOD:
             return super().env_method(method_name, indices=indices)
-        result = getattr(self.team, method_name)(*method_args, **method_kwargs)
-        return [result for _ in self._rows(indices)]
+        return [getattr(self.team, method_name)(*method_args, **method_kwargs)] * len(self._rows(indices))
 
 
 def make_team_vec_env(
