@@ -191,8 +191,7 @@ def agreement(model, demonstrations: Demonstrations) -> float:
     """The fraction of the demonstrations' rows where ``model``'s most probable valid action is the planner's."""
     observations = torch.as_tensor(_normalized(model, demonstrations.observations)).float()
     with torch.no_grad():
-        distribution = model.policy.get_distribution(observations)
-        logits = distribution.distribution.logits.numpy()
+        logits = model.policy.get_distribution(observations).distribution.logits.numpy()
     chosen = np.argmax(np.where(demonstrations.action_masks, logits, -np.inf), axis=1)
     return float(np.mean(chosen == demonstrations.actions))
 

@@ -576,6 +576,5 @@ class PPOAgent:
             observation = self.normalization.normalize_obs(observation)
         with torch.no_grad():
             obs_tensor, _ = self.model.policy.obs_to_tensor(observation)
-            distribution = self.model.policy.get_distribution(obs_tensor)
-            logits = distribution.distribution.logits[0].cpu().numpy()
+            logits = self.model.policy.get_distribution(obs_tensor).distribution.logits[0].cpu().numpy()
         return int(np.argmax(np.where(mask, logits, -np.inf)))

@@ -61,12 +61,8 @@ class RLlibAgent:
 
     def act(self, observation, info: dict) -> int:
         mask = mask_observation(info.get(ACTION_MASK), self.n_actions)
-        batch = {
-            "obs": {
-                OBSERVATION: torch.as_tensor(np.asarray(observation, dtype=np.float32))[None],
-                ACTION_MASK: torch.as_tensor(mask)[None],
-            }
-        }
+        observation = torch.as_tensor(np.asarray(observation, dtype=np.float32))[None]
+        batch = {"obs": {OBSERVATION: observation, ACTION_MASK: torch.as_tensor(mask)[None]}}
         with torch.no_grad():
             logits = self.module.forward_inference(batch)["action_dist_inputs"][0].numpy()
         return int(np.argmax(np.where(mask > 0, logits, -np.inf)))
