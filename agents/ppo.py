@@ -314,13 +314,11 @@ def rollout_steps(
     env = make_env(env_id, **(env_kwargs or {}))  # an unknown id or config key: its one-line error, before any work
     if planner:
         planning_model(env)
-    agent = None
-    if api_of(env_id) == PARALLEL:
+    observation_space, action_space = env.observation_space, env.action_space
+    if api_of(env_id) == PARALLEL:  # PettingZoo: a space per robot
         robots, agent = len(env.possible_agents), env.possible_agents[0]
+        observation_space, action_space = observation_space(agent), action_space(agent)
         factors += f" x {robots} robots"
-    observation_space, action_space = (
-        (env.observation_space(agent), env.action_space(agent)) if agent else (env.observation_space, env.action_space)
-    )
     env.close()
     rollout = n_steps * n_envs * robots
     floats = gym.spaces.flatdim(observation_space) + int(action_space.n) + ROLLOUT_FLOATS
