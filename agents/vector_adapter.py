@@ -81,14 +81,13 @@ class VectorEnvAdapter(VecEnv):
 
     def step_wait(self):
         """One step of every sub-env: observations, float32 rewards, dones and the infos of the class."""
-        observations, rewards, terminated, truncated, info = self.vector_env.step(self._actions)
-        self._info = info
+        observations, rewards, terminated, truncated, self._info = self.vector_env.step(self._actions)
         dones = np.logical_or(terminated, truncated)
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         ended = np.flatnonzero(dones)
         if ended.size:
-            final_observations = self._final_entry(info, "final_obs", ended)
-            final_info = self._final_entry(info, "final_info", ended) if self.info_keywords else {}
+            final_observations = self._final_entry(self._info, "final_obs", ended)
+            final_info = self._final_entry(self._info, "final_info", ended) if self.info_keywords else {}
             for index in ended.tolist():
                 infos[index]["terminal_observation"] = final_observations[index]
                 infos[index]["TimeLimit.truncated"] = bool(truncated[index] and not terminated[index])
