@@ -157,10 +157,8 @@ def clone_planner(
         normalization.obs_rms.mean, normalization.obs_rms.var = rows.mean(axis=0), rows.var(axis=0)
         normalization.obs_rms.count = float(len(rows))
     observations = _normalized(model, demonstrations.observations)
-    tensors = [
-        torch.as_tensor(array)
-        for array in (observations, demonstrations.actions, demonstrations.action_masks, demonstrations.returns)
-    ]
+    columns = demonstrations._replace(observations=observations)[:4]  # observations, masks, actions, returns
+    tensors = [torch.as_tensor(array) for array in columns]
     policy = model.policy
     optimizer = torch.optim.Adam(policy.parameters(), lr=learning_rate)
     order = np.random.default_rng(model.seed)
@@ -176,7 +174,7 @@ def clone_planner(
     return epochs_done
 
 
-def _fitted_batch(policy, optimizer, observations, actions, masks, returns) -> tuple[float, float]:
+def _fitted_batch(policy, optimizer, observations, masks, actions, returns) -> tuple[float, float]:
     """One gradient step on a minibatch; its ``(action_nll, value_mse)`` before the step."""
     values, log_prob, _ = policy.evaluate_actions(observations.float(), actions, action_masks=masks)
     action_nll = -log_prob.mean()
