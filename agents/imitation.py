@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 from pathlib import Path
 from typing import NamedTuple
 
@@ -125,13 +126,12 @@ def planner_demonstrations(
     processes (``ValueError`` for counts below 1 or an env without a planning model)."""
     if episodes < 1 or workers < 1:
         raise ValueError(f"episodes and workers must be >= 1, got {episodes} and {workers}")
-    seeds = range(seed, seed + episodes)
     bar = tqdm(total=episodes, desc="planner demonstrations", unit="episode", disable=not progress)
-    arguments = ([env_id] * episodes, seeds, [gamma] * episodes, [env_kwargs] * episodes)
+    episode = partial(planner_episode, env_id, gamma=gamma, env_kwargs=env_kwargs)
     parts = []
     with bar, ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         played = map if workers == 1 else pool.map  # spawn: fresh interpreters, no torch or numba state forked
-        for part in played(planner_episode, *arguments):
+        for part in played(episode, range(seed, seed + episodes)):
             parts.append(part)
             bar.update()
     return Demonstrations.joined(parts)
@@ -144,14 +144,12 @@ def clone_planner(
     returns (loss: action NLL + half the value MSE), minibatches drawn from ``model.seed``; its ``VecNormalize`` starts
     from their observation statistics. Returns each epoch's mean ``action_nll`` and ``value_mse``; ``ValueError`` for
     demonstrations of another observation or action size."""
-    n_observations, n_actions = model.observation_space.shape[0], model.action_space.n
-    if demonstrations.observations.shape[1:] != (n_observations,) or demonstrations.action_masks.shape[1:] != (
-        n_actions,
-    ):
+    expected = model.observation_space.shape, (int(model.action_space.n),)
+    found = demonstrations.observations.shape[1:], demonstrations.action_masks.shape[1:]
+    if found != expected:
         raise ValueError(
-            f"planner demonstrations of {demonstrations.observations.shape[1:]} observations and "
-            f"{demonstrations.action_masks.shape[1:]} actions do not fit a model of ({n_observations},) and "
-            f"({n_actions},): were they recorded on another env or config?"
+            f"planner demonstrations of {found[0]} observations and {found[1]} actions do not fit a model of "
+            f"{expected[0]} and {expected[1]}: were they recorded on another env or config?"
         )
     normalization = model.get_vec_normalize_env()
     if normalization is not None and normalization.norm_obs:
@@ -159,10 +157,8 @@ def clone_planner(
         normalization.obs_rms.mean, normalization.obs_rms.var = rows.mean(axis=0), rows.var(axis=0)
         normalization.obs_rms.count = float(len(rows))
     observations = _normalized(model, demonstrations.observations)
-    tensors = [
-        torch.as_tensor(array)
-        for array in (observations, demonstrations.actions, demonstrations.action_masks, demonstrations.returns)
-    ]
+    columns = demonstrations._replace(observations=observations)[:4]  # observations, masks, actions, returns
+    tensors = [torch.as_tensor(array) for array in columns]
     policy = model.policy
     optimizer = torch.optim.Adam(policy.parameters(), lr=learning_rate)
     order = np.random.default_rng(model.seed)
@@ -178,7 +174,7 @@ def clone_planner(
     return epochs_done
 
 
-def _fitted_batch(policy, optimizer, observations, actions, masks, returns) -> tuple[float, float]:
+def _fitted_batch(policy, optimizer, observations, masks, actions, returns) -> tuple[float, float]:
     """One gradient step on a minibatch; its ``(action_nll, value_mse)`` before the step."""
     values, log_prob, _ = policy.evaluate_actions(observations.float(), actions, action_masks=masks)
     action_nll = -log_prob.mean()
@@ -193,8 +189,7 @@ def agreement(model, demonstrations: Demonstrations) -> float:
     """The fraction of the demonstrations' rows where ``model``'s most probable valid action is the planner's."""
     observations = torch.as_tensor(_normalized(model, demonstrations.observations)).float()
     with torch.no_grad():
-        distribution = model.policy.get_distribution(observations)
-        logits = distribution.distribution.logits.numpy()
+        logits = model.policy.get_distribution(observations).distribution.logits.numpy()
     chosen = np.argmax(np.where(demonstrations.action_masks, logits, -np.inf), axis=1)
     return float(np.mean(chosen == demonstrations.actions))
 

@@ -185,10 +185,7 @@ def read_curve(path: Path) -> tuple[str, np.ndarray]:
 
 def read_validations(path: Path) -> np.ndarray:
     """The rows (steps, mean metric, episodes, kept) of a ``validation.csv``; none when the run did not validate."""
-    if not path.is_file():
-        return np.empty((0, 4))
-    with path.open(newline="") as file:
-        return np.array(list(csv.reader(file))[1:], dtype=float).reshape(-1, 4)
+    return read_curve(path)[1] if path.is_file() else np.empty((0, 4))
 
 
 def draw_curve(directory: Path, title: str, references: dict | None) -> Path:

@@ -314,13 +314,11 @@ def rollout_steps(
     env = make_env(env_id, **(env_kwargs or {}))  # an unknown id or config key: its one-line error, before any work
     if planner:
         planning_model(env)
-    agent = None
-    if api_of(env_id) == PARALLEL:
+    observation_space, action_space = env.observation_space, env.action_space
+    if api_of(env_id) == PARALLEL:  # PettingZoo: a space per robot
         robots, agent = len(env.possible_agents), env.possible_agents[0]
+        observation_space, action_space = observation_space(agent), action_space(agent)
         factors += f" x {robots} robots"
-    observation_space, action_space = (
-        (env.observation_space(agent), env.action_space(agent)) if agent else (env.observation_space, env.action_space)
-    )
     env.close()
     rollout = n_steps * n_envs * robots
     floats = gym.spaces.flatdim(observation_space) + int(action_space.n) + ROLLOUT_FLOATS
@@ -415,11 +413,10 @@ def train(
         if init_from_planner is not None:
             source = (init_from_planner, demonstrations)
             warm_start = _cloned_planner(model, env_id, source, env_kwargs, output_dir, planner_workers)
-        n_envs = model.n_envs
         progress_bar = TqdmCallback(planned, disable=not progress)
         callbacks = [progress_bar, CurveCallback(start_curve(output_dir, env_id, env_kwargs))]
         if checkpoints > 0:
-            every = max(timesteps // (checkpoints * n_envs), 1)  # in vec-env steps
+            every = max(timesteps // (checkpoints * model.n_envs), 1)  # in vec-env steps
             callbacks.append(
                 CheckpointCallback(every, str(output_dir / "checkpoints"), name_prefix="ppo", save_vecnormalize=True)
             )
@@ -456,7 +453,7 @@ def train(
             "timesteps_asked": timesteps,
             "rollout": rollout,  # env steps: PPO trains whole rollouts
             "seed": seed,
-            "n_envs": n_envs,
+            "n_envs": model.n_envs,
             "vectorization": vectorization,
             "env_kwargs": env_kwargs or {},
             "hyperparameters": hyperparameters,
@@ -490,9 +487,8 @@ def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_
     start = time.perf_counter()
     source, demonstrations = source
     if isinstance(source, int):
-        gamma = model.gamma
         first = DEMONSTRATION_SEEDS + model.seed
-        demonstrations = planner_demonstrations(env_id, source, first, gamma, env_kwargs, workers)
+        demonstrations = planner_demonstrations(env_id, source, first, model.gamma, env_kwargs, workers)
         origin = f"{source} planner episodes, seeds {first}..{first + source - 1}"
     else:
         origin = str(source)
@@ -542,8 +538,7 @@ def load_normalization(model_path: Path) -> VecNormalize | None:
     if not path.is_file():
         return None
     try:
-        with path.open("rb") as file:
-            normalization = pickle.load(file)
+        normalization = pickle.loads(path.read_bytes())
     except Exception as error:  # truncated or foreign pickles fail in many ways
         raise ValueError(f"cannot load observation normalization {str(path)!r}: {error}") from None
     if not isinstance(normalization, VecNormalize):
@@ -579,6 +574,5 @@ class PPOAgent:
             observation = self.normalization.normalize_obs(observation)
         with torch.no_grad():
             obs_tensor, _ = self.model.policy.obs_to_tensor(observation)
-            distribution = self.model.policy.get_distribution(obs_tensor)
-            logits = distribution.distribution.logits[0].cpu().numpy()
+            logits = self.model.policy.get_distribution(obs_tensor).distribution.logits[0].cpu().numpy()
         return int(np.argmax(np.where(mask, logits, -np.inf)))

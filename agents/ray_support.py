@@ -56,13 +56,9 @@ def _grpc_call(authority: str) -> bytes:
         b"\x00" + bytes([len(name)]) + name.encode() + bytes([len(value)]) + value.encode()
         for name, value in fields.items()
     )
-    message = bytes(5)  # not compressed, length 0
-    return (
-        HTTP2_PREFACE
-        + _frame(HTTP2_SETTINGS, 0)
-        + _frame(HTTP2_HEADERS, END_HEADERS, block)
-        + _frame(HTTP2_DATA, END_STREAM, message)
-    )
+    headers = _frame(HTTP2_HEADERS, END_HEADERS, block)
+    message = _frame(HTTP2_DATA, END_STREAM, bytes(5))  # an empty message: not compressed, length 0
+    return HTTP2_PREFACE + _frame(HTTP2_SETTINGS, 0) + headers + message
 
 
 def _answers_grpc(connection: socket.socket, deadline: float) -> bool:

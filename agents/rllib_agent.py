@@ -18,14 +18,9 @@ MODULES_PATH = ("learner_group", "learner", "rl_module")  # where an algorithm c
 
 
 class RLlibAgent:
-    """The policy of an RLlib training directory (``train.json`` + ``checkpoint/``) as a deterministic agent.
-
-    ``env``: the env it acts in (spaces must match); ``agent``: in a PettingZoo env, the robot it acts for.
-
-    Raises:
-        ValueError: without Ray, for a directory without ``train.json`` or checkpoint, a policy trained on an env that
-            does not fit this one (naming it), or spaces that do not match.
-    """
+    """The policy of an RLlib training directory (``train.json`` + ``checkpoint/``) as a deterministic agent in ``env``
+    (for robot ``agent`` of a PettingZoo env); ``ValueError`` without Ray, for a directory without ``train.json`` or
+    checkpoint, or for a policy trained on an env that does not fit this one (naming it) or with other spaces."""
 
     def __init__(self, directory: Path | str, env, agent: str | None = None):
         import_ray()  # a missing extra: a one-line ValueError saying what to install
@@ -66,12 +61,8 @@ class RLlibAgent:
 
     def act(self, observation, info: dict) -> int:
         mask = mask_observation(info.get(ACTION_MASK), self.n_actions)
-        batch = {
-            "obs": {
-                OBSERVATION: torch.as_tensor(np.asarray(observation, dtype=np.float32))[None],
-                ACTION_MASK: torch.as_tensor(mask)[None],
-            }
-        }
+        observation = torch.as_tensor(np.asarray(observation, dtype=np.float32))[None]
+        batch = {"obs": {OBSERVATION: observation, ACTION_MASK: torch.as_tensor(mask)[None]}}
         with torch.no_grad():
             logits = self.module.forward_inference(batch)["action_dist_inputs"][0].numpy()
         return int(np.argmax(np.where(mask > 0, logits, -np.inf)))

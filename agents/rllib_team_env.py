@@ -51,13 +51,10 @@ class TeamCopy(MultiAgentEnv):
 
 class BatchedTeamEnv(VectorMultiAgentEnv):
     """A team vector env (N copies of R robots, ``NEXT_STEP`` autoreset, else ``ValueError``) as RLlib's
-    ``VectorMultiAgentEnv``.
-
-    Copy ``i``'s observations are ``{robot: {"observation": ..., "action_mask": float32}}`` (all ones where none is
-    valid); rewards and terminations ``{robot: ...}`` with ``"__all__"``; infos ``{}`` but at an episode's last step
-    ``{METRIC_KEY: main metric}``. The step after an end resets the copy (its actions ignored, rewards 0).
-    ``reset(seed=s)`` seeds copy ``i`` with ``s + i``.
-    """
+    ``VectorMultiAgentEnv``. Copy ``i``'s observations are ``{robot: {"observation": ..., "action_mask": float32}}``
+    (all ones where none is valid); rewards and terminations ``{robot: ...}`` with ``"__all__"``; infos ``{}`` but at
+    an episode's last step ``{METRIC_KEY: main metric}``. The step after an end resets the copy (its actions ignored,
+    rewards 0). ``reset(seed=s)`` seeds copy ``i`` with ``s + i``."""
 
     closed = True  # until built: a construction that failed has nothing to close
 

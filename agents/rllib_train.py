@@ -84,11 +84,10 @@ def _model_settings(hyperparameters: dict) -> dict:
             f"the rllib backend trains an MLP: policy_kwargs with {' and '.join(POLICY_KWARGS)}, net_arch a list of "
             f"layer widths shared by the policy and the value function; got policy_kwargs {policy_kwargs!r}"
         )
-    activation = policy_kwargs.get("activation_fn", "tanh")
     normalize = normalization_kwargs(hyperparameters)
     return {
         "fcnet_hiddens": list(hidden),
-        "fcnet_activation": activation,
+        "fcnet_activation": policy_kwargs.get("activation_fn", "tanh"),
         NORMALIZE_OBSERVATIONS: normalize is not None and bool(normalize.get("norm_obs", True)),
     }
 
@@ -114,8 +113,7 @@ def check_arguments(env_id: str, env_kwargs: dict, hyperparameters: dict, polici
     """``ValueError`` for an env id, config, hyperparameter or policy layout that training would fail on, before Ray
     starts (which takes a minute)."""
     check_policies(policies)
-    env = make_env(env_id, **env_kwargs)  # an unknown id or config key: the message ``infonav evaluate`` gives
-    env.close()
+    make_env(env_id, **env_kwargs).close()  # an unknown id or config key: the message ``infonav evaluate`` gives
     if policies != "shared" and api_of(env_id) != PARALLEL:
         raise ValueError(
             f"policies {policies!r} is for a team env (a PettingZoo parallel env); {env_id!r} has one robot"
@@ -142,15 +140,14 @@ def build_config(
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
     from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+    from ray.tune.registry import register_env
 
     from agents.rllib_module import MaskedPPOTorchRLModule
 
     check_policies(policies)
     team = api_of(env_id) == PARALLEL
     settings = rllib_training_settings(hyperparameters)
-    model_config = settings.pop("model")
-    module = RLModuleSpec(module_class=MaskedPPOTorchRLModule, model_config=model_config)
-    from ray.tune.registry import register_env
+    module = RLModuleSpec(module_class=MaskedPPOTorchRLModule, model_config=settings.pop("model"))
 
     register_env(RLLIB_ENV_PREFIX + env_id, (TeamEnvCreator if team else SingleEnvCreator)(env_id))
     config = (

@@ -19,9 +19,7 @@ class TeamPlans:
     @classmethod
     def of(cls, env) -> TeamPlans:
         """The board of ``env``'s team (one per env object: every robot's planner in it shares it)."""
-        if env not in _BOARDS:
-            _BOARDS[env] = cls(len(env.possible_agents))
-        return _BOARDS[env]
+        return _BOARDS.setdefault(env, cls(len(env.possible_agents)))
 
     def clear(self, robot: int) -> None:
         """Forget robot ``robot``'s plans (a new episode)."""

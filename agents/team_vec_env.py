@@ -76,14 +76,8 @@ class RobotSlots(VectorEnv):
                 "final_info": final_info,
                 "_final_info": slots_ended,
             }
-        slots = (self.num_envs,)
-        return (
-            observations.reshape(self.num_envs, -1),
-            rewards.reshape(slots),
-            terminations.reshape(slots),
-            truncations.reshape(slots),
-            info,
-        )
+        per_slot = (array.reshape(self.num_envs) for array in (rewards, terminations, truncations))
+        return observations.reshape(self.num_envs, -1), *per_slot, info
 
     def action_masks(self) -> np.ndarray:
         """Every slot's valid actions (N R, A) bool."""
@@ -94,12 +88,9 @@ class RobotSlots(VectorEnv):
 
 
 class TeamVecEnv(VectorEnvAdapter):
-    """``n_envs`` copies of a PettingZoo parallel env ``env_id``, batched; slot ``copy * n_robots + k`` is robot ``k``.
-
-    Copy ``i`` is first reset with seed ``seed + i``. ``get_attr("agent")`` is each slot's robot; other attributes,
-    ``set_attr`` and ``env_method`` act on the team env every slot shares. ``ValueError`` for no copy, an id that is
-    not a parallel env with a vector env, or a bad config.
-    """
+    """``n_envs`` copies of a PettingZoo parallel env ``env_id``, batched; slot ``copy * n_robots + k`` is robot ``k``,
+    copy ``i`` first reset with seed ``seed + i`` (``ValueError`` for no copy, an id that is not a parallel env with a
+    vector env, or a bad config). ``get_attr`` / ``set_attr`` / ``env_method`` act on the team env every slot shares."""
 
     def __init__(
         self,
@@ -136,8 +127,7 @@ class TeamVecEnv(VectorEnvAdapter):
         slots = self._rows(indices)
         if attr_name == "agent":
             return [self.possible_agents[slot % self.n_robots] for slot in slots]
-        value = getattr(self.team, attr_name)
-        return [value for _ in slots]
+        return [getattr(self.team, attr_name)] * len(slots)
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
         """Set ``attr_name`` of the team env, which every slot shares (``ValueError`` unless ``indices`` are all)."""
@@ -148,8 +138,7 @@ class TeamVecEnv(VectorEnvAdapter):
         """``action_masks``: the slots' rows; another method of the team env runs once, every slot gets its result."""
         if method_name == MASKS_METHOD:
             return super().env_method(method_name, indices=indices)
-        result = getattr(self.team, method_name)(*method_args, **method_kwargs)
-        return [result for _ in self._rows(indices)]
+        return [getattr(self.team, method_name)(*method_args, **method_kwargs)] * len(self._rows(indices))
 
 
 def make_team_vec_env(

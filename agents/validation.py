@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from sb3_contrib.common.maskable.utils import get_action_masks, is_masking_supported
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+from stable_baselines3.common.vec_env import VecEnv
 
 from agents.learning_curve import METRIC_KEY, VALIDATION_CSV
 
@@ -84,8 +84,7 @@ class ValidationCallback(BaseCallback):
 
     def _validate(self) -> None:
         start = time.perf_counter()
-        training_env = self.model.get_env()
-        normalization = training_env if isinstance(training_env, VecNormalize) else None
+        normalization = self.model.get_vec_normalize_env()
         mean = float(np.mean(validation_metrics(self.model, self.vec_env, self.episodes, self.seed, normalization)))
         self.validated_at = self.num_timesteps
         kept = self.best_steps is None or mean - self.best_metric > IMPROVEMENT * max(abs(self.best_metric), 1.0)

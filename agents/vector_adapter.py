@@ -27,9 +27,8 @@ class VectorEnvAdapter(VecEnv):
     Seeding as SB3's ``DummyVecEnv`` (``seed(s)``: sub-env ``i`` gets ``s + i`` at the next reset). A step's ``infos``
     hold only what SB3 reads (a dict per key and sub-env would cost more than a native step at 64+ envs): at an
     episode's end ``terminal_observation``, ``TimeLimit.truncated`` and the ``info_keywords`` of its final info.
-    ``action_masks()``: the vector env's own, else the last ``info["action_mask"]``, a row without a valid action all
-    ``True``. ``get_attr`` / ``set_attr`` / ``env_method`` reach the sub-envs of a sync / async vector env; a native
-    one has none (use ``adapter.vector_env``). Misses raise ``AttributeError``, other refusals ``ValueError``.
+    ``get_attr`` / ``set_attr`` / ``env_method`` reach the sub-envs of a sync / async vector env; a native one has none
+    (use ``adapter.vector_env``). Misses raise ``AttributeError``, other refusals ``ValueError``.
     """
 
     def __init__(self, vector_env: VectorEnv, info_keywords: Sequence[str] = ()):
@@ -82,14 +81,13 @@ class VectorEnvAdapter(VecEnv):
 
     def step_wait(self):
         """One step of every sub-env: observations, float32 rewards, dones and the infos of the class."""
-        observations, rewards, terminated, truncated, info = self.vector_env.step(self._actions)
-        self._info = info
+        observations, rewards, terminated, truncated, self._info = self.vector_env.step(self._actions)
         dones = np.logical_or(terminated, truncated)
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         ended = np.flatnonzero(dones)
         if ended.size:
-            final_observations = self._final_entry(info, "final_obs", ended)
-            final_info = self._final_entry(info, "final_info", ended) if self.info_keywords else {}
+            final_observations = self._final_entry(self._info, "final_obs", ended)
+            final_info = self._final_entry(self._info, "final_info", ended) if self.info_keywords else {}
             for index in ended.tolist():
                 infos[index]["terminal_observation"] = final_observations[index]
                 infos[index]["TimeLimit.truncated"] = bool(truncated[index] and not terminated[index])
@@ -120,7 +118,8 @@ class VectorEnvAdapter(VecEnv):
         self.vector_env.close()
 
     def action_masks(self) -> np.ndarray:
-        """Valid actions (N, n) bool: the vector env's ``action_masks()``, else the last ``info["action_mask"]``."""
+        """Valid actions (N, n) bool: the vector env's ``action_masks()``, else the last ``info["action_mask"]`` (a row
+        without a valid action: all ``True``)."""
         own = getattr(self._base, MASKS_METHOD, None)
         if callable(own):
             return self._checked_masks(np.asarray(own(), dtype=bool), "action_masks()")
