@@ -24,7 +24,13 @@ from scipy import optimize, stats
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.experiments.replay.metrics import groundtruth_at
-from infonav_gym.experiments.replay.noise_model import ODOMETRY_HORIZON_S, NoiseModel, RobotNoise, integrated_variance
+from infonav_gym.experiments.replay.noise_model import (
+    ODOMETRY_HORIZON_S,
+    SYSTEMATIC_FIELDS,
+    NoiseModel,
+    RobotNoise,
+    integrated_variance,
+)
 from infonav_gym.experiments.replay.timeline import held_integral, running_sums
 from infonav_gym.geometry import wrap_angle
 
@@ -42,36 +48,6 @@ NO_DECAY_LENGTH_M = 1000.0  # [m] correlation length when the covariance does no
 OUTLIER_Z = 4.0  # errors beyond this many model std count as outliers
 RANGE_BINS = 5  # range quantile bins of the white range std
 MIN_BIN = 20  # fewest samples a bin needs to enter a fit
-SYSTEMATIC_FIELDS = {  # the RobotNoise fields of each channel's systematic coefficients, in design order
-    "range": (
-        "range_bias_m",
-        "range_bias_per_rad",
-        "range_bias_per_rad2",
-        "range_bias_per_m",
-        "range_bias_per_m_rad",
-        "range_bias_per_m_rad2",
-    ),
-    "bearing": ("bearing_bias_rad", "bearing_bias_per_rad", "bearing_bias_per_rad2", "bearing_bias_per_rad3"),
-}
-CHANNEL_FIELDS = {  # fit_channel's results -> RobotNoise fields
-    "range": {
-        "white_std": "range_white_std_m",
-        "white_std_per_m2": "range_white_std_per_m2",
-        "bias_std": "range_bias_std_m",
-        "correlation_distance_m": "range_correlation_distance_m",
-        "shared_std": "range_shared_std_m",
-        "shared_correlation_distance_m": "range_shared_correlation_distance_m",
-        "outlier_fraction": "range_outlier_fraction",
-    },
-    "bearing": {
-        "white_std": "bearing_white_std_rad",
-        "bias_std": "bearing_bias_std_rad",
-        "correlation_distance_m": "bearing_correlation_distance_m",
-        "shared_std": "bearing_shared_std_rad",
-        "shared_correlation_distance_m": "bearing_shared_correlation_distance_m",
-        "outlier_fraction": "bearing_outlier_fraction",
-    },
-}
 PAIR_STEPS = (1, 2, 4, 8, 16, 32, 64, 128, 256)  # looks apart of the pairs whose covariance gives the bias
 INDEPENDENT_CELL_M = 0.05  # [m] looks at a target within this much travel count as one sample of its bias
 
@@ -248,20 +224,20 @@ def fit_systematic(error, design) -> np.ndarray:
     return coefficients
 
 
-def fit_channel(
-    error, design, range_m, time_s, travelled_m, targets, pairs, cross_pairs, range_dependent: bool
-) -> dict:
-    """Systematic coefficients, white std (``a + c r^2`` in range ``r`` if ``range_dependent``: a range read from
-    the target's apparent size errs by ``r^2 / (f H)`` times its pixel error), the per-target and the
-    shared bias's std and correlation length, outlier fraction, and diagnostics of one error channel (range
-    or bearing); ``pairs`` are looks at the same target, ``cross_pairs`` at different ones."""
+def fit_channel(channel: str, errors: dict, pairs, cross_pairs) -> tuple[dict, dict]:
+    """The ``RobotNoise`` fields of one error channel (``range`` or ``bearing``) from ``landmark_errors`` arrays, and
+    their diagnostics: systematic coefficients, white std (in range ``r``: ``a + c r^2``, a range read from the
+    target's apparent size errs by ``r^2 / (f H)`` times its pixel error), the per-target and the shared bias's std
+    and correlation length, outlier fraction; ``pairs`` are looks at the same target, ``cross_pairs`` at different
+    ones."""
+    range_m, time_s, travelled_m, targets = errors["range"], errors["time"], errors["travelled"], errors["target"]
+    error, design = errors[f"{channel}_error"], systematic_design(channel, range_m, errors["bearing"])
     coefficients = fit_systematic(error, design)
     centred = error - design @ coefficients
     first, second = pairs
-    lag = time_s[second] - time_s[first]
-    short = lag < SHORT_LAG_S
+    short = time_s[second] - time_s[first] < SHORT_LAG_S
     differences, pair_range = (centred[second] - centred[first])[short], 0.5 * (range_m[first] + range_m[second])[short]
-    if range_dependent:
+    if channel == "range":
         edges = np.quantile(pair_range, np.linspace(0, 1, RANGE_BINS + 1))
         bin_of = np.clip(np.searchsorted(edges, pair_range, side="right") - 1, 0, RANGE_BINS - 1)
         bins = [bin_of == b for b in range(RANGE_BINS) if np.sum(bin_of == b) >= MIN_BIN]
@@ -289,27 +265,28 @@ def fit_channel(
     model_std = np.sqrt(white**2 + bias_variance + shared_variance)
     standardized = centred / model_std
     dof, _, t_scale = stats.t.fit(standardized[np.isfinite(standardized)], floc=0.0)
-    return {
-        "systematic": coefficients.tolist(),
-        "white_std": float(intercept),
-        "white_std_per_m2": float(slope),
-        "bias_std": math.sqrt(bias_variance),
-        "correlation_distance_m": float(correlation_length),
-        "shared_std": math.sqrt(shared_variance),
-        "shared_correlation_distance_m": float(shared_length),
-        "outlier_fraction": float(np.mean(np.abs(standardized) > OUTLIER_Z)),
-        "diagnostics": {
-            "n": int(len(error)),
-            "n_short_lag_pairs": int(short.sum()),
-            "robust_std_before_systematic": robust_std(error),
-            "robust_std": robust_std(centred),
-            "std": float(np.std(centred)),
-            "student_t_dof": float(dof),
-            "student_t_scale": float(t_scale),
-            "white_std_by_range": range_bins,
-            "covariance_by_travel": _bin_records(travel_bins),
-            "shared_covariance_by_travel": _bin_records(shared_bins),
-        },
+    unit = "m" if channel == "range" else "rad"
+    fields = dict(zip(SYSTEMATIC_FIELDS[channel], coefficients.tolist())) | {
+        f"{channel}_white_std_{unit}": float(intercept),
+        f"{channel}_bias_std_{unit}": math.sqrt(bias_variance),
+        f"{channel}_correlation_distance_m": float(correlation_length),
+        f"{channel}_shared_std_{unit}": math.sqrt(shared_variance),
+        f"{channel}_shared_correlation_distance_m": float(shared_length),
+        f"{channel}_outlier_fraction": float(np.mean(np.abs(standardized) > OUTLIER_Z)),
+    }
+    if channel == "range":
+        fields["range_white_std_per_m2"] = float(slope)
+    return fields, {
+        "n": int(len(error)),
+        "n_short_lag_pairs": int(short.sum()),
+        "robust_std_before_systematic": robust_std(error),
+        "robust_std": robust_std(centred),
+        "std": float(np.std(centred)),
+        "student_t_dof": float(dof),
+        "student_t_scale": float(t_scale),
+        "white_std_by_range": range_bins,
+        "covariance_by_travel": _bin_records(travel_bins),
+        "shared_covariance_by_travel": _bin_records(shared_bins),
     }
 
 
@@ -367,35 +344,17 @@ def fit_robot(
     odometry = fit_odometry(odometry_samples)
     merged = {key: np.concatenate([errors[key] for errors in measurement_errors]) for key in measurement_errors[0]}
     pairs, cross_pairs = (_pairs_within_each(measurement_errors, same_target) for same_target in (True, False))
-    channels = {
-        channel: fit_channel(
-            merged[f"{channel}_error"],
-            systematic_design(channel, merged["range"], merged["bearing"]),
-            merged["range"],
-            merged["time"],
-            merged["travelled"],
-            merged["target"],
-            pairs,
-            cross_pairs,
-            channel == "range",
-        )
-        for channel in ("range", "bearing")
-    }
     values = {key: value for key, value in odometry.items() if key != "variance_by_window"}
-    for channel, fit in channels.items():
-        values.update(zip(SYSTEMATIC_FIELDS[channel], fit["systematic"]))
-        values.update({field: fit[key] for key, field in CHANNEL_FIELDS[channel].items()})
+    diagnostics = {"odometry_variance_by_window": odometry["variance_by_window"]}
+    for channel in ("range", "bearing"):
+        fields, diagnostics[channel] = fit_channel(channel, merged, pairs, cross_pairs)
+        values.update(fields)
     noise = RobotNoise(
         odometry_time_offset_s=offsets[0],
         measurement_time_offset_s=offsets[1],
         travel_heading_offset_rad=offsets[2],
         **values,
     )
-    diagnostics = {
-        "odometry_variance_by_window": odometry["variance_by_window"],
-        "range": channels["range"]["diagnostics"],
-        "bearing": channels["bearing"]["diagnostics"],
-    }
     return noise, diagnostics
 
 

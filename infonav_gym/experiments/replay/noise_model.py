@@ -139,10 +139,13 @@ class RobotNoise:
         return corrected
 
 
-FIELDS = {field.name for field in dataclasses.fields(RobotNoise)}
-OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s", "travel_heading_offset_rad"} | {  # any sign
-    field.name for field in dataclasses.fields(RobotNoise) if "_bias_" in field.name and "_bias_std" not in field.name
+FIELDS = tuple(field.name for field in dataclasses.fields(RobotNoise))
+SYSTEMATIC_FIELDS = {  # each channel's systematic error coefficients, in the order of calibration.systematic_design
+    channel: tuple(name for name in FIELDS if name.startswith(f"{channel}_bias") and "_bias_std" not in name)
+    for channel in ("range", "bearing")
 }
+OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s", "travel_heading_offset_rad"}  # any sign
+OFFSETS |= {*SYSTEMATIC_FIELDS["range"], *SYSTEMATIC_FIELDS["bearing"]}
 FRACTIONS = {"range_outlier_fraction", "bearing_outlier_fraction"}  # in [0, 1)
 NONNEGATIVE = {
     "range_white_std_m",
@@ -193,7 +196,7 @@ def _robot_noise(values, where: str) -> RobotNoise:
     """``values`` (a JSON object) as ``RobotNoise``, or ``ValueError`` naming ``where`` and the key at fault."""
     if not isinstance(values, dict):
         raise ValueError(f"{where}: expected an object of noise parameters, got {type(values).__name__}")
-    missing, unknown = sorted(FIELDS - values.keys()), sorted(values.keys() - FIELDS)
+    missing, unknown = sorted(set(FIELDS) - values.keys()), sorted(values.keys() - set(FIELDS))
     if missing:
         raise ValueError(f"{where}: missing key {missing[0]!r}")
     if unknown:
