@@ -155,10 +155,7 @@ def load(path) -> MRCLAMDataset:
     barcodes = {int(barcode): int(subject) for subject, barcode in barcode_rows}
     landmark_ids = landmark_rows[:, 0].astype(int)
     candidate_robots = {int(subject) for subject in barcode_rows[:, 0]} - set(landmark_ids.tolist())
-    for robot_file in directory.iterdir():
-        match = _ROBOT_FILE.match(robot_file.name)
-        if match:
-            candidate_robots.add(int(match.group(1)))
+    candidate_robots.update(int(match[1]) for file in directory.iterdir() if (match := _ROBOT_FILE.match(file.name)))
 
     missing: list[str] = []
     odometry, landmark_measurements, robot_measurements, groundtruth = {}, {}, {}, {}
@@ -183,13 +180,12 @@ def load(path) -> MRCLAMDataset:
     if not robots:
         raise FileNotFoundError(f"no RobotN_Odometry.dat in {directory}: nothing to replay")
 
-    landmark_set, robot_set = set(landmark_ids.tolist()), set(robots)
     unknown_values: set[int] = set()
     unknown_count = 0
     for robot, rows in raw_measurements.items():
         subjects = np.array([barcodes.get(int(barcode), -1) for barcode in rows[:, 1]], dtype=int)
-        is_landmark = np.isin(subjects, list(landmark_set))
-        is_robot = np.isin(subjects, list(robot_set - {robot}))
+        is_landmark = np.isin(subjects, landmark_ids)
+        is_robot = np.isin(subjects, [other for other in robots if other != robot])
         unknown = ~(is_landmark | is_robot)
         unknown_count += int(unknown.sum())
         unknown_values.update(int(barcode) for barcode in rows[unknown, 1])

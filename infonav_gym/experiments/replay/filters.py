@@ -149,11 +149,8 @@ class _CalibratedFilters(_IndependentFilters):
         n_landmarks = len(self.landmarks)
         self.bias_variance = np.square(
             [
-                [
-                    m.range_shared_std_m,
-                    m.bearing_shared_std_rad,
-                    *[m.range_bias_std_m, m.bearing_bias_std_rad] * n_landmarks,
-                ]
+                [m.range_shared_std_m, m.bearing_shared_std_rad]
+                + [m.range_bias_std_m, m.bearing_bias_std_rad] * n_landmarks
                 for m in self.models
             ]
         )
@@ -281,10 +278,9 @@ def replay_filter(
     """Run the filter through the ``timeline`` of ``dataset`` from the robots' poses (N, 3) and covariances (N, 3, 3)
     at boundary 0: predict every tick, select (budget), gate and update at each event."""
     n_robots = len(dataset.robots)
-    if config.cooperative:
-        backend_class = _CooperativeFilter
-    else:
-        backend_class = _CalibratedFilters if config.noise else _IndependentFilters
+    backend_class = (
+        _CooperativeFilter if config.cooperative else _CalibratedFilters if config.noise else _IndependentFilters
+    )
     backend = backend_class(initial_poses, initial_covariances, dataset, config)
     control_covariances = np.array(
         [
@@ -303,10 +299,7 @@ def replay_filter(
         poses=np.empty((timeline.n_ticks + 1, n_robots, 3)),
         covariances=np.empty((timeline.n_ticks + 1, n_robots, 3, 3)),
         dead_reckoning=dead_reckoning(initial_poses, timeline),
-        nis=[[] for _ in range(n_robots)],
-        accepted=[[] for _ in range(n_robots)],
-        kinds=[[] for _ in range(n_robots)],
-        choices=[[] for _ in range(n_robots)],
+        **{name: [[] for _ in range(n_robots)] for name in ("nis", "accepted", "kinds", "choices")},
     )
     boundaries = range(timeline.n_ticks + 1)
     for b in tqdm(boundaries, desc=f"replay {config.policy}", unit="tick", disable=not progress, leave=False):

@@ -147,15 +147,8 @@ SYSTEMATIC_FIELDS = {  # each channel's systematic error coefficients, in the or
 OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s", "travel_heading_offset_rad"}  # any sign
 OFFSETS |= {*SYSTEMATIC_FIELDS["range"], *SYSTEMATIC_FIELDS["bearing"]}
 FRACTIONS = {"range_outlier_fraction", "bearing_outlier_fraction"}  # in [0, 1)
-NONNEGATIVE = {
-    "range_white_std_m",
-    "range_white_std_per_m2",
-    "range_bias_std_m",
-    "bearing_bias_std_rad",
-    "range_shared_std_m",
-    "bearing_shared_std_rad",
-    "speed_bias_std",
-    "turn_rate_bias_std",
+NONNEGATIVE = {  # may be 0 (a fit finds no slow or shared error, or a white range std all intercept or all slope)
+    name for name in FIELDS if "_bias_std" in name or "_shared_std" in name or name.startswith("range_white_std")
 }
 TOP_LEVEL = {"schema_version", "description", "command", "robots", "pooled", "diagnostics"}
 
