@@ -113,30 +113,23 @@ def fit_odometry_offset(odometry, groundtruth) -> float:
     return float(OFFSET_GRID_S[int(np.argmin(spreads))])
 
 
-def fit_odometry(samples: list[tuple[np.ndarray, np.ndarray]], windows_s=NOISE_WINDOWS_S) -> dict:
-    """Scales and noise densities from per-window samples: per window length in ``windows_s`` [s], ``(measured,
-    truth)`` increments (W, 2) of forward distance and heading change."""
+def fit_odometry(samples: list[tuple[np.ndarray, np.ndarray]], windows_s=NOISE_WINDOWS_S) -> tuple[dict, dict]:
+    """The ``RobotNoise`` scales and noise densities of speed and turn rate, and the error variance by window, from
+    per-window samples: per window length in ``windows_s`` [s], ``(measured, truth)`` increments (W, 2) of forward
+    distance and heading change."""
     measured, truth = samples[0]
-    scales = []
-    for column in (0, 1):
-        error = measured[:, column] - truth[:, column]
-        inlier = np.abs(error - np.median(error)) < 5 * robust_std(error)
-        scales.append(float(measured[inlier, column] @ truth[inlier, column] / (truth[inlier, column] ** 2).sum()))
-    variances = np.array([[np.var(m[:, c] / scales[c] - t[:, c]) for c in (0, 1)] for m, t in samples])  # (windows, 2)
     windows = np.asarray(windows_s, dtype=float)
     independent = np.array([len(m) for m, _ in samples]) * WINDOW_STEP_S / windows  # non-overlapping windows
-    speed, turn_rate = (fit_integrated_variance(windows, variances[:, c], independent) for c in (0, 1))
-    return {
-        "speed_scale": scales[0],
-        "turn_rate_scale": scales[1],
-        "speed_std": speed[0],
-        "turn_rate_std": turn_rate[0],
-        "speed_bias_std": speed[1],
-        "speed_correlation_time_s": speed[2],
-        "turn_rate_bias_std": turn_rate[1],
-        "turn_rate_correlation_time_s": turn_rate[2],
-        "variance_by_window": {f"{w:g}": variances[i].tolist() for i, w in enumerate(windows_s)},
-    }
+    fields, variances = {}, []
+    for column, rate in enumerate(("speed", "turn_rate")):
+        error = measured[:, column] - truth[:, column]
+        inlier = np.abs(error - np.median(error)) < 5 * robust_std(error)
+        scale = float(measured[inlier, column] @ truth[inlier, column] / (truth[inlier, column] ** 2).sum())
+        variances.append([np.var(m[:, column] / scale - t[:, column]) for m, t in samples])
+        q, sigma, tau = fit_integrated_variance(windows, variances[-1], independent)
+        fields |= {f"{rate}_scale": scale, f"{rate}_std": q, f"{rate}_bias_std": sigma}
+        fields[f"{rate}_correlation_time_s"] = tau
+    return fields, {f"{w:g}": list(map(float, pair)) for w, pair in zip(windows_s, zip(*variances))}
 
 
 def fit_integrated_variance(windows_s, variances, independent) -> tuple[float, float, float]:
@@ -341,11 +334,10 @@ def fit_robot(
     """``RobotNoise`` (and its diagnostics) from odometry window samples and landmark errors of one robot
     or several (pooled: pairs are formed within each robot's errors); ``offsets``: odometry and measurement
     clock offsets [s] and the travel heading offset [rad]."""
-    odometry = fit_odometry(odometry_samples)
+    values, by_window = fit_odometry(odometry_samples)
     merged = {key: np.concatenate([errors[key] for errors in measurement_errors]) for key in measurement_errors[0]}
     pairs, cross_pairs = (_pairs_within_each(measurement_errors, same_target) for same_target in (True, False))
-    values = {key: value for key, value in odometry.items() if key != "variance_by_window"}
-    diagnostics = {"odometry_variance_by_window": odometry["variance_by_window"]}
+    diagnostics = {"odometry_variance_by_window": by_window}
     for channel in ("range", "bearing"):
         fields, diagnostics[channel] = fit_channel(channel, merged, pairs, cross_pairs)
         values.update(fields)

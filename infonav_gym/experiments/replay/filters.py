@@ -86,9 +86,6 @@ class ReplayTrace:
     choices: list[list[tuple[int, int]]] = field(default_factory=list)  # per robot, (window, target) picked
 
 
-POSE_ENTRIES = np.arange(3)
-
-
 class _IndependentFilters:
     """One pose filter per robot with the known landmark map (a copy of the batched EKF per robot); robot-to-robot
     measurements are not used."""
@@ -193,7 +190,7 @@ class _CalibratedFilters(_IndependentFilters):
         return self.models[robot].white_noise(predicted[0])
 
     def information_of(self, robot):
-        return POSE_ENTRIES  # the biases are nuisance: information about them does not localize
+        return np.arange(POSE_DIM)  # the biases are nuisance: information about them does not localize
 
 
 class _CooperativeFilter:
@@ -325,11 +322,7 @@ def replay_filter(
 
 def _select_window(backend, robot, rows, selected, pointer, window_end, config, rng) -> np.ndarray:
     """Mark the measurements of ``robot`` to use among those of the window starting now; return their targets."""
-    end = pointer
-    while end < len(rows) and rows[end, 0] < window_end:
-        end += 1
-    if end == pointer:
-        return rows[:0, 2]
+    end = pointer + int(np.searchsorted(rows[pointer:, 0], window_end))  # rows are sorted by boundary
     candidates = rows[pointer:end]
     if len(candidates) <= config.k:
         selected[pointer:end] = True

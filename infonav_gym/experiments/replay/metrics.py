@@ -13,14 +13,8 @@ MAX_GROUNDTRUTH_GAP_S = 0.5  # [s] no comparison across a longer motion-capture 
 
 
 def groundtruth_at(groundtruth: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Ground-truth poses interpolated at absolute ``times`` and where that is valid.
-
-    Valid: inside the ground truth's time span and between two samples at most
-    ``MAX_GROUNDTRUTH_GAP_S`` apart. Headings are interpolated unwrapped.
-
-    Returns:
-        ``(poses (T, 3), valid (T,) bool)``.
-    """
+    """Ground-truth poses (T, 3) interpolated at absolute ``times`` (headings unwrapped), and where that is valid (T,):
+    inside the ground truth's time span and between two samples at most ``MAX_GROUNDTRUTH_GAP_S`` apart."""
     gt_times = groundtruth[:, 0]
     after = np.clip(np.searchsorted(gt_times, times), 1, len(gt_times) - 1)
     gap = gt_times[after] - gt_times[after - 1]

@@ -170,11 +170,10 @@ def markdown_table(summary: dict) -> str:
         lines.append("Ground truth is missing for some robots: their RMSE and NEES are n/a; see the NIS columns.\n")
     header = ["policy", "k", "window [s]", "runs", "position RMSE [m]", "heading RMSE [rad]", "mean NEES"]
     header += ["NEES inside 95%", "updates used", "mean posterior entropy [nats]", "mean NIS", "NIS inside 95%"]
+    digits = {"mean_nees": 2, "updates_used": 0}  # the others: 3
     rows = [
-        [row["policy"], *budget_cells(row), str(row["n_runs"]), _cell(row["position_rmse_m"])]
-        + [_cell(row["heading_rmse_rad"]), _cell(row["mean_nees"], 2), _cell(row["nees_fraction_inside_95"])]
-        + [_cell(row["updates_used"], 0), _cell(row["mean_entropy_nats"]), _cell(row["mean_nis"])]
-        + [_cell(row["nis_inside_95"])]
+        [row["policy"], *budget_cells(row), str(row["n_runs"])]
+        + [_cell(row[key], digits.get(key, 3)) for key in ROW_KEYS]
         for row in summary["rows"]
     ]
     dead_reckoning = summary.get("dead_reckoning")
