@@ -158,8 +158,7 @@ def load(path) -> MRCLAMDataset:
     candidate_robots.update(int(match[1]) for file in directory.iterdir() if (match := _ROBOT_FILE.match(file.name)))
 
     missing: list[str] = []
-    odometry, landmark_measurements, robot_measurements, groundtruth = {}, {}, {}, {}
-    raw_measurements = {}
+    odometry, raw_measurements, landmark_measurements, robot_measurements, groundtruth = {}, {}, {}, {}, {}
     for robot in sorted(candidate_robots):
         odometry_path = directory / f"Robot{robot}_Odometry.dat"
         if not odometry_path.is_file():
@@ -180,22 +179,20 @@ def load(path) -> MRCLAMDataset:
     if not robots:
         raise FileNotFoundError(f"no RobotN_Odometry.dat in {directory}: nothing to replay")
 
-    unknown_values: set[int] = set()
-    unknown_count = 0
+    unknown_barcodes: list[int] = []
     for robot, rows in raw_measurements.items():
         subjects = np.array([barcodes.get(int(barcode), -1) for barcode in rows[:, 1]], dtype=int)
         is_landmark = np.isin(subjects, landmark_ids)
         is_robot = np.isin(subjects, [other for other in robots if other != robot])
         unknown = ~(is_landmark | is_robot)
-        unknown_count += int(unknown.sum())
-        unknown_values.update(int(barcode) for barcode in rows[unknown, 1])
+        unknown_barcodes += rows[unknown, 1].astype(int).tolist()
         with_subjects = np.column_stack([rows[:, 0], subjects, rows[:, 2:]])
         landmark_measurements[robot] = with_subjects[is_landmark]
         robot_measurements[robot] = with_subjects[is_robot]
-    if unknown_count:
+    if unknown_barcodes:
         warnings.warn(
-            f"{directory}: skipped {unknown_count} measurements of barcodes that name no robot or mapped "
-            f"landmark: {sorted(unknown_values)}",
+            f"{directory}: skipped {len(unknown_barcodes)} measurements of barcodes that name no robot or mapped "
+            f"landmark: {sorted(set(unknown_barcodes))}",
             stacklevel=2,
         )
     for note in missing:
@@ -211,7 +208,7 @@ def load(path) -> MRCLAMDataset:
         landmark_measurements=landmark_measurements,
         robot_measurements=robot_measurements,
         groundtruth=groundtruth,
-        unknown_barcodes=unknown_count,
-        unknown_barcode_values=tuple(sorted(unknown_values)),
+        unknown_barcodes=len(unknown_barcodes),
+        unknown_barcode_values=tuple(sorted(set(unknown_barcodes))),
         missing=missing,
     )

@@ -181,20 +181,23 @@ def fit_measurement_offset(dataset: MRCLAMDataset, robot: int) -> float:
     return float(OFFSET_GRID_S[int(np.argmin(spreads))])
 
 
-def look_pairs(errors: dict, same_target: bool, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
-    """Indices ``(first, second)`` of looks ``k`` looks apart, for each ``k`` in ``steps``: at the same target (time
-    order within each target: pairs from consecutive looks to far-apart ones) or, not ``same_target``, at different
-    targets in time order (their covariance is the error the targets share)."""
-    if same_target:
-        order = np.lexsort((errors["time"], errors["target"]))
-    else:
-        order = np.argsort(errors["time"], kind="stable")
-    targets = errors["target"][order]
-    firsts, seconds = [], []
-    for step in steps:
-        keep = (targets[step:] == targets[:-step]) == same_target
-        firsts.append(order[:-step][keep])
-        seconds.append(order[step:][keep])
+def look_pairs(measurement_errors: list[dict], same_target: bool, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
+    """Indices ``(first, second)``, into the robots' concatenated errors, of looks ``k`` looks apart within each robot's
+    errors, for each ``k`` in ``steps``: at the same target (time order within each target: pairs from consecutive
+    looks to far-apart ones) or, not ``same_target``, at different targets in time order (their covariance is the
+    error the targets share)."""
+    firsts, seconds, offset = [], [], 0
+    for errors in measurement_errors:
+        if same_target:
+            order = np.lexsort((errors["time"], errors["target"]))
+        else:
+            order = np.argsort(errors["time"], kind="stable")
+        targets = errors["target"][order]
+        for step in steps:
+            keep = (targets[step:] == targets[:-step]) == same_target
+            firsts.append(order[:-step][keep] + offset)
+            seconds.append(order[step:][keep] + offset)
+        offset += len(errors["time"])
     return np.concatenate(firsts), np.concatenate(seconds)
 
 
@@ -336,29 +339,13 @@ def fit_robot(
     clock offsets [s] and the travel heading offset [rad]."""
     values, by_window = fit_odometry(odometry_samples)
     merged = {key: np.concatenate([errors[key] for errors in measurement_errors]) for key in measurement_errors[0]}
-    pairs, cross_pairs = (_pairs_within_each(measurement_errors, same_target) for same_target in (True, False))
+    pairs, cross_pairs = (look_pairs(measurement_errors, same_target) for same_target in (True, False))
     diagnostics = {"odometry_variance_by_window": by_window}
     for channel in ("range", "bearing"):
         fields, diagnostics[channel] = fit_channel(channel, merged, pairs, cross_pairs)
         values.update(fields)
-    noise = RobotNoise(
-        odometry_time_offset_s=offsets[0],
-        measurement_time_offset_s=offsets[1],
-        travel_heading_offset_rad=offsets[2],
-        **values,
-    )
-    return noise, diagnostics
-
-
-def _pairs_within_each(measurement_errors: list[dict], same_target: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``look_pairs`` within each robot's errors, indexed into their concatenation."""
-    firsts, seconds, offset = [], [], 0
-    for errors in measurement_errors:
-        first, second = look_pairs(errors, same_target)
-        firsts.append(first + offset)
-        seconds.append(second + offset)
-        offset += len(errors["time"])
-    return np.concatenate(firsts), np.concatenate(seconds)
+    offset_fields = ("odometry_time_offset_s", "measurement_time_offset_s", "travel_heading_offset_rad")
+    return RobotNoise(**dict(zip(offset_fields, offsets)), **values), diagnostics
 
 
 def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False) -> tuple[NoiseModel, dict]:
@@ -391,12 +378,11 @@ def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False)
     pooled_samples = [tuple(np.concatenate([s[w][i] for s in samples]) for i in (0, 1)) for w in range(len(samples[0]))]
     pooled_offsets = tuple(float(np.median(column)) for column in zip(*offsets))
     pooled, diagnostics["pooled"] = fit_robot(pooled_samples, [errors[r] for r in robots], pooled_offsets)
-    model = NoiseModel(
+    return NoiseModel(
         robots=models,
         pooled=pooled,
         source=str(dataset.path),
         description=f"MRCLAM noise model fitted on {dataset.path.name} against its motion-capture ground truth",
         command=command,
         diagnostics=diagnostics,
-    )
-    return model, errors
+    ), errors
