@@ -1,18 +1,14 @@
-"""Noise identification from motion-capture ground truth: the measurement and odometry errors actually seen.
+"""Noise identification from motion-capture ground truth (never the filter's RMSE): the errors actually seen.
 
-For each robot (and pooled over the robots): the clock offsets of the odometry and measurement logs
-(``fit_odometry_offset``, ``fit_measurement_offset``; a 10 ms grid over +-0.5 s), the direction of travel
-against the ground-truth heading (``fit_travel_heading_offset``), the odometry's scales, white noise densities
-and slow Gauss-Markov biases (``fit_odometry``: from the growth of the integrated error's variance with the
-window, T = 1 to 64 s; the plain variance, not a robust one: odometry cannot be gated, so its noise must carry
-its heavy tails, wheel slip), and for range and bearing to landmarks (``fit_channel``) a systematic part (a
-polynomial in the measured bearing, the target's place in the camera image, ``systematic_design``; on Dataset 6
-the range term cuts the robust spread of the range residuals from 4-5.5 cm to 1.5-2 cm), white noise (from
-consecutive looks at a target under 0.5 s apart, where the bias cancels), a slow per-target and a shared bias
-(the covariance of look pairs against the distance driven between them: the errors follow the viewing geometry,
-not the clock) and the outlier fraction; a Student-t fit of the standardized errors is kept as a diagnostic.
-
-Robust spreads are ``1.4826 MAD``. Only the ground truth is used, never the filter's RMSE.
+Per robot and pooled: the odometry and measurement clock offsets and the direction of travel against the ground-truth
+heading; the odometry's scales, white noise densities and slow Gauss-Markov biases (``fit_odometry``, from the growth
+of the integrated error's variance with the window; the plain variance, not a robust one: odometry cannot be gated, so
+its noise must carry its heavy tails, wheel slip); for range and bearing to landmarks (``fit_channel``) a systematic
+part, a polynomial in the measured bearing, the target's place in the camera image (on Dataset 6 the range term cuts
+the robust spread of the range residuals from 4-5.5 cm to 1.5-2 cm), white noise from looks at a target under 0.5 s
+apart (the bias cancels), a slow per-target and a shared bias from the covariance of look pairs against the distance
+driven between them (the errors follow the viewing geometry, not the clock), the outlier fraction, and a Student-t fit
+of the standardized errors as a diagnostic.
 """
 
 from __future__ import annotations
@@ -59,11 +55,9 @@ def robust_std(values) -> float:
 
 
 def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, scales=(1.0, 1.0)) -> np.ndarray:
-    """Integrated odometry errors ``[forward distance, heading]`` (W, 2) over windows starting every
-    ``WINDOW_STEP_S``, with the true forward progress and heading change (W, 2), as ``(errors, truth)``.
-
-    Odometry times are shifted by ``offset_s`` and its speed and turn rate divided by ``scales``.
-    """
+    """Integrated odometry errors ``[forward distance, heading]`` (W, 2) over windows starting every ``WINDOW_STEP_S``
+    and the true forward progress and heading change (W, 2), as ``(errors, truth)``; odometry times shifted by
+    ``offset_s``, its speed and turn rate divided by ``scales``."""
     times = odometry[:, 0] + offset_s
     start, end = max(times[0], groundtruth[0, 0]), min(times[-1], groundtruth[-1, 0])
     grid = np.arange(start, end, ODOMETRY_GRID_S)
@@ -350,12 +344,9 @@ def fit_robot(
 
 def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False) -> tuple[NoiseModel, dict]:
     """Fit the noise model of every robot of ``dataset`` with ground truth, and the pooled model; ``command``: the
-    command line that ran this, recorded in the model; ``progress``: a tqdm bar.
-
-    Returns ``(model, errors)``: the model (its ``diagnostics`` hold the fits' evidence) and, per robot subject, the
-    landmark errors at the fitted clock offset (for the residual plot); ``ValueError`` if no robot has ground truth and
-    landmark measurements.
-    """
+    command line that ran this, recorded in the model; ``progress``: a tqdm bar. Returns ``(model, errors)``: the model
+    (its ``diagnostics`` hold the fits' evidence) and, per robot subject, the landmark errors at the fitted clock
+    offset (for the residual plot); ``ValueError`` if no robot has ground truth and landmark measurements."""
     from tqdm.auto import tqdm
 
     robots = [r for r in dataset.robots if r in dataset.groundtruth and len(dataset.landmark_measurements[r])]

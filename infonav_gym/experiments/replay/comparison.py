@@ -16,11 +16,8 @@ def _mean(value):
 
 
 def greedy_choice_change(after_runs: list[dict], before_runs: list[dict]) -> dict:
-    """Per greedy budget: the share of (robot, window) pairs in which the chosen targets differ.
-
-    Both sweeps see the same measurements, but on clocks that may differ by the calibrated offsets, so
-    a window's candidates can differ slightly too: the share counts every window with a choice in either.
-    """
+    """Per greedy budget: the share of (robot, window) pairs in which the chosen targets differ; every window with a
+    choice in either counts (the sweeps' clocks may differ by the calibrated offsets, and so a window's candidates)."""
     changes = {}
     before_by_budget = {
         (run["config"]["k"], run["config"]["window_s"]): run

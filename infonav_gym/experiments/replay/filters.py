@@ -90,6 +90,8 @@ class _IndependentFilters:
     """One pose filter per robot with the known landmark map (a copy of the batched EKF per robot); robot-to-robot
     measurements are not used."""
 
+    counted = None  # the state entries whose information greedy counts (None: the whole state)
+
     def __init__(self, poses, covariances, dataset, config):
         self.x, self.P = np.array(poses, dtype=float), np.array(covariances, dtype=float)
         self.landmarks = dataset.landmarks
@@ -107,10 +109,6 @@ class _IndependentFilters:
 
     def noise(self, robot, kind, predicted):
         return self.R
-
-    def information_of(self, robot):
-        """The state entries whose information greedy counts (None: the whole state)."""
-        return None
 
     def update(self, robot, kind, target, z, predicted, H, R):
         one = [robot]
@@ -139,6 +137,8 @@ class _CalibratedFilters(_IndependentFilters):
     ``a = exp(-ds / l)``, stationary variance ``sigma_b^2``. The wheels drive along ``heading +
     travel_heading_offset_rad`` (on Dataset 6, -0.017 to +0.008 rad).
     """
+
+    counted = np.arange(POSE_DIM)  # the biases are nuisance: information about them does not localize
 
     def __init__(self, poses, covariances, dataset, config):
         self.landmarks = dataset.landmarks
@@ -189,13 +189,12 @@ class _CalibratedFilters(_IndependentFilters):
     def noise(self, robot, kind, predicted):
         return self.models[robot].white_noise(predicted[0])
 
-    def information_of(self, robot):
-        return np.arange(POSE_DIM)  # the biases are nuisance: information about them does not localize
-
 
 class _CooperativeFilter:
     """One joint filter over all robots (the batched EKF at one copy): landmark and robot-to-robot range-bearing
     updates."""
+
+    counted = None
 
     def __init__(self, poses, covariances, dataset, config):
         self.x = np.asarray(poses, dtype=float).reshape(1, -1)
@@ -229,9 +228,6 @@ class _CooperativeFilter:
 
     def noise(self, robot, kind, predicted):
         return self.models[robot].total_noise(predicted[0]) if self.models else self.R
-
-    def information_of(self, robot):
-        return None
 
     def update(self, robot, kind, target, z, predicted, H, R):
         slot = (np.array([[robot]]), z[None, None], predicted[None, None])
@@ -337,7 +333,7 @@ def _select_window(backend, robot, rows, selected, pointer, window_end, config, 
             R = np.array(
                 [backend.noise(robot, kind, predicted) for (kind, _), (predicted, _) in zip(kinds_targets, models)]
             )
-            chosen = select_greedy(backend.covariance(robot), H, R, config.k, backend.information_of(robot))
+            chosen = select_greedy(backend.covariance(robot), H, R, config.k, backend.counted)
         else:
             chosen = select_nearest(np.array([predicted[0] for predicted, _ in models]), config.k)
     chosen = np.asarray(chosen, dtype=int)
