@@ -179,20 +179,19 @@ def load(path) -> MRCLAMDataset:
     if not robots:
         raise FileNotFoundError(f"no RobotN_Odometry.dat in {directory}: nothing to replay")
 
-    unknown_barcodes: list[int] = []
+    skipped: list[int] = []  # the barcodes of the measurements skipped
     for robot, rows in raw_measurements.items():
         subjects = np.array([barcodes.get(int(barcode), -1) for barcode in rows[:, 1]], dtype=int)
         is_landmark = np.isin(subjects, landmark_ids)
         is_robot = np.isin(subjects, [other for other in robots if other != robot])
-        unknown = ~(is_landmark | is_robot)
-        unknown_barcodes += rows[unknown, 1].astype(int).tolist()
+        skipped += rows[~(is_landmark | is_robot), 1].astype(int).tolist()
         with_subjects = np.column_stack([rows[:, 0], subjects, rows[:, 2:]])
         landmark_measurements[robot] = with_subjects[is_landmark]
         robot_measurements[robot] = with_subjects[is_robot]
-    if unknown_barcodes:
+    if skipped:
         warnings.warn(
-            f"{directory}: skipped {len(unknown_barcodes)} measurements of barcodes that name no robot or mapped "
-            f"landmark: {sorted(set(unknown_barcodes))}",
+            f"{directory}: skipped {len(skipped)} measurements of barcodes that name no robot or mapped "
+            f"landmark: {sorted(set(skipped))}",
             stacklevel=2,
         )
     for note in missing:
@@ -208,7 +207,7 @@ def load(path) -> MRCLAMDataset:
         landmark_measurements=landmark_measurements,
         robot_measurements=robot_measurements,
         groundtruth=groundtruth,
-        unknown_barcodes=len(unknown_barcodes),
-        unknown_barcode_values=tuple(sorted(set(unknown_barcodes))),
+        unknown_barcodes=len(skipped),
+        unknown_barcode_values=tuple(sorted(set(skipped))),
         missing=missing,
     )

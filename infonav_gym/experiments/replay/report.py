@@ -80,11 +80,9 @@ def run_experiments(
     timeline = make_timeline(corrected_logs(dataset, base.noise), dt=dt, duration_s=duration_s)
     plan = []
     for policy in policies:
-        if policy == "all":
-            plan.append(("all", None, None, [seed]))
-            continue
         seeds = list(range(seed, seed + n_seeds)) if policy == "random" else [seed]
-        plan.extend((policy, k, window, seeds) for k in ks for window in windows_s)
+        budgets = [(None, None)] if policy == "all" else [(k, window) for k in ks for window in windows_s]
+        plan.extend((policy, k, window, seeds) for k, window in budgets)
     n_runs = sum(len(seeds) for *_, seeds in plan) + (1 if outage else 0)
     bar = tqdm(total=n_runs, desc="replays", unit="run", disable=not progress or n_runs == 1)
     rows, runs = [], []
