@@ -265,14 +265,13 @@ def corrected_logs(dataset, model: NoiseModel | None):
     and mean range / bearing errors removed (``RobotNoise.correct_odometry`` / ``correct_measurements``)."""
     if not model:
         return dataset
-    noise = {robot: model.for_robot(robot) for robot in dataset.robots}
+
+    def corrected(tables, correct):
+        return {robot: correct(model.for_robot(robot), rows) for robot, rows in tables.items()}
+
     return dataclasses.replace(
         dataset,
-        odometry={robot: noise[robot].correct_odometry(rows) for robot, rows in dataset.odometry.items()},
-        landmark_measurements={
-            robot: noise[robot].correct_measurements(rows) for robot, rows in dataset.landmark_measurements.items()
-        },
-        robot_measurements={
-            robot: noise[robot].correct_measurements(rows) for robot, rows in dataset.robot_measurements.items()
-        },
+        odometry=corrected(dataset.odometry, RobotNoise.correct_odometry),
+        landmark_measurements=corrected(dataset.landmark_measurements, RobotNoise.correct_measurements),
+        robot_measurements=corrected(dataset.robot_measurements, RobotNoise.correct_measurements),
     )

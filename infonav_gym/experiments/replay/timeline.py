@@ -53,11 +53,8 @@ def held_integral(times: np.ndarray, values: np.ndarray) -> np.ndarray:
 def _tick_means(odometry: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Mean of the held (zero-order) odometry readings over each interval between ``edges``; 0 before the first."""
     times = odometry[:, 0]
-    means = np.zeros((len(edges) - 1, 2))
-    for column in (1, 2):
-        integral = np.interp(edges, times, held_integral(times, odometry[:, column]), left=0.0)
-        means[:, column - 1] = np.diff(integral) / np.diff(edges)
-    return means
+    integrals = [np.interp(edges, times, held_integral(times, odometry[:, column]), left=0.0) for column in (1, 2)]
+    return np.column_stack([np.diff(integral) / np.diff(edges) for integral in integrals])
 
 
 def make_timeline(dataset: MRCLAMDataset, dt: float = 0.02, duration_s: float | None = None) -> Timeline:
