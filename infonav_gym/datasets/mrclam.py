@@ -104,8 +104,7 @@ def _raise_on_first_bad_line(path: Path, columns: int) -> None:
 def _sorted_by_time(table: np.ndarray, path: Path, unique_times: bool = True) -> np.ndarray:
     """``table`` sorted by its time column (stable); warn, naming ``path``, about negative times and,
     when each row should have its own time (``unique_times``: odometry, ground truth), repeated ones."""
-    if len(table) > 1 and np.any(np.diff(table[:, 0]) < 0):
-        table = table[np.argsort(table[:, 0], kind="stable")]
+    table = table[np.argsort(table[:, 0], kind="stable")]
     negative = int(np.count_nonzero(table[:, 0] < 0))
     if negative:
         warnings.warn(f"{path}: {negative} row(s) with a negative timestamp", stacklevel=3)
