@@ -16,21 +16,14 @@ from infonav_gym.experiments.replay.metrics import mean_and_ci95
 from infonav_gym.experiments.replay.noise_model import corrected_logs
 from infonav_gym.experiments.replay.plots import figure_nees_over_time
 from infonav_gym.experiments.replay.policies import POLICIES
-from infonav_gym.experiments.replay.run import replay, replay_header
+from infonav_gym.experiments.replay.run import SUMMARY_KEYS, replay, replay_header
 from infonav_gym.experiments.replay.tables import budget_cells, table_lines
 from infonav_gym.experiments.replay.timeline import make_timeline
 from infonav_gym.rendering import save_figure
 
-ROW_KEYS = (
-    "position_rmse_m",
-    "heading_rmse_rad",
-    "mean_nees",
-    "nees_fraction_inside_95",
-    "updates_used",
-    "mean_entropy_nats",
-    "mean_nis",
-    "nis_inside_95",
-)
+# a sweep row's metrics: a replay's, but for dead reckoning's (a row of its own) and these
+ROW_LEFT_OUT = ("relative_updates_used", "updates_gated")
+ROW_KEYS = tuple(key for key in SUMMARY_KEYS if not key.startswith("dead_reckoning") and key not in ROW_LEFT_OUT)
 
 
 def check_experiments(policies, ks, windows_s, n_seeds: int) -> None:
