@@ -19,13 +19,9 @@ def groundtruth_at(groundtruth: np.ndarray, times: np.ndarray) -> tuple[np.ndarr
     after = np.clip(np.searchsorted(gt_times, times), 1, len(gt_times) - 1)
     gap = gt_times[after] - gt_times[after - 1]
     valid = (times >= gt_times[0]) & (times <= gt_times[-1]) & (gap <= MAX_GROUNDTRUTH_GAP_S)
-    heading = np.unwrap(groundtruth[:, 3])
-    poses = np.stack(
-        [np.interp(times, gt_times, groundtruth[:, 1]), np.interp(times, gt_times, groundtruth[:, 2])]
-        + [wrap_angle(np.interp(times, gt_times, heading))],
-        axis=-1,
-    )
-    return poses, valid
+    x, y = (np.interp(times, gt_times, groundtruth[:, column]) for column in (1, 2))
+    heading = wrap_angle(np.interp(times, gt_times, np.unwrap(groundtruth[:, 3])))
+    return np.stack([x, y, heading], axis=-1), valid
 
 
 def pose_rmse(true_poses: np.ndarray, estimates: np.ndarray) -> tuple[float, float]:
