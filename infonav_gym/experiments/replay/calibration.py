@@ -67,7 +67,7 @@ def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, sca
     forward = np.einsum("ti,ti->t", np.diff(poses[:, :2], axis=0), np.stack([np.cos(middle), np.sin(middle)], -1))
     true_cumulative = np.column_stack([running_sums(forward), heading - heading[0]])
     odometry_cumulative = np.column_stack(
-        [np.interp(grid, times, held_integral(times, odometry[:, column])) / scales[column - 1] for column in (1, 2)]
+        [held_integral(times, odometry[:, column], grid) / scales[column - 1] for column in (1, 2)]
     )
     stride = int(round(window_s / ODOMETRY_GRID_S))
     invalid_before = running_sums(~valid)
@@ -142,18 +142,13 @@ def fit_integrated_variance(windows_s, variances, independent) -> tuple[float, f
     return float(q), float(sigma), float(tau)
 
 
-def travelled(odometry: np.ndarray, times) -> np.ndarray:
-    """Forward progress by odometry (speed integrated, zero-order hold) [m] up to each of ``times``; the
-    distance driven between two times is the difference (the robots drive forward), its noise averaged."""
-    return np.interp(times, odometry[:, 0], held_integral(odometry[:, 0], odometry[:, 1]))
-
-
 def landmark_errors(dataset: MRCLAMDataset, robot: int, offset_s: float = 0.0, odometry_offset_s: float = 0.0) -> dict:
     """Errors of ``robot``'s landmark measurements against the ground-truth geometry: arrays over the measurements
     with valid ground truth, ``time`` [s] (shifted by ``offset_s``), ``target`` (landmark subject), ``range`` and
-    ``bearing`` (measured) [m, rad], ``range_error`` [m], ``bearing_error`` [rad], ``travelled`` [m] (odometry shifted
-    by ``odometry_offset_s``)."""
-    rows = dataset.landmark_measurements[robot]
+    ``bearing`` (measured) [m, rad], ``range_error`` [m], ``bearing_error`` [rad], ``travelled`` [m] (forward progress
+    by odometry shifted by ``odometry_offset_s``: the distance driven between two looks is the difference, the robots
+    drive forward)."""
+    rows, odometry = dataset.landmark_measurements[robot], dataset.odometry[robot]
     poses, valid = groundtruth_at(dataset.groundtruth[robot], rows[:, 0] + offset_s)
     offsets = dataset.landmarks[dataset.landmark_index(rows[:, 1])] - poses[:, :2]
     true_range = np.hypot(offsets[:, 0], offsets[:, 1])
@@ -165,7 +160,7 @@ def landmark_errors(dataset: MRCLAMDataset, robot: int, offset_s: float = 0.0, o
         "bearing": rows[valid, 3],
         "range_error": (rows[:, 2] - true_range)[valid],
         "bearing_error": wrap_angle(rows[:, 3] - true_bearing)[valid],
-        "travelled": travelled(dataset.odometry[robot] + [odometry_offset_s, 0, 0], (rows[:, 0] + offset_s)[valid]),
+        "travelled": held_integral(odometry[:, 0] + odometry_offset_s, odometry[:, 1], (rows[:, 0] + offset_s)[valid]),
     }
 
 

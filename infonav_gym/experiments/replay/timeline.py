@@ -45,15 +45,15 @@ def running_sums(increments) -> np.ndarray:
     return np.concatenate([np.zeros((1, *increments.shape[1:])), np.cumsum(increments, axis=0)])
 
 
-def held_integral(times: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """The integral of ``values`` (T,), each held from its time to the next (zero-order), at each of ``times``."""
-    return running_sums(values[:-1] * np.diff(times))
+def held_integral(times: np.ndarray, values: np.ndarray, at) -> np.ndarray:
+    """The integral of ``values`` (T,), each held from its time to the next (zero-order), at each of ``at`` (0 before
+    the first of ``times``)."""
+    return np.interp(at, times, running_sums(values[:-1] * np.diff(times)))
 
 
 def _tick_means(odometry: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Mean of the held (zero-order) odometry readings over each interval between ``edges``; 0 before the first."""
-    times = odometry[:, 0]
-    integrals = [np.interp(edges, times, held_integral(times, odometry[:, column]), left=0.0) for column in (1, 2)]
+    integrals = [held_integral(odometry[:, 0], odometry[:, column], edges) for column in (1, 2)]
     return np.column_stack([np.diff(integral) / np.diff(edges) for integral in integrals])
 
 
