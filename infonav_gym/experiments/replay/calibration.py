@@ -54,10 +54,10 @@ def robust_std(values) -> float:
     return float(1.4826 * np.median(np.abs(values - np.median(values))))
 
 
-def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, scales=(1.0, 1.0)) -> np.ndarray:
+def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Integrated odometry errors ``[forward distance, heading]`` (W, 2) over windows starting every ``WINDOW_STEP_S``
     and the true forward progress and heading change (W, 2), as ``(errors, truth)``; odometry times shifted by
-    ``offset_s``, its speed and turn rate divided by ``scales``."""
+    ``offset_s``."""
     times = odometry[:, 0] + offset_s
     start, end = max(times[0], groundtruth[0, 0]), min(times[-1], groundtruth[-1, 0])
     grid = np.arange(start, end, ODOMETRY_GRID_S)
@@ -66,9 +66,7 @@ def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, sca
     middle = heading[:-1] + 0.5 * np.diff(heading)
     forward = np.einsum("ti,ti->t", np.diff(poses[:, :2], axis=0), np.stack([np.cos(middle), np.sin(middle)], -1))
     true_cumulative = np.column_stack([running_sums(forward), heading - heading[0]])
-    odometry_cumulative = np.column_stack(
-        [held_integral(times, odometry[:, column], grid) / scales[column - 1] for column in (1, 2)]
-    )
+    odometry_cumulative = np.column_stack([held_integral(times, odometry[:, column], grid) for column in (1, 2)])
     stride = int(round(window_s / ODOMETRY_GRID_S))
     invalid_before = running_sums(~valid)
     starts = np.arange(0, len(grid) - stride, int(round(WINDOW_STEP_S / ODOMETRY_GRID_S)))
