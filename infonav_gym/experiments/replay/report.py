@@ -178,10 +178,8 @@ def markdown_table(summary: dict) -> str:
         lines += ["", "Position RMSE per robot [m]:", ""]
         per_robot = [
             [row["policy"], *budget_cells(row), *(_cell(row["position_rmse_m_per_robot"][robot]) for robot in robots)]
-            for row in summary["rows"]
+            for row in [*summary["rows"], {"policy": "dead reckoning", "k": None} | dead_reckoning]
         ]
-        dead_cells = [_cell(dead_reckoning["position_rmse_m_per_robot"][robot]) for robot in robots]
-        per_robot.append(["dead reckoning", "-", "-", *dead_cells])
         lines += table_lines(["policy", "k", "window [s]", *(f"robot {robot}" for robot in robots)], per_robot)
     outage = summary.get("outage")
     if outage:
