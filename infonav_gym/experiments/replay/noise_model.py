@@ -185,15 +185,21 @@ class NoiseModel:
         return path
 
 
-def _robot_noise(values, where: str) -> RobotNoise:
-    """``values`` (a JSON object) as ``RobotNoise``, or ``ValueError`` naming ``where`` and the key at fault."""
-    if not isinstance(values, dict):
-        raise ValueError(f"{where}: expected an object of noise parameters, got {type(values).__name__}")
-    missing, unknown = sorted(set(FIELDS) - values.keys()), sorted(values.keys() - set(FIELDS))
+def _json_object(document, what: str, required, allowed, where: str) -> None:
+    """``ValueError`` naming ``where`` unless ``document`` is a JSON object (``what``) with every ``required`` key
+    (the first missing in their order is named) and no key but the ``allowed`` ones."""
+    if not isinstance(document, dict):
+        raise ValueError(f"{where}: expected {what}, got {type(document).__name__}")
+    missing, unknown = [key for key in required if key not in document], sorted(document.keys() - set(allowed))
     if missing:
         raise ValueError(f"{where}: missing key {missing[0]!r}")
     if unknown:
         raise ValueError(f"{where}: unknown key {unknown[0]!r}")
+
+
+def _robot_noise(values, where: str) -> RobotNoise:
+    """``values`` (a JSON object) as ``RobotNoise``, or ``ValueError`` naming ``where`` and the key at fault."""
+    _json_object(values, "an object of noise parameters", sorted(FIELDS), FIELDS, where)
     for key, value in values.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ValueError(f"{where}.{key}: expected a finite number, got {value!r}")
@@ -207,14 +213,7 @@ def _robot_noise(values, where: str) -> RobotNoise:
 
 def parse_noise_model(document, source: str) -> NoiseModel:
     """Check a decoded JSON document against the schema; ``ValueError`` names ``source`` and the key."""
-    if not isinstance(document, dict):
-        raise ValueError(f"{source}: expected a JSON object, got {type(document).__name__}")
-    for key in ("schema_version", "robots", "pooled"):
-        if key not in document:
-            raise ValueError(f"{source}: missing key {key!r}")
-    unknown = sorted(document.keys() - TOP_LEVEL)
-    if unknown:
-        raise ValueError(f"{source}: unknown key {unknown[0]!r}")
+    _json_object(document, "a JSON object", ("schema_version", "robots", "pooled"), TOP_LEVEL, source)
     if document["schema_version"] != SCHEMA_VERSION:
         raise ValueError(
             f"{source}: schema_version {document['schema_version']!r} is not supported (expected {SCHEMA_VERSION})"
