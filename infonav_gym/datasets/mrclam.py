@@ -104,8 +104,7 @@ def _raise_on_first_bad_line(path: Path, columns: int) -> None:
 def _sorted_by_time(table: np.ndarray, path: Path, unique_times: bool = True) -> np.ndarray:
     """``table`` sorted by its time column (stable); warn, naming ``path``, about negative times and,
     when each row should have its own time (``unique_times``: odometry, ground truth), repeated ones."""
-    if len(table) > 1 and np.any(np.diff(table[:, 0]) < 0):
-        table = table[np.argsort(table[:, 0], kind="stable")]
+    table = table[np.argsort(table[:, 0], kind="stable")]
     negative = int(np.count_nonzero(table[:, 0] < 0))
     if negative:
         warnings.warn(f"{path}: {negative} row(s) with a negative timestamp", stacklevel=3)
@@ -155,14 +154,10 @@ def load(path) -> MRCLAMDataset:
     barcodes = {int(barcode): int(subject) for subject, barcode in barcode_rows}
     landmark_ids = landmark_rows[:, 0].astype(int)
     candidate_robots = {int(subject) for subject in barcode_rows[:, 0]} - set(landmark_ids.tolist())
-    for robot_file in directory.iterdir():
-        match = _ROBOT_FILE.match(robot_file.name)
-        if match:
-            candidate_robots.add(int(match.group(1)))
+    candidate_robots.update(int(match[1]) for file in directory.iterdir() if (match := _ROBOT_FILE.match(file.name)))
 
     missing: list[str] = []
-    odometry, landmark_measurements, robot_measurements, groundtruth = {}, {}, {}, {}
-    raw_measurements = {}
+    odometry, raw_measurements, landmark_measurements, robot_measurements, groundtruth = {}, {}, {}, {}, {}
     for robot in sorted(candidate_robots):
         odometry_path = directory / f"Robot{robot}_Odometry.dat"
         if not odometry_path.is_file():
@@ -183,23 +178,19 @@ def load(path) -> MRCLAMDataset:
     if not robots:
         raise FileNotFoundError(f"no RobotN_Odometry.dat in {directory}: nothing to replay")
 
-    landmark_set, robot_set = set(landmark_ids.tolist()), set(robots)
-    unknown_values: set[int] = set()
-    unknown_count = 0
+    skipped: list[int] = []  # the barcodes of the measurements skipped
     for robot, rows in raw_measurements.items():
         subjects = np.array([barcodes.get(int(barcode), -1) for barcode in rows[:, 1]], dtype=int)
-        is_landmark = np.isin(subjects, list(landmark_set))
-        is_robot = np.isin(subjects, list(robot_set - {robot}))
-        unknown = ~(is_landmark | is_robot)
-        unknown_count += int(unknown.sum())
-        unknown_values.update(int(barcode) for barcode in rows[unknown, 1])
+        is_landmark = np.isin(subjects, landmark_ids)
+        is_robot = np.isin(subjects, [other for other in robots if other != robot])
+        skipped += rows[~(is_landmark | is_robot), 1].astype(int).tolist()
         with_subjects = np.column_stack([rows[:, 0], subjects, rows[:, 2:]])
         landmark_measurements[robot] = with_subjects[is_landmark]
         robot_measurements[robot] = with_subjects[is_robot]
-    if unknown_count:
+    if skipped:
         warnings.warn(
-            f"{directory}: skipped {unknown_count} measurements of barcodes that name no robot or mapped "
-            f"landmark: {sorted(unknown_values)}",
+            f"{directory}: skipped {len(skipped)} measurements of barcodes that name no robot or mapped "
+            f"landmark: {sorted(set(skipped))}",
             stacklevel=2,
         )
     for note in missing:
@@ -215,7 +206,7 @@ def load(path) -> MRCLAMDataset:
         landmark_measurements=landmark_measurements,
         robot_measurements=robot_measurements,
         groundtruth=groundtruth,
-        unknown_barcodes=unknown_count,
-        unknown_barcode_values=tuple(sorted(unknown_values)),
+        unknown_barcodes=len(skipped),
+        unknown_barcode_values=tuple(sorted(set(skipped))),
         missing=missing,
     )

@@ -1,18 +1,14 @@
-"""Noise identification from motion-capture ground truth: the measurement and odometry errors actually seen.
+"""Noise identification from motion-capture ground truth (never the filter's RMSE): the errors actually seen.
 
-For each robot (and pooled over the robots): the clock offsets of the odometry and measurement logs
-(``fit_odometry_offset``, ``fit_measurement_offset``; a 10 ms grid over +-0.5 s), the direction of travel
-against the ground-truth heading (``fit_travel_heading_offset``), the odometry's scales, white noise densities
-and slow Gauss-Markov biases (``fit_odometry``: from the growth of the integrated error's variance with the
-window, T = 1 to 64 s; the plain variance, not a robust one: odometry cannot be gated, so its noise must carry
-its heavy tails, wheel slip), and for range and bearing to landmarks (``fit_channel``) a systematic part (a
-polynomial in the measured bearing, the target's place in the camera image, ``systematic_design``; on Dataset 6
-the range term cuts the robust spread of the range residuals from 4-5.5 cm to 1.5-2 cm), white noise (from
-consecutive looks at a target under 0.5 s apart, where the bias cancels), a slow per-target and a shared bias
-(the covariance of look pairs against the distance driven between them: the errors follow the viewing geometry,
-not the clock) and the outlier fraction; a Student-t fit of the standardized errors is kept as a diagnostic.
-
-Robust spreads are ``1.4826 MAD``. Only the ground truth is used, never the filter's RMSE.
+Per robot and pooled: the odometry and measurement clock offsets and the direction of travel against the ground-truth
+heading; the odometry's scales, white noise densities and slow Gauss-Markov biases (``fit_odometry``, from the growth
+of the integrated error's variance with the window; the plain variance, not a robust one: odometry cannot be gated, so
+its noise must carry its heavy tails, wheel slip); for range and bearing to landmarks (``fit_channel``) a systematic
+part, a polynomial in the measured bearing, the target's place in the camera image (on Dataset 6 the range term cuts
+the robust spread of the range residuals from 4-5.5 cm to 1.5-2 cm), white noise from looks at a target under 0.5 s
+apart (the bias cancels), a slow per-target and a shared bias from the covariance of look pairs against the distance
+driven between them (the errors follow the viewing geometry, not the clock), the outlier fraction, and a Student-t fit
+of the standardized errors as a diagnostic.
 """
 
 from __future__ import annotations
@@ -24,7 +20,13 @@ from scipy import optimize, stats
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.experiments.replay.metrics import groundtruth_at
-from infonav_gym.experiments.replay.noise_model import ODOMETRY_HORIZON_S, NoiseModel, RobotNoise, integrated_variance
+from infonav_gym.experiments.replay.noise_model import (
+    ODOMETRY_HORIZON_S,
+    SYSTEMATIC_FIELDS,
+    NoiseModel,
+    RobotNoise,
+    integrated_variance,
+)
 from infonav_gym.experiments.replay.timeline import held_integral, running_sums
 from infonav_gym.geometry import wrap_angle
 
@@ -42,36 +44,6 @@ NO_DECAY_LENGTH_M = 1000.0  # [m] correlation length when the covariance does no
 OUTLIER_Z = 4.0  # errors beyond this many model std count as outliers
 RANGE_BINS = 5  # range quantile bins of the white range std
 MIN_BIN = 20  # fewest samples a bin needs to enter a fit
-SYSTEMATIC_FIELDS = {  # the RobotNoise fields of each channel's systematic coefficients, in design order
-    "range": (
-        "range_bias_m",
-        "range_bias_per_rad",
-        "range_bias_per_rad2",
-        "range_bias_per_m",
-        "range_bias_per_m_rad",
-        "range_bias_per_m_rad2",
-    ),
-    "bearing": ("bearing_bias_rad", "bearing_bias_per_rad", "bearing_bias_per_rad2", "bearing_bias_per_rad3"),
-}
-CHANNEL_FIELDS = {  # fit_channel's results -> RobotNoise fields
-    "range": {
-        "white_std": "range_white_std_m",
-        "white_std_per_m2": "range_white_std_per_m2",
-        "bias_std": "range_bias_std_m",
-        "correlation_distance_m": "range_correlation_distance_m",
-        "shared_std": "range_shared_std_m",
-        "shared_correlation_distance_m": "range_shared_correlation_distance_m",
-        "outlier_fraction": "range_outlier_fraction",
-    },
-    "bearing": {
-        "white_std": "bearing_white_std_rad",
-        "bias_std": "bearing_bias_std_rad",
-        "correlation_distance_m": "bearing_correlation_distance_m",
-        "shared_std": "bearing_shared_std_rad",
-        "shared_correlation_distance_m": "bearing_shared_correlation_distance_m",
-        "outlier_fraction": "bearing_outlier_fraction",
-    },
-}
 PAIR_STEPS = (1, 2, 4, 8, 16, 32, 64, 128, 256)  # looks apart of the pairs whose covariance gives the bias
 INDEPENDENT_CELL_M = 0.05  # [m] looks at a target within this much travel count as one sample of its bias
 
@@ -82,12 +54,10 @@ def robust_std(values) -> float:
     return float(1.4826 * np.median(np.abs(values - np.median(values))))
 
 
-def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, scales=(1.0, 1.0)) -> np.ndarray:
-    """Integrated odometry errors ``[forward distance, heading]`` (W, 2) over windows starting every
-    ``WINDOW_STEP_S``, with the true forward progress and heading change (W, 2), as ``(errors, truth)``.
-
-    Odometry times are shifted by ``offset_s`` and its speed and turn rate divided by ``scales``.
-    """
+def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Integrated odometry errors ``[forward distance, heading]`` (W, 2) over windows starting every ``WINDOW_STEP_S``
+    and the true forward progress and heading change (W, 2), as ``(errors, truth)``; odometry times shifted by
+    ``offset_s``."""
     times = odometry[:, 0] + offset_s
     start, end = max(times[0], groundtruth[0, 0]), min(times[-1], groundtruth[-1, 0])
     grid = np.arange(start, end, ODOMETRY_GRID_S)
@@ -96,9 +66,7 @@ def odometry_errors(odometry, groundtruth, offset_s: float, window_s: float, sca
     middle = heading[:-1] + 0.5 * np.diff(heading)
     forward = np.einsum("ti,ti->t", np.diff(poses[:, :2], axis=0), np.stack([np.cos(middle), np.sin(middle)], -1))
     true_cumulative = np.column_stack([running_sums(forward), heading - heading[0]])
-    odometry_cumulative = np.column_stack(
-        [np.interp(grid, times, held_integral(times, odometry[:, column])) / scales[column - 1] for column in (1, 2)]
-    )
+    odometry_cumulative = np.column_stack([held_integral(times, odometry[:, column], grid) for column in (1, 2)])
     stride = int(round(window_s / ODOMETRY_GRID_S))
     invalid_before = running_sums(~valid)
     starts = np.arange(0, len(grid) - stride, int(round(WINDOW_STEP_S / ODOMETRY_GRID_S)))
@@ -137,30 +105,23 @@ def fit_odometry_offset(odometry, groundtruth) -> float:
     return float(OFFSET_GRID_S[int(np.argmin(spreads))])
 
 
-def fit_odometry(samples: list[tuple[np.ndarray, np.ndarray]], windows_s=NOISE_WINDOWS_S) -> dict:
-    """Scales and noise densities from per-window samples: per window length in ``windows_s`` [s], ``(measured,
-    truth)`` increments (W, 2) of forward distance and heading change."""
+def fit_odometry(samples: list[tuple[np.ndarray, np.ndarray]], windows_s=NOISE_WINDOWS_S) -> tuple[dict, dict]:
+    """The ``RobotNoise`` scales and noise densities of speed and turn rate, and the error variance by window, from
+    per-window samples: per window length in ``windows_s`` [s], ``(measured, truth)`` increments (W, 2) of forward
+    distance and heading change."""
     measured, truth = samples[0]
-    scales = []
-    for column in (0, 1):
-        error = measured[:, column] - truth[:, column]
-        inlier = np.abs(error - np.median(error)) < 5 * robust_std(error)
-        scales.append(float(measured[inlier, column] @ truth[inlier, column] / (truth[inlier, column] ** 2).sum()))
-    variances = np.array([[np.var(m[:, c] / scales[c] - t[:, c]) for c in (0, 1)] for m, t in samples])  # (windows, 2)
     windows = np.asarray(windows_s, dtype=float)
     independent = np.array([len(m) for m, _ in samples]) * WINDOW_STEP_S / windows  # non-overlapping windows
-    speed, turn_rate = (fit_integrated_variance(windows, variances[:, c], independent) for c in (0, 1))
-    return {
-        "speed_scale": scales[0],
-        "turn_rate_scale": scales[1],
-        "speed_std": speed[0],
-        "turn_rate_std": turn_rate[0],
-        "speed_bias_std": speed[1],
-        "speed_correlation_time_s": speed[2],
-        "turn_rate_bias_std": turn_rate[1],
-        "turn_rate_correlation_time_s": turn_rate[2],
-        "variance_by_window": {f"{w:g}": variances[i].tolist() for i, w in enumerate(windows_s)},
-    }
+    fields, variances = {}, []
+    for column, rate in enumerate(("speed", "turn_rate")):
+        error = measured[:, column] - truth[:, column]
+        inlier = np.abs(error - np.median(error)) < 5 * robust_std(error)
+        scale = float(measured[inlier, column] @ truth[inlier, column] / (truth[inlier, column] ** 2).sum())
+        variances.append([np.var(m[:, column] / scale - t[:, column]) for m, t in samples])
+        q, sigma, tau = fit_integrated_variance(windows, variances[-1], independent)
+        fields |= {f"{rate}_scale": scale, f"{rate}_std": q, f"{rate}_bias_std": sigma}
+        fields[f"{rate}_correlation_time_s"] = tau
+    return fields, {f"{w:g}": list(map(float, pair)) for w, pair in zip(windows_s, zip(*variances))}
 
 
 def fit_integrated_variance(windows_s, variances, independent) -> tuple[float, float, float]:
@@ -179,18 +140,13 @@ def fit_integrated_variance(windows_s, variances, independent) -> tuple[float, f
     return float(q), float(sigma), float(tau)
 
 
-def travelled(odometry: np.ndarray, times) -> np.ndarray:
-    """Forward progress by odometry (speed integrated, zero-order hold) [m] up to each of ``times``; the
-    distance driven between two times is the difference (the robots drive forward), its noise averaged."""
-    return np.interp(times, odometry[:, 0], held_integral(odometry[:, 0], odometry[:, 1]))
-
-
 def landmark_errors(dataset: MRCLAMDataset, robot: int, offset_s: float = 0.0, odometry_offset_s: float = 0.0) -> dict:
     """Errors of ``robot``'s landmark measurements against the ground-truth geometry: arrays over the measurements
     with valid ground truth, ``time`` [s] (shifted by ``offset_s``), ``target`` (landmark subject), ``range`` and
-    ``bearing`` (measured) [m, rad], ``range_error`` [m], ``bearing_error`` [rad], ``travelled`` [m] (odometry shifted
-    by ``odometry_offset_s``)."""
-    rows = dataset.landmark_measurements[robot]
+    ``bearing`` (measured) [m, rad], ``range_error`` [m], ``bearing_error`` [rad], ``travelled`` [m] (forward progress
+    by odometry shifted by ``odometry_offset_s``: the distance driven between two looks is the difference, the robots
+    drive forward)."""
+    rows, odometry = dataset.landmark_measurements[robot], dataset.odometry[robot]
     poses, valid = groundtruth_at(dataset.groundtruth[robot], rows[:, 0] + offset_s)
     offsets = dataset.landmarks[dataset.landmark_index(rows[:, 1])] - poses[:, :2]
     true_range = np.hypot(offsets[:, 0], offsets[:, 1])
@@ -202,7 +158,7 @@ def landmark_errors(dataset: MRCLAMDataset, robot: int, offset_s: float = 0.0, o
         "bearing": rows[valid, 3],
         "range_error": (rows[:, 2] - true_range)[valid],
         "bearing_error": wrap_angle(rows[:, 3] - true_bearing)[valid],
-        "travelled": travelled(dataset.odometry[robot] + [odometry_offset_s, 0, 0], (rows[:, 0] + offset_s)[valid]),
+        "travelled": held_integral(odometry[:, 0] + odometry_offset_s, odometry[:, 1], (rows[:, 0] + offset_s)[valid]),
     }
 
 
@@ -212,20 +168,23 @@ def fit_measurement_offset(dataset: MRCLAMDataset, robot: int) -> float:
     return float(OFFSET_GRID_S[int(np.argmin(spreads))])
 
 
-def look_pairs(errors: dict, same_target: bool, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
-    """Indices ``(first, second)`` of looks ``k`` looks apart, for each ``k`` in ``steps``: at the same target (time
-    order within each target: pairs from consecutive looks to far-apart ones) or, not ``same_target``, at different
-    targets in time order (their covariance is the error the targets share)."""
-    if same_target:
-        order = np.lexsort((errors["time"], errors["target"]))
-    else:
-        order = np.argsort(errors["time"], kind="stable")
-    targets = errors["target"][order]
-    firsts, seconds = [], []
-    for step in steps:
-        keep = (targets[step:] == targets[:-step]) == same_target
-        firsts.append(order[:-step][keep])
-        seconds.append(order[step:][keep])
+def look_pairs(measurement_errors: list[dict], same_target: bool, steps=PAIR_STEPS) -> tuple[np.ndarray, np.ndarray]:
+    """Indices ``(first, second)``, into the robots' concatenated errors, of looks ``k`` looks apart within each robot's
+    errors, for each ``k`` in ``steps``: at the same target (time order within each target: pairs from consecutive
+    looks to far-apart ones) or, not ``same_target``, at different targets in time order (their covariance is the
+    error the targets share)."""
+    firsts, seconds, offset = [], [], 0
+    for errors in measurement_errors:
+        if same_target:
+            order = np.lexsort((errors["time"], errors["target"]))
+        else:
+            order = np.argsort(errors["time"], kind="stable")
+        targets = errors["target"][order]
+        for step in steps:
+            keep = (targets[step:] == targets[:-step]) == same_target
+            firsts.append(order[:-step][keep] + offset)
+            seconds.append(order[step:][keep] + offset)
+        offset += len(errors["time"])
     return np.concatenate(firsts), np.concatenate(seconds)
 
 
@@ -248,20 +207,20 @@ def fit_systematic(error, design) -> np.ndarray:
     return coefficients
 
 
-def fit_channel(
-    error, design, range_m, time_s, travelled_m, targets, pairs, cross_pairs, range_dependent: bool
-) -> dict:
-    """Systematic coefficients, white std (``a + c r^2`` in range ``r`` if ``range_dependent``: a range read from
-    the target's apparent size errs by ``r^2 / (f H)`` times its pixel error), the per-target and the
-    shared bias's std and correlation length, outlier fraction, and diagnostics of one error channel (range
-    or bearing); ``pairs`` are looks at the same target, ``cross_pairs`` at different ones."""
+def fit_channel(channel: str, errors: dict, pairs, cross_pairs) -> tuple[dict, dict]:
+    """The ``RobotNoise`` fields of one error channel (``range`` or ``bearing``) from ``landmark_errors`` arrays, and
+    their diagnostics: systematic coefficients, white std (in range ``r``: ``a + c r^2``, a range read from the
+    target's apparent size errs by ``r^2 / (f H)`` times its pixel error), the per-target and the shared bias's std
+    and correlation length, outlier fraction; ``pairs`` are looks at the same target, ``cross_pairs`` at different
+    ones."""
+    range_m, time_s, travelled_m, targets = errors["range"], errors["time"], errors["travelled"], errors["target"]
+    error, design = errors[f"{channel}_error"], systematic_design(channel, range_m, errors["bearing"])
     coefficients = fit_systematic(error, design)
     centred = error - design @ coefficients
     first, second = pairs
-    lag = time_s[second] - time_s[first]
-    short = lag < SHORT_LAG_S
+    short = time_s[second] - time_s[first] < SHORT_LAG_S
     differences, pair_range = (centred[second] - centred[first])[short], 0.5 * (range_m[first] + range_m[second])[short]
-    if range_dependent:
+    if channel == "range":
         edges = np.quantile(pair_range, np.linspace(0, 1, RANGE_BINS + 1))
         bin_of = np.clip(np.searchsorted(edges, pair_range, side="right") - 1, 0, RANGE_BINS - 1)
         bins = [bin_of == b for b in range(RANGE_BINS) if np.sum(bin_of == b) >= MIN_BIN]
@@ -289,27 +248,28 @@ def fit_channel(
     model_std = np.sqrt(white**2 + bias_variance + shared_variance)
     standardized = centred / model_std
     dof, _, t_scale = stats.t.fit(standardized[np.isfinite(standardized)], floc=0.0)
-    return {
-        "systematic": coefficients.tolist(),
-        "white_std": float(intercept),
-        "white_std_per_m2": float(slope),
-        "bias_std": math.sqrt(bias_variance),
-        "correlation_distance_m": float(correlation_length),
-        "shared_std": math.sqrt(shared_variance),
-        "shared_correlation_distance_m": float(shared_length),
-        "outlier_fraction": float(np.mean(np.abs(standardized) > OUTLIER_Z)),
-        "diagnostics": {
-            "n": int(len(error)),
-            "n_short_lag_pairs": int(short.sum()),
-            "robust_std_before_systematic": robust_std(error),
-            "robust_std": robust_std(centred),
-            "std": float(np.std(centred)),
-            "student_t_dof": float(dof),
-            "student_t_scale": float(t_scale),
-            "white_std_by_range": range_bins,
-            "covariance_by_travel": _bin_records(travel_bins),
-            "shared_covariance_by_travel": _bin_records(shared_bins),
-        },
+    unit = "m" if channel == "range" else "rad"
+    fields = dict(zip(SYSTEMATIC_FIELDS[channel], coefficients.tolist())) | {
+        f"{channel}_white_std_{unit}": float(intercept),
+        f"{channel}_bias_std_{unit}": math.sqrt(bias_variance),
+        f"{channel}_correlation_distance_m": float(correlation_length),
+        f"{channel}_shared_std_{unit}": math.sqrt(shared_variance),
+        f"{channel}_shared_correlation_distance_m": float(shared_length),
+        f"{channel}_outlier_fraction": float(np.mean(np.abs(standardized) > OUTLIER_Z)),
+    }
+    if channel == "range":
+        fields["range_white_std_per_m2"] = float(slope)
+    return fields, {
+        "n": int(len(error)),
+        "n_short_lag_pairs": int(short.sum()),
+        "robust_std_before_systematic": robust_std(error),
+        "robust_std": robust_std(centred),
+        "std": float(np.std(centred)),
+        "student_t_dof": float(dof),
+        "student_t_scale": float(t_scale),
+        "white_std_by_range": range_bins,
+        "covariance_by_travel": _bin_records(travel_bins),
+        "shared_covariance_by_travel": _bin_records(shared_bins),
     }
 
 
@@ -364,60 +324,22 @@ def fit_robot(
     """``RobotNoise`` (and its diagnostics) from odometry window samples and landmark errors of one robot
     or several (pooled: pairs are formed within each robot's errors); ``offsets``: odometry and measurement
     clock offsets [s] and the travel heading offset [rad]."""
-    odometry = fit_odometry(odometry_samples)
+    values, by_window = fit_odometry(odometry_samples)
     merged = {key: np.concatenate([errors[key] for errors in measurement_errors]) for key in measurement_errors[0]}
-    pairs, cross_pairs = (_pairs_within_each(measurement_errors, same_target) for same_target in (True, False))
-    channels = {
-        channel: fit_channel(
-            merged[f"{channel}_error"],
-            systematic_design(channel, merged["range"], merged["bearing"]),
-            merged["range"],
-            merged["time"],
-            merged["travelled"],
-            merged["target"],
-            pairs,
-            cross_pairs,
-            channel == "range",
-        )
-        for channel in ("range", "bearing")
-    }
-    values = {key: value for key, value in odometry.items() if key != "variance_by_window"}
-    for channel, fit in channels.items():
-        values.update(zip(SYSTEMATIC_FIELDS[channel], fit["systematic"]))
-        values.update({field: fit[key] for key, field in CHANNEL_FIELDS[channel].items()})
-    noise = RobotNoise(
-        odometry_time_offset_s=offsets[0],
-        measurement_time_offset_s=offsets[1],
-        travel_heading_offset_rad=offsets[2],
-        **values,
-    )
-    diagnostics = {
-        "odometry_variance_by_window": odometry["variance_by_window"],
-        "range": channels["range"]["diagnostics"],
-        "bearing": channels["bearing"]["diagnostics"],
-    }
-    return noise, diagnostics
-
-
-def _pairs_within_each(measurement_errors: list[dict], same_target: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``look_pairs`` within each robot's errors, indexed into their concatenation."""
-    firsts, seconds, offset = [], [], 0
-    for errors in measurement_errors:
-        first, second = look_pairs(errors, same_target)
-        firsts.append(first + offset)
-        seconds.append(second + offset)
-        offset += len(errors["time"])
-    return np.concatenate(firsts), np.concatenate(seconds)
+    pairs, cross_pairs = (look_pairs(measurement_errors, same_target) for same_target in (True, False))
+    diagnostics = {"odometry_variance_by_window": by_window}
+    for channel in ("range", "bearing"):
+        fields, diagnostics[channel] = fit_channel(channel, merged, pairs, cross_pairs)
+        values.update(fields)
+    offset_fields = ("odometry_time_offset_s", "measurement_time_offset_s", "travel_heading_offset_rad")
+    return RobotNoise(**dict(zip(offset_fields, offsets)), **values), diagnostics
 
 
 def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False) -> tuple[NoiseModel, dict]:
     """Fit the noise model of every robot of ``dataset`` with ground truth, and the pooled model; ``command``: the
-    command line that ran this, recorded in the model; ``progress``: a tqdm bar.
-
-    Returns ``(model, errors)``: the model (its ``diagnostics`` hold the fits' evidence) and, per robot subject, the
-    landmark errors at the fitted clock offset (for the residual plot); ``ValueError`` if no robot has ground truth and
-    landmark measurements.
-    """
+    command line that ran this, recorded in the model; ``progress``: a tqdm bar. Returns ``(model, errors)``: the model
+    (its ``diagnostics`` hold the fits' evidence) and, per robot subject, the landmark errors at the fitted clock
+    offset (for the residual plot); ``ValueError`` if no robot has ground truth and landmark measurements."""
     from tqdm.auto import tqdm
 
     robots = [r for r in dataset.robots if r in dataset.groundtruth and len(dataset.landmark_measurements[r])]
@@ -440,12 +362,11 @@ def calibrate(dataset: MRCLAMDataset, command: str = "", progress: bool = False)
     pooled_samples = [tuple(np.concatenate([s[w][i] for s in samples]) for i in (0, 1)) for w in range(len(samples[0]))]
     pooled_offsets = tuple(float(np.median(column)) for column in zip(*offsets))
     pooled, diagnostics["pooled"] = fit_robot(pooled_samples, [errors[r] for r in robots], pooled_offsets)
-    model = NoiseModel(
+    return NoiseModel(
         robots=models,
         pooled=pooled,
         source=str(dataset.path),
         description=f"MRCLAM noise model fitted on {dataset.path.name} against its motion-capture ground truth",
         command=command,
         diagnostics=diagnostics,
-    )
-    return model, errors
+    ), errors

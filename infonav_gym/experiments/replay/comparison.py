@@ -16,11 +16,8 @@ def _mean(value):
 
 
 def greedy_choice_change(after_runs: list[dict], before_runs: list[dict]) -> dict:
-    """Per greedy budget: the share of (robot, window) pairs in which the chosen targets differ.
-
-    Both sweeps see the same measurements, but on clocks that may differ by the calibrated offsets, so
-    a window's candidates can differ slightly too: the share counts every window with a choice in either.
-    """
+    """Per greedy budget: the share of (robot, window) pairs in which the chosen targets differ; every window with a
+    choice in either counts (the sweeps' clocks may differ by the calibrated offsets, and so a window's candidates)."""
     changes = {}
     before_by_budget = {
         (run["config"]["k"], run["config"]["window_s"]): run
@@ -51,15 +48,12 @@ def _windows(choices) -> dict:
 def compare(after: dict, before: dict) -> dict:
     """``after`` (the calibrated sweep) beside ``before``: matched rows, the outage, greedy's changed choices."""
     before_rows = {_key(row): row for row in before["rows"]}
-    rows = []
-    for row in after["rows"]:
-        other = before_rows.get(_key(row))
-        if other is None:
-            continue
-        entry = {"policy": row["policy"], "k": row["k"], "window_s": row["window_s"]}
-        for key in COMPARED_KEYS:
-            entry[key] = {"before": _mean(other[key]), "after": _mean(row[key])}
-        rows.append(entry)
+    rows = [
+        {"policy": row["policy"], "k": row["k"], "window_s": row["window_s"]}
+        | {key: {"before": _mean(before_rows[_key(row)][key]), "after": _mean(row[key])} for key in COMPARED_KEYS}
+        for row in after["rows"]
+        if _key(row) in before_rows
+    ]
     comparison = {
         "before_noise": before["config"]["noise"],
         "after_noise": after["config"]["noise"],
@@ -79,9 +73,9 @@ def _pair(value: dict, digits: int) -> str:
 def comparison_markdown(comparison: dict) -> str:
     """The comparison as Markdown: one row per policy and budget, ``before → after`` in each cell."""
     header = ["policy", "k", "window [s]", "position RMSE [m]", "mean NEES", "NEES inside 95%", "mean NIS"]
+    digits = {"mean_nees": 2, "mean_nis": 2}  # the others: 3
     rows = [
-        [row["policy"], *budget_cells(row), _pair(row["position_rmse_m"], 3), _pair(row["mean_nees"], 2)]
-        + [_pair(row["nees_fraction_inside_95"], 3), _pair(row["mean_nis"], 2), _pair(row["nis_inside_95"], 3)]
+        [row["policy"], *budget_cells(row), *(_pair(row[key], digits.get(key, 3)) for key in COMPARED_KEYS)]
         for row in comparison["rows"]
     ]
     lines = [f"Before ({comparison['before_noise']}) → after ({comparison['after_noise']}):", ""]

@@ -86,12 +86,11 @@ class ReplayTrace:
     choices: list[list[tuple[int, int]]] = field(default_factory=list)  # per robot, (window, target) picked
 
 
-POSE_ENTRIES = np.arange(3)
-
-
 class _IndependentFilters:
     """One pose filter per robot with the known landmark map (a copy of the batched EKF per robot); robot-to-robot
     measurements are not used."""
+
+    counted = None  # the state entries whose information greedy counts (None: the whole state)
 
     def __init__(self, poses, covariances, dataset, config):
         self.x, self.P = np.array(poses, dtype=float), np.array(covariances, dtype=float)
@@ -110,10 +109,6 @@ class _IndependentFilters:
 
     def noise(self, robot, kind, predicted):
         return self.R
-
-    def information_of(self, robot):
-        """The state entries whose information greedy counts (None: the whole state)."""
-        return None
 
     def update(self, robot, kind, target, z, predicted, H, R):
         one = [robot]
@@ -143,17 +138,16 @@ class _CalibratedFilters(_IndependentFilters):
     travel_heading_offset_rad`` (on Dataset 6, -0.017 to +0.008 rad).
     """
 
+    counted = np.arange(POSE_DIM)  # the biases are nuisance: information about them does not localize
+
     def __init__(self, poses, covariances, dataset, config):
         self.landmarks = dataset.landmarks
         self.models = [config.noise.for_robot(robot) for robot in dataset.robots]
         n_landmarks = len(self.landmarks)
         self.bias_variance = np.square(
             [
-                [
-                    m.range_shared_std_m,
-                    m.bearing_shared_std_rad,
-                    *[m.range_bias_std_m, m.bearing_bias_std_rad] * n_landmarks,
-                ]
+                [m.range_shared_std_m, m.bearing_shared_std_rad]
+                + [m.range_bias_std_m, m.bearing_bias_std_rad] * n_landmarks
                 for m in self.models
             ]
         )
@@ -195,13 +189,12 @@ class _CalibratedFilters(_IndependentFilters):
     def noise(self, robot, kind, predicted):
         return self.models[robot].white_noise(predicted[0])
 
-    def information_of(self, robot):
-        return POSE_ENTRIES  # the biases are nuisance: information about them does not localize
-
 
 class _CooperativeFilter:
     """One joint filter over all robots (the batched EKF at one copy): landmark and robot-to-robot range-bearing
     updates."""
+
+    counted = None
 
     def __init__(self, poses, covariances, dataset, config):
         self.x = np.asarray(poses, dtype=float).reshape(1, -1)
@@ -235,9 +228,6 @@ class _CooperativeFilter:
 
     def noise(self, robot, kind, predicted):
         return self.models[robot].total_noise(predicted[0]) if self.models else self.R
-
-    def information_of(self, robot):
-        return None
 
     def update(self, robot, kind, target, z, predicted, H, R):
         slot = (np.array([[robot]]), z[None, None], predicted[None, None])
@@ -281,10 +271,9 @@ def replay_filter(
     """Run the filter through the ``timeline`` of ``dataset`` from the robots' poses (N, 3) and covariances (N, 3, 3)
     at boundary 0: predict every tick, select (budget), gate and update at each event."""
     n_robots = len(dataset.robots)
-    if config.cooperative:
-        backend_class = _CooperativeFilter
-    else:
-        backend_class = _CalibratedFilters if config.noise else _IndependentFilters
+    backend_class = (
+        _CooperativeFilter if config.cooperative else _CalibratedFilters if config.noise else _IndependentFilters
+    )
     backend = backend_class(initial_poses, initial_covariances, dataset, config)
     control_covariances = np.array(
         [
@@ -303,10 +292,7 @@ def replay_filter(
         poses=np.empty((timeline.n_ticks + 1, n_robots, 3)),
         covariances=np.empty((timeline.n_ticks + 1, n_robots, 3, 3)),
         dead_reckoning=dead_reckoning(initial_poses, timeline),
-        nis=[[] for _ in range(n_robots)],
-        accepted=[[] for _ in range(n_robots)],
-        kinds=[[] for _ in range(n_robots)],
-        choices=[[] for _ in range(n_robots)],
+        **{name: [[] for _ in range(n_robots)] for name in ("nis", "accepted", "kinds", "choices")},
     )
     boundaries = range(timeline.n_ticks + 1)
     for b in tqdm(boundaries, desc=f"replay {config.policy}", unit="tick", disable=not progress, leave=False):
@@ -332,11 +318,7 @@ def replay_filter(
 
 def _select_window(backend, robot, rows, selected, pointer, window_end, config, rng) -> np.ndarray:
     """Mark the measurements of ``robot`` to use among those of the window starting now; return their targets."""
-    end = pointer
-    while end < len(rows) and rows[end, 0] < window_end:
-        end += 1
-    if end == pointer:
-        return rows[:0, 2]
+    end = pointer + int(np.searchsorted(rows[pointer:, 0], window_end))  # rows are sorted by boundary
     candidates = rows[pointer:end]
     if len(candidates) <= config.k:
         selected[pointer:end] = True
@@ -351,7 +333,7 @@ def _select_window(backend, robot, rows, selected, pointer, window_end, config, 
             R = np.array(
                 [backend.noise(robot, kind, predicted) for (kind, _), (predicted, _) in zip(kinds_targets, models)]
             )
-            chosen = select_greedy(backend.covariance(robot), H, R, config.k, backend.information_of(robot))
+            chosen = select_greedy(backend.covariance(robot), H, R, config.k, backend.counted)
         else:
             chosen = select_nearest(np.array([predicted[0] for predicted, _ in models]), config.k)
     chosen = np.asarray(chosen, dtype=int)

@@ -13,25 +13,15 @@ MAX_GROUNDTRUTH_GAP_S = 0.5  # [s] no comparison across a longer motion-capture 
 
 
 def groundtruth_at(groundtruth: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Ground-truth poses interpolated at absolute ``times`` and where that is valid.
-
-    Valid: inside the ground truth's time span and between two samples at most
-    ``MAX_GROUNDTRUTH_GAP_S`` apart. Headings are interpolated unwrapped.
-
-    Returns:
-        ``(poses (T, 3), valid (T,) bool)``.
-    """
+    """Ground-truth poses (T, 3) interpolated at absolute ``times`` (headings unwrapped), and where that is valid (T,):
+    inside the ground truth's time span and between two samples at most ``MAX_GROUNDTRUTH_GAP_S`` apart."""
     gt_times = groundtruth[:, 0]
     after = np.clip(np.searchsorted(gt_times, times), 1, len(gt_times) - 1)
     gap = gt_times[after] - gt_times[after - 1]
     valid = (times >= gt_times[0]) & (times <= gt_times[-1]) & (gap <= MAX_GROUNDTRUTH_GAP_S)
-    heading = np.unwrap(groundtruth[:, 3])
-    poses = np.stack(
-        [np.interp(times, gt_times, groundtruth[:, 1]), np.interp(times, gt_times, groundtruth[:, 2])]
-        + [wrap_angle(np.interp(times, gt_times, heading))],
-        axis=-1,
-    )
-    return poses, valid
+    x, y = (np.interp(times, gt_times, groundtruth[:, column]) for column in (1, 2))
+    heading = wrap_angle(np.interp(times, gt_times, np.unwrap(groundtruth[:, 3])))
+    return np.stack([x, y, heading], axis=-1), valid
 
 
 def pose_rmse(true_poses: np.ndarray, estimates: np.ndarray) -> tuple[float, float]:

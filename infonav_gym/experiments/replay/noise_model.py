@@ -139,20 +139,16 @@ class RobotNoise:
         return corrected
 
 
-FIELDS = {field.name for field in dataclasses.fields(RobotNoise)}
-OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s", "travel_heading_offset_rad"} | {  # any sign
-    field.name for field in dataclasses.fields(RobotNoise) if "_bias_" in field.name and "_bias_std" not in field.name
+FIELDS = tuple(field.name for field in dataclasses.fields(RobotNoise))
+SYSTEMATIC_FIELDS = {  # each channel's systematic error coefficients, in the order of calibration.systematic_design
+    channel: tuple(name for name in FIELDS if name.startswith(f"{channel}_bias") and "_bias_std" not in name)
+    for channel in ("range", "bearing")
 }
+OFFSETS = {"odometry_time_offset_s", "measurement_time_offset_s", "travel_heading_offset_rad"}  # any sign
+OFFSETS |= {*SYSTEMATIC_FIELDS["range"], *SYSTEMATIC_FIELDS["bearing"]}
 FRACTIONS = {"range_outlier_fraction", "bearing_outlier_fraction"}  # in [0, 1)
-NONNEGATIVE = {
-    "range_white_std_m",
-    "range_white_std_per_m2",
-    "range_bias_std_m",
-    "bearing_bias_std_rad",
-    "range_shared_std_m",
-    "bearing_shared_std_rad",
-    "speed_bias_std",
-    "turn_rate_bias_std",
+NONNEGATIVE = {  # may be 0 (a fit finds no slow or shared error, or a white range std all intercept or all slope)
+    name for name in FIELDS if "_bias_std" in name or "_shared_std" in name or name.startswith("range_white_std")
 }
 TOP_LEVEL = {"schema_version", "description", "command", "robots", "pooled", "diagnostics"}
 
@@ -189,15 +185,21 @@ class NoiseModel:
         return path
 
 
-def _robot_noise(values, where: str) -> RobotNoise:
-    """``values`` (a JSON object) as ``RobotNoise``, or ``ValueError`` naming ``where`` and the key at fault."""
-    if not isinstance(values, dict):
-        raise ValueError(f"{where}: expected an object of noise parameters, got {type(values).__name__}")
-    missing, unknown = sorted(FIELDS - values.keys()), sorted(values.keys() - FIELDS)
+def _json_object(document, what: str, required, allowed, where: str) -> None:
+    """``ValueError`` naming ``where`` unless ``document`` is a JSON object (``what``) with every ``required`` key
+    (the first missing in their order is named) and no key but the ``allowed`` ones."""
+    if not isinstance(document, dict):
+        raise ValueError(f"{where}: expected {what}, got {type(document).__name__}")
+    missing, unknown = [key for key in required if key not in document], sorted(document.keys() - set(allowed))
     if missing:
         raise ValueError(f"{where}: missing key {missing[0]!r}")
     if unknown:
         raise ValueError(f"{where}: unknown key {unknown[0]!r}")
+
+
+def _robot_noise(values, where: str) -> RobotNoise:
+    """``values`` (a JSON object) as ``RobotNoise``, or ``ValueError`` naming ``where`` and the key at fault."""
+    _json_object(values, "an object of noise parameters", sorted(FIELDS), FIELDS, where)
     for key, value in values.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ValueError(f"{where}.{key}: expected a finite number, got {value!r}")
@@ -211,14 +213,7 @@ def _robot_noise(values, where: str) -> RobotNoise:
 
 def parse_noise_model(document, source: str) -> NoiseModel:
     """Check a decoded JSON document against the schema; ``ValueError`` names ``source`` and the key."""
-    if not isinstance(document, dict):
-        raise ValueError(f"{source}: expected a JSON object, got {type(document).__name__}")
-    for key in ("schema_version", "robots", "pooled"):
-        if key not in document:
-            raise ValueError(f"{source}: missing key {key!r}")
-    unknown = sorted(document.keys() - TOP_LEVEL)
-    if unknown:
-        raise ValueError(f"{source}: unknown key {unknown[0]!r}")
+    _json_object(document, "a JSON object", ("schema_version", "robots", "pooled"), TOP_LEVEL, source)
     if document["schema_version"] != SCHEMA_VERSION:
         raise ValueError(
             f"{source}: schema_version {document['schema_version']!r} is not supported (expected {SCHEMA_VERSION})"
@@ -269,14 +264,13 @@ def corrected_logs(dataset, model: NoiseModel | None):
     and mean range / bearing errors removed (``RobotNoise.correct_odometry`` / ``correct_measurements``)."""
     if not model:
         return dataset
-    noise = {robot: model.for_robot(robot) for robot in dataset.robots}
+
+    def corrected(tables, correct):
+        return {robot: correct(model.for_robot(robot), rows) for robot, rows in tables.items()}
+
     return dataclasses.replace(
         dataset,
-        odometry={robot: noise[robot].correct_odometry(rows) for robot, rows in dataset.odometry.items()},
-        landmark_measurements={
-            robot: noise[robot].correct_measurements(rows) for robot, rows in dataset.landmark_measurements.items()
-        },
-        robot_measurements={
-            robot: noise[robot].correct_measurements(rows) for robot, rows in dataset.robot_measurements.items()
-        },
+        odometry=corrected(dataset.odometry, RobotNoise.correct_odometry),
+        landmark_measurements=corrected(dataset.landmark_measurements, RobotNoise.correct_measurements),
+        robot_measurements=corrected(dataset.robot_measurements, RobotNoise.correct_measurements),
     )

@@ -33,9 +33,8 @@ def figure_calibration(model: NoiseModel, errors: dict):
                 stds.append(np.hypot(noise.range_white_std(rows["range"]), noise.range_bias_std_m))
             else:
                 residuals.append(rows["bearing_error"] - noise.bearing_bias(rows["bearing"]))
-                stds.append(
-                    np.full(len(rows["bearing"]), np.hypot(noise.bearing_white_std_rad, noise.bearing_bias_std_rad))
-                )
+                std = np.hypot(noise.bearing_white_std_rad, noise.bearing_bias_std_rad)  # the same at every range
+                stds.append(np.full(len(rows["bearing"]), std))
         residual, std = np.concatenate(residuals), np.concatenate(stds)
         grid = np.linspace(-limit, limit, 401)
         axis.hist(residual, bins=np.linspace(-limit, limit, 121), density=True, alpha=0.5, label="errors (all robots)")
@@ -66,13 +65,8 @@ def figure_nees_over_time(result: dict, title: str = ""):
         axis.semilogy(series["time_s"], np.maximum(series["nees"], 1e-3), lw=0.7)
         axis.axhspan(low, high, color="green", alpha=0.15)
         axis.set_ylabel(f"robot {robot}\nNEES [-]")
-        axis.text(
-            0.01,
-            0.85,
-            f"mean {metrics['mean_nees']:.2f}, inside 95 %: {100 * metrics['nees_fraction_inside_95']:.0f} %",
-            transform=axis.transAxes,
-            fontsize=8,
-        )
+        summary = f"mean {metrics['mean_nees']:.2f}, inside 95 %: {100 * metrics['nees_fraction_inside_95']:.0f} %"
+        axis.text(0.01, 0.85, summary, transform=axis.transAxes, fontsize=8)
     axes[-1, 0].set_xlabel("replay time [s]")
     figure.suptitle(title or "NEES over time (band: two-sided 95 % chi-square, 3 dof)", fontsize=10)
     return figure

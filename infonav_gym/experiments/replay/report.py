@@ -16,21 +16,14 @@ from infonav_gym.experiments.replay.metrics import mean_and_ci95
 from infonav_gym.experiments.replay.noise_model import corrected_logs
 from infonav_gym.experiments.replay.plots import figure_nees_over_time
 from infonav_gym.experiments.replay.policies import POLICIES
-from infonav_gym.experiments.replay.run import replay, replay_header
+from infonav_gym.experiments.replay.run import SUMMARY_KEYS, replay, replay_header
 from infonav_gym.experiments.replay.tables import budget_cells, table_lines
 from infonav_gym.experiments.replay.timeline import make_timeline
 from infonav_gym.rendering import save_figure
 
-ROW_KEYS = (
-    "position_rmse_m",
-    "heading_rmse_rad",
-    "mean_nees",
-    "nees_fraction_inside_95",
-    "updates_used",
-    "mean_entropy_nats",
-    "mean_nis",
-    "nis_inside_95",
-)
+# a sweep row's metrics: a replay's, but for dead reckoning's (a row of its own) and these
+ROW_LEFT_OUT = ("relative_updates_used", "updates_gated")
+ROW_KEYS = tuple(key for key in SUMMARY_KEYS if not key.startswith("dead_reckoning") and key not in ROW_LEFT_OUT)
 
 
 def check_experiments(policies, ks, windows_s, n_seeds: int) -> None:
@@ -80,11 +73,9 @@ def run_experiments(
     timeline = make_timeline(corrected_logs(dataset, base.noise), dt=dt, duration_s=duration_s)
     plan = []
     for policy in policies:
-        if policy == "all":
-            plan.append(("all", None, None, [seed]))
-            continue
         seeds = list(range(seed, seed + n_seeds)) if policy == "random" else [seed]
-        plan.extend((policy, k, window, seeds) for k in ks for window in windows_s)
+        budgets = [(None, None)] if policy == "all" else [(k, window) for k in ks for window in windows_s]
+        plan.extend((policy, k, window, seeds) for k, window in budgets)
     n_runs = sum(len(seeds) for *_, seeds in plan) + (1 if outage else 0)
     bar = tqdm(total=n_runs, desc="replays", unit="run", disable=not progress or n_runs == 1)
     rows, runs = [], []
@@ -170,11 +161,10 @@ def markdown_table(summary: dict) -> str:
         lines.append("Ground truth is missing for some robots: their RMSE and NEES are n/a; see the NIS columns.\n")
     header = ["policy", "k", "window [s]", "runs", "position RMSE [m]", "heading RMSE [rad]", "mean NEES"]
     header += ["NEES inside 95%", "updates used", "mean posterior entropy [nats]", "mean NIS", "NIS inside 95%"]
+    digits = {"mean_nees": 2, "updates_used": 0}  # the others: 3
     rows = [
-        [row["policy"], *budget_cells(row), str(row["n_runs"]), _cell(row["position_rmse_m"])]
-        + [_cell(row["heading_rmse_rad"]), _cell(row["mean_nees"], 2), _cell(row["nees_fraction_inside_95"])]
-        + [_cell(row["updates_used"], 0), _cell(row["mean_entropy_nats"]), _cell(row["mean_nis"])]
-        + [_cell(row["nis_inside_95"])]
+        [row["policy"], *budget_cells(row), str(row["n_runs"])]
+        + [_cell(row[key], digits.get(key, 3)) for key in ROW_KEYS]
         for row in summary["rows"]
     ]
     dead_reckoning = summary.get("dead_reckoning")
@@ -188,10 +178,8 @@ def markdown_table(summary: dict) -> str:
         lines += ["", "Position RMSE per robot [m]:", ""]
         per_robot = [
             [row["policy"], *budget_cells(row), *(_cell(row["position_rmse_m_per_robot"][robot]) for robot in robots)]
-            for row in summary["rows"]
+            for row in [*summary["rows"], {"policy": "dead reckoning", "k": None} | dead_reckoning]
         ]
-        dead_cells = [_cell(dead_reckoning["position_rmse_m_per_robot"][robot]) for robot in robots]
-        per_robot.append(["dead reckoning", "-", "-", *dead_cells])
         lines += table_lines(["policy", "k", "window [s]", *(f"robot {robot}" for robot in robots)], per_robot)
     outage = summary.get("outage")
     if outage:

@@ -40,10 +40,8 @@ NEES_PLOT_STEP_S = 1.0  # [s] spacing of the NEES-over-time samples an all-landm
 
 
 def initial_state(dataset: MRCLAMDataset, config: ReplayConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Start poses (N, 3) and covariances (N, 3, 3): ground truth at the first odometry time where known.
-
-    A robot without ground truth starts at the landmarks' centroid, heading 0, with a broad covariance.
-    """
+    """Start poses (N, 3) and covariances (N, 3, 3): ground truth at the first odometry time where known, else the
+    landmarks' centroid, heading 0, with a broad covariance."""
     poses, covariances = [], []
     for robot in dataset.robots:
         if robot in dataset.groundtruth:
@@ -109,11 +107,9 @@ def replay(
         result["mean"][key] = float(np.mean(values)) if values else None
     if config.outage_robot is not None:
         baseline_config = dataclasses.replace(config, policy="all", cooperative=False)
-        baseline = (
-            trace
-            if baseline_config == config
-            else replay_filter(dataset, timeline, poses, covariances, baseline_config)
-        )
+        baseline = trace
+        if baseline_config != config:
+            baseline = replay_filter(dataset, timeline, poses, covariances, baseline_config)
         result["outage"] = _outage_metrics(dataset, timeline, config, trace, baseline)
     return result
 

@@ -45,19 +45,16 @@ def running_sums(increments) -> np.ndarray:
     return np.concatenate([np.zeros((1, *increments.shape[1:])), np.cumsum(increments, axis=0)])
 
 
-def held_integral(times: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """The integral of ``values`` (T,), each held from its time to the next (zero-order), at each of ``times``."""
-    return running_sums(values[:-1] * np.diff(times))
+def held_integral(times: np.ndarray, values: np.ndarray, at) -> np.ndarray:
+    """The integral of ``values`` (T,), each held from its time to the next (zero-order), at each of ``at`` (0 before
+    the first of ``times``)."""
+    return np.interp(at, times, running_sums(values[:-1] * np.diff(times)))
 
 
 def _tick_means(odometry: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Mean of the held (zero-order) odometry readings over each interval between ``edges``; 0 before the first."""
-    times = odometry[:, 0]
-    means = np.zeros((len(edges) - 1, 2))
-    for column in (1, 2):
-        integral = np.interp(edges, times, held_integral(times, odometry[:, column]), left=0.0)
-        means[:, column - 1] = np.diff(integral) / np.diff(edges)
-    return means
+    integrals = [held_integral(odometry[:, 0], odometry[:, column], edges) for column in (1, 2)]
+    return np.column_stack([np.diff(integral) / np.diff(edges) for integral in integrals])
 
 
 def make_timeline(dataset: MRCLAMDataset, dt: float = 0.02, duration_s: float | None = None) -> Timeline:
@@ -72,18 +69,16 @@ def make_timeline(dataset: MRCLAMDataset, dt: float = 0.02, duration_s: float | 
     n_ticks = int(np.ceil(span / dt))
     edges = start + dt * np.arange(n_ticks + 1)
     controls = np.stack([_tick_means(dataset.odometry[robot], edges) for robot in dataset.robots], axis=1)
-    robot_index = {robot: index for index, robot in enumerate(dataset.robots)}
     events = []
     for robot in dataset.robots:
-        rows = []
-        landmark_rows = dataset.landmark_measurements[robot]
-        if len(landmark_rows):
-            rows.append(_events(landmark_rows, LANDMARK, dataset.landmark_index(landmark_rows[:, 1]), start, dt))
-        robot_rows = dataset.robot_measurements[robot]
-        if len(robot_rows):
-            targets = np.array([robot_index[int(subject)] for subject in robot_rows[:, 1]], dtype=int)
-            rows.append(_events(robot_rows, ROBOT, targets, start, dt))
-        table = np.concatenate(rows) if rows else np.zeros((0, 6))
+        landmark_rows, robot_rows = dataset.landmark_measurements[robot], dataset.robot_measurements[robot]
+        robot_targets = [dataset.robots.index(int(subject)) for subject in robot_rows[:, 1]]
+        table = np.concatenate(
+            [
+                _events(landmark_rows, LANDMARK, dataset.landmark_index(landmark_rows[:, 1]), start, dt),
+                _events(robot_rows, ROBOT, robot_targets, start, dt),
+            ]
+        )
         table = table[(table[:, 0] >= 0) & (table[:, 0] <= n_ticks)]
         events.append(table[np.argsort(table[:, 0], kind="stable")])
     return Timeline(start_time=start, dt=dt, controls=controls, events=events)
