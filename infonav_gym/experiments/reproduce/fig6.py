@@ -178,30 +178,16 @@ def figure_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict):
     )
     figure = matplotlib_figure("plotting Fig. 6", figsize=(13, 8), constrained_layout=True)
     axes = figure.subplots(2, 2)
+    dots = {"s": _POINT_SIZE, "lw": 0}
+    residual_dots = dots | {"cmap": "turbo", "vmin": 0.0, "vmax": _RESIDUAL_SCALE_M}
     for column, (title, motion, error) in enumerate(placements):
         placed = transform_points(motion, source)
         closest = tree.query(placed)[1]
         residual = np.abs(np.einsum("ij,ij->i", placed - target[closest], normals[closest]))
         for row, (view, first, second, first_label, second_label) in enumerate(_VIEWS):
             ax = axes[row, column]
-            ax.scatter(
-                target[:, first],
-                target[:, second],
-                s=_POINT_SIZE,
-                c="0.75",
-                label="older frame (newer: coloured)",
-                lw=0,
-            )
-            points = ax.scatter(
-                placed[:, first],
-                placed[:, second],
-                s=_POINT_SIZE,
-                c=residual,
-                cmap="turbo",
-                vmin=0.0,
-                vmax=_RESIDUAL_SCALE_M,
-                lw=0,
-            )
+            ax.scatter(target[:, first], target[:, second], c="0.75", label="older frame (newer: coloured)", **dots)
+            points = ax.scatter(placed[:, first], placed[:, second], c=residual, **residual_dots)
             ax.set_title(f"{title}, {view}: error {error:.3f} m", fontsize="medium")
             ax.set(xlabel=first_label, ylabel=second_label)
             if row == 0:
