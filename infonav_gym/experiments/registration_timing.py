@@ -7,6 +7,7 @@ preprocessing timed as ours. ``*_time_ratio``: our median time over the peer's, 
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import math
 import statistics
@@ -128,24 +129,22 @@ def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, floa
     translation errors, ``icp_<pair>_points``, and with a peer its ``open3d_*`` / ``small_gicp_*`` figures and the
     ``*_time_ratio``; ``seconds_per_round`` scales the repeats on the frame pair.
     """
+    registrations = {
+        "icp": partial(_ours, method="point_to_point"),
+        "gicp": partial(_ours, method="gicp"),
+        "open3d_icp": _open3d,
+        "small_gicp": _small_gicp,
+    }
     figures = {}
     for pair, ladar in PAIR_LADARS.items():
         clouds = frame_pair(seed, ladar)
         source, _, truth, _ = clouds
         repeats = max(MIN_REPEATS, round(REPEATS_PER_SECOND * seconds_per_round)) if pair == "frame_pair" else 3
         figures[f"icp_{pair}_points"] = float(source.shape[0])
-        registrations = {
-            "icp": partial(_ours, method="point_to_point"),
-            "gicp": partial(_ours, method="gicp"),
-            "open3d_icp": _open3d,
-            "small_gicp": _small_gicp,
-        }
         registers = {}
         for name, make in registrations.items():
-            try:
+            with contextlib.suppress(ImportError):  # a peer that does not import has no figures
                 registers[name] = make(*clouds)
-            except ImportError:
-                continue
         for name, (transform, times) in alternating_times_ms(registers, repeats).items():
             figures[f"{name}_{pair}_ms"] = statistics.median(times)
             translation, rotation = transform_error(transform, truth)
