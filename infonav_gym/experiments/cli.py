@@ -312,7 +312,9 @@ def build_parser() -> argparse.ArgumentParser:
     mrclam.add_argument(
         "--seeds", type=integer(1, MAX_SEEDS), default=1, help="random-policy runs per budget from --seed on"
     )
-    mrclam.add_argument("--cooperative", action="store_true", help="one joint EKF of the team, with robot-to-robot observations")
+    mrclam.add_argument(
+        "--cooperative", action="store_true", help="one joint EKF of the team, with robot-to-robot observations"
+    )
     mrclam.add_argument(
         "--outage-robot", type=integer(1, MAX_ROBOT), help="also run the outage experiment for this robot (subject #)"
     )
@@ -359,12 +361,13 @@ def _plot_file(plot: Path | None) -> Path | None:
 
 
 def _demo(args, command: str) -> dict:
-    from infonav_gym.experiments.demo import demo_table, plot_information_field, run_demo
+    from infonav_gym.experiments.demo import demo_table, figure_information_field, run_demo
+    from infonav_gym.rendering import save_figure
 
     plot = _plot_file(args.plot)
     result = run_demo(steps=args.steps, seed=args.seed, progress=not args.json)
     if plot:
-        result["plot"] = str(plot_information_field(plot, seed=args.seed))
+        result["plot"] = str(save_figure(figure_information_field(args.seed), plot, dpi=120, bbox_inches="tight"))
     return _show(args, result, lambda: [demo_table(result)] + ([f"\nwrote {result['plot']}"] if plot else []))
 
 
@@ -462,8 +465,8 @@ def _evaluate(args, command: str) -> dict:
 
 def _render(args, command: str) -> dict:
     """Render one episode into ``args.output`` .gif and .png; print what was written unless --json."""
-    from infonav_gym.experiments.render_episode import render_episode, write_gif, write_strip
-    from infonav_gym.rendering import require_extra
+    from infonav_gym.experiments.render_episode import STRIP_DPI, figure_strip, render_episode, write_gif
+    from infonav_gym.rendering import require_extra, save_figure
 
     if "," in args.agents:
         raise ValueError(f"--agents takes one agent to render, got {args.agents!r}")
@@ -480,7 +483,7 @@ def _render(args, command: str) -> dict:
     def write():
         stem.parent.mkdir(parents=True, exist_ok=True)
         gif, png = (output_file(stem, suffix) for suffix in RENDER_SUFFIXES)
-        return [write_gif(episode, gif), write_strip(episode, png, title)]
+        return [write_gif(episode, gif), save_figure(figure_strip(episode, title), png, dpi=STRIP_DPI)]
 
     def lines():
         yield f"{title}: {steps} steps, {len(episode.steps)} frames (every {args.every})"
