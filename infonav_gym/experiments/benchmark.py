@@ -75,9 +75,8 @@ GOALS = {
 PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
 PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND = 8192  # the same for the 64-copy vector envs: two 4096-step rollouts
 MAX_STEPS_BETWEEN_CLOCK_READS = 100  # reached by doubling from 1, so a slow env's round ends near its deadline
-CURVE_FIGURE = re.compile(
-    r"^(?P<curve>.+)_(?P<size>\d+)_steps_per_s$"
-)  # e.g. landmark_selection_vector_256_steps_per_s
+# e.g. landmark_selection_vector_256_steps_per_s
+CURVE_FIGURE = re.compile(r"^(?P<curve>.+)_(?P<size>\d+)_steps_per_s$")
 SINGLE_CARTPOLE_FIGURE = "cartpole_steps_per_s"
 
 

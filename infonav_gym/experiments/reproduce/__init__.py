@@ -14,11 +14,8 @@ FIGURES = {module.__name__.rpartition(".")[2]: module for module in (fig3, fig5,
 
 def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progress: bool = True, command: str = ""):
     """Run ``figure`` (one of ``FIGURES``), write ``output_dir/FIGURE.png`` and ``FIGURE.json``; return its content.
-
-    Raises:
-        ValueError: for ``n_seeds < 1``, or an ``output_dir`` that cannot be a writable directory.
-        OutputWriteError: when a file cannot be written, carrying the result (and the files written).
-    """
+    ``ValueError`` for ``n_seeds < 1`` or an unwritable ``output_dir``; ``OutputWriteError`` (carrying the result and
+    the files written) when a file cannot be written."""
     paper_figure = FIGURES[figure]
     if n_seeds < 1:
         raise ValueError(f"n_seeds ({paper_figure.SEEDS_COUNT}) must be >= 1, got {n_seeds}")
