@@ -699,8 +699,7 @@ def _calibrate(args, command: str) -> dict:
     from infonav_gym.experiments.replay.calibration import calibrate
     from infonav_gym.experiments.replay.plots import plot_calibration
 
-    ignored = _replay_options_given(args)
-    if ignored:
+    if ignored := _replay_options_given(args):
         them = "it" if len(ignored) == 1 else "them"
         raise ValueError(f"--calibrate only fits the noise model: {', '.join(ignored)} would be ignored; drop {them}")
     stem = check_output_stem(args.calibrate, CALIBRATION_SUFFIXES, "--calibrate")

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from agents import GreedyEntropyAgent
+from agents import Agent, GreedyEntropyAgent
 from infonav_gym.experiments.episodes import parallel_episode_infos
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.team import DEFAULT_OUTAGE
@@ -38,11 +38,8 @@ def position_std_m(pose_std) -> float:
     return math.hypot(pose_std[0], pose_std[1])
 
 
-class _DeadReckoning:
+class _DeadReckoning(Agent):
     """Never observes a teammate."""
-
-    def reset(self, seed: int | None = None) -> None:
-        """Nothing to reset."""
 
     def act(self, observation, info: dict) -> int:
         return NO_OBSERVATION

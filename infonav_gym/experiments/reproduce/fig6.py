@@ -168,8 +168,7 @@ def figure_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict):
     """Fig. 6: rows = top and side views, columns = before (odometry) and after (ICP) registration; the older frame in
     gray, the newer coloured by its point-to-plane residual to the older (misregistration shows warm).
     """
-    target = sensor_points(pair.previous)
-    source = sensor_points(pair.current)
+    target, source = sensor_points(pair.previous), sensor_points(pair.current)
     tree = cKDTree(target)
     normals = estimate_normals(target, tree)
     placements = (
