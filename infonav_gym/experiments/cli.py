@@ -387,9 +387,11 @@ def _show(args, result: dict, lines, write=None, where: str = "") -> dict:
     return result
 
 
-def _check_address(args) -> None:
+def _how_played(args) -> dict:
+    """The keywords of ``evaluate`` and ``leaderboard`` saying how episodes are played, once --address is checked."""
     if args.address and not args.ray:
         raise ValueError("--address is the Ray cluster of --ray; add --ray or drop --address")
+    return {"progress": not args.json, "workers": args.workers, "use_ray": args.ray, "address": args.address}
 
 
 def _leaderboard(args, command: str) -> dict:
@@ -397,23 +399,13 @@ def _leaderboard(args, command: str) -> dict:
     from infonav_gym.experiments.leaderboard import heading, leaderboard, markdown_tables, write_leaderboard
 
     stem = check_output_stem(args.output, LEADERBOARD_SUFFIXES, "--output")
-    _check_address(args)
+    how = _how_played(args)
     if args.models and not args.models.is_dir():
         raise ValueError(f"--models {args.models}: not a directory (the committed models, one directory each)")
     models = args.models or (DEFAULT_MODELS if DEFAULT_MODELS.is_dir() else None)
     interruption = None
     try:
-        results = leaderboard(
-            args.envs,
-            args.agents,
-            models,
-            args.episodes,
-            args.seed,
-            progress=not args.json,
-            workers=args.workers,
-            use_ray=args.ray,
-            address=args.address,
-        )
+        results = leaderboard(args.envs, args.agents, models, args.episodes, args.seed, **how)
     except Interrupted as error:  # the finished rows are written and printed as a whole leaderboard's
         results, interruption = error.result, error
         if not results["rows"]:
@@ -433,19 +425,9 @@ def _evaluate(args, command: str) -> dict:
     from infonav_gym.experiments.evaluation_files import config_line, heading, markdown_table, write_results
 
     stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
-    _check_address(args)
+    how = _how_played(args)
     try:
-        results = evaluate(
-            args.env,
-            args.agents,
-            args.episodes,
-            args.seed,
-            dict(args.config),
-            progress=not args.json,
-            workers=args.workers,
-            use_ray=args.ray,
-            address=args.address,
-        )
+        results = evaluate(args.env, args.agents, args.episodes, args.seed, dict(args.config), **how)
         interruption = None
     except Interrupted as error:  # the episodes finished so far are written and printed as a whole evaluation's
         results, interruption = error.result, error
