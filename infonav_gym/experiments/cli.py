@@ -538,19 +538,17 @@ def _train(args, command: str) -> dict:
         planner_workers = checked_workers(planner_workers, args.init_from_planner, 0, "the planner's episodes")
     name = f"{args.env.rsplit('/', 1)[-1]}{'_rllib' if rllib else ''}_seed{args.seed}"
     output = check_output_dir(args.output or Path("models") / name, "--output")
-    env_kwargs, progress = dict(args.config), not args.json
-    references = _curve_references(args.env, env_kwargs)
+    env_kwargs = dict(args.config)
+    shared = {"seed": args.seed, "env_kwargs": env_kwargs, "progress": not args.json}  # both backends take them
+    shared["curve_references"] = _curve_references(args.env, env_kwargs)
     if rllib:
         options = {key: getattr(args, key) for key in ("num_env_runners", "envs_per_runner", "policies", "address")}
         record = train_rllib(
             args.env,
             args.timesteps,
             output,
-            seed=args.seed,
-            env_kwargs=env_kwargs,
+            **shared,
             hyperparameters=load_hyperparameters(args.env, args.hyperparams),
-            progress=progress,
-            curve_references=references,
             **{key: value for key, value in options.items() if value is not None},  # else train_rllib's defaults
         )
         copies = f"{record['num_env_runners']} env runners x {record['envs_per_runner']} envs"
@@ -559,15 +557,12 @@ def _train(args, command: str) -> dict:
         model_path = train(
             args.env,
             args.timesteps,
-            seed=args.seed,
+            **shared,
             n_envs=args.n_envs,
             output_dir=output,
             hyperparameters=load_hyperparameters(args.env, args.hyperparams) if args.hyperparams else None,
-            progress=progress,
             tensorboard=args.tensorboard,
             vectorization=args.vectorization,
-            env_kwargs=env_kwargs,
-            curve_references=references,
             init_from_planner=args.init_from_planner,
             planner_workers=planner_workers,
             validation_episodes=args.eval_episodes or 0,
