@@ -1,9 +1,6 @@
-"""Speed goals, measured as ratios against a reference run in the same process (rounds alternate; median ratios).
-
-Env steps against CartPole-v1; vector envs, sensors, ICP, PPO, parallel evaluation and start-up in the
-``*_timing`` modules. Figures named ``*_us``, ``*_ms``, ``*_kb_per_env``, ``*_time_ratio`` or ``*_start_s`` meet
-their goal at or below it, all others at or above; a goal not measured (a peer or Ray absent) is met ``None``.
-"""
+"""Speed goals as ratios against a reference run in the same process (rounds alternate; median ratios): env steps
+against CartPole-v1 here; vector envs, sensors, ICP, PPO, parallel evaluation and start-up in the ``*_timing``
+modules. A goal is a maximum where ``lower_is_better``; one not measured (a peer or Ray absent) is met ``None``."""
 
 from __future__ import annotations
 

@@ -37,8 +37,7 @@ class SameStepCartPoleVectorEnv(CartPoleVectorEnv):
 
 def _round_settings(timesteps_per_round: int, n_envs: int, n_steps: int | None = None) -> tuple[dict, int]:
     """The LandmarkSelection-v0 hyperparameters for rounds of about ``timesteps_per_round``, and the round's timesteps;
-    ``n_steps`` (``None``: the block's) shrinks so a quick run still does whole rollout + update cycles.
-    """
+    ``n_steps`` (``None``: the block's) shrinks so a quick run still does whole rollout + update cycles."""
     from agents.ppo import load_hyperparameters
 
     hyperparameters = load_hyperparameters(LANDMARK_ID)

@@ -1,10 +1,7 @@
 """Registration recall on ``terrain_frame_pair`` pairs: which registration frame pairs use, and control points by it.
-
-Recall (pairs within ``fig6.RECALL_THRESHOLDS_M``) and median error over ``SEED_SETS``: every candidate with all
-returns (``FRAME_PAIR_ICP`` is the best by lowest, then mean recall, then median), then every selector at each of
-``BUDGETS`` with it. Times cover selection and ICP (each selector run once untimed first, the frames' GICP
-covariances timed apart); a budget above the returns with a surface normal gives every selector that many.
-"""
+Recall (within ``fig6.RECALL_THRESHOLDS_M``) and median error over ``SEED_SETS`` of every candidate with all returns
+(``best_candidate``), then of every selector at each of ``BUDGETS`` with ``FRAME_PAIR_ICP``; times cover selection
+and ICP (the frames' GICP covariances timed apart), each selector run once untimed first."""
 
 from __future__ import annotations
 
@@ -103,8 +100,8 @@ def timed_registration(registration: PairRegistration, select=lambda: None) -> d
 
 def pair_runs(seed: int, budgets) -> dict:
     """Every timed registration of ``seed``'s pair: ``{"frame_covariances_s", "all": run, "capped": labels, label:
-    {selector: run}}``; ``capped``: the budgets asking for more points than returns with a surface normal.
-    """
+    {selector: run}}``; ``capped``: the budgets asking for more points than returns with a surface normal (every
+    selector then gets that many)."""
     pair = terrain_frame_pair(np.random.default_rng(seed))
     registration = PairRegistration(pair)
     start = time.perf_counter()

@@ -1,9 +1,7 @@
-"""ICP time and accuracy on LADAR frame pairs, ours against small_gicp's and, when it imports, Open3D's.
-
-Two ``scan``s of a rough terrain (``PAIR_LADARS``: ~5k and ~40k points) 1 m apart, the true motion known, every
+"""ICP time and accuracy on LADAR frame pairs, ours against small_gicp's and, when it imports, Open3D's: two
+``scan``s of a rough terrain (``PAIR_LADARS``: ~5k and ~40k points) 1 m apart, the true motion known, every
 registration from the same perturbed warm start, correspondence distance and iteration cap; small_gicp's
-preprocessing timed as ours. ``*_time_ratio``: our median time over the peer's, timed in turn round by round.
-"""
+preprocessing timed as ours. ``*_time_ratio``: our median time over the peer's, timed in turn round by round."""
 
 from __future__ import annotations
 
@@ -127,8 +125,7 @@ def alternating_times_ms(calls: dict, repeats: int) -> dict[str, tuple[object, l
 def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
     """ICP figures on each pair of ``PAIR_LADARS``: ``icp_<pair>_ms`` / ``gicp_<pair>_ms``, their rotation and
     translation errors, ``icp_<pair>_points``, and with a peer its ``open3d_*`` / ``small_gicp_*`` figures and the
-    ``*_time_ratio``; ``seconds_per_round`` scales the repeats on the frame pair.
-    """
+    ``*_time_ratio``; ``seconds_per_round`` scales the repeats on the frame pair."""
     registrations = {
         "icp": partial(_ours, method="point_to_point"),
         "gicp": partial(_ours, method="gicp"),
