@@ -36,8 +36,7 @@ def candidates() -> dict[str, dict]:
         table[method] = {"method": method, "max_correspondence_distance": 1.0}
         for kernel, factor in KERNEL_EFFICIENCY_SCALES.items():
             scale = round(factor * residual_std_m, 3)
-            robust = {"robust_kernel": kernel, "kernel_scale": scale}
-            table[f"{method} + {kernel} {scale:g} m"] = {**table[method], **robust}
+            table[f"{method} + {kernel} {scale:g} m"] = table[method] | {"robust_kernel": kernel, "kernel_scale": scale}
     return table
 
 

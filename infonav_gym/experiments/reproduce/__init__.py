@@ -29,8 +29,7 @@ def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progres
     result = {"command": command, **figures, "files": []}
     try:
         plot(png)
-        result["files"].append(str(png))
-        result["files"].append(str(json_path))
+        result["files"] += [str(png), str(json_path)]  # the JSON lists itself
         json_path.write_text(json.dumps(result, indent=1) + "\n")
     except OSError as error:
         result["files"] = result["files"][:1]
