@@ -93,7 +93,7 @@ def _small_gicp(source, target, truth, warm_start):
         trees = [small_gicp.KdTree(cloud, num_threads=1) for cloud in clouds]
         for cloud, tree in zip(clouds, trees):
             small_gicp.estimate_covariances(cloud, tree, num_neighbors=GICP_NEIGHBOURS, num_threads=1)
-        result = small_gicp.align(
+        return small_gicp.align(
             clouds[1],
             clouds[0],
             trees[1],
@@ -104,8 +104,7 @@ def _small_gicp(source, target, truth, warm_start):
             max_iterations=MAX_ITERATIONS,
             rotation_epsilon=TOLERANCE,
             translation_epsilon=TOLERANCE,
-        )
-        return result.T_target_source
+        ).T_target_source
 
     return register
 
