@@ -667,8 +667,7 @@ def _replay_options_given(args) -> list[str]:
     """The options of ``replay mrclam`` that ``args`` sets to other than their defaults, e.g. ``["--policy"]``."""
     defaults = vars(build_parser().parse_args(["replay", "mrclam", str(args.dataset_dir)]))
     shared = ("command", "source", "dataset_dir", "calibrate", "json")
-    given = [key for key, value in vars(args).items() if key not in shared and value != defaults[key]]
-    return ["--" + key.replace("_", "-") for key in given]
+    return [_flag(key) for key, value in vars(args).items() if key not in shared and value != defaults[key]]
 
 
 def _calibrate(args, command: str) -> dict:
