@@ -64,8 +64,4 @@ def names(text: str) -> list[str]:
 
 def comma_separated(element):
     """A type function for comma-separated values, each checked by the type function ``element``."""
-
-    def parse(text: str) -> list:
-        return [element(part) for part in text.split(",")]
-
-    return parse
+    return lambda text: [element(part) for part in text.split(",")]

@@ -1,9 +1,6 @@
-"""Speed goals, measured as ratios against a reference run in the same process (rounds alternate; median ratios).
-
-Env steps against CartPole-v1; vector envs, sensors, ICP, PPO, parallel evaluation and start-up in the
-``*_timing`` modules. Figures named ``*_us``, ``*_ms``, ``*_kb_per_env``, ``*_time_ratio`` or ``*_start_s`` meet
-their goal at or below it, all others at or above; a goal not measured (a peer or Ray absent) is met ``None``.
-"""
+"""Speed goals as ratios against a reference run in the same process (rounds alternate; median ratios): env steps
+against CartPole-v1 here; vector envs, sensors, ICP, PPO, parallel evaluation and start-up in the ``*_timing``
+modules. A goal is a maximum where ``lower_is_better``; one not measured (a peer or Ray absent) is met ``None``."""
 
 from __future__ import annotations
 
@@ -75,9 +72,8 @@ GOALS = {
 PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
 PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND = 8192  # the same for the 64-copy vector envs: two 4096-step rollouts
 MAX_STEPS_BETWEEN_CLOCK_READS = 100  # reached by doubling from 1, so a slow env's round ends near its deadline
-CURVE_FIGURE = re.compile(
-    r"^(?P<curve>.+)_(?P<size>\d+)_steps_per_s$"
-)  # e.g. landmark_selection_vector_256_steps_per_s
+# e.g. landmark_selection_vector_256_steps_per_s
+CURVE_FIGURE = re.compile(r"^(?P<curve>.+)_(?P<size>\d+)_steps_per_s$")
 SINGLE_CARTPOLE_FIGURE = "cartpole_steps_per_s"
 
 
@@ -232,8 +228,7 @@ def greedy_decision_us(n_candidates: int = 16, seed: int = 0, repeats: int = 200
         "action_information_gain": rng.random(n_candidates),
     }
     agent = GreedyEntropyAgent()
-    best = min(timeit.repeat(lambda: agent.act(None, info), number=repeats, repeat=5))
-    return best / repeats * 1e6
+    return min(timeit.repeat(lambda: agent.act(None, info), number=repeats, repeat=5)) / repeats * 1e6
 
 
 def _ppo_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
@@ -259,13 +254,12 @@ def run_benchmark(
     """Measure every speed goal: the figures, whether each goal is met and ``notes`` on what is absent, JSON-ready."""
     vector_sizes = check_vector_sizes(vector_sizes)
     figures = env_step_figures(None, rounds, seconds_per_round, seed, progress, vector_sizes)
-    memory_seconds = MEMORY_SECONDS * min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens them
-    figures.update(memory_figures(max(vector_sizes), seed=seed, seconds=memory_seconds))
+    scale = min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens the memory, evaluation and RLlib runs
+    figures.update(memory_figures(max(vector_sizes), seed=seed, seconds=MEMORY_SECONDS * scale))
     figures["greedy_decision_us"] = greedy_decision_us()
     figures.update(sensor_figures(seconds_per_round, seed))
     figures.update(icp_figures(seconds_per_round, seed))
     figures.update(_ppo_figures(rounds, seconds_per_round, seed))
-    scale = min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens these too
     figures.update(evaluation_workers_figures(min(rounds, 3), seed, max(2, round(EVALUATION_EPISODES * scale))))
     figures.update(rllib_runner_figures(seed, max(100, round(RLLIB_SAMPLE_STEPS * scale))))
     figures.update(startup_figures(benchmarked_env_ids()))
@@ -290,8 +284,7 @@ def throughput_curves(figures: dict) -> dict[str, dict[int, float]]:
     """``{curve: {N: env-steps/s}}`` of every ``CURVE_N_steps_per_s`` figure (vector envs, CartPoleVectorEnv, VMAS)."""
     curves: dict[str, dict[int, float]] = {}
     for name, value in figures.items():
-        match = CURVE_FIGURE.match(name)
-        if match:
+        if match := CURVE_FIGURE.match(name):
             curves.setdefault(match["curve"], {})[int(match["size"])] = value
     return curves
 

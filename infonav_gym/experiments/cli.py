@@ -312,7 +312,9 @@ def build_parser() -> argparse.ArgumentParser:
     mrclam.add_argument(
         "--seeds", type=integer(1, MAX_SEEDS), default=1, help="random-policy runs per budget from --seed on"
     )
-    mrclam.add_argument("--cooperative", action="store_true", help="one joint EKF of the team, with robot-to-robot observations")
+    mrclam.add_argument(
+        "--cooperative", action="store_true", help="one joint EKF of the team, with robot-to-robot observations"
+    )
     mrclam.add_argument(
         "--outage-robot", type=integer(1, MAX_ROBOT), help="also run the outage experiment for this robot (subject #)"
     )
@@ -359,12 +361,13 @@ def _plot_file(plot: Path | None) -> Path | None:
 
 
 def _demo(args, command: str) -> dict:
-    from infonav_gym.experiments.demo import demo_table, plot_information_field, run_demo
+    from infonav_gym.experiments.demo import demo_table, figure_information_field, run_demo
+    from infonav_gym.rendering import save_figure
 
     plot = _plot_file(args.plot)
     result = run_demo(steps=args.steps, seed=args.seed, progress=not args.json)
     if plot:
-        result["plot"] = str(plot_information_field(plot, seed=args.seed))
+        result["plot"] = str(save_figure(figure_information_field(args.seed), plot, dpi=120, bbox_inches="tight"))
     return _show(args, result, lambda: [demo_table(result)] + ([f"\nwrote {result['plot']}"] if plot else []))
 
 
@@ -384,9 +387,11 @@ def _show(args, result: dict, lines, write=None, where: str = "") -> dict:
     return result
 
 
-def _check_address(args) -> None:
+def _how_played(args) -> dict:
+    """The keywords of ``evaluate`` and ``leaderboard`` saying how episodes are played, once --address is checked."""
     if args.address and not args.ray:
         raise ValueError("--address is the Ray cluster of --ray; add --ray or drop --address")
+    return {"progress": not args.json, "workers": args.workers, "use_ray": args.ray, "address": args.address}
 
 
 def _leaderboard(args, command: str) -> dict:
@@ -394,23 +399,13 @@ def _leaderboard(args, command: str) -> dict:
     from infonav_gym.experiments.leaderboard import heading, leaderboard, markdown_tables, write_leaderboard
 
     stem = check_output_stem(args.output, LEADERBOARD_SUFFIXES, "--output")
-    _check_address(args)
+    how = _how_played(args)
     if args.models and not args.models.is_dir():
         raise ValueError(f"--models {args.models}: not a directory (the committed models, one directory each)")
     models = args.models or (DEFAULT_MODELS if DEFAULT_MODELS.is_dir() else None)
     interruption = None
     try:
-        results = leaderboard(
-            args.envs,
-            args.agents,
-            models,
-            args.episodes,
-            args.seed,
-            progress=not args.json,
-            workers=args.workers,
-            use_ray=args.ray,
-            address=args.address,
-        )
+        results = leaderboard(args.envs, args.agents, models, args.episodes, args.seed, **how)
     except Interrupted as error:  # the finished rows are written and printed as a whole leaderboard's
         results, interruption = error.result, error
         if not results["rows"]:
@@ -430,19 +425,9 @@ def _evaluate(args, command: str) -> dict:
     from infonav_gym.experiments.evaluation_files import config_line, heading, markdown_table, write_results
 
     stem = check_output_stem(args.output, EVALUATION_SUFFIXES, "--output") if args.output else None
-    _check_address(args)
+    how = _how_played(args)
     try:
-        results = evaluate(
-            args.env,
-            args.agents,
-            args.episodes,
-            args.seed,
-            dict(args.config),
-            progress=not args.json,
-            workers=args.workers,
-            use_ray=args.ray,
-            address=args.address,
-        )
+        results = evaluate(args.env, args.agents, args.episodes, args.seed, dict(args.config), **how)
         interruption = None
     except Interrupted as error:  # the episodes finished so far are written and printed as a whole evaluation's
         results, interruption = error.result, error
@@ -462,8 +447,8 @@ def _evaluate(args, command: str) -> dict:
 
 def _render(args, command: str) -> dict:
     """Render one episode into ``args.output`` .gif and .png; print what was written unless --json."""
-    from infonav_gym.experiments.render_episode import render_episode, write_gif, write_strip
-    from infonav_gym.rendering import require_extra
+    from infonav_gym.experiments.render_episode import STRIP_DPI, figure_strip, render_episode, write_gif
+    from infonav_gym.rendering import require_extra, save_figure
 
     if "," in args.agents:
         raise ValueError(f"--agents takes one agent to render, got {args.agents!r}")
@@ -480,7 +465,7 @@ def _render(args, command: str) -> dict:
     def write():
         stem.parent.mkdir(parents=True, exist_ok=True)
         gif, png = (output_file(stem, suffix) for suffix in RENDER_SUFFIXES)
-        return [write_gif(episode, gif), write_strip(episode, png, title)]
+        return [write_gif(episode, gif), save_figure(figure_strip(episode, title), png, dpi=STRIP_DPI)]
 
     def lines():
         yield f"{title}: {steps} steps, {len(episode.steps)} frames (every {args.every})"
@@ -553,19 +538,17 @@ def _train(args, command: str) -> dict:
         planner_workers = checked_workers(planner_workers, args.init_from_planner, 0, "the planner's episodes")
     name = f"{args.env.rsplit('/', 1)[-1]}{'_rllib' if rllib else ''}_seed{args.seed}"
     output = check_output_dir(args.output or Path("models") / name, "--output")
-    env_kwargs, progress = dict(args.config), not args.json
-    references = _curve_references(args.env, env_kwargs)
+    env_kwargs = dict(args.config)
+    shared = {"seed": args.seed, "env_kwargs": env_kwargs, "progress": not args.json}  # both backends take them
+    shared["curve_references"] = _curve_references(args.env, env_kwargs)
     if rllib:
         options = {key: getattr(args, key) for key in ("num_env_runners", "envs_per_runner", "policies", "address")}
         record = train_rllib(
             args.env,
             args.timesteps,
             output,
-            seed=args.seed,
-            env_kwargs=env_kwargs,
+            **shared,
             hyperparameters=load_hyperparameters(args.env, args.hyperparams),
-            progress=progress,
-            curve_references=references,
             **{key: value for key, value in options.items() if value is not None},  # else train_rllib's defaults
         )
         copies = f"{record['num_env_runners']} env runners x {record['envs_per_runner']} envs"
@@ -574,15 +557,12 @@ def _train(args, command: str) -> dict:
         model_path = train(
             args.env,
             args.timesteps,
-            seed=args.seed,
+            **shared,
             n_envs=args.n_envs,
             output_dir=output,
             hyperparameters=load_hyperparameters(args.env, args.hyperparams) if args.hyperparams else None,
-            progress=progress,
             tensorboard=args.tensorboard,
             vectorization=args.vectorization,
-            env_kwargs=env_kwargs,
-            curve_references=references,
             init_from_planner=args.init_from_planner,
             planner_workers=planner_workers,
             validation_episodes=args.eval_episodes or 0,
@@ -687,8 +667,7 @@ def _replay_options_given(args) -> list[str]:
     """The options of ``replay mrclam`` that ``args`` sets to other than their defaults, e.g. ``["--policy"]``."""
     defaults = vars(build_parser().parse_args(["replay", "mrclam", str(args.dataset_dir)]))
     shared = ("command", "source", "dataset_dir", "calibrate", "json")
-    given = [key for key, value in vars(args).items() if key not in shared and value != defaults[key]]
-    return ["--" + key.replace("_", "-") for key in given]
+    return [_flag(key) for key, value in vars(args).items() if key not in shared and value != defaults[key]]
 
 
 def _calibrate(args, command: str) -> dict:
@@ -696,8 +675,7 @@ def _calibrate(args, command: str) -> dict:
     from infonav_gym.experiments.replay.calibration import calibrate
     from infonav_gym.experiments.replay.plots import plot_calibration
 
-    ignored = _replay_options_given(args)
-    if ignored:
+    if ignored := _replay_options_given(args):
         them = "it" if len(ignored) == 1 else "them"
         raise ValueError(f"--calibrate only fits the noise model: {', '.join(ignored)} would be ignored; drop {them}")
     stem = check_output_stem(args.calibrate, CALIBRATION_SUFFIXES, "--calibrate")

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
@@ -68,13 +66,6 @@ def demo_table(demo: dict) -> str:
         lines.append(f"total information gathered: {total:.3f} nats")
         blocks.append("\n".join(lines))
     return "\n\n".join(blocks)
-
-
-def plot_information_field(path: Path, seed: int = 0, resolution: int = 80) -> Path:
-    """Write ``figure_information_field(seed, resolution)`` to ``path``."""
-    from infonav_gym.rendering import save_figure
-
-    return save_figure(figure_information_field(seed, resolution), path, dpi=120, bbox_inches="tight")
 
 
 def figure_information_field(seed: int = 0, resolution: int = 80):

@@ -1,8 +1,6 @@
 """Evaluation episodes played by one process, a pool of worker processes, or Ray tasks, with the same results.
-
 Workers build their ``EpisodeRunner`` once; they are forked while torch is not imported (else from a preloaded
-fork server, else spawned), get tasks as they need them and ignore Ctrl-C: the parent kills them.
-"""
+fork server, else spawned), get tasks as they need them and ignore Ctrl-C: the parent kills them."""
 
 from __future__ import annotations
 
@@ -81,9 +79,8 @@ def seeds_of(seed: int, episodes: int) -> range:
 
 
 def checked_workers(workers: int, tasks: int, records: int, what: str) -> int:
-    """``workers`` capped at the ``tasks`` to play (said on stderr), checking the run's memory (``records`` episode
-    records, the worker processes) against the available memory; ``what`` names the records in the error.
-    """
+    """``workers`` capped at the ``tasks`` to play (said on stderr), once the run's memory (``records`` episode
+    records, the worker processes) is checked against the available memory; ``what`` names the records."""
     capped = min(check_positive(workers, "workers"), tasks)
     check_memory(records * RECORD_BYTES + (capped if capped > 1 else 0) * WORKER_BYTES, f"{what} on {capped} worker(s)")
     if capped < workers:

@@ -69,8 +69,7 @@ def figure_results(results: dict):
     width = max(3.2, len(names) * (TICK_CHARACTER_IN * widest + 0.3))  # [in] per panel: room for every agent's name
     columns = min(len(metrics), PANELS_PER_ROW)
     rows = -(-len(metrics) // columns)
-    figsize = (width * columns + 1, 4.2 * rows)
-    figure = matplotlib_figure("the evaluation plot", figsize=figsize, layout="constrained")
+    figure = matplotlib_figure("the evaluation plot", figsize=(width * columns + 1, 4.2 * rows), layout="constrained")
     axes = figure.subplots(rows, columns, squeeze=False).ravel()
     for unused in axes[len(metrics) :]:
         unused.set_visible(False)

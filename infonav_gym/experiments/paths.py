@@ -23,34 +23,22 @@ class Interrupted(KeptWork, KeyboardInterrupt):
     """Ctrl-C stopped the work; ``result`` holds what was finished (``"interrupted": True``)."""
 
 
-def _directory_problem(directory: Path) -> str | None:
-    """Why ``directory`` cannot be, or be created as, a writable directory; None if it can."""
+def _check_directory(directory: Path, where: str) -> None:
+    """``ValueError`` starting ``where:`` unless ``directory`` is, or can be created as, a writable directory."""
     existing = next((path for path in (directory, *directory.parents) if path.exists()), Path("."))
     if not existing.is_dir():
-        return f"{existing} is a file, not a directory"
+        raise ValueError(f"{where}: {existing} is a file, not a directory")
     try:  # a real write, not os.access: root passes os.access where the file system refuses (read-only, /proc)
         tempfile.TemporaryFile(dir=existing).close()  # unnamed or removed at once: nothing stays
     except OSError as error:
         action = f"write to {existing}" if existing == directory else f"create {directory} in {existing}"
-        return f"cannot {action} ({error.strerror or error})"
-    return None
-
-
-def _file_problem(path: Path) -> str | None:
-    """Why the existing file ``path`` cannot be overwritten; None if it can (opened to append, nothing written)."""
-    try:
-        path.open("ab").close()
-    except OSError as error:
-        return f"cannot overwrite {path} ({error.strerror or error})"
-    return None
+        raise ValueError(f"{where}: cannot {action} ({error.strerror or error})") from None
 
 
 def check_output_dir(directory: Path | str, where: str) -> Path:
     """``directory``, once seen to be, or creatable as, a writable directory (else ``ValueError`` naming ``where``)."""
     directory = Path(directory)
-    problem = _directory_problem(directory)
-    if problem:
-        raise ValueError(f"{where} {directory}: {problem}")
+    _check_directory(directory, f"{where} {directory}")
     return directory
 
 
@@ -67,16 +55,16 @@ def check_output_stem(stem: Path | str, suffixes: tuple[str, ...], where: str) -
         stem = stem.with_suffix("")
     if stem.is_dir():
         raise ValueError(f"{where} {stem} is a directory: give a file stem, e.g. {stem / 'results'}")
-    problem = _directory_problem(stem.parent)
-    if problem:
-        raise ValueError(f"{where} {stem}: {problem}")
+    _check_directory(stem.parent, f"{where} {stem}")
     for suffix in suffixes:
         path = output_file(stem, suffix)
         if path.is_dir():
             raise ValueError(f"{where} {stem}: {path} is a directory, not a file")
-        problem = _file_problem(path) if path.exists() else None
-        if problem:
-            raise ValueError(f"{where} {stem}: {problem}")
+        try:
+            if path.exists():
+                path.open("ab").close()  # can it be overwritten? opened to append, nothing written
+        except OSError as error:
+            raise ValueError(f"{where} {stem}: cannot overwrite {path} ({error.strerror or error})") from None
     return stem
 
 

@@ -37,8 +37,7 @@ class SameStepCartPoleVectorEnv(CartPoleVectorEnv):
 
 def _round_settings(timesteps_per_round: int, n_envs: int, n_steps: int | None = None) -> tuple[dict, int]:
     """The LandmarkSelection-v0 hyperparameters for rounds of about ``timesteps_per_round``, and the round's timesteps;
-    ``n_steps`` (``None``: the block's) shrinks so a quick run still does whole rollout + update cycles.
-    """
+    ``n_steps`` (``None``: the block's) shrinks so a quick run still does whole rollout + update cycles."""
     from agents.ppo import load_hyperparameters
 
     hyperparameters = load_hyperparameters(LANDMARK_ID)
@@ -95,33 +94,14 @@ def ppo_fps_figures(timesteps_per_round: int = 2048, rounds: int = 3, seed: int 
     return _fps_figures("", make_vec_envs, hyperparameters, seed, timesteps, rounds)
 
 
-def landmark_vector_vec_env(n_envs: int, seed: int, vectorization: str = "native"):
-    """The LandmarkSelection copies of ``ppo_vector_fps_figures`` as an SB3 ``VecEnv``: its native vector env, or
-    (``sync``) Gymnasium's SAME_STEP ``SyncVectorEnv``; sub-env ``i`` seeded ``seed + i``."""
-    import gymnasium as gym
-
-    from agents.ppo import NATIVE, SYNC, native_vec_env
-    from agents.vector_adapter import monitored_vec_env
-
-    if vectorization == NATIVE:
-        return native_vec_env(LANDMARK_ID, n_envs, seed)
-    if vectorization != SYNC:
-        raise ValueError(f"vectorization of the PPO vector benchmark must be native or sync, got {vectorization!r}")
-    vector_kwargs = {"autoreset_mode": AutoresetMode.SAME_STEP}
-    return monitored_vec_env(
-        gym.make_vec(LANDMARK_ID, n_envs, vectorization_mode="sync", vector_kwargs=vector_kwargs), seed
-    )
-
-
-def ppo_vector_fps_figures(
-    timesteps_per_round: int = 8192, rounds: int = 3, seed: int = 0, n_envs: int = 64, vectorization: str = "native"
-) -> dict:
-    """Median PPO training timesteps/s on the LandmarkSelection and CartPole vector envs and their ratio."""
+def ppo_vector_fps_figures(timesteps_per_round: int = 8192, rounds: int = 3, seed: int = 0, n_envs: int = 64) -> dict:
+    """Median PPO training timesteps/s on the LandmarkSelection (native) and CartPole vector envs and their ratio."""
+    from agents.ppo import native_vec_env
     from agents.vector_adapter import monitored_vec_env
 
     hyperparameters, timesteps = _round_settings(timesteps_per_round, n_envs)
     make_vec_envs = {
-        LANDMARK_ID: lambda: landmark_vector_vec_env(n_envs, seed, vectorization),
+        LANDMARK_ID: lambda: native_vec_env(LANDMARK_ID, n_envs, seed),
         CARTPOLE_ID: lambda: monitored_vec_env(SameStepCartPoleVectorEnv(num_envs=n_envs), seed),
     }
     return {

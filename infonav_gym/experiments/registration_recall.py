@@ -1,10 +1,7 @@
 """Registration recall on ``terrain_frame_pair`` pairs: which registration frame pairs use, and control points by it.
-
-Recall (pairs within ``fig6.RECALL_THRESHOLDS_M``) and median error over ``SEED_SETS``: every candidate with all
-returns (``FRAME_PAIR_ICP`` is the best by lowest, then mean recall, then median), then every selector at each of
-``BUDGETS`` with it. Times cover selection and ICP (each selector run once untimed first, the frames' GICP
-covariances timed apart); a budget above the returns with a surface normal gives every selector that many.
-"""
+Recall (within ``fig6.RECALL_THRESHOLDS_M``) and median error over ``SEED_SETS`` of every candidate with all returns
+(``best_candidate``), then of every selector at each of ``BUDGETS`` with ``FRAME_PAIR_ICP``; times cover selection
+and ICP (the frames' GICP covariances timed apart), each selector run once untimed first."""
 
 from __future__ import annotations
 
@@ -39,24 +36,29 @@ def candidates() -> dict[str, dict]:
         table[method] = {"method": method, "max_correspondence_distance": 1.0}
         for kernel, factor in KERNEL_EFFICIENCY_SCALES.items():
             scale = round(factor * residual_std_m, 3)
-            robust = {"robust_kernel": kernel, "kernel_scale": scale}
-            table[f"{method} + {kernel} {scale:g} m"] = {**table[method], **robust}
+            table[f"{method} + {kernel} {scale:g} m"] = table[method] | {"robust_kernel": kernel, "kernel_scale": scale}
     return table
 
 
 def candidate_table(seed_sets=SEED_SETS, progress: bool = False) -> dict[str, list[dict]]:
     """Name -> per seed set, the ``recall_summary`` of each candidate registration with all returns."""
     settings = candidates()
-    errors = {name: [[] for _ in seed_sets] for name in settings}
-    total = sum(len(seeds) for seeds in seed_sets)
-    with tqdm(total=total, desc="registration candidates", unit="pair", disable=not progress) as bar:
-        for index, seeds in enumerate(seed_sets):
-            for seed in seeds:
-                pair = terrain_frame_pair(np.random.default_rng(seed))
-                for name, keywords in settings.items():
-                    errors[name][index].append(PairRegistration(pair, keywords)()["error_after_m"])
-                bar.update()
-    return {name: [recall_summary(values) for values in per_set] for name, per_set in errors.items()}
+
+    def pair_errors(seed: int) -> dict[str, float]:
+        pair = terrain_frame_pair(np.random.default_rng(seed))
+        return {name: PairRegistration(pair, keywords)()["error_after_m"] for name, keywords in settings.items()}
+
+    per_set = _per_set(seed_sets, pair_errors, "registration candidates", progress)
+    return {name: [recall_summary([errors[name] for errors in per_pair]) for per_pair in per_set] for name in settings}
+
+
+def _per_set(seed_sets, play, desc: str, progress: bool) -> list[list]:
+    """``play(seed)`` of every seed, a list per seed set, with a progress bar of the pairs."""
+    tasks = [(index, seed) for index, seeds in enumerate(seed_sets) for seed in seeds]
+    per_set = [[] for _ in seed_sets]
+    for index, seed in tqdm(tasks, desc=desc, unit="pair", disable=not progress):
+        per_set[index].append(play(seed))
+    return per_set
 
 
 def best_candidate(table: dict[str, list[dict]]) -> str:
@@ -88,11 +90,6 @@ def budget_label(budget: float) -> str:
     return f"{100 * budget:g}%"
 
 
-def selection_generator(seed: int) -> np.random.Generator:
-    """The generator ``"random"`` and ``"normal_space"`` draw from on ``seed``'s pair (one per selector and budget)."""
-    return np.random.default_rng((seed, SELECTION_STREAM))
-
-
 def timed_registration(registration: PairRegistration, select=lambda: None) -> dict:
     """Error [m], time [s] and points of ICP of the control points ``select()`` picks (None: all), both timed."""
     start = time.perf_counter()
@@ -102,33 +99,29 @@ def timed_registration(registration: PairRegistration, select=lambda: None) -> d
 
 def pair_runs(seed: int, budgets) -> dict:
     """Every timed registration of ``seed``'s pair: ``{"frame_covariances_s", "all": run, "capped": labels, label:
-    {selector: run}}``; ``capped``: the budgets asking for more points than returns with a surface normal.
-    """
+    {selector: run}}``; ``capped``: the budgets asking for more points than returns with a surface normal (every
+    selector then gets that many)."""
     pair = terrain_frame_pair(np.random.default_rng(seed))
     registration = PairRegistration(pair)
     start = time.perf_counter()
     registration.frame_covariances()
     runs = {"frame_covariances_s": time.perf_counter() - start, "all": timed_registration(registration), "capped": []}
-    with_normal = usable_returns(pair)
+    geometry = control_point_geometry(pair.current, pair.motion_covariance)
+    with_normal = int(np.count_nonzero(np.isfinite(geometry.error_var_m2)))  # the most the selectors needing one pick
     for budget in budgets:
         label, asked = budget_label(budget), control_point_count(budget, len(registration.source))
         if asked > with_normal:
             runs["capped"].append(label)
         k = min(asked, with_normal)
         runs[label] = {
-            selector: timed_registration(registration, _selection(pair, k, selector, selection_generator(seed)))
-            for selector in SELECTORS
+            selector: timed_registration(registration, _selection(pair, k, selector, seed)) for selector in SELECTORS
         }
     return runs
 
 
-def usable_returns(pair: FramePair) -> int:
-    """How many of the newer frame's returns have a surface normal: the most the selectors that need one can pick."""
-    geometry = control_point_geometry(pair.current, pair.motion_covariance)
-    return int(np.count_nonzero(np.isfinite(geometry.error_var_m2)))
-
-
-def _selection(pair: FramePair, k: int, selector: str, np_random: np.random.Generator):
+def _selection(pair: FramePair, k: int, selector: str, seed: int):
+    """``selector``'s pick of ``k`` points on ``pair``, to call; ``random`` and ``normal_space`` draw on ``seed``."""
+    np_random = np.random.default_rng((seed, SELECTION_STREAM))
     return lambda: select_control_points(
         pair.current, k, selector, pose_covariance=pair.motion_covariance, np_random=np_random
     )
@@ -138,7 +131,7 @@ def _load_kernels(seed: int) -> None:
     """Call every selector once on ``seed``'s pair, untimed: a compiled selector's first call loads its kernels."""
     pair = terrain_frame_pair(np.random.default_rng(seed))
     for selector in SELECTORS:
-        _selection(pair, 1, selector, selection_generator(seed))()
+        _selection(pair, 1, selector, seed)()
 
 
 def control_point_comparison(seed_sets=SEED_SETS, budgets=BUDGETS, progress: bool = False) -> dict:
@@ -146,13 +139,7 @@ def control_point_comparison(seed_sets=SEED_SETS, budgets=BUDGETS, progress: boo
     "selectors", "frame_covariances_mean_s", "all", "capped_pairs", "by_budget": {label: {selector: ...}}}``."""
     budgets = check_budgets(budgets)
     _load_kernels(seed_sets[0][0])
-    per_pair = [[] for _ in seed_sets]
-    total = sum(len(seeds) for seeds in seed_sets)
-    with tqdm(total=total, desc="control-point selectors", unit="pair", disable=not progress) as bar:
-        for index, seeds in enumerate(seed_sets):
-            for seed in seeds:
-                per_pair[index].append(pair_runs(seed, budgets))
-                bar.update()
+    per_pair = _per_set(seed_sets, lambda seed: pair_runs(seed, budgets), "control-point selectors", progress)
     labels = [budget_label(budget) for budget in budgets]
     return {
         "budgets": list(budgets),

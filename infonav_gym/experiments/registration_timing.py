@@ -1,12 +1,11 @@
-"""ICP time and accuracy on LADAR frame pairs, ours against small_gicp's and, when it imports, Open3D's.
-
-Two ``scan``s of a rough terrain (``PAIR_LADARS``: ~5k and ~40k points) 1 m apart, the true motion known, every
+"""ICP time and accuracy on LADAR frame pairs, ours against small_gicp's and, when it imports, Open3D's: two
+``scan``s of a rough terrain (``PAIR_LADARS``: ~5k and ~40k points) 1 m apart, the true motion known, every
 registration from the same perturbed warm start, correspondence distance and iteration cap; small_gicp's
-preprocessing timed as ours. ``*_time_ratio``: our median time over the peer's, timed in turn round by round.
-"""
+preprocessing timed as ours. ``*_time_ratio``: our median time over the peer's, timed in turn round by round."""
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import math
 import statistics
@@ -94,7 +93,7 @@ def _small_gicp(source, target, truth, warm_start):
         trees = [small_gicp.KdTree(cloud, num_threads=1) for cloud in clouds]
         for cloud, tree in zip(clouds, trees):
             small_gicp.estimate_covariances(cloud, tree, num_neighbors=GICP_NEIGHBOURS, num_threads=1)
-        result = small_gicp.align(
+        return small_gicp.align(
             clouds[1],
             clouds[0],
             trees[1],
@@ -105,8 +104,7 @@ def _small_gicp(source, target, truth, warm_start):
             max_iterations=MAX_ITERATIONS,
             rotation_epsilon=TOLERANCE,
             translation_epsilon=TOLERANCE,
-        )
-        return result.T_target_source
+        ).T_target_source
 
     return register
 
@@ -126,26 +124,23 @@ def alternating_times_ms(calls: dict, repeats: int) -> dict[str, tuple[object, l
 def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, float]:
     """ICP figures on each pair of ``PAIR_LADARS``: ``icp_<pair>_ms`` / ``gicp_<pair>_ms``, their rotation and
     translation errors, ``icp_<pair>_points``, and with a peer its ``open3d_*`` / ``small_gicp_*`` figures and the
-    ``*_time_ratio``; ``seconds_per_round`` scales the repeats on the frame pair.
-    """
+    ``*_time_ratio``; ``seconds_per_round`` scales the repeats on the frame pair."""
+    registrations = {
+        "icp": partial(_ours, method="point_to_point"),
+        "gicp": partial(_ours, method="gicp"),
+        "open3d_icp": _open3d,
+        "small_gicp": _small_gicp,
+    }
     figures = {}
     for pair, ladar in PAIR_LADARS.items():
         clouds = frame_pair(seed, ladar)
         source, _, truth, _ = clouds
         repeats = max(MIN_REPEATS, round(REPEATS_PER_SECOND * seconds_per_round)) if pair == "frame_pair" else 3
         figures[f"icp_{pair}_points"] = float(source.shape[0])
-        registrations = {
-            "icp": partial(_ours, method="point_to_point"),
-            "gicp": partial(_ours, method="gicp"),
-            "open3d_icp": _open3d,
-            "small_gicp": _small_gicp,
-        }
         registers = {}
         for name, make in registrations.items():
-            try:
+            with contextlib.suppress(ImportError):  # a peer that does not import has no figures
                 registers[name] = make(*clouds)
-            except ImportError:
-                continue
         for name, (transform, times) in alternating_times_ms(registers, repeats).items():
             figures[f"{name}_{pair}_ms"] = statistics.median(times)
             translation, rotation = transform_error(transform, truth)

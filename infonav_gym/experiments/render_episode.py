@@ -12,7 +12,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from infonav_gym.experiments.episode_pool import EpisodeRunner, check_positive
-from infonav_gym.rendering import matplotlib_figure, require_extra, save_figure
+from infonav_gym.rendering import matplotlib_figure, require_extra
 
 STRIP_FRAMES = 6  # frames in PREFIX.png
 STRIP_COLUMNS = 3
@@ -83,11 +83,6 @@ def write_gif(episode: RenderedEpisode, path: Path) -> Path:
 def strip_indices(n_frames: int, n_shown: int = STRIP_FRAMES) -> list[int]:
     """``n_shown`` (at most ``n_frames``) evenly spaced frame indices, the first and the last included."""
     return sorted(set(np.rint(np.linspace(0, n_frames - 1, min(n_shown, n_frames))).astype(int).tolist()))
-
-
-def write_strip(episode: RenderedEpisode, path: Path, title: str) -> Path:
-    """Write ``figure_strip(episode, title)`` to ``path`` (needs matplotlib)."""
-    return save_figure(figure_strip(episode, title), path, dpi=STRIP_DPI)
 
 
 def figure_strip(episode: RenderedEpisode, title: str):

@@ -34,11 +34,7 @@ def first_step_seconds(cache_dir: str, env_ids: list[str]) -> float:
     environment = {**os.environ, "NUMBA_CACHE_DIR": cache_dir}
     start = time.perf_counter()
     result = subprocess.run(
-        [sys.executable, "-c", FIRST_STEP_SCRIPT, *env_ids],
-        capture_output=True,
-        text=True,
-        env=environment,
-        check=False,
+        [sys.executable, "-c", FIRST_STEP_SCRIPT, *env_ids], capture_output=True, text=True, env=environment
     )
     seconds = time.perf_counter() - start
     if result.returncode != 0:

@@ -135,8 +135,9 @@ def _status_kb(field: str) -> int:
     raise ValueError(f"{PROC_STATUS} has no {field} line")
 
 
-def _step_for(run: VectorRun, steps: int, seconds: float) -> None:
-    """Step ``run`` ``steps`` times, or fewer (one at least) once ``seconds`` have passed."""
+def _run_for(run: VectorRun, steps: int, seconds: float) -> None:
+    """Start ``run``, then step it ``steps`` times, or fewer (one at least) once ``seconds`` have passed."""
+    run.start()
     deadline = time.perf_counter() + seconds
     for _ in range(steps):
         run.step()
@@ -149,14 +150,11 @@ def peak_rss_growth_kb_per_env(
 ) -> float:
     """In this process: peak RSS growth [kB] per copy of building, resetting and stepping ``num_envs`` copies, after a
     warmed-up 1-copy run and a reset of the peak (``/proc/self/clear_refs``)."""
-    warm_up = vector_env_run(env_id, 1, seed)
-    warm_up.start()
-    _step_for(warm_up, steps, seconds)
+    warm_up = vector_env_run(env_id, 1, seed)  # kept through the measurement
+    _run_for(warm_up, steps, seconds)
     PROC_CLEAR_REFS.write_text("5")  # Linux: "5" resets the peak RSS to the current RSS
     before = _status_kb("VmRSS")
-    run = vector_env_run(env_id, num_envs, seed)
-    run.start()
-    _step_for(run, steps, seconds)
+    _run_for(vector_env_run(env_id, num_envs, seed), steps, seconds)
     return (_status_kb("VmHWM") - before) / num_envs
 
 

@@ -1,42 +1,24 @@
 """Regenerate the paper's figures from the environments (``infonav reproduce``)."""
 
 import json
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 from infonav_gym.experiments.paths import OutputWriteError, check_output_dir, write_failure
 from infonav_gym.experiments.reproduce import fig3, fig5, fig6
 
 DEFAULT_OUTPUT_DIR = Path("results")  # relative to the working directory
-
-
-@dataclass(frozen=True)
-class PaperFigure:
-    """One of the paper's figures: ``figures(seed, seeds, progress)`` -> (JSON-ready figures, the function drawing them
-    into a PNG), and the ``table`` printing them."""
-
-    figures: Callable[[int, range, bool], tuple[dict, Callable[[Path], object]]]
-    table: Callable[[dict], str]  # the JSON's figures as text
-    seeds_count: str  # what ``n_seeds`` counts, for its error
-
-
-FIGURES = {
-    module.__name__.rpartition(".")[2]: PaperFigure(module.figures, module.table, module.SEEDS_COUNT)
-    for module in (fig3, fig5, fig6)
-}
+# name -> its module: figures(seed, seeds, progress) -> (JSON-ready figures, the function drawing them into a PNG),
+# table(result) -> the figures as text, SEEDS_COUNT: what ``n_seeds`` counts, for its error
+FIGURES = {module.__name__.rpartition(".")[2]: module for module in (fig3, fig5, fig6)}
 
 
 def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progress: bool = True, command: str = ""):
     """Run ``figure`` (one of ``FIGURES``), write ``output_dir/FIGURE.png`` and ``FIGURE.json``; return its content.
-
-    Raises:
-        ValueError: for ``n_seeds < 1``, or an ``output_dir`` that cannot be a writable directory.
-        OutputWriteError: when a file cannot be written, carrying the result (and the files written).
-    """
+    ``ValueError`` for ``n_seeds < 1`` or an unwritable ``output_dir``; ``OutputWriteError`` (carrying the result and
+    the files written) when a file cannot be written."""
     paper_figure = FIGURES[figure]
     if n_seeds < 1:
-        raise ValueError(f"n_seeds ({paper_figure.seeds_count}) must be >= 1, got {n_seeds}")
+        raise ValueError(f"n_seeds ({paper_figure.SEEDS_COUNT}) must be >= 1, got {n_seeds}")
     output_dir = check_output_dir(output_dir, "output directory")
     try:
         output_dir.mkdir(parents=True, exist_ok=True)
@@ -47,8 +29,7 @@ def reproduce(figure: str, output_dir, seed: int = 0, n_seeds: int = 20, progres
     result = {"command": command, **figures, "files": []}
     try:
         plot(png)
-        result["files"].append(str(png))
-        result["files"].append(str(json_path))
+        result["files"] += [str(png), str(json_path)]  # the JSON lists itself
         json_path.write_text(json.dumps(result, indent=1) + "\n")
     except OSError as error:
         result["files"] = result["files"][:1]

@@ -1,8 +1,6 @@
-"""The paper's Fig. 3: robot #2 loses DGPS at 21 s and relocalizes through laser observations of robot #1.
-
-The convoy team runs twice on one seed, greedy on expected information gain and dead reckoning; odometry and DGPS
-noise have their own streams, so the runs differ only by the choices.
-"""
+"""The paper's Fig. 3: robot #2 loses DGPS at 21 s and relocalizes through laser observations of robot #1. The
+convoy team runs twice on one seed, greedy on expected information gain and dead reckoning; odometry and DGPS
+noise have their own streams, so the runs differ only by the choices."""
 
 from __future__ import annotations
 
@@ -14,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from agents import GreedyEntropyAgent
+from agents import Agent, GreedyEntropyAgent
 from infonav_gym.experiments.episodes import parallel_episode_infos
 from infonav_gym.multi import cooperative_localization_v0
 from infonav_gym.multi.team import DEFAULT_OUTAGE
@@ -38,11 +36,8 @@ def position_std_m(pose_std) -> float:
     return math.hypot(pose_std[0], pose_std[1])
 
 
-class _DeadReckoning:
+class _DeadReckoning(Agent):
     """Never observes a teammate."""
-
-    def reset(self, seed: int | None = None) -> None:
-        """Nothing to reset."""
 
     def act(self, observation, info: dict) -> int:
         return NO_OBSERVATION
@@ -118,8 +113,7 @@ def _outage_rmse_m(history: list[dict]) -> float:
 def run_fig3(seed: int = 0) -> dict:
     """Fig. 3 for one seed, greedy team vs dead reckoning (JSON-ready): robot #2's ``steps`` (time, prior and updated
     ``pose_std``, DGPS, gains of visible teammates, the one ``chosen``), its corrections and their bursts, position std
-    extremes, ``paths`` and ``position_error_m`` per policy, and the convoy's ``walls``.
-    """
+    extremes, ``paths`` and ``position_error_m`` per policy, and the convoy's ``walls``."""
     env = cooperative_localization_v0.parallel_env(**FIG3_ENV_CONFIG)
     greedy = _run_episode(env, GreedyEntropyAgent(), seed)
     dead_reckoning = _run_episode(env, _DeadReckoning(), seed)
@@ -147,8 +141,7 @@ def run_fig3(seed: int = 0) -> dict:
 
 def outage_rmse(seeds=range(20), progress: bool = False) -> dict:
     """Robot #2's position RMSE over the outage (``t >= 21 s``) on each of ``seeds``, greedy team vs dead reckoning: the
-    ``per_seed`` records, each policy's mean [m], their ``ratio`` and the ``mean_per_seed_ratio``.
-    """
+    ``per_seed`` records, each policy's mean [m], their ``ratio`` and the ``mean_per_seed_ratio``."""
     seeds = list(seeds)
     if not seeds:
         raise ValueError("outage_rmse needs at least one seed, got none")

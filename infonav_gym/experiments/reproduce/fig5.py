@@ -1,9 +1,6 @@
-"""The paper's Fig. 5: how much information camera and LADAR images carry, by their gray-level histogram entropy.
-
-Default ``Camera()`` and ``Ladar()`` views of two ``make_terrain`` scenes, scored by ``histogram_entropy`` (nats):
-``paper_like`` (rugged, vegetated terrain: LADAR > camera) and ``building_ahead`` (a facade fills the LADAR's
-narrow field at one range: camera > LADAR); the seed statistics count how often each ordering holds.
-"""
+"""The paper's Fig. 5: how much information the default camera and LADAR images carry, by ``histogram_entropy``
+[nats], on ``make_terrain`` scenes ``paper_like`` (rugged, vegetated: LADAR > camera) and ``building_ahead`` (a
+facade fills the LADAR's narrow field at one range: camera > LADAR); the seed statistics count how often each holds."""
 
 from __future__ import annotations
 

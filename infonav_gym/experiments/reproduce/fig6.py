@@ -1,8 +1,6 @@
-"""The paper's Fig. 6: two consecutive 3D LADAR range images before (odometry) and after ICP registration.
-
-Frames of a vehicle pitching and rolling over rugged terrain (``terrain_frame_pair``); the seed statistics report
-``registration_error`` recall, median and mean with all returns and each control-point strategy's quarter.
-"""
+"""The paper's Fig. 6: two consecutive 3D LADAR frames of a vehicle pitching and rolling over rugged terrain
+(``terrain_frame_pair``), before (odometry) and after ICP; the seed statistics report ``registration_error`` recall,
+median and mean with all returns and each control-point strategy's quarter."""
 
 from __future__ import annotations
 
@@ -115,7 +113,6 @@ def figures(seed: int, seeds, progress: bool) -> tuple[dict, Callable[[Path], ob
     """Fig. 6's frame pair of ``seed`` and the statistics over ``seeds`` (JSON-ready), and the function drawing them."""
     pair = terrain_frame_pair(np.random.default_rng(seed))
     registration = PairRegistration(pair)()
-    plotted = {key: value for key, value in registration.items() if key != "transform"}
     result = {
         "icp": dict(FRAME_PAIR_ICP),
         "fig6": {
@@ -124,7 +121,7 @@ def figures(seed: int, seeds, progress: bool) -> tuple[dict, Callable[[Path], ob
                 "previous": [math.degrees(a) for a in pair.previous.attitude_rad],
                 "current": [math.degrees(a) for a in pair.current.attitude_rad],
             },
-            "registration": plotted,
+            "registration": {key: value for key, value in registration.items() if key != "transform"},
             "true_motion": pair.true_motion.tolist(),
             "odometry_motion": pair.odometry_motion.tolist(),
             "icp_motion": registration["transform"].tolist(),
@@ -166,10 +163,8 @@ def plot_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict, path:
 
 def figure_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict):
     """Fig. 6: rows = top and side views, columns = before (odometry) and after (ICP) registration; the older frame in
-    gray, the newer coloured by its point-to-plane residual to the older (misregistration shows warm).
-    """
-    target = sensor_points(pair.previous)
-    source = sensor_points(pair.current)
+    gray, the newer coloured by its point-to-plane residual to the older (misregistration shows warm)."""
+    target, source = sensor_points(pair.previous), sensor_points(pair.current)
     tree = cKDTree(target)
     normals = estimate_normals(target, tree)
     placements = (
@@ -178,30 +173,16 @@ def figure_fig6(pair: FramePair, icp_motion: np.ndarray, registration: dict):
     )
     figure = matplotlib_figure("plotting Fig. 6", figsize=(13, 8), constrained_layout=True)
     axes = figure.subplots(2, 2)
+    dots = {"s": _POINT_SIZE, "lw": 0}
+    residual_dots = dots | {"cmap": "turbo", "vmin": 0.0, "vmax": _RESIDUAL_SCALE_M}
     for column, (title, motion, error) in enumerate(placements):
         placed = transform_points(motion, source)
         closest = tree.query(placed)[1]
         residual = np.abs(np.einsum("ij,ij->i", placed - target[closest], normals[closest]))
         for row, (view, first, second, first_label, second_label) in enumerate(_VIEWS):
             ax = axes[row, column]
-            ax.scatter(
-                target[:, first],
-                target[:, second],
-                s=_POINT_SIZE,
-                c="0.75",
-                label="older frame (newer: coloured)",
-                lw=0,
-            )
-            points = ax.scatter(
-                placed[:, first],
-                placed[:, second],
-                s=_POINT_SIZE,
-                c=residual,
-                cmap="turbo",
-                vmin=0.0,
-                vmax=_RESIDUAL_SCALE_M,
-                lw=0,
-            )
+            ax.scatter(target[:, first], target[:, second], c="0.75", label="older frame (newer: coloured)", **dots)
+            points = ax.scatter(placed[:, first], placed[:, second], c=residual, **residual_dots)
             ax.set_title(f"{title}, {view}: error {error:.3f} m", fontsize="medium")
             ax.set(xlabel=first_label, ylabel=second_label)
             if row == 0:
