@@ -49,17 +49,10 @@ def predict_poses(x, P, controls, dt, control_covariances):
         for robot in range(n_robots):
             i = POSE_DIM * robot
             cos_h, sin_h = math.cos(x[c, i + 2]), math.sin(x[c, i + 2])
-            C = control_covariances[c, robot]
-            v_x, v_y = dt * cos_h, dt * sin_h  # V = [[v_x, 0], [v_y, 0], [0, dt]]
-            P_new[c, i, i] += v_x * C[0, 0] * v_x
-            P_new[c, i, i + 1] += v_x * C[0, 0] * v_y
-            P_new[c, i, i + 2] += v_x * C[0, 1] * dt
-            P_new[c, i + 1, i] += v_y * C[0, 0] * v_x
-            P_new[c, i + 1, i + 1] += v_y * C[0, 0] * v_y
-            P_new[c, i + 1, i + 2] += v_y * C[0, 1] * dt
-            P_new[c, i + 2, i] += dt * C[1, 0] * v_x
-            P_new[c, i + 2, i + 1] += dt * C[1, 0] * v_y
-            P_new[c, i + 2, i + 2] += dt * C[1, 1] * dt
+            v = (dt * cos_h, dt * sin_h, dt)  # V = [[v[0], 0], [v[1], 0], [0, v[2]]]: row a's entry in column a // 2
+            for a in range(POSE_DIM):
+                for b in range(POSE_DIM):
+                    P_new[c, i + a, i + b] += v[a] * control_covariances[c, robot, a // 2, b // 2] * v[b]
     return x_new, P_new
 
 
