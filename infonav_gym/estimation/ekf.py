@@ -173,7 +173,7 @@ class JointEKF(_UnicycleEKF):
         robots = np.asarray(robots, dtype=int)
         if robots.size == 0:
             return
-        H = self._stacked_jacobian(robots, GPS_POSE_JACOBIAN[None])
+        H = self._stacked_jacobian(robots, np.broadcast_to(GPS_POSE_JACOBIAN, (len(robots), 2, POSE_DIM)))
         self._update(fixes, H @ self.x, H, block_diagonal(noise_covariances), [])
 
     def relative_pose_model(self, observers, targets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -207,12 +207,9 @@ class JointEKF(_UnicycleEKF):
         m = np.shape(measurements)[1]
         self._update(measurements, predicted, H, block_diagonal(R), np.arange(len(H)) % m != 0)
 
-    def _stacked_jacobian(self, robots: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    def _stacked_jacobian(self, robots: np.ndarray, blocks) -> np.ndarray:
         """(k m, 3N) Jacobian whose k-th row block holds ``blocks[k]`` (m, 3) in robot ``robots[k]``'s columns."""
-        m = blocks.shape[1]
-        H = np.zeros((len(robots), m, self.n_robots, POSE_DIM))
-        H[np.arange(len(robots)), :, robots, :] = blocks
-        return H.reshape(len(robots) * m, self.dim_x)
+        return batched._slot_jacobians(robots[None], np.asarray(blocks)[None], self.dim_x).reshape(-1, self.dim_x)
 
     def _update(self, measurement, predicted, H, R, angle_rows) -> None:
         """``_UnicycleEKF._update``; without ``cross_covariances`` each robot keeps only its own block."""
