@@ -108,13 +108,9 @@ def _noise_stack(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def predict_pose(x, P, controls, dt: float, control_covariance, *, check_input: bool = True):
-    """``PoseEKF.predict`` on every copy: the predicted ``(x, P)``, the pose (first 3 entries) through the unicycle.
-
-    Args:
-        x, P: states (N, n), the pose first (the other entries are static), and covariances (N, n, n).
-        controls: odometry ``[speed, turn_rate]`` of each copy (N, 2) [m/s, rad/s]; ``dt`` [s] >= 0.
-        control_covariance: odometry noise (N, 2, 2), or one (2, 2) for all copies.
-    """
+    """``PoseEKF.predict`` on every copy: the predicted ``(x, P)``, states (N, n) (the pose first, the rest static) and
+    covariances (N, n, n), the pose through the unicycle driven by odometry ``controls`` (N, 2) ``[speed, turn_rate]``
+    [m/s, rad/s] for ``dt`` >= 0 [s], with noise ``control_covariance`` (N, 2, 2) or one (2, 2) for all copies."""
     if check_input:
         x, P = _state(x, P)
         controls = _finite("controls", controls, (len(x), 2))
@@ -125,13 +121,10 @@ def predict_pose(x, P, controls, dt: float, control_covariance, *, check_input: 
 
 
 def predict_team(x, P, controls, dt: float, control_covariances, *, check_input: bool = True):
-    """``JointEKF.predict`` on every copy: the predicted ``(x, P)``, each robot's pose through the unicycle model.
-
-    Args:
-        x, P: joint states (N, 3R) and covariances (N, 3R, 3R), with or without cross-covariances.
-        controls: odometry ``[speed, turn_rate]`` of each robot (N, R, 2) [m/s, rad/s]; ``dt`` [s] >= 0.
-        control_covariances: odometry noise of each robot (N, R, 2, 2), or (R, 2, 2) for all copies.
-    """
+    """``JointEKF.predict`` on every copy: the predicted ``(x, P)``, joint states (N, 3R) and covariances (N, 3R, 3R)
+    (with or without cross-covariances), each robot's pose through the unicycle driven by its odometry ``controls``
+    (N, R, 2) ``[speed, turn_rate]`` [m/s, rad/s] for ``dt`` >= 0 [s], with noise ``control_covariances``
+    (N, R, 2, 2) or (R, 2, 2) for all copies."""
     if check_input:
         x, P = _state(x, P)
         n_robots = _team_size(x.shape[1])
@@ -198,14 +191,10 @@ def relative_pose_model(x, observers, targets, *, check_input: bool = True):
 
 
 def range_bearing_update(x, P, measurements, predicted, H, R, observed=None, *, check_input: bool = True):
-    """``PoseEKF.update_range_bearing`` of the copies that observe a landmark: the updated ``(x, P)``.
-
-    Args:
-        x, P: states (N, n), the pose first, and covariances (N, n, n).
-        measurements: the measured ``[range, bearing]`` of each copy (N, 2), its noise covariance ``R`` (N, 2, 2).
-        predicted, H: its prediction at the prior (N, 2) and Jacobian (N, 2, n) (``landmark_measurement_model``).
-        observed: which copies take their measurement (N,) bool; None for all.
-    """
+    """``PoseEKF.update_range_bearing`` of the ``observed`` (N,) bool copies (None: all): the updated ``(x, P)``,
+    states (N, n), the pose first, and covariances (N, n, n), with each copy's measured ``[range, bearing]`` (N, 2),
+    noise ``R`` (N, 2, 2), and its prediction at the prior ``predicted`` (N, 2) and Jacobian ``H`` (N, 2, n)
+    (``landmark_measurement_model``)."""
     if check_input:
         x, P = _state(x, P)
     n_copies = len(x)
@@ -224,14 +213,10 @@ def range_bearing_update(x, P, measurements, predicted, H, R, observed=None, *, 
 
 
 def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bool = True, check_input: bool = True):
-    """``JointEKF.gps_update`` on every copy: the updated ``(x, P)`` with the robots' position fixes ``[x, y]``.
-
-    Args:
-        x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
-        fixes: measured positions of every robot (N, R, 2), used where ``has_fix`` (N, R) bool.
-        noise_covariances: the fixes' noise (N, R, 2, 2) or (R, 2, 2).
-        cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-    """
+    """``JointEKF.gps_update`` on every copy: the updated ``(x, P)``, joint states (N, 3R) and covariances (N, 3R, 3R),
+    with the robots' position fixes ``[x, y]`` (N, R, 2) where ``has_fix`` (N, R) bool, their noise
+    ``noise_covariances`` (N, R, 2, 2) or (R, 2, 2); without ``cross_covariances`` each robot keeps only its own block
+    (as ``JointEKF``)."""
     if check_input:
         x, P = _state(x, P)
         n_robots = _team_size(x.shape[1])
@@ -346,8 +331,7 @@ def _jacobians(H, P: np.ndarray, inner: tuple[str, ...]) -> np.ndarray:
 
 def posterior_covariance(P, H, R, *, check_input: bool = True) -> np.ndarray:
     """The covariance (N, n, n) after the EKF update of priors ``P`` (N, n, n) with Jacobians ``H`` (N, m, n) and SPD
-    noise ``R`` (N, m, m), as the updates compute it; a zero row of ``H`` with its own unit noise leaves ``P`` as it is.
-    """
+    noise ``R`` (N, m, m), as the updates compute it; a zero row of ``H`` with its own unit noise changes nothing."""
     if check_input:
         P = _covariances(P)
         H = _jacobians(H, P, ("m",))
@@ -368,8 +352,7 @@ def landmark_information_gains(P, H, R, *, check_input: bool = True) -> np.ndarr
         P = _covariances(P)
         H = _jacobians(H, P, ("K", "m"))
         R = _noise_covariance("R", R, (*H.shape[:3], H.shape[2]))
-    gains = kernels.landmark_gains(_floats(P), _floats(H), _floats(R))
-    return _checked_gains(gains, R)
+    return _checked_gains(kernels.landmark_gains(_floats(P), _floats(H), _floats(R)), R)
 
 
 def _checked_gains(gains: np.ndarray, R) -> np.ndarray:

@@ -145,9 +145,8 @@ def invert(S, r, inverse, pivoted, order):
 def gauss_jordan_inverse(S, r, inverse, A, order):
     """The inverse of the leading (r, r) block of ``S`` into ``inverse`` by Gauss-Jordan elimination with partial
     pivoting of its copy ``A``, leaving out the columns of ``A`` at and left of the pivot (no later step reads them)
-    and the inverse's columns that are still exact zeros (``order[:j + 1]``, (r,) int scratch, holds the identity
-    columns of the rows pivoted so far): adding a zero product changes no number, so the result is the full one's.
-    """
+    and the inverse's columns still exact zeros (``order[:j + 1]``, (r,) int scratch, holds the identity columns of
+    the rows pivoted so far): adding a zero product changes no number, so the result is the full one's."""
     for i in range(r):
         order[i] = i
         for k in range(r):

@@ -33,8 +33,7 @@ def range_bearing(pose, landmarks) -> np.ndarray:
     """Range [m] and bearing [rad] from ``pose`` to each landmark: (N, 2) -> (N, 2); batched, from each of the poses
     (..., 3) to its landmarks (..., N, 2) -> (..., N, 2)."""
     landmarks, pose = np.atleast_2d(landmarks), np.asarray(pose)
-    dx = landmarks[..., 0] - pose[..., None, 0]
-    dy = landmarks[..., 1] - pose[..., None, 1]
+    dx, dy = landmarks[..., 0] - pose[..., None, 0], landmarks[..., 1] - pose[..., None, 1]
     return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - pose[..., None, 2])], axis=-1)
 
 
