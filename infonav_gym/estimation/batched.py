@@ -52,13 +52,6 @@ def _team_size(n: int) -> int:
     return n // POSE_DIM
 
 
-def _robot_count(n: int, n_robots) -> int:
-    """``n_robots`` if states of size ``n`` can hold that many poses first, or ``ValueError``."""
-    if not (isinstance(n_robots, (int, np.integer)) and 1 <= n_robots <= n // POSE_DIM):
-        raise ValueError(f"n_robots must be an int in [1, {n // POSE_DIM}] for states of size {n}, got {n_robots!r}")
-    return int(n_robots)
-
-
 def _pairs(observers, targets, n_copies: int, n_robots: int, used=None) -> tuple[np.ndarray, np.ndarray]:
     """Robot index pairs (N, M) in [0, R) with no robot observing itself where ``used``, or ``ValueError``."""
     observers = np.asarray(observers)
@@ -394,7 +387,9 @@ def pose_log_dets(P, n_robots: int = 1, *, check_input: bool = True) -> np.ndarr
     ``n_robots`` poses (1 for a ``PoseEKF``)."""
     if check_input:
         P = _covariances(P)
-        n_robots = _robot_count(P.shape[1], n_robots)
+        n, most = P.shape[1], P.shape[1] // POSE_DIM
+        if not (isinstance(n_robots, (int, np.integer)) and 1 <= n_robots <= most):
+            raise ValueError(f"n_robots must be an int in [1, {most}] for states of size {n}, got {n_robots!r}")
     log_dets = kernels.pose_block_log_dets(_floats(P), int(n_robots))
     if np.isnan(log_dets).any():
         raise ValueError("pose covariance is not positive definite (determinant <= 0)")
