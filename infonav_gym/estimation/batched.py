@@ -137,13 +137,9 @@ def _floats(array, dtype=float) -> np.ndarray:
 
 
 def landmark_measurement_model(x, landmarks=None, *, check_input: bool = True):
-    """``PoseEKF.landmark_measurement_model`` on every copy: range-bearing to each landmark and its Jacobian,
-    ``(predicted (N, K, 2), H (N, K, 2, n))``; ``ValueError`` if a landmark is on its copy's pose (no bearing).
-
-    Args:
-        x: states (N, n), the pose first, then (when mapping) the landmark estimates ``[l1x, l1y, ...]``.
-        landmarks: known positions (K, 2) or per copy (N, K, 2); None: the state's (``H`` gets their columns).
-    """
+    """``PoseEKF.landmark_measurement_model`` on every copy: ``(predicted (N, K, 2), H (N, K, 2, n))``, range-bearing
+    from states ``x`` (N, n), the pose first then any mapped landmarks ``[l1x, l1y, ...]``, to known ``landmarks``
+    (K, 2) or (N, K, 2), or (None) the mapped ones (``H`` gets their columns); ``ValueError`` for one on its pose."""
     mapped = landmarks is None
     if check_input:
         x = _states(x)
@@ -248,9 +244,8 @@ def relative_pose_update(
     """
     if check_input:
         x, P = _state(x, P)
-        observers = np.asarray(observers)
         if observed is not None:
-            observed = _mask("observed", observed, observers.shape)
+            observed = _mask("observed", observed, np.shape(observers))
         observers, targets = _pairs(observers, targets, len(x), _team_size(x.shape[1]), observed)
     m = np.shape(measurements)[-1] if np.ndim(measurements) == 3 and np.shape(measurements)[-1] == 2 else 3
     jacobians = {"H_observer": (observers, H_observer), "H_target": (targets, H_target)}
