@@ -256,15 +256,9 @@ def team_landmark_update(
     x, P, robots, measurements, predicted, H_pose, R, observed=None, *, cross_covariances=True, check_input=True
 ):
     """The team's updates with known landmarks on every copy: the updated ``(x, P)``, as ``relative_pose_update`` with
-    slot ``[c, k]`` the ``[range, bearing]`` of a known landmark seen by robot ``robots[c, k]`` (indices (N, M)).
-
-    Args:
-        x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
-        measurements, predicted: (N, M, 2), ``predicted`` and ``H_pose`` (N, M, 2, 3), its Jacobian w.r.t. the
-            observer's pose, from ``landmark_measurement_model`` at the prior; ``R`` (N, M, 2, 2) their noise.
-        observed: which slots are measured (N, M) bool; None for all.
-        cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-    """
+    slot ``[c, k]`` the ``[range, bearing]`` ``measurements`` (N, M, 2) of a known landmark seen by robot
+    ``robots[c, k]`` (N, M), ``predicted`` and ``H_pose`` (N, M, 2, 3), the Jacobian w.r.t. that robot's pose, from
+    ``landmark_measurement_model`` at the prior, and noise ``R`` (N, M, 2, 2)."""
     if check_input:
         x, P = _state(x, P)
         robots = np.asarray(robots)
