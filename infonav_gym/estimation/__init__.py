@@ -1,7 +1,6 @@
 """State estimation: motion / measurement models, Kalman filters, consistency checks.
 
-``PoseEKF`` and ``JointEKF`` (on filterpy, about a second to import) are imported when first asked for, so the
-envs, which run the batched core, start without them.
+``PoseEKF`` / ``JointEKF`` (on filterpy, ~1 s to import) load when first asked for: the envs run the batched core.
 """
 
 import importlib

@@ -1,10 +1,9 @@
-"""The batched EKF core, the package's one EKF: N filter copies, states ``x (N, n)``, covariances ``P (N, n, n)``.
+"""The package's one EKF: ``PoseEKF`` / ``JointEKF``'s models and updates on N copies, states ``x (N, n)``,
+covariances ``P (N, n, n)`` (envs, planners, MRCLAM replay), run by the compiled ``kernels``, tested against filterpy.
 
-The models and updates of ``PoseEKF`` and ``JointEKF`` over a leading dimension of copies (the envs, the planners,
-the MRCLAM replay at N = 1), tested against filterpy; the loops run in the compiled ``kernels``. A state starts with
-R robot poses ``[x, y, heading]``, then any static entries (mapped landmarks ``[lx, ly]``). Functions return new
-arrays; copies that take no measurement come back unchanged. Every public function raises ``ValueError`` naming a
-bad argument (shape, finiteness, SPD noise, indices); ``check_input=False`` skips the checks for known-good inputs.
+A state starts with R robot poses ``[x, y, heading]``, then static entries (mapped landmarks ``[lx, ly]``). Functions
+return new arrays; copies without a measurement come back unchanged. A bad argument (shape, finiteness, SPD noise,
+indices) raises ``ValueError`` naming it; ``check_input=False`` skips the checks for known-good inputs.
 """
 
 from __future__ import annotations
@@ -51,13 +50,6 @@ def _team_size(n: int) -> int:
     if n % POSE_DIM:
         raise ValueError(f"joint states must hold only robot poses, 3R entries, got {n}")
     return n // POSE_DIM
-
-
-def _robot_count(n: int, n_robots) -> int:
-    """``n_robots`` if states of size ``n`` can hold that many poses first, or ``ValueError``."""
-    if not (isinstance(n_robots, (int, np.integer)) and 1 <= n_robots <= n // POSE_DIM):
-        raise ValueError(f"n_robots must be an int in [1, {n // POSE_DIM}] for states of size {n}, got {n_robots!r}")
-    return int(n_robots)
 
 
 def _pairs(observers, targets, n_copies: int, n_robots: int, used=None) -> tuple[np.ndarray, np.ndarray]:
@@ -109,47 +101,31 @@ def _noise_stack(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def predict_pose(x, P, controls, dt: float, control_covariance, *, check_input: bool = True):
-    """``PoseEKF.predict`` on every copy: the predicted ``(x, P)``, the pose (first 3 entries) through the unicycle.
-
-    Args:
-        x, P: states (N, n), the pose first (the other entries are static), and covariances (N, n, n).
-        controls: odometry ``[speed, turn_rate]`` of each copy (N, 2) [m/s, rad/s].
-        dt: time step [s], finite and >= 0.
-        control_covariance: odometry noise (N, 2, 2), or one (2, 2) for all copies.
-    """
+    """``PoseEKF.predict`` on every copy: the predicted ``(x, P)``, states (N, n) (the pose first, the rest static) and
+    covariances (N, n, n), the pose through the unicycle driven by odometry ``controls`` (N, 2) ``[speed, turn_rate]``
+    [m/s, rad/s] for ``dt`` >= 0 [s], with noise ``control_covariance`` (N, 2, 2) or one (2, 2) for all copies."""
     if check_input:
         x, P = _state(x, P)
         controls = _finite("controls", controls, (len(x), 2))
         dt = _time_step(dt)
         control_covariance = _noise_stack("control_covariance", control_covariance, (len(x), 2, 2))
-    control_covariance = np.asarray(control_covariance)
-    if control_covariance.ndim == 3:
-        control_covariance = control_covariance[:, None]
-    return _predict(x, P, controls[:, None], dt, control_covariance)  # broadcast there to (N, 1, 2, 2)
+    covariances = stacked(control_covariance, (len(x), 2, 2))[:, None]  # (N, 1, 2, 2): one robot
+    return kernels.predict_poses(_floats(x), _floats(P), _floats(controls[:, None]), float(dt), covariances)
 
 
 def predict_team(x, P, controls, dt: float, control_covariances, *, check_input: bool = True):
-    """``JointEKF.predict`` on every copy: the predicted ``(x, P)``, each robot's pose through the unicycle model.
-
-    Args:
-        x, P: joint states (N, 3R) and covariances (N, 3R, 3R), with or without cross-covariances.
-        controls: odometry ``[speed, turn_rate]`` of each robot (N, R, 2) [m/s, rad/s].
-        dt: time step [s], finite and >= 0.
-        control_covariances: odometry noise of each robot (N, R, 2, 2), or (R, 2, 2) for all copies.
-    """
+    """``JointEKF.predict`` on every copy: the predicted ``(x, P)``, joint states (N, 3R) and covariances (N, 3R, 3R)
+    (with or without cross-covariances), each robot's pose through the unicycle driven by its odometry ``controls``
+    (N, R, 2) ``[speed, turn_rate]`` [m/s, rad/s] for ``dt`` >= 0 [s], with noise ``control_covariances``
+    (N, R, 2, 2) or (R, 2, 2) for all copies."""
     if check_input:
         x, P = _state(x, P)
         n_robots = _team_size(x.shape[1])
         controls = _finite("controls", controls, (len(x), n_robots, 2))
         dt = _time_step(dt)
         control_covariances = _noise_stack("control_covariances", control_covariances, (len(x), n_robots, 2, 2))
-    return _predict(x, P, controls, dt, stacked(control_covariances, (*np.shape(controls), 2)))
-
-
-def _predict(x, P, controls, dt, control_covariances):
-    """``kernels.predict_poses`` of the first R poses; noise (N, R, 2, 2) or broadcasting to it."""
-    control_covariances = np.broadcast_to(control_covariances, (*np.shape(controls), 2))
-    return kernels.predict_poses(_floats(x), _floats(P), _floats(controls), float(dt), _floats(control_covariances))
+    covariances = stacked(control_covariances, (*np.shape(controls), 2))
+    return kernels.predict_poses(_floats(x), _floats(P), _floats(controls), float(dt), covariances)
 
 
 def _floats(array, dtype=float) -> np.ndarray:
@@ -161,16 +137,9 @@ def _floats(array, dtype=float) -> np.ndarray:
 
 
 def landmark_measurement_model(x, landmarks=None, *, check_input: bool = True):
-    """``PoseEKF.landmark_measurement_model`` on every copy: range-bearing to each landmark and its Jacobian.
-
-    Args:
-        x: states (N, n), the pose first, then (when mapping) the landmark estimates ``[l1x, l1y, ...]``.
-        landmarks: known positions (K, 2) or per copy (N, K, 2); None to use the landmarks in the state.
-
-    Returns:
-        ``(predicted (N, K, 2), H (N, K, 2, n))``; ``H`` has landmark columns only for mapped landmarks. A landmark on
-        a copy's estimated position (no bearing) raises ``ValueError``.
-    """
+    """``PoseEKF.landmark_measurement_model`` on every copy: ``(predicted (N, K, 2), H (N, K, 2, n))``, range-bearing
+    from states ``x`` (N, n), the pose first then any mapped landmarks ``[l1x, l1y, ...]``, to known ``landmarks``
+    (K, 2) or (N, K, 2), or (None) the mapped ones (``H`` gets their columns); ``ValueError`` for one on its pose."""
     mapped = landmarks is None
     if check_input:
         x = _states(x)
@@ -211,15 +180,10 @@ def relative_pose_model(x, observers, targets, *, check_input: bool = True):
 
 
 def range_bearing_update(x, P, measurements, predicted, H, R, observed=None, *, check_input: bool = True):
-    """``PoseEKF.update_range_bearing`` of the copies that observe a landmark: the updated ``(x, P)``.
-
-    Args:
-        x, P: states (N, n), the pose first, and covariances (N, n, n).
-        measurements: the measured ``[range, bearing]`` of each copy (N, 2).
-        predicted, H: its prediction at the prior (N, 2) and Jacobian (N, 2, n) (``landmark_measurement_model``).
-        R: its noise covariance (N, 2, 2), symmetric positive definite.
-        observed: which copies take their measurement (N,) bool; None for all.
-    """
+    """``PoseEKF.update_range_bearing`` of the ``observed`` (N,) bool copies (None: all): the updated ``(x, P)``,
+    states (N, n), the pose first, and covariances (N, n, n), with each copy's measured ``[range, bearing]`` (N, 2),
+    noise ``R`` (N, 2, 2), and its prediction at the prior ``predicted`` (N, 2) and Jacobian ``H`` (N, 2, n)
+    (``landmark_measurement_model``)."""
     if check_input:
         x, P = _state(x, P)
     n_copies = len(x)
@@ -238,15 +202,10 @@ def range_bearing_update(x, P, measurements, predicted, H, R, observed=None, *, 
 
 
 def gps_update(x, P, fixes, noise_covariances, has_fix, *, cross_covariances: bool = True, check_input: bool = True):
-    """``JointEKF.gps_update`` on every copy: the updated ``(x, P)`` with the robots' position fixes ``[x, y]``.
-
-    Args:
-        x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
-        fixes: measured positions of every robot (N, R, 2); only those with ``has_fix`` are used.
-        noise_covariances: the fixes' noise (N, R, 2, 2) or (R, 2, 2), symmetric positive definite.
-        has_fix: which robots of which copy have a fix (N, R) bool.
-        cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-    """
+    """``JointEKF.gps_update`` on every copy: the updated ``(x, P)``, joint states (N, 3R) and covariances (N, 3R, 3R),
+    with the robots' position fixes ``[x, y]`` (N, R, 2) where ``has_fix`` (N, R) bool, their noise
+    ``noise_covariances`` (N, R, 2, 2) or (R, 2, 2); without ``cross_covariances`` each robot keeps only its own block
+    (as ``JointEKF``)."""
     if check_input:
         x, P = _state(x, P)
         n_robots = _team_size(x.shape[1])
@@ -272,24 +231,21 @@ def relative_pose_update(
     cross_covariances: bool = True,
     check_input: bool = True,
 ):
-    """``JointEKF.relative_pose_update`` on every copy: the updated ``(x, P)``, the observed slots of a copy fused in
-    slot order as one stacked update (copies without any unchanged). Slot ``k`` of copy ``c`` is ``[range, bearing,
-    relative heading]`` (m = 3) or ``[range, bearing]`` (m = 2) of robot ``targets[c, k]`` seen by ``observers[c, k]``.
+    """``JointEKF.relative_pose_update`` on every copy: the updated ``(x, P)``, a copy's observed slots fused in slot
+    order as one stacked update. Slot ``[c, k]`` is ``[range, bearing, relative heading]`` (m = 3) or ``[range,
+    bearing]`` (m = 2) of robot ``targets[c, k]`` seen by ``observers[c, k]`` (robot indices (N, M)).
 
     Args:
         x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
-        observers, targets: robot indices (N, M).
-        measurements, predicted: (N, M, m); ``predicted`` from ``relative_pose_model`` at the prior.
-        H_observer, H_target: their Jacobians (N, M, m, 3) (the first m rows of ``relative_pose_model``'s).
-        R: noise covariances (N, M, m, m), symmetric positive definite.
+        measurements, predicted: (N, M, m), ``predicted`` and the Jacobians ``H_observer``, ``H_target`` (N, M, m, 3)
+            the first m rows of ``relative_pose_model``'s at the prior; ``R`` (N, M, m, m) their noise.
         observed: which slots are measured (N, M) bool; None for all.
         cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
     """
     if check_input:
         x, P = _state(x, P)
-        observers = np.asarray(observers)
         if observed is not None:
-            observed = _mask("observed", observed, observers.shape)
+            observed = _mask("observed", observed, np.shape(observers))
         observers, targets = _pairs(observers, targets, len(x), _team_size(x.shape[1]), observed)
     m = np.shape(measurements)[-1] if np.ndim(measurements) == 3 and np.shape(measurements)[-1] == 2 else 3
     jacobians = {"H_observer": (observers, H_observer), "H_target": (targets, H_target)}
@@ -300,17 +256,9 @@ def team_landmark_update(
     x, P, robots, measurements, predicted, H_pose, R, observed=None, *, cross_covariances=True, check_input=True
 ):
     """The team's updates with known landmarks on every copy: the updated ``(x, P)``, as ``relative_pose_update`` with
-    slot ``k`` of copy ``c`` the ``[range, bearing]`` of a known landmark seen by robot ``robots[c, k]``.
-
-    Args:
-        x, P: joint states (N, 3R) and covariances (N, 3R, 3R).
-        robots: the observers' indices (N, M).
-        measurements, predicted: (N, M, 2); ``predicted`` from ``landmark_measurement_model`` at the prior.
-        H_pose: its Jacobian w.r.t. the observer's pose (N, M, 2, 3).
-        R: noise covariances (N, M, 2, 2), symmetric positive definite.
-        observed: which slots are measured (N, M) bool; None for all.
-        cross_covariances: keep the cross-covariances (False: each robot keeps its own block, as ``JointEKF``).
-    """
+    slot ``[c, k]`` the ``[range, bearing]`` ``measurements`` (N, M, 2) of a known landmark seen by robot
+    ``robots[c, k]`` (N, M), ``predicted`` and ``H_pose`` (N, M, 2, 3), the Jacobian w.r.t. that robot's pose, from
+    ``landmark_measurement_model`` at the prior, and noise ``R`` (N, M, 2, 2)."""
     if check_input:
         x, P = _state(x, P)
         robots = np.asarray(robots)
@@ -343,16 +291,8 @@ def _slot_update(x, P, measurements, predicted, jacobians, R, observed, m, cross
 
 def _update(x, P, residuals, H, R, used, n_headings: int, cross_covariances: bool = True):
     """``kernels.kalman_updates`` on arrays in the layout it is compiled for."""
-    return kernels.kalman_updates(
-        _floats(x),
-        _floats(P),
-        _floats(residuals),
-        _floats(H),
-        _floats(R),
-        _floats(used, bool),
-        int(n_headings),
-        bool(cross_covariances),
-    )
+    floats = (_floats(array) for array in (x, P, residuals, H, R))
+    return kernels.kalman_updates(*floats, _floats(used, bool), int(n_headings), bool(cross_covariances))
 
 
 def _slot_jacobians(robots, blocks, n: int) -> np.ndarray:
@@ -373,8 +313,7 @@ def _jacobians(H, P: np.ndarray, inner: tuple[str, ...]) -> np.ndarray:
 
 def posterior_covariance(P, H, R, *, check_input: bool = True) -> np.ndarray:
     """The covariance (N, n, n) after the EKF update of priors ``P`` (N, n, n) with Jacobians ``H`` (N, m, n) and SPD
-    noise ``R`` (N, m, m), as the updates compute it; a zero row of ``H`` with its own unit noise leaves ``P`` as it is.
-    """
+    noise ``R`` (N, m, m), as the updates compute it; a zero row of ``H`` with its own unit noise changes nothing."""
     if check_input:
         P = _covariances(P)
         H = _jacobians(H, P, ("m",))
@@ -395,8 +334,7 @@ def landmark_information_gains(P, H, R, *, check_input: bool = True) -> np.ndarr
         P = _covariances(P)
         H = _jacobians(H, P, ("K", "m"))
         R = _noise_covariance("R", R, (*H.shape[:3], H.shape[2]))
-    gains = kernels.landmark_gains(_floats(P), _floats(H), _floats(R))
-    return _checked_gains(gains, R)
+    return _checked_gains(kernels.landmark_gains(_floats(P), _floats(H), _floats(R)), R)
 
 
 def _checked_gains(gains: np.ndarray, R) -> np.ndarray:
@@ -408,31 +346,19 @@ def _checked_gains(gains: np.ndarray, R) -> np.ndarray:
 
 
 def relative_pose_information_gains(P, observers, targets, H_observer, H_target, R, *, check_input: bool = True):
-    """``JointEKF.relative_pose_information_gains`` on every copy [nats].
-
-    Args:
-        P: joint covariances (N, 3R, 3R).
-        observers, targets: candidate pairs' robot indices (N, M).
-        H_observer, H_target: their Jacobians (N, M, m, 3).
-        R: their noise covariances (N, M, m, m).
-
-    Returns:
-        ``(own, joint)``, each (N, M): the MI on the observer's own pose and on the joint state.
-    """
-    n_copies = len(P)
+    """Expected MI ``(own, joint)`` (N, M) [nats] of each candidate pair on the observer's own pose and on the joint
+    state: joint covariances ``P`` (N, 3R, 3R), the pairs' robot indices ``observers``, ``targets`` (N, M), their
+    Jacobians ``H_observer``, ``H_target`` (N, M, m, 3) and noise ``R`` (N, M, m, m)."""
     if check_input:
         P = _covariances(P)
-        observers, targets = _pairs(observers, targets, n_copies, _team_size(P.shape[1]))
+        observers, targets = _pairs(observers, targets, len(P), _team_size(P.shape[1]))
         m = np.shape(H_observer)[-2] if np.ndim(H_observer) == 4 else 3
         H_observer = _finite("H_observer", H_observer, (*observers.shape, m, POSE_DIM))
         H_target = _finite("H_target", H_target, (*observers.shape, m, POSE_DIM))
         R = _noise_covariance("R", R, (*observers.shape, m, m))
-    observers, targets = _floats(observers, np.int64), _floats(targets, np.int64)
-    H_observer, H_target = _floats(H_observer), _floats(H_target)
-    every_pair = np.ones(observers.shape, dtype=bool)
-    own, joint = kernels.relative_pose_gains(
-        _floats(P), observers, targets, H_observer, H_target, _floats(R), every_pair
-    )
+    pairs = (_floats(robots, np.int64) for robots in (observers, targets))
+    models = (_floats(array) for array in (H_observer, H_target, R))
+    own, joint = kernels.relative_pose_gains(_floats(P), *pairs, *models, np.ones(np.shape(observers), dtype=bool))
     if np.isnan(own).any():
         raise ValueError("an observer's pose covariance, or its posterior, is not positive definite (determinant <= 0)")
     return own, _checked_gains(joint, R)
@@ -450,7 +376,9 @@ def pose_log_dets(P, n_robots: int = 1, *, check_input: bool = True) -> np.ndarr
     ``n_robots`` poses (1 for a ``PoseEKF``)."""
     if check_input:
         P = _covariances(P)
-        n_robots = _robot_count(P.shape[1], n_robots)
+        n, most = P.shape[1], P.shape[1] // POSE_DIM
+        if not (isinstance(n_robots, (int, np.integer)) and 1 <= n_robots <= most):
+            raise ValueError(f"n_robots must be an int in [1, {most}] for states of size {n}, got {n_robots!r}")
     log_dets = kernels.pose_block_log_dets(_floats(P), int(n_robots))
     if np.isnan(log_dets).any():
         raise ValueError("pose covariance is not positive definite (determinant <= 0)")

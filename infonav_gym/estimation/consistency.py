@@ -16,8 +16,7 @@ def pose_error(true_pose, estimated_pose) -> np.ndarray:
 
 def normalized_squared_error(error, covariance) -> float:
     """``e^T C^-1 e``: the NEES of an estimation error or the NIS of an innovation."""
-    error = np.asarray(error, dtype=float)
-    covariance = np.asarray(covariance, dtype=float)
+    error, covariance = np.asarray(error, dtype=float), np.asarray(covariance, dtype=float)
     if covariance.shape != (error.size, error.size):
         raise ValueError(f"covariance must be ({error.size}, {error.size}) for an error of size {error.size}")
     return float(error @ np.linalg.solve(covariance, error))
@@ -34,17 +33,12 @@ def nis(innovation, innovation_covariance) -> float:
 
 
 def chi2_bounds(dof: int, n_runs: int = 1, confidence: float = 0.95) -> tuple[float, float]:
-    """Two-sided bounds for the average of ``n_runs`` independent chi-square(dof) statistics.
-
-    ``n_runs * average`` is chi-square with ``n_runs * dof`` degrees of freedom.
-    """
+    """Two-sided bounds for the average of ``n_runs`` independent chi-square(dof) statistics (``n_runs * average`` is
+    chi-square with ``n_runs * dof`` degrees of freedom)."""
     if dof < 1 or n_runs < 1 or not 0 < confidence < 1:
         raise ValueError(f"need dof >= 1, n_runs >= 1 and 0 < confidence < 1, got {dof}, {n_runs}, {confidence}")
     from scipy import stats  # about 1 s to import: only when bounds are asked for, not with every env
 
     tail = (1.0 - confidence) / 2.0
-    total_dof = dof * n_runs
-    return (
-        float(stats.chi2.ppf(tail, total_dof)) / n_runs,
-        float(stats.chi2.ppf(1.0 - tail, total_dof)) / n_runs,
-    )
+    low, high = stats.chi2.ppf([tail, 1.0 - tail], dof * n_runs)
+    return float(low) / n_runs, float(high) / n_runs

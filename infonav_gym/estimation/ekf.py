@@ -1,8 +1,7 @@
-"""The scalar reference: ``PoseEKF`` and ``JointEKF`` configure filterpy's ``ExtendedKalmanFilter`` with the unicycle
-motion and the range-bearing, relative-pose and position-fix models; filterpy performs every predict and update (its
-update in Joseph form). The envs, planners and the replay run the batched EKF (``batched``), tested against filterpy.
-The public methods raise ``ValueError`` naming a bad argument (shape, finiteness, SPD noise), so a bad input never
-fills the state with NaN; ``check_input=False`` skips the checks for known-good inputs.
+"""The scalar reference: ``PoseEKF`` and ``JointEKF`` configure filterpy's ``ExtendedKalmanFilter`` (which performs
+every predict and update, Joseph form) with the unicycle, range-bearing, relative-pose and position-fix models; the
+envs, planners and replay run ``batched``, tested against it. A bad argument (shape, finiteness, SPD noise) raises
+``ValueError`` naming it before the state could fill with NaN; ``check_input=False`` skips the checks.
 """
 
 from __future__ import annotations
@@ -64,25 +63,20 @@ class _UnicycleEKF(ExtendedKalmanFilter):
 
 class PoseEKF(_UnicycleEKF):
     """EKF over a planar pose ``[x, y, heading]``, optionally with mapped landmarks (EKF-SLAM): the state is
-    ``[x, y, heading, l1x, l1y, l2x, ...]``. Headings and bearing innovations are wrapped.
+    ``[x, y, heading, l1x, l1y, l2x, ...]``, headings and bearing innovations wrapped.
 
     Args:
-        pose: initial pose estimate (3,).
-        pose_covariance: its covariance (3, 3).
-        landmarks: initial estimates of the mapped landmarks (L, 2), or None.
-        landmark_covariance: their covariance, (2L, 2L) or a scalar variance [m^2].
+        pose, pose_covariance: initial pose estimate (3,) and its covariance (3, 3).
+        landmarks, landmark_covariance: initial estimates of the mapped landmarks (L, 2) or None, and their covariance
+            (2L, 2L) or one variance [m^2].
     """
 
     def __init__(self, pose, pose_covariance, landmarks=None, landmark_covariance=None):
         landmarks = np.zeros((0, 2)) if landmarks is None else np.asarray(landmarks, dtype=float).reshape(-1, 2)
         _finite("landmarks", landmarks, landmarks.shape)
         super().__init__(dim_x=POSE_DIM + 2 * len(landmarks), dim_z=2)
-        pose = np.asarray(pose, dtype=float)
-        if pose.shape != (POSE_DIM,) or not np.all(np.isfinite(pose)):
-            raise ValueError(f"pose must be 3 finite numbers [x, y, heading], got {pose!r}")
-        covariance = np.asarray(pose_covariance, dtype=float)
-        if covariance.shape != (POSE_DIM, POSE_DIM):
-            raise ValueError(f"pose_covariance must have shape (3, 3), got {covariance.shape}")
+        pose = _finite("pose", pose, (POSE_DIM,))
+        covariance = _finite("pose_covariance", pose_covariance, (POSE_DIM, POSE_DIM))
         if len(landmarks):
             if landmark_covariance is None:
                 raise ValueError("landmark_covariance is required when landmarks are mapped")
@@ -130,28 +124,24 @@ class JointEKF(_UnicycleEKF):
     own 3x3 block): the common shortcut that treats teammates as independent, reuses information, grows overconfident.
 
     Args:
-        poses: initial pose estimates (N, 3).
-        pose_covariances: their covariances (N, 3, 3) (the robots start uncorrelated).
+        poses, pose_covariances: initial pose estimates (N, 3) and their covariances (N, 3, 3) (uncorrelated).
         cross_covariances: keep the cross-covariances (the correct joint filter).
     """
 
     def __init__(self, poses, pose_covariances, cross_covariances: bool = True):
         poses = np.asarray(poses, dtype=float)
-        covariances = np.asarray(pose_covariances, dtype=float)
         if poses.ndim != 2 or poses.shape[1] != POSE_DIM or len(poses) < 1 or not np.all(np.isfinite(poses)):
             raise ValueError(f"poses must be finite with shape (N, 3), N >= 1, got shape {poses.shape}")
-        if covariances.shape != (len(poses), POSE_DIM, POSE_DIM):
-            raise ValueError(f"pose_covariances must have shape ({len(poses)}, 3, 3), got {covariances.shape}")
+        covariances = _finite("pose_covariances", pose_covariances, (len(poses), POSE_DIM, POSE_DIM))
         for robot, covariance in enumerate(covariances):
             log_det_spd(covariance, f"initial pose covariance of robot {robot}")
-        n_robots = len(poses)
-        super().__init__(dim_x=POSE_DIM * n_robots, dim_z=POSE_DIM)
-        self.n_robots = n_robots
+        super().__init__(dim_x=poses.size, dim_z=POSE_DIM)
+        self.n_robots = len(poses)
         self.cross_covariances = bool(cross_covariances)
         self.x = poses.ravel().copy()
         self.P = block_diagonal(covariances)
         self.Q = np.zeros_like(self.P)
-        self._own_block = np.kron(np.eye(n_robots), np.ones((POSE_DIM, POSE_DIM)))
+        self._own_block = np.kron(np.eye(self.n_robots), np.ones((POSE_DIM, POSE_DIM)))
         self._headings = np.arange(2, self.dim_x, POSE_DIM)
 
     @property
@@ -183,7 +173,7 @@ class JointEKF(_UnicycleEKF):
         robots = np.asarray(robots, dtype=int)
         if robots.size == 0:
             return
-        H = self._stacked_jacobian(robots, GPS_POSE_JACOBIAN[None])
+        H = self._stacked_jacobian(robots, np.broadcast_to(GPS_POSE_JACOBIAN, (len(robots), 2, POSE_DIM)))
         self._update(fixes, H @ self.x, H, block_diagonal(noise_covariances), [])
 
     def relative_pose_model(self, observers, targets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -195,10 +185,9 @@ class JointEKF(_UnicycleEKF):
     def relative_pose_update(
         self, observers, targets, measurements, predicted, H_observer, H_target, R, *, check_input: bool = True
     ) -> None:
-        """Update with relative-pose measurements taken at the same time (one stacked update): measurement ``k``
-        (k, m) is ``[range, bearing, relative heading]`` (or ``[range, bearing]``, m = 2) of robot ``targets[k]`` seen
-        from robot ``observers[k]``, ``predicted`` and the Jacobians (k, m, 3) the first m rows of
-        ``relative_pose_model``'s, ``R`` (k, m, m) the noise of each (independent between measurements)."""
+        """One stacked update with simultaneous relative-pose measurements (k, m): row ``k`` is ``[range, bearing,
+        relative heading]`` (m = 3) or ``[range, bearing]`` (m = 2) of robot ``targets[k]`` seen by ``observers[k]``;
+        ``predicted``, Jacobians (k, m, 3): ``relative_pose_model``'s first m rows; ``R`` (k, m, m): their own noise."""
         if check_input:
             observers = _robot_indices("observers", observers, self.n_robots)
             targets = _robot_indices("targets", targets, self.n_robots)
@@ -218,12 +207,9 @@ class JointEKF(_UnicycleEKF):
         m = np.shape(measurements)[1]
         self._update(measurements, predicted, H, block_diagonal(R), np.arange(len(H)) % m != 0)
 
-    def _stacked_jacobian(self, robots: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    def _stacked_jacobian(self, robots: np.ndarray, blocks) -> np.ndarray:
         """(k m, 3N) Jacobian whose k-th row block holds ``blocks[k]`` (m, 3) in robot ``robots[k]``'s columns."""
-        m = blocks.shape[1]
-        H = np.zeros((len(robots), m, self.n_robots, POSE_DIM))
-        H[np.arange(len(robots)), :, robots, :] = blocks
-        return H.reshape(len(robots) * m, self.dim_x)
+        return batched._slot_jacobians(robots[None], np.asarray(blocks)[None], self.dim_x).reshape(-1, self.dim_x)
 
     def _update(self, measurement, predicted, H, R, angle_rows) -> None:
         """``_UnicycleEKF._update``; without ``cross_covariances`` each robot keeps only its own block."""

@@ -1,9 +1,8 @@
 """Compiled kernels of the batched EKF core (``batched``): loops over the copies, the small matrix algebra written out.
 
-Each kernel takes C-contiguous float64 stacks (bool and int64 for masks and indices), copies first,
-and returns new arrays. Kernels do not check their inputs (``batched`` does); an undefined result
-(a non-positive determinant, a landmark on the sensor) comes back as NaN or a flag for the caller to
-raise on. States start with R robot poses ``[x, y, heading]``; covariances are symmetric.
+Each takes C-contiguous float64 stacks (bool, int64 for masks, indices), copies first, and returns new arrays, unchecked
+(``batched`` checks): an undefined result (a determinant <= 0, a landmark on the sensor) is NaN or a flag for the caller
+to raise on. States start with R robot poses ``[x, y, heading]``; covariances are symmetric.
 """
 
 from __future__ import annotations
@@ -22,13 +21,10 @@ COINCIDENT_SQUARED_RANGE = 1e-18  # [m^2] a target this close to the sensor has 
 
 @kernel
 def predict_poses(x, P, controls, dt, control_covariances):
-    """Unicycle prediction of the first R poses of every copy: ``x`` (N, n), ``P`` (N, n, n).
-
-    ``controls`` (N, R, 2) are ``[speed, turn_rate]``, ``control_covariances`` (N, R, 2, 2) their noise,
-    ``dt`` [s]. The covariance becomes ``F P F^T + V C V^T`` with F the identity but for each pose's
-    ``F[0, 2]`` and ``F[1, 2]``: F P adds multiples of the heading row to the x and y rows, P F^T the same
-    with columns, and V C V^T lands on each robot's own 3 x 3 block.
-    """
+    """Unicycle prediction of the first R poses of every copy: ``x`` (N, n), ``P`` (N, n, n), ``controls`` (N, R, 2)
+    ``[speed, turn_rate]`` with noise ``control_covariances`` (N, R, 2, 2), ``dt`` [s]. ``P`` becomes ``F P F^T + V C
+    V^T``, F the identity but for each pose's ``F[0, 2]``, ``F[1, 2]``: F P adds multiples of the heading row to the x
+    and y rows, P F^T the same with columns; V C V^T lands on each robot's own 3 x 3 block."""
     n_copies, n = x.shape
     n_robots = controls.shape[1]
     x_new, P_new = x.copy(), P.copy()
@@ -53,17 +49,10 @@ def predict_poses(x, P, controls, dt, control_covariances):
         for robot in range(n_robots):
             i = POSE_DIM * robot
             cos_h, sin_h = math.cos(x[c, i + 2]), math.sin(x[c, i + 2])
-            C = control_covariances[c, robot]
-            v_x, v_y = dt * cos_h, dt * sin_h  # V = [[v_x, 0], [v_y, 0], [0, dt]]
-            P_new[c, i, i] += v_x * C[0, 0] * v_x
-            P_new[c, i, i + 1] += v_x * C[0, 0] * v_y
-            P_new[c, i, i + 2] += v_x * C[0, 1] * dt
-            P_new[c, i + 1, i] += v_y * C[0, 0] * v_x
-            P_new[c, i + 1, i + 1] += v_y * C[0, 0] * v_y
-            P_new[c, i + 1, i + 2] += v_y * C[0, 1] * dt
-            P_new[c, i + 2, i] += dt * C[1, 0] * v_x
-            P_new[c, i + 2, i + 1] += dt * C[1, 0] * v_y
-            P_new[c, i + 2, i + 2] += dt * C[1, 1] * dt
+            v = (dt * cos_h, dt * sin_h, dt)  # V = [[v[0], 0], [v[1], 0], [0, v[2]]]: row a's entry in column a // 2
+            for a in range(POSE_DIM):
+                for b in range(POSE_DIM):
+                    P_new[c, i + a, i + b] += v[a] * control_covariances[c, robot, a // 2, b // 2] * v[b]
     return x_new, P_new
 
 
@@ -129,9 +118,8 @@ def relative_pose_models(x, observers, targets):
 
 @inner_kernel
 def invert(S, r, inverse, pivoted, order):
-    """The inverse of the leading (r, r) block of ``S`` into ``inverse``: the adjugate over the determinant up to
-    3 x 3, else Gauss-Jordan elimination with partial pivoting (``gauss_jordan_inverse``; ``pivoted`` (r, r) and
-    ``order`` (r,) int are its scratch)."""
+    """The inverse of the leading (r, r) block of ``S`` into ``inverse``: the adjugate over the determinant up to 3 x 3,
+    else ``gauss_jordan_inverse`` (``pivoted`` (r, r) and ``order`` (r,) int: its scratch)."""
     if r == 1:
         inverse[0, 0] = 1.0 / S[0, 0]
     elif r == 2:
@@ -157,9 +145,8 @@ def invert(S, r, inverse, pivoted, order):
 def gauss_jordan_inverse(S, r, inverse, A, order):
     """The inverse of the leading (r, r) block of ``S`` into ``inverse`` by Gauss-Jordan elimination with partial
     pivoting of its copy ``A``, leaving out the columns of ``A`` at and left of the pivot (no later step reads them)
-    and the inverse's columns that are still exact zeros (``order[:j + 1]``, (r,) int scratch, holds the identity
-    columns of the rows pivoted so far): adding a zero product changes no number, so the result is the full one's.
-    """
+    and the inverse's columns still exact zeros (``order[:j + 1]``, (r,) int scratch, holds the identity columns of
+    the rows pivoted so far): adding a zero product changes no number, so the result is the full one's."""
     for i in range(r):
         order[i] = i
         for k in range(r):
@@ -191,19 +178,6 @@ def gauss_jordan_inverse(S, r, inverse, A, order):
 
 
 @inner_kernel
-def times_inverse(X, S, r, S_inverse, product, pivoted, order):
-    """``X S^-1`` with the leading (r, r) block of ``S`` into ``product[:, :r]``; ``S_inverse``, ``pivoted`` and
-    ``order``: ``invert``'s scratch."""
-    invert(S, r, S_inverse, pivoted, order)
-    for i in range(X.shape[0]):
-        for j in range(r):
-            total = 0.0
-            for t in range(r):
-                total += X[i, t] * S_inverse[t, j]
-            product[i, j] = total
-
-
-@inner_kernel
 def nonzero_columns(rows, columns) -> int:
     """How many columns of ``rows`` (r, n) hold a non-zero entry (the state entries a measurement depends on); their
     indices into ``columns[:count]``."""
@@ -219,14 +193,11 @@ def nonzero_columns(rows, columns) -> int:
 
 @kernel
 def kalman_updates(x, P, residuals, H, R, used, n_headings, cross_covariances):
-    """The EKF update of every copy (``x`` (N, n), ``P`` (N, n, n)) with its ``used`` (N, M) measurement slots,
-    stacked in slot order; the others unchanged. ``residuals`` (N, M, m) are measured minus predicted, angles wrapped;
-    ``H`` (N, M, m, n), ``R`` (N, M, m, m) each slot's Jacobian and noise.
-
-    ``K = P H^T S^-1`` with ``S = H P H^T + R`` (``R`` block diagonal over the slots); ``x + K y`` with the
-    headings of the first ``n_headings`` poses wrapped; ``P - K (P H^T)^T``, symmetrized. Without
-    ``cross_covariances`` an updated copy keeps only each robot's own 3 x 3 blocks (``JointEKF``'s option).
-    """
+    """The EKF update of every copy (``x`` (N, n), ``P`` (N, n, n)) with its ``used`` (N, M) measurement slots stacked
+    in slot order, the others unchanged: ``residuals`` (N, M, m) measured minus predicted, angles wrapped; ``H`` (N, M,
+    m, n), ``R`` (N, M, m, m) each slot's Jacobian and noise. ``K = P H^T S^-1``, ``S = H P H^T + R``; ``x + K y``, the
+    first ``n_headings`` headings wrapped; ``P - K (P H^T)^T`` symmetrized, without ``cross_covariances`` only each
+    robot's own 3 x 3 blocks kept (``JointEKF``'s option)."""
     n_copies, n_slots, m, n = H.shape
     most = n_slots * m
     x_new, P_new = x.copy(), P.copy()
@@ -356,11 +327,9 @@ def gps_updates(x, P, fixes, R, has_fix, cross_covariances):
 @inlined_kernel
 def chosen_landmark_updates(x, P, measurements, chosen, predicted, H, R, prior_log_det):
     """The EKF update of each copy with its measured ``[range, bearing]`` (N, 2) of its ``chosen`` (N,) candidate
-    (-1: none, unchanged), the candidates' ``predicted`` (N, K, 2), ``H`` (N, K, 2, n) and ``R`` (N, K, 2, 2).
-
-    Returns ``(x, P, realized MI (N,))``, the MI ``0.5 (prior_log_det - ln det P_post)`` [nats], 0 for a copy without a
-    measurement, NaN where a posterior determinant is not > 0.
-    """
+    (-1: none, unchanged), the candidates' ``predicted`` (N, K, 2), ``H`` (N, K, 2, n) and ``R`` (N, K, 2, 2):
+    ``(x, P, realized MI (N,))``, MI ``0.5 (prior_log_det - ln det P_post)`` [nats] (0 without a measurement, NaN where
+    a posterior determinant is not > 0)."""
     n_copies, n = x.shape
     residuals, rows = np.zeros((n_copies, 1, 2)), np.zeros((n_copies, 1, 2, n))
     noise, used = np.zeros((n_copies, 1, 2, 2)), np.zeros((n_copies, 1), dtype=np.bool_)
@@ -419,12 +388,9 @@ def landmark_gain(P, J, R, HP, S, columns) -> float:
 
 @kernel
 def relative_pose_gains(P, observers, targets, H_observer, H_target, R, wanted):
-    """``JointEKF.relative_pose_information_gains`` of each ``wanted`` candidate pair (N, M) bool, 0 for the others:
-    ``(own, joint)``, each (N, M) [nats].
-
-    ``own = 0.5 ln(det P_oo / det (P_oo - A S^-1 A^T))`` with ``A`` the observer's rows of ``P H^T`` and
-    ``joint = 0.5 ln(det S / det R)``; NaN where a determinant is not > 0.
-    """
+    """``batched.relative_pose_information_gains`` of each ``wanted`` candidate pair (N, M) bool, 0 for the others,
+    ``(own, joint)`` (N, M) [nats]: ``own = 0.5 ln(det P_oo / det (P_oo - A S^-1 A^T))``, ``A`` the observer's rows of
+    ``P H^T``, and ``joint = 0.5 ln(det S / det R)``; NaN where a determinant is not > 0."""
     n_copies, n_pairs, m, _ = H_observer.shape
     own, joint = np.zeros((n_copies, n_pairs)), np.zeros((n_copies, n_pairs))
     A, B = np.empty((POSE_DIM, m)), np.empty((POSE_DIM, m))
@@ -453,7 +419,13 @@ def relative_pose_gains(P, observers, targets, H_observer, H_target, R, wanted):
                         from_observer += H_o[i, s] * A[s, j]
                         from_target += H_t[i, s] * B[s, j]
                     S[i, j] = from_observer + from_target + R[c, k, i, j]
-            times_inverse(A, S, m, S_inverse, A_S_inverse, pivoted, order)
+            invert(S, m, S_inverse, pivoted, order)
+            for i in range(POSE_DIM):
+                for j in range(m):
+                    total = 0.0
+                    for s in range(m):
+                        total += A[i, s] * S_inverse[s, j]
+                    A_S_inverse[i, j] = total
             for i in range(POSE_DIM):
                 for j in range(POSE_DIM):
                     total = 0.0

@@ -16,21 +16,15 @@ def unicycle_motion(pose, control, dt: float) -> np.ndarray:
     """Pose after driving ``control = [speed, turn_rate]`` for ``dt`` seconds (Euler step)."""
     x, y, heading = pose
     speed, turn_rate = control
-    return np.array(
-        [
-            x + speed * dt * math.cos(heading),
-            y + speed * dt * math.sin(heading),
-            wrap_angle(heading + turn_rate * dt),
-        ]
-    )
+    step = speed * dt
+    return np.array([x + step * math.cos(heading), y + step * math.sin(heading), wrap_angle(heading + turn_rate * dt)])
 
 
 def unicycle_jacobians(pose, control, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Jacobians of ``unicycle_motion`` w.r.t. the pose (3, 3) and the control (3, 2)."""
-    heading = pose[2]
-    speed = control[0]
-    cos_h, sin_h = math.cos(heading), math.sin(heading)
-    F = np.array([[1.0, 0.0, -speed * dt * sin_h], [0.0, 1.0, speed * dt * cos_h], [0.0, 0.0, 1.0]])
+    cos_h, sin_h = math.cos(pose[2]), math.sin(pose[2])
+    step = control[0] * dt
+    F = np.array([[1.0, 0.0, -step * sin_h], [0.0, 1.0, step * cos_h], [0.0, 0.0, 1.0]])
     V = np.array([[dt * cos_h, 0.0], [dt * sin_h, 0.0], [0.0, dt]])
     return F, V
 
@@ -39,18 +33,13 @@ def range_bearing(pose, landmarks) -> np.ndarray:
     """Range [m] and bearing [rad] from ``pose`` to each landmark: (N, 2) -> (N, 2); batched, from each of the poses
     (..., 3) to its landmarks (..., N, 2) -> (..., N, 2)."""
     landmarks, pose = np.atleast_2d(landmarks), np.asarray(pose)
-    dx = landmarks[..., 0] - pose[..., None, 0]
-    dy = landmarks[..., 1] - pose[..., None, 1]
+    dx, dy = landmarks[..., 0] - pose[..., None, 0], landmarks[..., 1] - pose[..., None, 1]
     return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - pose[..., None, 2])], axis=-1)
 
 
 def range_bearing_linearized(pose, landmarks) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``range_bearing`` and its Jacobians w.r.t. the pose (N, 2, 3) and the landmark position (N, 2, 2), on the
-    batched kernels; a pose stack (3, N) sees one landmark each.
-
-    Raises:
-        ValueError: if a landmark coincides with the sensor (the bearing is undefined there).
-    """
+    batched kernels; a pose stack (3, N) sees one landmark each. ``ValueError`` if a landmark is on the sensor."""
     from infonav_gym.estimation import batched  # numba: only when a linearization is asked for
 
     poses, landmarks = np.atleast_2d(np.asarray(pose, dtype=float)[:3].T), np.atleast_2d(landmarks)
@@ -69,10 +58,8 @@ GPS_POSE_JACOBIAN = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # a position f
 
 
 def relative_pose(observer, target) -> np.ndarray:
-    """Range [m], bearing [rad] and relative heading [rad] of ``target`` poses seen from ``observer`` poses.
-
-    Both (N, 3) (or (3,)); returns (N, 3). The relative heading is ``target heading - observer heading``.
-    """
+    """Range [m], bearing [rad] and relative heading ``target heading - observer heading`` [rad] (N, 3) of ``target``
+    poses seen from ``observer`` poses, both (N, 3) (or (3,))."""
     observer, target = np.atleast_2d(observer), np.atleast_2d(target)
     dx, dy = target[:, 0] - observer[:, 0], target[:, 1] - observer[:, 1]
     bearing = wrap_angle(np.arctan2(dy, dx) - observer[:, 2])
@@ -81,11 +68,7 @@ def relative_pose(observer, target) -> np.ndarray:
 
 def relative_pose_linearized(observer, target) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``relative_pose`` and its Jacobians w.r.t. the observer's pose (N, 3, 3) and the target's pose (N, 3, 3), on the
-    batched kernels.
-
-    Raises:
-        ValueError: if a target coincides with its observer (the bearing is undefined there).
-    """
+    batched kernels. ``ValueError`` if a target is on its observer (no bearing)."""
     from infonav_gym.estimation import batched
 
     observer, target = np.atleast_2d(observer), np.atleast_2d(target)

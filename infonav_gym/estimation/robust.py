@@ -17,16 +17,13 @@ from scipy import optimize
 
 
 def huber_noise(residual, H, P, R, threshold_nis: float) -> tuple[np.ndarray, float, float]:
-    """The inflated noise covariance of a Huber-weighted update and its weight.
-
-    The weight is the fixed point of ``w = min(1, c / d(w))`` with ``d(w)^2 = r^T (H P H^T + R / w)^-1 r``:
-    ``w - c / d(w)`` increases with ``w``, so the root is unique, in ``[c / d(1), 1]`` (Brent's method).
+    """The inflated noise covariance of a Huber-weighted update and its weight ``w``, the fixed point of
+    ``w = min(1, c / d(w))`` with ``d(w)^2 = r^T (H P H^T + R / w)^-1 r``: ``w - c / d(w)`` increases with ``w``, so
+    the root is unique, in ``[c / d(1), 1]`` (Brent's method).
 
     Args:
-        residual: innovation ``z - h(x)`` (m,), angles wrapped.
-        H: measurement Jacobian (m, n).
-        P: prior covariance (n, n).
-        R: nominal measurement noise covariance (m, m).
+        residual, H, P, R: innovation ``z - h(x)`` (m,), angles wrapped; measurement Jacobian (m, n); prior covariance
+            (n, n); nominal measurement noise covariance (m, m).
         threshold_nis: ``c^2``: innovations with NIS up to it get the standard update.
 
     Returns:

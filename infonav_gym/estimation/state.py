@@ -65,11 +65,9 @@ class Prior(NamedTuple):
         """``(x, P)`` of ``PoseEKF(*prior)``: the pose then the landmarks, block-diagonal covariance."""
         if self.landmarks is None:
             return self.pose.copy(), self.pose_covariance.copy()
+        variances = np.full(self.landmarks.size, self.landmark_variance)
         x = np.concatenate([self.pose, self.landmarks.ravel()])
-        variances = np.concatenate(
-            [np.diagonal(self.pose_covariance), np.full(self.landmarks.size, self.landmark_variance)]
-        )
-        return x, np.diag(variances)
+        return x, np.diag(np.concatenate([np.diagonal(self.pose_covariance), variances]))
 
 
 class BeliefBatch:
