@@ -61,12 +61,8 @@ class WorldBatch:
         self._grown_stale = np.ones(n_copies, dtype=bool)  # copies reset since: rebuilt when a free step needs them
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
         self._has_space = np.zeros(n_copies, dtype=bool)  # the copy holds a Pymunk space (``_spaces[copy]``)
-        self.poses = np.zeros((n_copies, 0, 3))
         self._waypoints = np.zeros((n_copies, 0, 0, 2))
-        self._n_waypoints = np.zeros((n_copies, 0), dtype=int)
-        self._waypoint_index = np.zeros((n_copies, 0), dtype=int)
-        self._route_speeds = np.zeros((n_copies, 0))
-        self._loops = np.zeros((n_copies, 0), dtype=bool)
+        self._resize_robots(0)  # the robots' arrays, sized at the first reset
         self._boxes = np.full((n_copies, 0, 4), _EMPTY_BOX)
 
     @property
