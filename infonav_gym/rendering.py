@@ -226,6 +226,19 @@ def _has_path(path) -> bool:
     return path is not None and len(path) >= 2
 
 
+def _draw_cross(pygame, surface, colour, center) -> None:
+    """An X, 9 px across, at pixel ``center`` (col, row): a landmark estimate."""
+    for slope in (-4, 4):
+        pygame.draw.line(surface, colour, (center[0] - 4, center[1] - slope), (center[0] + 4, center[1] + slope), 2)
+
+
+def _draw_target(pygame, surface, colour, center, radius_px: int) -> None:
+    """A ring of ``radius_px`` around pixel ``center`` (col, row), crossed by its two diameters: the goal."""
+    pygame.draw.circle(surface, colour, center, radius_px, 2)
+    for dx, dy in ((radius_px, 0), (0, radius_px)):
+        pygame.draw.line(surface, colour, (center[0] - dx, center[1] - dy), (center[0] + dx, center[1] + dy), 1)
+
+
 class Renderer:
     """Draws :class:`SceneFrame` objects to an RGB array or a pygame window, the longer side ``size_px``: caption on
     top, the scene, then the inset and the legend (at most half of ``size_px`` with the caption, else no legend)."""
@@ -243,9 +256,7 @@ class Renderer:
         self.render_mode = render_mode
         self.size_px = int(size_px)
         self.fps = int(fps)
-        self._window = None
-        self._clock = None
-        self._font = None
+        self._window = self._clock = self._font = None
         self.text_boxes: list[tuple[str, tuple[int, int, int, int]]] = []  # the last frame's texts and their boxes
 
     def __getstate__(self) -> dict:
@@ -351,8 +362,7 @@ class Renderer:
             import pygame
 
             pygame.display.quit()
-        self._window = None
-        self._clock = None
+        self._window = self._clock = None
 
     def _draw_scene(self, pygame, surface, frame: SceneFrame, layout: FrameLayout) -> None:
         scale = layout.scale
@@ -371,11 +381,6 @@ class Renderer:
             pygame.draw.circle(surface, colour, center.tolist(), _ROBOT_PX, 0 if filled else 2)
             pygame.draw.line(surface, colour, center.tolist(), np.rint(tip).tolist(), 2)
 
-        def target(center, radius_px):
-            pygame.draw.circle(surface, _BLACK, center.tolist(), radius_px, 2)
-            for offset in ((radius_px, 0), (0, radius_px)):
-                pygame.draw.line(surface, _BLACK, (center - offset).tolist(), (center + offset).tolist(), 1)
-
         def disc(circle, colour):
             pygame.draw.circle(surface, colour, screen(circle.center)[0].tolist(), max(1, round(circle.radius * scale)))
 
@@ -389,15 +394,15 @@ class Renderer:
         for start, end in frame.walls:
             pygame.draw.line(surface, _DARK_GREY, *screen([start, end]).tolist(), 3)
         if frame.goal is not None:
-            target(screen(frame.goal)[0], max(_ROBOT_PX, round(frame.goal_radius_m * scale)))
+            goal_px = max(_ROBOT_PX, round(frame.goal_radius_m * scale))
+            _draw_target(pygame, surface, _BLACK, screen(frame.goal)[0].tolist(), goal_px)
         for index, drawing in enumerate(frame.robots):
             for path, colour in ((drawing.true_path, _PATH_GREY), (drawing.estimated_path, _robot_colour(index))):
                 if _has_path(path):
                     pygame.draw.lines(surface, colour, False, screen(path).tolist(), 1)
         if frame.landmark_estimates is not None:
-            for index, (col, row) in enumerate(screen(frame.landmark_estimates).tolist()):
-                for slope in (-4, 4):
-                    pygame.draw.line(surface, _ORANGE, (col - 4, row - slope), (col + 4, row + slope), 2)
+            for index, center in enumerate(screen(frame.landmark_estimates).tolist()):
+                _draw_cross(pygame, surface, _ORANGE, center)
                 if frame.landmark_covariances is not None:
                     ellipse(frame.landmark_estimates[index], frame.landmark_covariances[index], _ORANGE)
         landmarks = screen(frame.landmarks).tolist()
@@ -505,23 +510,18 @@ class Renderer:
             pygame.draw.circle(surface, entry.colour, center, radius, 2)
         elif entry.symbol == "ellipse":
             pygame.draw.ellipse(surface, entry.colour, box, 2)
-        elif entry.symbol == "line":
+        elif entry.symbol in ("line", "scale"):
             pygame.draw.line(surface, entry.colour, box.midleft, box.midright, 2)
+            for end in (box.left, box.right - 1) if entry.symbol == "scale" else ():
+                pygame.draw.line(surface, entry.colour, (end, box.top + 2), (end, box.bottom - 2), 2)
         elif entry.symbol == "cross":
-            pygame.draw.line(surface, entry.colour, (center[0] - 4, center[1] - 4), (center[0] + 4, center[1] + 4), 2)
-            pygame.draw.line(surface, entry.colour, (center[0] - 4, center[1] + 4), (center[0] + 4, center[1] - 4), 2)
+            _draw_cross(pygame, surface, entry.colour, center)
         elif entry.symbol == "zone":
             pygame.draw.rect(surface, entry.colour, box)
-        elif entry.symbol == "scale":
-            pygame.draw.line(surface, entry.colour, box.midleft, box.midright, 2)
-            for end in (box.left, box.right - 1):
-                pygame.draw.line(surface, entry.colour, (end, box.top + 2), (end, box.bottom - 2), 2)
         elif entry.symbol == "wedge":
             pygame.draw.polygon(surface, entry.colour, [box.midleft, box.topright, box.bottomright], 2)
         else:
-            pygame.draw.circle(surface, entry.colour, center, radius, 2)
-            pygame.draw.line(surface, entry.colour, (center[0] - radius, center[1]), (center[0] + radius, center[1]), 1)
-            pygame.draw.line(surface, entry.colour, (center[0], center[1] - radius), (center[0], center[1] + radius), 1)
+            _draw_target(pygame, surface, entry.colour, center, radius)
 
     def _legend_rows(self, entries: list[LegendEntry], width_px: int) -> tuple[tuple[LegendEntry, ...], ...]:
         """``entries`` flowed left to right into rows at most ``width_px`` wide."""
