@@ -99,13 +99,12 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
         ((-2.0, -half_width), (-2.0, half_width)),
         ((length, -half_width), (length, half_width)),
     )
-    landmarks = np.array([[11.0, 2.2], [13.0, -2.2], [7.0, -2.2], [14.0, 2.2]])
     return Scenario(
         name="corridor",
         bounds=(-3.0, -4.0, length + 1.0, 4.0),
         walls=walls,
         routes=(Route((0.0, 0.0, 0.0), np.array([[length - 3.0, 0.0]]), speed_mps=speed_mps),),
-        landmarks=landmarks,
+        landmarks=np.array([[11.0, 2.2], [13.0, -2.2], [7.0, -2.2], [14.0, 2.2]]),
     )
 
 
@@ -115,8 +114,7 @@ def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: in
     for _ in range(max_attempts_each * max(count, 1)):
         if len(accepted) == count:
             break
-        sample = draw()
-        if accept(sample):
+        if accept(sample := draw()):
             accepted.append(sample)
     if len(accepted) < count:
         raise ValueError(f"could not place {count} {what} after many attempts: the field is too crowded")
@@ -215,14 +213,13 @@ def field(
         return (route_loop.distances(points) > 1.0) & np.all(gaps > clearances, axis=1)
 
     u = _uniform_until_accepted(np_random, n_landmarks, 2, outside_obstacles, "landmarks outside obstacles")
-    landmarks = _uniform(u, 1.0, size_m - 1.0)
     return Scenario(
         name="field",
         bounds=(0.0, 0.0, size_m, size_m),
         routes=(_closed_route(route, speed_mps),),
         walls=_box_walls(0.0, 0.0, size_m, size_m),
         obstacles=tuple(obstacles),
-        landmarks=np.array(landmarks).reshape(-1, 2),
+        landmarks=_uniform(u, 1.0, size_m - 1.0),  # (L, 2)
     )
 
 

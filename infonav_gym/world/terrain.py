@@ -103,10 +103,10 @@ class Terrain:
         object.__setattr__(self, "origin_m", finite_vector(self.origin_m, 2, "terrain origin_m"))
         object.__setattr__(self, "cylinders", tuple(self.cylinders))
         object.__setattr__(self, "boxes", tuple(self.boxes))
-        for obstacle in self.cylinders + self.boxes:
+        obstacles = self.cylinders + self.boxes
+        for obstacle in obstacles:
             if not isinstance(obstacle, (Cylinder, Box)):
                 raise ValueError(f"terrain obstacles must be Cylinder or Box, got {obstacle!r}")
-        obstacles = self.cylinders + self.boxes
         table = np.array(
             [(*c.center_m, c.radius_m, 0.0, 0.0, c.bottom_m, 0.0, 0.0, c.top_m) for c in self.cylinders]
             + [(0.0, 0.0, 0.0, *b.min_corner_m, *b.max_corner_m) for b in self.boxes]
