@@ -470,8 +470,7 @@ class Renderer:
         for index, text in enumerate(layout.inset_title_lines):
             title_top = top - (len(layout.inset_title_lines) - index) * layout.line_px
             self._draw_text(pygame, surface, text, _BLACK, (left, title_top))
-        image = np.asarray(frame.inset_image, dtype=np.uint8)
-        rgb = np.repeat(image.T[:, :, None], 3, axis=2)
+        rgb = np.repeat(np.asarray(frame.inset_image, dtype=np.uint8).T[:, :, None], 3, axis=2)
         surface.blit(pygame.transform.scale(pygame.surfarray.make_surface(rgb), (width, height)), (left, top))
         if frame.inset_grid is not None:
             rows, columns = frame.inset_grid

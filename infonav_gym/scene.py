@@ -115,5 +115,4 @@ def covariance_ellipse(
     eigenvalues, eigenvectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
     radii = np.maximum(n_sigma * np.sqrt(np.clip(eigenvalues, 0.0, None)), min_radius)
     angles = np.linspace(0.0, 2.0 * np.pi, n_points, endpoint=False)
-    circle = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    return (circle * radii) @ eigenvectors.T
+    return (np.stack([np.cos(angles), np.sin(angles)], axis=1) * radii) @ eigenvectors.T

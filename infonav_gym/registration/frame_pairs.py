@@ -104,5 +104,4 @@ def terrain_frame_pair(
     ladar = Ladar()
     previous = scan_on_terrain(ladar, scene.terrain, world.pose, np_random)
     world.step(time_step_s)
-    current = scan_on_terrain(ladar, scene.terrain, world.pose, np_random)
-    return frame_pair(previous, current, np_random)
+    return frame_pair(previous, scan_on_terrain(ladar, scene.terrain, world.pose, np_random), np_random)

@@ -194,8 +194,7 @@ def _inliers(distance: np.ndarray) -> np.ndarray:
         return candidates
     inside = distance[candidates]
     median = _median(inside)
-    threshold = median + ROBUST_K * MAD_TO_STD * _median(np.abs(inside - median))
-    return candidates[inside <= threshold]
+    return candidates[inside <= median + ROBUST_K * MAD_TO_STD * _median(np.abs(inside - median))]
 
 
 def _point_to_point(moved: np.ndarray, matched: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

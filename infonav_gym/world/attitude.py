@@ -22,6 +22,4 @@ def terrain_attitude(
     left = np.array([-forward[1], forward[0]])
     half_axes = np.array([forward * wheelbase_m / 2, left * track_m / 2])  # to the front axle, to the left wheels
     front, left_side, rear, right_side = terrain.height_at(np.array([x, y]) + np.concatenate([half_axes, -half_axes]))
-    pitch = -math.atan2(front - rear, wheelbase_m)
-    roll = math.atan2(left_side - right_side, track_m)
-    return roll, pitch
+    return math.atan2(left_side - right_side, track_m), -math.atan2(front - rear, wheelbase_m)

@@ -162,8 +162,7 @@ def _points_along(polygon: np.ndarray, per_edge: int = 8) -> np.ndarray:
 
 def _closed_route(polygon: np.ndarray, speed_mps: float) -> Route:
     """A looping route around ``polygon``, starting at its first vertex and heading for the second."""
-    heading = math.atan2(*(polygon[1] - polygon[0])[::-1])
-    start_pose = (float(polygon[0, 0]), float(polygon[0, 1]), heading)
+    start_pose = (float(polygon[0, 0]), float(polygon[0, 1]), math.atan2(*(polygon[1] - polygon[0])[::-1]))
     return Route(start_pose, _next_vertices(polygon), loop=True, speed_mps=speed_mps)
 
 
@@ -322,15 +321,13 @@ def team_field(
         jitter = np_random.uniform(-_TEAM_ANGLE_JITTER, _TEAM_ANGLE_JITTER, n_waypoints)
         angles = first_angle + 2 * math.pi * (robot / n_robots + (np.arange(n_waypoints) + jitter) / n_waypoints)
         polygons.append(_polygon(center, angles, np_random.uniform(low_m, high_m, n_waypoints)))
-    obstacles = _obstacles_clear_of(polygons, n_obstacles, size_m, np_random)
-    canopies = _canopies_on(polygons, n_canopies, np_random)
     return Scenario(
         name="team_field",
         bounds=(0.0, 0.0, size_m, size_m),
         routes=tuple(_closed_route(polygon, speed_mps) for polygon in polygons),
         walls=_box_walls(0.0, 0.0, size_m, size_m),
-        obstacles=tuple(obstacles),
-        gps_denied_zones=tuple(canopies),
+        obstacles=tuple(_obstacles_clear_of(polygons, n_obstacles, size_m, np_random)),
+        gps_denied_zones=tuple(_canopies_on(polygons, n_canopies, np_random)),  # drawn after the obstacles
     )
 
 
@@ -356,8 +353,7 @@ def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float =
     x_min, x_max, y_min, y_max = -3.0, CONVOY_LENGTH_M + 3.0, lanes[-1] - half, half
     walls = _box_walls(x_min, y_min, x_max, y_max)
     for hedge in range(n_robots - 1):
-        openings = CONVOY_OPENINGS[min(hedge, len(CONVOY_OPENINGS) - 1)]
-        walls += _hedge(lanes[hedge] - half, openings, x_min, x_max)
+        walls += _hedge(lanes[hedge] - half, CONVOY_OPENINGS[min(hedge, len(CONVOY_OPENINGS) - 1)], x_min, x_max)
     routes = tuple(Route((0.0, y, 0.0), np.array([[CONVOY_LENGTH_M, y]]), speed_mps=speed_mps) for y in lanes)
     return Scenario(name="convoy", bounds=(x_min - 1, y_min - 1, x_max + 1, y_max + 1), routes=routes, walls=walls)
 

@@ -189,8 +189,7 @@ class WorldBatch:
         if stale.size:
             geometries = [StaticGeometry.from_scenario(self._scenarios[copy], self.wall_thickness_m) for copy in stale]
             fresh = StaticGeometry.stack(geometries).grown(self.robot_radius_m + CONTACT_GAP_M)
-            base = fresh.tiled(self.n_copies) if self._grown is None else self._grown
-            self._grown = base.with_copies(stale, fresh)
+            self._grown = (fresh.tiled(self.n_copies) if self._grown is None else self._grown).with_copies(stale, fresh)
             self._grown_stale[stale] = False
         return self._grown
 
