@@ -140,7 +140,7 @@ def legend_entries(frame: SceneFrame, *, possible: bool = False) -> list[LegendE
             has_landmarks,
             "disc",
             _GREEN,
-            f"landmark in sight, numbered {_landmark_numbers(len(visible))}",
+            f"landmark in sight, numbered {'#1' if len(visible) == 1 else f'#1-#{len(visible)}'}",
         ),
         (
             not visible.all(),
@@ -182,10 +182,6 @@ def legend_entries(frame: SceneFrame, *, possible: bool = False) -> list[LegendE
         for shown, may_show, symbol, colour, text in candidates
         if shown or (possible and may_show)
     ]
-
-
-def _landmark_numbers(count: int) -> str:
-    return "#1" if count == 1 else f"#1-#{count}"
 
 
 def scale_bar_m(longest_m: float) -> float:
@@ -381,15 +377,12 @@ class Renderer:
             pygame.draw.circle(surface, colour, center.tolist(), _ROBOT_PX, 0 if filled else 2)
             pygame.draw.line(surface, colour, center.tolist(), np.rint(tip).tolist(), 2)
 
-        def disc(circle, colour):
-            pygame.draw.circle(surface, colour, screen(circle.center)[0].tolist(), max(1, round(circle.radius * scale)))
-
         surface.set_clip(pygame.Rect(layout.field))
         for circle, colour in [
             *((zone, _CANOPY_GREEN) for zone in frame.gps_denied_zones),
             *((obstacle, _DARK_GREY) for obstacle in frame.obstacles),
         ]:
-            disc(circle, colour)
+            pygame.draw.circle(surface, colour, screen(circle.center)[0].tolist(), max(1, round(circle.radius * scale)))
         surface.set_clip(pygame.Rect(layout.scene_clip))
         for start, end in frame.walls:
             pygame.draw.line(surface, _DARK_GREY, *screen([start, end]).tolist(), 3)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from infonav_gym.compiled import contiguous
-from infonav_gym.geometry import rotation_angle
+from infonav_gym.geometry import rigid_transform, rotation_angle
 from infonav_gym.registration.gicp import (
     GICP_NEIGHBOURS,
     check_neighbours,
@@ -364,7 +364,7 @@ def icp(
             break
         previous_step, previous_raw = (step_rotation, step_translation), raw
 
-    transform = np.eye(4)
-    transform[:3, :3], transform[:3, 3] = rotation, translation
     rmse = float(np.sqrt(np.mean(distance**2))) if inliers.size >= 3 else math.inf
-    return RegistrationResult(transform, rmse, inliers.size / source.shape[0], iterations, converged)
+    return RegistrationResult(
+        rigid_transform(rotation, translation), rmse, inliers.size / source.shape[0], iterations, converged
+    )

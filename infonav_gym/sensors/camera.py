@@ -133,7 +133,5 @@ class Camera(PanTiltGrid):
         """Grayscale uint8 image (rows, columns) of ``terrain`` from ``vehicle_pose`` ``[x, y, heading]``; noise is
         drawn for every pixel even at ``noise_std`` 0, so the generator advances the same way."""
         levels = self.radiance(terrain, vehicle_pose, pan_rad, tilt_rad)
-        noise = np_random.standard_normal(levels.shape)
-        noise *= self.noise_std
-        levels += noise
+        levels += np_random.standard_normal(levels.shape) * self.noise_std
         return np.clip(np.rint(levels, out=levels), 0, 255, out=levels).astype(np.uint8)
