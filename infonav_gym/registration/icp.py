@@ -341,8 +341,7 @@ def icp(
             if smaller_than(max(standard_error, tolerance), step_rotation, step_translation):
                 break
             step_rotation, step_translation, raw = _extrapolate(step_rotation, step_translation, previous_raw)
-            rotation = step_rotation @ rotation
-            translation = step_rotation @ translation + step_translation
+            rotation, translation = step_rotation @ rotation, step_rotation @ translation + step_translation
             iterations, previous_raw = iterations + 1, raw
 
     rows, converged, previous_step, previous_raw = slice(None), False, None, None
@@ -350,8 +349,7 @@ def icp(
     while iterations < max_iterations and inliers.size >= 3:
         step_rotation, step_translation = increment(moved, matched, inliers, rows)
         step_rotation, step_translation, raw = _extrapolate(step_rotation, step_translation, previous_raw)
-        rotation = step_rotation @ rotation
-        translation = step_rotation @ translation + step_translation
+        rotation, translation = step_rotation @ rotation, step_rotation @ translation + step_translation
         iterations += 1
         moved, matched, distance, inliers = correspondences(rows)
         if smaller_than(tolerance, step_rotation, step_translation) or (

@@ -118,8 +118,7 @@ _DIAGONAL = np.arange(3)
 
 
 RELATIVE_POSE_SENSORS = {
-    # Scanning laser range finder: long range, all around, accurate range; the teammate's
-    # outline gives its orientation.
+    # Scanning laser range finder: long range, all around, accurate range; the teammate's outline gives its orientation.
     "laser": RelativePoseSensor(
         RangeBearingSensor(
             range_std_m=0.05,
@@ -130,8 +129,7 @@ RELATIVE_POSE_SENSORS = {
         ),
         heading_std_rad=math.radians(3.0),
     ),
-    # Camera (vision-based cooperative localization): narrow field of view, shorter range,
-    # range and orientation from the image, both degrading with distance.
+    # Camera (vision-based): narrow field of view, shorter range; range and orientation from the image, worse farther.
     "vision": RelativePoseSensor(
         RangeBearingSensor(
             range_std_m=0.02,
