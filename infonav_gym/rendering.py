@@ -123,53 +123,26 @@ def legend_entries(frame: SceneFrame, *, possible: bool = False) -> list[LegendE
     visible = np.ones(len(frame.landmarks), bool) if frame.landmark_visible is None else frame.landmark_visible
     visible = np.asarray(visible, dtype=bool)
     has_landmarks, team = len(visible) > 0, len(robots) > 1
+    numbers = "#1" if len(visible) == 1 else f"#1-#{len(visible)}"
+    ellipse = f"{N_SIGMA:g}\u03c3 position ellipse (min {MIN_ELLIPSE_RADIUS_PX} px)"
+    sight_varies = has_landmarks and frame.landmark_visible is not None  # landmarks may go out of sight
+    observing = frame.chosen_landmark is not None or bool(frame.landmark_observations)
     candidates = [  # (drawn in this frame, may be drawn in its scene, symbol, colour, text)
         (any(robot.true_pose is not None for robot in robots), False, "disc", _BLACK, "true pose"),
         (bool(estimated), False, "ring", colour, "estimated pose" + per_robot),
-        (
-            any(robots[index].pose_covariance is not None for index in estimated),
-            False,
-            "ellipse",
-            colour,
-            f"{N_SIGMA:g}\u03c3 position ellipse (min {MIN_ELLIPSE_RADIUS_PX} px)",
-        ),
+        (any(robots[index].pose_covariance is not None for index in estimated), False, "ellipse", colour, ellipse),
         (any(_has_path(robot.true_path) for robot in robots), bool(robots), "line", _PATH_GREY, "true path"),
         (any(_has_path(robot.estimated_path) for robot in robots), bool(estimated), "line", colour, "estimated path"),
-        (
-            bool(visible.any()),
-            has_landmarks,
-            "disc",
-            _GREEN,
-            f"landmark in sight, numbered {'#1' if len(visible) == 1 else f'#1-#{len(visible)}'}",
-        ),
-        (
-            not visible.all(),
-            has_landmarks and frame.landmark_visible is not None,
-            "disc",
-            _LIGHT_GREY,
-            "landmark out of sight",
-        ),
-        (
-            frame.chosen_landmark is not None or bool(frame.landmark_observations),
-            has_landmarks,
-            "disc",
-            _RED,
-            "landmark observed now",
-        ),
+        (bool(visible.any()), has_landmarks, "disc", _GREEN, f"landmark in sight, numbered {numbers}"),
+        (not visible.all(), sight_varies, "disc", _LIGHT_GREY, "landmark out of sight"),
+        (observing, has_landmarks, "disc", _RED, "landmark observed now"),
         (frame.landmark_estimates is not None, False, "cross", _ORANGE, f"landmark estimate, {N_SIGMA:g}\u03c3"),
-        (
-            bool(frame.observations),
-            team,
-            "line",
-            _first_observer_colour(frame.observations),
-            "relative observation (observer's colour)",
-        ),
-        (
-            bool(frame.landmark_observations),
-            team and has_landmarks,
-            "line",
-            _first_observer_colour(frame.landmark_observations),
-            "landmark observation (observer's colour)",
+        *(
+            (bool(pairs), may_show, "line", _first_observer_colour(pairs), f"{kind} observation (observer's colour)")
+            for kind, pairs, may_show in (
+                ("relative", frame.observations, team),
+                ("landmark", frame.landmark_observations, team and has_landmarks),
+            )
         ),
         (bool(frame.walls), False, "line", _DARK_GREY, "wall"),
         (bool(frame.obstacles), False, "disc", _DARK_GREY, "obstacle"),
