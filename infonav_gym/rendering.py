@@ -222,9 +222,7 @@ class Renderer:
         if fps <= 0:
             raise ValueError(f"fps must be positive, got {fps}")
         require_extra("pygame", "rendering")
-        self.render_mode = render_mode
-        self.size_px = int(size_px)
-        self.fps = int(fps)
+        self.render_mode, self.size_px, self.fps = render_mode, int(size_px), int(fps)
         self._window = self._clock = self._font = None
         self.text_boxes: list[tuple[str, tuple[int, int, int, int]]] = []  # the last frame's texts and their boxes
 
@@ -453,17 +451,15 @@ class Renderer:
         pygame.draw.rect(surface, _BLACK, (left, top, width, height), 1)
 
     def _draw_legend(self, pygame, surface, layout: FrameLayout) -> None:
-        symbol_h = _SYMBOL_PX[1]
         for row_index, entries in enumerate(layout.legend_rows):
             top = layout.legend_top + row_index * layout.line_px
             col = self.MARGIN_PX
             for entry in entries:
-                box = pygame.Rect(col, top + (layout.line_px - symbol_h) // 2, entry.symbol_px, symbol_h)
+                box = pygame.Rect(col, top + (layout.line_px - _SYMBOL_PX[1]) // 2, entry.symbol_px, _SYMBOL_PX[1])
                 if entry.symbol == "scale":
                     box.width = max(1, round(entry.length_m * layout.scale))  # at most symbol_px
                 self._draw_symbol(pygame, surface, entry, box)
-                box.width = entry.symbol_px
-                self._draw_text(pygame, surface, entry.text, _BLACK, (box.right + _PAD_PX, top))
+                self._draw_text(pygame, surface, entry.text, _BLACK, (col + entry.symbol_px + _PAD_PX, top))
                 col += self._entry_width(entry) + _ENTRY_GAP_PX
 
     @staticmethod

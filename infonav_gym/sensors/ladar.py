@@ -79,8 +79,7 @@ class Ladar(PanTiltGrid):
         ground = np.array([pose[0], pose[1], float(terrain.height_at(pose[:2]))])
         sensor_position = ground + rotation[:, 2] * self.mount_height_m
         if roll == 0.0 and pitch == 0.0:
-            hits = terrain.cast_rays(sensor_position, pose[2] + azimuth, elevation, self.max_range_m)
-            range_m = hits.range_m
+            range_m = terrain.cast_rays(sensor_position, pose[2] + azimuth, elevation, self.max_range_m).range_m
         else:
             directions = unit_directions(azimuth, elevation) @ rotation.T
             world_azimuth = np.arctan2(directions[..., 1], directions[..., 0]).ravel()
