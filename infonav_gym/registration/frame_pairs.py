@@ -79,10 +79,7 @@ def check_odometry_std(odometry_std) -> np.ndarray:
 
 
 def frame_pair(
-    previous: LadarScan,
-    current: LadarScan,
-    np_random: np.random.Generator,
-    odometry_std=DEFAULT_ODOMETRY_STD,
+    previous: LadarScan, current: LadarScan, np_random: np.random.Generator, odometry_std=DEFAULT_ODOMETRY_STD
 ) -> FramePair:
     """The pair with its true motion and an odometry estimate, its error drawn from ``np_random`` with standard
     deviations ``odometry_std`` along ``MOTION_AXES``."""

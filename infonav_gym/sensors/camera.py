@@ -1,10 +1,9 @@
 """Grayscale camera on a pan-tilt platform: a Lambertian-shaded uint8 image of a 2.5D ``Terrain``.
 
-The LADAR's equiangular pixel grid (``pixel_grid``), which approximates a pinhole (angular spacing differs by
-at most ~30 % at 60 degrees; the radiometry the histogram entropy measures is unaffected). A ray hitting nothing
-within ``max_range_m`` sees the sky, ``exposure * sky_luminance``; a hit reads ``exposure * albedo *
-(ambient + (1 - ambient) * max(0, n . sun))``. Gaussian noise [gray levels] is added, then rounded and clipped
-to 0..255.
+The LADAR's equiangular pixel grid (``pixel_grid``), which approximates a pinhole (angular spacing differs by at most
+~30 % at 60 degrees; the radiometry the histogram entropy measures is unaffected). A ray hitting nothing within
+``max_range_m`` sees the sky, ``exposure * sky_luminance``; a hit reads ``exposure * albedo * (ambient + (1 - ambient) *
+max(0, n . sun))``. Gaussian noise [gray levels] is added, then rounded and clipped to 0..255.
 """
 
 from __future__ import annotations

@@ -84,8 +84,7 @@ class WorldBatch:
                 f"{self.poses.shape[1]}; every copy needs the same number"
             )
         self._scenarios[copy], self._spaces[copy], self._has_space[copy] = scenario, None, False
-        self._grown_stale[copy] = True
-        self._in_contact[copy] = False
+        self._grown_stale[copy], self._in_contact[copy] = True, False
         self.poses[copy] = start_poses(scenario)
         longest = max(len(route.waypoints) for route in routes)
         if longest > self._waypoints.shape[2]:
