@@ -106,19 +106,11 @@ class Camera(PanTiltGrid):
         """Noise-free, unclipped gray levels (rows, columns) float64 of ``terrain`` from ``vehicle_pose``."""
         pose = check_pose(vehicle_pose)
         azimuth, elevation = self.pixel_angles(pan_rad, tilt_rad)
-        azimuth = pose[2] + azimuth
         origin = np.array([pose[0], pose[1], float(terrain.height_at(pose[:2])) + self.mount_height_m])
-        hits = terrain.cast_rays(origin, azimuth, elevation, self.max_range_m)
+        rays = origin, pose[2] + azimuth, elevation
+        hits = terrain.cast_rays(*rays, self.max_range_m)
         return camera_kernels.shade(
-            terrain.arrays,
-            origin,
-            azimuth,
-            elevation,
-            hits.range_m,
-            hits.material_index,
-            hits.obstacle_index,
-            self._radiometry,
-            _TEXTURE,
+            terrain.arrays, *rays, hits.range_m, hits.material_index, hits.obstacle_index, self._radiometry, _TEXTURE
         )
 
     def capture(

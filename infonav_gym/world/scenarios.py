@@ -272,12 +272,8 @@ def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> 
         return starts_open and bool(np.all(covered <= MAX_CANOPY_COVER))
 
     route_points = np.array([_points_along(polygon) for polygon in polygons])  # (R, P, 2): routes of equal size
-    return _rejection_sample(
-        count,
-        draw,
-        accept,
-        f"GPS-denied zones off the route starts covering at most {MAX_CANOPY_COVER:.0%} of any route",
-    )
+    what = f"GPS-denied zones off the route starts covering at most {MAX_CANOPY_COVER:.0%} of any route"
+    return _rejection_sample(count, draw, accept, what)
 
 
 def team_route_bands(n_robots: int, size_m: float, n_waypoints: int) -> list[tuple[float, float]]:

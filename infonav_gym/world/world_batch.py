@@ -161,17 +161,9 @@ class WorldBatch:
 
     def _waypoint_controls(self, copies: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """The waypoint controls ``[speed, turn_rate]`` (n, R, 2) of ``copies``; advances their waypoints."""
+        routes = self._waypoint_index, self._n_waypoints, self._loops, self._waypoints, self._route_speeds
         return waypoint_controls(
-            copies,
-            poses,
-            self._waypoint_index,
-            self._n_waypoints,
-            self._loops,
-            self._waypoints,
-            self._route_speeds,
-            self.waypoint_tolerance_m,
-            self.heading_gain,
-            self.max_turn_rate_rps,
+            copies, poses, *routes, self.waypoint_tolerance_m, self.heading_gain, self.max_turn_rate_rps
         )
 
     def waypoint_indices(self, copy: int) -> list[int]:
