@@ -316,13 +316,8 @@ def icp(
         if method == "point_to_plane":
             return _point_to_plane(moved, matched, normals[matched_index], robust_kernel, kernel_scale)
         source_index = np.arange(source.shape[0])[rows][inliers]
-        information = pair_information(
-            source_covariances.of(source_index),
-            target_covariances.of(matched_index),
-            source_index,
-            matched_index,
-            rotation,
-        )
+        covariances = source_covariances.of(source_index), target_covariances.of(matched_index)
+        information = pair_information(*covariances, source_index, matched_index, rotation)
         centre = np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved
         return _step_about(centre, gicp_step(moved, matched, information, robust_kernel, kernel_scale))
 
