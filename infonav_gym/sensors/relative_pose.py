@@ -33,10 +33,7 @@ class RelativePoseSensor:
 
     def noise_parameters(self) -> np.ndarray:
         """``[range_std_m, range_std_per_m, bearing_std_rad, heading_std_rad, heading_std_per_m]`` (5,)."""
-        rb = self.range_bearing
-        return np.array(
-            [rb.range_std_m, rb.range_std_per_m, rb.bearing_std_rad, self.heading_std_rad, self.heading_std_per_m]
-        )
+        return np.array([*self.range_bearing.noise_stds, self.heading_std_rad, self.heading_std_per_m])
 
     def noise_covariance(self, ranges) -> np.ndarray:
         """Measurement noise covariance at each range: (M,) -> (M, 3, 3)."""
