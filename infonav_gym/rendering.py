@@ -244,7 +244,7 @@ class Renderer:
             available = budget - caption_px - line * len(title_lines) - _PAD_PX
             inset_size = self._inset_size(np.shape(frame.inset_image), inner, available)
             inset_block = line * len(title_lines) + inset_size[1] + _PAD_PX if inset_size else 0
-        widest_scale = min(inner / (x_max - x_min), (self.size_px - 2 * margin) / (y_max - y_min))  # [px / m]
+        widest_scale = min(inner / (x_max - x_min), inner / (y_max - y_min))  # [px / m]
         bar_m = scale_bar_m(_SCALE_BAR_PX / widest_scale)
         bar_px = max(_SYMBOL_PX[0], math.ceil(bar_m * widest_scale))
         scale_bar = LegendEntry("scale", _BLACK, f"{bar_m:g} m", bar_px, bar_m)
@@ -254,8 +254,7 @@ class Renderer:
         legend_px = max(len(legend_rows), len(reserved_rows)) * line + _PAD_PX if reserved_rows else 0
         if caption_px + inset_block + legend_px > budget:
             legend_rows, legend_px = (), 0
-        scene_height = self.size_px - 2 * margin - caption_px - inset_block - legend_px
-        scale = min(inner / (x_max - x_min), scene_height / (y_max - y_min))
+        scale = min(inner / (x_max - x_min), (inner - caption_px - inset_block - legend_px) / (y_max - y_min))
         scene_w, scene_h = max(1, round((x_max - x_min) * scale)), max(1, round((y_max - y_min) * scale))
         content_w = max(scene_w, inner) if caption_px or inset_block or legend_px else scene_w
         panel_top = caption_px + scene_h + 2 * margin
