@@ -286,8 +286,7 @@ def icp(
         ValueError: for points not (K >= 3, 3) or not finite, a non-rigid ``init``, an unknown method or kernel, a
             kernel with ``"point_to_point"``, a non-positive setting, or bad GICP covariances or neighbours.
     """
-    source = check_points(source, "source")
-    target = check_points(target, "target")
+    source, target = check_points(source, "source"), check_points(target, "target")
     transform = np.eye(4) if init is None else check_rigid_transform(init, "init").copy()
     limit = _check_settings(max_iterations, tolerance, max_correspondence_distance, method)
     check_robust_kernel(robust_kernel, kernel_scale)

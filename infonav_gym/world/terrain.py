@@ -140,8 +140,7 @@ class Terrain:
         ``azimuth_rad`` (C,) and elevations ``elevation_rad`` (R,) or (R, C) in (-pi/2, pi/2) [rad]: compiled
         ``terrain_kernels.first_hits``."""
         origin = np.array(finite_vector(origin_m, 3, "ray origin_m"))
-        azimuth = np.asarray(azimuth_rad, dtype=float)
-        elevation = np.asarray(elevation_rad, dtype=float)
+        azimuth, elevation = np.asarray(azimuth_rad, dtype=float), np.asarray(elevation_rad, dtype=float)
         if azimuth.ndim != 1 or not np.all(np.isfinite(azimuth)):
             raise ValueError(f"azimuth_rad must be a finite (C,) array, got shape {azimuth.shape}")
         if elevation.ndim == 1:
