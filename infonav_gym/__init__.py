@@ -9,43 +9,16 @@ from infonav_gym.registry import GYMNASIUM, PARALLEL, make_env, make_vector_env,
 __version__ = "0.1.0"
 __all__ = ["make_env", "make_vector_env", "register", "register_envs", "registered_envs", "unregister"]
 
-BUILTIN_ENVS = (
-    (
-        "infonav/LandmarkSelection-v0",
-        "infonav_gym.envs.landmark_selection:LandmarkSelectionEnv",
-        GYMNASIUM,
-        "infonav_gym.envs.landmark_selection:LandmarkSelectionVectorEnv",
-    ),
-    (
-        "infonav/ActiveLocalization-v0",
-        "infonav_gym.envs.active_localization:ActiveLocalizationEnv",
-        GYMNASIUM,
-        "infonav_gym.envs.active_localization:ActiveLocalizationVectorEnv",
-    ),
-    (
-        "infonav/SensorSelection-v0",
-        "infonav_gym.envs.sensor_selection:SensorSelectionEnv",
-        GYMNASIUM,
-        "infonav_gym.envs.sensor_selection:SensorSelectionVectorEnv",
-    ),
-    (
-        "infonav/RangeRegistration-v0",
-        "infonav_gym.envs.range_registration:RangeRegistrationEnv",
-        GYMNASIUM,
-        "infonav_gym.envs.range_registration:RangeRegistrationVectorEnv",
-    ),
-    (
-        "cooperative_localization_v0",
-        "infonav_gym.envs.cooperative_localization:CooperativeLocalizationEnv",
-        PARALLEL,
-        "infonav_gym.envs.cooperative_localization:CooperativeLocalizationVectorEnv",
-    ),
-    (
-        "cooperative_exploration_v0",
-        "infonav_gym.envs.cooperative_exploration:CooperativeExplorationEnv",
-        PARALLEL,
-        "infonav_gym.envs.cooperative_exploration:CooperativeExplorationVectorEnv",
-    ),
+BUILTIN_ENVS = tuple(  # (id, entry point, api, vector entry point): each env's package exports Env and VectorEnv
+    (env_id, f"infonav_gym.envs.{package}:{name}Env", api, f"infonav_gym.envs.{package}:{name}VectorEnv")
+    for env_id, package, name, api in (
+        ("infonav/LandmarkSelection-v0", "landmark_selection", "LandmarkSelection", GYMNASIUM),
+        ("infonav/ActiveLocalization-v0", "active_localization", "ActiveLocalization", GYMNASIUM),
+        ("infonav/SensorSelection-v0", "sensor_selection", "SensorSelection", GYMNASIUM),
+        ("infonav/RangeRegistration-v0", "range_registration", "RangeRegistration", GYMNASIUM),
+        ("cooperative_localization_v0", "cooperative_localization", "CooperativeLocalization", PARALLEL),
+        ("cooperative_exploration_v0", "cooperative_exploration", "CooperativeExploration", PARALLEL),
+    )
 )
 
 

@@ -179,9 +179,7 @@ class _CompileNotice(event.Listener):
     compiler lock makes compiles nest, never overlap)."""
 
     def __init__(self):
-        self.depth = 0
-        self.timer = None
-        self.said = False
+        self.depth, self.timer, self.said = 0, None, False
         self.cached = True  # False once kernels run uncached: the notice says so
 
     def on_start(self, event_):

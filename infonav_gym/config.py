@@ -23,27 +23,18 @@ def merge_config(defaults: dict, overrides: dict, owner: str) -> dict:
 
 
 KINDS = {bool: "a bool (true or false)", int: "a finite integer", float: "a number", str: "a string"}
+_ACCEPTED = {bool: (bool, np.bool_), int: numbers.Integral, float: numbers.Real, str: str}  # what each kind takes
 
 
 def _typed_like(default, value, where: str):
     """``value`` as the type of ``default``; ``ValueError`` naming ``where`` unless it is one (an int for a float
-    is one; NaN and infinities are left to the key's range check)."""
-    if isinstance(default, bool):
-        if isinstance(value, (bool, np.bool_)):
-            return bool(value)
-    elif isinstance(default, int):
-        if isinstance(value, numbers.Integral) and not isinstance(value, bool):
-            return int(value)
-    elif isinstance(default, float):
-        if isinstance(value, numbers.Real) and not isinstance(value, bool):
-            return float(value)
-    elif isinstance(default, str):
-        if isinstance(value, str):
-            return value
-    else:
+    is one, a bool for neither; NaN and infinities are left to the key's range check)."""
+    kind = next((kind for kind in KINDS if isinstance(default, kind)), None)  # bool before int: a bool is an int
+    if kind is None:
         return value
-    kind = next(kind for kind_type, kind in KINDS.items() if isinstance(default, kind_type))
-    raise ValueError(f"{where} must be {kind} (like the default {default!r}), got {value!r}")
+    if isinstance(value, _ACCEPTED[kind]) and (kind is bool or not isinstance(value, bool)):
+        return value if kind is str else kind(value)
+    raise ValueError(f"{where} must be {KINDS[kind]} (like the default {default!r}), got {value!r}")
 
 
 _requirement_logs: list[dict[str, list[str]]] = []  # the logs of the open ``stated_requirements`` contexts

@@ -73,8 +73,7 @@ def rotation_angle(rotation: np.ndarray) -> float:
 
 def transform_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
     """``(translation error [m], rotation error [rad])`` of a (4, 4) ``estimate`` against ``truth``."""
-    translation = float(np.linalg.norm(estimate[:3, 3] - truth[:3, 3]))
-    return translation, rotation_angle(estimate[:3, :3].T @ truth[:3, :3])
+    return float(np.linalg.norm(estimate[:3, 3] - truth[:3, 3])), rotation_angle(estimate[:3, :3].T @ truth[:3, :3])
 
 
 class ClosedLoop:

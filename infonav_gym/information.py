@@ -41,22 +41,21 @@ def log_det_spd(matrix, name: str = "matrix", check_input: bool = True) -> float
     """
     if not check_input:
         matrix = np.asarray(matrix, dtype=float)
-        log_det = stacked_log_dets(contiguous(matrix.reshape(-1, *matrix.shape[-2:])))
+        log_det = stacked_log_dets(contiguous(matrix.reshape(-1, *matrix.shape[-2:]))).reshape(matrix.shape[:-2])
         if np.isnan(log_det).any():
             raise ValueError(f"{name} is not positive definite (determinant <= 0)")
-        log_det = log_det.reshape(matrix.shape[:-2])
-        return float(log_det) if np.ndim(log_det) == 0 else log_det
-    matrix = _square_stack(name, matrix)
-    asymmetry = np.max(np.abs(matrix - np.swapaxes(matrix, -1, -2)))
-    scale = np.max(np.abs(matrix))
-    if asymmetry > _SYMMETRY_RTOL * scale:
-        raise ValueError(f"{name} is not symmetric (max |M - M^T| = {asymmetry:.3g}, max |M| = {scale:.3g})")
-    try:
-        cholesky = np.linalg.cholesky(matrix)
-    except np.linalg.LinAlgError:
-        smallest = np.min(np.linalg.eigvalsh(matrix))
-        raise ValueError(f"{name} is not positive definite (smallest eigenvalue {smallest:.3g})") from None
-    log_det = 2.0 * np.sum(np.log(np.diagonal(cholesky, axis1=-2, axis2=-1)), axis=-1)
+    else:
+        matrix = _square_stack(name, matrix)
+        asymmetry = np.max(np.abs(matrix - np.swapaxes(matrix, -1, -2)))
+        scale = np.max(np.abs(matrix))
+        if asymmetry > _SYMMETRY_RTOL * scale:
+            raise ValueError(f"{name} is not symmetric (max |M - M^T| = {asymmetry:.3g}, max |M| = {scale:.3g})")
+        try:
+            cholesky = np.linalg.cholesky(matrix)
+        except np.linalg.LinAlgError:
+            smallest = np.min(np.linalg.eigvalsh(matrix))
+            raise ValueError(f"{name} is not positive definite (smallest eigenvalue {smallest:.3g})") from None
+        log_det = 2.0 * np.sum(np.log(np.diagonal(cholesky, axis1=-2, axis2=-1)), axis=-1)
     return float(log_det) if np.ndim(log_det) == 0 else log_det
 
 
@@ -157,8 +156,7 @@ mutual_information_kernel = inner_kernel(mutual_information_from_log_dets)  # th
 def mutual_information(P_prior, P_post, check_input: bool = True) -> float:
     """Information contribution ``ic = 0.5 ln(det P_prior / det P_post)`` of an update (Eq. 3) [nats]."""
     if check_input:
-        P_prior = _square_stack("prior covariance", P_prior)
-        P_post = _square_stack("posterior covariance", P_post)
+        P_prior, P_post = _square_stack("prior covariance", P_prior), _square_stack("posterior covariance", P_post)
         if P_prior.shape != P_post.shape or P_prior.ndim != 2:
             raise ValueError(
                 "prior and posterior covariances must be matrices of the same shape, "

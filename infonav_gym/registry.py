@@ -60,10 +60,9 @@ def register(
     """
     if api not in APIS:
         raise ValueError(f"api of env {env_id!r} must be one of {', '.join(APIS)}, got {api!r}")
-    if isinstance(entry_point, str) and entry_point.count(":") != 1:
-        raise ValueError(f"entry_point of env {env_id!r} must be 'module:attribute', got {entry_point!r}")
-    if isinstance(vector_entry_point, str) and vector_entry_point.count(":") != 1:
-        raise ValueError(f"vector_entry_point of env {env_id!r} must be 'module:attribute', got {vector_entry_point!r}")
+    for name, point in (("entry_point", entry_point), ("vector_entry_point", vector_entry_point)):
+        if isinstance(point, str) and point.count(":") != 1:
+            raise ValueError(f"{name} of env {env_id!r} must be 'module:attribute', got {point!r}")
     entry = EnvEntry(env_id, entry_point, api, vector_entry_point)
     known = _ENTRIES.get(env_id)
     if known is not None and known != entry:

@@ -123,53 +123,26 @@ def legend_entries(frame: SceneFrame, *, possible: bool = False) -> list[LegendE
     visible = np.ones(len(frame.landmarks), bool) if frame.landmark_visible is None else frame.landmark_visible
     visible = np.asarray(visible, dtype=bool)
     has_landmarks, team = len(visible) > 0, len(robots) > 1
+    numbers = "#1" if len(visible) == 1 else f"#1-#{len(visible)}"
+    ellipse = f"{N_SIGMA:g}\u03c3 position ellipse (min {MIN_ELLIPSE_RADIUS_PX} px)"
+    sight_varies = has_landmarks and frame.landmark_visible is not None  # landmarks may go out of sight
+    observing = frame.chosen_landmark is not None or bool(frame.landmark_observations)
     candidates = [  # (drawn in this frame, may be drawn in its scene, symbol, colour, text)
         (any(robot.true_pose is not None for robot in robots), False, "disc", _BLACK, "true pose"),
         (bool(estimated), False, "ring", colour, "estimated pose" + per_robot),
-        (
-            any(robots[index].pose_covariance is not None for index in estimated),
-            False,
-            "ellipse",
-            colour,
-            f"{N_SIGMA:g}\u03c3 position ellipse (min {MIN_ELLIPSE_RADIUS_PX} px)",
-        ),
+        (any(robots[index].pose_covariance is not None for index in estimated), False, "ellipse", colour, ellipse),
         (any(_has_path(robot.true_path) for robot in robots), bool(robots), "line", _PATH_GREY, "true path"),
         (any(_has_path(robot.estimated_path) for robot in robots), bool(estimated), "line", colour, "estimated path"),
-        (
-            bool(visible.any()),
-            has_landmarks,
-            "disc",
-            _GREEN,
-            f"landmark in sight, numbered {_landmark_numbers(len(visible))}",
-        ),
-        (
-            not visible.all(),
-            has_landmarks and frame.landmark_visible is not None,
-            "disc",
-            _LIGHT_GREY,
-            "landmark out of sight",
-        ),
-        (
-            frame.chosen_landmark is not None or bool(frame.landmark_observations),
-            has_landmarks,
-            "disc",
-            _RED,
-            "landmark observed now",
-        ),
+        (bool(visible.any()), has_landmarks, "disc", _GREEN, f"landmark in sight, numbered {numbers}"),
+        (not visible.all(), sight_varies, "disc", _LIGHT_GREY, "landmark out of sight"),
+        (observing, has_landmarks, "disc", _RED, "landmark observed now"),
         (frame.landmark_estimates is not None, False, "cross", _ORANGE, f"landmark estimate, {N_SIGMA:g}\u03c3"),
-        (
-            bool(frame.observations),
-            team,
-            "line",
-            _first_observer_colour(frame.observations),
-            "relative observation (observer's colour)",
-        ),
-        (
-            bool(frame.landmark_observations),
-            team and has_landmarks,
-            "line",
-            _first_observer_colour(frame.landmark_observations),
-            "landmark observation (observer's colour)",
+        *(
+            (bool(pairs), may_show, "line", _first_observer_colour(pairs), f"{kind} observation (observer's colour)")
+            for kind, pairs, may_show in (
+                ("relative", frame.observations, team),
+                ("landmark", frame.landmark_observations, team and has_landmarks),
+            )
         ),
         (bool(frame.walls), False, "line", _DARK_GREY, "wall"),
         (bool(frame.obstacles), False, "disc", _DARK_GREY, "obstacle"),
@@ -182,10 +155,6 @@ def legend_entries(frame: SceneFrame, *, possible: bool = False) -> list[LegendE
         for shown, may_show, symbol, colour, text in candidates
         if shown or (possible and may_show)
     ]
-
-
-def _landmark_numbers(count: int) -> str:
-    return "#1" if count == 1 else f"#1-#{count}"
 
 
 def scale_bar_m(longest_m: float) -> float:
@@ -226,6 +195,19 @@ def _has_path(path) -> bool:
     return path is not None and len(path) >= 2
 
 
+def _draw_cross(pygame, surface, colour, center) -> None:
+    """An X, 9 px across, at pixel ``center`` (col, row): a landmark estimate."""
+    for slope in (-4, 4):
+        pygame.draw.line(surface, colour, (center[0] - 4, center[1] - slope), (center[0] + 4, center[1] + slope), 2)
+
+
+def _draw_target(pygame, surface, colour, center, radius_px: int) -> None:
+    """A ring of ``radius_px`` around pixel ``center`` (col, row), crossed by its two diameters: the goal."""
+    pygame.draw.circle(surface, colour, center, radius_px, 2)
+    for dx, dy in ((radius_px, 0), (0, radius_px)):
+        pygame.draw.line(surface, colour, (center[0] - dx, center[1] - dy), (center[0] + dx, center[1] + dy), 1)
+
+
 class Renderer:
     """Draws :class:`SceneFrame` objects to an RGB array or a pygame window, the longer side ``size_px``: caption on
     top, the scene, then the inset and the legend (at most half of ``size_px`` with the caption, else no legend)."""
@@ -240,12 +222,8 @@ class Renderer:
         if fps <= 0:
             raise ValueError(f"fps must be positive, got {fps}")
         require_extra("pygame", "rendering")
-        self.render_mode = render_mode
-        self.size_px = int(size_px)
-        self.fps = int(fps)
-        self._window = None
-        self._clock = None
-        self._font = None
+        self.render_mode, self.size_px, self.fps = render_mode, int(size_px), int(fps)
+        self._window = self._clock = self._font = None
         self.text_boxes: list[tuple[str, tuple[int, int, int, int]]] = []  # the last frame's texts and their boxes
 
     def __getstate__(self) -> dict:
@@ -266,7 +244,7 @@ class Renderer:
             available = budget - caption_px - line * len(title_lines) - _PAD_PX
             inset_size = self._inset_size(np.shape(frame.inset_image), inner, available)
             inset_block = line * len(title_lines) + inset_size[1] + _PAD_PX if inset_size else 0
-        widest_scale = min(inner / (x_max - x_min), (self.size_px - 2 * margin) / (y_max - y_min))  # [px / m]
+        widest_scale = min(inner / (x_max - x_min), inner / (y_max - y_min))  # [px / m]
         bar_m = scale_bar_m(_SCALE_BAR_PX / widest_scale)
         bar_px = max(_SYMBOL_PX[0], math.ceil(bar_m * widest_scale))
         scale_bar = LegendEntry("scale", _BLACK, f"{bar_m:g} m", bar_px, bar_m)
@@ -276,8 +254,7 @@ class Renderer:
         legend_px = max(len(legend_rows), len(reserved_rows)) * line + _PAD_PX if reserved_rows else 0
         if caption_px + inset_block + legend_px > budget:
             legend_rows, legend_px = (), 0
-        scene_height = self.size_px - 2 * margin - caption_px - inset_block - legend_px
-        scale = min(inner / (x_max - x_min), scene_height / (y_max - y_min))
+        scale = min(inner / (x_max - x_min), (inner - caption_px - inset_block - legend_px) / (y_max - y_min))
         scene_w, scene_h = max(1, round((x_max - x_min) * scale)), max(1, round((y_max - y_min) * scale))
         content_w = max(scene_w, inner) if caption_px or inset_block or legend_px else scene_w
         panel_top = caption_px + scene_h + 2 * margin
@@ -351,8 +328,7 @@ class Renderer:
             import pygame
 
             pygame.display.quit()
-        self._window = None
-        self._clock = None
+        self._window = self._clock = None
 
     def _draw_scene(self, pygame, surface, frame: SceneFrame, layout: FrameLayout) -> None:
         scale = layout.scale
@@ -371,33 +347,25 @@ class Renderer:
             pygame.draw.circle(surface, colour, center.tolist(), _ROBOT_PX, 0 if filled else 2)
             pygame.draw.line(surface, colour, center.tolist(), np.rint(tip).tolist(), 2)
 
-        def target(center, radius_px):
-            pygame.draw.circle(surface, _BLACK, center.tolist(), radius_px, 2)
-            for offset in ((radius_px, 0), (0, radius_px)):
-                pygame.draw.line(surface, _BLACK, (center - offset).tolist(), (center + offset).tolist(), 1)
-
-        def disc(circle, colour):
-            pygame.draw.circle(surface, colour, screen(circle.center)[0].tolist(), max(1, round(circle.radius * scale)))
-
         surface.set_clip(pygame.Rect(layout.field))
         for circle, colour in [
             *((zone, _CANOPY_GREEN) for zone in frame.gps_denied_zones),
             *((obstacle, _DARK_GREY) for obstacle in frame.obstacles),
         ]:
-            disc(circle, colour)
+            pygame.draw.circle(surface, colour, screen(circle.center)[0].tolist(), max(1, round(circle.radius * scale)))
         surface.set_clip(pygame.Rect(layout.scene_clip))
         for start, end in frame.walls:
             pygame.draw.line(surface, _DARK_GREY, *screen([start, end]).tolist(), 3)
         if frame.goal is not None:
-            target(screen(frame.goal)[0], max(_ROBOT_PX, round(frame.goal_radius_m * scale)))
+            goal_px = max(_ROBOT_PX, round(frame.goal_radius_m * scale))
+            _draw_target(pygame, surface, _BLACK, screen(frame.goal)[0].tolist(), goal_px)
         for index, drawing in enumerate(frame.robots):
             for path, colour in ((drawing.true_path, _PATH_GREY), (drawing.estimated_path, _robot_colour(index))):
                 if _has_path(path):
                     pygame.draw.lines(surface, colour, False, screen(path).tolist(), 1)
         if frame.landmark_estimates is not None:
-            for index, (col, row) in enumerate(screen(frame.landmark_estimates).tolist()):
-                for slope in (-4, 4):
-                    pygame.draw.line(surface, _ORANGE, (col - 4, row - slope), (col + 4, row + slope), 2)
+            for index, center in enumerate(screen(frame.landmark_estimates).tolist()):
+                _draw_cross(pygame, surface, _ORANGE, center)
                 if frame.landmark_covariances is not None:
                     ellipse(frame.landmark_estimates[index], frame.landmark_covariances[index], _ORANGE)
         landmarks = screen(frame.landmarks).tolist()
@@ -465,8 +433,7 @@ class Renderer:
         for index, text in enumerate(layout.inset_title_lines):
             title_top = top - (len(layout.inset_title_lines) - index) * layout.line_px
             self._draw_text(pygame, surface, text, _BLACK, (left, title_top))
-        image = np.asarray(frame.inset_image, dtype=np.uint8)
-        rgb = np.repeat(image.T[:, :, None], 3, axis=2)
+        rgb = np.repeat(np.asarray(frame.inset_image, dtype=np.uint8).T[:, :, None], 3, axis=2)
         surface.blit(pygame.transform.scale(pygame.surfarray.make_surface(rgb), (width, height)), (left, top))
         if frame.inset_grid is not None:
             rows, columns = frame.inset_grid
@@ -483,17 +450,15 @@ class Renderer:
         pygame.draw.rect(surface, _BLACK, (left, top, width, height), 1)
 
     def _draw_legend(self, pygame, surface, layout: FrameLayout) -> None:
-        symbol_h = _SYMBOL_PX[1]
         for row_index, entries in enumerate(layout.legend_rows):
             top = layout.legend_top + row_index * layout.line_px
             col = self.MARGIN_PX
             for entry in entries:
-                box = pygame.Rect(col, top + (layout.line_px - symbol_h) // 2, entry.symbol_px, symbol_h)
+                box = pygame.Rect(col, top + (layout.line_px - _SYMBOL_PX[1]) // 2, entry.symbol_px, _SYMBOL_PX[1])
                 if entry.symbol == "scale":
                     box.width = max(1, round(entry.length_m * layout.scale))  # at most symbol_px
                 self._draw_symbol(pygame, surface, entry, box)
-                box.width = entry.symbol_px
-                self._draw_text(pygame, surface, entry.text, _BLACK, (box.right + _PAD_PX, top))
+                self._draw_text(pygame, surface, entry.text, _BLACK, (col + entry.symbol_px + _PAD_PX, top))
                 col += self._entry_width(entry) + _ENTRY_GAP_PX
 
     @staticmethod
@@ -505,23 +470,18 @@ class Renderer:
             pygame.draw.circle(surface, entry.colour, center, radius, 2)
         elif entry.symbol == "ellipse":
             pygame.draw.ellipse(surface, entry.colour, box, 2)
-        elif entry.symbol == "line":
+        elif entry.symbol in ("line", "scale"):
             pygame.draw.line(surface, entry.colour, box.midleft, box.midright, 2)
+            for end in (box.left, box.right - 1) if entry.symbol == "scale" else ():
+                pygame.draw.line(surface, entry.colour, (end, box.top + 2), (end, box.bottom - 2), 2)
         elif entry.symbol == "cross":
-            pygame.draw.line(surface, entry.colour, (center[0] - 4, center[1] - 4), (center[0] + 4, center[1] + 4), 2)
-            pygame.draw.line(surface, entry.colour, (center[0] - 4, center[1] + 4), (center[0] + 4, center[1] - 4), 2)
+            _draw_cross(pygame, surface, entry.colour, center)
         elif entry.symbol == "zone":
             pygame.draw.rect(surface, entry.colour, box)
-        elif entry.symbol == "scale":
-            pygame.draw.line(surface, entry.colour, box.midleft, box.midright, 2)
-            for end in (box.left, box.right - 1):
-                pygame.draw.line(surface, entry.colour, (end, box.top + 2), (end, box.bottom - 2), 2)
         elif entry.symbol == "wedge":
             pygame.draw.polygon(surface, entry.colour, [box.midleft, box.topright, box.bottomright], 2)
         else:
-            pygame.draw.circle(surface, entry.colour, center, radius, 2)
-            pygame.draw.line(surface, entry.colour, (center[0] - radius, center[1]), (center[0] + radius, center[1]), 1)
-            pygame.draw.line(surface, entry.colour, (center[0], center[1] - radius), (center[0], center[1] + radius), 1)
+            _draw_target(pygame, surface, entry.colour, center, radius)
 
     def _legend_rows(self, entries: list[LegendEntry], width_px: int) -> tuple[tuple[LegendEntry, ...], ...]:
         """``entries`` flowed left to right into rows at most ``width_px`` wide."""

@@ -28,10 +28,8 @@ class PathHistory:
         first = np.array(first_point, dtype=float)
         self._kept = np.empty((self.max_points + 1, first.size))  # a fixed buffer: appending allocates nothing
         self._kept[0] = first
-        self._n_kept = 1
         self._latest = first.copy()
-        self._stride = 1
-        self._appended = 0  # points appended after the first
+        self._n_kept, self._stride, self._appended = 1, 1, 0  # _appended: points appended after the first
 
     def append(self, point) -> None:
         """Add the next point of the path (copied)."""
@@ -115,5 +113,4 @@ def covariance_ellipse(
     eigenvalues, eigenvectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
     radii = np.maximum(n_sigma * np.sqrt(np.clip(eigenvalues, 0.0, None)), min_radius)
     angles = np.linspace(0.0, 2.0 * np.pi, n_points, endpoint=False)
-    circle = np.stack([np.cos(angles), np.sin(angles)], axis=1)
-    return (circle * radii) @ eigenvectors.T
+    return (np.stack([np.cos(angles), np.sin(angles)], axis=1) * radii) @ eigenvectors.T

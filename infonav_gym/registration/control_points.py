@@ -203,8 +203,7 @@ def _geometry(range_image: LadarScan, covariance: np.ndarray) -> ControlPointGeo
     structure = (edge_distance + 0.5) * ranges[returns] * _pixel_angle(range_image)
 
     usable = np.isfinite(curvature) & np.isfinite(normals[:, 0]) & (np.abs(normals).sum(axis=1) > 0.5)
-    curvature = np.where(usable, curvature, 0.0)
-    normals = np.where(usable[:, None], normals, 0.0)
+    curvature, normals = np.where(usable, curvature, 0.0), np.where(usable[:, None], normals, 0.0)
     jacobians = np.concatenate([normals, cross(points, normals)], axis=1)
     spread = np.sqrt(np.einsum("ni,ni->n", jacobians @ covariance, jacobians))
     ambiguity = np.maximum(1.0, spread / structure) ** 2

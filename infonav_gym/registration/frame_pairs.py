@@ -79,10 +79,7 @@ def check_odometry_std(odometry_std) -> np.ndarray:
 
 
 def frame_pair(
-    previous: LadarScan,
-    current: LadarScan,
-    np_random: np.random.Generator,
-    odometry_std=DEFAULT_ODOMETRY_STD,
+    previous: LadarScan, current: LadarScan, np_random: np.random.Generator, odometry_std=DEFAULT_ODOMETRY_STD
 ) -> FramePair:
     """The pair with its true motion and an odometry estimate, its error drawn from ``np_random`` with standard
     deviations ``odometry_std`` along ``MOTION_AXES``."""
@@ -104,5 +101,4 @@ def terrain_frame_pair(
     ladar = Ladar()
     previous = scan_on_terrain(ladar, scene.terrain, world.pose, np_random)
     world.step(time_step_s)
-    current = scan_on_terrain(ladar, scene.terrain, world.pose, np_random)
-    return frame_pair(previous, current, np_random)
+    return frame_pair(previous, scan_on_terrain(ladar, scene.terrain, world.pose, np_random), np_random)

@@ -74,11 +74,9 @@ def pair_information(source_covariances, target_covariances, source_index, targe
         scale = 1.0 / (a * first + b * second + c * third)
         inverse = information[n]
         inverse[0, 0], inverse[0, 1], inverse[0, 2] = first * scale, second * scale, third * scale
-        inverse[1, 1], inverse[1, 2], inverse[2, 2] = (
-            (a * f - c * c) * scale,
-            (b * c - a * e) * scale,
-            (a * d - b * b) * scale,
-        )
+        inverse[1, 1] = (a * f - c * c) * scale
+        inverse[1, 2] = (b * c - a * e) * scale
+        inverse[2, 2] = (a * d - b * b) * scale
         inverse[1, 0], inverse[2, 0], inverse[2, 1] = inverse[0, 1], inverse[0, 2], inverse[1, 2]
     return information
 

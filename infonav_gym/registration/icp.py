@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from infonav_gym.compiled import contiguous
-from infonav_gym.geometry import rotation_angle
+from infonav_gym.geometry import rigid_transform, rotation_angle
 from infonav_gym.registration.gicp import (
     GICP_NEIGHBOURS,
     check_neighbours,
@@ -194,8 +194,7 @@ def _inliers(distance: np.ndarray) -> np.ndarray:
         return candidates
     inside = distance[candidates]
     median = _median(inside)
-    threshold = median + ROBUST_K * MAD_TO_STD * _median(np.abs(inside - median))
-    return candidates[inside <= threshold]
+    return candidates[inside <= median + ROBUST_K * MAD_TO_STD * _median(np.abs(inside - median))]
 
 
 def _point_to_point(moved: np.ndarray, matched: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -287,8 +286,7 @@ def icp(
         ValueError: for points not (K >= 3, 3) or not finite, a non-rigid ``init``, an unknown method or kernel, a
             kernel with ``"point_to_point"``, a non-positive setting, or bad GICP covariances or neighbours.
     """
-    source = check_points(source, "source")
-    target = check_points(target, "target")
+    source, target = check_points(source, "source"), check_points(target, "target")
     transform = np.eye(4) if init is None else check_rigid_transform(init, "init").copy()
     limit = _check_settings(max_iterations, tolerance, max_correspondence_distance, method)
     check_robust_kernel(robust_kernel, kernel_scale)
@@ -317,13 +315,8 @@ def icp(
         if method == "point_to_plane":
             return _point_to_plane(moved, matched, normals[matched_index], robust_kernel, kernel_scale)
         source_index = np.arange(source.shape[0])[rows][inliers]
-        information = pair_information(
-            source_covariances.of(source_index),
-            target_covariances.of(matched_index),
-            source_index,
-            matched_index,
-            rotation,
-        )
+        covariances = source_covariances.of(source_index), target_covariances.of(matched_index)
+        information = pair_information(*covariances, source_index, matched_index, rotation)
         centre = np.full(moved.shape[0], 1.0 / moved.shape[0]) @ moved
         return _step_about(centre, gicp_step(moved, matched, information, robust_kernel, kernel_scale))
 
@@ -342,8 +335,7 @@ def icp(
             if smaller_than(max(standard_error, tolerance), step_rotation, step_translation):
                 break
             step_rotation, step_translation, raw = _extrapolate(step_rotation, step_translation, previous_raw)
-            rotation = step_rotation @ rotation
-            translation = step_rotation @ translation + step_translation
+            rotation, translation = step_rotation @ rotation, step_rotation @ translation + step_translation
             iterations, previous_raw = iterations + 1, raw
 
     rows, converged, previous_step, previous_raw = slice(None), False, None, None
@@ -351,8 +343,7 @@ def icp(
     while iterations < max_iterations and inliers.size >= 3:
         step_rotation, step_translation = increment(moved, matched, inliers, rows)
         step_rotation, step_translation, raw = _extrapolate(step_rotation, step_translation, previous_raw)
-        rotation = step_rotation @ rotation
-        translation = step_rotation @ translation + step_translation
+        rotation, translation = step_rotation @ rotation, step_rotation @ translation + step_translation
         iterations += 1
         moved, matched, distance, inliers = correspondences(rows)
         if smaller_than(tolerance, step_rotation, step_translation) or (
@@ -365,7 +356,7 @@ def icp(
             break
         previous_step, previous_raw = (step_rotation, step_translation), raw
 
-    transform = np.eye(4)
-    transform[:3, :3], transform[:3, 3] = rotation, translation
     rmse = float(np.sqrt(np.mean(distance**2))) if inliers.size >= 3 else math.inf
-    return RegistrationResult(transform, rmse, inliers.size / source.shape[0], iterations, converged)
+    return RegistrationResult(
+        rigid_transform(rotation, translation), rmse, inliers.size / source.shape[0], iterations, converged
+    )

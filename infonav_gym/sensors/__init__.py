@@ -1,5 +1,4 @@
-"""Sensor models: each draws its noise from the ``np_random`` it is handed; each name is imported from its module when
-first asked for."""
+"""Sensor models, each drawing its noise from the ``np_random`` it is handed; names imported when first asked for."""
 
 from infonav_gym.lazy import lazy_exports
 

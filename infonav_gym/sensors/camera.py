@@ -1,10 +1,9 @@
 """Grayscale camera on a pan-tilt platform: a Lambertian-shaded uint8 image of a 2.5D ``Terrain``.
 
-The LADAR's equiangular pixel grid (``pixel_grid``), which approximates a pinhole (angular spacing differs by
-at most ~30 % at 60 degrees; the radiometry the histogram entropy measures is unaffected). A ray hitting nothing
-within ``max_range_m`` sees the sky, ``exposure * sky_luminance``; a hit reads ``exposure * albedo *
-(ambient + (1 - ambient) * max(0, n . sun))``. Gaussian noise [gray levels] is added, then rounded and clipped
-to 0..255.
+The LADAR's equiangular pixel grid (``pixel_grid``), which approximates a pinhole (angular spacing differs by at most
+~30 % at 60 degrees; the radiometry the histogram entropy measures is unaffected). A ray hitting nothing within
+``max_range_m`` sees the sky, ``exposure * sky_luminance``; a hit reads ``exposure * albedo * (ambient + (1 - ambient) *
+max(0, n . sun))``. Gaussian noise [gray levels] is added, then rounded and clipped to 0..255.
 """
 
 from __future__ import annotations
@@ -107,19 +106,11 @@ class Camera(PanTiltGrid):
         """Noise-free, unclipped gray levels (rows, columns) float64 of ``terrain`` from ``vehicle_pose``."""
         pose = check_pose(vehicle_pose)
         azimuth, elevation = self.pixel_angles(pan_rad, tilt_rad)
-        azimuth = pose[2] + azimuth
         origin = np.array([pose[0], pose[1], float(terrain.height_at(pose[:2])) + self.mount_height_m])
-        hits = terrain.cast_rays(origin, azimuth, elevation, self.max_range_m)
+        rays = origin, pose[2] + azimuth, elevation
+        hits = terrain.cast_rays(*rays, self.max_range_m)
         return camera_kernels.shade(
-            terrain.arrays,
-            origin,
-            azimuth,
-            elevation,
-            hits.range_m,
-            hits.material_index,
-            hits.obstacle_index,
-            self._radiometry,
-            _TEXTURE,
+            terrain.arrays, *rays, hits.range_m, hits.material_index, hits.obstacle_index, self._radiometry, _TEXTURE
         )
 
     def capture(
@@ -133,7 +124,5 @@ class Camera(PanTiltGrid):
         """Grayscale uint8 image (rows, columns) of ``terrain`` from ``vehicle_pose`` ``[x, y, heading]``; noise is
         drawn for every pixel even at ``noise_std`` 0, so the generator advances the same way."""
         levels = self.radiance(terrain, vehicle_pose, pan_rad, tilt_rad)
-        noise = np_random.standard_normal(levels.shape)
-        noise *= self.noise_std
-        levels += noise
+        levels += np_random.standard_normal(levels.shape) * self.noise_std
         return np.clip(np.rint(levels, out=levels), 0, 255, out=levels).astype(np.uint8)

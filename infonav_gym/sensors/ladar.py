@@ -79,20 +79,17 @@ class Ladar(PanTiltGrid):
         ground = np.array([pose[0], pose[1], float(terrain.height_at(pose[:2]))])
         sensor_position = ground + rotation[:, 2] * self.mount_height_m
         if roll == 0.0 and pitch == 0.0:
-            hits = terrain.cast_rays(sensor_position, pose[2] + azimuth, elevation, self.max_range_m)
-            range_m = hits.range_m
+            range_m = terrain.cast_rays(sensor_position, pose[2] + azimuth, elevation, self.max_range_m).range_m
         else:
             directions = unit_directions(azimuth, elevation) @ rotation.T
             world_azimuth = np.arctan2(directions[..., 1], directions[..., 0]).ravel()
             world_elevation = np.arcsin(np.clip(directions[..., 2], -1.0, 1.0)).reshape(1, -1)
             hits = terrain.cast_rays(sensor_position, world_azimuth, world_elevation, self.max_range_m)
             range_m = hits.range_m.reshape(self.rows, self.columns)
-        noise = self.range_std_m * np_random.standard_normal(range_m.shape)
+        noisy = np.clip(range_m + self.range_std_m * np_random.standard_normal(range_m.shape), 0.0, self.max_range_m)
         no_return = ~np.isfinite(range_m)
-        noisy = np.clip(range_m + noise, 0.0, self.max_range_m)
-        ranges = np.where(no_return, self.max_range_m, noisy).astype(np.float32)
         return LadarScan(
-            ranges,
+            np.where(no_return, self.max_range_m, noisy).astype(np.float32),
             no_return,
             azimuth,
             elevation,

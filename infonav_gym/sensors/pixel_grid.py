@@ -79,5 +79,4 @@ class PanTiltGrid:
         column_step = self.horizontal_fov_rad / self.columns
         row_step = self.vertical_fov_rad / self.rows
         azimuth = pan_rad + self.horizontal_fov_rad / 2 - (np.arange(self.columns) + 0.5) * column_step
-        elevation = self.vertical_fov_rad / 2 - (np.arange(self.rows) + 0.5) * row_step - tilt_rad
-        return azimuth, elevation
+        return azimuth, self.vertical_fov_rad / 2 - (np.arange(self.rows) + 0.5) * row_step - tilt_rad

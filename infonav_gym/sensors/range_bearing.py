@@ -60,10 +60,8 @@ class RangeBearingSensor:
         return noisy_ranges_bearings(*arrays, self.noise_stds)
 
 
-CONFIG_KEYS = {  # the env config key of each attribute
-    "range_std_m": "range_std_m",
-    "range_std_per_m": "range_std_per_m",
-    "bearing_std_rad": "bearing_std_rad",
+CONFIG_KEYS = {  # the env config key of each attribute: the noise's by their own names, the coverage's sensor_*
+    **{attribute: attribute for attribute in ("range_std_m", "range_std_per_m", "bearing_std_rad")},
     "max_range_m": "sensor_max_range_m",
     "fov_rad": "sensor_fov_rad",
 }

@@ -33,10 +33,7 @@ class RelativePoseSensor:
 
     def noise_parameters(self) -> np.ndarray:
         """``[range_std_m, range_std_per_m, bearing_std_rad, heading_std_rad, heading_std_per_m]`` (5,)."""
-        rb = self.range_bearing
-        return np.array(
-            [rb.range_std_m, rb.range_std_per_m, rb.bearing_std_rad, self.heading_std_rad, self.heading_std_per_m]
-        )
+        return np.array([*self.range_bearing.noise_stds, self.heading_std_rad, self.heading_std_per_m])
 
     def noise_covariance(self, ranges) -> np.ndarray:
         """Measurement noise covariance at each range: (M,) -> (M, 3, 3)."""
@@ -118,8 +115,7 @@ _DIAGONAL = np.arange(3)
 
 
 RELATIVE_POSE_SENSORS = {
-    # Scanning laser range finder: long range, all around, accurate range; the teammate's
-    # outline gives its orientation.
+    # Scanning laser range finder: long range, all around, accurate range; the teammate's outline gives its orientation.
     "laser": RelativePoseSensor(
         RangeBearingSensor(
             range_std_m=0.05,
@@ -130,8 +126,7 @@ RELATIVE_POSE_SENSORS = {
         ),
         heading_std_rad=math.radians(3.0),
     ),
-    # Camera (vision-based cooperative localization): narrow field of view, shorter range,
-    # range and orientation from the image, both degrading with distance.
+    # Camera (vision-based): narrow field of view, shorter range; range and orientation from the image, worse farther.
     "vision": RelativePoseSensor(
         RangeBearingSensor(
             range_std_m=0.02,

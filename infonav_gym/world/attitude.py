@@ -20,17 +20,6 @@ def terrain_attitude(
     x, y, heading = (float(value) for value in vehicle_pose)
     forward = np.array([math.cos(heading), math.sin(heading)])
     left = np.array([-forward[1], forward[0]])
-    center = np.array([x, y])
-    front, rear, left_side, right_side = terrain.height_at(
-        np.array(
-            [
-                center + forward * wheelbase_m / 2,
-                center - forward * wheelbase_m / 2,
-                center + left * track_m / 2,
-                center - left * track_m / 2,
-            ]
-        )
-    )
-    pitch = -math.atan2(front - rear, wheelbase_m)
-    roll = math.atan2(left_side - right_side, track_m)
-    return roll, pitch
+    half_axes = np.array([forward * wheelbase_m / 2, left * track_m / 2])  # to the front axle, to the left wheels
+    front, left_side, rear, right_side = terrain.height_at(np.array([x, y]) + np.concatenate([half_axes, -half_axes]))
+    return math.atan2(left_side - right_side, track_m), -math.atan2(front - rear, wheelbase_m)

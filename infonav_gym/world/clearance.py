@@ -33,11 +33,9 @@ def clear_moves(
 ) -> np.ndarray:
     """Which of each robot's moves ``displacements`` (N, R, M, 2) [m] from ``positions`` (N, R, 2) are clear (the
     module) (N, R, M) bool; move 0 must be zero."""
-    n_copies, n_robots, n_moves = displacements.shape[:3]
-    starts = np.broadcast_to(positions[:, :, None], displacements.shape).reshape(n_copies, -1, 2)
-    clear = swept_discs_clear(
-        geometry, starts, starts + displacements.reshape(n_copies, -1, 2), robot_radius_m + clearance_m
-    ).reshape(n_copies, n_robots, n_moves)
+    starts = np.broadcast_to(positions[:, :, None], displacements.shape).reshape(len(displacements), -1, 2)
+    ends = starts + displacements.reshape(starts.shape)
+    clear = swept_discs_clear(geometry, starts, ends, robot_radius_m + clearance_m).reshape(displacements.shape[:3])
     clear &= ~teammate_conflicts(positions, displacements, 2 * robot_radius_m + clearance_m).any(axis=(3, 4))
     clear[..., 0] = True
     return clear

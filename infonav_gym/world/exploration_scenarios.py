@@ -91,11 +91,10 @@ def exploration_field(
 
     u = scenarios._uniform_until_accepted(np_random, n_obstacles, 3, obstacles_clear, "obstacles off base, landmarks")
     obstacles = [CircleObstacle((x, y), r) for (x, y), r in zip(*(part.tolist() for part in obstacle_discs(u)))]
-    routes = tuple(Route((float(x), float(y), heading), np.zeros((0, 2))) for x, y in starts)
     return Scenario(
         name="exploration_field",
         bounds=(0.0, 0.0, size_m, size_m),
-        routes=routes,
+        routes=tuple(Route((float(x), float(y), heading), np.zeros((0, 2))) for x, y in starts),
         walls=scenarios._box_walls(0.0, 0.0, size_m, size_m),
         obstacles=tuple(obstacles),
         landmarks=landmarks.reshape(-1, 2),

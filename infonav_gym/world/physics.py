@@ -41,9 +41,7 @@ class ContactSpace:
         self.space.collision_slop = 0.01  # allowed overlap [m]
         static_body = self.space.static_body
         static_shapes = [pymunk.Segment(static_body, start, end, wall_thickness_m / 2) for start, end in scenario.walls]
-        static_shapes += [
-            pymunk.Circle(static_body, obstacle.radius, obstacle.center) for obstacle in scenario.obstacles
-        ]
+        static_shapes += [pymunk.Circle(static_body, o.radius, o.center) for o in scenario.obstacles]
         for shape in static_shapes:
             shape.filter = pymunk.ShapeFilter(categories=OBSTACLE_CATEGORY)
         self.space.add(*static_shapes)
@@ -89,13 +87,9 @@ class ContactSpace:
 def static_boxes(scenario: Scenario, wall_thickness_m: float) -> np.ndarray:
     """Bounding boxes ``(left, bottom, right, top)`` of the scenario's walls, then obstacles (S, 4) [m], as Pymunk's
     (what ``StaticGeometry``'s boxes hold, without building one: a reset of many copies calls this per copy)."""
+    half = wall_thickness_m / 2
     boxes = [
-        (
-            min(a[0], b[0]) - wall_thickness_m / 2,
-            min(a[1], b[1]) - wall_thickness_m / 2,
-            max(a[0], b[0]) + wall_thickness_m / 2,
-            max(a[1], b[1]) + wall_thickness_m / 2,
-        )
+        (min(a[0], b[0]) - half, min(a[1], b[1]) - half, max(a[0], b[0]) + half, max(a[1], b[1]) + half)
         for a, b in scenario.walls
     ]
     boxes += [

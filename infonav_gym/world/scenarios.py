@@ -99,13 +99,12 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
         ((-2.0, -half_width), (-2.0, half_width)),
         ((length, -half_width), (length, half_width)),
     )
-    landmarks = np.array([[11.0, 2.2], [13.0, -2.2], [7.0, -2.2], [14.0, 2.2]])
     return Scenario(
         name="corridor",
         bounds=(-3.0, -4.0, length + 1.0, 4.0),
         walls=walls,
         routes=(Route((0.0, 0.0, 0.0), np.array([[length - 3.0, 0.0]]), speed_mps=speed_mps),),
-        landmarks=landmarks,
+        landmarks=np.array([[11.0, 2.2], [13.0, -2.2], [7.0, -2.2], [14.0, 2.2]]),
     )
 
 
@@ -115,8 +114,7 @@ def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: in
     for _ in range(max_attempts_each * max(count, 1)):
         if len(accepted) == count:
             break
-        sample = draw()
-        if accept(sample):
+        if accept(sample := draw()):
             accepted.append(sample)
     if len(accepted) < count:
         raise ValueError(f"could not place {count} {what} after many attempts: the field is too crowded")
@@ -164,8 +162,7 @@ def _points_along(polygon: np.ndarray, per_edge: int = 8) -> np.ndarray:
 
 def _closed_route(polygon: np.ndarray, speed_mps: float) -> Route:
     """A looping route around ``polygon``, starting at its first vertex and heading for the second."""
-    heading = math.atan2(*(polygon[1] - polygon[0])[::-1])
-    start_pose = (float(polygon[0, 0]), float(polygon[0, 1]), heading)
+    start_pose = (float(polygon[0, 0]), float(polygon[0, 1]), math.atan2(*(polygon[1] - polygon[0])[::-1]))
     return Route(start_pose, _next_vertices(polygon), loop=True, speed_mps=speed_mps)
 
 
@@ -215,14 +212,13 @@ def field(
         return (route_loop.distances(points) > 1.0) & np.all(gaps > clearances, axis=1)
 
     u = _uniform_until_accepted(np_random, n_landmarks, 2, outside_obstacles, "landmarks outside obstacles")
-    landmarks = _uniform(u, 1.0, size_m - 1.0)
     return Scenario(
         name="field",
         bounds=(0.0, 0.0, size_m, size_m),
         routes=(_closed_route(route, speed_mps),),
         walls=_box_walls(0.0, 0.0, size_m, size_m),
         obstacles=tuple(obstacles),
-        landmarks=np.array(landmarks).reshape(-1, 2),
+        landmarks=_uniform(u, 1.0, size_m - 1.0),  # (L, 2)
     )
 
 
@@ -276,12 +272,8 @@ def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> 
         return starts_open and bool(np.all(covered <= MAX_CANOPY_COVER))
 
     route_points = np.array([_points_along(polygon) for polygon in polygons])  # (R, P, 2): routes of equal size
-    return _rejection_sample(
-        count,
-        draw,
-        accept,
-        f"GPS-denied zones off the route starts covering at most {MAX_CANOPY_COVER:.0%} of any route",
-    )
+    what = f"GPS-denied zones off the route starts covering at most {MAX_CANOPY_COVER:.0%} of any route"
+    return _rejection_sample(count, draw, accept, what)
 
 
 def team_route_bands(n_robots: int, size_m: float, n_waypoints: int) -> list[tuple[float, float]]:
@@ -325,15 +317,13 @@ def team_field(
         jitter = np_random.uniform(-_TEAM_ANGLE_JITTER, _TEAM_ANGLE_JITTER, n_waypoints)
         angles = first_angle + 2 * math.pi * (robot / n_robots + (np.arange(n_waypoints) + jitter) / n_waypoints)
         polygons.append(_polygon(center, angles, np_random.uniform(low_m, high_m, n_waypoints)))
-    obstacles = _obstacles_clear_of(polygons, n_obstacles, size_m, np_random)
-    canopies = _canopies_on(polygons, n_canopies, np_random)
     return Scenario(
         name="team_field",
         bounds=(0.0, 0.0, size_m, size_m),
         routes=tuple(_closed_route(polygon, speed_mps) for polygon in polygons),
         walls=_box_walls(0.0, 0.0, size_m, size_m),
-        obstacles=tuple(obstacles),
-        gps_denied_zones=tuple(canopies),
+        obstacles=tuple(_obstacles_clear_of(polygons, n_obstacles, size_m, np_random)),
+        gps_denied_zones=tuple(_canopies_on(polygons, n_canopies, np_random)),  # drawn after the obstacles
     )
 
 
@@ -359,8 +349,7 @@ def convoy(np_random: np.random.Generator, n_robots: int = 3, speed_mps: float =
     x_min, x_max, y_min, y_max = -3.0, CONVOY_LENGTH_M + 3.0, lanes[-1] - half, half
     walls = _box_walls(x_min, y_min, x_max, y_max)
     for hedge in range(n_robots - 1):
-        openings = CONVOY_OPENINGS[min(hedge, len(CONVOY_OPENINGS) - 1)]
-        walls += _hedge(lanes[hedge] - half, openings, x_min, x_max)
+        walls += _hedge(lanes[hedge] - half, CONVOY_OPENINGS[min(hedge, len(CONVOY_OPENINGS) - 1)], x_min, x_max)
     routes = tuple(Route((0.0, y, 0.0), np.array([[CONVOY_LENGTH_M, y]]), speed_mps=speed_mps) for y in lanes)
     return Scenario(name="convoy", bounds=(x_min - 1, y_min - 1, x_max + 1, y_max + 1), routes=routes, walls=walls)
 

@@ -103,10 +103,10 @@ class Terrain:
         object.__setattr__(self, "origin_m", finite_vector(self.origin_m, 2, "terrain origin_m"))
         object.__setattr__(self, "cylinders", tuple(self.cylinders))
         object.__setattr__(self, "boxes", tuple(self.boxes))
-        for obstacle in self.cylinders + self.boxes:
+        obstacles = self.cylinders + self.boxes
+        for obstacle in obstacles:
             if not isinstance(obstacle, (Cylinder, Box)):
                 raise ValueError(f"terrain obstacles must be Cylinder or Box, got {obstacle!r}")
-        obstacles = self.cylinders + self.boxes
         table = np.array(
             [(*c.center_m, c.radius_m, 0.0, 0.0, c.bottom_m, 0.0, 0.0, c.top_m) for c in self.cylinders]
             + [(0.0, 0.0, 0.0, *b.min_corner_m, *b.max_corner_m) for b in self.boxes]
@@ -140,8 +140,7 @@ class Terrain:
         ``azimuth_rad`` (C,) and elevations ``elevation_rad`` (R,) or (R, C) in (-pi/2, pi/2) [rad]: compiled
         ``terrain_kernels.first_hits``."""
         origin = np.array(finite_vector(origin_m, 3, "ray origin_m"))
-        azimuth = np.asarray(azimuth_rad, dtype=float)
-        elevation = np.asarray(elevation_rad, dtype=float)
+        azimuth, elevation = np.asarray(azimuth_rad, dtype=float), np.asarray(elevation_rad, dtype=float)
         if azimuth.ndim != 1 or not np.all(np.isfinite(azimuth)):
             raise ValueError(f"azimuth_rad must be a finite (C,) array, got shape {azimuth.shape}")
         if elevation.ndim == 1:

@@ -109,29 +109,28 @@ def make_terrain(
             centers[index] = center + offset
         return centers
 
-    def footing(centers: np.ndarray, half_extents_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The lowest ground under each footprint's corners and centre, and the ground at its centre (count,) [m]."""
+    def standing(half_extents_m: np.ndarray, footprint_radius_m: np.ndarray, height_range) -> tuple:
+        """Centres (count, 2), bases and tops [m] of obstacles of a height drawn in ``height_range``, placed
+        (``place``) and standing on the lowest ground under their footprint's corners and centre."""
+        tall = np_random.uniform(*height_range, size=len(footprint_radius_m))
+        centers = place(len(footprint_radius_m), footprint_radius_m)
         ground_m = ground.height_at(centers[:, None] + half_extents_m[:, None] * _FOOTPRINT_CORNERS)
-        return ground_m.min(axis=1), ground_m[:, -1]
+        return centers, ground_m.min(axis=1), ground_m[:, -1] + tall  # the top: above the ground at the centre
 
     def standing_cylinders(count, radius_range, height_range, material) -> list[Cylinder]:
         radii = np_random.uniform(*radius_range, size=count)
-        tall = np_random.uniform(*height_range, size=count)
-        centers = place(count, radii)
-        lowest, middle = footing(centers, radii[:, None])
+        centers, bases, tops = standing(radii[:, None], radii, height_range)
         return [
-            Cylinder(tuple(xy), float(r), float(low), float(ground_m) + float(t), material=material)
-            for xy, r, low, ground_m, t in zip(centers, radii, lowest, middle, tall, strict=True)
+            Cylinder(tuple(xy), float(r), float(base), float(top), material=material)
+            for xy, r, base, top in zip(centers, radii, bases, tops, strict=True)
         ]
 
     trees = standing_cylinders(int(n_trees), (0.2, 0.6), (4.0, 12.0), "vegetation")
     rocks = standing_cylinders(int(n_rocks), (0.4, 1.5), (0.3, 1.5), "rock")
     sides = np_random.uniform(3.0, 10.0, size=(int(n_buildings), 2))
-    tall = np_random.uniform(3.0, 8.0, size=int(n_buildings))
-    centers = place(int(n_buildings), np.linalg.norm(sides, axis=1) / 2)
-    lowest, middle = footing(centers, sides / 2)
+    centers, bases, tops = standing(sides / 2, np.linalg.norm(sides, axis=1) / 2, (3.0, 8.0))
     buildings = [
-        Box((*(xy - half), float(low)), (*(xy + half), float(ground_m) + float(t)))
-        for xy, half, low, ground_m, t in zip(centers, sides / 2, lowest, middle, tall, strict=True)
+        Box((*(xy - half), float(base)), (*(xy + half), float(top)))
+        for xy, half, base, top in zip(centers, sides / 2, bases, tops, strict=True)
     ]
     return ground.with_obstacles(cylinders=trees + rocks, boxes=buildings)

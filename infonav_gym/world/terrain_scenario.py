@@ -92,13 +92,9 @@ def terrain_loop(
     return TerrainScenario(with_terrain_obstacles(drive, terrain), terrain)
 
 
-_LOOP_CONFIG_KEYS = {  # the env config key of each terrain_loop argument
+_LOOP_CONFIG_KEYS = {  # the env config key of each terrain_loop argument: its own name but for size_m
     "size_m": "scene_size_m",
-    "roughness": "roughness",
-    "n_trees": "n_trees",
-    "n_rocks": "n_rocks",
-    "n_buildings": "n_buildings",
-    "speed_mps": "speed_mps",
+    **{argument: argument for argument in ("roughness", "n_trees", "n_rocks", "n_buildings", "speed_mps")},
 }
 
 

@@ -84,12 +84,8 @@ class StaticGeometry:
         """The geometry whose field ``name`` is ``make(name, count)``, count the largest of ``geometries``'."""
         walls = max(geometry.wall_radii.shape[1] for geometry in geometries)
         discs = max(geometry.disc_radii.shape[1] for geometry in geometries)
-        return cls(
-            **{
-                name: _read_only(make(name, discs if name.startswith("disc") else walls))
-                for name in cls.__dataclass_fields__
-            }
-        )
+        fields = {name: make(name, discs if name.startswith("disc") else walls) for name in cls.__dataclass_fields__}
+        return cls(**{name: _read_only(array) for name, array in fields.items()})
 
     def with_copies(self, copies, replacement: StaticGeometry) -> StaticGeometry:
         """This geometry with copies ``copies`` (n,) replaced by the n copies of ``replacement``, padded to fit."""
@@ -109,12 +105,8 @@ class StaticGeometry:
 
     def tiled(self, n_copies: int) -> StaticGeometry:
         """Copy 0 of this geometry ``n_copies`` times (read-only views: nothing is copied)."""
-        return StaticGeometry(
-            **{
-                name: np.broadcast_to(getattr(self, name)[:1], (n_copies, *getattr(self, name).shape[1:]))
-                for name in self.__dataclass_fields__
-            }
-        )
+        first = {name: getattr(self, name)[:1] for name in self.__dataclass_fields__}
+        return StaticGeometry(**{name: np.broadcast_to(a, (n_copies, *a.shape[1:])) for name, a in first.items()})
 
     def grown(self, margin_m: float) -> StaticGeometry:
         """These shapes grown by ``margin_m`` [m] >= 0: a disc of that radius swept along a line touches a shape

@@ -61,12 +61,8 @@ class WorldBatch:
         self._grown_stale = np.ones(n_copies, dtype=bool)  # copies reset since: rebuilt when a free step needs them
         self._in_contact = np.zeros(n_copies, dtype=bool)  # the copy's last step was a contact step
         self._has_space = np.zeros(n_copies, dtype=bool)  # the copy holds a Pymunk space (``_spaces[copy]``)
-        self.poses = np.zeros((n_copies, 0, 3))
         self._waypoints = np.zeros((n_copies, 0, 0, 2))
-        self._n_waypoints = np.zeros((n_copies, 0), dtype=int)
-        self._waypoint_index = np.zeros((n_copies, 0), dtype=int)
-        self._route_speeds = np.zeros((n_copies, 0))
-        self._loops = np.zeros((n_copies, 0), dtype=bool)
+        self._resize_robots(0)  # the robots' arrays, sized at the first reset
         self._boxes = np.full((n_copies, 0, 4), _EMPTY_BOX)
 
     @property
@@ -88,8 +84,7 @@ class WorldBatch:
                 f"{self.poses.shape[1]}; every copy needs the same number"
             )
         self._scenarios[copy], self._spaces[copy], self._has_space[copy] = scenario, None, False
-        self._grown_stale[copy] = True
-        self._in_contact[copy] = False
+        self._grown_stale[copy], self._in_contact[copy] = True, False
         self.poses[copy] = start_poses(scenario)
         longest = max(len(route.waypoints) for route in routes)
         if longest > self._waypoints.shape[2]:
@@ -166,17 +161,9 @@ class WorldBatch:
 
     def _waypoint_controls(self, copies: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """The waypoint controls ``[speed, turn_rate]`` (n, R, 2) of ``copies``; advances their waypoints."""
+        routes = self._waypoint_index, self._n_waypoints, self._loops, self._waypoints, self._route_speeds
         return waypoint_controls(
-            copies,
-            poses,
-            self._waypoint_index,
-            self._n_waypoints,
-            self._loops,
-            self._waypoints,
-            self._route_speeds,
-            self.waypoint_tolerance_m,
-            self.heading_gain,
-            self.max_turn_rate_rps,
+            copies, poses, *routes, self.waypoint_tolerance_m, self.heading_gain, self.max_turn_rate_rps
         )
 
     def waypoint_indices(self, copy: int) -> list[int]:
@@ -193,8 +180,7 @@ class WorldBatch:
         if stale.size:
             geometries = [StaticGeometry.from_scenario(self._scenarios[copy], self.wall_thickness_m) for copy in stale]
             fresh = StaticGeometry.stack(geometries).grown(self.robot_radius_m + CONTACT_GAP_M)
-            base = fresh.tiled(self.n_copies) if self._grown is None else self._grown
-            self._grown = base.with_copies(stale, fresh)
+            self._grown = (fresh.tiled(self.n_copies) if self._grown is None else self._grown).with_copies(stale, fresh)
             self._grown_stale[stale] = False
         return self._grown
 
