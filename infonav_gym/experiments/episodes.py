@@ -7,9 +7,8 @@ from collections.abc import Iterator
 
 import gymnasium as gym
 
-from agents import GreedyEntropyAgent, PlannerAgent, RandomAgent
+from agents import GreedyEntropyAgent, RandomAgent
 from agents.base import env_name
-from agents.planner import planner_settings
 from agents.ray_support import DISTRIBUTED_HINT
 from infonav_gym.envs.traits import has_planning_model, traits_of
 from infonav_gym.registry import registered_envs
@@ -55,6 +54,12 @@ def make_agent(
                 f"(no planning_model() method); use random, greedy or ppo:PATH, or the planner on "
                 f"{', '.join(planning_env_ids)}"
             )
+        try:
+            from agents.planner import PlannerAgent, planner_settings
+        except ImportError as error:
+            raise ValueError(
+                f"agent 'planner' is not available: agents.planner.PlannerAgent does not import ({error})"
+            ) from None
         return PlannerAgent(env, agent, **planner_settings(env_name(env)))
     if name.startswith(RLLIB_PREFIX):
         try:
