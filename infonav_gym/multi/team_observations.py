@@ -7,6 +7,7 @@ import numpy as np
 from gymnasium import spaces
 
 from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.envs.observation_kernels import clip_into, range_bearing_features
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import gaussian_entropy_from_log_det
 
@@ -67,14 +68,8 @@ def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction,
                     continue
                 start = OWN_FEATURES + TEAMMATE_FEATURES * j
                 dx, dy = estimates[team, j, 0] - x, estimates[team, j, 1] - y
-                bearing = np.arctan2(dy, dx) - heading
-                row[start], row[start + 1] = teammate_valid[team, i, j], ranges[i, j]
-                row[start + 2], row[start + 3] = np.cos(bearing), np.sin(bearing)
-                row[start + 4] = position_std[j]
+                row[start], row[start + 4] = teammate_valid[team, i, j], position_std[j]
+                range_bearing_features(row[start + 1 : start + 4], ranges[i, j], np.arctan2(dy, dx) - heading)
             for k in range(gains.shape[2]):
                 row[teammates_end + k] = gains[team, i, k]
-            for k in range(row.shape[0]):  # as np.clip: NaN stays NaN
-                if row[k] < low[k]:
-                    row[k] = low[k]
-                elif row[k] > high[k]:
-                    row[k] = high[k]
+            clip_into(row, row, low, high)

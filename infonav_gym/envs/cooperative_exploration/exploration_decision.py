@@ -18,11 +18,6 @@ from infonav_gym.sensors.range_bearing import noise_covariances
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
 from infonav_gym.world.visibility_kernels import blocked, within_coverage
 
-EXPLORATION_INFO_KEYS = frozenset(
-    {"gps_available", "pose_std", "position_std_m", "pose_entropy", "position_error_m", "heading_error_rad"}
-    | {"estimated_pose", "observations_left", "coverage", "lost", "failed", "success"}
-)
-
 
 class TeamSight(NamedTuple):
     """What a team's sensors (each robot's ``RelativePoseSensor`` or None) see of the landmarks: their
