@@ -116,8 +116,10 @@ class TeamScenario(EnvScenario):
         return scenario
 
     def started(self, state: TeamState, copies: np.ndarray) -> None:
-        """``copies`` have started their episodes (``start_copy``): their DGPS zones and first fixes, no action yet;
-        copy 0's paths and observations start anew."""
+        """``copies`` have started their episodes (``start_copy``): their static geometry, DGPS zones and first fixes,
+        no action yet; copy 0's paths and observations start anew."""
+        geometry = StaticGeometry.stack([state.geometries[copy] for copy in copies.tolist()])
+        state.geometry = geometry if len(copies) == len(state.elapsed) else state.geometry.with_copies(copies, geometry)
         state.zone_centers, state.zone_radii_sq = gps_denied_zones(state.worlds)
         self.gps_fixes(state, copies, state.elapsed[copies])
         state.chosen[copies], state.invalid[copies] = self.traits.noop_action, False

@@ -50,7 +50,6 @@ from infonav_gym.multi.team_decision import TeamDecision, observable_pairs
 from infonav_gym.multi.team_observations import team_observation_bounds, team_observations
 from infonav_gym.multi.team_scenario import TeamAccessors, TeamScenario, TeamState, copy_rows
 from infonav_gym.scene import SceneFrame
-from infonav_gym.world.visibility import StaticGeometry
 
 LANDMARK_NOISE = 3  # ``noise`` index of the landmark measurements' streams (after odometry, DGPS, relative poses)
 MAP_IMAGE_PIXELS_PER_CELL = 8
@@ -151,15 +150,11 @@ class CooperativeExploration(TeamScenario):
         """Draw each copy's field, landmarks and joint prior (``start_episode``), then its first DGPS fixes."""
         for copy, rng in zip(rows.tolist(), rngs):
             state.landmarks[copy] = self.start_copy(state, copy, *start_episode(self.config, rng)).landmarks
-        geometry = StaticGeometry.stack([state.geometries[copy] for copy in rows.tolist()])
-        state.geometry = geometry if len(rows) == len(state.elapsed) else state.geometry.with_copies(rows, geometry)
         state.map_variances[rows] = self.parts.map_model.prior_variances()
         state.coverage[rows] = 0.0
         state.observations_left[rows] = self.config["max_observations"]
         state.lost[rows] = state.success[rows] = False
         self.started(state, rows)
-        for key, value in self.no_step(len(rows)).items():
-            getattr(state, key)[rows] = value
         if rows[0] == 0:
             state.observed_landmarks = []
         return state

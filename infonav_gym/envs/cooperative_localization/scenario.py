@@ -26,7 +26,6 @@ from infonav_gym.multi.team_observations import team_observation_bounds, team_ob
 from infonav_gym.multi.team_scenario import TeamAccessors, TeamScenario, TeamState
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
 from infonav_gym.scene import SceneFrame
-from infonav_gym.world.visibility import StaticGeometry
 
 
 @dataclass
@@ -84,7 +83,6 @@ class CooperativeLocalization(TeamScenario):
         """Draw each copy's scenario and joint prior (``start_episode``), then its first DGPS fixes."""
         for copy, rng in zip(rows.tolist(), rngs):
             self.start_copy(state, copy, *start_episode(self.config, rng, self.owner))
-        state.geometry = StaticGeometry.stack(state.geometries)
         self.started(state, rows)
         state.own_mi[rows] = state.team_mi[rows] = 0.0
         return state
