@@ -75,11 +75,13 @@ def scan_gains(map_model, variances, positions, position_std, speeds_mps, drive_
     return gains
 
 
-def action_gains(team_reward: float, observation_gain, scan, mask) -> np.ndarray:
-    """Each (observation, motion)'s immediate expected information (..., R, S, 5) [nats], 0 where ``mask`` is not:
-    ``(1 - team_reward)`` times the observation's gain (..., R, S) plus ``team_reward`` times the scan's (..., R, 5)."""
-    gains = (1.0 - team_reward) * observation_gain[..., None] + team_reward * scan[..., None, :]
-    return np.where(mask, gains, 0.0)
+def action_table(team_reward: float, slot_valid, observation_gain, motion_clear, scan) -> tuple:
+    """``(action_mask int8, action_information_gain [nats])`` (..., 5 S) of each (observation slot, motion): valid
+    where both are (``slot_valid`` (..., S), ``motion_clear`` (..., 5)); ``(1 - team_reward)`` times the observation's
+    gain (..., S) plus ``team_reward`` times the scan's (..., 5), 0 where masked."""
+    mask = slot_valid[..., None] & motion_clear[..., None, :]
+    gains = np.where(mask, (1.0 - team_reward) * observation_gain[..., None] + team_reward * scan[..., None, :], 0.0)
+    return mask.reshape(*mask.shape[:-2], -1).astype(np.int8), gains.reshape(*mask.shape[:-2], -1)
 
 
 def reward_terms(config: dict, own, map_information, observed, driving, lost) -> dict[str, np.ndarray]:
@@ -176,8 +178,7 @@ class ExplorationPlanningModel:
     def plan_decision(self, belief: TeamBelief, robot: int) -> tuple[np.ndarray, np.ndarray]:
         """Robot ``robot``'s ``(action_mask (B, A), action_information_gain (B, A))`` at each belief, as ``infos``
         give them but judged from the estimates; a finished belief has only action 0 valid, with gain 0."""
-        parts, n_landmarks, B = self._parts, self.config["n_landmarks"], len(belief)
-        pairs = parts.pairs
+        parts, pairs, n_landmarks, B = self._parts, self._parts.pairs, self.config["n_landmarks"], len(belief)
         poses = belief.x.reshape(B, -1, POSE_DIM)
         n_slots = 1 + n_landmarks + poses.shape[1]
         observable = (belief.observations_left[:, robot] > 0) & ~belief.done
@@ -209,11 +210,9 @@ class ExplorationPlanningModel:
         scan = scan_gains(
             parts.map_model, belief.map_variances, poses[:, own, :2], position_std, speeds, self._drive_s
         )[:, 0]
-        mask = slot_valid[:, :, None] & belief.motion_clear[:, robot, None, :]
-        mask[belief.done] = False
-        mask[belief.done, 0, STAY] = True
-        gains = action_gains(self.config["team_reward"], observation_gain, scan, mask)
-        return mask.reshape(B, -1).astype(np.int8), gains.reshape(B, -1)
+        clear = belief.motion_clear[:, robot].copy()
+        clear[belief.done] = np.arange(N_MOTIONS) == STAY  # and only slot 0 is valid: stay, observe nothing
+        return action_table(self.config["team_reward"], slot_valid, observation_gain, clear, scan)
 
     def plan_step(self, belief: TeamBelief, actions) -> tuple[TeamBelief, np.ndarray]:
         """Predict one step of every belief under the team's actions (B, R): ``(next beliefs, rewards (B, R))``.
@@ -289,10 +288,9 @@ class ExplorationPlanningModel:
         geometry = self._env.state.geometries[self._copy]
         if self._tiled[0] is not geometry:
             self._tiled = (geometry, {})
-        tiled = self._tiled[1].get(n_copies)
-        if tiled is None:
-            tiled = self._tiled[1][n_copies] = geometry.tiled(n_copies)
-        return tiled
+        if n_copies not in self._tiled[1]:
+            self._tiled[1][n_copies] = geometry.tiled(n_copies)
+        return self._tiled[1][n_copies]
 
     def _pair_noise(self, pairs: np.ndarray, ranges: np.ndarray) -> np.ndarray:
         """Noise covariances (..., 3, 3) of the relative poses of ``pairs`` (``SensingPairs`` rows) at ``ranges``."""

@@ -22,7 +22,7 @@ from infonav_gym.envs.cooperative_exploration.exploration_planning import (
     NOOP_ACTION,
     STAY,
     ExplorationPlanningModel,
-    action_gains,
+    action_table,
     clear_motions,
     motion_phases,
     motion_plan,
@@ -185,9 +185,7 @@ class CooperativeExploration(TeamScenario):
         speeds, radius_m = self.parts.speeds_mps, state.worlds.robot_radius_m
         scan = scan_gains(self.parts.map_model, state.map_variances[rows], positions, position_std, speeds, drive_s)
         clear = clear_motions(geometry, true_poses, x[:, 2::POSE_DIM], speeds, drive_s, radius_m)
-        mask = slot_valid[..., None] & clear[:, :, None, :]
-        gains = action_gains(cfg["team_reward"], observation_gain, scan, mask).reshape(n_copies, n_robots, -1)
-        mask = mask.reshape(n_copies, n_robots, -1).astype(np.int8)
+        mask, gains = action_table(cfg["team_reward"], slot_valid, observation_gain, clear, scan)
         return ExplorationDecision(mask, gains, *team[2:], slot_valid, position_std)
 
     def transition(self, state: ExplorationState, decision: ExplorationDecision, action, acting) -> ExplorationState:
@@ -202,18 +200,21 @@ class CooperativeExploration(TeamScenario):
         rows, n_landmarks = copy_rows(copies, len(acting)), cfg["n_landmarks"]
         slots, motions = np.divmod(state.chosen[rows], N_MOTIONS)
         plan = motion_plan(motions, state.x[rows, 2::POSE_DIM], self.parts.speeds_mps)  # the decision's, as masked
-        if acting[0] and self.drawing:  # drawn by ``frame``
-            self.first_copy_observed(state, slots[0])
         observes_teammate = slots > n_landmarks
         teammates = np.where(observes_teammate, slots - n_landmarks, 0)
+        landmarks = np.where((slots > 0) & ~observes_teammate, slots - 1, -1)
+        if acting[0] and self.drawing:  # drawn by ``frame``: copy 0's (robot, teammate) and (robot, landmark) pairs
+            state.observed_pairs = [(robot, int(j) - 1) for robot, j in enumerate(teammates[0]) if j]
+            state.observed_landmarks = [(robot, int(j)) for robot, j in enumerate(landmarks[0]) if j >= 0]
         self.relative_update(state, copies, teammates, decision)
-        self.observe_landmarks(state, copies, np.where((slots > 0) & ~observes_teammate, slots - 1, -1))
+        self.observe_landmarks(state, copies, landmarks)
         observed = slots > 0
         state.observations_left[copies] -= observed
         own_information = 0.5 * (
             decision.pose_log_det[rows] - batched.pose_log_dets(state.P[rows], len(self.agents), check_input=False)
         )
-        self.drive(state, copies, *plan)
+        for phase_s, commands in motion_phases(*plan, cfg):  # turn on the spot, then drive straight
+            self.predict(state, copies, state.worlds.step(phase_s, copies, commands), phase_s)
         self.gps_fixes(state, copies, state.elapsed[copies] + 1)  # the driver counts the step after
         position_std = ExplorationPlanningModel.position_std(state.P[rows])
         driving = motions != STAY
@@ -245,14 +246,6 @@ class CooperativeExploration(TeamScenario):
         """A robot lost, or the coverage target reached."""
         return state.lost.any(axis=1) | state.success
 
-    def first_copy_observed(self, state: ExplorationState, slots: np.ndarray) -> None:
-        """Keep copy 0's teammate and landmark observations of this step (its robots' observation ``slots`` (R,))."""
-        n_landmarks, robots = self.config["n_landmarks"], np.arange(len(slots))
-        teammates = slots > n_landmarks
-        landmarks = (slots > 0) & ~teammates
-        state.observed_pairs = list(zip(robots[teammates].tolist(), (slots[teammates] - 1 - n_landmarks).tolist()))
-        state.observed_landmarks = list(zip(robots[landmarks].tolist(), (slots[landmarks] - 1).tolist()))
-
     def observe_landmarks(self, state: ExplorationState, copies: np.ndarray, landmarks: np.ndarray) -> None:
         """Fuse the observations of landmark ``landmarks[c, k]`` (-1: none) by robot k of ``copies[c]``, linearized at
         the estimate, as one stacked update per copy."""
@@ -281,12 +274,6 @@ class CooperativeExploration(TeamScenario):
             observed,
             check_input=False,
         )
-
-    def drive(self, state: ExplorationState, copies: np.ndarray, turns: np.ndarray, speeds: np.ndarray) -> None:
-        """Turn every robot of ``copies`` on the spot by ``turns`` (n, R) [rad], then drive it straight at ``speeds``
-        (n, R) [m/s] (both in the ``WorldBatch``); predict with the odometry of each phase."""
-        for phase_s, commands in motion_phases(turns, speeds, self.config):
-            self.predict(state, copies, state.worlds.step(phase_s, copies, commands), phase_s)
 
     def scan(self, state: ExplorationState, copies: np.ndarray, scanning: np.ndarray, position_std) -> np.ndarray:
         """Fuse the scans of the ``scanning`` robots (n, R) of ``copies`` from their true positions; the map
