@@ -84,7 +84,6 @@ class CooperativeLocalization(TeamScenario):
         for copy, rng in zip(rows.tolist(), rngs):
             self.start_copy(state, copy, *start_episode(self.config, rng, self.owner))
         self.started(state, rows)
-        state.own_mi[rows] = state.team_mi[rows] = 0.0
         return state
 
     def decision(self, state: LocalizationState, rows) -> TeamDecision:
