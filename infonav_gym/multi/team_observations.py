@@ -26,18 +26,17 @@ def team_observation_bounds(n_robots: int, observe_gains: bool) -> tuple[np.ndar
     return low, high
 
 
-def team_observations(
-    estimates, pose_std, pose_log_det, gps_available, elapsed_fraction, teammate_valid, space: spaces.Box, gains=None
-) -> np.ndarray:
-    """Every robot's observation (see ``CooperativeLocalizationEnv``), float32 clipped to ``space``, for N copies of
-    R robots: (N, R, 10 + 5 R), or (N, R, 11 + 6 R) with the ``gains`` (``action_information_gain`` (N, R, R + 1)).
-    Of the estimated poses (N, R, 3), each robot's x, y, heading std and pose ``ln det`` at the prior, its DGPS fix
-    (N, R), each copy's elapsed fraction of ``max_cycles`` (N,) and who may observe whom now (N, R, R) bool."""
-    n_copies, n_robots = estimates.shape[:2]
-    features = np.zeros((n_copies, n_robots, space.shape[0]), dtype=np.float32)
-    entropy = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
-    gains = np.zeros((n_copies, n_robots, 0)) if gains is None else gains
-    arrays = (estimates, pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, space.low)
+def team_observations(state, decision, rows, horizon: int, teammate_valid, space: spaces.Box, gains=None) -> np.ndarray:
+    """Every robot's observation (see ``CooperativeLocalizationEnv``) in the copies ``rows`` of a ``TeamState`` at their
+    ``decision`` (its ``pose_std`` and ``pose_log_det``), float32 clipped to ``space``: (n, R, 10 + 5 R), or (n, R,
+    11 + 6 R) with the ``gains`` (``action_information_gain`` (n, R, R + 1)); ``horizon``: ``max_cycles`` [steps];
+    who may observe whom now ``teammate_valid`` (n, R, R) bool."""
+    gps_available = state.gps_available[rows]
+    features = np.zeros((*gps_available.shape, space.shape[0]), dtype=np.float32)
+    entropy = gaussian_entropy_from_log_det(decision.pose_log_det, POSE_DIM)
+    gains = np.zeros((*gps_available.shape, 0)) if gains is None else gains
+    estimates, elapsed_fraction = state.x[rows].reshape(*gps_available.shape, POSE_DIM), state.elapsed[rows] / horizon
+    arrays = (estimates, decision.pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, space.low)
     team_features(*(contiguous(array) for array in arrays), contiguous(space.high), features)
     return features
 

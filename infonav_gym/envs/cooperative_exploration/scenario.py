@@ -172,13 +172,9 @@ class CooperativeExploration(TeamScenario):
         team = TeamDecision.at_prior(self.pairs, pair_geometry, valid, x, P, 0.0)  # the gains: own-pose MI
         landmark_valid = sight.visible_landmarks(geometry, true_poses, landmarks) & budget_left[..., None]
         gains_of_landmarks = landmark_gains(x, P, landmarks, sight.noise_stds, landmark_valid)
-        slot_valid = np.concatenate(
-            [np.ones((n_copies, n_robots, 1), dtype=bool), landmark_valid, team.action_mask[..., 1:].astype(bool)],
-            axis=-1,
-        )
-        observation_gain = np.concatenate(
-            [np.zeros((n_copies, n_robots, 1)), gains_of_landmarks, team.action_information_gain[..., 1:]], axis=-1
-        )
+        team_valid, team_gain = team.action_mask > 0, team.action_information_gain  # slot 0: observe nothing, gain 0
+        slot_valid = np.concatenate([team_valid[..., :1], landmark_valid, team_valid[..., 1:]], axis=-1)
+        observation_gain = np.concatenate([team_gain[..., :1], gains_of_landmarks, team_gain[..., 1:]], axis=-1)
         position_std = ExplorationPlanningModel.position_std(P)
         drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
         positions = x.reshape(n_copies, n_robots, POSE_DIM)[..., :2]
@@ -294,26 +290,17 @@ class CooperativeExploration(TeamScenario):
     def observation(self, state: ExplorationState, decision: ExplorationDecision, rows) -> np.ndarray:
         cfg = self.config
         n_landmarks, budget = cfg["n_landmarks"], cfg["max_observations"]
-        gps_available = state.gps_available[rows]
-        n_copies, n_robots = gps_available.shape
+        n_copies, n_robots = state.gps_available[rows].shape
         estimates = state.x[rows].reshape(n_copies, n_robots, POSE_DIM)
-        team = team_observations(
-            estimates,
-            decision.pose_std,
-            decision.pose_log_det,
-            gps_available,
-            state.elapsed[rows] / cfg["max_cycles"],
-            decision.slot_valid[..., 1 + n_landmarks :],
-            self.team_space,
-        )
+        teammate_valid = decision.slot_valid[..., 1 + n_landmarks :]
+        team = team_observations(state, decision, rows, cfg["max_cycles"], teammate_valid, self.team_space)
         seen = range_bearing(estimates.reshape(-1, POSE_DIM), np.repeat(state.landmarks[rows], n_robots, axis=0))
-        observations_left = state.observations_left[rows]
         return exploration_observations(
             team,
             decision.slot_valid[..., 1 : 1 + n_landmarks],
             seen.reshape(n_copies, n_robots, n_landmarks, 2),
             self.parts.speeds_mps,
-            observations_left / budget if budget else np.zeros((n_copies, n_robots)),
+            state.observations_left[rows] / budget if budget else np.zeros((n_copies, n_robots)),
             state.coverage[rows],
             np.sqrt(state.map_variances[rows]) / self.parts.map_model.prior_std_m,
             self.observation_space,

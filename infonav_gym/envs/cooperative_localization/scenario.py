@@ -117,17 +117,9 @@ class CooperativeLocalization(TeamScenario):
         return (1.0 - weight) * state.own_mi + weight * state.team_mi
 
     def observation(self, state: LocalizationState, decision: TeamDecision, rows) -> np.ndarray:
-        poses = state.worlds.poses[rows]
-        return team_observations(
-            state.x[rows].reshape(poses.shape),
-            decision.pose_std,
-            decision.pose_log_det,
-            state.gps_available[rows],
-            state.elapsed[rows] / self.config["max_cycles"],
-            decision.action_mask[..., 1:] == 1,
-            self.observation_space,
-            decision.action_information_gain if self.config["observe_gains"] else None,
-        )
+        gains = decision.action_information_gain if self.config["observe_gains"] else None
+        valid, horizon = decision.action_mask[..., 1:] == 1, self.config["max_cycles"]
+        return team_observations(state, decision, rows, horizon, valid, self.observation_space, gains)
 
     def info(self, state: LocalizationState, decision: TeamDecision, rows, stepped) -> dict:
         """The decision's masks and gains, the reward terms, the actions and the robots' estimates (``team_info``)."""
