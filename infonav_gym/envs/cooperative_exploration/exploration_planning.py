@@ -254,8 +254,7 @@ class ExplorationPlanningModel:
         lost = (position_std > cfg["max_position_std_m"]).any(axis=1) & live
         success = (map_model.coverage(map_variances) >= cfg["coverage_target"]) & ~lost & live
         out_of_time = elapsed + belief.steps + 1 >= cfg["max_cycles"]
-        terms = reward_terms(cfg, own, map_information, observed, driving, lost)
-        rewards = total_reward(cfg["team_reward"], terms)
+        rewards = total_reward(cfg["team_reward"], reward_terms(cfg, own, map_information, observed, driving, lost))
         following = self._belief(
             np.where(live[:, None], x, belief.x),
             np.where(live[:, None, None], P, belief.covariance),
@@ -302,18 +301,15 @@ class ExplorationPlanningModel:
         the estimates: robot r's fills rows ``3r .. 3r + 2`` of the Jacobian (a landmark's leaves the third zero)."""
         B, n = belief.covariance.shape[:2]
         n_robots = n // POSE_DIM
-        H = np.zeros((B, n_robots, POSE_DIM, n))
+        H = np.zeros((B, n_robots, POSE_DIM, n_robots, POSE_DIM))  # (copy, robot's rows, pose block, its columns)
         R = np.broadcast_to(np.eye(POSE_DIM), (B, n_robots, POSE_DIM, POSE_DIM)).copy()
         poses = belief.x.reshape(B, n_robots, POSE_DIM)
-        pose_columns = np.arange(POSE_DIM)[None, None, :]
         copies, robots = np.nonzero(sees_landmark)
         if copies.size:
             seen = self._landmarks()[landmarks[copies, robots]][:, None]
             predicted, H_pose = batched.landmark_measurement_model(poses[copies, robots], seen, check_input=False)
-            R_pose = range_bearing_noise(self._sight.noise_stds, robots, predicted[:, 0, 0])[:, None]
-            rows = (copies[:, None, None], robots[:, None, None], np.arange(2)[None, :, None])
-            H[(*rows, POSE_DIM * robots[:, None, None] + pose_columns)] = H_pose[:, 0]
-            R[copies, robots, :2, :2] = R_pose[:, 0]
+            H[copies, robots, :2, robots] = H_pose[:, 0]
+            R[copies, robots, :2, :2] = range_bearing_noise(self._sight.noise_stds, robots, predicted[:, 0, 0])
         copies, robots = np.nonzero(sees_teammate)
         if copies.size:
             chosen = pairs[copies, robots]
@@ -321,9 +317,7 @@ class ExplorationPlanningModel:
             predicted, H_observer, H_target = batched.relative_pose_model(
                 belief.x[copies], robots[:, None], targets[:, None], check_input=False
             )
-            rows = (copies[:, None, None], robots[:, None, None], np.arange(POSE_DIM)[None, :, None])
-            H[(*rows, POSE_DIM * robots[:, None, None] + pose_columns)] = H_observer[:, 0]
-            H[(*rows, POSE_DIM * targets[:, None, None] + pose_columns)] = H_target[:, 0]
+            H[copies, robots, :, robots], H[copies, robots, :, targets] = H_observer[:, 0], H_target[:, 0]
             R[copies, robots] = self._pair_noise(chosen, predicted[:, 0, 0])
         observing = np.flatnonzero((sees_landmark | sees_teammate).any(axis=1))
         P = belief.covariance.copy()
