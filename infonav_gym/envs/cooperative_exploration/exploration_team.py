@@ -14,14 +14,13 @@ from infonav_gym.envs.cooperative_exploration.terrain_map import TerrainMapModel
 from infonav_gym.envs.observation_kernels import clip_into, range_bearing_features
 from infonav_gym.estimation.state import INITIAL_POSE_STD
 from infonav_gym.multi.team import gps_receivers, parse_speeds, parse_suites
-from infonav_gym.multi.team_sensing import SensingPairs, team_prior
+from infonav_gym.multi.team_sensing import SensingPairs, team_episode
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor, odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, RelativePoseSensor
 from infonav_gym.world.exploration_scenarios import EXPLORATION_FIELD_ARGUMENTS, exploration_field
 from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.scenarios import MAX_ROBOTS, MAX_SPEED_MPS
-from infonav_gym.world.world_batch import start_poses
 
 DEFAULT_SPEEDS_MPS = (0.8, 0.8, 1.2, 1.2)  # robot k of the default team: the DGPS robots are the slower ones
 RANGE_KEYS = {"laser": "laser_range_m", "vision": "vision_range_m"}  # the config key of each sensor's range
@@ -150,11 +149,9 @@ def ranged_sensor(config: dict, name: str | None, owner: str) -> RelativePoseSen
 
 def start_episode(config: dict, np_random: np.random.Generator):
     """Draw an episode's field and joint EKF prior from ``np_random``: ``(scenario, poses (R, 3), covariances
-    (R, 3, 3), odometry_rng, gps_rng, relative_rng, landmark_rng)``."""
+    (R, 3, 3), odometry_rng, gps_rng, relative_rng, landmark_rng)`` (``team_episode``)."""
     scenario = exploration_field(np_random, **{name: config[key] for name, key in SCENARIO_KEYS.items()})
-    generators = np_random.spawn(4)
-    poses, covariances = team_prior(config, np.array(start_poses(scenario)), np_random)
-    return scenario, poses, covariances, *generators
+    return team_episode(config, scenario, np_random, 4)
 
 
 def exploration_observation_bounds(team_low, team_high, n_landmarks: int, n_cells: int, n_gains: int = 0) -> tuple:

@@ -75,18 +75,14 @@ def fused_scans(ticks, radius_squared, variances, positions, noise_variances, sc
     ``v_c' = 1 / (1 / v_c + 0)``, as in numpy, and its term is left out) (``TerrainMapModel.fused``; ``ticks`` and
     ``radius_squared`` as ``scan_gains`` takes them)."""
     n_copies, n_scans, n_cells = positions.shape[0], positions.shape[1], variances.shape[1]
-    after = np.empty((n_copies, n_cells))
-    information = np.zeros(n_copies)
-    added = np.empty(n_cells)
-    cells = np.empty(n_cells, dtype=np.int64)
+    after, information = np.empty((n_copies, n_cells)), np.zeros(n_copies)
+    added, cells = np.empty(n_cells), np.empty(n_cells, dtype=np.int64)
     for copy in range(n_copies):
         added[:] = 0.0
         for scan in range(n_scans):
             if scanning[copy, scan]:
-                weight = 1.0 / noise_variances[copy, scan]
-                for k in range(
-                    footprint(ticks, radius_squared, positions[copy, scan, 0], positions[copy, scan, 1], cells)
-                ):
+                weight, x, y = 1.0 / noise_variances[copy, scan], positions[copy, scan, 0], positions[copy, scan, 1]
+                for k in range(footprint(ticks, radius_squared, x, y, cells)):
                     added[cells[k]] += weight
         for cell in range(n_cells):  # apart from the sum below: a loop without calls, which the compiler vectorizes
             after[copy, cell] = 1.0 / (1.0 / variances[copy, cell] + added[cell])
