@@ -146,16 +146,10 @@ class TeamScenario(EnvScenario):
         noise = state.noise[RELATIVE_NOISE].take_many(copies, chosen != NO_OBSERVATION)
         rows = copy_rows(copies, len(state.elapsed))
         candidates = (decision.geometry, decision.predicted, decision.H_observer, decision.H_target, decision.R)
+        models = [contiguous(model[rows]) for model in (*candidates, decision.pose_log_det)]
+        x, P = state.x[rows], state.P[rows]
         state.x[rows], state.P[rows], *brought = relative_updates(
-            state.x[rows],
-            state.P[rows],
-            chosen,
-            self.pair_index,
-            self.pairs.targets,
-            self.pairs.noise,
-            *(contiguous(candidate[rows]) for candidate in (*candidates, decision.pose_log_det)),
-            noise,
-            self.cross_covariances,
+            x, P, chosen, self.pair_index, self.pairs.targets, self.pairs.noise, *models, noise, self.cross_covariances
         )
         if np.isnan(brought[0]).any():
             raise ValueError("the joint covariance after the relative-pose updates is not positive definite")
@@ -180,14 +174,9 @@ class TeamScenario(EnvScenario):
         if not available.any():
             return
         fixes = self.gps.measure_with_noise(positions, state.noise[GPS_NOISE].take_many(copies, available))
+        x, P = state.x[within], state.P[within]
         state.x[within], state.P[within] = batched.gps_update(  # copies without a fix come back unchanged
-            state.x[within],
-            state.P[within],
-            fixes,
-            self.gps_covariance,
-            available,
-            cross_covariances=self.cross_covariances,
-            check_input=False,
+            x, P, fixes, self.gps_covariance, available, cross_covariances=self.cross_covariances, check_input=False
         )
 
     def gps_available(self, state: TeamState, copies: np.ndarray, positions: np.ndarray, time_s) -> np.ndarray:

@@ -251,24 +251,18 @@ class CooperativeExploration(TeamScenario):
             return
         observers, observed, choice = copies[rows], observed[rows], np.maximum(landmarks[rows], 0)
         positions = state.landmarks[observers[:, None], choice]  # (n, R, 2)
-        poses = state.x[observers].reshape(-1, POSE_DIM)
-        predicted, H = batched.landmark_measurement_model(poses, positions.reshape(-1, 1, 2), check_input=False)
-        predicted = predicted.reshape(*observed.shape, 2)
+        x, P = state.x[observers], state.P[observers]
+        predicted, H = batched.landmark_measurement_model(
+            x.reshape(-1, POSE_DIM), positions.reshape(-1, 1, 2), check_input=False
+        )
+        predicted, H = predicted.reshape(*observed.shape, 2), H.reshape(*observed.shape, 2, POSE_DIM)
         robots = np.broadcast_to(np.arange(observed.shape[1]), observed.shape)
         R = range_bearing_noise(self.sight.noise_stds, robots.ravel(), predicted[..., 0].ravel())
         R = R.reshape(*observed.shape, 2, 2)
         noise = state.noise[LANDMARK_NOISE].take_many(observers, observed)
         measurements = self.sight.landmark_measurements(state.worlds.poses[observers], positions, noise)
         state.x[observers], state.P[observers] = batched.team_landmark_update(
-            state.x[observers],
-            state.P[observers],
-            robots,
-            measurements,
-            predicted,
-            H.reshape(*observed.shape, 2, POSE_DIM),
-            R,
-            observed,
-            check_input=False,
+            x, P, robots, measurements, predicted, H, R, observed, check_input=False
         )
 
     def scan(self, state: ExplorationState, copies: np.ndarray, scanning: np.ndarray, position_std) -> np.ndarray:
