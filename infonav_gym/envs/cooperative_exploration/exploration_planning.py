@@ -182,8 +182,7 @@ class ExplorationPlanningModel:
         poses = belief.x.reshape(B, -1, POSE_DIM)
         n_slots = 1 + n_landmarks + poses.shape[1]
         observable = (belief.observations_left[:, robot] > 0) & ~belief.done
-        slot_valid = np.zeros((B, n_slots), dtype=bool)
-        slot_valid[:, 0] = True
+        slot_valid = np.tile(np.arange(n_slots) == 0, (B, 1))  # slot 0, observe nothing, is always valid
         slot_valid[:, 1 : 1 + n_landmarks] = belief.landmark_visible[:, robot] & observable[:, None]
         observation_gain = np.zeros((B, n_slots))
         if n_landmarks and parts.relative_sensors[robot] is not None:
@@ -205,14 +204,11 @@ class ExplorationPlanningModel:
                 belief.covariance, observers, targets, H_observer, H_target, R, check_input=False
             )[0]
         own = slice(robot, robot + 1)
-        position_std = self.position_std(belief.covariance)[:, own]
-        speeds = parts.speeds_mps[own]
-        scan = scan_gains(
-            parts.map_model, belief.map_variances, poses[:, own, :2], position_std, speeds, self._drive_s
-        )[:, 0]
+        position_std, speeds = self.position_std(belief.covariance)[:, own], parts.speeds_mps[own]
+        scan = scan_gains(parts.map_model, belief.map_variances, poses[:, own, :2], position_std, speeds, self._drive_s)
         clear = belief.motion_clear[:, robot].copy()
         clear[belief.done] = np.arange(N_MOTIONS) == STAY  # and only slot 0 is valid: stay, observe nothing
-        return action_table(self.config["team_reward"], slot_valid, observation_gain, clear, scan)
+        return action_table(self.config["team_reward"], slot_valid, observation_gain, clear, scan[:, 0])
 
     def plan_step(self, belief: TeamBelief, actions) -> tuple[TeamBelief, np.ndarray]:
         """Predict one step of every belief under the team's actions (B, R): ``(next beliefs, rewards (B, R))``.

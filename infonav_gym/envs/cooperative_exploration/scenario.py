@@ -225,14 +225,8 @@ class CooperativeExploration(TeamScenario):
 
     def step_terms(self, state: ExplorationState, rows) -> dict:
         """The reward terms (``reward_terms``) of the last step of the copies ``rows`` (n, R)."""
-        return reward_terms(
-            self.config,
-            state.own_information[rows],
-            state.map_information[rows],
-            state.observed[rows],
-            state.driving[rows],
-            state.lost[rows].any(axis=1),
-        )
+        brought = (state.own_information, state.map_information, state.observed, state.driving)
+        return reward_terms(self.config, *(array[rows] for array in brought), state.lost[rows].any(axis=1))
 
     def reward(self, decision, action, state: ExplorationState) -> np.ndarray:
         """Each robot's reward of its terms (``total_reward``, as the planning model's)."""
