@@ -28,9 +28,8 @@ def team_observation_bounds(n_robots: int, observe_gains: bool) -> tuple[np.ndar
 
 def team_observations(state, decision, rows, horizon: int, teammate_valid, space: spaces.Box, gains=None) -> np.ndarray:
     """Every robot's observation (see ``CooperativeLocalizationEnv``) in the copies ``rows`` of a ``TeamState`` at their
-    ``decision`` (its ``pose_std`` and ``pose_log_det``), float32 clipped to ``space``: (n, R, 10 + 5 R), or (n, R,
-    11 + 6 R) with the ``gains`` (``action_information_gain`` (n, R, R + 1)); ``horizon``: ``max_cycles`` [steps];
-    who may observe whom now ``teammate_valid`` (n, R, R) bool."""
+    ``decision``, float32 clipped to ``space``: (n, R, 10 + 5 R), or (n, R, 11 + 6 R) with the ``gains`` (n, R, R + 1);
+    ``horizon``: ``max_cycles`` [steps]; who may observe whom now ``teammate_valid`` (n, R, R) bool."""
     gps_available = state.gps_available[rows]
     features = np.zeros((*gps_available.shape, space.shape[0]), dtype=np.float32)
     entropy = gaussian_entropy_from_log_det(decision.pose_log_det, POSE_DIM)
@@ -43,9 +42,8 @@ def team_observations(state, decision, rows, horizon: int, teammate_valid, space
 
 @kernel
 def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, low, high, out):
-    """``team_observations`` into ``out`` (N, R, F) float32 (zeros), clipped to [low, high]; ``j``'s position std is
-    the hypot of its x, y std. Each pair's range and each robot's position std are computed once per team
-    (``hypot(-dx, -dy) = hypot(dx, dy)``)."""
+    """``team_observations`` into ``out`` (N, R, F) float32 (zeros), clipped to [low, high]; each pair's range and each
+    robot's position std (the hypot of its x, y std) are computed once per team."""
     n_teams, n_robots = estimates.shape[0], estimates.shape[1]
     teammates_end = OWN_FEATURES + TEAMMATE_FEATURES * n_robots
     ranges, position_std = np.empty((n_robots, n_robots)), np.empty(n_robots)

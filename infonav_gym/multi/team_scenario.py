@@ -34,11 +34,10 @@ ODOMETRY_NOISE, GPS_NOISE, RELATIVE_NOISE = 0, 1, 2  # ``noise`` index of each s
 
 @dataclass
 class TeamState(State):
-    """Every copy's world, noise streams (one ``NoiseStreams`` per sensor generator of an episode, in the order its
-    ``start_episode`` spawns them), joint EKF ``x`` (N, 3R) and ``P`` (N, 3R, 3R), which robots have a DGPS fix
-    (N, R), its GPS-denied zones (``gps_denied_zones``), each copy's static geometry (``geometries``, stacked in
-    ``geometry``), copy 0's paths (when drawing), each robot's last executed action and whether it was masked (N, R),
-    and copy 0's observed (observer, target) pairs (drawn)."""
+    """Every copy's world, noise streams (one ``NoiseStreams`` per sensor generator, in the order ``start_episode``
+    spawns them), joint EKF ``x`` (N, 3R) and ``P`` (N, 3R, 3R), which robots have a DGPS fix (N, R), its GPS-denied
+    zones (``gps_denied_zones``), static geometry (``geometries``, stacked in ``geometry``), each robot's last executed
+    action and whether it was masked (N, R); copy 0's paths (when drawing) and observed (observer, target) pairs."""
 
     worlds: WorldBatch
     noise: tuple

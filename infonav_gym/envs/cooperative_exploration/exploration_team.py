@@ -100,10 +100,9 @@ def exploration_config() -> dict:
 
 
 class ExplorationParts(NamedTuple):
-    """The team and the map of ``cooperative_exploration_v0``, as its config gives them: each robot's cruise speed
-    (R,) [m/s], ``GPSSensor`` (with its outage spans) or None, ``RelativePoseSensor`` at the env's range (its
-    range-bearing part sees the landmarks) or None, the (observer, target) ``pairs``, the odometry and the terrain
-    ``map_model``."""
+    """The team and map of ``cooperative_exploration_v0`` from its config: each robot's cruise speed (R,) [m/s],
+    ``GPSSensor`` (with its outage spans) or None, ``RelativePoseSensor`` at the env's range (its range-bearing part
+    sees the landmarks) or None, the (observer, target) ``pairs``, the odometry and the terrain ``map_model``."""
 
     speeds_mps: np.ndarray
     gps: list[GPSSensor | None]

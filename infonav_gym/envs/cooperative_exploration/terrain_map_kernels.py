@@ -70,10 +70,9 @@ def scan_gains(ticks, radius_squared, variances, ends, noise_variances):
 
 @kernel
 def fused_scans(ticks, radius_squared, variances, positions, noise_variances, scanning):
-    """The cell variances (B, G) after each copy's scans of one step, fused in information form, and the map
-    information they bring (B,) [nats]: ``0.5 sum_c ln(v_c / v_c')`` over the cells some scan sees (elsewhere
-    ``v_c' = 1 / (1 / v_c + 0)``, as in numpy, and its term is left out) (``TerrainMapModel.fused``; ``ticks`` and
-    ``radius_squared`` as ``scan_gains`` takes them)."""
+    """The cell variances (B, G) after each copy's scans of one step, fused in information form, and the map information
+    they bring (B,) [nats], ``0.5 sum_c ln(v_c / v_c')`` over the cells some scan sees (``TerrainMapModel.fused``; the
+    others get ``1 / (1 / v_c + 0)``, as in numpy; ``ticks``, ``radius_squared`` as ``scan_gains`` takes them)."""
     n_copies, n_scans, n_cells = positions.shape[0], positions.shape[1], variances.shape[1]
     after, information = np.empty((n_copies, n_cells)), np.zeros(n_copies)
     added, cells = np.empty(n_cells), np.empty(n_cells, dtype=np.int64)

@@ -95,8 +95,8 @@ class TeamParts(NamedTuple):
 
 
 def start_episode(config: dict, np_random: np.random.Generator, owner: str):
-    """Draw an episode from ``np_random`` (``owner``: the env named in config errors), in a fixed order:
-    ``(scenario, poses (R, 3), covariances (R, 3, 3), odometry_rng, gps_rng, relative_rng)``: the scenario (one
-    route per robot), the sensors' generators, then the ``JointEKF`` prior (no cross-covariance)."""
+    """Draw an episode from ``np_random`` (``owner``: the env named in config errors): ``(scenario, poses (R, 3),
+    covariances (R, 3, 3), odometry_rng, gps_rng, relative_rng)``, the scenario (one route per robot) drawn first
+    (``team_episode``)."""
     scenario = scenario_from_config(config, np_random, TEAM_SCENARIO_KEYS, owner, config["n_robots"])
     return team_episode(config, scenario, np_random, 3)
