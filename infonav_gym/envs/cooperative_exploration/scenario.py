@@ -262,10 +262,7 @@ class CooperativeExploration(TeamScenario):
     def scan(self, state: ExplorationState, copies: np.ndarray, scanning: np.ndarray, position_std) -> np.ndarray:
         """Fuse the scans of the ``scanning`` robots (n, R) of ``copies`` from their true positions; the map
         information of each copy (n,) [nats]."""
-        information = np.zeros(len(copies))
-        rows = np.flatnonzero(scanning.any(axis=1))
-        if not rows.size:
-            return information
+        information, rows = np.zeros(len(copies)), np.flatnonzero(scanning.any(axis=1))
         model, mapped = self.parts.map_model, copy_rows(copies[rows], len(state.elapsed))
         noise = model.scan_noise_variances(position_std[rows])
         after, information[rows] = model.fused(

@@ -100,9 +100,8 @@ class CooperativeLocalization(TeamScenario):
         state.chosen, state.invalid = chosen, acting[:, None] & (action < 0)
         team_mi, state.own_mi, state.pose_std_after = self.relative_update(state, self.every_copy, chosen, decision)
         state.team_mi = np.repeat(team_mi[:, None], len(self.agents), axis=1)
-        if acting[0] and self.drawing:  # drawn by ``frame``
-            observers = np.flatnonzero(chosen[0] != NO_OBSERVATION)
-            state.observed_pairs = list(zip(observers.tolist(), (chosen[0, observers] - 1).tolist()))
+        if acting[0] and self.drawing:  # drawn by ``frame``: copy 0's (observer, target) pairs
+            state.observed_pairs = [(robot, int(j) - 1) for robot, j in enumerate(chosen[0]) if j != NO_OBSERVATION]
         copies = np.flatnonzero(acting)
         if copies.size:
             dt = self.config["time_step_s"]
