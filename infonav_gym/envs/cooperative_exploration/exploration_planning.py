@@ -124,11 +124,8 @@ class TeamBelief(BeliefBatch):
 
 
 class ExplorationPlanningModel:
-    """The planning model of one copy of ``CooperativeExplorationVectorEnv`` (``env.planning_model(copy)``).
-
-    It reads the copy's episode (landmarks, static geometry, GPS-denied zones) and estimator state (``env.state``)
-    when called, so one model serves a whole run.
-    """
+    """The planning model of one copy of ``CooperativeExplorationVectorEnv`` (``env.planning_model(copy)``); it reads
+    the copy's episode and estimator state (``env.state``) when called, so one model serves a whole run."""
 
     n_primitives = N_MOTIONS
     idle_primitive = STAY  # the motion that stands still
@@ -211,13 +208,11 @@ class ExplorationPlanningModel:
         return action_table(self.config["team_reward"], slot_valid, observation_gain, clear, scan[:, 0])
 
     def plan_step(self, belief: TeamBelief, actions) -> tuple[TeamBelief, np.ndarray]:
-        """Predict one step of every belief under the team's actions (B, R): ``(next beliefs, rewards (B, R))``.
-
-        The env's transition with the unknowns at their expectation: observations fused with the measurement as
-        predicted (exact MI), motions commanded from the estimate, DGPS fixes and scans at the estimated positions.
-        What the belief does not allow is dropped (an observation out of sight or budget; a motion not clear: stay).
-        A finished belief stays put and earns 0.
-        """
+        """Predict one step of every belief under the team's actions (B, R): ``(next beliefs, rewards (B, R))``, the
+        env's transition with the unknowns at their expectation: observations fused with the measurement as predicted
+        (exact MI), motions commanded from the estimate, DGPS fixes and scans at the estimated positions. What the
+        belief does not allow is dropped (an observation out of sight or budget; a motion not clear: stay); a
+        finished belief stays put and earns 0."""
         cfg, map_model = self.config, self._parts.map_model
         B, n_robots, n_landmarks = len(belief), len(self._parts.gps), cfg["n_landmarks"]
         live = ~belief.done

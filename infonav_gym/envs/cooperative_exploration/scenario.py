@@ -1,8 +1,5 @@
-"""``cooperative_exploration_v0``: a team maps a field, each robot choosing where to go and what to see, as a scenario.
-
-``CooperativeExplorationVectorEnv`` is the driver of this scenario, ``CooperativeExplorationEnv`` its PettingZoo view
-(``envs.parallel_view``).
-"""
+"""``cooperative_exploration_v0`` as a scenario: a team maps a field, each robot choosing where to go and what to see;
+``CooperativeExplorationVectorEnv`` is its driver, ``CooperativeExplorationEnv`` its PettingZoo view."""
 
 from __future__ import annotations
 

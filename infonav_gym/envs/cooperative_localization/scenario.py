@@ -1,8 +1,5 @@
-"""``cooperative_localization_v0``: a heterogeneous team localizes through relative-pose observations, as a scenario.
-
-``CooperativeLocalizationVectorEnv`` is the driver of this scenario, ``CooperativeLocalizationEnv`` its PettingZoo
-view (``envs.parallel_view``).
-"""
+"""``cooperative_localization_v0`` as a scenario: a heterogeneous team localizes through relative-pose observations;
+``CooperativeLocalizationVectorEnv`` is its driver, ``CooperativeLocalizationEnv`` its PettingZoo view."""
 
 from __future__ import annotations
 
