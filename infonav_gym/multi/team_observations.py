@@ -21,9 +21,8 @@ def team_observation_bounds(n_robots: int, observe_gains: bool) -> tuple[np.ndar
     own_low, own_high = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -100, 0, 0], [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 100, 1, 1]
     teammate_low, teammate_high = [0, 0, -1, -1, 0], [1, _BIG, 1, 1, _BIG]
     gain_low, gain_high = ([0] * (n_robots + 1), [_BIG] * (n_robots + 1)) if observe_gains else ([], [])
-    low = np.array(own_low + teammate_low * n_robots + gain_low, dtype=np.float32)
-    high = np.array(own_high + teammate_high * n_robots + gain_high, dtype=np.float32)
-    return low, high
+    low, high = own_low + teammate_low * n_robots + gain_low, own_high + teammate_high * n_robots + gain_high
+    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
 
 
 def team_observations(state, decision, rows, horizon: int, teammate_valid, space: spaces.Box, gains=None) -> np.ndarray:

@@ -169,9 +169,8 @@ def exploration_observations(
     range [m] and bearing [rad] from the robot's estimate (N, R, L, 2), each robot's speed (R,) [m/s], budget left
     (fraction, (N, R)), the coverage (N,), each cell's height std left (fraction of the prior's, (N, G)) and the
     ``action_information_gain`` (N, R, A) to append (``observe_gains``) or None."""
-    n_copies, n_robots = np.shape(team)[:2]
-    features = np.empty((n_copies, n_robots, space.shape[0]), dtype=np.float32)
-    gains = np.zeros((n_copies, n_robots, 0)) if gains is None else gains
+    features = np.empty((*np.shape(team)[:2], space.shape[0]), dtype=np.float32)
+    gains = np.zeros((*np.shape(team)[:2], 0)) if gains is None else gains
     arrays = (landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, gains, space.low, space.high)
     floats = (contiguous(np.asarray(array, dtype=float)) for array in arrays)  # the team part stays float32
     exploration_features(contiguous(np.asarray(team, dtype=np.float32)), *floats, features)
