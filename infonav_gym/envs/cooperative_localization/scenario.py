@@ -61,7 +61,7 @@ class CooperativeLocalization(TeamScenario):
     def __init__(self, config: dict, copies: int, owner: str, render_mode: str | None):
         super().__init__(config, copies, owner, render_mode)
         parts = TeamParts.of_config(config, owner)
-        n_robots = len(parts.suites)
+        n_robots = len(parts.gps)
         low, high = team_observation_bounds(n_robots, config["observe_gains"])
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.action_space = spaces.Discrete(n_robots + 1)

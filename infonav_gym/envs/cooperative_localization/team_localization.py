@@ -9,7 +9,7 @@ import numpy as np
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments, config_keys
 from infonav_gym.envs.base import EPISODE_STEPS
 from infonav_gym.estimation.state import INITIAL_POSE_STD
-from infonav_gym.multi.team import DEFAULT_OUTAGE, RobotSuite, gps_receivers, parse_suites
+from infonav_gym.multi.team import DEFAULT_OUTAGE, gps_receivers, parse_suites
 from infonav_gym.multi.team_sensing import SensingPairs, team_episode
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor, odometry_sensor_from_config
@@ -68,10 +68,9 @@ def team_localization_config() -> dict:
 
 
 class TeamParts(NamedTuple):
-    """The sensors of a team of R robots, as its config gives them: each robot's ``RobotSuite`` and ``GPSSensor``
-    (with its outage spans) or None, the (observer, target) ``pairs`` and the odometry."""
+    """The sensors of a team of R robots, as its config gives them (suites: ``parse_suites``): each robot's
+    ``GPSSensor`` (with its outage spans) or None, the (observer, target) ``pairs`` and the odometry."""
 
-    suites: tuple[RobotSuite, ...]
     gps: list[GPSSensor | None]
     pairs: SensingPairs
     odometry: OdometrySensor
@@ -91,7 +90,7 @@ class TeamParts(NamedTuple):
         suites = parse_suites(config["robot_sensors"], n_robots, config["scenario"])
         gps = gps_receivers(config, suites, owner)
         relative_sensors = [RELATIVE_POSE_SENSORS.get(suite.relative_sensor) for suite in suites]
-        return cls(suites, gps, SensingPairs.of_team(relative_sensors), odometry_sensor_from_config(config, owner))
+        return cls(gps, SensingPairs.of_team(relative_sensors), odometry_sensor_from_config(config, owner))
 
 
 def start_episode(config: dict, np_random: np.random.Generator, owner: str):
