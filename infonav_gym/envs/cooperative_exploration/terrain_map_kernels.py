@@ -43,9 +43,7 @@ def first_near(ticks, low):
     """The index of a tick at least a cell below the first tick >= ``low`` (0 for NaN): the ticks before it lie more
     than two cells below ``low``. ``ticks`` (K >= 2,) ascend evenly."""
     start = (low - ticks[0]) / (ticks[1] - ticks[0]) - 1.0
-    if not start > 0.0:
-        return 0
-    return int(min(start, float(len(ticks))))
+    return int(min(start, float(len(ticks)))) if start > 0.0 else 0
 
 
 @kernel
