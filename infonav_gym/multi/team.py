@@ -35,8 +35,7 @@ def parse_suites(spec, n_robots: int, scenario: str) -> tuple[RobotSuite, ...]:
     has its own), else one entry per robot: sensor names or a string joining them with ``+`` (``"gps+laser"``).
 
     Raises:
-        ValueError: for a wrong number of entries, an unknown sensor (listing the known ones) or two relative-pose
-            sensors on one robot.
+        ValueError: a wrong number of entries, an unknown sensor (listing the known), two relative sensors on a robot.
     """
     if spec is None:
         defaults = CONVOY_SUITES if scenario == "convoy" else DEFAULT_SUITES
@@ -64,8 +63,7 @@ def parse_outages(spec, n_robots: int) -> tuple[tuple[tuple[float, float], ...],
     """Per robot, its DGPS outage spans ``(start_s, end_s)`` from ``gps_outages`` triples ``(robot, start_s, end_s)``.
 
     Raises:
-        ValueError: for a spec that is not a sequence of triples, a malformed triple, a robot index
-            out of range or ``start_s >= end_s`` (NaN never is below anything).
+        ValueError: not a sequence of triples, a malformed triple, a robot out of range, not ``start_s < end_s`` (NaN).
     """
     if isinstance(spec, str) or not isinstance(spec, Sequence):
         raise ValueError(f"gps_outages must be a sequence of (robot, start_s, end_s) triples, got {spec!r}")
@@ -88,8 +86,7 @@ def parse_speeds(spec, defaults: Sequence[float], n_robots: int, high_mps: float
     """Each robot's cruise speed [m/s] from ``robot_speeds_mps``: None for ``defaults[k % len(defaults)]``.
 
     Raises:
-        ValueError: naming ``robot_speeds_mps``, for a spec that is not one number per robot, or a speed
-            outside (0, ``high_mps``].
+        ValueError: naming ``robot_speeds_mps``: not one number per robot, or a speed outside (0, ``high_mps``].
     """
     if spec is None:
         return tuple(float(defaults[robot % len(defaults)]) for robot in range(n_robots))

@@ -39,11 +39,10 @@ class TeamDecision(NamedTuple):
     def at_prior(cls, pairs: SensingPairs, geometry, valid, x, P, team_reward: float) -> TeamDecision:
         """The decisions of N copies at their priors ``x`` (N, 3R), ``P`` (N, 3R, 3R), of the ``pairs``' true
         ``geometry`` and ``valid`` (``observable_pairs``); ``team_reward``: the team MI's weight in [0, 1]."""
-        *decision, undefined = pair_decisions(x, P, *pairs[:3], valid, float(team_reward))
+        mask, gains, *models, undefined = pair_decisions(x, P, *pairs[:3], valid, float(team_reward))
         if undefined:
             raise ValueError("a pose covariance, or a posterior or innovation covariance, is not positive definite")
-        mask, gains, predicted, H_observer, H_target, R, pose_log_det, pose_std = decision
-        return cls(mask, gains, geometry, valid, predicted, H_observer, H_target, R, pose_log_det, pose_std)
+        return cls(mask, gains, geometry, valid, *models)
 
 
 def observable_pairs(pairs: SensingPairs, geometry: StaticGeometry, true_poses) -> tuple[np.ndarray, np.ndarray]:
@@ -90,9 +89,7 @@ def pair_decisions(x, P, observers, targets, noise, valid, team_reward):
     or a target lies on its observer."""
     n_copies, n_robots, n_pairs = x.shape[0], x.shape[1] // POSE_DIM, len(observers)
     copy_observers, copy_targets = np.empty((n_copies, n_pairs), np.int64), np.empty((n_copies, n_pairs), np.int64)
-    for c in range(n_copies):
-        for k in range(n_pairs):
-            copy_observers[c, k], copy_targets[c, k] = observers[k], targets[k]
+    copy_observers[:], copy_targets[:] = observers, targets  # every copy has the same pairs
     predicted, H_observer, H_target, coincident = relative_pose_models(x, copy_observers, copy_targets)
     R = np.zeros((n_copies, n_pairs, POSE_DIM, POSE_DIM))
     for c in range(n_copies):

@@ -7,6 +7,7 @@ import numpy as np
 from gymnasium import spaces
 
 from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.envs.observation_kernels import clip_into, range_bearing_features
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.information import gaussian_entropy_from_log_det
 
@@ -20,32 +21,28 @@ def team_observation_bounds(n_robots: int, observe_gains: bool) -> tuple[np.ndar
     own_low, own_high = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -100, 0, 0], [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 100, 1, 1]
     teammate_low, teammate_high = [0, 0, -1, -1, 0], [1, _BIG, 1, 1, _BIG]
     gain_low, gain_high = ([0] * (n_robots + 1), [_BIG] * (n_robots + 1)) if observe_gains else ([], [])
-    low = np.array(own_low + teammate_low * n_robots + gain_low, dtype=np.float32)
-    high = np.array(own_high + teammate_high * n_robots + gain_high, dtype=np.float32)
-    return low, high
+    low, high = own_low + teammate_low * n_robots + gain_low, own_high + teammate_high * n_robots + gain_high
+    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
 
 
-def team_observations(
-    estimates, pose_std, pose_log_det, gps_available, elapsed_fraction, teammate_valid, space: spaces.Box, gains=None
-) -> np.ndarray:
-    """Every robot's observation (see ``CooperativeLocalizationEnv``), float32 clipped to ``space``, for N copies of
-    R robots: (N, R, 10 + 5 R), or (N, R, 11 + 6 R) with the ``gains`` (``action_information_gain`` (N, R, R + 1)).
-    Of the estimated poses (N, R, 3), each robot's x, y, heading std and pose ``ln det`` at the prior, its DGPS fix
-    (N, R), each copy's elapsed fraction of ``max_cycles`` (N,) and who may observe whom now (N, R, R) bool."""
-    n_copies, n_robots = estimates.shape[:2]
-    features = np.zeros((n_copies, n_robots, space.shape[0]), dtype=np.float32)
-    entropy = gaussian_entropy_from_log_det(pose_log_det, POSE_DIM)
-    gains = np.zeros((n_copies, n_robots, 0)) if gains is None else gains
-    arrays = (estimates, pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, space.low)
+def team_observations(state, decision, rows, horizon: int, teammate_valid, space: spaces.Box, gains=None) -> np.ndarray:
+    """Every robot's observation (see ``CooperativeLocalizationEnv``) in the copies ``rows`` of a ``TeamState`` at their
+    ``decision``, float32 clipped to ``space``: (n, R, 10 + 5 R), or (n, R, 11 + 6 R) with the ``gains`` (n, R, R + 1);
+    ``horizon``: ``max_cycles`` [steps]; who may observe whom now ``teammate_valid`` (n, R, R) bool."""
+    gps_available = state.gps_available[rows]
+    features = np.zeros((*gps_available.shape, space.shape[0]), dtype=np.float32)
+    entropy = gaussian_entropy_from_log_det(decision.pose_log_det, POSE_DIM)
+    gains = np.zeros((*gps_available.shape, 0)) if gains is None else gains
+    estimates, elapsed_fraction = state.x[rows].reshape(*gps_available.shape, POSE_DIM), state.elapsed[rows] / horizon
+    arrays = (estimates, decision.pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, space.low)
     team_features(*(contiguous(array) for array in arrays), contiguous(space.high), features)
     return features
 
 
 @kernel
 def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction, teammate_valid, gains, low, high, out):
-    """``team_observations`` into ``out`` (N, R, F) float32 (zeros), clipped to [low, high]; ``j``'s position std is
-    the hypot of its x, y std. Each pair's range and each robot's position std are computed once per team
-    (``hypot(-dx, -dy) = hypot(dx, dy)``)."""
+    """``team_observations`` into ``out`` (N, R, F) float32 (zeros), clipped to [low, high]; each pair's range and each
+    robot's position std (the hypot of its x, y std) are computed once per team."""
     n_teams, n_robots = estimates.shape[0], estimates.shape[1]
     teammates_end = OWN_FEATURES + TEAMMATE_FEATURES * n_robots
     ranges, position_std = np.empty((n_robots, n_robots)), np.empty(n_robots)
@@ -67,14 +64,8 @@ def team_features(estimates, pose_std, entropy, gps_available, elapsed_fraction,
                     continue
                 start = OWN_FEATURES + TEAMMATE_FEATURES * j
                 dx, dy = estimates[team, j, 0] - x, estimates[team, j, 1] - y
-                bearing = np.arctan2(dy, dx) - heading
-                row[start], row[start + 1] = teammate_valid[team, i, j], ranges[i, j]
-                row[start + 2], row[start + 3] = np.cos(bearing), np.sin(bearing)
-                row[start + 4] = position_std[j]
+                row[start], row[start + 4] = teammate_valid[team, i, j], position_std[j]
+                range_bearing_features(row[start + 1 : start + 4], ranges[i, j], np.arctan2(dy, dx) - heading)
             for k in range(gains.shape[2]):
                 row[teammates_end + k] = gains[team, i, k]
-            for k in range(row.shape[0]):  # as np.clip: NaN stays NaN
-                if row[k] < low[k]:
-                    row[k] = low[k]
-                elif row[k] > high[k]:
-                    row[k] = high[k]
+            clip_into(row, row, low, high)

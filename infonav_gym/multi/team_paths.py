@@ -18,15 +18,13 @@ class FirstCopyPaths:
 
     def extend(self, true_poses: np.ndarray, estimates: np.ndarray) -> None:
         """Append every robot's current true and estimated position (R, 3) to its paths."""
-        for robot, (true_pose, estimate) in enumerate(zip(true_poses, estimates)):
-            self.true_paths[robot].append(true_pose[:2])
-            self.estimated_paths[robot].append(estimate[:2])  # PathHistory copies
+        for path, pose in zip(self.true_paths + self.estimated_paths, [*true_poses, *estimates]):
+            path.append(pose[:2])  # PathHistory copies
 
     def drawings(self, true_poses, x, P, agents, gps_available) -> list[RobotDrawing]:
         """Every robot's truth (R, 3), estimate and covariance (from the joint ``x`` (3R,), ``P`` (3R, 3R)) and paths,
         labelled with its name (``agents``) and whether it has a DGPS fix (``gps_available`` (R,))."""
         estimates = x.reshape(-1, POSE_DIM)
-        labels = [f"{agent}{'' if available else ', no GPS'}" for agent, available in zip(agents, gps_available)]
         return [
             RobotDrawing(
                 true_pose=true_poses[k],
@@ -34,7 +32,7 @@ class FirstCopyPaths:
                 pose_covariance=P[POSE_DIM * k : POSE_DIM * (k + 1), POSE_DIM * k : POSE_DIM * (k + 1)],
                 true_path=self.true_paths[k].points(),
                 estimated_path=self.estimated_paths[k].points(),
-                label=label,
+                label=f"{agent}{'' if available else ', no GPS'}",
             )
-            for k, label in enumerate(labels)
+            for k, (agent, available) in enumerate(zip(agents, gps_available))
         ]

@@ -34,11 +34,10 @@ ODOMETRY_NOISE, GPS_NOISE, RELATIVE_NOISE = 0, 1, 2  # ``noise`` index of each s
 
 @dataclass
 class TeamState(State):
-    """Every copy's world, noise streams (one ``NoiseStreams`` per sensor generator of an episode, in the order its
-    ``start_episode`` spawns them), joint EKF ``x`` (N, 3R) and ``P`` (N, 3R, 3R), which robots have a DGPS fix
-    (N, R), its GPS-denied zones (``gps_denied_zones``), each copy's static geometry (``geometries``, stacked in
-    ``geometry``), copy 0's paths (when drawing), each robot's last executed action and whether it was masked (N, R),
-    and copy 0's observed (observer, target) pairs (drawn)."""
+    """Every copy's world, noise streams (one ``NoiseStreams`` per sensor generator, in the order ``start_episode``
+    spawns them), joint EKF ``x`` (N, 3R) and ``P`` (N, 3R, 3R), which robots have a DGPS fix (N, R), its GPS-denied
+    zones (``gps_denied_zones``), static geometry (``geometries``, stacked in ``geometry``), each robot's last executed
+    action and whether it was masked (N, R); copy 0's paths (when drawing) and observed (observer, target) pairs."""
 
     worlds: WorldBatch
     noise: tuple
@@ -116,8 +115,10 @@ class TeamScenario(EnvScenario):
         return scenario
 
     def started(self, state: TeamState, copies: np.ndarray) -> None:
-        """``copies`` have started their episodes (``start_copy``): their DGPS zones and first fixes, no action yet;
-        copy 0's paths and observations start anew."""
+        """``copies`` have started their episodes (``start_copy``): their static geometry, DGPS zones and first fixes,
+        no action yet; copy 0's paths and observations start anew."""
+        geometry = StaticGeometry.stack([state.geometries[copy] for copy in copies.tolist()])
+        state.geometry = geometry if len(copies) == len(state.elapsed) else state.geometry.with_copies(copies, geometry)
         state.zone_centers, state.zone_radii_sq = gps_denied_zones(state.worlds)
         self.gps_fixes(state, copies, state.elapsed[copies])
         state.chosen[copies], state.invalid[copies] = self.traits.noop_action, False
@@ -144,16 +145,10 @@ class TeamScenario(EnvScenario):
         noise = state.noise[RELATIVE_NOISE].take_many(copies, chosen != NO_OBSERVATION)
         rows = copy_rows(copies, len(state.elapsed))
         candidates = (decision.geometry, decision.predicted, decision.H_observer, decision.H_target, decision.R)
+        models = [contiguous(model[rows]) for model in (*candidates, decision.pose_log_det)]
+        x, P = state.x[rows], state.P[rows]
         state.x[rows], state.P[rows], *brought = relative_updates(
-            state.x[rows],
-            state.P[rows],
-            chosen,
-            self.pair_index,
-            self.pairs.targets,
-            self.pairs.noise,
-            *(contiguous(candidate[rows]) for candidate in (*candidates, decision.pose_log_det)),
-            noise,
-            self.cross_covariances,
+            x, P, chosen, self.pair_index, self.pairs.targets, self.pairs.noise, *models, noise, self.cross_covariances
         )
         if np.isnan(brought[0]).any():
             raise ValueError("the joint covariance after the relative-pose updates is not positive definite")
@@ -178,14 +173,9 @@ class TeamScenario(EnvScenario):
         if not available.any():
             return
         fixes = self.gps.measure_with_noise(positions, state.noise[GPS_NOISE].take_many(copies, available))
+        x, P = state.x[within], state.P[within]
         state.x[within], state.P[within] = batched.gps_update(  # copies without a fix come back unchanged
-            state.x[within],
-            state.P[within],
-            fixes,
-            self.gps_covariance,
-            available,
-            cross_covariances=self.cross_covariances,
-            check_input=False,
+            x, P, fixes, self.gps_covariance, available, cross_covariances=self.cross_covariances, check_input=False
         )
 
     def gps_available(self, state: TeamState, copies: np.ndarray, positions: np.ndarray, time_s) -> np.ndarray:

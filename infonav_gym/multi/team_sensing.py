@@ -8,6 +8,7 @@ import numpy as np
 
 from infonav_gym.compiled import kernel
 from infonav_gym.estimation.state import POSE_DIM
+from infonav_gym.world.world_batch import start_poses
 
 NO_OBSERVATION = 0  # a team env's teammate choice ``1 + j`` observes robot j; this observes no teammate
 
@@ -42,13 +43,15 @@ class SensingPairs(NamedTuple):
         )
 
 
-def team_prior(config: dict, true_poses: np.ndarray, np_random: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """The ``JointEKF`` prior: estimates drawn around the true poses (R, 3) with the config's
-    ``initial_position_std_m`` and ``initial_heading_std_rad``, and their covariances (R, 3, 3) (uncorrelated)."""
-    n = len(true_poses)
+def team_episode(config: dict, scenario, np_random: np.random.Generator, n_streams: int) -> tuple:
+    """An episode of ``scenario`` (drawn from ``np_random``): ``(scenario, poses (R, 3), covariances (R, 3, 3),
+    *generators)``, the ``n_streams`` sensor generators spawned, then the ``JointEKF`` prior: estimates drawn around
+    the route starts with ``initial_position_std_m`` and ``initial_heading_std_rad``, uncorrelated."""
+    generators = np_random.spawn(n_streams)
+    true_poses = np.array(start_poses(scenario))
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
-    initial = true_poses + pose_std * np_random.standard_normal((n, POSE_DIM))
-    return initial, np.repeat(np.diag(pose_std**2)[None], n, axis=0)
+    initial = true_poses + pose_std * np_random.standard_normal((len(true_poses), POSE_DIM))
+    return scenario, initial, np.repeat(np.diag(pose_std**2)[None], len(true_poses), axis=0), *generators
 
 
 def gps_schedule(receivers) -> tuple[np.ndarray, np.ndarray]:

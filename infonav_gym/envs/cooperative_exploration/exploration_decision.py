@@ -18,11 +18,6 @@ from infonav_gym.sensors.range_bearing import noise_covariances
 from infonav_gym.world.visibility import StaticGeometry, shape_arrays
 from infonav_gym.world.visibility_kernels import blocked, within_coverage
 
-EXPLORATION_INFO_KEYS = frozenset(
-    {"gps_available", "pose_std", "position_std_m", "pose_entropy", "position_error_m", "heading_error_rad"}
-    | {"estimated_pose", "observations_left", "coverage", "lost", "failed", "success"}
-)
-
 
 class TeamSight(NamedTuple):
     """What a team's sensors (each robot's ``RelativePoseSensor`` or None) see of the landmarks: their
@@ -97,8 +92,7 @@ def landmark_gains(x, P, landmarks, noise_stds, valid) -> np.ndarray:
     """Expected MI [nats] of each robot (``TeamSight.noise_stds``) observing each landmark (N, L, 2) [m] alone at the
     prior ``x`` (N, 3R), ``P`` (N, 3R, 3R), where ``valid`` (N, R, L) bool (0 elsewhere: no action observes it):
     (N, R, L); ``ValueError`` where it is undefined."""
-    arrays = (x, P, landmarks)
-    gains, coincident = robot_landmark_gains(*(contiguous(a) for a in arrays), noise_stds, contiguous(valid))
+    gains, coincident = robot_landmark_gains(*map(contiguous, (x, P, landmarks)), noise_stds, contiguous(valid))
     if coincident or np.isnan(gains).any():
         raise ValueError(f"{batched.COINCIDENT}, or an innovation covariance is not positive definite")
     return gains

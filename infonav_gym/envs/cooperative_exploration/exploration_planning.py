@@ -75,11 +75,13 @@ def scan_gains(map_model, variances, positions, position_std, speeds_mps, drive_
     return gains
 
 
-def action_gains(team_reward: float, observation_gain, scan, mask) -> np.ndarray:
-    """Each (observation, motion)'s immediate expected information (..., R, S, 5) [nats], 0 where ``mask`` is not:
-    ``(1 - team_reward)`` times the observation's gain (..., R, S) plus ``team_reward`` times the scan's (..., R, 5)."""
-    gains = (1.0 - team_reward) * observation_gain[..., None] + team_reward * scan[..., None, :]
-    return np.where(mask, gains, 0.0)
+def action_table(team_reward: float, slot_valid, observation_gain, motion_clear, scan) -> tuple:
+    """``(action_mask int8, action_information_gain [nats])`` (..., 5 S) of each (observation slot, motion): valid
+    where both are (``slot_valid`` (..., S), ``motion_clear`` (..., 5)); ``(1 - team_reward)`` times the observation's
+    gain (..., S) plus ``team_reward`` times the scan's (..., 5), 0 where masked."""
+    mask = slot_valid[..., None] & motion_clear[..., None, :]
+    gains = np.where(mask, (1.0 - team_reward) * observation_gain[..., None] + team_reward * scan[..., None, :], 0.0)
+    return mask.reshape(*mask.shape[:-2], -1).astype(np.int8), gains.reshape(*mask.shape[:-2], -1)
 
 
 def reward_terms(config: dict, own, map_information, observed, driving, lost) -> dict[str, np.ndarray]:
@@ -122,11 +124,8 @@ class TeamBelief(BeliefBatch):
 
 
 class ExplorationPlanningModel:
-    """The planning model of one copy of ``CooperativeExplorationVectorEnv`` (``env.planning_model(copy)``).
-
-    It reads the copy's episode (landmarks, static geometry, GPS-denied zones) and estimator state (``env.state``)
-    when called, so one model serves a whole run.
-    """
+    """The planning model of one copy of ``CooperativeExplorationVectorEnv`` (``env.planning_model(copy)``); it reads
+    the copy's episode and estimator state (``env.state``) when called, so one model serves a whole run."""
 
     n_primitives = N_MOTIONS
     idle_primitive = STAY  # the motion that stands still
@@ -176,13 +175,11 @@ class ExplorationPlanningModel:
     def plan_decision(self, belief: TeamBelief, robot: int) -> tuple[np.ndarray, np.ndarray]:
         """Robot ``robot``'s ``(action_mask (B, A), action_information_gain (B, A))`` at each belief, as ``infos``
         give them but judged from the estimates; a finished belief has only action 0 valid, with gain 0."""
-        parts, n_landmarks, B = self._parts, self.config["n_landmarks"], len(belief)
-        pairs = parts.pairs
+        parts, pairs, n_landmarks, B = self._parts, self._parts.pairs, self.config["n_landmarks"], len(belief)
         poses = belief.x.reshape(B, -1, POSE_DIM)
         n_slots = 1 + n_landmarks + poses.shape[1]
         observable = (belief.observations_left[:, robot] > 0) & ~belief.done
-        slot_valid = np.zeros((B, n_slots), dtype=bool)
-        slot_valid[:, 0] = True
+        slot_valid = np.tile(np.arange(n_slots) == 0, (B, 1))  # slot 0, observe nothing, is always valid
         slot_valid[:, 1 : 1 + n_landmarks] = belief.landmark_visible[:, robot] & observable[:, None]
         observation_gain = np.zeros((B, n_slots))
         if n_landmarks and parts.relative_sensors[robot] is not None:
@@ -204,25 +201,18 @@ class ExplorationPlanningModel:
                 belief.covariance, observers, targets, H_observer, H_target, R, check_input=False
             )[0]
         own = slice(robot, robot + 1)
-        position_std = self.position_std(belief.covariance)[:, own]
-        speeds = parts.speeds_mps[own]
-        scan = scan_gains(
-            parts.map_model, belief.map_variances, poses[:, own, :2], position_std, speeds, self._drive_s
-        )[:, 0]
-        mask = slot_valid[:, :, None] & belief.motion_clear[:, robot, None, :]
-        mask[belief.done] = False
-        mask[belief.done, 0, STAY] = True
-        gains = action_gains(self.config["team_reward"], observation_gain, scan, mask)
-        return mask.reshape(B, -1).astype(np.int8), gains.reshape(B, -1)
+        position_std, speeds = self.position_std(belief.covariance)[:, own], parts.speeds_mps[own]
+        scan = scan_gains(parts.map_model, belief.map_variances, poses[:, own, :2], position_std, speeds, self._drive_s)
+        clear = belief.motion_clear[:, robot].copy()
+        clear[belief.done] = np.arange(N_MOTIONS) == STAY  # and only slot 0 is valid: stay, observe nothing
+        return action_table(self.config["team_reward"], slot_valid, observation_gain, clear, scan[:, 0])
 
     def plan_step(self, belief: TeamBelief, actions) -> tuple[TeamBelief, np.ndarray]:
-        """Predict one step of every belief under the team's actions (B, R): ``(next beliefs, rewards (B, R))``.
-
-        The env's transition with the unknowns at their expectation: observations fused with the measurement as
-        predicted (exact MI), motions commanded from the estimate, DGPS fixes and scans at the estimated positions.
-        What the belief does not allow is dropped (an observation out of sight or budget; a motion not clear: stay).
-        A finished belief stays put and earns 0.
-        """
+        """Predict one step of every belief under the team's actions (B, R): ``(next beliefs, rewards (B, R))``, the
+        env's transition with the unknowns at their expectation: observations fused with the measurement as predicted
+        (exact MI), motions commanded from the estimate, DGPS fixes and scans at the estimated positions. What the
+        belief does not allow is dropped (an observation out of sight or budget; a motion not clear: stay); a
+        finished belief stays put and earns 0."""
         cfg, map_model = self.config, self._parts.map_model
         B, n_robots, n_landmarks = len(belief), len(self._parts.gps), cfg["n_landmarks"]
         live = ~belief.done
@@ -255,8 +245,7 @@ class ExplorationPlanningModel:
         lost = (position_std > cfg["max_position_std_m"]).any(axis=1) & live
         success = (map_model.coverage(map_variances) >= cfg["coverage_target"]) & ~lost & live
         out_of_time = elapsed + belief.steps + 1 >= cfg["max_cycles"]
-        terms = reward_terms(cfg, own, map_information, observed, driving, lost)
-        rewards = total_reward(cfg["team_reward"], terms)
+        rewards = total_reward(cfg["team_reward"], reward_terms(cfg, own, map_information, observed, driving, lost))
         following = self._belief(
             np.where(live[:, None], x, belief.x),
             np.where(live[:, None, None], P, belief.covariance),
@@ -289,10 +278,9 @@ class ExplorationPlanningModel:
         geometry = self._env.state.geometries[self._copy]
         if self._tiled[0] is not geometry:
             self._tiled = (geometry, {})
-        tiled = self._tiled[1].get(n_copies)
-        if tiled is None:
-            tiled = self._tiled[1][n_copies] = geometry.tiled(n_copies)
-        return tiled
+        if n_copies not in self._tiled[1]:
+            self._tiled[1][n_copies] = geometry.tiled(n_copies)
+        return self._tiled[1][n_copies]
 
     def _pair_noise(self, pairs: np.ndarray, ranges: np.ndarray) -> np.ndarray:
         """Noise covariances (..., 3, 3) of the relative poses of ``pairs`` (``SensingPairs`` rows) at ``ranges``."""
@@ -304,18 +292,15 @@ class ExplorationPlanningModel:
         the estimates: robot r's fills rows ``3r .. 3r + 2`` of the Jacobian (a landmark's leaves the third zero)."""
         B, n = belief.covariance.shape[:2]
         n_robots = n // POSE_DIM
-        H = np.zeros((B, n_robots, POSE_DIM, n))
+        H = np.zeros((B, n_robots, POSE_DIM, n_robots, POSE_DIM))  # (copy, robot's rows, pose block, its columns)
         R = np.broadcast_to(np.eye(POSE_DIM), (B, n_robots, POSE_DIM, POSE_DIM)).copy()
         poses = belief.x.reshape(B, n_robots, POSE_DIM)
-        pose_columns = np.arange(POSE_DIM)[None, None, :]
         copies, robots = np.nonzero(sees_landmark)
         if copies.size:
             seen = self._landmarks()[landmarks[copies, robots]][:, None]
             predicted, H_pose = batched.landmark_measurement_model(poses[copies, robots], seen, check_input=False)
-            R_pose = range_bearing_noise(self._sight.noise_stds, robots, predicted[:, 0, 0])[:, None]
-            rows = (copies[:, None, None], robots[:, None, None], np.arange(2)[None, :, None])
-            H[(*rows, POSE_DIM * robots[:, None, None] + pose_columns)] = H_pose[:, 0]
-            R[copies, robots, :2, :2] = R_pose[:, 0]
+            H[copies, robots, :2, robots] = H_pose[:, 0]
+            R[copies, robots, :2, :2] = range_bearing_noise(self._sight.noise_stds, robots, predicted[:, 0, 0])
         copies, robots = np.nonzero(sees_teammate)
         if copies.size:
             chosen = pairs[copies, robots]
@@ -323,9 +308,7 @@ class ExplorationPlanningModel:
             predicted, H_observer, H_target = batched.relative_pose_model(
                 belief.x[copies], robots[:, None], targets[:, None], check_input=False
             )
-            rows = (copies[:, None, None], robots[:, None, None], np.arange(POSE_DIM)[None, :, None])
-            H[(*rows, POSE_DIM * robots[:, None, None] + pose_columns)] = H_observer[:, 0]
-            H[(*rows, POSE_DIM * targets[:, None, None] + pose_columns)] = H_target[:, 0]
+            H[copies, robots, :, robots], H[copies, robots, :, targets] = H_observer[:, 0], H_target[:, 0]
             R[copies, robots] = self._pair_noise(chosen, predicted[:, 0, 0])
         observing = np.flatnonzero((sees_landmark | sees_teammate).any(axis=1))
         P = belief.covariance.copy()

@@ -14,14 +14,13 @@ from infonav_gym.envs.cooperative_exploration.terrain_map import TerrainMapModel
 from infonav_gym.envs.observation_kernels import clip_into, range_bearing_features
 from infonav_gym.estimation.state import INITIAL_POSE_STD
 from infonav_gym.multi.team import gps_receivers, parse_speeds, parse_suites
-from infonav_gym.multi.team_sensing import SensingPairs, team_prior
+from infonav_gym.multi.team_sensing import SensingPairs, team_episode
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor, odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS, RelativePoseSensor
 from infonav_gym.world.exploration_scenarios import EXPLORATION_FIELD_ARGUMENTS, exploration_field
 from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.scenarios import MAX_ROBOTS, MAX_SPEED_MPS
-from infonav_gym.world.world_batch import start_poses
 
 DEFAULT_SPEEDS_MPS = (0.8, 0.8, 1.2, 1.2)  # robot k of the default team: the DGPS robots are the slower ones
 RANGE_KEYS = {"laser": "laser_range_m", "vision": "vision_range_m"}  # the config key of each sensor's range
@@ -101,10 +100,9 @@ def exploration_config() -> dict:
 
 
 class ExplorationParts(NamedTuple):
-    """The team and the map of ``cooperative_exploration_v0``, as its config gives them: each robot's cruise speed
-    (R,) [m/s], ``GPSSensor`` (with its outage spans) or None, ``RelativePoseSensor`` at the env's range (its
-    range-bearing part sees the landmarks) or None, the (observer, target) ``pairs``, the odometry and the terrain
-    ``map_model``."""
+    """The team and map of ``cooperative_exploration_v0`` from its config: each robot's cruise speed (R,) [m/s],
+    ``GPSSensor`` (with its outage spans) or None, ``RelativePoseSensor`` at the env's range (its range-bearing part
+    sees the landmarks) or None, the (observer, target) ``pairs``, the odometry and the terrain ``map_model``."""
 
     speeds_mps: np.ndarray
     gps: list[GPSSensor | None]
@@ -150,11 +148,9 @@ def ranged_sensor(config: dict, name: str | None, owner: str) -> RelativePoseSen
 
 def start_episode(config: dict, np_random: np.random.Generator):
     """Draw an episode's field and joint EKF prior from ``np_random``: ``(scenario, poses (R, 3), covariances
-    (R, 3, 3), odometry_rng, gps_rng, relative_rng, landmark_rng)``."""
+    (R, 3, 3), odometry_rng, gps_rng, relative_rng, landmark_rng)`` (``team_episode``)."""
     scenario = exploration_field(np_random, **{name: config[key] for name, key in SCENARIO_KEYS.items()})
-    generators = np_random.spawn(4)
-    poses, covariances = team_prior(config, np.array(start_poses(scenario)), np_random)
-    return scenario, poses, covariances, *generators
+    return team_episode(config, scenario, np_random, 4)
 
 
 def exploration_observation_bounds(team_low, team_high, n_landmarks: int, n_cells: int, n_gains: int = 0) -> tuple:
@@ -173,9 +169,8 @@ def exploration_observations(
     range [m] and bearing [rad] from the robot's estimate (N, R, L, 2), each robot's speed (R,) [m/s], budget left
     (fraction, (N, R)), the coverage (N,), each cell's height std left (fraction of the prior's, (N, G)) and the
     ``action_information_gain`` (N, R, A) to append (``observe_gains``) or None."""
-    n_copies, n_robots = np.shape(team)[:2]
-    features = np.empty((n_copies, n_robots, space.shape[0]), dtype=np.float32)
-    gains = np.zeros((n_copies, n_robots, 0)) if gains is None else gains
+    features = np.empty((*np.shape(team)[:2], space.shape[0]), dtype=np.float32)
+    gains = np.zeros((*np.shape(team)[:2], 0)) if gains is None else gains
     arrays = (landmark_valid, landmarks_seen, speeds_mps, budget_left, coverage, cell_std, gains, space.low, space.high)
     floats = (contiguous(np.asarray(array, dtype=float)) for array in arrays)  # the team part stays float32
     exploration_features(contiguous(np.asarray(team, dtype=np.float32)), *floats, features)

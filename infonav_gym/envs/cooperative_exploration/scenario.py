@@ -1,8 +1,5 @@
-"""``cooperative_exploration_v0``: a team maps a field, each robot choosing where to go and what to see, as a scenario.
-
-``CooperativeExplorationVectorEnv`` is the driver of this scenario, ``CooperativeExplorationEnv`` its PettingZoo view
-(``envs.parallel_view``).
-"""
+"""``cooperative_exploration_v0`` as a scenario: a team maps a field, each robot choosing where to go and what to see;
+``CooperativeExplorationVectorEnv`` is its driver, ``CooperativeExplorationEnv`` its PettingZoo view."""
 
 from __future__ import annotations
 
@@ -22,7 +19,7 @@ from infonav_gym.envs.cooperative_exploration.exploration_planning import (
     NOOP_ACTION,
     STAY,
     ExplorationPlanningModel,
-    action_gains,
+    action_table,
     clear_motions,
     motion_phases,
     motion_plan,
@@ -50,7 +47,6 @@ from infonav_gym.multi.team_decision import TeamDecision, observable_pairs
 from infonav_gym.multi.team_observations import team_observation_bounds, team_observations
 from infonav_gym.multi.team_scenario import TeamAccessors, TeamScenario, TeamState, copy_rows
 from infonav_gym.scene import SceneFrame
-from infonav_gym.world.visibility import StaticGeometry
 
 LANDMARK_NOISE = 3  # ``noise`` index of the landmark measurements' streams (after odometry, DGPS, relative poses)
 MAP_IMAGE_PIXELS_PER_CELL = 8
@@ -151,15 +147,11 @@ class CooperativeExploration(TeamScenario):
         """Draw each copy's field, landmarks and joint prior (``start_episode``), then its first DGPS fixes."""
         for copy, rng in zip(rows.tolist(), rngs):
             state.landmarks[copy] = self.start_copy(state, copy, *start_episode(self.config, rng)).landmarks
-        geometry = StaticGeometry.stack([state.geometries[copy] for copy in rows.tolist()])
-        state.geometry = geometry if len(rows) == len(state.elapsed) else state.geometry.with_copies(rows, geometry)
         state.map_variances[rows] = self.parts.map_model.prior_variances()
         state.coverage[rows] = 0.0
         state.observations_left[rows] = self.config["max_observations"]
         state.lost[rows] = state.success[rows] = False
         self.started(state, rows)
-        for key, value in self.no_step(len(rows)).items():
-            getattr(state, key)[rows] = value
         if rows[0] == 0:
             state.observed_landmarks = []
         return state
@@ -177,22 +169,16 @@ class CooperativeExploration(TeamScenario):
         team = TeamDecision.at_prior(self.pairs, pair_geometry, valid, x, P, 0.0)  # the gains: own-pose MI
         landmark_valid = sight.visible_landmarks(geometry, true_poses, landmarks) & budget_left[..., None]
         gains_of_landmarks = landmark_gains(x, P, landmarks, sight.noise_stds, landmark_valid)
-        slot_valid = np.concatenate(
-            [np.ones((n_copies, n_robots, 1), dtype=bool), landmark_valid, team.action_mask[..., 1:].astype(bool)],
-            axis=-1,
-        )
-        observation_gain = np.concatenate(
-            [np.zeros((n_copies, n_robots, 1)), gains_of_landmarks, team.action_information_gain[..., 1:]], axis=-1
-        )
+        team_valid, team_gain = team.action_mask > 0, team.action_information_gain  # slot 0: observe nothing, gain 0
+        slot_valid = np.concatenate([team_valid[..., :1], landmark_valid, team_valid[..., 1:]], axis=-1)
+        observation_gain = np.concatenate([team_gain[..., :1], gains_of_landmarks, team_gain[..., 1:]], axis=-1)
         position_std = ExplorationPlanningModel.position_std(P)
         drive_s = cfg["time_step_s"] - cfg["turn_time_s"]
         positions = x.reshape(n_copies, n_robots, POSE_DIM)[..., :2]
         speeds, radius_m = self.parts.speeds_mps, state.worlds.robot_radius_m
         scan = scan_gains(self.parts.map_model, state.map_variances[rows], positions, position_std, speeds, drive_s)
         clear = clear_motions(geometry, true_poses, x[:, 2::POSE_DIM], speeds, drive_s, radius_m)
-        mask = slot_valid[..., None] & clear[:, :, None, :]
-        gains = action_gains(cfg["team_reward"], observation_gain, scan, mask).reshape(n_copies, n_robots, -1)
-        mask = mask.reshape(n_copies, n_robots, -1).astype(np.int8)
+        mask, gains = action_table(cfg["team_reward"], slot_valid, observation_gain, clear, scan)
         return ExplorationDecision(mask, gains, *team[2:], slot_valid, position_std)
 
     def transition(self, state: ExplorationState, decision: ExplorationDecision, action, acting) -> ExplorationState:
@@ -207,18 +193,21 @@ class CooperativeExploration(TeamScenario):
         rows, n_landmarks = copy_rows(copies, len(acting)), cfg["n_landmarks"]
         slots, motions = np.divmod(state.chosen[rows], N_MOTIONS)
         plan = motion_plan(motions, state.x[rows, 2::POSE_DIM], self.parts.speeds_mps)  # the decision's, as masked
-        if acting[0] and self.drawing:  # drawn by ``frame``
-            self.first_copy_observed(state, slots[0])
         observes_teammate = slots > n_landmarks
         teammates = np.where(observes_teammate, slots - n_landmarks, 0)
+        landmarks = np.where((slots > 0) & ~observes_teammate, slots - 1, -1)
+        if acting[0] and self.drawing:  # drawn by ``frame``: copy 0's (robot, teammate) and (robot, landmark) pairs
+            state.observed_pairs = [(robot, int(j) - 1) for robot, j in enumerate(teammates[0]) if j]
+            state.observed_landmarks = [(robot, int(j)) for robot, j in enumerate(landmarks[0]) if j >= 0]
         self.relative_update(state, copies, teammates, decision)
-        self.observe_landmarks(state, copies, np.where((slots > 0) & ~observes_teammate, slots - 1, -1))
+        self.observe_landmarks(state, copies, landmarks)
         observed = slots > 0
         state.observations_left[copies] -= observed
         own_information = 0.5 * (
             decision.pose_log_det[rows] - batched.pose_log_dets(state.P[rows], len(self.agents), check_input=False)
         )
-        self.drive(state, copies, *plan)
+        for phase_s, commands in motion_phases(*plan, cfg):  # turn on the spot, then drive straight
+            self.predict(state, copies, state.worlds.step(phase_s, copies, commands), phase_s)
         self.gps_fixes(state, copies, state.elapsed[copies] + 1)  # the driver counts the step after
         position_std = ExplorationPlanningModel.position_std(state.P[rows])
         driving = motions != STAY
@@ -233,14 +222,8 @@ class CooperativeExploration(TeamScenario):
 
     def step_terms(self, state: ExplorationState, rows) -> dict:
         """The reward terms (``reward_terms``) of the last step of the copies ``rows`` (n, R)."""
-        return reward_terms(
-            self.config,
-            state.own_information[rows],
-            state.map_information[rows],
-            state.observed[rows],
-            state.driving[rows],
-            state.lost[rows].any(axis=1),
-        )
+        brought = (state.own_information, state.map_information, state.observed, state.driving)
+        return reward_terms(self.config, *(array[rows] for array in brought), state.lost[rows].any(axis=1))
 
     def reward(self, decision, action, state: ExplorationState) -> np.ndarray:
         """Each robot's reward of its terms (``total_reward``, as the planning model's)."""
@@ -249,14 +232,6 @@ class CooperativeExploration(TeamScenario):
     def terminal(self, state: ExplorationState) -> np.ndarray:
         """A robot lost, or the coverage target reached."""
         return state.lost.any(axis=1) | state.success
-
-    def first_copy_observed(self, state: ExplorationState, slots: np.ndarray) -> None:
-        """Keep copy 0's teammate and landmark observations of this step (its robots' observation ``slots`` (R,))."""
-        n_landmarks, robots = self.config["n_landmarks"], np.arange(len(slots))
-        teammates = slots > n_landmarks
-        landmarks = (slots > 0) & ~teammates
-        state.observed_pairs = list(zip(robots[teammates].tolist(), (slots[teammates] - 1 - n_landmarks).tolist()))
-        state.observed_landmarks = list(zip(robots[landmarks].tolist(), (slots[landmarks] - 1).tolist()))
 
     def observe_landmarks(self, state: ExplorationState, copies: np.ndarray, landmarks: np.ndarray) -> None:
         """Fuse the observations of landmark ``landmarks[c, k]`` (-1: none) by robot k of ``copies[c]``, linearized at
@@ -267,39 +242,24 @@ class CooperativeExploration(TeamScenario):
             return
         observers, observed, choice = copies[rows], observed[rows], np.maximum(landmarks[rows], 0)
         positions = state.landmarks[observers[:, None], choice]  # (n, R, 2)
-        poses = state.x[observers].reshape(-1, POSE_DIM)
-        predicted, H = batched.landmark_measurement_model(poses, positions.reshape(-1, 1, 2), check_input=False)
-        predicted = predicted.reshape(*observed.shape, 2)
+        x, P = state.x[observers], state.P[observers]
+        predicted, H = batched.landmark_measurement_model(
+            x.reshape(-1, POSE_DIM), positions.reshape(-1, 1, 2), check_input=False
+        )
+        predicted, H = predicted.reshape(*observed.shape, 2), H.reshape(*observed.shape, 2, POSE_DIM)
         robots = np.broadcast_to(np.arange(observed.shape[1]), observed.shape)
         R = range_bearing_noise(self.sight.noise_stds, robots.ravel(), predicted[..., 0].ravel())
         R = R.reshape(*observed.shape, 2, 2)
         noise = state.noise[LANDMARK_NOISE].take_many(observers, observed)
         measurements = self.sight.landmark_measurements(state.worlds.poses[observers], positions, noise)
         state.x[observers], state.P[observers] = batched.team_landmark_update(
-            state.x[observers],
-            state.P[observers],
-            robots,
-            measurements,
-            predicted,
-            H.reshape(*observed.shape, 2, POSE_DIM),
-            R,
-            observed,
-            check_input=False,
+            x, P, robots, measurements, predicted, H, R, observed, check_input=False
         )
-
-    def drive(self, state: ExplorationState, copies: np.ndarray, turns: np.ndarray, speeds: np.ndarray) -> None:
-        """Turn every robot of ``copies`` on the spot by ``turns`` (n, R) [rad], then drive it straight at ``speeds``
-        (n, R) [m/s] (both in the ``WorldBatch``); predict with the odometry of each phase."""
-        for phase_s, commands in motion_phases(turns, speeds, self.config):
-            self.predict(state, copies, state.worlds.step(phase_s, copies, commands), phase_s)
 
     def scan(self, state: ExplorationState, copies: np.ndarray, scanning: np.ndarray, position_std) -> np.ndarray:
         """Fuse the scans of the ``scanning`` robots (n, R) of ``copies`` from their true positions; the map
         information of each copy (n,) [nats]."""
-        information = np.zeros(len(copies))
-        rows = np.flatnonzero(scanning.any(axis=1))
-        if not rows.size:
-            return information
+        information, rows = np.zeros(len(copies)), np.flatnonzero(scanning.any(axis=1))
         model, mapped = self.parts.map_model, copy_rows(copies[rows], len(state.elapsed))
         noise = model.scan_noise_variances(position_std[rows])
         after, information[rows] = model.fused(
@@ -312,26 +272,17 @@ class CooperativeExploration(TeamScenario):
     def observation(self, state: ExplorationState, decision: ExplorationDecision, rows) -> np.ndarray:
         cfg = self.config
         n_landmarks, budget = cfg["n_landmarks"], cfg["max_observations"]
-        gps_available = state.gps_available[rows]
-        n_copies, n_robots = gps_available.shape
+        n_copies, n_robots = state.gps_available[rows].shape
         estimates = state.x[rows].reshape(n_copies, n_robots, POSE_DIM)
-        team = team_observations(
-            estimates,
-            decision.pose_std,
-            decision.pose_log_det,
-            gps_available,
-            state.elapsed[rows] / cfg["max_cycles"],
-            decision.slot_valid[..., 1 + n_landmarks :],
-            self.team_space,
-        )
+        teammate_valid = decision.slot_valid[..., 1 + n_landmarks :]
+        team = team_observations(state, decision, rows, cfg["max_cycles"], teammate_valid, self.team_space)
         seen = range_bearing(estimates.reshape(-1, POSE_DIM), np.repeat(state.landmarks[rows], n_robots, axis=0))
-        observations_left = state.observations_left[rows]
         return exploration_observations(
             team,
             decision.slot_valid[..., 1 : 1 + n_landmarks],
             seen.reshape(n_copies, n_robots, n_landmarks, 2),
             self.parts.speeds_mps,
-            observations_left / budget if budget else np.zeros((n_copies, n_robots)),
+            state.observations_left[rows] / budget if budget else np.zeros((n_copies, n_robots)),
             state.coverage[rows],
             np.sqrt(state.map_variances[rows]) / self.parts.map_model.prior_std_m,
             self.observation_space,

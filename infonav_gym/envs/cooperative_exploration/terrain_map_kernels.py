@@ -43,9 +43,7 @@ def first_near(ticks, low):
     """The index of a tick at least a cell below the first tick >= ``low`` (0 for NaN): the ticks before it lie more
     than two cells below ``low``. ``ticks`` (K >= 2,) ascend evenly."""
     start = (low - ticks[0]) / (ticks[1] - ticks[0]) - 1.0
-    if not start > 0.0:
-        return 0
-    return int(min(start, float(len(ticks))))
+    return int(min(start, float(len(ticks)))) if start > 0.0 else 0
 
 
 @kernel
@@ -70,23 +68,18 @@ def scan_gains(ticks, radius_squared, variances, ends, noise_variances):
 
 @kernel
 def fused_scans(ticks, radius_squared, variances, positions, noise_variances, scanning):
-    """The cell variances (B, G) after each copy's scans of one step, fused in information form, and the map
-    information they bring (B,) [nats]: ``0.5 sum_c ln(v_c / v_c')`` over the cells some scan sees (elsewhere
-    ``v_c' = 1 / (1 / v_c + 0)``, as in numpy, and its term is left out) (``TerrainMapModel.fused``; ``ticks`` and
-    ``radius_squared`` as ``scan_gains`` takes them)."""
+    """The cell variances (B, G) after each copy's scans of one step, fused in information form, and the map information
+    they bring (B,) [nats], ``0.5 sum_c ln(v_c / v_c')`` over the cells some scan sees (``TerrainMapModel.fused``; the
+    others get ``1 / (1 / v_c + 0)``, as in numpy; ``ticks``, ``radius_squared`` as ``scan_gains`` takes them)."""
     n_copies, n_scans, n_cells = positions.shape[0], positions.shape[1], variances.shape[1]
-    after = np.empty((n_copies, n_cells))
-    information = np.zeros(n_copies)
-    added = np.empty(n_cells)
-    cells = np.empty(n_cells, dtype=np.int64)
+    after, information = np.empty((n_copies, n_cells)), np.zeros(n_copies)
+    added, cells = np.empty(n_cells), np.empty(n_cells, dtype=np.int64)
     for copy in range(n_copies):
         added[:] = 0.0
         for scan in range(n_scans):
             if scanning[copy, scan]:
-                weight = 1.0 / noise_variances[copy, scan]
-                for k in range(
-                    footprint(ticks, radius_squared, positions[copy, scan, 0], positions[copy, scan, 1], cells)
-                ):
+                weight, x, y = 1.0 / noise_variances[copy, scan], positions[copy, scan, 0], positions[copy, scan, 1]
+                for k in range(footprint(ticks, radius_squared, x, y, cells)):
                     added[cells[k]] += weight
         for cell in range(n_cells):  # apart from the sum below: a loop without calls, which the compiler vectorizes
             after[copy, cell] = 1.0 / (1.0 / variances[copy, cell] + added[cell])

@@ -1,8 +1,5 @@
-"""``cooperative_localization_v0``: a heterogeneous team localizes through relative-pose observations, as a scenario.
-
-``CooperativeLocalizationVectorEnv`` is the driver of this scenario, ``CooperativeLocalizationEnv`` its PettingZoo
-view (``envs.parallel_view``).
-"""
+"""``cooperative_localization_v0`` as a scenario: a heterogeneous team localizes through relative-pose observations;
+``CooperativeLocalizationVectorEnv`` is its driver, ``CooperativeLocalizationEnv`` its PettingZoo view."""
 
 from __future__ import annotations
 
@@ -26,7 +23,6 @@ from infonav_gym.multi.team_observations import team_observation_bounds, team_ob
 from infonav_gym.multi.team_scenario import TeamAccessors, TeamScenario, TeamState
 from infonav_gym.multi.team_sensing import NO_OBSERVATION
 from infonav_gym.scene import SceneFrame
-from infonav_gym.world.visibility import StaticGeometry
 
 
 @dataclass
@@ -65,7 +61,7 @@ class CooperativeLocalization(TeamScenario):
     def __init__(self, config: dict, copies: int, owner: str, render_mode: str | None):
         super().__init__(config, copies, owner, render_mode)
         parts = TeamParts.of_config(config, owner)
-        n_robots = len(parts.suites)
+        n_robots = len(parts.gps)
         low, high = team_observation_bounds(n_robots, config["observe_gains"])
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.action_space = spaces.Discrete(n_robots + 1)
@@ -84,9 +80,7 @@ class CooperativeLocalization(TeamScenario):
         """Draw each copy's scenario and joint prior (``start_episode``), then its first DGPS fixes."""
         for copy, rng in zip(rows.tolist(), rngs):
             self.start_copy(state, copy, *start_episode(self.config, rng, self.owner))
-        state.geometry = StaticGeometry.stack(state.geometries)
         self.started(state, rows)
-        state.own_mi[rows] = state.team_mi[rows] = 0.0
         return state
 
     def decision(self, state: LocalizationState, rows) -> TeamDecision:
@@ -103,9 +97,8 @@ class CooperativeLocalization(TeamScenario):
         state.chosen, state.invalid = chosen, acting[:, None] & (action < 0)
         team_mi, state.own_mi, state.pose_std_after = self.relative_update(state, self.every_copy, chosen, decision)
         state.team_mi = np.repeat(team_mi[:, None], len(self.agents), axis=1)
-        if acting[0] and self.drawing:  # drawn by ``frame``
-            observers = np.flatnonzero(chosen[0] != NO_OBSERVATION)
-            state.observed_pairs = list(zip(observers.tolist(), (chosen[0, observers] - 1).tolist()))
+        if acting[0] and self.drawing:  # drawn by ``frame``: copy 0's (observer, target) pairs
+            state.observed_pairs = [(robot, int(j) - 1) for robot, j in enumerate(chosen[0]) if j != NO_OBSERVATION]
         copies = np.flatnonzero(acting)
         if copies.size:
             dt = self.config["time_step_s"]
@@ -120,17 +113,9 @@ class CooperativeLocalization(TeamScenario):
         return (1.0 - weight) * state.own_mi + weight * state.team_mi
 
     def observation(self, state: LocalizationState, decision: TeamDecision, rows) -> np.ndarray:
-        poses = state.worlds.poses[rows]
-        return team_observations(
-            state.x[rows].reshape(poses.shape),
-            decision.pose_std,
-            decision.pose_log_det,
-            state.gps_available[rows],
-            state.elapsed[rows] / self.config["max_cycles"],
-            decision.action_mask[..., 1:] == 1,
-            self.observation_space,
-            decision.action_information_gain if self.config["observe_gains"] else None,
-        )
+        gains = decision.action_information_gain if self.config["observe_gains"] else None
+        valid, horizon = decision.action_mask[..., 1:] == 1, self.config["max_cycles"]
+        return team_observations(state, decision, rows, horizon, valid, self.observation_space, gains)
 
     def info(self, state: LocalizationState, decision: TeamDecision, rows, stepped) -> dict:
         """The decision's masks and gains, the reward terms, the actions and the robots' estimates (``team_info``)."""

@@ -9,8 +9,8 @@ import numpy as np
 from infonav_gym.config import Interval, check_choice, check_config, check_config_arguments, config_keys
 from infonav_gym.envs.base import EPISODE_STEPS
 from infonav_gym.estimation.state import INITIAL_POSE_STD
-from infonav_gym.multi.team import DEFAULT_OUTAGE, RobotSuite, gps_receivers, parse_suites
-from infonav_gym.multi.team_sensing import SensingPairs, team_prior
+from infonav_gym.multi.team import DEFAULT_OUTAGE, gps_receivers, parse_suites
+from infonav_gym.multi.team_sensing import SensingPairs, team_episode
 from infonav_gym.sensors.gps import GPSSensor
 from infonav_gym.sensors.odometry import OdometrySensor, odometry_sensor_from_config
 from infonav_gym.sensors.relative_pose import RELATIVE_POSE_SENSORS
@@ -23,7 +23,6 @@ from infonav_gym.world.scenarios import (
     scenario_names,
     team_route_bands,
 )
-from infonav_gym.world.world_batch import start_poses
 
 ESTIMATORS = ("joint", "independent")
 TEAM_SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
@@ -69,10 +68,9 @@ def team_localization_config() -> dict:
 
 
 class TeamParts(NamedTuple):
-    """The sensors of a team of R robots, as its config gives them: each robot's ``RobotSuite`` and ``GPSSensor``
-    (with its outage spans) or None, the (observer, target) ``pairs`` and the odometry."""
+    """The sensors of a team of R robots, as its config gives them (suites: ``parse_suites``): each robot's
+    ``GPSSensor`` (with its outage spans) or None, the (observer, target) ``pairs`` and the odometry."""
 
-    suites: tuple[RobotSuite, ...]
     gps: list[GPSSensor | None]
     pairs: SensingPairs
     odometry: OdometrySensor
@@ -92,15 +90,12 @@ class TeamParts(NamedTuple):
         suites = parse_suites(config["robot_sensors"], n_robots, config["scenario"])
         gps = gps_receivers(config, suites, owner)
         relative_sensors = [RELATIVE_POSE_SENSORS.get(suite.relative_sensor) for suite in suites]
-        return cls(suites, gps, SensingPairs.of_team(relative_sensors), odometry_sensor_from_config(config, owner))
+        return cls(gps, SensingPairs.of_team(relative_sensors), odometry_sensor_from_config(config, owner))
 
 
 def start_episode(config: dict, np_random: np.random.Generator, owner: str):
-    """Draw an episode from ``np_random`` (``owner``: the env named in config errors), in a fixed order:
-    ``(scenario, poses (R, 3), covariances (R, 3, 3), odometry_rng, gps_rng, relative_rng)``: the scenario (one
-    route per robot), the sensors' generators, then the ``JointEKF`` prior (no cross-covariance)."""
-    n = config["n_robots"]
-    scenario = scenario_from_config(config, np_random, TEAM_SCENARIO_KEYS, owner, n)
-    odometry_rng, gps_rng, relative_rng = np_random.spawn(3)
-    initial, covariances = team_prior(config, np.array(start_poses(scenario)), np_random)
-    return scenario, initial, covariances, odometry_rng, gps_rng, relative_rng
+    """Draw an episode from ``np_random`` (``owner``: the env named in config errors): ``(scenario, poses (R, 3),
+    covariances (R, 3, 3), odometry_rng, gps_rng, relative_rng)``, the scenario (one route per robot) drawn first
+    (``team_episode``)."""
+    scenario = scenario_from_config(config, np_random, TEAM_SCENARIO_KEYS, owner, config["n_robots"])
+    return team_episode(config, scenario, np_random, 3)
