@@ -79,10 +79,3 @@ class SingleEnvView(OneCopyView, gym.Env):
         if not self._started:
             raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
         return self.vector.action_masks()[0]
-
-    def render(self):
-        """The copy's frame (see the vector env's ``render``); a warning and None without a render mode."""
-        return self.vector.render()
-
-    def close(self):
-        self.vector.close()

@@ -416,7 +416,3 @@ class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEn
     ## Version History
     * v0: initial version.
     """
-
-    def planning_model(self) -> ActivePlanningModel:
-        """The env's planning model (``ActivePlanningModel`` of its one copy), for ``PlannerAgent``."""
-        return self.vector.planning_model(0)
