@@ -225,7 +225,9 @@ class Driver(VectorEnv):
 
     def _outputs(self, rows, stepped: np.ndarray) -> tuple:
         """The observations and infos of the copies ``rows`` at their decisions (``stepped``: which took a step)."""
-        decision = self.decision if isinstance(rows, slice) else _rows_of(self.decision, rows)
+        decision = self.decision
+        if not isinstance(rows, slice):
+            decision = type(decision)(*(field[rows] for field in decision))
         scenario, state = self.env_scenario, self.state
         return scenario.observation(state, decision, rows), scenario.info(state, decision, rows, stepped)
 
@@ -314,11 +316,6 @@ class Driver(VectorEnv):
         state = self.__dict__.copy()
         state.pop("_renderer", None)  # a pygame window or surface does not pickle; the copy draws anew
         return state
-
-
-def _rows_of(decision, rows: np.ndarray):
-    """The decision of the copies ``rows`` (a named tuple of arrays with a leading copy dimension)."""
-    return type(decision)(*(field[rows] for field in decision))
 
 
 def outside_action_space(action, where: str | None, space) -> ValueError:

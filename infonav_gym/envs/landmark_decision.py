@@ -49,14 +49,9 @@ class LandmarkDecision(NamedTuple):
     @classmethod
     def at_prior(cls, sensor, geometry, true_poses, x, P, landmarks, exists, mapping: bool) -> LandmarkDecision:
         """The decisions of N copies at their priors ``x`` (N, n), ``P`` (N, n, n) (``landmark_decisions``, one
-        compiled call); raises as ``checked``."""
+        compiled call); raises as ``checked_fields``."""
         arguments = decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping)
-        return cls.checked(landmark_decisions(*arguments))
-
-    @classmethod
-    def checked(cls, decided: tuple) -> LandmarkDecision:
-        """The decision ``landmark_decisions`` returned (``checked_fields``)."""
-        return cls(*checked_fields(decided))
+        return cls(*checked_fields(landmark_decisions(*arguments)))
 
     def observe(
         self, x, P, chosen, true_poses, landmarks, noise: NoiseStreams, noise_stds
