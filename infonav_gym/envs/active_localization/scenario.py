@@ -154,9 +154,7 @@ class ActiveLocalization(OneRobotScenario):
                 f"config key 'max_position_std_m' of {owner} must exceed initial_position_std_m "
                 f"({cfg['initial_position_std_m']}), got {cfg['max_position_std_m']}"
             )
-        low, high = observation_bounds(cfg["n_candidates"], cfg["n_obstacles"])
-        self.bounds = low.astype(float), high.astype(float)  # the space's float32 bounds, for ``copy_outputs``
-        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.use_observation_bounds(*observation_bounds(cfg["n_candidates"], cfg["n_obstacles"]))
         self.action_space = spaces.Discrete(N_PRIMITIVES * (1 + cfg["n_candidates"]))
         self.use_sensors(range_bearing_sensor_from_config(cfg, owner), odometry_sensor_from_config(cfg, owner))
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.landmark_decision import LandmarkDecision
-from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
+from infonav_gym.envs.observation_kernels import BIG, POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle_kernel as wrap
@@ -35,7 +35,6 @@ N_PRIMITIVES = len(PRIMITIVE_OFFSETS_RAD)
 GOAL_FEATURES = 4
 LANDMARK_FEATURES = 4
 OBSTACLE_FEATURES = 4
-_BIG = 1e4
 REWARD_TERMS = ("mutual_information", "sensing_cost", "motion_cost", "progress", "goal_bonus", "failure_penalty")
 
 
@@ -176,13 +175,11 @@ def field_geometry(walls, wall_thickness_m: float, centers: np.ndarray, radii: n
     return StaticGeometry(*arrays)
 
 
-def observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(low, high)`` of the observation space with K landmarks and O obstacles (float32)."""
-    low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0] + [0, -1, -1, 0]
-    high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1] + [_BIG, 1, 1, 1]
-    low += [0, 0, -1, -1] * n_landmarks + [0, -1, -1, 0] * n_obstacles
-    high += [1, _BIG, 1, 1] * n_landmarks + [_BIG, 1, 1, _BIG] * n_obstacles
-    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
+def observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[list, list]:
+    """``(low, high)`` of the observation features after the pose's, with K landmarks and O obstacles."""
+    low = [0, -1, -1, 0] + [0, 0, -1, -1] * n_landmarks + [0, -1, -1, 0] * n_obstacles
+    high = [BIG, 1, 1, 1] + [1, BIG, 1, 1] * n_landmarks + [BIG, 1, 1, BIG] * n_obstacles
+    return low, high
 
 
 def copy_outputs(sight: LandmarkDecision, state: tuple, config: dict, bounds: tuple):
