@@ -15,10 +15,10 @@ from infonav_gym.envs.active_localization.planning import ActivePlanningModel, B
 from infonav_gym.envs.active_localization.transition import (
     N_PRIMITIVES,
     REWARD_TERMS,
-    copy_outputs,
     decode_actions,
     field_geometry,
     observation_bounds,
+    outputs_of_copies,
     primitive_commands,
     start_episodes,
     step_rewards,
@@ -75,21 +75,13 @@ class ActiveState(OneRobotState):
     rewards: np.ndarray = None
 
 
-class ActiveStep(NamedTuple):
-    """Every copy's action mask and gains (n, 5 (1 + K)), its landmarks' ``LandmarkDecision`` (``sight``, its mask
-    ``visible``) at its EKF's prior, and what ``copy_outputs`` computes there: observations and info ``numbers``."""
+STEP_FIELDS = ("action_mask", "action_information_gain", "visible", "landmark_gains", *LandmarkDecision._fields[2:])
 
-    action_mask: np.ndarray
-    action_information_gain: np.ndarray
-    visible: np.ndarray
-    landmark_gains: np.ndarray
-    predicted: np.ndarray
-    H: np.ndarray
-    R: np.ndarray
-    prior_log_det: np.ndarray
-    pose_entropy: np.ndarray
-    observation: np.ndarray
-    numbers: np.ndarray
+
+class ActiveStep(NamedTuple("ActiveStep", [(name, np.ndarray) for name in (*STEP_FIELDS, "observation", "numbers")])):
+    """Every copy's action mask and gains (n, 5 (1 + K)), its landmarks' ``LandmarkDecision`` (``sight``; its mask and
+    gains named ``visible``, ``landmark_gains``) at its EKF's prior, and what ``outputs_of_copies`` computes:
+    observations and info ``numbers``."""
 
     @property
     def sight(self) -> LandmarkDecision:
@@ -199,7 +191,7 @@ class ActiveLocalization(OneRobotScenario):
 
     def decision(self, state: ActiveState, rows) -> ActiveStep:
         """The landmarks each copy sees and their models at its prior, the action layout, its observation and info
-        numbers (``copy_outputs``)."""
+        numbers (``outputs_of_copies``)."""
         if isinstance(rows, slice):
             geometry = state.geometry
         else:
@@ -212,7 +204,9 @@ class ActiveLocalization(OneRobotScenario):
         )
         obstacles = (state.obstacle_centers[rows], state.obstacle_radii[rows])
         arrays = (x, P, true_poses, state.goals[rows], state.elapsed[rows], state.observations_left[rows], *obstacles)
-        action_mask, gains, observation, numbers = copy_outputs(sight, arrays, self.config, self.bounds)
+        landmarks = sight.action_mask, sight.action_information_gain, sight.predicted, sight.pose_entropy
+        budget = self.config["horizon"], self.config["max_observations"]
+        action_mask, gains, observation, numbers = outputs_of_copies(*landmarks, *arrays, *budget, *self.bounds)
         return ActiveStep(action_mask, gains, *sight, observation, numbers.T)
 
     def transition(self, state: ActiveState, decision: ActiveStep, action, acting) -> ActiveState:

@@ -16,7 +16,6 @@ from typing import NamedTuple
 import numpy as np
 
 from infonav_gym.compiled import contiguous, kernel, stacked
-from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.observation_kernels import BIG, POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
@@ -182,29 +181,15 @@ def observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[list, list]:
     return low, high
 
 
-def copy_outputs(sight: LandmarkDecision, state: tuple, config: dict, bounds: tuple):
-    """``(action_mask, action_information_gain, observations, info values (4, n))`` of n copies (``outputs_of_copies``)
-    from their landmarks' decisions ``sight`` and ``state``: ``(x, P, true poses, goals, elapsed, observations left,
-    obstacle centres, radii)``; ``bounds``: the observation space's ``(low, high)`` as float64."""
-    return outputs_of_copies(
-        sight.action_mask,
-        sight.action_information_gain,
-        sight.predicted,
-        sight.pose_entropy,
-        *state,
-        config["horizon"],
-        config["max_observations"],
-        *bounds,
-    )
-
-
 @kernel
 def outputs_of_copies(
     visible, gains, predicted, entropy, x, P, truth, goals, elapsed, left, centers, radii, horizon, budget, low, high
 ):
-    """``copy_outputs``: the action layout (every primitive without an observation, and with each ``visible`` landmark
-    while budget is left), the observations (n, 14 + 4K + 4O) clipped to ``[low, high]``, and the position error [m],
-    heading error [rad], largest position std [m] and true distance to the goal [m] (4, n)."""
+    """``(action_mask, action_information_gain, observations, info values)`` of n copies from their landmarks'
+    ``LandmarkDecision`` fields: the action layout (every primitive without an observation, and with each ``visible``
+    landmark while budget is left), the observations (n, 14 + 4K + 4O) clipped to ``[low, high]`` (the space's bounds
+    as float64), and the position error [m], heading error [rad], largest position std [m] and true distance to the
+    goal [m] (4, n)."""
     n_copies, n_landmarks = visible.shape
     observable = np.empty((n_copies, n_landmarks), dtype=np.bool_)
     observation = np.empty((n_copies, len(low)), dtype=np.float32)
