@@ -238,13 +238,8 @@ class Driver(VectorEnv):
 
     def _begin_step(self, actions) -> tuple[np.ndarray, np.ndarray]:
         """``(acting (N,), chosen (N, R))``: which copies act (with ``NEXT_STEP``, not those starting again) and each
-        robot's action, -1 (the no-op) for a masked one (per ``invalid_action``) or in a copy not acting.
-
-        Raises:
-            RuntimeError: before the first ``reset``.
-            ValueError: for actions of another shape or dtype, outside the space, or, with
-                ``invalid_action="raise"``, masked while the robot has a valid one (naming its copy and robot).
-        """
+        robot's action, -1 (the no-op) for a masked one (per ``invalid_action``) or in a copy not acting; raises as
+        ``step`` (naming the copy and robot of a masked action)."""
         if self.decision is None:
             raise RuntimeError(f"{self.owner_name}: call reset() before step()")
         array, n_robots = np.asarray(actions), len(self.agents)
