@@ -158,8 +158,7 @@ class ActiveLocalization(OneRobotScenario):
             **{**fields, "x": np.zeros((copies, POSE_DIM)), "P": np.zeros((copies, POSE_DIM, POSE_DIM))},
             goals=np.zeros((copies, 2)),
             observations_left=np.zeros(copies, dtype=int),
-            goal_reached=np.zeros(copies, dtype=bool),
-            failed=np.zeros(copies, dtype=bool),
+            **{name: np.zeros(copies, dtype=bool) for name in ("goal_reached", "failed")},
             obstacle_centers=np.zeros((copies, cfg["n_obstacles"], 2)),
             obstacle_radii=np.zeros((copies, cfg["n_obstacles"])),
             terms=np.zeros((len(REWARD_TERMS), copies)),
@@ -169,7 +168,7 @@ class ActiveLocalization(OneRobotScenario):
     def initial(self, state: ActiveState, rows: np.ndarray, rngs: list) -> ActiveState:
         """Draw each copy's goal field and prior (``start_episodes``); its static geometry joins the state's."""
         starts = start_episodes(self.config, rngs)
-        generators = zip(starts.odometry_generators, starts.measurement_generators)
+        generators = starts.sensor_generators
         for copy, scenario, (odometry_rng, measurement_rng) in zip(rows.tolist(), starts.scenarios, generators):
             state.worlds.reset_copy(copy, scenario)
             state.odometry_noise.restart(copy, odometry_rng)
@@ -246,8 +245,7 @@ class ActiveLocalization(OneRobotScenario):
         return decision.observation
 
     def info(self, state: ActiveState, decision: ActiveStep, rows, stepped) -> dict:
-        """The decision's mask and gains, the six reward terms, the action taken, the errors, the goal and
-        outcome."""
+        """The decision's mask and gains, the six reward terms, the action taken, the errors, the goal and outcome."""
         position_error, heading_error, position_std, distance_to_goal = decision.numbers.T
         goal_reached = state.goal_reached[rows]
         info = decision_info(decision, stepped, state.chosen[rows], "mutual_information", state.rewards[rows])

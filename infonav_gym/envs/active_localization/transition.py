@@ -140,14 +140,14 @@ def rewards_of_steps(before, after, goals, covariances, mutual_information, obse
 
 class EpisodeStarts(NamedTuple):
     """The starts of n episodes (``start_episodes``): goal fields, their arrays stacked, the initial pose estimates
-    (n, 3) and their covariance (3, 3), the same for all, and each episode's sensors' generators."""
+    (n, 3) and their covariance (3, 3), the same for all, and each episode's sensors' generators (odometry,
+    measurement)."""
 
     scenarios: list[Scenario]
     layouts: GoalFieldLayouts
     poses: np.ndarray
     pose_covariance: np.ndarray
-    odometry_generators: list[np.random.Generator]
-    measurement_generators: list[np.random.Generator]
+    sensor_generators: list[list[np.random.Generator]]
 
 
 def start_episodes(config: dict, generators: list[np.random.Generator]) -> EpisodeStarts:
@@ -155,11 +155,11 @@ def start_episodes(config: dict, generators: list[np.random.Generator]) -> Episo
     order, so a sub-env's episode does not depend on the number of copies); the fields laid out in one batch."""
     layouts = goal_field_layouts(generators, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
     scenarios = goal_field_scenarios(layouts)
-    spawned = [np_random.spawn(2) for np_random in generators]
+    sensor_generators = [np_random.spawn(2) for np_random in generators]
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
     normals = np.array([np_random.standard_normal(POSE_DIM) for np_random in generators])
     poses = np.array([start_poses(scenario)[0] for scenario in scenarios]) + pose_std * normals
-    return EpisodeStarts(scenarios, layouts, poses, np.diag(pose_std**2), *map(list, zip(*spawned)))
+    return EpisodeStarts(scenarios, layouts, poses, np.diag(pose_std**2), sensor_generators)
 
 
 def field_geometry(walls, wall_thickness_m: float, centers: np.ndarray, radii: np.ndarray) -> StaticGeometry:

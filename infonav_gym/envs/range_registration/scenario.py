@@ -231,8 +231,7 @@ class RangeRegistration(EnvScenario):
         return scan_on_terrain(self.ladar, state.terrains[copy], pose, state.sensor_rngs[copy])
 
     def _next_pairs(self, state: RegistrationState, copies: np.ndarray) -> None:
-        """Drive ``copies`` one frame on; each one's pair (previous frame, new frame), odometry estimate and
-        patches."""
+        """Drive ``copies`` one frame on; each one's pair (previous frame, new frame), odometry estimate and patches."""
         state.worlds.step(self.config["time_step_s"], copies)
         if self.drawing and copies[0] == 0:
             state.paths[0].append(state.worlds.poses[0, 0, :2])
@@ -290,8 +289,7 @@ class RangeRegistration(EnvScenario):
         return state
 
     def _register(self, state: RegistrationState, copy: int) -> tuple[float, float]:
-        """Run ICP on the picked patches' points of ``copy``; the pair's reward terms (error reduction, point
-        cost)."""
+        """Run ICP on the picked patches' points of ``copy``; the pair's reward terms (error reduction, point cost)."""
         cfg, pair = self.config, state.pairs[copy]
         chosen = state.picked[copy][state.patch_of_return[copy]]
         source = state.source_points[copy][chosen]
