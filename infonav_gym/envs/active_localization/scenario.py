@@ -15,6 +15,7 @@ from infonav_gym.envs.active_localization.planning import ActivePlanningModel, B
 from infonav_gym.envs.active_localization.transition import (
     N_PRIMITIVES,
     REWARD_TERMS,
+    REWARD_WEIGHT_KEYS,
     decode_actions,
     field_geometry,
     observation_bounds,
@@ -38,13 +39,6 @@ from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS
 from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.scenarios import SPEED_MPS
 
-REWARD_WEIGHT_KEYS = (
-    "observation_cost_nats",
-    "motion_cost_per_step",
-    "progress_reward_per_m",
-    "goal_bonus",
-    "failure_penalty",
-)
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
     "time_step_s": TIME_STEP_S,
     "speed_mps": SPEED_MPS,

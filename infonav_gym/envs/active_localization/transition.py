@@ -35,6 +35,13 @@ GOAL_FEATURES = 4
 LANDMARK_FEATURES = 4
 OBSTACLE_FEATURES = 4
 REWARD_TERMS = ("mutual_information", "sensing_cost", "motion_cost", "progress", "goal_bonus", "failure_penalty")
+REWARD_WEIGHT_KEYS = (
+    "observation_cost_nats",
+    "motion_cost_per_step",
+    "progress_reward_per_m",
+    "goal_bonus",
+    "failure_penalty",
+)
 
 
 def decode_actions(actions) -> tuple[np.ndarray, np.ndarray]:
@@ -105,12 +112,11 @@ def step_rewards(config: dict, before, after, goals, covariances, mutual_informa
     from the positions ``before`` to ``after`` [m] (n, 2) towards ``goals``; the EKF ``covariances`` after them, the
     MI of each update (n,) [nats], which ``observed``, were ``driving`` and are ``scored`` (may reach the goal, within
     ``goal_radius_m``, or fail: not reached and the largest position std above ``max_position_std_m``)."""
-    keys = ("observation_cost_nats", "motion_cost_per_step", "progress_reward_per_m", "goal_bonus", "failure_penalty")
     return rewards_of_steps(
         *(contiguous(np.asarray(array, dtype=float)) for array in (before, after, goals, covariances)),
         contiguous(np.asarray(mutual_information, dtype=float)),
         *(contiguous(np.asarray(array, dtype=np.bool_)) for array in (observed, driving, scored)),
-        np.array([config[key] for key in (*keys, "goal_radius_m", "max_position_std_m")], dtype=float),
+        np.array([config[key] for key in (*REWARD_WEIGHT_KEYS, "goal_radius_m", "max_position_std_m")], dtype=float),
     )
 
 
