@@ -35,21 +35,15 @@ def discrete_action_index(action, space: gym.spaces.Discrete, agent: str | None 
     """
     if type(action) is int and 0 <= action < space.n:  # the common case, first
         return action
-    value = action
-    if isinstance(value, (list, tuple)):
-        try:
-            value = np.asarray(value)
-        except ValueError:  # ragged nesting
-            value = None
-    if isinstance(value, np.ndarray):
-        value = value.reshape(()) if value.size == 1 and value.dtype.kind in "iu" else None
-    if value is not None and not isinstance(value, (bool, np.bool_)):
-        try:
-            index = operator.index(value)
-        except TypeError:
-            index = None
+    try:  # a ragged list raises ValueError, anything that is not an integer (None included) TypeError
+        value = np.asarray(action) if isinstance(action, (list, tuple)) else action
+        if isinstance(value, np.ndarray):
+            value = value.reshape(()) if value.size == 1 and value.dtype.kind in "iu" else None
+        index = None if isinstance(value, (bool, np.bool_)) else operator.index(value)
         if index is not None and 0 <= index < space.n:
             return index
+    except (TypeError, ValueError):
+        pass
     owner = "" if agent is None else f" of {agent}"
     raise ValueError(
         f"action {action!r}{owner} is not in the action space {space}: expected one integer in [0, {space.n - 1}] "

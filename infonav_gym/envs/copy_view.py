@@ -4,7 +4,8 @@ from __future__ import annotations
 
 
 class OneCopyView:
-    """A view of one copy of ``vector_env`` without autoreset: its config keys, metadata, metrics and traits.
+    """A view of one copy of ``vector_env`` without autoreset: its config keys, metadata, metrics, traits, rendering
+    and, with the vector env's ``planning_model(copy)``, ``planning_model()``: that of its copy.
 
     A subclass names its vector env (``class MyEnv(SingleEnvView, vector_env=MyVectorEnv)``) and calls
     ``_view_one_copy`` in its ``__init__``; ``metadata_keys`` are the vector env's metadata it shows.
@@ -20,6 +21,8 @@ class OneCopyView:
             cls.metadata = {key: vector_env.metadata[key] for key in cls.metadata_keys}
             cls.episode_metrics = vector_env.episode_metrics
             cls.traits = vector_env.traits
+            if callable(getattr(vector_env, "planning_model", None)):
+                cls.planning_model = _copy_planning_model
 
     @classmethod
     def default_config(cls) -> dict:
@@ -31,3 +34,15 @@ class OneCopyView:
         self.vector = self.vector_env.one_copy(type(self).__name__, render_mode, config)
         self.config = self.vector.config
         self.render_mode = render_mode
+
+    def render(self):
+        """The copy's frame (see the vector env's ``render``); a warning and None without a render mode."""
+        return self.vector.render()
+
+    def close(self):
+        self.vector.close()
+
+
+def _copy_planning_model(self):
+    """The env's planning model (its vector env's of its one copy), for look-ahead agents (``PlannerAgent``)."""
+    return self.vector.planning_model(0)

@@ -225,7 +225,9 @@ class Driver(VectorEnv):
 
     def _outputs(self, rows, stepped: np.ndarray) -> tuple:
         """The observations and infos of the copies ``rows`` at their decisions (``stepped``: which took a step)."""
-        decision = self.decision if isinstance(rows, slice) else _rows_of(self.decision, rows)
+        decision = self.decision
+        if not isinstance(rows, slice):
+            decision = type(decision)(*(field[rows] for field in decision))
         scenario, state = self.env_scenario, self.state
         return scenario.observation(state, decision, rows), scenario.info(state, decision, rows, stepped)
 
@@ -236,13 +238,8 @@ class Driver(VectorEnv):
 
     def _begin_step(self, actions) -> tuple[np.ndarray, np.ndarray]:
         """``(acting (N,), chosen (N, R))``: which copies act (with ``NEXT_STEP``, not those starting again) and each
-        robot's action, -1 (the no-op) for a masked one (per ``invalid_action``) or in a copy not acting.
-
-        Raises:
-            RuntimeError: before the first ``reset``.
-            ValueError: for actions of another shape or dtype, outside the space, or, with
-                ``invalid_action="raise"``, masked while the robot has a valid one (naming its copy and robot).
-        """
+        robot's action, -1 (the no-op) for a masked one (per ``invalid_action``) or in a copy not acting; raises as
+        ``step`` (naming the copy and robot of a masked action)."""
         if self.decision is None:
             raise RuntimeError(f"{self.owner_name}: call reset() before step()")
         array, n_robots = np.asarray(actions), len(self.agents)
@@ -314,11 +311,6 @@ class Driver(VectorEnv):
         state = self.__dict__.copy()
         state.pop("_renderer", None)  # a pygame window or surface does not pickle; the copy draws anew
         return state
-
-
-def _rows_of(decision, rows: np.ndarray):
-    """The decision of the copies ``rows`` (a named tuple of arrays with a leading copy dimension)."""
-    return type(decision)(*(field[rows] for field in decision))
 
 
 def outside_action_space(action, where: str | None, space) -> ValueError:

@@ -49,14 +49,9 @@ class LandmarkDecision(NamedTuple):
     @classmethod
     def at_prior(cls, sensor, geometry, true_poses, x, P, landmarks, exists, mapping: bool) -> LandmarkDecision:
         """The decisions of N copies at their priors ``x`` (N, n), ``P`` (N, n, n) (``landmark_decisions``, one
-        compiled call); raises as ``checked``."""
+        compiled call); raises as ``checked_fields``."""
         arguments = decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping)
-        return cls.checked(landmark_decisions(*arguments))
-
-    @classmethod
-    def checked(cls, decided: tuple) -> LandmarkDecision:
-        """The decision ``landmark_decisions`` returned (``checked_fields``)."""
-        return cls(*checked_fields(decided))
+        return cls(*checked_fields(landmark_decisions(*arguments)))
 
     def observe(
         self, x, P, chosen, true_poses, landmarks, noise: NoiseStreams, noise_stds
@@ -146,17 +141,14 @@ def landmark_decisions(x, P, landmarks, true_poses, exists, mapped, noise_stds, 
                     predicted[c, k, i] = modelled[c, k, i]
                     for j in range(n):
                         H[c, k, i, j] = modelled_H[c, k, i, j]
-    ranges = np.empty(n_copies * n_candidates)
+    ranges, n_queries = np.empty(n_copies * n_candidates), 0
+    seen = covered(true_poses, landmarks, coverage[0], coverage[1])
     for c in range(n_copies):
         for k in range(n_candidates):
             ranges[c * n_candidates + k] = predicted[c, k, 0]
-    R = noise_covariances(ranges, noise_stds[0], noise_stds[1], noise_stds[2]).reshape(n_copies, n_candidates, 2, 2)
-    seen = covered(true_poses, landmarks, coverage[0], coverage[1])
-    n_queries = 0
-    for c in range(n_copies):
-        for k in range(n_candidates):
             seen[c, k] = seen[c, k] and exists[c, k]
             n_queries += seen[c, k]
+    R = noise_covariances(ranges, noise_stds[0], noise_stds[1], noise_stds[2]).reshape(n_copies, n_candidates, 2, 2)
     copy, origins, targets = np.empty(n_queries, dtype=np.int64), np.empty((n_queries, 2)), np.empty((n_queries, 2))
     query = 0
     for c in range(n_copies):

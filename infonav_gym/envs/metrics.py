@@ -34,11 +34,7 @@ class EpisodeMetric:
 
 def summed_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
     """The episode's sum (``math.fsum``) of ``info["reward_terms"][term]`` (0 in steps without it)."""
-
-    def compute(infos: Sequence[dict]) -> float:
-        return math.fsum(step["reward_terms"].get(term, 0.0) for step in infos)
-
-    return compute
+    return lambda infos: math.fsum(step["reward_terms"].get(term, 0.0) for step in infos)
 
 
 def summed_reward(infos: Sequence[dict]) -> float:
@@ -48,29 +44,17 @@ def summed_reward(infos: Sequence[dict]) -> float:
 
 def final_value(key: str) -> Callable[[Sequence[dict]], float]:
     """``info[key]`` of the episode's last step."""
-
-    def compute(infos: Sequence[dict]) -> float:
-        return infos[-1][key]
-
-    return compute
+    return lambda infos: infos[-1][key]
 
 
 def final_flag(key: str) -> Callable[[Sequence[dict]], float]:
     """1.0 if ``info[key]`` of the last step is true, else 0.0 (a ``proportion`` metric)."""
-
-    def compute(infos: Sequence[dict]) -> float:
-        return float(bool(infos[-1][key]))
-
-    return compute
+    return lambda infos: float(bool(infos[-1][key]))
 
 
 def root_mean_square(key: str) -> Callable[[Sequence[dict]], float]:
     """The root mean square over the episode's steps of ``info[key]``."""
-
-    def compute(infos: Sequence[dict]) -> float:
-        return math.sqrt(float(np.mean([step[key] ** 2 for step in infos])))
-
-    return compute
+    return lambda infos: math.sqrt(float(np.mean([step[key] ** 2 for step in infos])))
 
 
 def mean_where(key: str, condition: Callable[[dict], bool]) -> Callable[[Sequence[dict]], float]:
@@ -85,11 +69,7 @@ def mean_where(key: str, condition: Callable[[dict], bool]) -> Callable[[Sequenc
 
 def count_where(condition: Callable[[dict], bool]) -> Callable[[Sequence[dict]], int]:
     """How many steps' infos meet ``condition``."""
-
-    def compute(infos: Sequence[dict]) -> int:
-        return sum(1 for step in infos if condition(step))
-
-    return compute
+    return lambda infos: sum(1 for step in infos if condition(step))
 
 
 def team_summed_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
@@ -109,11 +89,7 @@ def team_summed_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
 
 def team_mean_final_value(key: str) -> Callable[[Sequence[dict]], float]:
     """The mean over agents of ``info[key]`` at the last step of a parallel env."""
-
-    def compute(steps: Sequence[dict]) -> float:
-        return float(np.mean([info[key] for info in steps[-1].values()]))
-
-    return compute
+    return lambda steps: float(np.mean([info[key] for info in steps[-1].values()]))
 
 
 def team_mean_root_mean_square(key: str) -> Callable[[Sequence[dict]], float]:
@@ -130,20 +106,12 @@ def team_mean_root_mean_square(key: str) -> Callable[[Sequence[dict]], float]:
 
 def team_total_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
     """A parallel env's sum over steps and agents of ``reward_terms[term]`` (a term of each robot's own)."""
-
-    def compute(steps: Sequence[dict]) -> float:
-        return math.fsum(info["reward_terms"][term] for infos in steps for info in infos.values())
-
-    return compute
+    return lambda steps: math.fsum(info["reward_terms"][term] for infos in steps for info in infos.values())
 
 
 def team_final_flag(key: str) -> Callable[[Sequence[dict]], float]:
     """1.0 if the first agent's ``info[key]`` (a flag every agent shares) is true at a parallel env's last step."""
-
-    def compute(steps: Sequence[dict]) -> float:
-        return float(bool(next(iter(steps[-1].values()))[key]))
-
-    return compute
+    return lambda steps: float(bool(next(iter(steps[-1].values()))[key]))
 
 
 CUMULATIVE_MI_TITLE = "cumulative MI [nats]"

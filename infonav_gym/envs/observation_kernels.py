@@ -11,6 +11,7 @@ import math
 from infonav_gym.compiled import inner_kernel
 
 POSE_FEATURES = 10  # x, y, cos, sin of the heading, the pose's three stds, the x-y correlation, entropy, elapsed
+BIG = 1e4  # the bound of the unbounded features
 
 
 @inner_kernel

@@ -6,11 +6,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from gymnasium import spaces
 
 from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.noise_streams import NoiseStreams, taken
+from infonav_gym.envs.observation_kernels import BIG
 from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.estimation.kernels import predict_poses
 from infonav_gym.estimation.state import POSE_DIM
@@ -45,6 +47,14 @@ class OneRobotScenario(EnvScenario):
         self.odometry_covariances = stacked(self.odometry_covariance, (self.copies, 1, 2, 2))
         self.odometry_stds = float(odometry.speed_std_mps), float(odometry.turn_rate_std_rps)
         self.measurement_stds = sensor.noise_stds
+
+    def use_observation_bounds(self, low: list, high: list) -> None:
+        """The observation space: the ``pose_features``, then features within ``low``, ``high``; ``bounds``, its
+        float32 bounds as floats, for the kernels that clip to them."""
+        low = np.array([-BIG, -BIG, -1, -1, 0, 0, 0, -1, -100, 0] + low, dtype=np.float32)
+        high = np.array([BIG, BIG, 1, 1, BIG, BIG, BIG, 1, 100, 1] + high, dtype=np.float32)
+        self.bounds = low.astype(float), high.astype(float)
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
 
     def robot_fields(self, copies: int, n_candidates: int) -> dict:
         """The ``OneRobotState`` fields of ``copies`` copies before their first episode."""

@@ -59,16 +59,10 @@ def first_copy_infos(info: dict, agents: list[str], team_keys) -> dict:
 
 
 class ParallelEnvView(OneCopyView, ParallelEnv):
-    """One copy of ``vector_env`` (``vector``) as a PettingZoo ``ParallelEnv``; with the vector env's
-    ``planning_model(copy)``, ``planning_model()`` is that of its copy."""
+    """One copy of ``vector_env`` (``vector``) as a PettingZoo ``ParallelEnv``."""
 
     vector_env: type[Driver]
     metadata_keys = ("name", "render_modes", "render_fps", "is_parallelizable")
-
-    def __init_subclass__(cls, **kwargs):
-        super().__init_subclass__(**kwargs)
-        if callable(getattr(getattr(cls, "vector_env", None), "planning_model", None)):
-            cls.planning_model = _copy_planning_model
 
     def __init__(self, render_mode: str | None = None, **config):
         self._view_one_copy(render_mode, config)
@@ -133,13 +127,6 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
     def _per_agent(self, observations: np.ndarray) -> dict:
         return {agent: observations[0, robot] for robot, agent in enumerate(self.agents)}
 
-    def render(self):
-        """The copy's frame (see the vector env's ``render``); a warning and None without a render mode."""
-        return self.vector.render()
-
-    def close(self):
-        self.vector.close()
-
 
 class TeamAECEnv(parallel_to_aec_wrapper):
     """The AEC conversion of a team env: an action is checked at the ``step`` that gives it, naming its agent
@@ -150,8 +137,3 @@ class TeamAECEnv(parallel_to_aec_wrapper):
         if not (self.terminations[agent] or self.truncations[agent]):
             self.env.checked_action(agent, action)
         super().step(action)
-
-
-def _copy_planning_model(self):
-    """The env's planning model (its vector env's of its one copy), for look-ahead agents (``PlannerAgent``)."""
-    return self.vector.planning_model(0)

@@ -1,16 +1,8 @@
 """The scenario protocol: every env is a ``EnvScenario``, a few named functions over one explicit batched ``State``.
 
 Modelled on the functional envs of the ecosystem (Gymnasium's ``FuncEnv``, gymnax, VMAS's ``BaseScenario``). A
-scenario declares its config (``default_config``), its constants and spaces (``__init__``) and implements:
-
-- ``allocate(copies) -> State``: the arrays of ``copies`` copies, before any episode;
-- ``initial(state, rows, rngs) -> State``: new episodes in the copies ``rows``, each from its generator;
-- ``decision(state, rows) -> Decision``: each copy's ``action_mask`` and ``action_information_gain`` (its expected
-  MI per action) at its prior;
-- ``transition(state, decision, action, acting) -> State``: the copies ``acting`` take ``action`` (N, R);
-- ``reward(decision, action, state) -> rewards``: what the step brought, from the state after it;
-- ``terminal(state) -> (N,) bool``; ``observation(state, decision, rows)``; ``info(state, decision, rows, stepped)``;
-- ``frame(state, decision)``: copy 0's ``SceneFrame``, to render.
+scenario declares its config (``default_config``), its constants and spaces (``__init__``) and implements the hooks
+below (``docs/protocol.md`` tabulates them).
 
 A hook reads only its arguments and the scenario's constants (set in its ``__init__``). Each copy's randomness is in
 the state (the noise streams drawn from its generator at ``initial``). The state's arrays have a leading copy
@@ -90,8 +82,7 @@ class EnvScenario(abc.ABC):
     @abc.abstractmethod
     def transition(self, state: State, decision, action: np.ndarray, acting: np.ndarray) -> State:
         """The copies ``acting`` (N,) bool take ``action`` (N, R) (-1: the no-op, for a masked action and in a copy
-        not acting) at
-        ``decision``; what the step brought stays in the state for ``reward`` and ``info``."""
+        not acting) at ``decision``; what the step brought stays in the state for ``reward`` and ``info``."""
 
     @abc.abstractmethod
     def reward(self, decision, action: np.ndarray, state: State) -> np.ndarray:

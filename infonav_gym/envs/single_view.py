@@ -42,7 +42,6 @@ class SingleEnvView(OneCopyView, gym.Env):
         self._view_one_copy(render_mode, config)
         self.observation_space = self.vector.single_observation_space
         self.action_space = self.vector.single_action_space
-        self._started = False
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode: seed ``np_random`` (Gymnasium's rule), then the copy's episode from it.
@@ -55,18 +54,15 @@ class SingleEnvView(OneCopyView, gym.Env):
         super().reset(seed=seed)
         self.vector.use_generator(0, self.np_random)
         observations, info = self.vector.reset()
-        self._started = True
         return observations[0], first_row(info)
 
     def step(self, action):
         """Act with ``action`` (one integer of the action space).
 
         Raises:
-            RuntimeError: before the first ``reset``.
             ValueError: for an action outside the action space, or a masked one with ``invalid_action="raise"``.
+            RuntimeError: before the first ``reset`` (the copy's).
         """
-        if not self._started:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before step()")
         actions = np.array([discrete_action_index(action, self.action_space)])
         observations, rewards, terminated, truncated, info = self.vector.step(actions)
         return observations[0], float(rewards[0]), bool(terminated[0]), bool(truncated[0]), first_row(info)
@@ -74,15 +70,7 @@ class SingleEnvView(OneCopyView, gym.Env):
     def action_masks(self) -> np.ndarray:
         """The valid actions now, as bool (n,), for ``MaskablePPO``: all ``True`` when none is (each is the no-op).
 
-        Found through Gymnasium wrappers with ``env.get_wrapper_attr("action_masks")()``.
+        Found through Gymnasium wrappers with ``env.get_wrapper_attr("action_masks")()``; before ``reset`` a
+        ``RuntimeError`` (the copy's).
         """
-        if not self._started:
-            raise RuntimeError(f"{type(self).__name__}: call reset() before action_masks()")
         return self.vector.action_masks()[0]
-
-    def render(self):
-        """The copy's frame (see the vector env's ``render``); a warning and None without a render mode."""
-        return self.vector.render()
-
-    def close(self):
-        self.vector.close()

@@ -91,8 +91,7 @@ def main_metric_of(env):
     Raises:
         ValueError: if it names none of the env's ``episode_metrics``, naming its class and the choices.
     """
-    metrics = episode_metrics_of(env)
-    name = traits_of(env).main_metric
+    metrics, name = episode_metrics_of(env), traits_of(env).main_metric
     for metric in metrics:
         if metric.name == name:
             return metric

@@ -52,10 +52,8 @@ def decision_info(decision, stepped: np.ndarray, chosen: np.ndarray, reward_term
 
 def in_every_copy(info: dict, n_copies: int) -> dict:
     """``info`` with a ``_key`` mask holding for all ``n_copies`` beside each of its keys."""
-    everyone, masked = np.ones(n_copies, dtype=bool), info.copy()
-    for key in info:
-        masked["_" + key] = everyone
-    return masked
+    everyone = np.ones(n_copies, dtype=bool)
+    return {**info, **{"_" + key: everyone for key in info}}
 
 
 def set_rows(full, rows: np.ndarray, part):

@@ -115,9 +115,8 @@ class ActivePlanningModel:
         rows = np.flatnonzero(observe)
         if rows.size:  # the expected update: the measurement as predicted (a zero residual)
             _, H, R = landmark_models(env.sensor, belief.pose[rows], landmarks[landmark[rows]][:, None])
-            mutual_information[rows] = batched.landmark_information_gains(covariance[rows], H, R, check_input=False)[
-                :, 0
-            ]
+            gains = batched.landmark_information_gains(covariance[rows], H, R, check_input=False)
+            mutual_information[rows] = gains[:, 0]
             no_residual = np.zeros((rows.size, 2))
             covariance[rows] = batched.range_bearing_update(
                 belief.pose[rows], covariance[rows], no_residual, no_residual, H[:, 0], R[:, 0], check_input=False

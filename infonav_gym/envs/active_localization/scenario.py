@@ -15,10 +15,11 @@ from infonav_gym.envs.active_localization.planning import ActivePlanningModel, B
 from infonav_gym.envs.active_localization.transition import (
     N_PRIMITIVES,
     REWARD_TERMS,
-    copy_outputs,
+    REWARD_WEIGHT_KEYS,
     decode_actions,
     field_geometry,
     observation_bounds,
+    outputs_of_copies,
     primitive_commands,
     start_episodes,
     step_rewards,
@@ -38,13 +39,6 @@ from infonav_gym.world.active_scenarios import GOAL_FIELD_ARGUMENTS
 from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.scenarios import SPEED_MPS
 
-REWARD_WEIGHT_KEYS = (
-    "observation_cost_nats",
-    "motion_cost_per_step",
-    "progress_reward_per_m",
-    "goal_bonus",
-    "failure_penalty",
-)
 CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself uses
     "time_step_s": TIME_STEP_S,
     "speed_mps": SPEED_MPS,
@@ -75,21 +69,13 @@ class ActiveState(OneRobotState):
     rewards: np.ndarray = None
 
 
-class ActiveStep(NamedTuple):
-    """Every copy's action mask and gains (n, 5 (1 + K)), its landmarks' ``LandmarkDecision`` (``sight``, its mask
-    ``visible``) at its EKF's prior, and what ``copy_outputs`` computes there: observations and info ``numbers``."""
+STEP_FIELDS = ("action_mask", "action_information_gain", "visible", "landmark_gains", *LandmarkDecision._fields[2:])
 
-    action_mask: np.ndarray
-    action_information_gain: np.ndarray
-    visible: np.ndarray
-    landmark_gains: np.ndarray
-    predicted: np.ndarray
-    H: np.ndarray
-    R: np.ndarray
-    prior_log_det: np.ndarray
-    pose_entropy: np.ndarray
-    observation: np.ndarray
-    numbers: np.ndarray
+
+class ActiveStep(NamedTuple("ActiveStep", [(name, np.ndarray) for name in (*STEP_FIELDS, "observation", "numbers")])):
+    """Every copy's action mask and gains (n, 5 (1 + K)), its landmarks' ``LandmarkDecision`` (``sight``; its mask and
+    gains named ``visible``, ``landmark_gains``) at its EKF's prior, and what ``outputs_of_copies`` computes:
+    observations and info ``numbers``."""
 
     @property
     def sight(self) -> LandmarkDecision:
@@ -154,9 +140,7 @@ class ActiveLocalization(OneRobotScenario):
                 f"config key 'max_position_std_m' of {owner} must exceed initial_position_std_m "
                 f"({cfg['initial_position_std_m']}), got {cfg['max_position_std_m']}"
             )
-        low, high = observation_bounds(cfg["n_candidates"], cfg["n_obstacles"])
-        self.bounds = low.astype(float), high.astype(float)  # the space's float32 bounds, for ``copy_outputs``
-        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.use_observation_bounds(*observation_bounds(cfg["n_candidates"], cfg["n_obstacles"]))
         self.action_space = spaces.Discrete(N_PRIMITIVES * (1 + cfg["n_candidates"]))
         self.use_sensors(range_bearing_sensor_from_config(cfg, owner), odometry_sensor_from_config(cfg, owner))
 
@@ -168,8 +152,7 @@ class ActiveLocalization(OneRobotScenario):
             **{**fields, "x": np.zeros((copies, POSE_DIM)), "P": np.zeros((copies, POSE_DIM, POSE_DIM))},
             goals=np.zeros((copies, 2)),
             observations_left=np.zeros(copies, dtype=int),
-            goal_reached=np.zeros(copies, dtype=bool),
-            failed=np.zeros(copies, dtype=bool),
+            **{name: np.zeros(copies, dtype=bool) for name in ("goal_reached", "failed")},
             obstacle_centers=np.zeros((copies, cfg["n_obstacles"], 2)),
             obstacle_radii=np.zeros((copies, cfg["n_obstacles"])),
             terms=np.zeros((len(REWARD_TERMS), copies)),
@@ -179,7 +162,7 @@ class ActiveLocalization(OneRobotScenario):
     def initial(self, state: ActiveState, rows: np.ndarray, rngs: list) -> ActiveState:
         """Draw each copy's goal field and prior (``start_episodes``); its static geometry joins the state's."""
         starts = start_episodes(self.config, rngs)
-        generators = zip(starts.odometry_generators, starts.measurement_generators)
+        generators = starts.sensor_generators
         for copy, scenario, (odometry_rng, measurement_rng) in zip(rows.tolist(), starts.scenarios, generators):
             state.worlds.reset_copy(copy, scenario)
             state.odometry_noise.restart(copy, odometry_rng)
@@ -201,7 +184,7 @@ class ActiveLocalization(OneRobotScenario):
 
     def decision(self, state: ActiveState, rows) -> ActiveStep:
         """The landmarks each copy sees and their models at its prior, the action layout, its observation and info
-        numbers (``copy_outputs``)."""
+        numbers (``outputs_of_copies``)."""
         if isinstance(rows, slice):
             geometry = state.geometry
         else:
@@ -214,7 +197,9 @@ class ActiveLocalization(OneRobotScenario):
         )
         obstacles = (state.obstacle_centers[rows], state.obstacle_radii[rows])
         arrays = (x, P, true_poses, state.goals[rows], state.elapsed[rows], state.observations_left[rows], *obstacles)
-        action_mask, gains, observation, numbers = copy_outputs(sight, arrays, self.config, self.bounds)
+        landmarks = sight.action_mask, sight.action_information_gain, sight.predicted, sight.pose_entropy
+        budget = self.config["horizon"], self.config["max_observations"]
+        action_mask, gains, observation, numbers = outputs_of_copies(*landmarks, *arrays, *budget, *self.bounds)
         return ActiveStep(action_mask, gains, *sight, observation, numbers.T)
 
     def transition(self, state: ActiveState, decision: ActiveStep, action, acting) -> ActiveState:
@@ -254,8 +239,7 @@ class ActiveLocalization(OneRobotScenario):
         return decision.observation
 
     def info(self, state: ActiveState, decision: ActiveStep, rows, stepped) -> dict:
-        """The decision's mask and gains, the six reward terms, the action taken, the errors, the goal and
-        outcome."""
+        """The decision's mask and gains, the six reward terms, the action taken, the errors, the goal and outcome."""
         position_error, heading_error, position_std, distance_to_goal = decision.numbers.T
         goal_reached = state.goal_reached[rows]
         info = decision_info(decision, stepped, state.chosen[rows], "mutual_information", state.rewards[rows])
@@ -416,7 +400,3 @@ class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEn
     ## Version History
     * v0: initial version.
     """
-
-    def planning_model(self) -> ActivePlanningModel:
-        """The env's planning model (``ActivePlanningModel`` of its one copy), for ``PlannerAgent``."""
-        return self.vector.planning_model(0)

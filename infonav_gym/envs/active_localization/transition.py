@@ -16,8 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from infonav_gym.compiled import contiguous, kernel, stacked
-from infonav_gym.envs.landmark_decision import LandmarkDecision
-from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
+from infonav_gym.envs.observation_kernels import BIG, POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle_kernel as wrap
@@ -35,8 +34,14 @@ N_PRIMITIVES = len(PRIMITIVE_OFFSETS_RAD)
 GOAL_FEATURES = 4
 LANDMARK_FEATURES = 4
 OBSTACLE_FEATURES = 4
-_BIG = 1e4
 REWARD_TERMS = ("mutual_information", "sensing_cost", "motion_cost", "progress", "goal_bonus", "failure_penalty")
+REWARD_WEIGHT_KEYS = (
+    "observation_cost_nats",
+    "motion_cost_per_step",
+    "progress_reward_per_m",
+    "goal_bonus",
+    "failure_penalty",
+)
 
 
 def decode_actions(actions) -> tuple[np.ndarray, np.ndarray]:
@@ -107,12 +112,11 @@ def step_rewards(config: dict, before, after, goals, covariances, mutual_informa
     from the positions ``before`` to ``after`` [m] (n, 2) towards ``goals``; the EKF ``covariances`` after them, the
     MI of each update (n,) [nats], which ``observed``, were ``driving`` and are ``scored`` (may reach the goal, within
     ``goal_radius_m``, or fail: not reached and the largest position std above ``max_position_std_m``)."""
-    keys = ("observation_cost_nats", "motion_cost_per_step", "progress_reward_per_m", "goal_bonus", "failure_penalty")
     return rewards_of_steps(
         *(contiguous(np.asarray(array, dtype=float)) for array in (before, after, goals, covariances)),
         contiguous(np.asarray(mutual_information, dtype=float)),
         *(contiguous(np.asarray(array, dtype=np.bool_)) for array in (observed, driving, scored)),
-        np.array([config[key] for key in (*keys, "goal_radius_m", "max_position_std_m")], dtype=float),
+        np.array([config[key] for key in (*REWARD_WEIGHT_KEYS, "goal_radius_m", "max_position_std_m")], dtype=float),
     )
 
 
@@ -142,14 +146,14 @@ def rewards_of_steps(before, after, goals, covariances, mutual_information, obse
 
 class EpisodeStarts(NamedTuple):
     """The starts of n episodes (``start_episodes``): goal fields, their arrays stacked, the initial pose estimates
-    (n, 3) and their covariance (3, 3), the same for all, and each episode's sensors' generators."""
+    (n, 3) and their covariance (3, 3), the same for all, and each episode's sensors' generators (odometry,
+    measurement)."""
 
     scenarios: list[Scenario]
     layouts: GoalFieldLayouts
     poses: np.ndarray
     pose_covariance: np.ndarray
-    odometry_generators: list[np.random.Generator]
-    measurement_generators: list[np.random.Generator]
+    sensor_generators: list[list[np.random.Generator]]
 
 
 def start_episodes(config: dict, generators: list[np.random.Generator]) -> EpisodeStarts:
@@ -157,11 +161,11 @@ def start_episodes(config: dict, generators: list[np.random.Generator]) -> Episo
     order, so a sub-env's episode does not depend on the number of copies); the fields laid out in one batch."""
     layouts = goal_field_layouts(generators, config["n_candidates"], config["n_obstacles"], config["field_size_m"])
     scenarios = goal_field_scenarios(layouts)
-    spawned = [np_random.spawn(2) for np_random in generators]
+    sensor_generators = [np_random.spawn(2) for np_random in generators]
     pose_std = np.array([config["initial_position_std_m"]] * 2 + [config["initial_heading_std_rad"]])
     normals = np.array([np_random.standard_normal(POSE_DIM) for np_random in generators])
     poses = np.array([start_poses(scenario)[0] for scenario in scenarios]) + pose_std * normals
-    return EpisodeStarts(scenarios, layouts, poses, np.diag(pose_std**2), *map(list, zip(*spawned)))
+    return EpisodeStarts(scenarios, layouts, poses, np.diag(pose_std**2), sensor_generators)
 
 
 def field_geometry(walls, wall_thickness_m: float, centers: np.ndarray, radii: np.ndarray) -> StaticGeometry:
@@ -176,38 +180,22 @@ def field_geometry(walls, wall_thickness_m: float, centers: np.ndarray, radii: n
     return StaticGeometry(*arrays)
 
 
-def observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(low, high)`` of the observation space with K landmarks and O obstacles (float32)."""
-    low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0] + [0, -1, -1, 0]
-    high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1] + [_BIG, 1, 1, 1]
-    low += [0, 0, -1, -1] * n_landmarks + [0, -1, -1, 0] * n_obstacles
-    high += [1, _BIG, 1, 1] * n_landmarks + [_BIG, 1, 1, _BIG] * n_obstacles
-    return np.array(low, dtype=np.float32), np.array(high, dtype=np.float32)
-
-
-def copy_outputs(sight: LandmarkDecision, state: tuple, config: dict, bounds: tuple):
-    """``(action_mask, action_information_gain, observations, info values (4, n))`` of n copies (``outputs_of_copies``)
-    from their landmarks' decisions ``sight`` and ``state``: ``(x, P, true poses, goals, elapsed, observations left,
-    obstacle centres, radii)``; ``bounds``: the observation space's ``(low, high)`` as float64."""
-    return outputs_of_copies(
-        sight.action_mask,
-        sight.action_information_gain,
-        sight.predicted,
-        sight.pose_entropy,
-        *state,
-        config["horizon"],
-        config["max_observations"],
-        *bounds,
-    )
+def observation_bounds(n_landmarks: int, n_obstacles: int) -> tuple[list, list]:
+    """``(low, high)`` of the observation features after the pose's, with K landmarks and O obstacles."""
+    low = [0, -1, -1, 0] + [0, 0, -1, -1] * n_landmarks + [0, -1, -1, 0] * n_obstacles
+    high = [BIG, 1, 1, 1] + [1, BIG, 1, 1] * n_landmarks + [BIG, 1, 1, BIG] * n_obstacles
+    return low, high
 
 
 @kernel
 def outputs_of_copies(
     visible, gains, predicted, entropy, x, P, truth, goals, elapsed, left, centers, radii, horizon, budget, low, high
 ):
-    """``copy_outputs``: the action layout (every primitive without an observation, and with each ``visible`` landmark
-    while budget is left), the observations (n, 14 + 4K + 4O) clipped to ``[low, high]``, and the position error [m],
-    heading error [rad], largest position std [m] and true distance to the goal [m] (4, n)."""
+    """``(action_mask, action_information_gain, observations, info values)`` of n copies from their landmarks'
+    ``LandmarkDecision`` fields: the action layout (every primitive without an observation, and with each ``visible``
+    landmark while budget is left), the observations (n, 14 + 4K + 4O) clipped to ``[low, high]`` (the space's bounds
+    as float64), and the position error [m], heading error [rad], largest position std [m] and true distance to the
+    goal [m] (4, n)."""
     n_copies, n_landmarks = visible.shape
     observable = np.empty((n_copies, n_landmarks), dtype=np.bool_)
     observation = np.empty((n_copies, len(low)), dtype=np.float32)

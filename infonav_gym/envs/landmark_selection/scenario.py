@@ -14,7 +14,7 @@ from infonav_gym.config import Interval, check_choice, check_config, check_confi
 from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.landmark_decision import LandmarkDecision, checked_fields, decision_arguments, landmark_decisions
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS
-from infonav_gym.envs.observation_kernels import POSE_FEATURES, clip_into, pose_features, range_bearing_features
+from infonav_gym.envs.observation_kernels import BIG, POSE_FEATURES, clip_into, pose_features, range_bearing_features
 from infonav_gym.envs.one_robot import OneRobotDriver, OneRobotScenario, OneRobotState
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
@@ -43,7 +43,6 @@ SCENARIO_KEYS = {  # scenario builder parameter: the config key that gives it
     "size_m": "field_size_m",
 }
 CANDIDATE_FEATURES = 5
-_BIG = 1e4
 # the info keys ``landmark_outputs`` computes, in its order
 INFO_NUMBERS = ("pose_entropy", "state_entropy", "position_error_m", "heading_error_rad", "time_s")
 INFO_NUMBERS += ("true_pose", "estimated_pose")
@@ -115,20 +114,9 @@ class LandmarkSelection(OneRobotScenario):
                 f"config key 'n_candidates' of {owner} must be >= {CORRIDOR_LANDMARK_COUNT} "
                 f"(the corridor's landmarks), got {cfg['n_candidates']}"
             )
-        low, high = self._observation_bounds(cfg["n_candidates"])
-        self.bounds = low.astype(float), high.astype(float)  # the space's float32 bounds, for ``observations``
-        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.use_observation_bounds([0, 0, -1, -1, 0] * cfg["n_candidates"], [1, BIG, 1, 1, BIG] * cfg["n_candidates"])
         self.action_space = spaces.Discrete(cfg["n_candidates"])
         self.use_sensors(range_bearing_sensor_from_config(cfg, owner), odometry_sensor_from_config(cfg, owner))
-
-    @staticmethod
-    def _observation_bounds(n_candidates: int) -> tuple[np.ndarray, np.ndarray]:
-        pose_low = [-_BIG, -_BIG, -1, -1, 0, 0, 0, -1, -100, 0]
-        pose_high = [_BIG, _BIG, 1, 1, _BIG, _BIG, _BIG, 1, 100, 1]
-        candidate_low, candidate_high = [0, 0, -1, -1, 0], [1, _BIG, 1, 1, _BIG]
-        low = np.array(pose_low + candidate_low * n_candidates, dtype=np.float32)
-        high = np.array(pose_high + candidate_high * n_candidates, dtype=np.float32)
-        return low, high
 
     def allocate(self, copies: int) -> LandmarkState:
         fields = self.robot_fields(copies, self.config["n_candidates"])

@@ -199,17 +199,13 @@ class RangeRegistration(EnvScenario):
             covariances=[{} for _ in range(copies)],
             patch_information=np.zeros((copies, n_patches, 6, 6)),
             prior_root=np.zeros((copies, 6, 6)),
-            patch_alone=np.zeros((copies, n_patches)),
-            return_fraction=np.zeros((copies, n_patches)),
-            mean_range=np.zeros((copies, n_patches)),
-            odometry_error=np.zeros(copies),
+            **{name: np.zeros((copies, n_patches)) for name in ("patch_alone", "return_fraction", "mean_range")},
+            **{name: np.zeros(copies) for name in ("odometry_error", "reduction", "cost")},
             attitude=np.zeros((copies, 2)),
             picked=np.zeros((copies, n_patches), dtype=bool),
             registered=np.zeros(copies, dtype=bool),
             last_registration=np.zeros(copies, dtype=REGISTRATION),
             chosen=np.full(copies, -1),
-            reduction=np.zeros(copies),
-            cost=np.zeros(copies),
         )
 
     def initial(self, state: RegistrationState, rows: np.ndarray, rngs: list) -> RegistrationState:
@@ -235,8 +231,7 @@ class RangeRegistration(EnvScenario):
         return scan_on_terrain(self.ladar, state.terrains[copy], pose, state.sensor_rngs[copy])
 
     def _next_pairs(self, state: RegistrationState, copies: np.ndarray) -> None:
-        """Drive ``copies`` one frame on; each one's pair (previous frame, new frame), odometry estimate and
-        patches."""
+        """Drive ``copies`` one frame on; each one's pair (previous frame, new frame), odometry estimate and patches."""
         state.worlds.step(self.config["time_step_s"], copies)
         if self.drawing and copies[0] == 0:
             state.paths[0].append(state.worlds.poses[0, 0, :2])
@@ -250,16 +245,11 @@ class RangeRegistration(EnvScenario):
             state.frames[copy], state.pairs[copy], state.patch_of_return[copy] = current, pair, patch_of_return
             state.source_points[copy], state.target_points[copy] = sensor_points(current), sensor_points(previous)
             state.covariances[copy] = {"target": state.covariances[copy].get("source")}
-            error_std = geometry.error_std_m
-            informative = np.isfinite(error_std)
-            weighted = geometry.jacobians / np.where(informative, error_std, 1.0)[:, None]
+            informative = np.isfinite(geometry.error_std_m)
+            weighted = geometry.jacobians[informative] / geometry.error_std_m[informative, None]
             information = state.patch_information[copy]
             information[:] = 0.0
-            np.add.at(
-                information,
-                patch_of_return[informative],
-                weighted[informative, :, None] * weighted[informative, None, :],
-            )
+            np.add.at(information, patch_of_return[informative], weighted[:, :, None] * weighted[:, None, :])
             state.prior_root[copy] = np.linalg.cholesky(pair.motion_covariance)
             returns_per_patch = np.bincount(patch_of_return, minlength=n_patches)
             state.return_fraction[copy] = returns_per_patch / self.pixels_per_patch
@@ -299,8 +289,7 @@ class RangeRegistration(EnvScenario):
         return state
 
     def _register(self, state: RegistrationState, copy: int) -> tuple[float, float]:
-        """Run ICP on the picked patches' points of ``copy``; the pair's reward terms (error reduction, point
-        cost)."""
+        """Run ICP on the picked patches' points of ``copy``; the pair's reward terms (error reduction, point cost)."""
         cfg, pair = self.config, state.pairs[copy]
         chosen = state.picked[copy][state.patch_of_return[copy]]
         source = state.source_points[copy][chosen]

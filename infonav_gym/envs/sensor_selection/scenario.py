@@ -122,14 +122,12 @@ class SensorSelection(EnvScenario):
         return SensorState(
             elapsed=np.zeros(copies, dtype=int),
             worlds=WorldBatch(copies),
-            terrains=[None] * copies,
-            sensor_rngs=[None] * copies,
+            **{name: [None] * copies for name in ("terrains", "sensor_rngs")},
             credit_bytes=np.zeros(copies, dtype=np.int64),
             last_information=np.zeros((copies, n_options)),
             last_acquired_step=np.full((copies, n_options), -1),
             chosen=np.full(copies, -1),
-            rewards=np.zeros(copies),
-            entropies=np.zeros(copies),
+            **{name: np.zeros(copies) for name in ("rewards", "entropies")},
         )
 
     def initial(self, state: SensorState, rows: np.ndarray, rngs: list) -> SensorState:
