@@ -33,18 +33,19 @@ def autoreset_mode_of(value, allowed: tuple[AutoresetMode, ...], owner: str) -> 
     raise ValueError(f"autoreset_mode of {owner} must be one of {names} (or the AutoresetMode), got {value!r}")
 
 
-def decision_info(decision, stepped: np.ndarray, chosen: np.ndarray, reward_term: str, rewards: np.ndarray) -> dict:
-    """The info keys every single-agent env has first, of n copies: their ``decision``'s mask and gains, their one
-    ``reward_term`` with ``rewards`` (n,) (masked out where a copy did not step: ``stepped`` (n,) bool), the action
+def decision_info(decision, stepped: np.ndarray, chosen: np.ndarray, terms: tuple, values: np.ndarray) -> dict:
+    """The info keys every single-agent env has first, of n copies: their ``decision``'s mask and gains, their reward
+    ``terms`` with their ``values`` (T, n) (masked out where a copy did not step: ``stepped`` (n,) bool), the action
     each took (``chosen`` (n,), -1: none or the no-op) and whether it was invalid."""
     if np.count_nonzero(stepped) == len(stepped):  # the usual step: ``np.where``'s numbers, at less cost
-        rewards, chosen = rewards.copy(), chosen.copy()
+        values, chosen = values.copy(), chosen.copy()
     else:
-        rewards, chosen = np.where(stepped, rewards, 0.0), np.where(stepped, chosen, -1)
+        values, chosen = np.where(stepped, values, 0.0), np.where(stepped, chosen, -1)
+    masks = stepped.copy()
     return {
         "action_mask": decision.action_mask.copy(),
         "action_information_gain": decision.action_information_gain.copy(),
-        "reward_terms": {reward_term: rewards, f"_{reward_term}": stepped.copy()},
+        "reward_terms": {**dict(zip(terms, values)), **{f"_{term}": masks for term in terms}},
         "chosen_action": chosen,
         "invalid_action": stepped & (chosen < 0),
     }

@@ -49,7 +49,6 @@ CONFIG_INTERVALS = {  # the allowed values of the number keys the env itself use
     **INITIAL_POSE_STD,
     **{key: REWARD_WEIGHT for key in REWARD_WEIGHT_KEYS},
 }
-MASKS = tuple(f"_{key}" for key in REWARD_TERMS)  # the reward terms' info masks
 FIELD_KEYS = {"n_landmarks": "n_candidates", "n_obstacles": "n_obstacles", "size_m": "field_size_m"}
 
 
@@ -73,14 +72,9 @@ STEP_FIELDS = ("action_mask", "action_information_gain", "visible", "landmark_ga
 
 
 class ActiveStep(NamedTuple("ActiveStep", [(name, np.ndarray) for name in (*STEP_FIELDS, "observation", "numbers")])):
-    """Every copy's action mask and gains (n, 5 (1 + K)), its landmarks' ``LandmarkDecision`` (``sight``; its mask and
-    gains named ``visible``, ``landmark_gains``) at its EKF's prior, and what ``outputs_of_copies`` computes:
+    """Every copy's action mask and gains (n, 5 (1 + K)), its landmarks' ``LandmarkDecision`` (its mask and gains
+    named ``visible``, ``landmark_gains``) at its EKF's prior, and what ``outputs_of_copies`` computes:
     observations and info ``numbers``."""
-
-    @property
-    def sight(self) -> LandmarkDecision:
-        """The landmarks' decision at each prior."""
-        return LandmarkDecision(*self[2:9])
 
 
 class ActiveLocalization(OneRobotScenario):
@@ -209,7 +203,7 @@ class ActiveLocalization(OneRobotScenario):
         landmarks, primitives = decode_actions(chosen)
         driving = chosen >= 0  # -1: a no-op, or a copy not acting
         landmarks[~driving] = primitives[~driving] = -1
-        state.x, state.P, mutual_information = self.measured(state, decision.sight, landmarks)
+        state.x, state.P, mutual_information = self.measured(state, decision, landmarks)
         observed = landmarks >= 0
         state.observations_left -= observed
         copies, before = np.flatnonzero(acting), state.worlds.poses[:, 0, :2].copy()
@@ -242,9 +236,7 @@ class ActiveLocalization(OneRobotScenario):
         """The decision's mask and gains, the six reward terms, the action taken, the errors, the goal and outcome."""
         position_error, heading_error, position_std, distance_to_goal = decision.numbers.T
         goal_reached = state.goal_reached[rows]
-        info = decision_info(decision, stepped, state.chosen[rows], "mutual_information", state.rewards[rows])
-        terms = np.where(stepped, state.terms[:, rows], 0.0)  # a copy that did not step has chosen -1 already
-        info["reward_terms"] = {**dict(zip(REWARD_TERMS, terms)), **dict.fromkeys(MASKS, stepped.copy())}
+        info = decision_info(decision, stepped, state.chosen[rows], REWARD_TERMS, state.terms[:, rows])
         info.update(
             pose_entropy=decision.pose_entropy.copy(),
             state_entropy=decision.pose_entropy.copy(),

@@ -192,7 +192,7 @@ class LandmarkSelection(OneRobotScenario):
     def info(self, state: LandmarkState, decision: LandmarkStep, rows, stepped) -> dict:
         """The decision's mask and gains, the reward term, the action taken and the ``INFO_NUMBERS``."""
         rewards = state.mutual_information[rows]
-        info = decision_info(decision, stepped, state.chosen[rows], "mutual_information", rewards)
+        info = decision_info(decision, stepped, state.chosen[rows], ("mutual_information",), rewards[None])
         info.update(zip(INFO_NUMBERS, (*decision.numbers.T, decision.true_pose, decision.estimated_pose)))
         return in_every_copy(info, len(stepped))
 

@@ -222,7 +222,7 @@ class SensorSelection(EnvScenario):
     def info(self, state: SensorState, decision: Decision, rows, stepped) -> dict:
         """The decision's mask and gains, the reward term, the action taken, the sensor and pan it used, the frame's
         entropy (0 without one), the credit, the true pose and the time."""
-        info = decision_info(decision, stepped, state.chosen[rows], "image_information", state.rewards[rows])
+        info = decision_info(decision, stepped, state.chosen[rows], ("image_information",), state.rewards[None, rows])
         acted = info["chosen_action"]
         sensor, pan_rad = self.sensors.options(acted)
         info.update(
