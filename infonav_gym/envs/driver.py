@@ -21,7 +21,7 @@ from infonav_gym.compiled import kernel
 from infonav_gym.config import check_choice, check_config, merge_config
 from infonav_gym.envs.base import EPISODE_STEPS, INVALID_ACTION_MODES, RENDER_SIZE_PX, accepts_action
 from infonav_gym.envs.protocol import EnvScenario
-from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, set_rows
+from infonav_gym.envs.vector_infos import autoreset_mode_of, final_step_infos, in_every_copy, set_rows
 from infonav_gym.memory import check_memory
 
 MASK_KEY = 'info["action_mask"]'
@@ -224,12 +224,16 @@ class Driver(VectorEnv):
         self.state = self.env_scenario.initial(self.state, copies, [self._np_randoms[copy] for copy in copies.tolist()])
 
     def _outputs(self, rows, stepped: np.ndarray) -> tuple:
-        """The observations and infos of the copies ``rows`` at their decisions (``stepped``: which took a step)."""
+        """The observations and infos of the copies ``rows`` at their decisions (``stepped``: which took a step), each
+        info key with its ``_key`` mask (all hold)."""
         decision = self.decision
         if not isinstance(rows, slice):
             decision = type(decision)(*(field[rows] for field in decision))
         scenario, state = self.env_scenario, self.state
-        return scenario.observation(state, decision, rows), scenario.info(state, decision, rows, stepped)
+        info = scenario.info(state, decision, rows, stepped)
+        if self._owner is None:  # a view of one copy reads row 0 and needs no masks
+            info = in_every_copy(info, len(stepped))
+        return scenario.observation(state, decision, rows), info
 
     def _merge_decision(self, copies: np.ndarray, decision) -> None:
         """Keep ``decision`` (a named tuple of arrays (n, ...)) as the decision of ``copies``, the others' kept."""

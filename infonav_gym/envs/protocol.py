@@ -99,8 +99,8 @@ class EnvScenario(abc.ABC):
 
     @abc.abstractmethod
     def info(self, state: State, decision, rows, stepped: np.ndarray) -> dict:
-        """The infos of the copies ``rows`` (arrays with their ``_key`` masks); ``stepped`` (n,): which of them took
-        a step (the others were just reset)."""
+        """The infos of the copies ``rows``: arrays (n, ...), nested dicts with their ``_key`` masks (the driver adds
+        the top-level ones); ``stepped`` (n,): which of them took a step (the others were just reset)."""
 
     def frame(self, state: State, decision):
         """Copy 0's ``infonav_gym.scene.SceneFrame`` now, to render."""

@@ -186,14 +186,13 @@ class TeamScenario(EnvScenario):
 
     def team_info(self, state: TeamState, decision, rows, stepped, terms: dict, **more) -> dict:
         """The infos of the copies ``rows`` every team env gives, then ``more``: arrays (N, R, ...) (the team's
-        (N,)), each with Gymnasium's ``_key`` mask (N,). ``decision`` has ``action_mask``,
-        ``action_information_gain``, ``pose_log_det`` and ``pose_std``; the reward ``terms`` (N, R) [nats] are 0 and
-        masked out in the copies that were reset (not ``stepped``)."""
+        (N,)). ``decision`` has ``action_mask``, ``action_information_gain``, ``pose_log_det`` and ``pose_std``; the
+        reward ``terms`` (N, R) [nats] are 0 and masked out in the copies that were reset (not ``stepped``)."""
         true_poses = state.worlds.poses[rows]
         estimates = state.x[rows].reshape(true_poses.shape)
         errors = true_poses - estimates
         terms = {key: np.where(stepped[:, None], value, 0.0) for key, value in terms.items()}
-        info = {
+        return {
             "action_mask": decision.action_mask.copy(),
             "action_information_gain": decision.action_information_gain.copy(),
             "reward_terms": {**terms, **{f"_{key}": stepped.copy() for key in terms}},
@@ -209,8 +208,6 @@ class TeamScenario(EnvScenario):
             "time_s": np.asarray(state.elapsed[rows] * self.config["time_step_s"], dtype=float).copy(),
             **more,
         }
-        everyone = np.ones(len(info["action_mask"]), dtype=bool)
-        return {**info, **{f"_{key}": everyone for key in info}}
 
     def team_frame(self, state: TeamState, caption: str, **more) -> SceneFrame:
         """Copy 0 drawn: its scenario, every robot (truth, estimate, covariance, paths), its teammate observations

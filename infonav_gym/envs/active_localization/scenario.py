@@ -30,7 +30,7 @@ from infonav_gym.envs.metrics import LOCALIZATION_METRICS, SUCCESS_RATE
 from infonav_gym.envs.one_robot import OneRobotDriver, OneRobotScenario, OneRobotState
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import decision_info, in_every_copy
+from infonav_gym.envs.vector_infos import decision_info
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
 from infonav_gym.scene import SceneFrame
 from infonav_gym.sensors.odometry import odometry_sensor_from_config
@@ -253,7 +253,7 @@ class ActiveLocalization(OneRobotScenario):
             failed=state.failed[rows].copy(),
             time_s=state.elapsed[rows] * self.config["time_step_s"],
         )
-        return in_every_copy(info, len(stepped))
+        return info
 
     def frame(self, state: ActiveState, decision: ActiveStep):
         """Copy 0 drawn: its field, landmarks (visible ones marked, the observed one linked), goal and robot."""

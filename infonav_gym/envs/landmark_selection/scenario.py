@@ -18,7 +18,7 @@ from infonav_gym.envs.observation_kernels import BIG, POSE_FEATURES, clip_into, 
 from infonav_gym.envs.one_robot import OneRobotDriver, OneRobotScenario, OneRobotState
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import decision_info, in_every_copy
+from infonav_gym.envs.vector_infos import decision_info
 from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM, Prior
 from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import gaussian_entropy_kernel
@@ -194,7 +194,7 @@ class LandmarkSelection(OneRobotScenario):
         rewards = state.mutual_information[rows]
         info = decision_info(decision, stepped, state.chosen[rows], ("mutual_information",), rewards[None])
         info.update(zip(INFO_NUMBERS, (*decision.numbers.T, decision.true_pose, decision.estimated_pose)))
-        return in_every_copy(info, len(stepped))
+        return info
 
     def frame(self, state: LandmarkState, decision: LandmarkStep):
         """Copy 0 drawn: its scenario, landmarks (seen ones marked, the chosen one linked), the robot."""

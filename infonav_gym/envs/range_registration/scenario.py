@@ -15,7 +15,7 @@ from infonav_gym.envs.metrics import EpisodeMetric, mean_where, summed_reward
 from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import Decision, decision_info, in_every_copy
+from infonav_gym.envs.vector_infos import Decision, decision_info
 from infonav_gym.information import information_gain_of_information
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import (
@@ -364,7 +364,7 @@ class RangeRegistration(EnvScenario):
             attitude_rad=state.attitude[rows].copy(),
             time_s=state.elapsed[rows] * self.config["time_step_s"],
         )
-        return in_every_copy(info, len(stepped))
+        return info
 
     def frame(self, state: RegistrationState, decision: Decision):
         """Copy 0 drawn: its scene, the vehicle and its path, and its newest range image with the picked patches."""

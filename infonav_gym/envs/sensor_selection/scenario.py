@@ -24,7 +24,7 @@ from infonav_gym.envs.sensor_selection.acquisition import (
 )
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import Decision, decision_info, in_every_copy
+from infonav_gym.envs.vector_infos import Decision, decision_info
 from infonav_gym.scene import SENSOR_WEDGE_LENGTH_M, PathHistory, RobotDrawing, SceneFrame
 from infonav_gym.world.physics import TIME_STEP_S
 from infonav_gym.world.terrain_scenario import SCENE_CONFIG, check_scene_config, terrain_loop_from_config
@@ -233,7 +233,7 @@ class SensorSelection(EnvScenario):
             true_pose=state.worlds.poses[rows, 0].copy(),
             time_s=state.elapsed[rows] * self.config["time_step_s"],
         )
-        return in_every_copy(info, len(stepped))
+        return info
 
     def frame(self, state: SensorState, decision: Decision):
         """Copy 0 drawn: its scene, the vehicle and its path, the wedge and inset of the frame it acquired."""
