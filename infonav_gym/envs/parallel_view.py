@@ -102,7 +102,8 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
         if not isinstance(actions, dict) or set(actions) != set(self.agents):
             given = sorted(actions) if isinstance(actions, dict) else actions
             raise ValueError(f"actions must be a dict with one action per live agent {self.agents}, got {given!r}")
-        chosen = [self.checked_action(agent, actions[agent]) for agent in self.agents]
+        masks = self.vector.decision.action_mask[0]  # int8 (R, A), 1 = valid
+        chosen = [self.checked_action(agent, actions[agent], masks[robot]) for robot, agent in enumerate(self.agents)]
         observations, rewards, terminated, truncated, info = self.vector.step(np.array([chosen]))
         agents = self.agents
         outputs = (
@@ -116,11 +117,12 @@ class ParallelEnvView(OneCopyView, ParallelEnv):
             self.agents = []
         return outputs
 
-    def checked_action(self, agent: str, action) -> int:
-        """``agent``'s action as an int, checked against its space and, with ``invalid_action="raise"``, its mask
-        (``ValueError`` naming ``agent``, see ``accepts_action``)."""
+    def checked_action(self, agent: str, action, mask: np.ndarray | None = None) -> int:
+        """``agent``'s action as an int, checked against its space and, with ``invalid_action="raise"``, its ``mask``
+        (int8, 1 = valid; default: its info's) (``ValueError`` naming ``agent``, see ``accepts_action``)."""
         index = discrete_action_index(action, self.action_space(agent), agent)
-        mask = self.vector.action_masks()[0, self.possible_agents.index(agent)].astype(np.int8)  # 1 = valid
+        if mask is None:
+            mask = self.vector.decision.action_mask[0, self.possible_agents.index(agent)]
         accepts_action(index, mask, self.vector.config["invalid_action"], f"infos[{agent!r}]['action_mask']", agent)
         return index
 

@@ -88,13 +88,13 @@ def reward_terms(config: dict, own, map_information, observed, driving, lost) ->
     """Every robot's reward terms (..., R) (see the env) from its own pose MI ``own`` (..., R) [nats], the team's
     ``map_information`` (...) [nats], whether it ``observed`` and drove (``driving``) (..., R), and whether a robot
     of the team is ``lost`` (...)."""
-    shape = np.shape(own)
+    zeros = np.zeros(np.shape(own))  # the team's numbers (...) repeated for each robot (..., R)
     return {
         "own_pose_information": own,
-        "team_map_information": np.broadcast_to(np.asarray(map_information, dtype=float)[..., None], shape),
+        "team_map_information": zeros + np.asarray(map_information, dtype=float)[..., None],
         "sensing_cost": -config["observation_cost_nats"] * np.asarray(observed),
         "motion_cost": -config["motion_cost_per_step"] * np.asarray(driving),
-        "lost_penalty": np.broadcast_to(np.where(lost, -config["lost_penalty"], 0.0)[..., None], shape),
+        "lost_penalty": zeros + np.where(lost, -config["lost_penalty"], 0.0)[..., None],
     }
 
 
