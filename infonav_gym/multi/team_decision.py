@@ -89,7 +89,9 @@ def pair_decisions(x, P, observers, targets, noise, valid, team_reward):
     or a target lies on its observer."""
     n_copies, n_robots, n_pairs = x.shape[0], x.shape[1] // POSE_DIM, len(observers)
     copy_observers, copy_targets = np.empty((n_copies, n_pairs), np.int64), np.empty((n_copies, n_pairs), np.int64)
-    copy_observers[:], copy_targets[:] = observers, targets  # every copy has the same pairs
+    for c in range(n_copies):  # every copy has the same pairs (element by element: see ``infonav_gym.compiled``)
+        for k in range(n_pairs):
+            copy_observers[c, k], copy_targets[c, k] = observers[k], targets[k]
     predicted, H_observer, H_target, coincident = relative_pose_models(x, copy_observers, copy_targets)
     R = np.zeros((n_copies, n_pairs, POSE_DIM, POSE_DIM))
     for c in range(n_copies):
