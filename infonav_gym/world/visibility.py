@@ -49,27 +49,21 @@ class StaticGeometry:
             walls = np.array(scenario.walls, dtype=float).reshape(-1, 2, 2)
         except (TypeError, ValueError):
             walls = np.full((1, 2, 2), np.nan)
-        if not np.all(np.isfinite(walls)):
+        if not np.isfinite(walls).all():
             raise ValueError(
                 f"scenario {scenario.name!r}: walls must be pairs ((x0, y0), (x1, y1)) of finite numbers [m], "
                 f"got {scenario.walls!r}"
             )
         centers = np.array([obstacle.center for obstacle in scenario.obstacles], dtype=float).reshape(-1, 2)
         radii = np.array([obstacle.radius for obstacle in scenario.obstacles], dtype=float)
-        if not (np.all(np.isfinite(centers)) and np.all(np.isfinite(radii)) and np.all(radii >= 0.0)):
+        if not (np.isfinite(centers).all() and np.isfinite(radii).all() and (radii >= 0.0).all()):
             raise ValueError(
                 f"scenario {scenario.name!r}: obstacles need a finite centre [m] and a finite radius >= 0 [m], "
                 f"got {scenario.obstacles!r}"
             )
-        return cls(
-            wall_starts=_read_only(walls[None, :, 0]),
-            wall_ends=_read_only(walls[None, :, 1]),
-            wall_radii=_read_only(np.full((1, len(walls)), wall_thickness_m / 2)),
-            wall_valid=_read_only(np.ones((1, len(walls)), dtype=bool)),
-            disc_centers=_read_only(centers[None]),
-            disc_radii=_read_only(radii[None]),
-            disc_valid=_read_only(np.ones((1, len(radii)), dtype=bool)),
-        )
+        shapes = walls[None, :, 0], walls[None, :, 1], np.full((1, len(walls)), wall_thickness_m / 2)
+        shapes += np.ones((1, len(walls)), dtype=bool), centers[None], radii[None], np.ones((1, len(radii)), dtype=bool)
+        return cls(*(_read_only(array) for array in shapes))  # in the order of the fields
 
     @classmethod
     def stack(cls, geometries) -> StaticGeometry:
@@ -97,7 +91,7 @@ class StaticGeometry:
             )
 
         def merged(name: str, count: int) -> np.ndarray:
-            result = _pad(self, name, count)
+            result = _pad(self, name, count, fresh=True)
             result[copies] = _pad(replacement, name, count)
             return result
 
@@ -152,9 +146,12 @@ class StaticGeometry:
         return self.wall_valid.sum(axis=1) + self.disc_valid.sum(axis=1) > 1
 
 
-def _pad(geometry: StaticGeometry, name: str, count: int) -> np.ndarray:
-    """``geometry``'s field ``name`` zero-padded to ``count`` walls or discs."""
+def _pad(geometry: StaticGeometry, name: str, count: int, fresh: bool = False) -> np.ndarray:
+    """``geometry``'s field ``name`` zero-padded to ``count`` walls or discs (the field itself if it has as many,
+    unless ``fresh``: always a new array)."""
     array = getattr(geometry, name)
+    if array.shape[1] == count and not fresh:
+        return array
     padded = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
     padded[:, : array.shape[1]] = array
     return padded
