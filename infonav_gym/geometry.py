@@ -77,8 +77,7 @@ def transform_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, flo
 
 
 class ClosedLoop:
-    """Closed polylines (each (W, 2) [m]) whose edges ``starts + t directions`` (E, 2), ``t`` in [0, 1], are prepared
-    once, for the distances of many points."""
+    """Closed polylines (each (W, 2) [m]) whose edges (``starts``, ``directions``) prepared once serve many points."""
 
     def __init__(self, *loops):
         starts = [np.asarray(loop, dtype=float).reshape(-1, 2) for loop in loops]
@@ -101,8 +100,7 @@ def loop_distances(points, starts, directions):
 
 @inline
 def loop_distance(x, y, starts, directions):
-    """Shortest distance [m] from the point ``(x, y)`` to the edges ``starts + t directions`` (E, 2), ``t`` in
-    [0, 1] (0 on an edge of no length); a NaN point or edge gives NaN."""
+    """Distance [m] from ``(x, y)`` to the edges ``starts + t directions`` (E, 2), ``t`` in [0, 1]; NaN in, NaN out."""
     nearest = np.inf
     for e in range(len(starts)):
         start_x, start_y, direction_x, direction_y = starts[e, 0], starts[e, 1], directions[e, 0], directions[e, 1]

@@ -185,8 +185,7 @@ def _placed_obstacles(rows: np.ndarray, count: int) -> tuple:
 
 @kernel
 def obstacles_clear_of(np_random, count, size_m, starts, directions):
-    """Up to ``count`` round obstacles (n, 3) in the square field, each clear of the route edges ``starts + t
-    directions`` by its radius + 2 m (``discs_clear_of``)."""
+    """Up to ``count`` round obstacles (n, 3) in the square field, each its radius + 2 m clear of the route edges."""
     return discs_clear_of(np_random, count, 2.0, size_m - 2.0, (0.5, 2.0), starts, directions, 2.0, np.empty((0, 3)))
 
 
@@ -194,17 +193,14 @@ def obstacles_clear_of(np_random, count, size_m, starts, directions):
 def discs_clear_of(np_random, count, low_m, high_m, radii_m, starts, directions, route_gap_m, discs):
     """Up to ``count`` discs ``[x, y, radius]`` (n, 3) [m], centre uniform in ``[low_m, high_m)`` squared, radius in
     ``radii_m`` (``(0.0, 0.0)``: points, none drawn), each > ``route_gap_m`` beyond its radius from the route edges
-    ``starts + t directions`` and 0.5 m beyond the radius of each of ``discs`` (D, 3); one row of uniform draws per
-    attempt, ``MAX_ATTEMPTS_EACH`` attempts per disc (as ``_uniform_until_accepted``)."""
+    and 0.5 m beyond each of ``discs`` (D, 3); one row of draws per attempt, ``MAX_ATTEMPTS_EACH`` per disc."""
     placed_discs, placed = np.empty((count, 3)), 0
     for _ in range(MAX_ATTEMPTS_EACH * max(count, 1)):
         if placed == count:
             break
         x = low_m + (high_m - low_m) * np_random.random()
         y = low_m + (high_m - low_m) * np_random.random()
-        radius = 0.0
-        if radii_m[1] > 0.0:
-            radius = radii_m[0] + (radii_m[1] - radii_m[0]) * np_random.random()
+        radius = radii_m[0] + (radii_m[1] - radii_m[0]) * np_random.random() if radii_m[1] > 0.0 else 0.0
         clear = loop_distance(x, y, starts, directions) > radius + route_gap_m
         for d in range(len(discs)):
             clear &= math.hypot(x - discs[d, 0], y - discs[d, 1]) > discs[d, 2] + 0.5
@@ -216,15 +212,10 @@ def discs_clear_of(np_random, count, low_m, high_m, radii_m, starts, directions,
 
 @kernel
 def field_layout(np_random, n_landmarks, n_obstacles, size_m, n_waypoints):
-    """``field``'s route polygon (W, 2), obstacles ``[x, y, radius]`` (n, 3) and landmarks (m, 2) [m]
-    (``discs_clear_of``: fewer than asked did not fit), drawn from ``np_random`` in this order."""
-    jitter = np_random.uniform(-0.2, 0.2, n_waypoints)
-    radii = np_random.uniform(0.22, 0.36, n_waypoints)
-    route = np.empty((n_waypoints, 2))
-    for k in range(n_waypoints):
-        angle = 2.0 * math.pi * (k + jitter[k]) / n_waypoints
-        route[k, 0] = size_m / 2 + size_m * radii[k] * math.cos(angle)
-        route[k, 1] = size_m / 2 + size_m * radii[k] * math.sin(angle)
+    """``field``'s route polygon (W, 2), obstacles ``[x, y, radius]`` (n, 3), landmarks (m, 2) [m], in draw order."""
+    angles = 2.0 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
+    radii = size_m * np_random.uniform(0.22, 0.36, n_waypoints)
+    route = np.stack((size_m / 2 + radii * np.cos(angles), size_m / 2 + radii * np.sin(angles)), axis=1)
     directions = np.concatenate((route[1:], route[:1])) - route
     obstacles = obstacles_clear_of(np_random, n_obstacles, size_m, route, directions)
     landmark_count = n_landmarks if len(obstacles) == n_obstacles else 0  # none drawn after obstacles that do not fit

@@ -44,26 +44,35 @@ class StaticGeometry:
     @classmethod
     def from_scenario(cls, scenario: Scenario, wall_thickness_m: float) -> StaticGeometry:
         """The static shapes ``ContactSpace`` builds of ``scenario`` (one copy); ``ValueError`` for bad ones."""
+        return cls.from_scenarios([scenario], wall_thickness_m)
+
+    @classmethod
+    def from_scenarios(cls, scenarios: list, wall_thickness_m: float) -> StaticGeometry:
+        """``stack`` of each of ``scenarios``' ``from_scenario`` (one copy each), built at once."""
         WORLD_ARGUMENTS["wall_thickness_m"].check("StaticGeometry.from_scenario", "wall_thickness_m", wall_thickness_m)
         try:
-            walls = np.array(scenario.walls, dtype=float).reshape(-1, 2, 2)
+            walls = np.array([wall for scenario in scenarios for wall in scenario.walls], dtype=float).reshape(-1, 4)
+            wall_counts = [len(scenario.walls) for scenario in scenarios]
         except (TypeError, ValueError):
-            walls = np.full((1, 2, 2), np.nan)
-        if not np.isfinite(walls).all():
-            raise ValueError(
-                f"scenario {scenario.name!r}: walls must be pairs ((x0, y0), (x1, y1)) of finite numbers [m], "
-                f"got {scenario.walls!r}"
-            )
-        centers = np.array([obstacle.center for obstacle in scenario.obstacles], dtype=float).reshape(-1, 2)
-        radii = np.array([obstacle.radius for obstacle in scenario.obstacles], dtype=float)
-        if not (np.isfinite(centers).all() and np.isfinite(radii).all() and (radii >= 0.0).all()):
-            raise ValueError(
-                f"scenario {scenario.name!r}: obstacles need a finite centre [m] and a finite radius >= 0 [m], "
-                f"got {scenario.obstacles!r}"
-            )
-        shapes = walls[None, :, 0], walls[None, :, 1], np.full((1, len(walls)), wall_thickness_m / 2)
-        shapes += np.ones((1, len(walls)), dtype=bool), centers[None], radii[None], np.ones((1, len(radii)), dtype=bool)
-        return cls(*(_read_only(array) for array in shapes))  # in the order of the fields
+            walls, wall_counts = np.full((1, 4), np.nan), []
+        discs = np.array([(*o.center, o.radius) for s in scenarios for o in s.obstacles], dtype=float).reshape(-1, 3)
+        walls_fine = np.isfinite(walls).all() and len(walls) == sum(wall_counts)
+        if not (walls_fine and np.isfinite(discs).all() and (discs[:, 2] >= 0.0).all()):
+            if len(scenarios) > 1:
+                for scenario in scenarios:  # raises naming the first bad one
+                    cls.from_scenario(scenario, wall_thickness_m)
+            what, got = ("walls must be pairs ((x0, y0), (x1, y1)) of finite numbers [m]", scenarios[0].walls)
+            if walls_fine:
+                what, got = ("obstacles need a finite centre [m] and a finite radius >= 0 [m]", scenarios[0].obstacles)
+            raise ValueError(f"scenario {scenarios[0].name!r}: {what}, got {got!r}")
+        (points, wall_valid), disc_counts = _padded_rows(walls, wall_counts), [len(s.obstacles) for s in scenarios]
+        (discs, disc_valid), radii = _padded_rows(discs, disc_counts), np.where(wall_valid, wall_thickness_m / 2, 0.0)
+        shapes = points[..., :2], points[..., 2:], radii, wall_valid, discs[..., :2], discs[..., 2], disc_valid
+        return cls(*(_read_only(np.ascontiguousarray(array)) for array in shapes))  # in the order of the fields
+
+    def single(self, copy: int) -> StaticGeometry:
+        """Copy ``copy`` alone (views, padded as all copies)."""
+        return StaticGeometry(*(getattr(self, name)[copy : copy + 1] for name in self.__dataclass_fields__))
 
     @classmethod
     def stack(cls, geometries) -> StaticGeometry:
@@ -91,7 +100,7 @@ class StaticGeometry:
             )
 
         def merged(name: str, count: int) -> np.ndarray:
-            result = _pad(self, name, count, fresh=True)
+            result = _pad(self, name, count)
             result[copies] = _pad(replacement, name, count)
             return result
 
@@ -146,12 +155,17 @@ class StaticGeometry:
         return self.wall_valid.sum(axis=1) + self.disc_valid.sum(axis=1) > 1
 
 
-def _pad(geometry: StaticGeometry, name: str, count: int, fresh: bool = False) -> np.ndarray:
-    """``geometry``'s field ``name`` zero-padded to ``count`` walls or discs (the field itself if it has as many,
-    unless ``fresh``: always a new array)."""
+def _padded_rows(flat: np.ndarray, counts: list) -> tuple[np.ndarray, np.ndarray]:
+    """Copy ``i``'s ``counts[i]`` rows of ``flat`` (M, ...), zero-padded to the most (N, C, ...), and which are real."""
+    valid = np.arange(max(counts, default=0)) < np.array(counts, dtype=int)[:, None]
+    padded = np.zeros((*valid.shape, *flat.shape[1:]), dtype=flat.dtype)
+    padded[valid] = flat
+    return padded, valid
+
+
+def _pad(geometry: StaticGeometry, name: str, count: int) -> np.ndarray:
+    """``geometry``'s field ``name`` zero-padded to ``count`` walls or discs."""
     array = getattr(geometry, name)
-    if array.shape[1] == count and not fresh:
-        return array
     padded = np.zeros((len(array), count, *array.shape[2:]), dtype=array.dtype)
     padded[:, : array.shape[1]] = array
     return padded
