@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from infonav_gym.compiled import contiguous, inner_kernel, kernel
+from infonav_gym.compiled import contiguous, inline, inner_kernel, kernel
 
 
 def wrap_angle(angle):
@@ -77,37 +77,42 @@ def transform_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, flo
 
 
 class ClosedLoop:
-    """Closed polylines (each (W, 2) [m]) whose edges are prepared once, for the distances of many points."""
+    """Closed polylines (each (W, 2) [m]) whose edges (``starts``, ``directions``) prepared once serve many points."""
 
     def __init__(self, *loops):
         starts = [np.asarray(loop, dtype=float).reshape(-1, 2) for loop in loops]
-        self._starts = np.concatenate(starts)
-        self._directions = np.concatenate([np.concatenate((start[1:], start[:1])) - start for start in starts])
+        self.starts = np.concatenate(starts)
+        self.directions = np.concatenate([np.concatenate((start[1:], start[:1])) - start for start in starts])
 
     def distances(self, points) -> np.ndarray:
         """Shortest distance [m] from each of ``points`` (M, 2) to the nearest loop (M,)."""
-        return loop_distances(contiguous(np.asarray(points, dtype=float)), self._starts, self._directions)
+        return loop_distances(contiguous(np.asarray(points, dtype=float)), self.starts, self.directions)
 
 
 @kernel
 def loop_distances(points, starts, directions):
-    """``ClosedLoop.distances`` to the edges ``starts + t directions`` (E, 2), ``t`` in [0, 1] (0 on an edge of no
-    length); a NaN point or edge gives NaN."""
+    """``ClosedLoop.distances`` to the edges ``starts + t directions`` (E, 2): ``loop_distance`` of each point."""
     distances = np.empty(len(points))
     for p in range(len(points)):
-        nearest = np.inf
-        for e in range(len(starts)):
-            start_x, start_y, direction_x, direction_y = starts[e, 0], starts[e, 1], directions[e, 0], directions[e, 1]
-            length_sq = direction_x * direction_x + direction_y * direction_y
-            t = 0.0
-            if not length_sq <= 0.0:
-                along = (points[p, 0] - start_x) * direction_x + (points[p, 1] - start_y) * direction_y
-                t = along / length_sq  # clipped to [0, 1] below; NaN stays NaN
-                t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
-            gap_x = start_x + t * direction_x - points[p, 0]
-            gap_y = start_y + t * direction_y - points[p, 1]
-            squared = gap_x * gap_x + gap_y * gap_y
-            if squared < nearest or math.isnan(squared):
-                nearest = squared
-        distances[p] = math.sqrt(nearest)
+        distances[p] = loop_distance(points[p, 0], points[p, 1], starts, directions)
     return distances
+
+
+@inline
+def loop_distance(x, y, starts, directions):
+    """Distance [m] from ``(x, y)`` to the edges ``starts + t directions`` (E, 2), ``t`` in [0, 1]; NaN in, NaN out."""
+    nearest = np.inf
+    for e in range(len(starts)):
+        start_x, start_y, direction_x, direction_y = starts[e, 0], starts[e, 1], directions[e, 0], directions[e, 1]
+        length_sq = direction_x * direction_x + direction_y * direction_y
+        t = 0.0
+        if not length_sq <= 0.0:
+            along = (x - start_x) * direction_x + (y - start_y) * direction_y
+            t = along / length_sq  # clipped to [0, 1] below; NaN stays NaN
+            t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+        gap_x = start_x + t * direction_x - x
+        gap_y = start_y + t * direction_y - y
+        squared = gap_x * gap_x + gap_y * gap_y
+        if squared < nearest or math.isnan(squared):
+            nearest = squared
+    return math.sqrt(nearest)

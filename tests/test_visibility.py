@@ -293,6 +293,24 @@ def test_with_copies_equals_stacking_the_replaced_list_up_to_padding():
         replaced.with_copies([0, 1], corridor)
 
 
+def test_from_scenarios_equals_stacking_each_scenarios_geometry_and_names_a_bad_one():
+    rng = np.random.default_rng(5)
+    scenarios = [build_scenario("field", rng, n_obstacles=n) for n in (2, 0, 5)] + [build_scenario("corridor", rng)]
+    built = StaticGeometry.from_scenarios(scenarios, 0.3)
+    expected = StaticGeometry.stack([StaticGeometry.from_scenario(scenario, 0.3) for scenario in scenarios])
+    for name in built.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(built, name), getattr(expected, name), err_msg=name)
+        assert getattr(built, name).flags.c_contiguous and not getattr(built, name).flags.writeable, name
+        assert getattr(built.single(2), name).shape == (1, *getattr(built, name).shape[1:]), name
+        np.testing.assert_array_equal(getattr(built.single(2), name)[0], getattr(built, name)[2], err_msg=name)
+    bad = replace(scenarios[1], name="bad", obstacles=(CircleObstacle((1.0, 2.0), -1.0),))
+    with pytest.raises(ValueError, match="scenario 'bad': obstacles need a finite centre"):
+        StaticGeometry.from_scenarios([scenarios[0], bad, scenarios[2]], 0.3)
+    bad = replace(scenarios[1], name="open", walls=(((0.0, 0.0), (math.nan, 1.0)),))
+    with pytest.raises(ValueError, match="scenario 'open': walls must be pairs"):
+        StaticGeometry.from_scenarios([scenarios[0], bad], 0.3)
+
+
 CORRIDOR = build_scenario("corridor", np.random.default_rng(0))
 GEOMETRY = StaticGeometry.from_scenario(CORRIDOR, 0.3)
 ORIGIN, TARGETS = np.zeros((1, 2)), np.ones((1, 1, 2))

@@ -11,6 +11,8 @@ from infonav_gym.multi.team_sensing import gps_available
 from infonav_gym.world import SCENARIOS, CircleObstacle, Scenario, World
 from infonav_gym.world.scenarios import (
     CORRIDOR_LANDMARK_COUNT,
+    DEFAULT_WAYPOINTS,
+    MAX_ATTEMPTS_EACH,
     MAX_CANOPY_COVER,
     TEAM_ROUTE_GAP_M,
     Route,
@@ -146,9 +148,44 @@ def test_a_robot_driving_the_field_never_collides():
         np.testing.assert_allclose(unicycle_motion(before, control, 0.5), world.pose, atol=1e-9)
 
 
-def test_an_overcrowded_field_is_a_clear_error():
-    with pytest.raises(ValueError, match="too crowded"):
-        field(np.random.default_rng(0), n_obstacles=3, size_m=10.0)
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize(
+    "arguments",
+    [{}, {"n_landmarks": 30, "n_obstacles": 20, "size_m": 50.0, "n_waypoints": 9}, {"n_landmarks": 0, "size_m": 20}],
+)
+def test_field_draws_one_row_per_attempt_and_keeps_exactly_the_clear_ones(seed, arguments):
+    """Replayed from the seed: the route's 2 W numbers, then one row of uniform numbers per attempt, obstacle rows
+    (x, y, radius) kept when clear of the route by radius + 2 m, then landmark rows (x, y) kept when > 1 m from the
+    route and 0.5 m outside every obstacle; the generator ends right after the last kept row."""
+    n_landmarks, n_obstacles = arguments.get("n_landmarks", 8), arguments.get("n_obstacles", 6)
+    size_m, n_waypoints = arguments.get("size_m", 40.0), arguments.get("n_waypoints", DEFAULT_WAYPOINTS)
+    np_random, replay = np.random.default_rng(seed), np.random.default_rng(seed)
+    layout = field(np_random, **arguments)
+    (route,) = team_field_route_polygons(layout)
+    replay.random(2 * n_waypoints)
+    low, high, obstacles = np.array([2.0, 2.0, 0.5]), np.array([size_m - 2.0, size_m - 2.0, 2.0]), []
+    while len(obstacles) < n_obstacles:
+        x, y, radius = (low + (high - low) * replay.random(3)).tolist()
+        if distance_to_loop((x, y), route) > radius + 2.0:
+            obstacles.append(CircleObstacle((x, y), radius))
+    landmarks = []
+    while len(landmarks) < n_landmarks:
+        point = 1.0 + (size_m - 1.0 - 1.0) * replay.random(2)
+        outside = all(math.hypot(*(point - obstacle.center)) > obstacle.radius + 0.5 for obstacle in obstacles)
+        if outside and distance_to_loop(point, route) > 1.0:
+            landmarks.append(point)
+    assert layout.obstacles == tuple(obstacles) and len(obstacles) == n_obstacles
+    np.testing.assert_array_equal(layout.landmarks, np.array(landmarks).reshape(-1, 2))
+    assert layout.landmarks.shape == (n_landmarks, 2) and layout.landmarks.flags.c_contiguous
+    assert np_random.bit_generator.state == replay.bit_generator.state
+
+
+def test_an_overcrowded_field_is_a_clear_error_after_every_attempt():
+    np_random, replay = np.random.default_rng(0), np.random.default_rng(0)
+    with pytest.raises(ValueError, match="could not place 3 obstacles clear of the routes .* too crowded"):
+        field(np_random, n_obstacles=3, size_m=10.0)
+    replay.random(2 * DEFAULT_WAYPOINTS + 3 * 3 * MAX_ATTEMPTS_EACH)  # the route, then every obstacle attempt
+    assert np_random.bit_generator.state == replay.bit_generator.state
 
 
 def test_corridor_is_the_papers_figure_1():

@@ -10,8 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from infonav_gym.compiled import kernel
 from infonav_gym.config import Interval, ParameterError, check_arguments
-from infonav_gym.geometry import ClosedLoop
+from infonav_gym.geometry import ClosedLoop, loop_distance
 
 CORRIDOR_LANDMARK_COUNT = 4
 MAX_SPEED_MPS = 50.0  # fastest cruise speed of a route [m/s]
@@ -23,6 +24,7 @@ MAX_CANOPIES = 20  # most GPS-denied zones of a team field
 MAX_ROBOTS = 32  # largest team
 MAX_WAYPOINTS = 100  # most vertices of a random closed route
 DEFAULT_WAYPOINTS = 6  # vertices of a random closed route unless a builder is told otherwise
+MAX_ATTEMPTS_EACH = 1000  # draws per wanted sample of a random layout before it counts as too crowded
 SPEED_MPS = Interval(0.0, MAX_SPEED_MPS, open_low=True, unit="m/s")  # a route's cruise speed
 WAYPOINT_COUNT = Interval(3, MAX_WAYPOINTS, integer=True)  # vertices of a random closed route
 CORRIDOR_ARGUMENTS = {"speed_mps": SPEED_MPS}  # the allowed arguments of each builder
@@ -61,7 +63,7 @@ class Route:
         waypoints = np.array(self.waypoints, dtype=float)
         if waypoints.size == 0:
             waypoints = np.zeros((0, 2))
-        if waypoints.ndim != 2 or waypoints.shape[1] != 2 or not np.all(np.isfinite(waypoints)):
+        if waypoints.ndim != 2 or waypoints.shape[1] != 2 or not np.isfinite(waypoints).all():
             raise ValueError(f"route waypoints must be a finite (W, 2) array [m], got shape {waypoints.shape}")
         SPEED_MPS.check("route", "speed_mps", self.speed_mps)
         waypoints.flags.writeable = False
@@ -108,23 +110,28 @@ def corridor(np_random: np.random.Generator, speed_mps: float = 0.5) -> Scenario
     )
 
 
-def _rejection_sample(count: int, draw, accept, what: str, max_attempts_each: int = 1000) -> list:
+def _placed(samples, count: int, what: str):
+    """The ``samples`` of a random layout, or ``ValueError`` when fewer than ``count`` were placed (too crowded)."""
+    if len(samples) < count:
+        raise ValueError(f"could not place {count} {what} after many attempts: the field is too crowded")
+    return samples
+
+
+def _rejection_sample(count: int, draw, accept, what: str) -> list:
     """Draw until ``count`` samples pass ``accept``; a clear error if the layout is too crowded."""
     accepted = []
-    for _ in range(max_attempts_each * max(count, 1)):
+    for _ in range(MAX_ATTEMPTS_EACH * max(count, 1)):
         if len(accepted) == count:
             break
         if accept(sample := draw()):
             accepted.append(sample)
-    if len(accepted) < count:
-        raise ValueError(f"could not place {count} {what} after many attempts: the field is too crowded")
-    return accepted
+    return _placed(accepted, count, what)
 
 
-def _uniform_until_accepted(np_random, count: int, width: int, accept, what: str, max_attempts_each: int = 1000):
+def _uniform_until_accepted(np_random, count: int, width: int, accept, what: str):
     """The first ``count`` rows of ``width`` uniform [0, 1) numbers that pass the batched test ``accept``: drawn
     ahead in batches, the generator rewound to end right after the last attempt (as one draw per attempt)."""
-    accepted, attempts_left, batch = [], max_attempts_each * max(count, 1), max(4 * count, 16)
+    accepted, attempts_left, batch = [], MAX_ATTEMPTS_EACH * max(count, 1), max(4 * count, 16)
     while len(accepted) < count and attempts_left > 0:
         state, size = np_random.bit_generator.state, min(batch, attempts_left)
         rows = np_random.random((size, width))
@@ -134,9 +141,7 @@ def _uniform_until_accepted(np_random, count: int, width: int, accept, what: str
             np_random.random((passed[-1] + 1, width))  # consume exactly the attempts made
         accepted.extend(rows[passed])
         attempts_left -= size
-    if len(accepted) < count:
-        raise ValueError(f"could not place {count} {what} after many attempts: the field is too crowded")
-    return np.array(accepted).reshape(-1, width)
+    return _placed(np.array(accepted).reshape(-1, width), count, what)
 
 
 def _uniform(u: np.ndarray, low, high) -> np.ndarray:
@@ -162,8 +167,8 @@ def _points_along(polygon: np.ndarray, per_edge: int = 8) -> np.ndarray:
 
 def _closed_route(polygon: np.ndarray, speed_mps: float) -> Route:
     """A looping route around ``polygon``, starting at its first vertex and heading for the second."""
-    start_pose = (float(polygon[0, 0]), float(polygon[0, 1]), math.atan2(*(polygon[1] - polygon[0])[::-1]))
-    return Route(start_pose, _next_vertices(polygon), loop=True, speed_mps=speed_mps)
+    (x0, y0), (x1, y1) = polygon[:2].tolist()
+    return Route((x0, y0, math.atan2(y1 - y0, x1 - x0)), _next_vertices(polygon), loop=True, speed_mps=speed_mps)
 
 
 def _box_walls(x_min: float, y_min: float, x_max: float, y_max: float) -> tuple:
@@ -172,18 +177,50 @@ def _box_walls(x_min: float, y_min: float, x_max: float, y_max: float) -> tuple:
     return tuple((corners[i], corners[(i + 1) % 4]) for i in range(4))
 
 
-def _obstacles_clear_of(polygons: list, count: int, size_m: float, np_random: np.random.Generator) -> list:
-    """``count`` round obstacles in the square field, each clear of every closed route by its radius + 2 m."""
-    routes = ClosedLoop(*polygons)
+def _placed_obstacles(rows: np.ndarray, count: int) -> tuple:
+    """The obstacle of each row ``[x, y, radius]`` [m], or ``ValueError`` when fewer than ``count`` were placed."""
+    rows = _placed(rows, count, "obstacles clear of the routes")
+    return tuple(CircleObstacle((x, y), radius) for x, y, radius in rows.tolist())
 
-    low, high = np.array([2.0, 2.0, 0.5]), np.array([size_m - 2.0, size_m - 2.0, 2.0])
 
-    def clear(u: np.ndarray) -> np.ndarray:
-        rows = _uniform(u, low, high)
-        return routes.distances(rows[:, :2]) > rows[:, 2] + 2.0
+@kernel
+def obstacles_clear_of(np_random, count, size_m, starts, directions):
+    """Up to ``count`` round obstacles (n, 3) in the square field, each its radius + 2 m clear of the route edges."""
+    return discs_clear_of(np_random, count, 2.0, size_m - 2.0, (0.5, 2.0), starts, directions, 2.0, np.empty((0, 3)))
 
-    rows = _uniform(_uniform_until_accepted(np_random, count, 3, clear, "obstacles clear of the routes"), low, high)
-    return [CircleObstacle((x, y), radius) for x, y, radius in rows.tolist()]
+
+@kernel
+def discs_clear_of(np_random, count, low_m, high_m, radii_m, starts, directions, route_gap_m, discs):
+    """Up to ``count`` discs ``[x, y, radius]`` (n, 3) [m], centre uniform in ``[low_m, high_m)`` squared, radius in
+    ``radii_m`` (``(0.0, 0.0)``: points, none drawn), each > ``route_gap_m`` beyond its radius from the route edges
+    and 0.5 m beyond each of ``discs`` (D, 3); one row of draws per attempt, ``MAX_ATTEMPTS_EACH`` per disc."""
+    placed_discs, placed = np.empty((count, 3)), 0
+    for _ in range(MAX_ATTEMPTS_EACH * max(count, 1)):
+        if placed == count:
+            break
+        x = low_m + (high_m - low_m) * np_random.random()
+        y = low_m + (high_m - low_m) * np_random.random()
+        radius = radii_m[0] + (radii_m[1] - radii_m[0]) * np_random.random() if radii_m[1] > 0.0 else 0.0
+        clear = loop_distance(x, y, starts, directions) > radius + route_gap_m
+        for d in range(len(discs)):
+            clear &= math.hypot(x - discs[d, 0], y - discs[d, 1]) > discs[d, 2] + 0.5
+        if clear:
+            placed_discs[placed, 0], placed_discs[placed, 1], placed_discs[placed, 2] = x, y, radius
+            placed += 1
+    return placed_discs[:placed]
+
+
+@kernel
+def field_layout(np_random, n_landmarks, n_obstacles, size_m, n_waypoints):
+    """``field``'s route polygon (W, 2), obstacles ``[x, y, radius]`` (n, 3), landmarks (m, 2) [m], in draw order."""
+    angles = 2.0 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
+    radii = size_m * np_random.uniform(0.22, 0.36, n_waypoints)
+    route = np.stack((size_m / 2 + radii * np.cos(angles), size_m / 2 + radii * np.sin(angles)), axis=1)
+    directions = np.concatenate((route[1:], route[:1])) - route
+    obstacles = obstacles_clear_of(np_random, n_obstacles, size_m, route, directions)
+    landmark_count = n_landmarks if len(obstacles) == n_obstacles else 0  # none drawn after obstacles that do not fit
+    points = discs_clear_of(np_random, landmark_count, 1.0, size_m - 1.0, (0.0, 0.0), route, directions, 1.0, obstacles)
+    return route, obstacles, np.ascontiguousarray(points[:, :2])
 
 
 def field(
@@ -194,31 +231,18 @@ def field(
     speed_mps: float = 1.0,
     n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> Scenario:
-    """An open square field: random landmarks, and round obstacles clear of a random closed route. ``ValueError`` for
-    an argument outside ``FIELD_ARGUMENTS`` (``ParameterError``) or obstacles that do not fit."""
+    """An open square field: random landmarks, and round obstacles clear of a random closed route (``field_layout``).
+    ``ValueError`` for an argument outside ``FIELD_ARGUMENTS`` (``ParameterError``) or obstacles that do not fit."""
     arguments = {"n_landmarks": n_landmarks, "n_obstacles": n_obstacles, "size_m": size_m, "speed_mps": speed_mps}
     check_arguments("field", FIELD_ARGUMENTS, **arguments, n_waypoints=n_waypoints)
-    center = np.array([size_m / 2, size_m / 2])
-    angles = 2 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
-    route = _polygon(center, angles, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
-    obstacles = _obstacles_clear_of([route], n_obstacles, size_m, np_random)
-    route_loop = ClosedLoop(route)
-    centers = np.array([o.center for o in obstacles], dtype=float).reshape(-1, 2)
-    clearances = np.array([o.radius + 0.5 for o in obstacles], dtype=float)
-
-    def outside_obstacles(u: np.ndarray) -> np.ndarray:
-        points = _uniform(u, 1.0, size_m - 1.0)
-        gaps = np.hypot(points[:, None, 0] - centers[:, 0], points[:, None, 1] - centers[:, 1])
-        return (route_loop.distances(points) > 1.0) & np.all(gaps > clearances, axis=1)
-
-    u = _uniform_until_accepted(np_random, n_landmarks, 2, outside_obstacles, "landmarks outside obstacles")
+    route, obstacles, landmarks = field_layout(np_random, n_landmarks, n_obstacles, float(size_m), n_waypoints)
     return Scenario(
         name="field",
         bounds=(0.0, 0.0, size_m, size_m),
         routes=(_closed_route(route, speed_mps),),
         walls=_box_walls(0.0, 0.0, size_m, size_m),
-        obstacles=tuple(obstacles),
-        landmarks=_uniform(u, 1.0, size_m - 1.0),  # (L, 2)
+        obstacles=_placed_obstacles(obstacles, n_obstacles),
+        landmarks=_placed(landmarks, n_landmarks, "landmarks outside obstacles"),  # (L, 2), after the obstacles
     )
 
 
@@ -317,12 +341,14 @@ def team_field(
         jitter = np_random.uniform(-_TEAM_ANGLE_JITTER, _TEAM_ANGLE_JITTER, n_waypoints)
         angles = first_angle + 2 * math.pi * (robot / n_robots + (np.arange(n_waypoints) + jitter) / n_waypoints)
         polygons.append(_polygon(center, angles, np_random.uniform(low_m, high_m, n_waypoints)))
+    routes = ClosedLoop(*polygons)
+    obstacles = obstacles_clear_of(np_random, n_obstacles, float(size_m), routes.starts, routes.directions)
     return Scenario(
         name="team_field",
         bounds=(0.0, 0.0, size_m, size_m),
         routes=tuple(_closed_route(polygon, speed_mps) for polygon in polygons),
         walls=_box_walls(0.0, 0.0, size_m, size_m),
-        obstacles=tuple(_obstacles_clear_of(polygons, n_obstacles, size_m, np_random)),
+        obstacles=_placed_obstacles(obstacles, n_obstacles),
         gps_denied_zones=tuple(_canopies_on(polygons, n_canopies, np_random)),  # drawn after the obstacles
     )
 

@@ -44,32 +44,35 @@ class StaticGeometry:
     @classmethod
     def from_scenario(cls, scenario: Scenario, wall_thickness_m: float) -> StaticGeometry:
         """The static shapes ``ContactSpace`` builds of ``scenario`` (one copy); ``ValueError`` for bad ones."""
+        return cls.from_scenarios([scenario], wall_thickness_m)
+
+    @classmethod
+    def from_scenarios(cls, scenarios: list, wall_thickness_m: float) -> StaticGeometry:
+        """``stack`` of each of ``scenarios``' ``from_scenario`` (one copy each), built at once."""
         WORLD_ARGUMENTS["wall_thickness_m"].check("StaticGeometry.from_scenario", "wall_thickness_m", wall_thickness_m)
         try:
-            walls = np.array(scenario.walls, dtype=float).reshape(-1, 2, 2)
+            walls = np.array([wall for scenario in scenarios for wall in scenario.walls], dtype=float).reshape(-1, 4)
+            wall_counts = [len(scenario.walls) for scenario in scenarios]
         except (TypeError, ValueError):
-            walls = np.full((1, 2, 2), np.nan)
-        if not np.all(np.isfinite(walls)):
-            raise ValueError(
-                f"scenario {scenario.name!r}: walls must be pairs ((x0, y0), (x1, y1)) of finite numbers [m], "
-                f"got {scenario.walls!r}"
-            )
-        centers = np.array([obstacle.center for obstacle in scenario.obstacles], dtype=float).reshape(-1, 2)
-        radii = np.array([obstacle.radius for obstacle in scenario.obstacles], dtype=float)
-        if not (np.all(np.isfinite(centers)) and np.all(np.isfinite(radii)) and np.all(radii >= 0.0)):
-            raise ValueError(
-                f"scenario {scenario.name!r}: obstacles need a finite centre [m] and a finite radius >= 0 [m], "
-                f"got {scenario.obstacles!r}"
-            )
-        return cls(
-            wall_starts=_read_only(walls[None, :, 0]),
-            wall_ends=_read_only(walls[None, :, 1]),
-            wall_radii=_read_only(np.full((1, len(walls)), wall_thickness_m / 2)),
-            wall_valid=_read_only(np.ones((1, len(walls)), dtype=bool)),
-            disc_centers=_read_only(centers[None]),
-            disc_radii=_read_only(radii[None]),
-            disc_valid=_read_only(np.ones((1, len(radii)), dtype=bool)),
-        )
+            walls, wall_counts = np.full((1, 4), np.nan), []
+        discs = np.array([(*o.center, o.radius) for s in scenarios for o in s.obstacles], dtype=float).reshape(-1, 3)
+        walls_fine = np.isfinite(walls).all() and len(walls) == sum(wall_counts)
+        if not (walls_fine and np.isfinite(discs).all() and (discs[:, 2] >= 0.0).all()):
+            if len(scenarios) > 1:
+                for scenario in scenarios:  # raises naming the first bad one
+                    cls.from_scenario(scenario, wall_thickness_m)
+            what, got = ("walls must be pairs ((x0, y0), (x1, y1)) of finite numbers [m]", scenarios[0].walls)
+            if walls_fine:
+                what, got = ("obstacles need a finite centre [m] and a finite radius >= 0 [m]", scenarios[0].obstacles)
+            raise ValueError(f"scenario {scenarios[0].name!r}: {what}, got {got!r}")
+        (points, wall_valid), disc_counts = _padded_rows(walls, wall_counts), [len(s.obstacles) for s in scenarios]
+        (discs, disc_valid), radii = _padded_rows(discs, disc_counts), np.where(wall_valid, wall_thickness_m / 2, 0.0)
+        shapes = points[..., :2], points[..., 2:], radii, wall_valid, discs[..., :2], discs[..., 2], disc_valid
+        return cls(*(_read_only(np.ascontiguousarray(array)) for array in shapes))  # in the order of the fields
+
+    def single(self, copy: int) -> StaticGeometry:
+        """Copy ``copy`` alone (views, padded as all copies)."""
+        return StaticGeometry(*(getattr(self, name)[copy : copy + 1] for name in self.__dataclass_fields__))
 
     @classmethod
     def stack(cls, geometries) -> StaticGeometry:
@@ -150,6 +153,14 @@ class StaticGeometry:
     def culled(self) -> np.ndarray:
         """Whether Chipmunk culls each copy's shapes by bounding box: it has more than one static shape (N,) bool."""
         return self.wall_valid.sum(axis=1) + self.disc_valid.sum(axis=1) > 1
+
+
+def _padded_rows(flat: np.ndarray, counts: list) -> tuple[np.ndarray, np.ndarray]:
+    """Copy ``i``'s ``counts[i]`` rows of ``flat`` (M, ...), zero-padded to the most (N, C, ...), and which are real."""
+    valid = np.arange(max(counts, default=0)) < np.array(counts, dtype=int)[:, None]
+    padded = np.zeros((*valid.shape, *flat.shape[1:]), dtype=flat.dtype)
+    padded[valid] = flat
+    return padded, valid
 
 
 def _pad(geometry: StaticGeometry, name: str, count: int) -> np.ndarray:

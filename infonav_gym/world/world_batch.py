@@ -86,11 +86,7 @@ class WorldBatch:
         self._scenarios[copy], self._spaces[copy], self._has_space[copy] = scenario, None, False
         self._grown_stale[copy], self._in_contact[copy] = True, False
         self.poses[copy] = start_poses(scenario)
-        longest = max(len(route.waypoints) for route in routes)
-        if longest > self._waypoints.shape[2]:
-            grown = np.zeros((*self._waypoints.shape[:2], longest, 2))
-            grown[:, :, : self._waypoints.shape[2]] = self._waypoints
-            self._waypoints = grown
+        self._waypoints = _widened(self._waypoints, max(len(route.waypoints) for route in routes), (0.0, 0.0))
         for robot, route in enumerate(routes):
             self._waypoints[copy, robot, : len(route.waypoints)] = route.waypoints
         self._n_waypoints[copy] = [len(route.waypoints) for route in routes]
@@ -98,10 +94,7 @@ class WorldBatch:
         self._route_speeds[copy] = [route.speed_mps for route in routes]
         self._loops[copy] = [route.loop for route in routes]
         boxes = static_boxes(scenario, self.wall_thickness_m)
-        if len(boxes) > self._boxes.shape[1]:
-            grown = np.full((self.n_copies, len(boxes), 4), _EMPTY_BOX)
-            grown[:, : self._boxes.shape[1]] = self._boxes
-            self._boxes = grown
+        self._boxes = _widened(self._boxes, len(boxes), _EMPTY_BOX)
         self._boxes[copy] = _EMPTY_BOX
         self._boxes[copy, : len(boxes)] = boxes
 
@@ -178,11 +171,19 @@ class WorldBatch:
             return self.static_geometry.grown(self.robot_radius_m + CONTACT_GAP_M)  # kept by the geometry
         stale = copies[self._grown_stale[copies]]
         if stale.size:
-            geometries = [StaticGeometry.from_scenario(self._scenarios[copy], self.wall_thickness_m) for copy in stale]
-            fresh = StaticGeometry.stack(geometries).grown(self.robot_radius_m + CONTACT_GAP_M)
+            fresh = StaticGeometry.from_scenarios([self._scenarios[copy] for copy in stale], self.wall_thickness_m)
+            fresh = fresh.grown(self.robot_radius_m + CONTACT_GAP_M)
             self._grown = (fresh.tiled(self.n_copies) if self._grown is None else self._grown).with_copies(stale, fresh)
             self._grown_stale[stale] = False
         return self._grown
+
+
+def _widened(array: np.ndarray, size: int, fill: tuple) -> np.ndarray:
+    """``array`` (..., C, K) filled up with rows ``fill`` (K,) to ``size`` rows along its next to last axis."""
+    if size <= array.shape[-2]:
+        return array
+    rows = np.broadcast_to(fill, (*array.shape[:-2], size - array.shape[-2], array.shape[-1]))
+    return np.concatenate([array, rows], axis=-2)
 
 
 def start_poses(scenario: Scenario) -> list[tuple[float, float, float]]:

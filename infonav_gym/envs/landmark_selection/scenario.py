@@ -125,7 +125,7 @@ class LandmarkSelection(OneRobotScenario):
     def initial(self, state: LandmarkState, rows: np.ndarray, rngs: list) -> LandmarkState:
         """Draw each copy's scenario and prior (``start_episode``); with ``mapping`` every copy needs the same
         number of landmarks."""
-        owner, n_copies = self.owner, len(state.elapsed)
+        owner, n_copies, scenarios = self.owner, len(state.elapsed), []
         for copy, rng in zip(rows.tolist(), rngs):
             scenario, prior, odometry_rng, measurement_rng = start_episode(self.config, rng, owner)
             x, P = prior.state()
@@ -141,12 +141,14 @@ class LandmarkSelection(OneRobotScenario):
             state.odometry_noise.restart(copy, odometry_rng)
             state.measurement_noise.restart(copy, measurement_rng)
             state.x[copy], state.P[copy] = x, P
-            n_landmarks = len(scenario.landmarks)
             state.landmarks[copy] = 0.0
-            state.landmarks[copy, :n_landmarks] = scenario.landmarks
-            state.exists[copy] = np.arange(self.config["n_candidates"]) < n_landmarks
-            state.geometries[copy] = StaticGeometry.from_scenario(scenario, state.worlds.wall_thickness_m)
-        state.geometry = StaticGeometry.stack(state.geometries)
+            state.landmarks[copy, : len(scenario.landmarks)] = scenario.landmarks
+            scenarios.append(scenario)
+        state.exists[rows] = np.arange(self.config["n_candidates"]) < [[len(s.landmarks)] for s in scenarios]
+        started = StaticGeometry.from_scenarios(scenarios, state.worlds.wall_thickness_m)
+        for index, copy in enumerate(rows.tolist()):
+            state.geometries[copy] = started.single(index)
+        state.geometry = started if len(rows) == n_copies else StaticGeometry.stack(state.geometries)
         state.chosen[rows], state.mutual_information[rows] = -1, 0.0
         if rows[0] == 0:
             self.follow_first_copy(state, restarted=True)
