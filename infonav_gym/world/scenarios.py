@@ -117,17 +117,6 @@ def _placed(samples, count: int, what: str):
     return samples
 
 
-def _rejection_sample(count: int, draw, accept, what: str) -> list:
-    """Draw until ``count`` samples pass ``accept``; a clear error if the layout is too crowded."""
-    accepted = []
-    for _ in range(MAX_ATTEMPTS_EACH * max(count, 1)):
-        if len(accepted) == count:
-            break
-        if accept(sample := draw()):
-            accepted.append(sample)
-    return _placed(accepted, count, what)
-
-
 def _uniform_until_accepted(np_random, count: int, width: int, accept, what: str):
     """The first ``count`` rows of ``width`` uniform [0, 1) numbers that pass the batched test ``accept``: drawn
     ahead in batches, the generator rewound to end right after the last attempt (as one draw per attempt)."""
@@ -198,8 +187,7 @@ def discs_clear_of(np_random, count, low_m, high_m, radii_m, starts, directions,
     for _ in range(MAX_ATTEMPTS_EACH * max(count, 1)):
         if placed == count:
             break
-        x = low_m + (high_m - low_m) * np_random.random()
-        y = low_m + (high_m - low_m) * np_random.random()
+        x, y = low_m + (high_m - low_m) * np_random.random(2)
         radius = radii_m[0] + (radii_m[1] - radii_m[0]) * np_random.random() if radii_m[1] > 0.0 else 0.0
         clear = loop_distance(x, y, starts, directions) > radius + route_gap_m
         for d in range(len(discs)):
@@ -296,8 +284,14 @@ def _canopies_on(polygons: list, count: int, np_random: np.random.Generator) -> 
         return starts_open and bool(np.all(covered <= MAX_CANOPY_COVER))
 
     route_points = np.array([_points_along(polygon) for polygon in polygons])  # (R, P, 2): routes of equal size
+    accepted = []
+    for _ in range(MAX_ATTEMPTS_EACH * max(count, 1)):  # draw until ``count`` zones pass ``accept``
+        if len(accepted) == count:
+            break
+        if accept(zone := draw()):
+            accepted.append(zone)
     what = f"GPS-denied zones off the route starts covering at most {MAX_CANOPY_COVER:.0%} of any route"
-    return _rejection_sample(count, draw, accept, what)
+    return _placed(accepted, count, what)
 
 
 def team_route_bands(n_robots: int, size_m: float, n_waypoints: int) -> list[tuple[float, float]]:
