@@ -199,16 +199,13 @@ def discs_clear_of(np_random, count, low_m, high_m, radii_m, starts, directions,
 
 
 @kernel
-def field_layout(np_random, n_landmarks, n_obstacles, size_m, n_waypoints):
-    """``field``'s route polygon (W, 2), obstacles ``[x, y, radius]`` (n, 3), landmarks (m, 2) [m], in draw order."""
-    angles = 2.0 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
-    radii = size_m * np_random.uniform(0.22, 0.36, n_waypoints)
-    route = np.stack((size_m / 2 + radii * np.cos(angles), size_m / 2 + radii * np.sin(angles)), axis=1)
-    directions = np.concatenate((route[1:], route[:1])) - route
-    obstacles = obstacles_clear_of(np_random, n_obstacles, size_m, route, directions)
-    landmark_count = n_landmarks if len(obstacles) == n_obstacles else 0  # none drawn after obstacles that do not fit
-    points = discs_clear_of(np_random, landmark_count, 1.0, size_m - 1.0, (0.0, 0.0), route, directions, 1.0, obstacles)
-    return route, obstacles, np.ascontiguousarray(points[:, :2])
+def field_discs(np_random, n_landmarks, n_obstacles, size_m, starts, directions):
+    """``field``'s obstacles ``[x, y, radius]`` (n, 3), then landmarks (m, 2) [m], clear of the route edges ``starts +
+    t directions``; no landmark is drawn after obstacles that do not fit."""
+    obstacles = obstacles_clear_of(np_random, n_obstacles, size_m, starts, directions)
+    count = n_landmarks if len(obstacles) == n_obstacles else 0
+    points = discs_clear_of(np_random, count, 1.0, size_m - 1.0, (0.0, 0.0), starts, directions, 1.0, obstacles)
+    return obstacles, np.ascontiguousarray(points[:, :2])
 
 
 def field(
@@ -219,11 +216,15 @@ def field(
     speed_mps: float = 1.0,
     n_waypoints: int = DEFAULT_WAYPOINTS,
 ) -> Scenario:
-    """An open square field: random landmarks, and round obstacles clear of a random closed route (``field_layout``).
+    """An open square field: random landmarks, and round obstacles clear of a random closed route (``field_discs``).
     ``ValueError`` for an argument outside ``FIELD_ARGUMENTS`` (``ParameterError``) or obstacles that do not fit."""
     arguments = {"n_landmarks": n_landmarks, "n_obstacles": n_obstacles, "size_m": size_m, "speed_mps": speed_mps}
     check_arguments("field", FIELD_ARGUMENTS, **arguments, n_waypoints=n_waypoints)
-    route, obstacles, landmarks = field_layout(np_random, n_landmarks, n_obstacles, float(size_m), n_waypoints)
+    center = np.array([size_m / 2, size_m / 2])
+    angles = 2 * math.pi * (np.arange(n_waypoints) + np_random.uniform(-0.2, 0.2, n_waypoints)) / n_waypoints
+    route = _polygon(center, angles, size_m * np_random.uniform(0.22, 0.36, n_waypoints))
+    loop = ClosedLoop(route)
+    obstacles, landmarks = field_discs(np_random, n_landmarks, n_obstacles, float(size_m), loop.starts, loop.directions)
     return Scenario(
         name="field",
         bounds=(0.0, 0.0, size_m, size_m),
