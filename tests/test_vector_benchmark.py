@@ -16,7 +16,9 @@ from scipy import stats
 
 from infonav_gym.experiments import benchmark, startup_timing
 from infonav_gym.experiments.benchmark import (
+    GOALS,
     env_step_figures,
+    goal_fractions,
     lower_is_better,
     memory_figures,
     plot_throughput,
@@ -158,6 +160,7 @@ def test_memory_per_sub_env_is_measured_in_a_subprocess_and_lower_is_better():
     assert lower_is_better("landmark_selection_vector_1024_kb_per_env")
     assert not lower_is_better("landmark_selection_vector_1024_steps_per_s")
     assert lower_is_better("cold_start_s") and not lower_is_better("cartpole_steps_per_s")
+    assert lower_is_better("cold_start_all_envs_s")
 
 
 def test_throughput_curves_and_the_plot_file(tmp_path):
@@ -169,6 +172,11 @@ def test_throughput_curves_and_the_plot_file(tmp_path):
         "landmark_selection_vector_16_vs_cartpole_ratio": 0.13,
         "cartpole_vector_1_steps_per_s": 3e4,
         "landmark_selection_vector_1024_kb_per_env": 250.0,
+        "cold_start_s": 2 * GOALS["cold_start_s"],
+    }
+    assert goal_fractions(figures) == {  # only the measured goals; a time's goal over the figure
+        "landmark_selection_vector_1024_kb_per_env": GOALS["landmark_selection_vector_1024_kb_per_env"] / 250.0,
+        "cold_start_s": 0.5,
     }
     assert throughput_curves(figures) == {
         "landmark_selection_vector": {16: 2e4, 1: 2e3},
