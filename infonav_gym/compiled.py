@@ -3,7 +3,8 @@
 ``@kernel`` compiles on the first call per set of argument types (literal values dropped) and caches the machine
 code on disk (``_enable_caching``), keyed also on the sources of every kernel module (``kernel_sources_digest``:
 numba's key alone would let a caller run a stale callee from another file). ``fastmath`` stays off (IEEE numbers,
-x / 0 is inf); nothing runs in parallel. A compile longer than ``COMPILE_NOTICE_AFTER_S`` is announced once.
+x / 0 is inf); numba's parallel mode is off, and kernels release the GIL: ``CopyThreads`` runs one on chunks of
+copies in threads. A compile longer than ``COMPILE_NOTICE_AFTER_S`` is announced once.
 Kernels copy arrays element by element: slice assignment compiles numba's shape-error formatting (2 s more).
 """
 
@@ -16,6 +17,7 @@ import os
 import tempfile
 import threading
 import weakref
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numba
@@ -25,7 +27,11 @@ from numba.core.caching import FunctionCache
 from numba.core.registry import CPUDispatcher
 
 COMPILE_NOTICE_AFTER_S = 1.0  # [s] a compile that takes longer is announced (once per process)
-KERNEL_OPTIONS = {"cache": True, "fastmath": False, "parallel": False, "error_model": "numpy", "no_cfunc_wrapper": True}
+KERNEL_OPTIONS = {  # nogil: ``CopyThreads`` runs a kernel on several threads at once
+    **{"cache": True, "fastmath": False, "parallel": False, "nogil": True},
+    **{"error_model": "numpy", "no_cfunc_wrapper": True},
+}
+MIN_COPIES_PER_THREAD = 64  # fewer copies a thread and handing them over costs more than it saves
 
 PACKAGE_ROOT = Path(__file__).resolve().parent
 KERNEL_MODULE_MARK = b"infonav_gym.compiled import"  # what a module that makes kernels has in its imports
@@ -157,6 +163,53 @@ def inline(function):
     """An ``inner_kernel`` that LLVM inlines into each kernel calling it (numba's ``forceinline``): a small helper of
     hot loops, compiled once rather than typed again at each call site (numba's ``inline="always"`` would)."""
     return kernel(function, InnerKernel, no_cpython_wrapper=True, forceinline=True)
+
+
+class CopyThreads:
+    """Runs a kernel over N copies in up to ``count`` chunks of rows at once, one per thread (the kernels release the
+    GIL). Each copy's arithmetic is its own, so the numbers are those of one call over all copies, bit for bit."""
+
+    def __init__(self, count: int = 1):
+        self.count, self._pool = count, None
+
+    def map_rows(self, kernel_, n_copies: int, per_copy: tuple, shared: tuple = ()):
+        """``kernel_(*per_copy, *shared)``: ``per_copy`` holds arrays with a leading copy dimension (nested in tuples;
+        other items pass whole), split in chunks of rows; the chunks' outputs joined (``joined_rows``)."""
+        chunks = min(self.count, n_copies // MIN_COPIES_PER_THREAD)
+        if chunks <= 1:
+            return kernel_(*per_copy, *shared)
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.count, thread_name_prefix="infonav-copies")
+        bounds = np.linspace(0, n_copies, chunks + 1).astype(int).tolist()
+        parts = [rows_of(per_copy, slice(start, end)) for start, end in zip(bounds[:-1], bounds[1:])]
+        others = [self._pool.submit(kernel_, *part, *shared) for part in parts[1:]]
+        first = kernel_(*parts[0], *shared)  # in this thread while the others run
+        return joined_rows([first, *(other.result() for other in others)])
+
+    def __getstate__(self):
+        return {"count": self.count, "_pool": None}  # a pool does not pickle: the copy makes its own
+
+
+def rows_of(value, rows: slice):
+    """``value``'s ``rows`` (a view): of each array in nested tuples, the others as they are."""
+    if isinstance(value, np.ndarray):
+        return value[rows]
+    if isinstance(value, tuple):
+        return tuple(rows_of(item, rows) for item in value)
+    return value
+
+
+def joined_rows(parts: list):
+    """The outputs of chunks of rows as one: arrays concatenated along the copies, flags (bools) or-ed, tuples item
+    by item."""
+    first = parts[0]
+    if isinstance(first, tuple):
+        return tuple(joined_rows([part[index] for part in parts]) for index in range(len(first)))
+    if isinstance(first, np.ndarray):
+        return np.concatenate(parts)
+    if isinstance(first, (bool, np.bool_)):
+        return any(parts)
+    raise TypeError(f"joined_rows: cannot join {type(first).__name__} outputs of chunks of copies")
 
 
 def contiguous(array):

@@ -7,13 +7,17 @@ its single env in the configs that matter to it.
 from __future__ import annotations
 
 import gc
+import os
 import sys
 
 import gymnasium as gym
+import numpy as np
 import pytest
 import vector_env_checks
 from gymnasium.vector import AutoresetMode
 
+from infonav_gym.compiled import MIN_COPIES_PER_THREAD
+from infonav_gym.experiments.vector_timing import random_valid_actions
 from infonav_gym.registry import GYMNASIUM, make_vector_env, registered_envs
 
 VECTOR_ENV_IDS = [entry.id for entry in registered_envs(GYMNASIUM) if entry.vector_entry_point is not None]
@@ -74,3 +78,33 @@ def test_no_copies_is_a_value_error_that_leaves_nothing_to_report_when_collected
             make(entry.id, num_envs=num_envs)
         gc.collect()
     assert [hook.exc_value for hook in unraisable] == []
+
+
+@pytest.mark.parametrize("num_threads", [0, 2.0, os.cpu_count() + 1])
+def test_num_threads_outside_one_to_the_cpus_is_a_value_error(num_threads):
+    with pytest.raises(ValueError, match=rf"num_threads of \w+ must be an int from 1 to {os.cpu_count()}"):
+        make_vector_env("infonav/LandmarkSelection-v0", num_envs=2, num_threads=num_threads)
+
+
+@pytest.mark.parametrize("autoreset_mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_copies_on_two_threads_give_the_numbers_of_one(autoreset_mode):
+    """Enough copies for two chunks (``MIN_COPIES_PER_THREAD`` each), through autoresets: every output the same."""
+    num_envs, outputs = 2 * MIN_COPIES_PER_THREAD + 3, {}
+    for num_threads in (1, 2):
+        env = make_vector_env(
+            "infonav/LandmarkSelection-v0", num_envs, num_threads=num_threads, autoreset_mode=autoreset_mode, horizon=6
+        )
+        rng, steps = np.random.default_rng(0), [env.reset(seed=3)]
+        for _ in range(14):
+            steps.append(env.step(random_valid_actions(env.action_masks(), rng)))
+        outputs[num_threads] = steps
+    np.testing.assert_equal(*map(comparable, outputs.values()))  # observations, rewards, flags, infos, final ones too
+
+
+def comparable(value):
+    """``value`` with object arrays (``final_obs``) as lists, nested alike, for ``np.testing.assert_equal``."""
+    if isinstance(value, dict):
+        return {key: comparable(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.dtype == object):
+        return [comparable(item) for item in value]
+    return value

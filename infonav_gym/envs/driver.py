@@ -10,6 +10,8 @@ autoreset modes, action checks (masked actions per ``invalid_action``), steps ag
 
 from __future__ import annotations
 
+import os
+
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -17,7 +19,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from infonav_gym.compiled import kernel
+from infonav_gym.compiled import CopyThreads, kernel
 from infonav_gym.config import check_choice, check_config, merge_config
 from infonav_gym.envs.base import EPISODE_STEPS, INVALID_ACTION_MODES, RENDER_SIZE_PX, accepts_action
 from infonav_gym.envs.protocol import EnvScenario
@@ -83,14 +85,16 @@ class Driver(VectorEnv):
         num_envs: int = 1,
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        num_threads: int = 1,
         **config,
     ):
-        """Check the arguments, the config and the memory the copies need, then build the scenario and its state.
+        """Check the arguments, the config and the memory the copies need, then build the scenario and its state;
+        its kernels over the copies run on ``num_threads`` threads (the same numbers on any number).
 
         Raises:
             ValueError: for ``num_envs`` that is not an int >= 1, a render mode outside ``metadata``, an autoreset
-                mode other than ``AUTORESET_MODES``, an unknown config key, a bad value, or copies that do not fit in
-                the available memory.
+                mode other than ``AUTORESET_MODES``, ``num_threads`` not from 1 to the CPU count, an unknown config
+                key, a bad value, or copies that do not fit in the available memory.
         """
         owner = self.owner_name
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -101,12 +105,16 @@ class Driver(VectorEnv):
         check_config(self.config, owner, {key: interval for key, interval in shared.items() if key in self.config})
         if type(num_envs) is not int or num_envs < 1:
             raise ValueError(f"num_envs of {owner} must be an int >= 1, got {num_envs!r}")
+        cpus = os.cpu_count() or 1
+        if type(num_threads) is not int or not 1 <= num_threads <= cpus:
+            raise ValueError(f"num_threads of {owner} must be an int from 1 to {cpus} (the CPUs), got {num_threads!r}")
         kb = self.copy_kb()
         check_memory(num_envs * kb * 1024, f"num_envs={num_envs} of {owner} (about {kb:.4g} kB a copy)")
         self.autoreset_mode = autoreset_mode_of(autoreset_mode, self.AUTORESET_MODES, owner)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.num_envs, self.render_mode = num_envs, render_mode
         self.env_scenario = scenario = self.scenario_class(self.config, num_envs, owner, render_mode)
+        scenario.threads = CopyThreads(num_threads)
         self.agents = list(scenario.agents)
         self._action_shape = (num_envs, len(self.agents)) if scenario.team else (num_envs,)
         self.single_observation_space, self.single_action_space = scenario.observation_space, scenario.action_space

@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from infonav_gym.compiled import contiguous, kernel
+from infonav_gym.compiled import CopyThreads, contiguous, kernel
 from infonav_gym.envs.noise_streams import NoiseStreams, taken
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import (
@@ -54,7 +54,7 @@ class LandmarkDecision(NamedTuple):
         return cls(*checked_fields(landmark_decisions(*arguments)))
 
     def observe(
-        self, x, P, chosen, true_poses, landmarks, noise: NoiseStreams, noise_stds
+        self, x, P, chosen, true_poses, landmarks, noise: NoiseStreams, noise_stds, threads: CopyThreads
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Update each copy's EKF prior ``(x, P)`` ((N, n), (N, n, n), this decision's) with a noisy range-bearing
         measurement of its ``chosen`` landmark (N,) (-1: none) from its true pose (N, 3) to the true ``landmarks``
@@ -62,9 +62,8 @@ class LandmarkDecision(NamedTuple):
         ``(x, P, realized MI (N,) [nats])``, 0 for a copy without a measurement."""
         floats = [contiguous(array) for array in (x, P, true_poses, landmarks)]
         chosen, model = contiguous(np.asarray(chosen, dtype=np.int64)), (self.predicted, self.H, self.R)
-        *updated, not_positive_definite = measured_updates(
-            *floats, *noise.reserve(), chosen, noise_stds, *model, self.prior_log_det
-        )
+        per_copy = (*floats, *noise.reserve(), chosen, *model, self.prior_log_det)
+        *updated, not_positive_definite = threads.map_rows(measured_updates, len(chosen), per_copy, (noise_stds,))
         if not_positive_definite:
             raise ValueError("the posterior covariance is not positive definite (determinant <= 0)")
         return tuple(updated)
@@ -91,7 +90,7 @@ def decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, ma
 
 @kernel
 def measured_updates(
-    x, P, true_poses, landmarks, blocks, next_draw, chosen, noise_stds, predicted, H, R, prior_log_det
+    x, P, true_poses, landmarks, blocks, next_draw, chosen, predicted, H, R, prior_log_det, noise_stds
 ):
     """``LandmarkDecision.observe``: each chosen landmark's noisy ``[range, bearing]`` from its copy's true pose
     (``noisy_range_bearing`` given its copy's next draw of ``blocks``, ``NoiseStreams.reserve``'s),

@@ -85,7 +85,8 @@ class OneRobotScenario(EnvScenario):
         stream); ``(x, P, realized MI (N,) [nats])``."""
         true_poses = state.worlds.poses[:, 0]
         noise, stds = state.measurement_noise, self.measurement_stds
-        return LandmarkDecision.observe(decision, state.x, state.P, chosen, true_poses, state.landmarks, noise, stds)
+        arguments = state.x, state.P, chosen, true_poses, state.landmarks, noise, stds, self.threads
+        return LandmarkDecision.observe(decision, *arguments)
 
     def follow_first_copy(self, state: OneRobotState, restarted: bool) -> None:
         """When drawing: start copy 0's true and estimated paths anew (``restarted``) or extend them."""

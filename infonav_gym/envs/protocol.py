@@ -21,6 +21,7 @@ from typing import ClassVar
 import gymnasium as gym
 import numpy as np
 
+from infonav_gym.compiled import CopyThreads
 from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.traits import EnvTraits
 
@@ -50,6 +51,7 @@ class EnvScenario(abc.ABC):
     observation_space: gym.Space
     action_space: gym.spaces.Discrete
     agents: list[str] = ["agent"]
+    threads: CopyThreads = CopyThreads()  # what runs its kernels over the copies (the driver's ``num_threads``)
 
     def __init__(self, config: dict, copies: int, owner: str, render_mode: str | None):
         """Check the scenario's own config keys (``owner`` names the env in errors) and set its constants."""

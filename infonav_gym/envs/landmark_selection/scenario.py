@@ -156,7 +156,7 @@ class LandmarkSelection(OneRobotScenario):
 
     def decision(self, state: LandmarkState, rows) -> LandmarkStep:
         """The landmarks each copy sees, their models and expected MI at its prior, with its observation and info
-        numbers (one compiled call, ``landmark_outputs``)."""
+        numbers (``landmark_outputs``, on the scenario's threads)."""
         cfg = self.config
         full = isinstance(rows, slice)
         geometry = state.geometry if full else StaticGeometry.stack([state.geometries[row] for row in rows])
@@ -164,10 +164,10 @@ class LandmarkSelection(OneRobotScenario):
         arguments = decision_arguments(
             self.sensor, geometry, true_poses, x, P, state.landmarks[rows], state.exists[rows], cfg["mapping"]
         )
-        decided, observation, numbers, *poses = landmark_outputs(
-            arguments, state.elapsed[rows], float(cfg["horizon"]), float(cfg["time_step_s"]), *self.bounds
-        )
-        return LandmarkStep(*checked_fields(decided), observation, numbers.T, *poses)
+        per_copy, shared = (arguments, state.elapsed[rows]), (float(cfg["horizon"]), float(cfg["time_step_s"]))
+        outputs = self.threads.map_rows(landmark_outputs, len(x), per_copy, (*shared, *self.bounds))
+        decided, observation, numbers, *poses = outputs
+        return LandmarkStep(*checked_fields(decided), observation, numbers, *poses)
 
     def transition(self, state: LandmarkState, decision: LandmarkStep, action, acting) -> LandmarkState:
         """Observe the chosen landmarks at the prior, then drive the ``acting`` copies along their routes."""
@@ -295,7 +295,7 @@ def start_episode(config: dict, np_random: np.random.Generator, owner: str):
 @kernel
 def landmark_outputs(arguments, elapsed, horizon, time_step_s, low, high):
     """``landmark_decisions(*arguments)`` (``decision_arguments``), then the observations (n, 10 + 5K) float32 (in
-    float64, clipped to ``low``, ``high``, then rounded), the ``INFO_NUMBERS`` but the poses (5, n), then the true and
+    float64, clipped to ``low``, ``high``, then rounded), the ``INFO_NUMBERS`` but the poses (n, 5), then the true and
     estimated poses (n, 3) of n copies; ``elapsed`` (n,) int: steps since each one's reset; ``horizon`` [steps] and
     ``time_step_s`` [s] as floats. A mapped landmark's position std is the root of the mean of its two variances."""
     decided = landmark_decisions(*arguments)
@@ -305,7 +305,7 @@ def landmark_outputs(arguments, elapsed, horizon, time_step_s, low, high):
     observation = np.empty((n_copies, len(low)), dtype=np.float32)
     values = np.zeros(len(low))
     n_mapped = (x.shape[1] - POSE_DIM) // 2 if mapped else 0
-    numbers = np.empty((len(INFO_NUMBERS) - 2, n_copies))  # the INFO_NUMBERS but the poses
+    numbers = np.empty((n_copies, len(INFO_NUMBERS) - 2))  # the INFO_NUMBERS but the poses
     for c in range(n_copies):
         values[:] = 0.0
         pose_features(values, x[c], P[c], pose_entropy[c], elapsed[c] / horizon)
@@ -318,7 +318,7 @@ def landmark_outputs(arguments, elapsed, horizon, time_step_s, low, high):
                 i = POSE_DIM + 2 * k
                 values[row + 4] = math.sqrt((P[c, i, i] + P[c, i + 1, i + 1]) / 2)
         clip_into(observation[c], values, low, high)
-        numbers[0, c], numbers[1, c] = pose_entropy[c], gaussian_entropy_kernel(prior_log_det[c], x.shape[1])
-        numbers[2, c] = math.hypot(true_poses[c, 0] - x[c, 0], true_poses[c, 1] - x[c, 1])
-        numbers[3, c], numbers[4, c] = abs(wrap(true_poses[c, 2] - x[c, 2])), elapsed[c] * time_step_s
+        numbers[c, 0], numbers[c, 1] = pose_entropy[c], gaussian_entropy_kernel(prior_log_det[c], x.shape[1])
+        numbers[c, 2] = math.hypot(true_poses[c, 0] - x[c, 0], true_poses[c, 1] - x[c, 1])
+        numbers[c, 3], numbers[c, 4] = abs(wrap(true_poses[c, 2] - x[c, 2])), elapsed[c] * time_step_s
     return decided, observation, numbers, true_poses.copy(), x[:, :POSE_DIM].copy()
