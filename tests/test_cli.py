@@ -2,11 +2,13 @@
 
 import json
 import math
+import os
 
 import numpy as np
 import pytest
 from scipy import stats
 
+from infonav_gym.compiled import MIN_COPIES_PER_THREAD
 from infonav_gym.experiments import benchmark, startup_timing
 from infonav_gym.experiments.cli import _config_pair, main
 from infonav_gym.experiments.distributed_timing import rllib_missing
@@ -138,8 +140,11 @@ def test_benchmark_reports_every_goal(capsys, monkeypatch):
     # RLlib's figures are sampled in tests/test_rllib.py, on the Ray it starts anyway: here they are given
     rllib, rllib_calls = RLLIB_FIGURES if rllib_missing() is None else {}, []
     monkeypatch.setattr(benchmark, "rllib_runner_figures", lambda *args: rllib_calls.append(args) or dict(rllib))
+    monkeypatch.setattr(benchmark, "THREADED_COPIES", 2 * MIN_COPIES_PER_THREAD)  # two chunks, not 4096 copies
     result = run_json(capsys, "benchmark", "--rounds", "1", "--seconds", "0.01", "--vector-sizes", "1,4")
     figures = result["figures"]
+    threads_ratio = figures.get(f"landmark_selection_vector_{2 * MIN_COPIES_PER_THREAD}_threads_2_vs_1_ratio")
+    assert (threads_ratio is None) == (os.cpu_count() < 2) and (threads_ratio is None or threads_ratio > 0)
     for env in ("landmark_selection", "cooperative_localization", "sensor_selection"):
         assert figures[f"{env}_steps_per_s"] > 0 and figures["cartpole_steps_per_s"] > 0
         ratio = figures[f"{env}_steps_per_s"] / figures["cartpole_steps_per_s"]
@@ -179,6 +184,7 @@ def test_benchmark_reports_every_goal(capsys, monkeypatch):
             "landmark_selection_vector_1024_kb_per_env",
             "active_localization_vector_1024_kb_per_env",
             "cooperative_localization_vector_1024_kb_per_env",
+            "landmark_selection_vector_4096_threads_2_vs_1_ratio",
             "cold_start_s",
             "warm_start_s",
             "landmark_selection_vector_1024_vs_cartpole_ratio",

@@ -86,14 +86,13 @@ def test_num_threads_outside_one_to_the_cpus_is_a_value_error(num_threads):
         make_vector_env("infonav/LandmarkSelection-v0", num_envs=2, num_threads=num_threads)
 
 
+@pytest.mark.parametrize("env_id", ["infonav/LandmarkSelection-v0", "infonav/ActiveLocalization-v0"])
 @pytest.mark.parametrize("autoreset_mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
-def test_copies_on_two_threads_give_the_numbers_of_one(autoreset_mode):
+def test_copies_on_two_threads_give_the_numbers_of_one(env_id, autoreset_mode):
     """Enough copies for two chunks (``MIN_COPIES_PER_THREAD`` each), through autoresets: every output the same."""
     num_envs, outputs = 2 * MIN_COPIES_PER_THREAD + 3, {}
     for num_threads in (1, 2):
-        env = make_vector_env(
-            "infonav/LandmarkSelection-v0", num_envs, num_threads=num_threads, autoreset_mode=autoreset_mode, horizon=6
-        )
+        env = make_vector_env(env_id, num_envs, num_threads=num_threads, autoreset_mode=autoreset_mode, horizon=6)
         rng, steps = np.random.default_rng(0), [env.reset(seed=3)]
         for _ in range(14):
             steps.append(env.step(random_valid_actions(env.action_masks(), rng)))

@@ -47,11 +47,13 @@ class LandmarkDecision(NamedTuple):
     pose_entropy: np.ndarray
 
     @classmethod
-    def at_prior(cls, sensor, geometry, true_poses, x, P, landmarks, exists, mapping: bool) -> LandmarkDecision:
-        """The decisions of N copies at their priors ``x`` (N, n), ``P`` (N, n, n) (``landmark_decisions``, one
-        compiled call); raises as ``checked_fields``."""
+    def at_prior(
+        cls, sensor, geometry, true_poses, x, P, landmarks, exists, mapping: bool, threads: CopyThreads
+    ) -> LandmarkDecision:
+        """The decisions of N copies at their priors ``x`` (N, n), ``P`` (N, n, n) (``landmark_decisions`` on
+        ``threads``); raises as ``checked_fields``."""
         arguments = decision_arguments(sensor, geometry, true_poses, x, P, landmarks, exists, mapping)
-        return cls(*checked_fields(landmark_decisions(*arguments)))
+        return cls(*checked_fields(threads.map_rows(landmark_decisions, len(x), arguments)))
 
     def observe(
         self, x, P, chosen, true_poses, landmarks, noise: NoiseStreams, noise_stds, threads: CopyThreads

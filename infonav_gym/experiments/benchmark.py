@@ -4,6 +4,7 @@ modules. A goal is a maximum where ``lower_is_better``; one not measured (a peer
 
 from __future__ import annotations
 
+import os
 import re
 import statistics
 import time
@@ -66,6 +67,7 @@ GOALS = {
     "evaluation_2_workers_time_ratio": 0.65,
     "rllib_team_2_runners_vs_1_ratio": 1.5,
     "rllib_exploration_1_runner_steps_per_s": 1000.0,
+    "landmark_selection_vector_4096_threads_2_vs_1_ratio": 1.7,
     "warm_start_s": 2.0,
     # issue 42: the whole step compiled, every core used, a start that does not make a user wait
     "landmark_selection_vector_1024_vs_cartpole_ratio": 8.0,
@@ -165,7 +167,7 @@ def vector_runs(env_ids: list[str], vector_sizes, seed: int) -> dict[str, Vector
     return runs
 
 
-def _median_ratio(rates: dict[str, list[float]], name: str, reference: str) -> float:
+def _median_ratio(rates: dict, name, reference) -> float:
     """The median over rounds of ``name``'s rate over ``reference``'s in the same round."""
     return statistics.median(ours / theirs for ours, theirs in zip(rates[name], rates[reference]))
 
@@ -208,6 +210,24 @@ def env_step_figures(
             if name in rates and vmas in rates:
                 figures[f"{name}_vs_vmas_ratio"] = _median_ratio(rates, name, vmas)
     return figures
+
+
+THREADED_ENV, THREADED_COPIES = "infonav/LandmarkSelection-v0", 4096  # the 2-thread against 1-thread figure's
+
+
+def threads_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
+    """``THREADED_ENV``'s vector env of ``THREADED_COPIES`` copies on 2 threads against 1, in alternating rounds:
+    ``NAME_vector_4096_threads_2_vs_1_ratio`` (median of the rounds' ratios); none on a single CPU."""
+    if (os.cpu_count() or 1) < 2:
+        return {}
+    runs = {threads: vector_env_run(THREADED_ENV, THREADED_COPIES, seed, threads) for threads in (1, 2)}
+    steppers = {threads: _vector_stepper(run, seconds_per_round) for threads, run in runs.items()}
+    rates = {threads: [] for threads in steppers}
+    for _ in range(rounds):
+        for threads, stepper in steppers.items():
+            rates[threads].append(stepper())
+    name = f"{figure_name(THREADED_ENV)}_vector_{THREADED_COPIES}_threads_2_vs_1_ratio"
+    return {name: _median_ratio(rates, 2, 1)}
 
 
 def memory_figures(
@@ -262,6 +282,7 @@ def run_benchmark(
     """Measure every speed goal: the figures, whether each goal is met and ``notes`` on what is absent, JSON-ready."""
     vector_sizes = check_vector_sizes(vector_sizes)
     figures = env_step_figures(None, rounds, seconds_per_round, seed, progress, vector_sizes)
+    figures.update(threads_figures(rounds, seconds_per_round, seed))
     scale = min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens the memory, evaluation and RLlib runs
     figures.update(memory_figures(max(vector_sizes), seed=seed, seconds=MEMORY_SECONDS * scale))
     figures["greedy_decision_us"] = greedy_decision_us()

@@ -74,9 +74,9 @@ def random_valid_actions(masks: np.ndarray, rng: np.random.Generator) -> np.ndar
     return scores.argmax(axis=-1)
 
 
-def vector_env_run(env_id: str, num_envs: int, seed: int) -> VectorRun:
-    """``env_id``'s native vector env with ``num_envs`` copies under random valid actions."""
-    env = make_vector_env(env_id, num_envs)
+def vector_env_run(env_id: str, num_envs: int, seed: int, num_threads: int = 1) -> VectorRun:
+    """``env_id``'s native vector env with ``num_envs`` copies on ``num_threads`` under random valid actions."""
+    env = make_vector_env(env_id, num_envs, num_threads=num_threads)
     rng = np.random.default_rng(seed)
     return VectorRun(
         num_envs,

@@ -187,14 +187,16 @@ class ActiveLocalization(OneRobotScenario):
             geometry = field_geometry(walls, state.worlds.wall_thickness_m, centers, radii)
         x, P, true_poses = state.x[rows], state.P[rows], state.worlds.poses[rows, 0]
         sight = LandmarkDecision.at_prior(
-            self.sensor, geometry, true_poses, x, P, state.landmarks[rows], state.exists[rows], False
+            self.sensor, geometry, true_poses, x, P, state.landmarks[rows], state.exists[rows], False, self.threads
         )
         obstacles = (state.obstacle_centers[rows], state.obstacle_radii[rows])
         arrays = (x, P, true_poses, state.goals[rows], state.elapsed[rows], state.observations_left[rows], *obstacles)
         landmarks = sight.action_mask, sight.action_information_gain, sight.predicted, sight.pose_entropy
         budget = self.config["horizon"], self.config["max_observations"]
-        action_mask, gains, observation, numbers = outputs_of_copies(*landmarks, *arrays, *budget, *self.bounds)
-        return ActiveStep(action_mask, gains, *sight, observation, numbers.T)
+        shared = (*budget, *self.bounds)
+        outputs = self.threads.map_rows(outputs_of_copies, len(x), (*landmarks, *arrays), shared)
+        action_mask, gains, observation, numbers = outputs
+        return ActiveStep(action_mask, gains, *sight, observation, numbers)
 
     def transition(self, state: ActiveState, decision: ActiveStep, action, acting) -> ActiveState:
         """Observe the chosen landmarks at the prior, then drive the ``acting`` copies' primitives; the step's

@@ -195,11 +195,11 @@ def outputs_of_copies(
     ``LandmarkDecision`` fields: the action layout (every primitive without an observation, and with each ``visible``
     landmark while budget is left), the observations (n, 14 + 4K + 4O) clipped to ``[low, high]`` (the space's bounds
     as float64), and the position error [m], heading error [rad], largest position std [m] and true distance to the
-    goal [m] (4, n)."""
+    goal [m] (n, 4)."""
     n_copies, n_landmarks = visible.shape
     observable = np.empty((n_copies, n_landmarks), dtype=np.bool_)
     observation = np.empty((n_copies, len(low)), dtype=np.float32)
-    values, info = np.zeros(len(low)), np.empty((4, n_copies))
+    values, info = np.zeros(len(low)), np.empty((n_copies, 4))
     landmarks_start = POSE_FEATURES + GOAL_FEATURES
     obstacles_start = landmarks_start + LANDMARK_FEATURES * n_landmarks
     for c in range(n_copies):
@@ -221,8 +221,8 @@ def outputs_of_copies(
             range_bearing_features(values[row : row + 3], math.hypot(dx, dy), bearing)
             values[row + 3] = radii[c, o]
         clip_into(observation[c], values, low, high)
-        info[0, c] = math.hypot(truth[c, 0] - x[c, 0], truth[c, 1] - x[c, 1])
-        info[1, c] = abs(wrap(truth[c, 2] - x[c, 2]))
-        info[2, c] = position_std(P[c, 0, 0], P[c, 0, 1], P[c, 1, 1])
-        info[3, c] = math.hypot(truth[c, 0] - goals[c, 0], truth[c, 1] - goals[c, 1])
+        info[c, 0] = math.hypot(truth[c, 0] - x[c, 0], truth[c, 1] - x[c, 1])
+        info[c, 1] = abs(wrap(truth[c, 2] - x[c, 2]))
+        info[c, 2] = position_std(P[c, 0, 0], P[c, 0, 1], P[c, 1, 1])
+        info[c, 3] = math.hypot(truth[c, 0] - goals[c, 0], truth[c, 1] - goals[c, 1])
     return (*layout_of_actions(observable, gains), observation, info)
