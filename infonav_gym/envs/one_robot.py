@@ -83,10 +83,8 @@ class OneRobotScenario(EnvScenario):
         """Each copy's EKF updated at ``decision`` (a ``LandmarkDecision`` or a named tuple with its fields) with a
         noisy measurement of its chosen landmark (N,), -1: none (taken from its true pose now, its noise from its own
         stream); ``(x, P, realized MI (N,) [nats])``."""
-        true_poses = state.worlds.poses[:, 0]
-        noise, stds = state.measurement_noise, self.measurement_stds
-        arguments = state.x, state.P, chosen, true_poses, state.landmarks, noise, stds, self.threads
-        return LandmarkDecision.observe(decision, *arguments)
+        arguments = (state.x, state.P, chosen, state.worlds.poses[:, 0], state.landmarks, state.measurement_noise)
+        return LandmarkDecision.observe(decision, *arguments, self.measurement_stds, self.threads)
 
     def follow_first_copy(self, state: OneRobotState, restarted: bool) -> None:
         """When drawing: start copy 0's true and estimated paths anew (``restarted``) or extend them."""
