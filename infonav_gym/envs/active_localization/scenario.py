@@ -192,11 +192,9 @@ class ActiveLocalization(OneRobotScenario):
         obstacles = (state.obstacle_centers[rows], state.obstacle_radii[rows])
         arrays = (x, P, true_poses, state.goals[rows], state.elapsed[rows], state.observations_left[rows], *obstacles)
         landmarks = sight.action_mask, sight.action_information_gain, sight.predicted, sight.pose_entropy
-        budget = self.config["horizon"], self.config["max_observations"]
-        shared = (*budget, *self.bounds)
-        outputs = self.threads.map_rows(outputs_of_copies, len(x), (*landmarks, *arrays), shared)
-        action_mask, gains, observation, numbers = outputs
-        return ActiveStep(action_mask, gains, *sight, observation, numbers)
+        shared = (self.config["horizon"], self.config["max_observations"], *self.bounds)
+        action_mask, gains, *outputs = self.threads.map_rows(outputs_of_copies, len(x), (*landmarks, *arrays), shared)
+        return ActiveStep(action_mask, gains, *sight, *outputs)
 
     def transition(self, state: ActiveState, decision: ActiveStep, action, acting) -> ActiveState:
         """Observe the chosen landmarks at the prior, then drive the ``acting`` copies' primitives; the step's
