@@ -167,6 +167,15 @@ def vector_runs(env_ids: list[str], vector_sizes, seed: int) -> dict[str, Vector
     return runs
 
 
+def _rates_in_rounds(steppers: dict, rounds: int, progress: bool = False) -> dict:
+    """Each of ``steppers``' rates, one a round: every round calls each stepper once, in turn."""
+    rates = {name: [] for name in steppers}
+    for _ in tqdm(range(rounds), desc="benchmark rounds", disable=not progress):
+        for name, stepper in steppers.items():
+            rates[name].append(stepper())
+    return rates
+
+
 def _median_ratio(rates: dict, name, reference) -> float:
     """The median over rounds of ``name``'s rate over ``reference``'s in the same round."""
     return statistics.median(ours / theirs for ours, theirs in zip(rates[name], rates[reference]))
@@ -195,10 +204,7 @@ def env_step_figures(
         steppers[figure_name(env_id)] = _random_stepper(env_id, seconds_per_round, seed)
     for name, run in vector_runs(env_ids, vector_sizes, seed).items():
         steppers[name] = _vector_stepper(run, seconds_per_round)
-    rates = {name: [] for name in steppers}
-    for _ in tqdm(range(rounds), desc="benchmark rounds", disable=not progress):
-        for name, stepper in steppers.items():
-            rates[name].append(stepper())
+    rates = _rates_in_rounds(steppers, rounds, progress)
     figures = {f"{name}_steps_per_s": statistics.median(values) for name, values in rates.items()}
     for name in list(steppers)[1:]:
         figures[f"{name}_vs_cartpole_ratio"] = _median_ratio(rates, name, "cartpole")
@@ -221,13 +227,8 @@ def threads_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
     if (os.cpu_count() or 1) < 2:
         return {}
     runs = {threads: vector_env_run(THREADED_ENV, THREADED_COPIES, seed, threads) for threads in (1, 2)}
-    steppers = {threads: _vector_stepper(run, seconds_per_round) for threads, run in runs.items()}
-    rates = {threads: [] for threads in steppers}
-    for _ in range(rounds):
-        for threads, stepper in steppers.items():
-            rates[threads].append(stepper())
-    name = f"{figure_name(THREADED_ENV)}_vector_{THREADED_COPIES}_threads_2_vs_1_ratio"
-    return {name: _median_ratio(rates, 2, 1)}
+    rates = _rates_in_rounds({count: _vector_stepper(run, seconds_per_round) for count, run in runs.items()}, rounds)
+    return {f"{figure_name(THREADED_ENV)}_vector_{THREADED_COPIES}_threads_2_vs_1_ratio": _median_ratio(rates, 2, 1)}
 
 
 def memory_figures(
