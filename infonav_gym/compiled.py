@@ -192,11 +192,9 @@ class CopyThreads:
 
 def rows_of(value, rows: slice):
     """``value``'s ``rows`` (a view): of each array in nested tuples, the others as they are."""
-    if isinstance(value, np.ndarray):
-        return value[rows]
     if isinstance(value, tuple):
         return tuple(rows_of(item, rows) for item in value)
-    return value
+    return value[rows] if isinstance(value, np.ndarray) else value
 
 
 def joined_rows(parts: list):
