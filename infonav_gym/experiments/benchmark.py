@@ -347,7 +347,7 @@ def figure_throughput(figures: dict):
         colors = ["tab:green" if fractions[name] >= 1 else "tab:red" for name in names]
         goals.barh(names, [fractions[name] for name in names], color=colors)
         goals.axvline(1.0, color="black", linewidth=1)
-        goals.set(xscale="log", xlabel="figure / goal (goal / figure where lower is better) [-]: met at >= 1")
+        goals.set(xscale="log", xlabel="figure / goal [-] (inverted where lower is better)\nmet at >= 1")
         goals.tick_params(axis="y", labelsize="x-small")
         goals.invert_yaxis()
         goals.set_title("Speed goals (infonav benchmark)")
