@@ -18,6 +18,7 @@ BUILTIN_ENVS = tuple(  # (id, entry point, api, vector entry point): each env's 
         ("infonav/RangeRegistration-v0", "range_registration", "RangeRegistration", GYMNASIUM),
         ("cooperative_localization_v0", "cooperative_localization", "CooperativeLocalization", PARALLEL),
         ("cooperative_exploration_v0", "cooperative_exploration", "CooperativeExploration", PARALLEL),
+        ("infonav/MRCLAMLocalization-v0", "mrclam_localization", "MRCLAMLocalization", GYMNASIUM),
     )
 )
 

@@ -2,6 +2,7 @@
 
 - pygame must never open a real window in tests: select SDL's dummy video driver
   before anything imports pygame.
+- ``$INFONAV_MRCLAM_DATASET`` names a synthetic MRCLAM directory (``mrclam_exact``), for the MRCLAM env.
 - ``spawned_reset_observation`` runs in a *spawned* child process. It lives here,
   not in ``test_envs.py``, because unpickling it in the child imports its module:
   this module deliberately does not import ``infonav_gym``, so the child proves that
@@ -14,10 +15,23 @@ import socket
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
+import atexit  # noqa: E402
+import shutil  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from mrclam_exact import write_dataset  # noqa: E402
+
+# infonav/MRCLAMLocalization-v0 reads a real dataset a fresh clone does not have: every test (and each process it
+# starts) plays the synthetic one, 120 s of it, the landmarks seen within 1 rad of the heading; tests of the real
+# Dataset 6 name its directory themselves.
+_synthetic_mrclam = Path(tempfile.mkdtemp(prefix="infonav-mrclam-"))
+atexit.register(shutil.rmtree, _synthetic_mrclam, ignore_errors=True)
+_synthetic_mrclam = write_dataset(_synthetic_mrclam / "synthetic", duration_s=120.0, field_of_view_rad=2.0)
+os.environ["INFONAV_MRCLAM_DATASET"] = str(_synthetic_mrclam)
 
 
 def pytest_configure(config):

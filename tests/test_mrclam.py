@@ -8,6 +8,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from mrclam_exact import (  # tests/ is on sys.path (pytest rootdir-relative import)
+    BARCODES,
+    HEADER,
+    LANDMARKS,
+    UNKNOWN_BARCODE,
+    true_pose,
+    write_dataset,
+    write_rows,
+)
 
 from infonav_gym.datasets import mrclam
 from infonav_gym.experiments.cli import main
@@ -21,50 +30,6 @@ DATASET6 = Path(os.environ.get("INFONAV_MRCLAM_DATASET6", DEFAULT_DATASET6))  # 
 needs_dataset6 = pytest.mark.skipif(
     not DATASET6.is_dir(), reason=f"MRCLAM Dataset 6 is not at {DATASET6} (a fresh clone does not ship it)"
 )
-HEADER = "# synthetic MRCLAM-format file\n# columns as in the published datasets\n"
-LANDMARKS = {3: (2.0, 0.0), 4: (0.0, 2.0), 5: (-2.0, -1.0)}
-BARCODES = {1: 11, 2: 22, 3: 33, 4: 44, 5: 55}  # subject -> barcode
-UNKNOWN_BARCODE = 99
-SPEED, TURN_RATE, DURATION_S = 0.2, 0.2, 20.0  # [m/s], [rad/s], [s]
-
-
-def _write(path: Path, rows) -> None:
-    path.write_text(HEADER + "".join(" \t".join(f"{value:.6f}" for value in row) + "\n" for row in rows))
-
-
-def _true_pose(robot: int, t):
-    """Robot 1 circles from (0, -1) heading east; robot 2 the same circle half a turn later."""
-    phase = TURN_RATE * np.asarray(t) + (0.0 if robot == 1 else math.pi)
-    radius = SPEED / TURN_RATE
-    return np.stack([radius * np.sin(phase), -radius * np.cos(phase), phase], axis=-1)
-
-
-def write_dataset(directory: Path, groundtruth: bool = True) -> Path:
-    """A two-robot, three-landmark directory with exact odometry and measurements, 1e9 s epoch like the real sets."""
-    directory.mkdir(parents=True, exist_ok=True)
-    epoch = 1.0e9
-    _write(directory / "Barcodes.dat", [(subject, barcode) for subject, barcode in BARCODES.items()])
-    _write(directory / "Landmark_Groundtruth.dat", [(s, x, y, 1e-4, 1e-4) for s, (x, y) in LANDMARKS.items()])
-    odometry_times = np.arange(0.0, DURATION_S, 0.02)
-    for robot in (1, 2):
-        _write(directory / f"Robot{robot}_Odometry.dat", [(epoch + t, SPEED, TURN_RATE) for t in odometry_times])
-        rows = []
-        for t in np.arange(0.5, DURATION_S, 0.5):
-            x, y, heading = _true_pose(robot, t)
-            targets = [(BARCODES[s], p) for s, p in LANDMARKS.items()] + [
-                (BARCODES[3 - robot], _true_pose(3 - robot, t))
-            ]
-            for barcode, (tx, ty, *_) in targets:
-                bearing = math.remainder(math.atan2(ty - y, tx - x) - heading, 2 * math.pi)
-                rows.append((epoch + t, barcode, math.hypot(tx - x, ty - y), bearing))
-        rows.append((epoch + 1.0, UNKNOWN_BARCODE, 1.0, 0.0))
-        _write(directory / f"Robot{robot}_Measurement.dat", rows)
-        if groundtruth:
-            times = np.arange(0.0, DURATION_S, 0.01)
-            _write(
-                directory / f"Robot{robot}_Groundtruth.dat", np.column_stack([epoch + times, _true_pose(robot, times)])
-            )
-    return directory
 
 
 @pytest.fixture
@@ -86,7 +51,7 @@ def test_load_round_trips_the_files_maps_barcodes_and_counts_unknown_ones(datase
     assert len(landmark_rows) == 3 * len(robot_rows) and set(landmark_rows[:, 1]) == {3, 4, 5}
     assert set(robot_rows[:, 1]) == {2}, "robot 1 sees robot 2, named by subject, not barcode"
     t = robot_rows[0, 0] - dataset.start_time
-    expected_range = np.hypot(*(_true_pose(2, t)[:2] - _true_pose(1, t)[:2]))
+    expected_range = np.hypot(*(true_pose(2, t)[:2] - true_pose(1, t)[:2]))
     assert robot_rows[0, 2] == pytest.approx(expected_range, abs=1e-6)
     assert dataset.groundtruth[2].shape[1] == 4 and dataset.has_groundtruth
 
@@ -230,7 +195,7 @@ def test_negative_or_repeated_timestamps_warn_naming_the_file_and_the_count(data
     rows = np.loadtxt(odometry)
     rows[10, 0] = rows[9, 0]
     rows[20, 0] = rows[19, 0]
-    _write(odometry, np.vstack([[-1.0, 0.0, 0.0], rows]))
+    write_rows(odometry, np.vstack([[-1.0, 0.0, 0.0], rows]))
     measurements = dataset_dir / "Robot2_Measurement.dat"  # several barcodes per time are normal there
     with pytest.warns(UserWarning) as caught:
         mrclam.load(dataset_dir)

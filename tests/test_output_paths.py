@@ -4,7 +4,7 @@ import json
 from pathlib import Path
 
 import pytest
-from test_mrclam import write_dataset  # tests/ is on sys.path (pytest rootdir-relative import)
+from mrclam_exact import write_dataset  # tests/ is on sys.path (pytest rootdir-relative import)
 
 import infonav_gym.experiments.evaluation as evaluation
 import infonav_gym.experiments.evaluation_files as evaluation_files

@@ -5,10 +5,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from infonav_gym.datasets.timeline import LANDMARK, ROBOT, Timeline, _tick_means, dead_reckoning
 from infonav_gym.estimation.ekf import PoseEKF
 from infonav_gym.experiments.replay.filters import ReplayConfig, _CooperativeFilter
 from infonav_gym.experiments.replay.policies import select_greedy, select_nearest, select_random
-from infonav_gym.experiments.replay.timeline import LANDMARK, ROBOT, Timeline, _tick_means, dead_reckoning
 from infonav_gym.information import expected_information_gain
 
 

@@ -14,7 +14,7 @@ from infonav_gym.experiments.replay.noise_model import NoiseModel, load_noise_mo
 from infonav_gym.experiments.replay.policies import POLICIES
 from infonav_gym.experiments.replay.report import check_experiments, markdown_table, run_experiments, write_results
 from infonav_gym.experiments.replay.run import replay
-from infonav_gym.experiments.replay.timeline import make_timeline
+from infonav_gym.datasets.timeline import make_timeline
 
 __all__ = [
     "POLICIES",

@@ -27,7 +27,7 @@ from infonav_gym.experiments.replay.noise_model import (
     RobotNoise,
     integrated_variance,
 )
-from infonav_gym.experiments.replay.timeline import held_integral, running_sums
+from infonav_gym.datasets.timeline import held_integral, running_sums
 from infonav_gym.geometry import wrap_angle
 
 OFFSET_GRID_S = np.round(np.arange(-0.5, 0.5001, 0.01), 2)  # [s] candidate clock offsets

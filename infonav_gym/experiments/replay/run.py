@@ -19,7 +19,7 @@ from infonav_gym.experiments.replay.metrics import (
     pose_rmse,
 )
 from infonav_gym.experiments.replay.noise_model import corrected_logs
-from infonav_gym.experiments.replay.timeline import LANDMARK, ROBOT, Timeline, make_timeline
+from infonav_gym.datasets.timeline import LANDMARK, ROBOT, Timeline, make_timeline
 
 NO_GROUNDTRUTH_POSITION_STD_M = 3.0  # [m] initial uncertainty of a robot without ground truth
 SUMMARY_KEYS = (
