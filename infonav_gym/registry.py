@@ -10,10 +10,13 @@ registers it: ``infonav evaluate --env mylab.beacon:mylab/Beacon-v0``.
 from __future__ import annotations
 
 import importlib
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import gymnasium as gym
+
+from infonav_gym.datasets import DatasetNotFound
 
 GYMNASIUM = "gymnasium"  # a single-agent gymnasium.Env
 PARALLEL = "pettingzoo_parallel"  # a pettingzoo.ParallelEnv: every agent acts at every step
@@ -84,6 +87,20 @@ def unregister(env_id: str) -> None:
 def registered_envs(api: str | None = None) -> list[EnvEntry]:
     """Every registered env (of ``api`` only, if given), in registration order."""
     return [entry for entry in _ENTRIES.values() if api is None or entry.api == api]
+
+
+def available_envs(api: str | None = None) -> list[EnvEntry]:
+    """``registered_envs(api)`` but those that cannot be made here because their dataset is absent (``DatasetNotFound``:
+    a warning names each one left out)."""
+    available = []
+    for entry in registered_envs(api):
+        try:
+            make_env(entry.id).close()
+        except DatasetNotFound as error:
+            warnings.warn(f"{entry.id} left out: {error}", stacklevel=2)
+        else:
+            available.append(entry)
+    return available
 
 
 def env_entry(env_id: str) -> EnvEntry:

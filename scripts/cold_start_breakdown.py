@@ -114,9 +114,9 @@ def main() -> None:
     parser.add_argument("--json", action="store_true", help="print every compile, as JSON")
     parser.add_argument("--together", action="store_true", help="every env in one process (cold_start_all_envs_s)")
     arguments = parser.parse_args()
-    from infonav_gym import registered_envs
+    from infonav_gym.registry import available_envs
 
-    env_ids = arguments.env_ids or [entry.id for entry in registered_envs()]
+    env_ids = arguments.env_ids or [entry.id for entry in available_envs()]
     profiles = [breakdown(env_ids)] if arguments.together else [breakdown([env_id]) for env_id in env_ids]
     print(json.dumps(profiles, indent=1) if arguments.json else "\n".join(report(p, arguments.top) for p in profiles))
 

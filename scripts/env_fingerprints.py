@@ -6,8 +6,9 @@ reset with the next seed), with actions drawn uniformly over the valid ones from
 rewards, terminations, truncations and infos all enter the hash (but ``WALL_CLOCK_KEYS``).
 
 Usage: ``python scripts/env_fingerprints.py [--save FILE] [--compare FILE]``. ``--compare`` exits 1 naming every
-view whose hash differs from FILE's. Run both on the same machine (before and after a change): the last digits of
-floating-point outputs may differ between CPUs.
+view of FILE whose hash differs (and names, without failing, the views FILE lacks: envs registered since). Every
+env that can be made here (``available_envs``) is played. Run both on the same machine (before and after a change):
+the last digits of floating-point outputs may differ between CPUs.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from infonav_gym.experiments.vector_timing import random_valid_actions
-from infonav_gym.registry import PARALLEL, api_of, make_env, make_vector_env, registered_envs
+from infonav_gym.registry import PARALLEL, api_of, available_envs, make_env, make_vector_env
 
 STEPS = 60
 COPIES = 3
@@ -89,7 +90,7 @@ def vector_view(env_id: str, autoreset_mode: str) -> str:
 def fingerprints() -> dict[str, str]:
     """``{"ENV_ID single" | "ENV_ID vector MODE": sha256}`` of every registered env."""
     result = {}
-    for entry in registered_envs():
+    for entry in available_envs():
         result[f"{entry.id} single"] = single_view(entry.id)
         if entry.vector_entry_point is not None:
             for mode in AUTORESET_MODES:
@@ -108,9 +109,11 @@ def main(argv: list[str] | None = None) -> int:
         args.save.write_text(json.dumps(result, indent=2) + "\n")
     if args.compare:
         before = json.loads(args.compare.read_text())
-        changed = sorted(view for view in before.keys() | result.keys() if before.get(view) != result.get(view))
+        changed = sorted(view for view in before if before[view] != result.get(view))
         for view in changed:
             print(f"changed: {view}", file=sys.stderr)
+        for view in sorted(result.keys() - before.keys()):  # an env registered since: nothing to compare
+            print(f"new: {view}", file=sys.stderr)
         return 1 if changed else 0
     return 0
 

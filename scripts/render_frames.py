@@ -15,7 +15,7 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 from PIL import Image
 
 from infonav_gym.experiments.render_episode import frame_stem, render_episode, write_gif
-from infonav_gym.registry import registered_envs
+from infonav_gym.registry import available_envs
 
 SEED = 0
 AGENT = "greedy"
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--env", action="append", help="only this env (repeatable; default: every registered env)")
     args = parser.parse_args(argv)
     args.output_dir.mkdir(parents=True, exist_ok=True)
-    for env_id in args.env or [entry.id for entry in registered_envs()]:
+    for env_id in args.env or [entry.id for entry in available_envs()]:
         for path in (write_frame(env_id, args.output_dir), write_episode_gif(env_id, args.output_dir)):
             print(f"wrote {path} ({path.stat().st_size / 1e3:.0f} kB)")
     return 0

@@ -18,7 +18,7 @@ from infonav_gym.envs.traits import has_planning_model, main_metric_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, checked_workers, played, seeds_of
 from infonav_gym.experiments.intervals import INTERVAL_NOTES, interval_cell, summary_of
 from infonav_gym.experiments.paths import Interrupted, output_file
-from infonav_gym.registry import env_entry, registered_envs
+from infonav_gym.registry import available_envs, env_entry
 
 COLUMNS = {"random": "random", "greedy": "greedy", "planner": "planner", "ppo": "PPO", "rllib": "RLlib PPO"}
 BASELINES = ("random", "greedy", "planner")  # agent name = column; the learned ones come from results/models
@@ -155,7 +155,7 @@ def leaderboard(
     of ``"episodes", "seeds", "columns", "workers", "tie_tolerance"`` and ``"rows"`` (each with its ``"cells"`` and
     ``"best"`` columns). ``ValueError`` before any episode for bad input; ``Interrupted`` with the finished rows."""
     seeds = seeds_of(seed, episodes)
-    env_ids = [entry.id for entry in registered_envs()] if env_ids is None else list(env_ids)
+    env_ids = [entry.id for entry in available_envs()] if env_ids is None else list(env_ids)
     rows = leaderboard_rows(env_ids, columns, models_dir)
     cells = {_cell_key(row, agent) for row in rows for agent in row.agents.values()}
     workers = checked_workers(workers, episodes, episodes * len(cells), f"{episodes} episodes of {len(cells)} cells")

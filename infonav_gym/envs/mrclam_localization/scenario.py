@@ -11,6 +11,7 @@ from gymnasium import spaces
 
 from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.config import Interval, check_config
+from infonav_gym.datasets import DatasetNotFound
 from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, EpisodeMetric, count_where, mean_where
@@ -119,10 +120,14 @@ class MRCLAMLocalization(EnvScenario):
     def __init__(self, config: dict, copies: int, owner: str, render_mode: str | None):
         super().__init__(config, copies, owner, render_mode)
         check_config(config, owner, CONFIG_INTERVALS)
+        directory = dataset_directory(config["dataset_dir"])
+        where = f"set config key 'dataset_dir' or ${DATASET_VARIABLE}"
+        if not directory.is_dir():
+            raise DatasetNotFound(f"{owner}: no MRCLAM dataset directory at {directory} ({where})")
         try:
-            self.logs = robot_logs(dataset_directory(config["dataset_dir"]), float(config["odometry_tick_s"]))
+            self.logs = robot_logs(directory, float(config["odometry_tick_s"]))
         except (OSError, ValueError) as error:
-            raise ValueError(f"{owner}: {error} (set config key 'dataset_dir' or ${DATASET_VARIABLE})") from None
+            raise ValueError(f"{owner}: {error} ({where})") from None
         self.starts = episode_starts(self.logs, config, owner)
         self.flat = FlatLogs.of(self.logs)
         n_landmarks = len(self.logs.landmarks)

@@ -19,6 +19,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.datasets.timeline import held_integral, running_sums
 from infonav_gym.experiments.replay.metrics import groundtruth_at
 from infonav_gym.experiments.replay.noise_model import (
     ODOMETRY_HORIZON_S,
@@ -27,7 +28,6 @@ from infonav_gym.experiments.replay.noise_model import (
     RobotNoise,
     integrated_variance,
 )
-from infonav_gym.datasets.timeline import held_integral, running_sums
 from infonav_gym.geometry import wrap_angle
 
 OFFSET_GRID_S = np.round(np.arange(-0.5, 0.5001, 0.01), 2)  # [s] candidate clock offsets

@@ -9,6 +9,7 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.datasets.timeline import make_timeline
 from infonav_gym.experiments.paths import output_file
 from infonav_gym.experiments.replay.comparison import comparison_markdown
 from infonav_gym.experiments.replay.filters import ReplayConfig
@@ -18,7 +19,6 @@ from infonav_gym.experiments.replay.plots import figure_nees_over_time
 from infonav_gym.experiments.replay.policies import POLICIES
 from infonav_gym.experiments.replay.run import SUMMARY_KEYS, replay, replay_header
 from infonav_gym.experiments.replay.tables import budget_cells, table_lines
-from infonav_gym.datasets.timeline import make_timeline
 from infonav_gym.rendering import save_figure
 
 # a sweep row's metrics: a replay's, but for dead reckoning's (a row of its own) and these
