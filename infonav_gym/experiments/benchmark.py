@@ -239,11 +239,12 @@ def memory_figures(
     steps: int = MEMORY_STEPS,
     seconds: float = MEMORY_SECONDS,
 ) -> dict:
-    """``NAME_vector_N_kb_per_env`` at N = ``num_envs`` of each of ``env_ids`` (default: all) with a native vector env
-    (``vector_timing.kb_per_env``); none where ``memory_missing`` says so."""
+    """``NAME_vector_N_kb_per_env`` at N = ``num_envs`` of each of ``env_ids`` (default: ``benchmarked_env_ids``) with
+    a native vector env (``vector_timing.kb_per_env``); none where ``memory_missing`` says so."""
     if memory_missing():
         return {}
-    vector_ids = [env_id for env_id in vector_env_ids() if env_ids is None or env_id in env_ids]
+    env_ids = benchmarked_env_ids() if env_ids is None else env_ids
+    vector_ids = [env_id for env_id in vector_env_ids() if env_id in env_ids]
     return {
         f"{figure_name(env_id)}_vector_{num_envs}_kb_per_env": kb_per_env(env_id, num_envs, steps, seed, seconds)
         for env_id in vector_ids

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from gymnasium.envs.classic_control.cartpole import CartPoleVectorEnv
 
-from infonav_gym.registry import available_envs, make_vector_env
+from infonav_gym.registry import make_vector_env, registered_envs
 
 DEFAULT_VECTOR_SIZES = (1, 16, 64, 256, 1024)
 MAX_VECTOR_SIZE = 65_536  # sub-envs of one measured vector env
@@ -64,9 +64,8 @@ def parse_vector_sizes(text: str, where: str = "--vector-sizes") -> tuple[int, .
 
 
 def vector_env_ids() -> list[str]:
-    """Every registered env with a native vector env that can be made here (``available_envs``), in registration
-    order."""
-    return [entry.id for entry in available_envs() if entry.vector_entry_point is not None]
+    """Every registered env with a native vector env, in registration order."""
+    return [entry.id for entry in registered_envs() if entry.vector_entry_point is not None]
 
 
 def random_valid_actions(masks: np.ndarray, rng: np.random.Generator) -> np.ndarray:

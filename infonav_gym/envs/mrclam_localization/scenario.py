@@ -41,7 +41,7 @@ CONFIG_INTERVALS = {
     "bearing_std_rad": Interval(1e-5, math.pi, unit="rad"),
     "odometry_speed_std_mps": Interval(1e-6, 10.0, unit="m/s"),
     "odometry_turn_rate_std_rps": Interval(1e-6, 10.0, unit="rad/s"),
-    "gate_nis": Interval(0.1, 1e6, open_low=True),
+    "gate_nis": Interval(0.0, 1e6, open_low=True),
     "time_from_s": Interval(0.0, END_OF_LOG_S, unit="s"),
     "time_to_s": Interval(0.0, END_OF_LOG_S, unit="s"),
     **INITIAL_POSE_STD,
