@@ -12,6 +12,8 @@ from infonav_gym.compiled import inner_kernel
 
 POSE_FEATURES = 10  # x, y, cos, sin of the heading, the pose's three stds, the x-y correlation, entropy, elapsed
 BIG = 1e4  # the bound of the unbounded features
+POSE_LOW = [-BIG, -BIG, -1, -1, 0, 0, 0, -1, -100, 0]  # the bounds of the ``pose_features``
+POSE_HIGH = [BIG, BIG, 1, 1, BIG, BIG, BIG, 1, 100, 1]
 
 
 @inner_kernel

@@ -12,7 +12,7 @@ from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.landmark_decision import LandmarkDecision
 from infonav_gym.envs.noise_streams import NoiseStreams, taken
-from infonav_gym.envs.observation_kernels import BIG
+from infonav_gym.envs.observation_kernels import POSE_HIGH, POSE_LOW
 from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.estimation.kernels import predict_poses
 from infonav_gym.estimation.state import POSE_DIM
@@ -51,8 +51,7 @@ class OneRobotScenario(EnvScenario):
     def use_observation_bounds(self, low: list, high: list) -> None:
         """The observation space: the ``pose_features``, then features within ``low``, ``high``; ``bounds``, its
         float32 bounds as floats, for the kernels that clip to them."""
-        low = np.array([-BIG, -BIG, -1, -1, 0, 0, 0, -1, -100, 0] + low, dtype=np.float32)
-        high = np.array([BIG, BIG, 1, 1, BIG, BIG, BIG, 1, 100, 1] + high, dtype=np.float32)
+        low, high = np.array(POSE_LOW + low, dtype=np.float32), np.array(POSE_HIGH + high, dtype=np.float32)
         self.bounds = low.astype(float), high.astype(float)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
 

@@ -16,7 +16,15 @@ from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, EpisodeMetric, count_where, mean_where
 from infonav_gym.envs.mrclam_localization.logs import DATASET_VARIABLE, DatasetLogs, dataset_directory, robot_logs
-from infonav_gym.envs.observation_kernels import BIG, POSE_FEATURES, clip_into, pose_features, range_bearing_features
+from infonav_gym.envs.observation_kernels import (
+    BIG,
+    POSE_FEATURES,
+    POSE_HIGH,
+    POSE_LOW,
+    clip_into,
+    pose_features,
+    range_bearing_features,
+)
 from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
@@ -132,8 +140,7 @@ class MRCLAMLocalization(EnvScenario):
         self.flat = FlatLogs.of(self.logs)
         n_landmarks = len(self.logs.landmarks)
         self.action_space = spaces.Discrete(1 + n_landmarks)
-        low = [-BIG, -BIG, -1, -1, 0, 0, 0, -1, -100, 0] + [0, 0, -1, -1] * n_landmarks
-        high = [BIG, BIG, 1, 1, BIG, BIG, BIG, 1, 100, 1] + [1, BIG, 1, 1] * n_landmarks
+        low, high = POSE_LOW + [0, 0, -1, -1] * n_landmarks, POSE_HIGH + [1, BIG, 1, 1] * n_landmarks
         self.observation_space = spaces.Box(np.float32(low), np.float32(high), dtype=np.float32)
         self.bounds = np.array(low, dtype=float), np.array(high, dtype=float)
         self.noise = stacked(np.diag([config["range_std_m"] ** 2, config["bearing_std_rad"] ** 2]), (2, 2))
