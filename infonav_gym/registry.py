@@ -89,15 +89,22 @@ def registered_envs(api: str | None = None) -> list[EnvEntry]:
     return [entry for entry in _ENTRIES.values() if api is None or entry.api == api]
 
 
+def missing_dataset(env_id: str, **config) -> str | None:
+    """Why ``env_id`` with ``config`` cannot be made here, its dataset being absent (``DatasetNotFound``), or None."""
+    try:
+        make_env(env_id, **config).close()
+    except DatasetNotFound as error:
+        return str(error)
+    return None
+
+
 def available_envs(api: str | None = None) -> list[EnvEntry]:
-    """``registered_envs(api)`` but those that cannot be made here because their dataset is absent (``DatasetNotFound``:
-    a warning names each one left out)."""
+    """``registered_envs(api)`` but those that cannot be made here with their defaults (``missing_dataset``: a
+    warning names each one left out)."""
     available = []
     for entry in registered_envs(api):
-        try:
-            make_env(entry.id).close()
-        except DatasetNotFound as error:
-            warnings.warn(f"{entry.id} left out: {error}", stacklevel=2)
+        if reason := missing_dataset(entry.id):
+            warnings.warn(f"{entry.id} left out: {reason}", stacklevel=2)
         else:
             available.append(entry)
     return available

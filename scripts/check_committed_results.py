@@ -20,9 +20,8 @@ import math
 import sys
 from pathlib import Path
 
-from infonav_gym.datasets import DatasetNotFound
 from infonav_gym.experiments.evaluation import evaluate
-from infonav_gym.registry import env_entry, make_env
+from infonav_gym.registry import env_entry, missing_dataset
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
 
@@ -37,11 +36,7 @@ def missing_extra(path: Path) -> str | None:
     committed = json.loads(path.read_text())
     if any(name.startswith("rllib:") for name in committed["agents"]) and importlib.util.find_spec("ray") is None:
         return 'its rllib: agent needs Ray (pip install "infonav-gym[distributed]")'
-    try:
-        make_env(committed["env_id"], **committed["env_kwargs"]).close()
-    except DatasetNotFound as error:
-        return str(error)
-    return None
+    return missing_dataset(committed["env_id"], **committed["env_kwargs"])
 
 
 def exact_metrics(env_id: str) -> set[str]:

@@ -7,6 +7,7 @@ import contextlib
 import itertools
 import json
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from infonav_gym.envs.traits import has_planning_model, main_metric_of
 from infonav_gym.experiments.episode_pool import EpisodeRunner, checked_workers, played, seeds_of
 from infonav_gym.experiments.intervals import INTERVAL_NOTES, interval_cell, summary_of
 from infonav_gym.experiments.paths import Interrupted, output_file
-from infonav_gym.registry import available_envs, env_entry
+from infonav_gym.registry import available_envs, env_entry, missing_dataset
 
 COLUMNS = {"random": "random", "greedy": "greedy", "planner": "planner", "ppo": "PPO", "rllib": "RLlib PPO"}
 BASELINES = ("random", "greedy", "planner")  # agent name = column; the learned ones come from results/models
@@ -39,7 +40,8 @@ class Row:
 
 def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
     """``(column, agent name, env id, env kwargs, model name)`` of each ``*/train.json`` in ``directory`` (a run
-    that kept a best policy plays that one); ``ValueError`` naming a ``train.json`` that is not an env's."""
+    that kept a best policy plays that one; one whose env's dataset is absent here is left out, with a warning);
+    ``ValueError`` naming a ``train.json`` that is not an env's."""
     models = []
     for record_path in sorted(Path(directory).glob("*/train.json")):
         try:
@@ -47,6 +49,9 @@ def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
             env_entry(record["env_id"])
         except (ValueError, KeyError) as error:
             raise ValueError(f"{record_path}: not the train.json of a registered env ({error})") from None
+        if reason := missing_dataset(record["env_id"], **record.get("env_kwargs", {})):
+            warnings.warn(f"{record_path.parent} left out: {reason}", stacklevel=2)
+            continue
         column = "rllib" if record.get("backend") == "rllib" else "ppo"
         model = record_path.parent
         if record.get("validation"):
