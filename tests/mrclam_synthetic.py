@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from infonav_gym.experiments.replay.noise_model import RobotNoise
+from infonav_gym.datasets.noise_model import RobotNoise
 
 EPOCH = 1.25e9  # [s] the logs' clock, as in the published sets
 RING = [(5.0 * math.cos(a), 4.0 * math.sin(a)) for a in np.linspace(0, 2 * math.pi, 12, endpoint=False)]

@@ -9,10 +9,10 @@ import pytest
 from mrclam_synthetic import MODEL, write_synthetic_dataset
 
 from infonav_gym.datasets import mrclam
+from infonav_gym.datasets.noise_model import load_noise_model
 from infonav_gym.experiments.cli import main
 from infonav_gym.experiments.replay import ReplayConfig, replay
 from infonav_gym.experiments.replay.calibration import calibrate, fit_systematic, robust_std, systematic_design
-from infonav_gym.experiments.replay.noise_model import load_noise_model
 
 # calibrations on whole logs: slow; `pytest -m "not slow"` leaves it out while developing
 pytestmark = pytest.mark.slow

@@ -131,6 +131,17 @@ def test_a_missing_or_malformed_dataset_is_a_one_line_error_naming_the_path(tmp_
         assert ENV_ID not in {entry.id for entry in available_envs()}
 
 
+def test_a_calibration_corrects_the_logs_and_a_missing_one_is_a_one_line_error(tmp_path):
+    raw, corrected = (make_env(ENV_ID, log_correction=correction) for correction in ("", "shipped"))
+    raw_logs, corrected_logs = (env.unwrapped.vector.env_scenario.logs for env in (raw, corrected))
+    np.testing.assert_array_equal(raw_logs.landmarks, corrected_logs.landmarks)
+    # the shipped model moves the logs onto the ground truth's clock and removes the readings' mean errors
+    assert not np.array_equal(raw_logs.robots[0].readings, corrected_logs.robots[0].readings)
+    missing = tmp_path / "model.json"
+    with pytest.raises(ValueError, match=rf"noise model file {missing} does not exist \(config keys 'dataset_dir' and"):
+        make_env(ENV_ID, log_correction=str(missing))
+
+
 def test_the_landmark_map_and_the_action_space_come_from_the_dataset():
     env = make_env(ENV_ID)
     assert env.action_space.n == 1 + len(LANDMARKS)

@@ -10,7 +10,7 @@ import pytest
 from mrclam_synthetic import MODEL
 from scipy import integrate
 
-from infonav_gym.experiments.replay.noise_model import (
+from infonav_gym.datasets.noise_model import (
     NoiseModel,
     corrected_logs,
     integrated_variance,

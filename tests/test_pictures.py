@@ -238,8 +238,8 @@ def test_the_fig6_frame_pair_plot_is_readable():
 
 
 def test_the_replay_and_registration_plots_are_readable():
+    from infonav_gym.datasets.noise_model import NoiseModel
     from infonav_gym.experiments.registration_recall import figure_comparison
-    from infonav_gym.experiments.replay.noise_model import NoiseModel
     from infonav_gym.experiments.replay.plots import figure_calibration, figure_nees_over_time
 
     generator = np.random.default_rng(0)

@@ -639,7 +639,7 @@ def _reproduce(args, command: str) -> dict:
 
 def _noise_model(value: str | None):
     """``--noise`` / ``--compare-noise``: 'picked' -> None, 'shipped' -> the shipped model, else a file."""
-    from infonav_gym.experiments.replay.noise_model import load_noise_model, shipped_noise_model
+    from infonav_gym.datasets.noise_model import load_noise_model, shipped_noise_model
 
     if value == "picked":
         return None

@@ -12,11 +12,13 @@ from pathlib import Path
 import numpy as np
 
 from infonav_gym.datasets import mrclam
+from infonav_gym.datasets.noise_model import corrected_logs, load_noise_model, shipped_noise_model
 from infonav_gym.datasets.timeline import LANDMARK, make_timeline
 from infonav_gym.geometry import wrap_angle
 
 DATASET_VARIABLE = "INFONAV_MRCLAM_DATASET"  # the environment variable naming the default dataset directory
 DEFAULT_DATASET = Path("..") / "shared" / "datasets" / "MRCLAM_Dataset6"  # from the working directory
+SHIPPED = "shipped"  # the config key ``log_correction``'s name of the shipped Dataset 6 calibration
 
 
 def dataset_directory(configured: str) -> Path:
@@ -60,11 +62,17 @@ class DatasetLogs:
 
 
 @functools.cache
-def robot_logs(path: Path, tick_s: float) -> DatasetLogs:
-    """The ``DatasetLogs`` of the MRCLAM directory ``path`` (``mrclam.load``'s errors) on ticks of ``tick_s``."""
+def robot_logs(path: Path, tick_s: float, correction: str = "") -> DatasetLogs:
+    """The ``DatasetLogs`` of the MRCLAM directory ``path`` (``mrclam.load``'s errors) on ticks of ``tick_s``, its
+    logs corrected by a calibrated noise model (``noise_model.corrected_logs``: the sensors' clocks, the odometry's
+    scales, the measurements' mean errors): ``correction`` ``""`` none, ``"shipped"`` the Dataset 6 calibration the
+    package ships, else the path of a calibration JSON (``load_noise_model``'s errors)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # unknown barcodes and missing files: the loader's notes, not the env's
         dataset = mrclam.load(path)
+    if correction:
+        model = shipped_noise_model() if correction == SHIPPED else load_noise_model(Path(correction).expanduser())
+        dataset = corrected_logs(dataset, model)
     timeline = make_timeline(dataset, dt=tick_s)
     times = timeline.boundary_times() + dataset.start_time
     logs = []

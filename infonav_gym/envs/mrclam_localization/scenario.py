@@ -121,6 +121,7 @@ class MRCLAMLocalization(EnvScenario):
             "odometry_speed_std_mps": 0.01,  # [m/s] of readings averaged over 1 s
             "odometry_turn_rate_std_rps": 0.02,  # [rad/s] of readings averaged over 1 s
             "gate_nis": 25.0,  # a measurement whose normalized innovation squared exceeds this is not fused
+            "log_correction": "",  # "": the raw logs; "shipped" or a calibration JSON's path: logs corrected by it
             "initial_position_std_m": 0.05,  # [m] the prior around the ground truth at the episode's start
             "initial_heading_std_rad": 0.05,  # [rad]
         }
@@ -133,9 +134,9 @@ class MRCLAMLocalization(EnvScenario):
         if not directory.is_dir():
             raise DatasetNotFound(f"{owner}: no MRCLAM dataset directory at {directory} ({where})")
         try:
-            self.logs = robot_logs(directory, float(config["odometry_tick_s"]))
+            self.logs = robot_logs(directory, float(config["odometry_tick_s"]), config["log_correction"])
         except (OSError, ValueError) as error:
-            raise ValueError(f"{owner}: {error} ({where})") from None
+            raise ValueError(f"{owner}: {error} (config keys 'dataset_dir' and 'log_correction')") from None
         self.starts = episode_starts(self.logs, config, owner)
         self.flat = FlatLogs.of(self.logs)
         n_landmarks = len(self.logs.landmarks)
@@ -426,7 +427,10 @@ class MRCLAMLocalizationEnv(SingleEnvView, vector_env=MRCLAMLocalizationVectorEn
     none) and the EKF fuses that real range-bearing reading, unless its normalized innovation squared exceeds
     ``gate_nis`` (real logs hold outliers). An episode is a window of ``horizon`` measurement times of one robot; the
     seed picks the robot (among ``robots``) and the window (inside ``[time_from_s, time_to_s]``, so that training and
-    evaluation can use disjoint times). The Vicon ground truth scores the estimate.
+    evaluation can use disjoint times). The Vicon ground truth scores the estimate. ``log_correction`` replays the logs
+    corrected by a calibrated noise model (``"shipped"``: the one fitted on Dataset 6's ground truth; or a JSON file of
+    ``infonav replay mrclam --calibrate``): the sensors' clocks aligned, the odometry's scales and the readings' mean
+    errors removed.
 
     The dataset directory is ``dataset_dir``, else ``$INFONAV_MRCLAM_DATASET``, else
     ``../shared/datasets/MRCLAM_Dataset6`` from the working directory (Leung et al., IJRR 2011; not shipped); a

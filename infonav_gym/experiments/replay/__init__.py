@@ -8,10 +8,10 @@ policies and budgets and runs the absolute-sensing outage experiment. ``calibrat
 (``shipped_noise_model()``: the one fitted on Dataset 6; ``noise=None``: the hand-picked stds).
 """
 
+from infonav_gym.datasets.noise_model import NoiseModel, load_noise_model, shipped_noise_model
 from infonav_gym.datasets.timeline import make_timeline
 from infonav_gym.experiments.replay.calibration import calibrate
 from infonav_gym.experiments.replay.filters import ReplayConfig
-from infonav_gym.experiments.replay.noise_model import NoiseModel, load_noise_model, shipped_noise_model
 from infonav_gym.experiments.replay.policies import POLICIES
 from infonav_gym.experiments.replay.report import check_experiments, markdown_table, run_experiments, write_results
 from infonav_gym.experiments.replay.run import replay

@@ -19,15 +19,15 @@ import numpy as np
 from scipy import optimize, stats
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
-from infonav_gym.datasets.timeline import held_integral, running_sums
-from infonav_gym.experiments.replay.metrics import groundtruth_at
-from infonav_gym.experiments.replay.noise_model import (
+from infonav_gym.datasets.noise_model import (
     ODOMETRY_HORIZON_S,
     SYSTEMATIC_FIELDS,
     NoiseModel,
     RobotNoise,
     integrated_variance,
 )
+from infonav_gym.datasets.timeline import held_integral, running_sums
+from infonav_gym.experiments.replay.metrics import groundtruth_at
 from infonav_gym.geometry import wrap_angle
 
 OFFSET_GRID_S = np.round(np.arange(-0.5, 0.5001, 0.01), 2)  # [s] candidate clock offsets

@@ -17,12 +17,12 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.datasets.noise_model import NoiseModel
 from infonav_gym.datasets.timeline import LANDMARK, ROBOT, Timeline, dead_reckoning
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.models import range_bearing_residual
 from infonav_gym.estimation.robust import huber_noise
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
-from infonav_gym.experiments.replay.noise_model import NoiseModel
 from infonav_gym.experiments.replay.policies import POLICIES, select_greedy, select_nearest, select_random
 from infonav_gym.geometry import wrap_angle
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
+from infonav_gym.datasets.noise_model import NoiseModel
 from infonav_gym.estimation.consistency import chi2_bounds
-from infonav_gym.experiments.replay.noise_model import NoiseModel
 from infonav_gym.rendering import matplotlib_figure, save_figure
 
 

@@ -9,12 +9,12 @@ from pathlib import Path
 from tqdm.auto import tqdm
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.datasets.noise_model import corrected_logs
 from infonav_gym.datasets.timeline import make_timeline
 from infonav_gym.experiments.paths import output_file
 from infonav_gym.experiments.replay.comparison import comparison_markdown
 from infonav_gym.experiments.replay.filters import ReplayConfig
 from infonav_gym.experiments.replay.metrics import mean_and_ci95
-from infonav_gym.experiments.replay.noise_model import corrected_logs
 from infonav_gym.experiments.replay.plots import figure_nees_over_time
 from infonav_gym.experiments.replay.policies import POLICIES
 from infonav_gym.experiments.replay.run import SUMMARY_KEYS, replay, replay_header

@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 
 from infonav_gym.datasets.mrclam import MRCLAMDataset
+from infonav_gym.datasets.noise_model import corrected_logs
 from infonav_gym.datasets.timeline import LANDMARK, ROBOT, Timeline, make_timeline
 from infonav_gym.experiments.replay.filters import ReplayConfig, ReplayTrace, replay_filter
 from infonav_gym.experiments.replay.metrics import (
@@ -19,7 +20,6 @@ from infonav_gym.experiments.replay.metrics import (
     nis_summary,
     pose_rmse,
 )
-from infonav_gym.experiments.replay.noise_model import corrected_logs
 
 NO_GROUNDTRUTH_POSITION_STD_M = 3.0  # [m] initial uncertainty of a robot without ground truth
 SUMMARY_KEYS = (

@@ -1,12 +1,12 @@
 """The calibrated noise model of the MRCLAM robots: JSON schema, checks, and the shipped calibration.
 
-A model holds, per robot subject (and ``pooled`` for robots it does not name), the ``RobotNoise`` that
+A model holds, per robot subject (and ``pooled`` for robots it does not name), the ``RobotNoise`` that the replay's
 ``calibration.calibrate`` estimated from motion-capture ground truth. The shipped model
 (``data/mrclam_dataset6_noise.json``, package data) was fitted on Dataset 6 by (from the repository root; it writes
 the fit and its residual plot ``results/mrclam_dataset6_noise.png``)::
 
     infonav replay mrclam ../shared/datasets/MRCLAM_Dataset6 --calibrate results/mrclam_dataset6_noise.json
-    cp results/mrclam_dataset6_noise.json infonav_gym/experiments/replay/data/
+    cp results/mrclam_dataset6_noise.json infonav_gym/datasets/data/
 """
 
 from __future__ import annotations
