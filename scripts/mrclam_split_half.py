@@ -4,17 +4,26 @@
 
 Prints, for the second half (all landmarks, a pose filter per robot): the mean position RMSE, mean NEES, the
 share of time steps inside the 95 % band and the mean NIS, with the model fitted on the first half and
-with the hand-picked noise; then the outage ratio (robot 2 without landmarks from 60 s into the half).
+with the hand-picked noise; then the outage ratio (robot 2 without landmarks from 60 s into the half); then
+``infonav/MRCLAMLocalization-v0``'s greedy episodes (seeds 0..49) in the second half, on the raw logs and on the logs
+the first half's model corrects (``log_correction``): mean NEES, share of steps inside the 95 % band, position RMSE.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import tempfile
 import warnings
+from pathlib import Path
 
+import numpy as np
+
+from infonav_gym import make_env
 from infonav_gym.datasets import mrclam
 from infonav_gym.experiments.replay import ReplayConfig, calibrate, replay
+
+ENV_EPISODES = 50
 
 
 def restrict(dataset, start: float, end: float):
@@ -51,6 +60,32 @@ def main() -> None:
         )
     outage = replay(second, ReplayConfig(noise=model, cooperative=True, outage_robot=2, outage_start_s=60.0))
     print(f"second half, outage ratio (robot 2 from 60 s): {outage['outage']['ratio']:.3f}")
+    with tempfile.TemporaryDirectory() as directory:
+        fitted = model.save(Path(directory) / "first_half.json")
+        for name, correction in (("raw logs", ""), ("logs corrected by the first half's model", str(fitted))):
+            nees, rmse = greedy_episodes(args.dataset_dir, correction, middle - dataset.start_time)
+            print(
+                f"second half, MRCLAMLocalization-v0 greedy, {name}: mean NEES {nees.mean():.2f}, inside 95 % "
+                f"{np.mean(nees <= 7.815):.3f}, position RMSE {rmse:.3f} m"
+            )
+
+
+def greedy_episodes(dataset_dir: str, correction: str, from_s: float) -> tuple[np.ndarray, float]:
+    """The pose NEES of every step of ``ENV_EPISODES`` greedy episodes of the env after ``from_s``, and their
+    position RMSE [m]."""
+    env = make_env(
+        "infonav/MRCLAMLocalization-v0", dataset_dir=dataset_dir, log_correction=correction, time_from_s=from_s
+    )
+    nees, squares = [], []
+    for seed in range(ENV_EPISODES):
+        _, info = env.reset(seed=seed)
+        for _ in range(env.unwrapped.config["horizon"]):
+            _, _, _, _, info = env.step(
+                int(np.argmax(np.where(info["action_mask"], info["action_information_gain"], -1)))
+            )
+            nees.append(info["pose_nees"])
+            squares.append(info["position_error_m"] ** 2)
+    return np.array(nees), float(np.sqrt(np.mean(squares)))
 
 
 if __name__ == "__main__":
