@@ -16,6 +16,7 @@ from mrclam_exact import LANDMARKS, write_dataset
 from infonav_gym import make_env
 from infonav_gym.datasets import DatasetNotFound, mrclam
 from infonav_gym.envs.mrclam_localization.logs import DATASET_VARIABLE
+from infonav_gym.experiments.cli import main
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.registry import available_envs
 
@@ -140,6 +141,21 @@ def test_a_calibration_corrects_the_logs_and_a_missing_one_is_a_one_line_error(t
     missing = tmp_path / "model.json"
     with pytest.raises(ValueError, match=rf"noise model file {missing} does not exist \(config keys 'dataset_dir' and"):
         make_env(ENV_ID, log_correction=str(missing))
+
+
+@pytest.mark.parametrize("broken", ["absent", "truncated"])
+def test_the_command_line_says_a_bad_dataset_in_one_line_and_exits_2(broken, tmp_path, capsys):
+    directory = tmp_path / broken
+    if broken == "truncated":
+        write_dataset(directory, duration_s=30.0)
+        odometry = directory / "Robot2_Odometry.dat"
+        odometry.write_text(odometry.read_text()[:-30])  # cut inside its last row
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--env", ENV_ID, "--episodes", "1", "--config", f"dataset_dir={directory}"])
+    error = capsys.readouterr().err.strip()
+    assert exit_info.value.code == 2 and "\n" not in error
+    expected = f"no MRCLAM dataset directory at {directory}" if broken == "absent" else "Robot2_Odometry.dat, line"
+    assert expected in error
 
 
 def test_the_landmark_map_and_the_action_space_come_from_the_dataset():
