@@ -56,6 +56,15 @@ class PathHistory:
         return np.vstack([kept, self._latest])
 
 
+def extended_paths(paths, points, restarted: bool) -> tuple[PathHistory, ...]:
+    """``paths`` with each of ``points`` appended, or new paths from them (``restarted``, or no paths yet)."""
+    if restarted or paths is None:
+        return tuple(PathHistory(point) for point in points)
+    for path, point in zip(paths, points):
+        path.append(point)
+    return paths
+
+
 @dataclass
 class RobotDrawing:
     """One robot to draw: truth in black, its estimate in its own colour, positions in metres."""

@@ -16,7 +16,7 @@ from infonav_gym.envs.observation_kernels import POSE_HIGH, POSE_LOW
 from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.estimation.kernels import predict_poses
 from infonav_gym.estimation.state import POSE_DIM
-from infonav_gym.scene import PathHistory, RobotDrawing
+from infonav_gym.scene import PathHistory, RobotDrawing, extended_paths
 from infonav_gym.world.world_batch import WorldBatch
 
 
@@ -89,12 +89,7 @@ class OneRobotScenario(EnvScenario):
         """When drawing: start copy 0's true and estimated paths anew (``restarted``) or extend them."""
         if not self.drawing:
             return
-        true_position, estimated_position = state.worlds.poses[0, 0, :2], state.x[0, :2]
-        if restarted or state.paths is None:
-            state.paths = PathHistory(true_position), PathHistory(estimated_position)
-        else:
-            state.paths[0].append(true_position)
-            state.paths[1].append(estimated_position)
+        state.paths = extended_paths(state.paths, (state.worlds.poses[0, 0, :2], state.x[0, :2]), restarted)
 
     @staticmethod
     def first_robot_drawing(state: OneRobotState) -> RobotDrawing:

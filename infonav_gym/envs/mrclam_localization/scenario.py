@@ -38,7 +38,7 @@ from infonav_gym.information import (
     log_det_of,
     stacked_log_dets,
 )
-from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame
+from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame, extended_paths
 
 NONE = 0  # the action that fuses nothing; action k >= 1 fuses landmark k - 1's measurement
 LANDMARK_FEATURES = 4  # measured flag, measured range [m], cos and sin of the measured bearing
@@ -144,7 +144,9 @@ class MRCLAMLocalization(EnvScenario):
         low, high = POSE_LOW + [0, 0, -1, -1] * n_landmarks, POSE_HIGH + [1, BIG, 1, 1] * n_landmarks
         self.observation_space = spaces.Box(np.float32(low), np.float32(high), dtype=np.float32)
         self.bounds = np.array(low, dtype=float), np.array(high, dtype=float)
-        self.noise = stacked(np.diag([config["range_std_m"] ** 2, config["bearing_std_rad"] ** 2]), (2, 2))
+        noise = np.diag([config["range_std_m"] ** 2, config["bearing_std_rad"] ** 2])
+        self.landmark_rows = stacked(self.logs.landmarks, (copies, n_landmarks, 2))  # every copy's map and R, once
+        self.noise_rows = stacked(noise, (copies, n_landmarks, 2, 2))
         stds = np.array([config["odometry_speed_std_mps"], config["odometry_turn_rate_std_rps"]])
         self.control_covariance = stacked(np.diag(stds**2) / config["odometry_tick_s"], (1, 1, 2, 2))
 
@@ -181,9 +183,8 @@ class MRCLAMLocalization(EnvScenario):
         at = self.flat.offsets[state.robot[rows]] + state.step[rows]
         measured, x, P = self.flat.measured[at], contiguous(state.x[rows]), contiguous(state.P[rows])
         n_copies, n_landmarks = measured.shape
-        landmarks = stacked(self.logs.landmarks, (n_copies, n_landmarks, 2))
-        predicted, H, _ = range_bearing_models(x, landmarks, False)  # a landmark under the robot: masked by its gate
-        R = stacked(self.noise, (n_copies, n_landmarks, 2, 2))
+        predicted, H, _ = range_bearing_models(x, self.landmark_rows[:n_copies], False)  # under the robot: gated out
+        R = self.noise_rows[:n_copies]
         gains = np.where(measured, landmark_gains(P, H, R), 0.0)
         mask = np.ones((n_copies, 1 + n_landmarks), dtype=np.int8)
         mask[:, 1:] = measured
@@ -291,12 +292,7 @@ class MRCLAMLocalization(EnvScenario):
         if not self.drawing:
             return
         at = self.flat.offsets[state.robot[0]] + state.step[0]
-        true_position, estimated_position = self.flat.truth[at, :2], state.x[0, :2]
-        if restarted or state.paths is None:
-            state.paths = PathHistory(true_position), PathHistory(estimated_position)
-        else:
-            state.paths[0].append(true_position)
-            state.paths[1].append(estimated_position)
+        state.paths = extended_paths(state.paths, (self.flat.truth[at, :2], state.x[0, :2]), restarted)
 
 
 @dataclass(frozen=True)
