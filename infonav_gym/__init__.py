@@ -19,6 +19,12 @@ BUILTIN_ENVS = tuple(  # (id, entry point, api, vector entry point): each env's 
         ("cooperative_localization_v0", "cooperative_localization", "CooperativeLocalization", PARALLEL),
         ("cooperative_exploration_v0", "cooperative_exploration", "CooperativeExploration", PARALLEL),
         ("infonav/MRCLAMLocalization-v0", "mrclam_localization", "MRCLAMLocalization", GYMNASIUM),
+        (
+            "mrclam_cooperative_localization_v0",
+            "mrclam_cooperative_localization",
+            "MRCLAMCooperativeLocalization",
+            PARALLEL,
+        ),
     )
 )
 

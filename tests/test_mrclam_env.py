@@ -15,7 +15,7 @@ from mrclam_exact import LANDMARKS, write_dataset
 
 from infonav_gym import make_env
 from infonav_gym.datasets import DatasetNotFound, mrclam
-from infonav_gym.envs.mrclam_localization.logs import DATASET_VARIABLE
+from infonav_gym.datasets.mrclam_logs import DATASET_VARIABLE
 from infonav_gym.experiments.cli import main
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.registry import available_envs

@@ -154,7 +154,11 @@ def test_every_builtin_env_is_registered_once_and_register_envs_is_idempotent():
     assert [entry.id for entry in registered_envs()] == ids
     for env_id, spec in gymnasium_entries.items():
         assert gym.registry[env_id] is spec and spec.entry_point == env_entry(env_id).entry_point
-    assert [entry.id for entry in registered_envs(PARALLEL)] == [TEAM_ID, "cooperative_exploration_v0"]
+    assert [entry.id for entry in registered_envs(PARALLEL)] == [
+        TEAM_ID,
+        "cooperative_exploration_v0",
+        "mrclam_cooperative_localization_v0",
+    ]
     assert TEAM_ID not in gym.registry and "cooperative_exploration_v0" not in gym.registry
 
 

@@ -58,6 +58,22 @@ def first_copy_infos(info: dict, agents: list[str], team_keys) -> dict:
     return infos
 
 
+class TeamCycles:
+    """A team vector env's ``max_cycles``, PettingZoo's name of its driver's ``horizon``: ``class
+    MyTeamVectorEnv(TeamCycles, Driver, scenario=...)``."""
+
+    horizon: int
+
+    @property
+    def max_cycles(self) -> int:
+        """Every copy's episode length [steps], the driver's ``horizon``; settable (``set_attr``)."""
+        return self.horizon
+
+    @max_cycles.setter
+    def max_cycles(self, value: int) -> None:
+        self.horizon = value
+
+
 class ParallelEnvView(OneCopyView, ParallelEnv):
     """One copy of ``vector_env`` (``vector``) as a PettingZoo ``ParallelEnv``."""
 

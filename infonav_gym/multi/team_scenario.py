@@ -14,6 +14,7 @@ import numpy as np
 
 from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.noise_streams import NoiseStreams
+from infonav_gym.envs.parallel_view import TeamCycles
 from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses
@@ -226,21 +227,11 @@ class TeamScenario(EnvScenario):
         )
 
 
-class TeamAccessors:
+class TeamAccessors(TeamCycles):
     """What a team vector env (the ``Driver`` of a ``TeamScenario``) shows of its ``state``, for harnesses and tests:
     ``class MyTeamVectorEnv(TeamAccessors, Driver, scenario=MyTeamScenario)``."""
 
     state: TeamState
-    horizon: int
-
-    @property
-    def max_cycles(self) -> int:
-        """Every copy's episode length [steps], the driver's ``horizon``; settable (``set_attr``)."""
-        return self.horizon
-
-    @max_cycles.setter
-    def max_cycles(self, value: int) -> None:
-        self.horizon = value
 
     def scenario(self, copy: int = 0):
         """The ``Scenario`` of copy ``copy``'s episode."""

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -10,12 +9,11 @@ import numpy as np
 from gymnasium import spaces
 
 from infonav_gym.compiled import contiguous, kernel, stacked
-from infonav_gym.config import Interval, check_config
-from infonav_gym.datasets import DatasetNotFound
+from infonav_gym.config import check_config
+from infonav_gym.datasets.mrclam_logs import DatasetLogs, robot_logs
 from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, EpisodeMetric, count_where, mean_where
-from infonav_gym.envs.mrclam_localization.logs import DATASET_VARIABLE, DatasetLogs, dataset_directory, robot_logs
 from infonav_gym.envs.observation_kernels import (
     BIG,
     POSE_FEATURES,
@@ -26,11 +24,12 @@ from infonav_gym.envs.observation_kernels import (
     range_bearing_features,
 )
 from infonav_gym.envs.protocol import EnvScenario, State
+from infonav_gym.envs.real_logs import LOG_CONFIG_INTERVALS, load_logs, log_config
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info
 from infonav_gym.estimation.kernels import chosen_landmark_updates, landmark_gains, predict_poses, range_bearing_models
-from infonav_gym.estimation.state import INITIAL_POSE_STD, POSE_DIM
+from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.information import (
     gaussian_entropy_from_log_det,
@@ -42,18 +41,6 @@ from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame, extended_pa
 
 NONE = 0  # the action that fuses nothing; action k >= 1 fuses landmark k - 1's measurement
 LANDMARK_FEATURES = 4  # measured flag, measured range [m], cos and sin of the measured bearing
-END_OF_LOG_S = 1e6  # [s] beyond any log: ``time_to_s``'s default, to the end
-CONFIG_INTERVALS = {
-    "odometry_tick_s": Interval(1e-3, 1.0, unit="s"),
-    "range_std_m": Interval(1e-4, 10.0, unit="m"),
-    "bearing_std_rad": Interval(1e-5, math.pi, unit="rad"),
-    "odometry_speed_std_mps": Interval(1e-6, 10.0, unit="m/s"),
-    "odometry_turn_rate_std_rps": Interval(1e-6, 10.0, unit="rad/s"),
-    "gate_nis": Interval(0.0, 1e6, open_low=True),
-    "time_from_s": Interval(0.0, END_OF_LOG_S, unit="s"),
-    "time_to_s": Interval(0.0, END_OF_LOG_S, unit="s"),
-    **INITIAL_POSE_STD,
-}
 
 
 @dataclass
@@ -111,32 +98,14 @@ class MRCLAMLocalization(EnvScenario):
         return {
             **shared_config(),
             "horizon": 100,  # episode length [measurement times]
-            "dataset_dir": "",  # "": $INFONAV_MRCLAM_DATASET, else ../shared/datasets/MRCLAM_Dataset6
             "robots": "",  # the robots episodes are drawn from, subject numbers such as "1,2,3" ("": every robot)
-            "time_from_s": 0.0,  # episodes lie in [time_from_s, time_to_s] of the log [s]: hold a time range out
-            "time_to_s": END_OF_LOG_S,  # [s] (the default: to the end)
-            "odometry_tick_s": 0.02,  # [s] the odometry's mean over each tick predicts the pose
-            "range_std_m": 0.3,  # [m] (the dataset README's reference filter)
-            "bearing_std_rad": math.radians(8.0),  # [rad]
-            "odometry_speed_std_mps": 0.01,  # [m/s] of readings averaged over 1 s
-            "odometry_turn_rate_std_rps": 0.02,  # [rad/s] of readings averaged over 1 s
-            "gate_nis": 25.0,  # a measurement whose normalized innovation squared exceeds this is not fused
-            "log_correction": "",  # "": the raw logs; "shipped" or a calibration JSON's path: logs corrected by it
-            "initial_position_std_m": 0.05,  # [m] the prior around the ground truth at the episode's start
-            "initial_heading_std_rad": 0.05,  # [rad]
+            **log_config(),
         }
 
     def __init__(self, config: dict, copies: int, owner: str, render_mode: str | None):
         super().__init__(config, copies, owner, render_mode)
-        check_config(config, owner, CONFIG_INTERVALS)
-        directory = dataset_directory(config["dataset_dir"])
-        where = f"set config key 'dataset_dir' or ${DATASET_VARIABLE}"
-        if not directory.is_dir():
-            raise DatasetNotFound(f"{owner}: no MRCLAM dataset directory at {directory} ({where})")
-        try:
-            self.logs = robot_logs(directory, float(config["odometry_tick_s"]), config["log_correction"])
-        except (OSError, ValueError) as error:
-            raise ValueError(f"{owner}: {error} (config keys 'dataset_dir' and 'log_correction')") from None
+        check_config(config, owner, LOG_CONFIG_INTERVALS)
+        self.logs = load_logs(robot_logs, config, owner)
         self.starts = episode_starts(self.logs, config, owner)
         self.flat = FlatLogs.of(self.logs)
         n_landmarks = len(self.logs.landmarks)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from infonav_gym.datasets import mrclam
+from infonav_gym.datasets import DatasetNotFound, mrclam
 from infonav_gym.datasets.noise_model import corrected_logs, load_noise_model, shipped_noise_model
 from infonav_gym.datasets.timeline import LANDMARK, make_timeline
 from infonav_gym.geometry import wrap_angle
@@ -64,15 +64,11 @@ class DatasetLogs:
 @functools.cache
 def robot_logs(path: Path, tick_s: float, correction: str = "") -> DatasetLogs:
     """The ``DatasetLogs`` of the MRCLAM directory ``path`` (``mrclam.load``'s errors) on ticks of ``tick_s``, its
-    logs corrected by a calibrated noise model (``noise_model.corrected_logs``: the sensors' clocks, the odometry's
-    scales, the measurements' mean errors): ``correction`` ``""`` none, ``"shipped"`` the Dataset 6 calibration the
-    package ships, else the path of a calibration JSON (``load_noise_model``'s errors)."""
+    logs corrected by ``corrected_dataset(..., correction)`` (the sensors' clocks, the odometry's scales, the
+    measurements' mean errors)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # unknown barcodes and missing files: the loader's notes, not the env's
-        dataset = mrclam.load(path)
-    if correction:
-        model = shipped_noise_model() if correction == SHIPPED else load_noise_model(Path(correction).expanduser())
-        dataset = corrected_logs(dataset, model)
+        dataset = corrected_dataset(mrclam.load(path), correction)
     timeline = make_timeline(dataset, dt=tick_s)
     times = timeline.boundary_times() + dataset.start_time
     logs = []
@@ -85,12 +81,32 @@ def robot_logs(path: Path, tick_s: float, correction: str = "") -> DatasetLogs:
         for event in range(len(events) - 1, -1, -1):  # backwards: the first reading of a tick is the one kept
             step, target = step_of_event[event], int(events[event, 2])
             measured[step, target], readings[step, target] = True, events[event, 3:5]
-        truth = _truth_at(dataset.groundtruth.get(subject), times[ticks])
+        truth = truth_at(dataset.groundtruth.get(subject), times[ticks])
         logs.append(RobotLog(subject, ticks, measured, readings, truth, timeline.controls[:, column].copy()))
     return DatasetLogs(Path(path), dataset.landmarks.copy(), tuple(logs), float(tick_s))
 
 
-def _truth_at(groundtruth: np.ndarray | None, times: np.ndarray) -> np.ndarray:
+def corrected_dataset(dataset: mrclam.MRCLAMDataset, correction: str) -> mrclam.MRCLAMDataset:
+    """``dataset`` with its logs corrected by a calibrated noise model (``noise_model.corrected_logs``): ``correction``
+    ``""`` none, ``"shipped"`` the Dataset 6 calibration the package ships, else the path of a calibration JSON
+    (``load_noise_model``'s errors)."""
+    if not correction:
+        return dataset
+    model = shipped_noise_model() if correction == SHIPPED else load_noise_model(Path(correction).expanduser())
+    return corrected_logs(dataset, model)
+
+
+def env_dataset_directory(configured: str, owner: str) -> Path:
+    """The dataset directory of an env's config key ``dataset_dir`` (``dataset_directory``); ``DatasetNotFound``
+    naming ``owner`` and where to set it if there is none."""
+    directory = dataset_directory(configured)
+    if not directory.is_dir():
+        where = f"set config key 'dataset_dir' or ${DATASET_VARIABLE}"
+        raise DatasetNotFound(f"{owner}: no MRCLAM dataset directory at {directory} ({where})")
+    return directory
+
+
+def truth_at(groundtruth: np.ndarray | None, times: np.ndarray) -> np.ndarray:
     """Ground-truth poses (n, 3) interpolated at ``times`` (heading unwrapped first); NaN outside its span."""
     if groundtruth is None or not len(groundtruth):
         return np.full((len(times), 3), np.nan)
