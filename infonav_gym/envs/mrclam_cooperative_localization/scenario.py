@@ -111,7 +111,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
     @classmethod
     def default_config(cls) -> dict:
         return {
-            **shared_config(),
+            **{key: value for key, value in shared_config().items() if key != "horizon"},  # max_cycles is it
             "max_cycles": 100,  # episode length [steps]
             "time_step_s": 0.5,  # [s] a step: what each robot measured in this much of the log (whole ticks)
             "team_reward": 0.0,  # weight of the team's MI in each robot's reward, in [0, 1]
