@@ -10,8 +10,10 @@ from scipy.stats import chisquare
 
 import agents
 import infonav_gym  # noqa: F401  (registers the envs)
-from agents import GreedyEntropyAgent, RandomAgent
+from agents import GreedyEntropyAgent, NearestAgent, RandomAgent
+from infonav_gym import make_env
 from infonav_gym.decisions import DECISION_ATOL, DECISION_RTOL
+from infonav_gym.experiments.episodes import make_agent
 
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 
@@ -193,3 +195,27 @@ def test_greedy_gives_the_same_actions_and_rewards_through_wrappers():
     assert len(set(bare_actions)) > 1, "greedy never changed its choice: the comparison would be weak"
     assert final_info["episode"]["l"] == horizon
     assert final_info["episode"]["r"] == pytest.approx(bare_return, rel=1e-12)
+
+
+def test_nearest_agent_fuses_the_nearest_valid_reading_and_idles_without_one():
+    agent = NearestAgent()
+    info = {"action_range_m": np.array([np.inf, 3.0, 1.5, 1.5, 0.5]), "action_mask": np.array([1, 1, 1, 1, 0])}
+    assert agent.act(None, info) == 2  # 0.5 m is masked; 1.5 m twice: the lower index
+    assert agent.act(None, {"action_range_m": np.full(3, np.inf), "action_mask": np.array([1, 0, 0])}) == 0
+    with pytest.raises(ValueError, match=r'NearestAgent needs info\["action_range_m"\]'):
+        agent.act(None, {"action_mask": np.ones(2)})
+
+
+def test_nearest_is_offered_only_where_the_infos_give_ranges():
+    env = make_env("infonav/MRCLAMLocalization-v0", horizon=5)
+    agent = make_agent("nearest", env.action_space.n, env=env)
+    _, info = env.reset(seed=0)
+    for _ in range(5):
+        action = agent.act(None, info)
+        measured = np.flatnonzero(info["action_mask"][1:]) + 1
+        assert action == measured[np.argmin(info["action_range_m"][measured])] if measured.size else action == 0
+        _, _, _, _, info = env.step(action)
+    with pytest.raises(
+        ValueError, match="agent 'nearest' is not available for infonav/LandmarkSelection-v0: .*use it on"
+    ):
+        make_agent("nearest", 9, env=make_env("infonav/LandmarkSelection-v0"))

@@ -82,7 +82,14 @@ def _result_agents(path: Path, env_id: str) -> set[str]:
     """The agents a committed ``infonav evaluate`` table holds, as the env table names them."""
     text = path.read_text()
     assert text.startswith(f"# {env_id},"), f"{path.name} is not an evaluation of {env_id}"
-    names = {"random": "random", "greedy": "greedy", "planner": "planner", "ppo": "PPO", "rllib": "RLlib PPO"}
+    names = {
+        "random": "random",
+        "greedy": "greedy",
+        "nearest": "nearest",
+        "planner": "planner",
+        "ppo": "PPO",
+        "rllib": "RLlib PPO",
+    }
     first_cells = re.findall(r"^\| ([^|]+?) \|", text, flags=re.M)  # the header, its rule, then one row per agent
     return {names[agent.partition(":")[0]] for agent in first_cells[2:]}
 

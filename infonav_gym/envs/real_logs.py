@@ -1,10 +1,12 @@
-"""What the envs on real MRCLAM logs share: their config keys about the logs and the filter, the keys' bounds, and
-the logs loaded with one-line errors (``load_logs``)."""
+"""What the envs on real MRCLAM logs share: their config keys about the logs and the filter, the keys' bounds, the
+logs loaded with one-line errors (``load_logs``) and the ranges of the readings an action fuses (``reading_ranges``)."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+
+import numpy as np
 
 from infonav_gym.config import Interval
 from infonav_gym.datasets.mrclam_logs import env_dataset_directory
@@ -51,3 +53,11 @@ def load_logs(loader: Callable, config: dict, owner: str, *arguments):
         return loader(directory, float(config["odometry_tick_s"]), *arguments, config["log_correction"])
     except (OSError, ValueError) as error:
         raise ValueError(f"{owner}: {error} (config keys 'dataset_dir' and 'log_correction')") from None
+
+
+def reading_ranges(mask: np.ndarray, readings: np.ndarray) -> np.ndarray:
+    """Each action's measured range [m] (..., 1 + T): inf for fusing nothing and where nothing was measured, from
+    the ``mask`` (..., 1 + T) and ``readings`` (..., T, 2)."""
+    ranges = np.full(mask.shape, np.inf)
+    ranges[..., 1:] = np.where(mask[..., 1:] == 1, readings[..., 0], np.inf)
+    return ranges

@@ -9,13 +9,15 @@ import gymnasium as gym
 
 from agents import GreedyEntropyAgent, RandomAgent
 from agents.base import env_name
+from agents.nearest import RANGE_KEY, NearestAgent
 from agents.ray_support import DISTRIBUTED_HINT
-from infonav_gym.envs.traits import has_planning_model, traits_of
+from infonav_gym.envs.traits import EnvTraits, has_planning_model, traits_of
 from infonav_gym.registry import registered_envs
 
 AGENT_KINDS = {  # every agent name make_agent takes (NAME:ARGUMENT: a prefix and its argument), and what it is
     "random": "a valid action at random",
     "greedy": "the most expected information gain now",
+    "nearest": "the reading of the nearest target, on envs whose infos give action_range_m",
     "planner": "a look-ahead planner, on envs with a planning model",
     "ppo:PATH": "a model.zip of infonav train, or its directory",
     "rllib:DIR": "a checkpoint directory of infonav train --backend rllib (the distributed extra)",
@@ -46,6 +48,18 @@ def make_agent(
         return GreedyEntropyAgent()
     if env is None:
         raise ValueError(f"agent {name!r} needs the env it will act in")
+    if name == "nearest":
+        if RANGE_KEY not in traits_of(env).info_keys:
+            ranged = [
+                entry.id
+                for entry in registered_envs()
+                if RANGE_KEY in getattr(entry.load(), "traits", EnvTraits()).info_keys
+            ]
+            raise ValueError(
+                f"agent 'nearest' is not available for {env_name(env)}: its infos give no {RANGE_KEY}; "
+                f"use it on {', '.join(ranged)}"
+            )
+        return NearestAgent(noop_action=noop_action or 0)
     if name == "planner":
         if not has_planning_model(env):
             planning_env_ids = [entry.id for entry in registered_envs() if has_planning_model(entry.load())]

@@ -28,7 +28,7 @@ from infonav_gym.envs.observation_kernels import (
 )
 from infonav_gym.envs.parallel_view import ParallelEnvView, TeamCycles, team_metadata
 from infonav_gym.envs.protocol import EnvScenario, State
-from infonav_gym.envs.real_logs import END_OF_LOG_S, LOG_CONFIG_INTERVALS, load_logs, log_config
+from infonav_gym.envs.real_logs import END_OF_LOG_S, LOG_CONFIG_INTERVALS, load_logs, log_config, reading_ranges
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses, range_bearing_of_offset
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
@@ -100,7 +100,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
         reward_terms=("own_mutual_information", "team_mutual_information"),
         info_keys=frozenset(
             {"pose_nees", "mean_pose_nees", "gated", "landmarks_available", "position_error_m", "heading_error_rad"}
-            | {"log_time_s"}
+            | {"log_time_s", "action_range_m"}
             | {"pose_entropy", "estimated_pose"}
         ),
         reward_config_keys=("team_reward",),
@@ -276,6 +276,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
             "mean_pose_nees": nees,  # the episode metric averages it over the steps
             "gated": state.gated[rows] & stepped_robots,
             "landmarks_available": decision.landmarks_available.copy(),
+            "action_range_m": reading_ranges(decision.action_mask, decision.readings),
             "time_s": (state.elapsed[rows] * self.windows.window_s).astype(float),
             "log_time_s": (state.window[rows] * self.windows.window_s).astype(float),
         }

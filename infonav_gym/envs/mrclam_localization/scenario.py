@@ -24,7 +24,7 @@ from infonav_gym.envs.observation_kernels import (
     range_bearing_features,
 )
 from infonav_gym.envs.protocol import EnvScenario, State
-from infonav_gym.envs.real_logs import LOG_CONFIG_INTERVALS, load_logs, log_config
+from infonav_gym.envs.real_logs import LOG_CONFIG_INTERVALS, load_logs, log_config, reading_ranges
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info
@@ -88,7 +88,7 @@ class MRCLAMLocalization(EnvScenario):
         estimates_pose=True,
         idle_actions=frozenset({NONE}),
         reward_terms=("mutual_information",),
-        info_keys=frozenset({"pose_nees", "gated", "robot"}),
+        info_keys=frozenset({"pose_nees", "gated", "robot", "action_range_m"}),
         noop_action=NONE,
         main_metric="cumulative_mi",
     )
@@ -228,6 +228,7 @@ class MRCLAMLocalization(EnvScenario):
             pose_entropy=entropy,
             state_entropy=entropy.copy(),
             gated=state.gated[rows] & stepped,
+            action_range_m=reading_ranges(decision.action_mask, decision.readings),
             robot=np.array([self.logs.robots[robot].subject for robot in state.robot[rows]]),
             time_s=self.flat.ticks[at] * self.logs.tick_s,
         )
