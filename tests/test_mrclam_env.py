@@ -178,3 +178,36 @@ def test_on_dataset6_fusing_the_greedy_choice_beats_dead_reckoning():
                 squares.append(info["position_error_m"] ** 2)
         rmse[policy] = math.sqrt(np.mean(squares))
     assert rmse["greedy"] < rmse["none"]
+
+
+def test_fusing_every_reading_is_filterpys_stacked_update_whatever_the_action(tmp_path):
+    everywhere = write_dataset(tmp_path / "all_around", field_of_view_rad=2 * math.pi)  # every landmark at a time
+    env = make_env(ENV_ID, horizon=30, fuse_every_reading=True, dataset_dir=str(everywhere))
+    _, info = env.reset(seed=2)
+    vector, several = env.unwrapped.vector, 0
+    for _ in range(30):
+        decision, state = vector.decision, vector.state
+        measured = np.flatnonzero(info["action_mask"][1:])
+        x, P = state.x[0].copy(), state.P[0].copy()
+        ekf = ExtendedKalmanFilter(dim_x=3, dim_z=2 * len(measured))
+        ekf.x, ekf.P = x.copy(), P.copy()
+        ekf.R = np.kron(np.eye(len(measured)), decision.R[0, 0]) if len(measured) else np.zeros((0, 0))
+        H = decision.H[0, measured].reshape(-1, 3)
+        predicted = decision.predicted[0, measured].ravel()
+
+        def residual(a, b):
+            difference = a - b
+            difference[1::2] = wrap_angle(difference[1::2])
+            return difference
+
+        if len(measured):
+            ekf.update(
+                decision.readings[0, measured].ravel(), lambda _, H=H: H, lambda _, z=predicted: z, residual=residual
+            )
+        _, reward, _, _, info = env.step(0)  # the action does not matter: every reading is fused
+        if info["gated"] or not len(measured):
+            continue
+        assert info["fused_readings"] == len(measured)
+        assert reward == pytest.approx(0.5 * math.log(np.linalg.det(P) / np.linalg.det(ekf.P)), rel=1e-9)
+        several += len(measured) >= 2
+    assert several >= 3

@@ -176,3 +176,14 @@ def test_on_dataset6_greedy_beats_fusing_nothing_and_the_outage_robot_leans_on_i
         if policy == "greedy":
             assert relative > 0  # in its outage robot_0 can only fuse teammates
     assert errors["greedy"] < 0.5 * errors["none"]
+
+
+def test_fusing_every_reading_fuses_what_each_robot_measured_whatever_the_actions():
+    env = make_env(ENV_ID, max_cycles=20, fuse_every_reading=True)
+    _, infos = env.reset(seed=0)
+    for _ in range(20):
+        measured = {agent: int(info["action_mask"][1:].sum()) for agent, info in infos.items()}
+        _, _, _, _, infos = env.step(dict.fromkeys(infos, 0))
+        for agent, info in infos.items():
+            assert info["fused_readings"] + info["gated"] <= measured[agent]
+            assert info["fused_readings"] == measured[agent] or info["gated"]

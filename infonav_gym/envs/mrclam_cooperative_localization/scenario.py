@@ -64,6 +64,7 @@ class MRCLAMTeamState(State):
     invalid: np.ndarray
     chosen: np.ndarray
     gated: np.ndarray
+    fused: np.ndarray
     own_mi: np.ndarray
     team_mi: np.ndarray
     paths: FirstCopyPaths | None = None
@@ -100,7 +101,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
         reward_terms=("own_mutual_information", "team_mutual_information"),
         info_keys=frozenset(
             {"pose_nees", "mean_pose_nees", "gated", "landmarks_available", "position_error_m", "heading_error_rad"}
-            | {"log_time_s", "action_range_m"}
+            | {"log_time_s", "action_range_m", "fused_readings"}
             | {"pose_entropy", "estimated_pose"}
         ),
         reward_config_keys=("team_reward",),
@@ -115,6 +116,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
             "max_cycles": 100,  # episode length [steps]
             "time_step_s": 0.5,  # [s] a step: what each robot measured in this much of the log (whole ticks)
             "team_reward": 0.0,  # weight of the team's MI in each robot's reward, in [0, 1]
+            "fuse_every_reading": False,  # True: every reading measured is fused, whatever the actions (reference)
             "outage_robot": 0,  # the robot (robot_k: k) whose landmark readings drop out ...
             "outage_from_s": 10.0,  # [s] ... from this time of the episode ...
             "outage_to_s": 40.0,  # [s] ... to this one (outage_from_s: no outage)
@@ -151,6 +153,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
             invalid=np.zeros(shape, dtype=bool),
             chosen=np.full(shape, -1),
             gated=np.zeros(shape, dtype=bool),
+            fused=np.zeros(shape, dtype=int),
             own_mi=np.zeros(shape),
             team_mi=np.zeros(copies),
         )
@@ -166,6 +169,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
             state.window[copy], state.x[copy] = window, poses.ravel()
             state.P[copy] = block_diagonal(np.repeat(np.diag(stds**2)[None], n_robots, axis=0))
         state.action[rows], state.invalid[rows], state.chosen[rows], state.gated[rows] = NONE, False, -1, False
+        state.fused[rows] = 0
         state.own_mi[rows], state.team_mi[rows] = 0.0, 0.0
         if rows[0] == 0 and self.drawing:
             state.paths = FirstCopyPaths(self.windows.truth[state.window[0]], state.x[0].reshape(-1, POSE_DIM))
@@ -201,11 +205,17 @@ class MRCLAMCooperativeLocalization(EnvScenario):
         """Through each ``acting`` copy's window tick by tick: fuse every robot's chosen reading at its tick (unless its
         NIS exceeds ``gate_nis``), predict every robot through its odometry."""
         chosen = np.where(action >= 1, action - 1, -1)
+        if self.config["fuse_every_reading"]:
+            tried = decision.action_mask[..., 1:] == 1
+        else:
+            tried = np.zeros(decision.readings.shape[:3], dtype=bool)
+            copy, robot = np.nonzero(chosen >= 0)
+            tried[copy, robot, chosen[copy, robot]] = True
         copies = np.flatnonzero(acting)
-        state.own_mi[:], state.team_mi[:], state.gated[:] = 0.0, 0.0, False
+        state.own_mi[:], state.team_mi[:], state.gated[:], state.fused[:] = 0.0, 0.0, False, 0
         if copies.size:
             windows = self.windows
-            x, P, own, team, gated = fused_windows(
+            x, P, own, team, gated, fused = fused_windows(
                 contiguous(state.x[copies]),
                 contiguous(state.P[copies]),
                 windows.controls,
@@ -213,7 +223,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
                 windows.window_ticks,
                 windows.tick_s,
                 self.control_covariance,
-                contiguous(chosen[copies]),
+                contiguous(tried[copies]),
                 contiguous(decision.readings[copies]),
                 contiguous(decision.offsets[copies]),
                 windows.landmarks,
@@ -221,7 +231,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
                 float(self.config["gate_nis"]),
             )
             state.x[copies], state.P[copies], state.own_mi[copies], state.team_mi[copies] = x, P, own, team
-            state.gated[copies] = gated
+            state.gated[copies], state.fused[copies] = gated, fused
             state.window[copies] += 1
         state.action, state.invalid = np.where(action >= 0, action, NONE), acting[:, None] & (action < 0)
         state.chosen = np.where(state.gated, -1, chosen)
@@ -275,6 +285,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
             "pose_nees": nees,
             "mean_pose_nees": nees,  # the episode metric averages it over the steps
             "gated": state.gated[rows] & stepped_robots,
+            "fused_readings": np.where(stepped_robots, state.fused[rows], 0),
             "landmarks_available": decision.landmarks_available.copy(),
             "action_range_m": reading_ranges(decision.action_mask, decision.readings),
             "time_s": (state.elapsed[rows] * self.windows.window_s).astype(float),
@@ -415,17 +426,18 @@ def team_reading_gains(x, P, measured, landmarks, R, team_reward):
 
 @kernel
 def fused_windows(
-    x, P, controls, first_tick, width, dt, control_covariance, chosen, readings, offsets, landmarks, R, gate
+    x, P, controls, first_tick, width, dt, control_covariance, tried, readings, offsets, landmarks, R, gate
 ):
     """Each copy's joint EKF (``x`` (n, 3R), ``P``) through its window of ``width`` ticks from ``first_tick`` (n,): at
-    each tick, every robot's ``chosen`` (n, R) target's reading (-1: none; ``readings`` (n, R, T, 2) at ``offsets``
-    (n, R, T)) fused in robot order unless its NIS exceeds ``gate``, then every robot predicted through its odometry
-    ``controls`` (ticks, R, 2). Returns ``(x, P, own MI (n, R), joint MI (n,), gated (n, R))``, the MI [nats] summed
-    over the window's updates."""
+    each tick, the readings ``tried`` (n, R, T) of that tick (``readings`` (n, R, T, 2) at ``offsets`` (n, R, T))
+    fused one by one in robot, then target order unless its NIS exceeds ``gate``, then every robot predicted through
+    its odometry ``controls`` (ticks, R, 2). Returns ``(x, P, own MI (n, R), joint MI (n,), gated (n, R), fused (n,
+    R))``: the MI [nats] summed over the window's updates, whether a robot's reading was gated out, how many fused."""
     n_copies, n = x.shape
-    n_robots = chosen.shape[1]
+    n_robots, n_targets = tried.shape[1], tried.shape[2]
     x_new, P_new = np.empty(x.shape), np.empty(P.shape)
     own, joint, gated = np.zeros((n_copies, n_robots)), np.zeros(n_copies), np.zeros((n_copies, n_robots), np.bool_)
+    fused = np.zeros((n_copies, n_robots), np.int64)
     predicted, H, block = np.empty(2), np.empty((2, n)), np.empty((POSE_DIM, POSE_DIM))
     HP, S_inverse, priors = np.empty((2, n)), np.empty((2, 2)), np.empty(n_robots)
     residual, rows = np.zeros((1, 1, 2)), np.zeros((1, 1, 2, n))
@@ -436,9 +448,9 @@ def fused_windows(
     for c in range(n_copies):
         one_x, one_P = x[c : c + 1].copy(), P[c : c + 1].copy()
         for offset in range(width):
-            for robot in range(n_robots):
-                target = chosen[c, robot]
-                if target < 0 or offsets[c, robot, target] != offset:
+            for slot in range(n_robots * n_targets):
+                robot, target = slot // n_targets, slot % n_targets
+                if not tried[c, robot, target] or offsets[c, robot, target] != offset:
                     continue
                 if not reading_model(one_x[0], robot, target, landmarks, predicted, H):
                     continue
@@ -460,6 +472,7 @@ def fused_windows(
                 prior_joint = log_det_of(one_P[0])
                 one_x, one_P = kalman_updates(one_x, one_P, residual, rows, noise, used, n_robots, True)
                 joint[c] += mutual_information_kernel(prior_joint, log_det_of(one_P[0]))
+                fused[c, robot] += 1
                 for k in range(n_robots):
                     own[c, k] += mutual_information_kernel(priors[k], pose_block_log_det(one_P[0], POSE_DIM * k, block))
             for robot in range(n_robots):
@@ -467,7 +480,7 @@ def fused_windows(
                 reading[0, robot, 1] = controls[first_tick[c] + offset, robot, 1]
             one_x, one_P = predict_poses(one_x, one_P, reading, dt, control_covariance)
         x_new[c], P_new[c] = one_x[0], one_P[0]
-    return x_new, P_new, own, joint, gated
+    return x_new, P_new, own, joint, gated, fused
 
 
 @kernel

@@ -28,13 +28,15 @@ from infonav_gym.envs.real_logs import LOG_CONFIG_INTERVALS, load_logs, log_conf
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info
-from infonav_gym.estimation.kernels import chosen_landmark_updates, landmark_gains, predict_poses, range_bearing_models
+from infonav_gym.estimation.kernels import kalman_updates, landmark_gains, predict_poses, range_bearing_models
 from infonav_gym.estimation.state import POSE_DIM
 from infonav_gym.geometry import wrap_angle
+from infonav_gym.geometry import wrap_angle_kernel as wrap
 from infonav_gym.information import (
     gaussian_entropy_from_log_det,
     gaussian_entropy_kernel,
     log_det_of,
+    mutual_information_kernel,
     stacked_log_dets,
 )
 from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame, extended_paths
@@ -56,6 +58,7 @@ class MRCLAMState(State):
     P: np.ndarray
     chosen: np.ndarray
     gated: np.ndarray
+    fused: np.ndarray
     mutual_information: np.ndarray
     paths: tuple[PathHistory, PathHistory] | None = None
 
@@ -88,7 +91,7 @@ class MRCLAMLocalization(EnvScenario):
         estimates_pose=True,
         idle_actions=frozenset({NONE}),
         reward_terms=("mutual_information",),
-        info_keys=frozenset({"pose_nees", "gated", "robot", "action_range_m"}),
+        info_keys=frozenset({"pose_nees", "gated", "robot", "action_range_m", "fused_readings"}),
         noop_action=NONE,
         main_metric="cumulative_mi",
     )
@@ -99,6 +102,7 @@ class MRCLAMLocalization(EnvScenario):
             **shared_config(),
             "horizon": 100,  # episode length [measurement times]
             "robots": "",  # the robots episodes are drawn from, subject numbers such as "1,2,3" ("": every robot)
+            "fuse_every_reading": False,  # True: every reading measured is fused, whatever the action (reference)
             **log_config(),
         }
 
@@ -129,6 +133,7 @@ class MRCLAMLocalization(EnvScenario):
             P=np.tile(np.eye(POSE_DIM), (copies, 1, 1)),
             chosen=np.full(copies, -1),
             gated=np.zeros(copies, dtype=bool),
+            fused=np.zeros(copies, dtype=int),
             mutual_information=np.zeros(copies),
         )
 
@@ -142,7 +147,8 @@ class MRCLAMLocalization(EnvScenario):
             x = self.logs.robots[robot].truth[step] + stds * rng.standard_normal(POSE_DIM)
             state.robot[copy], state.step[copy] = robot, step
             state.x[copy], state.P[copy] = (*x[:2], wrap_angle(x[2])), np.diag(stds**2)
-        state.action[rows], state.chosen[rows], state.gated[rows], state.mutual_information[rows] = -1, -1, False, 0.0
+        state.action[rows], state.chosen[rows], state.gated[rows], state.fused[rows] = -1, -1, False, 0
+        state.mutual_information[rows] = 0.0
         if rows[0] == 0:
             self._follow_first_copy(state, restarted=True)
         return state
@@ -166,15 +172,26 @@ class MRCLAMLocalization(EnvScenario):
         """Fuse each copy's chosen reading unless its NIS exceeds ``gate_nis``, then predict it through the odometry
         to its next measurement time."""
         action = action[:, 0]
-        landmark = np.where(action >= 1, action - 1, -1)
-        nis = innovation_nis(state.P, decision, landmark)
-        state.gated = nis > self.config["gate_nis"]
-        chosen = np.where(state.gated, -1, landmark)
-        measurements = contiguous(decision.readings[np.arange(len(chosen)), np.maximum(chosen, 0)])
-        state.x, state.P, state.mutual_information = chosen_landmark_updates(
-            state.x, state.P, measurements, chosen, decision.predicted, decision.H, decision.R, decision.prior_log_det
+        landmark, rows = np.where(action >= 1, action - 1, -1), np.arange(len(action))
+        if self.config["fuse_every_reading"]:
+            tried = decision.action_mask[:, 1:] == 1
+        else:
+            tried = np.zeros(decision.readings.shape[:2], dtype=bool)
+            tried[rows, landmark] = landmark >= 0
+        gated = tried & (reading_nis(state.P, decision) > self.config["gate_nis"])
+        fused = tried & ~gated
+        state.x, state.P, state.mutual_information = landmark_reading_updates(
+            state.x,
+            state.P,
+            decision.readings,
+            fused,
+            decision.predicted,
+            decision.H,
+            decision.R,
+            decision.prior_log_det,
         )
-        state.action, state.chosen = action.copy(), chosen
+        state.action, state.gated, state.fused = action.copy(), gated.any(axis=1), fused.sum(axis=1)
+        state.chosen = np.where((landmark >= 0) & fused[rows, landmark], landmark, -1)
         copies = np.flatnonzero(acting)
         at = self.flat.offsets[state.robot[copies]] + state.step[copies]
         state.x[copies], state.P[copies] = predicted_over_ticks(
@@ -228,6 +245,7 @@ class MRCLAMLocalization(EnvScenario):
             pose_entropy=entropy,
             state_entropy=entropy.copy(),
             gated=state.gated[rows] & stepped,
+            fused_readings=np.where(stepped, state.fused[rows], 0),
             action_range_m=reading_ranges(decision.action_mask, decision.readings),
             robot=np.array([self.logs.robots[robot].subject for robot in state.robot[rows]]),
             time_s=self.flat.ticks[at] * self.logs.tick_s,
@@ -327,15 +345,36 @@ def parse_robots(text: str, subjects: list[int], owner: str) -> set[int]:
     return wanted
 
 
-def innovation_nis(P: np.ndarray, decision: MRCLAMDecision, landmark: np.ndarray) -> np.ndarray:
-    """The normalized innovation squared of each copy's chosen reading at its prior (n,), 0 without one."""
-    rows, chosen = np.arange(len(landmark)), np.maximum(landmark, 0)
-    H, R = decision.H[rows, chosen], decision.R[rows, chosen]
-    residual = decision.readings[rows, chosen] - decision.predicted[rows, chosen]
-    residual[:, 1] = wrap_angle(residual[:, 1])
-    S = H @ P @ H.transpose(0, 2, 1) + R
-    nis = np.einsum("ni,ni->n", residual, np.linalg.solve(S, residual[..., None])[..., 0])
-    return np.where(landmark >= 0, nis, 0.0)
+def reading_nis(P: np.ndarray, decision: MRCLAMDecision) -> np.ndarray:
+    """The normalized innovation squared of each copy's reading of each landmark at its prior (n, L) (meaningless
+    where the landmark was not measured)."""
+    H, R = decision.H, decision.R
+    residual = decision.readings - decision.predicted
+    residual[..., 1] = wrap_angle(residual[..., 1])
+    S = H @ P[:, None] @ H.transpose(0, 1, 3, 2) + R
+    return np.einsum("nli,nli->nl", residual, np.linalg.solve(S, residual[..., None])[..., 0])
+
+
+@kernel
+def landmark_reading_updates(x, P, readings, fused, predicted, H, R, prior_log_det):
+    """The EKF update of each copy with its readings ``[range, bearing]`` (n, L, 2) of the landmarks ``fused`` (n, L)
+    stacked in landmark order (none: unchanged), at the prior's ``predicted`` (n, L, 2), ``H`` (n, L, 2, 3), ``R`` (n,
+    L, 2, 2): ``(x, P, realized MI (n,))``, MI ``0.5 (prior_log_det - ln det P_post)`` [nats] (0 without a reading)."""
+    n_copies, n_landmarks = fused.shape
+    residuals = np.zeros((n_copies, n_landmarks, 2))
+    for c in range(n_copies):
+        for k in range(n_landmarks):
+            if fused[c, k]:
+                residuals[c, k, 0] = readings[c, k, 0] - predicted[c, k, 0]
+                residuals[c, k, 1] = wrap(readings[c, k, 1] - predicted[c, k, 1])
+    x_new, P_new = kalman_updates(x, P, residuals, H, R, fused, 1, True)
+    realized = np.zeros(n_copies)
+    for c in range(n_copies):
+        for k in range(n_landmarks):
+            if fused[c, k]:
+                realized[c] = mutual_information_kernel(prior_log_det[c], log_det_of(P_new[c]))
+                break
+    return x_new, P_new, realized
 
 
 @kernel
