@@ -102,12 +102,13 @@ def _raise_on_first_bad_line(path: Path, columns: int) -> None:
 
 
 def _sorted_by_time(table: np.ndarray, path: Path, unique_times: bool = True) -> np.ndarray:
-    """``table`` sorted by its time column (stable); warn, naming ``path``, about negative times and,
-    when each row should have its own time (``unique_times``: odometry, ground truth), repeated ones."""
+    """``table`` sorted by its time column (stable), without rows of negative times; warn, naming ``path``, about
+    those and, when each row should have its own time (``unique_times``: odometry, ground truth), repeated ones."""
     table = table[np.argsort(table[:, 0], kind="stable")]
     negative = int(np.count_nonzero(table[:, 0] < 0))
     if negative:
-        warnings.warn(f"{path}: {negative} row(s) with a negative timestamp", stacklevel=3)
+        warnings.warn(f"{path}: {negative} row(s) with a negative timestamp, left out", stacklevel=3)
+        table = table[table[:, 0] >= 0]
     repeated = int(np.count_nonzero(np.diff(table[:, 0]) == 0)) if unique_times else 0
     if repeated:
         warnings.warn(f"{path}: {repeated} row(s) repeat the timestamp of the row before", stacklevel=3)

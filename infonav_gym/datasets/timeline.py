@@ -10,6 +10,7 @@ from infonav_gym.datasets.mrclam import MRCLAMDataset
 from infonav_gym.geometry import wrap_angle
 
 LANDMARK, ROBOT = 0, 1  # event kinds
+MAX_TICKS = 10**8  # a longer timeline is a stray timestamp, not a log (MRCLAM's: about 10^5 ticks of 0.02 s)
 
 
 @dataclass
@@ -67,6 +68,10 @@ def make_timeline(dataset: MRCLAMDataset, dt: float = 0.02, duration_s: float | 
     if not span > 0:
         raise ValueError(f"nothing to replay: duration {span} s")
     n_ticks = int(np.ceil(span / dt))
+    if n_ticks > MAX_TICKS:
+        raise ValueError(
+            f"the logs span {span:.6g} s, {n_ticks} ticks of {dt} s (at most {MAX_TICKS}): a stray timestamp?"
+        )
     edges = start + dt * np.arange(n_ticks + 1)
     controls = np.stack([_tick_means(dataset.odometry[robot], edges) for robot in dataset.robots], axis=1)
     events = []

@@ -13,7 +13,6 @@ from pathlib import Path
 import infonav_gym  # registers the envs
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.experiments.arguments import (
-    comma_separated,
     end_time,
     episodes_or_file,
     integer,
@@ -57,8 +56,6 @@ MAX_COPIES = 65_536  # env copies of one vector env
 MAX_ROUNDS = 100  # benchmark rounds
 MAX_SECONDS = 600.0  # benchmark seconds per env per round
 MAX_SEEDS = 10_000  # reproduce / replay seeds
-MAX_BUDGET = 1_000  # replay: observations per robot per window
-MAX_WINDOW_S = 3_600.0  # replay: budget window [s]
 MAX_ROBOT = 99  # replay: a robot's subject number
 MAX_LOG_S = 1e7  # replay: a time in the log [s] (MRCLAM logs last about 1e4 s)
 
@@ -297,26 +294,16 @@ def build_parser() -> argparse.ArgumentParser:
     mrclam.add_argument(
         "--policy", type=names, default="all", help="comma-separated: all, greedy, random, nearest (default: all)"
     )
+    mrclam.add_argument("--seeds", type=integer(1, MAX_SEEDS), default=1, help="random-policy runs from --seed on")
     mrclam.add_argument(
-        "--k",
-        type=comma_separated(integer(1, MAX_BUDGET)),
-        default="1",
-        help="comma-separated budgets: observations per robot per window (default: 1)",
+        "--cooperative",
+        action="store_true",
+        help="one joint EKF of the team (mrclam_cooperative_localization_v0), with teammates' readings",
     )
     mrclam.add_argument(
-        "--window-s",
-        type=comma_separated(number(0, MAX_WINDOW_S)),
-        default="1",
-        help="comma-separated budget windows [s] (default: 1)",
-    )
-    mrclam.add_argument(
-        "--seeds", type=integer(1, MAX_SEEDS), default=1, help="random-policy runs per budget from --seed on"
-    )
-    mrclam.add_argument(
-        "--cooperative", action="store_true", help="one joint EKF of the team, with robot-to-robot observations"
-    )
-    mrclam.add_argument(
-        "--outage-robot", type=integer(1, MAX_ROBOT), help="also run the outage experiment for this robot (subject #)"
+        "--outage-robot",
+        type=integer(1, MAX_ROBOT),
+        help="also run the outage experiment (a cooperative replay) for this robot (subject #)",
     )
     mrclam.add_argument(
         "--outage-start-s", type=number(0, MAX_LOG_S, low_open=False), default=0.0, help="outage start [s] (default: 0)"
@@ -331,8 +318,8 @@ def build_parser() -> argparse.ArgumentParser:
     mrclam.add_argument(
         "--noise",
         default="shipped",
-        help="noise model: a calibration JSON file, 'shipped' (fitted on Dataset 6, the default) or 'picked' "
-        "(the hand-picked stds of the dataset README, independent errors)",
+        help="the logs replayed: corrected by a calibration JSON file, by 'shipped' (fitted on Dataset 6, the "
+        "default), or 'picked' (raw); the envs' noise is the dataset README's stds either way",
     )
     mrclam.add_argument(
         "--compare-noise", help="also run every experiment with this noise model (as --noise) and report both"
@@ -637,13 +624,12 @@ def _reproduce(args, command: str) -> dict:
     return _show(args, result, lambda: [printed_table(args.figure, result)])
 
 
-def _noise_model(value: str | None):
-    """``--noise`` / ``--compare-noise``: 'picked' -> None, 'shipped' -> the shipped model, else a file."""
-    from infonav_gym.datasets.noise_model import load_noise_model, shipped_noise_model
+def _check_noise(value: str) -> None:
+    """``--noise`` / ``--compare-noise``: 'picked', 'shipped', or a calibration file that loads (its errors)."""
+    from infonav_gym.datasets.noise_model import load_noise_model
 
-    if value == "picked":
-        return None
-    return shipped_noise_model() if value == "shipped" else load_noise_model(value)
+    if value not in ("picked", "shipped"):
+        load_noise_model(value)
 
 
 def _load_mrclam(directory):
@@ -706,7 +692,7 @@ def calibration_table(model) -> str:
 
 
 def _replay(args, command: str) -> dict:
-    """Load an MRCLAM directory, replay the policies and budgets asked for; print the table unless --json."""
+    """Load an MRCLAM directory, replay the policies asked for; print the table unless --json."""
     from infonav_gym.experiments.replay import (
         ReplayConfig,
         check_experiments,
@@ -718,41 +704,36 @@ def _replay(args, command: str) -> dict:
 
     if args.calibrate:
         return _calibrate(args, command)
-    check_experiments(args.policy, args.k, args.window_s, args.seeds)  # before the dataset loads
+    check_experiments(args.policy, args.seeds)  # before the dataset loads
     ReplayConfig(outage_start_s=args.outage_start_s, outage_end_s=args.outage_end_s)  # its outage span check, too
     outage_span = [name for name in ("--outage-start-s", "--outage-end-s") if name in _replay_options_given(args)]
     if outage_span and args.outage_robot is None:
         raise ValueError(f"{' and '.join(outage_span)} set the outage of --outage-robot ROBOT: add it, or drop them")
     stem = check_output_stem(args.output, REPLAY_SUFFIXES, "--output") if args.output else None
-    noise = _noise_model(args.noise)
-    compared = _noise_model(args.compare_noise) if args.compare_noise else None
+    for noise in filter(None, (args.noise, args.compare_noise)):
+        _check_noise(noise)  # a calibration file that does not load: before any replay
     dataset = _load_mrclam(args.dataset_dir)
     if not dataset.has_groundtruth:
-        print(
-            "infonav replay: no ground truth for robot(s) "
-            f"{[robot for robot in dataset.robots if robot not in dataset.groundtruth]}: "
-            "they start at the landmarks' centroid; their RMSE and NEES are n/a, see the NIS consistency columns",
-            file=sys.stderr,
-        )
+        missing = [robot for robot in dataset.robots if robot not in dataset.groundtruth]
+        print(f"infonav replay: no ground truth for robot(s) {missing}: they are not replayed", file=sys.stderr)
+    if args.outage_robot is not None and args.outage_robot not in dataset.robots:
+        raise ValueError(f"outage robot {args.outage_robot} is not one of the robots {list(dataset.robots)}")
     outage = (args.outage_robot, args.outage_start_s, args.outage_end_s) if args.outage_robot is not None else None
 
-    def sweep(noise_model):
+    def sweep(noise):
         return run_experiments(
-            dataset,
+            args.dataset_dir,
             args.policy,
-            args.k,
-            args.window_s,
             n_seeds=args.seeds,
             seed=args.seed,
             outage=outage,
-            config=ReplayConfig(cooperative=args.cooperative, noise=noise_model),
-            duration_s=args.duration_s,
+            config=ReplayConfig(cooperative=args.cooperative, noise=noise, duration_s=args.duration_s),
             progress=not args.json,
         )
 
-    result = sweep(noise)
+    result = sweep(args.noise)
     if args.compare_noise:
-        before = sweep(compared)
+        before = sweep(args.compare_noise)
         result["comparison"] = compare(result, before)
         result["compared_rows"] = before["rows"]
 

@@ -34,7 +34,12 @@ from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, p
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.geometry import wrap_angle_kernel as wrap
-from infonav_gym.information import gaussian_entropy_from_log_det, log_det_of, mutual_information_kernel
+from infonav_gym.information import (
+    gaussian_entropy_from_log_det,
+    gaussian_entropy_kernel,
+    log_det_of,
+    mutual_information_kernel,
+)
 from infonav_gym.multi.team_paths import FirstCopyPaths
 from infonav_gym.scene import SceneFrame
 
@@ -498,7 +503,7 @@ def team_log_observations(x, P, mask, readings, available, elapsed_fraction, low
             i = POSE_DIM * robot
             for a in range(POSE_DIM):
                 pose[a] = x[c, i + a]
-            entropy = 0.5 * (pose_block_log_det(P[c], i, block) + POSE_DIM * (1.0 + math.log(2.0 * math.pi)))
+            entropy = gaussian_entropy_kernel(pose_block_log_det(P[c], i, block), POSE_DIM)
             pose_features(values, pose, block, entropy, elapsed_fraction[c])
             values[POSE_FEATURES] = 1.0 if available[c, robot] else 0.0
             for k in range(n_targets):

@@ -1,4 +1,4 @@
-"""Sweeps of replays over policies and budgets, the outage experiment, and their tables."""
+"""Sweeps of replays over policies, the outage experiment, and their tables."""
 
 from __future__ import annotations
 
@@ -8,89 +8,67 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from infonav_gym.datasets.mrclam import MRCLAMDataset
-from infonav_gym.datasets.noise_model import corrected_logs
-from infonav_gym.datasets.timeline import make_timeline
 from infonav_gym.experiments.paths import output_file
 from infonav_gym.experiments.replay.comparison import comparison_markdown
-from infonav_gym.experiments.replay.filters import ReplayConfig
 from infonav_gym.experiments.replay.metrics import mean_and_ci95
 from infonav_gym.experiments.replay.plots import figure_nees_over_time
-from infonav_gym.experiments.replay.policies import POLICIES
-from infonav_gym.experiments.replay.run import SUMMARY_KEYS, replay, replay_header
-from infonav_gym.experiments.replay.tables import budget_cells, table_lines
+from infonav_gym.experiments.replay.run import POLICIES, SUMMARY_KEYS, ReplayConfig, replay
+from infonav_gym.experiments.replay.tables import table_lines
 from infonav_gym.rendering import save_figure
 
-# a sweep row's metrics: a replay's, but for dead reckoning's (a row of its own) and these
-ROW_LEFT_OUT = ("relative_updates_used", "updates_gated")
-ROW_KEYS = tuple(key for key in SUMMARY_KEYS if not key.startswith("dead_reckoning") and key not in ROW_LEFT_OUT)
+ROW_KEYS = tuple(key for key in SUMMARY_KEYS if not key.startswith("dead_reckoning"))  # dead reckoning: its own row
 
 
-def check_experiments(policies, ks, windows_s, n_seeds: int) -> None:
-    """Raise ``ValueError`` unless the policies are known and the budgets (``k >= 1``, ``window_s > 0``) and
-    ``n_seeds >= 1`` make sense; ``run_experiments`` calls it, a caller may too before loading a dataset."""
+def check_experiments(policies, n_seeds: int) -> None:
+    """Raise ``ValueError`` unless the policies are known and ``n_seeds >= 1``; ``run_experiments`` calls it, a caller
+    may too before loading a dataset."""
     unknown = [name for name in policies if name not in POLICIES]
     if unknown:
         raise ValueError(f"unknown policy {unknown!r}: expected one of {', '.join(POLICIES)}")
-    if not ks or not windows_s or min(ks) < 1 or not min(windows_s) > 0 or n_seeds < 1:
-        raise ValueError(f"need k >= 1, window-s > 0 and seeds >= 1, got {list(ks)}, {list(windows_s)}, {n_seeds}")
+    if n_seeds < 1:
+        raise ValueError(f"need seeds >= 1, got {n_seeds}")
 
 
 def run_experiments(
-    dataset: MRCLAMDataset,
+    dataset_dir,
     policies=("all",),
-    ks=(1,),
-    windows_s=(1.0,),
     n_seeds: int = 1,
     seed: int = 0,
     outage: tuple[int, float, float] | None = None,
     config: ReplayConfig | None = None,
-    dt: float = 0.02,
-    duration_s: float | None = None,
     progress: bool = False,
 ) -> dict:
-    """Replay every policy (budgeted ones at every ``(k, window)``), plus dead reckoning and an optional outage.
+    """Replay every policy, plus dead reckoning and an optional outage.
 
     Args:
-        dataset: a loaded MRCLAM dataset.
-        policies: names from ``POLICIES``; ``all`` runs once, the others once per ``(k, window)``.
-        ks, windows_s: budgets: ``k`` observations per robot per window of ``window_s`` seconds.
-        n_seeds, seed: runs of ``random`` per budget, seeds ``seed .. seed + n_seeds - 1`` (mean and 95 % CI).
-        outage: ``(robot, start_s, end_s)``: also run the outage experiment, a cooperative replay (the joint filter,
-            every landmark and robot-to-robot observation) in which ``robot`` gets no landmark observations over the
-            span, against the landmark-only replay in which it dead-reckons.
-        config: filter settings (noise, gate, cooperative) shared by every run.
-        dt, duration_s: replay tick [s]; replay only this long [s].
-        progress: show tqdm bars.
+        dataset_dir: an MRCLAM dataset directory.
+        policies: names from ``POLICIES``.
+        n_seeds, seed: runs of ``random`` (and of each policy's starting draw), seeds ``seed .. seed + n_seeds - 1``
+            for ``random``, ``seed`` for the others (mean and 95 % CI over the runs).
+        outage: ``(robot, start_s, end_s)``: also run the outage experiment, a cooperative replay fusing every reading
+            in which ``robot`` gets no landmark readings over the span, against dead reckoning through it.
+        config: noise, cooperative and duration settings shared by every run.
+        progress: show a tqdm bar.
 
     Returns:
-        A JSON-ready dict with ``rows`` (one per policy and budget), ``dead_reckoning``, ``runs`` and ``outage``.
+        A JSON-ready dict with ``rows`` (one per policy), ``dead_reckoning``, ``runs`` and ``outage``.
     """
-    check_experiments(policies, ks, windows_s, n_seeds)
-    if outage and outage[0] not in dataset.robots:
-        raise ValueError(f"outage robot {outage[0]} is not one of the robots {list(dataset.robots)}")
+    check_experiments(policies, n_seeds)
     base = config or ReplayConfig()
-    timeline = make_timeline(corrected_logs(dataset, base.noise), dt=dt, duration_s=duration_s)
-    plan = []
-    for policy in policies:
-        seeds = list(range(seed, seed + n_seeds)) if policy == "random" else [seed]
-        budgets = [(None, None)] if policy == "all" else [(k, window) for k in ks for window in windows_s]
-        plan.extend((policy, k, window, seeds) for k, window in budgets)
-    n_runs = sum(len(seeds) for *_, seeds in plan) + (1 if outage else 0)
-    bar = tqdm(total=n_runs, desc="replays", unit="run", disable=not progress or n_runs == 1)
+    plan = [(policy, list(range(seed, seed + n_seeds)) if policy == "random" else [seed]) for policy in policies]
+    n_runs = sum(len(seeds) for _, seeds in plan) + (1 if outage else 0)
+    bar = tqdm(total=n_runs, desc="replays", unit="run", disable=not progress)
     rows, runs = [], []
-    for policy, k, window, seeds in plan:
-        settings = {"policy": policy} | ({"k": k, "window_s": window} if k is not None else {})
+    for policy, seeds in plan:
         results = []
         for run_seed in seeds:
-            run_config = dataclasses.replace(base, seed=run_seed, **settings)
-            results.append(replay(dataset, run_config, timeline=timeline, progress=progress and n_runs == 1))
+            results.append(replay(dataset_dir, dataclasses.replace(base, seed=run_seed, policy=policy)))
             bar.update()
         runs.extend(results)
-        rows.append(_row(policy, k, window, results))
+        rows.append(_row(policy, results))
     summary = {
-        **replay_header(dataset, timeline, base),
-        "missing": list(dataset.missing),
+        "dataset": str(dataset_dir),
+        "config": base.as_dict(),
         "rows": rows,
         "dead_reckoning": _dead_reckoning(runs[0]) if runs else None,
         "runs": runs,
@@ -100,15 +78,15 @@ def run_experiments(
         outage_config = dataclasses.replace(
             base, policy="all", cooperative=True, outage_robot=robot, outage_start_s=start_s, outage_end_s=end_s
         )
-        outage_run = replay(dataset, outage_config, timeline=timeline, progress=progress and n_runs == 1)
+        outage_run = replay(dataset_dir, outage_config)
         bar.update()
         summary["outage"] = outage_run["outage"] | {"cooperative_run": outage_run}
     bar.close()
     return summary
 
 
-def _row(policy, k, window, results) -> dict:
-    row = {"policy": policy, "k": k, "window_s": window, "n_runs": len(results)}
+def _row(policy, results) -> dict:
+    row = {"policy": policy, "n_runs": len(results)}
     for key in ROW_KEYS:
         values = [result["mean"][key] for result in results]
         row[key] = None if any(value is None for value in values) else mean_and_ci95(values)
@@ -140,8 +118,8 @@ INTERVAL_NOTE = (
 
 
 NEES_NOTE = (
-    "NEES / NIS inside 95%: the share of time steps (NEES, 3 dof) or accepted updates (NIS, 2 dof) inside the "
-    "two-sided 95% chi-square interval; a consistent filter has mean NEES 3, mean NIS 2 and about 95% inside."
+    "NEES inside 95%: the share of steps inside the two-sided 95% chi-square interval (3 dof); a consistent filter "
+    "has mean NEES 3 and about 95% inside."
 )
 
 
@@ -155,44 +133,39 @@ def _cell(value, digits=3) -> str:
 
 
 def markdown_table(summary: dict) -> str:
-    """The sweep as Markdown: one row per policy and budget, dead reckoning, per-robot RMSE, the outage."""
-    lines = []
-    if not summary["has_groundtruth"]:
-        lines.append("Ground truth is missing for some robots: their RMSE and NEES are n/a; see the NIS columns.\n")
-    header = ["policy", "k", "window [s]", "runs", "position RMSE [m]", "heading RMSE [rad]", "mean NEES"]
-    header += ["NEES inside 95%", "updates used", "mean posterior entropy [nats]", "mean NIS", "NIS inside 95%"]
-    digits = {"mean_nees": 2, "updates_used": 0}  # the others: 3
+    """The sweep as Markdown: one row per policy, dead reckoning, per-robot RMSE, the outage."""
+    header = ["policy", "runs", "position RMSE [m]", "heading RMSE [rad]", "mean NEES", "NEES inside 95%"]
+    header += ["updates used", "updates gated", "mean pose entropy [nats]"]
+    digits = {"mean_nees": 2, "updates_used": 0, "updates_gated": 0}  # the others: 3
     rows = [
-        [row["policy"], *budget_cells(row), str(row["n_runs"])]
-        + [_cell(row[key], digits.get(key, 3)) for key in ROW_KEYS]
+        [row["policy"], str(row["n_runs"])] + [_cell(row[key], digits.get(key, 3)) for key in ROW_KEYS]
         for row in summary["rows"]
     ]
     dead_reckoning = summary.get("dead_reckoning")
     if dead_reckoning:
         errors = [_cell(dead_reckoning["position_rmse_m"]), _cell(dead_reckoning["heading_rmse_rad"])]
-        rows.append(["dead reckoning", "-", "-", "1", *errors, "n/a", "n/a", "0", "n/a", "n/a", "n/a"])
-    lines += table_lines(header, rows)
-    lines += ["", INTERVAL_NOTE, "", NEES_NOTE]
+        rows.append(["dead reckoning", "1", *errors, "n/a", "n/a", "0", "0", "n/a"])
+    lines = table_lines(header, rows) + ["", INTERVAL_NOTE, "", NEES_NOTE]
     if dead_reckoning:
         robots = list(dead_reckoning["position_rmse_m_per_robot"])
         lines += ["", "Position RMSE per robot [m]:", ""]
         per_robot = [
-            [row["policy"], *budget_cells(row), *(_cell(row["position_rmse_m_per_robot"][robot]) for robot in robots)]
-            for row in [*summary["rows"], {"policy": "dead reckoning", "k": None} | dead_reckoning]
+            [row["policy"], *(_cell(row["position_rmse_m_per_robot"][robot]) for robot in robots)]
+            for row in [*summary["rows"], {"policy": "dead reckoning"} | dead_reckoning]
         ]
-        lines += table_lines(["policy", "k", "window [s]", *(f"robot {robot}" for robot in robots)], per_robot)
+        lines += table_lines(["policy", *(f"robot {robot}" for robot in robots)], per_robot)
     outage = summary.get("outage")
     if outage:
         lines += [
             "",
-            f"Outage: robot {outage['robot']} without landmark observations from {outage['start_s']:g} s "
-            f"to {outage['end_s']:g} s; its position RMSE over the span [m]:",
+            f"Outage: robot {outage['robot']} without landmark readings from {outage['start_s']:g} s to "
+            f"{outage['end_s']:g} s of the log, in the cooperative replay (every landmark and teammate reading); its "
+            "position RMSE over the span [m]:",
             "",
-            "| cooperative (relative observations) | landmark-only (dead-reckons through the outage) "
-            "| dead reckoning from the start | ratio cooperative / landmark-only |",
-            "| --- | --- | --- | --- |",
-            f"| {_cell(outage['position_rmse_m'])} | {_cell(outage['without_relative_position_rmse_m'])} "
-            f"| {_cell(outage['dead_reckoning_from_start_position_rmse_m'])} | {_cell(outage['ratio'])} |",
+            "| cooperative (teammates' readings) | dead reckoning from the outage's start | ratio |",
+            "| --- | --- | --- |",
+            f"| {_cell(outage['position_rmse_m'])} | {_cell(outage['dead_reckoning_from_start_position_rmse_m'])} "
+            f"| {_cell(outage['ratio'])} |",
         ]
     return "\n".join(lines)
 
