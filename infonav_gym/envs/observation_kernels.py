@@ -35,6 +35,22 @@ def range_bearing_features(values, range_m, bearing_rad):
     values[0], values[1], values[2] = range_m, math.cos(bearing_rad), math.sin(bearing_rad)
 
 
+READING_FEATURES = 4  # per target of a real log: measured flag, measured range [m], cos and sin of the bearing
+READING_LOW, READING_HIGH = [0, 0, -1, -1], [1, BIG, 1, 1]  # their bounds
+
+
+@inner_kernel
+def reading_features(values, start, measured, readings):
+    """Per target ``k`` of a real log, ``READING_FEATURES`` values from ``values[start + 4 k]`` on: whether it was
+    ``measured`` (T,) (1 or 0), its reading's range and ``cos, sin`` of its bearing (``readings`` (T, 2); zeros where
+    not measured)."""
+    for k in range(len(measured)):
+        if measured[k]:
+            row = start + READING_FEATURES * k
+            values[row] = 1.0
+            range_bearing_features(values[row + 1 : row + 4], readings[k, 0], readings[k, 1])
+
+
 @inner_kernel
 def clip_into(row, values, low, high):
     """``values`` (float64) clipped to ``[low, high]`` into the float32 ``row``; NaN stays NaN."""

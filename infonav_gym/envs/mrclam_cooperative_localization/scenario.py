@@ -18,13 +18,14 @@ from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import TEAM_LOCALIZATION_METRICS, EpisodeMetric, team_mean_final_value
 from infonav_gym.envs.mrclam_cooperative_localization.windows import TeamWindows, team_windows
 from infonav_gym.envs.observation_kernels import (
-    BIG,
     POSE_FEATURES,
     POSE_HIGH,
     POSE_LOW,
+    READING_HIGH,
+    READING_LOW,
     clip_into,
     pose_features,
-    range_bearing_features,
+    reading_features,
 )
 from infonav_gym.envs.parallel_view import ParallelEnvView, TeamCycles, team_metadata
 from infonav_gym.envs.protocol import EnvScenario, State
@@ -44,7 +45,6 @@ from infonav_gym.multi.team_paths import FirstCopyPaths
 from infonav_gym.scene import SceneFrame
 
 NONE = 0  # the action that fuses nothing; action k >= 1 fuses target k - 1's reading (landmarks, then robots)
-TARGET_FEATURES = 4  # measured flag, measured range [m], cos and sin of the measured bearing
 CONFIG_INTERVALS = {
     **LOG_CONFIG_INTERVALS,
     "time_step_s": Interval(1e-3, 60.0, unit="s"),
@@ -139,8 +139,8 @@ class MRCLAMCooperativeLocalization(EnvScenario):
         self.starts = team_episode_starts(windows, config, owner)
         n_targets = n_landmarks + n_robots
         self.action_space = spaces.Discrete(1 + n_targets)
-        low = POSE_LOW + [0] + [0, 0, -1, -1] * n_targets
-        high = POSE_HIGH + [1] + [1, BIG, 1, 1] * n_targets
+        low = POSE_LOW + [0] + READING_LOW * n_targets
+        high = POSE_HIGH + [1] + READING_HIGH * n_targets
         self.observation_space = spaces.Box(np.float32(low), np.float32(high), dtype=np.float32)
         self.bounds = np.array(low, dtype=float), np.array(high, dtype=float)
         self.noise = np.diag([config["range_std_m"] ** 2, config["bearing_std_rad"] ** 2])
@@ -493,7 +493,7 @@ def team_log_observations(x, P, mask, readings, available, elapsed_fraction, low
     """Each robot's observation (n, R, 11 + 4T) float32: its ``pose_features``, whether its landmarks are available,
     then per target whether it was measured and its measured range and bearing (``range_bearing_features``; zeros
     where not), clipped to ``low``, ``high``."""
-    n_copies, n_robots, n_targets = readings.shape[0], readings.shape[1], readings.shape[2]
+    n_copies, n_robots = readings.shape[0], readings.shape[1]
     observation = np.empty((n_copies, n_robots, len(low)), dtype=np.float32)
     values, block = np.empty(len(low)), np.empty((POSE_DIM, POSE_DIM))
     pose = np.empty(POSE_DIM)
@@ -506,13 +506,7 @@ def team_log_observations(x, P, mask, readings, available, elapsed_fraction, low
             entropy = gaussian_entropy_kernel(pose_block_log_det(P[c], i, block), POSE_DIM)
             pose_features(values, pose, block, entropy, elapsed_fraction[c])
             values[POSE_FEATURES] = 1.0 if available[c, robot] else 0.0
-            for k in range(n_targets):
-                if mask[c, robot, 1 + k]:
-                    row = POSE_FEATURES + 1 + TARGET_FEATURES * k
-                    values[row] = 1.0
-                    range_bearing_features(
-                        values[row + 1 : row + 4], readings[c, robot, k, 0], readings[c, robot, k, 1]
-                    )
+            reading_features(values, POSE_FEATURES + 1, mask[c, robot, 1:], readings[c, robot])
             clip_into(observation[c, robot], values, low, high)
     return observation
 

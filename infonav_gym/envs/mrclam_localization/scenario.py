@@ -15,13 +15,14 @@ from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, EpisodeMetric, count_where, mean_where
 from infonav_gym.envs.observation_kernels import (
-    BIG,
     POSE_FEATURES,
     POSE_HIGH,
     POSE_LOW,
+    READING_HIGH,
+    READING_LOW,
     clip_into,
     pose_features,
-    range_bearing_features,
+    reading_features,
 )
 from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.envs.real_logs import LOG_CONFIG_INTERVALS, load_logs, log_config, reading_ranges
@@ -42,7 +43,6 @@ from infonav_gym.information import (
 from infonav_gym.scene import PathHistory, RobotDrawing, SceneFrame, extended_paths
 
 NONE = 0  # the action that fuses nothing; action k >= 1 fuses landmark k - 1's measurement
-LANDMARK_FEATURES = 4  # measured flag, measured range [m], cos and sin of the measured bearing
 
 
 @dataclass
@@ -114,7 +114,7 @@ class MRCLAMLocalization(EnvScenario):
         self.flat = FlatLogs.of(self.logs)
         n_landmarks = len(self.logs.landmarks)
         self.action_space = spaces.Discrete(1 + n_landmarks)
-        low, high = POSE_LOW + [0, 0, -1, -1] * n_landmarks, POSE_HIGH + [1, BIG, 1, 1] * n_landmarks
+        low, high = POSE_LOW + READING_LOW * n_landmarks, POSE_HIGH + READING_HIGH * n_landmarks
         self.observation_space = spaces.Box(np.float32(low), np.float32(high), dtype=np.float32)
         self.bounds = np.array(low, dtype=float), np.array(high, dtype=float)
         noise = np.diag([config["range_std_m"] ** 2, config["bearing_std_rad"] ** 2])
@@ -404,17 +404,13 @@ def mrclam_observations(x, P, mask, readings, elapsed_fraction, low, high):
     """The observations (n, 10 + 4L) float32: the ``pose_features``, then per landmark whether it was measured and
     its measured range and bearing (``range_bearing_features``; zeros where not measured), clipped to ``low``,
     ``high``."""
-    n_copies, n_landmarks = readings.shape[0], readings.shape[1]
+    n_copies = readings.shape[0]
     observation = np.empty((n_copies, len(low)), dtype=np.float32)
     values = np.empty(len(low))
     for c in range(n_copies):
         values[:] = 0.0
         pose_features(values, x[c], P[c], gaussian_entropy_kernel(log_det_of(P[c]), POSE_DIM), elapsed_fraction[c])
-        for k in range(n_landmarks):
-            if mask[c, 1 + k]:
-                row = POSE_FEATURES + LANDMARK_FEATURES * k
-                values[row] = 1.0
-                range_bearing_features(values[row + 1 : row + 4], readings[c, k, 0], readings[c, k, 1])
+        reading_features(values, POSE_FEATURES, mask[c, 1:], readings[c])
         clip_into(observation[c], values, low, high)
     return observation
 
