@@ -6,7 +6,7 @@ import numpy as np
 
 from infonav_gym.decisions import argmax_tied
 
-RANGE_KEY = "action_range_m"  # the info key of each action's measured range [m] (inf: no reading)
+RANGE_KEY = "action_range_m"  # the info key of each action's measured range [m] (0: no reading)
 
 
 class NearestAgent:
@@ -24,5 +24,5 @@ class NearestAgent:
             ranges = np.asarray(info[RANGE_KEY], dtype=float)
         except KeyError:
             raise ValueError(f'NearestAgent needs info["{RANGE_KEY}"] from the env') from None
-        usable = np.isfinite(ranges) & np.asarray(info.get("action_mask", np.ones(ranges.shape)), dtype=bool)
+        usable = (ranges > 0) & np.asarray(info.get("action_mask", np.ones(ranges.shape)), dtype=bool)
         return argmax_tied(np.where(usable, -ranges, -np.inf)) if usable.any() else self.noop_action

@@ -6,7 +6,7 @@ Prints, for the second half (``infonav replay``: every landmark reading, a pose 
 RMSE, mean NEES and the share of steps inside the two-sided 95 % band, on the logs the first half's model corrects
 and on the raw logs; then the outage ratio (robot 2 without landmarks from 60 s into the half, against dead
 reckoning); then ``infonav/MRCLAMLocalization-v0``'s greedy episodes (seeds 0..49) in the second half, on the raw
-logs and on the corrected ones.
+logs, on the corrected ones, and on the corrected ones with the model's noise in the filter (``calibrated_noise``).
 """
 
 from __future__ import annotations
@@ -64,20 +64,23 @@ def main() -> None:
         print(
             f"second half, outage ratio (robot 2 from 60 s): {replay(args.dataset_dir, outage)['outage']['ratio']:.3f}"
         )
-        for name, correction in (("raw logs", ""), ("logs corrected by the first half's model", fitted)):
-            nees, rmse = greedy_episodes(args.dataset_dir, correction, half)
+        variants = {
+            "raw logs": {},
+            "logs corrected by the first half's model": {"log_correction": fitted},
+            "logs corrected by the first half's model, its noise": {"log_correction": fitted, "calibrated_noise": True},
+        }
+        for name, config in variants.items():
+            nees, rmse = greedy_episodes(args.dataset_dir, half, **config)
             print(
                 f"second half, MRCLAMLocalization-v0 greedy, {name}: mean NEES {nees.mean():.2f}, inside 95 % "
                 f"{fraction_inside_95(nees, 3):.3f}, position RMSE {rmse:.3f} m"
             )
 
 
-def greedy_episodes(dataset_dir: str, correction: str, from_s: float) -> tuple[np.ndarray, float]:
-    """The pose NEES of every step of ``ENV_EPISODES`` greedy episodes of the env after ``from_s``, and their
-    position RMSE [m]."""
-    env = make_env(
-        "infonav/MRCLAMLocalization-v0", dataset_dir=dataset_dir, log_correction=correction, time_from_s=from_s
-    )
+def greedy_episodes(dataset_dir: str, from_s: float, **config) -> tuple[np.ndarray, float]:
+    """The pose NEES of every step of ``ENV_EPISODES`` greedy episodes of the env (``config``) after ``from_s``, and
+    their position RMSE [m]."""
+    env = make_env("infonav/MRCLAMLocalization-v0", dataset_dir=dataset_dir, time_from_s=from_s, **config)
     nees, squares = [], []
     for seed in range(ENV_EPISODES):
         _, info = env.reset(seed=seed)

@@ -199,9 +199,9 @@ def test_greedy_gives_the_same_actions_and_rewards_through_wrappers():
 
 def test_nearest_agent_fuses_the_nearest_valid_reading_and_idles_without_one():
     agent = NearestAgent()
-    info = {"action_range_m": np.array([np.inf, 3.0, 1.5, 1.5, 0.5]), "action_mask": np.array([1, 1, 1, 1, 0])}
+    info = {"action_range_m": np.array([0.0, 3.0, 1.5, 1.5, 0.5]), "action_mask": np.array([1, 1, 1, 1, 0])}
     assert agent.act(None, info) == 2  # 0.5 m is masked; 1.5 m twice: the lower index
-    assert agent.act(None, {"action_range_m": np.full(3, np.inf), "action_mask": np.array([1, 0, 0])}) == 0
+    assert agent.act(None, {"action_range_m": np.zeros(3), "action_mask": np.array([1, 0, 0])}) == 0
     with pytest.raises(ValueError, match=r'NearestAgent needs info\["action_range_m"\]'):
         agent.act(None, {"action_mask": np.ones(2)})
 

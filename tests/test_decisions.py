@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agents import GreedyEntropyAgent, PlannerAgent
+from agents import GreedyEntropyAgent, NearestAgent, PlannerAgent
 from infonav_gym.decisions import (
     DECISION_ATOL,
     DECISION_RTOL,
@@ -19,7 +19,6 @@ from infonav_gym.decisions import (
     is_positive,
     top_k_tied,
 )
-from infonav_gym.experiments.replay.policies import select_greedy, select_nearest
 from infonav_gym.multi import cooperative_exploration_v0
 from infonav_gym.registration.control_points import DEFAULT_POSE_COVARIANCE, select_control_points
 from infonav_gym.sensors.ladar import Ladar
@@ -177,19 +176,15 @@ def test_the_team_planner_decides_the_same_along_a_whole_perturbed_episode():
 
 
 @pytest.mark.parametrize("seed", range(5))
-def test_the_replay_policies_pick_the_same_measurements_from_perturbed_inputs(seed):
-    """Candidates in repeated pairs (equal information in exact arithmetic), a nudged prior and Jacobians."""
+def test_the_nearest_reading_is_the_same_from_perturbed_ranges(seed):
+    """Readings in repeated pairs (equal ranges in exact arithmetic), the ranges nudged."""
     rng = np.random.default_rng(seed)
-    root = rng.normal(size=(5, 5))
-    P = root @ root.T + np.eye(5)
-    H = np.repeat(rng.normal(size=(4, 2, 5)), 2, axis=0)
-    R = np.diag([0.04, 0.01])
-    ranges = np.repeat(rng.uniform(1.0, 5.0, 4), 2)
-    picks = select_greedy(P, H, R, 4), select_nearest(ranges, 4)
+    ranges = np.concatenate([[0.0], np.repeat(rng.uniform(1.0, 5.0, 4), 2)])  # action 0 fuses nothing: no range
+    info = {"action_range_m": ranges, "action_mask": np.ones(len(ranges), dtype=np.int8)}
+    pick = NearestAgent().act(None, info)
     perturbed = np.random.default_rng(100 + seed)
     for _ in range(3):
-        again = select_greedy(nudged_symmetric(P, perturbed), nudged(H, perturbed), R, 4)
-        assert (again, select_nearest(nudged(ranges, perturbed), 4)) == picks
+        assert NearestAgent().act(None, info | {"action_range_m": nudged(ranges, perturbed)}) == pick
 
 
 def test_the_control_point_picks_are_the_same_under_a_perturbed_pose_prior():

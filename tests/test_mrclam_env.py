@@ -16,6 +16,7 @@ from mrclam_exact import LANDMARKS, write_dataset
 from infonav_gym import make_env
 from infonav_gym.datasets import DatasetNotFound, mrclam
 from infonav_gym.datasets.mrclam_logs import DATASET_VARIABLE
+from infonav_gym.datasets.noise_model import shipped_noise_model
 from infonav_gym.experiments.cli import main
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.registry import available_envs
@@ -211,3 +212,18 @@ def test_fusing_every_reading_is_filterpys_stacked_update_whatever_the_action(tm
         assert reward == pytest.approx(0.5 * math.log(np.linalg.det(P) / np.linalg.det(ekf.P)), rel=1e-9)
         several += len(measured) >= 2
     assert several >= 3
+
+
+def test_calibrated_noise_is_the_calibrations_pooled_noise_at_each_readings_range():
+    with pytest.raises(ValueError, match="config key 'calibrated_noise' of .* takes the noise of 'log_correction'"):
+        make_env(ENV_ID, calibrated_noise=True)
+    env = make_env(ENV_ID, horizon=10, calibrated_noise=True, log_correction="shipped")
+    model = shipped_noise_model().pooled
+    _, info = env.reset(seed=0)
+    for _ in range(10):
+        decision = env.unwrapped.vector.decision
+        for k in np.flatnonzero(info["action_mask"][1:]):
+            np.testing.assert_allclose(decision.R[0, k], model.total_noise(decision.readings[0, k, 0]), rtol=1e-12)
+        _, _, _, _, info = env.step(0)
+    covariance = env.unwrapped.vector.env_scenario.control_covariances[0]
+    np.testing.assert_allclose(covariance, np.diag(model.odometry_density() ** 2) / 0.02, rtol=1e-12)

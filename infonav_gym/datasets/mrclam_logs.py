@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from infonav_gym.datasets import DatasetNotFound, mrclam
-from infonav_gym.datasets.noise_model import corrected_logs, load_noise_model, shipped_noise_model
+from infonav_gym.datasets.noise_model import NoiseModel, corrected_logs, load_noise_model, shipped_noise_model
 from infonav_gym.datasets.timeline import LANDMARK, make_timeline
 from infonav_gym.geometry import wrap_angle
 
@@ -90,10 +90,12 @@ def corrected_dataset(dataset: mrclam.MRCLAMDataset, correction: str) -> mrclam.
     """``dataset`` with its logs corrected by a calibrated noise model (``noise_model.corrected_logs``): ``correction``
     ``""`` none, ``"shipped"`` the Dataset 6 calibration the package ships, else the path of a calibration JSON
     (``load_noise_model``'s errors)."""
-    if not correction:
-        return dataset
-    model = shipped_noise_model() if correction == SHIPPED else load_noise_model(Path(correction).expanduser())
-    return corrected_logs(dataset, model)
+    return corrected_logs(dataset, correction_model(correction)) if correction else dataset
+
+
+def correction_model(correction: str) -> NoiseModel:
+    """The calibrated noise model a ``log_correction`` names: ``"shipped"`` (Dataset 6's) or a calibration JSON."""
+    return shipped_noise_model() if correction == SHIPPED else load_noise_model(Path(correction).expanduser())
 
 
 def env_dataset_directory(configured: str, owner: str) -> Path:

@@ -77,15 +77,13 @@ class RobotNoise:
         """White range noise std [m] at ``range_m``."""
         return self.range_white_std_m + self.range_white_std_per_m2 * np.asarray(range_m, dtype=float) ** 2
 
-    def white_noise(self, range_m: float) -> np.ndarray:
-        """Covariance (2, 2) of the white part of a range-bearing error at ``range_m``."""
-        return np.diag([float(self.range_white_std(range_m)) ** 2, self.bearing_white_std_rad**2])
-
-    def total_noise(self, range_m: float) -> np.ndarray:
-        """Covariance (2, 2) of the whole error (white plus bias), for a filter without bias states."""
-        bias_variance = np.square([self.range_bias_std_m, self.bearing_bias_std_rad])
-        shared_variance = np.square([self.range_shared_std_m, self.bearing_shared_std_rad])
-        return self.white_noise(range_m) + np.diag(bias_variance + shared_variance)
+    def total_noise(self, range_m) -> np.ndarray:
+        """Covariance (..., 2, 2) of the whole range-bearing error (white plus biases) at ``range_m`` (...,), for a
+        filter without bias states."""
+        noise = np.zeros((*np.shape(range_m), 2, 2))
+        noise[..., 0, 0] = self.range_white_std(range_m) ** 2 + self.range_bias_std_m**2 + self.range_shared_std_m**2
+        noise[..., 1, 1] = self.bearing_white_std_rad**2 + self.bearing_bias_std_rad**2 + self.bearing_shared_std_rad**2
+        return noise
 
     def odometry_density(self, horizon_s: float = ODOMETRY_HORIZON_S) -> np.ndarray:
         """``[speed, turn rate]`` densities of the white noise whose integral over ``horizon_s`` has the variance

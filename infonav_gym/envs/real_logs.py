@@ -56,8 +56,8 @@ def load_logs(loader: Callable, config: dict, owner: str, *arguments):
 
 
 def reading_ranges(mask: np.ndarray, readings: np.ndarray) -> np.ndarray:
-    """Each action's measured range [m] (..., 1 + T): inf for fusing nothing and where nothing was measured, from
-    the ``mask`` (..., 1 + T) and ``readings`` (..., T, 2)."""
-    ranges = np.full(mask.shape, np.inf)
-    ranges[..., 1:] = np.where(mask[..., 1:] == 1, readings[..., 0], np.inf)
+    """Each action's measured range [m] (..., 1 + T): 0 for fusing nothing and where nothing was measured, from the
+    ``mask`` (..., 1 + T) and ``readings`` (..., T, 2)."""
+    ranges = np.zeros(mask.shape)
+    ranges[..., 1:] = np.where(mask[..., 1:] == 1, readings[..., 0], 0.0)
     return ranges

@@ -10,7 +10,7 @@ from gymnasium import spaces
 
 from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.config import check_config
-from infonav_gym.datasets.mrclam_logs import DatasetLogs, robot_logs
+from infonav_gym.datasets.mrclam_logs import DatasetLogs, correction_model, robot_logs
 from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, EpisodeMetric, count_where, mean_where
@@ -103,6 +103,7 @@ class MRCLAMLocalization(EnvScenario):
             "horizon": 100,  # episode length [measurement times]
             "robots": "",  # the robots episodes are drawn from, subject numbers such as "1,2,3" ("": every robot)
             "fuse_every_reading": False,  # True: every reading measured is fused, whatever the action (reference)
+            "calibrated_noise": False,  # True: the filter's noise is log_correction's calibration, not the stds below
             **log_config(),
         }
 
@@ -117,11 +118,8 @@ class MRCLAMLocalization(EnvScenario):
         low, high = POSE_LOW + READING_LOW * n_landmarks, POSE_HIGH + READING_HIGH * n_landmarks
         self.observation_space = spaces.Box(np.float32(low), np.float32(high), dtype=np.float32)
         self.bounds = np.array(low, dtype=float), np.array(high, dtype=float)
-        noise = np.diag([config["range_std_m"] ** 2, config["bearing_std_rad"] ** 2])
-        self.landmark_rows = stacked(self.logs.landmarks, (copies, n_landmarks, 2))  # every copy's map and R, once
-        self.noise_rows = stacked(noise, (copies, n_landmarks, 2, 2))
-        stds = np.array([config["odometry_speed_std_mps"], config["odometry_turn_rate_std_rps"]])
-        self.control_covariance = stacked(np.diag(stds**2) / config["odometry_tick_s"], (1, 1, 2, 2))
+        self.landmark_rows = stacked(self.logs.landmarks, (copies, n_landmarks, 2))  # every copy's map, once
+        self.reading_noise, self.control_covariances = filter_noise(self.logs, self.flat, config, owner)
 
     def allocate(self, copies: int) -> MRCLAMState:
         return MRCLAMState(
@@ -159,7 +157,7 @@ class MRCLAMLocalization(EnvScenario):
         measured, x, P = self.flat.measured[at], contiguous(state.x[rows]), contiguous(state.P[rows])
         n_copies, n_landmarks = measured.shape
         predicted, H, _ = range_bearing_models(x, self.landmark_rows[:n_copies], False)  # under the robot: gated out
-        R = self.noise_rows[:n_copies]
+        R = self.reading_noise[at if len(self.reading_noise) > 1 else np.zeros(n_copies, dtype=int)]
         gains = np.where(measured, landmark_gains(P, H, R), 0.0)
         mask = np.ones((n_copies, 1 + n_landmarks), dtype=np.int8)
         mask[:, 1:] = measured
@@ -202,7 +200,7 @@ class MRCLAMLocalization(EnvScenario):
             self.flat.ticks[at],
             self.flat.ticks[np.minimum(at + 1, self.flat.last[state.robot[copies]])],
             self.logs.tick_s,
-            self.control_covariance,
+            self.control_covariances,
         )
         state.step[copies] = np.minimum(
             state.step[copies] + 1, self.flat.last[state.robot[copies]] - self.flat.offsets[state.robot[copies]]
@@ -345,6 +343,25 @@ def parse_robots(text: str, subjects: list[int], owner: str) -> set[int]:
     return wanted
 
 
+def filter_noise(logs: DatasetLogs, flat: FlatLogs, config: dict, owner: str) -> tuple[np.ndarray, np.ndarray]:
+    """The noise covariance of each step's reading of each landmark (steps, L, 2, 2), or one for all (1, L, 2, 2),
+    and of each robot's odometry on a tick (robots, 2, 2): the config's stds, or with ``calibrated_noise`` the pooled
+    model of its ``log_correction``'s calibration (every robot's errors together, which carries over to data it was
+    not fitted on better than each robot's own): the whole range-bearing error at the reading's range, the odometry's
+    white noise whose integral matches its fitted error over minutes (``NoiseModel``)."""
+    n_robots, n_landmarks = len(logs.robots), len(logs.landmarks)
+    if not config["calibrated_noise"]:
+        reading = np.diag([config["range_std_m"] ** 2, config["bearing_std_rad"] ** 2])
+        odometry = np.diag([config["odometry_speed_std_mps"] ** 2, config["odometry_turn_rate_std_rps"] ** 2])
+        return stacked(reading, (1, n_landmarks, 2, 2)), stacked(odometry / logs.tick_s, (n_robots, 2, 2))
+    if not config["log_correction"]:
+        raise ValueError(f"config key 'calibrated_noise' of {owner} takes the noise of 'log_correction': set it too")
+    model = correction_model(config["log_correction"]).pooled
+    reading = model.total_noise(np.where(flat.measured, flat.readings[..., 0], 1.0))
+    odometry = np.diag(model.odometry_density() ** 2) / logs.tick_s
+    return reading, stacked(odometry, (n_robots, 2, 2))
+
+
 def reading_nis(P: np.ndarray, decision: MRCLAMDecision) -> np.ndarray:
     """The normalized innovation squared of each copy's reading of each landmark at its prior (n, L) (meaningless
     where the landmark was not measured)."""
@@ -378,12 +395,16 @@ def landmark_reading_updates(x, P, readings, fused, predicted, H, R, prior_log_d
 
 
 @kernel
-def predicted_over_ticks(x, P, controls, robots, first, last, dt, covariance):
+def predicted_over_ticks(x, P, controls, robots, first, last, dt, covariances):
     """Each copy's pose ``x`` (n, 3), ``P`` (n, 3, 3) predicted tick by tick (``predict_poses``) through its robot's
     odometry ``controls[tick, robots[c]]`` (T, robots, 2) from tick ``first[c]`` to ``last[c]`` (exclusive); each
-    tick's noise ``covariance`` (1, 1, 2, 2)."""
+    tick's noise its robot's ``covariances[robots[c]]`` (robots, 2, 2)."""
     x_new, P_new, reading = np.empty(x.shape), np.empty(P.shape), np.empty((1, 1, 2))
+    covariance = np.empty((1, 1, 2, 2))
     for c in range(len(x)):
+        for i in range(2):
+            for j in range(2):
+                covariance[0, 0, i, j] = covariances[robots[c], i, j]
         one_x, one_P = np.empty((1, POSE_DIM)), np.empty((1, POSE_DIM, POSE_DIM))
         for i in range(POSE_DIM):
             one_x[0, i] = x[c, i]

@@ -44,7 +44,8 @@ SUMMARY_KEYS = (
 class ReplayConfig:
     """A replay's policy, noise and outage: ``noise`` ``"picked"`` (the raw logs, the dataset README's stds),
     ``"shipped"`` (the logs corrected by the calibration fitted on Dataset 6) or a calibration JSON's path (the envs'
-    ``log_correction``); the outage robot (a subject number) has no landmarks in ``[outage_start_s, outage_end_s)``
+    ``log_correction``; the single-robot env's filter takes the calibration's noise too, ``calibrated_noise``, the
+    team env's the README's); the outage robot (a subject number) has no landmarks in ``[outage_start_s, outage_end_s)``
     of the log (cooperative replays only)."""
 
     policy: str = "all"
@@ -126,7 +127,14 @@ def _robot_replays(directory: Path, config: ReplayConfig) -> dict:
         if length < 2:
             robots[str(log.subject)] = dict.fromkeys(SUMMARY_KEYS) | {"steps": 0}
             continue
-        env = make_env(SINGLE_ID, **_env_config(directory, config), robots=str(log.subject), horizon=length - 1)
+        calibrated = config.noise != "picked"  # the calibration's noise, too
+        env = make_env(
+            SINGLE_ID,
+            **_env_config(directory, config),
+            robots=str(log.subject),
+            horizon=length - 1,
+            calibrated_noise=calibrated,
+        )
         agent = make_agent("greedy" if config.policy == "all" else config.policy, env.action_space.n, 0, env)
         steps = list(episode_infos(env, agent, config.seed))[1:]
         ticks = log.ticks[first : first + length]
