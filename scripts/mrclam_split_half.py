@@ -12,7 +12,6 @@ logs, on the corrected ones, and on the corrected ones with the model's noise in
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import tempfile
 import warnings
 from pathlib import Path
@@ -27,21 +26,6 @@ from infonav_gym.experiments.replay.metrics import fraction_inside_95
 ENV_EPISODES = 50
 
 
-def restrict(dataset, start: float, end: float):
-    """``dataset`` with only the log rows whose time lies in ``[start, end)`` (absolute times [s])."""
-
-    def cut(tables):
-        return {robot: rows[(rows[:, 0] >= start) & (rows[:, 0] < end)] for robot, rows in tables.items()}
-
-    return dataclasses.replace(
-        dataset,
-        odometry=cut(dataset.odometry),
-        landmark_measurements=cut(dataset.landmark_measurements),
-        robot_measurements=cut(dataset.robot_measurements),
-        groundtruth=cut(dataset.groundtruth),
-    )
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("dataset_dir")
@@ -49,9 +33,8 @@ def main() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         dataset = mrclam.load(args.dataset_dir)
-    middle = 0.5 * (dataset.start_time + dataset.end_time)
-    model, _ = calibrate(restrict(dataset, dataset.start_time, middle))
-    half = middle - dataset.start_time
+    half = 0.5 * (dataset.end_time - dataset.start_time)
+    model, _ = calibrate(dataset.within(0.0, half))
     with tempfile.TemporaryDirectory() as directory:
         fitted = str(model.save(Path(directory) / "first_half.json"))
         for name, noise in (("logs corrected by the first half's model", fitted), ("raw logs", "picked")):

@@ -124,7 +124,6 @@ def test_zero_env_runners_is_rllibs_sampling_in_the_driver_and_accepted():
 @pytest.mark.parametrize(
     ("extra", "ignored"),
     [
-        (["--duration-s", "60"], "--duration-s would be ignored; drop it"),
         (
             ["--policy", "greedy", "--seeds", "2", "--noise", "picked"],
             "--policy, --seeds, --noise would be ignored; drop them",

@@ -7,6 +7,7 @@ mapped here to its subject. Times stay absolute [s]; replay times count from ``M
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -55,6 +56,21 @@ class MRCLAMDataset:
     def has_groundtruth(self) -> bool:
         """Every robot has a ground-truth trajectory."""
         return all(robot in self.groundtruth for robot in self.robots)
+
+    def within(self, start_s: float, end_s: float) -> MRCLAMDataset:
+        """The dataset with only the log rows whose time lies in ``[start_s, end_s)`` after ``start_time`` [s]."""
+        start, end = self.start_time + start_s, self.start_time + end_s
+
+        def cut(tables):
+            return {robot: rows[(rows[:, 0] >= start) & (rows[:, 0] < end)] for robot, rows in tables.items()}
+
+        return dataclasses.replace(
+            self,
+            odometry=cut(self.odometry),
+            landmark_measurements=cut(self.landmark_measurements),
+            robot_measurements=cut(self.robot_measurements),
+            groundtruth=cut(self.groundtruth),
+        )
 
     def landmark_index(self, subjects) -> np.ndarray:
         """Row of each landmark subject number in ``landmarks``."""

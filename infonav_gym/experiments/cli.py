@@ -309,7 +309,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--outage-start-s", type=number(0, MAX_LOG_S, low_open=False), default=0.0, help="outage start [s] (default: 0)"
     )
     mrclam.add_argument("--outage-end-s", type=end_time, default=float("inf"), help="outage end [s] (default: the end)")
-    mrclam.add_argument("--duration-s", type=number(0, MAX_LOG_S), help="replay only the first DURATION_S seconds")
+    mrclam.add_argument(
+        "--duration-s", type=number(0, MAX_LOG_S), help="replay (or --calibrate on) only the first DURATION_S seconds"
+    )
     mrclam.add_argument(
         "--output",
         type=Path,
@@ -661,11 +663,13 @@ def _calibrate(args, command: str) -> dict:
     from infonav_gym.experiments.replay.calibration import calibrate
     from infonav_gym.experiments.replay.plots import plot_calibration
 
-    if ignored := _replay_options_given(args):
+    if ignored := [option for option in _replay_options_given(args) if option != "--duration-s"]:
         them = "it" if len(ignored) == 1 else "them"
         raise ValueError(f"--calibrate only fits the noise model: {', '.join(ignored)} would be ignored; drop {them}")
     stem = check_output_stem(args.calibrate, CALIBRATION_SUFFIXES, "--calibrate")
     dataset = _load_mrclam(args.dataset_dir)
+    if args.duration_s is not None:  # fit on the log's first seconds only: the rest stays unseen
+        dataset = dataset.within(0.0, args.duration_s)
     model, errors = calibrate(dataset, command=command, progress=not args.json)
     result = model.to_json()
 
