@@ -16,6 +16,7 @@ from test_mrclam_env import DATASET6, needs_dataset6
 from infonav_gym import make_env
 from infonav_gym.datasets import DatasetNotFound, mrclam
 from infonav_gym.datasets.mrclam_logs import DATASET_VARIABLE
+from infonav_gym.datasets.noise_model import shipped_noise_model
 from infonav_gym.envs.mrclam_cooperative_localization.scenario import reading_model
 from infonav_gym.geometry import wrap_angle
 
@@ -86,7 +87,7 @@ def test_a_reading_at_the_steps_start_is_filterpys_update_and_its_reward_the_exp
         predicted, H = np.empty(2), np.empty((2, len(x)))
         reading_model(x, 0, target, vector.env_scenario.windows.landmarks, predicted, H)
         ekf = ExtendedKalmanFilter(dim_x=len(x), dim_z=2)
-        ekf.x, ekf.P, ekf.R = x.copy(), P.copy(), vector.env_scenario.noise
+        ekf.x, ekf.P, ekf.R = x.copy(), P.copy(), decision.noise[0, 0, target]
         ekf.update(
             readings[0, target],
             HJacobian=lambda _, H=H: H,
@@ -187,3 +188,17 @@ def test_fusing_every_reading_fuses_what_each_robot_measured_whatever_the_action
         for agent, info in infos.items():
             assert info["fused_readings"] + info["gated"] <= measured[agent]
             assert info["fused_readings"] == measured[agent] or info["gated"]
+
+
+def test_calibrated_noise_is_the_calibrations_pooled_noise_at_each_readings_range():
+    env = make_env(ENV_ID, max_cycles=8, calibrated_noise=True, log_correction="shipped")
+    model = shipped_noise_model().pooled
+    _, infos = env.reset(seed=0)
+    for _ in range(8):
+        decision = env.unwrapped.vector.decision
+        robot, target = np.argwhere(decision.action_mask[0, :, 1:])[0]
+        expected = model.total_noise(decision.readings[0, robot, target, 0])
+        np.testing.assert_allclose(decision.noise[0, robot, target], expected, rtol=1e-12)
+        _, _, _, _, infos = env.step(greedy_actions(infos))
+    covariance = env.unwrapped.vector.env_scenario.control_covariance[0, 1]
+    np.testing.assert_allclose(covariance, np.diag(model.odometry_density() ** 2) / 0.02, rtol=1e-12)

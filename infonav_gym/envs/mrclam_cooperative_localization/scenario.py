@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.compiled import contiguous, inner_kernel, kernel, stacked
+from infonav_gym.compiled import contiguous, inner_kernel, kernel
 from infonav_gym.config import Interval, check_config
 from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.driver import Driver
@@ -29,7 +29,14 @@ from infonav_gym.envs.observation_kernels import (
 )
 from infonav_gym.envs.parallel_view import ParallelEnvView, TeamCycles, team_metadata
 from infonav_gym.envs.protocol import EnvScenario, State
-from infonav_gym.envs.real_logs import END_OF_LOG_S, LOG_CONFIG_INTERVALS, load_logs, log_config, reading_ranges
+from infonav_gym.envs.real_logs import (
+    END_OF_LOG_S,
+    LOG_CONFIG_INTERVALS,
+    filter_noise,
+    load_logs,
+    log_config,
+    reading_ranges,
+)
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses, range_bearing_of_offset
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
@@ -77,13 +84,15 @@ class MRCLAMTeamState(State):
 
 class MRCLAMTeamDecision(NamedTuple):
     """Every copy's choice at its prior: each robot's mask and expected gain of fusing nothing or each target's reading
-    (n, R, 1 + T), the readings (n, R, T, 2) and their ticks in the window (n, R, T), whether each robot's landmarks
+    (n, R, 1 + T), the readings (n, R, T, 2), their ticks in the window (n, R, T) and noise covariances (n, R, T, 2,
+    2), whether each robot's landmarks
     are available (n, R), each robot's pose ``ln det`` (n, R) and ground truth at the window's start (n, R, 3)."""
 
     action_mask: np.ndarray
     action_information_gain: np.ndarray
     readings: np.ndarray
     offsets: np.ndarray
+    noise: np.ndarray
     landmarks_available: np.ndarray
     pose_log_det: np.ndarray
     true_pose: np.ndarray
@@ -143,9 +152,10 @@ class MRCLAMCooperativeLocalization(EnvScenario):
         high = POSE_HIGH + [1] + READING_HIGH * n_targets
         self.observation_space = spaces.Box(np.float32(low), np.float32(high), dtype=np.float32)
         self.bounds = np.array(low, dtype=float), np.array(high, dtype=float)
-        self.noise = np.diag([config["range_std_m"] ** 2, config["bearing_std_rad"] ** 2])
-        stds = np.array([config["odometry_speed_std_mps"], config["odometry_turn_rate_std_rps"]])
-        self.control_covariance = stacked(np.diag(stds**2) / windows.tick_s, (1, n_robots, 2, 2))
+        self.reading_noise, odometry = filter_noise(
+            config, owner, windows.measured, windows.readings, n_robots, windows.tick_s
+        )
+        self.control_covariance = contiguous(odometry[None])
 
     def allocate(self, copies: int) -> MRCLAMTeamState:
         shape, dim = (copies, len(self.agents)), POSE_DIM * len(self.agents)
@@ -188,12 +198,12 @@ class MRCLAMCooperativeLocalization(EnvScenario):
         measured = windows.measured[window]
         measured[:, :, : len(windows.landmarks)] &= available[:, :, None]
         x, P = contiguous(state.x[rows]), contiguous(state.P[rows])
+        noise = self.reading_noise[window if len(self.reading_noise) > 1 else np.zeros(len(window), dtype=int)]
         mask, gains, log_dets = team_reading_gains(
-            x, P, measured, windows.landmarks, self.noise, float(self.config["team_reward"])
+            x, P, measured, windows.landmarks, noise, float(self.config["team_reward"])
         )
-        return MRCLAMTeamDecision(
-            mask, gains, windows.readings[window], windows.offsets[window], available, log_dets, windows.truth[window]
-        )
+        readings, offsets, truth = windows.readings[window], windows.offsets[window], windows.truth[window]
+        return MRCLAMTeamDecision(mask, gains, readings, offsets, noise, available, log_dets, truth)
 
     def landmarks_available(self, elapsed: np.ndarray) -> np.ndarray:
         """Whether each robot may use its landmark readings after ``elapsed`` (n,) steps (n, R): not the outage
@@ -232,7 +242,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
                 contiguous(decision.readings[copies]),
                 contiguous(decision.offsets[copies]),
                 windows.landmarks,
-                self.noise,
+                contiguous(decision.noise[copies]),
                 float(self.config["gate_nis"]),
             )
             state.x[copies], state.P[copies], state.own_mi[copies], state.team_mi[copies] = x, P, own, team
@@ -411,7 +421,8 @@ def reading_gains(P, H, R, robot, HP, S_inverse, block) -> tuple:
 @kernel
 def team_reading_gains(x, P, measured, landmarks, R, team_reward):
     """Each robot's mask (n, R, 1 + T) int8 (nothing, always; each target it ``measured`` (n, R, T)) and expected gain
-    of each (``reading_gains`` mixed by ``team_reward``, 0 where masked), and each robot's pose ``ln det`` (n, R)."""
+    of each (``reading_gains`` at its noise ``R`` (n, R, T, 2, 2), mixed by ``team_reward``, 0 where masked), and each
+    robot's pose ``ln det`` (n, R)."""
     n_copies, n_robots, n_targets = measured.shape
     mask, gains = np.zeros((n_copies, n_robots, 1 + n_targets), np.int8), np.zeros((n_copies, n_robots, 1 + n_targets))
     log_dets = np.empty((n_copies, n_robots))
@@ -423,7 +434,7 @@ def team_reading_gains(x, P, measured, landmarks, R, team_reward):
             log_dets[c, robot] = pose_block_log_det(P[c], POSE_DIM * robot, block)
             for target in range(n_targets):
                 if measured[c, robot, target] and reading_model(x[c], robot, target, landmarks, predicted, H):
-                    own, joint = reading_gains(P[c], H, R, robot, HP, S_inverse, block)
+                    own, joint = reading_gains(P[c], H, R[c, robot, target], robot, HP, S_inverse, block)
                     mask[c, robot, 1 + target] = 1
                     gains[c, robot, 1 + target] = (1.0 - team_reward) * own + team_reward * joint
     return mask, gains, log_dets
@@ -435,7 +446,8 @@ def fused_windows(
 ):
     """Each copy's joint EKF (``x`` (n, 3R), ``P``) through its window of ``width`` ticks from ``first_tick`` (n,): at
     each tick, the readings ``tried`` (n, R, T) of that tick (``readings`` (n, R, T, 2) at ``offsets`` (n, R, T))
-    fused one by one in robot, then target order unless its NIS exceeds ``gate``, then every robot predicted through
+    fused one by one in robot, then target order (noise ``R`` (n, R, T, 2, 2)) unless its NIS exceeds ``gate``, then
+    every robot predicted through
     its odometry ``controls`` (ticks, R, 2). Returns ``(x, P, own MI (n, R), joint MI (n,), gated (n, R), fused (n,
     R))``: the MI [nats] summed over the window's updates, whether a robot's reading was gated out, how many fused."""
     n_copies, n = x.shape
@@ -447,9 +459,6 @@ def fused_windows(
     HP, S_inverse, priors = np.empty((2, n)), np.empty((2, 2)), np.empty(n_robots)
     residual, rows = np.zeros((1, 1, 2)), np.zeros((1, 1, 2, n))
     noise, used, reading = np.zeros((1, 1, 2, 2)), np.ones((1, 1), np.bool_), np.empty((1, n_robots, 2))
-    for a in range(2):
-        for b in range(2):
-            noise[0, 0, a, b] = R[a, b]
     for c in range(n_copies):
         one_x, one_P = x[c : c + 1].copy(), P[c : c + 1].copy()
         for offset in range(width):
@@ -461,7 +470,10 @@ def fused_windows(
                     continue
                 residual[0, 0, 0] = readings[c, robot, target, 0] - predicted[0]
                 residual[0, 0, 1] = wrap(readings[c, robot, target, 1] - predicted[1])
-                innovation(one_P[0], H, R, HP, S_inverse)
+                for a in range(2):
+                    for b in range(2):
+                        noise[0, 0, a, b] = R[c, robot, target, a, b]
+                innovation(one_P[0], H, noise[0, 0], HP, S_inverse)
                 nis = 0.0
                 for a in range(2):
                     for b in range(2):

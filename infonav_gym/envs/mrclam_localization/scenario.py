@@ -10,7 +10,7 @@ from gymnasium import spaces
 
 from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.config import check_config
-from infonav_gym.datasets.mrclam_logs import DatasetLogs, correction_model, robot_logs
+from infonav_gym.datasets.mrclam_logs import DatasetLogs, robot_logs
 from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.driver import Driver
 from infonav_gym.envs.metrics import LOCALIZATION_METRICS, EpisodeMetric, count_where, mean_where
@@ -25,7 +25,7 @@ from infonav_gym.envs.observation_kernels import (
     reading_features,
 )
 from infonav_gym.envs.protocol import EnvScenario, State
-from infonav_gym.envs.real_logs import LOG_CONFIG_INTERVALS, load_logs, log_config, reading_ranges
+from infonav_gym.envs.real_logs import LOG_CONFIG_INTERVALS, filter_noise, load_logs, log_config, reading_ranges
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
 from infonav_gym.envs.vector_infos import decision_info
@@ -103,7 +103,6 @@ class MRCLAMLocalization(EnvScenario):
             "horizon": 100,  # episode length [measurement times]
             "robots": "",  # the robots episodes are drawn from, subject numbers such as "1,2,3" ("": every robot)
             "fuse_every_reading": False,  # True: every reading measured is fused, whatever the action (reference)
-            "calibrated_noise": False,  # True: the filter's noise is log_correction's calibration, not the stds below
             **log_config(),
         }
 
@@ -119,7 +118,9 @@ class MRCLAMLocalization(EnvScenario):
         self.observation_space = spaces.Box(np.float32(low), np.float32(high), dtype=np.float32)
         self.bounds = np.array(low, dtype=float), np.array(high, dtype=float)
         self.landmark_rows = stacked(self.logs.landmarks, (copies, n_landmarks, 2))  # every copy's map, once
-        self.reading_noise, self.control_covariances = filter_noise(self.logs, self.flat, config, owner)
+        self.reading_noise, self.control_covariances = filter_noise(
+            config, owner, self.flat.measured, self.flat.readings, len(self.logs.robots), self.logs.tick_s
+        )
 
     def allocate(self, copies: int) -> MRCLAMState:
         return MRCLAMState(
@@ -341,25 +342,6 @@ def parse_robots(text: str, subjects: list[int], owner: str) -> set[int]:
     if not wanted <= set(subjects):
         raise ValueError(f"config key 'robots' of {owner}: no robot {sorted(wanted - set(subjects))}; has {subjects}")
     return wanted
-
-
-def filter_noise(logs: DatasetLogs, flat: FlatLogs, config: dict, owner: str) -> tuple[np.ndarray, np.ndarray]:
-    """The noise covariance of each step's reading of each landmark (steps, L, 2, 2), or one for all (1, L, 2, 2),
-    and of each robot's odometry on a tick (robots, 2, 2): the config's stds, or with ``calibrated_noise`` the pooled
-    model of its ``log_correction``'s calibration (every robot's errors together, which carries over to data it was
-    not fitted on better than each robot's own): the whole range-bearing error at the reading's range, the odometry's
-    white noise whose integral matches its fitted error over minutes (``NoiseModel``)."""
-    n_robots, n_landmarks = len(logs.robots), len(logs.landmarks)
-    if not config["calibrated_noise"]:
-        reading = np.diag([config["range_std_m"] ** 2, config["bearing_std_rad"] ** 2])
-        odometry = np.diag([config["odometry_speed_std_mps"] ** 2, config["odometry_turn_rate_std_rps"] ** 2])
-        return stacked(reading, (1, n_landmarks, 2, 2)), stacked(odometry / logs.tick_s, (n_robots, 2, 2))
-    if not config["log_correction"]:
-        raise ValueError(f"config key 'calibrated_noise' of {owner} takes the noise of 'log_correction': set it too")
-    model = correction_model(config["log_correction"]).pooled
-    reading = model.total_noise(np.where(flat.measured, flat.readings[..., 0], 1.0))
-    odometry = np.diag(model.odometry_density() ** 2) / logs.tick_s
-    return reading, stacked(odometry, (n_robots, 2, 2))
 
 
 def reading_nis(P: np.ndarray, decision: MRCLAMDecision) -> np.ndarray:

@@ -44,9 +44,8 @@ SUMMARY_KEYS = (
 class ReplayConfig:
     """A replay's policy, noise and outage: ``noise`` ``"picked"`` (the raw logs, the dataset README's stds),
     ``"shipped"`` (the logs corrected by the calibration fitted on Dataset 6) or a calibration JSON's path (the envs'
-    ``log_correction``; the single-robot env's filter takes the calibration's noise too, ``calibrated_noise``, the
-    team env's the README's); the outage robot (a subject number) has no landmarks in ``[outage_start_s, outage_end_s)``
-    of the log (cooperative replays only)."""
+    ``log_correction``; the filter takes the calibration's noise too, ``calibrated_noise``); the outage robot (a
+    subject number) has no landmarks in ``[outage_start_s, outage_end_s)`` of the log (cooperative replays only)."""
 
     policy: str = "all"
     noise: str = "shipped"
@@ -109,8 +108,8 @@ def _env_config(directory: Path, config: ReplayConfig) -> dict:
     span = {"time_from_s": float(config.start_s)} | (
         {} if config.duration_s is None else {"time_to_s": config.duration_s}
     )
-    fuse = config.policy == "all"
-    return {"dataset_dir": str(directory), "log_correction": config.log_correction, "fuse_every_reading": fuse, **span}
+    noise = {"log_correction": config.log_correction, "calibrated_noise": bool(config.log_correction)}
+    return {"dataset_dir": str(directory), "fuse_every_reading": config.policy == "all", **noise, **span}
 
 
 def _inside(times: np.ndarray, config: ReplayConfig) -> np.ndarray:
@@ -127,14 +126,7 @@ def _robot_replays(directory: Path, config: ReplayConfig) -> dict:
         if length < 2:
             robots[str(log.subject)] = dict.fromkeys(SUMMARY_KEYS) | {"steps": 0}
             continue
-        calibrated = config.noise != "picked"  # the calibration's noise, too
-        env = make_env(
-            SINGLE_ID,
-            **_env_config(directory, config),
-            robots=str(log.subject),
-            horizon=length - 1,
-            calibrated_noise=calibrated,
-        )
+        env = make_env(SINGLE_ID, **_env_config(directory, config), robots=str(log.subject), horizon=length - 1)
         agent = make_agent("greedy" if config.policy == "all" else config.policy, env.action_space.n, 0, env)
         steps = list(episode_infos(env, agent, config.seed))[1:]
         ticks = log.ticks[first : first + length]
