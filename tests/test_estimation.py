@@ -12,9 +12,9 @@ import infonav_gym  # noqa: F401  (registers the envs)
 from agents import RandomAgent
 from infonav_gym.estimation import PoseEKF, chi2_bounds, nees, nis, pose_error
 from infonav_gym.estimation.models import (
+    angular_residual,
     range_bearing,
     range_bearing_linearized,
-    range_bearing_residual,
     unicycle_jacobians,
     unicycle_motion,
 )
@@ -59,7 +59,7 @@ def test_wrap_angle_and_residual_cross_the_branch_cut():
     np.testing.assert_allclose(
         wrap_angle(np.array([math.pi, -math.pi, 3 * math.pi, 0.1])), [-math.pi, -math.pi, -math.pi, 0.1]
     )
-    residual = range_bearing_residual([2.0, math.pi - 0.01], [1.5, -math.pi + 0.01])
+    residual = angular_residual([2.0, math.pi - 0.01], [1.5, -math.pi + 0.01], 1)
     np.testing.assert_allclose(residual, [0.5, -0.02], atol=1e-12)
 
 

@@ -49,11 +49,6 @@ def range_bearing_linearized(pose, landmarks) -> tuple[np.ndarray, np.ndarray, n
     return predicted.reshape(-1, 2), H_pose, -H_pose[:, :, :2]
 
 
-def range_bearing_residual(measured, predicted) -> np.ndarray:
-    """Innovation ``measured - predicted`` of a range-bearing pair, bearing wrapped."""
-    return angular_residual(measured, predicted, 1)
-
-
 GPS_POSE_JACOBIAN = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # a position fix [x, y] w.r.t. the pose
 
 

@@ -60,8 +60,3 @@ def names(text: str) -> list[str]:
     if repeated:
         raise argparse.ArgumentTypeError(f"{repeated!r} is given twice in {text!r}: give each name once")
     return parts
-
-
-def comma_separated(element):
-    """A type function for comma-separated values, each checked by the type function ``element``."""
-    return lambda text: [element(part) for part in text.split(",")]

@@ -7,7 +7,6 @@ from scipy import stats
 
 from infonav_gym.estimation.consistency import chi2_bounds, pose_error
 from infonav_gym.geometry import wrap_angle
-from infonav_gym.information import gaussian_entropy_from_log_det
 
 MAX_GROUNDTRUTH_GAP_S = 0.5  # [s] no comparison across a longer motion-capture dropout
 
@@ -33,30 +32,11 @@ def pose_rmse(true_poses: np.ndarray, estimates: np.ndarray) -> tuple[float, flo
     )
 
 
-def nees_series(true_poses: np.ndarray, estimates: np.ndarray, covariances: np.ndarray) -> np.ndarray:
-    """Normalized estimation error squared of each pose (T,) (chi-square, 3 dof, if consistent)."""
-    error = pose_error(true_poses, estimates)
-    return np.einsum("ti,ti->t", error, np.linalg.solve(covariances, error[..., None])[..., 0])
-
-
 def fraction_inside_95(values, dof: int) -> float:
     """Share of ``values`` inside the two-sided 95 % chi-square(``dof``) interval."""
     low, high = chi2_bounds(dof)
     values = np.asarray(values, dtype=float)
     return float(np.mean((values >= low) & (values <= high)))
-
-
-def mean_entropy(covariances: np.ndarray) -> float:
-    """Mean Gaussian entropy of (T, 3, 3) pose covariances [nats]."""
-    return float(np.mean(gaussian_entropy_from_log_det(np.linalg.slogdet(covariances)[1], 3)))
-
-
-def nis_summary(nis: list[float], accepted: list[bool], dof: int = 2) -> dict:
-    """Mean NIS of the accepted updates and the share inside the two-sided 95 % chi-square interval."""
-    values = np.asarray(nis, dtype=float)[np.asarray(accepted, dtype=bool)]
-    if values.size == 0:
-        return {"mean_nis": None, "nis_inside_95": None}
-    return {"mean_nis": float(values.mean()), "nis_inside_95": fraction_inside_95(values, dof)}
 
 
 def mean_and_ci95(values) -> dict:
