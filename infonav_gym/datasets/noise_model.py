@@ -98,10 +98,6 @@ class RobotNoise:
         ]
         return np.sqrt(np.array(variances, dtype=float) / horizon_s)
 
-    def control_covariance(self, dt: float) -> np.ndarray:
-        """Covariance (2, 2) of the corrected odometry averaged over ``dt`` seconds (``odometry_density``)."""
-        return np.diag(self.odometry_density() ** 2) / dt
-
     def correct_odometry(self, odometry: np.ndarray) -> np.ndarray:
         """``[time, speed, turn_rate]`` rows on the ground-truth clock with the scale errors removed."""
         shift = [self.odometry_time_offset_s, 0.0, 0.0]
