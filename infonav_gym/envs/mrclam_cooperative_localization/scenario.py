@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 from gymnasium import spaces
 
-from infonav_gym.compiled import contiguous, inner_kernel, kernel
+from infonav_gym.compiled import contiguous, inner_kernel, kernel, stacked
 from infonav_gym.config import Interval, check_config
 from infonav_gym.envs.base import shared_config
 from infonav_gym.envs.driver import Driver
@@ -156,6 +156,8 @@ class MRCLAMCooperativeLocalization(EnvScenario):
             config, owner, windows.measured, windows.readings, n_robots, windows.tick_s
         )
         self.control_covariance = contiguous(odometry[None])
+        if len(self.reading_noise) == 1:  # the same noise for every reading: every copy's rows, once
+            self.reading_noise = stacked(self.reading_noise[0], (copies, n_robots, n_targets, 2, 2))
 
     def allocate(self, copies: int) -> MRCLAMTeamState:
         shape, dim = (copies, len(self.agents)), POSE_DIM * len(self.agents)
@@ -198,7 +200,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
         measured = windows.measured[window]
         measured[:, :, : len(windows.landmarks)] &= available[:, :, None]
         x, P = contiguous(state.x[rows]), contiguous(state.P[rows])
-        noise = self.reading_noise[window if len(self.reading_noise) > 1 else np.zeros(len(window), dtype=int)]
+        noise = self.reading_noise[window] if self.config["calibrated_noise"] else self.reading_noise[: len(window)]
         mask, gains, log_dets = team_reading_gains(
             x, P, measured, windows.landmarks, noise, float(self.config["team_reward"])
         )

@@ -121,6 +121,8 @@ class MRCLAMLocalization(EnvScenario):
         self.reading_noise, self.control_covariances = filter_noise(
             config, owner, self.flat.measured, self.flat.readings, len(self.logs.robots), self.logs.tick_s
         )
+        if len(self.reading_noise) == 1:  # the same noise for every reading: every copy's rows, once
+            self.reading_noise = stacked(self.reading_noise[0], (copies, n_landmarks, 2, 2))
 
     def allocate(self, copies: int) -> MRCLAMState:
         return MRCLAMState(
@@ -158,7 +160,7 @@ class MRCLAMLocalization(EnvScenario):
         measured, x, P = self.flat.measured[at], contiguous(state.x[rows]), contiguous(state.P[rows])
         n_copies, n_landmarks = measured.shape
         predicted, H, _ = range_bearing_models(x, self.landmark_rows[:n_copies], False)  # under the robot: gated out
-        R = self.reading_noise[at if len(self.reading_noise) > 1 else np.zeros(n_copies, dtype=int)]
+        R = self.reading_noise[at] if self.config["calibrated_noise"] else self.reading_noise[:n_copies]
         gains = np.where(measured, landmark_gains(P, H, R), 0.0)
         mask = np.ones((n_copies, 1 + n_landmarks), dtype=np.int8)
         mask[:, 1:] = measured
@@ -177,7 +179,7 @@ class MRCLAMLocalization(EnvScenario):
         else:
             tried = np.zeros(decision.readings.shape[:2], dtype=bool)
             tried[rows, landmark] = landmark >= 0
-        gated = tried & (reading_nis(state.P, decision) > self.config["gate_nis"])
+        gated = tried & (reading_nis(state.P, decision, tried) > self.config["gate_nis"])
         fused = tried & ~gated
         state.x, state.P, state.mutual_information = landmark_reading_updates(
             state.x,
@@ -344,14 +346,16 @@ def parse_robots(text: str, subjects: list[int], owner: str) -> set[int]:
     return wanted
 
 
-def reading_nis(P: np.ndarray, decision: MRCLAMDecision) -> np.ndarray:
-    """The normalized innovation squared of each copy's reading of each landmark at its prior (n, L) (meaningless
-    where the landmark was not measured)."""
-    H, R = decision.H, decision.R
-    residual = decision.readings - decision.predicted
-    residual[..., 1] = wrap_angle(residual[..., 1])
-    S = H @ P[:, None] @ H.transpose(0, 1, 3, 2) + R
-    return np.einsum("nli,nli->nl", residual, np.linalg.solve(S, residual[..., None])[..., 0])
+def reading_nis(P: np.ndarray, decision: MRCLAMDecision, tried: np.ndarray) -> np.ndarray:
+    """The normalized innovation squared of the readings ``tried`` (n, L) at each copy's prior (n, L), 0 elsewhere."""
+    copies, landmarks = np.nonzero(tried)
+    H, R = decision.H[copies, landmarks], decision.R[copies, landmarks]
+    residual = decision.readings[copies, landmarks] - decision.predicted[copies, landmarks]
+    residual[:, 1] = wrap_angle(residual[:, 1])
+    S = H @ P[copies] @ H.transpose(0, 2, 1) + R
+    nis = np.zeros(tried.shape)
+    nis[copies, landmarks] = np.einsum("ni,ni->n", residual, np.linalg.solve(S, residual[..., None])[..., 0])
+    return nis
 
 
 @kernel
