@@ -19,6 +19,8 @@ from infonav_gym.registration.control_points import (
     balanced_picks,
     control_point_geometry,
     select_control_points,
+    single_point_information,
+    stretches,
 )
 from infonav_gym.sensors.ladar import Ladar, LadarScan, point_cloud
 from infonav_gym.world.terrain import Box, Cylinder
@@ -262,6 +264,53 @@ def test_the_balanced_picks_follow_gelfands_greedy_rule():
     np.testing.assert_array_equal(balanced_picks(squared, orders, 40, 1e-9, 1e-12), expected)
 
 
+def test_single_point_information_is_each_returns_own_gaussian_update(rugged_scans):
+    """``0.5 ln(1 + J P J^T / a)``: the mutual information of one return alone (the matrix determinant lemma)."""
+    geometry = control_point_geometry(rugged_scans[0])
+    information = single_point_information(geometry)
+    usable = np.flatnonzero(np.isfinite(geometry.error_var_m2))
+    for index in usable[:: len(usable) // 25]:
+        assert information[index] == pytest.approx(geometry.mutual_information([index]), rel=1e-9)
+    assert np.all(information[~np.isfinite(geometry.error_var_m2)] == 0.0)
+
+
+@pytest.mark.parametrize(("count", "k"), [(10, 3), (7, 7), (1000, 37), (5760, 1440)])
+def test_stretches_cover_every_index_once_in_runs_of_near_equal_length(count, k):
+    table = stretches(count, k)
+    taken = table[table >= 0]
+    np.testing.assert_array_equal(taken, np.arange(count))  # row by row: consecutive runs, in order
+    lengths = (table >= 0).sum(axis=1)
+    assert lengths.min() >= count // k and lengths.max() <= -(-count // k)
+
+
+def test_stratified_information_takes_the_most_informative_return_of_each_stretch(rugged_scans, wall_scan):
+    """Brute force: walk the stretches of the usable returns and keep each one's first best (ties: 1e-9)."""
+    for scan in [*rugged_scans[:2], wall_scan]:
+        geometry = control_point_geometry(scan)
+        usable = np.flatnonzero(np.isfinite(geometry.error_var_m2))
+        information = 0.5 * np.log1p(geometry.spread_m**2 / geometry.error_var_m2)
+        for k in (13, 300):
+            expected = []
+            for stretch in range(k):
+                members = usable[math.floor(stretch * len(usable) / k) : math.floor((stretch + 1) * len(usable) / k)]
+                best = information[members].max()  # the first within the decision tolerance of the best
+                expected.append(next(i for i in members if information[i] >= best - 1e-9 * abs(best) - 1e-12))
+            np.testing.assert_array_equal(select_control_points(scan, k, "stratified_information"), expected)
+
+
+def test_stratified_information_picks_the_same_from_a_perturbed_scan(wall_scan):
+    """Level ground with a wall: many returns tell the same in exact arithmetic; a 1e-13 nudge changes no pick."""
+    rng = np.random.default_rng(4)
+    nudged = dataclasses.replace(
+        wall_scan, ranges_m=wall_scan.ranges_m * (1 + 1e-13 * rng.standard_normal(wall_scan.ranges_m.shape))
+    )
+    for k in (50, 400):
+        np.testing.assert_array_equal(
+            select_control_points(nudged, k, "stratified_information"),
+            select_control_points(wall_scan, k, "stratified_information"),
+        )
+
+
 # ---------------------------------------------------------------- registration accuracy (needs icp)
 
 PAIR_SEEDS = range(24)
@@ -353,7 +402,7 @@ def test_drawing_strategies_need_a_generator(wall_scan, strategy):
         select_control_points(wall_scan, 10, strategy)
 
 
-@pytest.mark.parametrize("strategy", ["entropy", "normal_space", "covariance"])
+@pytest.mark.parametrize("strategy", ["entropy", "stratified_information", "normal_space", "covariance"])
 def test_too_few_returns_with_a_normal_is_a_clear_error(wall_scan, strategy):
     rows, columns = np.indices(wall_scan.no_return.shape)
     checkered = dataclasses.replace(wall_scan, no_return=wall_scan.no_return | ((rows + columns) % 2 == 1))

@@ -196,8 +196,10 @@ def test_the_control_point_picks_are_the_same_under_a_perturbed_pose_prior():
     for terrain in (flat, rugged):
         scan = Ladar().scan(terrain, [0.0, 0.0, 0.3], np.random.default_rng(0))
         for k in (50, 400):
-            reference = select_control_points(scan, k, pose_covariance=DEFAULT_POSE_COVARIANCE)
-            again = select_control_points(scan, k, pose_covariance=nudged_symmetric(DEFAULT_POSE_COVARIANCE, rng))
+            reference = select_control_points(scan, k, "entropy", pose_covariance=DEFAULT_POSE_COVARIANCE)
+            again = select_control_points(
+                scan, k, "entropy", pose_covariance=nudged_symmetric(DEFAULT_POSE_COVARIANCE, rng)
+            )
             np.testing.assert_array_equal(again, reference)
 
 
