@@ -25,6 +25,7 @@ BUILTIN_ENVS = tuple(  # (id, entry point, api, vector entry point): each env's 
             "MRCLAMCooperativeLocalization",
             PARALLEL,
         ),
+        ("infonav/MapRegistration-v0", "map_registration", "MapRegistration", GYMNASIUM),
     )
 )
 

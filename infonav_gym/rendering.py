@@ -136,7 +136,13 @@ def legend_entries(frame: SceneFrame, *, possible: bool = False) -> list[LegendE
         (bool(visible.any()), has_landmarks, "disc", _GREEN, f"landmark in sight, numbered {numbers}"),
         (not visible.all(), sight_varies, "disc", _LIGHT_GREY, "landmark out of sight"),
         (observing, has_landmarks, "disc", _RED, "landmark observed now"),
-        (frame.landmark_estimates is not None, False, "cross", _ORANGE, f"landmark estimate, {N_SIGMA:g}\u03c3"),
+        (
+            frame.landmark_estimates is not None,
+            False,
+            "cross",
+            _ORANGE,
+            f"{frame.landmark_estimate_label}, {N_SIGMA:g}\u03c3",
+        ),
         *(
             (bool(pairs), may_show, "line", _first_observer_colour(pairs), f"{kind} observation (observer's colour)")
             for kind, pairs, may_show in (

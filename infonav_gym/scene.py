@@ -90,6 +90,7 @@ class SceneFrame:
     robots: Sequence[RobotDrawing] = ()
     landmark_estimates: np.ndarray | None = None
     landmark_covariances: np.ndarray | None = None
+    landmark_estimate_label: str = "landmark estimate"  # what the legend calls them (e.g. "map feature")
     observations: Sequence[tuple[int, int]] = ()  # (observer, target) robots: a line between their true positions
     landmark_observations: Sequence[tuple[int, int]] = ()  # (observer, landmark): a line, the landmark marked
     gps_denied_zones: Sequence = ()  # circles (center, radius) filled lightly under everything

@@ -359,5 +359,5 @@ def check_env(env_id: str, kwargs: dict | None = None) -> None:
     check_episode_contract(env_id, kwargs)
     if not declared.may_terminate:
         check_truncation_at_horizon(env_id, kwargs)
-    if declared.estimates_pose:
+    if declared.estimates_pose and declared.gain_known_before_measuring:
         check_expected_gain_is_realized(env_id, kwargs)

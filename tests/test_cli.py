@@ -194,6 +194,7 @@ def test_benchmark_reports_every_goal(capsys, monkeypatch):
             "sensor_selection_vector_256_vs_single_ratio",
             "range_registration_vector_64_vs_single_ratio",
             "cold_start_all_envs_s",
+            "map_registration_step_vs_range_registration_registering_step_time_ratio",
         }
     )
     for start in ("cold_start_s", "warm_start_s", "cold_start_all_envs_s"):

@@ -86,6 +86,7 @@ def _result_agents(path: Path, env_id: str) -> set[str]:
         "random": "random",
         "greedy": "greedy",
         "nearest": "nearest",
+        "everything": "everything",
         "planner": "planner",
         "ppo": "PPO",
         "rllib": "RLlib PPO",

@@ -18,7 +18,7 @@ DECLARATION_FACTOR = 4.0  # the declared memory a copy is within this factor of 
 
 
 def test_every_env_declares_its_memory_a_copy():
-    assert len(VECTOR_ENVS) == 8
+    assert len(VECTOR_ENVS) == 9
     for env_id in VECTOR_ENVS:
         assert env_entry(env_id).load_vector().traits.kb_per_copy > 0, env_id
 

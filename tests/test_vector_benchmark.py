@@ -120,6 +120,7 @@ def test_without_vmas_its_rows_are_absent_with_a_note(no_vmas, monkeypatch):
     for heavy in (
         "sensor_figures",
         "icp_figures",
+        "map_step_figures",
         "_ppo_figures",
         "evaluation_workers_figures",
         "rllib_runner_figures",

@@ -24,6 +24,9 @@ class EnvTraits:
         may_terminate: episodes may end before the horizon (``terminated``); otherwise only truncation.
         rewards_information_at_once: a valid action with a positive expected gain earns a positive
             reward in the same step.
+        gain_known_before_measuring: (with ``estimates_pose``) an action's expected gain is the MI it then brings:
+            the update's noise is known before measuring. False where it is known only after (a registration's
+            covariance comes from its own matches): the gain is then a prediction.
         idle_actions: valid actions whose expected information gain is always 0 (wait, move without observing).
         valid_gain_may_be_zero: a valid action other than the idle ones may have gain 0 (e.g. a patch
             without usable points); otherwise its gain is positive.
@@ -34,6 +37,8 @@ class EnvTraits:
         noop_action: an action that observes nothing, which the random baseline takes only when nothing
             else is valid (``RandomAgent(noop_action=...)``); ``None``: the random baseline picks among all
             valid actions.
+        everything_action: the action that observes all there is at once (register every return of a scan), which
+            the ``everything`` reference agent takes; ``None``: the env has none.
         main_metric: the name of the ``episode_metrics`` entry that ranks agents on the env, higher being better
             (``infonav leaderboard`` reports it); every infonav env names one.
         reward_unit: the unit of a reward and a return, as plots write it in brackets (``"nats"``).
@@ -47,12 +52,14 @@ class EnvTraits:
     reports_success: bool = False
     may_terminate: bool = False
     rewards_information_at_once: bool = False
+    gain_known_before_measuring: bool = True
     idle_actions: frozenset[int] = frozenset()
     valid_gain_may_be_zero: bool = False
     reward_terms: tuple[str, ...] = ()
     info_keys: frozenset[str] = frozenset()
     reward_config_keys: tuple[str, ...] = ()
     noop_action: int | None = None
+    everything_action: int | None = None
     main_metric: str = ""
     reward_unit: str = "nats"
     kb_per_copy: float = 0.0

@@ -23,7 +23,7 @@ from infonav_gym.experiments.distributed_timing import (
     rllib_missing,
     rllib_runner_figures,
 )
-from infonav_gym.experiments.registration_timing import icp_figures, registration_peers_missing
+from infonav_gym.experiments.registration_timing import icp_figures, map_step_figures, registration_peers_missing
 from infonav_gym.experiments.sensor_timing import sensor_figures
 from infonav_gym.experiments.startup_timing import startup_figures
 from infonav_gym.experiments.vector_timing import (
@@ -78,6 +78,8 @@ GOALS = {
     "range_registration_vector_64_vs_single_ratio": 4.0,
     "cold_start_s": 5.0,
     "cold_start_all_envs_s": 15.0,
+    # issue 44: registration to an a-priori map
+    "map_registration_step_vs_range_registration_registering_step_time_ratio": 1.0,
 }
 PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
 PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND = 8192  # the same for the 64-copy vector envs: two 4096-step rollouts
@@ -291,6 +293,7 @@ def run_benchmark(
     figures["greedy_decision_us"] = greedy_decision_us()
     figures.update(sensor_figures(seconds_per_round, seed))
     figures.update(icp_figures(seconds_per_round, seed))
+    figures.update(map_step_figures(min(rounds, 3), 2 * seconds_per_round, seed))
     figures.update(_ppo_figures(rounds, seconds_per_round, seed))
     figures.update(evaluation_workers_figures(min(rounds, 3), seed, max(2, round(EVALUATION_EPISODES * scale))))
     figures.update(rllib_runner_figures(seed, max(100, round(RLLIB_SAMPLE_STEPS * scale))))

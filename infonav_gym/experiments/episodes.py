@@ -9,6 +9,7 @@ import gymnasium as gym
 
 from agents import GreedyEntropyAgent, RandomAgent
 from agents.base import env_name
+from agents.everything import EverythingAgent
 from agents.nearest import RANGE_KEY, NearestAgent
 from agents.ray_support import DISTRIBUTED_HINT
 from infonav_gym.envs.traits import EnvTraits, has_planning_model, traits_of
@@ -18,6 +19,7 @@ AGENT_KINDS = {  # every agent name make_agent takes (NAME:ARGUMENT: a prefix an
     "random": "a valid action at random",
     "greedy": "the most expected information gain now",
     "nearest": "the reading of the nearest target, on envs whose infos give action_range_m",
+    "everything": "the action that observes everything at once (every return), on envs that declare one",
     "planner": "a look-ahead planner, on envs with a planning model",
     "ppo:PATH": "a model.zip of infonav train, or its directory",
     "rllib:DIR": "a checkpoint directory of infonav train --backend rllib (the distributed extra)",
@@ -60,6 +62,19 @@ def make_agent(
                 f"use it on {', '.join(ranged)}"
             )
         return NearestAgent(noop_action=noop_action or 0)
+    if name == "everything":
+        action = traits_of(env).everything_action
+        if action is None:
+            having = [
+                entry.id
+                for entry in registered_envs()
+                if getattr(getattr(entry.load(), "traits", None), "everything_action", None) is not None
+            ]
+            raise ValueError(
+                f"agent 'everything' is not available for {env_name(env)}: it declares no everything_action; "
+                f"use it on {', '.join(having)}"
+            )
+        return EverythingAgent(action, noop_action=noop_action or 0)
     if name == "planner":
         if not has_planning_model(env):
             planning_env_ids = [entry.id for entry in registered_envs() if has_planning_model(entry.load())]

@@ -150,3 +150,46 @@ def icp_figures(seconds_per_round: float = 1.0, seed: int = 0) -> dict[str, floa
                 ours = figures[f"{PEER_OF[name]}_{pair}_ms"]
                 figures[f"{PEER_OF[name]}_vs_{name}_{pair}_time_ratio"] = ours / figures[f"{name}_{pair}_ms"]
     return figures
+
+
+MAP_ENV, FRAME_PAIR_ENV = "infonav/MapRegistration-v0", "infonav/RangeRegistration-v0"
+MAP_TIME_RATIO = "map_registration_step_vs_range_registration_registering_step_time_ratio"
+
+
+def registering_step_ms(env_id: str, seconds: float, seed: int) -> float:
+    """The mean wall time [ms] of ``env_id``'s steps that register (``info["registered"]`` or ``info["fused"]`` or
+    ``info["refused"]``) over about ``seconds`` of greedy steps (the everything action where the env has one)."""
+    from agents import GreedyEntropyAgent
+    from infonav_gym.envs.traits import traits_of
+    from infonav_gym.registry import make_env
+
+    env = make_env(env_id)
+    everything, greedy = traits_of(env).everything_action, GreedyEntropyAgent()
+    _, info = env.reset(seed=seed)
+    times, deadline = [], time.perf_counter() + seconds
+    while time.perf_counter() < deadline or not times:
+        action = greedy.act(None, info) if everything is None else everything
+        start = time.perf_counter()
+        _, _, terminated, truncated, info = env.step(action)
+        elapsed = time.perf_counter() - start
+        if info.get("registered", False) or info.get("fused", False) or info.get("refused", False):
+            times.append(elapsed)
+        if terminated or truncated:
+            _, info = env.reset()
+    env.close()
+    return 1e3 * statistics.fmean(times)
+
+
+def map_step_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
+    """A ``MapRegistration-v0`` step with one registration (every return) against a ``RangeRegistration-v0`` step
+    that registers (its pair's last pick), timed in turn each round: both times [ms] (medians) and the median of
+    their ratios."""
+    map_ms, pair_ms = [], []
+    for _ in range(rounds):
+        map_ms.append(registering_step_ms(MAP_ENV, seconds_per_round, seed))
+        pair_ms.append(registering_step_ms(FRAME_PAIR_ENV, seconds_per_round, seed))
+    return {
+        "map_registration_step_ms": statistics.median(map_ms),
+        "range_registration_registering_step_ms": statistics.median(pair_ms),
+        MAP_TIME_RATIO: statistics.median(ours / theirs for ours, theirs in zip(map_ms, pair_ms)),
+    }

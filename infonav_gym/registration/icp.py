@@ -178,6 +178,16 @@ class _ClosestPoints:
         return distance
 
 
+def _checked_normals(normals, target: np.ndarray) -> np.ndarray:
+    """``normals`` as a finite float (M, 3) array, one per ``target`` point, or ``ValueError``."""
+    array = np.asarray(normals, dtype=float)
+    if array.shape != target.shape or not np.all(np.isfinite(array)):
+        raise ValueError(
+            f"target_normals must be finite, one normal per target point: {target.shape}, got {array.shape}"
+        )
+    return array
+
+
 def _median(values: np.ndarray) -> float:
     """Median of a non-empty 1D array (``np.median`` without its overhead)."""
     half = values.size // 2
@@ -271,6 +281,8 @@ def icp(
     covariance_neighbours: int = GICP_NEIGHBOURS,
     source_covariances=None,
     target_covariances=None,
+    target_normals=None,
+    target_tree: KdTree | None = None,
 ) -> RegistrationResult:
     """Rigid transform that maps ``source`` (N, 3) onto ``target`` (M, 3) by ICP (module docstring).
 
@@ -281,6 +293,9 @@ def icp(
         robust_kernel: ``None`` or one of ``ROBUST_KERNELS``, for ``"point_to_plane"`` and ``"gicp"``.
         source_covariances, target_covariances: (N, 3, 3), (M, 3, 3) GICP covariances computed before
             (``gicp_covariances``); default: computed here from ``covariance_neighbours`` points each.
+        target_normals: (M, 3) unit normals of the target for ``"point_to_plane"`` (e.g. a map's own); default:
+            estimated here (``estimate_normals``).
+        target_tree: a ``KdTree`` of ``target`` built before (e.g. once for a map); default: built here.
 
     Raises:
         ValueError: for points not (K >= 3, 3) or not finite, a non-rigid ``init``, an unknown method or kernel, a
@@ -292,8 +307,10 @@ def icp(
     check_robust_kernel(robust_kernel, kernel_scale)
     check_kernel_method(robust_kernel, method)
 
-    tree = KdTree(target)
-    normals = estimate_normals(target, tree) if method == "point_to_plane" else None
+    tree = KdTree(target) if target_tree is None else target_tree
+    normals = None
+    if method == "point_to_plane":
+        normals = estimate_normals(target, tree) if target_normals is None else _checked_normals(target_normals, target)
     if method == "gicp":
         source_covariances = _Covariances(source, source_covariances, covariance_neighbours, "source")
         target_covariances = _Covariances(target, target_covariances, covariance_neighbours, "target", tree)

@@ -36,6 +36,13 @@ class KdTree:
         self.data, self.n = contiguous(points), points.shape[0]
         self._tree = small_gicp.KdTree(self.data, num_threads=THREADS)
 
+    def __getstate__(self) -> dict:
+        """Pickled as its points (small_gicp's tree does not pickle); rebuilt on load."""
+        return {"data": self.data}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["data"])
+
     def query(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Distances and indices (Q, k) of the ``k`` (<= M) nearest points of each of ``queries`` (Q, 3), nearest
         first: ``cKDTree.query``'s (up to exact ties)."""
