@@ -285,7 +285,9 @@ def check_episode_contract(env_id: str, kwargs: dict) -> None:
     declared = traits_of(env)
     n = env.action_space.n
     observation, info = env.reset(seed=8)
-    assert info["reward_terms"] == {} and info["chosen_action"] == -1 and info["invalid_action"] is False
+    assert all(term == 0.0 for term in info["reward_terms"].values())  # every term, 0: the same keys as a step's
+    assert not declared.reward_terms or tuple(info["reward_terms"]) == declared.reward_terms
+    assert info["chosen_action"] == -1 and info["invalid_action"] is False
     rng = np.random.default_rng(8)
     horizon = env.unwrapped.config["horizon"]
     previous_time = -math.inf

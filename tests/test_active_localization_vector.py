@@ -95,7 +95,8 @@ def test_autoreset_is_next_step_after_termination_and_truncation():
     np.testing.assert_array_equal(observations[:, 9], 0.0)  # elapsed fraction of the new episode
     np.testing.assert_array_equal(info["chosen_action"], -1)
     np.testing.assert_array_equal(info["observations_left"], env.unwrapped.config["max_observations"])
-    assert not any(info["reward_terms"][f"_{term}"].any() for term in REWARD_TERMS)
+    assert all(info["reward_terms"][f"_{term}"].all() for term in REWARD_TERMS)  # each term, 0 after a reset
+    assert not any(info["reward_terms"][term].any() for term in REWARD_TERMS)
     assert not env.step(np.zeros(2, dtype=int))[3].any()
 
 

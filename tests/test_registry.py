@@ -76,7 +76,7 @@ class BeaconEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        self._steps, self._terms, self._chosen = 0, {}, -1
+        self._steps, self._terms, self._chosen = 0, {"mutual_information": 0.0}, -1
         self._position = float(self.np_random.normal())
         self._variance = float(self.np_random.uniform(0.5, 1.5))
         self._estimate = self._position + float(self.np_random.normal(0.0, math.sqrt(self._variance)))

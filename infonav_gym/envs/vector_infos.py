@@ -35,13 +35,14 @@ def autoreset_mode_of(value, allowed: tuple[AutoresetMode, ...], owner: str) -> 
 
 def decision_info(decision, stepped: np.ndarray, chosen: np.ndarray, terms: tuple, values: np.ndarray) -> dict:
     """The info keys every single-agent env has first, of n copies: their ``decision``'s mask and gains, their reward
-    ``terms`` with their ``values`` (T, n) (masked out where a copy did not step: ``stepped`` (n,) bool), the action
-    each took (``chosen`` (n,), -1: none or the no-op) and whether it was invalid."""
+    ``terms`` with their ``values`` (T, n) (0 where a copy did not step, ``stepped`` (n,) bool: just reset, so that
+    every info has the same keys, as recorders such as Minari's need), the action each took (``chosen`` (n,), -1:
+    none or the no-op) and whether it was invalid."""
     if np.count_nonzero(stepped) == len(stepped):  # the usual step: ``np.where``'s numbers, at less cost
         values, chosen = values.copy(), chosen.copy()
     else:
         values, chosen = np.where(stepped, values, 0.0), np.where(stepped, chosen, -1)
-    masks = stepped.copy()
+    masks = np.ones(len(stepped), dtype=bool)
     return {
         "action_mask": decision.action_mask.copy(),
         "action_information_gain": decision.action_information_gain.copy(),

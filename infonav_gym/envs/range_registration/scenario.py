@@ -352,7 +352,8 @@ class RangeRegistration(EnvScenario):
         """The decision's mask and gains, both reward terms, the action taken, the last ICP run, the pair's odometry
         error and motion covariance, the true pose, the attitude and the time."""
         info = decision_info(decision, stepped, state.chosen[rows], ("error_reduction_m",), state.reduction[None, rows])
-        info["reward_terms"].update(point_cost=np.where(stepped, state.cost[rows], 0.0), _point_cost=stepped.copy())
+        point_cost = np.where(stepped, state.cost[rows], 0.0)
+        info["reward_terms"].update(point_cost=point_cost, _point_cost=np.ones_like(stepped))
         last = state.last_registration[rows]
         info.update({name: last[name].copy() for name in REGISTRATION.names if name != "transform"})
         pairs = state.pairs if isinstance(rows, slice) else [state.pairs[copy] for copy in rows.tolist()]
