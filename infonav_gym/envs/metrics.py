@@ -42,6 +42,11 @@ def summed_reward(infos: Sequence[dict]) -> float:
     return math.fsum(math.fsum(step["reward_terms"].values()) for step in infos)
 
 
+def summed_info(key: str) -> Callable[[Sequence[dict]], float]:
+    """The episode's sum of ``info[key]`` (a count or an amount each step has)."""
+    return lambda infos: sum(step[key] for step in infos)
+
+
 def final_value(key: str) -> Callable[[Sequence[dict]], float]:
     """``info[key]`` of the episode's last step."""
     return lambda infos: infos[-1][key]

@@ -14,10 +14,13 @@ from functools import partial
 
 import numpy as np
 
+from agents import GreedyEntropyAgent
+from infonav_gym.envs.traits import traits_of
 from infonav_gym.geometry import transform_error
 from infonav_gym.registration import icp
 from infonav_gym.registration.frame_pairs import motion_between, perturbed_motion
 from infonav_gym.registration.gicp import GICP_NEIGHBOURS
+from infonav_gym.registry import make_env
 from infonav_gym.sensors.ladar import Ladar, sensor_points
 from infonav_gym.world.terrain_generation import make_terrain
 
@@ -159,10 +162,6 @@ MAP_TIME_RATIO = "map_registration_step_vs_range_registration_registering_step_t
 def registering_step_ms(env_id: str, seconds: float, seed: int) -> float:
     """The mean wall time [ms] of ``env_id``'s steps that register (``info["registered"]`` or ``info["fused"]`` or
     ``info["refused"]``) over about ``seconds`` of greedy steps (the everything action where the env has one)."""
-    from agents import GreedyEntropyAgent
-    from infonav_gym.envs.traits import traits_of
-    from infonav_gym.registry import make_env
-
     env = make_env(env_id)
     everything, greedy = traits_of(env).everything_action, GreedyEntropyAgent()
     _, info = env.reset(seed=seed)

@@ -19,6 +19,7 @@ from infonav_gym.envs.metrics import (
     count_where,
     mean_where,
     root_mean_square,
+    summed_info,
     summed_reward,
     summed_reward_term,
 )
@@ -83,11 +84,6 @@ def failed(info: dict) -> bool:
 def fused(info: dict) -> bool:
     """Whether the step fused a fix."""
     return bool(info["fused"])
-
-
-def summed_info(key: str):
-    """The episode's sum of ``info[key]``."""
-    return lambda infos: sum(info[key] for info in infos)
 
 
 def action_names(n_sectors: int) -> tuple[str, ...]:
