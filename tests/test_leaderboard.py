@@ -5,6 +5,7 @@ import json
 import math
 import shutil
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from scipy import stats
@@ -66,7 +67,7 @@ def test_rows_are_every_registered_env_and_every_committed_model_is_a_cell_of_it
         baselines = [column for column in row.agents if column in BASELINES]
         assert baselines == ["random", "greedy", "planner"][: 3 if planner else 2]
     cells = {
-        (row.env_id, json.dumps(row.env_kwargs, sort_keys=True), agent) for row in rows for agent in row.agents.values()
+        (row.env_id, json.dumps(row.env_kwargs, sort_keys=True), agent) for row in rows for _, agent, _ in row.models
     }
     records = committed_records()
     assert len(records) >= 6
@@ -79,40 +80,47 @@ def test_rows_are_every_registered_env_and_every_committed_model_is_a_cell_of_it
         column = "rllib" if record.get("backend") == "rllib" else "ppo"
         played = directory / "best" if record.get("validation") else directory  # the policy kept on validation
         assert (record["env_id"], json.dumps(record["env_kwargs"], sort_keys=True), f"{column}:{played}") in cells
-    learned = [agent for row in rows for column, agent in row.agents.items() if column in ("ppo", "rllib")]
-    assert len(learned) == len(records)
+    learned = [(column, agent) for row in rows for column, agent, _ in row.models]
+    assert len(learned) == len(records) and all(column in ("ppo", "rllib") for column, _ in learned)
+    configs = [(row.env_id, json.dumps(row.env_kwargs, sort_keys=True)) for row in rows]
+    assert len(configs) == len(set(configs))  # a row per env and config: no baseline is repeated
 
 
-def test_a_models_train_json_must_name_a_registered_env_and_a_second_model_of_a_column_gets_its_own_row(tmp_path):
+def test_a_models_train_json_must_name_a_registered_env_and_a_second_model_of_a_column_joins_its_row(tmp_path):
     for name, validation in (("a", None), ("b", {"best": "runs/b/best"})):  # b kept its best on validation seeds
         (tmp_path / name).mkdir()
         record = {"env_id": LANDMARKS, "env_kwargs": {}, "validation": validation}
         (tmp_path / name / "train.json").write_text(json.dumps(record))
     rows = leaderboard_rows([LANDMARKS], ("greedy", "ppo"), tmp_path)
     assert [(row.agents, row.models) for row in rows] == [
-        ({"greedy": "greedy", "ppo": f"ppo:{tmp_path / 'a'}"}, "a"),
-        ({"greedy": "greedy", "ppo": f"ppo:{tmp_path / 'b' / 'best'}"}, "b"),
+        ({"greedy": "greedy"}, (("ppo", f"ppo:{tmp_path / 'a'}", "a"), ("ppo", f"ppo:{tmp_path / 'b' / 'best'}", "b")))
     ]
     (tmp_path / "b" / "train.json").write_text(json.dumps({"env_id": "infonav/Nowhere-v0"}))
     with pytest.raises(ValueError, match=r"b/train.json: not the train.json of a registered env \(unknown env id"):
         leaderboard_rows([LANDMARKS], ("ppo",), tmp_path)
 
 
-def test_rows_of_one_env_and_config_share_their_baselines_cells_played_once(tmp_path, monkeypatch):
+def test_a_row_plays_its_baselines_and_each_model_once_and_shows_each_familys_best(tmp_path, monkeypatch):
     board = leaderboard_module
-    for name in ("a", "b"):
+    for name in ("a", "b", "c"):
         shutil.copytree(MODELS / "landmark_selection_ppo", tmp_path / name)
+    means = {"greedy": 2.0, f"ppo:{tmp_path / 'a'}": 1.0, f"ppo:{tmp_path / 'b'}": 3.0, f"ppo:{tmp_path / 'c'}": 3.0}
     calls = []
-    played_cell = board._played_cell
-    monkeypatch.setattr(
-        board, "_played_cell", lambda row, agent, *rest: calls.append(agent) or played_cell(row, agent, *rest)
-    )
+
+    def played_cell(row, agent, *rest):
+        calls.append(agent)
+        summary = {"mean": means[agent], "ci95": 0.1, "interval": "t"}
+        return SimpleNamespace(name="m", title="M"), {"agent": agent, "summary": summary, "seconds_per_episode": 1.0}
+
+    monkeypatch.setattr(board, "_played_cell", played_cell)
     results = leaderboard([LANDMARKS], ("greedy", "ppo"), tmp_path, episodes=1, progress=False)
-    assert sorted(calls) == ["greedy", f"ppo:{tmp_path / 'a'}", f"ppo:{tmp_path / 'b'}"]
-    first, second = results["rows"]
-    assert (first["models"], second["models"]) == ("a", "b") and first["cells"]["greedy"] == second["cells"]["greedy"]
-    assert first["cells"]["ppo"]["values"] == second["cells"]["ppo"]["values"]  # the same model, copied
-    assert "| infonav/LandmarkSelection-v0 | defaults (b) |" in board.markdown_tables(results)
+    assert sorted(calls) == sorted(means)  # each cell once
+    (row,) = results["rows"]  # one row: the env's defaults, the baselines once
+    assert [model["name"] for model in row["models"]] == ["a", "b", "c"]
+    assert row["cells"]["ppo"]["name"] == "b" and row["best"] == ["ppo"]  # b and c tie: the first of them
+    table = board.models_text(results)
+    assert table.count("| infonav/LandmarkSelection-v0 | defaults | PPO ") == 3 and table.count("**") == 2
+    assert "**3.000 ± 0.100** | 1 | `ppo:" + str(tmp_path / "b") in table
 
 
 def test_the_best_is_the_highest_mean_and_means_within_the_tolerance_all_tie():
@@ -219,5 +227,8 @@ def test_two_seeds_of_every_env_and_model_fill_the_cells_the_registry_and_the_mo
     rows = leaderboard_rows([entry.id for entry in registered_envs()], tuple(COLUMNS), MODELS)
     assert [(row["env_id"], row["env_kwargs"]) for row in results["rows"]] == [(r.env_id, r.env_kwargs) for r in rows]
     for row, expected in zip(results["rows"], rows):
-        assert {column: cell["agent"] for column, cell in row["cells"].items()} == expected.agents
-        assert all(len(cell["values"]) == 2 for cell in row["cells"].values()) and row["best"]
+        baselines = {column: cell["agent"] for column, cell in row["cells"].items() if column in BASELINES}
+        assert baselines == expected.agents and [model["agent"] for model in row["models"]] == [
+            agent for _, agent, _ in expected.models
+        ]
+        assert all(len(cell["values"]) == 2 for cell in [*row["cells"].values(), *row["models"]]) and row["best"]

@@ -29,13 +29,13 @@ TIE_TOLERANCE = 1e-9  # means within TIE_TOLERANCE * max(1, |best|) of the best 
 
 @dataclass(frozen=True)
 class Row:
-    """An env, its config and the agent each column plays; ``models`` names the row's models when its env and config
-    have several rows."""
+    """An env, its config, the agent each baseline column plays and the config's learned ``models``: ``(column,
+    agent name, model name)`` each."""
 
     env_id: str
     env_kwargs: dict
     agents: dict
-    models: str = ""
+    models: tuple = ()
 
 
 def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
@@ -63,8 +63,8 @@ def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
 
 
 def leaderboard_rows(env_ids, columns, models_dir: Path | None) -> list[Row]:
-    """A row per env of ``env_ids`` and config of its models (the defaults if none), with the ``columns`` that apply;
-    several models of one column and config get a row each. ``ValueError`` for an unknown column or env."""
+    """A row per env of ``env_ids`` and config of its models (the defaults if none), with the baseline ``columns``
+    that apply and every model of the learned ``columns``. ``ValueError`` for an unknown column or env."""
     for column in columns:
         if column not in COLUMNS:
             raise ValueError(f"unknown agent {column!r} in --agents; choose from {', '.join(COLUMNS)}")
@@ -72,58 +72,55 @@ def leaderboard_rows(env_ids, columns, models_dir: Path | None) -> list[Row]:
     rows = []
     for env_id in env_ids:
         has_planner = has_planning_model(env_entry(env_id).load())
-        configs = {}  # config as sorted JSON -> (config, [{column: (model agent, its name)}, ...]): a row each
+        configs = {}  # config as sorted JSON -> (config, [(column, model agent, its name), ...])
         for column, agent, model_env_id, env_kwargs, name in models:
-            if model_env_id != env_id or column not in columns:
-                continue
-            groups = configs.setdefault(json.dumps(env_kwargs, sort_keys=True), (env_kwargs, []))[1]
-            free = next((group for group in groups if column not in group), None)
-            if free is None:
-                groups.append(free := {})
-            free[column] = agent, name
+            if model_env_id == env_id and column in columns:
+                configs.setdefault(json.dumps(env_kwargs, sort_keys=True), (env_kwargs, []))[1].append(
+                    (column, agent, name)
+                )
         baselines = {name: name for name in BASELINES if name in columns and (name != "planner" or has_planner)}
-        for env_kwargs, groups in configs.values() or [({}, [{}])]:
-            for learned in groups:
-                agents = baselines | {column: agent for column, (agent, _) in learned.items()}
-                names = ", ".join(name for _, name in learned.values())
-                if agents:
-                    ordered = {column: agents[column] for column in COLUMNS if column in agents}
-                    rows.append(Row(env_id, env_kwargs, ordered, names if len(groups) > 1 else ""))
+        for env_kwargs, learned in configs.values() or [({}, [])]:
+            if baselines or learned:
+                rows.append(Row(env_id, env_kwargs, baselines, tuple(learned)))
     if not rows:
         raise ValueError(f"no agent of {', '.join(columns)} applies to {', '.join(env_ids)}: nothing to play")
     return rows
 
 
+def best_indices(means: list[float]) -> list[int]:
+    """The indices of the best (highest) of ``means``, within ``TIE_TOLERANCE``, in order."""
+    best = max(means)
+    return [index for index, mean in enumerate(means) if best - mean <= TIE_TOLERANCE * max(1, abs(best))]
+
+
 def best_columns(cells: dict) -> list[str]:
     """The columns whose mean is the best (highest) one, within ``TIE_TOLERANCE``."""
-    best = max(cell["summary"]["mean"] for cell in cells.values())
-    return [
-        column for column, cell in cells.items() if best - cell["summary"]["mean"] <= TIE_TOLERANCE * max(1, abs(best))
-    ]
+    columns = list(cells)
+    return [columns[index] for index in best_indices([cell["summary"]["mean"] for cell in cells.values()])]
 
 
-def _played_row(row: Row, seeds: range, bar, played_cells: dict, how: tuple) -> dict:
-    """Every agent of ``row`` on ``seeds``: values, summary and seconds per episode of its main metric; a cell in
-    ``played_cells`` is not played again."""
-    cells = {}
+def _played_row(row: Row, seeds: range, bar, how: tuple) -> dict:
+    """Every agent of ``row`` on ``seeds``: values, summary and seconds per episode of its main metric. ``"cells"``:
+    each baseline's and each model family's best model's (by mean); ``"models"``: every model's, named."""
+    cells, models = {}, []
     for column, agent in row.agents.items():
-        key = _cell_key(row, agent)
-        if key not in played_cells:
-            played_cells[key] = _played_cell(row, agent, seeds, bar, *how)
-        metric, cells[column] = played_cells[key]
+        metric, cells[column] = _played_cell(row, agent, seeds, bar, *how)
+    for column, agent, name in row.models:
+        metric, cell = _played_cell(row, agent, seeds, bar, *how)
+        models.append({"column": column, "name": name, **cell})
+    for column in COLUMNS:
+        family = [model for model in models if model["column"] == column]
+        if family:
+            best = family[best_indices([model["summary"]["mean"] for model in family])[0]]
+            cells[column] = {key: value for key, value in best.items() if key != "column"}
     return {
         "env_id": row.env_id,
         "env_kwargs": row.env_kwargs,
-        "models": row.models,
         "metric": {"name": metric.name, "title": metric.title},
         "cells": cells,
+        "models": models,
         "best": best_columns(cells),
     }
-
-
-def _cell_key(row: Row, agent: str) -> tuple:
-    """What makes a cell: the env, its config and the agent (rows of one env and config share their baselines')."""
-    return row.env_id, json.dumps(row.env_kwargs, sort_keys=True), agent
 
 
 def _played_cell(row: Row, agent: str, seeds: range, bar, workers: int, use_ray: bool, address: str | None):
@@ -162,16 +159,15 @@ def leaderboard(
     seeds = seeds_of(seed, episodes)
     env_ids = [entry.id for entry in available_envs()] if env_ids is None else list(env_ids)
     rows = leaderboard_rows(env_ids, columns, models_dir)
-    cells = {_cell_key(row, agent) for row in rows for agent in row.agents.values()}
-    workers = checked_workers(workers, episodes, episodes * len(cells), f"{episodes} episodes of {len(cells)} cells")
+    cells = sum(len(row.agents) + len(row.models) for row in rows)
+    workers = checked_workers(workers, episodes, episodes * cells, f"{episodes} episodes of {cells} cells")
     results = {"episodes": episodes, "seeds": list(seeds), "columns": [c for c in COLUMNS if c in columns], "rows": []}
     results |= {"workers": workers, "tie_tolerance": TIE_TOLERANCE}
-    bar = tqdm(total=episodes * len(cells), desc="leaderboard", disable=not progress, unit="episode")
-    played_cells = {}
+    bar = tqdm(total=episodes * cells, desc="leaderboard", disable=not progress, unit="episode")
     try:
         with local_or_cluster_ray(address) if use_ray else contextlib.nullcontext():  # one Ray for every cell
             for row in rows:
-                results["rows"].append(_played_row(row, seeds, bar, played_cells, (workers, use_ray, address)))
+                results["rows"].append(_played_row(row, seeds, bar, (workers, use_ray, address)))
     except INTERRUPTIONS as error:
         if not pressed_ctrl_c(error):
             raise
@@ -184,9 +180,8 @@ def leaderboard(
 
 
 def _config_text(row: dict) -> str:
-    """A row's config, and its models where its env and config have several rows."""
-    text = ", ".join(f"{key}={value!r}" for key, value in row["env_kwargs"].items()) or "defaults"
-    return f"{text} ({row['models']})" if row.get("models") else text
+    """A row's config."""
+    return ", ".join(f"{key}={value!r}" for key, value in row["env_kwargs"].items()) or "defaults"
 
 
 def markdown_tables(results: dict) -> str:
@@ -219,14 +214,23 @@ def heading(results: dict) -> str:
 
 
 def models_text(results: dict) -> str:
-    """The learned agents of each row, one line each."""
-    learned = [
-        f"- {row['env_id']} ({_config_text(row)}): {COLUMNS[column]} `{cell['agent']}`"
-        for row in results["rows"]
-        for column, cell in row["cells"].items()
-        if column not in BASELINES
+    """Every model of each row, one line each, its family's best of the row (the cell above) in bold."""
+    lines = [
+        "| env | config | model | main metric | seconds per episode | agent |",
+        "| --- | --- | --- | --- | --- | --- |",
     ]
-    return "\n".join(["Models:", *learned]) if learned else "No models."
+    for row in results["rows"]:
+        for model in row.get("models", []):
+            shown = interval_cell(model["summary"])
+            if model["agent"] == row["cells"][model["column"]]["agent"]:
+                shown = f"**{shown}**"
+            lines.append(
+                f"| {row['env_id']} | {_config_text(row)} | {COLUMNS[model['column']]} {model['name']} | {shown} | "
+                f"{model['seconds_per_episode']:.3g} | `{model['agent']}` |"
+            )
+    if len(lines) == 2:
+        return "No models."
+    return "\n".join(["Every model (bold: its family's best of the row, the cell above):", "", *lines])
 
 
 def write_leaderboard(results: dict, stem: Path, command: str) -> list[Path]:
