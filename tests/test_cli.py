@@ -13,6 +13,7 @@ from infonav_gym.experiments import benchmark, startup_timing
 from infonav_gym.experiments.cli import _config_pair, main
 from infonav_gym.experiments.distributed_timing import rllib_missing
 from infonav_gym.experiments.intervals import ProportionSummary, Summary, wilson_interval
+from infonav_gym.experiments.vector_timing import torchrl_missing
 
 RLLIB_EXPLORATION = "rllib_exploration_1_runner_steps_per_s"
 RLLIB_FIGURES = {
@@ -141,6 +142,7 @@ def test_benchmark_reports_every_goal(capsys, monkeypatch):
     rllib, rllib_calls = RLLIB_FIGURES if rllib_missing() is None else {}, []
     monkeypatch.setattr(benchmark, "rllib_runner_figures", lambda *args: rllib_calls.append(args) or dict(rllib))
     monkeypatch.setattr(benchmark, "THREADED_COPIES", 2 * MIN_COPIES_PER_THREAD)  # two chunks, not 4096 copies
+    monkeypatch.setattr(benchmark, "TORCHRL_COPIES", 4)  # not 256
     result = run_json(capsys, "benchmark", "--rounds", "1", "--seconds", "0.01", "--vector-sizes", "1,4")
     figures = result["figures"]
     threads_ratio = figures.get(f"landmark_selection_vector_{2 * MIN_COPIES_PER_THREAD}_threads_2_vs_1_ratio")
@@ -195,8 +197,18 @@ def test_benchmark_reports_every_goal(capsys, monkeypatch):
             "range_registration_vector_64_vs_single_ratio",
             "cold_start_all_envs_s",
             "map_registration_step_vs_range_registration_registering_step_time_ratio",
+            "cooperative_localization_torchrl_256_vs_native_ratio",
+            "cooperative_exploration_torchrl_256_vs_native_ratio",
         }
     )
+    for team in ("cooperative_localization", "cooperative_exploration"):
+        name = f"{team}_torchrl_4"
+        if torchrl_missing() is None:
+            torchrl, native = figures[f"{name}_steps_per_s"], figures[f"{name}_native_steps_per_s"]
+            assert torchrl > 0 and figures[f"{name}_vs_native_ratio"] == pytest.approx(torchrl / native)
+        else:
+            assert f"{name}_vs_native_ratio" not in figures and any("TorchRL" in note for note in result["notes"])
+        assert result["goals_met"][f"{team}_torchrl_256_vs_native_ratio"] is None  # N = 256 was not timed
     for start in ("cold_start_s", "warm_start_s", "cold_start_all_envs_s"):
         assert figures[start] > 0 and result["goals_met"][start] == (figures[start] <= result["goals"][start])
     ppo_fps, cartpole_ppo_fps = figures["ppo_landmark_selection_fps"], figures["ppo_cartpole_fps"]

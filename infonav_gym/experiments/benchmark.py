@@ -35,6 +35,8 @@ from infonav_gym.experiments.vector_timing import (
     check_vector_sizes,
     kb_per_env,
     memory_missing,
+    torchrl_env_run,
+    torchrl_missing,
     vector_env_ids,
     vector_env_run,
     vmas_missing,
@@ -80,6 +82,9 @@ GOALS = {
     "cold_start_all_envs_s": 15.0,
     # issue 44: registration to an a-priori map
     "map_registration_step_vs_range_registration_registering_step_time_ratio": 1.0,
+    # issue 45: TorchRL's view of the team envs, as BenchMARL trains on them
+    "cooperative_localization_torchrl_256_vs_native_ratio": 0.8,
+    "cooperative_exploration_torchrl_256_vs_native_ratio": 0.8,
 }
 PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
 PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND = 8192  # the same for the 64-copy vector envs: two 4096-step rollouts
@@ -221,6 +226,29 @@ def env_step_figures(
     return figures
 
 
+TORCHRL_ENV_IDS, TORCHRL_COPIES = ("cooperative_localization_v0", "cooperative_exploration_v0"), 256
+
+
+def torchrl_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
+    """Each of ``TORCHRL_ENV_IDS`` as the suite's TorchRL env against its native vector env, ``TORCHRL_COPIES``
+    copies each, in alternating rounds: ``NAME_torchrl_N_steps_per_s``, ``NAME_torchrl_N_native_steps_per_s`` and
+    ``NAME_torchrl_N_vs_native_ratio``; none without torchrl."""
+    if torchrl_missing():
+        return {}
+    makeable = {entry.id for entry in available_envs(PARALLEL)}
+    steppers = {}
+    for env_id in (env_id for env_id in TORCHRL_ENV_IDS if env_id in makeable):
+        name = f"{figure_name(env_id)}_torchrl_{TORCHRL_COPIES}"
+        steppers[f"{name}_native"] = _vector_stepper(vector_env_run(env_id, TORCHRL_COPIES, seed), seconds_per_round)
+        steppers[name] = _vector_stepper(torchrl_env_run(env_id, TORCHRL_COPIES, seed), seconds_per_round)
+    rates = _rates_in_rounds(steppers, rounds)
+    figures = {f"{name}_steps_per_s": statistics.median(values) for name, values in rates.items()}
+    for name in steppers:
+        if not name.endswith("_native"):
+            figures[f"{name}_vs_native_ratio"] = _median_ratio(rates, name, f"{name}_native")
+    return figures
+
+
 THREADED_ENV, THREADED_COPIES = "infonav/LandmarkSelection-v0", 4096  # the 2-thread against 1-thread figure's
 
 
@@ -277,6 +305,11 @@ def _ppo_figures(rounds: int, seconds_per_round: float, seed: int) -> dict:
     }
 
 
+def _missing_peers() -> tuple:
+    """Why figures against VMAS, the registration peers or of memory are absent (None each where they are not)."""
+    return vmas_missing(), registration_peers_missing(), memory_missing()
+
+
 def run_benchmark(
     rounds: int = 5,
     seconds_per_round: float = 1.0,
@@ -288,6 +321,7 @@ def run_benchmark(
     vector_sizes = check_vector_sizes(vector_sizes)
     figures = env_step_figures(None, rounds, seconds_per_round, seed, progress, vector_sizes)
     figures.update(threads_figures(rounds, seconds_per_round, seed))
+    figures.update(torchrl_figures(rounds, seconds_per_round, seed))
     scale = min(seconds_per_round, 1.0)  # --seconds below 1 (quick runs) shortens the memory, evaluation and RLlib runs
     figures.update(memory_figures(max(vector_sizes), seed=seed, seconds=MEMORY_SECONDS * scale))
     figures["greedy_decision_us"] = greedy_decision_us()
@@ -306,9 +340,7 @@ def run_benchmark(
         "figures": figures,
         "goals": GOALS,
         "goals_met": met,
-        "notes": [
-            note for note in (vmas_missing(), registration_peers_missing(), memory_missing(), rllib_missing()) if note
-        ],
+        "notes": [note for note in (*_missing_peers(), rllib_missing(), torchrl_missing()) if note],
         "rounds": rounds,
         "seconds_per_round": seconds_per_round,
         "vector_sizes": list(vector_sizes),

@@ -4,6 +4,7 @@ VMAS ``navigation``), and memory per sub-env; a vector step counts N env-steps."
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import os
 import subprocess
 import sys
@@ -123,6 +124,36 @@ def vmas_navigation_run(num_envs: int, seed: int) -> VectorRun:
     def start() -> None:
         with torch_threads(1):
             env.reset(seed=seed, return_observations=False)
+
+    return VectorRun(num_envs, start, step)
+
+
+def torchrl_missing() -> str | None:
+    """Why the TorchRL figures are absent (torchrl is not installed), or None."""
+    if importlib.util.find_spec("torchrl") is None:
+        return 'TorchRL figures absent: torchrl is not installed; pip install "infonav-gym[marl]"'
+    return None
+
+
+def torchrl_env_run(env_id: str, num_envs: int, seed: int) -> VectorRun:
+    """``env_id`` as the suite's TorchRL env (``agents.torchrl_env``) with ``num_envs`` copies under random valid
+    actions, restarted by TorchRL's ``step_and_maybe_reset`` as its collectors do."""
+    import torch
+
+    from agents.torchrl_env import GROUP, InfonavTorchEnv
+
+    env = InfonavTorchEnv(env_id, num_envs, seed=seed)
+    rng = np.random.default_rng(seed)
+    action, mask = ((GROUP, key) if env.team else key for key in ("action", "action_mask"))
+    current = {}
+
+    def start() -> None:
+        current["td"] = env.reset()
+
+    def step() -> None:
+        td = current["td"]
+        td.set(action, torch.from_numpy(random_valid_actions(td.get(mask).numpy(), rng)))
+        current["td"] = env.step_and_maybe_reset(td)[1]
 
     return VectorRun(num_envs, start, step)
 
