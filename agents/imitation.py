@@ -14,6 +14,7 @@ import torch
 from tqdm.auto import tqdm
 
 from agents.planner import PlannerAgent, planner_settings
+from infonav_gym.envs.joint_view import REWARDS_KEY
 from infonav_gym.registry import PARALLEL, api_of, make_env
 
 DEMONSTRATIONS_FILE = "demonstrations.npz"  # what ``train`` saves beside the model, to clone from again
@@ -35,6 +36,15 @@ class Demonstrations(NamedTuple):
     def joined(cls, parts: list[Demonstrations]) -> Demonstrations:
         """The rows of ``parts`` one after another."""
         return cls(*(np.concatenate([getattr(part, field) for part in parts]) for field in cls._fields))
+
+    @classmethod
+    def of_dataset(cls, dataset, team: bool, gamma: float) -> Demonstrations:
+        """The decisions of every episode of a Minari ``dataset`` of ``infonav dataset`` (``team``: recorded through a
+        team env's ``JointTeamEnv``, one row per robot and step), returns discounted by ``gamma``."""
+        seeds = [metadata["seed"] for metadata in dataset.storage.get_episode_metadata(dataset.episode_indices)]
+        return cls.joined(
+            [_rows(*_decisions(episode, team), gamma, seed) for episode, seed in zip(dataset.iterate_episodes(), seeds)]
+        )
 
     def save(self, path: Path | str) -> None:
         np.savez_compressed(path, **self._asdict())
@@ -103,13 +113,35 @@ def planner_episode(env_id: str, seed: int, gamma: float, env_kwargs: dict | Non
     finally:
         env.close()
 
-    def rows(values, dtype):  # robot by robot, of per-step lists (T, R, ...)
+    return _rows(seen, masks, actions, rewards, gamma, seed)
+
+
+def _decisions(episode, team: bool) -> tuple:
+    """A Minari episode's ``(observations, action_masks, actions, rewards)``, each (T, R, ...) (R = 1 but in a team):
+    the observation, mask and action of every decision and the reward it brought."""
+    infos = episode.infos
+    if team:
+        robots = [key for key in infos if key != REWARDS_KEY]
+        masks = np.stack([infos[robot]["action_mask"][:-1] for robot in robots], axis=1)
+        return episode.observations[:-1], masks, episode.actions, infos[REWARDS_KEY][1:]
+    steps = (episode.observations[:-1], infos["action_mask"][:-1], episode.actions, episode.rewards)
+    return tuple(np.expand_dims(values, 1) for values in steps)
+
+
+def _rows(observations, masks, actions, rewards, gamma: float, seed: int) -> Demonstrations:
+    """One episode's decisions (T, R, ...) as demonstrations, robot by robot."""
+
+    def rows(values, dtype):
         array = np.asarray(values, dtype=dtype)
         return np.swapaxes(array, 0, 1).reshape(-1, *array.shape[2:])
 
-    returns = discounted_returns(np.array(rewards), gamma)
+    returns = discounted_returns(np.asarray(rewards, dtype=float), gamma)
     return Demonstrations(
-        rows(seen, np.float32), rows(masks, bool), rows(actions, np.int64), rows(returns, float), np.array([seed])
+        rows(observations, np.float32),
+        rows(masks, bool),
+        rows(actions, np.int64),
+        rows(returns, float),
+        np.array([seed]),
     )
 
 

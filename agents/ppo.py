@@ -379,7 +379,7 @@ def train(
     env_kwargs: dict | None = None,
     checkpoints: int = 4,
     curve_references: dict | None = None,
-    init_from_planner: int | Path | str | None = None,
+    init_from_planner: int | Path | str | Demonstrations | None = None,
     planner_workers: int = 1,
     validation_episodes: int = 0,
     validation_every: int | None = None,
@@ -389,8 +389,9 @@ def train(
     Also writes ``train.json`` (settings, every constructor keyword, time, fps), ``checkpoints/``, the learning curve
     (``curve.csv``, ``curve.png``) and with ``tensorboard`` its event files. ``init_from_planner``: warm start by
     behaviour cloning of the planner, on that many episodes (seeds from ``DEMONSTRATION_SEEDS + seed``, saved as
-    ``demonstrations.npz``) or such a file; ``timesteps=0`` keeps the cloned policy. ``validation_episodes`` > 0 keeps
-    the policy best on them in ``best/``. Ctrl-C saves the model so far (train.json: ``"interrupted": true``).
+    ``demonstrations.npz``), such a file, or ``Demonstrations`` (a dataset's); ``timesteps=0`` keeps the cloned
+    policy. ``validation_episodes`` > 0 keeps the policy best on them in ``best/``. Ctrl-C saves the model so far
+    (train.json: ``"interrupted": true``).
     """
     if timesteps < (0 if init_from_planner is not None else 1):
         raise ValueError(f"timesteps must be >= 1 (0 only with a planner warm start: cloning alone), got {timesteps}")
@@ -404,7 +405,9 @@ def train(
     tensorboard_log = str(output_dir / "tensorboard") if tensorboard else None
     hyperparameters = training_block(env_id, hyperparameters, n_envs)
     vectorization = checked_vectorization(env_id, vectorization)
-    demonstrations = None if isinstance(init_from_planner, int | None) else Demonstrations.load(init_from_planner)
+    demonstrations = init_from_planner if isinstance(init_from_planner, Demonstrations) else None
+    if isinstance(init_from_planner, Path | str):
+        demonstrations = Demonstrations.load(init_from_planner)
     rollout, factors = rollout_steps(env_id, hyperparameters, env_kwargs, planner=isinstance(init_from_planner, int))
     planned = planned_steps(timesteps, rollout, factors, hyperparameters)
     with removed_on_error(output_dir), torch_threads():
@@ -491,7 +494,7 @@ def _cloned_planner(model, env_id: str, source, env_kwargs: dict | None, output_
         demonstrations = planner_demonstrations(env_id, source, first, model.gamma, env_kwargs, workers)
         origin = f"{source} planner episodes, seeds {first}..{first + source - 1}"
     else:
-        origin = str(source)
+        origin = f"{len(demonstrations.seeds)} recorded episodes" if source is demonstrations else str(source)
     output_dir.mkdir(parents=True, exist_ok=True)
     demonstrations.save(output_dir / DEMONSTRATIONS_FILE)
     played = time.perf_counter()

@@ -1,4 +1,4 @@
-"""The ``infonav`` command: demo, evaluate, leaderboard, render, train, benchmark, reproduce, replay."""
+"""The ``infonav`` command: demo, evaluate, leaderboard, render, train, dataset, clone, benchmark, reproduce, replay."""
 
 from __future__ import annotations
 
@@ -38,6 +38,7 @@ from infonav_gym.experiments.vector_timing import DEFAULT_VECTOR_SIZES, parse_ve
 DEFAULT_ENV = "infonav/LandmarkSelection-v0"
 EVALUATION_SUFFIXES = (".md", ".csv", ".json", ".png")  # the files of ``evaluate --output STEM``
 LEADERBOARD_SUFFIXES = (".md", ".json")  # the files of ``leaderboard --output STEM``
+DEFAULT_DATASETS = Path("datasets")  # dataset --output: Minari datasets, one directory per id
 DEFAULT_MODELS = Path("results/models")  # leaderboard --models: the committed models, when run in the repository
 LEADERBOARD_JSON = Path("results/leaderboard.json")  # train's curve.png references, when run in the repository
 CURVE_REFERENCES = ("greedy", "planner")  # the agents drawn as lines on a learning curve
@@ -257,6 +258,27 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument("--address", help="rllib: an existing Ray cluster (default: a local Ray)")
 
+    dataset = commands.add_parser(
+        "dataset", help="record an agent's episodes into a local Minari dataset that recreates the env (data extra)"
+    )
+    dataset.add_argument("--env", default=DEFAULT_ENV, help=f"env id, single-agent or team (default: {DEFAULT_ENV})")
+    dataset.add_argument(
+        "--agent", default="greedy", help=f"one agent (default: greedy): {', '.join(AGENT_KINDS)}, as evaluate takes"
+    )
+    _count(dataset, "--episodes", MAX_EPISODES, 10, "episodes, on seeds from --seed on")
+    dataset.add_argument(
+        "--output", type=Path, default=DEFAULT_DATASETS, help=f"datasets directory (default: {DEFAULT_DATASETS})"
+    )
+    dataset.add_argument("--dataset-id", help="Minari dataset id (default: infonav/ENV/AGENT-v0)")
+    dataset.add_argument("--overwrite", action="store_true", help="replace a dataset of that id in --output")
+    clone = commands.add_parser(
+        "clone", help="behaviour cloning of a dataset of infonav dataset: a policy infonav evaluate plays as ppo:DIR"
+    )
+    clone.add_argument("dataset", type=Path, help="the dataset's directory, DIR/ID of infonav dataset")
+    clone.add_argument(
+        "--output", type=Path, help="model directory (default: models/NAME_bc_seedS, NAME the dataset's)"
+    )
+
     benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
     _count(benchmark, "--rounds", MAX_ROUNDS, 5, "alternating measurement rounds")
     benchmark.add_argument(
@@ -333,11 +355,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="fit the noise model to DATASET_DIR's ground truth, write OUTPUT.json and OUTPUT.png, replay nothing "
         "(the options of a replay are refused with it)",
     )
-    for command in (evaluate, render, train):
+    for command in (evaluate, render, train, dataset):
         command.add_argument(
             "--config", type=_config_pair, action="append", default=[], metavar="KEY=VALUE", help="env config override"
         )
-    for command in (demo, evaluate, leaderboard, render, train, benchmark, reproduce, mrclam):
+    for command in (demo, evaluate, leaderboard, render, train, dataset, clone, benchmark, reproduce, mrclam):
         command.add_argument("--seed", type=seed, default=0, help="first seed, from 0 to 2**32 - 1 (default: 0)")
         command.add_argument("--json", action="store_true", help="print one JSON object on stdout instead of tables")
     return parser
@@ -586,6 +608,51 @@ def _train(args, command: str) -> dict:
     return record
 
 
+def _dataset(args, command: str) -> dict:
+    """Record ``args.agent`` into a Minari dataset; print what was written unless --json."""
+    from infonav_gym.experiments.dataset import record_dataset
+
+    result = record_dataset(
+        args.env,
+        args.agent,
+        args.episodes,
+        args.output,
+        args.dataset_id,
+        args.seed,
+        dict(args.config),
+        args.overwrite,
+        progress=not args.json,
+    )
+    where, dataset_id = result["path"], result["dataset_id"]
+    lines = [
+        f"recorded {result['episodes']} episodes ({result['steps']} steps) of {args.agent} on {args.env}: {where}",
+        f"load it: MINARI_DATASETS_PATH={args.output} python -c \"import minari; minari.load_dataset('{dataset_id}')\"",
+        f"clone it: infonav clone {where}",
+    ]
+    return _show(args, result, lambda: lines)
+
+
+def _clone(args, command: str) -> dict:
+    """Behaviour cloning of ``args.dataset``; print where the model went unless --json."""
+    from infonav_gym.experiments.dataset import clone_dataset
+
+    name = f"{args.dataset.resolve().name.rsplit('-v', 1)[0]}_bc_seed{args.seed}"
+    output = check_output_dir(args.output or Path("models") / name, "--output")
+    model_path = clone_dataset(args.dataset, output, args.seed, progress=not args.json)
+    record = json.loads((model_path.parent / "train.json").read_text())
+    start = record["warm_start"]
+    lines = [
+        f"cloned {start['rows']} decisions of {start['demonstrations']} ({start['agreement']:.0%} agreement); "
+        f"model: {model_path}",
+        f"evaluate it: infonav evaluate --env {record['env_id']} "
+        + "".join(
+            f"--config {shlex.quote(f'{key}={json.dumps(value)}')} " for key, value in record["env_kwargs"].items()
+        )
+        + f"--agents greedy,ppo:{model_path.parent}",
+    ]
+    return _show(args, record, lambda: lines)
+
+
 def _benchmark(args, command: str) -> dict:
     from infonav_gym.experiments.benchmark import lower_is_better, plot_throughput, run_benchmark
     from infonav_gym.rendering import require_extra
@@ -756,7 +823,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     run = {"demo": _demo, "evaluate": _evaluate, "render": _render, "train": _train, "benchmark": _benchmark}
-    run |= {"reproduce": _reproduce, "replay": _replay, "leaderboard": _leaderboard}
+    run |= {"reproduce": _reproduce, "replay": _replay, "leaderboard": _leaderboard, "dataset": _dataset}
+    run |= {"clone": _clone}
     try:
         result = run[args.command](args, "infonav " + shlex.join(argv))
     except (OutputWriteError, Interrupted) as kept:  # the work kept was printed; its JSON still is with --json
