@@ -40,11 +40,9 @@ def _assert_sub_env_matches(vector_info: dict, copy: int, single_info: dict, whe
     for key in SINGLE_INFO_KEYS:
         np.testing.assert_allclose(vector_info[key][copy], single_info[key], rtol=0, atol=TOLERANCE, err_msg=where)
         assert vector_info[f"_{key}"][copy], where
-    single_terms = single_info["reward_terms"]
-    assert vector_info["reward_terms"]["_mutual_information"][copy] == ("mutual_information" in single_terms), where
-    if single_terms:
-        reward = vector_info["reward_terms"]["mutual_information"][copy]
-        assert abs(reward - single_terms["mutual_information"]) <= TOLERANCE, where
+    assert vector_info["_reward_mutual_information"][copy], where
+    reward = vector_info["reward_mutual_information"][copy]
+    assert abs(reward - single_info["reward_mutual_information"]) <= TOLERANCE, where
 
 
 def _reset_as_step(env: gym.Env) -> tuple:
@@ -164,7 +162,7 @@ def test_autoreset_is_next_step():
     assert not (terminated.any() or truncated.any()) and not rewards.any()
     np.testing.assert_array_equal(observations[:, 9], 0.0)  # elapsed fraction of the new episode
     np.testing.assert_array_equal(info["chosen_action"], -1)
-    assert info["reward_terms"]["_mutual_information"].all() and not info["reward_terms"]["mutual_information"].any()
+    assert info["_reward_mutual_information"].all() and not info["reward_mutual_information"].any()
     assert not env.step(np.zeros(2, dtype=int))[3].any()
 
 
