@@ -73,8 +73,10 @@ def test_same_step_autoreset_gives_the_single_envs_last_and_reset_outputs():
     assert terminated >= 1 and truncated >= 3
 
 
-def test_autoreset_is_next_step_after_termination_and_truncation():
-    env = gym.make_vec(ENV_ID, num_envs=2, horizon=3, goal_radius_m=33.0, failure_penalty=4.0)
+def test_next_step_autoreset_after_termination_and_truncation():
+    env = gym.make_vec(
+        ENV_ID, num_envs=2, horizon=3, goal_radius_m=33.0, failure_penalty=4.0, autoreset_mode="next_step"
+    )
     assert env.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     _, info = env.reset(seed=0)
     distance = info["distance_to_goal_m"]

@@ -63,8 +63,9 @@ def _assert_outputs_match(vector_outputs: tuple, single_outputs: list, step: int
 
 
 def _run_in_lockstep(n_envs: int, seed: int, n_steps: int, **config) -> int:
-    """Step the vector env and N single envs (seeds ``seed + i``) together; every number must agree. Returns resets."""
-    vector = gym.make_vec(ENV_ID, num_envs=n_envs, **config)
+    """Step the vector env (NEXT_STEP) and N single envs (seeds ``seed + i``) together; every number must agree.
+    Returns resets."""
+    vector = gym.make_vec(ENV_ID, num_envs=n_envs, autoreset_mode="next_step", **config)
     singles = [gym.make(ENV_ID, **config) for _ in range(n_envs)]
     observations, info = vector.reset(seed=seed)
     reset_outputs = [single.reset(seed=seed + copy) for copy, single in enumerate(singles)]
@@ -150,8 +151,8 @@ def test_with_autoreset_disabled_sub_envs_step_on_past_their_end_until_reset():
     vector_env_checks.check_autoreset_disabled(ENV_ID)
 
 
-def test_autoreset_is_next_step():
-    env = gym.make_vec(ENV_ID, num_envs=2, horizon=3)
+def test_autoreset_is_next_step_on_request():
+    env = gym.make_vec(ENV_ID, num_envs=2, horizon=3, autoreset_mode="next_step")
     assert env.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     env.reset(seed=0)
     for step in range(1, 4):

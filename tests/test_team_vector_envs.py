@@ -209,7 +209,7 @@ def test_step_before_reset_and_options_are_refused(env_id):
 def test_render_draws_copy_0_as_its_parallel_env_through_an_autoreset(env_id):
     parallel_class, vector_class = team_envs(env_id)
     config = {"max_cycles": 3, "render_size_px": 96}
-    vector = vector_class(2, render_mode="rgb_array", **config)
+    vector = vector_class(2, render_mode="rgb_array", autoreset_mode="next_step", **config)
     team = parallel_class(render_mode="rgb_array", **config)
     vector.reset(seed=4)
     team.reset(seed=4)
