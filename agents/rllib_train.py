@@ -31,7 +31,8 @@ POLICY_LAYOUTS = ("shared", "per_robot")
 
 
 class SingleEnvCreator:
-    """RLlib's env creator of a single-agent env: the masked env, or its masked native vector env for ``num_envs``."""
+    """RLlib's env creator of a single-agent env: the masked env, or its masked native vector env for ``num_envs`` (in
+    ``NEXT_STEP`` autoreset, RLlib's env runner's convention)."""
 
     def __init__(self, env_id: str):
         self.env_id = env_id
@@ -41,7 +42,9 @@ class SingleEnvCreator:
 
         config = dict(env_config)
         if "num_envs" in config:
-            return MaskedVectorObservations(make_vector_env(self.env_id, **config))
+            return MaskedVectorObservations(
+                make_vector_env(self.env_id, autoreset_mode=AutoresetMode.NEXT_STEP, **config)
+            )
         return MaskedObservations(make_env(self.env_id, **config))
 
 

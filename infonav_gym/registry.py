@@ -138,8 +138,8 @@ def api_of(env_id: str) -> str:
 
 
 def has_native_vector_env(env_id: str) -> bool:
-    """Whether ``env_id`` is in this registry with a ``vector_entry_point`` (which takes ``SAME_STEP`` autoreset,
-    unlike Gymnasium's ``CartPoleVectorEnv``)."""
+    """Whether ``env_id`` is in this registry with a ``vector_entry_point`` (which takes ``SAME_STEP`` autoreset, its
+    default, unlike Gymnasium's ``CartPoleVectorEnv``)."""
     try:
         entry = _ENTRIES.get(resolve_env_id(env_id))
     except ValueError:  # a module that does not import: make_env names it

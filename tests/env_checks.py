@@ -20,6 +20,7 @@ from gymnasium.utils.env_checker import check_env as gymnasium_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from infonav_gym.envs.traits import COMMON_INFO_KEYS, POSE_INFO_KEYS, EnvTraits, traits_of
+from infonav_gym.envs.vector_infos import reward_terms_of
 from infonav_gym.registry import make_env
 
 WALL_CLOCK_INFO_KEYS = {"icp_time_s"}  # measured computing times: the only info that may differ between runs
@@ -199,10 +200,10 @@ def check_masked_action_is_a_no_op(env_id: str, kwargs: dict) -> None:
     assert type(reward) is float and reward == 0.0
     assert after["invalid_action"] is True
     assert after["chosen_action"] == -1
-    assert all(term == 0.0 for term in after["reward_terms"].values())
+    assert all(term == 0.0 for term in reward_terms_of(after).values())
     assert_reproducible(transition, other_masked.step(int(masked[-1])), "masked no-op vs another masked no-op")
     if traits_of(env).estimates_pose:
-        assert after["reward_terms"]["mutual_information"] == 0.0
+        assert after["reward_mutual_information"] == 0.0
         # No update, only the prediction: uncertainty cannot shrink.
         assert after["state_entropy"] >= info["state_entropy"]
         assert after["pose_entropy"] >= info["pose_entropy"]
@@ -267,7 +268,7 @@ def _check_transition(transition, action: int, valid: bool, step: int, horizon: 
         assert declared.may_terminate and truncated is False, where
     else:
         assert truncated is (step + 1 == horizon), where
-    terms = info["reward_terms"]
+    terms = reward_terms_of(info)
     assert reward == sum(terms.values()), f"{where}: the reward is not the sum of its terms in order"
     assert reward == pytest.approx(math.fsum(terms.values()), rel=1e-12, abs=1e-12), where
     if declared.reward_terms:
@@ -285,8 +286,8 @@ def check_episode_contract(env_id: str, kwargs: dict) -> None:
     declared = traits_of(env)
     n = env.action_space.n
     observation, info = env.reset(seed=8)
-    assert all(term == 0.0 for term in info["reward_terms"].values())  # every term, 0: the same keys as a step's
-    assert not declared.reward_terms or tuple(info["reward_terms"]) == declared.reward_terms
+    assert all(term == 0.0 for term in reward_terms_of(info).values())  # every term, 0: the same keys as a step's
+    assert not declared.reward_terms or tuple(reward_terms_of(info)) == declared.reward_terms
     assert info["chosen_action"] == -1 and info["invalid_action"] is False
     rng = np.random.default_rng(8)
     horizon = env.unwrapped.config["horizon"]
@@ -332,7 +333,7 @@ def check_expected_gain_is_realized(env_id: str, kwargs: dict) -> None:
         valid = np.flatnonzero(info["action_mask"])
         if valid.size:
             for action in valid:
-                realized = copy_env(env).step(int(action))[4]["reward_terms"]["mutual_information"]
+                realized = copy_env(env).step(int(action))[4]["reward_mutual_information"]
                 expected = info["action_information_gain"][action]
                 assert realized == pytest.approx(expected, rel=1e-9, abs=0), f"action {action}"
             decisions += 1

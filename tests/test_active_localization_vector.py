@@ -73,8 +73,10 @@ def test_same_step_autoreset_gives_the_single_envs_last_and_reset_outputs():
     assert terminated >= 1 and truncated >= 3
 
 
-def test_autoreset_is_next_step_after_termination_and_truncation():
-    env = gym.make_vec(ENV_ID, num_envs=2, horizon=3, goal_radius_m=33.0, failure_penalty=4.0)
+def test_next_step_autoreset_after_termination_and_truncation():
+    env = gym.make_vec(
+        ENV_ID, num_envs=2, horizon=3, goal_radius_m=33.0, failure_penalty=4.0, autoreset_mode="next_step"
+    )
     assert env.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     _, info = env.reset(seed=0)
     distance = info["distance_to_goal_m"]
@@ -84,7 +86,7 @@ def test_autoreset_is_next_step_after_termination_and_truncation():
         _, rewards, terminated, truncated, info = env.step(np.zeros(2, dtype=int))  # to the goal, observing nothing
         assert not (terminated & truncated).any()
         np.testing.assert_array_equal(terminated, info["goal_reached"] & ~ended)
-        np.testing.assert_array_equal(info["reward_terms"]["goal_bonus"], np.where(terminated, 10.0, 0.0))
+        np.testing.assert_array_equal(info["reward_goal_bonus"], np.where(terminated, 10.0, 0.0))
         assert (truncated == (~ended & ~terminated & (step == 3))).all()
         ended |= terminated | truncated
         if ended.all():
@@ -95,8 +97,8 @@ def test_autoreset_is_next_step_after_termination_and_truncation():
     np.testing.assert_array_equal(observations[:, 9], 0.0)  # elapsed fraction of the new episode
     np.testing.assert_array_equal(info["chosen_action"], -1)
     np.testing.assert_array_equal(info["observations_left"], env.unwrapped.config["max_observations"])
-    assert all(info["reward_terms"][f"_{term}"].all() for term in REWARD_TERMS)  # each term, 0 after a reset
-    assert not any(info["reward_terms"][term].any() for term in REWARD_TERMS)
+    assert all(info[f"_reward_{term}"].all() for term in REWARD_TERMS)  # each term, 0 after a reset
+    assert not any(info[f"reward_{term}"].any() for term in REWARD_TERMS)
     assert not env.step(np.zeros(2, dtype=int))[3].any()
 
 
@@ -109,9 +111,9 @@ def test_a_no_op_keeps_the_budget_and_an_observation_spends_it():
     actions = np.array([hidden, observing[1], 1])  # masked, observe a landmark, veer left
     _, rewards, _, _, info = env.step(actions)
     np.testing.assert_array_equal(info["observations_left"], [5, 4, 5])
-    np.testing.assert_array_equal(info["reward_terms"]["sensing_cost"], [0.0, -0.1, 0.0])
-    np.testing.assert_array_equal(info["reward_terms"]["motion_cost"], [0.0, -0.1, -0.1])  # a no-op stands still
-    assert info["reward_terms"]["mutual_information"][1] > 0 and rewards[0] == 0.0
+    np.testing.assert_array_equal(info["reward_sensing_cost"], [0.0, -0.1, 0.0])
+    np.testing.assert_array_equal(info["reward_motion_cost"], [0.0, -0.1, -0.1])  # a no-op stands still
+    assert info["reward_mutual_information"][1] > 0 and rewards[0] == 0.0
 
 
 @pytest.mark.parametrize(

@@ -69,7 +69,7 @@ def team_episode(policy: str, seed: int) -> tuple[float, float]:
     while env.agents:
         actions = {name: agents[name].act(observations[name], infos[name]) for name in env.agents}
         observations, _, _, _, infos = env.step(actions)
-        team_information += infos["robot_0"]["reward_terms"]["team_mutual_information"]
+        team_information += infos["robot_0"]["reward_team_mutual_information"]
         squared_errors += [info["position_error_m"] ** 2 for info in infos.values()]
         steps += 1
     return team_information, float(np.mean(np.sqrt(squared_errors / steps)))

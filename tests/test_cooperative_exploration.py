@@ -19,6 +19,7 @@ from infonav_gym.envs.cooperative_exploration.exploration_team import (
     exploration_observations,
 )  # noqa: E402
 from infonav_gym.envs.cooperative_exploration.terrain_map import TerrainMapModel  # noqa: E402
+from infonav_gym.envs.vector_infos import reward_terms_of
 from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0  # noqa: E402
 from infonav_gym.world.exploration_scenarios import BASE_CLEARANCE_M, exploration_field  # noqa: E402
@@ -74,7 +75,7 @@ def test_a_lone_standing_observation_brings_exactly_its_expected_gain(team_rewar
         expected = infos[observer]["action_information_gain"][actions[observer]]
         _, rewards, _, _, infos = env.step(actions)
         if step % 3 == 0 and actions[observer] != NOOP_ACTION:
-            terms = infos[observer]["reward_terms"]
+            terms = reward_terms_of(infos[observer])
             own = (1.0 - team_reward) * terms["own_pose_information"]
             assert math.isclose(own, expected, rel_tol=1e-9), (own, expected)
             costs = terms["sensing_cost"] + terms["motion_cost"] + terms["lost_penalty"]
@@ -90,7 +91,7 @@ def test_driving_scans_the_map_and_a_full_map_is_a_success():
     _, infos = env.reset(seed=1)
     _, rewards, terminations, truncations, infos = env.step(greedy_actions(env, infos))
     info = infos["robot_0"]
-    assert info["reward_terms"]["team_map_information"] > 0.0 and info["coverage"] >= 0.02
+    assert info["reward_team_map_information"] > 0.0 and info["coverage"] >= 0.02
     assert info["success"] and not info["failed"] and all(terminations.values()) and not any(truncations.values())
     assert env.agents == []
 
@@ -103,7 +104,7 @@ def test_a_robot_beyond_the_position_bound_is_lost_and_the_team_fails():
     lost = [agent for agent, info in infos.items() if info["lost"]]
     assert lost and all(not infos[agent]["gps_available"] for agent in lost)
     assert all(info["failed"] and not info["success"] for info in infos.values())
-    assert all(info["reward_terms"]["lost_penalty"] == -3.0 for info in infos.values())
+    assert all(info["reward_lost_penalty"] == -3.0 for info in infos.values())
     assert all(terminations.values()) and not any(truncations.values())
     assert all(info["position_std_m"] > 0.2 for agent, info in infos.items() if agent in lost)
 

@@ -70,7 +70,7 @@ def test_the_comparison_covers_landmarks_teammates_motions_scans_and_close_passe
     )
     drive = ContactSpace.drive
     monkeypatch.setattr(ContactSpace, "drive", lambda *args: pytest.fail("a contact") or drive(*args))
-    vector = CooperativeExplorationVectorEnv(4, max_cycles=60)
+    vector = CooperativeExplorationVectorEnv(4, max_cycles=60, autoreset_mode="next_step")  # the last step's info
     _, info = vector.reset(seed=5)
     n_landmarks = vector.config["n_landmarks"]
     slots, motions = set(), set()
@@ -136,7 +136,7 @@ def test_the_filter_equals_filterpys_ekf_update_for_update(monkeypatch):
         observed = exploration_observation_updates(ekf, env, slots, teammates, landmarks)
         own = 0.5 * (np.linalg.slogdet(prior_pose_P)[1] - np.linalg.slogdet(oracle.pose_blocks(ekf.P))[1])
         for robot, agent in enumerate(env.possible_agents):
-            assert infos[agent]["reward_terms"]["own_pose_information"] == pytest.approx(own[robot], abs=1e-10)
+            assert infos[agent]["reward_own_pose_information"] == pytest.approx(own[robot], abs=1e-10)
         for phase_s, reading in zip((turn_s, drive_s), readings[-2:]):
             oracle.filterpy_predict(ekf, reading[0], odometry_covariances, phase_s)
         counts += [*observed, fuse_gps(infos)]

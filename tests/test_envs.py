@@ -217,7 +217,7 @@ def _after_a_masked_action(env_id: str) -> tuple[dict, tuple, gym.Env]:
 def test_masked_sensor_selection_acquires_nothing_and_spends_no_bandwidth():
     info, transition, untouched = _after_a_masked_action(SENSOR_ID)
     after = transition[4]
-    assert after["sensor"] == "none" and after["bandwidth_credit_bytes"] >= info["bandwidth_credit_bytes"]
+    assert after["sensor"] == -1 and after["bandwidth_credit_bytes"] >= info["bandwidth_credit_bytes"]
     assert np.array_equal(transition[0], untouched.step(0)[0]), "a masked action is the same as waiting"
 
 

@@ -40,11 +40,9 @@ def _assert_sub_env_matches(vector_info: dict, copy: int, single_info: dict, whe
     for key in SINGLE_INFO_KEYS:
         np.testing.assert_allclose(vector_info[key][copy], single_info[key], rtol=0, atol=TOLERANCE, err_msg=where)
         assert vector_info[f"_{key}"][copy], where
-    single_terms = single_info["reward_terms"]
-    assert vector_info["reward_terms"]["_mutual_information"][copy] == ("mutual_information" in single_terms), where
-    if single_terms:
-        reward = vector_info["reward_terms"]["mutual_information"][copy]
-        assert abs(reward - single_terms["mutual_information"]) <= TOLERANCE, where
+    assert vector_info["_reward_mutual_information"][copy], where
+    reward = vector_info["reward_mutual_information"][copy]
+    assert abs(reward - single_info["reward_mutual_information"]) <= TOLERANCE, where
 
 
 def _reset_as_step(env: gym.Env) -> tuple:
@@ -65,8 +63,9 @@ def _assert_outputs_match(vector_outputs: tuple, single_outputs: list, step: int
 
 
 def _run_in_lockstep(n_envs: int, seed: int, n_steps: int, **config) -> int:
-    """Step the vector env and N single envs (seeds ``seed + i``) together; every number must agree. Returns resets."""
-    vector = gym.make_vec(ENV_ID, num_envs=n_envs, **config)
+    """Step the vector env (NEXT_STEP) and N single envs (seeds ``seed + i``) together; every number must agree.
+    Returns resets."""
+    vector = gym.make_vec(ENV_ID, num_envs=n_envs, autoreset_mode="next_step", **config)
     singles = [gym.make(ENV_ID, **config) for _ in range(n_envs)]
     observations, info = vector.reset(seed=seed)
     reset_outputs = [single.reset(seed=seed + copy) for copy, single in enumerate(singles)]
@@ -152,8 +151,8 @@ def test_with_autoreset_disabled_sub_envs_step_on_past_their_end_until_reset():
     vector_env_checks.check_autoreset_disabled(ENV_ID)
 
 
-def test_autoreset_is_next_step():
-    env = gym.make_vec(ENV_ID, num_envs=2, horizon=3)
+def test_autoreset_is_next_step_on_request():
+    env = gym.make_vec(ENV_ID, num_envs=2, horizon=3, autoreset_mode="next_step")
     assert env.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     env.reset(seed=0)
     for step in range(1, 4):
@@ -164,7 +163,7 @@ def test_autoreset_is_next_step():
     assert not (terminated.any() or truncated.any()) and not rewards.any()
     np.testing.assert_array_equal(observations[:, 9], 0.0)  # elapsed fraction of the new episode
     np.testing.assert_array_equal(info["chosen_action"], -1)
-    assert info["reward_terms"]["_mutual_information"].all() and not info["reward_terms"]["mutual_information"].any()
+    assert info["_reward_mutual_information"].all() and not info["reward_mutual_information"].any()
     assert not env.step(np.zeros(2, dtype=int))[3].any()
 
 

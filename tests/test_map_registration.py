@@ -229,9 +229,9 @@ def test_a_fused_fix_is_filterpys_kalman_update_and_its_reward_the_mi():
         residual[2] = wrap_angle(residual[2])
         kf.update(x + residual)
         mi = 0.5 * (np.linalg.slogdet(P)[1] - np.linalg.slogdet(kf.P)[1])
-        assert info["reward_terms"]["mutual_information"] == pytest.approx(mi, rel=1e-9)
-        assert reward == pytest.approx(mi + info["reward_terms"]["point_cost"], rel=1e-9)
-        assert info["reward_terms"]["point_cost"] == pytest.approx(-1e-4 * info["registered_points"])
+        assert info["reward_mutual_information"] == pytest.approx(mi, rel=1e-9)
+        assert reward == pytest.approx(mi + info["reward_point_cost"], rel=1e-9)
+        assert info["reward_point_cost"] == pytest.approx(-1e-4 * info["registered_points"])
         assert info["registered_points"] == len(fix_points[-1])
         assert info["registration_nees"] >= 0
         return

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import infonav_gym  # noqa: F401  (registers the envs)
+from infonav_gym.envs.vector_infos import reward_terms_of
 from infonav_gym.registry import GYMNASIUM, registered_envs
 
 minari = pytest.importorskip("minari", reason="minari is not installed (the data extra)")
@@ -36,5 +37,5 @@ def test_data_collector_records_every_info_and_the_dataset_recreates_the_env(env
     dataset = minari.load_dataset(dataset_id)
     assert dataset.total_steps == steps
     episode = next(dataset.iterate_episodes())
-    assert set(episode.infos) == first_keys and len(episode.infos["reward_terms"]) > 0
+    assert set(episode.infos) == first_keys and len(reward_terms_of(episode.infos)) > 0
     assert type(dataset.recover_environment().unwrapped) is type(collector.unwrapped)

@@ -86,7 +86,7 @@ def test_a_reading_beyond_the_gate_is_not_fused_and_earns_nothing():
     _, info = env.reset(seed=2)
     before = env.unwrapped.vector.state.P[0].copy()
     _, reward, _, _, info = env.step(int(np.flatnonzero(info["action_mask"])[-1]))
-    assert info["gated"] and reward == 0.0 and info["reward_terms"]["mutual_information"] == 0.0
+    assert info["gated"] and reward == 0.0 and info["reward_mutual_information"] == 0.0
     assert np.linalg.det(env.unwrapped.vector.state.P[0]) > np.linalg.det(before)  # only predicted
 
 

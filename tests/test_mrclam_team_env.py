@@ -103,7 +103,7 @@ def test_a_reading_at_the_steps_start_is_filterpys_update_and_its_reward_the_exp
         own_prior, own_post = np.linalg.det(P[:3, :3]), np.linalg.det(ekf.P[:3, :3])
         assert rewards[agents[0]] == pytest.approx(0.5 * math.log(own_prior / own_post), rel=1e-9)
         assert rewards[agents[0]] == pytest.approx(expected, rel=1e-9)  # the posterior does not depend on the reading
-        team = infos[agents[0]]["reward_terms"]["team_mutual_information"]
+        team = infos[agents[0]]["reward_team_mutual_information"]
         assert team == pytest.approx(0.5 * math.log(np.linalg.det(P) / np.linalg.det(ekf.P)), rel=1e-9)
         checked += 1
     assert checked >= 5

@@ -12,6 +12,7 @@ import pytest  # noqa: E402
 from conftest import assert_identical, greedy_actions, random_valid_actions  # noqa: E402
 from pettingzoo.test import api_test, parallel_api_test  # noqa: E402
 
+from infonav_gym.envs.vector_infos import reward_terms_of
 from infonav_gym.information import mutual_information  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0  # noqa: E402
 from infonav_gym.multi.team import KNOWN_SENSORS  # noqa: E402
@@ -99,10 +100,10 @@ def test_team_reward_mixes_the_joint_mutual_information_into_rewards_and_gains()
     assert not np.allclose(gains[0.0], gains[1.0])
     for weight, (rewards, infos) in outcomes.items():
         for agent, reward in rewards.items():
-            terms = infos[agent]["reward_terms"]
+            terms = reward_terms_of(infos[agent])
             own, team = terms["own_mutual_information"], terms["team_mutual_information"]
             assert math.isclose(reward, (1 - weight) * own + weight * team, rel_tol=1e-12)
-            assert own == outcomes[0.0][1][agent]["reward_terms"]["own_mutual_information"]
+            assert own == outcomes[0.0][1][agent]["reward_own_mutual_information"]
 
 
 def test_team_mutual_information_is_the_joint_states(monkeypatch):
@@ -114,7 +115,7 @@ def test_team_mutual_information_is_the_joint_states(monkeypatch):
     _, _, _, _, infos = env.step(greedy_actions(env, infos))
     expected = mutual_information(prior, env.vector.joint_state()[1][0])
     assert expected > 0.1
-    assert math.isclose(infos["robot_0"]["reward_terms"]["team_mutual_information"], expected, rel_tol=1e-9)
+    assert math.isclose(infos["robot_0"]["reward_team_mutual_information"], expected, rel_tol=1e-9)
 
 
 def test_gps_drops_out_on_schedule_and_the_pose_uncertainty_then_grows():

@@ -86,7 +86,7 @@ class CoinVectorEnv(Driver, scenario=Coin):
 
 
 def test_the_driver_counts_steps_checks_actions_and_truncates_at_the_horizon():
-    env = CoinVectorEnv(num_envs=3, horizon=2, invalid_action="raise")
+    env = CoinVectorEnv(num_envs=3, horizon=2, invalid_action="raise", autoreset_mode="next_step")
     with pytest.raises(RuntimeError, match="call reset"):
         env.step(np.zeros(3, dtype=int))
     env.reset(seed=0)

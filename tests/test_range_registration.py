@@ -14,6 +14,7 @@ from gymnasium.vector import AutoresetMode
 
 import infonav_gym  # noqa: F401
 from agents import GreedyEntropyAgent, RandomAgent
+from infonav_gym.envs.vector_infos import reward_terms_of
 from infonav_gym.registration import icp
 from infonav_gym.registration.frame_pairs import (
     DEFAULT_ODOMETRY_STD,
@@ -80,7 +81,7 @@ def test_a_pair_registers_after_picks_per_pair_picks_with_the_reward_its_terms_s
             assert reward == 0.0 and info["registered"] is False
             assert info["action_mask"][action] == 0 and info["action_mask"].sum() == mask_before.sum() - 1
     assert info["registered"] is True
-    terms = info["reward_terms"]
+    terms = reward_terms_of(info)
     assert terms["error_reduction_m"] == pytest.approx(info["error_before_m"] - info["error_after_m"])
     assert terms["point_cost"] == pytest.approx(-1e-3 * info["n_control_points"])
     assert reward == pytest.approx(sum(terms.values()))

@@ -26,6 +26,7 @@ from infonav_gym.config import check_choice, merge_config
 from infonav_gym.envs.base import discrete_action_index
 from infonav_gym.envs.metrics import SUCCESS_RATE, EpisodeMetric, final_value, summed_reward_term
 from infonav_gym.envs.traits import COMMON_INFO_KEYS, EnvTraits, has_planning_model
+from infonav_gym.envs.vector_infos import reward_terms_of
 from infonav_gym.experiments.benchmark import benchmarked_env_ids, env_step_figures
 from infonav_gym.experiments.cli import main
 from infonav_gym.experiments.episodes import make_agent
@@ -120,7 +121,7 @@ class BeaconEnv(gym.Env):
         return {
             "action_mask": self._mask.copy(),
             "action_information_gain": self._gains.copy(),
-            "reward_terms": dict(self._terms),
+            **{f"reward_{term}": value for term, value in self._terms.items()},
             "chosen_action": self._chosen,
             "invalid_action": invalid,
             "true_pose": np.array([self._position, 0.0, 0.0]),
@@ -207,7 +208,7 @@ def test_a_parallel_envs_infos_hold_the_declared_keys_and_reward_terms(entry):
             assert COMMON_INFO_KEYS | declared.info_keys <= info.keys()
         actions = {agent: int(rng.integers(env.action_space(agent).n)) for agent in env.agents}
         infos = env.step(actions)[4]
-        assert all(tuple(info["reward_terms"]) == declared.reward_terms for info in infos.values())
+        assert all(tuple(reward_terms_of(info)) == declared.reward_terms for info in infos.values())
         assert all(info["action_information_gain"][list(declared.idle_actions)].max() == 0.0 for info in infos.values())
 
 

@@ -28,11 +28,11 @@ def test_every_team_env_with_a_vector_env_is_checked():
 def test_same_step_autoreset_returns_the_reset_and_the_final_observation_and_info(env_id):
     parallel_class, vector_class = team_envs(env_id)
     config, n_copies, seed = {"max_cycles": 4}, 2, 2
-    next_step = vector_class(n_copies, **config)
-    same_step = vector_class(n_copies, autoreset_mode="same_step", **config)
+    next_step = vector_class(n_copies, autoreset_mode="next_step", **config)
+    same_step = vector_class(n_copies, **config)  # the default: SB3's and TorchRL's convention
     assert next_step.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     assert same_step.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
-    assert vector_class.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP  # not mutated
+    assert vector_class.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP  # not mutated
     next_step.reset(seed=seed)
     same_step.reset(seed=seed)
     references = [parallel_class(**config) for _ in range(n_copies)]
@@ -55,7 +55,7 @@ def test_same_step_autoreset_returns_the_reset_and_the_final_observation_and_inf
                 continue
             assert info["_final_obs"][copy] and info["_final_info"][copy] and info["final_obs"].dtype == object
             assert_copy_equals(info["final_obs"], info["final_info"], copy, reference, team_keys)
-            assert_copy_equals(observations, info, copy, env.reset(), team_keys, stepped=False)
+            assert_copy_equals(observations, info, copy, env.reset(), team_keys)
         if ended:
             next_step.step(actions)  # NEXT_STEP spends a step on the reset
 
@@ -87,24 +87,23 @@ def test_a_seed_list_seeds_each_copy_and_no_seed_continues_each_copys_generator(
     observations, info = vector.reset(seed=[4, None, 9])
     for copy, copy_seed in [(0, 4), (2, 9)]:
         reference = references[copy].reset(seed=copy_seed)
-        assert_copy_equals(observations, info, copy, reference, vector.team_info_keys, stepped=False)
+        assert_copy_equals(observations, info, copy, reference, vector.team_info_keys)
     assert [generator is not None for generator in vector.np_randoms] == [True] * 3
     observations, info = vector.reset()  # unseeded: each copy continues its generator, as the parallel env's reset()
     for copy in (0, 2):
-        assert_copy_equals(observations, info, copy, references[copy].reset(), vector.team_info_keys, stepped=False)
+        assert_copy_equals(observations, info, copy, references[copy].reset(), vector.team_info_keys)
 
 
 @pytest.mark.parametrize("env_id", TEAM_VECTOR_IDS)
 def test_the_same_seed_gives_the_same_numbers_bit_for_bit(env_id):
     _, vector_class = team_envs(env_id)
-    first, second = vector_class(3, max_cycles=6), vector_class(3, max_cycles=6)
+    first, second = (vector_class(3, max_cycles=6, autoreset_mode="next_step") for _ in range(2))
     outputs = first.reset(seed=7), second.reset(seed=7)
     rng = np.random.default_rng(1)
     for _ in range(8):
         np.testing.assert_array_equal(outputs[0][0], outputs[1][0])
         for key, value in outputs[0][-1].items():
-            if not isinstance(value, dict):
-                np.testing.assert_array_equal(value, outputs[1][-1][key], err_msg=key)
+            np.testing.assert_array_equal(value, outputs[1][-1][key], err_msg=key)
         actions = random_valid(first.action_masks(), rng)
         outputs = first.step(actions), second.step(actions)
         for got, expected in zip(outputs[0][1:4], outputs[1][1:4]):
@@ -210,7 +209,7 @@ def test_step_before_reset_and_options_are_refused(env_id):
 def test_render_draws_copy_0_as_its_parallel_env_through_an_autoreset(env_id):
     parallel_class, vector_class = team_envs(env_id)
     config = {"max_cycles": 3, "render_size_px": 96}
-    vector = vector_class(2, render_mode="rgb_array", **config)
+    vector = vector_class(2, render_mode="rgb_array", autoreset_mode="next_step", **config)
     team = parallel_class(render_mode="rgb_array", **config)
     vector.reset(seed=4)
     team.reset(seed=4)

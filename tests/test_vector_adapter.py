@@ -24,6 +24,7 @@ from infonav_gym.experiments.ppo_timing import SameStepCartPoleVectorEnv  # noqa
 LANDMARK_ID = "infonav/LandmarkSelection-v0"
 SAME_STEP = {"autoreset_mode": AutoresetMode.SAME_STEP}
 DISABLED = {"autoreset_mode": AutoresetMode.DISABLED}
+NEXT_STEP = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 CASES = [  # (env id, config, vectorization mode of gym.make_vec)
     ("CartPole-v1", {}, "sync"),
     (LANDMARK_ID, {"horizon": 15}, "sync"),
@@ -268,7 +269,10 @@ def test_async_sub_envs_in_worker_processes_have_unknown_wrappers():
     [
         (lambda: gym.make_vec("CartPole-v1", 2, vectorization_mode="sync"), "NextStep"),
         (lambda: CartPoleVectorEnv(num_envs=2), "NextStep"),
-        (lambda: gym.make_vec(LANDMARK_ID, 2, vectorization_mode="vector_entry_point"), "NextStep"),
+        (
+            lambda: gym.make_vec(LANDMARK_ID, 2, vectorization_mode="vector_entry_point", **NEXT_STEP),
+            "NextStep",
+        ),
         (lambda: gym.make_vec(LANDMARK_ID, 2, vectorization_mode="sync", vector_kwargs=DISABLED), "Disabled"),
     ],
     ids=["sync", "cartpole-vector", "native-landmarks", "disabled"],

@@ -55,10 +55,11 @@ class Driver(VectorEnv):
     """N copies of ``scenario_class``, each with its own generator: sub-env ``i`` after ``reset(seed=s)`` is the
     single env after ``reset(seed=s + i)``.
 
-    ``autoreset_mode`` is one of ``AUTORESET_MODES`` per instance (``metadata["autoreset_mode"]``): ``NEXT_STEP``
-    (the step after a copy ended resets it, its action ignored, reward 0 and its reset info), ``SAME_STEP`` (the
-    step that ends an episode returns the reset observation, the last one in ``info["final_obs"]`` /
-    ``info["final_info"]``) or ``DISABLED`` (a copy goes on from its last state until ``reset()``). With a
+    ``autoreset_mode`` is one of ``AUTORESET_MODES`` per instance (``metadata["autoreset_mode"]``): ``SAME_STEP``,
+    the default (the step that ends an episode returns the reset observation, the last one in ``info["final_obs"]`` /
+    ``info["final_info"]``: SB3's and TorchRL's convention; TorchRL refuses ``NEXT_STEP``), ``NEXT_STEP`` (the step
+    after a copy ended resets it, its action ignored, reward 0 and its reset info: Gymnasium's own vector envs' and
+    RLlib's) or ``DISABLED`` (a copy goes on from its last state until ``reset()``). With a
     ``render_mode``, ``render()`` draws copy 0. ``state`` and ``decision`` are every copy's, now.
     """
 
@@ -71,7 +72,7 @@ class Driver(VectorEnv):
         super().__init_subclass__(**kwargs)
         if scenario is not None:
             cls.scenario_class = scenario
-            cls.metadata = {**scenario.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP}
+            cls.metadata = {**scenario.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
             cls.episode_metrics, cls.traits = scenario.episode_metrics, scenario.traits
             cls.team_info_keys = scenario.team_info_keys
 
@@ -84,7 +85,7 @@ class Driver(VectorEnv):
         self,
         num_envs: int = 1,
         render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.SAME_STEP,
         num_threads: int = 1,
         **config,
     ):

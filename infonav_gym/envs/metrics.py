@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from infonav_gym.envs.vector_infos import reward_term_key, reward_terms_of
+
 
 @dataclass(frozen=True)
 class EpisodeMetric:
@@ -33,13 +35,14 @@ class EpisodeMetric:
 
 
 def summed_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
-    """The episode's sum (``math.fsum``) of ``info["reward_terms"][term]`` (0 in steps without it)."""
-    return lambda infos: math.fsum(step["reward_terms"].get(term, 0.0) for step in infos)
+    """The episode's sum (``math.fsum``) of ``info[reward_term_key(term)]`` (0 in steps without it)."""
+    key = reward_term_key(term)
+    return lambda infos: math.fsum(step.get(key, 0.0) for step in infos)
 
 
 def summed_reward(infos: Sequence[dict]) -> float:
     """The episode's return: every reward term of every step (``math.fsum`` per step, then over steps)."""
-    return math.fsum(math.fsum(step["reward_terms"].values()) for step in infos)
+    return math.fsum(math.fsum(reward_terms_of(step).values()) for step in infos)
 
 
 def summed_info(key: str) -> Callable[[Sequence[dict]], float]:
@@ -78,15 +81,17 @@ def count_where(condition: Callable[[dict], bool]) -> Callable[[Sequence[dict]],
 
 
 def team_summed_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
-    """A parallel env's sum over steps of the first agent's ``reward_terms[term]`` (a term every agent shares).
+    """A parallel env's sum over steps of the first agent's reward ``term`` (a term every agent shares).
 
     Added step by step in order, as the committed team results were.
     """
 
+    key = reward_term_key(term)
+
     def compute(steps: Sequence[dict]) -> float:
         total = 0.0
         for infos in steps:
-            total += next(iter(infos.values()))["reward_terms"][term]
+            total += next(iter(infos.values()))[key]
         return total
 
     return compute
@@ -110,8 +115,9 @@ def team_mean_root_mean_square(key: str) -> Callable[[Sequence[dict]], float]:
 
 
 def team_total_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
-    """A parallel env's sum over steps and agents of ``reward_terms[term]`` (a term of each robot's own)."""
-    return lambda steps: math.fsum(info["reward_terms"][term] for infos in steps for info in infos.values())
+    """A parallel env's sum over steps and agents of its reward ``term`` (a term of each robot's own)."""
+    key = reward_term_key(term)
+    return lambda steps: math.fsum(info[key] for infos in steps for info in infos.values())
 
 
 def team_final_flag(key: str) -> Callable[[Sequence[dict]], float]:

@@ -6,8 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 COMMON_INFO_KEYS = frozenset(
-    {"action_mask", "action_information_gain", "reward_terms", "chosen_action", "invalid_action", "true_pose", "time_s"}
-)  # in every info of every single-agent infonav env
+    {"action_mask", "action_information_gain", "chosen_action", "invalid_action", "true_pose", "time_s"}
+)  # in every info of every single-agent infonav env, with its ``reward_terms``
 POSE_INFO_KEYS = frozenset(
     {"pose_entropy", "state_entropy", "position_error_m", "heading_error_rad", "estimated_pose"}
 )  # in every info of an env with ``estimates_pose``
@@ -30,7 +30,8 @@ class EnvTraits:
         idle_actions: valid actions whose expected information gain is always 0 (wait, move without observing).
         valid_gain_may_be_zero: a valid action other than the idle ones may have gain 0 (e.g. a patch
             without usable points); otherwise its gain is positive.
-        reward_terms: the keys of ``info["reward_terms"]`` after every step, in order (empty: not declared).
+        reward_terms: the reward's terms, in order, each in every info at its ``reward_term_key`` (``"reward_" +
+            term``, flat as TorchRL's info readers need) (empty: not declared).
         info_keys: info keys the env adds to ``COMMON_INFO_KEYS`` (and ``POSE_INFO_KEYS``).
         reward_config_keys: config keys that decide what the reward means (e.g. ``team_reward``); every
             evaluation names their values in its heading, so a default reward choice is visible.

@@ -1,7 +1,8 @@
 """What every native vector env shares: its autoreset mode argument, and infos as dicts of arrays.
 
 Infos follow Gymnasium's vector layout: each key holds an array with a leading sub-env dimension and a
-``_key`` bool mask of the sub-envs that have it; nested dicts (``reward_terms``) the same, recursively.
+``_key`` bool mask of the sub-envs that have it. They are flat, each value an array of numbers, as TorchRL's info
+readers need: each reward term has its own key (``reward_term_key``), as Gymnasium's MuJoCo envs name theirs.
 """
 
 from __future__ import annotations
@@ -10,6 +11,19 @@ from typing import NamedTuple
 
 import numpy as np
 from gymnasium.vector import AutoresetMode
+
+REWARD_TERM_PREFIX = "reward_"
+
+
+def reward_term_key(term: str) -> str:
+    """The info key of the reward term ``term``: ``"reward_" + term`` (``"reward_mutual_information"``)."""
+    return REWARD_TERM_PREFIX + term
+
+
+def reward_terms_of(info: dict) -> dict:
+    """The reward terms in ``info``, ``{term: value}`` in their order (its keys that ``reward_term_key`` names)."""
+    start = len(REWARD_TERM_PREFIX)
+    return {key[start:]: value for key, value in info.items() if key.startswith(REWARD_TERM_PREFIX)}
 
 
 class Decision(NamedTuple):
@@ -35,18 +49,17 @@ def autoreset_mode_of(value, allowed: tuple[AutoresetMode, ...], owner: str) -> 
 
 def decision_info(decision, stepped: np.ndarray, chosen: np.ndarray, terms: tuple, values: np.ndarray) -> dict:
     """The info keys every single-agent env has first, of n copies: their ``decision``'s mask and gains, their reward
-    ``terms`` with their ``values`` (T, n) (0 where a copy did not step, ``stepped`` (n,) bool: just reset, so that
-    every info has the same keys, as recorders such as Minari's need), the action each took (``chosen`` (n,), -1:
-    none or the no-op) and whether it was invalid."""
+    ``terms`` (each at its ``reward_term_key``) with their ``values`` (T, n) (0 where a copy did not step,
+    ``stepped`` (n,) bool: just reset, so that every info has the same keys, as recorders such as Minari's need), the
+    action each took (``chosen`` (n,), -1: none or the no-op) and whether it was invalid."""
     if np.count_nonzero(stepped) == len(stepped):  # the usual step: ``np.where``'s numbers, at less cost
         values, chosen = values.copy(), chosen.copy()
     else:
         values, chosen = np.where(stepped, values, 0.0), np.where(stepped, chosen, -1)
-    masks = np.ones(len(stepped), dtype=bool)
     return {
         "action_mask": decision.action_mask.copy(),
         "action_information_gain": decision.action_information_gain.copy(),
-        "reward_terms": {**dict(zip(terms, values)), **{f"_{term}": masks for term in terms}},
+        **{reward_term_key(term): value for term, value in zip(terms, values)},
         "chosen_action": chosen,
         "invalid_action": stepped & (chosen < 0),
     }
@@ -59,7 +72,7 @@ def in_every_copy(info: dict, n_copies: int) -> dict:
 
 
 def set_rows(full, rows: np.ndarray, part):
-    """Write ``part``'s rows into ``full`` at ``rows`` (arrays, or dicts of them, recursively); returns ``full``."""
+    """Write ``part``'s rows into ``full`` at ``rows`` (arrays, or a dict of them); returns ``full``."""
     if isinstance(full, dict):
         for key, value in full.items():
             set_rows(value, rows, part[key])
@@ -86,12 +99,4 @@ def final_step_infos(observation: np.ndarray, info: dict, ended: np.ndarray) -> 
 
 
 def _masked_copy(info: dict, rows: np.ndarray) -> dict:
-    copied = {}
-    for key, value in info.items():
-        if isinstance(value, dict):
-            copied[key] = _masked_copy(value, rows)
-        elif key.startswith("_"):
-            copied[key] = value & rows
-        else:
-            copied[key] = value.copy()
-    return copied
+    return {key: value & rows if key.startswith("_") else value.copy() for key, value in info.items()}

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from gymnasium.envs.classic_control.cartpole import CartPoleVectorEnv
+from gymnasium.vector import AutoresetMode
 
 from infonav_gym.registry import make_vector_env, registered_envs
 
@@ -76,8 +77,9 @@ def random_valid_actions(masks: np.ndarray, rng: np.random.Generator) -> np.ndar
 
 
 def vector_env_run(env_id: str, num_envs: int, seed: int, num_threads: int = 1) -> VectorRun:
-    """``env_id``'s native vector env with ``num_envs`` copies on ``num_threads`` under random valid actions."""
-    env = make_vector_env(env_id, num_envs, num_threads=num_threads)
+    """``env_id``'s native vector env with ``num_envs`` copies on ``num_threads`` under random valid actions, in
+    ``NEXT_STEP`` autoreset as ``CartPoleVectorEnv``."""
+    env = make_vector_env(env_id, num_envs, num_threads=num_threads, autoreset_mode=AutoresetMode.NEXT_STEP)
     rng = np.random.default_rng(seed)
     return VectorRun(
         num_envs,

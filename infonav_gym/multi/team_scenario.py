@@ -16,6 +16,7 @@ from infonav_gym.compiled import contiguous, kernel, stacked
 from infonav_gym.envs.noise_streams import NoiseStreams
 from infonav_gym.envs.parallel_view import TeamCycles
 from infonav_gym.envs.protocol import EnvScenario, State
+from infonav_gym.envs.vector_infos import reward_term_key
 from infonav_gym.estimation import batched
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
@@ -188,7 +189,8 @@ class TeamScenario(EnvScenario):
     def team_info(self, state: TeamState, decision, rows, stepped, terms: dict, **more) -> dict:
         """The infos of the copies ``rows`` every team env gives, then ``more``: arrays (N, R, ...) (the team's
         (N,)). ``decision`` has ``action_mask``, ``action_information_gain``, ``pose_log_det`` and ``pose_std``; the
-        reward ``terms`` (N, R) [nats] are 0 and masked out in the copies that were reset (not ``stepped``)."""
+        reward ``terms`` (N, R) [nats], each at its ``reward_term_key``, are 0 in the copies that were reset (not
+        ``stepped``)."""
         true_poses = state.worlds.poses[rows]
         estimates = state.x[rows].reshape(true_poses.shape)
         errors = true_poses - estimates
@@ -196,7 +198,7 @@ class TeamScenario(EnvScenario):
         return {
             "action_mask": decision.action_mask.copy(),
             "action_information_gain": decision.action_information_gain.copy(),
-            "reward_terms": {**terms, **{f"_{key}": stepped.copy() for key in terms}},
+            **{reward_term_key(key): value for key, value in terms.items()},
             "chosen_action": state.chosen[rows].copy(),
             "invalid_action": state.invalid[rows].copy(),
             "gps_available": state.gps_available[rows].copy(),

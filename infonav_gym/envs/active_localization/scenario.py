@@ -277,7 +277,7 @@ class ActiveLocalization(OneRobotScenario):
 class ActiveLocalizationVectorEnv(OneRobotDriver, scenario=ActiveLocalization):
     """N copies of ``infonav/ActiveLocalization-v0``, the driver bound to its scenario (``gym.make_vec``).
 
-    Observations (N, 14 + 4K + 4O), ``info["action_mask"]`` (N, 5 (1 + K)), all six ``reward_terms``;
+    Observations (N, 14 + 4K + 4O), ``info["action_mask"]`` (N, 5 (1 + K)), all six reward terms;
     ``planning_model(copy)`` is sub-env ``copy``'s planning model.
     """
 
@@ -364,7 +364,7 @@ class ActiveLocalizationEnv(SingleEnvView, vector_env=ActiveLocalizationVectorEn
     bearing, radius [m] (the map is known).
 
     ## Rewards
-    ``info["reward_terms"]``, summed: ``mutual_information`` of the update [nats];
+    the terms at ``info["reward_" + term]``, summed: ``mutual_information`` of the update [nats];
     ``sensing_cost`` ``-observation_cost_nats`` per observation; ``motion_cost``
     ``-motion_cost_per_step`` per primitive executed (driving or turning); ``progress`` ``progress_reward_per_m``
     per metre the true distance to the goal shrank; ``goal_bonus`` on reaching the goal;

@@ -403,11 +403,11 @@ class CooperativeExplorationEnv(ParallelEnvView, vector_env=CooperativeExplorati
     immediate expected gains the greedy agent ranks and the planner starts its search from.
 
     ## Rewards
-    ``(1 - team_reward) * own_pose_information + team_reward * team_map_information`` plus the costs, with
-    ``info["reward_terms"]``: ``own_pose_information``, the realized MI of the step's observations on the robot's
-    own pose [nats]; ``team_map_information``, the map entropy reduction of every robot's scans this step [nats];
-    ``sensing_cost`` ``-observation_cost_nats`` per observation; ``motion_cost`` ``-motion_cost_per_step`` per step
-    driven; ``lost_penalty`` ``-lost_penalty`` for every robot when one is lost.
+    ``(1 - team_reward) * own_pose_information + team_reward * team_map_information`` plus the costs, with the
+    terms at ``info["reward_" + term]``: ``own_pose_information``, the realized MI of the step's observations on the
+    robot's own pose [nats]; ``team_map_information``, the map entropy reduction of every robot's scans this step
+    [nats]; ``sensing_cost`` ``-observation_cost_nats`` per observation; ``motion_cost`` ``-motion_cost_per_step``
+    per step driven; ``lost_penalty`` ``-lost_penalty`` for every robot when one is lost.
     ``info["action_information_gain"][a]`` is the immediate expected information of ``a``: ``(1 - team_reward)``
     times the MI its observation alone brings to the robot's pose at the prior, plus ``team_reward`` times the map
     information its scan alone would bring, from the position the motion predicts, at the robot's current position
@@ -415,7 +415,7 @@ class CooperativeExplorationEnv(ParallelEnvView, vector_env=CooperativeExplorati
     view again, with the same errors, so it brings nothing new (action 0 has gain 0).
 
     ## Info
-    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain``, ``reward_terms``, ``chosen_action``,
+    ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain``, ``reward_<term>``, ``chosen_action``,
     ``invalid_action``, ``gps_available``, ``pose_std``, ``position_std_m`` (largest, at the decision),
     ``pose_entropy``, ``position_error_m``, ``heading_error_rad``, ``true_pose``, ``estimated_pose``, ``time_s``,
     ``observations_left``, ``coverage`` (team), ``lost`` (this robot), ``failed`` and ``success`` (the team).

@@ -180,7 +180,8 @@ class CooperativeLocalizationEnv(ParallelEnvView, vector_env=CooperativeLocaliza
 
     ## Info
     ``infos[agent]``: ``action_mask`` (int8), ``action_information_gain`` (expected reward of each action [nats], 0
-    where masked), ``reward_terms`` (own and team MI), ``chosen_action``, ``invalid_action``, ``gps_available``,
+    where masked), ``reward_own_mutual_information`` and
+    ``reward_team_mutual_information`` (the reward's terms), ``chosen_action``, ``invalid_action``, ``gps_available``,
     ``pose_std`` (x, y, heading std at the step's prior), ``pose_std_after_update`` (right after the step's relative
     updates), ``pose_entropy``, ``position_error_m``, ``heading_error_rad``, ``true_pose``, ``estimated_pose``,
     ``time_s``.

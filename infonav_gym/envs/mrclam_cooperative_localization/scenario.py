@@ -38,6 +38,7 @@ from infonav_gym.envs.real_logs import (
     reading_ranges,
 )
 from infonav_gym.envs.traits import EnvTraits
+from infonav_gym.envs.vector_infos import reward_term_key
 from infonav_gym.estimation.kernels import kalman_updates, pose_block_log_det, predict_poses, range_bearing_of_offset
 from infonav_gym.estimation.state import POSE_DIM, block_diagonal
 from infonav_gym.geometry import wrap_angle
@@ -291,7 +292,7 @@ class MRCLAMCooperativeLocalization(EnvScenario):
         return {
             "action_mask": decision.action_mask.copy(),
             "action_information_gain": decision.action_information_gain.copy(),
-            "reward_terms": {**terms, **{f"_{key}": stepped.copy() for key in terms}},
+            **{reward_term_key(key): value for key, value in terms.items()},
             "chosen_action": np.where(stepped_robots, state.action[rows], NONE),
             "invalid_action": state.invalid[rows] & stepped_robots,
             "true_pose": decision.true_pose.copy(),
@@ -569,7 +570,8 @@ class MRCLAMCooperativeLocalizationEnv(ParallelEnvView, vector_env=MRCLAMCoopera
     brought it. ``action_information_gain[a]`` is the MI action ``a`` alone would bring at the step's prior.
 
     ## Info
-    ``infos[agent]``: ``action_mask``, ``action_information_gain``, ``reward_terms`` (own and team MI),
+    ``infos[agent]``: ``action_mask``, ``action_information_gain``, ``reward_own_mutual_information`` and
+    ``reward_team_mutual_information`` (the reward's terms),
     ``chosen_action``, ``invalid_action``, ``true_pose``, ``estimated_pose``, ``position_error_m``,
     ``heading_error_rad``, ``pose_entropy``, ``pose_nees`` (against the ground truth), ``gated``,
     ``landmarks_available``, ``time_s`` (in the episode), ``log_time_s`` (in the log).

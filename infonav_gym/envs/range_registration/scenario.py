@@ -15,7 +15,7 @@ from infonav_gym.envs.metrics import EpisodeMetric, mean_where, summed_reward
 from infonav_gym.envs.protocol import EnvScenario, State
 from infonav_gym.envs.single_view import SingleEnvView
 from infonav_gym.envs.traits import EnvTraits
-from infonav_gym.envs.vector_infos import Decision, decision_info
+from infonav_gym.envs.vector_infos import Decision, decision_info, reward_term_key
 from infonav_gym.information import information_gain_of_information
 from infonav_gym.registration.control_points import control_point_geometry
 from infonav_gym.registration.frame_pairs import (
@@ -353,7 +353,7 @@ class RangeRegistration(EnvScenario):
         error and motion covariance, the true pose, the attitude and the time."""
         info = decision_info(decision, stepped, state.chosen[rows], ("error_reduction_m",), state.reduction[None, rows])
         point_cost = np.where(stepped, state.cost[rows], 0.0)
-        info["reward_terms"].update(point_cost=point_cost, _point_cost=np.ones_like(stepped))
+        info[reward_term_key("point_cost")] = point_cost
         last = state.last_registration[rows]
         info.update({name: last[name].copy() for name in REGISTRATION.names if name != "transform"})
         pairs = state.pairs if isinstance(rows, slice) else [state.pairs[copy] for copy in rows.tolist()]

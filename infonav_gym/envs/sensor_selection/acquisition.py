@@ -65,14 +65,11 @@ class ImageSensors:
         return SENSORS[sensor], float(self.pan_angles_rad[sector])
 
     def options(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per action (n,): the sensor's name (``"none"`` for the idle action and the no-op -1) and pan angle [rad].
-
-        The names are an object array of str, as Gymnasium's ``SyncVectorEnv`` stacks a str info entry.
-        """
+        """Per action (n,): the sensor's index in ``SENSORS`` (-1 for the idle action and the no-op -1; numbers, as
+        TorchRL's info readers need) and pan angle [rad]."""
         acquiring = actions > IDLE_ACTION
         sensor, sector = np.divmod(np.where(acquiring, actions - 1, 0), len(self.pan_angles_rad))
-        names = np.where(acquiring, np.array(SENSORS, dtype=object)[sensor], "none")
-        return names, np.where(acquiring, self.pan_angles_rad[sector], 0.0)
+        return np.where(acquiring, sensor, -1), np.where(acquiring, self.pan_angles_rad[sector], 0.0)
 
     def sensor(self, name: str) -> Ladar | Camera:
         """The sensor called ``name`` (one of ``SENSORS``)."""

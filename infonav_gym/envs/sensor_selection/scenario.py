@@ -72,11 +72,11 @@ class SensorSelection(EnvScenario):
         EpisodeMetric(
             "cumulative_information", "cumulative image information [nats]", summed_reward_term("image_information")
         ),
-        EpisodeMetric("frames", "frames acquired [frames]", count_where(lambda info: info["sensor"] != "none")),
+        EpisodeMetric("frames", "frames acquired [frames]", count_where(lambda info: info["sensor"] >= 0)),
         EpisodeMetric(
             "mean_frame_entropy",
             "mean frame entropy [nats]",
-            mean_where("image_entropy", lambda info: info["sensor"] != "none"),
+            mean_where("image_entropy", lambda info: info["sensor"] >= 0),
         ),
     )
     traits = EnvTraits(
@@ -263,8 +263,8 @@ class SensorSelection(EnvScenario):
 class SensorSelectionVectorEnv(Driver, scenario=SensorSelection):
     """N copies of ``infonav/SensorSelection-v0``, the driver bound to its scenario (``gym.make_vec``).
 
-    Observations (N, 6 * n_pan_sectors + 4), ``info["sensor"]`` a str array; ``render()`` insets the image sub-env
-    0 acquired.
+    Observations (N, 6 * n_pan_sectors + 4), ``info["sensor"]`` the index in ``SENSORS`` (-1: none); ``render()`` insets
+    the image sub-env 0 acquired.
     """
 
     @property
