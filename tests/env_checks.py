@@ -203,7 +203,7 @@ def check_masked_action_is_a_no_op(env_id: str, kwargs: dict) -> None:
     assert all(term == 0.0 for term in reward_terms_of(after).values())
     assert_reproducible(transition, other_masked.step(int(masked[-1])), "masked no-op vs another masked no-op")
     if traits_of(env).estimates_pose:
-        assert after["reward_mutual_information"] == 0.0
+        assert reward_terms_of(after)["mutual_information"] == 0.0
         # No update, only the prediction: uncertainty cannot shrink.
         assert after["state_entropy"] >= info["state_entropy"]
         assert after["pose_entropy"] >= info["pose_entropy"]
@@ -333,7 +333,7 @@ def check_expected_gain_is_realized(env_id: str, kwargs: dict) -> None:
         valid = np.flatnonzero(info["action_mask"])
         if valid.size:
             for action in valid:
-                realized = copy_env(env).step(int(action))[4]["reward_mutual_information"]
+                realized = reward_terms_of(copy_env(env).step(int(action))[4])["mutual_information"]
                 expected = info["action_information_gain"][action]
                 assert realized == pytest.approx(expected, rel=1e-9, abs=0), f"action {action}"
             decisions += 1

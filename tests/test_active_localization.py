@@ -72,7 +72,7 @@ def test_reaching_the_goal_terminates_with_the_bonus():
     _, reward, terminated, truncated, info = env.step(TO_GOAL)
     assert terminated is True and truncated is False
     assert info["goal_reached"] is True and info["failed"] is False
-    assert info["reward_goal_bonus"] == 7.0 and info["reward_failure_penalty"] == 0.0
+    assert reward_terms_of(info)["goal_bonus"] == 7.0 and reward_terms_of(info)["failure_penalty"] == 0.0
     assert reward == pytest.approx(sum(reward_terms_of(info).values()))
 
 
@@ -88,7 +88,7 @@ def test_crossing_the_uncertainty_bound_terminates_with_the_penalty():
     assert terminated, "the position std never crossed 0.3 m while driving blind"
     assert info["failed"] is True and info["goal_reached"] is False
     assert before <= 0.3 < info["position_std_m"]
-    assert info["reward_failure_penalty"] == -5.0
+    assert reward_terms_of(info)["failure_penalty"] == -5.0
     assert reward < -4.0
 
 
@@ -108,7 +108,7 @@ def test_the_sensing_budget_is_enforced_through_the_mask():
     # A visible landmark with no budget left is a masked no-op: no update, no cost, the robot stays put.
     _, reward, _, _, after = env.step(observe(0))
     assert after["invalid_action"] is True and after["observations_left"] == 0
-    assert after["reward_mutual_information"] == 0.0 and reward == 0.0
+    assert reward_terms_of(after)["mutual_information"] == 0.0 and reward == 0.0
     assert np.array_equal(after["true_pose"][:2], info["true_pose"][:2])
 
 
@@ -139,7 +139,7 @@ def test_each_valid_observations_gain_equals_its_realized_mi_and_the_models_gain
         assert np.array_equal(model_mask[0], info["action_mask"])
         np.testing.assert_allclose(model_gain[0], info["action_information_gain"], rtol=1e-12, atol=0)
         for action in valid[valid >= N_PRIMITIVES]:
-            realized = pickle.loads(pickle.dumps(env)).step(int(action))[4]["reward_mutual_information"]
+            realized = reward_terms_of(pickle.loads(pickle.dumps(env)).step(int(action))[4])["mutual_information"]
             assert realized == pytest.approx(info["action_information_gain"][action], rel=1e-9, abs=0)
             _, predicted_reward = model.plan_step(model.belief(), [action])
             _, predicted_idle = model.plan_step(model.belief(), [action % N_PRIMITIVES])

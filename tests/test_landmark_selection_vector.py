@@ -10,6 +10,7 @@ from gymnasium.vector import AutoresetMode
 
 import infonav_gym
 from infonav_gym.envs.landmark_selection import LandmarkSelectionVectorEnv
+from infonav_gym.envs.vector_infos import reward_terms_of
 from infonav_gym.world.scenarios import SCENARIOS, field
 
 ENV_ID = "infonav/LandmarkSelection-v0"
@@ -42,7 +43,7 @@ def _assert_sub_env_matches(vector_info: dict, copy: int, single_info: dict, whe
         assert vector_info[f"_{key}"][copy], where
     assert vector_info["_reward_mutual_information"][copy], where
     reward = vector_info["reward_mutual_information"][copy]
-    assert abs(reward - single_info["reward_mutual_information"]) <= TOLERANCE, where
+    assert abs(reward - reward_terms_of(single_info)["mutual_information"]) <= TOLERANCE, where
 
 
 def _reset_as_step(env: gym.Env) -> tuple:

@@ -15,6 +15,7 @@ from filterpy.kalman import KalmanFilter
 from scipy.stats import chi2
 
 import infonav_gym  # noqa: F401  (registers the envs)
+from infonav_gym.envs.vector_infos import reward_terms_of
 from infonav_gym.experiments.benchmark import GOALS, lower_is_better
 from infonav_gym.experiments.map_consistency import consistency_markdown, summary
 from infonav_gym.experiments.registration_timing import MAP_TIME_RATIO, map_step_figures
@@ -229,9 +230,9 @@ def test_a_fused_fix_is_filterpys_kalman_update_and_its_reward_the_mi():
         residual[2] = wrap_angle(residual[2])
         kf.update(x + residual)
         mi = 0.5 * (np.linalg.slogdet(P)[1] - np.linalg.slogdet(kf.P)[1])
-        assert info["reward_mutual_information"] == pytest.approx(mi, rel=1e-9)
-        assert reward == pytest.approx(mi + info["reward_point_cost"], rel=1e-9)
-        assert info["reward_point_cost"] == pytest.approx(-1e-4 * info["registered_points"])
+        assert reward_terms_of(info)["mutual_information"] == pytest.approx(mi, rel=1e-9)
+        assert reward == pytest.approx(mi + reward_terms_of(info)["point_cost"], rel=1e-9)
+        assert reward_terms_of(info)["point_cost"] == pytest.approx(-1e-4 * info["registered_points"])
         assert info["registered_points"] == len(fix_points[-1])
         assert info["registration_nees"] >= 0
         return

@@ -17,6 +17,7 @@ from infonav_gym import make_env
 from infonav_gym.datasets import DatasetNotFound, mrclam
 from infonav_gym.datasets.mrclam_logs import DATASET_VARIABLE
 from infonav_gym.datasets.noise_model import shipped_noise_model
+from infonav_gym.envs.vector_infos import reward_terms_of
 from infonav_gym.experiments.cli import main
 from infonav_gym.geometry import wrap_angle
 from infonav_gym.registry import available_envs
@@ -86,7 +87,7 @@ def test_a_reading_beyond_the_gate_is_not_fused_and_earns_nothing():
     _, info = env.reset(seed=2)
     before = env.unwrapped.vector.state.P[0].copy()
     _, reward, _, _, info = env.step(int(np.flatnonzero(info["action_mask"])[-1]))
-    assert info["gated"] and reward == 0.0 and info["reward_mutual_information"] == 0.0
+    assert info["gated"] and reward == 0.0 and reward_terms_of(info)["mutual_information"] == 0.0
     assert np.linalg.det(env.unwrapped.vector.state.P[0]) > np.linalg.det(before)  # only predicted
 
 

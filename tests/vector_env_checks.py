@@ -18,7 +18,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 
 import infonav_gym  # noqa: F401  (registers the envs)
-from infonav_gym.envs.vector_infos import REWARD_TERM_PREFIX, reward_terms_of
+from infonav_gym.envs.vector_infos import REWARD_TERM_PREFIX, REWARD_TERMS_KEY, reward_term_key, reward_terms_of
 from infonav_gym.information import mutual_information
 
 TOLERANCE = 1e-9
@@ -40,9 +40,16 @@ def assert_info_entry_equal(actual, expected, where: str) -> None:
         np.testing.assert_array_equal(actual, expected, err_msg=where)
 
 
+def flat_info(info: dict) -> dict:
+    """A single env's ``info`` with its ``reward_terms`` flat, as a vector env's infos hold them."""
+    terms = {reward_term_key(term): value for term, value in info.get(REWARD_TERMS_KEY, {}).items()}
+    return {**{key: value for key, value in info.items() if key != REWARD_TERMS_KEY}, **terms}
+
+
 def assert_sub_env_info_matches(vector_info: dict, copy: int, single_info: dict, where: str) -> None:
     """Every key of the single env's info equals the sub-env's entry (a reward term within ``TOLERANCE``), which its
     ``_key`` mask marks as present."""
+    single_info = flat_info(single_info)
     assert set(vector_info) == set(single_info) | {f"_{key}" for key in single_info}, where
     terms = reward_terms_of(single_info)
     for key, value in single_info.items():
@@ -127,8 +134,21 @@ def run_in_lockstep(
     return int(ended[0]), int(ended[1])
 
 
+def _flat_vector_info(info: dict) -> dict:
+    """A ``SyncVectorEnv`` info of single envs with its ``reward_terms`` (a dict with ``_term`` masks) flat, as the
+    native vector env's: ``reward_term`` and its ``_reward_term`` mask."""
+    if REWARD_TERMS_KEY not in info:
+        return info
+    terms, flat = info[REWARD_TERMS_KEY], {}
+    for term, value in terms.items():
+        flat["_" + reward_term_key(term[1:]) if term[0] == "_" else reward_term_key(term)] = value
+    return {key: value for key, value in info.items() if key.lstrip("_") != REWARD_TERMS_KEY} | flat
+
+
 def _assert_infos_match(native: dict, sync: dict, where: str) -> None:
-    """The native info holds every entry of the ``SyncVectorEnv`` info; its other entries are masked out."""
+    """The native info holds every entry of the ``SyncVectorEnv`` info (its reward terms flat); its other entries
+    are masked out."""
+    sync = _flat_vector_info(sync)
     for key, value in sync.items():
         if isinstance(value, dict):
             _assert_infos_match(native[key], value, f"{where}: {key}")
@@ -423,7 +443,7 @@ def check_filter_equals_filterpy(env_id, landmark_of, monkeypatch, seed: int, n_
             R = sensor.noise_covariance(predicted[None, 0])[0]
             measurement = sensor.measure_with_noise(true_pose[None], true_landmark[None], draws[-1][None])[0]
             filterpy_update(ekf, measurement, predicted, H, R, [1], 1)
-            realized = info["reward_mutual_information"]
+            realized = reward_terms_of(info)["mutual_information"]
             assert realized == pytest.approx(mutual_information(prior_P, ekf.P), abs=1e-10)
             n_observed += 1
         reading = odometry.measure_with_noise(controls[-1][0, 0], odometry_draws[-1])

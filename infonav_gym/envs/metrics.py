@@ -35,9 +35,8 @@ class EpisodeMetric:
 
 
 def summed_reward_term(term: str) -> Callable[[Sequence[dict]], float]:
-    """The episode's sum (``math.fsum``) of ``info[reward_term_key(term)]`` (0 in steps without it)."""
-    key = reward_term_key(term)
-    return lambda infos: math.fsum(step.get(key, 0.0) for step in infos)
+    """The episode's sum (``math.fsum``) of the reward term ``term`` (``reward_terms_of``; 0 in steps without it)."""
+    return lambda infos: math.fsum(reward_terms_of(step).get(term, 0.0) for step in infos)
 
 
 def summed_reward(infos: Sequence[dict]) -> float:

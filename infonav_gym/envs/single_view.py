@@ -1,6 +1,7 @@
 """``SingleEnvView``: the Gymnasium ``Env`` of an env, the driver with one copy and no autoreset
 (``class MyEnv(SingleEnvView, vector_env=MyVectorEnv)``). It hands one action on as a batch of one and returns row 0
-of every output, its info as the single env's dict (masked keys left out)."""
+of every output, its info as the single env's dict (masked keys left out; the reward terms in
+``info["reward_terms"]``)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import numpy as np
 from infonav_gym.envs.base import discrete_action_index
 from infonav_gym.envs.copy_view import OneCopyView
 from infonav_gym.envs.driver import Driver
+from infonav_gym.envs.vector_infos import grouped_reward_terms
 
 
 def first_row(info: dict) -> dict:
@@ -54,7 +56,7 @@ class SingleEnvView(OneCopyView, gym.Env):
         super().reset(seed=seed)
         self.vector.use_generator(0, self.np_random)
         observations, info = self.vector.reset()
-        return observations[0], first_row(info)
+        return observations[0], grouped_reward_terms(first_row(info))
 
     def step(self, action):
         """Act with ``action`` (one integer of the action space).
@@ -65,7 +67,8 @@ class SingleEnvView(OneCopyView, gym.Env):
         """
         actions = np.array([discrete_action_index(action, self.action_space)])
         observations, rewards, terminated, truncated, info = self.vector.step(actions)
-        return observations[0], float(rewards[0]), bool(terminated[0]), bool(truncated[0]), first_row(info)
+        info = grouped_reward_terms(first_row(info))
+        return observations[0], float(rewards[0]), bool(terminated[0]), bool(truncated[0]), info
 
     def action_masks(self) -> np.ndarray:
         """The valid actions now, as bool (n,), for ``MaskablePPO``: all ``True`` when none is (each is the no-op).

@@ -20,10 +20,24 @@ def reward_term_key(term: str) -> str:
     return REWARD_TERM_PREFIX + term
 
 
+REWARD_TERMS_KEY = "reward_terms"  # a single env's info: its reward terms as one dict (ARCHITECTURE's contract)
+
+
 def reward_terms_of(info: dict) -> dict:
-    """The reward terms in ``info``, ``{term: value}`` in their order (its keys that ``reward_term_key`` names)."""
+    """The reward terms in ``info``, ``{term: value}`` in their order: a single env's ``info["reward_terms"]``, or
+    the flat keys ``reward_term_key`` names (a vector or team env's)."""
+    if REWARD_TERMS_KEY in info:
+        return info[REWARD_TERMS_KEY]
     start = len(REWARD_TERM_PREFIX)
     return {key[start:]: value for key, value in info.items() if key.startswith(REWARD_TERM_PREFIX)}
+
+
+def grouped_reward_terms(info: dict) -> dict:
+    """``info`` (one copy's) with its flat reward-term keys gathered into ``info["reward_terms"]``, as a single
+    env's info has them (TorchRL reads a vector env's flat ones; a single env's dict it leaves alone)."""
+    terms = reward_terms_of(info)
+    rest = {key: value for key, value in info.items() if not key.startswith(REWARD_TERM_PREFIX)}
+    return {**rest, REWARD_TERMS_KEY: terms}
 
 
 class Decision(NamedTuple):
