@@ -10,6 +10,8 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.registration import EnvSpec
 
+from infonav_gym.registry import PARALLEL, api_of, make_env
+
 JOINT_ID = "infonav/JointTeam-v0"  # the id of every joint spec; its kwargs name the team env
 ENTRY_POINT = "infonav_gym.envs.joint_view:JointTeamEnv"
 REWARDS_KEY = "rewards"  # info: every robot's reward of the step (R,), zeros at reset
@@ -29,8 +31,6 @@ class JointTeamEnv(gym.Env):
     """
 
     def __init__(self, env_id: str, render_mode: str | None = None, **config):
-        from infonav_gym.registry import PARALLEL, api_of, make_env
-
         if api_of(env_id) != PARALLEL:
             raise ValueError(f"JointTeamEnv views a team (PettingZoo parallel) env, and {env_id!r} is not one")
         self.team = make_env(env_id, render_mode=render_mode, **config)

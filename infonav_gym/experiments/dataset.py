@@ -23,7 +23,13 @@ from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.envs.joint_view import joint_spec, recorded_env
 from infonav_gym.envs.traits import traits_of
 from infonav_gym.experiments.episode_pool import seeds_of
-from infonav_gym.experiments.episodes import check_agent_name, episode_infos, make_agent, make_team_agents
+from infonav_gym.experiments.episodes import (
+    check_agent_name,
+    episode_infos,
+    make_agent,
+    make_team_agents,
+    robot_seed,
+)
 from infonav_gym.experiments.paths import Interrupted, check_output_dir
 from infonav_gym.registry import PARALLEL, api_of, make_env, resolve_env_id
 
@@ -56,14 +62,14 @@ def recording_env(env_id: str, env_kwargs: dict) -> gym.Env:
 
 class TeamAgents:
     """One agent per robot of a ``JointTeamEnv``, acting as one: row ``k`` of the observation is robot ``k``'s; robot
-    ``k``'s agent is reset with seed ``1000 * seed + k``, as ``infonav evaluate`` resets them."""
+    ``k``'s agent is reset with ``robot_seed(seed, k)``, as ``infonav evaluate`` resets them."""
 
     def __init__(self, agents: dict):
         self.agents = agents
 
     def reset(self, seed: int | None = None) -> None:
         for k, agent in enumerate(self.agents.values()):
-            agent.reset(seed=None if seed is None else 1000 * seed + k)
+            agent.reset(seed=robot_seed(seed, k))
 
     def act(self, observation, info: dict) -> np.ndarray:
         return np.array([agent.act(row, info[robot]) for row, (robot, agent) in zip(observation, self.agents.items())])

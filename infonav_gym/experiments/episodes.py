@@ -124,12 +124,17 @@ def episode_infos(env: gym.Env, agent, seed: int) -> Iterator[dict]:
         done = terminated or truncated
 
 
+def robot_seed(seed: int | None, k: int) -> int | None:
+    """The seed robot ``k``'s agent is reset with in an episode seeded ``seed``: ``1000 * seed + k`` (None: none)."""
+    return None if seed is None else 1000 * seed + k
+
+
 def parallel_episode_infos(env, agents: dict, seed: int) -> Iterator[dict]:
     """The ``{robot: info}`` of one seeded episode's reset and steps of a PettingZoo parallel env, as played (robot
-    ``k``'s agent reset with seed ``1000 * seed + k``)."""
+    ``k``'s agent reset with ``robot_seed(seed, k)``)."""
     observations, infos = env.reset(seed=seed)
     for k, robot in enumerate(env.possible_agents):
-        agents[robot].reset(seed=1000 * seed + k)
+        agents[robot].reset(seed=robot_seed(seed, k))
     yield infos
     while env.agents:
         actions = {name: agents[name].act(observations[name], infos[name]) for name in env.agents}
