@@ -143,7 +143,13 @@ def test_benchmark_reports_every_goal(capsys, monkeypatch):
     monkeypatch.setattr(benchmark, "rllib_runner_figures", lambda *args: rllib_calls.append(args) or dict(rllib))
     monkeypatch.setattr(benchmark, "THREADED_COPIES", 2 * MIN_COPIES_PER_THREAD)  # two chunks, not 4096 copies
     monkeypatch.setattr(benchmark, "TORCHRL_COPIES", 4)  # not 256
+    # the training rates are measured in tests/test_team_ppo.py and tests/test_rllib.py: here a quick run asks for few
+    training_calls = []
+    monkeypatch.setattr(
+        benchmark, "training_figures", lambda *args: training_calls.append(args) or {"sb3_train_steps_per_s": 1.0}
+    )
     result = run_json(capsys, "benchmark", "--rounds", "1", "--seconds", "0.01", "--vector-sizes", "1,4")
+    assert training_calls == [(0, benchmark.QUICK_TRAINING_COPIES)]
     figures = result["figures"]
     threads_ratio = figures.get(f"landmark_selection_vector_{2 * MIN_COPIES_PER_THREAD}_threads_2_vs_1_ratio")
     assert (threads_ratio is None) == (os.cpu_count() < 2) and (threads_ratio is None or threads_ratio > 0)

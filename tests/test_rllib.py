@@ -26,7 +26,7 @@ from agents.rllib_train import (  # noqa: E402
     TeamEnvCreator,
     build_config,
 )
-from infonav_gym.experiments import distributed_timing  # noqa: E402
+from infonav_gym.experiments import distributed_timing, training_timing  # noqa: E402
 from infonav_gym.experiments.benchmark import GOALS  # noqa: E402
 from infonav_gym.experiments.cli import main  # noqa: E402
 from infonav_gym.multi import cooperative_exploration_v0, cooperative_localization_v0  # noqa: E402
@@ -348,6 +348,19 @@ def test_range_registration_trains_on_its_native_vector_env(local_ray, tmp_path_
     env = gym.make(env_id, horizon=20)
     observation, info = env.reset(seed=0)
     assert env.action_space.contains(RLlibAgent(output, env).act(observation, info))
+
+
+def test_the_benchmarks_training_figures_compare_sb3_with_rllib_in_robot_steps(local_ray, monkeypatch):
+    assert training_timing.rllib_train_steps_per_s(n_envs=2) > 0  # two exploration copies, a 128-step train batch
+    monkeypatch.setattr(training_timing, "sb3_train_steps_per_s", lambda seed, n_envs: 3000.0)
+    monkeypatch.setattr(training_timing, "rllib_train_steps_per_s", lambda seed, n_envs: 1200.0)
+    figures = training_timing.training_figures(n_envs=2)
+    assert figures == {
+        "sb3_train_steps_per_s": 3000.0,
+        "train_n_envs": 2,
+        "rllib_train_steps_per_s": 1200.0,
+        "sb3_vs_rllib_train_steps_ratio": 2.5,
+    }
 
 
 def test_the_benchmarks_rllib_figures_are_sampled_rates_named_as_its_goals(local_ray, monkeypatch):

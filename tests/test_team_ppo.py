@@ -13,6 +13,7 @@ from sb3_contrib.common.maskable.utils import get_action_masks, is_masking_suppo
 from agents.ppo import PPOAgent, train  # noqa: E402
 from agents.team_vec_env import RobotSlots, TeamVecEnv, make_team_vec_env  # noqa: E402
 from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
+from infonav_gym.experiments.training_timing import sb3_train_steps_per_s, training_block  # noqa: E402
 from infonav_gym.multi import cooperative_localization_v0  # noqa: E402
 from infonav_gym.registry import make_vector_env  # noqa: E402
 
@@ -184,3 +185,10 @@ def test_evaluate_the_team_with_ppo_is_finite_and_reproducible(team_model):
         assert all(episode["cumulative_mi"] > 0 for episode in result["episodes"])
     with pytest.raises(ValueError, match="agent 'planner' is not available for cooperative_localization_v0"):
         evaluate(TEAM_ENV, ["planner"], episodes=1, **kwargs)
+
+
+@pytest.mark.slow  # a fresh exploration model: its kernels and two short rollouts
+def test_the_benchmarks_sb3_training_rate_trains_the_shipped_block_on_fewer_copies():
+    block = training_block(n_envs=2)  # a rollout of 2 copies x 64 steps x 4 robots, minibatches at most 128
+    assert block["n_envs"] == 2 and block["batch_size"] == 128 and isinstance(block["learning_rate"], float)
+    assert sb3_train_steps_per_s(n_envs=2, iterations=1) > 0

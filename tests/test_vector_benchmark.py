@@ -124,6 +124,7 @@ def test_without_vmas_its_rows_are_absent_with_a_note(no_vmas, monkeypatch):
         "_ppo_figures",
         "evaluation_workers_figures",
         "rllib_runner_figures",
+        "training_figures",
         "startup_figures",
     ):
         monkeypatch.setattr(benchmark, heavy, lambda *args: {})

@@ -26,6 +26,7 @@ from infonav_gym.experiments.distributed_timing import (
 from infonav_gym.experiments.registration_timing import icp_figures, map_step_figures, registration_peers_missing
 from infonav_gym.experiments.sensor_timing import sensor_figures
 from infonav_gym.experiments.startup_timing import startup_figures
+from infonav_gym.experiments.training_timing import training_figures
 from infonav_gym.experiments.vector_timing import (
     DEFAULT_VECTOR_SIZES,
     MEMORY_SECONDS,
@@ -88,6 +89,7 @@ GOALS = {
 }
 PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
 PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND = 8192  # the same for the 64-copy vector envs: two 4096-step rollouts
+QUICK_TRAINING_COPIES = 2  # exploration copies per training rollout in a quick run (--seconds below 1)
 MAX_STEPS_BETWEEN_CLOCK_READS = 100  # reached by doubling from 1, so a slow env's round ends near its deadline
 # e.g. landmark_selection_vector_256_steps_per_s
 CURVE_FIGURE = re.compile(r"^(?P<curve>.+)_(?P<size>\d+)_steps_per_s$")
@@ -331,6 +333,7 @@ def run_benchmark(
     figures.update(_ppo_figures(rounds, seconds_per_round, seed))
     figures.update(evaluation_workers_figures(min(rounds, 3), seed, max(2, round(EVALUATION_EPISODES * scale))))
     figures.update(rllib_runner_figures(seed, max(100, round(RLLIB_SAMPLE_STEPS * scale))))
+    figures.update(training_figures(seed, None if scale >= 1 else QUICK_TRAINING_COPIES))
     figures.update(startup_figures(benchmarked_env_ids()))
     met = {}
     for name, goal in GOALS.items():  # None: not measured

@@ -1,0 +1,71 @@
+"""How fast each training backend learns on the exploration env: robot steps per second of PPO training (rollouts
+and updates), every backend with the same hyperparameters (the env's ``ppo.yml`` block), timed after a warm-up
+iteration, in one process. A team step of R robots counts R steps, as SB3's slots count them."""
+
+from __future__ import annotations
+
+import time
+
+from infonav_gym.experiments.distributed_timing import EXPLORATION_ID, rllib_missing
+
+EXPLORATION_CONFIG = {"observe_gains": True}  # the config the exploration models are trained on
+
+
+def training_block(n_envs: int | None = None) -> dict:
+    """The exploration env's shipped PPO block, a schedule at its start value (RLlib takes numbers); ``n_envs``
+    (``None``: the block's) copies per rollout, the minibatch at most a rollout."""
+    from agents.ppo import load_hyperparameters, scheduled
+
+    block = load_hyperparameters(EXPLORATION_ID)
+    block.update({key: float(value.split("_", 1)[1]) for key, value in scheduled(block).items()})
+    if n_envs is None:
+        return block
+    return {**block, "n_envs": n_envs, "batch_size": min(block["batch_size"], n_envs * block["n_steps"])}
+
+
+def sb3_train_steps_per_s(seed: int = 0, iterations: int = 2, n_envs: int | None = None) -> float:
+    """Robot steps/s of Stable-Baselines3's MaskablePPO over ``iterations`` rollouts and updates."""
+    from agents.ppo import build_model, torch_threads
+
+    with torch_threads():
+        model = build_model(EXPLORATION_ID, seed, None, training_block(n_envs), EXPLORATION_CONFIG)
+        rollout = model.n_steps * model.n_envs
+        try:
+            model.learn(rollout)  # warm-up: the compiled kernels, the first episodes
+            before, start = model.num_timesteps, time.perf_counter()
+            model.learn(iterations * rollout, reset_num_timesteps=False)
+            return (model.num_timesteps - before) / (time.perf_counter() - start)
+        finally:
+            model.get_env().close()
+
+
+def rllib_train_steps_per_s(seed: int = 0, iterations: int = 1, n_envs: int | None = None) -> float:
+    """Robot steps/s of RLlib's PPO (one env runner, as ``infonav train --backend rllib`` by default) over
+    ``iterations`` training iterations."""
+    from agents.ppo import torch_threads
+    from agents.ray_support import local_or_cluster_ray
+    from agents.rllib_train import build_config
+    from infonav_gym.registry import make_env
+
+    robots = len(make_env(EXPLORATION_ID, **EXPLORATION_CONFIG).possible_agents)
+    with local_or_cluster_ray(), torch_threads():
+        algorithm = build_config(EXPLORATION_ID, EXPLORATION_CONFIG, seed, training_block(n_envs)).build_algo()
+        try:
+            sampled = [algorithm.train()["env_runners"]["num_env_steps_sampled_lifetime"]]  # warm-up
+            start = time.perf_counter()
+            for _ in range(iterations):
+                sampled.append(algorithm.train()["env_runners"]["num_env_steps_sampled_lifetime"])
+            return robots * (sampled[-1] - sampled[0]) / (time.perf_counter() - start)
+        finally:
+            algorithm.stop()
+
+
+def training_figures(seed: int = 0, n_envs: int | None = None) -> dict:
+    """``{backend}_train_steps_per_s`` of every backend installed here, and SB3's ratio over each other one;
+    ``n_envs`` (``None``: the block's) copies per rollout, fewer for a quick run."""
+    sb3 = sb3_train_steps_per_s(seed, n_envs=n_envs)
+    figures = {"sb3_train_steps_per_s": sb3, "train_n_envs": n_envs or training_block()["n_envs"]}
+    if not rllib_missing():
+        rllib = rllib_train_steps_per_s(seed, n_envs=n_envs)
+        figures.update(rllib_train_steps_per_s=rllib, sb3_vs_rllib_train_steps_ratio=sb3 / rllib)
+    return figures
