@@ -12,6 +12,7 @@ import copy
 import importlib.util
 import inspect
 import json
+import math
 import pickle
 import shutil
 import sys
@@ -383,6 +384,7 @@ def train(
     planner_workers: int = 1,
     validation_episodes: int = 0,
     validation_every: int | None = None,
+    validation_stop_at: float | None = None,
 ) -> Path:
     """Train PPO on ``env_id`` for ``timesteps`` env steps; save ``output_dir/model.zip`` and return its path.
 
@@ -390,14 +392,19 @@ def train(
     (``curve.csv``, ``curve.png``) and with ``tensorboard`` its event files. ``init_from_planner``: warm start by
     behaviour cloning of the planner, on that many episodes (seeds from ``DEMONSTRATION_SEEDS + seed``, saved as
     ``demonstrations.npz``), such a file, or ``Demonstrations`` (a dataset's); ``timesteps=0`` keeps the cloned
-    policy. ``validation_episodes`` > 0 keeps the policy best on them in ``best/``. Ctrl-C saves the model so far
-    (train.json: ``"interrupted": true``).
+    policy. ``validation_episodes`` > 0 keeps the policy best on them in ``best/``; ``validation_stop_at`` stops
+    training once a validation's mean main metric reaches it. Ctrl-C saves the model so far (train.json:
+    ``"interrupted": true``).
     """
     if timesteps < (0 if init_from_planner is not None else 1):
         raise ValueError(f"timesteps must be >= 1 (0 only with a planner warm start: cloning alone), got {timesteps}")
     if validation_episodes < 0 or (validation_every is not None and validation_every < 1):
         raise ValueError(
             f"validation needs episodes >= 0 and every >= 1 env steps, got {validation_episodes} and {validation_every}"
+        )
+    if validation_stop_at is not None and not (validation_episodes and math.isfinite(validation_stop_at)):
+        raise ValueError(
+            f"stopping at a validation mean needs validation episodes and a finite mean, got {validation_stop_at}"
         )
     if tensorboard and importlib.util.find_spec("tensorboard") is None:  # SB3's TensorBoard writer
         raise ValueError("TensorBoard logging needs the tensorboard package: pip install tensorboard")
@@ -428,7 +435,9 @@ def train(
             copies = training_vec_env(env_id, validation_episodes, 0, env_kwargs, vectorization)[1]
             period = validation_every or max(timesteps // 20, 1)
             first_seed = VALIDATION_SEEDS + seed
-            validation = ValidationCallback(copies, validation_episodes, period, first_seed, output_dir, save_policy)
+            validation = ValidationCallback(
+                copies, validation_episodes, period, first_seed, output_dir, save_policy, validation_stop_at
+            )
             callbacks.append(validation)
         start, interrupted = time.perf_counter(), False
         try:

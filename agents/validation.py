@@ -48,17 +48,26 @@ class ValidationCallback(BaseCallback):
     """Validates the policy every ``every`` env steps (checked at each rollout's end), at the start and at the end.
 
     ``vec_env``: ``episodes`` copies (see ``validation_metrics``); ``seed``: the first validation seed; ``directory``
-    holds ``validation.csv`` and ``best/``; ``save`` writes a model into a directory (``ppo.save_policy``).
+    holds ``validation.csv`` and ``best/``; ``save`` writes a model into a directory (``ppo.save_policy``);
+    ``stop_at``: stop training once a validation's mean reaches it (rl-zoo's ``StopTrainingOnRewardThreshold``).
     """
 
     def __init__(
-        self, vec_env: VecEnv, episodes: int, every: int, seed: int, directory: Path, save: Callable[..., Path]
+        self,
+        vec_env: VecEnv,
+        episodes: int,
+        every: int,
+        seed: int,
+        directory: Path,
+        save: Callable[..., Path],
+        stop_at: float | None = None,
     ):
         super().__init__()
         self.vec_env, self.episodes, self.every, self.seed, self.save = vec_env, episodes, every, seed, save
         self.directory = Path(directory)
         self.path = self.directory / VALIDATION_CSV
         self.best_metric, self.best_steps, self.validated_at = math.nan, None, None
+        self.stop_at, self.stopped_at = stop_at, None
         self.seconds = 0.0
 
     def _on_training_start(self) -> None:
@@ -68,7 +77,7 @@ class ValidationCallback(BaseCallback):
         self._validate()
 
     def _on_step(self) -> bool:
-        return True
+        return self.stopped_at is None
 
     def _on_rollout_end(self) -> None:
         if self.num_timesteps - self.validated_at >= self.every:
@@ -93,6 +102,8 @@ class ValidationCallback(BaseCallback):
             self.save(self.model, self.directory / BEST_DIR)
         with self.path.open("a", newline="") as file:
             csv.writer(file).writerow([self.num_timesteps, repr(mean), self.episodes, int(kept)])
+        if self.stop_at is not None and mean >= self.stop_at and self.stopped_at is None:
+            self.stopped_at = self.num_timesteps  # SB3 stops at the next step: one more update, kept in model.zip
         self.seconds += time.perf_counter() - start
 
     def record(self) -> dict:
@@ -106,4 +117,6 @@ class ValidationCallback(BaseCallback):
             "csv": str(self.path),
             "best": str(self.directory / BEST_DIR),
             "seconds": self.seconds,
+            "stop_at": self.stop_at,
+            "stopped_at": self.stopped_at,
         }

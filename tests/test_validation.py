@@ -107,6 +107,19 @@ def test_the_kept_policy_is_the_first_best_and_validates_to_what_the_run_recorde
     assert np.mean(replayed) == best_mean
 
 
+def test_stop_at_ends_training_at_the_first_validation_that_reaches_it(validated_run, tmp_path):
+    with (validated_run / "validation.csv").open(newline="") as file:
+        rows = [(int(steps), float(mean)) for steps, mean, _, _ in list(csv.reader(file))[1:]]
+    stop_at = rows[1][1]  # the mean of the validation at 128 steps: reached there at the latest
+    first = next(steps for steps, mean in rows if mean >= stop_at)
+    stopped = small_run(tmp_path, validation_episodes=6, validation_every=128, validation_stop_at=stop_at)
+    record = json.loads((stopped / "train.json").read_text())
+    assert (record["validation"]["stop_at"], record["validation"]["stopped_at"]) == (stop_at, first)
+    assert record["timesteps"] == first + 2  # SB3 stops at the next step of its 2 copies
+    with pytest.raises(ValueError, match="needs validation episodes"):
+        small_run(tmp_path / "none", validation_stop_at=1.0)
+
+
 def test_the_curve_shows_the_validations(validated_run):
     image = pytest.importorskip("matplotlib.image").imread(validated_run / "curve.png")
     assert image.shape[:2] == (600, 700)  # the return and metric panels, the validations on the second
@@ -117,6 +130,8 @@ def test_the_curve_shows_the_validations(validated_run):
     [
         (["--eval-episodes", "4", "--backend", "rllib"], "--eval-episodes keeps the best SB3 policy"),
         (["--eval-every", "100"], "--eval-every needs --eval-episodes"),
+        (["--stop-at", "1"], "--stop-at needs --eval-episodes"),
+        (["--stop-at", "1", "--backend", "rllib"], "--stop-at stops SB3's training"),
     ],
 )
 def test_a_bad_validation_request_is_one_line_exit_2(tmp_path, capsys, flags, message):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import shlex
 import sys
@@ -233,6 +234,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=integer(1, MAX_TIMESTEPS),
         metavar="STEPS",
         help="env steps between validations of --eval-episodes (default: a twentieth of --timesteps)",
+    )
+    train.add_argument(
+        "--stop-at",
+        type=number(-math.inf, math.inf),
+        metavar="METRIC",
+        help="sb3: stop training once a validation's mean main metric reaches METRIC (e.g. 1.0: every validation "
+        "episode a success); OUTPUT/best/ holds that policy",
     )
     train.add_argument(
         "--backend",
@@ -500,6 +508,7 @@ def _curve_references(env_id: str, env_kwargs: dict) -> dict | None:
 TRAIN_BACKEND_OPTIONS = {  # train's option: (the one backend that reads it, what it does there)
     "init_from_planner": ("sb3", "warm-starts SB3's MaskablePPO"),
     "eval_episodes": ("sb3", "keeps the best SB3 policy"),
+    "stop_at": ("sb3", "stops SB3's training at a validation mean"),
     "n_envs": ("sb3", "sets SB3's env copies (rllib: --envs-per-runner)"),
     "vectorization": ("sb3", "picks how SB3 steps its env copies"),
     "tensorboard": ("sb3", "logs SB3's training"),
@@ -510,6 +519,7 @@ TRAIN_BACKEND_OPTIONS = {  # train's option: (the one backend that reads it, wha
 }
 TRAIN_OPTION_NEEDS = {  # train's option: (the option it needs, what that one gives)
     "eval_every": ("eval_episodes", "how many validation episodes"),
+    "stop_at": ("eval_episodes", "the validation episodes whose mean it compares"),
     "workers": ("init_from_planner", "the planner episodes the workers play"),
 }
 
@@ -578,6 +588,7 @@ def _train(args, command: str) -> dict:
             planner_workers=planner_workers,
             validation_episodes=args.eval_episodes or 0,
             validation_every=args.eval_every,
+            validation_stop_at=args.stop_at,
         )
         record = json.loads((model_path.parent / "train.json").read_text())
         if record["interrupted"]:
@@ -602,6 +613,8 @@ def _train(args, command: str) -> dict:
                 f"best on {kept['episodes']} validation episodes: {kept['best_metric']:.4g} after "
                 f"{kept['best_steps']} env steps; model: {kept['best']}"
             )
+            if kept.get("stopped_at") is not None:
+                print(f"stopped: a validation reached --stop-at {kept['stop_at']:g} at {kept['stopped_at']} env steps")
         print(f"learning curve: {record['curve']}")
         config_flags = "".join(f" --config {shlex.quote(f'{key}={json.dumps(value)}')}" for key, value in args.config)
         print(f"evaluate it: infonav evaluate --env {args.env}{config_flags} --agents random,greedy,{agent}")
