@@ -1,0 +1,196 @@
+"""BenchMARL's MAPPO and IPPO on the team envs (``infonav train --backend benchmarl``, the ``marl`` extra).
+
+BenchMARL's own configs (``get_from_yaml``) with the env's ppo.yml block translated (``benchmarl_settings``), no
+loggers and no evaluation; one policy shared by the robots. Writes the actor's weights (``actor.pt``), ``train.json``
+(with what rebuilds the actor: ``benchmarl_agent``) and a learning curve of the mean return per robot.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import math
+import shutil
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import torch
+from benchmarl import algorithms
+from benchmarl.experiment import Experiment, ExperimentConfig
+from benchmarl.experiment.callback import Callback
+from benchmarl.models.common import Model
+from benchmarl.models.mlp import MlpConfig
+
+from agents.base import torch_threads
+from agents.benchmarl_task import TASK_ENVS, InfonavTask
+from agents.hyperparameters import ACTIVATIONS, checked_block
+from agents.learning_curve import append_row, drawn_curve, start_curve
+from agents.torchrl_env import GROUP
+from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
+from infonav_gym.registry import make_env
+
+ALGORITHMS = {"mappo": "MappoConfig", "ippo": "IppoConfig"}  # --algorithm: its BenchMARL config class
+ACTOR_FILE = "actor.pt"  # the policy's MLP weights (its state dict)
+RUN_DIR = "benchmarl_run"  # BenchMARL's experiment folder inside the output, removed after training
+EXPERIMENT_NAMES = {"gamma": "gamma", "learning_rate": "lr"}  # ppo.yml key: its ExperimentConfig name
+ALGORITHM_NAMES = {"gae_lambda": "lmbda", "ent_coef": "entropy_coef", "clip_range": "clip_epsilon"}
+ROLLOUT_DEFAULTS = {"n_envs": 8, "n_steps": 2048, "batch_size": 64, "n_epochs": 10}  # SB3's, as ppo.py's
+NOT_MIRRORED = ("normalize",)  # BenchMARL's MLP sees raw observations
+
+
+def check_arguments(env_id: str, algorithm: str, timesteps: int, env_kwargs: dict, hyperparameters: dict) -> None:
+    """``ValueError`` for an algorithm, env, config, timesteps or hyperparameter training would fail on."""
+    if algorithm not in ALGORITHMS:
+        raise ValueError(
+            f"--algorithm must be one of {', '.join(ALGORITHMS)} with --backend benchmarl, got {algorithm!r}"
+        )
+    if env_id not in TASK_ENVS.values():
+        raise ValueError(f"--backend benchmarl trains the team envs ({', '.join(TASK_ENVS.values())}), not {env_id!r}")
+    if timesteps < 1:
+        raise ValueError(f"timesteps must be >= 1, got {timesteps}")
+    make_env(env_id, **env_kwargs).close()  # an unknown config key: the message ``infonav evaluate`` gives
+    benchmarl_settings(hyperparameters)
+
+
+def benchmarl_settings(hyperparameters: dict) -> dict:
+    """The ppo.yml block as BenchMARL's settings: ``{"experiment": ..., "algorithm": ..., "model": ...}``; a rollout
+    of ``n_envs`` copies x ``n_steps`` team steps, minibatches of ``batch_size`` team steps, ``n_epochs`` passes.
+    ``ValueError`` for a schedule (BenchMARL takes numbers)."""
+    block = checked_block(hyperparameters, "the hyperparameters")
+    schedules = sorted(key for key, value in block.items() if isinstance(value, str) and key != "policy")
+    if schedules:
+        raise ValueError(f"hyperparameter(s) {schedules} are schedules: --backend benchmarl takes numbers")
+    rollout = {key: int(block.get(key, default)) for key, default in ROLLOUT_DEFAULTS.items()}
+    frames = rollout["n_envs"] * rollout["n_steps"]
+    minibatch = min(rollout["batch_size"], frames)
+    experiment = {name: float(block[key]) for key, name in EXPERIMENT_NAMES.items() if key in block}
+    experiment |= {
+        "on_policy_n_envs_per_worker": rollout["n_envs"],
+        "on_policy_collected_frames_per_batch": frames,
+        "on_policy_minibatch_size": minibatch,
+        "on_policy_n_minibatch_iters": rollout["n_epochs"] * math.ceil(frames / minibatch),
+    }
+    policy_kwargs = block.get("policy_kwargs") or {}
+    return {
+        "experiment": experiment,
+        "algorithm": {name: float(block[key]) for key, name in ALGORITHM_NAMES.items() if key in block},
+        "model": {
+            "num_cells": list(policy_kwargs.get("net_arch", [64, 64])),
+            "activation": policy_kwargs.get("activation_fn", "tanh"),
+        },
+        "not_mirrored": [key for key in NOT_MIRRORED if key in block],
+    }
+
+
+def mlp_config(model: dict) -> MlpConfig:
+    """BenchMARL's ``MlpConfig`` (its yaml) with ``model``'s ``num_cells`` and ``activation``."""
+    config = MlpConfig.get_from_yaml()
+    config.num_cells = list(model["num_cells"])
+    config.activation_class = getattr(torch.nn, ACTIVATIONS[model["activation"]])
+    return config
+
+
+def build_experiment(env_id, algorithm, timesteps, seed, env_kwargs, settings, folder: Path, callbacks) -> Experiment:
+    """The BenchMARL ``Experiment`` of ``settings`` (``benchmarl_settings``), on the CPU, saving into ``folder``."""
+    config = ExperimentConfig.get_from_yaml()
+    config.sampling_device = config.train_device = config.buffer_device = "cpu"
+    config.loggers, config.create_json, config.render, config.evaluation = [], False, False, False
+    config.checkpoint_interval, config.checkpoint_at_end, config.save_folder = 0, False, str(folder)
+    config.max_n_frames = timesteps
+    for key, value in settings["experiment"].items():
+        setattr(config, key, value)
+    algorithm_config = getattr(algorithms, ALGORITHMS[algorithm]).get_from_yaml()
+    for key, value in settings["algorithm"].items():
+        setattr(algorithm_config, key, value)
+    task = getattr(InfonavTask, next(name for name, env in TASK_ENVS.items() if env == env_id)).get_task(env_kwargs)
+    folder.mkdir(parents=True, exist_ok=True)
+    model = mlp_config(settings["model"])
+    return Experiment(task, algorithm_config, model, seed, config, critic_model_config=model, callbacks=callbacks)
+
+
+def actor_model(experiment: Experiment) -> Model:
+    """The MLP of the experiment's policy: observations to logits."""
+    return next(module for module in experiment.group_policies[GROUP].modules() if isinstance(module, Model))
+
+
+class CurveRows(Callback):
+    """A ``curve.csv`` row per collection in which episodes ended: BenchMARL's mean return (per robot)."""
+
+    def __init__(self, path: Path):
+        super().__init__()
+        self.path = path
+
+    def on_batch_collected(self, batch):
+        episodes = int(batch.get(("next", "done")).sum())
+        if episodes:
+            append_row(self.path, self.experiment.total_frames, self.experiment.mean_return, math.nan, episodes)
+
+
+def train_benchmarl(
+    env_id: str,
+    timesteps: int,
+    output_dir: Path | str,
+    algorithm: str = "mappo",
+    seed: int = 0,
+    env_kwargs: dict | None = None,
+    hyperparameters: dict | None = None,
+    progress: bool = True,
+    curve_references: dict | None = None,
+) -> dict:
+    """Train BenchMARL's ``algorithm`` on team env ``env_id`` for at least ``timesteps`` team steps (BenchMARL's
+    frames); save the actor (also on Ctrl-C: ``"interrupted": true``) and return the ``train.json`` record."""
+    from agents.ppo import load_hyperparameters
+
+    env_kwargs = dict(env_kwargs or {})
+    hyperparameters = load_hyperparameters(env_id) if hyperparameters is None else hyperparameters
+    check_arguments(env_id, algorithm, timesteps, env_kwargs, hyperparameters)
+    settings = benchmarl_settings(hyperparameters)
+    output_dir = Path(output_dir)
+    curve = start_curve(output_dir, env_id, env_kwargs)
+    interrupted, start = False, time.perf_counter()
+    with torch_threads(), warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="No episode terminated this iteration")
+        experiment = build_experiment(
+            env_id, algorithm, timesteps, seed, env_kwargs, settings, output_dir / RUN_DIR, [CurveRows(curve)]
+        )
+        try:
+            with contextlib.redirect_stdout(sys.stderr):  # BenchMARL's prints: stdout is --json's
+                experiment.run()  # BenchMARL's progress bar
+        except INTERRUPTIONS as error:
+            if not pressed_ctrl_c(error):
+                raise
+            interrupted = True
+        finally:
+            shutil.rmtree(output_dir / RUN_DIR, ignore_errors=True)
+    seconds = time.perf_counter() - start
+    model = actor_model(experiment)
+    torch.save(model.state_dict(), output_dir / ACTOR_FILE)
+    title = f"{env_id}: {algorithm.upper()} (BenchMARL), seed {seed}"
+    record = {
+        "env_id": env_id,
+        "algorithm": f"{algorithm.upper()} (BenchMARL)",
+        "backend": "benchmarl",
+        "benchmarl_algorithm": algorithm,
+        "timesteps": experiment.total_frames,
+        "seed": seed,
+        "n_envs": settings["experiment"]["on_policy_n_envs_per_worker"],
+        "env_kwargs": env_kwargs,
+        "hyperparameters": hyperparameters,
+        "benchmarl": settings
+        | {"algorithm_config": dataclasses.asdict(experiment.algorithm_config), "share_params": model.share_params},
+        "actor": {
+            "file": str(output_dir / ACTOR_FILE),
+            "n_agents": model.n_agents,
+            "observation_shape": list(model.input_spec[GROUP, "observation"].shape[1:]),
+            "n_actions": int(model.output_spec[GROUP, "logits"].shape[-1]),
+        },
+        "seconds": seconds,
+        "fps": experiment.total_frames / seconds,
+        "interrupted": interrupted,
+        "curve": drawn_curve(output_dir, title, curve_references),
+    }
+    (output_dir / "train.json").write_text(json.dumps(record, indent=2) + "\n")
+    return record
