@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import logging
 import math
 import shutil
 import sys
@@ -116,6 +117,20 @@ def actor_model(experiment: Experiment) -> Model:
     return next(module for module in experiment.group_policies[GROUP].modules() if isinstance(module, Model))
 
 
+@contextlib.contextmanager
+def stdout_kept_clean():
+    """BenchMARL's prints to stderr and TorchRL's INFO lines off (its console handler writes to stdout): stdout is
+    ``--json``'s."""
+    logger = logging.getLogger("torchrl")
+    level = logger.level
+    logger.setLevel(logging.WARNING)
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        logger.setLevel(level)
+
+
 class CurveRows(Callback):
     """A ``curve.csv`` row per collection in which episodes ended: BenchMARL's mean return (per robot)."""
 
@@ -151,14 +166,13 @@ def train_benchmarl(
     output_dir = Path(output_dir)
     curve = start_curve(output_dir, env_id, env_kwargs)
     interrupted, start = False, time.perf_counter()
-    with torch_threads(), warnings.catch_warnings():
+    with torch_threads(), warnings.catch_warnings(), stdout_kept_clean():
         warnings.filterwarnings("ignore", message="No episode terminated this iteration")
         experiment = build_experiment(
             env_id, algorithm, timesteps, seed, env_kwargs, settings, output_dir / RUN_DIR, [CurveRows(curve)]
         )
         try:
-            with contextlib.redirect_stdout(sys.stderr):  # BenchMARL's prints: stdout is --json's
-                experiment.run()  # BenchMARL's progress bar
+            experiment.run()  # BenchMARL's progress bar
         except INTERRUPTIONS as error:
             if not pressed_ctrl_c(error):
                 raise

@@ -141,8 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
     leaderboard.add_argument(
         "--agents",
         type=names,
-        default="random,greedy,planner,ppo,rllib",
-        help="comma-separated columns, each once: random, greedy, planner, ppo, rllib (default: all)",
+        default="random,greedy,planner,ppo,rllib,benchmarl",
+        help="comma-separated columns, each once: random, greedy, planner, ppo, rllib, benchmarl (default: all)",
     )
     leaderboard.add_argument("--envs", type=names, help="comma-separated env ids (default: every registered env)")
     leaderboard.add_argument(
