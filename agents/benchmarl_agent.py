@@ -3,10 +3,12 @@ deterministically: the masked argmax of its logits (the mode of BenchMARL's mask
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
 import numpy as np
+from gymnasium.spaces import Discrete
 
 from agents.base import checked_action_count, trained_elsewhere, usable_mask
 
@@ -29,13 +31,6 @@ class BenchMARLAgent:
 
     def __init__(self, directory: Path | str, env, agent: str | None = None):
         training = import_benchmarl_training()
-        import torch
-        from gymnasium.spaces import Discrete
-        from tensordict import TensorDict
-        from torchrl.data import Composite, Unbounded
-
-        from agents.torchrl_env import GROUP
-
         directory = Path(directory)
         record_path, actor_path = directory / "train.json", directory / training.ACTOR_FILE
         if not record_path.is_file() or not actor_path.is_file():
@@ -52,37 +47,12 @@ class BenchMARLAgent:
         self.n_actions = checked_action_count(
             where, tuple(actor["observation_shape"]), Discrete(actor["n_actions"]), env, agent
         )
-        n_agents, shape = actor["n_agents"], (actor["n_agents"], *actor["observation_shape"])
-        specs = [
-            Composite({GROUP: Composite({key: Unbounded(shape=size)}, shape=(n_agents,))})
-            for key, size in (("observation", shape), ("logits", (n_agents, self.n_actions)))
-        ]
-        self.model = training.mlp_config(record["benchmarl"]["model"]).get_model(
-            input_spec=specs[0],
-            output_spec=specs[1],
-            agent_group=GROUP,
-            input_has_agent_dim=True,
-            n_agents=n_agents,
-            centralised=False,
-            share_params=record["benchmarl"]["share_params"],
-            device="cpu",
-            action_spec=None,
+        self.logits = functools.partial(
+            training.robot_logits, training.load_actor(record, actor_path), robots.index(agent)
         )
-        self.model.load_state_dict(torch.load(actor_path, weights_only=True))
-        self.model.eval()
-        self.robot, self.team_shape = robots.index(agent), shape
-        self.tensordict, self.torch, self.group = TensorDict, torch, GROUP
 
     def reset(self, seed: int | None = None) -> None:
         """Deterministic: nothing to reset."""
-
-    def logits(self, observation) -> np.ndarray:
-        """The actor's logits of this robot's ``observation`` (its row of the team's input; the others zero)."""
-        team = self.torch.zeros(self.team_shape)
-        team[self.robot] = self.torch.as_tensor(np.asarray(observation, dtype=np.float32))
-        batch = self.tensordict({self.group: {"observation": team[None]}}, batch_size=[1])
-        with self.torch.no_grad():
-            return self.model(batch)[self.group, "logits"][0, self.robot].numpy()
 
     def act(self, observation, info: dict) -> int:
         mask = usable_mask(info.get("action_mask"), self.n_actions)

@@ -18,12 +18,15 @@ import time
 import warnings
 from pathlib import Path
 
+import numpy as np
 import torch
 from benchmarl import algorithms
 from benchmarl.experiment import Experiment, ExperimentConfig
 from benchmarl.experiment.callback import Callback
 from benchmarl.models.common import Model
 from benchmarl.models.mlp import MlpConfig
+from tensordict import TensorDict
+from torchrl.data import Composite, Unbounded
 
 from agents.base import torch_threads
 from agents.benchmarl_task import TASK_ENVS, InfonavTask
@@ -115,6 +118,39 @@ def build_experiment(env_id, algorithm, timesteps, seed, env_kwargs, settings, f
 def actor_model(experiment: Experiment) -> Model:
     """The MLP of the experiment's policy: observations to logits."""
     return next(module for module in experiment.group_policies[GROUP].modules() if isinstance(module, Model))
+
+
+def load_actor(record: dict, path: Path) -> Model:
+    """The actor MLP of a ``train.json`` ``record``, its weights read from ``path`` (``ACTOR_FILE``)."""
+    actor, shape = record["actor"], (record["actor"]["n_agents"], *record["actor"]["observation_shape"])
+    specs = [
+        Composite({GROUP: Composite({key: Unbounded(shape=size)}, shape=shape[:1])})
+        for key, size in (("observation", shape), ("logits", (shape[0], actor["n_actions"])))
+    ]
+    model = mlp_config(record["benchmarl"]["model"]).get_model(
+        input_spec=specs[0],
+        output_spec=specs[1],
+        agent_group=GROUP,
+        input_has_agent_dim=True,
+        n_agents=shape[0],
+        centralised=False,
+        share_params=record["benchmarl"]["share_params"],
+        device="cpu",
+        action_spec=None,
+    )
+    model.load_state_dict(torch.load(path, weights_only=True))
+    return model.eval()
+
+
+def robot_logits(model: Model, robot: int, observation) -> np.ndarray:
+    """The logits ``model`` gives robot ``robot`` for its ``observation`` (its row of the team's input, the others
+    zero: a decentralised actor reads each robot's row alone)."""
+    team = torch.zeros((model.n_agents, *model.input_spec[GROUP, "observation"].shape[1:]))
+    team[robot] = torch.as_tensor(np.asarray(observation, dtype=np.float32))
+    with torch.no_grad():
+        return model(TensorDict({GROUP: {"observation": team[None]}}, batch_size=[1]))[GROUP, "logits"][
+            0, robot
+        ].numpy()
 
 
 @contextlib.contextmanager
