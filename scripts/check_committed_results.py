@@ -8,7 +8,8 @@ between CPUs and BLAS kernels (the committed files were written on other machine
 ``rtol`` (relative; 1e-6 by default), far above what rounding moves over an episode (about 1e-12 relative)
 and far below what one different decision moves (percent). ``--rtol 0``: bit for bit. ``--save DIR`` writes
 the fresh evaluations there, to compare a later run against them (``--rtol 0 DIR/*.json``). A file whose agents
-need an extra that is not installed (``rllib:`` without Ray, ``benchmarl:`` without BenchMARL) or whose env's dataset is absent is skipped, saying so.
+need an extra that is not installed (``rllib:`` without Ray, ``benchmarl:`` without BenchMARL) or whose env's
+dataset is absent is skipped, saying so.
 """
 
 from __future__ import annotations
