@@ -2,7 +2,7 @@
 
 BenchMARL's own configs (``get_from_yaml``) with the env's ppo.yml block translated (``benchmarl_settings``), no
 loggers and no evaluation; one policy shared by the robots. Writes the actor's weights (``actor.pt``), ``train.json``
-(with what rebuilds the actor: ``benchmarl_agent``) and a learning curve of the mean return per robot.
+(with what rebuilds the actor: ``load_actor``) and a learning curve of the mean return per robot.
 """
 
 from __future__ import annotations

@@ -558,7 +558,7 @@ def _train(args, command: str) -> dict:
     name = f"{args.env.rsplit('/', 1)[-1]}{'' if args.backend == 'sb3' else '_' + args.backend}_seed{args.seed}"
     output = check_output_dir(args.output or Path("models") / name, "--output")
     env_kwargs = dict(args.config)
-    shared = {"seed": args.seed, "env_kwargs": env_kwargs, "progress": not args.json}  # both backends take them
+    shared = {"seed": args.seed, "env_kwargs": env_kwargs, "progress": not args.json}  # every backend takes them
     shared["curve_references"] = _curve_references(args.env, env_kwargs)
     if rllib:
         options = {key: getattr(args, key) for key in ("num_env_runners", "envs_per_runner", "policies", "address")}
