@@ -12,6 +12,7 @@ import dataclasses
 import json
 import logging
 import math
+import os
 import shutil
 import sys
 import time
@@ -154,15 +155,17 @@ def robot_logits(model: Model, robot: int, observation) -> np.ndarray:
 
 
 @contextlib.contextmanager
-def stdout_kept_clean():
-    """BenchMARL's prints to stderr and TorchRL's INFO lines off (its console handler writes to stdout): stdout is
-    ``--json``'s."""
+def benchmarl_output(progress: bool):
+    """BenchMARL's progress bar and prints on stderr (stdout is ``--json``'s), or nowhere without ``progress``;
+    TorchRL's INFO lines off (its console handler writes to stdout)."""
     logger = logging.getLogger("torchrl")
     level = logger.level
     logger.setLevel(logging.WARNING)
     try:
-        with contextlib.redirect_stdout(sys.stderr):
-            yield
+        with open(os.devnull, "w") as devnull:
+            shown = sys.stderr if progress else devnull
+            with contextlib.redirect_stdout(shown), contextlib.redirect_stderr(shown):
+                yield
     finally:
         logger.setLevel(level)
 
@@ -202,7 +205,7 @@ def train_benchmarl(
     output_dir = Path(output_dir)
     curve = start_curve(output_dir, env_id, env_kwargs)
     interrupted, start = False, time.perf_counter()
-    with torch_threads(), warnings.catch_warnings(), stdout_kept_clean():
+    with torch_threads(), warnings.catch_warnings(), benchmarl_output(progress):
         warnings.filterwarnings("ignore", message="No episode terminated this iteration")
         experiment = build_experiment(
             env_id, algorithm, timesteps, seed, env_kwargs, settings, output_dir / RUN_DIR, [CurveRows(curve)]
