@@ -1,6 +1,8 @@
 """BenchMARL training (``infonav train --backend benchmarl``) and its agent (``benchmarl:DIR``): the ppo.yml block
 translated, the arguments checked, and a tiny trained actor playing as BenchMARL's own deterministic policy does."""
 
+import contextlib
+import io
 import json
 
 import numpy as np
@@ -76,8 +78,10 @@ def trained(tmp_path_factory, monkeypatch_module):
     monkeypatch_module.setattr(benchmarl_train, "build_experiment", kept)
     output = tmp_path_factory.mktemp("benchmarl")
     config = [flag for key, value in CONFIG.items() for flag in ("--config", f"{key}={value}")]
-    assert main(["train", "--backend", "benchmarl", "--env", TEAM_ID, *config, "--timesteps", "200",
-                 "--hyperparams", str(blocks), "--output", str(output), "--json"]) == 0  # fmt: skip
+    with contextlib.redirect_stdout(io.StringIO()) as stdout:
+        assert main(["train", "--backend", "benchmarl", "--env", TEAM_ID, *config, "--timesteps", "200",
+                     "--hyperparams", str(blocks), "--output", str(output), "--json"]) == 0  # fmt: skip
+    assert json.loads(stdout.getvalue()) == json.loads((output / "train.json").read_text())  # stdout: the JSON alone
     return output, experiments[0]
 
 
