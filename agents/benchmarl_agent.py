@@ -47,9 +47,8 @@ class BenchMARLAgent:
         self.n_actions = checked_action_count(
             where, tuple(actor["observation_shape"]), Discrete(actor["n_actions"]), env, agent
         )
-        self.logits = functools.partial(
-            training.robot_logits, training.load_actor(record, actor_path), robots.index(agent)
-        )
+        model, loc_scale = training.load_actor(record, actor_path), training.observation_standardization(record)
+        self.logits = functools.partial(training.robot_logits, model, robots.index(agent), *loc_scale)
 
     def reset(self, seed: int | None = None) -> None:
         """Deterministic: nothing to reset."""

@@ -28,12 +28,13 @@ from benchmarl.models.common import Model
 from benchmarl.models.mlp import MlpConfig
 from tensordict import TensorDict
 from torchrl.data import Composite, Unbounded
+from torchrl.envs.transforms import ObservationNorm
 
 from agents.base import torch_threads
-from agents.benchmarl_task import TASK_ENVS, InfonavTask
+from agents.benchmarl_task import TASK_ENVS, InfonavTask, InfonavTaskClass
 from agents.hyperparameters import ACTIVATIONS, checked_block
 from agents.learning_curve import append_row, drawn_curve, start_curve
-from agents.torchrl_env import GROUP
+from agents.torchrl_env import GROUP, InfonavTorchEnv
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.registry import make_env
 
@@ -43,7 +44,7 @@ RUN_DIR = "benchmarl_run"  # BenchMARL's experiment folder inside the output, re
 EXPERIMENT_NAMES = {"gamma": "gamma", "learning_rate": "lr"}  # ppo.yml key: its ExperimentConfig name
 ALGORITHM_NAMES = {"gae_lambda": "lmbda", "ent_coef": "entropy_coef", "clip_range": "clip_epsilon"}
 ROLLOUT_DEFAULTS = {"n_envs": 8, "n_steps": 2048, "batch_size": 64, "n_epochs": 10}  # SB3's, as ppo.py's
-NOT_MIRRORED = ("normalize",)  # BenchMARL's MLP sees raw observations
+OBSERVATION_NORM_STEPS = 200  # random-action team steps per copy whose observations set the standardization
 
 
 def check_arguments(env_id: str, algorithm: str, timesteps: int, env_kwargs: dict, hyperparameters: dict) -> None:
@@ -61,10 +62,14 @@ def check_arguments(env_id: str, algorithm: str, timesteps: int, env_kwargs: dic
 
 
 def benchmarl_settings(hyperparameters: dict) -> dict:
-    """The ppo.yml block as BenchMARL's settings: ``{"experiment": ..., "algorithm": ..., "model": ...}``; a rollout
-    of ``n_envs`` copies x ``n_steps`` team steps, minibatches of ``batch_size`` team steps, ``n_epochs`` passes.
+    """The ppo.yml block as BenchMARL's settings: ``{"experiment": ..., "algorithm": ..., "model": ...,
+    "observation_norm": ...}``; a rollout of ``n_envs`` copies x ``n_steps`` team steps, minibatches of ``batch_size``
+    team steps, ``n_epochs`` passes; ``normalize``'s ``norm_obs``: observations standardized (``StandardizedTask``).
     ``ValueError`` for a schedule (BenchMARL takes numbers)."""
+    from agents.ppo import normalization_kwargs
+
     block = checked_block(hyperparameters, "the hyperparameters")
+    normalize = normalization_kwargs(block)
     schedules = sorted(key for key, value in block.items() if isinstance(value, str) and key != "policy")
     if schedules:
         raise ValueError(f"hyperparameter(s) {schedules} are schedules: --backend benchmarl takes numbers")
@@ -86,7 +91,7 @@ def benchmarl_settings(hyperparameters: dict) -> dict:
             "num_cells": list(policy_kwargs.get("net_arch", [64, 64])),
             "activation": policy_kwargs.get("activation_fn", "tanh"),
         },
-        "not_mirrored": [key for key in NOT_MIRRORED if key in block],
+        "observation_norm": normalize is not None and bool(normalize.get("norm_obs", True)),
     }
 
 
@@ -96,6 +101,31 @@ def mlp_config(model: dict) -> MlpConfig:
     config.num_cells = list(model["num_cells"])
     config.activation_class = getattr(torch.nn, ACTIVATIONS[model["activation"]])
     return config
+
+
+class StandardizedTask(InfonavTaskClass):
+    """A team env's task whose observations are standardized, ``(observation - loc) / scale`` (TorchRL's
+    ``ObservationNorm``), with fixed ``loc`` and ``scale``."""
+
+    def __init__(self, name: str, config: dict, loc: torch.Tensor, scale: torch.Tensor):
+        super().__init__(name, config)
+        self.loc, self.scale = loc, scale
+
+    def get_env_transforms(self, env) -> list:
+        return [ObservationNorm(self.loc, self.scale, in_keys=[(GROUP, "observation")], standard_normal=True)]
+
+
+def observation_statistics(env_id: str, env_kwargs: dict, copies: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The mean and standard deviation (1 where it is 0) of each observation entry of ``copies`` copies' robots over
+    ``OBSERVATION_NORM_STEPS`` steps of random actions (invalid ones as the env takes them)."""
+    env = InfonavTorchEnv(env_id, copies, seed=seed, **env_kwargs)
+    try:
+        observations = env.rollout(OBSERVATION_NORM_STEPS, break_when_any_done=False)[GROUP, "observation"]
+    finally:
+        env.close()
+    observations = observations.reshape(-1, observations.shape[-1])
+    scale = observations.std(0)
+    return observations.mean(0), torch.where(scale > 0, scale, torch.ones_like(scale))
 
 
 def build_experiment(env_id, algorithm, timesteps, seed, env_kwargs, settings, folder: Path, callbacks) -> Experiment:
@@ -111,6 +141,9 @@ def build_experiment(env_id, algorithm, timesteps, seed, env_kwargs, settings, f
     for key, value in settings["algorithm"].items():
         setattr(algorithm_config, key, value)
     task = getattr(InfonavTask, next(name for name, env in TASK_ENVS.items() if env == env_id)).get_task(env_kwargs)
+    if settings["observation_norm"]:
+        loc, scale = observation_statistics(env_id, env_kwargs, config.on_policy_n_envs_per_worker, seed)
+        task = StandardizedTask(task.name, task.config, loc, scale)
     folder.mkdir(parents=True, exist_ok=True)
     model = mlp_config(settings["model"])
     return Experiment(task, algorithm_config, model, seed, config, critic_model_config=model, callbacks=callbacks)
@@ -143,11 +176,20 @@ def load_actor(record: dict, path: Path) -> Model:
     return model.eval()
 
 
-def robot_logits(model: Model, robot: int, observation) -> np.ndarray:
-    """The logits ``model`` gives robot ``robot`` for its ``observation`` (its row of the team's input, the others
-    zero: a decentralised actor reads each robot's row alone)."""
+def observation_standardization(record: dict) -> tuple[np.ndarray, np.ndarray]:
+    """``(loc, scale)`` of the observations a ``train.json`` ``record``'s actor read (0 and 1 if raw)."""
+    shape = record["actor"]["observation_shape"]
+    norm = record["benchmarl"].get("observation_loc"), record["benchmarl"].get("observation_scale")
+    if norm[0] is None:
+        return np.zeros(shape, dtype=np.float32), np.ones(shape, dtype=np.float32)
+    return tuple(np.asarray(values, dtype=np.float32) for values in norm)
+
+
+def robot_logits(model: Model, robot: int, loc: np.ndarray, scale: np.ndarray, observation) -> np.ndarray:
+    """The logits ``model`` gives robot ``robot`` for its ``observation`` standardized by ``loc`` and ``scale`` (its
+    row of the team's input, the others zero: a decentralised actor reads each robot's row alone)."""
     team = torch.zeros((model.n_agents, *model.input_spec[GROUP, "observation"].shape[1:]))
-    team[robot] = torch.as_tensor(np.asarray(observation, dtype=np.float32))
+    team[robot] = torch.as_tensor((np.asarray(observation, dtype=np.float32) - loc) / scale)
     with torch.no_grad():
         return model(TensorDict({GROUP: {"observation": team[None]}}, batch_size=[1]))[GROUP, "logits"][
             0, robot
@@ -168,6 +210,13 @@ def benchmarl_output(progress: bool):
                 yield
     finally:
         logger.setLevel(level)
+
+
+def standardization(task) -> dict:
+    """``observation_loc`` and ``observation_scale`` of a ``StandardizedTask`` as lists; none of a raw one."""
+    if not isinstance(task, StandardizedTask):
+        return {}
+    return {"observation_loc": task.loc.tolist(), "observation_scale": task.scale.tolist()}
 
 
 class CurveRows(Callback):
@@ -233,7 +282,8 @@ def train_benchmarl(
         "env_kwargs": env_kwargs,
         "hyperparameters": hyperparameters,
         "benchmarl": settings
-        | {"algorithm_config": dataclasses.asdict(experiment.algorithm_config), "share_params": model.share_params},
+        | {"algorithm_config": dataclasses.asdict(experiment.algorithm_config), "share_params": model.share_params}
+        | standardization(experiment.task),
         "actor": {
             "file": str(output_dir / ACTOR_FILE),
             "n_agents": model.n_agents,

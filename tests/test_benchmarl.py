@@ -23,11 +23,12 @@ from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
 from infonav_gym.registry import make_env  # noqa: E402
 
 TEAM_ID, CONFIG = "cooperative_localization_v0", {"team_reward": 1.0, "observe_gains": True, "max_cycles": 20}
-TINY_BLOCK = {"n_envs": 4, "n_steps": 25, "batch_size": 50, "n_epochs": 1, "policy_kwargs": {"net_arch": [16]}}
+TINY_BLOCK = {"n_envs": 4, "n_steps": 25, "batch_size": 50, "n_epochs": 1, "policy_kwargs": {"net_arch": [16]},
+              "normalize": {"norm_obs": True}}  # fmt: skip
 
 
 def test_the_ppo_yml_block_is_translated_into_benchmarls_names():
-    block = {**TINY_BLOCK, "n_epochs": 3, "gamma": 0.8, "learning_rate": 1e-3, "ent_coef": 0.01, "normalize": True}
+    block = {**TINY_BLOCK, "n_epochs": 3, "gamma": 0.8, "learning_rate": 1e-3, "ent_coef": 0.01, "normalize": False}
     settings = benchmarl_settings(block)
     assert settings["experiment"] == {
         "gamma": 0.8,
@@ -38,7 +39,10 @@ def test_the_ppo_yml_block_is_translated_into_benchmarls_names():
         "on_policy_n_minibatch_iters": 6,  # 3 passes of 2 minibatches
     }
     assert settings["algorithm"] == {"entropy_coef": 0.01}
-    assert settings["model"] == {"num_cells": [16], "activation": "tanh"} and settings["not_mirrored"] == ["normalize"]
+    assert settings["model"] == {"num_cells": [16], "activation": "tanh"} and not settings["observation_norm"]
+    assert benchmarl_settings(TINY_BLOCK)["observation_norm"]
+    assert benchmarl_settings({"normalize": True})["observation_norm"]
+    assert not benchmarl_settings({"normalize": {"norm_obs": False, "norm_reward": True}})["observation_norm"]
 
 
 @pytest.mark.parametrize(
@@ -99,6 +103,9 @@ def test_training_writes_the_record_the_actor_and_a_curve_without_benchmarls_fol
     assert record["env_id"] == TEAM_ID and record["env_kwargs"] == CONFIG and record["timesteps"] == 200
     assert record["actor"] | {"file": None} == {"file": None, "n_agents": 4, "observation_shape": [35], "n_actions": 5}
     assert not record["interrupted"] and experiment.total_frames == 200
+    norm = record["benchmarl"]
+    assert norm["observation_loc"] == experiment.task.loc.tolist() and len(norm["observation_loc"]) == 35
+    assert norm["observation_scale"] == experiment.task.scale.tolist() and min(norm["observation_scale"]) > 0
     assert sorted(path.name for path in output.iterdir()) == [
         "actor.pt", "curve.csv", "curve.png", "curve_labels.json", "train.json"
     ]  # fmt: skip
@@ -114,9 +121,11 @@ def test_each_robot_acts_as_benchmarls_deterministic_policy_on_the_torchrl_envs_
     torch_env = InfonavTorchEnv(TEAM_ID, num_envs=1, seed=7, **CONFIG)
     observations, infos = env.reset(seed=7)
     state = torch_env.reset()
+    [standardize] = experiment.task.get_env_transforms(torch_env)  # the observations the policy was trained on
     for _ in range(5):
         with set_exploration_type(ExplorationType.DETERMINISTIC):
-            state = experiment.policy(state)
+            actions = experiment.policy(standardize(state.clone()))[GROUP, "action"]
+        state[GROUP, "action"] = actions
         for k, robot in enumerate(env.possible_agents):
             assert np.array_equal(observations[robot], state[GROUP, "observation"][0, k].numpy())
             assert np.array_equal(infos[robot]["action_mask"].astype(bool), state[GROUP, "action_mask"][0, k].numpy())
