@@ -8,7 +8,8 @@ between CPUs and BLAS kernels (the committed files were written on other machine
 ``rtol`` (relative; 1e-6 by default), far above what rounding moves over an episode (about 1e-12 relative)
 and far below what one different decision moves (percent). ``--rtol 0``: bit for bit. ``--save DIR`` writes
 the fresh evaluations there, to compare a later run against them (``--rtol 0 DIR/*.json``). A file whose agents
-need an extra that is not installed (``rllib:`` without Ray) or whose env's dataset is absent is skipped, saying so.
+need an extra that is not installed (``rllib:`` without Ray, ``benchmarl:`` without BenchMARL) or whose env's
+dataset is absent is skipped, saying so.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from infonav_gym.experiments.evaluation import evaluate
 from infonav_gym.registry import env_entry, missing_dataset
 
 RESULTS = Path(__file__).resolve().parent.parent / "results"
+EXTRA_AGENTS = {"rllib:": ("ray", "distributed"), "benchmarl:": ("benchmarl", "marl")}  # agent prefix: module, extra
 
 
 def evaluations(paths: list[Path]) -> list[Path]:
@@ -34,8 +36,9 @@ def evaluations(paths: list[Path]) -> list[Path]:
 def missing_extra(path: Path) -> str | None:
     """Why ``path``'s evaluation cannot run here (an ``rllib:`` agent without Ray, its env's dataset absent)."""
     committed = json.loads(path.read_text())
-    if any(name.startswith("rllib:") for name in committed["agents"]) and importlib.util.find_spec("ray") is None:
-        return 'its rllib: agent needs Ray (pip install "infonav-gym[distributed]")'
+    for prefix, (module, extra) in EXTRA_AGENTS.items():
+        if any(name.startswith(prefix) for name in committed["agents"]) and importlib.util.find_spec(module) is None:
+            return f'its {prefix} agent needs {module} (pip install "infonav-gym[{extra}]")'
     return missing_dataset(committed["env_id"], **committed["env_kwargs"])
 
 

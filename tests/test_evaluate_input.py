@@ -132,7 +132,7 @@ def test_evaluate_help_names_every_kind_of_agent_it_takes(capsys):
     with pytest.raises(SystemExit):
         main(["evaluate", "--help"])
     help_text = " ".join(capsys.readouterr().out.split())
-    for kind in ["random", "greedy", "planner", "ppo:PATH", "rllib:DIR"]:
+    for kind in ["random", "greedy", "planner", "ppo:PATH", "rllib:DIR", "benchmarl:DIR"]:
         assert f"{kind}: " in help_text
 
 

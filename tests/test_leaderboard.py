@@ -18,6 +18,7 @@ from infonav_gym.experiments.evaluation import evaluate
 from infonav_gym.experiments.leaderboard import (
     BASELINES,
     COLUMNS,
+    MODEL_COLUMNS,
     TIE_TOLERANCE,
     best_columns,
     leaderboard,
@@ -77,11 +78,11 @@ def test_rows_are_every_registered_env_and_every_committed_model_is_a_cell_of_it
         if not missing_dataset(record["env_id"], **record["env_kwargs"])
     }
     for directory, record in records.items():
-        column = "rllib" if record.get("backend") == "rllib" else "ppo"
+        column = MODEL_COLUMNS[record.get("backend", "sb3")]
         played = directory / "best" if record.get("validation") else directory  # the policy kept on validation
         assert (record["env_id"], json.dumps(record["env_kwargs"], sort_keys=True), f"{column}:{played}") in cells
     learned = [(column, agent) for row in rows for column, agent, _ in row.models]
-    assert len(learned) == len(records) and all(column in ("ppo", "rllib") for column, _ in learned)
+    assert len(learned) == len(records) and {column for column, _ in learned} == {"ppo", "rllib", "benchmarl"}
     configs = [(row.env_id, json.dumps(row.env_kwargs, sort_keys=True)) for row in rows]
     assert len(configs) == len(set(configs))  # a row per env and config: no baseline is repeated
 
@@ -98,6 +99,24 @@ def test_a_models_train_json_must_name_a_registered_env_and_a_second_model_of_a_
     (tmp_path / "b" / "train.json").write_text(json.dumps({"env_id": "infonav/Nowhere-v0"}))
     with pytest.raises(ValueError, match=r"b/train.json: not the train.json of a registered env \(unknown env id"):
         leaderboard_rows([LANDMARKS], ("ppo",), tmp_path)
+
+
+def test_a_models_backend_picks_its_column_and_an_unknown_backend_is_refused(tmp_path):
+    team = "cooperative_localization_v0"
+    for name, backend in (("sb3", None), ("rllib", "rllib"), ("marl", "benchmarl")):
+        (tmp_path / name).mkdir()
+        record = {"env_id": team, "env_kwargs": {}} | ({"backend": backend} if backend else {})
+        (tmp_path / name / "train.json").write_text(json.dumps(record))
+    [row] = leaderboard_rows([team], ("ppo", "rllib", "benchmarl"), tmp_path)
+    assert row.models == (
+        ("benchmarl", f"benchmarl:{tmp_path / 'marl'}", "marl"),
+        ("rllib", f"rllib:{tmp_path / 'rllib'}", "rllib"),
+        ("ppo", f"ppo:{tmp_path / 'sb3'}", "sb3"),
+    )
+    assert COLUMNS["benchmarl"] == "BenchMARL MAPPO"
+    (tmp_path / "sb3" / "train.json").write_text(json.dumps({"env_id": team, "backend": "jax"}))
+    with pytest.raises(ValueError, match=r"sb3/train.json: backend 'jax' is none of sb3, rllib, benchmarl$"):
+        leaderboard_rows([team], ("ppo",), tmp_path)
 
 
 def test_a_row_plays_its_baselines_and_each_model_once_and_shows_each_familys_best(tmp_path, monkeypatch):

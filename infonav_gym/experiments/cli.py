@@ -142,8 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
     leaderboard.add_argument(
         "--agents",
         type=names,
-        default="random,greedy,planner,ppo,rllib",
-        help="comma-separated columns, each once: random, greedy, planner, ppo, rllib (default: all)",
+        default="random,greedy,planner,ppo,rllib,benchmarl",
+        help="comma-separated columns, each once: random, greedy, planner, ppo, rllib, benchmarl (default: all)",
     )
     leaderboard.add_argument("--envs", type=names, help="comma-separated env ids (default: every registered env)")
     leaderboard.add_argument(
@@ -244,10 +244,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument(
         "--backend",
-        choices=("sb3", "rllib"),
+        choices=("sb3", "rllib", "benchmarl"),
         default="sb3",
-        help="sb3: Stable-Baselines3 MaskablePPO (default); rllib: Ray RLlib PPO (the distributed extra)",
+        help="sb3: Stable-Baselines3 MaskablePPO (default); rllib: Ray RLlib PPO (the distributed extra); benchmarl: "
+        "BenchMARL's --algorithm on a team env, --timesteps team steps (the marl extra)",
     )
+    train.add_argument("--algorithm", help="benchmarl: mappo (default) or ippo, one policy shared by the robots")
     train.add_argument(
         "--num-env-runners",
         type=integer(0, MAX_WORKERS),
@@ -516,6 +518,7 @@ TRAIN_BACKEND_OPTIONS = {  # train's option: (the one backend that reads it, wha
     "envs_per_runner": ("rllib", "sets the env copies of each RLlib env runner"),
     "policies": ("rllib", "lays out RLlib's policies in a team env"),
     "address": ("rllib", "names the Ray cluster RLlib trains on"),
+    "algorithm": ("benchmarl", "picks BenchMARL's algorithm"),
 }
 TRAIN_OPTION_NEEDS = {  # train's option: (the option it needs, what that one gives)
     "eval_every": ("eval_episodes", "how many validation episodes"),
@@ -542,14 +545,19 @@ def _check_train_options(args) -> None:
 
 
 def _train(args, command: str) -> dict:
-    """Train PPO on ``args.env`` with SB3 or RLlib; print where the model went unless --json."""
-    rllib = args.backend == "rllib"
+    """Train PPO on ``args.env`` with SB3 or RLlib, or BenchMARL's MAPPO / IPPO; print where the model went unless
+    --json."""
+    rllib, benchmarl = args.backend == "rllib", args.backend == "benchmarl"
     _check_train_options(args)
     if rllib:
         from agents.ray_support import import_ray
 
         import_ray(args.address)  # a missing extra or a wrong address: a one-line error before the slow imports below
         from agents.rllib_train import train_rllib
+    if benchmarl:
+        from agents.benchmarl_agent import import_benchmarl_training
+
+        train_benchmarl = import_benchmarl_training().train_benchmarl  # a missing extra: a one-line error
     try:
         from agents.ppo import load_hyperparameters, train
     except ImportError as error:
@@ -557,10 +565,10 @@ def _train(args, command: str) -> dict:
     planner_workers = args.workers or 1
     if isinstance(args.init_from_planner, int):  # the planner's episodes: as many workers as episodes at most
         planner_workers = checked_workers(planner_workers, args.init_from_planner, 0, "the planner's episodes")
-    name = f"{args.env.rsplit('/', 1)[-1]}{'_rllib' if rllib else ''}_seed{args.seed}"
+    name = f"{args.env.rsplit('/', 1)[-1]}{'' if args.backend == 'sb3' else '_' + args.backend}_seed{args.seed}"
     output = check_output_dir(args.output or Path("models") / name, "--output")
     env_kwargs = dict(args.config)
-    shared = {"seed": args.seed, "env_kwargs": env_kwargs, "progress": not args.json}  # both backends take them
+    shared = {"seed": args.seed, "env_kwargs": env_kwargs, "progress": not args.json}  # every backend takes them
     shared["curve_references"] = _curve_references(args.env, env_kwargs)
     if rllib:
         options = {key: getattr(args, key) for key in ("num_env_runners", "envs_per_runner", "policies", "address")}
@@ -574,6 +582,17 @@ def _train(args, command: str) -> dict:
         )
         copies = f"{record['num_env_runners']} env runners x {record['envs_per_runner']} envs"
         written, agent = f"checkpoint: {record['checkpoint']}", f"rllib:{output}"
+    elif benchmarl:
+        record = train_benchmarl(
+            args.env,
+            args.timesteps,
+            output,
+            args.algorithm or "mappo",
+            **shared,
+            hyperparameters=load_hyperparameters(args.env, args.hyperparams),
+        )
+        saved, copies = record["actor"]["file"], f"{record['n_envs']} envs"
+        written, agent = f"actor: {saved}", f"benchmarl:{output}"
     else:
         model_path = train(
             args.env,
@@ -590,12 +609,12 @@ def _train(args, command: str) -> dict:
             validation_every=args.eval_every,
             validation_stop_at=args.stop_at,
         )
-        record = json.loads((model_path.parent / "train.json").read_text())
-        if record["interrupted"]:
-            message = f"interrupted after {record['timesteps']} of {args.timesteps} env steps; saved {model_path}"
-            raise Interrupted(f"{message} and train.json", record)
+        record, saved = json.loads((model_path.parent / "train.json").read_text()), model_path
         copies = f"{record['n_envs']} envs, {record['vectorization']}"
         written, agent = f"model: {model_path}", f"ppo:{model_path}"
+    if record.get("interrupted"):
+        message = f"interrupted after {record['timesteps']} of {args.timesteps} env steps; saved {saved}"
+        raise Interrupted(f"{message} and train.json", record)
     if not args.json:
         print(
             f"trained {record['algorithm']} on {args.env} ({copies}) for {record['timesteps']} env steps in "

@@ -23,10 +23,12 @@ AGENT_KINDS = {  # every agent name make_agent takes (NAME:ARGUMENT: a prefix an
     "planner": "a look-ahead planner, on envs with a planning model",
     "ppo:PATH": "a model.zip of infonav train, or its directory",
     "rllib:DIR": "a checkpoint directory of infonav train --backend rllib (the distributed extra)",
+    "benchmarl:DIR": "a robot of a team env, by the actor of infonav train --backend benchmarl (the marl extra)",
 }
 AGENT_NAMES = tuple(AGENT_KINDS)
 PPO_PREFIX = "ppo:"
 RLLIB_PREFIX = "rllib:"
+BENCHMARL_PREFIX = "benchmarl:"
 
 
 def check_agent_name(name: str) -> None:
@@ -41,8 +43,8 @@ def check_agent_name(name: str) -> None:
 def make_agent(
     name: str, n_actions: int, noop_action: int | None = None, env: gym.Env | None = None, agent: str | None = None
 ):
-    """A baseline agent by name; ``planner``, ``ppo:PATH`` and ``rllib:DIR`` need the ``env`` (and in a PettingZoo env
-    the robot ``agent``) they act in, and are imported only when asked for."""
+    """A baseline agent by name; ``planner``, ``ppo:PATH``, ``rllib:DIR`` and ``benchmarl:DIR`` need the ``env`` (and in
+    a PettingZoo env the robot ``agent``) they act in, and are imported only when asked for."""
     check_agent_name(name)
     if name == "random":
         return RandomAgent(n_actions, noop_action=noop_action)
@@ -96,6 +98,10 @@ def make_agent(
         except ImportError as error:
             raise ValueError(f"agent {name!r} needs Ray: {DISTRIBUTED_HINT} ({error})") from None
         return RLlibAgent(name[len(RLLIB_PREFIX) :], env, agent)
+    if name.startswith(BENCHMARL_PREFIX):
+        from agents.benchmarl_agent import BenchMARLAgent  # imports BenchMARL only when it builds the actor
+
+        return BenchMARLAgent(name[len(BENCHMARL_PREFIX) :], env, agent)
     try:
         from agents.ppo import PPOAgent
     except ImportError as error:

@@ -21,7 +21,15 @@ from infonav_gym.experiments.intervals import INTERVAL_NOTES, interval_cell, sum
 from infonav_gym.experiments.paths import Interrupted, output_file
 from infonav_gym.registry import available_envs, env_entry, missing_dataset
 
-COLUMNS = {"random": "random", "greedy": "greedy", "planner": "planner", "ppo": "PPO", "rllib": "RLlib PPO"}
+COLUMNS = {
+    "random": "random",
+    "greedy": "greedy",
+    "planner": "planner",
+    "ppo": "PPO",
+    "rllib": "RLlib PPO",
+    "benchmarl": "BenchMARL MAPPO",
+}
+MODEL_COLUMNS = {"sb3": "ppo", "rllib": "rllib", "benchmarl": "benchmarl"}  # train.json's backend: its column
 BASELINES = ("random", "greedy", "planner")  # agent name = column; the learned ones come from results/models
 WARMUP_STEPS = 2  # steps of an untimed, uncounted episode start before each cell's timed episodes
 TIE_TOLERANCE = 1e-9  # means within TIE_TOLERANCE * max(1, |best|) of the best mean are tied for the best
@@ -41,7 +49,7 @@ class Row:
 def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
     """``(column, agent name, env id, env kwargs, model name)`` of each ``*/train.json`` in ``directory`` (a run
     that kept a best policy plays that one; one whose env's dataset is absent here is left out, with a warning);
-    ``ValueError`` naming a ``train.json`` that is not an env's."""
+    ``ValueError`` naming a ``train.json`` that is not an env's or names an unknown backend."""
     models = []
     for record_path in sorted(Path(directory).glob("*/train.json")):
         try:
@@ -52,7 +60,9 @@ def committed_models(directory: Path) -> list[tuple[str, str, str, dict, str]]:
         if reason := missing_dataset(record["env_id"], **record.get("env_kwargs", {})):
             warnings.warn(f"{record_path.parent} left out: {reason}", stacklevel=2)
             continue
-        column = "rllib" if record.get("backend") == "rllib" else "ppo"
+        column = MODEL_COLUMNS.get(record.get("backend", "sb3"))
+        if column is None:
+            raise ValueError(f"{record_path}: backend {record['backend']!r} is none of {', '.join(MODEL_COLUMNS)}")
         model = record_path.parent
         if record.get("validation"):
             model /= Path(record["validation"]["best"]).name
