@@ -219,6 +219,17 @@ def standardization(task) -> dict:
     return {"observation_loc": task.loc.tolist(), "observation_scale": task.scale.tolist()}
 
 
+class CollectionClock(Callback):
+    """When each collection ended (``times``, ``time.perf_counter`` seconds): the benchmark's training rate."""
+
+    def __init__(self):
+        super().__init__()
+        self.times = []
+
+    def on_batch_collected(self, batch):
+        self.times.append(time.perf_counter())
+
+
 class CurveRows(Callback):
     """A ``curve.csv`` row per collection in which episodes ended: BenchMARL's mean return (per robot)."""
 

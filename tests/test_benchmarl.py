@@ -20,6 +20,7 @@ from agents.torchrl_env import GROUP, InfonavTorchEnv  # noqa: E402
 from infonav_gym.experiments.cli import main  # noqa: E402
 from infonav_gym.experiments.episodes import make_agent, make_team_agents  # noqa: E402
 from infonav_gym.experiments.evaluation import evaluate  # noqa: E402
+from infonav_gym.experiments.training_timing import benchmarl_train_steps_per_s  # noqa: E402
 from infonav_gym.registry import make_env  # noqa: E402
 
 TEAM_ID, CONFIG = "cooperative_localization_v0", {"team_reward": 1.0, "observe_gains": True, "max_cycles": 20}
@@ -147,3 +148,8 @@ def test_the_agent_plays_valid_episodes_in_evaluate_and_refuses_an_env_it_was_no
         make_agent(f"benchmarl:{output}", 45, env=exploration, agent="robot_0")
     with pytest.raises(ValueError, match="was trained for a team of 4 robots, but the env has one robot"):
         make_agent(f"benchmarl:{output}", 5, env=make_env("infonav/LandmarkSelection-v0"))
+
+
+@pytest.mark.slow  # three collections of 2 exploration copies and two MAPPO updates
+def test_the_benchmarks_benchmarl_rate_times_whole_collections_and_updates():
+    assert benchmarl_train_steps_per_s(n_envs=2) > 0

@@ -354,12 +354,16 @@ def test_the_benchmarks_training_figures_compare_sb3_with_rllib_in_robot_steps(l
     assert training_timing.rllib_train_steps_per_s(n_envs=2) > 0  # two exploration copies, a 128-step train batch
     monkeypatch.setattr(training_timing, "sb3_train_steps_per_s", lambda seed, n_envs: 3000.0)
     monkeypatch.setattr(training_timing, "rllib_train_steps_per_s", lambda seed, n_envs: 1200.0)
+    monkeypatch.setattr(training_timing, "benchmarl_train_steps_per_s", lambda seed, n_envs: 6000.0)
+    monkeypatch.setattr(training_timing, "benchmarl_missing", lambda: None)
     figures = training_timing.training_figures(n_envs=2)
     assert figures == {
         "sb3_train_steps_per_s": 3000.0,
         "train_n_envs": 2,
         "rllib_train_steps_per_s": 1200.0,
         "sb3_vs_rllib_train_steps_ratio": 2.5,
+        "benchmarl_train_steps_per_s": 6000.0,
+        "sb3_vs_benchmarl_train_steps_ratio": 0.5,
     }
 
 

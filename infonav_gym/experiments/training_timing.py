@@ -1,10 +1,14 @@
 """How fast each training backend learns on the exploration env: robot steps per second of PPO training (rollouts
 and updates), every backend with the same hyperparameters (the env's ``ppo.yml`` block), timed after a warm-up
-iteration, in one process. A team step of R robots counts R steps, as SB3's slots count them."""
+iteration, in one process: Stable-Baselines3, and RLlib and BenchMARL where installed. A team step of R robots counts
+R steps, as SB3's slots count them."""
 
 from __future__ import annotations
 
+import importlib.util
+import tempfile
 import time
+from pathlib import Path
 
 from infonav_gym.experiments.distributed_timing import EXPLORATION_ID, rllib_missing
 
@@ -60,6 +64,29 @@ def rllib_train_steps_per_s(seed: int = 0, iterations: int = 1, n_envs: int | No
             algorithm.stop()
 
 
+def benchmarl_missing() -> str | None:
+    """Why the BenchMARL figure is absent (BenchMARL does not import), or None."""
+    if importlib.util.find_spec("benchmarl") is None:
+        return 'BenchMARL figure absent: benchmarl is not installed; pip install "infonav-gym[marl]"'
+    return None
+
+
+def benchmarl_train_steps_per_s(seed: int = 0, iterations: int = 2, n_envs: int | None = None) -> float:
+    """Robot steps/s of BenchMARL's MAPPO (its critic centralised) over ``iterations`` collections and updates,
+    timed from the end of the first collection to the end of the last."""
+    from agents.base import torch_threads
+    from agents.benchmarl_train import CollectionClock, benchmarl_output, benchmarl_settings, build_experiment
+    from infonav_gym.registry import make_env
+
+    robots = len(make_env(EXPLORATION_ID, **EXPLORATION_CONFIG).possible_agents)
+    settings, clock = benchmarl_settings(training_block(n_envs)), CollectionClock()
+    frames = settings["experiment"]["on_policy_collected_frames_per_batch"]  # team steps per collection
+    with tempfile.TemporaryDirectory() as folder, torch_threads(), benchmarl_output(False):
+        args = (EXPLORATION_ID, "mappo", (iterations + 1) * frames, seed, EXPLORATION_CONFIG, settings, Path(folder))
+        build_experiment(*args, [clock]).run()
+    return robots * frames * iterations / (clock.times[iterations] - clock.times[0])
+
+
 def training_figures(seed: int = 0, n_envs: int | None = None) -> dict:
     """``{backend}_train_steps_per_s`` of every backend installed here, and SB3's ratio over each other one;
     ``n_envs`` (``None``: the block's) copies per rollout, fewer for a quick run."""
@@ -68,4 +95,7 @@ def training_figures(seed: int = 0, n_envs: int | None = None) -> dict:
     if not rllib_missing():
         rllib = rllib_train_steps_per_s(seed, n_envs=n_envs)
         figures.update(rllib_train_steps_per_s=rllib, sb3_vs_rllib_train_steps_ratio=sb3 / rllib)
+    if not benchmarl_missing():
+        benchmarl = benchmarl_train_steps_per_s(seed, n_envs=n_envs)
+        figures.update(benchmarl_train_steps_per_s=benchmarl, sb3_vs_benchmarl_train_steps_ratio=sb3 / benchmarl)
     return figures
