@@ -50,8 +50,8 @@ def test_the_labels_are_the_planners_on_the_states_the_actor_drives_to():
 def test_dagger_rounds_fit_the_planners_labels_and_play_in_evaluate(tmp_path, capsys):
     dataset = recorded(tmp_path, capsys, TEAM, "planner", "max_cycles=3")
     output = tmp_path / "dagger"
-    argv = ["clone", dataset, "--dagger", "1", "--dagger-episodes", "1", "--eval-episodes", "1", "--output", str(output)]
-    assert main([*argv, "--json"]) == 0
+    argv = ["clone", dataset, "--dagger", "1", "--dagger-episodes", "1", "--eval-episodes", "1", "--json"]
+    assert main([*argv, "--output", str(output)]) == 0
     done = json.loads(capsys.readouterr().out)["dagger"]["done"]
     assert [entry["round"] for entry in done] == [0, 1] and done[1]["seeds"] == "5000000..5000000"
     assert done[1]["labelled_rows"] == 12 and done[1]["rows"] == 24 and done[1]["model"] == str(output)

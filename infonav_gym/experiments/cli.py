@@ -278,7 +278,7 @@ def build_parser() -> argparse.ArgumentParser:
     clone.add_argument(
         "--output",
         type=Path,
-        help="model directory (default: models/NAME_bc_seedS, NAME the dataset's; NAME_dagger_seedS)",
+        help="model directory (default: models/NAME_bc_seedS, or NAME_dagger_seedS with --dagger; NAME the dataset's)",
     )
     clone.add_argument(
         "--dagger",
