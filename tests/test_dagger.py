@@ -52,9 +52,12 @@ def test_dagger_rounds_fit_the_planners_labels_and_play_in_evaluate(tmp_path, ca
     output = tmp_path / "dagger"
     argv = ["clone", dataset, "--dagger", "1", "--dagger-episodes", "1", "--eval-episodes", "1", "--json"]
     assert main([*argv, "--output", str(output)]) == 0
-    done = json.loads(capsys.readouterr().out)["dagger"]["done"]
+    record = json.loads(capsys.readouterr().out)
+    done = record["dagger"]["done"]
     assert [entry["round"] for entry in done] == [0, 1] and done[1]["seeds"] == "5000000..5000000"
     assert done[1]["labelled_rows"] == 12 and done[1]["rows"] == 24 and done[1]["model"] == str(output)
+    best = record["dagger"]["best_round"]
+    assert done[best]["validation_mean"] == max(entry["validation_mean"] for entry in done)
     labels = Demonstrations.load(output / "demonstrations.npz")[:3]  # the dataset's 12 rows, then round 1's
     env = make_env(TEAM, **SHORT)
     round_0 = PPOAgent(output / "round_0", env, "robot_0")

@@ -679,6 +679,9 @@ def _clone(args, command: str) -> dict:
 
         record["dagger"] = json.loads((output / RECORD_FILE).read_text())
         lines[:0] = [_dagger_round(done) for done in record["dagger"]["done"]]
+        if "best_round" in record["dagger"]:
+            best = record["dagger"]["done"][record["dagger"]["best_round"]]
+            lines.append(f"best on validation: round {best['round']}, ppo:{best['model']}")
     config_flags = "".join(
         f"--config {shlex.quote(f'{key}={json.dumps(value)}')} " for key, value in record["env_kwargs"].items()
     )

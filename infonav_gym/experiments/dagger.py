@@ -18,6 +18,7 @@ from agents.imitation import Demonstrations, agreement, planner_demonstrations
 from agents.ppo import MODEL_FILE, PPOAgent, load_model, load_normalization, model_file, train, training_vec_env
 from agents.validation import VALIDATION_SEEDS, validation_metrics
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
+from infonav_gym.decisions import argmax_tied
 from infonav_gym.experiments.paths import Interrupted
 
 DAGGER_SEEDS = 5_000_000  # round r drives seeds DAGGER_SEEDS + seed + (r - 1) * episodes ..: none that is evaluated
@@ -41,8 +42,9 @@ def dagger(
     """Clone ``demonstrations`` (``agents.imitation.Demonstrations``), then ``rounds`` DAgger rounds of ``episodes``
     planner-labelled episodes each (played in ``workers`` processes); each policy is saved as ``infonav train`` saves
     one and validated on ``validation_episodes`` seeds from ``VALIDATION_SEEDS + seed`` (the env's main metric).
-    Returns the last policy's model path (``output/model.zip``); ``output/dagger.json`` records the rounds. Ctrl-C
-    keeps the finished rounds and raises ``Interrupted``."""
+    Returns the last policy's model path (``output/model.zip``); ``output/dagger.json`` records the rounds and the one
+    best on validation (``best_round``: DAgger returns that policy). Ctrl-C keeps the finished rounds and raises
+    ``Interrupted``."""
     if rounds < 1 or episodes < 1 or workers < 1 or validation_episodes < 0:
         raise ValueError(
             "DAgger needs rounds >= 1, episodes >= 1, workers >= 1 and validation episodes >= 0, got "
@@ -84,6 +86,8 @@ def dagger(
                 "validation_seconds": time.perf_counter() - fitted,
             }
             record["done"].append(done)
+            if validation_episodes:  # DAgger's answer: the policy best on validation (ties: the earliest)
+                record["best_round"] = argmax_tied([entry["validation_mean"] for entry in record["done"]])
             (output / RECORD_FILE).write_text(json.dumps(record, indent=2) + "\n")
     except INTERRUPTIONS as error:
         if not pressed_ctrl_c(error):
