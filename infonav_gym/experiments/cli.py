@@ -674,11 +674,11 @@ def _clone(args, command: str) -> dict:
         f"cloned {start['rows']} decisions of {start['demonstrations']} ({start['agreement']:.0%} agreement); "
         f"model: {model_path}",
     ]
-    if args.dagger:
+    if args.dagger:  # the rounds' lines instead: the last round's demonstrations are more than the recorded ones
         from infonav_gym.experiments.dagger import RECORD_FILE
 
         record["dagger"] = json.loads((output / RECORD_FILE).read_text())
-        lines[:0] = [_dagger_round(done) for done in record["dagger"]["done"]]
+        lines = [_dagger_round(done) for done in record["dagger"]["done"]]
         if "best_round" in record["dagger"]:
             best = record["dagger"]["done"][record["dagger"]["best_round"]]
             lines.append(f"best on validation: round {best['round']}, ppo:{best['model']}")
