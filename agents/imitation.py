@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import multiprocessing
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from functools import partial
 from pathlib import Path
@@ -84,24 +85,31 @@ def discounted_returns(rewards: np.ndarray, gamma: float) -> np.ndarray:
     return returns
 
 
-def planner_episode(env_id: str, seed: int, gamma: float, env_kwargs: dict | None = None) -> Demonstrations:
-    """The planner's episode on ``seed`` as demonstrations, its planners reset as ``infonav evaluate`` resets them."""
+def planner_episode(
+    env_id: str, seed: int, gamma: float, env_kwargs: dict | None = None, actor: Callable | None = None
+) -> Demonstrations:
+    """The planner's episode on ``seed`` as demonstrations, its planners reset as ``infonav evaluate`` resets them.
+    ``actor(env, robot)``: an agent per robot whose actions are executed instead, the planner only labelling the
+    states they lead to (DAgger's data); the rewards, and so the returns, are then theirs."""
     env = make_env(env_id, **(env_kwargs or {}))
     try:
         team = api_of(env_id) == PARALLEL
         robots = list(env.possible_agents) if team else [None]
         planners = [PlannerAgent(env, robot, **planner_settings(env_id)) for robot in robots]
+        actors = [actor(env, robot) for robot in robots] if actor else planners
         observations, infos = env.reset(seed=seed)
         if not team:  # a single env as a team of one
             observations, infos = {None: observations}, {None: infos}
-        for k, planner in enumerate(planners):
-            planner.reset(seed=1000 * seed + k if team else seed)
+        for k, acting in enumerate(planners + actors):  # the planners twice without an actor: harmless
+            acting.reset(seed=1000 * seed + k % len(robots) if team else seed)
         seen, masks, actions, rewards, done = [], [], [], [], False
         while not done:  # a team env ends for every robot at once
             chosen = [planner.act(observations[robot], infos[robot]) for robot, planner in zip(robots, planners)]
             seen.append([observations[robot] for robot in robots])
             masks.append([infos[robot]["action_mask"] for robot in robots])
             actions.append(chosen)
+            if actor:
+                chosen = [acting.act(observations[robot], infos[robot]) for robot, acting in zip(robots, actors)]
             if team:
                 observations, reward, _, _, infos = env.step(dict(zip(robots, chosen)))
                 done = not env.agents
@@ -153,13 +161,16 @@ def planner_demonstrations(
     env_kwargs: dict | None = None,
     workers: int = 1,
     progress: bool = True,
+    actor: Callable | None = None,
 ) -> Demonstrations:
     """The planner's episodes on seeds ``seed .. seed + episodes - 1``, joined in seed order, played in ``workers``
-    processes (``ValueError`` for counts below 1 or an env without a planning model)."""
+    processes (``ValueError`` for counts below 1 or an env without a planning model); ``actor``: ``planner_episode``'s,
+    picklable with ``workers`` > 1."""
     if episodes < 1 or workers < 1:
         raise ValueError(f"episodes and workers must be >= 1, got {episodes} and {workers}")
-    bar = tqdm(total=episodes, desc="planner demonstrations", unit="episode", disable=not progress)
-    episode = partial(planner_episode, env_id, gamma=gamma, env_kwargs=env_kwargs)
+    what = "planner labels" if actor else "planner demonstrations"
+    bar = tqdm(total=episodes, desc=what, unit="episode", disable=not progress)
+    episode = partial(planner_episode, env_id, gamma=gamma, env_kwargs=env_kwargs, actor=actor)
     parts = []
     with bar, ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         played = map if workers == 1 else pool.map  # spawn: fresh interpreters, no torch or numba state forked
@@ -217,18 +228,21 @@ def _fitted_batch(policy, optimizer, observations, masks, actions, returns) -> t
     return action_nll.item(), value_mse.item()
 
 
-def agreement(model, demonstrations: Demonstrations) -> float:
-    """The fraction of the demonstrations' rows where ``model``'s most probable valid action is the planner's."""
-    observations = torch.as_tensor(_normalized(model, demonstrations.observations)).float()
+def agreement(model, demonstrations: Demonstrations, normalization=None) -> float:
+    """The fraction of the demonstrations' rows where ``model``'s most probable valid action is the planner's
+    (``normalization``: its ``VecNormalize`` when the model has no env, as a loaded one)."""
+    observations = torch.as_tensor(_normalized(model, demonstrations.observations, normalization)).float()
     with torch.no_grad():
         logits = model.policy.get_distribution(observations).distribution.logits.numpy()
     chosen = np.argmax(np.where(demonstrations.action_masks, logits, -np.inf), axis=1)
     return float(np.mean(chosen == demonstrations.actions))
 
 
-def _normalized(model, observations: np.ndarray) -> np.ndarray:
-    """``observations`` as ``model``'s policy sees them: through its ``VecNormalize``, if it normalizes them."""
-    normalization = model.get_vec_normalize_env()
+def _normalized(model, observations: np.ndarray, normalization=None) -> np.ndarray:
+    """``observations`` as ``model``'s policy sees them: through its ``VecNormalize`` (``normalization``, else its
+    env's), if it normalizes them."""
+    if normalization is None:
+        normalization = model.get_vec_normalize_env()
     if normalization is None or not normalization.norm_obs:
         return observations
     return normalization.normalize_obs(observations)

@@ -286,7 +286,30 @@ def build_parser() -> argparse.ArgumentParser:
     )
     clone.add_argument("dataset", type=Path, help="the dataset's directory, DIR/ID of infonav dataset")
     clone.add_argument(
-        "--output", type=Path, help="model directory (default: models/NAME_bc_seedS, NAME the dataset's)"
+        "--output",
+        type=Path,
+        help="model directory (default: models/NAME_bc_seedS, or NAME_dagger_seedS with --dagger; NAME the dataset's)",
+    )
+    clone.add_argument(
+        "--dagger",
+        type=integer(1, MAX_ROUNDS),
+        metavar="ROUNDS",
+        help="then ROUNDS rounds of DAgger: the latest policy drives --dagger-episodes episodes (seeds from 5000000 + "
+        "--seed on) while the env's planner labels every decision, and a new policy is fitted to all labels so far; "
+        "round R's policy in OUTPUT/round_R, the last one in OUTPUT, every round in OUTPUT/dagger.json",
+    )
+    clone.add_argument(
+        "--dagger-episodes", type=integer(1, MAX_EPISODES), metavar="K", help="episodes per DAgger round (default: 10)"
+    )
+    clone.add_argument(
+        "--workers", type=integer(1, MAX_WORKERS), help="processes that play a DAgger round's episodes (default: 1)"
+    )
+    clone.add_argument(
+        "--eval-episodes",
+        type=integer(0, MAX_EPISODES),
+        metavar="K",
+        help="validate each DAgger round's policy on K episodes (seeds from 2000000 + --seed, deterministic, the env's "
+        "main metric; default: 10)",
     )
 
     benchmark = commands.add_parser("benchmark", help="speed goals as ratios against CartPole-v1, same process")
@@ -668,21 +691,44 @@ def _clone(args, command: str) -> dict:
     """Behaviour cloning of ``args.dataset``; print where the model went unless --json."""
     from infonav_gym.experiments.dataset import clone_dataset
 
-    name = f"{args.dataset.resolve().name.rsplit('-v', 1)[0]}_bc_seed{args.seed}"
+    flags = {"--dagger-episodes": "dagger_episodes", "--workers": "workers", "--eval-episodes": "validation_episodes"}
+    values = {flag: getattr(args, flag[2:].replace("-", "_")) for flag in flags}
+    given = [flag for flag, value in values.items() if value is not None]
+    if given and args.dagger is None:
+        raise ValueError(f"{', '.join(given)} only go with --dagger ROUNDS")
+    name = f"{args.dataset.resolve().name.rsplit('-v', 1)[0]}_{'dagger' if args.dagger else 'bc'}_seed{args.seed}"
     output = check_output_dir(args.output or Path("models") / name, "--output")
-    model_path = clone_dataset(args.dataset, output, args.seed, progress=not args.json)
+    options = {flags[flag]: values[flag] for flag in given}  # the others: clone_dataset's defaults
+    model_path = clone_dataset(args.dataset, output, args.seed, not args.json, args.dagger or 0, **options)
     record = json.loads((model_path.parent / "train.json").read_text())
     start = record["warm_start"]
     lines = [
         f"cloned {start['rows']} decisions of {start['demonstrations']} ({start['agreement']:.0%} agreement); "
         f"model: {model_path}",
-        f"evaluate it: infonav evaluate --env {record['env_id']} "
-        + "".join(
-            f"--config {shlex.quote(f'{key}={json.dumps(value)}')} " for key, value in record["env_kwargs"].items()
-        )
-        + f"--agents greedy,ppo:{model_path.parent}",
     ]
+    if args.dagger:  # the rounds' lines instead: the last round's demonstrations are more than the recorded ones
+        from infonav_gym.experiments.dagger import RECORD_FILE
+
+        record["dagger"] = json.loads((output / RECORD_FILE).read_text())
+        lines = [_dagger_round(done) for done in record["dagger"]["done"]]
+        if "best_round" in record["dagger"]:
+            best = record["dagger"]["done"][record["dagger"]["best_round"]]
+            lines.append(f"best on validation: round {best['round']}, ppo:{best['model']}")
+    config_flags = "".join(
+        f"--config {shlex.quote(f'{key}={json.dumps(value)}')} " for key, value in record["env_kwargs"].items()
+    )
+    lines.append(f"evaluate it: infonav evaluate --env {record['env_id']} {config_flags}--agents greedy,ppo:{output}")
     return _show(args, record, lambda: lines)
+
+
+def _dagger_round(done: dict) -> str:
+    """One line of a DAgger round's record (``dagger.json``)."""
+    line = f"round {done['round']}: fitted {done['rows']} decisions ({done['agreement_fitted']:.0%} agreement)"
+    if done["validation_mean"] is not None:
+        line += f", validation mean {done['validation_mean']:.3f}"
+    if "agreement_on_own_states" in done:
+        line += f"; {done['agreement_on_own_states']:.0%} agreement on the states it then drove to"
+    return line + f"; {done['model']}"
 
 
 def _benchmark(args, command: str) -> dict:

@@ -21,7 +21,7 @@ from tqdm.auto import tqdm
 
 from infonav_gym.compiled import INTERRUPTIONS, pressed_ctrl_c
 from infonav_gym.envs.joint_view import joint_spec, recorded_env
-from infonav_gym.envs.traits import traits_of
+from infonav_gym.envs.traits import has_planning_model, traits_of
 from infonav_gym.experiments.episode_pool import seeds_of
 from infonav_gym.experiments.episodes import (
     check_agent_name,
@@ -31,7 +31,7 @@ from infonav_gym.experiments.episodes import (
     robot_seed,
 )
 from infonav_gym.experiments.paths import Interrupted, check_output_dir
-from infonav_gym.registry import PARALLEL, api_of, make_env, resolve_env_id
+from infonav_gym.registry import PARALLEL, api_of, env_entry, make_env, resolve_env_id
 
 DATA_HINT = "pip install 'infonav-gym[data]' (minari with its create and hdf5 extras, jax)"
 DATASET_ID = re.compile(r"^[\w.-]+(/[\w.-]+)*-v\d+$")  # Minari's (namespace/)(env_name/)name-vN
@@ -186,17 +186,46 @@ def load_recorded(path: Path | str):
     return dataset
 
 
-def clone_dataset(path: Path | str, output: Path | str, seed: int = 0, progress: bool = True) -> Path:
+def clone_dataset(
+    path: Path | str,
+    output: Path | str,
+    seed: int = 0,
+    progress: bool = True,
+    dagger_rounds: int = 0,
+    dagger_episodes: int = 10,
+    workers: int = 1,
+    validation_episodes: int = 10,
+) -> Path:
     """Behaviour cloning of the agent recorded in the dataset at ``path`` (``load_recorded``) into a ``MaskablePPO``
     policy for the env and config the dataset recreates, saved in ``output`` as ``infonav train`` saves models (PPO
-    for 0 steps after cloning: ``infonav evaluate --agents ppo:OUTPUT`` plays it). Returns the model's path."""
+    for 0 steps after cloning: ``infonav evaluate --agents ppo:OUTPUT`` plays it). ``dagger_rounds`` > 0: then that
+    many rounds of DAgger with the env's planner (``infonav_gym.experiments.dagger``; ``ValueError`` for an env without
+    a planning model). Returns the model's path."""
     from agents.imitation import Demonstrations
     from agents.ppo import load_hyperparameters, train
 
     dataset = load_recorded(path)
     env_id, env_kwargs = recorded_env(dataset.spec.env_spec)
+    if dagger_rounds and not has_planning_model(env_entry(env_id).load()):
+        raise ValueError(f"--dagger labels with the env's planner, and {env_id} has no planning model")
     gamma = load_hyperparameters(env_id).get("gamma", 0.99)
     demonstrations = Demonstrations.of_dataset(dataset, api_of(env_id) == PARALLEL, gamma)
+    if dagger_rounds:
+        from infonav_gym.experiments.dagger import dagger
+
+        return dagger(
+            env_id,
+            env_kwargs,
+            demonstrations,
+            dagger_rounds,
+            dagger_episodes,
+            output,
+            seed,
+            gamma,
+            workers,
+            validation_episodes,
+            progress,
+        )
     return train(
         env_id,
         0,
