@@ -86,6 +86,9 @@ GOALS = {
     # issue 45: TorchRL's view of the team envs, as BenchMARL trains on them
     "cooperative_localization_torchrl_256_vs_native_ratio": 0.8,
     "cooperative_exploration_torchrl_256_vs_native_ratio": 0.8,
+    # issue 45: infonav train's default backend trains at least as fast as the others, the same block on one core
+    "sb3_vs_rllib_train_steps_ratio": 1.0,
+    "sb3_vs_benchmarl_train_steps_ratio": 1.0,
 }
 PPO_TIMESTEPS_PER_SECOND_OF_ROUND = 2048  # --seconds 1 -> 2048 PPO timesteps per env per round, 256 at least
 PPO_VECTOR_TIMESTEPS_PER_SECOND_OF_ROUND = 8192  # the same for the 64-copy vector envs: two 4096-step rollouts
