@@ -140,13 +140,18 @@ def _constructor_kwargs(hyperparameters: dict) -> dict:
     not_constructor = ("n_envs", "policy", "n_timesteps", "normalize")
     kwargs = {key: value for key, value in hyperparameters.items() if key not in not_constructor}
     for key, value in scheduled(hyperparameters).items():  # rl-zoo's lin_<start>: from start to 0 over training
-        kwargs[key] = LinearSchedule(float(value.removeprefix(LINEAR)), 0.0, 1.0)
+        kwargs[key] = LinearSchedule(schedule_start(value), 0.0, 1.0)
     policy_kwargs = dict(kwargs.get("policy_kwargs") or {})
     if "activation_fn" in policy_kwargs:
         policy_kwargs["activation_fn"] = getattr(torch.nn, ACTIVATIONS[policy_kwargs["activation_fn"]])
     if policy_kwargs:
         kwargs["policy_kwargs"] = policy_kwargs
     return kwargs
+
+
+def schedule_start(value: str) -> float:
+    """The start of rl-zoo's ``lin_<start>`` schedule."""
+    return float(value.removeprefix(LINEAR))
 
 
 def scheduled(hyperparameters: dict) -> dict:
@@ -293,8 +298,12 @@ def build_model(
         vec_env = VecNormalize(vec_env, gamma=hyperparameters.get("gamma", 0.99), **normalize)
     policy, kwargs = _constructor_arguments(hyperparameters, seed, tensorboard_log)
     model = (MaskablePPO if masked else PPO)(policy, vec_env, **kwargs)
-    if tensorboard_log is None:  # SB3's default logger would make an empty SB3-<time> folder in the temp folder
-        model.set_logger(Logger(folder=None, output_formats=[]))
+    return model if tensorboard_log is not None else without_log_folder(model)
+
+
+def without_log_folder(model):
+    """``model`` logging nowhere: SB3's default logger would make an empty SB3-<time> folder in the temp folder."""
+    model.set_logger(Logger(folder=None, output_formats=[]))
     return model
 
 

@@ -51,10 +51,11 @@ def _round_settings(timesteps_per_round: int, n_envs: int, n_steps: int | None =
 def _masked_model(vec_env, hyperparameters: dict, seed: int):
     from sb3_contrib import MaskablePPO
 
-    from agents.ppo import _constructor_kwargs
+    from agents.ppo import _constructor_kwargs, without_log_folder
 
     kwargs = _constructor_kwargs(hyperparameters)
-    return MaskablePPO(hyperparameters.get("policy", "MlpPolicy"), vec_env, seed=seed, device="cpu", **kwargs)
+    model = MaskablePPO(hyperparameters.get("policy", "MlpPolicy"), vec_env, seed=seed, device="cpu", **kwargs)
+    return without_log_folder(model)
 
 
 def _fps_figures(infix: str, make_vec_envs: dict, hyperparameters: dict, seed: int, timesteps: int, rounds: int):

@@ -18,10 +18,10 @@ EXPLORATION_CONFIG = {"observe_gains": True}  # the config the exploration model
 def training_block(n_envs: int | None = None) -> dict:
     """The exploration env's shipped PPO block, a schedule at its start value (RLlib takes numbers); ``n_envs``
     (``None``: the block's) copies per rollout, the minibatch at most a rollout."""
-    from agents.ppo import load_hyperparameters, scheduled
+    from agents.ppo import load_hyperparameters, schedule_start, scheduled
 
     block = load_hyperparameters(EXPLORATION_ID)
-    block.update({key: float(value.split("_", 1)[1]) for key, value in scheduled(block).items()})
+    block.update({key: schedule_start(value) for key, value in scheduled(block).items()})
     if n_envs is None:
         return block
     return {**block, "n_envs": n_envs, "batch_size": min(block["batch_size"], n_envs * block["n_steps"])}
